@@ -1,0 +1,63 @@
+"""fidlearn: learn and do camera localization from ArUco fiducials with OpenCV.
+
+The pipeline: calibrate the camera (:class:`Camera`), write down where the
+markers are (:class:`MarkerMap`), detect them in an image, solve PnP, and
+invert the extrinsics to get the camera's pose in the world.
+
+Importing fidlearn has no side effects.
+"""
+
+from __future__ import annotations
+
+from .camera import Camera
+from .errors import (
+    CalibrationError,
+    CameraError,
+    DictionaryError,
+    FidlearnError,
+    FidlearnWarning,
+    ImageError,
+    MapError,
+    NoMarkersError,
+    TransformError,
+)
+from .frames import (
+    compose,
+    invert_transform,
+    make_transform,
+    rotation_from_rpy_deg,
+    rpy_deg_from_rotation,
+    rvec_tvec_from_transform,
+    transform_from_rvec_tvec,
+    transform_points,
+)
+from .markermap import MarkerMap, MarkerPlacement
+from .data import data_dir, data_path
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Camera",
+    "MarkerMap",
+    "MarkerPlacement",
+    "FidlearnError",
+    "FidlearnWarning",
+    "MapError",
+    "CameraError",
+    "TransformError",
+    "ImageError",
+    "DictionaryError",
+    "NoMarkersError",
+    "CalibrationError",
+    "compose",
+    "invert_transform",
+    "make_transform",
+    "rotation_from_rpy_deg",
+    "rpy_deg_from_rotation",
+    "rvec_tvec_from_transform",
+    "transform_from_rvec_tvec",
+    "transform_points",
+    "data_dir",
+    "data_path",
+    "__version__",
+]

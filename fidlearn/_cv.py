@@ -1,0 +1,161 @@
+"""Every difference between the OpenCV releases fidlearn supports (4.8 to 5.x), in one place.
+
+The rest of fidlearn calls these helpers and never branches on the OpenCV
+version itself.  Known differences:
+
+* ``cv2.aruco.Dictionary_get``, ``DetectorParameters_create`` and the free
+  function ``cv2.aruco.detectMarkers`` are gone since 4.7; detection goes
+  through ``cv2.aruco.ArucoDetector``.
+* ``ids`` comes back shaped (N, 1) before OpenCV 5 and (N,) from 5.0; ``None``
+  when nothing is found.
+* The numbers of the ``SOLVEPNP_*`` flags changed in 5.0 (IPPE is 6 in 4.x and
+  4 in 5.x; DLS and UPNP were removed): always look flags up by name.
+* ``cv2.aruco.calibrateCameraCharuco`` and ``estimatePoseSingleMarkers`` are
+  gone; ChArUco corners come from ``cv2.aruco.CharucoDetector`` and calibration
+  from ``cv2.calibrateCamera``.
+"""
+
+from __future__ import annotations
+
+import re
+
+import cv2
+import numpy as np
+
+from .errors import DictionaryError, FidlearnError
+
+OPENCV_VERSION: tuple[int, int, int] = tuple(int(x) for x in re.findall(r"\d+", cv2.__version__)[:3])  # type: ignore[assignment]
+
+_ARUCO = getattr(cv2, "aruco", None)
+
+#: Readable dictionary names (without the ``DICT_`` prefix) to OpenCV constants.
+DICTIONARIES: dict[str, int] = {}
+if _ARUCO is not None:
+    for _attr in dir(_ARUCO):
+        if _attr.startswith("DICT_"):
+            _name = _attr[len("DICT_"):]
+            # OpenCV spells the AprilTag families both 36h11 and 36H11: keep the lower-case one.
+            if _name.upper() == _name and _name.startswith(("APRILTAG_", "ARUCO_MIP_")):
+                continue
+            DICTIONARIES[_name] = getattr(_ARUCO, _attr)
+
+
+def require_aruco() -> None:
+    """Raise a clear error when the installed OpenCV has no ``aruco`` module."""
+    if _ARUCO is None or not hasattr(_ARUCO, "ArucoDetector"):
+        raise FidlearnError(
+            f"OpenCV {cv2.__version__} has no cv2.aruco.ArucoDetector; install "
+            "'opencv-contrib-python-headless>=4.8' and remove other OpenCV wheels "
+            "(run 'fidlearn doctor')"
+        )
+
+
+def dictionary_name(name: str) -> str:
+    """Normalise a dictionary name: ``"DICT_6X6_250"``, ``"6x6_250"`` -> ``"6X6_250"``."""
+    if not isinstance(name, str) or not name.strip():
+        raise DictionaryError(f"dictionary name {name!r} is not a non-empty string; try 'ARUCO_ORIGINAL'")
+    key = name.strip()
+    if key.upper().startswith("DICT_"):
+        key = key[5:]
+    for known in DICTIONARIES:
+        if known.upper() == key.upper():
+            return known
+    close = [k for k in DICTIONARIES if key.upper().split("_")[0] in k.upper()]
+    hint = f" (did you mean {', '.join(close[:4])}?)" if close else ""
+    raise DictionaryError(
+        f"unknown ArUco dictionary {name!r}{hint}; known: {', '.join(sorted(DICTIONARIES))}"
+    )
+
+
+def get_dictionary(name: str):
+    """The ``cv2.aruco.Dictionary`` for a readable name."""
+    require_aruco()
+    return _ARUCO.getPredefinedDictionary(DICTIONARIES[dictionary_name(name)])
+
+
+def dictionary_size(name: str) -> int:
+    """How many markers a dictionary holds (ids run from 0 to size - 1)."""
+    return int(get_dictionary(name).bytesList.shape[0])
+
+
+def dictionary_marker_bits(name: str) -> int:
+    """The marker's inner grid side in cells (6 for 6X6_250), without the black border."""
+    return int(get_dictionary(name).markerSize)
+
+
+def make_detector_parameters(**overrides):
+    """``cv2.aruco.DetectorParameters`` with attributes set by name."""
+    require_aruco()
+    params = _ARUCO.DetectorParameters()
+    for key, value in overrides.items():
+        if not hasattr(params, key):
+            raise FidlearnError(f"OpenCV's DetectorParameters has no field {key!r}")
+        setattr(params, key, value)
+    return params
+
+
+def make_detector(dictionary: str, params=None):
+    """A ``cv2.aruco.ArucoDetector`` for a dictionary name."""
+    require_aruco()
+    if params is None:
+        params = make_detector_parameters()
+    return _ARUCO.ArucoDetector(get_dictionary(dictionary), params)
+
+
+CORNER_REFINE = {
+    "none": "CORNER_REFINE_NONE",
+    "subpix": "CORNER_REFINE_SUBPIX",
+    "contour": "CORNER_REFINE_CONTOUR",
+    "apriltag": "CORNER_REFINE_APRILTAG",
+}
+
+
+def corner_refine_flag(name: str) -> int:
+    """OpenCV's corner refinement constant for ``none``, ``subpix``, ``contour`` or ``apriltag``."""
+    require_aruco()
+    return int(getattr(_ARUCO, CORNER_REFINE[name]))
+
+
+def detect(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
+    """Run a detector; return corners as a list of (4, 2) float64, ids as (N,) int, and rejected quads."""
+    corners, ids, rejected = detector.detectMarkers(gray)
+    return normalize_detections(corners, ids) + ([np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())],)
+
+
+def normalize_detections(corners, ids) -> tuple[list[np.ndarray], np.ndarray]:
+    """Corners (list of (4, 2) float64) and ids ((N,) int64) from any OpenCV release's output."""
+    if ids is None or len(corners) == 0:
+        return [], np.zeros((0,), dtype=np.int64)
+    ids = np.asarray(ids).reshape(-1).astype(np.int64)
+    return [np.asarray(c, dtype=np.float64).reshape(4, 2) for c in corners], ids
+
+
+def solvepnp_flag(name: str) -> int:
+    """The ``cv2.SOLVEPNP_*`` constant for a name such as ``"IPPE"``; the numbers differ between releases."""
+    attr = "SOLVEPNP_" + name.upper()
+    if not hasattr(cv2, attr):
+        known = sorted(a[len("SOLVEPNP_"):] for a in dir(cv2) if a.startswith("SOLVEPNP_") and a != "SOLVEPNP_MAX_COUNT")
+        raise FidlearnError(f"this OpenCV ({cv2.__version__}) has no solvePnP method {name!r}; known: {', '.join(known)}")
+    return int(getattr(cv2, attr))
+
+
+def generate_marker(dictionary: str, marker_id: int, side_px: int, border_bits: int = 1) -> np.ndarray:
+    """The marker's image (side_px x side_px, uint8, black border included)."""
+    require_aruco()
+    d = get_dictionary(dictionary)
+    return _ARUCO.generateImageMarker(d, int(marker_id), int(side_px), borderBits=int(border_bits))
+
+
+def charuco_board(squares_xy: tuple[int, int], square_size: float, marker_size: float, dictionary: str, legacy: bool = False):
+    """A ``cv2.aruco.CharucoBoard``; ``legacy=True`` for boards made before OpenCV 4.6 with an even row count."""
+    require_aruco()
+    board = _ARUCO.CharucoBoard(tuple(int(v) for v in squares_xy), float(square_size), float(marker_size), get_dictionary(dictionary))
+    if legacy:
+        board.setLegacyPattern(True)
+    return board
+
+
+def charuco_detector(board):
+    """A ``cv2.aruco.CharucoDetector`` for a board."""
+    require_aruco()
+    return _ARUCO.CharucoDetector(board)

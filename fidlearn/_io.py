@@ -1,0 +1,106 @@
+"""Private file helpers: strict JSON reading and atomic writes."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+from .errors import FidlearnError
+
+
+class _DuplicateKey(Exception):
+    def __init__(self, key: str):
+        super().__init__(key)
+        self.key = key
+
+
+def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict:
+    seen: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in seen:
+            raise _DuplicateKey(key)
+        seen[key] = value
+    return seen
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(name)
+
+
+def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) -> Any:
+    """Read a JSON file strictly.
+
+    Duplicate keys (which Python's ``json`` silently collapses to the last one),
+    ``NaN``/``Infinity`` literals, syntax errors, undecodable bytes and missing
+    files all raise ``error`` with the file name and a way to mend it.
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise error(f"{path}: no such file; check the path of the {what}") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a folder, expected a {what} JSON file") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{path}: not UTF-8 text (byte {exc.start} is 0x{raw[exc.start]:02x}); "
+            f"save the {what} as UTF-8 JSON"
+        ) from None
+    if not text.strip():
+        raise error(f"{path}: the file is empty; expected a {what} in JSON")
+    try:
+        return json.loads(text, object_pairs_hook=_no_duplicates, parse_constant=_reject_constant)
+    except _DuplicateKey as exc:
+        raise error(
+            f"{path}: key \"{exc.key}\" appears twice in one object; each key (each marker id) "
+            "must be unique, and JSON would silently keep only the last one"
+        ) from None
+    except json.JSONDecodeError as exc:
+        raise error(
+            f"{path}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}; "
+            "fix the syntax (a missing comma or bracket is the usual cause)"
+        ) from None
+    except ValueError as exc:  # NaN / Infinity literal
+        raise error(
+            f"{path}: contains {exc.args[0]}, which is not a number; write a finite measurement"
+        ) from None
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
+    """Write a file through a temporary file in the same folder, then rename it.
+
+    ``write`` receives the temporary path and must create the file there.  If it
+    raises, the temporary file is removed and ``path`` is untouched: no
+    half-written output is ever left behind.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise FidlearnError(f"{path}: the folder {folder} does not exist; create it first")
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=folder)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def write_json_atomic(path: str | os.PathLike, obj: Any) -> Path:
+    """Write ``obj`` as indented JSON to ``path`` atomically."""
+    return write_text_atomic(path, json.dumps(obj, indent=2) + "\n")

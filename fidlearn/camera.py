@@ -1,0 +1,353 @@
+"""The pinhole camera with lens distortion: intrinsics K, distortion and image size.
+
+Pixel convention: OpenCV's. The centre of the top-left pixel is at (0, 0), so
+the image spans -0.5 .. width-0.5 horizontally. Every corner position that
+fidlearn compares uses this convention.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from . import frames
+from ._io import atomic_write, read_json, write_json_atomic
+from .errors import CameraError, FidlearnWarning
+
+__all__ = ["Camera", "DIST_LENGTHS"]
+
+#: Distortion vector lengths OpenCV understands: (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]).
+DIST_LENGTHS = (4, 5, 8, 12, 14)
+
+
+def _as_K(K: Any, where: str) -> np.ndarray:
+    try:
+        K = np.array(K, dtype=float)
+    except (TypeError, ValueError):
+        raise CameraError(f"{where}: camera_matrix is not numeric; expected 3x3 numbers [[fx,0,cx],[0,fy,cy],[0,0,1]]") from None
+    if K.size == 9 and K.shape != (3, 3):
+        K = K.reshape(3, 3)
+    if K.shape != (3, 3):
+        raise CameraError(
+            f"{where}: camera_matrix has shape {K.shape}, expected 3x3 [[fx,0,cx],[0,fy,cy],[0,0,1]]"
+        )
+    if not np.all(np.isfinite(K)):
+        raise CameraError(f"{where}: camera_matrix contains NaN or infinity")
+    fx, fy = K[0, 0], K[1, 1]
+    if fx <= 0 or fy <= 0:
+        raise CameraError(
+            f"{where}: camera_matrix has focal lengths fx={fx:g}, fy={fy:g}; both must be positive "
+            "(in pixels); was the matrix transposed or written in another unit?"
+        )
+    if abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9 or abs(K[2, 2] - 1.0) > 1e-9:
+        hint = " (it looks transposed: cx, cy belong in the last column)" if abs(K[2, 0]) > 1 or abs(K[2, 1]) > 1 else ""
+        raise CameraError(
+            f"{where}: camera_matrix must be [[fx,s,cx],[0,fy,cy],[0,0,1]]; got {np.round(K, 4).tolist()}{hint}"
+        )
+    return K
+
+
+def _as_dist(dist: Any, where: str) -> np.ndarray:
+    if dist is None:
+        return np.zeros(5)
+    try:
+        dist = np.array(dist, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise CameraError(f"{where}: dist_coeffs is not a list of numbers") from None
+    if dist.size == 0:
+        return np.zeros(5)
+    if dist.size not in DIST_LENGTHS:
+        raise CameraError(
+            f"{where}: dist_coeffs has {dist.size} values; OpenCV takes 4, 5, 8, 12 or 14 "
+            "(k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]); use [] for no distortion"
+        )
+    if not np.all(np.isfinite(dist)):
+        raise CameraError(f"{where}: dist_coeffs contains NaN or infinity")
+    return dist
+
+
+def _as_size(image_size: Any, where: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in image_size)
+        ok = all(float(v) == int(v) for v in image_size)
+    except (TypeError, ValueError, OverflowError):
+        raise CameraError(f"{where}: image_size must be [width, height] in pixels, got {image_size!r}") from None
+    if not ok or w <= 0 or h <= 0:
+        raise CameraError(f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}")
+    return (w, h)
+
+
+@dataclass(eq=False)
+class Camera:
+    """A calibrated camera: pinhole intrinsics ``K`` (3, 3), distortion ``dist`` and ``image_size``.
+
+    Parameters
+    ----------
+    K : array_like, shape (3, 3)
+        Intrinsic matrix ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels.
+    dist : array_like, shape (4,), (5,), (8,), (12,) or (14,), optional
+        OpenCV distortion coefficients (k1, k2, p1, p2, k3, ...). ``None`` for none.
+    image_size : (int, int)
+        ``(width, height)`` in pixels of the images the camera was calibrated at.
+    source : str
+        What produced this camera (a file, a calibration run), for the record.
+
+    Examples
+    --------
+    >>> cam = Camera([[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], None, (640, 480))
+    >>> cam.project([[0, 0, 1000]], np.eye(4)).round(1)
+    array([[319.5, 239.5]])
+    """
+
+    K: np.ndarray
+    dist: np.ndarray | None
+    image_size: tuple[int, int]
+    source: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        where = self.source or "camera"
+        self.K = _as_K(self.K, where)
+        self.dist = _as_dist(self.dist, where)
+        self.image_size = _as_size(self.image_size, where)
+
+    # -- read-only views -------------------------------------------------------------
+    @property
+    def fx(self) -> float:
+        """Focal length along x, in pixels."""
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        """Focal length along y, in pixels."""
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        """Principal point x, in pixels (pixel-centre convention)."""
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        """Principal point y, in pixels (pixel-centre convention)."""
+        return float(self.K[1, 2])
+
+    @property
+    def width(self) -> int:
+        return self.image_size[0]
+
+    @property
+    def height(self) -> int:
+        return self.image_size[1]
+
+    @property
+    def fov_deg(self) -> tuple[float, float]:
+        """Horizontal and vertical field of view in degrees (pinhole, ignoring distortion)."""
+        w, h = self.image_size
+        return (math.degrees(2 * math.atan(w / (2 * self.fx))), math.degrees(2 * math.atan(h / (2 * self.fy))))
+
+    @property
+    def has_distortion(self) -> bool:
+        return bool(np.any(self.dist != 0))
+
+    @classmethod
+    def from_fov(cls, hfov_deg: float, image_size: tuple[int, int], dist=None, source: str = "") -> "Camera":
+        """An ideal camera (square pixels, centred principal point) with a horizontal field of view."""
+        w, h = _as_size(image_size, source or "camera")
+        if not 0 < hfov_deg < 180:
+            raise CameraError(f"hfov_deg must be between 0 and 180 degrees, got {hfov_deg}")
+        f = (w / 2) / math.tan(math.radians(hfov_deg) / 2)
+        K = [[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]]
+        return cls(K, dist, (w, h), source=source or f"ideal camera, {hfov_deg:g} deg horizontal FOV")
+
+    def __repr__(self) -> str:
+        w, h = self.image_size
+        d = ", ".join(f"{v:.4g}" for v in self.dist)
+        src = f", source={self.source!r}" if self.source else ""
+        return (
+            f"Camera({w}x{h}, fx={self.fx:.2f}, fy={self.fy:.2f}, cx={self.cx:.2f}, cy={self.cy:.2f}, "
+            f"dist=[{d}]{src})"
+        )
+
+    # -- projection -----------------------------------------------------------------
+    def project(self, points_world: np.ndarray, T_world_camera: np.ndarray) -> np.ndarray:
+        """Project world points (N, 3), mm, to pixels (N, 2) for a camera at ``T_world_camera``.
+
+        Agrees with ``cv2.projectPoints`` (distortion included). Points behind the
+        camera are projected too (their pixels are meaningless): use
+        :meth:`points_in_front` to tell.
+        """
+        pts = np.asarray(points_world, dtype=float)
+        single = pts.ndim == 1
+        pts = np.atleast_2d(pts)
+        if pts.shape[-1] != 3:
+            raise CameraError(f"points_world has shape {np.shape(points_world)}, expected (N, 3) in mm")
+        T_camera_world = frames.invert_transform(T_world_camera)
+        rvec, tvec = frames.rvec_tvec_from_transform(T_camera_world)
+        px, _ = cv2.projectPoints(pts.reshape(-1, 1, 3), rvec, tvec, self.K, self.dist)
+        px = px.reshape(-1, 2)
+        return px[0] if single else px
+
+    def points_in_front(self, points_world: np.ndarray, T_world_camera: np.ndarray, min_depth_mm: float = 1.0) -> np.ndarray:
+        """Boolean mask (N,) of the points with depth (camera z) above ``min_depth_mm``."""
+        pts_cam = frames.transform_points(frames.invert_transform(T_world_camera), np.atleast_2d(points_world))
+        return pts_cam[:, 2] > min_depth_mm
+
+    def undistort_points(self, points_px: np.ndarray) -> np.ndarray:
+        """Remove lens distortion from pixel points (N, 2); returns ideal pinhole pixels (N, 2)."""
+        pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
+        out = cv2.undistortPoints(pts, self.K, self.dist, P=self.K)
+        return out.reshape(-1, 2)
+
+    # -- resolution ------------------------------------------------------------------
+    def scaled(self, image_size: tuple[int, int], tol: float = 0.01) -> "Camera":
+        """The same camera at another resolution with the same aspect ratio.
+
+        A sensor read out at a lower resolution (binning, resizing) keeps its
+        geometry, so K scales; pixel centres move with the pixel-centre
+        convention (``c' = (c + 0.5) * s - 0.5``). Another aspect ratio means
+        the sensor was cropped differently, which no scaling can undo:
+        :class:`CameraError` says to calibrate at the resolution you run at.
+        """
+        new_w, new_h = _as_size(image_size, "image_size")
+        w, h = self.image_size
+        if (new_w, new_h) == (w, h):
+            return self
+        sx, sy = new_w / w, new_h / h
+        if abs(sx / sy - 1.0) > tol:
+            raise CameraError(
+                f"camera calibrated at {w}x{h} (aspect {w / h:.3f}) cannot be used on {new_w}x{new_h} "
+                f"images (aspect {new_w / new_h:.3f}): another aspect ratio crops the sensor differently, "
+                "so K does not scale; calibrate at the resolution you run at"
+            )
+        K = self.K.copy()
+        K[0, 0] *= sx
+        K[0, 1] *= sx
+        K[1, 1] *= sy
+        K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
+        K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
+        src = f"{self.source or 'camera'} scaled from {w}x{h} to {new_w}x{new_h}"
+        return Camera(K, self.dist.copy(), (new_w, new_h), source=src)
+
+    def for_image(self, image_or_size, warn: bool = True) -> "Camera":
+        """This camera fitted to an image (an array or ``(width, height)``); warns when it had to rescale."""
+        if isinstance(image_or_size, np.ndarray):
+            size = (image_or_size.shape[1], image_or_size.shape[0])
+        else:
+            size = tuple(image_or_size)
+        if tuple(size) == self.image_size:
+            return self
+        cam = self.scaled(size)
+        if warn:
+            warnings.warn(
+                f"camera calibrated at {self.width}x{self.height} rescaled to {size[0]}x{size[1]}; "
+                "calibrating at the resolution you run at is more accurate",
+                FidlearnWarning,
+                stacklevel=3,
+            )
+        return cam
+
+    # -- files -------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """fidlearn's JSON layout: ``camera_matrix``, ``dist_coeffs``, ``image_size`` [w, h], ``source``."""
+        return {
+            "camera_matrix": self.K.tolist(),
+            "dist_coeffs": self.dist.tolist(),
+            "image_size": list(self.image_size),
+            "source": self.source,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "camera") -> "Camera":
+        """A camera from fidlearn's JSON layout."""
+        if not isinstance(d, dict):
+            raise CameraError(f"{source}: expected a JSON object with camera_matrix, dist_coeffs, image_size")
+        missing = [k for k in ("camera_matrix", "image_size") if k not in d]
+        if missing:
+            raise CameraError(
+                f"{source}: missing field {', '.join(missing)}; a camera file needs camera_matrix (3x3), "
+                "dist_coeffs and image_size [width, height]"
+            )
+        return cls(d["camera_matrix"], d.get("dist_coeffs"), d["image_size"], source=str(d.get("source") or source))
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write fidlearn's JSON (``.json``) or OpenCV FileStorage (``.yml``, ``.yaml``, ``.xml``), atomically."""
+        path = Path(path)
+        if path.suffix.lower() in (".yml", ".yaml", ".xml"):
+            def write(tmp: Path) -> None:
+                fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE | (cv2.FILE_STORAGE_FORMAT_XML if path.suffix.lower() == ".xml" else cv2.FILE_STORAGE_FORMAT_YAML))
+                fs.write("image_width", int(self.width))
+                fs.write("image_height", int(self.height))
+                fs.write("camera_matrix", self.K)
+                fs.write("distortion_coefficients", self.dist.reshape(1, -1))
+                fs.release()
+            return atomic_write(path, write)
+        return write_json_atomic(path, self.to_dict())
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, image_size: tuple[int, int] | None = None) -> "Camera":
+        """Read a camera file: fidlearn's JSON or OpenCV FileStorage YAML/XML.
+
+        FileStorage files need ``camera_matrix`` and ``distortion_coefficients``;
+        ``image_width``/``image_height`` are read when present. A file without
+        them (OpenCV's tutorial files) needs ``image_size`` from the caller: the
+        resolution the camera was calibrated at.
+        """
+        path = Path(path)
+        if path.suffix.lower() in (".yml", ".yaml", ".xml"):
+            return cls._load_filestorage(path, image_size)
+        d = read_json(path, CameraError, "camera")
+        cam = cls.from_dict(d, source=str(path))
+        if image_size is not None and tuple(image_size) != cam.image_size:
+            raise CameraError(
+                f"{path}: the file says image_size {list(cam.image_size)}, the caller says {list(image_size)}; "
+                "use Camera.scaled() to change resolution"
+            )
+        return cam
+
+    @classmethod
+    def _load_filestorage(cls, path: Path, image_size) -> "Camera":
+        if not path.is_file():
+            raise CameraError(f"{path}: no such file; check the path of the camera file")
+        head = path.read_bytes()[:64]
+        if not head.strip():
+            raise CameraError(f"{path}: the file is empty; expected an OpenCV FileStorage camera file")
+        try:
+            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        except cv2.error as exc:
+            msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "parse error"
+            raise CameraError(f"{path}: not a readable OpenCV FileStorage file ({msg}); it should start with %YAML:1.0 or <?xml") from None
+        try:
+            if not fs.isOpened():
+                raise CameraError(f"{path}: OpenCV cannot open it as FileStorage YAML/XML")
+            node_K = fs.getNode("camera_matrix")
+            if node_K.empty():
+                raise CameraError(f"{path}: no camera_matrix field; OpenCV's calibration files name it camera_matrix")
+            K = node_K.mat()
+            if K is None:
+                raise CameraError(f"{path}: camera_matrix is not an !!opencv-matrix")
+            node_d = fs.getNode("distortion_coefficients")
+            dist = None if node_d.empty() else node_d.mat()
+            w_node, h_node = fs.getNode("image_width"), fs.getNode("image_height")
+            file_size = None
+            if not w_node.empty() and not h_node.empty():
+                file_size = (int(w_node.real()), int(h_node.real()))
+        finally:
+            fs.release()
+        if file_size is None and image_size is None:
+            raise CameraError(
+                f"{path}: no image_width/image_height; pass image_size=(width, height), the resolution "
+                "the camera was calibrated at (the command line: --image-size WxH)"
+            )
+        if file_size is not None and image_size is not None and tuple(image_size) != file_size:
+            raise CameraError(
+                f"{path}: the file says {file_size[0]}x{file_size[1]}, the caller says "
+                f"{image_size[0]}x{image_size[1]}; use Camera.scaled() to change resolution"
+            )
+        return cls(K, dist, file_size or tuple(image_size), source=str(path))

@@ -1,0 +1,39 @@
+"""Paths to the data that comes with fidlearn (``data/`` at the top of the repository).
+
+Notebooks and tests find every file through here, never through a relative or
+absolute path of their own. Set ``FIDLEARN_DATA`` to use a copy elsewhere.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .errors import FidlearnError
+
+__all__ = ["data_dir", "data_path", "repo_dir"]
+
+
+def repo_dir() -> Path:
+    """The repository's top folder (the one holding ``fidlearn/``, ``data/`` and ``notebooks/``)."""
+    return Path(__file__).resolve().parent.parent
+
+
+def data_dir() -> Path:
+    """The data folder: ``$FIDLEARN_DATA`` if set, else ``data/`` in the repository."""
+    env = os.environ.get("FIDLEARN_DATA")
+    folder = Path(env) if env else repo_dir() / "data"
+    if not folder.is_dir():
+        raise FidlearnError(
+            f"fidlearn's data folder {folder} does not exist; run from a clone of the repository "
+            "(pip install -e .) or set FIDLEARN_DATA to a copy of its data/ folder"
+        )
+    return folder
+
+
+def data_path(*parts: str) -> Path:
+    """A file or folder inside the data folder, e.g. ``data_path("world_map.json")``."""
+    path = data_dir().joinpath(*parts)
+    if not path.exists():
+        raise FidlearnError(f"{path} is not in fidlearn's data folder; regenerate it with the scripts in tools/")
+    return path

@@ -1,0 +1,56 @@
+"""Every error a user of fidlearn can cause.
+
+All of them derive from :class:`FidlearnError`, so a program (or the command
+line) can catch that one class.  Each message says what is wrong, where (the
+file and the field) and how to mend it.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "FidlearnError",
+    "FidlearnWarning",
+    "MapError",
+    "CameraError",
+    "TransformError",
+    "ImageError",
+    "DictionaryError",
+    "NoMarkersError",
+    "CalibrationError",
+]
+
+
+class FidlearnError(Exception):
+    """Base class of every error a user of fidlearn can cause."""
+
+
+class FidlearnWarning(UserWarning):
+    """Something worked, but not quite as asked (for example a camera was rescaled)."""
+
+
+class MapError(FidlearnError, ValueError):
+    """A world map (marker placements) is malformed or inconsistent."""
+
+
+class CameraError(FidlearnError, ValueError):
+    """A camera (intrinsics, distortion, image size) is malformed or does not fit the image."""
+
+
+class TransformError(FidlearnError, ValueError):
+    """A matrix that should be a rigid transform is not one."""
+
+
+class ImageError(FidlearnError, ValueError):
+    """An image cannot be read or has a type fidlearn cannot use."""
+
+
+class DictionaryError(FidlearnError, ValueError):
+    """An ArUco dictionary name is unknown, or a marker id does not fit in it."""
+
+
+class NoMarkersError(FidlearnError):
+    """No marker of the map was found in the image, so no pose can be computed."""
+
+
+class CalibrationError(FidlearnError):
+    """Calibration cannot run or cannot give a trustworthy camera."""
