@@ -320,8 +320,10 @@ class Camera:
             raise CameraError(f"{path}: the file is empty; expected an OpenCV FileStorage camera file")
         try:
             fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        except cv2.error as exc:
-            msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "parse error"
+        except (cv2.error, SystemError) as exc:  # OpenCV 5 wraps parse errors in SystemError
+            cause = exc.__cause__ or exc.__context__ or exc
+            text = str(cause).strip()
+            msg = text.splitlines()[-1].strip() if text else "parse error"
             raise CameraError(f"{path}: not a readable OpenCV FileStorage file ({msg}); it should start with %YAML:1.0 or <?xml") from None
         try:
             if not fs.isOpened():

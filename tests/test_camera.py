@@ -1,0 +1,156 @@
+"""Camera: projection against OpenCV, files (JSON and FileStorage), rescaling, and every camera mistake."""
+
+import json
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from fidlearn import Camera, frames
+from fidlearn.errors import CameraError, FidlearnWarning
+
+K = np.array([[800.0, 0, 639.5], [0, 805.0, 359.5], [0, 0, 1]])
+DIST = np.array([-0.21, 0.07, 0.001, -0.0005, -0.01])
+TUTORIAL_YML = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "opencv_aruco_photo" / "tutorial_camera_params.yml"
+
+
+@pytest.fixture
+def cam():
+    return Camera(K, DIST, (1280, 720))
+
+
+def test_project_hand_computed_without_distortion():
+    cam = Camera(K, None, (1280, 720))
+    # camera at the origin looking along world +Z (T_world_camera = I): u = fx X / Z + cx
+    px = cam.project([[100.0, -50.0, 1000.0]], np.eye(4))
+    assert np.allclose(px, [[800 * 0.1 + 639.5, 805 * -0.05 + 359.5]])
+
+
+def test_project_agrees_with_cv2_projectPoints_with_distortion(cam):
+    T_world_camera = frames.make_transform(frames.rotation_from_rpy_deg(-100, 5, 80), [2500.0, -300.0, 400.0])
+    rng = np.random.default_rng(1)
+    pts = rng.uniform([-200, -800, 0], [200, 800, 900], size=(50, 3))
+    rvec, tvec = frames.rvec_tvec_from_transform(frames.invert_transform(T_world_camera))
+    expected, _ = cv2.projectPoints(pts, rvec, tvec, K, DIST)
+    assert np.allclose(cam.project(pts, T_world_camera), expected.reshape(-1, 2), atol=1e-9)
+
+
+def test_points_in_front(cam):
+    assert cam.points_in_front([[0, 0, 100.0], [0, 0, -100.0]], np.eye(4)).tolist() == [True, False]
+
+
+def test_undistort_inverts_distortion(cam):
+    pts = cam.project(np.array([[100.0, 80, 1000], [-300, 200, 1500]]), np.eye(4))
+    ideal = Camera(K, None, (1280, 720)).project(np.array([[100.0, 80, 1000], [-300, 200, 1500]]), np.eye(4))
+    assert np.allclose(cam.undistort_points(pts), ideal, atol=1e-3)
+
+
+def test_json_round_trip(cam, tmp_path):
+    path = cam.save(tmp_path / "camera.json")
+    back = Camera.load(path)
+    assert np.array_equal(back.K, cam.K) and np.array_equal(back.dist, cam.dist)
+    assert back.image_size == (1280, 720)
+    assert json.loads(path.read_text())["image_size"] == [1280, 720]
+
+
+@pytest.mark.parametrize("suffix", [".yml", ".xml"])
+def test_filestorage_round_trip(cam, tmp_path, suffix):
+    path = cam.save(tmp_path / f"camera{suffix}")
+    back = Camera.load(path)
+    assert np.allclose(back.K, cam.K) and np.allclose(back.dist, cam.dist)
+    assert back.image_size == (1280, 720)
+
+
+def test_loads_opencv_tutorial_yaml(tmp_path):
+    if not TUTORIAL_YML.exists():
+        pytest.skip("../shared/realdata is not beside the repository")
+    path = tmp_path / "tutorial_camera_params.yml"
+    shutil.copy(TUTORIAL_YML, path)
+    with pytest.raises(CameraError, match="no image_width/image_height; pass image_size"):
+        Camera.load(path)
+    cam = Camera.load(path, image_size=(640, 480))
+    assert (cam.fx, cam.fy, cam.cx, cam.cy) == (628.158, 628.156, 324.099, 260.908)
+    assert np.allclose(cam.dist, [0.0995485, -0.206384, 0.00754589, 0.00336531, 0])
+
+
+def test_scaled_keeps_the_geometry(cam):
+    half = cam.scaled((640, 360))
+    assert half.fx == pytest.approx(400) and half.fy == pytest.approx(402.5)
+    assert half.cx == pytest.approx(319.5) and half.cy == pytest.approx(179.5)  # centre stays the centre
+    # the same 3D point lands at half the pixel coordinates (+ the pixel-centre shift)
+    p = np.array([[120.0, -40, 900]])
+    assert np.allclose((cam.project(p, np.eye(4)) + 0.5) / 2 - 0.5, half.project(p, np.eye(4)))
+    assert cam.scaled((1280, 720)) is cam
+
+
+def test_scaled_refuses_another_aspect_ratio(cam):
+    with pytest.raises(CameraError, match=r"calibrated at 1280x720 .* cannot be used on 640x480 .* calibrate at the resolution you run at"):
+        cam.scaled((640, 480))
+
+
+def test_for_image_warns_when_it_rescales(cam):
+    with pytest.warns(FidlearnWarning, match="rescaled to 640x360"):
+        small = cam.for_image(np.zeros((360, 640), np.uint8))
+    assert small.image_size == (640, 360)
+
+
+def test_from_fov():
+    cam = Camera.from_fov(90, (640, 480))
+    assert cam.fx == pytest.approx(320) and cam.fov_deg[0] == pytest.approx(90)
+
+
+def test_repr_is_readable(cam):
+    assert repr(cam).startswith("Camera(1280x720, fx=800.00, fy=805.00, cx=639.50, cy=359.50, dist=[-0.21")
+
+
+GOOD = {"camera_matrix": K.tolist(), "dist_coeffs": DIST.tolist(), "image_size": [1280, 720]}
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"camera_matrix": [[800, 0], [0, 800]]}, r"camera_matrix has shape \(2, 2\), expected 3x3"),
+        ({"camera_matrix": [[0, 0, 640], [0, 800, 360], [0, 0, 1]]}, "focal lengths fx=0, fy=800; both must be positive"),
+        ({"camera_matrix": [[800, 0, 0], [0, 800, 0], [640, 360, 1]]}, "it looks transposed"),
+        ({"camera_matrix": [[800, 0, 640], [0, "x", 360], [0, 0, 1]]}, "camera_matrix is not numeric"),
+        ({"dist_coeffs": [0.1, 0.2, 0.3]}, "dist_coeffs has 3 values; OpenCV takes 4, 5, 8, 12 or 14"),
+        ({"dist_coeffs": [0.1, 0.2, 0.0, 0.0, 0.0, 0.1]}, "dist_coeffs has 6 values"),
+        ({"image_size": [1280]}, r"image_size must be \[width, height\]"),
+        ({"image_size": [1280, -720]}, "two positive whole numbers"),
+        ({"image_size": None}, r"image_size must be \[width, height\]"),
+    ],
+)
+def test_camera_file_errors(tmp_path, change, message):
+    d = dict(GOOD, **change)
+    p = tmp_path / "camera.json"
+    p.write_text(json.dumps(d))
+    with pytest.raises(CameraError, match=message) as info:
+        Camera.load(p)
+    assert str(p) in str(info.value)
+
+
+def test_camera_file_nan_and_missing_fields(tmp_path):
+    p = tmp_path / "camera.json"
+    p.write_text(json.dumps(GOOD).replace("-0.21", "NaN"))
+    with pytest.raises(CameraError, match="contains NaN, which is not a number"):
+        Camera.load(p)
+    p.write_text(json.dumps({"camera_matrix": K.tolist()}))
+    with pytest.raises(CameraError, match="missing field image_size"):
+        Camera.load(p)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("", "the file is empty"),
+        ("%YAML:1.0\ncamera_matrix: [1, 2\n", "not a readable OpenCV FileStorage file|cannot open it"),
+        ("%YAML:1.0\nimage_width: 640\nimage_height: 480\n", "no camera_matrix field"),
+    ],
+)
+def test_filestorage_errors(tmp_path, text, message):
+    p = tmp_path / "camera.yml"
+    p.write_text(text)
+    with pytest.raises(CameraError, match=message):
+        Camera.load(p)
