@@ -159,3 +159,40 @@ def charuco_detector(board):
     """A ``cv2.aruco.CharucoDetector`` for a board."""
     require_aruco()
     return _ARUCO.CharucoDetector(board)
+
+
+def detector_parameter_fields(params=None) -> dict:
+    """Every field of ``cv2.aruco.DetectorParameters`` as ``{name: value}``.
+
+    ``params`` is ``None`` (OpenCV's defaults), a dict of overrides of the
+    defaults, or a ``DetectorParameters`` object. The field set differs between
+    releases (5.x adds e.g. ``relativeCornerRefinmentWinSize``), so it is read
+    from the object rather than listed here. The values are plain numbers, so
+    the sorted items make a cache key.
+    """
+    require_aruco()
+    overrides = {}
+    if params is None:
+        base = _ARUCO.DetectorParameters()
+    elif isinstance(params, dict):
+        base, overrides = _ARUCO.DetectorParameters(), params
+    elif isinstance(params, _ARUCO.DetectorParameters):
+        base = params
+    else:
+        raise FidlearnError(
+            f"detector parameters must be None, a dict of field overrides or cv2.aruco.DetectorParameters, "
+            f"got {type(params).__name__}"
+        )
+    fields = {}
+    for name in dir(base):
+        if name.startswith("_"):
+            continue
+        value = getattr(base, name)
+        if callable(value):
+            continue
+        fields[name] = value
+    for key, value in overrides.items():
+        if key not in fields:
+            raise FidlearnError(f"OpenCV's DetectorParameters has no field {key!r}; known: {', '.join(sorted(fields))}")
+        fields[key] = value
+    return fields

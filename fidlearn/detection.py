@@ -1,0 +1,423 @@
+"""Finding ArUco markers in an image: ids and pixel corners in TL, TR, BR, BL order.
+
+Pixel convention: OpenCV's, the centre of the top-left pixel is (0, 0).
+
+:func:`detect_markers` wraps OpenCV's ``ArucoDetector`` (cached, so calling it
+on every frame of a video costs only the detection itself) and then refines the
+corners. The default refinement, ``"edges"``, is fidlearn's own: it fits a
+straight line to each of the marker's four outer edges from sub-pixel edge
+positions sampled across the edge, and intersects neighbouring lines. Why it is
+the default, with the measurements, is in ``docs/corner_refinement.md``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import cv2
+import numpy as np
+
+from . import _cv
+from .errors import FidlearnError, ImageError
+
+__all__ = [
+    "Detection",
+    "as_gray",
+    "load_image",
+    "detect_markers",
+    "draw_detections",
+    "refine_corners_edges",
+    "REFINE_METHODS",
+    "DEFAULT_REFINE",
+]
+
+CORNER_NAMES = ("TL", "TR", "BR", "BL")
+
+#: Corner refinements :func:`detect_markers` knows: OpenCV's four and fidlearn's ``"edges"``.
+REFINE_METHODS = ("none", "subpix", "contour", "apriltag", "edges")
+
+#: The refinement used when none is asked for, chosen by measurement (docs/corner_refinement.md).
+DEFAULT_REFINE = "edges"
+
+
+@dataclass(frozen=True, eq=False)
+class Detection:
+    """One detected marker.
+
+    Attributes
+    ----------
+    id : int
+        The marker's id in its dictionary.
+    corners : ndarray, shape (4, 2), float64
+        Pixel corners in the order TL, TR, BR, BL (the marker's own top-left,
+        whatever its rotation in the image), OpenCV pixel-centre convention.
+    """
+
+    id: int
+    corners: np.ndarray
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.corners, dtype=np.float64).reshape(4, 2)
+        object.__setattr__(self, "id", int(self.id))
+        object.__setattr__(self, "corners", c)
+
+    @property
+    def center(self) -> np.ndarray:
+        """Mean of the four corners (2,), pixels."""
+        return self.corners.mean(axis=0)
+
+    @property
+    def side_px(self) -> float:
+        """Mean side length in pixels."""
+        return float(np.mean(np.linalg.norm(self.corners - np.roll(self.corners, -1, axis=0), axis=1)))
+
+    def __repr__(self) -> str:
+        pts = ", ".join(f"{n}=({x:.1f}, {y:.1f})" for n, (x, y) in zip(CORNER_NAMES, self.corners))
+        return f"Detection(id={self.id}, {pts})"
+
+
+def load_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file as OpenCV does (BGR or gray, uint8), with a clear error when it cannot."""
+    path = Path(path)
+    if not path.exists():
+        raise ImageError(f"{path}: no such file; check the image path")
+    if path.is_dir():
+        raise ImageError(f"{path}: is a folder, expected an image file")
+    data = np.fromfile(str(path), dtype=np.uint8)
+    if data.size == 0:
+        raise ImageError(f"{path}: the file is empty; expected a PNG or JPEG image")
+    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, BMP, TIFF...); is it truncated or another file type?")
+    return image
+
+
+def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
+    """An 8-bit single-channel view of a gray, BGR or BGRA image (uint8 or uint16).
+
+    16-bit images are scaled to 8 bits; float images in [0, 1] are accepted
+    too. Anything else raises :class:`ImageError` saying what was received.
+    """
+    if not isinstance(image, np.ndarray):
+        raise ImageError(f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}")
+    if image.size == 0:
+        raise ImageError(f"{where}: the image is empty (shape {image.shape})")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (3, 4)):
+        raise ImageError(f"{where}: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
+    if image.dtype == np.uint16:
+        image = (image >> 8).astype(np.uint8)
+    elif image.dtype in (np.float32, np.float64):
+        if not np.all(np.isfinite(image)):
+            raise ImageError(f"{where}: the float image contains NaN or infinity")
+        if image.min() < 0 or image.max() > 1:
+            raise ImageError(f"{where}: a float image must hold values in [0, 1], got {image.min():g}..{image.max():g}")
+        image = np.round(image * 255).astype(np.uint8)
+    elif image.dtype != np.uint8:
+        raise ImageError(f"{where}: pixel type {image.dtype} is not supported; use uint8 (or uint16)")
+    if image.ndim == 3:
+        code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        image = cv2.cvtColor(image, code)
+    if min(image.shape[:2]) < 8:
+        raise ImageError(f"{where}: {image.shape[1]}x{image.shape[0]} pixels is too small to hold a marker")
+    return np.ascontiguousarray(image)
+
+
+# ----------------------------------------------------------------------------------------------
+# Detection
+# ----------------------------------------------------------------------------------------------
+
+_DETECTOR_CACHE: "OrderedDict[tuple, Any]" = OrderedDict()
+_DETECTOR_CACHE_SIZE = 16
+
+
+def _refine_name(refine: Any) -> str:
+    if isinstance(refine, str) and refine.strip().lower() in REFINE_METHODS:
+        return refine.strip().lower()
+    raise FidlearnError(
+        f"unknown corner refinement {refine!r}; use one of {', '.join(repr(m) for m in REFINE_METHODS)} "
+        f"(default {DEFAULT_REFINE!r}, see docs/corner_refinement.md)"
+    )
+
+
+def _detector(dictionary: str, refine: str, params: Any):
+    """The cached ``ArucoDetector`` for (dictionary, refinement, parameters) and its marker's side in cells."""
+    fields = _cv.detector_parameter_fields(params)
+    # fidlearn's "edges" starts from OpenCV's unrefined corners.
+    fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if refine == "edges" else refine)
+    key = (dictionary, refine, tuple(sorted(fields.items())))
+    hit = _DETECTOR_CACHE.get(key)
+    if hit is not None:
+        _DETECTOR_CACHE.move_to_end(key)
+        return hit
+    detector = _cv.make_detector(dictionary, _cv.make_detector_parameters(**fields))
+    cells = _cv.dictionary_marker_bits(dictionary) + 2 * int(fields.get("markerBorderBits", 1))
+    _DETECTOR_CACHE[key] = (detector, cells)
+    while len(_DETECTOR_CACHE) > _DETECTOR_CACHE_SIZE:
+        _DETECTOR_CACHE.popitem(last=False)
+    return detector, cells
+
+
+def detect_markers(
+    image: np.ndarray,
+    dictionary: str = "ARUCO_ORIGINAL",
+    refine: str = DEFAULT_REFINE,
+    params: Any = None,
+    *,
+    return_rejected: bool = False,
+):
+    """Find the markers of one dictionary in an image.
+
+    Parameters
+    ----------
+    image : ndarray, (H, W) gray or (H, W, 3) BGR or (H, W, 4) BGRA, uint8 or uint16
+        The picture (see :func:`as_gray` for what is accepted).
+    dictionary : str
+        The ArUco dictionary by readable name: ``"ARUCO_ORIGINAL"``, ``"6X6_250"``,
+        ``"APRILTAG_36h11"``... (the ``DICT_`` prefix and the case do not matter).
+    refine : str
+        Corner refinement: ``"edges"`` (the default: line fits to the four outer
+        edges, about 0.03 px RMS on sharp synthetic markers of 30 px and more),
+        or OpenCV's own ``"none"``, ``"subpix"``, ``"contour"``, ``"apriltag"``.
+        See ``docs/corner_refinement.md`` for the measurements.
+    params : None, dict or cv2.aruco.DetectorParameters
+        OpenCV detector parameters, as an object or as ``{field: value}``
+        overrides of the defaults. ``refine`` always sets ``cornerRefinementMethod``.
+    return_rejected : bool
+        Also return the candidate quads that did not decode as a marker.
+
+    Returns
+    -------
+    list of Detection
+        Sorted by id; each ``corners`` is (4, 2) float64 pixels, TL, TR, BR, BL.
+    list of ndarray (4, 2), only with ``return_rejected=True``
+        The rejected candidates' corners (pixels, unrefined).
+
+    Raises
+    ------
+    ImageError
+        ``image`` is not an image.
+    DictionaryError
+        Unknown dictionary name.
+    FidlearnError
+        Unknown refinement or parameter name.
+
+    Examples
+    --------
+    >>> from fidlearn import _cv
+    >>> marker = _cv.generate_marker("6X6_250", 23, 120)
+    >>> image = np.pad(marker, 40, constant_values=255)
+    >>> [d.id for d in detect_markers(image, "6X6_250")]
+    [23]
+    """
+    gray = as_gray(image)
+    name = _cv.dictionary_name(dictionary)
+    method = _refine_name(refine)
+    detector, cells = _detector(name, method, params)
+    corners, ids, rejected = _cv.detect(detector, gray)
+    if len(corners) and method == "edges":
+        corners = list(refine_corners_edges(gray, np.stack(corners), cells))
+    order = sorted(range(len(ids)), key=lambda k: (int(ids[k]), float(corners[k][0, 1]), float(corners[k][0, 0])))
+    detections = [Detection(int(ids[k]), corners[k]) for k in order]
+    if return_rejected:
+        return detections, rejected
+    return detections
+
+
+# ----------------------------------------------------------------------------------------------
+# Edge-line corner refinement
+# ----------------------------------------------------------------------------------------------
+
+_NEXT = np.array([1, 2, 3, 0])
+_PREV = np.array([3, 0, 1, 2])
+
+
+def refine_corners_edges(
+    gray: np.ndarray,
+    corners: np.ndarray,
+    cells: int,
+    n_lines: int = 16,
+    n_samples: int = 13,
+    iterations: int = 2,
+) -> np.ndarray:
+    """Refine marker corners by fitting a straight line to each outer edge.
+
+    For each side of each quad, ``n_lines`` short profiles are sampled across
+    the edge (bilinear, one ``cv2.remap`` for every marker at once), each
+    profile's crossing of the level half-way between the black border and the
+    white surround gives a sub-pixel edge position, a least-squares line is
+    fitted through them (one outlier pass), and each corner becomes the
+    intersection of its two sides' lines. Blur rounds a corner but not the
+    middle of an edge, so the line intersection lands on the true corner
+    where corner-window methods are pulled inwards. Two passes: the first from
+    OpenCV's unrefined quad, the second with a tighter window.
+
+    Parameters
+    ----------
+    gray : ndarray (H, W) uint8
+    corners : ndarray (M, 4, 2) float
+        Pixel corners TL, TR, BR, BL of M markers (OpenCV's unrefined ones are fine).
+    cells : int
+        Marker side in cells including the black border (8 for 6X6 with a
+        1-cell border): it sets the profile length so that a profile stays
+        inside the black border and the white quiet zone.
+
+    Returns
+    -------
+    ndarray (M, 4, 2) float64
+        Refined pixel corners. A marker whose edges cannot all be fitted
+        (too little contrast, too small, half outside the image) or whose
+        corners would move more than ``max(2, cell / 2)`` px keeps its input corners.
+    """
+    C = np.array(corners, dtype=np.float64).reshape(-1, 4, 2)
+    M = C.shape[0]
+    if M == 0:
+        return C
+    u = np.linspace(0.0, 1.0, n_lines)
+    v = np.linspace(-1.0, 1.0, n_samples)
+    steps = np.arange(n_samples - 1, dtype=np.float32)
+    centre = (n_samples - 1) / 2
+    half = n_lines // 2
+    for it in range(iterations):
+        P1 = C[:, _NEXT]
+        D = P1 - C
+        L = np.sqrt((D * D).sum(2))  # (M, 4) side lengths
+        d = D / np.maximum(L, 1e-9)[..., None]
+        # Outward normal: the corners run clockwise on screen (y down) for a marker seen from the front.
+        area = (C[..., 0] * P1[..., 1] - P1[..., 0] * C[..., 1]).sum(1)
+        sgn = np.where(area >= 0, 1.0, -1.0)[:, None]
+        n = np.stack([d[..., 1] * sgn, -d[..., 0] * sgn], axis=-1)  # (M, 4, 2)
+        cell = L.mean(1) / cells  # (M,) px per cell
+        h = np.clip((0.75 if it == 0 else 0.6) * cell, 1.5, 5.0)[:, None]  # half profile length, px
+        margin = np.minimum((0.5 * cell[:, None] + 1.5) / np.maximum(L, 1e-9), 0.3)  # keep off the corners
+        t = margin[..., None] + (1 - 2 * margin[..., None]) * u  # (M, 4, N) position along the side
+        base = C[:, :, None, :] + t[..., None] * D[:, :, None, :]  # (M, 4, N, 2)
+        across = (h[..., None] * v)[:, :, :, None] * n[:, :, None, :]  # (M, 4, S, 2)
+        pts = (base[:, :, :, None, :] + across[:, :, None, :, :]).astype(np.float32).reshape(-1, n_samples, 2)
+        prof = cv2.remap(gray, pts, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
+        # Per side: the inner (black border) and outer (white quiet zone) levels, median over the profiles.
+        inner = np.sort(prof[..., 0] + prof[..., 1], axis=2)[..., half] * 0.5  # (M, 4)
+        outer = np.sort(prof[..., -1] + prof[..., -2], axis=2)[..., half] * 0.5
+        z = prof - (0.5 * (inner + outer))[..., None, None]
+        zc, zn = z[..., :-1], z[..., 1:]
+        denom = zc - zn
+        cross = (zc * zn <= 0) & (denom != 0)
+        pos = steps + zc / np.where(cross, denom, 1.0)
+        dist = np.where(cross, np.abs(pos - centre), np.inf)
+        j = dist.argmin(-1)[..., None]
+        found = np.isfinite(np.take_along_axis(dist, j, -1)[..., 0])
+        off = (np.take_along_axis(pos, j, -1)[..., 0] - centre) * (h[..., None] * (2.0 / (n_samples - 1)))
+        w = (found & (np.abs(outer - inner) > 10.0)[..., None]).astype(np.float64)
+        for _ in range(2):  # weighted least squares off = a + b t, then drop profiles 0.75 px off the line
+            wt, wo = w * t, w * off
+            sw, st, stt, so, sto = w.sum(-1), wt.sum(-1), (wt * t).sum(-1), wo.sum(-1), (wo * t).sum(-1)
+            det = sw * stt - st * st
+            good = (sw >= 4) & (det > 1e-12)
+            det = np.where(good, det, 1.0)
+            a = (stt * so - st * sto) / det
+            b = (sw * sto - st * so) / det
+            w = w * (np.abs(off - (a[..., None] + b[..., None] * t)) < 0.75)
+        A = C + a[..., None] * n  # the fitted line of side k passes through A[k] and B[k]
+        B = P1 + (a + b)[..., None] * n
+        l0, l1 = A[..., 1] - B[..., 1], B[..., 0] - A[..., 0]
+        l2 = A[..., 0] * B[..., 1] - B[..., 0] * A[..., 1]
+        p0, p1, p2 = l0[:, _PREV], l1[:, _PREV], l2[:, _PREV]  # corner k = side k-1 x side k
+        X, Y, W = p1 * l2 - p2 * l1, p2 * l0 - p0 * l2, p0 * l1 - p1 * l0
+        ok = good.all(1) & np.all(np.abs(W) > 1e-9, axis=1)
+        W = np.where(np.abs(W) > 1e-9, W, 1.0)
+        new = np.stack([X / W, Y / W], axis=-1)
+        ok &= np.sqrt(((new - C) ** 2).sum(2)).max(1) < np.maximum(2.0, 0.5 * cell)
+        C = np.where(ok[:, None, None], new, C)
+    return C
+
+
+# ----------------------------------------------------------------------------------------------
+# Drawing
+# ----------------------------------------------------------------------------------------------
+
+def _as_bgr(image: np.ndarray) -> np.ndarray:
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3:
+        return image.copy()
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 4:
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    return cv2.cvtColor(as_gray(image), cv2.COLOR_GRAY2BGR)
+
+
+def _label(img: np.ndarray, text: str, org: tuple[float, float], scale: float, thick: int, color, center: bool = True) -> None:
+    """Text with a dark box behind it so it reads on any background; ``org`` is its centre."""
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+    x = int(round(org[0] - tw / 2)) if center else int(round(org[0]))
+    y = int(round(org[1] + th / 2))
+    H, W = img.shape[:2]
+    x = min(max(x, 1), max(W - tw - 2, 1))
+    y = min(max(y, th + 2), max(H - base - 1, th + 2))
+    pad = max(1, thick)
+    cv2.rectangle(img, (x - pad, y - th - pad), (x + tw + pad, y + base), (0, 0, 0), -1)
+    cv2.putText(img, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, color, thick, cv2.LINE_AA)
+
+
+def draw_detections(
+    image: np.ndarray,
+    detections: Sequence[Detection],
+    color: tuple[int, int, int] = (0, 200, 0),
+    *,
+    corner_labels: bool = True,
+    show_ids: bool = True,
+    rejected: Sequence[np.ndarray] | None = None,
+) -> np.ndarray:
+    """A BGR copy of ``image`` with each marker's outline, id and named corners drawn.
+
+    The outline is drawn at sub-pixel precision; the first corner (TL) is a
+    filled red dot and every corner carries its name (TL, TR, BR, BL) outside
+    the marker, so the winding order is visible; the id sits in the middle.
+    Text size follows the image size (readable on 640x480).
+
+    Parameters
+    ----------
+    image : ndarray
+        Gray, BGR or BGRA image (not modified).
+    detections : sequence of Detection
+    color : (b, g, r)
+        Outline colour.
+    corner_labels, show_ids : bool
+        Draw the corner names / the ids.
+    rejected : sequence of (4, 2) arrays, optional
+        Candidate quads that did not decode (from ``detect_markers(..., return_rejected=True)``),
+        drawn thin in magenta.
+
+    Returns
+    -------
+    ndarray (H, W, 3) uint8
+        The annotated copy.
+    """
+    out = _as_bgr(image)
+    H, W = out.shape[:2]
+    unit = max(H, W) / 640.0
+    thick = max(1, int(round(1.5 * unit)))
+    scale = 0.42 * unit
+    shift = 4  # sub-pixel drawing: coordinates in 1/16 px
+    for quad in rejected or ():
+        q = np.round((np.asarray(quad, np.float64).reshape(4, 2)) * (1 << shift)).astype(np.int32)
+        cv2.polylines(out, [q], True, (255, 0, 255), 1, cv2.LINE_AA, shift)
+    for det in detections:
+        c = np.asarray(det.corners, np.float64).reshape(4, 2)
+        q = np.round(c * (1 << shift)).astype(np.int32)
+        cv2.polylines(out, [q], True, color, thick, cv2.LINE_AA, shift)
+        centre = c.mean(axis=0)
+        for k, (name, p) in enumerate(zip(CORNER_NAMES, c)):
+            dot = (0, 0, 255) if k == 0 else (255, 128, 0)
+            cv2.circle(out, tuple(int(v) for v in np.round(p * (1 << shift))), int(round((2.5 + thick) * (1 << shift))), dot, -1, cv2.LINE_AA, shift)
+            if corner_labels:
+                away = p - centre
+                away = away / max(float(np.linalg.norm(away)), 1e-9)
+                at = p + away * 10.0 * unit
+                _label(out, name, (float(at[0]), float(at[1])), 0.8 * scale, max(1, thick - 1), (255, 255, 255))
+        if show_ids:
+            _label(out, str(det.id), (float(centre[0]), float(centre[1])), scale * 1.2, thick, (0, 255, 255))
+    return out
