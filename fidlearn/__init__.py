@@ -33,6 +33,7 @@ from .frames import (
 )
 from .markermap import MarkerMap, MarkerPlacement
 from .data import data_dir, data_path
+from .synthetic import look_at, render_scene
 
 __version__ = "0.1.0"
 
@@ -59,5 +60,7 @@ __all__ = [
     "transform_points",
     "data_dir",
     "data_path",
+    "render_scene",
+    "look_at",
     "__version__",
 ]

@@ -1,0 +1,480 @@
+"""A synthetic world with ground truth: printed markers and boards seen by a known camera.
+
+Every picture fidlearn renders comes with the answer: the true camera, the true
+pose and the true pixel corners of each visible marker, so detection, pose
+and calibration can be checked against known numbers.
+
+How a frame is made (the realism that matters for detection and accuracy):
+
+* Each printed sheet (an ArUco marker with its white quiet zone, a checkerboard
+  or a ChArUco board with a white margin) is a textured plane in the world;
+  the wall behind it is mid gray with a faint seeded texture.
+* For every pixel of a supersampled image (``supersample`` x ``supersample``
+  sub-pixels per pixel) the renderer finds the ray through it, undistorting
+  with the camera's own model (``cv2.undistortPoints`` refined by Newton
+  steps to 1e-9 px), intersects the ray with each plane through the plane's
+  homography and looks the texture up (``cv2.remap``). The nearest plane wins;
+  a plane seen from behind is not drawn.
+* The supersampled image is averaged down block by block, so each pixel holds
+  the area integral of the scene over its footprint (edges land at sub-pixel
+  positions, as on a real sensor). A sub-pixel ``u_h`` of the fine grid sits at
+  ``u = (u_h + 0.5) / k - 0.5`` in the output (pixel centres at integers).
+* Then, optionally: Gaussian blur (defocus), an illumination gradient and
+  Gaussian sensor noise, all from ``numpy.random.default_rng(seed)``.
+
+The truth of a marker is ``camera.project(marker_map.marker_corners(id),
+T_world_camera)``: exactly what ``cv2.projectPoints`` gives for its 3D corners.
+
+Same inputs, same OpenCV build: the same pixels, run after run. Another OpenCV
+release may round ``cv2.remap``'s bilinear weights differently, which moves a
+few gray levels at edges (see ``data/README.md``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Sequence
+
+import cv2
+import numpy as np
+
+from . import _cv, frames
+from .camera import Camera
+from .errors import CameraError, FidlearnError
+from .markermap import MarkerMap
+
+__all__ = [
+    "render_scene",
+    "visible_markers",
+    "look_at",
+    "DEFAULT_GRAYS",
+]
+
+#: Gray levels of the synthetic world: the wall, the paper and the printed ink.
+DEFAULT_GRAYS = {"wall": 120.0, "paper": 230.0, "ink": 25.0}
+
+_MAX_TEXELS_PER_CELL = 256
+_STRIP_SUBPIXELS = 1 << 20  # process the fine grid in strips of about a million sub-pixels
+
+
+# ----------------------------------------------------------------------------------------------
+# Camera rays: the normalized (undistorted) coordinates of every pixel.
+# ----------------------------------------------------------------------------------------------
+
+def _distort_normalized(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """OpenCV's distortion model on normalized points (N, 2): ideal -> distorted normalized."""
+    d = np.zeros(14)
+    d[: dist.size] = dist
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d[:12]
+    x, y = xy[:, 0], xy[:, 1]
+    r2 = x * x + y * y
+    r4 = r2 * r2
+    r6 = r4 * r2
+    radial = (1 + k1 * r2 + k2 * r4 + k3 * r6) / (1 + k4 * r2 + k5 * r4 + k6 * r6)
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r4
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r4
+    return np.stack([xd, yd], axis=1)
+
+
+def _pixels_from_normalized(xy: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    xd = _distort_normalized(xy, dist)
+    return np.stack([K[0, 0] * xd[:, 0] + K[0, 1] * xd[:, 1] + K[0, 2], K[1, 1] * xd[:, 1] + K[1, 2]], axis=1)
+
+
+def _undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations: int = 4) -> np.ndarray:
+    """Normalized ideal coordinates (N, 2) of pixels (N, 2), exact to about 1e-9 px.
+
+    ``cv2.undistortPoints`` alone stops after a few fixed-point steps (up to
+    half a pixel off at the corners of a wide lens); Newton steps on OpenCV's
+    own distortion model finish the job.
+    """
+    xy = cv2.undistortPoints(px.reshape(-1, 1, 2).astype(np.float64), K, dist).reshape(-1, 2)
+    if not np.any(dist):
+        return xy
+    h = 1e-7
+    for _ in range(iterations):
+        base = _pixels_from_normalized(xy, K, dist)
+        r = base - px
+        jx = (_pixels_from_normalized(xy + [h, 0.0], K, dist) - base) / h
+        jy = (_pixels_from_normalized(xy + [0.0, h], K, dist) - base) / h
+        det = jx[:, 0] * jy[:, 1] - jy[:, 0] * jx[:, 1]
+        det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+        dx = (jy[:, 1] * r[:, 0] - jy[:, 0] * r[:, 1]) / det
+        dy = (-jx[:, 1] * r[:, 0] + jx[:, 0] * r[:, 1]) / det
+        xy = xy - np.stack([dx, dy], axis=1)
+    return xy
+
+
+@lru_cache(maxsize=4)
+def _normalized_map_cached(key: bytes, width: int, height: int) -> np.ndarray:
+    K_dist = np.frombuffer(key, dtype=np.float64)
+    K, dist = K_dist[:9].reshape(3, 3), K_dist[9:]
+    u, v = np.meshgrid(np.arange(-1.0, width + 1.0), np.arange(-1.0, height + 1.0))
+    px = np.stack([u.ravel(), v.ravel()], axis=1)
+    xy = _undistort_exact(px, K, dist)
+    out = xy.reshape(height + 2, width + 2, 2)
+    out.setflags(write=False)
+    return out
+
+
+def _normalized_map(camera: Camera) -> np.ndarray:
+    """Normalized ray coordinates (H + 2, W + 2, 2) of every pixel, with a one-pixel margin.
+
+    Entry ``[j, i]`` belongs to the pixel centre ``u = i - 1``, ``v = j - 1``.
+    """
+    if camera.dist.size == 14 and np.any(camera.dist[12:]):
+        raise CameraError(
+            f"{camera.source or 'camera'}: the renderer does not model a tilted sensor (tau_x, tau_y = "
+            f"{camera.dist[12]:g}, {camera.dist[13]:g}); use at most 12 distortion coefficients"
+        )
+    key = np.concatenate([camera.K.ravel(), camera.dist.ravel()]).astype(np.float64).tobytes()
+    return _normalized_map_cached(key, camera.width, camera.height)
+
+
+def _fine_rays(nmap: np.ndarray, u0: int, u1: int, v0: int, v1: int, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Normalized coordinates of the sub-pixels of output pixels ``u0..u1-1``, ``v0..v1-1``.
+
+    Returns two (k (v1 - v0), k (u1 - u0)) float64 arrays. Bilinear
+    interpolation of the per-pixel map (the distortion is smooth: error below
+    1e-4 px). ``cv2.resize`` maps a fine sample ``x_d`` to the coarse
+    coordinate ``(x_d + 0.5) / k - 0.5``, the same pixel-centre rule as the
+    supersampling, and the one-pixel margin keeps it from clamping at the edge.
+    """
+    patch = np.ascontiguousarray(nmap[v0: v1 + 2, u0: u1 + 2])
+    if k == 1:
+        inner = patch[1:-1, 1:-1]
+        return inner[..., 0].copy(), inner[..., 1].copy()
+    h, w = patch.shape[:2]
+    fine = cv2.resize(patch, (w * k, h * k), interpolation=cv2.INTER_LINEAR)
+    fine = fine[k: k + k * (v1 - v0), k: k + k * (u1 - u0)]
+    return fine[..., 0], fine[..., 1]
+
+
+# ----------------------------------------------------------------------------------------------
+# Printed sheets: a texture and where it lies in the world.
+# ----------------------------------------------------------------------------------------------
+
+@dataclass
+class _Sheet:
+    """A printed, flat sheet: texture (h, w) gray levels, and texel (s, t) -> world mm."""
+
+    texture: np.ndarray
+    A_world: np.ndarray  # (3, 3): world point = A_world @ (s, t, 1), texel centres at integers
+    label: str = ""
+
+    def camera_homography(self, T_camera_world: np.ndarray) -> np.ndarray:
+        """(3, 3) map from texels (s, t, 1) to camera-frame points (rays scaled by depth)."""
+        R, t = T_camera_world[:3, :3], T_camera_world[:3, 3]
+        H = R @ self.A_world
+        H[:, 2] += t
+        return H
+
+    def outline_world(self) -> np.ndarray:
+        """The sheet's four outer corners (4, 3), mm, world."""
+        h, w = self.texture.shape[:2]
+        st = np.array([[-0.5, -0.5, 1], [w - 0.5, -0.5, 1], [w - 0.5, h - 0.5, 1], [-0.5, h - 0.5, 1]])
+        return st @ self.A_world.T
+
+
+def _marker_sheet(marker_map: MarkerMap, marker_id: int, texels_per_cell: int, margin_cells: float, grays: dict) -> _Sheet:
+    cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2
+    n = cells * texels_per_cell
+    m = int(round(margin_cells * texels_per_cell))
+    marker = _cv.generate_marker(marker_map.dictionary, marker_id, n).astype(np.float32) / 255.0
+    tex = np.full((n + 2 * m, n + 2 * m), grays["paper"], dtype=np.float32)
+    tex[m: m + n, m: m + n] = grays["ink"] + (grays["paper"] - grays["ink"]) * marker
+    c = marker_map.marker_corners(marker_id)
+    e_s = (c[1] - c[0]) / n  # one texel along TL -> TR
+    e_t = (c[3] - c[0]) / n  # one texel along TL -> BL
+    # the marker's outer edge runs along texel edges: its TL corner is at texel (m - 0.5, m - 0.5)
+    origin = c[0] - (m - 0.5) * (e_s + e_t)
+    return _Sheet(tex, np.column_stack([e_s, e_t, origin]), label=f"marker {marker_id}")
+
+
+def _projected_size_px(corners_world: np.ndarray, camera: Camera, T_camera_world: np.ndarray) -> float | None:
+    """Longest side (pinhole pixels) of a quad seen by the camera, or None when part is behind it."""
+    pc = corners_world @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]
+    if np.any(pc[:, 2] <= 1.0):
+        return None
+    xy = pc[:, :2] / pc[:, 2:3] * [camera.fx, camera.fy]
+    return float(np.max(np.linalg.norm(xy - np.roll(xy, -1, axis=0), axis=1)))
+
+
+def _texels_per_cell(side_px: float | None, cells: int, k: int) -> int:
+    """Texels per cell so that one texel is at most about one sub-pixel."""
+    if side_px is None:
+        return 32
+    return int(np.clip(math.ceil(side_px * k / cells), 4, _MAX_TEXELS_PER_CELL))
+
+
+# ----------------------------------------------------------------------------------------------
+# The renderer.
+# ----------------------------------------------------------------------------------------------
+
+def _sheet_region(sheet: _Sheet, H: np.ndarray, nmap: np.ndarray, width: int, height: int) -> tuple[int, int, int, int] | None:
+    """Output pixels (u0, u1, v0, v1) that may see the sheet, or None when none can."""
+    h, w = sheet.texture.shape[:2]
+    st = np.array([[-0.5, -0.5, 1], [w - 0.5, -0.5, 1], [w - 0.5, h - 0.5, 1], [-0.5, h - 0.5, 1]])
+    pc = st @ H.T
+    if np.all(pc[:, 2] <= 0):
+        return None
+    if np.any(pc[:, 2] <= 1e-6):
+        return (0, width, 0, height)  # crosses the camera's plane: test every pixel
+    xy = pc[:, :2] / pc[:, 2:3]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    inner = nmap[1:-1, 1:-1]
+    inside = (inner[..., 0] >= lo[0]) & (inner[..., 0] <= hi[0]) & (inner[..., 1] >= lo[1]) & (inner[..., 1] <= hi[1])
+    rows = np.flatnonzero(inside.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(inside[rows[0]: rows[-1] + 1].any(axis=0))
+    return (max(cols[0] - 2, 0), min(cols[-1] + 3, width), max(rows[0] - 2, 0), min(rows[-1] + 3, height))
+
+
+def _render(
+    camera: Camera,
+    T_world_camera: np.ndarray,
+    sheets: Sequence[_Sheet],
+    *,
+    seed: int,
+    supersample: int,
+    blur_px: float,
+    noise_std: float,
+    gradient: float,
+    gradient_angle_deg: float,
+    wall_gray: float,
+    wall_texture: float,
+    bgr: bool,
+) -> np.ndarray:
+    k = int(supersample)
+    if k < 1 or k != supersample:
+        raise FidlearnError(f"supersample must be a whole number >= 1, got {supersample!r}")
+    for name, value in (("blur_px", blur_px), ("noise_std", noise_std), ("wall_texture", wall_texture)):
+        if not (math.isfinite(value) and value >= 0):
+            raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
+    width, height = camera.image_size
+    rng = np.random.default_rng(seed)
+    T_camera_world = frames.invert_transform(T_world_camera)
+    nmap = _normalized_map(camera)
+
+    # the wall: mid gray with a faint, smooth, seeded texture (fixed to the image, not the wall)
+    if wall_texture > 0:
+        coarse = rng.standard_normal((height // 24 + 3, width // 24 + 3)).astype(np.float32)
+        smooth = cv2.resize(coarse, (width * k, height * k), interpolation=cv2.INTER_CUBIC)
+        canvas = (wall_gray + wall_texture * smooth).astype(np.float32)
+    else:
+        canvas = np.full((height * k, width * k), wall_gray, dtype=np.float32)
+    # inverse depth of the nearest sheet so far, per sub-pixel: the nearest sheet wins
+    wbuf = np.zeros_like(canvas) if len(sheets) > 1 else None
+
+    for sheet in sheets:
+        H = sheet.camera_homography(T_camera_world)
+        # the printed face points along -(e_s x e_t); a sheet seen from behind is not drawn
+        face = -np.cross(H[:, 0], H[:, 1])
+        if float(face @ (-H[:, 2])) <= 0:
+            continue
+        region = _sheet_region(sheet, H, nmap, width, height)
+        if region is None:
+            continue
+        try:
+            Hinv = np.linalg.inv(H)
+        except np.linalg.LinAlgError:
+            continue  # seen exactly edge-on
+        tex2 = np.dstack([sheet.texture, np.ones_like(sheet.texture)])
+        u0, u1, v0, v1 = region
+        rows = max(1, _STRIP_SUBPIXELS // (k * k * (u1 - u0)))
+        for s0 in range(v0, v1, rows):
+            s1 = min(s0 + rows, v1)
+            x, y = _fine_rays(nmap, u0, u1, s0, s1, k)
+            a = Hinv[0, 0] * x + Hinv[0, 1] * y + Hinv[0, 2]
+            b = Hinv[1, 0] * x + Hinv[1, 1] * y + Hinv[1, 2]
+            w = Hinv[2, 0] * x + Hinv[2, 1] * y + Hinv[2, 2]  # 1 / depth; > 0 in front of the camera
+            front = w > 0
+            wsafe = np.where(front, w, 1.0)
+            map_s = np.where(front, a / wsafe, -10.0).astype(np.float32)
+            map_t = np.where(front, b / wsafe, -10.0).astype(np.float32)
+            # premultiplied: the texture's second channel (all ones) gives the coverage at the sheet's edge
+            looked = cv2.remap(tex2, map_s, map_t, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
+            ink, alpha = looked[..., 0], looked[..., 1]
+            sl = (slice(s0 * k, s1 * k), slice(u0 * k, u1 * k))
+            if wbuf is not None:
+                wb = wbuf[sl]
+                nearer = front & (w > wb)
+                alpha = np.where(nearer, alpha, 0.0)
+                ink = np.where(nearer, ink, 0.0)
+                opaque = alpha >= 0.5
+                wb[opaque] = w[opaque]
+            view = canvas[sl]
+            view *= 1.0 - alpha
+            view += ink
+
+    img = canvas.reshape(height, k, width, k).mean(axis=(1, 3), dtype=np.float64) if k > 1 else canvas.astype(np.float64)
+    if blur_px > 0:
+        img = cv2.GaussianBlur(img, (0, 0), float(blur_px), borderType=cv2.BORDER_REFLECT)
+    if gradient:
+        th = math.radians(gradient_angle_deg)
+        uu = (np.arange(width) / max(width - 1, 1) - 0.5) * math.cos(th)
+        vv = (np.arange(height) / max(height - 1, 1) - 0.5) * math.sin(th)
+        img = img * (1.0 + float(gradient) * (uu[None, :] + vv[:, None]))
+    if noise_std > 0:
+        img = img + rng.normal(0.0, float(noise_std), size=img.shape)
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if bgr:
+        out = cv2.cvtColor(out, cv2.COLOR_GRAY2BGR)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# Scenes of markers on walls.
+# ----------------------------------------------------------------------------------------------
+
+def look_at(eye_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0), roll_deg: float = 0.0) -> np.ndarray:
+    """The pose ``T_world_camera`` (4, 4) of a camera at ``eye_mm`` looking at ``target_mm``.
+
+    The camera frame is OpenCV's (x right, y down, z forward); ``up`` (world)
+    points up in the image, and ``roll_deg`` then turns the camera about its
+    optical axis (positive: clockwise as the image shows it).
+
+    Examples
+    --------
+    >>> T = look_at([1500, 0, 300], [0, 0, 300])   # 1.5 m in front of the north wall
+    >>> T[:3, 2].round(3).tolist()                 # the camera looks along -X
+    [-1.0, 0.0, 0.0]
+    """
+    eye = np.asarray(eye_mm, dtype=float).reshape(3)
+    z = np.asarray(target_mm, dtype=float).reshape(3) - eye
+    if np.linalg.norm(z) < 1e-9:
+        raise FidlearnError(f"look_at: the eye {eye.tolist()} and the target are the same point; move one of them")
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, dtype=float))
+    if np.linalg.norm(x) < 1e-9:
+        raise FidlearnError(f"look_at: the view direction {z.round(3).tolist()} is parallel to up={list(up)}; choose another up")
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.column_stack([x, y, z]) @ frames.rot_z(math.radians(roll_deg))
+    return frames.make_transform(R, eye)
+
+
+def visible_markers(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, margin_px: float = 2.0) -> dict[int, np.ndarray]:
+    """True pixel corners of the markers a camera sees whole: ``{id: (4, 2) float64}``.
+
+    A marker counts as visible when its four corners are in front of the
+    camera, inside the image with ``margin_px`` to spare (pixel-centre
+    convention: the image spans -0.5 .. width - 0.5) and its printed face
+    points toward the camera. Corners are ``camera.project`` of the marker's
+    3D corners (TL, TR, BR, BL), i.e. ``cv2.projectPoints``.
+    """
+    T_camera_world = frames.invert_transform(T_world_camera)
+    eye = T_world_camera[:3, 3]
+    out: dict[int, np.ndarray] = {}
+    lo_u, lo_v = -0.5 + margin_px, -0.5 + margin_px
+    hi_u, hi_v = camera.width - 0.5 - margin_px, camera.height - 0.5 - margin_px
+    for mid in marker_map.ids:
+        c = marker_map.marker_corners(mid)
+        pc = c @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]
+        if np.any(pc[:, 2] <= 1.0):
+            continue
+        if float(marker_map.normal(mid) @ (eye - c.mean(axis=0))) <= 0:
+            continue
+        # far outside the field of view the distortion polynomial folds back: test the pinhole first
+        xy = pc[:, :2] / pc[:, 2:3]
+        ideal = xy * [camera.fx, camera.fy] + [camera.cx, camera.cy]
+        slack = 0.5 * max(camera.width, camera.height)
+        if np.any(ideal < [lo_u - slack, lo_v - slack]) or np.any(ideal > [hi_u + slack, hi_v + slack]):
+            continue
+        px = camera.project(c, T_world_camera)
+        if np.all((px[:, 0] >= lo_u) & (px[:, 0] <= hi_u) & (px[:, 1] >= lo_v) & (px[:, 1] <= hi_v)):
+            out[mid] = px
+    return out
+
+
+def render_scene(
+    camera: Camera,
+    marker_map: MarkerMap,
+    T_world_camera: np.ndarray,
+    *,
+    seed: int = 0,
+    blur_px: float = 0.0,
+    noise_std: float = 0.0,
+    gradient: float = 0.0,
+    gradient_angle_deg: float = 30.0,
+    supersample: int = 4,
+    wall_gray: float = DEFAULT_GRAYS["wall"],
+    wall_texture: float = 3.0,
+    paper_gray: float = DEFAULT_GRAYS["paper"],
+    ink_gray: float = DEFAULT_GRAYS["ink"],
+    margin_cells: float = 1.0,
+    margin_px: float = 2.0,
+    bgr: bool = False,
+) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """Render what a camera sees of printed markers taped to walls, with the true corners.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics, distortion and image size of the picture.
+    marker_map : MarkerMap
+        The markers' placements (mm, world), size and dictionary.
+    T_world_camera : ndarray, shape (4, 4)
+        The camera's pose in the world (mm), camera frame OpenCV's.
+    seed : int
+        Seed of ``numpy.random.default_rng`` for the wall texture and the noise.
+    blur_px : float
+        Standard deviation (pixels) of a Gaussian blur (defocus); 0 for none.
+    noise_std : float
+        Standard deviation (gray levels) of Gaussian sensor noise; 0 for none.
+    gradient : float
+        Illumination change across the image as a fraction (0.3: 30 % brighter
+        on one side than the other), along ``gradient_angle_deg`` from the x axis.
+    supersample : int
+        Sub-pixels per pixel side; each pixel is the mean of ``supersample**2`` samples.
+    wall_gray, wall_texture, paper_gray, ink_gray : float
+        Gray levels of the wall, its texture's standard deviation, the paper and the ink.
+    margin_cells : float
+        White quiet zone around each marker, in marker cells (a cell is
+        ``marker_size_mm / (bits + 2)``).
+    margin_px : float
+        How far inside the image a marker's corners must be to count as visible.
+    bgr : bool
+        Return a (H, W, 3) BGR image instead of gray.
+
+    Returns
+    -------
+    image : ndarray, shape (H, W) or (H, W, 3), uint8
+        The picture, at ``camera.image_size``.
+    truth : dict
+        ``{id: (4, 2) float64}``: the true pixel corners (TL, TR, BR, BL,
+        pixel centres at integers) of every marker seen whole, facing the
+        camera (see :func:`visible_markers`). Markers partly outside the image
+        or behind the camera are drawn as far as they are seen but left out.
+
+    Examples
+    --------
+    >>> from fidlearn import Camera, MarkerMap, data_path
+    >>> cam = Camera.from_fov(60, (640, 480))
+    >>> wall = MarkerMap.load(data_path("world_map.json"))
+    >>> image, truth = render_scene(cam, wall, look_at([1200, 200, 250], [0, 200, 250]))
+    >>> image.shape, image.dtype, sorted(truth)
+    ((480, 640), dtype('uint8'), [0, 1, 2])
+    >>> np.allclose(truth[0], cam.project(wall.marker_corners(0), look_at([1200, 200, 250], [0, 200, 250])))
+    True
+    """
+    T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
+    grays = {"wall": float(wall_gray), "paper": float(paper_gray), "ink": float(ink_gray)}
+    if margin_cells < 0:
+        raise FidlearnError(f"margin_cells must be >= 0 (the white quiet zone in marker cells), got {margin_cells}")
+    T_camera_world = frames.invert_transform(T_world_camera)
+    cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2
+    sheets = []
+    for mid in marker_map.ids:
+        size = _projected_size_px(marker_map.marker_corners(mid), camera, T_camera_world)
+        tpc = _texels_per_cell(size, cells, int(supersample))
+        sheets.append(_marker_sheet(marker_map, mid, tpc, margin_cells, grays))
+    image = _render(
+        camera, T_world_camera, sheets, seed=seed, supersample=supersample, blur_px=blur_px,
+        noise_std=noise_std, gradient=gradient, gradient_angle_deg=gradient_angle_deg,
+        wall_gray=wall_gray, wall_texture=wall_texture, bgr=bgr,
+    )
+    return image, visible_markers(camera, marker_map, T_world_camera, margin_px=margin_px)
