@@ -1,0 +1,465 @@
+"""Pictures for the course: the room in 3D (world axes, markers, cameras) and images with points.
+
+Every function draws on an Axes it is given (or makes one) and returns what it
+drew, so a test can check the geometry without a browser. Nothing here is
+imported by ``import fidlearn``: use ``from fidlearn import plotting``.
+
+Conventions drawn here are the library's: world right-handed, Z up, mm;
+``T_world_camera`` is the camera's pose; the camera frame is OpenCV's (x right,
+y down, z forward); images are OpenCV's BGR arrays and pixel centres sit at
+integer coordinates, which is also where ``imshow`` puts them. World axes are
+drawn X red, Y green, Z blue.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fidlearn import Camera, MarkerMap, data_path, plotting
+>>> m = MarkerMap.load(data_path("world_map.json"))
+>>> cam = Camera.from_fov(60, (640, 480))
+>>> T_world_camera = plotting.look_at([1500, 200, 250], [0, 120, 230])
+>>> fig = plotting.plot_scene(m, poses=[T_world_camera], camera=cam)
+>>> len(fig.axes)
+1
+>>> import matplotlib.pyplot as plt; plt.close(fig)
+"""
+
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d projection)
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+from . import frames
+from .camera import Camera
+from .markermap import MarkerMap
+
+__all__ = [
+    "AXIS_COLORS",
+    "CORNER_NAMES",
+    "new_axes_3d",
+    "set_axes_equal",
+    "draw_frame",
+    "draw_world_axes",
+    "draw_markers",
+    "camera_frustum",
+    "draw_camera",
+    "look_at",
+    "plot_scene",
+    "show_image",
+    "show_images",
+    "draw_points",
+    "draw_corner_labels",
+    "draw_quads",
+    "draw_detections",
+    "draw_reprojection",
+    "draw_projected_markers",
+]
+
+#: Colours of the X, Y and Z axes of every frame drawn.
+AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
+#: Corner names in the winding order used everywhere.
+CORNER_NAMES = ("TL", "TR", "BR", "BL")
+
+
+# -- 3D axes -----------------------------------------------------------------------------
+def new_axes_3d(ax: Axes | None = None, figsize: tuple[float, float] = (7.0, 6.0), elev: float = 20.0,
+                azim: float = -35.0) -> Axes:
+    """A 3D Axes labelled in mm (a new figure unless ``ax`` is given)."""
+    if ax is None:
+        fig = plt.figure(figsize=figsize)
+        ax = fig.add_subplot(projection="3d")
+    if getattr(ax, "name", "") != "3d":
+        raise ValueError("ax must be a 3D Axes: fig.add_subplot(projection='3d')")
+    ax.set_xlabel("X (mm)")
+    ax.set_ylabel("Y (mm)")
+    ax.set_zlabel("Z (mm)")
+    ax.view_init(elev=elev, azim=azim)
+    return ax
+
+
+def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0.05) -> tuple[np.ndarray, float]:
+    """Give a 3D Axes equal scales on X, Y and Z, so squares look square and right angles look right.
+
+    Parameters
+    ----------
+    ax : 3D Axes
+    points : array_like, shape (N, 3), optional
+        Points (mm) that must be visible; by default the Axes' current limits.
+    margin : float
+        Extra room around the points, as a fraction of the largest extent.
+
+    Returns
+    -------
+    centre : ndarray, shape (3,)
+        Centre of the cube shown, mm.
+    half_range : float
+        Half the side of that cube, mm (the same on every axis).
+    """
+    if points is None:
+        lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
+        lo, hi = lims[:, 0], lims[:, 1]
+    else:
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre = (lo + hi) / 2.0
+    half = float(max((hi - lo).max() / 2.0, 1e-9)) * (1.0 + margin)
+    ax.set_xlim3d(centre[0] - half, centre[0] + half)
+    ax.set_ylim3d(centre[1] - half, centre[1] + half)
+    ax.set_zlim3d(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    return centre, half
+
+
+def draw_frame(ax: Axes, T_world_frame: np.ndarray, length_mm: float = 100.0, label: str | None = None,
+               linewidth: float = 2.0, axis_names: Sequence[str] | None = None) -> list:
+    """Draw a frame's X, Y, Z axes (red, green, blue) at its pose ``T_world_frame`` (4, 4), mm.
+
+    Returns the three Line3D artists, X first; each runs from the frame's origin
+    to origin + ``length_mm`` along that axis.
+    """
+    T = frames.check_transform(T_world_frame, name="T_world_frame")
+    origin = T[:3, 3]
+    lines = []
+    for k in range(3):
+        tip = origin + length_mm * T[:3, k]
+        (line,) = ax.plot(*np.column_stack([origin, tip]), color=AXIS_COLORS[k], linewidth=linewidth)
+        lines.append(line)
+        if axis_names:
+            ax.text(*(origin + 1.08 * length_mm * T[:3, k]), axis_names[k], color=AXIS_COLORS[k], fontsize=9)
+    if label:
+        ax.text(*origin, f" {label}", fontsize=9, color="k")
+    return lines
+
+
+def draw_world_axes(ax: Axes, length_mm: float = 300.0, label: str | None = "world") -> list:
+    """The world frame at the origin, axes labelled X, Y, Z. Returns the three Line3D artists."""
+    return draw_frame(ax, np.eye(4), length_mm, label=label, linewidth=2.5, axis_names=("X", "Y", "Z"))
+
+
+def draw_markers(ax: Axes, marker_map: MarkerMap, ids: Iterable[int] | None = None, color: str = "0.2",
+                 show_ids: bool = True, show_corners: bool = False, alpha: float = 0.9) -> Poly3DCollection:
+    """Draw markers as filled squares at their world corners, with their ids.
+
+    The top-left corner of each marker gets a red dot, so a wrong rotation in a
+    map shows at a glance. ``show_corners`` labels TL, TR, BR, BL too.
+
+    Returns the Poly3DCollection: one polygon per marker, vertices TL, TR, BR, BL (mm).
+    """
+    corners = marker_map.corners()
+    ids = list(corners) if ids is None else [int(i) for i in ids]
+    quads = [corners[i] for i in ids]
+    coll = Poly3DCollection(quads, facecolors=color, edgecolors="k", linewidths=1.0, alpha=alpha)
+    ax.add_collection3d(coll)
+    s = marker_map.marker_size_mm
+    for mid, c in zip(ids, quads):
+        ax.scatter(*c[0], color="tab:red", s=12, depthshade=False)
+        if show_ids:
+            n = marker_map.normal(mid)
+            ax.text(*(c.mean(axis=0) + 0.15 * s * n), str(mid), color="tab:blue", fontsize=10,
+                    ha="center", va="center", fontweight="bold")
+        if show_corners:
+            for name, p in zip(CORNER_NAMES, c):
+                ax.text(*p, name, fontsize=7, color="tab:red")
+    return coll
+
+
+def camera_frustum(camera: Camera, T_world_camera: np.ndarray, depth_mm: float = 200.0) -> np.ndarray:
+    """The camera's viewing pyramid in world coordinates: apex and the image's corners at ``depth_mm``.
+
+    Returns
+    -------
+    ndarray, shape (5, 3), mm, world frame
+        Row 0 is the camera centre; rows 1-4 are the rays through the image's
+        outer corners (TL, TR, BR, BL of the image, at pixel edges -0.5 and
+        w - 0.5) cut at depth ``depth_mm`` along the optical axis. Distortion is
+        ignored (the pinhole pyramid).
+    """
+    T = frames.check_transform(T_world_camera, name="T_world_camera")
+    w, h = camera.image_size
+    px = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
+    rays = np.column_stack([(px[:, 0] - camera.cx) / camera.fx, (px[:, 1] - camera.cy) / camera.fy, np.ones(4)])
+    pts_camera = np.vstack([np.zeros(3), rays * depth_mm])
+    return frames.transform_points(T, pts_camera)
+
+
+def draw_camera(ax: Axes, camera: Camera, T_world_camera: np.ndarray, scale_mm: float = 200.0,
+                color: str = "tab:orange", label: str | None = None, show_axes: bool = True) -> list:
+    """Draw a camera as its viewing pyramid (frustum) at its pose ``T_world_camera`` (4, 4), mm.
+
+    The pyramid's apex is the camera centre, its base the image at depth
+    ``scale_mm``; the image's top edge is drawn thicker so "up in the image" can
+    be read off the picture. With ``show_axes`` the camera's own x (red), y
+    (green), z (blue, the optical axis) are drawn too.
+
+    Returns the frustum's Line3D artists: four edges from the apex to the image
+    corners TL, TR, BR, BL, then the base outline (closed, starting at TL).
+    """
+    f = camera_frustum(camera, T_world_camera, scale_mm)
+    lines = []
+    for k in range(1, 5):
+        (line,) = ax.plot(*np.column_stack([f[0], f[k]]), color=color, linewidth=1.2)
+        lines.append(line)
+    base = f[[1, 2, 3, 4, 1]]
+    (line,) = ax.plot(*base.T, color=color, linewidth=1.2)
+    lines.append(line)
+    ax.plot(*f[[1, 2]].T, color=color, linewidth=3.0)  # the image's top edge
+    if show_axes:
+        draw_frame(ax, T_world_camera, 0.5 * scale_mm, linewidth=1.5)
+    if label:
+        ax.text(*f[0], f" {label}", fontsize=9, color=color)
+    return lines
+
+
+def look_at(position_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0)) -> np.ndarray:
+    """The pose ``T_world_camera`` (4, 4) of a camera at ``position_mm`` looking at ``target_mm`` (world, mm).
+
+    The camera frame is OpenCV's: z along the line of sight, x to the right,
+    y down, so the world's ``up`` appears up in the image.
+    """
+    p = np.asarray(position_mm, dtype=float)
+    z = np.asarray(target_mm, dtype=float) - p
+    if np.linalg.norm(z) < 1e-9:
+        raise ValueError("look_at: the camera position and the target are the same point")
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, dtype=float))
+    if np.linalg.norm(x) < 1e-9:
+        raise ValueError("look_at: the line of sight is parallel to 'up'; give another up vector")
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return frames.make_transform(np.column_stack([x, y, z]), p)
+
+
+def _pose_matrix(pose) -> np.ndarray:
+    T = getattr(pose, "T_world_camera", pose)
+    return frames.check_transform(T, name="pose")
+
+
+def plot_scene(marker_map: MarkerMap | None = None, poses: Sequence = (), camera: Camera | None = None,
+               labels: Sequence[str] | None = None, ax: Axes | None = None, scale_mm: float | None = None,
+               world_axes_mm: float | None = None, title: str | None = None, show_corners: bool = False,
+               extra_points: np.ndarray | None = None, elev: float = 20.0, azim: float = -35.0) -> Figure:
+    """The room in 3D: world axes, the markers of a map and the cameras at their poses.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap, optional
+    poses : sequence
+        Camera poses: (4, 4) ``T_world_camera`` arrays (mm) or objects with a
+        ``T_world_camera`` attribute (a ``Pose``).
+    camera : Camera, optional
+        Gives the frustums their shape; without it each pose is drawn as axes.
+    labels : sequence of str, optional
+        One label per pose.
+    scale_mm : float, optional
+        Depth of the drawn frustums; by default a fifth of the scene's size.
+    extra_points : array_like, shape (N, 3), optional
+        More points (mm) the view must include.
+
+    Returns
+    -------
+    Figure
+        With one equal-aspect 3D Axes.
+    """
+    ax = new_axes_3d(ax, elev=elev, azim=azim)
+    Ts = [_pose_matrix(p) for p in poses]
+    if labels is not None and len(labels) != len(Ts):
+        raise ValueError(f"plot_scene: {len(labels)} labels for {len(Ts)} poses")
+    pts = [np.zeros((1, 3))]
+    if marker_map is not None:
+        pts += list(marker_map.corners().values())
+    pts += [T[:3, 3][None] for T in Ts]
+    if extra_points is not None:
+        pts.append(np.asarray(extra_points, dtype=float).reshape(-1, 3))
+    allp = np.vstack(pts)
+    size = float(np.ptp(allp, axis=0).max()) if len(allp) > 1 else 1000.0
+    size = size if size > 0 else 1000.0
+    if scale_mm is None:
+        scale_mm = 0.2 * size
+    if world_axes_mm is None:
+        world_axes_mm = 0.25 * size
+    draw_world_axes(ax, world_axes_mm)
+    pts.append(np.eye(3) * world_axes_mm)
+    if marker_map is not None:
+        draw_markers(ax, marker_map, show_corners=show_corners)
+    for i, T in enumerate(Ts):
+        label = labels[i] if labels is not None else (f"camera {i}" if len(Ts) > 1 else "camera")
+        if camera is not None:
+            draw_camera(ax, camera, T, scale_mm, label=label)
+            pts.append(camera_frustum(camera, T, scale_mm))
+        else:
+            draw_frame(ax, T, scale_mm, label=label)
+            pts.append(frames.transform_points(T, np.eye(3) * scale_mm))
+    set_axes_equal(ax, np.vstack(pts))
+    if title:
+        ax.set_title(title)
+    return ax.figure
+
+
+# -- images --------------------------------------------------------------------------------
+def _rgb(image: np.ndarray) -> tuple[np.ndarray, dict]:
+    image = np.asarray(image)
+    if image.ndim == 2:
+        kw = {"cmap": "gray"}
+        if image.dtype == np.uint8:
+            kw.update(vmin=0, vmax=255)
+        return image, kw
+    if image.ndim == 3 and image.shape[2] == 3:
+        return image[:, :, ::-1], {}  # OpenCV's BGR to matplotlib's RGB
+    if image.ndim == 3 and image.shape[2] == 4:
+        return image[:, :, [2, 1, 0, 3]], {}
+    raise ValueError(f"show_image: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
+
+
+def show_image(ax: Axes | None, image: np.ndarray, points: np.ndarray | None = None,
+               labels: Sequence | None = None, color: str = "tab:red", title: str | None = None,
+               marker: str = "+", markersize: float = 80.0) -> Axes:
+    """Show an OpenCV image (gray, or BGR as OpenCV loads it) with optional points and labels.
+
+    Pixel centres sit at integer coordinates, as in OpenCV, so a point (u, v)
+    from OpenCV lands on the right pixel. Axes are in pixels, y down.
+
+    Parameters
+    ----------
+    ax : Axes or None
+        Where to draw (None: a new figure).
+    image : ndarray, shape (H, W) or (H, W, 3) BGR
+    points : array_like, shape (N, 2), optional
+        Pixel points (u, v) to mark.
+    labels : sequence, optional
+        One label per point, written beside it.
+    """
+    if ax is None:
+        h, w = np.asarray(image).shape[:2]
+        _, ax = plt.subplots(figsize=(6.4, 6.4 * h / max(w, 1)))
+    shown, kw = _rgb(image)
+    ax.imshow(shown, interpolation="nearest", **kw)
+    if points is not None:
+        draw_points(ax, points, labels=labels, color=color, marker=marker, markersize=markersize)
+    if title:
+        ax.set_title(title)
+    return ax
+
+
+def show_images(images: Sequence[np.ndarray], titles: Sequence[str] | None = None, ncols: int = 4,
+                width_in: float = 10.0) -> Figure:
+    """A grid of images (gray or BGR) with optional titles, axes hidden."""
+    n = len(images)
+    if n == 0:
+        raise ValueError("show_images: no images")
+    ncols = max(1, min(ncols, n))
+    nrows = -(-n // ncols)
+    h, w = np.asarray(images[0]).shape[:2]
+    fig, axes = plt.subplots(nrows, ncols, figsize=(width_in, width_in / ncols * h / w * nrows + 0.4 * nrows),
+                             squeeze=False)
+    for k, ax in enumerate(axes.flat):
+        ax.axis("off")
+        if k < n:
+            show_image(ax, images[k], title=titles[k] if titles is not None else None)
+    fig.tight_layout()
+    return fig
+
+
+def draw_points(ax: Axes, points: np.ndarray, labels: Sequence | None = None, color: str = "tab:red",
+                marker: str = "+", markersize: float = 80.0):
+    """Mark pixel points (N, 2) on an image Axes, with optional labels; returns the scatter artist."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    art = ax.scatter(pts[:, 0], pts[:, 1], c=color, marker=marker, s=markersize, linewidths=1.5)
+    if labels is not None:
+        if len(labels) != len(pts):
+            raise ValueError(f"draw_points: {len(labels)} labels for {len(pts)} points")
+        for (u, v), text in zip(pts, labels):
+            ax.annotate(str(text), (u, v), xytext=(4, -4), textcoords="offset points", color=color, fontsize=8)
+    return art
+
+
+def draw_corner_labels(ax: Axes, corners_px: np.ndarray, names: Sequence[str] = CORNER_NAMES,
+                       color: str = "tab:red", fontsize: float = 8) -> list:
+    """Write TL, TR, BR, BL beside a quad's four corners (4, 2), pixels, each pushed away from the centre.
+
+    Returns the four Text artists, in corner order.
+    """
+    c = np.asarray(corners_px, dtype=float).reshape(-1, 2)
+    if len(c) != len(names):
+        raise ValueError(f"draw_corner_labels: {len(c)} corners for {len(names)} names")
+    centre = c.mean(axis=0)
+    texts = []
+    for name, p in zip(names, c):
+        d = p - centre
+        d = d / (np.linalg.norm(d) + 1e-12)
+        texts.append(ax.annotate(name, tuple(p), xytext=tuple(8 * d * [1, -1]), textcoords="offset points",
+                                 color=color, fontsize=fontsize, ha="center", va="center"))
+    return texts
+
+
+def draw_quads(ax: Axes, quads_px: Sequence[np.ndarray], ids: Sequence | None = None, color: str = "lime",
+               corner_labels: bool = False, linewidth: float = 1.5) -> list:
+    """Outline quads (each (4, 2), pixels) on an image Axes, a dot on the first corner (TL), ids at centres.
+
+    Returns the outline Line2D artists, one per quad.
+    """
+    lines = []
+    for k, q in enumerate(quads_px):
+        q = np.asarray(q, dtype=float).reshape(4, 2)
+        closed = np.vstack([q, q[:1]])
+        (line,) = ax.plot(closed[:, 0], closed[:, 1], color=color, linewidth=linewidth)
+        lines.append(line)
+        ax.plot(q[0, 0], q[0, 1], "o", color="tab:red", markersize=4)
+        if ids is not None:
+            u, v = q.mean(axis=0)
+            ax.text(u, v, str(ids[k]), color=color, fontsize=10, ha="center", va="center", fontweight="bold")
+        if corner_labels:
+            draw_corner_labels(ax, q)
+    return lines
+
+
+def draw_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_labels: bool = True) -> list:
+    """Outline detected markers (objects with ``.id`` and ``.corners`` (4, 2)) with ids and corner names."""
+    return draw_quads(ax, [d.corners for d in detections], ids=[d.id for d in detections], color=color,
+                      corner_labels=corner_labels)
+
+
+def draw_reprojection(ax: Axes, observed_px: np.ndarray, projected_px: np.ndarray, scale: float = 1.0,
+                      color: str = "tab:red"):
+    """Observed points (green dots) and the model's projections (red crosses), joined by error lines.
+
+    ``scale`` magnifies the error lines (10 shows a 0.3 px error as 3 px).
+    Returns the per-point error in pixels, shape (N,).
+    """
+    obs = np.asarray(observed_px, dtype=float).reshape(-1, 2)
+    proj = np.asarray(projected_px, dtype=float).reshape(-1, 2)
+    if obs.shape != proj.shape:
+        raise ValueError(f"draw_reprojection: {len(obs)} observed points but {len(proj)} projected")
+    ax.scatter(obs[:, 0], obs[:, 1], s=14, color="tab:green", label="observed")
+    ax.scatter(proj[:, 0], proj[:, 1], s=30, marker="x", color=color, label="projected")
+    tips = obs + scale * (proj - obs)
+    for a, b in zip(obs, tips):
+        ax.plot([a[0], b[0]], [a[1], b[1]], color=color, linewidth=1)
+    return np.linalg.norm(proj - obs, axis=1)
+
+
+def draw_projected_markers(ax: Axes, camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray,
+                           corner_labels: bool = True, color: str = "tab:blue") -> dict[int, np.ndarray]:
+    """What the camera sees of the map: each marker's corners projected, labelled TL, TR, BR, BL.
+
+    The Axes shows the whole image (pixels, y down). Markers behind the camera
+    are left out.
+
+    Returns ``{id: (4, 2) corners_px}`` of the markers drawn.
+    """
+    w, h = camera.image_size
+    out: dict[int, np.ndarray] = {}
+    for mid, c in marker_map.corners().items():
+        if not np.all(camera.points_in_front(c, T_world_camera)):
+            continue
+        out[mid] = camera.project(c, T_world_camera)
+    draw_quads(ax, list(out.values()), ids=list(out), color=color, corner_labels=corner_labels)
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_aspect("equal")
+    ax.add_patch(plt.Rectangle((-0.5, -0.5), w, h, fill=False, edgecolor="k", linewidth=1))
+    return out

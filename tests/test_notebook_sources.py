@@ -1,0 +1,92 @@
+"""Every course notebook is built from its source in notebooks/src and is up to date with it."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+from fidlearn.data import repo_dir
+
+_spec = importlib.util.spec_from_file_location("nbbuild", repo_dir() / "tools" / "nbbuild.py")
+nbbuild = importlib.util.module_from_spec(_spec)
+sys.modules.setdefault("nbbuild", nbbuild)
+_spec.loader.exec_module(nbbuild)
+
+
+def test_every_notebook_matches_its_source():
+    problems = nbbuild.check()
+    assert not problems, "\n".join(problems)
+
+
+def test_numbered_notebooks_have_sources():
+    sources = {p.stem for p in (repo_dir() / "notebooks" / "src").glob("[0-9][0-9]_*.py")}
+    notebooks = {p.stem for p in (repo_dir() / "notebooks").glob("[0-9][0-9]_*.ipynb")}
+    assert notebooks <= sources, f"notebooks without a source: {sorted(notebooks - sources)}"
+
+
+def test_parse_percent_splits_code_and_markdown_cells():
+    text = (
+        "# a note before the first cell is ignored\n"
+        "# %% [markdown]\n"
+        "# # Title\n"
+        "#\n"
+        "# Some *text*.\n"
+        "\n"
+        "# %%\n"
+        "# %matplotlib inline\n"
+        "x = 1  # a comment stays\n"
+        "\n"
+        "# %%\n"
+        "# NBVAL_IGNORE_OUTPUT\n"
+        "print(x)\n"
+    )
+    cells = nbbuild.parse_percent(text)
+    assert cells == [
+        nbbuild.Cell("markdown", "# Title\n\nSome *text*."),
+        nbbuild.Cell("code", "%matplotlib inline\nx = 1  # a comment stays"),
+        nbbuild.Cell("code", "# NBVAL_IGNORE_OUTPUT\nprint(x)"),
+    ]
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("x = 1\n# %%\ny = 2\n", "code before the first"),
+        ("# %% [markdown]\nnot a comment\n", "must start with '# '"),
+        ("# %% [raw]\n# x\n", "unknown cell marker"),
+        ("\n\n", "no cells"),
+    ],
+)
+def test_parse_percent_says_what_is_wrong(text, message):
+    with pytest.raises(nbbuild.BuildError, match=message):
+        nbbuild.parse_percent(text, where="demo.py")
+
+
+def test_check_reports_a_stale_notebook(tmp_path: Path):
+    import nbformat
+
+    src = tmp_path / "src" / "01_demo.py"
+    src.parent.mkdir()
+    src.write_text("# %%\nx = 1\n")
+    assert "missing" in nbbuild.check_one(src)[0]
+    nb = nbbuild.make_notebook(nbbuild.parse_percent(src.read_text()))
+    nb.cells[0].execution_count = 1
+    nbformat.write(nb, str(tmp_path / "01_demo.ipynb"))
+    assert nbbuild.check_one(src) == []
+    src.write_text("# %%\nx = 2\n")
+    (problem,) = nbbuild.check_one(src)
+    assert "cells differ" in problem and "nbbuild.py" in problem
+    nb.cells[0].source = "x = 2"
+    nb.cells[0].execution_count = None
+    nbformat.write(nb, str(tmp_path / "01_demo.ipynb"))
+    assert "never executed" in nbbuild.check_one(src)[0]
+
+
+def test_notebook_path_follows_the_src_folder():
+    assert nbbuild.notebook_path(Path("notebooks/src/03_x.py")) == Path("notebooks/03_x.ipynb")
+    assert nbbuild.notebook_path(Path("notebooks/exercises/src/03_x.py")) == Path("notebooks/exercises/03_x.ipynb")
+    with pytest.raises(nbbuild.BuildError, match="src"):
+        nbbuild.notebook_path(Path("notebooks/03_x.py"))
