@@ -1,0 +1,312 @@
+"""Printables are measured, not trusted: each PDF is rasterized at 300 dpi with
+pdfium (an independent PDF renderer) and measured with plain OpenCV."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from fidlearn import _cv, printables as P
+from fidlearn.printables import PrintError
+
+pdfium = pytest.importorskip("pypdfium2")
+
+DPI = 300
+PX_PER_MM = DPI / 25.4
+
+
+def rasterize(path, dpi=DPI) -> list[np.ndarray]:
+    """Every page of a PDF as a gray uint8 image at ``dpi``."""
+    doc = pdfium.PdfDocument(str(path))
+    try:
+        pages = []
+        for page in doc:
+            rgb = page.render(scale=dpi / 72).to_numpy()
+            pages.append(cv2.cvtColor(np.ascontiguousarray(rgb[:, :, :3]), cv2.COLOR_RGB2GRAY))
+        return pages
+    finally:
+        doc.close()
+
+
+def page_size_pt(path) -> list[tuple[float, float]]:
+    doc = pdfium.PdfDocument(str(path))
+    try:
+        return [tuple(p.get_size()) for p in doc]
+    finally:
+        doc.close()
+
+
+def detect(gray, dictionary):
+    params = _cv.make_detector_parameters(cornerRefinementMethod=_cv.corner_refine_flag("subpix"))
+    corners, ids, _ = _cv.detect(_cv.make_detector(dictionary, params), gray)
+    return corners, ids
+
+
+def side_mm(corners: np.ndarray, px_per_mm: float = PX_PER_MM) -> np.ndarray:
+    """The four side lengths (4,) of a detected quad, mm."""
+    return np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1) / px_per_mm
+
+
+def black_square_sizes_mm(gray, px_per_mm=PX_PER_MM, min_mm=20):
+    """Width and height (mm) of each large dark blob's outer contour: the black squares."""
+    _, bw = cv2.threshold(gray, 128, 255, cv2.THRESH_BINARY_INV)
+    contours, _ = cv2.findContours(bw, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    sizes = []
+    for c in contours:
+        x, y, w, h = cv2.boundingRect(c)
+        if w > min_mm * px_per_mm and abs(w - h) < 0.2 * w:  # square, not the ruler
+            sizes.append((w / px_per_mm, h / px_per_mm))
+    return sizes
+
+
+def ruler_ticks_mm(gray, px_per_mm=PX_PER_MM):
+    """Find the ruler (one dark component about 100 mm long) and return its tick positions in mm.
+
+    Works for a horizontal or a vertical ruler. Returns None when there is none.
+    """
+    _, bw = cv2.threshold(gray, 128, 255, cv2.THRESH_BINARY_INV)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(bw)
+    for k in range(1, n):
+        x, y, w, h = stats[k, :4]
+        long_, short = max(w, h) / px_per_mm, min(w, h) / px_per_mm
+        if 99 < long_ < 101.5 and 3 < short < 7:
+            blob = (labels[y:y + h, x:x + w] == k).astype(np.uint8)
+            if h > w:
+                blob = blob.T
+            # baseline: the row with the most ink; sample 1 mm beyond it, where only ticks are
+            base = int(np.argmax(blob.sum(axis=1)))
+            direction = 1 if base < blob.shape[0] / 2 else -1
+            row = blob[base + direction * int(round(1.2 * px_per_mm))]
+            edges = np.flatnonzero(np.diff(np.r_[0, row, 0]))
+            starts, ends = edges[::2], edges[1::2]
+            return (starts + ends - 1) / 2 / px_per_mm
+    return None
+
+
+# -- parsing ------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "text, ids",
+    [("0-9", list(range(10))), ("0,3,7", [0, 3, 7]), ("0-3,8", [0, 1, 2, 3, 8]), (" 5 ", [5]), ("12-12", [12])],
+)
+def test_parse_ids(text, ids):
+    assert P.parse_ids(text) == ids
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [("", "empty"), ("a-b", "not an id or a range"), ("9-0", "runs backwards; write 0-9"),
+     ("0-3,2", "id 2 is listed twice"), ("-1", "not an id"), ("1,,2", "not an id")],
+)
+def test_parse_ids_rejects(text, message):
+    with pytest.raises(PrintError, match=message):
+        P.parse_ids(text)
+
+
+def test_parse_pattern():
+    assert P.parse_pattern("9x6") == (9, 6)
+    assert P.parse_pattern("5X7") == (5, 7)
+    with pytest.raises(PrintError, match="'9by6' is not COLUMNSxROWS; write it like 9x6"):
+        P.parse_pattern("9by6")
+    with pytest.raises(PrintError, match="at least 2"):
+        P.parse_pattern("1x6")
+
+
+def test_marker_cells_match_opencv_image():
+    cells = P.marker_cells("ARUCO_ORIGINAL", 7)
+    assert cells.shape == (7, 7) and cells[0].all() and cells[:, 0].all()  # black border
+    img = _cv.generate_marker("ARUCO_ORIGINAL", 7, 70)
+    assert np.array_equal(cells, img[5::10, 5::10] < 128)
+    with pytest.raises(Exception, match="has ids 0 to 249"):
+        P.marker_cells("6X6_250", 250)
+
+
+# -- markers PDF ----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def markers_80(tmp_path_factory):
+    path = tmp_path_factory.mktemp("markers") / "markers.pdf"
+    sheet = P.markers_pdf(path, P.parse_ids("0-9"), 80, "ARUCO_ORIGINAL", "a4")
+    return path, sheet, rasterize(path)
+
+
+def test_markers_pdf_exact_size_and_ids(markers_80):
+    path, sheet, pages = markers_80
+    found = []
+    for gray in pages:
+        # pdfium rounds the page size up to whole pixels
+        assert np.allclose(gray.shape, (297 * PX_PER_MM, 210 * PX_PER_MM), atol=1)
+        corners, ids = detect(gray, "ARUCO_ORIGINAL")
+        for c in corners:
+            sides = side_mm(c)
+            assert np.all(np.abs(sides - 80.0) < 0.5), sides
+        for w, h in black_square_sizes_mm(gray):
+            assert abs(w - 80.0) < 0.5 and abs(h - 80.0) < 0.5, (w, h)
+        assert len(black_square_sizes_mm(gray)) == len(ids)
+        found += ids.tolist()
+    assert sorted(found) == list(range(10))  # every id once, none misread
+
+
+def test_markers_pdf_is_multipage_a4(markers_80):
+    path, sheet, pages = markers_80
+    # A4 is 210 mm wide: one 80 mm marker plus its 2 x 11.4 mm quiet zone per row, two rows.
+    assert [tuple(round(v) for v in s) for s in page_size_pt(path)] == [(595, 842)] * 5
+    assert len(pages) == len(sheet.pages) == 5
+
+
+def test_markers_have_a_quiet_zone_of_one_cell(markers_80):
+    _, sheet, pages = markers_80
+    corners, _ = detect(pages[0], "ARUCO_ORIGINAL")
+    _, bw = cv2.threshold(pages[0], 128, 255, cv2.THRESH_BINARY_INV)
+    cell_px = 80 / 7 * PX_PER_MM
+    for c in corners:
+        x0, y0 = c.min(axis=0)
+        x1, y1 = c.max(axis=0)
+        m = int(cell_px) - 2
+        ring = bw[int(y0) - m:int(y1) + m, int(x0) - m:int(x1) + m].copy()
+        ring[m - 3:ring.shape[0] - m + 3, m - 3:ring.shape[1] - m + 3] = 0  # blank the marker itself
+        assert ring.max() == 0, "something printed within one cell of a marker"
+
+
+def test_ruler_is_100mm_with_mm_ticks(markers_80):
+    _, _, pages = markers_80
+    for gray in pages:
+        ticks = ruler_ticks_mm(gray)
+        assert ticks is not None, "no 100 mm ruler on the page"
+        assert len(ticks) == 101
+        assert ticks[-1] - ticks[0] == pytest.approx(100.0, abs=0.2)
+        assert np.allclose(np.diff(ticks), 1.0, atol=0.1)
+
+
+def test_markers_fit_one_page_when_small(tmp_path):
+    path = tmp_path / "small.pdf"
+    P.markers_pdf(path, [0, 3, 7, 8], 40, "6X6_250", "letter")
+    (w, h), = page_size_pt(path)
+    assert (w, h) == pytest.approx((612, 792), abs=0.01)  # US letter, 8.5 x 11 in
+    gray, = rasterize(path)
+    corners, ids = detect(gray, "6X6_250")
+    assert sorted(ids.tolist()) == [0, 3, 7, 8]
+    for c in corners:
+        assert np.all(np.abs(side_mm(c) - 40.0) < 0.5)
+
+
+def test_markers_png_at_dpi(tmp_path):
+    sheet, files = P.markers_png(tmp_path / "m.png", [4, 5], 80, "ARUCO_ORIGINAL", "a4", dpi=150)
+    assert files == [tmp_path / "m.png"]
+    img = cv2.imread(str(files[0]), cv2.IMREAD_GRAYSCALE)
+    assert img.shape == (round(297 / 25.4 * 150), round(210 / 25.4 * 150)) == (1754, 1240)
+    corners, ids = detect(img, "ARUCO_ORIGINAL")
+    assert sorted(ids.tolist()) == [4, 5]
+    for c in corners:
+        assert np.all(np.abs(side_mm(c, 150 / 25.4) - 80.0) < 0.5)
+    assert ruler_ticks_mm(img, 150 / 25.4) is not None
+
+
+def test_markers_png_several_pages_are_numbered(tmp_path):
+    _, files = P.markers_png(tmp_path / "m.png", [0, 1, 2], 80, dpi=40)
+    assert files == [tmp_path / "m-1.png", tmp_path / "m-2.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m-1.png", "m-2.png"]
+
+
+def test_marker_too_big_for_the_paper_names_the_largest(tmp_path):
+    with pytest.raises(PrintError, match=r"does not fit on a4 paper; the largest that fits is (\d+\.?\d*) mm") as e:
+        P.markers_pdf(tmp_path / "m.pdf", [0], 200)
+    largest = float(e.value.args[0].split("largest that fits is ")[1].split(" mm")[0])
+    P.layout_markers([0], largest)  # the size it names does fit
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_marker_id_outside_dictionary(tmp_path):
+    with pytest.raises(Exception, match="marker id 50 does not exist in 4X4_50, which has ids 0 to 49"):
+        P.markers_pdf(tmp_path / "m.pdf", [49, 50], 50, "4X4_50")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("size", [0, -80, float("nan")])
+def test_marker_size_must_be_positive(size):
+    with pytest.raises(PrintError, match="--size-mm must be a positive length in mm"):
+        P.layout_markers([0], size)
+
+
+# -- boards -------------------------------------------------------------------------------------
+def chessboard_spacing_mm(gray, pattern, px_per_mm=PX_PER_MM):
+    found, corners = cv2.findChessboardCorners(gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH)
+    assert found, "OpenCV does not find the printed chessboard"
+    corners = cv2.cornerSubPix(gray, corners, (11, 11), (-1, -1),
+                               (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3))
+    grid = corners.reshape(pattern[1], pattern[0], 2)
+    along_rows = np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel()
+    along_cols = np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel()
+    return np.r_[along_rows, along_cols] / px_per_mm
+
+
+def test_checkerboard_pdf_square_size(tmp_path):
+    path = tmp_path / "board.pdf"
+    sheet = P.board_pdf(path, (9, 6), 25, "a4")
+    assert sheet.squares == (10, 7) and sheet.inner_corners == (9, 6)
+    gray, = rasterize(path)
+    # 250 x 175 mm only fits A4 turned to landscape
+    assert np.allclose(gray.shape, (210 * PX_PER_MM, 297 * PX_PER_MM), atol=1)
+    spacing = chessboard_spacing_mm(gray, (9, 6))
+    assert len(spacing) == 8 * 6 + 9 * 5
+    assert np.all(np.abs(spacing - 25.0) < 0.2), (spacing.min(), spacing.max())
+    assert abs(spacing.mean() - 25.0) < 0.05
+    ticks = ruler_ticks_mm(gray)
+    assert ticks is not None and len(ticks) == 101
+    assert ticks[-1] - ticks[0] == pytest.approx(100.0, abs=0.2)
+
+
+def test_checkerboard_png_square_size(tmp_path):
+    P.board_png(tmp_path / "board.png", (6, 4), 20, "letter", dpi=200)
+    gray = cv2.imread(str(tmp_path / "board.png"), cv2.IMREAD_GRAYSCALE)
+    assert gray.shape == (round(279.4 / 25.4 * 200), round(215.9 / 25.4 * 200)) == (2200, 1700)
+    spacing = chessboard_spacing_mm(gray, (6, 4), 200 / 25.4)
+    assert np.all(np.abs(spacing - 20.0) < 0.2)
+
+
+def test_charuco_pdf_detected_by_opencv(tmp_path):
+    path = tmp_path / "charuco.pdf"
+    sheet = P.board_pdf(path, (4, 6), 30, "a4", charuco=True, dictionary="6X6_250", marker_mm=22)
+    assert sheet.squares == (5, 7)
+    gray, = rasterize(path)
+    board = _cv.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
+    ch_corners, ch_ids, m_corners, m_ids = _cv.charuco_detector(board).detectBoard(gray)
+    assert ch_ids is not None and sorted(np.asarray(ch_ids).ravel().tolist()) == list(range(4 * 6))
+    assert sorted(np.asarray(m_ids).ravel().tolist()) == list(range(17))  # (5*7)//2 markers
+    for c in m_corners:
+        assert np.all(np.abs(side_mm(np.asarray(c).reshape(4, 2)) - 22.0) < 0.5)
+    # corner 0 and corner 3 are one row of 3 squares apart
+    pts = np.asarray(ch_corners).reshape(-1, 2)[np.argsort(np.asarray(ch_ids).ravel())]
+    assert np.linalg.norm(pts[3] - pts[0]) / PX_PER_MM == pytest.approx(90.0, abs=0.3)
+    assert ruler_ticks_mm(gray) is not None
+
+
+def test_charuco_board_size_printed_on_page():
+    sheet = P.layout_board((10, 7), 25, "a4", charuco=True, dictionary="DICT_6X6_250", marker_mm=20)
+    assert sheet.describe() == "ChArUco 10x7 squares (9x6 inner corners), square 25 mm, marker 20 mm, 6X6_250"
+    fig = P.board_figure(sheet)
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "fidlearn " + sheet.describe() in texts
+
+
+def test_board_too_big_names_largest_square(tmp_path):
+    with pytest.raises(PrintError, match=r"the largest square that fits is (\d+\.\d) mm: use --square-mm") as e:
+        P.board_pdf(tmp_path / "b.pdf", (9, 6), 40, "a4")
+    largest = float(e.value.args[0].split("use --square-mm ")[1].split(" ")[0])
+    P.layout_board((10, 7), largest, "a4")  # fits
+    with pytest.raises(PrintError):
+        P.layout_board((10, 7), largest + 0.2, "a4")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_charuco_rejects_marker_bigger_than_square():
+    with pytest.raises(PrintError, match="--marker-mm 30 must be smaller than --square-mm 25"):
+        P.layout_board((10, 7), 25, charuco=True, dictionary="6X6_250", marker_mm=30)
+    with pytest.raises(PrintError, match="needs 55 markers but 4X4_50 has only 50"):
+        P.layout_board((11, 10), 10, charuco=True, dictionary="4X4_50", marker_mm=7)
+
+
+def test_unknown_output_type(tmp_path):
+    with pytest.raises(PrintError, match="name the file .pdf or .png"):
+        P.save_pages([], tmp_path / "m.svg")
