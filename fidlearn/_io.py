@@ -71,6 +71,10 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         raise error(
             f"{path}: contains {exc.args[0]}, which is not a number; write a finite measurement"
         ) from None
+    except RecursionError:
+        raise error(
+            f"{path}: brackets nested too deeply to be a {what}; check the file (is it the right one?)"
+        ) from None
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
@@ -84,6 +88,8 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise FidlearnError(f"{path}: the folder {folder} does not exist; create it first")
+    if path.is_dir():
+        raise FidlearnError(f"{path}: is a folder; give the name of the file to write (a path inside it)")
     fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=folder)
     os.close(fd)
     tmp = Path(tmp_name)

@@ -30,7 +30,7 @@ DIST_LENGTHS = (4, 5, 8, 12, 14)
 def _as_K(K: Any, where: str) -> np.ndarray:
     try:
         K = np.array(K, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise CameraError(f"{where}: camera_matrix is not numeric; expected 3x3 numbers [[fx,0,cx],[0,fy,cy],[0,0,1]]") from None
     if K.size == 9 and K.shape != (3, 3):
         K = K.reshape(3, 3)
@@ -59,7 +59,7 @@ def _as_dist(dist: Any, where: str) -> np.ndarray:
         return np.zeros(5)
     try:
         dist = np.array(dist, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise CameraError(f"{where}: dist_coeffs is not a list of numbers") from None
     if dist.size == 0:
         return np.zeros(5)
@@ -82,6 +82,29 @@ def _as_size(image_size: Any, where: str) -> tuple[int, int]:
     if not ok or w <= 0 or h <= 0:
         raise CameraError(f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}")
     return (w, h)
+
+
+def _filestorage_matrix(node, path: Path, name: str) -> np.ndarray | None:
+    """A FileStorage node's matrix, or CameraError when it is not a well-formed !!opencv-matrix."""
+    if not node.isMap():
+        raise CameraError(
+            f"{path}: {name} is not an !!opencv-matrix (a map with rows, cols, dt and data); "
+            "write it as OpenCV's calibration sample does"
+        )
+    try:
+        return node.mat()
+    except cv2.error:
+        raise CameraError(
+            f"{path}: {name} is a malformed !!opencv-matrix: rows x cols must equal the number of values in data"
+        ) from None
+
+
+def _filestorage_pixels(node, path: Path, name: str) -> int:
+    """A FileStorage node holding a positive whole number of pixels."""
+    value = node.real() if node.isReal() or node.isInt() else None
+    if value is None or not math.isfinite(value) or value != int(value):
+        raise CameraError(f"{path}: {name} must be a whole number of pixels, e.g. {name}: 640")
+    return int(value)
 
 
 @dataclass(eq=False)
@@ -331,15 +354,15 @@ class Camera:
             node_K = fs.getNode("camera_matrix")
             if node_K.empty():
                 raise CameraError(f"{path}: no camera_matrix field; OpenCV's calibration files name it camera_matrix")
-            K = node_K.mat()
+            K = _filestorage_matrix(node_K, path, "camera_matrix")
             if K is None:
                 raise CameraError(f"{path}: camera_matrix is not an !!opencv-matrix")
             node_d = fs.getNode("distortion_coefficients")
-            dist = None if node_d.empty() else node_d.mat()
+            dist = None if node_d.empty() else _filestorage_matrix(node_d, path, "distortion_coefficients")
             w_node, h_node = fs.getNode("image_width"), fs.getNode("image_height")
             file_size = None
             if not w_node.empty() and not h_node.empty():
-                file_size = (int(w_node.real()), int(h_node.real()))
+                file_size = (_filestorage_pixels(w_node, path, "image_width"), _filestorage_pixels(h_node, path, "image_height"))
         finally:
             fs.release()
         if file_size is None and image_size is None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator, Mapping
@@ -65,7 +66,10 @@ def _units_name(units: Any, where: str) -> str:
 def _marker_size(size: Any, where: str) -> float:
     if isinstance(size, bool) or not isinstance(size, (int, float)):
         raise MapError(f"{where}: marker_size_mm must be a number (the black square's side in mm), got {size!r}")
-    size = float(size)
+    try:
+        size = float(size)
+    except OverflowError:  # a whole number with hundreds of digits
+        raise MapError(f"{where}: marker_size_mm is too large for a number; write the black square's side in mm") from None
     if not math.isfinite(size) or size <= 0:
         raise MapError(
             f"{where}: marker_size_mm is {size:g}; it must be positive: measure the black square's side "
@@ -83,6 +87,8 @@ def _vector3(value: Any, where: str, field: str, meaning: str) -> tuple[float, f
     for v in value:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise MapError(f"{where}: {field} contains {v!r}, which is not a number; expected 3 numbers {meaning}")
+        if isinstance(v, int) and abs(v) > 1e300:  # a whole number with hundreds of digits overflows float()
+            raise MapError(f"{where}: {field} contains a number too large for a float; check the units {meaning}")
         if not math.isfinite(v):
             raise MapError(f"{where}: {field} contains {v}, expected finite numbers {meaning}")
         if abs(v) > 1e9:
@@ -93,7 +99,7 @@ def _vector3(value: Any, where: str, field: str, meaning: str) -> tuple[float, f
 
 def _marker_id(key: Any, where: str) -> int:
     text = str(key).strip()
-    if isinstance(key, bool) or not text.lstrip("-").isdigit():
+    if isinstance(key, bool) or not re.fullmatch(r"-?[0-9]+", text):
         raise MapError(f"{where}: marker id {key!r} is not a whole number; ids are the integers printed under each marker")
     mid = int(text)
     if mid < 0:
@@ -177,7 +183,8 @@ class MarkerMap:
             in_file = d.get(name) if full else None
             if in_file is not None and given is not None:
                 if (name == "units" and str(given).lower() != str(in_file).lower()) or (
-                    name == "marker_size_mm" and not math.isclose(float(given), float(in_file))
+                    name == "marker_size_mm"
+                    and not math.isclose(_marker_size(given, source), _marker_size(in_file, source))
                 ) or (name == "dictionary" and _cv.dictionary_name(given) != _cv.dictionary_name(in_file)):
                     raise MapError(
                         f"{source}: the file says {name} = {in_file!r} but {given!r} was given; drop one of them"
