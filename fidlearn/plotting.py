@@ -13,10 +13,10 @@ drawn X red, Y green, Z blue.
 Examples
 --------
 >>> import numpy as np
->>> from fidlearn import Camera, MarkerMap, data_path, plotting
+>>> from fidlearn import Camera, MarkerMap, data_path, look_at, plotting
 >>> m = MarkerMap.load(data_path("world_map.json"))
 >>> cam = Camera.from_fov(60, (640, 480))
->>> T_world_camera = plotting.look_at([1500, 200, 250], [0, 120, 230])
+>>> T_world_camera = look_at([1500, 200, 250], [0, 120, 230])
 >>> fig = plotting.plot_scene(m, poses=[T_world_camera], camera=cam)
 >>> len(fig.axes)
 1
@@ -48,7 +48,6 @@ __all__ = [
     "draw_markers",
     "camera_frustum",
     "draw_camera",
-    "look_at",
     "plot_scene",
     "show_image",
     "show_images",
@@ -213,25 +212,6 @@ def draw_camera(ax: Axes, camera: Camera, T_world_camera: np.ndarray, scale_mm: 
     if label:
         ax.text(*f[0], f" {label}", fontsize=9, color=color)
     return lines
-
-
-def look_at(position_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0)) -> np.ndarray:
-    """The pose ``T_world_camera`` (4, 4) of a camera at ``position_mm`` looking at ``target_mm`` (world, mm).
-
-    The camera frame is OpenCV's: z along the line of sight, x to the right,
-    y down, so the world's ``up`` appears up in the image.
-    """
-    p = np.asarray(position_mm, dtype=float)
-    z = np.asarray(target_mm, dtype=float) - p
-    if np.linalg.norm(z) < 1e-9:
-        raise ValueError("look_at: the camera position and the target are the same point")
-    z /= np.linalg.norm(z)
-    x = np.cross(z, np.asarray(up, dtype=float))
-    if np.linalg.norm(x) < 1e-9:
-        raise ValueError("look_at: the line of sight is parallel to 'up'; give another up vector")
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    return frames.make_transform(np.column_stack([x, y, z]), p)
 
 
 def _pose_matrix(pose) -> np.ndarray:

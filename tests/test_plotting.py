@@ -11,7 +11,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from mpl_toolkits.mplot3d import proj3d  # noqa: E402
 
-from fidlearn import Camera, MarkerMap, frames  # noqa: E402
+from fidlearn import Camera, MarkerMap, frames, look_at  # noqa: E402
 from fidlearn import plotting  # noqa: E402
 
 SEED = {"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},
@@ -39,17 +39,6 @@ def line_xyz(line) -> np.ndarray:
     return np.column_stack(line.get_data_3d())
 
 
-def test_look_at_points_the_optical_axis_at_the_target_with_up_up():
-    T = plotting.look_at([2000, 500, 300], [0, 500, 300])
-    assert np.allclose(T[:3, 2], [-1, 0, 0])  # z, the optical axis, towards the wall
-    assert np.allclose(T[:3, 1], [0, 0, -1])  # y (image down) is world down
-    assert np.allclose(T[:3, 0], [0, 1, 0])   # x (image right) is +Y, seen from inside the room
-    assert np.allclose(T[:3, 3], [2000, 500, 300])
-    frames.check_transform(T)
-    with pytest.raises(ValueError, match="parallel"):
-        plotting.look_at([0, 0, 1000], [0, 0, 0])
-
-
 def test_frustum_apex_is_the_camera_centre_and_base_lies_at_depth(camera):
     T = frames.make_transform(frames.rotation_from_rpy_deg(0, 0, 30), [1200, -300, 450])
     f = plotting.camera_frustum(camera, T, depth_mm=250)
@@ -64,7 +53,7 @@ def test_frustum_apex_is_the_camera_centre_and_base_lies_at_depth(camera):
 
 def test_draw_camera_lines_start_at_the_camera_position(camera):
     ax = plotting.new_axes_3d()
-    T = plotting.look_at([1500, 200, 250], [0, 120, 230])
+    T = look_at([1500, 200, 250], [0, 120, 230])
     lines = plotting.draw_camera(ax, camera, T, scale_mm=300)
     assert len(lines) == 5
     f = plotting.camera_frustum(camera, T, 300)
@@ -112,7 +101,7 @@ def test_set_axes_equal_gives_every_axis_the_same_range():
 
 
 def test_plot_scene_includes_markers_cameras_and_world_axes(seed_map, camera):
-    poses = [plotting.look_at([1500, 200, 250], [0, 120, 230]), plotting.look_at([1200, -400, 600], [0, 120, 230])]
+    poses = [look_at([1500, 200, 250], [0, 120, 230]), look_at([1200, -400, 600], [0, 120, 230])]
     fig = plotting.plot_scene(seed_map, poses=poses, camera=camera, labels=["a", "b"])
     (ax,) = fig.axes
     assert ax.name == "3d"
@@ -127,7 +116,7 @@ def test_plot_scene_includes_markers_cameras_and_world_axes(seed_map, camera):
 
 def test_plot_scene_accepts_pose_objects_and_checks_labels(seed_map):
     class P:
-        T_world_camera = plotting.look_at([1500, 200, 250], [0, 120, 230])
+        T_world_camera = look_at([1500, 200, 250], [0, 120, 230])
 
     fig = plotting.plot_scene(seed_map, poses=[P()])
     assert "camera" in {t.get_text().strip() for t in fig.axes[0].texts}
@@ -167,7 +156,7 @@ def test_corner_labels_sit_beside_their_corners_in_order():
 
 def test_projected_markers_match_camera_project(seed_map, camera):
     _, ax = plt.subplots()
-    T = plotting.look_at([1500, 200, 250], [0, 120, 230])
+    T = look_at([1500, 200, 250], [0, 120, 230])
     out = plotting.draw_projected_markers(ax, camera, seed_map, T)
     assert sorted(out) == [0, 1, 2]
     for mid, px in out.items():
@@ -177,7 +166,7 @@ def test_projected_markers_match_camera_project(seed_map, camera):
     assert ax.get_xlim() == (-0.5, 639.5) and ax.get_ylim() == (479.5, -0.5)
     # a camera behind the wall sees nothing
     _, ax2 = plt.subplots()
-    assert plotting.draw_projected_markers(ax2, camera, seed_map, plotting.look_at([-1500, 0, 250], [-3000, 0, 250])) == {}
+    assert plotting.draw_projected_markers(ax2, camera, seed_map, look_at([-1500, 0, 250], [-3000, 0, 250])) == {}
 
 
 def test_draw_reprojection_returns_the_errors():
