@@ -19,6 +19,7 @@ from .errors import (
     ImageError,
     MapError,
     NoMarkersError,
+    PoseError,
     TransformError,
 )
 from .frames import (
@@ -33,7 +34,7 @@ from .frames import (
 )
 from .markermap import MarkerMap, MarkerPlacement
 from .data import data_dir, data_path
-from .synthetic import look_at, render_scene
+from .synthetic import CalibrationViews, look_at, render_calibration_views, render_scene
 
 __version__ = "0.1.0"
 
@@ -50,6 +51,7 @@ __all__ = [
     "DictionaryError",
     "NoMarkersError",
     "CalibrationError",
+    "PoseError",
     "compose",
     "invert_transform",
     "make_transform",
@@ -62,5 +64,10 @@ __all__ = [
     "data_path",
     "render_scene",
     "look_at",
+    "Pose",
+    "estimate_pose",
+    "locate",
+    "render_calibration_views",
+    "CalibrationViews",
     "__version__",
 ]

@@ -49,6 +49,8 @@ __all__ = [
     "render_scene",
     "visible_markers",
     "look_at",
+    "render_calibration_views",
+    "CalibrationViews",
     "DEFAULT_GRAYS",
 ]
 
@@ -83,7 +85,7 @@ def _pixels_from_normalized(xy: np.ndarray, K: np.ndarray, dist: np.ndarray) -> 
     return np.stack([K[0, 0] * xd[:, 0] + K[0, 1] * xd[:, 1] + K[0, 2], K[1, 1] * xd[:, 1] + K[1, 2]], axis=1)
 
 
-def _undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations: int = 4) -> np.ndarray:
+def _undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations: int = 6) -> np.ndarray:
     """Normalized ideal coordinates (N, 2) of pixels (N, 2), exact to about 1e-9 px.
 
     ``cv2.undistortPoints`` alone stops after a few fixed-point steps (up to
@@ -97,6 +99,8 @@ def _undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations
     for _ in range(iterations):
         base = _pixels_from_normalized(xy, K, dist)
         r = base - px
+        if np.abs(r).max() < 1e-9:
+            break
         jx = (_pixels_from_normalized(xy + [h, 0.0], K, dist) - base) / h
         jy = (_pixels_from_normalized(xy + [0.0, h], K, dist) - base) / h
         det = jx[:, 0] * jy[:, 1] - jy[:, 0] * jx[:, 1]
@@ -260,57 +264,64 @@ def _render(
     nmap = _normalized_map(camera)
 
     # the wall: mid gray with a faint, smooth, seeded texture (fixed to the image, not the wall)
+    img = np.full((height, width), wall_gray, dtype=np.float32)
     if wall_texture > 0:
         coarse = rng.standard_normal((height // 24 + 3, width // 24 + 3)).astype(np.float32)
-        smooth = cv2.resize(coarse, (width * k, height * k), interpolation=cv2.INTER_CUBIC)
-        canvas = (wall_gray + wall_texture * smooth).astype(np.float32)
-    else:
-        canvas = np.full((height * k, width * k), wall_gray, dtype=np.float32)
-    # inverse depth of the nearest sheet so far, per sub-pixel: the nearest sheet wins
-    wbuf = np.zeros_like(canvas) if len(sheets) > 1 else None
+        img += np.float32(wall_texture) * cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC)
 
+    # which sheets face the camera, and which output pixels may see them
+    todo = []
     for sheet in sheets:
         H = sheet.camera_homography(T_camera_world)
         # the printed face points along -(e_s x e_t); a sheet seen from behind is not drawn
         face = -np.cross(H[:, 0], H[:, 1])
-        if float(face @ (-H[:, 2])) <= 0:
+        if float(face @ (-H[:, 2])) <= 0 or abs(np.linalg.det(H)) < 1e-12:
             continue
         region = _sheet_region(sheet, H, nmap, width, height)
-        if region is None:
-            continue
-        try:
-            Hinv = np.linalg.inv(H)
-        except np.linalg.LinAlgError:
-            continue  # seen exactly edge-on
-        tex2 = np.dstack([sheet.texture, np.ones_like(sheet.texture)])
-        u0, u1, v0, v1 = region
-        rows = max(1, _STRIP_SUBPIXELS // (k * k * (u1 - u0)))
-        for s0 in range(v0, v1, rows):
-            s1 = min(s0 + rows, v1)
-            x, y = _fine_rays(nmap, u0, u1, s0, s1, k)
-            a = Hinv[0, 0] * x + Hinv[0, 1] * y + Hinv[0, 2]
-            b = Hinv[1, 0] * x + Hinv[1, 1] * y + Hinv[1, 2]
-            w = Hinv[2, 0] * x + Hinv[2, 1] * y + Hinv[2, 2]  # 1 / depth; > 0 in front of the camera
-            front = w > 0
-            wsafe = np.where(front, w, 1.0)
-            map_s = np.where(front, a / wsafe, -10.0).astype(np.float32)
-            map_t = np.where(front, b / wsafe, -10.0).astype(np.float32)
-            # premultiplied: the texture's second channel (all ones) gives the coverage at the sheet's edge
-            looked = cv2.remap(tex2, map_s, map_t, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
-            ink, alpha = looked[..., 0], looked[..., 1]
-            sl = (slice(s0 * k, s1 * k), slice(u0 * k, u1 * k))
-            if wbuf is not None:
-                wb = wbuf[sl]
-                nearer = front & (w > wb)
-                alpha = np.where(nearer, alpha, 0.0)
-                ink = np.where(nearer, ink, 0.0)
-                opaque = alpha >= 0.5
-                wb[opaque] = w[opaque]
-            view = canvas[sl]
-            view *= 1.0 - alpha
-            view += ink
+        if region is not None:
+            todo.append((sheet, np.linalg.inv(H), region))
 
-    img = canvas.reshape(height, k, width, k).mean(axis=(1, 3), dtype=np.float64) if k > 1 else canvas.astype(np.float64)
+    if todo:
+        # supersample only the pixels that see a sheet; the wall is uniform within a pixel
+        U0 = min(r[0] for _, _, r in todo)
+        U1 = max(r[1] for _, _, r in todo)
+        V0 = min(r[2] for _, _, r in todo)
+        V1 = max(r[3] for _, _, r in todo)
+        canvas = np.repeat(np.repeat(img[V0:V1, U0:U1], k, axis=0), k, axis=1)
+        # inverse depth of the nearest sheet so far, per sub-pixel: the nearest sheet wins
+        wbuf = np.zeros_like(canvas) if len(todo) > 1 else None
+        for sheet, Hinv, (u0, u1, v0, v1) in todo:
+            tex2 = np.dstack([sheet.texture, np.ones_like(sheet.texture)])
+            rows = max(1, _STRIP_SUBPIXELS // (k * k * (u1 - u0)))
+            for s0 in range(v0, v1, rows):
+                s1 = min(s0 + rows, v1)
+                x, y = _fine_rays(nmap, u0, u1, s0, s1, k)
+                a = Hinv[0, 0] * x + Hinv[0, 1] * y + Hinv[0, 2]
+                b = Hinv[1, 0] * x + Hinv[1, 1] * y + Hinv[1, 2]
+                w = Hinv[2, 0] * x + Hinv[2, 1] * y + Hinv[2, 2]  # 1 / depth; > 0 in front of the camera
+                front = w > 0
+                wsafe = np.where(front, w, 1.0)
+                map_s = np.where(front, a / wsafe, -10.0).astype(np.float32)
+                map_t = np.where(front, b / wsafe, -10.0).astype(np.float32)
+                # premultiplied: the second channel (all ones) is the coverage at the sheet's edge
+                looked = cv2.remap(tex2, map_s, map_t, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
+                ink, alpha = looked[..., 0], looked[..., 1]
+                sl = (slice((s0 - V0) * k, (s1 - V0) * k), slice((u0 - U0) * k, (u1 - U0) * k))
+                if wbuf is not None:
+                    wb = wbuf[sl]
+                    nearer = front & (w > wb)
+                    alpha = np.where(nearer, alpha, np.float32(0))
+                    ink = np.where(nearer, ink, np.float32(0))
+                    opaque = alpha >= 0.5
+                    wb[opaque] = w[opaque]
+                view = canvas[sl]
+                view *= 1.0 - alpha
+                view += ink
+        # each pixel is the mean of its k x k sub-pixels: the area integral over its footprint
+        h, w_ = V1 - V0, U1 - U0
+        img[V0:V1, U0:U1] = canvas.reshape(h, k, w_ * k).sum(axis=1).reshape(h, w_, k).sum(axis=2) / np.float32(k * k)
+
+    img = img.astype(np.float64)
     if blur_px > 0:
         img = cv2.GaussianBlur(img, (0, 0), float(blur_px), borderType=cv2.BORDER_REFLECT)
     if gradient:
@@ -478,3 +489,257 @@ def render_scene(
         wall_gray=wall_gray, wall_texture=wall_texture, bgr=bgr,
     )
     return image, visible_markers(camera, marker_map, T_world_camera, margin_px=margin_px)
+
+
+# ----------------------------------------------------------------------------------------------
+# Calibration views: a printed checkerboard or ChArUco board held in front of the camera.
+# ----------------------------------------------------------------------------------------------
+
+@dataclass(eq=False)
+class CalibrationViews:
+    """Synthetic calibration pictures of a board, with the truth behind them.
+
+    The world frame is the board's own (OpenCV's object-point frame): x along
+    the pattern's rows, y down the board, z into the paper (the printed face
+    looks along -z), mm.
+
+    Attributes
+    ----------
+    images : list of ndarray (H, W) uint8
+        The pictures.
+    camera : Camera
+        The true camera that took them.
+    T_world_camera : list of ndarray (4, 4)
+        The camera's pose in the board frame (mm), per view.
+    object_points : ndarray (N, 3)
+        The board's corners in the board frame (mm), in the order OpenCV
+        reports them (``cv2.findChessboardCorners`` for a checkerboard,
+        ``getChessboardCorners()`` ids 0..N-1 for ChArUco).
+    image_points : list of ndarray (N, 2)
+        True pixel positions of those corners per view (``cv2.projectPoints``).
+    pattern_size : (int, int)
+        Checkerboard: inner corners (columns, rows); ChArUco: squares (x, y).
+    square_size_mm, marker_size_mm : float
+        The printed sizes (``marker_size_mm`` is 0 for a checkerboard).
+    charuco : bool
+        Whether the board is ChArUco.
+    dictionary : str
+        ChArUco's marker dictionary ("" for a checkerboard).
+    """
+
+    images: list
+    camera: Camera
+    T_world_camera: list
+    object_points: np.ndarray
+    image_points: list
+    pattern_size: tuple
+    square_size_mm: float
+    marker_size_mm: float = 0.0
+    charuco: bool = False
+    dictionary: str = ""
+    seed: int = 0
+    render_kwargs: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    @property
+    def T_camera_board(self) -> list:
+        """The board's pose in each camera frame (4, 4), mm: what ``cv2.calibrateCamera`` estimates."""
+        return [frames.invert_transform(T) for T in self.T_world_camera]
+
+    def board(self):
+        """The ``cv2.aruco.CharucoBoard`` (ChArUco only), sizes in mm."""
+        if not self.charuco:
+            raise FidlearnError("a checkerboard has no cv2.aruco board; use pattern_size and square_size_mm")
+        return _cv.charuco_board(self.pattern_size, self.square_size_mm, self.marker_size_mm, self.dictionary)
+
+    def __repr__(self) -> str:
+        kind = (f"ChArUco {self.pattern_size[0]}x{self.pattern_size[1]} squares, {self.dictionary}"
+                if self.charuco else f"checkerboard {self.pattern_size[0]}x{self.pattern_size[1]} inner corners")
+        w, h = self.camera.image_size
+        return f"CalibrationViews({len(self)} views {w}x{h}, {kind}, square {self.square_size_mm:g} mm, {self.camera!r})"
+
+
+def _checkerboard_sheet(pattern_size: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict) -> _Sheet:
+    cols, rows = pattern_size[0] + 1, pattern_size[1] + 1  # squares
+    m = int(round(margin_squares * tps))
+    jj, ii = np.mgrid[0:rows, 0:cols]
+    squares = np.where((ii + jj) % 2 == 0, grays["ink"], grays["paper"]).astype(np.float32)  # top-left square black
+    tex = np.full((rows * tps + 2 * m, cols * tps + 2 * m), grays["paper"], dtype=np.float32)
+    tex[m: m + rows * tps, m: m + cols * tps] = np.kron(squares, np.ones((tps, tps), dtype=np.float32))
+    step = square_size_mm / tps
+    # inner corner (0, 0) is the board's origin; the outer edge of the squares is one square before it
+    off = 0.5 * step - (square_size_mm + m * step)
+    A = np.array([[step, 0.0, off], [0.0, step, off], [0.0, 0.0, 0.0]])
+    return _Sheet(tex, A, label="checkerboard")
+
+
+def _charuco_sheet(board, squares_xy: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict) -> _Sheet:
+    m = int(round(margin_squares * tps))
+    size = (squares_xy[0] * tps + 2 * m, squares_xy[1] * tps + 2 * m)
+    img = board.generateImage(size, marginSize=m, borderBits=1).astype(np.float32) / 255.0
+    tex = (grays["ink"] + (grays["paper"] - grays["ink"]) * img).astype(np.float32)
+    step = square_size_mm / tps
+    off = (0.5 - m) * step  # the board's origin (its top-left outer corner) is texel edge m - 0.5
+    A = np.array([[step, 0.0, off], [0.0, step, off], [0.0, 0.0, 0.0]])
+    return _Sheet(tex, A, label="charuco")
+
+
+def _board_pose(camera: Camera, rng: np.random.Generator, target_px, distance_mm: float, tilt_deg: float, roll_deg: float, centre_board: np.ndarray) -> np.ndarray:
+    """``T_camera_board``: the board's centre on the ray through ``target_px`` at ``distance_mm``, tilted."""
+    ray = camera.undistort_points(np.asarray(target_px, dtype=float).reshape(1, 2))[0]
+    ray = np.array([(ray[0] - camera.cx) / camera.fx, (ray[1] - camera.cy) / camera.fy, 1.0])
+    centre_cam = ray / np.linalg.norm(ray) * distance_mm
+    axis_angle = rng.uniform(0, 2 * math.pi)
+    axis = np.array([math.cos(axis_angle), math.sin(axis_angle), 0.0])
+    R_tilt, _ = cv2.Rodrigues(axis * math.radians(tilt_deg))
+    R = R_tilt @ frames.rot_z(math.radians(roll_deg))
+    # face the camera roughly: the board's z (into the paper) along the viewing ray, then tilt
+    z = centre_cam / np.linalg.norm(centre_cam)
+    x = np.cross([0.0, 1.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R_face = np.column_stack([x, y, z])
+    R_camera_board = R_face @ R
+    t = centre_cam - R_camera_board @ centre_board
+    return frames.make_transform(R_camera_board, t)
+
+
+def render_calibration_views(
+    camera: Camera,
+    n_views: int = 20,
+    pattern_size: tuple[int, int] = (9, 6),
+    square_size_mm: float = 25.0,
+    seed: int = 0,
+    charuco: bool = False,
+    *,
+    marker_size_mm: float | None = None,
+    dictionary: str = "6X6_250",
+    tilt_range_deg: tuple[float, float] = (10.0, 45.0),
+    fill_range: tuple[float, float] = (0.35, 0.7),
+    margin_squares: float = 1.0,
+    blur_px: float = 0.4,
+    noise_std: float = 1.5,
+    gradient: float = 0.15,
+    supersample: int = 4,
+    wall_texture: float = 3.0,
+) -> CalibrationViews:
+    """Pictures of a printed calibration board held as a careful person would, with the truth.
+
+    The board visits the image's corners, edges and centre in turn (a 3 x 3
+    grid, then again with jitter), at several distances (it spans
+    ``fill_range`` of the image width) and tilted 10 to 45 degrees about a
+    random axis, with a random roll of up to 20 degrees. Every corner of the
+    pattern stays inside the image.
+
+    Parameters
+    ----------
+    camera : Camera
+        The true camera (its distortion included).
+    n_views : int
+        How many pictures.
+    pattern_size : (int, int)
+        Checkerboard: inner corners (columns, rows), OpenCV's ``patternSize``.
+        ChArUco: squares (x, y); ``(9, 6)`` is taken to mean the usual
+        ``(5, 7)`` when ``charuco=True``.
+    square_size_mm : float
+        Side of a printed square (mm). ChArUco defaults to 40 mm squares
+        with 20 mm markers when ``square_size_mm`` is left at 25.
+    seed : int
+        Seed of ``numpy.random.default_rng``: poses, wall texture and noise.
+    charuco : bool
+        A ChArUco board (``cv2.aruco.CharucoBoard``) instead of a checkerboard.
+    marker_size_mm, dictionary :
+        ChArUco's marker side (default half a square) and dictionary.
+    blur_px, noise_std, gradient, supersample, wall_texture :
+        As for :func:`render_scene`, applied to every view.
+
+    Returns
+    -------
+    CalibrationViews
+        Images, the true camera, the true poses and corner pixels.
+
+    Examples
+    --------
+    >>> cam = Camera([[600, 0, 320], [0, 600, 240], [0, 0, 1]], [-0.1, 0.02, 0, 0, 0], (640, 480))
+    >>> views = render_calibration_views(cam, n_views=2, seed=1)
+    >>> len(views), views.images[0].shape, views.image_points[0].shape
+    (2, (480, 640), (54, 2))
+    """
+    if charuco:
+        if tuple(pattern_size) == (9, 6):
+            pattern_size = (5, 7)
+        if square_size_mm == 25.0 and marker_size_mm is None:
+            square_size_mm, marker_size_mm = 40.0, 20.0
+        if marker_size_mm is None:
+            marker_size_mm = square_size_mm / 2
+        if not 0 < marker_size_mm < square_size_mm:
+            raise FidlearnError(f"marker_size_mm ({marker_size_mm}) must be between 0 and square_size_mm ({square_size_mm})")
+        board = _cv.charuco_board(pattern_size, square_size_mm, marker_size_mm, dictionary)
+        object_points = np.asarray(board.getChessboardCorners(), dtype=np.float64).reshape(-1, 3)
+        squares = tuple(int(v) for v in pattern_size)
+        centre = np.array([squares[0] * square_size_mm / 2, squares[1] * square_size_mm / 2, 0.0])
+        board_w = squares[0] * square_size_mm
+    else:
+        pattern_size = tuple(int(v) for v in pattern_size)
+        if min(pattern_size) < 2:
+            raise FidlearnError(f"pattern_size {pattern_size} must count at least 2 x 2 inner corners")
+        jj, ii = np.mgrid[0: pattern_size[1], 0: pattern_size[0]]
+        object_points = np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * float(square_size_mm)
+        centre = np.array([(pattern_size[0] - 1) * square_size_mm / 2, (pattern_size[1] - 1) * square_size_mm / 2, 0.0])
+        board_w = (pattern_size[0] + 1) * square_size_mm
+    if n_views < 1:
+        raise FidlearnError(f"n_views must be at least 1, got {n_views}")
+
+    rng = np.random.default_rng(seed)
+    w, h = camera.image_size
+    grid = [(gx, gy) for gy in (0.22, 0.5, 0.78) for gx in (0.2, 0.5, 0.8)]
+    # the outline that must stay in view: the pattern's corners plus a little of the outer squares
+    lo, hi = object_points.min(axis=0), object_points.max(axis=0)
+    pad = 0.6 * square_size_mm
+    outline = np.array([[lo[0] - pad, lo[1] - pad, 0], [hi[0] + pad, lo[1] - pad, 0], [hi[0] + pad, hi[1] + pad, 0], [lo[0] - pad, hi[1] + pad, 0]])
+    poses, points, images = [], [], []
+    render_kwargs = dict(blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture)
+    grays = dict(DEFAULT_GRAYS)
+    for view in range(n_views):
+        gx, gy = grid[view % len(grid)]
+        for attempt in range(200):
+            shrink = 1.0 - min(attempt, 100) / 120.0  # pull the target toward the centre if it keeps failing
+            jitter = rng.uniform(-0.06, 0.06, size=2) if view >= len(grid) else np.zeros(2)
+            tx = (0.5 + (gx - 0.5) * shrink + jitter[0]) * (w - 1)
+            ty = (0.5 + (gy - 0.5) * shrink + jitter[1]) * (h - 1)
+            fill = rng.uniform(*fill_range)
+            distance = camera.fx * board_w / (fill * w)
+            tilt = rng.uniform(*tilt_range_deg)
+            roll = rng.uniform(-20.0, 20.0)
+            T_camera_board = _board_pose(camera, rng, (tx, ty), distance, tilt, roll, centre)
+            T_world_camera = frames.invert_transform(T_camera_board)
+            if not np.all(camera.points_in_front(outline, T_world_camera, min_depth_mm=50.0)):
+                continue
+            px = camera.project(outline, T_world_camera)
+            if np.all((px >= 8) & (px <= [w - 9, h - 9])):
+                break
+        else:
+            raise FidlearnError(f"could not place the board in view {view} of a {w}x{h} camera; try a smaller fill_range")
+        poses.append(T_world_camera)
+        points.append(camera.project(object_points, T_world_camera))
+
+    # one texture for all views, fine enough for the closest one
+    cells = (pattern_size[0] if charuco else pattern_size[0] + 1)
+    tps = int(np.clip(math.ceil(fill_range[1] * w * 1.2 * supersample / cells), 8, 160))
+    if charuco:
+        sheet = _charuco_sheet(board, squares, square_size_mm, tps, margin_squares, grays)
+    else:
+        sheet = _checkerboard_sheet(pattern_size, square_size_mm, tps, margin_squares, grays)
+    for view, T_world_camera in enumerate(poses):
+        images.append(_render(
+            camera, T_world_camera, [sheet], seed=int(seed) * 1000 + view, gradient_angle_deg=float(rng.uniform(0, 360)),
+            wall_gray=grays["wall"], bgr=False, **render_kwargs,
+        ))
+    return CalibrationViews(
+        images=images, camera=camera, T_world_camera=poses, object_points=object_points, image_points=points,
+        pattern_size=tuple(pattern_size), square_size_mm=float(square_size_mm),
+        marker_size_mm=float(marker_size_mm or 0.0), charuco=bool(charuco), dictionary=_cv.dictionary_name(dictionary) if charuco else "",
+        seed=int(seed), render_kwargs=render_kwargs,
+    )
