@@ -35,6 +35,7 @@ from .frames import (
 from .markermap import MarkerMap, MarkerPlacement
 from .data import data_dir, data_path
 from .synthetic import CalibrationViews, look_at, render_calibration_views, render_scene
+from .pose import Pose, estimate_pose, locate
 
 __version__ = "0.1.0"
 

@@ -17,6 +17,7 @@ __all__ = [
     "DictionaryError",
     "NoMarkersError",
     "CalibrationError",
+    "PoseError",
 ]
 
 
@@ -54,3 +55,7 @@ class NoMarkersError(FidlearnError):
 
 class CalibrationError(FidlearnError):
     """Calibration cannot run or cannot give a trustworthy camera."""
+
+
+class PoseError(FidlearnError, ValueError):
+    """Pose estimation cannot run on these inputs (wrong types, a solver that does not fit the data)."""

@@ -1,0 +1,820 @@
+"""The camera's pose in the world from detected markers: PnP over every known marker at once.
+
+The pipeline: every detected marker that the map knows gives four 2D-3D
+correspondences (its pixel corners and its world corners, TL, TR, BR, BL).
+A PnP solver finds ``T_camera_world`` (OpenCV's rvec/tvec, the extrinsics);
+Levenberg-Marquardt then minimises the reprojection error; the camera's pose
+in the world is the closed-form inverse ``T_world_camera``.
+
+``method="auto"`` picks the solver the data calls for:
+
+* one marker: ``IPPE_SQUARE`` in the marker's own frame;
+* several markers on one plane (the corners actually seen are coplanar within
+  1 mm, or within 1 % of their extent, after which IPPE runs on the points
+  flattened onto their best plane): ``IPPE`` over all corners;
+* markers on several walls (IPPE fails outright on points off a plane): ``SQPNP``.
+
+A planar target has two poses that explain the image almost equally well when
+it is seen nearly face-on or from afar (the "flip" ambiguity). Both IPPE
+solutions are refined; the better one is returned, the other is kept as
+:attr:`Pose.alternative`, and :attr:`Pose.ambiguous` says when the data cannot
+tell them apart (see :func:`estimate_pose`).
+
+Conventions: millimetres, OpenCV camera frame (x right, y down, z forward),
+pixel centres at integer coordinates, ``T_a_b`` maps frame b into frame a.
+
+Examples
+--------
+>>> import numpy as np, fidlearn
+>>> from fidlearn.detection import Detection
+>>> m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+>>> cam = fidlearn.Camera.from_fov(60, (640, 480))
+>>> T_world_camera = fidlearn.make_transform(
+...     fidlearn.rotation_from_rpy_deg(-90, 0, 90), [1000, 150, 250])   # facing the wall (-X)
+>>> dets = [Detection(i, cam.project(c, T_world_camera)) for i, c in m.corners().items()]
+>>> pose = estimate_pose(dets, m, cam)
+>>> np.round(pose.position_mm, 3).tolist()
+[1000.0, 150.0, 250.0]
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from . import _cv, frames
+from .camera import Camera
+from .detection import Detection
+from .errors import NoMarkersError, PoseError
+from .markermap import MarkerMap
+
+__all__ = ["Pose", "estimate_pose", "locate", "METHODS", "pose_jacobian", "refine_pose_lm"]
+
+#: The solvers ``method=`` accepts besides ``"auto"``, with their OpenCV names.
+METHODS = {
+    "ippe": "IPPE",
+    "ippe_square": "IPPE_SQUARE",
+    "sqpnp": "SQPNP",
+    "iterative": "ITERATIVE",
+    "epnp": "EPNP",
+}
+
+#: Prior corner noise (px) and its weight in degrees of freedom, blended with the
+#: residuals when ``corner_sigma_px`` is not given (see :func:`estimate_pose`).
+PRIOR_SIGMA_PX = 0.25
+PRIOR_DOF = 2.0
+#: Smallest corner noise (px) ever assumed: below this a covariance would claim
+#: more than any detector can deliver.
+MIN_SIGMA_PX = 0.02
+#: The alternative planar solution counts as "as good" when its extra sum of
+#: squared residuals is below this many sigma^2 (a likelihood ratio above
+#: exp(-9/2) ~ 1/90: the data cannot rule it out).
+AMBIGUITY_CHI2 = 9.0
+#: A marker is rejected when, under the pose of the others, its 8 residuals have
+#: a Mahalanobis chi-square above this (8 degrees of freedom: p < 1e-5)...
+OUTLIER_CHI2 = 37.3
+#: ... and its RMS residual is also above this many pixels (sub-pixel disagreement
+#: is detector bias or calibration, not a misplaced marker).
+OUTLIER_MIN_RMS_PX = 0.75
+#: Noise assumed when screening for outliers: never below this (px).
+OUTLIER_SIGMA_FLOOR_PX = 0.3
+
+_PLANAR_TOL_MM = 1.0
+_PLANAR_TOL_REL = 0.01
+#: Levenberg-Marquardt stops when a step would lower the sum of squared residuals by less than
+#: this (px^2): a change of the pose far below its own uncertainty for any realistic corner noise.
+_LM_TOL_PX2 = 1e-8
+
+
+# ---------------------------------------------------------------------------------------
+# The result
+# ---------------------------------------------------------------------------------------
+@dataclass(eq=False, repr=False)
+class Pose:
+    """The camera's pose in the world, with its quality.
+
+    Attributes
+    ----------
+    T_world_camera : ndarray, shape (4, 4)
+        The camera's pose in the world (mm): ``p_world = T_world_camera @ p_camera``.
+    marker_ids : tuple of int
+        The markers the pose was computed from.
+    residuals_px : dict of int to ndarray (4, 2)
+        Per marker: observed minus reprojected corners (px), TL, TR, BR, BL.
+        Rejected markers are listed too (their residual under this pose).
+    reprojection_rms_px : float
+        RMS over the used corners of the residual length (px), as
+        ``cv2.solvePnPGeneric`` reports it.
+    covariance : ndarray, shape (6, 6)
+        Covariance of the camera's pose: ``[dtheta (rad, 3), position (mm, 3)]``
+        where ``dtheta`` is a small rotation vector, in world axes, applied on
+        the left of ``R_world_camera`` (``R = expm([dtheta]x) @ R_est``) and
+        position is the camera centre in the world. ``sigma_px^2 (J^T J)^-1``
+        with ``J`` the Jacobian of the corner pixels at the solution.
+    sigma_px : float
+        The corner noise (px, per coordinate) the covariance assumes.
+    ambiguous : bool
+        True when a second, distinct pose explains the corners nearly as well
+        (planar targets seen face-on or from afar): see ``alternative``.
+    alternative : Pose or None
+        The other IPPE solution, refined, when it is distinct from this one.
+    ignored_ids : tuple of int
+        Detected ids that are not in the map.
+    rejected_ids : tuple of int
+        Markers left out because they disagree with the others (misplaced?).
+    method : str
+        The solver(s) used, e.g. ``"ippe+lm"``.
+    """
+
+    T_world_camera: np.ndarray
+    marker_ids: tuple[int, ...]
+    residuals_px: dict[int, np.ndarray]
+    reprojection_rms_px: float
+    covariance: np.ndarray | None
+    sigma_px: float
+    ambiguous: bool = False
+    alternative: "Pose | None" = None
+    ignored_ids: tuple[int, ...] = ()
+    rejected_ids: tuple[int, ...] = ()
+    method: str = ""
+    _T_camera_world: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
+
+    # -- derived views -----------------------------------------------------------------
+    @property
+    def T_camera_world(self) -> np.ndarray:
+        """The extrinsics (4, 4): world points into the camera frame (closed-form inverse)."""
+        if self._T_camera_world is None:
+            self._T_camera_world = frames.invert_transform(self.T_world_camera)
+        return self._T_camera_world.copy()
+
+    @property
+    def position_mm(self) -> np.ndarray:
+        """Camera centre (3,) in world coordinates, mm."""
+        return self.T_world_camera[:3, 3].copy()
+
+    @property
+    def rpy_deg(self) -> np.ndarray:
+        """Roll, pitch, yaw (3,) in degrees of the camera's orientation in the world (``R_world_camera``)."""
+        return frames.rpy_deg_from_rotation(self.T_world_camera[:3, :3])
+
+    @property
+    def rvec(self) -> np.ndarray:
+        """Rodrigues vector (3,) of ``T_camera_world``, as ``cv2.solvePnP`` returns it."""
+        return frames.rvec_tvec_from_transform(self.T_camera_world)[0]
+
+    @property
+    def tvec(self) -> np.ndarray:
+        """Translation (3,), mm, of ``T_camera_world``, as ``cv2.solvePnP`` returns it."""
+        return self.T_camera_world[:3, 3].copy()
+
+    @property
+    def position_std_mm(self) -> np.ndarray:
+        """Standard deviation (3,) of the camera position along world X, Y, Z, mm."""
+        if self.covariance is None:
+            return np.full(3, np.nan)
+        return np.sqrt(np.maximum(np.diag(self.covariance)[3:], 0.0))
+
+    @property
+    def rotation_std_deg(self) -> np.ndarray:
+        """Standard deviation (3,) of the orientation about world X, Y, Z, degrees."""
+        if self.covariance is None:
+            return np.full(3, np.nan)
+        return np.degrees(np.sqrt(np.maximum(np.diag(self.covariance)[:3], 0.0)))
+
+    @property
+    def marker_rms_px(self) -> dict[int, float]:
+        """Per-marker RMS corner residual (px): a misplaced marker stands out here."""
+        return {i: float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) for i, r in self.residuals_px.items()}
+
+    def position_ellipsoid_contains(self, point_mm: np.ndarray, probability: float = 0.95) -> bool:
+        """Whether a world point (3,), mm, lies inside the camera position's confidence ellipsoid."""
+        if self.covariance is None:
+            return False
+        d = np.asarray(point_mm, dtype=float).reshape(3) - self.position_mm
+        m2 = float(d @ np.linalg.solve(self.covariance[3:, 3:], d))
+        return m2 <= _chi2_3_quantile(probability)
+
+    def __repr__(self) -> str:
+        x, y, z = self.position_mm
+        r, p, yw = self.rpy_deg
+        sx, sy, sz = self.position_std_mm
+        parts = [
+            f"position_mm=[{x:.1f}, {y:.1f}, {z:.1f}]",
+            f"rpy_deg=[{r:.1f}, {p:.1f}, {yw:.1f}]",
+            f"markers={list(self.marker_ids)}",
+            f"rms={self.reprojection_rms_px:.2f} px",
+            f"std_mm=[{sx:.1f}, {sy:.1f}, {sz:.1f}]",
+            f"ambiguous={self.ambiguous}",
+        ]
+        if self.alternative is not None:
+            a = self.alternative
+            ax, ay, az = a.position_mm
+            parts.append(f"alternative at [{ax:.1f}, {ay:.1f}, {az:.1f}] rms={a.reprojection_rms_px:.2f} px")
+        if self.rejected_ids:
+            parts.append(f"rejected={list(self.rejected_ids)}")
+        if self.ignored_ids:
+            parts.append(f"ignored={list(self.ignored_ids)}")
+        parts.append(f"method={self.method!r}")
+        return "Pose(" + ", ".join(parts) + ")"
+
+
+def _chi2_3_quantile(p: float) -> float:
+    """Quantile of the chi-square distribution with 3 degrees of freedom (Wilson-Hilferty, < 0.5 % error)."""
+    if not 0 < p < 1:
+        raise PoseError(f"probability must be between 0 and 1, got {p}")
+    # inverse normal via Acklam-free bisection on erf: plenty fast for a scalar
+    lo, hi = -10.0, 10.0
+    for _ in range(80):
+        mid = (lo + hi) / 2
+        if 0.5 * (1 + math.erf(mid / math.sqrt(2))) < p:
+            lo = mid
+        else:
+            hi = mid
+    z = (lo + hi) / 2
+    k = 3.0
+    return k * (1 - 2 / (9 * k) + z * math.sqrt(2 / (9 * k))) ** 3
+
+
+# ---------------------------------------------------------------------------------------
+# Maths on plain arrays (usable on their own, e.g. in notebooks and benchmarks)
+# ---------------------------------------------------------------------------------------
+def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: Camera) -> np.ndarray:
+    """Jacobian (2N, 6) of the projected pixels with respect to the camera pose.
+
+    Parameters
+    ----------
+    points_world : ndarray, shape (N, 3)
+        World points, mm.
+    T_world_camera : ndarray, shape (4, 4)
+        Camera pose at which to differentiate.
+    camera : Camera
+        Intrinsics and distortion.
+
+    Returns
+    -------
+    ndarray, shape (2N, 6)
+        Rows ``u0, v0, u1, v1, ...``; columns ``[dtheta (3, rad), dC (3, mm)]``:
+        ``dtheta`` a small rotation in world axes applied on the left of
+        ``R_world_camera``, ``dC`` a shift of the camera centre in the world.
+        ``sigma^2 (J^T J)^-1`` is then the covariance (Cramer-Rao bound at the
+        true pose) of the camera pose in those coordinates.
+    """
+    P = np.asarray(points_world, dtype=float).reshape(-1, 3)
+    R_wc = T_world_camera[:3, :3]
+    C = T_world_camera[:3, 3]
+    R_cw = R_wc.T
+    d = P - C  # (N, 3) world vectors from the camera centre
+    X_c = d @ R_cw.T
+    # d(pixel)/d(point in camera frame): projectPoints' Jacobian w.r.t. tvec at rvec = tvec = 0
+    _, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.K, camera.dist)
+    dpx_dXc = jac[:, 3:6].reshape(-1, 2, 3)
+    # X_c = R_cw0 expm(-[dtheta]x) (P - C): dX_c/dtheta = R_cw0 [d]x ; dX_c/dC = -R_cw0
+    skew = np.zeros((len(P), 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2] = -d[:, 2], d[:, 1]
+    skew[:, 1, 0], skew[:, 1, 2] = d[:, 2], -d[:, 0]
+    skew[:, 2, 0], skew[:, 2, 1] = -d[:, 1], d[:, 0]
+    A = dpx_dXc @ R_cw  # (N, 2, 3)
+    J = np.concatenate([A @ skew, -A], axis=2)
+    return J.reshape(-1, 6)
+
+
+def refine_pose_lm(points_world: np.ndarray, points_px: np.ndarray, camera: Camera, rvec: np.ndarray, tvec: np.ndarray,
+                   max_iterations: int = 50):
+    """Levenberg-Marquardt on the reprojection error from a starting pose.
+
+    The steps are taken on the camera's pose (a small rotation in world axes and
+    a shift of the camera centre), which keeps the problem well scaled; the
+    Jacobian is :func:`pose_jacobian`. It converges in a few iterations, to a
+    tighter optimum than ``cv2.solvePnPRefineLM`` reaches on far, poorly
+    conditioned views.
+
+    Parameters
+    ----------
+    points_world : ndarray, shape (N, 3), mm
+    points_px : ndarray, shape (N, 2), px
+    camera : Camera
+    rvec, tvec : ndarray, shape (3,)
+        Starting ``T_camera_world`` (OpenCV's convention).
+    max_iterations : int
+
+    Returns
+    -------
+    rvec, tvec : ndarray, shape (3,)
+        The refined ``T_camera_world``.
+    """
+    obj = np.ascontiguousarray(points_world, dtype=np.float64).reshape(-1, 3)
+    img = np.ascontiguousarray(points_px, dtype=np.float64).reshape(-1, 2)
+    R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
+    R_wc = R_cw.T
+    C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
+    R_wc, C, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations)
+    R_cw = R_wc.T
+    r, _ = cv2.Rodrigues(R_cw)
+    return r.reshape(3), -R_cw @ C
+
+
+_ZERO3 = np.zeros(3)
+
+
+def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
+    """Residuals (2N,) observed minus projected, and optionally the Jacobian (2N, 6) of the projection."""
+    d = obj - C
+    X_c = d @ R_wc  # rows: R_cw @ d = R_wc^T d
+    if not with_jacobian:
+        px, _ = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
+        return (img - px.reshape(-1, 2)).reshape(-1), None
+    px, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
+    A = jac[:, 3:6].reshape(-1, 2, 3) @ R_wc.T  # d(px)/d(world displacement of the point)
+    J = np.empty((len(obj), 2, 6))
+    # row a of A times [d]x is a x d
+    J[:, :, 0] = A[:, :, 1] * d[:, None, 2] - A[:, :, 2] * d[:, None, 1]
+    J[:, :, 1] = A[:, :, 2] * d[:, None, 0] - A[:, :, 0] * d[:, None, 2]
+    J[:, :, 2] = A[:, :, 0] * d[:, None, 1] - A[:, :, 1] * d[:, None, 0]
+    J[:, :, 3:] = -A
+    return (img - px.reshape(-1, 2)).reshape(-1), J.reshape(-1, 6)
+
+
+def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
+    """Levenberg-Marquardt (Marquardt's diagonal scaling) on the camera pose; returns R_wc, C, sse."""
+    r, J = _residuals(obj, img, K, dist, R_wc, C, True)
+    sse = float(r @ r)
+    lam = 1e-4
+    JtJ = J.T @ J
+    g = J.T @ r
+    for _ in range(max_iterations):
+        A = JtJ + lam * np.diag(np.maximum(np.diag(JtJ), 1e-12))
+        try:
+            step = np.linalg.solve(A, g)
+        except np.linalg.LinAlgError:
+            break
+        predicted = float(step @ g)  # about twice the decrease a linear model expects
+        if not predicted > _LM_TOL_PX2:
+            break  # converged: no step left worth taking
+        dR, _ = cv2.Rodrigues(step[:3].reshape(3, 1))
+        R_new = dR @ R_wc
+        C_new = C + step[3:]
+        r_new, J_new = _residuals(obj, img, K, dist, R_new, C_new, True)
+        sse_new = float(r_new @ r_new)
+        if sse_new < sse:
+            done = sse - sse_new <= _LM_TOL_PX2
+            R_wc, C, sse, r, J = R_new, C_new, sse_new, r_new, J_new
+            JtJ = J.T @ J
+            g = J.T @ r
+            lam = max(lam / 10, 1e-12)
+            if done:
+                break
+        else:
+            lam *= 10
+            if lam > 1e8:
+                break
+    return R_wc, C, sse
+
+
+def _plane_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """Thickness (mm), extent (mm), centroid (3,) and rotation (3, 3) whose 3rd row is the plane normal."""
+    c = points.mean(axis=0)
+    q = points - c
+    _, s, vt = np.linalg.svd(q, full_matrices=False)
+    if vt.shape[0] < 3:
+        vt = np.vstack([vt, np.cross(vt[0], vt[1])])
+    if np.linalg.det(vt) < 0:
+        vt[2] = -vt[2]
+    thickness = float(np.abs(q @ vt[2]).max())
+    extent = float(np.abs(q @ vt[0]).max()) * 2
+    return thickness, extent, c, vt
+
+
+# ---------------------------------------------------------------------------------------
+# Solvers
+# ---------------------------------------------------------------------------------------
+@dataclass
+class _Obs:
+    ids: list[int]
+    obj: np.ndarray  # (4n, 3) world corners, mm
+    img: np.ndarray  # (4n, 2) pixel corners
+
+
+@dataclass
+class _Candidate:
+    R_wc: np.ndarray  # (3, 3) camera orientation in the world
+    C: np.ndarray  # (3,) camera centre in the world, mm
+    sse: float  # sum of squared residuals, px^2
+
+    @property
+    def T_world_camera(self) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = self.R_wc
+        T[:3, 3] = self.C
+        return T
+
+
+def _from_rvec_tvec(obs: _Obs, camera: Camera, rvec, tvec, refine_lm: bool) -> _Candidate:
+    """A candidate from OpenCV's rvec/tvec (T_camera_world), optionally refined."""
+    R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
+    R_wc = R_cw.T
+    C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
+    if refine_lm:
+        R_wc, C, sse = _lm(obs.obj, obs.img, camera.K, camera.dist, R_wc, C)
+    else:
+        r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, False)
+        sse = float(r @ r)
+    return _Candidate(R_wc, C, sse)
+
+
+def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
+    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,)); empty when the solver fails."""
+    try:
+        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+            np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3),
+            np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2),
+            camera.K, camera.dist, flags=_cv.solvepnp_flag(flag_name),
+        )
+    except cv2.error:
+        return []
+    out = []
+    for r, t in list(zip(rvecs, tvecs))[:n]:
+        r = np.asarray(r, dtype=np.float64).reshape(3, 1)
+        t = np.asarray(t, dtype=np.float64).reshape(3)
+        if np.all(np.isfinite(r)) and np.all(np.isfinite(t)):
+            out.append((cv2.Rodrigues(r)[0], t))
+    return out
+
+
+def _solve_ippe_square(obs: _Obs, marker_map: MarkerMap, camera: Camera):
+    """IPPE_SQUARE in the marker's own frame (centre origin, x right, y up), moved to the world."""
+    s = marker_map.marker_size_mm
+    local = np.array([[-s / 2, s / 2, 0], [s / 2, s / 2, 0], [s / 2, -s / 2, 0], [-s / 2, -s / 2, 0]])
+    T_world_marker = marker_map.T_world_marker(obs.ids[0])
+    R_wm, t_wm = T_world_marker[:3, :3], T_world_marker[:3, 3]
+    # T_camera_world = T_camera_marker @ inv(T_world_marker)
+    return [(R_cm @ R_wm.T, t_cm - R_cm @ R_wm.T @ t_wm) for R_cm, t_cm in _generic("IPPE_SQUARE", local, obs.img, camera)]
+
+
+def _solve_ippe(obs: _Obs, camera: Camera, plane) -> list:
+    """IPPE on the points flattened onto their best plane (IPPE refuses points even 1 mm off it)."""
+    _, _, c, vt = plane
+    local = (obs.obj - c) @ vt.T
+    local[:, 2] = 0.0
+    # T_camera_world = T_camera_plane @ T_plane_world, T_plane_world = [vt, -vt c]
+    return [(R_cp @ vt, t_cp - R_cp @ vt @ c) for R_cp, t_cp in _generic("IPPE", local, obs.img, camera)]
+
+
+def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine_lm: bool):
+    """Candidates sorted by reprojection error, and the method's name."""
+    n_pts = len(obs.obj)
+    thickness, extent, c, vt = _plane_fit(obs.obj)
+    planar = thickness <= max(_PLANAR_TOL_MM, _PLANAR_TOL_REL * extent)
+    if method == "auto":
+        if len(obs.ids) == 1:
+            method_used, raw = "ippe_square", _solve_ippe_square(obs, marker_map, camera)
+        elif planar:
+            method_used, raw = "ippe", _solve_ippe(obs, camera, (thickness, extent, c, vt))
+        else:
+            method_used, raw = "sqpnp", _generic("SQPNP", obs.obj, obs.img, camera)
+        if not raw:  # degenerate data: fall back on the general solvers
+            for name in ("SQPNP", "ITERATIVE"):
+                raw = _generic(name, obs.obj, obs.img, camera)
+                if raw:
+                    method_used = name.lower()
+                    break
+    else:
+        method_used = method
+        if method == "ippe_square":
+            if len(obs.ids) != 1:
+                raise PoseError(
+                    f"method='ippe_square' solves one marker, but {len(obs.ids)} markers {obs.ids} are in view; "
+                    "use method='ippe' (coplanar markers) or 'auto'"
+                )
+            raw = _solve_ippe_square(obs, marker_map, camera)
+        elif method == "ippe":
+            if not planar:
+                raise PoseError(
+                    f"method='ippe' needs coplanar points, but the corners of markers {obs.ids} are up to "
+                    f"{thickness:.1f} mm off their best plane (markers on several walls); use method='sqpnp', "
+                    "'epnp', 'iterative' or 'auto'"
+                )
+            raw = _solve_ippe(obs, camera, (thickness, extent, c, vt))
+        else:
+            if (method == "sqpnp" and n_pts < 3) or (method in ("epnp", "iterative") and n_pts < 4):
+                raise PoseError(f"method={method!r} needs more points than the {n_pts} corners in view")
+            raw = _generic(METHODS[method], obs.obj, obs.img, camera)
+    if not raw:
+        raise PoseError(
+            f"the PnP solver ({method_used}) found no pose from markers {obs.ids}; are the map's corners "
+            "in TL, TR, BR, BL order and the marker size right?"
+        )
+    cands, unrefined = [], []
+    for R_cw, t in raw:
+        rvec = cv2.Rodrigues(R_cw)[0]
+        cands.append(_from_rvec_tvec(obs, camera, rvec, t, refine_lm))
+        if refine_lm:
+            unrefined.append(_from_rvec_tvec(obs, camera, rvec, t, False))
+    order = sorted(range(len(cands)), key=lambda k: cands[k].sse)
+    cands = [cands[k] for k in order]
+    unrefined = [unrefined[k] for k in order] if unrefined else cands
+    return cands, unrefined, method_used + ("+lm" if refine_lm else "")
+
+
+def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -> float:
+    """Squared distance between two poses in units of the pose's uncertainty at ``a``."""
+    dtheta = cv2.Rodrigues(b.R_wc @ a.R_wc.T)[0].reshape(3)
+    d = np.r_[dtheta, b.C - a.C]
+    return float(d @ JtJ @ d) / sigma**2
+
+
+def _sigma(sse: float, dof: int, corner_sigma_px: float | None) -> float:
+    if corner_sigma_px is not None:
+        return float(corner_sigma_px)
+    s2 = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + sse) / (PRIOR_DOF + max(dof, 0))
+    return max(math.sqrt(s2), MIN_SIGMA_PX)
+
+
+def _covariance(obs: _Obs, T_world_camera: np.ndarray, camera: Camera, sigma: float) -> np.ndarray | None:
+    J = pose_jacobian(obs.obj, T_world_camera, camera)
+    try:
+        cov = sigma**2 * np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)):
+        return None
+    return (cov + cov.T) / 2
+
+
+def _make_obs(ids: Sequence[int], corners_px: dict[int, np.ndarray], world: dict[int, np.ndarray]) -> _Obs:
+    ids = list(ids)
+    return _Obs(ids, np.concatenate([world[i] for i in ids]), np.concatenate([corners_px[i] for i in ids]))
+
+
+# ---------------------------------------------------------------------------------------
+# Outliers
+# ---------------------------------------------------------------------------------------
+def _marker_chi2(obs_rest: _Obs, cand: _Candidate, obj_out: np.ndarray, img_out: np.ndarray, camera: Camera, sigma: float) -> tuple[float, float]:
+    """Mahalanobis chi-square (8 dof) and RMS (px) of a left-out marker under the others' pose.
+
+    The prediction's covariance is ``sigma^2 (I + J_out (J_rest^T J_rest)^-1 J_out^T)``: the
+    corner noise plus the uncertainty of the pose fitted without it.
+    """
+    T = cand.T_world_camera
+    r, _ = _residuals(obj_out, img_out, camera.K, camera.dist, cand.R_wc, cand.C, False)
+    J_rest = pose_jacobian(obs_rest.obj, T, camera)
+    J_out = pose_jacobian(obj_out, T, camera)
+    try:
+        S = np.eye(len(r)) + J_out @ np.linalg.solve(J_rest.T @ J_rest, J_out.T)
+        chi2 = float(r @ np.linalg.solve(S, r)) / sigma**2
+    except np.linalg.LinAlgError:
+        chi2 = float(r @ r) / sigma**2
+    rms = float(np.sqrt(np.mean(np.sum(r.reshape(-1, 2) ** 2, axis=1))))
+    return chi2, rms
+
+
+def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
+    """Cheap test: could one marker be an outlier? (per-marker residuals against a robust noise level)."""
+    r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, False)
+    per = np.sum(r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
+    robust = float(np.median(per)) / 8.0
+    sigma2 = max((corner_sigma_px or 0.0) ** 2, robust, OUTLIER_SIGMA_FLOOR_PX**2)
+    rms = np.sqrt(per / 4.0)
+    # A misplaced marker drags the pose and spreads its error over the others: be generous
+    # here (this only decides whether the leave-one-out test runs).
+    return bool(np.any((per / sigma2 > OUTLIER_CHI2 / 3) & (rms > OUTLIER_MIN_RMS_PX / 2)))
+
+
+def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined):
+    """Leave-one-out: drop the marker whose removal explains the others best, while it is inconsistent."""
+    rejected: list[int] = []
+    while len(obs.ids) >= 3 and _screen(obs, cands[0], camera, corner_sigma_px):
+        best = None
+        for k, mid in enumerate(obs.ids):
+            keep = [i for j, i in enumerate(obs.ids) if j != k]
+            sel = np.r_[0 : 4 * k, 4 * k + 4 : len(obs.obj)]
+            rest = _Obs(keep, obs.obj[sel], obs.img[sel])
+            try:
+                rc, ru, _ = _solve(rest, marker_map, camera, method, refine_lm)
+            except PoseError:
+                continue
+            if best is None or rc[0].sse < best[0]:
+                best = (rc[0].sse, k, mid, rest, rc, ru)
+        if best is None:
+            break
+        score, k, mid, rest, rc, ru = best
+        dof = 2 * len(rest.obj) - 6
+        sigma = _sigma(score, dof, corner_sigma_px)
+        if corner_sigma_px is None:
+            sigma = max(sigma, OUTLIER_SIGMA_FLOOR_PX)
+        chi2, rms = _marker_chi2(rest, rc[0], obs.obj[4 * k : 4 * k + 4], obs.img[4 * k : 4 * k + 4], camera, sigma)
+        if chi2 <= OUTLIER_CHI2 or rms <= OUTLIER_MIN_RMS_PX:
+            break
+        rejected.append(mid)
+        obs, cands, unrefined = rest, rc, ru
+    return obs, cands, unrefined, rejected
+
+
+# ---------------------------------------------------------------------------------------
+# Public entry points
+# ---------------------------------------------------------------------------------------
+def _check_inputs(detections, marker_map, camera) -> list[Detection]:
+    if not isinstance(marker_map, MarkerMap):
+        raise PoseError(f"marker_map must be a fidlearn.MarkerMap (use MarkerMap.load('map.json')), got {type(marker_map).__name__}")
+    if not isinstance(camera, Camera):
+        raise PoseError(f"camera must be a fidlearn.Camera (use Camera.load('camera.json')), got {type(camera).__name__}")
+    if isinstance(detections, Detection):
+        detections = [detections]
+    if isinstance(detections, (str, bytes, np.ndarray)) or not hasattr(detections, "__iter__"):
+        raise PoseError(
+            f"detections must be a list of fidlearn Detection (from detect_markers), got {type(detections).__name__}"
+        )
+    dets = list(detections)
+    for k, d in enumerate(dets):
+        if not isinstance(d, Detection):
+            raise PoseError(
+                f"detections[{k}] is a {type(d).__name__}, expected a Detection(id, corners (4, 2)); "
+                "build one with fidlearn.detection.Detection(marker_id, corners_px)"
+            )
+        if not np.all(np.isfinite(d.corners)):
+            raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners.tolist()}")
+    return dets
+
+
+def estimate_pose(
+    detections: Sequence[Detection],
+    marker_map: MarkerMap,
+    camera: Camera,
+    method: str = "auto",
+    *,
+    refine_lm: bool | None = None,
+    reject_outliers: bool = True,
+    corner_sigma_px: float | None = None,
+) -> Pose:
+    """The camera's pose in the world from detected markers, using every marker the map knows.
+
+    Parameters
+    ----------
+    detections : list of Detection
+        Detected markers (pixel corners TL, TR, BR, BL). Ids not in the map are
+        ignored and listed in ``Pose.ignored_ids``. An id detected twice keeps
+        its largest detection.
+    marker_map : MarkerMap
+        Where the markers are (world corners, mm).
+    camera : Camera
+        Intrinsics and distortion at the resolution the corners were detected at.
+    method : {"auto", "ippe", "ippe_square", "sqpnp", "iterative", "epnp"}
+        ``"auto"`` (default) chooses by the data: ``ippe_square`` for one marker,
+        ``ippe`` for coplanar corners (both solutions kept), ``sqpnp`` for
+        markers on several planes, always followed by Levenberg-Marquardt on the
+        reprojection error. A named method runs that OpenCV solver alone (no
+        LM unless ``refine_lm=True``) so solvers can be compared; ``"iterative"``
+        is OpenCV's own LM from a DLT/homography start.
+    refine_lm : bool, optional
+        Refine with Levenberg-Marquardt (``cv2.solvePnPRefineLM``). Default:
+        True for ``"auto"``, False for a named method.
+    reject_outliers : bool
+        With 3 or more markers, leave out a marker that disagrees with the
+        others (a marker measured wrongly on the wall) and list it in
+        ``Pose.rejected_ids``. The check is cheap: leave-one-out solves run only
+        when a marker's residual stands out from the others'. A marker is
+        rejected when its residual, predicted from the pose of the others, has
+        a chi-square above ``OUTLIER_CHI2`` (8 dof, p < 1e-5) and an RMS above
+        ``OUTLIER_MIN_RMS_PX``. With 2 markers nobody can tell which is wrong:
+        nothing is rejected, but ``Pose.marker_rms_px`` shows the disagreement.
+    corner_sigma_px : float, optional
+        Standard deviation (px, per coordinate) of the corner noise. If None it
+        is estimated from the residuals with ``2N - 6`` degrees of freedom,
+        blended with a prior of ``PRIOR_SIGMA_PX`` worth ``PRIOR_DOF`` degrees of
+        freedom (so one marker's 2 degrees of freedom do not claim a perfect
+        fit), and never below ``MIN_SIGMA_PX``.
+
+    Returns
+    -------
+    Pose
+        ``Pose.ambiguous`` is True when the second planar solution's extra sum
+        of squared residuals is below ``AMBIGUITY_CHI2 * sigma^2``: the
+        likelihood ratio of the two poses is then above ``exp(-9/2)`` and the
+        corners cannot rule out the alternative.
+
+    Raises
+    ------
+    NoMarkersError
+        No detected marker is in the map.
+    PoseError
+        Bad inputs, or a named method that cannot solve this data.
+    """
+    dets = _check_inputs(detections, marker_map, camera)
+    method = str(method).lower()
+    if method != "auto" and method not in METHODS:
+        raise PoseError(f"unknown method {method!r}; use 'auto' or one of {', '.join(METHODS)}")
+    if refine_lm is None:
+        refine_lm = method == "auto"
+    if corner_sigma_px is not None and not (np.isfinite(corner_sigma_px) and corner_sigma_px > 0):
+        raise PoseError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
+
+    corners_px: dict[int, np.ndarray] = {}
+    ignored: list[int] = []
+    for d in dets:
+        if d.id not in marker_map:
+            if d.id not in ignored:
+                ignored.append(d.id)
+            continue
+        if d.id in corners_px and corners_px[d.id] is not None:
+            prev = Detection(d.id, corners_px[d.id])
+            if prev.side_px >= d.side_px:
+                continue
+        corners_px[d.id] = d.corners
+    if not corners_px:
+        seen = sorted({d.id for d in dets})
+        if seen:
+            what = f"the image shows markers {seen}, none of which is in the map"
+        else:
+            what = "no marker was detected"
+        raise NoMarkersError(
+            f"{what}; the map ({marker_map.source}) has ids {marker_map.ids} in dictionary "
+            f"{marker_map.dictionary}. Check that the printed markers come from {marker_map.dictionary} "
+            "(detect with the map's dictionary), that the map lists the ids on the wall, and that the "
+            "markers are in view, in focus and large enough"
+        )
+
+    ids = sorted(corners_px)
+    world = {i: marker_map.marker_corners(i) for i in ids}
+    obs = _make_obs(ids, corners_px, world)
+    cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
+    rejected: list[int] = []
+    if reject_outliers and len(ids) >= 3:
+        obs, cands, unrefined, rejected = _reject_outliers(
+            obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined)
+
+    dof = 2 * len(obs.obj) - 6
+    sigma = _sigma(cands[0].sse, dof, corner_sigma_px)
+    J = pose_jacobian(obs.obj, cands[0].T_world_camera, camera)
+    JtJ = J.T @ J
+    # The other planar solution: refined if LM kept it apart, else as IPPE gave it (LM can run
+    # from it into the first one along a flat valley: the data then hardly tells them apart).
+    # Two poses count as distinct when they are more than 0.1 sigma apart.
+    alt = next((c for c in cands[1:] if _mahalanobis2(cands[0], c, JtJ, sigma) > 0.01), None)
+    alt_refined = alt is not None
+    if alt is None and unrefined is not cands:
+        alt = next((c for c in unrefined if _mahalanobis2(cands[0], c, JtJ, sigma) > 0.01
+                    and c.sse > cands[0].sse), None)
+    ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * sigma**2
+
+    def build(c: _Candidate, alternative: Pose | None, how: str) -> Pose:
+        T_world_camera = c.T_world_camera
+        residuals = {}
+        for i in ids:
+            r, _ = _residuals(world[i], corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
+            residuals[i] = r.reshape(4, 2)
+        s = _sigma(c.sse, dof, corner_sigma_px)
+        return Pose(
+            T_world_camera=T_world_camera,
+            marker_ids=tuple(obs.ids),
+            residuals_px=residuals,
+            reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
+            covariance=_covariance(obs, T_world_camera, camera, s),
+            sigma_px=s,
+            ambiguous=ambiguous,
+            alternative=alternative,
+            ignored_ids=tuple(ignored),
+            rejected_ids=tuple(rejected),
+            method=how,
+        )
+
+    alt_how = method_used if alt_refined else method_used.replace("+lm", "") + " (LM from it ends at the first solution)"
+    return build(cands[0], build(alt, None, alt_how) if alt is not None else None, method_used)
+
+
+def locate(image: np.ndarray, marker_map: MarkerMap, camera: Camera, *, refine: str | None = None, **kw) -> Pose:
+    """Detect the map's markers in an image and estimate the camera's pose.
+
+    Parameters
+    ----------
+    image : ndarray
+        Gray or BGR image.
+    marker_map : MarkerMap
+        The world map; its dictionary is used for detection.
+    camera : Camera
+        Fitted to the image with :meth:`Camera.for_image` (rescaled with a
+        :class:`FidlearnWarning` when only the resolution differs; a
+        :class:`CameraError` when the aspect ratio differs).
+    refine : str, optional
+        Corner refinement for :func:`fidlearn.detection.detect_markers`
+        (``"none"``, ``"subpix"``, ``"contour"``, ``"apriltag"``); None for its default.
+    **kw
+        Passed to :func:`estimate_pose` (``method``, ``reject_outliers``, ...).
+    """
+    from .detection import detect_markers  # noqa: PLC0415 (keeps pose importable on its own)
+
+    if not isinstance(image, np.ndarray):
+        from .errors import ImageError
+
+        raise ImageError(f"image must be a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}")
+    if not isinstance(camera, Camera):
+        raise PoseError(f"camera must be a fidlearn.Camera (use Camera.load('camera.json')), got {type(camera).__name__}")
+    camera = camera.for_image(image)
+    det_kw = {} if refine is None else {"refine": refine}
+    detections = detect_markers(image, dictionary=marker_map.dictionary, **det_kw)
+    return estimate_pose(detections, marker_map, camera, **kw)

@@ -1,0 +1,330 @@
+"""Pose estimation against known poses: synthetic corners from Camera.project plus Gaussian noise."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from fidlearn import frames
+from fidlearn.camera import Camera
+from fidlearn.detection import Detection
+from fidlearn.errors import FidlearnWarning, NoMarkersError, PoseError
+from fidlearn.markermap import MarkerMap, MarkerPlacement
+from fidlearn.pose import Pose, estimate_pose, pose_jacobian
+
+CAM = Camera([[800.0, 0, 319.5], [0, 800.0, 239.5], [0, 0, 1]], [-0.12, 0.08, 0.001, -0.0005, 0.0], (640, 480))
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """T_world_camera of a camera at ``eye`` looking at ``target`` (OpenCV camera axes)."""
+    eye, target, up = (np.asarray(v, dtype=float) for v in (eye, target, up))
+    z = target - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return frames.make_transform(np.column_stack([x, y, z]), eye)
+
+
+def wall_map(n_cols=3, n_rows=2, size=120.0, spacing=450.0) -> MarkerMap:
+    """Markers on the north wall (x = 0 plane), facing +X."""
+    placements = {}
+    k = 0
+    for r in range(n_rows):
+        for c in range(n_cols):
+            placements[k] = MarkerPlacement(k, (0.0, c * spacing, 1500.0 - r * spacing), (0.0, 0.0, 0.0))
+            k += 1
+    return MarkerMap(placements, size, "ARUCO_ORIGINAL", "mm")
+
+
+def two_wall_map() -> MarkerMap:
+    """Three markers on the north wall (x = 0) and three on the west wall (y = 0, facing +Y)."""
+    p = {
+        0: MarkerPlacement(0, (0.0, 300.0, 1400.0), (0.0, 0.0, 0.0)),
+        1: MarkerPlacement(1, (0.0, 900.0, 1300.0), (0.0, 0.0, 0.0)),
+        2: MarkerPlacement(2, (0.0, 600.0, 900.0), (0.0, 0.0, 0.0)),
+        3: MarkerPlacement(3, (900.0, 0.0, 1400.0), (0.0, 0.0, 90.0)),
+        4: MarkerPlacement(4, (400.0, 0.0, 1200.0), (0.0, 0.0, 90.0)),
+        5: MarkerPlacement(5, (700.0, 0.0, 800.0), (0.0, 0.0, 90.0)),
+    }
+    return MarkerMap(p, 150.0, "ARUCO_ORIGINAL", "mm")
+
+
+def observe(marker_map, T_world_camera, sigma=0.0, rng=None, camera=CAM, ids=None, extra=()):
+    """Detections of the map's markers (true corners + Gaussian noise), plus extra (id, corners) pairs."""
+    rng = rng if rng is not None else np.random.default_rng(0)
+    dets = []
+    for i, corners in marker_map.corners().items():
+        if ids is not None and i not in ids:
+            continue
+        px = camera.project(corners, T_world_camera)
+        assert camera.points_in_front(corners, T_world_camera).all()
+        assert np.all((px > 0) & (px < np.array(camera.image_size) - 1)), f"marker {i} leaves the image"
+        dets.append(Detection(i, px + rng.normal(0.0, sigma, px.shape)))
+    dets.extend(Detection(i, c) for i, c in extra)
+    return dets
+
+
+def pose_errors(pose: Pose, T_true: np.ndarray) -> tuple[float, float]:
+    return (
+        float(np.linalg.norm(pose.position_mm - T_true[:3, 3])),
+        frames.rotation_angle_deg(pose.T_world_camera, T_true),
+    )
+
+
+T_WALL = look_at([1600.0, 700.0, 1100.0], [0.0, 420.0, 1250.0])
+
+
+# ---------------------------------------------------------------------------------------
+# Accuracy on known poses
+# ---------------------------------------------------------------------------------------
+def test_several_coplanar_markers_give_the_pose_within_mm():
+    m = wall_map()
+    rng = np.random.default_rng(1)
+    for trial in range(5):
+        pose = estimate_pose(observe(m, T_WALL, 0.3, rng), m, CAM)
+        pos_err, ang_err = pose_errors(pose, T_WALL)
+        assert pos_err < 5.0 and ang_err < 0.2, (trial, pos_err, ang_err)
+        assert pose.method == "ippe+lm"
+        assert pose.marker_ids == tuple(range(6))
+        assert not pose.ambiguous and not pose.rejected_ids and not pose.ignored_ids
+        assert 0.15 < pose.reprojection_rms_px < 0.6
+
+
+def test_noise_free_corners_give_the_exact_pose():
+    m = wall_map()
+    pose = estimate_pose(observe(m, T_WALL), m, CAM)
+    np.testing.assert_allclose(pose.T_world_camera, T_WALL, atol=1e-6)
+    assert pose.reprojection_rms_px < 1e-6
+
+
+def test_markers_on_two_walls_use_a_general_solver():
+    m = two_wall_map()
+    assert not m.is_coplanar()
+    T = look_at([2300.0, 2100.0, 1300.0], [300.0, 300.0, 1100.0])
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        dets = observe(m, T, 0.3, rng)
+        pose = estimate_pose(dets, m, CAM)
+        pos_err, ang_err = pose_errors(pose, T)
+        assert pos_err < 15.0 and ang_err < 0.3  # about 3.5 mm std per axis at 3 m
+        assert pose.position_ellipsoid_contains(T[:3, 3], 0.999)
+        assert pose.method == "sqpnp+lm"
+    with pytest.raises(PoseError, match=r"method='ippe' needs coplanar points.*sqpnp"):
+        estimate_pose(dets, m, CAM, method="ippe")
+    # the markers seen on one wall only are coplanar again: IPPE is used
+    pose = estimate_pose(observe(m, T, 0.3, rng, ids={0, 1, 2}), m, CAM)
+    assert pose.method == "ippe+lm"
+    assert pose_errors(pose, T)[0] < 30.0
+
+
+T_TWO_WALLS = look_at([2300.0, 2100.0, 1300.0], [300.0, 300.0, 1100.0])
+
+
+@pytest.mark.parametrize("method", ["ippe", "sqpnp", "iterative", "epnp"])
+def test_every_named_solver_finds_the_exact_pose(method):
+    # EPnP is poor on a plane (one of the lessons of comparing solvers): test the general
+    # solvers on the two-wall map, IPPE on one wall
+    m, T = (wall_map(), T_WALL) if method == "ippe" else (two_wall_map(), T_TWO_WALLS)
+    pose = estimate_pose(observe(m, T), m, CAM, method=method)
+    pos_err, ang_err = pose_errors(pose, T)
+    assert pos_err < 0.5 and ang_err < 0.01
+    assert pose.method == method  # a named solver runs alone
+    dets = observe(m, T, 0.3)
+    refined = estimate_pose(dets, m, CAM, method=method, refine_lm=True)
+    auto = estimate_pose(dets, m, CAM)
+    assert refined.method == method + "+lm"
+    np.testing.assert_allclose(refined.position_mm, auto.position_mm, atol=0.01)
+    assert refined.reprojection_rms_px <= estimate_pose(dets, m, CAM, method=method).reprojection_rms_px + 1e-9
+
+
+def test_one_marker_uses_ippe_square():
+    m = wall_map()
+    T = look_at([500.0, 200.0, 1300.0], [0.0, 60.0, 1440.0])
+    pose = estimate_pose(observe(m, T, ids={0}), m, CAM)
+    assert pose.method == "ippe_square+lm"
+    np.testing.assert_allclose(pose.T_world_camera, T, atol=1e-6)
+    same = estimate_pose(observe(m, T, ids={0}), m, CAM, method="ippe_square")
+    np.testing.assert_allclose(same.T_world_camera, T, atol=1e-6)
+    with pytest.raises(PoseError, match="ippe_square' solves one marker, but 6 markers"):
+        estimate_pose(observe(m, T_WALL), m, CAM, method="ippe_square")
+
+
+# ---------------------------------------------------------------------------------------
+# Planar ambiguity
+# ---------------------------------------------------------------------------------------
+def test_one_marker_far_and_face_on_is_ambiguous_close_and_oblique_is_not():
+    m = MarkerMap({7: MarkerPlacement(7, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 80.0, "ARUCO_ORIGINAL", "mm")
+    centre = m.T_world_marker(7)[:3, 3]
+    rng = np.random.default_rng(3)
+    far = look_at(centre + [2500.0, 60.0, 40.0], centre)
+    near = look_at(centre + [300.0, 250.0, 60.0], centre)
+    n_far = n_near = 0
+    for _ in range(10):
+        p_far = estimate_pose(observe(m, far, 0.3, rng), m, CAM)
+        n_far += p_far.ambiguous
+        if p_far.ambiguous:
+            alt = p_far.alternative
+            assert isinstance(alt, Pose) and alt.alternative is None
+            # the two poses are really different: the flip tilts the camera by degrees
+            assert frames.rotation_angle_deg(alt.T_world_camera, p_far.T_world_camera) > 2.0
+        p_near = estimate_pose(observe(m, near, 0.3, rng), m, CAM)
+        n_near += p_near.ambiguous
+        assert pose_errors(p_near, near)[0] < 10.0
+    assert n_far >= 9 and n_near == 0
+    assert "alternative at" in repr(p_far) or not p_far.ambiguous
+
+
+# ---------------------------------------------------------------------------------------
+# Misplaced markers, unknown ids, no markers
+# ---------------------------------------------------------------------------------------
+def _misplaced(m: MarkerMap, marker_id: int, shift_mm) -> MarkerMap:
+    placements = dict(m.placements)
+    p = placements[marker_id]
+    placements[marker_id] = MarkerPlacement(marker_id, tuple(np.add(p.translation_mm, shift_mm)), p.rotation_deg)
+    return MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+
+
+def test_a_misplaced_marker_is_rejected_and_reported():
+    true_map = wall_map()
+    dets = observe(true_map, T_WALL, 0.3, np.random.default_rng(4))
+    wrong_map = _misplaced(true_map, 4, (0.0, 40.0, -25.0))  # measured wrongly on the wall
+    dragged = estimate_pose(dets, wrong_map, CAM, reject_outliers=False)
+    pose = estimate_pose(dets, wrong_map, CAM)
+    assert pose.rejected_ids == (4,)
+    assert 4 not in pose.marker_ids and 4 in pose.residuals_px
+    assert pose_errors(pose, T_WALL)[0] < 5.0
+    assert pose_errors(dragged, T_WALL)[0] > 2 * pose_errors(pose, T_WALL)[0]
+    assert max(pose.marker_rms_px, key=pose.marker_rms_px.get) == 4 and pose.marker_rms_px[4] > 10
+    assert "rejected=[4]" in repr(pose)
+    # the same data with the right map rejects nothing
+    assert estimate_pose(dets, true_map, CAM).rejected_ids == ()
+
+
+def test_with_two_markers_nothing_is_rejected_but_the_residual_tells():
+    true_map = wall_map()
+    wrong_map = _misplaced(true_map, 1, (0.0, 40.0, 0.0))
+    pose = estimate_pose(observe(true_map, T_WALL, 0.3, ids={0, 1}), wrong_map, CAM)
+    assert pose.rejected_ids == () and pose.marker_ids == (0, 1)
+    assert pose.reprojection_rms_px > 5 * 0.3  # five times the corner noise
+    assert min(pose.marker_rms_px.values()) > 1.0  # the error is shared: which marker is wrong cannot be told
+
+
+def test_good_markers_are_not_rejected():
+    m = wall_map()
+    rng = np.random.default_rng(5)
+    for sigma in (0.1, 0.5, 1.0):
+        for _ in range(10):
+            assert estimate_pose(observe(m, T_WALL, sigma, rng), m, CAM).rejected_ids == ()
+
+
+def test_unknown_ids_are_ignored_and_listed():
+    m = wall_map()
+    junk = np.array([[10.0, 10.0], [40.0, 10.0], [40.0, 40.0], [10.0, 40.0]])
+    pose = estimate_pose(observe(m, T_WALL, extra=[(42, junk), (17, junk + 100)]), m, CAM)
+    assert pose.ignored_ids == (42, 17)
+    assert pose.marker_ids == tuple(range(6))
+    assert pose_errors(pose, T_WALL)[0] < 1e-3
+    assert "ignored=[42, 17]" in repr(pose)
+
+
+def test_no_known_marker_raises_a_helpful_error():
+    m = wall_map()
+    junk = np.array([[10.0, 10.0], [40.0, 10.0], [40.0, 40.0], [10.0, 40.0]])
+    with pytest.raises(NoMarkersError, match=r"markers \[17, 42\], none of which is in the map.*ids \[0, 1, 2, 3, 4, 5\].*ARUCO_ORIGINAL"):
+        estimate_pose([Detection(42, junk), Detection(17, junk)], m, CAM)
+    with pytest.raises(NoMarkersError, match=r"no marker was detected.*dictionary ARUCO_ORIGINAL"):
+        estimate_pose([], m, CAM)
+
+
+def test_inputs_are_checked():
+    m = wall_map()
+    dets = observe(m, T_WALL)
+    with pytest.raises(PoseError, match="marker_map must be a fidlearn.MarkerMap"):
+        estimate_pose(dets, {"0": 1}, CAM)
+    with pytest.raises(PoseError, match="camera must be a fidlearn.Camera"):
+        estimate_pose(dets, m, CAM.K)
+    with pytest.raises(PoseError, match=r"detections\[1\] is a tuple"):
+        estimate_pose([dets[0], (1, dets[1].corners)], m, CAM)
+    with pytest.raises(PoseError, match="detections must be a list"):
+        estimate_pose(np.zeros((4, 2)), m, CAM)
+    bad = dets[2].corners.copy()
+    bad[1, 0] = np.nan
+    with pytest.raises(PoseError, match=r"detections\[2\] \(marker 2\) has NaN"):
+        estimate_pose(dets[:2] + [Detection(2, bad)], m, CAM)
+    with pytest.raises(PoseError, match="unknown method 'dls'"):
+        estimate_pose(dets, m, CAM, method="dls")
+    with pytest.raises(PoseError, match="corner_sigma_px must be a positive"):
+        estimate_pose(dets, m, CAM, corner_sigma_px=-1)
+
+
+# ---------------------------------------------------------------------------------------
+# Conventions
+# ---------------------------------------------------------------------------------------
+def test_pose_conventions_match_opencv():
+    m = wall_map()
+    dets = observe(m, T_WALL, 0.3)
+    pose = estimate_pose(dets, m, CAM)
+    # T_world_camera is the closed-form inverse of T_camera_world
+    R, t = pose.T_camera_world[:3, :3], pose.T_camera_world[:3, 3]
+    np.testing.assert_allclose(pose.T_world_camera[:3, :3], R.T, atol=1e-12)
+    np.testing.assert_allclose(pose.position_mm, -R.T @ t, atol=1e-9)
+    np.testing.assert_allclose(pose.T_world_camera @ pose.T_camera_world, np.eye(4), atol=1e-9)
+    # rvec, tvec are solvePnP's: projectPoints with them reproduces the corners up to the residuals
+    for d in dets:
+        px, _ = cv2.projectPoints(m.marker_corners(d.id), pose.rvec, pose.tvec, CAM.K, CAM.dist)
+        np.testing.assert_allclose(px.reshape(4, 2) + pose.residuals_px[d.id], d.corners, atol=1e-9)
+        assert np.abs(pose.residuals_px[d.id]).max() < 1.5
+    ok, rvec, tvec = cv2.solvePnP(np.concatenate([m.marker_corners(d.id) for d in dets]),
+                                  np.concatenate([d.corners for d in dets]), CAM.K, CAM.dist)
+    assert ok and np.allclose(rvec.ravel(), pose.rvec, atol=1e-3) and np.allclose(tvec.ravel(), pose.tvec, atol=0.5)
+    np.testing.assert_allclose(pose.rpy_deg, frames.rpy_deg_from_rotation(pose.T_world_camera[:3, :3]))
+    text = repr(pose)
+    x, y, z = pose.position_mm
+    assert f"position_mm=[{x:.1f}, {y:.1f}, {z:.1f}]" in text and "ambiguous=False" in text and "std_mm=" in text
+
+
+def test_pose_jacobian_matches_finite_differences():
+    m = two_wall_map()
+    T = look_at([2300.0, 2100.0, 1300.0], [300.0, 300.0, 1100.0])
+    P = np.concatenate(list(m.corners().values()))
+    J = pose_jacobian(P, T, CAM)
+
+    def pixels(delta):
+        R = cv2.Rodrigues(delta[:3])[0] @ T[:3, :3]  # small rotation in world axes, on the left
+        return CAM.project(P, frames.make_transform(R, T[:3, 3] + delta[3:])).ravel()
+
+    h = np.r_[1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4]
+    numeric = np.column_stack([(pixels(np.eye(6)[k] * h[k]) - pixels(-np.eye(6)[k] * h[k])) / (2 * h[k]) for k in range(6)])
+    np.testing.assert_allclose(J, numeric, rtol=1e-5, atol=1e-5 * np.abs(J).max())
+
+
+# ---------------------------------------------------------------------------------------
+# Covariance
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("given_sigma", [True, False])
+def test_position_covariance_covers_the_truth_95_percent(given_sigma):
+    m = wall_map(n_cols=2, n_rows=2, size=100.0)
+    T = look_at([1800.0, 900.0, 1000.0], [0.0, 250.0, 1300.0])
+    rng = np.random.default_rng(6)
+    sigma = 0.5
+    inside, n = 0, 300
+    stds = []
+    for _ in range(n):
+        pose = estimate_pose(observe(m, T, sigma, rng), m, CAM, corner_sigma_px=sigma if given_sigma else None,
+                             reject_outliers=False)
+        inside += pose.position_ellipsoid_contains(T[:3, 3], 0.95)
+        stds.append(pose.position_std_mm)
+    assert 0.90 <= inside / n <= 0.98, inside / n
+    # the standard deviations say what the errors are: larger along the viewing direction
+    assert np.all(np.mean(stds, axis=0) > 0.5)
+
+
+def test_covariance_is_the_cramer_rao_bound_at_the_truth():
+    m = wall_map()
+    pose = estimate_pose(observe(m, T_WALL), m, CAM, corner_sigma_px=0.4)
+    J = pose_jacobian(np.concatenate(list(m.corners().values())), T_WALL, CAM)
+    np.testing.assert_allclose(pose.covariance, 0.4**2 * np.linalg.inv(J.T @ J), rtol=1e-5, atol=1e-12)
+    assert pose.sigma_px == 0.4
+    np.testing.assert_allclose(pose.position_std_mm, np.sqrt(np.diag(pose.covariance)[3:]))
