@@ -9,13 +9,17 @@ from __future__ import annotations
 
 import argparse
 import importlib.metadata as md
+import json
+import math
 import platform
+import re
 import sys
 import warnings
 from pathlib import Path
 from typing import Callable, Sequence
 
 from . import __version__
+from ._io import atomic_write
 from .errors import FidlearnError, FidlearnWarning
 
 __all__ = ["main", "build_parser"]
@@ -43,7 +47,7 @@ class _Parser(argparse.ArgumentParser):
 def _add_corners(sub) -> None:
     p = sub.add_parser(
         "corners",
-        help="turn a world map (marker placements) into marker corners in mm",
+        help="world map (marker placements) to marker corners in mm",
         description="Turn a world map into the 3D corners of each marker (TL, TR, BR, BL, mm).",
     )
     p.add_argument("map", type=Path, help="world map JSON (bare seed layout or full layout)")
@@ -135,8 +139,253 @@ def _run_doctor(args) -> int:
     return 0
 
 
+# -- shared helpers ----------------------------------------------------------------------
+def _floats(text: str, n: int, option: str, meaning: str) -> list[float]:
+    """``"1,2,3"`` -> [1.0, 2.0, 3.0]; a UsageError naming the option otherwise."""
+    parts = [t for t in str(text).replace(" ", "").split(",")]
+    try:
+        values = [float(t) for t in parts]
+    except ValueError:
+        values = []
+    if len(values) != n or not all(math.isfinite(v) for v in values):
+        raise UsageError(f"{option} {text!r}: expected {n} numbers separated by commas ({meaning})")
+    return values
+
+
+def _check_output(path: Path, suffixes: Sequence[str], option: str = "-o") -> Path:
+    """Refuse an output path before any work is done: wrong type, missing folder, or a folder."""
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise UsageError(f"{option} {path}: name the file {' or '.join(suffixes)}")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise UsageError(f"{option} {path}: the folder {folder} does not exist; create it first")
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a folder; give a file name")
+    return path
+
+
+def _json_text(obj) -> str:
+    """Indented JSON with each innermost list of numbers on one line (readable matrices)."""
+    text = json.dumps(obj, indent=2)
+    return re.sub(r"\[\s+([-+0-9.eE,\s]+?)\s+\]", lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]", text) + "\n"
+
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+def _write_image(path: Path, image) -> Path:
+    """Encode an image by its file suffix and write it atomically."""
+    import cv2
+
+    ok, buf = cv2.imencode(path.suffix.lower(), image)
+    if not ok:
+        raise FidlearnError(f"{path}: OpenCV cannot encode a {path.suffix} image; use .png")
+    return atomic_write(path, lambda tmp: tmp.write_bytes(buf.tobytes()))
+
+
+def _load_map(args):
+    from .markermap import MarkerMap
+
+    return MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm,
+                          dictionary=getattr(args, "dictionary", None))
+
+
+def _add_map_options(p, required: bool = True) -> None:
+    p.add_argument("--map", type=Path, required=required, metavar="MAP.json", help="world map (marker placements)")
+    p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
+    p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
+
+
+# -- fidlearn markers ----------------------------------------------------------------------
+def _add_markers(sub) -> None:
+    p = sub.add_parser(
+        "markers",
+        help="print ArUco markers at exact size (PDF or PNG)",
+        description=(
+            "Print ArUco markers at exact physical size: each black square measures --size-mm when "
+            "the page is printed at 100 %% (no scaling). Each marker has a white margin of one cell, "
+            "its id and dictionary under it and cut marks; every page has a 100 mm ruler. "
+            "Markers that do not fit on one page go on the next."
+        ),
+    )
+    p.add_argument("--ids", required=True, help="marker ids: 0-9, 0,3,7 or 0-3,8")
+    p.add_argument("--size-mm", type=float, required=True, metavar="MM", help="side of the black square, mm")
+    p.add_argument("--dictionary", default="ARUCO_ORIGINAL", help="ArUco dictionary (default ARUCO_ORIGINAL)")
+    p.add_argument("--paper", choices=["a4", "letter"], default="a4", help="paper size (default a4)")
+    p.add_argument("--dpi", type=float, default=300, help="pixels per inch of PNG output (default 300)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="markers.pdf (vector) or markers.png")
+    p.set_defaults(run=_run_markers)
+
+
+def _run_markers(args) -> int:
+    from . import printables
+
+    out = _check_output(args.output, (".pdf", ".png"))
+    ids = printables.parse_ids(args.ids)
+    sheet = printables.layout_markers(ids, args.size_mm, args.dictionary, args.paper)
+    files = printables.save_pages(printables.marker_figures(sheet), out, dpi=args.dpi)
+    pages = len(sheet.pages)
+    where = ", ".join(str(f) for f in files)
+    extra = f" at {args.dpi:g} dpi" if out.suffix.lower() == ".png" else ""
+    print(f"{where}: {len(ids)} markers of {sheet.size_mm:g} mm ({sheet.dictionary}) on {pages} "
+          f"{sheet.paper} page{'s' if pages > 1 else ''}{extra}, up to {sheet.per_page} per page")
+    print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")
+    return 0
+
+
+# -- fidlearn board ------------------------------------------------------------------------
+def _add_board(sub) -> None:
+    p = sub.add_parser(
+        "board",
+        help="print a checkerboard or ChArUco board at exact size",
+        description=(
+            "Print a calibration board at exact physical size with a 100 mm ruler. --pattern counts "
+            "INNER corners, as OpenCV's findChessboardCorners does (9x6 gives 10x7 squares); "
+            "--squares counts squares, as OpenCV's CharucoBoard does. The page turns to landscape "
+            "when the board only fits that way."
+        ),
+    )
+    size = p.add_mutually_exclusive_group(required=True)
+    size.add_argument("--pattern", metavar="CxR", help="inner corners, e.g. 9x6 (10x7 squares)")
+    size.add_argument("--squares", metavar="CxR", help="squares, e.g. 5x7 (4x6 inner corners)")
+    p.add_argument("--square-mm", type=float, required=True, metavar="MM", help="side of one square, mm")
+    p.add_argument("--charuco", action="store_true", help="a ChArUco board (markers in the white squares)")
+    p.add_argument("--dictionary", help="ChArUco dictionary (default 6X6_250)")
+    p.add_argument("--marker-mm", type=float, metavar="MM", help="ChArUco marker side, mm (smaller than the square)")
+    p.add_argument("--paper", choices=["a4", "letter"], default="a4", help="paper size (default a4)")
+    p.add_argument("--dpi", type=float, default=300, help="pixels per inch of PNG output (default 300)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="board.pdf (vector) or board.png")
+    p.set_defaults(run=_run_board)
+
+
+def _run_board(args) -> int:
+    from . import printables
+
+    out = _check_output(args.output, (".pdf", ".png"))
+    if args.pattern is not None:
+        cols, rows = printables.parse_pattern(args.pattern, "--pattern")
+        squares = (cols + 1, rows + 1)
+    else:
+        squares = printables.parse_pattern(args.squares, "--squares")
+    if not args.charuco and (args.dictionary or args.marker_mm is not None):
+        raise UsageError("--dictionary and --marker-mm describe a ChArUco board; add --charuco or drop them")
+    sheet = printables.layout_board(squares, args.square_mm, args.paper, args.charuco,
+                                    args.dictionary or "6X6_250", args.marker_mm)
+    files = printables.save_pages([printables.board_figure(sheet)], out, dpi=args.dpi)
+    turn = ", landscape" if sheet.landscape else ""
+    print(f"{files[0]}: {sheet.describe()}, {sheet.paper}{turn}")
+    print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")
+    return 0
+
+
+# -- fidlearn render -----------------------------------------------------------------------
+_POSE_HELP = """The camera's pose in the world, two ways:
+  --pose X,Y,Z,ROLL,PITCH,YAW   the camera's position (mm, world) and the rotation of the
+                                camera frame in the world, R_world_camera = Rz(yaw) Ry(pitch)
+                                Rx(roll) in degrees: the same numbers 'fidlearn locate' prints.
+                                The camera frame is OpenCV's (x right, y down, z forward), so
+                                0,0,0 looks straight up (+Z); -90,0,90 looks at the north wall
+                                (along -X) upright; -90,0,0 looks along +Y.
+  --from X,Y,Z --look-at X,Y,Z  the camera at one point (mm) looking at another, upright
+                                (world +Z up in the image); --roll-deg turns it about its axis.
+Example: fidlearn render --map world_map.json --camera camera.json \
+           --from 1200,150,250 --look-at 0,150,250 -o scene.png --truth truth.json"""
+
+
+def _add_render(sub) -> None:
+    p = sub.add_parser(
+        "render",
+        help="synthetic picture of a world map seen from a pose",
+        description="Render a synthetic picture of the markers of a world map as a calibrated camera "
+                    "at a given pose would see them, to try the pipeline without hardware.",
+        epilog=_POSE_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _add_map_options(p)
+    p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)")
+    pose = p.add_mutually_exclusive_group(required=True)
+    pose.add_argument("--pose", metavar="X,Y,Z,R,P,Y", help="camera position (mm) and roll,pitch,yaw (deg), see below")
+    pose.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (mm); needs --from")
+    p.add_argument("--from", dest="eye", metavar="X,Y,Z", help="camera position (mm) for --look-at")
+    p.add_argument("--roll-deg", type=float, default=0.0, help="with --look-at: turn about the optical axis (deg)")
+    p.add_argument("--size", metavar="WxH", help="render at another resolution of the same aspect ratio")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the wall texture and noise (default 0)")
+    p.add_argument("--noise", type=float, default=0.0, metavar="STD", help="sensor noise, gray levels (default 0)")
+    p.add_argument("--blur", type=float, default=0.0, metavar="PX", help="defocus blur sigma, px (default 0)")
+    p.add_argument("--truth", type=Path, metavar="TRUTH.json", help="also write the true pose and pixel corners")
+    p.add_argument("-o", "--output", type=Path, required=True, help="image to write (.png)")
+    p.set_defaults(run=_run_render)
+
+
+def _pose_from_args(args):
+    from . import frames, synthetic
+
+    if args.pose is not None:
+        if args.eye is not None:
+            raise UsageError("--from goes with --look-at; --pose already gives the position")
+        x, y, z, roll, pitch, yaw = _floats(args.pose, 6, "--pose", "x,y,z in mm, roll,pitch,yaw in degrees")
+        return frames.make_transform(frames.rotation_from_rpy_deg(roll, pitch, yaw), [x, y, z])
+    if args.eye is None:
+        raise UsageError("--look-at needs --from X,Y,Z, the camera's position in mm")
+    eye = _floats(args.eye, 3, "--from", "x,y,z in mm")
+    target = _floats(args.look_at, 3, "--look-at", "x,y,z in mm")
+    return synthetic.look_at(eye, target, roll_deg=args.roll_deg)
+
+
+def _run_render(args) -> int:
+    import numpy as np
+
+    from . import frames, synthetic
+    from .camera import Camera
+
+    out = _check_output(args.output, (".png", ".bmp", ".tif", ".tiff"))
+    truth_path = _check_output(args.truth, (".json",), "--truth") if args.truth else None
+    if args.noise < 0 or args.blur < 0:
+        raise UsageError("--noise and --blur must be 0 or more")
+    marker_map = _load_map(args)
+    camera = Camera.load(args.camera)
+    if args.size:
+        from .printables import parse_pattern
+
+        w, h = parse_pattern(args.size, "--size")
+        camera = camera.scaled((w, h))
+    T_world_camera = _pose_from_args(args)
+    image, truth = synthetic.render_scene(camera, marker_map, T_world_camera, seed=args.seed,
+                                          noise_std=args.noise, blur_px=args.blur)
+
+    def write_both(tmp_truth=None):
+        if tmp_truth is not None:
+            record = {
+                "image": out.name,
+                "camera": camera.to_dict(),
+                "map": str(args.map),
+                "dictionary": marker_map.dictionary,
+                "marker_size_mm": marker_map.marker_size_mm,
+                "T_world_camera": np.asarray(T_world_camera).tolist(),
+                "position_mm": T_world_camera[:3, 3].tolist(),
+                "rpy_deg": frames.rpy_deg_from_rotation(T_world_camera[:3, :3]).tolist(),
+                "markers_px": {str(k): v.tolist() for k, v in sorted(truth.items())},
+                "pixel_convention": "pixel centres at integer coordinates; corners TL, TR, BR, BL",
+                "seed": args.seed, "noise_std": args.noise, "blur_px": args.blur,
+            }
+            tmp_truth.write_text(_json_text(record), encoding="utf-8")
+        _write_image(out, image)
+
+    if truth_path is not None:
+        atomic_write(truth_path, write_both)
+    else:
+        write_both()
+    seen = ", ".join(str(i) for i in sorted(truth)) or "none"
+    print(f"{out}: {camera.width}x{camera.height}, markers seen whole: {seen}"
+          + (f"; truth in {truth_path}" if truth_path else ""))
+    if not truth:
+        warnings.warn("no marker of the map is in view; check the pose (see 'fidlearn render --help')", FidlearnWarning)
+    return 0
+
+
 #: Subcommand builders, in the order ``fidlearn --help`` lists them.
-COMMANDS: list[Callable] = [_add_corners, _add_doctor]
+COMMANDS: list[Callable] = [_add_markers, _add_board, _add_corners, _add_render, _add_doctor]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,238 @@
+"""The command line, used as a user uses it.
+
+Most tests call ``main([...])`` in-process (fast); a few run ``python -m
+fidlearn`` in a subprocess to prove the real entry point works. Every user
+error must end with status 2 and exactly one line ``error: ...`` on stderr,
+no traceback and no output file.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+
+from fidlearn import Camera, MarkerMap, data_path, frames
+from fidlearn.cli import main
+
+SEED_BARE = {  # the seed's bare layout: no units, no size
+    "0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},
+    "1": {"translation": [0, 1, 1], "rotation": [0, 0, 0]},
+    "2": {"translation": [0, 0.5, 0.75], "rotation": [0, 0, 0]},
+}
+
+
+def run(capsys, *argv):
+    """Run the CLI in-process; returns (status, stdout, stderr)."""
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def run_subprocess(*argv, cwd=None):
+    proc = subprocess.run([sys.executable, "-m", "fidlearn", *map(str, argv)], capture_output=True, text=True,
+                          cwd=cwd, timeout=120)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def assert_user_error(code, err, *fragments):
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
+    assert "Traceback" not in err
+    for f in fragments:
+        assert f in lines[0], lines[0]
+
+
+@pytest.fixture
+def seed_bare(tmp_path):
+    path = tmp_path / "seed_map.json"
+    path.write_text(json.dumps(SEED_BARE))
+    return path
+
+
+@pytest.fixture(scope="module")
+def ideal_camera(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cam") / "camera.json"
+    Camera.from_fov(60, (640, 480)).save(path)
+    return path
+
+
+# -- help, doctor ------------------------------------------------------------------------
+def test_help_lists_every_command_subprocess():
+    code, out, err = run_subprocess("--help")
+    assert code == 0 and err == ""
+    for cmd in ("markers", "board", "corners", "render", "doctor"):
+        assert f"    {cmd} " in out
+
+
+def test_doctor_exit_0_subprocess():
+    code, out, err = run_subprocess("doctor")
+    assert code == 0, out + err
+    assert out.strip().endswith("all good")
+    assert "OpenCV" in out and "cv2.aruco.ArucoDetector: yes" in out
+
+
+def test_unknown_option_is_one_line(capsys):
+    code, out, err = run(capsys, "markers", "--ids", "0-3", "--size-mm", "50", "-o", "m.pdf", "--colour", "red")
+    assert_user_error(code, err, "unrecognized arguments: --colour", "--help")
+    code, out, err = run(capsys, "markers", "--ids", "0-3")
+    assert_user_error(code, err, "required: --size-mm, -o/--output")
+
+
+# -- corners -------------------------------------------------------------------------------
+def test_corners_seed_map_in_feet(capsys, seed_bare, tmp_path):
+    out_path = tmp_path / "corners.json"
+    code, out, err = run(capsys, "corners", seed_bare, "--units", "ft", "--marker-size-mm", 80, "-o", out_path)
+    assert code == 0, err
+    corners = json.loads(out_path.read_text())
+    # the seed's documented answer for marker 0 at [0, 0, 1] ft, 80 mm
+    assert np.allclose(corners["0"], [[0, 0, 304.8], [0, 80, 304.8], [0, 80, 224.8], [0, 0, 224.8]])
+    assert np.allclose(corners["2"][0], [0, 152.4, 228.6])
+    assert "corners of 3 markers" in out and "coplanar" in out
+
+
+def test_corners_missing_units_is_an_error(capsys, seed_bare, tmp_path):
+    out_path = tmp_path / "corners.json"
+    code, out, err = run(capsys, "corners", seed_bare, "--marker-size-mm", 80, "-o", out_path)
+    assert_user_error(code, err, "units", "--units")
+    assert out == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["seed_map.json"]
+
+
+# -- markers and board ---------------------------------------------------------------------------
+def test_markers_subprocess_pdf(tmp_path):
+    pdfium = pytest.importorskip("pypdfium2")
+    code, out, err = run_subprocess("markers", "--ids", "0-3,8", "--size-mm", 40, "--dictionary", "6X6_250",
+                                    "-o", "m.pdf", cwd=tmp_path)
+    assert code == 0, err
+    assert "5 markers of 40 mm (6X6_250) on 1 a4 page" in out
+    doc = pdfium.PdfDocument(str(tmp_path / "m.pdf"))
+    gray = cv2.cvtColor(doc[0].render(scale=200 / 72).to_numpy()[:, :, :3].copy(), cv2.COLOR_RGB2GRAY)
+    doc.close()
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250))
+    corners, ids, _ = det.detectMarkers(gray)
+    assert sorted(np.asarray(ids).ravel().tolist()) == [0, 1, 2, 3, 8]
+    side_mm = np.linalg.norm(np.diff(np.asarray(corners).reshape(-1, 4, 2)[:, :2], axis=1), axis=2) / (200 / 25.4)
+    assert np.allclose(side_mm, 40, atol=0.5)
+
+
+def test_markers_png_pages(capsys, tmp_path):
+    code, out, err = run(capsys, "markers", "--ids", "0-2", "--size-mm", 80, "--paper", "letter", "--dpi", 50,
+                         "-o", tmp_path / "m.png")
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m-1.png", "m-2.png"]
+    img = cv2.imread(str(tmp_path / "m-1.png"))
+    assert img.shape[:2] == (round(11 * 50), round(8.5 * 50))
+
+
+def test_board_pdf(capsys, tmp_path):
+    code, out, err = run(capsys, "board", "--pattern", "9x6", "--square-mm", 25, "-o", tmp_path / "board.pdf")
+    assert code == 0, err
+    assert "checkerboard 9x6 inner corners (10x7 squares), square 25 mm, a4, landscape" in out
+    assert (tmp_path / "board.pdf").stat().st_size > 1000
+
+
+def test_board_charuco_png(capsys, tmp_path):
+    code, out, err = run(capsys, "board", "--squares", "5x7", "--square-mm", 30, "--charuco", "--marker-mm", 22,
+                         "--dpi", 100, "-o", tmp_path / "ch.png")
+    assert code == 0, err
+    assert "ChArUco 5x7 squares (4x6 inner corners), square 30 mm, marker 22 mm, 6X6_250" in out
+    gray = cv2.imread(str(tmp_path / "ch.png"), cv2.IMREAD_GRAYSCALE)
+    board = cv2.aruco.CharucoBoard((5, 7), 30.0, 22.0, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250))
+    ch_corners, ch_ids, _, _ = cv2.aruco.CharucoDetector(board).detectBoard(gray)
+    assert ch_ids is not None and len(ch_ids) == 24
+
+
+def test_board_too_big_says_largest(capsys, tmp_path):
+    code, out, err = run(capsys, "board", "--pattern", "9x6", "--square-mm", 40, "-o", tmp_path / "b.pdf")
+    assert_user_error(code, err, "does not fit on a4 paper", "largest square that fits is", "--square-mm")
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- render --------------------------------------------------------------------------------
+def test_render_pose_and_look_at_agree_with_truth(capsys, ideal_camera, tmp_path):
+    wall = data_path("world_map.json")
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    code, out, err = run(capsys, "render", "--map", wall, "--camera", ideal_camera, "--pose", "1200,150,250,-90,0,90",
+                         "-o", a, "--truth", tmp_path / "truth.json")
+    assert code == 0, err
+    assert "markers seen whole: 0, 1, 2" in out
+    code, out, err = run(capsys, "render", "--map", wall, "--camera", ideal_camera, "--from", "1200,150,250",
+                         "--look-at", "0,150,250", "-o", b)
+    assert code == 0, err
+    img_a, img_b = cv2.imread(str(a), cv2.IMREAD_GRAYSCALE), cv2.imread(str(b), cv2.IMREAD_GRAYSCALE)
+    assert img_a.shape == (480, 640)
+    assert np.abs(img_a.astype(int) - img_b).max() <= 1  # the two ways of giving the same pose
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    T = np.array(truth["T_world_camera"])
+    assert np.allclose(T, frames.make_transform(frames.rotation_from_rpy_deg(-90, 0, 90), [1200, 150, 250]))
+    assert np.allclose(truth["rpy_deg"], [-90, 0, 90]) and truth["position_mm"] == [1200, 150, 250]
+    # the truth is what the camera model projects, and what a detector finds in the image
+    cam, m = Camera.load(ideal_camera), MarkerMap.load(wall)
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL))
+    corners, ids, _ = det.detectMarkers(img_a)
+    assert sorted(np.asarray(ids).ravel().tolist()) == [0, 1, 2]
+    for c, i in zip(corners, np.asarray(ids).ravel()):
+        expected = cam.project(m.marker_corners(int(i)), T)
+        assert np.allclose(truth["markers_px"][str(i)], expected)
+        assert np.abs(np.asarray(c).reshape(4, 2) - expected).max() < 1.0
+
+
+def test_render_nothing_in_view_warns(capsys, ideal_camera, tmp_path):
+    code, out, err = run(capsys, "render", "--map", data_path("world_map.json"), "--camera", ideal_camera,
+                         "--pose", "1200,150,250,-90,0,-90", "-o", tmp_path / "away.png")
+    assert code == 0
+    assert "markers seen whole: none" in out
+    assert err.startswith("warning: no marker of the map is in view")
+
+
+# -- bad input: one error line, status 2, nothing written -----------------------------------------------
+def _other_aspect_camera(tmp_path):
+    path = tmp_path / "wide.json"
+    Camera.from_fov(60, (1280, 720)).save(path)
+    return path
+
+
+BAD = {
+    "missing map file": (["corners", "{tmp}/nope.json", "--units", "ft", "-o", "{tmp}/out.json"], ["nope.json", "no such file"]),
+    "bad pattern": (["board", "--pattern", "9by6", "--square-mm", "25", "-o", "{tmp}/out.pdf"], ["'9by6'", "9x6"]),
+    "negative size": (["markers", "--ids", "0-3", "--size-mm", "-80", "-o", "{tmp}/out.pdf"], ["--size-mm", "positive"]),
+    "size not a number": (["markers", "--ids", "0-3", "--size-mm", "big", "-o", "{tmp}/out.pdf"], ["--size-mm", "'big'"]),
+    "unknown dictionary": (["markers", "--ids", "0-3", "--size-mm", "50", "--dictionary", "7X7_9", "-o", "{tmp}/out.pdf"],
+                           ["unknown ArUco dictionary '7X7_9'", "7X7_50"]),
+    "id not in dictionary": (["markers", "--ids", "48-52", "--size-mm", "50", "--dictionary", "4X4_50", "-o", "{tmp}/out.pdf"],
+                             ["marker id 50", "0 to 49"]),
+    "bad ids": (["markers", "--ids", "0-", "--size-mm", "50", "-o", "{tmp}/out.pdf"], ["--ids", "0-9"]),
+    "unknown output type": (["markers", "--ids", "0", "--size-mm", "50", "-o", "{tmp}/out.svg"], [".pdf or .png"]),
+    "missing output folder": (["markers", "--ids", "0", "--size-mm", "50", "-o", "{tmp}/no/out.pdf"], ["does not exist"]),
+    "charuco options without --charuco": (["board", "--pattern", "9x6", "--square-mm", "20", "--marker-mm", "15",
+                                           "-o", "{tmp}/out.pdf"], ["--charuco"]),
+    "camera of another aspect ratio": (["render", "--map", str(data_path("world_map.json")), "--camera", "{wide}",
+                                        "--pose", "1200,150,250,-90,0,90", "--size", "640x480", "-o", "{tmp}/out.png"],
+                                       ["aspect", "calibrate at the resolution"]),
+    "pose with 5 numbers": (["render", "--map", str(data_path("world_map.json")), "--camera", "{wide}",
+                             "--pose", "1200,150,250,-90,0", "-o", "{tmp}/out.png"], ["--pose", "6 numbers"]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD), ids=list(BAD))
+def test_bad_input(capsys, tmp_path, case):
+    argv, fragments = BAD[case]
+    wide = _other_aspect_camera(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    argv = [a.format(tmp=tmp_path, wide=wide) for a in argv]
+    code, out, err = run(capsys, *argv)
+    assert_user_error(code, err, *fragments)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # no output, no temporary file
+
+
+def test_bad_input_subprocess_no_traceback(tmp_path):
+    code, out, err = run_subprocess("board", "--pattern", "9by6", "--square-mm", 25, "-o", tmp_path / "b.pdf")
+    assert_user_error(code, err, "9by6")
+    assert list(tmp_path.iterdir()) == []
