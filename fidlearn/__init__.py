@@ -34,7 +34,15 @@ from .frames import (
 )
 from .markermap import MarkerMap, MarkerPlacement
 from .data import data_dir, data_path
-from .synthetic import CalibrationViews, look_at, render_calibration_views, render_scene
+from .synthetic import (
+    CalibrationViews,
+    Trajectory,
+    look_at,
+    render_calibration_views,
+    render_scene,
+    render_trajectory,
+    trajectory_poses,
+)
 from .pose import Pose, estimate_pose, locate
 
 __version__ = "0.1.0"
@@ -70,5 +78,8 @@ __all__ = [
     "locate",
     "render_calibration_views",
     "CalibrationViews",
+    "render_trajectory",
+    "trajectory_poses",
+    "Trajectory",
     "__version__",
 ]

@@ -51,6 +51,9 @@ __all__ = [
     "look_at",
     "render_calibration_views",
     "CalibrationViews",
+    "trajectory_poses",
+    "render_trajectory",
+    "Trajectory",
     "DEFAULT_GRAYS",
 ]
 
@@ -743,3 +746,150 @@ def render_calibration_views(
         marker_size_mm=float(marker_size_mm or 0.0), charuco=bool(charuco), dictionary=_cv.dictionary_name(dictionary) if charuco else "",
         seed=int(seed), render_kwargs=render_kwargs,
     )
+
+
+# ----------------------------------------------------------------------------------------------
+# A robot's drive through the room.
+# ----------------------------------------------------------------------------------------------
+
+@dataclass(eq=False)
+class Trajectory:
+    """Frames of a camera on a robot driving past the markers, with the truth of every frame.
+
+    Attributes
+    ----------
+    images : list of ndarray (H, W) uint8
+        The frames, in driving order.
+    T_world_camera : list of ndarray (4, 4)
+        The camera's true pose (mm, world) in each frame.
+    truth : list of dict
+        Per frame, ``{id: (4, 2) float64}`` true pixel corners of the markers seen whole.
+    camera : Camera
+        The true camera.
+    marker_map : MarkerMap
+        The markers' true placements.
+    """
+
+    images: list
+    T_world_camera: list
+    truth: list
+    camera: Camera
+    marker_map: MarkerMap
+    seed: int = 0
+    render_kwargs: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    @property
+    def positions_mm(self) -> np.ndarray:
+        """Camera positions (N, 3), mm, world."""
+        return np.array([T[:3, 3] for T in self.T_world_camera])
+
+    def __repr__(self) -> str:
+        w, h = self.camera.image_size
+        seen = sum(len(t) for t in self.truth)
+        d = np.linalg.norm(np.diff(self.positions_mm, axis=0), axis=1).sum() if len(self) > 1 else 0.0
+        return f"Trajectory({len(self)} frames {w}x{h}, {d / 1000:.2f} m driven, {seen} marker sightings, seed={self.seed})"
+
+
+def trajectory_poses(
+    marker_map: MarkerMap,
+    n_frames: int = 40,
+    seed: int = 0,
+    *,
+    start_distance_mm: float = 2200.0,
+    end_distance_mm: float = 700.0,
+    start_lateral_mm: float = -700.0,
+    end_lateral_mm: float = 500.0,
+    height_mm: float | None = None,
+    wobble_deg: float = 3.0,
+) -> list[np.ndarray]:
+    """True poses ``T_world_camera`` (4, 4), mm, of a camera on a robot driving toward the markers.
+
+    The robot drives a gentle arc on the floor: from ``start_distance_mm`` in
+    front of the markers (along their mean facing direction) and
+    ``start_lateral_mm`` to the side (the direction to the camera's right when
+    it faces the wall) to ``end_distance_mm`` and ``end_lateral_mm``. The
+    camera sits at the markers' height (``height_mm``, default their mean
+    centre height), keeps pointing at the markers' centre, and sways a little
+    (``wobble_deg``, smooth, seeded) with a millimetre of vibration.
+
+    Examples
+    --------
+    >>> from fidlearn import MarkerMap, data_path
+    >>> poses = trajectory_poses(MarkerMap.load(data_path("world_map.json")), n_frames=5)
+    >>> len(poses), poses[0].shape
+    (5, (4, 4))
+    """
+    if n_frames < 1:
+        raise FidlearnError(f"n_frames must be at least 1, got {n_frames}")
+    rng = np.random.default_rng(seed)
+    centres = np.array([marker_map.marker_corners(i).mean(axis=0) for i in marker_map.ids])
+    normals = np.array([marker_map.normal(i) for i in marker_map.ids])
+    centre = centres.mean(axis=0)
+    facing = normals.mean(axis=0)
+    facing[2] = 0.0
+    if np.linalg.norm(facing) < 1e-6:
+        raise FidlearnError(
+            f"{marker_map.source}: the markers do not face a common horizontal direction (on the floor or "
+            "facing each other), so there is no wall to drive toward; give poses of your own"
+        )
+    facing /= np.linalg.norm(facing)
+    lateral = np.cross(-facing, [0.0, 0.0, 1.0])  # the camera's right when it faces the wall
+    z = centre[2] if height_mm is None else float(height_mm)
+    phases = rng.uniform(0, 2 * math.pi, size=6)
+    tau = np.linspace(0.0, 1.0, n_frames)
+    poses = []
+    for i, s in enumerate(tau):
+        d = start_distance_mm + (end_distance_mm - start_distance_mm) * s
+        lat = start_lateral_mm + (end_lateral_mm - start_lateral_mm) * s + 0.25 * abs(end_lateral_mm - start_lateral_mm) * math.sin(math.pi * s)
+        eye = centre + facing * d + lateral * lat
+        eye[2] = z + float(rng.normal(0.0, 1.0))
+        pan = wobble_deg * math.sin(2 * math.pi * 1.3 * s + phases[0]) + 0.3 * wobble_deg * math.sin(2 * math.pi * 3.1 * s + phases[1])
+        tilt = 0.5 * wobble_deg * math.sin(2 * math.pi * 0.9 * s + phases[2])
+        roll = 0.3 * wobble_deg * math.sin(2 * math.pi * 2.3 * s + phases[3])
+        T = look_at(eye, [centre[0], centre[1], z], roll_deg=roll)
+        R = T[:3, :3] @ frames.rot_y(math.radians(pan)) @ frames.rot_x(math.radians(tilt))
+        poses.append(frames.make_transform(R, eye))
+    return poses
+
+
+def render_trajectory(
+    camera: Camera,
+    marker_map: MarkerMap,
+    n_frames: int = 40,
+    seed: int = 0,
+    *,
+    poses: Sequence[np.ndarray] | None = None,
+    blur_px: float = 0.5,
+    noise_std: float = 1.5,
+    gradient: float = 0.1,
+    supersample: int = 4,
+    wall_texture: float = 3.0,
+    **trajectory_options: Any,
+) -> Trajectory:
+    """Render a robot's drive past the markers (see :func:`trajectory_poses`), frame by frame.
+
+    Frame ``i`` is ``render_scene(camera, marker_map, poses[i], seed=seed * 1000 + i, ...)``.
+    ``poses`` replaces the default drive; other keywords go to :func:`trajectory_poses`.
+
+    Examples
+    --------
+    >>> from fidlearn import Camera, MarkerMap, data_path
+    >>> cam = Camera.from_fov(60, (320, 240))
+    >>> drive = render_trajectory(cam, MarkerMap.load(data_path("world_map.json")), n_frames=3)
+    >>> len(drive), drive.images[0].shape, sorted(drive.truth[-1])
+    (3, (240, 320), [0, 1, 2])
+    """
+    if poses is None:
+        poses = trajectory_poses(marker_map, n_frames, seed, **trajectory_options)
+    elif trajectory_options:
+        raise FidlearnError(f"give either poses or trajectory options ({', '.join(trajectory_options)}), not both")
+    render_kwargs = dict(blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture)
+    images, truths = [], []
+    for i, T in enumerate(poses):
+        image, truth = render_scene(camera, marker_map, T, seed=int(seed) * 1000 + i, **render_kwargs)
+        images.append(image)
+        truths.append(truth)
+    return Trajectory(images, [np.asarray(T, dtype=float) for T in poses], truths, camera, marker_map, seed=int(seed), render_kwargs=render_kwargs)
