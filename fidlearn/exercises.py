@@ -1,0 +1,1456 @@
+"""Classroom exercises with automatic feedback: ``q1.check()``, ``q1.hint()``, ``q1.solution()``.
+
+Each lesson (``"01"`` to ``"09"``) holds questions built from seeded synthetic
+data. A question shows its inputs in ``q.inputs``; the learner writes code that
+computes the answer from them, assigns ``q.answer = ...`` (or calls
+``q.check(value)``) and runs ``q.check()``, which prints one line:
+
+* ``Correct (q1): ...``
+* ``Incorrect (q1): what is wrong, and a nudge`` (common mistakes such as a
+  transposed K, degrees for radians, the wrong winding order, the extrinsic
+  matrix where the camera pose is asked, or feet for mm are recognised and
+  named);
+* ``Not attempted (q1): ...`` while the answer is still ``...`` or ``None``.
+
+``check()`` never raises in a learner's notebook. Tests and graders switch on
+strict mode (``FIDLEARN_STRICT=1`` or ``with exercises.strict():``), in which
+every check that is not ``Correct`` raises :class:`AssertionError`;
+``strict("blank")`` (``FIDLEARN_STRICT=blank``) instead demands ``Not
+attempted`` everywhere, which is how the student copies are tested.
+
+A learner's id seeds a personal variant: ``exercises.lesson("03",
+learner="alice")`` gives Alice her own numbers, and the answer key checks
+them. The id is hashed with SHA-256, so the variant is the same on every
+machine and every Python run. Without an id (``learner=""``) the id comes from
+the environment variable ``FIDLEARN_LEARNER``, else the whole class shares one
+variant.
+
+Examples
+--------
+>>> ex = lesson("01", learner="alice")
+>>> q1 = ex.q1
+>>> q1.check()  # doctest: +ELLIPSIS
+Not attempted (q1): ...
+>>> w, h = q1.inputs.image_size
+>>> f = (w / 2) / math.tan(math.radians(q1.inputs.hfov_deg) / 2)
+>>> q1.check([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])  # doctest: +ELLIPSIS
+Correct (q1): ...
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import math
+import os
+import re
+import textwrap
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Sequence
+
+import cv2
+import numpy as np
+
+from . import frames
+from .camera import Camera
+from .detection import Detection
+from .markermap import MarkerMap, MarkerPlacement
+
+__all__ = [
+    "CORRECT",
+    "INCORRECT",
+    "NOT_ATTEMPTED",
+    "SETUP_CODE",
+    "Lesson",
+    "Question",
+    "Result",
+    "lesson",
+    "lessons",
+    "strict",
+    "answer_key_notebook",
+    "student_copy",
+    "solution_blocks",
+]
+
+CORRECT = "Correct"
+INCORRECT = "Incorrect"
+NOT_ATTEMPTED = "Not attempted"
+
+#: The imports every exercise notebook starts with; solution code may use these names.
+SETUP_CODE = (
+    "import math\n"
+    "import numpy as np\n"
+    "import cv2\n"
+    "import fidlearn\n"
+    "from fidlearn import exercises, frames"
+)
+
+BEGIN_SOLUTION = "### BEGIN SOLUTION"
+END_SOLUTION = "### END SOLUTION"
+
+_MISSING = object()
+
+
+# ----------------------------------------------------------------------------------
+# strict mode
+# ----------------------------------------------------------------------------------
+_STRICT_WORDS = {
+    "": None, "0": None, "false": None, "off": None, "no": None,
+    "1": "correct", "true": "correct", "on": "correct", "yes": "correct", "correct": "correct",
+    "blank": "blank", "not attempted": "blank", "not-attempted": "blank", "not_attempted": "blank",
+}
+_strict_override: list = []  # a stack: the innermost strict() wins
+
+
+def _parse_strict(value: Any) -> str | None:
+    if value is True:
+        return "correct"
+    if value is False or value is None:
+        return None
+    key = str(value).strip().lower()
+    if key not in _STRICT_WORDS:
+        raise ValueError(
+            f"strict mode {value!r} is unknown; use True or 'correct' (every check must be Correct), "
+            "'blank' (every check must be Not attempted) or False"
+        )
+    return _STRICT_WORDS[key]
+
+
+def _strict_mode() -> str | None:
+    if _strict_override:
+        return _strict_override[-1]
+    try:
+        return _parse_strict(os.environ.get("FIDLEARN_STRICT", ""))
+    except ValueError:
+        return "correct"
+
+
+class strict:
+    """Strict mode for tests and graders: a check that is not as expected raises AssertionError.
+
+    ``strict()`` or ``strict(True)`` demands ``Correct``; ``strict("blank")``
+    demands ``Not attempted`` (an untouched student copy); ``strict(False)``
+    switches strict mode off. Use it as a context manager, or call it once
+    (then it stays on until :meth:`restore`). Without either, the environment
+    variable ``FIDLEARN_STRICT`` (``1`` or ``blank``) decides.
+    """
+
+    def __init__(self, mode: Any = True):
+        self.mode = _parse_strict(mode)
+        _strict_override.append(self.mode)
+        self._active = True
+
+    def restore(self) -> None:
+        """Undo this strict() call."""
+        if self._active:
+            _strict_override.remove(self.mode) if self.mode in _strict_override else None
+            self._active = False
+
+    def __enter__(self) -> "strict":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._active and _strict_override:
+            _strict_override.pop()
+            self._active = False
+
+
+# ----------------------------------------------------------------------------------
+# results, inputs, questions
+# ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Result:
+    """The outcome of one check: ``status`` is ``Correct``, ``Incorrect`` or ``Not attempted``."""
+
+    question: str
+    status: str
+    message: str
+
+    @property
+    def correct(self) -> bool:
+        return self.status == CORRECT
+
+    @property
+    def line(self) -> str:
+        """The one line that :meth:`Question.check` prints."""
+        return f"{self.status} ({self.question}): {self.message}" if self.message else f"{self.status} ({self.question})"
+
+    def __str__(self) -> str:
+        return self.line
+
+
+class _AnswerError(Exception):
+    """The learner's answer cannot be read as the kind of value asked for (the message says why)."""
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, np.ndarray):
+        if value.size > 24:
+            return f"array of shape {value.shape}, dtype {value.dtype}"
+        return np.array2string(np.round(value, 4), separator=", ", suppress_small=True).replace("\n", "\n    ")
+    if isinstance(value, (list, tuple)) and len(value) > 6 and not isinstance(value[0], (int, float, str)):
+        return f"{type(value).__name__} of {len(value)} items, first: {value[0]!r}"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return repr(value)
+
+
+class Inputs:
+    """A question's inputs: read them as attributes (``q.inputs.K``) or keys (``q.inputs["K"]``)."""
+
+    def __init__(self, **values: Any):
+        self.__dict__.update(values)
+
+    def __getitem__(self, key: str) -> Any:
+        return self.__dict__[key]
+
+    def __iter__(self):
+        return iter(self.__dict__)
+
+    def keys(self):
+        return self.__dict__.keys()
+
+    def __repr__(self) -> str:
+        lines = [f"  {k} = {_short(v)}" for k, v in self.__dict__.items()]
+        return "Inputs(\n" + "\n".join(lines) + "\n)"
+
+
+Detector = Callable[[Any], bool]
+Message = "str | Callable[[Any], str]"
+
+
+class Question:
+    """One exercise question: inputs, a hidden answer key, and feedback.
+
+    Attributes
+    ----------
+    name : str
+        ``"q1"``, ``"q2"``...: the variable name the notebook gives it.
+    title, task : str
+        What to compute, in words (units and frames included).
+    inputs : Inputs
+        The data to compute from (arrays in mm, pixels, degrees as named).
+    answer : object
+        The learner's answer; ``...`` or ``None`` means not attempted.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        title: str,
+        task: str,
+        inputs: dict,
+        expected: Any,
+        parse: Callable[[Any], Any],
+        compare: Callable[[Any, Any], "str | None"],
+        wrong: Sequence[tuple[Detector, Any]] = (),
+        notes: Sequence[tuple[Detector, Any]] = (),
+        hint: str = "",
+        solution: str = "",
+        level: str = "",
+    ):
+        self.name = name
+        self.title = title
+        self.task = textwrap.dedent(task).strip()
+        self.inputs = Inputs(**inputs)
+        self.data = self.inputs
+        self._expected = expected
+        self._parse = parse
+        self._compare = compare
+        self._wrong = list(wrong)
+        self._notes = list(notes)
+        self._hint = textwrap.dedent(hint).strip()
+        self.solution_code = textwrap.dedent(solution).strip()
+        self.level = level
+        self.answer: Any = ...
+
+    # -- grading ------------------------------------------------------------------
+    def grade(self, answer: Any = _MISSING) -> Result:
+        """Judge an answer (default: ``self.answer``) and return a :class:`Result`; prints nothing.
+
+        A learner's answer that cannot be read gives ``Incorrect`` with the
+        reason; an error in the grading code itself raises.
+        """
+        if answer is _MISSING:
+            answer = self.answer
+        if answer is None or answer is Ellipsis:
+            return Result(self.name, NOT_ATTEMPTED, f"replace the ... in {self.name}.answer = ... with code that computes the answer, then run {self.name}.check()")
+        try:
+            value = self._parse(answer)
+        except _AnswerError as exc:
+            return Result(self.name, INCORRECT, str(exc))
+        diff = self._compare(value, self._expected)
+        if diff is None:
+            msg = "well done"
+            for detect, note in self._notes:
+                if _safe(detect, value):
+                    msg = note(value) if callable(note) else note
+                    break
+            return Result(self.name, CORRECT, msg)
+        for detect, message in self._wrong:
+            if _safe(detect, value):
+                return Result(self.name, INCORRECT, message(value) if callable(message) else message)
+        return Result(self.name, INCORRECT, f"{diff}; {self.name}.hint() gives a nudge")
+
+    def check(self, answer: Any = _MISSING) -> None:
+        """Print one line: ``Correct``, ``Incorrect`` (what is wrong, and a nudge) or ``Not attempted``.
+
+        ``check(value)`` first sets ``answer = value``. Outside strict mode it
+        never raises; in strict mode (see :class:`strict`) an unexpected
+        status raises :class:`AssertionError`.
+        """
+        if answer is not _MISSING:
+            self.answer = answer
+        mode = _strict_mode()
+        try:
+            result = self.grade()
+        except Exception as exc:  # a bug in the grader must not break a lesson
+            if mode:
+                raise
+            result = Result(self.name, INCORRECT, f"your answer could not be checked ({type(exc).__name__}: {exc}); check its type and shape")
+        print(result.line)
+        if mode == "correct" and result.status != CORRECT:
+            raise AssertionError(result.line)
+        if mode == "blank" and result.status != NOT_ATTEMPTED:
+            raise AssertionError(f"expected a blank answer, got: {result.line}")
+
+    def hint(self) -> None:
+        """Print a hint."""
+        print(f"Hint ({self.name}): {self._hint}")
+
+    def solution(self) -> None:
+        """Print one way to solve it: code that, run in the notebook, makes ``check()`` say Correct."""
+        print(f"Solution ({self.name}), one way to do it:\n")
+        print(self.solution_code)
+
+    def show(self) -> None:
+        """Print the task and the inputs."""
+        print(f"{self.name}. {self.title}\n\n{self.task}\n\n{self.name}.inputs = {self.inputs!r}")
+
+    def __repr__(self) -> str:
+        status = self.grade().status if self.answer is not ... else NOT_ATTEMPTED
+        names = ", ".join(self.inputs.keys())
+        return f"<Question {self.name}: {self.title!r}; inputs: {names}; {status}>"
+
+
+def _safe(detect: Detector, value: Any) -> bool:
+    try:
+        return bool(detect(value))
+    except Exception:
+        return False
+
+
+# ----------------------------------------------------------------------------------
+# answer readers and comparisons
+# ----------------------------------------------------------------------------------
+def _array(shape: tuple, what: str, shape_hints: dict | None = None) -> Callable[[Any], np.ndarray]:
+    """A parser: the answer as a float array of ``shape`` (a -1 matches any length)."""
+
+    def parse(answer: Any) -> np.ndarray:
+        if isinstance(answer, Camera):
+            answer = answer.K
+        if isinstance(answer, (str, bytes, dict)):
+            raise _AnswerError(f"{what} should be numbers in an array of shape {_shape_text(shape)}, got a {type(answer).__name__}")
+        try:
+            a = np.array(answer, dtype=float)
+        except (TypeError, ValueError):
+            raise _AnswerError(f"{what} should be numbers in an array of shape {_shape_text(shape)}, got {type(answer).__name__}") from None
+        if not _shape_ok(a.shape, shape):
+            sq = a.squeeze()
+            if _shape_ok(sq.shape, tuple(s for s in shape if s != 1)) and a.size == sq.size:
+                a = sq.reshape(tuple(sq.shape[i] if s == -1 else s for i, s in enumerate(shape)) if -1 in shape else shape)
+            else:
+                extra = (shape_hints or {}).get(a.shape, "")
+                raise _AnswerError(f"{what} has shape {a.shape}, expected {_shape_text(shape)}" + (f": {extra}" if extra else ""))
+        if not np.all(np.isfinite(a)):
+            raise _AnswerError(f"{what} contains NaN or infinity")
+        return a
+
+    return parse
+
+
+def _shape_ok(got: tuple, want: tuple) -> bool:
+    return len(got) == len(want) and all(w == -1 or g == w for g, w in zip(got, want))
+
+
+def _shape_text(shape: tuple) -> str:
+    return "(" + ", ".join("N" if s == -1 else str(s) for s in shape) + ")"
+
+
+def _scalar(what: str) -> Callable[[Any], float]:
+    def parse(answer: Any) -> float:
+        if isinstance(answer, (str, bytes)):
+            raise _AnswerError(f"{what} should be a number, got the text {answer!r}")
+        a = np.asarray(answer, dtype=float) if not isinstance(answer, (dict, list, tuple)) or np.size(answer) == 1 else None
+        if a is None or a.size != 1:
+            raise _AnswerError(f"{what} should be one number, got {type(answer).__name__} of {np.size(answer)} values")
+        v = float(a.reshape(-1)[0])
+        if not math.isfinite(v):
+            raise _AnswerError(f"{what} is {v}, expected a finite number")
+        return v
+
+    return parse
+
+
+def _parts(**parsers: Callable[[Any], Any]) -> Callable[[Any], dict]:
+    """A parser for a dict answer with named parts (a tuple in the same order is accepted too)."""
+    names = list(parsers)
+
+    def parse(answer: Any) -> dict:
+        if isinstance(answer, dict):
+            missing = [n for n in names if n not in answer]
+            if missing:
+                raise _AnswerError(f"the answer needs the keys {names}; missing {missing}")
+            return {n: parsers[n](answer[n]) for n in names}
+        if isinstance(answer, (tuple, list)) and len(answer) == len(names):
+            return {n: parsers[n](v) for n, v in zip(names, answer)}
+        raise _AnswerError(f"give a dict with keys {names} (or a tuple of {len(names)} values in that order)")
+
+    return parse
+
+
+def _close(a: Any, b: Any, atol: float = 0.0, rtol: float = 0.0) -> bool:
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    return a.shape == b.shape and bool(np.all(np.abs(a - b) <= atol + rtol * np.abs(b)))
+
+
+def _cmp_array(atol: float, unit: str = "", rtol: float = 0.0) -> Callable[[np.ndarray, np.ndarray], "str | None"]:
+    def compare(a: np.ndarray, b: np.ndarray) -> str | None:
+        if a.shape != b.shape:
+            return f"your answer has shape {a.shape}, expected {b.shape}"
+        err = np.abs(a - b) - (atol + rtol * np.abs(b))
+        if np.all(err <= 0):
+            return None
+        i = np.unravel_index(int(np.argmax(err)), err.shape)
+        where = f" at index {list(map(int, i))}" if a.ndim else ""
+        return f"your answer differs from the key by {abs(a[i] - b[i]):.4g}{unit}{where} (tolerance {atol + rtol * abs(b[i]):.3g}{unit})"
+
+    return compare
+
+
+def _cmp_scalar(atol: float, unit: str = "", rtol: float = 0.0) -> Callable[[float, float], "str | None"]:
+    def compare(a: float, b: float) -> str | None:
+        if abs(a - b) <= atol + rtol * abs(b):
+            return None
+        ratio = f", {a / b:.3g} times the key" if b and a else ""
+        return f"your value {a:.6g}{unit} is off by {a - b:+.4g}{unit}{ratio}"
+
+    return compare
+
+
+def _cmp_transform(rot_tol_deg: float, trans_tol_mm: float) -> Callable[[np.ndarray, np.ndarray], "str | None"]:
+    def compare(a: np.ndarray, b: np.ndarray) -> str | None:
+        if np.abs(a[3] - [0, 0, 0, 1]).max() > 1e-6:
+            return f"the bottom row is {np.round(a[3], 4).tolist()}, a homogeneous transform ends with [0, 0, 0, 1]"
+        R = a[:3, :3]
+        if np.abs(R.T @ R - np.eye(3)).max() > 1e-3 or np.linalg.det(R) < 0:
+            return "the top-left 3x3 block is not a rotation matrix (its columns must be orthonormal, determinant +1)"
+        ang = frames.rotation_angle_deg(R, b[:3, :3])
+        dt = float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
+        if ang <= rot_tol_deg and dt <= trans_tol_mm:
+            return None
+        return f"your rotation is {ang:.3g} deg from the key's and your translation {dt:.4g} mm from it"
+
+    return compare
+
+
+def _corner_order(answer: np.ndarray, expected: np.ndarray, atol: float) -> tuple[str, ...] | None:
+    """The corner names in the order the answer lists them, if it is a permutation of the expected corners."""
+    if answer.shape != expected.shape or answer.shape[0] != 4:
+        return None
+    names = ("TL", "TR", "BR", "BL")
+    order = []
+    for row in answer:
+        hits = [i for i in range(4) if np.abs(row - expected[i]).max() <= atol]
+        if len(hits) != 1:
+            return None
+        order.append(names[hits[0]])
+    if len(set(order)) != 4:
+        return None
+    return tuple(order)
+
+
+def _winding_message(order: tuple[str, ...], what: str = "detection reports") -> str:
+    return (
+        f"your corners are in the order {', '.join(order)}: {what} TL, TR, BR, BL "
+        "(clockwise as seen from the front, starting at the marker's own top-left)"
+    )
+
+
+# ----------------------------------------------------------------------------------
+# seeded data
+# ----------------------------------------------------------------------------------
+def _rng(lesson_id: str, learner: str, question: str) -> np.random.Generator:
+    """A generator seeded from SHA-256 of the lesson, the learner's id and the question."""
+    digest = hashlib.sha256(f"fidlearn-exercises/{lesson_id}/{learner}/{question}".encode("utf-8")).digest()
+    return np.random.default_rng(int.from_bytes(digest[:8], "little"))
+
+
+def _look_at(position_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0, 0, 1)) -> np.ndarray:
+    """``T_world_camera`` (4, 4) of an OpenCV camera at ``position_mm`` looking at ``target_mm`` (x right, y down)."""
+    p = np.asarray(position_mm, dtype=float)
+    z = np.asarray(target_mm, dtype=float) - p
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, dtype=float))
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return frames.make_transform(np.column_stack([x, y, z]), p)
+
+
+def _round(x: Any, nd: int = 1) -> Any:
+    return np.round(np.asarray(x, dtype=float), nd)
+
+
+_SIZES = [(640, 480), (800, 600), (1280, 720), (1920, 1080)]
+
+
+# ==================================================================================
+# Lesson 01: the pinhole camera and K
+# ==================================================================================
+def _lesson_01(learner: str) -> list[Question]:
+    qs = []
+
+    # q1: K from a field of view -----------------------------------------------------
+    rng = _rng("01", learner, "q1")
+    w, h = _SIZES[rng.integers(len(_SIZES))]
+    hfov = float(np.round(rng.uniform(50, 95) * 2) / 2)
+    f = (w / 2) / math.tan(math.radians(hfov) / 2)
+    K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
+    f_deg_as_rad = (w / 2) / math.tan(hfov / 2)
+    f_full = (w / 2) / math.tan(math.radians(hfov))
+    f_width = w / math.tan(math.radians(hfov) / 2)
+    f_height = (h / 2) / math.tan(math.radians(hfov) / 2)
+
+    def fx_is(value):
+        return lambda a: abs(a[0, 0] - value) <= 1e-3 * abs(value) + 0.01
+
+    qs.append(Question(
+        "q1", "K from a field of view",
+        f"""
+        A camera with square pixels and its principal point in the middle of the image has a
+        horizontal field of view of `hfov_deg` degrees and images of `image_size` = (width, height)
+        pixels. Write code that computes its intrinsic matrix K, a (3, 3) array
+        `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]` in pixels. fidlearn puts pixel centres at integer
+        coordinates, so the centre of the image is at ((width - 1) / 2, (height - 1) / 2).
+        """,
+        {"hfov_deg": hfov, "image_size": (w, h)},
+        K,
+        _array((3, 3), "K", {(3,): "that is a vector; K is a 3x3 matrix", (4, 4): "K is 3x3, not a 4x4 transform"}),
+        lambda a, b: None if (abs(a[0, 0] - b[0, 0]) <= 1e-3 * b[0, 0] and abs(a[1, 1] - b[1, 1]) <= 1e-3 * b[1, 1]
+                              and abs(a[0, 2] - b[0, 2]) <= 0.51 and abs(a[1, 2] - b[1, 2]) <= 0.51
+                              and np.abs(a[[0, 1, 2, 2, 2], [1, 0, 0, 1, 2]] - [0, 0, 0, 0, 1]).max() < 1e-9)
+        else _cmp_array(0.01, " px")(a, b),
+        wrong=[
+            (lambda a: _close(a, K.T, 0.51), "your K is transposed: cx and cy belong in the last COLUMN, [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], and the bottom row is [0, 0, 1]"),
+            (fx_is(f_deg_as_rad), "np.tan and math.tan take radians, and hfov_deg is in degrees: convert with np.radians (or math.radians) first"),
+            (fx_is(f_full), "use HALF the field of view: the right triangle has the half-width w/2 opposite the angle hfov/2, so tan(hfov/2) = (w/2) / f"),
+            (fx_is(f_width), "use HALF the image width: tan(hfov/2) = (w/2) / f"),
+            (fx_is(f_height), "the horizontal field of view goes with the image WIDTH (image_size[0]), not the height"),
+            (lambda a: abs(a[0, 0] - f) < 1e-3 * f and abs(a[1, 1] - f) > 1e-3 * f, "square pixels: fy equals fx"),
+            (lambda a: abs(a[0, 0] - f) < 1e-3 * f and (abs(a[0, 2] - (h - 1) / 2) < 0.51 or abs(a[0, 2]) < 1e-9),
+             "fx is right; now put cx = (width - 1) / 2 and cy = (height - 1) / 2 (image_size is (width, height))"),
+        ],
+        notes=[(lambda a: abs(a[0, 2] - K[0, 2]) > 0.25 or abs(a[1, 2] - K[1, 2]) > 0.25,
+                "K is right; note that with pixel centres at integer coordinates fidlearn puts cx at (width - 1) / 2, half a pixel left of width / 2")],
+        hint="Draw the right triangle from the pinhole to the image's edge: tan(hfov/2) = (width/2) / fx. Angles go to np.tan in radians.",
+        solution="""
+        w, h = q1.inputs.image_size
+        f = (w / 2) / np.tan(np.radians(q1.inputs.hfov_deg) / 2)
+        K = np.array([[f, 0, (w - 1) / 2],
+                      [0, f, (h - 1) / 2],
+                      [0, 0, 1]])
+        q1.answer = K
+        """,
+        level="easy",
+    ))
+
+    # q2: project points -------------------------------------------------------------
+    rng = _rng("01", learner, "q2")
+    w, h = _SIZES[rng.integers(len(_SIZES))]
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 85))), (w, h))
+    K2 = cam.K.copy()
+    K2[0, 2] += float(np.round(rng.uniform(-15, 15), 1))
+    K2[1, 2] += float(np.round(rng.uniform(-10, 10), 1))
+    n = 5
+    z = rng.uniform(800, 3000, n)
+    u = rng.uniform(0.1 * w, 0.9 * w, n)
+    v = rng.uniform(0.1 * h, 0.9 * h, n)
+    P = np.column_stack([(u - K2[0, 2]) / K2[0, 0] * z, (v - K2[1, 2]) / K2[1, 1] * z, z])
+    P = np.round(P, 1)
+    uv = (P @ K2.T)[:, :2] / P[:, 2:]
+    no_div = (P @ K2.T)[:, :2]
+    kt = (P @ K2)[:, :2] / (P @ K2)[:, 2:]
+    no_c = P[:, :2] * [K2[0, 0], K2[1, 1]] / P[:, 2:]
+    qs.append(Question(
+        "q2", "Project points with K",
+        """
+        `points_camera_mm` holds 5 points (N, 3) in the camera frame (OpenCV's: x right, y down,
+        z forward), in mm. Write code that projects them with the pinhole model and the intrinsic
+        matrix `K` (no distortion) and gives their pixel coordinates, an (N, 2) array of (u, v).
+        """,
+        {"K": K2, "points_camera_mm": P},
+        uv,
+        _array((n, 2), "the pixels", {(n, 3): "drop the third (homogeneous) coordinate after dividing by it", (2, n): "one ROW per point, please: transpose it"}),
+        _cmp_array(0.05, " px"),
+        wrong=[
+            (lambda a: _close(a, no_div, 0.05), "divide by the depth: after K @ p, divide u and v by the third coordinate (it is Z)"),
+            (lambda a: _close(a, uv[:, ::-1], 0.05), "the columns are swapped: u (the x pixel, to the right) comes first, then v (down)"),
+            (lambda a: _close(a, kt, 0.05), "K is used transposed: the pixel is K @ p (with p as a column), i.e. p @ K.T for rows of points"),
+            (lambda a: _close(a, no_c, 0.05), "add the principal point: u = fx * X / Z + cx, v = fy * Y / Z + cy"),
+        ],
+        hint="u = fx * X / Z + cx and v = fy * Y / Z + cy; in matrix form, p_h = K @ [X, Y, Z] and (u, v) = p_h[:2] / p_h[2].",
+        solution="""
+        P = q2.inputs.points_camera_mm                      # (N, 3) mm, camera frame
+        ph = P @ q2.inputs.K.T                              # rows of K @ p
+        q2.answer = ph[:, :2] / ph[:, 2:3]                  # divide by the depth
+        """,
+        level="easy",
+    ))
+
+    # q3: distance from apparent size ---------------------------------------------------
+    rng = _rng("01", learner, "q3")
+    w, h = _SIZES[rng.integers(len(_SIZES))]
+    cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 85))), (w, h))
+    size_in = float(rng.choice([4, 5, 6, 8]))
+    dist_mm = float(rng.uniform(700, 4000))
+    side_px = float(np.round(cam3.fx * size_in * 25.4 / dist_mm, 1))
+    d = cam3.fx * size_in * 25.4 / side_px
+    qs.append(Question(
+        "q3", "How far is the marker?",
+        """
+        A square marker `marker_size_in` inches wide faces the camera squarely, in the middle of the
+        image, and appears `side_px` pixels wide. The camera's intrinsics are in `camera`
+        (a fidlearn Camera: `camera.fx`, `camera.K`). Write code that computes the distance from
+        the camera to the marker along the optical axis, in millimetres.
+        """,
+        {"camera": cam3, "marker_size_in": size_in, "side_px": side_px},
+        d,
+        _scalar("the distance"),
+        _cmp_scalar(0, " mm", rtol=2e-3),
+        wrong=[
+            (lambda a: abs(a * 25.4 - d) <= 3e-3 * d, "that is the distance in inches: the answer is asked in mm (1 in = 25.4 mm); convert the marker size first"),
+            (lambda a: abs(a * 304.8 - d) <= 3e-3 * d, "that is the distance in feet (304.8x too small): the answer is asked in mm"),
+            (lambda a: abs(a * 1000 - d) <= 3e-3 * d, "that is in metres: the answer is asked in mm"),
+            (lambda a: abs(a * 10 - d) <= 3e-3 * d, "that is in cm: the answer is asked in mm"),
+            (lambda a: abs(a - cam3.fx * size_in / side_px) <= 3e-3 * d, "the marker size is in inches: convert it to mm (x 25.4) before using it"),
+            (lambda a: a < 1 or abs(a - side_px / (cam3.fx * size_in * 25.4)) < 1e-6, "the ratio is upside down: similar triangles give Z / size = fx / side_px"),
+        ],
+        hint="Similar triangles: side_px / fx = size_mm / Z. Convert inches to mm first (25.4 mm per inch).",
+        solution="""
+        size_mm = q3.inputs.marker_size_in * 25.4
+        q3.answer = q3.inputs.camera.fx * size_mm / q3.inputs.side_px
+        """,
+        level="easy",
+    ))
+
+    # q4: field of view from K -------------------------------------------------------------
+    rng = _rng("01", learner, "q4")
+    w, h = _SIZES[rng.integers(len(_SIZES))]
+    fx = float(np.round(rng.uniform(0.5, 1.2) * w, 1))
+    K4 = np.array([[fx, 0, (w - 1) / 2], [0, fx, (h - 1) / 2], [0, 0, 1]])
+    fov = np.degrees([2 * math.atan(w / (2 * fx)), 2 * math.atan(h / (2 * fx))])
+    qs.append(Question(
+        "q4", "Field of view from K",
+        """
+        Given the intrinsic matrix `K` of a camera and its `image_size` (width, height), write code
+        that computes its horizontal and vertical fields of view in degrees, as a pair
+        (hfov_deg, vfov_deg).
+        """,
+        {"K": K4, "image_size": (w, h)},
+        fov,
+        _array((2,), "(hfov_deg, vfov_deg)"),
+        _cmp_array(0.05, " deg"),
+        wrong=[
+            (lambda a: _close(np.degrees(a), fov, 0.05), "those are radians: the answer is asked in degrees (np.degrees)"),
+            (lambda a: _close(a, fov[::-1], 0.05), "the order is (horizontal, vertical): the width goes with the horizontal field of view"),
+            (lambda a: _close(a, fov / 2, 0.05), "that is the HALF angle: the field of view is 2 * atan((w/2) / fx)"),
+            (lambda a: _close(a, np.degrees([2 * math.atan(w / fx), 2 * math.atan(h / fx)]), 0.05), "use half the image size: fov = 2 * atan((w / 2) / fx)"),
+        ],
+        hint="The inverse of q1: hfov = 2 * atan((width / 2) / fx); vfov uses the height and fy. np.degrees converts.",
+        solution="""
+        K = q4.inputs.K
+        w, h = q4.inputs.image_size
+        hfov = np.degrees(2 * np.arctan((w / 2) / K[0, 0]))
+        vfov = np.degrees(2 * np.arctan((h / 2) / K[1, 1]))
+        q4.answer = (hfov, vfov)
+        """,
+        level="easy",
+    ))
+    return qs
+
+
+# ==================================================================================
+# Lesson 03: extrinsics and transforms
+# ==================================================================================
+_EXTRINSIC_MSG = (
+    "that is the extrinsic matrix T_camera_world (what solvePnP's rvec, tvec describe), the "
+    "inverse of what is asked: the camera's pose is T_world_camera = frames.invert_transform(T_camera_world)"
+)
+
+
+def _T_is(T: np.ndarray, rot_tol_deg: float = 0.05, trans_tol_mm: float = 0.5) -> Detector:
+    cmp = _cmp_transform(rot_tol_deg, trans_tol_mm)
+    return lambda a: a.shape == (4, 4) and cmp(a, T) is None
+
+
+_T_HINTS = {(3, 3): "that is only the rotation; a pose is the 4x4 [[R, t], [0, 0, 0, 1]] (frames.make_transform(R, t))",
+            (3,): "that is a 3-vector; if it is an rvec, cv2.Rodrigues(rvec) turns it into a 3x3 rotation matrix, and the pose is the 4x4 [[R, t], [0, 0, 0, 1]]",
+            (3, 4): "add the bottom row [0, 0, 0, 1]"}
+
+
+def _lesson_03(learner: str) -> list[Question]:
+    qs = []
+    # q1: a pose from roll, pitch, yaw ------------------------------------------------
+    rng = _rng("03", learner, "q1")
+    rpy = np.round(rng.uniform([-20, -20, -180], [20, 20, 180]))
+    pos = np.round(rng.uniform([500, -1500, 0], [3000, 1500, 400]))
+    R = frames.rotation_from_rpy_deg(*rpy)
+    T = frames.make_transform(R, pos)
+    R_rad_as_deg = frames.rot_z(rpy[2]) @ frames.rot_y(rpy[1]) @ frames.rot_x(rpy[0])
+    R_xyz = frames.rot_x(math.radians(rpy[0])) @ frames.rot_y(math.radians(rpy[1])) @ frames.rot_z(math.radians(rpy[2]))
+    qs.append(Question(
+        "q1", "A robot's pose from roll, pitch and yaw",
+        """
+        A robot stands at `position_mm` (x, y, z in the world, mm) with orientation `rpy_deg` =
+        (roll, pitch, yaw) in degrees, rotations about the FIXED world X, Y and Z axes applied in
+        that order, so R = Rz(yaw) @ Ry(pitch) @ Rx(roll). Write code that builds its pose
+        T_world_robot, a 4x4 homogeneous transform (you may use frames.rot_x / rot_y / rot_z,
+        which take radians, or write the matrices yourself).
+        """,
+        {"rpy_deg": rpy, "position_mm": pos},
+        T,
+        _array((4, 4), "T_world_robot", _T_HINTS),
+        _cmp_transform(0.05, 0.5),
+        wrong=[
+            (_T_is(frames.invert_transform(T)), "you built the inverse, T_robot_world: the pose of the robot in the world has R in the top-left block and the robot's position as the last column"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], R_rad_as_deg) < 0.05, "the angles are in degrees but rot_x / rot_y / rot_z take radians: convert with np.radians"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], R_xyz) < 0.05, "the order of the rotations is reversed: about fixed axes roll first, then pitch, then yaw, so R = Rz(yaw) @ Ry(pitch) @ Rx(roll)"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], R.T) < 0.05, "the rotation is transposed (inverted): R = Rz(yaw) @ Ry(pitch) @ Rx(roll) goes in as it is"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], R) < 0.05 and not _close(a[:3, 3], pos, 0.5), "the rotation is right; the last column must be the robot's position in mm"),
+        ],
+        hint="R = frames.rot_z(yaw) @ frames.rot_y(pitch) @ frames.rot_x(roll) with the angles in radians; then frames.make_transform(R, position).",
+        solution="""
+        roll, pitch, yaw = np.radians(q1.inputs.rpy_deg)
+        R = frames.rot_z(yaw) @ frames.rot_y(pitch) @ frames.rot_x(roll)
+        T_world_robot = np.eye(4)
+        T_world_robot[:3, :3] = R
+        T_world_robot[:3, 3] = q1.inputs.position_mm
+        q1.answer = T_world_robot
+        """,
+        level="easy",
+    ))
+
+    # q2: world points into the camera frame --------------------------------------------
+    rng = _rng("03", learner, "q2")
+    cpos = np.round(rng.uniform([1500, -800, 900], [3500, 800, 1600]))
+    Twc = _look_at(cpos, np.round(rng.uniform([0, -400, 700], [0, 400, 1300])))
+    pts = np.round(np.column_stack([np.zeros(4), rng.uniform(-600, 600, 4), rng.uniform(300, 1800, 4)]))
+    Tcw = frames.invert_transform(Twc)
+    expected = frames.transform_points(Tcw, pts)
+    qs.append(Question(
+        "q2", "World points in the camera frame",
+        """
+        A camera's pose is `T_world_camera` (4x4, mm). `points_world_mm` are 4 points on the wall
+        (N, 3) in world coordinates. Write code that expresses them in the camera frame (OpenCV's:
+        x right, y down, z forward): an (N, 3) array in mm. Their z (depth) must come out positive:
+        the camera sees them.
+        """,
+        {"T_world_camera": Twc, "points_world_mm": pts},
+        expected,
+        _array((4, 3), "the points", {(4, 4): "drop the homogeneous 1 (keep x, y, z)", (3, 4): "one ROW per point: transpose it"}),
+        _cmp_array(0.05, " mm"),
+        wrong=[
+            (lambda a: _close(a, frames.transform_points(Twc, pts), 0.05), "T_world_camera maps camera coordinates INTO the world; you need the other direction, T_camera_world = frames.invert_transform(T_world_camera)"),
+            (lambda a: _close(a, pts @ Twc[:3, :3], 0.05), "you rotated but forgot the translation: p_camera = R^T (p_world - t)"),
+            (lambda a: _close(a, pts @ Twc[:3, :3] - Twc[:3, 3], 0.05), "subtract the camera position BEFORE rotating: p_camera = R^T (p_world - t), where t is T_world_camera's last column"),
+        ],
+        hint="p_camera = T_camera_world @ p_world, and T_camera_world is the inverse of T_world_camera (frames.invert_transform). frames.transform_points applies a 4x4 to rows of points.",
+        solution="""
+        T_camera_world = frames.invert_transform(q2.inputs.T_world_camera)
+        q2.answer = frames.transform_points(T_camera_world, q2.inputs.points_world_mm)
+        """,
+        level="medium",
+    ))
+
+    # q3: chain a detection and the map -----------------------------------------------
+    rng = _rng("03", learner, "q3")
+    yaw = float(rng.choice([0, 90, 180, -90]))
+    Twm = frames.make_transform(frames.rotation_from_rpy_deg(0, 0, yaw) @ np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], dtype=float),
+                                np.round(rng.uniform([-1000, -1000, 800], [1000, 1000, 1500])))
+    normal = Twm[:3, 2]
+    cpos = Twm[:3, 3] + normal * rng.uniform(1200, 2500) + np.cross([0, 0, 1], normal) * rng.uniform(-500, 500) + [0, 0, rng.uniform(-300, 300)]
+    Twc3 = _look_at(np.round(cpos), Twm[:3, 3])
+    Tcm = frames.invert_transform(Twc3) @ Twm
+    qs.append(Question(
+        "q3", "Chain the map and a detection",
+        """
+        The map says where a marker is: `T_world_marker`. A single-marker detection says where the
+        marker is seen from the camera: `T_camera_marker`. Write code that computes the camera's
+        pose in the world, T_world_camera (4x4, mm). Let the names chain:
+        T_world_camera = T_world_marker @ T_marker_camera.
+        """,
+        {"T_world_marker": Twm, "T_camera_marker": Tcm},
+        Twc3,
+        _array((4, 4), "T_world_camera", _T_HINTS),
+        _cmp_transform(0.05, 0.5),
+        wrong=[
+            (_T_is(frames.invert_transform(Twc3)), _EXTRINSIC_MSG),
+            (_T_is(Twm @ Tcm), "the names do not chain: T_world_marker @ T_camera_marker has 'marker' next to 'camera'; you need T_marker_camera = frames.invert_transform(T_camera_marker)"),
+            (_T_is(frames.invert_transform(Tcm) @ Twm), "the order is reversed: matrix products do not commute; T_world_camera = T_world_marker @ T_marker_camera"),
+        ],
+        hint="Write the frames of each factor under it: T_world_marker @ T_marker_camera -> T_world_camera. The middle names must match.",
+        solution="""
+        T_marker_camera = frames.invert_transform(q3.inputs.T_camera_marker)
+        q3.answer = q3.inputs.T_world_marker @ T_marker_camera
+        """,
+        level="medium",
+    ))
+
+    # q4: rvec, tvec to a matrix --------------------------------------------------------
+    rng = _rng("03", learner, "q4")
+    Twc4 = _look_at(np.round(rng.uniform([1500, -900, 900], [3500, 900, 1700])), np.round(rng.uniform([0, -300, 800], [0, 300, 1200])))
+    Tcw4 = frames.invert_transform(Twc4)
+    rvec, tvec = frames.rvec_tvec_from_transform(Tcw4)
+    rvec, tvec = np.round(rvec, 6), np.round(tvec, 3)
+    Tcw4 = frames.transform_from_rvec_tvec(rvec, tvec)
+    R_euler = frames.rot_z(rvec[2]) @ frames.rot_y(rvec[1]) @ frames.rot_x(rvec[0])
+    qs.append(Question(
+        "q4", "From rvec, tvec to a 4x4 matrix",
+        """
+        cv2.solvePnP returned `rvec` and `tvec` (mm). Write code that turns them into the 4x4
+        homogeneous transform they describe. Which transform is it, T_camera_world or
+        T_world_camera? Give exactly that one.
+        """,
+        {"rvec": rvec, "tvec": tvec},
+        Tcw4,
+        _array((4, 4), "the transform", _T_HINTS),
+        _cmp_transform(0.05, 0.5),
+        wrong=[
+            (_T_is(Twc4), "solvePnP's rvec, tvec already ARE T_camera_world (they map world points into the camera frame); you inverted them: give the transform itself"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], R_euler) < 0.05, "rvec is not roll, pitch, yaw: it is a Rodrigues (axis-angle) vector, the axis times the angle; cv2.Rodrigues(rvec) gives the 3x3 rotation matrix"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], Tcw4[:3, :3].T) < 0.05, "the rotation is transposed: use the matrix cv2.Rodrigues returns as it is"),
+        ],
+        hint="R, _ = cv2.Rodrigues(rvec) gives the rotation; solvePnP's pair maps world points into the camera frame: p_camera = R @ p_world + tvec.",
+        solution="""
+        R, _ = cv2.Rodrigues(np.asarray(q4.inputs.rvec, dtype=float))
+        T_camera_world = np.eye(4)
+        T_camera_world[:3, :3] = R
+        T_camera_world[:3, 3] = np.ravel(q4.inputs.tvec)
+        q4.answer = T_camera_world
+        """,
+        level="medium",
+    ))
+    return qs
+
+
+# ==================================================================================
+# Lesson 04: markers, the world map, winding order
+# ==================================================================================
+_WALL_YAW = {"north": 0, "south": 180, "west": 90, "east": -90}
+_ROOM_FT = {"north": 0.0, "south": 16.0, "west": -6.0, "east": 6.0}  # wall positions: x for north/south, y for west/east
+
+
+def _wall_translation(rng: np.random.Generator, wall: str, step: float, span: tuple, height: tuple) -> list:
+    along = float(np.round(rng.uniform(*span) / step) * step)
+    z = float(np.round(rng.uniform(*height) / step) * step)
+    if wall in ("north", "south"):
+        return [_ROOM_FT[wall] * (304.8 if step > 1 else 1), along, z]
+    return [along, _ROOM_FT[wall] * (304.8 if step > 1 else 1), z]
+
+
+def _map_diagnosis(got: MarkerMap, want: MarkerMap) -> str | None:
+    """What differs between two maps, in words (None if their corners agree within 0.5 mm)."""
+    missing = sorted(set(want.ids) - set(got.ids))
+    extra = sorted(set(got.ids) - set(want.ids))
+    if missing:
+        return f"your map has no marker {missing[0]}; it needs ids {want.ids}"
+    if extra:
+        return f"your map has marker {extra[0]}, which is not on the walls; it needs ids {want.ids}"
+    if abs(got.marker_size_mm - want.marker_size_mm) > 0.01:
+        return f"marker_size_mm is {got.marker_size_mm:g}, the markers are {want.marker_size_mm:g} mm (the black square's side, in mm whatever the map's units)"
+    for mid in want.ids:
+        g, w = got.marker_corners(mid), want.marker_corners(mid)
+        if np.abs(g - w).max() <= 0.5:
+            continue
+        if np.abs(g[0] * 10 - w[0]).max() <= 1:
+            return f"marker {mid} is 10x too close to the origin: the positions are in cm, so the map's units must be \"cm\""
+        if np.abs(g[0] / 10 - w[0]).max() <= 1:
+            return f"marker {mid} is 10x too far: the positions are in cm; say \"units\": \"cm\" (the library converts to mm)"
+        if np.abs(g[0] - w[0]).max() <= 0.5:
+            n_got, n_want = got.normal(mid), want.normal(mid)
+            return (f"marker {mid}: its top-left corner is right but it faces {np.round(n_got, 3).tolist()}; on its wall it must face "
+                    f"{np.round(n_want, 3).tolist()} (into the room): check its yaw")
+        return f"marker {mid}: its top-left corner is {np.round(g[0], 1).tolist()} mm, expected {np.round(w[0], 1).tolist()} mm"
+    return None
+
+
+def _lesson_04(learner: str) -> list[Question]:
+    qs = []
+    # q1: corners of one marker from its placement in feet -------------------------------
+    rng = _rng("04", learner, "q1")
+    wall = str(rng.choice(list(_WALL_YAW)))
+    t_ft = _wall_translation(rng, wall, 0.25, (-4, 4), (2, 6))
+    size = float(rng.choice([80, 100, 120, 150]))
+    mid = int(rng.integers(0, 50))
+    placement = {"translation": t_ft, "rotation": [0, 0, _WALL_YAW[wall]]}
+    mm = MarkerMap.from_dict({str(mid): placement}, units="ft", marker_size_mm=size)
+    C = mm.marker_corners(mid)
+    local = np.array([[0, 0, 0], [0, 1, 0], [0, 1, -1], [0, 0, -1]], dtype=float) * size
+    C_unconverted = local @ frames.rotation_from_rpy_deg(0, 0, _WALL_YAW[wall]).T + np.asarray(t_ft)
+    C_no_yaw = local + np.asarray(t_ft) * 304.8
+
+    def winding(a):
+        order = _corner_order(a, C, 0.5)
+        return order is not None and order != ("TL", "TR", "BR", "BL")
+
+    qs.append(Question(
+        "q1", "Corners from a placement in feet",
+        f"""
+        Marker `marker_id` hangs on the {wall} wall. The map gives its `placement`: "translation"
+        is the world position of its TOP-LEFT corner in `units` (feet!), "rotation" is
+        [roll, pitch, yaw] in degrees, R = Rz(yaw) @ Ry(pitch) @ Rx(roll), applied about that corner.
+        With rotation [0, 0, 0] a marker faces +X and TR = TL + s*Y, BL = TL - s*Z (s the side).
+        Write code that computes its 4 corners in world mm, a (4, 3) array in the order
+        TL, TR, BR, BL (do not use MarkerMap: that is what you are rebuilding).
+        """,
+        {"marker_id": mid, "placement": placement, "units": "ft", "marker_size_mm": size},
+        C,
+        _array((4, 3), "the corners", {(3, 4): "one ROW per corner: transpose it", (4, 2): "these are world corners: 3 coordinates (x, y, z) each"}),
+        _cmp_array(0.5, " mm"),
+        wrong=[
+            (lambda a: _close(a, C_unconverted, 0.5) or _close(a, C / 304.8, 0.01), "the translation is in feet: multiply it by 304.8 to get mm (your values are 304.8x too small)"),
+            (winding, lambda a: _winding_message(_corner_order(a, C, 0.5))),
+            (lambda a: _close(a, C_no_yaw, 0.5), f"the rotation was left out: on the {wall} wall the marker's right (TL->TR) is R @ [0, 1, 0], not +Y"),
+            (lambda a: _close(a[0], C[0], 0.5), "the top-left corner is right; the others are TL + R @ (s * [0, 1, 0]) (TR), TL + R @ (s * [0, 1, -1]) (BR) and TL + R @ (s * [0, 0, -1]) (BL)"),
+        ],
+        hint="Convert the translation to mm (x 304.8). R = frames.rotation_from_rpy_deg(*rotation). The corners are TL + R @ offset with offsets s*[0,0,0], s*[0,1,0], s*[0,1,-1], s*[0,0,-1].",
+        solution="""
+        p = q1.inputs.placement
+        s = q1.inputs.marker_size_mm
+        TL = np.asarray(p["translation"], dtype=float) * 304.8        # feet -> mm
+        R = frames.rotation_from_rpy_deg(*p["rotation"])
+        offsets = s * np.array([[0, 0, 0], [0, 1, 0], [0, 1, -1], [0, 0, -1]])   # TL, TR, BR, BL
+        q1.answer = TL + offsets @ R.T
+        """,
+        level="easy",
+    ))
+
+    # q2: write a world map ---------------------------------------------------------------
+    rng = _rng("04", learner, "q2")
+    size2 = float(rng.choice([80, 100, 150]))
+    ids = sorted(int(i) for i in rng.choice(50, size=4, replace=False))
+    walls = [str(w) for w in rng.choice(list(_WALL_YAW), size=4)]
+    walls[0], walls[1] = "north", "east"
+    room_cm = {"north": 0.0, "south": 487.68, "west": -182.88, "east": 182.88}
+    measured = []
+    for i, w in zip(ids, walls):
+        along = float(np.round(rng.uniform(-150, 150)))
+        z = float(np.round(rng.uniform(60, 200)))
+        tl = [room_cm[w], along, z] if w in ("north", "south") else [along, room_cm[w], z]
+        measured.append({"id": i, "wall": w, "top_left_cm": tl})
+    want = MarkerMap({m["id"]: MarkerPlacement(m["id"], tuple(v * 10 for v in m["top_left_cm"]), (0.0, 0.0, float(_WALL_YAW[m["wall"]])))
+                      for m in measured}, size2, "ARUCO_ORIGINAL", "cm")
+
+    def parse_map(answer):
+        if isinstance(answer, MarkerMap):
+            return answer
+        if isinstance(answer, dict):
+            try:
+                return MarkerMap.from_dict(answer, source="your map")
+            except Exception as exc:  # the library's message says what to fix
+                raise _AnswerError(f"MarkerMap.from_dict cannot read your dict: {exc}") from None
+        raise _AnswerError(f"give a dict in the map-file layout (or a MarkerMap), got {type(answer).__name__}")
+
+    qs.append(Question(
+        "q2", "Write the world map",
+        """
+        You measured 4 markers with a tape in centimetres: `measured` lists each marker's id, its
+        wall and the world position of its top-left corner in cm. Markers on a wall face into the
+        room; `wall_yaw_deg` gives the yaw that turns a marker (which faces +X at yaw 0) to face
+        into the room from each wall. Write code that builds the map as a dict in fidlearn's full
+        map-file layout, {"units": ..., "marker_size_mm": ..., "dictionary": ..., "markers":
+        {"<id>": {"translation": [x, y, z], "rotation": [roll, pitch, yaw]}}}, which
+        fidlearn.MarkerMap.from_dict must load to the right corners.
+        """,
+        {"measured": measured, "wall_yaw_deg": dict(_WALL_YAW), "marker_size_mm": size2, "dictionary": "ARUCO_ORIGINAL"},
+        want,
+        parse_map,
+        _map_diagnosis,
+        hint="Keep the numbers in cm and say \"units\": \"cm\"; the rotation of each marker is [0, 0, wall_yaw_deg[wall]]; the keys of \"markers\" are the ids as strings.",
+        solution="""
+        q2.answer = {
+            "units": "cm",
+            "marker_size_mm": q2.inputs.marker_size_mm,
+            "dictionary": q2.inputs.dictionary,
+            "markers": {
+                str(m["id"]): {"translation": m["top_left_cm"], "rotation": [0, 0, q2.inputs.wall_yaw_deg[m["wall"]]]}
+                for m in q2.inputs.measured
+            },
+        }
+        """,
+        level="medium",
+    ))
+
+    # q3: a marker on the floor ---------------------------------------------------------
+    rng = _rng("04", learner, "q3")
+    dirs = {"+X": (1, 0, 0), "-X": (-1, 0, 0), "+Y": (0, 1, 0), "-Y": (0, -1, 0)}
+    up_name = str(rng.choice(list(dirs)))
+    up = np.array(dirs[up_name], dtype=float)
+    normal = np.array([0.0, 0.0, 1.0])
+    R3 = np.column_stack([normal, np.cross(up, normal), up])
+
+    def R_of(a):
+        return frames.rotation_from_rpy_deg(*a)
+
+    def rotated_about_normal(a):
+        ang = frames.rotation_angle_deg(R_of(a), R3)
+        return R_of(a)[:, 0] @ normal > 0.999 and ang > 1 and abs(ang - 180) > 1
+
+    qs.append(Question(
+        "q3", "A marker on the floor",
+        f"""
+        A marker lies flat on the floor, printed face up. Its own "up" direction (from its bottom
+        edge to its top edge, BL -> TL) points along the world axis `up_direction` ({up_name}).
+        Write code that finds its map rotation [roll, pitch, yaw] in degrees (R = Rz(yaw) @ Ry(pitch)
+        @ Rx(roll); at [0, 0, 0] a marker faces +X with its up along +Z and its right, TL -> TR,
+        along +Y). Hint of a method: build the 3x3 matrix whose columns are the marker's face
+        normal, right and up directions in the world, then convert it.
+        """,
+        {"up_direction": up_name, "up_vector": up},
+        R3,
+        _array((3,), "[roll, pitch, yaw]", {(3, 3): "that is a rotation matrix; the map wants [roll, pitch, yaw] in degrees: frames.rpy_deg_from_rotation(R)"}),
+        lambda a, b: None if frames.rotation_angle_deg(R_of(a), b) <= 0.5 else
+        f"with your angles the marker faces {np.round(R_of(a)[:, 0], 3).tolist()} with its up along {np.round(R_of(a)[:, 2], 3).tolist()}; "
+        f"it should face {normal.tolist()} (up off the floor) with its up along {up.tolist()}",
+        wrong=[
+            (lambda a: frames.rotation_angle_deg(R_of(np.degrees(a)), R3) <= 0.5, "those look like radians: map rotations are in degrees (np.degrees)"),
+            (lambda a: R_of(a)[:, 0] @ normal < -0.999, "your marker faces DOWN, into the floor: its normal (the first column of R) must be +Z"),
+            (lambda a: R_of(a)[:, 0] @ normal > 0.999 and R_of(a)[:, 2] @ up < -0.999, "the marker is upside down: TL and BR swap places; its up (the third column of R) must point along up_direction"),
+            (rotated_about_normal, "the face is right but the marker is turned by 90 degrees about its normal: the corners would start at another corner (the winding order shifts); its up (third column of R) must point along up_direction"),
+        ],
+        hint="Columns of R: R @ [1,0,0] is the face normal (+Z on the floor), R @ [0,1,0] the right (up x normal), R @ [0,0,1] the up direction. frames.rpy_deg_from_rotation(R) gives the angles.",
+        solution="""
+        up = np.asarray(q3.inputs.up_vector, dtype=float)
+        normal = np.array([0.0, 0.0, 1.0])          # face up, off the floor
+        right = np.cross(up, normal)                 # at rotation 0: up (Z) x normal (X) = right (Y)
+        R = np.column_stack([normal, right, up])
+        q3.answer = frames.rpy_deg_from_rotation(R)
+        """,
+        level="medium",
+    ))
+
+    # q4: centre and normal -----------------------------------------------------------------
+    rng = _rng("04", learner, "q4")
+    placements = {}
+    for i, w in enumerate(["north", "west", "east", "south"]):
+        mid4 = 10 + i
+        placements[mid4] = MarkerPlacement(mid4, tuple(_wall_translation(rng, w, 10.0, (-1200, 1200), (600, 1800))), (0.0, 0.0, float(_WALL_YAW[w])))
+    m4 = MarkerMap(placements, float(rng.choice([80, 100, 150])), "ARUCO_ORIGINAL", "mm")
+    ask = int(rng.choice(m4.ids[1:]))
+    centre = m4.marker_corners(ask).mean(axis=0)
+    nrm = m4.normal(ask)
+    c4 = m4.marker_corners(ask)
+    qs.append(Question(
+        "q4", "Centre and facing direction",
+        """
+        `marker_map` is a fidlearn MarkerMap. For marker `marker_id`, write code that computes its
+        centre in world mm (3,) and the unit normal (3,) of its printed face, pointing out of the
+        face (towards the room, where a camera can see it). Use only its corners
+        (marker_map.marker_corners(id), TL, TR, BR, BL). Answer {"center_mm": ..., "normal": ...}.
+        """,
+        {"marker_map": m4, "marker_id": ask},
+        {"center_mm": centre, "normal": nrm},
+        _parts(center_mm=_array((3,), "center_mm"), normal=_array((3,), "normal")),
+        lambda a, b: _cmp_array(0.5, " mm")(a["center_mm"], b["center_mm"]) or _cmp_array(0.01)(a["normal"], b["normal"]),
+        wrong=[
+            (lambda a: _close(a["center_mm"], c4[0], 0.5), "center_mm is the top-left corner: the centre is the mean of the 4 corners"),
+            (lambda a: _close(a["normal"], -nrm, 0.01), "your normal points INTO the wall: with corners TL, TR, BR, BL the outward normal is (TR - TL) x (TL - BL), right x up"),
+            (lambda a: abs(np.linalg.norm(a["normal"]) - 1) > 0.01 and _close(a["normal"] / np.linalg.norm(a["normal"]), nrm, 0.01), "the direction is right; divide by its length to make it a unit vector"),
+        ],
+        hint="centre = corners.mean(axis=0); right = TR - TL, up = TL - BL, normal = cross(right, up) / its norm.",
+        solution="""
+        c = q4.inputs.marker_map.marker_corners(q4.inputs.marker_id)
+        TL, TR, BR, BL = c
+        n = np.cross(TR - TL, TL - BL)
+        q4.answer = {"center_mm": c.mean(axis=0), "normal": n / np.linalg.norm(n)}
+        """,
+        level="medium",
+    ))
+    return qs
+
+
+# ==================================================================================
+# Lesson 07: inverting the extrinsics
+# ==================================================================================
+def _room_pose(rng: np.random.Generator) -> np.ndarray:
+    """A camera somewhere in the room looking at the north wall (x = 0)."""
+    pos = np.round(rng.uniform([1200, -1200, 800], [4000, 1200, 1800]))
+    target = np.round(rng.uniform([0, -500, 700], [0, 500, 1400]))
+    return _look_at(pos, target)
+
+
+def _lesson_07(learner: str) -> list[Question]:
+    qs = []
+    # q1: camera position ------------------------------------------------------------
+    rng = _rng("07", learner, "q1")
+    Twc = _room_pose(rng)
+    rvec, tvec = frames.rvec_tvec_from_transform(frames.invert_transform(Twc))
+    rvec, tvec = np.round(rvec, 6), np.round(tvec, 2)
+    R, _ = cv2.Rodrigues(rvec)
+    pos = -R.T @ tvec
+    qs.append(Question(
+        "q1", "Where is the camera?",
+        """
+        cv2.solvePnP gave `rvec` and `tvec` (mm) for a camera looking at the north wall. Write code
+        that computes the camera's position in the world, (3,) in mm.
+        """,
+        {"rvec": rvec, "tvec": tvec},
+        pos,
+        _array((3,), "the position", {(4, 4): "give only the position (3,), the last column of T_world_camera", (3, 1): ""}),
+        _cmp_array(0.5, " mm"),
+        wrong=[
+            (lambda a: _close(a, tvec, 0.5), "tvec is where the world's origin is in the CAMERA frame, not where the camera is: the camera's position is -R^T @ tvec"),
+            (lambda a: _close(a, -tvec, 0.5), "-tvec is not enough: tvec is in camera coordinates; rotate it back into the world: -R^T @ tvec"),
+            (lambda a: _close(a, -R @ tvec, 0.5), "use the transpose: the inverse of a rotation is R^T, so the position is -R.T @ tvec"),
+            (lambda a: _close(a, R.T @ tvec, 0.5), "mind the sign: the position is -R^T @ tvec"),
+            (lambda a: _close(a * 304.8, pos, 1), "that is in feet (304.8x too small): the answer is asked in mm"),
+            (lambda a: _close(a * 1000, pos, 1), "that is in metres: the answer is asked in mm"),
+            (lambda a: _close(a, rvec, 1e-3), "rvec is a rotation (axis times angle), not a position; R, _ = cv2.Rodrigues(rvec), then -R^T @ tvec"),
+        ],
+        hint="p_camera = R @ p_world + t. The camera's own centre has p_camera = 0; solve for p_world.",
+        solution="""
+        R, _ = cv2.Rodrigues(np.asarray(q1.inputs.rvec, dtype=float))
+        q1.answer = -R.T @ np.ravel(q1.inputs.tvec)
+        """,
+        level="easy",
+    ))
+
+    # q2: the camera pose ----------------------------------------------------------------
+    rng = _rng("07", learner, "q2")
+    Twc2 = _room_pose(rng)
+    rvec2, tvec2 = frames.rvec_tvec_from_transform(frames.invert_transform(Twc2))
+    rvec2, tvec2 = np.round(rvec2, 6), np.round(tvec2, 2)
+    Tcw2 = frames.transform_from_rvec_tvec(rvec2, tvec2)
+    Twc2 = frames.invert_transform(Tcw2)
+    R2 = Tcw2[:3, :3]
+    bad_t = frames.make_transform(R2.T, -tvec2)
+    qs.append(Question(
+        "q2", "The camera's pose",
+        """
+        From solvePnP's `rvec`, `tvec` (mm), write code that builds the camera's pose in the world,
+        T_world_camera (4x4, mm): the transform that maps camera coordinates into world
+        coordinates. Its last column holds the camera's position.
+        """,
+        {"rvec": rvec2, "tvec": tvec2},
+        Twc2,
+        _array((4, 4), "T_world_camera", _T_HINTS),
+        _cmp_transform(0.05, 0.5),
+        wrong=[
+            (_T_is(Tcw2), _EXTRINSIC_MSG),
+            (_T_is(bad_t), "the rotation is right (R^T) but the translation is not -tvec: it is -R^T @ tvec"),
+            (_T_is(frames.make_transform(R2, -R2.T @ tvec2)), "the translation is right; the rotation of the inverse is R^T, not R"),
+        ],
+        hint="Invert T_camera_world in closed form: [[R^T, -R^T t], [0, 0, 0, 1]] (frames.invert_transform does it).",
+        solution="""
+        R, _ = cv2.Rodrigues(np.asarray(q2.inputs.rvec, dtype=float))
+        t = np.ravel(q2.inputs.tvec)
+        T_world_camera = np.eye(4)
+        T_world_camera[:3, :3] = R.T
+        T_world_camera[:3, 3] = -R.T @ t
+        q2.answer = T_world_camera
+        """,
+        level="easy",
+    ))
+
+    # q3: where does it look? ---------------------------------------------------------------
+    rng = _rng("07", learner, "q3")
+    pos3 = np.round(rng.uniform([1200, -1500, 1000], [4000, 1500, 2200]))
+    target3 = np.round(rng.uniform([0, -900, 200], [0, 900, 1200]))
+    Twc3 = _look_at(pos3, target3)
+    rvec3, tvec3 = frames.rvec_tvec_from_transform(frames.invert_transform(Twc3))
+    rvec3, tvec3 = np.round(rvec3, 6), np.round(tvec3, 2)
+    Twc3 = frames.invert_transform(frames.transform_from_rvec_tvec(rvec3, tvec3))
+    axis = Twc3[:3, 2]
+    heading = math.degrees(math.atan2(axis[1], axis[0]))
+    tilt = math.degrees(math.asin(-axis[2]))
+    expected3 = np.array([heading, tilt])
+    row = Twc3[:3, :3][2, :]  # solvePnP's R[:, 2], the mistaken 'optical axis'
+    wrong_heading = np.array([math.degrees(math.atan2(row[1], row[0])), math.degrees(math.asin(float(np.clip(-row[2], -1, 1))))])
+
+    def heading_diff(a, b):
+        d = (a[0] - b[0] + 180) % 360 - 180
+        if abs(d) <= 0.2 and abs(a[1] - b[1]) <= 0.2:
+            return None
+        return f"your heading is {d:+.3g} deg and your tilt {a[1] - b[1]:+.3g} deg away from the key's"
+
+    qs.append(Question(
+        "q3", "Which way does the camera look?",
+        """
+        From solvePnP's `rvec`, `tvec`, write code that finds where the camera's optical axis
+        (its +z) points in the world: its heading in degrees (the angle in the XY plane from +X
+        towards +Y, atan2(dy, dx)) and its tilt in degrees below the horizon (positive when
+        looking down). Answer (heading_deg, tilt_down_deg).
+        """,
+        {"rvec": rvec3, "tvec": tvec3},
+        expected3,
+        _array((2,), "(heading_deg, tilt_down_deg)"),
+        heading_diff,
+        wrong=[
+            (lambda a: heading_diff(np.degrees(a), expected3) is None, "those are radians: the answer is asked in degrees"),
+            (lambda a: heading_diff(a, wrong_heading) is None, "R[:, 2] of solvePnP's R is the world's Z axis seen from the camera; the camera's z axis in the world is the third column of R^T (the third ROW of R)"),
+            (lambda a: heading_diff(a, np.array([heading + 180, -tilt])) is None, "that is the direction behind the camera: the optical axis is +z of the camera frame"),
+            (lambda a: abs(a[0] - heading) <= 0.2 and abs(a[1] + tilt) <= 0.2, "the heading is right; the tilt has the wrong sign: looking down means the axis has a negative world z, tilt = asin(-z)"),
+        ],
+        hint="R_world_camera = R^T (R from cv2.Rodrigues(rvec)); its third column is the optical axis d in the world. heading = atan2(d_y, d_x), tilt down = asin(-d_z).",
+        solution="""
+        R, _ = cv2.Rodrigues(np.asarray(q3.inputs.rvec, dtype=float))
+        d = R.T[:, 2]                                    # camera +z in world coordinates
+        heading = np.degrees(np.arctan2(d[1], d[0]))
+        tilt_down = np.degrees(np.arcsin(-d[2]))
+        q3.answer = (heading, tilt_down)
+        """,
+        level="medium",
+    ))
+
+    # q4: from one marker's pose to the camera's position in the world -------------------------
+    rng = _rng("07", learner, "q4")
+    wall = str(rng.choice(["north", "west", "east"]))
+    yaw = _WALL_YAW[wall]
+    t = _wall_translation(rng, wall, 10.0, (-1000, 1000), (700, 1600))
+    mmap = MarkerMap({5: MarkerPlacement(5, tuple(t), (0.0, 0.0, float(yaw)))}, 150.0, "ARUCO_ORIGINAL", "mm")
+    Twm = mmap.T_world_marker(5)
+    n = Twm[:3, 2]
+    cpos = Twm[:3, 3] + n * rng.uniform(1000, 2500) + np.cross([0, 0, 1], n) * rng.uniform(-600, 600) + [0, 0, rng.uniform(-200, 400)]
+    Twc4 = _look_at(np.round(cpos), Twm[:3, 3])
+    Tcm = frames.invert_transform(Twc4) @ Twm
+    rvec4, tvec4 = frames.rvec_tvec_from_transform(Tcm)
+    rvec4, tvec4 = np.round(rvec4, 6), np.round(tvec4, 2)
+    Tcm = frames.transform_from_rvec_tvec(rvec4, tvec4)
+    pos4 = (Twm @ frames.invert_transform(Tcm))[:3, 3]
+    pos_in_marker = frames.invert_transform(Tcm)[:3, 3]
+    qs.append(Question(
+        "q4", "Camera position from a single marker",
+        """
+        solvePnP on the 4 corners of one marker, with the corners given in the MARKER's own frame
+        (centre origin, x to the right, y up, z out of the face), gave `rvec`, `tvec` (mm): they
+        describe T_camera_marker. The marker's pose in the world is `T_world_marker`. Write code that
+        computes the camera's position in the WORLD, (3,) mm.
+        """,
+        {"rvec": rvec4, "tvec": tvec4, "T_world_marker": Twm},
+        pos4,
+        _array((3,), "the position"),
+        _cmp_array(0.5, " mm"),
+        wrong=[
+            (lambda a: _close(a, pos_in_marker, 0.5), "that is the camera's position in the MARKER's frame; chain it into the world: T_world_camera = T_world_marker @ T_marker_camera"),
+            (lambda a: _close(a, (Twm @ Tcm)[:3, 3], 0.5), "T_camera_marker must be inverted before chaining: T_marker_camera = invert(T_camera_marker)"),
+            (lambda a: _close(a, Twm[:3, :3] @ tvec4 + Twm[:3, 3], 0.5) or _close(a, tvec4, 0.5), "tvec is the marker's position seen from the camera, not the camera's position; invert T_camera_marker first"),
+            (lambda a: _close(a * 304.8, pos4, 1), "that is in feet: the answer is asked in mm"),
+        ],
+        hint="T_camera_marker = frames.transform_from_rvec_tvec(rvec, tvec); T_world_camera = T_world_marker @ invert_transform(T_camera_marker); its last column is the position.",
+        solution="""
+        T_camera_marker = frames.transform_from_rvec_tvec(q4.inputs.rvec, q4.inputs.tvec)
+        T_world_camera = q4.inputs.T_world_marker @ frames.invert_transform(T_camera_marker)
+        q4.answer = T_world_camera[:3, 3]
+        """,
+        level="hard",
+    ))
+    return qs
+
+
+# ==================================================================================
+# lessons, registry and notebooks
+# ==================================================================================
+@dataclass(frozen=True)
+class _LessonInfo:
+    number: str
+    topic: str
+    title: str
+    intro: str
+    build: Callable[[str], list]
+
+
+_LESSONS: dict[str, _LessonInfo] = {}
+
+
+def _register(number: str, topic: str, title: str, intro: str, build: Callable[[str], list]) -> None:
+    _LESSONS[number] = _LessonInfo(number, topic, title, textwrap.dedent(intro).strip(), build)
+
+
+class Lesson:
+    """The questions of one lesson for one learner: ``ex.q1``, ``ex.q2``... and :meth:`summary`."""
+
+    def __init__(self, info: _LessonInfo, learner: str):
+        self.number = info.number
+        self.topic = info.topic
+        self.title = info.title
+        self.intro = info.intro
+        self.learner = learner
+        self.questions: list[Question] = info.build(learner)
+        for q in self.questions:
+            setattr(self, q.name, q)
+
+    def __iter__(self):
+        return iter(self.questions)
+
+    def __len__(self) -> int:
+        return len(self.questions)
+
+    def __getitem__(self, name: str) -> Question:
+        for q in self.questions:
+            if q.name == name:
+                return q
+        raise KeyError(f"lesson {self.number} has no question {name!r}; it has {[q.name for q in self.questions]}")
+
+    def results(self) -> list[Result]:
+        """The current result of every question (prints nothing)."""
+        return [q.grade() for q in self.questions]
+
+    def summary(self) -> None:
+        """Print a score and one line per question."""
+        res = self.results()
+        n_ok = sum(r.correct for r in res)
+        who = f" for learner {self.learner!r}" if self.learner else ""
+        print(f"Lesson {self.number}{who}: {n_ok} of {len(res)} correct")
+        for q, r in zip(self.questions, res):
+            print(f"  {q.name} [{r.status}] {q.title}")
+
+    def __repr__(self) -> str:
+        who = f", learner {self.learner!r}" if self.learner else ", the class's shared variant"
+        qs = "\n".join(f"  {q.name}: {q.title} ({q.level})" for q in self.questions)
+        return f"Lesson {self.number}: {self.title}{who}\n{qs}"
+
+
+def lessons() -> dict[str, str]:
+    """The available lessons: ``{"01": "pinhole", ...}`` (number to topic)."""
+    return {k: v.topic for k, v in sorted(_LESSONS.items())}
+
+
+def lesson(number: "str | int", learner: str | None = None) -> Lesson:
+    """The exercises of lesson ``number`` (``"01"`` ... ``"09"``) for a learner.
+
+    Parameters
+    ----------
+    number : str or int
+        The lesson, ``"03"`` or ``3``.
+    learner : str, optional
+        Any id (a name, an e-mail, a student number): it seeds the learner's
+        own numbers. ``None`` or ``""`` takes ``$FIDLEARN_LEARNER``, else the
+        variant the whole class shares.
+    """
+    key = f"{int(number):02d}" if str(number).strip().isdigit() else str(number)
+    if key not in _LESSONS:
+        raise KeyError(f"no exercises for lesson {number!r}; available: {', '.join(sorted(_LESSONS))}")
+    if not learner:
+        learner = os.environ.get("FIDLEARN_LEARNER", "")
+    return Lesson(_LESSONS[key], str(learner).strip())
+
+
+def notebook_name(number: str) -> str:
+    """The file name of a lesson's exercise notebook, ``"03_extrinsics.ipynb"``."""
+    info = _LESSONS[number]
+    return f"{info.number}_{info.topic}.ipynb"
+
+
+_HOW_TO = """\
+**How to work.** Each question gives its data in `qN.inputs`. Write code that computes the
+answer from them, assign it to `qN.answer` and run `qN.check()`: it says `Correct`,
+`Incorrect` (with what looks wrong) or `Not attempted`. Stuck? `qN.hint()`. Given up?
+`qN.solution()` shows one way to do it. Put your name (or the id your teacher gave you) in
+`LEARNER` to get your own numbers; the checks know the answers for everyone."""
+
+
+def answer_key_notebook(number: str):
+    """The answer-key notebook of a lesson (an ``nbformat`` notebook, not executed).
+
+    Each question has a markdown cell (the task), a cell showing its inputs,
+    and a cell whose solution sits between ``### BEGIN SOLUTION`` and
+    ``### END SOLUTION``, followed by ``qN.check()``.
+    """
+    import nbformat
+
+    info = _LESSONS[number]
+    ex = Lesson(info, "")
+    v4 = nbformat.v4
+    cells = [
+        v4.new_markdown_cell(f"# Exercises {info.number}: {info.title}\n\n{info.intro}\n\n{_HOW_TO}"),
+        v4.new_code_cell(f'{SETUP_CODE}\n\nLEARNER = ""  # your name or id, e.g. "alice": it gives you your own numbers\nex = exercises.lesson("{info.number}", learner=LEARNER)\nex'),
+    ]
+    for q in ex:
+        level = f" ({q.level})" if q.level else ""
+        cells.append(v4.new_markdown_cell(f"## {q.name}. {q.title}{level}\n\n{q.task}"))
+        cells.append(v4.new_code_cell(f"{q.name} = ex.{q.name}\n{q.name}.inputs"))
+        cells.append(v4.new_code_cell(f"{BEGIN_SOLUTION}\n{q.solution_code}\n{END_SOLUTION}\n{q.name}.check()"))
+    cells.append(v4.new_markdown_cell("## Your score"))
+    cells.append(v4.new_code_cell("ex.summary()"))
+    for i, c in enumerate(cells):
+        c["id"] = f"ex{info.number}-{i:02d}"
+    nb = v4.new_notebook(cells=cells)
+    nb.metadata = {
+        "kernelspec": {"display_name": "Python 3 (ipykernel)", "language": "python", "name": "python3"},
+        "language_info": {"name": "python"},
+    }
+    return nb
+
+
+_BLOCK_RE = re.compile(re.escape(BEGIN_SOLUTION) + r"\n(.*?)\n?" + re.escape(END_SOLUTION) + r"\n?", re.S)
+_ANSWER_RE = re.compile(r"^(\w+)\.answer\s*=", re.M)
+
+
+def solution_blocks(nb) -> dict[str, str]:
+    """The solution code of each question in an answer-key notebook: ``{"q1": code, ...}``."""
+    out = {}
+    for cell in nb.cells:
+        if cell.cell_type != "code":
+            continue
+        for m in _BLOCK_RE.finditer(cell.source):
+            names = _ANSWER_RE.findall(m.group(1))
+            if not names:
+                raise ValueError(f"a solution block assigns no answer (expected a line 'qN.answer = ...'):\n{m.group(1)}")
+            out[names[-1]] = m.group(1).strip()
+    return out
+
+
+def student_copy(nb):
+    """The student copy of an answer-key notebook: solutions replaced by stubs, outputs cleared.
+
+    A block between ``### BEGIN SOLUTION`` and ``### END SOLUTION`` that
+    assigns ``qN.answer`` becomes ``# your code here ...`` and
+    ``qN.answer = ...``, so the check that follows says ``Not attempted``.
+    """
+    nb = copy.deepcopy(nb)
+
+    def stub(m: re.Match) -> str:
+        names = _ANSWER_RE.findall(m.group(1))
+        if not names:
+            raise ValueError(f"a solution block assigns no answer (expected a line 'qN.answer = ...'):\n{m.group(1)}")
+        q = names[-1]
+        return f"# Your code here: compute the answer from {q}.inputs. Stuck? {q}.hint()\n{q}.answer = ...\n"
+
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            cell.source = _BLOCK_RE.sub(stub, cell.source)
+            cell.outputs = []
+            cell.execution_count = None
+        cell.get("metadata", {}).pop("execution", None)
+    return nb
+
+
+_register("01", "pinhole", "The pinhole camera and K", """
+    The pinhole model in code: build the intrinsic matrix K from a field of view, project points
+    with it, and use similar triangles to measure distance from a marker's apparent size.
+    """, _lesson_01)
+_register("03", "extrinsics", "Extrinsics and transforms", """
+    Poses as 4x4 homogeneous transforms: build one from roll, pitch and yaw, move points between
+    frames, chain transforms so that their names match, and read solvePnP's rvec, tvec.
+    """, _lesson_03)
+_register("04", "world_map", "Markers and the world map", """
+    From a tape measure to corners: placements in feet, a map file in centimetres, a marker on the
+    floor, and the winding order TL, TR, BR, BL that detection and the map must share.
+    """, _lesson_04)
+_register("07", "inversion", "Inverting the extrinsics: where is the camera?", """
+    solvePnP answers with the world seen from the camera (T_camera_world). Turn it around: the
+    camera's position -R^T t, its pose T_world_camera, the direction it looks, and a pose from a
+    single marker chained through the map.
+    """, _lesson_07)
