@@ -115,7 +115,7 @@ def render_intrinsics_view(fx: float, fy: float, cx: float, cy: float, k1: float
     ax.set_ylabel("v (px)")
     hfov, vfov = cam.fov_deg
     ax.set_title(
-        f"fx={fx:.0f} fy={fy:.0f} cx={cx:.0f} cy={cy:.0f} k1={k1:+.2f}\n"
+        f"fx={fx:.0f} fy={fy:.0f} cx={cx:.1f} cy={cy:.1f} k1={k1:+.2f}\n"
         f"field of view {hfov:.1f} x {vfov:.1f} deg; grid 2.0 x 1.5 m at 1.5 m",
         fontsize=10,
     )

@@ -222,7 +222,7 @@ def build(src: Path, execute: bool = True, quiet: bool = False) -> Path:
             timeout=CELL_TIMEOUT_S,
             resources={"metadata": {"path": str(out.parent)}},
             record_timing=False,
-            store_widget_state=False,
+            store_widget_state=True,  # False breaks Output widgets in nbclient 0.10-0.11; the state is dropped below
             coalesce_streams=True,
             allow_errors=False,
         )
