@@ -94,8 +94,8 @@ def doctor_report() -> tuple[list[str], list[str]]:
     wheels = _installed_opencv_wheels()
     lines.append("OpenCV wheels installed: " + (", ".join(f"{n} {v}" for n, v in wheels) or "none"))
     if len(wheels) > 1:
-        extra = [n for n, _ in wheels if n != WANTED_WHEEL]
-        keep = WANTED_WHEEL if any(n == WANTED_WHEEL for n, _ in wheels) else wheels[0][0]
+        # fidlearn depends on WANTED_WHEEL: keeping another one would let the next `pip install -e .` bring it back.
+        keep = WANTED_WHEEL
         extra = [n for n, _ in wheels if n != keep]
         problems.append(
             f"{len(wheels)} OpenCV wheels share the cv2 name and break each other; keep {keep}: "
@@ -384,8 +384,297 @@ def _run_render(args) -> int:
     return 0
 
 
+# -- inputs: images, folders, videos, cameras ----------------------------------------------
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
+
+
+def _expand_inputs(paths: Sequence[Path], videos: bool) -> list[tuple[str, Path]]:
+    """``[("image" | "video", path), ...]`` from files and folders, checked before any work."""
+    items: list[tuple[str, Path]] = []
+    for path in paths:
+        path = Path(path)
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+            if not found:
+                raise UsageError(f"{path}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+            items += [("image", p) for p in found]
+        elif not path.exists():
+            raise UsageError(f"{path}: no such file or folder; check the path")
+        elif videos and path.suffix.lower() in VIDEO_SUFFIXES:
+            items.append(("video", path))
+        elif path.suffix.lower() in IMAGE_SUFFIXES:
+            items.append(("image", path))
+        else:
+            kinds = IMAGE_SUFFIXES + (VIDEO_SUFFIXES if videos else ())
+            raise UsageError(f"{path}: not an image{' or a video' if videos else ''} by its name; expected {', '.join(kinds)}")
+    return items
+
+
+def _frames(items: list[tuple[str, Path]], camera_index: int | None):
+    """Yield ``(name, image)`` for every image, every video frame and every camera frame."""
+    import cv2
+
+    from .detection import load_image
+    from .errors import ImageError
+
+    for kind, path in items:
+        if kind == "image":
+            yield path.name, load_image(path)
+            continue
+        cap = cv2.VideoCapture(str(path))
+        try:
+            if not cap.isOpened():
+                raise ImageError(f"{path}: OpenCV cannot open this video; is it truncated, or a codec OpenCV lacks?")
+            k = 0
+            while True:
+                ok, frame = cap.read()
+                if not ok:
+                    break
+                yield f"{path.name}#{k}", frame
+                k += 1
+            if k == 0:
+                raise ImageError(f"{path}: the video has no frame OpenCV can decode")
+        finally:
+            cap.release()
+    if camera_index is not None:
+        cap = cv2.VideoCapture(int(camera_index))
+        try:
+            if not cap.isOpened():
+                raise ImageError(f"camera {camera_index}: cannot open it; check --camera-index (0 is the first camera)")
+            k = 0
+            while True:
+                ok, frame = cap.read()
+                if not ok:
+                    break
+                yield f"camera{camera_index}#{k}", frame
+                k += 1
+        finally:
+            cap.release()
+
+
+class _Staging:
+    """Annotated images staged in a hidden folder and moved into place only when the run succeeds."""
+
+    def __init__(self, folder: Path | None):
+        self.folder = folder
+        self.tmp: Path | None = None
+        self.names: set[str] = set()
+        if folder is not None:
+            parent = folder.parent if str(folder.parent) else Path(".")
+            if folder.exists() and not folder.is_dir():
+                raise UsageError(f"--annotate {folder}: is a file; give a folder")
+            if not parent.is_dir():
+                raise UsageError(f"--annotate {folder}: the folder {parent} does not exist; create it first")
+
+    def __enter__(self):
+        if self.folder is not None:
+            import tempfile
+
+            parent = self.folder.parent if str(self.folder.parent) else Path(".")
+            self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.folder.name}.", dir=parent))
+        return self
+
+    def save(self, name: str, image) -> None:
+        if self.tmp is None:
+            return
+        stem = Path(name.replace("#", "_")).stem
+        fname, k = f"{stem}.png", 1
+        while fname in self.names:
+            k += 1
+            fname = f"{stem}-{k}.png"
+        self.names.add(fname)
+        _write_image(self.tmp / fname, image)
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        import os
+        import shutil
+
+        if self.tmp is None:
+            return
+        try:
+            if exc_type is None:
+                self.folder.mkdir(exist_ok=True)
+                for fname in sorted(self.names):
+                    os.replace(self.tmp / fname, self.folder / fname)
+        finally:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+# -- fidlearn locate -----------------------------------------------------------------------
+def _add_locate(sub) -> None:
+    p = sub.add_parser(
+        "locate",
+        help="camera pose in the world from the markers in images or a video",
+        description=(
+            "Find the camera's pose in the world for every image, every frame of a video "
+            "(.mp4, .avi, ...) or a live camera: detect the map's markers, solve PnP over all "
+            "of them, invert. One line per frame: position x, y, z (mm, world), roll, pitch, yaw "
+            "(deg, the camera frame's rotation in the world, as 'fidlearn render --pose' takes "
+            "it), the markers used, the RMS reprojection error (px) and whether a second pose "
+            "explains the image as well (ambiguous). A frame with no marker of the map is "
+            "reported, not an error. --json and --annotate are written only when the whole run "
+            "succeeds: --json goes to a hidden temporary file, flushed frame by frame, renamed at "
+            "the end; annotated images are staged in a hidden folder and moved into DIR at the end."
+        ),
+    )
+    p.add_argument("inputs", nargs="*", type=Path, metavar="IMAGE_OR_FOLDER_OR_VIDEO", help="images, folders of images, videos")
+    p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)")
+    _add_map_options(p)
+    p.add_argument("--camera-index", type=int, metavar="N", help="also read a live camera (0 is the first); Ctrl-C stops")
+    p.add_argument("--json", type=Path, metavar="POSES.jsonl", help="write one JSON line per frame with T_world_camera")
+    p.add_argument("--annotate", type=Path, metavar="DIR", help="save each frame with the markers and the world axes drawn")
+    p.add_argument("--refine", choices=["edges", "subpix", "contour", "apriltag", "none"],
+                   help="corner refinement (default edges)")
+    p.set_defaults(run=_run_locate)
+
+
+def _fmt_row(name: str, width: int, pose=None, note: str = "") -> str:
+    if pose is None:
+        return f"{name:<{width}}  {note}"
+    x, y, z = pose.position_mm + 0.0  # + 0.0 turns -0.0 into 0.0
+    r, pi, yw = pose.rpy_deg + 0.0
+    ids = ",".join(str(i) for i in pose.marker_ids)
+    flag = "AMBIGUOUS" if pose.ambiguous else "-"
+    row = f"{name:<{width}} {x:9.1f} {y:9.1f} {z:9.1f} {r:7.1f} {pi:7.1f} {yw:7.1f}  {ids:<9} {pose.reprojection_rms_px:6.2f}  {flag}"
+    return row + (f"  {note}" if note else "")
+
+
+def _pose_record(name: str, pose) -> dict:
+    import numpy as np
+
+    rec = {
+        "frame": name,
+        "located": True,
+        "T_world_camera": np.asarray(pose.T_world_camera).tolist(),
+        "position_mm": pose.position_mm.tolist(),
+        "rpy_deg": pose.rpy_deg.tolist(),
+        "position_std_mm": pose.position_std_mm.tolist(),
+        "marker_ids": list(pose.marker_ids),
+        "reprojection_rms_px": pose.reprojection_rms_px,
+        "ambiguous": bool(pose.ambiguous),
+        "rejected_ids": list(pose.rejected_ids),
+        "ignored_ids": list(pose.ignored_ids),
+        "method": pose.method,
+    }
+    if pose.alternative is not None:
+        rec["alternative_position_mm"] = pose.alternative.position_mm.tolist()
+    return rec
+
+
+def _draw_pose(image, detections, camera, pose, marker_map):
+    """The frame with the detections, the world axes and the pose written on it."""
+    import cv2
+    import numpy as np
+
+    from .detection import draw_detections
+
+    out = draw_detections(image, detections, corner_labels=False)
+    if pose is None:
+        cv2.putText(out, "no known marker", (10, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (0, 0, 255), 2, cv2.LINE_AA)
+        return out
+    length = 2.0 * marker_map.marker_size_mm
+    axes = np.array([[0, 0, 0], [length, 0, 0], [0, length, 0], [0, 0, length]], dtype=float)
+    if np.all(camera.points_in_front(axes, pose.T_world_camera)):
+        px = camera.project(axes, pose.T_world_camera)
+        if np.all(np.abs(px) < 1e5):
+            o = tuple(int(round(v)) for v in px[0])
+            for k, colour in ((1, (0, 0, 255)), (2, (0, 200, 0)), (3, (255, 0, 0))):  # X red, Y green, Z blue
+                cv2.arrowedLine(out, o, tuple(int(round(v)) for v in px[k]), colour, 2, cv2.LINE_AA, tipLength=0.15)
+                cv2.putText(out, "XYZ"[k - 1], tuple(int(round(v)) + 4 for v in px[k]), cv2.FONT_HERSHEY_SIMPLEX,
+                            0.6, colour, 2, cv2.LINE_AA)
+    x, y, z = pose.position_mm + 0.0
+    r, p, yw = pose.rpy_deg + 0.0
+    text = f"x {x:.0f} y {y:.0f} z {z:.0f} mm  rpy {r:.1f} {p:.1f} {yw:.1f} deg  rms {pose.reprojection_rms_px:.2f} px"
+    if pose.ambiguous:
+        text += "  AMBIGUOUS"
+    scale = 0.45 * max(out.shape[:2]) / 640
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    cv2.rectangle(out, (0, 0), (tw + 16, th + base + 12), (0, 0, 0), -1)
+    cv2.putText(out, text, (8, th + 6), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    return out
+
+
+def _run_locate(args) -> int:
+    import io
+    import statistics
+
+    from .camera import Camera
+    from .detection import detect_markers
+    from .errors import NoMarkersError
+    from .pose import estimate_pose
+
+    if not args.inputs and args.camera_index is None:
+        raise UsageError("give images, folders or videos to locate in, or --camera-index N for a live camera")
+    items = _expand_inputs(args.inputs, videos=True)
+    json_path = _check_output(args.json, (".jsonl", ".json"), "--json") if args.json else None
+    staging = _Staging(args.annotate)
+    camera = Camera.load(args.camera)
+    marker_map = _load_map(args)
+    refine = {"refine": args.refine} if args.refine else {}
+    width = max([len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5])
+    width = min(width, 40)
+    cameras: dict[tuple[int, int], Camera] = {}
+    stats = {"frames": 0, "located": 0, "ambiguous": 0, "rms": []}
+
+    def process(sink) -> None:
+        print(f"{'frame':<{width}} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7}  "
+              f"{'markers':<9} {'rms_px':>6}  ambiguous")
+        with staging:
+            try:
+                for name, image in _frames(items, args.camera_index):
+                    size = (image.shape[1], image.shape[0])
+                    if size not in cameras:  # rescale (and warn) once per resolution
+                        cameras[size] = camera.for_image(size)
+                    cam = cameras[size]
+                    detections = detect_markers(image, dictionary=marker_map.dictionary, **refine)
+                    stats["frames"] += 1
+                    try:
+                        pose = estimate_pose(detections, marker_map, cam)
+                    except NoMarkersError:
+                        pose = None
+                    if pose is None:
+                        seen = sorted({d.id for d in detections})
+                        note = "no known marker" + (f" (saw ids {', '.join(map(str, seen))}, not in the map)" if seen else "")
+                        print(_fmt_row(name, width, None, note), flush=True)
+                        record = {"frame": name, "located": False, "reason": "no known marker", "detected_ids": seen}
+                    else:
+                        stats["located"] += 1
+                        stats["ambiguous"] += bool(pose.ambiguous)
+                        stats["rms"].append(pose.reprojection_rms_px)
+                        note = f"rejected {list(pose.rejected_ids)}" if pose.rejected_ids else ""
+                        print(_fmt_row(name, width, pose, note), flush=True)
+                        record = _pose_record(name, pose)
+                    if sink is not None:
+                        sink.write(json.dumps(record) + "\n")
+                        sink.flush()
+                    staging.save(name, _draw_pose(image, detections, cam, pose, marker_map))
+            except KeyboardInterrupt:
+                if args.camera_index is None:
+                    raise
+                # stopping a live camera is its normal end: keep what was seen
+
+    if json_path is not None:
+        def write(tmp: Path) -> None:
+            with io.open(tmp, "w", encoding="utf-8") as sink:
+                process(sink)
+
+        atomic_write(json_path, write)
+    else:
+        process(None)
+    n, located = stats["frames"], stats["located"]
+    if n > 1 or args.camera_index is not None:
+        med = f", median rms {statistics.median(stats['rms']):.2f} px" if stats["rms"] else ""
+        amb = f", {stats['ambiguous']} ambiguous" if stats["ambiguous"] else ""
+        print(f"{n} frames, {located} located ({100.0 * located / max(n, 1):.0f} %){med}{amb}")
+    if json_path:
+        print(f"poses written to {json_path}")
+    if args.annotate:
+        print(f"annotated frames in {args.annotate}/")
+    return 0
+
+
 #: Subcommand builders, in the order ``fidlearn --help`` lists them.
-COMMANDS: list[Callable] = [_add_markers, _add_board, _add_corners, _add_render, _add_doctor]
+COMMANDS: list[Callable] = [_add_board, _add_markers, _add_corners, _add_locate, _add_render, _add_doctor]
 
 
 def build_parser() -> argparse.ArgumentParser:
