@@ -67,7 +67,7 @@ def ideal_camera(tmp_path_factory):
 def test_help_lists_every_command_subprocess():
     code, out, err = run_subprocess("--help")
     assert code == 0 and err == ""
-    for cmd in ("markers", "board", "corners", "render", "doctor"):
+    for cmd in ("board", "markers", "corners", "locate", "render", "doctor"):
         assert f"    {cmd} " in out
 
 
@@ -192,6 +192,85 @@ def test_render_nothing_in_view_warns(capsys, ideal_camera, tmp_path):
     assert err.startswith("warning: no marker of the map is in view")
 
 
+# -- locate ----------------------------------------------------------------------------------
+def scenes_truth():
+    """data/scenes/poses.json grouped by map: {map file: [(image path, T_world_camera)]}."""
+    record = json.loads(data_path("scenes", "poses.json").read_text())
+    groups: dict[str, list] = {}
+    for im in record["images"]:
+        groups.setdefault(im["map"], []).append((data_path("scenes", im["image"]), np.array(im["T_world_camera"])))
+    return groups
+
+
+def assert_pose_close(T_est, T_true, what):
+    """Position within 1 % of the distance to the world origin region, orientation within 0.5 deg."""
+    err_mm = np.linalg.norm(T_est[:3, 3] - T_true[:3, 3])
+    assert err_mm < 0.01 * np.linalg.norm(T_true[:3, 3]), (what, err_mm)
+    assert frames.rotation_angle_deg(T_est[:3, :3], T_true[:3, :3]) < 0.5, what
+
+
+@pytest.mark.parametrize("map_name", ["world_map.json", "two_walls_map.json"])
+def test_locate_reproduces_known_poses(capsys, tmp_path, map_name):
+    shots = scenes_truth()[map_name]
+    jsonl, ann = tmp_path / "poses.jsonl", tmp_path / "ann"
+    code, out, err = run(capsys, "locate", *[p for p, _ in shots], "--camera", data_path("scenes", "camera.json"),
+                         "--map", data_path(map_name), "--json", jsonl, "--annotate", ann)
+    assert code == 0, err
+    assert err == ""
+    records = [json.loads(line) for line in jsonl.read_text().splitlines()]
+    assert [r["frame"] for r in records] == [p.name for p, _ in shots]
+    for rec, (path, T_true) in zip(records, shots):
+        assert rec["located"] and not rec["ambiguous"], rec
+        assert_pose_close(np.array(rec["T_world_camera"]), T_true, path.name)
+        assert rec["reprojection_rms_px"] < 0.5
+        # the printed line carries the same numbers
+        line = next(l for l in out.splitlines() if l.startswith(path.name))
+        assert np.allclose([float(v) for v in line.split()[1:4]], rec["position_mm"], atol=0.051)
+    assert f"{len(shots)} frames, {len(shots)} located (100 %), median rms" in out
+    assert sorted(p.name for p in ann.iterdir()) == sorted(p.name for p, _ in shots)
+    assert cv2.imread(str(ann / shots[0][0].name)).shape == (720, 1280, 3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ann", "poses.jsonl"]  # no staging folder left
+
+
+def test_locate_frame_without_markers_is_reported(capsys, tmp_path, ideal_camera):
+    blank = tmp_path / "wall.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
+    code, out, err = run(capsys, "locate", blank, "--camera", ideal_camera, "--map", data_path("world_map.json"),
+                         "--json", tmp_path / "p.jsonl")
+    assert code == 0, err
+    assert "wall.png" in out and "no known marker" in out
+    rec = json.loads((tmp_path / "p.jsonl").read_text())
+    assert rec == {"frame": "wall.png", "located": False, "reason": "no known marker", "detected_ids": []}
+
+
+def test_locate_video_subprocess(tmp_path):
+    """A video made of known frames runs frame by frame through ``python -m fidlearn locate``."""
+    shots = scenes_truth()["world_map.json"]
+    video = tmp_path / "walk.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5, (1280, 720))
+    for path, _ in shots:
+        writer.write(cv2.imread(str(path)))
+    writer.release()
+    code, out, err = run_subprocess("locate", video, "--camera", data_path("scenes", "camera.json"),
+                                    "--map", data_path("world_map.json"), "--json", tmp_path / "walk.jsonl")
+    assert code == 0, err
+    records = [json.loads(line) for line in (tmp_path / "walk.jsonl").read_text().splitlines()]
+    assert [r["frame"] for r in records] == [f"walk.avi#{k}" for k in range(len(shots))]
+    for rec, (_, T_true) in zip(records, shots):
+        assert_pose_close(np.array(rec["T_world_camera"]), T_true, rec["frame"])
+    assert f"{len(shots)} frames, {len(shots)} located (100 %)" in out
+
+
+def test_locate_error_midway_leaves_nothing(capsys, tmp_path):
+    good = data_path("scenes", "scene_00.png")
+    broken = tmp_path / "broken.png"
+    broken.write_bytes(good.read_bytes()[:200])  # a truncated PNG after a good one
+    code, out, err = run(capsys, "locate", good, broken, "--camera", data_path("scenes", "camera.json"),
+                         "--map", data_path("world_map.json"), "--json", tmp_path / "p.jsonl", "--annotate", tmp_path / "ann")
+    assert_user_error(code, err, "broken.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.png"]
+
+
 # -- bad input: one error line, status 2, nothing written -----------------------------------------------
 def _other_aspect_camera(tmp_path):
     path = tmp_path / "wide.json"
@@ -216,6 +295,15 @@ BAD = {
     "camera of another aspect ratio": (["render", "--map", str(data_path("world_map.json")), "--camera", "{wide}",
                                         "--pose", "1200,150,250,-90,0,90", "--size", "640x480", "-o", "{tmp}/out.png"],
                                        ["aspect", "calibrate at the resolution"]),
+    "locate: missing image": (["locate", "{tmp}/nope.png", "--camera", "{wide}", "--map", str(data_path("world_map.json")),
+                               "--json", "{tmp}/p.jsonl"], ["nope.png", "no such file"]),
+    "locate: empty folder": (["locate", "{tmp}/empty", "--camera", "{wide}", "--map", str(data_path("world_map.json")),
+                              "--annotate", "{tmp}/ann"], ["empty", "no images"]),
+    "locate: camera of another aspect ratio": (["locate", str(data_path("scenes", "scene_00.png")), "--camera", "{four3}",
+                                                "--map", str(data_path("world_map.json")), "--json", "{tmp}/p.jsonl",
+                                                "--annotate", "{tmp}/ann"], ["aspect", "calibrate at the resolution"]),
+    "locate: nothing to read": (["locate", "--camera", "{wide}", "--map", str(data_path("world_map.json"))],
+                                ["--camera-index"]),
     "pose with 5 numbers": (["render", "--map", str(data_path("world_map.json")), "--camera", "{wide}",
                              "--pose", "1200,150,250,-90,0", "-o", "{tmp}/out.png"], ["--pose", "6 numbers"]),
 }
@@ -225,8 +313,11 @@ BAD = {
 def test_bad_input(capsys, tmp_path, case):
     argv, fragments = BAD[case]
     wide = _other_aspect_camera(tmp_path)
+    four3 = tmp_path / "four3.json"
+    Camera.from_fov(60, (640, 480)).save(four3)
+    (tmp_path / "empty").mkdir()
     before = sorted(p.name for p in tmp_path.iterdir())
-    argv = [a.format(tmp=tmp_path, wide=wide) for a in argv]
+    argv = [a.format(tmp=tmp_path, wide=wide, four3=four3) for a in argv]
     code, out, err = run(capsys, *argv)
     assert_user_error(code, err, *fragments)
     assert sorted(p.name for p in tmp_path.iterdir()) == before  # no output, no temporary file
