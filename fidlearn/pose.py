@@ -752,14 +752,18 @@ def estimate_pose(
     sigma = _sigma(cands[0].sse, dof, corner_sigma_px)
     J = pose_jacobian(obs.obj, cands[0].T_world_camera, camera)
     JtJ = J.T @ J
-    # The other planar solution: refined if LM kept it apart, else as IPPE gave it (LM can run
-    # from it into the first one along a flat valley: the data then hardly tells them apart).
-    # Two poses count as distinct when they are more than 0.1 sigma apart.
-    alt = next((c for c in cands[1:] if _mahalanobis2(cands[0], c, JtJ, sigma) > 0.01), None)
+    # The other planar solution (the "flip"). Refined, when LM keeps it apart as a second
+    # minimum; else as IPPE gave it, when LM ran from it into the first one along a flat valley.
+    # It counts as another answer when it lies outside the 3-sigma ellipsoid of the best pose
+    # (squared Mahalanobis distance above AMBIGUITY_CHI2); it is "as good" (ambiguous) when its
+    # extra sum of squared residuals is below AMBIGUITY_CHI2 sigma^2. Near a single quadratic
+    # minimum the two numbers are equal, so a merely nearby pose is never called ambiguous;
+    # both hold only when the error surface is far from quadratic, which is the flip.
+    alt = next((c for c in cands[1:] if _mahalanobis2(cands[0], c, JtJ, sigma) > AMBIGUITY_CHI2), None)
     alt_refined = alt is not None
     if alt is None and unrefined is not cands:
-        alt = next((c for c in unrefined if _mahalanobis2(cands[0], c, JtJ, sigma) > 0.01
-                    and c.sse > cands[0].sse), None)
+        far = [c for c in unrefined if c.sse > cands[0].sse and _mahalanobis2(cands[0], c, JtJ, sigma) > AMBIGUITY_CHI2]
+        alt = min(far, key=lambda c: c.sse) if far else None
     ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * sigma**2
 
     def build(c: _Candidate, alternative: Pose | None, how: str) -> Pose:

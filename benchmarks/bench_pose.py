@@ -1,0 +1,284 @@
+"""Measure fidlearn's pose estimation: accuracy on rendered scenes, optimality, covariance, speed.
+
+Not a test: run it by hand and read the numbers.
+
+    .venv/bin/python benchmarks/bench_pose.py            # everything (a few minutes on one core)
+    .venv/bin/python benchmarks/bench_pose.py --quick    # fewer scenes and trials
+
+1. Rendered scenes (fidlearn.synthetic.render_scene: blur, sensor noise, lens
+   distortion) on three maps: the seed's three 80 mm markers, six markers on
+   one wall, six markers on two walls. Camera-position error of
+   * the seed pipeline: ``ArucoDetector`` with default parameters (no corner
+     refinement), then ``cv2.solvePnP(..., SOLVEPNP_IPPE)`` over all corners,
+     no LM (it fails outright on markers on two walls: counted as failures);
+   * ``fidlearn.locate`` with its defaults.
+2. Optimality: noisy true corners (Gaussian sigma); NEES of the camera centre
+   against the Cramer-Rao bound ``sigma^2 (J^T J)^-1`` at the true pose,
+   for ``estimate_pose`` and for Levenberg-Marquardt started at the true pose.
+3. Coverage: how often the true position falls inside the 95 % ellipsoid of
+   ``Pose.covariance`` (given sigma and estimated sigma).
+4. Speed: ``locate`` against a plain ``detectMarkers`` on the same 640x480 images.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+import warnings
+
+import cv2
+import numpy as np
+
+import fidlearn
+from fidlearn import _cv, frames
+from fidlearn import pose as pose_mod
+from fidlearn.camera import Camera
+from fidlearn.detection import Detection
+from fidlearn.markermap import MarkerMap, MarkerPlacement
+from fidlearn.synthetic import look_at, render_scene
+
+CAMERA = Camera([[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]], [-0.15, 0.09, 0.0005, -0.0004, 0.0], (640, 480),
+                source="benchmark camera, 56 deg horizontal FOV, barrel distortion")
+CHI2_3_95 = 7.815
+
+
+def seed_map() -> MarkerMap:
+    return MarkerMap.load(fidlearn.data_path("world_map.json"))
+
+
+def wall_map() -> MarkerMap:
+    p = {}
+    for k, (y, z) in enumerate([(0, 1500), (450, 1500), (900, 1500), (150, 1050), (600, 1050), (1050, 1100)]):
+        p[k] = MarkerPlacement(k, (0.0, float(y), float(z)), (0.0, 0.0, 0.0))
+    return MarkerMap(p, 120.0, "ARUCO_ORIGINAL", "mm")
+
+
+def two_wall_map() -> MarkerMap:
+    p = {
+        0: MarkerPlacement(0, (0.0, 300.0, 1400.0), (0.0, 0.0, 0.0)),
+        1: MarkerPlacement(1, (0.0, 900.0, 1300.0), (0.0, 0.0, 0.0)),
+        2: MarkerPlacement(2, (0.0, 600.0, 900.0), (0.0, 0.0, 0.0)),
+        3: MarkerPlacement(3, (900.0, 0.0, 1400.0), (0.0, 0.0, 90.0)),
+        4: MarkerPlacement(4, (400.0, 0.0, 1200.0), (0.0, 0.0, 90.0)),
+        5: MarkerPlacement(5, (700.0, 0.0, 800.0), (0.0, 0.0, 90.0)),
+    }
+    return MarkerMap(p, 150.0, "ARUCO_ORIGINAL", "mm")
+
+
+def random_view(marker_map: MarkerMap, rng, dist_range=(0.6, 2.5)) -> np.ndarray:
+    """A camera pose that sees the markers: in front of their mean normal, looking at their centre."""
+    centres = np.array([marker_map.T_world_marker(i)[:3, 3] for i in marker_map.ids])
+    normal = np.mean([marker_map.normal(i) for i in marker_map.ids], axis=0)
+    normal /= np.linalg.norm(normal)
+    extent = float(np.ptp(centres, axis=0).max()) + marker_map.marker_size_mm
+    d = rng.uniform(*dist_range) * max(1.0, extent / 600.0)  # metres
+    # random direction within 45 degrees of the normal
+    while True:
+        v = normal + rng.normal(0, 0.45, 3)
+        v /= np.linalg.norm(v)
+        if v @ normal > math.cos(math.radians(50)):
+            break
+    target = centres.mean(axis=0) + rng.normal(0, 0.08 * extent, 3)
+    return look_at(target + d * 1000.0 * v, target, roll_deg=rng.uniform(-20, 20))
+
+
+def all_visible(marker_map, T, camera=CAMERA) -> bool:
+    for c in marker_map.corners().values():
+        if not camera.points_in_front(c, T).all():
+            return False
+        px = camera.project(c, T)
+        if np.any(px < 8) or np.any(px > np.array(camera.image_size) - 9):
+            return False
+    return True
+
+
+def seed_pipeline(image, marker_map, camera):
+    """Detect with default parameters (no refinement), IPPE over all corners, no LM. None on failure."""
+    det = _cv.make_detector(marker_map.dictionary)
+    corners, ids, _ = _cv.detect(det, image)
+    obj, img = [], []
+    for c, i in zip(corners, ids):
+        if int(i) in marker_map:
+            obj.append(marker_map.marker_corners(int(i)))
+            img.append(c)
+    if not obj:
+        return None
+    try:
+        ok, rvec, tvec = cv2.solvePnP(np.concatenate(obj), np.concatenate(img), camera.K, camera.dist,
+                                      flags=_cv.solvepnp_flag("IPPE"))
+    except cv2.error:
+        return None
+    if not ok:
+        return None
+    return frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))[:3, 3]
+
+
+def bench_rendered(n_per_map: int, rng) -> None:
+    print("\n== 1. rendered scenes: camera-position error (mm) ==")
+    print(f"{'map':<12}{'n':>4}{'seed median':>13}{'seed fail':>10}{'locate median':>15}{'locate p90':>12}"
+          f"{'locate max':>12}{'fail':>6}{'ratio':>7}")
+    all_seed, all_ours = [], []
+    for name, m in [("seed", seed_map()), ("one wall", wall_map()), ("two walls", two_wall_map())]:
+        seed_err, ours_err, seed_fail, ours_fail = [], [], 0, 0
+        n = 0
+        while n < n_per_map:
+            T = random_view(m, rng)
+            if not all_visible(m, T):
+                continue
+            n += 1
+            image, truth = render_scene(CAMERA, m, T, seed=int(rng.integers(1 << 30)), blur_px=rng.uniform(0.3, 1.0),
+                                        noise_std=rng.uniform(1.0, 4.0), gradient=rng.uniform(0, 0.3))
+            C = T[:3, 3]
+            s = seed_pipeline(image, m, CAMERA)
+            if s is None:
+                seed_fail += 1
+            else:
+                seed_err.append(np.linalg.norm(s - C))
+            try:
+                p = fidlearn.locate(image, m, CAMERA)
+                ours_err.append(np.linalg.norm(p.position_mm - C))
+            except fidlearn.FidlearnError:
+                ours_fail += 1
+        se, oe = np.median(seed_err) if seed_err else float("nan"), np.median(ours_err)
+        all_seed += seed_err
+        all_ours += ours_err
+        print(f"{name:<12}{n:>4}{se:>13.2f}{seed_fail:>10}{oe:>15.2f}{np.percentile(ours_err, 90):>12.2f}"
+              f"{np.max(ours_err):>12.2f}{ours_fail:>6}{oe / se:>7.2f}")
+    print(f"{'all':<12}{len(all_ours):>4}{np.median(all_seed):>13.2f}{'':>10}{np.median(all_ours):>15.2f}"
+          f"{np.percentile(all_ours, 90):>12.2f}{np.max(all_ours):>12.2f}{'':>6}{np.median(all_ours) / np.median(all_seed):>7.2f}")
+
+
+def nees_trial(m, T, sigma, rng, camera=CAMERA):
+    """(NEES of estimate_pose, NEES of LM from the truth, ambiguous) for one noisy observation."""
+    obj = np.concatenate(list(m.corners().values()))
+    img = camera.project(obj, T) + rng.normal(0, sigma, (len(obj), 2))
+    dets = [Detection(i, img[4 * k: 4 * k + 4]) for k, i in enumerate(m.ids)]
+    J = pose_mod.pose_jacobian(obj, T, camera)
+    P = sigma**2 * np.linalg.inv(J.T @ J)[3:, 3:]
+    pose = fidlearn.estimate_pose(dets, m, camera, corner_sigma_px=sigma)
+    _, C_lm, _ = pose_mod._lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy())
+    e1 = pose.position_mm - T[:3, 3]
+    e2 = C_lm - T[:3, 3]
+    return float(e1 @ np.linalg.solve(P, e1)), float(e2 @ np.linalg.solve(P, e2)), pose.ambiguous
+
+
+def single_marker_map() -> MarkerMap:
+    return MarkerMap({3: MarkerPlacement(3, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, "ARUCO_ORIGINAL", "mm")
+
+
+def bench_nees(n_trials: int, rng) -> None:
+    print("\n== 2. optimality: NEES of the camera centre w.r.t. the Cramer-Rao bound at the true pose ==")
+    print("(expected median for an efficient estimator: 2.37; 'gross' = NEES > 25 / > 100)")
+    print(f"{'scene':<26}{'sigma':>6}{'median ours':>12}{'median LM@truth':>16}{'ratio':>7}"
+          f"{'gross ours':>11}{'gross truth':>12}{'gross100':>14}{'ambig %':>8}")
+    scenes = [
+        ("seed map", seed_map(), (0.5, 1.5)),
+        ("one wall, 6 markers", wall_map(), (0.8, 2.5)),
+        ("two walls, 6 markers", two_wall_map(), (0.8, 2.5)),
+        ("one marker 100 mm", single_marker_map(), (0.3, 2.0)),
+    ]
+    for name, m, dr in scenes:
+        for sigma in (0.3, 1.0):
+            ours, truth, amb = [], [], 0
+            while len(ours) < n_trials:
+                T = random_view(m, rng, dr)
+                if not all_visible(m, T):
+                    continue
+                a, b, c = nees_trial(m, T, sigma, rng)
+                ours.append(a)
+                truth.append(b)
+                amb += c
+            ours, truth = np.array(ours), np.array(truth)
+            print(f"{name:<26}{sigma:>6.1f}{np.median(ours):>12.2f}{np.median(truth):>16.2f}"
+                  f"{np.median(ours) / np.median(truth):>7.2f}{100 * np.mean(ours > 25):>10.1f}%{100 * np.mean(truth > 25):>11.1f}%"
+                  f"{100 * np.mean(ours > 100):>6.1f}/{100 * np.mean(truth > 100):>5.1f}%{100 * amb / len(ours):>7.0f}%")
+
+
+def bench_coverage(n_trials: int, rng) -> None:
+    print("\n== 3. coverage of the 95 % position ellipsoid (target 90-98 %) ==")
+    for name, m in [("seed map", seed_map()), ("one wall", wall_map()), ("two walls", two_wall_map())]:
+        for sigma in (0.3, 1.0):
+            for given in (True, False):
+                inside = 0
+                n = 0
+                while n < n_trials:
+                    T = random_view(m, rng, (0.6, 1.5))
+                    if not all_visible(m, T):
+                        continue
+                    n += 1
+                    obj = np.concatenate(list(m.corners().values()))
+                    img = CAMERA.project(obj, T) + rng.normal(0, sigma, (len(obj), 2))
+                    dets = [Detection(i, img[4 * k: 4 * k + 4]) for k, i in enumerate(m.ids)]
+                    p = fidlearn.estimate_pose(dets, m, CAMERA, corner_sigma_px=sigma if given else None)
+                    inside += p.position_ellipsoid_contains(T[:3, 3], 0.95)
+                print(f"{name:<10} sigma {sigma:.1f} px, {'given    ' if given else 'estimated'}: {100 * inside / n:5.1f} % of {n}")
+
+
+def bench_speed(n_images: int, rng) -> None:
+    print("\n== 4. speed: locate vs a plain detectMarkers (640x480) ==")
+    m = wall_map()
+    images = []
+    while len(images) < n_images:
+        T = random_view(m, rng)
+        if all_visible(m, T):
+            images.append(render_scene(CAMERA, m, T, seed=len(images), blur_px=0.6, noise_std=2.0)[0])
+    det = _cv.make_detector(m.dictionary)
+    gray = [np.ascontiguousarray(im) for im in images]
+    from fidlearn.detection import detect_markers
+    dets = [detect_markers(im, m.dictionary) for im in images]
+
+    def plain():
+        for g in gray:
+            det.detectMarkers(g)
+
+    def loc():
+        for im in images:
+            fidlearn.locate(im, m, CAMERA)
+
+    def est():
+        for d in dets:
+            fidlearn.estimate_pose(d, m, CAMERA)
+
+    def detect_fid():
+        for im in images:
+            detect_markers(im, m.dictionary)
+
+    for f in (plain, loc, est, detect_fid):  # warm up caches
+        f()
+    times = {f.__name__: [] for f in (plain, loc, est, detect_fid)}
+    for _ in range(7):  # interleave to share the machine's load fairly
+        for f in (plain, loc, est, detect_fid):
+            t = time.perf_counter()
+            f()
+            times[f.__name__].append((time.perf_counter() - t) / len(images) * 1e3)
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    print(f"plain detectMarkers {med['plain']:.2f} ms, fidlearn detect_markers {med['detect_fid']:.2f} ms, "
+          f"estimate_pose {med['est']:.2f} ms, locate {med['loc']:.2f} ms per image")
+    print(f"locate / plain detectMarkers = {med['loc'] / med['plain']:.2f}  (goal <= 1.10, limit 1.25); "
+          f"estimate_pose / plain detectMarkers = {med['est'] / med['plain']:.2f}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="fewer scenes and trials")
+    ap.add_argument("--only", choices=["rendered", "nees", "coverage", "speed"], help="run one part")
+    args = ap.parse_args(argv)
+    warnings.simplefilter("error")
+    rng = np.random.default_rng(20261121)
+    n = 0.25 if args.quick else 1.0
+    print(f"OpenCV {cv2.__version__}, numpy {np.__version__}")
+    if args.only in (None, "rendered"):
+        bench_rendered(int(40 * n), rng)
+    if args.only in (None, "nees"):
+        bench_nees(int(400 * n), rng)
+    if args.only in (None, "coverage"):
+        bench_coverage(int(400 * n), rng)
+    if args.only in (None, "speed"):
+        bench_speed(int(40 * n), rng)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
