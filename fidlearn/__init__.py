@@ -44,6 +44,7 @@ from .synthetic import (
     trajectory_poses,
 )
 from .pose import Pose, estimate_pose, locate
+from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
 
 __version__ = "0.1.0"
 
@@ -81,5 +82,8 @@ __all__ = [
     "render_trajectory",
     "trajectory_poses",
     "Trajectory",
+    "Calibration",
+    "calibrate_checkerboard",
+    "calibrate_charuco",
     "__version__",
 ]

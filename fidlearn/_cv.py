@@ -161,6 +161,20 @@ def charuco_detector(board):
     return _ARUCO.CharucoDetector(board)
 
 
+def detect_charuco(detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Run a ``CharucoDetector``: chess corners (N, 2) float64 px, their ids (N,) int64, and how many markers were seen.
+
+    ``detectBoard`` returns ``None`` for nothing found and ids shaped (N, 1)
+    before OpenCV 5, (N,) from 5.0; this always gives arrays.
+    """
+    corners, ids, _marker_corners, marker_ids = detector.detectBoard(gray)
+    n_markers = 0 if marker_ids is None else int(np.asarray(marker_ids).size)
+    if ids is None or corners is None or len(corners) == 0:
+        return np.zeros((0, 2)), np.zeros((0,), dtype=np.int64), n_markers
+    return (np.asarray(corners, dtype=np.float64).reshape(-1, 2),
+            np.asarray(ids).reshape(-1).astype(np.int64), n_markers)
+
+
 def detector_parameter_fields(params=None) -> dict:
     """Every field of ``cv2.aruco.DetectorParameters`` as ``{name: value}``.
 
