@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -145,22 +146,39 @@ def _refine_name(refine: Any) -> str:
     )
 
 
+def _params_key(params: Any) -> Any:
+    """A hashable summary of ``params`` that is cheap for the usual cases (None, a dict)."""
+    if params is None:
+        return None
+    if isinstance(params, dict):
+        try:
+            return ("dict", tuple(sorted(params.items())))
+        except TypeError:  # unhashable values: let the field check report them
+            return ("fields", tuple(sorted(_cv.detector_parameter_fields(params).items())))
+    return ("fields", tuple(sorted(_cv.detector_parameter_fields(params).items())))
+
+
 def _detector(dictionary: str, refine: str, params: Any):
     """The cached ``ArucoDetector`` for (dictionary, refinement, parameters) and its marker's side in cells."""
-    fields = _cv.detector_parameter_fields(params)
-    # fidlearn's "edges" starts from OpenCV's unrefined corners.
-    fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if refine == "edges" else refine)
-    key = (dictionary, refine, tuple(sorted(fields.items())))
+    key = (dictionary, refine, _params_key(params))
     hit = _DETECTOR_CACHE.get(key)
     if hit is not None:
         _DETECTOR_CACHE.move_to_end(key)
         return hit
+    fields = _cv.detector_parameter_fields(params)
+    # fidlearn's "edges" starts from OpenCV's unrefined corners.
+    fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if refine == "edges" else refine)
     detector = _cv.make_detector(dictionary, _cv.make_detector_parameters(**fields))
-    cells = _cv.dictionary_marker_bits(dictionary) + 2 * int(fields.get("markerBorderBits", 1))
+    cells = _cv.dictionary_marker_bits(dictionary) + 2 * int(fields["markerBorderBits"])
     _DETECTOR_CACHE[key] = (detector, cells)
     while len(_DETECTOR_CACHE) > _DETECTOR_CACHE_SIZE:
         _DETECTOR_CACHE.popitem(last=False)
     return detector, cells
+
+
+@lru_cache(maxsize=64)
+def _dictionary_name(name: str) -> str:
+    return _cv.dictionary_name(name)
 
 
 def detect_markers(
@@ -216,7 +234,7 @@ def detect_markers(
     [23]
     """
     gray = as_gray(image)
-    name = _cv.dictionary_name(dictionary)
+    name = _dictionary_name(dictionary) if isinstance(dictionary, str) else _cv.dictionary_name(dictionary)
     method = _refine_name(refine)
     detector, cells = _detector(name, method, params)
     corners, ids, rejected = _cv.detect(detector, gray)
@@ -237,103 +255,127 @@ _NEXT = np.array([1, 2, 3, 0])
 _PREV = np.array([3, 0, 1, 2])
 
 
+@lru_cache(maxsize=8)
+def _profile_grid(n_lines: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """Positions 0..1 along a side and -1..1 across it (read-only)."""
+    u = np.linspace(0.0, 1.0, n_lines)
+    v = np.linspace(-1.0, 1.0, n_samples).astype(np.float32)
+    u.flags.writeable = v.flags.writeable = False
+    return u, v
+
+
 def refine_corners_edges(
     gray: np.ndarray,
     corners: np.ndarray,
     cells: int,
+    *,
     n_lines: int = 16,
     n_samples: int = 13,
-    iterations: int = 2,
+    iterations: int = 1,
+    expand_px: float = 0.5,
 ) -> np.ndarray:
     """Refine marker corners by fitting a straight line to each outer edge.
 
     For each side of each quad, ``n_lines`` short profiles are sampled across
-    the edge (bilinear, one ``cv2.remap`` for every marker at once), each
-    profile's crossing of the level half-way between the black border and the
-    white surround gives a sub-pixel edge position, a least-squares line is
-    fitted through them (one outlier pass), and each corner becomes the
-    intersection of its two sides' lines. Blur rounds a corner but not the
-    middle of an edge, so the line intersection lands on the true corner
-    where corner-window methods are pulled inwards. Two passes: the first from
-    OpenCV's unrefined quad, the second with a tighter window.
+    the edge (bilinear, one ``cv2.remap`` for every marker at once); each
+    profile's crossing of the gray level half-way between the black border and
+    the white quiet zone gives a sub-pixel edge position; a least-squares line
+    goes through them (refitted once without the profiles 0.75 px off it); each
+    corner is the intersection of its two sides' lines. Blur rounds a corner
+    but not the middle of an edge, so the intersection lands on the true corner
+    where windowed corner detectors are pulled inwards. Everything is numpy on
+    arrays of all markers at once: about 0.3 ms for six markers.
 
     Parameters
     ----------
     gray : ndarray (H, W) uint8
     corners : ndarray (M, 4, 2) float
-        Pixel corners TL, TR, BR, BL of M markers (OpenCV's unrefined ones are fine).
+        Pixel corners TL, TR, BR, BL of M markers: OpenCV's unrefined ones.
     cells : int
-        Marker side in cells including the black border (8 for 6X6 with a
-        1-cell border): it sets the profile length so that a profile stays
-        inside the black border and the white quiet zone.
+        Marker side in cells, black border included (8 for 6X6 with a 1-cell
+        border). Profiles reach 0.6 cell (1.5 to 5 px) each side of the edge,
+        so that they stay in the black border and the white quiet zone.
+    n_lines, n_samples : int
+        Profiles per side, samples per profile.
+    iterations : int
+        Passes; a second one starts from the first's corners (a little better below 30 px).
+    expand_px : float
+        Where the first pass centres its profiles, outside the input quad: OpenCV's
+        unrefined contour runs through the outermost dark pixels' centres, about
+        half a pixel inside the edge.
 
     Returns
     -------
     ndarray (M, 4, 2) float64
-        Refined pixel corners. A marker whose edges cannot all be fitted
-        (too little contrast, too small, half outside the image) or whose
-        corners would move more than ``max(2, cell / 2)`` px keeps its input corners.
+        Refined pixel corners (pixel centres at integers). A marker whose four
+        edges cannot all be fitted (too little contrast, too few crossings) or
+        whose corners would move more than ``max(2, cell / 2)`` px keeps its input corners.
     """
     C = np.array(corners, dtype=np.float64).reshape(-1, 4, 2)
     M = C.shape[0]
     if M == 0:
         return C
-    u = np.linspace(0.0, 1.0, n_lines)
-    v = np.linspace(-1.0, 1.0, n_samples)
-    steps = np.arange(n_samples - 1, dtype=np.float32)
-    centre = (n_samples - 1) / 2
+    u, v = _profile_grid(int(n_lines), int(n_samples))
+    n_lines, n_samples = u.size, v.size
+    centre = 0.5 * (n_samples - 1)
     half = n_lines // 2
-    for it in range(iterations):
+    rows = np.arange(M * 4 * n_lines)
+    ones = np.ones(n_samples, dtype=np.float32)
+    shift = float(expand_px)
+    for _ in range(iterations):
         P1 = C[:, _NEXT]
-        D = P1 - C
-        L = np.sqrt((D * D).sum(2))  # (M, 4) side lengths
-        d = D / np.maximum(L, 1e-9)[..., None]
-        # Outward normal: the corners run clockwise on screen (y down) for a marker seen from the front.
-        area = (C[..., 0] * P1[..., 1] - P1[..., 0] * C[..., 1]).sum(1)
-        sgn = np.where(area >= 0, 1.0, -1.0)[:, None]
-        n = np.stack([d[..., 1] * sgn, -d[..., 0] * sgn], axis=-1)  # (M, 4, 2)
-        cell = L.mean(1) / cells  # (M,) px per cell
-        h = np.clip((0.75 if it == 0 else 0.6) * cell, 1.5, 5.0)[:, None]  # half profile length, px
-        margin = np.minimum((0.5 * cell[:, None] + 1.5) / np.maximum(L, 1e-9), 0.3)  # keep off the corners
-        t = margin[..., None] + (1 - 2 * margin[..., None]) * u  # (M, 4, N) position along the side
-        base = C[:, :, None, :] + t[..., None] * D[:, :, None, :]  # (M, 4, N, 2)
-        across = (h[..., None] * v)[:, :, :, None] * n[:, :, None, :]  # (M, 4, S, 2)
-        pts = (base[:, :, :, None, :] + across[:, :, None, :, :]).astype(np.float32).reshape(-1, n_samples, 2)
-        prof = cv2.remap(gray, pts, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        D = P1 - C  # (M, 4, 2) side vectors
+        L = np.hypot(D[..., 0], D[..., 1])  # (M, 4) side lengths, px
+        # Outward unit normal: corners run clockwise on screen (y down) for a marker seen from its front,
+        # which the diagonals' cross product tells.
+        d1, d2 = C[:, 2] - C[:, 0], C[:, 3] - C[:, 1]
+        sgn = np.where(d1[:, 0] * d2[:, 1] >= d1[:, 1] * d2[:, 0], 1.0, -1.0)[:, None] / np.maximum(L, 1e-9)
+        nx, ny = D[..., 1] * sgn, -D[..., 0] * sgn  # (M, 4)
+        cell = L.sum(1) * (0.25 / cells)  # (M,) px per cell
+        h = np.clip(0.6 * cell, 1.5, 5.0)  # profile half-length, px
+        margin = np.minimum((0.5 * cell[:, None] + 1.5) / np.maximum(L, 1e-9), 0.3)  # keep clear of the corners
+        t = margin[..., None] + (1.0 - 2.0 * margin)[..., None] * u  # (M, 4, N) along the side, 0..1
+        s = (shift + h[:, None] * v).astype(np.float32)[:, None, None, :]  # (M, 1, 1, S) across, px, outward +
+        bx = (C[..., 0, None] + t * D[..., 0, None]).astype(np.float32)[..., None]  # (M, 4, N, 1)
+        by = (C[..., 1, None] + t * D[..., 1, None]).astype(np.float32)[..., None]
+        mx = (bx + s * nx.astype(np.float32)[..., None, None]).reshape(-1, n_samples)
+        my = (by + s * ny.astype(np.float32)[..., None, None]).reshape(-1, n_samples)
+        prof = cv2.remap(gray, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
-        # Per side: the inner (black border) and outer (white quiet zone) levels, median over the profiles.
-        inner = np.sort(prof[..., 0] + prof[..., 1], axis=2)[..., half] * 0.5  # (M, 4)
-        outer = np.sort(prof[..., -1] + prof[..., -2], axis=2)[..., half] * 0.5
-        z = prof - (0.5 * (inner + outer))[..., None, None]
-        zc, zn = z[..., :-1], z[..., 1:]
-        denom = zc - zn
-        cross = (zc * zn <= 0) & (denom != 0)
-        pos = steps + zc / np.where(cross, denom, 1.0)
-        dist = np.where(cross, np.abs(pos - centre), np.inf)
-        j = dist.argmin(-1)[..., None]
-        found = np.isfinite(np.take_along_axis(dist, j, -1)[..., 0])
-        off = (np.take_along_axis(pos, j, -1)[..., 0] - centre) * (h[..., None] * (2.0 / (n_samples - 1)))
-        w = (found & (np.abs(outer - inner) > 10.0)[..., None]).astype(np.float64)
-        for _ in range(2):  # weighted least squares off = a + b t, then drop profiles 0.75 px off the line
-            wt, wo = w * t, w * off
-            sw, st, stt, so, sto = w.sum(-1), wt.sum(-1), (wt * t).sum(-1), wo.sum(-1), (wo * t).sum(-1)
-            det = sw * stt - st * st
-            good = (sw >= 4) & (det > 1e-12)
-            det = np.where(good, det, 1.0)
+        # Levels of the black border (inner end) and the quiet zone (outer end): medians over each side's profiles.
+        inner = np.sort(prof[..., 0] + prof[..., 1], axis=2)[..., half]  # (M, 4), twice the level
+        outer = np.sort(prof[..., -1] + prof[..., -2], axis=2)[..., half]
+        pol = np.where(outer >= inner, 0.5, -0.5).astype(np.float32)  # dark inside, or an inverted marker
+        z = (2.0 * prof - (0.5 * (inner + outer))[..., None, None]) * pol[..., None, None]  # < 0 inside the edge
+        # Each profile crosses the mid level once, after its k samples below it (noise aside).
+        zf = z.reshape(-1, n_samples)
+        k = np.clip(((zf < 0).astype(np.float32) @ ones).astype(np.intp), 1, n_samples - 1)
+        z0, z1 = zf[rows, k - 1], zf[rows, k]
+        found = (z0 <= 0) & (z1 > z0)
+        pos = (k - 1) + z0 / np.where(found, z0 - z1, -1.0)
+        off = (shift + (pos.reshape(M, 4, n_lines) - centre) * (h * (2.0 / (n_samples - 1)))[:, None, None])
+        w = (found.reshape(M, 4, n_lines) & (np.abs(outer - inner) > 20.0)[..., None]).astype(np.float64)
+        V = np.stack([np.ones_like(t), t, t * t, off, off * t], axis=-1)  # (M, 4, N, 5)
+        for _ in range(2):  # weighted least squares off = a + b t; then again without the profiles 0.75 px off
+            m = np.matmul(w[..., None, :], V)[..., 0, :]  # (M, 4, 5) weighted sums
+            sw, st, stt, so, sto = m[..., 0], m[..., 1], m[..., 2], m[..., 3], m[..., 4]
+            det = np.maximum(sw * stt - st * st, 1e-12)
             a = (stt * so - st * sto) / det
             b = (sw * sto - st * so) / det
-            w = w * (np.abs(off - (a[..., None] + b[..., None] * t)) < 0.75)
-        A = C + a[..., None] * n  # the fitted line of side k passes through A[k] and B[k]
-        B = P1 + (a + b)[..., None] * n
-        l0, l1 = A[..., 1] - B[..., 1], B[..., 0] - A[..., 0]
-        l2 = A[..., 0] * B[..., 1] - B[..., 0] * A[..., 1]
+            w = w * (np.abs(off - a[..., None] - b[..., None] * t) < 0.75)
+        good = (sw >= 4) & (det > 1e-9)
+        # The line of side k goes through A = C[k] + a n and B = C[k+1] + (a + b) n.
+        ax, ay = C[..., 0] + a * nx, C[..., 1] + a * ny
+        bx_, by_ = P1[..., 0] + (a + b) * nx, P1[..., 1] + (a + b) * ny
+        l0, l1, l2 = ay - by_, bx_ - ax, ax * by_ - bx_ * ay
         p0, p1, p2 = l0[:, _PREV], l1[:, _PREV], l2[:, _PREV]  # corner k = side k-1 x side k
-        X, Y, W = p1 * l2 - p2 * l1, p2 * l0 - p0 * l2, p0 * l1 - p1 * l0
-        ok = good.all(1) & np.all(np.abs(W) > 1e-9, axis=1)
-        W = np.where(np.abs(W) > 1e-9, W, 1.0)
-        new = np.stack([X / W, Y / W], axis=-1)
-        ok &= np.sqrt(((new - C) ** 2).sum(2)).max(1) < np.maximum(2.0, 0.5 * cell)
+        W = p0 * l1 - p1 * l0
+        ok = good.all(1) & (np.abs(W) > 1e-9).all(1)
+        W = np.where(ok[:, None], W, 1.0)
+        new = np.stack([(p1 * l2 - p2 * l1) / W, (p2 * l0 - p0 * l2) / W], axis=-1)
+        ok &= np.abs(new - C).max(axis=(1, 2)) < np.maximum(2.0, 0.5 * cell)
         C = np.where(ok[:, None, None], new, C)
+        shift = 0.0
     return C
 
 
