@@ -378,7 +378,9 @@ def visible_markers(camera: Camera, marker_map: MarkerMap, T_world_camera: np.nd
     camera, inside the image with ``margin_px`` to spare (pixel-centre
     convention: the image spans -0.5 .. width - 0.5) and its printed face
     points toward the camera. Corners are ``camera.project`` of the marker's
-    3D corners (TL, TR, BR, BL), i.e. ``cv2.projectPoints``.
+    3D corners (TL, TR, BR, BL), i.e. ``cv2.projectPoints``. Occlusion by
+    another sheet is not considered: a marker hidden behind a nearer one is
+    drawn hidden but still listed.
     """
     T_camera_world = frames.invert_transform(T_world_camera)
     eye = T_world_camera[:3, 3]
@@ -627,6 +629,7 @@ def render_calibration_views(
     gradient: float = 0.15,
     supersample: int = 4,
     wall_texture: float = 3.0,
+    views: Sequence[int] | None = None,
 ) -> CalibrationViews:
     """Pictures of a printed calibration board held as a careful person would, with the truth.
 
@@ -657,6 +660,10 @@ def render_calibration_views(
         ChArUco's marker side (default half a square) and dictionary.
     blur_px, noise_std, gradient, supersample, wall_texture :
         As for :func:`render_scene`, applied to every view.
+    views : sequence of int, optional
+        Render only these views (indices into the ``n_views`` poses, which are
+        drawn all the same): view ``i`` comes out identical to view ``i`` of
+        the full set. The result then holds only those views.
 
     Returns
     -------
@@ -735,11 +742,17 @@ def render_calibration_views(
         sheet = _charuco_sheet(board, squares, square_size_mm, tps, margin_squares, grays)
     else:
         sheet = _checkerboard_sheet(pattern_size, square_size_mm, tps, margin_squares, grays)
-    for view, T_world_camera in enumerate(poses):
+    chosen = list(range(n_views)) if views is None else [int(v) for v in views]
+    bad = [v for v in chosen if not 0 <= v < n_views]
+    if bad:
+        raise FidlearnError(f"views {bad} do not exist; there are {n_views} views, 0 to {n_views - 1}")
+    for view in chosen:
         images.append(_render(
-            camera, T_world_camera, [sheet], seed=int(seed) * 1000 + view, gradient_angle_deg=float(rng.uniform(0, 360)),
+            camera, poses[view], [sheet], seed=int(seed) * 1000 + view, gradient_angle_deg=(137.5 * view) % 360.0,
             wall_gray=grays["wall"], bgr=False, **render_kwargs,
         ))
+    poses = [poses[v] for v in chosen]
+    points = [points[v] for v in chosen]
     return CalibrationViews(
         images=images, camera=camera, T_world_camera=poses, object_points=object_points, image_points=points,
         pattern_size=tuple(pattern_size), square_size_mm=float(square_size_mm),
@@ -862,6 +875,7 @@ def render_trajectory(
     seed: int = 0,
     *,
     poses: Sequence[np.ndarray] | None = None,
+    frames_to_render: Sequence[int] | None = None,
     blur_px: float = 0.5,
     noise_std: float = 1.5,
     gradient: float = 0.1,
@@ -873,6 +887,8 @@ def render_trajectory(
 
     Frame ``i`` is ``render_scene(camera, marker_map, poses[i], seed=seed * 1000 + i, ...)``.
     ``poses`` replaces the default drive; other keywords go to :func:`trajectory_poses`.
+    ``frames_to_render`` keeps only those frame indices (each identical to the
+    same frame of the whole drive).
 
     Examples
     --------
@@ -887,9 +903,14 @@ def render_trajectory(
     elif trajectory_options:
         raise FidlearnError(f"give either poses or trajectory options ({', '.join(trajectory_options)}), not both")
     render_kwargs = dict(blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture)
+    chosen = list(range(len(poses))) if frames_to_render is None else [int(i) for i in frames_to_render]
+    bad = [i for i in chosen if not 0 <= i < len(poses)]
+    if bad:
+        raise FidlearnError(f"frames {bad} do not exist; the drive has {len(poses)} frames, 0 to {len(poses) - 1}")
     images, truths = [], []
-    for i, T in enumerate(poses):
-        image, truth = render_scene(camera, marker_map, T, seed=int(seed) * 1000 + i, **render_kwargs)
+    for i in chosen:
+        image, truth = render_scene(camera, marker_map, poses[i], seed=int(seed) * 1000 + i, **render_kwargs)
         images.append(image)
         truths.append(truth)
-    return Trajectory(images, [np.asarray(T, dtype=float) for T in poses], truths, camera, marker_map, seed=int(seed), render_kwargs=render_kwargs)
+    kept = [np.asarray(poses[i], dtype=float) for i in chosen]
+    return Trajectory(images, kept, truths, camera, marker_map, seed=int(seed), render_kwargs=render_kwargs)

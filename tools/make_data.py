@@ -1,0 +1,296 @@
+"""Regenerate fidlearn's bundled data from seeds: ``make data`` or
+
+    .venv/bin/python tools/make_data.py [--only calibration|scenes|trajectory|real]
+
+Folders it writes (see data/README.md for what each holds):
+
+* ``data/calibration/``: 20 synthetic checkerboard views (9x6 inner corners,
+  25 mm squares, 640x480), ``camera_true.json`` and ``views.json`` (true poses
+  and corner pixels).
+* ``data/scenes/``: the seed's room from 10 known poses (1280x720), on
+  ``world_map.json`` and on ``two_walls_map.json`` (written here too), with
+  ``camera.json`` and ``poses.json``.
+* ``data/trajectory/``: a 40-frame drive of a robot's camera (640x480) with
+  ``camera.json`` and ``poses.json``.
+* ``data/real/``: a copy of the real photos in ``/work/shared/realdata``
+  (``--real-source`` to copy from elsewhere).
+
+Everything synthetic is a pure function of the recipes below and their seeds:
+running it twice gives the same pixels on the same OpenCV build. Each JSON
+record holds every argument needed to re-render its picture in-process
+(``tests/test_data.py`` does).
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import shutil
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+import fidlearn
+from fidlearn import Camera, MarkerMap, frames
+from fidlearn._io import atomic_write, write_json_atomic
+from fidlearn.data import repo_dir
+from fidlearn.synthetic import look_at, render_calibration_views, render_scene, render_trajectory, trajectory_poses
+
+DATA = repo_dir() / "data"
+REAL_SOURCE = Path("/work/shared/realdata")
+REAL_FOLDERS = ("opencv_checkerboard_right", "opencv_charuco", "opencv_aruco_photo")
+
+# -- recipes: every number that decides a picture ------------------------------------------------
+
+CALIBRATION = {
+    "seed": 7,
+    "n_views": 20,
+    "pattern_size": [9, 6],
+    "square_size_mm": 25.0,
+    # a typical webcam at 640x480: slightly non-square pixels, off-centre principal point, barrel distortion
+    "camera": {
+        "camera_matrix": [[615.2, 0.0, 321.7], [0.0, 613.9, 243.4], [0.0, 0.0, 1.0]],
+        "dist_coeffs": [-0.11, 0.09, 0.0006, -0.0004, -0.03],
+        "image_size": [640, 480],
+        "source": "synthetic: the true camera of data/calibration (tools/make_data.py)",
+    },
+    "render": {"blur_px": 0.4, "noise_std": 1.5, "gradient": 0.15, "supersample": 4, "wall_texture": 3.0},
+}
+
+SCENES = {
+    "camera": {
+        # an HD webcam: about 67 degrees horizontal field of view, mild barrel distortion
+        "camera_matrix": [[962.5, 0.0, 641.3], [0.0, 961.8, 357.9], [0.0, 0.0, 1.0]],
+        "dist_coeffs": [-0.06, 0.045, 0.0003, -0.0002, -0.01],
+        "image_size": [1280, 720],
+        "source": "synthetic: the true camera of data/scenes (tools/make_data.py)",
+    },
+    "render": {"blur_px": 0.5, "noise_std": 1.2, "gradient": 0.2, "supersample": 4, "wall_texture": 3.0},
+    # (map, eye mm, target mm, roll deg): 1 to 3 m from the markers, from the front, the sides, above and below
+    "views": [
+        ("world_map.json", [1000, 190, 230], [0, 190, 230], 0.0),
+        ("world_map.json", [1500, -600, 420], [0, 190, 240], 4.0),
+        ("world_map.json", [1300, 1000, 150], [0, 200, 240], -6.0),
+        ("world_map.json", [2100, 300, 900], [0, 180, 230], 2.0),
+        ("world_map.json", [2900, -300, 260], [0, 190, 230], -12.0),
+        ("world_map.json", [1700, 700, 240], [0, 120, 300], 25.0),
+        ("two_walls_map.json", [2200, 300, 400], [300, -300, 260], 0.0),
+        ("two_walls_map.json", [2500, 900, 300], [200, -500, 270], -3.0),
+        ("two_walls_map.json", [2000, -200, 350], [500, 900, 270], 5.0),
+        ("two_walls_map.json", [2600, 100, 600], [300, 100, 250], 0.0),
+    ],
+}
+
+# the seed's three markers on the north wall (x = 0), plus two on the west wall (y = -900 mm,
+# facing east: yaw 90) and one on the east wall (y = 1300 mm, facing west: yaw -90)
+TWO_WALLS_MAP = {
+    "units": "mm",
+    "marker_size_mm": 80,
+    "dictionary": "ARUCO_ORIGINAL",
+    "markers": {
+        "0": {"translation": [0, 0, 304.8], "rotation": [0, 0, 0]},
+        "1": {"translation": [0, 304.8, 304.8], "rotation": [0, 0, 0]},
+        "2": {"translation": [0, 152.4, 228.6], "rotation": [0, 0, 0]},
+        "3": {"translation": [600, -900, 300], "rotation": [0, 0, 90]},
+        "4": {"translation": [1100, -900, 250], "rotation": [0, 0, 90]},
+        "5": {"translation": [800, 1300, 280], "rotation": [0, 0, -90]},
+    },
+}
+
+TRAJECTORY = {
+    "seed": 11,
+    "n_frames": 40,
+    "map": "world_map.json",
+    "camera": {
+        "camera_matrix": [[540.0, 0.0, 318.9], [0.0, 540.0, 241.2], [0.0, 0.0, 1.0]],
+        "dist_coeffs": [-0.08, 0.02, 0.0, 0.0, 0.0],
+        "image_size": [640, 480],
+        "source": "synthetic: the true camera of data/trajectory (tools/make_data.py)",
+    },
+    "render": {"blur_px": 0.5, "noise_std": 1.0, "gradient": 0.1, "supersample": 4, "wall_texture": 3.0},
+}
+
+
+# -- helpers -----------------------------------------------------------------------------------------
+
+def provenance() -> dict:
+    """What made the files: the versions that decide their exact pixels."""
+    return {
+        "generator": "tools/make_data.py",
+        "fidlearn": fidlearn.__version__,
+        "opencv": cv2.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def write_png(path: Path, image: np.ndarray) -> None:
+    ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    if not ok:
+        raise RuntimeError(f"cannot encode {path}")
+    atomic_write(path, lambda tmp: tmp.write_bytes(buf.tobytes()))
+    path.chmod(0o644)
+
+
+def write_json(path: Path, obj) -> None:
+    write_json_atomic(path, obj)
+    path.chmod(0o644)
+
+
+def fresh_folder(folder: Path, pattern: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob(pattern):
+        old.unlink()
+
+
+def matrix(T: np.ndarray) -> list:
+    return [[round(float(v), 12) for v in row] for row in np.asarray(T)]
+
+
+def corners_json(truth: dict) -> dict:
+    return {str(i): [[round(float(v), 6) for v in p] for p in c] for i, c in sorted(truth.items())}
+
+
+# -- the folders ------------------------------------------------------------------------------------
+
+def make_calibration() -> None:
+    folder = DATA / "calibration"
+    fresh_folder(folder, "view_*.png")
+    camera = Camera.from_dict(CALIBRATION["camera"])
+    camera.save(folder / "camera_true.json")
+    (folder / "camera_true.json").chmod(0o644)
+    views = render_calibration_views(
+        camera, n_views=CALIBRATION["n_views"], pattern_size=tuple(CALIBRATION["pattern_size"]),
+        square_size_mm=CALIBRATION["square_size_mm"], seed=CALIBRATION["seed"], **CALIBRATION["render"],
+    )
+    records = []
+    for i, (image, T, px) in enumerate(zip(views.images, views.T_world_camera, views.image_points)):
+        name = f"view_{i:02d}.png"
+        write_png(folder / name, image)
+        T_camera_board = frames.invert_transform(T)
+        tilt = frames.rotation_angle_deg(T_camera_board[:3, :3], np.eye(3))
+        records.append({
+            "image": name,
+            "T_world_camera": matrix(T),
+            "T_camera_board": matrix(T_camera_board),
+            "distance_mm": round(float(np.linalg.norm(T_camera_board[:3, 3])), 3),
+            "board_rotation_deg": round(tilt, 3),
+            "corners_px": [[round(float(v), 6) for v in p] for p in px],
+        })
+    write_json(folder / "views.json", {
+        "what": "synthetic checkerboard views; the world frame is the board's (OpenCV object points: "
+                "inner corner (i, j) at (i * square, j * square, 0) mm)",
+        "camera": "camera_true.json",
+        "function": "fidlearn.synthetic.render_calibration_views",
+        "arguments": {k: v for k, v in CALIBRATION.items() if k not in ("camera", "render")} | CALIBRATION["render"],
+        "object_points_mm": [[float(v) for v in p] for p in views.object_points],
+        "views": records,
+        "provenance": provenance(),
+    })
+    print(f"calibration: {len(records)} views in {folder}")
+
+
+def make_scenes() -> None:
+    folder = DATA / "scenes"
+    fresh_folder(folder, "scene_*.png")
+    MarkerMap.from_dict(TWO_WALLS_MAP, source="two_walls_map.json").save(DATA / "two_walls_map.json")
+    (DATA / "two_walls_map.json").chmod(0o644)
+    camera = Camera.from_dict(SCENES["camera"])
+    camera.save(folder / "camera.json")
+    (folder / "camera.json").chmod(0o644)
+    records = []
+    for i, (map_name, eye, target, roll) in enumerate(SCENES["views"]):
+        marker_map = MarkerMap.load(DATA / map_name)
+        T = look_at(eye, target, roll_deg=roll)
+        seed = 100 + i
+        image, truth = render_scene(camera, marker_map, T, seed=seed, **SCENES["render"])
+        name = f"scene_{i:02d}.png"
+        write_png(folder / name, image)
+        records.append({
+            "image": name,
+            "map": map_name,
+            "T_world_camera": matrix(T),
+            "look_at": {"eye_mm": eye, "target_mm": target, "roll_deg": roll},
+            "seed": seed,
+            "visible_ids": sorted(int(k) for k in truth),
+            "corners_px": corners_json(truth),
+        })
+    write_json(folder / "poses.json", {
+        "what": "the seed's room seen from known poses; maps are in data/, T_world_camera in mm",
+        "camera": "camera.json",
+        "function": "fidlearn.synthetic.render_scene",
+        "render": SCENES["render"],
+        "images": records,
+        "provenance": provenance(),
+    })
+    print(f"scenes: {len(records)} images in {folder}, and {DATA / 'two_walls_map.json'}")
+
+
+def make_trajectory() -> None:
+    folder = DATA / "trajectory"
+    fresh_folder(folder, "frame_*.png")
+    camera = Camera.from_dict(TRAJECTORY["camera"])
+    camera.save(folder / "camera.json")
+    (folder / "camera.json").chmod(0o644)
+    marker_map = MarkerMap.load(DATA / TRAJECTORY["map"])
+    poses = trajectory_poses(marker_map, TRAJECTORY["n_frames"], TRAJECTORY["seed"])
+    drive = render_trajectory(camera, marker_map, seed=TRAJECTORY["seed"], poses=poses, **TRAJECTORY["render"])
+    records = []
+    for i, (image, T, truth) in enumerate(zip(drive.images, drive.T_world_camera, drive.truth)):
+        name = f"frame_{i:03d}.png"
+        write_png(folder / name, image)
+        records.append({"image": name, "T_world_camera": matrix(T), "visible_ids": sorted(int(k) for k in truth),
+                        "corners_px": corners_json(truth)})
+    write_json(folder / "poses.json", {
+        "what": "a camera on a robot driving toward the north wall; frame i is rendered with seed "
+                "seed * 1000 + i; T_world_camera in mm",
+        "camera": "camera.json",
+        "map": TRAJECTORY["map"],
+        "function": "fidlearn.synthetic.render_trajectory (poses from fidlearn.synthetic.trajectory_poses)",
+        "seed": TRAJECTORY["seed"],
+        "n_frames": TRAJECTORY["n_frames"],
+        "render": TRAJECTORY["render"],
+        "frames": records,
+        "provenance": provenance(),
+    })
+    print(f"trajectory: {len(records)} frames in {folder}")
+
+
+def make_real(source: Path) -> None:
+    folder = DATA / "real"
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in REAL_FOLDERS:
+        src = source / name
+        if not src.is_dir():
+            raise SystemExit(f"error: {src} does not exist; pass --real-source with the folder holding {', '.join(REAL_FOLDERS)}")
+        dst = folder / name
+        dst.mkdir(exist_ok=True)
+        for f in sorted(src.iterdir()):
+            if f.is_file():
+                shutil.copyfile(f, dst / f.name)
+                (dst / f.name).chmod(0o644)
+    print(f"real: {', '.join(REAL_FOLDERS)} copied from {source} to {folder}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Regenerate fidlearn's data/ folder from seeds.")
+    parser.add_argument("--only", choices=["calibration", "scenes", "trajectory", "real"], action="append",
+                        help="regenerate only this part (repeatable); default: all")
+    parser.add_argument("--real-source", type=Path, default=REAL_SOURCE, help="where the real photos are copied from")
+    args = parser.parse_args(argv)
+    parts = args.only or ["calibration", "scenes", "trajectory", "real"]
+    if "calibration" in parts:
+        make_calibration()
+    if "scenes" in parts:
+        make_scenes()
+    if "trajectory" in parts:
+        make_trajectory()
+    if "real" in parts:
+        make_real(args.real_source)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
