@@ -46,6 +46,7 @@ __all__ = [
     "draw_frame",
     "draw_world_axes",
     "draw_markers",
+    "draw_box",
     "camera_frustum",
     "draw_camera",
     "plot_scene",
@@ -167,6 +168,23 @@ def draw_markers(ax: Axes, marker_map: MarkerMap, ids: Iterable[int] | None = No
     return coll
 
 
+def draw_box(ax: Axes, min_mm: Sequence[float], max_mm: Sequence[float], color: str = "0.6",
+             linewidth: float = 0.8) -> list:
+    """Outline an axis-aligned box (a room) from corner ``min_mm`` to corner ``max_mm`` (world, mm).
+
+    Returns the 12 edge Line3D artists.
+    """
+    lo, hi = np.asarray(min_mm, dtype=float), np.asarray(max_mm, dtype=float)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    lines = []
+    for i in range(8):
+        for j in range(i + 1, 8):
+            if np.count_nonzero(corners[i] != corners[j]) == 1:
+                (line,) = ax.plot(*corners[[i, j]].T, color=color, linewidth=linewidth)
+                lines.append(line)
+    return lines
+
+
 def camera_frustum(camera: Camera, T_world_camera: np.ndarray, depth_mm: float = 200.0) -> np.ndarray:
     """The camera's viewing pyramid in world coordinates: apex and the image's corners at ``depth_mm``.
 
@@ -222,7 +240,8 @@ def _pose_matrix(pose) -> np.ndarray:
 def plot_scene(marker_map: MarkerMap | None = None, poses: Sequence = (), camera: Camera | None = None,
                labels: Sequence[str] | None = None, ax: Axes | None = None, scale_mm: float | None = None,
                world_axes_mm: float | None = None, title: str | None = None, show_corners: bool = False,
-               extra_points: np.ndarray | None = None, elev: float = 20.0, azim: float = -35.0) -> Figure:
+               extra_points: np.ndarray | None = None, room_mm: Sequence[Sequence[float]] | None = None,
+               elev: float = 20.0, azim: float = -35.0) -> Figure:
     """The room in 3D: world axes, the markers of a map and the cameras at their poses.
 
     Parameters
@@ -239,6 +258,8 @@ def plot_scene(marker_map: MarkerMap | None = None, poses: Sequence = (), camera
         Depth of the drawn frustums; by default a fifth of the scene's size.
     extra_points : array_like, shape (N, 3), optional
         More points (mm) the view must include.
+    room_mm : pair of (3,) points, optional
+        Opposite corners of the room (mm): its outline is drawn (:func:`draw_box`).
 
     Returns
     -------
@@ -255,6 +276,9 @@ def plot_scene(marker_map: MarkerMap | None = None, poses: Sequence = (), camera
     pts += [T[:3, 3][None] for T in Ts]
     if extra_points is not None:
         pts.append(np.asarray(extra_points, dtype=float).reshape(-1, 3))
+    if room_mm is not None:
+        pts.append(np.asarray(room_mm, dtype=float).reshape(2, 3))
+        draw_box(ax, room_mm[0], room_mm[1])
     allp = np.vstack(pts)
     size = float(np.ptp(allp, axis=0).max()) if len(allp) > 1 else 1000.0
     size = size if size > 0 else 1000.0

@@ -92,6 +92,14 @@ def test_draw_markers_puts_one_square_per_marker_at_its_corners(seed_map):
     assert texts == ["0", "1", "2"]
 
 
+def test_draw_box_draws_the_twelve_edges_of_the_room():
+    ax = plotting.new_axes_3d()
+    lines = plotting.draw_box(ax, [0, 0, 0], [4000, 3000, 2500])
+    assert len(lines) == 12
+    lengths = sorted(round(float(np.linalg.norm(np.diff(line_xyz(line), axis=0)))) for line in lines)
+    assert lengths == [2500] * 4 + [3000] * 4 + [4000] * 4
+
+
 def test_set_axes_equal_gives_every_axis_the_same_range():
     ax = plotting.new_axes_3d()
     centre, half = plotting.set_axes_equal(ax, np.array([[0, 0, 0], [1000, 200, 50]]), margin=0)
