@@ -319,8 +319,8 @@ def refine_corners_edges(
     n_lines, n_samples = u.size, v.size
     centre = 0.5 * (n_samples - 1)
     half = n_lines // 2
+    mid_sample = n_samples // 2
     rows = np.arange(M * 4 * n_lines)
-    ones = np.ones(n_samples, dtype=np.float32)
     shift = float(expand_px)
     for _ in range(iterations):
         P1 = C[:, _NEXT]
@@ -342,19 +342,25 @@ def refine_corners_edges(
         my = (by + s * ny.astype(np.float32)[..., None, None]).reshape(-1, n_samples)
         prof = cv2.remap(gray, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
-        # Levels of the black border (inner end) and the quiet zone (outer end): medians over each side's profiles.
-        inner = np.sort(prof[..., 0] + prof[..., 1], axis=2)[..., half]  # (M, 4), twice the level
-        outer = np.sort(prof[..., -1] + prof[..., -2], axis=2)[..., half]
-        pol = np.where(outer >= inner, 0.5, -0.5).astype(np.float32)  # dark inside, or an inverted marker
-        z = (2.0 * prof - (0.5 * (inner + outer))[..., None, None]) * pol[..., None, None]  # < 0 inside the edge
-        # Each profile crosses the mid level once, after its k samples below it (noise aside).
+        # Levels: the darkest of the inner half and the brightest of the outer half of each profile (a
+        # narrow quiet zone with a darker wall beyond still gives the paper's level), median over each
+        # side. Inverted markers (light border) are told apart by which way round the contrast is larger.
+        pin, pout = prof[..., : mid_sample + 1], prof[..., mid_sample:]
+        imin, imax, omin, omax = pin.min(-1), pin.max(-1), pout.min(-1), pout.max(-1)  # (M, 4, N)
+        normal = ((omax - imin) >= (imax - omin)).mean(-1) >= 0.5  # (M, 4): dark inside
+        dark = np.sort(np.where(normal[..., None], imin, -imax), axis=2)[..., half]  # levels times the polarity
+        light = np.sort(np.where(normal[..., None], omax, -omin), axis=2)[..., half]
+        pol = np.where(normal, 1.0, -1.0).astype(np.float32)[..., None, None]
+        z = prof * pol - (0.5 * (dark + light))[..., None, None]  # < 0 inside the edge
         zf = z.reshape(-1, n_samples)
-        k = np.clip(((zf < 0).astype(np.float32) @ ones).astype(np.intp), 1, n_samples - 1)
+        # The edge: the first sample at or above the mid level, k, and the one before it (outward from
+        # there the profile may fall again where a narrow quiet zone meets a darker wall).
+        k = np.maximum(np.argmax(zf >= 0, axis=-1), 1)
         z0, z1 = zf[rows, k - 1], zf[rows, k]
         found = (z0 <= 0) & (z1 > z0)
         pos = (k - 1) + z0 / np.where(found, z0 - z1, -1.0)
         off = (shift + (pos.reshape(M, 4, n_lines) - centre) * (h * (2.0 / (n_samples - 1)))[:, None, None])
-        w = (found.reshape(M, 4, n_lines) & (np.abs(outer - inner) > 20.0)[..., None]).astype(np.float64)
+        w = (found.reshape(M, 4, n_lines) & (light - dark > 20.0)[..., None]).astype(np.float64)
         V = np.stack([np.ones_like(t), t, t * t, off, off * t], axis=-1)  # (M, 4, N, 5)
         for _ in range(2):  # weighted least squares off = a + b t; then again without the profiles 0.75 px off
             m = np.matmul(w[..., None, :], V)[..., 0, :]  # (M, 4, 5) weighted sums
