@@ -2,18 +2,17 @@
 
 import json
 import shutil
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
 from fidlearn import Camera, frames
+from fidlearn.data import data_path
 from fidlearn.errors import CameraError, FidlearnWarning
 
 K = np.array([[800.0, 0, 639.5], [0, 805.0, 359.5], [0, 0, 1]])
 DIST = np.array([-0.21, 0.07, 0.001, -0.0005, -0.01])
-TUTORIAL_YML = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "opencv_aruco_photo" / "tutorial_camera_params.yml"
 
 
 @pytest.fixture
@@ -64,10 +63,8 @@ def test_filestorage_round_trip(cam, tmp_path, suffix):
 
 
 def test_loads_opencv_tutorial_yaml(tmp_path):
-    if not TUTORIAL_YML.exists():
-        pytest.skip("../shared/realdata is not beside the repository")
     path = tmp_path / "tutorial_camera_params.yml"
-    shutil.copy(TUTORIAL_YML, path)
+    shutil.copy(data_path("real", "opencv_aruco_photo", "tutorial_camera_params.yml"), path)
     with pytest.raises(CameraError, match="no image_width/image_height; pass image_size"):
         Camera.load(path)
     cam = Camera.load(path, image_size=(640, 480))
