@@ -228,8 +228,9 @@ def _run_markers(args) -> int:
     pages = len(sheet.pages)
     where = ", ".join(str(f) for f in files)
     extra = f" at {args.dpi:g} dpi" if out.suffix.lower() == ".png" else ""
-    print(f"{where}: {len(ids)} markers of {sheet.size_mm:g} mm ({sheet.dictionary}) on {pages} "
-          f"{sheet.paper} page{'s' if pages > 1 else ''}{extra}, up to {sheet.per_page} per page")
+    several = f", {sheet.per_page} per page" if pages > 1 else ""
+    print(f"{where}: {len(ids)} marker{'s' if len(ids) > 1 else ''} of {sheet.size_mm:g} mm ({sheet.dictionary}) "
+          f"on {pages} {sheet.paper} page{'s' if pages > 1 else ''}{extra}{several}")
     print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")
     return 0
 
@@ -500,6 +501,214 @@ class _Staging:
             shutil.rmtree(self.tmp, ignore_errors=True)
 
 
+# -- fidlearn calibrate --------------------------------------------------------------------
+#: Fewer used views than this earns a warning: OpenCV's advice is 10 to 20 varied views.
+MIN_GOOD_VIEWS = 10
+#: A calibration whose board normals all lie within this angle (deg) of each other is too flat a set.
+MIN_TILT_SPREAD_DEG = 10.0
+#: Two views closer than this (deg and fraction of the distance) are near duplicates.
+DUPLICATE_DEG, DUPLICATE_FRACTION = 2.0, 0.02
+_CELL_NAMES = (("top-left", "top", "top-right"), ("left", "centre", "right"), ("bottom-left", "bottom", "bottom-right"))
+
+
+class _Progress:
+    """A plain-text progress bar on stderr when it is a terminal; otherwise one counter line at the end."""
+
+    def __init__(self, what: str):
+        self.what = what
+        self.tty = sys.stderr.isatty()
+        self.done = 0
+        self.total = 0
+
+    def __call__(self, i: int, n: int, name: str) -> None:
+        self.done, self.total = i, n
+        if self.tty:
+            width = 24
+            filled = int(round(width * i / max(n, 1)))
+            label = Path(name).name[-30:]
+            sys.stderr.write(f"\r{self.what} [{'#' * filled}{'-' * (width - filled)}] {i}/{n} {label}\x1b[K")
+            sys.stderr.flush()
+
+    def clear(self) -> None:
+        if self.tty and self.total:
+            sys.stderr.write("\r\x1b[K")
+            sys.stderr.flush()
+
+    def finish(self, found: int) -> None:
+        """After a successful run: the counter line (non-terminal output only)."""
+        if not self.tty and self.total:
+            print(f"{self.what}: searched {self.total} images, board found in {found}", file=sys.stderr)
+
+
+def coverage_grid(points_px: Sequence, image_size: tuple[int, int]):
+    """Board corners per cell of a 3x3 grid over the image: (3, 3) int, row 0 at the top.
+
+    ``points_px`` holds one (N, 2) array of pixels per view (pixel centres at
+    integers, so the image spans -0.5 .. width - 0.5).
+    """
+    import numpy as np
+
+    w, h = image_size
+    grid = np.zeros((3, 3), dtype=int)
+    for pts in points_px:
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+        col = np.clip(((pts[:, 0] + 0.5) * 3 // w).astype(int), 0, 2)
+        row = np.clip(((pts[:, 1] + 0.5) * 3 // h).astype(int), 0, 2)
+        np.add.at(grid, (row, col), 1)
+    return grid
+
+
+def view_diversity(T_camera_board: dict) -> tuple[float, list[tuple[str, str, float, float]]]:
+    """How different the board poses are.
+
+    Returns the largest angle (deg) between the board's normals over all pairs
+    of views (0 for one view), and the near-duplicate pairs ``(a, b, angle_deg,
+    moved_fraction)``: views whose board turned less than ``DUPLICATE_DEG`` and
+    moved less than ``DUPLICATE_FRACTION`` of its distance.
+    """
+    import numpy as np
+
+    from . import frames
+
+    names = list(T_camera_board)
+    normals = [np.asarray(T_camera_board[n])[:3, 2] for n in names]
+    spread = 0.0
+    duplicates = []
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            cos = float(np.clip(abs(normals[i] @ normals[j]), -1.0, 1.0))
+            spread = max(spread, math.degrees(math.acos(cos)))
+            Ti, Tj = np.asarray(T_camera_board[names[i]]), np.asarray(T_camera_board[names[j]])
+            angle = frames.rotation_angle_deg(Ti[:3, :3], Tj[:3, :3])
+            moved = float(np.linalg.norm(Ti[:3, 3] - Tj[:3, 3]) / max(np.linalg.norm(Ti[:3, 3]), 1e-9))
+            if angle < DUPLICATE_DEG and moved < DUPLICATE_FRACTION:
+                duplicates.append((names[i], names[j], angle, moved))
+    return spread, duplicates
+
+
+def _add_calibrate(sub) -> None:
+    p = sub.add_parser(
+        "calibrate",
+        help="camera intrinsics and distortion from photos of a board",
+        description=(
+            "Calibrate a camera from photos of a printed checkerboard (or a ChArUco board with --charuco). "
+            "Prints a table of every photo (board found, reprojection error, rejected and why), the "
+            "intrinsics with their standard deviations, how well the corners cover the picture, and "
+            "warnings when the views are too few (< 10), too alike, or leave parts of the picture empty. "
+            "Measure one printed square with calipers and give that as --square-mm."
+        ),
+    )
+    p.add_argument("inputs", nargs="+", type=Path, metavar="IMAGE_OR_FOLDER", help="photos of the board, or folders of them")
+    size = p.add_mutually_exclusive_group(required=True)
+    size.add_argument("--pattern", metavar="CxR", help="inner corners, e.g. 9x6 (a board of 10x7 squares)")
+    size.add_argument("--squares", metavar="CxR", help="squares, e.g. 5x7 (OpenCV's ChArUco count)")
+    p.add_argument("--square-mm", type=float, required=True, metavar="MM", help="side of one printed square, mm")
+    p.add_argument("--charuco", action="store_true", help="a ChArUco board")
+    p.add_argument("--marker-mm", type=float, metavar="MM", help="ChArUco marker side, mm")
+    p.add_argument("--dictionary", help="ChArUco dictionary (default 6X6_250)")
+    p.add_argument("--annotate", type=Path, metavar="DIR", help="save each photo with its detected corners drawn")
+    p.add_argument("-o", "--output", type=Path, required=True, help="camera file to write (.json, or OpenCV .yml/.xml)")
+    p.set_defaults(run=_run_calibrate)
+
+
+def _draw_calibration_view(path: Path, view, points_px, pattern, charuco: bool):
+    import cv2
+    import numpy as np
+
+    from .detection import _as_bgr, load_image
+
+    out = _as_bgr(load_image(path))
+    unit = max(out.shape[:2]) / 640
+    if points_px is not None:
+        pts = np.asarray(points_px, dtype=np.float32).reshape(-1, 1, 2)
+        if charuco:
+            for u, v in pts.reshape(-1, 2):
+                cv2.circle(out, (int(round(u * 16)), int(round(v * 16))), int(4 * unit * 16), (0, 200, 0), 1, cv2.LINE_AA, 4)
+        else:
+            cv2.drawChessboardCorners(out, pattern, pts, True)
+        text = f"{view.status}: {len(pts)} corners, rms {view.rms_px:.3f} px"
+        colour = (0, 160, 0)
+    else:
+        text = f"{view.status}: {view.reason}"[:90]
+        colour = (0, 0, 255)
+    scale = 0.45 * unit
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    cv2.rectangle(out, (0, 0), (tw + 16, th + base + 12), (255, 255, 255), -1)
+    cv2.putText(out, text, (8, th + 6), cv2.FONT_HERSHEY_SIMPLEX, scale, colour, 1, cv2.LINE_AA)
+    return out
+
+
+def _run_calibrate(args) -> int:
+    from . import calibration
+    from .printables import parse_pattern
+
+    out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
+    items = _expand_inputs(args.inputs, videos=False)
+    staging = _Staging(args.annotate)
+    if args.pattern is not None:
+        cols, rows = parse_pattern(args.pattern, "--pattern")
+        squares = (cols + 1, rows + 1)
+    else:
+        squares = parse_pattern(args.squares, "--squares")
+    pattern = (squares[0] - 1, squares[1] - 1)
+    if not args.charuco and (args.dictionary or args.marker_mm is not None):
+        raise UsageError("--dictionary and --marker-mm describe a ChArUco board; add --charuco or drop them")
+    if args.charuco and args.marker_mm is None:
+        raise UsageError("--charuco needs --marker-mm, the side of one printed marker in mm")
+    paths = [str(p) for _, p in items]
+    progress = _Progress("calibrate")
+    try:
+        if args.charuco:
+            cal = calibration.calibrate_charuco(paths, squares, args.square_mm, args.marker_mm,
+                                                args.dictionary or "6X6_250", progress=progress)
+        else:
+            cal = calibration.calibrate_checkerboard(paths, pattern, args.square_mm, progress=progress)
+    finally:
+        progress.clear()
+    progress.finish(sum(1 for v in cal.views if v.found))
+
+    c, sd = cal.camera, cal.std_intrinsics
+    print(cal.table())
+    print()
+    print(f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board}, "
+          f"RMS reprojection error {cal.rms_px:.3f} px")
+    for name, value in (("fx", c.fx), ("fy", c.fy), ("cx", c.cx), ("cy", c.cy)):
+        print(f"  {name} {value:10.2f} ± {sd.get(name, float('nan')):.2f} px")
+    dist_names = calibration.INTRINSIC_NAMES[4:4 + len(c.dist)]
+    print("  distortion " + ", ".join(f"{n} {v:.4f} ± {sd.get(n, float('nan')):.4f}" for n, v in zip(dist_names, c.dist)))
+
+    grid = coverage_grid(cal.image_points_px.values(), c.image_size)
+    print("board corners per ninth of the picture (3x3 grid):")
+    for row in grid:
+        print("  " + " ".join(f"{v:6d}" for v in row))
+    empty = [_CELL_NAMES[r][k] for r in range(3) for k in range(3) if grid[r, k] == 0]
+    if len(cal.used) < MIN_GOOD_VIEWS:
+        warnings.warn(f"only {len(cal.used)} views used; {MIN_GOOD_VIEWS} to 20 views from varied angles give a "
+                      "trustworthy camera: take more photos", FidlearnWarning)
+    spread, duplicates = view_diversity(cal.T_camera_board)
+    if len(cal.used) > 1 and spread < MIN_TILT_SPREAD_DEG:
+        warnings.warn(f"views too similar: the board faces the camera within {spread:.1f} deg in every view; "
+                      "tilt it 20 to 45 deg in different directions, or the focal length stays uncertain", FidlearnWarning)
+    if duplicates:
+        a, b, _, _ = duplicates[0]
+        warnings.warn(f"{len(duplicates)} pair(s) of nearly identical views (e.g. {Path(a).name} and {Path(b).name}); "
+                      "they add no information: move or tilt the board between photos", FidlearnWarning)
+    if empty:
+        warnings.warn(f"no board corner in the {', '.join(empty)} of the picture; hold the board there too, "
+                      "or the lens distortion is guessed where nothing was measured", FidlearnWarning)
+
+    with staging:
+        c.save(out)
+        if args.annotate:
+            for view, path in zip(cal.views, paths):  # views come back in input order
+                pts = cal.image_points_px.get(view.name)
+                staging.save(Path(path).name, _draw_calibration_view(Path(path), view, pts, pattern, args.charuco))
+    print(f"camera written to {out}")
+    if args.annotate:
+        print(f"annotated photos in {args.annotate}/")
+    return 0
+
+
 # -- fidlearn locate -----------------------------------------------------------------------
 def _add_locate(sub) -> None:
     p = sub.add_parser(
@@ -674,13 +883,38 @@ def _run_locate(args) -> int:
 
 
 #: Subcommand builders, in the order ``fidlearn --help`` lists them.
-COMMANDS: list[Callable] = [_add_board, _add_markers, _add_corners, _add_locate, _add_render, _add_doctor]
+COMMANDS: list[Callable] = [_add_board, _add_calibrate, _add_markers, _add_corners, _add_locate, _add_render, _add_doctor]
+
+
+_WORKFLOW = """\
+from printer to pose:
+  fidlearn board --pattern 9x6 --square-mm 25 -o board.pdf         print, measure a square
+  fidlearn calibrate photos/ --pattern 9x6 --square-mm 25 -o camera.json
+  fidlearn markers --ids 0-2 --size-mm 80 -o markers.pdf           print, tape up, measure
+  fidlearn corners map.json -o corners.json                        check the map
+  fidlearn locate frames/ --camera camera.json --map map.json      the camera's pose
+'fidlearn COMMAND --help' tells more."""
+
+
+class _TopHelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps each command and its help on one line (argparse forgets the commands' extra indent)."""
+
+    def __init__(self, prog):
+        super().__init__(prog, max_help_position=24, width=100)
+
+    def add_argument(self, action):
+        super().add_argument(action)
+        if isinstance(action, argparse._SubParsersAction):
+            longest = max((len(name) for name in action.choices), default=0)
+            self._action_max_length = max(self._action_max_length, longest + 2 * self._indent_increment + 2)
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="fidlearn",
         description="Camera localization from ArUco fiducials: calibrate, map, detect, locate.",
+        epilog=_WORKFLOW,
+        formatter_class=_TopHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"fidlearn {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -707,6 +941,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:  # the disk, not the code: permission denied, disk full, ...
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"error: {where}{_one_line(exc.strerror or str(exc))}; check the path and its permissions", file=sys.stderr)
+        return 2
 
 
 def _one_line(text: str) -> str:
