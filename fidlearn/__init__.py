@@ -34,6 +34,7 @@ from .frames import (
 )
 from .markermap import MarkerMap, MarkerPlacement
 from .data import data_dir, data_path
+from .detection import Detection, detect_markers, draw_detections
 from .synthetic import (
     CalibrationViews,
     Trajectory,
@@ -72,6 +73,9 @@ __all__ = [
     "transform_points",
     "data_dir",
     "data_path",
+    "Detection",
+    "detect_markers",
+    "draw_detections",
     "render_scene",
     "look_at",
     "Pose",

@@ -170,10 +170,10 @@ def _detector(dictionary: str, refine: str, params: Any):
     fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if refine == "edges" else refine)
     detector = _cv.make_detector(dictionary, _cv.make_detector_parameters(**fields))
     cells = _cv.dictionary_marker_bits(dictionary) + 2 * int(fields["markerBorderBits"])
-    _DETECTOR_CACHE[key] = (detector, cells)
+    hit = _DETECTOR_CACHE[key] = (detector, cells)
     while len(_DETECTOR_CACHE) > _DETECTOR_CACHE_SIZE:
         _DETECTOR_CACHE.popitem(last=False)
-    return detector, cells
+    return hit
 
 
 @lru_cache(maxsize=64)

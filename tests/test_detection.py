@@ -1,0 +1,333 @@
+"""Marker detection: ids and corners against known answers (published photos, synthetic truth)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, data_path
+from fidlearn.detection import (
+    DEFAULT_REFINE,
+    REFINE_METHODS,
+    Detection,
+    _DETECTOR_CACHE,
+    _detector,
+    as_gray,
+    detect_markers,
+    draw_detections,
+    load_image,
+    refine_corners_edges,
+)
+from fidlearn.errors import DictionaryError, FidlearnError, ImageError
+from fidlearn.synthetic import look_at, render_scene
+
+PHOTO_IDS = [23, 40, 62, 98, 124, 203]  # published: opencv_contrib aruco tutorial, DICT_6X6_250
+MARKER_MM = 80.0
+
+
+@pytest.fixture(scope="module")
+def photo() -> np.ndarray:
+    return load_image(data_path("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg"))
+
+
+def plain_opencv(gray: np.ndarray, dictionary: str) -> dict[int, np.ndarray]:
+    """OpenCV's detector with its default parameters (no refinement), called directly."""
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, "DICT_" + dictionary)),
+                                  cv2.aruco.DetectorParameters())
+    corners, ids, _ = det.detectMarkers(gray)
+    return {int(i): np.asarray(c, float).reshape(4, 2) for i, c in zip(np.ravel(ids), corners)}
+
+
+def radial_unit(corners: np.ndarray) -> np.ndarray:
+    """(..., 4, 2) unit vectors from each marker's centre to its corners."""
+    r = corners - corners.mean(axis=-2, keepdims=True)
+    return r / np.linalg.norm(r, axis=-1, keepdims=True)
+
+
+# ----------------------------------------------------------------------------------------------
+# The real photo
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("refine", REFINE_METHODS)
+def test_photo_gives_the_published_ids(photo, refine):
+    dets = detect_markers(photo, "6X6_250", refine=refine)
+    assert [d.id for d in dets] == PHOTO_IDS
+    assert all(isinstance(d, Detection) and d.corners.shape == (4, 2) and d.corners.dtype == np.float64 for d in dets)
+
+
+def test_wrong_dictionary_finds_only_the_known_false_marker_on_the_box(photo):
+    # DICT_4X4_50 misreads a pattern printed on the cardboard box (top of the picture) as id 17,
+    # on OpenCV 4.14 and 5.0 alike; none of the real markers (all on the paper) comes out.
+    dets = detect_markers(photo, "4X4_50")
+    assert [d.id for d in dets] == [17]
+    assert not set(d.id for d in dets) & set(PHOTO_IDS)
+    assert dets[0].center[1] < 120  # the box; the paper starts below y = 125
+    assert detect_markers(photo, "ARUCO_ORIGINAL") == []
+
+
+def test_default_corners_agree_with_plain_opencv_within_a_pixel(photo):
+    gray = as_gray(photo)
+    ref = plain_opencv(gray, "6X6_250")
+    dets = detect_markers(photo, "6X6_250")
+    diff = np.array([d.corners - ref[d.id] for d in dets])
+    dist = np.linalg.norm(diff, axis=2)
+    assert dist.mean() < 0.75 and dist.max() < 1.25
+    # The difference is OpenCV's known bias: its unrefined contour runs through the outermost dark
+    # pixels, about half a pixel inside the edge, so the edge fit moves corners outwards.
+    outward = (diff * radial_unit(np.array([ref[d.id] for d in dets]))).sum(axis=2).mean()
+    assert 0.2 < outward < 0.8
+    # "none" is exactly OpenCV's own answer
+    assert all(np.array_equal(d.corners, ref[d.id]) for d in detect_markers(photo, "6X6_250", refine="none"))
+
+
+def test_bgr_gray_bgra_and_16_bit_give_the_same_answer(photo):
+    gray = cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY)
+    variants = [
+        gray,
+        photo,
+        cv2.cvtColor(photo, cv2.COLOR_BGR2BGRA),
+        gray[:, :, None],
+        gray.astype(np.uint16) << 8,
+    ]
+    answers = [detect_markers(v, "6X6_250") for v in variants]
+    for dets in answers[1:]:
+        assert [d.id for d in dets] == PHOTO_IDS
+        for a, b in zip(answers[0], dets):
+            np.testing.assert_array_equal(a.corners, b.corners)
+
+
+def test_charuco_marker_corners_fit_the_board_geometry():
+    """Known answer for real photos: a flat board's marker corners map by one homography.
+
+    After undistorting with the tutorial's calibration, a homography from the board
+    (CharucoBoard 5x7, 40 mm squares, 20 mm markers, DICT_6X6_250) must fit the
+    detected corners. The default refinement fits it twice as well as OpenCV's
+    unrefined and sub-pixel corners (0.43 px RMS against 0.95 and 0.83 px on OpenCV 5.0).
+    """
+    cam = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
+    board = _cv.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
+    obj = {int(i): np.asarray(o, float).reshape(4, 3)[:, :2] for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())}
+    rms, shift = {}, []
+    for name in ("img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg"):
+        image = load_image(data_path("real", "opencv_charuco", name))
+        per = {}
+        for refine in ("none", "subpix", DEFAULT_REFINE, "apriltag"):
+            dets = [d for d in detect_markers(image, "6X6_250", refine=refine) if d.id in obj]
+            assert len(dets) >= 13
+            P = np.concatenate([obj[d.id] for d in dets])
+            Q = cv2.undistortPoints(np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K).reshape(-1, 2)
+            H, _ = cv2.findHomography(P, Q, 0)
+            res = Q - cv2.perspectiveTransform(P.reshape(-1, 1, 2), H).reshape(-1, 2)
+            rms.setdefault(refine, []).append(res)
+            per[refine] = {d.id: d.corners for d in dets}
+        shift += [per["apriltag"][i] - per[DEFAULT_REFINE][i] for i in per[DEFAULT_REFINE] if i in per["apriltag"]]
+    rms = {k: float(np.sqrt((np.concatenate(v) ** 2).sum(1).mean())) for k, v in rms.items()}
+    assert rms[DEFAULT_REFINE] < 0.5
+    assert rms[DEFAULT_REFINE] < 0.6 * rms["none"] and rms[DEFAULT_REFINE] < 0.6 * rms["subpix"]
+    # The AprilTag refinement reports corners shifted by about half a pixel down and right.
+    dx, dy = np.concatenate(shift).mean(axis=0)
+    assert 0.3 < dx < 0.6 and 0.3 < dy < 0.6
+
+
+# ----------------------------------------------------------------------------------------------
+# Synthetic scenes with known corners
+# ----------------------------------------------------------------------------------------------
+
+def wall(dictionary: str = "ARUCO_ORIGINAL", n_cols: int = 3, n_rows: int = 2) -> MarkerMap:
+    pitch = 1.75 * MARKER_MM
+    pl = {}
+    for r in range(n_rows):
+        for c in range(n_cols):
+            i = 3 + r * n_cols + c
+            pl[i] = MarkerPlacement(i, (0.0, c * pitch, 1000.0 - r * pitch), (0.0, 0.0, 0.0))
+    return MarkerMap(pl, MARKER_MM, dictionary)
+
+
+def view(side_px: float, az_deg: float = 20.0, el_deg: float = -10.0, roll_deg: float = 0.0, size=(640, 480)):
+    cam = Camera.from_fov(60.0, size)
+    centre = np.array([0.0, 0.875 * 2 * MARKER_MM + MARKER_MM / 2, 1000.0 - 0.875 * MARKER_MM - MARKER_MM / 2])
+    dist = cam.fx * MARKER_MM / side_px
+    az, el = np.radians(az_deg), np.radians(el_deg)
+    eye = centre + dist * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    return cam, look_at(eye, centre, roll_deg=roll_deg)
+
+
+@pytest.mark.parametrize("side_px, seed", [(30, 1), (45, 2), (80, 3)])
+def test_synthetic_corners_match_the_truth(side_px, seed):
+    mm = wall()
+    cam, T = view(side_px, az_deg=25.0, el_deg=-15.0, roll_deg=20.0 * seed)
+    image, truth = render_scene(cam, mm, T, seed=seed, blur_px=0.8, noise_std=1.5, gradient=0.2)
+    assert len(truth) == 6
+    dets = detect_markers(image)  # ARUCO_ORIGINAL, the default refinement
+    assert [d.id for d in dets] == sorted(truth)
+    err = np.array([d.corners - truth[d.id] for d in dets])
+    rms = np.sqrt((err ** 2).sum(2).mean())
+    # Measured (docs/corner_refinement.md): 0.02-0.05 px RMS from 30 px up; bound with margin.
+    assert rms < 0.12
+    assert np.abs(err.reshape(-1, 2).mean(axis=0)).max() < 0.05  # no constant shift
+    truths = np.array([truth[d.id] for d in dets])
+    assert abs((err * radial_unit(truths)).sum(2).mean()) < 0.05  # neither inwards nor outwards
+    # OpenCV's unrefined corners on the same picture sit about 0.5-0.8 px inside.
+    plain = np.array([d.corners - truth[d.id] for d in detect_markers(image, refine="none")])
+    assert np.sqrt((plain ** 2).sum(2).mean()) > 3 * rms
+
+
+@pytest.mark.parametrize("roll_deg", [90.0, 180.0, 270.0])
+def test_rolled_camera_still_reports_each_markers_own_top_left_first(roll_deg):
+    cam, T = view(50, roll_deg=roll_deg)
+    image, truth = render_scene(cam, wall(), T, seed=4, blur_px=0.6, noise_std=1.0)
+    dets = detect_markers(image)
+    assert [d.id for d in dets] == sorted(truth)
+    for d in dets:
+        assert np.abs(d.corners - truth[d.id]).max() < 0.25, (d, truth[d.id])
+
+
+def test_rotating_the_image_permutes_nothing(photo):
+    # np.rot90 turns the picture 90 degrees counter-clockwise: pixel (x, y) goes to (y, W - 1 - x).
+    gray = as_gray(photo)
+    W = gray.shape[1]
+    before = {d.id: d.corners for d in detect_markers(gray, "6X6_250")}
+    after = {d.id: d.corners for d in detect_markers(np.rot90(gray), "6X6_250")}
+    assert sorted(after) == PHOTO_IDS
+    for i, c in before.items():
+        expected = np.column_stack([c[:, 1], W - 1 - c[:, 0]])  # same corner order: TL stays first
+        assert np.abs(after[i] - expected).max() < 0.3, i
+
+
+def test_inverted_markers_refine_too():
+    cam, T = view(45)
+    image, truth = render_scene(cam, wall(), T, seed=5, blur_px=0.7, noise_std=1.5)
+    dets = detect_markers(255 - image, params={"detectInvertedMarker": True})
+    assert [d.id for d in dets] == sorted(truth)
+    err = np.array([d.corners - truth[d.id] for d in dets])
+    assert np.sqrt((err ** 2).sum(2).mean()) < 0.12
+
+
+def test_edge_refinement_keeps_corners_it_cannot_fit():
+    flat = np.full((100, 100), 128, np.uint8)
+    quad = np.array([[[30.0, 30.0], [70.0, 30.0], [70.0, 70.0], [30.0, 70.0]]])
+    np.testing.assert_array_equal(refine_corners_edges(flat, quad, 7), quad)
+    assert refine_corners_edges(flat, np.zeros((0, 4, 2)), 7).shape == (0, 4, 2)
+
+
+# ----------------------------------------------------------------------------------------------
+# Dictionaries, parameters, the detector cache
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", sorted(_cv.DICTIONARIES))
+def test_every_predefined_dictionary_detects_its_own_last_marker(name):
+    last = _cv.dictionary_size(name) - 1
+    cells = _cv.dictionary_marker_bits(name) + 2
+    marker = _cv.generate_marker(name, last, 20 * cells)
+    image = cv2.copyMakeBorder(marker, 60, 60, 60, 60, cv2.BORDER_CONSTANT, value=255)
+    dets = detect_markers(image, name)
+    assert [d.id for d in dets] == [last]
+    # the marker's outer corners in pixel-centre coordinates: -0.5 .. side - 0.5 inside the border
+    side = 20 * cells
+    truth = np.array([[0, 0], [side, 0], [side, side], [0, side]], float) + 60 - 0.5
+    assert np.abs(dets[0].corners - truth).max() < 0.1
+
+
+@pytest.mark.parametrize("spelling", ["6X6_250", "DICT_6X6_250", "6x6_250", "dict_6x6_250", " 6X6_250 "])
+def test_dictionary_names_are_readable_in_any_case_with_or_without_prefix(photo, spelling):
+    assert [d.id for d in detect_markers(photo, spelling)] == PHOTO_IDS
+
+
+def test_unknown_dictionary_is_a_clear_error(photo):
+    with pytest.raises(DictionaryError, match=r"unknown ArUco dictionary '6X6_2500'.*did you mean.*6X6_250"):
+        detect_markers(photo, "6X6_2500")
+    with pytest.raises(DictionaryError, match="not a non-empty string"):
+        detect_markers(photo, "")
+
+
+def test_unknown_refinement_and_parameter_are_clear_errors(photo):
+    with pytest.raises(FidlearnError, match=r"unknown corner refinement 'subpixel'; use one of 'none', 'subpix'"):
+        detect_markers(photo, "6X6_250", refine="subpixel")
+    with pytest.raises(FidlearnError, match="DetectorParameters has no field 'winSize'"):
+        detect_markers(photo, "6X6_250", params={"winSize": 3})
+    with pytest.raises(FidlearnError, match="must be None, a dict of field overrides"):
+        detect_markers(photo, "6X6_250", params=[("minMarkerPerimeterRate", 0.1)])
+
+
+def test_detector_is_built_once_per_dictionary_refinement_and_parameters(photo):
+    first = _detector("6X6_250", "edges", None)[0]
+    assert _detector("6X6_250", "edges", None)[0] is first
+    assert _detector("6X6_250", "subpix", None)[0] is not first
+    as_dict = _detector("6X6_250", "none", {"minMarkerPerimeterRate": 0.05})[0]
+    assert _detector("6X6_250", "none", {"minMarkerPerimeterRate": 0.05})[0] is as_dict
+    assert _detector("6X6_250", "edges", None)[1] == 8  # 6 bits + 2 border cells
+    assert len(_DETECTOR_CACHE) <= 16
+    # parameters as an OpenCV object work and are honoured: markers this small are dropped
+    params = cv2.aruco.DetectorParameters()
+    params.minMarkerPerimeterRate = 0.25  # perimeter at least 0.25 * 640 = 160 px: only id 40 (44 px side)
+    assert [d.id for d in detect_markers(photo, "6X6_250", params=params)] == [40]
+    assert [d.id for d in detect_markers(photo, "6X6_250", params={"minMarkerPerimeterRate": 0.25})] == [40]
+
+
+def test_rejected_candidates_on_request(photo):
+    dets, rejected = detect_markers(photo, "6X6_250", return_rejected=True)
+    assert [d.id for d in dets] == PHOTO_IDS
+    assert len(rejected) > 0 and all(r.shape == (4, 2) for r in rejected)
+
+
+# ----------------------------------------------------------------------------------------------
+# Images that are not images
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (None, "expected a numpy array"),
+        ("photo.jpg", "expected a numpy array"),
+        (np.zeros((0, 0), np.uint8), "the image is empty"),
+        (np.zeros((48, 64, 2), np.uint8), r"shape \(48, 64, 2\) is not an image"),
+        (np.zeros((4, 48, 64, 3), np.uint8), "is not an image"),
+        (np.zeros((48, 64), np.int32), "pixel type int32 is not supported"),
+        (np.full((48, 64), 2.0), r"float image must hold values in \[0, 1\]"),
+        (np.zeros((4, 4), np.uint8), "too small to hold a marker"),
+    ],
+)
+def test_non_images_raise_image_error(bad, message):
+    with pytest.raises(ImageError, match=message):
+        detect_markers(bad)
+
+
+# ----------------------------------------------------------------------------------------------
+# Drawing
+# ----------------------------------------------------------------------------------------------
+
+def test_draw_detections_marks_outline_id_and_named_corners(photo):
+    dets = detect_markers(photo, "6X6_250")
+    before = photo.copy()
+    out = draw_detections(photo, dets)
+    np.testing.assert_array_equal(photo, before)  # the input is untouched
+    assert out.shape == photo.shape and out.dtype == np.uint8
+    changed = np.any(out != photo, axis=2)
+    assert changed.sum() > 3000
+    for d in dets:  # every corner is drawn over, and the first one (TL) is red
+        for k, (x, y) in enumerate(np.round(d.corners).astype(int)):
+            assert changed[y, x]
+        x, y = np.round(d.corners[0]).astype(int)
+        b, g, r = out[y, x].astype(int)
+        assert r > 200 and g < 60 and b < 60
+    assert changed[:, :].sum() < 0.25 * changed.size  # a figure, not a repaint
+    gray_out = draw_detections(as_gray(photo), dets, corner_labels=False, show_ids=False)
+    assert gray_out.shape == photo.shape
+    assert np.any(gray_out != cv2.cvtColor(as_gray(photo), cv2.COLOR_GRAY2BGR))
+    # nothing to draw: a plain BGR copy
+    np.testing.assert_array_equal(draw_detections(photo, []), photo)
+
+
+def test_draw_detections_labels_make_the_winding_visible(photo):
+    dets = detect_markers(photo, "6X6_250")
+    plain = draw_detections(photo, dets, corner_labels=False)
+    labelled = draw_detections(photo, dets)
+    diff = np.any(plain != labelled, axis=2)
+    # each corner name sits just outside its corner, away from the marker's centre
+    for d in dets:
+        for p in d.corners:
+            away = p - d.center
+            q = np.round(p + 10.0 * away / np.linalg.norm(away)).astype(int)
+            win = diff[max(q[1] - 6, 0): q[1] + 7, max(q[0] - 8, 0): q[0] + 9]
+            assert win.any()
