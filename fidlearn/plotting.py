@@ -146,7 +146,7 @@ def draw_markers(ax: Axes, marker_map: MarkerMap, ids: Iterable[int] | None = No
     """Draw markers as filled squares at their world corners, with their ids.
 
     The top-left corner of each marker gets a red dot, so a wrong rotation in a
-    map shows at a glance. ``show_corners`` labels TL, TR, BR, BL too.
+    map shows at a glance; the id is written just above the marker's top edge. ``show_corners`` labels TL, TR, BR, BL too.
 
     Returns the Poly3DCollection: one polygon per marker, vertices TL, TR, BR, BL (mm).
     """
@@ -155,12 +155,10 @@ def draw_markers(ax: Axes, marker_map: MarkerMap, ids: Iterable[int] | None = No
     quads = [corners[i] for i in ids]
     coll = Poly3DCollection(quads, facecolors=color, edgecolors="k", linewidths=1.0, alpha=alpha)
     ax.add_collection3d(coll)
-    s = marker_map.marker_size_mm
     for mid, c in zip(ids, quads):
         ax.scatter(*c[0], color="tab:red", s=12, depthshade=False)
-        if show_ids:
-            n = marker_map.normal(mid)
-            ax.text(*(c.mean(axis=0) + 0.15 * s * n), str(mid), color="tab:blue", fontsize=10,
+        if show_ids:  # just above the top edge, clear of the dark face
+            ax.text(*((c[0] + c[1]) / 2 + 0.45 * (c[0] - c[3])), str(mid), color="k", fontsize=10,
                     ha="center", va="center", fontweight="bold")
         if show_corners:
             for name, p in zip(CORNER_NAMES, c):
