@@ -40,6 +40,7 @@ Examples
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -74,6 +75,9 @@ MIN_SIGMA_PX = 0.02
 #: squared residuals is below this many sigma^2 (a likelihood ratio above
 #: exp(-9/2) ~ 1/90: the data cannot rule it out).
 AMBIGUITY_CHI2 = 9.0
+#: The other planar solutions are refined only when they start within this many sigma^2
+#: of the best one's refined sum of squared residuals (else they are kept as IPPE gave them).
+REFINE_GAP_CHI2 = 100.0
 #: A marker is rejected when, under the pose of the others, its 8 residuals have
 #: a Mahalanobis chi-square above this (8 degrees of freedom: p < 1e-5)...
 OUTLIER_CHI2 = 37.3
@@ -114,7 +118,13 @@ class Pose:
         where ``dtheta`` is a small rotation vector, in world axes, applied on
         the left of ``R_world_camera`` (``R = expm([dtheta]x) @ R_est``) and
         position is the camera centre in the world. ``sigma_px^2 (J^T J)^-1``
-        with ``J`` the Jacobian of the corner pixels at the solution.
+        with ``J`` the Jacobian of the corner pixels at the solution
+        (:func:`pose_jacobian`): the Cramer-Rao bound when ``corner_sigma_px``
+        is given. When sigma is estimated from the residuals it is multiplied
+        by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu = 2N - 6 +
+        PRIOR_DOF``) so that the 95 % ellipsoid still holds the true position
+        95 % of the time: 1.08 with six markers, 1.2 with three, 2.5 with one.
+        None if the pose is not determined.
     sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes.
     ambiguous : bool
@@ -314,7 +324,7 @@ def refine_pose_lm(points_world: np.ndarray, points_px: np.ndarray, camera: Came
     R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
     R_wc = R_cw.T
     C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
-    R_wc, C, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations)
+    R_wc, C, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations)
     R_cw = R_wc.T
     r, _ = cv2.Rodrigues(R_cw)
     return r.reshape(3), -R_cw @ C
@@ -342,7 +352,7 @@ def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
 
 
 def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
-    """Levenberg-Marquardt (Marquardt's diagonal scaling) on the camera pose; returns R_wc, C, sse."""
+    """Levenberg-Marquardt (Marquardt's diagonal scaling) on the camera pose; returns R_wc, C, sse, residuals."""
     r, J = _residuals(obj, img, K, dist, R_wc, C, True)
     sse = float(r @ r)
     lam = 1e-4
@@ -374,7 +384,7 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
             lam *= 10
             if lam > 1e8:
                 break
-    return R_wc, C, sse
+    return R_wc, C, sse, r
 
 
 def _plane_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
@@ -406,6 +416,8 @@ class _Candidate:
     R_wc: np.ndarray  # (3, 3) camera orientation in the world
     C: np.ndarray  # (3,) camera centre in the world, mm
     sse: float  # sum of squared residuals, px^2
+    r: np.ndarray  # (2N,) residuals, observed minus projected, px
+    refined: bool = False  # whether Levenberg-Marquardt ran from it
 
     @property
     def T_world_camera(self) -> np.ndarray:
@@ -415,17 +427,17 @@ class _Candidate:
         return T
 
 
-def _from_rvec_tvec(obs: _Obs, camera: Camera, rvec, tvec, refine_lm: bool) -> _Candidate:
-    """A candidate from OpenCV's rvec/tvec (T_camera_world), optionally refined."""
-    R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
-    R_wc = R_cw.T
-    C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
-    if refine_lm:
-        R_wc, C, sse = _lm(obs.obj, obs.img, camera.K, camera.dist, R_wc, C)
-    else:
-        r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, False)
-        sse = float(r @ r)
-    return _Candidate(R_wc, C, sse)
+def _from_R_t(obs: _Obs, camera: Camera, R_cw: np.ndarray, t: np.ndarray) -> _Candidate:
+    """A candidate from T_camera_world's rotation (3, 3) and translation (3,), not refined."""
+    R_wc = np.ascontiguousarray(R_cw.T)
+    C = -R_wc @ np.asarray(t, dtype=np.float64).reshape(3)
+    r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, False)
+    return _Candidate(R_wc, C, float(r @ r), r)
+
+
+def _lm_candidate(obs: _Obs, camera: Camera, start: _Candidate) -> _Candidate:
+    R_wc, C, sse, r = _lm(obs.obj, obs.img, camera.K, camera.dist, start.R_wc, start.C)
+    return _Candidate(R_wc, C, sse, r, True)
 
 
 def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
@@ -510,16 +522,20 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
             f"the PnP solver ({method_used}) found no pose from markers {obs.ids}; are the map's corners "
             "in TL, TR, BR, BL order and the marker size right?"
         )
-    cands, unrefined = [], []
-    for R_cw, t in raw:
-        rvec = cv2.Rodrigues(R_cw)[0]
-        cands.append(_from_rvec_tvec(obs, camera, rvec, t, refine_lm))
-        if refine_lm:
-            unrefined.append(_from_rvec_tvec(obs, camera, rvec, t, False))
-    order = sorted(range(len(cands)), key=lambda k: cands[k].sse)
-    cands = [cands[k] for k in order]
-    unrefined = [unrefined[k] for k in order] if unrefined else cands
-    return cands, unrefined, method_used + ("+lm" if refine_lm else "")
+    unrefined = [_from_R_t(obs, camera, R_cw, t) for R_cw, t in raw]
+    unrefined.sort(key=lambda k: k.sse)
+    if not refine_lm:
+        return unrefined, unrefined, method_used
+    # LM from the best start; from the others only when they might end near it (within
+    # REFINE_GAP_CHI2 sigma^2): a flip that starts thousands of sigma^2 worse never becomes
+    # a rival, and each LM run from afar costs a dozen projections.
+    best = _lm_candidate(obs, camera, unrefined[0])
+    cands = [best]
+    sigma2 = _sigma(best.sse, 2 * len(obs.obj) - 6, None) ** 2
+    for u in unrefined[1:]:
+        cands.append(_lm_candidate(obs, camera, u) if u.sse - best.sse < REFINE_GAP_CHI2 * sigma2 else u)
+    cands.sort(key=lambda k: k.sse)
+    return cands, unrefined, method_used + "+lm"
 
 
 def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -> float:
@@ -529,6 +545,29 @@ def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -
     return float(d @ JtJ @ d) / sigma**2
 
 
+#: 95 % quantiles of the F distribution with (3, nu) degrees of freedom (standard tables),
+#: for the inflation of a covariance whose sigma was estimated with nu degrees of freedom.
+_F3_95 = ((1, 215.7), (2, 19.16), (3, 9.28), (4, 6.59), (5, 5.41), (6, 4.76), (7, 4.35), (8, 4.07),
+          (9, 3.86), (10, 3.71), (12, 3.49), (15, 3.29), (20, 3.10), (24, 3.01), (30, 2.92),
+          (40, 2.84), (60, 2.76), (120, 2.68), (math.inf, 2.605))
+_CHI2_3_95 = 7.8147
+
+
+def _estimated_sigma_inflation(nu: float) -> float:
+    """``3 F(3, nu; 0.95) / chi2(3; 0.95)``: how much wider the 95 % region is when sigma is estimated.
+
+    Hotelling: with sigma estimated from ``nu`` degrees of freedom, ``d^T (s^2 A)^-1 d / 3``
+    follows F(3, nu), not chi-square(3) / 3. Interpolated in 1/nu in the table above.
+    """
+    nu = max(float(nu), 1.0)
+    for (n0, f0), (n1, f1) in zip(_F3_95, _F3_95[1:]):
+        if nu <= n1:
+            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
+            f = f1 + (f0 - f1) * (x - x1) / (x0 - x1)
+            return 3.0 * f / _CHI2_3_95
+    return 3.0 * _F3_95[-1][1] / _CHI2_3_95
+
+
 def _sigma(sse: float, dof: int, corner_sigma_px: float | None) -> float:
     if corner_sigma_px is not None:
         return float(corner_sigma_px)
@@ -536,15 +575,31 @@ def _sigma(sse: float, dof: int, corner_sigma_px: float | None) -> float:
     return max(math.sqrt(s2), MIN_SIGMA_PX)
 
 
-def _covariance(obs: _Obs, T_world_camera: np.ndarray, camera: Camera, sigma: float) -> np.ndarray | None:
-    J = pose_jacobian(obs.obj, T_world_camera, camera)
+def _covariance_from(JtJ: np.ndarray, sigma: float) -> np.ndarray | None:
+    """``sigma^2 (J^T J)^-1``, symmetric; None when the pose is not determined (singular J^T J)."""
     try:
-        cov = sigma**2 * np.linalg.inv(J.T @ J)
+        cov = sigma**2 * np.linalg.inv(JtJ)
     except np.linalg.LinAlgError:
         return None
     if not np.all(np.isfinite(cov)):
         return None
     return (cov + cov.T) / 2
+
+
+_WORLD_CACHE: "weakref.WeakKeyDictionary[MarkerMap, tuple]" = weakref.WeakKeyDictionary()
+
+
+def _world_corners(marker_map: MarkerMap) -> dict[int, np.ndarray]:
+    """``marker_map.corners()``, cached per map while its placements and marker size stay the same."""
+    key = (marker_map.marker_size_mm, tuple(marker_map.placements.values()))
+    hit = _WORLD_CACHE.get(marker_map)
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    corners = marker_map.corners()
+    for c in corners.values():
+        c.flags.writeable = False
+    _WORLD_CACHE[marker_map] = (key, corners)
+    return corners
 
 
 def _make_obs(ids: Sequence[int], corners_px: dict[int, np.ndarray], world: dict[int, np.ndarray]) -> _Obs:
@@ -576,8 +631,7 @@ def _marker_chi2(obs_rest: _Obs, cand: _Candidate, obj_out: np.ndarray, img_out:
 
 def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
     """Cheap test: could one marker be an outlier? (per-marker residuals against a robust noise level)."""
-    r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, False)
-    per = np.sum(r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
+    per = np.sum(best.r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
     robust = float(np.median(per)) / 8.0
     sigma2 = max((corner_sigma_px or 0.0) ** 2, robust, OUTLIER_SIGMA_FLOOR_PX**2)
     rms = np.sqrt(per / 4.0)
@@ -688,7 +742,8 @@ def estimate_pose(
         is estimated from the residuals with ``2N - 6`` degrees of freedom,
         blended with a prior of ``PRIOR_SIGMA_PX`` worth ``PRIOR_DOF`` degrees of
         freedom (so one marker's 2 degrees of freedom do not claim a perfect
-        fit), and never below ``MIN_SIGMA_PX``.
+        fit), and never below ``MIN_SIGMA_PX``; the covariance is then widened
+        for the uncertainty of that estimate (see :attr:`Pose.covariance`).
 
     Returns
     -------
@@ -740,7 +795,7 @@ def estimate_pose(
         )
 
     ids = sorted(corners_px)
-    world = {i: marker_map.marker_corners(i) for i in ids}
+    world = _world_corners(marker_map)
     obs = _make_obs(ids, corners_px, world)
     cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
     rejected: list[int] = []
@@ -760,25 +815,31 @@ def estimate_pose(
     # minimum the two numbers are equal, so a merely nearby pose is never called ambiguous;
     # both hold only when the error surface is far from quadratic, which is the flip.
     alt = next((c for c in cands[1:] if _mahalanobis2(cands[0], c, JtJ, sigma) > AMBIGUITY_CHI2), None)
-    alt_refined = alt is not None
     if alt is None and unrefined is not cands:
         far = [c for c in unrefined if c.sse > cands[0].sse and _mahalanobis2(cands[0], c, JtJ, sigma) > AMBIGUITY_CHI2]
         alt = min(far, key=lambda c: c.sse) if far else None
     ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * sigma**2
 
-    def build(c: _Candidate, alternative: Pose | None, how: str) -> Pose:
+    def build(c: _Candidate, alternative: Pose | None, how: str, JtJ_c: np.ndarray | None = None) -> Pose:
         T_world_camera = c.T_world_camera
-        residuals = {}
-        for i in ids:
-            r, _ = _residuals(world[i], corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
-            residuals[i] = r.reshape(4, 2)
+        r = c.r.reshape(-1, 4, 2)
+        residuals = {i: r[k] for k, i in enumerate(obs.ids)}
+        for i in rejected:
+            ri, _ = _residuals(world[i], corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
+            residuals[i] = ri.reshape(4, 2)
         s = _sigma(c.sse, dof, corner_sigma_px)
+        if JtJ_c is None:
+            Jc = pose_jacobian(obs.obj, T_world_camera, camera)
+            JtJ_c = Jc.T @ Jc
+        cov = _covariance_from(JtJ_c, s)
+        if cov is not None and corner_sigma_px is None:
+            cov = cov * _estimated_sigma_inflation(dof + PRIOR_DOF)
         return Pose(
             T_world_camera=T_world_camera,
             marker_ids=tuple(obs.ids),
-            residuals_px=residuals,
+            residuals_px=dict(sorted(residuals.items())),
             reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
-            covariance=_covariance(obs, T_world_camera, camera, s),
+            covariance=cov,
             sigma_px=s,
             ambiguous=ambiguous,
             alternative=alternative,
@@ -787,8 +848,8 @@ def estimate_pose(
             method=how,
         )
 
-    alt_how = method_used if alt_refined else method_used.replace("+lm", "") + " (LM from it ends at the first solution)"
-    return build(cands[0], build(alt, None, alt_how) if alt is not None else None, method_used)
+    alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
+    return build(cands[0], build(alt, None, alt_how) if alt is not None else None, method_used, JtJ)
 
 
 def locate(image: np.ndarray, marker_map: MarkerMap, camera: Camera, *, refine: str | None = None, **kw) -> Pose:
