@@ -1,0 +1,374 @@
+"""Calibration against known answers: plain OpenCV on the same photos, OpenCV's published
+ChArUco calibration, and the true camera of synthetic views; plus every rejection and error."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+import fidlearn
+from fidlearn import Camera, data_path
+from fidlearn.calibration import Calibration, calibrate_charuco, calibrate_checkerboard
+from fidlearn.errors import CalibrationError, DictionaryError, FidlearnError
+
+PATTERN = (9, 6)
+SQUARE_MM = 25.0  # stand-in: the photos' square size was never published (scales extrinsics only)
+SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
+
+
+def _rel(a: float, b: float) -> float:
+    return abs(a / b - 1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Real checkerboard photos (OpenCV's samples/data right*.jpg)
+# ---------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def right_files():
+    files = sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))
+    assert len(files) == 13
+    return files
+
+
+@pytest.fixture(scope="module")
+def plain_opencv(right_files):
+    """OpenCV's own recipe: findChessboardCorners + cornerSubPix((11, 11)) + calibrateCamera."""
+    objp = np.zeros((54, 3), np.float32)
+    objp[:, :2] = np.mgrid[0:9, 0:6].T.reshape(-1, 2) * SQUARE_MM
+    corners = {}
+    for f in right_files:
+        gray = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+        ok, c = cv2.findChessboardCorners(gray, PATTERN)
+        assert ok, f
+        corners[str(f)] = cv2.cornerSubPix(gray, c, (11, 11), (-1, -1), SUBPIX)
+
+    def calibrate(names):
+        out = cv2.calibrateCameraExtended([objp] * len(names), [corners[n] for n in names], (640, 480), None, None)
+        rms, K, dist, _r, _t, std, _se, per_view = out
+        return dict(rms=rms, K=K, dist=dist.ravel(), std=std.ravel(), per_view=per_view.ravel())
+
+    return calibrate
+
+
+@pytest.fixture(scope="module")
+def right_cal(right_files):
+    return calibrate_checkerboard(right_files, PATTERN, SQUARE_MM)
+
+
+@pytest.fixture(scope="module")
+def right_cal_all(right_files):
+    return calibrate_checkerboard(right_files, PATTERN, SQUARE_MM, reject_outliers=False)
+
+
+def test_checkerboard_all_views_agrees_with_plain_opencv(right_files, right_cal_all, plain_opencv):
+    ref = plain_opencv([str(f) for f in right_files])
+    cal = right_cal_all
+    assert cal.rms_px == pytest.approx(0.46, abs=0.01)
+    assert cal.rms_px == pytest.approx(ref["rms"], abs=1e-3)
+    assert _rel(cal.camera.fx, ref["K"][0, 0]) < 0.005
+    assert _rel(cal.camera.fy, ref["K"][1, 1]) < 0.005
+    assert cal.camera.cx == pytest.approx(ref["K"][0, 2], abs=1.0)
+    assert cal.camera.cy == pytest.approx(ref["K"][1, 2], abs=1.0)
+    # the published facts of the photos (realdata README): fx, fy about 542, cx about 328, cy about 247
+    assert cal.camera.fx == pytest.approx(542, abs=2) and cal.camera.fy == pytest.approx(542, abs=2)
+    assert cal.used == [str(f) for f in right_files] and cal.rejected == []
+    assert cal.camera.image_size == (640, 480)
+
+
+def test_checkerboard_std_and_per_view_errors_are_opencvs(right_files, right_cal_all, plain_opencv):
+    ref = plain_opencv([str(f) for f in right_files])
+    cal = right_cal_all
+    assert list(cal.std_intrinsics) == ["fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"]
+    np.testing.assert_allclose(list(cal.std_intrinsics.values()), ref["std"][:9], rtol=0.02, atol=1e-4)
+    assert 0.3 < cal.std_intrinsics["fx"] < 3.0  # about 1 px on 13 views
+    np.testing.assert_allclose([cal.per_view_rms_px[str(f)] for f in right_files], ref["per_view"], rtol=0.02, atol=1e-3)
+
+
+def test_outlier_view_is_rejected_and_reported(right_files, right_cal, plain_opencv):
+    cal = right_cal
+    right02 = str(right_files[1])
+    assert [n for n, _ in cal.rejected] == [right02]
+    assert "outlier" in cal.rejected[0][1] and "1.20 px" in cal.rejected[0][1]
+    view = next(v for v in cal.views if v.name == right02)
+    assert view.status == "outlier" and view.rms_px == pytest.approx(1.20, abs=0.01)
+    # the same 12 views through plain OpenCV give the same camera
+    ref = plain_opencv(cal.used)
+    assert len(cal.used) == 12
+    assert _rel(cal.camera.fx, ref["K"][0, 0]) < 0.005 and _rel(cal.camera.fy, ref["K"][1, 1]) < 0.005
+    assert cal.rms_px == pytest.approx(ref["rms"], abs=1e-3)
+    assert cal.rms_px < cal.first_rms_px == pytest.approx(0.459, abs=0.01)
+    # and dropping it moves fx by less than 0.5 % from all 13
+    all_ref = plain_opencv([str(f) for f in right_files])
+    assert _rel(cal.camera.fx, all_ref["K"][0, 0]) < 0.005
+
+
+def test_board_poses_reproject_to_the_reported_errors(right_cal):
+    cal = right_cal
+    for name in cal.used:
+        T_board_camera = cal.T_board_camera[name]
+        px = cal.camera.project(cal.board_points_mm[name], T_board_camera)
+        rms = np.sqrt(np.mean(np.sum((px - cal.image_points_px[name]) ** 2, axis=1)))
+        assert rms == pytest.approx(cal.per_view_rms_px[name], rel=0.01, abs=1e-3)
+        # the board is in front of the camera, 0.2 to 1 m away with the 25 mm stand-in
+        assert 200 < cal.T_camera_board[name][2, 3] < 1000
+
+
+def test_report_reads_well(right_cal):
+    cal = right_cal
+    text = repr(cal)
+    assert text.startswith("Calibration(12/13 views, rms=0.3") and "fx=541" in text and "right02.jpg" in text
+    table = cal.table().splitlines()
+    assert table[0].startswith("views in ") and table[0].endswith("opencv_checkerboard_right")
+    assert table[1].split() == ["view", "found", "points", "rms", "px", "status"]
+    assert len(table) == 2 + 13
+    assert table[3].split()[:5] == ["right02.jpg", "yes", "54", "1.203", "outlier:"]
+    assert "RMS before removing outlier views: 0.459 px" in cal.summary()
+    assert "calibrate_checkerboard: 12 of 13 views" in cal.camera.source
+
+
+def test_public_names():
+    assert fidlearn.calibrate_checkerboard is calibrate_checkerboard
+    assert fidlearn.calibrate_charuco is calibrate_charuco
+    assert fidlearn.Calibration is Calibration
+
+
+# ---------------------------------------------------------------------------------------------
+# Rejections and errors
+# ---------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def right_grays(right_files):
+    return [cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in right_files[2:6]]
+
+
+def test_mixed_inputs_other_size_and_blank_are_rejected_with_reasons(right_files, right_grays):
+    big = cv2.resize(right_grays[0], (800, 600))
+    blank = np.full((480, 640), 200, np.uint8)
+    bgr = cv2.cvtColor(right_grays[1], cv2.COLOR_GRAY2BGR)
+    images = [right_files[2], bgr, big, str(right_files[4]), blank, right_grays[3]]
+    seen = []
+    cal = calibrate_checkerboard(images, "9x6", SQUARE_MM, progress=lambda i, n, name: seen.append((i, n, name)),
+                                 reject_outliers=False)
+    assert seen == [(1, 6, str(right_files[2])), (2, 6, "image 1"), (3, 6, "image 2"), (4, 6, str(right_files[4])),
+                    (5, 6, "image 4"), (6, 6, "image 5")]
+    assert cal.used == [str(right_files[2]), "image 1", str(right_files[4]), "image 5"]
+    reasons = dict(cal.rejected)
+    assert set(reasons) == {"image 2", "image 4"}
+    assert "800x600" in reasons["image 2"] and "640x480" in reasons["image 2"]
+    assert "calibrate at the resolution you run at" in reasons["image 2"]
+    assert reasons["image 4"].startswith("not found: board not found (9x6 inner corners)")
+    assert [v.status for v in cal.views] == ["used", "used", "other size", "used", "not found", "used"]
+    assert cal.camera.image_size == (640, 480)
+
+
+def test_majority_size_wins_even_when_first_image_differs(right_grays):
+    small = cv2.resize(right_grays[0], (320, 240))
+    cal = calibrate_checkerboard([small] + right_grays, PATTERN, SQUARE_MM, reject_outliers=False)
+    assert cal.camera.image_size == (640, 480)
+    assert cal.rejected[0][0] == "image 0" and "320x240 but the others are 640x480" in cal.rejected[0][1]
+
+
+def test_unreadable_files_are_rejected_with_the_image_error(tmp_path, right_grays):
+    broken = tmp_path / "broken.jpg"
+    broken.write_bytes(b"not a jpeg at all")
+    missing = tmp_path / "missing.png"
+    cal = calibrate_checkerboard(right_grays + [broken, missing], PATTERN, SQUARE_MM, reject_outliers=False)
+    reasons = dict(cal.rejected)
+    assert "not an image OpenCV can read" in reasons[str(broken)]
+    assert "no such file" in reasons[str(missing)]
+    assert len(cal.used) == 4
+
+
+def test_too_few_views_says_how_many_and_why(right_grays):
+    blank = np.zeros((480, 640), np.uint8)
+    with pytest.raises(CalibrationError, match=r"at least 3 views with the board found, got 2 of 3: not found: 1 "
+                                               r"\(image 2; board not found \(9x6 inner corners\)"):
+        calibrate_checkerboard(right_grays[:2] + [blank], PATTERN, SQUARE_MM)
+
+
+def test_squares_instead_of_inner_corners_gets_the_hint(right_grays):
+    with pytest.raises(CalibrationError, match=r"pattern_size counts inner corners, not squares: a board of 10x7 "
+                                               r"squares has 9x6 inner corners"):
+        calibrate_checkerboard(right_grays[:3], (10, 7), SQUARE_MM)
+
+
+def test_swapped_pattern_size_is_found_all_the_same(right_grays):
+    # findChessboardCorners finds (6, 9) on a 9x6 board: no error, the same camera within noise
+    a = calibrate_checkerboard(right_grays, (6, 9), SQUARE_MM, reject_outliers=False)
+    b = calibrate_checkerboard(right_grays, (9, 6), SQUARE_MM, reject_outliers=False)
+    assert _rel(a.camera.fx, b.camera.fx) < 0.005
+
+
+@pytest.mark.parametrize("square, match", [
+    (0, "square_size_mm must be positive, got 0"),
+    (-25, "square_size_mm must be positive"),
+    (float("nan"), "square_size_mm must be positive"),
+    ("big", "square_size_mm must be a number"),
+])
+def test_bad_square_size(square, match, right_grays):
+    with pytest.raises(CalibrationError, match=match):
+        calibrate_checkerboard(right_grays, PATTERN, square)
+
+
+@pytest.mark.parametrize("pattern, match", [
+    ((2, 6), r"needs at least 3 each way; a board of 10x7 squares has 9x6 inner corners"),
+    ((9.5, 6), "two whole numbers"),
+    ("nine by six", "two whole numbers"),
+    (9, "two whole numbers"),
+])
+def test_bad_pattern_size(pattern, match, right_grays):
+    with pytest.raises(CalibrationError, match=match):
+        calibrate_checkerboard(right_grays, pattern, SQUARE_MM)
+
+
+def test_bad_images_argument(right_grays):
+    with pytest.raises(CalibrationError, match=r"one array of shape \(480, 640\); pass a list of images"):
+        calibrate_checkerboard(right_grays[0], PATTERN, SQUARE_MM)
+    with pytest.raises(CalibrationError, match=r"images\[1\] is a int"):
+        calibrate_checkerboard([right_grays[0], 3], PATTERN, SQUARE_MM)
+    with pytest.raises(CalibrationError, match="no images given"):
+        calibrate_checkerboard([], PATTERN, SQUARE_MM)
+
+
+def test_a_folder_stands_for_its_images(right_files, tmp_path):
+    cal = calibrate_checkerboard(right_files[0].parent, PATTERN, SQUARE_MM)
+    assert [v.name for v in cal.views] == sorted(str(f) for f in right_files)
+    (tmp_path / "notes.txt").write_text("no pictures here")
+    with pytest.raises(CalibrationError, match=r"no image files \(.png, .jpg, ...\) in this folder"):
+        calibrate_checkerboard(tmp_path, PATTERN, SQUARE_MM)
+
+
+def test_calibration_errors_are_fidlearn_errors():
+    assert issubclass(CalibrationError, FidlearnError)
+
+
+# ---------------------------------------------------------------------------------------------
+# Synthetic views with the true camera (data/calibration, tools/make_data.py)
+# ---------------------------------------------------------------------------------------------
+
+def test_synthetic_views_recover_the_true_camera():
+    truth = Camera.load(data_path("calibration", "camera_true.json"))
+    files = sorted(data_path("calibration").glob("view_*.png"))
+    assert len(files) == 20
+    cal = calibrate_checkerboard(files, PATTERN, SQUARE_MM)
+    assert _rel(cal.camera.fx, truth.fx) < 0.005 and _rel(cal.camera.fy, truth.fy) < 0.005
+    assert abs(cal.camera.cx - truth.cx) < 2 and abs(cal.camera.cy - truth.cy) < 2
+    assert cal.rms_px < 0.15 and not cal.rejected
+    # the board poses too: the true T_camera_board of each view, within 1 mm / 0.3 degree
+    views = json.loads(data_path("calibration", "views.json").read_text())["views"]
+    for f, v in zip(files, views):
+        T_true = np.array(v["T_camera_board"])
+        T = cal.T_camera_board[str(f)]
+        if np.dot(T[:3, 0], T_true[:3, 0]) < 0:  # symmetric board: OpenCV may start at the far corner
+            continue
+        assert np.linalg.norm(T[:3, 3] - T_true[:3, 3]) < 1.0 + 0.003 * np.linalg.norm(T_true[:3, 3])
+        cos = (np.trace(T[:3, :3].T @ T_true[:3, :3]) - 1) / 2
+        assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 0.3
+
+
+def test_sector_corner_finder_also_works_on_synthetic_views():
+    truth = Camera.load(data_path("calibration", "camera_true.json"))
+    files = sorted(data_path("calibration").glob("view_*.png"))[::4]
+    cal = calibrate_checkerboard(files, PATTERN, SQUARE_MM, corner_finder="sb")
+    assert len(cal.used) == 5 and _rel(cal.camera.fx, truth.fx) < 0.01
+    # the default finder does better on the same views (the module docstring's measurement)
+    classic = calibrate_checkerboard(files, PATTERN, SQUARE_MM)
+    assert _rel(classic.camera.fx, truth.fx) < _rel(cal.camera.fx, truth.fx)
+    assert _rel(classic.camera.fx, truth.fx) < 0.003
+    with pytest.raises(CalibrationError, match="corner_finder 'fast' is unknown"):
+        calibrate_checkerboard(files, PATTERN, SQUARE_MM, corner_finder="fast")
+
+
+# ---------------------------------------------------------------------------------------------
+# ChArUco (opencv_contrib's tutorial photos and their published calibration)
+# ---------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def charuco_files():
+    return [data_path("real", "opencv_charuco", f"img_0{i}.jpg") for i in range(4)]
+
+
+@pytest.fixture(scope="module")
+def charuco_cal(charuco_files):
+    return calibrate_charuco(charuco_files, squares=(5, 7), square_size_mm=40, marker_size_mm=20, dictionary="6X6_250")
+
+
+def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, charuco_cal):
+    board = cv2.aruco.CharucoBoard((5, 7), 0.04, 0.02, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250))
+    detector = cv2.aruco.CharucoDetector(board)
+    obj, img = [], []
+    for f in charuco_files:
+        cc, ci, _mc, _mi = detector.detectBoard(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE))
+        o, p = board.matchImagePoints(cc, ci)
+        assert len(o) == 24
+        obj.append(o)
+        img.append(p)
+    rms, K, _d, _r, _t = cv2.calibrateCamera(obj, img, (640, 480), None, None)
+    cal = charuco_cal
+    assert cal.used == [str(f) for f in charuco_files]
+    assert all(v.n_points == 24 for v in cal.views)
+    assert _rel(cal.camera.fx, K[0, 0]) < 0.005 and _rel(cal.camera.fy, K[1, 1]) < 0.005
+    assert cal.rms_px == pytest.approx(rms, abs=2e-3) and cal.rms_px == pytest.approx(0.188, abs=0.01)
+    published = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"), image_size=(640, 480))
+    assert published.fx == pytest.approx(452.511, abs=1e-3)
+    assert _rel(cal.camera.fx, published.fx) < 0.015 and _rel(cal.camera.fy, published.fy) < 0.015
+    assert abs(cal.camera.cx - published.cx) < 3 and abs(cal.camera.cy - published.cy) < 3
+    # 4 views pin fx down poorly: its standard deviation says so (about 16 px)
+    assert 5 < cal.std_intrinsics["fx"] < 40
+    assert "ChArUco 5x7 squares, 40 mm squares, 20 mm markers, 6X6_250" in cal.camera.source
+    assert "legacy" not in cal.board
+
+
+def test_charuco_legacy_layout_makes_no_difference_with_seven_rows(charuco_files, charuco_cal):
+    cal = calibrate_charuco(charuco_files, legacy=True)
+    np.testing.assert_allclose(cal.camera.K, charuco_cal.camera.K, rtol=1e-6)
+    assert cal.board.endswith("legacy layout")
+
+
+@pytest.fixture(scope="module")
+def legacy_board_views():
+    """Four perspective views of a 5x6 ChArUco board printed with the pre-4.6 layout."""
+    board = fidlearn._cv.charuco_board((5, 6), 40, 20, "6X6_250", legacy=True)
+    sheet = board.generateImage((500, 600), marginSize=40)
+    src = np.float32([[0, 0], [500, 0], [500, 600], [0, 600]])
+    rng = np.random.default_rng(0)
+    views = []
+    for _ in range(4):
+        dst = src * 0.65 + np.float32([80, 30]) + rng.uniform(-40, 40, (4, 2)).astype(np.float32)
+        warped = cv2.warpPerspective(sheet, cv2.getPerspectiveTransform(src, dst), (640, 480), borderValue=255)
+        views.append(cv2.GaussianBlur(warped, (0, 0), 0.7))
+    return views
+
+
+def test_charuco_auto_finds_an_old_boards_layout(legacy_board_views):
+    cal = calibrate_charuco(legacy_board_views, squares=(5, 6), reject_outliers=False)
+    assert cal.board.endswith("legacy layout")
+    assert [v.n_points for v in cal.views] == [20] * 4  # every inner corner of 5x6 squares
+
+
+def test_charuco_wrong_layout_says_to_try_legacy(legacy_board_views):
+    with pytest.raises(CalibrationError, match=r"only 0 chess corners \(need 6\); a board with an even number of rows "
+                                               r"printed before OpenCV 4.6 needs legacy=True"):
+        calibrate_charuco(legacy_board_views, squares=(5, 6), legacy=False)
+
+
+def test_charuco_wrong_dictionary_and_bad_sizes(charuco_files):
+    with pytest.raises(CalibrationError, match=r"no 4X4_50 marker in the picture; check the dictionary"):
+        calibrate_charuco(charuco_files[:3], dictionary="4X4_50")
+    with pytest.raises(DictionaryError, match="unknown ArUco dictionary"):
+        calibrate_charuco(charuco_files[:3], dictionary="7X7_BOGUS")
+    with pytest.raises(CalibrationError, match=r"marker_size_mm \(40\) must be smaller than square_size_mm \(40\)"):
+        calibrate_charuco(charuco_files, square_size_mm=40, marker_size_mm=40)
+    with pytest.raises(CalibrationError, match="square_size_mm must be positive"):
+        calibrate_charuco(charuco_files, square_size_mm=-1)
+
+
+def test_charuco_partly_hidden_board_still_counts(charuco_files, charuco_cal):
+    occluded = data_path("real", "opencv_charuco", "chocclusion_original.jpg")
+    cal = calibrate_charuco(list(charuco_files) + [occluded], reject_outliers=False)
+    view = cal.views[-1]
+    assert view.status == "used" and 6 <= view.n_points < 24
