@@ -108,7 +108,8 @@ class ViewResult:
     name : str
         The image's path as given, or ``"image i"`` (i counted from 0) for an array.
     status : str
-        ``"used"``, ``"not found"``, ``"outlier"``, ``"other size"`` or ``"unreadable"``.
+        ``"used"``, ``"not found"``, ``"outlier"``, ``"duplicate"`` (the board where an earlier
+        view had it), ``"other size"`` or ``"unreadable"``.
     n_points : int
         Board points found (0 when the board was not found).
     rms_px : float or None
@@ -207,6 +208,9 @@ class Calibration:
         ]
         if self.first_rms_px is not None:
             head.append(f"  RMS before removing outlier views: {self.first_rms_px:.3f} px")
+        if "fx" in s and s["fx"] > 0.01 * self.camera.fx:
+            head.append(f"  fx is uncertain to {100 * s['fx'] / self.camera.fx:.1f} %: add views with the board "
+                        "tilted in other directions and nearer the image's corners")
         return "\n".join(head) + "\n" + self.table()
 
     def __repr__(self) -> str:
@@ -242,13 +246,20 @@ def _short(name: str, width: int = 40) -> str:
 # ----------------------------------------------------------------------------------------------
 
 def _entries(images: Any) -> list[tuple[str, Any]]:
-    """(name, path or array) for each input; a folder expands to its image files, sorted."""
+    """(name, path or array) for each input; a folder or a glob pattern expands to its image files, sorted."""
     if isinstance(images, (str, os.PathLike)):
         folder = Path(images)
         if folder.is_dir():
             files = sorted(p for p in folder.iterdir() if p.suffix.lower() in _IMAGE_SUFFIXES)
             if not files:
                 raise CalibrationError(f"{folder}: no image files (.png, .jpg, ...) in this folder")
+            images = files
+        elif any(ch in str(images) for ch in "*?[") and not folder.exists():
+            import glob as _glob
+
+            files = sorted(_glob.glob(str(images)))
+            if not files:
+                raise CalibrationError(f"{images}: no file matches this pattern; check the folder and the extension")
             images = files
         else:
             images = [images]
@@ -485,6 +496,25 @@ def _choose_size(views: list[_View]) -> tuple[int, int] | None:
     return next(s for s in sizes if counts[s] == best)  # the most common; on a tie, the first seen
 
 
+def _reject_duplicates(views: list[_View], tol_px: float = 1.0) -> None:
+    """Reject views whose board sits where an earlier view's did: they add no information, only weight."""
+    kept: list[_View] = []
+    for v in views:
+        if v.status != "used":
+            continue
+        for k in kept:
+            if k.img.shape != v.img.shape or not np.allclose(k.obj, v.obj):
+                continue
+            d = min(np.abs(k.img - v.img).max(), np.abs(k.img[::-1] - v.img).max())
+            if d < tol_px:
+                v.status = "duplicate"
+                v.reason = (f"the board sits where it sat in {k.name} (every corner within {tol_px:g} px): "
+                            "move or tilt the board between photos")
+                break
+        else:
+            kept.append(v)
+
+
 def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
     args = dict(flags=int(flags))
     if criteria is not None:
@@ -554,6 +584,7 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
                         "calibrate at the resolution you run at, with every photo at that one resolution")
             v.obj = v.img = None
 
+    _reject_duplicates(views)
     usable = [v for v in views if v.status == "used"]
     if len(usable) < min_views:
         hint = finder.diagnose(failed_grays) if not usable else ""
@@ -621,9 +652,10 @@ def calibrate_checkerboard(
 
     Parameters
     ----------
-    images : sequence of (ndarray or path), or a folder
+    images : sequence of (ndarray or path), or a folder, or a glob pattern
         The photos, gray or BGR arrays and/or image files, mixed as you like
-        (a folder stands for its image files, sorted). Each is reported by
+        (a folder stands for its image files, ``"photos/*.jpg"`` for the
+        files it matches, sorted). Each is reported by
         its path, or ``"image i"`` (i from 0) for an array.
     pattern_size : (int, int) or str
         INNER corners (columns, rows), e.g. ``(9, 6)`` or ``"9x6"``: a board

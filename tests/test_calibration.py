@@ -128,6 +128,7 @@ def test_report_reads_well(right_cal):
     assert table[3].split()[:5] == ["right02.jpg", "yes", "54", "1.203", "outlier:"]
     assert "RMS before removing outlier views: 0.459 px" in cal.summary()
     assert "calibrate_checkerboard: 12 of 13 views" in cal.camera.source
+    assert "uncertain" not in cal.summary()  # fx to 0.2 %
 
 
 def test_public_names():
@@ -242,6 +243,23 @@ def test_a_folder_stands_for_its_images(right_files, tmp_path):
         calibrate_checkerboard(tmp_path, PATTERN, SQUARE_MM)
 
 
+def test_a_glob_pattern_stands_for_the_files_it_matches(right_files):
+    cal = calibrate_checkerboard(str(right_files[0].parent / "right1*.jpg"), PATTERN, SQUARE_MM, reject_outliers=False)
+    assert [v.name.rsplit("/", 1)[-1] for v in cal.views] == ["right11.jpg", "right12.jpg", "right13.jpg", "right14.jpg"]
+    with pytest.raises(CalibrationError, match="no file matches this pattern"):
+        calibrate_checkerboard(str(right_files[0].parent / "left*.jpg"), PATTERN, SQUARE_MM)
+
+
+def test_repeated_photos_of_a_still_board_are_rejected_as_duplicates(right_grays):
+    same = right_grays[0]
+    noisy = np.clip(same.astype(int) + np.random.default_rng(0).integers(-3, 4, same.shape), 0, 255).astype(np.uint8)
+    cal = calibrate_checkerboard([same, noisy] + right_grays[1:], PATTERN, SQUARE_MM, reject_outliers=False)
+    assert cal.rejected == [("image 1", "duplicate: the board sits where it sat in image 0 (every corner within 1 px): "
+                                        "move or tilt the board between photos")]
+    with pytest.raises(CalibrationError, match=r"got 1 of 3: duplicate: 2 \(image 1, image 2; the board sits where"):
+        calibrate_checkerboard([same, same, noisy], PATTERN, SQUARE_MM)
+
+
 def test_calibration_errors_are_fidlearn_errors():
     assert issubclass(CalibrationError, FidlearnError)
 
@@ -321,6 +339,7 @@ def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, char
     assert 5 < cal.std_intrinsics["fx"] < 40
     assert "ChArUco 5x7 squares, 40 mm squares, 20 mm markers, 6X6_250" in cal.camera.source
     assert "legacy" not in cal.board
+    assert "fx is uncertain to 3.5 %: add views" in cal.summary()
 
 
 def test_charuco_legacy_layout_makes_no_difference_with_seven_rows(charuco_files, charuco_cal):
