@@ -1,0 +1,343 @@
+# %% [markdown]
+# # 02 Calibration: measuring K and the lens distortion
+#
+# **What you will learn**
+#
+# * how photos of a checkerboard give the camera's K and distortion (`cv2.calibrateCamera`);
+# * how to find the board's corners (`cv2.findChessboardCorners`, `cornerSubPix`, the `SB` variant);
+# * why the printed square size scales the board poses but **never K**;
+# * how to read per-view errors, and which views to reject;
+# * calibrating a synthetic set (true camera known) and real photos (published numbers known);
+# * saving and loading `camera.json`;
+# * the trap of calibrating at one resolution and running at another, measured, and its fixes.
+#
+# Notebook 01 explains K and the distortion coefficients.
+
+# %%
+# %matplotlib inline
+import json
+import os
+import tempfile
+
+import cv2
+import matplotlib.pyplot as plt
+import numpy as np
+
+from fidlearn import (Camera, CameraError, MarkerMap, _cv, calibrate_checkerboard, data_path, frames, plotting,
+                      synthetic)
+from fidlearn.detection import detect_markers, load_image
+
+np.set_printoptions(precision=3, suppress=True)
+
+
+def rel(path):
+    """A data file's path relative to this notebook's folder: short, and the same on every machine."""
+    return os.path.relpath(path)
+
+# %% [markdown]
+# ## 1. The checkerboard
+#
+# A checkerboard is a flat target whose geometry we know exactly: its **inner corners** (where four
+# squares meet) form a grid with the printed square size as spacing. OpenCV counts inner corners, so a
+# board of 10 x 7 squares is a **9 x 6** pattern. Put the board's frame on it (corner (i, j) at
+# (i s, j s, 0) mm, s the square size): every photo pairs these 54 known 3D points with their pixels.
+#
+# `data/calibration/` holds 20 synthetic photos of a 9 x 6 board with 25 mm squares, taken by a camera
+# whose K and distortion are known (`camera_true.json`): we can check the answer.
+
+# %%
+views = [rel(p) for p in sorted(data_path("calibration").glob("view_*.png"))]
+record = json.loads(data_path("calibration", "views.json").read_text())
+true_camera = Camera.load(data_path("calibration", "camera_true.json"))
+pattern = (9, 6)        # inner corners (columns, rows)
+square_mm = 25.0
+print(len(views), "views; the true camera:", true_camera)
+
+fig = plotting.show_images([load_image(v) for v in views[:4]], [os.path.basename(v) for v in views[:4]], ncols=4)
+plt.show()
+
+# %% [markdown]
+# ## 2. Finding the corners
+#
+# `cv2.findChessboardCorners` finds the pattern and orders its corners row by row; `cv2.cornerSubPix`
+# then refines each to a fraction of a pixel using the image gradients in a small window (half-size 5 px
+# here: the window must not reach the next corner). `cv2.findChessboardCornersSB` is a newer detector
+# that refines by itself. The synthetic views record the true corners: let us measure both.
+#
+# A 9 x 6 board looks the same turned by 180 degrees, so a detector may number its corners from either
+# end: compare corner lists only once their order agrees.
+
+# %%
+gray = load_image(views[0])
+found, corners = cv2.findChessboardCorners(gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+assert found
+criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 0.001)
+refined = cv2.cornerSubPix(gray, corners.copy(), (5, 5), (-1, -1), criteria).reshape(-1, 2)  # it works in place
+
+found_sb, corners_sb = cv2.findChessboardCornersSB(gray, pattern, flags=cv2.CALIB_CB_ACCURACY)
+assert found_sb
+corners_sb = corners_sb.reshape(-1, 2)
+
+true_px = np.array(record["views"][0]["corners_px"])
+rms = lambda a, b: float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))  # noqa: E731
+if rms(corners_sb[::-1], true_px) < rms(corners_sb, true_px):
+    print("SB numbered the corners from the other end of the board")
+    corners_sb = corners_sb[::-1]
+print(f"corner error vs truth: findChessboardCorners alone {rms(corners.reshape(-1, 2), true_px):.3f} px, "
+      f"+ cornerSubPix {rms(refined, true_px):.3f} px, SB {rms(corners_sb, true_px):.3f} px")
+assert rms(refined, true_px) < 0.1
+
+ax = plotting.show_image(None, gray, title=f"{os.path.basename(views[0])}: 54 inner corners, in order 0 to 53")
+plotting.draw_points(ax, refined, color="tab:red")
+plotting.draw_points(ax, refined[[0, 8, 53]], labels=["0", "8", "53"], color="tab:red", marker="o", markersize=30)
+plt.show()
+
+# %% [markdown]
+# The same on a real photo, OpenCV's `right01.jpg` (one of 13 in `data/real/opencv_checkerboard_right/`):
+
+# %%
+real_views = [rel(p) for p in sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))]
+real = load_image(real_views[0])
+real_gray = cv2.cvtColor(real, cv2.COLOR_BGR2GRAY) if real.ndim == 3 else real
+found, c = cv2.findChessboardCorners(real_gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+assert found
+c = cv2.cornerSubPix(real_gray, c, (11, 11), (-1, -1), criteria).reshape(-1, 2)
+ax = plotting.show_image(None, real, points=c, title=f"{os.path.basename(real_views[0])}: {len(c)} corners found")
+plt.show()
+assert len(c) == 54
+
+# %% [markdown]
+# ## 3. Calibrating, by hand
+#
+# For every view: the board points (mm) and their pixels. `cv2.calibrateCamera` searches K, the
+# distortion and one board pose per view (rvec, tvec: `T_camera_board`) that together reproject the
+# board points closest to the detected pixels, in the least-squares sense. Its first return value is
+# the RMS **reprojection error** in pixels.
+
+# %%
+board_mm = np.zeros((pattern[0] * pattern[1], 3), np.float32)
+board_mm[:, :2] = np.mgrid[0:pattern[0], 0:pattern[1]].T.reshape(-1, 2) * square_mm  # (i s, j s, 0)
+
+object_points, image_points = [], []
+for v in views:
+    g = load_image(v)
+    ok, c = cv2.findChessboardCorners(g, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if ok:
+        object_points.append(board_mm)
+        image_points.append(cv2.cornerSubPix(g, c, (5, 5), (-1, -1), criteria))
+
+rms_px, K, dist, rvecs, tvecs = cv2.calibrateCamera(object_points, image_points, (640, 480), None, None)
+print(f"{len(image_points)} views, RMS {rms_px:.3f} px")
+print("K =\n", K)
+print("dist =", dist.ravel())
+print("true K =\n", true_camera.K)
+
+assert abs(K[0, 0] / true_camera.fx - 1) < 0.005 and abs(K[1, 1] / true_camera.fy - 1) < 0.005
+assert np.allclose(K[:2, 2], [true_camera.cx, true_camera.cy], atol=2.0)
+
+# %% [markdown]
+# `fidlearn.calibrate_checkerboard` does the same (with a corner window that adapts to the square's size
+# in pixels), and reports each view, rejecting the ones that fail:
+
+# %%
+cal = calibrate_checkerboard(views, pattern, square_mm)
+print(cal)
+assert np.allclose(cal.camera.K, K, atol=1.0)
+assert abs(cal.camera.fx / true_camera.fx - 1) < 0.005
+
+# %% [markdown]
+# ## 4. The square size scales the poses, never K
+#
+# Calibrate the same photos saying the squares are 50 mm instead of 25. A board twice as big, seen at
+# the same pixels, must be twice as far away: every board pose's translation doubles, and K (in pixels)
+# does not change at all. A wrong square size is invisible in K, and shows only when you measure
+# distances. (The real photos' square size was never published: we use 25 mm as a stand-in below, and
+# only their K is compared.)
+
+# %%
+cal_50 = calibrate_checkerboard(views, pattern, 50.0)
+name = cal.used[0]
+t_25 = cal.T_camera_board[name][:3, 3]
+t_50 = cal_50.T_camera_board[name][:3, 3]
+print("K with 25 mm squares:\n", cal.camera.K, "\nK with 50 mm squares:\n", cal_50.camera.K)
+print(f"board distance in {os.path.basename(name)}: {np.linalg.norm(t_25):.1f} mm (25 mm squares), "
+      f"{np.linalg.norm(t_50):.1f} mm (50 mm squares)")
+assert np.allclose(cal_50.camera.K, cal.camera.K, rtol=1e-6)
+assert np.allclose(t_50, 2 * t_25, rtol=1e-6)
+
+# %% [markdown]
+# ## 5. Per-view errors, and rejecting bad views
+#
+# A calibration is only as good as its worst views. Three kinds of bad photo:
+#
+# * the board is **not found** (cut off, blurred, glare): the view gives nothing, it is skipped;
+# * a photo at **another resolution**: K is in pixels, so views must share one size;
+# * a photo taken with **another camera setting** (zoom moved, autofocus changed K): the board is found,
+#   but no single K explains it. Its reprojection error stands out.
+#
+# fidlearn rejects a view whose RMS exceeds `max(3 x median, median + 0.5 px)` and calibrates again.
+# Let us add one photo of each kind to the 20 good views.
+
+# %%
+zoomed = Camera([[1100, 0, 321.7], [0, 1098, 243.4], [0, 0, 1]], true_camera.dist, (640, 480))
+zoomed_view = synthetic.render_calibration_views(zoomed, n_views=1, seed=3).images[0]
+empty_wall = np.full((480, 640), 128, np.uint8)
+half_size = cv2.resize(load_image(views[0]), (320, 240), interpolation=cv2.INTER_AREA)
+
+cal_bad = calibrate_checkerboard(views + [zoomed_view, empty_wall, half_size], pattern, square_mm)
+print(cal_bad.summary())
+statuses = [v.status for v in cal_bad.views[20:]]
+assert statuses == ["outlier", "not found", "other size"], statuses
+assert np.allclose(cal_bad.camera.K, cal.camera.K)  # the bad views left no trace
+
+# %%
+fig, ax = plt.subplots(figsize=(10, 3))
+names = [os.path.basename(v.name) if v.name.endswith(".png") else v.name for v in cal_bad.views]
+errors = [v.rms_px if v.rms_px is not None else 0.0 for v in cal_bad.views]
+colors = ["tab:blue" if v.status == "used" else "tab:red" for v in cal_bad.views]
+ax.bar(range(len(names)), errors, color=colors)
+ax.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
+ax.set_ylabel("RMS reprojection error (px)")
+ax.set_title("per-view error: used (blue), rejected (red; not found and other size have no error)")
+plt.show()
+
+# %% [markdown]
+# ## 6. Real photos
+#
+# OpenCV's 13 `right*.jpg` photos (640 x 480, 9 x 6 inner corners). Their published result, a plain
+# `cv2.calibrateCamera` on all 13: RMS about 0.46 px, fx about 542, fy about 542, cx about 328, cy
+# about 247. We reproduce it, then let fidlearn reject outlier views.
+
+# %%
+cal_all = calibrate_checkerboard(real_views, pattern, 25.0, reject_outliers=False)
+cal_real = calibrate_checkerboard(real_views, pattern, 25.0)
+print("all 13 views    :", cal_all)
+print("outliers removed:", cal_real)
+assert len(cal_all.used) == 13 and abs(cal_all.rms_px - 0.46) < 0.02
+assert abs(cal_all.camera.fx - 542) < 3 and abs(cal_all.camera.fy - 542) < 3
+assert abs(cal_all.camera.cx - 328) < 3 and abs(cal_all.camera.cy - 247) < 3
+assert abs(cal_real.camera.fx / cal_all.camera.fx - 1) < 0.01  # one view fewer, K within 1 %
+
+# %% [markdown]
+# Real photos have larger errors than synthetic ones (0.3 to 0.5 px instead of 0.05): printing, paper
+# that is not flat, focus, compression. An RMS below about 0.5 px with 10 or more well-spread views is
+# a good calibration.
+#
+# ## 7. Saving and loading `camera.json`
+#
+# `Camera.save` writes fidlearn's JSON (K, distortion, the image size it belongs to, and what produced
+# it); `Camera.load` reads it back, and also reads OpenCV's YAML/XML calibration files.
+# On the command line: `fidlearn calibrate photos/*.jpg --pattern 9x6 --square-mm 25 -o camera.json`.
+
+# %%
+with tempfile.TemporaryDirectory() as folder:
+    path = os.path.join(folder, "camera.json")
+    cal_real.camera.save(path)
+    saved = json.load(open(path))
+    loaded = Camera.load(path)
+print(sorted(saved))
+print("image_size:", saved["image_size"])
+assert np.allclose(loaded.K, cal_real.camera.K) and np.allclose(loaded.dist, cal_real.camera.dist)
+assert loaded.image_size == (640, 480)
+
+# %% [markdown]
+# ## 8. The resolution trap
+#
+# K is in **pixels of the calibration images**. Run the camera at another resolution and every pixel
+# coordinate changes meaning. This is the classic Raspberry Pi mistake: calibrate at 1280 x 720, then
+# switch the stream to 640 x 360 (or to a 4:3 mode) for speed.
+#
+# `data/scenes/` holds 1280 x 720 pictures of the seed wall taken by a camera whose K is known, from
+# known poses. Here is the pose computation (notebooks 05 to 07 explain each step): detect the markers,
+# `cv2.solvePnP` with their 3D corners, invert.
+
+# %%
+scene_camera = Camera.load(data_path("scenes", "camera.json"))
+wall = MarkerMap.load(data_path("world_map.json"))
+scene = load_image(data_path("scenes", "scene_00.png"))
+T_true = np.array(json.loads(data_path("scenes", "poses.json").read_text())["images"][0]["T_world_camera"])
+
+
+def camera_pose(image, camera):
+    """T_world_camera (4, 4) from the markers in image, and the reprojection RMS (px)."""
+    detections = [d for d in detect_markers(image, wall.dictionary) if d.id in wall]
+    points_world = np.vstack([wall.corners()[d.id] for d in detections])
+    points_px = np.vstack([d.corners for d in detections])
+    ok, rvec, tvec = cv2.solvePnP(points_world, points_px, camera.K, camera.dist,
+                                  flags=_cv.solvepnp_flag("ITERATIVE"))
+    T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
+    residual = camera.project(points_world, T_world_camera) - points_px
+    return T_world_camera, float(np.sqrt(np.mean(np.sum(residual**2, axis=1))))
+
+
+def report(label, image, camera):
+    T, rms_px = camera_pose(image, camera)
+    error_mm = np.linalg.norm(T[:3, 3] - T_true[:3, 3])
+    print(f"{label:42s} image {image.shape[1]}x{image.shape[0]}, camera {camera.width}x{camera.height}: "
+          f"position error {error_mm:7.1f} mm, reprojection RMS {rms_px:.2f} px")
+    return error_mm
+
+
+print(scene_camera)
+err_ok = report("as calibrated", scene, scene_camera)
+assert err_ok < 5
+
+# %% [markdown]
+# Now the same picture at half the resolution (the stream switched to 640 x 360), with the 1280 x 720
+# camera file:
+
+# %%
+small = cv2.resize(scene, (640, 360), interpolation=cv2.INTER_AREA)
+err_small_wrong = report("half resolution, K of 1280x720", small, scene_camera)
+err_small_fixed = report("half resolution, Camera.scaled((640, 360))", small, scene_camera.scaled((640, 360)))
+print(scene_camera.scaled((640, 360)))
+assert err_small_wrong > 500 and err_small_fixed < 20
+
+# %% [markdown]
+# The camera appears twice as far away: fx is twice too big for these pixels. The same aspect ratio means
+# the same sensor area read out at a lower resolution, so K scales exactly with the image
+# (`Camera.scaled`; fidlearn's pose functions do this for you, with a warning). The fixed result is a
+# little less accurate than at full resolution: the markers have half as many pixels.
+#
+# A **4:3 mode** on a 16:9 sensor is different: it crops the sensor's sides (here 960 x 720, the middle of
+# the 1280 x 720 frame). Nothing scales, but the principal point is no longer where K says:
+
+# %%
+crop = scene[:, 160:1120]  # the middle 960 columns
+err_crop_wrong = report("4:3 crop, K of 1280x720", crop, scene_camera)
+try:
+    scene_camera.scaled((960, 720))
+except CameraError as exc:
+    print("Camera.scaled refuses:", exc)
+assert err_crop_wrong > 100
+
+# %% [markdown]
+# More than 10 cm off, and look at the reprojection error: still tiny. **A wrong K does not show in the
+# reprojection error**, because the pose bends to fit. Here we happen to know the crop exactly (160
+# columns off the left), so moving the principal point by 160 px would repair it; a real camera mode
+# usually crops *and* bins in ways nobody documents, so the safe fix is: **calibrate at the resolution
+# and mode you run at.** Here that is what a calibration at 960 x 720 would find:
+
+# %%
+K_crop = scene_camera.K.copy()
+K_crop[0, 2] -= 160  # the principal point, in the cropped image's pixels
+crop_camera = Camera(K_crop, scene_camera.dist, (960, 720), source="the 1280x720 camera, cropped to the middle 960 columns")
+err_crop_fixed = report("4:3 crop, camera of the 4:3 mode", crop, crop_camera)
+assert err_crop_fixed < 5
+
+# %% [markdown]
+# ## Summary
+#
+# * Photos of a flat board of known geometry give K and the distortion: `cv2.findChessboardCorners` +
+#   `cornerSubPix`, then `cv2.calibrateCamera` (or `fidlearn.calibrate_checkerboard` /
+#   `fidlearn calibrate`), which minimizes the reprojection error.
+# * Count **inner** corners; measure the printed square: it scales poses, never K.
+# * Read the per-view errors; drop views that are not found, have another size, or stand out.
+#   Synthetic views reach 0.05 px; real photos 0.3 to 0.5 px.
+# * K belongs to one resolution and one sensor mode. Same aspect ratio: `Camera.scaled`. Another
+#   mode or crop: calibrate again. A wrong K hides behind a small reprojection error.
+#
+# **Exercises**: `exercises/` holds the exercises of the course (notebook 02 has none of its own yet:
+# try calibrating with fewer views, or with the `SB` corner finder, and compare with `camera_true.json`).
+#
+# Next: [03 Extrinsics and transforms](03_extrinsics_transforms.ipynb).
