@@ -109,7 +109,7 @@ class ViewResult:
         The image's path as given, or ``"image i"`` (i counted from 0) for an array.
     status : str
         ``"used"``, ``"not found"``, ``"outlier"``, ``"duplicate"`` (the board where an earlier
-        view had it), ``"other size"`` or ``"unreadable"``.
+        view had it, with ``reject_duplicates=True``), ``"other size"`` or ``"unreadable"``.
     n_points : int
         Board points found (0 when the board was not found).
     rms_px : float or None
@@ -554,7 +554,7 @@ def _too_few(views: list[_View], size, hint: str, min_views: int) -> Calibration
 
 
 def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags: int, criteria, kind: str,
-         min_views: int = MIN_VIEWS) -> Calibration:
+         reject_duplicates: bool = False, min_views: int = MIN_VIEWS) -> Calibration:
     if not entries:
         raise CalibrationError(f"no images given; calibration needs at least {min_views} views of the board")
     views, failed_grays = _detect_all(entries, find, progress)
@@ -584,7 +584,8 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
                         "calibrate at the resolution you run at, with every photo at that one resolution")
             v.obj = v.img = None
 
-    _reject_duplicates(views)
+    if reject_duplicates:
+        _reject_duplicates(views)
     usable = [v for v in views if v.status == "used"]
     if len(usable) < min_views:
         hint = finder.diagnose(failed_grays) if not usable else ""
@@ -644,6 +645,7 @@ def calibrate_checkerboard(
     *,
     progress: ProgressFn | None = None,
     reject_outliers: bool = True,
+    reject_duplicates: bool = False,
     corner_finder: str = "classic",
     flags: int = 0,
     criteria: tuple | None = None,
@@ -669,6 +671,11 @@ def calibrate_checkerboard(
     reject_outliers : bool
         Drop views whose RMS exceeds ``max(3 x median, median + 0.5 px)`` and
         calibrate again (see the module docstring).
+    reject_duplicates : bool
+        Drop a view whose every corner lies within 1 px of an earlier view's
+        (a burst of photos of a still board adds weight, not geometry: four
+        copies of one photo give a wildly wrong fx with a small claimed
+        standard deviation). Off by default: the command line warns instead.
     corner_finder : {"classic", "sb"}
         ``findChessboardCorners`` + capped ``cornerSubPix`` (default, measured
         more accurate) or ``findChessboardCornersSB``.
@@ -700,7 +707,7 @@ def calibrate_checkerboard(
     finder = _Checkerboard(pattern, square, corner_finder)
     entries = _entries(images)
     return _run(entries, finder, lambda g: {0: finder.find(g)}, progress, reject_outliers, flags, criteria,
-                "calibrate_checkerboard")
+                "calibrate_checkerboard", reject_duplicates)
 
 
 def calibrate_charuco(
@@ -713,6 +720,7 @@ def calibrate_charuco(
     legacy: bool | str = "auto",
     progress: ProgressFn | None = None,
     reject_outliers: bool = True,
+    reject_duplicates: bool = False,
     min_corners: int = 6,
     flags: int = 0,
     criteria: tuple | None = None,
@@ -736,7 +744,7 @@ def calibrate_charuco(
     legacy : bool or "auto"
         The marker layout of boards made before OpenCV 4.6 (matters only with
         an even number of rows); ``"auto"`` keeps whichever finds more corners.
-    progress, reject_outliers, flags, criteria :
+    progress, reject_outliers, reject_duplicates, flags, criteria :
         As for :func:`calibrate_checkerboard`.
     min_corners : int
         Fewest chess corners a view must show to be used.
@@ -764,4 +772,5 @@ def calibrate_charuco(
         raise CalibrationError(f"min_corners must be at least 4, got {min_corners}")
     finder = _Charuco(sq, square, marker, dictionary, legacy, min_corners)
     entries = _entries(images)
-    return _run(entries, finder, finder.find_all, progress, reject_outliers, flags, criteria, "calibrate_charuco")
+    return _run(entries, finder, finder.find_all, progress, reject_outliers, flags, criteria, "calibrate_charuco",
+                reject_duplicates)

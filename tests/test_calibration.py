@@ -253,11 +253,14 @@ def test_a_glob_pattern_stands_for_the_files_it_matches(right_files):
 def test_repeated_photos_of_a_still_board_are_rejected_as_duplicates(right_grays):
     same = right_grays[0]
     noisy = np.clip(same.astype(int) + np.random.default_rng(0).integers(-3, 4, same.shape), 0, 255).astype(np.uint8)
-    cal = calibrate_checkerboard([same, noisy] + right_grays[1:], PATTERN, SQUARE_MM, reject_outliers=False)
+    kept = calibrate_checkerboard([same, noisy] + right_grays[1:], PATTERN, SQUARE_MM, reject_outliers=False)
+    assert kept.rejected == []  # by default (the command line warns about them instead)
+    cal = calibrate_checkerboard([same, noisy] + right_grays[1:], PATTERN, SQUARE_MM, reject_outliers=False,
+                                 reject_duplicates=True)
     assert cal.rejected == [("image 1", "duplicate: the board sits where it sat in image 0 (every corner within 1 px): "
                                         "move or tilt the board between photos")]
     with pytest.raises(CalibrationError, match=r"got 1 of 3: duplicate: 2 \(image 1, image 2; the board sits where"):
-        calibrate_checkerboard([same, same, noisy], PATTERN, SQUARE_MM)
+        calibrate_checkerboard([same, same, noisy], PATTERN, SQUARE_MM, reject_duplicates=True)
 
 
 def test_calibration_errors_are_fidlearn_errors():
