@@ -40,6 +40,7 @@ Correct (q1): ...
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import itertools
 import math
@@ -185,11 +186,19 @@ class _AnswerError(Exception):
 
 
 def _short(value: Any) -> str:
+    """A readable one-or-few-line view of an input (big arrays by shape only)."""
     if isinstance(value, np.ndarray):
         if value.size > 24:
             return f"array of shape {value.shape}, dtype {value.dtype}"
         return np.array2string(np.round(value, 4), separator=", ", suppress_small=True).replace("\n", "\n    ")
-    if isinstance(value, (list, tuple)) and len(value) > 6 and not isinstance(value[0], (int, float, str)):
+    if isinstance(value, dict) and value and all(isinstance(v, str) and len(v) > 30 for v in value.values()):
+        return "{\n" + "\n".join(f"      {k!r}: {v!r}," for k, v in value.items()) + "\n  }"
+    if isinstance(value, list) and value and all(isinstance(v, np.ndarray) for v in value) and value[0].size > 24:
+        shapes = {v.shape for v in value}
+        return f"list of {len(value)} arrays of shape {value[0].shape}" if len(shapes) == 1 else f"list of {len(value)} arrays"
+    if isinstance(value, list) and 1 < len(value) <= 8 and all(isinstance(v, (Detection, np.ndarray, dict)) for v in value):
+        return "[\n" + "\n".join(f"      {_short(v) if isinstance(v, np.ndarray) else repr(v)}," for v in value) + "\n  ]"
+    if isinstance(value, (list, tuple)) and len(value) > 8 and not isinstance(value[0], (int, float, str)):
         return f"{type(value).__name__} of {len(value)} items, first: {value[0]!r}"
     if isinstance(value, float):
         return f"{value:g}"
@@ -328,6 +337,14 @@ class Question:
         """Print the task and the inputs."""
         print(f"{self.name}. {self.title}\n\n{self.task}\n\n{self.name}.inputs = {self.inputs!r}")
 
+    def _fresh(self) -> "Question":
+        """A copy with its own inputs (a learner may change them) and no answer yet."""
+        new = copy.copy(self)
+        new.inputs = copy.deepcopy(self.inputs)
+        new.data = new.inputs
+        new.answer = ...
+        return new
+
     def __repr__(self) -> str:
         status = self.grade().status if self.answer is not ... else NOT_ATTEMPTED
         names = ", ".join(self.inputs.keys())
@@ -364,7 +381,7 @@ def _array(shape: tuple, what: str, shape_hints: dict | None = None) -> Callable
                 extra = (shape_hints or {}).get(a.shape, "")
                 raise _AnswerError(f"{what} has shape {a.shape}, expected {_shape_text(shape)}" + (f": {extra}" if extra else ""))
         if not np.all(np.isfinite(a)):
-            raise _AnswerError(f"{what} contains NaN or infinity")
+            raise _AnswerError(f"{what} contains NaN or infinity; leave out (or fill in) what could not be computed")
         return a
 
     return parse
@@ -386,6 +403,8 @@ def _scalar(what: str) -> Callable[[Any], float]:
         if a is None or a.size != 1:
             raise _AnswerError(f"{what} should be one number, got {type(answer).__name__} of {np.size(answer)} values")
         v = float(a.reshape(-1)[0])
+        if math.isnan(v):
+            raise _AnswerError(f"{what} is NaN: a NaN in the data spreads through every sum and mean; leave those values out (np.isnan finds them)")
         if not math.isfinite(v):
             raise _AnswerError(f"{what} is {v}, expected a finite number")
         return v
@@ -1287,7 +1306,7 @@ class Lesson:
         self.title = info.title
         self.intro = info.intro
         self.learner = learner
-        self.questions: list[Question] = info.build(learner)
+        self.questions: list[Question] = [q._fresh() for q in _built(info.number, learner)]
         for q in self.questions:
             setattr(self, q.name, q)
 
@@ -1320,6 +1339,12 @@ class Lesson:
         who = f", learner {self.learner!r}" if self.learner else ", the class's shared variant"
         qs = "\n".join(f"  {q.name}: {q.title} ({q.level})" for q in self.questions)
         return f"Lesson {self.number}: {self.title}{who}\n{qs}"
+
+
+@functools.lru_cache(maxsize=64)
+def _built(number: str, learner: str) -> tuple:
+    """The questions of a lesson for a learner, built once (rendering takes a moment); Lesson hands out copies."""
+    return tuple(_LESSONS[number].build(learner))
 
 
 def lessons() -> dict[str, str]:
@@ -1454,3 +1479,922 @@ _register("07", "inversion", "Inverting the extrinsics: where is the camera?", "
     camera's position -R^T t, its pose T_world_camera, the direction it looks, and a pose from a
     single marker chained through the map.
     """, _lesson_07)
+
+
+# ==================================================================================
+# Lesson 02: calibration
+# ==================================================================================
+def _board_points(pattern: tuple[int, int], square_mm: float) -> np.ndarray:
+    """Checkerboard inner corners (N, 3), mm, in the order cv2.findChessboardCorners reports them (rows of x)."""
+    cols, rows = pattern
+    jj, ii = np.mgrid[0:rows, 0:cols]
+    return np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * float(square_mm)
+
+
+def _calibration_views(rng: np.random.Generator, camera: Camera, obj: np.ndarray, n_views: int, noise_px: float) -> list:
+    """Pixel corners (N, 2) of a board seen from n_views varied poses, with Gaussian noise."""
+    centre = obj.mean(axis=0)
+    extent = float(np.ptp(obj[:, 0]))
+    views = []
+    while len(views) < n_views:
+        dist = extent * rng.uniform(1.6, 3.0)
+        direction = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), -1.0])
+        eye = centre + dist * direction / np.linalg.norm(direction)
+        T = _look_at(eye, centre + [rng.uniform(-0.3, 0.3) * extent, rng.uniform(-0.2, 0.2) * extent, 0], up=(0, -1, 0))
+        T = T @ frames.make_transform(frames.rot_z(math.radians(rng.uniform(-20, 20))))
+        px = camera.project(obj, T)
+        if np.all(camera.points_in_front(obj, T)) and np.all((px > 5) & (px < np.array(camera.image_size) - 6)):
+            views.append(np.round(px + rng.normal(0, noise_px, px.shape), 3))
+    return views
+
+
+def _lesson_02(learner: str) -> list[Question]:
+    qs = []
+    # q1: the board's object points ---------------------------------------------------
+    rng = _rng("02", learner, "q1")
+    pattern = (int(rng.integers(6, 10)), int(rng.integers(4, 7)))
+    square_in = float(rng.choice([0.75, 1.0, 1.25, 1.5]))
+    obj = _board_points(pattern, square_in * 25.4)
+    cols, rows = pattern
+    col_major = np.array([[i, j, 0] for i in range(cols) for j in range(rows)], dtype=float) * square_in * 25.4
+    qs.append(Question(
+        "q1", "The board's object points",
+        """
+        Your checkerboard has `pattern_size` = (columns, rows) INNER corners and squares of
+        `square_size_in` inches. Write code that builds its object points for cv2.calibrateCamera:
+        an (N, 3) float array in mm, z = 0, the first corner at the origin, in the order
+        cv2.findChessboardCorners reports corners: along a row first (x grows fastest), then the
+        next row (y grows).
+        """,
+        {"pattern_size": pattern, "square_size_in": square_in},
+        obj,
+        _array((cols * rows, 3), "the object points", {
+            ((cols + 1) * (rows + 1), 3): "that counts the squares' corners on the outer border too: pattern_size counts the INNER corners",
+            (cols * rows, 2): "add z = 0: object points are 3D",
+        }),
+        _cmp_array(0.01, " mm"),
+        wrong=[
+            (lambda a: _close(a * 25.4, obj, 0.01), "the square size is in inches: multiply by 25.4 to get mm (your values are 25.4x too small)"),
+            (lambda a: _close(a, col_major, 0.01), "the order is column by column; findChessboardCorners goes along a row first: point k is at (k % columns, k // columns) * square"),
+            (lambda a: _close(np.sort(a, axis=0), np.sort(obj, axis=0), 0.01), "the points are right but in another order: along a row first (x fastest), then the next row"),
+        ],
+        hint="np.mgrid[0:rows, 0:cols] gives row and column indices; x = column * square_mm, y = row * square_mm, z = 0.",
+        solution="""
+        cols, rows = q1.inputs.pattern_size
+        square_mm = q1.inputs.square_size_in * 25.4
+        obj = np.zeros((cols * rows, 3))
+        obj[:, 0] = np.tile(np.arange(cols), rows) * square_mm     # x: along a row
+        obj[:, 1] = np.repeat(np.arange(rows), cols) * square_mm   # y: row after row
+        q1.answer = obj
+        """,
+        level="easy",
+    ))
+
+    # q2: calibrate ----------------------------------------------------------------------
+    rng = _rng("02", learner, "q2")
+    size = _SIZES[int(rng.integers(1, 3))]
+    true_cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), size, dist=[float(np.round(rng.uniform(-0.15, 0.05), 3)), 0, 0, 0, 0])
+    K_true = true_cam.K.copy()
+    K_true[0, 2] += float(np.round(rng.uniform(-12, 12), 1))
+    K_true[1, 2] += float(np.round(rng.uniform(-8, 8), 1))
+    true_cam = Camera(K_true, true_cam.dist, size)
+    obj2 = _board_points((9, 6), 25.0)
+    views = _calibration_views(rng, true_cam, obj2, 10, 0.15)
+    _, K_key, _, _, _ = cv2.calibrateCamera([obj2.astype(np.float32)] * len(views), [v.astype(np.float32) for v in views], size, None, None)
+
+    def cmp_K(a, b):
+        if abs(a[0, 0] - b[0, 0]) <= 0.01 * b[0, 0] and abs(a[1, 1] - b[1, 1]) <= 0.01 * b[1, 1] and abs(a[0, 2] - b[0, 2]) <= 3 and abs(a[1, 2] - b[1, 2]) <= 3 and abs(a[2, 2] - 1) < 1e-6:
+            return None
+        return f"your fx = {a[0, 0]:.1f}, cx = {a[0, 2]:.1f}, cy = {a[1, 2]:.1f} px are not what calibrateCamera gives on these points (fx to within 1 %, cx, cy to within 3 px)"
+
+    qs.append(Question(
+        "q2", "Calibrate from corner detections",
+        """
+        A 9 x 6 checkerboard with 25 mm squares (its object points are in `object_points`, (54, 3)
+        mm) was detected in 10 pictures of `image_size` (width, height); `image_points` holds the
+        10 arrays of (54, 2) pixel corners. Write code that calibrates the camera with
+        cv2.calibrateCamera and gives its intrinsic matrix K (3, 3).
+        """,
+        {"object_points": obj2, "image_points": views, "image_size": size},
+        K_key,
+        _array((3, 3), "K", {(5,): "that is the distortion vector; K is the 3x3 matrix calibrateCamera returns second", (1, 5): "that is the distortion vector; K is the 3x3 matrix calibrateCamera returns second", (): "that is the RMS error; K is the 3x3 matrix calibrateCamera returns second"}),
+        cmp_K,
+        wrong=[
+            (lambda a: cmp_K(a.T, K_key) is None, "your K is transposed: cx and cy belong in the last column"),
+        ],
+        hint="cv2.calibrateCamera wants a list of object-point arrays (one per view, float32) and a list of image-point arrays; it returns rms, K, dist, rvecs, tvecs.",
+        solution="""
+        obj = q2.inputs.object_points.astype(np.float32)
+        imgs = [p.astype(np.float32) for p in q2.inputs.image_points]
+        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(imgs), imgs, q2.inputs.image_size, None, None)
+        q2.answer = K
+        """,
+        level="medium",
+    ))
+
+    # q3: the view from another resolution --------------------------------------------------
+    rng = _rng("02", learner, "q3")
+    size3 = (1280, 720)
+    cam3 = Camera.from_fov(float(np.round(rng.uniform(60, 75))), size3)
+    obj3 = _board_points((9, 6), 25.0)
+    views3 = _calibration_views(rng, cam3, obj3, 9, 0.15)
+    small = cam3.scaled((640, 360))
+    odd = int(rng.integers(1, 9))
+    views3[odd] = np.round(_calibration_views(rng, small, obj3, 1, 0.1)[0], 3)
+    qs.append(Question(
+        "q3", "Find the picture that does not belong",
+        """
+        Your class pooled its checkerboard pictures; one of the 9 views in
+        `image_points` was taken at another resolution (the phone's video mode), so its corners do
+        not fit the same K. Write code that calibrates on all views and finds the bad one from
+        the per-view reprojection RMS (the view whose reprojected corners are farthest from its
+        detected corners). Answer the view's index in the list (0-based).
+        """,
+        {"object_points": obj3, "image_points": views3, "image_size": size3},
+        odd,
+        lambda a: int(_scalar("the index")(a)),
+        lambda a, b: None if a == b else f"view {a} is not the one that stands out",
+        wrong=[
+            (lambda a: a == odd + 1, "Python counts from 0: the first view has index 0"),
+        ],
+        hint="cv2.calibrateCamera returns rvecs and tvecs per view; cv2.projectPoints(object_points, rvecs[i], tvecs[i], K, dist) reprojects view i; compare with image_points[i] (RMS of the distances). cv2.calibrateCameraExtended also returns perViewErrors.",
+        solution="""
+        obj = q3.inputs.object_points.astype(np.float32)
+        imgs = [p.astype(np.float32) for p in q3.inputs.image_points]
+        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(imgs), imgs, q3.inputs.image_size, None, None)
+        per_view = []
+        for img, rvec, tvec in zip(imgs, rvecs, tvecs):
+            proj, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+            per_view.append(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
+        q3.answer = int(np.argmax(per_view))
+        """,
+        level="medium",
+    ))
+
+    # q4: K at another resolution --------------------------------------------------------------
+    rng = _rng("02", learner, "q4")
+    big = _SIZES[int(rng.integers(2, 4))]
+    factor = float(rng.choice([0.5, 2 / 3, 0.25]))
+    new = (int(round(big[0] * factor)), int(round(big[1] * factor)))
+    cam4 = Camera.from_fov(float(np.round(rng.uniform(55, 80))), big)
+    K4 = cam4.K.copy()
+    K4[0, 2] += float(np.round(rng.uniform(-20, 20), 1))
+    K4[1, 2] += float(np.round(rng.uniform(-15, 15), 1))
+    K4new = Camera(K4, None, big).scaled(new).K
+    s = new[0] / big[0]
+    qs.append(Question(
+        "q4", "K at another resolution",
+        """
+        The camera was calibrated at `calibrated_size` (width, height) with intrinsic matrix `K`;
+        you now run it at `new_size` (same aspect ratio, the whole sensor resized). Write code that
+        computes K at the new size. With pixel centres at integer coordinates a position scales as
+        c' = (c + 0.5) * s - 0.5.
+        """,
+        {"K": K4, "calibrated_size": big, "new_size": new},
+        K4new,
+        _array((3, 3), "K"),
+        lambda a, b: None if (np.abs(a[[0, 1], [0, 1]] - b[[0, 1], [0, 1]]).max() <= 0.01 and np.abs(a[:2, 2] - b[:2, 2]).max() <= 0.51
+                              and np.abs(a[2] - [0, 0, 1]).max() < 1e-9) else _cmp_array(0.01, " px")(a, b),
+        wrong=[
+            (lambda a: abs(a[0, 0] - K4[0, 0]) < 0.01, "the focal length is in pixels, so it scales with the image: fx' = fx * new_width / old_width"),
+            (lambda a: abs(a[0, 0] - K4[0, 0] / s) < 0.01, "the scale is upside down: going to a smaller image makes fx smaller, s = new_width / old_width"),
+            (lambda a: abs(a[0, 0] - K4new[0, 0]) < 0.01 and abs(a[0, 2] - K4[0, 2]) < 0.01, "the principal point moves too: cx and cy scale like fx (in pixels)"),
+            (lambda a: _close(a, K4new.T, 0.51), "your K is transposed: cx and cy belong in the last column"),
+        ],
+        notes=[(lambda a: np.abs(a[:2, 2] - K4new[:2, 2]).max() > 0.1,
+                "K is right to within half a pixel; with pixel centres at integer coordinates c' = (c + 0.5) * s - 0.5 is exact")],
+        hint="Every entry measured in pixels scales by s = new_width / old_width: fx, fy, cx, cy (cx, cy with the half-pixel shift).",
+        solution="""
+        s = q4.inputs.new_size[0] / q4.inputs.calibrated_size[0]
+        K = np.array(q4.inputs.K, dtype=float)
+        K_new = K.copy()
+        K_new[0, 0] = K[0, 0] * s
+        K_new[1, 1] = K[1, 1] * s
+        K_new[0, 2] = (K[0, 2] + 0.5) * s - 0.5
+        K_new[1, 2] = (K[1, 2] + 0.5) * s - 0.5
+        q4.answer = K_new
+        """,
+        level="easy",
+    ))
+    return qs
+
+
+_register("02", "calibration", "Calibration", """
+    From checkerboard corners to K: build the board's object points, run cv2.calibrateCamera, find
+    the picture that does not belong, and carry K to another resolution.
+    """, _lesson_02)
+
+
+# ==================================================================================
+# Lesson 06: PnP over several markers
+# ==================================================================================
+def _wall_map(rng: np.random.Generator, n: int, size_mm: float, first_id: int = 0, spread_mm: float = 900.0) -> MarkerMap:
+    """n markers on the north wall (x = 0, facing +X), top-left corners on a loose grid, mm."""
+    ids = first_id + np.sort(rng.choice(40, size=n, replace=False))
+    placements = {}
+    k = 0
+    while len(placements) < n:
+        y = float(np.round(rng.uniform(-spread_mm, spread_mm), -1))
+        z = float(np.round(rng.uniform(700, 1700), -1))
+        tl = np.array([0.0, y, z])
+        if all(np.abs(np.asarray(p.translation_mm) - tl)[1:].max() > 2 * size_mm for p in placements.values()):
+            mid = int(ids[k])
+            placements[mid] = MarkerPlacement(mid, (0.0, y, z), (0.0, 0.0, 0.0))
+            k += 1
+    return MarkerMap(placements, size_mm, "ARUCO_ORIGINAL", "mm")
+
+
+def _noisy_detections(rng: np.random.Generator, camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, noise_px: float) -> list:
+    dets = []
+    for mid in marker_map.ids:
+        px = camera.project(marker_map.marker_corners(mid), T_world_camera)
+        dets.append(Detection(mid, np.round(px + rng.normal(0, noise_px, px.shape), 3)))
+    return dets
+
+
+def _pairs(obj: np.ndarray, img: np.ndarray) -> list:
+    return sorted(tuple(np.round(np.concatenate([o, i]), 2)) for o, i in zip(obj, img))
+
+
+def _lesson_06(learner: str) -> list[Question]:
+    qs = []
+    # q1: correspondences ---------------------------------------------------------------
+    rng = _rng("06", learner, "q1")
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
+    m = _wall_map(rng, 4, float(rng.choice([100, 120, 150])))
+    T = _look_at(np.round(rng.uniform([1800, -500, 1000], [3000, 500, 1500])), [0, 0, 1200])
+    dets = _noisy_detections(rng, cam, m, T, 0.2)
+    stray_id = int(max(m.ids) + 1 + rng.integers(0, 5))
+    stray = Detection(stray_id, np.round(dets[0].corners + [[-300, 150]], 3))
+    detections = sorted(dets + [stray], key=lambda d: (d.corners[0, 0]))
+    obj = np.concatenate([m.marker_corners(d.id) for d in detections if d.id in m])
+    img = np.concatenate([d.corners for d in detections if d.id in m])
+    key_pairs = _pairs(obj, img)
+
+    def parse_pairs(answer):
+        if not isinstance(answer, (tuple, list)) or len(answer) != 2:
+            raise _AnswerError("give a pair (object_points (N, 3), image_points (N, 2))")
+        o = _array((-1, 3), "object_points", {(len(obj), 2): "object points are 3D world corners (x, y, z), mm"})(answer[0])
+        i = _array((-1, 2), "image_points")(answer[1])
+        if len(o) != len(i):
+            raise _AnswerError(f"{len(o)} object points but {len(i)} image points: every world corner needs its pixel")
+        return o, i
+
+    def cmp_pairs(a, _):
+        o, i = a
+        if _pairs(o, i) == key_pairs:
+            return None
+        if len(o) == len(obj) + 4:
+            return f"you have {len(o) // 4} markers; marker {stray_id} was detected but is not in the map: skip ids the map does not know"
+        if len(o) != len(obj):
+            return f"you have {len(o)} correspondences; the {len(obj) // 4} mapped markers give {len(obj)} (4 corners each)"
+        if sorted(map(tuple, np.round(o, 2))) == sorted(map(tuple, np.round(obj, 2))):
+            return "each world corner must sit next to ITS pixel: detection i's corners (TL, TR, BR, BL) go with marker_corners(detection i's id), in the same order"
+        return "these are not the map's corners of the detected markers"
+
+    qs.append(Question(
+        "q1", "2D-3D correspondences",
+        """
+        `detections` lists detected markers (fidlearn Detection: `.id`, `.corners` (4, 2) px,
+        TL, TR, BR, BL); one of them is not in the map. `marker_map` gives world corners
+        (marker_map.marker_corners(id), (4, 3) mm, same order). Write code that builds the
+        arrays solvePnP needs: object_points (N, 3) mm and image_points (N, 2) px, row k of one
+        matching row k of the other. Answer (object_points, image_points).
+        """,
+        {"detections": detections, "marker_map": m, "camera": cam},
+        (obj, img),
+        parse_pairs,
+        cmp_pairs,
+        hint="Loop over the detections, skip an id that is not in marker_map (`d.id in marker_map`), and stack marker_map.marker_corners(d.id) and d.corners.",
+        solution="""
+        m = q1.inputs.marker_map
+        known = [d for d in q1.inputs.detections if d.id in m]
+        object_points = np.concatenate([m.marker_corners(d.id) for d in known])
+        image_points = np.concatenate([d.corners for d in known])
+        q1.answer = (object_points, image_points)
+        """,
+        level="easy",
+    ))
+
+    # q2: solvePnP ------------------------------------------------------------------------
+    rng = _rng("06", learner, "q2")
+    cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
+    m2 = _wall_map(rng, 5, 150.0)
+    T2 = _look_at(np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, float(np.round(rng.uniform(-200, 200))), 1200])
+    dets2 = _noisy_detections(rng, cam2, m2, T2, 0.3)
+    obj2 = np.concatenate([m2.marker_corners(d.id) for d in dets2])
+    img2 = np.concatenate([d.corners for d in dets2])
+    ok, rv, tv = cv2.solvePnP(obj2, img2, cam2.K, cam2.dist, flags=cv2.SOLVEPNP_ITERATIVE)
+    Tcw_key = frames.transform_from_rvec_tvec(rv.ravel(), tv.ravel())
+
+    def parse_rt(answer):
+        if isinstance(answer, np.ndarray) and answer.shape == (4, 4):
+            raise _AnswerError("give (rvec, tvec) as solvePnP returns them, not a 4x4 matrix")
+        if not isinstance(answer, (tuple, list)) or len(answer) not in (2, 3):
+            raise _AnswerError("give the pair (rvec, tvec) that cv2.solvePnP returns")
+        if len(answer) == 3:
+            answer = answer[1:]  # (ok, rvec, tvec) straight from solvePnP
+        r = _array((3,), "rvec", {(3, 3): "that is a rotation matrix: give the Rodrigues vector (cv2.Rodrigues(R)[0])"})(answer[0])
+        t = _array((3,), "tvec")(answer[1])
+        return frames.transform_from_rvec_tvec(r, t)
+
+    qs.append(Question(
+        "q2", "solvePnP over every marker",
+        """
+        The camera `camera` (K, dist) saw the 5 markers of `marker_map`; their detections are in
+        `detections`. Write code that estimates the camera's extrinsics with cv2.solvePnP using
+        the corners of ALL markers at once. Answer (rvec, tvec) as solvePnP returns them.
+        """,
+        {"detections": dets2, "marker_map": m2, "camera": cam2},
+        Tcw_key,
+        parse_rt,
+        _cmp_transform(0.3, 10.0),
+        wrong=[
+            (_T_is(frames.invert_transform(Tcw_key), 0.5, 15), "that is the camera's pose (T_world_camera); solvePnP's rvec, tvec are T_camera_world: give them as they are"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], Tcw_key[:3, :3]) < 1 and np.linalg.norm(a[:3, 3] - Tcw_key[:3, 3]) < 100,
+             "close, but less accurate than the key: did you use all 5 markers (20 corners) and the camera's distortion?"),
+        ],
+        hint="Build object_points and image_points over all detections (as in q1), then ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist).",
+        solution="""
+        m, cam = q2.inputs.marker_map, q2.inputs.camera
+        known = [d for d in q2.inputs.detections if d.id in m]
+        object_points = np.concatenate([m.marker_corners(d.id) for d in known])
+        image_points = np.concatenate([d.corners for d in known])
+        ok, rvec, tvec = cv2.solvePnP(object_points, image_points, cam.K, cam.dist)
+        q2.answer = (rvec, tvec)
+        """,
+        level="medium",
+    ))
+
+    # q3: reprojection RMS ----------------------------------------------------------------
+    rng = _rng("06", learner, "q3")
+    cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
+    m3 = _wall_map(rng, 4, 120.0)
+    T3 = _look_at(np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, 0, 1200])
+    dets3 = _noisy_detections(rng, cam3, m3, T3, float(np.round(rng.uniform(0.3, 1.0), 2)))
+    obj3 = np.concatenate([m3.marker_corners(d.id) for d in dets3])
+    img3 = np.concatenate([d.corners for d in dets3])
+    ok, rv3, tv3 = cv2.solvePnP(obj3, img3, cam3.K, cam3.dist)
+    rv3, tv3 = np.round(rv3.ravel(), 6), np.round(tv3.ravel(), 3)
+    proj = cv2.projectPoints(obj3, rv3, tv3, cam3.K, cam3.dist)[0].reshape(-1, 2)
+    d = np.linalg.norm(proj - img3, axis=1)
+    rms = float(np.sqrt(np.mean(d ** 2)))
+    qs.append(Question(
+        "q3", "Reprojection error",
+        """
+        solvePnP on `object_points` (N, 3) mm and `image_points` (N, 2) px gave `rvec`, `tvec`.
+        Write code that reprojects the object points with that pose and the camera (K, dist) and
+        computes the RMS reprojection error in pixels: the square root of the mean of the SQUARED
+        distances between reprojected and detected corners.
+        """,
+        {"object_points": obj3, "image_points": img3, "rvec": rv3, "tvec": tv3, "camera": cam3},
+        rms,
+        _scalar("the RMS error"),
+        _cmp_scalar(1e-3, " px", rtol=1e-3),
+        wrong=[
+            (lambda a: abs(a - d.mean()) < 1e-3, "that is the mean distance; RMS is the square ROOT of the MEAN of the SQUARED distances"),
+            (lambda a: abs(a - rms / math.sqrt(2)) < 1e-3, "that averages over the 2N coordinates; average the squared DISTANCES over the N points (dx^2 + dy^2 per point)"),
+            (lambda a: abs(a - rms ** 2) < 1e-3, "that is the mean squared error; take its square root"),
+            (lambda a: abs(a - float(np.sqrt(np.sum(d ** 2)))) < 1e-3, "divide by the number of points before the square root (the MEAN of the squares)"),
+            (lambda a: a > 20, "that is far too large: did you project with the right pose (rvec, tvec are T_camera_world, as cv2.projectPoints wants) and the camera's K and dist?"),
+        ],
+        hint="proj, _ = cv2.projectPoints(object_points, rvec, tvec, K, dist); proj.reshape(-1, 2) - image_points gives the residuals; RMS = sqrt(mean(dx^2 + dy^2)).",
+        solution="""
+        cam = q3.inputs.camera
+        proj, _ = cv2.projectPoints(q3.inputs.object_points, q3.inputs.rvec, q3.inputs.tvec, cam.K, cam.dist)
+        residuals = proj.reshape(-1, 2) - q3.inputs.image_points
+        q3.answer = np.sqrt(np.mean(np.sum(residuals ** 2, axis=1)))
+        """,
+        level="easy",
+    ))
+    return qs
+
+
+_register("06", "pnp", "PnP: the pose from several markers", """
+    Solve for the camera's extrinsics with every marker at once: pair world corners with pixels,
+    run cv2.solvePnP, and measure how well the pose explains the corners (reprojection error).
+    """, _lesson_06)
+
+
+# ==================================================================================
+# Lesson 05: detection
+# ==================================================================================
+def _scene(lesson_id: str, learner: str, question: str, n_markers: int, rotated: bool, dictionaries: Sequence[str]):
+    """A seeded scene: (camera, marker_map, T_world_camera, image, truth, rotated_id, dictionary)."""
+    from . import synthetic
+
+    rng = _rng(lesson_id, learner, question)
+    dictionary = str(rng.choice(list(dictionaries)))
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 70))), (800, 600))
+    size = 120.0
+    ids = [int(i) for i in np.sort(rng.choice(40, size=n_markers, replace=False))]
+    ys = np.linspace(-600, 600, n_markers) + rng.uniform(-60, 60, n_markers)
+    placements = {}
+    rotated_id = int(rng.choice(ids)) if rotated else None
+    for k, (mid, y) in enumerate(zip(ids, ys)):
+        z = 1150.0 + (180.0 if k % 2 else -120.0) + float(rng.uniform(-40, 40))
+        roll = float(rng.choice([90, 180, -90])) if mid == rotated_id else 0.0
+        # a marker rotated about its top-left corner: shift it so that it stays where it was meant to be
+        tl = np.array([0.0, np.round(y), np.round(z)])
+        R = frames.rotation_from_rpy_deg(roll, 0, 0)
+        centre_offset = R @ np.array([0.0, size / 2, -size / 2]) - np.array([0.0, size / 2, -size / 2])
+        tl = tl - centre_offset
+        placements[mid] = MarkerPlacement(mid, tuple(float(v) for v in tl), (roll, 0.0, 0.0))
+    m = MarkerMap(placements, size, dictionary, "mm")
+    eye = np.round(rng.uniform([1700, -300, 1000], [2300, 300, 1400]))
+    T = synthetic.look_at(eye, [0.0, float(np.round(rng.uniform(-100, 100))), 1150.0])
+    image, truth = synthetic.render_scene(cam, m, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std=2.0, gradient=0.15)
+    return cam, m, T, image, truth, rotated_id, dictionary
+
+
+def _lesson_05(learner: str) -> list[Question]:
+    qs = []
+    cam, m, T, image, truth, rot_id, dictionary = _scene("05", learner, "scene", 5, True, ["ARUCO_ORIGINAL", "4X4_50", "6X6_250"])
+    ids = sorted(truth)
+
+    def parse_ids(answer):
+        if isinstance(answer, (str, bytes)) or not hasattr(answer, "__iter__"):
+            raise _AnswerError("give a list of marker ids (integers)")
+        out = []
+        for v in answer:
+            v = getattr(v, "id", v)  # Detection objects are fine too
+            try:
+                out.append(int(np.asarray(v).reshape(-1)[0]))
+            except (TypeError, ValueError, IndexError):
+                raise _AnswerError(f"{v!r} is not a marker id") from None
+        return sorted(out)
+
+    def cmp_ids(a, b):
+        if sorted(set(a)) == b:
+            return None if len(a) == len(b) else "each id once, please"
+        if not a:
+            return None if not b else "no ids"
+        missing = sorted(set(b) - set(a))
+        extra = sorted(set(a) - set(b))
+        if extra:
+            return f"ids {extra} are not in the picture"
+        return f"you found {len(b) - len(missing)} of the {len(b)} markers; look again (the whole image, the right dictionary)"
+
+    qs.append(Question(
+        "q1", "Which markers are in the picture?",
+        """
+        `image` is a gray picture (H, W) of a wall with markers from the dictionary `dictionary`.
+        Write code that detects them (fidlearn.detection.detect_markers, or OpenCV's
+        cv2.aruco.ArucoDetector) and gives the sorted list of their ids.
+        """,
+        {"image": image.copy(), "dictionary": dictionary},
+        ids,
+        parse_ids,
+        cmp_ids,
+        wrong=[
+            (lambda a: len(a) == 0, f"nothing was found: a detector only sees markers of its own dictionary; this picture uses {dictionary!r} (pass dictionary=q1.inputs.dictionary)"),
+        ],
+        hint="from fidlearn.detection import detect_markers; detections = detect_markers(image, dictionary=...); each has .id and .corners.",
+        solution="""
+        from fidlearn.detection import detect_markers
+        detections = detect_markers(q1.inputs.image, dictionary=q1.inputs.dictionary)
+        q1.answer = sorted(d.id for d in detections)
+        """,
+        level="easy",
+    ))
+
+    C = truth[rot_id]
+
+    def winding(a):
+        order = _corner_order(a, C, 1.5)
+        return order is not None and order != ("TL", "TR", "BR", "BL")
+
+    image_sorted = C[np.lexsort((C[:, 0], C[:, 1]))]
+    qs.append(Question(
+        "q2", "The corners of a turned marker, in order",
+        """
+        Marker `marker_id` hangs turned on the wall, so its own top-left corner is not the
+        top-left of the picture. Write code that finds its four corners in `image` (dictionary
+        `dictionary`) and gives them as a (4, 2) array of (x, y) pixels in the marker's own order
+        TL, TR, BR, BL: the order the map uses and detection reports.
+        """,
+        {"image": image.copy(), "dictionary": dictionary, "marker_id": rot_id},
+        C,
+        _array((4, 2), "the corners", {(2, 4): "one ROW per corner: transpose it", (1, 4, 2): ""}),
+        _cmp_array(1.0, " px"),
+        wrong=[
+            (winding, lambda a: _winding_message(_corner_order(a, C, 1.5))),
+            (lambda a: _close(a[:, ::-1], C, 1.0), "x and y are swapped: a pixel is (x, y) = (column, row)"),
+            (lambda a: _close(a, image_sorted, 1.0), "you sorted the corners by their place in the picture; keep the order detection gives: the marker's own TL, TR, BR, BL"),
+        ],
+        hint="Keep the corners exactly as the detector returns them for that id: d.corners for the Detection with d.id == marker_id.",
+        solution="""
+        from fidlearn.detection import detect_markers
+        detections = detect_markers(q2.inputs.image, dictionary=q2.inputs.dictionary)
+        q2.answer = next(d.corners for d in detections if d.id == q2.inputs.marker_id)
+        """,
+        level="medium",
+    ))
+
+    angle = math.degrees(math.atan2(C[1, 1] - C[0, 1], C[1, 0] - C[0, 0]))
+
+    def ang_diff(a, b):
+        d = (a - b + 180) % 360 - 180
+        return None if abs(d) <= 2 else f"your angle is {d:+.3g} deg from the key's"
+
+    qs.append(Question(
+        "q3", "How is the marker turned?",
+        """
+        From the detected corners of marker `marker_id`, write code that computes the direction of
+        its top edge (from its TL to its TR) in the picture, in degrees, as atan2(dy, dx) with the
+        image's axes (x right, y DOWN): 0 means upright, 90 means turned a quarter turn clockwise
+        as you look at the picture.
+        """,
+        {"image": image.copy(), "dictionary": dictionary, "marker_id": rot_id},
+        angle,
+        _scalar("the angle"),
+        ang_diff,
+        wrong=[
+            (lambda a: ang_diff(math.degrees(a), angle) is None, "that is in radians: give degrees (np.degrees)"),
+            (lambda a: ang_diff(-a, angle) is None, "the sign is flipped: image y grows DOWNward, so use atan2(y_TR - y_TL, x_TR - x_TL) as it is"),
+            (lambda a: ang_diff(a, math.degrees(math.atan2(C[1, 0] - C[0, 0], C[1, 1] - C[0, 1]))) is None, "atan2 takes (dy, dx): y first"),
+            (lambda a: ang_diff(a + 90, angle) is None or ang_diff(a - 90, angle) is None or ang_diff(a + 180, angle) is None,
+             "that is the direction of another edge: use the TOP edge, TL (corner 0) to TR (corner 1)"),
+        ],
+        hint="c = the detection's corners; dx, dy = c[1] - c[0]; np.degrees(np.arctan2(dy, dx)).",
+        solution="""
+        from fidlearn.detection import detect_markers
+        detections = detect_markers(q3.inputs.image, dictionary=q3.inputs.dictionary)
+        c = next(d.corners for d in detections if d.id == q3.inputs.marker_id)
+        dx, dy = c[1] - c[0]
+        q3.answer = np.degrees(np.arctan2(dy, dx))
+        """,
+        level="medium",
+    ))
+    return qs
+
+
+_register("05", "detection", "Detecting markers", """
+    Find markers in a rendered picture: the right dictionary, the ids, the corners in the marker's
+    own winding order TL, TR, BR, BL, and how a turned marker shows in the image.
+    """, _lesson_05)
+
+
+# ==================================================================================
+# Lesson 08: accuracy and pitfalls
+# ==================================================================================
+_AMBIGUITY_CHOICES = [
+    ("flip", "A small flat marker seen nearly face-on from far away: two mirror-image tilts project its "
+             "corners to almost the same pixels, and the corner noise cannot tell them apart."),
+    ("id", "The marker's id was decoded wrongly, so the map gave the corners of another marker."),
+    ("distortion", "The lens distortion was not calibrated, so the corners are in the wrong places."),
+    ("too_few", "solvePnP needs at least 6 points; the 4 corners of one marker are too few for a pose."),
+]
+_AMBIGUITY_WRONG = {
+    "id": "a wrong id would give one bad pose with a large reprojection error, not two poses that both fit the corners",
+    "distortion": "the corners here are projected with the camera's own model; both candidates fit them to a fraction of a pixel",
+    "too_few": "4 coplanar points are enough: IPPE (SOLVEPNP_IPPE_SQUARE) solves a square marker from its 4 corners; the trouble is that it finds TWO solutions",
+}
+
+
+def _lesson_08(learner: str) -> list[Question]:
+    from . import pose as _pose
+    from . import synthetic
+    from .detection import detect_markers
+
+    qs = []
+    # q1: depth error versus distance -----------------------------------------------------
+    rng = _rng("08", learner, "q1")
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
+    size = float(np.round(rng.uniform(60, 200), -1) + 5 * rng.integers(0, 2))
+    dists = np.array([500.0, 1000.0, 2000.0, 4000.0, 8000.0])
+    err_px = float(rng.choice([0.2, 0.25, 0.3, 0.4, 0.5, 0.75, 1.0]))
+    dZ = dists ** 2 * err_px / (cam.fx * size)
+    qs.append(Question(
+        "q1", "Error grows with distance",
+        """
+        A marker of side `marker_size_mm` faces the camera squarely at each distance in
+        `distances_mm`; the camera's focal length is `camera.fx` px. Distance from apparent size is
+        Z = fx * s / w (w the side in pixels). If w is measured `side_error_px` pixels too large,
+        how far off is Z? Write code that gives the size of the depth error (mm, positive) at
+        each distance, an array like `distances_mm`, to first order (dZ = |dZ/dw| * side_error_px).
+        How does it grow when the distance doubles?
+        """,
+        {"camera": cam, "marker_size_mm": size, "distances_mm": dists, "side_error_px": err_px},
+        dZ,
+        _array((len(dists),), "the depth errors"),
+        _cmp_array(0.0, " mm", rtol=0.01),
+        wrong=[
+            (lambda a: _close(a, dists * err_px / cam.fx, 0, 0.01), "that is the SIDEWAYS error of one pixel (Z / fx per px); the depth error from the apparent size grows with Z squared: |dZ/dw| = fx * s / w^2 = Z^2 / (fx * s)"),
+            (lambda a: _close(a, dists * err_px / size, 0, 0.01), "your error grows linearly with distance; differentiate Z = fx * s / w with respect to w: |dZ/dw| = Z^2 / (fx * s)"),
+            (lambda a: _close(a * 1000, dZ, 0, 0.01), "that is in metres: the answer is asked in mm"),
+            (lambda a: _close(-a, dZ, 0, 0.01), "give the size of the error (positive)"),
+        ],
+        hint="w = fx * s / Z, so dZ/dw = -fx * s / w^2 = -Z^2 / (fx * s). Multiply by side_error_px.",
+        solution="""
+        Z = np.asarray(q1.inputs.distances_mm, dtype=float)
+        q1.answer = Z ** 2 / (q1.inputs.camera.fx * q1.inputs.marker_size_mm) * q1.inputs.side_error_px
+        """,
+        level="easy",
+    ))
+
+    # q2: a misplaced marker ---------------------------------------------------------------
+    rng = _rng("08", learner, "q2")
+    cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 65))), (960, 720))
+    true_map = _wall_map(rng, 5, 150.0, spread_mm=700.0)
+    eye = np.round(rng.uniform([1800, -400, 1000], [2600, 400, 1400]))
+    T2 = synthetic.look_at(eye, [0.0, 0.0, 1250.0])
+    image, truth = synthetic.render_scene(cam2, true_map, T2, seed=int(rng.integers(1 << 30)), blur_px=0.5, noise_std=1.5)
+    bad = int(rng.choice(sorted(truth)))
+    shift = rng.choice([-1, 1]) * float(rng.uniform(80, 140))
+    placements = dict(true_map.placements)
+    p = placements[bad]
+    placements[bad] = MarkerPlacement(bad, (p.translation_mm[0], p.translation_mm[1] + round(shift), p.translation_mm[2]), p.rotation_deg)
+    wrong_map = MarkerMap(placements, true_map.marker_size_mm, true_map.dictionary, "mm")
+    dets = detect_markers(image, true_map.dictionary)
+    all_pos = _pose.estimate_pose(dets, wrong_map, cam2, reject_outliers=False).position_mm
+    good_pos = _pose.estimate_pose([d for d in dets if d.id != bad], wrong_map, cam2).position_mm
+    tol = max(25.0, 2 * float(np.linalg.norm(good_pos - T2[:3, 3])))
+    true_pos = T2[:3, 3]
+
+    def cmp2(a, _):
+        if a["misplaced_id"] != bad:
+            return f"marker {a['misplaced_id']} agrees with the others; leave each marker out in turn and see which one the others do not explain"
+        err = float(np.linalg.norm(a["position_mm"] - true_pos))
+        if err > tol:
+            return f"the right marker, but your position is {err:.0f} mm from the truth (tolerance {tol:.0f} mm)"
+        return None
+
+    qs.append(Question(
+        "q2", "Localize despite a misplaced marker",
+        """
+        Someone moved one marker after the map was measured: `marker_map` still has the old
+        position. Write code that detects the markers in `image` (the map's dictionary), finds the
+        marker the others disagree with (leave each marker out in turn: without the misplaced one
+        the rest fit each other to a fraction of a pixel; fidlearn.pose.estimate_pose can also do
+        it for you, read its result), and
+        localizes the camera without it. Answer {"misplaced_id": id, "position_mm": (3,) world mm}.
+        """,
+        {"image": image.copy(), "marker_map": wrong_map, "camera": cam2},
+        {"misplaced_id": bad, "position_mm": true_pos},
+        _parts(misplaced_id=lambda v: int(_scalar("misplaced_id")(v)), position_mm=_array((3,), "position_mm")),
+        cmp2,
+        wrong=[
+            (lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["position_mm"] - all_pos) < 3 and np.linalg.norm(all_pos - true_pos) > tol,
+             "the right marker, but your position still uses it: leave it out of the pose (estimate_pose on the other detections, or read Pose.rejected_ids)"),
+            (lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["position_mm"] * 304.8 - true_pos) < tol, "that position is in feet: give mm"),
+        ],
+        hint="estimate_pose(detections, marker_map, camera) leaves out a marker that disagrees and lists it in pose.rejected_ids; or do it yourself: for each id, solve with the others only (reject_outliers=False) and look at Pose.reprojection_rms_px: it drops when the misplaced marker is the one left out.",
+        solution="""
+        from fidlearn.detection import detect_markers
+        from fidlearn.pose import estimate_pose
+        m, cam = q2.inputs.marker_map, q2.inputs.camera
+        dets = [d for d in detect_markers(q2.inputs.image, m.dictionary) if d.id in m]
+        rms_without = {}                              # leave one out: do the others agree?
+        for left_out in dets:
+            others = [d for d in dets if d.id != left_out.id]
+            rms_without[left_out.id] = estimate_pose(others, m, cam, reject_outliers=False).reprojection_rms_px
+        worst_id = min(rms_without, key=rms_without.get)  # without it, the rest fit best
+        best = estimate_pose([d for d in dets if d.id != worst_id], m, cam, reject_outliers=False)
+        q2.answer = {"misplaced_id": worst_id, "position_mm": best.position_mm}
+        """,
+        level="hard",
+    ))
+
+    # q3: an ambiguous pose ------------------------------------------------------------------
+    rng = _rng("08", learner, "q3")
+    cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 70))), (1280, 720))
+    mid = int(rng.integers(0, 40))
+    m3 = MarkerMap({mid: MarkerPlacement(mid, (0.0, float(np.round(rng.uniform(-300, 300))), float(np.round(rng.uniform(1000, 1400)))), (0.0, 0.0, 0.0))},
+                   float(rng.choice([80, 100])), "ARUCO_ORIGINAL", "mm")
+    centre = m3.marker_corners(mid).mean(axis=0)
+    for _ in range(50):
+        T3 = synthetic.look_at(centre + [float(rng.uniform(2800, 3600)), float(rng.uniform(-150, 150)), float(rng.uniform(-100, 100))], centre)
+        det3 = _noisy_detections(rng, cam3, m3, T3, 0.3)
+        p3 = _pose.estimate_pose(det3, m3, cam3)
+        if p3.ambiguous and p3.alternative is not None and np.linalg.norm(p3.position_mm - p3.alternative.position_mm) > 250:
+            break
+    sep = float(np.linalg.norm(p3.position_mm - p3.alternative.position_mm))
+    order = list(rng.permutation(len(_AMBIGUITY_CHOICES)))
+    letters = "ABCD"
+    choices = {letters[k]: _AMBIGUITY_CHOICES[i][1] for k, i in enumerate(order)}
+    right = letters[order.index(0)]
+    wrong_letters = {letters[k]: _AMBIGUITY_CHOICES[i][0] for k, i in enumerate(order) if i != 0}
+
+    def parse3(answer):
+        d = _parts(choice=lambda v: str(v).strip().upper()[:1], separation_mm=_scalar("separation_mm"))(answer)
+        if d["choice"] not in choices:
+            raise _AnswerError(f"choice must be one of {', '.join(choices)}, got {d['choice']!r}")
+        return d
+
+    def cmp3(a, _):
+        if a["choice"] != right:
+            return f"choice {a['choice']} does not explain it: {_AMBIGUITY_WRONG[wrong_letters[a['choice']]]}"
+        if abs(a["separation_mm"] - sep) > 0.15 * sep + 5:
+            return f"the explanation is right; the separation {a['separation_mm']:.0f} mm is not what the two candidate poses give (within 15 %)"
+        return None
+
+    qs.append(Question(
+        "q3", "Two poses that both fit",
+        """
+        One marker, seen from about 3 m, was detected (`detections`); `marker_map` and `camera`
+        are as usual. fidlearn.pose.estimate_pose reports the pose as ambiguous, and the camera
+        position jumps from frame to frame. Write code that computes both candidate camera poses
+        (estimate_pose returns the second one as Pose.alternative; cv2.solvePnPGeneric with
+        SOLVEPNP_IPPE_SQUARE gives both too) and the distance in mm between the two candidate
+        camera positions. Then choose the explanation from `choices`. Answer
+        {"choice": letter, "separation_mm": distance}.
+        """,
+        {"detections": det3, "marker_map": m3, "camera": cam3, "choices": choices},
+        {"choice": right, "separation_mm": sep},
+        parse3,
+        cmp3,
+        wrong=[
+            (lambda a: a["choice"] == right and abs(a["separation_mm"] * 1000 - sep) <= 0.15 * sep + 5, "that separation is in metres: give mm"),
+            (lambda a: a["choice"] == right and a["separation_mm"] < 1, "the two candidates are far apart (the camera seems to swing to the other side): compare pose.position_mm with pose.alternative.position_mm"),
+        ],
+        hint="pose = estimate_pose(detections, marker_map, camera); np.linalg.norm(pose.position_mm - pose.alternative.position_mm). Both fit the corners to a fraction of a pixel: which explanation allows that?",
+        solution="""
+        from fidlearn.pose import estimate_pose
+        pose = estimate_pose(q3.inputs.detections, q3.inputs.marker_map, q3.inputs.camera)
+        separation = np.linalg.norm(pose.position_mm - pose.alternative.position_mm)
+        flip = next(k for k, text in q3.inputs.choices.items() if "face-on" in text)
+        q3.answer = {"choice": flip, "separation_mm": separation}
+        """,
+        level="hard",
+    ))
+    return qs
+
+
+_register("08", "accuracy", "Accuracy and pitfalls", """
+    What limits a pose: depth error that grows with the square of the distance, a marker that
+    moved after the map was measured, and the two-fold ambiguity of a small marker seen from afar.
+    """, _lesson_08)
+
+
+# ==================================================================================
+# Lesson 09: localizing a robot
+# ==================================================================================
+def _lesson_09(learner: str) -> list[Question]:
+    from . import pose as _pose
+    from . import synthetic
+    from .data import data_path
+    from .detection import detect_markers
+
+    qs = []
+    # q1: every frame of a drive -------------------------------------------------------------
+    rng = _rng("09", learner, "q1")
+    m = MarkerMap.load(data_path("world_map.json"))
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 65))), (960, 720))
+    n = 6
+    drive = synthetic.render_trajectory(cam, m, n_frames=n, seed=int(rng.integers(1 << 20)),
+                                        start_lateral_mm=float(rng.uniform(-700, -300)), end_lateral_mm=float(rng.uniform(200, 600)))
+    truth_pos = drive.positions_mm
+    est, tvecs = [], []
+    for image in drive.images:
+        p = _pose.estimate_pose(detect_markers(image, m.dictionary), m, cam)
+        est.append(p.position_mm)
+        tvecs.append(p.tvec)
+    est = np.array(est)
+    tvecs = np.array(tvecs)
+    tol = np.maximum(50.0, 3.0 * np.linalg.norm(est - truth_pos, axis=1))
+
+    def cmp1(a, b):
+        err = np.linalg.norm(a - b, axis=1)
+        bad = np.flatnonzero(err > tol)
+        if bad.size == 0:
+            return None
+        return f"frame {int(bad[0])} is {err[bad[0]]:.0f} mm from the truth (tolerance {tol[bad[0]]:.0f} mm); {bad.size} of {len(a)} frames are off"
+
+    qs.append(Question(
+        "q1", "Localize every frame of a drive",
+        """
+        A camera on a robot drove toward the seed wall (`marker_map`, the course's world_map.json)
+        and took the frames in `images` (a list of gray pictures); `camera` is calibrated. Write
+        code that localizes every frame: detect, estimate the pose, and collect the camera's
+        position in the world. Answer an (N, 3) array, mm, one row per frame in order.
+        """,
+        {"images": [im.copy() for im in drive.images], "marker_map": m, "camera": cam},
+        truth_pos,
+        _array((n, 3), "the positions", {(3, n): "one ROW per frame: transpose it", (n, 4, 4): "give the positions (the last column of each T_world_camera), not the 4x4 poses"}),
+        cmp1,
+        wrong=[
+            (lambda a: _close(a, tvecs, 1.0), "those are the tvecs, the world's origin seen from the camera (T_camera_world); the camera's position is Pose.position_mm (= -R^T t)"),
+            (lambda a: np.all(np.linalg.norm(a * 1000 - truth_pos, axis=1) <= tol), "those are metres: give mm"),
+            (lambda a: np.all(np.linalg.norm(a * 304.8 - truth_pos, axis=1) <= tol), "those are feet (304.8x too small): give mm"),
+        ],
+        hint="for image in images: pose = estimate_pose(detect_markers(image, marker_map.dictionary), marker_map, camera); keep pose.position_mm.",
+        solution="""
+        from fidlearn.detection import detect_markers
+        from fidlearn.pose import estimate_pose
+        m, cam = q1.inputs.marker_map, q1.inputs.camera
+        positions = []
+        for image in q1.inputs.images:
+            pose = estimate_pose(detect_markers(image, m.dictionary), m, cam)
+            positions.append(pose.position_mm)
+        q1.answer = np.array(positions)
+        """,
+        level="medium",
+    ))
+
+    # q2: the robot's pose from the camera's --------------------------------------------------
+    rng = _rng("09", learner, "q2")
+    cam_yaw = float(np.round(rng.uniform(10, 35)) * rng.choice([-1, 1]))
+    R_robot_camera = frames.rot_z(math.radians(cam_yaw)) @ np.array([[0, 0, 1], [-1, 0, 0], [0, -1, 0]], dtype=float)
+    T_robot_camera = frames.make_transform(R_robot_camera, [float(np.round(rng.uniform(80, 250))), float(np.round(rng.uniform(-60, 60))), float(np.round(rng.uniform(250, 450)))])
+    robot_xy = np.round(rng.uniform([800, -800], [2500, 800]))
+    robot_yaw = float(np.round(rng.uniform(120, 240)))
+    T_world_robot = frames.make_transform(frames.rot_z(math.radians(robot_yaw)), [robot_xy[0], robot_xy[1], 0.0])
+    Twc = T_world_robot @ T_robot_camera
+    Twc = np.round(Twc, 9)
+    T_wr = Twc @ frames.invert_transform(T_robot_camera)
+    key2 = np.array([T_wr[0, 3], T_wr[1, 3], math.degrees(math.atan2(T_wr[1, 0], T_wr[0, 0]))])
+
+    def cmp2(a, b):
+        d = (a[2] - b[2] + 180) % 360 - 180
+        if np.linalg.norm(a[:2] - b[:2]) <= 1.0 and abs(d) <= 0.1:
+            return None
+        return f"your (x, y) is {np.linalg.norm(a[:2] - b[:2]):.0f} mm and your heading {d:+.3g} deg from the key's"
+
+    def pose_xyh(T):
+        return np.array([T[0, 3], T[1, 3], math.degrees(math.atan2(T[1, 0], T[0, 0]))])
+
+    cam_axis = Twc[:3, 2]
+    cam_heading = math.degrees(math.atan2(cam_axis[1], cam_axis[0]))
+    qs.append(Question(
+        "q2", "From the camera's pose to the robot's",
+        """
+        The camera is bolted to the robot, turned a little to one side: `T_robot_camera` (4x4, mm)
+        is its pose in the robot's frame (x forward, y left, z up, origin on the floor between the
+        wheels). Localization gave `T_world_camera`. Write code that computes where the ROBOT is:
+        (x_mm, y_mm, heading_deg), its origin's world x and y and the direction of its x axis in
+        the world, atan2(dy, dx) in degrees.
+        """,
+        {"T_world_camera": Twc, "T_robot_camera": T_robot_camera},
+        key2,
+        _array((3,), "(x_mm, y_mm, heading_deg)"),
+        cmp2,
+        wrong=[
+            (lambda a: np.linalg.norm(a[:2] - Twc[:2, 3]) <= 1.0, "that is where the CAMERA is; the robot's origin is elsewhere: T_world_robot = T_world_camera @ T_camera_robot, with T_camera_robot = invert(T_robot_camera)"),
+            (lambda a: cmp2(a, pose_xyh(Twc @ T_robot_camera)) is None, "the names do not chain: T_world_camera @ T_robot_camera; invert T_robot_camera first (T_camera_robot)"),
+            (lambda a: np.linalg.norm(a[:2] - key2[:2]) <= 1.0 and abs((a[2] - cam_heading + 180) % 360 - 180) <= 0.1,
+             "the position is right, but that heading is the CAMERA's optical axis; the camera is turned on the robot: take the robot's x axis from T_world_robot"),
+            (lambda a: np.linalg.norm(a[:2] - key2[:2]) <= 1.0 and abs((math.degrees(a[2]) - key2[2] + 180) % 360 - 180) <= 0.1, "the heading is in radians: give degrees"),
+            (lambda a: np.linalg.norm(a[:2] - key2[:2]) <= 1.0, "the position is right; the heading is the direction of the robot's x axis, the first column of T_world_robot's rotation: atan2(R[1, 0], R[0, 0]) in degrees"),
+        ],
+        hint="T_world_robot = T_world_camera @ frames.invert_transform(T_robot_camera); x, y = its last column; heading = degrees(atan2(R[1, 0], R[0, 0])).",
+        solution="""
+        T_world_robot = q2.inputs.T_world_camera @ frames.invert_transform(q2.inputs.T_robot_camera)
+        heading = np.degrees(np.arctan2(T_world_robot[1, 0], T_world_robot[0, 0]))
+        q2.answer = (T_world_robot[0, 3], T_world_robot[1, 3], heading)
+        """,
+        level="medium",
+    ))
+
+    # q3: distance driven ----------------------------------------------------------------------
+    rng = _rng("09", learner, "q3")
+    k = 12
+    s = np.linspace(0, 1, k)
+    start = np.round(rng.uniform([2000, -900], [2600, -400]))
+    end = np.round(rng.uniform([700, 200], [1100, 800]))
+    bend = float(rng.uniform(150, 400))
+    xy = start + np.outer(s, end - start) + np.outer(np.sin(np.pi * s) * bend, [0.6, 0.8])
+    xy = xy + rng.normal(0, 4, xy.shape)
+    z = 300 + rng.normal(0, 2, k)
+    pts = np.round(np.column_stack([xy, z]), 1)
+    lost = sorted(int(i) for i in rng.choice(np.arange(2, k - 2), size=2, replace=False))
+    pts[lost] = np.nan
+    ok = ~np.isnan(pts[:, 0])
+    good = pts[ok]
+    length = float(np.sum(np.linalg.norm(np.diff(good[:, :2], axis=0), axis=1)))
+    length3 = float(np.sum(np.linalg.norm(np.diff(good, axis=0), axis=1)))
+    straight = float(np.linalg.norm(good[-1, :2] - good[0, :2]))
+    qs.append(Question(
+        "q3", "How far did the robot drive?",
+        """
+        `positions_mm` (N, 3) are the camera positions of a drive, one per frame; in the frames
+        where no marker was seen the row is NaN. Write code that computes the distance driven on
+        the floor: the length of the path through the valid positions in order, using x and y
+        only, in mm.
+        """,
+        {"positions_mm": pts},
+        length,
+        _scalar("the distance"),
+        _cmp_scalar(0.05, " mm"),
+        wrong=[
+            (lambda a: abs(a - straight) < 0.5, "that is the straight line from start to finish; add up the steps between consecutive valid frames"),
+            (lambda a: abs(a - length3) < 0.05, "use x and y only: the camera's z wobbles a little but the robot drives on the floor"),
+            (lambda a: abs(a * 1000 - length) < 0.5, "that is in metres: give mm"),
+            (lambda a: a < length * 0.9, "too short: did you drop more than the NaN rows, or skip the steps around a lost frame? Join each valid position to the next valid one"),
+        ],
+        hint="Keep the rows without NaN (~np.isnan(p).any(axis=1)), take np.diff of their x, y and sum the step lengths (np.linalg.norm along axis 1).",
+        solution="""
+        p = np.asarray(q3.inputs.positions_mm, dtype=float)
+        valid = p[~np.isnan(p).any(axis=1)]
+        steps = np.diff(valid[:, :2], axis=0)
+        q3.answer = np.sum(np.linalg.norm(steps, axis=1))
+        """,
+        level="easy",
+    ))
+    return qs
+
+
+_register("09", "robot", "Localizing a robot", """
+    Put it together on a moving robot: localize every frame of a drive, carry the camera's pose to
+    the robot's through the mounting transform, and measure the path it drove.
+    """, _lesson_09)
