@@ -121,13 +121,13 @@ def _normalized_map_cached(key: bytes, width: int, height: int) -> np.ndarray:
     u, v = np.meshgrid(np.arange(-1.0, width + 1.0), np.arange(-1.0, height + 1.0))
     px = np.stack([u.ravel(), v.ravel()], axis=1)
     xy = _undistort_exact(px, K, dist)
-    out = xy.reshape(height + 2, width + 2, 2)
+    out = xy.reshape(height + 2, width + 2, 2).astype(np.float32)
     out.setflags(write=False)
     return out
 
 
 def _normalized_map(camera: Camera) -> np.ndarray:
-    """Normalized ray coordinates (H + 2, W + 2, 2) of every pixel, with a one-pixel margin.
+    """Normalized ray coordinates (H + 2, W + 2, 2), float32, of every pixel, with a one-pixel margin.
 
     Entry ``[j, i]`` belongs to the pixel centre ``u = i - 1``, ``v = j - 1``.
     """
@@ -140,23 +140,20 @@ def _normalized_map(camera: Camera) -> np.ndarray:
     return _normalized_map_cached(key, camera.width, camera.height)
 
 
-def _fine_rays(nmap: np.ndarray, u0: int, u1: int, v0: int, v1: int, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Normalized coordinates of the sub-pixels of output pixels ``u0..u1-1``, ``v0..v1-1``.
+def _fine_rays(nmap: np.ndarray, u0: int, u1: int, v0: int, v1: int, k: int) -> np.ndarray:
+    """Normalized coordinates (k (v1 - v0), k (u1 - u0), 2), float32, of the sub-pixels of output pixels ``u0..u1-1``, ``v0..v1-1``.
 
-    Returns two (k (v1 - v0), k (u1 - u0)) float64 arrays. Bilinear
-    interpolation of the per-pixel map (the distortion is smooth: error below
-    1e-4 px). ``cv2.resize`` maps a fine sample ``x_d`` to the coarse
+    Bilinear interpolation of the per-pixel map (the distortion is smooth: error
+    below 1e-4 px). ``cv2.resize`` maps a fine sample ``x_d`` to the coarse
     coordinate ``(x_d + 0.5) / k - 0.5``, the same pixel-centre rule as the
     supersampling, and the one-pixel margin keeps it from clamping at the edge.
     """
-    patch = np.ascontiguousarray(nmap[v0: v1 + 2, u0: u1 + 2])
+    patch = nmap[v0: v1 + 2, u0: u1 + 2]
     if k == 1:
-        inner = patch[1:-1, 1:-1]
-        return inner[..., 0].copy(), inner[..., 1].copy()
+        return np.ascontiguousarray(patch[1:-1, 1:-1])
     h, w = patch.shape[:2]
     fine = cv2.resize(patch, (w * k, h * k), interpolation=cv2.INTER_LINEAR)
-    fine = fine[k: k + k * (v1 - v0), k: k + k * (u1 - u0)]
-    return fine[..., 0], fine[..., 1]
+    return np.ascontiguousarray(fine[k: k + k * (v1 - v0), k: k + k * (u1 - u0)])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -220,15 +217,20 @@ def _texels_per_cell(side_px: float | None, cells: int, k: int) -> int:
 # The renderer.
 # ----------------------------------------------------------------------------------------------
 
-def _sheet_region(sheet: _Sheet, H: np.ndarray, nmap: np.ndarray, width: int, height: int) -> tuple[int, int, int, int] | None:
-    """Output pixels (u0, u1, v0, v1) that may see the sheet, or None when none can."""
+def _sheet_region(sheet: _Sheet, H: np.ndarray, nmap: np.ndarray, width: int, height: int):
+    """Output pixels ``(u0, u1, v0, v1)`` that may see the sheet and whether it crosses the camera's plane.
+
+    None when no pixel can see it.
+    """
     h, w = sheet.texture.shape[:2]
     st = np.array([[-0.5, -0.5, 1], [w - 0.5, -0.5, 1], [w - 0.5, h - 0.5, 1], [-0.5, h - 0.5, 1]])
     pc = st @ H.T
-    if np.all(pc[:, 2] <= 0):
-        return None
-    if np.any(pc[:, 2] <= 1e-6):
-        return (0, width, 0, height)  # crosses the camera's plane: test every pixel
+    near = 1e-3  # mm
+    crossing = bool(np.any(pc[:, 2] <= near))
+    if crossing:
+        pc = _clip_polygon_in_front(pc, near)
+        if len(pc) < 3:
+            return None
     xy = pc[:, :2] / pc[:, 2:3]
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     inner = nmap[1:-1, 1:-1]
@@ -237,7 +239,22 @@ def _sheet_region(sheet: _Sheet, H: np.ndarray, nmap: np.ndarray, width: int, he
     if rows.size == 0:
         return None
     cols = np.flatnonzero(inside[rows[0]: rows[-1] + 1].any(axis=0))
-    return (max(cols[0] - 2, 0), min(cols[-1] + 3, width), max(rows[0] - 2, 0), min(rows[-1] + 3, height))
+    return (max(cols[0] - 2, 0), min(cols[-1] + 3, width), max(rows[0] - 2, 0), min(rows[-1] + 3, height)), crossing
+
+
+def _clip_polygon_in_front(points: np.ndarray, near: float) -> np.ndarray:
+    """The part (M, 3) of a convex polygon (N, 3), camera frame, with depth z >= ``near`` (Sutherland-Hodgman)."""
+    out = []
+    n = len(points)
+    for i in range(n):
+        p, q = points[i], points[(i + 1) % n]
+        p_in, q_in = p[2] >= near, q[2] >= near
+        if p_in:
+            out.append(p)
+        if p_in != q_in:
+            t = (near - p[2]) / (q[2] - p[2])
+            out.append(p + t * (q - p))
+    return np.array(out).reshape(-1, 3)
 
 
 def _render(
@@ -280,41 +297,50 @@ def _render(
         face = -np.cross(H[:, 0], H[:, 1])
         if float(face @ (-H[:, 2])) <= 0 or abs(np.linalg.det(H)) < 1e-12:
             continue
-        region = _sheet_region(sheet, H, nmap, width, height)
-        if region is not None:
-            todo.append((sheet, np.linalg.inv(H), region))
+        found = _sheet_region(sheet, H, nmap, width, height)
+        if found is not None:
+            todo.append((sheet, np.linalg.inv(H), *found))
 
     if todo:
         # supersample only the pixels that see a sheet; the wall is uniform within a pixel
-        U0 = min(r[0] for _, _, r in todo)
-        U1 = max(r[1] for _, _, r in todo)
-        V0 = min(r[2] for _, _, r in todo)
-        V1 = max(r[3] for _, _, r in todo)
+        U0 = min(t[2][0] for t in todo)
+        U1 = max(t[2][1] for t in todo)
+        V0 = min(t[2][2] for t in todo)
+        V1 = max(t[2][3] for t in todo)
         canvas = np.repeat(np.repeat(img[V0:V1, U0:U1], k, axis=0), k, axis=1)
-        # inverse depth of the nearest sheet so far, per sub-pixel: the nearest sheet wins
-        wbuf = np.zeros_like(canvas) if len(todo) > 1 else None
-        for sheet, Hinv, (u0, u1, v0, v1) in todo:
-            tex2 = np.dstack([sheet.texture, np.ones_like(sheet.texture)])
+        # a depth test only where sheets' regions overlap: the nearest sheet wins
+        overlaps = [
+            any(j != i and r[0] < q[1] and q[0] < r[1] and r[2] < q[3] and q[2] < r[3] for j, (_, _, q, _) in enumerate(todo))
+            for i, (_, _, r, _) in enumerate(todo)
+        ]
+        wbuf = np.zeros_like(canvas) if any(overlaps) else None  # inverse depth (1/mm) of the nearest sheet so far
+        for (sheet, Hinv, (u0, u1, v0, v1), crossing), depth_test in zip(todo, overlaps):
+            # premultiplied texture: the second channel (ones) is the coverage at the sheet's edge; a
+            # border texel of zeros all round, so that OpenCV's (0, 0) for a ray parallel to the sheet is empty
+            tex2 = np.zeros((sheet.texture.shape[0] + 2, sheet.texture.shape[1] + 2, 2), dtype=np.float32)
+            tex2[1:-1, 1:-1, 0] = sheet.texture
+            tex2[1:-1, 1:-1, 1] = 1.0
+            # rays -> texels (+1 for the border); Hinv's w is 1 / depth (mm): scale it to about 1 on the sheet
+            depth_mm = max(float(np.abs(sheet.outline_world() @ T_camera_world[:3, :3].T + T_camera_world[:3, 3])[:, 2].max()), 1.0)
+            Hmap = np.array([[1.0, 0, 1.0], [0, 1.0, 1.0], [0, 0, 1.0]]) @ Hinv * depth_mm
             rows = max(1, _STRIP_SUBPIXELS // (k * k * (u1 - u0)))
             for s0 in range(v0, v1, rows):
                 s1 = min(s0 + rows, v1)
-                x, y = _fine_rays(nmap, u0, u1, s0, s1, k)
-                a = Hinv[0, 0] * x + Hinv[0, 1] * y + Hinv[0, 2]
-                b = Hinv[1, 0] * x + Hinv[1, 1] * y + Hinv[1, 2]
-                w = Hinv[2, 0] * x + Hinv[2, 1] * y + Hinv[2, 2]  # 1 / depth; > 0 in front of the camera
-                front = w > 0
-                wsafe = np.where(front, w, 1.0)
-                map_s = np.where(front, a / wsafe, -10.0).astype(np.float32)
-                map_t = np.where(front, b / wsafe, -10.0).astype(np.float32)
-                # premultiplied: the second channel (all ones) is the coverage at the sheet's edge
-                looked = cv2.remap(tex2, map_s, map_t, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
+                rays = _fine_rays(nmap, u0, u1, s0, s1, k)
+                maps = cv2.perspectiveTransform(rays, Hmap)
+                if crossing or depth_test:
+                    w = Hinv[2, 0] * rays[..., 0] + Hinv[2, 1] * rays[..., 1] + np.float32(Hinv[2, 2])
+                if crossing:
+                    maps[w <= 0] = -10.0  # behind the camera
+                np.clip(maps, -10.0, 1e6, out=maps)
+                looked = cv2.remap(tex2, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
                 ink, alpha = looked[..., 0], looked[..., 1]
                 sl = (slice((s0 - V0) * k, (s1 - V0) * k), slice((u0 - U0) * k, (u1 - U0) * k))
-                if wbuf is not None:
+                if depth_test:
                     wb = wbuf[sl]
-                    nearer = front & (w > wb)
-                    alpha = np.where(nearer, alpha, np.float32(0))
-                    ink = np.where(nearer, ink, np.float32(0))
+                    hidden = w <= wb
+                    alpha[hidden] = 0.0
+                    ink[hidden] = 0.0
                     opaque = alpha >= 0.5
                     wb[opaque] = w[opaque]
                 view = canvas[sl]

@@ -158,13 +158,19 @@ def test_a_marker_partly_outside_the_frame_is_drawn_but_left_out_of_the_truth(wa
     assert set(truth) <= set(aruco_detect(image))
 
 
-def test_a_sheet_crossing_the_camera_plane_renders_without_error(wall):
-    """The camera stands on the wall's plane, looking along it: sheets partly behind the camera."""
+def test_a_sheet_crossing_the_camera_plane_is_drawn_where_it_is_in_front(wall):
+    """The camera stands 20 mm from the wall inside marker 0's span, looking along the wall."""
     camera = Camera.from_fov(90, (320, 240))
-    T = look_at([0.0, -150.0, 260.0], [30.0, 200.0, 260.0])
-    image, truth = render_scene(camera, wall, T)
-    assert image.shape == (240, 320)
-    assert set(truth) <= {0, 1, 2}
+    T = look_at([20.0, 40.0, 260.0], [60.0, 2000.0, 250.0])
+    depths = frames.transform_points(frames.invert_transform(T), wall.marker_corners(0))[:, 2]
+    assert depths.min() < 0 < depths.max()  # marker 0 really crosses the camera's plane
+    image, truth = render_scene(camera, wall, T, wall_texture=0.0, wall_gray=120, paper_gray=230, ink_gray=25)
+    assert 0 not in truth
+    # a few cm in front of the camera: a point of marker 0's black right border and one of its white margin
+    ink_px, paper_px = np.round(camera.project(np.array([[0.0, 74.0, 262.0], [0.0, 86.0, 262.0]]), T)).astype(int)
+    assert np.all((ink_px > 0) & (ink_px < [319, 239])) and np.all((paper_px > 0) & (paper_px < [319, 239]))
+    assert image[ink_px[1], ink_px[0]] < 40
+    assert image[paper_px[1], paper_px[0]] > 215
 
 
 @pytest.mark.parametrize("front, back", [(7, 3), (3, 7)])
