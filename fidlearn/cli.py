@@ -411,44 +411,94 @@ def _expand_inputs(paths: Sequence[Path], videos: bool) -> list[tuple[str, Path]
     return items
 
 
-def _frames(items: list[tuple[str, Path]], camera_index: int | None):
-    """Yield ``(name, image)`` for every image, every video frame and every camera frame."""
+class _QuietNative:
+    """Silence what OpenCV's C++ side (FFmpeg, V4L2) prints on file descriptor 2 while a video is opened or read.
+
+    Those lines would break the rule of one ``error:`` line; fidlearn reports
+    the failure itself. Python's own ``sys.stderr`` is untouched.
+    """
+
+    def __enter__(self):
+        import os
+
+        try:
+            sys.stderr.flush()
+            self.saved = os.dup(2)
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, 2)
+            os.close(devnull)
+        except OSError:  # no real file descriptor 2 (embedded interpreters): leave it alone
+            self.saved = None
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import os
+
+        if self.saved is not None:
+            os.dup2(self.saved, 2)
+            os.close(self.saved)
+
+
+def _open_capture(source, what: str):
+    """An opened ``cv2.VideoCapture`` for a file or a camera index, or an ImageError."""
     import cv2
 
+    from .errors import ImageError
+
+    with _QuietNative():
+        cap = cv2.VideoCapture(source)
+        opened = cap.isOpened()
+    if not opened:
+        cap.release()
+        if isinstance(source, int):
+            raise ImageError(f"camera {source}: cannot open it; check --camera-index (0 is the first camera)")
+        raise ImageError(f"{what}: OpenCV cannot open this video; is it truncated, or a codec OpenCV lacks?")
+    return cap
+
+
+def _read_capture(cap, prefix: str):
+    k = 0
+    while True:
+        with _QuietNative():
+            ok, frame = cap.read()
+        if not ok:
+            return
+        yield f"{prefix}#{k}", frame
+        k += 1
+
+
+def _frames(items: list[tuple[str, Path]], camera_index: int | None):
+    """Yield ``(name, image)`` for every image, every video frame and every camera frame.
+
+    Every video (and the camera) is opened once before the first frame, so a
+    video that cannot be read stops the run before anything is printed.
+    """
     from .detection import load_image
     from .errors import ImageError
 
     for kind, path in items:
+        if kind == "video":
+            _open_capture(str(path), str(path)).release()
+    if camera_index is not None:
+        _open_capture(int(camera_index), "").release()
+    for kind, path in items:
         if kind == "image":
             yield path.name, load_image(path)
             continue
-        cap = cv2.VideoCapture(str(path))
+        cap = _open_capture(str(path), str(path))
         try:
-            if not cap.isOpened():
-                raise ImageError(f"{path}: OpenCV cannot open this video; is it truncated, or a codec OpenCV lacks?")
-            k = 0
-            while True:
-                ok, frame = cap.read()
-                if not ok:
-                    break
-                yield f"{path.name}#{k}", frame
-                k += 1
-            if k == 0:
+            n = 0
+            for name, frame in _read_capture(cap, path.name):
+                n += 1
+                yield name, frame
+            if n == 0:
                 raise ImageError(f"{path}: the video has no frame OpenCV can decode")
         finally:
             cap.release()
     if camera_index is not None:
-        cap = cv2.VideoCapture(int(camera_index))
+        cap = _open_capture(int(camera_index), "")
         try:
-            if not cap.isOpened():
-                raise ImageError(f"camera {camera_index}: cannot open it; check --camera-index (0 is the first camera)")
-            k = 0
-            while True:
-                ok, frame = cap.read()
-                if not ok:
-                    break
-                yield f"camera{camera_index}#{k}", frame
-                k += 1
+            yield from _read_capture(cap, f"camera{camera_index}")
         finally:
             cap.release()
 
@@ -809,7 +859,7 @@ def _run_locate(args) -> int:
 
     from .camera import Camera
     from .detection import detect_markers
-    from .errors import NoMarkersError
+    from .errors import NoMarkersError, PoseError
     from .pose import estimate_pose
 
     if not args.inputs and args.camera_index is None:
@@ -825,9 +875,10 @@ def _run_locate(args) -> int:
     cameras: dict[tuple[int, int], Camera] = {}
     stats = {"frames": 0, "located": 0, "ambiguous": 0, "rms": []}
 
-    def process(sink) -> None:
-        print(f"{'frame':<{width}} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7}  "
+    header = (f"{'frame':<{width}} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7}  "
               f"{'markers':<9} {'rms_px':>6}  ambiguous")
+
+    def process(sink) -> None:
         with staging:
             try:
                 for name, image in _frames(items, args.camera_index):
@@ -837,15 +888,22 @@ def _run_locate(args) -> int:
                     cam = cameras[size]
                     detections = detect_markers(image, dictionary=marker_map.dictionary, **refine)
                     stats["frames"] += 1
+                    failure = "no known marker"
                     try:
                         pose = estimate_pose(detections, marker_map, cam)
                     except NoMarkersError:
                         pose = None
+                    except PoseError as exc:  # a degenerate view: report the frame, keep going
+                        pose, failure = None, f"no pose: {_one_line(str(exc))}"
+                    if stats["frames"] == 1:
+                        print(header)
                     if pose is None:
                         seen = sorted({d.id for d in detections})
-                        note = "no known marker" + (f" (saw ids {', '.join(map(str, seen))}, not in the map)" if seen else "")
+                        note = failure
+                        if failure == "no known marker" and seen:
+                            note += f" (saw ids {', '.join(map(str, seen))}, not in the map)"
                         print(_fmt_row(name, width, None, note), flush=True)
-                        record = {"frame": name, "located": False, "reason": "no known marker", "detected_ids": seen}
+                        record = {"frame": name, "located": False, "reason": failure, "detected_ids": seen}
                     else:
                         stats["located"] += 1
                         stats["ambiguous"] += bool(pose.ambiguous)

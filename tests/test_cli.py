@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import Camera, MarkerMap, data_path, frames
+from fidlearn import Camera, MarkerMap, _cv, data_dir, data_path, frames
 from fidlearn.cli import main
 
 SEED_BARE = {  # the seed's bare layout: no units, no size
@@ -298,6 +298,22 @@ def test_locate_reproduces_known_poses(capsys, tmp_path, map_name):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ann", "poses.jsonl"]  # no staging folder left
 
 
+def test_locate_bare_map_in_feet(capsys, tmp_path):
+    """The seed's bare map with --units ft --marker-size-mm 80 gives the same poses as the full map."""
+    full = json.loads(data_path("world_map.json").read_text())
+    assert full["units"] == "ft" and full["marker_size_mm"] == 80
+    bare = tmp_path / "bare.json"
+    bare.write_text(json.dumps(full["markers"]))
+    shots = scenes_truth()["world_map.json"][:2]
+    code, out, err = run(capsys, "locate", *[p for p, _ in shots], "--camera", data_path("scenes", "camera.json"),
+                         "--map", bare, "--units", "ft", "--marker-size-mm", 80, "--json", tmp_path / "p.jsonl")
+    assert code == 0, err
+    for line, (path, T_true) in zip((tmp_path / "p.jsonl").read_text().splitlines(), shots):
+        assert_pose_close(np.array(json.loads(line)["T_world_camera"]), T_true, path.name)
+    code, out, err = run(capsys, "locate", shots[0][0], "--camera", data_path("scenes", "camera.json"), "--map", bare)
+    assert_user_error(code, err, "--units")
+
+
 def test_locate_frame_without_markers_is_reported(capsys, tmp_path, ideal_camera):
     blank = tmp_path / "wall.png"
     cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
@@ -307,6 +323,11 @@ def test_locate_frame_without_markers_is_reported(capsys, tmp_path, ideal_camera
     assert "wall.png" in out and "no known marker" in out
     rec = json.loads((tmp_path / "p.jsonl").read_text())
     assert rec == {"frame": "wall.png", "located": False, "reason": "no known marker", "detected_ids": []}
+    stranger = tmp_path / "stranger.png"  # a marker, but not one of the map's
+    cv2.imwrite(str(stranger), np.pad(_cv.generate_marker("ARUCO_ORIGINAL", 7, 140), ((170, 170), (250, 250)), constant_values=255))
+    code, out, err = run(capsys, "locate", stranger, "--camera", ideal_camera, "--map", data_path("world_map.json"))
+    assert code == 0, err
+    assert "no known marker (saw ids 7, not in the map)" in out.splitlines()[1]
 
 
 def test_locate_video_subprocess(tmp_path):
@@ -368,30 +389,32 @@ BAD = {
     "missing output folder": (["markers", "--ids", "0", "--size-mm", "50", "-o", "{tmp}/no/out.pdf"], ["does not exist"]),
     "charuco options without --charuco": (["board", "--pattern", "9x6", "--square-mm", "20", "--marker-mm", "15",
                                            "-o", "{tmp}/out.pdf"], ["--charuco"]),
-    "camera of another aspect ratio": (["render", "--map", str(data_path("world_map.json")), "--camera", "{wide}",
+    "camera of another aspect ratio": (["render", "--map", "{data}/world_map.json", "--camera", "{wide}",
                                         "--pose", "1200,150,250,-90,0,90", "--size", "640x480", "-o", "{tmp}/out.png"],
                                        ["aspect", "calibrate at the resolution"]),
-    "locate: missing image": (["locate", "{tmp}/nope.png", "--camera", "{wide}", "--map", str(data_path("world_map.json")),
+    "locate: missing image": (["locate", "{tmp}/nope.png", "--camera", "{wide}", "--map", "{data}/world_map.json",
                                "--json", "{tmp}/p.jsonl"], ["nope.png", "no such file"]),
-    "locate: empty folder": (["locate", "{tmp}/empty", "--camera", "{wide}", "--map", str(data_path("world_map.json")),
+    "locate: empty folder": (["locate", "{tmp}/empty", "--camera", "{wide}", "--map", "{data}/world_map.json",
                               "--annotate", "{tmp}/ann"], ["empty", "no images"]),
-    "locate: camera of another aspect ratio": (["locate", str(data_path("scenes", "scene_00.png")), "--camera", "{four3}",
-                                                "--map", str(data_path("world_map.json")), "--json", "{tmp}/p.jsonl",
+    "locate: camera of another aspect ratio": (["locate", "{data}/scenes/scene_00.png", "--camera", "{four3}",
+                                                "--map", "{data}/world_map.json", "--json", "{tmp}/p.jsonl",
                                                 "--annotate", "{tmp}/ann"], ["aspect", "calibrate at the resolution"]),
-    "locate: nothing to read": (["locate", "--camera", "{wide}", "--map", str(data_path("world_map.json"))],
+    "locate: unreadable video": (["locate", "{tmp}/bad.mp4", "--camera", "{wide}", "--map", "{data}/world_map.json",
+                                  "--json", "{tmp}/p.jsonl"], ["bad.mp4", "cannot open this video"]),
+    "locate: nothing to read": (["locate", "--camera", "{wide}", "--map", "{data}/world_map.json"],
                                 ["--camera-index"]),
     "calibrate: empty folder": (["calibrate", "{tmp}/empty", "--pattern", "9x6", "--square-mm", "25", "-o", "{tmp}/c.json"],
                                  ["empty", "no images"]),
-    "calibrate: bad pattern": (["calibrate", str(data_path("calibration")), "--pattern", "9by6", "--square-mm", "25",
+    "calibrate: bad pattern": (["calibrate", "{data}/calibration", "--pattern", "9by6", "--square-mm", "25",
                                 "-o", "{tmp}/c.json"], ["'9by6'", "9x6"]),
-    "calibrate: squares counted as corners": (["calibrate", str(data_path("calibration", "view_00.png")),
-                                               str(data_path("calibration", "view_01.png")),
-                                               str(data_path("calibration", "view_02.png")), "--pattern", "10x7",
+    "calibrate: squares counted as corners": (["calibrate", "{data}/calibration/view_00.png",
+                                               "{data}/calibration/view_01.png",
+                                               "{data}/calibration/view_02.png", "--pattern", "10x7",
                                                "--square-mm", "25", "-o", "{tmp}/c.json", "--annotate", "{tmp}/ann"],
                                               ["inner corners"]),
-    "calibrate: charuco without marker size": (["calibrate", str(data_path("calibration")), "--charuco", "--squares", "5x7",
+    "calibrate: charuco without marker size": (["calibrate", "{data}/calibration", "--charuco", "--squares", "5x7",
                                                 "--square-mm", "40", "-o", "{tmp}/c.json"], ["--marker-mm"]),
-    "pose with 5 numbers": (["render", "--map", str(data_path("world_map.json")), "--camera", "{wide}",
+    "pose with 5 numbers": (["render", "--map", "{data}/world_map.json", "--camera", "{wide}",
                              "--pose", "1200,150,250,-90,0", "-o", "{tmp}/out.png"], ["--pose", "6 numbers"]),
 }
 
@@ -403,10 +426,12 @@ def test_bad_input(capsys, tmp_path, case):
     four3 = tmp_path / "four3.json"
     Camera.from_fov(60, (640, 480)).save(four3)
     (tmp_path / "empty").mkdir()
+    (tmp_path / "bad.mp4").write_text("not a video")
     before = sorted(p.name for p in tmp_path.iterdir())
-    argv = [a.format(tmp=tmp_path, wide=wide, four3=four3) for a in argv]
+    argv = [a.format(tmp=tmp_path, wide=wide, four3=four3, data=data_dir()) for a in argv]
     code, out, err = run(capsys, *argv)
     assert_user_error(code, err, *fragments)
+    assert out == ""
     assert sorted(p.name for p in tmp_path.iterdir()) == before  # no output, no temporary file
 
 
