@@ -157,3 +157,26 @@ def test_trajectory_frames_regenerate_from_the_seed():
     drive = render_trajectory(camera, marker_map, seed=record["seed"], poses=poses, frames_to_render=[frame], **record["render"])
     assert sorted(drive.truth[0]) == record["frames"][frame]["visible_ids"]
     assert_same_pixels(drive.images[0], read_gray("trajectory", record["frames"][frame]["image"]), record["provenance"])
+
+
+def test_the_drive_is_seen_by_opencv_and_its_solvepnp_agrees_with_the_true_poses():
+    """Plain OpenCV on three frames: every listed marker is found, and solvePnP lands near the true pose."""
+    record = read_json("trajectory", "poses.json")
+    camera = Camera.load(data_path("trajectory", record["camera"]))
+    marker_map = MarkerMap.load(data_path(record["map"]))
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL), params)
+    for frame in (record["frames"][0], record["frames"][20], record["frames"][39]):
+        corners, ids, _ = detector.detectMarkers(read_gray("trajectory", frame["image"]))
+        ids = np.ravel(ids).tolist()
+        assert set(frame["visible_ids"]) <= set(ids) and frame["visible_ids"] == [0, 1, 2]
+        object_points = np.concatenate([marker_map.marker_corners(i) for i in ids])
+        image_points = np.concatenate([np.asarray(c, dtype=float).reshape(4, 2) for c in corners])
+        ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist, flags=cv2.SOLVEPNP_ITERATIVE)
+        assert ok
+        R, _ = cv2.Rodrigues(rvec)
+        position = -R.T @ tvec.ravel()
+        true_position = np.array(frame["T_world_camera"])[:3, 3]
+        distance = np.linalg.norm(true_position - np.mean([c.mean(axis=0) for c in marker_map.corners().values()], axis=0))
+        assert np.linalg.norm(position - true_position) < 0.05 * distance  # 80 mm markers, 20-60 px: depth is the weak axis
