@@ -19,14 +19,14 @@ squares are at least 19 px apart). Measured with OpenCV 5.0
 (``benchmarks/bench_calibration.py`` repeats these):
 
 * ``data/calibration`` (20 synthetic 640x480 views, true corners known):
-  corners 0.046 px RMS from the truth (max 0.12), fx 0.01 % off, 0.25 s;
+  corners 0.046 px RMS from the truth (max 0.12), fx 0.01 % off, 0.2 s;
   ``cv2.findChessboardCornersSB`` with ``CALIB_CB_ACCURACY``: 0.096 px RMS
-  (max 0.39), fx 0.43 % off, 35 times slower.
-* A harder rendered set (k1 = -0.28, blur 1 px, tilts 30 to 55 degrees,
-  squares 8 to 22 px apart at their narrowest): this recipe 0.04 px RMS,
-  fx 0.08 % off; OpenCV's fixed 11 px half-window reaches the next corner
-  on the small squares: corners up to 12 px off, fx 12 % off; the sector
-  detector 0.16 px, fx 0.5 % off.
+  (max 0.39), fx 0.43 % off, about 40 times slower.
+* A harder rendered set (20 views, k1 = -0.28, blur 1 px, tilts 30 to 55
+  degrees, squares 8 to 22 px apart at their narrowest): this recipe
+  0.036 px RMS, fx 0.01 % off; OpenCV's fixed 11 px half-window reaches the
+  next corner on the small squares: corners 3.4 px RMS (12 px at worst), fx
+  8 % off; the sector detector 0.15 px, fx 0.3 % off.
 * OpenCV's 13 ``right*.jpg`` photos: this recipe finds the board in all 13
   and agrees with OpenCV's sample exactly (fx 542.35, RMS 0.459 px); the
   sector detector misses one and lands 1.4 % lower in fx (534.6) with a
@@ -53,10 +53,11 @@ the camera is calibrated again without it, once. A blurred photo or a
 mis-refined corner shows up this way; the rejection is reported with the
 view's error.
 
-Board frame (``T_camera_board``): origin at the first corner OpenCV reports,
-x along the pattern's first row, y down the board, z into the paper, mm.
-A checkerboard with a symmetric pattern has no fixed first corner, so a view's
-origin may sit at the opposite end of the board.
+Board frame (``T_camera_board``), mm, z into the paper: a checkerboard's
+origin is the first inner corner OpenCV reports, x along the pattern's first
+row, y down the board (the pattern is symmetric, so a view's origin may sit at
+the opposite end of the board); a ChArUco board's is its own: the outer corner
+of the top-left square, x along the top edge (``board.getChessboardCorners()``).
 """
 
 from __future__ import annotations
@@ -111,7 +112,7 @@ class ViewResult:
         ``"used"``, ``"not found"``, ``"outlier"``, ``"duplicate"`` (the board where an earlier
         view had it, with ``reject_duplicates=True``), ``"other size"`` or ``"unreadable"``.
     n_points : int
-        Board points found (0 when the board was not found).
+        Board points found (0 when the board was not found or the image not read).
     rms_px : float or None
         RMS reprojection error of the view's points (px); for an outlier, its
         error in the first calibration. None when the board was not found.
@@ -458,6 +459,7 @@ class _View:
     obj: np.ndarray | None = None
     img: np.ndarray | None = None
     rms_px: float | None = None
+    n_found: int = 0
 
 
 def _read_gray(name: str, item: Any) -> np.ndarray:
@@ -575,6 +577,7 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
             v.status, v.reason = "not found", found
         else:
             v.obj, v.img = found
+            v.n_found = len(v.img)
 
     size = _choose_size(views)
     for v in views:
@@ -626,7 +629,7 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
         std_intrinsics=std_intrinsics,
         rejected=[(v.name, f"{v.status}: {v.reason}") for v in views if v.status != "used"],
         T_camera_board=T_camera_board,
-        views=[ViewResult(v.name, v.status, 0 if v.img is None else len(v.img), v.rms_px, v.reason) for v in views],
+        views=[ViewResult(v.name, v.status, v.n_found, v.rms_px, v.reason) for v in views],
         board=board,
         image_points_px={v.name: v.img for v in usable},
         board_points_mm={v.name: v.obj for v in usable},

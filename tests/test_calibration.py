@@ -163,6 +163,7 @@ def test_mixed_inputs_other_size_and_blank_are_rejected_with_reasons(right_files
     assert "calibrate at the resolution you run at" in reasons["image 2"]
     assert reasons["image 4"].startswith("not found: board not found (9x6 inner corners)")
     assert [v.status for v in cal.views] == ["used", "used", "other size", "used", "not found", "used"]
+    assert [v.n_points for v in cal.views] == [54, 54, 54, 54, 0, 54]  # the resized view's board was found
     assert cal.camera.image_size == (640, 480)
 
 
@@ -343,6 +344,19 @@ def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, char
     assert "ChArUco 5x7 squares, 40 mm squares, 20 mm markers, 6X6_250" in cal.camera.source
     assert "legacy" not in cal.board
     assert "fx is uncertain to 3.5 %: add views" in cal.summary()
+
+
+def test_charuco_synthetic_views_recover_the_true_camera_and_board_poses():
+    truth = Camera.load(data_path("calibration", "camera_true.json"))
+    views = fidlearn.render_calibration_views(truth, n_views=6, seed=3, charuco=True)
+    cal = calibrate_charuco(views.images, squares=(5, 7), square_size_mm=40, marker_size_mm=20)
+    assert _rel(cal.camera.fx, truth.fx) < 0.005 and _rel(cal.camera.fy, truth.fy) < 0.005
+    assert abs(cal.camera.cx - truth.cx) < 2 and abs(cal.camera.cy - truth.cy) < 2
+    for i, T_true in enumerate(views.T_camera_board):
+        T = cal.T_camera_board[f"image {i}"]  # ChArUco's board frame is fixed: no symmetric flip
+        assert np.linalg.norm(T[:3, 3] - T_true[:3, 3]) < 0.005 * np.linalg.norm(T_true[:3, 3])
+        cos = (np.trace(T[:3, :3].T @ T_true[:3, :3]) - 1) / 2
+        assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 0.3
 
 
 def test_charuco_legacy_layout_makes_no_difference_with_seven_rows(charuco_files, charuco_cal):
