@@ -18,6 +18,7 @@ Not a test: run it by hand and read the numbers.
 3. Coverage: how often the true position falls inside the 95 % ellipsoid of
    ``Pose.covariance`` (given sigma and estimated sigma).
 4. Speed: ``locate`` against a plain ``detectMarkers`` on the same 640x480 images.
+5. A misplaced marker: how often it is rejected, how often a good one is.
 """
 
 from __future__ import annotations
@@ -129,6 +130,7 @@ def bench_rendered(n_per_map: int, rng) -> None:
         errs = {"seed": []} | {r: [] for r in refines}
         fails = {k: 0 for k in errs}
         cover = {r: 0 for r in refines}
+        n_rejected = 0
         n = 0
         while n < n_per_map:
             T = random_view(m, rng)
@@ -151,11 +153,13 @@ def bench_rendered(n_per_map: int, rng) -> None:
                     continue
                 errs[r].append(np.linalg.norm(p.position_mm - C))
                 cover[r] += p.position_ellipsoid_contains(C, 0.95)
+                if r is None:
+                    n_rejected += bool(p.rejected_ids)
         line = f"{name:<11}{n:>4}{np.median(errs['seed']) if errs['seed'] else float('nan'):>10.2f}{fails['seed']:>5}"
         for r in refines:
             e = np.array(errs[r])
             line += f"{np.median(e):>17.2f}{np.percentile(e, 90):>7.1f}{e.max():>8.1f}{fails[r]:>5}{100 * cover[r] / max(len(e), 1):>6.0f}%"
-        print(line)
+        print(line + f"   (a good marker rejected in {n_rejected} scenes)")
         for k in totals:
             totals[k] += errs[k]
     line = f"{'all':<11}{len(totals[None]):>4}{np.median(totals['seed']):>10.2f}{'':>5}"
@@ -274,10 +278,47 @@ def bench_speed(n_images: int, rng) -> None:
     print(f"cv2 threads: {cv2.getNumThreads()}; locate limit 1.25 x plain, goal 1.10 x")
 
 
+def bench_misplaced(n_trials: int, rng) -> None:
+    print("\n== 5. a misplaced marker (map wrong by `shift` mm along the wall), rendered scenes ==")
+    m = wall_map()
+    for shift in (10.0, 25.0, 60.0):
+        caught = wrong = 0
+        err_on, err_off = [], []
+        n = 0
+        while n < n_trials:
+            T = random_view(m, rng, (0.6, 1.6))
+            if not all_visible(m, T):
+                continue
+            image, _ = render_scene(CAMERA, m, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std=2.0)
+            bad = int(rng.integers(len(m.ids)))
+            pl = dict(m.placements)
+            p0 = pl[bad]
+            direction = rng.normal(0, 1, 2)
+            direction = shift * direction / np.linalg.norm(direction)
+            pl[bad] = MarkerPlacement(bad, (p0.translation_mm[0], p0.translation_mm[1] + direction[0],
+                                            p0.translation_mm[2] + direction[1]), p0.rotation_deg)
+            wrong_map = MarkerMap(pl, m.marker_size_mm, m.dictionary, "mm")
+            try:
+                p_on = fidlearn.locate(image, wrong_map, CAMERA)
+                p_off = fidlearn.locate(image, wrong_map, CAMERA, reject_outliers=False)
+            except fidlearn.FidlearnError:
+                continue
+            if bad not in p_on.marker_ids + p_on.rejected_ids:
+                continue  # not detected
+            n += 1
+            caught += bad in p_on.rejected_ids
+            wrong += any(i != bad for i in p_on.rejected_ids)
+            err_on.append(np.linalg.norm(p_on.position_mm - T[:3, 3]))
+            err_off.append(np.linalg.norm(p_off.position_mm - T[:3, 3]))
+        print(f"shift {shift:4.0f} mm: rejected {100 * caught / n:5.1f} % of {n}, a good marker rejected in "
+              f"{100 * wrong / n:4.1f} %; median position error {np.median(err_on):6.2f} mm with rejection, "
+              f"{np.median(err_off):6.2f} mm without")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer scenes and trials")
-    ap.add_argument("--only", choices=["rendered", "nees", "coverage", "speed"], help="run one part")
+    ap.add_argument("--only", choices=["rendered", "nees", "coverage", "speed", "misplaced"], help="run one part")
     args = ap.parse_args(argv)
     warnings.simplefilter("error")
     rng = np.random.default_rng(20261121)
@@ -289,6 +330,8 @@ def main(argv=None) -> int:
         bench_nees(int(400 * n), rng)
     if args.only in (None, "coverage"):
         bench_coverage(int(400 * n), rng)
+    if args.only in (None, "misplaced"):
+        bench_misplaced(int(100 * n), rng)
     if args.only in (None, "speed"):
         bench_speed(int(40 * n), rng)
     return 0

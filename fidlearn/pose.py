@@ -124,9 +124,13 @@ class Pose:
         by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu = 2N - 6 +
         PRIOR_DOF``) so that the 95 % ellipsoid still holds the true position
         95 % of the time: 1.08 with six markers, 1.2 with three, 2.5 with one.
-        None if the pose is not determined.
+        When the pose is ``ambiguous`` it is instead the second moment, about
+        this pose, of the mixture of both poses (weights from their likelihood
+        ratio), so the ellipsoid reaches the alternative. The alternative's own
+        covariance is the local one. None if the pose is not determined.
     sigma_px : float
-        The corner noise (px, per coordinate) the covariance assumes.
+        The corner noise (px, per coordinate) the covariance assumes: given, or
+        estimated from the residuals (see :func:`estimate_pose`).
     ambiguous : bool
         True when a second, distinct pose explains the corners nearly as well
         (planar targets seen face-on or from afar): see ``alternative``.
@@ -635,8 +639,12 @@ def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float 
     robust = float(np.median(per)) / 8.0
     sigma2 = max((corner_sigma_px or 0.0) ** 2, robust, OUTLIER_SIGMA_FLOOR_PX**2)
     rms = np.sqrt(per / 4.0)
-    # A misplaced marker drags the pose and spreads its error over the others: be generous
-    # here (this only decides whether the leave-one-out test runs).
+    # A misplaced marker drags the pose and spreads its error over the others, at worst
+    # evenly: be generous here (this only decides whether the leave-one-out test runs), and
+    # look also at the overall fit, against the noise when it is given.
+    overall_rms = math.sqrt(float(np.sum(per)) / (4 * len(per)))
+    if overall_rms > max(OUTLIER_MIN_RMS_PX, 3.0 * (corner_sigma_px or 0.0)):
+        return True
     return bool(np.any((per / sigma2 > OUTLIER_CHI2 / 3) & (rms > OUTLIER_MIN_RMS_PX / 2)))
 
 
@@ -827,20 +835,25 @@ def estimate_pose(
         for i in rejected:
             ri, _ = _residuals(world[i], corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
             residuals[i] = ri.reshape(4, 2)
-        s = _sigma(c.sse, dof, corner_sigma_px)
         if JtJ_c is None:
             Jc = pose_jacobian(obs.obj, T_world_camera, camera)
             JtJ_c = Jc.T @ Jc
-        cov = _covariance_from(JtJ_c, s)
+        cov = _covariance_from(JtJ_c, sigma)  # one noise level for the data, whichever pose
         if cov is not None and corner_sigma_px is None:
             cov = cov * _estimated_sigma_inflation(dof + PRIOR_DOF)
+        if ambiguous and alternative is not None and cov is not None and alternative.covariance is not None:
+            # Two poses explain the corners: report the second moment about this pose of the
+            # two-pose mixture, weighted by likelihood, so its ellipsoid reaches the other one.
+            w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * sigma**2), 700.0)))
+            d = np.r_[cv2.Rodrigues(alt.R_wc @ c.R_wc.T)[0].reshape(3), alt.C - c.C]
+            cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
         return Pose(
             T_world_camera=T_world_camera,
             marker_ids=tuple(obs.ids),
             residuals_px=dict(sorted(residuals.items())),
             reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
             covariance=cov,
-            sigma_px=s,
+            sigma_px=sigma,
             ambiguous=ambiguous,
             alternative=alternative,
             ignored_ids=tuple(ignored),

@@ -9,9 +9,10 @@ import pytest
 from fidlearn import frames
 from fidlearn.camera import Camera
 from fidlearn.detection import Detection
-from fidlearn.errors import FidlearnWarning, NoMarkersError, PoseError
+from fidlearn.data import data_path
+from fidlearn.errors import CameraError, FidlearnWarning, ImageError, NoMarkersError, PoseError
 from fidlearn.markermap import MarkerMap, MarkerPlacement
-from fidlearn.pose import Pose, estimate_pose, pose_jacobian
+from fidlearn.pose import Pose, estimate_pose, locate, pose_jacobian
 
 CAM = Camera([[800.0, 0, 319.5], [0, 800.0, 239.5], [0, 0, 1]], [-0.12, 0.08, 0.001, -0.0005, 0.0], (640, 480))
 
@@ -60,7 +61,7 @@ def observe(marker_map, T_world_camera, sigma=0.0, rng=None, camera=CAM, ids=Non
             continue
         px = camera.project(corners, T_world_camera)
         assert camera.points_in_front(corners, T_world_camera).all()
-        assert np.all((px > 0) & (px < np.array(camera.image_size) - 1)), f"marker {i} leaves the image"
+        assert np.all((px > 15) & (px < np.array(camera.image_size) - 16)), f"marker {i} is not well inside the image"
         dets.append(Detection(i, px + rng.normal(0.0, sigma, px.shape)))
     dets.extend(Detection(i, c) for i, c in extra)
     return dets
@@ -73,7 +74,7 @@ def pose_errors(pose: Pose, T_true: np.ndarray) -> tuple[float, float]:
     )
 
 
-T_WALL = look_at([1600.0, 700.0, 1100.0], [0.0, 420.0, 1250.0])
+T_WALL = look_at([1800.0, 800.0, 1100.0], [0.0, 530.0, 1230.0])
 
 
 # ---------------------------------------------------------------------------------------
@@ -169,6 +170,8 @@ def test_one_marker_far_and_face_on_is_ambiguous_close_and_oblique_is_not():
             assert isinstance(alt, Pose) and alt.alternative is None
             # the two poses are really different: the flip tilts the camera by degrees
             assert frames.rotation_angle_deg(alt.T_world_camera, p_far.T_world_camera) > 2.0
+            # and the reported uncertainty reaches the other one
+            assert p_far.position_ellipsoid_contains(alt.position_mm, 0.95)
         p_near = estimate_pose(observe(m, near, 0.3, rng), m, CAM)
         n_near += p_near.ambiguous
         assert pose_errors(p_near, near)[0] < 10.0
@@ -328,3 +331,54 @@ def test_covariance_is_the_cramer_rao_bound_at_the_truth():
     np.testing.assert_allclose(pose.covariance, 0.4**2 * np.linalg.inv(J.T @ J), rtol=1e-5, atol=1e-12)
     assert pose.sigma_px == 0.4
     np.testing.assert_allclose(pose.position_std_mm, np.sqrt(np.diag(pose.covariance)[3:]))
+
+
+# ---------------------------------------------------------------------------------------
+# locate: detection + pose, end to end on rendered images
+# ---------------------------------------------------------------------------------------
+def test_locate_finds_the_camera_in_a_rendered_scene():
+    from fidlearn.synthetic import render_scene
+
+    m = wall_map()
+    image, truth = render_scene(CAM, m, T_WALL, seed=7, blur_px=0.6, noise_std=2.0, gradient=0.2)
+    assert sorted(truth) == m.ids
+    pose = locate(image, m, CAM)
+    pos_err, ang_err = pose_errors(pose, T_WALL)
+    assert pos_err < 5.0 and ang_err < 0.2, (pos_err, ang_err)
+    assert pose.marker_ids == tuple(m.ids) and pose.rejected_ids == ()
+    assert pose.reprojection_rms_px < 0.5
+    assert pose.position_ellipsoid_contains(T_WALL[:3, 3], 0.999)
+
+
+def test_locate_on_the_seed_map():
+    from fidlearn.synthetic import look_at as synthetic_look_at, render_scene
+
+    m = MarkerMap.load(data_path("world_map.json"))
+    T = synthetic_look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0], roll_deg=8.0)
+    image, truth = render_scene(CAM, m, T, seed=3, blur_px=0.5, noise_std=1.5)
+    assert sorted(truth) == [0, 1, 2]
+    pose = locate(image, m, CAM)
+    assert pose.marker_ids == (0, 1, 2)
+    assert pose_errors(pose, T)[0] < 8.0 and pose_errors(pose, T)[1] < 0.5
+
+
+def test_locate_rescales_a_camera_of_another_resolution_and_refuses_another_aspect():
+    from fidlearn.synthetic import render_scene
+
+    m = wall_map()
+    image, _ = render_scene(CAM, m, T_WALL, seed=8, blur_px=0.6, noise_std=2.0)
+    big = CAM.scaled((1280, 960))  # calibrated at twice the resolution of the image
+    with pytest.warns(FidlearnWarning, match="rescaled to 640x480"):
+        pose = locate(image, m, big)
+    assert pose_errors(pose, T_WALL)[0] < 5.0
+    with pytest.raises(CameraError, match="aspect"):
+        locate(image[:360], m, CAM)
+
+
+def test_locate_without_markers_says_what_to_check():
+    m = wall_map()
+    blank = np.full((480, 640), 200, np.uint8)
+    with pytest.raises(NoMarkersError, match="no marker was detected.*ARUCO_ORIGINAL"):
+        locate(blank, m, CAM)
+    with pytest.raises(ImageError):
+        locate("photo.jpg", m, CAM)
