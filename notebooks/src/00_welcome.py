@@ -38,7 +38,8 @@
 #   above it went wrong (or you changed something: that is allowed, and how you learn).
 # * The reusable code (loading, plotting, the pipeline itself) lives in the `fidlearn` package next to
 #   these notebooks; the algorithm is always written out in the notebook first.
-# * Every notebook ends with a pointer to its exercises, in `exercises/`.
+# * Every notebook ends with a link to its exercises, in `exercises/`: short tasks whose answers
+#   `q.check()` marks for you.
 #
 # ## Is everything installed?
 #
@@ -106,18 +107,18 @@ plt.show()
 # %% [markdown]
 # ## The notebooks
 #
-# | notebook | what |
-# | --- | --- |
-# | [00 Welcome](00_welcome.ipynb) | this page |
-# | [01 The pinhole camera and K](01_pinhole_intrinsics.ipynb) | projection by hand and with OpenCV, field of view, distortion, an interactive view of K |
-# | [02 Calibration](02_calibration.ipynb) | checkerboards, finding corners, per-view errors, square size, the resolution trap |
-# | [03 Extrinsics and transforms](03_extrinsics_transforms.ipynb) | rotations, 4x4 matrices, Rodrigues vectors, composing frames, Z-up vs Y-up |
-# | [04 Fiducials and the world map](04_fiducials_world_map.ipynb) | dictionaries, quiet zone, marker size, map files, units, walls and floors |
-# | 05 Detection | finding markers and their corners in a picture |
-# | 06 Pose with solvePnP | matching 3D corners to pixels, PnP methods, reprojection error |
-# | 07 Where is the camera? | inverting the extrinsics: the camera's pose in the world |
-# | 08 Accuracy and pitfalls | ambiguity of planar targets, noise, outliers, how sure the pose is |
-# | 09 Real pictures, end to end | the command line, real photos, a moving camera |
+# | notebook | what | exercises |
+# | --- | --- | --- |
+# | [00 Welcome](00_welcome.ipynb) | this page | |
+# | [01 The pinhole camera and K](01_pinhole_intrinsics.ipynb) | projection by hand and with OpenCV, field of view, distortion, an interactive view of K | [01](exercises/01_pinhole.ipynb) |
+# | [02 Calibration](02_calibration.ipynb) | checkerboards, finding corners, per-view errors, square size, the resolution trap | [02](exercises/02_calibration.ipynb) |
+# | [03 Extrinsics and transforms](03_extrinsics_transforms.ipynb) | rotations, 4x4 matrices, Rodrigues vectors, composing frames, Z-up vs Y-up | [03](exercises/03_extrinsics.ipynb) |
+# | [04 Fiducials and the world map](04_fiducials_world_map.ipynb) | dictionaries, quiet zone, marker size, map files, units, walls and floors | [04](exercises/04_world_map.ipynb) |
+# | 05 Detecting markers | finding markers and their corners in a picture | [05](exercises/05_detection.ipynb) |
+# | 06 PnP: the pose from several markers | matching 3D corners to pixels with `cv2.solvePnP`, reprojection error | [06](exercises/06_pnp.ipynb) |
+# | 07 Where is the camera? | inverting the extrinsics: the camera's pose in the world | [07](exercises/07_inversion.ipynb) |
+# | 08 Accuracy and pitfalls | ambiguity of planar targets, noise, outliers, how sure the pose is | [08](exercises/08_accuracy.ipynb) |
+# | 09 Localizing a robot | a moving camera, frame after frame, and real photos | [09](exercises/09_robot.ipynb) |
 #
 # ## Conventions (used in every notebook and in `fidlearn`)
 #
@@ -138,4 +139,5 @@ plt.show()
 # * Run cells top to bottom with Shift-Enter; the `assert` lines check each step against a known answer.
 # * Millimetres, Z up, OpenCV's camera frame, `T_a_b` names, corners TL, TR, BR, BL.
 #
-# **Exercises** start with notebook 01 (`exercises/`). Next: [01 The pinhole camera](01_pinhole_intrinsics.ipynb).
+# **Exercises** start with notebook 01: [exercises/01_pinhole.ipynb](exercises/01_pinhole.ipynb).
+# Next: [01 The pinhole camera](01_pinhole_intrinsics.ipynb).

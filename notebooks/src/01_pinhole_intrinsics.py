@@ -225,7 +225,7 @@ plt.show()
 #   `dist = [k1, k2, p1, p2, k3]`; `Camera.undistort_points` removes it.
 # * K and the distortion belong to one camera **at one resolution**: notebook 02 measures them.
 #
-# **Exercises**: `exercises/` holds the exercise notebook of this lesson (its name starts with `01`),
-# or run `from fidlearn import exercises; ex = exercises.lesson("01")` in a new cell.
+# **Exercises**: [exercises/01_pinhole.ipynb](exercises/01_pinhole.ipynb), with automatic feedback
+# (or `from fidlearn import exercises; ex = exercises.lesson("01")` in a new cell).
 #
 # Next: [02 Calibration](02_calibration.ipynb).

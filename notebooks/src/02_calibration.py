@@ -337,7 +337,8 @@ assert err_crop_fixed < 5
 # * K belongs to one resolution and one sensor mode. Same aspect ratio: `Camera.scaled`. Another
 #   mode or crop: calibrate again. A wrong K hides behind a small reprojection error.
 #
-# **Exercises**: `exercises/` holds the exercises of the course (notebook 02 has none of its own yet:
-# try calibrating with fewer views, or with the `SB` corner finder, and compare with `camera_true.json`).
+# **Exercises**: [exercises/02_calibration.ipynb](exercises/02_calibration.ipynb), with automatic
+# feedback (or `from fidlearn import exercises; ex = exercises.lesson("02")` in a new cell). Also try:
+# calibrate with 5 views, or with the `SB` corner finder, and compare with `camera_true.json`.
 #
 # Next: [03 Extrinsics and transforms](03_extrinsics_transforms.ipynb).

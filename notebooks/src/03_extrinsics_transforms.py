@@ -256,7 +256,7 @@ plt.show()
 # * Roll, pitch, yaw are about fixed X, Y, Z, `R = Rz(yaw) Ry(pitch) Rx(roll)`: the order matters.
 # * Z-up and Y-up worlds differ by a change-of-basis rotation applied on the left of every pose.
 #
-# **Exercises**: `exercises/` holds the exercise notebook of this lesson (its name starts with `03`),
-# or run `from fidlearn import exercises; ex = exercises.lesson("03")` in a new cell.
+# **Exercises**: [exercises/03_extrinsics.ipynb](exercises/03_extrinsics.ipynb), with automatic feedback
+# (or `from fidlearn import exercises; ex = exercises.lesson("03")` in a new cell).
 #
 # Next: [04 Fiducials and the world map](04_fiducials_world_map.ipynb).

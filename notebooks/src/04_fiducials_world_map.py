@@ -310,7 +310,7 @@ plt.show()
 #   corners are `TL + s R c_k`, in mm, TL, TR, BR, BL. Units are declared, never guessed.
 # * North wall: rotation 0; south: yaw 180; west/east: yaw ±90; floor: pitch -90.
 #
-# **Exercises**: `exercises/` holds the exercise notebook of this lesson (its name starts with `04`),
-# or run `from fidlearn import exercises; ex = exercises.lesson("04")` in a new cell.
+# **Exercises**: [exercises/04_world_map.ipynb](exercises/04_world_map.ipynb), with automatic feedback
+# (or `from fidlearn import exercises; ex = exercises.lesson("04")` in a new cell).
 #
 # Next: detecting the markers in an image, notebook 05.
