@@ -72,6 +72,8 @@ __all__ = [
     "answer_key_notebook",
     "student_copy",
     "solution_blocks",
+    "grade_notebook",
+    "Grade",
 ]
 
 CORRECT = "Correct"
@@ -1676,6 +1678,50 @@ def _lesson_02(learner: str) -> list[Question]:
         """,
         level="easy",
     ))
+
+    # q5: calibrate from pictures ----------------------------------------------------------------
+    from . import synthetic
+    from .calibration import calibrate_checkerboard
+
+    rng = _rng("02", learner, "q5")
+    f5 = float(np.round(rng.uniform(260, 340)))
+    cam5 = Camera([[f5, 0, 159.5 + float(np.round(rng.uniform(-4, 4), 1))], [0, f5, 119.5 + float(np.round(rng.uniform(-3, 3), 1))], [0, 0, 1]],
+                  [float(np.round(rng.uniform(-0.15, 0.0), 3)), 0, 0, 0, 0], (320, 240))
+    square5 = float(rng.choice([20, 25, 30]))
+    views5 = synthetic.render_calibration_views(cam5, n_views=6, pattern_size=(7, 5), square_size_mm=square5, seed=int(rng.integers(1 << 20)), supersample=2)
+    key5 = calibrate_checkerboard(views5.images, (7, 5), square5).camera.K
+    f_tol = max(0.015 * f5, 3 * abs(key5[0, 0] - f5))
+    c_tol = max(4.0, 3 * float(np.abs(key5[:2, 2] - cam5.K[:2, 2]).max()))
+
+    def cmp5(a, b):
+        if abs(a[0, 0] - b[0, 0]) <= f_tol and abs(a[1, 1] - b[1, 1]) <= f_tol and np.abs(a[:2, 2] - b[:2, 2]).max() <= c_tol and abs(a[2, 2] - 1) < 1e-6:
+            return None
+        return f"your fx = {a[0, 0]:.1f} px, cx = {a[0, 2]:.1f}, cy = {a[1, 2]:.1f} are farther from the true camera than calibration on these pictures gets (fx within {f_tol:.1f} px, cx, cy within {c_tol:.1f} px)"
+
+    qs.append(Question(
+        "q5", "Calibrate from pictures",
+        """
+        `images` are 6 gray photos (320 x 240) of a printed checkerboard with `pattern_size` =
+        (columns, rows) INNER corners and squares of `square_size_mm`. Write code that calibrates the
+        camera from the pictures (fidlearn.calibration.calibrate_checkerboard, or
+        cv2.findChessboardCorners + cv2.calibrateCamera) and gives K (3, 3).
+        """,
+        {"images": [im.copy() for im in views5.images], "pattern_size": (7, 5), "square_size_mm": square5},
+        cam5.K,
+        _array((3, 3), "K", {(5,): "that is the distortion vector; give K", (1, 5): "that is the distortion vector; give K"}),
+        cmp5,
+        wrong=[
+            (lambda a: cmp5(a.T, cam5.K) is None, "your K is transposed: cx and cy belong in the last column"),
+        ],
+        hint="calibration = fidlearn.calibration.calibrate_checkerboard(images, pattern_size, square_size_mm); calibration.camera.K. pattern_size counts INNER corners: a board of 8 x 6 squares has 7 x 5.",
+        solution="""
+        from fidlearn.calibration import calibrate_checkerboard
+        calibration = calibrate_checkerboard(q5.inputs.images, q5.inputs.pattern_size, q5.inputs.square_size_mm)
+        print(f"RMS {calibration.rms_px:.3f} px over {len(calibration.used)} views")
+        q5.answer = calibration.camera.K
+        """,
+        level="medium",
+    ))
     return qs
 
 
@@ -2398,3 +2444,148 @@ _register("09", "robot", "Localizing a robot", """
     Put it together on a moving robot: localize every frame of a drive, carry the camera's pose to
     the robot's through the mounting transform, and measure the path it drove.
     """, _lesson_09)
+
+
+# ==================================================================================
+# grading a learner's notebook
+# ==================================================================================
+_GRADE_TAG = "FIDLEARN-GRADE "
+_GRADE_CELL = (
+    "import json as _fidlearn_json\n"
+    "from fidlearn import exercises as _fidlearn_exercises\n"
+    f"print({_GRADE_TAG!r} + _fidlearn_json.dumps(_fidlearn_exercises._session_grades(globals())))"
+)
+
+
+def _session_grades(namespace: dict) -> dict:
+    """The results of the lesson a notebook session worked on (used by :func:`grade_notebook`)."""
+    lesson_obj = namespace.get("ex")
+    if not isinstance(lesson_obj, Lesson):
+        lesson_obj = next((v for v in namespace.values() if isinstance(v, Lesson)), None)
+    if lesson_obj is None:
+        return {"lesson": None, "learner": None, "results": []}
+    results = []
+    for q in lesson_obj:
+        try:
+            r = q.grade()
+        except Exception as exc:  # a learner's answer that breaks the grader still counts as wrong
+            r = Result(q.name, INCORRECT, f"the answer could not be checked ({type(exc).__name__}: {exc})")
+        results.append([r.question, r.status, r.message])
+    return {"lesson": lesson_obj.number, "learner": lesson_obj.learner, "results": results}
+
+
+@dataclass
+class Grade:
+    """The outcome of grading one notebook: the lesson, the learner id it used, a Result per question."""
+
+    path: str
+    lesson: str | None
+    learner: str | None
+    results: list
+    errors: list
+
+    @property
+    def n_correct(self) -> int:
+        return sum(r.correct for r in self.results)
+
+    def __str__(self) -> str:
+        head = f"{self.path}: lesson {self.lesson}, learner {self.learner!r}: {self.n_correct} of {len(self.results)} correct"
+        lines = [head] + [f"  {r.line}" for r in self.results] + [f"  problem: {e}" for e in self.errors]
+        return "\n".join(lines)
+
+
+def grade_notebook(path: "str | os.PathLike", learner: str | None = None, timeout: int = 300) -> Grade:
+    """Run a learner's exercise notebook in a fresh kernel and grade every question.
+
+    The notebook runs top to bottom with strict mode off (a broken cell is
+    recorded and the rest still runs); then the answers held by its ``ex``
+    lesson are checked by the library, not read from what the notebook printed.
+
+    Parameters
+    ----------
+    path : path
+        The notebook (``.ipynb``).
+    learner : str, optional
+        The id the learner was told to use. A notebook whose ``LEARNER`` is
+        empty runs with it (through ``FIDLEARN_LEARNER``); a notebook that used
+        another id is reported in :attr:`Grade.errors`.
+    timeout : int
+        Seconds a single cell may run.
+    """
+    import nbformat
+    from nbclient import NotebookClient
+
+    path = os.fspath(path)
+    nb = nbformat.read(path, as_version=4)
+    nb.cells.append(nbformat.v4.new_code_cell(_GRADE_CELL))
+    saved = {k: os.environ.get(k) for k in ("FIDLEARN_LEARNER", "FIDLEARN_STRICT")}
+    os.environ.pop("FIDLEARN_STRICT", None)
+    if learner:
+        os.environ["FIDLEARN_LEARNER"] = learner
+    else:
+        os.environ.pop("FIDLEARN_LEARNER", None)
+    try:
+        NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=True,
+                       resources={"metadata": {"path": os.path.dirname(os.path.abspath(path))}}).execute()
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    errors = []
+    for i, cell in enumerate(nb.cells[:-1]):
+        for out in cell.get("outputs", []):
+            if out.get("output_type") == "error":
+                errors.append(f"cell {i} raised {out.get('ename')}: {out.get('evalue')}")
+    import json
+
+    data = None
+    for out in nb.cells[-1].get("outputs", []):
+        for line in str(out.get("text", "")).splitlines():
+            if line.startswith(_GRADE_TAG):
+                data = json.loads(line[len(_GRADE_TAG):])
+    if data is None or data["lesson"] is None:
+        errors.append("no exercises found: the notebook never ran ex = exercises.lesson(...)")
+        return Grade(path, None, None, [], errors)
+    if learner and data["learner"] != learner:
+        errors.append(f"the notebook used learner id {data['learner']!r}, not {learner!r}: its numbers are someone else's")
+    results = [Result(*r) for r in data["results"]]
+    return Grade(path, data["lesson"], data["learner"], results, errors)
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
+    """``python -m fidlearn.exercises grade NOTEBOOK... [--learner ID] [--csv FILE]``."""
+    import argparse
+    import csv
+    import io
+
+    from ._io import write_text_atomic
+
+    parser = argparse.ArgumentParser(prog="python -m fidlearn.exercises", description="Grade learners' exercise notebooks.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    g = sub.add_parser("grade", help="run notebooks in fresh kernels and grade every question")
+    g.add_argument("notebooks", nargs="+")
+    g.add_argument("--learner", help="the id the learner was told to use (one notebook, or all of one learner)")
+    g.add_argument("--csv", help="also write one row per question to this CSV file")
+    args = parser.parse_args(argv)
+    grades = []
+    for path in args.notebooks:
+        grade = grade_notebook(path, learner=args.learner)
+        print(grade)
+        grades.append(grade)
+    if args.csv:
+        buf = io.StringIO()
+        w = csv.writer(buf)
+        w.writerow(["notebook", "lesson", "learner", "question", "status", "message"])
+        for grade in grades:
+            for r in grade.results:
+                w.writerow([grade.path, grade.lesson, grade.learner, r.question, r.status, r.message])
+            for e in grade.errors:
+                w.writerow([grade.path, grade.lesson, grade.learner, "", "problem", e])
+        write_text_atomic(args.csv, buf.getvalue())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())

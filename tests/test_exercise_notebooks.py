@@ -97,3 +97,25 @@ def test_stored_outputs_are_real(number):
         nb = read(path)
         text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == "stream")
         assert {s for s, _ in CHECK_LINE.findall(text)} == {status}, f"{path.name}: run python tools/make_student_copies.py {number}"
+
+
+def test_grading_a_learners_notebook(tmp_path):
+    """A learner's copy with one right answer, one common mistake and one broken cell."""
+    nb = read(EXERCISES_DIR / exercises.notebook_name("07"))
+    ex = exercises.lesson("07", learner="erin")
+    stub = "{q}.answer = ..."
+    for cell in nb.cells:
+        if stub.format(q="q1") in cell.source:
+            cell.source = cell.source.replace(stub.format(q="q1"), ex.q1.solution_code)
+        elif stub.format(q="q2") in cell.source:  # the extrinsic matrix where the pose is asked
+            cell.source = cell.source.replace(stub.format(q="q2"), "q2.answer = frames.transform_from_rvec_tvec(q2.inputs.rvec, q2.inputs.tvec)")
+        elif stub.format(q="q3") in cell.source:
+            cell.source = cell.source.replace(stub.format(q="q3"), "q3.answer = 1 / 0")
+    path = tmp_path / "07_erin.ipynb"
+    nbformat.write(nb, path)
+    grade = exercises.grade_notebook(path, learner="erin")
+    assert (grade.lesson, grade.learner) == ("07", "erin")
+    assert [r.status for r in grade.results] == ["Correct", "Incorrect", "Not attempted", "Not attempted"]
+    assert "extrinsic matrix" in grade.results[1].message
+    assert len(grade.errors) == 1 and "ZeroDivisionError" in grade.errors[0]
+    assert str(grade).startswith(f"{path}: lesson 07, learner 'erin': 1 of 4 correct")
