@@ -14,12 +14,17 @@ corner RMS error, the 95th percentile, the mean radial offset (error along the
 marker-centre-to-corner direction; negative means corners pulled inwards) and
 the mean image-frame offset (dx, dy) which shows a constant shift.
 
+Real photos: the ChArUco photos in data/real (no corner truth, but a known
+geometry: a flat board's marker corners map by one homography).
+
 Cost: :func:`fidlearn.detect_markers` per refinement, and ``fidlearn.pose.locate``
 (detect with the default refinement + pose) when it exists, relative to a plain ``ArucoDetector.detectMarkers`` with
 OpenCV's default parameters (no refinement) on the same gray image, at
-640x480, 1280x720 and 1920x1080. Calls are interleaved; the table gives the
-fastest of many repetitions (what the code costs when the machine is not busy)
-and the median ratio of neighbouring calls.
+640x480, 1280x720 and 1920x1080 (synthetic) and on the real 640x480 photo.
+Twice: CPU time with OpenCV on one thread (the work each call does, which a
+busy machine disturbs least) and wall-clock time with OpenCV's threads. Calls
+are interleaved; the tables give the fastest of many repetitions and the
+median ratio of neighbouring calls.
 
 Not part of the test suite; the tables are copied into docs/corner_refinement.md.
 """
@@ -55,7 +60,7 @@ def grid_map(n_cols: int, n_rows: int, dictionary: str, first_id: int = 0) -> Ma
 
 
 def scene(side_px: float, seed: int, dictionary: str, image_size=(640, 480), blur=None, noise=None):
-    """One rendered scene whose markers are about ``side_px`` pixels wide; returns (image, truth)."""
+    """One rendered scene whose markers are about ``side_px`` pixels wide: (image, truth, map, camera)."""
     rng = np.random.default_rng(seed)
     cam = Camera.from_fov(60.0, image_size)
     w, h = image_size
@@ -69,7 +74,8 @@ def scene(side_px: float, seed: int, dictionary: str, image_size=(640, 480), blu
     T = look_at(eye, centre, roll_deg=float(rng.uniform(0, 360)))
     blur = float(rng.uniform(0.5, 1.0)) if blur is None else blur
     noise = float(rng.uniform(1.0, 2.0)) if noise is None else noise
-    return render_scene(cam, mm, T, seed=seed, blur_px=blur, noise_std=noise, gradient=0.2)
+    image, truth = render_scene(cam, mm, T, seed=seed, blur_px=blur, noise_std=noise, gradient=0.2)
+    return image, truth, mm, cam
 
 
 def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
@@ -80,7 +86,7 @@ def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
         truths = []
         visible = 0
         for s in range(n_scenes):
-            image, truth = scene(side, 1000 * side + s, dictionary)
+            image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
             visible += len(truth)
             per = {m: {d.id: d.corners for d in detect_markers(image, dictionary, refine=m)} for m in methods}
             common = [i for i in truth if all(i in per[m] for m in methods)]  # same markers for every method
@@ -124,51 +130,117 @@ def print_accuracy(rows, methods, dictionary):
         print(f"  {m:9s} ({d[0]:+.3f}, {d[1]:+.3f})")
 
 
-def timing(dictionary: str, methods, repeats: int) -> dict:
-    out = {}
+def real_photos(methods) -> dict:
+    """Consistency of each refinement with a known geometry on the real ChArUco photos.
+
+    The board is flat, so after undistortion (the tutorial's calibration) its
+    marker corners map from the board by one homography. Reported: the RMS
+    residual of that fit; the RMS when the markers may also shrink or grow
+    about their centres by one common factor (what ink spread, exposure or
+    gamma do to a printed marker), and that factor; and the mean image-frame
+    offset from the ``edges`` corners (a constant shift the homography absorbs).
+    """
+    from fidlearn.data import data_path
+    from fidlearn.detection import load_image
+
+    cam = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
+    board = _cv.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
+    obj = {int(i): np.asarray(o, float).reshape(4, 3)[:, :2] for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())}
+
+    def fit(P, Q):
+        H, _ = cv2.findHomography(P.reshape(-1, 2), Q, 0)
+        return Q - cv2.perspectiveTransform(P.reshape(-1, 1, 2), H).reshape(-1, 2)
+
+    out = {m: {"h": [], "hs": [], "s": [], "d": []} for m in methods}
+    names = ("img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg")
+    for name in names:
+        image = load_image(data_path("real", "opencv_charuco", name))
+        ref = {d.id: d.corners for d in detect_markers(image, "6X6_250", refine="edges")}
+        for m in methods:
+            dets = [d for d in detect_markers(image, "6X6_250", refine=m) if d.id in obj]
+            P = np.stack([obj[d.id] for d in dets])
+            Q = cv2.undistortPoints(np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K).reshape(-1, 2)
+            out[m]["h"].append(fit(P, Q))
+            centre = P.mean(axis=1, keepdims=True)
+            best = min((float((fit(centre + s * (P - centre), Q) ** 2).sum()), s) for s in np.linspace(0.95, 1.05, 201))
+            out[m]["hs"].append(fit(centre + best[1] * (P - centre), Q))
+            out[m]["s"].append(best[1])
+            out[m]["d"] += [d.corners - ref[d.id] for d in dets if d.id in ref]
+    return {m: dict(
+        h=float(np.sqrt((np.concatenate(v["h"]) ** 2).sum(1).mean())),
+        hs=float(np.sqrt((np.concatenate(v["hs"]) ** 2).sum(1).mean())),
+        s=float(np.mean(v["s"])),
+        d=np.concatenate(v["d"]).reshape(-1, 2).mean(axis=0),
+        n=sum(len(x) for x in v["h"]) // 4,
+    ) for m, v in out.items()}
+
+
+def print_real(rows):
+    n = next(iter(rows.values()))["n"]
+    print(f"\nReal photos: ChArUco board (5 photos, {n} marker detections), homography fit of the undistorted corners")
+    print("| refinement | RMS [px] | RMS with a common marker scale [px] | that scale | mean offset from edges (dx, dy) [px] |")
+    print("|---|---|---|---|---|")
+    for m, r in rows.items():
+        print(f"| {m} | {r['h']:.3f} | {r['hs']:.3f} | {r['s']:.3f} | ({r['d'][0]:+.2f}, {r['d'][1]:+.2f}) |")
+
+
+def timing(dictionary: str, methods, repeats: int, cpu: bool = False) -> dict:
+    """Time every call; ``cpu=True``: CPU time of this process with OpenCV on one thread (the work done)."""
+    from fidlearn.data import data_path
+    from fidlearn.detection import load_image
+
     try:
         from fidlearn.pose import locate
     except ImportError:  # the pose module is not there yet
         locate = None
+    cases = []
     for size in ((640, 480), (1280, 720), (1920, 1080)):
-        side = 60.0 * size[0] / 640
-        image, truth = scene(side, 7, dictionary, image_size=size, blur=0.7, noise=1.5)
-        plain = cv2.aruco.ArucoDetector(_cv.get_dictionary(dictionary), cv2.aruco.DetectorParameters())
+        image, truth, mm, cam = scene(60.0 * size[0] / 640, 7, dictionary, image_size=size, blur=0.7, noise=1.5)
+        cases.append((f"{size[0]}x{size[1]} synthetic, {len(truth)} markers", image, dictionary, mm, cam))
+    photo = load_image(data_path("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg"))
+    cases.append(("640x480 photo, 6 markers", cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY), "6X6_250", None, None))
+    out = {}
+    threads = cv2.getNumThreads()
+    clock = time.process_time if cpu else time.perf_counter
+    if cpu:
+        cv2.setNumThreads(1)
+    for label, image, dic, mm, cam in cases:
+        plain = cv2.aruco.ArucoDetector(_cv.get_dictionary(dic), cv2.aruco.DetectorParameters())
         calls = {"plain detectMarkers": lambda: plain.detectMarkers(image)}
         for m in methods:
-            calls[m] = (lambda m=m: detect_markers(image, dictionary, refine=m))
-        if locate is not None:
-            cam = Camera.from_fov(60.0, size)
-            mm = grid_map(3, 2, dictionary)
+            calls[f"detect_markers {m}"] = (lambda m=m: detect_markers(image, dic, refine=m))
+        if locate is not None and mm is not None:
             calls["locate (default)"] = lambda: locate(image, mm, cam)
         for f in calls.values():  # warm the caches
             f()
         samples = {k: [] for k in calls}
         for rep in range(repeats):
             for k, f in calls.items():
-                if k == "apriltag" and rep >= 5:  # tens of times slower: a few calls tell
+                if k.endswith("apriltag") and rep >= 3:  # tens of times slower: a few calls tell
                     continue
-                t0 = time.perf_counter()
+                t0 = clock()
                 f()
-                samples[k].append(time.perf_counter() - t0)
+                samples[k].append(clock() - t0)
         base = np.array(samples["plain detectMarkers"])
-        out[size] = {
+        out[label] = {
             k: (float(np.min(v)) * 1e3, float(np.min(v) / base.min()), float(np.median(np.array(v) / base[: len(v)])))
             for k, v in samples.items()
         }
-        out[size]["markers"] = len(truth)
+    cv2.setNumThreads(threads)
     return out
 
 
-def print_timing(t):
-    print("\nCost: fastest time [ms], its ratio to the fastest plain detectMarkers (default parameters,")
-    print("no refinement) and [the median of the ratios of interleaved calls]")
-    sizes = list(t)
-    keys = [k for k in t[sizes[0]] if k != "markers"]
-    print("| call | " + " | ".join(f"{w}x{h} ({t[(w, h)]['markers']} markers)" for w, h in sizes) + " |")
-    print("|" + "---|" * (len(sizes) + 1))
+def print_timing(t, cpu: bool):
+    what = "CPU time, OpenCV on 1 thread" if cpu else f"wall-clock time, OpenCV on {cv2.getNumThreads()} threads"
+    print(f"\nCost ({what}): fastest [ms], its ratio to the fastest plain detectMarkers (default")
+    print("parameters, no refinement) and [the median of the ratios of interleaved calls]")
+    labels = list(t)
+    keys = list(dict.fromkeys(k for lab in labels for k in t[lab]))
+    print("| call | " + " | ".join(labels) + " |")
+    print("|" + "---|" * (len(labels) + 1))
     for k in keys:
-        print(f"| {k} | " + " | ".join(f"{t[s][k][0]:.2f} ms {t[s][k][1]:.2f}x [{t[s][k][2]:.2f}x]" for s in sizes) + " |")
+        cells = [f"{t[lab][k][0]:.2f} ms {t[lab][k][1]:.2f}x [{t[lab][k][2]:.2f}x]" if k in t[lab] else "-" for lab in labels]
+        print(f"| {k} | " + " | ".join(cells) + " |")
 
 
 def main(argv=None) -> None:
@@ -185,7 +257,9 @@ def main(argv=None) -> None:
           f"Python {platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     t0 = time.perf_counter()
     print_accuracy(accuracy(args.dictionary, args.scenes, methods), methods, args.dictionary)
-    print_timing(timing(args.dictionary, methods, args.repeats))
+    print_real(real_photos(methods))
+    print_timing(timing(args.dictionary, methods, args.repeats, cpu=True), cpu=True)
+    print_timing(timing(args.dictionary, methods, args.repeats), cpu=False)
     print(f"\n({time.perf_counter() - t0:.0f} s)")
 
 

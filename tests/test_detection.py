@@ -256,7 +256,8 @@ def test_detector_is_built_once_per_dictionary_refinement_and_parameters(photo):
     assert _detector("6X6_250", "subpix", None)[0] is not first
     as_dict = _detector("6X6_250", "none", {"minMarkerPerimeterRate": 0.05})[0]
     assert _detector("6X6_250", "none", {"minMarkerPerimeterRate": 0.05})[0] is as_dict
-    assert _detector("6X6_250", "edges", None)[1] == 8  # 6 bits + 2 border cells
+    assert _detector("6X6_250", "edges", None)[1:] == (8, False)  # 6 bits + 2 border cells; not inverted
+    assert _detector("6X6_250", "edges", {"detectInvertedMarker": True})[2] is True
     assert len(_DETECTOR_CACHE) <= 16
     # parameters as an OpenCV object work and are honoured: markers this small are dropped
     params = cv2.aruco.DetectorParameters()
