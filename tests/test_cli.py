@@ -221,8 +221,13 @@ def test_calibrate_real_charuco_matches_opencv_and_warns(capsys, tmp_path):
                          "--marker-mm", 20, "--dictionary", "6X6_250", "-o", out_path)
     assert code == 0, err
     cam = Camera.load(out_path)
-    # published: a plain cv2.calibrateCamera on OpenCV 5.0 gives fx 457.29, fy 461.32, cx 317.22, cy 275.61
-    assert np.allclose([cam.fx, cam.fy, cam.cx, cam.cy], [457.29, 461.32, 317.22, 275.61], atol=0.2)
+    found = np.array([cam.fx, cam.fy, cam.cx, cam.cy])
+    std = np.array([float(l.split("±")[1].split()[0]) for l in out.splitlines() if l.strip()[:2] in ("fx", "fy", "cx", "cy")])
+    # OpenCV's tutorial file (an older OpenCV, same four photos): within 3 of the printed standard deviations
+    assert np.all(np.abs(found - [452.511, 456.767, 317.703, 277.752]) < 3 * std), (found, std)
+    if cv2.__version__.startswith("5."):
+        # published for OpenCV 5.0 (data/real/README): a plain cv2.calibrateCamera gives these
+        assert np.allclose(found, [457.29, 461.32, 317.22, 275.61], atol=0.2)
     warns = [l for l in err.splitlines() if l.startswith("warning: ")]
     assert any("only 4 views used" in w for w in warns)
     assert any("views too similar" in w for w in warns)  # OpenCV's four tutorial photos are all near face-on
