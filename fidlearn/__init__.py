@@ -46,6 +46,7 @@ from .synthetic import (
 )
 from .pose import Pose, estimate_pose, locate
 from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
+from .printables import PrintError, board_pdf, markers_pdf
 
 __version__ = "0.1.0"
 
@@ -89,5 +90,8 @@ __all__ = [
     "Calibration",
     "calibrate_checkerboard",
     "calibrate_charuco",
+    "markers_pdf",
+    "board_pdf",
+    "PrintError",
     "__version__",
 ]
