@@ -67,7 +67,7 @@ import os
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Sequence
 
 import cv2
 import numpy as np
@@ -77,7 +77,7 @@ from .camera import Camera
 from .detection import as_gray, load_image
 from .errors import CalibrationError, ImageError
 
-__all__ = ["Calibration", "ViewResult", "calibrate_checkerboard", "calibrate_charuco", "MIN_VIEWS"]
+__all__ = ["Calibration", "ViewResult", "calibrate_checkerboard", "calibrate_charuco", "find_checkerboard_corners", "MIN_VIEWS"]
 
 #: Fewest usable views a calibration accepts.
 MIN_VIEWS = 3
@@ -398,6 +398,7 @@ class _Charuco:
     def __init__(self, squares: tuple[int, int], square_size_mm: float, marker_size_mm: float, dictionary: str,
                  legacy: bool | str, min_corners: int):
         self.squares = squares
+        self.square_size_mm, self.marker_size_mm = square_size_mm, marker_size_mm
         self.dictionary = _cv.dictionary_name(dictionary)
         self.min_corners = int(min_corners)
         if legacy not in (True, False, "auto"):
@@ -428,9 +429,11 @@ class _Charuco:
                 return (f"board not found: no {self.dictionary} marker in the picture; check the dictionary "
                         "and that the board is in view and sharp")
             hint = "show more of the board"
-            if len(ids) == 0 and n_markers >= 4 and self.squares[1] % 2 == 0 and not self.auto:
-                hint = ("a board with an even number of rows printed before OpenCV 4.6 needs "
-                        f"legacy={not self.legacy} (or legacy='auto')")
+            if len(ids) == 0 and n_markers >= 4:
+                hint = f"check squares={self.squares} (x, y) against the printed board"
+                if self.squares[1] % 2 == 0 and not self.auto:
+                    hint = ("a board with an even number of rows printed before OpenCV 4.6 needs "
+                            f"legacy={not self.legacy} (or legacy='auto')")
             return (f"board not found: {n_markers} markers but only {len(ids)} chess corners "
                     f"(need {self.min_corners}); {hint}")
         obj, img = board.matchImagePoints(corners.reshape(-1, 1, 2).astype(np.float32), ids.reshape(-1, 1).astype(np.int32))
@@ -442,6 +445,20 @@ class _Charuco:
         return obj, img
 
     def diagnose(self, grays: list[np.ndarray]) -> str:
+        """A hint when the board was found nowhere: squares swapped, or the other marker layout?"""
+        x, y = self.squares
+        tries = []
+        if x != y:
+            tries.append(((y, x), self.legacy, f"the board is found with squares=({y}, {x}): squares "
+                                                 "counts (x, y), along the board's width first, as it was generated"))
+        if not self.auto and y % 2 == 0:
+            tries.append(((x, y), not self.legacy, f"the board is found with legacy={not self.legacy}: boards with "
+                                                    "an even number of rows made before OpenCV 4.6 use the legacy layout"))
+        for squares, legacy, hint in tries:
+            board = _cv.charuco_board(squares, self.square_size_mm, self.marker_size_mm, self.dictionary, legacy=legacy)
+            detector = _cv.charuco_detector(board)
+            if any(len(_cv.detect_charuco(detector, g)[1]) >= self.min_corners for g in grays):
+                return hint
         return ""
 
 
@@ -544,14 +561,14 @@ def _too_few(views: list[_View], size, hint: str, min_views: int) -> Calibration
             groups.setdefault(v.status, []).append(v.name)
     parts = []
     for status, names in groups.items():
-        shown = ", ".join(_short(n, 30) for n in names[:4]) + (", ..." if len(names) > 4 else "")
+        shown = ", ".join(_short(os.path.basename(n) or n, 30) for n in names[:4]) + (", ..." if len(names) > 4 else "")
         first = next(v.reason for v in views if v.status == status)
         parts.append(f"{status}: {len(names)} ({shown}; {first})")
     why = "; ".join(parts) if parts else "no images were given"
-    fix = hint + "; " if hint else ""
+    fix = hint[0].upper() + hint[1:] + ". " if hint else ""
     return CalibrationError(
         f"calibration needs at least {min_views} views with the board found, got {n_used} of {len(views)}: {why}. "
-        f"{fix}take 10 to 20 sharp photos of the whole board at different tilts and positions"
+        f"{fix}Take 10 to 20 sharp photos of the whole board at different tilts and positions"
     )
 
 

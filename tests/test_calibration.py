@@ -390,6 +390,15 @@ def test_charuco_wrong_layout_says_to_try_legacy(legacy_board_views):
     with pytest.raises(CalibrationError, match=r"only 0 chess corners \(need 6\); a board with an even number of rows "
                                                r"printed before OpenCV 4.6 needs legacy=True"):
         calibrate_charuco(legacy_board_views, squares=(5, 6), legacy=False)
+    with pytest.raises(CalibrationError, match=r"The board is found with legacy=True: boards with an even number of rows"):
+        calibrate_charuco(legacy_board_views, squares=(5, 6), legacy=False)
+
+
+def test_charuco_swapped_squares_gets_the_hint(charuco_files):
+    with pytest.raises(CalibrationError, match=r"got 0 of 3: not found: 3 \(img_00.jpg, img_01.jpg, img_02.jpg; board not "
+                                               r"found: 17 markers but only 0 chess corners \(need 6\); check squares=\(7, 5\).*"
+                                               r"The board is found with squares=\(5, 7\): squares counts \(x, y\)"):
+        calibrate_charuco(charuco_files[:3], squares=(7, 5))
 
 
 def test_charuco_wrong_dictionary_and_bad_sizes(charuco_files):
