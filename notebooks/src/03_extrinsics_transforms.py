@@ -178,6 +178,19 @@ assert np.allclose(frames.transform_points(T_world_camera, corners_camera), corn
 assert np.all(corners_camera[:, 2] > 0)  # in front of the camera
 
 # %% [markdown]
+# The three frames of the chain in one picture: the world at the origin, the camera, and marker 0's own
+# frame at its centre (x along its top edge, y up the marker, z, blue, out of its face towards the room).
+# The grey line is `T_camera_marker`'s translation: the marker's centre as the camera sees it.
+
+# %%
+fig = plotting.plot_scene(wall, poses=[T_world_camera], camera=camera, scale_mm=400,
+                          title="T_world_camera @ T_camera_marker = T_world_marker")
+ax = fig.axes[0]
+plotting.draw_frame(ax, T_world_marker, length_mm=150, label="marker 0")
+ax.plot(*np.column_stack([T_world_camera[:3, 3], T_world_marker[:3, 3]]), color="0.5", linestyle="--")
+plt.show()
+
+# %% [markdown]
 # ## 6. Roll, pitch and yaw
 #
 # Maps and reports use three angles in degrees: roll about X, pitch about Y, yaw about Z, all about the
