@@ -178,7 +178,7 @@ def nees_trial(m, T, sigma, rng, camera=CAMERA):
     J = pose_mod.pose_jacobian(obj, T, camera)
     P = sigma**2 * np.linalg.inv(J.T @ J)[3:, 3:]
     pose = fidlearn.estimate_pose(dets, m, camera, corner_sigma_px=sigma)
-    _, C_lm, _ = pose_mod._lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy())
+    _, C_lm, _, _ = pose_mod._lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy())
     e1 = pose.position_mm - T[:3, 3]
     e2 = C_lm - T[:3, 3]
     return float(e1 @ np.linalg.solve(P, e1)), float(e2 @ np.linalg.solve(P, e2)), pose.ambiguous

@@ -382,3 +382,34 @@ def test_locate_without_markers_says_what_to_check():
         locate(blank, m, CAM)
     with pytest.raises(ImageError):
         locate("photo.jpg", m, CAM)
+
+
+def test_levenberg_marquardt_reaches_the_least_squares_optimum():
+    from fidlearn.pose import refine_pose_lm
+
+    m = wall_map()
+    rng = np.random.default_rng(9)
+    obj = np.concatenate(list(m.corners().values()))
+    img = CAM.project(obj, T_WALL) + rng.normal(0, 0.5, (len(obj), 2))
+    start = T_WALL.copy()
+    start[:3, :3] = cv2.Rodrigues(np.array([0.02, -0.03, 0.01]))[0] @ start[:3, :3]
+    start[:3, 3] += [40.0, -30.0, 25.0]
+    rvec0, tvec0 = frames.rvec_tvec_from_transform(frames.invert_transform(start))
+    rvec, tvec = refine_pose_lm(obj, img, CAM, rvec0, tvec0)
+    T = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
+    r = (img - CAM.project(obj, T)).ravel()
+    J = pose_jacobian(obj, T, CAM)
+    # a stationary point: the gradient J^T r vanishes (relative to its scale)
+    assert np.all(np.abs(J.T @ r) <= 1e-4 * np.sqrt(np.sum(J**2, axis=0)) * np.linalg.norm(r))
+    r_cv, t_cv = cv2.solvePnPRefineLM(obj, img, CAM.K, CAM.dist, rvec0.reshape(3, 1).copy(), tvec0.reshape(3, 1).copy())
+    px_cv, _ = cv2.projectPoints(obj, r_cv, t_cv, CAM.K, CAM.dist)
+    assert r @ r <= np.sum((img - px_cv.reshape(-1, 2)) ** 2) + 1e-9
+
+
+def test_ippe_on_one_marker_keeps_both_solutions():
+    m = wall_map()
+    T = look_at([500.0, 200.0, 1300.0], [0.0, 60.0, 1440.0])
+    pose = estimate_pose(observe(m, T, 0.2, ids={0}), m, CAM, method="ippe")
+    assert pose.method == "ippe" and pose.alternative is not None and not pose.ambiguous
+    assert pose_errors(pose, T)[0] < 10.0
+    assert pose.alternative.reprojection_rms_px > 5 * pose.reprojection_rms_px
