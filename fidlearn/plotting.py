@@ -50,6 +50,8 @@ __all__ = [
     "camera_frustum",
     "draw_camera",
     "plot_scene",
+    "draw_trajectory",
+    "plot_top_view",
     "show_image",
     "show_images",
     "draw_points",
@@ -300,6 +302,83 @@ def plot_scene(marker_map: MarkerMap | None = None, poses: Sequence = (), camera
     if title:
         ax.set_title(title)
     return ax.figure
+
+
+def draw_trajectory(ax: Axes, poses: Sequence, color: str = "tab:purple", label: str | None = None,
+                    camera: Camera | None = None, every: int = 0, scale_mm: float = 100.0, linestyle: str = "-"):
+    """Draw a moving camera's path in 3D: its positions joined in order, optionally a frustum every N poses.
+
+    Parameters
+    ----------
+    poses : sequence
+        (4, 4) ``T_world_camera`` arrays (mm) or objects with ``T_world_camera``, in time order.
+    camera : Camera, optional
+        With ``every`` > 0, draw this camera's frustum at every ``every``-th pose.
+
+    Returns
+    -------
+    Line3D
+        The path; its vertices are the camera positions (mm, world).
+    """
+    Ts = [_pose_matrix(p) for p in poses]
+    if not Ts:
+        raise ValueError("draw_trajectory: no poses")
+    pts = np.array([T[:3, 3] for T in Ts])
+    (line,) = ax.plot(*pts.T, color=color, linestyle=linestyle, linewidth=1.5, label=label)
+    ax.scatter(*pts[0], color=color, s=20, depthshade=False)
+    if camera is not None and every > 0:
+        for T in Ts[::every]:
+            draw_camera(ax, camera, T, scale_mm, color=color, show_axes=False)
+    return line
+
+
+def plot_top_view(marker_map: MarkerMap | None = None, poses: Sequence = (), truth: Sequence | None = None,
+                  ax: Axes | None = None, arrow_mm: float = 150.0, title: str | None = None) -> Axes:
+    """The room seen from above (world X right, Y up the page): markers, camera positions and headings.
+
+    Each marker is drawn as its top edge seen from above (a short segment, its
+    id beside it); each pose as a dot with an arrow along its optical axis
+    projected on the floor. ``truth`` (poses in the same order) is drawn in
+    grey with lines joining each estimate to its true position.
+
+    Returns
+    -------
+    Axes
+        Equal-aspect, in mm. ``ax.lines[-1]`` is the estimated path (positions in order).
+    """
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6.5, 6.0))
+    if marker_map is not None:
+        for mid, c in marker_map.corners().items():
+            ax.plot(c[[0, 1], 0], c[[0, 1], 1], color="k", linewidth=3)
+            n = marker_map.normal(mid)
+            u, v = c[:2, :2].mean(axis=0) + 0.6 * marker_map.marker_size_mm * n[:2]
+            ax.annotate(str(mid), (u, v), ha="center", va="center", fontsize=9)
+
+    def positions_and_headings(ps):
+        Ts = [_pose_matrix(p) for p in ps]
+        return np.array([T[:3, 3] for T in Ts]).reshape(-1, 3), np.array([T[:3, 2] for T in Ts]).reshape(-1, 3)
+
+    if truth is not None:
+        tp, th = positions_and_headings(truth)
+        if len(tp) != len(poses):
+            raise ValueError(f"plot_top_view: {len(tp)} true poses for {len(poses)} poses")
+        ax.plot(tp[:, 0], tp[:, 1], "o-", color="0.6", markersize=3, linewidth=1, label="truth")
+    p, h = positions_and_headings(poses)
+    if len(p):
+        if truth is not None:
+            for a, b in zip(p, tp):
+                ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", linewidth=0.8)
+        flat = h[:, :2] / np.maximum(np.linalg.norm(h[:, :2], axis=1, keepdims=True), 1e-9)
+        ax.quiver(p[:, 0], p[:, 1], flat[:, 0] * arrow_mm, flat[:, 1] * arrow_mm, angles="xy", scale_units="xy",
+                  scale=1, color="tab:orange", width=0.004)
+        ax.plot(p[:, 0], p[:, 1], "o-", color="tab:orange", markersize=3, linewidth=1, label="camera")
+    ax.set_aspect("equal")
+    ax.set_xlabel("X (mm)")
+    ax.set_ylabel("Y (mm)")
+    if title:
+        ax.set_title(title)
+    return ax
 
 
 # -- images --------------------------------------------------------------------------------

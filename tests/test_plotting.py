@@ -132,6 +132,31 @@ def test_plot_scene_accepts_pose_objects_and_checks_labels(seed_map):
         plotting.plot_scene(seed_map, poses=[P()], labels=["a", "b"])
 
 
+def test_draw_trajectory_joins_the_positions_in_order(camera):
+    ax = plotting.new_axes_3d()
+    poses = [look_at([2000 - 300 * k, 100 * k, 300], [0, 120, 230]) for k in range(5)]
+    line = plotting.draw_trajectory(ax, poses, camera=camera, every=2, scale_mm=100)
+    assert np.allclose(line_xyz(line), [T[:3, 3] for T in poses])
+    with pytest.raises(ValueError, match="no poses"):
+        plotting.draw_trajectory(ax, [])
+
+
+def test_top_view_puts_cameras_at_their_xy_with_headings(seed_map):
+    poses = [look_at([1500, 0, 250], [0, 0, 250]), look_at([1000, 500, 250], [0, 500, 250])]
+    truth = [look_at([1510, 0, 250], [0, 0, 250]), look_at([1000, 490, 250], [0, 500, 250])]
+    ax = plotting.plot_top_view(seed_map, poses, truth=truth)
+    path = np.column_stack(ax.lines[-1].get_data())
+    assert np.allclose(path, [[1500, 0], [1000, 500]])
+    (quiver,) = [c for c in ax.collections if c.__class__.__name__ == "Quiver"]
+    assert np.allclose(quiver.U, [-150, -150]) and np.allclose(quiver.V, [0, 0], atol=1e-9)  # looking at -X
+    # the seed's markers on the north wall (x = 0), seen from above: segments along Y at x = 0
+    walls = [np.column_stack(line.get_data()) for line in ax.lines[:3]]
+    assert all(np.allclose(w[:, 0], 0) for w in walls)
+    assert np.allclose(walls[0][:, 1], [0, 80])
+    with pytest.raises(ValueError, match="1 true poses for 2 poses"):
+        plotting.plot_top_view(seed_map, poses, truth=truth[:1])
+
+
 def test_show_image_converts_bgr_to_rgb_and_marks_points():
     img = np.zeros((20, 30, 3), np.uint8)
     img[..., 0] = 255  # pure blue in OpenCV's BGR
