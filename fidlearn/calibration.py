@@ -33,7 +33,8 @@ squares are at least 19 px apart). Measured with OpenCV 5.0
   lower RMS (0.25 px), which the synthetic bias above suggests is not a
   better camera.
 
-``corner_finder="sb"`` selects ``findChessboardCornersSB`` for comparison.
+``corner_finder="sb"`` selects ``findChessboardCornersSB`` for comparison
+(both finders exist unchanged from OpenCV 4.0 to 5.x).
 
 ChArUco
 -------
