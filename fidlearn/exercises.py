@@ -42,13 +42,12 @@ from __future__ import annotations
 import copy
 import functools
 import hashlib
-import itertools
 import math
 import os
 import re
 import textwrap
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Sequence
 
 import cv2
 import numpy as np
@@ -147,16 +146,17 @@ class strict:
     def restore(self) -> None:
         """Undo this strict() call."""
         if self._active:
-            _strict_override.remove(self.mode) if self.mode in _strict_override else None
+            for i in range(len(_strict_override) - 1, -1, -1):  # the latest push of this mode
+                if _strict_override[i] == self.mode:
+                    del _strict_override[i]
+                    break
             self._active = False
 
     def __enter__(self) -> "strict":
         return self
 
     def __exit__(self, *exc) -> None:
-        if self._active and _strict_override:
-            _strict_override.pop()
-            self._active = False
+        self.restore()
 
 
 # ----------------------------------------------------------------------------------
@@ -228,7 +228,6 @@ class Inputs:
 
 
 Detector = Callable[[Any], bool]
-Message = "str | Callable[[Any], str]"
 
 
 class Question:

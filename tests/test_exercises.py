@@ -509,3 +509,21 @@ def test_path_length_mistakes():
     assert "straight line" in q.grade(np.linalg.norm(valid[-1, :2] - valid[0, :2])).message
     assert "NaN" in q.grade(np.nan).message
     assert "metres" in q.grade(length / 1000).message
+
+
+def test_strict_called_once_stays_until_restored():
+    q, K = key_of("01", "q1")
+    mode = exercises.strict()
+    try:
+        with pytest.raises(AssertionError):
+            q.check(None)
+    finally:
+        mode.restore()
+    q.check(None)  # off again: prints only
+
+
+def test_module_example_runs():
+    import doctest
+
+    result = doctest.testmod(exercises, optionflags=doctest.ELLIPSIS)
+    assert result.attempted >= 4 and result.failed == 0
