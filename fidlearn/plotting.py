@@ -428,7 +428,7 @@ def show_image(ax: Axes | None, image: np.ndarray, points: np.ndarray | None = N
 
 def show_images(images: Sequence[np.ndarray], titles: Sequence[str] | None = None, ncols: int = 4,
                 width_in: float = 10.0) -> Figure:
-    """A grid of images (gray or BGR) with optional titles, axes hidden."""
+    """A grid of images (gray or BGR) with optional titles; ticks hidden, each image framed."""
     n = len(images)
     if n == 0:
         raise ValueError("show_images: no images")
@@ -438,9 +438,12 @@ def show_images(images: Sequence[np.ndarray], titles: Sequence[str] | None = Non
     fig, axes = plt.subplots(nrows, ncols, figsize=(width_in, width_in / ncols * h / w * nrows + 0.4 * nrows),
                              squeeze=False)
     for k, ax in enumerate(axes.flat):
-        ax.axis("off")
-        if k < n:
+        if k < n:  # ticks hidden, the frame kept: a white margin stays visible on a white page
             show_image(ax, images[k], title=titles[k] if titles is not None else None)
+            ax.set_xticks([])
+            ax.set_yticks([])
+        else:
+            ax.axis("off")
     fig.tight_layout()
     return fig
 
