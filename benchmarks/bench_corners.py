@@ -4,6 +4,7 @@ Run from the repository (about 1-2 minutes on one core)::
 
     python benchmarks/bench_corners.py            # accuracy table + timing table
     python benchmarks/bench_corners.py --quick    # fewer scenes, for a smoke test
+    python benchmarks/bench_corners.py --robustness   # adds narrow quiet zones, heavy blur, inverted...
 
 Accuracy: markers of a nominal side (15 to 150 px) on a wall, seen by a 640x480
 camera from random oblique directions (up to 35 degrees) with a random roll, a
@@ -130,6 +131,60 @@ def print_accuracy(rows, methods, dictionary):
         print(f"  {m:9s} ({d[0]:+.3f}, {d[1]:+.3f})")
 
 
+ROBUSTNESS_CASES = {  # label: (marker side px, dictionary, invert the picture, render_scene keywords)
+    "baseline (45 px, blur 0.7, noise 1.5)": (45, "ARUCO_ORIGINAL", False, {}),
+    "quiet zone 0.5 cell, wall 120": (45, "ARUCO_ORIGINAL", False, {"margin_cells": 0.5}),
+    "quiet zone 0.5 cell, dark wall 40": (45, "ARUCO_ORIGINAL", False, {"margin_cells": 0.5, "wall_gray": 40}),
+    "quiet zone 0.25 cell": (45, "ARUCO_ORIGINAL", False, {"margin_cells": 0.25}),
+    "no quiet zone (marker on the wall)": (45, "ARUCO_ORIGINAL", False, {"margin_cells": 0.0}),
+    "illumination gradient 60 %": (45, "ARUCO_ORIGINAL", False, {"gradient": 0.6}),
+    "low contrast (ink 90, paper 170)": (45, "ARUCO_ORIGINAL", False, {"ink_gray": 90, "paper_gray": 170}),
+    "blur 1.5 px, 30 px markers": (30, "ARUCO_ORIGINAL", False, {"blur_px": 1.5}),
+    "blur 2 px, noise 5": (45, "ARUCO_ORIGINAL", False, {"blur_px": 2.0, "noise_std": 5.0}),
+    "inverted markers (detectInvertedMarker)": (45, "ARUCO_ORIGINAL", True, {}),
+    "6X6_250, 30 px": (30, "6X6_250", False, {}),
+    "4X4_50, 25 px": (25, "4X4_50", False, {}),
+}
+
+
+def robustness(methods, n_scenes: int = 4) -> dict:
+    """Corner RMS / max error per refinement when the picture departs from the easy case."""
+    rows = {}
+    cam = Camera.from_fov(60.0, (640, 480))
+    for label, (side, dic, invert, extra) in ROBUSTNESS_CASES.items():
+        mm = grid_map(3, 2, dic)
+        centre = np.array([0.0, 2 * 0.875 * MARKER_MM + MARKER_MM / 2, 1000.0 - 0.875 * MARKER_MM - MARKER_MM / 2])
+        errs = {m: [] for m in methods}
+        visible = 0
+        for s in range(n_scenes):
+            rng = np.random.default_rng(s)
+            az, el = math.radians(rng.uniform(-35, 35)), math.radians(rng.uniform(-25, 25))
+            eye = centre + cam.fx * MARKER_MM / side * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+            kw = {"blur_px": 0.7, "noise_std": 1.5, **extra}
+            image, truth = render_scene(cam, mm, look_at(eye, centre, roll_deg=float(rng.uniform(0, 360))), seed=s, **kw)
+            if invert:
+                image = 255 - image
+            visible += len(truth)
+            params = {"detectInvertedMarker": True} if invert else None
+            for m in methods:
+                errs[m] += [d.corners - truth[d.id] for d in detect_markers(image, dic, refine=m, params=params) if d.id in truth]
+        rows[label] = {m: (np.array(e), visible) for m, e in errs.items()}
+    return rows
+
+
+def print_robustness(rows, methods):
+    print("\nRobustness: corner RMS / max error [px]; found/visible (640x480, 4 scenes each)")
+    print("| case | " + " | ".join(methods) + " |")
+    print("|" + "---|" * (len(methods) + 1))
+    for label, per in rows.items():
+        cells = []
+        for m in methods:
+            e, vis = per[m]
+            r = np.linalg.norm(e.reshape(-1, 2), axis=1) if e.size else np.zeros(0)
+            cells.append(f"{np.sqrt((r ** 2).mean()):.3f} / {r.max():.2f}; {len(e)}/{vis}" if r.size else f"- ; 0/{vis}")
+        print(f"| {label} | " + " | ".join(cells) + " |")
+
+
 def real_photos(methods) -> dict:
     """Consistency of each refinement with a known geometry on the real ChArUco photos.
 
@@ -249,6 +304,7 @@ def main(argv=None) -> None:
     ap.add_argument("--scenes", type=int, default=6, help="scenes per marker side")
     ap.add_argument("--repeats", type=int, default=40, help="timing repetitions per call")
     ap.add_argument("--quick", action="store_true", help="2 scenes per side, 10 timing repetitions")
+    ap.add_argument("--robustness", action="store_true", help="also the robustness table (about 30 s more)")
     args = ap.parse_args(argv)
     if args.quick:
         args.scenes, args.repeats = 2, 10
@@ -258,6 +314,8 @@ def main(argv=None) -> None:
     t0 = time.perf_counter()
     print_accuracy(accuracy(args.dictionary, args.scenes, methods), methods, args.dictionary)
     print_real(real_photos(methods))
+    if args.robustness:
+        print_robustness(robustness([m for m in methods if m != "apriltag"]), [m for m in methods if m != "apriltag"])
     print_timing(timing(args.dictionary, methods, args.repeats, cpu=True), cpu=True)
     print_timing(timing(args.dictionary, methods, args.repeats), cpu=False)
     print(f"\n({time.perf_counter() - t0:.0f} s)")
