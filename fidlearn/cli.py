@@ -204,7 +204,7 @@ def _add_markers(sub) -> None:
         help="print ArUco markers at exact size (PDF or PNG)",
         description=(
             "Print ArUco markers at exact physical size: each black square measures --size-mm when "
-            "the page is printed at 100 %% (no scaling). Each marker has a white margin of one cell, "
+            "the page is printed at 100 % (no scaling). Each marker has a white margin of one cell, "
             "its id and dictionary under it and cut marks; every page has a 100 mm ruler. "
             "Markers that do not fit on one page go on the next."
         ),
@@ -290,7 +290,7 @@ _POSE_HELP = """The camera's pose in the world, two ways:
                                 (along -X) upright; -90,0,0 looks along +Y.
   --from X,Y,Z --look-at X,Y,Z  the camera at one point (mm) looking at another, upright
                                 (world +Z up in the image); --roll-deg turns it about its axis.
-Example: fidlearn render --map world_map.json --camera camera.json \
+Example: fidlearn render --map world_map.json --camera camera.json \\
            --from 1200,150,250 --look-at 0,150,250 -o scene.png --truth truth.json"""
 
 
@@ -298,7 +298,7 @@ def _add_render(sub) -> None:
     p = sub.add_parser(
         "render",
         help="synthetic picture of a world map seen from a pose",
-        description="Render a synthetic picture of the markers of a world map as a calibrated camera "
+        description="Render a synthetic picture of the markers of a world map as a calibrated camera\n"
                     "at a given pose would see them, to try the pipeline without hardware.",
         epilog=_POSE_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -788,10 +788,12 @@ def _add_locate(sub) -> None:
 
 
 def _fmt_row(name: str, width: int, pose=None, note: str = "") -> str:
+    import numpy as np
+
     if pose is None:
         return f"{name:<{width}}  {note}"
-    x, y, z = pose.position_mm + 0.0  # + 0.0 turns -0.0 into 0.0
-    r, pi, yw = pose.rpy_deg + 0.0
+    x, y, z = np.round(pose.position_mm, 1) + 0.0  # + 0.0 turns -0.0 into 0.0
+    r, pi, yw = np.round(pose.rpy_deg, 1) + 0.0
     ids = ",".join(str(i) for i in pose.marker_ids)
     flag = "AMBIGUOUS" if pose.ambiguous else "-"
     row = f"{name:<{width}} {x:9.1f} {y:9.1f} {z:9.1f} {r:7.1f} {pi:7.1f} {yw:7.1f}  {ids:<9} {pose.reprojection_rms_px:6.2f}  {flag}"
@@ -841,8 +843,8 @@ def _draw_pose(image, detections, camera, pose, marker_map):
                 cv2.arrowedLine(out, o, tuple(int(round(v)) for v in px[k]), colour, 2, cv2.LINE_AA, tipLength=0.15)
                 cv2.putText(out, "XYZ"[k - 1], tuple(int(round(v)) + 4 for v in px[k]), cv2.FONT_HERSHEY_SIMPLEX,
                             0.6, colour, 2, cv2.LINE_AA)
-    x, y, z = pose.position_mm + 0.0
-    r, p, yw = pose.rpy_deg + 0.0
+    x, y, z = np.round(pose.position_mm) + 0.0
+    r, p, yw = np.round(pose.rpy_deg, 1) + 0.0
     text = f"x {x:.0f} y {y:.0f} z {z:.0f} mm  rpy {r:.1f} {p:.1f} {yw:.1f} deg  rms {pose.reprojection_rms_px:.2f} px"
     if pose.ambiguous:
         text += "  AMBIGUOUS"
@@ -864,6 +866,10 @@ def _run_locate(args) -> int:
 
     if not args.inputs and args.camera_index is None:
         raise UsageError("give images, folders or videos to locate in, or --camera-index N for a live camera")
+    if args.camera_index is not None and args.camera_index < 0:
+        # cv2.VideoCapture(-1) crashes the interpreter (segmentation fault) on OpenCV 4.x and 5.x
+        # when no camera is attached: refuse it before OpenCV sees it.
+        raise UsageError(f"--camera-index {args.camera_index}: cameras are numbered from 0 (the first camera)")
     items = _expand_inputs(args.inputs, videos=True)
     json_path = _check_output(args.json, (".jsonl", ".json"), "--json") if args.json else None
     staging = _Staging(args.annotate)
