@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -628,3 +629,224 @@ def test_good_command_line_for_comparison(tmp_path, monkeypatch, capsys):
     assert cli_main(["corners", "bare.json", "--units", "ft", "--marker-size-mm", "80", "-o", "outdir/c.json"]) == 0
     assert json.loads((tmp_path / "outdir" / "c.json").read_text())["0"][0] == [0.0, 0.0, 304.8]
     assert capsys.readouterr().err == ""
+
+
+# -- pose: estimate_pose and locate --------------------------------------------------------
+from fidlearn.calibration import calibrate_checkerboard  # noqa: E402
+from fidlearn.data import data_path  # noqa: E402
+from fidlearn.detection import Detection  # noqa: E402
+from fidlearn.errors import CalibrationError, NoMarkersError, PoseError  # noqa: E402
+from fidlearn.pose import estimate_pose, locate  # noqa: E402
+from fidlearn.synthetic import look_at, render_scene  # noqa: E402
+
+SQUARE_PX = [[100.0, 100.0], [200.0, 100.0], [200.0, 200.0], [100.0, 200.0]]
+
+
+def seed_map() -> MarkerMap:
+    return MarkerMap.from_dict(SEED)
+
+
+def camera_640() -> Camera:
+    return Camera.from_fov(60, (640, 480))
+
+
+ESTIMATE_POSE = [
+    ("NaN corner", lambda: ([Detection(0, [[np.nan, 100.0]] + SQUARE_PX[1:])], seed_map(), camera_640()), {},
+     PoseError, "detections[0] (marker 0) has NaN or infinite corners"),
+    ("infinite corner", lambda: ([Detection(1, SQUARE_PX[:3] + [[100.0, np.inf]])], seed_map(), camera_640()), {},
+     PoseError, "(marker 1) has NaN or infinite corners"),
+    ("no detections", lambda: ([], seed_map(), camera_640()), {}, NoMarkersError, "no marker was detected"),
+    ("only ids the map lacks", lambda: ([Detection(77, SQUARE_PX)], seed_map(), camera_640()), {},
+     NoMarkersError, "the image shows markers [77], none of which is in the map"),
+    ("all corners at one point", lambda: ([Detection(0, [[100.0, 100.0]] * 4)], seed_map(), camera_640()), {},
+     PoseError, "are the map's corners in TL, TR, BR, BL order"),
+    ("unknown method", lambda: ([Detection(0, SQUARE_PX)], seed_map(), camera_640()), {"method": "magic"},
+     PoseError, "unknown method 'magic'; use 'auto'"),
+    ("corners as an array", lambda: (np.array([SQUARE_PX]), seed_map(), camera_640()), {},
+     PoseError, "detections must be a list of fidlearn Detection (from detect_markers), got ndarray"),
+    ("a dict of corners", lambda: ({0: np.array(SQUARE_PX)}, seed_map(), camera_640()), {},
+     PoseError, "detections[0] is a int, expected a Detection(id, corners (4, 2))"),
+    ("a list of arrays", lambda: ([np.array(SQUARE_PX)], seed_map(), camera_640()), {},
+     PoseError, "detections[0] is a ndarray"),
+    ("None for detections", lambda: (None, seed_map(), camera_640()), {}, PoseError, "got NoneType"),
+    ("a map file name", lambda: ([Detection(0, SQUARE_PX)], "world_map.json", camera_640()), {},
+     PoseError, "use MarkerMap.load('map.json')"),
+    ("K instead of a camera", lambda: ([Detection(0, SQUARE_PX)], seed_map(), camera_640().K), {},
+     PoseError, "use Camera.load('camera.json')"),
+]
+
+
+@pytest.mark.parametrize("make, kwargs, error, fragment", [c[1:] for c in ESTIMATE_POSE], ids=[c[0] for c in ESTIMATE_POSE])
+def test_bad_estimate_pose_input(make, kwargs, error, fragment):
+    detections, marker_map, camera = make()
+    with pytest.raises(error) as info:
+        estimate_pose(detections, marker_map, camera, **kwargs)
+    assert fragment in str(info.value)
+
+
+@pytest.fixture(scope="module")
+def seed_scene():
+    """The seed wall from 1.5 m at 1280x960, with its true pose."""
+    camera = Camera.from_fov(60, (1280, 960))
+    T_world_camera = look_at([1500, 150, 250], [0, 150, 250])
+    image, _ = render_scene(camera, seed_map(), T_world_camera)
+    return camera, image, T_world_camera
+
+
+LOCATE = [
+    ("a file name for the image", lambda img: "scene.png", ImageError, "use fidlearn.detection.load_image"),
+    ("a blank picture", lambda img: np.full_like(img, 255), NoMarkersError, "no marker was detected"),
+    ("another aspect ratio", lambda img: img[:720], CameraError, "calibrate at the resolution you run at"),
+    ("int32 pixels", lambda img: img.astype(np.int32), ImageError, "pixel type int32 is not supported"),
+]
+
+
+@pytest.mark.parametrize("change, error, fragment", [c[1:] for c in LOCATE], ids=[c[0] for c in LOCATE])
+def test_bad_locate_input(seed_scene, change, error, fragment):
+    camera, image, _ = seed_scene
+    with pytest.raises(error) as info:
+        locate(change(image), seed_map(), camera)
+    assert fragment in str(info.value)
+
+
+def test_locate_at_half_resolution_warns_and_finds_the_true_pose(seed_scene):
+    camera, image, T_world_camera = seed_scene
+    half = cv2.resize(image, (640, 480), interpolation=cv2.INTER_AREA)
+    with pytest.warns(FidlearnWarning, match="rescaled to 640x480"):
+        pose = locate(half, seed_map(), camera)
+    # The same answer as with the camera scaled by hand, and the truth within its 3-sigma box.
+    by_hand = locate(half, seed_map(), camera.scaled((640, 480)))
+    np.testing.assert_allclose(pose.T_world_camera, by_hand.T_world_camera, atol=1e-9)
+    assert np.all(np.abs(pose.position_mm - T_world_camera[:3, 3]) <= 3 * pose.position_std_mm)
+    assert list(pose.marker_ids) == [0, 1]
+
+
+# -- calibration ---------------------------------------------------------------------------
+def calib_setup(tmp_path: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "a.txt").write_text("board photos go here\n")
+    (tmp_path / "text.png").write_text("not a picture\n")
+    write_png(tmp_path / "marker.png")
+
+
+BLANK = np.full((480, 640), 255, np.uint8)
+CALIBRATE = [
+    ("empty folder", "{tmp}/empty", (9, 6), 25, "no image files (.png, .jpg, ...) in this folder"),
+    ("folder without pictures", "{tmp}/notes", (9, 6), 25, "no image files"),
+    ("a folder inside the list", ["{tmp}/notes"], (9, 6), 25, "is a folder, expected an image file"),
+    ("glob that matches nothing", "{tmp}/*.jpeg", (9, 6), 25, "no file matches this pattern"),
+    ("no images at all", [], (9, 6), 25, "calibration needs at least 3 views of the board"),
+    ("pattern as words", [BLANK] * 3, "9 by 6", 25, "must be two whole numbers (columns, rows) of inner corners"),
+    ("pattern 1x1", [BLANK] * 3, (1, 1), 25, "needs at least 3 each way"),
+    ("pattern of squares, not corners", [BLANK] * 3, (0, 6), 25, "a board of 10x7 squares has 9x6 inner corners"),
+    ("negative square", [BLANK] * 3, (9, 6), -25, "square_size_mm must be positive"),
+    ("NaN square", [BLANK] * 3, (9, 6), float("nan"), "square_size_mm must be positive, got nan"),
+    ("text file named .png", ["{tmp}/text.png"] * 3, (9, 6), 25, "not an image OpenCV can read"),
+    ("missing files", ["{tmp}/a.png", "{tmp}/b.png", "{tmp}/c.png"], (9, 6), 25, "no such file"),
+    ("no board in the pictures", [BLANK] * 3, (9, 6), 25, "board not found (9x6 inner corners)"),
+    ("pictures of a marker", ["{tmp}/marker.png"] * 3, (9, 6), 25, "board not found"),
+    ("pictures of two sizes", [BLANK, BLANK[:240, :320], BLANK], (9, 6), 25, "image is 320x240 but the others are 640x480"),
+]
+
+
+@pytest.mark.parametrize("images, pattern, square, fragment", [c[1:] for c in CALIBRATE], ids=[c[0] for c in CALIBRATE])
+def test_bad_calibration_input(tmp_path, images, pattern, square, fragment):
+    calib_setup(tmp_path)
+    if isinstance(images, str):
+        images = images.format(tmp=tmp_path)
+    else:
+        images = [im.format(tmp=tmp_path) if isinstance(im, str) else im for im in images]
+    with pytest.raises(CalibrationError) as info:
+        calibrate_checkerboard(images, pattern, square)
+    assert fragment in str(info.value)
+
+
+# -- the other commands ---------------------------------------------------------------------
+def write_video(path: Path, frames: int = 6) -> int:
+    """An MJPG .avi of the bundled scene_00.png (OpenCV writes MJPG on every platform); its byte size."""
+    image = load_image(data_path("scenes", "scene_00.png"))
+    if image.ndim == 2:
+        image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    h, w = image.shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 5, (w, h))
+    assert writer.isOpened()
+    for _ in range(frames):
+        writer.write(image)
+    writer.release()
+    return path.stat().st_size
+
+
+def commands_setup(tmp_path: Path) -> None:
+    cli_setup(tmp_path)
+    calib_setup(tmp_path)
+    shutil.copy(data_path("scenes", "camera.json"), tmp_path / "camera.json")
+    size = write_video(tmp_path / "clip.avi")
+    (tmp_path / "head.avi").write_bytes((tmp_path / "clip.avi").read_bytes()[: min(300, size // 4)])
+    (tmp_path / "notes.avi").write_text("a video of the wall\n")
+
+
+LOCATE_ARGS = ["--camera", "camera.json", "--map", "map.json"]
+COMMANDS = [
+    ("locate: negative camera index", ["locate", *LOCATE_ARGS, "--camera-index", "-1"], "cameras are numbered from 0"),
+    ("locate: map given as the camera", ["locate", "clip.avi", "--camera", "map.json", "--map", "map.json"], "missing field camera_matrix"),
+    ("locate: camera given as the map", ["locate", "clip.avi", "--camera", "camera.json", "--map", "camera.json"], "the map does not say its units"),
+    ("locate: annotate into a file", ["locate", "clip.avi", *LOCATE_ARGS, "--annotate", "map.json"], "give a folder"),
+    ("locate: text file named .png", ["locate", "text.png", *LOCATE_ARGS], "not an image OpenCV can read"),
+    ("locate: not a video", ["locate", "notes.avi", *LOCATE_ARGS, "--json", "p.jsonl"], "cannot open this video"),
+    ("locate: video cut after its header", ["locate", "head.avi", *LOCATE_ARGS, "--json", "p.jsonl"], "cannot open this video"),
+    ("locate: folder without pictures", ["locate", "empty", *LOCATE_ARGS], "no images (.png, .jpg"),
+    ("calibrate: a video", ["calibrate", "clip.avi", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"], "not an image by its name"),
+    ("calibrate: unreadable pictures", ["calibrate", "text.png", "text.png", "text.png", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"], "unreadable: 3"),
+    ("calibrate: output of unknown type", ["calibrate", "empty", "--pattern", "9x6", "--square-mm", "25", "-o", "c.txt"], "name the file .json or .yml"),
+    ("markers: backwards range", ["markers", "--ids", "5-3", "--size-mm", "50", "-o", "m.pdf"], "runs backwards; write 3-5"),
+    ("markers: id twice", ["markers", "--ids", "0,0", "--size-mm", "50", "-o", "m.pdf"], "id 0 is listed twice"),
+    ("markers: negative id", ["markers", "--ids", "-1", "--size-mm", "50", "-o", "m.pdf"], "give ids like 0-9"),
+    ("markers: 20-digit id", ["markers", "--ids", "9" * 20, "--size-mm", "50", "-o", "m.pdf"], "which has ids 0 to 1023"),
+    ("markers: infinite size", ["markers", "--ids", "0", "--size-mm", "inf", "-o", "m.pdf"], "must be a positive length in mm"),
+    ("markers: larger than the paper", ["markers", "--ids", "0", "--size-mm", "1e9", "-o", "m.pdf"], "does not fit on a4 paper"),
+    ("markers: zero dpi", ["markers", "--ids", "0", "--size-mm", "50", "--dpi", "0", "-o", "m.png"], "--dpi 0 is out of range"),
+    ("board: marker larger than its square", ["board", "--squares", "5x7", "--charuco", "--square-mm", "20", "--marker-mm", "30", "-o", "b.pdf"], "must be smaller than --square-mm 20"),
+    ("board: NaN square", ["board", "--pattern", "9x6", "--square-mm", "nan", "-o", "b.pdf"], "must be a positive length in mm, got nan"),
+    ("render: negative noise", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--noise", "-1", "-o", "r.png"], "must be 0 or more"),
+    ("render: size in words", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--size", "big", "-o", "r.png"], "is not COLUMNSxROWS"),
+    ("render: missing camera file", ["render", "--map", "map.json", "--camera", "nope.yml", "--pose", "1000,190,230,-90,0,90", "-o", "r.png"], "nope.yml: no such file"),
+]
+
+
+@pytest.mark.parametrize("argv, fragment", [c[1:] for c in COMMANDS], ids=[c[0] for c in COMMANDS])
+def test_bad_command(tmp_path, monkeypatch, capsys, argv, fragment):
+    commands_setup(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    status = cli_main(argv)
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert status == 2 and len(lines) == 1 and lines[0].startswith("error: "), err
+    assert fragment in lines[0]
+    assert "Traceback" not in out + err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
+
+
+def test_negative_camera_index_in_a_real_process(tmp_path):
+    """cv2.VideoCapture(-1) kills the interpreter with a segmentation fault when no camera is attached."""
+    commands_setup(tmp_path)
+    proc = subprocess.run([sys.executable, "-m", "fidlearn", "locate", *LOCATE_ARGS, "--camera-index", "-1"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    assert proc.stderr.startswith("error: --camera-index -1") and len(proc.stderr.splitlines()) == 1
+
+
+def test_video_that_ends_early_gives_the_frames_before_the_cut(tmp_path, monkeypatch, capsys):
+    """A video cut in the middle: the frames before the cut are located at their true pose, the run succeeds."""
+    commands_setup(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    data = (tmp_path / "clip.avi").read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[: len(data) // 2])
+    assert cli_main(["locate", "cut.avi", *LOCATE_ARGS, "--json", "p.jsonl"]) == 0
+    lines = [json.loads(line) for line in (tmp_path / "p.jsonl").read_text().splitlines()]
+    assert 1 <= len(lines) < 6
+    truth = np.array(json.loads(data_path("scenes", "poses.json").read_text())["images"][0]["T_world_camera"])
+    for line in lines:
+        assert line["located"]
+        np.testing.assert_allclose(line["position_mm"], truth[:3, 3], atol=20)
