@@ -18,13 +18,14 @@
 import json
 import os
 import tempfile
+import warnings
 
 import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import (Camera, CameraError, MarkerMap, _cv, calibrate_checkerboard, data_path, frames, plotting,
-                      synthetic)
+from fidlearn import (Camera, CameraError, FidlearnWarning, MarkerMap, _cv, calibrate_checkerboard, data_path,
+                      frames, locate, plotting, synthetic)
 from fidlearn.detection import detect_markers, load_image
 
 np.set_printoptions(precision=3, suppress=True)
@@ -296,8 +297,19 @@ assert err_small_wrong > 500 and err_small_fixed < 20
 # %% [markdown]
 # The camera appears twice as far away: fx is twice too big for these pixels. The same aspect ratio means
 # the same sensor area read out at a lower resolution, so K scales exactly with the image
-# (`Camera.scaled`; fidlearn's pose functions do this for you, with a warning). The fixed result is a
-# little less accurate than at full resolution: the markers have half as many pixels.
+# (`Camera.scaled`). The fixed result is a little less accurate than at full resolution: the markers have
+# half as many pixels. `fidlearn.locate` notices the size difference, scales the camera, and warns you:
+
+# %%
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    pose_small = locate(small, wall, scene_camera)
+for w in caught:
+    print(f"{w.category.__name__}: {w.message}")
+assert [w.category for w in caught] == [FidlearnWarning]
+assert np.linalg.norm(pose_small.position_mm - T_true[:3, 3]) < 20
+
+# %% [markdown]
 #
 # A **4:3 mode** on a 16:9 sensor is different: it crops the sensor's sides (here 960 x 720, the middle of
 # the 1280 x 720 frame). Nothing scales, but the principal point is no longer where K says:

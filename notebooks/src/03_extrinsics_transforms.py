@@ -215,8 +215,8 @@ print("the camera above: roll, pitch, yaw =", frames.rpy_deg_from_rotation(T_wor
 # ## 7. Z-up (ROS) versus Y-up
 #
 # fidlearn's world is right-handed with **Z up** (ROS REP-103; the seed room: X out of the north wall
-# into the room, Y along the wall). Graphics tools (OpenGL, three.js, Blender's glTF export, Unity
-# after mirroring) use **Y up**. Take a right-handed Y-up world whose axes are, in fidlearn's world:
+# into the room, Y along the wall). Graphics tools (OpenGL, three.js, the glTF format; Unity too, but
+# left-handed) use **Y up**. Take a right-handed Y-up world whose axes are, in fidlearn's world:
 # X_yup = Y (along the wall), Y_yup = Z (up), Z_yup = X (out of the wall). The change of basis is a
 # rotation whose **rows** are the Y-up axes written in the Z-up world:
 #
