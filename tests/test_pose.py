@@ -413,3 +413,58 @@ def test_ippe_on_one_marker_keeps_both_solutions():
     assert pose.method == "ippe" and pose.alternative is not None and not pose.ambiguous
     assert pose_errors(pose, T)[0] < 10.0
     assert pose.alternative.reprojection_rms_px > 5 * pose.reprojection_rms_px
+
+
+# ---------------------------------------------------------------------------------------
+# The bundled data: rendered scenes with known poses, a real photo with known distances
+# ---------------------------------------------------------------------------------------
+def _seed_pipeline_position(image, marker_map, camera):
+    """The seed's pipeline: default detector (no corner refinement), IPPE over all corners, no LM."""
+    from fidlearn import _cv
+
+    corners, ids, _ = _cv.detect(_cv.make_detector(marker_map.dictionary), image)
+    known = [(marker_map.marker_corners(int(i)), c) for c, i in zip(corners, ids) if int(i) in marker_map]
+    ok, rvec, tvec = cv2.solvePnP(np.concatenate([k[0] for k in known]), np.concatenate([k[1] for k in known]),
+                                  camera.K, camera.dist, flags=_cv.solvepnp_flag("IPPE"))
+    return frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))[:3, 3] if ok else None
+
+
+def test_locate_on_the_bundled_scenes_beats_the_seed_pipeline():
+    import json
+
+    from fidlearn.detection import load_image
+
+    record = json.loads(data_path("scenes", "poses.json").read_text())
+    camera = Camera.load(data_path("scenes", "camera.json"))
+    ours, seed = [], []
+    for entry in record["images"]:
+        m = MarkerMap.load(data_path(entry["map"]))
+        image = load_image(data_path("scenes", entry["image"]))
+        T = np.array(entry["T_world_camera"])
+        pose = locate(image, m, camera)
+        assert set(pose.marker_ids) == set(entry["visible_ids"]), entry["image"]
+        err, ang = pose_errors(pose, T)
+        assert err < 15.0 and ang < 0.5, (entry["image"], err, ang)
+        assert pose.position_ellipsoid_contains(T[:3, 3], 0.999), entry["image"]
+        ours.append(err)
+        if m.is_coplanar():
+            seed.append(np.linalg.norm(_seed_pipeline_position(image, m, camera) - T[:3, 3]))
+        else:
+            assert pose.method == "sqpnp+lm"
+    assert np.median(ours) <= 0.5 * np.median(seed), (np.median(ours), np.median(seed))
+
+
+def test_markers_of_the_real_photo_are_70_to_90_cm_away():
+    from fidlearn.detection import detect_markers, load_image
+
+    folder = data_path("real", "opencv_aruco_photo")
+    image = load_image(folder / "singlemarkersoriginal.jpg")
+    camera = Camera.load(folder / "tutorial_camera_params.yml", image_size=(image.shape[1], image.shape[0]))
+    detections = detect_markers(image, "6X6_250")
+    assert sorted(d.id for d in detections) == [23, 40, 62, 98, 124, 203]
+    for d in detections:  # each marker alone, as its own 50 mm map
+        m = MarkerMap({d.id: MarkerPlacement(d.id, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))}, 50.0, "6X6_250", "mm")
+        pose = estimate_pose([d], m, camera)
+        distance = np.linalg.norm(pose.position_mm - m.T_world_marker(d.id)[:3, 3])
+        assert 650.0 < distance < 950.0, (d.id, distance)
+        assert pose.reprojection_rms_px < 0.5 and not pose.ambiguous
