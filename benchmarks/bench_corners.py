@@ -42,7 +42,7 @@ import numpy as np
 
 import fidlearn
 from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv
-from fidlearn.detection import REFINE_METHODS, detect_markers
+from fidlearn.detection import REFINE_METHODS, Detection, detect_markers, refine_corners_edges
 from fidlearn.synthetic import look_at, render_scene
 
 MARKER_MM = 80.0  # printed marker side [mm]
@@ -79,34 +79,47 @@ def scene(side_px: float, seed: int, dictionary: str, image_size=(640, 480), blu
     return image, truth, mm, cam
 
 
+GAMMA_COLUMN = "edges, gamma 2.2"
+
+
 def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
+    """Per nominal side and refinement: statistics over every marker that refinement found.
+
+    The extra column ``edges, gamma 2.2`` refines OpenCV's unrefined corners with
+    ``refine_corners_edges(..., gamma=2.2)``: what that option does to a picture
+    whose gray levels are proportional to light, as the renderer's are.
+    """
+    cells = _cv.dictionary_marker_bits(dictionary) + 2
     rows = {}
     for side in SIDES_PX:
-        errs = {m: [] for m in methods}
-        found = {m: 0 for m in methods}
-        truths = []
+        errs = {m: [] for m in methods + [GAMMA_COLUMN]}
+        truths = {m: [] for m in errs}
         visible = 0
         for s in range(n_scenes):
             image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
             visible += len(truth)
             per = {m: {d.id: d.corners for d in detect_markers(image, dictionary, refine=m)} for m in methods}
-            common = [i for i in truth if all(i in per[m] for m in methods)]  # same markers for every method
-            for m in methods:
-                found[m] += sum(i in per[m] for i in truth)
-                errs[m] += [per[m][i] - truth[i] for i in common]
-            truths += [truth[i] for i in common]
-        T = np.array(truths).reshape(-1, 4, 2)
-        radial = T - T.mean(axis=1, keepdims=True)
-        radial /= np.linalg.norm(radial, axis=2, keepdims=True)
+            if per["none"]:
+                ids = sorted(per["none"])
+                fine = refine_corners_edges(image, np.stack([per["none"][i] for i in ids]), cells, gamma=2.2)
+                per[GAMMA_COLUMN] = dict(zip(ids, fine))
+            else:
+                per[GAMMA_COLUMN] = {}
+            for m in errs:
+                errs[m] += [per[m][i] - truth[i] for i in truth if i in per[m]]
+                truths[m] += [truth[i] for i in truth if i in per[m]]
         rows[side] = {}
-        for m in methods:
+        for m in errs:
             e = np.array(errs[m]).reshape(-1, 4, 2)
             if e.size == 0:
                 rows[side][m] = None
                 continue
+            T = np.array(truths[m]).reshape(-1, 4, 2)
+            radial = T - T.mean(axis=1, keepdims=True)
+            radial /= np.linalg.norm(radial, axis=2, keepdims=True)
             r = np.linalg.norm(e, axis=2)
             rows[side][m] = dict(
-                found=found[m], visible=visible, n=len(e), rms=float(np.sqrt((r ** 2).mean())),
+                found=len(e), visible=visible, rms=float(np.sqrt((r ** 2).mean())),
                 p95=float(np.percentile(r, 95)), radial=float((e * radial).sum(2).mean()),
                 dxdy=e.reshape(-1, 2).mean(axis=0),
             )
@@ -115,7 +128,7 @@ def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
 
 def print_accuracy(rows, methods, dictionary):
     print(f"\nCorner error [px] vs truth, {dictionary}, 640x480, blur 0.5-1.0 px, noise 1-2 gray levels")
-    print("cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible")
+    print("cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible; each method over the markers it found")
     head = f"| side px | " + " | ".join(methods) + " |"
     print(head)
     print("|" + "---|" * (len(methods) + 1))
@@ -206,13 +219,19 @@ def real_photos(methods) -> dict:
         H, _ = cv2.findHomography(P.reshape(-1, 2), Q, 0)
         return Q - cv2.perspectiveTransform(P.reshape(-1, 1, 2), H).reshape(-1, 2)
 
-    out = {m: {"h": [], "hs": [], "s": [], "d": []} for m in methods}
+    out = {m: {"h": [], "hs": [], "s": [], "d": []} for m in methods + ["edges, gamma 2.2"]}
     names = ("img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg")
     for name in names:
         image = load_image(data_path("real", "opencv_charuco", name))
         ref = {d.id: d.corners for d in detect_markers(image, "6X6_250", refine="edges")}
-        for m in methods:
-            dets = [d for d in detect_markers(image, "6X6_250", refine=m) if d.id in obj]
+        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        for m in methods + ["edges, gamma 2.2"]:
+            if m == "edges, gamma 2.2":  # the edge at half the light, for a camera with an sRGB-like curve
+                dets = [d for d in detect_markers(image, "6X6_250", refine="none") if d.id in obj]
+                fine = refine_corners_edges(gray, np.stack([d.corners for d in dets]), 8, gamma=2.2)
+                dets = [Detection(d.id, c) for d, c in zip(dets, fine)]
+            else:
+                dets = [d for d in detect_markers(image, "6X6_250", refine=m) if d.id in obj]
             P = np.stack([obj[d.id] for d in dets])
             Q = cv2.undistortPoints(np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K).reshape(-1, 2)
             out[m]["h"].append(fit(P, Q))
@@ -312,7 +331,7 @@ def main(argv=None) -> None:
     print(f"fidlearn {fidlearn.__version__}, OpenCV {cv2.__version__}, numpy {np.__version__}, "
           f"Python {platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     t0 = time.perf_counter()
-    print_accuracy(accuracy(args.dictionary, args.scenes, methods), methods, args.dictionary)
+    print_accuracy(accuracy(args.dictionary, args.scenes, methods), methods + [GAMMA_COLUMN], args.dictionary)
     print_real(real_photos(methods))
     if args.robustness:
         print_robustness(robustness([m for m in methods if m != "apriltag"]), [m for m in methods if m != "apriltag"])

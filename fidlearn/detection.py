@@ -275,6 +275,7 @@ def refine_corners_edges(
     n_samples: int = 13,
     iterations: int = 1,
     expand_px: float = 0.5,
+    gamma: float = 1.0,
 ) -> np.ndarray:
     """Refine marker corners by fitting a straight line to each outer edge.
 
@@ -309,6 +310,13 @@ def refine_corners_edges(
         Where the first pass centres its profiles, outside the input quad: OpenCV's
         unrefined contour runs through the outermost dark pixels' centres, about
         half a pixel inside the edge.
+    gamma : float
+        The edge is where the light reaching the sensor is half-way between
+        black and white. With 1 (the default) gray levels are taken as
+        proportional to light, as in fidlearn's synthetic pictures; a camera that
+        encodes its pictures with a gamma curve (sRGB: about 2.2) puts that point
+        at a higher gray level, and ``gamma=2.2`` finds it there
+        (docs/corner_refinement.md: real photos).
 
     Returns
     -------
@@ -359,7 +367,12 @@ def refine_corners_edges(
         else:
             dark = np.sort(pin.min(-1), axis=2)[..., half]
             light = np.sort(pout.max(-1), axis=2)[..., half]
-        zf = (prof - (0.5 * (dark + light))[..., None, None]).reshape(-1, n_samples)  # < 0 inside the edge
+        level = 0.5 * (dark + light)
+        if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
+            g = float(gamma)
+            lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
+            level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
+        zf = (prof - level[..., None, None]).reshape(-1, n_samples)  # < 0 inside the edge
         # The edge: the first sample at or above the mid level, k, and the one before it (outward from
         # there the profile may fall again where a narrow quiet zone meets a darker wall).
         k = np.maximum(np.argmax(zf >= 0, axis=-1), 1)
