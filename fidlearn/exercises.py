@@ -259,6 +259,7 @@ class Question:
         hint: str = "",
         solution: str = "",
         level: str = "",
+        look: str = "",
     ):
         self.name = name
         self.title = title
@@ -273,6 +274,8 @@ class Question:
         self._hint = textwrap.dedent(hint).strip()
         self.solution_code = textwrap.dedent(solution).strip()
         self.level = level
+        #: Code that shows the inputs as a picture in the notebook ("" for none).
+        self.look_code = textwrap.dedent(look).strip()
         self.answer: Any = ...
 
     # -- grading ------------------------------------------------------------------
@@ -1406,7 +1409,8 @@ def answer_key_notebook(number: str):
     for q in ex:
         level = f" ({q.level})" if q.level else ""
         cells.append(v4.new_markdown_cell(f"## {q.name}. {q.title}{level}\n\n{q.task}"))
-        cells.append(v4.new_code_cell(f"{q.name} = ex.{q.name}\n{q.name}.inputs"))
+        look = f"{q.look_code}\n" if q.look_code else ""
+        cells.append(v4.new_code_cell(f"{q.name} = ex.{q.name}\n{look}{q.name}.inputs"))
         cells.append(v4.new_code_cell(f"{BEGIN_SOLUTION}\n{q.solution_code}\n{END_SOLUTION}\n{q.name}.check()"))
     cells.append(v4.new_markdown_cell("## Your score"))
     cells.append(v4.new_code_cell("ex.summary()"))
@@ -1995,6 +1999,7 @@ def _lesson_05(learner: str) -> list[Question]:
             (lambda a: len(a) == 0, f"nothing was found: a detector only sees markers of its own dictionary; this picture uses {dictionary!r} (pass dictionary=q1.inputs.dictionary)"),
         ],
         hint="from fidlearn.detection import detect_markers; detections = detect_markers(image, dictionary=...); each has .id and .corners.",
+        look="from fidlearn import plotting\nplotting.show_image(None, q1.inputs.image, title=\"q1.inputs.image\");",
         solution="""
         from fidlearn.detection import detect_markers
         detections = detect_markers(q1.inputs.image, dictionary=q1.inputs.dictionary)
@@ -2184,6 +2189,7 @@ def _lesson_08(learner: str) -> list[Question]:
              "the right marker, but your position still uses it: leave it out of the pose (estimate_pose on the other detections, or read Pose.rejected_ids)"),
             (lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["position_mm"] * 304.8 - true_pos) < tol, "that position is in feet: give mm"),
         ],
+        look="from fidlearn import plotting\nplotting.show_image(None, q2.inputs.image, title=\"q2.inputs.image\");",
         hint="estimate_pose(detections, marker_map, camera) leaves out a marker that disagrees and lists it in pose.rejected_ids; or do it yourself: for each id, solve with the others only (reject_outliers=False) and look at Pose.reprojection_rms_px: it drops when the misplaced marker is the one left out.",
         solution="""
         from fidlearn.detection import detect_markers
@@ -2324,6 +2330,7 @@ def _lesson_09(learner: str) -> list[Question]:
             (lambda a: np.all(np.linalg.norm(a * 304.8 - truth_pos, axis=1) <= tol), "those are feet (304.8x too small): give mm"),
         ],
         hint="for image in images: pose = estimate_pose(detect_markers(image, marker_map.dictionary), marker_map, camera); keep pose.position_mm.",
+        look="from fidlearn import plotting\nfirst_middle_last = [0, len(q1.inputs.images) // 2, len(q1.inputs.images) - 1]\nplotting.show_images([q1.inputs.images[i] for i in first_middle_last], titles=[f\"frame {i}\" for i in first_middle_last], ncols=3);",
         solution="""
         from fidlearn.detection import detect_markers
         from fidlearn.pose import estimate_pose
