@@ -243,6 +243,21 @@ def test_calibrate_duplicate_photo_warns(capsys, tmp_path):
     assert len(list((tmp_path / "ann").iterdir())) == 11
 
 
+def test_progress_bar_on_a_terminal(capsys, monkeypatch):
+    from fidlearn.cli import _Progress
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    bar = _Progress("calibrate")
+    for i in range(1, 5):
+        bar(i, 4, f"photos/view_{i}.png")
+    bar.clear()
+    bar.finish(4)  # nothing more on a terminal: the bar was the progress
+    err = capsys.readouterr().err
+    assert err.startswith("\rcalibrate [######------------------] 1/4 view_1.png")
+    assert "\rcalibrate [########################] 4/4 view_4.png" in err
+    assert err.endswith("\r\x1b[K") and "\n" not in err
+
+
 def test_coverage_grid_known_cells():
     from fidlearn.cli import coverage_grid
 

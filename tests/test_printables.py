@@ -148,6 +148,45 @@ def test_markers_pdf_exact_size_and_ids(markers_80):
     assert sorted(found) == list(range(10))  # every id once, none misread
 
 
+def text_boxes_px(path, page_index=0, dpi=DPI):
+    """{text line: (x0, y0, x1, y1) in px at ``dpi``, y down} for the text of one PDF page."""
+    doc = pdfium.PdfDocument(str(path))
+    try:
+        page = doc[page_index]
+        height_pt = page.get_size()[1]
+        tp = page.get_textpage()
+        text = tp.get_text_range()
+        boxes, start = {}, 0
+        for line in text.split("\r\n"):
+            chars = [tp.get_charbox(start + k) for k in range(len(line)) if not line[k].isspace()]
+            if chars:
+                x0 = min(c[0] for c in chars); x1 = max(c[2] for c in chars)
+                y0 = min(c[1] for c in chars); y1 = max(c[3] for c in chars)
+                k = dpi / 72
+                boxes[line] = (x0 * k, (height_pt - y1) * k, x1 * k, (height_pt - y0) * k)
+            start += len(line) + 2
+        return boxes
+    finally:
+        doc.close()
+
+
+def test_each_marker_has_its_id_under_it(markers_80):
+    path, sheet, pages = markers_80
+    cell_px = 80 / 7 * PX_PER_MM
+    for k, gray in enumerate(pages):
+        boxes = text_boxes_px(path, k)
+        corners, ids = detect(gray, "ARUCO_ORIGINAL")
+        for c, i in zip(corners, ids):
+            x0, x1 = c[:, 0].min(), c[:, 0].max()
+            bottom = c[:, 1].max()
+            (label, (bx0, by0, bx1, by1)), = [(t, b) for t, b in boxes.items() if t.startswith(f"id {i} ")]
+            assert label == f"id {i} ARUCO_ORIGINAL 80 mm"
+            assert x0 < (bx0 + bx1) / 2 < x1  # centred under the marker
+            assert bottom + cell_px < by0 and by1 < bottom + cell_px + 7 * PX_PER_MM  # below its quiet zone
+        assert "100 mm ruler: print at 100 % (actual size)," in boxes
+        assert f"fidlearn markers, ARUCO_ORIGINAL, black square 80 mm, page {k + 1} of 5" in boxes
+
+
 def test_markers_pdf_is_multipage_a4(markers_80):
     path, sheet, pages = markers_80
     # A4 is 210 mm wide: one 80 mm marker plus its 2 x 11.4 mm quiet zone per row, two rows.
@@ -167,6 +206,26 @@ def test_markers_have_a_quiet_zone_of_one_cell(markers_80):
         ring = bw[int(y0) - m:int(y1) + m, int(x0) - m:int(x1) + m].copy()
         ring[m - 3:ring.shape[0] - m + 3, m - 3:ring.shape[1] - m + 3] = 0  # blank the marker itself
         assert ring.max() == 0, "something printed within one cell of a marker"
+
+
+def test_cut_marks_at_the_corners_of_each_piece(markers_80):
+    _, sheet, pages = markers_80
+    _, bw = cv2.threshold(pages[0], 160, 255, cv2.THRESH_BINARY_INV)
+    corners, _ = detect(pages[0], "ARUCO_ORIGINAL")
+    cell = 80 / 7 * PX_PER_MM
+    mm = PX_PER_MM
+    for c in corners:
+        left, top = c[:, 0].min() - cell, c[:, 1].min() - cell  # the piece: marker plus its quiet zone...
+        right = c[:, 0].max() + cell
+        bottom = c[:, 1].max() + cell + 7 * mm  # ...plus the label strip
+        for x, y, sx, sy in ((left, top, -1, -1), (right, top, 1, -1), (left, bottom, -1, 1), (right, bottom, 1, 1)):
+            xi, yi = int(round(x)), int(round(y))
+            # a horizontal mark on the cut line, from 1 to 4 mm outside the corner, and a vertical one
+            seg_x = sorted((int(x + sx * 1.3 * mm), int(x + sx * 3.7 * mm)))
+            seg_y = sorted((int(y + sy * 1.3 * mm), int(y + sy * 3.7 * mm)))
+            assert bw[yi - 2:yi + 3, seg_x[0]:seg_x[1]].any(axis=0).all(), (x, y)
+            assert bw[seg_y[0]:seg_y[1], xi - 2:xi + 3].any(axis=1).all(), (x, y)
+            assert not bw[yi - 2:yi + 3, int(x - sx * 0.5 * mm) - 1:int(x - sx * 0.5 * mm) + 2].any()  # not inside
 
 
 def test_ruler_is_100mm_with_mm_ticks(markers_80):
