@@ -90,3 +90,26 @@ def test_notebook_path_follows_the_src_folder():
     assert nbbuild.notebook_path(Path("notebooks/exercises/src/03_x.py")) == Path("notebooks/exercises/03_x.ipynb")
     with pytest.raises(nbbuild.BuildError, match="src"):
         nbbuild.notebook_path(Path("notebooks/03_x.py"))
+
+
+def test_build_executes_and_leaves_out_what_varies(tmp_path: Path):
+    """One real build: outputs stored, widget model ids, timestamps and random cell ids left out."""
+    import nbformat
+
+    src = tmp_path / "src" / "01_demo.py"
+    src.parent.mkdir()
+    src.write_text(
+        "# %% [markdown]\n# # Demo\n\n"
+        "# %%\nimport os\nprint(os.path.basename(os.getcwd()), 6 * 7)\n\n"
+        "# %%\n# NBVAL_IGNORE_OUTPUT\nimport ipywidgets as W\nout = W.Output()\nwith out:\n    print('inside')\n"
+        "W.VBox([W.IntSlider(3), out])\n"
+    )
+    out = nbbuild.build(src, quiet=True)
+    nb = nbformat.read(str(out), as_version=4)
+    assert [c.id for c in nb.cells] == ["cell-000", "cell-001", "cell-002"]
+    assert nb.cells[1].outputs[0].text == f"{tmp_path.name} 42\n"  # run in the notebook's folder
+    widget_out = nb.cells[2].outputs[0]
+    assert "text/plain" in widget_out.data and nbbuild._WIDGET_MIME not in widget_out.data
+    assert "widgets" not in nb.metadata
+    assert all("execution" not in c.metadata for c in nb.cells)
+    assert nbbuild.check_one(src) == []

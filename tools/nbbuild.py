@@ -207,7 +207,7 @@ def build(src: Path, execute: bool = True, quiet: bool = False) -> Path:
 
     src = Path(src).resolve()
     out = notebook_path(src)
-    cells = parse_percent(src.read_text(encoding="utf-8"), where=str(src.relative_to(REPO) if src.is_relative_to(REPO) else src))
+    cells = parse_percent(src.read_text(encoding="utf-8"), where=_show(src))
     nb = make_notebook(cells)
     t0 = time.monotonic()
     if execute:
@@ -238,22 +238,28 @@ def build(src: Path, execute: bool = True, quiet: bool = False) -> Path:
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, out)
     if not quiet:
-        print(f"{out.relative_to(REPO) if out.is_relative_to(REPO) else out}: {len(nb.cells)} cells, "
+        print(f"{_show(out)}: {len(nb.cells)} cells, "
               f"{'executed in %.1f s' % (time.monotonic() - t0) if execute else 'not executed'}")
     return out
 
 
 # -- checking --------------------------------------------------------------------------
+def _show(path: Path) -> str:
+    """A path as the user would type it: relative to the repository when inside it."""
+    path = Path(path).resolve()
+    return str(path.relative_to(REPO)) if path.is_relative_to(REPO) else str(path)
+
+
 def check_one(src: Path) -> list[str]:
     """Problems with one source's notebook (empty when it is up to date)."""
     import nbformat
 
     src = Path(src)
     out = notebook_path(src)
-    name = out.relative_to(REPO) if out.resolve().is_relative_to(REPO) else out
+    name = _show(out)
     if not out.exists():
-        return [f"{name}: missing; build it with: python tools/nbbuild.py {src}"]
-    want = parse_percent(src.read_text(encoding="utf-8"), where=str(src))
+        return [f"{name}: missing; build it with: python tools/nbbuild.py {_show(src)}"]
+    want = parse_percent(src.read_text(encoding="utf-8"), where=_show(src))
     nb = nbformat.read(str(out), as_version=4)
     have = [Cell(c.cell_type, c.source) for c in nb.cells]
     problems = []
@@ -261,14 +267,14 @@ def check_one(src: Path) -> list[str]:
         first = next((i for i, (a, b) in enumerate(zip(have, want)) if a != b), min(len(have), len(want)))
         problems.append(
             f"{name}: cells differ from {src.name} (first difference at cell {first}; "
-            f"{len(have)} cells in the notebook, {len(want)} in the source); rebuild: python tools/nbbuild.py {src}"
+            f"{len(have)} cells in the notebook, {len(want)} in the source); rebuild: python tools/nbbuild.py {_show(src)}"
         )
         return problems
     for i, c in enumerate(nb.cells):
         if c.cell_type != "code":
             continue
         if c.source.strip() and c.get("execution_count") is None:
-            problems.append(f"{name}: cell {i} was never executed; rebuild: python tools/nbbuild.py {src}")
+            problems.append(f"{name}: cell {i} was never executed; rebuild: python tools/nbbuild.py {_show(src)}")
             break
         if any(o.get("output_type") == "error" for o in c.get("outputs", [])):
             problems.append(f"{name}: cell {i} stores an error; fix the source and rebuild")
