@@ -45,6 +45,7 @@ __all__ = [
     "marker_cells",
     "layout_markers",
     "layout_board",
+    "board_quiet_zone_mm",
     "marker_figures",
     "board_figure",
     "markers_pdf",
@@ -296,9 +297,13 @@ class BoardSheet:
         return f"checkerboard {ic}x{ir} inner corners ({c}x{r} squares), square {self.square_mm:g} mm"
 
 
+#: The white margin kept around a board: QUIET_FRACTION of a square, at least QUIET_MIN_MM.
+QUIET_MIN_MM, QUIET_FRACTION = 3.0, 0.2
+
+
 def board_quiet_zone_mm(square_mm: float) -> float:
-    """The white margin kept around a board: a fifth of a square, at least 3 mm."""
-    return max(3.0, 0.2 * square_mm)
+    """The white margin (mm) a board of ``square_mm`` squares needs on every side."""
+    return max(QUIET_MIN_MM, QUIET_FRACTION * square_mm)
 
 
 #: Page arrangements tried for a board, in order of preference: (landscape, strip side).
@@ -311,8 +316,8 @@ def _largest_square(squares: tuple[int, int], paper: str, landscape: bool, strip
     if (paper_mm[1] if strip == "right" else paper_mm[0]) - 2 * PAGE_MARGIN_MM < STRIP_LEN_MM:
         return 0.0
     _, _, uw, uh = _usable_area(paper_mm, strip)
-    # n * s + 2 * max(3, 0.2 s) <= available, for both directions
-    return max(0.0, min(min((a - 6.0) / n, a / (n + 0.4)) for n, a in zip(squares, (uw, uh))))
+    # n * s + 2 * board_quiet_zone_mm(s) <= available, in both directions
+    return max(0.0, min(min((a - 2 * QUIET_MIN_MM) / n, a / (n + 2 * QUIET_FRACTION)) for n, a in zip(squares, (uw, uh))))
 
 
 def layout_board(
@@ -624,11 +629,11 @@ def board_pdf(path, pattern: tuple[int, int], square_mm: float, paper: str = "a4
 
 
 def board_png(path, pattern: tuple[int, int], square_mm: float, paper: str = "a4", charuco: bool = False,
-              dictionary: str | None = None, marker_mm: float | None = None, dpi: float = 300) -> BoardSheet:
-    """Write a board page as PNG at ``dpi``; ``pattern`` is INNER corners."""
+              dictionary: str | None = None, marker_mm: float | None = None,
+              dpi: float = 300) -> tuple[BoardSheet, list[Path]]:
+    """Write a board page as PNG at ``dpi``; ``pattern`` is INNER corners. Returns the layout and the file."""
     sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_mm, paper, charuco, dictionary, marker_mm)
-    save_pages([board_figure(sheet)], _with_suffix(path, ".png"), dpi=dpi)
-    return sheet
+    return sheet, save_pages([board_figure(sheet)], _with_suffix(path, ".png"), dpi=dpi)
 
 
 def _with_suffix(path, suffix: str) -> Path:

@@ -317,7 +317,8 @@ def test_checkerboard_pdf_square_size(tmp_path):
 
 
 def test_checkerboard_png_square_size(tmp_path):
-    P.board_png(tmp_path / "board.png", (6, 4), 20, "letter", dpi=200)
+    sheet, files = P.board_png(tmp_path / "board.png", (6, 4), 20, "letter", dpi=200)
+    assert files == [tmp_path / "board.png"] and not sheet.landscape
     gray = cv2.imread(str(tmp_path / "board.png"), cv2.IMREAD_GRAYSCALE)
     assert gray.shape == (round(279.4 / 25.4 * 200), round(215.9 / 25.4 * 200)) == (2200, 1700)
     spacing = chessboard_spacing_mm(gray, (6, 4), 200 / 25.4)
@@ -347,6 +348,20 @@ def test_charuco_board_size_printed_on_page():
     fig = P.board_figure(sheet)
     texts = [t.get_text() for t in fig.axes[0].texts]
     assert "fidlearn " + sheet.describe() in texts
+
+
+def test_board_keeps_its_quiet_zone_inside_the_margins():
+    for pattern, square, paper in [((10, 7), 25, "a4"), ((10, 7), 25, "letter"), ((7, 5), 30, "a4"), ((12, 9), 12, "letter")]:
+        sheet = P.layout_board(pattern, square, paper)
+        q = P.board_quiet_zone_mm(square)
+        (x, y), (w, h), (pw, ph) = sheet.origin_mm, sheet.board_mm, sheet.paper_mm
+        assert x - q >= P.PAGE_MARGIN_MM - 1e-9 and y - q >= P.PAGE_MARGIN_MM - 1e-9
+        assert x + w + q <= pw - P.PAGE_MARGIN_MM + 1e-9 and y + h + q <= ph - P.PAGE_MARGIN_MM + 1e-9
+        # and off the ruler strip
+        if sheet.strip == "bottom":
+            assert y + h + q <= ph - P.PAGE_MARGIN_MM - P.STRIP_MM + 1e-9
+        else:
+            assert x + w + q <= pw - P.PAGE_MARGIN_MM - P.STRIP_MM + 1e-9
 
 
 def test_board_too_big_names_largest_square(tmp_path):
