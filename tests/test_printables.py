@@ -187,6 +187,19 @@ def test_each_marker_has_its_id_under_it(markers_80):
         assert f"fidlearn markers, ARUCO_ORIGINAL, black square 80 mm, page {k + 1} of 5" in boxes
 
 
+def test_markers_pdf_is_vector_not_raster(markers_80):
+    import pypdfium2.raw as pdfium_raw
+
+    path, _, _ = markers_80
+    doc = pdfium.PdfDocument(str(path))
+    try:
+        kinds = {obj.type for page in doc for obj in page.get_objects()}
+    finally:
+        doc.close()
+    assert pdfium_raw.FPDF_PAGEOBJ_PATH in kinds
+    assert pdfium_raw.FPDF_PAGEOBJ_IMAGE not in kinds  # no bitmap anywhere: every cell is a path
+
+
 def test_markers_pdf_is_multipage_a4(markers_80):
     path, sheet, pages = markers_80
     # A4 is 210 mm wide: one 80 mm marker plus its 2 x 11.4 mm quiet zone per row, two rows.
