@@ -249,32 +249,27 @@ def bench_speed(n_images: int, rng) -> None:
     from fidlearn.detection import detect_markers
     dets = [detect_markers(im, m.dictionary) for im in images]
 
-    def run(f):
-        def g():
-            for k, im in enumerate(images):
-                f(k, im)
-        return g
-
     jobs = {
-        "plain detectMarkers": run(lambda k, im: det.detectMarkers(im)),
-        "detect_markers[default]": run(lambda k, im: detect_markers(im, m.dictionary)),
-        "estimate_pose": run(lambda k, im: fidlearn.estimate_pose(dets[k], m, CAMERA)),
-        "locate[default]": run(lambda k, im: fidlearn.locate(im, m, CAMERA)),
-        "locate[subpix]": run(lambda k, im: fidlearn.locate(im, m, CAMERA, refine="subpix")),
-        "locate[none]": run(lambda k, im: fidlearn.locate(im, m, CAMERA, refine="none")),
+        "plain detectMarkers": lambda k: det.detectMarkers(images[k]),
+        "detect_markers[default]": lambda k: detect_markers(images[k], m.dictionary),
+        "estimate_pose": lambda k: fidlearn.estimate_pose(dets[k], m, CAMERA),
+        "locate[default]": lambda k: fidlearn.locate(images[k], m, CAMERA),
+        "locate[subpix]": lambda k: fidlearn.locate(images[k], m, CAMERA, refine="subpix"),
+        "locate[none]": lambda k: fidlearn.locate(images[k], m, CAMERA, refine="none"),
     }
-    for f in jobs.values():  # warm up caches
-        f()
-    times = {k: [] for k in jobs}
-    for _ in range(9):  # interleaved, so that the machine's load hits every job alike
-        for k, f in jobs.items():
-            t = time.perf_counter()
-            f()
-            times[k].append((time.perf_counter() - t) / len(images) * 1e3)
-    best = {k: float(np.min(v)) for k, v in times.items()}  # the least disturbed of 9 runs
+    times = {name: [[] for _ in images] for name in jobs}
+    # Interleaved call by call, many times over: the machine's load (shared cores) hits every
+    # job alike, and the least disturbed call of each (job, image) is kept.
+    for _ in range(15):
+        for k in range(len(images)):
+            for name, f in jobs.items():
+                t = time.perf_counter()
+                f(k)
+                times[name][k].append(time.perf_counter() - t)
+    best = {name: 1e3 * float(np.mean([min(v) for v in per_image])) for name, per_image in times.items()}
     base = best["plain detectMarkers"]
-    for k, v in best.items():
-        print(f"{k:<26}{v:8.2f} ms  {v / base:5.2f} x plain")
+    for name, v in best.items():
+        print(f"{name:<26}{v:8.2f} ms  {v / base:5.2f} x plain")
     print(f"cv2 threads: {cv2.getNumThreads()}; locate limit 1.25 x plain, goal 1.10 x")
 
 
@@ -318,9 +313,12 @@ def bench_misplaced(n_trials: int, rng) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer scenes and trials")
+    ap.add_argument("--threads", type=int, default=None, help="cv2.setNumThreads (1 gives steadier timings on a busy machine)")
     ap.add_argument("--only", choices=["rendered", "nees", "coverage", "speed", "misplaced"], help="run one part")
     args = ap.parse_args(argv)
     warnings.simplefilter("error")
+    if args.threads is not None:
+        cv2.setNumThreads(args.threads)
     rng = np.random.default_rng(20261121)
     n = 0.25 if args.quick else 1.0
     print(f"OpenCV {cv2.__version__}, numpy {np.__version__}")

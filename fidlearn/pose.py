@@ -142,7 +142,10 @@ class Pose:
         True when a second, distinct pose explains the corners nearly as well
         (planar targets seen face-on or from afar): see ``alternative``.
     alternative : Pose or None
-        The other IPPE solution, refined, when it is distinct from this one.
+        The other planar (IPPE) solution when it is distinct from this one (more
+        than 3 sigma away): refined when LM keeps it as a second minimum, else
+        as IPPE gave it (its ``method`` then says "not refined"). Draw both to
+        see the flip.
     ignored_ids : tuple of int
         Detected ids that are not in the map.
     rejected_ids : tuple of int
@@ -162,7 +165,7 @@ class Pose:
     ignored_ids: tuple[int, ...] = ()
     rejected_ids: tuple[int, ...] = ()
     method: str = ""
-    _T_camera_world: np.ndarray | None = field(default=None, repr=False)
+    _T_camera_world: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
@@ -247,20 +250,21 @@ class Pose:
 
 
 def _chi2_3_quantile(p: float) -> float:
-    """Quantile of the chi-square distribution with 3 degrees of freedom (Wilson-Hilferty, < 0.5 % error)."""
+    """Quantile of the chi-square distribution with 3 degrees of freedom (7.815 for 0.95).
+
+    Its CDF has a closed form, ``erf(sqrt(x/2)) - sqrt(2x/pi) exp(-x/2)``: bisect on it.
+    """
     if not 0 < p < 1:
-        raise PoseError(f"probability must be between 0 and 1, got {p}")
-    # inverse normal via Acklam-free bisection on erf: plenty fast for a scalar
-    lo, hi = -10.0, 10.0
-    for _ in range(80):
+        raise PoseError(f"probability must be between 0 and 1 (exclusive), got {p}")
+    lo, hi = 0.0, 200.0
+    for _ in range(100):
         mid = (lo + hi) / 2
-        if 0.5 * (1 + math.erf(mid / math.sqrt(2))) < p:
+        cdf = math.erf(math.sqrt(mid / 2)) - math.sqrt(2 * mid / math.pi) * math.exp(-mid / 2)
+        if cdf < p:
             lo = mid
         else:
             hi = mid
-    z = (lo + hi) / 2
-    k = 3.0
-    return k * (1 - 2 / (9 * k) + z * math.sqrt(2 / (9 * k))) ** 3
+    return (lo + hi) / 2
 
 
 # ---------------------------------------------------------------------------------------
