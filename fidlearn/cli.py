@@ -1,8 +1,23 @@
 """The ``fidlearn`` command line.
 
 Every command reports a user error as one line ``error: ...`` on stderr and
-exits with status 2: never a traceback, never a half-written output file
-(outputs go to a temporary file that is renamed when complete).
+exits with status 2: never a traceback, never a half-written output file.
+Inputs and output paths are checked before any work starts.
+
+What "no partial output" means for each kind of output:
+
+* one file (``-o``, ``--truth``): written to a hidden temporary file in the
+  same folder and renamed when complete (:func:`fidlearn._io.atomic_write`);
+  several PNG pages are all rendered before any is renamed.
+* ``locate --json``: one JSON line per frame, flushed as each frame is done
+  into a hidden temporary file, renamed to its name when the whole run ends
+  well (stopping a live camera with Ctrl-C is a good end; an error in frame
+  57 of a video leaves no file).
+* ``--annotate DIR``: images are staged in a hidden folder beside ``DIR`` and
+  moved into ``DIR`` (created if needed) only when the run succeeds.
+
+Warnings (:class:`~fidlearn.errors.FidlearnWarning`) print as one line
+``warning: ...`` on stderr and do not change the exit status.
 """
 
 from __future__ import annotations
