@@ -551,7 +551,7 @@ def _lesson_01(learner: str) -> list[Question]:
 
     qs.append(Question(
         "q1", "K from a field of view",
-        f"""
+        """
         A camera with square pixels and its principal point in the middle of the image has a
         horizontal field of view of `hfov_deg` degrees and images of `image_size` = (width, height)
         pixels. Write code that computes its intrinsic matrix K, a (3, 3) array
@@ -930,15 +930,15 @@ def _lesson_04(learner: str) -> list[Question]:
 
     qs.append(Question(
         "q1", "Corners from a placement in feet",
-        f"""
-        Marker `marker_id` hangs on the {wall} wall. The map gives its `placement`: "translation"
+        """
+        Marker `marker_id` hangs on the wall named in `wall`. The map gives its `placement`: "translation"
         is the world position of its TOP-LEFT corner in `units` (feet!), "rotation" is
         [roll, pitch, yaw] in degrees, R = Rz(yaw) @ Ry(pitch) @ Rx(roll), applied about that corner.
         With rotation [0, 0, 0] a marker faces +X and TR = TL + s*Y, BL = TL - s*Z (s the side).
         Write code that computes its 4 corners in world mm, a (4, 3) array in the order
         TL, TR, BR, BL (do not use MarkerMap: that is what you are rebuilding).
         """,
-        {"marker_id": mid, "placement": placement, "units": "ft", "marker_size_mm": size},
+        {"marker_id": mid, "wall": wall, "placement": placement, "units": "ft", "marker_size_mm": size},
         C,
         _array((4, 3), "the corners", {(3, 4): "one ROW per corner: transpose it", (4, 2): "these are world corners: 3 coordinates (x, y, z) each"}),
         _cmp_array(0.5, " mm"),
@@ -1033,9 +1033,10 @@ def _lesson_04(learner: str) -> list[Question]:
 
     qs.append(Question(
         "q3", "A marker on the floor",
-        f"""
+        """
         A marker lies flat on the floor, printed face up. Its own "up" direction (from its bottom
-        edge to its top edge, BL -> TL) points along the world axis `up_direction` ({up_name}).
+        edge to its top edge, BL -> TL) points along the world axis `up_direction` (as a vector:
+        `up_vector`).
         Write code that finds its map rotation [roll, pitch, yaw] in degrees (R = Rz(yaw) @ Ry(pitch)
         @ Rx(roll); at [0, 0, 0] a marker faces +X with its up along +Z and its right, TL -> TR,
         along +Y). Hint of a method: build the 3x3 matrix whose columns are the marker's face
