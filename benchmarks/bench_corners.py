@@ -198,6 +198,31 @@ def print_robustness(rows, methods):
         print(f"| {label} | " + " | ".join(cells) + " |")
 
 
+SUBPIX_WINDOWS = {  # label: DetectorParameters overrides for refine="subpix"
+    "default: min(5 px, 0.3 cell)": {},
+    "fixed 5 px": {"relativeCornerRefinmentWinSize": 10.0},
+    "fixed 10 px": {"relativeCornerRefinmentWinSize": 10.0, "cornerRefinementWinSize": 10},
+    "0.5 cell": {"relativeCornerRefinmentWinSize": 0.5, "cornerRefinementWinSize": 50},
+}
+
+
+def print_subpix_windows(dictionary: str, n_scenes: int = 3) -> None:
+    """cornerSubPix's window: fixed in pixels (OpenCV before 4.7) or relative to the cell."""
+    print(f"\nsubpix window sizes: corner RMS / max error [px], {dictionary}, same scenes as the accuracy table")
+    print("| side px | " + " | ".join(SUBPIX_WINDOWS) + " |")
+    print("|" + "---|" * (len(SUBPIX_WINDOWS) + 1))
+    for side in (30, 60, 150):
+        cells = []
+        for params in SUBPIX_WINDOWS.values():
+            e = []
+            for s in range(n_scenes):
+                image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
+                e += [d.corners - truth[d.id] for d in detect_markers(image, dictionary, refine="subpix", params=params) if d.id in truth]
+            r = np.linalg.norm(np.array(e).reshape(-1, 2), axis=1)
+            cells.append(f"{np.sqrt((r ** 2).mean()):.3f} / {r.max():.2f}")
+        print(f"| {side} | " + " | ".join(cells) + " |")
+
+
 def real_photos(methods) -> dict:
     """Consistency of each refinement with a known geometry on the real ChArUco photos.
 
@@ -335,6 +360,7 @@ def main(argv=None) -> None:
     print_real(real_photos(methods))
     if args.robustness:
         print_robustness(robustness([m for m in methods if m != "apriltag"]), [m for m in methods if m != "apriltag"])
+        print_subpix_windows(args.dictionary)
     print_timing(timing(args.dictionary, methods, args.repeats, cpu=True), cpu=True)
     print_timing(timing(args.dictionary, methods, args.repeats), cpu=False)
     print(f"\n({time.perf_counter() - t0:.0f} s)")
