@@ -372,20 +372,20 @@ def _array(shape: tuple, what: str, shape_hints: dict | None = None) -> Callable
         if isinstance(answer, Camera):
             answer = answer.K
         if isinstance(answer, (str, bytes, dict)):
-            raise _AnswerError(f"{what} should be numbers in an array of shape {_shape_text(shape)}, got a {type(answer).__name__}")
+            raise _AnswerError(f"your answer ({what}) should be numbers in an array of shape {_shape_text(shape)}, got a {type(answer).__name__}")
         try:
             a = np.array(answer, dtype=float)
         except (TypeError, ValueError):
-            raise _AnswerError(f"{what} should be numbers in an array of shape {_shape_text(shape)}, got {type(answer).__name__}") from None
+            raise _AnswerError(f"your answer ({what}) should be numbers in an array of shape {_shape_text(shape)}, got {type(answer).__name__}") from None
         if not _shape_ok(a.shape, shape):
             sq = a.squeeze()
             if _shape_ok(sq.shape, tuple(s for s in shape if s != 1)) and a.size == sq.size:
                 a = sq.reshape(tuple(sq.shape[i] if s == -1 else s for i, s in enumerate(shape)) if -1 in shape else shape)
             else:
                 extra = (shape_hints or {}).get(a.shape, "")
-                raise _AnswerError(f"{what} has shape {a.shape}, expected {_shape_text(shape)}" + (f": {extra}" if extra else ""))
+                raise _AnswerError(f"your answer ({what}) has shape {a.shape}, expected {_shape_text(shape)}" + (f": {extra}" if extra else ""))
         if not np.all(np.isfinite(a)):
-            raise _AnswerError(f"{what} contains NaN or infinity; leave out (or fill in) what could not be computed")
+            raise _AnswerError(f"your answer ({what}) contains NaN or infinity; leave out (or fill in) what could not be computed")
         return a
 
     return parse
@@ -402,15 +402,15 @@ def _shape_text(shape: tuple) -> str:
 def _scalar(what: str) -> Callable[[Any], float]:
     def parse(answer: Any) -> float:
         if isinstance(answer, (str, bytes)):
-            raise _AnswerError(f"{what} should be a number, got the text {answer!r}")
+            raise _AnswerError(f"your answer ({what}) should be a number, got the text {answer!r}")
         a = np.asarray(answer, dtype=float) if not isinstance(answer, (dict, list, tuple)) or np.size(answer) == 1 else None
         if a is None or a.size != 1:
-            raise _AnswerError(f"{what} should be one number, got {type(answer).__name__} of {np.size(answer)} values")
+            raise _AnswerError(f"your answer ({what}) should be one number, got {type(answer).__name__} of {np.size(answer)} values")
         v = float(a.reshape(-1)[0])
         if math.isnan(v):
-            raise _AnswerError(f"{what} is NaN: a NaN in the data spreads through every sum and mean; leave those values out (np.isnan finds them)")
+            raise _AnswerError(f"your answer ({what}) is NaN: a NaN in the data spreads through every sum and mean; leave those values out (np.isnan finds them)")
         if not math.isfinite(v):
-            raise _AnswerError(f"{what} is {v}, expected a finite number")
+            raise _AnswerError(f"your answer ({what}) is {v}, expected a finite number")
         return v
 
     return parse
@@ -1762,8 +1762,17 @@ def _noisy_detections(rng: np.random.Generator, camera: Camera, marker_map: Mark
     return dets
 
 
-def _pairs(obj: np.ndarray, img: np.ndarray) -> list:
-    return sorted(tuple(np.round(np.concatenate([o, i]), 2)) for o, i in zip(obj, img))
+def _same_rows(a: np.ndarray, b: np.ndarray, tol: float = 0.01) -> bool:
+    """Whether the rows of a and b are the same set (any order, each within tol), float32 answers included."""
+    if a.shape != b.shape:
+        return False
+    free = list(range(len(b)))
+    for row in a:
+        hit = next((k for k in free if np.abs(b[k] - row).max() <= tol), None)
+        if hit is None:
+            return False
+        free.remove(hit)
+    return True
 
 
 def _lesson_06(learner: str) -> list[Question]:
@@ -1779,7 +1788,7 @@ def _lesson_06(learner: str) -> list[Question]:
     detections = sorted(dets + [stray], key=lambda d: (d.corners[0, 0]))
     obj = np.concatenate([m.marker_corners(d.id) for d in detections if d.id in m])
     img = np.concatenate([d.corners for d in detections if d.id in m])
-    key_pairs = _pairs(obj, img)
+    key_pairs = np.column_stack([obj, img])
 
     def parse_pairs(answer):
         if not isinstance(answer, (tuple, list)) or len(answer) != 2:
@@ -1792,13 +1801,13 @@ def _lesson_06(learner: str) -> list[Question]:
 
     def cmp_pairs(a, _):
         o, i = a
-        if _pairs(o, i) == key_pairs:
+        if _same_rows(np.column_stack([o, i]), key_pairs):
             return None
         if len(o) == len(obj) + 4:
             return f"you have {len(o) // 4} markers; marker {stray_id} was detected but is not in the map: skip ids the map does not know"
         if len(o) != len(obj):
             return f"you have {len(o)} correspondences; the {len(obj) // 4} mapped markers give {len(obj)} (4 corners each)"
-        if sorted(map(tuple, np.round(o, 2))) == sorted(map(tuple, np.round(obj, 2))):
+        if _same_rows(o, obj):
             return "each world corner must sit next to ITS pixel: detection i's corners (TL, TR, BR, BL) go with marker_corners(detection i's id), in the same order"
         return "these are not the map's corners of the detected markers"
 

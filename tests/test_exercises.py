@@ -535,3 +535,9 @@ def test_task_texts_are_the_same_for_every_learner(number):
     a, b = exercises.lesson(number, learner="alice"), exercises.lesson(number, learner="bob")
     assert [(q.title, q.task, q.solution_code) for q in a] == [(q.title, q.task, q.solution_code) for q in b]
     assert [list(q.inputs.keys()) for q in a] == [list(q.inputs.keys()) for q in b]
+
+
+def test_float32_correspondences_are_accepted():
+    q, (obj, img) = key_of("06", "q1")
+    order = np.random.default_rng(0).permutation(len(obj))  # any order of the pairs
+    assert q.grade((np.float32(obj)[order], np.float32(img)[order])).status == CORRECT
