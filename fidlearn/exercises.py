@@ -52,7 +52,7 @@ from typing import Any, Callable, Sequence
 import cv2
 import numpy as np
 
-from . import frames
+from . import _cv, frames
 from .camera import Camera
 from .detection import Detection
 from .markermap import MarkerMap, MarkerPlacement
@@ -1843,8 +1843,10 @@ def _lesson_06(learner: str) -> list[Question]:
     dets2 = _noisy_detections(rng, cam2, m2, T2, 0.3)
     obj2 = np.concatenate([m2.marker_corners(d.id) for d in dets2])
     img2 = np.concatenate([d.corners for d in dets2])
-    ok, rv, tv = cv2.solvePnP(obj2, img2, cam2.K, cam2.dist, flags=cv2.SOLVEPNP_ITERATIVE)
+    ok, rv, tv = cv2.solvePnP(obj2, img2, cam2.K, cam2.dist, flags=_cv.solvepnp_flag("ITERATIVE"))
     Tcw_key = frames.transform_from_rvec_tvec(rv.ravel(), tv.ravel())
+    ok, rv_e, tv_e = cv2.solvePnP(obj2, img2, cam2.K, cam2.dist, flags=_cv.solvepnp_flag("EPNP"))
+    Tcw_epnp = frames.transform_from_rvec_tvec(rv_e.ravel(), tv_e.ravel())
 
     def parse_rt(answer):
         if isinstance(answer, np.ndarray) and answer.shape == (4, 4):
@@ -1867,11 +1869,12 @@ def _lesson_06(learner: str) -> list[Question]:
         {"detections": dets2, "marker_map": m2, "camera": cam2},
         Tcw_key,
         parse_rt,
-        _cmp_transform(0.3, 10.0),
+        _cmp_transform(0.5, 15.0),
         wrong=[
             (_T_is(frames.invert_transform(Tcw_key), 0.5, 15), "that is the camera's pose (T_world_camera); solvePnP's rvec, tvec are T_camera_world: give them as they are"),
-            (lambda a: frames.rotation_angle_deg(a[:3, :3], Tcw_key[:3, :3]) < 1 and np.linalg.norm(a[:3, 3] - Tcw_key[:3, 3]) < 100,
-             "close, but less accurate than the key: did you use all 5 markers (20 corners) and the camera's distortion?"),
+            (_T_is(Tcw_epnp, 0.05, 1.0), "EPnP is unreliable when all the points lie on one plane (the markers are all on one wall): use the default SOLVEPNP_ITERATIVE, IPPE or SQPNP"),
+            (lambda a: frames.rotation_angle_deg(a[:3, :3], Tcw_key[:3, :3]) < 3 and np.linalg.norm(a[:3, 3] - Tcw_key[:3, 3]) < 150,
+             "close, but not the least-squares pose: use all 5 markers (20 corners) and the camera's distortion, and if you chose SOLVEPNP_IPPE, refine with cv2.solvePnPRefineLM (the default SOLVEPNP_ITERATIVE does)"),
         ],
         hint="Build object_points and image_points over all detections (as in q1), then ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist).",
         solution="""

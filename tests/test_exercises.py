@@ -541,3 +541,17 @@ def test_float32_correspondences_are_accepted():
     q, (obj, img) = key_of("06", "q1")
     order = np.random.default_rng(0).permutation(len(obj))  # any order of the pairs
     assert q.grade((np.float32(obj)[order], np.float32(img)[order])).status == CORRECT
+
+
+def test_epnp_on_one_wall_is_explained():
+    from fidlearn import _cv
+
+    q, _ = key_of("06", "q2")
+    m, cam = q.inputs.marker_map, q.inputs.camera
+    obj = np.concatenate([m.marker_corners(d.id) for d in q.inputs.detections])
+    img = np.concatenate([d.corners for d in q.inputs.detections])
+    ok, rvec, tvec = cv2.solvePnP(obj, img, cam.K, cam.dist, flags=_cv.solvepnp_flag("EPNP"))
+    r = q.grade((rvec, tvec))
+    assert r.status == INCORRECT and "EPnP is unreliable" in r.message
+    ok, rvec, tvec = cv2.solvePnP(obj, img, cam.K, cam.dist, flags=_cv.solvepnp_flag("SQPNP"))
+    assert q.grade((rvec, tvec)).status == CORRECT
