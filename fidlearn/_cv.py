@@ -210,3 +210,16 @@ def detector_parameter_fields(params=None) -> dict:
             raise FidlearnError(f"OpenCV's DetectorParameters has no field {key!r}; known: {', '.join(sorted(fields))}")
         fields[key] = value
     return fields
+
+
+def detect_with_raw_rejected(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, tuple]:
+    """Like :func:`detect`, but the rejected candidates stay as OpenCV returns them (converting
+    hundreds of them costs time a caller that does not look at them need not pay); pass them to
+    :func:`rejected_quads` when they are wanted."""
+    corners, ids, rejected = detector.detectMarkers(gray)
+    return normalize_detections(corners, ids) + (rejected if rejected is not None else (),)
+
+
+def rejected_quads(rejected) -> list[np.ndarray]:
+    """Rejected candidates from OpenCV as a list of (4, 2) float64 pixel corners."""
+    return [np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())]

@@ -238,13 +238,13 @@ def detect_markers(
     name = _dictionary_name(dictionary) if isinstance(dictionary, str) else _cv.dictionary_name(dictionary)
     method = _refine_name(refine)
     detector, cells, inverted = _detector(name, method, params)
-    corners, ids, rejected = _cv.detect(detector, gray)
+    corners, ids, rejected = _cv.detect_with_raw_rejected(detector, gray)
     if len(corners) and method == "edges":
         corners = list(refine_corners_edges(gray, np.stack(corners), cells, inverted=None if inverted else False))
     order = sorted(range(len(ids)), key=lambda k: (int(ids[k]), float(corners[k][0, 1]), float(corners[k][0, 0])))
     detections = [Detection(int(ids[k]), corners[k]) for k in order]
     if return_rejected:
-        return detections, rejected
+        return detections, _cv.rejected_quads(rejected)
     return detections
 
 
@@ -257,12 +257,14 @@ _PREV = np.array([3, 0, 1, 2])
 
 
 @lru_cache(maxsize=8)
-def _profile_grid(n_lines: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
-    """Positions 0..1 along a side and -1..1 across it (read-only)."""
+def _profile_grid(n_lines: int, n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions 0..1 along a side (N,), -1..1 across it (S,), and [1, u, u^2] (N, 3); read-only."""
     u = np.linspace(0.0, 1.0, n_lines)
-    v = np.linspace(-1.0, 1.0, n_samples).astype(np.float32)
-    u.flags.writeable = v.flags.writeable = False
-    return u, v
+    v = np.linspace(-1.0, 1.0, n_samples)
+    U3 = np.column_stack([np.ones_like(u), u, u * u])
+    for a in (u, v, U3):
+        a.flags.writeable = False
+    return u, v, U3
 
 
 def refine_corners_edges(
@@ -325,29 +327,28 @@ def refine_corners_edges(
         edges cannot all be fitted (too little contrast, too few crossings) or
         whose corners would move more than ``max(3, cell / 2)`` px keeps its input corners.
     """
-    C = np.array(corners, dtype=np.float64).reshape(-1, 4, 2)
+    C = np.ascontiguousarray(corners, dtype=np.float64).reshape(-1, 4, 2)
     M = C.shape[0]
     if M == 0:
-        return C
-    u, v = _profile_grid(int(n_lines), int(n_samples))
+        return C.copy()
+    u, v, U3 = _profile_grid(int(n_lines), int(n_samples))
     n_lines, n_samples = u.size, v.size
     half, mid_sample = n_lines // 2, n_samples // 2
     rows = np.arange(M * 4 * n_lines)
-    Z = C[..., 0] + 1j * C[..., 1]  # (M, 4) corners as x + iy
+    Z = C.view(np.complex128)[..., 0]  # (M, 4) corners as x + iy
     shift = float(expand_px)
     for _ in range(iterations):
         Dz = Z[:, _NEXT] - Z  # (M, 4) side vectors
-        L = np.abs(Dz)  # side lengths, px
-        # Outward unit normal: -i times the side direction when the corners run clockwise on
-        # screen (y down), as for a marker seen from its front; the diagonals' cross product tells.
-        d1, d2 = Z[:, 2] - Z[:, 0], Z[:, 3] - Z[:, 1]
-        nz = Dz * (np.where((d1.conj() * d2).imag >= 0, -1j, 1j)[:, None] / np.maximum(L, 1e-9))
+        L = np.maximum(np.abs(Dz), 1e-9)  # side lengths, px
+        # Outward unit normal: -i times the side direction when the corners turn clockwise on screen
+        # (y down), as OpenCV reports them for a marker seen from its front.
+        nz = Dz * (np.where((Dz[:, 0].conj() * Dz[:, 1]).imag >= 0, -1j, 1j)[:, None] / L)
         cell = L.sum(1) * (0.25 / cells)  # (M,) px per cell
         h = np.clip(0.6 * cell, 1.5, 5.0)  # profile half-length, px
-        margin = np.minimum((0.5 * cell[:, None] + 1.5) / np.maximum(L, 1e-9), 0.3)  # keep clear of the corners
-        t = margin[..., None] + (1.0 - 2.0 * margin)[..., None] * u  # (M, 4, N) along the side, 0..1
-        s = shift + h[:, None] * v  # (M, S) across the edge, px, outward positive
-        pts = (Z[..., None] + t * Dz[..., None])[..., None] + s[:, None, None, :] * nz[..., None, None]
+        margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)  # keep clear of the corners
+        span = 1.0 - 2.0 * margin
+        t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
+        pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[..., None, None]
         maps = pts.astype(np.complex64).view(np.float32).reshape(-1, n_samples, 2)  # (x, y) pairs
         prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
@@ -377,18 +378,25 @@ def refine_corners_edges(
         # there the profile may fall again where a narrow quiet zone meets a darker wall).
         k = np.maximum(np.argmax(zf >= 0, axis=-1), 1)
         z0, z1 = zf[rows, k - 1], zf[rows, k]
-        found = (z0 <= 0) & (z1 > z0)
-        pos = (k - 1) + z0 / np.where(found, z0 - z1, -1.0)  # in samples
-        off = shift + (pos.reshape(M, 4, n_lines) - mid_sample) * (h * (2.0 / (n_samples - 1)))[:, None, None]
+        dz = z0 - z1
+        found = (z0 <= 0) & (dz < 0)
+        pos = k + z0 / np.where(found, dz, -1.0)  # in samples, + 1
+        off = (pos.reshape(M, -1) - (mid_sample + 1)) * (h * (2.0 / (n_samples - 1)))[:, None] + shift
+        off = off.reshape(M, 4, n_lines)  # edge position outside the quad's side, px
         w = (found.reshape(M, 4, n_lines) & (light - dark > 20.0)[..., None]).astype(np.float64)
-        V = np.stack([np.ones_like(t), t, t * t, off, off * t], axis=-1)  # (M, 4, N, 5)
-        for _ in range(2):  # weighted least squares off = a + b t; then again without the profiles 0.75 px off
-            m = np.matmul(w[..., None, :], V)[..., 0, :]  # (M, 4, 5) weighted sums
-            sw, st, stt, so, sto = m[..., 0], m[..., 1], m[..., 2], m[..., 3], m[..., 4]
-            det = np.maximum(sw * stt - st * st, 1e-12)
-            a = (stt * so - st * sto) / det
-            b = (sw * sto - st * so) / det
-            w = w * (np.abs(off - a[..., None] - b[..., None] * t) < 0.75)
+        # Weighted least squares off = alpha + beta u (u: the fixed 0..1 grid of profiles), twice:
+        # the second time without the profiles 0.75 px off the first line.
+        for final in (False, True):
+            s3 = w @ U3  # (M, 4, 3): sums of w, w u, w u^2
+            s2 = (w * off) @ U3[:, :2]  # sums of w off, w u off
+            sw, su, suu = s3[..., 0], s3[..., 1], s3[..., 2]
+            det = np.maximum(sw * suu - su * su, 1e-12)
+            alpha = (suu * s2[..., 0] - su * s2[..., 1]) / det
+            beta = (sw * s2[..., 1] - su * s2[..., 0]) / det
+            if not final:
+                w = w * (np.abs(off - alpha[..., None] - beta[..., None] * u) < 0.75)
+        b = beta / span  # the same line in t (0 at corner k, 1 at corner k+1)
+        a = alpha - b * margin
         # Side k's line: through A = Z[k] + a n, direction Dz + b n; corner k = line k-1 x line k.
         A, d = Z + a * nz, Dz + b * nz
         Ap, dp = A[:, _PREV], d[:, _PREV]
