@@ -27,6 +27,10 @@ __all__ = ["Camera", "DIST_LENGTHS"]
 DIST_LENGTHS = (4, 5, 8, 12, 14)
 
 
+def _fmt_matrix(M: np.ndarray) -> str:
+    return "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in M) + "]"
+
+
 def _as_K(K: Any, where: str) -> np.ndarray:
     try:
         K = np.array(K, dtype=float)
@@ -40,6 +44,11 @@ def _as_K(K: Any, where: str) -> np.ndarray:
         )
     if not np.all(np.isfinite(K)):
         raise CameraError(f"{where}: camera_matrix contains NaN or infinity")
+    if np.abs(K).max() > 1e8:
+        raise CameraError(
+            f"{where}: camera_matrix holds {np.abs(K).max():.3g}, beyond any camera (fx, fy, cx, cy are "
+            "pixels, a few hundred to a few thousand); check the file's units"
+        )
     fx, fy = K[0, 0], K[1, 1]
     if fx <= 0 or fy <= 0:
         raise CameraError(
@@ -49,7 +58,7 @@ def _as_K(K: Any, where: str) -> np.ndarray:
     if abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9 or abs(K[2, 2] - 1.0) > 1e-9:
         hint = " (it looks transposed: cx, cy belong in the last column)" if abs(K[2, 0]) > 1 or abs(K[2, 1]) > 1 else ""
         raise CameraError(
-            f"{where}: camera_matrix must be [[fx,s,cx],[0,fy,cy],[0,0,1]]; got {np.round(K, 4).tolist()}{hint}"
+            f"{where}: camera_matrix must be [[fx,s,cx],[0,fy,cy],[0,0,1]]; got {_fmt_matrix(K)}{hint}"
         )
     return K
 

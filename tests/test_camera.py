@@ -112,6 +112,8 @@ GOOD = {"camera_matrix": K.tolist(), "dist_coeffs": DIST.tolist(), "image_size":
         ({"camera_matrix": [[0, 0, 640], [0, 800, 360], [0, 0, 1]]}, "focal lengths fx=0, fy=800; both must be positive"),
         ({"camera_matrix": [[800, 0, 0], [0, 800, 0], [640, 360, 1]]}, "it looks transposed"),
         ({"camera_matrix": [[800, 0, 640], [0, "x", 360], [0, 0, 1]]}, "camera_matrix is not numeric"),
+        ({"camera_matrix": [[800, 0, 640], [0, 800, 360], [0, 0, 1.8e304]]}, "holds 1.8e.304, beyond any camera"),
+        ({"camera_matrix": [[800, 0, 640], [0, 800, 360], [0, 0, 2]]}, r"got \[\[800, 0, 640\], \[0, 800, 360\], \[0, 0, 2\]\]"),
         ({"dist_coeffs": [0.1, 0.2, 0.3]}, "dist_coeffs has 3 values; OpenCV takes 4, 5, 8, 12 or 14"),
         ({"dist_coeffs": [0.1, 0.2, 0.0, 0.0, 0.0, 0.1]}, "dist_coeffs has 6 values"),
         ({"image_size": [1280]}, r"image_size must be \[width, height\]"),
