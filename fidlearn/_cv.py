@@ -13,6 +13,14 @@ version itself.  Known differences:
 * ``cv2.aruco.calibrateCameraCharuco`` and ``estimatePoseSingleMarkers`` are
   gone; ChArUco corners come from ``cv2.aruco.CharucoDetector`` and calibration
   from ``cv2.calibrateCamera``.
+* ``cv2.calibrateCamera`` optimises differently in 5.0: on a poorly
+  conditioned problem (OpenCV's four ChArUco tutorial photos, the very same
+  96 corners) 4.14 settles at fx 479.8, cy 256.8 and 5.0 at fx 457.3,
+  cy 275.6, with the same RMS; judge such results by their standard deviations.
+* Not a difference but a trap on both: ``cv2.VideoCapture(-1)`` crashes the
+  interpreter (segmentation fault) when no camera is attached; never pass a
+  negative camera index. ``cv2.Rodrigues`` returns a zero vector for rotations
+  below 1e-5 rad.
 """
 
 from __future__ import annotations

