@@ -151,10 +151,15 @@ def _params_key(params: Any) -> Any:
     if params is None:
         return None
     if isinstance(params, dict):
+        key = ("dict", tuple(sorted(params.items(), key=lambda kv: str(kv[0]))))
         try:
-            return ("dict", tuple(sorted(params.items())))
-        except TypeError:  # unhashable values: let the field check report them
-            return ("fields", tuple(sorted(_cv.detector_parameter_fields(params).items())))
+            hash(key)
+        except TypeError:
+            raise FidlearnError(
+                f"detector parameter values must be numbers or booleans, got {params!r}; "
+                "e.g. params={'minMarkerPerimeterRate': 0.02}"
+            ) from None
+        return key
     return ("fields", tuple(sorted(_cv.detector_parameter_fields(params).items())))
 
 
@@ -169,7 +174,12 @@ def _detector(dictionary: str, refine: str, params: Any):
     fields = _cv.detector_parameter_fields(params)
     # fidlearn's "edges" starts from OpenCV's unrefined corners.
     fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if refine == "edges" else refine)
-    detector = _cv.make_detector(dictionary, _cv.make_detector_parameters(**fields))
+    try:
+        cv_params = _cv.make_detector_parameters(**fields)
+    except TypeError as exc:  # OpenCV names the type it wanted, not the field
+        given = {k: v for k, v in (params or {}).items()} if isinstance(params, dict) else params
+        raise FidlearnError(f"detector parameters {given!r}: {exc}; check each field's type in cv2.aruco.DetectorParameters") from None
+    detector = _cv.make_detector(dictionary, cv_params)
     cells = _cv.dictionary_marker_bits(dictionary) + 2 * int(fields["markerBorderBits"])
     hit = _DETECTOR_CACHE[key] = (detector, cells, bool(fields["detectInvertedMarker"]))
     while len(_DETECTOR_CACHE) > _DETECTOR_CACHE_SIZE:
