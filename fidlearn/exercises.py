@@ -2316,14 +2316,20 @@ def _lesson_09(learner: str) -> list[Question]:
         tvecs.append(p.tvec)
     est = np.array(est)
     tvecs = np.array(tvecs)
-    tol = np.maximum(50.0, 3.0 * np.linalg.norm(est - truth_pos, axis=1))
+    centre = np.mean([m.marker_corners(i).mean(axis=0) for i in m.ids], axis=0)
+    distance = np.linalg.norm(truth_pos - centre, axis=1)
+    # what corner noise allows: 6 % of the distance, or 3x what fidlearn's own pipeline misses by
+    tol = np.maximum.reduce([np.full(n, 50.0), 0.06 * distance, 3.0 * np.linalg.norm(est - truth_pos, axis=1)])
 
     def cmp1(a, b):
         err = np.linalg.norm(a - b, axis=1)
         bad = np.flatnonzero(err > tol)
         if bad.size == 0:
             return None
-        return f"frame {int(bad[0])} is {err[bad[0]]:.0f} mm from the truth (tolerance {tol[bad[0]]:.0f} mm); {bad.size} of {len(a)} frames are off"
+        k = int(bad[0])
+        return (f"frame {k} is {err[k]:.0f} mm from the truth (tolerance {tol[k]:.0f} mm at {distance[k] / 1000:.1f} m); {bad.size} of {len(a)} "
+                "frames are off. Far away the markers are small and a corner error of half a pixel moves the camera by centimetres: "
+                "refine the corners (fidlearn.detection.detect_markers does by default; OpenCV's detector does not) and use every marker")
 
     qs.append(Question(
         "q1", "Localize every frame of a drive",

@@ -555,3 +555,11 @@ def test_epnp_on_one_wall_is_explained():
     assert r.status == INCORRECT and "EPnP is unreliable" in r.message
     ok, rvec, tvec = cv2.solvePnP(obj, img, cam.K, cam.dist, flags=_cv.solvepnp_flag("SQPNP"))
     assert q.grade((rvec, tvec)).status == CORRECT
+
+
+def test_far_frame_off_by_corner_error_gets_the_refinement_nudge():
+    q, positions = key_of("09", "q1")
+    off = np.array(positions, dtype=float)
+    off[0] += [0.0, 400.0, 0.0]
+    r = q.grade(off)
+    assert r.status == INCORRECT and r.message.startswith("frame 0 is") and "refine the corners" in r.message
