@@ -275,8 +275,8 @@ def bench_speed(n_images: int, rng) -> None:
 
 def bench_misplaced(n_trials: int, rng) -> None:
     print("\n== 5. a misplaced marker (map wrong by `shift` mm along the wall), rendered scenes ==")
-    m = wall_map()
-    for shift in (10.0, 25.0, 60.0):
+    for label, m, shift in [("6 markers", wall_map(), 10.0), ("6 markers", wall_map(), 25.0), ("6 markers", wall_map(), 60.0),
+                            ("seed map, 3", seed_map(), 10.0), ("seed map, 3", seed_map(), 25.0)]:
         caught = wrong = 0
         err_on, err_off = [], []
         n = 0
@@ -305,7 +305,7 @@ def bench_misplaced(n_trials: int, rng) -> None:
             wrong += any(i != bad for i in p_on.rejected_ids)
             err_on.append(np.linalg.norm(p_on.position_mm - T[:3, 3]))
             err_off.append(np.linalg.norm(p_off.position_mm - T[:3, 3]))
-        print(f"shift {shift:4.0f} mm: rejected {100 * caught / n:5.1f} % of {n}, a good marker rejected in "
+        print(f"{label:<12} shift {shift:4.0f} mm: rejected {100 * caught / n:5.1f} % of {n}, a good marker rejected in "
               f"{100 * wrong / n:4.1f} %; median position error {np.median(err_on):6.2f} mm with rejection, "
               f"{np.median(err_off):6.2f} mm without")
 

@@ -85,10 +85,14 @@ AMBIGUITY_CHI2 = 9.0
 #: The other planar solutions are refined only when they start within this many sigma^2
 #: of the best one's refined sum of squared residuals (else they are kept as IPPE gave them).
 REFINE_GAP_CHI2 = 100.0
-#: A marker is rejected when, under the pose of the others, its 8 residuals have
-#: a Mahalanobis chi-square above this (8 degrees of freedom: p < 1e-5)...
-OUTLIER_CHI2 = 37.3
-#: ... and its RMS residual is also above this many pixels (sub-pixel disagreement
+#: False-alarm probability of the test that rejects a marker (per marker tested): its 8
+#: residuals, predicted from the pose of the others, must have a Mahalanobis chi-square
+#: above the chi-square(8) quantile (sigma given) or above 8 F(8, nu) (sigma estimated from
+#: the others' nu degrees of freedom: the nested-model F test)...
+OUTLIER_P = 1e-4
+#: chi-square(8) quantile at OUTLIER_P (used in the cheap screen and with a known sigma).
+OUTLIER_CHI2 = 31.83
+#: ... and its RMS residual must also be above this many pixels (sub-pixel disagreement
 #: is detector bias or calibration, not a misplaced marker).
 OUTLIER_MIN_RMS_PX = 0.75
 #: Noise assumed when screening for outliers: never below this (px).
@@ -645,6 +649,25 @@ def _marker_chi2(obs_rest: _Obs, cand: _Candidate, obj_out: np.ndarray, img_out:
     return chi2, rms
 
 
+#: 8 F(8, nu; 1 - OUTLIER_P) for nu degrees of freedom of the others' fit (computed by numerical
+#: integration of the F distribution; the limit is the chi-square(8) quantile).
+_OUTLIER_F8 = ((10, 125.9), (14, 83.66), (18, 67.01), (26, 53.0), (34, 46.9), (42, 43.51), (58, 39.87),
+               (90, 36.78), (180, 34.21), (math.inf, OUTLIER_CHI2))
+
+
+def _outlier_threshold(nu: float, sigma_known: bool) -> float:
+    """The chi-square a left-out marker must exceed: chi-square(8) or 8 F(8, nu), interpolated in 1/nu."""
+    if sigma_known:
+        return OUTLIER_CHI2
+    if nu <= _OUTLIER_F8[0][0]:
+        return _OUTLIER_F8[0][1] * (_OUTLIER_F8[0][0] / max(nu, 1.0)) ** 2  # steeply more careful below
+    for (n0, t0), (n1, t1) in zip(_OUTLIER_F8, _OUTLIER_F8[1:]):
+        if nu <= n1:
+            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
+            return math.exp(math.log(t1) + (math.log(t0) - math.log(t1)) * (x - x1) / (x0 - x1))
+    return OUTLIER_CHI2
+
+
 def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
     """Cheap test: could one marker be an outlier? (per-marker residuals against a robust noise level)."""
     per = np.sum(best.r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
@@ -679,11 +702,12 @@ def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_si
             break
         score, k, mid, rest, rc, ru = best
         dof = 2 * len(rest.obj) - 6
-        sigma = _sigma(score, dof, corner_sigma_px)
         if corner_sigma_px is None:
-            sigma = max(sigma, OUTLIER_SIGMA_FLOOR_PX)
+            sigma = max(math.sqrt(score / dof), OUTLIER_SIGMA_FLOOR_PX)
+        else:
+            sigma = float(corner_sigma_px)
         chi2, rms = _marker_chi2(rest, rc[0], obs.obj[4 * k : 4 * k + 4], obs.img[4 * k : 4 * k + 4], camera, sigma)
-        if chi2 <= OUTLIER_CHI2 or rms <= OUTLIER_MIN_RMS_PX:
+        if chi2 <= _outlier_threshold(dof, corner_sigma_px is not None) or rms <= OUTLIER_MIN_RMS_PX:
             break
         rejected.append(mid)
         obs, cands, unrefined = rest, rc, ru
@@ -753,9 +777,10 @@ def estimate_pose(
         others (a marker measured wrongly on the wall) and list it in
         ``Pose.rejected_ids``. The check is cheap: leave-one-out solves run only
         when a marker's residual stands out from the others'. A marker is
-        rejected when its residual, predicted from the pose of the others, has
-        a chi-square above ``OUTLIER_CHI2`` (8 dof, p < 1e-5) and an RMS above
-        ``OUTLIER_MIN_RMS_PX``. With 2 markers nobody can tell which is wrong:
+        rejected when its residual, predicted from the pose of the others, fails
+        the nested-model test at ``OUTLIER_P`` (chi-square with 8 degrees of
+        freedom when ``corner_sigma_px`` is given, else F(8, nu) with the noise
+        estimated from the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``. With 2 markers nobody can tell which is wrong:
         nothing is rejected, but ``Pose.marker_rms_px`` shows the disagreement.
     corner_sigma_px : float, optional
         Standard deviation (px, per coordinate) of the corner noise. If None it

@@ -205,6 +205,20 @@ def test_a_misplaced_marker_is_rejected_and_reported():
     assert estimate_pose(dets, true_map, CAM).rejected_ids == ()
 
 
+def test_a_misplaced_marker_of_three_is_rejected_and_heavy_noise_rejects_nothing():
+    true_map = MarkerMap.load(data_path("world_map.json"))
+    T = look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0])
+    wrong_map = _misplaced(true_map, 2, (0.0, 0.0, 30.0))  # 30 mm too high
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        pose = estimate_pose(observe(true_map, T, 0.3, rng), wrong_map, CAM)
+        assert pose.rejected_ids == (2,) and pose.marker_ids == (0, 1)
+        assert pose_errors(pose, T)[0] < 25.0
+    # pure Gaussian noise of 1.5 px on three small markers: no marker is singled out
+    rejected = sum(bool(estimate_pose(observe(true_map, T, 1.5, rng), true_map, CAM).rejected_ids) for _ in range(40))
+    assert rejected <= 1
+
+
 def test_with_two_markers_nothing_is_rejected_but_the_residual_tells():
     true_map = wall_map()
     wrong_map = _misplaced(true_map, 1, (0.0, 40.0, 0.0))
