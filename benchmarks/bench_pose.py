@@ -216,6 +216,47 @@ def bench_nees(n_trials: int, rng) -> None:
                   f"{100 * np.mean(ours > 100):>6.1f}/{100 * np.mean(truth > 100):>5.1f}%{100 * amb / len(ours):>7.0f}%")
 
 
+def bench_nees_bundled(n_per_scene: int, rng) -> None:
+    print("\n== 2b. the same on the bundled scenes' geometry (data/scenes: 1280x720, seed map and two walls, 1-3 m) ==")
+    print("'extra gross' = gross for estimate_pose but not for LM@truth; 'flagged' = of those, ambiguous=True;"
+          " 'alt ok' = of those, Pose.alternative is not gross")
+    import json
+
+    from fidlearn.detection import Detection as Det
+    record = json.loads(fidlearn.data_path("scenes", "poses.json").read_text())
+    camera = Camera.load(fidlearn.data_path("scenes", "camera.json"))
+    for sigma in (0.3, 1.0, 2.0):
+        ours, truth = [], []
+        extra = flagged = alt_ok = 0
+        for entry in record["images"]:
+            m = MarkerMap.load(fidlearn.data_path(entry["map"]))
+            T = np.array(entry["T_world_camera"])
+            ids = entry["visible_ids"]
+            obj = np.concatenate([m.marker_corners(i) for i in ids])
+            J = pose_mod.pose_jacobian(obj, T, camera)
+            P = sigma**2 * np.linalg.inv(J.T @ J)[3:, 3:]
+
+            def nees(x):
+                e = x - T[:3, 3]
+                return float(e @ np.linalg.solve(P, e))
+
+            for _ in range(n_per_scene):
+                img = camera.project(obj, T) + rng.normal(0, sigma, (len(obj), 2))
+                p = fidlearn.estimate_pose([Det(i, img[4 * j: 4 * j + 4]) for j, i in enumerate(ids)], m, camera)
+                _, C, _, _ = pose_mod._lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy())
+                a, b = nees(p.position_mm), nees(C)
+                ours.append(a)
+                truth.append(b)
+                if a > 25 and b <= 25:
+                    extra += 1
+                    flagged += p.ambiguous
+                    alt_ok += p.alternative is not None and nees(p.alternative.position_mm) <= 25
+        ours, truth = np.array(ours), np.array(truth)
+        print(f"sigma {sigma:.1f} px: median NEES {np.median(ours):.2f} vs LM@truth {np.median(truth):.2f} "
+              f"(ratio {np.median(ours) / np.median(truth):.3f}); gross {100 * np.mean(ours > 25):.1f} % vs "
+              f"{100 * np.mean(truth > 25):.1f} %; extra gross {extra}, flagged {flagged}, alt ok {alt_ok}")
+
+
 def bench_coverage(n_trials: int, rng) -> None:
     print("\n== 3. coverage of the 95 % position ellipsoid (target 90-98 %) ==")
     for name, m in [("seed map", seed_map()), ("one wall", wall_map()), ("two walls", two_wall_map()),
@@ -326,6 +367,8 @@ def main(argv=None) -> int:
         bench_rendered(int(40 * n), rng)
     if args.only in (None, "nees"):
         bench_nees(int(400 * n), rng)
+    if args.only in (None, "nees"):
+        bench_nees_bundled(int(100 * n), rng)
     if args.only in (None, "coverage"):
         bench_coverage(int(400 * n), rng)
     if args.only in (None, "misplaced"):

@@ -612,7 +612,10 @@ _WORLD_CACHE: "weakref.WeakKeyDictionary[MarkerMap, tuple]" = weakref.WeakKeyDic
 def _world_corners(marker_map: MarkerMap) -> dict[int, np.ndarray]:
     """``marker_map.corners()``, cached per map while its placements and marker size stay the same."""
     key = (marker_map.marker_size_mm, tuple(marker_map.placements.values()))
-    hit = _WORLD_CACHE.get(marker_map)
+    try:
+        hit = _WORLD_CACHE.get(marker_map)
+    except TypeError:  # an unhashable map: no cache
+        return marker_map.corners()
     if hit is not None and hit[0] == key:
         return hit[1]
     corners = marker_map.corners()
