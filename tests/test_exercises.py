@@ -563,3 +563,19 @@ def test_far_frame_off_by_corner_error_gets_the_refinement_nudge():
     off[0] += [0.0, 400.0, 0.0]
     r = q.grade(off)
     assert r.status == INCORRECT and r.message.startswith("frame 0 is") and "refine the corners" in r.message
+
+
+@pytest.mark.parametrize("learner", ["", "carol"])
+def test_other_honest_methods_pass(learner):
+    """Plain OpenCV detection for lesson 05, the library's own outlier rejection for lesson 08."""
+    from fidlearn import _cv
+    from fidlearn.detection import detect_markers
+    from fidlearn.pose import estimate_pose
+
+    ex5 = exercises.lesson("05", learner=learner)
+    corners, ids, _ = _cv.detect(_cv.make_detector(ex5.q2.inputs.dictionary), ex5.q2.inputs.image)
+    c = corners[list(ids).index(ex5.q2.inputs.marker_id)]
+    assert ex5.q1.grade(list(ids)).correct and ex5.q2.grade(c).correct
+    q = exercises.lesson("08", learner=learner).q2
+    pose = estimate_pose(detect_markers(q.inputs.image, q.inputs.marker_map.dictionary), q.inputs.marker_map, q.inputs.camera)
+    assert q.grade({"misplaced_id": pose.rejected_ids[0], "position_mm": pose.position_mm}).correct
