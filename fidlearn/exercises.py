@@ -875,12 +875,17 @@ _WALL_YAW = {"north": 0, "south": 180, "west": 90, "east": -90}
 _ROOM_FT = {"north": 0.0, "south": 16.0, "west": -6.0, "east": 6.0}  # wall positions: x for north/south, y for west/east
 
 
-def _wall_translation(rng: np.random.Generator, wall: str, step: float, span: tuple, height: tuple) -> list:
+def _wall_translation(rng: np.random.Generator, wall: str, step: float, span: tuple, height: tuple, per_ft: float) -> list:
+    """A top-left corner on a wall of the room: along the wall within ``span``, at a height in ``height``.
+
+    ``step`` rounds the values; ``per_ft`` is the unit of the result per foot
+    (1 for feet, 304.8 for mm), the room's walls being given in feet.
+    """
     along = float(np.round(rng.uniform(*span) / step) * step)
     z = float(np.round(rng.uniform(*height) / step) * step)
     if wall in ("north", "south"):
-        return [_ROOM_FT[wall] * (304.8 if step > 1 else 1), along, z]
-    return [along, _ROOM_FT[wall] * (304.8 if step > 1 else 1), z]
+        return [_ROOM_FT[wall] * per_ft, along, z]
+    return [along, _ROOM_FT[wall] * per_ft, z]
 
 
 def _map_diagnosis(got: MarkerMap, want: MarkerMap) -> str | None:
@@ -914,7 +919,7 @@ def _lesson_04(learner: str) -> list[Question]:
     # q1: corners of one marker from its placement in feet -------------------------------
     rng = _rng("04", learner, "q1")
     wall = str(rng.choice(list(_WALL_YAW)))
-    t_ft = _wall_translation(rng, wall, 0.25, (-4, 4), (2, 6))
+    t_ft = _wall_translation(rng, wall, 0.25, (-4, 4), (2, 6), per_ft=1.0)
     size = float(rng.choice([80, 100, 120, 150]))
     mid = int(rng.integers(0, 50))
     placement = {"translation": t_ft, "rotation": [0, 0, _WALL_YAW[wall]]}
@@ -1070,7 +1075,7 @@ def _lesson_04(learner: str) -> list[Question]:
     placements = {}
     for i, w in enumerate(["north", "west", "east", "south"]):
         mid4 = 10 + i
-        placements[mid4] = MarkerPlacement(mid4, tuple(_wall_translation(rng, w, 10.0, (-1200, 1200), (600, 1800))), (0.0, 0.0, float(_WALL_YAW[w])))
+        placements[mid4] = MarkerPlacement(mid4, tuple(_wall_translation(rng, w, 10.0, (-1200, 1200), (600, 1800), per_ft=304.8)), (0.0, 0.0, float(_WALL_YAW[w])))
     m4 = MarkerMap(placements, float(rng.choice([80, 100, 150])), "ARUCO_ORIGINAL", "mm")
     ask = int(rng.choice(m4.ids[1:]))
     centre = m4.marker_corners(ask).mean(axis=0)
@@ -1242,7 +1247,7 @@ def _lesson_07(learner: str) -> list[Question]:
     rng = _rng("07", learner, "q4")
     wall = str(rng.choice(["north", "west", "east"]))
     yaw = _WALL_YAW[wall]
-    t = _wall_translation(rng, wall, 10.0, (-1000, 1000), (700, 1600))
+    t = _wall_translation(rng, wall, 10.0, (-1000, 1000), (700, 1600), per_ft=304.8)
     mmap = MarkerMap({5: MarkerPlacement(5, tuple(t), (0.0, 0.0, float(yaw)))}, 150.0, "ARUCO_ORIGINAL", "mm")
     Twm = mmap.T_world_marker(5)
     n = Twm[:3, 2]
