@@ -25,6 +25,13 @@ machine and every Python run. Without an id (``learner=""``) the id comes from
 the environment variable ``FIDLEARN_LEARNER``, else the whole class shares one
 variant.
 
+Grading: :func:`grade_notebook` (or ``python -m fidlearn.exercises grade
+NOTEBOOK... --learner ID --csv FILE``) runs a learner's notebook in a fresh
+kernel and checks the answers its lesson holds. The answer-key notebooks are
+built from the lesson definitions here (:func:`answer_key_notebook`) and the
+student copies from the keys (:func:`student_copy`), by
+``tools/make_student_copies.py``; see ``docs/teaching.md``.
+
 Examples
 --------
 >>> ex = lesson("01", learner="alice")
