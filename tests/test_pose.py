@@ -482,3 +482,29 @@ def test_markers_of_the_real_photo_are_70_to_90_cm_away():
         distance = np.linalg.norm(pose.position_mm - m.T_world_marker(d.id)[:3, 3])
         assert 650.0 < distance < 950.0, (d.id, distance)
         assert pose.reprojection_rms_px < 0.5 and not pose.ambiguous
+
+
+def test_the_solver_is_as_good_as_lm_started_at_the_truth():
+    """Median NEES of the camera centre (w.r.t. the Cramer-Rao bound at the true pose) within 10 %."""
+    from fidlearn.pose import refine_pose_lm
+
+    m = MarkerMap.load(data_path("world_map.json"))
+    T = look_at([1300.0, 500.0, 600.0], [0.0, 140.0, 230.0])
+    obj = np.concatenate(list(m.corners().values()))
+    sigma = 0.5
+    J = pose_jacobian(obj, T, CAM)
+    P = sigma**2 * np.linalg.inv(J.T @ J)[3:, 3:]
+    rvec0, tvec0 = frames.rvec_tvec_from_transform(frames.invert_transform(T))
+    rng = np.random.default_rng(12)
+    ours, truth = [], []
+    for _ in range(100):
+        dets = observe(m, T, sigma, rng)
+        pose = estimate_pose(dets, m, CAM)
+        rvec, tvec = refine_pose_lm(obj, np.concatenate([d.corners for d in dets]), CAM, rvec0, tvec0)
+        C = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))[:3, 3]
+        for est, out in ((pose.position_mm, ours), (C, truth)):
+            e = est - T[:3, 3]
+            out.append(e @ np.linalg.solve(P, e))
+    assert np.median(ours) <= 1.1 * np.median(truth)
+    assert np.mean(np.array(ours) > 25) <= np.mean(np.array(truth) > 25) + 0.02
+    assert 1.5 < np.median(truth) < 3.5  # chi-square(3) median 2.37: the bound is reached
