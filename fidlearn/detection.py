@@ -359,7 +359,8 @@ def refine_corners_edges(
         span = 1.0 - 2.0 * margin
         t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
         pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[..., None, None]
-        maps = pts.astype(np.complex64).view(np.float32).reshape(-1, n_samples, 2)  # (x, y) pairs
+        # (x, y) pairs, one row per side: remap wants fewer than 32767 rows and columns
+        maps = pts.astype(np.complex64).view(np.float32).reshape(M * 4, n_lines * n_samples, 2)
         prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
         # Levels: the darkest sample of the inner half and the brightest of the outer half (a narrow

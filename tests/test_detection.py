@@ -225,6 +225,17 @@ def test_inverted_markers_refine_too():
     assert np.sqrt((err ** 2).sum(2).mean()) < 0.12
 
 
+def test_edge_refinement_takes_hundreds_of_markers_at_once():
+    # cv2.remap refuses maps of 32767 rows or more: 600 markers x 4 sides x 16 profiles would be 38400
+    marker = _cv.generate_marker("ARUCO_ORIGINAL", 7, 70)
+    image = cv2.GaussianBlur(cv2.copyMakeBorder(marker, 30, 30, 30, 30, cv2.BORDER_CONSTANT, value=235), (0, 0), 0.8)
+    truth = np.array([[0, 0], [70, 0], [70, 70], [0, 70]], float) + 30 - 0.5
+    start = np.stack([d.corners for d in detect_markers(image, refine="none")] * 600)
+    fine = refine_corners_edges(image, start, 7)
+    assert fine.shape == (600, 4, 2)
+    assert np.abs(fine - truth).max() < 0.02
+
+
 def test_edge_refinement_keeps_corners_it_cannot_fit():
     flat = np.full((100, 100), 128, np.uint8)
     quad = np.array([[[30.0, 30.0], [70.0, 30.0], [70.0, 70.0], [30.0, 70.0]]])
