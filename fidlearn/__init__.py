@@ -45,6 +45,7 @@ from .synthetic import (
     trajectory_poses,
 )
 from .pose import Pose, estimate_pose, locate
+from .tracking import MarkerTracker
 from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
 from .printables import PrintError, board_pdf, markers_pdf
 
@@ -82,6 +83,7 @@ __all__ = [
     "Pose",
     "estimate_pose",
     "locate",
+    "MarkerTracker",
     "render_calibration_views",
     "CalibrationViews",
     "render_trajectory",

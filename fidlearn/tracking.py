@@ -1,0 +1,363 @@
+"""Fast localization for video: look for the markers only where the last pose says they are.
+
+In a video the camera moves little from one frame to the next, and the world
+map says where every marker is. :class:`MarkerTracker` predicts the camera's
+pose for the new frame from the last two poses (constant velocity), projects
+every marker of the map with it, and runs OpenCV's ``ArucoDetector`` only in
+small windows around those predictions (merged where they overlap), then
+refines the corners exactly as :func:`fidlearn.detect_markers` does and
+estimates the pose with :func:`fidlearn.estimate_pose`. A full-frame detection
+runs instead on the first frame, after a frame without a pose, every
+``full_every`` frames, when the windows would cover most of the image, and
+again on the same frame when a marker seen in the last frame and predicted
+well inside the image is not found in its window (a fast turn, a wrong
+prediction). Markers that are not in the map are not looked for between full
+detections.
+
+Why windows rather than OpenCV's ArUco3 mode (``useAruco3Detection``): ArUco3
+thresholds a downscaled image, which is fast only when the smallest marker is
+large, and it loses markers of 20-30 px; the measurements are in
+``docs/benchmarks.md``.
+
+Inside a window OpenCV's size limits (``minMarkerPerimeterRate``,
+``maxMarkerPerimeterRate``, fractions of the image's longer side) are rescaled
+so that they mean the same number of pixels as on the full frame: the same
+markers qualify, and the window does not fill with the tiny candidates a
+fraction of a small window would admit (each costs OpenCV milliseconds).
+
+Pixel convention: OpenCV's (pixel centres at integers); window corners are
+shifted back by the window's integer offset, so they are exact.
+
+Examples
+--------
+>>> import fidlearn
+>>> m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+>>> cam = fidlearn.Camera.from_fov(60, (640, 480))
+>>> drive = fidlearn.render_trajectory(cam, m, n_frames=40, frames_to_render=range(30, 34))
+>>> tracker = MarkerTracker(m, cam)
+>>> poses = [tracker.locate(frame) for frame in drive.images]
+>>> [p.marker_ids for p in poses]
+[(0, 1, 2), (0, 1, 2), (0, 1, 2), (0, 1, 2)]
+>>> tracker.frames, tracker.full_detections    # the first frame is searched whole, the others in windows
+(4, 1)
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+import cv2
+import numpy as np
+
+from . import _cv, frames
+from .camera import Camera
+from .detection import DEFAULT_REFINE, Detection, _refine_name, as_gray, refine_corners_edges
+from .errors import FidlearnError, NoMarkersError, PoseError
+from .markermap import MarkerMap
+from .pose import METHODS, Pose, estimate_pose
+
+__all__ = ["MarkerTracker"]
+
+#: Windows covering more than this fraction of the image: a full detection is as cheap.
+_MAX_WINDOW_FRACTION = 0.5
+#: Window lengths are rounded up to this many pixels for the detector cache (the window's
+#: size limits are then at most this many pixels' worth more lenient than the full frame's).
+_LENGTH_STEP_PX = 8
+
+
+class MarkerTracker:
+    """Localize the camera frame after frame, detecting markers only near where they are expected.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The world map; its dictionary is used for detection.
+    camera : Camera
+        The camera; fitted to the frames' size on the first frame
+        (:meth:`Camera.for_image`: rescaled with a warning when only the
+        resolution differs).
+    refine : str, optional
+        Corner refinement, as for :func:`fidlearn.detect_markers` (default its default, ``"edges"``).
+    detector_params : None, dict or cv2.aruco.DetectorParameters
+        OpenCV detector parameters, as for ``detect_markers(params=...)``.
+    full_every : int
+        A full-frame detection at least every this many frames (1: every frame,
+        no windows). It finds what the windows cannot: a marker that came out
+        from behind something while its prediction lay elsewhere.
+    search_px : float
+        Fixed margin (pixels) added around each predicted marker, on top of half
+        the marker's side and the predicted motion of its corners.
+    **pose_options
+        Passed to :func:`fidlearn.estimate_pose` (``method``, ``reject_outliers``, ...).
+
+    Attributes
+    ----------
+    frames : int
+        Frames seen since creation or :meth:`reset`.
+    full_detections : int
+        How many of them ran a full-frame detection.
+    last_pose : Pose or None
+        The pose of the last frame (None when it had none).
+    last_detections : list of Detection
+        The last frame's detections (map markers only between full detections).
+    last_full : bool
+        Whether the last frame ran a full-frame detection.
+    """
+
+    def __init__(
+        self,
+        marker_map: MarkerMap,
+        camera: Camera,
+        *,
+        refine: str = DEFAULT_REFINE,
+        detector_params: Any = None,
+        full_every: int = 30,
+        search_px: float = 16.0,
+        **pose_options: Any,
+    ) -> None:
+        if not isinstance(marker_map, MarkerMap):
+            raise FidlearnError(
+                f"marker_map must be a fidlearn.MarkerMap (use MarkerMap.load('map.json')), got {type(marker_map).__name__}"
+            )
+        if not isinstance(camera, Camera):
+            raise FidlearnError(f"camera must be a fidlearn.Camera (use Camera.load('camera.json')), got {type(camera).__name__}")
+        if isinstance(full_every, bool) or not isinstance(full_every, (int, np.integer)) or full_every < 1:
+            raise FidlearnError(f"full_every must be a whole number of frames >= 1, got {full_every!r}")
+        if not (isinstance(search_px, (int, float, np.number)) and np.isfinite(search_px) and search_px >= 0):
+            raise FidlearnError(f"search_px must be a number of pixels >= 0, got {search_px!r}")
+        self.marker_map = marker_map
+        self.camera = camera
+        self.refine = _refine_name(refine)
+        self.detector_params = detector_params
+        self.full_every = int(full_every)
+        self.search_px = float(search_px)
+        allowed = [k for k, v in inspect.signature(estimate_pose).parameters.items() if v.kind is v.KEYWORD_ONLY or k == "method"]
+        unknown = sorted(set(pose_options) - set(allowed))
+        if unknown:
+            raise FidlearnError(f"MarkerTracker: unknown pose option {', '.join(unknown)}; estimate_pose takes {', '.join(allowed)}")
+        method = str(pose_options.get("method", "auto")).lower()
+        if method != "auto" and method not in METHODS:
+            raise FidlearnError(f"MarkerTracker: unknown method {pose_options['method']!r}; use 'auto' or one of {', '.join(METHODS)}")
+        self.pose_options = dict(pose_options)
+        fields = _cv.detector_parameter_fields(detector_params)  # checks the parameters now, not on frame 1
+        fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if self.refine == "edges" else self.refine)
+        self._fields = fields
+        self._cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2 * int(fields["markerBorderBits"])
+        self._inverted = bool(fields["detectInvertedMarker"])
+        self._detectors: dict[tuple[int, int], Any] = {}
+        ids = marker_map.ids
+        self._ids = np.array(ids, dtype=np.int64)
+        self._world = np.stack([marker_map.marker_corners(i) for i in ids]) if ids else np.zeros((0, 4, 3))
+        self._normals = np.stack([marker_map.normal(i) for i in ids]) if ids else np.zeros((0, 3))
+        # The map's markers only, in map order: OpenCV compares every candidate that does not decode
+        # with every marker of the dictionary (most of detectMarkers' time with 1024-marker ARUCO_ORIGINAL).
+        full = _cv.get_dictionary(marker_map.dictionary)
+        self._dictionary = cv2.aruco.Dictionary(full.bytesList[self._ids], int(full.markerSize), int(full.maxCorrectionBits))
+        self.reset()
+
+    def __repr__(self) -> str:
+        return (f"MarkerTracker({len(self.marker_map)} markers, {self.marker_map.dictionary}, refine={self.refine!r}, "
+                f"full_every={self.full_every}; {self.frames} frames, {self.full_detections} full detections)")
+
+    def reset(self) -> None:
+        """Forget the past frames: the next frame runs a full detection."""
+        self.frames = 0
+        self.full_detections = 0
+        self.last_pose: Pose | None = None
+        self.last_detections: list[Detection] = []
+        self.last_full = False
+        self._prev_T: np.ndarray | None = None  # T_world_camera two frames ago (for the velocity)
+        self._since_full = 0
+        self._size: tuple[int, int] | None = None
+        self._cam: Camera | None = None
+
+    # -- public -----------------------------------------------------------------------------
+    def locate(self, image: np.ndarray) -> Pose | None:
+        """The camera's pose in the next frame, or None when no marker of the map is found (or the pose cannot be solved).
+
+        Parameters
+        ----------
+        image : ndarray
+            Gray or BGR frame (see :func:`fidlearn.detection.as_gray`). A frame of
+            another size than the last one starts the tracking afresh.
+
+        Returns
+        -------
+        Pose or None
+            What :func:`fidlearn.locate` gives for the frame when it finds the same
+            markers. The frame's detections (corners (4, 2) float64 pixels, TL, TR,
+            BR, BL, refined as :func:`fidlearn.detect_markers` does) are in
+            :attr:`last_detections`.
+
+        Raises
+        ------
+        ImageError
+            ``image`` is not an image.
+        CameraError
+            The frame's aspect ratio differs from the camera's.
+        """
+        gray = as_gray(image, where="frame")
+        dets = self._detect(gray)
+        pose = self._estimate(dets)
+        if pose is None and not self.last_full:
+            # the windows found too little to solve: look at the whole frame before giving up
+            pose = self._estimate(self._detect_full(gray))
+        self._prev_T = None if self.last_pose is None else self.last_pose.T_world_camera
+        self.last_pose = pose
+        return pose
+
+    # -- internals --------------------------------------------------------------------------
+    def _detect(self, gray: np.ndarray) -> list[Detection]:
+        """The frame's markers: in windows around the predicted ones, or in the whole frame."""
+        size = (gray.shape[1], gray.shape[0])
+        if size != self._size:  # first frame, or the video changed resolution
+            cam = self.camera.for_image(size)
+            self.reset()
+            self._size, self._cam = size, cam
+        self.frames += 1
+        self._since_full += 1
+        predicted = self._predict() if self.last_pose is not None and self._since_full < self.full_every else None
+        dets = None
+        if predicted is not None:
+            dets = self._detect_windows(gray, predicted)
+        if dets is None:
+            return self._detect_full(gray)
+        self.last_full = False
+        self.last_detections = dets
+        return dets
+
+    def _detect_full(self, gray: np.ndarray) -> list[Detection]:
+        H, W = gray.shape
+        c, i, _ = _cv.detect(self._window_detector(W, H, W, H), gray)
+        dets = self._finish(gray, list(c), [int(self._ids[k]) for k in i])
+        self.full_detections += 1
+        self._since_full = 0
+        self.last_full = True
+        self.last_detections = dets
+        return dets
+
+    def _finish(self, gray: np.ndarray, corners: list, ids: list) -> list[Detection]:
+        """Refine the corners as detect_markers does and sort by id."""
+        if corners and self.refine == "edges":
+            corners = list(refine_corners_edges(gray, np.stack(corners), self._cells, inverted=None if self._inverted else False))
+        order = sorted(range(len(ids)), key=lambda k: (ids[k], float(corners[k][0, 1]), float(corners[k][0, 0])))
+        return [Detection(ids[k], corners[k]) for k in order]
+
+    def _estimate(self, dets: list[Detection]) -> Pose | None:
+        try:
+            return estimate_pose(dets, self.marker_map, self._cam, **self.pose_options)
+        except NoMarkersError:
+            return None
+        except PoseError:  # a degenerate frame (the options were checked when the tracker was made)
+            return None
+
+    def _predict(self) -> dict | None:
+        """Predicted pixel corners of the map's markers that may be in view: ``{'T', 'corners', 'ids', 'motion'}``."""
+        T_last = self.last_pose.T_world_camera
+        if self._prev_T is not None:  # constant velocity: the last step once more
+            T_pred = T_last @ frames.invert_transform(self._prev_T) @ T_last
+            T_pred = frames.make_transform(_nearest_rotation(T_pred[:3, :3]), T_pred[:3, 3])
+        else:
+            T_pred = T_last
+        cam = self._cam
+        T_cw = frames.invert_transform(T_pred)
+        eye = T_pred[:3, 3]
+        pc = self._world @ T_cw[:3, :3].T + T_cw[:3, 3]  # (M, 4, 3) camera frame, mm
+        centre = self._world.mean(axis=1)
+        facing = np.einsum("ij,ij->i", self._normals, eye - centre) > 0
+        front = (pc[..., 2] > 10.0).all(axis=1)
+        keep = facing & front
+        if keep.any():  # pinhole first: far outside the view the distortion polynomial folds back
+            xy = pc[keep, :, :2] / pc[keep, :, 2:3]
+            ideal = xy * [cam.fx, cam.fy] + [cam.cx, cam.cy]
+            slack = 0.5 * max(cam.width, cam.height)
+            near = ((ideal > [-slack, -slack]) & (ideal < [cam.width + slack, cam.height + slack])).all(axis=(1, 2))
+            keep[np.flatnonzero(keep)[~near]] = False
+        if not keep.any():
+            return None
+        sel = np.flatnonzero(keep)
+        px = cam.project(self._world[sel].reshape(-1, 3), T_pred).reshape(-1, 4, 2)
+        motion = np.zeros(len(sel))
+        if T_pred is not T_last:  # how far the prediction moved each marker: the velocity is that uncertain
+            px_last = cam.project(self._world[sel].reshape(-1, 3), T_last).reshape(-1, 4, 2)
+            motion = np.abs(px - px_last).max(axis=(1, 2))
+        return {"ids": self._ids[sel], "corners": px, "motion": motion}
+
+    def _detect_windows(self, gray: np.ndarray, predicted: dict) -> list[Detection] | None:
+        """Detect in windows around the predicted markers; None when a full detection is called for."""
+        H, W = gray.shape
+        corners, motion, ids = predicted["corners"], predicted["motion"], predicted["ids"]
+        side = np.linalg.norm(corners - np.roll(corners, -1, axis=1), axis=2).max(axis=1)
+        pad = 0.3 * side + motion + self.search_px
+        lo = np.floor(corners.min(axis=1) - pad[:, None]).astype(int)
+        hi = np.ceil(corners.max(axis=1) + pad[:, None]).astype(int) + 1
+        lo = np.maximum(lo, 0)
+        hi = np.minimum(hi, [W, H])
+        ok = (hi > lo + 8).all(axis=1)  # some of the window is in the image
+        boxes = _merge_boxes([(*a, *b) for a, b in zip(lo[ok], hi[ok])])
+        if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in boxes) > _MAX_WINDOW_FRACTION * W * H:
+            return None
+        found_c, found_i = [], []
+        for x0, y0, x1, y1 in boxes:
+            c, i, _ = _cv.detect(self._window_detector(x1 - x0, y1 - y0, W, H), gray[y0:y1, x0:x1])
+            for ck, ik in zip(c, i):
+                ck, ik = ck + [x0, y0], int(self._ids[ik])
+                if any(j == ik and np.abs(cj - ck).max() < 2.0 for cj, j in zip(found_c, found_i)):
+                    continue  # the same marker in an overlapping window
+                found_c.append(ck)
+                found_i.append(ik)
+        # a marker seen last frame, predicted whole and well inside the image, but not found: look everywhere
+        inside = ((corners.min(axis=1) > pad[:, None]) & (corners.max(axis=1) < [W, H] - pad[:, None])).all(axis=1)
+        expected = {int(i) for i, ins in zip(ids, inside) if ins} & {d.id for d in self.last_detections}
+        if expected - set(found_i):
+            return None
+        return self._finish(gray, found_c, found_i)
+
+    def _window_detector(self, w: int, h: int, W: int, H: int):
+        """An ArucoDetector whose marker size limits, in pixels, are those of the full W x H frame."""
+        q = max(W, H) if (w, h) == (W, H) else -(-max(w, h) // _LENGTH_STEP_PX) * _LENGTH_STEP_PX
+        key = (q, max(W, H))
+        det = self._detectors.get(key)
+        if det is None:
+            fields = dict(self._fields)
+            scale = max(W, H) / q
+            fields["minMarkerPerimeterRate"] = float(fields["minMarkerPerimeterRate"]) * scale
+            fields["maxMarkerPerimeterRate"] = float(fields["maxMarkerPerimeterRate"]) * scale
+            det = self._detectors[key] = cv2.aruco.ArucoDetector(self._dictionary, _cv.make_detector_parameters(**fields))
+        return det
+
+
+def _nearest_rotation(R: np.ndarray) -> np.ndarray:
+    """The rotation matrix closest to ``R`` (removes rounding drift of a product of rotations)."""
+    U, _, Vt = np.linalg.svd(R)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+def _merge_boxes(boxes: list) -> list:
+    """Boxes ``(x0, y0, x1, y1)`` with each pair that overlaps so much that their union is no larger
+    than the two together replaced by that union, repeated until no such pair is left.
+
+    Boxes that overlap less stay apart (a marker in both is found twice and kept once): one big
+    union of a chain of neighbours would cover far more of the image than the windows do.
+    """
+    def area(b):
+        return (b[2] - b[0]) * (b[3] - b[1])
+
+    boxes = [tuple(int(v) for v in b) for b in boxes]
+    merged = True
+    while merged and len(boxes) > 1:
+        merged = False
+        out: list = []
+        for b in boxes:
+            for k, o in enumerate(out):
+                u = (min(o[0], b[0]), min(o[1], b[1]), max(o[2], b[2]), max(o[3], b[3]))
+                if b[0] < o[2] and o[0] < b[2] and b[1] < o[3] and o[1] < b[3] and area(u) <= area(o) + area(b):
+                    out[k] = u
+                    merged = True
+                    break
+            else:
+                out.append(b)
+        boxes = out
+    return boxes

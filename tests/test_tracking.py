@@ -1,0 +1,118 @@
+"""MarkerTracker on a short rendered drive: the same markers and corners as detect_markers, poses against the truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fidlearn import Camera, MarkerMap, MarkerPlacement, MarkerTracker, detect_markers, locate
+from fidlearn.errors import CameraError, FidlearnError, ImageError
+from fidlearn.synthetic import render_trajectory
+
+CAM = Camera([[500.0, 0, 320.4], [0, 500.0, 238.7], [0, 0, 1]], [-0.1, 0.05, 0.0004, -0.0003, 0.0], (640, 480))
+
+
+def wall_map() -> MarkerMap:
+    """Six 100 mm markers on the north wall (x = 0), facing +X; ids not consecutive."""
+    p = {}
+    for k, (i, y, z) in enumerate([(3, 0, 1500), (7, 400, 1500), (11, 800, 1500), (20, 100, 1100), (21, 500, 1100), (40, 900, 1150)]):
+        p[i] = MarkerPlacement(i, (0.0, float(y), float(z)), (0.0, 0.0, 0.0))
+    return MarkerMap(p, 100.0, "ARUCO_ORIGINAL", "mm")
+
+
+@pytest.fixture(scope="module")
+def drive():
+    """Eight consecutive frames (about 25 mm apart) of a robot driving toward the wall, 1.8 m to 0.8 m away."""
+    return render_trajectory(CAM, wall_map(), n_frames=40, seed=3, start_distance_mm=1800.0, end_distance_mm=800.0,
+                             start_lateral_mm=-300.0, end_lateral_mm=200.0, frames_to_render=range(12, 20))
+
+
+def test_same_markers_and_corners_as_detect_markers(drive):
+    tracker = MarkerTracker(drive.marker_map, CAM)
+    for image, truth in zip(drive.images, drive.truth):
+        tracker.locate(image)
+        full = {d.id: d.corners for d in detect_markers(image, drive.marker_map.dictionary)}
+        got = {d.id: d.corners for d in tracker.last_detections}
+        assert sorted(got) == sorted(full) and set(truth) <= set(got)
+        for i in got:
+            np.testing.assert_allclose(got[i], full[i], atol=1e-6)
+    # the windows did the work: one full detection, on the first frame
+    assert (tracker.frames, tracker.full_detections) == (len(drive), 1)
+
+
+def test_pose_matches_truth_and_locate(drive):
+    tracker = MarkerTracker(drive.marker_map, CAM)
+    for image, T in zip(drive.images, drive.T_world_camera):
+        pose = tracker.locate(image)
+        assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 3.0
+        np.testing.assert_allclose(pose.position_mm, locate(image, drive.marker_map, CAM).position_mm, atol=1e-6)
+
+
+def test_recovers_after_a_frame_without_markers(drive):
+    tracker = MarkerTracker(drive.marker_map, CAM)
+    assert tracker.locate(drive.images[0]) is not None
+    blank = np.full_like(drive.images[0], 128)
+    assert tracker.locate(blank) is None and tracker.last_detections == []
+    pose = tracker.locate(drive.images[2])
+    assert tracker.last_full and tracker.full_detections == 3  # frame 0, the blank frame, then afresh
+    assert np.linalg.norm(pose.position_mm - drive.T_world_camera[2][:3, 3]) < 3.0
+
+
+def test_a_marker_missing_from_its_window_calls_for_a_full_detection(drive):
+    tracker = MarkerTracker(drive.marker_map, CAM)
+    tracker.locate(drive.images[0])
+    image = drive.images[1].copy()
+    corners = drive.truth[1][7]
+    x0, y0 = np.floor(corners.min(axis=0)).astype(int) - 2
+    x1, y1 = np.ceil(corners.max(axis=0)).astype(int) + 3
+    image[y0:y1, x0:x1] = 128  # marker 7 covered
+    pose = tracker.locate(image)
+    assert tracker.last_full and tracker.full_detections == 2
+    assert 7 not in pose.marker_ids and len(pose.marker_ids) == 5
+    tracker.locate(drive.images[2])  # marker 7 was not seen in the last frame: windows again, and it is found
+    assert not tracker.last_full and 7 in [d.id for d in tracker.last_detections]
+
+
+def test_full_every_and_reset(drive):
+    tracker = MarkerTracker(drive.marker_map, CAM, full_every=3)
+    for image in drive.images[:7]:
+        tracker.locate(image)
+    assert tracker.full_detections == 3  # frames 0, 3, 6
+    tracker.reset()
+    tracker.locate(drive.images[7])
+    assert (tracker.frames, tracker.full_detections, tracker.last_full) == (1, 1, True)
+    assert "6 markers" in repr(tracker)
+
+
+def test_bgr_frames_and_pose_options(drive):
+    tracker = MarkerTracker(drive.marker_map, CAM, method="ippe", refine="subpix")
+    bgr = np.repeat(drive.images[4][:, :, None], 3, axis=2)
+    pose = tracker.locate(bgr)
+    expected = locate(drive.images[4], drive.marker_map, CAM, method="ippe", refine="subpix")
+    assert pose.method == expected.method == "ippe"
+    np.testing.assert_allclose(pose.position_mm, expected.position_mm, atol=1e-6)
+    assert np.linalg.norm(pose.position_mm - drive.T_world_camera[4][:3, 3]) < 50.0
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(marker_map="map.json"), "marker_map must be a fidlearn.MarkerMap"),
+    (dict(camera=None), "camera must be a fidlearn.Camera"),
+    (dict(full_every=0), "full_every must be a whole number of frames >= 1, got 0"),
+    (dict(search_px=-1), "search_px must be a number of pixels >= 0"),
+    (dict(refine="sharp"), "unknown corner refinement 'sharp'"),
+    (dict(method="dlt"), "unknown method 'dlt'"),
+    (dict(reject_outlier=False), "unknown pose option reject_outlier"),
+    (dict(detector_params={"adaptiveThreshWinSize": 5}), "no field 'adaptiveThreshWinSize'"),
+])
+def test_bad_arguments(kwargs, match):
+    args = dict(marker_map=wall_map(), camera=CAM) | kwargs
+    with pytest.raises(FidlearnError, match=match):
+        MarkerTracker(args.pop("marker_map"), args.pop("camera"), **args)
+
+
+def test_bad_frames():
+    tracker = MarkerTracker(wall_map(), CAM)
+    with pytest.raises(ImageError, match="frame: expected a numpy array"):
+        tracker.locate("frame_001.png")
+    with pytest.raises(CameraError, match="aspect"):
+        tracker.locate(np.zeros((480, 480), np.uint8))
