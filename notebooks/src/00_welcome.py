@@ -114,11 +114,11 @@ plt.show()
 # | [02 Calibration](02_calibration.ipynb) | checkerboards, finding corners, per-view errors, square size, the resolution trap | [02](exercises/02_calibration.ipynb) |
 # | [03 Extrinsics and transforms](03_extrinsics_transforms.ipynb) | rotations, 4x4 matrices, Rodrigues vectors, composing frames, Z-up vs Y-up | [03](exercises/03_extrinsics.ipynb) |
 # | [04 Fiducials and the world map](04_fiducials_world_map.ipynb) | dictionaries, quiet zone, marker size, map files, units, walls and floors | [04](exercises/04_world_map.ipynb) |
-# | 05 Detecting markers | finding markers and their corners in a picture | [05](exercises/05_detection.ipynb) |
-# | 06 PnP: the pose from several markers | matching 3D corners to pixels with `cv2.solvePnP`, reprojection error | [06](exercises/06_pnp.ipynb) |
-# | 07 Where is the camera? | inverting the extrinsics: the camera's pose in the world | [07](exercises/07_inversion.ipynb) |
-# | 08 Accuracy and pitfalls | ambiguity of planar targets, noise, outliers, how sure the pose is | [08](exercises/08_accuracy.ipynb) |
-# | 09 Localizing a robot | a moving camera, frame after frame, and real photos | [09](exercises/09_robot.ipynb) |
+# | [05 Detecting markers](05_detection_winding_order.ipynb) | finding markers and their corners in a picture, the winding order TL, TR, BR, BL | [05](exercises/05_detection.ipynb) |
+# | [06 PnP: the pose from several markers](06_pose_solvepnp.ipynb) | matching 3D corners to pixels with `cv2.solvePnP`, reprojection error | [06](exercises/06_pnp.ipynb) |
+# | [07 Where is the camera?](07_inverting_the_transform.ipynb) | inverting the extrinsics: the camera's pose in the world | [07](exercises/07_inversion.ipynb) |
+# | [08 Accuracy and pitfalls](08_accuracy_pitfalls.ipynb) | ambiguity of planar targets, noise, outliers, how sure the pose is | [08](exercises/08_accuracy.ipynb) |
+# | [09 Localizing a robot](09_localizing_a_robot.ipynb) | a moving camera, frame after frame | [09](exercises/09_robot.ipynb) |
 #
 # ## Conventions (used in every notebook and in `fidlearn`)
 #

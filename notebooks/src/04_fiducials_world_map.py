@@ -315,4 +315,4 @@ plt.show()
 # **Exercises**: [exercises/04_world_map.ipynb](exercises/04_world_map.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("04")` in a new cell).
 #
-# Next: detecting the markers in an image, notebook 05.
+# Next: [05 Detecting markers](05_detection_winding_order.ipynb).
