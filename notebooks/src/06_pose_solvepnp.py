@@ -110,7 +110,7 @@ assert error_mm < 10 and angle_deg < 0.5
 # `solvePnP` knows several algorithms:
 #
 # * **IPPE**: closed form for points on a plane; gives both poses of the planar ambiguity (notebook 08).
-# * **SQPnP**: a global, non-iterative solver for any layout (planar or not, 3 points or more).
+# * **SQPnP**: a globally optimal solver (sequential quadratic programming) for any layout, planar or not, from 3 points.
 # * **ITERATIVE** (the default): a start from a homography (planar) or DLT (non-planar, needs 6 points), then
 #   Levenberg-Marquardt on the reprojection error.
 # * **EPnP**: expresses the points through four control points; fast, for many non-coplanar points.
