@@ -174,6 +174,14 @@ class Pose:
     def __post_init__(self) -> None:
         self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
 
+    def __getattribute__(self, name: str):
+        value = object.__getattribute__(self, name)
+        if name == "alternative" and callable(value):
+            # built on first use: most poses never need their (unambiguous) alternative
+            value = value()
+            object.__setattr__(self, "alternative", value)
+        return value
+
     # -- derived views -----------------------------------------------------------------
     @property
     def T_camera_world(self) -> np.ndarray:
@@ -902,7 +910,11 @@ def estimate_pose(
         )
 
     alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
-    return build(cands[0], build(alt, None, alt_how) if alt is not None else None, method_used, JtJ)
+    if alt is None:
+        return build(cands[0], None, method_used, JtJ)
+    if ambiguous:  # its covariance enters this pose's
+        return build(cands[0], build(alt, None, alt_how), method_used, JtJ)
+    return build(cands[0], lambda: build(alt, None, alt_how), method_used, JtJ)
 
 
 def locate(image: np.ndarray, marker_map: MarkerMap, camera: Camera, *, refine: str | None = None,
