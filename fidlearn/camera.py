@@ -27,6 +27,11 @@ __all__ = ["Camera", "DIST_LENGTHS"]
 DIST_LENGTHS = (4, 5, 8, 12, 14)
 
 
+def _short_source(source: str) -> str:
+    path = Path(source)
+    return path.name if path.is_absolute() else source
+
+
 def _fmt_matrix(M: np.ndarray) -> str:
     return "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in M) + "]"
 
@@ -201,7 +206,8 @@ class Camera:
     def __repr__(self) -> str:
         w, h = self.image_size
         d = ", ".join(f"{v:.4g}" for v in self.dist)
-        src = f", source={self.source!r}" if self.source else ""
+        # a file's name, not its absolute path: reprs are printed in notebooks and logs
+        src = f", source={_short_source(self.source)!r}" if self.source else ""
         return (
             f"Camera({w}x{h}, fx={self.fx:.2f}, fy={self.fy:.2f}, cx={self.cx:.2f}, cy={self.cy:.2f}, "
             f"dist=[{d}]{src})"

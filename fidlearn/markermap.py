@@ -64,7 +64,7 @@ def _units_name(units: Any, where: str) -> str:
 
 
 def _marker_size(size: Any, where: str) -> float:
-    if isinstance(size, bool) or not isinstance(size, (int, float)):
+    if isinstance(size, (bool, np.bool_)) or not isinstance(size, numbers.Real):
         raise MapError(f"{where}: marker_size_mm must be a number (the black square's side in mm), got {size!r}")
     try:
         size = float(size)
@@ -85,7 +85,7 @@ def _vector3(value: Any, where: str, field: str, meaning: str) -> tuple[float, f
         raise MapError(f"{where}: {field} has {len(value)} values, expected 3 {meaning}")
     out = []
     for v in value:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
             raise MapError(f"{where}: {field} contains {v!r}, which is not a number; expected 3 numbers {meaning}")
         if isinstance(v, int) and abs(v) > 1e300:  # a whole number with hundreds of digits overflows float()
             raise MapError(f"{where}: {field} contains a number too large for a float; check the units {meaning}")

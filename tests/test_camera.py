@@ -153,3 +153,8 @@ def test_filestorage_errors(tmp_path, text, message):
     p.write_text(text)
     with pytest.raises(CameraError, match=message):
         Camera.load(p)
+
+
+def test_repr_names_the_file_not_its_absolute_path(cam, tmp_path):
+    back = Camera.load(cam.save(tmp_path / "camera.json"))
+    assert "source='camera.json'" in repr(back) and str(tmp_path) not in repr(back)

@@ -142,3 +142,12 @@ def test_map_errors_name_the_file_the_field_and_the_fix(tmp_path, text, kwargs, 
 def test_missing_map_file(tmp_path):
     with pytest.raises(MapError, match="no such file"):
         MarkerMap.load(tmp_path / "nope.json", units="ft", marker_size_mm=80)
+
+
+def test_numpy_numbers_are_numbers():
+    m = MarkerMap.from_dict(
+        {"4": {"translation": list(np.array([0.0, 1.0, 2.0])), "rotation": [np.int64(0), 0, np.float32(90)]}},
+        units="m", marker_size_mm=np.int64(40),
+    )
+    assert m.marker_size_mm == 40.0
+    assert np.allclose(m.corners()[4][0], [0, 1000, 2000])
