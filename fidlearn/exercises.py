@@ -1623,7 +1623,16 @@ def _lesson_02(learner: str) -> list[Question]:
     views3 = _calibration_views(rng, cam3, obj3, 9, 0.15)
     small = cam3.scaled((640, 360))
     odd = int(rng.integers(1, 9))
-    views3[odd] = np.round(_calibration_views(rng, small, obj3, 1, 0.1)[0], 3)
+    objs3 = [obj3.astype(np.float32)] * len(views3)
+    for _ in range(30):
+        # a board seen squarely at half resolution looks like one twice as far away: draw the odd
+        # view again until the per-view errors single it out clearly (3x the next worst view)
+        views3[odd] = np.round(_calibration_views(rng, small, obj3, 1, 0.1)[0], 3)
+        _, K3, d3, rv3, tv3 = cv2.calibrateCamera(objs3, [v.astype(np.float32) for v in views3], size3, None, None)
+        per_view = [float(np.sqrt(np.mean(np.sum((cv2.projectPoints(objs3[0], r, t, K3, d3)[0].reshape(-1, 2) - v) ** 2, axis=1))))
+                    for v, r, t in zip(views3, rv3, tv3)]
+        if int(np.argmax(per_view)) == odd and per_view[odd] >= 3 * sorted(per_view)[-2]:
+            break
     qs.append(Question(
         "q3", "Find the picture that does not belong",
         """
@@ -1657,8 +1666,8 @@ def _lesson_02(learner: str) -> list[Question]:
     # q4: K at another resolution --------------------------------------------------------------
     rng = _rng("02", learner, "q4")
     big = _SIZES[int(rng.integers(2, 4))]
-    factor = float(rng.choice([0.5, 2 / 3, 0.25]))
-    new = (int(round(big[0] * factor)), int(round(big[1] * factor)))
+    new = [(w, h) for w, h in ((big[0] // 2, big[1] // 2), (big[0] // 4, big[1] // 4), (1280, 720), (640, 360), (big[0] * 2, big[1] * 2)) if (w, h) != big]
+    new = new[int(rng.integers(len(new)))]
     cam4 = Camera.from_fov(float(np.round(rng.uniform(55, 80))), big)
     K4 = cam4.K.copy()
     K4[0, 2] += float(np.round(rng.uniform(-20, 20), 1))
@@ -1680,7 +1689,7 @@ def _lesson_02(learner: str) -> list[Question]:
                               and np.abs(a[2] - [0, 0, 1]).max() < 1e-9) else _cmp_array(0.01, " px")(a, b),
         wrong=[
             (lambda a: abs(a[0, 0] - K4[0, 0]) < 0.01, "the focal length is in pixels, so it scales with the image: fx' = fx * new_width / old_width"),
-            (lambda a: abs(a[0, 0] - K4[0, 0] / s) < 0.01, "the scale is upside down: going to a smaller image makes fx smaller, s = new_width / old_width"),
+            (lambda a: abs(a[0, 0] - K4[0, 0] / s) < 0.01, "the scale is upside down: s = new_width / old_width (a smaller image has a smaller fx, in pixels)"),
             (lambda a: abs(a[0, 0] - K4new[0, 0]) < 0.01 and abs(a[0, 2] - K4[0, 2]) < 0.01, "the principal point moves too: cx and cy scale like fx (in pixels)"),
             (lambda a: _close(a, K4new.T, 0.51), "your K is transposed: cx and cy belong in the last column"),
         ],
@@ -1688,13 +1697,14 @@ def _lesson_02(learner: str) -> list[Question]:
                 "K is right to within half a pixel; with pixel centres at integer coordinates c' = (c + 0.5) * s - 0.5 is exact")],
         hint="Every entry measured in pixels scales by s = new_width / old_width: fx, fy, cx, cy (cx, cy with the half-pixel shift).",
         solution="""
-        s = q4.inputs.new_size[0] / q4.inputs.calibrated_size[0]
+        sx = q4.inputs.new_size[0] / q4.inputs.calibrated_size[0]
+        sy = q4.inputs.new_size[1] / q4.inputs.calibrated_size[1]
         K = np.array(q4.inputs.K, dtype=float)
         K_new = K.copy()
-        K_new[0, 0] = K[0, 0] * s
-        K_new[1, 1] = K[1, 1] * s
-        K_new[0, 2] = (K[0, 2] + 0.5) * s - 0.5
-        K_new[1, 2] = (K[1, 2] + 0.5) * s - 0.5
+        K_new[0, 0] = K[0, 0] * sx
+        K_new[1, 1] = K[1, 1] * sy
+        K_new[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
+        K_new[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
         q4.answer = K_new
         """,
         level="easy",
