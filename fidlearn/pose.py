@@ -352,7 +352,7 @@ def refine_pose_lm(points_world: np.ndarray, points_px: np.ndarray, camera: Came
     R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
     R_wc = R_cw.T
     C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
-    R_wc, C, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations)
+    R_wc, C, _, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations)
     R_cw = R_wc.T
     r, _ = cv2.Rodrigues(R_cw)
     return r.reshape(3), -R_cw @ C
@@ -380,7 +380,10 @@ def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
 
 
 def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
-    """Levenberg-Marquardt (Marquardt's diagonal scaling) on the camera pose; returns R_wc, C, sse, residuals."""
+    """Levenberg-Marquardt (Marquardt's diagonal scaling) on the camera pose.
+
+    Returns R_wc, C, the sum of squared residuals, the residuals (2N,) and J^T J (6, 6) there.
+    """
     r, J = _residuals(obj, img, K, dist, R_wc, C, True)
     sse = float(r @ r)
     lam = 1e-4
@@ -412,7 +415,7 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
             lam *= 10
             if lam > 1e8:
                 break
-    return R_wc, C, sse, r
+    return R_wc, C, sse, r, JtJ
 
 
 def _plane_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
@@ -446,6 +449,7 @@ class _Candidate:
     sse: float  # sum of squared residuals, px^2
     r: np.ndarray  # (2N,) residuals, observed minus projected, px
     refined: bool = False  # whether Levenberg-Marquardt ran from it
+    JtJ: np.ndarray | None = None  # (6, 6) J^T J at this pose, when LM left it behind
 
     @property
     def T_world_camera(self) -> np.ndarray:
@@ -464,8 +468,8 @@ def _from_R_t(obs: _Obs, camera: Camera, R_cw: np.ndarray, t: np.ndarray) -> _Ca
 
 
 def _lm_candidate(obs: _Obs, camera: Camera, start: _Candidate) -> _Candidate:
-    R_wc, C, sse, r = _lm(obs.obj, obs.img, camera.K, camera.dist, start.R_wc, start.C)
-    return _Candidate(R_wc, C, sse, r, True)
+    R_wc, C, sse, r, JtJ = _lm(obs.obj, obs.img, camera.K, camera.dist, start.R_wc, start.C)
+    return _Candidate(R_wc, C, sse, r, True, JtJ)
 
 
 def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
@@ -746,8 +750,9 @@ def _check_inputs(detections, marker_map, camera) -> list[Detection]:
                 f"detections[{k}] is a {type(d).__name__}, expected a Detection(id, corners (4, 2)); "
                 "build one with fidlearn.detection.Detection(marker_id, corners_px)"
             )
-        if not np.all(np.isfinite(d.corners)):
-            raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners.tolist()}")
+    if dets and not np.isfinite(np.stack([d.corners for d in dets])).all():
+        k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners).all())
+        raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners.tolist()}")
     return dets
 
 
@@ -861,8 +866,10 @@ def estimate_pose(
 
     dof = 2 * len(obs.obj) - 6
     sigma = _sigma(cands[0].sse, dof, corner_sigma_px)
-    J = pose_jacobian(obs.obj, cands[0].T_world_camera, camera)
-    JtJ = J.T @ J
+    JtJ = cands[0].JtJ
+    if JtJ is None:
+        J = pose_jacobian(obs.obj, cands[0].T_world_camera, camera)
+        JtJ = J.T @ J
     # The other planar solution (the "flip"). Refined, when LM keeps it apart as a second
     # minimum; else as IPPE gave it, when LM ran from it into the first one along a flat valley.
     # It counts as another answer when it lies outside the 3-sigma ellipsoid of the best pose
