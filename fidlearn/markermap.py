@@ -17,6 +17,7 @@ detection reports.
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import re
 from dataclasses import dataclass
