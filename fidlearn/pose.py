@@ -12,7 +12,9 @@ in the world is the closed-form inverse ``T_world_camera``.
 * several markers on one plane (the corners actually seen are coplanar within
   1 mm, or within 1 % of their extent, after which IPPE runs on the points
   flattened onto their best plane): ``IPPE`` over all corners;
-* markers on several walls (IPPE fails outright on points off a plane): ``SQPNP``.
+* markers on several walls (IPPE fails outright on points off a plane): ``SQPNP``
+  (when the corners are nearly on one plane, off by less than 10 % of their
+  extent, IPPE's flattened solutions compete with it).
 
 A planar target has two poses that explain the image almost equally well when
 it is seen nearly face-on or from afar (the "flip" ambiguity). IPPE gives both;
@@ -100,6 +102,8 @@ OUTLIER_SIGMA_FLOOR_PX = 0.3
 
 _PLANAR_TOL_MM = 1.0
 _PLANAR_TOL_REL = 0.01
+#: Off-plane thickness below this fraction of the extent: SQPnP's answer competes with IPPE's.
+_NEAR_PLANAR_REL = 0.1
 #: Levenberg-Marquardt stops when a step would lower the sum of squared residuals by less than
 #: this (px^2): a change of the pose far below its own uncertainty for any realistic corner noise.
 _LM_TOL_PX2 = 1e-8
@@ -522,6 +526,9 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
             method_used, raw = "ippe", _solve_ippe(obs, camera, (thickness, extent, c, vt))
         else:
             method_used, raw = "sqpnp", _generic("SQPNP", obs.obj, obs.img, camera)
+            if thickness < _NEAR_PLANAR_REL * extent:
+                # a wall measured a little unevenly: IPPE's two flattened solutions compete too
+                raw = raw + _solve_ippe(obs, camera, (thickness, extent, c, vt))
         if not raw:  # degenerate data: fall back on the general solvers
             for name in ("SQPNP", "ITERATIVE"):
                 raw = _generic(name, obs.obj, obs.img, camera)
