@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import tempfile
 from pathlib import Path
 from typing import Any, Callable
@@ -77,6 +78,22 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         ) from None
 
 
+def file_mode_for(path: str | os.PathLike) -> int:
+    """The permission bits a file written at ``path`` should get.
+
+    An existing file keeps its own; a new one gets what ``open()`` would give it
+    (``0o666`` less the umask). Temporary files from :func:`tempfile.mkstemp` are
+    private (``0o600``): renamed into place unchanged, they would leave outputs
+    that nobody else (a web server, a teammate, a robot's service user) can read.
+    """
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
     """Write a file through a temporary file in the same folder, then rename it.
 
@@ -95,6 +112,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
     tmp = Path(tmp_name)
     try:
         write(tmp)
+        os.chmod(tmp, file_mode_for(path))
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)

@@ -31,7 +31,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from . import _cv
-from ._io import atomic_write
+from ._io import atomic_write, file_mode_for
 from .errors import DictionaryError, FidlearnError
 
 __all__ = [
@@ -584,6 +584,7 @@ def _write_pngs(figures: Sequence, names: list[Path], dpi: float) -> list[Path]:
             FigureCanvasAgg(fig)
             fig.savefig(tmp_name, format="png", dpi=dpi, metadata={"Software": "fidlearn"})
         for tmp, name in zip(tmps, names):
+            os.chmod(tmp, file_mode_for(name))
             os.replace(tmp, name)
     except BaseException:
         for tmp in tmps:

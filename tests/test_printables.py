@@ -4,6 +4,9 @@ pdfium (an independent PDF renderer) and measured with plain OpenCV."""
 from __future__ import annotations
 
 
+import os
+import stat
+
 import cv2
 import numpy as np
 import pytest
@@ -396,3 +399,15 @@ def test_charuco_rejects_marker_bigger_than_square():
 def test_unknown_output_type(tmp_path):
     with pytest.raises(PrintError, match="name the file .pdf or .png"):
         P.save_pages([], tmp_path / "m.svg")
+
+
+@pytest.mark.skipif(os.name != "posix", reason="POSIX permission bits")
+def test_png_pages_get_umask_permissions(tmp_path):
+    # The pages are rendered to mkstemp files (mode 0o600) and renamed: they must end up
+    # readable as any file the user writes (0o644 under umask 022), not private.
+    old = os.umask(0o022)
+    try:
+        _, files = P.markers_png(tmp_path / "m.png", [0, 1, 2], 80, dpi=40)
+    finally:
+        os.umask(old)
+    assert [stat.S_IMODE(os.stat(f).st_mode) for f in files] == [0o644, 0o644]
