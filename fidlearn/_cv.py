@@ -25,6 +25,7 @@ version itself.  Known differences:
 
 from __future__ import annotations
 
+import contextlib
 import re
 
 import cv2
@@ -46,6 +47,25 @@ if _ARUCO is not None:
             if _name.upper() == _name and _name.startswith(("APRILTAG_", "ARUCO_MIP_")):
                 continue
             DICTIONARIES[_name] = getattr(_ARUCO, _attr)
+
+
+@contextlib.contextmanager
+def quiet_log():
+    """Hold back OpenCV's own log lines below ERROR (``[ WARN:0@0.2] global grfmt_png.cpp ...
+    PNG input buffer is incomplete``) inside the block; the caller reports the failure itself.
+
+    ``cv2.utils.logging`` is there on 4.x and 5.x; without it the block runs unchanged.
+    """
+    log = getattr(getattr(cv2, "utils", None), "logging", None)
+    if log is None or not hasattr(log, "getLogLevel"):
+        yield
+        return
+    old = log.getLogLevel()
+    log.setLogLevel(min(old, log.LOG_LEVEL_ERROR))
+    try:
+        yield
+    finally:
+        log.setLogLevel(old)
 
 
 def require_aruco() -> None:

@@ -91,7 +91,8 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
     data = np.fromfile(str(path), dtype=np.uint8)
     if data.size == 0:
         raise ImageError(f"{path}: the file is empty; expected a PNG or JPEG image")
-    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    with _cv.quiet_log():  # a truncated file: one clear ImageError, not OpenCV's WARN line too
+        image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if image is None:
         raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, BMP, TIFF...); is it truncated or another file type?")
     return image

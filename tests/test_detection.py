@@ -368,3 +368,17 @@ def test_draw_detections_labels_make_the_winding_visible(photo):
             q = np.round(p + 10.0 * away / np.linalg.norm(away)).astype(int)
             win = diff[max(q[1] - 6, 0): q[1] + 7, max(q[0] - 8, 0): q[0] + 9]
             assert win.any()
+
+
+def test_truncated_image_is_one_clear_error_without_opencv_log_lines(tmp_path, capfd):
+    # OpenCV printed "[ WARN:0@0.2] global grfmt_png.cpp:793 ... PNG input buffer is incomplete"
+    # on file descriptor 2 before fidlearn's own error: two messages for one mistake.
+    good = tmp_path / "good.png"
+    cv2.imwrite(str(good), np.full((64, 64), 128, np.uint8))
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(good.read_bytes()[:60])
+    capfd.readouterr()
+    with pytest.raises(ImageError, match="cut.png: not an image OpenCV can read"):
+        load_image(cut)
+    assert capfd.readouterr().err == ""
+    assert cv2.utils.logging.getLogLevel() >= cv2.utils.logging.LOG_LEVEL_WARNING  # restored
