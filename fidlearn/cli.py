@@ -206,6 +206,23 @@ def _load_map(args):
                           dictionary=getattr(args, "dictionary", None))
 
 
+def _add_image_size_option(p) -> None:
+    p.add_argument("--image-size", metavar="WxH",
+                   help="resolution the camera was calibrated at, for an OpenCV YAML file that does not say "
+                        "(no image_width/image_height)")
+
+
+def _load_camera(args):
+    from .camera import Camera
+
+    size = None
+    if args.image_size:
+        from .printables import parse_pattern
+
+        size = parse_pattern(args.image_size, "--image-size")
+    return Camera.load(args.camera, image_size=size)
+
+
 def _add_map_options(p, required: bool = True) -> None:
     p.add_argument("--map", type=Path, required=required, metavar="MAP.json", help="world map (marker placements)")
     p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
@@ -320,6 +337,7 @@ def _add_render(sub) -> None:
     )
     _add_map_options(p)
     p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)")
+    _add_image_size_option(p)
     pose = p.add_mutually_exclusive_group(required=True)
     pose.add_argument("--pose", metavar="X,Y,Z,R,P,Y", help="camera position (mm) and roll,pitch,yaw (deg), see below")
     pose.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (mm); needs --from")
@@ -360,7 +378,7 @@ def _run_render(args) -> int:
     if args.noise < 0 or args.blur < 0:
         raise UsageError("--noise and --blur must be 0 or more")
     marker_map = _load_map(args)
-    camera = Camera.load(args.camera)
+    camera = _load_camera(args)
     if args.size:
         from .printables import parse_pattern
 
@@ -543,7 +561,11 @@ class _Staging:
     def save(self, name: str, image) -> None:
         if self.tmp is None:
             return
-        stem = Path(name.replace("#", "_")).stem
+        video, sep, frame = name.rpartition("#")
+        if sep and frame.isdigit():  # "drive.mp4#7" -> drive_00007.png: the frame's own number, sortable
+            stem = f"{Path(video).stem}_{int(frame):05d}"
+        else:
+            stem = Path(name).stem
         fname, k = f"{stem}.png", 1
         while fname in self.names:
             k += 1
@@ -793,6 +815,7 @@ def _add_locate(sub) -> None:
     )
     p.add_argument("inputs", nargs="*", type=Path, metavar="IMAGE_OR_FOLDER_OR_VIDEO", help="images, folders of images, videos")
     p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)")
+    _add_image_size_option(p)
     _add_map_options(p)
     p.add_argument("--camera-index", type=int, metavar="N", help="also read a live camera (0 is the first); Ctrl-C stops")
     p.add_argument("--json", type=Path, metavar="POSES.jsonl", help="write one JSON line per frame with T_world_camera")
@@ -888,7 +911,7 @@ def _run_locate(args) -> int:
     items = _expand_inputs(args.inputs, videos=True)
     json_path = _check_output(args.json, (".jsonl", ".json"), "--json") if args.json else None
     staging = _Staging(args.annotate)
-    camera = Camera.load(args.camera)
+    camera = _load_camera(args)
     marker_map = _load_map(args)
     refine = {"refine": args.refine} if args.refine else {}
     width = max([len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5])
@@ -1006,7 +1029,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 problem found, 2 user error)."""
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))
         if not getattr(args, "run", None):
             parser.print_help()
             return 2
@@ -1024,6 +1047,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         print(f"error: {where}{_one_line(exc.strerror or str(exc))}; check the path and its permissions", file=sys.stderr)
         return 2
+
+
+#: Options whose value is a comma-separated list of numbers that may start with a minus sign.
+_NUMBER_LIST_OPTIONS = ("--pose", "--look-at", "--from")
+_NUMBER_LIST = re.compile(r"-\d*\.?\d+(e[-+]?\d+)?(,\s*-?\d*\.?\d+(e[-+]?\d+)?)*", re.IGNORECASE)
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--from -1000,190,230`` -> ``--from=-1000,190,230``.
+
+    argparse takes a value starting with ``-`` for an option unless it is a single
+    negative number, so a camera behind the wall (x < 0) failed with "expected one argument".
+    """
+    out: list[str] = []
+    k = 0
+    while k < len(argv):
+        arg = argv[k]
+        if arg in _NUMBER_LIST_OPTIONS and k + 1 < len(argv) and _NUMBER_LIST.fullmatch(argv[k + 1]):
+            out.append(f"{arg}={argv[k + 1]}")
+            k += 2
+            continue
+        out.append(arg)
+        k += 1
+    return out
 
 
 def _one_line(text: str) -> str:

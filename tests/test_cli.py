@@ -459,3 +459,63 @@ def test_bad_input_subprocess_no_traceback(tmp_path):
     code, out, err = run_subprocess("board", "--pattern", "9by6", "--square-mm", 25, "-o", tmp_path / "b.pdf")
     assert_user_error(code, err, "9by6")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_locate_video_annotated_frames_are_named_by_frame_number(capsys, tmp_path):
+    # "drive.avi#0" was saved as drive.png, "#1" as drive-2.png, "#9" as drive-10.png: every file
+    # name one off the frame it showed. Each file now carries its own zero-padded frame number.
+    record = json.loads(data_path("trajectory", "poses.json").read_text())
+    frames_used = record["frames"][:3]
+    first = cv2.imread(str(data_path("trajectory", frames_used[0]["image"])))
+    video = tmp_path / "drive.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (first.shape[1], first.shape[0]))
+    # frame 1 is blank: its annotated picture must say "no known marker", and be drive_00001.png
+    blank = np.full_like(first, 128)
+    for img in (first, blank, cv2.imread(str(data_path("trajectory", frames_used[2]["image"])))):
+        writer.write(img)
+    writer.release()
+    code, out, err = run(capsys, "locate", video, "--camera", data_path("trajectory", "camera.json"),
+                         "--map", data_path(record["map"]), "--annotate", tmp_path / "ann")
+    assert code == 0, err
+    assert sorted(p.name for p in (tmp_path / "ann").iterdir()) == ["drive_00000.png", "drive_00001.png", "drive_00002.png"]
+    assert "drive.avi#1" in out and "no known marker" in out
+    marked = cv2.imread(str(tmp_path / "ann" / "drive_00001.png"))
+    red = (marked[:, :, 2] > 200) & (marked[:, :, 1] < 80) & (marked[:, :, 0] < 80)  # the red "no known marker"
+    assert red.sum() > 50
+    located = cv2.imread(str(tmp_path / "ann" / "drive_00000.png"))
+    assert not ((located[:, :, 2] > 200) & (located[:, :, 1] < 80) & (located[:, :, 0] < 80))[:40, :300].sum() > 50
+
+
+def test_locate_and_render_take_image_size_for_a_yaml_camera_without_one(capsys, tmp_path):
+    # OpenCV's tutorial camera file has no image_width/image_height; the error said to use
+    # "--image-size WxH", which the command line did not have.
+    yml = data_path("real", "opencv_aruco_photo", "tutorial_camera_params.yml")
+    photo = data_path("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg")
+    desk = tmp_path / "desk.json"  # marker 23 alone, 50 mm, as in OpenCV's tutorial
+    desk.write_text(json.dumps({"units": "mm", "marker_size_mm": 50, "dictionary": "6X6_250",
+                                "markers": {"23": {"translation": [0, 0, 0], "rotation": [0, 0, 0]}}}))
+    code, out, err = run(capsys, "locate", photo, "--camera", yml, "--map", desk)
+    assert_user_error(code, err, "no image_width/image_height", "--image-size WxH")
+    code, out, err = run(capsys, "locate", photo, "--camera", yml, "--image-size", "640x480", "--map", desk)
+    assert code == 0, err
+    row = out.splitlines()[1].split()
+    assert row[0] == "singlemarkersoriginal.jpg" and row[7] == "23"
+    # data/README.md: each marker is 0.7 to 0.9 m from the camera
+    assert 700 <= np.linalg.norm([float(v) for v in row[1:4]]) <= 900
+    code, out, err = run(capsys, "render", "--map", desk, "--camera", yml, "--image-size", "640x480",
+                         "--from", "600,0,0", "--look-at", "0,0,0", "-o", tmp_path / "r.png")
+    assert code == 0, err
+    assert "640x480" in out
+    code, out, err = run(capsys, "locate", photo, "--camera", yml, "--image-size", "640", "--map", desk)
+    assert_user_error(code, err, "--image-size")
+
+
+@pytest.mark.parametrize("where", [["--from", "-1000,190,230", "--look-at", "0,-190,-230"],
+                                   ["--pose", "-1000,-190,-230,-90,0,-90"]])
+def test_render_takes_negative_coordinates(capsys, ideal_camera, tmp_path, where):
+    # argparse read "--from -1000,190,230" as two options and said "expected one argument".
+    code, out, err = run(capsys, "render", "--map", data_path("world_map.json"), "--camera", ideal_camera,
+                         *where, "-o", tmp_path / "r.png", "--truth", tmp_path / "t.json")
+    assert code == 0, err
+    truth = json.loads((tmp_path / "t.json").read_text())
+    assert truth["position_mm"] == [-1000, 190 if where[0] == "--from" else -190, 230 if where[0] == "--from" else -230]
