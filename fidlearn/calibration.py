@@ -361,9 +361,10 @@ class _Checkerboard:
             return ""
         for gray in grays:
             if find_checkerboard_corners(gray, (cols - 1, rows - 1), "classic", refine=False) is not None:
-                return (f"the board is found with pattern_size=({cols - 1}, {rows - 1}): pattern_size counts "
-                        f"inner corners, not squares: a board of {cols}x{rows} squares has {cols - 1}x{rows - 1} "
-                        "inner corners (a board of 10x7 squares has 9x6 inner corners)")
+                example = "" if (cols, rows) == (10, 7) else " (a board of 10x7 squares has 9x6 inner corners)"
+                return (f"the board is found with pattern_size=({cols - 1}, {rows - 1}) (command line: --pattern "
+                        f"{cols - 1}x{rows - 1}): pattern_size counts inner corners, not squares: a board of "
+                        f"{cols}x{rows} squares has {cols - 1}x{rows - 1} inner corners{example}")
         return ""
 
 

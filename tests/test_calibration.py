@@ -426,3 +426,13 @@ def test_charuco_partly_hidden_board_still_counts(charuco_files, charuco_cal):
     cal = calibrate_charuco(list(charuco_files) + [occluded], reject_outliers=False)
     view = cal.views[-1]
     assert view.status == "used" and 6 <= view.n_points < 24
+
+
+def test_squares_hint_names_the_option_once(right_grays):
+    # The hint said "a board of 10x7 squares has 9x6 inner corners (a board of 10x7 squares has
+    # 9x6 inner corners)" on exactly the commonest mistake, and named only the Python argument.
+    with pytest.raises(CalibrationError) as info:
+        calibrate_checkerboard(right_grays[:3], (10, 7), SQUARE_MM)
+    text = str(info.value)
+    assert text.count("a board of 10x7 squares has 9x6 inner corners") == 1
+    assert "--pattern 9x6" in text
