@@ -108,7 +108,7 @@ def run_one(name: str, path: Path, quick: bool, timeout: float) -> dict:
     cmd = [sys.executable, str(path.relative_to(ROOT))]
     if quick and "--quick" in path.read_text():
         cmd.append("--quick")
-    env = dict(os.environ, PYTHONWARNINGS=os.environ.get("PYTHONWARNINGS", "default"))
+    env = dict(os.environ, PYTHONUNBUFFERED="1")  # what was printed before a timeout is kept
     t0 = time.perf_counter()
     started = dt.datetime.now(dt.timezone.utc)
     try:

@@ -227,6 +227,10 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
 
     # recall and accuracy (one more pass, untimed)
     tracker = MarkerTracker(m, cam)
+    close = {"minMarkerDistanceRate": 0.05}
+    tracker_close = MarkerTracker(m, cam, detector_params=close)
+    plain_close = plain_detector(**close)
+    found_close = {"plain": 0, "tracker": 0}
     a3 = {k: plain_detector(**v) for k, v in a3_settings.items()}
     found = {"plain detectMarkers": 0, "detect_markers (fidlearn default)": 0, "MarkerTracker": 0} | {k: 0 for k in a3}
     of_plain = 0  # markers plain detectMarkers finds that the tracker finds too
@@ -243,6 +247,9 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
         found["detect_markers (fidlearn default)"] += len(set(truth) & set(full_dets))
         found["MarkerTracker"] += len(set(truth) & set(ours))
         of_plain += len(set(truth) & ids_plain & set(ours))
+        found_close["plain"] += len(set(truth) & set(_cv.detect(plain_close, image)[1].tolist()))
+        tracker_close.locate(image)
+        found_close["tracker"] += len(set(truth) & {d.id for d in tracker_close.last_detections})
         for k, det in a3.items():
             t = time.perf_counter()
             plain.detectMarkers(image)
@@ -265,13 +272,16 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     print(f"| **MarkerTracker.locate** (detection + pose) | {100 * found['MarkerTracker'] / n_true:.2f} % | "
           f"**{ratio_wall:.2f} x** wall clock (median per frame; {ratio_wall_total:.2f} x in total), "
           f"{ratio_cpu:.2f} x CPU time ({ratio_cpu_total:.2f} x in total) |")
+    print(f"| plain detectMarkers, `minMarkerDistanceRate` 0.05 | {100 * found_close['plain'] / n_true:.2f} % | - |")
+    print(f"| MarkerTracker, `detector_params={{'minMarkerDistanceRate': 0.05}}` | {100 * found_close['tracker'] / n_true:.2f} % | - |")
     for k in a3:
         r = float(np.median(np.array(a3_plain[k]) / np.array(a3_time[k])))
         print(f"| {k} (detection only) | {100 * found[k] / n_true:.2f} % | {r:.2f} x wall clock |")
     print(f"\nOf the markers plain detectMarkers finds, the tracker finds {100 * of_plain / max(found['plain detectMarkers'], 1):.2f} %. "
-          "The markers no detector finds are whole and sharp, some well inside the frame: OpenCV's candidate filter "
-          "(`minMarkerDistanceRate` 0.125, `minGroupDistance` 0.21) drops the marker's outline in favour of a white "
-          "patch of its own bits close to it; lowering either parameter finds some of them.")
+          "The markers that plain detectMarkers misses are whole and sharp, some well inside the frame: OpenCV's "
+          "filter of candidates closer than `minMarkerDistanceRate` (0.125 of the perimeter) keeps another quad "
+          "instead of the marker's outline (with a white margin of one cell the paper's edge is 0.05 of the perimeter "
+          "away; opencv/opencv_contrib#2913). With `minMarkerDistanceRate` 0.05 OpenCV 4.14 and 5.0 find them.")
     print(f"\nThe tracker ran a full-frame detection on {', '.join(map(str, full))} of {n_frames} frames in the timed passes "
           f"(frame 0, every 30th, and where a marker went missing from its window).")
     print(f"Tracker corners against the truth: RMS {rms:.3f} px over {len(corner_err)} markers. Camera position error: "
