@@ -850,3 +850,59 @@ def test_video_that_ends_early_gives_the_frames_before_the_cut(tmp_path, monkeyp
     for line in lines:
         assert line["located"]
         np.testing.assert_allclose(line["position_mm"], truth[:3, 3], atol=20)
+
+
+# -- printables and ChArUco calibration (Python API) ------------------------------------------
+from fidlearn.calibration import calibrate_charuco  # noqa: E402
+from fidlearn.printables import PrintError, board_pdf, markers_pdf  # noqa: E402
+
+PRINTABLES = [
+    ("no ids", lambda out: markers_pdf(out / "m.pdf", [], 50), PrintError, "no marker ids to print"),
+    ("negative id", lambda out: markers_pdf(out / "m.pdf", [-1], 50), DictionaryError, "marker id -1 does not exist in ARUCO_ORIGINAL"),
+    ("id beyond the dictionary", lambda out: markers_pdf(out / "m.pdf", [50], 50, dictionary="4X4_50"), DictionaryError, "which has ids 0 to 49"),
+    ("zero size", lambda out: markers_pdf(out / "m.pdf", [1], 0), PrintError, "must be a positive length in mm, got 0"),
+    ("NaN size", lambda out: markers_pdf(out / "m.pdf", [1], float("nan")), PrintError, "got nan"),
+    ("paper size A3", lambda out: markers_pdf(out / "m.pdf", [1], 50, paper="a3"), PrintError, "unknown paper 'a3'; use a4 or letter"),
+    ("unknown dictionary", lambda out: markers_pdf(out / "m.pdf", [1], 50, dictionary="nope"), DictionaryError, "unknown ArUco dictionary 'nope'"),
+    ("a folder for the file", lambda out: markers_pdf(out, [1], 50), PrintError, "expected a .pdf file name"),
+    ("a .png name for the pdf", lambda out: markers_pdf(out / "m.png", [1], 50), PrintError, "expected a .pdf file name"),
+    ("missing folder", lambda out: markers_pdf(out / "no" / "m.pdf", [1], 50), FidlearnError, "does not exist; create it first"),
+    ("board of 1x1 corners", lambda out: board_pdf(out / "b.pdf", (1, 1), 25), PrintError, "at least 3x3 squares (2x2 inner corners)"),
+    ("board of negative size", lambda out: board_pdf(out / "b.pdf", (-9, 6), 25), PrintError, "at least 3x3 squares"),
+    ("board with zero squares", lambda out: board_pdf(out / "b.pdf", (9, 6), 0), PrintError, "must be a positive length in mm"),
+    ("board larger than the paper", lambda out: board_pdf(out / "b.pdf", (9, 6), 1000), PrintError, "the largest square that fits is"),
+    ("ChArUco marker larger than its square", lambda out: board_pdf(out / "b.pdf", (4, 6), 20, charuco=True, marker_mm=30),
+     PrintError, "must be smaller than --square-mm 20"),
+    ("ChArUco board larger than its dictionary", lambda out: board_pdf(out / "b.pdf", (14, 19), 10, charuco=True, marker_mm=7, dictionary="4X4_50"),
+     PrintError, "needs 150 markers but 4X4_50 has only 50"),
+]
+
+
+@pytest.mark.parametrize("make, error, fragment", [c[1:] for c in PRINTABLES], ids=[c[0] for c in PRINTABLES])
+def test_bad_printable(tmp_path, make, error, fragment):
+    with pytest.raises(error) as info:
+        make(tmp_path)
+    assert fragment in str(info.value)
+    assert list(tmp_path.iterdir()) == []  # nothing written, not even a temporary file
+
+
+CHARUCO = [
+    ("no images", [], {}, "no images given"),
+    ("1x1 squares", [BLANK] * 3, {"squares": (1, 1)}, "must count at least 2 chess squares each way"),
+    ("marker larger than its square", [BLANK] * 3, {"square_size_mm": 20, "marker_size_mm": 30}, "must be smaller than square_size_mm (20)"),
+    ("unknown legacy value", [BLANK] * 3, {"legacy": "maybe"}, "legacy must be True, False or 'auto'"),
+    ("too few corners asked for", [BLANK] * 3, {"min_corners": 0}, "min_corners must be at least 4"),
+    ("no board in the pictures", [BLANK] * 3, {}, "no 6X6_250 marker in the picture; check the dictionary"),
+]
+
+
+@pytest.mark.parametrize("images, kwargs, fragment", [c[1:] for c in CHARUCO], ids=[c[0] for c in CHARUCO])
+def test_bad_charuco_calibration_input(images, kwargs, fragment):
+    with pytest.raises(CalibrationError) as info:
+        calibrate_charuco(images, **kwargs)
+    assert fragment in str(info.value)
+
+
+def test_charuco_calibration_with_an_unknown_dictionary():
+    with pytest.raises(DictionaryError, match="unknown ArUco dictionary 'nope'"):
+        calibrate_charuco([BLANK] * 3, dictionary="nope")
