@@ -172,8 +172,15 @@ def transform_from_rvec_tvec(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
 def rvec_tvec_from_transform(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rodrigues vector (3,) and translation (3,) of a rigid transform."""
     T = check_transform(T)
-    rvec, _ = cv2.Rodrigues(np.ascontiguousarray(T[:3, :3]))
-    return rvec.reshape(3), T[:3, 3].copy()
+    R = np.ascontiguousarray(T[:3, :3])
+    rvec, _ = cv2.Rodrigues(R)
+    rvec = rvec.reshape(3)
+    if not rvec.any():
+        # cv2.Rodrigues returns exactly zero for every rotation below about 1e-5 rad (4.x and
+        # 5.x), which moved projected points by up to 0.02 px on an HD camera. There
+        # sin(angle) = angle to 1e-10, so the skew part of R is the rotation vector.
+        rvec = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return rvec, T[:3, 3].copy()
 
 
 def check_rotation(R: np.ndarray, name: str = "R", tol: float = 1e-6) -> np.ndarray:

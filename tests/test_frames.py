@@ -1,5 +1,7 @@
 """Transforms: known rotations, closed-form inverse, rvec/tvec and roll-pitch-yaw round trips."""
 
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -93,3 +95,23 @@ def test_rotation_angle():
     assert frames.rotation_angle_deg(frames.rot_z(np.radians(30))) == pytest.approx(30)
     R = frames.rotation_from_rpy_deg(0, 0, 10)
     assert frames.rotation_angle_deg(R, frames.rotation_from_rpy_deg(0, 0, 25)) == pytest.approx(15)
+
+
+@pytest.mark.parametrize("angle_rad", [3e-6, 9e-6, 2e-5])
+def test_rvec_of_a_tiny_rotation_is_not_zero(angle_rad):
+    # cv2.Rodrigues gives a zero vector below about 1e-5 rad: a camera turned 9e-6 rad
+    # projected 0.02 px off on an HD camera (Camera.project goes through the rvec).
+    axis = np.array([0.6, -0.8, 0.0])
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    R = np.eye(3) + math.sin(angle_rad) * K + (1 - math.cos(angle_rad)) * K @ K
+    rvec, tvec = frames.rvec_tvec_from_transform(frames.make_transform(R, [1, 2, 3]))
+    np.testing.assert_allclose(rvec, angle_rad * axis, rtol=0, atol=1e-12)  # rad
+    np.testing.assert_allclose(cv2.Rodrigues(rvec)[0], R, atol=1e-15)
+    assert tvec.tolist() == [1, 2, 3]
+    from fidlearn import Camera
+
+    cam = Camera.from_fov(60, (1920, 1080))
+    T = frames.make_transform(R, [0, 0, 0])
+    P = np.array([[900.0, 500.0, 1000.0]])
+    exact = cam.K @ (R.T @ P[0])  # the camera at the origin: p_camera = R^T p_world
+    np.testing.assert_allclose(cam.project(P, T)[0], exact[:2] / exact[2], atol=1e-9)
