@@ -4,15 +4,19 @@ In a video the camera moves little from one frame to the next, and the world
 map says where every marker is. :class:`MarkerTracker` predicts the camera's
 pose for the new frame from the last two poses (constant velocity), projects
 every marker of the map with it, and runs OpenCV's ``ArucoDetector`` only in
-small windows around those predictions (merged where they overlap), then
+small windows around those predictions (merged where they overlap much), then
 refines the corners exactly as :func:`fidlearn.detect_markers` does and
 estimates the pose with :func:`fidlearn.estimate_pose`. A full-frame detection
 runs instead on the first frame, after a frame without a pose, every
-``full_every`` frames, when the windows would cover most of the image, and
+``full_every`` frames, when the windows would cover half the image or more, and
 again on the same frame when a marker seen in the last frame and predicted
 well inside the image is not found in its window (a fast turn, a wrong
-prediction). Markers that are not in the map are not looked for between full
-detections.
+prediction). A wrong prediction therefore costs time, not markers.
+
+The detector knows only the map's markers (a dictionary made of the map's ids):
+OpenCV compares every candidate quad that does not decode with every marker of
+the dictionary, which with the 1024 markers of ``ARUCO_ORIGINAL`` is most of a
+plain ``detectMarkers``' time. Markers that are not in the map are never reported.
 
 Why windows rather than OpenCV's ArUco3 mode (``useAruco3Detection``): ArUco3
 thresholds a downscaled image, which is fast only when the smallest marker is
@@ -100,7 +104,7 @@ class MarkerTracker:
     last_pose : Pose or None
         The pose of the last frame (None when it had none).
     last_detections : list of Detection
-        The last frame's detections (map markers only between full detections).
+        The last frame's detections (the map's markers only).
     last_full : bool
         Whether the last frame ran a full-frame detection.
     """
@@ -253,7 +257,8 @@ class MarkerTracker:
             return None
 
     def _predict(self) -> dict | None:
-        """Predicted pixel corners of the map's markers that may be in view: ``{'T', 'corners', 'ids', 'motion'}``."""
+        """The map's markers that may be in view under the predicted pose: ``{'ids': (K,), 'corners': (K, 4, 2) px,
+        'motion': (K,) px}``, motion being how far the velocity moved each marker's corners; None if none is."""
         T_last = self.last_pose.T_world_camera
         if self._prev_T is not None:  # constant velocity: the last step once more
             T_pred = T_last @ frames.invert_transform(self._prev_T) @ T_last
