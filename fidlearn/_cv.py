@@ -26,7 +26,9 @@ version itself.  Known differences:
 from __future__ import annotations
 
 import contextlib
+import os
 import re
+import sys
 
 import cv2
 import numpy as np
@@ -51,21 +53,45 @@ if _ARUCO is not None:
 
 @contextlib.contextmanager
 def quiet_log():
-    """Hold back OpenCV's own log lines below ERROR (``[ WARN:0@0.2] global grfmt_png.cpp ...
-    PNG input buffer is incomplete``) inside the block; the caller reports the failure itself.
+    """Hold back OpenCV's own messages inside the block; the caller reports the failure itself.
 
-    ``cv2.utils.logging`` is there on 4.x and 5.x; without it the block runs unchanged.
+    OpenCV logs ``[ WARN:0@0.2] global grfmt_png.cpp ... PNG input buffer is incomplete`` and
+    ``[ERROR:0@0.1] ... IHDR chunk shall be first`` (held back by the log level, below FATAL),
+    and libpng prints ``libpng error: PNG input buffer is incomplete`` straight to file
+    descriptor 2 (held back by pointing it at the null device for the duration of the block).
+    ``cv2.utils.logging`` is there on 4.x and 5.x; without it only the redirection applies.
     """
     log = getattr(getattr(cv2, "utils", None), "logging", None)
-    if log is None or not hasattr(log, "getLogLevel"):
+    old = log.getLogLevel() if log is not None and hasattr(log, "getLogLevel") else None
+    if old is not None:
+        log.setLogLevel(min(old, log.LOG_LEVEL_FATAL))
+    try:
+        with _native_stderr_silenced():
+            yield
+    finally:
+        if old is not None:
+            log.setLogLevel(old)
+
+
+@contextlib.contextmanager
+def _native_stderr_silenced():
+    """Point file descriptor 2 at the null device inside the block (C libraries write there directly)."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no usable fd 2: nothing to silence
+        saved = None
+    if saved is None:
         yield
         return
-    old = log.getLogLevel()
-    log.setLogLevel(min(old, log.LOG_LEVEL_ERROR))
+    devnull = os.open(os.devnull, os.O_WRONLY)
     try:
+        os.dup2(devnull, 2)
         yield
     finally:
-        log.setLogLevel(old)
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
 
 
 def require_aruco() -> None:

@@ -483,6 +483,7 @@ IMAGE_FILES = [
     ("png cut in half", lambda p: p.write_bytes(write_png(p)[: len(write_png(p)) // 2]), "is it truncated"),
     ("png without its end", lambda p: p.write_bytes(write_png(p)[:-12]), "is it truncated"),
     ("jpeg cut in half", lambda p: p.write_bytes(write_jpeg(p)[: len(write_jpeg(p)) // 3]), "is it truncated"),
+    ("only the PNG signature", lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n"), "is it truncated"),
 ]
 
 
@@ -494,6 +495,33 @@ def test_bad_image_file(tmp_path, make, fragment):
         load_image(path)
     assert fragment in str(info.value)
     assert str(path) in str(info.value)
+
+
+def test_bad_image_files_leave_opencv_silent(tmp_path):
+    """OpenCV's own log lines go straight to file descriptor 2, past Python: a real process must show none.
+
+    Otherwise the command line's one ``error:`` line comes with ``[ERROR:0@0.1] global grfmt_png.cpp
+    ... IHDR chunk shall be first`` or ``[ WARN:0@0.1] ... PNG input buffer is incomplete`` around it.
+    """
+    paths = []
+    for k, (_, make, _) in enumerate(IMAGE_FILES):
+        path = tmp_path / f"bad_{k}.png"
+        make(path)
+        paths.append(str(path))
+    code = (
+        "import sys\n"
+        "from fidlearn.detection import load_image\n"
+        "from fidlearn.errors import ImageError\n"
+        "for p in sys.argv[1:]:\n"
+        "    try:\n"
+        "        load_image(p)\n"
+        "    except ImageError:\n"
+        "        print('refused', p)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code, *paths], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0
+    assert proc.stdout.count("refused") == len(paths)
+    assert proc.stderr == ""
 
 
 def test_image_paths_that_are_not_files(tmp_path):
