@@ -591,6 +591,8 @@ class _Staging:
 # -- fidlearn calibrate --------------------------------------------------------------------
 #: Fewer used views than this earns a warning: OpenCV's advice is 10 to 20 varied views.
 MIN_GOOD_VIEWS = 10
+#: A ninth of the picture with fewer corners than this share of an even spread (but some) earns a warning.
+SPARSE_CELL_SHARE = 0.1
 #: A calibration whose board normals all lie within this angle (deg) of each other is too flat a set.
 MIN_TILT_SPREAD_DEG = 10.0
 #: Two views closer than this (deg and fraction of the distance) are near duplicates.
@@ -769,6 +771,8 @@ def _run_calibrate(args) -> int:
     for row in grid:
         print("  " + " ".join(f"{v:6d}" for v in row))
     empty = [_CELL_NAMES[r][k] for r in range(3) for k in range(3) if grid[r, k] == 0]
+    even_share = grid.sum() / 9.0
+    sparse = [_CELL_NAMES[r][k] for r in range(3) for k in range(3) if 0 < grid[r, k] < SPARSE_CELL_SHARE * even_share]
     if len(cal.used) < MIN_GOOD_VIEWS:
         warnings.warn(f"only {len(cal.used)} views used; {MIN_GOOD_VIEWS} to 20 views from varied angles give a "
                       "trustworthy camera: take more photos", FidlearnWarning)
@@ -783,6 +787,11 @@ def _run_calibrate(args) -> int:
     if empty:
         warnings.warn(f"no board corner in the {', '.join(empty)} of the picture; hold the board there too, "
                       "or the lens distortion is guessed where nothing was measured", FidlearnWarning)
+    if sparse:
+        counts = ", ".join(f"{grid[r, k]}" for r in range(3) for k in range(3) if _CELL_NAMES[r][k] in sparse)
+        warnings.warn(f"few board corners in the {', '.join(sparse)} of the picture ({counts}, under a tenth of the "
+                      f"{even_share:.0f} an even spread gives); hold the board there too, or the lens distortion "
+                      "is guessed where almost nothing was measured", FidlearnWarning)
 
     with staging:
         c.save(out)

@@ -519,3 +519,15 @@ def test_render_takes_negative_coordinates(capsys, ideal_camera, tmp_path, where
     assert code == 0, err
     truth = json.loads((tmp_path / "t.json").read_text())
     assert truth["position_mm"] == [-1000, 190 if where[0] == "--from" else -190, 230 if where[0] == "--from" else -230]
+
+
+def test_calibrate_warns_when_a_third_of_the_picture_is_nearly_empty(capsys, tmp_path):
+    # OpenCV's right*.jpg photos leave the right third of the picture almost bare (1, 6 and 3 of
+    # 648 corners): the "no board corner" warning never fired because no cell was exactly empty.
+    code, out, err = run(capsys, "calibrate", data_path("real", "opencv_checkerboard_right"), "--pattern", "9x6",
+                         "--square-mm", 25, "-o", tmp_path / "camera.json")
+    assert code == 0, err
+    assert "warning: few board corners in the top-right, right, bottom-right of the picture (1, 6, 3," in err
+    code, out, err = run(capsys, "calibrate", data_path("calibration"), "--pattern", "9x6", "--square-mm", 25,
+                         "-o", tmp_path / "camera.json")
+    assert code == 0 and "warning" not in err  # 20 views that visit every part of the picture
