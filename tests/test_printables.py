@@ -3,7 +3,6 @@ pdfium (an independent PDF renderer) and measured with plain OpenCV."""
 
 from __future__ import annotations
 
-
 import os
 import stat
 
