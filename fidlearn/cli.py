@@ -718,13 +718,31 @@ def _draw_calibration_view(path: Path, view, points_px, pattern, charuco: bool):
         text = f"{view.status}: {len(pts)} corners, rms {view.rms_px:.3f} px"
         colour = (0, 160, 0)
     else:
-        text = f"{view.status}: {view.reason}"[:90]
+        text = f"{view.status}: {view.reason}"
         colour = (0, 0, 255)
     scale = 0.45 * unit
-    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
-    cv2.rectangle(out, (0, 0), (tw + 16, th + base + 12), (255, 255, 255), -1)
-    cv2.putText(out, text, (8, th + 6), cv2.FONT_HERSHEY_SIMPLEX, scale, colour, 1, cv2.LINE_AA)
+    lines = _wrap_to_width(text, out.shape[1] - 16, scale)
+    (_, th), base = cv2.getTextSize("Ay", cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    step = th + base + 4
+    tw = max(cv2.getTextSize(line, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)[0][0] for line in lines)
+    cv2.rectangle(out, (0, 0), (tw + 16, step * len(lines) + 8), (255, 255, 255), -1)
+    for k, line in enumerate(lines):
+        cv2.putText(out, line, (8, th + 6 + k * step), cv2.FONT_HERSHEY_SIMPLEX, scale, colour, 1, cv2.LINE_AA)
     return out
+
+
+def _wrap_to_width(text: str, width_px: int, scale: float) -> list[str]:
+    """``text`` in lines no wider than ``width_px`` at OpenCV's simplex font of ``scale`` (a word too long stays whole)."""
+    import cv2
+
+    lines: list[str] = []
+    for word in text.split():
+        trial = f"{lines[-1]} {word}" if lines else word
+        if lines and cv2.getTextSize(trial, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)[0][0] <= width_px:
+            lines[-1] = trial
+        else:
+            lines.append(word)
+    return lines or [""]
 
 
 def _run_calibrate(args) -> int:

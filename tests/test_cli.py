@@ -531,3 +531,16 @@ def test_calibrate_warns_when_a_third_of_the_picture_is_nearly_empty(capsys, tmp
     code, out, err = run(capsys, "calibrate", data_path("calibration"), "--pattern", "9x6", "--square-mm", 25,
                          "-o", tmp_path / "camera.json")
     assert code == 0 and "warning" not in err  # 20 views that visit every part of the picture
+
+
+def test_annotation_text_wraps_instead_of_being_cut():
+    # A rejected view's reason was cut at 90 characters and ran off a 640 px picture, losing
+    # "blurred, or a corner found in the wrong place?", the part that says what to do.
+    from fidlearn.cli import _wrap_to_width
+
+    text = ("outlier: reprojection RMS 1.20 px, above 0.72 px (max of 3 x the median 0.22 px and median + 0.5 px): "
+            "blurred, or a corner found in the wrong place?")
+    lines = _wrap_to_width(text, 624, 0.45)
+    assert len(lines) == 2
+    assert " ".join(lines) == text
+    assert all(cv2.getTextSize(line, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] <= 624 for line in lines)
