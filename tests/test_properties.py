@@ -259,3 +259,42 @@ def test_check_transform_refuses_what_is_not_rigid(T, scale, axis):
     bottom[3, axis] = scale
     with pytest.raises(TransformError, match="bottom row"):
         frames.compose(T, bottom)
+
+
+# -- the camera: scaling follows the pixel-centre convention ---------------------------------
+from fidlearn.camera import Camera  # noqa: E402
+
+
+@FAST
+@given(
+    hfov=st.floats(20, 120),
+    size=st.sampled_from([(640, 480), (1280, 720), (1920, 1080), (800, 600)]),
+    factor=st.sampled_from([0.25, 0.5, 2.0, 3.0]),
+    k1=st.floats(-0.3, 0.3),
+    point=st.tuples(st.floats(-300, 300), st.floats(-300, 300), st.floats(500, 5000)),
+)
+def test_a_scaled_camera_sees_the_same_picture_scaled(hfov, size, factor, k1, point):
+    """Binning or resizing scales pixel *edges*: a pixel centre u maps to (u + 0.5) * s - 0.5."""
+    cam = Camera.from_fov(hfov, size, dist=[k1, 0, 0, 0, 0])
+    new_size = (round(size[0] * factor), round(size[1] * factor))
+    scaled = cam.scaled(new_size)
+    px = cam.project(np.array([point]), np.eye(4))
+    px_scaled = scaled.project(np.array([point]), np.eye(4))
+    np.testing.assert_allclose(px_scaled, (px + 0.5) * factor - 0.5, atol=1e-6 * max(size))
+    np.testing.assert_allclose(scaled.fov_deg, cam.fov_deg, atol=0.2)  # the scene fills the same share
+
+
+@FAST
+@given(
+    hfov=st.floats(30, 100),
+    k=st.tuples(st.floats(-0.2, 0.2), st.floats(-0.05, 0.05)),
+    p=st.tuples(st.floats(-1e-3, 1e-3), st.floats(-1e-3, 1e-3)),
+    xy=st.tuples(st.floats(-0.3, 0.3), st.floats(-0.2, 0.2)),
+)
+def test_undistort_undoes_distortion_in_the_middle_of_the_picture(hfov, k, p, xy):
+    """Distorting a point with project() and undistorting it lands on the ideal pinhole pixel."""
+    lens = Camera.from_fov(hfov, (640, 480), dist=[k[0], k[1], p[0], p[1], 0])
+    pinhole = Camera(lens.K, None, lens.image_size)
+    point = np.array([[xy[0] * 1000, xy[1] * 1000, 1000.0]])
+    ideal = pinhole.project(point, np.eye(4))
+    np.testing.assert_allclose(lens.undistort_points(lens.project(point, np.eye(4))), ideal, atol=0.01)
