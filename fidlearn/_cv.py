@@ -20,7 +20,7 @@ version itself.  Known differences:
 * Not a difference but a trap on both: ``cv2.VideoCapture(-1)`` crashes the
   interpreter (segmentation fault) when no camera is attached; never pass a
   negative camera index. ``cv2.Rodrigues`` returns a zero vector for rotations
-  below 1e-5 rad.
+  below 1e-5 rad (``frames.rvec_tvec_from_transform`` takes the skew part there).
 """
 
 from __future__ import annotations

@@ -175,8 +175,8 @@ def test_transform_points_and_back(T, points):
 
 
 # cv2.Rodrigues (4.x and 5.x alike) returns a zero vector for rotations whose sine is below 1e-5
-# (0.0006 degrees) and loses about 1e-6 rad next to 180 degrees: round trips hold to that precision.
-RODRIGUES_ATOL = 2e-5
+# (frames takes the skew part there instead) and loses about 1e-6 rad within 1e-5 rad of 180 degrees.
+RODRIGUES_ATOL = 2e-6
 
 
 @FAST
@@ -193,7 +193,7 @@ def test_rvec_tvec_round_trip_from_a_transform(T):
 @FAST
 @given(
     axis=st.tuples(*[st.floats(-1, 1, allow_nan=False)] * 3),
-    angle=st.floats(0, math.pi - 1e-3),
+    angle=st.one_of(st.floats(0, math.pi - 1e-3), st.floats(0, 1e-4)),
     t=translation_mm,
 )
 def test_rvec_tvec_round_trip_from_a_vector(axis, angle, t):
@@ -204,7 +204,7 @@ def test_rvec_tvec_round_trip_from_a_vector(axis, angle, t):
     frames.check_transform(T)
     assert frames.rotation_angle_deg(T) == pytest.approx(math.degrees(angle), abs=1e-5)
     rvec2, tvec2 = frames.rvec_tvec_from_transform(T)
-    np.testing.assert_allclose(rvec2, rvec, atol=RODRIGUES_ATOL)
+    np.testing.assert_allclose(rvec2, rvec, atol=1e-8)  # tiny angles included, 180 degrees excluded
     np.testing.assert_allclose(tvec2, t, atol=1e-9)
 
 
