@@ -23,6 +23,9 @@ from .errors import CameraError, FidlearnWarning
 
 __all__ = ["Camera", "DIST_LENGTHS"]
 
+#: File names that hold pictures, never a camera (a swapped --camera argument).
+_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".mp4", ".avi", ".mov", ".mkv")
+
 #: Distortion vector lengths OpenCV understands: (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]).
 DIST_LENGTHS = (4, 5, 8, 12, 14)
 
@@ -306,6 +309,14 @@ class Camera:
         """A camera from fidlearn's JSON layout."""
         if not isinstance(d, dict):
             raise CameraError(f"{source}: expected a JSON object with camera_matrix, dist_coeffs, image_size")
+        if "camera_matrix" not in d and ("markers" in d or "units" in d
+                                         or any(isinstance(v, dict) and "translation" in v for v in d.values())):
+            raise CameraError(
+                f"{source}: missing field camera_matrix: this is a world map (marker placements), not a camera "
+                "file; give the camera file "
+                "(camera_matrix, dist_coeffs, image_size, as 'fidlearn calibrate' writes it) as the camera "
+                "(command line: --camera) and the map as the map (--map)"
+            )
         missing = [k for k in ("camera_matrix", "image_size") if k not in d]
         if missing:
             raise CameraError(
@@ -340,6 +351,11 @@ class Camera:
         path = Path(path)
         if path.suffix.lower() in (".yml", ".yaml", ".xml"):
             return cls._load_filestorage(path, image_size)
+        if path.suffix.lower() in _IMAGE_SUFFIXES:
+            raise CameraError(
+                f"{path}: this is an image, not a camera file; give the camera.json that 'fidlearn calibrate' "
+                "wrote (or OpenCV's calibration YAML) as the camera, and the image as an image"
+            )
         d = read_json(path, CameraError, "camera")
         cam = cls.from_dict(d, source=str(path))
         if image_size is not None and tuple(image_size) != cam.image_size:

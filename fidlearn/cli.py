@@ -79,7 +79,7 @@ def _run_corners(args) -> int:
     m = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=args.dictionary)
     m.save_corners(args.output)
     plane = f"coplanar (within {m.planarity_mm():.2f} mm)" if m.is_coplanar() else f"not coplanar ({m.planarity_mm():.1f} mm off a plane)"
-    print(f"{args.output}: corners of {len(m)} markers {m.ids}, {m.marker_size_mm:g} mm, {plane}")
+    print(f"{args.output}: corners of {len(m)} marker{'s' if len(m) != 1 else ''} {m.ids}, {m.marker_size_mm:g} mm, {plane}")
     return 0
 
 

@@ -98,6 +98,12 @@ def _vector3(value: Any, where: str, field: str, meaning: str) -> tuple[float, f
     return (out[0], out[1], out[2])
 
 
+def _is_corner_list(value: Any) -> bool:
+    """Whether ``value`` looks like one marker of a corner file: four lists of three numbers."""
+    return (isinstance(value, list) and len(value) == 4
+            and all(isinstance(c, list) and len(c) == 3 and all(isinstance(v, numbers.Real) for v in c) for c in value))
+
+
 def _marker_id(key: Any, where: str) -> int:
     text = str(key).strip()
     if isinstance(key, bool) or not re.fullmatch(r"-?[0-9]+", text):
@@ -167,7 +173,18 @@ class MarkerMap:
         """
         if not isinstance(d, Mapping):
             raise MapError(f"{source}: expected a JSON object mapping marker ids to placements, got {type(d).__name__}")
+        if "camera_matrix" in d:  # the two files of the command line swapped
+            raise MapError(
+                f"{source}: this is a camera file (it has camera_matrix), not a world map (the map does not say "
+                "its units, marker size or placements); give the map of marker placements here (command line: "
+                "--map) and the camera file as the camera (--camera)"
+            )
         full = "markers" in d
+        if not full and d and all(_is_corner_list(v) for v in d.values()):
+            raise MapError(
+                f"{source}: this is a corner file (four [x, y, z] corners in mm per id, as 'fidlearn corners' "
+                "writes it), not a world map; give the map of placements it was made from"
+            )
         if full:
             unknown = set(d) - _FULL_KEYS
             if unknown:

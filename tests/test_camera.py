@@ -158,3 +158,17 @@ def test_filestorage_errors(tmp_path, text, message):
 def test_repr_names_the_file_not_its_absolute_path(cam, tmp_path):
     back = Camera.load(cam.save(tmp_path / "camera.json"))
     assert "source='camera.json'" in repr(back) and str(tmp_path) not in repr(back)
+
+
+def test_map_or_image_given_as_the_camera_says_so(tmp_path):
+    # Swapped arguments: the errors were "missing field camera_matrix" and "not UTF-8 text (byte 0
+    # is 0x89); save the camera as UTF-8 JSON" for a PNG.
+    with pytest.raises(CameraError, match=r"world_map.json: missing field camera_matrix: "
+                                          r"this is a world map \(marker placements\), not a camera file"):
+        Camera.load(data_path("world_map.json"))
+    bare = tmp_path / "bare.json"
+    bare.write_text(json.dumps({"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]}}))
+    with pytest.raises(CameraError, match=r"this is a world map"):
+        Camera.load(bare)
+    with pytest.raises(CameraError, match=r"scene_00.png: this is an image, not a camera file"):
+        Camera.load(data_path("scenes", "scene_00.png"))

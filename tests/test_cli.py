@@ -544,3 +544,20 @@ def test_annotation_text_wraps_instead_of_being_cut():
     assert len(lines) == 2
     assert " ".join(lines) == text
     assert all(cv2.getTextSize(line, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] <= 624 for line in lines)
+
+
+def test_corners_of_one_marker_is_singular(capsys, tmp_path):
+    one = tmp_path / "one.json"
+    one.write_text(json.dumps({"0": SEED_BARE["0"]}))
+    code, out, err = run(capsys, "corners", one, "--units", "ft", "--marker-size-mm", 80, "-o", tmp_path / "c.json")
+    assert code == 0, err
+    assert "corners of 1 marker [0], 80 mm" in out
+
+
+def test_swapped_camera_and_map_say_which_is_which(capsys, tmp_path):
+    code, out, err = run(capsys, "locate", data_path("scenes", "scene_00.png"), "--camera", data_path("world_map.json"),
+                         "--map", data_path("scenes", "camera.json"))
+    assert_user_error(code, err, "this is a world map (marker placements), not a camera file", "--camera")
+    code, out, err = run(capsys, "corners", data_path("scenes", "camera.json"), "-o", tmp_path / "c.json")
+    assert_user_error(code, err, "this is a camera file", "not a world map")
+    assert not (tmp_path / "c.json").exists()

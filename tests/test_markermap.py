@@ -151,3 +151,19 @@ def test_numpy_numbers_are_numbers():
     )
     assert m.marker_size_mm == 40.0
     assert np.allclose(m.corners()[4][0], [0, 1000, 2000])
+
+
+def test_camera_file_given_as_the_map_says_so():
+    # A camera file has no "units": the error said "no units", which sends the user to edit the
+    # wrong file. Swapped --camera/--map is the commonest slip on the command line.
+    with pytest.raises(MapError, match=r"camera.json: this is a camera file \(it has camera_matrix\), not a world map"):
+        MarkerMap.load(data_path("scenes", "camera.json"))
+
+
+def test_corner_file_given_as_the_map_says_so(tmp_path):
+    corners = tmp_path / "corners.json"
+    MarkerMap.load(data_path("world_map.json")).save_corners(corners)
+    with pytest.raises(MapError, match=r"corners.json: this is a corner file .* not a world map"):
+        MarkerMap.load(corners)
+    with pytest.raises(MapError, match=r"this is a corner file"):
+        MarkerMap.load(corners, units="mm", marker_size_mm=80)
