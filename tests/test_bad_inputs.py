@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 import subprocess
 import sys
@@ -934,3 +935,47 @@ def test_bad_charuco_calibration_input(images, kwargs, fragment):
 def test_charuco_calibration_with_an_unknown_dictionary():
     with pytest.raises(DictionaryError, match="unknown ArUco dictionary 'nope'"):
         calibrate_charuco([BLANK] * 3, dictionary="nope")
+
+
+# -- the tracker ----------------------------------------------------------------------------
+from fidlearn.tracking import MarkerTracker  # noqa: E402
+
+TRACKER_OPTIONS = [
+    ("a map file name", lambda m, c: MarkerTracker("map.json", c), "use MarkerMap.load('map.json')"),
+    ("K instead of a camera", lambda m, c: MarkerTracker(m, c.K), "use Camera.load('camera.json')"),
+    ("full_every 0", lambda m, c: MarkerTracker(m, c, full_every=0), "full_every must be a whole number of frames >= 1"),
+    ("full_every True", lambda m, c: MarkerTracker(m, c, full_every=True), "got True"),
+    ("NaN search margin", lambda m, c: MarkerTracker(m, c, search_px=float("nan")), "search_px must be a number of pixels >= 0"),
+    ("misspelt pose option", lambda m, c: MarkerTracker(m, c, metod="auto"), "unknown pose option metod; estimate_pose takes method"),
+    ("unknown method", lambda m, c: MarkerTracker(m, c, method="magic"), "unknown method 'magic'"),
+    ("unknown refinement", lambda m, c: MarkerTracker(m, c, refine="sharp"), "unknown corner refinement 'sharp'"),
+    ("unknown detector parameter", lambda m, c: MarkerTracker(m, c, detector_params={"nope": 1}), "has no field 'nope'"),
+]
+
+
+@pytest.mark.parametrize("make, fragment", [c[1:] for c in TRACKER_OPTIONS], ids=[c[0] for c in TRACKER_OPTIONS])
+def test_bad_tracker_options(make, fragment):
+    with pytest.raises(FidlearnError) as info:
+        make(seed_map(), camera_640())
+    assert fragment in str(info.value)
+
+
+TRACKER_FRAMES = [
+    ("a file name", lambda img: "frame.png", ImageError, "use fidlearn.detection.load_image"),
+    ("float with NaN", lambda img: np.full(img.shape, np.nan), ImageError, "contains NaN or infinity"),
+    ("int32 pixels", lambda img: img.astype(np.int32), ImageError, "pixel type int32"),
+    ("another aspect ratio", lambda img: img[:100], CameraError, "calibrate at the resolution you run at"),
+]
+
+
+def test_tracker_refuses_bad_frames_and_carries_on(seed_scene):
+    """Each bad frame raises its error; the next good frame is located exactly as before."""
+    camera, image, T_world_camera = seed_scene
+    tracker = MarkerTracker(seed_map(), camera)
+    first = tracker.locate(image)
+    for _, change, error, fragment in TRACKER_FRAMES:
+        with pytest.raises(error, match=re.escape(fragment)):
+            tracker.locate(change(image))
+    again = tracker.locate(image)
+    np.testing.assert_allclose(again.T_world_camera, first.T_world_camera, atol=1e-6)
+    assert np.all(np.abs(again.position_mm - T_world_camera[:3, 3]) <= 3 * again.position_std_mm)
