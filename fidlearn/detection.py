@@ -101,8 +101,9 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
 def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
     """An 8-bit single-channel view of a gray, BGR or BGRA image (uint8 or uint16).
 
-    16-bit images are scaled to 8 bits; float images in [0, 1] are accepted
-    too. Anything else raises :class:`ImageError` saying what was received.
+    16-bit images are scaled to 8 bits by the bits they use (a 12-bit camera's
+    0..4095 in a 16-bit PNG becomes 0..255, a full-range one is shifted by 8);
+    float images in [0, 1] are accepted too. Anything else raises :class:`ImageError` saying what was received.
     """
     if not isinstance(image, np.ndarray):
         raise ImageError(f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}")
@@ -113,7 +114,10 @@ def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
     if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (3, 4)):
         raise ImageError(f"{where}: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
     if image.dtype == np.uint16:
-        image = (image >> 8).astype(np.uint8)
+        # Shift by the bits the picture uses, not always 8: a 10- or 12-bit camera saved as 16-bit
+        # PNG (0..1023, 0..4095) became a black 0..3 / 0..15 picture in which nothing is found.
+        shift = max(int(image.max()).bit_length() - 8, 0)
+        image = (image >> shift).astype(np.uint8)
     elif image.dtype in (np.float32, np.float64):
         if not np.all(np.isfinite(image)):
             raise ImageError(f"{where}: the float image contains NaN or infinity")

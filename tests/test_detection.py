@@ -382,3 +382,15 @@ def test_truncated_image_is_one_clear_error_without_opencv_log_lines(tmp_path, c
         load_image(cut)
     assert capfd.readouterr().err == ""
     assert cv2.utils.logging.getLogLevel() >= cv2.utils.logging.LOG_LEVEL_WARNING  # restored
+
+
+@pytest.mark.parametrize("bits", [10, 12, 16])
+def test_16_bit_pictures_of_fewer_bits_keep_their_contrast(bits):
+    # A 10- or 12-bit camera's frames saved as 16-bit PNG were shifted by 8 bits into a black
+    # 0..3 / 0..15 picture: no marker found, no error. They are scaled by the bits they use.
+    gray = (np.arange(64 * 64).reshape(64, 64) % 256).astype(np.uint8)
+    deep = (gray.astype(np.uint16) << (bits - 8)) | (gray.astype(np.uint16) >> (16 - bits))
+    np.testing.assert_array_equal(as_gray(deep), gray)
+    marker = np.pad(_cv.generate_marker("ARUCO_ORIGINAL", 7, 120), 40, constant_values=255)
+    deep_marker = marker.astype(np.uint16) << (bits - 8)
+    assert [d.id for d in detect_markers(deep_marker)] == [7]
