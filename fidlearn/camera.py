@@ -262,6 +262,13 @@ class Camera:
             return self
         sx, sy = new_w / w, new_h / h
         if abs(sx / sy - 1.0) > tol:
+            if (new_w, new_h) == (h, w):  # numpy's image.shape[:2] is (height, width)
+                raise CameraError(
+                    f"camera made for {w}x{h} (width x height) used on {new_w}x{new_h} images: width and height "
+                    "are swapped. If the camera's image_size came from image.shape[:2], that is (height, width): "
+                    "give (image.shape[1], image.shape[0]). If the pictures are turned to portrait, K does not "
+                    "apply to them: rotate them back, or calibrate at the resolution you run at"
+                )
             raise CameraError(
                 f"camera calibrated at {w}x{h} (aspect {w / h:.3f}) cannot be used on {new_w}x{new_h} "
                 f"images (aspect {new_w / new_h:.3f}): another aspect ratio crops the sensor differently, "

@@ -172,3 +172,14 @@ def test_map_or_image_given_as_the_camera_says_so(tmp_path):
         Camera.load(bare)
     with pytest.raises(CameraError, match=r"scene_00.png: this is an image, not a camera file"):
         Camera.load(data_path("scenes", "scene_00.png"))
+
+
+def test_width_and_height_swapped_says_so():
+    # Camera(K, dist, image.shape[:2]) is the learner's usual slip: the error spoke of aspect
+    # ratios and sensor crops, and sent them to recalibrate.
+    image = np.zeros((480, 640), np.uint8)
+    cam = Camera([[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], None, image.shape[:2])
+    with pytest.raises(CameraError, match=r"width and height are swapped.*\(image.shape\[1\], image.shape\[0\]\)"):
+        cam.for_image(image)
+    ok = Camera(cam.K, None, (image.shape[1], image.shape[0]))
+    assert ok.for_image(image) is ok
