@@ -874,7 +874,8 @@ def _pose_record(name: str, pose) -> dict:
         "T_world_camera": np.asarray(pose.T_world_camera).tolist(),
         "position_mm": pose.position_mm.tolist(),
         "rpy_deg": pose.rpy_deg.tolist(),
-        "position_std_mm": pose.position_std_mm.tolist(),
+        # null, not NaN, when the pose is not determined: NaN is not JSON (strict readers, fidlearn's own, refuse it)
+        "position_std_mm": pose.position_std_mm.tolist() if pose.covariance is not None else None,
         "marker_ids": list(pose.marker_ids),
         "reprojection_rms_px": pose.reprojection_rms_px,
         "ambiguous": bool(pose.ambiguous),

@@ -561,3 +561,16 @@ def test_swapped_camera_and_map_say_which_is_which(capsys, tmp_path):
     code, out, err = run(capsys, "corners", data_path("scenes", "camera.json"), "-o", tmp_path / "c.json")
     assert_user_error(code, err, "this is a camera file", "not a world map")
     assert not (tmp_path / "c.json").exists()
+
+
+def test_pose_record_is_strict_json_when_the_covariance_is_undetermined():
+    # A pose without a covariance (singular J^T J) wrote "position_std_mm": [NaN, NaN, NaN],
+    # which no strict JSON reader (fidlearn's read_json included) accepts.
+    from fidlearn import Pose
+    from fidlearn.cli import _pose_record
+
+    pose = Pose(T_world_camera=np.eye(4), marker_ids=(0,), residuals_px={0: np.zeros((4, 2))},
+                reprojection_rms_px=0.0, covariance=None, sigma_px=0.25)
+    rec = _pose_record("frame.png", pose)
+    assert rec["position_std_mm"] is None
+    json.dumps(rec, allow_nan=False)
