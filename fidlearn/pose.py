@@ -107,6 +107,8 @@ _NEAR_PLANAR_REL = 0.1
 #: Levenberg-Marquardt stops when a step would lower the sum of squared residuals by less than
 #: this (px^2): a change of the pose far below its own uncertainty for any realistic corner noise.
 _LM_TOL_PX2 = 1e-8
+#: ... or by less than this many sigma^2 (sigma^2 estimated as sse / (2N - 6)).
+_LM_TOL_SIGMA2 = 1e-3
 
 
 # ---------------------------------------------------------------------------------------
@@ -356,7 +358,7 @@ def refine_pose_lm(points_world: np.ndarray, points_px: np.ndarray, camera: Came
     R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
     R_wc = R_cw.T
     C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
-    R_wc, C, _, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations)
+    R_wc, C, _, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations, tol_sigma2=0.0)
     R_cw = R_wc.T
     r, _ = cv2.Rodrigues(R_cw)
     return r.reshape(3), -R_cw @ C
@@ -366,24 +368,28 @@ _ZERO3 = np.zeros(3)
 
 
 def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
-    """Residuals (2N,) observed minus projected, and optionally the Jacobian (2N, 6) of the projection."""
+    """Residuals (2N,) observed minus projected, and optionally the Jacobian (2N, 6) of the projection.
+
+    The same Jacobian as :func:`pose_jacobian`, written for speed (this runs in every LM step).
+    """
     d = obj - C
     X_c = d @ R_wc  # rows: R_cw @ d = R_wc^T d
-    if not with_jacobian:
-        px, _ = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
-        return (img - px.reshape(-1, 2)).reshape(-1), None
     px, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
-    A = jac[:, 3:6].reshape(-1, 2, 3) @ R_wc.T  # d(px)/d(world displacement of the point)
-    J = np.empty((len(obj), 2, 6))
+    r = img.reshape(-1) - px.reshape(-1)
+    if not with_jacobian:
+        return r, None
+    A = jac[:, 3:6] @ R_wc.T  # (2N, 3): d(px)/d(world displacement of the point)
+    dd = np.repeat(d, 2, axis=0)
+    J = np.empty((len(A), 6))
     # row a of A times [d]x is a x d
-    J[:, :, 0] = A[:, :, 1] * d[:, None, 2] - A[:, :, 2] * d[:, None, 1]
-    J[:, :, 1] = A[:, :, 2] * d[:, None, 0] - A[:, :, 0] * d[:, None, 2]
-    J[:, :, 2] = A[:, :, 0] * d[:, None, 1] - A[:, :, 1] * d[:, None, 0]
-    J[:, :, 3:] = -A
-    return (img - px.reshape(-1, 2)).reshape(-1), J.reshape(-1, 6)
+    J[:, 0] = A[:, 1] * dd[:, 2] - A[:, 2] * dd[:, 1]
+    J[:, 1] = A[:, 2] * dd[:, 0] - A[:, 0] * dd[:, 2]
+    J[:, 2] = A[:, 0] * dd[:, 1] - A[:, 1] * dd[:, 0]
+    np.negative(A, out=J[:, 3:])
+    return r, J
 
 
-def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
+def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
     """Levenberg-Marquardt (Marquardt's diagonal scaling) on the camera pose.
 
     Returns R_wc, C, the sum of squared residuals, the residuals (2N,) and J^T J (6, 6) there.
@@ -393,14 +399,19 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
     lam = 1e-4
     JtJ = J.T @ J
     g = J.T @ r
+    dof = max(len(r) - 6, 1)
     for _ in range(max_iterations):
-        A = JtJ + lam * np.diag(np.maximum(np.diag(JtJ), 1e-12))
+        # Stop when the next step would move the pose by less than about 0.03 sigma (its
+        # squared length in sigma units below 1e-3, sigma estimated from the residuals).
+        tol = max(_LM_TOL_PX2, (_LM_TOL_SIGMA2 if tol_sigma2 is None else tol_sigma2) * sse / dof)
+        A = JtJ.copy()
+        A.flat[::7] += lam * np.maximum(JtJ.flat[::7], 1e-12)  # Marquardt: damp the diagonal
         try:
             step = np.linalg.solve(A, g)
         except np.linalg.LinAlgError:
             break
         predicted = float(step @ g)  # about twice the decrease a linear model expects
-        if not predicted > _LM_TOL_PX2:
+        if not predicted > tol:
             break  # converged: no step left worth taking
         dR, _ = cv2.Rodrigues(step[:3].reshape(3, 1))
         R_new = dR @ R_wc
@@ -408,7 +419,7 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50):
         r_new, J_new = _residuals(obj, img, K, dist, R_new, C_new, True)
         sse_new = float(r_new @ r_new)
         if sse_new < sse:
-            done = sse - sse_new <= _LM_TOL_PX2
+            done = sse - sse_new <= tol
             R_wc, C, sse, r, J = R_new, C_new, sse_new, r_new, J_new
             JtJ = J.T @ J
             g = J.T @ r
@@ -436,6 +447,22 @@ def _plane_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray
     return thickness, extent, c, vt
 
 
+_PLANE_CACHE: dict[bytes, tuple] = {}
+
+
+def _plane_fit_cached(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """:func:`_plane_fit`, remembered for the last few point sets (a map seen again and again)."""
+    key = points.tobytes()
+    hit = _PLANE_CACHE.get(key)
+    if hit is None:
+        hit = _plane_fit(points)
+        hit[2].flags.writeable = hit[3].flags.writeable = False
+        if len(_PLANE_CACHE) >= 64:
+            _PLANE_CACHE.pop(next(iter(_PLANE_CACHE)))
+        _PLANE_CACHE[key] = hit
+    return hit
+
+
 # ---------------------------------------------------------------------------------------
 # Solvers
 # ---------------------------------------------------------------------------------------
@@ -451,7 +478,7 @@ class _Candidate:
     R_wc: np.ndarray  # (3, 3) camera orientation in the world
     C: np.ndarray  # (3,) camera centre in the world, mm
     sse: float  # sum of squared residuals, px^2
-    r: np.ndarray  # (2N,) residuals, observed minus projected, px
+    r: np.ndarray | None  # (2N,) residuals, observed minus projected, px (None: not computed yet)
     refined: bool = False  # whether Levenberg-Marquardt ran from it
     JtJ: np.ndarray | None = None  # (6, 6) J^T J at this pose, when LM left it behind
 
@@ -463,10 +490,15 @@ class _Candidate:
         return T
 
 
-def _from_R_t(obs: _Obs, camera: Camera, R_cw: np.ndarray, t: np.ndarray) -> _Candidate:
-    """A candidate from T_camera_world's rotation (3, 3) and translation (3,), not refined."""
+def _from_R_t(obs: _Obs, camera: Camera, R_cw: np.ndarray, t: np.ndarray, sse: float | None = None) -> _Candidate:
+    """A candidate from T_camera_world's rotation (3, 3) and translation (3,), not refined.
+
+    With ``sse`` given (the solver's own reprojection error) the residuals are left for later.
+    """
     R_wc = np.ascontiguousarray(R_cw.T)
     C = -R_wc @ np.asarray(t, dtype=np.float64).reshape(3)
+    if sse is not None:
+        return _Candidate(R_wc, C, float(sse), None)
     r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, False)
     return _Candidate(R_wc, C, float(r @ r), r)
 
@@ -477,21 +509,23 @@ def _lm_candidate(obs: _Obs, camera: Camera, start: _Candidate) -> _Candidate:
 
 
 def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
-    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,)); empty when the solver fails."""
+    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,), sse px^2); empty when the solver fails."""
     try:
-        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+        n, rvecs, tvecs, rms = cv2.solvePnPGeneric(
             np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3),
             np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2),
             camera.K, camera.dist, flags=_cv.solvepnp_flag(flag_name),
         )
     except cv2.error:
         return []
+    rms = np.asarray(rms, dtype=np.float64).reshape(-1) if rms is not None else np.full(n, np.nan)
     out = []
-    for r, t in list(zip(rvecs, tvecs))[:n]:
+    for k, (r, t) in enumerate(list(zip(rvecs, tvecs))[:n]):
         r = np.asarray(r, dtype=np.float64).reshape(3, 1)
         t = np.asarray(t, dtype=np.float64).reshape(3)
         if np.all(np.isfinite(r)) and np.all(np.isfinite(t)):
-            out.append((cv2.Rodrigues(r)[0], t))
+            sse = float(rms[k]) ** 2 * len(obj) if k < len(rms) and np.isfinite(rms[k]) else None
+            out.append((cv2.Rodrigues(r)[0], t, sse))
     return out
 
 
@@ -502,7 +536,7 @@ def _solve_ippe_square(obs: _Obs, marker_map: MarkerMap, camera: Camera):
     T_world_marker = marker_map.T_world_marker(obs.ids[0])
     R_wm, t_wm = T_world_marker[:3, :3], T_world_marker[:3, 3]
     # T_camera_world = T_camera_marker @ inv(T_world_marker)
-    return [(R_cm @ R_wm.T, t_cm - R_cm @ R_wm.T @ t_wm) for R_cm, t_cm in _generic("IPPE_SQUARE", local, obs.img, camera)]
+    return [(R_cm @ R_wm.T, t_cm - R_cm @ R_wm.T @ t_wm, sse) for R_cm, t_cm, sse in _generic("IPPE_SQUARE", local, obs.img, camera)]
 
 
 def _solve_ippe(obs: _Obs, camera: Camera, plane) -> list:
@@ -511,13 +545,13 @@ def _solve_ippe(obs: _Obs, camera: Camera, plane) -> list:
     local = (obs.obj - c) @ vt.T
     local[:, 2] = 0.0
     # T_camera_world = T_camera_plane @ T_plane_world, T_plane_world = [vt, -vt c]
-    return [(R_cp @ vt, t_cp - R_cp @ vt @ c) for R_cp, t_cp in _generic("IPPE", local, obs.img, camera)]
+    return [(R_cp @ vt, t_cp - R_cp @ vt @ c, sse) for R_cp, t_cp, sse in _generic("IPPE", local, obs.img, camera)]
 
 
 def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine_lm: bool):
     """Candidates sorted by reprojection error, and the method's name."""
     n_pts = len(obs.obj)
-    thickness, extent, c, vt = _plane_fit(obs.obj)
+    thickness, extent, c, vt = _plane_fit_cached(obs.obj)
     planar = thickness <= max(_PLANAR_TOL_MM, _PLANAR_TOL_REL * extent)
     if method == "auto":
         if len(obs.ids) == 1:
@@ -561,10 +595,13 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
             f"the PnP solver ({method_used}) found no pose from markers {obs.ids}; are the map's corners "
             "in TL, TR, BR, BL order and the marker size right?"
         )
-    unrefined = [_from_R_t(obs, camera, R_cw, t) for R_cw, t in raw]
-    unrefined.sort(key=lambda k: k.sse)
     if not refine_lm:
+        unrefined = [_from_R_t(obs, camera, R_cw, t) for R_cw, t, _ in raw]
+        unrefined.sort(key=lambda k: k.sse)
         return unrefined, unrefined, method_used
+    # ranked by the solver's own reprojection error; LM computes the residuals anyway
+    unrefined = [_from_R_t(obs, camera, R_cw, t, sse) for R_cw, t, sse in raw]
+    unrefined.sort(key=lambda k: k.sse)
     # LM from the best start; from the others only when they might end near it (within
     # REFINE_GAP_CHI2 sigma^2): a flip that starts thousands of sigma^2 worse never becomes
     # a rival, and each LM run from afar costs a dozen projections.
@@ -580,7 +617,7 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
 def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -> float:
     """Squared distance between two poses in units of the pose's uncertainty at ``a``."""
     dtheta = cv2.Rodrigues(b.R_wc @ a.R_wc.T)[0].reshape(3)
-    d = np.r_[dtheta, b.C - a.C]
+    d = np.concatenate([dtheta, b.C - a.C])
     return float(d @ JtJ @ d) / sigma**2
 
 
@@ -693,15 +730,17 @@ def _outlier_threshold(nu: float, sigma_known: bool) -> float:
 def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
     """Cheap test: could one marker be an outlier? (per-marker residuals against a robust noise level)."""
     per = np.sum(best.r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
-    robust = float(np.median(per)) / 8.0
-    sigma2 = max((corner_sigma_px or 0.0) ** 2, robust, OUTLIER_SIGMA_FLOOR_PX**2)
-    rms = np.sqrt(per / 4.0)
     # A misplaced marker drags the pose and spreads its error over the others, at worst
     # evenly: be generous here (this only decides whether the leave-one-out test runs), and
     # look also at the overall fit, against the noise when it is given.
     overall_rms = math.sqrt(float(np.sum(per)) / (4 * len(per)))
     if overall_rms > max(OUTLIER_MIN_RMS_PX, 3.0 * (corner_sigma_px or 0.0)):
         return True
+    if float(per.max()) <= (OUTLIER_CHI2 / 3) * OUTLIER_SIGMA_FLOOR_PX**2:
+        return False  # every marker fits within the noise floor: nothing to look for
+    robust = float(np.median(per)) / 8.0
+    sigma2 = max((corner_sigma_px or 0.0) ** 2, robust, OUTLIER_SIGMA_FLOOR_PX**2)
+    rms = np.sqrt(per / 4.0)
     return bool(np.any((per / sigma2 > OUTLIER_CHI2 / 3) & (rms > OUTLIER_MIN_RMS_PX / 2)))
 
 
@@ -892,6 +931,9 @@ def estimate_pose(
 
     def build(c: _Candidate, alternative: Pose | None, how: str, JtJ_c: np.ndarray | None = None) -> Pose:
         T_world_camera = c.T_world_camera
+        if c.r is None:
+            c.r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, False)
+            c.sse = float(c.r @ c.r)
         r = c.r.reshape(-1, 4, 2)
         residuals = {i: r[k] for k, i in enumerate(obs.ids)}
         for i in rejected:

@@ -136,7 +136,8 @@ def test_every_named_solver_finds_the_exact_pose(method):
     refined = estimate_pose(dets, m, CAM, method=method, refine_lm=True)
     auto = estimate_pose(dets, m, CAM)
     assert refined.method == method + "+lm"
-    np.testing.assert_allclose(refined.position_mm, auto.position_mm, atol=0.01)
+    # the same optimum (LM stops once a step would move the pose by a few hundredths of its std)
+    assert np.all(np.abs(refined.position_mm - auto.position_mm) < 0.05 * auto.position_std_mm)
     assert refined.reprojection_rms_px <= estimate_pose(dets, m, CAM, method=method).reprojection_rms_px + 1e-9
 
 
