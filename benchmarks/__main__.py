@@ -11,7 +11,8 @@ a time limit (5 minutes unless ``--timeout``). Its printed output becomes one se
 others as they were (each section says when and by which command it was measured). The
 summary table "target | measured | met?" is collected from lines
 ``<!-- target: what | measured | yes/no -->`` in the sections (hidden when the page is
-rendered); for benchmarks that print none, from their tables (see ``_PARSERS``).
+rendered); for benchmarks that print none, from their tables (see ``_PARSERS``). Notes written
+by hand between ``<!-- begin notes -->`` and ``<!-- end notes -->`` under the summary are kept.
 """
 
 from __future__ import annotations
@@ -167,7 +168,17 @@ def summary(sections: dict[str, str]) -> str:
     return "\n".join(["| target | measured | met? | section |", "|---|---|---|---|", *rows])
 
 
-def write_doc(sections: dict[str, str], command: str, ran: list[dict]) -> Path:
+NOTES_RE = re.compile(r"<!-- begin notes -->.*?<!-- end notes -->", re.S)
+NOTES_EMPTY = "<!-- begin notes -->\n<!-- end notes -->"
+
+
+def old_notes(text: str) -> str:
+    """The hand-written notes on the targets (kept from run to run), or an empty block."""
+    m = NOTES_RE.search(text)
+    return m.group(0) if m else NOTES_EMPTY
+
+
+def write_doc(sections: dict[str, str], command: str, ran: list[dict], notes: str = NOTES_EMPTY) -> Path:
     from fidlearn._io import write_text_atomic  # noqa: PLC0415 (importing fidlearn is the benchmarks' business)
 
     now = dt.datetime.now(dt.timezone.utc)
@@ -175,7 +186,7 @@ def write_doc(sections: dict[str, str], command: str, ran: list[dict]) -> Path:
             "| | |", "|---|---|", *[f"| {a} | {b} |" for a, b in machine()],
             f"| date | {now:%Y-%m-%d %H:%M} UTC (this run: {', '.join(r['name'] for r in ran)}) |",
             f"| load average (1, 5, 15 min) | {load_average()} at the end of this run |",
-            "", "## Summary: targets", "", summary(sections), ""]
+            "", "## Summary: targets", "", summary(sections), "", notes, ""]
     body = [sections[k] for k in sorted(sections)]
     return write_text_atomic(DOC, "\n".join(head) + "\n" + "\n\n".join(body) + "\n")
 
@@ -263,7 +274,9 @@ def main(argv=None) -> int:
         ap.error(f"no benchmark {', '.join(unknown)}; there are: {', '.join(files)}")
     names = [n.removeprefix("bench_").removesuffix(".py") for n in args.names] or list(files)
     command = " ".join(["python -m benchmarks", *sys.argv[1:]]) if argv is None else " ".join(["python -m benchmarks", *argv])
-    sections = old_sections(DOC.read_text()) if DOC.exists() else {}
+    old = DOC.read_text() if DOC.exists() else ""
+    sections = old_sections(old)
+    notes = old_notes(old)
     ran = []
     failed = 0
     for name in names:
@@ -276,7 +289,7 @@ def main(argv=None) -> int:
         if args.no_doc:
             print(sections[name])
         else:
-            write_doc({k: v for k, v in sections.items() if k in files}, command, ran)  # after each, so a stop keeps what ran
+            write_doc({k: v for k, v in sections.items() if k in files}, command, ran, notes)  # after each, so a stop keeps what ran
     if not args.no_doc:
         print(f"[benchmarks] wrote {DOC.relative_to(ROOT)}")
     return 1 if failed else 0

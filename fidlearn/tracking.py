@@ -9,9 +9,11 @@ refines the corners exactly as :func:`fidlearn.detect_markers` does and
 estimates the pose with :func:`fidlearn.estimate_pose`. A full-frame detection
 runs instead on the first frame, after a frame without a pose, every
 ``full_every`` frames, when the windows would cover half the image or more, and
-again on the same frame when a marker seen in the last frame and predicted
-well inside the image is not found in its window (a fast turn, a wrong
-prediction). A wrong prediction therefore costs time, not markers.
+again on the same frame when most of the markers seen in the last frame and
+predicted well inside the image are not found in their windows, nor in larger
+windows around each (a fast turn, a wrong prediction). A wrong prediction
+therefore costs time, not markers; a marker that OpenCV finds in one frame and
+not in the next (too small, a reflection) costs one larger window.
 
 The detector knows only the map's markers (a dictionary made of the map's ids):
 OpenCV compares every candidate quad that does not decode with every marker of
@@ -65,6 +67,9 @@ __all__ = ["MarkerTracker"]
 
 #: Windows covering more than this fraction of the image: a full detection is as cheap.
 _MAX_WINDOW_FRACTION = 0.5
+#: Two windows become one when their bounding box is at most this much larger than the two together
+#: (px^2): each detectMarkers call has a fixed cost worth about this many pixels of image.
+_MERGE_SLACK_PX2 = 4096
 #: Window lengths are rounded up to this many pixels for the detector cache (the window's
 #: size limits are then at most this many pixels' worth more lenient than the full frame's).
 _LENGTH_STEP_PX = 8
@@ -117,7 +122,7 @@ class MarkerTracker:
         refine: str = DEFAULT_REFINE,
         detector_params: Any = None,
         full_every: int = 30,
-        search_px: float = 16.0,
+        search_px: float = 10.0,
         **pose_options: Any,
     ) -> None:
         if not isinstance(marker_map, MarkerMap):
@@ -294,7 +299,7 @@ class MarkerTracker:
         H, W = gray.shape
         corners, motion, ids = predicted["corners"], predicted["motion"], predicted["ids"]
         side = np.linalg.norm(corners - np.roll(corners, -1, axis=1), axis=2).max(axis=1)
-        pad = 0.3 * side + motion + self.search_px
+        pad = 0.25 * side + 0.5 * motion + self.search_px
         lo = np.floor(corners.min(axis=1) - pad[:, None]).astype(int)
         hi = np.ceil(corners.max(axis=1) + pad[:, None]).astype(int) + 1
         lo = np.maximum(lo, 0)
@@ -303,7 +308,26 @@ class MarkerTracker:
         boxes = _merge_boxes([(*a, *b) for a, b in zip(lo[ok], hi[ok])])
         if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in boxes) > _MAX_WINDOW_FRACTION * W * H:
             return None
-        found_c, found_i = [], []
+        found_c: list = []
+        found_i: list = []
+        self._search(gray, boxes, found_c, found_i)
+        # Markers seen last frame and predicted whole and well inside the image, but not found: once more in
+        # larger windows (a wrong prediction); if most are still missing, the prediction failed: a full detection.
+        inside = ((corners.min(axis=1) > pad[:, None]) & (corners.max(axis=1) < [W, H] - pad[:, None])).all(axis=1)
+        expected = {int(i) for i, ins in zip(ids, inside) if ins} & {d.id for d in self.last_detections}
+        missing = [k for k, i in enumerate(ids) if int(i) in expected and int(i) not in found_i]
+        if missing:
+            big = side[missing] + 2.0 * motion[missing] + 3.0 * self.search_px
+            lo2 = np.maximum(np.floor(corners[missing].min(axis=1) - big[:, None]).astype(int), 0)
+            hi2 = np.minimum(np.ceil(corners[missing].max(axis=1) + big[:, None]).astype(int) + 1, [W, H])
+            self._search(gray, _merge_boxes([(*a, *b) for a, b in zip(lo2, hi2)]), found_c, found_i)
+            if 2 * len(expected - set(found_i)) > len(expected):
+                return None
+        return self._finish(gray, found_c, found_i)
+
+    def _search(self, gray: np.ndarray, boxes: list, found_c: list, found_i: list) -> None:
+        """Detect in each window ``(x0, y0, x1, y1)``; append corners (full-frame pixels) and ids not found yet."""
+        H, W = gray.shape
         for x0, y0, x1, y1 in boxes:
             c, i, _ = _cv.detect(self._window_detector(x1 - x0, y1 - y0, W, H), gray[y0:y1, x0:x1])
             for ck, ik in zip(c, i):
@@ -312,12 +336,6 @@ class MarkerTracker:
                     continue  # the same marker in an overlapping window
                 found_c.append(ck)
                 found_i.append(ik)
-        # a marker seen last frame, predicted whole and well inside the image, but not found: look everywhere
-        inside = ((corners.min(axis=1) > pad[:, None]) & (corners.max(axis=1) < [W, H] - pad[:, None])).all(axis=1)
-        expected = {int(i) for i, ins in zip(ids, inside) if ins} & {d.id for d in self.last_detections}
-        if expected - set(found_i):
-            return None
-        return self._finish(gray, found_c, found_i)
 
     def _window_detector(self, w: int, h: int, W: int, H: int):
         """An ArucoDetector whose marker size limits, in pixels, are those of the full W x H frame."""
@@ -341,11 +359,11 @@ def _nearest_rotation(R: np.ndarray) -> np.ndarray:
 
 
 def _merge_boxes(boxes: list) -> list:
-    """Boxes ``(x0, y0, x1, y1)`` with each pair that overlaps so much that their union is no larger
-    than the two together replaced by that union, repeated until no such pair is left.
+    """Boxes ``(x0, y0, x1, y1)`` with each pair whose bounding box is at most ``_MERGE_SLACK_PX2``
+    larger than the two together replaced by that bounding box, repeated until no such pair is left.
 
-    Boxes that overlap less stay apart (a marker in both is found twice and kept once): one big
-    union of a chain of neighbours would cover far more of the image than the windows do.
+    Other boxes stay apart, overlapping or not (a marker in two is found twice and kept once): one
+    big box around a chain of neighbours would cover far more of the image than the windows do.
     """
     def area(b):
         return (b[2] - b[0]) * (b[3] - b[1])
@@ -358,7 +376,7 @@ def _merge_boxes(boxes: list) -> list:
         for b in boxes:
             for k, o in enumerate(out):
                 u = (min(o[0], b[0]), min(o[1], b[1]), max(o[2], b[2]), max(o[3], b[3]))
-                if b[0] < o[2] and o[0] < b[2] and b[1] < o[3] and o[1] < b[3] and area(u) <= area(o) + area(b):
+                if area(u) <= area(o) + area(b) + _MERGE_SLACK_PX2:
                     out[k] = u
                     merged = True
                     break
