@@ -927,7 +927,7 @@ def _run_locate(args) -> int:
 
     from .camera import Camera
     from .detection import detect_markers
-    from .errors import NoMarkersError, PoseError
+    from .errors import CameraError, NoMarkersError, PoseError
     from .pose import estimate_pose
 
     if not args.inputs and args.camera_index is None:
@@ -956,7 +956,10 @@ def _run_locate(args) -> int:
                 for name, image in _frames(items, args.camera_index):
                     size = (image.shape[1], image.shape[0])
                     if size not in cameras:  # rescale (and warn) once per resolution
-                        cameras[size] = camera.for_image(size)
+                        try:
+                            cameras[size] = camera.for_image(size)
+                        except CameraError as exc:  # say which picture, in a folder of many
+                            raise CameraError(f"{name}: {exc}") from None
                     cam = cameras[size]
                     detections = detect_markers(image, dictionary=marker_map.dictionary, **refine)
                     stats["frames"] += 1

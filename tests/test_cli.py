@@ -574,3 +574,16 @@ def test_pose_record_is_strict_json_when_the_covariance_is_undetermined():
     rec = _pose_record("frame.png", pose)
     assert rec["position_std_mm"] is None
     json.dumps(rec, allow_nan=False)
+
+
+def test_locate_names_the_picture_of_another_aspect_ratio(capsys, tmp_path):
+    # In a folder of many, the error did not say which picture the camera did not fit.
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for name in ("a.png", "b.png"):
+        (folder / name).write_bytes(data_path("scenes", "scene_00.png").read_bytes())
+    (folder / "c.png").write_bytes(data_path("trajectory", "frame_000.png").read_bytes())
+    code, out, err = run(capsys, "locate", folder, "--camera", data_path("scenes", "camera.json"),
+                         "--map", data_path("world_map.json"), "--json", tmp_path / "p.jsonl")
+    assert_user_error(code, err, "c.png: camera calibrated at 1280x720", "cannot be used on 640x480")
+    assert not (tmp_path / "p.jsonl").exists()
