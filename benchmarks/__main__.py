@@ -104,6 +104,30 @@ def looks_like_markdown(text: str) -> bool:
     return bool(re.search(r"^\|[-:| ]+\|\s*$", text, re.M) or re.search(r"^#{2,4} ", text, re.M))
 
 
+def tidy_markdown(text: str) -> str:
+    """Printed output that holds markdown tables, made to render: a blank line around each table,
+    indented runs of lines in a code block, and every other line its own paragraph (a benchmark
+    prints one statement per line; markdown would run them together)."""
+    out: list[str] = []
+    block = None  # "table", "code" or None
+    for line in text.splitlines():
+        kind = "table" if line.startswith("|") else ("code" if line.startswith("  ") and line.strip() else None)
+        if kind != block:
+            if block == "code":
+                out.append("```")
+            if out and out[-1] != "":
+                out.append("")
+            if kind == "code":
+                out.append("```")
+            block = kind
+        elif kind is None and line.strip() and out and out[-1] != "" and not line.startswith(("<!--", "- ", "* ")):
+            out.append("")
+        out.append(line)
+    if block == "code":
+        out.append("```")
+    return re.sub(r"\n{3,}", "\n\n", "\n".join(out))
+
+
 def run_one(name: str, path: Path, quick: bool, timeout: float) -> dict:
     """Run one benchmark; its output, status, seconds and the command."""
     cmd = [sys.executable, str(path.relative_to(ROOT))]
@@ -133,7 +157,7 @@ def section(result: dict) -> str:
     lines.append("")
     if out:
         if looks_like_markdown(out):
-            lines.append(out)
+            lines.append(tidy_markdown(out))
         else:
             lines += ["```", out, "```"]
     if result["status"] != "ok" and result["err"]:
