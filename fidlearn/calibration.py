@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -76,7 +77,7 @@ import numpy as np
 from . import _cv, frames
 from .camera import Camera
 from .detection import as_gray, load_image
-from .errors import CalibrationError, ImageError
+from .errors import CalibrationError, FidlearnWarning, ImageError
 
 __all__ = ["Calibration", "ViewResult", "calibrate_checkerboard", "calibrate_charuco", "find_checkerboard_corners", "MIN_VIEWS"]
 
@@ -303,6 +304,18 @@ def _check_positive(value: Any, what: str, fix: str) -> float:
     if not math.isfinite(v) or v <= 0:
         raise CalibrationError(f"{what} must be positive, got {value!r}; {fix}")
     return v
+
+
+def _warn_if_metres(value_mm: float, what: str) -> None:
+    """A printed square or marker under 1 mm is almost surely a size in metres (OpenCV's tutorials use metres)."""
+    if value_mm < 1.0:
+        warnings.warn(
+            f"{what}={value_mm:g} means {value_mm:g} mm, smaller than any printed square; if that is metres, "
+            f"give millimetres ({value_mm * 1000:g}; command line: --square-mm): K is right either way, but every distance (the board "
+            "poses, and the poses computed from them) comes out 1000 times too small",
+            FidlearnWarning,
+            stacklevel=3,
+        )
 
 
 def _pattern(pattern_size: Any) -> tuple[int, int]:
@@ -726,6 +739,7 @@ def calibrate_checkerboard(
     """
     pattern = _pattern(pattern_size)
     square = _check_positive(square_size_mm, "square_size_mm", "measure one printed square in millimetres")
+    _warn_if_metres(square, "square_size_mm")
     finder = _Checkerboard(pattern, square, corner_finder)
     entries = _entries(images)
     return _run(entries, finder, lambda g: {0: finder.find(g)}, progress, reject_outliers, flags, criteria,
@@ -785,6 +799,7 @@ def calibrate_charuco(
         raise CalibrationError(f"squares {sq} must count at least 2 chess squares each way, e.g. (5, 7)")
     square = _check_positive(square_size_mm, "square_size_mm", "measure one printed chess square in millimetres")
     marker = _check_positive(marker_size_mm, "marker_size_mm", "measure one printed marker's black square in millimetres")
+    _warn_if_metres(square, "square_size_mm")
     if marker >= square:
         raise CalibrationError(
             f"marker_size_mm ({marker:g}) must be smaller than square_size_mm ({square:g}): the markers sit inside "

@@ -12,7 +12,7 @@ import pytest
 import fidlearn
 from fidlearn import Camera, data_path
 from fidlearn.calibration import Calibration, calibrate_charuco, calibrate_checkerboard
-from fidlearn.errors import CalibrationError, DictionaryError, FidlearnError
+from fidlearn.errors import CalibrationError, DictionaryError, FidlearnError, FidlearnWarning
 
 PATTERN = (9, 6)
 SQUARE_MM = 25.0  # stand-in: the photos' square size was never published (scales extrinsics only)
@@ -436,3 +436,12 @@ def test_squares_hint_names_the_option_once(right_grays):
     text = str(info.value)
     assert text.count("a board of 10x7 squares has 9x6 inner corners") == 1
     assert "--pattern 9x6" in text
+
+
+def test_square_size_in_metres_warns(right_grays):
+    # OpenCV's tutorials give sizes in metres (0.025); fidlearn takes mm. K is the same, but every
+    # distance derived from the board comes out 1000 times too small, silently.
+    with pytest.warns(FidlearnWarning, match=r"square_size_mm=0.025 means 0.025 mm.*give millimetres \(25; command line: --square-mm\)"):
+        cal = calibrate_checkerboard(right_grays[:4], PATTERN, 0.025)
+    T = next(iter(cal.T_camera_board.values()))
+    assert T[2, 3] < 1.0  # the board "0.3 mm" from the camera: what the warning is about
