@@ -76,6 +76,11 @@ def _marker_size(size: Any, where: str) -> float:
             f"{where}: marker_size_mm is {size:g}; it must be positive: measure the black square's side "
             "in mm (the white margin not included)"
         )
+    if size < 1.0:  # no printer makes a marker under 1 mm: a size in metres, as OpenCV's tutorials write it
+        raise MapError(
+            f"{where}: marker_size_mm is {size:g}, under 1 mm; if that is metres, write it in mm ({size * 1000:g}): "
+            "the black square's side in millimetres"
+        )
     return size
 
 

@@ -167,3 +167,11 @@ def test_corner_file_given_as_the_map_says_so(tmp_path):
         MarkerMap.load(corners)
     with pytest.raises(MapError, match=r"this is a corner file"):
         MarkerMap.load(corners, units="mm", marker_size_mm=80)
+
+
+def test_marker_size_in_metres_is_refused():
+    # "marker_size_mm": 0.08 (metres, as OpenCV's tutorials write sizes) loaded as 0.08 mm
+    # markers and put every pose 1000 times too close.
+    with pytest.raises(MapError, match=r"marker_size_mm is 0.08, under 1 mm; if that is metres, write it in mm \(80\)"):
+        MarkerMap.from_dict({"units": "m", "marker_size_mm": 0.08, "markers": {"0": {"translation": [0, 0, 1]}}})
+    assert MarkerMap.from_dict({"0": {"translation": [0, 0, 1]}}, units="m", marker_size_mm=1).marker_size_mm == 1
