@@ -1,6 +1,6 @@
 """Pose accuracy on rendered scenes across distance, image size, marker count and spread, and image noise.
 
-    python benchmarks/bench_accuracy.py            # about 3 minutes on a loaded 2-core machine
+    python benchmarks/bench_accuracy.py            # 30 s to 2 minutes, by the machine's load
     python benchmarks/bench_accuracy.py --quick    # fewer scenes per cell
 
 The dimensions ``bench_pose.py`` does not sweep. Every scene is rendered with
@@ -18,7 +18,7 @@ the frame with its white margin. Camera-position error (mm) of
 
 A pipeline *fails* on a scene when it gives no pose or one more than 5 % of the distance off.
 Cells give the median error and, after the slash, the failures. (OpenCV's EPnP is not made for
-points on one plane: it fails on every one-wall scene and works on two walls.)
+points on one plane: it fails on nearly every one-wall scene and works on two walls.)
 """
 
 from __future__ import annotations
@@ -166,9 +166,10 @@ def main(argv=None) -> int:
 
     groups = []
     wall = grid_map(8, 400.0)
-    for size in ((640, 480), (1280, 720)):
+    for size, distances in (((640, 480), (500, 1000, 1500, 2000, 3000, 4000)), ((1280, 720), (500, 1000, 1500, 2000, 3000, 4000)),
+                            ((1920, 1080), (1000, 2000, 4000))):
         cam = camera(size)
-        for d in (500, 1000, 1500, 2000, 3000, 4000):
+        for d in distances:
             rows = [r for r in (one_scene(wall, cam, d, rng) for _ in range(n)) if r]
             groups.append((f"{size[0]}x{size[1]}, {d / 1000:.1f} m", rows))
             everything += rows
@@ -203,7 +204,7 @@ def main(argv=None) -> int:
           f"ratio {ratio:.2f}. Scenes where the seed pipeline works and locate does not: {len(lost)}"
           + (" (" + "; ".join(f"{r['distance']:.0f} mm, {r['n_visible']} markers, locate {r['locate']}" for r in lost) + ")" if lost else "")
           + f"; where locate works and the seed pipeline does not: {len(seed_lost)}.")
-    print("\nOpenCV's EPnP is not made for coplanar points (it fails on every one-wall scene and works on two walls); "
+    print("\nOpenCV's EPnP is not made for coplanar points (it fails on nearly every one-wall scene and works on two walls); "
           "IPPE needs them (it fails on two walls); `locate` picks IPPE or SQPNP by the data and refines with LM.")
     print(f"\n({time.perf_counter() - t0:.0f} s)")
     print(f"<!-- target: accuracy: median camera-position error of `locate` <= 0.5 x the seed pipeline's (distance, size, "
