@@ -126,6 +126,8 @@ def _positive_mm(value: float, what: str) -> float:
         raise PrintError(f"{what} must be a length in mm, got {value!r}") from None
     if not math.isfinite(v) or v <= 0:
         raise PrintError(f"{what} must be a positive length in mm, got {value!r}")
+    if v < 1.0:  # nothing prints under 1 mm: a length in metres, as OpenCV's tutorials write it
+        raise PrintError(f"{what} {v:g} is under 1 mm; if that is metres, give millimetres ({v * 1000:g})")
     return v
 
 

@@ -410,3 +410,11 @@ def test_png_pages_get_umask_permissions(tmp_path):
     finally:
         os.umask(old)
     assert [stat.S_IMODE(os.stat(f).st_mode) for f in files] == [0o644, 0o644]
+
+
+@pytest.mark.parametrize("make", [lambda out: P.markers_pdf(out, [0], 0.08), lambda out: P.board_pdf(out, (9, 6), 0.025)])
+def test_sizes_in_metres_are_refused(tmp_path, make):
+    # 0.08 (metres, as OpenCV's tutorials write it) printed a sheet of 0.08 mm markers.
+    with pytest.raises(PrintError, match=r"under 1 mm; if that is metres, give millimetres \((80|25)\)"):
+        make(tmp_path / "out.pdf")
+    assert list(tmp_path.iterdir()) == []
