@@ -206,6 +206,12 @@ def layout_markers(ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_
     """
     size_mm = _positive_mm(size_mm, "--size-mm")
     name = _cv.dictionary_name(dictionary)
+    if isinstance(ids, str):
+        ids = parse_ids(ids)  # "0-9", "0,3,7" as on the command line
+    ids = list(ids) if isinstance(ids, Iterable) and not isinstance(ids, (bytes, bytearray)) else [ids]
+    wrong = [i for i in ids if isinstance(i, bool) or not isinstance(i, (int, np.integer))]
+    if wrong:
+        raise PrintError(f"marker id {wrong[0]!r} is not a whole number; give ids like range(10) or [0, 3, 7]")
     ids = [int(i) for i in ids]
     if not ids:
         raise PrintError("no marker ids to print; give --ids like 0-9")
@@ -623,9 +629,23 @@ def markers_png(path, ids: Sequence[int], size_mm: float, dictionary: str = "ARU
     return sheet, save_pages(marker_figures(sheet), _with_suffix(path, ".png"), dpi=dpi)
 
 
+def _inner_corners(pattern) -> tuple[int, int]:
+    """``(9, 6)`` or ``"9x6"`` as two whole numbers; :class:`PrintError` for anything else."""
+    if isinstance(pattern, str):
+        return parse_pattern(pattern, "pattern")
+    try:
+        cols, rows = pattern
+    except (TypeError, ValueError):
+        raise PrintError(f"pattern {pattern!r} must be two whole numbers of inner corners, e.g. (9, 6) or '9x6'") from None
+    if any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in (cols, rows)):
+        raise PrintError(f"pattern {pattern!r} must be two whole numbers of inner corners, e.g. (9, 6) or '9x6'")
+    return int(cols), int(rows)
+
+
 def board_pdf(path, pattern: tuple[int, int], square_mm: float, paper: str = "a4", charuco: bool = False,
               dictionary: str | None = None, marker_mm: float | None = None) -> BoardSheet:
     """Write a one-page PDF of a calibration board; ``pattern`` is INNER corners (9x6 -> 10x7 squares)."""
+    pattern = _inner_corners(pattern)
     sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_mm, paper, charuco, dictionary, marker_mm)
     save_pages([board_figure(sheet)], _with_suffix(path, ".pdf"))
     return sheet
@@ -635,6 +655,7 @@ def board_png(path, pattern: tuple[int, int], square_mm: float, paper: str = "a4
               dictionary: str | None = None, marker_mm: float | None = None,
               dpi: float = 300) -> tuple[BoardSheet, list[Path]]:
     """Write a board page as PNG at ``dpi``; ``pattern`` is INNER corners. Returns the layout and the file."""
+    pattern = _inner_corners(pattern)
     sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_mm, paper, charuco, dictionary, marker_mm)
     return sheet, save_pages([board_figure(sheet)], _with_suffix(path, ".png"), dpi=dpi)
 

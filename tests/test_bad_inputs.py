@@ -896,6 +896,13 @@ PRINTABLES = [
     ("a folder for the file", lambda out: markers_pdf(out, [1], 50), PrintError, "expected a .pdf file name"),
     ("a .png name for the pdf", lambda out: markers_pdf(out / "m.png", [1], 50), PrintError, "expected a .pdf file name"),
     ("missing folder", lambda out: markers_pdf(out / "no" / "m.pdf", [1], 50), FidlearnError, "does not exist; create it first"),
+    ("fractional id", lambda out: markers_pdf(out / "m.pdf", [1.5], 50), PrintError, "marker id 1.5 is not a whole number"),
+    ("True for an id", lambda out: markers_pdf(out / "m.pdf", [True, 2], 50), PrintError, "marker id True is not a whole number"),
+    ("bytes for ids", lambda out: markers_pdf(out / "m.pdf", b"12", 50), PrintError, "b'12' is not a whole number"),
+    ("backwards range as text", lambda out: markers_pdf(out / "m.pdf", "5-3", 50), PrintError, "runs backwards; write 3-5"),
+    ("board pattern in words", lambda out: board_pdf(out / "b.pdf", "9 by 6", 25), PrintError, "write it like 9x6"),
+    ("board pattern of 3 numbers", lambda out: board_pdf(out / "b.pdf", (9, 6, 1), 25), PrintError, "e.g. (9, 6) or '9x6'"),
+    ("board pattern of floats", lambda out: board_pdf(out / "b.pdf", (9.5, 6), 25), PrintError, "must be two whole numbers of inner corners"),
     ("board of 1x1 corners", lambda out: board_pdf(out / "b.pdf", (1, 1), 25), PrintError, "at least 3x3 squares (2x2 inner corners)"),
     ("board of negative size", lambda out: board_pdf(out / "b.pdf", (-9, 6), 25), PrintError, "at least 3x3 squares"),
     ("board with zero squares", lambda out: board_pdf(out / "b.pdf", (9, 6), 0), PrintError, "must be a positive length in mm"),
@@ -930,6 +937,12 @@ def test_bad_charuco_calibration_input(images, kwargs, fragment):
     with pytest.raises(CalibrationError) as info:
         calibrate_charuco(images, **kwargs)
     assert fragment in str(info.value)
+
+
+def test_printables_take_ids_and_patterns_as_the_command_line_writes_them(tmp_path):
+    sheet = markers_pdf(tmp_path / "m.pdf", "0-3,8", 50)
+    assert [i for page in sheet.pages for i, _, _ in page] == [0, 1, 2, 3, 8]
+    assert board_pdf(tmp_path / "b.pdf", "9x6", 20).squares == (10, 7)
 
 
 def test_charuco_calibration_with_an_unknown_dictionary():
