@@ -2573,8 +2573,16 @@ def grade_notebook(path: "str | os.PathLike", learner: str | None = None, timeou
     import nbformat
     from nbclient import NotebookClient
 
+    from .errors import FidlearnError
+
     path = os.fspath(path)
-    nb = nbformat.read(path, as_version=4)
+    if not os.path.isfile(path):
+        what = "is a folder; give the notebooks in it (folder/*.ipynb)" if os.path.isdir(path) else "no such notebook; check the path"
+        raise FidlearnError(f"{path}: {what}")
+    try:
+        nb = nbformat.read(path, as_version=4)
+    except Exception as exc:  # nbformat raises NotJSONError, UnicodeDecodeError, KeyError, validation errors...
+        raise FidlearnError(f"{path}: not a Jupyter notebook ({type(exc).__name__}); give the learner's .ipynb file") from None
     nb.cells.append(nbformat.v4.new_code_cell(_GRADE_CELL))
     saved = {k: os.environ.get(k) for k in ("FIDLEARN_LEARNER", "FIDLEARN_STRICT")}
     os.environ.pop("FIDLEARN_STRICT", None)
@@ -2617,6 +2625,7 @@ def _main(argv: Sequence[str] | None = None) -> int:
     import argparse
     import csv
     import io
+    import sys
 
     from ._io import write_text_atomic
 
@@ -2627,9 +2636,15 @@ def _main(argv: Sequence[str] | None = None) -> int:
     g.add_argument("--learner", help="the id the learner was told to use (one notebook, or all of one learner)")
     g.add_argument("--csv", help="also write one row per question to this CSV file")
     args = parser.parse_args(argv)
+    from .errors import FidlearnError
+
     grades = []
     for path in args.notebooks:
-        grade = grade_notebook(path, learner=args.learner)
+        try:
+            grade = grade_notebook(path, learner=args.learner)
+        except FidlearnError as exc:  # one line and status 2, as every fidlearn command
+            print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+            return 2
         print(grade)
         grades.append(grade)
     if args.csv:

@@ -992,3 +992,30 @@ def test_tracker_refuses_bad_frames_and_carries_on(seed_scene):
     again = tracker.locate(image)
     np.testing.assert_allclose(again.T_world_camera, first.T_world_camera, atol=1e-6)
     assert np.all(np.abs(again.position_mm - T_world_camera[:3, 3]) <= 3 * again.position_std_mm)
+
+
+# -- grading learners' notebooks ----------------------------------------------------------
+from fidlearn import exercises  # noqa: E402
+
+GRADE = [
+    ("missing notebook", "nope.ipynb", "nope.ipynb: no such notebook; check the path"),
+    ("a folder", "empty", "is a folder; give the notebooks in it (folder/*.ipynb)"),
+    ("a JSON map", "map.json", "not a Jupyter notebook (ValidationError)"),
+    ("a picture", "photo.png", "not a Jupyter notebook (UnicodeDecodeError)"),
+    ("a truncated notebook", "cut.ipynb", "not a Jupyter notebook"),
+]
+
+
+@pytest.mark.parametrize("name, fragment", [c[1:] for c in GRADE], ids=[c[0] for c in GRADE])
+def test_bad_notebook_to_grade(tmp_path, monkeypatch, capsys, name, fragment):
+    """``python -m fidlearn.exercises grade``: one ``error:`` line and status 2, as every fidlearn command."""
+    commands_setup(tmp_path)
+    (tmp_path / "cut.ipynb").write_text('{"cells": [{"cell_type": "code", "source": "x = ')
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    status = exercises._main(["grade", name, "--csv", "grades.csv"])
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert status == 2 and len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], err
+    assert out == ""
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
