@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import shutil
 import subprocess
@@ -1019,3 +1020,40 @@ def test_bad_notebook_to_grade(tmp_path, monkeypatch, capsys, name, fragment):
     assert status == 2 and len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], err
     assert out == ""
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
+
+
+# -- fuzzing the command line ---------------------------------------------------------------
+ARG_WORDS = [
+    "corners", "markers", "board", "map.json", "bare.json", "deep.json", "photo.png", "outdir", "nope.json",
+    "-o", "out.json", "out.pdf", "out.png", "out.svg", "outdir/c.json", "--units", "ft", "mm", "parsec",
+    "--marker-size-mm", "--size-mm", "--square-mm", "--marker-mm", "80", "-5", "0", "nan", "1e9", "--dictionary",
+    "6X6_250", "4X4_50", "--ids", "0-3", "3-0", "0,0", "--pattern", "9x6", "1x1", "--charuco", "--squares", "5x7",
+    "--paper", "a4", "a3", "--dpi", "30", "--bogus", "",
+]
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(argv=st.lists(st.sampled_from(ARG_WORDS), min_size=1, max_size=9))
+def test_command_line_fuzz_succeeds_or_says_one_error_line(tmp_path_factory, capsys, argv):
+    """Random arguments: status 0 with the output written, or status 2 with one ``error:`` line and nothing written."""
+    folder = tmp_path_factory.mktemp("cli")
+    cli_setup(folder)
+    before = sorted(p.name for p in folder.rglob("*"))
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        capsys.readouterr()
+        status = cli_main(argv)
+    except SystemExit as exc:  # argparse's own --help / --version
+        status = exc.code
+    finally:
+        os.chdir(cwd)
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+    if status == 2:
+        lines = err.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: "), err
+        assert sorted(p.name for p in folder.rglob("*")) == before
+    else:
+        assert status == 0, (status, err)
+        assert all(line.startswith("warning: ") for line in err.splitlines()), err
