@@ -297,9 +297,10 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
           "The markers that plain detectMarkers misses are whole and sharp, some well inside the frame: OpenCV's "
           "filter of candidates closer than `minMarkerDistanceRate` (0.125 of the perimeter) keeps another quad "
           "instead of the marker's outline (with a white margin of one cell the paper's edge is 0.05 of the perimeter "
-          "away; opencv/opencv_contrib#2913). With `minMarkerDistanceRate` 0.05 OpenCV 4.14 and 5.0 find them.")
+          "away; opencv/opencv_contrib#2913); OpenCV 4.14 does the same. Lowering `minMarkerDistanceRate` to 0.05 finds "
+          "some of them and loses others (rows above).")
     print(f"\nThe tracker ran a full-frame detection on {', '.join(map(str, full))} of {n_frames} frames in the timed passes "
-          f"(frame 0, every 30th, and where a marker went missing from its window).")
+          f"(frame 0, every 30th, and where most markers went missing from their windows).")
     print(f"Tracker corners against the truth: RMS {rms:.3f} px over {len(corner_err)} markers. Camera position error: "
           f"median {np.median(pose_err_tracker):.2f} mm with the tracker, {np.median(pose_err_locate):.2f} mm with `fidlearn.locate` "
           f"on the same frames; a pose in {n_pose} of {n_frames} frames.")
