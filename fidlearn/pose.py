@@ -49,6 +49,7 @@ Examples
 from __future__ import annotations
 
 import math
+import os
 import weakref
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -99,6 +100,21 @@ OUTLIER_CHI2 = 31.83
 OUTLIER_MIN_RMS_PX = 0.75
 #: Noise assumed when screening for outliers: never below this (px).
 OUTLIER_SIGMA_FLOOR_PX = 0.3
+#: A fit whose RMS reprojection error is above ``max(BAD_FIT_MIN_PX, BAD_FIT_REL * s)``,
+#: ``s`` the median side of the markers in the image (px), is not returned as a pose: the
+#: corners do not fit the map (:class:`PoseError`). Detectors place corners within a pixel or
+#: two. Measured (six or three markers, 25-80 px wide): a marker moved by 8-14 cm on a map of
+#: 150 mm markers drags the pose and leaves 0.15-0.32 side widths of RMS residual (still a pose,
+#: its residuals telling, see ``Pose.marker_rms_px``); positions in the wrong units (mm, cm,
+#: inch, foot, metre taken for another) leave 0.47-3.5, a corner order mixed up 0.67-5.
+BAD_FIT_REL = 0.4
+BAD_FIT_MIN_PX = 5.0
+#: The ambiguity test never assumes a corner noise above this (px) when it estimates the noise
+#: from the residuals: no detector is that far off on a marker it decoded, so larger residuals
+#: are a wrong map or camera, and they must not make a poorer second pose look "as good".
+AMBIGUITY_MAX_SIGMA_PX = 3.0
+#: Smallest area (px^2) of a marker's four image corners: below it they are (nearly) on a line.
+_MIN_QUAD_AREA_PX2 = 1.0
 
 _PLANAR_TOL_MM = 1.0
 _PLANAR_TOL_REL = 0.01
@@ -145,6 +161,20 @@ class Pose:
         this pose, of the mixture of both poses (weights from their likelihood
         ratio), so the ellipsoid reaches the alternative. The alternative's own
         covariance is the local one. None if the pose is not determined.
+
+        What it promises: when the corner errors are independent, Gaussian,
+        of the sigma used, the 95 % ellipsoid
+        (:meth:`position_ellipsoid_contains`) holds the true position about
+        95 % of the time (91-96 % in ``benchmarks/bench_pose.py``, corners
+        with Gaussian noise of 0.3 and 1 px, sigma given or estimated). It
+        knows only the corner noise: an error of the map, the marker size or
+        the calibration is not in it. An estimated sigma is blended with a
+        prior of ``PRIOR_SIGMA_PX`` (0.25 px) worth ``PRIOR_DOF`` degrees of
+        freedom, so with few markers and a detector better than that (on the
+        bundled rendered scenes fidlearn's corners are 0.02-0.1 px off) the
+        ellipsoid is too large, i.e. conservative: there the truth was always
+        inside, at a mean squared Mahalanobis distance of 0.25 instead of 3.
+        Give ``corner_sigma_px`` when you know your detector's noise.
     sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes: given, or
         estimated from the residuals (see :func:`estimate_pose`).
@@ -360,8 +390,19 @@ def refine_pose_lm(points_world: np.ndarray, points_px: np.ndarray, camera: Came
     C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
     R_wc, C, _, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations, tol_sigma2=0.0)
     R_cw = R_wc.T
-    r, _ = cv2.Rodrigues(R_cw)
-    return r.reshape(3), -R_cw @ C
+    return _rotvec(R_cw), -R_cw @ C
+
+
+def _rotvec(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (3,), rad, of a rotation matrix (3, 3): the log map, exact for tiny angles too.
+
+    ``cv2.Rodrigues`` returns exactly zero below about 1e-5 rad (OpenCV 4.x and 5.x); there
+    ``sin(angle) = angle`` to 1e-10, so the skew part of ``R`` is the rotation vector.
+    """
+    r = cv2.Rodrigues(np.ascontiguousarray(R, dtype=np.float64))[0].reshape(3)
+    if not r.any():
+        r = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return r
 
 
 _ZERO3 = np.zeros(3)
@@ -471,6 +512,18 @@ class _Obs:
     ids: list[int]
     obj: np.ndarray  # (4n, 3) world corners, mm
     img: np.ndarray  # (4n, 2) pixel corners
+    _faces: tuple | None = field(default=None, init=False, repr=False)
+
+    def faces(self) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (n, 3) and (unnormalised) normals (n, 3) of the markers' printed faces, world mm."""
+        if self._faces is None:
+            q = self.obj.reshape(-1, 4, 3)
+            # x from TL to TR, y from BL to TL, z = x cross y out of the face (MarkerMap.normal)
+            self._faces = (q.mean(axis=1), np.cross(q[:, 1] - q[:, 0], q[:, 0] - q[:, 3]))
+        return self._faces
+
+
+_UNCHECKED = "unchecked"
 
 
 @dataclass
@@ -481,6 +534,7 @@ class _Candidate:
     r: np.ndarray | None  # (2N,) residuals, observed minus projected, px (None: not computed yet)
     refined: bool = False  # whether Levenberg-Marquardt ran from it
     JtJ: np.ndarray | None = None  # (6, 6) J^T J at this pose, when LM left it behind
+    problem: str | None = _UNCHECKED  # why it cannot be the camera (None: it can); see _cheirality
 
     @property
     def T_world_camera(self) -> np.ndarray:
@@ -598,6 +652,7 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
     if not refine_lm:
         unrefined = [_from_R_t(obs, camera, R_cw, t) for R_cw, t, _ in raw]
         unrefined.sort(key=lambda k: k.sse)
+        unrefined = _front_first(obs, camera, unrefined, False)
         return unrefined, unrefined, method_used
     # ranked by the solver's own reprojection error; LM computes the residuals anyway
     unrefined = [_from_R_t(obs, camera, R_cw, t, sse) for R_cw, t, sse in raw]
@@ -611,12 +666,111 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
     for u in unrefined[1:]:
         cands.append(_lm_candidate(obs, camera, u) if u.sse - best.sse < REFINE_GAP_CHI2 * sigma2 else u)
     cands.sort(key=lambda k: k.sse)
-    return cands, unrefined, method_used + "+lm"
+    return _front_first(obs, camera, cands, True), unrefined, method_used + "+lm"
+
+
+def _cheirality(obs: _Obs, c: _Candidate) -> str | None:
+    """None when a candidate sees every marker from its printed side and every corner in front of it.
+
+    Otherwise a message saying which markers break it and what is likely wrong. A mirror image
+    of the markers (camera behind them, or behind the camera) can fit the corners perfectly:
+    a pose is only one that a camera can have when both hold.
+    """
+    if c.problem is not _UNCHECKED:
+        return c.problem
+    centres, normals = obs.faces()
+    facing = np.einsum("ij,ij->i", c.C - centres, normals)  # > 0: the camera is on the printed side
+    depth = (obs.obj - c.C) @ c.R_wc[:, 2]  # > 0: in front of the camera
+    rms = math.sqrt(c.sse / len(obs.obj))
+    backs = [i for i, f in zip(obs.ids, facing) if not f > 0]
+    if backs:
+        one = len(backs) == 1
+        c.problem = (
+            f"marker{'' if one else 's'} {backs[0] if one else backs} would be seen from behind (from the back of "
+            f"{'its' if one else 'their'} printed face) by the pose that fits the corners best (reprojection error "
+            f"{rms:.1f} px): {'is its' if one else 'are their'} rotation in the map wrong (yaw 180, facing into the "
+            "wall instead of out of it; a marker on a wall facing +X has rotation [0, 0, 0]), or the corners "
+            "mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?"
+            + (f" With markers {obs.ids} in view, the wrong rotation may be another one's." if len(obs.ids) > 1 else "")
+        )
+        return c.problem
+    behind = [i for i, d in zip(obs.ids, depth.reshape(-1, 4)) if not np.all(d > 0)]
+    if behind:
+        one = len(behind) == 1
+        c.problem = (
+            f"marker{'' if one else 's'} {behind[0] if one else behind} would be behind the camera in the pose "
+            f"that fits the corners best (reprojection error {rms:.1f} px): the corners do not fit the map; check "
+            "the map's positions and rotations, the marker size and the corner order (TL, TR, BR, BL)"
+        )
+        return c.problem
+    c.problem = None
+    return None
+
+
+def _front_first(obs: _Obs, camera: Camera, cands: list, refine_lm: bool) -> list:
+    """The candidates with those a camera can have (:func:`_cheirality`) first, each group by error.
+
+    Costs nothing more in the usual case (the best candidate passes). Otherwise the best one
+    that passes is refined if it was not.
+    """
+    if _cheirality(obs, cands[0]) is None:
+        return cands
+    ok = [c for c in cands if _cheirality(obs, c) is None]
+    bad = [c for c in cands if c.problem is not None]
+    if ok and refine_lm and not ok[0].refined:
+        r = _lm_candidate(obs, camera, ok[0])
+        if _cheirality(obs, r) is None:
+            ok[0] = r
+            ok.sort(key=lambda k: k.sse)
+    return ok + bad
+
+
+def _side_px(img: np.ndarray) -> np.ndarray:
+    """Mean side length (n,), px, of each marker's four image corners (4n, 2)."""
+    q = img.reshape(-1, 4, 2)
+    return np.linalg.norm(np.roll(q, -1, axis=1) - q, axis=2).mean(axis=1)
+
+
+def _check_quads(corners_px: dict[int, np.ndarray]) -> None:
+    """Raise PoseError unless every marker's image corners form a convex quadrilateral, clockwise on screen.
+
+    TL, TR, BR, BL of a marker seen from its printed side run clockwise in the image (y points
+    down), as every detector reports them: the shoelace area and the turn at every corner are
+    then positive.
+    """
+    ids = list(corners_px)
+    q = np.stack([corners_px[i] for i in ids]).reshape(-1, 4, 2)
+    e = np.roll(q, -1, axis=1) - q  # edges c[k+1] - c[k]
+    e_next = np.roll(e, -1, axis=1)
+    turn = e[..., 0] * e_next[..., 1] - e[..., 1] * e_next[..., 0]  # (n, 4)
+    nxt = np.roll(q, -1, axis=1)
+    area = 0.5 * np.sum(q[..., 0] * nxt[..., 1] - nxt[..., 0] * q[..., 1], axis=1)
+    good = np.all(turn > 0, axis=1) & (area >= _MIN_QUAD_AREA_PX2)
+    if good.all():
+        return
+    k = int(np.flatnonzero(~good)[0])
+    i, c = ids[k], np.round(q[k], 1).tolist()
+    if np.abs(turn[k]).max() < 2 * _MIN_QUAD_AREA_PX2:  # every three of the corners span no triangle
+        raise PoseError(
+            f"marker {i}: its image corners {c} enclose no area (they lie on a line or repeat a point): no "
+            "detector reports such a marker and no pose follows from it; check how the corners were made"
+        )
+    if np.all(turn[k] < 0):
+        raise PoseError(
+            f"marker {i}: its image corners {c} run anticlockwise on the screen, the mirror image of a marker "
+            "seen from its printed side (detection reports TL, TR, BR, BL clockwise, y pointing down): are "
+            "they listed TL, BL, BR, TR? corners[[0, 3, 2, 1]] puts them right. (A camera behind the marker, "
+            "or a mirrored picture, gives this too.)"
+        )
+    raise PoseError(
+        f"marker {i}: its image corners {c} do not form a convex quadrilateral (the outline crosses itself or "
+        "folds in): they are not in the order TL, TR, BR, BL around the marker"
+    )
 
 
 def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -> float:
     """Squared distance between two poses in units of the pose's uncertainty at ``a``."""
-    dtheta = cv2.Rodrigues(b.R_wc @ a.R_wc.T)[0].reshape(3)
+    dtheta = _rotvec(b.R_wc @ a.R_wc.T)
     d = np.concatenate([dtheta, b.C - a.C])
     return float(d @ JtJ @ d) / sigma**2
 
@@ -757,6 +911,8 @@ def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_si
                 rc, ru, _ = _solve(rest, marker_map, camera, method, refine_lm)
             except PoseError:
                 continue
+            if _cheirality(rest, rc[0]) is not None:
+                continue  # no pose a camera can have
             if best is None or rc[0].sse < best[0]:
                 best = (rc[0].sse, k, mid, rest, rc, ru)
         if best is None:
@@ -778,11 +934,53 @@ def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_si
 # ---------------------------------------------------------------------------------------
 # Public entry points
 # ---------------------------------------------------------------------------------------
-def _check_inputs(detections, marker_map, camera) -> list[Detection]:
-    if not isinstance(marker_map, MarkerMap):
-        raise PoseError(f"marker_map must be a fidlearn.MarkerMap (use MarkerMap.load('map.json')), got {type(marker_map).__name__}")
-    if not isinstance(camera, Camera):
-        raise PoseError(f"camera must be a fidlearn.Camera (use Camera.load('camera.json')), got {type(camera).__name__}")
+def _as_map(marker_map) -> MarkerMap:
+    """The MarkerMap itself, or the one loaded from a path (MarkerMap.load)."""
+    if isinstance(marker_map, MarkerMap):
+        return marker_map
+    if isinstance(marker_map, (str, os.PathLike)):
+        return MarkerMap.load(marker_map)
+    swapped = " (arguments swapped? the order is marker_map, camera)" if isinstance(marker_map, Camera) else ""
+    raise PoseError(
+        f"marker_map must be a fidlearn.MarkerMap or the path of a map file, got {type(marker_map).__name__}"
+        f"{swapped}; load a file with MarkerMap.load(path)"
+    )
+
+
+def _as_camera(camera) -> Camera:
+    """The Camera itself, or the one loaded from a path (Camera.load)."""
+    if isinstance(camera, Camera):
+        return camera
+    if isinstance(camera, (str, os.PathLike)):
+        return Camera.load(camera)
+    swapped = " (arguments swapped? the order is marker_map, camera)" if isinstance(camera, MarkerMap) else ""
+    raise PoseError(
+        f"camera must be a fidlearn.Camera or the path of a camera file, got {type(camera).__name__}{swapped}; "
+        "load a file with Camera.load(path) (or make one with Camera(K, dist, image_size))"
+    )
+
+
+def _check_options(method, refine_lm, reject_outliers, corner_sigma_px) -> str:
+    """Validate estimate_pose's options; return the method in lower case."""
+    if not isinstance(method, str):
+        raise PoseError(f"method must be a string, 'auto' or one of {', '.join(METHODS)}; got {method!r}")
+    method = method.lower()
+    if method != "auto" and method not in METHODS:
+        raise PoseError(f"unknown method {method!r}; use 'auto' or one of {', '.join(METHODS)}")
+    if refine_lm is not None and not isinstance(refine_lm, (bool, np.bool_)):
+        raise PoseError(f"refine_lm must be True, False or None (the method's default), got {refine_lm!r}")
+    if not isinstance(reject_outliers, (bool, np.bool_)):
+        raise PoseError(f"reject_outliers must be True or False, got {reject_outliers!r}")
+    if corner_sigma_px is not None:
+        ok = isinstance(corner_sigma_px, (int, float, np.integer, np.floating)) and not isinstance(corner_sigma_px, bool)
+        if not (ok and np.isfinite(corner_sigma_px) and corner_sigma_px > 0):
+            raise PoseError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
+    return method
+
+
+def _check_inputs(detections, marker_map, camera) -> tuple[list[Detection], MarkerMap, Camera]:
+    marker_map = _as_map(marker_map)
+    camera = _as_camera(camera)
     if isinstance(detections, Detection):
         detections = [detections]
     if isinstance(detections, (str, bytes, np.ndarray)) or not hasattr(detections, "__iter__"):
@@ -799,7 +997,7 @@ def _check_inputs(detections, marker_map, camera) -> list[Detection]:
     if dets and not np.isfinite(np.stack([d.corners for d in dets])).all():
         k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners).all())
         raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners.tolist()}")
-    return dets
+    return dets, marker_map, camera
 
 
 def estimate_pose(
@@ -820,10 +1018,12 @@ def estimate_pose(
         Detected markers (pixel corners TL, TR, BR, BL). Ids not in the map are
         ignored and listed in ``Pose.ignored_ids``. An id detected twice keeps
         its largest detection.
-    marker_map : MarkerMap
-        Where the markers are (world corners, mm).
-    camera : Camera
-        Intrinsics and distortion at the resolution the corners were detected at.
+    marker_map : MarkerMap or path
+        Where the markers are (world corners, mm). A path (str or
+        ``pathlib.Path``) is read with :meth:`MarkerMap.load`.
+    camera : Camera or path
+        Intrinsics and distortion at the resolution the corners were detected
+        at. A path is read with :meth:`Camera.load`.
     method : {"auto", "ippe", "ippe_square", "sqpnp", "iterative", "epnp"}
         ``"auto"`` (default) chooses by the data: ``ippe_square`` for one marker,
         ``ippe`` for coplanar corners (both solutions kept), ``sqpnp`` for
@@ -832,8 +1032,10 @@ def estimate_pose(
         LM unless ``refine_lm=True``) so solvers can be compared; ``"iterative"``
         is OpenCV's own LM from a DLT/homography start.
     refine_lm : bool, optional
-        Refine with Levenberg-Marquardt (``cv2.solvePnPRefineLM``). Default:
-        True for ``"auto"``, False for a named method.
+        Refine with Levenberg-Marquardt on the reprojection error (fidlearn's
+        own, :func:`refine_pose_lm`: it minimises what ``cv2.solvePnPRefineLM``
+        does but runs to the optimum on far, poorly conditioned views).
+        Default: True for ``"auto"``, False for a named method.
     reject_outliers : bool
         With 3 or more markers, leave out a marker that disagrees with the
         others (a marker measured wrongly on the wall) and list it in
@@ -858,23 +1060,31 @@ def estimate_pose(
         ``Pose.ambiguous`` is True when the second planar solution's extra sum
         of squared residuals is below ``AMBIGUITY_CHI2 * sigma^2``: the
         likelihood ratio of the two poses is then above ``exp(-9/2)`` and the
-        corners cannot rule out the alternative.
+        corners cannot rule out the alternative. Only when the fit is good: a
+        sigma estimated from the residuals counts at most
+        ``AMBIGUITY_MAX_SIGMA_PX`` here (larger residuals are a wrong map or
+        camera, not noise, and make no second pose "as good").
 
     Raises
     ------
     NoMarkersError
         No detected marker is in the map.
     PoseError
-        Bad inputs, or a named method that cannot solve this data.
+        Bad inputs; a marker whose image corners are not a convex
+        quadrilateral running clockwise on screen (TL, TR, BR, BL as detection
+        reports them: collinear, repeated, mirrored or shuffled corners); no
+        pose that sees every used marker from its printed side with every
+        corner in front of the camera (a marker turned the wrong way in the
+        map); a best fit whose RMS reprojection error is above
+        ``max(BAD_FIT_MIN_PX, BAD_FIT_REL * median marker side in px)`` (the
+        corners do not fit the map: wrong positions, rotations, units, marker
+        size or camera); or a named method that cannot solve this data.
     """
-    dets = _check_inputs(detections, marker_map, camera)
-    method = str(method).lower()
-    if method != "auto" and method not in METHODS:
-        raise PoseError(f"unknown method {method!r}; use 'auto' or one of {', '.join(METHODS)}")
+    dets, marker_map, camera = _check_inputs(detections, marker_map, camera)
+    method = _check_options(method, refine_lm, reject_outliers, corner_sigma_px)
     if refine_lm is None:
         refine_lm = method == "auto"
-    if corner_sigma_px is not None and not (np.isfinite(corner_sigma_px) and corner_sigma_px > 0):
-        raise PoseError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
+    refine_lm = bool(refine_lm)
 
     corners_px: dict[int, np.ndarray] = {}
     ignored: list[int] = []
@@ -902,6 +1112,7 @@ def estimate_pose(
         )
 
     ids = sorted(corners_px)
+    _check_quads({i: corners_px[i] for i in ids})
     world = _world_corners(marker_map)
     obs = _make_obs(ids, corners_px, world)
     cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
@@ -910,8 +1121,25 @@ def estimate_pose(
         obs, cands, unrefined, rejected = _reject_outliers(
             obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined)
 
+    problem = _cheirality(obs, cands[0])
+    if problem is not None:  # every candidate breaks it (_solve puts those that do not first)
+        raise PoseError(problem)
+    rms = math.sqrt(cands[0].sse / len(obs.obj))
+    side = float(np.median(_side_px(obs.img)))
+    if rms > max(BAD_FIT_MIN_PX, BAD_FIT_REL * side):
+        raise PoseError(
+            f"the corners do not fit the map: reprojection error {rms:.1f} px for markers {obs.ids}, which are "
+            f"about {side:.0f} px wide in the image (a pose that fits leaves a pixel or two); check the map's "
+            "positions and rotations, the marker size, the units, the corner order (TL, TR, BR, BL) and the "
+            "camera file"
+        )
+
     dof = 2 * len(obs.obj) - 6
     sigma = _sigma(cands[0].sse, dof, corner_sigma_px)
+    # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
+    # camera, not noise, and must not make a poorer second pose look "as good" (nor hide the
+    # first pose's misfit behind it).
+    sigma_amb = sigma if corner_sigma_px is not None else min(sigma, AMBIGUITY_MAX_SIGMA_PX)
     JtJ = cands[0].JtJ
     if JtJ is None:
         J = pose_jacobian(obs.obj, cands[0].T_world_camera, camera)
@@ -923,11 +1151,14 @@ def estimate_pose(
     # extra sum of squared residuals is below AMBIGUITY_CHI2 sigma^2. Near a single quadratic
     # minimum the two numbers are equal, so a merely nearby pose is never called ambiguous;
     # both hold only when the error surface is far from quadratic, which is the flip.
-    alt = next((c for c in cands[1:] if _mahalanobis2(cands[0], c, JtJ, sigma) > AMBIGUITY_CHI2), None)
+    # Only a pose a camera can have counts (:func:`_cheirality`).
+    alt = next((c for c in cands[1:] if _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2
+                and _cheirality(obs, c) is None), None)
     if alt is None and unrefined is not cands:
-        far = [c for c in unrefined if c.sse > cands[0].sse and _mahalanobis2(cands[0], c, JtJ, sigma) > AMBIGUITY_CHI2]
+        far = [c for c in unrefined if c.sse > cands[0].sse and _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2
+               and _cheirality(obs, c) is None]
         alt = min(far, key=lambda c: c.sse) if far else None
-    ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * sigma**2
+    ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * sigma_amb**2
 
     def build(c: _Candidate, alternative: Pose | None, how: str, JtJ_c: np.ndarray | None = None) -> Pose:
         T_world_camera = c.T_world_camera
@@ -948,8 +1179,8 @@ def estimate_pose(
         if ambiguous and alternative is not None and cov is not None and alternative.covariance is not None:
             # Two poses explain the corners: report the second moment about this pose of the
             # two-pose mixture, weighted by likelihood, so its ellipsoid reaches the other one.
-            w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * sigma**2), 700.0)))
-            d = np.r_[cv2.Rodrigues(alt.R_wc @ c.R_wc.T)[0].reshape(3), alt.C - c.C]
+            w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * sigma_amb**2), 700.0)))
+            d = np.r_[_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C]
             cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
         return Pose(
             T_world_camera=T_world_camera,
@@ -973,40 +1204,67 @@ def estimate_pose(
     return build(cands[0], lambda: build(alt, None, alt_how), method_used, JtJ)
 
 
-def locate(image: np.ndarray, marker_map: MarkerMap, camera: Camera, *, refine: str | None = None,
-           detector_params=None, **kw) -> Pose:
+def locate(image: np.ndarray, marker_map: MarkerMap | str | os.PathLike, camera: Camera | str | os.PathLike, *,
+           refine: str | None = None, detector_params=None, **kw) -> Pose:
     """Detect the map's markers in an image and estimate the camera's pose.
 
     Parameters
     ----------
     image : ndarray
-        Gray or BGR image.
-    marker_map : MarkerMap
-        The world map; its dictionary is used for detection.
-    camera : Camera
+        Gray or BGR image (read a file with :func:`fidlearn.detection.load_image`).
+    marker_map : MarkerMap or path
+        The world map; its dictionary is used for detection. A path (str or
+        ``pathlib.Path``) is read with :meth:`MarkerMap.load` (in a loop over
+        many images, load it once and pass the MarkerMap).
+    camera : Camera or path
         Fitted to the image with :meth:`Camera.for_image` (rescaled with a
         :class:`FidlearnWarning` when only the resolution differs; a
-        :class:`CameraError` when the aspect ratio differs).
+        :class:`CameraError` when the aspect ratio differs). A path is read
+        with :meth:`Camera.load`.
     refine : str, optional
-        Corner refinement for :func:`fidlearn.detection.detect_markers`
-        (``"none"``, ``"subpix"``, ``"contour"``, ``"apriltag"``, ``"edges"``); None
-        for its default.
+        Corner refinement for :func:`fidlearn.detection.detect_markers`:
+        ``"edges"`` (its default), ``"none"``, ``"subpix"``, ``"contour"`` or
+        ``"apriltag"``; None for the default.
     detector_params : dict or cv2.aruco.DetectorParameters, optional
         OpenCV detector parameters, passed to ``detect_markers(params=...)``.
     **kw
-        Passed to :func:`estimate_pose` (``method``, ``reject_outliers``, ...).
+        Passed to :func:`estimate_pose` (``method``, ``refine_lm``,
+        ``reject_outliers``, ``corner_sigma_px``).
+
+    Returns
+    -------
+    Pose
+
+    Raises
+    ------
+    ImageError
+        ``image`` is not an image array.
+    NoMarkersError
+        No marker of the map is detected.
+    PoseError
+        Bad arguments, or the corners do not give a pose (see :func:`estimate_pose`).
     """
     from .detection import detect_markers  # noqa: PLC0415 (keeps pose importable on its own)
 
+    # every argument is checked before the (costly) detection
     if not isinstance(image, np.ndarray):
         from .errors import ImageError
 
         raise ImageError(f"image must be a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}")
-    if not isinstance(camera, Camera):
-        raise PoseError(f"camera must be a fidlearn.Camera (use Camera.load('camera.json')), got {type(camera).__name__}")
-    camera = camera.for_image(image)
+    unknown = sorted(set(kw) - _ESTIMATE_OPTIONS)
+    if unknown:
+        raise PoseError(
+            f"locate() got unknown option{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))}; it takes "
+            f"refine, detector_params and estimate_pose's {', '.join(sorted(_ESTIMATE_OPTIONS))}"
+        )
+    _check_options(kw.get("method", "auto"), kw.get("refine_lm"), kw.get("reject_outliers", True), kw.get("corner_sigma_px"))
+    marker_map = _as_map(marker_map)
+    camera = _as_camera(camera).for_image(image)
     det_kw = {} if refine is None else {"refine": refine}
     if detector_params is not None:
         det_kw["params"] = detector_params
     detections = detect_markers(image, dictionary=marker_map.dictionary, **det_kw)
     return estimate_pose(detections, marker_map, camera, **kw)
+
+
+_ESTIMATE_OPTIONS = frozenset({"method", "refine_lm", "reject_outliers", "corner_sigma_px"})

@@ -510,3 +510,186 @@ def test_the_solver_is_as_good_as_lm_started_at_the_truth():
     assert np.median(ours) <= 1.1 * np.median(truth)
     assert np.mean(np.array(ours) > 25) <= np.mean(np.array(truth) > 25) + 0.02
     assert 1.5 < np.median(truth) < 3.5  # chi-square(3) median 2.37: the bound is reached
+
+
+# ---------------------------------------------------------------------------------------
+# Arguments, impossible corners, impossible poses, fits that are no pose
+# ---------------------------------------------------------------------------------------
+def test_locate_and_estimate_pose_take_paths_and_check_every_argument_first():
+    from fidlearn.synthetic import render_scene
+
+    map_path = data_path("world_map.json")
+    camera_path = data_path("scenes", "camera.json")
+    m, camera = MarkerMap.load(map_path), Camera.load(camera_path)
+    T = look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0])
+    image, _ = render_scene(camera, m, T, seed=5, blur_px=0.5, noise_std=1.0)
+    pose = locate(image, m, camera)
+    assert pose_errors(pose, T)[0] < 10.0
+    for mp, cp in ((str(map_path), camera), (m, str(camera_path)), (map_path, camera_path)):
+        np.testing.assert_allclose(locate(image, mp, cp).T_world_camera, pose.T_world_camera, atol=1e-9)
+    dets = observe(m, T, camera=camera)
+    np.testing.assert_allclose(estimate_pose(dets, str(map_path), str(camera_path)).T_world_camera, T, atol=1e-6)
+    # the learner's mistakes, each refused before any detection with what to do
+    with pytest.raises(PoseError, match=r"marker_map must be a fidlearn.MarkerMap or the path of a map file, got Camera "
+                                        r"\(arguments swapped\? the order is marker_map, camera\); load a file with MarkerMap.load"):
+        locate(image, camera, m)
+    with pytest.raises(PoseError, match=r"marker_map must be .*got dict; load a file with MarkerMap.load\(path\)"):
+        estimate_pose(dets, {"0": [0, 0, 1]}, camera)
+    with pytest.raises(PoseError, match=r"camera must be a fidlearn.Camera or the path of a camera file, got ndarray; "
+                                        r"load a file with Camera.load\(path\)"):
+        locate(image, m, camera.K)
+    with pytest.raises(PoseError, match=r"locate\(\) got unknown option 'sigma'; it takes refine, detector_params and "
+                                        r"estimate_pose's corner_sigma_px, method"):
+        locate(image, m, camera, sigma=0.3)
+    with pytest.raises(PoseError, match="unknown method 'dls'"):
+        locate(image, m, camera, method="dls")
+    with pytest.raises(PoseError, match="reject_outliers must be True or False, got 'no'"):
+        locate(image, m, camera, reject_outliers="no")
+    with pytest.raises(PoseError, match="corner_sigma_px must be a positive number of pixels, got '0.3'"):
+        estimate_pose(dets, m, camera, corner_sigma_px="0.3")
+    with pytest.raises(PoseError, match="refine_lm must be True, False or None"):
+        estimate_pose(dets, m, camera, refine_lm="yes")
+    from fidlearn.errors import MapError
+
+    with pytest.raises(MapError):  # a path that is not there: MarkerMap.load's own message
+        locate(image, "no_such_map.json", camera)
+
+
+SQUARE = np.array([[100.0, 100.0], [160.0, 100.0], [160.0, 160.0], [100.0, 160.0]])  # TL, TR, BR, BL on screen
+
+
+@pytest.mark.parametrize("corners, message", [
+    (SQUARE[[0, 3, 2, 1]], r"marker 1: its image corners \[\[100.0, 100.0\], \[100.0, 160.0\].* run anticlockwise on the "
+                           r"screen.*are they listed TL, BL, BR, TR\? corners\[\[0, 3, 2, 1\]\] puts them right"),
+    (SQUARE[[0, 2, 1, 3]], r"marker 1: .* do not form a convex quadrilateral \(the outline crosses itself"),
+    ([[100.0, 100.0], [150.0, 100.0], [200.0, 100.0], [250.0, 100.0]], r"marker 1: .* enclose no area \(they lie on a line"),
+    ([[100.0, 100.0]] * 4, r"marker 1: its image corners \[\[100.0, 100.0\], \[100.0, 100.0\].* enclose no area"),
+    ([[100.0, 100.0], [160.0, 100.0], [160.0, 160.0], [150.0, 110.0]], r"marker 1: .* do not form a convex quadrilateral"),
+])
+def test_corners_no_marker_can_give_are_refused_naming_the_marker(corners, message):
+    m = wall_map()
+    good = observe(m, T_WALL, ids={0, 2, 3})
+    with pytest.raises(PoseError, match=message):
+        estimate_pose(good + [Detection(1, corners)], m, CAM)
+    # an id the map does not know is ignored, whatever its corners
+    assert estimate_pose(good + [Detection(42, corners)], m, CAM).ignored_ids == (42,)
+
+
+def test_mirrored_corners_and_a_camera_facing_away_no_longer_give_a_perfect_fit_behind_the_wall():
+    world = MarkerMap.load(data_path("world_map.json"))
+    cam = Camera.from_fov(60, (640, 480))
+    T = frames.make_transform(frames.rotation_from_rpy_deg(-90, 0, 90), [1000, 150, 250])
+    mirrored = Detection(0, cam.project(world.corners()[0], T)[[0, 3, 2, 1]])
+    with pytest.raises(PoseError, match="marker 0: .* run anticlockwise on the screen"):
+        estimate_pose([mirrored], world, cam)  # was: RMS 0.00 px with the camera at x = -1000, behind the wall
+    with pytest.raises(PoseError, match="marker 0: .* run anticlockwise on the screen"):
+        estimate_pose([Detection(i, cam.project(c, T)[[0, 3, 2, 1]]) for i, c in world.corners().items()], world, cam)
+    # the same wall "seen" by a camera turned away from it (the points behind it projected anyway)
+    T_away = frames.make_transform(frames.rotation_from_rpy_deg(-90, 0, -90), [1000, 150, 250])
+    with pytest.raises(PoseError, match=r"run anticlockwise on the screen.*\(A camera behind the marker"):
+        estimate_pose([Detection(i, cam.project(c, T_away)) for i, c in world.corners().items()], world, cam)
+
+
+def _turned(m: MarkerMap, marker_id: int, yaw_deg: float) -> MarkerMap:
+    placements = dict(m.placements)
+    p = placements[marker_id]
+    placements[marker_id] = MarkerPlacement(marker_id, p.translation_mm, tuple(np.add(p.rotation_deg, [0.0, 0.0, yaw_deg])))
+    return MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+
+
+def test_a_marker_turned_the_wrong_way_in_the_map_is_never_seen_from_behind():
+    world = MarkerMap.load(data_path("world_map.json"))
+    T = look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0])
+    dets = observe(world, T)
+    wrong = _turned(world, 1, 180.0)  # marker 1 faces into the wall in the map
+    assert wrong.normal(1) @ world.normal(1) < -0.99
+    # two markers on one wall facing opposite ways: no camera sees both printed faces
+    with pytest.raises(PoseError, match=r"marker [01] would be seen from behind \(from the back of its printed face\) by the "
+                                        r"pose that fits the corners best \(reprojection error [\d.]+ px\): is its rotation in "
+                                        r"the map wrong \(yaw 180.*or the corners mirrored \(TL, BL, BR, TR instead of TL, TR, "
+                                        r"BR, BL\)\? With markers \[0, 1\] in view, the wrong rotation may be another one's"):
+        estimate_pose([d for d in dets if d.id in (0, 1)], wrong, CAM)
+    # with a third marker the turned one disagrees with the others and is left out
+    pose = estimate_pose(dets, wrong, CAM)
+    assert pose.rejected_ids == (1,) and pose_errors(pose, T)[0] < 1e-3
+
+
+def test_only_poses_a_camera_can_have_are_chosen():
+    """A mirror-image candidate that fits better loses to one that sees the markers' faces; none left raises."""
+    from fidlearn import pose as pose_mod
+
+    m = wall_map()
+    dets = observe(m, T_WALL)
+    obs = pose_mod._make_obs(m.ids, {d.id: d.corners for d in dets}, m.corners())
+    true = pose_mod._Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None, refined=True)
+    # the camera mirrored through the wall (x = 0): it would see the markers' backs
+    F = np.diag([-1.0, 1.0, 1.0])
+    behind_wall = pose_mod._Candidate(F @ T_WALL[:3, :3] @ F, F @ T_WALL[:3, 3], 0.5, None, refined=True)
+    # the camera turned round on the spot: every corner behind it
+    turned = pose_mod._Candidate(T_WALL[:3, :3] @ np.diag([-1.0, 1.0, -1.0]), T_WALL[:3, 3].copy(), 0.25, None, refined=True)
+    ordered = pose_mod._front_first(obs, CAM, [turned, behind_wall, true], refine_lm=True)
+    assert ordered[0] is true
+    assert "markers [0, 1, 2, 3, 4, 5] would be seen from behind" in behind_wall.problem
+    assert turned.problem.startswith("markers [0, 1, 2, 3, 4, 5] would be behind the camera in the pose that fits the corners best")
+    assert true.problem is None
+    # the true pose's checks agree with the map's own normals and Camera.points_in_front
+    for i in m.ids:
+        assert (T_WALL[:3, 3] - m.T_world_marker(i)[:3, 3]) @ m.normal(i) > 0
+    assert CAM.points_in_front(obs.obj, T_WALL).all()
+
+
+def test_a_fit_far_worse_than_any_detector_is_refused():
+    m = wall_map()
+    dets = observe(m, T_WALL, 0.3)
+    # positions in cm read as mm: the markers keep their size, the layout shrinks tenfold
+    cm_as_mm = MarkerMap({i: MarkerPlacement(i, tuple(np.multiply(p.translation_mm, 0.1)), p.rotation_deg)
+                          for i, p in m.placements.items()}, m.marker_size_mm, m.dictionary, "mm")
+    with pytest.raises(PoseError, match=r"the corners do not fit the map: reprojection error \d+\.\d px for markers "
+                                        r"\[0, 1, 2, 3, 4, 5\], which are about 52 px wide in the image.*check the map's "
+                                        r"positions and rotations, the marker size, the units, the corner order"):
+        estimate_pose(dets, cm_as_mm, CAM)
+    # every marker's corners listed from the wrong starting point (clockwise still): no pose fits
+    with pytest.raises(PoseError, match="the corners do not fit the map: reprojection error"):
+        estimate_pose([Detection(d.id, d.corners[[1, 2, 3, 0]]) for d in dets], m, CAM, reject_outliers=False)
+    # well below the threshold (0.4 marker sides): a marker 4 cm off still gives a (dragged) pose
+    pose = estimate_pose(dets, _misplaced(m, 4, (0.0, 40.0, -25.0)), CAM, reject_outliers=False)
+    side = np.median([d.side_px for d in dets])
+    assert 2.0 < pose.reprojection_rms_px < 0.4 * side
+
+
+def test_a_bad_fit_does_not_make_the_flip_look_as_good():
+    """Residuals of a wrong map are not noise: the ambiguity test counts at most AMBIGUITY_MAX_SIGMA_PX."""
+    from fidlearn import pose as pose_mod
+
+    m = wall_map(n_cols=2, n_rows=1, size=100.0, spacing=300.0)
+    T = look_at([1623.0, 744.0, 1229.0], [0.0, 150.0, 1450.0])
+    wrong = _misplaced(m, 1, (0.0, 19.0, -73.0))
+    dets = observe(m, T)
+    pose = estimate_pose(dets, wrong, CAM)
+    assert pose.reprojection_rms_px > 4.0 and pose.sigma_px > pose_mod.AMBIGUITY_MAX_SIGMA_PX
+    assert pose.alternative is not None and not pose.ambiguous
+    # what the residuals alone would have said
+    extra = (pose.alternative.reprojection_rms_px**2 - pose.reprojection_rms_px**2) * len(pose.marker_ids) * 4
+    assert pose_mod.AMBIGUITY_CHI2 * pose_mod.AMBIGUITY_MAX_SIGMA_PX**2 < extra < pose_mod.AMBIGUITY_CHI2 * pose.sigma_px**2
+    # a given corner noise is taken at its word
+    assert estimate_pose(dets, wrong, CAM, corner_sigma_px=pose.sigma_px).ambiguous
+
+
+def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
+    """cv2.Rodrigues returns exactly zero below about 1e-5 rad; the pose maths must not."""
+    from fidlearn import pose as pose_mod
+    from fidlearn.pose import refine_pose_lm
+
+    r_true = np.array([3e-7, -2e-7, 1e-7])
+    assert not cv2.Rodrigues(cv2.Rodrigues(r_true)[0])[0].any()  # the OpenCV behaviour worked around
+    np.testing.assert_allclose(pose_mod._rotvec(cv2.Rodrigues(r_true)[0]), r_true, rtol=1e-6, atol=1e-15)
+    # refine_pose_lm returns the tiny rotation of a camera looking straight at a wall
+    P = np.array([[x, y, 2000.0 + 0.5 * x] for x in (-300.0, 0.0, 300.0) for y in (-200.0, 200.0)])
+    T_cw = frames.make_transform(cv2.Rodrigues(r_true)[0], [10.0, -5.0, 30.0])
+    img = CAM.project(P, frames.invert_transform(T_cw))
+    rvec, tvec = refine_pose_lm(P, img, CAM, r_true, T_cw[:3, 3])
+    np.testing.assert_allclose(rvec, r_true, rtol=1e-3, atol=1e-12)
+    # the distance between two poses 1e-7 rad apart is not zero
+    a = pose_mod._Candidate(np.eye(3), np.zeros(3), 0.0, None)
+    b = pose_mod._Candidate(cv2.Rodrigues(np.array([1e-7, 0.0, 0.0]))[0], np.zeros(3), 0.0, None)
+    assert pose_mod._mahalanobis2(a, b, np.diag([1e14, 1, 1, 1, 1, 1.0]), 1.0) == pytest.approx(1.0, rel=1e-6)
