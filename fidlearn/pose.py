@@ -535,6 +535,7 @@ class _Candidate:
     refined: bool = False  # whether Levenberg-Marquardt ran from it
     JtJ: np.ndarray | None = None  # (6, 6) J^T J at this pose, when LM left it behind
     problem: str | None = _UNCHECKED  # why it cannot be the camera (None: it can); see _cheirality
+    problem_short: str = ""  # the same in one sentence, to follow another message
 
     @property
     def T_world_camera(self) -> np.ndarray:
@@ -685,23 +686,26 @@ def _cheirality(obs: _Obs, c: _Candidate) -> str | None:
     backs = [i for i, f in zip(obs.ids, facing) if not f > 0]
     if backs:
         one = len(backs) == 1
+        which = f"marker{'' if one else 's'} {backs[0] if one else backs}"
         c.problem = (
-            f"marker{'' if one else 's'} {backs[0] if one else backs} would be seen from behind (from the back of "
-            f"{'its' if one else 'their'} printed face) by the pose that fits the corners best (reprojection error "
-            f"{rms:.1f} px): {'is its' if one else 'are their'} rotation in the map wrong (yaw 180, facing into the "
-            "wall instead of out of it; a marker on a wall facing +X has rotation [0, 0, 0]), or the corners "
-            "mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?"
-            + (f" With markers {obs.ids} in view, the wrong rotation may be another one's." if len(obs.ids) > 1 else "")
+            f"{which} would be seen from behind (from the back of {'its' if one else 'their'} printed face) by the "
+            f"pose that fits the corners best (reprojection error {rms:.1f} px): {'is its rotation' if one else 'are their rotations'} "
+            "in the map wrong (yaw 180, facing into the wall instead of out of it; a marker on a wall facing +X has "
+            "rotation [0, 0, 0]), or the corners mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?"
+            + (f" With markers {obs.ids} in view, the wrong rotation may be another one's." if len(backs) < len(obs.ids) else "")
         )
+        c.problem_short = f"Even that best fit would see {which} from behind."
         return c.problem
     behind = [i for i, d in zip(obs.ids, depth.reshape(-1, 4)) if not np.all(d > 0)]
     if behind:
         one = len(behind) == 1
+        which = f"marker{'' if one else 's'} {behind[0] if one else behind}"
         c.problem = (
-            f"marker{'' if one else 's'} {behind[0] if one else behind} would be behind the camera in the pose "
-            f"that fits the corners best (reprojection error {rms:.1f} px): the corners do not fit the map; check "
-            "the map's positions and rotations, the marker size and the corner order (TL, TR, BR, BL)"
+            f"{which} would be behind the camera in the pose that fits the corners best (reprojection error "
+            f"{rms:.1f} px): the corners do not fit the map; check the map's positions and rotations, the marker "
+            "size and the corner order (TL, TR, BR, BL)"
         )
+        c.problem_short = f"Even that best fit would have {which} behind the camera."
         return c.problem
     c.problem = None
     return None
@@ -1121,18 +1125,17 @@ def estimate_pose(
         obs, cands, unrefined, rejected = _reject_outliers(
             obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined)
 
-    problem = _cheirality(obs, cands[0])
-    if problem is not None:  # every candidate breaks it (_solve puts those that do not first)
-        raise PoseError(problem)
+    problem = _cheirality(obs, cands[0])  # not None: every candidate breaks it (_solve puts the others first)
     rms = math.sqrt(cands[0].sse / len(obs.obj))
     side = float(np.median(_side_px(obs.img)))
     if rms > max(BAD_FIT_MIN_PX, BAD_FIT_REL * side):
-        raise PoseError(
-            f"the corners do not fit the map: reprojection error {rms:.1f} px for markers {obs.ids}, which are "
-            f"about {side:.0f} px wide in the image (a pose that fits leaves a pixel or two); check the map's "
-            "positions and rotations, the marker size, the units, the corner order (TL, TR, BR, BL) and the "
-            "camera file"
-        )
+        what = (f"reprojection error {rms:.1f} px for markers {obs.ids}, which are about {side:.0f} px wide in the "
+                "image (a pose that fits leaves a pixel or two); check the map's positions and rotations, the marker "
+                "size, the units, the corner order (TL, TR, BR, BL) and the camera file")
+        note = f" ({cands[0].problem_short})" if problem is not None else ""
+        raise PoseError(f"the corners do not fit the map: {what}{note}")
+    if problem is not None:
+        raise PoseError(problem)
 
     dof = 2 * len(obs.obj) - 6
     sigma = _sigma(cands[0].sse, dof, corner_sigma_px)

@@ -603,12 +603,12 @@ def test_a_marker_turned_the_wrong_way_in_the_map_is_never_seen_from_behind():
     dets = observe(world, T)
     wrong = _turned(world, 1, 180.0)  # marker 1 faces into the wall in the map
     assert wrong.normal(1) @ world.normal(1) < -0.99
-    # two markers on one wall facing opposite ways: no camera sees both printed faces
-    with pytest.raises(PoseError, match=r"marker [01] would be seen from behind \(from the back of its printed face\) by the "
-                                        r"pose that fits the corners best \(reprojection error [\d.]+ px\): is its rotation in "
-                                        r"the map wrong \(yaw 180.*or the corners mirrored \(TL, BL, BR, TR instead of TL, TR, "
-                                        r"BR, BL\)\? With markers \[0, 1\] in view, the wrong rotation may be another one's"):
-        estimate_pose([d for d in dets if d.id in (0, 1)], wrong, CAM)
+    # two markers on one wall facing opposite ways: no camera sees both printed faces, and no pose fits
+    two = [d for d in dets if d.id in (0, 1)]
+    side = np.median([d.side_px for d in two])
+    with pytest.raises(PoseError, match=rf"the corners do not fit the map: reprojection error [\d.]+ px for markers \[0, 1\], "
+                                        rf"which are about {side:.0f} px wide.* \(Even that best fit would see marker [01] from behind.\)$"):
+        estimate_pose(two, wrong, CAM)
     # with a third marker the turned one disagrees with the others and is left out
     pose = estimate_pose(dets, wrong, CAM)
     assert pose.rejected_ids == (1,) and pose_errors(pose, T)[0] < 1e-3
@@ -629,8 +629,19 @@ def test_only_poses_a_camera_can_have_are_chosen():
     turned = pose_mod._Candidate(T_WALL[:3, :3] @ np.diag([-1.0, 1.0, -1.0]), T_WALL[:3, 3].copy(), 0.25, None, refined=True)
     ordered = pose_mod._front_first(obs, CAM, [turned, behind_wall, true], refine_lm=True)
     assert ordered[0] is true
-    assert "markers [0, 1, 2, 3, 4, 5] would be seen from behind" in behind_wall.problem
+    assert behind_wall.problem.startswith(
+        "markers [0, 1, 2, 3, 4, 5] would be seen from behind (from the back of their printed face) by the pose that fits "
+        "the corners best (reprojection error 0.1 px): are their rotations in the map wrong (yaw 180")
+    assert behind_wall.problem.endswith("or the corners mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?")
     assert turned.problem.startswith("markers [0, 1, 2, 3, 4, 5] would be behind the camera in the pose that fits the corners best")
+    # one marker of several seen from behind: it may be another one's rotation that is wrong
+    one_back = pose_mod._Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None)
+    obs_one = pose_mod._make_obs([0, 1], {d.id: d.corners for d in dets}, _turned(m, 1, 180.0).corners())
+    assert pose_mod._cheirality(obs_one, one_back).endswith(
+        "With markers [0, 1] in view, the wrong rotation may be another one's.")
+    assert one_back.problem.startswith("marker 1 would be seen from behind (from the back of its printed face)")
+    # no candidate left: the best one's problem is what estimate_pose reports
+    assert pose_mod._front_first(obs, CAM, [turned, behind_wall], refine_lm=True)[0] is turned
     assert true.problem is None
     # the true pose's checks agree with the map's own normals and Camera.points_in_front
     for i in m.ids:
