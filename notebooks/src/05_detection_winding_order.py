@@ -20,7 +20,7 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import Camera, MarkerMap, data_path, estimate_pose, frames, plotting
+from fidlearn import Camera, MarkerMap, PoseError, data_path, estimate_pose, frames, plotting
 from fidlearn.detection import Detection, detect_markers, draw_detections, load_image
 
 np.set_printoptions(precision=3, suppress=True)
@@ -208,8 +208,9 @@ assert turns == {23: 0, 40: 0, 62: 180, 98: 0, 124: 90, 203: 0}
 #
 # Some code (hand-written corner lists, a map written as TL, BL, BR, TR, or corners sorted by their position
 # in the image) breaks the winding order. The solver then matches TR's pixel with BL's 3D point, and so on.
-# It still returns *a* pose. How wrong is it? Here the three markers of scene 0, with the order mixed up the
-# same way in each:
+# A bare solver still returns *a* pose. How wrong is it? Here the three markers of scene 0, with the order
+# mixed up the same way in each, given to `cv2.solvePnP` (notebook 06) with its default solver, and to
+# `estimate_pose`:
 
 # %%
 T_true = np.array(record["T_world_camera"])
@@ -219,23 +220,38 @@ orders = {
     "TR, BR, BL, TL (rotated)": [1, 2, 3, 0],
     "BL, BR, TR, TL (upside down)": [3, 2, 1, 0],
 }
+object_points = np.concatenate([world_map.marker_corners(d.id) for d in detections])
 wrong_poses = {}
-print("order                         position error   reprojection RMS")
+print("order                         solvePnP: position error  reprojection RMS")
 for name, order in orders.items():
-    shuffled = [Detection(d.id, d.corners[order]) for d in detections]
-    pose = estimate_pose(shuffled, world_map, camera, reject_outliers=False)
-    wrong_poses[name] = pose
-    error_mm = np.linalg.norm(pose.position_mm - T_true[:3, 3])
-    print(f"{name:28s} {error_mm:10.0f} mm {pose.reprojection_rms_px:14.1f} px")
+    image_points = np.concatenate([d.corners[order] for d in detections])
+    ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist)
+    T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
+    wrong_poses[name] = T_world_camera
+    error_mm = np.linalg.norm(T_world_camera[:3, 3] - T_true[:3, 3])
+    rms_px = np.sqrt(np.mean(np.sum((image_points - camera.project(object_points, T_world_camera)) ** 2, axis=1)))
+    print(f"{name:28s} {error_mm:14.0f} mm {rms_px:14.1f} px")
     if order == [0, 1, 2, 3]:
-        assert error_mm < 5 and pose.reprojection_rms_px < 0.5
+        assert error_mm < 5 and rms_px < 0.5
     else:
         assert error_mm > 500  # half a metre and more: the pose is useless
+
+for name, order in orders.items():
+    try:
+        pose = estimate_pose([Detection(d.id, d.corners[order]) for d in detections], world_map, camera)
+        print(f"estimate_pose, {name}: position error {np.linalg.norm(pose.position_mm - T_true[:3, 3]):.1f} mm")
+        assert order == [0, 1, 2, 3]
+    except PoseError as exc:
+        print(f"estimate_pose, {name}: PoseError: {exc}")
+        assert order != [0, 1, 2, 3]
 
 # %% [markdown]
 # With the right order the camera is found within a millimetre. Any other order puts it a metre or more away,
 # and the reprojection error (notebook 06), tens to hundreds of pixels, gives the mistake away: no rigid pose
-# can put three markers' corners where the shuffled list says.
+# can put three markers' corners where the shuffled list says. `estimate_pose` checks this for you and raises
+# `PoseError` instead of returning such a pose: a marker's corners listed anticlockwise on the screen (the
+# mirrored and the upside-down orders) are refused before any solving, with the marker named, and a fit whose
+# error is a large part of a marker's size is refused after it.
 #
 # With **one** marker the reprojection error does not warn you: a marker is a square, so its corners listed
 # from the wrong starting point (rotated order) look exactly like the same marker turned by 90 degrees. The
@@ -254,7 +270,7 @@ assert np.linalg.norm(right.position_mm - T_true[:3, 3]) < 20
 assert np.linalg.norm(rotated.position_mm - T_true[:3, 3]) > 150 and rotated.reprojection_rms_px < 0.5
 
 fig = plotting.plot_scene(world_map, poses=[T_true, rotated, wrong_poses["TL, BL, BR, TR (mirrored)"]],
-                          camera=camera, labels=["true", "one marker, rotated order", "three, mirrored order"],
+                          camera=camera, labels=["true", "one marker, rotated order", "three, mirrored order (solvePnP)"],
                           scale_mm=150, title="where the camera ends up when the corner order is wrong")
 plt.show()
 
@@ -269,7 +285,8 @@ plt.show()
 #   (measured on rendered pictures against their truth).
 # * The corners always come TL, TR, BR, BL, starting at the **printed** marker's top-left and going clockwise in
 #   the image, whichever way the marker is turned. Keep the same order in the map: a mixed-up order moves the
-#   camera by metres, and with a single marker nothing in the residuals warns you.
+#   camera by metres (`estimate_pose` refuses a mirrored order, and a mixed-up one of several markers, with a
+#   `PoseError`), and with a single marker nothing in the residuals warns you.
 #
 # **Exercises**: [exercises/05_detection.ipynb](exercises/05_detection.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("05")` in a new cell).
