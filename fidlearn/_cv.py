@@ -148,12 +148,29 @@ def make_detector_parameters(**overrides):
     return params
 
 
-def make_detector(dictionary: str, params=None):
-    """A ``cv2.aruco.ArucoDetector`` for a dictionary name."""
+def sub_dictionary(name: str, ids) -> object:
+    """A ``cv2.aruco.Dictionary`` holding only ``ids`` of a predefined dictionary, in that order.
+
+    A detector built on it reports the index into ``ids``, not the id. It finds the
+    same markers as the whole dictionary: a predefined dictionary corrects fewer bits
+    than half the distance between any two of its markers, so a marker outside ``ids``
+    can never be read as one inside. It is faster, because OpenCV compares every
+    candidate quad that does not decode with every marker of the dictionary (1024 for
+    ARUCO_ORIGINAL).
+    """
+    require_aruco()
+    full = get_dictionary(name)
+    ids = np.asarray(list(ids), dtype=np.int64)
+    return _ARUCO.Dictionary(full.bytesList[ids], int(full.markerSize), int(full.maxCorrectionBits))
+
+
+def make_detector(dictionary: str, params=None, ids=None):
+    """A ``cv2.aruco.ArucoDetector`` for a dictionary name (only ``ids`` of it, if given)."""
     require_aruco()
     if params is None:
         params = make_detector_parameters()
-    return _ARUCO.ArucoDetector(get_dictionary(dictionary), params)
+    d = get_dictionary(dictionary) if ids is None else sub_dictionary(dictionary, ids)
+    return _ARUCO.ArucoDetector(d, params)
 
 
 CORNER_REFINE = {

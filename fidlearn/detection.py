@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from . import _cv
-from .errors import FidlearnError, ImageError
+from .errors import DictionaryError, FidlearnError, ImageError
 
 __all__ = [
     "Detection",
@@ -168,10 +168,10 @@ def _params_key(params: Any) -> Any:
     return ("fields", tuple(sorted(_cv.detector_parameter_fields(params).items())))
 
 
-def _detector(dictionary: str, refine: str, params: Any):
-    """The cached ``ArucoDetector`` for (dictionary, refinement, parameters), its marker's side in
+def _detector(dictionary: str, refine: str, params: Any, ids: tuple[int, ...] | None = None):
+    """The cached ``ArucoDetector`` for (dictionary, refinement, parameters, ids), its marker's side in
     cells and whether inverted markers (light border) may come out."""
-    key = (dictionary, refine, _params_key(params))
+    key = (dictionary, refine, _params_key(params), ids)
     hit = _DETECTOR_CACHE.get(key)
     if hit is not None:
         _DETECTOR_CACHE.move_to_end(key)
@@ -184,7 +184,7 @@ def _detector(dictionary: str, refine: str, params: Any):
     except TypeError as exc:  # OpenCV names the type it wanted, not the field
         given = {k: v for k, v in (params or {}).items()} if isinstance(params, dict) else params
         raise FidlearnError(f"detector parameters {given!r}: {exc}; check each field's type in cv2.aruco.DetectorParameters") from None
-    detector = _cv.make_detector(dictionary, cv_params)
+    detector = _cv.make_detector(dictionary, cv_params, ids=ids)
     cells = _cv.dictionary_marker_bits(dictionary) + 2 * int(fields["markerBorderBits"])
     hit = _DETECTOR_CACHE[key] = (detector, cells, bool(fields["detectInvertedMarker"]))
     while len(_DETECTOR_CACHE) > _DETECTOR_CACHE_SIZE:
@@ -197,12 +197,28 @@ def _dictionary_name(name: str) -> str:
     return _cv.dictionary_name(name)
 
 
+def _wanted_ids(ids: Any, dictionary: str) -> tuple[int, ...]:
+    """``ids`` as a sorted tuple of distinct ids that exist in ``dictionary``."""
+    try:
+        wanted = tuple(sorted({int(i) for i in ids if float(i) == int(i)} if not isinstance(ids, (str, bytes)) else ()))
+        whole = len(wanted) == len(set(ids))
+    except (TypeError, ValueError, OverflowError):
+        wanted, whole = (), False
+    if not wanted or not whole:
+        raise FidlearnError(f"ids must be whole marker ids such as [0, 1, 2] (a map's ids), got {ids!r}")
+    size = _cv.dictionary_size(dictionary)
+    if wanted[0] < 0 or wanted[-1] >= size:
+        raise DictionaryError(f"dictionary {dictionary} has ids 0 to {size - 1}; ids {list(wanted)} do not all fit")
+    return wanted
+
+
 def detect_markers(
     image: np.ndarray,
     dictionary: str = "ARUCO_ORIGINAL",
     refine: str = DEFAULT_REFINE,
     params: Any = None,
     *,
+    ids=None,
     return_rejected: bool = False,
 ):
     """Find the markers of one dictionary in an image.
@@ -222,6 +238,12 @@ def detect_markers(
     params : None, dict or cv2.aruco.DetectorParameters
         OpenCV detector parameters, as an object or as ``{field: value}``
         overrides of the defaults. ``refine`` always sets ``cornerRefinementMethod``.
+    ids : iterable of int, optional
+        Look only for these markers of the dictionary (a world map's ids). The
+        same markers come out as with the whole dictionary (none of the others
+        can be mistaken for one of these), several times faster with a large
+        dictionary: OpenCV compares every candidate quad with every marker it
+        looks for. Markers outside ``ids`` are then not reported at all.
     return_rejected : bool
         Also return the candidate quads that did not decode as a marker.
 
@@ -252,8 +274,11 @@ def detect_markers(
     gray = as_gray(image)
     name = _dictionary_name(dictionary) if isinstance(dictionary, str) else _cv.dictionary_name(dictionary)
     method = _refine_name(refine)
-    detector, cells, inverted = _detector(name, method, params)
+    wanted = None if ids is None else _wanted_ids(ids, name)
+    detector, cells, inverted = _detector(name, method, params, wanted)
     corners, ids, rejected = _cv.detect_with_raw_rejected(detector, gray)
+    if wanted is not None and len(ids):
+        ids = np.asarray(wanted, dtype=np.int64)[np.asarray(ids, dtype=np.int64)]
     if len(corners) and method == "edges":
         corners = list(refine_corners_edges(gray, np.stack(corners), cells, inverted=None if inverted else False))
     order = sorted(range(len(ids)), key=lambda k: (int(ids[k]), float(corners[k][0, 1]), float(corners[k][0, 0])))

@@ -394,3 +394,45 @@ def test_16_bit_pictures_of_fewer_bits_keep_their_contrast(bits):
     marker = np.pad(_cv.generate_marker("ARUCO_ORIGINAL", 7, 120), 40, constant_values=255)
     deep_marker = marker.astype(np.uint16) << (bits - 8)
     assert [d.id for d in detect_markers(deep_marker)] == [7]
+
+
+# -- looking only for a map's markers ----------------------------------------------------------
+def test_ids_restriction_finds_the_same_markers_with_the_same_corners():
+    from fidlearn.data import data_path as _dp
+    from fidlearn.detection import load_image as _load
+
+    img = _load(_dp("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg"))
+    every = {d.id: d.corners for d in detect_markers(img, "6X6_250")}
+    some = detect_markers(img, "6X6_250", ids=[203, 40, 62])
+    assert [d.id for d in some] == [40, 62, 203]
+    for d in some:
+        assert np.array_equal(d.corners, every[d.id])
+    assert detect_markers(img, "6X6_250", ids=[1, 2, 3]) == []
+
+
+def test_ids_restriction_on_a_rendered_scene_matches_the_truth():
+    import fidlearn
+
+    m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+    cam = fidlearn.Camera.from_fov(60, (640, 480))
+    img, truth = fidlearn.render_scene(cam, m, fidlearn.look_at([1500, 200, 300], [0, 200, 250]), seed=3)
+    dets = detect_markers(img, m.dictionary, ids=m.ids)
+    assert [d.id for d in dets] == sorted(truth)
+    for d in dets:
+        assert np.sqrt(np.mean((d.corners - truth[d.id]) ** 2)) < 0.3
+
+
+@pytest.mark.parametrize(
+    "ids, error, message",
+    [
+        ([], FidlearnError, "ids must be whole marker ids"),
+        ([0, 1.5], FidlearnError, "ids must be whole marker ids"),
+        ("012", FidlearnError, "ids must be whole marker ids"),
+        ([0, 250], DictionaryError, "dictionary 6X6_250 has ids 0 to 249"),
+        ([-1], DictionaryError, "has ids 0 to 249"),
+    ],
+)
+def test_ids_restriction_rejects_bad_ids(ids, error, message):
+    img = np.full((64, 64), 255, np.uint8)
+    with pytest.raises(error, match=message):
+        detect_markers(img, "6X6_250", ids=ids)
