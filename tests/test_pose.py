@@ -704,3 +704,25 @@ def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
     a = pose_mod._Candidate(np.eye(3), np.zeros(3), 0.0, None)
     b = pose_mod._Candidate(cv2.Rodrigues(np.array([1e-7, 0.0, 0.0]))[0], np.zeros(3), 0.0, None)
     assert pose_mod._mahalanobis2(a, b, np.diag([1e14, 1, 1, 1, 1, 1.0]), 1.0) == pytest.approx(1.0, rel=1e-6)
+
+
+def test_noisy_corners_of_a_marker_seen_edge_on_are_not_called_mirrored():
+    """Benchmarks feed true corners plus noise: a marker a few pixels wide may fold over; it is not a mistake."""
+    from fidlearn import pose as pose_mod
+
+    folded = np.array([[345.3, 281.1], [344.0, 290.3], [339.3, 308.6], [341.3, 300.0]])  # 5 px wide, 1 px noise
+    flipped = folded * [-1.0, 1.0] + [690.0, 0.0]  # its mirror image: anticlockwise, by noise
+    assert np.sum(flipped[:, 0] * np.roll(flipped[:, 1], -1) - np.roll(flipped[:, 0], -1) * flipped[:, 1]) < 0
+    pose_mod._check_quads([7, 8], np.concatenate([folded, flipped]))  # no PoseError
+    with pytest.raises(PoseError, match="marker 8: .* run anticlockwise"):
+        pose_mod._check_quads([7, 8], np.concatenate([folded, SQUARE[[0, 3, 2, 1]]]))
+    # a camera estimated a little behind the plane of a marker seen at a grazing angle is a pose;
+    # far behind it is not
+    m = MarkerMap({0: MarkerPlacement(0, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, "ARUCO_ORIGINAL", "mm")
+    centre = m.T_world_marker(0)[:3, 3]
+    obs = pose_mod._make_obs([0], {0: SQUARE}, m.corners())
+    for elevation_deg, ok in ((30.0, True), (-5.0, True), (-20.0, False)):
+        e = np.radians(elevation_deg)
+        T = look_at(centre + 2000.0 * np.array([np.sin(e), np.cos(e), 0.0]), centre)
+        cand = pose_mod._Candidate(T[:3, :3], T[:3, 3], 0.0, None)
+        assert (pose_mod._cheirality(obs, cand) is None) == ok, elevation_deg
