@@ -176,16 +176,20 @@ class Pose:
         What it promises: when the corner errors are independent, Gaussian,
         of the sigma used, the 95 % ellipsoid
         (:meth:`position_ellipsoid_contains`) holds the true position about
-        95 % of the time (91-96 % in ``benchmarks/bench_pose.py``, corners
-        with Gaussian noise of 0.3 and 1 px, sigma given or estimated). It
-        knows only the corner noise: an error of the map, the marker size or
-        the calibration is not in it. An estimated sigma is blended with a
-        prior of ``PRIOR_SIGMA_PX`` (0.25 px) worth ``PRIOR_DOF`` degrees of
-        freedom, so with few markers and a detector better than that (on the
-        bundled rendered scenes fidlearn's corners are 0.02-0.1 px off) the
-        ellipsoid is too large, i.e. conservative: there the truth was always
-        inside, at a mean squared Mahalanobis distance of 0.25 instead of 3.
-        Give ``corner_sigma_px`` when you know your detector's noise.
+        95 % of the time. Measured in ``benchmarks/bench_pose.py`` (corners
+        with Gaussian noise of 0.3 and 1 px, 400 views each): 91-96 % for
+        three and six markers, sigma given or estimated; one marker 94 % and
+        89 % with sigma given, 96 % (0.3 px) and only 68 % (1 px) with sigma
+        estimated, because its 2 degrees of freedom leave the estimate to the
+        prior below. It knows only the corner noise: an error of the map, the
+        marker size or the calibration is not in it. An estimated sigma is
+        blended with a prior of ``PRIOR_SIGMA_PX`` (0.25 px) worth
+        ``PRIOR_DOF`` degrees of freedom, so with few markers the ellipsoid
+        is too large (conservative) for a detector better than that (on the
+        bundled rendered scenes fidlearn's corners are 0.02-0.1 px off: the
+        truth was always inside, at a mean squared Mahalanobis distance of
+        0.25 instead of 3) and too small for a worse one. Give
+        ``corner_sigma_px`` when you know your detector's noise.
     sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes: given, or
         estimated from the residuals (see :func:`estimate_pose`).
