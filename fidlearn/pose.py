@@ -25,7 +25,12 @@ tell them apart (see :func:`estimate_pose`).
 
 A marker measured wrongly on the wall is found by leave-one-out (only when the
 residuals look suspicious, so the usual cost is one IPPE and one short LM run)
-and reported in :attr:`Pose.rejected_ids`. The uncertainty comes as a 6x6
+and reported in :attr:`Pose.rejected_ids`. Answers no camera can give are refused
+with a :class:`PoseError` that says what to check: a marker whose image corners are
+not a convex quad running clockwise on screen (mirrored, shuffled or collinear
+corners), a pose that would see a marker from behind or have corners behind the
+camera (never chosen while another candidate is possible), and a best fit whose
+reprojection error is above ``BAD_FIT_REL`` marker sides. The uncertainty comes as a 6x6
 covariance of the camera pose from the Jacobian of the corners
 (:func:`pose_jacobian`).
 
