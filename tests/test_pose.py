@@ -726,3 +726,37 @@ def test_noisy_corners_of_a_marker_seen_edge_on_are_not_called_mirrored():
         T = look_at(centre + 2000.0 * np.array([np.sin(e), np.cos(e), 0.0]), centre)
         cand = pose_mod._Candidate(T[:3, :3], T[:3, 3], 0.0, None)
         assert (pose_mod._cheirality(obs, cand) is None) == ok, elevation_deg
+
+
+def _seed_room_with_a_stranger():
+    """The seed map, and a picture of it with marker 7 (not in the map) taped beside marker 1."""
+    from fidlearn.synthetic import look_at, render_scene
+
+    m = MarkerMap.load(data_path("world_map.json"))
+    placements = dict(m.placements)
+    placements[7] = MarkerPlacement(7, (0.0, 450.0, 304.8), (0.0, 0.0, 0.0))
+    room = MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+    T_true = look_at([1400, 250, 300], [0, 250, 250])
+    image, truth = render_scene(CAM, room, T_true, seed=5, blur_px=0.5, noise_std=1.0)
+    assert 7 in truth
+    return m, image, T_true
+
+
+def test_locate_looks_for_the_map_markers_only_and_lists_strangers_when_asked():
+    m, image, T_true = _seed_room_with_a_stranger()
+    fast = locate(image, m, CAM)
+    full = locate(image, m, CAM, only_map_markers=False)
+    assert fast.marker_ids == full.marker_ids == (0, 1, 2)
+    assert fast.ignored_ids == () and full.ignored_ids == (7,)
+    # the same corners, so the same pose, and the true one (within 1 % of the 1.4 m distance)
+    assert np.allclose(fast.T_world_camera, full.T_world_camera)
+    assert np.linalg.norm(fast.position_mm - T_true[:3, 3]) < 14.0
+    with pytest.raises(PoseError, match="only_map_markers must be True or False"):
+        locate(image, m, CAM, only_map_markers="yes")
+
+
+def test_locate_names_the_markers_it_saw_when_none_is_in_the_map():
+    m, image, _ = _seed_room_with_a_stranger()
+    only_seven = MarkerMap({9: MarkerPlacement(9, (0.0, 0.0, 300.0), (0.0, 0.0, 0.0))}, 80, "ARUCO_ORIGINAL", "mm")
+    with pytest.raises(NoMarkersError, match=r"0, 1, 2, 7"):
+        locate(image, only_seven, CAM)
