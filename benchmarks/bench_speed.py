@@ -225,8 +225,8 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
         "ArUco3, OpenCV's defaults (canonical 32 px)": dict(useAruco3Detection=True),
     }
     # speed: interleaved per frame, passes with a fresh tracker each
-    wall = {"plain": [], "tracker": []}
-    cpu = {"plain": [], "tracker": []}
+    wall = {"plain": [], "tracker": [], "locate": []}
+    cpu = {"plain": [], "tracker": [], "locate": []}
     full = []
     for p in range(passes):
         tracker = MarkerTracker(m, cam)
@@ -239,7 +239,11 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
             t = clock()
             tracker.locate(image)
             store["tracker"].append(clock() - t)
+            t = clock()
+            fidlearn.locate(image, m, cam)
+            store["locate"].append(clock() - t)
         full.append(tracker.full_detections)
+    over_locate = float(np.median(np.array(wall["locate"]) / np.array(wall["tracker"])))
     ratio_wall = float(np.median(np.array(wall["plain"]) / np.array(wall["tracker"])))
     ratio_wall_total = float(np.sum(wall["plain"]) / np.sum(wall["tracker"]))
     ratio_cpu = float(np.median(np.array(cpu["plain"]) / np.maximum(np.array(cpu["tracker"]), 1e-6))) if cpu["plain"] else float("nan")
@@ -289,6 +293,8 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     print("|---|---|---|")
     print(f"| plain detectMarkers | {100 * found['plain detectMarkers'] / n_true:.2f} % | 1 |")
     print(f"| detect_markers (fidlearn default, edges) | {100 * found['detect_markers (fidlearn default)'] / n_true:.2f} % | - |")
+    print(f"| `fidlearn.locate` per frame (detection + pose) | as detect_markers | "
+          f"{float(np.median(np.array(wall['plain']) / np.array(wall['locate']))):.2f} x wall clock; the tracker is {over_locate:.2f} x faster than it |")
     print(f"| **MarkerTracker.locate** (detection + pose) | {100 * found['MarkerTracker'] / n_true:.2f} % | "
           f"**{ratio_wall:.2f} x** wall clock (median per frame; {ratio_wall_total:.2f} x in total), "
           f"{ratio_cpu:.2f} x CPU time ({ratio_cpu_total:.2f} x in total) |")
