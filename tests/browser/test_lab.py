@@ -211,6 +211,29 @@ def lab(tmp_path):
         assert _sha256(notebook) == before, f"{notebook} was modified by the browser test"
 
 
+def _settled_picture(page, widget, server: "Lab") -> tuple[str, bytes]:
+    """The widget's picture once the kernel is idle and its <img> has stopped changing: (src, PNG screenshot).
+
+    Each slider change redraws (clear the Output, show a new <img>), so an element taken too early
+    can be replaced while it is photographed.
+    """
+    deadline = time.monotonic() + REDRAW_S
+    last = None
+    while time.monotonic() < deadline:
+        server.wait_for_idle_kernel(REDRAW_S)
+        picture = widget.locator(".widget-output img").first
+        picture.wait_for(timeout=REDRAW_S * 1000)
+        src = picture.get_attribute("src")
+        if src == last:
+            try:
+                return src, picture.screenshot()
+            except Exception:  # replaced while photographed: look again
+                pass
+        last = src
+        time.sleep(0.5)
+    raise AssertionError(f"the widget's picture kept changing for {REDRAW_S} s")
+
+
 def _menu(page, menu: str, item: str) -> None:
     """Click a menu of JupyterLab's menu bar, then one of its items, by their labels."""
     page.locator(".lm-MenuBar-itemLabel", has_text=re.compile(f"^{re.escape(menu)}$")).click()
@@ -283,10 +306,7 @@ def test_intrinsics_notebook_runs_and_its_slider_redraws_the_figure(lab):
             widget = page.locator(".jp-OutputArea-output .widget-vbox").filter(has=page.locator(".widget-slider")).first
             widget.wait_for(timeout=REDRAW_S * 1000)
             assert widget.locator(".widget-slider").count() == 5
-            picture = widget.locator(".widget-output img").first
-            picture.wait_for(timeout=REDRAW_S * 1000)
-            src_before = picture.get_attribute("src")
-            shot_before = picture.screenshot()
+            src_before, shot_before = _settled_picture(page, widget, server)
 
             fx = widget.locator(".widget-slider").filter(has=page.locator("label", has_text=re.compile(r"^fx$")))
             readout = fx.locator(".widget-readout")
@@ -295,7 +315,8 @@ def test_intrinsics_notebook_runs_and_its_slider_redraws_the_figure(lab):
             fx.locator(".noUi-handle").focus()
             for _ in range(5):
                 page.keyboard.press("ArrowRight")
-            # The Output widget clears and shows a new <img>: wait for one with another picture in it.
+            # The Output widget clears and shows a new <img>: wait for one with another picture in it,
+            # then for the last of the five redraws to settle.
             page.wait_for_function(
                 """(before) => {
                     const img = document.querySelector('.widget-output img');
@@ -304,12 +325,11 @@ def test_intrinsics_notebook_runs_and_its_slider_redraws_the_figure(lab):
                 arg=src_before,
                 timeout=REDRAW_S * 1000,
             )
-            picture = widget.locator(".widget-output img").first
-            page.wait_for_selector(".jp-Notebook-ExecutionIndicator[data-status='idle']", timeout=REDRAW_S * 1000)
+            src_after, shot_after = _settled_picture(page, widget, server)
             value_after = readout.inner_text()
             assert float(value_after) > float(value_before), (value_before, value_after)
-            assert picture.get_attribute("src") != src_before, "the figure did not change when fx moved"
-            assert picture.screenshot() != shot_before, "the figure's pixels did not change when fx moved"
+            assert src_after != src_before, "the figure did not change when fx moved"
+            assert shot_after != shot_before, "the figure's pixels did not change when fx moved"
 
             assert not js_errors, "JavaScript errors on the page:\n" + "\n".join(js_errors)
         finally:
