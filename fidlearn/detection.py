@@ -12,6 +12,7 @@ the default, with the measurements, is in ``docs/corner_refinement.md``.
 
 from __future__ import annotations
 
+import numbers
 import os
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -23,7 +24,7 @@ import cv2
 import numpy as np
 
 from . import _cv
-from .errors import DictionaryError, FidlearnError, ImageError
+from .errors import DetectionError, DictionaryError, FidlearnError, ImageError
 
 __all__ = [
     "Detection",
@@ -62,9 +63,22 @@ class Detection:
     corners: np.ndarray
 
     def __post_init__(self) -> None:
-        c = np.asarray(self.corners, dtype=np.float64).reshape(4, 2)
-        object.__setattr__(self, "id", int(self.id))
-        object.__setattr__(self, "corners", c)
+        mid = self.id
+        if isinstance(mid, (bool, np.bool_)) or not isinstance(mid, numbers.Integral):
+            if not (isinstance(mid, numbers.Real) and float(mid).is_integer()):
+                raise DetectionError(f"Detection id must be a whole marker id, got {mid!r}")
+        if int(mid) < 0:
+            raise DetectionError(f"Detection id {int(mid)} is negative; marker ids start at 0")
+        try:
+            c = np.asarray(self.corners, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise DetectionError(f"marker {int(mid)}: corners must be numbers, (4, 2) pixels TL, TR, BR, BL") from None
+        if c.size != 8:
+            raise DetectionError(
+                f"marker {int(mid)}: corners have shape {c.shape}, expected (4, 2) pixels in the order TL, TR, BR, BL"
+            )
+        object.__setattr__(self, "id", int(mid))
+        object.__setattr__(self, "corners", c.reshape(4, 2))
 
     @property
     def center(self) -> np.ndarray:

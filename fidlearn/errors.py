@@ -16,6 +16,7 @@ __all__ = [
     "ImageError",
     "DictionaryError",
     "NoMarkersError",
+    "DetectionError",
     "CalibrationError",
     "PoseError",
 ]
@@ -47,6 +48,10 @@ class ImageError(FidlearnError, ValueError):
 
 class DictionaryError(FidlearnError, ValueError):
     """An ArUco dictionary name is unknown, or a marker id does not fit in it."""
+
+
+class DetectionError(FidlearnError, ValueError):
+    """A detection (marker id and pixel corners) is malformed."""
 
 
 class NoMarkersError(FidlearnError):

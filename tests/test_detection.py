@@ -436,3 +436,26 @@ def test_ids_restriction_rejects_bad_ids(ids, error, message):
     img = np.full((64, 64), 255, np.uint8)
     with pytest.raises(error, match=message):
         detect_markers(img, "6X6_250", ids=ids)
+
+
+@pytest.mark.parametrize(
+    "mid, corners, message",
+    [
+        (1.7, np.zeros((4, 2)), "id must be a whole marker id, got 1.7"),
+        ("3", np.zeros((4, 2)), "id must be a whole marker id"),
+        (-2, np.zeros((4, 2)), "id -2 is negative"),
+        (3, np.zeros((3, 2)), r"corners have shape \(3, 2\), expected \(4, 2\)"),
+        (3, [["a", 1]] * 4, "corners must be numbers"),
+    ],
+)
+def test_detection_refuses_what_is_not_a_detection(mid, corners, message):
+    from fidlearn.errors import DetectionError
+
+    with pytest.raises(DetectionError, match=message):
+        Detection(mid, corners)
+
+
+def test_detection_accepts_numpy_ids_and_flat_corners():
+    d = Detection(np.int32(5), np.arange(8.0))
+    assert d.id == 5 and type(d.id) is int and d.corners.shape == (4, 2)
+    assert Detection(4.0, np.zeros((1, 4, 2))).id == 4
