@@ -489,6 +489,17 @@ def _open_capture(source, what: str):
     return cap
 
 
+def _declared_frames(cap) -> int:
+    """The frame count a video file's header announces (0 when it does not say)."""
+    import cv2
+
+    try:
+        count = float(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    except cv2.error:
+        return 0
+    return int(count) if count > 0 and count == count and count < 1e9 else 0
+
+
 def _read_capture(cap, prefix: str):
     k = 0
     while True:
@@ -526,6 +537,17 @@ def _frames(items: list[tuple[str, Path]], camera_index: int | None):
                 yield name, frame
             if n == 0:
                 raise ImageError(f"{path}: the video has no frame OpenCV can decode")
+            declared = _declared_frames(cap)
+            if declared > n:
+                import warnings
+
+                from .errors import FidlearnWarning
+
+                warnings.warn(
+                    f"{path}: the video ended after {n} of the {declared} frames its header announces; "
+                    "the file may be truncated (an interrupted copy or recording)",
+                    FidlearnWarning,
+                )
         finally:
             cap.release()
     if camera_index is not None:

@@ -884,6 +884,8 @@ def test_video_that_ends_early_gives_the_frames_before_the_cut(tmp_path, monkeyp
     assert cli_main(["locate", "cut.avi", *LOCATE_ARGS, "--json", "p.jsonl"]) == 0
     lines = [json.loads(line) for line in (tmp_path / "p.jsonl").read_text().splitlines()]
     assert 1 <= len(lines) < 6
+    err = capsys.readouterr().err
+    assert f"warning: cut.avi: the video ended after {len(lines)} of the 6 frames its header announces" in err
     truth = np.array(json.loads(data_path("scenes", "poses.json").read_text())["images"][0]["T_world_camera"])
     for line in lines:
         assert line["located"]
