@@ -161,8 +161,7 @@ class MarkerTracker:
         self._normals = np.stack([marker_map.normal(i) for i in ids]) if ids else np.zeros((0, 3))
         # The map's markers only, in map order: OpenCV compares every candidate that does not decode
         # with every marker of the dictionary (most of detectMarkers' time with 1024-marker ARUCO_ORIGINAL).
-        full = _cv.get_dictionary(marker_map.dictionary)
-        self._dictionary = cv2.aruco.Dictionary(full.bytesList[self._ids], int(full.markerSize), int(full.maxCorrectionBits))
+        self._dictionary = _cv.sub_dictionary(marker_map.dictionary, ids)
         self.reset()
 
     def __repr__(self) -> str:
