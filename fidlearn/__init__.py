@@ -49,6 +49,7 @@ from .pose import Pose, estimate_pose, locate
 from .tracking import MarkerTracker
 from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
 from .printables import PrintError, board_pdf, markers_pdf
+from .planning import Prediction, plan_room, predict_accuracy
 
 __version__ = "0.1.0"
 
@@ -97,5 +98,8 @@ __all__ = [
     "markers_pdf",
     "board_pdf",
     "PrintError",
+    "Prediction",
+    "predict_accuracy",
+    "plan_room",
     "__version__",
 ]

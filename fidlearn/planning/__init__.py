@@ -1,0 +1,23 @@
+"""Planning before printing: predicted pose accuracy for a camera pose and over a room.
+
+:func:`predict_accuracy` answers "how well would a camera here know where it is?" from the map
+and the camera alone; :func:`plan_room` maps that answer over a room seen from above and
+:func:`suggest_markers` says what to print and where to put it to reach a target error.
+"""
+
+from .noise import corner_sigma_px, min_perimeter_px
+from .predict import Prediction, flip_probability, predict_accuracy
+from .room import RoomPlan, Suggestion, default_area, plan_room, suggest_markers
+
+__all__ = [
+    "Prediction",
+    "predict_accuracy",
+    "flip_probability",
+    "corner_sigma_px",
+    "min_perimeter_px",
+    "RoomPlan",
+    "Suggestion",
+    "plan_room",
+    "suggest_markers",
+    "default_area",
+]

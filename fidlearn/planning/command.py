@@ -1,0 +1,97 @@
+"""``fidlearn plan``: predicted position error over a room, before printing, and what to add."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .._io import atomic_write
+from ..camera import Camera
+from ..errors import FidlearnError
+from ..markermap import MarkerMap
+from .figure import plan_figure
+from .room import default_area, plan_room, suggest_markers
+
+HELP = "predicted position error over a room seen from above, and where to add markers"
+
+
+def _numbers(text: str, n: int, option: str, meaning: str) -> list[float]:
+    try:
+        values = [float(t) for t in str(text).replace(" ", "").split(",")]
+    except ValueError:
+        values = []
+    if len(values) != n or not all(math.isfinite(v) for v in values):
+        raise FidlearnError(f"{option} {text!r}: expected {n} numbers separated by commas ({meaning})")
+    return values
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("map", type=Path, help="world map JSON (full layout, or give --units and --marker-size-mm)")
+    p.add_argument("--camera", type=Path, required=True, help="camera file (fidlearn JSON or OpenCV YAML)")
+    p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
+    p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
+    p.add_argument("--height-mm", type=float, default=300.0, help="camera height above the floor (default 300)")
+    p.add_argument("--area", metavar="X0,Y0,X1,Y1", help="floor area to plan, mm (default: 3 m in front of the markers)")
+    p.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (default: the markers' centre)")
+    p.add_argument("--step-mm", type=float, default=250.0, help="grid spacing (default 250)")
+    p.add_argument("--headings", type=int, default=16, help="level headings tried per place (default 16; 0: skip)")
+    p.add_argument("--corner-sigma-px", type=float, metavar="PX",
+                   help="your camera's corner noise (default: measured on fidlearn's renders, by marker size)")
+    p.add_argument("--target-mm", type=float, help="error to reach; drawn as a line, and the goal of --suggest")
+    p.add_argument("--suggest", action="store_true", help="say which marker size and where to add markers to reach --target-mm")
+    p.add_argument("-o", "--output", type=Path, required=True, help="picture to write (.png)")
+
+
+def _check(args) -> None:
+    out = args.output
+    if out.suffix.lower() != ".png":
+        raise FidlearnError(f"-o {out}: name the picture .png")
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir():
+        raise FidlearnError(f"-o {out}: the folder {folder} does not exist; create it first")
+    for given in (args.map, args.camera):
+        if out.exists() and given.exists() and out.resolve() == given.resolve():
+            raise FidlearnError(f"-o {out} is one of the inputs; write the picture somewhere else")
+    if args.suggest and args.target_mm is None:
+        raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
+    if args.target_mm is not None and not (math.isfinite(args.target_mm) and args.target_mm > 0):
+        raise FidlearnError(f"--target-mm {args.target_mm}: give a positive number of mm")
+
+
+def run(args) -> int:
+    _check(args)
+    world = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm)
+    camera = Camera.load(args.camera)
+    area = _numbers(args.area, 4, "--area", "x0,y0,x1,y1 in mm") if args.area else default_area(world)
+    look = _numbers(args.look_at, 3, "--look-at", "x,y,z in mm") if args.look_at else None
+
+    def progress(done: int, total: int) -> None:
+        if sys.stderr.isatty():
+            print(f"\rplanning: row {done}/{total}", end="" if done < total else "\n", file=sys.stderr)
+
+    plan = plan_room(world, camera, height_mm=args.height_mm, area=area, look_at_mm=look, step_mm=args.step_mm,
+                     headings=args.headings, corner_sigma_px=args.corner_sigma_px, progress=progress)
+    fig = plan_figure(plan, world, target_mm=args.target_mm)
+    atomic_write(args.output, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    ok = np.isfinite(plan.toward_mm)
+    print(f"{args.output}: {len(plan.x_mm)}x{len(plan.y_mm)} places at {plan.height_mm:.0f} mm; "
+          f"a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers")
+    if ok.any():
+        print(f"  predicted error looking at the markers: median {np.median(plan.toward_mm[ok]):.1f} mm, "
+              f"worst {np.max(plan.toward_mm[ok]):.1f} mm")
+    if np.any(plan.flip[ok]):
+        print(f"  the planar flip is likely at {100 * plan.flip[ok].mean():.0f} % of those places: add a marker off their plane")
+    if args.target_mm is not None:
+        print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
+    if args.suggest:
+        steps = suggest_markers(world, camera, args.target_mm, height_mm=args.height_mm, area=area,
+                                corner_sigma_px=args.corner_sigma_px)
+        if not steps:
+            print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
+        for s in steps:
+            print(f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % within {args.target_mm:g} mm")
+    return 0

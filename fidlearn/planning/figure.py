@@ -1,0 +1,63 @@
+"""The room plan as a picture: seen from above, coloured by the predicted position error."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
+
+from ..markermap import MarkerMap
+from .room import RoomPlan
+
+
+def _draw_markers(ax, marker_map: MarkerMap) -> None:
+    for mid in marker_map.ids:
+        c = marker_map.marker_corners(mid)
+        ax.plot(c[[0, 1], 0], c[[0, 1], 1], color="black", lw=3, solid_capstyle="butt")
+        centre = c.mean(axis=0)
+        tip = centre + 150.0 * marker_map.normal(mid)
+        ax.annotate("", xy=tip[:2], xytext=centre[:2], arrowprops={"arrowstyle": "->", "color": "black", "lw": 0.8})
+        ax.text(centre[0], centre[1], f" {mid}", fontsize=8, ha="left", va="bottom")
+
+
+def _panel(ax, plan: RoomPlan, grid: np.ndarray, title: str, norm, target_mm: float | None):
+    extent = [plan.x_mm[0] - (plan.x_mm[1] - plan.x_mm[0] if len(plan.x_mm) > 1 else 1) / 2,
+              plan.x_mm[-1] + (plan.x_mm[1] - plan.x_mm[0] if len(plan.x_mm) > 1 else 1) / 2,
+              plan.y_mm[0] - (plan.y_mm[1] - plan.y_mm[0] if len(plan.y_mm) > 1 else 1) / 2,
+              plan.y_mm[-1] + (plan.y_mm[1] - plan.y_mm[0] if len(plan.y_mm) > 1 else 1) / 2]
+    ax.set_facecolor("0.85")  # no pose possible: grey
+    shown = np.ma.masked_invalid(np.where(np.isfinite(grid), grid, np.nan))
+    im = ax.imshow(shown, origin="lower", extent=extent, cmap="viridis", norm=norm, interpolation="nearest")
+    if target_mm is not None and np.isfinite(grid).sum() > 3 and len(plan.x_mm) > 1 and len(plan.y_mm) > 1:
+        ax.contour(plan.x_mm, plan.y_mm, np.ma.masked_invalid(np.where(np.isfinite(grid), grid, np.nan)), levels=[target_mm],
+                   colors="white", linewidths=1.5)
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel("world X (mm)")
+    ax.set_aspect("equal")
+    return im
+
+
+def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None = None) -> Figure:
+    """A figure of ``plan`` seen from above: error looking at the markers, and the worst level heading.
+
+    Grey where no pose is possible; a white line at ``target_mm`` when given; each marker as a
+    black bar with an arrow along its normal.
+    """
+    panels = [(plan.toward_mm, "looking toward the markers")]
+    if np.isfinite(plan.worst_mm).any():
+        panels.append((plan.worst_mm, "worst level heading that sees a marker"))
+    fig = Figure(figsize=(5.5 * len(panels), 5.0), layout="constrained")
+    axes = fig.subplots(1, len(panels), squeeze=False)[0]
+    finite = np.concatenate([g[np.isfinite(g)] for g, _ in panels])
+    lo = max(float(finite.min()) if finite.size else 0.1, 0.05)
+    hi = max(float(finite.max()) if finite.size else 1.0, lo * 1.01)
+    norm = LogNorm(vmin=lo, vmax=hi)
+    im = None
+    for ax, (grid, title) in zip(axes, panels):
+        im = _panel(ax, plan, grid, title, norm, target_mm)
+        _draw_markers(ax, marker_map)
+    axes[0].set_ylabel("world Y (mm)")
+    fig.colorbar(im, ax=list(axes), label="predicted median position error (mm); grey: no pose", shrink=0.85)
+    fig.suptitle(f"Camera {plan.height_mm:.0f} mm above the floor"
+                 + (f", white line: {target_mm:g} mm" if target_mm is not None else ""), fontsize=11)
+    return fig

@@ -1,0 +1,274 @@
+"""Predicted accuracy of a pose before any photo is taken.
+
+For a camera at a given pose in a mapped room, :func:`predict_accuracy` says which markers it
+would find, how noisy their corners would be, the covariance of the pose that
+:func:`fidlearn.estimate_pose` would return (first-order error propagation: the Cramer-Rao bound
+``(J^T W J)^-1``, which ``estimate_pose`` reaches), and how likely the planar flip is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .. import frames
+from ..camera import Camera
+from ..errors import FidlearnError, TransformError
+from ..markermap import MarkerMap
+from ..pose import pose_jacobian
+from . import noise
+
+__all__ = ["Prediction", "predict_accuracy", "flip_probability"]
+
+#: Fixed standard normal draws: the median of the position error of a Gaussian with a given
+#: covariance is computed from these, so a prediction is the same every time.
+_Z = np.random.default_rng(20261124).standard_normal((4000, 3))
+
+#: A second planar solution counts as a flip when its rotation is this far from the true one
+#: (degrees); nearer, the two are one answer within the noise.
+FLIP_MIN_ANGLE_DEG = 5.0
+
+#: A prediction says ``flip_likely`` when the wrong planar branch wins in more than this
+#: fraction of frames.
+FLIP_LIKELY = 0.01
+
+
+@dataclass(frozen=True, repr=False)
+class Prediction:
+    """What a camera at ``T_world_camera`` would get from the map, before any photo is taken.
+
+    Attributes
+    ----------
+    T_world_camera : ndarray, shape (4, 4)
+        The camera pose asked about (mm).
+    marker_ids : list of int
+        The markers it would find: whole in the picture, facing it, seen at most
+        :data:`~fidlearn.planning.noise.MAX_VIEW_ANGLE_DEG` off their axis, large enough for
+        the detector (:func:`~fidlearn.planning.noise.min_perimeter_px`,
+        :data:`~fidlearn.planning.noise.MIN_SHORT_SIDE_PX`).
+    side_px : dict of int to float
+        Each found marker's mean apparent side (px).
+    corner_sigma_px : dict of int to float
+        The corner noise assumed for each (px per axis).
+    covariance : ndarray, shape (6, 6), or None
+        The predicted covariance of the pose, in the coordinates of
+        :attr:`fidlearn.Pose.covariance`: ``[a small rotation in world axes (rad), the camera
+        centre (mm)]``. None when no pose is possible.
+    position_std_mm : ndarray, shape (3,)
+        Standard deviation of the camera centre along world X, Y, Z (mm); inf without a pose.
+    position_error_mm : float
+        Predicted median distance between the estimated and the true camera centre (mm).
+    flip_probability : float
+        Chance that the other planar solution fits the corners better (0 when the markers are
+        not coplanar or seen obliquely enough).
+    flip_likely : bool
+        ``flip_probability > FLIP_LIKELY``: expect ``Pose.ambiguous`` and an occasional flip.
+    reason : str
+        Why no pose is possible, or ``""``.
+    """
+
+    T_world_camera: np.ndarray
+    marker_ids: list[int]
+    side_px: dict[int, float]
+    corner_sigma_px: dict[int, float]
+    covariance: np.ndarray | None
+    position_std_mm: np.ndarray
+    position_error_mm: float
+    flip_probability: float
+    reason: str = ""
+    lost: dict[int, str] = field(default_factory=dict)
+
+    @property
+    def possible(self) -> bool:
+        """Whether a pose can be computed from this place."""
+        return self.covariance is not None
+
+    @property
+    def flip_likely(self) -> bool:
+        return self.flip_probability > FLIP_LIKELY
+
+    @property
+    def rotation_std_deg(self) -> np.ndarray:
+        """Standard deviation of the small rotation about world X, Y, Z (degrees); inf without a pose."""
+        if self.covariance is None:
+            return np.full(3, np.inf)
+        return np.degrees(np.sqrt(np.diag(self.covariance)[:3]))
+
+    def __repr__(self) -> str:
+        C = self.T_world_camera[:3, 3]
+        where = f"camera at [{C[0]:.0f}, {C[1]:.0f}, {C[2]:.0f}] mm"
+        if not self.possible:
+            return f"Prediction({where}: no pose, {self.reason})"
+        std = ", ".join(f"{s:.1f}" for s in self.position_std_mm)
+        flip = f", flip {100 * self.flip_probability:.0f} %" if self.flip_likely else ""
+        sides = ", ".join(f"{i}: {self.side_px[i]:.0f} px" for i in self.marker_ids)
+        return (f"Prediction({where}: markers {sides}; position error {self.position_error_mm:.1f} mm "
+                f"(median), std [{std}] mm{flip})")
+
+
+def _check_pose(T_world_camera) -> np.ndarray:
+    try:
+        T = np.asarray(T_world_camera, dtype=float)
+    except (TypeError, ValueError):
+        raise TransformError("T_world_camera must be a 4x4 pose matrix (mm)") from None
+    return frames.check_transform(T, "T_world_camera")
+
+
+def _seen(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray) -> tuple[dict, dict]:
+    """``({id: (4, 2) pixel corners}, {id: why it is not found})`` for every marker of the map."""
+    T_camera_world = frames.invert_transform(T_world_camera)
+    eye = T_world_camera[:3, 3]
+    min_perimeter = noise.min_perimeter_px(camera.image_size)
+    cos_max = math.cos(math.radians(noise.MAX_VIEW_ANGLE_DEG))
+    seen, lost = {}, {}
+    for mid in marker_map.ids:
+        c = marker_map.marker_corners(mid)
+        pc = c @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]
+        if np.any(pc[:, 2] <= 1.0):
+            lost[mid] = "behind the camera"
+            continue
+        view = eye - c.mean(axis=0)
+        cos_view = float(marker_map.normal(mid) @ view) / float(np.linalg.norm(view))
+        if cos_view <= 0:
+            lost[mid] = "seen from behind"
+            continue
+        if cos_view < cos_max:
+            lost[mid] = f"seen {math.degrees(math.acos(cos_view)):.0f} deg off its axis"
+            continue
+        xy = pc[:, :2] / pc[:, 2:3]
+        ideal = xy * [camera.fx, camera.fy] + [camera.cx, camera.cy]
+        w, h = camera.image_size
+        if np.any(ideal < -0.5 * max(w, h)) or np.any(ideal > 1.5 * max(w, h)):
+            lost[mid] = "outside the picture"
+            continue
+        px = camera.project(c, T_world_camera)
+        if np.any(px < -0.5) or np.any(px[:, 0] > w - 0.5) or np.any(px[:, 1] > h - 0.5):
+            lost[mid] = "not whole in the picture"
+            continue
+        sides = np.linalg.norm(px - np.roll(px, 1, axis=0), axis=1)
+        perimeter = float(np.sum(sides))
+        if perimeter < min_perimeter:
+            lost[mid] = f"too small ({perimeter / 4:.0f} px sides, the detector needs {min_perimeter / 4:.0f})"
+            continue
+        if float(np.min(sides)) < noise.MIN_SHORT_SIDE_PX:
+            lost[mid] = f"seen too obliquely (a side of {np.min(sides):.0f} px, the detector needs {noise.MIN_SHORT_SIDE_PX:.0f})"
+            continue
+        seen[mid] = px
+    return seen, lost
+
+
+def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Camera,
+                     sigma_px: np.ndarray) -> float:
+    """Chance that the other planar solution fits noisy corners better than the true pose.
+
+    With exact corners ``points_px``, the second IPPE solution refined by Levenberg-Marquardt
+    leaves a weighted sum of squared residuals ``D^2``. With Gaussian corner noise the
+    difference of the two fits is about ``D^2 + 2 D sigma z``, so the wrong branch wins with
+    probability ``Phi(-D / 2)`` (``D`` in units of sigma). A second solution within
+    :data:`FLIP_MIN_ANGLE_DEG` of the true rotation is no flip (seen face-on the two meet);
+    0 when the points are not coplanar.
+
+    Parameters
+    ----------
+    points_world : ndarray, shape (N, 3)
+        Marker corners (mm).
+    points_px : ndarray, shape (N, 2)
+        Their exact projections (px).
+    camera : Camera
+    sigma_px : ndarray, shape (N,)
+        Corner noise of each point (px per axis).
+    """
+    P = np.asarray(points_world, dtype=float)
+    centred = P - P.mean(axis=0)
+    s = np.linalg.svd(centred, compute_uv=False)
+    if s[2] > 1e-6 * max(s[0], 1.0):
+        return 0.0
+    n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+        P.reshape(-1, 1, 3), points_px.reshape(-1, 1, 2), camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
+    found = []  # (weighted squared residual, rotation matrix) of each solution
+    for rvec, tvec in zip(rvecs[:n], tvecs[:n]):
+        rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
+        proj, _ = cv2.projectPoints(P, rvec, tvec, camera.K, camera.dist)
+        found.append((float(np.sum(np.sum((proj.reshape(-1, 2) - points_px) ** 2, axis=1) / sigma_px**2)),
+                      cv2.Rodrigues(rvec)[0]))
+    found.sort(key=lambda f: f[0])
+    R_true = found[0][1]  # exact corners: the true pose fits them exactly
+    others = [d2 for d2, R in found[1:] if frames.rotation_angle_deg(R, R_true) > FLIP_MIN_ANGLE_DEG]
+    if not others:
+        return 0.0
+    best = others[0]
+    return 0.5 * math.erfc(math.sqrt(best) / 2 / math.sqrt(2))
+
+
+def predict_accuracy(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, *,
+                     corner_sigma_px: float | None = None) -> Prediction:
+    """Predict the pose accuracy a camera at ``T_world_camera`` would get from ``marker_map``.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        Where the markers are (mm, world).
+    camera : Camera
+        Intrinsics, distortion and image size.
+    T_world_camera : ndarray, shape (4, 4)
+        The camera pose to ask about (mm, world; camera frame OpenCV's).
+    corner_sigma_px : float, optional
+        Corner noise (px per axis) for every marker. By default it depends on each marker's
+        apparent size, as measured on fidlearn's renders (:func:`noise.corner_sigma_px`);
+        give your own camera's (the RMS reprojection error of ``locate``) for real photos.
+
+    Returns
+    -------
+    Prediction
+
+    Examples
+    --------
+    >>> import fidlearn
+    >>> world = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+    >>> camera = fidlearn.Camera.load(fidlearn.data_path("scenes/camera.json"))
+    >>> T = fidlearn.look_at([1000, 190, 230], [0, 190, 230])
+    >>> p = fidlearn.predict_accuracy(world, camera, T)
+    >>> p.marker_ids, p.possible
+    ([0, 1, 2], True)
+    """
+    if not isinstance(marker_map, MarkerMap):
+        raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
+    if not isinstance(camera, Camera):
+        raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
+    return _predict(marker_map, camera, _check_pose(T_world_camera), corner_sigma_px, with_flip=True)
+
+
+def _predict(marker_map: MarkerMap, camera: Camera, T: np.ndarray, corner_sigma_px: float | None,
+             with_flip: bool) -> Prediction:
+    """:func:`predict_accuracy` on checked arguments; the flip is left out (0) unless ``with_flip``."""
+    if corner_sigma_px is not None:
+        ok = isinstance(corner_sigma_px, (int, float, np.floating, np.integer)) and not isinstance(corner_sigma_px, bool)
+        if not ok or not math.isfinite(corner_sigma_px) or corner_sigma_px <= 0:
+            raise FidlearnError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
+    seen, lost = _seen(camera, marker_map, T)
+    ids = sorted(seen)
+    sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
+    sigmas = {i: float(corner_sigma_px) if corner_sigma_px is not None else float(noise.corner_sigma_px(sides[i]))
+              for i in ids}
+    if not ids:
+        why = "; ".join(f"{i}: {r}" for i, r in sorted(lost.items())) or "the map has no markers"
+        return Prediction(T, [], {}, {}, None, np.full(3, np.inf), math.inf, 0.0, f"no marker found ({why})", lost)
+    P = np.concatenate([marker_map.marker_corners(i) for i in ids])
+    px = np.concatenate([seen[i] for i in ids])
+    s = np.repeat([sigmas[i] for i in ids], 4)
+    J = pose_jacobian(P, T, camera) / np.repeat(s, 2)[:, None]
+    JtJ = J.T @ J
+    d = np.sqrt(np.diag(JtJ))
+    if np.any(d <= 0) or np.linalg.cond(JtJ / np.outer(d, d)) > 1e12:  # columns in rad and mm: compare scaled
+        return Prediction(T, ids, sides, sigmas, None, np.full(3, np.inf), math.inf, 0.0,
+                          "the markers found do not fix the pose", lost)
+    cov = np.linalg.inv(JtJ)
+    cov = (cov + cov.T) / 2
+    cov_C = cov[3:, 3:]
+    w, V = np.linalg.eigh(cov_C)
+    median = float(np.median(np.linalg.norm((_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))
+    p_flip = flip_probability(P, px, camera, s) if with_flip else 0.0
+    return Prediction(T, ids, sides, sigmas, cov, np.sqrt(np.diag(cov_C)), median, p_flip, "", lost)
