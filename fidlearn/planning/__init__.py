@@ -2,9 +2,12 @@
 
 :func:`predict_accuracy` answers "how well would a camera here know where it is?" from the map
 and the camera alone; :func:`plan_room` maps that answer over a room seen from above and
-:func:`suggest_markers` says what to print and where to put it to reach a target error.
+:func:`suggest_markers` says what to print and where to put it to reach a target error;
+:func:`coach` says how far a calibration can be trusted across the picture, and which photo to
+take next.
 """
 
+from .coach import CalibrationCoach, NextView, coach, coach_calibration
 from .noise import corner_sigma_px, min_perimeter_px
 from .predict import Prediction, flip_probability, predict_accuracy
 from .room import RoomPlan, Suggestion, default_area, plan_room, suggest_markers
@@ -20,4 +23,8 @@ __all__ = [
     "plan_room",
     "suggest_markers",
     "default_area",
+    "CalibrationCoach",
+    "NextView",
+    "coach",
+    "coach_calibration",
 ]

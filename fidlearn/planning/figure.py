@@ -61,3 +61,35 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
     fig.suptitle(f"Camera {plan.height_mm:.0f} mm above the floor"
                  + (f", white line: {target_mm:g} mm" if target_mm is not None else ""), fontsize=11)
     return fig
+
+
+def coach_figure(coach, camera) -> Figure:
+    """The calibration coach's picture: reprojection uncertainty over the image, with the board points and the next view.
+
+    Parameters
+    ----------
+    coach : CalibrationCoach
+    camera : Camera
+    """
+    from .coach import GOOD_UNCERTAINTY_PX
+
+    fig = Figure(figsize=(7.0, 7.0 * camera.height / camera.width + 1.0), layout="constrained")
+    ax = fig.subplots()
+    u = coach.uncertainty_px
+    im = ax.imshow(u, extent=[-0.5, camera.width - 0.5, camera.height - 0.5, -0.5], cmap="magma_r",
+                   vmin=0.0, vmax=max(float(u.max()), 2 * GOOD_UNCERTAINTY_PX), interpolation="bicubic")
+    rows, cols = u.shape
+    xs = (np.arange(cols) + 0.5) * camera.width / cols - 0.5
+    ys = (np.arange(rows) + 0.5) * camera.height / rows - 0.5
+    if u.min() < GOOD_UNCERTAINTY_PX < u.max():
+        ax.contour(xs, ys, u, levels=[GOOD_UNCERTAINTY_PX], colors="deepskyblue", linewidths=1.5)
+    if coach.next_view is not None:
+        ax.set_title(f"next photo: {coach.next_view.where}, {coach.next_view.tilt}", fontsize=9)
+    ax.set_xlim(-0.5, camera.width - 0.5)
+    ax.set_ylim(camera.height - 0.5, -0.5)
+    ax.set_xlabel("u (px)")
+    ax.set_ylabel("v (px)")
+    fig.colorbar(im, ax=ax, shrink=0.8, label=f"reprojection uncertainty (px); blue line: {GOOD_UNCERTAINTY_PX} px")
+    fig.suptitle(f"Calibration uncertainty: under {GOOD_UNCERTAINTY_PX} px over {100 * coach.good_fraction:.0f} % "
+                 "of the picture", fontsize=11)
+    return fig

@@ -1,0 +1,324 @@
+"""A calibration coach: how uncertain the calibrated camera is across the picture, and what photo to take next.
+
+A small RMS reprojection error says the board points fit the model; it does not say the model is
+right. With the views all face-on, or the picture's corners never covered, a calibration can fit
+its own views to 0.1 px and still be a wrong camera elsewhere. Following mrcal's approach, the
+coach propagates the uncertainty of the intrinsics (the covariance of the least-squares fit, with
+every view's board pose marginalised out) to the pixels: how far the projection of a point seen
+at a given pixel would move if the calibration were redone with new noise. It then tries
+candidate board placements and says which one shrinks that uncertainty the most.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .. import frames
+from ..camera import Camera
+from ..errors import CalibrationError
+
+__all__ = ["CalibrationCoach", "NextView", "coach", "intrinsics_information", "uncertainty_map"]
+
+#: Reprojection uncertainty (px) under which a part of the picture counts as well calibrated.
+GOOD_UNCERTAINTY_PX = 0.3
+#: Fewer used views than this is flagged: a camera with 9 unknowns and every view's pose needs more.
+MIN_VIEWS = 10
+#: A view whose board is tilted less than this (deg) from face-on counts as face-on.
+FACE_ON_DEG = 15.0
+#: A view whose residuals a smooth (quadratic) field explains this well, and whose RMS is this many
+#: times the median view's, shows a board that is not flat.
+BENT_EXPLAINED = 0.6
+BENT_RMS_FACTOR = 1.5
+#: The picture is cut into this grid (columns, rows) for coverage and the uncertainty map.
+GRID = (8, 6)
+
+
+def _n_intrinsics(camera: Camera) -> int:
+    return 4 + len(camera.dist)
+
+
+def _view_jacobian(camera: Camera, points_mm: np.ndarray, T_camera_board: np.ndarray):
+    """(2N, 6) with respect to the board pose and (2N, 4 + n_dist) with respect to the intrinsics."""
+    rvec, tvec = frames.rvec_tvec_from_transform(T_camera_board)
+    _, jac = cv2.projectPoints(np.asarray(points_mm, dtype=float).reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
+    return jac[:, :6], jac[:, 6:6 + _n_intrinsics(camera)]
+
+
+def _marginal_information(camera: Camera, points_mm: np.ndarray, T_camera_board: np.ndarray) -> np.ndarray:
+    """One view's information on the intrinsics, its own board pose marginalised out (Schur complement)."""
+    Je, Ji = _view_jacobian(camera, points_mm, T_camera_board)
+    A, B, D = Ji.T @ Ji, Ji.T @ Je, Je.T @ Je
+    return A - B @ np.linalg.solve(D + 1e-12 * np.eye(6), B.T)
+
+
+def intrinsics_information(camera: Camera, board_points_mm: dict, T_camera_board: dict) -> np.ndarray:
+    """Fisher information (per px^2 of corner noise) on ``[fx, fy, cx, cy, dist...]`` from the views.
+
+    Parameters
+    ----------
+    camera : Camera
+        The calibrated camera.
+    board_points_mm : dict of str to ndarray, shape (N, 3)
+        Each view's board points (mm, board frame).
+    T_camera_board : dict of str to ndarray, shape (4, 4)
+        Each view's board pose in the camera frame (mm).
+
+    Returns
+    -------
+    ndarray, shape (4 + n_dist, 4 + n_dist)
+        ``sigma^2`` times its inverse is the covariance of the intrinsics.
+    """
+    n = _n_intrinsics(camera)
+    info = np.zeros((n, n))
+    for name, T in T_camera_board.items():
+        info += _marginal_information(camera, board_points_mm[name], T)
+    return info
+
+
+def _pixel_grid(camera: Camera, grid=GRID) -> np.ndarray:
+    cols, rows = grid
+    u = (np.arange(cols) + 0.5) * camera.width / cols - 0.5
+    v = (np.arange(rows) + 0.5) * camera.height / rows - 0.5
+    return np.stack(np.meshgrid(u, v), axis=-1).reshape(-1, 2)
+
+
+def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, grid=GRID) -> np.ndarray:
+    """Reprojection uncertainty (px, per axis) over a grid of the picture: ``(rows, cols)``.
+
+    For the pixel at each cell's centre, the point at ``distance_mm`` along its ray is projected
+    with the intrinsics, and the first-order change of its pixel under ``covariance`` is taken,
+    less what a small rotation of the camera absorbs: a principal point a pixel off moves every
+    pixel alike, and the pose found with that camera turns by as much, so a localization never
+    sees it (mrcal makes the same correction). The result is ``sqrt(trace(P J C J^T P^T) / 2)``
+    per cell, ``P`` removing the best-fitting rotation over the whole grid.
+    """
+    px = _pixel_grid(camera, grid)
+    rays = cv2.undistortPoints(px.reshape(-1, 1, 2), camera.K, camera.dist).reshape(-1, 2)
+    pts = np.column_stack([rays, np.ones(len(rays))]) * distance_mm
+    _, jac = cv2.projectPoints(pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.K, camera.dist)
+    n = _n_intrinsics(camera)
+    Ji, Jr = jac[:, 6:6 + n], jac[:, :3]  # (2G, n) intrinsics, (2G, 3) a small rotation of the camera
+    P = np.eye(len(Jr)) - Jr @ np.linalg.solve(Jr.T @ Jr, Jr.T)
+    field = P @ Ji
+    var = np.einsum("kj,jl,kl->k", field, covariance, field).reshape(-1, 2).sum(axis=1) / 2
+    return np.sqrt(np.clip(var, 0, None)).reshape(grid[1], grid[0])
+
+
+@dataclass(frozen=True)
+class NextView:
+    """A board placement to photograph next, and what it would bring."""
+
+    T_camera_board: np.ndarray
+    where: str
+    tilt: str
+    distance_mm: float
+    good_fraction_after: float
+    median_uncertainty_px_after: float
+
+    def __str__(self) -> str:
+        return (f"put the board {self.where} of the picture, {self.tilt}, about {self.distance_mm / 1000:.1f} m "
+                f"away: {100 * self.good_fraction_after:.0f} % of the picture under {GOOD_UNCERTAINTY_PX} px")
+
+
+@dataclass(frozen=True, repr=False)
+class CalibrationCoach:
+    """How good a calibration is where it matters, in words and numbers.
+
+    Attributes
+    ----------
+    uncertainty_px : ndarray, shape (rows, cols)
+        Reprojection uncertainty over the picture (px per axis), at the views' median distance.
+    good_fraction : float
+        Fraction of the picture where it is under :data:`GOOD_UNCERTAINTY_PX`.
+    covariance : ndarray
+        Covariance of ``[fx, fy, cx, cy, dist...]`` (px, and unitless for the distortion).
+    coverage : ndarray, shape (rows, cols)
+        Board points per grid cell, over all used views.
+    tilts_deg : dict of str to float
+        Each view's angle between the board and the image plane (deg): 0 face-on.
+    flags : list of str
+        What is wrong with the set, in words (empty when nothing is).
+    next_view : NextView or None
+        The placement that would shrink the uncertainty most.
+    """
+
+    uncertainty_px: np.ndarray
+    good_fraction: float
+    covariance: np.ndarray
+    coverage: np.ndarray
+    tilts_deg: dict
+    flags: list = field(default_factory=list)
+    next_view: NextView | None = None
+
+    @property
+    def fx_std_px(self) -> float:
+        return float(math.sqrt(self.covariance[0, 0]))
+
+    def report(self) -> str:
+        lines = [f"reprojection uncertainty: median {np.median(self.uncertainty_px):.2f} px, worst "
+                 f"{self.uncertainty_px.max():.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
+                 f"{100 * self.good_fraction:.0f} % of the picture"]
+        lines += [f"warning: {f}" for f in self.flags]
+        if self.next_view is not None:
+            lines.append(f"next photo: {self.next_view}")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (f"CalibrationCoach(under {GOOD_UNCERTAINTY_PX} px over {100 * self.good_fraction:.0f} % of the picture, "
+                f"{len(self.flags)} warning{'s' if len(self.flags) != 1 else ''})")
+
+
+def _coverage(camera: Camera, image_points_px: dict, grid=GRID) -> np.ndarray:
+    cols, rows = grid
+    out = np.zeros((rows, cols), dtype=int)
+    for pts in image_points_px.values():
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+        c = np.clip(((pts[:, 0] + 0.5) * cols // camera.width).astype(int), 0, cols - 1)
+        r = np.clip(((pts[:, 1] + 0.5) * rows // camera.height).astype(int), 0, rows - 1)
+        np.add.at(out, (r, c), 1)
+    return out
+
+
+_NINTHS = ["top left", "top", "top right", "left", "middle", "right", "bottom left", "bottom", "bottom right"]
+
+
+def _tilt_deg(T_camera_board: np.ndarray) -> float:
+    """Angle between the board's plane and the image plane (deg): 0 for a board square to the optical axis."""
+    return float(math.degrees(math.acos(min(1.0, abs(float(T_camera_board[2, 2]))))))
+
+
+def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_camera_board: dict) -> list[str]:
+    """Views whose residuals a smooth field over the board explains: a board that was not flat.
+
+    The residuals of each view (observed minus projected) are fitted, per axis, with a quadratic
+    in the board's x and y; a flat board leaves noise, which such a fit barely explains.
+    """
+    rms, explained = {}, {}
+    for name, T in T_camera_board.items():
+        P = np.asarray(board_points_mm[name], dtype=float)
+        rvec, tvec = frames.rvec_tvec_from_transform(T)
+        proj, _ = cv2.projectPoints(P.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
+        r = np.asarray(image_points_px[name], dtype=float).reshape(-1, 2) - proj.reshape(-1, 2)
+        x, y = (P[:, 0] - P[:, 0].mean()) / max(np.ptp(P[:, 0]), 1e-9), (P[:, 1] - P[:, 1].mean()) / max(np.ptp(P[:, 1]), 1e-9)
+        A = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+        fit = A @ np.linalg.lstsq(A, r, rcond=None)[0]
+        total = float(np.sum(r**2))
+        rms[name] = math.sqrt(total / len(r))
+        explained[name] = 1.0 - float(np.sum((r - fit) ** 2)) / total if total > 0 else 0.0
+    if not rms:
+        return []
+    median = float(np.median(list(rms.values())))
+    return [n for n in rms if explained[n] > BENT_EXPLAINED and rms[n] > BENT_RMS_FACTOR * median]
+
+
+def _candidates(camera: Camera, board_points_mm: np.ndarray, distance_mm: float):
+    """Board poses: centred on 3x3 places of the picture, face-on or tilted 35 deg four ways."""
+    centre = board_points_mm.mean(axis=0)
+    places = {(0, 0): "at the top left", (1, 0): "at the top", (2, 0): "at the top right",
+              (0, 1): "at the left", (1, 1): "in the middle", (2, 1): "at the right",
+              (0, 2): "at the bottom left", (1, 2): "at the bottom", (2, 2): "at the bottom right"}
+    tilts = {"face-on": np.eye(3),
+             "its top tilted away from the camera": frames.rot_x(math.radians(-35)),
+             "its bottom tilted away from the camera": frames.rot_x(math.radians(35)),
+             "its left side tilted away from the camera": frames.rot_y(math.radians(35)),
+             "its right side tilted away from the camera": frames.rot_y(math.radians(-35))}
+    for (i, j), where in places.items():
+        u = (0.2 + 0.3 * i) * camera.width
+        v = (0.2 + 0.3 * j) * camera.height
+        ray = cv2.undistortPoints(np.array([[[u, v]]]), camera.K, camera.dist).reshape(2)
+        C = np.array([ray[0], ray[1], 1.0]) * distance_mm
+        for tilt, R in tilts.items():
+            T = frames.make_transform(R, C - R @ centre)
+            yield T, where, tilt
+
+
+def _summary(camera: Camera, info: np.ndarray, sigma_px: float, distance_mm: float):
+    cov = sigma_px**2 * np.linalg.pinv(info)
+    u = uncertainty_map(camera, cov, distance_mm)
+    return cov, u, float(np.mean(u < GOOD_UNCERTAINTY_PX))
+
+
+def coach(camera: Camera, board_points_mm: dict, image_points_px: dict, T_camera_board: dict, *,
+          sigma_px: float, other_sizes: int = 0) -> CalibrationCoach:
+    """Judge a calibration set and say which photo to take next.
+
+    Parameters
+    ----------
+    camera : Camera
+        The calibrated camera.
+    board_points_mm, image_points_px, T_camera_board : dict by view name
+        Board points (N, 3) mm, their pixels (N, 2) and the board poses (4, 4) mm, as a
+        :class:`~fidlearn.Calibration` holds them.
+    sigma_px : float
+        Corner noise (px per axis): the calibration's RMS reprojection error over sqrt(2).
+    other_sizes : int
+        Photos left out because they had another resolution (a mixed set is flagged).
+
+    Returns
+    -------
+    CalibrationCoach
+    """
+    names = list(T_camera_board)
+    if not names:
+        raise CalibrationError("no views to judge: the calibration used none")
+    if not (isinstance(sigma_px, (int, float, np.floating)) and math.isfinite(sigma_px) and sigma_px > 0):
+        raise CalibrationError(f"sigma_px must be a positive number of pixels, got {sigma_px!r}")
+    distance = float(np.median([np.linalg.norm(T_camera_board[n][:3, 3]) for n in names]))
+    info = intrinsics_information(camera, board_points_mm, T_camera_board)
+    cov, u, good = _summary(camera, info, sigma_px, distance)
+    coverage = _coverage(camera, image_points_px)
+    tilts = {n: _tilt_deg(T_camera_board[n]) for n in names}
+    flags = []
+    if len(names) < MIN_VIEWS:
+        flags.append(f"only {len(names)} views were used; take at least {MIN_VIEWS} (15 to 25 is usual)")
+    if max(tilts.values()) < FACE_ON_DEG:
+        flags.append(f"every view is face-on (the largest tilt is {max(tilts.values()):.0f} deg): the focal length "
+                     "and the distance cannot be told apart; tilt the board 20 to 45 deg in different directions")
+    ninths = _coverage(camera, image_points_px, (3, 3))
+    empty = [_NINTHS[k] for k in np.flatnonzero(ninths.ravel() == 0)]
+    if empty:
+        flags.append(f"no board point in the {', '.join(empty)} of the picture; the distortion there is a guess: take "
+                     "views with the board reaching into it")
+    if other_sizes:
+        flags.append(f"{other_sizes} photo{'s were' if other_sizes > 1 else ' was'} taken at another resolution and left "
+                     "out: calibrate at the resolution you will run at, all photos alike")
+    bent = bent_views(camera, board_points_mm, image_points_px, T_camera_board)
+    if bent:
+        flags.append(f"the board does not look flat in {', '.join(bent)}: its residuals follow a smooth bend; "
+                     "glue the print to something rigid and retake those views")
+    best = None
+    board = np.asarray(board_points_mm[names[0]], dtype=float)
+    candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
+    for T, where, tilt in candidates:
+        if not _board_in_picture(camera, board, T):
+            continue
+        _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma_px, distance)
+        # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
+        score = (min(good_after, 0.9), -float(np.mean(u_after**2)))
+        if best is None or score > best[0]:
+            best = (score, NextView(T, where, tilt, float(np.linalg.norm(T[:3, :3] @ board.mean(axis=0) + T[:3, 3])),
+                                    good_after, float(np.median(u_after))))
+    return CalibrationCoach(u, good, cov, coverage, tilts, flags, best[1] if best else None)
+
+
+def _board_in_picture(camera: Camera, board_mm: np.ndarray, T_camera_board: np.ndarray) -> bool:
+    P = board_mm @ T_camera_board[:3, :3].T + T_camera_board[:3, 3]
+    if np.any(P[:, 2] <= 1.0):
+        return False
+    rvec, tvec = frames.rvec_tvec_from_transform(T_camera_board)
+    px = cv2.projectPoints(board_mm.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)[0].reshape(-1, 2)
+    return bool(np.all(px >= 0) and np.all(px[:, 0] <= camera.width - 1) and np.all(px[:, 1] <= camera.height - 1))
+
+
+def coach_calibration(calibration, other_sizes: int | None = None) -> CalibrationCoach:
+    """:func:`coach` on a :class:`~fidlearn.Calibration`'s own views and RMS."""
+    if other_sizes is None:
+        other_sizes = sum(1 for v in calibration.views if v.status == "other size")
+    # OpenCV's RMS is over the 2D distance of each point: per axis it is RMS / sqrt(2)
+    return coach(calibration.camera, calibration.board_points_mm, calibration.image_points_px,
+                 calibration.T_camera_board, sigma_px=max(calibration.rms_px / math.sqrt(2), 1e-3),
+                 other_sizes=other_sizes)

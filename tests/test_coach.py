@@ -1,0 +1,128 @@
+"""The calibration coach: its covariance against OpenCV's, its flags on seeded bad sets, its next view."""
+
+from __future__ import annotations
+
+import glob
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+import fidlearn
+from fidlearn import Camera, frames
+from fidlearn.errors import CalibrationError
+from fidlearn.planning.coach import GOOD_UNCERTAINTY_PX, coach, coach_calibration, uncertainty_map
+from fidlearn.planning.figure import coach_figure
+
+CAMERA = Camera.load(fidlearn.data_path("calibration/camera_true.json"))
+BOARD = np.array([[i * 25.0, j * 25.0, 0.0] for j in range(6) for i in range(9)])
+
+
+def board_pose(rng, region=None, tilt_max_deg=40.0):
+    centre = BOARD.mean(axis=0)
+    while True:
+        if region is None:
+            u, v = rng.uniform(0.1, 0.9) * CAMERA.width, rng.uniform(0.1, 0.9) * CAMERA.height
+        else:
+            u, v = (region % 3 + rng.uniform()) / 3 * CAMERA.width, (region // 3 + rng.uniform()) / 3 * CAMERA.height
+        ray = cv2.undistortPoints(np.array([[[u, v]]]), CAMERA.K, CAMERA.dist).reshape(2)
+        C = np.array([ray[0], ray[1], 1.0]) * rng.uniform(400, 800)
+        axis = rng.normal(size=2)
+        R = cv2.Rodrigues(np.array([*(axis / np.linalg.norm(axis)), 0.0]) * math.radians(rng.uniform(0, tilt_max_deg)))[0]
+        T = frames.make_transform(R, C - R @ centre)
+        px = CAMERA.project(frames.transform_points(T, BOARD), np.eye(4))
+        if (np.all(frames.transform_points(T, BOARD)[:, 2] > 0) and np.all(px >= 0)
+                and np.all(px[:, 0] <= CAMERA.width - 1) and np.all(px[:, 1] <= CAMERA.height - 1)):
+            return T
+
+
+def judge(rng, poses, other_sizes=0, bend_view=None, sigma=0.1):
+    observed = []
+    for k, T in enumerate(poses):
+        pts = BOARD.copy()
+        if k == bend_view:  # a print lifted off its backing: a 4 mm bow
+            pts[:, 2] = 16.0 * ((pts[:, 0] - pts[:, 0].mean()) / np.ptp(pts[:, 0])) ** 2
+        observed.append(CAMERA.project(frames.transform_points(T, pts), np.eye(4)) + rng.normal(0, sigma, (len(pts), 2)))
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([BOARD.astype(np.float32)] * len(observed),
+                                                     [o.astype(np.float32) for o in observed], CAMERA.image_size, None, None)
+    cam = Camera(K, dist.ravel(), CAMERA.image_size)
+    names = [f"view {i}" for i in range(len(observed))]
+    T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
+    return coach(cam, {n: BOARD for n in names}, dict(zip(names, observed)), T, sigma_px=rms / math.sqrt(2),
+                 other_sizes=other_sizes)
+
+
+@pytest.fixture(scope="module")
+def bundled():
+    views = sorted(glob.glob(str(fidlearn.data_path("calibration")) + "/view_*.png"))
+    return fidlearn.calibrate_checkerboard(views, (9, 6), 25.0)
+
+
+def test_the_intrinsics_standard_deviations_equal_opencvs(bundled):
+    c = coach_calibration(bundled)
+    std = np.sqrt(np.diag(c.covariance))
+    for k, name in enumerate(["fx", "fy", "cx", "cy"]):
+        assert std[k] == pytest.approx(bundled.std_intrinsics[name], rel=0.05)
+    assert c.flags == []  # the bundled set is a good one
+    assert c.good_fraction == 1.0 and c.uncertainty_px.max() < GOOD_UNCERTAINTY_PX
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_seeded_bad_sets_are_flagged_and_a_good_set_is_not(seed):
+    rng = np.random.default_rng(seed)
+    good = judge(rng, [board_pose(rng, region=k % 9) for k in range(20)])
+    assert good.flags == []
+    face_on = judge(rng, [board_pose(rng, tilt_max_deg=5) for _ in range(20)])
+    assert any("every view is face-on" in f for f in face_on.flags)
+    left = judge(rng, [board_pose(rng, region=k % 3 * 3) for k in range(20)])  # the left column only
+    assert any("no board point in the top right, right, bottom right" in f for f in left.flags)
+    few = judge(rng, [board_pose(rng, region=k) for k in range(6)])
+    assert any("only 6 views" in f for f in few.flags)
+    mixed = judge(rng, [board_pose(rng, region=k % 9) for k in range(20)], other_sizes=2)
+    assert any("2 photos were taken at another resolution" in f for f in mixed.flags)
+    bent = judge(rng, [board_pose(rng, region=k % 9) for k in range(20)], bend_view=7)
+    assert any("does not look flat in view 7" in f for f in bent.flags)
+
+
+def test_the_next_view_helps_more_than_a_random_one():
+    rng = np.random.default_rng(5)
+    poses = [board_pose(rng) for _ in range(5)]
+    first = judge(np.random.default_rng(1), poses)
+    assert first.next_view is not None and "put the board" in str(first.next_view)
+    coached = judge(np.random.default_rng(1), poses + [first.next_view.T_camera_board])
+    randoms = [judge(np.random.default_rng(1), poses + [board_pose(rng)]) for _ in range(5)]
+    assert np.mean(coached.uncertainty_px**2) < min(np.mean(r.uncertainty_px**2) for r in randoms)
+
+
+def test_uncertainty_scales_with_the_covariance_and_vanishes_without_it():
+    n = 4 + len(CAMERA.dist)
+    assert np.all(uncertainty_map(CAMERA, np.zeros((n, n)), 600.0) == 0)
+    cov = np.diag([0.3, 0.3, 0.2, 0.2, 1e-5, 1e-4, 1e-7, 1e-7, 1e-4])
+    np.testing.assert_allclose(uncertainty_map(CAMERA, 4 * cov, 600.0), 2 * uncertainty_map(CAMERA, cov, 600.0))
+
+
+def test_a_principal_point_error_alone_is_absorbed_by_the_pose():
+    # a shift of (cx, cy) moves every pixel alike: a small turn of the camera undoes it up to
+    # second order, so the coach does not count it against the calibration
+    pinhole = Camera(np.array([[600.0, 0, 319.5], [0, 600.0, 239.5], [0, 0, 1]]), np.zeros(5), (640, 480))
+    cov = np.zeros((9, 9))
+    cov[2, 2] = cov[3, 3] = 1.0  # cx and cy uncertain by 1 px
+    assert uncertainty_map(pinhole, cov, 600.0).max() < 0.2
+    cov_fx = np.zeros((9, 9))
+    cov_fx[0, 0] = 1.0  # fx by 1 px: a scale, not absorbed at the edges
+    u = uncertainty_map(pinhole, cov_fx, 600.0)
+    assert u[:, [0, -1]].min() > 0.2 and u[:, [0, -1]].min() > 3 * u[:, 3:5].max()
+
+
+def test_coach_refuses_an_empty_set_and_a_bad_sigma():
+    with pytest.raises(CalibrationError, match="no views"):
+        coach(CAMERA, {}, {}, {}, sigma_px=0.1)
+    with pytest.raises(CalibrationError, match="sigma_px"):
+        coach(CAMERA, {"a": BOARD}, {"a": BOARD[:, :2]}, {"a": np.eye(4)}, sigma_px=0)
+
+
+def test_coach_figure_draws(bundled):
+    c = coach_calibration(bundled)
+    fig = coach_figure(c, bundled.camera)
+    assert "under 0.3 px over 100 %" in fig._suptitle.get_text()
