@@ -1038,7 +1038,16 @@ def _run_locate(args) -> int:
 
 
 #: Subcommand builders, in the order ``fidlearn --help`` lists them.
-COMMANDS: list[Callable] = [_add_board, _add_calibrate, _add_markers, _add_corners, _add_locate, _add_render, _add_doctor]
+def _add_plan(sub) -> None:
+    from .planning import command
+
+    p = sub.add_parser("plan", help=command.HELP, description=command.__doc__)
+    command.add_arguments(p)
+    p.set_defaults(run=command.run)
+
+
+COMMANDS: list[Callable] = [_add_board, _add_calibrate, _add_markers, _add_corners, _add_locate, _add_render, _add_plan,
+                            _add_doctor]
 
 
 _WORKFLOW = """\
@@ -1048,6 +1057,7 @@ from printer to pose:
   fidlearn markers --ids 0-2 --size-mm 80 -o markers.pdf           print, tape up, measure
   fidlearn corners map.json -o corners.json                        check the map
   fidlearn locate frames/ --camera camera.json --map map.json      the camera's pose
+  fidlearn plan map.json --camera camera.json -o plan.png          the error to expect, before printing
 'fidlearn COMMAND --help' tells more."""
 
 
@@ -1103,7 +1113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.
-_NUMBER_LIST_OPTIONS = ("--pose", "--look-at", "--from")
+_NUMBER_LIST_OPTIONS = ("--pose", "--look-at", "--from", "--area")
 _NUMBER_LIST = re.compile(r"-\d*\.?\d+(e[-+]?\d+)?(,\s*-?\d*\.?\d+(e[-+]?\d+)?)*", re.IGNORECASE)
 
 
