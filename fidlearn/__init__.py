@@ -9,49 +9,62 @@ Importing fidlearn has no side effects.
 
 from __future__ import annotations
 
-from .camera import Camera
-from .errors import (
-    CalibrationError,
-    CameraError,
-    DictionaryError,
-    FidlearnError,
-    FidlearnWarning,
-    ImageError,
-    MapError,
-    DetectionError,
-    NoMarkersError,
-    PoseError,
-    TransformError,
-)
-from .frames import (
-    compose,
-    invert_transform,
-    make_transform,
-    rotation_from_rpy_deg,
-    rpy_deg_from_rotation,
-    rvec_tvec_from_transform,
-    transform_from_rvec_tvec,
-    transform_points,
-)
-from .markermap import MarkerMap, MarkerPlacement
-from .data import data_dir, data_path
-from .detection import Detection, detect_markers, draw_detections
-from .synthetic import (
-    CalibrationViews,
-    Trajectory,
-    look_at,
-    render_calibration_views,
-    render_scene,
-    render_trajectory,
-    trajectory_poses,
-)
-from .pose import Pose, estimate_pose, locate
-from .tracking import MarkerTracker
-from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
-from .printables import PrintError, board_pdf, markers_pdf
-from .planning import Prediction, plan_room, predict_accuracy
-
 __version__ = "0.1.0"
+
+try:
+    from .camera import Camera
+    from .errors import (
+        CalibrationError,
+        CameraError,
+        DictionaryError,
+        FidlearnError,
+        FidlearnWarning,
+        ImageError,
+        MapError,
+        DetectionError,
+        NoMarkersError,
+        PoseError,
+        TransformError,
+    )
+    from .frames import (
+        compose,
+        invert_transform,
+        make_transform,
+        rotation_from_rpy_deg,
+        rpy_deg_from_rotation,
+        rvec_tvec_from_transform,
+        transform_from_rvec_tvec,
+        transform_points,
+    )
+    from .markermap import MarkerMap, MarkerPlacement
+    from .data import data_dir, data_path
+    from .detection import Detection, detect_markers, draw_detections
+    from .synthetic import (
+        CalibrationViews,
+        Trajectory,
+        look_at,
+        render_calibration_views,
+        render_scene,
+        render_trajectory,
+        trajectory_poses,
+    )
+    from .pose import Pose, estimate_pose, locate
+    from .tracking import MarkerTracker
+    from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
+    from .printables import PrintError, board_pdf, markers_pdf
+    from .planning import Prediction, plan_room, predict_accuracy
+except Exception as _exc:  # noqa: BLE001 - numpy, OpenCV or matplotlib is broken (see fidlearn.doctor)
+    _BROKEN = _exc
+
+    def __getattr__(name: str):
+        if name not in __all__:  # a submodule (fidlearn.doctor works without numpy and OpenCV)
+            raise AttributeError(f"module 'fidlearn' has no attribute {name!r}")
+        reason = " ".join(f"{type(_BROKEN).__name__}: {_BROKEN}".split())
+        raise ImportError(
+            f"fidlearn cannot load ({reason}); run 'python -m fidlearn doctor' to see which package is broken "
+            "and the pip command that mends it"
+        ) from _BROKEN
+
 
 __all__ = [
     "Camera",

@@ -23,30 +23,21 @@ Warnings (:class:`~fidlearn.errors.FidlearnWarning`) print as one line
 from __future__ import annotations
 
 import argparse
-import importlib.metadata as md
 import json
 import math
-import platform
 import re
 import sys
 import warnings
 from pathlib import Path
 from typing import Callable, Sequence
 
-from . import __version__
+from . import __version__, doctor
+from . import _cv  # noqa: F401 - OpenCV that cannot import fails here, where fidlearn._entry reports it
 from ._io import atomic_write
+from .doctor import OPENCV_WHEELS, WANTED_WHEEL  # noqa: F401 - kept importable from here
 from .errors import FidlearnError, FidlearnWarning
 
 __all__ = ["main", "build_parser"]
-
-#: Every OpenCV wheel on PyPI installs a package called ``cv2``; two of them break each other.
-OPENCV_WHEELS = (
-    "opencv-python",
-    "opencv-contrib-python",
-    "opencv-python-headless",
-    "opencv-contrib-python-headless",
-)
-WANTED_WHEEL = "opencv-contrib-python-headless"
 
 
 class UsageError(FidlearnError):
@@ -84,57 +75,9 @@ def _run_corners(args) -> int:
 
 
 # -- fidlearn doctor -----------------------------------------------------------------
-def _installed_opencv_wheels() -> list[tuple[str, str]]:
-    found = {}
-    for dist in md.distributions():
-        name = (dist.metadata.get("Name") or "").lower().replace("_", "-")
-        if name in OPENCV_WHEELS:
-            found[name] = dist.version
-    return sorted(found.items())
-
-
 def doctor_report() -> tuple[list[str], list[str]]:
-    """Lines describing the environment, and the problems found (empty when healthy)."""
-    lines = [
-        f"fidlearn {__version__}",
-        f"Python {platform.python_version()} ({sys.executable})",
-    ]
-    problems: list[str] = []
-    try:
-        import numpy
-
-        lines.append(f"numpy {numpy.__version__}")
-    except ImportError:
-        problems.append("numpy is not installed: pip install -e . (or make test) installs it")
-    wheels = _installed_opencv_wheels()
-    lines.append("OpenCV wheels installed: " + (", ".join(f"{n} {v}" for n, v in wheels) or "none"))
-    if len(wheels) > 1:
-        # fidlearn depends on WANTED_WHEEL: keeping another one would let the next `pip install -e .` bring it back.
-        keep = WANTED_WHEEL
-        extra = [n for n, _ in wheels if n != keep]
-        problems.append(
-            f"{len(wheels)} OpenCV wheels share the cv2 name and break each other; keep {keep}: "
-            f"pip uninstall -y {' '.join(extra)} && pip install --force-reinstall {keep}"
-        )
-    try:
-        import cv2
-
-        lines.append(f"OpenCV {cv2.__version__} ({Path(cv2.__file__).parent})")
-        has_aruco = hasattr(cv2, "aruco") and hasattr(cv2.aruco, "ArucoDetector")
-        lines.append(f"cv2.aruco.ArucoDetector: {'yes' if has_aruco else 'no'}")
-        if not has_aruco:
-            problems.append(
-                "cv2.aruco.ArucoDetector is missing: install opencv-contrib-python-headless>=4.8 "
-                "and uninstall the other OpenCV wheels"
-            )
-    except ImportError as exc:
-        problems.append(f"OpenCV does not import ({exc}): pip install 'opencv-contrib-python-headless>=4.8,<6'")
-    for mod in ("matplotlib", "ipywidgets", "jupyterlab"):
-        try:
-            lines.append(f"{mod} {md.version(mod)}")
-        except md.PackageNotFoundError:
-            problems.append(f"{mod} is not installed; the notebooks need it: pip install -e .")
-    return lines, problems
+    """Lines describing the environment, and the problems found (see :mod:`fidlearn.doctor`)."""
+    return doctor.report()
 
 
 def _add_doctor(sub) -> None:
@@ -143,15 +86,7 @@ def _add_doctor(sub) -> None:
 
 
 def _run_doctor(args) -> int:
-    lines, problems = doctor_report()
-    for line in lines:
-        print(line)
-    if problems:
-        for p in problems:
-            print(f"problem: {p}")
-        return 1
-    print("all good")
-    return 0
+    return doctor.run()
 
 
 # -- shared helpers ----------------------------------------------------------------------

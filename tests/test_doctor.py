@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from fidlearn import cli
+from fidlearn import cli, doctor
 
 WANTED = "opencv-contrib-python-headless"
 
@@ -81,7 +81,7 @@ def test_fidlearns_wheel_is_kept_even_when_it_is_not_installed(monkeypatch):
             self.version = version
 
     fakes = [FakeDist("opencv-python", "4.10.0.84"), FakeDist("opencv-python-headless", "4.10.0.84"), FakeDist("numpy", "2.0.0")]
-    monkeypatch.setattr(cli.md, "distributions", lambda: iter(fakes))
+    monkeypatch.setattr(doctor.md, "distributions", lambda: iter(fakes))
     [problem] = opencv_problems(cli.doctor_report()[1])
     assert f"pip uninstall -y opencv-python opencv-python-headless && pip install --force-reinstall {WANTED}" in problem
 
@@ -109,3 +109,45 @@ def test_doctor_command_is_happy_in_a_healthy_environment():
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.rstrip().endswith("all good")
     assert f"OpenCV wheels installed: {WANTED} " in proc.stdout
+
+
+def broken_opencv(tmp_path: Path, version: str = "4.8.1.78") -> dict:
+    """An environment whose OpenCV was built for numpy 1: ``import cv2`` fails as it does beside numpy 2."""
+    stub = tmp_path / "site"
+    (stub / "cv2").mkdir(parents=True)
+    (stub / "cv2" / "__init__.py").write_text(
+        "raise ImportError('numpy.core.multiarray failed to import')\n")
+    fake_wheel(stub, WANTED, version)
+    env = dict(os.environ, PYTHONPATH=str(stub))
+    return env
+
+
+def test_doctor_names_the_broken_pair_and_the_pip_line_when_opencv_cannot_import(tmp_path):
+    env = broken_opencv(tmp_path)
+    out = subprocess.run([sys.executable, "-m", "fidlearn", "doctor"], env=env, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 1, out.stderr
+    assert "Traceback" not in out.stderr + out.stdout
+    [problem] = [line for line in out.stdout.splitlines() if line.startswith("problem:")]
+    assert f"{WANTED} 4.8.1.78 was built for numpy 1 and cannot import beside numpy" in problem
+    assert "pip install --upgrade 'opencv-contrib-python-headless>=" in problem
+
+
+def test_other_commands_say_in_one_line_to_run_the_doctor(tmp_path):
+    env = broken_opencv(tmp_path)
+    out = subprocess.run([sys.executable, "-m", "fidlearn", "corners", "map.json", "-o", "c.json"], env=env,
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 2 and out.stdout == ""
+    [line] = out.stderr.splitlines()
+    assert line.startswith("error: fidlearn cannot start (ImportError: numpy.core.multiarray failed to import)")
+    assert "run 'fidlearn doctor'" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["site"]
+
+
+def test_importing_fidlearn_with_a_broken_opencv_says_what_to_run(tmp_path):
+    env = broken_opencv(tmp_path)
+    code = "import fidlearn\ntry:\n    fidlearn.Camera\nexcept ImportError as e:\n    print(e)\n"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "fidlearn cannot load (ImportError: numpy.core.multiarray failed to import)" in out.stdout
+    assert "python -m fidlearn doctor" in out.stdout

@@ -1,10 +1,11 @@
 """Draw docs/img/conventions.png: the world frame, the north wall, one marker's corners and the camera frame.
 
-    python tools/make_conventions_figure.py
+    python tools/make_conventions_figure.py [OUT.png]     # default: docs/img/conventions.png
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -26,7 +27,7 @@ def arrow(ax, origin, direction, color, label, length=300.0):
     ax.text(*(o + d * 1.12), label, color=color, fontsize=10, fontweight="bold")
 
 
-def main() -> Path:
+def main(out: Path = OUT) -> Path:
     m = MarkerMap.load(data_path("world_map.json"))
     fig = plt.figure(figsize=(9, 7))
     ax = fig.add_subplot(projection="3d")
@@ -69,10 +70,10 @@ def main() -> Path:
     ax.view_init(elev=18, azim=28)
     ax.set_title("fidlearn's frames: world Z up (ROS), marker corners TL, TR, BR, BL, camera as OpenCV's")
     fig.tight_layout()
-    fig.savefig(OUT, dpi=110)
+    fig.savefig(out, dpi=110)
     plt.close(fig)
-    return OUT
+    return out
 
 
 if __name__ == "__main__":
-    print(main())
+    print(main(Path(sys.argv[1]) if len(sys.argv) > 1 else OUT))

@@ -12,8 +12,15 @@ Folders it writes (see data/README.md for what each holds):
   ``camera.json`` and ``poses.json``.
 * ``data/trajectory/``: a 40-frame drive of a robot's camera (640x480) with
   ``camera.json`` and ``poses.json``.
-* ``data/real/``: a copy of the real photos in ``/work/shared/realdata``
-  (``--real-source`` to copy from elsewhere).
+* ``data/real/``: real photos from OpenCV's samples, kept in the repository
+  with their provenance (data/README.md). They are not regenerated: ``make
+  data`` only checks that they are all there. ``--import-real FOLDER`` copies
+  them in again from a folder holding ``opencv_checkerboard_right``,
+  ``opencv_charuco`` and ``opencv_aruco_photo`` (the only option that reads
+  anything outside the repository, and only when given).
+
+Everything it reads is in the repository; ``--data-dir`` writes elsewhere than
+``data/`` (the tests do, to check that nothing outside is read).
 
 Everything synthetic is a pure function of the recipes below and their seeds:
 running it twice gives the same pixels on the same OpenCV build. Each JSON
@@ -39,7 +46,6 @@ from fidlearn.data import repo_dir
 from fidlearn.synthetic import look_at, render_calibration_views, render_scene, render_trajectory, trajectory_poses
 
 DATA = repo_dir() / "data"
-REAL_SOURCE = Path("/work/shared/realdata")
 REAL_FOLDERS = ("opencv_checkerboard_right", "opencv_charuco", "opencv_aruco_photo")
 
 # -- recipes: every number that decides a picture ------------------------------------------------
@@ -258,16 +264,27 @@ def make_trajectory() -> None:
     print(f"trajectory: {len(records)} frames in {folder}")
 
 
-def make_real(source: Path) -> None:
+def check_real() -> None:
+    """The real photos are part of the repository: say so if one of their folders is missing."""
+    missing = [name for name in REAL_FOLDERS if not (repo_dir() / "data" / "real" / name).is_dir()]
+    if missing:
+        raise SystemExit(f"error: data/real/{missing[0]} is missing from the checkout; restore it with git "
+                         "(git checkout -- data/real) or bring it in with --import-real FOLDER")
+    print(f"real: {', '.join(REAL_FOLDERS)} present in data/real (kept, not regenerated)")
+
+
+def import_real(source: Path) -> None:
+    """Copy the real photos in from ``source`` (a folder holding the three sample folders)."""
+    missing = [name for name in REAL_FOLDERS if not (source / name).is_dir()]
+    if missing:
+        raise SystemExit(f"error: {source / missing[0]} does not exist; --import-real needs a folder holding "
+                         f"{', '.join(REAL_FOLDERS)}")
     folder = DATA / "real"
     folder.mkdir(parents=True, exist_ok=True)
     for name in REAL_FOLDERS:
-        src = source / name
-        if not src.is_dir():
-            raise SystemExit(f"error: {src} does not exist; pass --real-source with the folder holding {', '.join(REAL_FOLDERS)}")
         dst = folder / name
         dst.mkdir(exist_ok=True)
-        for f in sorted(src.iterdir()):
+        for f in sorted((source / name).iterdir()):
             if f.is_file():
                 shutil.copyfile(f, dst / f.name)
                 (dst / f.name).chmod(0o644)
@@ -278,17 +295,28 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Regenerate fidlearn's data/ folder from seeds.")
     parser.add_argument("--only", choices=["calibration", "scenes", "trajectory", "real"], action="append",
                         help="regenerate only this part (repeatable); default: all")
-    parser.add_argument("--real-source", type=Path, default=REAL_SOURCE, help="where the real photos are copied from")
+    parser.add_argument("--data-dir", type=Path, default=None, help="write here instead of the repository's data/")
+    parser.add_argument("--import-real", type=Path, metavar="FOLDER",
+                        help="copy the real photos in from FOLDER (the one step that reads outside the repository)")
     args = parser.parse_args(argv)
+    global DATA
+    if args.data_dir is not None:
+        DATA = args.data_dir.resolve()
+        DATA.mkdir(parents=True, exist_ok=True)
+        # the hand-written seed map is an input of the scenes and the drive
+        shutil.copyfile(repo_dir() / "data" / "world_map.json", DATA / "world_map.json")
     parts = args.only or ["calibration", "scenes", "trajectory", "real"]
+    # check what must already be there before anything is rewritten
+    if "real" in parts and args.import_real is None:
+        check_real()
     if "calibration" in parts:
         make_calibration()
     if "scenes" in parts:
         make_scenes()
     if "trajectory" in parts:
         make_trajectory()
-    if "real" in parts:
-        make_real(args.real_source)
+    if args.import_real is not None:
+        import_real(args.import_real)
     return 0
 
 

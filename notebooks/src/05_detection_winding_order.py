@@ -136,7 +136,8 @@ assert errors["edges"].mean() < 0.1 and errors["edges"].max() < 0.3
 assert errors["edges"].mean() < errors["subpix"].mean() < errors["none"].mean()
 
 fig, ax = plt.subplots(figsize=(7, 3.5))
-ax.boxplot([errors[r] for r in refinements], tick_labels=refinements)
+ax.boxplot([errors[r] for r in refinements])
+ax.set_xticks(range(1, len(refinements) + 1), refinements)
 ax.set_ylabel("corner error (px)")
 ax.set_xlabel("corner refinement (72 corners in six pictures)")
 ax.set_title("detected corners against the synthetic truth")

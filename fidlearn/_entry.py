@@ -1,0 +1,28 @@
+"""The ``fidlearn`` command's entry point: start the command line, or say why it cannot start.
+
+When numpy, OpenCV or matplotlib cannot import (two OpenCV wheels, an OpenCV built for numpy 1
+beside numpy 2, a half-finished install), ``fidlearn doctor`` still runs and says which pair is
+broken and the one ``pip`` command that mends it; every other command prints one ``error:`` line
+pointing to it, never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    try:
+        from .cli import main as cli_main
+    except Exception as exc:  # noqa: BLE001 - a broken binary module fails in many ways; all are reported
+        if args[:1] == ["doctor"]:
+            from .doctor import run
+
+            return run()
+        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+        print(f"error: fidlearn cannot start ({reason}); run 'fidlearn doctor' to see which package is broken "
+              "and the pip command that mends it", file=sys.stderr)
+        return 2
+    return cli_main(args)
