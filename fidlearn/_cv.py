@@ -25,10 +25,7 @@ version itself.  Known differences:
 
 from __future__ import annotations
 
-import contextlib
-import os
 import re
-import sys
 
 import cv2
 import numpy as np
@@ -51,47 +48,13 @@ if _ARUCO is not None:
             DICTIONARIES[_name] = getattr(_ARUCO, _attr)
 
 
-@contextlib.contextmanager
-def quiet_log():
-    """Hold back OpenCV's own messages inside the block; the caller reports the failure itself.
-
-    OpenCV logs ``[ WARN:0@0.2] global grfmt_png.cpp ... PNG input buffer is incomplete`` and
-    ``[ERROR:0@0.1] ... IHDR chunk shall be first`` (held back by the log level, below FATAL),
-    and libpng prints ``libpng error: PNG input buffer is incomplete`` straight to file
-    descriptor 2 (held back by pointing it at the null device for the duration of the block).
-    ``cv2.utils.logging`` is there on 4.x and 5.x; without it only the redirection applies.
-    """
-    log = getattr(getattr(cv2, "utils", None), "logging", None)
-    old = log.getLogLevel() if log is not None and hasattr(log, "getLogLevel") else None
-    if old is not None:
-        log.setLogLevel(min(old, log.LOG_LEVEL_FATAL))
-    try:
-        with _native_stderr_silenced():
-            yield
-    finally:
-        if old is not None:
-            log.setLogLevel(old)
-
-
-@contextlib.contextmanager
-def _native_stderr_silenced():
-    """Point file descriptor 2 at the null device inside the block (C libraries write there directly)."""
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError, AttributeError):  # no usable fd 2: nothing to silence
-        saved = None
-    if saved is None:
-        yield
-        return
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(devnull)
+def first_line(exc: BaseException) -> str:
+    """The informative line of a ``cv2.error`` (OpenCV's messages span several lines)."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    for ln in lines:
+        if "error:" in ln:
+            return ln.split("error:", 1)[1].strip()
+    return lines[-1] if lines else type(exc).__name__
 
 
 def require_aruco() -> None:

@@ -379,43 +379,14 @@ def _expand_inputs(paths: Sequence[Path], videos: bool) -> list[tuple[str, Path]
     return items
 
 
-class _QuietNative:
-    """Silence what OpenCV's C++ side (FFmpeg, V4L2) prints on file descriptor 2 while a video is opened or read.
-
-    Those lines would break the rule of one ``error:`` line; fidlearn reports
-    the failure itself. Python's own ``sys.stderr`` is untouched.
-    """
-
-    def __enter__(self):
-        import os
-
-        try:
-            sys.stderr.flush()
-            self.saved = os.dup(2)
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, 2)
-            os.close(devnull)
-        except OSError:  # no real file descriptor 2 (embedded interpreters): leave it alone
-            self.saved = None
-        return self
-
-    def __exit__(self, *exc) -> None:
-        import os
-
-        if self.saved is not None:
-            os.dup2(self.saved, 2)
-            os.close(self.saved)
-
-
 def _open_capture(source, what: str):
     """An opened ``cv2.VideoCapture`` for a file or a camera index, or an ImageError."""
     import cv2
 
     from .errors import ImageError
 
-    with _QuietNative():
-        cap = cv2.VideoCapture(source)
-        opened = cap.isOpened()
+    cap = cv2.VideoCapture(source)
+    opened = cap.isOpened()
     if not opened:
         cap.release()
         if isinstance(source, int):
@@ -438,8 +409,7 @@ def _declared_frames(cap) -> int:
 def _read_capture(cap, prefix: str):
     k = 0
     while True:
-        with _QuietNative():
-            ok, frame = cap.read()
+        ok, frame = cap.read()
         if not ok:
             return
         yield f"{prefix}#{k}", frame
@@ -1023,8 +993,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _quiet_opencv() -> None:
+    """The command's own process: OpenCV's and FFmpeg's log lines would break the one-line errors.
+
+    fidlearn reports every failure itself. This sets OpenCV's log level for this process (the
+    command line owns it); the library never does, and never redirects file descriptors.
+    """
+    import os
+
+    import cv2
+
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET, read when a video is opened
+    log = getattr(getattr(cv2, "utils", None), "logging", None)
+    if log is not None and hasattr(log, "LOG_LEVEL_SILENT"):
+        log.setLogLevel(log.LOG_LEVEL_SILENT)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 problem found, 2 user error)."""
+    _quiet_opencv()
     parser = build_parser()
     try:
         args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))

@@ -23,7 +23,7 @@ from typing import Any, Sequence
 import cv2
 import numpy as np
 
-from . import _cv
+from . import _cv, _files
 from .errors import DetectionError, DictionaryError, FidlearnError, ImageError
 
 __all__ = [
@@ -95,19 +95,37 @@ class Detection:
         return f"Detection(id={self.id}, {pts})"
 
 
-def load_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image file as OpenCV does (BGR or gray, uint8), with a clear error when it cannot."""
-    path = Path(path)
-    if not path.exists():
-        raise ImageError(f"{path}: no such file; check the image path")
-    if path.is_dir():
-        raise ImageError(f"{path}: is a folder, expected an image file")
-    data = np.fromfile(str(path), dtype=np.uint8)
-    if data.size == 0:
+def load_image(path: str | os.PathLike, max_pixels: int = _files.MAX_IMAGE_PIXELS) -> np.ndarray:
+    """Read an image file as OpenCV does (BGR or gray, uint8), with a clear error when it cannot.
+
+    Only a regular file is read (a folder, a FIFO or a device is refused before it is opened),
+    and the picture's size is read from its header first: one larger than ``max_pixels``
+    (100 megapixels unless raised) or a PNG or JPEG cut short is refused before decoding.
+    Every failure is an :class:`ImageError` naming the file. Safe to call from several threads.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The picture (PNG, JPEG, BMP, TIFF, ... whatever OpenCV decodes).
+    max_pixels : int
+        Largest picture to decode, width times height.
+
+    Returns
+    -------
+    ndarray, shape (H, W) or (H, W, 3) or (H, W, 4)
+        The pixels as stored (uint8, or uint16 for 16-bit files), BGR order.
+    """
+    if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)) or max_pixels < 1:
+        raise ImageError(f"max_pixels must be a positive whole number of pixels, got {max_pixels!r}")
+    path, data = _files.read_bytes(path, ImageError, "picture", _files.MAX_IMAGE_BYTES)
+    if not data:
         raise ImageError(f"{path}: the file is empty; expected a PNG or JPEG image")
-    with _cv.quiet_log():  # a truncated file: one clear ImageError, not OpenCV's WARN line too
-        image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
-    if image is None:
+    _files.check_image_bytes(path, data, ImageError, int(max_pixels))
+    try:
+        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:
+        raise ImageError(f"{path}: OpenCV cannot decode it ({_cv.first_line(exc)}); is it truncated or another file type?") from None
+    if image is None or image.size == 0:
         raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, BMP, TIFF...); is it truncated or another file type?")
     return image
 

@@ -481,11 +481,11 @@ IMAGE_FILES = [
     ("empty file", lambda p: p.write_bytes(b""), "the file is empty; expected a PNG or JPEG"),
     ("text file", lambda p: p.write_text("not an image\n"), "not an image OpenCV can read"),
     ("json map named .png", lambda p: p.write_text(SEED_TEXT), "is it truncated or another file type?"),
-    ("png header only", lambda p: p.write_bytes(write_png(p)[:40]), "is it truncated"),
-    ("png cut in half", lambda p: p.write_bytes(write_png(p)[: len(write_png(p)) // 2]), "is it truncated"),
-    ("png without its end", lambda p: p.write_bytes(write_png(p)[:-12]), "is it truncated"),
-    ("jpeg cut in half", lambda p: p.write_bytes(write_jpeg(p)[: len(write_jpeg(p)) // 3]), "is it truncated"),
-    ("only the PNG signature", lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n"), "is it truncated"),
+    ("png header only", lambda p: p.write_bytes(write_png(p)[:40]), "is cut short"),
+    ("png cut in half", lambda p: p.write_bytes(write_png(p)[: len(write_png(p)) // 2]), "is cut short"),
+    ("png without its end", lambda p: p.write_bytes(write_png(p)[:-12]), "is cut short"),
+    ("jpeg cut in half", lambda p: p.write_bytes(write_jpeg(p)[: len(write_jpeg(p)) // 3]), "is cut short"),
+    ("only the PNG signature", lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n"), "is cut short"),
 ]
 
 
@@ -527,9 +527,9 @@ def test_bad_image_files_leave_opencv_silent(tmp_path):
 
 
 def test_image_paths_that_are_not_files(tmp_path):
-    with pytest.raises(ImageError, match="no such file; check the image path"):
+    with pytest.raises(ImageError, match="no such file; check the path"):
         load_image(tmp_path / "photo.png")
-    with pytest.raises(ImageError, match="is a folder, expected an image file"):
+    with pytest.raises(ImageError, match="is a folder, not a file"):
         load_image(tmp_path)
 
 
@@ -772,7 +772,7 @@ BLANK = np.full((480, 640), 255, np.uint8)
 CALIBRATE = [
     ("empty folder", "{tmp}/empty", (9, 6), 25, "no image files (.png, .jpg, ...) in this folder"),
     ("folder without pictures", "{tmp}/notes", (9, 6), 25, "no image files"),
-    ("a folder inside the list", ["{tmp}/notes"], (9, 6), 25, "is a folder, expected an image file"),
+    ("a folder inside the list", ["{tmp}/notes"], (9, 6), 25, "is a folder, not a file"),
     ("glob that matches nothing", "{tmp}/*.jpeg", (9, 6), 25, "no file matches this pattern"),
     ("no images at all", [], (9, 6), 25, "calibration needs at least 3 views of the board"),
     ("pattern as words", [BLANK] * 3, "9 by 6", 25, "must be two whole numbers (columns, rows) of inner corners"),

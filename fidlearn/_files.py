@@ -1,0 +1,161 @@
+"""Private helpers that read a user's file safely: a regular file, of bounded size, with a readable error.
+
+Everything fidlearn reads goes through :func:`read_bytes`: a FIFO, a device (``/dev/zero``), a
+folder or a path with a NUL byte is refused before it is opened for reading (a FIFO would block
+forever, a device would be read without end), and a file larger than the stated limit is refused
+before it is read. Pictures are checked from their header (:func:`image_size_from_header`) before
+any pixel is decoded, so a 74-byte PNG that declares 100000 x 100000 pixels costs nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import struct
+from pathlib import Path
+
+from .errors import FidlearnError
+
+#: Largest map or camera file read (bytes): far above any real one.
+MAX_TEXT_BYTES = 10 * 1024 * 1024
+#: Largest picture file read (bytes).
+MAX_IMAGE_BYTES = 512 * 1024 * 1024
+#: Largest picture decoded by default (pixels); ``load_image(max_pixels=...)`` raises it.
+MAX_IMAGE_PIXELS = 100_000_000
+
+
+def as_path(path, error: type[FidlearnError], what: str) -> Path:
+    """``path`` as a Path, or ``error`` saying why it is not one."""
+    if isinstance(path, bytes):
+        try:
+            path = os.fsdecode(path)
+        except UnicodeDecodeError:
+            raise error(f"{what}: the path {path!r} is not valid text") from None
+    if not isinstance(path, (str, os.PathLike)):
+        raise error(f"{what}: expected a file path (str or pathlib.Path), got {type(path).__name__}")
+    text = os.fspath(path)
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    if "\0" in text:
+        raise error(f"{what}: the path {text!r} contains a NUL character; no file can have that name")
+    if not text.strip():
+        raise error(f"{what}: the path is empty; give a file name")
+    return Path(text)
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def read_bytes(path, error: type[FidlearnError], what: str, limit: int) -> tuple[Path, bytes]:
+    """Read a whole regular file of at most ``limit`` bytes; ``error`` with the path and the fix otherwise."""
+    path = as_path(path, error, what)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise error(f"{path}: no such file; check the path") from None
+    except PermissionError:
+        raise error(f"{path}: permission denied; check the file's permissions") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot be read ({exc.strerror or exc}); check the path") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise error(f"{path}: is {_kind(st.st_mode)}, not a file; give the path of a {what} file")
+    if st.st_size > limit:
+        raise error(f"{path}: {st.st_size / 1e6:.1f} MB is more than a {what} file can be "
+                    f"({limit / 1e6:.0f} MB at most); is it the right file?")
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except PermissionError:
+        raise error(f"{path}: permission denied; check the file's permissions") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot be opened ({exc.strerror or exc}); check the path") from None
+    try:
+        with os.fdopen(fd, "rb") as f:
+            data = f.read(limit + 1)
+    except OSError as exc:
+        raise error(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if len(data) > limit:
+        raise error(f"{path}: more than {limit / 1e6:.0f} MB; a {what} file is far smaller")
+    return path, data
+
+
+def image_size_from_header(data: bytes) -> tuple[str, int, int] | None:
+    """``(format, width, height)`` read from a PNG, JPEG, BMP, GIF or TIFF header; None for others."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        if len(data) >= 24 and data[12:16] == b"IHDR":
+            w, h = struct.unpack(">II", data[16:24])
+            return "PNG", w, h
+        return "PNG", -1, -1
+    if data[:2] == b"\xff\xd8":
+        return ("JPEG", *_jpeg_size(data))
+    if data[:2] == b"BM" and len(data) >= 26:
+        w, h = struct.unpack("<ii", data[18:26])
+        return "BMP", abs(w), abs(h)
+    if data[:6] in (b"GIF87a", b"GIF89a") and len(data) >= 10:
+        w, h = struct.unpack("<HH", data[6:10])
+        return "GIF", w, h
+    if data[:4] in (b"II*\x00", b"MM\x00*"):
+        return ("TIFF", *_tiff_size(data))
+    return None
+
+
+def _jpeg_size(data: bytes) -> tuple[int, int]:
+    i = 2
+    while i + 9 < len(data):
+        if data[i] != 0xFF:
+            i += 1
+            continue
+        marker = data[i + 1]
+        if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7 or marker == 0xFF:
+            i += 1 if marker == 0xFF else 2
+            continue
+        length = struct.unpack(">H", data[i + 2:i + 4])[0]
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            h, w = struct.unpack(">HH", data[i + 5:i + 9])
+            return w, h
+        i += 2 + length
+    return -1, -1
+
+
+def _tiff_size(data: bytes) -> tuple[int, int]:
+    endian = "<" if data[:2] == b"II" else ">"
+    try:
+        (offset,) = struct.unpack(endian + "I", data[4:8])
+        (count,) = struct.unpack(endian + "H", data[offset:offset + 2])
+        w = h = -1
+        for k in range(count):
+            entry = data[offset + 2 + 12 * k: offset + 14 + 12 * k]
+            tag, kind = struct.unpack(endian + "HH", entry[:4])
+            value = struct.unpack(endian + ("H" if kind == 3 else "I"), entry[8:10] if kind == 3 else entry[8:12])[0]
+            if tag == 256:
+                w = value
+            elif tag == 257:
+                h = value
+        return w, h
+    except (struct.error, IndexError):
+        return -1, -1
+
+
+def check_image_bytes(path: Path, data: bytes, error: type[FidlearnError], max_pixels: int) -> None:
+    """Refuse, before decoding, a picture that is cut short or larger than ``max_pixels``."""
+    head = image_size_from_header(data)
+    if head is None:
+        return
+    fmt, w, h = head
+    if w == 0 or h == 0 or w < -1 or h < -1:
+        raise error(f"{path}: the {fmt} header says {w}x{h} pixels; the file is damaged")
+    if w > 0 and h > 0 and w * h > max_pixels:
+        raise error(f"{path}: the {fmt} header says {w}x{h} pixels ({w * h / 1e6:.0f} megapixels), more than the "
+                    f"limit of {max_pixels / 1e6:.0f} megapixels; pass max_pixels= (or --max-megapixels) to read it")
+    if fmt == "PNG" and b"IEND" not in data[-16:]:
+        raise error(f"{path}: the PNG file is cut short (it has no end chunk); copy it again")
+    if fmt == "JPEG" and not data.rstrip(b"\0\r\n ").endswith(b"\xff\xd9"):
+        raise error(f"{path}: the JPEG file is cut short (it has no end marker); copy it again")
