@@ -61,11 +61,11 @@ def read_bytes(path, error: type[FidlearnError], what: str, limit: int) -> tuple
     try:
         st = os.stat(path)
     except FileNotFoundError:
-        raise error(f"{path}: no such file; check the path") from None
+        raise error(f"{path}: no such file; check the path of the {what}") from None
     except PermissionError:
         raise error(f"{path}: permission denied; check the file's permissions") from None
     except OSError as exc:
-        raise error(f"{path}: cannot be read ({exc.strerror or exc}); check the path") from None
+        raise error(f"{path}: cannot be read ({exc.strerror or exc}); check the path of the {what}") from None
     if not stat.S_ISREG(st.st_mode):
         raise error(f"{path}: is {_kind(st.st_mode)}, not a file; give the path of a {what} file")
     if st.st_size > limit:

@@ -9,6 +9,7 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
+from ._files import MAX_TEXT_BYTES, read_bytes
 from .errors import FidlearnError
 
 
@@ -35,18 +36,11 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
     """Read a JSON file strictly.
 
     Duplicate keys (which Python's ``json`` silently collapses to the last one),
-    ``NaN``/``Infinity`` literals, syntax errors, undecodable bytes and missing
-    files all raise ``error`` with the file name and a way to mend it.
+    ``NaN``/``Infinity`` literals, syntax errors, undecodable bytes, missing
+    files, FIFOs, devices and files over 10 MB all raise ``error`` with the file
+    name and a way to mend it.
     """
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise error(f"{path}: no such file; check the path of the {what}") from None
-    except IsADirectoryError:
-        raise error(f"{path}: is a folder, expected a {what} JSON file") from None
-    except OSError as exc:
-        raise error(f"{path}: cannot read the {what}: {exc.strerror}") from None
+    path, raw = read_bytes(path, error, what, MAX_TEXT_BYTES)
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:

@@ -7,8 +7,10 @@ fidlearn compares uses this convention.
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,7 +19,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from . import frames
+from . import _files, frames
 from ._io import atomic_write, read_json, write_json_atomic
 from .errors import CameraError, FidlearnWarning
 
@@ -37,6 +39,30 @@ def _short_source(source: str) -> str:
 
 def _fmt_matrix(M: np.ndarray) -> str:
     return "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in M) + "]"
+
+
+#: The fields of fidlearn's camera JSON; any other is refused (a misspelt distortion field was
+#: silently ignored, leaving a camera without distortion).
+CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source")
+#: Names other tools use for them, so the error can say which one was meant.
+_ALIASES = {
+    "distortion": "dist_coeffs", "dist": "dist_coeffs", "dist_coefs": "dist_coeffs", "distcoeffs": "dist_coeffs",
+    "distortion_coefficients": "dist_coeffs", "d": "dist_coeffs", "k": "camera_matrix", "intrinsics": "camera_matrix",
+    "matrix": "camera_matrix", "cameramatrix": "camera_matrix", "intrinsic_matrix": "camera_matrix",
+    "size": "image_size", "resolution": "image_size", "imagesize": "image_size", "image_width": "image_size",
+    "image_height": "image_size",
+}
+#: Largest image side a camera file may declare (pixels).
+MAX_IMAGE_SIDE = 100_000
+
+
+def _did_you_mean(field: str) -> str:
+    key = str(field).strip().lower().replace("-", "_").replace(" ", "_")
+    guess = _ALIASES.get(key) or _ALIASES.get(key.replace("_", ""))
+    if guess is None:
+        close = difflib.get_close_matches(key, CAMERA_FIELDS, n=1, cutoff=0.6)
+        guess = close[0] if close else None
+    return f": did you mean {guess!r}?" if guess else ""
 
 
 def _as_K(K: Any, where: str) -> np.ndarray:
@@ -63,10 +89,16 @@ def _as_K(K: Any, where: str) -> np.ndarray:
             f"{where}: camera_matrix has focal lengths fx={fx:g}, fy={fy:g}; both must be positive "
             "(in pixels); was the matrix transposed or written in another unit?"
         )
+    if abs(K[0, 1]) > 1e-9:
+        raise CameraError(
+            f"{where}: camera_matrix has a skew term K[0][1] = {K[0, 1]:g}; OpenCV's projectPoints, solvePnP and "
+            "calibrateCamera ignore it, so every pose would be off by its effect; calibrate without skew "
+            "(OpenCV's default) or write 0 there"
+        )
     if abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9 or abs(K[2, 2] - 1.0) > 1e-9:
         hint = " (it looks transposed: cx, cy belong in the last column)" if abs(K[2, 0]) > 1 or abs(K[2, 1]) > 1 else ""
         raise CameraError(
-            f"{where}: camera_matrix must be [[fx,s,cx],[0,fy,cy],[0,0,1]]; got {_fmt_matrix(K)}{hint}"
+            f"{where}: camera_matrix must be [[fx,0,cx],[0,fy,cy],[0,0,1]]; got {_fmt_matrix(K)}{hint}"
         )
     return K
 
@@ -98,7 +130,50 @@ def _as_size(image_size: Any, where: str) -> tuple[int, int]:
         raise CameraError(f"{where}: image_size must be [width, height] in pixels, got {image_size!r}") from None
     if not ok or w <= 0 or h <= 0:
         raise CameraError(f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}")
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
+        raise CameraError(f"{where}: image_size {w}x{h} is beyond any camera ({MAX_IMAGE_SIDE} pixels a side at most); "
+                          "is it [width, height] in pixels?")
     return (w, h)
+
+
+#: Deepest nesting a FileStorage camera file may have (OpenCV's own files have 2); OpenCV's parser
+#: recurses once per level and a file nested 100,000 deep crashed the interpreter.
+MAX_FILESTORAGE_DEPTH = 16
+
+
+def _filestorage_text(path: Path, data: bytes) -> str:
+    """The file as text, refused before OpenCV parses it when it cannot be a camera file."""
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise CameraError(f"{path}: not UTF-8 text (byte {exc.start}); an OpenCV camera file is YAML or XML text") from None
+    if not text.strip():
+        raise CameraError(f"{path}: the file is empty; expected an OpenCV FileStorage camera file")
+    head = text.lstrip()[:16]
+    if not (head.startswith("%YAML") or head.startswith("<?xml") or head.startswith("<opencv_storage")):
+        raise CameraError(f"{path}: not an OpenCV FileStorage file; it should start with %YAML:1.0 or <?xml")
+    if head.startswith("%YAML"):
+        depth = deepest = 0
+        for ch in text:
+            if ch in "[{":
+                depth += 1
+                deepest = max(deepest, depth)
+            elif ch in "]}":
+                depth -= 1
+        indent = max((len(line) - len(line.lstrip(" ")) for line in text.splitlines() if line.strip()), default=0)
+        deepest = max(deepest, indent // 2)
+    else:
+        depth = deepest = 0
+        for m in re.finditer(r"<(/?)[A-Za-z_][^>]*?(/?)>", text):
+            if m.group(1):
+                depth -= 1
+            elif not m.group(2):
+                depth += 1
+                deepest = max(deepest, depth)
+    if deepest > MAX_FILESTORAGE_DEPTH:
+        raise CameraError(f"{path}: nested {deepest} levels deep; an OpenCV camera file has 2 or 3 "
+                          f"({MAX_FILESTORAGE_DEPTH} at most): is it the right file?")
+    return text
 
 
 def _filestorage_matrix(node, path: Path, name: str) -> np.ndarray | None:
@@ -107,6 +182,13 @@ def _filestorage_matrix(node, path: Path, name: str) -> np.ndarray | None:
         raise CameraError(
             f"{path}: {name} is not an !!opencv-matrix (a map with rows, cols, dt and data); "
             "write it as OpenCV's calibration sample does"
+        )
+    dt = node.getNode("dt")
+    kind = dt.string() if not dt.empty() and dt.isString() else ""
+    if kind not in ("d", "f"):
+        raise CameraError(
+            f"{path}: {name} has dt: {kind or '?'}; a camera's numbers are real: write dt: d (or f), "
+            "as OpenCV's calibration sample does (dt: u would clip them to 0..255)"
         )
     try:
         return node.mat()
@@ -324,6 +406,10 @@ class Camera:
                 "(camera_matrix, dist_coeffs, image_size, as 'fidlearn calibrate' writes it) as the camera "
                 "(command line: --camera) and the map as the map (--map)"
             )
+        unknown = [k for k in d if k not in CAMERA_FIELDS]
+        if unknown:
+            raise CameraError(f"{source}: unknown field {unknown[0]!r}{_did_you_mean(unknown[0])}; a camera file holds "
+                              f"{', '.join(CAMERA_FIELDS)}")
         missing = [k for k in ("camera_matrix", "image_size") if k not in d]
         if missing:
             raise CameraError(
@@ -374,13 +460,10 @@ class Camera:
 
     @classmethod
     def _load_filestorage(cls, path: Path, image_size) -> "Camera":
-        if not path.is_file():
-            raise CameraError(f"{path}: no such file; check the path of the camera file")
-        head = path.read_bytes()[:64]
-        if not head.strip():
-            raise CameraError(f"{path}: the file is empty; expected an OpenCV FileStorage camera file")
+        path, data = _files.read_bytes(path, CameraError, "camera", _files.MAX_TEXT_BYTES)
+        text = _filestorage_text(path, data)
         try:
-            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+            fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
         except (cv2.error, SystemError) as exc:  # OpenCV 5 wraps parse errors in SystemError
             cause = exc.__cause__ or exc.__context__ or exc
             text = str(cause).strip()

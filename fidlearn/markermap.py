@@ -16,6 +16,7 @@ detection reports.
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
 import os
@@ -64,6 +65,15 @@ def _units_name(units: Any, where: str) -> str:
     return units.strip().lower()
 
 
+#: Largest marker side a map may declare (mm): 10 m, beyond any print.
+MAX_MARKER_SIZE_MM = 10_000.0
+
+
+def _did_you_mean(field: str, known) -> str:
+    close = difflib.get_close_matches(str(field).strip().lower(), sorted(known), n=1, cutoff=0.6)
+    return f": did you mean {close[0]!r}?" if close else ""
+
+
 def _marker_size(size: Any, where: str) -> float:
     if isinstance(size, (bool, np.bool_)) or not isinstance(size, numbers.Real):
         raise MapError(f"{where}: marker_size_mm must be a number (the black square's side in mm), got {size!r}")
@@ -75,6 +85,11 @@ def _marker_size(size: Any, where: str) -> float:
         raise MapError(
             f"{where}: marker_size_mm is {size:g}; it must be positive: measure the black square's side "
             "in mm (the white margin not included)"
+        )
+    if size > MAX_MARKER_SIZE_MM:
+        raise MapError(
+            f"{where}: marker_size_mm is {size:g}, more than {MAX_MARKER_SIZE_MM:g} mm; measure the black square's "
+            "side in millimetres"
         )
     if size < 1.0:  # no printer makes a marker under 1 mm: a size in metres, as OpenCV's tutorials write it
         raise MapError(
@@ -185,6 +200,13 @@ class MarkerMap:
                 "--map) and the camera file as the camera (--camera)"
             )
         full = "markers" in d
+        if not full and any(k in _FULL_KEYS for k in d):
+            others = [k for k in d if k not in _FULL_KEYS]
+            hint = f" (unknown field {others[0]!r}{_did_you_mean(others[0], ['markers'])})" if others else ""
+            raise MapError(
+                f"{source}: the map has {', '.join(k for k in d if k in _FULL_KEYS)} but no \"markers\"{hint}; "
+                "a full map puts the placements under \"markers\": {\"0\": {\"translation\": [...], ...}}"
+            )
         if not full and d and all(_is_corner_list(v) for v in d.values()):
             raise MapError(
                 f"{source}: this is a corner file (four [x, y, z] corners in mm per id, as 'fidlearn corners' "
@@ -193,8 +215,10 @@ class MarkerMap:
         if full:
             unknown = set(d) - _FULL_KEYS
             if unknown:
+                field = sorted(unknown)[0]
                 raise MapError(
-                    f"{source}: unknown field {sorted(unknown)[0]!r}; a full map has {', '.join(sorted(_FULL_KEYS))}"
+                    f"{source}: unknown field {field!r}{_did_you_mean(field, _FULL_KEYS)}; a full map has "
+                    f"{', '.join(sorted(_FULL_KEYS))}"
                 )
             markers = d["markers"]
             if not isinstance(markers, Mapping):
@@ -243,7 +267,9 @@ class MarkerMap:
                 raise MapError(f"{where} must be an object with \"translation\" and \"rotation\"")
             extra = set(value) - {"translation", "rotation"}
             if extra:
-                raise MapError(f"{where} has unknown field {sorted(extra)[0]!r}; a placement has translation and rotation")
+                field = sorted(extra)[0]
+                raise MapError(f"{where} has unknown field {field!r}{_did_you_mean(field, ('translation', 'rotation'))}; "
+                               "a placement has translation and rotation")
             if "translation" not in value:
                 raise MapError(f"{where} has no \"translation\" (the world position of its top-left corner, in {units})")
             t = _vector3(value["translation"], where, "translation", f"[x, y, z] in {units}")

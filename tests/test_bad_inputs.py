@@ -145,7 +145,7 @@ def test_bad_map_file(tmp_path, content, kwargs, fragment):
 def test_map_paths_that_are_not_files(tmp_path):
     with pytest.raises(MapError, match="no such file; check the path of the world map"):
         MarkerMap.load(tmp_path / "nope.json")
-    with pytest.raises(MapError, match="is a folder, expected a world map JSON file"):
+    with pytest.raises(MapError, match="is a folder, not a file; give the path of a world map file"):
         MarkerMap.load(tmp_path)
 
 
@@ -252,7 +252,7 @@ CAMERA_JSON = [
     ("zero focal length", cam_json(camera_matrix=[[0, 0, 319.5], [0, 600, 239.5], [0, 0, 1]]), "both must be positive"),
     ("negative focal length", cam_json(camera_matrix=[[600, 0, 319.5], [0, -600, 239.5], [0, 0, 1]]), "fy=-600"),
     ("transposed K", cam_json(camera_matrix=np.array(K_GOOD).T.tolist()), "it looks transposed"),
-    ("K bottom row not 0 0 1", cam_json(camera_matrix=[[600, 0, 319.5], [0, 600, 239.5], [0, 0, 0]]), "[[fx,s,cx],[0,fy,cy],[0,0,1]]"),
+    ("K bottom row not 0 0 1", cam_json(camera_matrix=[[600, 0, 319.5], [0, 600, 239.5], [0, 0, 0]]), "[[fx,0,cx],[0,fy,cy],[0,0,1]]"),
     ("K with NaN", cam_json().replace("319.5", "NaN"), "contains NaN, which is not a number"),
     ("K with 1e999", cam_json().replace("319.5", "1e999"), "camera_matrix contains NaN or infinity"),
     ("dist of length 3", cam_json(dist_coeffs=[0.1, 0, 0]), "dist_coeffs has 3 values; OpenCV takes 4, 5, 8, 12 or 14"),
@@ -334,8 +334,8 @@ CAMERA_YAML = [
     ("only blank lines", "\n\n   \n", {}, "the file is empty"),
     ("truncated", GOOD_YAML[: len(GOOD_YAML) // 2], {}, "not a readable OpenCV FileStorage file"),
     ("truncated in the last matrix", GOOD_YAML[:-25], {}, "should start with %YAML:1.0 or <?xml"),
-    ("plain text", "fx = 600\n", {}, "not a readable OpenCV FileStorage file"),
-    ("binary garbage", b"\x89PNG\r\n\x1a\n" + bytes(range(256)), {}, "not a readable OpenCV FileStorage"),
+    ("plain text", "fx = 600\n", {}, "not an OpenCV FileStorage file; it should start with %YAML:1.0 or <?xml"),
+    ("binary garbage", b"\x89PNG\r\n\x1a\n" + bytes(range(256)), {}, "not UTF-8 text"),
     ("header only", "%YAML:1.0\n", {}, "no camera_matrix field"),
     ("K under another name", GOOD_YAML.replace("camera_matrix", "K"), {}, "no camera_matrix field"),
     ("K is a number", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: 600\n", {}, "camera_matrix is not an !!opencv-matrix"),
@@ -527,7 +527,7 @@ def test_bad_image_files_leave_opencv_silent(tmp_path):
 
 
 def test_image_paths_that_are_not_files(tmp_path):
-    with pytest.raises(ImageError, match="no such file; check the path"):
+    with pytest.raises(ImageError, match="no such file; check the path of the picture"):
         load_image(tmp_path / "photo.png")
     with pytest.raises(ImageError, match="is a folder, not a file"):
         load_image(tmp_path)
@@ -597,7 +597,7 @@ CLI_CASES = [
     ("no arguments to corners", ["corners"], "the following arguments are required: map, -o/--output"),
     ("no output", ["corners", "map.json"], "required: -o/--output"),
     ("map does not exist", ["corners", "nope.json", "-o", "out.json"], "nope.json: no such file"),
-    ("map is a folder", ["corners", "outdir", "-o", "out.json"], "is a folder, expected a world map JSON file"),
+    ("map is a folder", ["corners", "outdir", "-o", "out.json"], "is a folder, not a file; give the path of a world map file"),
     ("map is a photo", ["corners", "photo.png", "-o", "out.json"], "not UTF-8 text"),
     ("map nested too deeply", ["corners", "deep.json", "-o", "out.json"], "nested too deeply"),
     ("bare map without units", ["corners", "bare.json", "--marker-size-mm", "80", "-o", "out.json"], "pass units= (command line: --units)"),
