@@ -101,13 +101,20 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
         raise FidlearnError(f"{path}: the folder {folder} does not exist; create it first")
     if path.is_dir():
         raise FidlearnError(f"{path}: is a folder; give the name of the file to write (a path inside it)")
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=folder)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=folder)
+    except OSError as exc:
+        raise FidlearnError(f"{path}: cannot write in {folder} ({exc.strerror or exc}); check the folder's permissions") from None
     os.close(fd)
     tmp = Path(tmp_name)
     try:
         write(tmp)
         os.chmod(tmp, file_mode_for(path))
         os.replace(tmp, path)
+    except OSError as exc:  # disk full, permission denied, ...: name the user's file, never the hidden one
+        tmp.unlink(missing_ok=True)
+        raise FidlearnError(f"{path}: cannot write it ({exc.strerror or exc}); check the free disk space and the "
+                            "folder's permissions; nothing was written") from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

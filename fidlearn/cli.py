@@ -25,15 +25,18 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import re
+import signal
 import sys
+import tempfile
 import warnings
 from pathlib import Path
 from typing import Callable, Sequence
 
 from . import __version__, doctor
 from . import _cv  # noqa: F401 - OpenCV that cannot import fails here, where fidlearn._entry reports it
-from ._io import atomic_write
+from ._io import atomic_write, file_mode_for
 from .doctor import OPENCV_WHEELS, WANTED_WHEEL  # noqa: F401 - kept importable from here
 from .errors import FidlearnError, FidlearnWarning
 
@@ -67,6 +70,7 @@ def _add_corners(sub) -> None:
 def _run_corners(args) -> int:
     from .markermap import MarkerMap
 
+    _refuse_clobber([("-o", args.output)], [args.map])
     m = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=args.dictionary)
     m.save_corners(args.output)
     plane = f"coplanar (within {m.planarity_mm():.2f} mm)" if m.is_coplanar() else f"not coplanar ({m.planarity_mm():.1f} mm off a plane)"
@@ -90,6 +94,146 @@ def _run_doctor(args) -> int:
 
 
 # -- shared helpers ----------------------------------------------------------------------
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _refuse_clobber(outputs: Sequence[tuple[str, Path | None]], inputs: Sequence[Path],
+                    annotate: Path | None = None) -> None:
+    """Before any work: no output may be one of the inputs, nor another output; no --annotate
+    folder may hold an input (its annotated copy would replace it)."""
+    named = [(opt, Path(p)) for opt, p in outputs if p is not None]
+    files = [Path(p) for p in inputs if p is not None]
+    for k, (opt, out) in enumerate(named):
+        for inp in files:
+            if _same_file(out, inp) or (not out.exists() and out.resolve() == inp.resolve()):
+                raise UsageError(f"{opt} {out} is one of the inputs ({inp}); write it under another name: "
+                                 "nothing was written")
+        for opt2, out2 in named[:k]:
+            if out.resolve() == out2.resolve() or _same_file(out, out2):
+                raise UsageError(f"{opt} {out} and {opt2} {out2} are the same file; give each output its own name")
+    if annotate is not None:
+        folder = Path(annotate).resolve()
+        for inp in files:
+            if inp.resolve().parent == folder:
+                raise UsageError(f"--annotate {annotate} holds the input {inp}; its annotated copy would replace it: "
+                                 "give another folder")
+        for opt, out in named:
+            if out.resolve().parent == folder:
+                raise UsageError(f"--annotate {annotate} is where {opt} {out} goes; give the annotations a folder of their own")
+
+
+class _Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (a robot's supervisor, ``timeout``, a closed terminal), handled as Ctrl-C is."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _signal_name(exc: BaseException) -> str:
+    return signal.Signals(exc.signum).name if isinstance(exc, _Interrupted) else "SIGINT"
+
+
+def _raise_interrupted(signum, frame) -> None:
+    raise _Interrupted(signum)
+
+
+class _SafeStdout:
+    """The command's standard output: a reader that goes away (``| head``) silences it instead of
+    stopping the work, and a name the terminal cannot encode is printed with escapes."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.broken = False
+
+    def write(self, text: str) -> int:
+        if self.broken:
+            return len(text)
+        try:
+            try:
+                return self.stream.write(text)
+            except UnicodeEncodeError:
+                enc = getattr(self.stream, "encoding", None) or "ascii"
+                return self.stream.write(text.encode(enc, "backslashreplace").decode(enc))
+        except BrokenPipeError:
+            self._close()
+            return len(text)
+
+    def flush(self) -> None:
+        if not self.broken:
+            try:
+                self.stream.flush()
+            except BrokenPipeError:
+                self._close()
+
+    def _close(self) -> None:
+        # Python's advice for SIGPIPE: point the descriptor at the null device so that nothing
+        # (not even the interpreter's flush at exit) writes to the closed pipe again
+        self.broken = True
+        try:
+            fd = self.stream.fileno()
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, fd)
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
+class _StreamFile:
+    """A text output written record by record (JSON lines) to a hidden file beside its final name.
+
+    It takes the final name when the run ends or is interrupted (every record in it is whole);
+    on an error it is removed: an output is either whole up to the last frame done, or absent.
+    """
+
+    def __init__(self, path: Path, option: str):
+        self.path, self.option, self.count = Path(path), option, 0
+        self.tmp: Path | None = None
+        self.file = None
+
+    def __enter__(self):
+        folder = self.path.parent if str(self.path.parent) else Path(".")
+        try:
+            fd, name = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=folder)
+        except OSError as exc:
+            raise FidlearnError(f"{self.option} {self.path}: cannot write in {folder} ({exc.strerror}); "
+                                "check the folder's permissions") from None
+        self.tmp = Path(name)
+        self.file = os.fdopen(fd, "w", encoding="utf-8")
+        return self
+
+    def write(self, record: dict) -> None:
+        try:
+            self.file.write(json.dumps(record) + "\n")
+            self.file.flush()
+        except OSError as exc:
+            raise FidlearnError(f"{self.option} {self.path}: cannot write it ({exc.strerror}); "
+                                "check the free disk space") from None
+        self.count += 1
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        keep = exc_type is None or issubclass(exc_type, KeyboardInterrupt)
+        try:
+            self.file.close()
+            if keep:
+                os.chmod(self.tmp, file_mode_for(self.path))
+                os.replace(self.tmp, self.path)
+        except OSError as err:
+            keep = False
+            if exc_type is None:
+                raise FidlearnError(f"{self.option} {self.path}: cannot write it ({err.strerror})") from None
+        finally:
+            if not keep:
+                self.tmp.unlink(missing_ok=True)
+
+
 def _floats(text: str, n: int, option: str, meaning: str) -> list[float]:
     """``"1,2,3"`` -> [1.0, 2.0, 3.0]; a UsageError naming the option otherwise."""
     parts = [t for t in str(text).replace(" ", "").split(",")]
@@ -287,6 +431,18 @@ def _add_render(sub) -> None:
     p.set_defaults(run=_run_render)
 
 
+#: Largest picture ``fidlearn render`` draws (pixels); rendering supersamples it 16 times.
+MAX_RENDER_PIXELS = 40_000_000
+#: Largest coordinate (mm) a pose on the command line may have: 100 km.
+MAX_COORD_MM = 1e8
+
+
+def _check_coords(option: str, values) -> None:
+    if max(abs(v) for v in values) > MAX_COORD_MM:
+        raise UsageError(f"{option}: {max(abs(v) for v in values):g} mm is beyond any room ({MAX_COORD_MM:g} mm at most); "
+                         "positions are in millimetres")
+
+
 def _pose_from_args(args):
     from . import frames, synthetic
 
@@ -294,11 +450,18 @@ def _pose_from_args(args):
         if args.eye is not None:
             raise UsageError("--from goes with --look-at; --pose already gives the position")
         x, y, z, roll, pitch, yaw = _floats(args.pose, 6, "--pose", "x,y,z in mm, roll,pitch,yaw in degrees")
+        _check_coords("--pose", (x, y, z))
+        if max(abs(roll), abs(pitch), abs(yaw)) > 3600:
+            raise UsageError(f"--pose {args.pose}: roll, pitch and yaw are degrees, -360 to 360")
         return frames.make_transform(frames.rotation_from_rpy_deg(roll, pitch, yaw), [x, y, z])
     if args.eye is None:
         raise UsageError("--look-at needs --from X,Y,Z, the camera's position in mm")
     eye = _floats(args.eye, 3, "--from", "x,y,z in mm")
     target = _floats(args.look_at, 3, "--look-at", "x,y,z in mm")
+    _check_coords("--from", eye)
+    _check_coords("--look-at", target)
+    if not abs(args.roll_deg) <= 3600:
+        raise UsageError("--roll-deg is degrees, -360 to 360")
     return synthetic.look_at(eye, target, roll_deg=args.roll_deg)
 
 
@@ -310,14 +473,19 @@ def _run_render(args) -> int:
 
     out = _check_output(args.output, (".png", ".bmp", ".tif", ".tiff"))
     truth_path = _check_output(args.truth, (".json",), "--truth") if args.truth else None
-    if args.noise < 0 or args.blur < 0:
-        raise UsageError("--noise and --blur must be 0 or more")
+    _refuse_clobber([("-o", out), ("--truth", truth_path)], [args.map, args.camera])
+    if not (0 <= args.noise <= 255) or not (0 <= args.blur <= 100):
+        raise UsageError("--noise must be 0 to 255 gray levels and --blur 0 to 100 px")
+    if not 0 <= args.seed < 2**32:
+        raise UsageError(f"--seed {args.seed}: give a whole number from 0 to {2**32 - 1}")
     marker_map = _load_map(args)
     camera = _load_camera(args)
     if args.size:
         from .printables import parse_pattern
 
         w, h = parse_pattern(args.size, "--size")
+        if w * h > MAX_RENDER_PIXELS or max(w, h) > 20000:
+            raise UsageError(f"--size {w}x{h}: at most {MAX_RENDER_PIXELS // 1_000_000} megapixels and 20000 pixels a side")
         camera = camera.scaled((w, h))
     T_world_camera = _pose_from_args(args)
     image, truth = synthetic.render_scene(camera, marker_map, T_world_camera, seed=args.seed,
@@ -466,8 +634,10 @@ def _frames(items: list[tuple[str, Path]], camera_index: int | None):
 class _Staging:
     """Annotated images staged in a hidden folder and moved into place only when the run succeeds."""
 
-    def __init__(self, folder: Path | None):
+    def __init__(self, folder: Path | None, keep_on_interrupt: bool = False):
         self.folder = folder
+        self.keep_on_interrupt = keep_on_interrupt
+        self.replaced = 0
         self.tmp: Path | None = None
         self.names: set[str] = set()
         if folder is not None:
@@ -501,18 +671,24 @@ class _Staging:
         _write_image(self.tmp / fname, image)
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        import os
         import shutil
 
         if self.tmp is None:
             return
         try:
-            if exc_type is None:
+            interrupted = exc_type is not None and issubclass(exc_type, KeyboardInterrupt)
+            if exc_type is None or (interrupted and self.keep_on_interrupt):
                 self.folder.mkdir(exist_ok=True)
                 for fname in sorted(self.names):
+                    self.replaced += (self.folder / fname).exists()
                     os.replace(self.tmp / fname, self.folder / fname)
         finally:
             shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def said(self) -> str:
+        """What the folder received, for the closing line."""
+        again = f", replacing {self.replaced} earlier one{'s' if self.replaced != 1 else ''}" if self.replaced else ""
+        return f"{len(self.names)} annotated picture{'s' if len(self.names) != 1 else ''} in {self.folder}/{again}"
 
 
 # -- fidlearn calibrate --------------------------------------------------------------------
@@ -678,6 +854,7 @@ def _run_calibrate(args) -> int:
 
     out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
     items = _expand_inputs(args.inputs, videos=False)
+    _refuse_clobber([("-o", out)], [p for _, p in items], args.annotate)
     staging = _Staging(args.annotate)
     if args.pattern is not None:
         cols, rows = parse_pattern(args.pattern, "--pattern")
@@ -739,14 +916,14 @@ def _run_calibrate(args) -> int:
                       "is guessed where almost nothing was measured", FidlearnWarning)
 
     with staging:
-        c.save(out)
         if args.annotate:
             for view, path in zip(cal.views, paths):  # views come back in input order
                 pts = cal.image_points_px.get(view.name)
                 staging.save(Path(path).name, _draw_calibration_view(Path(path), view, pts, pattern, args.charuco))
+        c.save(out)  # last: written only when everything before it succeeded
     print(f"camera written to {out}")
     if args.annotate:
-        print(f"annotated photos in {args.annotate}/")
+        print(staging.said())
     return 0
 
 
@@ -849,7 +1026,6 @@ def _draw_pose(image, detections, camera, pose, marker_map):
 
 
 def _run_locate(args) -> int:
-    import io
     import statistics
 
     from .camera import Camera
@@ -859,13 +1035,14 @@ def _run_locate(args) -> int:
 
     if not args.inputs and args.camera_index is None:
         raise UsageError("give images, folders or videos to locate in, or --camera-index N for a live camera")
-    if args.camera_index is not None and args.camera_index < 0:
+    if args.camera_index is not None and not 0 <= args.camera_index <= 255:
         # cv2.VideoCapture(-1) crashes the interpreter (segmentation fault) on OpenCV 4.x and 5.x
-        # when no camera is attached: refuse it before OpenCV sees it.
-        raise UsageError(f"--camera-index {args.camera_index}: cameras are numbered from 0 (the first camera)")
+        # when no camera is attached, and 2**31 overflows OpenCV's int: refuse both before OpenCV sees them.
+        raise UsageError(f"--camera-index {args.camera_index}: cameras are numbered 0 (the first camera) to 255")
     items = _expand_inputs(args.inputs, videos=True)
     json_path = _check_output(args.json, (".jsonl", ".json"), "--json") if args.json else None
-    staging = _Staging(args.annotate)
+    _refuse_clobber([("--json", json_path)], [p for _, p in items] + [args.camera, args.map], args.annotate)
+    staging = _Staging(args.annotate, keep_on_interrupt=True)
     camera = _load_camera(args)
     marker_map = _load_map(args)
     refine = {"refine": args.refine} if args.refine else {}
@@ -914,22 +1091,28 @@ def _run_locate(args) -> int:
                         print(_fmt_row(name, width, pose, note), flush=True)
                         record = _pose_record(name, pose)
                     if sink is not None:
-                        sink.write(json.dumps(record) + "\n")
-                        sink.flush()
+                        sink.write(record)
                     staging.save(name, _draw_pose(image, detections, cam, pose, marker_map))
-            except KeyboardInterrupt:
-                if args.camera_index is None:
+            except KeyboardInterrupt as exc:
+                if args.camera_index is None or isinstance(exc, _Interrupted):
                     raise
-                # stopping a live camera is its normal end: keep what was seen
+                # Ctrl-C stopping a live camera is its normal end: keep what was seen
 
-    if json_path is not None:
-        def write(tmp: Path) -> None:
-            with io.open(tmp, "w", encoding="utf-8") as sink:
+    try:
+        if json_path is not None:
+            with _StreamFile(json_path, "--json") as sink:
                 process(sink)
-
-        atomic_write(json_path, write)
-    else:
-        process(None)
+        else:
+            process(None)
+    except KeyboardInterrupt as exc:
+        kept = []
+        if json_path is not None:
+            kept.append(f"{json_path} holds {stats['frames']} whole frame record{'s' if stats['frames'] != 1 else ''}")
+        if args.annotate:
+            kept.append(staging.said())
+        print(f"error: interrupted by {_signal_name(exc)} after {stats['frames']} frames"
+              + (f"; {'; '.join(kept)}" if kept else ""), file=sys.stderr)
+        return 128 + (exc.signum if isinstance(exc, _Interrupted) else signal.SIGINT)
     n, located = stats["frames"], stats["located"]
     if n > 1 or args.camera_index is not None:
         med = f", median rms {statistics.median(stats['rms']):.2f} px" if stats["rms"] else ""
@@ -938,7 +1121,7 @@ def _run_locate(args) -> int:
     if json_path:
         print(f"poses written to {json_path}")
     if args.annotate:
-        print(f"annotated frames in {args.annotate}/")
+        print(staging.said())
     return 0
 
 
@@ -1010,8 +1193,30 @@ def _quiet_opencv() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 1 problem found, 2 user error)."""
+    """Run the command line; returns the exit status (0 ok, 1 problem found, 2 user error).
+
+    SIGTERM and SIGHUP are handled as Ctrl-C is: a streaming output keeps every frame finished,
+    under its final name. A standard output that closes (``| head``) silences the rest of the
+    printing, not the work.
+    """
     _quiet_opencv()
+    stdout, handlers = sys.stdout, {}
+    sys.stdout = _SafeStdout(stdout)
+    try:
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            try:
+                handlers[sig] = signal.signal(sig, _raise_interrupted)
+            except (ValueError, OSError):  # not the main thread: leave signals alone
+                pass
+        return _main(argv)
+    finally:
+        for sig, old in handlers.items():
+            signal.signal(sig, old)
+        sys.stdout.flush()
+        sys.stdout = stdout
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))
@@ -1023,15 +1228,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.showwarning = _show_warning
             return int(args.run(args) or 0)
     except FidlearnError as exc:
-        print(f"error: {_one_line(str(exc))}", file=sys.stderr)
+        _error(str(exc))
         return 2
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        _error(f"interrupted by {_signal_name(exc)}; nothing was written")
+        return 128 + (exc.signum if isinstance(exc, _Interrupted) else signal.SIGINT)
     except OSError as exc:  # the disk, not the code: permission denied, disk full, ...
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(f"error: {where}{_one_line(exc.strerror or str(exc))}; check the path and its permissions", file=sys.stderr)
+        _error(f"{where}{exc.strerror or exc}; check the path and its permissions")
         return 2
+
+
+def _error(text: str) -> None:
+    line = f"error: {_one_line(text)}"
+    try:
+        print(line, file=sys.stderr)
+    except UnicodeEncodeError:
+        enc = getattr(sys.stderr, "encoding", None) or "ascii"
+        print(line.encode(enc, "backslashreplace").decode(enc), file=sys.stderr)
 
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.

@@ -75,6 +75,11 @@ class PrintError(FidlearnError, ValueError):
 
 
 # -- parsing ------------------------------------------------------------------------------
+#: The most marker ids one call prints, and one more than the largest id any dictionary has
+#: (ARUCO_MIP_36h12: 250; APRILTAG_36h11: 587; ARUCO_ORIGINAL: 1024; the 4x4..7x7 families: 1000).
+MAX_ID_COUNT = 1024
+
+
 def parse_ids(text: str) -> list[int]:
     """Marker ids from ``"0-9"``, ``"0,3,7"`` or ``"0-3,8"`` (ranges inclusive), in the order given.
 
@@ -84,18 +89,26 @@ def parse_ids(text: str) -> list[int]:
     if not isinstance(text, str) or not text.strip():
         raise PrintError("--ids is empty; give ids like 0-9, 0,3,7 or 0-3,8")
     ids: list[int] = []
+    seen: set[int] = set()
     for part in text.replace(" ", "").split(","):
         m = re.fullmatch(r"(\d+)(?:-(\d+))?", part)
         if not m:
             raise PrintError(f"--ids {text!r}: {part!r} is not an id or a range; give ids like 0-9, 0,3,7 or 0-3,8")
+        if max(len(m.group(1)), len(m.group(2) or "")) > 9:  # before int(): Python refuses 4300+ digits
+            raise PrintError(f"--ids {text[:40]!r}: at most {MAX_ID_COUNT} markers, ids 0 to {MAX_ID_COUNT - 1} "
+                             "(the largest dictionary's)")
         lo = int(m.group(1))
         hi = int(m.group(2)) if m.group(2) is not None else lo
         if hi < lo:
             raise PrintError(f"--ids {text!r}: the range {part} runs backwards; write {hi}-{lo}")
-        for i in range(lo, hi + 1):
-            if i in ids:
-                raise PrintError(f"--ids {text!r}: id {i} is listed twice; each marker id must be unique on the wall")
-            ids.append(i)
+        if hi >= MAX_ID_COUNT or len(ids) + hi - lo + 1 > MAX_ID_COUNT:
+            raise PrintError(f"--ids {text!r}: at most {MAX_ID_COUNT} markers, ids 0 to {MAX_ID_COUNT - 1} "
+                             "(the largest dictionary's); print them in parts")
+        twice = seen.intersection(range(lo, hi + 1)) if hi - lo < len(seen) else {i for i in seen if lo <= i <= hi}
+        if twice:
+            raise PrintError(f"--ids {text!r}: id {min(twice)} is listed twice; each marker id must be unique on the wall")
+        seen.update(range(lo, hi + 1))
+        ids.extend(range(lo, hi + 1))
     return ids
 
 

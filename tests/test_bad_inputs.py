@@ -826,7 +826,7 @@ def commands_setup(tmp_path: Path) -> None:
 
 LOCATE_ARGS = ["--camera", "camera.json", "--map", "map.json"]
 COMMANDS = [
-    ("locate: negative camera index", ["locate", *LOCATE_ARGS, "--camera-index", "-1"], "cameras are numbered from 0"),
+    ("locate: negative camera index", ["locate", *LOCATE_ARGS, "--camera-index", "-1"], "cameras are numbered 0 (the first camera) to 255"),
     ("locate: map given as the camera", ["locate", "clip.avi", "--camera", "map.json", "--map", "map.json"], "missing field camera_matrix"),
     ("locate: camera given as the map", ["locate", "clip.avi", "--camera", "camera.json", "--map", "camera.json"], "the map does not say its units"),
     ("locate: annotate into a file", ["locate", "clip.avi", *LOCATE_ARGS, "--annotate", "map.json"], "give a folder"),
@@ -840,13 +840,13 @@ COMMANDS = [
     ("markers: backwards range", ["markers", "--ids", "5-3", "--size-mm", "50", "-o", "m.pdf"], "runs backwards; write 3-5"),
     ("markers: id twice", ["markers", "--ids", "0,0", "--size-mm", "50", "-o", "m.pdf"], "id 0 is listed twice"),
     ("markers: negative id", ["markers", "--ids", "-1", "--size-mm", "50", "-o", "m.pdf"], "give ids like 0-9"),
-    ("markers: 20-digit id", ["markers", "--ids", "9" * 20, "--size-mm", "50", "-o", "m.pdf"], "which has ids 0 to 1023"),
+    ("markers: 20-digit id", ["markers", "--ids", "9" * 20, "--size-mm", "50", "-o", "m.pdf"], "ids 0 to 1023"),
     ("markers: infinite size", ["markers", "--ids", "0", "--size-mm", "inf", "-o", "m.pdf"], "must be a positive length in mm"),
     ("markers: larger than the paper", ["markers", "--ids", "0", "--size-mm", "1e9", "-o", "m.pdf"], "does not fit on a4 paper"),
     ("markers: zero dpi", ["markers", "--ids", "0", "--size-mm", "50", "--dpi", "0", "-o", "m.png"], "--dpi 0 is out of range"),
     ("board: marker larger than its square", ["board", "--squares", "5x7", "--charuco", "--square-mm", "20", "--marker-mm", "30", "-o", "b.pdf"], "must be smaller than --square-mm 20"),
     ("board: NaN square", ["board", "--pattern", "9x6", "--square-mm", "nan", "-o", "b.pdf"], "must be a positive length in mm, got nan"),
-    ("render: negative noise", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--noise", "-1", "-o", "r.png"], "must be 0 or more"),
+    ("render: negative noise", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--noise", "-1", "-o", "r.png"], "--noise must be 0 to 255 gray levels"),
     ("render: size in words", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--size", "big", "-o", "r.png"], "is not COLUMNSxROWS"),
     ("render: missing camera file", ["render", "--map", "map.json", "--camera", "nope.yml", "--pose", "1000,190,230,-90,0,90", "-o", "r.png"], "nope.yml: no such file"),
 ]

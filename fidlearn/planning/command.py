@@ -13,7 +13,6 @@ from .._io import atomic_write
 from ..camera import Camera
 from ..errors import FidlearnError
 from ..markermap import MarkerMap
-from .figure import plan_figure
 from .room import default_area, plan_room, suggest_markers
 
 HELP = "predicted position error over a room seen from above, and where to add markers"
@@ -75,6 +74,8 @@ def run(args) -> int:
 
     plan = plan_room(world, camera, height_mm=args.height_mm, area=area, look_at_mm=look, step_mm=args.step_mm,
                      headings=args.headings, corner_sigma_px=args.corner_sigma_px, progress=progress)
+    from .figure import plan_figure  # matplotlib: only when a picture is drawn (the command line starts faster)
+
     fig = plan_figure(plan, world, target_mm=args.target_mm)
     atomic_write(args.output, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
     ok = np.isfinite(plan.toward_mm)
