@@ -329,10 +329,16 @@ def _add_markers(sub) -> None:
     p.set_defaults(run=_run_markers)
 
 
+def _check_dpi(dpi: float) -> None:
+    if not 50 <= dpi <= 1200:
+        raise UsageError(f"--dpi {dpi:g}: give 50 to 1200 dots per inch (300 is a printer's)")
+
+
 def _run_markers(args) -> int:
     from . import printables
 
     out = _check_output(args.output, (".pdf", ".png"))
+    _check_dpi(args.dpi)
     ids = printables.parse_ids(args.ids)
     sheet = printables.layout_markers(ids, args.size_mm, args.dictionary, args.paper)
     files = printables.save_pages(printables.marker_figures(sheet), out, dpi=args.dpi)
@@ -375,6 +381,7 @@ def _run_board(args) -> int:
     from . import printables
 
     out = _check_output(args.output, (".pdf", ".png"))
+    _check_dpi(args.dpi)
     if args.pattern is not None:
         cols, rows = printables.parse_pattern(args.pattern, "--pattern")
         squares = (cols + 1, rows + 1)
@@ -1066,7 +1073,6 @@ def _run_locate(args) -> int:
                             raise CameraError(f"{name}: {exc}") from None
                     cam = cameras[size]
                     detections = detect_markers(image, dictionary=marker_map.dictionary, **refine)
-                    stats["frames"] += 1
                     failure = "no known marker"
                     try:
                         pose = estimate_pose(detections, marker_map, cam)
@@ -1074,25 +1080,27 @@ def _run_locate(args) -> int:
                         pose = None
                     except PoseError as exc:  # a degenerate view: report the frame, keep going
                         pose, failure = None, f"no pose: {_one_line(str(exc))}"
-                    if stats["frames"] == 1:
-                        print(header)
                     if pose is None:
                         seen = sorted({d.id for d in detections})
                         note = failure
                         if failure == "no known marker" and seen:
                             note += f" (saw ids {', '.join(map(str, seen))}, not in the map)"
-                        print(_fmt_row(name, width, None, note), flush=True)
+                        row = _fmt_row(name, width, None, note)
                         record = {"frame": name, "located": False, "reason": failure, "detected_ids": seen}
                     else:
                         stats["located"] += 1
                         stats["ambiguous"] += bool(pose.ambiguous)
                         stats["rms"].append(pose.reprojection_rms_px)
                         note = f"rejected {list(pose.rejected_ids)}" if pose.rejected_ids else ""
-                        print(_fmt_row(name, width, pose, note), flush=True)
+                        row = _fmt_row(name, width, pose, note)
                         record = _pose_record(name, pose)
-                    if sink is not None:
+                    if sink is not None:  # the record first: a row on the screen is always in the file
                         sink.write(record)
+                    if stats["frames"] == 0:
+                        print(header)
+                    print(row, flush=True)
                     staging.save(name, _draw_pose(image, detections, cam, pose, marker_map))
+                    stats["frames"] += 1
             except KeyboardInterrupt as exc:
                 if args.camera_index is None or isinstance(exc, _Interrupted):
                     raise
@@ -1107,7 +1115,8 @@ def _run_locate(args) -> int:
     except KeyboardInterrupt as exc:
         kept = []
         if json_path is not None:
-            kept.append(f"{json_path} holds {stats['frames']} whole frame record{'s' if stats['frames'] != 1 else ''}")
+            n = sink.count
+            kept.append(f"{json_path} holds {n} whole frame record{'s' if n != 1 else ''}")
         if args.annotate:
             kept.append(staging.said())
         print(f"error: interrupted by {_signal_name(exc)} after {stats['frames']} frames"

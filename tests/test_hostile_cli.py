@@ -1,0 +1,430 @@
+"""The command line under attack: a careless or a hostile user must not lose data or see a traceback.
+
+Every case runs a command in a workspace of real files (the seed map, the bundled camera, rendered
+frames, calibration views) and asserts the exact behaviour: exit status 2 with exactly one
+``error:`` line naming what is wrong, every input byte for byte unchanged, and no file left
+behind (no hidden temporary file, no half-written output). The signal and pipe cases run the
+command as a subprocess, as a robot's supervisor or a shell pipeline would.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fidlearn
+from fidlearn import cli
+
+DATA = fidlearn.data_dir()
+
+
+@pytest.fixture
+def ws(tmp_path, monkeypatch):
+    """A workspace: map.json, camera.json, frames/ (3 scenes), photos/ (4 calibration views)."""
+    shutil.copy(DATA / "world_map.json", tmp_path / "map.json")
+    shutil.copy(DATA / "scenes" / "camera.json", tmp_path / "camera.json")
+    (tmp_path / "frames").mkdir()
+    for k in range(3):
+        shutil.copy(DATA / "scenes" / f"scene_0{k}.png", tmp_path / "frames" / f"scene_0{k}.png")
+    (tmp_path / "photos").mkdir()
+    for k in range(4):
+        shutil.copy(DATA / "calibration" / f"view_0{k}.png", tmp_path / "photos" / f"view_0{k}.png")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    """Every file below ``folder`` (hidden ones too) with the SHA-256 of its bytes."""
+    out = {}
+    for p in sorted(folder.rglob("*")):
+        if p.is_file() and not p.is_symlink():
+            out[str(p.relative_to(folder))] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+def refused(ws: Path, capsys, argv: list[str], match: str) -> str:
+    """Run ``fidlearn ARGV``; assert status 2, one error line containing ``match``, nothing changed."""
+    before = snapshot(ws)
+    status = cli.main(argv)
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert status == 2, (out, err)
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert match in lines[0], lines[0]
+    assert "Traceback" not in err
+    assert snapshot(ws) == before  # inputs unchanged, nothing written, no temporary file left
+    return lines[0]
+
+
+LOC = ["--camera", "camera.json", "--map", "map.json"]
+
+
+def _link(ws: Path, name: str, target: str, hard: bool = False) -> None:
+    (os.link if hard else os.symlink)(ws / target, ws / name)
+
+
+# -- outputs over inputs ------------------------------------------------------------------------
+CLOBBER = [
+    ("corners -o its own map", ["corners", "map.json", "-o", "map.json"], "is one of the inputs"),
+    ("corners -o its map spelt another way", ["corners", "map.json", "-o", "./frames/../map.json"], "is one of the inputs"),
+    ("corners -o a symlink to its map", ["corners", "map.json", "-o", "link.json"], "is one of the inputs"),
+    ("corners -o a hard link to its map", ["corners", "map.json", "-o", "hard.json"], "is one of the inputs"),
+    ("locate --json the camera", ["locate", "frames", *LOC, "--json", "camera.json"], "is one of the inputs"),
+    ("locate --json the map", ["locate", "frames", *LOC, "--json", "map.json"], "is one of the inputs"),
+    ("locate --json a link to the camera", ["locate", "frames", *LOC, "--json", "link.json"], "is one of the inputs"),
+    ("locate --annotate its own folder", ["locate", "frames", *LOC, "--annotate", "frames"], "holds the input"),
+    ("locate --annotate its own folder/", ["locate", "frames/", *LOC, "--annotate", "frames/"], "holds the input"),
+    ("locate --annotate the folder of one image", ["locate", "frames/scene_01.png", *LOC, "--annotate", "frames"],
+     "holds the input"),
+    ("locate --annotate through a symlinked folder", ["locate", "frames", *LOC, "--annotate", "framelink"], "holds the input"),
+    ("locate --annotate where --json goes", ["locate", "frames", *LOC, "--json", "out/poses.jsonl", "--annotate", "out"],
+     "is where --json"),
+    ("calibrate --annotate its photos", ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam2.json",
+                                        "--annotate", "photos"], "holds the input"),
+    ("calibrate --annotate the folder of its photos",
+     ["calibrate", "photos/view_00.png", "photos/view_01.png", "photos/view_02.png", "--pattern", "9x6",
+      "--square-mm", "25", "-o", "cam2.json", "--annotate", "photos"], "holds the input"),
+    ("render --truth the map", ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth", "map.json"],
+     "is one of the inputs"),
+    ("render --truth the camera", ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth",
+                                   "camera.json"], "is one of the inputs"),
+    ("render --truth a link to the map", ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth",
+                                          "link.json"], "is one of the inputs"),
+]
+
+
+@pytest.mark.parametrize("argv, match", [c[1:] for c in CLOBBER], ids=[c[0] for c in CLOBBER])
+def test_an_output_over_an_input_is_refused_before_any_work(ws, capsys, argv, match):
+    target = "camera.json" if "camera" in " ".join(argv[-2:]) or "--json" in argv and "link.json" in argv else "map.json"
+    _link(ws, "link.json", target)
+    _link(ws, "hard.json", "map.json", hard=True)
+    (ws / "out").mkdir()
+    os.symlink(ws / "frames", ws / "framelink")
+    refused(ws, capsys, argv, match)
+
+
+# -- sizes, numbers and names the user gives ------------------------------------------------------
+BOUNDS = [
+    ("render --seed -1", ["--seed", "-1"], "--seed -1: give a whole number from 0"),
+    ("render --seed 2**40", ["--seed", str(2**40)], "give a whole number from 0"),
+    ("render --noise 1000", ["--noise", "1000"], "--noise must be 0 to 255"),
+    ("render --noise nan", ["--noise", "nan"], "--noise must be 0 to 255"),
+    ("render --blur -1", ["--blur", "-1"], "--blur 0 to 100"),
+    ("render --blur inf", ["--blur", "inf"], "--blur 0 to 100"),
+    ("render --size 100000x56250", ["--size", "100000x56250"], "at most 40 megapixels"),
+    ("render --size 20001x11251", ["--size", "20001x11251"], "at most 40 megapixels"),
+    ("render --size 0x0", ["--size", "0x0"], "needs at least 2"),
+]
+
+
+@pytest.mark.parametrize("extra, match", [c[1:] for c in BOUNDS], ids=[c[0] for c in BOUNDS])
+def test_render_options_out_of_range(ws, capsys, extra, match):
+    refused(ws, capsys, ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", *extra], match)
+
+
+POSES = [
+    ("--pose 1e308", ["--pose", "1e308,0,0,0,0,0"], "beyond any room"),
+    ("--pose -1e12", ["--pose", "-1e12,0,0,0,0,0"], "beyond any room"),
+    ("--pose roll 1e9", ["--pose", "1000,190,230,1e9,0,0"], "roll, pitch and yaw are degrees"),
+    ("--pose nan", ["--pose", "nan,0,0,0,0,0"], "expected 6 numbers"),
+    ("--pose five numbers", ["--pose", "1,2,3,4,5"], "expected 6 numbers"),
+    ("--from 1e300", ["--from", "1e300,0,0", "--look-at", "0,0,0"], "beyond any room"),
+    ("--look-at -1e300", ["--from", "1000,0,0", "--look-at", "-1e300,0,0"], "beyond any room"),
+    ("--roll-deg 1e9", ["--from", "1000,0,0", "--look-at", "0,0,0", "--roll-deg", "1e9"], "--roll-deg is degrees"),
+    ("--roll-deg nan", ["--from", "1000,0,0", "--look-at", "0,0,0", "--roll-deg", "nan"], "--roll-deg is degrees"),
+]
+
+
+@pytest.mark.parametrize("extra, match", [c[1:] for c in POSES], ids=[c[0] for c in POSES])
+def test_render_poses_out_of_range(ws, capsys, extra, match):
+    refused(ws, capsys, ["render", *LOC, "-o", "r.png", *extra], match)
+
+
+IDS = [
+    ("0-99999", "at most 1024 markers"),
+    ("9" * 5000, "at most 1024 markers"),
+    ("0-1024", "at most 1024 markers"),
+    ("0-3,3", "id 3 is listed twice"),
+    ("0-500,250-260", "id 250 is listed twice"),
+    ("5-1", "runs backwards"),
+    ("a-b", "is not an id or a range"),
+    ("-3", "is not an id or a range"),
+    ("", "--ids is empty"),
+    (",", "is not an id or a range"),
+]
+
+
+@pytest.mark.parametrize("ids, match", IDS)
+def test_marker_ids_of_any_range_answer_at_once(ws, capsys, ids, match):
+    t0 = time.perf_counter()
+    refused(ws, capsys, ["markers", "--ids", ids, "--size-mm", "80", "-o", "m.pdf"], match)
+    assert time.perf_counter() - t0 < 1.0
+
+
+@pytest.mark.parametrize("index", ["-1", "256", "2147483648", str(2**70)])
+def test_camera_indexes_out_of_range(ws, capsys, index):
+    refused(ws, capsys, ["locate", *LOC, "--camera-index", index], "cameras are numbered 0 (the first camera) to 255")
+
+
+@pytest.mark.parametrize("dpi", ["1e9", "0", "-300", "nan", "10"])
+def test_print_resolution_out_of_range(ws, capsys, dpi):
+    refused(ws, capsys, ["markers", "--ids", "0", "--size-mm", "80", "-o", "m.png", "--dpi", dpi], "--dpi")
+    refused(ws, capsys, ["board", "--pattern", "9x6", "--square-mm", "20", "-o", "b.png", "--dpi", dpi], "--dpi")
+
+
+# -- files that are not what they say --------------------------------------------------------------
+def _write(ws: Path, name: str, content) -> None:
+    p = ws / name
+    p.write_bytes(content if isinstance(content, bytes) else content.encode())
+
+
+CAMERA_JSON = json.loads((DATA / "scenes" / "camera.json").read_text())
+
+
+def _camera_with(**changes) -> str:
+    d = dict(CAMERA_JSON)
+    for k, v in changes.items():
+        if v is None:
+            d.pop(k)
+        else:
+            d[k] = v
+    return json.dumps(d)
+
+
+def _yaml(dt: str = "d", fx: str = "628.158") -> str:
+    return (f"%YAML:1.0\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n"
+            f"   dt: {dt}\n   data: [ {fx}, 0., 640., 0., 628.156, 360., 0., 0., 1. ]\n"
+            "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ 0., 0., 0., 0., 0. ]\n")
+
+
+def _nested_yaml(depth: int) -> str:
+    return "%YAML:1.0\ncamera_matrix: " + "[" * depth + "1" + "]" * depth + "\n"
+
+
+def _nested_xml(depth: int) -> str:
+    return '<?xml version="1.0"?>\n<opencv_storage>\n' + "<a>" * depth + "1" + "</a>" * depth + "\n</opencv_storage>\n"
+
+
+CAMERAS = [
+    ("camera.json", "misspelt distortion field", _camera_with(distortion=[0.1, 0, 0, 0, 0], dist_coeffs=None),
+     "unknown field 'distortion': did you mean 'dist_coeffs'?"),
+    ("camera.json", "dist_coefs", _camera_with(dist_coefs=[0.1, 0, 0, 0, 0], dist_coeffs=None),
+     "unknown field 'dist_coefs': did you mean 'dist_coeffs'?"),
+    ("camera.json", "K for camera_matrix", _camera_with(K=CAMERA_JSON["camera_matrix"], camera_matrix=None),
+     "unknown field 'K': did you mean 'camera_matrix'?"),
+    ("camera.json", "resolution for image_size", _camera_with(resolution=[1280, 720], image_size=None),
+     "unknown field 'resolution': did you mean 'image_size'?"),
+    ("camera.json", "a typo in source", _camera_with(sourse="x"), "unknown field 'sourse': did you mean 'source'?"),
+    ("camera.json", "skew", _camera_with(camera_matrix=[[962.5, 3.0, 641.3], [0, 961.8, 357.9], [0, 0, 1]]),
+     "skew term K[0][1] = 3"),
+    ("camera.json", "negative skew", _camera_with(camera_matrix=[[962.5, -0.5, 641.3], [0, 961.8, 357.9], [0, 0, 1]]),
+     "skew term"),
+    ("camera.json", "image size beyond any camera", _camera_with(image_size=[10**6, 720]), "beyond any camera"),
+    ("camera.yml", "dt: u clips to 255", _yaml("u"), "dt: u"),
+    ("camera.yml", "dt: c", _yaml("c"), "dt: c"),
+    ("camera.yml", "dt: i", _yaml("i", "628"), "dt: i"),
+    ("camera.yml", "nested 100000 deep (YAML)", _nested_yaml(100_000), "nested 100000 levels deep"),
+    ("camera.yml", "nested 40 deep (YAML)", _nested_yaml(40), "nested 40 levels deep"),
+    ("camera.xml", "nested 100000 deep (XML)", _nested_xml(100_000), "levels deep"),
+    ("camera.yml", "not YAML at all", "fx = 600\n", "not an OpenCV FileStorage file"),
+    ("camera.yml", "binary", bytes(range(256)) * 4, "not UTF-8 text"),
+    ("camera.json", "11 MB of spaces", b" " * (11 * 1024 * 1024), "MB is more than a camera file can be"),
+]
+
+
+@pytest.mark.parametrize("name, content, match", [c[:1] + c[2:] for c in CAMERAS], ids=[c[1] for c in CAMERAS])
+def test_camera_files_that_say_something_else(ws, capsys, name, content, match):
+    _write(ws, name, content)
+    refused(ws, capsys, ["locate", "frames", "--camera", name, "--map", "map.json", "--json", "p.jsonl"], match)
+
+
+SEED = json.loads((DATA / "world_map.json").read_text())
+
+
+def _map_with(**changes) -> str:
+    d = json.loads(json.dumps(SEED))
+    for k, v in changes.items():
+        d[k] = v
+    return json.dumps(d)
+
+
+MAPS = [
+    ("marker_size_mm 1e300", _map_with(marker_size_mm=1e300), "more than 10000 mm"),
+    ("marker_size_mm 20000", _map_with(marker_size_mm=20000), "more than 10000 mm"),
+    ("unit for units", json.dumps({"unit": "ft", **{k: v for k, v in SEED.items() if k != "units"}}),
+     "unknown field 'unit': did you mean 'units'?"),
+    ("marker for markers", json.dumps({"units": "ft", "marker_size_mm": 80, "marker": SEED["markers"]}),
+     "did you mean 'markers'?"),
+    ("translaton", _map_with(markers={"0": {"translaton": [0, 0, 1], "rotation": [0, 0, 0]}}),
+     "unknown field 'translaton': did you mean 'translation'?"),
+    ("rotate", _map_with(markers={"0": {"translation": [0, 0, 1], "rotate": [0, 0, 0]}}),
+     "unknown field 'rotate': did you mean 'rotation'?"),
+    ("id beyond the dictionary", _map_with(markers={"5000": {"translation": [0, 0, 1]}}), "does not exist in dictionary"),
+    ("translation 1e12 ft", _map_with(markers={"0": {"translation": [0, 0, 1e12]}}), "far beyond any room"),
+    ("11 MB map", " " * (11 * 1024 * 1024) + "{}", "MB is more than a world map file can be"),
+]
+
+
+@pytest.mark.parametrize("content, match", [c[1:] for c in MAPS], ids=[c[0] for c in MAPS])
+def test_map_files_that_say_something_else(ws, capsys, content, match):
+    _write(ws, "bad_map.json", content)
+    refused(ws, capsys, ["corners", "bad_map.json", "-o", "corners.json"], match)
+    refused(ws, capsys, ["locate", "frames", "--camera", "camera.json", "--map", "bad_map.json"], match)
+
+
+def _huge_png() -> bytes:
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 100000, 100000, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+
+
+IMAGES = [
+    ("a 74-byte PNG declaring 100000x100000", "huge.png", _huge_png(), "100000x100000 pixels (10000 megapixels)"),
+    ("a PNG cut in half", "cut.png", (DATA / "scenes" / "scene_00.png").read_bytes()[:5000], "the PNG file is cut short"),
+    ("a JPEG without its end", "cut.jpg", b"\xff\xd8\xff\xe0" + bytes(200), "the JPEG file is cut short"),
+    ("an empty picture", "empty.png", b"", "the file is empty"),
+    ("text named .png", "text.png", b"hello", "not an image OpenCV can read"),
+]
+
+
+@pytest.mark.parametrize("name, content, match", [c[1:] for c in IMAGES], ids=[c[0] for c in IMAGES])
+def test_pictures_that_are_not_what_they_say(ws, capsys, name, content, match):
+    _write(ws, name, content)
+    refused(ws, capsys, ["locate", name, *LOC, "--json", "p.jsonl"], match)
+
+
+@pytest.mark.parametrize("kind", ["fifo map", "fifo camera", "device map", "device camera"])
+def test_fifos_and_devices_are_refused_without_blocking(ws, capsys, kind):
+    target = "m.json" if "map" in kind else "c.json"
+    if kind.startswith("fifo"):
+        os.mkfifo(ws / target)
+    else:
+        os.symlink("/dev/zero", ws / target)
+    argv = ["corners", target, "-o", "x.json"] if "map" in kind else ["locate", "frames", "--camera", target, "--map", "map.json"]
+    t0 = time.perf_counter()
+    before = {p.name for p in ws.iterdir()}
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and ("is a FIFO" in err[0] or "is a device" in err[0]), err
+    assert {p.name for p in ws.iterdir()} == before
+    assert time.perf_counter() - t0 < 5
+
+
+# -- writing: the user's path in every error, nothing half-written -------------------------------
+def test_a_full_disk_names_the_users_file_not_the_hidden_one(ws, capsys, monkeypatch):
+    def full(src, dst):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", full)
+    line = refused(ws, capsys, ["corners", "map.json", "-o", "corners.json"], "corners.json: cannot write it")
+    assert "No space left on device" in line and "/." not in line and ".tmp" not in line
+
+
+def test_annotate_says_when_it_replaces_earlier_pictures(ws, capsys):
+    argv = ["locate", "frames", *LOC, "--annotate", "seen"]
+    assert cli.main(argv) == 0
+    assert "3 annotated pictures in seen/" in capsys.readouterr().out
+    (ws / "seen" / "mine.txt").write_text("keep me")
+    assert cli.main(argv) == 0
+    assert "replacing 3 earlier ones" in capsys.readouterr().out
+    assert (ws / "seen" / "mine.txt").read_text() == "keep me"  # only its own files
+
+
+def test_calibrate_writes_the_camera_last(ws, capsys, monkeypatch):
+    from fidlearn import cli as c
+
+    def broken(*a, **k):
+        raise fidlearn.FidlearnError("drawing failed")
+
+    monkeypatch.setattr(c, "_draw_calibration_view", broken)
+    before = snapshot(ws)
+    status = cli.main(["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json",
+                       "--annotate", "seen"])
+    errors = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("error:")]
+    assert status == 2 and errors == ["error: drawing failed"]
+    assert snapshot(ws) == before  # no camera file: annotation failed before it would have been written
+
+
+# -- signals, pipes and names the terminal cannot print --------------------------------------------
+def _locate_process(ws: Path, *extra: str, **kw) -> subprocess.Popen:
+    frames = ws / "drive"
+    if not frames.exists():
+        shutil.copytree(DATA / "trajectory", frames, ignore=shutil.ignore_patterns("*.json"))
+        shutil.copy(DATA / "trajectory" / "camera.json", ws / "drive_camera.json")
+    env = dict(os.environ, PYTHONPATH=str(Path(fidlearn.__file__).parent.parent))
+    return subprocess.Popen([sys.executable, "-m", "fidlearn", "locate", "drive", "--camera", "drive_camera.json",
+                             "--map", "map.json", *extra], cwd=ws, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
+def test_a_signal_keeps_every_finished_frame(ws, sig):
+    proc = _locate_process(ws, "--json", "poses.jsonl", "--annotate", "seen")
+    seen = 0
+    while seen < 6:  # the header and five frames printed
+        line = proc.stdout.readline()
+        assert line, proc.stderr.read()
+        seen += 1
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + sig
+    [line] = err.strip().splitlines()
+    records = [json.loads(r) for r in (ws / "poses.jsonl").read_text().splitlines()]
+    pictures = list((ws / "seen").iterdir())
+    assert line.startswith(f"error: interrupted by {signal.Signals(sig).name} after ")
+    assert f"poses.jsonl holds {len(records)} whole frame record" in line
+    assert f"{len(pictures)} annotated picture" in line
+    assert 5 <= len(records) < 40 and all(r["located"] for r in records)
+    assert records == [json.loads(r) for r in (ws / "poses.jsonl").read_text().splitlines()]
+    assert len(records) - 1 <= len(pictures) <= len(records)  # a frame's picture is saved after its record
+    assert not [p for p in ws.rglob(".*")], "a hidden temporary file was left behind"
+
+
+def test_a_closed_stdout_ends_quietly_with_the_files_complete(ws):
+    proc = _locate_process(ws, "--json", "poses.jsonl")
+    proc.stdout.readline()
+    proc.stdout.close()  # what `| head -1` does
+    err = proc.stderr.read()
+    proc.wait(timeout=120)
+    assert proc.returncode == 0, err
+    assert err == ""
+    assert len((ws / "poses.jsonl").read_text().splitlines()) == 40
+
+
+def test_names_the_terminal_cannot_encode_are_escaped(ws):
+    shutil.copy(ws / "frames" / "scene_00.png", ws / "frames" / "café_ü.png")
+    env = dict(os.environ, PYTHONIOENCODING="ascii", PYTHONPATH=str(Path(fidlearn.__file__).parent.parent))
+    out = subprocess.run([sys.executable, "-m", "fidlearn", "locate", "frames/café_ü.png", *LOC], cwd=ws, env=env,
+                         capture_output=True, text=True, encoding="utf-8", timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "caf\\xe9_\\xfc.png" in out.stdout
+    assert "Traceback" not in out.stderr
+
+
+def test_the_cli_and_library_agree_with_a_misplaced_marker(ws, capsys):
+    """A marker measured in the wrong place: a pose with the marker rejected, never a traceback."""
+    rng = np.random.default_rng(4)
+    bad = json.loads(json.dumps(SEED))
+    for trial in range(12):
+        bad["markers"]["1"]["translation"] = [float(v) for v in np.array(SEED["markers"]["1"]["translation"])
+                                              + rng.normal(0, 0.5, 3)]
+        (ws / "moved.json").write_text(json.dumps(bad))
+        status = cli.main(["locate", "frames", "--camera", "camera.json", "--map", "moved.json", "--json", "p.jsonl"])
+        err = capsys.readouterr().err
+        assert status == 0 and "Traceback" not in err, err
