@@ -107,7 +107,10 @@ def make_detector_parameters(**overrides):
     for key, value in overrides.items():
         if not hasattr(params, key):
             raise FidlearnError(f"OpenCV's DetectorParameters has no field {key!r}")
-        setattr(params, key, value)
+        try:
+            setattr(params, key, value)
+        except (TypeError, ValueError, OverflowError, cv2.error) as exc:
+            raise FidlearnError(f"detector parameter {key}={value!r}: {first_line(exc)}") from None
     return params
 
 
@@ -152,8 +155,16 @@ def corner_refine_flag(name: str) -> int:
 
 def detect(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
     """Run a detector; return corners as a list of (4, 2) float64, ids as (N,) int, and rejected quads."""
-    corners, ids, rejected = detector.detectMarkers(gray)
+    corners, ids, rejected = _detect_markers(detector, gray)
     return normalize_detections(corners, ids) + ([np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())],)
+
+
+def _detect_markers(detector, gray: np.ndarray):
+    try:
+        return detector.detectMarkers(gray)
+    except cv2.error as exc:  # OpenCV checks the detector parameters only now
+        raise FidlearnError(f"OpenCV refused the detector parameters ({first_line(exc)}); "
+                            "see cv2.aruco.DetectorParameters for each field's valid range") from None
 
 
 def normalize_detections(corners, ids) -> tuple[list[np.ndarray], np.ndarray]:
@@ -250,7 +261,7 @@ def detect_with_raw_rejected(detector, gray: np.ndarray) -> tuple[list[np.ndarra
     """Like :func:`detect`, but the rejected candidates stay as OpenCV returns them (converting
     hundreds of them costs time a caller that does not look at them need not pay); pass them to
     :func:`rejected_quads` when they are wanted."""
-    corners, ids, rejected = detector.detectMarkers(gray)
+    corners, ids, rejected = _detect_markers(detector, gray)
     return normalize_detections(corners, ids) + (rejected if rejected is not None else (),)
 
 

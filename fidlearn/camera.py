@@ -282,6 +282,8 @@ class Camera:
     def from_fov(cls, hfov_deg: float, image_size: tuple[int, int], dist=None, source: str = "") -> "Camera":
         """An ideal camera (square pixels, centred principal point) with a horizontal field of view."""
         w, h = _as_size(image_size, source or "camera")
+        if isinstance(hfov_deg, (bool, str, bytes)) or not isinstance(hfov_deg, (int, float, np.integer, np.floating)):
+            raise CameraError(f"hfov_deg must be a number of degrees between 0 and 180, got {hfov_deg!r}")
         if not 0 < hfov_deg < 180:
             raise CameraError(f"hfov_deg must be between 0 and 180 degrees, got {hfov_deg}")
         f = (w / 2) / math.tan(math.radians(hfov_deg) / 2)
@@ -306,10 +308,10 @@ class Camera:
         camera are projected too (their pixels are meaningless): use
         :meth:`points_in_front` to tell.
         """
-        pts = np.asarray(points_world, dtype=float)
+        pts = frames.as_float_array(points_world, "points_world", CameraError)
         single = pts.ndim == 1
         pts = np.atleast_2d(pts)
-        if pts.shape[-1] != 3:
+        if pts.ndim == 0 or pts.shape[-1] != 3 or pts.size == 0:
             raise CameraError(f"points_world has shape {np.shape(points_world)}, expected (N, 3) in mm")
         T_camera_world = frames.invert_transform(T_world_camera)
         rvec, tvec = frames.rvec_tvec_from_transform(T_camera_world)
@@ -324,8 +326,14 @@ class Camera:
 
     def undistort_points(self, points_px: np.ndarray) -> np.ndarray:
         """Remove lens distortion from pixel points (N, 2); returns ideal pinhole pixels (N, 2)."""
-        pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
-        out = cv2.undistortPoints(pts, self.K, self.dist, P=self.K)
+        pts = frames.as_float_array(points_px, "points_px", CameraError)
+        if pts.size == 0:
+            return np.zeros((0, 2))
+        if pts.ndim == 0 or pts.shape[-1] != 2:
+            raise CameraError(f"points_px has shape {pts.shape}, expected (N, 2) pixels")
+        if not np.all(np.isfinite(pts)):
+            raise CameraError("points_px contains NaN or infinity")
+        out = cv2.undistortPoints(pts.reshape(-1, 1, 2), self.K, self.dist, P=self.K)
         return out.reshape(-1, 2)
 
     # -- resolution ------------------------------------------------------------------

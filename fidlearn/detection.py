@@ -542,6 +542,12 @@ def draw_detections(
         The annotated copy.
     """
     out = _as_bgr(image)
+    if isinstance(detections, (str, bytes)) or not hasattr(detections, "__iter__"):
+        raise DetectionError(f"detections must be a list of Detection (from detect_markers), got {type(detections).__name__}")
+    detections = list(detections)
+    for det in detections:
+        if not isinstance(det, Detection):
+            raise DetectionError(f"detections must hold Detection objects (from detect_markers), got {type(det).__name__}")
     H, W = out.shape[:2]
     unit = max(H, W) / 640.0
     thick = max(1, int(round(1.5 * unit)))

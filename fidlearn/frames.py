@@ -49,24 +49,50 @@ __all__ = [
 
 def rot_x(angle_rad: float) -> np.ndarray:
     """Rotation matrix (3, 3) about the X axis by ``angle_rad`` (right hand rule)."""
+    angle_rad = _angle(angle_rad, "angle_rad")
     c, s = math.cos(angle_rad), math.sin(angle_rad)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def rot_y(angle_rad: float) -> np.ndarray:
     """Rotation matrix (3, 3) about the Y axis by ``angle_rad`` (right hand rule)."""
+    angle_rad = _angle(angle_rad, "angle_rad")
     c, s = math.cos(angle_rad), math.sin(angle_rad)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def rot_z(angle_rad: float) -> np.ndarray:
     """Rotation matrix (3, 3) about the Z axis by ``angle_rad`` (right hand rule)."""
+    angle_rad = _angle(angle_rad, "angle_rad")
     c, s = math.cos(angle_rad), math.sin(angle_rad)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def as_float_array(value, name: str, error: type = TransformError) -> np.ndarray:
+    """``value`` as a float array, or ``error`` naming ``name`` when it holds something that is no number."""
+    if isinstance(value, (str, bytes)):
+        raise error(f"{name} is text ({value!r}); give numbers")
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise error(f"{name} must hold numbers, got {type(value).__name__} {str(value)[:40]!r}") from None
+
+
+def _angle(value, name: str) -> float:
+    """A finite angle as a float, or TransformError naming it."""
+    if isinstance(value, (bool, str, bytes, np.bool_)):
+        raise TransformError(f"{name} must be a number, got {value!r}")
+    try:
+        out = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise TransformError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(out) or abs(out) > 1e9:
+        raise TransformError(f"{name} is {out:g}; an angle must be a finite number")
+    return out
+
+
 def _exact_trig_deg(angle_deg: float) -> float:
-    return math.radians(float(angle_deg))
+    return math.radians(_angle(angle_deg, "an angle in degrees (roll, pitch or yaw)"))
 
 
 def rotation_from_rpy_deg(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
@@ -108,7 +134,7 @@ def make_transform(R: np.ndarray | None = None, t: Iterable[float] | None = None
     if R is not None:
         T[:3, :3] = check_rotation(R)
     if t is not None:
-        t = np.asarray(t, dtype=float).reshape(-1)
+        t = as_float_array(t, "translation").reshape(-1)
         if t.shape != (3,):
             raise TransformError(f"translation has {t.size} values, expected 3 (x, y, z)")
         if not np.all(np.isfinite(t)):
@@ -145,7 +171,7 @@ def compose(*transforms: np.ndarray) -> np.ndarray:
 def transform_points(T_a_b: np.ndarray, points_b: np.ndarray) -> np.ndarray:
     """Map points (N, 3) from frame *b* to frame *a*."""
     T_a_b = check_transform(T_a_b)
-    points_b = np.asarray(points_b, dtype=float)
+    points_b = as_float_array(points_b, "points")
     single = points_b.ndim == 1
     pts = np.atleast_2d(points_b)
     if pts.shape[-1] != 3:
@@ -160,7 +186,7 @@ def transform_from_rvec_tvec(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
     ``solvePnP`` returns the rvec/tvec of ``T_camera_world`` (the extrinsic
     matrix), so ``transform_from_rvec_tvec(rvec, tvec)`` is ``T_camera_world``.
     """
-    rvec = np.asarray(rvec, dtype=float).reshape(-1)
+    rvec = as_float_array(rvec, "rvec").reshape(-1)
     if rvec.shape != (3,):
         raise TransformError(f"rvec has {rvec.size} values, expected 3 (a Rodrigues vector)")
     if not np.all(np.isfinite(rvec)):
@@ -185,7 +211,7 @@ def rvec_tvec_from_transform(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def check_rotation(R: np.ndarray, name: str = "R", tol: float = 1e-6) -> np.ndarray:
     """Return ``R`` as a float (3, 3) array, or raise :class:`TransformError` saying what is wrong."""
-    R = np.asarray(R, dtype=float)
+    R = as_float_array(R, name)
     if R.shape != (3, 3):
         raise TransformError(f"{name} has shape {R.shape}, expected a (3, 3) rotation matrix")
     if not np.all(np.isfinite(R)):
@@ -207,7 +233,7 @@ def check_rotation(R: np.ndarray, name: str = "R", tol: float = 1e-6) -> np.ndar
 
 def check_transform(T: np.ndarray, name: str = "T", tol: float = 1e-6) -> np.ndarray:
     """Return ``T`` as a float (4, 4) array, or raise :class:`TransformError` saying what is wrong."""
-    T = np.asarray(T, dtype=float)
+    T = as_float_array(T, name)
     if T.shape != (4, 4):
         raise TransformError(f"{name} has shape {T.shape}, expected a (4, 4) homogeneous transform")
     if not np.all(np.isfinite(T)):
@@ -222,8 +248,12 @@ def check_transform(T: np.ndarray, name: str = "T", tol: float = 1e-6) -> np.nda
 
 def rotation_angle_deg(R_a: np.ndarray, R_b: np.ndarray | None = None) -> float:
     """Angle in degrees of the rotation ``R_a`` (or of ``R_a^T R_b``, the angle between two)."""
-    R = np.asarray(R_a, dtype=float)[:3, :3]
+    def rotation(value, name: str) -> np.ndarray:
+        M = as_float_array(value, name)
+        return check_rotation(M[:3, :3] if M.shape == (4, 4) else M, name)
+
+    R = rotation(R_a, "R_a")
     if R_b is not None:
-        R = R.T @ np.asarray(R_b, dtype=float)[:3, :3]
+        R = R.T @ rotation(R_b, "R_b")
     c = (np.trace(R) - 1.0) / 2.0
     return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))

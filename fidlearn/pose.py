@@ -951,7 +951,10 @@ def _outlier_threshold(nu: float, sigma_known: bool) -> float:
 
 def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
     """Cheap test: could one marker be an outlier? (per-marker residuals against a robust noise level)."""
-    per = np.sum(best.r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
+    r = best.r
+    if r is None:  # a solver's pose not refined (its residuals were left for later): compute them now
+        r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, False)
+    per = np.sum(r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
     # A misplaced marker drags the pose and spreads its error over the others, at worst
     # evenly: be generous here (this only decides whether the leave-one-out test runs), and
     # look also at the overall fit, against the noise when it is given.

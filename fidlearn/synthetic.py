@@ -73,6 +73,27 @@ _STRIP_SUBPIXELS = 1 << 20  # process the fine grid in strips of about a million
 # Camera rays: the normalized (undistorted) coordinates of every pixel.
 # ----------------------------------------------------------------------------------------------
 
+#: Most samples (pixels times supersample squared) one picture is rendered from.
+MAX_RENDER_SAMPLES = 1_000_000_000
+#: Most frames a trajectory may have.
+MAX_FRAMES = 100_000
+
+
+def _check_scene(camera, marker_map, with_camera: bool = True) -> None:
+    if with_camera and not isinstance(camera, Camera):
+        raise FidlearnError(f"camera must be a fidlearn.Camera (Camera.load reads a file), got {type(camera).__name__}")
+    if not isinstance(marker_map, MarkerMap):
+        raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap (MarkerMap.load reads a file), got "
+                            f"{type(marker_map).__name__}")
+
+
+def _check_seed(seed) -> int:
+    """A seed for ``numpy.random.default_rng``: a whole number from 0 to 2**63 - 1."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**63:
+        raise FidlearnError(f"seed must be a whole number from 0 to 2**63 - 1, got {seed!r}")
+    return int(seed)
+
+
 def _distort_normalized(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """OpenCV's distortion model on normalized points (N, 2): ideal -> distorted normalized."""
     d = np.zeros(14)
@@ -277,14 +298,19 @@ def _render(
     wall_texture: float,
     bgr: bool,
 ) -> np.ndarray:
+    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
+        raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     k = int(supersample)
-    if k < 1 or k != supersample:
-        raise FidlearnError(f"supersample must be a whole number >= 1, got {supersample!r}")
+    if camera.width * camera.height * k * k > MAX_RENDER_SAMPLES:
+        raise FidlearnError(f"a {camera.width}x{camera.height} picture at supersample {k} is more than "
+                            f"{MAX_RENDER_SAMPLES / 1e9:g} billion samples; use a smaller picture or supersample")
     for name, value in (("blur_px", blur_px), ("noise_std", noise_std), ("wall_texture", wall_texture)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
         if not (math.isfinite(value) and value >= 0):
             raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
     width, height = camera.image_size
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_check_seed(seed))
     T_camera_world = frames.invert_transform(T_world_camera)
     nmap = _normalized_map(camera)
 
@@ -388,8 +414,12 @@ def look_at(eye_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[fl
     >>> T[:3, 2].round(3).tolist()                 # the camera looks along -X
     [-1.0, 0.0, 0.0]
     """
-    eye = np.asarray(eye_mm, dtype=float).reshape(3)
-    z = np.asarray(target_mm, dtype=float).reshape(3) - eye
+    eye, target = (frames.as_float_array(v, name, FidlearnError).reshape(-1) for v, name in
+                   ((eye_mm, "look_at: eye_mm"), (target_mm, "look_at: target_mm")))
+    if eye.shape != (3,) or target.shape != (3,) or not np.all(np.isfinite(eye)) or not np.all(np.isfinite(target)):
+        raise FidlearnError(f"look_at: eye_mm and target_mm must be 3 finite numbers (x, y, z in mm), got "
+                            f"{np.shape(eye_mm)} and {np.shape(target_mm)}")
+    z = target - eye
     if np.linalg.norm(z) < 1e-9:
         raise FidlearnError(f"look_at: the eye {eye.tolist()} and the target are the same point; move one of them")
     z /= np.linalg.norm(z)
@@ -508,6 +538,9 @@ def render_scene(
     >>> np.allclose(truth[0], cam.project(wall.marker_corners(0), look_at([1200, 200, 250], [0, 200, 250])))
     True
     """
+    _check_scene(camera, marker_map)
+    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
+        raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
     grays = {"wall": float(wall_gray), "paper": float(paper_gray), "ink": float(ink_gray)}
     if margin_cells < 0:
@@ -733,7 +766,7 @@ def render_calibration_views(
     if n_views < 1:
         raise FidlearnError(f"n_views must be at least 1, got {n_views}")
 
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_check_seed(seed))
     w, h = camera.image_size
     grid = [(gx, gy) for gy in (0.22, 0.5, 0.78) for gx in (0.2, 0.5, 0.8)]
     # the outline that must stay in view: the pattern's corners plus a little of the outer squares
@@ -866,9 +899,16 @@ def trajectory_poses(
     >>> len(poses), poses[0].shape
     (5, (4, 4))
     """
-    if n_frames < 1:
-        raise FidlearnError(f"n_frames must be at least 1, got {n_frames}")
-    rng = np.random.default_rng(seed)
+    _check_scene(None, marker_map, with_camera=False)
+    if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or not 1 <= n_frames <= MAX_FRAMES:
+        raise FidlearnError(f"n_frames must be a whole number from 1 to {MAX_FRAMES}, got {n_frames!r}")
+    for name, value in (("start_distance_mm", start_distance_mm), ("end_distance_mm", end_distance_mm),
+                        ("start_lateral_mm", start_lateral_mm), ("end_lateral_mm", end_lateral_mm),
+                        ("height_mm", 0.0 if height_mm is None else height_mm), ("wobble_deg", wobble_deg)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not math.isfinite(value) or abs(value) > 1e7:
+            raise FidlearnError(f"{name} must be a finite number (mm, or degrees for wobble_deg), got {value!r}")
+    rng = np.random.default_rng(_check_seed(seed))
     centres = np.array([marker_map.marker_corners(i).mean(axis=0) for i in marker_map.ids])
     normals = np.array([marker_map.normal(i) for i in marker_map.ids])
     centre = centres.mean(axis=0)

@@ -843,7 +843,7 @@ COMMANDS = [
     ("markers: 20-digit id", ["markers", "--ids", "9" * 20, "--size-mm", "50", "-o", "m.pdf"], "ids 0 to 1023"),
     ("markers: infinite size", ["markers", "--ids", "0", "--size-mm", "inf", "-o", "m.pdf"], "must be a positive length in mm"),
     ("markers: larger than the paper", ["markers", "--ids", "0", "--size-mm", "1e9", "-o", "m.pdf"], "does not fit on a4 paper"),
-    ("markers: zero dpi", ["markers", "--ids", "0", "--size-mm", "50", "--dpi", "0", "-o", "m.png"], "--dpi 0 is out of range"),
+    ("markers: zero dpi", ["markers", "--ids", "0", "--size-mm", "50", "--dpi", "0", "-o", "m.png"], "--dpi 0: give 50 to 1200 dots per inch"),
     ("board: marker larger than its square", ["board", "--squares", "5x7", "--charuco", "--square-mm", "20", "--marker-mm", "30", "-o", "b.pdf"], "must be smaller than --square-mm 20"),
     ("board: NaN square", ["board", "--pattern", "9x6", "--square-mm", "nan", "-o", "b.pdf"], "must be a positive length in mm, got nan"),
     ("render: negative noise", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--noise", "-1", "-o", "r.png"], "--noise must be 0 to 255 gray levels"),

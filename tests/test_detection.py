@@ -278,7 +278,7 @@ def test_unknown_refinement_and_parameter_are_clear_errors(photo):
         detect_markers(photo, "6X6_250", refine="subpixel")
     with pytest.raises(FidlearnError, match="DetectorParameters has no field 'winSize'"):
         detect_markers(photo, "6X6_250", params={"winSize": 3})
-    with pytest.raises(FidlearnError, match=r"detector parameters \{'markerBorderBits': 1.5\}: .*integer"):
+    with pytest.raises(FidlearnError, match=r"detector parameter markerBorderBits=1.5: .*integer"):
         detect_markers(photo, "6X6_250", params={"markerBorderBits": 1.5})
     with pytest.raises(FidlearnError, match="values must be numbers or booleans"):
         detect_markers(photo, "6X6_250", params={"minMarkerPerimeterRate": [0.1]})

@@ -226,7 +226,7 @@ def test_blur_gradient_and_bgr(wall):
 def test_bad_options_say_what_to_do(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([800, 190, 240], [0, 190, 240])
-    with pytest.raises(FidlearnError, match="supersample must be a whole number >= 1"):
+    with pytest.raises(FidlearnError, match="supersample must be a whole number from 1 to 16"):
         render_scene(camera, wall, T, supersample=0)
     with pytest.raises(FidlearnError, match="noise_std must be a finite number >= 0"):
         render_scene(camera, wall, T, noise_std=-1)
