@@ -48,11 +48,14 @@ from __future__ import annotations
 
 import copy
 import functools
+import contextvars
 import hashlib
+import json
 import math
 import os
 import re
 import textwrap
+from pathlib import Path
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
@@ -85,6 +88,9 @@ __all__ = [
 CORRECT = "Correct"
 INCORRECT = "Incorrect"
 NOT_ATTEMPTED = "Not attempted"
+#: Graded mode (fidlearn.grading): an answer of the right form, kept for the instructor's grader.
+RECORDED = "Recorded"
+_NO_KEY = object()  # a graded question's answer key: never in the learner's kernel
 
 #: The imports every exercise notebook starts with; solution code may use these names.
 SETUP_CODE = (
@@ -300,6 +306,8 @@ class Question:
             value = self._parse(answer)
         except _AnswerError as exc:
             return Result(self.name, INCORRECT, str(exc))
+        if self._expected is _NO_KEY:
+            return Result(self.name, RECORDED, "the answer has the right form; your instructor's grader judges it")
         diff = self._compare(value, self._expected)
         if diff is None:
             msg = "well done"
@@ -330,7 +338,7 @@ class Question:
                 raise
             result = Result(self.name, INCORRECT, f"your answer could not be checked ({type(exc).__name__}: {exc}); check its type and shape")
         print(result.line)
-        if mode == "correct" and result.status != CORRECT:
+        if mode == "correct" and result.status not in (CORRECT, RECORDED):
             raise AssertionError(result.line)
         if mode == "blank" and result.status != NOT_ATTEMPTED:
             raise AssertionError(f"expected a blank answer, got: {result.line}")
@@ -341,6 +349,9 @@ class Question:
 
     def solution(self) -> None:
         """Print one way to solve it: code that, run in the notebook, makes ``check()`` say Correct."""
+        if self._expected is _NO_KEY:
+            print(f"Solution ({self.name}): not while the lesson is graded; q.hint() still helps")
+            return
         print(f"Solution ({self.name}), one way to do it:\n")
         print(self.solution_code)
 
@@ -512,8 +523,19 @@ def _winding_message(order: tuple[str, ...], what: str = "detection reports") ->
 # ----------------------------------------------------------------------------------
 # seeded data
 # ----------------------------------------------------------------------------------
+#: The seed of graded variants while :func:`build_questions` builds them (see fidlearn.grading).
+_SEED: contextvars.ContextVar = contextvars.ContextVar("fidlearn_exercise_seed", default=None)
+
+
 def _rng(lesson_id: str, learner: str, question: str) -> np.random.Generator:
-    """A generator seeded from SHA-256 of the lesson, the learner's id and the question."""
+    """A generator seeded from SHA-256 of the lesson, the learner's id and the question.
+
+    While :func:`build_questions` runs with a ``seed`` function (graded mode), that function
+    seeds it instead: HMAC of the class secret, which nobody without the secret can repeat.
+    """
+    seed_fn = _SEED.get()
+    if seed_fn is not None:
+        return np.random.default_rng(seed_fn(question))
     digest = hashlib.sha256(f"fidlearn-exercises/{lesson_id}/{learner}/{question}".encode("utf-8")).digest()
     return np.random.default_rng(int.from_bytes(digest[:8], "little"))
 
@@ -1381,12 +1403,56 @@ def lesson(number: "str | int", learner: str | None = None) -> Lesson:
         own numbers. ``None`` or ``""`` takes ``$FIDLEARN_LEARNER``, else the
         variant the whole class shares.
     """
-    key = f"{int(number):02d}" if str(number).strip().isdigit() else str(number)
-    if key not in _LESSONS:
-        raise KeyError(f"no exercises for lesson {number!r}; available: {', '.join(sorted(_LESSONS))}")
+    key = lesson_number(number)
+    graded = Path(INPUTS_FILE)
+    if graded.is_file():
+        return _graded_lesson(key, graded)
     if not learner:
         learner = os.environ.get("FIDLEARN_LEARNER", "")
     return Lesson(_LESSONS[key], str(learner).strip())
+
+
+#: The file a graded lesson's inputs come in (written by ``fidlearn release``).
+INPUTS_FILE = "fidlearn_inputs.json"
+
+
+def lesson_number(number: "str | int") -> str:
+    """``3``, ``"3"`` or ``"03"`` -> ``"03"``; a KeyError naming the lessons for anything else."""
+    key = f"{int(number):02d}" if str(number).strip().isdigit() and len(str(number).strip()) < 4 else str(number)
+    if key not in _LESSONS:
+        raise KeyError(f"no exercises for lesson {number!r}; available: {', '.join(sorted(_LESSONS))}")
+    return key
+
+
+def build_questions(number: str, learner: str, seed: Callable[[str], int] | None = None) -> list:
+    """The questions of a lesson built afresh, seeded by ``seed(question_name)`` when given (graded mode)."""
+    token = _SEED.set(seed)
+    try:
+        return list(_LESSONS[lesson_number(number)].build(learner))
+    finally:
+        _SEED.reset(token)
+
+
+def _graded_lesson(key: str, path: Path) -> "Lesson":
+    """A lesson whose inputs come from the grader's file and whose answers stay with the grader."""
+    from .grading import from_plain
+
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+        questions = {name: {k: from_plain(v) for k, v in inputs.items()} for name, inputs in record["questions"].items()}
+        lesson_of_file, learner = str(record["lesson"]), str(record["learner"])
+    except Exception as exc:  # noqa: BLE001 - a damaged inputs file: say so in one line
+        raise KeyError(f"{path} is damaged ({type(exc).__name__}); ask your instructor for your lesson's files again") from None
+    if lesson_of_file != key:
+        raise KeyError(f"this folder holds the inputs of lesson {lesson_of_file}, not {key}: "
+                       f"use exercises.lesson({lesson_of_file!r})")
+    shell = Lesson(_LESSONS[key], "graded")
+    shell.learner = learner
+    for q in shell.questions:
+        q.inputs = Inputs(**questions.get(q.name, {}))
+        q.data = q.inputs
+        q._expected = _NO_KEY
+    return shell
 
 
 def notebook_name(number: str) -> str:

@@ -15,17 +15,16 @@ import secrets
 import shutil
 import signal
 import socket
-import stat
 import subprocess
 import sys
 import tempfile
 import time
 import urllib.error
 import urllib.request
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from helpers import python_paths, traversable_by_others
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV = Path(sys.prefix)
@@ -40,23 +39,6 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-@contextmanager
-def traversable_by_others(*paths: Path):
-    """Give 'others' the x bit on every folder above ``paths`` for the test, as a shared checkout has it."""
-    changed = []
-    for path in paths:
-        for folder in [path, *path.parents]:
-            mode = folder.stat().st_mode
-            if not mode & stat.S_IXOTH:
-                changed.append((folder, mode))
-                folder.chmod(mode | stat.S_IXOTH | stat.S_IROTH)
-    try:
-        yield
-    finally:
-        for folder, mode in changed:
-            folder.chmod(stat.S_IMODE(mode))
 
 
 def run_lab(prefix: list[str], home: Path) -> tuple[int, str]:
@@ -112,9 +94,7 @@ def test_make_lab_serves_the_first_notebook_for_an_unprivileged_user():
     home = Path(tempfile.mkdtemp(prefix="fidlearn-lab-home-"))
     try:
         os.chown(home, user.pw_uid, user.pw_gid)
-        # the checkout, the venv and the Python it was made from (pyenv's may live under /root)
-        base = Path(os.path.realpath(sys.executable)).parent
-        with traversable_by_others(ROOT, VENV, home, base, Path(sys.base_prefix)):
+        with traversable_by_others(*python_paths(), home):
             status, log = run_lab(["runuser", "-u", USER, "--"], home)
         assert status == 200, log
         assert "--allow-root" not in log
