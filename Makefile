@@ -39,7 +39,8 @@ bench: $(STAMP)
 data: $(STAMP)
 	$(BIN)/python tools/make_data.py
 
-# The unit tests (not the notebooks) once more against the newest OpenCV 4.x, in a venv of its own
+# The unit tests and the notebooks (nbval-lax: their own asserts, not the last printed digit)
+# once more against the newest OpenCV 4.x, in a venv of its own
 # (.venv-cv4) so that the two OpenCV releases never meet: no shared pytest cache, hypothesis database or bytecode.
 CV4_VENV  ?= .venv-cv4
 CV4_STAMP := $(CV4_VENV)/.fidlearn-installed
@@ -53,7 +54,7 @@ $(CV4_STAMP): pyproject.toml
 test-cv4: $(CV4_STAMP)
 	@$(CV4_VENV)/bin/python -c 'import cv2; assert cv2.__version__.startswith("4."), cv2.__version__; print("OpenCV", cv2.__version__)'
 	HYPOTHESIS_STORAGE_DIRECTORY=$(CV4_VENV)/.hypothesis PYTHONPYCACHEPREFIX=$(CV4_VENV)/pycache \
-		$(CV4_VENV)/bin/python -m pytest tests --ignore=tests/browser -p no:cacheprovider
+		$(CV4_VENV)/bin/python -m pytest tests $(NOTEBOOKS) --nbval-lax --ignore=tests/browser -p no:cacheprovider
 
 # The whole suite on the oldest versions pyproject.toml allows (every direct dependency pinned to
 # its lower bound by tools/floor_constraints.py) and the oldest Python, in .venv-floor. The

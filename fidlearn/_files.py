@@ -153,8 +153,9 @@ def check_image_bytes(path: Path, data: bytes, error: type[FidlearnError], max_p
     if w == 0 or h == 0 or w < -1 or h < -1:
         raise error(f"{path}: the {fmt} header says {w}x{h} pixels; the file is damaged")
     if w > 0 and h > 0 and w * h > max_pixels:
-        raise error(f"{path}: the {fmt} header says {w}x{h} pixels ({w * h / 1e6:.0f} megapixels), more than the "
-                    f"limit of {max_pixels / 1e6:.0f} megapixels; pass max_pixels= (or --max-megapixels) to read it")
+        raise error(f"{path}: the {fmt} header says {w}x{h} pixels ({w * h / 1e6:.3g} megapixels), more than the "
+                    f"limit of {max_pixels / 1e6:.3g} megapixels; to read it, raise the limit: load_image(max_pixels=...) "
+                    "or 'fidlearn locate --max-megapixels'")
     if fmt == "PNG" and b"IEND" not in data[-16:]:
         raise error(f"{path}: the PNG file is cut short (it has no end chunk); copy it again")
     if fmt == "JPEG" and not data.rstrip(b"\0\r\n ").endswith(b"\xff\xd9"):

@@ -591,7 +591,7 @@ def _read_capture(cap, prefix: str):
         k += 1
 
 
-def _frames(items: list[tuple[str, Path]], camera_index: int | None):
+def _frames(items: list[tuple[str, Path]], camera_index: int | None, max_pixels: int = 100_000_000):
     """Yield ``(name, image)`` for every image, every video frame and every camera frame.
 
     Every video (and the camera) is opened once before the first frame, so a
@@ -607,7 +607,7 @@ def _frames(items: list[tuple[str, Path]], camera_index: int | None):
         _open_capture(int(camera_index), "").release()
     for kind, path in items:
         if kind == "image":
-            yield path.name, load_image(path)
+            yield path.name, load_image(path, max_pixels=max_pixels)
             continue
         cap = _open_capture(str(path), str(path))
         try:
@@ -960,6 +960,8 @@ def _add_locate(sub) -> None:
     p.add_argument("--annotate", type=Path, metavar="DIR", help="save each frame with the markers and the world axes drawn")
     p.add_argument("--refine", choices=["edges", "subpix", "contour", "apriltag", "none"],
                    help="corner refinement (default edges)")
+    p.add_argument("--max-megapixels", type=float, default=100.0, metavar="MP",
+                   help="largest picture read, in megapixels (default 100): a larger one is refused from its header")
     p.set_defaults(run=_run_locate)
 
 
@@ -1046,6 +1048,8 @@ def _run_locate(args) -> int:
         # cv2.VideoCapture(-1) crashes the interpreter (segmentation fault) on OpenCV 4.x and 5.x
         # when no camera is attached, and 2**31 overflows OpenCV's int: refuse both before OpenCV sees them.
         raise UsageError(f"--camera-index {args.camera_index}: cameras are numbered 0 (the first camera) to 255")
+    if not 0.01 <= args.max_megapixels <= 2000:
+        raise UsageError(f"--max-megapixels {args.max_megapixels:g}: give 0.01 to 2000")
     items = _expand_inputs(args.inputs, videos=True)
     json_path = _check_output(args.json, (".jsonl", ".json"), "--json") if args.json else None
     _refuse_clobber([("--json", json_path)], [p for _, p in items] + [args.camera, args.map], args.annotate)
@@ -1064,7 +1068,7 @@ def _run_locate(args) -> int:
     def process(sink) -> None:
         with staging:
             try:
-                for name, image in _frames(items, args.camera_index):
+                for name, image in _frames(items, args.camera_index, int(args.max_megapixels * 1_000_000)):
                     size = (image.shape[1], image.shape[0])
                     if size not in cameras:  # rescale (and warn) once per resolution
                         try:

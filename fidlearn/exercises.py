@@ -2573,34 +2573,9 @@ _register("09", "robot", "Localizing a robot", """
 # ==================================================================================
 # grading a learner's notebook
 # ==================================================================================
-_GRADE_TAG = "FIDLEARN-GRADE "
-_GRADE_CELL = (
-    "import json as _fidlearn_json\n"
-    "from fidlearn import exercises as _fidlearn_exercises\n"
-    f"print({_GRADE_TAG!r} + _fidlearn_json.dumps(_fidlearn_exercises._session_grades(globals())))"
-)
-
-
-def _session_grades(namespace: dict) -> dict:
-    """The results of the lesson a notebook session worked on (used by :func:`grade_notebook`)."""
-    lesson_obj = namespace.get("ex")
-    if not isinstance(lesson_obj, Lesson):
-        lesson_obj = next((v for v in namespace.values() if isinstance(v, Lesson)), None)
-    if lesson_obj is None:
-        return {"lesson": None, "learner": None, "results": []}
-    results = []
-    for q in lesson_obj:
-        try:
-            r = q.grade()
-        except Exception as exc:  # a learner's answer that breaks the grader still counts as wrong
-            r = Result(q.name, INCORRECT, f"the answer could not be checked ({type(exc).__name__}: {exc})")
-        results.append([r.question, r.status, r.message])
-    return {"lesson": lesson_obj.number, "learner": lesson_obj.learner, "results": results}
-
-
 @dataclass
 class Grade:
-    """The outcome of grading one notebook: the lesson, the learner id it used, a Result per question."""
+    """The outcome of checking one notebook: the lesson, the learner id it used, a Result per question."""
 
     path: str
     lesson: str | None
@@ -2618,27 +2593,29 @@ class Grade:
         return "\n".join(lines)
 
 
-def grade_notebook(path: "str | os.PathLike", learner: str | None = None, timeout: int = 300) -> Grade:
-    """Run a learner's exercise notebook in a fresh kernel and grade every question.
+_LESSON_CALL = re.compile(r"exercises\.lesson\(\s*[\"']?(\d{1,2})[\"']?")
 
-    The notebook runs top to bottom with strict mode off (a broken cell is
-    recorded and the rest still runs); then the answers held by its ``ex``
-    lesson are checked by the library, not read from what the notebook printed.
+
+def grade_notebook(path: "str | os.PathLike", learner: str | None = None, timeout: int = 300) -> Grade:
+    """Check a learner's self-study notebook: run it in a sandbox, judge its answers outside it.
+
+    The notebook runs in a process of its own (see :mod:`fidlearn.grading`); its answers are
+    collected as plain data and judged here against the self-study variant of ``learner``.
+    This is a practice check: a self-study kernel holds its own answer key. For marks, release
+    the lesson with a class secret and grade with ``fidlearn grade``.
 
     Parameters
     ----------
     path : path
         The notebook (``.ipynb``).
     learner : str, optional
-        The id the learner was told to use. A notebook whose ``LEARNER`` is
-        empty runs with it (through ``FIDLEARN_LEARNER``); a notebook that used
-        another id is reported in :attr:`Grade.errors`.
+        The id the learner was told to use (a notebook whose ``LEARNER`` is empty runs with it).
     timeout : int
-        Seconds a single cell may run.
+        Seconds the notebook may run.
     """
     import nbformat
-    from nbclient import NotebookClient
 
+    from . import grading
     from .errors import FidlearnError
 
     path = os.fspath(path)
@@ -2649,41 +2626,14 @@ def grade_notebook(path: "str | os.PathLike", learner: str | None = None, timeou
         nb = nbformat.read(path, as_version=4)
     except Exception as exc:  # nbformat raises NotJSONError, UnicodeDecodeError, KeyError, validation errors...
         raise FidlearnError(f"{path}: not a Jupyter notebook ({type(exc).__name__}); give the learner's .ipynb file") from None
-    nb.cells.append(nbformat.v4.new_code_cell(_GRADE_CELL))
-    saved = {k: os.environ.get(k) for k in ("FIDLEARN_LEARNER", "FIDLEARN_STRICT")}
-    os.environ.pop("FIDLEARN_STRICT", None)
-    if learner:
-        os.environ["FIDLEARN_LEARNER"] = learner
-    else:
-        os.environ.pop("FIDLEARN_LEARNER", None)
-    try:
-        NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=True,
-                       resources={"metadata": {"path": os.path.dirname(os.path.abspath(path))}}).execute()
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    errors = []
-    for i, cell in enumerate(nb.cells[:-1]):
-        for out in cell.get("outputs", []):
-            if out.get("output_type") == "error":
-                errors.append(f"cell {i} raised {out.get('ename')}: {out.get('evalue')}")
-    import json
-
-    data = None
-    for out in nb.cells[-1].get("outputs", []):
-        for line in str(out.get("text", "")).splitlines():
-            if line.startswith(_GRADE_TAG):
-                data = json.loads(line[len(_GRADE_TAG):])
-    if data is None or data["lesson"] is None:
-        errors.append("no exercises found: the notebook never ran ex = exercises.lesson(...)")
-        return Grade(path, None, None, [], errors)
-    if learner and data["learner"] != learner:
-        errors.append(f"the notebook used learner id {data['learner']!r}, not {learner!r}: its numbers are someone else's")
-    results = [Result(*r) for r in data["results"]]
-    return Grade(path, data["lesson"], data["learner"], results, errors)
+    found = {m.group(1) for c in nb.cells if c.cell_type == "code" for m in _LESSON_CALL.finditer(c.source)}
+    if len(found) != 1:
+        return Grade(path, None, learner, [], ["no exercises found: the notebook never ran ex = exercises.lesson(...)"])
+    number = lesson_number(found.pop())
+    g = grading.grade_one(path, number, learner or "", None, timeout_s=timeout, run_as="")
+    results = [Result(q, status, message) for q, status, message in g.results]
+    errors = list(g.cell_errors) + ([g.problem] if g.problem else [])
+    return Grade(path, number, learner or "", results, errors)
 
 
 def _main(argv: Sequence[str] | None = None) -> int:
@@ -2695,9 +2645,10 @@ def _main(argv: Sequence[str] | None = None) -> int:
 
     from ._io import write_text_atomic
 
-    parser = argparse.ArgumentParser(prog="python -m fidlearn.exercises", description="Grade learners' exercise notebooks.")
+    parser = argparse.ArgumentParser(prog="python -m fidlearn.exercises",
+                                     description="Check learners' self-study notebooks (for marks: fidlearn grade).")
     sub = parser.add_subparsers(dest="command", required=True)
-    g = sub.add_parser("grade", help="run notebooks in fresh kernels and grade every question")
+    g = sub.add_parser("grade", help="run notebooks in sandboxes and check every question (self-study variants)")
     g.add_argument("notebooks", nargs="+")
     g.add_argument("--learner", help="the id the learner was told to use (one notebook, or all of one learner)")
     g.add_argument("--csv", help="also write one row per question to this CSV file")

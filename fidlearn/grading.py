@@ -289,6 +289,7 @@ class NotebookGrade:
     lesson: str
     results: list = field(default_factory=list)
     problem: str = ""
+    cell_errors: list = field(default_factory=list)
 
     @property
     def score(self) -> int:
@@ -301,8 +302,9 @@ class NotebookGrade:
 
 
 def _run_as(user: str | None):
-    """(uid, gid) to run kernels as: the named user, or 'nobody' when the grader is root; None otherwise."""
-    if os.geteuid() != 0 and user is None:
+    """(uid, gid) to run kernels as: the named user, or 'nobody' when the grader is root; None otherwise
+    (and for ``""``: the grader's own user, as a self-study check does)."""
+    if user == "" or (os.geteuid() != 0 and user is None):
         return None
     import pwd
 
@@ -341,6 +343,7 @@ client = NotebookClient(nb, timeout=int(sys.argv[2]), kernel_name="python3", all
                         resources={"metadata": {"path": "."}})
 try:
     client.execute()
+    nbformat.write(nb, "executed.ipynb")
 except Exception as exc:
     kind = type(exc).__name__
     print("FIDLEARN-RUNNER " + ("timeout" if "Timeout" in kind else "dead" if "Dead" in kind else kind), file=sys.stderr)
@@ -368,16 +371,22 @@ def _read_answers(path: Path) -> dict:
     return {str(k): v for k, v in record["answers"].items()}
 
 
-def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: bytes, *, timeout_s: int = 120,
+def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: bytes | None, *, timeout_s: int = 120,
               memory_mb: int = 3000, run_as: str | None = None) -> NotebookGrade:
-    """Run one submitted notebook in its own process and grade its answers in this one."""
+    """Run one submitted notebook in its own process and grade its answers in this one.
+
+    With ``secret`` None the notebook is checked against the self-study variant of ``learner``
+    (whose answers the learner's own kernel also holds): a practice check, not a grade.
+    """
     from . import exercises
 
     number = exercises.lesson_number(lesson)
-    learner = normalize_learner(learner)
+    learner = normalize_learner(learner) if secret is not None else str(learner or "").strip()
     notebook = Path(notebook)
     grade = NotebookGrade(str(notebook), learner, number)
-    questions = graded_questions(number, learner, secret)  # the key: built here, never written anywhere
+    # the key: built here, never written anywhere
+    questions = graded_questions(number, learner, secret) if secret is not None else \
+        exercises.build_questions(number, learner)
     grade.results = [(q.name, "Not attempted", "no answer") for q in questions]
     ids = _run_as(run_as)
     scratch = Path(tempfile.mkdtemp(prefix="fidlearn-grade-"))
@@ -390,14 +399,18 @@ def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: by
         except OSError as exc:
             grade.problem = f"0: the notebook cannot be read ({exc.strerror})"
             return grade
-        (work / INPUTS_FILE).write_text(json.dumps(inputs_record(number, learner, secret)), encoding="utf-8")
+        if secret is not None:
+            (work / INPUTS_FILE).write_text(json.dumps(inputs_record(number, learner, secret)), encoding="utf-8")
         if ids is not None:
             for p in (scratch, work, home, *work.iterdir()):
                 os.chown(p, *ids)
         cmd = [sys.executable, "-c", _RUNNER, "submission.ipynb", str(max(5, timeout_s)), COLLECT_CELL]
+        env = _clean_env(home)
+        if secret is None and learner:
+            env["FIDLEARN_LEARNER"] = learner  # a self-study notebook whose LEARNER is empty uses it
         t0 = time.monotonic()
         try:
-            proc = subprocess.Popen(cmd, cwd=work, env=_clean_env(home), stdout=subprocess.DEVNULL,
+            proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.DEVNULL,
                                     stderr=subprocess.PIPE, preexec_fn=_limits(memory_mb, ids))
             try:
                 _, err = proc.communicate(timeout=timeout_s + 60)
@@ -424,6 +437,7 @@ def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: by
             grade.problem = f"0: its answers are not plain data ({str(exc)[:80]})"
             return grade
         grade.results = [_judge(q, answers.get(q.name)) for q in questions]
+        grade.cell_errors = _cell_errors(work / "executed.ipynb")
         elapsed = time.monotonic() - t0
         if elapsed > timeout_s + 30:
             grade.problem = f"it took {elapsed:.0f} s"
@@ -450,6 +464,22 @@ def _preflight(ids, run_as: str | None) -> None:
         raise GradingError(f"the user {who} cannot run {sys.executable} with fidlearn ({last[:120]}); install "
                            "Python and fidlearn where that user can read them (see docs/teaching.md), or pass "
                            "--run-as a user who can")
+
+
+def _cell_errors(path: Path) -> list[str]:
+    """``cell N raised NAME: VALUE`` for each failing cell of the executed notebook (information only)."""
+    try:
+        if not path.is_file() or path.is_symlink() or path.stat().st_size > 50_000_000:
+            return []
+        nb = json.loads(path.read_text(encoding="utf-8"))
+        out = []
+        for i, cell in enumerate(nb.get("cells", [])[:-1]):
+            for o in cell.get("outputs", []) or []:
+                if isinstance(o, dict) and o.get("output_type") == "error":
+                    out.append(f"cell {i} raised {str(o.get('ename'))[:60]}: {str(o.get('evalue'))[:120]}")
+        return out[:50]
+    except (OSError, ValueError, AttributeError):
+        return []
 
 
 def _kill_group_leftovers(proc) -> None:

@@ -295,7 +295,7 @@ def _huge_png() -> bytes:
 
 
 IMAGES = [
-    ("a 74-byte PNG declaring 100000x100000", "huge.png", _huge_png(), "100000x100000 pixels (10000 megapixels)"),
+    ("a 74-byte PNG declaring 100000x100000", "huge.png", _huge_png(), "100000x100000 pixels (1e+04 megapixels)"),
     ("a PNG cut in half", "cut.png", (DATA / "scenes" / "scene_00.png").read_bytes()[:5000], "the PNG file is cut short"),
     ("a JPEG without its end", "cut.jpg", b"\xff\xd8\xff\xe0" + bytes(200), "the JPEG file is cut short"),
     ("an empty picture", "empty.png", b"", "the file is empty"),
@@ -307,6 +307,13 @@ IMAGES = [
 def test_pictures_that_are_not_what_they_say(ws, capsys, name, content, match):
     _write(ws, name, content)
     refused(ws, capsys, ["locate", name, *LOC, "--json", "p.jsonl"], match)
+
+
+def test_the_picture_limit_can_be_raised_and_lowered(ws, capsys):
+    refused(ws, capsys, ["locate", "frames", *LOC, "--max-megapixels", "0.5"],
+            "1280x720 pixels (0.922 megapixels), more than the limit of 0.5 megapixels")
+    refused(ws, capsys, ["locate", "frames", *LOC, "--max-megapixels", "1e9"], "--max-megapixels 1e+09: give 0.01 to 2000")
+    assert cli.main(["locate", "frames", *LOC, "--max-megapixels", "1"]) == 0
 
 
 @pytest.mark.parametrize("kind", ["fifo map", "fifo camera", "device map", "device camera"])

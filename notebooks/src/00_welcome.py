@@ -48,9 +48,9 @@
 
 # %%
 # NBVAL_IGNORE_OUTPUT
-from fidlearn.cli import doctor_report
+from fidlearn import doctor
 
-lines, problems = doctor_report()
+lines, problems = doctor.report()
 for line in lines:
     print(line.split(" (")[0])  # the versions, without the install paths
 
