@@ -806,6 +806,8 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--marker-mm", type=float, metavar="MM", help="ChArUco marker side, mm")
     p.add_argument("--dictionary", help="ChArUco dictionary (default 6X6_250)")
     p.add_argument("--annotate", type=Path, metavar="DIR", help="save each photo with its detected corners drawn")
+    p.add_argument("--report", type=Path, metavar="REPORT.png",
+                   help="draw the calibration's reprojection uncertainty over the picture and the next photo to take")
     p.add_argument("-o", "--output", type=Path, required=True, help="camera file to write (.json, or OpenCV .yml/.xml)")
     p.set_defaults(run=_run_calibrate)
 
@@ -860,8 +862,9 @@ def _run_calibrate(args) -> int:
     from .printables import parse_pattern
 
     out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
+    report = _check_output(args.report, (".png",), "--report") if args.report else None
     items = _expand_inputs(args.inputs, videos=False)
-    _refuse_clobber([("-o", out)], [p for _, p in items], args.annotate)
+    _refuse_clobber([("-o", out), ("--report", report)], [p for _, p in items], args.annotate)
     staging = _Staging(args.annotate)
     if args.pattern is not None:
         cols, rows = parse_pattern(args.pattern, "--pattern")
@@ -922,13 +925,22 @@ def _run_calibrate(args) -> int:
                       f"{even_share:.0f} an even spread gives); hold the board there too, or the lens distortion "
                       "is guessed where almost nothing was measured", FidlearnWarning)
 
+    from .planning.coach import coach_calibration
+
+    coached = coach_calibration(cal)
+    print("calibration coach: " + coached.report().replace("\n", "\n  "))
     with staging:
         if args.annotate:
             for view, path in zip(cal.views, paths):  # views come back in input order
                 pts = cal.image_points_px.get(view.name)
                 staging.save(Path(path).name, _draw_calibration_view(Path(path), view, pts, pattern, args.charuco))
+        if report is not None:
+            from .planning.figure import coach_figure
+
+            fig = coach_figure(coached, c)
+            atomic_write(report, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
         c.save(out)  # last: written only when everything before it succeeded
-    print(f"camera written to {out}")
+    print(f"camera written to {out}" + (f"; the coach's picture in {report}" if report else ""))
     if args.annotate:
         print(staging.said())
     return 0

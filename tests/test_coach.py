@@ -126,3 +126,15 @@ def test_coach_figure_draws(bundled):
     c = coach_calibration(bundled)
     fig = coach_figure(c, bundled.camera)
     assert "under 0.3 px over 100 %" in fig._suptitle.get_text()
+
+
+def test_calibrate_prints_the_coach_and_draws_its_report(tmp_path, capsys):
+    from fidlearn import cli
+
+    status = cli.main(["calibrate", str(fidlearn.data_path("calibration")), "--pattern", "9x6", "--square-mm", "25",
+                       "-o", str(tmp_path / "cam.json"), "--report", str(tmp_path / "report.png")])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "calibration coach: reprojection uncertainty: median" in out and "next photo: put the board" in out
+    assert (tmp_path / "report.png").read_bytes()[:4] == b"\x89PNG"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.json", "report.png"]
