@@ -252,7 +252,7 @@ def _observe(rng, camera, board, T, sigma):
     return px + rng.normal(0, sigma, px.shape)
 
 
-def _calibrate(camera_true: Camera, board: np.ndarray, observed: list):
+def _calibrate(camera_true: Camera, board: np.ndarray, observed: list, other_sizes: int = 0):
     from fidlearn import frames
     from fidlearn.planning.coach import coach
 
@@ -262,7 +262,8 @@ def _calibrate(camera_true: Camera, board: np.ndarray, observed: list):
     cam = Camera(K, dist.ravel(), camera_true.image_size)
     names = [f"v{i}" for i in range(len(observed))]
     T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
-    c = coach(cam, {n: board for n in names}, dict(zip(names, observed)), T, sigma_px=max(rms / math.sqrt(2), 1e-3))
+    c = coach(cam, {n: board for n in names}, dict(zip(names, observed)), T, sigma_px=max(rms / math.sqrt(2), 1e-3),
+              other_sizes=other_sizes)
     return cam, c
 
 
@@ -333,22 +334,12 @@ def seeded_sets(rng: np.random.Generator, camera: Camera) -> dict:
 
 
 def flag_rows(seeds: int) -> list[tuple[str, int, int]]:
-    from fidlearn import frames
-    from fidlearn.planning.coach import coach
-
     camera_true = Camera.load(fidlearn.data_path("calibration/camera_true.json"))
     board = _board()
     counts: dict[str, int] = {}
     for s in range(seeds):
         rng = np.random.default_rng(100 + s)
         for name, (observed, other_sizes) in seeded_sets(rng, camera_true).items():
-            rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([board.astype(np.float32)] * len(observed),
-                                                             [o.astype(np.float32) for o in observed],
-                                                             camera_true.image_size, None, None)
-            cam = Camera(K, dist.ravel(), camera_true.image_size)
-            names = [f"v{i}" for i in range(len(observed))]
-            T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
-            c = coach(cam, {n: board for n in names}, dict(zip(names, observed)), T,
-                      sigma_px=max(rms / math.sqrt(2), 1e-3), other_sizes=other_sizes)
+            _, c = _calibrate(camera_true, board, observed, other_sizes)
             counts[name] = counts.get(name, 0) + bool(c.flags)
     return [(name, n, seeds) for name, n in counts.items()]
