@@ -207,9 +207,6 @@ def main(argv=None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
-
 
 # ------------------------------------------------------------------------------------------------
 # The calibration coach: its next views against random views of the same kind
@@ -343,3 +340,7 @@ def flag_rows(seeds: int) -> list[tuple[str, int, int]]:
             _, c = _calibrate(camera_true, board, observed, other_sizes)
             counts[name] = counts.get(name, 0) + bool(c.flags)
     return [(name, n, seeds) for name, n in counts.items()]
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -674,8 +674,8 @@ class _Staging:
         while fname in self.names:
             k += 1
             fname = f"{stem}-{k}.png"
-        self.names.add(fname)
         _write_image(self.tmp / fname, image)
+        self.names.add(fname)  # only once the picture is whole: an interruption keeps whole pictures only
 
     def __exit__(self, exc_type, exc, tb) -> None:
         import shutil

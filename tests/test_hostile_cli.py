@@ -390,7 +390,7 @@ def test_a_signal_keeps_every_finished_frame(ws, sig):
         seen += 1
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 128 + sig
+    assert proc.returncode == 128 + sig, err
     [line] = err.strip().splitlines()
     records = [json.loads(r) for r in (ws / "poses.jsonl").read_text().splitlines()]
     pictures = list((ws / "seen").iterdir())
