@@ -31,7 +31,7 @@ import asyncio
 import itertools
 import pathlib
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import anywidget
 import cv2
@@ -40,7 +40,7 @@ import traitlets
 
 from .errors import FidlearnError, ImageError
 
-__all__ = ["Webcam", "WebcamError", "FramePacer", "decode_frame", "status_message", "STATUSES"]
+__all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "status_message"]
 
 STATIC = pathlib.Path(__file__).resolve().parent / "static"
 #: Smallest and largest side (px) a learner may ask for.

@@ -18,15 +18,15 @@ colour edges blur, luma stays exact. A gray frame gives ``Y = gray`` and
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import cv2
 import numpy as np
 
 from .errors import ImageError
 
-__all__ = ["yuv420_planes", "write_y4m", "read_y4m"]
+__all__ = ["read_y4m", "write_y4m", "yuv420_planes"]
 
 
 def _as_bgr(frame: np.ndarray, index: int) -> np.ndarray:
