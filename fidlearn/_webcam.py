@@ -322,9 +322,20 @@ class Webcam(anywidget.AnyWidget):
             future.set_exception(WebcamError(status_message(content["failed"], self.error)))
             return
         try:
-            future.set_result(decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height")))
+            frame = decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
         except ImageError as exc:
             future.set_exception(exc)
+            return
+        self._note_size(frame)
+        future.set_result(frame)
+
+    def _note_size(self, frame: np.ndarray) -> None:
+        # A frame proves the camera streams at its size, even if the trait updates are still on their way.
+        height, width = frame.shape[:2]
+        if (self.actual_width, self.actual_height) != (width, height):
+            self.actual_width, self.actual_height = width, height
+        if self.status != "streaming":
+            self.status = "streaming"
 
     def _handle_stream_frame(self, content: dict, buffers: list) -> None:
         received = time.monotonic()
@@ -332,6 +343,7 @@ class Webcam(anywidget.AnyWidget):
             if self.streaming:
                 frame = decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
                 self.frames_received += 1
+                self._note_size(frame)
                 for callback in list(self._callbacks):
                     callback(frame)
         except Exception as exc:

@@ -10,9 +10,12 @@ A Y4M file is one text header line (``YUV4MPEG2 W640 H480 F10:1 Ip A1:1 C420jpeg
 then per frame the line ``FRAME`` and the raw planes: Y (``W x H`` bytes), then
 U and V (``ceil(W/2) x ceil(H/2)`` bytes each, for 4:2:0 subsampling). Colours
 are converted with the full-range BT.601 (JPEG) matrix of :func:`cv2.cvtColor`
-(``COLOR_BGR2YUV``) and the chroma planes are averaged over 2 x 2 pixel blocks:
-colour edges blur, luma stays exact. A gray frame gives ``Y = gray`` and
-``U = V = 128``.
+(``COLOR_BGR2YUV``), then squeezed into video range (Y 16-235, U and V
+16-240), which is how Chromium reads a Y4M file (measured: a file holding full-range
+``Y = gray`` came out of the canvas as ``1.165 gray - 18.7``). The chroma planes are
+averaged over 2 x 2 pixel blocks: colour edges blur, luma stays exact up to the
+rounding of 256 gray levels onto 220 (at most one level after the round trip).
+A gray frame gives ``Y = 16 + 219 gray / 255`` and ``U = V = 128``.
 """
 
 from __future__ import annotations
@@ -45,18 +48,20 @@ def yuv420_planes(frame: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
     Returns
     -------
-    y : ndarray, (H, W) uint8
+    y : ndarray, (H, W) uint8, video range 16-235
     u, v : ndarray, (ceil(H/2), ceil(W/2)) uint8
     """
     bgr = _as_bgr(frame, 0)
     h, w = bgr.shape[:2]
-    yuv = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV)
+    yuv = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV).astype(np.float32)
+    y = np.clip(np.rint(16.0 + yuv[:, :, 0] * (219.0 / 255.0)), 0, 255).astype(np.uint8)
+    yuv[:, :, 1:] = 128.0 + (yuv[:, :, 1:] - 128.0) * (224.0 / 255.0)
     # Pad to even size by repeating the last row / column, then average 2 x 2 blocks.
-    padded = np.pad(yuv[:, :, 1:].astype(np.float32), ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+    padded = np.pad(yuv[:, :, 1:], ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
     hh, ww = padded.shape[0] // 2, padded.shape[1] // 2
     chroma = padded.reshape(hh, 2, ww, 2, 2).mean(axis=(1, 3))
     chroma = np.clip(np.rint(chroma), 0, 255).astype(np.uint8)
-    return yuv[:, :, 0].copy(), chroma[:, :, 0].copy(), chroma[:, :, 1].copy()
+    return y, chroma[:, :, 0].copy(), chroma[:, :, 1].copy()
 
 
 def write_y4m(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float = 10.0) -> Path:
@@ -98,7 +103,7 @@ def write_y4m(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float 
 
 
 def read_y4m(path: str | os.PathLike) -> list[np.ndarray]:
-    """The luma (Y) planes of a ``.y4m`` file written by :func:`write_y4m`: list of (H, W) uint8."""
+    """The gray frames of a ``.y4m`` file (its Y planes stretched back from video range): list of (H, W) uint8."""
     data = Path(path).read_bytes()
     end = data.find(b"\n")
     header = data[:end].split()
@@ -113,6 +118,6 @@ def read_y4m(path: str | os.PathLike) -> list[np.ndarray]:
         if not data[pos:line_end].startswith(b"FRAME") or line_end + 1 + frame_bytes > len(data):
             raise ImageError(f"{path}: frame {len(frames)} is truncated or lacks its FRAME line")
         y = np.frombuffer(data, np.uint8, w * h, line_end + 1).reshape(h, w)
-        frames.append(y.copy())
+        frames.append(np.clip(np.rint((y.astype(np.float32) - 16.0) * (255.0 / 219.0)), 0, 255).astype(np.uint8))
         pos = line_end + 1 + frame_bytes
     return frames
