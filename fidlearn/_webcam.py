@@ -196,8 +196,8 @@ class Webcam(anywidget.AnyWidget):
     """
 
     _esm = STATIC / "webcam.js"
-    width = traitlets.Int(640).tag(sync=True)
-    height = traitlets.Int(480).tag(sync=True)
+    width = traitlets.Any(640).tag(sync=True)  # validated by check_side, so every refusal is a WebcamError
+    height = traitlets.Any(480).tag(sync=True)
     actual_width = traitlets.Int(0).tag(sync=True)
     actual_height = traitlets.Int(0).tag(sync=True)
     display_width = traitlets.Int(480).tag(sync=True)
@@ -205,7 +205,7 @@ class Webcam(anywidget.AnyWidget):
     error = traitlets.Unicode("").tag(sync=True)
     message = traitlets.Unicode(STATUSES["waiting"]).tag(sync=True)
     streaming = traitlets.Bool(False).tag(sync=True)
-    max_fps = traitlets.Float(5.0).tag(sync=True)
+    max_fps = traitlets.Any(5.0).tag(sync=True)
     stream_format = traitlets.Unicode("jpeg").tag(sync=True)
     jpeg_quality = traitlets.Float(0.92).tag(sync=True)
 
