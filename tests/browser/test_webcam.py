@@ -184,9 +184,9 @@ print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_heig
     # The snapshot (PNG over the comm) is one of the rendered frames, to a gray level.
     snap_gray = data["snapshot"][..., 1]
     assert (data["snapshot"][..., 0] == snap_gray).all() and (data["snapshot"][..., 2] == snap_gray).all()
-    k, best, second = _identify(snap_gray, sources)
-    assert np.abs(snap_gray.astype(int) - sources[k]).max() <= 1, (k, best)
-    assert second > 4, f"frames {k} and its nearest neighbour are too alike to tell apart ({second:.2f})"
+    snap_k, best, second = _identify(snap_gray, sources)
+    assert np.abs(snap_gray.astype(int) - sources[snap_k]).max() <= 1, (snap_k, best)
+    assert second > 4, f"frames {snap_k} and its nearest neighbour are too alike to tell apart ({second:.2f})"
 
     # Every streamed frame is a rendered one, and its pose is that frame's truth within 5 mm.
     seen, errors_mm = set(), []
@@ -201,4 +201,4 @@ print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_heig
     assert len(seen) >= 3, f"the stream showed only source frames {sorted(seen)}"
     assert len(data["grays"]) >= MIN_LOGGED
     print(f"{len(errors_mm)} streamed frames from source frames {sorted(seen)}: pose error max {max(errors_mm):.2f} mm, "
-          f"median {np.median(errors_mm):.2f} mm; {facts['fps']:.2f} fps; snapshot = source {k} within 1 level")
+          f"median {np.median(errors_mm):.2f} mm; {facts['fps']:.2f} fps; snapshot = source {snap_k} within 1 level")
