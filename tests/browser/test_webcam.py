@@ -141,7 +141,7 @@ def test_fake_camera_frames_reach_the_kernel_and_give_the_true_poses(camera_lab,
                               .every(p => /\\[\\d+\\]/.test(p.textContent))""",
                     timeout=RUN_ALL_S * 1000,
                 )
-            except Exception:
+            except playwright.TimeoutError:
                 page.screenshot(path=str(server.home / "run_all.png"))
                 raise AssertionError("Run All Cells did not finish") from None
             errors = page.locator("[data-mime-type='application/vnd.jupyter.error']")
