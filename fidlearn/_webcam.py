@@ -21,8 +21,8 @@ Two ways to get frames:
 
 When no camera is allowed or present, ``status`` says which (``"denied"``,
 ``"no-camera"``, ``"busy"``, ``"insecure"``, ``"error"``) and ``message`` says
-in words what to do, shown in the notebook in place of the picture; the
-course's bundled pictures (``data/calibration``, ``data/trajectory``) serve instead.
+in words what to do, shown in the notebook in place of the picture, and offers
+the course's bundled pictures (``data/calibration``, ``data/trajectory``) instead.
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ __all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "s
 STATIC = pathlib.Path(__file__).resolve().parent / "static"
 #: Smallest and largest side (px) a learner may ask for.
 MIN_SIDE_PX, MAX_SIDE_PX = 16, 4096
-FALLBACK = ("Meanwhile the notebook uses the bundled pictures instead (data/calibration for the "
-            "calibration, data/trajectory for the live pose), so every cell still runs.")
+FALLBACK = ("Until it works, use the bundled pictures instead: set HAVE_CAMERA = False in the notebook and run "
+            "it again (data/calibration stands in for your calibration views, data/trajectory for your live camera).")
 #: Every status the widget can be in, with what it means and what to do.
 STATUSES = {
     "waiting": "The camera opens when the widget is shown: display it (put `cam` last in a cell).",
