@@ -319,7 +319,11 @@ class Webcam(anywidget.AnyWidget):
         if future is None or future.done():
             return
         if content.get("failed"):
-            future.set_exception(WebcamError(status_message(content["failed"], self.error)))
+            # The reply carries the failure too: the status shown is right even if a state update was lost.
+            failed = content["failed"] if content["failed"] in FAILED else "error"
+            self.error = str(content.get("error", self.error))
+            self.status = failed
+            future.set_exception(WebcamError(status_message(failed, self.error)))
             return
         try:
             frame = decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))

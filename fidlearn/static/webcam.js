@@ -123,7 +123,7 @@ async function sendSnapshot(model, msg) {
   try {
     cam = await openCamera(model);
   } catch (err) {
-    model.send({ type: "frame", kind: "snap", id: msg.id, failed: model.get("status") });
+    model.send({ type: "frame", kind: "snap", id: msg.id, failed: model.get("status"), error: model.get("error") });
     return;
   }
   const f = await grab(cam, msg.format, msg.quality);

@@ -34,6 +34,7 @@ import pytest
 from test_lab import (
     CHROMIUM,
     CHROMIUM_ARGS,
+    REDRAW_S,
     SERVER_START_S,
     Lab,
     _js_errors_collector,
@@ -202,3 +203,65 @@ print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_heig
     assert len(data["grays"]) >= MIN_LOGGED
     print(f"{len(errors_mm)} streamed frames from source frames {sorted(seen)}: pose error max {max(errors_mm):.2f} mm, "
           f"median {np.median(errors_mm):.2f} mm; {facts['fps']:.2f} fps; snapshot = source {snap_k} within 1 level")
+
+
+@pytest.mark.parametrize(("refusal", "status", "words"), [
+    # What Chromium, Firefox and Safari reject getUserMedia with when the learner (or a policy) blocks the camera,
+    ("NotAllowedError", "denied", "permission denied"),
+    # and when no camera is plugged in.
+    ("NotFoundError", "no-camera", "No camera found"),
+])
+def test_without_a_camera_the_notebook_says_why_and_offers_the_bundled_pictures(camera_lab, refusal, status, words):
+    """The browser's refusal is the real DOMException a browser raises, injected in place of getUserMedia.
+
+    (Headless Chromium without its fake camera leaves getUserMedia pending instead of refusing:
+    measured, with the permission blocked through the DevTools protocol and with no camera.)
+    """
+    try:
+        from playwright import sync_api as playwright
+    except ImportError:
+        pytest.fail('the browser test needs playwright: pip install -e ".[browser]" (make test-browser does it)')
+    server, _video = camera_lab
+    with playwright.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 1000})
+            page.add_init_script(
+                "navigator.mediaDevices.getUserMedia = () => Promise.reject(new DOMException('refused', %r));" % refusal
+            )
+            page.goto(f"{server.url}/lab/tree/{NOTEBOOK}?token={server.token}", timeout=SERVER_START_S * 1000)
+            page.wait_for_selector(".jp-NotebookPanel .jp-CodeCell", timeout=SERVER_START_S * 1000)
+            server.wait_for_idle_kernel(SERVER_START_S)
+            _menu(page, "Edit", "Clear Outputs of All Cells")
+            _menu(page, "Run", "Run All Cells")
+            # The widget shows the advice in place of the picture ...
+            message = page.locator(".fidlearn-webcam-message").first
+            message.wait_for(timeout=RUN_ALL_S * 1000)
+            try:
+                page.wait_for_function(
+                    "(words) => document.querySelector('.fidlearn-webcam-message').textContent.includes(words)",
+                    arg=words, timeout=REDRAW_S * 1000,
+                )
+            except playwright.TimeoutError:
+                raise AssertionError(f"the widget says {message.inner_text()!r}, not {words!r}") from None
+            assert "HAVE_CAMERA = False" in message.inner_text() and "bundled pictures" in message.inner_text()
+            assert not page.locator(".fidlearn-webcam video").first.is_visible()
+            # ... and the snapshot cell stops Run All with the same advice, not a hang or a timeout.
+            try:
+                page.wait_for_function(
+                    "() => [...document.querySelectorAll('.jp-OutputArea-output')].some(e => e.textContent.includes('WebcamError'))",
+                    timeout=REDRAW_S * 1000,
+                )
+            except playwright.TimeoutError:
+                page.screenshot(path=str(server.home / "no_camera.png"))
+                raise AssertionError("the snapshot cell shows no WebcamError") from None
+            text = next(t for t in page.locator(".jp-OutputArea-output").all_inner_texts() if "WebcamError" in t)
+            last = [line for line in text.splitlines() if line.startswith("WebcamError:")][-1]
+            assert words in last and "bundled pictures" in last, last  # the refusal's advice, not a timeout
+        finally:
+            browser.close()
+    client = _kernel_client(server)
+    try:
+        assert _run(client, "print(cam.status)").strip() == status
+    finally:
+        client.stop_channels()
