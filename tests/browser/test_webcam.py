@@ -227,7 +227,7 @@ def test_without_a_camera_the_notebook_says_why_and_offers_the_bundled_pictures(
         try:
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
             page.add_init_script(
-                "navigator.mediaDevices.getUserMedia = () => Promise.reject(new DOMException('refused', %r));" % refusal
+                f"navigator.mediaDevices.getUserMedia = () => Promise.reject(new DOMException('refused', '{refusal}'));"
             )
             page.goto(f"{server.url}/lab/tree/{NOTEBOOK}?token={server.token}", timeout=SERVER_START_S * 1000)
             page.wait_for_selector(".jp-NotebookPanel .jp-CodeCell", timeout=SERVER_START_S * 1000)
