@@ -79,7 +79,8 @@ test-floor: $(FLOOR_STAMP)
 	HYPOTHESIS_STORAGE_DIRECTORY=$(FLOOR_VENV)/.hypothesis PYTHONPYCACHEPREFIX=$(FLOOR_VENV)/pycache \
 		$(FLOOR_VENV)/bin/python -m pytest tests $(NOTEBOOKS) --nbval-lax --ignore=tests/browser -p no:cacheprovider
 
-# JupyterLab in a real (headless) browser: runs the intrinsics notebook and moves its slider.
+# JupyterLab in a real (headless) browser: runs the intrinsics notebook and moves its slider, and
+# notebook 12 with Chromium's fake camera playing a rendered drive (the webcam widget end to end).
 # Needs Debian's chromium (/usr/bin/chromium); installed with apt-get when missing.
 BROWSER_STAMP := $(VENV)/.fidlearn-browser-installed
 CHROMIUM ?= /usr/bin/chromium

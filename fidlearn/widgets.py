@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ._webcam import Webcam
 from .camera import Camera
 
 __all__ = [
@@ -27,6 +28,7 @@ __all__ = [
     "render_intrinsics_view",
     "figure_png",
     "intrinsics_explorer",
+    "Webcam",
 ]
 
 #: The scene the intrinsics view looks at: a flat grid facing the camera (camera frame, mm).

@@ -1,0 +1,356 @@
+# %% [markdown]
+# # 12 Your own camera
+#
+# **What you will learn**
+#
+# * how to bring your laptop's camera into the notebook, even when the kernel runs on a server far away;
+# * how to calibrate it live: hold a printed checkerboard up, watch the corners found and the picture fill up,
+#   capture views, and read the per-view table and the warnings;
+# * whether your calibration is good enough, measured against the procedure on real photos;
+# * how to print markers and watch your camera's pose, live, in a 3D view of the world.
+#
+# On JupyterHub or Binder the camera is on your laptop but Python runs on a server: `cv2.VideoCapture(0)`
+# would look for a camera on the server. The `Webcam` widget asks *your browser* for the camera
+# (`getUserMedia`) and sends its frames to Python.
+#
+# **No camera?** Every cell still runs: where a camera is missing the notebook uses the bundled pictures
+# (`data/calibration` for the calibration, `data/trajectory` for the live pose).
+#
+# Run the cells from top to bottom (Shift-Enter).
+
+# %%
+# %matplotlib inline
+import json
+import os
+from pathlib import Path
+
+import cv2
+import ipywidgets as w
+import matplotlib.pyplot as plt
+import numpy as np
+from IPython.display import display
+
+from fidlearn import (Camera, MarkerMap, MarkerTracker, board_pdf, calibrate_checkerboard, data_path, markers_pdf,
+                      plotting)
+from fidlearn.detection import load_image
+from fidlearn.widgets import Webcam, figure_png
+
+np.set_printoptions(precision=3, suppress=True)
+
+# %% [markdown]
+# ## 1. Is there a camera?
+#
+# `HAVE_CAMERA` says whether this notebook may use a camera. It is `True` when JupyterLab was started with the
+# environment variable `FIDLEARN_WEBCAM=1` (`FIDLEARN_WEBCAM=1 jupyter lab`); **if you have a camera, set it to
+# `True` here yourself**. When it is `False` (the automatic checks, or no camera) the camera cells say so and the
+# bundled pictures stand in.
+#
+# Everything the notebook writes goes to `out/my_camera/` next to the `notebooks` folder (git ignores `out/`).
+
+# %%
+HAVE_CAMERA = os.environ.get("FIDLEARN_WEBCAM") == "1"
+OUT = Path("..", "out", "my_camera")
+OUT.mkdir(parents=True, exist_ok=True)
+print("camera cells run:", HAVE_CAMERA)
+
+# %% [markdown]
+# The widget below shows what your camera sees. The first time, the browser asks whether this page may use
+# the camera: allow it. It asks for 640 x 480 pixels (`width`, `height`); a camera that cannot deliver that
+# gives the nearest size it can, shown under the picture and kept in `cam.actual_width`, `cam.actual_height`.
+# If the camera is refused or missing, the widget says why and what to do (`docs/teaching.md` has more).
+
+# %%
+if HAVE_CAMERA:
+    cam = Webcam(width=640, height=480, max_fps=5)
+    display(cam)
+else:
+    cam = None
+    print("No camera in this run: the notebook uses the bundled pictures.")
+
+# %% [markdown]
+# One picture: `await cam.snapshot()` returns a BGR image like `cv2.imread` does. (The `await` lets the
+# notebook receive the picture from the browser while the cell waits.)
+
+# %%
+if HAVE_CAMERA:
+    frame = await cam.snapshot(timeout_s=30)  # noqa: F704 (top-level await: a notebook cell)
+    print(f"a {frame.shape[1]} x {frame.shape[0]} picture from the camera (status: {cam.status})")
+else:
+    frame = load_image(data_path("calibration", "view_00.png"))
+    print(f"a {frame.shape[1]} x {frame.shape[0]} bundled picture (data/calibration/view_00.png)")
+ax = plotting.show_image(None, frame, title="a snapshot")
+plt.show()
+
+# %% [markdown]
+# ## 2. Calibrate your camera live
+#
+# Print `board.pdf` (written below: a 9 x 6 inner-corner checkerboard) at 100 % scale (no "fit to page"),
+# measure a square with a ruler and write its side in `SQUARE_MM`. Glue it to something flat.
+#
+# Then run the next cell and hold the board in front of the camera. Each frame shows the corners it finds
+# (coloured lines) and, in red, the cells of the picture no captured view has covered yet. Press **Capture**
+# when the board is found (still, sharp, fully in view); move it: near and far, tilted left, right, up and
+# down, in every corner of the picture. 15 to 25 views is plenty.
+
+# %%
+PATTERN = (9, 6)  # inner corners (columns, rows)
+SQUARE_MM = 25.0  # measure your print!
+board_pdf(OUT / "board.pdf", PATTERN, SQUARE_MM)
+print("printed board:", OUT / "board.pdf")
+COVERAGE_CELLS = (8, 6)  # the picture cut into 8 x 6 cells
+
+
+def find_board(gray, fast=True):
+    """The board's inner corners in a gray picture ((N, 2) px), or None."""
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | (cv2.CALIB_CB_FAST_CHECK if fast else 0)
+    found, corners = cv2.findChessboardCorners(gray, PATTERN, flags=flags)
+    return corners.reshape(-1, 2) if found else None
+
+
+def coverage_map(corner_sets, image_size, cells=COVERAGE_CELLS):
+    """Which cells of the picture (rows, cols) contain a board corner of some view: bool array."""
+    width, height = image_size
+    covered = np.zeros((cells[1], cells[0]), bool)
+    for corners in corner_sets:
+        col = np.clip((corners[:, 0] / width * cells[0]).astype(int), 0, cells[0] - 1)
+        row = np.clip((corners[:, 1] / height * cells[1]).astype(int), 0, cells[1] - 1)
+        covered[row, col] = True
+    return covered
+
+
+def annotate(frame_bgr, corners, covered):
+    """The frame with the uncovered cells tinted red and the board's corners drawn."""
+    out = frame_bgr.copy()
+    height, width = out.shape[:2]
+    tint = np.zeros_like(out)
+    rows, cols = covered.shape
+    for r, c in zip(*np.nonzero(~covered)):
+        y0, y1, x0, x1 = r * height // rows, (r + 1) * height // rows, c * width // cols, (c + 1) * width // cols
+        tint[y0:y1, x0:x1] = (0, 0, 160)
+    out = cv2.addWeighted(out, 1.0, tint, 0.35, 0)
+    if corners is not None:
+        cv2.drawChessboardCorners(out, PATTERN, corners.reshape(-1, 1, 2).astype(np.float32), True)
+    return out
+
+
+def jpeg(image_bgr):
+    return cv2.imencode(".jpg", image_bgr, [cv2.IMWRITE_JPEG_QUALITY, 85])[1].tobytes()
+
+
+# %%
+captured = []  # (frame, corners) of every view captured
+if HAVE_CAMERA:
+    latest = {"frame": None, "corners": None}
+    preview = w.Image(format="jpeg", width=480)
+    capture = w.Button(description="Capture", icon="camera", button_style="primary")
+    info = w.HTML()
+
+    def show_calibration_frame(frame_bgr):
+        gray = cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2GRAY)
+        corners = find_board(gray)
+        latest.update(frame=frame_bgr, corners=corners)
+        covered = coverage_map([c for _, c in captured], (frame_bgr.shape[1], frame_bgr.shape[0]))
+        preview.value = jpeg(annotate(frame_bgr, corners, covered))
+        info.value = (f"{len(captured)} views captured, {covered.mean():.0%} of the picture covered; "
+                      + ("<b>board found</b>: capture!" if corners is not None else "board not found"))
+
+    def on_capture(_button):
+        if latest["corners"] is not None:
+            captured.append((latest["frame"], latest["corners"]))
+
+    capture.on_click(on_capture)
+    cam.on_frame(show_calibration_frame)
+    cam.start()
+    display(w.VBox([w.HBox([capture, info]), preview]))
+else:
+    print("No camera: section 3 calibrates from the bundled views in data/calibration instead.")
+
+# %% [markdown]
+# ## 3. Calibrate
+#
+# When you have captured your views, run the next cell: it stops the live preview and calibrates
+# (`calibrate_checkerboard`, notebook 02). It needs at least `MIN_VIEWS` views; with fewer it says so and you
+# can capture more (run the cell above again) first. Without a camera the bundled views stand in.
+
+# %%
+MIN_VIEWS = 10
+if HAVE_CAMERA:
+    cam.stop()
+    cam.on_frame(show_calibration_frame, remove=True)
+    views = [frame for frame, _ in captured]
+    source = "your camera"
+else:
+    views = [Path(os.path.relpath(p)) for p in sorted(data_path("calibration").glob("view_*.png"))]
+    source = "the bundled views (data/calibration)"
+calibration = None
+if len(views) >= MIN_VIEWS:
+    calibration = calibrate_checkerboard(views, PATTERN, SQUARE_MM)
+    print(f"calibrated from {len(calibration.used)} of {len(views)} views of {source}")
+    print(calibration.table())
+else:
+    print(f"{len(views)} views captured from {source}: at least {MIN_VIEWS} are needed. Capture more views in "
+          "section 2, then run this cell again.")
+
+# %% [markdown]
+# The warnings: what to fix before you trust the numbers.
+
+# %%
+def calibration_warnings(cal, covered, min_views=MIN_VIEWS):
+    """Plain-language warnings about a calibration: list of str (empty when nothing is wrong)."""
+    notes = []
+    if len(cal.used) < min_views:
+        notes.append(f"only {len(cal.used)} views used: capture at least {min_views}")
+    if covered.mean() < 0.7:
+        notes.append(f"the views cover {covered.mean():.0%} of the picture: hold the board near the edges and "
+                     "corners too, or the distortion there is a guess")
+    if cal.rms_px > 1.0:
+        notes.append(f"RMS {cal.rms_px:.2f} px is high: blurred or moving views, or a board that is not flat")
+    for name, why in cal.rejected:
+        notes.append(f"{name} was left out: {why}")
+    for key, std in cal.std_intrinsics.items():
+        value = getattr(cal.camera, key, None)
+        if value and key in ("fx", "fy") and std / value > 0.01:
+            notes.append(f"{key} is uncertain by {std / value:.1%}: add views tilted 30-45 degrees")
+    return notes
+
+
+if calibration is not None:
+    size = (calibration.camera.width, calibration.camera.height)
+    covered = coverage_map(calibration.image_points_px.values(), size)
+    fig, ax = plt.subplots(figsize=(4, 3))
+    ax.imshow(covered, cmap="Greens", vmin=0, vmax=1, extent=(0, size[0], size[1], 0))
+    ax.set_title(f"coverage: {covered.mean():.0%} of {covered.size} cells")
+    plt.show()
+    for note in calibration_warnings(calibration, covered) or ["no warning"]:
+        print("-", note)
+
+# %% [markdown]
+# Save it: `camera.json` records K, the distortion and the picture's size the camera delivered (the size you
+# asked for may differ, see section 1). Without a camera the bundled views' calibration is saved under another
+# name, so it is never mistaken for yours.
+
+# %%
+CAMERA_JSON = OUT / ("camera.json" if HAVE_CAMERA else "bundled_calibration.json")
+if calibration is not None:
+    calibration.camera.save(CAMERA_JSON)
+    saved = json.loads(CAMERA_JSON.read_text())
+    print(f"wrote {CAMERA_JSON}: image size {saved['image_size']}")
+    if HAVE_CAMERA:
+        assert saved["image_size"] == [cam.actual_width, cam.actual_height]
+
+# %% [markdown]
+# ## 4. Is your calibration good enough?
+#
+# The same procedure on OpenCV's real photos (`data/real/opencv_checkerboard_right`: 13 photos of a 9 x 6
+# board, notebook 02) gives a reference: how many views, how much of the picture they cover, and the RMS a
+# careful set of real photos reaches. Your set is compared with it, in words.
+
+# %%
+real_views = [Path(os.path.relpath(p)) for p in sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))]
+reference = calibrate_checkerboard(real_views, PATTERN, 25.0)
+ref_size = (reference.camera.width, reference.camera.height)
+ref_cover = coverage_map(reference.image_points_px.values(), ref_size).mean()
+print(f"reference (real photos): {len(reference.used)} views, {ref_cover:.0%} covered, RMS {reference.rms_px:.2f} px")
+
+
+def verdict(cal, ref_views, ref_cover, ref_rms):
+    """Whether a calibration is good enough, in words, against a reference set."""
+    size = (cal.camera.width, cal.camera.height)
+    cover = coverage_map(cal.image_points_px.values(), size).mean()
+    lines = [f"yours: {len(cal.used)} views, {cover:.0%} covered, RMS {cal.rms_px:.2f} px"]
+    ok = True
+    if len(cal.used) < min(ref_views, MIN_VIEWS):
+        ok = False
+        lines.append(f"- too few views ({len(cal.used)}; the reference uses {ref_views}): capture more.")
+    if cover < min(ref_cover, 0.7):
+        ok = False
+        lines.append(f"- the views cover less of the picture than the reference ({cover:.0%} < {ref_cover:.0%}): "
+                     "hold the board near the edges and corners.")
+    if cal.rms_px > max(2 * ref_rms, 1.0):
+        ok = False
+        lines.append(f"- RMS {cal.rms_px:.2f} px is more than twice the reference's {ref_rms:.2f} px: drop blurred "
+                     "views, light the board evenly, keep it flat.")
+    lines.append("Good enough: use this camera.json." if ok else "Not good enough yet: fix the points above and calibrate again.")
+    return "\n".join(lines)
+
+
+if calibration is not None:
+    print(verdict(calibration, len(reference.used), ref_cover, reference.rms_px))
+
+# %% [markdown]
+# ## 5. Print the markers
+#
+# The seed's world (`data/world_map.json`) has three 80 mm markers on a wall. `markers_pdf` lays them out at
+# their exact size (print at 100 %); tape them to a wall as the map says, or write a map of where you put them
+# (notebook 04). The same from a terminal: `fidlearn markers 0 1 2 --size-mm 80`.
+
+# %%
+world_map = MarkerMap.load(data_path("world_map.json"))
+sheet = markers_pdf(OUT / "markers.pdf", world_map.ids, world_map.marker_size_mm, world_map.dictionary)
+print(f"wrote {OUT / 'markers.pdf'}: markers {world_map.ids}, {world_map.marker_size_mm:g} mm, {world_map.dictionary}")
+
+# %% [markdown]
+# ## 6. Where is your camera? Live
+#
+# Point the camera at the markers and move it. Each frame goes through `MarkerTracker` (notebook 09):
+# detection, `estimate_pose`, inversion. The pose is printed and the 3D view shows the world, the markers
+# and the camera. **ambiguous** means two poses explain the picture almost equally well (one marker, seen
+# nearly face on, notebook 08): move so that two markers are in view, or look at the marker at an angle.
+#
+# With a camera, the pose uses your `camera.json` from section 3 (or one you made before with
+# `fidlearn calibrate` and saved there). Without a camera, the bundled drive `data/trajectory` plays the part,
+# with its own camera.
+
+# %%
+live_log = []  # the last frames' (gray frame, pose or None), for a look afterwards
+if HAVE_CAMERA:
+    camera = Camera.load(OUT / "camera.json")
+else:
+    camera = Camera.load(data_path("trajectory", "camera.json"))
+tracker = MarkerTracker(world_map, camera)
+pose_text = w.HTML()
+scene_view = w.Image(format="png", width=520)
+
+
+def show_pose(frame_bgr):
+    pose = tracker.locate(frame_bgr)
+    live_log.append((cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2GRAY) if frame_bgr.ndim == 3 else frame_bgr, pose))
+    del live_log[:-60]
+    if pose is None:
+        pose_text.value = "no marker of the map in view"
+        return
+    x, y, z = pose.position_mm
+    flag = " <b style='color:#c00'>ambiguous</b>" if pose.ambiguous else ""
+    pose_text.value = (f"camera at x {x:.0f}, y {y:.0f}, z {z:.0f} mm; roll/pitch/yaw {np.round(pose.rpy_deg, 1)} deg; "
+                       f"markers {list(pose.marker_ids)}, RMS {pose.reprojection_rms_px:.2f} px{flag}")
+    fig = plotting.plot_scene(world_map, [pose], camera=camera, title="world, markers and your camera")
+    scene_view.value = figure_png(fig, dpi=60)
+    plt.close(fig)
+
+
+if HAVE_CAMERA:
+    stop = w.Button(description="Stop the camera", icon="stop")
+    stop.on_click(lambda _button: cam.stop())
+    cam.on_frame(show_pose)
+    cam.start()
+    display(w.VBox([stop, pose_text, scene_view]))
+else:
+    drive = json.loads(data_path("trajectory", "poses.json").read_text())
+    for k in (0, 20, 39):
+        show_pose(load_image(data_path("trajectory", drive["frames"][k]["image"])))
+        error_mm = np.linalg.norm(live_log[-1][1].position_mm - np.array(drive["frames"][k]["T_world_camera"])[:3, 3])
+        print(f"frame {k}: {pose_text.value}; {error_mm:.1f} mm from the truth")
+    display(w.VBox([pose_text, scene_view]))
+
+# %% [markdown]
+# Press **Stop the camera** when you are done (the browser's camera light goes out when you close the
+# notebook). `cam.frames_received` counts the frames Python handled, and `cam.pacer.measured_fps` their rate:
+# never more than `max_fps`, and less when the pose and the drawing take longer than a frame's time.
+#
+# ## What you have learnt
+#
+# * The camera is the browser's, not the server's: the widget carries its frames to Python, one at a time, no
+#   faster than Python keeps up with.
+# * A calibration is as good as its views: enough of them, over the whole picture, sharp (a low RMS). Compare
+#   with a set known to be good before you trust it.
+# * With a calibrated camera and printed markers, the pose is a few lines (notebooks 05-09), live.
