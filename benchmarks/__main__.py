@@ -54,7 +54,7 @@ disturb least) it says so.
 
 def bench_files() -> dict[str, Path]:
     """``{name: path}`` of every ``benchmarks/bench_NAME.py``, sorted by name."""
-    return {p.stem[len("bench_"):]: p for p in sorted(HERE.glob("bench_*.py"))}
+    return {p.stem[len("bench_") :]: p for p in sorted(HERE.glob("bench_*.py"))}
 
 
 def machine() -> list[tuple[str, str]]:
@@ -70,17 +70,31 @@ def machine() -> list[tuple[str, str]]:
     ram = "unknown"
     try:
         kb = int(re.search(r"MemTotal:\s+(\d+)", Path("/proc/meminfo").read_text()).group(1))
-        ram = f"{kb / 1024 ** 2:.1f} GiB"
+        ram = f"{kb / 1024**2:.1f} GiB"
     except (OSError, AttributeError):
         pass
     versions = subprocess.run(
-        [sys.executable, "-c", "import cv2, numpy, fidlearn; print(cv2.__version__, numpy.__version__, fidlearn.__version__, cv2.getNumThreads())"],
-        capture_output=True, text=True, cwd=ROOT, check=False,
+        [
+            sys.executable,
+            "-c",
+            "import cv2, numpy, fidlearn; print(cv2.__version__, numpy.__version__, fidlearn.__version__, cv2.getNumThreads())",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=False,
     ).stdout.split()
     cv, np_version, fl, threads = (versions + ["?"] * 4)[:4]
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT, check=False).stdout.strip()
-    dirty = subprocess.run(["git", "status", "--porcelain", "--", "fidlearn", "benchmarks"], capture_output=True, text=True, cwd=ROOT,
-                           check=False).stdout.strip()
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT, check=False
+    ).stdout.strip()
+    dirty = subprocess.run(
+        ["git", "status", "--porcelain", "--", "fidlearn", "benchmarks"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=False,
+    ).stdout.strip()
     return [
         ("CPU", f"{cpu}, {os.cpu_count()} cores (nproc), OpenCV threads {threads}"),
         ("RAM", ram),
@@ -138,22 +152,36 @@ def run_one(name: str, path: Path, quick: bool, timeout: float) -> dict:
     started = dt.datetime.now(dt.timezone.utc)
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT, env=env, check=False)
-        out, err, status = proc.stdout, proc.stderr, ("ok" if proc.returncode == 0 else f"failed (exit status {proc.returncode})")
+        out, err, status = (
+            proc.stdout,
+            proc.stderr,
+            ("ok" if proc.returncode == 0 else f"failed (exit status {proc.returncode})"),
+        )
     except subprocess.TimeoutExpired as e:
         out = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
         err = e.stderr.decode() if isinstance(e.stderr, bytes) else (e.stderr or "")
         status = f"stopped after the {timeout:.0f} s limit"
     seconds = time.perf_counter() - t0
-    return dict(name=name, cmd=" ".join(["python", *cmd[1:]]), out=out.rstrip(), err=err.rstrip(), status=status,
-                seconds=seconds, started=started, load=load_average())
+    return dict(
+        name=name,
+        cmd=" ".join(["python", *cmd[1:]]),
+        out=out.rstrip(),
+        err=err.rstrip(),
+        status=status,
+        seconds=seconds,
+        started=started,
+        load=load_average(),
+    )
 
 
 def section(result: dict) -> str:
     """The markdown section of one benchmark run, targets included as hidden comment lines."""
     name, out = result["name"], result["out"]
     lines = [BEGIN.format(name=name), f"## {name} (`benchmarks/bench_{name}.py`)", ""]
-    lines.append(f"`{result['cmd']}`, {result['started']:%Y-%m-%d %H:%M} UTC, {result['seconds']:.0f} s, "
-                 f"load average {result['load']} at the end; {result['status']}.")
+    lines.append(
+        f"`{result['cmd']}`, {result['started']:%Y-%m-%d %H:%M} UTC, {result['seconds']:.0f} s, "
+        f"load average {result['load']} at the end; {result['status']}."
+    )
     lines.append("")
     if out:
         if looks_like_markdown(out):
@@ -206,11 +234,25 @@ def write_doc(sections: dict[str, str], command: str, ran: list[dict], notes: st
     from fidlearn._io import write_text_atomic  # noqa: PLC0415 (importing fidlearn is the benchmarks' business)
 
     now = dt.datetime.now(dt.timezone.utc)
-    head = ["# Benchmarks", "", INTRO.format(command=command), "## Machine and versions", "",
-            "| | |", "|---|---|", *[f"| {a} | {b} |" for a, b in machine()],
-            f"| date | {now:%Y-%m-%d %H:%M} UTC (this run: {', '.join(r['name'] for r in ran)}) |",
-            f"| load average (1, 5, 15 min) | {load_average()} at the end of this run |",
-            "", "## Summary: targets", "", summary(sections), "", notes, ""]
+    head = [
+        "# Benchmarks",
+        "",
+        INTRO.format(command=command),
+        "## Machine and versions",
+        "",
+        "| | |",
+        "|---|---|",
+        *[f"| {a} | {b} |" for a, b in machine()],
+        f"| date | {now:%Y-%m-%d %H:%M} UTC (this run: {', '.join(r['name'] for r in ran)}) |",
+        f"| load average (1, 5, 15 min) | {load_average()} at the end of this run |",
+        "",
+        "## Summary: targets",
+        "",
+        summary(sections),
+        "",
+        notes,
+        "",
+    ]
     body = [sections[k] for k in sorted(sections)]
     return write_text_atomic(DOC, "\n".join(head) + "\n" + "\n\n".join(body) + "\n")
 
@@ -218,6 +260,7 @@ def write_doc(sections: dict[str, str], command: str, ran: list[dict], notes: st
 # ------------------------------------------------------------------------------------------------
 # Targets read from the tables of benchmarks that do not print target lines themselves
 # ------------------------------------------------------------------------------------------------
+
 
 def _yes(ok: bool) -> str:
     return "yes" if ok else "**no**"
@@ -228,8 +271,13 @@ def _parse_pose(out: str) -> list[tuple[str, str, str]]:
     m = re.search(r"median locate\[default\] / median seed.*?= ([\d.]+)", out)
     if m:
         r = float(m.group(1))
-        rows.append(("pose: median camera-position error of `locate` <= 0.5 x the seed pipeline's (rendered scenes)",
-                     f"{r:.3f} x", _yes(r <= 0.5)))
+        rows.append(
+            (
+                "pose: median camera-position error of `locate` <= 0.5 x the seed pipeline's (rendered scenes)",
+                f"{r:.3f} x",
+                _yes(r <= 0.5),
+            )
+        )
     ratios = []
     block = out.split("== 2.", 1)[1].split("== 3.", 1)[0] if "== 2." in out else ""
     for line in block.splitlines():
@@ -238,17 +286,36 @@ def _parse_pose(out: str) -> list[tuple[str, str, str]]:
             ratios.append(float(nums[3]))
     if ratios:
         worst = max(ratios, key=lambda v: abs(v - 1))
-        rows.append(("optimality: median NEES within 10 % of LM started at the truth (every scene and noise)",
-                     f"ratio {min(ratios):.2f} to {max(ratios):.2f}", _yes(abs(worst - 1) <= 0.10)))
-    cov = [float(v) for v in re.findall(r":\s+([\d.]+) % of \d+", out.split("== 3.", 1)[1].split("== 4.", 1)[0])] if "== 3." in out else []
+        rows.append(
+            (
+                "optimality: median NEES within 10 % of LM started at the truth (every scene and noise)",
+                f"ratio {min(ratios):.2f} to {max(ratios):.2f}",
+                _yes(abs(worst - 1) <= 0.10),
+            )
+        )
+    cov = (
+        [float(v) for v in re.findall(r":\s+([\d.]+) % of \d+", out.split("== 3.", 1)[1].split("== 4.", 1)[0])]
+        if "== 3." in out
+        else []
+    )
     if cov:
-        rows.append(("covariance: 90-98 % of true positions inside the 95 % ellipsoid", f"{min(cov):.1f} to {max(cov):.1f} %",
-                     _yes(min(cov) >= 90 and max(cov) <= 98)))
+        rows.append(
+            (
+                "covariance: 90-98 % of true positions inside the 95 % ellipsoid",
+                f"{min(cov):.1f} to {max(cov):.1f} %",
+                _yes(min(cov) >= 90 and max(cov) <= 98),
+            )
+        )
     m = re.search(r"^locate\[default\]\s+[\d.]+ ms\s+([\d.]+) x plain", out, re.M)
     if m:
         r = float(m.group(1))
-        rows.append(("pose section's speed: `locate` <= 1.10 x plain detectMarkers (640x480)", f"{r:.2f} x",
-                     "yes" if r <= 1.10 else ("within the 1.25 x limit" if r <= 1.25 else "**no**")))
+        rows.append(
+            (
+                "pose section's speed: `locate` <= 1.10 x plain detectMarkers (640x480)",
+                f"{r:.2f} x",
+                "yes" if r <= 1.10 else ("within the 1.25 x limit" if r <= 1.25 else "**no**"),
+            )
+        )
     return rows
 
 
@@ -265,8 +332,13 @@ def _parse_corners(out: str) -> list[tuple[str, str, str]]:
         cell = cells[1 + col]
         if cell != "-":
             worst = max(worst, float(cell.split("/")[0]))
-    return [(f"corners: RMS <= 0.3 px for markers >= 30 px (default refinement `{methods[col]}`)",
-             f"{worst:.3f} px at worst", _yes(worst <= 0.3))]
+    return [
+        (
+            f"corners: RMS <= 0.3 px for markers >= 30 px (default refinement `{methods[col]}`)",
+            f"{worst:.3f} px at worst",
+            _yes(worst <= 0.3),
+        )
+    ]
 
 
 def _parse_calibration(out: str) -> list[tuple[str, str, str]]:
@@ -275,7 +347,13 @@ def _parse_calibration(out: str) -> list[tuple[str, str, str]]:
         nums = line.split()
         if len(nums) >= 4 and nums[1] == "20":
             errs.append(float(nums[2]))
-    return [("calibration: fx error with 20 views (synthetic, no target set)", f"{min(errs):.3f} to {max(errs):.3f} %", "see section")]
+    return [
+        (
+            "calibration: fx error with 20 views (synthetic, no target set)",
+            f"{min(errs):.3f} to {max(errs):.3f} %",
+            "see section",
+        )
+    ]
 
 
 _PARSERS = {"pose": _parse_pose, "corners": _parse_corners, "calibration": _parse_calibration}
@@ -297,7 +375,9 @@ def main(argv=None) -> int:
     if unknown:
         ap.error(f"no benchmark {', '.join(unknown)}; there are: {', '.join(files)}")
     names = [n.removeprefix("bench_").removesuffix(".py") for n in args.names] or list(files)
-    command = " ".join(["python -m benchmarks", *sys.argv[1:]]) if argv is None else " ".join(["python -m benchmarks", *argv])
+    command = (
+        " ".join(["python -m benchmarks", *sys.argv[1:]]) if argv is None else " ".join(["python -m benchmarks", *argv])
+    )
     old = DOC.read_text() if DOC.exists() else ""
     sections = old_sections(old)
     notes = old_notes(old)
@@ -313,7 +393,9 @@ def main(argv=None) -> int:
         if args.no_doc:
             print(sections[name])
         else:
-            write_doc({k: v for k, v in sections.items() if k in files}, command, ran, notes)  # after each, so a stop keeps what ran
+            write_doc(
+                {k: v for k, v in sections.items() if k in files}, command, ran, notes
+            )  # after each, so a stop keeps what ran
     if not args.no_doc:
         print(f"[benchmarks] wrote {DOC.relative_to(ROOT)}")
     return 1 if failed else 0

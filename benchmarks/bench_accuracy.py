@@ -45,7 +45,9 @@ def camera(size) -> Camera:
     """About 70 degrees wide, mild barrel distortion."""
     w, h = size
     f = 0.714 * w
-    return Camera([[f, 0, (w - 1) / 2 + 1.3], [0, f, (h - 1) / 2 - 1.1], [0, 0, 1]], [-0.08, 0.05, 0.0003, -0.0002, -0.01], size)
+    return Camera(
+        [[f, 0, (w - 1) / 2 + 1.3], [0, f, (h - 1) / 2 - 1.1], [0, 0, 1]], [-0.08, 0.05, 0.0003, -0.0002, -0.01], size
+    )
 
 
 def grid_map(n: int, spacing_mm: float, size_mm: float = 150.0, two_walls: bool = False) -> MarkerMap:
@@ -54,7 +56,9 @@ def grid_map(n: int, spacing_mm: float, size_mm: float = 150.0, two_walls: bool 
     for k in range(n):
         if two_walls and k % 2:
             j = k // 2
-            p[k] = MarkerPlacement(k, (300.0 + (j % 4) * spacing_mm, 0.0, 1500.0 - (j // 4) * spacing_mm), (0.0, 0.0, 90.0))
+            p[k] = MarkerPlacement(
+                k, (300.0 + (j % 4) * spacing_mm, 0.0, 1500.0 - (j // 4) * spacing_mm), (0.0, 0.0, 90.0)
+            )
         else:
             j = k // 2 if two_walls else k
             p[k] = MarkerPlacement(k, (0.0, (j % 4) * spacing_mm, 1500.0 - (j // 4) * spacing_mm), (0.0, 0.0, 0.0))
@@ -76,8 +80,12 @@ def viewpoint(m: MarkerMap, distance_mm: float, rng) -> np.ndarray:
 
 def _with_margin(c: np.ndarray, cam: Camera) -> bool:
     """The marker's corners are inside the frame by its white margin (one cell) and 2 px more."""
-    margin = float(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1).min()) / (_cv.dictionary_marker_bits(DICT) + 2) + 2.0
-    return bool(c.min() >= margin and (c[:, 0] <= cam.width - 1 - margin).all() and (c[:, 1] <= cam.height - 1 - margin).all())
+    margin = (
+        float(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1).min()) / (_cv.dictionary_marker_bits(DICT) + 2) + 2.0
+    )
+    return bool(
+        c.min() >= margin and (c[:, 0] <= cam.width - 1 - margin).all() and (c[:, 1] <= cam.height - 1 - margin).all()
+    )
 
 
 def seed_pipeline(image, m: MarkerMap, cam: Camera):
@@ -101,14 +109,24 @@ def one_scene(m: MarkerMap, cam: Camera, distance_mm: float, rng, noise=(1.0, 2.
     """Errors (mm; None = no pose) of every pipeline on one rendered scene; None when no marker is in view."""
     for _ in range(50):
         T = viewpoint(m, distance_mm, rng)
-        image, truth = render_scene(cam, m, T, seed=int(rng.integers(1 << 30)), blur_px=float(rng.uniform(*blur)),
-                                    noise_std=float(rng.uniform(*noise)), gradient=float(rng.uniform(0, 0.3)))
+        image, truth = render_scene(
+            cam,
+            m,
+            T,
+            seed=int(rng.integers(1 << 30)),
+            blur_px=float(rng.uniform(*blur)),
+            noise_std=float(rng.uniform(*noise)),
+            gradient=float(rng.uniform(0, 0.3)),
+        )
         if any(_with_margin(c, cam) for c in truth.values()):
             break
     else:
         return None
     C = T[:3, 3]
-    out: dict = {"n_visible": len(truth), "side_px": float(np.median([np.linalg.norm(c - np.roll(c, -1, 0), axis=1).min() for c in truth.values()]))}
+    out: dict = {
+        "n_visible": len(truth),
+        "side_px": float(np.median([np.linalg.norm(c - np.roll(c, -1, 0), axis=1).min() for c in truth.values()])),
+    }
     s = seed_pipeline(image, m, cam)
     out["seed"] = None if s is None else float(np.linalg.norm(s - C))
     try:
@@ -147,7 +165,11 @@ def table(title: str, groups: list[tuple[str, list]]) -> None:
         side = np.median([r["side_px"] for r in rows])
         both = [r for r in rows if works(r["seed"], r["distance"]) and works(r["locate"], r["distance"])]
         ratio = np.median([r["locate"] for r in both]) / np.median([r["seed"] for r in both]) if both else float("nan")
-        print(f"| {label} | {len(rows)} | {seen:.0f} / {detected:.0f}, {side:.0f} | " + " | ".join(cell(rows, k) for k in COLUMNS) + f" | {ratio:.2f} |")
+        print(
+            f"| {label} | {len(rows)} | {seen:.0f} / {detected:.0f}, {side:.0f} | "
+            + " | ".join(cell(rows, k) for k in COLUMNS)
+            + f" | {ratio:.2f} |"
+        )
 
 
 def main(argv=None) -> int:
@@ -157,17 +179,24 @@ def main(argv=None) -> int:
     n = 3 if args.quick else 7
     rng = np.random.default_rng(20261121)
     t0 = time.perf_counter()
-    print(f"OpenCV {cv2.__version__}, NumPy {np.__version__}, Python {platform.python_version()}, "
-          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {n} scenes per row.")
-    print("\nCells: median camera-position error (mm) over the scenes where the pipeline works; after the slash, "
-          "the scenes where it fails (no pose, or more than 5 % of the distance off). "
-          "`locate / seed`: ratio of the medians over the scenes where both work.")
+    print(
+        f"OpenCV {cv2.__version__}, NumPy {np.__version__}, Python {platform.python_version()}, "
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {n} scenes per row."
+    )
+    print(
+        "\nCells: median camera-position error (mm) over the scenes where the pipeline works; after the slash, "
+        "the scenes where it fails (no pose, or more than 5 % of the distance off). "
+        "`locate / seed`: ratio of the medians over the scenes where both work."
+    )
     everything = []
 
     groups = []
     wall = grid_map(8, 400.0)
-    for size, distances in (((640, 480), (500, 1000, 1500, 2000, 3000, 4000)), ((1280, 720), (500, 1000, 1500, 2000, 3000, 4000)),
-                            ((1920, 1080), (1000, 2000, 4000))):
+    for size, distances in (
+        ((640, 480), (500, 1000, 1500, 2000, 3000, 4000)),
+        ((1280, 720), (500, 1000, 1500, 2000, 3000, 4000)),
+        ((1920, 1080), (1000, 2000, 4000)),
+    ):
         cam = camera(size)
         for d in distances:
             rows = [r for r in (one_scene(wall, cam, d, rng) for _ in range(n)) if r]
@@ -177,17 +206,26 @@ def main(argv=None) -> int:
 
     groups = []
     cam = camera((640, 480))
-    for label, m in [("1 marker", grid_map(1, 400.0)), ("2 markers, 400 mm apart", grid_map(2, 400.0)),
-                     ("4 markers, 200 mm apart (compact)", grid_map(4, 200.0)), ("4 markers, 600 mm apart (spread)", grid_map(4, 600.0)),
-                     ("8 markers, 200 mm apart (compact)", grid_map(8, 200.0)), ("8 markers on two walls", grid_map(8, 400.0, two_walls=True))]:
+    for label, m in [
+        ("1 marker", grid_map(1, 400.0)),
+        ("2 markers, 400 mm apart", grid_map(2, 400.0)),
+        ("4 markers, 200 mm apart (compact)", grid_map(4, 200.0)),
+        ("4 markers, 600 mm apart (spread)", grid_map(4, 600.0)),
+        ("8 markers, 200 mm apart (compact)", grid_map(8, 200.0)),
+        ("8 markers on two walls", grid_map(8, 400.0, two_walls=True)),
+    ]:
         rows = [r for r in (one_scene(m, cam, 1500, rng) for _ in range(n)) if r]
         groups.append((label, rows))
         everything += rows
     table("Marker count and spread (150 mm markers, 640x480, 1.5 m)", groups)
 
     groups = []
-    for label, noise, blur in [("noise 1 gray level, blur 0.5 px", (1, 1), (0.5, 0.5)), ("noise 4, blur 0.5 px", (4, 4), (0.5, 0.5)),
-                               ("noise 8, blur 0.5 px", (8, 8), (0.5, 0.5)), ("noise 2, blur 1.5 px", (2, 2), (1.5, 1.5))]:
+    for label, noise, blur in [
+        ("noise 1 gray level, blur 0.5 px", (1, 1), (0.5, 0.5)),
+        ("noise 4, blur 0.5 px", (4, 4), (0.5, 0.5)),
+        ("noise 8, blur 0.5 px", (8, 8), (0.5, 0.5)),
+        ("noise 2, blur 1.5 px", (2, 2), (1.5, 1.5)),
+    ]:
         rows = [r for r in (one_scene(wall, cam, 2000, rng, noise=noise, blur=blur) for _ in range(n)) if r]
         groups.append((label, rows))
         everything += rows
@@ -199,18 +237,32 @@ def main(argv=None) -> int:
     ratio = float(np.median(rel) / np.median(rel_seed))
     lost = [r for r in everything if works(r["seed"], r["distance"]) and not works(r["locate"], r["distance"])]
     seed_lost = [r for r in everything if works(r["locate"], r["distance"]) and not works(r["seed"], r["distance"])]
-    print(f"\nAll {len(everything)} scenes: median error relative to the distance {100 * np.median(rel):.3f} % with locate, "
-          f"{100 * np.median(rel_seed):.3f} % with the seed pipeline (over the {len(both)} where both work): "
-          f"ratio {ratio:.2f}. Scenes where the seed pipeline works and locate does not: {len(lost)}"
-          + (" (" + "; ".join(f"{r['distance']:.0f} mm, {r['n_visible']} markers, locate {r['locate']}" for r in lost) + ")" if lost else "")
-          + f"; where locate works and the seed pipeline does not: {len(seed_lost)}.")
-    print("\nOpenCV's EPnP is not made for coplanar points (it fails on nearly every one-wall scene and works on two walls); "
-          "IPPE needs them (it fails on two walls); `locate` picks IPPE or SQPNP by the data and refines with LM.")
+    print(
+        f"\nAll {len(everything)} scenes: median error relative to the distance {100 * np.median(rel):.3f} % with locate, "
+        f"{100 * np.median(rel_seed):.3f} % with the seed pipeline (over the {len(both)} where both work): "
+        f"ratio {ratio:.2f}. Scenes where the seed pipeline works and locate does not: {len(lost)}"
+        + (
+            " ("
+            + "; ".join(f"{r['distance']:.0f} mm, {r['n_visible']} markers, locate {r['locate']}" for r in lost)
+            + ")"
+            if lost
+            else ""
+        )
+        + f"; where locate works and the seed pipeline does not: {len(seed_lost)}."
+    )
+    print(
+        "\nOpenCV's EPnP is not made for coplanar points (it fails on nearly every one-wall scene and works on two walls); "
+        "IPPE needs them (it fails on two walls); `locate` picks IPPE or SQPNP by the data and refines with LM."
+    )
     print(f"\n({time.perf_counter() - t0:.0f} s)")
-    print(f"<!-- target: accuracy: median camera-position error of `locate` <= 0.5 x the seed pipeline's (distance, size, "
-          f"count, spread, noise sweep) | {ratio:.2f} x over {len(both)} scenes | {'yes' if ratio <= 0.5 else '**no**'} -->")
-    print(f"<!-- target: accuracy: no scene where the seed pipeline works and `locate` does not | {len(lost)} of {len(everything)} scenes | "
-          f"{'yes' if not lost else '**no**'} -->")
+    print(
+        f"<!-- target: accuracy: median camera-position error of `locate` <= 0.5 x the seed pipeline's (distance, size, "
+        f"count, spread, noise sweep) | {ratio:.2f} x over {len(both)} scenes | {'yes' if ratio <= 0.5 else '**no**'} -->"
+    )
+    print(
+        f"<!-- target: accuracy: no scene where the seed pipeline works and `locate` does not | {len(lost)} of {len(everything)} scenes | "
+        f"{'yes' if not lost else '**no**'} -->"
+    )
     return 0
 
 

@@ -46,10 +46,14 @@ def synthetic_sweep(quick: bool) -> None:
     seeds = (1,) if quick else (1, 2, 3)
     if quick:
         tilts = tilts[::2]
-    print("1. Synthetic views: error against the true camera (mean over seeds "
-          f"{', '.join(map(str, seeds))}; 'std' = calibrateCameraExtended's claimed fx standard deviation)")
+    print(
+        "1. Synthetic views: error against the true camera (mean over seeds "
+        f"{', '.join(map(str, seeds))}; 'std' = calibrateCameraExtended's claimed fx standard deviation)"
+    )
     print(f"   true camera: {truth!r}")
-    print(f"   {'tilt deg':>9}  {'views':>5}  {'|fx err| %':>10}  {'|fy err| %':>10}  {'pp err px':>9}  {'std fx %':>8}  {'rms px':>6}  used")
+    print(
+        f"   {'tilt deg':>9}  {'views':>5}  {'|fx err| %':>10}  {'|fy err| %':>10}  {'pp err px':>9}  {'std fx %':>8}  {'rms px':>6}  used"
+    )
     for lo, hi in tilts:
         sets = [render_calibration_views(truth, n_views=max(counts), seed=s, tilt_range_deg=(lo, hi)) for s in seeds]
         for n in counts:
@@ -57,14 +61,21 @@ def synthetic_sweep(quick: bool) -> None:
             for views in sets:
                 cal = calibrate_checkerboard(views.images[:n], PATTERN, SQUARE_MM)
                 c = cal.camera
-                rows.append((
-                    abs(c.fx / truth.fx - 1) * 100, abs(c.fy / truth.fy - 1) * 100,
-                    float(np.hypot(c.cx - truth.cx, c.cy - truth.cy)),
-                    cal.std_intrinsics["fx"] / c.fx * 100, cal.rms_px, len(cal.used),
-                ))
+                rows.append(
+                    (
+                        abs(c.fx / truth.fx - 1) * 100,
+                        abs(c.fy / truth.fy - 1) * 100,
+                        float(np.hypot(c.cx - truth.cx, c.cy - truth.cy)),
+                        cal.std_intrinsics["fx"] / c.fx * 100,
+                        cal.rms_px,
+                        len(cal.used),
+                    )
+                )
             r = np.array(rows)
-            print(f"   {lo:4.0f}-{hi:<4.0f}  {n:5d}  {r[:, 0].mean():10.3f}  {r[:, 1].mean():10.3f}  {r[:, 2].mean():9.2f}  "
-                  f"{r[:, 3].mean():8.3f}  {r[:, 4].mean():6.3f}  {r[:, 5].mean():.1f}/{n}")
+            print(
+                f"   {lo:4.0f}-{hi:<4.0f}  {n:5d}  {r[:, 0].mean():10.3f}  {r[:, 1].mean():10.3f}  {r[:, 2].mean():9.2f}  "
+                f"{r[:, 3].mean():8.3f}  {r[:, 4].mean():6.3f}  {r[:, 5].mean():.1f}/{n}"
+            )
 
 
 def corner_finders(quick: bool) -> None:
@@ -77,7 +88,9 @@ def corner_finders(quick: bool) -> None:
     # a harder set: strong barrel distortion, more blur, small and steeply tilted squares
     hard = Camera([[540.0, 0, 328], [0, 540, 247], [0, 0, 1]], [-0.28, 0.10, 0, 0, -0.02], (640, 480))
     n = 10 if quick else 20
-    views = render_calibration_views(hard, n_views=n, seed=5, tilt_range_deg=(30.0, 55.0), fill_range=(0.22, 0.4), blur_px=1.0)
+    views = render_calibration_views(
+        hard, n_views=n, seed=5, tilt_range_deg=(30.0, 55.0), fill_range=(0.22, 0.4), blur_px=1.0
+    )
     sizes = [float(np.linalg.norm(np.diff(p.reshape(6, 9, 2), axis=1), axis=2).min()) for p in views.image_points]
     print(f"   hard set: {hard!r}, squares {min(sizes):.0f} to {max(sizes):.0f} px at their narrowest, blur 1 px")
     _compare_finders(f"hard set ({n} views)", views.images, views.image_points, hard)
@@ -91,13 +104,17 @@ def _compare_finders(label: str, grays: list, true_points: list, truth: Camera) 
         return cv2.cornerSubPix(gray, c, (11, 11), (-1, -1), crit).reshape(-1, 2).astype(float) if ok else None
 
     finders = {
-        "findChessboardCorners + capped cornerSubPix (default)": lambda g: find_checkerboard_corners(g, PATTERN, "classic"),
+        "findChessboardCorners + capped cornerSubPix (default)": lambda g: find_checkerboard_corners(
+            g, PATTERN, "classic"
+        ),
         "findChessboardCorners + cornerSubPix 11 (OpenCV sample)": fixed11,
         "findChessboardCornersSB, CALIB_CB_ACCURACY": lambda g: find_checkerboard_corners(g, PATTERN, "sb"),
     }
     objp = np.zeros((54, 3), np.float32)
     objp[:, :2] = np.mgrid[0:9, 0:6].T.reshape(-1, 2) * SQUARE_MM
-    print(f"   {label:<58}  found  {'corner rms px':>13}  {'max px':>6}  {'fx err %':>8}  {'fy err %':>8}  {'time s':>6}")
+    print(
+        f"   {label:<58}  found  {'corner rms px':>13}  {'max px':>6}  {'fx err %':>8}  {'fy err %':>8}  {'time s':>6}"
+    )
     for name, find in finders.items():
         t0 = time.perf_counter()
         found = [find(g) for g in grays]
@@ -113,8 +130,10 @@ def _compare_finders(label: str, grays: list, true_points: list, truth: Camera) 
             img.append(c.astype(np.float32))
         e = np.concatenate(errs)
         _rms, K, *_ = cv2.calibrateCamera([objp] * len(img), img, truth.image_size, None, None)
-        print(f"   {'  ' + name:<58}  {len(img):2d}/{len(grays):<2d}  {np.sqrt(np.mean(e ** 2)):13.3f}  {e.max():6.3f}  "
-              f"{(K[0, 0] / truth.fx - 1) * 100:8.3f}  {(K[1, 1] / truth.fy - 1) * 100:8.3f}  {dt:6.2f}")
+        print(
+            f"   {'  ' + name:<58}  {len(img):2d}/{len(grays):<2d}  {np.sqrt(np.mean(e**2)):13.3f}  {e.max():6.3f}  "
+            f"{(K[0, 0] / truth.fx - 1) * 100:8.3f}  {(K[1, 1] / truth.fy - 1) * 100:8.3f}  {dt:6.2f}"
+        )
 
 
 def real_photos() -> None:
@@ -123,22 +142,34 @@ def real_photos() -> None:
     charuco = [data_path("real", "opencv_charuco", f"img_0{i}.jpg") for i in range(4)]
     published = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"), image_size=(640, 480))
     runs = [
-        ("checkerboard right*.jpg, all views", lambda: calibrate_checkerboard(files, PATTERN, SQUARE_MM, reject_outliers=False)),
+        (
+            "checkerboard right*.jpg, all views",
+            lambda: calibrate_checkerboard(files, PATTERN, SQUARE_MM, reject_outliers=False),
+        ),
         ("checkerboard right*.jpg, outliers out", lambda: calibrate_checkerboard(files, PATTERN, SQUARE_MM)),
-        ("checkerboard right*.jpg, SB finder", lambda: calibrate_checkerboard(files, PATTERN, SQUARE_MM, corner_finder="sb", reject_outliers=False)),
+        (
+            "checkerboard right*.jpg, SB finder",
+            lambda: calibrate_checkerboard(files, PATTERN, SQUARE_MM, corner_finder="sb", reject_outliers=False),
+        ),
         ("ChArUco img_00..03", lambda: calibrate_charuco(charuco)),
     ]
-    print(f"   {'set':<38}  views  {'rms px':>6}  {'fx +- std':>14}  {'fy +- std':>14}  {'cx +- std':>13}  {'cy +- std':>13}  {'k1 +- std':>15}")
+    print(
+        f"   {'set':<38}  views  {'rms px':>6}  {'fx +- std':>14}  {'fy +- std':>14}  {'cx +- std':>13}  {'cy +- std':>13}  {'k1 +- std':>15}"
+    )
     for name, run in runs:
         cal = run()
         c, s = cal.camera, cal.std_intrinsics
-        print(f"   {name:<38}  {len(cal.used):2d}/{len(cal.views):<2d}  {cal.rms_px:6.3f}  "
-              f"{c.fx:7.2f} +- {s['fx']:4.2f}  {c.fy:7.2f} +- {s['fy']:4.2f}  {c.cx:6.2f} +- {s['cx']:4.2f}  "
-              f"{c.cy:6.2f} +- {s['cy']:4.2f}  {c.dist[0]:7.4f} +- {s['k1']:.4f}")
+        print(
+            f"   {name:<38}  {len(cal.used):2d}/{len(cal.views):<2d}  {cal.rms_px:6.3f}  "
+            f"{c.fx:7.2f} +- {s['fx']:4.2f}  {c.fy:7.2f} +- {s['fy']:4.2f}  {c.cx:6.2f} +- {s['cx']:4.2f}  "
+            f"{c.cy:6.2f} +- {s['cy']:4.2f}  {c.dist[0]:7.4f} +- {s['k1']:.4f}"
+        )
         for n, reason in cal.rejected:
             print(f"      rejected {n.rsplit('/', 1)[-1]}: {reason}")
-    print(f"   {'published tutorial_camera_charuco.yml':<38}  {'4/4':>5}  {0.182:6.3f}  {published.fx:7.2f}"
-          f"{'':8}  {published.fy:7.2f}{'':8}  {published.cx:6.2f}{'':8}  {published.cy:6.2f}{'':8}  {published.dist[0]:7.4f}")
+    print(
+        f"   {'published tutorial_camera_charuco.yml':<38}  {'4/4':>5}  {0.182:6.3f}  {published.fx:7.2f}"
+        f"{'':8}  {published.fy:7.2f}{'':8}  {published.cx:6.2f}{'':8}  {published.cy:6.2f}{'':8}  {published.dist[0]:7.4f}"
+    )
 
 
 def main() -> None:

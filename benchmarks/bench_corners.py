@@ -68,7 +68,13 @@ def scene(side_px: float, seed: int, dictionary: str, image_size=(640, 480), blu
     n_cols = max(1, min(3, int((w - 80) / (1.9 * side_px))))
     n_rows = max(1, min(2, int((h - 80) / (1.9 * side_px))))
     mm = grid_map(n_cols, n_rows, dictionary, first_id=int(rng.integers(0, 10)))
-    centre = np.array([0.0, (n_cols - 1) * 0.875 * MARKER_MM + MARKER_MM / 2, 1000.0 - (n_rows - 1) * 0.875 * MARKER_MM - MARKER_MM / 2])
+    centre = np.array(
+        [
+            0.0,
+            (n_cols - 1) * 0.875 * MARKER_MM + MARKER_MM / 2,
+            1000.0 - (n_rows - 1) * 0.875 * MARKER_MM - MARKER_MM / 2,
+        ]
+    )
     dist = cam.fx * MARKER_MM / side_px  # [mm] distance giving the nominal side when seen head-on
     az, el = math.radians(rng.uniform(-35, 35)), math.radians(rng.uniform(-25, 25))
     eye = centre + dist * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
@@ -119,8 +125,11 @@ def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
             radial /= np.linalg.norm(radial, axis=2, keepdims=True)
             r = np.linalg.norm(e, axis=2)
             rows[side][m] = dict(
-                found=len(e), visible=visible, rms=float(np.sqrt((r ** 2).mean())),
-                p95=float(np.percentile(r, 95)), radial=float((e * radial).sum(2).mean()),
+                found=len(e),
+                visible=visible,
+                rms=float(np.sqrt((r**2).mean())),
+                p95=float(np.percentile(r, 95)),
+                radial=float((e * radial).sum(2).mean()),
                 dxdy=e.reshape(-1, 2).mean(axis=0),
             )
     return rows
@@ -128,15 +137,21 @@ def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
 
 def print_accuracy(rows, methods, dictionary):
     print(f"\nCorner error [px] vs truth, {dictionary}, 640x480, blur 0.5-1.0 px, noise 1-2 gray levels")
-    print("cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible; each method over the markers it found")
-    head = f"| side px | " + " | ".join(methods) + " |"
+    print(
+        "cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible; each method over the markers it found"
+    )
+    head = "| side px | " + " | ".join(methods) + " |"
     print(head)
     print("|" + "---|" * (len(methods) + 1))
     for side, per in rows.items():
         cells = []
         for m in methods:
             r = per[m]
-            cells.append("-" if r is None else f"{r['rms']:.3f} / {r['p95']:.2f} / {r['radial']:+.2f}; {r['found']}/{r['visible']}")
+            cells.append(
+                "-"
+                if r is None
+                else f"{r['rms']:.3f} / {r['p95']:.2f} / {r['radial']:+.2f}; {r['found']}/{r['visible']}"
+            )
         print(f"| {side} | " + " | ".join(cells) + " |")
     print("\nMean image-frame offset (dx, dy) [px] over all sides (a constant shift shows here):")
     for m in methods:
@@ -172,15 +187,23 @@ def robustness(methods, n_scenes: int = 4) -> dict:
         for s in range(n_scenes):
             rng = np.random.default_rng(s)
             az, el = math.radians(rng.uniform(-35, 35)), math.radians(rng.uniform(-25, 25))
-            eye = centre + cam.fx * MARKER_MM / side * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+            eye = centre + cam.fx * MARKER_MM / side * np.array(
+                [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+            )
             kw = {"blur_px": 0.7, "noise_std": 1.5, **extra}
-            image, truth = render_scene(cam, mm, look_at(eye, centre, roll_deg=float(rng.uniform(0, 360))), seed=s, **kw)
+            image, truth = render_scene(
+                cam, mm, look_at(eye, centre, roll_deg=float(rng.uniform(0, 360))), seed=s, **kw
+            )
             if invert:
                 image = 255 - image
             visible += len(truth)
             params = {"detectInvertedMarker": True} if invert else None
             for m in methods:
-                errs[m] += [d.corners - truth[d.id] for d in detect_markers(image, dic, refine=m, params=params) if d.id in truth]
+                errs[m] += [
+                    d.corners - truth[d.id]
+                    for d in detect_markers(image, dic, refine=m, params=params)
+                    if d.id in truth
+                ]
         rows[label] = {m: (np.array(e), visible) for m, e in errs.items()}
     return rows
 
@@ -194,7 +217,7 @@ def print_robustness(rows, methods):
         for m in methods:
             e, vis = per[m]
             r = np.linalg.norm(e.reshape(-1, 2), axis=1) if e.size else np.zeros(0)
-            cells.append(f"{np.sqrt((r ** 2).mean()):.3f} / {r.max():.2f}; {len(e)}/{vis}" if r.size else f"- ; 0/{vis}")
+            cells.append(f"{np.sqrt((r**2).mean()):.3f} / {r.max():.2f}; {len(e)}/{vis}" if r.size else f"- ; 0/{vis}")
         print(f"| {label} | " + " | ".join(cells) + " |")
 
 
@@ -217,9 +240,13 @@ def print_subpix_windows(dictionary: str, n_scenes: int = 3) -> None:
             e = []
             for s in range(n_scenes):
                 image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
-                e += [d.corners - truth[d.id] for d in detect_markers(image, dictionary, refine="subpix", params=params) if d.id in truth]
+                e += [
+                    d.corners - truth[d.id]
+                    for d in detect_markers(image, dictionary, refine="subpix", params=params)
+                    if d.id in truth
+                ]
             r = np.linalg.norm(np.array(e).reshape(-1, 2), axis=1)
-            cells.append(f"{np.sqrt((r ** 2).mean()):.3f} / {r.max():.2f}")
+            cells.append(f"{np.sqrt((r**2).mean()):.3f} / {r.max():.2f}")
         print(f"| {side} | " + " | ".join(cells) + " |")
 
 
@@ -238,7 +265,10 @@ def real_photos(methods) -> dict:
 
     cam = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
     board = _cv.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
-    obj = {int(i): np.asarray(o, float).reshape(4, 3)[:, :2] for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())}
+    obj = {
+        int(i): np.asarray(o, float).reshape(4, 3)[:, :2]
+        for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())
+    }
 
     def fit(P, Q):
         H, _ = cv2.findHomography(P.reshape(-1, 2), Q, 0)
@@ -258,26 +288,33 @@ def real_photos(methods) -> dict:
             else:
                 dets = [d for d in detect_markers(image, "6X6_250", refine=m) if d.id in obj]
             P = np.stack([obj[d.id] for d in dets])
-            Q = cv2.undistortPoints(np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K).reshape(-1, 2)
+            Q = cv2.undistortPoints(
+                np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K
+            ).reshape(-1, 2)
             out[m]["h"].append(fit(P, Q))
             centre = P.mean(axis=1, keepdims=True)
             best = min((float((fit(centre + s * (P - centre), Q) ** 2).sum()), s) for s in np.linspace(0.95, 1.05, 201))
             out[m]["hs"].append(fit(centre + best[1] * (P - centre), Q))
             out[m]["s"].append(best[1])
             out[m]["d"] += [d.corners - ref[d.id] for d in dets if d.id in ref]
-    return {m: dict(
-        h=float(np.sqrt((np.concatenate(v["h"]) ** 2).sum(1).mean())),
-        hs=float(np.sqrt((np.concatenate(v["hs"]) ** 2).sum(1).mean())),
-        s=float(np.mean(v["s"])),
-        d=np.concatenate(v["d"]).reshape(-1, 2).mean(axis=0),
-        n=sum(len(x) for x in v["h"]) // 4,
-    ) for m, v in out.items()}
+    return {
+        m: dict(
+            h=float(np.sqrt((np.concatenate(v["h"]) ** 2).sum(1).mean())),
+            hs=float(np.sqrt((np.concatenate(v["hs"]) ** 2).sum(1).mean())),
+            s=float(np.mean(v["s"])),
+            d=np.concatenate(v["d"]).reshape(-1, 2).mean(axis=0),
+            n=sum(len(x) for x in v["h"]) // 4,
+        )
+        for m, v in out.items()
+    }
 
 
 def print_real(rows):
     n = next(iter(rows.values()))["n"]
     print(f"\nReal photos: ChArUco board (5 photos, {n} marker detections), homography fit of the undistorted corners")
-    print("| refinement | RMS [px] | RMS with a common marker scale [px] | that scale | mean offset from edges (dx, dy) [px] |")
+    print(
+        "| refinement | RMS [px] | RMS with a common marker scale [px] | that scale | mean offset from edges (dx, dy) [px] |"
+    )
     print("|---|---|---|---|---|")
     for m, r in rows.items():
         print(f"| {m} | {r['h']:.3f} | {r['hs']:.3f} | {r['s']:.3f} | ({r['d'][0]:+.2f}, {r['d'][1]:+.2f}) |")
@@ -307,7 +344,7 @@ def timing(dictionary: str, methods, repeats: int, cpu: bool = False) -> dict:
         plain = cv2.aruco.ArucoDetector(_cv.get_dictionary(dic), cv2.aruco.DetectorParameters())
         calls = {"plain detectMarkers": lambda: plain.detectMarkers(image)}
         for m in methods:
-            calls[f"detect_markers {m}"] = (lambda m=m: detect_markers(image, dic, refine=m))
+            calls[f"detect_markers {m}"] = lambda m=m: detect_markers(image, dic, refine=m)
         if locate is not None and mm is not None:
             calls["locate (default)"] = lambda: locate(image, mm, cam)
         for f in calls.values():  # warm the caches
@@ -338,7 +375,9 @@ def print_timing(t, cpu: bool):
     print("| call | " + " | ".join(labels) + " |")
     print("|" + "---|" * (len(labels) + 1))
     for k in keys:
-        cells = [f"{t[lab][k][0]:.2f} ms {t[lab][k][1]:.2f}x [{t[lab][k][2]:.2f}x]" if k in t[lab] else "-" for lab in labels]
+        cells = [
+            f"{t[lab][k][0]:.2f} ms {t[lab][k][1]:.2f}x [{t[lab][k][2]:.2f}x]" if k in t[lab] else "-" for lab in labels
+        ]
         print(f"| {k} | " + " | ".join(cells) + " |")
 
 
@@ -353,8 +392,10 @@ def main(argv=None) -> None:
     if args.quick:
         args.scenes, args.repeats = 2, 10
     methods = list(REFINE_METHODS)
-    print(f"fidlearn {fidlearn.__version__}, OpenCV {cv2.__version__}, numpy {np.__version__}, "
-          f"Python {platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
+    print(
+        f"fidlearn {fidlearn.__version__}, OpenCV {cv2.__version__}, numpy {np.__version__}, "
+        f"Python {platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
+    )
     t0 = time.perf_counter()
     print_accuracy(accuracy(args.dictionary, args.scenes, methods), methods + [GAMMA_COLUMN], args.dictionary)
     print_real(real_photos(methods))

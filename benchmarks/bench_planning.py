@@ -37,8 +37,13 @@ def wall_map(rng: np.random.Generator, n: int, size_mm: float = 80.0) -> MarkerM
         y, z = rng.uniform(-600, 600), rng.uniform(200, 1000)
         if all(abs(y - a) > 1.6 * size_mm or abs(z - b) > 1.6 * size_mm for a, b in placed):
             placed.append((y, z))
-    return MarkerMap.from_dict({"units": "mm", "marker_size_mm": size_mm, "markers": {
-        str(i): {"translation": [0.0, y, z], "rotation": [0, 0, 0]} for i, (y, z) in enumerate(placed)}})
+    return MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": size_mm,
+            "markers": {str(i): {"translation": [0.0, y, z], "rotation": [0, 0, 0]} for i, (y, z) in enumerate(placed)},
+        }
+    )
 
 
 def scene(rng: np.random.Generator, world: MarkerMap, distance_mm: float):
@@ -76,18 +81,35 @@ def group_rows(n_scenes: int, n_seeds: int, seed: int = 7) -> list[dict]:
                 predicted.append(p.position_error_mm)
                 measured.append(err)
         ratio = float(np.median(ratios)) if ratios else math.nan
-        rows.append({"size": size, "markers": (lo, hi), "n": used, "samples": len(ratios),
-                     "predicted": float(np.median(predicted)), "measured": float(np.median(measured)),
-                     "ratio": 1.0 / ratio if ratio else math.nan, "flip_likely": flips,
-                     "seconds": time.perf_counter() - t0})
-        print(f"  {size[0]}x{size[1]}, {lo}-{hi} markers: {used} scenes, predicted / measured {rows[-1]['ratio']:.2f}",
-              file=sys.stderr, flush=True)
+        rows.append(
+            {
+                "size": size,
+                "markers": (lo, hi),
+                "n": used,
+                "samples": len(ratios),
+                "predicted": float(np.median(predicted)),
+                "measured": float(np.median(measured)),
+                "ratio": 1.0 / ratio if ratio else math.nan,
+                "flip_likely": flips,
+                "seconds": time.perf_counter() - t0,
+            }
+        )
+        print(
+            f"  {size[0]}x{size[1]}, {lo}-{hi} markers: {used} scenes, predicted / measured {rows[-1]['ratio']:.2f}",
+            file=sys.stderr,
+            flush=True,
+        )
     return rows
 
 
 def detected_fraction(camera: Camera, side_mm: float, distance_mm: float, trials: int) -> float:
-    world = MarkerMap.from_dict({"units": "mm", "marker_size_mm": side_mm, "markers": {
-        "0": {"translation": [0, -side_mm / 2, 1000 + side_mm / 2], "rotation": [0, 0, 0]}}})
+    world = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": side_mm,
+            "markers": {"0": {"translation": [0, -side_mm / 2, 1000 + side_mm / 2], "rotation": [0, 0, 0]}},
+        }
+    )
     found = 0
     for k in range(trials):
         T = look_at([distance_mm, 0, 1000], [0, 0, 1000], roll_deg=7.0 * k)
@@ -110,10 +132,20 @@ def max_distance_rows(trials: int) -> list[dict]:
                 else:
                     hi = mid
             measured = (lo + hi) / 2
-            rows.append({"size": size, "side_mm": side_mm, "predicted": predicted, "measured": measured,
-                         "ratio": predicted / measured})
-            print(f"  {size[0]}x{size[1]}, {side_mm:g} mm: predicted {predicted:.0f} mm, measured {measured:.0f} mm",
-                  file=sys.stderr, flush=True)
+            rows.append(
+                {
+                    "size": size,
+                    "side_mm": side_mm,
+                    "predicted": predicted,
+                    "measured": measured,
+                    "ratio": predicted / measured,
+                }
+            )
+            print(
+                f"  {size[0]}x{size[1]}, {side_mm:g} mm: predicted {predicted:.0f} mm, measured {measured:.0f} mm",
+                file=sys.stderr,
+                flush=True,
+            )
     return rows
 
 
@@ -155,44 +187,62 @@ def main(argv=None) -> int:
         return 0
     t0 = time.perf_counter()
     groups = group_rows(8, 2) if args.quick else group_rows(25, 4)
-    print("Predicted against measured camera-position error, per group of rendered scenes (60 deg camera, "
-          "one wall of 80 mm markers, distance 0.5-4 m, up to 45 deg off the wall's axis, several noise seeds "
-          "per scene). Each picture's error is divided by its scene's predicted median error; "
-          "'predicted / measured' is 1 over the median of those quotients (1 when the prediction is right):\n")
-    print("| image | markers | scenes | pictures | median predicted (mm) | median measured (mm) | predicted / measured | flip likely |")
+    print(
+        "Predicted against measured camera-position error, per group of rendered scenes (60 deg camera, "
+        "one wall of 80 mm markers, distance 0.5-4 m, up to 45 deg off the wall's axis, several noise seeds "
+        "per scene). Each picture's error is divided by its scene's predicted median error; "
+        "'predicted / measured' is 1 over the median of those quotients (1 when the prediction is right):\n"
+    )
+    print(
+        "| image | markers | scenes | pictures | median predicted (mm) | median measured (mm) | predicted / measured | flip likely |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for r in groups:
-        print(f"| {r['size'][0]}x{r['size'][1]} | {r['markers'][0]}-{r['markers'][1]} | {r['n']} | {r['samples']} | "
-              f"{r['predicted']:.2f} | {r['measured']:.2f} | {r['ratio']:.2f} | {r['flip_likely']} |")
+        print(
+            f"| {r['size'][0]}x{r['size'][1]} | {r['markers'][0]}-{r['markers'][1]} | {r['n']} | {r['samples']} | "
+            f"{r['predicted']:.2f} | {r['measured']:.2f} | {r['ratio']:.2f} | {r['flip_likely']} |"
+        )
     ratios = [r["ratio"] for r in groups if math.isfinite(r["ratio"])]
     within = [0.75 <= q <= 1.25 for q in ratios]
-    print(f"\n<!-- target: planning: predicted median position error within +/-25 % of measured, per group of rendered "
-          f"scenes | {sum(within)} of {len(within)} groups (ratios {min(ratios):.2f} to {max(ratios):.2f}) | "
-          f"{'yes' if all(within) else 'no'} -->")
+    print(
+        f"\n<!-- target: planning: predicted median position error within +/-25 % of measured, per group of rendered "
+        f"scenes | {sum(within)} of {len(within)} groups (ratios {min(ratios):.2f} to {max(ratios):.2f}) | "
+        f"{'yes' if all(within) else 'no'} -->"
+    )
     dist = max_distance_rows(3 if args.quick else 6)
-    print("\nFarthest a face-on marker is found (half of the trials), predicted from "
-          "`fidlearn.planning.noise.min_perimeter_px` against measured by bisection:\n")
+    print(
+        "\nFarthest a face-on marker is found (half of the trials), predicted from "
+        "`fidlearn.planning.noise.min_perimeter_px` against measured by bisection:\n"
+    )
     print("| image | marker | predicted (mm) | measured (mm) | predicted / measured |\n|---|---|---|---|---|")
     for r in dist:
-        print(f"| {r['size'][0]}x{r['size'][1]} | {r['side_mm']:g} mm | {r['predicted']:.0f} | {r['measured']:.0f} | {r['ratio']:.2f} |")
+        print(
+            f"| {r['size'][0]}x{r['size'][1]} | {r['side_mm']:g} mm | {r['predicted']:.0f} | {r['measured']:.0f} | {r['ratio']:.2f} |"
+        )
     worst = max(abs(r["ratio"] - 1) for r in dist)
-    print(f"\n<!-- target: planning: predicted maximum detection distance within 15 % of measured | "
-          f"{100 * worst:.0f} % at worst over {len(dist)} cases | {'yes' if worst <= 0.15 else 'no'} -->")
+    print(
+        f"\n<!-- target: planning: predicted maximum detection distance within 15 % of measured | "
+        f"{100 * worst:.0f} % at worst over {len(dist)} cases | {'yes' if worst <= 0.15 else 'no'} -->"
+    )
     n_seeds = 4 if args.quick else 12
     coached = coach_rows(n_seeds)
-    print("\nThe calibration coach (`fidlearn.planning.coach`): views until fx is within 0.1 % of the truth and the "
-          "reprojection uncertainty is under 0.3 px over 90 % of the picture, starting from 4 random views; then "
-          "either the coach's next view or another random one (board anywhere in the picture, tilted 0 to 40 deg, "
-          f"400 to 800 mm away); corners with 0.1 px noise; the camera of data/calibration; {n_seeds} seeds, "
-          "at most 40 views:\n")
+    print(
+        "\nThe calibration coach (`fidlearn.planning.coach`): views until fx is within 0.1 % of the truth and the "
+        "reprojection uncertainty is under 0.3 px over 90 % of the picture, starting from 4 random views; then "
+        "either the coach's next view or another random one (board anywhere in the picture, tilted 0 to 40 deg, "
+        f"400 to 800 mm away); corners with 0.1 px noise; the camera of data/calibration; {n_seeds} seeds, "
+        "at most 40 views:\n"
+    )
     print("| strategy | views needed (median) | per seed |\n|---|---|---|")
     med = {k: float(np.median(v)) for k, v in coached.items()}
     for k, v in coached.items():
         print(f"| {k} | {med[k]:.1f} | {', '.join(map(str, v))} |")
     saving = 1 - med["coach"] / med["random"]
-    print(f"\n<!-- target: coach: its next views reach fx within 0.1 % and < 0.3 px over 90 % of the picture with >= 30 % "
-          f"fewer views than random ones | {100 * saving:.0f} % fewer ({med['coach']:.1f} against {med['random']:.1f}) | "
-          f"{'yes' if saving >= 0.3 else 'no'} -->")
+    print(
+        f"\n<!-- target: coach: its next views reach fx within 0.1 % and < 0.3 px over 90 % of the picture with >= 30 % "
+        f"fewer views than random ones | {100 * saving:.0f} % fewer ({med['coach']:.1f} against {med['random']:.1f}) | "
+        f"{'yes' if saving >= 0.3 else 'no'} -->"
+    )
     flags = flag_rows(n_seeds)
     print("\nSeeded calibration sets (20 views unless said, 0.1 px noise) and how often the coach flags them:\n")
     print("| set | flagged |\n|---|---|")
@@ -200,12 +250,13 @@ def main(argv=None) -> int:
         print(f"| {name} | {n} of {total} |")
     bad_ok = all(n == total for name, n, total in flags if name != "good")
     good_ok = all(n == 0 for name, n, total in flags if name == "good")
-    print(f"\n<!-- target: coach: every seeded bad calibration set flagged, no good set flagged | "
-          f"{'all bad sets flagged' if bad_ok else 'a bad set missed'}, {'no good set flagged' if good_ok else 'a good set flagged'} | "
-          f"{'yes' if bad_ok and good_ok else 'no'} -->")
+    print(
+        f"\n<!-- target: coach: every seeded bad calibration set flagged, no good set flagged | "
+        f"{'all bad sets flagged' if bad_ok else 'a bad set missed'}, {'no good set flagged' if good_ok else 'a good set flagged'} | "
+        f"{'yes' if bad_ok and good_ok else 'no'} -->"
+    )
     print(f"\n{time.perf_counter() - t0:.0f} s")
     return 0
-
 
 
 # ------------------------------------------------------------------------------------------------
@@ -216,8 +267,9 @@ def _board(pattern=(9, 6), square_mm=25.0) -> np.ndarray:
     return np.array([[i * square_mm, j * square_mm, 0.0] for j in range(rows) for i in range(cols)])
 
 
-def random_board_pose(rng: np.random.Generator, camera: Camera, board: np.ndarray, tilt_max_deg: float = 40.0,
-                      region: int | None = None):
+def random_board_pose(
+    rng: np.random.Generator, camera: Camera, board: np.ndarray, tilt_max_deg: float = 40.0, region: int | None = None
+):
     """A board pose whose every point is in the picture: somewhere in the picture (in one of its 3x3
     ``region`` s when given, 0 the top left), tilted up to ``tilt_max_deg``."""
     from fidlearn import frames
@@ -253,25 +305,38 @@ def _calibrate(camera_true: Camera, board: np.ndarray, observed: list, other_siz
     from fidlearn import frames
     from fidlearn.planning.coach import coach
 
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([board.astype(np.float32)] * len(observed),
-                                                     [o.astype(np.float32) for o in observed],
-                                                     camera_true.image_size, None, None)
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(
+        [board.astype(np.float32)] * len(observed),
+        [o.astype(np.float32) for o in observed],
+        camera_true.image_size,
+        None,
+        None,
+    )
     cam = Camera(K, dist.ravel(), camera_true.image_size)
     names = [f"v{i}" for i in range(len(observed))]
     T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
-    c = coach(cam, {n: board for n in names}, dict(zip(names, observed)), T, sigma_px=max(rms / math.sqrt(2), 1e-3),
-              other_sizes=other_sizes)
+    c = coach(
+        cam,
+        {n: board for n in names},
+        dict(zip(names, observed)),
+        T,
+        sigma_px=max(rms / math.sqrt(2), 1e-3),
+        other_sizes=other_sizes,
+    )
     return cam, c
 
 
-def views_needed(strategy: str, seed: int, camera_true: Camera, sigma: float = 0.1, start: int = 4,
-                 most: int = 40) -> int:
+def views_needed(
+    strategy: str, seed: int, camera_true: Camera, sigma: float = 0.1, start: int = 4, most: int = 40
+) -> int:
     """Views until fx is within 0.1 % and the coach's map is under 0.3 px over 90 % of the picture."""
     from fidlearn import frames
 
     rng = np.random.default_rng(seed)
     board = _board()
-    observed = [_observe(rng, camera_true, board, random_board_pose(rng, camera_true, board), sigma) for _ in range(start)]
+    observed = [
+        _observe(rng, camera_true, board, random_board_pose(rng, camera_true, board), sigma) for _ in range(start)
+    ]
     while len(observed) < most:
         cam, c = _calibrate(camera_true, board, observed)
         if abs(cam.fx / camera_true.fx - 1) < 1e-3 and c.good_fraction >= 0.9:
@@ -326,8 +391,14 @@ def seeded_sets(rng: np.random.Generator, camera: Camera) -> dict:
             if px[:, 0].max() < 0.6 * camera.width:
                 return T
 
-    return {"good": (views(20), 0), "face-on": (views(20, face_on), 0), "left part only": (views(20, left_only), 0),
-            "too few": (views(6), 0), "mixed resolutions": (views(20), 3), "bent board": (views(20, bend_view=7), 0)}
+    return {
+        "good": (views(20), 0),
+        "face-on": (views(20, face_on), 0),
+        "left part only": (views(20, left_only), 0),
+        "too few": (views(6), 0),
+        "mixed resolutions": (views(20), 3),
+        "bent board": (views(20, bend_view=7), 0),
+    }
 
 
 def flag_rows(seeds: int) -> list[tuple[str, int, int]]:

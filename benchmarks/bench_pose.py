@@ -40,8 +40,12 @@ from fidlearn.detection import Detection
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.synthetic import look_at, render_scene
 
-CAMERA = Camera([[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]], [-0.15, 0.09, 0.0005, -0.0004, 0.0], (640, 480),
-                source="benchmark camera, 56 deg horizontal FOV, barrel distortion")
+CAMERA = Camera(
+    [[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]],
+    [-0.15, 0.09, 0.0005, -0.0004, 0.0],
+    (640, 480),
+    source="benchmark camera, 56 deg horizontal FOV, barrel distortion",
+)
 CHI2_3_95 = 7.815
 
 
@@ -107,8 +111,9 @@ def seed_pipeline(image, marker_map, camera):
     if not obj:
         return None
     try:
-        ok, rvec, tvec = cv2.solvePnP(np.concatenate(obj), np.concatenate(img), camera.K, camera.dist,
-                                      flags=_cv.solvepnp_flag("IPPE"))
+        ok, rvec, tvec = cv2.solvePnP(
+            np.concatenate(obj), np.concatenate(img), camera.K, camera.dist, flags=_cv.solvepnp_flag("IPPE")
+        )
     except cv2.error:
         return None
     if not ok:
@@ -137,8 +142,15 @@ def bench_rendered(n_per_map: int, rng) -> None:
             if not all_visible(m, T):
                 continue
             n += 1
-            image, truth = render_scene(CAMERA, m, T, seed=int(rng.integers(1 << 30)), blur_px=rng.uniform(0.3, 1.0),
-                                        noise_std=rng.uniform(1.0, 4.0), gradient=rng.uniform(0, 0.3))
+            image, truth = render_scene(
+                CAMERA,
+                m,
+                T,
+                seed=int(rng.integers(1 << 30)),
+                blur_px=rng.uniform(0.3, 1.0),
+                noise_std=rng.uniform(1.0, 4.0),
+                gradient=rng.uniform(0, 0.3),
+            )
             C = T[:3, 3]
             s = seed_pipeline(image, m, CAMERA)
             if s is None:
@@ -155,6 +167,7 @@ def bench_rendered(n_per_map: int, rng) -> None:
                 cover[r] += p.position_ellipsoid_contains(C, 0.95)
                 if r is None:
                     from fidlearn.detection import detect_markers
+
                     found = {d.id: d.corners for d in detect_markers(image, m.dictionary)}
                     for i in p.rejected_ids:  # the map is right: was the detection wrong?
                         bad = i not in truth or np.abs(found[i] - truth[i]).max() > 0.5
@@ -164,22 +177,27 @@ def bench_rendered(n_per_map: int, rng) -> None:
         for r in refines:
             e = np.array(errs[r])
             line += f"{np.median(e):>17.2f}{np.percentile(e, 90):>7.1f}{e.max():>8.1f}{fails[r]:>5}{100 * cover[r] / max(len(e), 1):>6.0f}%"
-        print(line + f"   (rejected: {n_rejected} well-detected markers, {n_rejected_bad_detection} detected > 0.5 px off)")
+        print(
+            line
+            + f"   (rejected: {n_rejected} well-detected markers, {n_rejected_bad_detection} detected > 0.5 px off)"
+        )
         for k in totals:
             totals[k] += errs[k]
     line = f"{'all':<11}{len(totals[None]):>4}{np.median(totals['seed']):>10.2f}{'':>5}"
     for r in refines:
         line += f"{np.median(totals[r]):>17.2f}{np.percentile(totals[r], 90):>7.1f}{np.max(totals[r]):>8.1f}{'':>12}"
     print(line)
-    print(f"median locate[default] / median seed (where the seed succeeds) = "
-          f"{np.median(totals[None]) / np.median(totals['seed']):.3f} (target <= 0.5)")
+    print(
+        f"median locate[default] / median seed (where the seed succeeds) = "
+        f"{np.median(totals[None]) / np.median(totals['seed']):.3f} (target <= 0.5)"
+    )
 
 
 def nees_trial(m, T, sigma, rng, camera=CAMERA):
     """(NEES of estimate_pose, NEES of LM from the truth, ambiguous) for one noisy observation."""
     obj = np.concatenate(list(m.corners().values()))
     img = camera.project(obj, T) + rng.normal(0, sigma, (len(obj), 2))
-    dets = [Detection(i, img[4 * k: 4 * k + 4]) for k, i in enumerate(m.ids)]
+    dets = [Detection(i, img[4 * k : 4 * k + 4]) for k, i in enumerate(m.ids)]
     J = pose_mod.pose_jacobian(obj, T, camera)
     P = sigma**2 * np.linalg.inv(J.T @ J)[3:, 3:]
     pose = fidlearn.estimate_pose(dets, m, camera, corner_sigma_px=sigma)
@@ -196,8 +214,10 @@ def single_marker_map() -> MarkerMap:
 def bench_nees(n_trials: int, rng) -> None:
     print("\n== 2. optimality: NEES of the camera centre w.r.t. the Cramer-Rao bound at the true pose ==")
     print("(expected median for an efficient estimator: 2.37; 'gross' = NEES > 25 / > 100)")
-    print(f"{'scene':<26}{'sigma':>6}{'median ours':>12}{'median LM@truth':>16}{'ratio':>7}"
-          f"{'gross ours':>11}{'gross truth':>12}{'gross100':>14}{'ambig %':>8}")
+    print(
+        f"{'scene':<26}{'sigma':>6}{'median ours':>12}{'median LM@truth':>16}{'ratio':>7}"
+        f"{'gross ours':>11}{'gross truth':>12}{'gross100':>14}{'ambig %':>8}"
+    )
     scenes = [
         ("seed map", seed_map(), (0.5, 1.5)),
         ("one wall, 6 markers", wall_map(), (0.8, 2.5)),
@@ -216,18 +236,23 @@ def bench_nees(n_trials: int, rng) -> None:
                 truth.append(b)
                 amb += c
             ours, truth = np.array(ours), np.array(truth)
-            print(f"{name:<26}{sigma:>6.1f}{np.median(ours):>12.2f}{np.median(truth):>16.2f}"
-                  f"{np.median(ours) / np.median(truth):>7.2f}{100 * np.mean(ours > 25):>10.1f}%{100 * np.mean(truth > 25):>11.1f}%"
-                  f"{100 * np.mean(ours > 100):>6.1f}/{100 * np.mean(truth > 100):>5.1f}%{100 * amb / len(ours):>7.0f}%")
+            print(
+                f"{name:<26}{sigma:>6.1f}{np.median(ours):>12.2f}{np.median(truth):>16.2f}"
+                f"{np.median(ours) / np.median(truth):>7.2f}{100 * np.mean(ours > 25):>10.1f}%{100 * np.mean(truth > 25):>11.1f}%"
+                f"{100 * np.mean(ours > 100):>6.1f}/{100 * np.mean(truth > 100):>5.1f}%{100 * amb / len(ours):>7.0f}%"
+            )
 
 
 def bench_nees_bundled(n_per_scene: int, rng) -> None:
     print("\n== 2b. the same on the bundled scenes' geometry (data/scenes: 1280x720, seed map and two walls, 1-3 m) ==")
-    print("'extra gross' = gross for estimate_pose but not for LM@truth; 'flagged' = of those, ambiguous=True;"
-          " 'alt ok' = of those, Pose.alternative is not gross")
+    print(
+        "'extra gross' = gross for estimate_pose but not for LM@truth; 'flagged' = of those, ambiguous=True;"
+        " 'alt ok' = of those, Pose.alternative is not gross"
+    )
     import json
 
     from fidlearn.detection import Detection as Det
+
     record = json.loads(fidlearn.data_path("scenes", "poses.json").read_text())
     camera = Camera.load(fidlearn.data_path("scenes", "camera.json"))
     for sigma in (0.3, 1.0, 2.0):
@@ -247,8 +272,10 @@ def bench_nees_bundled(n_per_scene: int, rng) -> None:
 
             for _ in range(n_per_scene):
                 img = camera.project(obj, T) + rng.normal(0, sigma, (len(obj), 2))
-                p = fidlearn.estimate_pose([Det(i, img[4 * j: 4 * j + 4]) for j, i in enumerate(ids)], m, camera)
-                _, C, _, _, _ = pose_mod._lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy(), tol_sigma2=0.0)
+                p = fidlearn.estimate_pose([Det(i, img[4 * j : 4 * j + 4]) for j, i in enumerate(ids)], m, camera)
+                _, C, _, _, _ = pose_mod._lm(
+                    obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy(), tol_sigma2=0.0
+                )
                 a, b = nees(p.position_mm), nees(C)
                 ours.append(a)
                 truth.append(b)
@@ -257,15 +284,21 @@ def bench_nees_bundled(n_per_scene: int, rng) -> None:
                     flagged += p.ambiguous
                     alt_ok += p.alternative is not None and nees(p.alternative.position_mm) <= 25
         ours, truth = np.array(ours), np.array(truth)
-        print(f"sigma {sigma:.1f} px: median NEES {np.median(ours):.2f} vs LM@truth {np.median(truth):.2f} "
-              f"(ratio {np.median(ours) / np.median(truth):.3f}); gross {100 * np.mean(ours > 25):.1f} % vs "
-              f"{100 * np.mean(truth > 25):.1f} %; extra gross {extra}, flagged {flagged}, alt ok {alt_ok}")
+        print(
+            f"sigma {sigma:.1f} px: median NEES {np.median(ours):.2f} vs LM@truth {np.median(truth):.2f} "
+            f"(ratio {np.median(ours) / np.median(truth):.3f}); gross {100 * np.mean(ours > 25):.1f} % vs "
+            f"{100 * np.mean(truth > 25):.1f} %; extra gross {extra}, flagged {flagged}, alt ok {alt_ok}"
+        )
 
 
 def bench_coverage(n_trials: int, rng) -> None:
     print("\n== 3. coverage of the 95 % position ellipsoid (target 90-98 %) ==")
-    for name, m in [("seed map", seed_map()), ("one wall", wall_map()), ("two walls", two_wall_map()),
-                    ("1 marker", single_marker_map())]:
+    for name, m in [
+        ("seed map", seed_map()),
+        ("one wall", wall_map()),
+        ("two walls", two_wall_map()),
+        ("1 marker", single_marker_map()),
+    ]:
         for sigma in (0.3, 1.0):
             for given in (True, False):
                 inside = 0
@@ -277,10 +310,12 @@ def bench_coverage(n_trials: int, rng) -> None:
                     n += 1
                     obj = np.concatenate(list(m.corners().values()))
                     img = CAMERA.project(obj, T) + rng.normal(0, sigma, (len(obj), 2))
-                    dets = [Detection(i, img[4 * k: 4 * k + 4]) for k, i in enumerate(m.ids)]
+                    dets = [Detection(i, img[4 * k : 4 * k + 4]) for k, i in enumerate(m.ids)]
                     p = fidlearn.estimate_pose(dets, m, CAMERA, corner_sigma_px=sigma if given else None)
                     inside += p.position_ellipsoid_contains(T[:3, 3], 0.95)
-                print(f"{name:<10} sigma {sigma:.1f} px, {'given    ' if given else 'estimated'}: {100 * inside / n:5.1f} % of {n}")
+                print(
+                    f"{name:<10} sigma {sigma:.1f} px, {'given    ' if given else 'estimated'}: {100 * inside / n:5.1f} % of {n}"
+                )
 
 
 def bench_speed(n_images: int, rng) -> None:
@@ -293,6 +328,7 @@ def bench_speed(n_images: int, rng) -> None:
             images.append(render_scene(CAMERA, m, T, seed=len(images), blur_px=0.6, noise_std=2.0)[0])
     det = _cv.make_detector(m.dictionary)
     from fidlearn.detection import detect_markers
+
     dets = [detect_markers(im, m.dictionary) for im in images]
 
     jobs = {
@@ -321,8 +357,13 @@ def bench_speed(n_images: int, rng) -> None:
 
 def bench_misplaced(n_trials: int, rng) -> None:
     print("\n== 5. a misplaced marker (map wrong by `shift` mm along the wall), rendered scenes ==")
-    for label, m, shift in [("6 markers", wall_map(), 10.0), ("6 markers", wall_map(), 25.0), ("6 markers", wall_map(), 60.0),
-                            ("seed map, 3", seed_map(), 10.0), ("seed map, 3", seed_map(), 25.0)]:
+    for label, m, shift in [
+        ("6 markers", wall_map(), 10.0),
+        ("6 markers", wall_map(), 25.0),
+        ("6 markers", wall_map(), 60.0),
+        ("seed map, 3", seed_map(), 10.0),
+        ("seed map, 3", seed_map(), 25.0),
+    ]:
         caught = wrong = 0
         err_on, err_off = [], []
         n = 0
@@ -336,8 +377,11 @@ def bench_misplaced(n_trials: int, rng) -> None:
             p0 = pl[bad]
             direction = rng.normal(0, 1, 2)
             direction = shift * direction / np.linalg.norm(direction)
-            pl[bad] = MarkerPlacement(bad, (p0.translation_mm[0], p0.translation_mm[1] + direction[0],
-                                            p0.translation_mm[2] + direction[1]), p0.rotation_deg)
+            pl[bad] = MarkerPlacement(
+                bad,
+                (p0.translation_mm[0], p0.translation_mm[1] + direction[0], p0.translation_mm[2] + direction[1]),
+                p0.rotation_deg,
+            )
             wrong_map = MarkerMap(pl, m.marker_size_mm, m.dictionary, "mm")
             try:
                 p_on = fidlearn.locate(image, wrong_map, CAMERA)
@@ -351,15 +395,19 @@ def bench_misplaced(n_trials: int, rng) -> None:
             wrong += any(i != bad for i in p_on.rejected_ids)
             err_on.append(np.linalg.norm(p_on.position_mm - T[:3, 3]))
             err_off.append(np.linalg.norm(p_off.position_mm - T[:3, 3]))
-        print(f"{label:<12} shift {shift:4.0f} mm: rejected {100 * caught / n:5.1f} % of {n}, a good marker rejected in "
-              f"{100 * wrong / n:4.1f} %; median position error {np.median(err_on):6.2f} mm with rejection, "
-              f"{np.median(err_off):6.2f} mm without")
+        print(
+            f"{label:<12} shift {shift:4.0f} mm: rejected {100 * caught / n:5.1f} % of {n}, a good marker rejected in "
+            f"{100 * wrong / n:4.1f} %; median position error {np.median(err_on):6.2f} mm with rejection, "
+            f"{np.median(err_off):6.2f} mm without"
+        )
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer scenes and trials")
-    ap.add_argument("--threads", type=int, default=None, help="cv2.setNumThreads (1 gives steadier timings on a busy machine)")
+    ap.add_argument(
+        "--threads", type=int, default=None, help="cv2.setNumThreads (1 gives steadier timings on a busy machine)"
+    )
     ap.add_argument("--only", choices=["rendered", "nees", "coverage", "speed", "misplaced"], help="run one part")
     args = ap.parse_args(argv)
     warnings.simplefilter("error")

@@ -36,7 +36,9 @@ def webcam(size) -> Camera:
     """About 67 degrees wide, mild barrel distortion (the camera of data/scenes at 1280x720)."""
     w, h = size
     f = 962.5 * w / 1280
-    return Camera([[f, 0, (w - 1) / 2 + 1.3], [0, f, (h - 1) / 2 - 1.6], [0, 0, 1]], [-0.06, 0.045, 0.0003, -0.0002, -0.01], size)
+    return Camera(
+        [[f, 0, (w - 1) / 2 + 1.3], [0, f, (h - 1) / 2 - 1.6], [0, 0, 1]], [-0.06, 0.045, 0.0003, -0.0002, -0.01], size
+    )
 
 
 def timed(fn, repeats: int) -> tuple[float, float, float]:
@@ -61,17 +63,39 @@ def main(argv=None) -> int:
     wall = MarkerMap.load(data_path("world_map.json"))
     hd, vga = webcam((1280, 720)), webcam((640, 480))
     drive_pose = trajectory_poses(wall, 40, seed=11)[20]
-    chessboard_cam = Camera([[615.2, 0, 321.7], [0, 613.9, 243.4], [0, 0, 1]], [-0.11, 0.09, 0.0006, -0.0004, -0.03], (640, 480))
+    chessboard_cam = Camera(
+        [[615.2, 0, 321.7], [0, 613.9, 243.4], [0, 0, 1]], [-0.11, 0.09, 0.0006, -0.0004, -0.03], (640, 480)
+    )
     cases = [
-        ("1280x720, 3 markers at 1.2 m", lambda: render_scene(hd, wall, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER)),
-        ("1280x720, 3 markers at 0.4 m (close-up)", lambda: render_scene(hd, wall, look_at([400, 190, 260], [0, 190, 240]), **RENDER)),
-        ("1280x720, sheets crossing the camera plane", lambda: render_scene(hd, wall, look_at([20, 40, 260], [60, 2000, 250]), **RENDER)),
-        ("640x480, 3 markers at 1.2 m", lambda: render_scene(vga, wall, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER)),
+        (
+            "1280x720, 3 markers at 1.2 m",
+            lambda: render_scene(hd, wall, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER),
+        ),
+        (
+            "1280x720, 3 markers at 0.4 m (close-up)",
+            lambda: render_scene(hd, wall, look_at([400, 190, 260], [0, 190, 240]), **RENDER),
+        ),
+        (
+            "1280x720, sheets crossing the camera plane",
+            lambda: render_scene(hd, wall, look_at([20, 40, 260], [60, 2000, 250]), **RENDER),
+        ),
+        (
+            "640x480, 3 markers at 1.2 m",
+            lambda: render_scene(vga, wall, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER),
+        ),
         ("640x480, robot's drive frame 20", lambda: render_scene(vga, wall, drive_pose, **RENDER)),
     ]
-    per_view = [("640x480, checkerboard set of 20 views, per view", lambda: render_calibration_views(chessboard_cam, n_views=20, seed=7), 20)]
-    print(f"fidlearn.synthetic render time per frame, supersample 4 (OpenCV {cv2.__version__}, "
-          f"NumPy {np.__version__}, Python {platform.python_version()}, {platform.machine()})")
+    per_view = [
+        (
+            "640x480, checkerboard set of 20 views, per view",
+            lambda: render_calibration_views(chessboard_cam, n_views=20, seed=7),
+            20,
+        )
+    ]
+    print(
+        f"fidlearn.synthetic render time per frame, supersample 4 (OpenCV {cv2.__version__}, "
+        f"NumPy {np.__version__}, Python {platform.python_version()}, {platform.machine()})"
+    )
     print(f"{'case':46s} {'first':>9s} {'fastest':>9s} {'median':>9s}")
     for name, fn in cases:
         first, fastest, median = timed(fn, repeats)

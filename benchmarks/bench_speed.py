@@ -64,6 +64,7 @@ def interleaved(calls: dict, repeats: int, clock) -> dict:
 # 1. locate vs plain detectMarkers
 # ------------------------------------------------------------------------------------------------
 
+
 def wall_map() -> MarkerMap:
     p = {}
     for r in range(3):
@@ -76,7 +77,9 @@ def wall_map() -> MarkerMap:
 def webcam(size) -> Camera:
     w, h = size
     f = 1371.0 * w / 1920
-    return Camera([[f, 0, (w - 1) / 2 + 1.3], [0, f, (h - 1) / 2 - 1.1], [0, 0, 1]], [-0.08, 0.05, 0.0003, -0.0002, -0.01], size)
+    return Camera(
+        [[f, 0, (w - 1) / 2 + 1.3], [0, f, (h - 1) / 2 - 1.1], [0, 0, 1]], [-0.08, 0.05, 0.0003, -0.0002, -0.01], size
+    )
 
 
 def scenes() -> list:
@@ -90,10 +93,14 @@ def scenes() -> list:
 
 def bench_locate(repeats: int) -> list:
     print("### 1. `fidlearn.locate` against a plain `detectMarkers` on the same frame\n")
-    print(f"Two scenes ({DICT}, camera about 70 degrees wide, blur 0.6 px, noise 1.5): the course's three 80 mm markers "
-          f"from 1.2 m, and twelve 150 mm markers on a wall from 2.7 m. {repeats} interleaved pairs per frame, in wall-clock "
-          "time and again in CPU time. Ratio = median over the pairs of (locate time / plain time); the plain column is its median time.\n")
-    print("| frame | scene | markers, side px | plain detectMarkers | locate / plain, wall clock | locate / plain, CPU time | found by plain / locate |")
+    print(
+        f"Two scenes ({DICT}, camera about 70 degrees wide, blur 0.6 px, noise 1.5): the course's three 80 mm markers "
+        f"from 1.2 m, and twelve 150 mm markers on a wall from 2.7 m. {repeats} interleaved pairs per frame, in wall-clock "
+        "time and again in CPU time. Ratio = median over the pairs of (locate time / plain time); the plain column is its median time.\n"
+    )
+    print(
+        "| frame | scene | markers, side px | plain detectMarkers | locate / plain, wall clock | locate / plain, CPU time | found by plain / locate |"
+    )
     print("|---|---|---|---|---|---|---|")
     results = []
     profiles = []
@@ -110,13 +117,17 @@ def bench_locate(repeats: int) -> list:
             r_cpu = float(np.median(cpu["locate"] / np.maximum(cpu["plain"], 1e-6)))
             n_plain = len(_cv.detect(plain, image)[1])
             n_locate = len(fidlearn.locate(image, m, cam).marker_ids)
-            print(f"| {size[0]}x{size[1]} | {label} | {len(truth)}, {min(sides):.0f}-{max(sides):.0f} | {np.median(wall['plain']) * 1e3:.1f} ms | "
-                  f"{r_wall:.2f} x | {r_cpu:.2f} x | {n_plain} / {n_locate} |")
+            print(
+                f"| {size[0]}x{size[1]} | {label} | {len(truth)}, {min(sides):.0f}-{max(sides):.0f} | {np.median(wall['plain']) * 1e3:.1f} ms | "
+                f"{r_wall:.2f} x | {r_cpu:.2f} x | {n_plain} / {n_locate} |"
+            )
             results.append((size, label, r_wall, r_cpu))
             profiles.append((size, label, image, cam, m))
 
-    print("\nWhere `locate`'s time goes: each step alone, CPU time (less disturbed by the load than wall clock), "
-          "median over interleaved repetitions, and as % of the plain call:\n")
+    print(
+        "\nWhere `locate`'s time goes: each step alone, CPU time (less disturbed by the load than wall clock), "
+        "median over interleaved repetitions, and as % of the plain call:\n"
+    )
     print("| step | " + " | ".join(f"{s[0]}x{s[1]}, {label.split(',')[0]}" for s, label, _, _, _ in profiles) + " |")
     print("|---|" + "---|" * len(profiles))
     rows: dict[str, list[str]] = {}
@@ -128,8 +139,12 @@ def bench_locate(repeats: int) -> list:
         dets = detect_markers(image, DICT)
         plain = plain_detector()
         full_dict = _cv.get_dictionary(DICT)
-        only_map = cv2.aruco.ArucoDetector(cv2.aruco.Dictionary(full_dict.bytesList[m.ids], int(full_dict.markerSize),
-                                                                int(full_dict.maxCorrectionBits)), cv2.aruco.DetectorParameters())
+        only_map = cv2.aruco.ArucoDetector(
+            cv2.aruco.Dictionary(
+                full_dict.bytesList[m.ids], int(full_dict.markerSize), int(full_dict.maxCorrectionBits)
+            ),
+            cv2.aruco.DetectorParameters(),
+        )
         calls = {
             "plain detectMarkers (reference)": lambda: plain.detectMarkers(image),
             "detectMarkers with a dictionary of the map's markers only": lambda: only_map.detectMarkers(image),
@@ -143,21 +158,25 @@ def bench_locate(repeats: int) -> list:
         }
         if "ids" in inspect.signature(detect_markers).parameters:  # detection that looks for the map's markers only
             calls["detect_markers(ids=map's ids) + estimate_pose"] = lambda: fidlearn.estimate_pose(
-                detect_markers(image, DICT, ids=m.ids), m, cam)
+                detect_markers(image, DICT, ids=m.ids), m, cam
+            )
         t = interleaved(calls, max(5, repeats // 2), time.process_time)
         base = t["plain detectMarkers (reference)"]
         for k, v in t.items():
             rows.setdefault(k, []).append(f"{np.median(v) * 1e3:.2f} ms ({100 * np.median(v / base):.1f} %)")
     for k, cells in rows.items():
         print(f"| {k} | " + " | ".join(cells) + " |")
-    print("\nOpenCV compares every candidate quad that is not a marker with all 1024 markers of ARUCO_ORIGINAL; with a "
-          "dictionary of the map's markers only (what `MarkerTracker` uses) the same detection costs much less.")
+    print(
+        "\nOpenCV compares every candidate quad that is not a marker with all 1024 markers of ARUCO_ORIGINAL; with a "
+        "dictionary of the map's markers only (what `MarkerTracker` uses) the same detection costs much less."
+    )
     return results
 
 
 # ------------------------------------------------------------------------------------------------
 # 2. The tracker on a 1920x1080 video
 # ------------------------------------------------------------------------------------------------
+
 
 def hall_map() -> MarkerMap:
     """27 markers on the back wall (x = 0), 4 on a stand at x = 1.5 m, 6 on one at x = 2.5 m; 80 mm, facing +X.
@@ -204,10 +223,15 @@ def countable(truth: dict, cells: int, size) -> dict:
 
 def bench_tracker(n_frames: int, passes: int) -> tuple:
     m = hall_map()
-    cam = Camera([[1371.0, 0, 961.3], [0, 1371.0, 538.2], [0, 0, 1]], [-0.08, 0.05, 0.0003, -0.0002, -0.01], (1920, 1080))
+    cam = Camera(
+        [[1371.0, 0, 961.3], [0, 1371.0, 538.2], [0, 0, 1]], [-0.08, 0.05, 0.0003, -0.0002, -0.01], (1920, 1080)
+    )
     poses = walk_poses(n_frames)
     t0 = time.perf_counter()
-    frames = [render_scene(cam, m, T, seed=i, blur_px=0.5, noise_std=1.5, gradient=0.1, supersample=2) for i, T in enumerate(poses)]
+    frames = [
+        render_scene(cam, m, T, seed=i, blur_px=0.5, noise_std=1.5, gradient=0.1, supersample=2)
+        for i, T in enumerate(poses)
+    ]
     render_s = time.perf_counter() - t0
     cells = _cv.dictionary_marker_bits(DICT) + 2
     truths = [countable(t, cells, cam.image_size) for _, t in frames]
@@ -215,13 +239,17 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     n_true = sum(len(t) for t in truths)
 
     print("\n### 2. `MarkerTracker` on a 1920x1080 video against a plain `detectMarkers` per frame\n")
-    print(f"{n_frames} frames of a camera walking 2.5 m toward {len(m)} markers of 80 mm (rendered in {render_s:.0f} s); "
-          f"markers in view {min(all_sides):.0f} to {max(all_sides):.0f} px; {n_true} sightings of 20 px or more, "
-          "whole with their margin inside the frame, count for the recall.\n")
+    print(
+        f"{n_frames} frames of a camera walking 2.5 m toward {len(m)} markers of 80 mm (rendered in {render_s:.0f} s); "
+        f"markers in view {min(all_sides):.0f} to {max(all_sides):.0f} px; {n_true} sightings of 20 px or more, "
+        "whole with their margin inside the frame, count for the recall.\n"
+    )
 
     plain = plain_detector()
     a3_settings = {
-        "ArUco3, canonical 16 px, min 1 % of the frame": dict(useAruco3Detection=True, minSideLengthCanonicalImg=16, minMarkerLengthRatioOriginalImg=0.01),
+        "ArUco3, canonical 16 px, min 1 % of the frame": dict(
+            useAruco3Detection=True, minSideLengthCanonicalImg=16, minMarkerLengthRatioOriginalImg=0.01
+        ),
         "ArUco3, OpenCV's defaults (canonical 32 px)": dict(useAruco3Detection=True),
     }
     # speed: interleaved per frame, passes with a fresh tracker each
@@ -246,7 +274,11 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     over_locate = float(np.median(np.array(wall["locate"]) / np.array(wall["tracker"])))
     ratio_wall = float(np.median(np.array(wall["plain"]) / np.array(wall["tracker"])))
     ratio_wall_total = float(np.sum(wall["plain"]) / np.sum(wall["tracker"]))
-    ratio_cpu = float(np.median(np.array(cpu["plain"]) / np.maximum(np.array(cpu["tracker"]), 1e-6))) if cpu["plain"] else float("nan")
+    ratio_cpu = (
+        float(np.median(np.array(cpu["plain"]) / np.maximum(np.array(cpu["tracker"]), 1e-6)))
+        if cpu["plain"]
+        else float("nan")
+    )
     ratio_cpu_total = float(np.sum(cpu["plain"]) / np.sum(cpu["tracker"])) if cpu["plain"] else float("nan")
 
     # recall and accuracy (one more pass, untimed)
@@ -292,30 +324,50 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     print("| detection | recall of markers >= 20 px | speed-up over plain detectMarkers |")
     print("|---|---|---|")
     print(f"| plain detectMarkers | {100 * found['plain detectMarkers'] / n_true:.2f} % | 1 |")
-    print(f"| detect_markers (fidlearn default, edges) | {100 * found['detect_markers (fidlearn default)'] / n_true:.2f} % | - |")
-    print(f"| `fidlearn.locate` per frame (detection + pose) | as detect_markers | "
-          f"{float(np.median(np.array(wall['plain']) / np.array(wall['locate']))):.2f} x wall clock; the tracker is {over_locate:.2f} x faster than it |")
-    print(f"| **MarkerTracker.locate** (detection + pose) | {100 * found['MarkerTracker'] / n_true:.2f} % | "
-          f"**{ratio_wall:.2f} x** wall clock (median per frame; {ratio_wall_total:.2f} x in total), "
-          f"{ratio_cpu:.2f} x CPU time ({ratio_cpu_total:.2f} x in total) |")
+    print(
+        f"| detect_markers (fidlearn default, edges) | {100 * found['detect_markers (fidlearn default)'] / n_true:.2f} % | - |"
+    )
+    print(
+        f"| `fidlearn.locate` per frame (detection + pose) | as detect_markers | "
+        f"{float(np.median(np.array(wall['plain']) / np.array(wall['locate']))):.2f} x wall clock; the tracker is {over_locate:.2f} x faster than it |"
+    )
+    print(
+        f"| **MarkerTracker.locate** (detection + pose) | {100 * found['MarkerTracker'] / n_true:.2f} % | "
+        f"**{ratio_wall:.2f} x** wall clock (median per frame; {ratio_wall_total:.2f} x in total), "
+        f"{ratio_cpu:.2f} x CPU time ({ratio_cpu_total:.2f} x in total) |"
+    )
     print(f"| plain detectMarkers, `minMarkerDistanceRate` 0.05 | {100 * found_close['plain'] / n_true:.2f} % | - |")
-    print(f"| MarkerTracker, `detector_params={{'minMarkerDistanceRate': 0.05}}` | {100 * found_close['tracker'] / n_true:.2f} % | - |")
+    print(
+        f"| MarkerTracker, `detector_params={{'minMarkerDistanceRate': 0.05}}` | {100 * found_close['tracker'] / n_true:.2f} % | - |"
+    )
     for k in a3:
         r = float(np.median(np.array(a3_plain[k]) / np.array(a3_time[k])))
         print(f"| {k} (detection only) | {100 * found[k] / n_true:.2f} % | {r:.2f} x wall clock |")
-    print(f"\nOf the markers plain detectMarkers finds, the tracker finds {100 * of_plain / max(found['plain detectMarkers'], 1):.2f} %. "
-          "The markers that plain detectMarkers misses are whole and sharp, some well inside the frame: OpenCV's "
-          "filter of candidates closer than `minMarkerDistanceRate` (0.125 of the perimeter) keeps another quad "
-          "instead of the marker's outline (with a white margin of one cell the paper's edge is 0.05 of the perimeter "
-          "away; opencv/opencv_contrib#2913); OpenCV 4.14 does the same. Lowering `minMarkerDistanceRate` to 0.05 finds "
-          "some of them and loses others (rows above).")
-    print(f"\nThe tracker ran a full-frame detection on {', '.join(map(str, full))} of {n_frames} frames in the timed passes "
-          f"(frame 0, every 30th, and where most markers went missing from their windows).")
-    print(f"Tracker corners against the truth: RMS {rms:.3f} px over {len(corner_err)} markers. Camera position error: "
-          f"median {np.median(pose_err_tracker):.2f} mm with the tracker, {np.median(pose_err_locate):.2f} mm with `fidlearn.locate` "
-          f"on the same frames; a pose in {n_pose} of {n_frames} frames.")
+    print(
+        f"\nOf the markers plain detectMarkers finds, the tracker finds {100 * of_plain / max(found['plain detectMarkers'], 1):.2f} %. "
+        "The markers that plain detectMarkers misses are whole and sharp, some well inside the frame: OpenCV's "
+        "filter of candidates closer than `minMarkerDistanceRate` (0.125 of the perimeter) keeps another quad "
+        "instead of the marker's outline (with a white margin of one cell the paper's edge is 0.05 of the perimeter "
+        "away; opencv/opencv_contrib#2913); OpenCV 4.14 does the same. Lowering `minMarkerDistanceRate` to 0.05 finds "
+        "some of them and loses others (rows above)."
+    )
+    print(
+        f"\nThe tracker ran a full-frame detection on {', '.join(map(str, full))} of {n_frames} frames in the timed passes "
+        f"(frame 0, every 30th, and where most markers went missing from their windows)."
+    )
+    print(
+        f"Tracker corners against the truth: RMS {rms:.3f} px over {len(corner_err)} markers. Camera position error: "
+        f"median {np.median(pose_err_tracker):.2f} mm with the tracker, {np.median(pose_err_locate):.2f} mm with `fidlearn.locate` "
+        f"on the same frames; a pose in {n_pose} of {n_frames} frames."
+    )
     recall = found["MarkerTracker"] / n_true
-    return ratio_wall, ratio_cpu, recall, of_plain / max(found["plain detectMarkers"], 1), found["plain detectMarkers"] / n_true
+    return (
+        ratio_wall,
+        ratio_cpu,
+        recall,
+        of_plain / max(found["plain detectMarkers"], 1),
+        found["plain detectMarkers"] / n_true,
+    )
 
 
 def main(argv=None) -> int:
@@ -324,8 +376,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     repeats, n_frames, passes = (8, 16, 2) if args.quick else (30, 40, 3)
     t0 = time.perf_counter()
-    print(f"OpenCV {cv2.__version__} ({cv2.getNumThreads()} threads), NumPy {np.__version__}, Python {platform.python_version()}, "
-          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}\n")
+    print(
+        f"OpenCV {cv2.__version__} ({cv2.getNumThreads()} threads), NumPy {np.__version__}, Python {platform.python_version()}, "
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}\n"
+    )
     results = bench_locate(repeats)
     ratio_wall, ratio_cpu, recall, recall_of_plain, recall_plain = bench_tracker(n_frames, passes)
     print(f"\n({time.perf_counter() - t0:.0f} s)\n")
@@ -333,13 +387,22 @@ def main(argv=None) -> int:
         rows = [r for r in results if r[0] == size]
         worst = max(r[2] for r in rows)
         met = "yes" if worst <= 1.10 else ("within the 1.25 x limit" if worst <= 1.25 else "**no**")
-        print(f"<!-- target: speed: `locate` <= 1.10 x plain detectMarkers at {size[0]}x{size[1]} (limit 1.25 x) | "
-              + ", ".join(f"{label.split(',')[0]}: {r_wall:.2f} x ({r_cpu:.2f} x CPU)" for _, label, r_wall, r_cpu in rows) + f" | {met} -->")
-    print(f"<!-- target: video: MarkerTracker >= 2.5 x faster than plain detectMarkers at 1920x1080 | "
-          f"{ratio_wall:.2f} x wall clock, {ratio_cpu:.2f} x CPU | {'yes' if ratio_wall >= 2.5 else '**no**'} -->")
+        print(
+            f"<!-- target: speed: `locate` <= 1.10 x plain detectMarkers at {size[0]}x{size[1]} (limit 1.25 x) | "
+            + ", ".join(
+                f"{label.split(',')[0]}: {r_wall:.2f} x ({r_cpu:.2f} x CPU)" for _, label, r_wall, r_cpu in rows
+            )
+            + f" | {met} -->"
+        )
+    print(
+        f"<!-- target: video: MarkerTracker >= 2.5 x faster than plain detectMarkers at 1920x1080 | "
+        f"{ratio_wall:.2f} x wall clock, {ratio_cpu:.2f} x CPU | {'yes' if ratio_wall >= 2.5 else '**no**'} -->"
+    )
     met = "yes" if recall >= 0.99 else ("no, as plain detectMarkers" if recall >= recall_plain else "**no**")
-    print(f"<!-- target: video: MarkerTracker finds >= 99 % of markers of 20 px or more | {100 * recall:.2f} % of the true markers "
-          f"(plain detectMarkers {100 * recall_plain:.2f} %), {100 * recall_of_plain:.2f} % of those plain detectMarkers finds | {met} -->")
+    print(
+        f"<!-- target: video: MarkerTracker finds >= 99 % of markers of 20 px or more | {100 * recall:.2f} % of the true markers "
+        f"(plain detectMarkers {100 * recall_plain:.2f} %), {100 * recall_of_plain:.2f} % of those plain detectMarkers finds | {met} -->"
+    )
     return 0
 
 

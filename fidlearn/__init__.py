@@ -12,16 +12,19 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 try:
+    from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
     from .camera import Camera
+    from .data import data_dir, data_path
+    from .detection import Detection, detect_markers, draw_detections
     from .errors import (
         CalibrationError,
         CameraError,
+        DetectionError,
         DictionaryError,
         FidlearnError,
         FidlearnWarning,
         ImageError,
         MapError,
-        DetectionError,
         NoMarkersError,
         PoseError,
         TransformError,
@@ -37,8 +40,9 @@ try:
         transform_points,
     )
     from .markermap import MarkerMap, MarkerPlacement
-    from .data import data_dir, data_path
-    from .detection import Detection, detect_markers, draw_detections
+    from .planning import Prediction, plan_room, predict_accuracy
+    from .pose import Pose, estimate_pose, locate
+    from .printables import PrintError, board_pdf, markers_pdf
     from .synthetic import (
         CalibrationViews,
         Trajectory,
@@ -48,11 +52,7 @@ try:
         render_trajectory,
         trajectory_poses,
     )
-    from .pose import Pose, estimate_pose, locate
     from .tracking import MarkerTracker
-    from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
-    from .printables import PrintError, board_pdf, markers_pdf
-    from .planning import Prediction, plan_room, predict_accuracy
 except Exception as _exc:  # noqa: BLE001 - numpy, OpenCV or matplotlib is broken (see fidlearn.doctor)
     _BROKEN = _exc
 

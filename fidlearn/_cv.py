@@ -41,7 +41,7 @@ DICTIONARIES: dict[str, int] = {}
 if _ARUCO is not None:
     for _attr in dir(_ARUCO):
         if _attr.startswith("DICT_"):
-            _name = _attr[len("DICT_"):]
+            _name = _attr[len("DICT_") :]
             # OpenCV spells the AprilTag families both 36h11 and 36H11: keep the lower-case one.
             if _name.upper() == _name and _name.startswith(("APRILTAG_", "ARUCO_MIP_")):
                 continue
@@ -79,9 +79,7 @@ def dictionary_name(name: str) -> str:
             return known
     close = [k for k in DICTIONARIES if key.upper().split("_")[0] in k.upper()]
     hint = f" (did you mean {', '.join(close[:4])}?)" if close else ""
-    raise DictionaryError(
-        f"unknown ArUco dictionary {name!r}{hint}; known: {', '.join(sorted(DICTIONARIES))}"
-    )
+    raise DictionaryError(f"unknown ArUco dictionary {name!r}{hint}; known: {', '.join(sorted(DICTIONARIES))}")
 
 
 def get_dictionary(name: str):
@@ -156,15 +154,19 @@ def corner_refine_flag(name: str) -> int:
 def detect(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
     """Run a detector; return corners as a list of (4, 2) float64, ids as (N,) int, and rejected quads."""
     corners, ids, rejected = _detect_markers(detector, gray)
-    return normalize_detections(corners, ids) + ([np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())],)
+    return normalize_detections(corners, ids) + (
+        [np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())],
+    )
 
 
 def _detect_markers(detector, gray: np.ndarray):
     try:
         return detector.detectMarkers(gray)
     except cv2.error as exc:  # OpenCV checks the detector parameters only now
-        raise FidlearnError(f"OpenCV refused the detector parameters ({first_line(exc)}); "
-                            "see cv2.aruco.DetectorParameters for each field's valid range") from None
+        raise FidlearnError(
+            f"OpenCV refused the detector parameters ({first_line(exc)}); "
+            "see cv2.aruco.DetectorParameters for each field's valid range"
+        ) from None
 
 
 def normalize_detections(corners, ids) -> tuple[list[np.ndarray], np.ndarray]:
@@ -179,8 +181,12 @@ def solvepnp_flag(name: str) -> int:
     """The ``cv2.SOLVEPNP_*`` constant for a name such as ``"IPPE"``; the numbers differ between releases."""
     attr = "SOLVEPNP_" + name.upper()
     if not hasattr(cv2, attr):
-        known = sorted(a[len("SOLVEPNP_"):] for a in dir(cv2) if a.startswith("SOLVEPNP_") and a != "SOLVEPNP_MAX_COUNT")
-        raise FidlearnError(f"this OpenCV ({cv2.__version__}) has no solvePnP method {name!r}; known: {', '.join(known)}")
+        known = sorted(
+            a[len("SOLVEPNP_") :] for a in dir(cv2) if a.startswith("SOLVEPNP_") and a != "SOLVEPNP_MAX_COUNT"
+        )
+        raise FidlearnError(
+            f"this OpenCV ({cv2.__version__}) has no solvePnP method {name!r}; known: {', '.join(known)}"
+        )
     return int(getattr(cv2, attr))
 
 
@@ -191,10 +197,14 @@ def generate_marker(dictionary: str, marker_id: int, side_px: int, border_bits: 
     return _ARUCO.generateImageMarker(d, int(marker_id), int(side_px), borderBits=int(border_bits))
 
 
-def charuco_board(squares_xy: tuple[int, int], square_size: float, marker_size: float, dictionary: str, legacy: bool = False):
+def charuco_board(
+    squares_xy: tuple[int, int], square_size: float, marker_size: float, dictionary: str, legacy: bool = False
+):
     """A ``cv2.aruco.CharucoBoard``; ``legacy=True`` for boards made before OpenCV 4.6 with an even row count."""
     require_aruco()
-    board = _ARUCO.CharucoBoard(tuple(int(v) for v in squares_xy), float(square_size), float(marker_size), get_dictionary(dictionary))
+    board = _ARUCO.CharucoBoard(
+        tuple(int(v) for v in squares_xy), float(square_size), float(marker_size), get_dictionary(dictionary)
+    )
     if legacy:
         board.setLegacyPattern(True)
     return board
@@ -216,8 +226,11 @@ def detect_charuco(detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     n_markers = 0 if marker_ids is None else int(np.asarray(marker_ids).size)
     if ids is None or corners is None or len(corners) == 0:
         return np.zeros((0, 2)), np.zeros((0,), dtype=np.int64), n_markers
-    return (np.asarray(corners, dtype=np.float64).reshape(-1, 2),
-            np.asarray(ids).reshape(-1).astype(np.int64), n_markers)
+    return (
+        np.asarray(corners, dtype=np.float64).reshape(-1, 2),
+        np.asarray(ids).reshape(-1).astype(np.int64),
+        n_markers,
+    )
 
 
 def detector_parameter_fields(params=None) -> dict:

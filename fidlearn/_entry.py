@@ -22,7 +22,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             return run()
         reason = " ".join(f"{type(exc).__name__}: {exc}".split())
-        print(f"error: fidlearn cannot start ({reason}); run 'fidlearn doctor' to see which package is broken "
-              "and the pip command that mends it", file=sys.stderr)
+        print(
+            f"error: fidlearn cannot start ({reason}); run 'fidlearn doctor' to see which package is broken "
+            "and the pip command that mends it",
+            file=sys.stderr,
+        )
         return 2
     return cli_main(args)

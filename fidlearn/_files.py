@@ -69,8 +69,10 @@ def read_bytes(path, error: type[FidlearnError], what: str, limit: int) -> tuple
     if not stat.S_ISREG(st.st_mode):
         raise error(f"{path}: is {_kind(st.st_mode)}, not a file; give the path of a {what} file")
     if st.st_size > limit:
-        raise error(f"{path}: {st.st_size / 1e6:.1f} MB is more than a {what} file can be "
-                    f"({limit / 1e6:.0f} MB at most); is it the right file?")
+        raise error(
+            f"{path}: {st.st_size / 1e6:.1f} MB is more than a {what} file can be "
+            f"({limit / 1e6:.0f} MB at most); is it the right file?"
+        )
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except PermissionError:
@@ -117,9 +119,9 @@ def _jpeg_size(data: bytes) -> tuple[int, int]:
         if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7 or marker == 0xFF:
             i += 1 if marker == 0xFF else 2
             continue
-        length = struct.unpack(">H", data[i + 2:i + 4])[0]
+        length = struct.unpack(">H", data[i + 2 : i + 4])[0]
         if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
-            h, w = struct.unpack(">HH", data[i + 5:i + 9])
+            h, w = struct.unpack(">HH", data[i + 5 : i + 9])
             return w, h
         i += 2 + length
     return -1, -1
@@ -129,10 +131,10 @@ def _tiff_size(data: bytes) -> tuple[int, int]:
     endian = "<" if data[:2] == b"II" else ">"
     try:
         (offset,) = struct.unpack(endian + "I", data[4:8])
-        (count,) = struct.unpack(endian + "H", data[offset:offset + 2])
+        (count,) = struct.unpack(endian + "H", data[offset : offset + 2])
         w = h = -1
         for k in range(count):
-            entry = data[offset + 2 + 12 * k: offset + 14 + 12 * k]
+            entry = data[offset + 2 + 12 * k : offset + 14 + 12 * k]
             tag, kind = struct.unpack(endian + "HH", entry[:4])
             value = struct.unpack(endian + ("H" if kind == 3 else "I"), entry[8:10] if kind == 3 else entry[8:12])[0]
             if tag == 256:
@@ -153,9 +155,11 @@ def check_image_bytes(path: Path, data: bytes, error: type[FidlearnError], max_p
     if w == 0 or h == 0 or w < -1 or h < -1:
         raise error(f"{path}: the {fmt} header says {w}x{h} pixels; the file is damaged")
     if w > 0 and h > 0 and w * h > max_pixels:
-        raise error(f"{path}: the {fmt} header says {w}x{h} pixels ({w * h / 1e6:.3g} megapixels), more than the "
-                    f"limit of {max_pixels / 1e6:.3g} megapixels; to read it, raise the limit: load_image(max_pixels=...) "
-                    "or 'fidlearn locate --max-megapixels'")
+        raise error(
+            f"{path}: the {fmt} header says {w}x{h} pixels ({w * h / 1e6:.3g} megapixels), more than the "
+            f"limit of {max_pixels / 1e6:.3g} megapixels; to read it, raise the limit: load_image(max_pixels=...) "
+            "or 'fidlearn locate --max-megapixels'"
+        )
     if fmt == "PNG" and b"IEND" not in data[-16:]:
         raise error(f"{path}: the PNG file is cut short (it has no end chunk); copy it again")
     if fmt == "JPEG" and not data.rstrip(b"\0\r\n ").endswith(b"\xff\xd9"):

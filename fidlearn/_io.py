@@ -6,8 +6,9 @@ import json
 import os
 import stat
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from ._files import MAX_TEXT_BYTES, read_bytes
 from .errors import FidlearnError
@@ -45,8 +46,7 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise error(
-            f"{path}: not UTF-8 text (byte {exc.start} is 0x{raw[exc.start]:02x}); "
-            f"save the {what} as UTF-8 JSON"
+            f"{path}: not UTF-8 text (byte {exc.start} is 0x{raw[exc.start]:02x}); save the {what} as UTF-8 JSON"
         ) from None
     if not text.strip():
         raise error(f"{path}: the file is empty; expected a {what} in JSON")
@@ -54,7 +54,7 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         return json.loads(text, object_pairs_hook=_no_duplicates, parse_constant=_reject_constant)
     except _DuplicateKey as exc:
         raise error(
-            f"{path}: key \"{exc.key}\" appears twice in one object; each key (each marker id) "
+            f'{path}: key "{exc.key}" appears twice in one object; each key (each marker id) '
             "must be unique, and JSON would silently keep only the last one"
         ) from None
     except json.JSONDecodeError as exc:
@@ -63,9 +63,7 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
             "fix the syntax (a missing comma or bracket is the usual cause)"
         ) from None
     except ValueError as exc:  # NaN / Infinity literal
-        raise error(
-            f"{path}: contains {exc.args[0]}, which is not a number; write a finite measurement"
-        ) from None
+        raise error(f"{path}: contains {exc.args[0]}, which is not a number; write a finite measurement") from None
     except RecursionError:
         raise error(
             f"{path}: brackets nested too deeply to be a {what}; check the file (is it the right one?)"
@@ -104,7 +102,9 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=folder)
     except OSError as exc:
-        raise FidlearnError(f"{path}: cannot write in {folder} ({exc.strerror or exc}); check the folder's permissions") from None
+        raise FidlearnError(
+            f"{path}: cannot write in {folder} ({exc.strerror or exc}); check the folder's permissions"
+        ) from None
     os.close(fd)
     tmp = Path(tmp_name)
     try:
@@ -113,8 +113,10 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
         os.replace(tmp, path)
     except OSError as exc:  # disk full, permission denied, ...: name the user's file, never the hidden one
         tmp.unlink(missing_ok=True)
-        raise FidlearnError(f"{path}: cannot write it ({exc.strerror or exc}); check the free disk space and the "
-                            "folder's permissions; nothing was written") from None
+        raise FidlearnError(
+            f"{path}: cannot write it ({exc.strerror or exc}); check the free disk space and the "
+            "folder's permissions; nothing was written"
+        ) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

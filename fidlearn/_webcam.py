@@ -45,21 +45,28 @@ __all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "s
 STATIC = pathlib.Path(__file__).resolve().parent / "static"
 #: Smallest and largest side (px) a learner may ask for.
 MIN_SIDE_PX, MAX_SIDE_PX = 16, 4096
-FALLBACK = ("Until it works, use the bundled pictures instead: set HAVE_CAMERA = False in the notebook and run "
-            "it again (data/calibration stands in for your calibration views, data/trajectory for your live camera).")
+FALLBACK = (
+    "Until it works, use the bundled pictures instead: set HAVE_CAMERA = False in the notebook and run "
+    "it again (data/calibration stands in for your calibration views, data/trajectory for your live camera)."
+)
 #: Every status the widget can be in, with what it means and what to do.
 STATUSES = {
     "waiting": "The camera opens when the widget is shown: display it (put `cam` last in a cell).",
     "starting": "Asking the browser for the camera: allow it when the browser asks.",
     "streaming": "",
-    "denied": ("The browser refused the camera (permission denied). Click the camera or lock icon in the "
-               "address bar, allow the camera for this site, then run the cell again."),
-    "no-camera": ("No camera found: plug one in (or close the laptop's privacy shutter) and run the cell "
-                  "again."),
-    "busy": ("The camera is in use by another program or tab (a video call?) or the system refused it: close "
-             "that, then run the cell again."),
-    "insecure": ("The browser gives the camera only to a secure page (https://, or http://localhost): open "
-                 "JupyterLab through https (ask whoever runs the JupyterHub) or on this computer."),
+    "denied": (
+        "The browser refused the camera (permission denied). Click the camera or lock icon in the "
+        "address bar, allow the camera for this site, then run the cell again."
+    ),
+    "no-camera": ("No camera found: plug one in (or close the laptop's privacy shutter) and run the cell again."),
+    "busy": (
+        "The camera is in use by another program or tab (a video call?) or the system refused it: close "
+        "that, then run the cell again."
+    ),
+    "insecure": (
+        "The browser gives the camera only to a secure page (https://, or http://localhost): open "
+        "JupyterLab through https (ask whoever runs the JupyterHub) or on this computer."
+    ),
     "error": "The camera failed to start: see the error above, then run the cell again.",
 }
 FAILED = {"denied", "no-camera", "busy", "insecure", "error"}
@@ -108,11 +115,15 @@ def decode_frame(data: bytes | memoryview, width: int | None = None, height: int
         raise ImageError("the camera frame is empty (0 bytes): the browser sent no picture; run the cell again")
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     if image is None:
-        raise ImageError(f"the camera frame ({buf.size} bytes, starting {bytes(buf[:8])!r}) is neither PNG nor "
-                         "JPEG: it cannot be decoded")
+        raise ImageError(
+            f"the camera frame ({buf.size} bytes, starting {bytes(buf[:8])!r}) is neither PNG nor "
+            "JPEG: it cannot be decoded"
+        )
     if width is not None and height is not None and image.shape[:2] != (int(height), int(width)):
-        raise ImageError(f"the camera frame decodes to {image.shape[1]}x{image.shape[0]} px but the browser "
-                         f"announced {width}x{height} px")
+        raise ImageError(
+            f"the camera frame decodes to {image.shape[1]}x{image.shape[0]} px but the browser "
+            f"announced {width}x{height} px"
+        )
     return image
 
 
@@ -166,8 +177,10 @@ def check_side(value, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise WebcamError(f"{name} must be a whole number of pixels, got {value!r}")
     if not MIN_SIDE_PX <= int(value) <= MAX_SIDE_PX:
-        raise WebcamError(f"{name} must be {MIN_SIDE_PX} to {MAX_SIDE_PX} px, got {value}: common webcam sizes "
-                          "are 640x480, 1280x720 and 1920x1080")
+        raise WebcamError(
+            f"{name} must be {MIN_SIDE_PX} to {MAX_SIDE_PX} px, got {value}: common webcam sizes "
+            "are 640x480, 1280x720 and 1920x1080"
+        )
     return int(value)
 
 
@@ -296,8 +309,10 @@ class Webcam(anywidget.AnyWidget):
         try:
             return await asyncio.wait_for(future, timeout_s)
         except asyncio.TimeoutError:
-            raise WebcamError(f"no frame from the camera within {timeout_s} s (status {self.status!r}): display the "
-                              "widget (put it last in a cell) and allow the camera") from None
+            raise WebcamError(
+                f"no frame from the camera within {timeout_s} s (status {self.status!r}): display the "
+                "widget (put it last in a cell) and allow the camera"
+            ) from None
         finally:
             self._pending.pop(request, None)
 

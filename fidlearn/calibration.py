@@ -67,9 +67,10 @@ import math
 import os
 import warnings
 from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import cv2
 import numpy as np
@@ -79,14 +80,39 @@ from .camera import Camera
 from .detection import as_gray, load_image
 from .errors import CalibrationError, FidlearnWarning, ImageError
 
-__all__ = ["Calibration", "ViewResult", "calibrate_checkerboard", "calibrate_charuco", "find_checkerboard_corners", "MIN_VIEWS"]
+__all__ = [
+    "Calibration",
+    "ViewResult",
+    "calibrate_checkerboard",
+    "calibrate_charuco",
+    "find_checkerboard_corners",
+    "MIN_VIEWS",
+]
 
 #: Fewest usable views a calibration accepts.
 MIN_VIEWS = 3
 
 #: Names of ``cv2.calibrateCameraExtended``'s ``stdDeviationsIntrinsics`` entries, in order.
-INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6",
-                   "s1", "s2", "s3", "s4", "tau_x", "tau_y")
+INTRINSIC_NAMES = (
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "k1",
+    "k2",
+    "p1",
+    "p2",
+    "k3",
+    "k4",
+    "k5",
+    "k6",
+    "s1",
+    "s2",
+    "s3",
+    "s4",
+    "tau_x",
+    "tau_y",
+)
 
 #: Outlier rule: a view is an outlier above max(OUTLIER_FACTOR * median, median + OUTLIER_MARGIN_PX).
 OUTLIER_FACTOR = 3.0
@@ -101,6 +127,7 @@ ProgressFn = Callable[[int, int, str], Any]
 # ----------------------------------------------------------------------------------------------
 # Results
 # ----------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class ViewResult:
@@ -212,8 +239,10 @@ class Calibration:
         if self.first_rms_px is not None:
             head.append(f"  RMS before removing outlier views: {self.first_rms_px:.3f} px")
         if "fx" in s and s["fx"] > 0.01 * self.camera.fx:
-            head.append(f"  fx is uncertain to {100 * s['fx'] / self.camera.fx:.1f} %: add views with the board "
-                        "tilted in other directions and nearer the image's corners")
+            head.append(
+                f"  fx is uncertain to {100 * s['fx'] / self.camera.fx:.1f} %: add views with the board "
+                "tilted in other directions and nearer the image's corners"
+            )
         return "\n".join(head) + "\n" + self.table()
 
     def __repr__(self) -> str:
@@ -241,12 +270,13 @@ def _display_names(names: list[str]) -> tuple[list[str], str]:
 
 
 def _short(name: str, width: int = 40) -> str:
-    return name if len(name) <= width else "..." + name[-(width - 3):]
+    return name if len(name) <= width else "..." + name[-(width - 3) :]
 
 
 # ----------------------------------------------------------------------------------------------
 # Inputs
 # ----------------------------------------------------------------------------------------------
+
 
 def _entries(images: Any) -> list[tuple[str, Any]]:
     """(name, path or array) for each input; a folder or a glob pattern expands to its image files, sorted."""
@@ -347,6 +377,7 @@ def _pattern(pattern_size: Any) -> tuple[int, int]:
 # Board finders: gray image -> (board points mm (N, 3), pixels (N, 2)) or a reason
 # ----------------------------------------------------------------------------------------------
 
+
 class _Checkerboard:
     def __init__(self, pattern_size: tuple[int, int], square_size_mm: float, corner_finder: str):
         self.pattern_size = pattern_size
@@ -363,8 +394,10 @@ class _Checkerboard:
         corners = find_checkerboard_corners(gray, self.pattern_size, self.corner_finder)
         if corners is None:
             cols, rows = self.pattern_size
-            return (f"board not found ({cols}x{rows} inner corners): is the whole board in the picture, "
-                    "sharp and evenly lit?")
+            return (
+                f"board not found ({cols}x{rows} inner corners): is the whole board in the picture, "
+                "sharp and evenly lit?"
+            )
         return self.object_points, corners
 
     def diagnose(self, grays: list[np.ndarray]) -> str:
@@ -375,14 +408,17 @@ class _Checkerboard:
         for gray in grays:
             if find_checkerboard_corners(gray, (cols - 1, rows - 1), "classic", refine=False) is not None:
                 example = "" if (cols, rows) == (10, 7) else " (a board of 10x7 squares has 9x6 inner corners)"
-                return (f"the board is found with pattern_size=({cols - 1}, {rows - 1}) (command line: --pattern "
-                        f"{cols - 1}x{rows - 1}): pattern_size counts inner corners, not squares: a board of "
-                        f"{cols}x{rows} squares has {cols - 1}x{rows - 1} inner corners{example}")
+                return (
+                    f"the board is found with pattern_size=({cols - 1}, {rows - 1}) (command line: --pattern "
+                    f"{cols - 1}x{rows - 1}): pattern_size counts inner corners, not squares: a board of "
+                    f"{cols}x{rows} squares has {cols - 1}x{rows - 1} inner corners{example}"
+                )
         return ""
 
 
-def find_checkerboard_corners(gray: np.ndarray, pattern_size: tuple[int, int], corner_finder: str = "classic",
-                              refine: bool = True) -> np.ndarray | None:
+def find_checkerboard_corners(
+    gray: np.ndarray, pattern_size: tuple[int, int], corner_finder: str = "classic", refine: bool = True
+) -> np.ndarray | None:
     """Inner corners of a checkerboard, (cols * rows, 2) float64 px in OpenCV's order, or None.
 
     ``"classic"``: ``cv2.findChessboardCorners`` + ``cv2.cornerSubPix`` with
@@ -402,16 +438,24 @@ def find_checkerboard_corners(gray: np.ndarray, pattern_size: tuple[int, int], c
     if not refine:
         return np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     grid = corners.reshape(rows, cols, 2)
-    spacing = min(np.linalg.norm(np.diff(grid, axis=1), axis=2).min(),
-                  np.linalg.norm(np.diff(grid, axis=0), axis=2).min())
+    spacing = min(
+        np.linalg.norm(np.diff(grid, axis=1), axis=2).min(), np.linalg.norm(np.diff(grid, axis=0), axis=2).min()
+    )
     half = int(np.clip(math.floor(0.6 * spacing), 2, 11))
     corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), _SUBPIX_CRITERIA)
     return np.asarray(corners, dtype=np.float64).reshape(-1, 2)
 
 
 class _Charuco:
-    def __init__(self, squares: tuple[int, int], square_size_mm: float, marker_size_mm: float, dictionary: str,
-                 legacy: bool | str, min_corners: int):
+    def __init__(
+        self,
+        squares: tuple[int, int],
+        square_size_mm: float,
+        marker_size_mm: float,
+        dictionary: str,
+        legacy: bool | str,
+        min_corners: int,
+    ):
         self.squares = squares
         self.square_size_mm, self.marker_size_mm = square_size_mm, marker_size_mm
         self.dictionary = _cv.dictionary_name(dictionary)
@@ -429,8 +473,10 @@ class _Charuco:
             self.detectors.append((flag, board, _cv.charuco_detector(board)))
         self.legacy = candidates[0]
         self.auto = len(candidates) > 1
-        self.description = (f"ChArUco {squares[0]}x{squares[1]} squares, {square_size_mm:g} mm squares, "
-                            f"{marker_size_mm:g} mm markers, {self.dictionary}")
+        self.description = (
+            f"ChArUco {squares[0]}x{squares[1]} squares, {square_size_mm:g} mm squares, "
+            f"{marker_size_mm:g} mm markers, {self.dictionary}"
+        )
         self.n_corners = (squares[0] - 1) * (squares[1] - 1)
 
     def find_all(self, gray: np.ndarray) -> dict:
@@ -441,17 +487,25 @@ class _Charuco:
         corners, ids, n_markers = _cv.detect_charuco(detector, gray)
         if len(ids) < self.min_corners:
             if n_markers == 0:
-                return (f"board not found: no {self.dictionary} marker in the picture; check the dictionary "
-                        "and that the board is in view and sharp")
+                return (
+                    f"board not found: no {self.dictionary} marker in the picture; check the dictionary "
+                    "and that the board is in view and sharp"
+                )
             hint = "show more of the board"
             if len(ids) == 0 and n_markers >= 4:
                 hint = f"check squares={self.squares} (x, y) against the printed board"
                 if self.squares[1] % 2 == 0 and not self.auto:
-                    hint = ("a board with an even number of rows printed before OpenCV 4.6 needs "
-                            f"legacy={not self.legacy} (or legacy='auto')")
-            return (f"board not found: {n_markers} markers but only {len(ids)} chess corners "
-                    f"(need {self.min_corners}); {hint}")
-        obj, img = board.matchImagePoints(corners.reshape(-1, 1, 2).astype(np.float32), ids.reshape(-1, 1).astype(np.int32))
+                    hint = (
+                        "a board with an even number of rows printed before OpenCV 4.6 needs "
+                        f"legacy={not self.legacy} (or legacy='auto')"
+                    )
+            return (
+                f"board not found: {n_markers} markers but only {len(ids)} chess corners "
+                f"(need {self.min_corners}); {hint}"
+            )
+        obj, img = board.matchImagePoints(
+            corners.reshape(-1, 1, 2).astype(np.float32), ids.reshape(-1, 1).astype(np.int32)
+        )
         obj = np.asarray(obj, dtype=np.float64).reshape(-1, 3)
         img = np.asarray(img, dtype=np.float64).reshape(-1, 2)
         centred = obj[:, :2] - obj[:, :2].mean(axis=0)
@@ -464,11 +518,23 @@ class _Charuco:
         x, y = self.squares
         tries = []
         if x != y:
-            tries.append(((y, x), self.legacy, f"the board is found with squares=({y}, {x}): squares "
-                                                 "counts (x, y), along the board's width first, as it was generated"))
+            tries.append(
+                (
+                    (y, x),
+                    self.legacy,
+                    f"the board is found with squares=({y}, {x}): squares "
+                    "counts (x, y), along the board's width first, as it was generated",
+                )
+            )
         if not self.auto and y % 2 == 0:
-            tries.append(((x, y), not self.legacy, f"the board is found with legacy={not self.legacy}: boards with "
-                                                    "an even number of rows made before OpenCV 4.6 use the legacy layout"))
+            tries.append(
+                (
+                    (x, y),
+                    not self.legacy,
+                    f"the board is found with legacy={not self.legacy}: boards with "
+                    "an even number of rows made before OpenCV 4.6 use the legacy layout",
+                )
+            )
         for squares, legacy, hint in tries:
             board = _cv.charuco_board(squares, self.square_size_mm, self.marker_size_mm, self.dictionary, legacy=legacy)
             detector = _cv.charuco_detector(board)
@@ -480,6 +546,7 @@ class _Charuco:
 # ----------------------------------------------------------------------------------------------
 # The run
 # ----------------------------------------------------------------------------------------------
+
 
 @dataclass
 class _View:
@@ -542,8 +609,10 @@ def _reject_duplicates(views: list[_View], tol_px: float = 1.0) -> None:
             d = min(np.abs(k.img - v.img).max(), np.abs(k.img[::-1] - v.img).max())
             if d < tol_px:
                 v.status = "duplicate"
-                v.reason = (f"the board sits where it sat in {k.name} (every corner within {tol_px:g} px): "
-                            "move or tilt the board between photos")
+                v.reason = (
+                    f"the board sits where it sat in {k.name} (every corner within {tol_px:g} px): "
+                    "move or tilt the board between photos"
+                )
                 break
         else:
             kept.append(v)
@@ -557,7 +626,10 @@ def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
         out = cv2.calibrateCameraExtended(
             [o.astype(np.float32).reshape(-1, 1, 3) for o in obj],
             [p.astype(np.float32).reshape(-1, 1, 2) for p in img],
-            tuple(int(v) for v in image_size), None, None, **args,
+            tuple(int(v) for v in image_size),
+            None,
+            None,
+            **args,
         )
     except cv2.error as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "failed"
@@ -565,7 +637,15 @@ def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
             f"cv2.calibrateCamera failed ({msg}); take more views with the board tilted in different directions"
         ) from None
     rms, K, dist, rvecs, tvecs, std_int, _std_ext, per_view = out
-    return float(rms), K, np.asarray(dist, dtype=np.float64).reshape(-1), rvecs, tvecs, np.asarray(std_int).reshape(-1), np.asarray(per_view).reshape(-1)
+    return (
+        float(rms),
+        K,
+        np.asarray(dist, dtype=np.float64).reshape(-1),
+        rvecs,
+        tvecs,
+        np.asarray(std_int).reshape(-1),
+        np.asarray(per_view).reshape(-1),
+    )
 
 
 def _too_few(views: list[_View], size, hint: str, min_views: int) -> CalibrationError:
@@ -587,8 +667,18 @@ def _too_few(views: list[_View], size, hint: str, min_views: int) -> Calibration
     )
 
 
-def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags: int, criteria, kind: str,
-         reject_duplicates: bool = False, min_views: int = MIN_VIEWS) -> Calibration:
+def _run(
+    entries,
+    finder,
+    find: Callable,
+    progress,
+    reject_outliers: bool,
+    flags: int,
+    criteria,
+    kind: str,
+    reject_duplicates: bool = False,
+    min_views: int = MIN_VIEWS,
+) -> Calibration:
     if not entries:
         raise CalibrationError(f"no images given; calibration needs at least {min_views} views of the board")
     views, failed_grays = _detect_all(entries, find, progress)
@@ -596,7 +686,9 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
     # one layout for every view (ChArUco legacy 'auto': the one that finds more corners)
     keys = list(next((v.points for v in views if v.points), {0: None}).keys())
     if len(keys) > 1:
-        totals = {k: sum(len(v.points[k][0]) for v in views if v.points and not isinstance(v.points[k], str)) for k in keys}
+        totals = {
+            k: sum(len(v.points[k][0]) for v in views if v.points and not isinstance(v.points[k], str)) for k in keys
+        }
         key = max(keys, key=lambda k: totals[k])
         finder.legacy = key
     else:
@@ -615,8 +707,10 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
     for v in views:
         if v.size is not None and v.size != size:
             v.status = "other size"
-            v.reason = (f"image is {v.size[0]}x{v.size[1]} but the others are {size[0]}x{size[1]}; "
-                        "calibrate at the resolution you run at, with every photo at that one resolution")
+            v.reason = (
+                f"image is {v.size[0]}x{v.size[1]} but the others are {size[0]}x{size[1]}; "
+                "calibrate at the resolution you run at, with every photo at that one resolution"
+            )
             v.obj = v.img = None
 
     if reject_duplicates:
@@ -626,7 +720,9 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
         hint = finder.diagnose(failed_grays) if not usable else ""
         raise _too_few(views, size, hint, min_views)
 
-    rms, K, dist, rvecs, tvecs, std, per_view = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria)
+    rms, K, dist, rvecs, tvecs, std, per_view = _calibrate_points(
+        [v.obj for v in usable], [v.img for v in usable], size, flags, criteria
+    )
     first_rms = None
     if reject_outliers and len(usable) > min_views:
         med = float(np.median(per_view))
@@ -636,12 +732,16 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
             for i in bad:
                 v = usable[i]
                 v.status, v.rms_px = "outlier", float(per_view[i])
-                v.reason = (f"reprojection RMS {per_view[i]:.2f} px, above {limit:.2f} px "
-                            f"(max of {OUTLIER_FACTOR:g} x the median {med:.2f} px and median + {OUTLIER_MARGIN_PX:g} px): "
-                            "blurred, or a corner found in the wrong place?")
+                v.reason = (
+                    f"reprojection RMS {per_view[i]:.2f} px, above {limit:.2f} px "
+                    f"(max of {OUTLIER_FACTOR:g} x the median {med:.2f} px and median + {OUTLIER_MARGIN_PX:g} px): "
+                    "blurred, or a corner found in the wrong place?"
+                )
             first_rms = rms
             usable = [v for v in views if v.status == "used"]
-            rms, K, dist, rvecs, tvecs, std, per_view = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria)
+            rms, K, dist, rvecs, tvecs, std, per_view = _calibrate_points(
+                [v.obj for v in usable], [v.img for v in usable], size, flags, criteria
+            )
 
     T_camera_board = {}
     for v, e, r, t in zip(usable, per_view, rvecs, tvecs):
@@ -650,8 +750,7 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
     names = INTRINSIC_NAMES[: 4 + len(dist)]
     std_intrinsics = {n: float(s) for n, s in zip(names, std)}
     board = finder.description + (", legacy layout" if getattr(finder, "legacy", False) else "")
-    source = (f"{kind}: {len(usable)} of {len(views)} views of a {board}, RMS {rms:.3f} px, "
-              f"OpenCV {cv2.__version__}")
+    source = f"{kind}: {len(usable)} of {len(views)} views of a {board}, RMS {rms:.3f} px, OpenCV {cv2.__version__}"
     camera = Camera(K, dist, size, source=source)
     return Calibration(
         camera=camera,
@@ -672,6 +771,7 @@ def _run(entries, finder, find: Callable, progress, reject_outliers: bool, flags
 # ----------------------------------------------------------------------------------------------
 # Public functions
 # ----------------------------------------------------------------------------------------------
+
 
 def calibrate_checkerboard(
     images: Sequence[Any] | str | os.PathLike,
@@ -742,8 +842,17 @@ def calibrate_checkerboard(
     _warn_if_metres(square, "square_size_mm")
     finder = _Checkerboard(pattern, square, corner_finder)
     entries = _entries(images)
-    return _run(entries, finder, lambda g: {0: finder.find(g)}, progress, reject_outliers, flags, criteria,
-                "calibrate_checkerboard", reject_duplicates)
+    return _run(
+        entries,
+        finder,
+        lambda g: {0: finder.find(g)},
+        progress,
+        reject_outliers,
+        flags,
+        criteria,
+        "calibrate_checkerboard",
+        reject_duplicates,
+    )
 
 
 def calibrate_charuco(
@@ -794,11 +903,15 @@ def calibrate_charuco(
         if len(sq) != 2:
             raise ValueError
     except (TypeError, ValueError):
-        raise CalibrationError(f"squares {squares!r} must be two whole numbers (x, y) of chess squares, e.g. (5, 7)") from None
+        raise CalibrationError(
+            f"squares {squares!r} must be two whole numbers (x, y) of chess squares, e.g. (5, 7)"
+        ) from None
     if min(sq) < 2:
         raise CalibrationError(f"squares {sq} must count at least 2 chess squares each way, e.g. (5, 7)")
     square = _check_positive(square_size_mm, "square_size_mm", "measure one printed chess square in millimetres")
-    marker = _check_positive(marker_size_mm, "marker_size_mm", "measure one printed marker's black square in millimetres")
+    marker = _check_positive(
+        marker_size_mm, "marker_size_mm", "measure one printed marker's black square in millimetres"
+    )
     _warn_if_metres(square, "square_size_mm")
     if marker >= square:
         raise CalibrationError(
@@ -809,5 +922,14 @@ def calibrate_charuco(
         raise CalibrationError(f"min_corners must be at least 4, got {min_corners}")
     finder = _Charuco(sq, square, marker, dictionary, legacy, min_corners)
     entries = _entries(images)
-    return _run(entries, finder, finder.find_all, progress, reject_outliers, flags, criteria, "calibrate_charuco",
-                reject_duplicates)
+    return _run(
+        entries,
+        finder,
+        finder.find_all,
+        progress,
+        reject_outliers,
+        flags,
+        criteria,
+        "calibrate_charuco",
+        reject_duplicates,
+    )

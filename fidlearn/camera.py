@@ -46,10 +46,21 @@ def _fmt_matrix(M: np.ndarray) -> str:
 CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source")
 #: Names other tools use for them, so the error can say which one was meant.
 _ALIASES = {
-    "distortion": "dist_coeffs", "dist": "dist_coeffs", "dist_coefs": "dist_coeffs", "distcoeffs": "dist_coeffs",
-    "distortion_coefficients": "dist_coeffs", "d": "dist_coeffs", "k": "camera_matrix", "intrinsics": "camera_matrix",
-    "matrix": "camera_matrix", "cameramatrix": "camera_matrix", "intrinsic_matrix": "camera_matrix",
-    "size": "image_size", "resolution": "image_size", "imagesize": "image_size", "image_width": "image_size",
+    "distortion": "dist_coeffs",
+    "dist": "dist_coeffs",
+    "dist_coefs": "dist_coeffs",
+    "distcoeffs": "dist_coeffs",
+    "distortion_coefficients": "dist_coeffs",
+    "d": "dist_coeffs",
+    "k": "camera_matrix",
+    "intrinsics": "camera_matrix",
+    "matrix": "camera_matrix",
+    "cameramatrix": "camera_matrix",
+    "intrinsic_matrix": "camera_matrix",
+    "size": "image_size",
+    "resolution": "image_size",
+    "imagesize": "image_size",
+    "image_width": "image_size",
     "image_height": "image_size",
 }
 #: Largest image side a camera file may declare (pixels).
@@ -69,13 +80,13 @@ def _as_K(K: Any, where: str) -> np.ndarray:
     try:
         K = np.array(K, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise CameraError(f"{where}: camera_matrix is not numeric; expected 3x3 numbers [[fx,0,cx],[0,fy,cy],[0,0,1]]") from None
+        raise CameraError(
+            f"{where}: camera_matrix is not numeric; expected 3x3 numbers [[fx,0,cx],[0,fy,cy],[0,0,1]]"
+        ) from None
     if K.size == 9 and K.shape != (3, 3):
         K = K.reshape(3, 3)
     if K.shape != (3, 3):
-        raise CameraError(
-            f"{where}: camera_matrix has shape {K.shape}, expected 3x3 [[fx,0,cx],[0,fy,cy],[0,0,1]]"
-        )
+        raise CameraError(f"{where}: camera_matrix has shape {K.shape}, expected 3x3 [[fx,0,cx],[0,fy,cy],[0,0,1]]")
     if not np.all(np.isfinite(K)):
         raise CameraError(f"{where}: camera_matrix contains NaN or infinity")
     if np.abs(K).max() > 1e8:
@@ -96,10 +107,10 @@ def _as_K(K: Any, where: str) -> np.ndarray:
             "(OpenCV's default) or write 0 there"
         )
     if abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9 or abs(K[2, 2] - 1.0) > 1e-9:
-        hint = " (it looks transposed: cx, cy belong in the last column)" if abs(K[2, 0]) > 1 or abs(K[2, 1]) > 1 else ""
-        raise CameraError(
-            f"{where}: camera_matrix must be [[fx,0,cx],[0,fy,cy],[0,0,1]]; got {_fmt_matrix(K)}{hint}"
+        hint = (
+            " (it looks transposed: cx, cy belong in the last column)" if abs(K[2, 0]) > 1 or abs(K[2, 1]) > 1 else ""
         )
+        raise CameraError(f"{where}: camera_matrix must be [[fx,0,cx],[0,fy,cy],[0,0,1]]; got {_fmt_matrix(K)}{hint}")
     return K
 
 
@@ -129,10 +140,14 @@ def _as_size(image_size: Any, where: str) -> tuple[int, int]:
     except (TypeError, ValueError, OverflowError):
         raise CameraError(f"{where}: image_size must be [width, height] in pixels, got {image_size!r}") from None
     if not ok or w <= 0 or h <= 0:
-        raise CameraError(f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}")
+        raise CameraError(
+            f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}"
+        )
     if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
-        raise CameraError(f"{where}: image_size {w}x{h} is beyond any camera ({MAX_IMAGE_SIDE} pixels a side at most); "
-                          "is it [width, height] in pixels?")
+        raise CameraError(
+            f"{where}: image_size {w}x{h} is beyond any camera ({MAX_IMAGE_SIDE} pixels a side at most); "
+            "is it [width, height] in pixels?"
+        )
     return (w, h)
 
 
@@ -146,7 +161,9 @@ def _filestorage_text(path: Path, data: bytes) -> str:
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise CameraError(f"{path}: not UTF-8 text (byte {exc.start}); an OpenCV camera file is YAML or XML text") from None
+        raise CameraError(
+            f"{path}: not UTF-8 text (byte {exc.start}); an OpenCV camera file is YAML or XML text"
+        ) from None
     if not text.strip():
         raise CameraError(f"{path}: the file is empty; expected an OpenCV FileStorage camera file")
     head = text.lstrip()[:16]
@@ -171,8 +188,10 @@ def _filestorage_text(path: Path, data: bytes) -> str:
                 depth += 1
                 deepest = max(deepest, depth)
     if deepest > MAX_FILESTORAGE_DEPTH:
-        raise CameraError(f"{path}: nested {deepest} levels deep; an OpenCV camera file has 2 or 3 "
-                          f"({MAX_FILESTORAGE_DEPTH} at most): is it the right file?")
+        raise CameraError(
+            f"{path}: nested {deepest} levels deep; an OpenCV camera file has 2 or 3 "
+            f"({MAX_FILESTORAGE_DEPTH} at most): is it the right file?"
+        )
     return text
 
 
@@ -279,7 +298,7 @@ class Camera:
         return bool(np.any(self.dist != 0))
 
     @classmethod
-    def from_fov(cls, hfov_deg: float, image_size: tuple[int, int], dist=None, source: str = "") -> "Camera":
+    def from_fov(cls, hfov_deg: float, image_size: tuple[int, int], dist=None, source: str = "") -> Camera:
         """An ideal camera (square pixels, centred principal point) with a horizontal field of view."""
         w, h = _as_size(image_size, source or "camera")
         if isinstance(hfov_deg, (bool, str, bytes)) or not isinstance(hfov_deg, (int, float, np.integer, np.floating)):
@@ -296,8 +315,7 @@ class Camera:
         # a file's name, not its absolute path: reprs are printed in notebooks and logs
         src = f", source={_short_source(self.source)!r}" if self.source else ""
         return (
-            f"Camera({w}x{h}, fx={self.fx:.2f}, fy={self.fy:.2f}, cx={self.cx:.2f}, cy={self.cy:.2f}, "
-            f"dist=[{d}]{src})"
+            f"Camera({w}x{h}, fx={self.fx:.2f}, fy={self.fy:.2f}, cx={self.cx:.2f}, cy={self.cy:.2f}, dist=[{d}]{src})"
         )
 
     # -- projection -----------------------------------------------------------------
@@ -319,7 +337,9 @@ class Camera:
         px = px.reshape(-1, 2)
         return px[0] if single else px
 
-    def points_in_front(self, points_world: np.ndarray, T_world_camera: np.ndarray, min_depth_mm: float = 1.0) -> np.ndarray:
+    def points_in_front(
+        self, points_world: np.ndarray, T_world_camera: np.ndarray, min_depth_mm: float = 1.0
+    ) -> np.ndarray:
         """Boolean mask (N,) of the points with depth (camera z) above ``min_depth_mm``."""
         pts_cam = frames.transform_points(frames.invert_transform(T_world_camera), np.atleast_2d(points_world))
         return pts_cam[:, 2] > min_depth_mm
@@ -337,7 +357,7 @@ class Camera:
         return out.reshape(-1, 2)
 
     # -- resolution ------------------------------------------------------------------
-    def scaled(self, image_size: tuple[int, int], tol: float = 0.01) -> "Camera":
+    def scaled(self, image_size: tuple[int, int], tol: float = 0.01) -> Camera:
         """The same camera at another resolution with the same aspect ratio.
 
         A sensor read out at a lower resolution (binning, resizing) keeps its
@@ -373,7 +393,7 @@ class Camera:
         src = f"{self.source or 'camera'} scaled from {w}x{h} to {new_w}x{new_h}"
         return Camera(K, self.dist.copy(), (new_w, new_h), source=src)
 
-    def for_image(self, image_or_size, warn: bool = True) -> "Camera":
+    def for_image(self, image_or_size, warn: bool = True) -> Camera:
         """This camera fitted to an image (an array or ``(width, height)``); warns when it had to rescale."""
         if isinstance(image_or_size, np.ndarray):
             size = (image_or_size.shape[1], image_or_size.shape[0])
@@ -402,12 +422,13 @@ class Camera:
         }
 
     @classmethod
-    def from_dict(cls, d: dict, source: str = "camera") -> "Camera":
+    def from_dict(cls, d: dict, source: str = "camera") -> Camera:
         """A camera from fidlearn's JSON layout."""
         if not isinstance(d, dict):
             raise CameraError(f"{source}: expected a JSON object with camera_matrix, dist_coeffs, image_size")
-        if "camera_matrix" not in d and ("markers" in d or "units" in d
-                                         or any(isinstance(v, dict) and "translation" in v for v in d.values())):
+        if "camera_matrix" not in d and (
+            "markers" in d or "units" in d or any(isinstance(v, dict) and "translation" in v for v in d.values())
+        ):
             raise CameraError(
                 f"{source}: missing field camera_matrix: this is a world map (marker placements), not a camera "
                 "file; give the camera file "
@@ -416,8 +437,10 @@ class Camera:
             )
         unknown = [k for k in d if k not in CAMERA_FIELDS]
         if unknown:
-            raise CameraError(f"{source}: unknown field {unknown[0]!r}{_did_you_mean(unknown[0])}; a camera file holds "
-                              f"{', '.join(CAMERA_FIELDS)}")
+            raise CameraError(
+                f"{source}: unknown field {unknown[0]!r}{_did_you_mean(unknown[0])}; a camera file holds "
+                f"{', '.join(CAMERA_FIELDS)}"
+            )
         missing = [k for k in ("camera_matrix", "image_size") if k not in d]
         if missing:
             raise CameraError(
@@ -430,18 +453,24 @@ class Camera:
         """Write fidlearn's JSON (``.json``) or OpenCV FileStorage (``.yml``, ``.yaml``, ``.xml``), atomically."""
         path = Path(path)
         if path.suffix.lower() in (".yml", ".yaml", ".xml"):
+
             def write(tmp: Path) -> None:
-                fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE | (cv2.FILE_STORAGE_FORMAT_XML if path.suffix.lower() == ".xml" else cv2.FILE_STORAGE_FORMAT_YAML))
+                fs = cv2.FileStorage(
+                    str(tmp),
+                    cv2.FILE_STORAGE_WRITE
+                    | (cv2.FILE_STORAGE_FORMAT_XML if path.suffix.lower() == ".xml" else cv2.FILE_STORAGE_FORMAT_YAML),
+                )
                 fs.write("image_width", int(self.width))
                 fs.write("image_height", int(self.height))
                 fs.write("camera_matrix", self.K)
                 fs.write("distortion_coefficients", self.dist.reshape(1, -1))
                 fs.release()
+
             return atomic_write(path, write)
         return write_json_atomic(path, self.to_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike, image_size: tuple[int, int] | None = None) -> "Camera":
+    def load(cls, path: str | os.PathLike, image_size: tuple[int, int] | None = None) -> Camera:
         """Read a camera file: fidlearn's JSON or OpenCV FileStorage YAML/XML.
 
         FileStorage files need ``camera_matrix`` and ``distortion_coefficients``;
@@ -467,7 +496,7 @@ class Camera:
         return cam
 
     @classmethod
-    def _load_filestorage(cls, path: Path, image_size) -> "Camera":
+    def _load_filestorage(cls, path: Path, image_size) -> Camera:
         path, data = _files.read_bytes(path, CameraError, "camera", _files.MAX_TEXT_BYTES)
         text = _filestorage_text(path, data)
         try:
@@ -476,7 +505,9 @@ class Camera:
             cause = exc.__cause__ or exc.__context__ or exc
             text = str(cause).strip()
             msg = text.splitlines()[-1].strip() if text else "parse error"
-            raise CameraError(f"{path}: not a readable OpenCV FileStorage file ({msg}); it should start with %YAML:1.0 or <?xml") from None
+            raise CameraError(
+                f"{path}: not a readable OpenCV FileStorage file ({msg}); it should start with %YAML:1.0 or <?xml"
+            ) from None
         try:
             if not fs.isOpened():
                 raise CameraError(f"{path}: OpenCV cannot open it as FileStorage YAML/XML")
@@ -491,7 +522,10 @@ class Camera:
             w_node, h_node = fs.getNode("image_width"), fs.getNode("image_height")
             file_size = None
             if not w_node.empty() and not h_node.empty():
-                file_size = (_filestorage_pixels(w_node, path, "image_width"), _filestorage_pixels(h_node, path, "image_height"))
+                file_size = (
+                    _filestorage_pixels(w_node, path, "image_width"),
+                    _filestorage_pixels(h_node, path, "image_height"),
+                )
         finally:
             fs.release()
         if file_size is None and image_size is None:

@@ -31,11 +31,14 @@ import signal
 import sys
 import tempfile
 import warnings
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
-from . import __version__, doctor
-from . import _cv  # noqa: F401 - OpenCV that cannot import fails here, where fidlearn._entry reports it
+from . import (
+    __version__,
+    _cv,  # noqa: F401 - OpenCV that cannot import fails here, where fidlearn._entry reports it
+    doctor,
+)
 from ._io import atomic_write, file_mode_for
 from .doctor import OPENCV_WHEELS, WANTED_WHEEL  # noqa: F401 - kept importable from here
 from .errors import FidlearnError, FidlearnWarning
@@ -73,8 +76,14 @@ def _run_corners(args) -> int:
     _refuse_clobber([("-o", args.output)], [args.map])
     m = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=args.dictionary)
     m.save_corners(args.output)
-    plane = f"coplanar (within {m.planarity_mm():.2f} mm)" if m.is_coplanar() else f"not coplanar ({m.planarity_mm():.1f} mm off a plane)"
-    print(f"{args.output}: corners of {len(m)} marker{'s' if len(m) != 1 else ''} {m.ids}, {m.marker_size_mm:g} mm, {plane}")
+    plane = (
+        f"coplanar (within {m.planarity_mm():.2f} mm)"
+        if m.is_coplanar()
+        else f"not coplanar ({m.planarity_mm():.1f} mm off a plane)"
+    )
+    print(
+        f"{args.output}: corners of {len(m)} marker{'s' if len(m) != 1 else ''} {m.ids}, {m.marker_size_mm:g} mm, {plane}"
+    )
     return 0
 
 
@@ -85,7 +94,9 @@ def doctor_report() -> tuple[list[str], list[str]]:
 
 
 def _add_doctor(sub) -> None:
-    p = sub.add_parser("doctor", help="check the Python, numpy and OpenCV installation", description="Check the installation.")
+    p = sub.add_parser(
+        "doctor", help="check the Python, numpy and OpenCV installation", description="Check the installation."
+    )
     p.set_defaults(run=_run_doctor)
 
 
@@ -101,8 +112,9 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
-def _refuse_clobber(outputs: Sequence[tuple[str, Path | None]], inputs: Sequence[Path],
-                    annotate: Path | None = None) -> None:
+def _refuse_clobber(
+    outputs: Sequence[tuple[str, Path | None]], inputs: Sequence[Path], annotate: Path | None = None
+) -> None:
     """Before any work: no output may be one of the inputs, nor another output; no --annotate
     folder may hold an input (its annotated copy would replace it)."""
     named = [(opt, Path(p)) for opt, p in outputs if p is not None]
@@ -110,8 +122,9 @@ def _refuse_clobber(outputs: Sequence[tuple[str, Path | None]], inputs: Sequence
     for k, (opt, out) in enumerate(named):
         for inp in files:
             if _same_file(out, inp) or (not out.exists() and out.resolve() == inp.resolve()):
-                raise UsageError(f"{opt} {out} is one of the inputs ({inp}); write it under another name: "
-                                 "nothing was written")
+                raise UsageError(
+                    f"{opt} {out} is one of the inputs ({inp}); write it under another name: nothing was written"
+                )
         for opt2, out2 in named[:k]:
             if out.resolve() == out2.resolve() or _same_file(out, out2):
                 raise UsageError(f"{opt} {out} and {opt2} {out2} are the same file; give each output its own name")
@@ -119,11 +132,15 @@ def _refuse_clobber(outputs: Sequence[tuple[str, Path | None]], inputs: Sequence
         folder = Path(annotate).resolve()
         for inp in files:
             if inp.resolve().parent == folder:
-                raise UsageError(f"--annotate {annotate} holds the input {inp}; its annotated copy would replace it: "
-                                 "give another folder")
+                raise UsageError(
+                    f"--annotate {annotate} holds the input {inp}; its annotated copy would replace it: "
+                    "give another folder"
+                )
         for opt, out in named:
             if out.resolve().parent == folder:
-                raise UsageError(f"--annotate {annotate} is where {opt} {out} goes; give the annotations a folder of their own")
+                raise UsageError(
+                    f"--annotate {annotate} is where {opt} {out} goes; give the annotations a folder of their own"
+                )
 
 
 class _Interrupted(KeyboardInterrupt):
@@ -203,8 +220,9 @@ class _StreamFile:
         try:
             fd, name = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=folder)
         except OSError as exc:
-            raise FidlearnError(f"{self.option} {self.path}: cannot write in {folder} ({exc.strerror}); "
-                                "check the folder's permissions") from None
+            raise FidlearnError(
+                f"{self.option} {self.path}: cannot write in {folder} ({exc.strerror}); check the folder's permissions"
+            ) from None
         self.tmp = Path(name)
         self.file = os.fdopen(fd, "w", encoding="utf-8")
         return self
@@ -214,8 +232,9 @@ class _StreamFile:
             self.file.write(json.dumps(record) + "\n")
             self.file.flush()
         except OSError as exc:
-            raise FidlearnError(f"{self.option} {self.path}: cannot write it ({exc.strerror}); "
-                                "check the free disk space") from None
+            raise FidlearnError(
+                f"{self.option} {self.path}: cannot write it ({exc.strerror}); check the free disk space"
+            ) from None
         self.count += 1
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -262,7 +281,14 @@ def _check_output(path: Path, suffixes: Sequence[str], option: str = "-o") -> Pa
 def _json_text(obj) -> str:
     """Indented JSON with each innermost list of numbers on one line (readable matrices)."""
     text = json.dumps(obj, indent=2)
-    return re.sub(r"\[\s+([-+0-9.eE,\s]+?)\s+\]", lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]", text) + "\n"
+    return (
+        re.sub(
+            r"\[\s+([-+0-9.eE,\s]+?)\s+\]",
+            lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]",
+            text,
+        )
+        + "\n"
+    )
 
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
@@ -281,14 +307,18 @@ def _write_image(path: Path, image) -> Path:
 def _load_map(args):
     from .markermap import MarkerMap
 
-    return MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm,
-                          dictionary=getattr(args, "dictionary", None))
+    return MarkerMap.load(
+        args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=getattr(args, "dictionary", None)
+    )
 
 
 def _add_image_size_option(p) -> None:
-    p.add_argument("--image-size", metavar="WxH",
-                   help="resolution the camera was calibrated at, for an OpenCV YAML file that does not say "
-                        "(no image_width/image_height)")
+    p.add_argument(
+        "--image-size",
+        metavar="WxH",
+        help="resolution the camera was calibrated at, for an OpenCV YAML file that does not say "
+        "(no image_width/image_height)",
+    )
 
 
 def _load_camera(args):
@@ -346,8 +376,10 @@ def _run_markers(args) -> int:
     where = ", ".join(str(f) for f in files)
     extra = f" at {args.dpi:g} dpi" if out.suffix.lower() == ".png" else ""
     several = f", {sheet.per_page} per page" if pages > 1 else ""
-    print(f"{where}: {len(ids)} marker{'s' if len(ids) > 1 else ''} of {sheet.size_mm:g} mm ({sheet.dictionary}) "
-          f"on {pages} {sheet.paper} page{'s' if pages > 1 else ''}{extra}{several}")
+    print(
+        f"{where}: {len(ids)} marker{'s' if len(ids) > 1 else ''} of {sheet.size_mm:g} mm ({sheet.dictionary}) "
+        f"on {pages} {sheet.paper} page{'s' if pages > 1 else ''}{extra}{several}"
+    )
     print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")
     return 0
 
@@ -389,8 +421,9 @@ def _run_board(args) -> int:
         squares = printables.parse_pattern(args.squares, "--squares")
     if not args.charuco and (args.dictionary or args.marker_mm is not None):
         raise UsageError("--dictionary and --marker-mm describe a ChArUco board; add --charuco or drop them")
-    sheet = printables.layout_board(squares, args.square_mm, args.paper, args.charuco,
-                                    args.dictionary or "6X6_250", args.marker_mm)
+    sheet = printables.layout_board(
+        squares, args.square_mm, args.paper, args.charuco, args.dictionary or "6X6_250", args.marker_mm
+    )
     files = printables.save_pages([printables.board_figure(sheet)], out, dpi=args.dpi)
     turn = ", landscape" if sheet.landscape else ""
     print(f"{files[0]}: {sheet.describe()}, {sheet.paper}{turn}")
@@ -417,12 +450,14 @@ def _add_render(sub) -> None:
         "render",
         help="synthetic picture of a world map seen from a pose",
         description="Render a synthetic picture of the markers of a world map as a calibrated camera\n"
-                    "at a given pose would see them, to try the pipeline without hardware.",
+        "at a given pose would see them, to try the pipeline without hardware.",
         epilog=_POSE_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     _add_map_options(p)
-    p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)")
+    p.add_argument(
+        "--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)"
+    )
     _add_image_size_option(p)
     pose = p.add_mutually_exclusive_group(required=True)
     pose.add_argument("--pose", metavar="X,Y,Z,R,P,Y", help="camera position (mm) and roll,pitch,yaw (deg), see below")
@@ -446,8 +481,10 @@ MAX_COORD_MM = 1e8
 
 def _check_coords(option: str, values) -> None:
     if max(abs(v) for v in values) > MAX_COORD_MM:
-        raise UsageError(f"{option}: {max(abs(v) for v in values):g} mm is beyond any room ({MAX_COORD_MM:g} mm at most); "
-                         "positions are in millimetres")
+        raise UsageError(
+            f"{option}: {max(abs(v) for v in values):g} mm is beyond any room ({MAX_COORD_MM:g} mm at most); "
+            "positions are in millimetres"
+        )
 
 
 def _pose_from_args(args):
@@ -476,7 +513,6 @@ def _run_render(args) -> int:
     import numpy as np
 
     from . import frames, synthetic
-    from .camera import Camera
 
     out = _check_output(args.output, (".png", ".bmp", ".tif", ".tiff"))
     truth_path = _check_output(args.truth, (".json",), "--truth") if args.truth else None
@@ -492,11 +528,14 @@ def _run_render(args) -> int:
 
         w, h = parse_pattern(args.size, "--size")
         if w * h > MAX_RENDER_PIXELS or max(w, h) > 20000:
-            raise UsageError(f"--size {w}x{h}: at most {MAX_RENDER_PIXELS // 1_000_000} megapixels and 20000 pixels a side")
+            raise UsageError(
+                f"--size {w}x{h}: at most {MAX_RENDER_PIXELS // 1_000_000} megapixels and 20000 pixels a side"
+            )
         camera = camera.scaled((w, h))
     T_world_camera = _pose_from_args(args)
-    image, truth = synthetic.render_scene(camera, marker_map, T_world_camera, seed=args.seed,
-                                          noise_std=args.noise, blur_px=args.blur)
+    image, truth = synthetic.render_scene(
+        camera, marker_map, T_world_camera, seed=args.seed, noise_std=args.noise, blur_px=args.blur
+    )
 
     def write_both(tmp_truth=None):
         if tmp_truth is not None:
@@ -511,7 +550,9 @@ def _run_render(args) -> int:
                 "rpy_deg": frames.rpy_deg_from_rotation(T_world_camera[:3, :3]).tolist(),
                 "markers_px": {str(k): v.tolist() for k, v in sorted(truth.items())},
                 "pixel_convention": "pixel centres at integer coordinates; corners TL, TR, BR, BL",
-                "seed": args.seed, "noise_std": args.noise, "blur_px": args.blur,
+                "seed": args.seed,
+                "noise_std": args.noise,
+                "blur_px": args.blur,
             }
             tmp_truth.write_text(_json_text(record), encoding="utf-8")
         _write_image(out, image)
@@ -521,8 +562,10 @@ def _run_render(args) -> int:
     else:
         write_both()
     seen = ", ".join(str(i) for i in sorted(truth)) or "none"
-    print(f"{out}: {camera.width}x{camera.height}, markers seen whole: {seen}"
-          + (f"; truth in {truth_path}" if truth_path else ""))
+    print(
+        f"{out}: {camera.width}x{camera.height}, markers seen whole: {seen}"
+        + (f"; truth in {truth_path}" if truth_path else "")
+    )
     if not truth:
         warnings.warn("no marker of the map is in view; check the pose (see 'fidlearn render --help')", FidlearnWarning)
     return 0
@@ -550,7 +593,9 @@ def _expand_inputs(paths: Sequence[Path], videos: bool) -> list[tuple[str, Path]
             items.append(("image", path))
         else:
             kinds = IMAGE_SUFFIXES + (VIDEO_SUFFIXES if videos else ())
-            raise UsageError(f"{path}: not an image{' or a video' if videos else ''} by its name; expected {', '.join(kinds)}")
+            raise UsageError(
+                f"{path}: not an image{' or a video' if videos else ''} by its name; expected {', '.join(kinds)}"
+            )
     return items
 
 
@@ -797,7 +842,9 @@ def _add_calibrate(sub) -> None:
             "Measure one printed square with calipers and give that as --square-mm."
         ),
     )
-    p.add_argument("inputs", nargs="+", type=Path, metavar="IMAGE_OR_FOLDER", help="photos of the board, or folders of them")
+    p.add_argument(
+        "inputs", nargs="+", type=Path, metavar="IMAGE_OR_FOLDER", help="photos of the board, or folders of them"
+    )
     size = p.add_mutually_exclusive_group(required=True)
     size.add_argument("--pattern", metavar="CxR", help="inner corners, e.g. 9x6 (a board of 10x7 squares)")
     size.add_argument("--squares", metavar="CxR", help="squares, e.g. 5x7 (OpenCV's ChArUco count)")
@@ -806,8 +853,12 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--marker-mm", type=float, metavar="MM", help="ChArUco marker side, mm")
     p.add_argument("--dictionary", help="ChArUco dictionary (default 6X6_250)")
     p.add_argument("--annotate", type=Path, metavar="DIR", help="save each photo with its detected corners drawn")
-    p.add_argument("--report", type=Path, metavar="REPORT.png",
-                   help="draw the calibration's reprojection uncertainty over the picture and the next photo to take")
+    p.add_argument(
+        "--report",
+        type=Path,
+        metavar="REPORT.png",
+        help="draw the calibration's reprojection uncertainty over the picture and the next photo to take",
+    )
     p.add_argument("-o", "--output", type=Path, required=True, help="camera file to write (.json, or OpenCV .yml/.xml)")
     p.set_defaults(run=_run_calibrate)
 
@@ -824,7 +875,9 @@ def _draw_calibration_view(path: Path, view, points_px, pattern, charuco: bool):
         pts = np.asarray(points_px, dtype=np.float32).reshape(-1, 1, 2)
         if charuco:
             for u, v in pts.reshape(-1, 2):
-                cv2.circle(out, (int(round(u * 16)), int(round(v * 16))), int(4 * unit * 16), (0, 200, 0), 1, cv2.LINE_AA, 4)
+                cv2.circle(
+                    out, (int(round(u * 16)), int(round(v * 16))), int(4 * unit * 16), (0, 200, 0), 1, cv2.LINE_AA, 4
+                )
         else:
             cv2.drawChessboardCorners(out, pattern, pts, True)
         text = f"{view.status}: {len(pts)} corners, rms {view.rms_px:.3f} px"
@@ -880,8 +933,9 @@ def _run_calibrate(args) -> int:
     progress = _Progress("calibrate")
     try:
         if args.charuco:
-            cal = calibration.calibrate_charuco(paths, squares, args.square_mm, args.marker_mm,
-                                                args.dictionary or "6X6_250", progress=progress)
+            cal = calibration.calibrate_charuco(
+                paths, squares, args.square_mm, args.marker_mm, args.dictionary or "6X6_250", progress=progress
+            )
         else:
             cal = calibration.calibrate_checkerboard(paths, pattern, args.square_mm, progress=progress)
     finally:
@@ -891,12 +945,16 @@ def _run_calibrate(args) -> int:
     c, sd = cal.camera, cal.std_intrinsics
     print(cal.table())
     print()
-    print(f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board}, "
-          f"RMS reprojection error {cal.rms_px:.3f} px")
+    print(
+        f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board}, "
+        f"RMS reprojection error {cal.rms_px:.3f} px"
+    )
     for name, value in (("fx", c.fx), ("fy", c.fy), ("cx", c.cx), ("cy", c.cy)):
         print(f"  {name} {value:10.2f} ± {sd.get(name, float('nan')):.2f} px")
-    dist_names = calibration.INTRINSIC_NAMES[4:4 + len(c.dist)]
-    print("  distortion " + ", ".join(f"{n} {v:.4f} ± {sd.get(n, float('nan')):.4f}" for n, v in zip(dist_names, c.dist)))
+    dist_names = calibration.INTRINSIC_NAMES[4 : 4 + len(c.dist)]
+    print(
+        "  distortion " + ", ".join(f"{n} {v:.4f} ± {sd.get(n, float('nan')):.4f}" for n, v in zip(dist_names, c.dist))
+    )
 
     grid = coverage_grid(cal.image_points_px.values(), c.image_size)
     print("board corners per ninth of the picture (3x3 grid):")
@@ -906,24 +964,39 @@ def _run_calibrate(args) -> int:
     even_share = grid.sum() / 9.0
     sparse = [_CELL_NAMES[r][k] for r in range(3) for k in range(3) if 0 < grid[r, k] < SPARSE_CELL_SHARE * even_share]
     if len(cal.used) < MIN_GOOD_VIEWS:
-        warnings.warn(f"only {len(cal.used)} views used; {MIN_GOOD_VIEWS} to 20 views from varied angles give a "
-                      "trustworthy camera: take more photos", FidlearnWarning)
+        warnings.warn(
+            f"only {len(cal.used)} views used; {MIN_GOOD_VIEWS} to 20 views from varied angles give a "
+            "trustworthy camera: take more photos",
+            FidlearnWarning,
+        )
     spread, duplicates = view_diversity(cal.T_camera_board)
     if len(cal.used) > 1 and spread < MIN_TILT_SPREAD_DEG:
-        warnings.warn(f"views too similar: the board faces the camera within {spread:.1f} deg in every view; "
-                      "tilt it 20 to 45 deg in different directions, or the focal length stays uncertain", FidlearnWarning)
+        warnings.warn(
+            f"views too similar: the board faces the camera within {spread:.1f} deg in every view; "
+            "tilt it 20 to 45 deg in different directions, or the focal length stays uncertain",
+            FidlearnWarning,
+        )
     if duplicates:
         a, b, _, _ = duplicates[0]
-        warnings.warn(f"{len(duplicates)} pair(s) of nearly identical views (e.g. {Path(a).name} and {Path(b).name}); "
-                      "they add no information: move or tilt the board between photos", FidlearnWarning)
+        warnings.warn(
+            f"{len(duplicates)} pair(s) of nearly identical views (e.g. {Path(a).name} and {Path(b).name}); "
+            "they add no information: move or tilt the board between photos",
+            FidlearnWarning,
+        )
     if empty:
-        warnings.warn(f"no board corner in the {', '.join(empty)} of the picture; hold the board there too, "
-                      "or the lens distortion is guessed where nothing was measured", FidlearnWarning)
+        warnings.warn(
+            f"no board corner in the {', '.join(empty)} of the picture; hold the board there too, "
+            "or the lens distortion is guessed where nothing was measured",
+            FidlearnWarning,
+        )
     if sparse:
         counts = ", ".join(f"{grid[r, k]}" for r in range(3) for k in range(3) if _CELL_NAMES[r][k] in sparse)
-        warnings.warn(f"few board corners in the {', '.join(sparse)} of the picture ({counts}, under a tenth of the "
-                      f"{even_share:.0f} an even spread gives); hold the board there too, or the lens distortion "
-                      "is guessed where almost nothing was measured", FidlearnWarning)
+        warnings.warn(
+            f"few board corners in the {', '.join(sparse)} of the picture ({counts}, under a tenth of the "
+            f"{even_share:.0f} an even spread gives); hold the board there too, or the lens distortion "
+            "is guessed where almost nothing was measured",
+            FidlearnWarning,
+        )
 
     from .planning.coach import coach_calibration
 
@@ -963,17 +1036,31 @@ def _add_locate(sub) -> None:
             "the end; annotated images are staged in a hidden folder and moved into DIR at the end."
         ),
     )
-    p.add_argument("inputs", nargs="*", type=Path, metavar="IMAGE_OR_FOLDER_OR_VIDEO", help="images, folders of images, videos")
-    p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)")
+    p.add_argument(
+        "inputs", nargs="*", type=Path, metavar="IMAGE_OR_FOLDER_OR_VIDEO", help="images, folders of images, videos"
+    )
+    p.add_argument(
+        "--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)"
+    )
     _add_image_size_option(p)
     _add_map_options(p)
-    p.add_argument("--camera-index", type=int, metavar="N", help="also read a live camera (0 is the first); Ctrl-C stops")
+    p.add_argument(
+        "--camera-index", type=int, metavar="N", help="also read a live camera (0 is the first); Ctrl-C stops"
+    )
     p.add_argument("--json", type=Path, metavar="POSES.jsonl", help="write one JSON line per frame with T_world_camera")
-    p.add_argument("--annotate", type=Path, metavar="DIR", help="save each frame with the markers and the world axes drawn")
-    p.add_argument("--refine", choices=["edges", "subpix", "contour", "apriltag", "none"],
-                   help="corner refinement (default edges)")
-    p.add_argument("--max-megapixels", type=float, default=100.0, metavar="MP",
-                   help="largest picture read, in megapixels (default 100): a larger one is refused from its header")
+    p.add_argument(
+        "--annotate", type=Path, metavar="DIR", help="save each frame with the markers and the world axes drawn"
+    )
+    p.add_argument(
+        "--refine", choices=["edges", "subpix", "contour", "apriltag", "none"], help="corner refinement (default edges)"
+    )
+    p.add_argument(
+        "--max-megapixels",
+        type=float,
+        default=100.0,
+        metavar="MP",
+        help="largest picture read, in megapixels (default 100): a larger one is refused from its header",
+    )
     p.set_defaults(run=_run_locate)
 
 
@@ -1032,8 +1119,16 @@ def _draw_pose(image, detections, camera, pose, marker_map):
             o = tuple(int(round(v)) for v in px[0])
             for k, colour in ((1, (0, 0, 255)), (2, (0, 200, 0)), (3, (255, 0, 0))):  # X red, Y green, Z blue
                 cv2.arrowedLine(out, o, tuple(int(round(v)) for v in px[k]), colour, 2, cv2.LINE_AA, tipLength=0.15)
-                cv2.putText(out, "XYZ"[k - 1], tuple(int(round(v)) + 4 for v in px[k]), cv2.FONT_HERSHEY_SIMPLEX,
-                            0.6, colour, 2, cv2.LINE_AA)
+                cv2.putText(
+                    out,
+                    "XYZ"[k - 1],
+                    tuple(int(round(v)) + 4 for v in px[k]),
+                    cv2.FONT_HERSHEY_SIMPLEX,
+                    0.6,
+                    colour,
+                    2,
+                    cv2.LINE_AA,
+                )
     x, y, z = np.round(pose.position_mm) + 0.0
     r, p, yw = np.round(pose.rpy_deg, 1) + 0.0
     text = f"x {x:.0f} y {y:.0f} z {z:.0f} mm  rpy {r:.1f} {p:.1f} {yw:.1f} deg  rms {pose.reprojection_rms_px:.2f} px"
@@ -1069,13 +1164,17 @@ def _run_locate(args) -> int:
     camera = _load_camera(args)
     marker_map = _load_map(args)
     refine = {"refine": args.refine} if args.refine else {}
-    width = max([len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5])
+    width = max(
+        [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]
+    )
     width = min(width, 40)
     cameras: dict[tuple[int, int], Camera] = {}
     stats = {"frames": 0, "located": 0, "ambiguous": 0, "rms": []}
 
-    header = (f"{'frame':<{width}} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7}  "
-              f"{'markers':<9} {'rms_px':>6}  ambiguous")
+    header = (
+        f"{'frame':<{width}} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7}  "
+        f"{'markers':<9} {'rms_px':>6}  ambiguous"
+    )
 
     def process(sink) -> None:
         with staging:
@@ -1135,8 +1234,11 @@ def _run_locate(args) -> int:
             kept.append(f"{json_path} holds {n} whole frame record{'s' if n != 1 else ''}")
         if args.annotate:
             kept.append(staging.said())
-        print(f"error: interrupted by {_signal_name(exc)} after {stats['frames']} frames"
-              + (f"; {'; '.join(kept)}" if kept else ""), file=sys.stderr)
+        print(
+            f"error: interrupted by {_signal_name(exc)} after {stats['frames']} frames"
+            + (f"; {'; '.join(kept)}" if kept else ""),
+            file=sys.stderr,
+        )
         return 128 + (exc.signum if isinstance(exc, _Interrupted) else signal.SIGINT)
     n, located = stats["frames"], stats["located"]
     if n > 1 or args.camera_index is not None:
@@ -1161,12 +1263,16 @@ def _add_plan(sub) -> None:
 
 def _add_release(sub) -> None:
     p = sub.add_parser(
-        "release", help="an exercise lesson for each learner of a class, its answers kept by the instructor",
+        "release",
+        help="an exercise lesson for each learner of a class, its answers kept by the instructor",
         description="Write OUT/<learner>/ for every learner of the roster: the lesson's student notebook and "
-                    "fidlearn_inputs.json, that learner's numbers without their answers (seeded by the class "
-                    "secret). 'fidlearn grade' grades what comes back.")
+        "fidlearn_inputs.json, that learner's numbers without their answers (seeded by the class "
+        "secret). 'fidlearn grade' grades what comes back.",
+    )
     p.add_argument("--lesson", required=True, help="lesson number, e.g. 03")
-    p.add_argument("--secret-file", type=Path, required=True, help="the class secret ('fidlearn grade --new-secret FILE')")
+    p.add_argument(
+        "--secret-file", type=Path, required=True, help="the class secret ('fidlearn grade --new-secret FILE')"
+    )
     p.add_argument("--learners", type=Path, required=True, help="roster: one learner id per line")
     p.add_argument("-o", "--output", type=Path, required=True, help="folder to write the learners' folders in")
     p.set_defaults(run=_run_release)
@@ -1177,7 +1283,11 @@ def _run_release(args) -> int:
     from ._files import MAX_TEXT_BYTES, read_bytes
 
     _, data = read_bytes(args.learners, UsageError, "roster", MAX_TEXT_BYTES)
-    learners = [line.strip() for line in data.decode("utf-8", "replace").splitlines() if line.strip() and not line.startswith("#")]
+    learners = [
+        line.strip()
+        for line in data.decode("utf-8", "replace").splitlines()
+        if line.strip() and not line.startswith("#")
+    ]
     if not learners:
         raise UsageError(f"--learners {args.learners}: no learner ids (one per line)")
     folders = grading.release(args.lesson, learners, args.secret_file, args.output)
@@ -1187,16 +1297,20 @@ def _run_release(args) -> int:
 
 def _add_grade(sub) -> None:
     p = sub.add_parser(
-        "grade", help="grade learners' exercise notebooks, each in a sandbox, the answer key outside it",
+        "grade",
+        help="grade learners' exercise notebooks, each in a sandbox, the answer key outside it",
         description="Run each submitted notebook in a process of its own (scratch folder, time and memory "
-                    "limits, no instructor's environment; as 'nobody' when run as root) and grade the answers "
-                    "it leaves in the grader's process, against the variant the class secret gives that "
-                    "learner. A notebook that crashes, hangs or cheats gets 0 with the reason; the CSV is "
-                    "always written. Grading runs learners' code: see docs/teaching.md.")
+        "limits, no instructor's environment; as 'nobody' when run as root) and grade the answers "
+        "it leaves in the grader's process, against the variant the class secret gives that "
+        "learner. A notebook that crashes, hangs or cheats gets 0 with the reason; the CSV is "
+        "always written. Grading runs learners' code: see docs/teaching.md.",
+    )
     p.add_argument("notebooks", nargs="*", type=Path, help="submitted notebooks (.ipynb)")
     p.add_argument("--lesson", help="lesson number, e.g. 03")
     p.add_argument("--secret-file", type=Path, help="the class secret")
-    p.add_argument("--learner", help="the learner of every notebook given (default: each file's name, e.g. alice.ipynb)")
+    p.add_argument(
+        "--learner", help="the learner of every notebook given (default: each file's name, e.g. alice.ipynb)"
+    )
     p.add_argument("-o", "--output", type=Path, help="grades.csv: one row per question")
     p.add_argument("--timeout", type=int, default=120, help="seconds a notebook may run (default 120)")
     p.add_argument("--memory-mb", type=int, default=3000, help="memory a notebook may use, MB (default 3000)")
@@ -1212,11 +1326,17 @@ def _run_grade(args) -> int:
         grading.new_secret(args.new_secret)
         print(f"{args.new_secret}: a new class secret; keep it private (it decides every learner's numbers)")
         return 0
-    missing = [opt for opt, v in (("--lesson", args.lesson), ("--secret-file", args.secret_file), ("-o", args.output))
-               if v is None]
+    missing = [
+        opt
+        for opt, v in (("--lesson", args.lesson), ("--secret-file", args.secret_file), ("-o", args.output))
+        if v is None
+    ]
     if missing or not args.notebooks:
-        raise UsageError("give the notebooks, --lesson, --secret-file and -o grades.csv" if not missing
-                         else f"{missing[0]} is required to grade")
+        raise UsageError(
+            "give the notebooks, --lesson, --secret-file and -o grades.csv"
+            if not missing
+            else f"{missing[0]} is required to grade"
+        )
     out = _check_output(args.output, (".csv",))
     if not 5 <= args.timeout <= 3600 or not 200 <= args.memory_mb <= 65536:
         raise UsageError("--timeout is 5 to 3600 s and --memory-mb 200 to 65536")
@@ -1225,19 +1345,40 @@ def _run_grade(args) -> int:
         if not nb.is_file():
             raise UsageError(f"{nb}: no such notebook; give the learners' .ipynb files")
     if os.geteuid() != 0 and args.run_as is None:
-        print("warning: grading as your own user: a notebook can read what you can; see docs/teaching.md", file=sys.stderr)
+        print(
+            "warning: grading as your own user: a notebook can read what you can; see docs/teaching.md", file=sys.stderr
+        )
 
     def progress(k: int, n: int, g) -> None:
         print(f"[{k}/{n}] {g.line()}", flush=True)
 
-    grades = grading.grade(args.notebooks, args.lesson, args.secret_file, out, learner=args.learner,
-                           timeout_s=args.timeout, memory_mb=args.memory_mb, run_as=args.run_as, progress=progress)
+    grades = grading.grade(
+        args.notebooks,
+        args.lesson,
+        args.secret_file,
+        out,
+        learner=args.learner,
+        timeout_s=args.timeout,
+        memory_mb=args.memory_mb,
+        run_as=args.run_as,
+        progress=progress,
+    )
     print(f"{len(grades)} notebooks graded; grades in {out}")
     return 0
 
 
-COMMANDS: list[Callable] = [_add_board, _add_calibrate, _add_markers, _add_corners, _add_locate, _add_render, _add_plan,
-                            _add_release, _add_grade, _add_doctor]
+COMMANDS: list[Callable] = [
+    _add_board,
+    _add_calibrate,
+    _add_markers,
+    _add_corners,
+    _add_locate,
+    _add_render,
+    _add_plan,
+    _add_release,
+    _add_grade,
+    _add_doctor,
+]
 
 
 _WORKFLOW = """\

@@ -15,10 +15,10 @@ from __future__ import annotations
 import numbers
 import os
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import cv2
 import numpy as np
@@ -124,9 +124,13 @@ def load_image(path: str | os.PathLike, max_pixels: int = _files.MAX_IMAGE_PIXEL
     try:
         image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
     except cv2.error as exc:
-        raise ImageError(f"{path}: OpenCV cannot decode it ({_cv.first_line(exc)}); is it truncated or another file type?") from None
+        raise ImageError(
+            f"{path}: OpenCV cannot decode it ({_cv.first_line(exc)}); is it truncated or another file type?"
+        ) from None
     if image is None or image.size == 0:
-        raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, BMP, TIFF...); is it truncated or another file type?")
+        raise ImageError(
+            f"{path}: not an image OpenCV can read (PNG, JPEG, BMP, TIFF...); is it truncated or another file type?"
+        )
     return image
 
 
@@ -138,7 +142,9 @@ def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
     float images in [0, 1] are accepted too. Anything else raises :class:`ImageError` saying what was received.
     """
     if not isinstance(image, np.ndarray):
-        raise ImageError(f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}")
+        raise ImageError(
+            f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}"
+        )
     if image.size == 0:
         raise ImageError(f"{where}: the image is empty (shape {image.shape})")
     if image.ndim == 3 and image.shape[2] == 1:
@@ -170,7 +176,7 @@ def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
 # Detection
 # ----------------------------------------------------------------------------------------------
 
-_DETECTOR_CACHE: "OrderedDict[tuple, Any]" = OrderedDict()
+_DETECTOR_CACHE: OrderedDict[tuple, Any] = OrderedDict()
 _DETECTOR_CACHE_SIZE = 16
 
 
@@ -215,7 +221,9 @@ def _detector(dictionary: str, refine: str, params: Any, ids: tuple[int, ...] | 
         cv_params = _cv.make_detector_parameters(**fields)
     except TypeError as exc:  # OpenCV names the type it wanted, not the field
         given = {k: v for k, v in (params or {}).items()} if isinstance(params, dict) else params
-        raise FidlearnError(f"detector parameters {given!r}: {exc}; check each field's type in cv2.aruco.DetectorParameters") from None
+        raise FidlearnError(
+            f"detector parameters {given!r}: {exc}; check each field's type in cv2.aruco.DetectorParameters"
+        ) from None
     detector = _cv.make_detector(dictionary, cv_params, ids=ids)
     cells = _cv.dictionary_marker_bits(dictionary) + 2 * int(fields["markerBorderBits"])
     hit = _DETECTOR_CACHE[key] = (detector, cells, bool(fields["detectInvertedMarker"]))
@@ -420,7 +428,9 @@ def refine_corners_edges(
         margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)  # keep clear of the corners
         span = 1.0 - 2.0 * margin
         t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
-        pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[..., None, None]
+        pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[
+            ..., None, None
+        ]
         # (x, y) pairs, one row per side: remap wants fewer than 32767 rows and columns
         maps = pts.astype(np.complex64).view(np.float32).reshape(M * 4, n_lines * n_samples, 2)
         prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -486,6 +496,7 @@ def refine_corners_edges(
 # Drawing
 # ----------------------------------------------------------------------------------------------
 
+
 def _as_bgr(image: np.ndarray) -> np.ndarray:
     if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3:
         return image.copy()
@@ -494,7 +505,9 @@ def _as_bgr(image: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(as_gray(image), cv2.COLOR_GRAY2BGR)
 
 
-def _label(img: np.ndarray, text: str, org: tuple[float, float], scale: float, thick: int, color, center: bool = True) -> None:
+def _label(
+    img: np.ndarray, text: str, org: tuple[float, float], scale: float, thick: int, color, center: bool = True
+) -> None:
     """Text with a dark box behind it so it reads on any background; ``org`` is its centre."""
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
     x = int(round(org[0] - tw / 2)) if center else int(round(org[0]))
@@ -543,11 +556,15 @@ def draw_detections(
     """
     out = _as_bgr(image)
     if isinstance(detections, (str, bytes)) or not hasattr(detections, "__iter__"):
-        raise DetectionError(f"detections must be a list of Detection (from detect_markers), got {type(detections).__name__}")
+        raise DetectionError(
+            f"detections must be a list of Detection (from detect_markers), got {type(detections).__name__}"
+        )
     detections = list(detections)
     for det in detections:
         if not isinstance(det, Detection):
-            raise DetectionError(f"detections must hold Detection objects (from detect_markers), got {type(det).__name__}")
+            raise DetectionError(
+                f"detections must hold Detection objects (from detect_markers), got {type(det).__name__}"
+            )
     H, W = out.shape[:2]
     unit = max(H, W) / 640.0
     thick = max(1, int(round(1.5 * unit)))
@@ -563,7 +580,15 @@ def draw_detections(
         centre = c.mean(axis=0)
         for k, (name, p) in enumerate(zip(CORNER_NAMES, c)):
             dot = (0, 0, 255) if k == 0 else (255, 128, 0)
-            cv2.circle(out, tuple(int(v) for v in np.round(p * (1 << shift))), int(round((2.5 + thick) * (1 << shift))), dot, -1, cv2.LINE_AA, shift)
+            cv2.circle(
+                out,
+                tuple(int(v) for v in np.round(p * (1 << shift))),
+                int(round((2.5 + thick) * (1 << shift))),
+                dot,
+                -1,
+                cv2.LINE_AA,
+                shift,
+            )
             if corner_labels:
                 away = p - centre
                 away = away / max(float(np.linalg.norm(away)), 1e-9)

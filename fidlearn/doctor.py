@@ -34,7 +34,7 @@ def _requirement(name: str) -> str:
             for sep in ("<", ">", "=", "!", "~", " "):
                 base = base.split(sep)[0]
             if base.strip().lower().replace("_", "-") == name:
-                spec = head[len(base):].replace(" ", "").strip("()")
+                spec = head[len(base) :].replace(" ", "").strip("()")
                 return base.strip() + ",".join(sorted(spec.split(","), key=lambda p: not p.startswith(">")))
     except md.PackageNotFoundError:
         pass
@@ -80,9 +80,16 @@ def _numpy_pair_problem(package: str, module_error: str, numpy_version: str | No
         return None
     name = WANTED_WHEEL if package == "opencv" else package
     version = _version(name)
-    if package == "opencv" and _major_minor(version) < (4, 10) or "numpy" in module_error.lower() or "_ARRAY_API" in module_error:
-        return (f"{name} {version or '?'} was built for numpy 1 and cannot import beside numpy {numpy_version}: "
-                f"pip install --upgrade '{_requirement(name)}'")
+    if (
+        package == "opencv"
+        and _major_minor(version) < (4, 10)
+        or "numpy" in module_error.lower()
+        or "_ARRAY_API" in module_error
+    ):
+        return (
+            f"{name} {version or '?'} was built for numpy 1 and cannot import beside numpy {numpy_version}: "
+            f"pip install --upgrade '{_requirement(name)}'"
+        )
     return None
 
 
@@ -113,7 +120,9 @@ def report() -> tuple[list[str], list[str]]:
     cv2, err = _import("cv2")
     if cv2 is None:
         pair = _numpy_pair_problem("opencv", err, numpy_version)
-        problems.append(pair or f"OpenCV does not import ({err}): pip install --force-reinstall '{_requirement(WANTED_WHEEL)}'")
+        problems.append(
+            pair or f"OpenCV does not import ({err}): pip install --force-reinstall '{_requirement(WANTED_WHEEL)}'"
+        )
     else:
         lines.append(f"OpenCV {cv2.__version__} ({Path(cv2.__file__).parent})")
         has_aruco = hasattr(cv2, "aruco") and hasattr(cv2.aruco, "ArucoDetector")

@@ -22,7 +22,7 @@ True
 from __future__ import annotations
 
 import math
-from typing import Iterable
+from collections.abc import Iterable
 
 import cv2
 import numpy as np
@@ -239,15 +239,14 @@ def check_transform(T: np.ndarray, name: str = "T", tol: float = 1e-6) -> np.nda
     if not np.all(np.isfinite(T)):
         raise TransformError(f"{name} contains NaN or infinity")
     if np.abs(T[3] - [0.0, 0.0, 0.0, 1.0]).max() > tol:
-        raise TransformError(
-            f"{name} has bottom row {np.round(T[3], 6).tolist()}, expected [0, 0, 0, 1]"
-        )
+        raise TransformError(f"{name} has bottom row {np.round(T[3], 6).tolist()}, expected [0, 0, 0, 1]")
     check_rotation(T[:3, :3], name=f"the rotation part of {name}", tol=tol)
     return T
 
 
 def rotation_angle_deg(R_a: np.ndarray, R_b: np.ndarray | None = None) -> float:
     """Angle in degrees of the rotation ``R_a`` (or of ``R_a^T R_b``, the angle between two)."""
+
     def rotation(value, name: str) -> np.ndarray:
         M = as_float_array(value, name)
         return check_rotation(M[:3, :3] if M.shape == (4, 4) else M, name)

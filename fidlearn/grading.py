@@ -39,9 +39,10 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -125,8 +126,11 @@ def to_plain(value: Any, depth: int = 0) -> Any:
         if value.dtype.kind not in "biuf":
             return {"__unsupported__": f"array of {value.dtype}"}
         raw = np.ascontiguousarray(value)
-        return {"__array__": base64.b64encode(raw.tobytes()).decode("ascii"), "dtype": raw.dtype.str,
-                "shape": list(raw.shape)}
+        return {
+            "__array__": base64.b64encode(raw.tobytes()).decode("ascii"),
+            "dtype": raw.dtype.str,
+            "shape": list(raw.shape),
+        }
     if isinstance(value, tuple):
         return {"__tuple__": [to_plain(v, depth + 1) for v in value]}
     if isinstance(value, list):
@@ -162,13 +166,18 @@ def from_plain(value: Any, depth: int = 0) -> Any:
     if "__array__" in value:
         dtype = np.dtype(str(value["dtype"]))
         shape = tuple(int(n) for n in value["shape"])
-        if dtype.kind not in _ARRAY_KINDS or len(shape) > 8 or any(n < 0 for n in shape) or math.prod(shape) > 50_000_000:
+        if (
+            dtype.kind not in _ARRAY_KINDS
+            or len(shape) > 8
+            or any(n < 0 for n in shape)
+            or math.prod(shape) > 50_000_000
+        ):
             raise ValueError("not an array fidlearn reads")
         raw = base64.b64decode(value["__array__"], validate=True)
         if len(raw) != math.prod(shape) * dtype.itemsize:
             raise ValueError("array size does not match its shape")
         return np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
-    (tag, body), = value.items()
+    ((tag, body),) = value.items()
     if tag == "__float__":
         return float(body) if body in ("nan", "inf", "-inf") else _bad(tag)
     if tag == "__tuple__":
@@ -209,8 +218,13 @@ def graded_questions(lesson: str, learner: str, secret: bytes) -> list:
     from . import exercises
 
     number = exercises.lesson_number(lesson)
-    return list(exercises.build_questions(number, normalize_learner(learner), seed=lambda q: variant_seed(
-        secret, number, normalize_learner(learner), q)))
+    return list(
+        exercises.build_questions(
+            number,
+            normalize_learner(learner),
+            seed=lambda q: variant_seed(secret, number, normalize_learner(learner), q),
+        )
+    )
 
 
 def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
@@ -219,11 +233,17 @@ def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
 
     number = exercises.lesson_number(lesson)
     questions = graded_questions(number, learner, secret)
-    return {"fidlearn_graded": 1, "lesson": number, "learner": normalize_learner(learner),
-            "questions": {q.name: {k: to_plain(q.inputs[k]) for k in q.inputs} for q in questions}}
+    return {
+        "fidlearn_graded": 1,
+        "lesson": number,
+        "learner": normalize_learner(learner),
+        "questions": {q.name: {k: to_plain(q.inputs[k]) for k in q.inputs} for q in questions},
+    }
 
 
-def release(lesson: str, learners: Sequence[str], secret_path: str | os.PathLike, out_dir: str | os.PathLike) -> list[Path]:
+def release(
+    lesson: str, learners: Sequence[str], secret_path: str | os.PathLike, out_dir: str | os.PathLike
+) -> list[Path]:
     """Write ``OUT/<learner>/`` for each learner: the lesson's student notebook and its inputs file."""
     from . import exercises
 
@@ -235,7 +255,9 @@ def release(lesson: str, learners: Sequence[str], secret_path: str | os.PathLike
     ids = [normalize_learner(x) for x in learners]
     if len(set(ids)) != len(ids):
         raise GradingError("a learner is listed twice (ids are compared trimmed and in lower case)")
-    notebook = Path(exercises.__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name(number)
+    notebook = (
+        Path(exercises.__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name(number)
+    )
     made = []
     for learner in ids:
         folder = out / _folder_name(learner)
@@ -330,6 +352,7 @@ def _limits(memory_mb: int, ids):
             os.setgroups([])
             os.setgid(ids[1])
             os.setuid(ids[0])
+
     return apply
 
 
@@ -353,9 +376,16 @@ except Exception as exc:
 
 def _clean_env(home: Path) -> dict:
     """The kernel's whole environment: nothing of the instructor's (tokens, paths, FIDLEARN_*)."""
-    env = {"PATH": os.defpath, "HOME": str(home), "LANG": "C.UTF-8", "PYTHONDONTWRITEBYTECODE": "1",
-           "MPLBACKEND": "Agg", "JUPYTER_RUNTIME_DIR": str(home / ".runtime"),
-           "JUPYTER_CONFIG_DIR": str(home / ".jupyter"), "IPYTHONDIR": str(home / ".ipython")}
+    env = {
+        "PATH": os.defpath,
+        "HOME": str(home),
+        "LANG": "C.UTF-8",
+        "PYTHONDONTWRITEBYTECODE": "1",
+        "MPLBACKEND": "Agg",
+        "JUPYTER_RUNTIME_DIR": str(home / ".runtime"),
+        "JUPYTER_CONFIG_DIR": str(home / ".jupyter"),
+        "IPYTHONDIR": str(home / ".ipython"),
+    }
     here = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = here  # fidlearn itself, wherever it was installed from
     return env
@@ -371,8 +401,16 @@ def _read_answers(path: Path) -> dict:
     return {str(k): v for k, v in record["answers"].items()}
 
 
-def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: bytes | None, *, timeout_s: int = 120,
-              memory_mb: int = 3000, run_as: str | None = None) -> NotebookGrade:
+def grade_one(
+    notebook: str | os.PathLike,
+    lesson: str,
+    learner: str,
+    secret: bytes | None,
+    *,
+    timeout_s: int = 120,
+    memory_mb: int = 3000,
+    run_as: str | None = None,
+) -> NotebookGrade:
     """Run one submitted notebook in its own process and grade its answers in this one.
 
     With ``secret`` None the notebook is checked against the self-study variant of ``learner``
@@ -385,8 +423,9 @@ def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: by
     notebook = Path(notebook)
     grade = NotebookGrade(str(notebook), learner, number)
     # the key: built here, never written anywhere
-    questions = graded_questions(number, learner, secret) if secret is not None else \
-        exercises.build_questions(number, learner)
+    questions = (
+        graded_questions(number, learner, secret) if secret is not None else exercises.build_questions(number, learner)
+    )
     grade.results = [(q.name, "Not attempted", "no answer") for q in questions]
     ids = _run_as(run_as)
     scratch = Path(tempfile.mkdtemp(prefix="fidlearn-grade-"))
@@ -410,8 +449,14 @@ def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: by
             env["FIDLEARN_LEARNER"] = learner  # a self-study notebook whose LEARNER is empty uses it
         t0 = time.monotonic()
         try:
-            proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.DEVNULL,
-                                    stderr=subprocess.PIPE, preexec_fn=_limits(memory_mb, ids))
+            proc = subprocess.Popen(
+                cmd,
+                cwd=work,
+                env=env,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                preexec_fn=_limits(memory_mb, ids),
+            )
             try:
                 _, err = proc.communicate(timeout=timeout_s + 60)
             except subprocess.TimeoutExpired:
@@ -425,9 +470,10 @@ def grade_one(notebook: str | os.PathLike, lesson: str, learner: str, secret: by
         if not answers_path.is_file() or answers_path.is_symlink():
             said = [ln for ln in err.decode("utf-8", "replace").splitlines() if ln.startswith("FIDLEARN-RUNNER ")]
             kind = said[-1].split(" ", 1)[1] if said else ""
-            why = {"timeout": f"a cell ran longer than {timeout_s} s and was stopped",
-                   "dead": "its kernel died (it used more than the memory limit, or killed or exited itself)"}.get(
-                kind, f"it stopped before its answers were collected ({kind or 'no reason given'})")
+            why = {
+                "timeout": f"a cell ran longer than {timeout_s} s and was stopped",
+                "dead": "its kernel died (it used more than the memory limit, or killed or exited itself)",
+            }.get(kind, f"it stopped before its answers were collected ({kind or 'no reason given'})")
             grade.problem = f"0: {why}; no answers were collected"
             return grade
         try:
@@ -453,17 +499,25 @@ def _preflight(ids, run_as: str | None) -> None:
     home = Path(tempfile.mkdtemp(prefix="fidlearn-grade-check-"))
     try:
         os.chown(home, *ids)
-        out = subprocess.run([sys.executable, "-c", "import fidlearn, nbclient, ipykernel"], cwd=home,
-                             env=_clean_env(home), capture_output=True, text=True, timeout=120,
-                             preexec_fn=_limits(4000, ids))
+        out = subprocess.run(
+            [sys.executable, "-c", "import fidlearn, nbclient, ipykernel"],
+            cwd=home,
+            env=_clean_env(home),
+            capture_output=True,
+            text=True,
+            timeout=120,
+            preexec_fn=_limits(4000, ids),
+        )
     finally:
         shutil.rmtree(home, ignore_errors=True)
     if out.returncode != 0:
         who = run_as or "nobody"
         last = (out.stderr.strip().splitlines() or ["it exited with status %d" % out.returncode])[-1]
-        raise GradingError(f"the user {who} cannot run {sys.executable} with fidlearn ({last[:120]}); install "
-                           "Python and fidlearn where that user can read them (see docs/teaching.md), or pass "
-                           "--run-as a user who can")
+        raise GradingError(
+            f"the user {who} cannot run {sys.executable} with fidlearn ({last[:120]}); install "
+            "Python and fidlearn where that user can read them (see docs/teaching.md), or pass "
+            "--run-as a user who can"
+        )
 
 
 def _cell_errors(path: Path) -> list[str]:
@@ -495,8 +549,11 @@ def _judge(question, answer) -> tuple[str, str, str]:
     if answer is None:
         return (question.name, "Not attempted", "no answer")
     if isinstance(answer, _Unsupported):
-        return (question.name, "Incorrect", f"an answer of type {answer.type_name} cannot be graded; give numbers, "
-                                            "arrays or text")
+        return (
+            question.name,
+            "Incorrect",
+            f"an answer of type {answer.type_name} cannot be graded; give numbers, arrays or text",
+        )
     try:
         r = question.grade(answer)
     except Exception as exc:  # noqa: BLE001 - an answer that breaks the checker is wrong, never fatal
@@ -510,9 +567,18 @@ def learner_from_filename(path: str | os.PathLike) -> str:
     return normalize_learner(name[: -len(".ipynb")] if name.lower().endswith(".ipynb") else Path(path).stem)
 
 
-def grade(notebooks: Sequence[str | os.PathLike], lesson: str, secret_path: str | os.PathLike, csv_path,
-          *, learner: str | None = None, timeout_s: int = 120, memory_mb: int = 3000, run_as: str | None = None,
-          progress=None) -> list[NotebookGrade]:
+def grade(
+    notebooks: Sequence[str | os.PathLike],
+    lesson: str,
+    secret_path: str | os.PathLike,
+    csv_path,
+    *,
+    learner: str | None = None,
+    timeout_s: int = 120,
+    memory_mb: int = 3000,
+    run_as: str | None = None,
+    progress=None,
+) -> list[NotebookGrade]:
     """Grade a batch; the CSV (one row per question) is written whatever happens to any notebook."""
     from . import exercises
 

@@ -21,9 +21,10 @@ import math
 import numbers
 import os
 import re
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -80,7 +81,9 @@ def _marker_size(size: Any, where: str) -> float:
     try:
         size = float(size)
     except OverflowError:  # a whole number with hundreds of digits
-        raise MapError(f"{where}: marker_size_mm is too large for a number; write the black square's side in mm") from None
+        raise MapError(
+            f"{where}: marker_size_mm is too large for a number; write the black square's side in mm"
+        ) from None
     if not math.isfinite(size) or size <= 0:
         raise MapError(
             f"{where}: marker_size_mm is {size:g}; it must be positive: measure the black square's side "
@@ -120,14 +123,19 @@ def _vector3(value: Any, where: str, field: str, meaning: str) -> tuple[float, f
 
 def _is_corner_list(value: Any) -> bool:
     """Whether ``value`` looks like one marker of a corner file: four lists of three numbers."""
-    return (isinstance(value, list) and len(value) == 4
-            and all(isinstance(c, list) and len(c) == 3 and all(isinstance(v, numbers.Real) for v in c) for c in value))
+    return (
+        isinstance(value, list)
+        and len(value) == 4
+        and all(isinstance(c, list) and len(c) == 3 and all(isinstance(v, numbers.Real) for v in c) for c in value)
+    )
 
 
 def _marker_id(key: Any, where: str) -> int:
     text = str(key).strip()
     if isinstance(key, bool) or not re.fullmatch(r"-?[0-9]+", text):
-        raise MapError(f"{where}: marker id {key!r} is not a whole number; ids are the integers printed under each marker")
+        raise MapError(
+            f"{where}: marker id {key!r} is not a whole number; ids are the integers printed under each marker"
+        )
     mid = int(text)
     if mid < 0:
         raise MapError(f"{where}: marker id {mid} is negative; ids start at 0")
@@ -183,7 +191,7 @@ class MarkerMap:
         marker_size_mm: float | None = None,
         dictionary: str | None = None,
         source: str = "<map>",
-    ) -> "MarkerMap":
+    ) -> MarkerMap:
         """A map from the seed's bare layout or the full layout.
 
         Bare: ``{"0": {"translation": [...], "rotation": [...]}, ...}`` with
@@ -204,8 +212,8 @@ class MarkerMap:
             others = [k for k in d if k not in _FULL_KEYS]
             hint = f" (unknown field {others[0]!r}{_did_you_mean(others[0], ['markers'])})" if others else ""
             raise MapError(
-                f"{source}: the map has {', '.join(k for k in d if k in _FULL_KEYS)} but no \"markers\"{hint}; "
-                "a full map puts the placements under \"markers\": {\"0\": {\"translation\": [...], ...}}"
+                f'{source}: the map has {", ".join(k for k in d if k in _FULL_KEYS)} but no "markers"{hint}; '
+                'a full map puts the placements under "markers": {"0": {"translation": [...], ...}}'
             )
         if not full and d and all(_is_corner_list(v) for v in d.values()):
             raise MapError(
@@ -222,17 +230,21 @@ class MarkerMap:
                 )
             markers = d["markers"]
             if not isinstance(markers, Mapping):
-                raise MapError(f"{source}: \"markers\" must be an object mapping ids to placements")
+                raise MapError(f'{source}: "markers" must be an object mapping ids to placements')
         else:
             markers = d
 
         def pick(name: str, given: Any, meaning: str) -> Any:
             in_file = d.get(name) if full else None
             if in_file is not None and given is not None:
-                if (name == "units" and str(given).lower() != str(in_file).lower()) or (
-                    name == "marker_size_mm"
-                    and not math.isclose(_marker_size(given, source), _marker_size(in_file, source))
-                ) or (name == "dictionary" and _cv.dictionary_name(given) != _cv.dictionary_name(in_file)):
+                if (
+                    (name == "units" and str(given).lower() != str(in_file).lower())
+                    or (
+                        name == "marker_size_mm"
+                        and not math.isclose(_marker_size(given, source), _marker_size(in_file, source))
+                    )
+                    or (name == "dictionary" and _cv.dictionary_name(given) != _cv.dictionary_name(in_file))
+                ):
                     raise MapError(
                         f"{source}: the file says {name} = {in_file!r} but {given!r} was given; drop one of them"
                     )
@@ -242,18 +254,24 @@ class MarkerMap:
             return value
 
         units = pick(
-            "units", units,
-            "no units: the map does not say its units; add \"units\": \"ft\" (or mm, cm, m, in) to the file, "
+            "units",
+            units,
+            'no units: the map does not say its units; add "units": "ft" (or mm, cm, m, in) to the file, '
             "or pass units= (command line: --units); fidlearn never guesses",
         )
         units = _units_name(units, source)
         size = pick(
-            "marker_size_mm", marker_size_mm,
-            "no marker size: add \"marker_size_mm\": 80 (the black square's side) to the file, "
+            "marker_size_mm",
+            marker_size_mm,
+            'no marker size: add "marker_size_mm": 80 (the black square\'s side) to the file, '
             "or pass marker_size_mm= (command line: --marker-size-mm)",
         )
         try:
-            dictionary = pick("dictionary", dictionary, "") if (dictionary or (full and d.get("dictionary"))) else "ARUCO_ORIGINAL"
+            dictionary = (
+                pick("dictionary", dictionary, "")
+                if (dictionary or (full and d.get("dictionary")))
+                else "ARUCO_ORIGINAL"
+            )
         except DictionaryError as exc:
             raise MapError(f"{source}: {exc}") from None
         scale = UNITS_TO_MM[units]
@@ -264,14 +282,16 @@ class MarkerMap:
             if mid in placements:
                 raise MapError(f"{where} appears twice (as {key!r}); each marker id must be unique")
             if not isinstance(value, Mapping):
-                raise MapError(f"{where} must be an object with \"translation\" and \"rotation\"")
+                raise MapError(f'{where} must be an object with "translation" and "rotation"')
             extra = set(value) - {"translation", "rotation"}
             if extra:
                 field = sorted(extra)[0]
-                raise MapError(f"{where} has unknown field {field!r}{_did_you_mean(field, ('translation', 'rotation'))}; "
-                               "a placement has translation and rotation")
+                raise MapError(
+                    f"{where} has unknown field {field!r}{_did_you_mean(field, ('translation', 'rotation'))}; "
+                    "a placement has translation and rotation"
+                )
             if "translation" not in value:
-                raise MapError(f"{where} has no \"translation\" (the world position of its top-left corner, in {units})")
+                raise MapError(f'{where} has no "translation" (the world position of its top-left corner, in {units})')
             t = _vector3(value["translation"], where, "translation", f"[x, y, z] in {units}")
             r = _vector3(value.get("rotation", [0, 0, 0]), where, "rotation", "[roll, pitch, yaw] in degrees")
             placements[mid] = MarkerPlacement(mid, tuple(v * scale for v in t), r)  # type: ignore[arg-type]
@@ -284,7 +304,7 @@ class MarkerMap:
         units: str | None = None,
         marker_size_mm: float | None = None,
         dictionary: str | None = None,
-    ) -> "MarkerMap":
+    ) -> MarkerMap:
         """Read a map file (bare or full layout); see :meth:`from_dict`."""
         d = read_json(path, MapError, "world map")
         return cls.from_dict(d, units=units, marker_size_mm=marker_size_mm, dictionary=dictionary, source=str(path))

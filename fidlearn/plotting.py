@@ -25,7 +25,7 @@ Examples
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -69,8 +69,9 @@ CORNER_NAMES = ("TL", "TR", "BR", "BL")
 
 
 # -- 3D axes -----------------------------------------------------------------------------
-def new_axes_3d(ax: Axes | None = None, figsize: tuple[float, float] = (7.0, 6.0), elev: float = 20.0,
-                azim: float = -35.0) -> Axes:
+def new_axes_3d(
+    ax: Axes | None = None, figsize: tuple[float, float] = (7.0, 6.0), elev: float = 20.0, azim: float = -35.0
+) -> Axes:
     """A 3D Axes labelled in mm (a new figure unless ``ax`` is given)."""
     if ax is None:
         fig = plt.figure(figsize=figsize)
@@ -117,8 +118,14 @@ def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0
     return centre, half
 
 
-def draw_frame(ax: Axes, T_world_frame: np.ndarray, length_mm: float = 100.0, label: str | None = None,
-               linewidth: float = 2.0, axis_names: Sequence[str] | None = None) -> list:
+def draw_frame(
+    ax: Axes,
+    T_world_frame: np.ndarray,
+    length_mm: float = 100.0,
+    label: str | None = None,
+    linewidth: float = 2.0,
+    axis_names: Sequence[str] | None = None,
+) -> list:
     """Draw a frame's X, Y, Z axes (red, green, blue) at its pose ``T_world_frame`` (4, 4), mm.
 
     Returns the three Line3D artists, X first; each runs from the frame's origin
@@ -143,8 +150,15 @@ def draw_world_axes(ax: Axes, length_mm: float = 300.0, label: str | None = "wor
     return draw_frame(ax, np.eye(4), length_mm, label=label, linewidth=2.5, axis_names=("X", "Y", "Z"))
 
 
-def draw_markers(ax: Axes, marker_map: MarkerMap, ids: Iterable[int] | None = None, color: str = "0.2",
-                 show_ids: bool = True, show_corners: bool = False, alpha: float = 0.9) -> Poly3DCollection:
+def draw_markers(
+    ax: Axes,
+    marker_map: MarkerMap,
+    ids: Iterable[int] | None = None,
+    color: str = "0.2",
+    show_ids: bool = True,
+    show_corners: bool = False,
+    alpha: float = 0.9,
+) -> Poly3DCollection:
     """Draw markers as filled squares at their world corners, with their ids.
 
     The top-left corner of each marker gets a red dot, so a wrong rotation in a
@@ -160,16 +174,24 @@ def draw_markers(ax: Axes, marker_map: MarkerMap, ids: Iterable[int] | None = No
     for mid, c in zip(ids, quads):
         ax.scatter(*c[0], color="tab:red", s=12, depthshade=False)
         if show_ids:  # just above the top edge, clear of the dark face
-            ax.text(*((c[0] + c[1]) / 2 + 0.45 * (c[0] - c[3])), str(mid), color="k", fontsize=10,
-                    ha="center", va="center", fontweight="bold")
+            ax.text(
+                *((c[0] + c[1]) / 2 + 0.45 * (c[0] - c[3])),
+                str(mid),
+                color="k",
+                fontsize=10,
+                ha="center",
+                va="center",
+                fontweight="bold",
+            )
         if show_corners:
             for name, p in zip(CORNER_NAMES, c):
                 ax.text(*p, name, fontsize=7, color="tab:red")
     return coll
 
 
-def draw_box(ax: Axes, min_mm: Sequence[float], max_mm: Sequence[float], color: str = "0.6",
-             linewidth: float = 0.8) -> list:
+def draw_box(
+    ax: Axes, min_mm: Sequence[float], max_mm: Sequence[float], color: str = "0.6", linewidth: float = 0.8
+) -> list:
     """Outline an axis-aligned box (a room) from corner ``min_mm`` to corner ``max_mm`` (world, mm).
 
     Returns the 12 edge Line3D artists.
@@ -204,8 +226,15 @@ def camera_frustum(camera: Camera, T_world_camera: np.ndarray, depth_mm: float =
     return frames.transform_points(T, pts_camera)
 
 
-def draw_camera(ax: Axes, camera: Camera, T_world_camera: np.ndarray, scale_mm: float = 200.0,
-                color: str = "tab:orange", label: str | None = None, show_axes: bool = True) -> list:
+def draw_camera(
+    ax: Axes,
+    camera: Camera,
+    T_world_camera: np.ndarray,
+    scale_mm: float = 200.0,
+    color: str = "tab:orange",
+    label: str | None = None,
+    show_axes: bool = True,
+) -> list:
     """Draw a camera as its viewing pyramid (frustum) at its pose ``T_world_camera`` (4, 4), mm.
 
     The pyramid's apex is the camera centre, its base the image at depth
@@ -237,11 +266,21 @@ def _pose_matrix(pose) -> np.ndarray:
     return frames.check_transform(T, name="pose")
 
 
-def plot_scene(marker_map: MarkerMap | None = None, poses: Sequence = (), camera: Camera | None = None,
-               labels: Sequence[str] | None = None, ax: Axes | None = None, scale_mm: float | None = None,
-               world_axes_mm: float | None = None, title: str | None = None, show_corners: bool = False,
-               extra_points: np.ndarray | None = None, room_mm: Sequence[Sequence[float]] | None = None,
-               elev: float = 20.0, azim: float = -35.0) -> Figure:
+def plot_scene(
+    marker_map: MarkerMap | None = None,
+    poses: Sequence = (),
+    camera: Camera | None = None,
+    labels: Sequence[str] | None = None,
+    ax: Axes | None = None,
+    scale_mm: float | None = None,
+    world_axes_mm: float | None = None,
+    title: str | None = None,
+    show_corners: bool = False,
+    extra_points: np.ndarray | None = None,
+    room_mm: Sequence[Sequence[float]] | None = None,
+    elev: float = 20.0,
+    azim: float = -35.0,
+) -> Figure:
     """The room in 3D: world axes, the markers of a map and the cameras at their poses.
 
     Parameters
@@ -304,8 +343,16 @@ def plot_scene(marker_map: MarkerMap | None = None, poses: Sequence = (), camera
     return ax.figure
 
 
-def draw_trajectory(ax: Axes, poses: Sequence, color: str = "tab:purple", label: str | None = None,
-                    camera: Camera | None = None, every: int = 0, scale_mm: float = 100.0, linestyle: str = "-"):
+def draw_trajectory(
+    ax: Axes,
+    poses: Sequence,
+    color: str = "tab:purple",
+    label: str | None = None,
+    camera: Camera | None = None,
+    every: int = 0,
+    scale_mm: float = 100.0,
+    linestyle: str = "-",
+):
     """Draw a moving camera's path in 3D: its positions joined in order, optionally a frustum every N poses.
 
     Parameters
@@ -332,8 +379,14 @@ def draw_trajectory(ax: Axes, poses: Sequence, color: str = "tab:purple", label:
     return line
 
 
-def plot_top_view(marker_map: MarkerMap | None = None, poses: Sequence = (), truth: Sequence | None = None,
-                  ax: Axes | None = None, arrow_mm: float = 150.0, title: str | None = None) -> Axes:
+def plot_top_view(
+    marker_map: MarkerMap | None = None,
+    poses: Sequence = (),
+    truth: Sequence | None = None,
+    ax: Axes | None = None,
+    arrow_mm: float = 150.0,
+    title: str | None = None,
+) -> Axes:
     """The room seen from above (world X right, Y up the page): markers, camera positions and headings.
 
     Each marker is drawn as its top edge seen from above (a short segment, its
@@ -370,8 +423,17 @@ def plot_top_view(marker_map: MarkerMap | None = None, poses: Sequence = (), tru
             for a, b in zip(p, tp):
                 ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", linewidth=0.8)
         flat = h[:, :2] / np.maximum(np.linalg.norm(h[:, :2], axis=1, keepdims=True), 1e-9)
-        ax.quiver(p[:, 0], p[:, 1], flat[:, 0] * arrow_mm, flat[:, 1] * arrow_mm, angles="xy", scale_units="xy",
-                  scale=1, color="tab:orange", width=0.004)
+        ax.quiver(
+            p[:, 0],
+            p[:, 1],
+            flat[:, 0] * arrow_mm,
+            flat[:, 1] * arrow_mm,
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            color="tab:orange",
+            width=0.004,
+        )
         ax.plot(p[:, 0], p[:, 1], "o-", color="tab:orange", markersize=3, linewidth=1, label="camera")
     ax.set_aspect("equal")
     ax.set_xlabel("X (mm)")
@@ -396,9 +458,16 @@ def _rgb(image: np.ndarray) -> tuple[np.ndarray, dict]:
     raise ValueError(f"show_image: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
 
 
-def show_image(ax: Axes | None, image: np.ndarray, points: np.ndarray | None = None,
-               labels: Sequence | None = None, color: str = "tab:red", title: str | None = None,
-               marker: str = "+", markersize: float = 80.0) -> Axes:
+def show_image(
+    ax: Axes | None,
+    image: np.ndarray,
+    points: np.ndarray | None = None,
+    labels: Sequence | None = None,
+    color: str = "tab:red",
+    title: str | None = None,
+    marker: str = "+",
+    markersize: float = 80.0,
+) -> Axes:
     """Show an OpenCV image (gray, or BGR as OpenCV loads it) with optional points and labels.
 
     Pixel centres sit at integer coordinates, as in OpenCV, so a point (u, v)
@@ -426,8 +495,9 @@ def show_image(ax: Axes | None, image: np.ndarray, points: np.ndarray | None = N
     return ax
 
 
-def show_images(images: Sequence[np.ndarray], titles: Sequence[str] | None = None, ncols: int = 4,
-                width_in: float = 10.0) -> Figure:
+def show_images(
+    images: Sequence[np.ndarray], titles: Sequence[str] | None = None, ncols: int = 4, width_in: float = 10.0
+) -> Figure:
     """A grid of images (gray or BGR) with optional titles; ticks hidden, each image framed."""
     n = len(images)
     if n == 0:
@@ -435,8 +505,9 @@ def show_images(images: Sequence[np.ndarray], titles: Sequence[str] | None = Non
     ncols = max(1, min(ncols, n))
     nrows = -(-n // ncols)
     h, w = np.asarray(images[0]).shape[:2]
-    fig, axes = plt.subplots(nrows, ncols, figsize=(width_in, width_in / ncols * h / w * nrows + 0.4 * nrows),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(width_in, width_in / ncols * h / w * nrows + 0.4 * nrows), squeeze=False
+    )
     for k, ax in enumerate(axes.flat):
         if k < n:  # ticks hidden, the frame kept: a white margin stays visible on a white page
             show_image(ax, images[k], title=titles[k] if titles is not None else None)
@@ -448,8 +519,14 @@ def show_images(images: Sequence[np.ndarray], titles: Sequence[str] | None = Non
     return fig
 
 
-def draw_points(ax: Axes, points: np.ndarray, labels: Sequence | None = None, color: str = "tab:red",
-                marker: str = "+", markersize: float = 80.0):
+def draw_points(
+    ax: Axes,
+    points: np.ndarray,
+    labels: Sequence | None = None,
+    color: str = "tab:red",
+    marker: str = "+",
+    markersize: float = 80.0,
+):
     """Mark pixel points (N, 2) on an image Axes, with optional labels; returns the scatter artist."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     art = ax.scatter(pts[:, 0], pts[:, 1], c=color, marker=marker, s=markersize, linewidths=1.5)
@@ -461,8 +538,9 @@ def draw_points(ax: Axes, points: np.ndarray, labels: Sequence | None = None, co
     return art
 
 
-def draw_corner_labels(ax: Axes, corners_px: np.ndarray, names: Sequence[str] = CORNER_NAMES,
-                       color: str = "tab:red", fontsize: float = 8) -> list:
+def draw_corner_labels(
+    ax: Axes, corners_px: np.ndarray, names: Sequence[str] = CORNER_NAMES, color: str = "tab:red", fontsize: float = 8
+) -> list:
     """Write TL, TR, BR, BL beside a quad's four corners (4, 2), pixels, each pushed away from the centre.
 
     Returns the four Text artists, in corner order.
@@ -475,13 +553,29 @@ def draw_corner_labels(ax: Axes, corners_px: np.ndarray, names: Sequence[str] = 
     for name, p in zip(names, c):
         d = p - centre
         d = d / (np.linalg.norm(d) + 1e-12)
-        texts.append(ax.annotate(name, tuple(p), xytext=tuple(8 * d * [1, -1]), textcoords="offset points",
-                                 color=color, fontsize=fontsize, ha="center", va="center"))
+        texts.append(
+            ax.annotate(
+                name,
+                tuple(p),
+                xytext=tuple(8 * d * [1, -1]),
+                textcoords="offset points",
+                color=color,
+                fontsize=fontsize,
+                ha="center",
+                va="center",
+            )
+        )
     return texts
 
 
-def draw_quads(ax: Axes, quads_px: Sequence[np.ndarray], ids: Sequence | None = None, color: str = "lime",
-               corner_labels: bool = False, linewidth: float = 1.5) -> list:
+def draw_quads(
+    ax: Axes,
+    quads_px: Sequence[np.ndarray],
+    ids: Sequence | None = None,
+    color: str = "lime",
+    corner_labels: bool = False,
+    linewidth: float = 1.5,
+) -> list:
     """Outline quads (each (4, 2), pixels) on an image Axes, a dot on the first corner (TL), ids at centres.
 
     Returns the outline Line2D artists, one per quad.
@@ -503,12 +597,14 @@ def draw_quads(ax: Axes, quads_px: Sequence[np.ndarray], ids: Sequence | None = 
 
 def draw_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_labels: bool = True) -> list:
     """Outline detected markers (objects with ``.id`` and ``.corners`` (4, 2)) with ids and corner names."""
-    return draw_quads(ax, [d.corners for d in detections], ids=[d.id for d in detections], color=color,
-                      corner_labels=corner_labels)
+    return draw_quads(
+        ax, [d.corners for d in detections], ids=[d.id for d in detections], color=color, corner_labels=corner_labels
+    )
 
 
-def draw_reprojection(ax: Axes, observed_px: np.ndarray, projected_px: np.ndarray, scale: float = 1.0,
-                      color: str = "tab:red"):
+def draw_reprojection(
+    ax: Axes, observed_px: np.ndarray, projected_px: np.ndarray, scale: float = 1.0, color: str = "tab:red"
+):
     """Observed points (green dots) and the model's projections (red crosses), joined by error lines.
 
     ``scale`` magnifies the error lines (10 shows a 0.3 px error as 3 px).
@@ -526,8 +622,14 @@ def draw_reprojection(ax: Axes, observed_px: np.ndarray, projected_px: np.ndarra
     return np.linalg.norm(proj - obs, axis=1)
 
 
-def draw_projected_markers(ax: Axes, camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray,
-                           corner_labels: bool = True, color: str = "tab:blue") -> dict[int, np.ndarray]:
+def draw_projected_markers(
+    ax: Axes,
+    camera: Camera,
+    marker_map: MarkerMap,
+    T_world_camera: np.ndarray,
+    corner_labels: bool = True,
+    color: str = "tab:blue",
+) -> dict[int, np.ndarray]:
     """What the camera sees of the map: each marker's corners projected, labelled TL, TR, BR, BL.
 
     The Axes shows the whole image (pixels, y down). Markers behind the camera

@@ -56,8 +56,8 @@ from __future__ import annotations
 import math
 import os
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import cv2
 import numpy as np
@@ -221,7 +221,7 @@ class Pose:
     covariance: np.ndarray | None
     sigma_px: float
     ambiguous: bool = False
-    alternative: "Pose | None" = None
+    alternative: Pose | None = None
     ignored_ids: tuple[int, ...] = ()
     rejected_ids: tuple[int, ...] = ()
     method: str = ""
@@ -378,8 +378,14 @@ def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: 
     return J.reshape(-1, 6)
 
 
-def refine_pose_lm(points_world: np.ndarray, points_px: np.ndarray, camera: Camera, rvec: np.ndarray, tvec: np.ndarray,
-                   max_iterations: int = 50):
+def refine_pose_lm(
+    points_world: np.ndarray,
+    points_px: np.ndarray,
+    camera: Camera,
+    rvec: np.ndarray,
+    tvec: np.ndarray,
+    max_iterations: int = 50,
+):
     """Levenberg-Marquardt on the reprojection error from a starting pose.
 
     The steps are taken on the camera's pose (a small rotation in world axes and
@@ -588,7 +594,9 @@ def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
         n, rvecs, tvecs, rms = cv2.solvePnPGeneric(
             np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3),
             np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2),
-            camera.K, camera.dist, flags=_cv.solvepnp_flag(flag_name),
+            camera.K,
+            camera.dist,
+            flags=_cv.solvepnp_flag(flag_name),
         )
     except cv2.error:
         return []
@@ -610,7 +618,10 @@ def _solve_ippe_square(obs: _Obs, marker_map: MarkerMap, camera: Camera):
     T_world_marker = marker_map.T_world_marker(obs.ids[0])
     R_wm, t_wm = T_world_marker[:3, :3], T_world_marker[:3, 3]
     # T_camera_world = T_camera_marker @ inv(T_world_marker)
-    return [(R_cm @ R_wm.T, t_cm - R_cm @ R_wm.T @ t_wm, sse) for R_cm, t_cm, sse in _generic("IPPE_SQUARE", local, obs.img, camera)]
+    return [
+        (R_cm @ R_wm.T, t_cm - R_cm @ R_wm.T @ t_wm, sse)
+        for R_cm, t_cm, sse in _generic("IPPE_SQUARE", local, obs.img, camera)
+    ]
 
 
 def _solve_ippe(obs: _Obs, camera: Camera, plane) -> list:
@@ -721,7 +732,11 @@ def _cheirality(obs: _Obs, c: _Candidate) -> str | None:
             f"pose that fits the corners best (reprojection error {rms:.1f} px): {'is its rotation' if one else 'are their rotations'} "
             "in the map wrong (yaw 180, facing into the wall instead of out of it; a marker on a wall facing +X has "
             "rotation [0, 0, 0]), or the corners mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?"
-            + (f" With markers {obs.ids} in view, the wrong rotation may be another one's." if len(backs) < len(obs.ids) else "")
+            + (
+                f" With markers {obs.ids} in view, the wrong rotation may be another one's."
+                if len(backs) < len(obs.ids)
+                else ""
+            )
         )
         c.problem_short = f"Even that best fit would see {which} from behind."
         return c.problem
@@ -823,9 +838,27 @@ def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -
 
 #: 95 % quantiles of the F distribution with (3, nu) degrees of freedom (standard tables),
 #: for the inflation of a covariance whose sigma was estimated with nu degrees of freedom.
-_F3_95 = ((1, 215.7), (2, 19.16), (3, 9.28), (4, 6.59), (5, 5.41), (6, 4.76), (7, 4.35), (8, 4.07),
-          (9, 3.86), (10, 3.71), (12, 3.49), (15, 3.29), (20, 3.10), (24, 3.01), (30, 2.92),
-          (40, 2.84), (60, 2.76), (120, 2.68), (math.inf, 2.605))
+_F3_95 = (
+    (1, 215.7),
+    (2, 19.16),
+    (3, 9.28),
+    (4, 6.59),
+    (5, 5.41),
+    (6, 4.76),
+    (7, 4.35),
+    (8, 4.07),
+    (9, 3.86),
+    (10, 3.71),
+    (12, 3.49),
+    (15, 3.29),
+    (20, 3.10),
+    (24, 3.01),
+    (30, 2.92),
+    (40, 2.84),
+    (60, 2.76),
+    (120, 2.68),
+    (math.inf, 2.605),
+)
 _CHI2_3_95 = 7.8147
 
 
@@ -862,7 +895,7 @@ def _covariance_from(JtJ: np.ndarray, sigma: float) -> np.ndarray | None:
     return (cov + cov.T) / 2
 
 
-_WORLD_CACHE: "weakref.WeakKeyDictionary[MarkerMap, tuple]" = weakref.WeakKeyDictionary()
+_WORLD_CACHE: weakref.WeakKeyDictionary[MarkerMap, tuple] = weakref.WeakKeyDictionary()
 
 
 def _faces_of(points: np.ndarray) -> np.ndarray:
@@ -899,8 +932,12 @@ def _world(marker_map: MarkerMap) -> tuple[dict[int, np.ndarray], dict[int, np.n
     return corners, faces
 
 
-def _make_obs(ids: Sequence[int], corners_px: dict[int, np.ndarray], world: dict[int, np.ndarray],
-              faces: dict[int, np.ndarray] | None = None) -> _Obs:
+def _make_obs(
+    ids: Sequence[int],
+    corners_px: dict[int, np.ndarray],
+    world: dict[int, np.ndarray],
+    faces: dict[int, np.ndarray] | None = None,
+) -> _Obs:
     ids = list(ids)
     obs = _Obs(ids, np.concatenate([world[i] for i in ids]), np.concatenate([corners_px[i] for i in ids]))
     if faces is not None:
@@ -911,7 +948,9 @@ def _make_obs(ids: Sequence[int], corners_px: dict[int, np.ndarray], world: dict
 # ---------------------------------------------------------------------------------------
 # Outliers
 # ---------------------------------------------------------------------------------------
-def _marker_chi2(obs_rest: _Obs, cand: _Candidate, obj_out: np.ndarray, img_out: np.ndarray, camera: Camera, sigma: float) -> tuple[float, float]:
+def _marker_chi2(
+    obs_rest: _Obs, cand: _Candidate, obj_out: np.ndarray, img_out: np.ndarray, camera: Camera, sigma: float
+) -> tuple[float, float]:
     """Mahalanobis chi-square (8 dof) and RMS (px) of a left-out marker under the others' pose.
 
     The prediction's covariance is ``sigma^2 (I + J_out (J_rest^T J_rest)^-1 J_out^T)``: the
@@ -932,8 +971,18 @@ def _marker_chi2(obs_rest: _Obs, cand: _Candidate, obj_out: np.ndarray, img_out:
 
 #: 8 F(8, nu; 1 - OUTLIER_P) for nu degrees of freedom of the others' fit (computed by numerical
 #: integration of the F distribution; the limit is the chi-square(8) quantile).
-_OUTLIER_F8 = ((10, 125.9), (14, 83.66), (18, 67.01), (26, 53.0), (34, 46.9), (42, 43.51), (58, 39.87),
-               (90, 36.78), (180, 34.21), (math.inf, OUTLIER_CHI2))
+_OUTLIER_F8 = (
+    (10, 125.9),
+    (14, 83.66),
+    (18, 67.01),
+    (26, 53.0),
+    (34, 46.9),
+    (42, 43.51),
+    (58, 39.87),
+    (90, 36.78),
+    (180, 34.21),
+    (math.inf, OUTLIER_CHI2),
+)
 
 
 def _outlier_threshold(nu: float, sigma_known: bool) -> float:
@@ -1043,7 +1092,9 @@ def _check_options(method, refine_lm, reject_outliers, corner_sigma_px) -> str:
     if not isinstance(reject_outliers, (bool, np.bool_)):
         raise PoseError(f"reject_outliers must be True or False, got {reject_outliers!r}")
     if corner_sigma_px is not None:
-        ok = isinstance(corner_sigma_px, (int, float, np.integer, np.floating)) and not isinstance(corner_sigma_px, bool)
+        ok = isinstance(corner_sigma_px, (int, float, np.integer, np.floating)) and not isinstance(
+            corner_sigma_px, bool
+        )
         if not (ok and np.isfinite(corner_sigma_px) and corner_sigma_px > 0):
             raise PoseError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
     return method
@@ -1190,15 +1241,18 @@ def estimate_pose(
     rejected: list[int] = []
     if reject_outliers and len(ids) >= 3:
         obs, cands, unrefined, rejected = _reject_outliers(
-            obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined)
+            obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined
+        )
 
     problem = _cheirality(obs, cands[0])  # not None: every candidate breaks it (_solve puts the others first)
     rms = math.sqrt(cands[0].sse / len(obs.obj))
     side = float(np.median(_side_px(obs.img))) if rms > BAD_FIT_MIN_PX else 0.0  # the limit is at least the floor
     if rms > max(BAD_FIT_MIN_PX, BAD_FIT_REL * side):
-        what = (f"reprojection error {rms:.1f} px for markers {obs.ids}, which are about {side:.0f} px wide in the "
-                "image (a pose that fits leaves a pixel or two); check the map's positions and rotations, the marker "
-                "size, the units, the corner order (TL, TR, BR, BL) and the camera file")
+        what = (
+            f"reprojection error {rms:.1f} px for markers {obs.ids}, which are about {side:.0f} px wide in the "
+            "image (a pose that fits leaves a pixel or two); check the map's positions and rotations, the marker "
+            "size, the units, the corner order (TL, TR, BR, BL) and the camera file"
+        )
         note = f" ({cands[0].problem_short})" if problem is not None else ""
         raise PoseError(f"the corners do not fit the map: {what}{note}")
     if problem is not None:
@@ -1222,11 +1276,22 @@ def estimate_pose(
     # minimum the two numbers are equal, so a merely nearby pose is never called ambiguous;
     # both hold only when the error surface is far from quadratic, which is the flip.
     # Only a pose a camera can have counts (:func:`_cheirality`).
-    alt = next((c for c in cands[1:] if _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2
-                and _cheirality(obs, c) is None), None)
+    alt = next(
+        (
+            c
+            for c in cands[1:]
+            if _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2 and _cheirality(obs, c) is None
+        ),
+        None,
+    )
     if alt is None and unrefined is not cands:
-        far = [c for c in unrefined if c.sse > cands[0].sse and _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2
-               and _cheirality(obs, c) is None]
+        far = [
+            c
+            for c in unrefined
+            if c.sse > cands[0].sse
+            and _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2
+            and _cheirality(obs, c) is None
+        ]
         alt = min(far, key=lambda c: c.sse) if far else None
     ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * sigma_amb**2
 
@@ -1274,8 +1339,16 @@ def estimate_pose(
     return build(cands[0], lambda: build(alt, None, alt_how), method_used, JtJ)
 
 
-def locate(image: np.ndarray, marker_map: MarkerMap | str | os.PathLike, camera: Camera | str | os.PathLike, *,
-           refine: str | None = None, detector_params=None, only_map_markers: bool = True, **kw) -> Pose:
+def locate(
+    image: np.ndarray,
+    marker_map: MarkerMap | str | os.PathLike,
+    camera: Camera | str | os.PathLike,
+    *,
+    refine: str | None = None,
+    detector_params=None,
+    only_map_markers: bool = True,
+    **kw,
+) -> Pose:
     """Detect the map's markers in an image and estimate the camera's pose.
 
     By default only the map's markers are looked for: OpenCV compares every
@@ -1331,14 +1404,18 @@ def locate(image: np.ndarray, marker_map: MarkerMap | str | os.PathLike, camera:
     if not isinstance(image, np.ndarray):
         from .errors import ImageError
 
-        raise ImageError(f"image must be a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}")
+        raise ImageError(
+            f"image must be a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}"
+        )
     unknown = sorted(set(kw) - _ESTIMATE_OPTIONS)
     if unknown:
         raise PoseError(
             f"locate() got unknown option{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))}; it takes "
             f"refine, detector_params and estimate_pose's {', '.join(sorted(_ESTIMATE_OPTIONS))}"
         )
-    _check_options(kw.get("method", "auto"), kw.get("refine_lm"), kw.get("reject_outliers", True), kw.get("corner_sigma_px"))
+    _check_options(
+        kw.get("method", "auto"), kw.get("refine_lm"), kw.get("reject_outliers", True), kw.get("corner_sigma_px")
+    )
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera).for_image(image)
     det_kw = {} if refine is None else {"refine": refine}

@@ -24,9 +24,9 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Sequence
 
 import numpy as np
 
@@ -95,18 +95,24 @@ def parse_ids(text: str) -> list[int]:
         if not m:
             raise PrintError(f"--ids {text!r}: {part!r} is not an id or a range; give ids like 0-9, 0,3,7 or 0-3,8")
         if max(len(m.group(1)), len(m.group(2) or "")) > 9:  # before int(): Python refuses 4300+ digits
-            raise PrintError(f"--ids {text[:40]!r}: at most {MAX_ID_COUNT} markers, ids 0 to {MAX_ID_COUNT - 1} "
-                             "(the largest dictionary's)")
+            raise PrintError(
+                f"--ids {text[:40]!r}: at most {MAX_ID_COUNT} markers, ids 0 to {MAX_ID_COUNT - 1} "
+                "(the largest dictionary's)"
+            )
         lo = int(m.group(1))
         hi = int(m.group(2)) if m.group(2) is not None else lo
         if hi < lo:
             raise PrintError(f"--ids {text!r}: the range {part} runs backwards; write {hi}-{lo}")
         if hi >= MAX_ID_COUNT or len(ids) + hi - lo + 1 > MAX_ID_COUNT:
-            raise PrintError(f"--ids {text!r}: at most {MAX_ID_COUNT} markers, ids 0 to {MAX_ID_COUNT - 1} "
-                             "(the largest dictionary's); print them in parts")
+            raise PrintError(
+                f"--ids {text!r}: at most {MAX_ID_COUNT} markers, ids 0 to {MAX_ID_COUNT - 1} "
+                "(the largest dictionary's); print them in parts"
+            )
         twice = seen.intersection(range(lo, hi + 1)) if hi - lo < len(seen) else {i for i in seen if lo <= i <= hi}
         if twice:
-            raise PrintError(f"--ids {text!r}: id {min(twice)} is listed twice; each marker id must be unique on the wall")
+            raise PrintError(
+                f"--ids {text!r}: id {min(twice)} is listed twice; each marker id must be unique on the wall"
+            )
         seen.update(range(lo, hi + 1))
         ids.extend(range(lo, hi + 1))
     return ids
@@ -191,8 +197,10 @@ class MarkerSheet:
 
     def __repr__(self) -> str:
         n = sum(len(p) for p in self.pages)
-        return (f"MarkerSheet({n} markers of {self.size_mm:g} mm, {self.dictionary}, {self.paper} "
-                f"{self.paper_mm[0]:g}x{self.paper_mm[1]:g} mm, {len(self.pages)} page(s), {self.per_page} per page)")
+        return (
+            f"MarkerSheet({n} markers of {self.size_mm:g} mm, {self.dictionary}, {self.paper} "
+            f"{self.paper_mm[0]:g}x{self.paper_mm[1]:g} mm, {len(self.pages)} page(s), {self.per_page} per page)"
+        )
 
 
 def _usable_area(paper_mm: tuple[float, float], strip: str = "bottom") -> tuple[float, float, float, float]:
@@ -210,7 +218,9 @@ def _usable_area(paper_mm: tuple[float, float], strip: str = "bottom") -> tuple[
     return PAGE_MARGIN_MM, PAGE_MARGIN_MM, uw, uh
 
 
-def layout_markers(ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4") -> MarkerSheet:
+def layout_markers(
+    ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+) -> MarkerSheet:
     """Place markers in a grid, as many per page as fit, with a white quiet zone of one cell.
 
     Each marker's cut rectangle holds the black square, a white margin of one
@@ -252,7 +262,7 @@ def layout_markers(ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_
     pages = []
     for start in range(0, len(ids), per_page):
         page = []
-        for k, mid in enumerate(ids[start:start + per_page]):
+        for k, mid in enumerate(ids[start : start + per_page]):
             r, c = divmod(k, cols)
             page.append((mid, left + c * (slot_w + GAP_MM) + cell, top + r * (slot_h + GAP_MM) + cell))
         pages.append(page)
@@ -313,8 +323,10 @@ class BoardSheet:
         """One line for the page and the terminal."""
         (c, r), (ic, ir) = self.squares, self.inner_corners
         if self.charuco:
-            return (f"ChArUco {c}x{r} squares ({ic}x{ir} inner corners), square {self.square_mm:g} mm, "
-                    f"marker {self.marker_mm:g} mm, {self.dictionary}")
+            return (
+                f"ChArUco {c}x{r} squares ({ic}x{ir} inner corners), square {self.square_mm:g} mm, "
+                f"marker {self.marker_mm:g} mm, {self.dictionary}"
+            )
         return f"checkerboard {ic}x{ir} inner corners ({c}x{r} squares), square {self.square_mm:g} mm"
 
 
@@ -338,7 +350,9 @@ def _largest_square(squares: tuple[int, int], paper: str, landscape: bool, strip
         return 0.0
     _, _, uw, uh = _usable_area(paper_mm, strip)
     # n * s + 2 * board_quiet_zone_mm(s) <= available, in both directions
-    return max(0.0, min(min((a - 2 * QUIET_MIN_MM) / n, a / (n + 2 * QUIET_FRACTION)) for n, a in zip(squares, (uw, uh))))
+    return max(
+        0.0, min(min((a - 2 * QUIET_MIN_MM) / n, a / (n + 2 * QUIET_FRACTION)) for n, a in zip(squares, (uw, uh)))
+    )
 
 
 def layout_board(
@@ -361,8 +375,11 @@ def layout_board(
     square_mm = _positive_mm(square_mm, "--square-mm")
     paper_key = str(paper).lower()
     paper_size_mm(paper_key)
-    fits = [(lan, strip) for lan, strip in _BOARD_ARRANGEMENTS
-            if square_mm <= _largest_square((cols, rows), paper_key, lan, strip) + 1e-9]
+    fits = [
+        (lan, strip)
+        for lan, strip in _BOARD_ARRANGEMENTS
+        if square_mm <= _largest_square((cols, rows), paper_key, lan, strip) + 1e-9
+    ]
     if not fits:
         largest = max(_largest_square((cols, rows), paper_key, lan, strip) for lan, strip in _BOARD_ARRANGEMENTS)
         raise PrintError(
@@ -383,7 +400,9 @@ def layout_board(
             raise PrintError("a ChArUco board needs --marker-mm (the side of each marker, smaller than the square)")
         marker_mm = _positive_mm(marker_mm, "--marker-mm")
         if marker_mm >= square_mm:
-            raise PrintError(f"--marker-mm {marker_mm:g} must be smaller than --square-mm {square_mm:g}; try {0.75 * square_mm:g}")
+            raise PrintError(
+                f"--marker-mm {marker_mm:g} must be smaller than --square-mm {square_mm:g}; try {0.75 * square_mm:g}"
+            )
         n_markers = (cols * rows) // 2
         if n_markers > _cv.dictionary_size(name):
             raise PrintError(
@@ -402,8 +421,20 @@ def layout_board(
         black = [(c, r) for r in range(rows) for c in range(cols) if (c, r) not in white]
     else:
         black = [(c, r) for r in range(rows) for c in range(cols) if (c + r) % 2 == 0]
-    return BoardSheet((cols, rows), square_mm, origin, paper_key, paper_mm, landscape, strip, bool(charuco),
-                      marker_mm if charuco else None, name, black, markers)
+    return BoardSheet(
+        (cols, rows),
+        square_mm,
+        origin,
+        paper_key,
+        paper_mm,
+        landscape,
+        strip,
+        bool(charuco),
+        marker_mm if charuco else None,
+        name,
+        black,
+        markers,
+    )
 
 
 # -- drawing --------------------------------------------------------------------------------
@@ -432,8 +463,9 @@ def _fill_rects(ax, rects: Iterable[tuple[float, float, float, float]], color: s
         codes += [MplPath.MOVETO, MplPath.LINETO, MplPath.LINETO, MplPath.LINETO, MplPath.CLOSEPOLY]
     if not verts:
         return
-    patch = PathPatch(MplPath(verts, codes), facecolor=color, edgecolor="none", linewidth=0,
-                      antialiased=True, snap=False)
+    patch = PathPatch(
+        MplPath(verts, codes), facecolor=color, edgecolor="none", linewidth=0, antialiased=True, snap=False
+    )
     ax.add_patch(patch)
 
 
@@ -517,8 +549,10 @@ def marker_figures(sheet: MarkerSheet) -> list:
     cell = sheet.cell_mm
     for k, page in enumerate(sheet.pages):
         fig, ax = _page(sheet.paper_mm)
-        title = (f"fidlearn markers, {sheet.dictionary}, black square {sheet.size_mm:g} mm, "
-                 f"page {k + 1} of {len(sheet.pages)}")
+        title = (
+            f"fidlearn markers, {sheet.dictionary}, black square {sheet.size_mm:g} mm, "
+            f"page {k + 1} of {len(sheet.pages)}"
+        )
         rects = []
         for mid, x, y in page:
             rects += _marker_rects(marker_cells(sheet.dictionary, mid), x, y, cell)
@@ -528,8 +562,14 @@ def marker_figures(sheet: MarkerSheet) -> list:
             long = f"id {mid}   {sheet.dictionary}   {sheet.size_mm:g} mm"
             if len(long) * 1.3 > cut[2]:  # about 1.3 mm per character at 7 pt
                 ax.text(x + sheet.size_mm / 2, label_y - 1.4, f"id {mid}", ha="center", va="center", fontsize=7)
-                ax.text(x + sheet.size_mm / 2, label_y + 1.6, f"{sheet.dictionary} {sheet.size_mm:g} mm",
-                        ha="center", va="center", fontsize=5)
+                ax.text(
+                    x + sheet.size_mm / 2,
+                    label_y + 1.6,
+                    f"{sheet.dictionary} {sheet.size_mm:g} mm",
+                    ha="center",
+                    va="center",
+                    fontsize=5,
+                )
             else:
                 ax.text(x + sheet.size_mm / 2, label_y, long, ha="center", va="center", fontsize=7)
         _fill_rects(ax, rects)
@@ -579,7 +619,11 @@ def save_pages(figures: Sequence, path: str | os.PathLike, dpi: float | None = N
         dpi = float(dpi)
         if not math.isfinite(dpi) or not 30 <= dpi <= 2400:
             raise PrintError(f"--dpi {dpi:g} is out of range; use 30 to 2400 (300 is typical for printing)")
-        names = [path] if len(figures) == 1 else [path.with_name(f"{path.stem}-{k + 1}{path.suffix}") for k in range(len(figures))]
+        names = (
+            [path]
+            if len(figures) == 1
+            else [path.with_name(f"{path.stem}-{k + 1}{path.suffix}") for k in range(len(figures))]
+        )
         return _write_pngs(figures, names, dpi)
     raise PrintError(f"{path}: unknown output type {path.suffix or '(none)'!r}; name the file .pdf or .png")
 
@@ -615,7 +659,9 @@ def _write_pngs(figures: Sequence, names: list[Path], dpi: float) -> list[Path]:
 
 
 # -- one-call helpers -----------------------------------------------------------------------
-def markers_pdf(path, ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4") -> MarkerSheet:
+def markers_pdf(
+    path, ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+) -> MarkerSheet:
     """Write a (multi-page) PDF of markers at exact size; returns the layout.
 
     Parameters
@@ -635,8 +681,9 @@ def markers_pdf(path, ids: Sequence[int], size_mm: float, dictionary: str = "ARU
     return sheet
 
 
-def markers_png(path, ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4",
-                dpi: float = 300) -> tuple[MarkerSheet, list[Path]]:
+def markers_png(
+    path, ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4", dpi: float = 300
+) -> tuple[MarkerSheet, list[Path]]:
     """Write the marker pages as PNG at ``dpi``; returns the layout and the files written."""
     sheet = layout_markers(ids, size_mm, dictionary, paper)
     return sheet, save_pages(marker_figures(sheet), _with_suffix(path, ".png"), dpi=dpi)
@@ -649,14 +696,23 @@ def _inner_corners(pattern) -> tuple[int, int]:
     try:
         cols, rows = pattern
     except (TypeError, ValueError):
-        raise PrintError(f"pattern {pattern!r} must be two whole numbers of inner corners, e.g. (9, 6) or '9x6'") from None
+        raise PrintError(
+            f"pattern {pattern!r} must be two whole numbers of inner corners, e.g. (9, 6) or '9x6'"
+        ) from None
     if any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in (cols, rows)):
         raise PrintError(f"pattern {pattern!r} must be two whole numbers of inner corners, e.g. (9, 6) or '9x6'")
     return int(cols), int(rows)
 
 
-def board_pdf(path, pattern: tuple[int, int], square_mm: float, paper: str = "a4", charuco: bool = False,
-              dictionary: str | None = None, marker_mm: float | None = None) -> BoardSheet:
+def board_pdf(
+    path,
+    pattern: tuple[int, int],
+    square_mm: float,
+    paper: str = "a4",
+    charuco: bool = False,
+    dictionary: str | None = None,
+    marker_mm: float | None = None,
+) -> BoardSheet:
     """Write a one-page PDF of a calibration board; ``pattern`` is INNER corners (9x6 -> 10x7 squares)."""
     pattern = _inner_corners(pattern)
     sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_mm, paper, charuco, dictionary, marker_mm)
@@ -664,9 +720,16 @@ def board_pdf(path, pattern: tuple[int, int], square_mm: float, paper: str = "a4
     return sheet
 
 
-def board_png(path, pattern: tuple[int, int], square_mm: float, paper: str = "a4", charuco: bool = False,
-              dictionary: str | None = None, marker_mm: float | None = None,
-              dpi: float = 300) -> tuple[BoardSheet, list[Path]]:
+def board_png(
+    path,
+    pattern: tuple[int, int],
+    square_mm: float,
+    paper: str = "a4",
+    charuco: bool = False,
+    dictionary: str | None = None,
+    marker_mm: float | None = None,
+    dpi: float = 300,
+) -> tuple[BoardSheet, list[Path]]:
     """Write a board page as PNG at ``dpi``; ``pattern`` is INNER corners. Returns the layout and the file."""
     pattern = _inner_corners(pattern)
     sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_mm, paper, charuco, dictionary, marker_mm)

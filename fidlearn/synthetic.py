@@ -38,9 +38,10 @@ edges (see ``data/README.md``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, Sequence
+from typing import Any
 
 import cv2
 import numpy as np
@@ -83,8 +84,9 @@ def _check_scene(camera, marker_map, with_camera: bool = True) -> None:
     if with_camera and not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera (Camera.load reads a file), got {type(camera).__name__}")
     if not isinstance(marker_map, MarkerMap):
-        raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap (MarkerMap.load reads a file), got "
-                            f"{type(marker_map).__name__}")
+        raise FidlearnError(
+            f"marker_map must be a fidlearn.MarkerMap (MarkerMap.load reads a file), got {type(marker_map).__name__}"
+        )
 
 
 def _check_seed(seed) -> int:
@@ -174,17 +176,18 @@ def _fine_rays(nmap: np.ndarray, u0: int, u1: int, v0: int, v1: int, k: int) -> 
     coordinate ``(x_d + 0.5) / k - 0.5``, the same pixel-centre rule as the
     supersampling, and the one-pixel margin keeps it from clamping at the edge.
     """
-    patch = nmap[v0: v1 + 2, u0: u1 + 2]
+    patch = nmap[v0 : v1 + 2, u0 : u1 + 2]
     if k == 1:
         return np.ascontiguousarray(patch[1:-1, 1:-1])
     h, w = patch.shape[:2]
     fine = cv2.resize(patch, (w * k, h * k), interpolation=cv2.INTER_LINEAR)
-    return np.ascontiguousarray(fine[k: k + k * (v1 - v0), k: k + k * (u1 - u0)])
+    return np.ascontiguousarray(fine[k : k + k * (v1 - v0), k : k + k * (u1 - u0)])
 
 
 # ----------------------------------------------------------------------------------------------
 # Printed sheets: a texture and where it lies in the world.
 # ----------------------------------------------------------------------------------------------
+
 
 @dataclass
 class _Sheet:
@@ -208,13 +211,15 @@ class _Sheet:
         return st @ self.A_world.T
 
 
-def _marker_sheet(marker_map: MarkerMap, marker_id: int, texels_per_cell: int, margin_cells: float, grays: dict) -> _Sheet:
+def _marker_sheet(
+    marker_map: MarkerMap, marker_id: int, texels_per_cell: int, margin_cells: float, grays: dict
+) -> _Sheet:
     cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2
     n = cells * texels_per_cell
     m = int(round(margin_cells * texels_per_cell))
     marker = _cv.generate_marker(marker_map.dictionary, marker_id, n).astype(np.float32) / 255.0
     tex = np.full((n + 2 * m, n + 2 * m), grays["paper"], dtype=np.float32)
-    tex[m: m + n, m: m + n] = grays["ink"] + (grays["paper"] - grays["ink"]) * marker
+    tex[m : m + n, m : m + n] = grays["ink"] + (grays["paper"] - grays["ink"]) * marker
     c = marker_map.marker_corners(marker_id)
     e_s = (c[1] - c[0]) / n  # one texel along TL -> TR
     e_t = (c[3] - c[0]) / n  # one texel along TL -> BL
@@ -243,6 +248,7 @@ def _texels_per_cell(side_px: float | None, cells: int, k: int) -> int:
 # The renderer.
 # ----------------------------------------------------------------------------------------------
 
+
 def _sheet_region(sheet: _Sheet, H: np.ndarray, nmap: np.ndarray, width: int, height: int):
     """Output pixels ``(u0, u1, v0, v1)`` that may see the sheet and whether it crosses the camera's plane.
 
@@ -264,7 +270,7 @@ def _sheet_region(sheet: _Sheet, H: np.ndarray, nmap: np.ndarray, width: int, he
     rows = np.flatnonzero(inside.any(axis=1))
     if rows.size == 0:
         return None
-    cols = np.flatnonzero(inside[rows[0]: rows[-1] + 1].any(axis=0))
+    cols = np.flatnonzero(inside[rows[0] : rows[-1] + 1].any(axis=0))
     return (max(cols[0] - 2, 0), min(cols[-1] + 3, width), max(rows[0] - 2, 0), min(rows[-1] + 3, height)), crossing
 
 
@@ -302,8 +308,10 @@ def _render(
         raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     k = int(supersample)
     if camera.width * camera.height * k * k > MAX_RENDER_SAMPLES:
-        raise FidlearnError(f"a {camera.width}x{camera.height} picture at supersample {k} is more than "
-                            f"{MAX_RENDER_SAMPLES / 1e9:g} billion samples; use a smaller picture or supersample")
+        raise FidlearnError(
+            f"a {camera.width}x{camera.height} picture at supersample {k} is more than "
+            f"{MAX_RENDER_SAMPLES / 1e9:g} billion samples; use a smaller picture or supersample"
+        )
     for name, value in (("blur_px", blur_px), ("noise_std", noise_std), ("wall_texture", wall_texture)):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
@@ -341,7 +349,10 @@ def _render(
         canvas = np.repeat(np.repeat(img[V0:V1, U0:U1], k, axis=0), k, axis=1)
         # a depth test only where sheets' regions overlap: the nearest sheet wins
         overlaps = [
-            any(j != i and r[0] < q[1] and q[0] < r[1] and r[2] < q[3] and q[2] < r[3] for j, (_, _, q, _) in enumerate(todo))
+            any(
+                j != i and r[0] < q[1] and q[0] < r[1] and r[2] < q[3] and q[2] < r[3]
+                for j, (_, _, q, _) in enumerate(todo)
+            )
             for i, (_, _, r, _) in enumerate(todo)
         ]
         wbuf = np.zeros_like(canvas) if any(overlaps) else None  # inverse depth (1/mm) of the nearest sheet so far
@@ -352,7 +363,9 @@ def _render(
             tex2[1:-1, 1:-1, 0] = sheet.texture
             tex2[1:-1, 1:-1, 1] = 1.0
             # rays -> texels (+1 for the border); Hinv's w is 1 / depth (mm): scale it to about 1 on the sheet
-            depth_mm = max(float(np.abs(sheet.outline_world() @ T_camera_world[:3, :3].T + T_camera_world[:3, 3])[:, 2].max()), 1.0)
+            depth_mm = max(
+                float(np.abs(sheet.outline_world() @ T_camera_world[:3, :3].T + T_camera_world[:3, 3])[:, 2].max()), 1.0
+            )
             Hmap = np.array([[1.0, 0, 1.0], [0, 1.0, 1.0], [0, 0, 1.0]]) @ Hinv * depth_mm
             rows = max(1, _STRIP_SUBPIXELS // (k * k * (u1 - u0)))
             for s0 in range(v0, v1, rows):
@@ -364,7 +377,9 @@ def _render(
                 if crossing:
                     maps[w <= 0] = -10.0  # behind the camera
                 np.clip(maps, -10.0, 1e6, out=maps)
-                looked = cv2.remap(tex2, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
+                looked = cv2.remap(
+                    tex2, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0)
+                )
                 ink, alpha = looked[..., 0], looked[..., 1]
                 sl = (slice((s0 - V0) * k, (s1 - V0) * k), slice((u0 - U0) * k, (u1 - U0) * k))
                 if depth_test:
@@ -401,7 +416,10 @@ def _render(
 # Scenes of markers on walls.
 # ----------------------------------------------------------------------------------------------
 
-def look_at(eye_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0), roll_deg: float = 0.0) -> np.ndarray:
+
+def look_at(
+    eye_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0), roll_deg: float = 0.0
+) -> np.ndarray:
     """The pose ``T_world_camera`` (4, 4) of a camera at ``eye_mm`` looking at ``target_mm``.
 
     The camera frame is OpenCV's (x right, y down, z forward); ``up`` (world)
@@ -414,25 +432,33 @@ def look_at(eye_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[fl
     >>> T[:3, 2].round(3).tolist()                 # the camera looks along -X
     [-1.0, 0.0, 0.0]
     """
-    eye, target = (frames.as_float_array(v, name, FidlearnError).reshape(-1) for v, name in
-                   ((eye_mm, "look_at: eye_mm"), (target_mm, "look_at: target_mm")))
+    eye, target = (
+        frames.as_float_array(v, name, FidlearnError).reshape(-1)
+        for v, name in ((eye_mm, "look_at: eye_mm"), (target_mm, "look_at: target_mm"))
+    )
     if eye.shape != (3,) or target.shape != (3,) or not np.all(np.isfinite(eye)) or not np.all(np.isfinite(target)):
-        raise FidlearnError(f"look_at: eye_mm and target_mm must be 3 finite numbers (x, y, z in mm), got "
-                            f"{np.shape(eye_mm)} and {np.shape(target_mm)}")
+        raise FidlearnError(
+            f"look_at: eye_mm and target_mm must be 3 finite numbers (x, y, z in mm), got "
+            f"{np.shape(eye_mm)} and {np.shape(target_mm)}"
+        )
     z = target - eye
     if np.linalg.norm(z) < 1e-9:
         raise FidlearnError(f"look_at: the eye {eye.tolist()} and the target are the same point; move one of them")
     z /= np.linalg.norm(z)
     x = np.cross(z, np.asarray(up, dtype=float))
     if np.linalg.norm(x) < 1e-9:
-        raise FidlearnError(f"look_at: the view direction {z.round(3).tolist()} is parallel to up={list(up)}; choose another up")
+        raise FidlearnError(
+            f"look_at: the view direction {z.round(3).tolist()} is parallel to up={list(up)}; choose another up"
+        )
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
     R = np.column_stack([x, y, z]) @ frames.rot_z(math.radians(roll_deg))
     return frames.make_transform(R, eye)
 
 
-def visible_markers(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, margin_px: float = 2.0) -> dict[int, np.ndarray]:
+def visible_markers(
+    camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, margin_px: float = 2.0
+) -> dict[int, np.ndarray]:
     """True pixel corners of the markers a camera sees whole: ``{id: (4, 2) float64}``.
 
     A marker counts as visible when its four corners are in front of the
@@ -553,9 +579,18 @@ def render_scene(
         tpc = _texels_per_cell(size, cells, int(supersample))
         sheets.append(_marker_sheet(marker_map, mid, tpc, margin_cells, grays))
     image = _render(
-        camera, T_world_camera, sheets, seed=seed, supersample=supersample, blur_px=blur_px,
-        noise_std=noise_std, gradient=gradient, gradient_angle_deg=gradient_angle_deg,
-        wall_gray=wall_gray, wall_texture=wall_texture, bgr=bgr,
+        camera,
+        T_world_camera,
+        sheets,
+        seed=seed,
+        supersample=supersample,
+        blur_px=blur_px,
+        noise_std=noise_std,
+        gradient=gradient,
+        gradient_angle_deg=gradient_angle_deg,
+        wall_gray=wall_gray,
+        wall_texture=wall_texture,
+        bgr=bgr,
     )
     return image, visible_markers(camera, marker_map, T_world_camera, margin_px=margin_px)
 
@@ -563,6 +598,7 @@ def render_scene(
 # ----------------------------------------------------------------------------------------------
 # Calibration views: a printed checkerboard or ChArUco board held in front of the camera.
 # ----------------------------------------------------------------------------------------------
+
 
 @dataclass(eq=False)
 class CalibrationViews:
@@ -624,19 +660,26 @@ class CalibrationViews:
         return _cv.charuco_board(self.pattern_size, self.square_size_mm, self.marker_size_mm, self.dictionary)
 
     def __repr__(self) -> str:
-        kind = (f"ChArUco {self.pattern_size[0]}x{self.pattern_size[1]} squares, {self.dictionary}"
-                if self.charuco else f"checkerboard {self.pattern_size[0]}x{self.pattern_size[1]} inner corners")
+        kind = (
+            f"ChArUco {self.pattern_size[0]}x{self.pattern_size[1]} squares, {self.dictionary}"
+            if self.charuco
+            else f"checkerboard {self.pattern_size[0]}x{self.pattern_size[1]} inner corners"
+        )
         w, h = self.camera.image_size
-        return f"CalibrationViews({len(self)} views {w}x{h}, {kind}, square {self.square_size_mm:g} mm, {self.camera!r})"
+        return (
+            f"CalibrationViews({len(self)} views {w}x{h}, {kind}, square {self.square_size_mm:g} mm, {self.camera!r})"
+        )
 
 
-def _checkerboard_sheet(pattern_size: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict) -> _Sheet:
+def _checkerboard_sheet(
+    pattern_size: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict
+) -> _Sheet:
     cols, rows = pattern_size[0] + 1, pattern_size[1] + 1  # squares
     m = int(round(margin_squares * tps))
     jj, ii = np.mgrid[0:rows, 0:cols]
     squares = np.where((ii + jj) % 2 == 0, grays["ink"], grays["paper"]).astype(np.float32)  # top-left square black
     tex = np.full((rows * tps + 2 * m, cols * tps + 2 * m), grays["paper"], dtype=np.float32)
-    tex[m: m + rows * tps, m: m + cols * tps] = np.kron(squares, np.ones((tps, tps), dtype=np.float32))
+    tex[m : m + rows * tps, m : m + cols * tps] = np.kron(squares, np.ones((tps, tps), dtype=np.float32))
     step = square_size_mm / tps
     # inner corner (0, 0) is the board's origin; the outer edge of the squares is one square before it
     off = 0.5 * step - (square_size_mm + m * step)
@@ -644,7 +687,9 @@ def _checkerboard_sheet(pattern_size: tuple[int, int], square_size_mm: float, tp
     return _Sheet(tex, A, label="checkerboard")
 
 
-def _charuco_sheet(board, squares_xy: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict) -> _Sheet:
+def _charuco_sheet(
+    board, squares_xy: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict
+) -> _Sheet:
     m = int(round(margin_squares * tps))
     size = (squares_xy[0] * tps + 2 * m, squares_xy[1] * tps + 2 * m)
     img = board.generateImage(size, marginSize=m, borderBits=1).astype(np.float32) / 255.0
@@ -655,7 +700,15 @@ def _charuco_sheet(board, squares_xy: tuple[int, int], square_size_mm: float, tp
     return _Sheet(tex, A, label="charuco")
 
 
-def _board_pose(camera: Camera, rng: np.random.Generator, target_px, distance_mm: float, tilt_deg: float, roll_deg: float, centre_board: np.ndarray) -> np.ndarray:
+def _board_pose(
+    camera: Camera,
+    rng: np.random.Generator,
+    target_px,
+    distance_mm: float,
+    tilt_deg: float,
+    roll_deg: float,
+    centre_board: np.ndarray,
+) -> np.ndarray:
     """``T_camera_board``: the board's centre on the ray through ``target_px`` at ``distance_mm``, tilted."""
     ray = camera.undistort_points(np.asarray(target_px, dtype=float).reshape(1, 2))[0]
     ray = np.array([(ray[0] - camera.cx) / camera.fx, (ray[1] - camera.cy) / camera.fy, 1.0])
@@ -749,7 +802,9 @@ def render_calibration_views(
         if marker_size_mm is None:
             marker_size_mm = square_size_mm / 2
         if not 0 < marker_size_mm < square_size_mm:
-            raise FidlearnError(f"marker_size_mm ({marker_size_mm}) must be between 0 and square_size_mm ({square_size_mm})")
+            raise FidlearnError(
+                f"marker_size_mm ({marker_size_mm}) must be between 0 and square_size_mm ({square_size_mm})"
+            )
         board = _cv.charuco_board(pattern_size, square_size_mm, marker_size_mm, dictionary)
         object_points = np.asarray(board.getChessboardCorners(), dtype=np.float64).reshape(-1, 3)
         squares = tuple(int(v) for v in pattern_size)
@@ -759,7 +814,7 @@ def render_calibration_views(
         pattern_size = tuple(int(v) for v in pattern_size)
         if min(pattern_size) < 2:
             raise FidlearnError(f"pattern_size {pattern_size} must count at least 2 x 2 inner corners")
-        jj, ii = np.mgrid[0: pattern_size[1], 0: pattern_size[0]]
+        jj, ii = np.mgrid[0 : pattern_size[1], 0 : pattern_size[0]]
         object_points = np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * float(square_size_mm)
         centre = np.array([(pattern_size[0] - 1) * square_size_mm / 2, (pattern_size[1] - 1) * square_size_mm / 2, 0.0])
         board_w = (pattern_size[0] + 1) * square_size_mm
@@ -772,9 +827,18 @@ def render_calibration_views(
     # the outline that must stay in view: the pattern's corners plus a little of the outer squares
     lo, hi = object_points.min(axis=0), object_points.max(axis=0)
     pad = 0.6 * square_size_mm
-    outline = np.array([[lo[0] - pad, lo[1] - pad, 0], [hi[0] + pad, lo[1] - pad, 0], [hi[0] + pad, hi[1] + pad, 0], [lo[0] - pad, hi[1] + pad, 0]])
+    outline = np.array(
+        [
+            [lo[0] - pad, lo[1] - pad, 0],
+            [hi[0] + pad, lo[1] - pad, 0],
+            [hi[0] + pad, hi[1] + pad, 0],
+            [lo[0] - pad, hi[1] + pad, 0],
+        ]
+    )
     poses, points, images = [], [], []
-    render_kwargs = dict(blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture)
+    render_kwargs = dict(
+        blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture
+    )
     grays = dict(DEFAULT_GRAYS)
     for view in range(n_views):
         gx, gy = grid[view % len(grid)]
@@ -795,12 +859,14 @@ def render_calibration_views(
             if np.all((px >= 8) & (px <= [w - 9, h - 9])):
                 break
         else:
-            raise FidlearnError(f"could not place the board in view {view} of a {w}x{h} camera; try a smaller fill_range")
+            raise FidlearnError(
+                f"could not place the board in view {view} of a {w}x{h} camera; try a smaller fill_range"
+            )
         poses.append(T_world_camera)
         points.append(camera.project(object_points, T_world_camera))
 
     # one texture for all views, fine enough for the closest one
-    cells = (pattern_size[0] if charuco else pattern_size[0] + 1)
+    cells = pattern_size[0] if charuco else pattern_size[0] + 1
     tps = int(np.clip(math.ceil(fill_range[1] * w * 1.2 * supersample / cells), 8, 160))
     if charuco:
         sheet = _charuco_sheet(board, squares, square_size_mm, tps, margin_squares, grays)
@@ -811,23 +877,40 @@ def render_calibration_views(
     if bad:
         raise FidlearnError(f"views {bad} do not exist; there are {n_views} views, 0 to {n_views - 1}")
     for view in chosen:
-        images.append(_render(
-            camera, poses[view], [sheet], seed=int(seed) * 1000 + view, gradient_angle_deg=(137.5 * view) % 360.0,
-            wall_gray=grays["wall"], bgr=False, **render_kwargs,
-        ))
+        images.append(
+            _render(
+                camera,
+                poses[view],
+                [sheet],
+                seed=int(seed) * 1000 + view,
+                gradient_angle_deg=(137.5 * view) % 360.0,
+                wall_gray=grays["wall"],
+                bgr=False,
+                **render_kwargs,
+            )
+        )
     poses = [poses[v] for v in chosen]
     points = [points[v] for v in chosen]
     return CalibrationViews(
-        images=images, camera=camera, T_world_camera=poses, object_points=object_points, image_points=points,
-        pattern_size=tuple(pattern_size), square_size_mm=float(square_size_mm),
-        marker_size_mm=float(marker_size_mm or 0.0), charuco=bool(charuco), dictionary=_cv.dictionary_name(dictionary) if charuco else "",
-        seed=int(seed), render_kwargs=render_kwargs,
+        images=images,
+        camera=camera,
+        T_world_camera=poses,
+        object_points=object_points,
+        image_points=points,
+        pattern_size=tuple(pattern_size),
+        square_size_mm=float(square_size_mm),
+        marker_size_mm=float(marker_size_mm or 0.0),
+        charuco=bool(charuco),
+        dictionary=_cv.dictionary_name(dictionary) if charuco else "",
+        seed=int(seed),
+        render_kwargs=render_kwargs,
     )
 
 
 # ----------------------------------------------------------------------------------------------
 # A robot's drive through the room.
 # ----------------------------------------------------------------------------------------------
+
 
 @dataclass(eq=False)
 class Trajectory:
@@ -902,11 +985,20 @@ def trajectory_poses(
     _check_scene(None, marker_map, with_camera=False)
     if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or not 1 <= n_frames <= MAX_FRAMES:
         raise FidlearnError(f"n_frames must be a whole number from 1 to {MAX_FRAMES}, got {n_frames!r}")
-    for name, value in (("start_distance_mm", start_distance_mm), ("end_distance_mm", end_distance_mm),
-                        ("start_lateral_mm", start_lateral_mm), ("end_lateral_mm", end_lateral_mm),
-                        ("height_mm", 0.0 if height_mm is None else height_mm), ("wobble_deg", wobble_deg)):
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(value) or abs(value) > 1e7:
+    for name, value in (
+        ("start_distance_mm", start_distance_mm),
+        ("end_distance_mm", end_distance_mm),
+        ("start_lateral_mm", start_lateral_mm),
+        ("end_lateral_mm", end_lateral_mm),
+        ("height_mm", 0.0 if height_mm is None else height_mm),
+        ("wobble_deg", wobble_deg),
+    ):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float, np.integer, np.floating))
+            or not math.isfinite(value)
+            or abs(value) > 1e7
+        ):
             raise FidlearnError(f"{name} must be a finite number (mm, or degrees for wobble_deg), got {value!r}")
     rng = np.random.default_rng(_check_seed(seed))
     centres = np.array([marker_map.marker_corners(i).mean(axis=0) for i in marker_map.ids])
@@ -927,10 +1019,16 @@ def trajectory_poses(
     poses = []
     for i, s in enumerate(tau):
         d = start_distance_mm + (end_distance_mm - start_distance_mm) * s
-        lat = start_lateral_mm + (end_lateral_mm - start_lateral_mm) * s + 0.25 * abs(end_lateral_mm - start_lateral_mm) * math.sin(math.pi * s)
+        lat = (
+            start_lateral_mm
+            + (end_lateral_mm - start_lateral_mm) * s
+            + 0.25 * abs(end_lateral_mm - start_lateral_mm) * math.sin(math.pi * s)
+        )
         eye = centre + facing * d + lateral * lat
         eye[2] = z + float(rng.normal(0.0, 1.0))
-        pan = wobble_deg * math.sin(2 * math.pi * 1.3 * s + phases[0]) + 0.3 * wobble_deg * math.sin(2 * math.pi * 3.1 * s + phases[1])
+        pan = wobble_deg * math.sin(2 * math.pi * 1.3 * s + phases[0]) + 0.3 * wobble_deg * math.sin(
+            2 * math.pi * 3.1 * s + phases[1]
+        )
         tilt = 0.5 * wobble_deg * math.sin(2 * math.pi * 0.9 * s + phases[2])
         roll = 0.3 * wobble_deg * math.sin(2 * math.pi * 2.3 * s + phases[3])
         T = look_at(eye, [centre[0], centre[1], z], roll_deg=roll)
@@ -973,7 +1071,9 @@ def render_trajectory(
         poses = trajectory_poses(marker_map, n_frames, seed, **trajectory_options)
     elif trajectory_options:
         raise FidlearnError(f"give either poses or trajectory options ({', '.join(trajectory_options)}), not both")
-    render_kwargs = dict(blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture)
+    render_kwargs = dict(
+        blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture
+    )
     chosen = list(range(len(poses))) if frames_to_render is None else [int(i) for i in frames_to_render]
     bad = [i for i in chosen if not 0 <= i < len(poses)]
     if bad:

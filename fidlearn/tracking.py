@@ -130,7 +130,9 @@ class MarkerTracker:
                 f"marker_map must be a fidlearn.MarkerMap (use MarkerMap.load('map.json')), got {type(marker_map).__name__}"
             )
         if not isinstance(camera, Camera):
-            raise FidlearnError(f"camera must be a fidlearn.Camera (use Camera.load('camera.json')), got {type(camera).__name__}")
+            raise FidlearnError(
+                f"camera must be a fidlearn.Camera (use Camera.load('camera.json')), got {type(camera).__name__}"
+            )
         if isinstance(full_every, bool) or not isinstance(full_every, (int, np.integer)) or full_every < 1:
             raise FidlearnError(f"full_every must be a whole number of frames >= 1, got {full_every!r}")
         if not (isinstance(search_px, (int, float, np.number)) and np.isfinite(search_px) and search_px >= 0):
@@ -141,13 +143,21 @@ class MarkerTracker:
         self.detector_params = detector_params
         self.full_every = int(full_every)
         self.search_px = float(search_px)
-        allowed = [k for k, v in inspect.signature(estimate_pose).parameters.items() if v.kind is v.KEYWORD_ONLY or k == "method"]
+        allowed = [
+            k
+            for k, v in inspect.signature(estimate_pose).parameters.items()
+            if v.kind is v.KEYWORD_ONLY or k == "method"
+        ]
         unknown = sorted(set(pose_options) - set(allowed))
         if unknown:
-            raise FidlearnError(f"MarkerTracker: unknown pose option {', '.join(unknown)}; estimate_pose takes {', '.join(allowed)}")
+            raise FidlearnError(
+                f"MarkerTracker: unknown pose option {', '.join(unknown)}; estimate_pose takes {', '.join(allowed)}"
+            )
         method = str(pose_options.get("method", "auto")).lower()
         if method != "auto" and method not in METHODS:
-            raise FidlearnError(f"MarkerTracker: unknown method {pose_options['method']!r}; use 'auto' or one of {', '.join(METHODS)}")
+            raise FidlearnError(
+                f"MarkerTracker: unknown method {pose_options['method']!r}; use 'auto' or one of {', '.join(METHODS)}"
+            )
         self.pose_options = dict(pose_options)
         fields = _cv.detector_parameter_fields(detector_params)  # checks the parameters now, not on frame 1
         fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if self.refine == "edges" else self.refine)
@@ -165,8 +175,10 @@ class MarkerTracker:
         self.reset()
 
     def __repr__(self) -> str:
-        return (f"MarkerTracker({len(self.marker_map)} markers, {self.marker_map.dictionary}, refine={self.refine!r}, "
-                f"full_every={self.full_every}; {self.frames} frames, {self.full_detections} full detections)")
+        return (
+            f"MarkerTracker({len(self.marker_map)} markers, {self.marker_map.dictionary}, refine={self.refine!r}, "
+            f"full_every={self.full_every}; {self.frames} frames, {self.full_detections} full detections)"
+        )
 
     def reset(self) -> None:
         """Forget the past frames: the next frame runs a full detection."""
@@ -248,7 +260,9 @@ class MarkerTracker:
     def _finish(self, gray: np.ndarray, corners: list, ids: list) -> list[Detection]:
         """Refine the corners as detect_markers does and sort by id."""
         if corners and self.refine == "edges":
-            corners = list(refine_corners_edges(gray, np.stack(corners), self._cells, inverted=None if self._inverted else False))
+            corners = list(
+                refine_corners_edges(gray, np.stack(corners), self._cells, inverted=None if self._inverted else False)
+            )
         order = sorted(range(len(ids)), key=lambda k: (ids[k], float(corners[k][0, 1]), float(corners[k][0, 0])))
         return [Detection(ids[k], corners[k]) for k in order]
 
@@ -346,7 +360,9 @@ class MarkerTracker:
             scale = max(W, H) / q
             fields["minMarkerPerimeterRate"] = float(fields["minMarkerPerimeterRate"]) * scale
             fields["maxMarkerPerimeterRate"] = float(fields["maxMarkerPerimeterRate"]) * scale
-            det = self._detectors[key] = cv2.aruco.ArucoDetector(self._dictionary, _cv.make_detector_parameters(**fields))
+            det = self._detectors[key] = cv2.aruco.ArucoDetector(
+                self._dictionary, _cv.make_detector_parameters(**fields)
+            )
         return det
 
 
@@ -364,6 +380,7 @@ def _merge_boxes(boxes: list) -> list:
     Other boxes stay apart, overlapping or not (a marker in two is found twice and kept once): one
     big box around a chain of neighbours would cover far more of the image than the windows do.
     """
+
     def area(b):
         return (b[2] - b[0]) * (b[3] - b[1])
 

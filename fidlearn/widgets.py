@@ -13,7 +13,7 @@ Nothing here is imported by ``import fidlearn``: use ``from fidlearn import widg
 from __future__ import annotations
 
 import io
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -38,9 +38,13 @@ GRID_HALF_HEIGHT_MM = 750.0
 GRID_STEP_MM = 125.0
 
 
-def grid_polylines_mm(depth_mm: float = GRID_DEPTH_MM, half_width_mm: float = GRID_HALF_WIDTH_MM,
-                      half_height_mm: float = GRID_HALF_HEIGHT_MM, step_mm: float = GRID_STEP_MM,
-                      samples: int = 41) -> list[np.ndarray]:
+def grid_polylines_mm(
+    depth_mm: float = GRID_DEPTH_MM,
+    half_width_mm: float = GRID_HALF_WIDTH_MM,
+    half_height_mm: float = GRID_HALF_HEIGHT_MM,
+    step_mm: float = GRID_STEP_MM,
+    samples: int = 41,
+) -> list[np.ndarray]:
     """Lines of a flat grid square to the optical axis, in the camera frame.
 
     Returns a list of (samples, 3) arrays, mm, camera frame (x right, y down,
@@ -57,12 +61,17 @@ def grid_polylines_mm(depth_mm: float = GRID_DEPTH_MM, half_width_mm: float = GR
 
 
 def _camera(fx: float, fy: float, cx: float, cy: float, k1: float, image_size: Sequence[int]) -> Camera:
-    return Camera([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], [k1, 0.0, 0.0, 0.0, 0.0], tuple(image_size),
-                  source="intrinsics explorer")
+    return Camera(
+        [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]],
+        [k1, 0.0, 0.0, 0.0, 0.0],
+        tuple(image_size),
+        source="intrinsics explorer",
+    )
 
 
-def intrinsics_view_polylines(fx: float, fy: float, cx: float, cy: float, k1: float = 0.0,
-                              image_size: Sequence[int] = (640, 480)) -> list[np.ndarray]:
+def intrinsics_view_polylines(
+    fx: float, fy: float, cx: float, cy: float, k1: float = 0.0, image_size: Sequence[int] = (640, 480)
+) -> list[np.ndarray]:
     """The grid of :func:`grid_polylines_mm` projected by a camera with these intrinsics.
 
     Returns a list of (samples, 2) pixel polylines (OpenCV pixel-centre
@@ -73,8 +82,15 @@ def intrinsics_view_polylines(fx: float, fy: float, cx: float, cy: float, k1: fl
     return [cam.project(line, np.eye(4)) for line in grid_polylines_mm()]
 
 
-def render_intrinsics_view(fx: float, fy: float, cx: float, cy: float, k1: float = 0.0,
-                           image_size: Sequence[int] = (640, 480), figsize: tuple[float, float] = (6.4, 5.2)) -> Figure:
+def render_intrinsics_view(
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    k1: float = 0.0,
+    image_size: Sequence[int] = (640, 480),
+    figsize: tuple[float, float] = (6.4, 5.2),
+) -> Figure:
     """Draw what a camera with these intrinsics sees of a flat grid 1.5 m away.
 
     Pure: the same parameters give the same Figure, and pyplot's list of open
@@ -160,8 +176,17 @@ def intrinsics_explorer(camera: Camera | None = None, image_size: Sequence[int] 
     layout = W.Layout(width="330px")
 
     def slider(name: str, value: float, lo: float, hi: float, step: float, fmt: str) -> W.FloatSlider:
-        return W.FloatSlider(value=value, min=lo, max=hi, step=step, description=name, readout_format=fmt,
-                             continuous_update=False, style=style, layout=layout)
+        return W.FloatSlider(
+            value=value,
+            min=lo,
+            max=hi,
+            step=step,
+            description=name,
+            readout_format=fmt,
+            continuous_update=False,
+            style=style,
+            layout=layout,
+        )
 
     controls = {
         "fx": slider("fx", camera.fx, 100.0, 2000.0, 10.0, ".0f"),
@@ -176,6 +201,7 @@ def intrinsics_explorer(camera: Camera | None = None, image_size: Sequence[int] 
         display(Image(data=figure_png(fig), format="png"))
 
     out = W.interactive_output(draw, controls)
-    sliders = W.VBox([W.HBox([controls["fx"], controls["fy"]]), W.HBox([controls["cx"], controls["cy"]]),
-                      W.HBox([controls["k1"]])])
+    sliders = W.VBox(
+        [W.HBox([controls["fx"], controls["fy"]]), W.HBox([controls["cx"], controls["cy"]]), W.HBox([controls["k1"]])]
+    )
     return W.VBox([sliders, out])

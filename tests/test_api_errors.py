@@ -46,7 +46,10 @@ BAD = {
 #: A valid call of each public callable: the argument lists the test mutates one item at a time.
 BASELINES = {
     "Camera": ((CAMERA.K, CAMERA.dist, CAMERA.image_size), {}),
-    "MarkerMap.from_dict": (({"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]}},), {"units": "ft", "marker_size_mm": 80}),
+    "MarkerMap.from_dict": (
+        ({"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]}},),
+        {"units": "ft", "marker_size_mm": 80},
+    ),
     "compose": ((T, np.eye(4)), {}),
     "invert_transform": ((T,), {}),
     "make_transform": ((np.eye(3), [1, 2, 3]), {}),
@@ -100,8 +103,17 @@ def cases():
 
 def test_every_public_callable_has_a_baseline():
     names = {n for n in fidlearn.__all__ if inspect.isfunction(getattr(fidlearn, n))} | set(frames.__all__)
-    skip = {"data_dir", "data_path", "render_calibration_views", "render_trajectory", "calibrate_checkerboard",
-            "calibrate_charuco", "markers_pdf", "board_pdf", "plan_room"}  # covered by their own hostile tests
+    skip = {
+        "data_dir",
+        "data_path",
+        "render_calibration_views",
+        "render_trajectory",
+        "calibrate_checkerboard",
+        "calibrate_charuco",
+        "markers_pdf",
+        "board_pdf",
+        "plan_room",
+    }  # covered by their own hostile tests
     missing = sorted(names - set(BASELINES) - skip)
     assert not missing, f"no baseline for {missing}: add one so its arguments are attacked too"
 

@@ -85,8 +85,18 @@ MAP_FILES = [
     ("nested 100000 deep", "[" * 100_000, {}, "nested too deeply"),
     ("translation with 2 values", with_marker('{"translation": [0, 1]}'), {}, "translation has 2 values, expected 3"),
     ("translation is a number", with_marker('{"translation": 5}'), {}, "translation must be a list of 3 numbers"),
-    ("translation is an object", with_marker('{"translation": {"x": 0, "y": 0, "z": 1}}'), {}, "must be a list of 3 numbers"),
-    ("rotation with 4 values", with_marker('{"translation": [0, 0, 1], "rotation": [0, 0, 0, 1]}'), {}, "expected 3 [roll, pitch, yaw] in degrees"),
+    (
+        "translation is an object",
+        with_marker('{"translation": {"x": 0, "y": 0, "z": 1}}'),
+        {},
+        "must be a list of 3 numbers",
+    ),
+    (
+        "rotation with 4 values",
+        with_marker('{"translation": [0, 0, 1], "rotation": [0, 0, 0, 1]}'),
+        {},
+        "expected 3 [roll, pitch, yaw] in degrees",
+    ),
     ("string for a number", with_marker('{"translation": ["0", 0, 1]}'), {}, "'0', which is not a number"),
     ("number with its unit", with_marker('{"translation": [0, "1 ft", 1]}'), {}, "'1 ft', which is not a number"),
     ("true for a number", with_marker('{"translation": [0, true, 1]}'), {}, "True, which is not a number"),
@@ -98,20 +108,57 @@ MAP_FILES = [
     ("double minus id", with_marker('{"translation": [0, 0, 1]}', "--5"), {}, "'--5' is not a whole number"),
     ("superscript digit id", with_marker('{"translation": [0, 0, 1]}', "\u00b2"), {}, "is not a whole number"),
     ("empty id", with_marker('{"translation": [0, 0, 1]}', ""), {}, "'' is not a whole number"),
-    ("unknown units", full(M0, '"units": "parsec", "marker_size_mm": 80'), {}, "unknown units 'parsec'; use one of mm, cm, m, in, ft"),
+    (
+        "unknown units",
+        full(M0, '"units": "parsec", "marker_size_mm": 80'),
+        {},
+        "unknown units 'parsec'; use one of mm, cm, m, in, ft",
+    ),
     ("units spelled out", full(M0, '"units": "feet", "marker_size_mm": 80'), {}, "use one of mm, cm, m, in, ft"),
     ("units as a number", full(M0, '"units": 1000, "marker_size_mm": 80'), {}, "unknown units 1000"),
     ("no units, full layout", full(M0, '"marker_size_mm": 80'), {}, 'add "units": "ft"'),
     ("no units, bare layout", "{" + M0 + "}", {"marker_size_mm": 80}, "fidlearn never guesses"),
     ("no marker size", full(M0, '"units": "ft"'), {}, 'add "marker_size_mm": 80'),
-    ("zero marker size", full(M0, '"units": "ft", "marker_size_mm": 0'), {}, "marker_size_mm is 0; it must be positive"),
+    (
+        "zero marker size",
+        full(M0, '"units": "ft", "marker_size_mm": 0'),
+        {},
+        "marker_size_mm is 0; it must be positive",
+    ),
     ("negative marker size", full(M0, '"units": "ft", "marker_size_mm": -80'), {}, "it must be positive"),
-    ("marker size as text", full(M0, '"units": "ft", "marker_size_mm": "80 mm"'), {}, "marker_size_mm must be a number"),
-    ("marker size as text, and given", full(M0, '"units": "ft", "marker_size_mm": "80"'), {"marker_size_mm": 80}, "must be a number"),
+    (
+        "marker size as text",
+        full(M0, '"units": "ft", "marker_size_mm": "80 mm"'),
+        {},
+        "marker_size_mm must be a number",
+    ),
+    (
+        "marker size as text, and given",
+        full(M0, '"units": "ft", "marker_size_mm": "80"'),
+        {"marker_size_mm": 80},
+        "must be a number",
+    ),
     ("huge marker size", full(M0, '"units": "ft", "marker_size_mm": 1' + "0" * 400), {}, "too large for a number"),
-    ("unknown dictionary", full(M0, '"units": "ft", "marker_size_mm": 80, "dictionary": "DICT_9X9_100"'), {}, "unknown ArUco dictionary 'DICT_9X9_100'"),
-    ("dictionary as a number", full(M0, '"units": "ft", "marker_size_mm": 80, "dictionary": 16'), {}, "try 'ARUCO_ORIGINAL'"),
-    ("id beyond 4X4_50", with_marker('{"translation": [0, 0, 1]}', "50").replace('"marker_size_mm": 80', '"marker_size_mm": 80, "dictionary": "4X4_50"'), {}, "marker id 50 does not exist in dictionary 4X4_50, which has ids 0 to 49"),
+    (
+        "unknown dictionary",
+        full(M0, '"units": "ft", "marker_size_mm": 80, "dictionary": "DICT_9X9_100"'),
+        {},
+        "unknown ArUco dictionary 'DICT_9X9_100'",
+    ),
+    (
+        "dictionary as a number",
+        full(M0, '"units": "ft", "marker_size_mm": 80, "dictionary": 16'),
+        {},
+        "try 'ARUCO_ORIGINAL'",
+    ),
+    (
+        "id beyond 4X4_50",
+        with_marker('{"translation": [0, 0, 1]}', "50").replace(
+            '"marker_size_mm": 80', '"marker_size_mm": 80, "dictionary": "4X4_50"'
+        ),
+        {},
+        "marker id 50 does not exist in dictionary 4X4_50, which has ids 0 to 49",
+    ),
     ("id beyond ARUCO_ORIGINAL", with_marker('{"translation": [0, 0, 1]}', "1024"), {}, "which has ids 0 to 1023"),
     ("no markers", full(""), {}, "the map has no markers"),
     ("empty bare map", "{}", {"units": "mm", "marker_size_mm": 80}, "add at least one placement"),
@@ -119,11 +166,26 @@ MAP_FILES = [
     ("a string, not an object", '"map"', {}, "got str"),
     ("placement is a list", full('"0": [0, 0, 1]'), {}, 'must be an object with "translation" and "rotation"'),
     ("placement without translation", with_marker('{"rotation": [0, 0, 0]}'), {}, 'has no "translation"'),
-    ("typo in a placement field", with_marker('{"translation": [0, 0, 1], "rotaton": [0, 0, 0]}'), {}, "unknown field 'rotaton'"),
+    (
+        "typo in a placement field",
+        with_marker('{"translation": [0, 0, 1], "rotaton": [0, 0, 0]}'),
+        {},
+        "unknown field 'rotaton'",
+    ),
     ("typo in a top-level field", full(M0, '"units": "ft", "marker_size": 80'), {}, "unknown field 'marker_size'"),
     ("markers is a list", '{"units": "ft", "marker_size_mm": 80, "markers": []}', {}, '"markers" must be an object'),
-    ("units disagree with the caller", SEED_TEXT, {"units": "mm"}, "the file says units = 'ft' but 'mm' was given; drop one"),
-    ("size disagrees with the caller", SEED_TEXT, {"marker_size_mm": 50}, "the file says marker_size_mm = 80 but 50 was given"),
+    (
+        "units disagree with the caller",
+        SEED_TEXT,
+        {"units": "mm"},
+        "the file says units = 'ft' but 'mm' was given; drop one",
+    ),
+    (
+        "size disagrees with the caller",
+        SEED_TEXT,
+        {"marker_size_mm": 50},
+        "the file says marker_size_mm = 80 but 50 was given",
+    ),
     ("dictionary disagrees with the caller", SEED_TEXT, {"dictionary": "4X4_50"}, "the file says dictionary"),
 ]
 
@@ -173,13 +235,15 @@ json_values = st.recursive(
     lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=6), inner, max_size=4)),
     max_leaves=12,
 )
-numbers = st.one_of(st.integers(-10**12, 10**12), st.floats(), st.integers(min_value=10**300))
+numbers = st.one_of(st.integers(-(10**12), 10**12), st.floats(), st.integers(min_value=10**300))
 vectors = st.one_of(st.lists(numbers, min_size=0, max_size=4), json_values)
 placements = st.fixed_dictionaries(
     {},
     optional={"translation": vectors, "rotation": vectors, "rotaton": json_values},
 )
-id_keys = st.one_of(st.integers(-5, 1100).map(str), st.text(max_size=4), st.sampled_from(["²", "--5", "01", " 3", "1.0"]))
+id_keys = st.one_of(
+    st.integers(-5, 1100).map(str), st.text(max_size=4), st.sampled_from(["²", "--5", "01", " 3", "1.0"])
+)
 markers = st.dictionaries(id_keys, st.one_of(placements, json_values), max_size=4)
 full_maps = st.fixed_dictionaries(
     {"markers": st.one_of(markers, json_values)},
@@ -247,12 +311,20 @@ CAMERA_JSON = [
     ("K is 2x2", cam_json(camera_matrix=[[600, 0], [0, 600]]), "camera_matrix has shape (2, 2), expected 3x3"),
     ("K is 3x4", cam_json(camera_matrix=[[600, 0, 319.5, 0], [0, 600, 239.5, 0], [0, 0, 1, 0]]), "has shape (3, 4)"),
     ("K is ragged", cam_json(camera_matrix=[[600, 0, 319.5], [0, 600], [0, 0, 1]]), "camera_matrix is not numeric"),
-    ("K holds text", cam_json(camera_matrix=[["fx", 0, 319.5], [0, 600, 239.5], [0, 0, 1]]), "camera_matrix is not numeric"),
+    (
+        "K holds text",
+        cam_json(camera_matrix=[["fx", 0, 319.5], [0, 600, 239.5], [0, 0, 1]]),
+        "camera_matrix is not numeric",
+    ),
     ("K holds a 400-digit number", cam_json()[:-1].replace("600.0", "1" + "0" * 400, 1) + "}", "not numeric"),
     ("zero focal length", cam_json(camera_matrix=[[0, 0, 319.5], [0, 600, 239.5], [0, 0, 1]]), "both must be positive"),
     ("negative focal length", cam_json(camera_matrix=[[600, 0, 319.5], [0, -600, 239.5], [0, 0, 1]]), "fy=-600"),
     ("transposed K", cam_json(camera_matrix=np.array(K_GOOD).T.tolist()), "it looks transposed"),
-    ("K bottom row not 0 0 1", cam_json(camera_matrix=[[600, 0, 319.5], [0, 600, 239.5], [0, 0, 0]]), "[[fx,0,cx],[0,fy,cy],[0,0,1]]"),
+    (
+        "K bottom row not 0 0 1",
+        cam_json(camera_matrix=[[600, 0, 319.5], [0, 600, 239.5], [0, 0, 0]]),
+        "[[fx,0,cx],[0,fy,cy],[0,0,1]]",
+    ),
     ("K with NaN", cam_json().replace("319.5", "NaN"), "contains NaN, which is not a number"),
     ("K with 1e999", cam_json().replace("319.5", "1e999"), "camera_matrix contains NaN or infinity"),
     ("dist of length 3", cam_json(dist_coeffs=[0.1, 0, 0]), "dist_coeffs has 3 values; OpenCV takes 4, 5, 8, 12 or 14"),
@@ -338,21 +410,71 @@ CAMERA_YAML = [
     ("binary garbage", b"\x89PNG\r\n\x1a\n" + bytes(range(256)), {}, "not UTF-8 text"),
     ("header only", "%YAML:1.0\n", {}, "no camera_matrix field"),
     ("K under another name", GOOD_YAML.replace("camera_matrix", "K"), {}, "no camera_matrix field"),
-    ("K is a number", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: 600\n", {}, "camera_matrix is not an !!opencv-matrix"),
-    ("K is a plain list", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: [600, 0, 319.5, 0, 600, 239.5, 0, 0, 1]\n", {}, "not an !!opencv-matrix"),
-    ("K rows x cols != data", GOOD_YAML.replace("rows: 3\n   cols: 3", "rows: 3\n   cols: 4"), {}, "rows x cols must equal the number of values in data"),
-    ("K is 2x2", GOOD_YAML.replace("rows: 3\n   cols: 3", "rows: 2\n   cols: 2").replace(K_DATA, "data: [ 600., 0., 0., 600. ]"), {}, "camera_matrix has shape (2, 2)"),
+    (
+        "K is a number",
+        "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: 600\n",
+        {},
+        "camera_matrix is not an !!opencv-matrix",
+    ),
+    (
+        "K is a plain list",
+        "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: [600, 0, 319.5, 0, 600, 239.5, 0, 0, 1]\n",
+        {},
+        "not an !!opencv-matrix",
+    ),
+    (
+        "K rows x cols != data",
+        GOOD_YAML.replace("rows: 3\n   cols: 3", "rows: 3\n   cols: 4"),
+        {},
+        "rows x cols must equal the number of values in data",
+    ),
+    (
+        "K is 2x2",
+        GOOD_YAML.replace("rows: 3\n   cols: 3", "rows: 2\n   cols: 2").replace(K_DATA, "data: [ 600., 0., 0., 600. ]"),
+        {},
+        "camera_matrix has shape (2, 2)",
+    ),
     ("zero focal", GOOD_YAML.replace("600., 0., 319.5", "0., 0., 319.5"), {}, "both must be positive"),
-    ("transposed K", GOOD_YAML.replace(K_DATA, "data: [ 600., 0., 0., 0., 600., 0., 319.5, 239.5, 1. ]"), {}, "it looks transposed"),
+    (
+        "transposed K",
+        GOOD_YAML.replace(K_DATA, "data: [ 600., 0., 0., 0., 600., 0., 319.5, 239.5, 1. ]"),
+        {},
+        "it looks transposed",
+    ),
     ("dist of length 3", GOOD_YAML.replace(DIST5, DIST3), {}, "dist_coeffs has 3 values"),
-    ("dist rows x cols != data", GOOD_YAML.replace("cols: 5", "cols: 6"), {}, "distortion_coefficients is a malformed !!opencv-matrix"),
+    (
+        "dist rows x cols != data",
+        GOOD_YAML.replace("cols: 5", "cols: 6"),
+        {},
+        "distortion_coefficients is a malformed !!opencv-matrix",
+    ),
     ("dist with .nan", GOOD_YAML.replace("-0.05", ".nan"), {}, "dist_coeffs contains NaN or infinity"),
-    ("width written as text", GOOD_YAML.replace("image_width: 640", "image_width: wide"), {}, "image_width must be a whole number of pixels"),
-    ("fractional width", GOOD_YAML.replace("image_width: 640", "image_width: 640.7"), {}, "image_width must be a whole number"),
+    (
+        "width written as text",
+        GOOD_YAML.replace("image_width: 640", "image_width: wide"),
+        {},
+        "image_width must be a whole number of pixels",
+    ),
+    (
+        "fractional width",
+        GOOD_YAML.replace("image_width: 640", "image_width: 640.7"),
+        {},
+        "image_width must be a whole number",
+    ),
     ("zero height", GOOD_YAML.replace("image_height: 480", "image_height: 0"), {}, "two positive whole numbers"),
-    ("no size, none given", GOOD_YAML.replace("image_width: 640\nimage_height: 480\n", ""), {}, "pass image_size=(width, height)"),
+    (
+        "no size, none given",
+        GOOD_YAML.replace("image_width: 640\nimage_height: 480\n", ""),
+        {},
+        "pass image_size=(width, height)",
+    ),
     ("only the width", GOOD_YAML.replace("image_height: 480\n", ""), {}, "no image_width/image_height"),
-    ("size disagrees with the caller", GOOD_YAML, {"image_size": (1280, 720)}, "the caller says 1280x720; use Camera.scaled()"),
+    (
+        "size disagrees with the caller",
+        GOOD_YAML,
+        {"image_size": (1280, 720)},
+        "the caller says 1280x720; use Camera.scaled()",
+    ),
 ]
 
 
@@ -443,7 +565,16 @@ def marker_scene(dtype=np.uint8, channels: int = 1) -> tuple[np.ndarray, np.ndar
 
 @pytest.mark.parametrize(
     "dtype, channels",
-    [(np.uint8, 1), (np.uint8, 3), (np.uint8, 4), (np.uint16, 1), (np.uint16, 3), (np.uint16, 4), (np.float32, 1), (np.float64, 3)],
+    [
+        (np.uint8, 1),
+        (np.uint8, 3),
+        (np.uint8, 4),
+        (np.uint16, 1),
+        (np.uint16, 3),
+        (np.uint16, 4),
+        (np.float32, 1),
+        (np.float64, 3),
+    ],
     ids=["gray8", "bgr8", "bgra8", "gray16", "bgr16", "bgra16", "float32 gray", "float64 bgr"],
 )
 def test_every_image_type_users_have_is_detected(tmp_path, dtype, channels):
@@ -546,7 +677,11 @@ IMAGE_ARRAYS = [
     ("5 channels", np.zeros((64, 64, 5), np.uint8), "shape (64, 64, 5) is not an image"),
     ("a batch of images", np.zeros((2, 64, 64, 3), np.uint8), "shape (2, 64, 64, 3) is not an image"),
     ("a 1-D array", np.zeros(4096, np.uint8), "is not an image"),
-    ("a nested list", [[0] * 64] * 64, "expected a numpy array (use fidlearn.detection.load_image for a file), got list"),
+    (
+        "a nested list",
+        [[0] * 64] * 64,
+        "expected a numpy array (use fidlearn.detection.load_image for a file), got list",
+    ),
     ("a path instead of pixels", "photo.png", "got str"),
     ("None", None, "got NoneType"),
 ]
@@ -571,11 +706,18 @@ DETECT_ARGUMENTS = [
     ("dictionary not a string", {"dictionary": 10}, DictionaryError, "try 'ARUCO_ORIGINAL'"),
     ("unknown refinement", {"refine": "sharp"}, FidlearnError, "unknown corner refinement 'sharp'"),
     ("refinement not a string", {"refine": True}, FidlearnError, "unknown corner refinement True"),
-    ("unknown detector parameter", {"params": {"adaptiveTreshWinSizeMin": 3}}, FidlearnError, "no field 'adaptiveTreshWinSizeMin'"),
+    (
+        "unknown detector parameter",
+        {"params": {"adaptiveTreshWinSizeMin": 3}},
+        FidlearnError,
+        "no field 'adaptiveTreshWinSizeMin'",
+    ),
 ]
 
 
-@pytest.mark.parametrize("kwargs, error, fragment", [c[1:] for c in DETECT_ARGUMENTS], ids=[c[0] for c in DETECT_ARGUMENTS])
+@pytest.mark.parametrize(
+    "kwargs, error, fragment", [c[1:] for c in DETECT_ARGUMENTS], ids=[c[0] for c in DETECT_ARGUMENTS]
+)
 def test_bad_detect_arguments(kwargs, error, fragment):
     img, _ = marker_scene()
     with pytest.raises(error) as info:
@@ -597,18 +739,50 @@ CLI_CASES = [
     ("no arguments to corners", ["corners"], "the following arguments are required: map, -o/--output"),
     ("no output", ["corners", "map.json"], "required: -o/--output"),
     ("map does not exist", ["corners", "nope.json", "-o", "out.json"], "nope.json: no such file"),
-    ("map is a folder", ["corners", "outdir", "-o", "out.json"], "is a folder, not a file; give the path of a world map file"),
+    (
+        "map is a folder",
+        ["corners", "outdir", "-o", "out.json"],
+        "is a folder, not a file; give the path of a world map file",
+    ),
     ("map is a photo", ["corners", "photo.png", "-o", "out.json"], "not UTF-8 text"),
     ("map nested too deeply", ["corners", "deep.json", "-o", "out.json"], "nested too deeply"),
-    ("bare map without units", ["corners", "bare.json", "--marker-size-mm", "80", "-o", "out.json"], "pass units= (command line: --units)"),
+    (
+        "bare map without units",
+        ["corners", "bare.json", "--marker-size-mm", "80", "-o", "out.json"],
+        "pass units= (command line: --units)",
+    ),
     ("bare map without size", ["corners", "bare.json", "--units", "ft", "-o", "out.json"], "--marker-size-mm"),
     ("unknown units", ["corners", "bare.json", "--units", "parsec", "-o", "out.json"], "invalid choice: 'parsec'"),
-    ("size not a number", ["corners", "bare.json", "--units", "ft", "--marker-size-mm", "big", "-o", "out.json"], "invalid float value: 'big'"),
-    ("negative size", ["corners", "bare.json", "--units", "ft", "--marker-size-mm", "-80", "-o", "out.json"], "it must be positive"),
-    ("nan size", ["corners", "bare.json", "--units", "ft", "--marker-size-mm", "nan", "-o", "out.json"], "it must be positive"),
-    ("size disagrees with the file", ["corners", "map.json", "--marker-size-mm", "50", "-o", "out.json"], "drop one of them"),
-    ("unknown dictionary", ["corners", "map.json", "--dictionary", "7x7", "-o", "out.json"], "unknown ArUco dictionary '7x7'"),
-    ("output folder missing", ["corners", "map.json", "-o", "nodir/out.json"], "the folder nodir does not exist; create it first"),
+    (
+        "size not a number",
+        ["corners", "bare.json", "--units", "ft", "--marker-size-mm", "big", "-o", "out.json"],
+        "invalid float value: 'big'",
+    ),
+    (
+        "negative size",
+        ["corners", "bare.json", "--units", "ft", "--marker-size-mm", "-80", "-o", "out.json"],
+        "it must be positive",
+    ),
+    (
+        "nan size",
+        ["corners", "bare.json", "--units", "ft", "--marker-size-mm", "nan", "-o", "out.json"],
+        "it must be positive",
+    ),
+    (
+        "size disagrees with the file",
+        ["corners", "map.json", "--marker-size-mm", "50", "-o", "out.json"],
+        "drop one of them",
+    ),
+    (
+        "unknown dictionary",
+        ["corners", "map.json", "--dictionary", "7x7", "-o", "out.json"],
+        "unknown ArUco dictionary '7x7'",
+    ),
+    (
+        "output folder missing",
+        ["corners", "map.json", "-o", "nodir/out.json"],
+        "the folder nodir does not exist; create it first",
+    ),
     ("output is a folder", ["corners", "map.json", "-o", "outdir"], "outdir: is a folder"),
     ("unknown option", ["corners", "map.json", "-o", "out.json", "--bogus"], "unrecognized arguments: --bogus"),
     ("unknown command", ["frobnicate"], "invalid choice: 'frobnicate'"),
@@ -644,7 +818,9 @@ def test_bad_command_line_in_a_real_process(tmp_path, argv, fragment):
     """``python -m fidlearn`` itself: status 2, one ``error:`` line, no traceback, no output file."""
     cli_setup(tmp_path)
     before = sorted(p.name for p in tmp_path.rglob("*"))
-    proc = subprocess.run([sys.executable, "-m", "fidlearn", *argv], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "fidlearn", *argv], cwd=tmp_path, capture_output=True, text=True, timeout=60
+    )
     assert proc.returncode == 2, proc.stderr
     assert proc.stdout == ""
     lines = proc.stderr.splitlines()
@@ -681,40 +857,106 @@ def camera_640() -> Camera:
 
 
 ESTIMATE_POSE = [
-    ("NaN corner", lambda: ([Detection(0, [[np.nan, 100.0]] + SQUARE_PX[1:])], seed_map(), camera_640()), {},
-     PoseError, "detections[0] (marker 0) has NaN or infinite corners"),
-    ("infinite corner", lambda: ([Detection(1, SQUARE_PX[:3] + [[100.0, np.inf]])], seed_map(), camera_640()), {},
-     PoseError, "(marker 1) has NaN or infinite corners"),
+    (
+        "NaN corner",
+        lambda: ([Detection(0, [[np.nan, 100.0]] + SQUARE_PX[1:])], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "detections[0] (marker 0) has NaN or infinite corners",
+    ),
+    (
+        "infinite corner",
+        lambda: ([Detection(1, SQUARE_PX[:3] + [[100.0, np.inf]])], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "(marker 1) has NaN or infinite corners",
+    ),
     ("no detections", lambda: ([], seed_map(), camera_640()), {}, NoMarkersError, "no marker was detected"),
-    ("only ids the map lacks", lambda: ([Detection(77, SQUARE_PX)], seed_map(), camera_640()), {},
-     NoMarkersError, "the image shows markers [77], none of which is in the map"),
-    ("all corners at one point", lambda: ([Detection(0, [[100.0, 100.0]] * 4)], seed_map(), camera_640()), {},
-     PoseError, "enclose no area"),
-    ("mirrored winding TL, BL, BR, TR", lambda: ([Detection(0, np.array(SQUARE_PX)[[0, 3, 2, 1]])], seed_map(), camera_640()), {},
-     PoseError, "marker 0: its image corners [[100.0, 100.0], [100.0, 200.0], [200.0, 200.0], [200.0, 100.0]] run anticlockwise"),
-    ("shuffled corners", lambda: ([Detection(0, np.array(SQUARE_PX)[[0, 2, 1, 3]])], seed_map(), camera_640()), {},
-     PoseError, "do not form a convex quadrilateral"),
-    ("unknown method", lambda: ([Detection(0, SQUARE_PX)], seed_map(), camera_640()), {"method": "magic"},
-     PoseError, "unknown method 'magic'; use 'auto'"),
-    ("corners as an array", lambda: (np.array([SQUARE_PX]), seed_map(), camera_640()), {},
-     PoseError, "detections must be a list of fidlearn Detection (from detect_markers), got ndarray"),
-    ("a dict of corners", lambda: ({0: np.array(SQUARE_PX)}, seed_map(), camera_640()), {},
-     PoseError, "detections[0] is a int, expected a Detection(id, corners (4, 2))"),
-    ("a list of arrays", lambda: ([np.array(SQUARE_PX)], seed_map(), camera_640()), {},
-     PoseError, "detections[0] is a ndarray"),
+    (
+        "only ids the map lacks",
+        lambda: ([Detection(77, SQUARE_PX)], seed_map(), camera_640()),
+        {},
+        NoMarkersError,
+        "the image shows markers [77], none of which is in the map",
+    ),
+    (
+        "all corners at one point",
+        lambda: ([Detection(0, [[100.0, 100.0]] * 4)], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "enclose no area",
+    ),
+    (
+        "mirrored winding TL, BL, BR, TR",
+        lambda: ([Detection(0, np.array(SQUARE_PX)[[0, 3, 2, 1]])], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "marker 0: its image corners [[100.0, 100.0], [100.0, 200.0], [200.0, 200.0], [200.0, 100.0]] run anticlockwise",
+    ),
+    (
+        "shuffled corners",
+        lambda: ([Detection(0, np.array(SQUARE_PX)[[0, 2, 1, 3]])], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "do not form a convex quadrilateral",
+    ),
+    (
+        "unknown method",
+        lambda: ([Detection(0, SQUARE_PX)], seed_map(), camera_640()),
+        {"method": "magic"},
+        PoseError,
+        "unknown method 'magic'; use 'auto'",
+    ),
+    (
+        "corners as an array",
+        lambda: (np.array([SQUARE_PX]), seed_map(), camera_640()),
+        {},
+        PoseError,
+        "detections must be a list of fidlearn Detection (from detect_markers), got ndarray",
+    ),
+    (
+        "a dict of corners",
+        lambda: ({0: np.array(SQUARE_PX)}, seed_map(), camera_640()),
+        {},
+        PoseError,
+        "detections[0] is a int, expected a Detection(id, corners (4, 2))",
+    ),
+    (
+        "a list of arrays",
+        lambda: ([np.array(SQUARE_PX)], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "detections[0] is a ndarray",
+    ),
     ("None for detections", lambda: (None, seed_map(), camera_640()), {}, PoseError, "got NoneType"),
-    ("a map file that is not there", lambda: ([Detection(0, SQUARE_PX)], "no_map.json", camera_640()), {},
-     MapError, "no_map.json: no such file; check the path of the world map"),
-    ("a camera file that is not there", lambda: ([Detection(0, SQUARE_PX)], seed_map(), "no_camera.json"), {},
-     CameraError, "no_camera.json: no such file"),
-    ("K instead of a camera", lambda: ([Detection(0, SQUARE_PX)], seed_map(), camera_640().K), {},
-     PoseError, "camera must be a fidlearn.Camera or the path of a camera file, got ndarray"),
-    ("a list instead of a map", lambda: ([Detection(0, SQUARE_PX)], [SEED], camera_640()), {},
-     PoseError, "got list"),
+    (
+        "a map file that is not there",
+        lambda: ([Detection(0, SQUARE_PX)], "no_map.json", camera_640()),
+        {},
+        MapError,
+        "no_map.json: no such file; check the path of the world map",
+    ),
+    (
+        "a camera file that is not there",
+        lambda: ([Detection(0, SQUARE_PX)], seed_map(), "no_camera.json"),
+        {},
+        CameraError,
+        "no_camera.json: no such file",
+    ),
+    (
+        "K instead of a camera",
+        lambda: ([Detection(0, SQUARE_PX)], seed_map(), camera_640().K),
+        {},
+        PoseError,
+        "camera must be a fidlearn.Camera or the path of a camera file, got ndarray",
+    ),
+    ("a list instead of a map", lambda: ([Detection(0, SQUARE_PX)], [SEED], camera_640()), {}, PoseError, "got list"),
 ]
 
 
-@pytest.mark.parametrize("make, kwargs, error, fragment", [c[1:] for c in ESTIMATE_POSE], ids=[c[0] for c in ESTIMATE_POSE])
+@pytest.mark.parametrize(
+    "make, kwargs, error, fragment", [c[1:] for c in ESTIMATE_POSE], ids=[c[0] for c in ESTIMATE_POSE]
+)
 def test_bad_estimate_pose_input(make, kwargs, error, fragment):
     detections, marker_map, camera = make()
     with pytest.raises(error) as info:
@@ -784,7 +1026,13 @@ CALIBRATE = [
     ("missing files", ["{tmp}/a.png", "{tmp}/b.png", "{tmp}/c.png"], (9, 6), 25, "no such file"),
     ("no board in the pictures", [BLANK] * 3, (9, 6), 25, "board not found (9x6 inner corners)"),
     ("pictures of a marker", ["{tmp}/marker.png"] * 3, (9, 6), 25, "board not found"),
-    ("pictures of two sizes", [BLANK, BLANK[:240, :320], BLANK], (9, 6), 25, "image is 320x240 but the others are 640x480"),
+    (
+        "pictures of two sizes",
+        [BLANK, BLANK[:240, :320], BLANK],
+        (9, 6),
+        25,
+        "image is 320x240 but the others are 640x480",
+    ),
 ]
 
 
@@ -826,29 +1074,117 @@ def commands_setup(tmp_path: Path) -> None:
 
 LOCATE_ARGS = ["--camera", "camera.json", "--map", "map.json"]
 COMMANDS = [
-    ("locate: negative camera index", ["locate", *LOCATE_ARGS, "--camera-index", "-1"], "cameras are numbered 0 (the first camera) to 255"),
-    ("locate: map given as the camera", ["locate", "clip.avi", "--camera", "map.json", "--map", "map.json"], "missing field camera_matrix"),
-    ("locate: camera given as the map", ["locate", "clip.avi", "--camera", "camera.json", "--map", "camera.json"], "the map does not say its units"),
+    (
+        "locate: negative camera index",
+        ["locate", *LOCATE_ARGS, "--camera-index", "-1"],
+        "cameras are numbered 0 (the first camera) to 255",
+    ),
+    (
+        "locate: map given as the camera",
+        ["locate", "clip.avi", "--camera", "map.json", "--map", "map.json"],
+        "missing field camera_matrix",
+    ),
+    (
+        "locate: camera given as the map",
+        ["locate", "clip.avi", "--camera", "camera.json", "--map", "camera.json"],
+        "the map does not say its units",
+    ),
     ("locate: annotate into a file", ["locate", "clip.avi", *LOCATE_ARGS, "--annotate", "map.json"], "give a folder"),
     ("locate: text file named .png", ["locate", "text.png", *LOCATE_ARGS], "not an image OpenCV can read"),
     ("locate: not a video", ["locate", "notes.avi", *LOCATE_ARGS, "--json", "p.jsonl"], "cannot open this video"),
-    ("locate: video cut after its header", ["locate", "head.avi", *LOCATE_ARGS, "--json", "p.jsonl"], "cannot open this video"),
+    (
+        "locate: video cut after its header",
+        ["locate", "head.avi", *LOCATE_ARGS, "--json", "p.jsonl"],
+        "cannot open this video",
+    ),
     ("locate: folder without pictures", ["locate", "empty", *LOCATE_ARGS], "no images (.png, .jpg"),
-    ("calibrate: a video", ["calibrate", "clip.avi", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"], "not an image by its name"),
-    ("calibrate: unreadable pictures", ["calibrate", "text.png", "text.png", "text.png", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"], "unreadable: 3"),
-    ("calibrate: output of unknown type", ["calibrate", "empty", "--pattern", "9x6", "--square-mm", "25", "-o", "c.txt"], "name the file .json or .yml"),
-    ("markers: backwards range", ["markers", "--ids", "5-3", "--size-mm", "50", "-o", "m.pdf"], "runs backwards; write 3-5"),
+    (
+        "calibrate: a video",
+        ["calibrate", "clip.avi", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"],
+        "not an image by its name",
+    ),
+    (
+        "calibrate: unreadable pictures",
+        ["calibrate", "text.png", "text.png", "text.png", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"],
+        "unreadable: 3",
+    ),
+    (
+        "calibrate: output of unknown type",
+        ["calibrate", "empty", "--pattern", "9x6", "--square-mm", "25", "-o", "c.txt"],
+        "name the file .json or .yml",
+    ),
+    (
+        "markers: backwards range",
+        ["markers", "--ids", "5-3", "--size-mm", "50", "-o", "m.pdf"],
+        "runs backwards; write 3-5",
+    ),
     ("markers: id twice", ["markers", "--ids", "0,0", "--size-mm", "50", "-o", "m.pdf"], "id 0 is listed twice"),
     ("markers: negative id", ["markers", "--ids", "-1", "--size-mm", "50", "-o", "m.pdf"], "give ids like 0-9"),
     ("markers: 20-digit id", ["markers", "--ids", "9" * 20, "--size-mm", "50", "-o", "m.pdf"], "ids 0 to 1023"),
-    ("markers: infinite size", ["markers", "--ids", "0", "--size-mm", "inf", "-o", "m.pdf"], "must be a positive length in mm"),
-    ("markers: larger than the paper", ["markers", "--ids", "0", "--size-mm", "1e9", "-o", "m.pdf"], "does not fit on a4 paper"),
-    ("markers: zero dpi", ["markers", "--ids", "0", "--size-mm", "50", "--dpi", "0", "-o", "m.png"], "--dpi 0: give 50 to 1200 dots per inch"),
-    ("board: marker larger than its square", ["board", "--squares", "5x7", "--charuco", "--square-mm", "20", "--marker-mm", "30", "-o", "b.pdf"], "must be smaller than --square-mm 20"),
-    ("board: NaN square", ["board", "--pattern", "9x6", "--square-mm", "nan", "-o", "b.pdf"], "must be a positive length in mm, got nan"),
-    ("render: negative noise", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--noise", "-1", "-o", "r.png"], "--noise must be 0 to 255 gray levels"),
-    ("render: size in words", ["render", "--map", "map.json", "--camera", "camera.json", "--pose", "1000,190,230,-90,0,90", "--size", "big", "-o", "r.png"], "is not COLUMNSxROWS"),
-    ("render: missing camera file", ["render", "--map", "map.json", "--camera", "nope.yml", "--pose", "1000,190,230,-90,0,90", "-o", "r.png"], "nope.yml: no such file"),
+    (
+        "markers: infinite size",
+        ["markers", "--ids", "0", "--size-mm", "inf", "-o", "m.pdf"],
+        "must be a positive length in mm",
+    ),
+    (
+        "markers: larger than the paper",
+        ["markers", "--ids", "0", "--size-mm", "1e9", "-o", "m.pdf"],
+        "does not fit on a4 paper",
+    ),
+    (
+        "markers: zero dpi",
+        ["markers", "--ids", "0", "--size-mm", "50", "--dpi", "0", "-o", "m.png"],
+        "--dpi 0: give 50 to 1200 dots per inch",
+    ),
+    (
+        "board: marker larger than its square",
+        ["board", "--squares", "5x7", "--charuco", "--square-mm", "20", "--marker-mm", "30", "-o", "b.pdf"],
+        "must be smaller than --square-mm 20",
+    ),
+    (
+        "board: NaN square",
+        ["board", "--pattern", "9x6", "--square-mm", "nan", "-o", "b.pdf"],
+        "must be a positive length in mm, got nan",
+    ),
+    (
+        "render: negative noise",
+        [
+            "render",
+            "--map",
+            "map.json",
+            "--camera",
+            "camera.json",
+            "--pose",
+            "1000,190,230,-90,0,90",
+            "--noise",
+            "-1",
+            "-o",
+            "r.png",
+        ],
+        "--noise must be 0 to 255 gray levels",
+    ),
+    (
+        "render: size in words",
+        [
+            "render",
+            "--map",
+            "map.json",
+            "--camera",
+            "camera.json",
+            "--pose",
+            "1000,190,230,-90,0,90",
+            "--size",
+            "big",
+            "-o",
+            "r.png",
+        ],
+        "is not COLUMNSxROWS",
+    ),
+    (
+        "render: missing camera file",
+        ["render", "--map", "map.json", "--camera", "nope.yml", "--pose", "1000,190,230,-90,0,90", "-o", "r.png"],
+        "nope.yml: no such file",
+    ),
 ]
 
 
@@ -869,8 +1205,13 @@ def test_bad_command(tmp_path, monkeypatch, capsys, argv, fragment):
 def test_negative_camera_index_in_a_real_process(tmp_path):
     """cv2.VideoCapture(-1) kills the interpreter with a segmentation fault when no camera is attached."""
     commands_setup(tmp_path)
-    proc = subprocess.run([sys.executable, "-m", "fidlearn", "locate", *LOCATE_ARGS, "--camera-index", "-1"],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "fidlearn", "locate", *LOCATE_ARGS, "--camera-index", "-1"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2, (proc.returncode, proc.stderr)
     assert proc.stderr.startswith("error: --camera-index -1") and len(proc.stderr.splitlines()) == 1
 
@@ -898,30 +1239,108 @@ from fidlearn.printables import PrintError, board_pdf, markers_pdf  # noqa: E402
 
 PRINTABLES = [
     ("no ids", lambda out: markers_pdf(out / "m.pdf", [], 50), PrintError, "no marker ids to print"),
-    ("negative id", lambda out: markers_pdf(out / "m.pdf", [-1], 50), DictionaryError, "marker id -1 does not exist in ARUCO_ORIGINAL"),
-    ("id beyond the dictionary", lambda out: markers_pdf(out / "m.pdf", [50], 50, dictionary="4X4_50"), DictionaryError, "which has ids 0 to 49"),
+    (
+        "negative id",
+        lambda out: markers_pdf(out / "m.pdf", [-1], 50),
+        DictionaryError,
+        "marker id -1 does not exist in ARUCO_ORIGINAL",
+    ),
+    (
+        "id beyond the dictionary",
+        lambda out: markers_pdf(out / "m.pdf", [50], 50, dictionary="4X4_50"),
+        DictionaryError,
+        "which has ids 0 to 49",
+    ),
     ("zero size", lambda out: markers_pdf(out / "m.pdf", [1], 0), PrintError, "must be a positive length in mm, got 0"),
     ("NaN size", lambda out: markers_pdf(out / "m.pdf", [1], float("nan")), PrintError, "got nan"),
-    ("paper size A3", lambda out: markers_pdf(out / "m.pdf", [1], 50, paper="a3"), PrintError, "unknown paper 'a3'; use a4 or letter"),
-    ("unknown dictionary", lambda out: markers_pdf(out / "m.pdf", [1], 50, dictionary="nope"), DictionaryError, "unknown ArUco dictionary 'nope'"),
+    (
+        "paper size A3",
+        lambda out: markers_pdf(out / "m.pdf", [1], 50, paper="a3"),
+        PrintError,
+        "unknown paper 'a3'; use a4 or letter",
+    ),
+    (
+        "unknown dictionary",
+        lambda out: markers_pdf(out / "m.pdf", [1], 50, dictionary="nope"),
+        DictionaryError,
+        "unknown ArUco dictionary 'nope'",
+    ),
     ("a folder for the file", lambda out: markers_pdf(out, [1], 50), PrintError, "expected a .pdf file name"),
-    ("a .png name for the pdf", lambda out: markers_pdf(out / "m.png", [1], 50), PrintError, "expected a .pdf file name"),
-    ("missing folder", lambda out: markers_pdf(out / "no" / "m.pdf", [1], 50), FidlearnError, "does not exist; create it first"),
-    ("fractional id", lambda out: markers_pdf(out / "m.pdf", [1.5], 50), PrintError, "marker id 1.5 is not a whole number"),
-    ("True for an id", lambda out: markers_pdf(out / "m.pdf", [True, 2], 50), PrintError, "marker id True is not a whole number"),
+    (
+        "a .png name for the pdf",
+        lambda out: markers_pdf(out / "m.png", [1], 50),
+        PrintError,
+        "expected a .pdf file name",
+    ),
+    (
+        "missing folder",
+        lambda out: markers_pdf(out / "no" / "m.pdf", [1], 50),
+        FidlearnError,
+        "does not exist; create it first",
+    ),
+    (
+        "fractional id",
+        lambda out: markers_pdf(out / "m.pdf", [1.5], 50),
+        PrintError,
+        "marker id 1.5 is not a whole number",
+    ),
+    (
+        "True for an id",
+        lambda out: markers_pdf(out / "m.pdf", [True, 2], 50),
+        PrintError,
+        "marker id True is not a whole number",
+    ),
     ("bytes for ids", lambda out: markers_pdf(out / "m.pdf", b"12", 50), PrintError, "b'12' is not a whole number"),
-    ("backwards range as text", lambda out: markers_pdf(out / "m.pdf", "5-3", 50), PrintError, "runs backwards; write 3-5"),
+    (
+        "backwards range as text",
+        lambda out: markers_pdf(out / "m.pdf", "5-3", 50),
+        PrintError,
+        "runs backwards; write 3-5",
+    ),
     ("board pattern in words", lambda out: board_pdf(out / "b.pdf", "9 by 6", 25), PrintError, "write it like 9x6"),
-    ("board pattern of 3 numbers", lambda out: board_pdf(out / "b.pdf", (9, 6, 1), 25), PrintError, "e.g. (9, 6) or '9x6'"),
-    ("board pattern of floats", lambda out: board_pdf(out / "b.pdf", (9.5, 6), 25), PrintError, "must be two whole numbers of inner corners"),
-    ("board of 1x1 corners", lambda out: board_pdf(out / "b.pdf", (1, 1), 25), PrintError, "at least 3x3 squares (2x2 inner corners)"),
+    (
+        "board pattern of 3 numbers",
+        lambda out: board_pdf(out / "b.pdf", (9, 6, 1), 25),
+        PrintError,
+        "e.g. (9, 6) or '9x6'",
+    ),
+    (
+        "board pattern of floats",
+        lambda out: board_pdf(out / "b.pdf", (9.5, 6), 25),
+        PrintError,
+        "must be two whole numbers of inner corners",
+    ),
+    (
+        "board of 1x1 corners",
+        lambda out: board_pdf(out / "b.pdf", (1, 1), 25),
+        PrintError,
+        "at least 3x3 squares (2x2 inner corners)",
+    ),
     ("board of negative size", lambda out: board_pdf(out / "b.pdf", (-9, 6), 25), PrintError, "at least 3x3 squares"),
-    ("board with zero squares", lambda out: board_pdf(out / "b.pdf", (9, 6), 0), PrintError, "must be a positive length in mm"),
-    ("board larger than the paper", lambda out: board_pdf(out / "b.pdf", (9, 6), 1000), PrintError, "the largest square that fits is"),
-    ("ChArUco marker larger than its square", lambda out: board_pdf(out / "b.pdf", (4, 6), 20, charuco=True, marker_mm=30),
-     PrintError, "must be smaller than --square-mm 20"),
-    ("ChArUco board larger than its dictionary", lambda out: board_pdf(out / "b.pdf", (14, 19), 10, charuco=True, marker_mm=7, dictionary="4X4_50"),
-     PrintError, "needs 150 markers but 4X4_50 has only 50"),
+    (
+        "board with zero squares",
+        lambda out: board_pdf(out / "b.pdf", (9, 6), 0),
+        PrintError,
+        "must be a positive length in mm",
+    ),
+    (
+        "board larger than the paper",
+        lambda out: board_pdf(out / "b.pdf", (9, 6), 1000),
+        PrintError,
+        "the largest square that fits is",
+    ),
+    (
+        "ChArUco marker larger than its square",
+        lambda out: board_pdf(out / "b.pdf", (4, 6), 20, charuco=True, marker_mm=30),
+        PrintError,
+        "must be smaller than --square-mm 20",
+    ),
+    (
+        "ChArUco board larger than its dictionary",
+        lambda out: board_pdf(out / "b.pdf", (14, 19), 10, charuco=True, marker_mm=7, dictionary="4X4_50"),
+        PrintError,
+        "needs 150 markers but 4X4_50 has only 50",
+    ),
 ]
 
 
@@ -936,7 +1355,12 @@ def test_bad_printable(tmp_path, make, error, fragment):
 CHARUCO = [
     ("no images", [], {}, "no images given"),
     ("1x1 squares", [BLANK] * 3, {"squares": (1, 1)}, "must count at least 2 chess squares each way"),
-    ("marker larger than its square", [BLANK] * 3, {"square_size_mm": 20, "marker_size_mm": 30}, "must be smaller than square_size_mm (20)"),
+    (
+        "marker larger than its square",
+        [BLANK] * 3,
+        {"square_size_mm": 20, "marker_size_mm": 30},
+        "must be smaller than square_size_mm (20)",
+    ),
     ("unknown legacy value", [BLANK] * 3, {"legacy": "maybe"}, "legacy must be True, False or 'auto'"),
     ("too few corners asked for", [BLANK] * 3, {"min_corners": 0}, "min_corners must be at least 4"),
     ("no board in the pictures", [BLANK] * 3, {}, "no 6X6_250 marker in the picture; check the dictionary"),
@@ -967,13 +1391,29 @@ from fidlearn.tracking import MarkerTracker  # noqa: E402
 TRACKER_OPTIONS = [
     ("a map file name", lambda m, c: MarkerTracker("map.json", c), "use MarkerMap.load('map.json')"),
     ("K instead of a camera", lambda m, c: MarkerTracker(m, c.K), "use Camera.load('camera.json')"),
-    ("full_every 0", lambda m, c: MarkerTracker(m, c, full_every=0), "full_every must be a whole number of frames >= 1"),
+    (
+        "full_every 0",
+        lambda m, c: MarkerTracker(m, c, full_every=0),
+        "full_every must be a whole number of frames >= 1",
+    ),
     ("full_every True", lambda m, c: MarkerTracker(m, c, full_every=True), "got True"),
-    ("NaN search margin", lambda m, c: MarkerTracker(m, c, search_px=float("nan")), "search_px must be a number of pixels >= 0"),
-    ("misspelt pose option", lambda m, c: MarkerTracker(m, c, metod="auto"), "unknown pose option metod; estimate_pose takes method"),
+    (
+        "NaN search margin",
+        lambda m, c: MarkerTracker(m, c, search_px=float("nan")),
+        "search_px must be a number of pixels >= 0",
+    ),
+    (
+        "misspelt pose option",
+        lambda m, c: MarkerTracker(m, c, metod="auto"),
+        "unknown pose option metod; estimate_pose takes method",
+    ),
     ("unknown method", lambda m, c: MarkerTracker(m, c, method="magic"), "unknown method 'magic'"),
     ("unknown refinement", lambda m, c: MarkerTracker(m, c, refine="sharp"), "unknown corner refinement 'sharp'"),
-    ("unknown detector parameter", lambda m, c: MarkerTracker(m, c, detector_params={"nope": 1}), "has no field 'nope'"),
+    (
+        "unknown detector parameter",
+        lambda m, c: MarkerTracker(m, c, detector_params={"nope": 1}),
+        "has no field 'nope'",
+    ),
 ]
 
 
@@ -1034,15 +1474,60 @@ def test_bad_notebook_to_grade(tmp_path, monkeypatch, capsys, name, fragment):
 
 # -- fuzzing the command line ---------------------------------------------------------------
 ARG_WORDS = [
-    "corners", "markers", "board", "map.json", "bare.json", "deep.json", "photo.png", "outdir", "nope.json",
-    "-o", "out.json", "out.pdf", "out.png", "out.svg", "outdir/c.json", "--units", "ft", "mm", "parsec",
-    "--marker-size-mm", "--size-mm", "--square-mm", "--marker-mm", "80", "-5", "0", "nan", "1e9", "--dictionary",
-    "6X6_250", "4X4_50", "--ids", "0-3", "3-0", "0,0", "--pattern", "9x6", "1x1", "--charuco", "--squares", "5x7",
-    "--paper", "a4", "a3", "--dpi", "30", "--bogus", "",
+    "corners",
+    "markers",
+    "board",
+    "map.json",
+    "bare.json",
+    "deep.json",
+    "photo.png",
+    "outdir",
+    "nope.json",
+    "-o",
+    "out.json",
+    "out.pdf",
+    "out.png",
+    "out.svg",
+    "outdir/c.json",
+    "--units",
+    "ft",
+    "mm",
+    "parsec",
+    "--marker-size-mm",
+    "--size-mm",
+    "--square-mm",
+    "--marker-mm",
+    "80",
+    "-5",
+    "0",
+    "nan",
+    "1e9",
+    "--dictionary",
+    "6X6_250",
+    "4X4_50",
+    "--ids",
+    "0-3",
+    "3-0",
+    "0,0",
+    "--pattern",
+    "9x6",
+    "1x1",
+    "--charuco",
+    "--squares",
+    "5x7",
+    "--paper",
+    "a4",
+    "a3",
+    "--dpi",
+    "30",
+    "--bogus",
+    "",
 ]
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+)
 @given(argv=st.lists(st.sampled_from(ARG_WORDS), min_size=1, max_size=9))
 def test_command_line_fuzz_succeeds_or_says_one_error_line(tmp_path_factory, capsys, argv):
     """Random arguments: status 0 with the output written, or status 2 with one ``error:`` line and nothing written."""

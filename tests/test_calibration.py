@@ -27,6 +27,7 @@ def _rel(a: float, b: float) -> float:
 # Real checkerboard photos (OpenCV's samples/data right*.jpg)
 # ---------------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def right_files():
     files = sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))
@@ -85,7 +86,9 @@ def test_checkerboard_std_and_per_view_errors_are_opencvs(right_files, right_cal
     assert list(cal.std_intrinsics) == ["fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"]
     np.testing.assert_allclose(list(cal.std_intrinsics.values()), ref["std"][:9], rtol=0.02, atol=1e-4)
     assert 0.3 < cal.std_intrinsics["fx"] < 3.0  # about 1 px on 13 views
-    np.testing.assert_allclose([cal.per_view_rms_px[str(f)] for f in right_files], ref["per_view"], rtol=0.02, atol=1e-3)
+    np.testing.assert_allclose(
+        [cal.per_view_rms_px[str(f)] for f in right_files], ref["per_view"], rtol=0.02, atol=1e-3
+    )
 
 
 def test_outlier_view_is_rejected_and_reported(right_files, right_cal, plain_opencv):
@@ -141,6 +144,7 @@ def test_public_names():
 # Rejections and errors
 # ---------------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def right_grays(right_files):
     return [cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in right_files[2:6]]
@@ -152,10 +156,17 @@ def test_mixed_inputs_other_size_and_blank_are_rejected_with_reasons(right_files
     bgr = cv2.cvtColor(right_grays[1], cv2.COLOR_GRAY2BGR)
     images = [right_files[2], bgr, big, str(right_files[4]), blank, right_grays[3]]
     seen = []
-    cal = calibrate_checkerboard(images, "9x6", SQUARE_MM, progress=lambda i, n, name: seen.append((i, n, name)),
-                                 reject_outliers=False)
-    assert seen == [(1, 6, str(right_files[2])), (2, 6, "image 1"), (3, 6, "image 2"), (4, 6, str(right_files[4])),
-                    (5, 6, "image 4"), (6, 6, "image 5")]
+    cal = calibrate_checkerboard(
+        images, "9x6", SQUARE_MM, progress=lambda i, n, name: seen.append((i, n, name)), reject_outliers=False
+    )
+    assert seen == [
+        (1, 6, str(right_files[2])),
+        (2, 6, "image 1"),
+        (3, 6, "image 2"),
+        (4, 6, str(right_files[4])),
+        (5, 6, "image 4"),
+        (6, 6, "image 5"),
+    ]
     assert cal.used == [str(right_files[2]), "image 1", str(right_files[4]), "image 5"]
     reasons = dict(cal.rejected)
     assert set(reasons) == {"image 2", "image 4"}
@@ -187,14 +198,20 @@ def test_unreadable_files_are_rejected_with_the_image_error(tmp_path, right_gray
 
 def test_too_few_views_says_how_many_and_why(right_grays):
     blank = np.zeros((480, 640), np.uint8)
-    with pytest.raises(CalibrationError, match=r"at least 3 views with the board found, got 2 of 3: not found: 1 "
-                                               r"\(image 2; board not found \(9x6 inner corners\)"):
+    with pytest.raises(
+        CalibrationError,
+        match=r"at least 3 views with the board found, got 2 of 3: not found: 1 "
+        r"\(image 2; board not found \(9x6 inner corners\)",
+    ):
         calibrate_checkerboard(right_grays[:2] + [blank], PATTERN, SQUARE_MM)
 
 
 def test_squares_instead_of_inner_corners_gets_the_hint(right_grays):
-    with pytest.raises(CalibrationError, match=r"pattern_size counts inner corners, not squares: a board of 10x7 "
-                                               r"squares has 9x6 inner corners"):
+    with pytest.raises(
+        CalibrationError,
+        match=r"pattern_size counts inner corners, not squares: a board of 10x7 "
+        r"squares has 9x6 inner corners",
+    ):
         calibrate_checkerboard(right_grays[:3], (10, 7), SQUARE_MM)
 
 
@@ -205,23 +222,29 @@ def test_swapped_pattern_size_is_found_all_the_same(right_grays):
     assert _rel(a.camera.fx, b.camera.fx) < 0.005
 
 
-@pytest.mark.parametrize("square, match", [
-    (0, "square_size_mm must be positive, got 0"),
-    (-25, "square_size_mm must be positive"),
-    (float("nan"), "square_size_mm must be positive"),
-    ("big", "square_size_mm must be a number"),
-])
+@pytest.mark.parametrize(
+    "square, match",
+    [
+        (0, "square_size_mm must be positive, got 0"),
+        (-25, "square_size_mm must be positive"),
+        (float("nan"), "square_size_mm must be positive"),
+        ("big", "square_size_mm must be a number"),
+    ],
+)
 def test_bad_square_size(square, match, right_grays):
     with pytest.raises(CalibrationError, match=match):
         calibrate_checkerboard(right_grays, PATTERN, square)
 
 
-@pytest.mark.parametrize("pattern, match", [
-    ((2, 6), r"needs at least 3 each way; a board of 10x7 squares has 9x6 inner corners"),
-    ((9.5, 6), "two whole numbers"),
-    ("nine by six", "two whole numbers"),
-    (9, "two whole numbers"),
-])
+@pytest.mark.parametrize(
+    "pattern, match",
+    [
+        ((2, 6), r"needs at least 3 each way; a board of 10x7 squares has 9x6 inner corners"),
+        ((9.5, 6), "two whole numbers"),
+        ("nine by six", "two whole numbers"),
+        (9, "two whole numbers"),
+    ],
+)
 def test_bad_pattern_size(pattern, match, right_grays):
     with pytest.raises(CalibrationError, match=match):
         calibrate_checkerboard(right_grays, pattern, SQUARE_MM)
@@ -246,7 +269,12 @@ def test_a_folder_stands_for_its_images(right_files, tmp_path):
 
 def test_a_glob_pattern_stands_for_the_files_it_matches(right_files):
     cal = calibrate_checkerboard(str(right_files[0].parent / "right1*.jpg"), PATTERN, SQUARE_MM, reject_outliers=False)
-    assert [v.name.rsplit("/", 1)[-1] for v in cal.views] == ["right11.jpg", "right12.jpg", "right13.jpg", "right14.jpg"]
+    assert [v.name.rsplit("/", 1)[-1] for v in cal.views] == [
+        "right11.jpg",
+        "right12.jpg",
+        "right13.jpg",
+        "right14.jpg",
+    ]
     with pytest.raises(CalibrationError, match="no file matches this pattern"):
         calibrate_checkerboard(str(right_files[0].parent / "left*.jpg"), PATTERN, SQUARE_MM)
 
@@ -256,10 +284,16 @@ def test_repeated_photos_of_a_still_board_are_rejected_as_duplicates(right_grays
     noisy = np.clip(same.astype(int) + np.random.default_rng(0).integers(-3, 4, same.shape), 0, 255).astype(np.uint8)
     kept = calibrate_checkerboard([same, noisy] + right_grays[1:], PATTERN, SQUARE_MM, reject_outliers=False)
     assert kept.rejected == []  # by default (the command line warns about them instead)
-    cal = calibrate_checkerboard([same, noisy] + right_grays[1:], PATTERN, SQUARE_MM, reject_outliers=False,
-                                 reject_duplicates=True)
-    assert cal.rejected == [("image 1", "duplicate: the board sits where it sat in image 0 (every corner within 1 px): "
-                                        "move or tilt the board between photos")]
+    cal = calibrate_checkerboard(
+        [same, noisy] + right_grays[1:], PATTERN, SQUARE_MM, reject_outliers=False, reject_duplicates=True
+    )
+    assert cal.rejected == [
+        (
+            "image 1",
+            "duplicate: the board sits where it sat in image 0 (every corner within 1 px): "
+            "move or tilt the board between photos",
+        )
+    ]
     with pytest.raises(CalibrationError, match=r"got 1 of 3: duplicate: 2 \(image 1, image 2; the board sits where"):
         calibrate_checkerboard([same, same, noisy], PATTERN, SQUARE_MM, reject_duplicates=True)
 
@@ -271,6 +305,7 @@ def test_calibration_errors_are_fidlearn_errors():
 # ---------------------------------------------------------------------------------------------
 # Synthetic views with the true camera (data/calibration, tools/make_data.py)
 # ---------------------------------------------------------------------------------------------
+
 
 def test_synthetic_views_recover_the_true_camera():
     truth = Camera.load(data_path("calibration", "camera_true.json"))
@@ -308,6 +343,7 @@ def test_sector_corner_finder_also_works_on_synthetic_views():
 # ---------------------------------------------------------------------------------------------
 # ChArUco (opencv_contrib's tutorial photos and their published calibration)
 # ---------------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def charuco_files():
@@ -396,17 +432,25 @@ def test_charuco_auto_finds_an_old_boards_layout(legacy_board_views):
 
 
 def test_charuco_wrong_layout_says_to_try_legacy(legacy_board_views):
-    with pytest.raises(CalibrationError, match=r"only 0 chess corners \(need 6\); a board with an even number of rows "
-                                               r"printed before OpenCV 4.6 needs legacy=True"):
+    with pytest.raises(
+        CalibrationError,
+        match=r"only 0 chess corners \(need 6\); a board with an even number of rows "
+        r"printed before OpenCV 4.6 needs legacy=True",
+    ):
         calibrate_charuco(legacy_board_views, squares=(5, 6), legacy=False)
-    with pytest.raises(CalibrationError, match=r"The board is found with legacy=True: boards with an even number of rows"):
+    with pytest.raises(
+        CalibrationError, match=r"The board is found with legacy=True: boards with an even number of rows"
+    ):
         calibrate_charuco(legacy_board_views, squares=(5, 6), legacy=False)
 
 
 def test_charuco_swapped_squares_gets_the_hint(charuco_files):
-    with pytest.raises(CalibrationError, match=r"got 0 of 3: not found: 3 \(img_00.jpg, img_01.jpg, img_02.jpg; board not "
-                                               r"found: 17 markers but only 0 chess corners \(need 6\); check squares=\(7, 5\).*"
-                                               r"The board is found with squares=\(5, 7\): squares counts \(x, y\)"):
+    with pytest.raises(
+        CalibrationError,
+        match=r"got 0 of 3: not found: 3 \(img_00.jpg, img_01.jpg, img_02.jpg; board not "
+        r"found: 17 markers but only 0 chess corners \(need 6\); check squares=\(7, 5\).*"
+        r"The board is found with squares=\(5, 7\): squares counts \(x, y\)",
+    ):
         calibrate_charuco(charuco_files[:3], squares=(7, 5))
 
 
@@ -441,7 +485,10 @@ def test_squares_hint_names_the_option_once(right_grays):
 def test_square_size_in_metres_warns(right_grays):
     # OpenCV's tutorials give sizes in metres (0.025); fidlearn takes mm. K is the same, but every
     # distance derived from the board comes out 1000 times too small, silently.
-    with pytest.warns(FidlearnWarning, match=r"square_size_mm=0.025 means 0.025 mm.*give millimetres \(25; command line: --square-mm\)"):
+    with pytest.warns(
+        FidlearnWarning,
+        match=r"square_size_mm=0.025 means 0.025 mm.*give millimetres \(25; command line: --square-mm\)",
+    ):
         cal = calibrate_checkerboard(right_grays[:4], PATTERN, 0.025)
     T = next(iter(cal.T_camera_board.values()))
     assert T[2, 3] < 1.0  # the board "0.3 mm" from the camera: what the warning is about

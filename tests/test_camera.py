@@ -83,7 +83,10 @@ def test_scaled_keeps_the_geometry(cam):
 
 
 def test_scaled_refuses_another_aspect_ratio(cam):
-    with pytest.raises(CameraError, match=r"calibrated at 1280x720 .* cannot be used on 640x480 .* calibrate at the resolution you run at"):
+    with pytest.raises(
+        CameraError,
+        match=r"calibrated at 1280x720 .* cannot be used on 640x480 .* calibrate at the resolution you run at",
+    ):
         cam.scaled((640, 480))
 
 
@@ -109,11 +112,17 @@ GOOD = {"camera_matrix": K.tolist(), "dist_coeffs": DIST.tolist(), "image_size":
     "change, message",
     [
         ({"camera_matrix": [[800, 0], [0, 800]]}, r"camera_matrix has shape \(2, 2\), expected 3x3"),
-        ({"camera_matrix": [[0, 0, 640], [0, 800, 360], [0, 0, 1]]}, "focal lengths fx=0, fy=800; both must be positive"),
+        (
+            {"camera_matrix": [[0, 0, 640], [0, 800, 360], [0, 0, 1]]},
+            "focal lengths fx=0, fy=800; both must be positive",
+        ),
         ({"camera_matrix": [[800, 0, 0], [0, 800, 0], [640, 360, 1]]}, "it looks transposed"),
         ({"camera_matrix": [[800, 0, 640], [0, "x", 360], [0, 0, 1]]}, "camera_matrix is not numeric"),
         ({"camera_matrix": [[800, 0, 640], [0, 800, 360], [0, 0, 1.8e304]]}, "holds 1.8e.304, beyond any camera"),
-        ({"camera_matrix": [[800, 0, 640], [0, 800, 360], [0, 0, 2]]}, r"got \[\[800, 0, 640\], \[0, 800, 360\], \[0, 0, 2\]\]"),
+        (
+            {"camera_matrix": [[800, 0, 640], [0, 800, 360], [0, 0, 2]]},
+            r"got \[\[800, 0, 640\], \[0, 800, 360\], \[0, 0, 2\]\]",
+        ),
         ({"dist_coeffs": [0.1, 0.2, 0.3]}, "dist_coeffs has 3 values; OpenCV takes 4, 5, 8, 12 or 14"),
         ({"dist_coeffs": [0.1, 0.2, 0.0, 0.0, 0.0, 0.1]}, "dist_coeffs has 6 values"),
         ({"image_size": [1280]}, r"image_size must be \[width, height\]"),
@@ -163,8 +172,11 @@ def test_repr_names_the_file_not_its_absolute_path(cam, tmp_path):
 def test_map_or_image_given_as_the_camera_says_so(tmp_path):
     # Swapped arguments: the errors were "missing field camera_matrix" and "not UTF-8 text (byte 0
     # is 0x89); save the camera as UTF-8 JSON" for a PNG.
-    with pytest.raises(CameraError, match=r"world_map.json: missing field camera_matrix: "
-                                          r"this is a world map \(marker placements\), not a camera file"):
+    with pytest.raises(
+        CameraError,
+        match=r"world_map.json: missing field camera_matrix: "
+        r"this is a world map \(marker placements\), not a camera file",
+    ):
         Camera.load(data_path("world_map.json"))
     bare = tmp_path / "bare.json"
     bare.write_text(json.dumps({"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]}}))

@@ -34,8 +34,9 @@ def run(capsys, *argv):
 
 
 def run_subprocess(*argv, cwd=None):
-    proc = subprocess.run([sys.executable, "-m", "fidlearn", *map(str, argv)], capture_output=True, text=True,
-                          cwd=cwd, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "fidlearn", *map(str, argv)], capture_output=True, text=True, cwd=cwd, timeout=120
+    )
     return proc.returncode, proc.stdout, proc.stderr
 
 
@@ -108,8 +109,9 @@ def test_corners_missing_units_is_an_error(capsys, seed_bare, tmp_path):
 # -- markers and board ---------------------------------------------------------------------------
 def test_markers_subprocess_pdf(tmp_path):
     pdfium = pytest.importorskip("pypdfium2")
-    code, out, err = run_subprocess("markers", "--ids", "0-3,8", "--size-mm", 40, "--dictionary", "6X6_250",
-                                    "-o", "m.pdf", cwd=tmp_path)
+    code, out, err = run_subprocess(
+        "markers", "--ids", "0-3,8", "--size-mm", 40, "--dictionary", "6X6_250", "-o", "m.pdf", cwd=tmp_path
+    )
     assert code == 0, err
     assert "5 markers of 40 mm (6X6_250) on 1 a4 page" in out
     doc = pdfium.PdfDocument(str(tmp_path / "m.pdf"))
@@ -123,8 +125,9 @@ def test_markers_subprocess_pdf(tmp_path):
 
 
 def test_markers_png_pages(capsys, tmp_path):
-    code, out, err = run(capsys, "markers", "--ids", "0-2", "--size-mm", 80, "--paper", "letter", "--dpi", 50,
-                         "-o", tmp_path / "m.png")
+    code, out, err = run(
+        capsys, "markers", "--ids", "0-2", "--size-mm", 80, "--paper", "letter", "--dpi", 50, "-o", tmp_path / "m.png"
+    )
     assert code == 0, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m-1.png", "m-2.png"]
     img = cv2.imread(str(tmp_path / "m-1.png"))
@@ -139,8 +142,21 @@ def test_board_pdf(capsys, tmp_path):
 
 
 def test_board_charuco_png(capsys, tmp_path):
-    code, out, err = run(capsys, "board", "--squares", "5x7", "--square-mm", 30, "--charuco", "--marker-mm", 22,
-                         "--dpi", 100, "-o", tmp_path / "ch.png")
+    code, out, err = run(
+        capsys,
+        "board",
+        "--squares",
+        "5x7",
+        "--square-mm",
+        30,
+        "--charuco",
+        "--marker-mm",
+        22,
+        "--dpi",
+        100,
+        "-o",
+        tmp_path / "ch.png",
+    )
     assert code == 0, err
     assert "ChArUco 5x7 squares (4x6 inner corners), square 30 mm, marker 22 mm, 6X6_250" in out
     gray = cv2.imread(str(tmp_path / "ch.png"), cv2.IMREAD_GRAYSCALE)
@@ -159,12 +175,36 @@ def test_board_too_big_says_largest(capsys, tmp_path):
 def test_render_pose_and_look_at_agree_with_truth(capsys, ideal_camera, tmp_path):
     wall = data_path("world_map.json")
     a, b = tmp_path / "a.png", tmp_path / "b.png"
-    code, out, err = run(capsys, "render", "--map", wall, "--camera", ideal_camera, "--pose", "1200,150,250,-90,0,90",
-                         "-o", a, "--truth", tmp_path / "truth.json")
+    code, out, err = run(
+        capsys,
+        "render",
+        "--map",
+        wall,
+        "--camera",
+        ideal_camera,
+        "--pose",
+        "1200,150,250,-90,0,90",
+        "-o",
+        a,
+        "--truth",
+        tmp_path / "truth.json",
+    )
     assert code == 0, err
     assert "markers seen whole: 0, 1, 2" in out
-    code, out, err = run(capsys, "render", "--map", wall, "--camera", ideal_camera, "--from", "1200,150,250",
-                         "--look-at", "0,150,250", "-o", b)
+    code, out, err = run(
+        capsys,
+        "render",
+        "--map",
+        wall,
+        "--camera",
+        ideal_camera,
+        "--from",
+        "1200,150,250",
+        "--look-at",
+        "0,150,250",
+        "-o",
+        b,
+    )
     assert code == 0, err
     img_a, img_b = cv2.imread(str(a), cv2.IMREAD_GRAYSCALE), cv2.imread(str(b), cv2.IMREAD_GRAYSCALE)
     assert img_a.shape == (480, 640)
@@ -185,8 +225,18 @@ def test_render_pose_and_look_at_agree_with_truth(capsys, ideal_camera, tmp_path
 
 
 def test_render_nothing_in_view_warns(capsys, ideal_camera, tmp_path):
-    code, out, err = run(capsys, "render", "--map", data_path("world_map.json"), "--camera", ideal_camera,
-                         "--pose", "1200,150,250,-90,0,-90", "-o", tmp_path / "away.png")
+    code, out, err = run(
+        capsys,
+        "render",
+        "--map",
+        data_path("world_map.json"),
+        "--camera",
+        ideal_camera,
+        "--pose",
+        "1200,150,250,-90,0,-90",
+        "-o",
+        tmp_path / "away.png",
+    )
     assert code == 0
     assert "markers seen whole: none" in out
     assert err.startswith("warning: no marker of the map is in view")
@@ -195,8 +245,19 @@ def test_render_nothing_in_view_warns(capsys, ideal_camera, tmp_path):
 # -- calibrate -------------------------------------------------------------------------------
 def test_calibrate_reproduces_the_true_camera(capsys, tmp_path):
     out_path = tmp_path / "camera.json"
-    code, out, err = run(capsys, "calibrate", data_path("calibration"), "--pattern", "9x6", "--square-mm", 25,
-                         "-o", out_path, "--annotate", tmp_path / "ann")
+    code, out, err = run(
+        capsys,
+        "calibrate",
+        data_path("calibration"),
+        "--pattern",
+        "9x6",
+        "--square-mm",
+        25,
+        "-o",
+        out_path,
+        "--annotate",
+        tmp_path / "ann",
+    )
     assert code == 0, err
     # 20 well-spread views: no warning, just the counter line (stderr is not a terminal here)
     assert err == "calibrate: searched 20 images, board found in 20\n"
@@ -217,12 +278,28 @@ def test_calibrate_reproduces_the_true_camera(capsys, tmp_path):
 def test_calibrate_real_charuco_matches_opencv_and_warns(capsys, tmp_path):
     images = sorted(data_path("real", "opencv_charuco").glob("img_0*.jpg"))
     out_path = tmp_path / "camera.yml"
-    code, out, err = run(capsys, "calibrate", *images, "--charuco", "--squares", "5x7", "--square-mm", 40,
-                         "--marker-mm", 20, "--dictionary", "6X6_250", "-o", out_path)
+    code, out, err = run(
+        capsys,
+        "calibrate",
+        *images,
+        "--charuco",
+        "--squares",
+        "5x7",
+        "--square-mm",
+        40,
+        "--marker-mm",
+        20,
+        "--dictionary",
+        "6X6_250",
+        "-o",
+        out_path,
+    )
     assert code == 0, err
     cam = Camera.load(out_path)
     found = np.array([cam.fx, cam.fy, cam.cx, cam.cy])
-    std = np.array([float(l.split("±")[1].split()[0]) for l in out.splitlines() if l.strip()[:2] in ("fx", "fy", "cx", "cy")])
+    std = np.array(
+        [float(l.split("±")[1].split()[0]) for l in out.splitlines() if l.strip()[:2] in ("fx", "fy", "cx", "cy")]
+    )
     # OpenCV's tutorial file (an older OpenCV, same four photos): within 3 of the printed standard deviations
     assert np.all(np.abs(found - [452.511, 456.767, 317.703, 277.752]) < 3 * std), (found, std)
     if cv2.__version__.startswith("5."):
@@ -236,8 +313,20 @@ def test_calibrate_real_charuco_matches_opencv_and_warns(capsys, tmp_path):
 
 def test_calibrate_duplicate_photo_warns(capsys, tmp_path):
     views = sorted(data_path("calibration").glob("view_*.png"))[:10]
-    code, out, err = run(capsys, "calibrate", *views, views[3], "--pattern", "9x6", "--square-mm", 25,
-                         "-o", tmp_path / "c.json", "--annotate", tmp_path / "ann")
+    code, out, err = run(
+        capsys,
+        "calibrate",
+        *views,
+        views[3],
+        "--pattern",
+        "9x6",
+        "--square-mm",
+        25,
+        "-o",
+        tmp_path / "c.json",
+        "--annotate",
+        tmp_path / "ann",
+    )
     assert code == 0, err
     assert "1 pair(s) of nearly identical views (e.g. view_03.png and view_03.png (2))" in err
     assert len(list((tmp_path / "ann").iterdir())) == 11
@@ -299,8 +388,19 @@ def assert_pose_close(T_est, T_true, what):
 def test_locate_reproduces_known_poses(capsys, tmp_path, map_name):
     shots = scenes_truth()[map_name]
     jsonl, ann = tmp_path / "poses.jsonl", tmp_path / "ann"
-    code, out, err = run(capsys, "locate", *[p for p, _ in shots], "--camera", data_path("scenes", "camera.json"),
-                         "--map", data_path(map_name), "--json", jsonl, "--annotate", ann)
+    code, out, err = run(
+        capsys,
+        "locate",
+        *[p for p, _ in shots],
+        "--camera",
+        data_path("scenes", "camera.json"),
+        "--map",
+        data_path(map_name),
+        "--json",
+        jsonl,
+        "--annotate",
+        ann,
+    )
     assert code == 0, err
     assert err == ""
     records = [json.loads(line) for line in jsonl.read_text().splitlines()]
@@ -325,8 +425,21 @@ def test_locate_bare_map_in_feet(capsys, tmp_path):
     bare = tmp_path / "bare.json"
     bare.write_text(json.dumps(full["markers"]))
     shots = scenes_truth()["world_map.json"][:2]
-    code, out, err = run(capsys, "locate", *[p for p, _ in shots], "--camera", data_path("scenes", "camera.json"),
-                         "--map", bare, "--units", "ft", "--marker-size-mm", 80, "--json", tmp_path / "p.jsonl")
+    code, out, err = run(
+        capsys,
+        "locate",
+        *[p for p, _ in shots],
+        "--camera",
+        data_path("scenes", "camera.json"),
+        "--map",
+        bare,
+        "--units",
+        "ft",
+        "--marker-size-mm",
+        80,
+        "--json",
+        tmp_path / "p.jsonl",
+    )
     assert code == 0, err
     for line, (path, T_true) in zip((tmp_path / "p.jsonl").read_text().splitlines(), shots):
         assert_pose_close(np.array(json.loads(line)["T_world_camera"]), T_true, path.name)
@@ -337,14 +450,26 @@ def test_locate_bare_map_in_feet(capsys, tmp_path):
 def test_locate_frame_without_markers_is_reported(capsys, tmp_path, ideal_camera):
     blank = tmp_path / "wall.png"
     cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
-    code, out, err = run(capsys, "locate", blank, "--camera", ideal_camera, "--map", data_path("world_map.json"),
-                         "--json", tmp_path / "p.jsonl")
+    code, out, err = run(
+        capsys,
+        "locate",
+        blank,
+        "--camera",
+        ideal_camera,
+        "--map",
+        data_path("world_map.json"),
+        "--json",
+        tmp_path / "p.jsonl",
+    )
     assert code == 0, err
     assert "wall.png" in out and "no known marker" in out
     rec = json.loads((tmp_path / "p.jsonl").read_text())
     assert rec == {"frame": "wall.png", "located": False, "reason": "no known marker", "detected_ids": []}
     stranger = tmp_path / "stranger.png"  # a marker, but not one of the map's
-    cv2.imwrite(str(stranger), np.pad(_cv.generate_marker("ARUCO_ORIGINAL", 7, 140), ((170, 170), (250, 250)), constant_values=255))
+    cv2.imwrite(
+        str(stranger),
+        np.pad(_cv.generate_marker("ARUCO_ORIGINAL", 7, 140), ((170, 170), (250, 250)), constant_values=255),
+    )
     code, out, err = run(capsys, "locate", stranger, "--camera", ideal_camera, "--map", data_path("world_map.json"))
     assert code == 0, err
     assert "no known marker (saw ids 7, not in the map)" in out.splitlines()[1]
@@ -360,8 +485,16 @@ def test_locate_video_subprocess(tmp_path):
     for path, _ in shots:
         writer.write(cv2.imread(str(path)))
     writer.release()
-    code, out, err = run_subprocess("locate", video, "--camera", data_path("trajectory", "camera.json"),
-                                    "--map", data_path(record["map"]), "--json", tmp_path / "drive.jsonl")
+    code, out, err = run_subprocess(
+        "locate",
+        video,
+        "--camera",
+        data_path("trajectory", "camera.json"),
+        "--map",
+        data_path(record["map"]),
+        "--json",
+        tmp_path / "drive.jsonl",
+    )
     assert code == 0, err
     records = [json.loads(line) for line in (tmp_path / "drive.jsonl").read_text().splitlines()]
     assert [r["frame"] for r in records] == [f"drive.avi#{k}" for k in range(len(shots))]
@@ -382,8 +515,20 @@ def test_locate_error_midway_leaves_nothing(capsys, tmp_path):
     good = data_path("scenes", "scene_00.png")
     broken = tmp_path / "broken.png"
     broken.write_bytes(good.read_bytes()[:200])  # a truncated PNG after a good one
-    code, out, err = run(capsys, "locate", good, broken, "--camera", data_path("scenes", "camera.json"),
-                         "--map", data_path("world_map.json"), "--json", tmp_path / "p.jsonl", "--annotate", tmp_path / "ann")
+    code, out, err = run(
+        capsys,
+        "locate",
+        good,
+        broken,
+        "--camera",
+        data_path("scenes", "camera.json"),
+        "--map",
+        data_path("world_map.json"),
+        "--json",
+        tmp_path / "p.jsonl",
+        "--annotate",
+        tmp_path / "ann",
+    )
     assert_user_error(code, err, "broken.png")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.png"]
 
@@ -396,46 +541,124 @@ def _other_aspect_camera(tmp_path):
 
 
 BAD = {
-    "missing map file": (["corners", "{tmp}/nope.json", "--units", "ft", "-o", "{tmp}/out.json"], ["nope.json", "no such file"]),
+    "missing map file": (
+        ["corners", "{tmp}/nope.json", "--units", "ft", "-o", "{tmp}/out.json"],
+        ["nope.json", "no such file"],
+    ),
     "bad pattern": (["board", "--pattern", "9by6", "--square-mm", "25", "-o", "{tmp}/out.pdf"], ["'9by6'", "9x6"]),
-    "negative size": (["markers", "--ids", "0-3", "--size-mm", "-80", "-o", "{tmp}/out.pdf"], ["--size-mm", "positive"]),
-    "size not a number": (["markers", "--ids", "0-3", "--size-mm", "big", "-o", "{tmp}/out.pdf"], ["--size-mm", "'big'"]),
-    "unknown dictionary": (["markers", "--ids", "0-3", "--size-mm", "50", "--dictionary", "7X7_9", "-o", "{tmp}/out.pdf"],
-                           ["unknown ArUco dictionary '7X7_9'", "7X7_50"]),
-    "id not in dictionary": (["markers", "--ids", "48-52", "--size-mm", "50", "--dictionary", "4X4_50", "-o", "{tmp}/out.pdf"],
-                             ["marker id 50", "0 to 49"]),
+    "negative size": (
+        ["markers", "--ids", "0-3", "--size-mm", "-80", "-o", "{tmp}/out.pdf"],
+        ["--size-mm", "positive"],
+    ),
+    "size not a number": (
+        ["markers", "--ids", "0-3", "--size-mm", "big", "-o", "{tmp}/out.pdf"],
+        ["--size-mm", "'big'"],
+    ),
+    "unknown dictionary": (
+        ["markers", "--ids", "0-3", "--size-mm", "50", "--dictionary", "7X7_9", "-o", "{tmp}/out.pdf"],
+        ["unknown ArUco dictionary '7X7_9'", "7X7_50"],
+    ),
+    "id not in dictionary": (
+        ["markers", "--ids", "48-52", "--size-mm", "50", "--dictionary", "4X4_50", "-o", "{tmp}/out.pdf"],
+        ["marker id 50", "0 to 49"],
+    ),
     "bad ids": (["markers", "--ids", "0-", "--size-mm", "50", "-o", "{tmp}/out.pdf"], ["--ids", "0-9"]),
     "unknown output type": (["markers", "--ids", "0", "--size-mm", "50", "-o", "{tmp}/out.svg"], [".pdf or .png"]),
-    "missing output folder": (["markers", "--ids", "0", "--size-mm", "50", "-o", "{tmp}/no/out.pdf"], ["does not exist"]),
-    "charuco options without --charuco": (["board", "--pattern", "9x6", "--square-mm", "20", "--marker-mm", "15",
-                                           "-o", "{tmp}/out.pdf"], ["--charuco"]),
-    "camera of another aspect ratio": (["render", "--map", "{data}/world_map.json", "--camera", "{wide}",
-                                        "--pose", "1200,150,250,-90,0,90", "--size", "640x480", "-o", "{tmp}/out.png"],
-                                       ["aspect", "calibrate at the resolution"]),
-    "locate: missing image": (["locate", "{tmp}/nope.png", "--camera", "{wide}", "--map", "{data}/world_map.json",
-                               "--json", "{tmp}/p.jsonl"], ["nope.png", "no such file"]),
-    "locate: empty folder": (["locate", "{tmp}/empty", "--camera", "{wide}", "--map", "{data}/world_map.json",
-                              "--annotate", "{tmp}/ann"], ["empty", "no images"]),
-    "locate: camera of another aspect ratio": (["locate", "{data}/scenes/scene_00.png", "--camera", "{four3}",
-                                                "--map", "{data}/world_map.json", "--json", "{tmp}/p.jsonl",
-                                                "--annotate", "{tmp}/ann"], ["aspect", "calibrate at the resolution"]),
-    "locate: unreadable video": (["locate", "{tmp}/bad.mp4", "--camera", "{wide}", "--map", "{data}/world_map.json",
-                                  "--json", "{tmp}/p.jsonl"], ["bad.mp4", "cannot open this video"]),
-    "locate: nothing to read": (["locate", "--camera", "{wide}", "--map", "{data}/world_map.json"],
-                                ["--camera-index"]),
-    "calibrate: empty folder": (["calibrate", "{tmp}/empty", "--pattern", "9x6", "--square-mm", "25", "-o", "{tmp}/c.json"],
-                                 ["empty", "no images"]),
-    "calibrate: bad pattern": (["calibrate", "{data}/calibration", "--pattern", "9by6", "--square-mm", "25",
-                                "-o", "{tmp}/c.json"], ["'9by6'", "9x6"]),
-    "calibrate: squares counted as corners": (["calibrate", "{data}/calibration/view_00.png",
-                                               "{data}/calibration/view_01.png",
-                                               "{data}/calibration/view_02.png", "--pattern", "10x7",
-                                               "--square-mm", "25", "-o", "{tmp}/c.json", "--annotate", "{tmp}/ann"],
-                                              ["inner corners"]),
-    "calibrate: charuco without marker size": (["calibrate", "{data}/calibration", "--charuco", "--squares", "5x7",
-                                                "--square-mm", "40", "-o", "{tmp}/c.json"], ["--marker-mm"]),
-    "pose with 5 numbers": (["render", "--map", "{data}/world_map.json", "--camera", "{wide}",
-                             "--pose", "1200,150,250,-90,0", "-o", "{tmp}/out.png"], ["--pose", "6 numbers"]),
+    "missing output folder": (
+        ["markers", "--ids", "0", "--size-mm", "50", "-o", "{tmp}/no/out.pdf"],
+        ["does not exist"],
+    ),
+    "charuco options without --charuco": (
+        ["board", "--pattern", "9x6", "--square-mm", "20", "--marker-mm", "15", "-o", "{tmp}/out.pdf"],
+        ["--charuco"],
+    ),
+    "camera of another aspect ratio": (
+        [
+            "render",
+            "--map",
+            "{data}/world_map.json",
+            "--camera",
+            "{wide}",
+            "--pose",
+            "1200,150,250,-90,0,90",
+            "--size",
+            "640x480",
+            "-o",
+            "{tmp}/out.png",
+        ],
+        ["aspect", "calibrate at the resolution"],
+    ),
+    "locate: missing image": (
+        ["locate", "{tmp}/nope.png", "--camera", "{wide}", "--map", "{data}/world_map.json", "--json", "{tmp}/p.jsonl"],
+        ["nope.png", "no such file"],
+    ),
+    "locate: empty folder": (
+        ["locate", "{tmp}/empty", "--camera", "{wide}", "--map", "{data}/world_map.json", "--annotate", "{tmp}/ann"],
+        ["empty", "no images"],
+    ),
+    "locate: camera of another aspect ratio": (
+        [
+            "locate",
+            "{data}/scenes/scene_00.png",
+            "--camera",
+            "{four3}",
+            "--map",
+            "{data}/world_map.json",
+            "--json",
+            "{tmp}/p.jsonl",
+            "--annotate",
+            "{tmp}/ann",
+        ],
+        ["aspect", "calibrate at the resolution"],
+    ),
+    "locate: unreadable video": (
+        ["locate", "{tmp}/bad.mp4", "--camera", "{wide}", "--map", "{data}/world_map.json", "--json", "{tmp}/p.jsonl"],
+        ["bad.mp4", "cannot open this video"],
+    ),
+    "locate: nothing to read": (["locate", "--camera", "{wide}", "--map", "{data}/world_map.json"], ["--camera-index"]),
+    "calibrate: empty folder": (
+        ["calibrate", "{tmp}/empty", "--pattern", "9x6", "--square-mm", "25", "-o", "{tmp}/c.json"],
+        ["empty", "no images"],
+    ),
+    "calibrate: bad pattern": (
+        ["calibrate", "{data}/calibration", "--pattern", "9by6", "--square-mm", "25", "-o", "{tmp}/c.json"],
+        ["'9by6'", "9x6"],
+    ),
+    "calibrate: squares counted as corners": (
+        [
+            "calibrate",
+            "{data}/calibration/view_00.png",
+            "{data}/calibration/view_01.png",
+            "{data}/calibration/view_02.png",
+            "--pattern",
+            "10x7",
+            "--square-mm",
+            "25",
+            "-o",
+            "{tmp}/c.json",
+            "--annotate",
+            "{tmp}/ann",
+        ],
+        ["inner corners"],
+    ),
+    "calibrate: charuco without marker size": (
+        ["calibrate", "{data}/calibration", "--charuco", "--squares", "5x7", "--square-mm", "40", "-o", "{tmp}/c.json"],
+        ["--marker-mm"],
+    ),
+    "pose with 5 numbers": (
+        [
+            "render",
+            "--map",
+            "{data}/world_map.json",
+            "--camera",
+            "{wide}",
+            "--pose",
+            "1200,150,250,-90,0",
+            "-o",
+            "{tmp}/out.png",
+        ],
+        ["--pose", "6 numbers"],
+    ),
 }
 
 
@@ -474,10 +697,23 @@ def test_locate_video_annotated_frames_are_named_by_frame_number(capsys, tmp_pat
     for img in (first, blank, cv2.imread(str(data_path("trajectory", frames_used[2]["image"])))):
         writer.write(img)
     writer.release()
-    code, out, err = run(capsys, "locate", video, "--camera", data_path("trajectory", "camera.json"),
-                         "--map", data_path(record["map"]), "--annotate", tmp_path / "ann")
+    code, out, err = run(
+        capsys,
+        "locate",
+        video,
+        "--camera",
+        data_path("trajectory", "camera.json"),
+        "--map",
+        data_path(record["map"]),
+        "--annotate",
+        tmp_path / "ann",
+    )
     assert code == 0, err
-    assert sorted(p.name for p in (tmp_path / "ann").iterdir()) == ["drive_00000.png", "drive_00001.png", "drive_00002.png"]
+    assert sorted(p.name for p in (tmp_path / "ann").iterdir()) == [
+        "drive_00000.png",
+        "drive_00001.png",
+        "drive_00002.png",
+    ]
     assert "drive.avi#1" in out and "no known marker" in out
     marked = cv2.imread(str(tmp_path / "ann" / "drive_00001.png"))
     red = (marked[:, :, 2] > 200) & (marked[:, :, 1] < 80) & (marked[:, :, 0] < 80)  # the red "no known marker"
@@ -492,8 +728,16 @@ def test_locate_and_render_take_image_size_for_a_yaml_camera_without_one(capsys,
     yml = data_path("real", "opencv_aruco_photo", "tutorial_camera_params.yml")
     photo = data_path("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg")
     desk = tmp_path / "desk.json"  # marker 23 alone, 50 mm, as in OpenCV's tutorial
-    desk.write_text(json.dumps({"units": "mm", "marker_size_mm": 50, "dictionary": "6X6_250",
-                                "markers": {"23": {"translation": [0, 0, 0], "rotation": [0, 0, 0]}}}))
+    desk.write_text(
+        json.dumps(
+            {
+                "units": "mm",
+                "marker_size_mm": 50,
+                "dictionary": "6X6_250",
+                "markers": {"23": {"translation": [0, 0, 0], "rotation": [0, 0, 0]}},
+            }
+        )
+    )
     code, out, err = run(capsys, "locate", photo, "--camera", yml, "--map", desk)
     assert_user_error(code, err, "no image_width/image_height", "--image-size WxH")
     code, out, err = run(capsys, "locate", photo, "--camera", yml, "--image-size", "640x480", "--map", desk)
@@ -502,20 +746,46 @@ def test_locate_and_render_take_image_size_for_a_yaml_camera_without_one(capsys,
     assert row[0] == "singlemarkersoriginal.jpg" and row[7] == "23"
     # data/README.md: each marker is 0.7 to 0.9 m from the camera
     assert 700 <= np.linalg.norm([float(v) for v in row[1:4]]) <= 900
-    code, out, err = run(capsys, "render", "--map", desk, "--camera", yml, "--image-size", "640x480",
-                         "--from", "600,0,0", "--look-at", "0,0,0", "-o", tmp_path / "r.png")
+    code, out, err = run(
+        capsys,
+        "render",
+        "--map",
+        desk,
+        "--camera",
+        yml,
+        "--image-size",
+        "640x480",
+        "--from",
+        "600,0,0",
+        "--look-at",
+        "0,0,0",
+        "-o",
+        tmp_path / "r.png",
+    )
     assert code == 0, err
     assert "640x480" in out
     code, out, err = run(capsys, "locate", photo, "--camera", yml, "--image-size", "640", "--map", desk)
     assert_user_error(code, err, "--image-size")
 
 
-@pytest.mark.parametrize("where", [["--from", "-1000,190,230", "--look-at", "0,-190,-230"],
-                                   ["--pose", "-1000,-190,-230,-90,0,-90"]])
+@pytest.mark.parametrize(
+    "where", [["--from", "-1000,190,230", "--look-at", "0,-190,-230"], ["--pose", "-1000,-190,-230,-90,0,-90"]]
+)
 def test_render_takes_negative_coordinates(capsys, ideal_camera, tmp_path, where):
     # argparse read "--from -1000,190,230" as two options and said "expected one argument".
-    code, out, err = run(capsys, "render", "--map", data_path("world_map.json"), "--camera", ideal_camera,
-                         *where, "-o", tmp_path / "r.png", "--truth", tmp_path / "t.json")
+    code, out, err = run(
+        capsys,
+        "render",
+        "--map",
+        data_path("world_map.json"),
+        "--camera",
+        ideal_camera,
+        *where,
+        "-o",
+        tmp_path / "r.png",
+        "--truth",
+        tmp_path / "t.json",
+    )
     assert code == 0, err
     truth = json.loads((tmp_path / "t.json").read_text())
     assert truth["position_mm"] == [-1000, 190 if where[0] == "--from" else -190, 230 if where[0] == "--from" else -230]
@@ -524,12 +794,30 @@ def test_render_takes_negative_coordinates(capsys, ideal_camera, tmp_path, where
 def test_calibrate_warns_when_a_third_of_the_picture_is_nearly_empty(capsys, tmp_path):
     # OpenCV's right*.jpg photos leave the right third of the picture almost bare (1, 6 and 3 of
     # 648 corners): the "no board corner" warning never fired because no cell was exactly empty.
-    code, out, err = run(capsys, "calibrate", data_path("real", "opencv_checkerboard_right"), "--pattern", "9x6",
-                         "--square-mm", 25, "-o", tmp_path / "camera.json")
+    code, out, err = run(
+        capsys,
+        "calibrate",
+        data_path("real", "opencv_checkerboard_right"),
+        "--pattern",
+        "9x6",
+        "--square-mm",
+        25,
+        "-o",
+        tmp_path / "camera.json",
+    )
     assert code == 0, err
     assert "warning: few board corners in the top-right, right, bottom-right of the picture (1, 6, 3," in err
-    code, out, err = run(capsys, "calibrate", data_path("calibration"), "--pattern", "9x6", "--square-mm", 25,
-                         "-o", tmp_path / "camera.json")
+    code, out, err = run(
+        capsys,
+        "calibrate",
+        data_path("calibration"),
+        "--pattern",
+        "9x6",
+        "--square-mm",
+        25,
+        "-o",
+        tmp_path / "camera.json",
+    )
     assert code == 0 and "warning" not in err  # 20 views that visit every part of the picture
 
 
@@ -538,8 +826,10 @@ def test_annotation_text_wraps_instead_of_being_cut():
     # "blurred, or a corner found in the wrong place?", the part that says what to do.
     from fidlearn.cli import _wrap_to_width
 
-    text = ("outlier: reprojection RMS 1.20 px, above 0.72 px (max of 3 x the median 0.22 px and median + 0.5 px): "
-            "blurred, or a corner found in the wrong place?")
+    text = (
+        "outlier: reprojection RMS 1.20 px, above 0.72 px (max of 3 x the median 0.22 px and median + 0.5 px): "
+        "blurred, or a corner found in the wrong place?"
+    )
     lines = _wrap_to_width(text, 624, 0.45)
     assert len(lines) == 2
     assert " ".join(lines) == text
@@ -555,8 +845,15 @@ def test_corners_of_one_marker_is_singular(capsys, tmp_path):
 
 
 def test_swapped_camera_and_map_say_which_is_which(capsys, tmp_path):
-    code, out, err = run(capsys, "locate", data_path("scenes", "scene_00.png"), "--camera", data_path("world_map.json"),
-                         "--map", data_path("scenes", "camera.json"))
+    code, out, err = run(
+        capsys,
+        "locate",
+        data_path("scenes", "scene_00.png"),
+        "--camera",
+        data_path("world_map.json"),
+        "--map",
+        data_path("scenes", "camera.json"),
+    )
     assert_user_error(code, err, "this is a world map (marker placements), not a camera file", "--camera")
     code, out, err = run(capsys, "corners", data_path("scenes", "camera.json"), "-o", tmp_path / "c.json")
     assert_user_error(code, err, "this is a camera file", "not a world map")
@@ -569,8 +866,14 @@ def test_pose_record_is_strict_json_when_the_covariance_is_undetermined():
     from fidlearn import Pose
     from fidlearn.cli import _pose_record
 
-    pose = Pose(T_world_camera=np.eye(4), marker_ids=(0,), residuals_px={0: np.zeros((4, 2))},
-                reprojection_rms_px=0.0, covariance=None, sigma_px=0.25)
+    pose = Pose(
+        T_world_camera=np.eye(4),
+        marker_ids=(0,),
+        residuals_px={0: np.zeros((4, 2))},
+        reprojection_rms_px=0.0,
+        covariance=None,
+        sigma_px=0.25,
+    )
     rec = _pose_record("frame.png", pose)
     assert rec["position_std_mm"] is None
     json.dumps(rec, allow_nan=False)
@@ -583,7 +886,16 @@ def test_locate_names_the_picture_of_another_aspect_ratio(capsys, tmp_path):
     for name in ("a.png", "b.png"):
         (folder / name).write_bytes(data_path("scenes", "scene_00.png").read_bytes())
     (folder / "c.png").write_bytes(data_path("trajectory", "frame_000.png").read_bytes())
-    code, out, err = run(capsys, "locate", folder, "--camera", data_path("scenes", "camera.json"),
-                         "--map", data_path("world_map.json"), "--json", tmp_path / "p.jsonl")
+    code, out, err = run(
+        capsys,
+        "locate",
+        folder,
+        "--camera",
+        data_path("scenes", "camera.json"),
+        "--map",
+        data_path("world_map.json"),
+        "--json",
+        tmp_path / "p.jsonl",
+    )
     assert_user_error(code, err, "c.png: camera calibrated at 1280x720", "cannot be used on 640x480")
     assert not (tmp_path / "p.jsonl").exists()

@@ -29,11 +29,17 @@ def board_pose(rng, region=None, tilt_max_deg=40.0):
         ray = cv2.undistortPoints(np.array([[[u, v]]]), CAMERA.K, CAMERA.dist).reshape(2)
         C = np.array([ray[0], ray[1], 1.0]) * rng.uniform(400, 800)
         axis = rng.normal(size=2)
-        R = cv2.Rodrigues(np.array([*(axis / np.linalg.norm(axis)), 0.0]) * math.radians(rng.uniform(0, tilt_max_deg)))[0]
+        R = cv2.Rodrigues(np.array([*(axis / np.linalg.norm(axis)), 0.0]) * math.radians(rng.uniform(0, tilt_max_deg)))[
+            0
+        ]
         T = frames.make_transform(R, C - R @ centre)
         px = CAMERA.project(frames.transform_points(T, BOARD), np.eye(4))
-        if (np.all(frames.transform_points(T, BOARD)[:, 2] > 0) and np.all(px >= 0)
-                and np.all(px[:, 0] <= CAMERA.width - 1) and np.all(px[:, 1] <= CAMERA.height - 1)):
+        if (
+            np.all(frames.transform_points(T, BOARD)[:, 2] > 0)
+            and np.all(px >= 0)
+            and np.all(px[:, 0] <= CAMERA.width - 1)
+            and np.all(px[:, 1] <= CAMERA.height - 1)
+        ):
             return T
 
 
@@ -43,14 +49,27 @@ def judge(rng, poses, other_sizes=0, bend_view=None, sigma=0.1):
         pts = BOARD.copy()
         if k == bend_view:  # a print lifted off its backing: a 4 mm bow
             pts[:, 2] = 16.0 * ((pts[:, 0] - pts[:, 0].mean()) / np.ptp(pts[:, 0])) ** 2
-        observed.append(CAMERA.project(frames.transform_points(T, pts), np.eye(4)) + rng.normal(0, sigma, (len(pts), 2)))
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([BOARD.astype(np.float32)] * len(observed),
-                                                     [o.astype(np.float32) for o in observed], CAMERA.image_size, None, None)
+        observed.append(
+            CAMERA.project(frames.transform_points(T, pts), np.eye(4)) + rng.normal(0, sigma, (len(pts), 2))
+        )
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(
+        [BOARD.astype(np.float32)] * len(observed),
+        [o.astype(np.float32) for o in observed],
+        CAMERA.image_size,
+        None,
+        None,
+    )
     cam = Camera(K, dist.ravel(), CAMERA.image_size)
     names = [f"view {i}" for i in range(len(observed))]
     T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
-    return coach(cam, {n: BOARD for n in names}, dict(zip(names, observed)), T, sigma_px=rms / math.sqrt(2),
-                 other_sizes=other_sizes)
+    return coach(
+        cam,
+        {n: BOARD for n in names},
+        dict(zip(names, observed)),
+        T,
+        sigma_px=rms / math.sqrt(2),
+        other_sizes=other_sizes,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -131,8 +150,20 @@ def test_coach_figure_draws(bundled):
 def test_calibrate_prints_the_coach_and_draws_its_report(tmp_path, capsys):
     from fidlearn import cli
 
-    status = cli.main(["calibrate", str(fidlearn.data_path("calibration")), "--pattern", "9x6", "--square-mm", "25",
-                       "-o", str(tmp_path / "cam.json"), "--report", str(tmp_path / "report.png")])
+    status = cli.main(
+        [
+            "calibrate",
+            str(fidlearn.data_path("calibration")),
+            "--pattern",
+            "9x6",
+            "--square-mm",
+            "25",
+            "-o",
+            str(tmp_path / "cam.json"),
+            "--report",
+            str(tmp_path / "report.png"),
+        ]
+    )
     out = capsys.readouterr().out
     assert status == 0
     assert "calibration coach: reprojection uncertainty: median" in out and "next photo: put the board" in out

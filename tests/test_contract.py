@@ -32,8 +32,19 @@ def starts_with(fn, names: list[str]) -> None:
 
 @pytest.mark.parametrize(
     "name",
-    ["Camera", "MarkerMap", "Detection", "detect_markers", "estimate_pose", "locate", "Pose",
-     "calibrate_checkerboard", "calibrate_charuco", "Calibration", "FidlearnError"],
+    [
+        "Camera",
+        "MarkerMap",
+        "Detection",
+        "detect_markers",
+        "estimate_pose",
+        "locate",
+        "Pose",
+        "calibrate_checkerboard",
+        "calibrate_charuco",
+        "Calibration",
+        "FidlearnError",
+    ],
 )
 def test_name_importable_from_fidlearn(name):
     assert hasattr(fidlearn, name), f"fidlearn.{name} is missing"
@@ -41,8 +52,16 @@ def test_name_importable_from_fidlearn(name):
 
 
 def test_error_classes_are_fidlearn_errors():
-    for name in ("MapError", "CameraError", "ImageError", "DictionaryError", "NoMarkersError",
-                 "CalibrationError", "PoseError", "TransformError"):
+    for name in (
+        "MapError",
+        "CameraError",
+        "ImageError",
+        "DictionaryError",
+        "NoMarkersError",
+        "CalibrationError",
+        "PoseError",
+        "TransformError",
+    ):
         assert issubclass(getattr(fidlearn, name), fidlearn.FidlearnError), name
 
 
@@ -187,8 +206,20 @@ def test_cli_options_exist(command, options):
 
 
 def test_python_dash_m_fidlearn(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "fidlearn", "corners", str(fidlearn.data_path("world_map.json")),
-                          "-o", str(tmp_path / "c.json")], capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "fidlearn",
+            "corners",
+            str(fidlearn.data_path("world_map.json")),
+            "-o",
+            str(tmp_path / "c.json"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert out.returncode == 0, out.stderr
     import json
 

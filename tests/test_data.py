@@ -41,6 +41,7 @@ def assert_same_pixels(rendered: np.ndarray, committed: np.ndarray, provenance: 
 
 # -- what is there ----------------------------------------------------------------------------------
 
+
 def test_data_stays_small_and_synthetic_frames_are_png():
     files = [p for p in data_dir().rglob("*") if p.is_file()]
     assert sum(p.stat().st_size for p in files) < 15e6
@@ -53,8 +54,11 @@ def test_real_photos_are_all_there_and_readable():
     assert right == [f"right{i:02d}.jpg" for i in (1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14)]
     charuco = sorted(p.name for p in data_path("real", "opencv_charuco").glob("*.jpg"))
     assert charuco == ["chocclusion_original.jpg", "img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg"]
-    for parts in [("real", "opencv_checkerboard_right", "right01.jpg"), ("real", "opencv_charuco", "img_00.jpg"),
-                  ("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg")]:
+    for parts in [
+        ("real", "opencv_checkerboard_right", "right01.jpg"),
+        ("real", "opencv_charuco", "img_00.jpg"),
+        ("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg"),
+    ]:
         image = cv2.imread(str(data_path(*parts)))
         assert image is not None and image.shape[:2] == (480, 640)
     # the published numbers of the tutorial's ChArUco calibration (data/README.md)
@@ -77,6 +81,7 @@ def test_two_walls_map_adds_side_walls_to_the_seed_map():
 
 # -- calibration -----------------------------------------------------------------------------------
 
+
 def test_synthetic_checkerboard_views_calibrate_back_to_the_true_camera():
     truth = Camera.load(data_path("calibration", "camera_true.json"))
     record = read_json("calibration", "views.json")
@@ -89,7 +94,9 @@ def test_synthetic_checkerboard_views_calibrate_back_to_the_true_camera():
         assert image.shape == (480, 640)
         ok, corners = cv2.findChessboardCorners(image, pattern)
         assert ok, view["image"]
-        corners = cv2.cornerSubPix(image, corners, (5, 5), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 1e-3))
+        corners = cv2.cornerSubPix(
+            image, corners, (5, 5), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 1e-3)
+        )
         found.append(corners)
         # the recorded truth is where OpenCV finds the corners (either end first)
         c, t = corners.reshape(-1, 2), np.array(view["corners_px"])
@@ -108,14 +115,20 @@ def test_a_calibration_view_regenerates_from_its_recipe():
     camera = Camera.load(data_path("calibration", "camera_true.json"))
     view = 13
     again = render_calibration_views(
-        camera, n_views=args.pop("n_views"), pattern_size=tuple(args.pop("pattern_size")),
-        square_size_mm=args.pop("square_size_mm"), seed=args.pop("seed"), views=[view], **args,
+        camera,
+        n_views=args.pop("n_views"),
+        pattern_size=tuple(args.pop("pattern_size")),
+        square_size_mm=args.pop("square_size_mm"),
+        seed=args.pop("seed"),
+        views=[view],
+        **args,
     )
     np.testing.assert_allclose(again.T_world_camera[0], record["views"][view]["T_world_camera"], atol=1e-9)
     assert_same_pixels(again.images[0], read_gray("calibration", record["views"][view]["image"]), record["provenance"])
 
 
 # -- scenes and the drive ----------------------------------------------------------------------------
+
 
 def test_scene_records_hold_the_projection_of_the_map_and_opencv_finds_them():
     record = read_json("scenes", "poses.json")
@@ -139,8 +152,13 @@ def test_a_scene_regenerates_from_its_record():
     record = read_json("scenes", "poses.json")
     camera = Camera.load(data_path("scenes", record["camera"]))
     item = record["images"][7]
-    image, truth = render_scene(camera, MarkerMap.load(data_path(item["map"])), np.array(item["T_world_camera"]),
-                                seed=item["seed"], **record["render"])
+    image, truth = render_scene(
+        camera,
+        MarkerMap.load(data_path(item["map"])),
+        np.array(item["T_world_camera"]),
+        seed=item["seed"],
+        **record["render"],
+    )
     assert sorted(truth) == item["visible_ids"]
     assert_same_pixels(image, read_gray("scenes", item["image"]), record["provenance"])
 
@@ -154,7 +172,9 @@ def test_trajectory_frames_regenerate_from_the_seed():
     for pose, frame in zip(poses, record["frames"]):
         np.testing.assert_allclose(pose, frame["T_world_camera"], atol=1e-9)
     frame = 23
-    drive = render_trajectory(camera, marker_map, seed=record["seed"], poses=poses, frames_to_render=[frame], **record["render"])
+    drive = render_trajectory(
+        camera, marker_map, seed=record["seed"], poses=poses, frames_to_render=[frame], **record["render"]
+    )
     assert sorted(drive.truth[0]) == record["frames"][frame]["visible_ids"]
     assert_same_pixels(drive.images[0], read_gray("trajectory", record["frames"][frame]["image"]), record["provenance"])
 
@@ -178,5 +198,9 @@ def test_the_drive_is_seen_by_opencv_and_its_solvepnp_agrees_with_the_true_poses
         R, _ = cv2.Rodrigues(rvec)
         position = -R.T @ tvec.ravel()
         true_position = np.array(frame["T_world_camera"])[:3, 3]
-        distance = np.linalg.norm(true_position - np.mean([c.mean(axis=0) for c in marker_map.corners().values()], axis=0))
-        assert np.linalg.norm(position - true_position) < 0.05 * distance  # 80 mm markers, 20-60 px: depth is the weak axis
+        distance = np.linalg.norm(
+            true_position - np.mean([c.mean(axis=0) for c in marker_map.corners().values()], axis=0)
+        )
+        assert (
+            np.linalg.norm(position - true_position) < 0.05 * distance
+        )  # 80 mm markers, 20-60 px: depth is the weak axis

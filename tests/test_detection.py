@@ -8,10 +8,10 @@ import pytest
 
 from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, data_path
 from fidlearn.detection import (
+    _DETECTOR_CACHE,
     DEFAULT_REFINE,
     REFINE_METHODS,
     Detection,
-    _DETECTOR_CACHE,
     _detector,
     as_gray,
     detect_markers,
@@ -33,8 +33,9 @@ def photo() -> np.ndarray:
 
 def plain_opencv(gray: np.ndarray, dictionary: str) -> dict[int, np.ndarray]:
     """OpenCV's detector with its default parameters (no refinement), called directly."""
-    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, "DICT_" + dictionary)),
-                                  cv2.aruco.DetectorParameters())
+    det = cv2.aruco.ArucoDetector(
+        cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, "DICT_" + dictionary)), cv2.aruco.DetectorParameters()
+    )
     corners, ids, _ = det.detectMarkers(gray)
     return {int(i): np.asarray(c, float).reshape(4, 2) for i, c in zip(np.ravel(ids), corners)}
 
@@ -48,6 +49,7 @@ def radial_unit(corners: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 # The real photo
 # ----------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("refine", REFINE_METHODS)
 def test_photo_gives_the_published_ids(photo, refine):
@@ -108,7 +110,10 @@ def test_charuco_marker_corners_fit_the_board_geometry():
     """
     cam = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
     board = _cv.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
-    obj = {int(i): np.asarray(o, float).reshape(4, 3)[:, :2] for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())}
+    obj = {
+        int(i): np.asarray(o, float).reshape(4, 3)[:, :2]
+        for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())
+    }
     rms, shift = {}, []
     for name in ("img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg"):
         image = load_image(data_path("real", "opencv_charuco", name))
@@ -122,7 +127,9 @@ def test_charuco_marker_corners_fit_the_board_geometry():
                 dets = [d for d in detect_markers(image, "6X6_250", refine=refine) if d.id in obj]
             assert len(dets) >= 13
             P = np.concatenate([obj[d.id] for d in dets])
-            Q = cv2.undistortPoints(np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K).reshape(-1, 2)
+            Q = cv2.undistortPoints(
+                np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K
+            ).reshape(-1, 2)
             H, _ = cv2.findHomography(P, Q, 0)
             res = Q - cv2.perspectiveTransform(P.reshape(-1, 1, 2), H).reshape(-1, 2)
             rms.setdefault(refine, []).append(res)
@@ -141,6 +148,7 @@ def test_charuco_marker_corners_fit_the_board_geometry():
 # ----------------------------------------------------------------------------------------------
 # Synthetic scenes with known corners
 # ----------------------------------------------------------------------------------------------
+
 
 def wall(dictionary: str = "ARUCO_ORIGINAL", n_cols: int = 3, n_rows: int = 2) -> MarkerMap:
     pitch = 1.75 * MARKER_MM
@@ -170,7 +178,7 @@ def test_synthetic_corners_match_the_truth(side_px, seed):
     dets = detect_markers(image)  # ARUCO_ORIGINAL, the default refinement
     assert [d.id for d in dets] == sorted(truth)
     err = np.array([d.corners - truth[d.id] for d in dets])
-    rms = np.sqrt((err ** 2).sum(2).mean())
+    rms = np.sqrt((err**2).sum(2).mean())
     # Measured (docs/corner_refinement.md): 0.02-0.05 px RMS from 30 px up; bound with margin.
     assert rms < 0.12
     assert np.abs(err.reshape(-1, 2).mean(axis=0)).max() < 0.05  # no constant shift
@@ -178,7 +186,7 @@ def test_synthetic_corners_match_the_truth(side_px, seed):
     assert abs((err * radial_unit(truths)).sum(2).mean()) < 0.05  # neither inwards nor outwards
     # OpenCV's unrefined corners on the same picture sit about 0.5-0.8 px inside.
     plain = np.array([d.corners - truth[d.id] for d in detect_markers(image, refine="none")])
-    assert np.sqrt((plain ** 2).sum(2).mean()) > 3 * rms
+    assert np.sqrt((plain**2).sum(2).mean()) > 3 * rms
 
 
 def test_gamma_moves_edges_outwards_on_linear_pictures():
@@ -222,7 +230,7 @@ def test_inverted_markers_refine_too():
     dets = detect_markers(255 - image, params={"detectInvertedMarker": True})
     assert [d.id for d in dets] == sorted(truth)
     err = np.array([d.corners - truth[d.id] for d in dets])
-    assert np.sqrt((err ** 2).sum(2).mean()) < 0.12
+    assert np.sqrt((err**2).sum(2).mean()) < 0.12
 
 
 def test_edge_refinement_takes_hundreds_of_markers_at_once():
@@ -246,6 +254,7 @@ def test_edge_refinement_keeps_corners_it_cannot_fit():
 # ----------------------------------------------------------------------------------------------
 # Dictionaries, parameters, the detector cache
 # ----------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", sorted(_cv.DICTIONARIES))
 def test_every_predefined_dictionary_detects_its_own_last_marker(name):
@@ -312,6 +321,7 @@ def test_rejected_candidates_on_request(photo):
 # Images that are not images
 # ----------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "bad, message",
     [
@@ -333,6 +343,7 @@ def test_non_images_raise_image_error(bad, message):
 # ----------------------------------------------------------------------------------------------
 # Drawing
 # ----------------------------------------------------------------------------------------------
+
 
 def test_draw_detections_marks_outline_id_and_named_corners(photo):
     dets = detect_markers(photo, "6X6_250")
@@ -366,7 +377,7 @@ def test_draw_detections_labels_make_the_winding_visible(photo):
         for p in d.corners:
             away = p - d.center
             q = np.round(p + 10.0 * away / np.linalg.norm(away)).astype(int)
-            win = diff[max(q[1] - 6, 0): q[1] + 7, max(q[0] - 8, 0): q[0] + 9]
+            win = diff[max(q[1] - 6, 0) : q[1] + 7, max(q[0] - 8, 0) : q[0] + 9]
             assert win.any()
 
 

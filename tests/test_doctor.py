@@ -80,7 +80,11 @@ def test_fidlearns_wheel_is_kept_even_when_it_is_not_installed(monkeypatch):
             self.metadata = {"Name": name}
             self.version = version
 
-    fakes = [FakeDist("opencv-python", "4.10.0.84"), FakeDist("opencv-python-headless", "4.10.0.84"), FakeDist("numpy", "2.0.0")]
+    fakes = [
+        FakeDist("opencv-python", "4.10.0.84"),
+        FakeDist("opencv-python-headless", "4.10.0.84"),
+        FakeDist("numpy", "2.0.0"),
+    ]
     monkeypatch.setattr(doctor.md, "distributions", lambda: iter(fakes))
     [problem] = opencv_problems(cli.doctor_report()[1])
     assert f"pip uninstall -y opencv-python opencv-python-headless && pip install --force-reinstall {WANTED}" in problem
@@ -97,7 +101,9 @@ def test_doctor_command_reports_the_problem_and_fails(tmp_path):
     """The real command in a real process: status 1 and a ``problem:`` line naming the wheel to remove."""
     fake_wheel(tmp_path, "opencv-python", "4.10.0.84")
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    proc = subprocess.run([sys.executable, "-m", "fidlearn", "doctor"], capture_output=True, text=True, env=env, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "fidlearn", "doctor"], capture_output=True, text=True, env=env, timeout=60
+    )
     assert proc.returncode == 1, proc.stdout + proc.stderr
     problems = [line for line in proc.stdout.splitlines() if line.startswith("problem: ")]
     assert any("pip uninstall -y opencv-python " in p for p in problems), proc.stdout
@@ -115,8 +121,7 @@ def broken_opencv(tmp_path: Path, version: str = "4.8.1.78") -> dict:
     """An environment whose OpenCV was built for numpy 1: ``import cv2`` fails as it does beside numpy 2."""
     stub = tmp_path / "site"
     (stub / "cv2").mkdir(parents=True)
-    (stub / "cv2" / "__init__.py").write_text(
-        "raise ImportError('numpy.core.multiarray failed to import')\n")
+    (stub / "cv2" / "__init__.py").write_text("raise ImportError('numpy.core.multiarray failed to import')\n")
     fake_wheel(stub, WANTED, version)
     env = dict(os.environ, PYTHONPATH=str(stub))
     return env
@@ -124,8 +129,9 @@ def broken_opencv(tmp_path: Path, version: str = "4.8.1.78") -> dict:
 
 def test_doctor_names_the_broken_pair_and_the_pip_line_when_opencv_cannot_import(tmp_path):
     env = broken_opencv(tmp_path)
-    out = subprocess.run([sys.executable, "-m", "fidlearn", "doctor"], env=env, capture_output=True, text=True,
-                         timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-m", "fidlearn", "doctor"], env=env, capture_output=True, text=True, timeout=120
+    )
     assert out.returncode == 1, out.stderr
     assert "Traceback" not in out.stderr + out.stdout
     [problem] = [line for line in out.stdout.splitlines() if line.startswith("problem:")]
@@ -135,8 +141,14 @@ def test_doctor_names_the_broken_pair_and_the_pip_line_when_opencv_cannot_import
 
 def test_other_commands_say_in_one_line_to_run_the_doctor(tmp_path):
     env = broken_opencv(tmp_path)
-    out = subprocess.run([sys.executable, "-m", "fidlearn", "corners", "map.json", "-o", "c.json"], env=env,
-                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    out = subprocess.run(
+        [sys.executable, "-m", "fidlearn", "corners", "map.json", "-o", "c.json"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert out.returncode == 2 and out.stdout == ""
     [line] = out.stderr.splitlines()
     assert line.startswith("error: fidlearn cannot start (ImportError: numpy.core.multiarray failed to import)")

@@ -39,9 +39,13 @@ def read(path):
 def test_notebooks_are_not_stale(number):
     name = exercises.notebook_name(number)
     key = exercises.answer_key_notebook(number)
-    assert sources(read(SOLUTIONS_DIR / name)) == sources(key), f"solutions/{name} is stale: run python tools/make_student_copies.py {number}"
+    assert sources(read(SOLUTIONS_DIR / name)) == sources(key), (
+        f"solutions/{name} is stale: run python tools/make_student_copies.py {number}"
+    )
     student = exercises.student_copy(read(SOLUTIONS_DIR / name))
-    assert sources(read(EXERCISES_DIR / name)) == sources(student), f"{name} is stale: run python tools/make_student_copies.py {number}"
+    assert sources(read(EXERCISES_DIR / name)) == sources(student), (
+        f"{name} is stale: run python tools/make_student_copies.py {number}"
+    )
 
 
 @pytest.mark.parametrize("number", LESSONS)
@@ -70,7 +74,9 @@ def test_answer_key_runs_clean_and_every_check_is_correct(number, monkeypatch):
     monkeypatch.delenv("FIDLEARN_LEARNER", raising=False)
     nb = exercises.answer_key_notebook(number)
     NotebookClient(nb, timeout=60, kernel_name="python3").execute()  # raises CellExecutionError on any error
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "stream")
+    text = "".join(
+        o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "stream"
+    )
     found = CHECK_LINE.findall(text)
     names = [q.name for q in exercises.lesson(number)]
     assert found == [("Correct", n) for n in names]
@@ -98,8 +104,16 @@ def test_stored_outputs_are_real(number):
     name = exercises.notebook_name(number)
     for path, status in ((SOLUTIONS_DIR / name, "Correct"), (EXERCISES_DIR / name, "Not attempted")):
         nb = read(path)
-        text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == "stream")
-        assert {s for s, _ in CHECK_LINE.findall(text)} == {status}, f"{path.name}: run python tools/make_student_copies.py {number}"
+        text = "".join(
+            o.get("text", "")
+            for c in nb.cells
+            if c.cell_type == "code"
+            for o in c.get("outputs", [])
+            if o.output_type == "stream"
+        )
+        assert {s for s, _ in CHECK_LINE.findall(text)} == {status}, (
+            f"{path.name}: run python tools/make_student_copies.py {number}"
+        )
 
 
 def test_grading_a_learners_notebook(tmp_path):
@@ -111,7 +125,9 @@ def test_grading_a_learners_notebook(tmp_path):
         if stub.format(q="q1") in cell.source:
             cell.source = cell.source.replace(stub.format(q="q1"), ex.q1.solution_code)
         elif stub.format(q="q2") in cell.source:  # the extrinsic matrix where the pose is asked
-            cell.source = cell.source.replace(stub.format(q="q2"), "q2.answer = frames.transform_from_rvec_tvec(q2.inputs.rvec, q2.inputs.tvec)")
+            cell.source = cell.source.replace(
+                stub.format(q="q2"), "q2.answer = frames.transform_from_rvec_tvec(q2.inputs.rvec, q2.inputs.tvec)"
+            )
         elif stub.format(q="q3") in cell.source:
             cell.source = cell.source.replace(stub.format(q="q3"), "q3.answer = 1 / 0")
     path = tmp_path / "07_erin.ipynb"

@@ -12,7 +12,7 @@ import pytest
 
 import fidlearn
 from fidlearn import exercises, frames
-from fidlearn.exercises import CORRECT, INCORRECT, NOT_ATTEMPTED
+from fidlearn.exercises import CORRECT, INCORRECT
 
 LESSONS = list(exercises.lessons())
 QUESTIONS = [(n, q.name) for n in LESSONS for q in exercises.lesson(n, learner="")]
@@ -102,8 +102,10 @@ def test_degrees_for_radians_in_tan(learner):
 def test_half_angle_and_half_width_mistakes():
     q = exercises.lesson("01").q1
     w, h = q.inputs.image_size
-    for f, words in (((w / 2) / math.tan(math.radians(q.inputs.hfov_deg)), "HALF the field of view"),
-                     (w / math.tan(math.radians(q.inputs.hfov_deg) / 2), "HALF the image width")):
+    for f, words in (
+        ((w / 2) / math.tan(math.radians(q.inputs.hfov_deg)), "HALF the field of view"),
+        (w / math.tan(math.radians(q.inputs.hfov_deg) / 2), "HALF the image width"),
+    ):
         r = q.grade([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
         assert r.status == INCORRECT and words in r.message
 
@@ -175,7 +177,9 @@ def test_names_that_do_not_chain():
 def test_rvec_versus_rotation_matrix():
     q, T = key_of("03", "q4")
     rvec = q.inputs.rvec
-    r = q.grade(frames.make_transform(frames.rot_z(rvec[2]) @ frames.rot_y(rvec[1]) @ frames.rot_x(rvec[0]), q.inputs.tvec))
+    r = q.grade(
+        frames.make_transform(frames.rot_z(rvec[2]) @ frames.rot_y(rvec[1]) @ frames.rot_x(rvec[0]), q.inputs.tvec)
+    )
     assert r.status == INCORRECT and "Rodrigues" in r.message and "not roll, pitch, yaw" in r.message
     r = q.grade(rvec)  # the bare rvec where a 4x4 matrix is asked
     assert r.status == INCORRECT and "cv2.Rodrigues(rvec)" in r.message
@@ -201,14 +205,16 @@ def test_wrong_winding_order_is_named(order):
     names = ("TL", "TR", "BR", "BL")
     r = q.grade(np.asarray(C)[list(order)])
     assert r.status == INCORRECT
-    assert r.message.startswith(f"your corners are in the order {', '.join(names[i] for i in order)}: detection reports TL, TR, BR, BL")
+    assert r.message.startswith(
+        f"your corners are in the order {', '.join(names[i] for i in order)}: detection reports TL, TR, BR, BL"
+    )
 
 
 def test_map_in_cm_declared_as_mm():
     q, d = key_of("04", "q2")
     d = dict(d, units="mm")
     r = q.grade(d)
-    assert r.status == INCORRECT and "\"cm\"" in r.message
+    assert r.status == INCORRECT and '"cm"' in r.message
     no_units = {k: v for k, v in d.items() if k != "units"}
     r = q.grade(no_units)
     assert r.status == INCORRECT and "no units" in r.message
@@ -326,8 +332,16 @@ def test_two_learners_get_different_data_and_are_each_checked(number):
 
 def test_the_variant_does_not_depend_on_the_python_hash_seed():
     code = "from fidlearn import exercises; q = exercises.lesson('01', learner='alice').q1; print(q.inputs.hfov_deg, q.inputs.image_size)"
-    outs = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                           env={"PYTHONHASHSEED": seed, "PATH": ""}).stdout for seed in ("1", "2")}
+    outs = {
+        subprocess.run(
+            [sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            check=True,
+            env={"PYTHONHASHSEED": seed, "PATH": ""},
+        ).stdout
+        for seed in ("1", "2")
+    }
     here = exercises.lesson("01", learner="alice").q1
     assert outs == {f"{here.inputs.hfov_deg} {here.inputs.image_size}\n"}
 
@@ -362,7 +376,9 @@ def test_board_points_in_inches_and_column_order():
     q, obj = key_of("02", "q1")
     assert "25.4" in q.grade(np.asarray(obj) / 25.4).message
     cols, rows = q.inputs.pattern_size
-    col_major = np.array([[i, j, 0] for i in range(cols) for j in range(rows)], dtype=float) * q.inputs.square_size_in * 25.4
+    col_major = (
+        np.array([[i, j, 0] for i in range(cols) for j in range(rows)], dtype=float) * q.inputs.square_size_in * 25.4
+    )
     assert "along a row first" in q.grade(col_major).message
     assert "INNER corners" in q.grade(np.zeros(((cols + 1) * (rows + 1), 3))).message
 
@@ -447,7 +463,7 @@ def test_rms_mistakes():
     d = np.linalg.norm(proj - q.inputs.image_points, axis=1)
     assert "mean distance" in q.grade(d.mean()).message
     assert "2N coordinates" in q.grade(np.sqrt(np.mean((proj - q.inputs.image_points) ** 2))).message
-    assert "square root" in q.grade(rms ** 2).message
+    assert "square root" in q.grade(rms**2).message
 
 
 def test_depth_error_linear_in_distance_is_named():
@@ -577,5 +593,7 @@ def test_other_honest_methods_pass(learner):
     c = corners[list(ids).index(ex5.q2.inputs.marker_id)]
     assert ex5.q1.grade(list(ids)).correct and ex5.q2.grade(c).correct
     q = exercises.lesson("08", learner=learner).q2
-    pose = estimate_pose(detect_markers(q.inputs.image, q.inputs.marker_map.dictionary), q.inputs.marker_map, q.inputs.camera)
+    pose = estimate_pose(
+        detect_markers(q.inputs.image, q.inputs.marker_map.dictionary), q.inputs.marker_map, q.inputs.camera
+    )
     assert q.grade({"misplaced_id": pose.rejected_ids[0], "position_mm": pose.position_mm}).correct

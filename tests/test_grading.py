@@ -41,31 +41,52 @@ def with_cell(source: Path, code: str, at: int | None = None) -> nbformat.Notebo
 
 CHEATS = {
     "copies the key": (STUDENT, "for q in ex:\n    q.answer = q._expected\n"),
-    "patches the checker": (STUDENT, "from fidlearn.exercises import Question, Result\n"
-                                     "Question.grade = lambda self, answer=None: Result(self.name, 'Correct', 'ok')\n"
-                                     "for q in ex:\n    q.answer = 0\n"),
-    "patches numpy": (STUDENT, "np.allclose = lambda *a, **k: True\nnp.isclose = lambda *a, **k: True\n"
-                               "for q in ex:\n    q.answer = np.zeros(3)\n"),
-    "prints fake grade lines": (STUDENT, "for n in range(4):\n    print('FIDLEARN-GRADE ' + json.dumps({'lesson': '03', "
-                                         "'learner': 'x', 'results': [['q1', 'Correct', '']]}))\nimport json\n"),
-    "registers a hook": (STUDENT, "def fake(result):\n    print('Correct (q1): well done')\n"
-                                  "get_ipython().events.register('post_run_cell', fake)\n"),
+    "patches the checker": (
+        STUDENT,
+        "from fidlearn.exercises import Question, Result\n"
+        "Question.grade = lambda self, answer=None: Result(self.name, 'Correct', 'ok')\n"
+        "for q in ex:\n    q.answer = 0\n",
+    ),
+    "patches numpy": (
+        STUDENT,
+        "np.allclose = lambda *a, **k: True\nnp.isclose = lambda *a, **k: True\n"
+        "for q in ex:\n    q.answer = np.zeros(3)\n",
+    ),
+    "prints fake grade lines": (
+        STUDENT,
+        "for n in range(4):\n    print('FIDLEARN-GRADE ' + json.dumps({'lesson': '03', "
+        "'learner': 'x', 'results': [['q1', 'Correct', '']]}))\nimport json\n",
+    ),
+    "registers a hook": (
+        STUDENT,
+        "def fake(result):\n    print('Correct (q1): well done')\n"
+        "get_ipython().events.register('post_run_cell', fake)\n",
+    ),
     "builds another lesson": (STUDENT, "ex = exercises.lesson('01')\nfor q in ex:\n    q.answer = 1.0\n"),
-    "reads the class secret": (STUDENT, "from fidlearn import grading\n"
-                                        "try:\n    s = grading.read_secret(SECRET)\n"
-                                        "    key = grading.graded_questions('03', LEARNER_ID, s)\n"
-                                        "    for q, k in zip(ex, key):\n        q.answer = k._expected\n"
-                                        "except Exception as e:\n    print('no secret:', e)\n"),
-    "overwrites the other submissions": (STUDENT, "import pathlib\nfor p in pathlib.Path(SUBMISSIONS).glob('*.ipynb'):\n"
-                                                  "    try:\n        p.write_text('{}')\n"
-                                                  "    except Exception as e:\n        print(e)\n"),
+    "reads the class secret": (
+        STUDENT,
+        "from fidlearn import grading\n"
+        "try:\n    s = grading.read_secret(SECRET)\n"
+        "    key = grading.graded_questions('03', LEARNER_ID, s)\n"
+        "    for q, k in zip(ex, key):\n        q.answer = k._expected\n"
+        "except Exception as e:\n    print('no secret:', e)\n",
+    ),
+    "overwrites the other submissions": (
+        STUDENT,
+        "import pathlib\nfor p in pathlib.Path(SUBMISSIONS).glob('*.ipynb'):\n"
+        "    try:\n        p.write_text('{}')\n"
+        "    except Exception as e:\n        print(e)\n",
+    ),
     "loops forever": (STUDENT, "while True:\n    pass\n"),
     "kills its kernel": (STUDENT, "import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n"),
     "exits": (STUDENT, "import os\nos._exit(0)\n"),
     "eats the memory": (STUDENT, "hog = []\nwhile True:\n    hog.append(bytearray(10**8))\n"),
-    "forges the answers file": (STUDENT, "import json, os\n"
-                                         "json.dump({'answers': {'q1': [[1, 0, 0, 0]] * 4, 'q2': 1, 'q3': 2, 'q4': 3}}, "
-                                         "open('fidlearn_answers.json', 'w'))\nos._exit(0)\n"),
+    "forges the answers file": (
+        STUDENT,
+        "import json, os\n"
+        "json.dump({'answers': {'q1': [[1, 0, 0, 0]] * 4, 'q2': 1, 'q3': 2, 'q4': 3}}, "
+        "open('fidlearn_answers.json', 'w'))\nos._exit(0)\n",
+    ),
     "answers with a function": (STUDENT, "for q in ex:\n    q.answer = print\n"),
 }
 
@@ -79,7 +100,7 @@ def batch(tmp_path_factory):
     names = []
     for k, (name, (source, code)) in enumerate(CHEATS.items()):
         learner = f"cheater{k:02d}"
-        pre = (f"SECRET = {str(secret)!r}\nSUBMISSIONS = {str(subs)!r}\nLEARNER_ID = {learner!r}\n")
+        pre = f"SECRET = {str(secret)!r}\nSUBMISSIONS = {str(subs)!r}\nLEARNER_ID = {learner!r}\n"
         nb = with_cell(source, pre + code)
         nbformat.write(nb, subs / f"{learner}.ipynb")
         names.append((learner, name))
@@ -90,8 +111,13 @@ def batch(tmp_path_factory):
     notebooks = sorted(subs.glob("cheater*.ipynb")) + sorted(subs.glob("*onest*.ipynb"))
     with traversable_by_others(*python_paths(), work) if AS_ROOT else _nothing():
         grades = grading.grade(notebooks, "03", secret, out, timeout_s=20, memory_mb=2500)
-    return {"grades": {Path(g.notebook).stem: g for g in grades}, "names": dict(names), "csv": out,
-            "before": before, "subs": subs}
+    return {
+        "grades": {Path(g.notebook).stem: g for g in grades},
+        "names": dict(names),
+        "csv": out,
+        "before": before,
+        "subs": subs,
+    }
 
 
 class _nothing:
@@ -132,14 +158,19 @@ def test_honest_notebooks_keep_their_marks(batch):
 def test_no_submission_was_changed_and_the_csv_has_every_row(batch):
     assert {p.name: p.read_bytes() for p in batch["subs"].iterdir()} == batch["before"]
     rows = list(csv.DictReader(batch["csv"].open()))
-    assert {r["learner"] for r in rows} == {f"cheater{k:02d}" for k in range(len(CHEATS))} | {"honest.one", "honest.two"}
+    assert {r["learner"] for r in rows} == {f"cheater{k:02d}" for k in range(len(CHEATS))} | {
+        "honest.one",
+        "honest.two",
+    }
     scores = {r["learner"]: int(r["score"]) for r in rows}
     assert scores["honest.one"] == 4 and all(v == 0 for k, v in scores.items() if k.startswith("cheater"))
 
 
 def test_the_learner_kernel_never_holds_the_key(tmp_path, monkeypatch):
     secret = grading.new_secret(tmp_path / "s")
-    (tmp_path / grading.INPUTS_FILE).write_text(json.dumps(grading.inputs_record("03", "alice", grading.read_secret(secret))))
+    (tmp_path / grading.INPUTS_FILE).write_text(
+        json.dumps(grading.inputs_record("03", "alice", grading.read_secret(secret)))
+    )
     monkeypatch.chdir(tmp_path)
     ex = exercises.lesson("03", "anyone")
     key = grading.graded_questions("03", "Alice", grading.read_secret(secret))
@@ -162,8 +193,12 @@ def test_plain_data_round_trips_and_refuses_anything_else():
     back = grading.from_plain(json.loads(json.dumps(grading.to_plain(value))))
     np.testing.assert_array_equal(back["a"], value["a"])
     assert back[3] == (1, 2.5, "x") and back["m"].corners()[0].tolist() == world.corners()[0].tolist()
-    for bad in ({"__pickle__": "x"}, {"__array__": "AAAA", "dtype": "<f8", "shape": [10]},
-                {"__array__": "", "dtype": "O", "shape": [0]}, {"a": 1, "b": 2}):
+    for bad in (
+        {"__pickle__": "x"},
+        {"__array__": "AAAA", "dtype": "<f8", "shape": [10]},
+        {"__array__": "", "dtype": "O", "shape": [0]},
+        {"a": 1, "b": 2},
+    ):
         with pytest.raises((ValueError, TypeError)):
             grading.from_plain(bad)
 
@@ -176,13 +211,35 @@ def test_bad_learner_ids(learner):
 
 def test_grade_command_one_error_line(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    out = subprocess.run([sys.executable, "-m", "fidlearn", "grade", str(KEY), "--lesson", "03", "--secret-file",
-                          str(tmp_path / "none"), "-o", str(tmp_path / "g.csv")], env=env, capture_output=True,
-                         text=True, timeout=120)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "fidlearn",
+            "grade",
+            str(KEY),
+            "--lesson",
+            "03",
+            "--secret-file",
+            str(tmp_path / "none"),
+            "-o",
+            str(tmp_path / "g.csv"),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert out.returncode == 2
     assert [ln for ln in out.stderr.splitlines() if ln.startswith("error:")] == [
-        f"error: {tmp_path / 'none'}: no such file; check the path of the class secret"]
+        f"error: {tmp_path / 'none'}: no such file; check the path of the class secret"
+    ]
     assert not (tmp_path / "g.csv").exists()
-    out = subprocess.run([sys.executable, "-m", "fidlearn", "grade", "--new-secret", str(tmp_path / "s")], env=env,
-                         capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-m", "fidlearn", "grade", "--new-secret", str(tmp_path / "s")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert out.returncode == 0 and oct((tmp_path / "s").stat().st_mode & 0o777) == "0o600"

@@ -77,7 +77,11 @@ def _link(ws: Path, name: str, target: str, hard: bool = False) -> None:
 # -- outputs over inputs ------------------------------------------------------------------------
 CLOBBER = [
     ("corners -o its own map", ["corners", "map.json", "-o", "map.json"], "is one of the inputs"),
-    ("corners -o its map spelt another way", ["corners", "map.json", "-o", "./frames/../map.json"], "is one of the inputs"),
+    (
+        "corners -o its map spelt another way",
+        ["corners", "map.json", "-o", "./frames/../map.json"],
+        "is one of the inputs",
+    ),
     ("corners -o a symlink to its map", ["corners", "map.json", "-o", "link.json"], "is one of the inputs"),
     ("corners -o a hard link to its map", ["corners", "map.json", "-o", "hard.json"], "is one of the inputs"),
     ("locate --json the camera", ["locate", "frames", *LOC, "--json", "camera.json"], "is one of the inputs"),
@@ -85,28 +89,67 @@ CLOBBER = [
     ("locate --json a link to the camera", ["locate", "frames", *LOC, "--json", "link.json"], "is one of the inputs"),
     ("locate --annotate its own folder", ["locate", "frames", *LOC, "--annotate", "frames"], "holds the input"),
     ("locate --annotate its own folder/", ["locate", "frames/", *LOC, "--annotate", "frames/"], "holds the input"),
-    ("locate --annotate the folder of one image", ["locate", "frames/scene_01.png", *LOC, "--annotate", "frames"],
-     "holds the input"),
-    ("locate --annotate through a symlinked folder", ["locate", "frames", *LOC, "--annotate", "framelink"], "holds the input"),
-    ("locate --annotate where --json goes", ["locate", "frames", *LOC, "--json", "out/poses.jsonl", "--annotate", "out"],
-     "is where --json"),
-    ("calibrate --annotate its photos", ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam2.json",
-                                        "--annotate", "photos"], "holds the input"),
-    ("calibrate --annotate the folder of its photos",
-     ["calibrate", "photos/view_00.png", "photos/view_01.png", "photos/view_02.png", "--pattern", "9x6",
-      "--square-mm", "25", "-o", "cam2.json", "--annotate", "photos"], "holds the input"),
-    ("render --truth the map", ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth", "map.json"],
-     "is one of the inputs"),
-    ("render --truth the camera", ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth",
-                                   "camera.json"], "is one of the inputs"),
-    ("render --truth a link to the map", ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth",
-                                          "link.json"], "is one of the inputs"),
+    (
+        "locate --annotate the folder of one image",
+        ["locate", "frames/scene_01.png", *LOC, "--annotate", "frames"],
+        "holds the input",
+    ),
+    (
+        "locate --annotate through a symlinked folder",
+        ["locate", "frames", *LOC, "--annotate", "framelink"],
+        "holds the input",
+    ),
+    (
+        "locate --annotate where --json goes",
+        ["locate", "frames", *LOC, "--json", "out/poses.jsonl", "--annotate", "out"],
+        "is where --json",
+    ),
+    (
+        "calibrate --annotate its photos",
+        ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam2.json", "--annotate", "photos"],
+        "holds the input",
+    ),
+    (
+        "calibrate --annotate the folder of its photos",
+        [
+            "calibrate",
+            "photos/view_00.png",
+            "photos/view_01.png",
+            "photos/view_02.png",
+            "--pattern",
+            "9x6",
+            "--square-mm",
+            "25",
+            "-o",
+            "cam2.json",
+            "--annotate",
+            "photos",
+        ],
+        "holds the input",
+    ),
+    (
+        "render --truth the map",
+        ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth", "map.json"],
+        "is one of the inputs",
+    ),
+    (
+        "render --truth the camera",
+        ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth", "camera.json"],
+        "is one of the inputs",
+    ),
+    (
+        "render --truth a link to the map",
+        ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth", "link.json"],
+        "is one of the inputs",
+    ),
 ]
 
 
 @pytest.mark.parametrize("argv, match", [c[1:] for c in CLOBBER], ids=[c[0] for c in CLOBBER])
 def test_an_output_over_an_input_is_refused_before_any_work(ws, capsys, argv, match):
-    target = "camera.json" if "camera" in " ".join(argv[-2:]) or "--json" in argv and "link.json" in argv else "map.json"
+    target = (
+        "camera.json" if "camera" in " ".join(argv[-2:]) or "--json" in argv and "link.json" in argv else "map.json"
+    )
     _link(ws, "link.json", target)
     _link(ws, "hard.json", "map.json", hard=True)
     (ws / "out").mkdir()
@@ -203,9 +246,11 @@ def _camera_with(**changes) -> str:
 
 
 def _yaml(dt: str = "d", fx: str = "628.158") -> str:
-    return (f"%YAML:1.0\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n"
-            f"   dt: {dt}\n   data: [ {fx}, 0., 640., 0., 628.156, 360., 0., 0., 1. ]\n"
-            "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ 0., 0., 0., 0., 0. ]\n")
+    return (
+        f"%YAML:1.0\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n"
+        f"   dt: {dt}\n   data: [ {fx}, 0., 640., 0., 628.156, 360., 0., 0., 1. ]\n"
+        "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ 0., 0., 0., 0., 0. ]\n"
+    )
 
 
 def _nested_yaml(depth: int) -> str:
@@ -217,19 +262,43 @@ def _nested_xml(depth: int) -> str:
 
 
 CAMERAS = [
-    ("camera.json", "misspelt distortion field", _camera_with(distortion=[0.1, 0, 0, 0, 0], dist_coeffs=None),
-     "unknown field 'distortion': did you mean 'dist_coeffs'?"),
-    ("camera.json", "dist_coefs", _camera_with(dist_coefs=[0.1, 0, 0, 0, 0], dist_coeffs=None),
-     "unknown field 'dist_coefs': did you mean 'dist_coeffs'?"),
-    ("camera.json", "K for camera_matrix", _camera_with(K=CAMERA_JSON["camera_matrix"], camera_matrix=None),
-     "unknown field 'K': did you mean 'camera_matrix'?"),
-    ("camera.json", "resolution for image_size", _camera_with(resolution=[1280, 720], image_size=None),
-     "unknown field 'resolution': did you mean 'image_size'?"),
+    (
+        "camera.json",
+        "misspelt distortion field",
+        _camera_with(distortion=[0.1, 0, 0, 0, 0], dist_coeffs=None),
+        "unknown field 'distortion': did you mean 'dist_coeffs'?",
+    ),
+    (
+        "camera.json",
+        "dist_coefs",
+        _camera_with(dist_coefs=[0.1, 0, 0, 0, 0], dist_coeffs=None),
+        "unknown field 'dist_coefs': did you mean 'dist_coeffs'?",
+    ),
+    (
+        "camera.json",
+        "K for camera_matrix",
+        _camera_with(K=CAMERA_JSON["camera_matrix"], camera_matrix=None),
+        "unknown field 'K': did you mean 'camera_matrix'?",
+    ),
+    (
+        "camera.json",
+        "resolution for image_size",
+        _camera_with(resolution=[1280, 720], image_size=None),
+        "unknown field 'resolution': did you mean 'image_size'?",
+    ),
     ("camera.json", "a typo in source", _camera_with(sourse="x"), "unknown field 'sourse': did you mean 'source'?"),
-    ("camera.json", "skew", _camera_with(camera_matrix=[[962.5, 3.0, 641.3], [0, 961.8, 357.9], [0, 0, 1]]),
-     "skew term K[0][1] = 3"),
-    ("camera.json", "negative skew", _camera_with(camera_matrix=[[962.5, -0.5, 641.3], [0, 961.8, 357.9], [0, 0, 1]]),
-     "skew term"),
+    (
+        "camera.json",
+        "skew",
+        _camera_with(camera_matrix=[[962.5, 3.0, 641.3], [0, 961.8, 357.9], [0, 0, 1]]),
+        "skew term K[0][1] = 3",
+    ),
+    (
+        "camera.json",
+        "negative skew",
+        _camera_with(camera_matrix=[[962.5, -0.5, 641.3], [0, 961.8, 357.9], [0, 0, 1]]),
+        "skew term",
+    ),
     ("camera.json", "image size beyond any camera", _camera_with(image_size=[10**6, 720]), "beyond any camera"),
     ("camera.yml", "dt: u clips to 255", _yaml("u"), "dt: u"),
     ("camera.yml", "dt: c", _yaml("c"), "dt: c"),
@@ -262,15 +331,31 @@ def _map_with(**changes) -> str:
 MAPS = [
     ("marker_size_mm 1e300", _map_with(marker_size_mm=1e300), "more than 10000 mm"),
     ("marker_size_mm 20000", _map_with(marker_size_mm=20000), "more than 10000 mm"),
-    ("unit for units", json.dumps({"unit": "ft", **{k: v for k, v in SEED.items() if k != "units"}}),
-     "unknown field 'unit': did you mean 'units'?"),
-    ("marker for markers", json.dumps({"units": "ft", "marker_size_mm": 80, "marker": SEED["markers"]}),
-     "did you mean 'markers'?"),
-    ("translaton", _map_with(markers={"0": {"translaton": [0, 0, 1], "rotation": [0, 0, 0]}}),
-     "unknown field 'translaton': did you mean 'translation'?"),
-    ("rotate", _map_with(markers={"0": {"translation": [0, 0, 1], "rotate": [0, 0, 0]}}),
-     "unknown field 'rotate': did you mean 'rotation'?"),
-    ("id beyond the dictionary", _map_with(markers={"5000": {"translation": [0, 0, 1]}}), "does not exist in dictionary"),
+    (
+        "unit for units",
+        json.dumps({"unit": "ft", **{k: v for k, v in SEED.items() if k != "units"}}),
+        "unknown field 'unit': did you mean 'units'?",
+    ),
+    (
+        "marker for markers",
+        json.dumps({"units": "ft", "marker_size_mm": 80, "marker": SEED["markers"]}),
+        "did you mean 'markers'?",
+    ),
+    (
+        "translaton",
+        _map_with(markers={"0": {"translaton": [0, 0, 1], "rotation": [0, 0, 0]}}),
+        "unknown field 'translaton': did you mean 'translation'?",
+    ),
+    (
+        "rotate",
+        _map_with(markers={"0": {"translation": [0, 0, 1], "rotate": [0, 0, 0]}}),
+        "unknown field 'rotate': did you mean 'rotation'?",
+    ),
+    (
+        "id beyond the dictionary",
+        _map_with(markers={"5000": {"translation": [0, 0, 1]}}),
+        "does not exist in dictionary",
+    ),
     ("translation 1e12 ft", _map_with(markers={"0": {"translation": [0, 0, 1e12]}}), "far beyond any room"),
     ("11 MB map", " " * (11 * 1024 * 1024) + "{}", "MB is more than a world map file can be"),
 ]
@@ -290,13 +375,22 @@ def _huge_png() -> bytes:
     def chunk(kind: bytes, body: bytes) -> bytes:
         return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
 
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 100000, 100000, 8, 0, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", 100000, 100000, 8, 0, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(b""))
+        + chunk(b"IEND", b"")
+    )
 
 
 IMAGES = [
     ("a 74-byte PNG declaring 100000x100000", "huge.png", _huge_png(), "100000x100000 pixels (1e+04 megapixels)"),
-    ("a PNG cut in half", "cut.png", (DATA / "scenes" / "scene_00.png").read_bytes()[:5000], "the PNG file is cut short"),
+    (
+        "a PNG cut in half",
+        "cut.png",
+        (DATA / "scenes" / "scene_00.png").read_bytes()[:5000],
+        "the PNG file is cut short",
+    ),
     ("a JPEG without its end", "cut.jpg", b"\xff\xd8\xff\xe0" + bytes(200), "the JPEG file is cut short"),
     ("an empty picture", "empty.png", b"", "the file is empty"),
     ("text named .png", "text.png", b"hello", "not an image OpenCV can read"),
@@ -310,9 +404,15 @@ def test_pictures_that_are_not_what_they_say(ws, capsys, name, content, match):
 
 
 def test_the_picture_limit_can_be_raised_and_lowered(ws, capsys):
-    refused(ws, capsys, ["locate", "frames", *LOC, "--max-megapixels", "0.5"],
-            "1280x720 pixels (0.922 megapixels), more than the limit of 0.5 megapixels")
-    refused(ws, capsys, ["locate", "frames", *LOC, "--max-megapixels", "1e9"], "--max-megapixels 1e+09: give 0.01 to 2000")
+    refused(
+        ws,
+        capsys,
+        ["locate", "frames", *LOC, "--max-megapixels", "0.5"],
+        "1280x720 pixels (0.922 megapixels), more than the limit of 0.5 megapixels",
+    )
+    refused(
+        ws, capsys, ["locate", "frames", *LOC, "--max-megapixels", "1e9"], "--max-megapixels 1e+09: give 0.01 to 2000"
+    )
     assert cli.main(["locate", "frames", *LOC, "--max-megapixels", "1"]) == 0
 
 
@@ -323,7 +423,11 @@ def test_fifos_and_devices_are_refused_without_blocking(ws, capsys, kind):
         os.mkfifo(ws / target)
     else:
         os.symlink("/dev/zero", ws / target)
-    argv = ["corners", target, "-o", "x.json"] if "map" in kind else ["locate", "frames", "--camera", target, "--map", "map.json"]
+    argv = (
+        ["corners", target, "-o", "x.json"]
+        if "map" in kind
+        else ["locate", "frames", "--camera", target, "--map", "map.json"]
+    )
     t0 = time.perf_counter()
     before = {p.name for p in ws.iterdir()}
     assert cli.main(argv) == 2
@@ -361,8 +465,9 @@ def test_calibrate_writes_the_camera_last(ws, capsys, monkeypatch):
 
     monkeypatch.setattr(c, "_draw_calibration_view", broken)
     before = snapshot(ws)
-    status = cli.main(["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json",
-                       "--annotate", "seen"])
+    status = cli.main(
+        ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json", "--annotate", "seen"]
+    )
     errors = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("error:")]
     assert status == 2 and errors == ["error: drawing failed"]
     assert snapshot(ws) == before  # no camera file: annotation failed before it would have been written
@@ -375,9 +480,26 @@ def _locate_process(ws: Path, *extra: str, **kw) -> subprocess.Popen:
         shutil.copytree(DATA / "trajectory", frames, ignore=shutil.ignore_patterns("*.json"))
         shutil.copy(DATA / "trajectory" / "camera.json", ws / "drive_camera.json")
     env = dict(os.environ, PYTHONPATH=str(Path(fidlearn.__file__).parent.parent))
-    return subprocess.Popen([sys.executable, "-m", "fidlearn", "locate", "drive", "--camera", "drive_camera.json",
-                             "--map", "map.json", *extra], cwd=ws, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, **kw)
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "fidlearn",
+            "locate",
+            "drive",
+            "--camera",
+            "drive_camera.json",
+            "--map",
+            "map.json",
+            *extra,
+        ],
+        cwd=ws,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **kw,
+    )
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
@@ -417,8 +539,15 @@ def test_a_closed_stdout_ends_quietly_with_the_files_complete(ws):
 def test_names_the_terminal_cannot_encode_are_escaped(ws):
     shutil.copy(ws / "frames" / "scene_00.png", ws / "frames" / "café_ü.png")
     env = dict(os.environ, PYTHONIOENCODING="ascii", PYTHONPATH=str(Path(fidlearn.__file__).parent.parent))
-    out = subprocess.run([sys.executable, "-m", "fidlearn", "locate", "frames/café_ü.png", *LOC], cwd=ws, env=env,
-                         capture_output=True, text=True, encoding="utf-8", timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-m", "fidlearn", "locate", "frames/café_ü.png", *LOC],
+        cwd=ws,
+        env=env,
+        capture_output=True,
+        text=True,
+        encoding="utf-8",
+        timeout=120,
+    )
     assert out.returncode == 0, out.stderr
     assert "caf\\xe9_\\xfc.png" in out.stdout
     assert "Traceback" not in out.stderr
@@ -429,8 +558,9 @@ def test_the_cli_and_library_agree_with_a_misplaced_marker(ws, capsys):
     rng = np.random.default_rng(4)
     bad = json.loads(json.dumps(SEED))
     for trial in range(12):
-        bad["markers"]["1"]["translation"] = [float(v) for v in np.array(SEED["markers"]["1"]["translation"])
-                                              + rng.normal(0, 0.5, 3)]
+        bad["markers"]["1"]["translation"] = [
+            float(v) for v in np.array(SEED["markers"]["1"]["translation"]) + rng.normal(0, 0.5, 3)
+        ]
         (ws / "moved.json").write_text(json.dumps(bad))
         status = cli.main(["locate", "frames", "--camera", "camera.json", "--map", "moved.json", "--json", "p.jsonl"])
         err = capsys.readouterr().err

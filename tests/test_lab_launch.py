@@ -31,8 +31,10 @@ VENV = Path(sys.prefix)
 FIRST = "notebooks/00_welcome.ipynb"
 USER = "fidlearn-lab"
 
-pytestmark = pytest.mark.skipif(not (VENV / "bin" / "jupyter").exists() or shutil.which("make") is None,
-                                reason="needs make and JupyterLab in this Python's environment")
+pytestmark = pytest.mark.skipif(
+    not (VENV / "bin" / "jupyter").exists() or shutil.which("make") is None,
+    reason="needs make and JupyterLab in this Python's environment",
+)
 
 
 def free_port() -> int:
@@ -45,9 +47,22 @@ def run_lab(prefix: list[str], home: Path) -> tuple[int, str]:
     """Start ``make lab``, fetch the first notebook through the API, stop it: (HTTP status, log)."""
     port, token = free_port(), secrets.token_hex(16)
     args = f"--no-browser --port={port} --ServerApp.port_retries=0 --IdentityProvider.token={token}"
-    cmd = [*prefix, "env", f"HOME={home}", f"JUPYTER_RUNTIME_DIR={home}/runtime", f"JUPYTER_CONFIG_DIR={home}/config",
-           "make", "--no-print-directory", "-C", str(ROOT), f"VENV={VENV}", "-o", f"{VENV}/.fidlearn-installed",
-           "lab", f"LAB_ARGS={args}"]
+    cmd = [
+        *prefix,
+        "env",
+        f"HOME={home}",
+        f"JUPYTER_RUNTIME_DIR={home}/runtime",
+        f"JUPYTER_CONFIG_DIR={home}/config",
+        "make",
+        "--no-print-directory",
+        "-C",
+        str(ROOT),
+        f"VENV={VENV}",
+        "-o",
+        f"{VENV}/.fidlearn-installed",
+        "lab",
+        f"LAB_ARGS={args}",
+    ]
     log = home / "lab.log"
     with open(log, "wb") as out:
         proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
@@ -83,8 +98,10 @@ def test_make_lab_serves_the_first_notebook_for_the_current_user(tmp_path):
         assert "running as root (a container?), so JupyterLab is started with --allow-root" in log
 
 
-@pytest.mark.skipif(os.geteuid() != 0 or shutil.which("runuser") is None or shutil.which("useradd") is None,
-                    reason="run as root to start the server as another, unprivileged user (the other test is that case)")
+@pytest.mark.skipif(
+    os.geteuid() != 0 or shutil.which("runuser") is None or shutil.which("useradd") is None,
+    reason="run as root to start the server as another, unprivileged user (the other test is that case)",
+)
 def test_make_lab_serves_the_first_notebook_for_an_unprivileged_user():
     try:
         pwd.getpwnam(USER)

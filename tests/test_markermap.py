@@ -40,7 +40,9 @@ def test_south_wall_yaw_180_runs_tr_to_minus_y():
 
 
 def test_pitch_minus_90_lies_on_the_floor_facing_up():
-    m = MarkerMap.from_dict({"5": {"translation": [1000, 0, 0], "rotation": [0, -90, 0]}}, units="mm", marker_size_mm=80)
+    m = MarkerMap.from_dict(
+        {"5": {"translation": [1000, 0, 0], "rotation": [0, -90, 0]}}, units="mm", marker_size_mm=80
+    )
     c = m.corners()[5]
     assert np.allclose(c[:, 2], 0)  # all four corners on the floor
     assert np.allclose(m.normal(5), [0, 0, 1])  # printed face looks up
@@ -105,27 +107,87 @@ def write(tmp_path, text, name="map.json"):
 @pytest.mark.parametrize(
     "text, kwargs, message",
     [
-        ('{"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},', {}, r"map.json: invalid JSON at line 1, column \d+"),
-        ('{"0": {"translation": [0,0,1]}, "0": {"translation": [1,1,1]}}', dict(units="ft", marker_size_mm=80), 'key "0" appears twice'),
-        ('{"a": {"translation": [0, 0, 1]}}', dict(units="ft", marker_size_mm=80), "marker id 'a' is not a whole number"),
-        ('{"1.5": {"translation": [0, 0, 1]}}', dict(units="ft", marker_size_mm=80), "marker id '1.5' is not a whole number"),
+        (
+            '{"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},',
+            {},
+            r"map.json: invalid JSON at line 1, column \d+",
+        ),
+        (
+            '{"0": {"translation": [0,0,1]}, "0": {"translation": [1,1,1]}}',
+            dict(units="ft", marker_size_mm=80),
+            'key "0" appears twice',
+        ),
+        (
+            '{"a": {"translation": [0, 0, 1]}}',
+            dict(units="ft", marker_size_mm=80),
+            "marker id 'a' is not a whole number",
+        ),
+        (
+            '{"1.5": {"translation": [0, 0, 1]}}',
+            dict(units="ft", marker_size_mm=80),
+            "marker id '1.5' is not a whole number",
+        ),
         ('{"-1": {"translation": [0, 0, 1]}}', dict(units="ft", marker_size_mm=80), "marker id -1 is negative"),
-        ('{"0": {"translation": [0, 1]}}', dict(units="ft", marker_size_mm=80), r"marker 0: translation has 2 values, expected 3 \[x, y, z\] in ft"),
-        ('{"3": {"translation": [0, 0, 1], "rotation": [0, 90]}}', dict(units="ft", marker_size_mm=80), r"marker 3: rotation has 2 values, expected 3 \[roll, pitch, yaw\] in degrees"),
-        ('{"0": {"translation": [0, NaN, 1]}}', dict(units="ft", marker_size_mm=80), "contains NaN, which is not a number"),
+        (
+            '{"0": {"translation": [0, 1]}}',
+            dict(units="ft", marker_size_mm=80),
+            r"marker 0: translation has 2 values, expected 3 \[x, y, z\] in ft",
+        ),
+        (
+            '{"3": {"translation": [0, 0, 1], "rotation": [0, 90]}}',
+            dict(units="ft", marker_size_mm=80),
+            r"marker 3: rotation has 2 values, expected 3 \[roll, pitch, yaw\] in degrees",
+        ),
+        (
+            '{"0": {"translation": [0, NaN, 1]}}',
+            dict(units="ft", marker_size_mm=80),
+            "contains NaN, which is not a number",
+        ),
         ('{"0": {"translation": [0, Infinity, 1]}}', dict(units="ft", marker_size_mm=80), "contains Infinity"),
         ('{"0": {"translation": [0, 1e400, 1]}}', dict(units="ft", marker_size_mm=80), "expected finite numbers"),
-        ('{"0": {"translation": [0, "1", 1]}}', dict(units="ft", marker_size_mm=80), "contains '1', which is not a number"),
-        ('{"units": "yards", "marker_size_mm": 80, "markers": {"0": {"translation": [0, 0, 1]}}}', {}, "unknown units 'yards'; use one of mm, cm, m, in, ft"),
+        (
+            '{"0": {"translation": [0, "1", 1]}}',
+            dict(units="ft", marker_size_mm=80),
+            "contains '1', which is not a number",
+        ),
+        (
+            '{"units": "yards", "marker_size_mm": 80, "markers": {"0": {"translation": [0, 0, 1]}}}',
+            {},
+            "unknown units 'yards'; use one of mm, cm, m, in, ft",
+        ),
         ('{"0": {"translation": [0, 0, 1]}}', dict(marker_size_mm=80), "no units: .* fidlearn never guesses"),
         ('{"units": "ft", "markers": {"0": {"translation": [0, 0, 1]}}}', {}, "no marker size"),
-        ('{"units": "ft", "marker_size_mm": 0, "markers": {"0": {"translation": [0, 0, 1]}}}', {}, "marker_size_mm is 0; it must be positive"),
-        ('{"units": "ft", "marker_size_mm": -80, "markers": {"0": {"translation": [0, 0, 1]}}}', {}, "marker_size_mm is -80; it must be positive"),
-        ('{"units": "ft", "marker_size_mm": 80, "dictionary": "ARUCO_BOGUS", "markers": {"0": {"translation": [0, 0, 1]}}}', {}, "unknown ArUco dictionary 'ARUCO_BOGUS'"),
-        ('{"units": "ft", "marker_size_mm": 80, "dictionary": "4X4_50", "markers": {"77": {"translation": [0, 0, 1]}}}', {}, "marker id 77 does not exist in dictionary 4X4_50, which has ids 0 to 49"),
+        (
+            '{"units": "ft", "marker_size_mm": 0, "markers": {"0": {"translation": [0, 0, 1]}}}',
+            {},
+            "marker_size_mm is 0; it must be positive",
+        ),
+        (
+            '{"units": "ft", "marker_size_mm": -80, "markers": {"0": {"translation": [0, 0, 1]}}}',
+            {},
+            "marker_size_mm is -80; it must be positive",
+        ),
+        (
+            '{"units": "ft", "marker_size_mm": 80, "dictionary": "ARUCO_BOGUS", "markers": {"0": {"translation": [0, 0, 1]}}}',
+            {},
+            "unknown ArUco dictionary 'ARUCO_BOGUS'",
+        ),
+        (
+            '{"units": "ft", "marker_size_mm": 80, "dictionary": "4X4_50", "markers": {"77": {"translation": [0, 0, 1]}}}',
+            {},
+            "marker id 77 does not exist in dictionary 4X4_50, which has ids 0 to 49",
+        ),
         ('{"units": "ft", "marker_size_mm": 80, "markers": {}}', {}, "the map has no markers"),
-        ('{"units": "ft", "marker_size_mm": 80, "markers": {"0": {"translation": [0, 0, 1]}}}', dict(units="m"), "the file says units = 'ft' but 'm' was given"),
-        ('{"0": {"translation": [0, 0, 1], "rotaton": [0, 0, 0]}}', dict(units="ft", marker_size_mm=80), "unknown field 'rotaton'"),
+        (
+            '{"units": "ft", "marker_size_mm": 80, "markers": {"0": {"translation": [0, 0, 1]}}}',
+            dict(units="m"),
+            "the file says units = 'ft' but 'm' was given",
+        ),
+        (
+            '{"0": {"translation": [0, 0, 1], "rotaton": [0, 0, 0]}}',
+            dict(units="ft", marker_size_mm=80),
+            "unknown field 'rotaton'",
+        ),
         ('{"0": {"rotation": [0, 0, 0]}}', dict(units="ft", marker_size_mm=80), 'no "translation"'),
         ("[1, 2, 3]", dict(units="ft", marker_size_mm=80), "expected a JSON object"),
         ("", {}, "the file is empty"),
@@ -147,7 +209,8 @@ def test_missing_map_file(tmp_path):
 def test_numpy_numbers_are_numbers():
     m = MarkerMap.from_dict(
         {"4": {"translation": list(np.array([0.0, 1.0, 2.0])), "rotation": [np.int64(0), 0, np.float32(90)]}},
-        units="m", marker_size_mm=np.int64(40),
+        units="m",
+        marker_size_mm=np.int64(40),
     )
     assert m.marker_size_mm == 40.0
     assert np.allclose(m.corners()[4][0], [0, 1000, 2000])

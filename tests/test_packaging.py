@@ -22,7 +22,6 @@ from packaging.version import Version
 ROOT = Path(__file__).resolve().parent.parent
 
 
-
 def _read_pyproject(text: str, use_tomllib: bool = sys.version_info >= (3, 11)) -> dict:
     """pyproject.toml as a dict: tomllib on 3.11+, on 3.10 the few fields these tests read."""
     if use_tomllib:
@@ -157,7 +156,9 @@ def test_binder_installs_the_package_itself():
     # Anything Binder pins besides the package must agree with pyproject.toml.
     wanted = {**runtime_deps(), **extra("test")}
     for name, spec in requirements([line for line in lines if line not in local]).items():
-        assert name in wanted and spec == wanted[name], f"binder/requirements.txt: {name}{spec} disagrees with pyproject.toml"
+        assert name in wanted and spec == wanted[name], (
+            f"binder/requirements.txt: {name}{spec} disagrees with pyproject.toml"
+        )
     runtime = (ROOT / "binder" / "runtime.txt").read_text().strip()
     match = re.fullmatch(r"python-(\d+\.\d+)", runtime)
     assert match, f"binder/runtime.txt should read python-3.X, got {runtime!r}"
@@ -181,6 +182,8 @@ def test_makefile_has_the_two_commands_and_the_ci_targets():
 
 
 def test_ci_runs_make_test_first_then_opencv_4_the_floors_and_the_browser():
-    lines = [line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines() if not line.strip().startswith("#")]
+    lines = [
+        line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines() if not line.strip().startswith("#")
+    ]
     make_calls = [m.group(1) for line in lines for m in [re.search(r"\bmake (test[\w-]*)\s*$", line)] if m]
     assert make_calls == ["test", "test-cv4", "test-floor", "test-browser"]

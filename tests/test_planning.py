@@ -28,8 +28,13 @@ def camera():
 
 def one_marker(size_mm: float = 160.0) -> MarkerMap:
     # rotation [0, 0, 0]: in the YZ plane facing +X, centre at (0, 0, 1000)
-    return MarkerMap.from_dict({"units": "mm", "marker_size_mm": size_mm, "markers": {
-        "0": {"translation": [0, -size_mm / 2, 1000 + size_mm / 2], "rotation": [0, 0, 0]}}})
+    return MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": size_mm,
+            "markers": {"0": {"translation": [0, -size_mm / 2, 1000 + size_mm / 2], "rotation": [0, 0, 0]}},
+        }
+    )
 
 
 def _sample_positions(world, camera, T, sigma, n, seed):
@@ -43,11 +48,14 @@ def _sample_positions(world, camera, T, sigma, n, seed):
     return p, np.array(out)
 
 
-@pytest.mark.parametrize("eye, target, sigma", [
-    ([1000, 190, 230], [0, 190, 230], 0.3),      # face-on, 1 m
-    ([1500, -600, 420], [0, 190, 230], 0.5),     # oblique, 1.7 m
-    ([700, 900, 150], [0, 190, 300], 1.0),       # close, from the side
-])
+@pytest.mark.parametrize(
+    "eye, target, sigma",
+    [
+        ([1000, 190, 230], [0, 190, 230], 0.3),  # face-on, 1 m
+        ([1500, -600, 420], [0, 190, 230], 0.5),  # oblique, 1.7 m
+        ([700, 900, 150], [0, 190, 300], 1.0),  # close, from the side
+    ],
+)
 def test_predicted_covariance_equals_the_sample_covariance(world, camera, eye, target, sigma):
     T = look_at(eye, target)
     p, C = _sample_positions(world, camera, T, sigma, 400, seed=1)
@@ -82,11 +90,16 @@ def test_one_marker_face_on_and_far_is_flagged_as_a_likely_flip_and_a_tilted_vie
     near = predict_accuracy(one_marker(80), cam, look_at([600, 600, 1000], [0, 0, 1000]), corner_sigma_px=0.5)
     assert not near.flip_likely
     world = MarkerMap.load(fidlearn.data_path("two_walls_map.json"))
-    seen_two_walls = [predict_accuracy(world, cam, look_at(e, [0, 0, 300]), corner_sigma_px=0.5)
-                      for e in ([1500, 1500, 400], [2000, 1000, 300])]
+    seen_two_walls = [
+        predict_accuracy(world, cam, look_at(e, [0, 0, 300]), corner_sigma_px=0.5)
+        for e in ([1500, 1500, 400], [2000, 1000, 300])
+    ]
     for p in seen_two_walls:
-        if not world.is_coplanar() and len(p.marker_ids) > 1 and not MarkerMap(
-                {i: world.placements[i] for i in p.marker_ids}, world.marker_size_mm).is_coplanar():
+        if (
+            not world.is_coplanar()
+            and len(p.marker_ids) > 1
+            and not MarkerMap({i: world.placements[i] for i in p.marker_ids}, world.marker_size_mm).is_coplanar()
+        ):
             assert p.flip_probability == 0.0
 
 
@@ -106,7 +119,9 @@ def test_the_flip_probability_predicts_how_often_estimate_pose_picks_the_wrong_b
         noisy = truth + rng.normal(0, sigma, (4, 2))
         pose = estimate_pose([Detection(0, noisy)], m, cam, corner_sigma_px=sigma)
         # the minimum of the true basin: Levenberg-Marquardt started at the truth
-        rvec, _ = cv2.solvePnPRefineLM(P, noisy, cam.K, cam.dist, rvec0.copy().reshape(3, 1), tvec0.copy().reshape(3, 1))
+        rvec, _ = cv2.solvePnPRefineLM(
+            P, noisy, cam.K, cam.dist, rvec0.copy().reshape(3, 1), tvec0.copy().reshape(3, 1)
+        )
         R_basin = cv2.Rodrigues(rvec)[0].T  # R_world_camera
         wrong += fidlearn.frames.rotation_angle_deg(pose.T_world_camera[:3, :3], R_basin) > 5.0
     # binomial tolerance on 300 trials, plus the first-order model's own slack
@@ -125,7 +140,7 @@ def test_markers_out_of_sight_say_why(world, camera):
 def test_detection_limits_follow_the_measured_rules():
     assert noise.min_perimeter_px((640, 480)) == noise.DECODE_MIN_PERIMETER_PX
     assert noise.min_perimeter_px((1920, 1080)) == pytest.approx(0.03 * 1.14 * 1920)
-    assert noise.corner_sigma_px(5.0) == noise.NOISE_SIGMA_PX[0]      # held outside the table
+    assert noise.corner_sigma_px(5.0) == noise.NOISE_SIGMA_PX[0]  # held outside the table
     assert noise.corner_sigma_px(1000.0) == noise.NOISE_SIGMA_PX[-1]
 
 
@@ -136,11 +151,14 @@ def test_flip_probability_is_zero_for_points_off_a_plane(camera):
     assert flip_probability(P, px, camera, np.full(6, 0.5)) == 0.0
 
 
-@pytest.mark.parametrize("bad, match", [
-    (np.eye(3), "shape"),
-    ("pose", "4x4"),
-    (np.diag([1.0, 1.0, -1.0, 1.0]), "reflection"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (np.eye(3), "shape"),
+        ("pose", "4x4"),
+        (np.diag([1.0, 1.0, -1.0, 1.0]), "reflection"),
+    ],
+)
 def test_bad_poses_are_refused(world, camera, bad, match):
     with pytest.raises(TransformError, match=match):
         predict_accuracy(world, camera, bad)
@@ -158,12 +176,22 @@ def test_plan_on_one_marker_on_its_axis_grows_with_the_cube_of_the_distance():
     # Z sigma_theta ~ Z^3, and it dominates the depth error (~ Z^2, test above): slope 3 in log-log.
     cam = Camera(np.array([[800.0, 0, 639.5], [0, 800.0, 359.5], [0, 0, 1]]), np.zeros(5), (1280, 720))
     m = one_marker(160)
-    plan = plan_room(m, cam, height_mm=1000, area=(500, -125, 4500, 125), step_mm=250, headings=0,
-                     corner_sigma_px=0.5, look_at_mm=[0, 0, 1000])
+    plan = plan_room(
+        m,
+        cam,
+        height_mm=1000,
+        area=(500, -125, 4500, 125),
+        step_mm=250,
+        headings=0,
+        corner_sigma_px=0.5,
+        look_at_mm=[0, 0, 1000],
+    )
     assert plan.toward_mm.shape == (1, 16)
     on_axis = plan.toward_mm[0]
     for x, err in zip(plan.x_mm, on_axis):
-        assert err == predict_accuracy(m, cam, look_at([x, 0, 1000], [0, 0, 1000]), corner_sigma_px=0.5).position_error_mm
+        assert (
+            err == predict_accuracy(m, cam, look_at([x, 0, 1000], [0, 0, 1000]), corner_sigma_px=0.5).position_error_mm
+        )
     slope = np.polyfit(np.log(plan.x_mm), np.log(on_axis), 1)[0]
     assert slope == pytest.approx(3.0, abs=0.1)
     assert plan.fraction_within(float(on_axis[7])) == pytest.approx(8 / 16)
@@ -184,8 +212,14 @@ def test_suggestions_reach_more_of_the_area(world, camera):
     assert steps, "a 5 mm target over 3 m is not met by three 80 mm markers: something must help"
     for s in steps:
         assert s.fraction_after > s.fraction_before
-    final = plan_room(steps[-1].marker_map, camera, area=(100, -1000, 3000, 1400), step_mm=500, headings=0,
-                      look_at_mm=np.mean([world.marker_corners(i).mean(axis=0) for i in world.ids], axis=0))
+    final = plan_room(
+        steps[-1].marker_map,
+        camera,
+        area=(100, -1000, 3000, 1400),
+        step_mm=500,
+        headings=0,
+        look_at_mm=np.mean([world.marker_corners(i).mean(axis=0) for i in world.ids], axis=0),
+    )
     assert final.fraction_within(5.0) == pytest.approx(steps[-1].fraction_after)
 
 
@@ -197,24 +231,48 @@ def _run_plan(argv):
 
 def test_plan_command_writes_the_picture_and_says_the_figures(tmp_path, capsys):
     out = tmp_path / "plan.png"
-    rc = _run_plan([str(fidlearn.data_path("world_map.json")), "--camera", str(fidlearn.data_path("scenes/camera.json")),
-                    "--step-mm", "500", "--headings", "4", "--target-mm", "10", "-o", str(out)])
+    rc = _run_plan(
+        [
+            str(fidlearn.data_path("world_map.json")),
+            "--camera",
+            str(fidlearn.data_path("scenes/camera.json")),
+            "--step-mm",
+            "500",
+            "--headings",
+            "4",
+            "--target-mm",
+            "10",
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = capsys.readouterr().out
     assert "a pose is possible at" in text and "within 10 mm" in text
     assert [p.name for p in tmp_path.iterdir()] == ["plan.png"]
 
 
-@pytest.mark.parametrize("extra, match", [
-    (["--suggest"], "--suggest needs --target-mm"),
-    (["--area", "1,2,3"], "expected 4 numbers"),
-    (["--area", "5,0,1,1"], "x0 < x1"),
-    (["--target-mm", "-3"], "positive"),
-])
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (["--suggest"], "--suggest needs --target-mm"),
+        (["--area", "1,2,3"], "expected 4 numbers"),
+        (["--area", "5,0,1,1"], "x0 < x1"),
+        (["--target-mm", "-3"], "positive"),
+    ],
+)
 def test_plan_command_refuses_bad_options(tmp_path, extra, match):
     with pytest.raises(FidlearnError, match=match):
-        _run_plan([str(fidlearn.data_path("world_map.json")), "--camera", str(fidlearn.data_path("scenes/camera.json")),
-                   "-o", str(tmp_path / "p.png"), *extra])
+        _run_plan(
+            [
+                str(fidlearn.data_path("world_map.json")),
+                "--camera",
+                str(fidlearn.data_path("scenes/camera.json")),
+                "-o",
+                str(tmp_path / "p.png"),
+                *extra,
+            ]
+        )
     assert not list(tmp_path.iterdir())
 
 

@@ -11,12 +11,19 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from mpl_toolkits.mplot3d import proj3d  # noqa: E402
 
-from fidlearn import Camera, MarkerMap, frames, look_at  # noqa: E402
-from fidlearn import plotting  # noqa: E402
+from fidlearn import (  # noqa: E402
+    Camera,
+    MarkerMap,
+    frames,
+    look_at,
+    plotting,  # noqa: E402
+)
 
-SEED = {"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},
-        "1": {"translation": [0, 1, 1], "rotation": [0, 0, 0]},
-        "2": {"translation": [0, 0.5, 0.75], "rotation": [0, 0, 0]}}
+SEED = {
+    "0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},
+    "1": {"translation": [0, 1, 1], "rotation": [0, 0, 0]},
+    "2": {"translation": [0, 0.5, 0.75], "rotation": [0, 0, 0]},
+}
 
 
 @pytest.fixture
@@ -70,7 +77,7 @@ def test_draw_frame_axes_have_the_rotation_columns_and_length():
     T = frames.make_transform(frames.rotation_from_rpy_deg(0, 0, 90), [10, 20, 30])
     lines = plotting.draw_frame(ax, T, length_mm=50)
     tips = [line_xyz(line)[1] for line in lines]
-    assert np.allclose(tips[0], [10, 70, 30])   # x of the frame = world +Y after yaw 90
+    assert np.allclose(tips[0], [10, 70, 30])  # x of the frame = world +Y after yaw 90
     assert np.allclose(tips[1], [-40, 20, 30])  # y = world -X
     assert np.allclose(tips[2], [10, 20, 80])
     assert [line.get_color() for line in lines] == list(plotting.AXIS_COLORS)

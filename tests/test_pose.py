@@ -8,8 +8,8 @@ import pytest
 
 from fidlearn import frames
 from fidlearn.camera import Camera
-from fidlearn.detection import Detection
 from fidlearn.data import data_path
+from fidlearn.detection import Detection
 from fidlearn.errors import CameraError, FidlearnWarning, ImageError, NoMarkersError, PoseError
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import Pose, estimate_pose, locate, pose_jacobian
@@ -251,7 +251,10 @@ def test_unknown_ids_are_ignored_and_listed():
 def test_no_known_marker_raises_a_helpful_error():
     m = wall_map()
     junk = np.array([[10.0, 10.0], [40.0, 10.0], [40.0, 40.0], [10.0, 40.0]])
-    with pytest.raises(NoMarkersError, match=r"markers \[17, 42\], none of which is in the map.*ids \[0, 1, 2, 3, 4, 5\].*ARUCO_ORIGINAL"):
+    with pytest.raises(
+        NoMarkersError,
+        match=r"markers \[17, 42\], none of which is in the map.*ids \[0, 1, 2, 3, 4, 5\].*ARUCO_ORIGINAL",
+    ):
         estimate_pose([Detection(42, junk), Detection(17, junk)], m, CAM)
     with pytest.raises(NoMarkersError, match=r"no marker was detected.*dictionary ARUCO_ORIGINAL"):
         estimate_pose([], m, CAM)
@@ -295,8 +298,12 @@ def test_pose_conventions_match_opencv():
         px, _ = cv2.projectPoints(m.marker_corners(d.id), pose.rvec, pose.tvec, CAM.K, CAM.dist)
         np.testing.assert_allclose(px.reshape(4, 2) + pose.residuals_px[d.id], d.corners, atol=1e-9)
         assert np.abs(pose.residuals_px[d.id]).max() < 1.5
-    ok, rvec, tvec = cv2.solvePnP(np.concatenate([m.marker_corners(d.id) for d in dets]),
-                                  np.concatenate([d.corners for d in dets]), CAM.K, CAM.dist)
+    ok, rvec, tvec = cv2.solvePnP(
+        np.concatenate([m.marker_corners(d.id) for d in dets]),
+        np.concatenate([d.corners for d in dets]),
+        CAM.K,
+        CAM.dist,
+    )
     assert ok and np.allclose(rvec.ravel(), pose.rvec, atol=1e-3) and np.allclose(tvec.ravel(), pose.tvec, atol=0.5)
     np.testing.assert_allclose(pose.rpy_deg, frames.rpy_deg_from_rotation(pose.T_world_camera[:3, :3]))
     text = repr(pose)
@@ -315,7 +322,9 @@ def test_pose_jacobian_matches_finite_differences():
         return CAM.project(P, frames.make_transform(R, T[:3, 3] + delta[3:])).ravel()
 
     h = np.r_[1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4]
-    numeric = np.column_stack([(pixels(np.eye(6)[k] * h[k]) - pixels(-np.eye(6)[k] * h[k])) / (2 * h[k]) for k in range(6)])
+    numeric = np.column_stack(
+        [(pixels(np.eye(6)[k] * h[k]) - pixels(-np.eye(6)[k] * h[k])) / (2 * h[k]) for k in range(6)]
+    )
     np.testing.assert_allclose(J, numeric, rtol=1e-5, atol=1e-5 * np.abs(J).max())
 
 
@@ -331,8 +340,9 @@ def test_position_covariance_covers_the_truth_95_percent(given_sigma):
     inside, n = 0, 300
     stds = []
     for _ in range(n):
-        pose = estimate_pose(observe(m, T, sigma, rng), m, CAM, corner_sigma_px=sigma if given_sigma else None,
-                             reject_outliers=False)
+        pose = estimate_pose(
+            observe(m, T, sigma, rng), m, CAM, corner_sigma_px=sigma if given_sigma else None, reject_outliers=False
+        )
         inside += pose.position_ellipsoid_contains(T[:3, 3], 0.95)
         stds.append(pose.position_std_mm)
     assert 0.90 <= inside / n <= 0.98, inside / n
@@ -367,7 +377,8 @@ def test_locate_finds_the_camera_in_a_rendered_scene():
 
 
 def test_locate_on_the_seed_map():
-    from fidlearn.synthetic import look_at as synthetic_look_at, render_scene
+    from fidlearn.synthetic import look_at as synthetic_look_at
+    from fidlearn.synthetic import render_scene
 
     m = MarkerMap.load(data_path("world_map.json"))
     T = synthetic_look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0], roll_deg=8.0)
@@ -440,8 +451,13 @@ def _seed_pipeline_position(image, marker_map, camera):
 
     corners, ids, _ = _cv.detect(_cv.make_detector(marker_map.dictionary), image)
     known = [(marker_map.marker_corners(int(i)), c) for c, i in zip(corners, ids) if int(i) in marker_map]
-    ok, rvec, tvec = cv2.solvePnP(np.concatenate([k[0] for k in known]), np.concatenate([k[1] for k in known]),
-                                  camera.K, camera.dist, flags=_cv.solvepnp_flag("IPPE"))
+    ok, rvec, tvec = cv2.solvePnP(
+        np.concatenate([k[0] for k in known]),
+        np.concatenate([k[1] for k in known]),
+        camera.K,
+        camera.dist,
+        flags=_cv.solvepnp_flag("IPPE"),
+    )
     return frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))[:3, 3] if ok else None
 
 
@@ -530,16 +546,25 @@ def test_locate_and_estimate_pose_take_paths_and_check_every_argument_first():
     dets = observe(m, T, camera=camera)
     np.testing.assert_allclose(estimate_pose(dets, str(map_path), str(camera_path)).T_world_camera, T, atol=1e-6)
     # the learner's mistakes, each refused before any detection with what to do
-    with pytest.raises(PoseError, match=r"marker_map must be a fidlearn.MarkerMap or the path of a map file, got Camera "
-                                        r"\(arguments swapped\? the order is marker_map, camera\); load a file with MarkerMap.load"):
+    with pytest.raises(
+        PoseError,
+        match=r"marker_map must be a fidlearn.MarkerMap or the path of a map file, got Camera "
+        r"\(arguments swapped\? the order is marker_map, camera\); load a file with MarkerMap.load",
+    ):
         locate(image, camera, m)
     with pytest.raises(PoseError, match=r"marker_map must be .*got dict; load a file with MarkerMap.load\(path\)"):
         estimate_pose(dets, {"0": [0, 0, 1]}, camera)
-    with pytest.raises(PoseError, match=r"camera must be a fidlearn.Camera or the path of a camera file, got ndarray; "
-                                        r"load a file with Camera.load\(path\)"):
+    with pytest.raises(
+        PoseError,
+        match=r"camera must be a fidlearn.Camera or the path of a camera file, got ndarray; "
+        r"load a file with Camera.load\(path\)",
+    ):
         locate(image, m, camera.K)
-    with pytest.raises(PoseError, match=r"locate\(\) got unknown option 'sigma'; it takes refine, detector_params and "
-                                        r"estimate_pose's corner_sigma_px, method"):
+    with pytest.raises(
+        PoseError,
+        match=r"locate\(\) got unknown option 'sigma'; it takes refine, detector_params and "
+        r"estimate_pose's corner_sigma_px, method",
+    ):
         locate(image, m, camera, sigma=0.3)
     with pytest.raises(PoseError, match="unknown method 'dls'"):
         locate(image, m, camera, method="dls")
@@ -558,14 +583,26 @@ def test_locate_and_estimate_pose_take_paths_and_check_every_argument_first():
 SQUARE = np.array([[100.0, 100.0], [160.0, 100.0], [160.0, 160.0], [100.0, 160.0]])  # TL, TR, BR, BL on screen
 
 
-@pytest.mark.parametrize("corners, message", [
-    (SQUARE[[0, 3, 2, 1]], r"marker 1: its image corners \[\[100.0, 100.0\], \[100.0, 160.0\].* run anticlockwise on the "
-                           r"screen.*are they listed TL, BL, BR, TR\? corners\[\[0, 3, 2, 1\]\] puts them right"),
-    (SQUARE[[0, 2, 1, 3]], r"marker 1: .* do not form a convex quadrilateral \(the outline crosses itself"),
-    ([[100.0, 100.0], [150.0, 100.0], [200.0, 100.0], [250.0, 100.0]], r"marker 1: .* enclose no area \(they lie on a line"),
-    ([[100.0, 100.0]] * 4, r"marker 1: its image corners \[\[100.0, 100.0\], \[100.0, 100.0\].* enclose no area"),
-    ([[100.0, 100.0], [160.0, 100.0], [160.0, 160.0], [150.0, 110.0]], r"marker 1: .* do not form a convex quadrilateral"),
-])
+@pytest.mark.parametrize(
+    "corners, message",
+    [
+        (
+            SQUARE[[0, 3, 2, 1]],
+            r"marker 1: its image corners \[\[100.0, 100.0\], \[100.0, 160.0\].* run anticlockwise on the "
+            r"screen.*are they listed TL, BL, BR, TR\? corners\[\[0, 3, 2, 1\]\] puts them right",
+        ),
+        (SQUARE[[0, 2, 1, 3]], r"marker 1: .* do not form a convex quadrilateral \(the outline crosses itself"),
+        (
+            [[100.0, 100.0], [150.0, 100.0], [200.0, 100.0], [250.0, 100.0]],
+            r"marker 1: .* enclose no area \(they lie on a line",
+        ),
+        ([[100.0, 100.0]] * 4, r"marker 1: its image corners \[\[100.0, 100.0\], \[100.0, 100.0\].* enclose no area"),
+        (
+            [[100.0, 100.0], [160.0, 100.0], [160.0, 160.0], [150.0, 110.0]],
+            r"marker 1: .* do not form a convex quadrilateral",
+        ),
+    ],
+)
 def test_corners_no_marker_can_give_are_refused_naming_the_marker(corners, message):
     m = wall_map()
     good = observe(m, T_WALL, ids={0, 2, 3})
@@ -593,7 +630,9 @@ def test_mirrored_corners_and_a_camera_facing_away_no_longer_give_a_perfect_fit_
 def _turned(m: MarkerMap, marker_id: int, yaw_deg: float) -> MarkerMap:
     placements = dict(m.placements)
     p = placements[marker_id]
-    placements[marker_id] = MarkerPlacement(marker_id, p.translation_mm, tuple(np.add(p.rotation_deg, [0.0, 0.0, yaw_deg])))
+    placements[marker_id] = MarkerPlacement(
+        marker_id, p.translation_mm, tuple(np.add(p.rotation_deg, [0.0, 0.0, yaw_deg]))
+    )
     return MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
 
 
@@ -606,8 +645,11 @@ def test_a_marker_turned_the_wrong_way_in_the_map_is_never_seen_from_behind():
     # two markers on one wall facing opposite ways: no camera sees both printed faces, and no pose fits
     two = [d for d in dets if d.id in (0, 1)]
     side = np.median([d.side_px for d in two])
-    with pytest.raises(PoseError, match=rf"the corners do not fit the map: reprojection error [\d.]+ px for markers \[0, 1\], "
-                                        rf"which are about {side:.0f} px wide.* \(Even that best fit would see marker [01] from behind.\)$"):
+    with pytest.raises(
+        PoseError,
+        match=rf"the corners do not fit the map: reprojection error [\d.]+ px for markers \[0, 1\], "
+        rf"which are about {side:.0f} px wide.* \(Even that best fit would see marker [01] from behind.\)$",
+    ):
         estimate_pose(two, wrong, CAM)
     # with a third marker the turned one disagrees with the others and is left out
     pose = estimate_pose(dets, wrong, CAM)
@@ -626,19 +668,25 @@ def test_only_poses_a_camera_can_have_are_chosen():
     F = np.diag([-1.0, 1.0, 1.0])
     behind_wall = pose_mod._Candidate(F @ T_WALL[:3, :3] @ F, F @ T_WALL[:3, 3], 0.5, None, refined=True)
     # the camera turned round on the spot: every corner behind it
-    turned = pose_mod._Candidate(T_WALL[:3, :3] @ np.diag([-1.0, 1.0, -1.0]), T_WALL[:3, 3].copy(), 0.25, None, refined=True)
+    turned = pose_mod._Candidate(
+        T_WALL[:3, :3] @ np.diag([-1.0, 1.0, -1.0]), T_WALL[:3, 3].copy(), 0.25, None, refined=True
+    )
     ordered = pose_mod._front_first(obs, CAM, [turned, behind_wall, true], refine_lm=True)
     assert ordered[0] is true
     assert behind_wall.problem.startswith(
         "markers [0, 1, 2, 3, 4, 5] would be seen from behind (from the back of their printed face) by the pose that fits "
-        "the corners best (reprojection error 0.1 px): are their rotations in the map wrong (yaw 180")
+        "the corners best (reprojection error 0.1 px): are their rotations in the map wrong (yaw 180"
+    )
     assert behind_wall.problem.endswith("or the corners mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?")
-    assert turned.problem.startswith("markers [0, 1, 2, 3, 4, 5] would be behind the camera in the pose that fits the corners best")
+    assert turned.problem.startswith(
+        "markers [0, 1, 2, 3, 4, 5] would be behind the camera in the pose that fits the corners best"
+    )
     # one marker of several seen from behind: it may be another one's rotation that is wrong
     one_back = pose_mod._Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None)
     obs_one = pose_mod._make_obs([0, 1], {d.id: d.corners for d in dets}, _turned(m, 1, 180.0).corners())
     assert pose_mod._cheirality(obs_one, one_back).endswith(
-        "With markers [0, 1] in view, the wrong rotation may be another one's.")
+        "With markers [0, 1] in view, the wrong rotation may be another one's."
+    )
     assert one_back.problem.startswith("marker 1 would be seen from behind (from the back of its printed face)")
     # no candidate left: the best one's problem is what estimate_pose reports
     assert pose_mod._front_first(obs, CAM, [turned, behind_wall], refine_lm=True)[0] is turned
@@ -653,11 +701,21 @@ def test_a_fit_far_worse_than_any_detector_is_refused():
     m = wall_map()
     dets = observe(m, T_WALL, 0.3)
     # positions in cm read as mm: the markers keep their size, the layout shrinks tenfold
-    cm_as_mm = MarkerMap({i: MarkerPlacement(i, tuple(np.multiply(p.translation_mm, 0.1)), p.rotation_deg)
-                          for i, p in m.placements.items()}, m.marker_size_mm, m.dictionary, "mm")
-    with pytest.raises(PoseError, match=r"the corners do not fit the map: reprojection error \d+\.\d px for markers "
-                                        r"\[0, 1, 2, 3, 4, 5\], which are about 52 px wide in the image.*check the map's "
-                                        r"positions and rotations, the marker size, the units, the corner order"):
+    cm_as_mm = MarkerMap(
+        {
+            i: MarkerPlacement(i, tuple(np.multiply(p.translation_mm, 0.1)), p.rotation_deg)
+            for i, p in m.placements.items()
+        },
+        m.marker_size_mm,
+        m.dictionary,
+        "mm",
+    )
+    with pytest.raises(
+        PoseError,
+        match=r"the corners do not fit the map: reprojection error \d+\.\d px for markers "
+        r"\[0, 1, 2, 3, 4, 5\], which are about 52 px wide in the image.*check the map's "
+        r"positions and rotations, the marker size, the units, the corner order",
+    ):
         estimate_pose(dets, cm_as_mm, CAM)
     # every marker's corners listed from the wrong starting point (clockwise still): no pose fits
     with pytest.raises(PoseError, match="the corners do not fit the map: reprojection error"):
@@ -681,7 +739,11 @@ def test_a_bad_fit_does_not_make_the_flip_look_as_good():
     assert pose.alternative is not None and not pose.ambiguous
     # what the residuals alone would have said
     extra = (pose.alternative.reprojection_rms_px**2 - pose.reprojection_rms_px**2) * len(pose.marker_ids) * 4
-    assert pose_mod.AMBIGUITY_CHI2 * pose_mod.AMBIGUITY_MAX_SIGMA_PX**2 < extra < pose_mod.AMBIGUITY_CHI2 * pose.sigma_px**2
+    assert (
+        pose_mod.AMBIGUITY_CHI2 * pose_mod.AMBIGUITY_MAX_SIGMA_PX**2
+        < extra
+        < pose_mod.AMBIGUITY_CHI2 * pose.sigma_px**2
+    )
     # a given corner noise is taken at its word
     assert estimate_pose(dets, wrong, CAM, corner_sigma_px=pose.sigma_px).ambiguous
 

@@ -10,7 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import _cv, printables as P
+from fidlearn import _cv
+from fidlearn import printables as P
 from fidlearn.printables import PrintError
 
 pdfium = pytest.importorskip("pypdfium2")
@@ -74,7 +75,7 @@ def ruler_ticks_mm(gray, px_per_mm=PX_PER_MM):
         x, y, w, h = stats[k, :4]
         long_, short = max(w, h) / px_per_mm, min(w, h) / px_per_mm
         if 99 < long_ < 101.5 and 3 < short < 7:
-            blob = (labels[y:y + h, x:x + w] == k).astype(np.uint8)
+            blob = (labels[y : y + h, x : x + w] == k).astype(np.uint8)
             if h > w:
                 blob = blob.T
             # baseline: the row with the most ink; sample 1 mm beyond it, where only ticks are
@@ -98,8 +99,14 @@ def test_parse_ids(text, ids):
 
 @pytest.mark.parametrize(
     "text, message",
-    [("", "empty"), ("a-b", "not an id or a range"), ("9-0", "runs backwards; write 0-9"),
-     ("0-3,2", "id 2 is listed twice"), ("-1", "not an id"), ("1,,2", "not an id")],
+    [
+        ("", "empty"),
+        ("a-b", "not an id or a range"),
+        ("9-0", "runs backwards; write 0-9"),
+        ("0-3,2", "id 2 is listed twice"),
+        ("-1", "not an id"),
+        ("1,,2", "not an id"),
+    ],
 )
 def test_parse_ids_rejects(text, message):
     with pytest.raises(PrintError, match=message):
@@ -161,8 +168,10 @@ def text_boxes_px(path, page_index=0, dpi=DPI):
         for line in text.split("\r\n"):
             chars = [tp.get_charbox(start + k) for k in range(len(line)) if not line[k].isspace()]
             if chars:
-                x0 = min(c[0] for c in chars); x1 = max(c[2] for c in chars)
-                y0 = min(c[1] for c in chars); y1 = max(c[3] for c in chars)
+                x0 = min(c[0] for c in chars)
+                x1 = max(c[2] for c in chars)
+                y0 = min(c[1] for c in chars)
+                y1 = max(c[3] for c in chars)
                 k = dpi / 72
                 boxes[line] = (x0 * k, (height_pt - y1) * k, x1 * k, (height_pt - y0) * k)
             start += len(line) + 2
@@ -180,7 +189,7 @@ def test_each_marker_has_its_id_under_it(markers_80):
         for c, i in zip(corners, ids):
             x0, x1 = c[:, 0].min(), c[:, 0].max()
             bottom = c[:, 1].max()
-            (label, (bx0, by0, bx1, by1)), = [(t, b) for t, b in boxes.items() if t.startswith(f"id {i} ")]
+            ((label, (bx0, by0, bx1, by1)),) = [(t, b) for t, b in boxes.items() if t.startswith(f"id {i} ")]
             assert label == f"id {i} ARUCO_ORIGINAL 80 mm"
             assert x0 < (bx0 + bx1) / 2 < x1  # centred under the marker
             assert bottom + cell_px < by0 and by1 < bottom + cell_px + 7 * PX_PER_MM  # below its quiet zone
@@ -217,8 +226,8 @@ def test_markers_have_a_quiet_zone_of_one_cell(markers_80):
         x0, y0 = c.min(axis=0)
         x1, y1 = c.max(axis=0)
         m = int(cell_px) - 2
-        ring = bw[int(y0) - m:int(y1) + m, int(x0) - m:int(x1) + m].copy()
-        ring[m - 3:ring.shape[0] - m + 3, m - 3:ring.shape[1] - m + 3] = 0  # blank the marker itself
+        ring = bw[int(y0) - m : int(y1) + m, int(x0) - m : int(x1) + m].copy()
+        ring[m - 3 : ring.shape[0] - m + 3, m - 3 : ring.shape[1] - m + 3] = 0  # blank the marker itself
         assert ring.max() == 0, "something printed within one cell of a marker"
 
 
@@ -237,9 +246,9 @@ def test_cut_marks_at_the_corners_of_each_piece(markers_80):
             # a horizontal mark on the cut line, from 1 to 4 mm outside the corner, and a vertical one
             seg_x = sorted((int(x + sx * 1.3 * mm), int(x + sx * 3.7 * mm)))
             seg_y = sorted((int(y + sy * 1.3 * mm), int(y + sy * 3.7 * mm)))
-            assert bw[yi - 2:yi + 3, seg_x[0]:seg_x[1]].any(axis=0).all(), (x, y)
-            assert bw[seg_y[0]:seg_y[1], xi - 2:xi + 3].any(axis=1).all(), (x, y)
-            assert not bw[yi - 2:yi + 3, int(x - sx * 0.5 * mm) - 1:int(x - sx * 0.5 * mm) + 2].any()  # not inside
+            assert bw[yi - 2 : yi + 3, seg_x[0] : seg_x[1]].any(axis=0).all(), (x, y)
+            assert bw[seg_y[0] : seg_y[1], xi - 2 : xi + 3].any(axis=1).all(), (x, y)
+            assert not bw[yi - 2 : yi + 3, int(x - sx * 0.5 * mm) - 1 : int(x - sx * 0.5 * mm) + 2].any()  # not inside
 
 
 def test_ruler_is_100mm_with_mm_ticks(markers_80):
@@ -255,9 +264,9 @@ def test_ruler_is_100mm_with_mm_ticks(markers_80):
 def test_markers_fit_one_page_when_small(tmp_path):
     path = tmp_path / "small.pdf"
     P.markers_pdf(path, [0, 3, 7, 8], 40, "6X6_250", "letter")
-    (w, h), = page_size_pt(path)
+    ((w, h),) = page_size_pt(path)
     assert (w, h) == pytest.approx((612, 792), abs=0.01)  # US letter, 8.5 x 11 in
-    gray, = rasterize(path)
+    (gray,) = rasterize(path)
     corners, ids = detect(gray, "6X6_250")
     assert sorted(ids.tolist()) == [0, 3, 7, 8]
     for c in corners:
@@ -306,8 +315,9 @@ def test_marker_size_must_be_positive(size):
 def chessboard_spacing_mm(gray, pattern, px_per_mm=PX_PER_MM):
     found, corners = cv2.findChessboardCorners(gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH)
     assert found, "OpenCV does not find the printed chessboard"
-    corners = cv2.cornerSubPix(gray, corners, (11, 11), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3))
+    corners = cv2.cornerSubPix(
+        gray, corners, (11, 11), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
+    )
     grid = corners.reshape(pattern[1], pattern[0], 2)
     along_rows = np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel()
     along_cols = np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel()
@@ -318,7 +328,7 @@ def test_checkerboard_pdf_square_size(tmp_path):
     path = tmp_path / "board.pdf"
     sheet = P.board_pdf(path, (9, 6), 25, "a4")
     assert sheet.squares == (10, 7) and sheet.inner_corners == (9, 6)
-    gray, = rasterize(path)
+    (gray,) = rasterize(path)
     # 250 x 175 mm only fits A4 turned to landscape
     assert np.allclose(gray.shape, (210 * PX_PER_MM, 297 * PX_PER_MM), atol=1)
     spacing = chessboard_spacing_mm(gray, (9, 6))
@@ -343,7 +353,7 @@ def test_charuco_pdf_detected_by_opencv(tmp_path):
     path = tmp_path / "charuco.pdf"
     sheet = P.board_pdf(path, (4, 6), 30, "a4", charuco=True, dictionary="6X6_250", marker_mm=22)
     assert sheet.squares == (5, 7)
-    gray, = rasterize(path)
+    (gray,) = rasterize(path)
     board = _cv.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
     ch_corners, ch_ids, m_corners, m_ids = _cv.charuco_detector(board).detectBoard(gray)
     assert ch_ids is not None and sorted(np.asarray(ch_ids).ravel().tolist()) == list(range(4 * 6))
@@ -365,7 +375,12 @@ def test_charuco_board_size_printed_on_page():
 
 
 def test_board_keeps_its_quiet_zone_inside_the_margins():
-    for pattern, square, paper in [((10, 7), 25, "a4"), ((10, 7), 25, "letter"), ((7, 5), 30, "a4"), ((12, 9), 12, "letter")]:
+    for pattern, square, paper in [
+        ((10, 7), 25, "a4"),
+        ((10, 7), 25, "letter"),
+        ((7, 5), 30, "a4"),
+        ((12, 9), 12, "letter"),
+    ]:
         sheet = P.layout_board(pattern, square, paper)
         q = P.board_quiet_zone_mm(square)
         (x, y), (w, h), (pw, ph) = sheet.origin_mm, sheet.board_mm, sheet.paper_mm
@@ -412,7 +427,9 @@ def test_png_pages_get_umask_permissions(tmp_path):
     assert [stat.S_IMODE(os.stat(f).st_mode) for f in files] == [0o644, 0o644]
 
 
-@pytest.mark.parametrize("make", [lambda out: P.markers_pdf(out, [0], 0.08), lambda out: P.board_pdf(out, (9, 6), 0.025)])
+@pytest.mark.parametrize(
+    "make", [lambda out: P.markers_pdf(out, [0], 0.08), lambda out: P.board_pdf(out, (9, 6), 0.025)]
+)
 def test_sizes_in_metres_are_refused(tmp_path, make):
     # 0.08 (metres, as OpenCV's tutorials write it) printed a sheet of 0.08 mm markers.
     with pytest.raises(PrintError, match=r"under 1 mm; if that is metres, give millimetres \((80|25)\)"):

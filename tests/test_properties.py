@@ -114,7 +114,9 @@ def test_map_survives_the_file_round_trip(placements, units, s, tmp_path_factory
         "units": units,
         "marker_size_mm": s,
         "dictionary": "ARUCO_ORIGINAL",
-        "markers": {str(i): {"translation": [v / scale for v in t], "rotation": list(r)} for i, (t, r) in placements.items()},
+        "markers": {
+            str(i): {"translation": [v / scale for v in t], "rotation": list(r)} for i, (t, r) in placements.items()
+        },
     }
     m = MarkerMap.from_dict(d)
     path = tmp_path_factory.mktemp("map") / "map.json"

@@ -52,8 +52,15 @@ def run_tool(tmp_path: Path, script: str, *args: str) -> list[str]:
     env = {k: v for k, v in os.environ.items() if k not in ("MPLCONFIGDIR", "XDG_CONFIG_HOME", "XDG_CACHE_HOME")}
     env.update(HOME=str(home), PYTHONPATH=str(ROOT))
     out = tmp_path / "opened.json"
-    subprocess.run([sys.executable, "-c", RUNNER, str(ROOT / script), str(out), *args], env=env, cwd=tmp_path,
-                   check=True, capture_output=True, text=True, timeout=300)
+    subprocess.run(
+        [sys.executable, "-c", RUNNER, str(ROOT / script), str(out), *args],
+        env=env,
+        cwd=tmp_path,
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     return json.loads(out.read_text())
 
 
@@ -62,10 +69,13 @@ def outside(paths: list[str], tmp: Path) -> list[str]:
     return [p for p in paths if not any(p == r or p.startswith(r.rstrip("/") + "/") for r in roots)]
 
 
-@pytest.mark.parametrize("script, args", [
-    ("tools/make_data.py", ["--data-dir", "{tmp}/data"]),
-    ("tools/make_conventions_figure.py", ["{tmp}/conventions.png"]),
-])
+@pytest.mark.parametrize(
+    "script, args",
+    [
+        ("tools/make_data.py", ["--data-dir", "{tmp}/data"]),
+        ("tools/make_conventions_figure.py", ["{tmp}/conventions.png"]),
+    ],
+)
 def test_tools_read_nothing_outside_the_repository(tmp_path, script, args):
     opened = run_tool(tmp_path, script, *[a.format(tmp=tmp_path) for a in args])
     assert opened, "the audit hook saw nothing: the test would prove nothing"

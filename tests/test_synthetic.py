@@ -43,6 +43,7 @@ def aruco_detect(image, dictionary=cv2.aruco.DICT_ARUCO_ORIGINAL):
 
 # -- geometry of the picture ------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "size, dist, eye, target, roll",
     [
@@ -60,7 +61,7 @@ def test_opencv_finds_every_visible_marker_at_its_true_corners(wall, size, dist,
     found = aruco_detect(image)
     assert sorted(found) == sorted(truth)
     err = np.concatenate([found[i] - truth[i] for i in truth])
-    rms = np.sqrt((err ** 2).sum(axis=1).mean())
+    rms = np.sqrt((err**2).sum(axis=1).mean())
     assert rms < 0.5, f"corner RMS {rms:.3f} px"
     assert np.all(np.abs(err.mean(axis=0)) < 0.15), f"systematic offset {err.mean(axis=0)} px"
 
@@ -90,14 +91,16 @@ def test_ink_lands_where_the_geometry_says_with_no_half_pixel_offset(wall):
     tl, br = truth[0][0], truth[0][2]
     side = br[0] - tl[0]
     cells = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL).markerSize + 2
-    black = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL), 0, cells) < 128
+    black = (
+        cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL), 0, cells) < 128
+    )
     cell = side / cells
     u0, v0, u1, v1 = int(tl[0]) - 3, int(tl[1]) - 3, int(br[0]) + 4, int(br[1]) + 4
     ink = (230.0 - image[v0:v1, u0:u1]) / (230.0 - 25.0)
     vv, uu = np.mgrid[v0:v1, u0:u1]
     rows, cols = np.nonzero(black)
     area = ink.sum()
-    assert area == pytest.approx(black.sum() * cell ** 2, rel=2e-3)
+    assert area == pytest.approx(black.sum() * cell**2, rel=2e-3)
     assert (ink * uu).sum() / area == pytest.approx(tl[0] + (cols.mean() + 0.5) * cell, abs=0.02)
     assert (ink * vv).sum() / area == pytest.approx(tl[1] + (rows.mean() + 0.5) * cell, abs=0.02)
 
@@ -109,11 +112,13 @@ def test_distorted_checkerboard_corners_sit_on_their_projections():
     for image, truth in zip(views.images, views.image_points):
         ok, found = cv2.findChessboardCorners(image, (9, 6))
         assert ok
-        found = cv2.cornerSubPix(image, found, (5, 5), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-4)).reshape(-1, 2)
+        found = cv2.cornerSubPix(
+            image, found, (5, 5), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
+        ).reshape(-1, 2)
         if np.linalg.norm(found[0] - truth[0]) > np.linalg.norm(found[0] - truth[-1]):
             found = found[::-1]
         err = found - truth
-        assert np.sqrt((err ** 2).sum(axis=1).mean()) < 0.1
+        assert np.sqrt((err**2).sum(axis=1).mean()) < 0.1
         assert np.all(np.abs(err.mean(axis=0)) < 0.03)
 
 
@@ -122,7 +127,9 @@ def test_exact_undistortion_inverts_opencvs_projection():
     dist = np.array([-0.3, 0.1, 0.002, -0.001, -0.02, 0.01, 0.002, 0.001, 0.001, -0.0005, 0.0007, 0.0002])
     rng = np.random.default_rng(0)
     xy = rng.uniform(-0.45, 0.45, size=(200, 2))
-    ref, _ = cv2.projectPoints(np.column_stack([xy, np.ones(len(xy))]).reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist)
+    ref, _ = cv2.projectPoints(
+        np.column_stack([xy, np.ones(len(xy))]).reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist
+    )
     ref = ref.reshape(-1, 2)
     mine = _distort_normalized(xy, dist) * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
     np.testing.assert_allclose(mine, ref, atol=1e-9)
@@ -130,6 +137,7 @@ def test_exact_undistortion_inverts_opencvs_projection():
 
 
 # -- what is and is not in the truth ---------------------------------------------------------------
+
 
 def test_markers_behind_the_camera_are_neither_drawn_nor_in_the_truth(wall):
     camera = Camera.from_fov(60, (320, 240))
@@ -177,8 +185,12 @@ def test_a_sheet_crossing_the_camera_plane_is_drawn_where_it_is_in_front(wall):
 def test_the_nearest_sheet_wins(front, back):
     """One marker hangs 100 mm in front of another and hides it, whichever id comes first."""
     scene = MarkerMap.from_dict(
-        {str(back): {"translation": [0, 0, 300], "rotation": [0, 0, 0]}, str(front): {"translation": [100, 10, 290], "rotation": [0, 0, 0]}},
-        units="mm", marker_size_mm=100,
+        {
+            str(back): {"translation": [0, 0, 300], "rotation": [0, 0, 0]},
+            str(front): {"translation": [100, 10, 290], "rotation": [0, 0, 0]},
+        },
+        units="mm",
+        marker_size_mm=100,
     )
     camera = Camera.from_fov(50, (640, 480))
     T = look_at([900, 60, 240], [0, 60, 240])
@@ -198,6 +210,7 @@ def test_visible_means_in_front_inside_and_facing(wall):
 
 
 # -- options --------------------------------------------------------------------------------------
+
 
 def test_same_seed_same_pixels_and_another_seed_other_noise(wall):
     camera = Camera.from_fov(60, (320, 240))
@@ -247,6 +260,7 @@ def test_look_at_gives_an_opencv_camera_frame():
 
 # -- calibration views and the drive ---------------------------------------------------------------
 
+
 def test_calibration_views_tell_the_truth_and_render_one_view_alone():
     camera = Camera([[600, 0, 322], [0, 601, 238], [0, 0, 1]], [-0.1, 0.03, 0, 0, 0], (640, 480))
     full = render_calibration_views(camera, n_views=3, seed=2)
@@ -272,7 +286,7 @@ def test_charuco_views_are_found_by_opencvs_charuco_detector():
         corners, ids, _, _ = detector.detectBoard(image)
         assert ids is not None and len(ids) == 24
         err = corners.reshape(-1, 2) - truth[np.ravel(ids)]
-        assert np.sqrt((err ** 2).sum(axis=1).mean()) < 0.2
+        assert np.sqrt((err**2).sum(axis=1).mean()) < 0.2
 
 
 def test_the_drive_stays_at_marker_height_and_keeps_the_markers_in_view(wall):

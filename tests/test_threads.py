@@ -33,8 +33,14 @@ def work(k: int) -> tuple:
     detections = detect_markers(image, world.dictionary, ids=world.ids)
     by_estimate = estimate_pose(detections, world, camera)
     by_locate = locate(image, world, camera)
-    return (rec["image"], sorted(d.id for d in detections), np.array([d.corners for d in detections]),
-            by_estimate.T_world_camera, by_locate.T_world_camera, by_locate.ambiguous)
+    return (
+        rec["image"],
+        sorted(d.id for d in detections),
+        np.array([d.corners for d in detections]),
+        by_estimate.T_world_camera,
+        by_locate.T_world_camera,
+        by_locate.ambiguous,
+    )
 
 
 def test_eight_threads_give_the_answers_of_one():
@@ -98,8 +104,13 @@ def test_another_threads_stderr_arrives_whole_while_pictures_are_read(tmp_path):
     (tmp_path / "bad_cut.png").write_bytes(data[: len(data) // 2])
     (tmp_path / "bad_text.png").write_text("not a picture")
     (tmp_path / "bad_garbled.png").write_bytes(data[:40] + bytes(range(256)) * 4 + data[-12:])
-    out = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, timeout=300,
-                         env={"PYTHONPATH": str(Path(fidlearn.__file__).parent.parent), "PATH": "/usr/bin:/bin"})
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={"PYTHONPATH": str(Path(fidlearn.__file__).parent.parent), "PATH": "/usr/bin:/bin"},
+    )
     assert out.returncode == 0, out.stderr
     lines = out.stderr.splitlines()
     assert [ln for ln in lines if ln.startswith("line ")] == [f"line {i}" for i in range(300)]

@@ -15,7 +15,9 @@ CAM = Camera([[500.0, 0, 320.4], [0, 500.0, 238.7], [0, 0, 1]], [-0.1, 0.05, 0.0
 def wall_map() -> MarkerMap:
     """Six 100 mm markers on the north wall (x = 0), facing +X; ids not consecutive."""
     p = {}
-    for k, (i, y, z) in enumerate([(3, 0, 1500), (7, 400, 1500), (11, 800, 1500), (20, 100, 1100), (21, 500, 1100), (40, 900, 1150)]):
+    for k, (i, y, z) in enumerate(
+        [(3, 0, 1500), (7, 400, 1500), (11, 800, 1500), (20, 100, 1100), (21, 500, 1100), (40, 900, 1150)]
+    ):
         p[i] = MarkerPlacement(i, (0.0, float(y), float(z)), (0.0, 0.0, 0.0))
     return MarkerMap(p, 100.0, "ARUCO_ORIGINAL", "mm")
 
@@ -23,8 +25,17 @@ def wall_map() -> MarkerMap:
 @pytest.fixture(scope="module")
 def drive():
     """Eight consecutive frames (about 25 mm apart) of a robot driving toward the wall, 1.8 m to 0.8 m away."""
-    return render_trajectory(CAM, wall_map(), n_frames=40, seed=3, start_distance_mm=1800.0, end_distance_mm=800.0,
-                             start_lateral_mm=-300.0, end_lateral_mm=200.0, frames_to_render=range(12, 20))
+    return render_trajectory(
+        CAM,
+        wall_map(),
+        n_frames=40,
+        seed=3,
+        start_distance_mm=1800.0,
+        end_distance_mm=800.0,
+        start_lateral_mm=-300.0,
+        end_lateral_mm=200.0,
+        frames_to_render=range(12, 20),
+    )
 
 
 def test_same_markers_and_corners_as_detect_markers(drive):
@@ -108,16 +119,19 @@ def test_bgr_frames_and_pose_options(drive):
     assert np.linalg.norm(pose.position_mm - drive.T_world_camera[4][:3, 3]) < 50.0
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(marker_map="map.json"), "marker_map must be a fidlearn.MarkerMap"),
-    (dict(camera=None), "camera must be a fidlearn.Camera"),
-    (dict(full_every=0), "full_every must be a whole number of frames >= 1, got 0"),
-    (dict(search_px=-1), "search_px must be a number of pixels >= 0"),
-    (dict(refine="sharp"), "unknown corner refinement 'sharp'"),
-    (dict(method="dlt"), "unknown method 'dlt'"),
-    (dict(reject_outlier=False), "unknown pose option reject_outlier"),
-    (dict(detector_params={"adaptiveThreshWinSize": 5}), "no field 'adaptiveThreshWinSize'"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(marker_map="map.json"), "marker_map must be a fidlearn.MarkerMap"),
+        (dict(camera=None), "camera must be a fidlearn.Camera"),
+        (dict(full_every=0), "full_every must be a whole number of frames >= 1, got 0"),
+        (dict(search_px=-1), "search_px must be a number of pixels >= 0"),
+        (dict(refine="sharp"), "unknown corner refinement 'sharp'"),
+        (dict(method="dlt"), "unknown method 'dlt'"),
+        (dict(reject_outlier=False), "unknown pose option reject_outlier"),
+        (dict(detector_params={"adaptiveThreshWinSize": 5}), "no field 'adaptiveThreshWinSize'"),
+    ],
+)
 def test_bad_arguments(kwargs, match):
     args = dict(marker_map=wall_map(), camera=CAM) | kwargs
     with pytest.raises(FidlearnError, match=match):

@@ -139,7 +139,9 @@ def test_each_stream_frame_is_acknowledged_after_the_callbacks_ran():
     cam.start()
     _, png = cv2.imencode(".png", _frame())
     for seq in (1, 2):
-        cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": seq, "width": 64, "height": 48}, [png.tobytes()])
+        cam._on_message(
+            cam, {"type": "frame", "kind": "stream", "seq": seq, "width": 64, "height": 48}, [png.tobytes()]
+        )
     assert seen == [(48, 64, 3), (48, 64, 3)]
     acks = [m for m in browser.sent if m["type"] == "ack"]
     assert [a["seq"] for a in acks] == [1, 2]
@@ -184,7 +186,9 @@ def test_snapshot_resolves_with_the_browser_reply():
         await asyncio.sleep(0)
         request = browser.sent[-1]
         assert request["type"] == "snap" and request["format"] == "png"
-        cam._on_message(cam, {"type": "frame", "kind": "snap", "id": request["id"], "width": 64, "height": 48}, [png.tobytes()])
+        cam._on_message(
+            cam, {"type": "frame", "kind": "snap", "id": request["id"], "width": 64, "height": 48}, [png.tobytes()]
+        )
         return await task
 
     np.testing.assert_array_equal(asyncio.run(run()), frame)

@@ -26,8 +26,10 @@ def _requirements(text: str) -> list[str]:
         project = tomllib.loads(text)["project"]
         return list(project["dependencies"]) + list(project["optional-dependencies"]["test"])
     reqs = []
-    for block in (re.search(r"^dependencies\s*=\s*\[(.*?)\]", text, re.S | re.M).group(1),
-                  re.search(r"^test\s*=\s*\[(.*?)\]", text, re.S | re.M).group(1)):
+    for block in (
+        re.search(r"^dependencies\s*=\s*\[(.*?)\]", text, re.S | re.M).group(1),
+        re.search(r"^test\s*=\s*\[(.*?)\]", text, re.S | re.M).group(1),
+    ):
         reqs += re.findall(r'"([^"]+)"', re.sub(r"#.*", "", block))
     return reqs
 

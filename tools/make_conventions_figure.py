@@ -1,6 +1,6 @@
 """Draw docs/img/conventions.png: the world frame, the north wall, one marker's corners and the camera frame.
 
-    python tools/make_conventions_figure.py [OUT.png]     # default: docs/img/conventions.png
+python tools/make_conventions_figure.py [OUT.png]     # default: docs/img/conventions.png
 """
 
 from __future__ import annotations

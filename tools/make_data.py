@@ -121,6 +121,7 @@ TRAJECTORY = {
 
 # -- helpers -----------------------------------------------------------------------------------------
 
+
 def provenance() -> dict:
     """What made the files: the versions that decide their exact pixels."""
     return {
@@ -161,6 +162,7 @@ def corners_json(truth: dict) -> dict:
 
 # -- the folders ------------------------------------------------------------------------------------
 
+
 def make_calibration() -> None:
     folder = DATA / "calibration"
     fresh_folder(folder, "view_*.png")
@@ -168,8 +170,12 @@ def make_calibration() -> None:
     camera.save(folder / "camera_true.json")
     (folder / "camera_true.json").chmod(0o644)
     views = render_calibration_views(
-        camera, n_views=CALIBRATION["n_views"], pattern_size=tuple(CALIBRATION["pattern_size"]),
-        square_size_mm=CALIBRATION["square_size_mm"], seed=CALIBRATION["seed"], **CALIBRATION["render"],
+        camera,
+        n_views=CALIBRATION["n_views"],
+        pattern_size=tuple(CALIBRATION["pattern_size"]),
+        square_size_mm=CALIBRATION["square_size_mm"],
+        seed=CALIBRATION["seed"],
+        **CALIBRATION["render"],
     )
     records = []
     for i, (image, T, px) in enumerate(zip(views.images, views.T_world_camera, views.image_points)):
@@ -177,24 +183,30 @@ def make_calibration() -> None:
         write_png(folder / name, image)
         T_camera_board = frames.invert_transform(T)
         tilt = frames.rotation_angle_deg(T_camera_board[:3, :3], np.eye(3))
-        records.append({
-            "image": name,
-            "T_world_camera": matrix(T),
-            "T_camera_board": matrix(T_camera_board),
-            "distance_mm": round(float(np.linalg.norm(T_camera_board[:3, 3])), 3),
-            "board_rotation_deg": round(tilt, 3),
-            "corners_px": [[round(float(v), 6) for v in p] for p in px],
-        })
-    write_json(folder / "views.json", {
-        "what": "synthetic checkerboard views; the world frame is the board's (OpenCV object points: "
-                "inner corner (i, j) at (i * square, j * square, 0) mm)",
-        "camera": "camera_true.json",
-        "function": "fidlearn.synthetic.render_calibration_views",
-        "arguments": {k: v for k, v in CALIBRATION.items() if k not in ("camera", "render")} | CALIBRATION["render"],
-        "object_points_mm": [[float(v) for v in p] for p in views.object_points],
-        "views": records,
-        "provenance": provenance(),
-    })
+        records.append(
+            {
+                "image": name,
+                "T_world_camera": matrix(T),
+                "T_camera_board": matrix(T_camera_board),
+                "distance_mm": round(float(np.linalg.norm(T_camera_board[:3, 3])), 3),
+                "board_rotation_deg": round(tilt, 3),
+                "corners_px": [[round(float(v), 6) for v in p] for p in px],
+            }
+        )
+    write_json(
+        folder / "views.json",
+        {
+            "what": "synthetic checkerboard views; the world frame is the board's (OpenCV object points: "
+            "inner corner (i, j) at (i * square, j * square, 0) mm)",
+            "camera": "camera_true.json",
+            "function": "fidlearn.synthetic.render_calibration_views",
+            "arguments": {k: v for k, v in CALIBRATION.items() if k not in ("camera", "render")}
+            | CALIBRATION["render"],
+            "object_points_mm": [[float(v) for v in p] for p in views.object_points],
+            "views": records,
+            "provenance": provenance(),
+        },
+    )
     print(f"calibration: {len(records)} views in {folder}")
 
 
@@ -214,23 +226,28 @@ def make_scenes() -> None:
         image, truth = render_scene(camera, marker_map, T, seed=seed, **SCENES["render"])
         name = f"scene_{i:02d}.png"
         write_png(folder / name, image)
-        records.append({
-            "image": name,
-            "map": map_name,
-            "T_world_camera": matrix(T),
-            "look_at": {"eye_mm": eye, "target_mm": target, "roll_deg": roll},
-            "seed": seed,
-            "visible_ids": sorted(int(k) for k in truth),
-            "corners_px": corners_json(truth),
-        })
-    write_json(folder / "poses.json", {
-        "what": "the seed's room seen from known poses; maps are in data/, T_world_camera in mm",
-        "camera": "camera.json",
-        "function": "fidlearn.synthetic.render_scene",
-        "render": SCENES["render"],
-        "images": records,
-        "provenance": provenance(),
-    })
+        records.append(
+            {
+                "image": name,
+                "map": map_name,
+                "T_world_camera": matrix(T),
+                "look_at": {"eye_mm": eye, "target_mm": target, "roll_deg": roll},
+                "seed": seed,
+                "visible_ids": sorted(int(k) for k in truth),
+                "corners_px": corners_json(truth),
+            }
+        )
+    write_json(
+        folder / "poses.json",
+        {
+            "what": "the seed's room seen from known poses; maps are in data/, T_world_camera in mm",
+            "camera": "camera.json",
+            "function": "fidlearn.synthetic.render_scene",
+            "render": SCENES["render"],
+            "images": records,
+            "provenance": provenance(),
+        },
+    )
     print(f"scenes: {len(records)} images in {folder}, and {DATA / 'two_walls_map.json'}")
 
 
@@ -247,20 +264,29 @@ def make_trajectory() -> None:
     for i, (image, T, truth) in enumerate(zip(drive.images, drive.T_world_camera, drive.truth)):
         name = f"frame_{i:03d}.png"
         write_png(folder / name, image)
-        records.append({"image": name, "T_world_camera": matrix(T), "visible_ids": sorted(int(k) for k in truth),
-                        "corners_px": corners_json(truth)})
-    write_json(folder / "poses.json", {
-        "what": "a camera on a robot driving toward the north wall; frame i is rendered with seed "
-                "seed * 1000 + i; T_world_camera in mm",
-        "camera": "camera.json",
-        "map": TRAJECTORY["map"],
-        "function": "fidlearn.synthetic.render_trajectory (poses from fidlearn.synthetic.trajectory_poses)",
-        "seed": TRAJECTORY["seed"],
-        "n_frames": TRAJECTORY["n_frames"],
-        "render": TRAJECTORY["render"],
-        "frames": records,
-        "provenance": provenance(),
-    })
+        records.append(
+            {
+                "image": name,
+                "T_world_camera": matrix(T),
+                "visible_ids": sorted(int(k) for k in truth),
+                "corners_px": corners_json(truth),
+            }
+        )
+    write_json(
+        folder / "poses.json",
+        {
+            "what": "a camera on a robot driving toward the north wall; frame i is rendered with seed "
+            "seed * 1000 + i; T_world_camera in mm",
+            "camera": "camera.json",
+            "map": TRAJECTORY["map"],
+            "function": "fidlearn.synthetic.render_trajectory (poses from fidlearn.synthetic.trajectory_poses)",
+            "seed": TRAJECTORY["seed"],
+            "n_frames": TRAJECTORY["n_frames"],
+            "render": TRAJECTORY["render"],
+            "frames": records,
+            "provenance": provenance(),
+        },
+    )
     print(f"trajectory: {len(records)} frames in {folder}")
 
 
@@ -268,8 +294,10 @@ def check_real() -> None:
     """The real photos are part of the repository: say so if one of their folders is missing."""
     missing = [name for name in REAL_FOLDERS if not (repo_dir() / "data" / "real" / name).is_dir()]
     if missing:
-        raise SystemExit(f"error: data/real/{missing[0]} is missing from the checkout; restore it with git "
-                         "(git checkout -- data/real) or bring it in with --import-real FOLDER")
+        raise SystemExit(
+            f"error: data/real/{missing[0]} is missing from the checkout; restore it with git "
+            "(git checkout -- data/real) or bring it in with --import-real FOLDER"
+        )
     print(f"real: {', '.join(REAL_FOLDERS)} present in data/real (kept, not regenerated)")
 
 
@@ -277,8 +305,10 @@ def import_real(source: Path) -> None:
     """Copy the real photos in from ``source`` (a folder holding the three sample folders)."""
     missing = [name for name in REAL_FOLDERS if not (source / name).is_dir()]
     if missing:
-        raise SystemExit(f"error: {source / missing[0]} does not exist; --import-real needs a folder holding "
-                         f"{', '.join(REAL_FOLDERS)}")
+        raise SystemExit(
+            f"error: {source / missing[0]} does not exist; --import-real needs a folder holding "
+            f"{', '.join(REAL_FOLDERS)}"
+        )
     folder = DATA / "real"
     folder.mkdir(parents=True, exist_ok=True)
     for name in REAL_FOLDERS:
@@ -293,11 +323,19 @@ def import_real(source: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Regenerate fidlearn's data/ folder from seeds.")
-    parser.add_argument("--only", choices=["calibration", "scenes", "trajectory", "real"], action="append",
-                        help="regenerate only this part (repeatable); default: all")
+    parser.add_argument(
+        "--only",
+        choices=["calibration", "scenes", "trajectory", "real"],
+        action="append",
+        help="regenerate only this part (repeatable); default: all",
+    )
     parser.add_argument("--data-dir", type=Path, default=None, help="write here instead of the repository's data/")
-    parser.add_argument("--import-real", type=Path, metavar="FOLDER",
-                        help="copy the real photos in from FOLDER (the one step that reads outside the repository)")
+    parser.add_argument(
+        "--import-real",
+        type=Path,
+        metavar="FOLDER",
+        help="copy the real photos in from FOLDER (the one step that reads outside the repository)",
+    )
     args = parser.parse_args(argv)
     global DATA
     if args.data_dir is not None:

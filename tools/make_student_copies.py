@@ -50,7 +50,9 @@ def execute(nb, timeout: int = 120):
 
     env_backup = {k: os.environ.pop(k) for k in ("FIDLEARN_LEARNER", "FIDLEARN_STRICT") if k in os.environ}
     try:
-        NotebookClient(nb, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(EXERCISES_DIR)}}).execute()
+        NotebookClient(
+            nb, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(EXERCISES_DIR)}}
+        ).execute()
     finally:
         os.environ.update(env_backup)
     for cell in nb.cells:
@@ -96,7 +98,9 @@ def main(argv=None) -> int:
         if not args.no_execute:
             student = execute(student)
         write(student, EXERCISES_DIR / name)
-        print(f"wrote {SOLUTIONS_DIR.relative_to(repo_dir()) / name} and {EXERCISES_DIR.relative_to(repo_dir()) / name}")
+        print(
+            f"wrote {SOLUTIONS_DIR.relative_to(repo_dir()) / name} and {EXERCISES_DIR.relative_to(repo_dir()) / name}"
+        )
     return 0
 
 

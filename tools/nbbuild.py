@@ -118,7 +118,9 @@ def parse_percent(text: str, where: str = "<source>") -> list[Cell]:
             elif rest == "[markdown]" or rest == "[md]":
                 kind = "markdown"
             else:
-                raise BuildError(f"{where}: line {lineno}: unknown cell marker {line!r}; use '# %%' or '# %% [markdown]'")
+                raise BuildError(
+                    f"{where}: line {lineno}: unknown cell marker {line!r}; use '# %%' or '# %% [markdown]'"
+                )
             lines = []
         else:
             lines.append(line)
@@ -132,7 +134,9 @@ def notebook_path(src: Path) -> Path:
     """Where a source builds to: ``<dir>/src/<name>.py`` -> ``<dir>/<name>.ipynb``."""
     src = Path(src)
     if src.parent.name != "src" or src.suffix != ".py":
-        raise BuildError(f"{src}: a notebook source lives in a 'src' folder and ends in .py (notebooks/src/NN_topic.py)")
+        raise BuildError(
+            f"{src}: a notebook source lives in a 'src' folder and ends in .py (notebooks/src/NN_topic.py)"
+        )
     return src.parent.parent / (src.stem + ".ipynb")
 
 
@@ -238,8 +242,10 @@ def build(src: Path, execute: bool = True, quiet: bool = False) -> Path:
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, out)
     if not quiet:
-        print(f"{_show(out)}: {len(nb.cells)} cells, "
-              f"{'executed in %.1f s' % (time.monotonic() - t0) if execute else 'not executed'}")
+        print(
+            f"{_show(out)}: {len(nb.cells)} cells, "
+            f"{'executed in %.1f s' % (time.monotonic() - t0) if execute else 'not executed'}"
+        )
     return out
 
 
@@ -291,12 +297,16 @@ def check(sources: list[Path] | None = None) -> list[str]:
     built = {notebook_path(s).resolve() for s in all_sources()}
     for nb in sorted(NOTEBOOKS.glob("[0-9][0-9]_*.ipynb")):
         if nb.resolve() not in built:
-            problems.append(f"{nb.relative_to(REPO)}: no source notebooks/src/{nb.stem}.py; notebooks are built from sources")
+            problems.append(
+                f"{nb.relative_to(REPO)}: no source notebooks/src/{nb.stem}.py; notebooks are built from sources"
+            )
     return problems
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="nbbuild", description="Build course notebooks from notebooks/src/*.py and check them.")
+    p = argparse.ArgumentParser(
+        prog="nbbuild", description="Build course notebooks from notebooks/src/*.py and check them."
+    )
     p.add_argument("sources", nargs="*", type=Path, help="percent scripts to build (notebooks/src/NN_topic.py)")
     p.add_argument("--all", action="store_true", help="build every source under notebooks/")
     p.add_argument("--check", action="store_true", help="only check that the notebooks match their sources")

@@ -45,7 +45,7 @@ def _view_jacobian(camera: Camera, points_mm: np.ndarray, T_camera_board: np.nda
     """(2N, 6) with respect to the board pose and (2N, 4 + n_dist) with respect to the intrinsics."""
     rvec, tvec = frames.rvec_tvec_from_transform(T_camera_board)
     _, jac = cv2.projectPoints(np.asarray(points_mm, dtype=float).reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
-    return jac[:, :6], jac[:, 6:6 + _n_intrinsics(camera)]
+    return jac[:, :6], jac[:, 6 : 6 + _n_intrinsics(camera)]
 
 
 def _marginal_information(camera: Camera, points_mm: np.ndarray, T_camera_board: np.ndarray) -> np.ndarray:
@@ -101,7 +101,7 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
     pts = np.column_stack([rays, np.ones(len(rays))]) * distance_mm
     _, jac = cv2.projectPoints(pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.K, camera.dist)
     n = _n_intrinsics(camera)
-    Ji, Jr = jac[:, 6:6 + n], jac[:, :3]  # (2G, n) intrinsics, (2G, 3) a small rotation of the camera
+    Ji, Jr = jac[:, 6 : 6 + n], jac[:, :3]  # (2G, n) intrinsics, (2G, 3) a small rotation of the camera
     P = np.eye(len(Jr)) - Jr @ np.linalg.solve(Jr.T @ Jr, Jr.T)
     field = P @ Ji
     var = np.einsum("kj,jl,kl->k", field, covariance, field).reshape(-1, 2).sum(axis=1) / 2
@@ -120,8 +120,10 @@ class NextView:
     median_uncertainty_px_after: float
 
     def __str__(self) -> str:
-        return (f"put the board {self.where} of the picture, {self.tilt}, about {self.distance_mm / 1000:.1f} m "
-                f"away: {100 * self.good_fraction_after:.0f} % of the picture under {GOOD_UNCERTAINTY_PX} px")
+        return (
+            f"put the board {self.where} of the picture, {self.tilt}, about {self.distance_mm / 1000:.1f} m "
+            f"away: {100 * self.good_fraction_after:.0f} % of the picture under {GOOD_UNCERTAINTY_PX} px"
+        )
 
 
 @dataclass(frozen=True, repr=False)
@@ -159,17 +161,21 @@ class CalibrationCoach:
         return float(math.sqrt(self.covariance[0, 0]))
 
     def report(self) -> str:
-        lines = [f"reprojection uncertainty: median {np.median(self.uncertainty_px):.2f} px, worst "
-                 f"{self.uncertainty_px.max():.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
-                 f"{100 * self.good_fraction:.0f} % of the picture"]
+        lines = [
+            f"reprojection uncertainty: median {np.median(self.uncertainty_px):.2f} px, worst "
+            f"{self.uncertainty_px.max():.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
+            f"{100 * self.good_fraction:.0f} % of the picture"
+        ]
         lines += [f"warning: {f}" for f in self.flags]
         if self.next_view is not None:
             lines.append(f"next photo: {self.next_view}")
         return "\n".join(lines)
 
     def __repr__(self) -> str:
-        return (f"CalibrationCoach(under {GOOD_UNCERTAINTY_PX} px over {100 * self.good_fraction:.0f} % of the picture, "
-                f"{len(self.flags)} warning{'s' if len(self.flags) != 1 else ''})")
+        return (
+            f"CalibrationCoach(under {GOOD_UNCERTAINTY_PX} px over {100 * self.good_fraction:.0f} % of the picture, "
+            f"{len(self.flags)} warning{'s' if len(self.flags) != 1 else ''})"
+        )
 
 
 def _coverage(camera: Camera, image_points_px: dict, grid=GRID) -> np.ndarray:
@@ -203,7 +209,10 @@ def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_c
         rvec, tvec = frames.rvec_tvec_from_transform(T)
         proj, _ = cv2.projectPoints(P.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
         r = np.asarray(image_points_px[name], dtype=float).reshape(-1, 2) - proj.reshape(-1, 2)
-        x, y = (P[:, 0] - P[:, 0].mean()) / max(np.ptp(P[:, 0]), 1e-9), (P[:, 1] - P[:, 1].mean()) / max(np.ptp(P[:, 1]), 1e-9)
+        x, y = (
+            (P[:, 0] - P[:, 0].mean()) / max(np.ptp(P[:, 0]), 1e-9),
+            (P[:, 1] - P[:, 1].mean()) / max(np.ptp(P[:, 1]), 1e-9),
+        )
         A = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
         fit = A @ np.linalg.lstsq(A, r, rcond=None)[0]
         total = float(np.sum(r**2))
@@ -218,14 +227,24 @@ def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_c
 def _candidates(camera: Camera, board_points_mm: np.ndarray, distance_mm: float):
     """Board poses: centred on 3x3 places of the picture, face-on or tilted 35 deg four ways."""
     centre = board_points_mm.mean(axis=0)
-    places = {(0, 0): "at the top left", (1, 0): "at the top", (2, 0): "at the top right",
-              (0, 1): "at the left", (1, 1): "in the middle", (2, 1): "at the right",
-              (0, 2): "at the bottom left", (1, 2): "at the bottom", (2, 2): "at the bottom right"}
-    tilts = {"face-on": np.eye(3),
-             "its top tilted away from the camera": frames.rot_x(math.radians(-35)),
-             "its bottom tilted away from the camera": frames.rot_x(math.radians(35)),
-             "its left side tilted away from the camera": frames.rot_y(math.radians(35)),
-             "its right side tilted away from the camera": frames.rot_y(math.radians(-35))}
+    places = {
+        (0, 0): "at the top left",
+        (1, 0): "at the top",
+        (2, 0): "at the top right",
+        (0, 1): "at the left",
+        (1, 1): "in the middle",
+        (2, 1): "at the right",
+        (0, 2): "at the bottom left",
+        (1, 2): "at the bottom",
+        (2, 2): "at the bottom right",
+    }
+    tilts = {
+        "face-on": np.eye(3),
+        "its top tilted away from the camera": frames.rot_x(math.radians(-35)),
+        "its bottom tilted away from the camera": frames.rot_x(math.radians(35)),
+        "its left side tilted away from the camera": frames.rot_y(math.radians(35)),
+        "its right side tilted away from the camera": frames.rot_y(math.radians(-35)),
+    }
     for (i, j), where in places.items():
         u = (0.2 + 0.3 * i) * camera.width
         v = (0.2 + 0.3 * j) * camera.height
@@ -242,8 +261,15 @@ def _summary(camera: Camera, info: np.ndarray, sigma_px: float, distance_mm: flo
     return cov, u, float(np.mean(u < GOOD_UNCERTAINTY_PX))
 
 
-def coach(camera: Camera, board_points_mm: dict, image_points_px: dict, T_camera_board: dict, *,
-          sigma_px: float, other_sizes: int = 0) -> CalibrationCoach:
+def coach(
+    camera: Camera,
+    board_points_mm: dict,
+    image_points_px: dict,
+    T_camera_board: dict,
+    *,
+    sigma_px: float,
+    other_sizes: int = 0,
+) -> CalibrationCoach:
     """Judge a calibration set and say which photo to take next.
 
     Parameters
@@ -276,20 +302,28 @@ def coach(camera: Camera, board_points_mm: dict, image_points_px: dict, T_camera
     if len(names) < MIN_VIEWS:
         flags.append(f"only {len(names)} views were used; take at least {MIN_VIEWS} (15 to 25 is usual)")
     if max(tilts.values()) < FACE_ON_DEG:
-        flags.append(f"every view is face-on (the largest tilt is {max(tilts.values()):.0f} deg): the focal length "
-                     "and the distance cannot be told apart; tilt the board 20 to 45 deg in different directions")
+        flags.append(
+            f"every view is face-on (the largest tilt is {max(tilts.values()):.0f} deg): the focal length "
+            "and the distance cannot be told apart; tilt the board 20 to 45 deg in different directions"
+        )
     ninths = _coverage(camera, image_points_px, (3, 3))
     empty = [_NINTHS[k] for k in np.flatnonzero(ninths.ravel() == 0)]
     if empty:
-        flags.append(f"no board point in the {', '.join(empty)} of the picture; the distortion there is a guess: take "
-                     "views with the board reaching into it")
+        flags.append(
+            f"no board point in the {', '.join(empty)} of the picture; the distortion there is a guess: take "
+            "views with the board reaching into it"
+        )
     if other_sizes:
-        flags.append(f"{other_sizes} photo{'s were' if other_sizes > 1 else ' was'} taken at another resolution and left "
-                     "out: calibrate at the resolution you will run at, all photos alike")
+        flags.append(
+            f"{other_sizes} photo{'s were' if other_sizes > 1 else ' was'} taken at another resolution and left "
+            "out: calibrate at the resolution you will run at, all photos alike"
+        )
     bent = bent_views(camera, board_points_mm, image_points_px, T_camera_board)
     if bent:
-        flags.append(f"the board does not look flat in {', '.join(bent)}: its residuals follow a smooth bend; "
-                     "glue the print to something rigid and retake those views")
+        flags.append(
+            f"the board does not look flat in {', '.join(bent)}: its residuals follow a smooth bend; "
+            "glue the print to something rigid and retake those views"
+        )
     best = None
     board = np.asarray(board_points_mm[names[0]], dtype=float)
     candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
@@ -300,8 +334,17 @@ def coach(camera: Camera, board_points_mm: dict, image_points_px: dict, T_camera
         # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
         score = (min(good_after, 0.9), -float(np.mean(u_after**2)))
         if best is None or score > best[0]:
-            best = (score, NextView(T, where, tilt, float(np.linalg.norm(T[:3, :3] @ board.mean(axis=0) + T[:3, 3])),
-                                    good_after, float(np.median(u_after))))
+            best = (
+                score,
+                NextView(
+                    T,
+                    where,
+                    tilt,
+                    float(np.linalg.norm(T[:3, :3] @ board.mean(axis=0) + T[:3, 3])),
+                    good_after,
+                    float(np.median(u_after)),
+                ),
+            )
     return CalibrationCoach(u, good, cov, coverage, tilts, flags, best[1] if best else None)
 
 
@@ -319,6 +362,11 @@ def coach_calibration(calibration, other_sizes: int | None = None) -> Calibratio
     if other_sizes is None:
         other_sizes = sum(1 for v in calibration.views if v.status == "other size")
     # OpenCV's RMS is over the 2D distance of each point: per axis it is RMS / sqrt(2)
-    return coach(calibration.camera, calibration.board_points_mm, calibration.image_points_px,
-                 calibration.T_camera_board, sigma_px=max(calibration.rms_px / math.sqrt(2), 1e-3),
-                 other_sizes=other_sizes)
+    return coach(
+        calibration.camera,
+        calibration.board_points_mm,
+        calibration.image_points_px,
+        calibration.T_camera_board,
+        sigma_px=max(calibration.rms_px / math.sqrt(2), 1e-3),
+        other_sizes=other_sizes,
+    )

@@ -34,14 +34,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
     p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
     p.add_argument("--height-mm", type=float, default=300.0, help="camera height above the floor (default 300)")
-    p.add_argument("--area", metavar="X0,Y0,X1,Y1", help="floor area to plan, mm (default: 3 m in front of the markers)")
+    p.add_argument(
+        "--area", metavar="X0,Y0,X1,Y1", help="floor area to plan, mm (default: 3 m in front of the markers)"
+    )
     p.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (default: the markers' centre)")
     p.add_argument("--step-mm", type=float, default=250.0, help="grid spacing (default 250)")
     p.add_argument("--headings", type=int, default=16, help="level headings tried per place (default 16; 0: skip)")
-    p.add_argument("--corner-sigma-px", type=float, metavar="PX",
-                   help="your camera's corner noise (default: measured on fidlearn's renders, by marker size)")
+    p.add_argument(
+        "--corner-sigma-px",
+        type=float,
+        metavar="PX",
+        help="your camera's corner noise (default: measured on fidlearn's renders, by marker size)",
+    )
     p.add_argument("--target-mm", type=float, help="error to reach; drawn as a line, and the goal of --suggest")
-    p.add_argument("--suggest", action="store_true", help="say which marker size and where to add markers to reach --target-mm")
+    p.add_argument(
+        "--suggest", action="store_true", help="say which marker size and where to add markers to reach --target-mm"
+    )
     p.add_argument("-o", "--output", type=Path, required=True, help="picture to write (.png)")
 
 
@@ -72,27 +80,45 @@ def run(args) -> int:
         if sys.stderr.isatty():
             print(f"\rplanning: row {done}/{total}", end="" if done < total else "\n", file=sys.stderr)
 
-    plan = plan_room(world, camera, height_mm=args.height_mm, area=area, look_at_mm=look, step_mm=args.step_mm,
-                     headings=args.headings, corner_sigma_px=args.corner_sigma_px, progress=progress)
+    plan = plan_room(
+        world,
+        camera,
+        height_mm=args.height_mm,
+        area=area,
+        look_at_mm=look,
+        step_mm=args.step_mm,
+        headings=args.headings,
+        corner_sigma_px=args.corner_sigma_px,
+        progress=progress,
+    )
     from .figure import plan_figure  # matplotlib: only when a picture is drawn (the command line starts faster)
 
     fig = plan_figure(plan, world, target_mm=args.target_mm)
     atomic_write(args.output, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
     ok = np.isfinite(plan.toward_mm)
-    print(f"{args.output}: {len(plan.x_mm)}x{len(plan.y_mm)} places at {plan.height_mm:.0f} mm; "
-          f"a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers")
+    print(
+        f"{args.output}: {len(plan.x_mm)}x{len(plan.y_mm)} places at {plan.height_mm:.0f} mm; "
+        f"a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers"
+    )
     if ok.any():
-        print(f"  predicted error looking at the markers: median {np.median(plan.toward_mm[ok]):.1f} mm, "
-              f"worst {np.max(plan.toward_mm[ok]):.1f} mm")
+        print(
+            f"  predicted error looking at the markers: median {np.median(plan.toward_mm[ok]):.1f} mm, "
+            f"worst {np.max(plan.toward_mm[ok]):.1f} mm"
+        )
     if np.any(plan.flip[ok]):
-        print(f"  the planar flip is likely at {100 * plan.flip[ok].mean():.0f} % of those places: add a marker off their plane")
+        print(
+            f"  the planar flip is likely at {100 * plan.flip[ok].mean():.0f} % of those places: add a marker off their plane"
+        )
     if args.target_mm is not None:
         print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
     if args.suggest:
-        steps = suggest_markers(world, camera, args.target_mm, height_mm=args.height_mm, area=area,
-                                corner_sigma_px=args.corner_sigma_px)
+        steps = suggest_markers(
+            world, camera, args.target_mm, height_mm=args.height_mm, area=area, corner_sigma_px=args.corner_sigma_px
+        )
         if not steps:
             print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
         for s in steps:
-            print(f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % within {args.target_mm:g} mm")
+            print(
+                f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % within {args.target_mm:g} mm"
+            )
     return 0

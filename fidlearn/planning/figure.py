@@ -21,16 +21,24 @@ def _draw_markers(ax, marker_map: MarkerMap) -> None:
 
 
 def _panel(ax, plan: RoomPlan, grid: np.ndarray, title: str, norm, target_mm: float | None):
-    extent = [plan.x_mm[0] - (plan.x_mm[1] - plan.x_mm[0] if len(plan.x_mm) > 1 else 1) / 2,
-              plan.x_mm[-1] + (plan.x_mm[1] - plan.x_mm[0] if len(plan.x_mm) > 1 else 1) / 2,
-              plan.y_mm[0] - (plan.y_mm[1] - plan.y_mm[0] if len(plan.y_mm) > 1 else 1) / 2,
-              plan.y_mm[-1] + (plan.y_mm[1] - plan.y_mm[0] if len(plan.y_mm) > 1 else 1) / 2]
+    extent = [
+        plan.x_mm[0] - (plan.x_mm[1] - plan.x_mm[0] if len(plan.x_mm) > 1 else 1) / 2,
+        plan.x_mm[-1] + (plan.x_mm[1] - plan.x_mm[0] if len(plan.x_mm) > 1 else 1) / 2,
+        plan.y_mm[0] - (plan.y_mm[1] - plan.y_mm[0] if len(plan.y_mm) > 1 else 1) / 2,
+        plan.y_mm[-1] + (plan.y_mm[1] - plan.y_mm[0] if len(plan.y_mm) > 1 else 1) / 2,
+    ]
     ax.set_facecolor("0.85")  # no pose possible: grey
     shown = np.ma.masked_invalid(np.where(np.isfinite(grid), grid, np.nan))
     im = ax.imshow(shown, origin="lower", extent=extent, cmap="viridis", norm=norm, interpolation="nearest")
     if target_mm is not None and np.isfinite(grid).sum() > 3 and len(plan.x_mm) > 1 and len(plan.y_mm) > 1:
-        ax.contour(plan.x_mm, plan.y_mm, np.ma.masked_invalid(np.where(np.isfinite(grid), grid, np.nan)), levels=[target_mm],
-                   colors="white", linewidths=1.5)
+        ax.contour(
+            plan.x_mm,
+            plan.y_mm,
+            np.ma.masked_invalid(np.where(np.isfinite(grid), grid, np.nan)),
+            levels=[target_mm],
+            colors="white",
+            linewidths=1.5,
+        )
     ax.set_title(title, fontsize=10)
     ax.set_xlabel("world X (mm)")
     ax.set_aspect("equal")
@@ -58,8 +66,11 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
         _draw_markers(ax, marker_map)
     axes[0].set_ylabel("world Y (mm)")
     fig.colorbar(im, ax=list(axes), label="predicted median position error (mm); grey: no pose", shrink=0.85)
-    fig.suptitle(f"Camera {plan.height_mm:.0f} mm above the floor"
-                 + (f", white line: {target_mm:g} mm" if target_mm is not None else ""), fontsize=11)
+    fig.suptitle(
+        f"Camera {plan.height_mm:.0f} mm above the floor"
+        + (f", white line: {target_mm:g} mm" if target_mm is not None else ""),
+        fontsize=11,
+    )
     return fig
 
 
@@ -76,8 +87,14 @@ def coach_figure(coach, camera) -> Figure:
     fig = Figure(figsize=(7.0, 7.0 * camera.height / camera.width + 1.0), layout="constrained")
     ax = fig.subplots()
     u = coach.uncertainty_px
-    im = ax.imshow(u, extent=[-0.5, camera.width - 0.5, camera.height - 0.5, -0.5], cmap="magma_r",
-                   vmin=0.0, vmax=max(float(u.max()), 2 * GOOD_UNCERTAINTY_PX), interpolation="bicubic")
+    im = ax.imshow(
+        u,
+        extent=[-0.5, camera.width - 0.5, camera.height - 0.5, -0.5],
+        cmap="magma_r",
+        vmin=0.0,
+        vmax=max(float(u.max()), 2 * GOOD_UNCERTAINTY_PX),
+        interpolation="bicubic",
+    )
     rows, cols = u.shape
     xs = (np.arange(cols) + 0.5) * camera.width / cols - 0.5
     ys = (np.arange(rows) + 0.5) * camera.height / rows - 0.5
@@ -90,6 +107,9 @@ def coach_figure(coach, camera) -> Figure:
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
     fig.colorbar(im, ax=ax, shrink=0.8, label=f"reprojection uncertainty (px); blue line: {GOOD_UNCERTAINTY_PX} px")
-    fig.suptitle(f"Calibration uncertainty: under {GOOD_UNCERTAINTY_PX} px over {100 * coach.good_fraction:.0f} % "
-                 "of the picture", fontsize=11)
+    fig.suptitle(
+        f"Calibration uncertainty: under {GOOD_UNCERTAINTY_PX} px over {100 * coach.good_fraction:.0f} % "
+        "of the picture",
+        fontsize=11,
+    )
     return fig

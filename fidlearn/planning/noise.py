@@ -20,8 +20,9 @@ NOISE_SIDE_PX = np.array([11, 13, 15, 18, 22, 27, 33, 40, 50, 65, 85, 110, 150, 
 #: (walls of 1 to 12 markers seen from 0.5 to 4 m, 640x480 to 1920x1080; 744 markers, 5 to 126
 #: per bin). The RMS is the same from 18 px up and 2 to 3 times larger below, where a few
 #: corners land a pixel off.
-NOISE_SIGMA_PX = np.array([0.231, 0.099, 0.082, 0.082, 0.071, 0.079, 0.069, 0.050, 0.041, 0.032, 0.034,
-                           0.031, 0.023, 0.023])
+NOISE_SIGMA_PX = np.array(
+    [0.231, 0.099, 0.082, 0.082, 0.071, 0.079, 0.069, 0.050, 0.041, 0.032, 0.034, 0.031, 0.023, 0.023]
+)
 
 #: The decoder needs about 1.2 px per cell of a 7-cell marker: below this perimeter (px) it
 #: fails whatever the image size (measured: half of the face-on markers found at 8.4 px sides,

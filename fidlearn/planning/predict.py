@@ -105,8 +105,10 @@ class Prediction:
         std = ", ".join(f"{s:.1f}" for s in self.position_std_mm)
         flip = f", flip {100 * self.flip_probability:.0f} %" if self.flip_likely else ""
         sides = ", ".join(f"{i}: {self.side_px[i]:.0f} px" for i in self.marker_ids)
-        return (f"Prediction({where}: markers {sides}; position error {self.position_error_mm:.1f} mm "
-                f"(median), std [{std}] mm{flip})")
+        return (
+            f"Prediction({where}: markers {sides}; position error {self.position_error_mm:.1f} mm "
+            f"(median), std [{std}] mm{flip})"
+        )
 
 
 def _check_pose(T_world_camera) -> np.ndarray:
@@ -154,14 +156,15 @@ def _seen(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray) -> 
             lost[mid] = f"too small ({perimeter / 4:.0f} px sides, the detector needs {min_perimeter / 4:.0f})"
             continue
         if float(np.min(sides)) < noise.MIN_SHORT_SIDE_PX:
-            lost[mid] = f"seen too obliquely (a side of {np.min(sides):.0f} px, the detector needs {noise.MIN_SHORT_SIDE_PX:.0f})"
+            lost[mid] = (
+                f"seen too obliquely (a side of {np.min(sides):.0f} px, the detector needs {noise.MIN_SHORT_SIDE_PX:.0f})"
+            )
             continue
         seen[mid] = px
     return seen, lost
 
 
-def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Camera,
-                     sigma_px: np.ndarray) -> float:
+def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Camera, sigma_px: np.ndarray) -> float:
     """Chance that the other planar solution fits noisy corners better than the true pose.
 
     With exact corners ``points_px``, the second IPPE solution refined by Levenberg-Marquardt
@@ -187,13 +190,18 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
     if s[2] > 1e-6 * max(s[0], 1.0):
         return 0.0
     n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
-        P.reshape(-1, 1, 3), points_px.reshape(-1, 1, 2), camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
+        P.reshape(-1, 1, 3), points_px.reshape(-1, 1, 2), camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE
+    )
     found = []  # (weighted squared residual, rotation matrix) of each solution
     for rvec, tvec in zip(rvecs[:n], tvecs[:n]):
         rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
         proj, _ = cv2.projectPoints(P, rvec, tvec, camera.K, camera.dist)
-        found.append((float(np.sum(np.sum((proj.reshape(-1, 2) - points_px) ** 2, axis=1) / sigma_px**2)),
-                      cv2.Rodrigues(rvec)[0]))
+        found.append(
+            (
+                float(np.sum(np.sum((proj.reshape(-1, 2) - points_px) ** 2, axis=1) / sigma_px**2)),
+                cv2.Rodrigues(rvec)[0],
+            )
+        )
     found.sort(key=lambda f: f[0])
     R_true = found[0][1]  # exact corners: the true pose fits them exactly
     others = [d2 for d2, R in found[1:] if frames.rotation_angle_deg(R, R_true) > FLIP_MIN_ANGLE_DEG]
@@ -203,8 +211,9 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
     return 0.5 * math.erfc(math.sqrt(best) / 2 / math.sqrt(2))
 
 
-def predict_accuracy(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, *,
-                     corner_sigma_px: float | None = None) -> Prediction:
+def predict_accuracy(
+    marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, *, corner_sigma_px: float | None = None
+) -> Prediction:
     """Predict the pose accuracy a camera at ``T_world_camera`` would get from ``marker_map``.
 
     Parameters
@@ -241,18 +250,23 @@ def predict_accuracy(marker_map: MarkerMap, camera: Camera, T_world_camera: np.n
     return _predict(marker_map, camera, _check_pose(T_world_camera), corner_sigma_px, with_flip=True)
 
 
-def _predict(marker_map: MarkerMap, camera: Camera, T: np.ndarray, corner_sigma_px: float | None,
-             with_flip: bool) -> Prediction:
+def _predict(
+    marker_map: MarkerMap, camera: Camera, T: np.ndarray, corner_sigma_px: float | None, with_flip: bool
+) -> Prediction:
     """:func:`predict_accuracy` on checked arguments; the flip is left out (0) unless ``with_flip``."""
     if corner_sigma_px is not None:
-        ok = isinstance(corner_sigma_px, (int, float, np.floating, np.integer)) and not isinstance(corner_sigma_px, bool)
+        ok = isinstance(corner_sigma_px, (int, float, np.floating, np.integer)) and not isinstance(
+            corner_sigma_px, bool
+        )
         if not ok or not math.isfinite(corner_sigma_px) or corner_sigma_px <= 0:
             raise FidlearnError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
     seen, lost = _seen(camera, marker_map, T)
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
-    sigmas = {i: float(corner_sigma_px) if corner_sigma_px is not None else float(noise.corner_sigma_px(sides[i]))
-              for i in ids}
+    sigmas = {
+        i: float(corner_sigma_px) if corner_sigma_px is not None else float(noise.corner_sigma_px(sides[i]))
+        for i in ids
+    }
     if not ids:
         why = "; ".join(f"{i}: {r}" for i, r in sorted(lost.items())) or "the map has no markers"
         return Prediction(T, [], {}, {}, None, np.full(3, np.inf), math.inf, 0.0, f"no marker found ({why})", lost)
@@ -263,8 +277,18 @@ def _predict(marker_map: MarkerMap, camera: Camera, T: np.ndarray, corner_sigma_
     JtJ = J.T @ J
     d = np.sqrt(np.diag(JtJ))
     if np.any(d <= 0) or np.linalg.cond(JtJ / np.outer(d, d)) > 1e12:  # columns in rad and mm: compare scaled
-        return Prediction(T, ids, sides, sigmas, None, np.full(3, np.inf), math.inf, 0.0,
-                          "the markers found do not fix the pose", lost)
+        return Prediction(
+            T,
+            ids,
+            sides,
+            sigmas,
+            None,
+            np.full(3, np.inf),
+            math.inf,
+            0.0,
+            "the markers found do not fix the pose",
+            lost,
+        )
     cov = np.linalg.inv(JtJ)
     cov = (cov + cov.T) / 2
     cov_C = cov[3:, 3:]

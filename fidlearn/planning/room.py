@@ -69,8 +69,10 @@ class RoomPlan:
     def __repr__(self) -> str:
         ok = np.isfinite(self.toward_mm)
         med = float(np.median(self.toward_mm[ok])) if ok.any() else math.inf
-        return (f"RoomPlan({len(self.x_mm)}x{len(self.y_mm)} places at {self.height_mm:.0f} mm: pose possible "
-                f"at {100 * ok.mean():.0f} %, median error {med:.1f} mm looking at the markers)")
+        return (
+            f"RoomPlan({len(self.x_mm)}x{len(self.y_mm)} places at {self.height_mm:.0f} mm: pose possible "
+            f"at {100 * ok.mean():.0f} %, median error {med:.1f} mm looking at the markers)"
+        )
 
 
 @dataclass(frozen=True)
@@ -133,9 +135,18 @@ def _cell(marker_map, camera, eye, target, headings, sigma) -> tuple[float, floa
     return toward, med, worst, len(errs) / max(len(headings), 1), flip
 
 
-def plan_room(marker_map: MarkerMap, camera: Camera, *, height_mm: float = 300.0, area=None,
-              look_at_mm=None, step_mm: float = 250.0, headings: int = 16,
-              corner_sigma_px: float | None = None, progress=None) -> RoomPlan:
+def plan_room(
+    marker_map: MarkerMap,
+    camera: Camera,
+    *,
+    height_mm: float = 300.0,
+    area=None,
+    look_at_mm=None,
+    step_mm: float = 250.0,
+    headings: int = 16,
+    corner_sigma_px: float | None = None,
+    progress=None,
+) -> RoomPlan:
     """Predicted position error of a camera at every place of a horizontal grid.
 
     Parameters
@@ -178,8 +189,9 @@ def plan_room(marker_map: MarkerMap, camera: Camera, *, height_mm: float = 300.0
     xs = np.arange(x0 + step_mm / 2, x1, step_mm)
     ys = np.arange(y0 + step_mm / 2, y1, step_mm)
     if len(xs) * len(ys) > MAX_CELLS:
-        raise FidlearnError(f"the grid has {len(xs) * len(ys)} places, more than {MAX_CELLS}: "
-                            "use a larger step_mm or a smaller area")
+        raise FidlearnError(
+            f"the grid has {len(xs) * len(ys)} places, more than {MAX_CELLS}: use a larger step_mm or a smaller area"
+        )
     if len(xs) == 0 or len(ys) == 0:
         raise FidlearnError(f"the area is smaller than one step of {step_mm} mm: use a smaller step_mm")
     target = _markers_centre(marker_map) if look_at_mm is None else np.asarray(look_at_mm, dtype=float).reshape(3)
@@ -216,7 +228,10 @@ def _with_marker(marker_map: MarkerMap, ref_id: int, centre_mm: np.ndarray, new_
     right, down = (tr_ref - tl_ref) / s, (bl_ref - tl_ref) / s
     tl = centre_mm - s / 2 * (right + down)
     ref = d["markers"][str(ref_id)]
-    d["markers"][str(new_id)] = {"translation": [round(float(v) / scale, 6) for v in tl], "rotation": list(ref["rotation"])}
+    d["markers"][str(new_id)] = {
+        "translation": [round(float(v) / scale, 6) for v in tl],
+        "rotation": list(ref["rotation"]),
+    }
     return MarkerMap.from_dict(d)
 
 
@@ -235,14 +250,28 @@ def _candidates(marker_map: MarkerMap, area, step_mm: float):
         for k in np.arange(-span, span + 1, step_mm):
             c = centre + k * along
             if x0 - 500.0 <= c[0] <= x1 + 500.0 and y0 - 500.0 <= c[1] <= y1 + 500.0:
-                if all(np.linalg.norm(c - marker_map.marker_corners(i).mean(axis=0)) > 1.5 * marker_map.marker_size_mm
-                       for i in marker_map.ids):
-                    yield _with_marker(marker_map, ref, c, new_id), f"add marker {new_id} beside marker {ref} at [{c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}] mm (its centre)"
+                if all(
+                    np.linalg.norm(c - marker_map.marker_corners(i).mean(axis=0)) > 1.5 * marker_map.marker_size_mm
+                    for i in marker_map.ids
+                ):
+                    yield (
+                        _with_marker(marker_map, ref, c, new_id),
+                        f"add marker {new_id} beside marker {ref} at [{c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}] mm (its centre)",
+                    )
 
 
-def suggest_markers(marker_map: MarkerMap, camera: Camera, target_mm: float, *, height_mm: float = 300.0,
-                    area=None, step_mm: float = 500.0, max_markers: int = 3, sizes_mm=(1.5, 2.0),
-                    corner_sigma_px: float | None = None) -> list[Suggestion]:
+def suggest_markers(
+    marker_map: MarkerMap,
+    camera: Camera,
+    target_mm: float,
+    *,
+    height_mm: float = 300.0,
+    area=None,
+    step_mm: float = 500.0,
+    max_markers: int = 3,
+    sizes_mm=(1.5, 2.0),
+    corner_sigma_px: float | None = None,
+) -> list[Suggestion]:
     """Changes that bring more of the area within ``target_mm``: a larger print, then added markers.
 
     First the whole map at larger marker sizes (``sizes_mm`` times the current one) is tried;
@@ -256,15 +285,27 @@ def suggest_markers(marker_map: MarkerMap, camera: Camera, target_mm: float, *, 
     list of Suggestion
         In the order to apply them; each carries the map after the change.
     """
-    if isinstance(target_mm, bool) or not isinstance(target_mm, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(target_mm) or target_mm <= 0:
+    if (
+        isinstance(target_mm, bool)
+        or not isinstance(target_mm, (int, float, np.integer, np.floating))
+        or not math.isfinite(target_mm)
+        or target_mm <= 0
+    ):
         raise FidlearnError(f"target_mm must be a positive number of mm, got {target_mm!r}")
     area = _check_area(default_area(marker_map) if area is None else area)
     target_point = _markers_centre(marker_map)
 
     def score(m: MarkerMap) -> float:
-        return plan_room(m, camera, height_mm=height_mm, area=area, look_at_mm=target_point, step_mm=step_mm,
-                         headings=0, corner_sigma_px=corner_sigma_px).fraction_within(target_mm)
+        return plan_room(
+            m,
+            camera,
+            height_mm=height_mm,
+            area=area,
+            look_at_mm=target_point,
+            step_mm=step_mm,
+            headings=0,
+            corner_sigma_px=corner_sigma_px,
+        ).fraction_within(target_mm)
 
     current, now = marker_map, score(marker_map)
     steps: list[Suggestion] = []
@@ -273,18 +314,21 @@ def suggest_markers(marker_map: MarkerMap, camera: Camera, target_mm: float, *, 
         bigger = _with_size(marker_map, size)
         f = score(bigger)
         if f > now + 0.02:
-            steps.append(Suggestion(f"print the markers at {size} mm instead of {marker_map.marker_size_mm:g} mm",
-                                    now, f, bigger))
+            steps.append(
+                Suggestion(
+                    f"print the markers at {size} mm instead of {marker_map.marker_size_mm:g} mm", now, f, bigger
+                )
+            )
             current, now = bigger, f
             break
     for _ in range(max_markers):
         if now >= 0.999:
             break
-        best = max(((score(m), m, text) for m, text in _candidates(current, area, step_mm)),
-                   key=lambda t: t[0], default=None)
+        best = max(
+            ((score(m), m, text) for m, text in _candidates(current, area, step_mm)), key=lambda t: t[0], default=None
+        )
         if best is None or best[0] <= now + 0.01:
             break
         steps.append(Suggestion(best[2], now, best[0], best[1]))
         current, now = best[1], best[0]
     return steps
-

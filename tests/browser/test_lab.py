@@ -94,7 +94,9 @@ class Lab:
         settings = home / "settings" / "@jupyterlab" / "apputils-extension"
         settings.mkdir(parents=True)
         # No news and no update check: no network, and no toast over the notebook.
-        (settings / "notification.jupyterlab-settings").write_text(json.dumps({"fetchNews": "false", "checkForUpdates": False}))
+        (settings / "notification.jupyterlab-settings").write_text(
+            json.dumps({"fetchNews": "false", "checkForUpdates": False})
+        )
         notebook_settings = home / "settings" / "@jupyterlab" / "notebook-extension"
         notebook_settings.mkdir(parents=True)
         # Every cell in the page (no windowing), so that the test sees all execution counts.
@@ -114,8 +116,12 @@ class Lab:
     def start(self) -> None:
         jupyter = Path(sys.executable).with_name("jupyter")
         cmd = [
-            str(jupyter), "lab", "--no-browser",
-            "--ip=127.0.0.1", f"--port={self.port}", "--port-retries=0",
+            str(jupyter),
+            "lab",
+            "--no-browser",
+            "--ip=127.0.0.1",
+            f"--port={self.port}",
+            "--port-retries=0",
             f"--IdentityProvider.token={self.token}",
             f"--ServerApp.root_dir={self.root}",
             f"--LabApp.user_settings_dir={self.home / 'settings'}",
@@ -128,8 +134,13 @@ class Lab:
         if os.geteuid() == 0:  # CI runs as root
             cmd.append("--allow-root")
         self.proc = subprocess.Popen(
-            cmd, cwd=self.root, env=self.env, stdout=self.log, stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL, start_new_session=True,
+            cmd,
+            cwd=self.root,
+            env=self.env,
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
         )
         deadline = time.monotonic() + SERVER_START_S
         while time.monotonic() < deadline:
@@ -169,7 +180,9 @@ class Lab:
             with urllib.request.urlopen(req, timeout=5) as r:
                 for kernel in json.load(r):
                     urllib.request.urlopen(
-                        urllib.request.Request(f"{self.url}/api/kernels/{kernel['id']}?token={self.token}", method="DELETE"),
+                        urllib.request.Request(
+                            f"{self.url}/api/kernels/{kernel['id']}?token={self.token}", method="DELETE"
+                        ),
                         timeout=10,
                     ).close()
         except OSError:
@@ -211,7 +224,7 @@ def lab(tmp_path):
         assert _sha256(notebook) == before, f"{notebook} was modified by the browser test"
 
 
-def _settled_picture(page, widget, server: "Lab") -> tuple[str, bytes]:
+def _settled_picture(page, widget, server: Lab) -> tuple[str, bytes]:
     """The widget's picture once the kernel is idle and its <img> has stopped changing: (src, PNG screenshot).
 
     Each slider change redraws (clear the Output, show a new <img>), so an element taken too early
@@ -294,13 +307,15 @@ def test_intrinsics_notebook_runs_and_its_slider_redraws_the_figure(lab):
                 )
             except Exception:
                 page.screenshot(path=str(server.home / "run_all.png"))
-                raise AssertionError(f"Run All Cells did not finish: prompts {code_prompts.all_text_contents()}") from None
+                raise AssertionError(
+                    f"Run All Cells did not finish: prompts {code_prompts.all_text_contents()}"
+                ) from None
             server.wait_for_idle_kernel(RUN_ALL_S)
             counts = [int(re.search(r"\d+", t).group()) for t in code_prompts.all_text_contents()]
             assert sorted(counts) == list(range(1, n_code + 1)), f"cells ran out of order or twice: {counts}"
-            assert page.locator("[data-mime-type='application/vnd.jupyter.error']").count() == 0, (
-                page.locator("[data-mime-type='application/vnd.jupyter.error']").first.inner_text()
-            )
+            assert page.locator("[data-mime-type='application/vnd.jupyter.error']").count() == 0, page.locator(
+                "[data-mime-type='application/vnd.jupyter.error']"
+            ).first.inner_text()
 
             # The widget rendered: five sliders above a picture.
             widget = page.locator(".jp-OutputArea-output .widget-vbox").filter(has=page.locator(".widget-slider")).first

@@ -58,8 +58,17 @@ POSE_TOL_MM = 5.0
 def drive():
     camera = Camera.load(data_path("trajectory", "camera.json"))
     world = MarkerMap.load(data_path("world_map.json"))
-    return render_trajectory(camera, world, n_frames=N_FRAMES, seed=29, start_distance_mm=900, end_distance_mm=500,
-                             start_lateral_mm=-250, end_lateral_mm=250, noise_std=1.0)
+    return render_trajectory(
+        camera,
+        world,
+        n_frames=N_FRAMES,
+        seed=29,
+        start_distance_mm=900,
+        end_distance_mm=500,
+        start_lateral_mm=-250,
+        end_lateral_mm=250,
+        noise_std=1.0,
+    )
 
 
 @pytest.fixture
@@ -123,8 +132,11 @@ def test_fake_camera_frames_reach_the_kernel_and_give_the_true_poses(camera_lab,
         pytest.fail('the browser test needs playwright: pip install -e ".[browser]" (make test-browser does it)')
     assert Path(CHROMIUM).exists(), f"{CHROMIUM} is missing: apt-get install chromium (make test-browser does it)"
     server, video = camera_lab
-    fake_camera = ["--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream",
-                   f"--use-file-for-fake-video-capture={video}"]
+    fake_camera = [
+        "--use-fake-ui-for-media-stream",
+        "--use-fake-device-for-media-stream",
+        f"--use-file-for-fake-video-capture={video}",
+    ]
     with playwright.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS + fake_camera)
         client = None
@@ -160,7 +172,10 @@ def test_fake_camera_frames_reach_the_kernel_and_give_the_true_poses(camera_lab,
                 assert time.monotonic() < deadline, f"fewer than {MIN_LOGGED} frames located in {STREAM_S} s"
                 time.sleep(1)
             dump = tmp_path / "live.npz"
-            facts = json.loads(_run(client, f"""
+            facts = json.loads(
+                _run(
+                    client,
+                    f"""
 import json, numpy as np
 cam.stop()
 log = list(live_log)
@@ -168,7 +183,9 @@ np.savez({str(dump)!r}, snapshot=frame, grays=np.array([g for g, _ in log]),
          T=np.array([np.full((4, 4), np.nan) if p is None else p.T_world_camera for _, p in log]))
 print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_height], fps=cam.pacer.measured_fps,
                       frames=cam.frames_received, error=repr(cam.last_error))))
-"""))
+""",
+                )
+            )
             assert not js_errors, "JavaScript errors on the page:\n" + "\n".join(js_errors)
         finally:
             if client is not None:
@@ -201,16 +218,21 @@ print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_heig
         errors_mm.append(error_mm)
     assert len(seen) >= 3, f"the stream showed only source frames {sorted(seen)}"
     assert len(data["grays"]) >= MIN_LOGGED
-    print(f"{len(errors_mm)} streamed frames from source frames {sorted(seen)}: pose error max {max(errors_mm):.2f} mm, "
-          f"median {np.median(errors_mm):.2f} mm; {facts['fps']:.2f} fps; snapshot = source {snap_k} within 1 level")
+    print(
+        f"{len(errors_mm)} streamed frames from source frames {sorted(seen)}: pose error max {max(errors_mm):.2f} mm, "
+        f"median {np.median(errors_mm):.2f} mm; {facts['fps']:.2f} fps; snapshot = source {snap_k} within 1 level"
+    )
 
 
-@pytest.mark.parametrize(("refusal", "status", "words"), [
-    # What Chromium, Firefox and Safari reject getUserMedia with when the learner (or a policy) blocks the camera,
-    ("NotAllowedError", "denied", "permission denied"),
-    # and when no camera is plugged in.
-    ("NotFoundError", "no-camera", "No camera found"),
-])
+@pytest.mark.parametrize(
+    ("refusal", "status", "words"),
+    [
+        # What Chromium, Firefox and Safari reject getUserMedia with when the learner (or a policy) blocks the camera,
+        ("NotAllowedError", "denied", "permission denied"),
+        # and when no camera is plugged in.
+        ("NotFoundError", "no-camera", "No camera found"),
+    ],
+)
 def test_without_a_camera_the_notebook_says_why_and_offers_the_bundled_pictures(camera_lab, refusal, status, words):
     """The browser's refusal is the real DOMException a browser raises, injected in place of getUserMedia.
 
@@ -240,7 +262,8 @@ def test_without_a_camera_the_notebook_says_why_and_offers_the_bundled_pictures(
             try:
                 page.wait_for_function(
                     "(words) => document.querySelector('.fidlearn-webcam-message').textContent.includes(words)",
-                    arg=words, timeout=REDRAW_S * 1000,
+                    arg=words,
+                    timeout=REDRAW_S * 1000,
                 )
             except playwright.TimeoutError:
                 raise AssertionError(f"the widget says {message.inner_text()!r}, not {words!r}") from None
