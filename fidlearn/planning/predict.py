@@ -181,8 +181,14 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
     points_px : ndarray, shape (N, 2)
         Their exact projections (px).
     camera : Camera
+        The camera that sees them.
     sigma_px : ndarray, shape (N,)
         Corner noise of each point (px per axis).
+
+    Returns
+    -------
+    float
+        The probability, in [0, 0.5].
     """
     P = np.asarray(points_world, dtype=float)
     centred = P - P.mean(axis=0)

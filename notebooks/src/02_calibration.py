@@ -24,7 +24,7 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import (Camera, CameraError, FidlearnWarning, MarkerMap, _cv, calibrate_checkerboard, data_path,
+from fidlearn import (Camera, CameraError, FidlearnWarning, MarkerMap, calibrate_checkerboard, data_path,
                       frames, locate, plotting, synthetic)
 from fidlearn.detection import detect_markers, load_image
 
@@ -265,7 +265,7 @@ def camera_pose(image, camera):
     points_world = np.vstack([wall.corners()[d.id] for d in detections])
     points_px = np.vstack([d.corners for d in detections])
     ok, rvec, tvec = cv2.solvePnP(points_world, points_px, camera.K, camera.dist,
-                                  flags=_cv.solvepnp_flag("ITERATIVE"))
+                                  flags=cv2.SOLVEPNP_ITERATIVE)
     T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
     residual = camera.project(points_world, T_world_camera) - points_px
     return T_world_camera, float(np.sqrt(np.mean(np.sum(residual**2, axis=1))))
