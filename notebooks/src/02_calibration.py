@@ -65,8 +65,9 @@ plt.show()
 # here: the window must not reach the next corner). `cv2.findChessboardCornersSB` is a newer detector
 # that refines by itself. The synthetic views record the true corners: let us measure both.
 #
-# A 9 x 6 board looks the same turned by 180 degrees, so a detector may number its corners from either
-# end: compare corner lists only once their order agrees.
+# The 9 x 6 grid of inner corners looks the same turned by 180 degrees (only the colours of the squares
+# swap, and `findChessboardCorners` does not look at them), so a detector may number its corners from
+# either end: compare corner lists only once their order agrees.
 
 # %%
 gray = load_image(views[0])

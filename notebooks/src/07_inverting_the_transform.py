@@ -199,16 +199,17 @@ for rec in scenes:
 # %%
 axis_world = T_world_camera[:3, 2]            # unit vector, world frame
 heading_deg = np.degrees(np.arctan2(axis_world[1], axis_world[0]))   # in the floor plane, from +X towards +Y
-tilt_down_deg = np.degrees(np.arcsin(-axis_world[2]))                # below the horizon
+elevation_deg = np.degrees(np.arcsin(axis_world[2]))                 # above the horizon when positive
 s = -C[0] / axis_world[0]                     # C + s * axis has X = 0
 hit = C + s * axis_world
 target = np.array(record["look_at"]["target_mm"], dtype=float)
-print(f"optical axis {axis_world}: heading {heading_deg:.1f} deg, {tilt_down_deg:.1f} deg below the horizon")
+side = "above" if elevation_deg > 0 else "below"
+print(f"optical axis {axis_world}: heading {heading_deg:.1f} deg, {abs(elevation_deg):.1f} deg {side} the horizon")
 print("it meets the wall at", hit.round(1), "mm; look_at's target was", target)
 assert np.linalg.norm(hit - target) < 10
 
 # %% [markdown]
-# (Here the camera looks slightly *up*, at markers above it: the tilt is negative.)
+# (Here the camera looks slightly *up*, at markers above it: the axis has a positive Z component.)
 #
 # ## 7. A pose from one marker, chained through the map
 #

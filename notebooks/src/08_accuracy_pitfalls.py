@@ -233,8 +233,9 @@ print(f"the better-fitting pose was the wrong one in {wrong_pick} of 40 pictures
 assert 4 <= wrong_pick <= 36  # neither always right nor always wrong: a coin toss weighted by the noise
 
 # %% [markdown]
-# Remedies: more markers (spread, section 4), bigger markers or a closer camera, or a second plane; over time,
-# keep the solution that continues the previous frame's pose (notebook 09).
+# Remedies: more markers (spread, section 4), bigger markers or a closer camera, or a second plane. Over time
+# the flag helps too: when `ambiguous` is set, keep whichever of `pose` and `pose.alternative` continues the
+# previous frame's pose.
 #
 # ## 6. A misplaced marker
 #
