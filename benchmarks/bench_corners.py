@@ -138,7 +138,8 @@ def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
 def print_accuracy(rows, methods, dictionary):
     print(f"\nCorner error [px] vs truth, {dictionary}, 640x480, blur 0.5-1.0 px, noise 1-2 gray levels")
     print(
-        "cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible; each method over the markers it found"
+        "cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible; "
+        "each method over the markers it found"
     )
     head = "| side px | " + " | ".join(methods) + " |"
     print(head)
@@ -313,7 +314,8 @@ def print_real(rows):
     n = next(iter(rows.values()))["n"]
     print(f"\nReal photos: ChArUco board (5 photos, {n} marker detections), homography fit of the undistorted corners")
     print(
-        "| refinement | RMS [px] | RMS with a common marker scale [px] | that scale | mean offset from edges (dx, dy) [px] |"
+        "| refinement | RMS [px] | RMS with a common marker scale [px] | that scale | "
+        "mean offset from edges (dx, dy) [px] |"
     )
     print("|---|---|---|---|---|")
     for m, r in rows.items():

@@ -89,7 +89,8 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
 
 
 def coach_figure(coach, camera) -> Figure:
-    """The calibration coach's picture: reprojection uncertainty over the image, with the board points and the next view.
+    """The calibration coach's picture: reprojection uncertainty over the image, with the board points and the
+    next view.
 
     Parameters
     ----------

@@ -157,7 +157,8 @@ def _seen(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray) -> 
             continue
         if float(np.min(sides)) < noise.MIN_SHORT_SIDE_PX:
             lost[mid] = (
-                f"seen too obliquely (a side of {np.min(sides):.0f} px, the detector needs {noise.MIN_SHORT_SIDE_PX:.0f})"
+                f"seen too obliquely (a side of {np.min(sides):.0f} px, "
+                f"the detector needs {noise.MIN_SHORT_SIDE_PX:.0f})"
             )
             continue
         seen[mid] = px
