@@ -82,6 +82,7 @@ from ._inputs import _as_camera as _as_camera
 from ._inputs import _as_map as _as_map
 from ._inputs import _check_inputs as _check_inputs
 from ._inputs import _check_options as _check_options
+from ._inputs import _check_pose_options as _check_pose_options
 from ._locate import locate as locate
 from ._observations import _NEXT as _NEXT
 from ._observations import _UNCHECKED as _UNCHECKED

@@ -97,31 +97,42 @@ def _cheirality(obs: _Obs, c: _Candidate) -> str | None:
     rms = math.sqrt(c.sse / len(obs.obj))
     backs = [i for i, ok in zip(obs.ids, seen) if not ok]
     if backs:
-        one = len(backs) == 1
-        which = f"marker{'' if one else 's'} {backs[0] if one else backs}"
-        c.problem = (
-            f"{which} would be seen from behind (from the back of {'its' if one else 'their'} printed face) by the "
-            f"pose that fits the corners best (reprojection error {rms:.1f} px): {'is its rotation' if one else 'are their rotations'} "
-            "in the map wrong (yaw 180, facing into the wall instead of out of it; a marker on a wall facing +X has "
-            "rotation [0, 0, 0]), or the corners mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?"
-            + (
-                f" With markers {obs.ids} in view, the wrong rotation may be another one's."
-                if len(backs) < len(obs.ids)
-                else ""
-            )
-        )
-        c.problem_short = f"Even that best fit would see {which} from behind."
+        c.problem, c.problem_short = _from_behind_message(obs, backs, rms)
         return c.problem
     behind = [i for i, d in zip(obs.ids, depth.reshape(-1, 4).min(axis=1)) if not d > 0]
     if behind:
-        one = len(behind) == 1
-        which = f"marker{'' if one else 's'} {behind[0] if one else behind}"
-        c.problem = (
-            f"{which} would be behind the camera in the pose that fits the corners best (reprojection error "
-            f"{rms:.1f} px): the corners do not fit the map; check the map's positions and rotations, the marker "
-            "size and the corner order (TL, TR, BR, BL)"
-        )
-        c.problem_short = f"Even that best fit would have {which} behind the camera."
+        c.problem, c.problem_short = _behind_camera_message(behind, rms)
         return c.problem
     c.problem = None
     return None
+
+
+def _from_behind_message(obs: _Obs, backs: list[int], rms: float) -> tuple[str, str]:
+    """What :func:`_cheirality` says (in full, and in one sentence) of markers a pose sees from behind."""
+    one = len(backs) == 1
+    which = f"marker{'' if one else 's'} {backs[0] if one else backs}"
+    problem = (
+        f"{which} would be seen from behind (from the back of {'its' if one else 'their'} printed face) by the "
+        f"pose that fits the corners best (reprojection error {rms:.1f} px): "
+        f"{'is its rotation' if one else 'are their rotations'} "
+        "in the map wrong (yaw 180, facing into the wall instead of out of it; a marker on a wall facing +X has "
+        "rotation [0, 0, 0]), or the corners mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?"
+        + (
+            f" With markers {obs.ids} in view, the wrong rotation may be another one's."
+            if len(backs) < len(obs.ids)
+            else ""
+        )
+    )
+    return problem, f"Even that best fit would see {which} from behind."
+
+
+def _behind_camera_message(behind: list[int], rms: float) -> tuple[str, str]:
+    """What :func:`_cheirality` says (in full, and in one sentence) of markers a pose has behind the camera."""
+    one = len(behind) == 1
+    which = f"marker{'' if one else 's'} {behind[0] if one else behind}"
+    problem = (
+        f"{which} would be behind the camera in the pose that fits the corners best (reprojection error "
+        f"{rms:.1f} px): the corners do not fit the map; check the map's positions and rotations, the marker "
+        "size and the corner order (TL, TR, BR, BL)"
+    )
+    return problem, f"Even that best fit would have {which} behind the camera."

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -14,7 +15,7 @@ from ..frames import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
 from ._inputs import _check_inputs, _check_options
-from ._observations import _Candidate, _make_obs, _side_px, _world
+from ._observations import _Candidate, _make_obs, _Obs, _side_px, _world
 from ._outliers import _reject_outliers
 from ._refine import _residuals, pose_jacobian
 from ._result import Pose
@@ -86,8 +87,9 @@ def estimate_pose(
         rejected when its residual, predicted from the pose of the others, fails
         the nested-model test at ``OUTLIER_P`` (chi-square with 8 degrees of
         freedom when ``corner_sigma_px`` is given, else F(8, nu) with the noise
-        estimated from the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``. With 2 markers nobody can tell which is wrong:
-        nothing is rejected, but ``Pose.marker_rms_px`` shows the disagreement.
+        estimated from the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
+        With 2 markers nobody can tell which is wrong: nothing is rejected, but
+        ``Pose.marker_rms_px`` shows the disagreement.
     corner_sigma_px : float, optional
         Standard deviation (px, per coordinate) of the corner noise. If None it
         is estimated from the residuals with ``2N - 6`` degrees of freedom,
@@ -128,6 +130,26 @@ def estimate_pose(
         refine_lm = method == "auto"
     refine_lm = bool(refine_lm)
 
+    corners_px, ignored = _known_corners(dets, marker_map)
+    world, faces = _world(marker_map)
+    obs = _make_obs(sorted(corners_px), corners_px, world, faces)
+    _check_quads(obs.ids, obs.img)
+    cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
+    rejected: list[int] = []
+    if reject_outliers and len(obs.ids) >= 3:
+        obs, cands, unrefined, rejected = _reject_outliers(
+            obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined
+        )
+    _check_fit(obs, cands[0])
+    data = _Data(obs, camera, world, corners_px, ignored, rejected, corner_sigma_px)
+    return _pose_from(data, cands, unrefined, method_used)
+
+
+def _known_corners(dets: list[Detection], marker_map: MarkerMap) -> tuple[dict[int, np.ndarray], list[int]]:
+    """The corners (4, 2), px, of each detected map marker (its largest detection), and the ids not in the map.
+
+    Raises :class:`NoMarkersError` when no detected marker is in the map.
+    """
     corners_px: dict[int, np.ndarray] = {}
     ignored: list[int] = []
     for d in dets:
@@ -141,31 +163,31 @@ def estimate_pose(
                 continue
         corners_px[d.id] = d.corners
     if not corners_px:
-        seen = sorted({d.id for d in dets})
-        if seen:
-            what = f"the image shows markers {seen}, none of which is in the map"
-        else:
-            what = "no marker was detected"
-        raise NoMarkersError(
-            f"{what}; the map ({marker_map.source}) has ids {marker_map.ids} in dictionary "
-            f"{marker_map.dictionary}. Check that the printed markers come from {marker_map.dictionary} "
-            "(detect with the map's dictionary), that the map lists the ids on the wall, and that the "
-            "markers are in view, in focus and large enough"
-        )
+        raise _no_markers_error(dets, marker_map)
+    return corners_px, ignored
 
-    ids = sorted(corners_px)
-    world, faces = _world(marker_map)
-    obs = _make_obs(ids, corners_px, world, faces)
-    _check_quads(obs.ids, obs.img)
-    cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
-    rejected: list[int] = []
-    if reject_outliers and len(ids) >= 3:
-        obs, cands, unrefined, rejected = _reject_outliers(
-            obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined
-        )
 
-    problem = _cheirality(obs, cands[0])  # not None: every candidate breaks it (_solve puts the others first)
-    rms = math.sqrt(cands[0].sse / len(obs.obj))
+def _no_markers_error(dets: list[Detection], marker_map: MarkerMap) -> NoMarkersError:
+    """The error for detections none of which is in the map: what was seen, what the map holds, what to check."""
+    seen = sorted({d.id for d in dets})
+    what = f"the image shows markers {seen}, none of which is in the map" if seen else "no marker was detected"
+    return NoMarkersError(
+        f"{what}; the map ({marker_map.source}) has ids {marker_map.ids} in dictionary "
+        f"{marker_map.dictionary}. Check that the printed markers come from {marker_map.dictionary} "
+        "(detect with the map's dictionary), that the map lists the ids on the wall, and that the "
+        "markers are in view, in focus and large enough"
+    )
+
+
+def _check_fit(obs: _Obs, best: _Candidate) -> None:
+    """Raise :class:`PoseError` when the best pose fits too badly, or is none a camera can have.
+
+    ``best`` breaks :func:`_cheirality` only when every candidate does (``_solve`` puts the others
+    first). The fit is too bad when its RMS reprojection error is above ``max(BAD_FIT_MIN_PX,
+    BAD_FIT_REL * median marker side in px)``.
+    """
+    problem = _cheirality(obs, best)
+    rms = math.sqrt(best.sse / len(obs.obj))
     side = float(np.median(_side_px(obs.img))) if rms > BAD_FIT_MIN_PX else 0.0  # the limit is at least the floor
     if rms > max(BAD_FIT_MIN_PX, BAD_FIT_REL * side):
         what = (
@@ -173,29 +195,66 @@ def estimate_pose(
             "image (a pose that fits leaves a pixel or two); check the map's positions and rotations, the marker "
             "size, the units, the corner order (TL, TR, BR, BL) and the camera file"
         )
-        note = f" ({cands[0].problem_short})" if problem is not None else ""
+        note = f" ({best.problem_short})" if problem is not None else ""
         raise PoseError(f"the corners do not fit the map: {what}{note}")
     if problem is not None:
         raise PoseError(problem)
 
-    dof = 2 * len(obs.obj) - 6
-    sigma = _sigma(cands[0].sse, dof, corner_sigma_px)
+
+@dataclass
+class _Data:
+    """What every :class:`Pose` of one estimate shares: the data, then (from :func:`_pose_from`) noise and flip."""
+
+    obs: _Obs
+    camera: Camera
+    world: dict[int, np.ndarray]  # the map's corners (4, 3), mm, by id
+    corners_px: dict[int, np.ndarray]  # the detected corners (4, 2), px, by id
+    ignored: list[int]
+    rejected: list[int]
+    corner_sigma_px: float | None
+    dof: int = 0  # 2N - 6
+    sigma: float = 0.0  # the corner noise of the covariance, px
+    sigma_amb: float = 0.0  # the corner noise of the ambiguity test, px
+    alt: _Candidate | None = None  # the other planar solution, when it is distinct
+    ambiguous: bool = False
+
+
+def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate], method_used: str) -> Pose:
+    """The :class:`Pose` of the best candidate, with its noise, covariance and alternative."""
+    obs = data.obs
+    data.dof = 2 * len(obs.obj) - 6
+    data.sigma = _sigma(cands[0].sse, data.dof, data.corner_sigma_px)
     # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
     # camera, not noise, and must not make a poorer second pose look "as good" (nor hide the
     # first pose's misfit behind it).
-    sigma_amb = sigma if corner_sigma_px is not None else min(sigma, AMBIGUITY_MAX_SIGMA_PX)
+    data.sigma_amb = data.sigma if data.corner_sigma_px is not None else min(data.sigma, AMBIGUITY_MAX_SIGMA_PX)
     JtJ = cands[0].JtJ
     if JtJ is None:
-        J = pose_jacobian(obs.obj, cands[0].T_world_camera, camera)
+        J = pose_jacobian(obs.obj, cands[0].T_world_camera, data.camera)
         JtJ = J.T @ J
-    # The other planar solution (the "flip"). Refined, when LM keeps it apart as a second
-    # minimum; else as IPPE gave it, when LM ran from it into the first one along a flat valley.
-    # It counts as another answer when it lies outside the 3-sigma ellipsoid of the best pose
-    # (squared Mahalanobis distance above AMBIGUITY_CHI2); it is "as good" (ambiguous) when its
-    # extra sum of squared residuals is below AMBIGUITY_CHI2 sigma^2. Near a single quadratic
-    # minimum the two numbers are equal, so a merely nearby pose is never called ambiguous;
-    # both hold only when the error surface is far from quadratic, which is the flip.
-    # Only a pose a camera can have counts (:func:`_cheirality`).
+    alt = data.alt = _alternative(obs, cands, unrefined, JtJ, data.sigma_amb)
+    data.ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * data.sigma_amb**2
+    alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
+    if alt is None:
+        return _build(data, cands[0], None, method_used, JtJ)
+    if data.ambiguous:  # its covariance enters this pose's
+        return _build(data, cands[0], _build(data, alt, None, alt_how), method_used, JtJ)
+    return _build(data, cands[0], lambda: _build(data, alt, None, alt_how), method_used, JtJ)
+
+
+def _alternative(
+    obs: _Obs, cands: list[_Candidate], unrefined: list[_Candidate], JtJ: np.ndarray, sigma_amb: float
+) -> _Candidate | None:
+    """The other planar solution (the "flip"), or None when no candidate is distinct from the best.
+
+    Refined, when LM keeps it apart as a second minimum; else as IPPE gave it, when LM ran from it
+    into the first one along a flat valley. It counts as another answer when it lies outside the
+    3-sigma ellipsoid of the best pose (squared Mahalanobis distance above AMBIGUITY_CHI2); it is
+    "as good" (ambiguous) when its extra sum of squared residuals is below AMBIGUITY_CHI2 sigma^2.
+    Near a single quadratic minimum the two numbers are equal, so a merely nearby pose is never
+    called ambiguous; both hold only when the error surface is far from quadratic, which is the
+    flip. Only a pose a camera can have counts (:func:`_cheirality`).
+    """
     alt = next(
         (
             c
@@ -213,47 +272,56 @@ def estimate_pose(
             and _cheirality(obs, c) is None
         ]
         alt = min(far, key=lambda c: c.sse) if far else None
-    ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * sigma_amb**2
+    return alt
 
-    def build(c: _Candidate, alternative: Pose | None, how: str, JtJ_c: np.ndarray | None = None) -> Pose:
-        T_world_camera = c.T_world_camera
-        if c.r is None:
-            c.r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, False)
-            c.sse = float(c.r @ c.r)
-        r = c.r.reshape(-1, 4, 2)
-        residuals = {i: r[k] for k, i in enumerate(obs.ids)}
-        for i in rejected:
-            ri, _ = _residuals(world[i], corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
-            residuals[i] = ri.reshape(4, 2)
-        if JtJ_c is None:
-            Jc = pose_jacobian(obs.obj, T_world_camera, camera)
-            JtJ_c = Jc.T @ Jc
-        cov = _covariance_from(JtJ_c, sigma)  # one noise level for the data, whichever pose
-        if cov is not None and corner_sigma_px is None:
-            cov = cov * _estimated_sigma_inflation(dof + PRIOR_DOF)
-        if ambiguous and alternative is not None and cov is not None and alternative.covariance is not None:
-            # Two poses explain the corners: report the second moment about this pose of the
-            # two-pose mixture, weighted by likelihood, so its ellipsoid reaches the other one.
-            w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * sigma_amb**2), 700.0)))
-            d = np.r_[_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C]
-            cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
-        return Pose(
-            T_world_camera=T_world_camera,
-            marker_ids=tuple(obs.ids),
-            residuals_px=dict(sorted(residuals.items())),
-            reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
-            covariance=cov,
-            sigma_px=sigma,
-            ambiguous=ambiguous,
-            alternative=alternative,
-            ignored_ids=tuple(ignored),
-            rejected_ids=tuple(rejected),
-            method=how,
-        )
 
-    alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
-    if alt is None:
-        return build(cands[0], None, method_used, JtJ)
-    if ambiguous:  # its covariance enters this pose's
-        return build(cands[0], build(alt, None, alt_how), method_used, JtJ)
-    return build(cands[0], lambda: build(alt, None, alt_how), method_used, JtJ)
+def _build(
+    data: _Data,
+    c: _Candidate,
+    alternative: Pose | Callable[[], Pose] | None,
+    how: str,
+    JtJ_c: np.ndarray | None = None,
+) -> Pose:
+    """The :class:`Pose` of candidate ``c`` (``alternative`` may be a function that builds it on first use)."""
+    obs, camera = data.obs, data.camera
+    if c.r is None:
+        c.r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, False)
+        c.sse = float(c.r @ c.r)
+    r = c.r.reshape(-1, 4, 2)
+    residuals = {i: r[k] for k, i in enumerate(obs.ids)}
+    for i in data.rejected:
+        ri, _ = _residuals(data.world[i], data.corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
+        residuals[i] = ri.reshape(4, 2)
+    if JtJ_c is None:
+        Jc = pose_jacobian(obs.obj, c.T_world_camera, camera)
+        JtJ_c = Jc.T @ Jc
+    return Pose(
+        T_world_camera=c.T_world_camera,
+        marker_ids=tuple(obs.ids),
+        residuals_px=dict(sorted(residuals.items())),
+        reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
+        covariance=_covariance(data, c, alternative, JtJ_c),
+        sigma_px=data.sigma,
+        ambiguous=data.ambiguous,
+        alternative=alternative,
+        ignored_ids=tuple(data.ignored),
+        rejected_ids=tuple(data.rejected),
+        method=how,
+    )
+
+
+def _covariance(
+    data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None, JtJ_c: np.ndarray
+) -> np.ndarray | None:
+    """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
+    cov = _covariance_from(JtJ_c, data.sigma)  # one noise level for the data, whichever pose
+    if cov is not None and data.corner_sigma_px is None:
+        cov = cov * _estimated_sigma_inflation(data.dof + PRIOR_DOF)
+    alt = data.alt
+    if data.ambiguous and isinstance(alternative, Pose) and cov is not None and alternative.covariance is not None:
+        # Two poses explain the corners: report the second moment about this pose of the
+        # two-pose mixture, weighted by likelihood, so its ellipsoid reaches the other one.
+        w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * data.sigma_amb**2), 700.0)))
+        d = np.r_[_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C]
+        cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
+    return cov

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -59,6 +61,46 @@ def _check_options(method, refine_lm, reject_outliers, corner_sigma_px) -> str:
         if not (ok and np.isfinite(corner_sigma_px) and corner_sigma_px > 0):
             raise PoseError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
     return method
+
+
+def _check_pose_options(options: Mapping[str, Any], caller: str, takes: str) -> dict[str, Any]:
+    """Check the options that another function passes on to :func:`estimate_pose`, before any costly work.
+
+    The one check of these options for :func:`locate` and :class:`~fidlearn.MarkerTracker`.
+
+    Parameters
+    ----------
+    options : mapping of str to object
+        Keyword options meant for estimate_pose: ``method``, ``refine_lm``, ``reject_outliers``,
+        ``corner_sigma_px``.
+    caller : str
+        The function they were given to, for the message, e.g. ``"locate()"``.
+    takes : str
+        The caller's own options, for the message, e.g. ``"refine, detector_params"``.
+
+    Returns
+    -------
+    dict
+        A copy of ``options``.
+
+    Raises
+    ------
+    PoseError
+        An option estimate_pose does not take, or a value it refuses (see :func:`_check_options`).
+    """
+    unknown = sorted(set(options) - _ESTIMATE_OPTIONS)
+    if unknown:
+        raise PoseError(
+            f"{caller} got unknown option{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))}; it takes "
+            f"{takes} and estimate_pose's {', '.join(sorted(_ESTIMATE_OPTIONS))}"
+        )
+    _check_options(
+        options.get("method", "auto"),
+        options.get("refine_lm"),
+        options.get("reject_outliers", True),
+        options.get("corner_sigma_px"),
+    )
+    return dict(options)
 
 
 def _check_inputs(detections, marker_map, camera) -> tuple[list[Detection], MarkerMap, Camera]:

@@ -7,11 +7,11 @@ import os
 import numpy as np
 
 from ..camera import Camera
-from ..detection import detect_markers
+from ..detection import Detection, detect_markers
 from ..errors import ImageError, PoseError
 from ..markermap import MarkerMap
 from ._estimate import estimate_pose
-from ._inputs import _ESTIMATE_OPTIONS, _as_camera, _as_map, _check_options
+from ._inputs import _as_camera, _as_map, _check_pose_options
 from ._result import Pose
 
 __all__ = ["locate"]
@@ -82,17 +82,21 @@ def locate(
         raise ImageError(
             f"image must be a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}"
         )
-    unknown = sorted(set(kw) - _ESTIMATE_OPTIONS)
-    if unknown:
-        raise PoseError(
-            f"locate() got unknown option{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))}; it takes "
-            f"refine, detector_params and estimate_pose's {', '.join(sorted(_ESTIMATE_OPTIONS))}"
-        )
-    _check_options(
-        kw.get("method", "auto"), kw.get("refine_lm"), kw.get("reject_outliers", True), kw.get("corner_sigma_px")
-    )
+    _check_pose_options(kw, "locate()", "refine, detector_params")
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera).for_image(image)
+    detections = _detect_map_markers(image, marker_map, refine, detector_params, only_map_markers)
+    return estimate_pose(detections, marker_map, camera, **kw)
+
+
+def _detect_map_markers(
+    image: np.ndarray, marker_map: MarkerMap, refine: str | None, detector_params, only_map_markers: bool
+) -> list[Detection]:
+    """The map's markers in the image (every marker of the dictionary with ``only_map_markers=False``).
+
+    When none of the map's markers is found, the whole dictionary is searched once (without corner
+    refinement) so that estimate_pose's :class:`NoMarkersError` can say which ids were seen.
+    """
     det_kw = {} if refine is None else {"refine": refine}
     if detector_params is not None:
         det_kw["params"] = detector_params
@@ -103,4 +107,4 @@ def locate(
     if not detections and only_map_markers:
         # nothing of the map: detect the whole dictionary once, so the error lists what is in view
         detections = detect_markers(image, dictionary=marker_map.dictionary, **{**det_kw, "refine": "none"})
-    return estimate_pose(detections, marker_map, camera, **kw)
+    return detections

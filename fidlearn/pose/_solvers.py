@@ -128,52 +128,80 @@ def _solve_ippe(obs: _Obs, camera: Camera, plane) -> list:
 
 
 def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine_lm: bool):
-    """Candidates sorted by reprojection error, and the method's name."""
-    n_pts = len(obs.obj)
-    thickness, extent, c, vt = _plane_fit_cached(obs.obj)
+    """Candidate poses, ranked, from the solver ``method`` (``"auto"``: the one the data call for).
+
+    Returns
+    -------
+    cands : list of _Candidate
+        Those a camera can have first, each group by reprojection error; refined by
+        Levenberg-Marquardt when ``refine_lm`` (see :func:`_rank`).
+    unrefined : list of _Candidate
+        The solver's own poses by reprojection error (``cands`` itself without ``refine_lm``).
+    method_used : str
+        The solver's name, ``"+lm"`` appended when refined.
+    """
+    plane = _plane_fit_cached(obs.obj)
+    thickness, extent, _, _ = plane
     planar = thickness <= max(_PLANAR_TOL_MM, _PLANAR_TOL_REL * extent)
     if method == "auto":
-        if len(obs.ids) == 1:
-            method_used, raw = "ippe_square", _solve_ippe_square(obs, marker_map, camera)
-        elif planar:
-            method_used, raw = "ippe", _solve_ippe(obs, camera, (thickness, extent, c, vt))
-        else:
-            method_used, raw = "sqpnp", _generic("SQPNP", obs.obj, obs.img, camera)
-            if thickness < _NEAR_PLANAR_REL * extent:
-                # a wall measured a little unevenly: IPPE's two flattened solutions compete too
-                raw = raw + _solve_ippe(obs, camera, (thickness, extent, c, vt))
-        if not raw:  # degenerate data: fall back on the general solvers
-            for name in ("SQPNP", "ITERATIVE"):
-                raw = _generic(name, obs.obj, obs.img, camera)
-                if raw:
-                    method_used = name.lower()
-                    break
+        method_used, raw = _solve_auto(obs, marker_map, camera, plane, planar)
     else:
-        method_used = method
-        if method == "ippe_square":
-            if len(obs.ids) != 1:
-                raise PoseError(
-                    f"method='ippe_square' solves one marker, but {len(obs.ids)} markers {obs.ids} are in view; "
-                    "use method='ippe' (coplanar markers) or 'auto'"
-                )
-            raw = _solve_ippe_square(obs, marker_map, camera)
-        elif method == "ippe":
-            if not planar:
-                raise PoseError(
-                    f"method='ippe' needs coplanar points, but the corners of markers {obs.ids} are up to "
-                    f"{thickness:.1f} mm off their best plane (markers on several walls); use method='sqpnp', "
-                    "'epnp', 'iterative' or 'auto'"
-                )
-            raw = _solve_ippe(obs, camera, (thickness, extent, c, vt))
-        else:
-            if (method == "sqpnp" and n_pts < 3) or (method in ("epnp", "iterative") and n_pts < 4):
-                raise PoseError(f"method={method!r} needs more points than the {n_pts} corners in view")
-            raw = _generic(METHODS[method], obs.obj, obs.img, camera)
+        method_used, raw = method, _solve_named(obs, marker_map, camera, method, plane, planar)
     if not raw:
         raise PoseError(
             f"the PnP solver ({method_used}) found no pose from markers {obs.ids}; are the map's corners "
             "in TL, TR, BR, BL order and the marker size right?"
         )
+    return _rank(obs, camera, raw, refine_lm, method_used)
+
+
+def _solve_auto(obs: _Obs, marker_map: MarkerMap, camera: Camera, plane, planar: bool) -> tuple[str, list]:
+    """The solver the data call for (see the package's docstring) and its raw solutions (R_cw, t, sse)."""
+    thickness, extent, _, _ = plane
+    if len(obs.ids) == 1:
+        method_used, raw = "ippe_square", _solve_ippe_square(obs, marker_map, camera)
+    elif planar:
+        method_used, raw = "ippe", _solve_ippe(obs, camera, plane)
+    else:
+        method_used, raw = "sqpnp", _generic("SQPNP", obs.obj, obs.img, camera)
+        if thickness < _NEAR_PLANAR_REL * extent:
+            # a wall measured a little unevenly: IPPE's two flattened solutions compete too
+            raw = raw + _solve_ippe(obs, camera, plane)
+    if not raw:  # degenerate data: fall back on the general solvers
+        for name in ("SQPNP", "ITERATIVE"):
+            raw = _generic(name, obs.obj, obs.img, camera)
+            if raw:
+                method_used = name.lower()
+                break
+    return method_used, raw
+
+
+def _solve_named(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, plane, planar: bool) -> list:
+    """The raw solutions (R_cw, t, sse) of the solver ``method`` (a key of METHODS), or PoseError when it
+    cannot solve this data."""
+    n_pts = len(obs.obj)
+    if method == "ippe_square":
+        if len(obs.ids) != 1:
+            raise PoseError(
+                f"method='ippe_square' solves one marker, but {len(obs.ids)} markers {obs.ids} are in view; "
+                "use method='ippe' (coplanar markers) or 'auto'"
+            )
+        return _solve_ippe_square(obs, marker_map, camera)
+    if method == "ippe":
+        if not planar:
+            raise PoseError(
+                f"method='ippe' needs coplanar points, but the corners of markers {obs.ids} are up to "
+                f"{plane[0]:.1f} mm off their best plane (markers on several walls); use method='sqpnp', "
+                "'epnp', 'iterative' or 'auto'"
+            )
+        return _solve_ippe(obs, camera, plane)
+    if (method == "sqpnp" and n_pts < 3) or (method in ("epnp", "iterative") and n_pts < 4):
+        raise PoseError(f"method={method!r} needs more points than the {n_pts} corners in view")
+    return _generic(METHODS[method], obs.obj, obs.img, camera)
+
+
+def _rank(obs: _Obs, camera: Camera, raw: list, refine_lm: bool, method_used: str):
+    """Candidates from raw solutions: ``(cands, unrefined, method_used)`` as :func:`_solve` returns them."""
     if not refine_lm:
         unrefined = [_from_R_t(obs, camera, R_cw, t) for R_cw, t, _ in raw]
         unrefined.sort(key=lambda k: k.sse)
