@@ -36,6 +36,7 @@ import numpy as np
 import fidlearn
 from fidlearn import Camera, MarkerMap, MarkerPlacement, MarkerTracker, _cv
 from fidlearn.detection import _detector, as_gray, detect_markers, refine_corners_edges
+from fidlearn.errors import NoMarkersError, PoseError
 from fidlearn.synthetic import look_at, render_scene
 
 DICT = "ARUCO_ORIGINAL"
@@ -226,6 +227,14 @@ def countable(truth: dict, cells: int, size) -> dict:
     return out
 
 
+def _tracked(tracker: MarkerTracker, image: np.ndarray):
+    """The tracker's pose for the frame, None when the frame has none (MarkerTracker.locate raises then)."""
+    try:
+        return tracker.locate(image)
+    except (NoMarkersError, PoseError):
+        return None
+
+
 def bench_tracker(n_frames: int, passes: int) -> tuple:
     m = hall_map()
     cam = Camera(
@@ -270,7 +279,7 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
             plain.detectMarkers(image)
             store["plain"].append(clock() - t)
             t = clock()
-            tracker.locate(image)
+            _tracked(tracker, image)
             store["tracker"].append(clock() - t)
             t = clock()
             fidlearn.locate(image, m, cam)
@@ -302,14 +311,14 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     for (image, _), truth, T in zip(frames, truths, poses):
         ids_plain = set(_cv.detect(plain, image)[1].tolist())
         full_dets = {d.id: d.corners for d in detect_markers(image, DICT)}
-        pose = tracker.locate(image)
+        pose = _tracked(tracker, image)
         ours = {d.id: d.corners for d in tracker.last_detections}
         found["plain detectMarkers"] += len(set(truth) & ids_plain)
         found["detect_markers (fidlearn default)"] += len(set(truth) & set(full_dets))
         found["MarkerTracker"] += len(set(truth) & set(ours))
         of_plain += len(set(truth) & ids_plain & set(ours))
         found_close["plain"] += len(set(truth) & set(_cv.detect(plain_close, image)[1].tolist()))
-        tracker_close.locate(image)
+        _tracked(tracker_close, image)
         found_close["tracker"] += len(set(truth) & {d.id for d in tracker_close.last_detections})
         for k, det in a3.items():
             t = time.perf_counter()

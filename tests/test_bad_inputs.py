@@ -1405,7 +1405,8 @@ TRACKER_OPTIONS = [
     (
         "misspelt pose option",
         lambda m, c: MarkerTracker(m, c, metod="auto"),
-        "unknown pose option metod; estimate_pose takes method",
+        "MarkerTracker() got unknown option 'metod'; it takes refine, detector_params, full_every, search_px and "
+        "estimate_pose's corner_sigma_px, method",
     ),
     ("unknown method", lambda m, c: MarkerTracker(m, c, method="magic"), "unknown method 'magic'"),
     ("unknown refinement", lambda m, c: MarkerTracker(m, c, refine="sharp"), "unknown corner refinement 'sharp'"),

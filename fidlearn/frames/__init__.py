@@ -63,3 +63,8 @@ __all__ = [
     "check_transform",
     "rotation_angle_deg",
 ]
+
+# The public functions say they are fidlearn.frames': help(), repr() and the docs show the path to import.
+for _public in (as_float_array, *(globals()[_name] for _name in __all__)):
+    _public.__module__ = __name__
+del _public

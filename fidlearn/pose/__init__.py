@@ -141,3 +141,8 @@ from ._stats import _mahalanobis2 as _mahalanobis2
 from ._stats import _sigma as _sigma
 
 __all__ = ["Pose", "estimate_pose", "locate", "METHODS", "pose_jacobian", "refine_pose_lm"]
+
+# The public names say they are fidlearn.pose's: help(), repr() and the docs show the path to import.
+for _public in (Pose, estimate_pose, locate, pose_jacobian, refine_pose_lm):
+    _public.__module__ = __name__
+del _public
