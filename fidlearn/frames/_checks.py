@@ -81,6 +81,7 @@ def check_rotation(R: np.ndarray, name: str = "R", tol: float = 1e-6) -> np.ndar
 
     Examples
     --------
+    >>> import numpy as np
     >>> check_rotation(np.diag([1, 1, -1]))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
@@ -131,6 +132,7 @@ def check_transform(T: np.ndarray, name: str = "T", tol: float = 1e-6) -> np.nda
 
     Examples
     --------
+    >>> import numpy as np
     >>> check_transform(np.eye(3), "T_world_camera")
     Traceback (most recent call last):
     ...

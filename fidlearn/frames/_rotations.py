@@ -30,7 +30,8 @@ def rot_x(angle_rad: float) -> np.ndarray:
 
     Examples
     --------
-    >>> np.round(rot_x(math.pi / 2) @ [0, 1, 0], 12)    # Y turns into Z
+    >>> import numpy as np
+    >>> np.round(rot_x(np.pi / 2) @ [0, 1, 0], 12)    # Y turns into Z
     array([0., 0., 1.])
     """
     angle_rad = _angle(angle_rad, "angle_rad")
@@ -58,7 +59,8 @@ def rot_y(angle_rad: float) -> np.ndarray:
 
     Examples
     --------
-    >>> np.round(rot_y(math.pi / 2) @ [0, 0, 1], 12)    # Z turns into X
+    >>> import numpy as np
+    >>> np.round(rot_y(np.pi / 2) @ [0, 0, 1], 12)    # Z turns into X
     array([1., 0., 0.])
     """
     angle_rad = _angle(angle_rad, "angle_rad")
@@ -86,7 +88,8 @@ def rot_z(angle_rad: float) -> np.ndarray:
 
     Examples
     --------
-    >>> np.round(rot_z(math.pi / 2) @ [1, 0, 0], 12)    # X turns into Y
+    >>> import numpy as np
+    >>> np.round(rot_z(np.pi / 2) @ [1, 0, 0], 12)    # X turns into Y
     array([0., 1., 0.])
     """
     angle_rad = _angle(angle_rad, "angle_rad")
@@ -121,6 +124,7 @@ def rotation_from_rpy_deg(roll_deg: float, pitch_deg: float, yaw_deg: float) -> 
 
     Examples
     --------
+    >>> import numpy as np
     >>> np.round(rotation_from_rpy_deg(0, 0, 90) @ [1, 0, 0], 12)
     array([0., 1., 0.])
     """

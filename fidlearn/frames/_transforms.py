@@ -190,6 +190,7 @@ def transform_from_rvec_tvec(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
 
     Examples
     --------
+    >>> import numpy as np
     >>> T = transform_from_rvec_tvec([0, 0, np.pi / 2], [10, 20, 30])
     >>> np.round(T[:3, :3] @ [1, 0, 0], 12).tolist(), T[:3, 3].tolist()
     ([0.0, 1.0, 0.0], [10.0, 20.0, 30.0])

@@ -67,6 +67,8 @@ Examples
 
 from __future__ import annotations
 
+import inspect as _inspect
+
 from ..frames import _rotvec as _rotvec
 from ._checks import _BEHIND_TOL_DEG as _BEHIND_TOL_DEG
 from ._checks import _MIN_QUAD_AREA_PX2 as _MIN_QUAD_AREA_PX2
@@ -142,7 +144,9 @@ from ._stats import _sigma as _sigma
 
 __all__ = ["Pose", "estimate_pose", "locate", "METHODS", "pose_jacobian", "refine_pose_lm"]
 
-# The public names say they are fidlearn.pose's: help(), repr() and the docs show the path to import.
-for _public in (Pose, estimate_pose, locate, pose_jacobian, refine_pose_lm):
+# The public names say they are fidlearn.pose's: help(), repr() and the docs show the path to import
+# (and the doctests of Pose's methods run with the class).
+_methods = [f for f in vars(Pose).values() if _inspect.isfunction(f)]
+for _public in (Pose, estimate_pose, locate, pose_jacobian, refine_pose_lm, *_methods):
     _public.__module__ = __name__
-del _public
+del _public, _methods

@@ -66,15 +66,27 @@ def locate(
     Returns
     -------
     Pose
+        The camera's pose in the world (``T_world_camera``, mm) with its uncertainty.
 
     Raises
     ------
     ImageError
         ``image`` is not an image array.
     NoMarkersError
-        No marker of the map is detected.
+        No marker of the map is detected (the message lists the ids seen, the map's ids and
+        dictionary, and what to check). A missing pose is never returned as None;
+        :meth:`fidlearn.MarkerTracker.locate` raises the same way for a video frame.
     PoseError
         Bad arguments, or the corners do not give a pose (see :func:`estimate_pose`).
+
+    Examples
+    --------
+    >>> import numpy as np, fidlearn
+    >>> from fidlearn.detection import load_image
+    >>> image = load_image(fidlearn.data_path("scenes", "scene_00.png"))   # rendered from [1000, 190, 230] mm
+    >>> pose = locate(image, fidlearn.data_path("world_map.json"), fidlearn.data_path("scenes", "camera.json"))
+    >>> pose.marker_ids, np.round(pose.position_mm, -1).tolist()
+    ((0, 1, 2), [1000.0, 190.0, 230.0])
     """
 
     # every argument is checked before the (costly) detection

@@ -37,6 +37,17 @@ def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: 
         ``R_world_camera``, ``dC`` a shift of the camera centre in the world.
         ``sigma^2 (J^T J)^-1`` is then the covariance (Cramer-Rao bound at the
         true pose) of the camera pose in those coordinates.
+
+    Examples
+    --------
+    A point 1 m straight ahead: moving the camera 1 mm to its right (world x here) moves the
+    point ``fx / 1000`` px to the left.
+
+    >>> import numpy as np, fidlearn
+    >>> cam = fidlearn.Camera.from_fov(60, (640, 480))
+    >>> J = pose_jacobian([[0.0, 0.0, 1000.0]], np.eye(4), cam)
+    >>> J.shape, bool(np.isclose(J[0, 3], -cam.fx / 1000))
+    ((2, 6), True)
     """
     P = np.asarray(points_world, dtype=float).reshape(-1, 3)
     R_wc = T_world_camera[:3, :3]
@@ -76,17 +87,35 @@ def refine_pose_lm(
 
     Parameters
     ----------
-    points_world : ndarray, shape (N, 3), mm
-    points_px : ndarray, shape (N, 2), px
+    points_world : array-like, shape (N, 3)
+        Points in the world frame, mm (N >= 3).
+    points_px : array-like, shape (N, 2)
+        Their observed pixels, px (OpenCV's convention: pixel centres at integers).
     camera : Camera
-    rvec, tvec : ndarray, shape (3,)
-        Starting ``T_camera_world`` (OpenCV's convention).
+        Intrinsics and distortion.
+    rvec, tvec : array-like, shape (3,)
+        Starting ``T_camera_world`` (OpenCV's convention): rotation vector (rad) and translation (mm).
     max_iterations : int
+        At most this many steps.
 
     Returns
     -------
-    rvec, tvec : ndarray, shape (3,)
-        The refined ``T_camera_world``.
+    rvec : ndarray, shape (3,)
+        Rotation vector of the refined ``T_camera_world``, rad.
+    tvec : ndarray, shape (3,)
+        Its translation, mm.
+
+    Examples
+    --------
+    Four corners of a 100 mm square 1 m ahead, and a start 1 degree and 10 mm off:
+
+    >>> import numpy as np, fidlearn
+    >>> cam = fidlearn.Camera.from_fov(60, (640, 480))
+    >>> P = np.array([[-50.0, -50, 1000], [50, -50, 1000], [50, 50, 1000], [-50, 50, 1000]])
+    >>> px = cam.project(P, np.eye(4))     # the camera at the world origin
+    >>> rvec, tvec = refine_pose_lm(P, px, cam, np.radians([1.0, 0, 0]), [10.0, 0, 0])
+    >>> bool(np.degrees(np.abs(rvec)).max() < 1e-4), bool(np.abs(tvec).max() < 1e-3)   # back to the truth
+    (True, True)
     """
     obj = np.ascontiguousarray(points_world, dtype=np.float64).reshape(-1, 3)
     img = np.ascontiguousarray(points_px, dtype=np.float64).reshape(-1, 2)

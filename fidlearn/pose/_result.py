@@ -152,7 +152,34 @@ class Pose:
         return {i: float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) for i, r in self.residuals_px.items()}
 
     def position_ellipsoid_contains(self, point_mm: np.ndarray, probability: float = 0.95) -> bool:
-        """Whether a world point (3,), mm, lies inside the camera position's confidence ellipsoid."""
+        """Whether a world point lies inside the camera position's confidence ellipsoid.
+
+        Parameters
+        ----------
+        point_mm : array-like, shape (3,)
+            A point in the world frame, mm (e.g. the true camera position).
+        probability : float
+            The ellipsoid's confidence level, between 0 and 1 (exclusive).
+
+        Returns
+        -------
+        bool
+            True when the squared Mahalanobis distance of the point from
+            :attr:`position_mm` (under ``covariance[3:, 3:]``) is at most the
+            chi-square(3) quantile of ``probability``; False when the covariance is None.
+
+        Raises
+        ------
+        PoseError
+            ``probability`` is not between 0 and 1.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> pose = Pose(np.eye(4), (0,), {}, 0.1, np.diag([1e-6, 1e-6, 1e-6, 4.0, 4.0, 4.0]), 0.1)
+        >>> pose.position_ellipsoid_contains([0.0, 0.0, 5.0]), pose.position_ellipsoid_contains([0.0, 0.0, 6.0])
+        (True, False)
+        """
         if self.covariance is None:
             return False
         d = np.asarray(point_mm, dtype=float).reshape(3) - self.position_mm
