@@ -756,6 +756,7 @@ def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
     r_true = np.array([3e-7, -2e-7, 1e-7])
     assert not cv2.Rodrigues(cv2.Rodrigues(r_true)[0])[0].any()  # the OpenCV behaviour worked around
     np.testing.assert_allclose(pose_mod._rotvec(cv2.Rodrigues(r_true)[0]), r_true, rtol=1e-6, atol=1e-15)
+    assert pose_mod._rotvec is frames._rotvec  # one small-angle fix, shared with rvec_tvec_from_transform
     # refine_pose_lm returns the tiny rotation of a camera looking straight at a wall
     P = np.array([[x, y, 2000.0 + 0.5 * x] for x in (-300.0, 0.0, 300.0) for y in (-200.0, 200.0)])
     T_cw = frames.make_transform(cv2.Rodrigues(r_true)[0], [10.0, -5.0, 30.0])

@@ -128,6 +128,9 @@ def test_bgr_frames_and_pose_options(drive):
         (dict(search_px=-1), "search_px must be a number of pixels >= 0"),
         (dict(refine="sharp"), "unknown corner refinement 'sharp'"),
         (dict(method="dlt"), "unknown method 'dlt'"),
+        # checked once, as locate checks them, not found wrong on every frame
+        (dict(corner_sigma_px=0), "corner_sigma_px must be a positive number of pixels, got 0"),
+        (dict(reject_outliers="no"), "reject_outliers must be True or False, got 'no'"),
         (dict(reject_outlier=False), r"MarkerTracker\(\) got unknown option 'reject_outlier'; it takes refine, "),
         (dict(detector_params={"adaptiveThreshWinSize": 5}), "no field 'adaptiveThreshWinSize'"),
     ],
