@@ -130,8 +130,8 @@ class strict:
     >>> with strict():
     ...     strict_mode()
     'correct'
-    >>> strict_mode() is None or strict_mode() in ("correct", "blank")  # back to the environment's
-    True
+    >>> STRICT_STACK.get()  # left: FIDLEARN_STRICT decides again
+    ()
     """
 
     def __init__(self, mode: Any = True):

@@ -1,9 +1,13 @@
 """The nine lessons, one module each, registered here in notebook order.
 
 A lesson module holds ``NUMBER``, ``TOPIC``, ``TITLE``, ``INTRO`` and ``build(learner)``, which
-returns the lesson's questions in the order the notebook asks them (one private builder per
-question, ``_q1``, ``_q2``...). To add a lesson, write ``lNN_topic.py`` on that model and add it
-to :data:`MODULES`.
+returns the lesson's questions in the order the notebook asks them. Each question ``qN`` has its
+words in ``_QN`` (title, task, hint, solution code, level) and one builder ``_qN(learner)`` that
+draws the learner's numbers from ``_rng(NUMBER, learner, "qN")``, computes the key and the
+mistakes it recognises, and returns the :class:`~fidlearn.exercises.Question`. To add a question,
+write both and list the builder in ``build``; to add a lesson, write ``lNN_topic.py`` on that
+model and add it to :data:`MODULES`. Then rebuild the exercise notebooks with
+``tools/make_student_copies.py``.
 """
 
 from __future__ import annotations

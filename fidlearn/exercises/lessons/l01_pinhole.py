@@ -34,6 +34,7 @@ INTRO = """
     """
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "K from a field of view",
     "task": """
@@ -149,6 +150,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "Project points with K",
     "task": """
@@ -219,6 +221,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "How far is the marker?",
     "task": """
@@ -278,6 +281,7 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q4 = {
     "title": "Field of view from K",
     "task": """

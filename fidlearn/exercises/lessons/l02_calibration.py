@@ -62,6 +62,7 @@ def _calibration_views(
     return views
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "The board's object points",
     "task": """
@@ -131,6 +132,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "Calibrate from corner detections",
     "task": """
@@ -208,6 +210,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "Find the picture that does not belong",
     "task": """
@@ -272,6 +275,7 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q4 = {
     "title": "K at another resolution",
     "task": """
@@ -368,6 +372,7 @@ def _q4(learner: str) -> Question:
     )
 
 
+#: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q5 = {
     "title": "Calibrate from pictures",
     "task": """

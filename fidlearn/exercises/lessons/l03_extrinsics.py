@@ -36,6 +36,7 @@ INTRO = """
     """
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "A robot's pose from roll, pitch and yaw",
     "task": """
@@ -108,6 +109,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "World points in the camera frame",
     "task": """
@@ -172,6 +174,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "Chain the map and a detection",
     "task": """
@@ -236,6 +239,7 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q4 = {
     "title": "From rvec, tvec to a 4x4 matrix",
     "task": """

@@ -76,6 +76,7 @@ def _map_diagnosis(got: MarkerMap, want: MarkerMap) -> str | None:
     return None
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "Corners from a placement in feet",
     "task": """
@@ -155,6 +156,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "Write the world map",
     "task": """
@@ -236,6 +238,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "A marker on the floor",
     "task": """
@@ -336,6 +339,7 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q4 = {
     "title": "Centre and facing direction",
     "task": """

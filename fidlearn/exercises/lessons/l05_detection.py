@@ -97,6 +97,7 @@ def _cmp_ids(a, b):
     )
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "Which markers are in the picture?",
     "task": """
@@ -142,6 +143,7 @@ def _q1(scene: _Scene) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "The corners of a turned marker, in order",
     "task": """
@@ -194,6 +196,7 @@ def _q2(scene: _Scene) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "How is the marker turned?",
     "task": """

@@ -52,6 +52,7 @@ def _same_rows(a: np.ndarray, b: np.ndarray, tol: float = 0.01) -> bool:
     return True
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "2D-3D correspondences",
     "task": """
@@ -132,6 +133,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "solvePnP over every marker",
     "task": """
@@ -227,6 +229,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "Reprojection error",
     "task": """

@@ -48,6 +48,7 @@ def _room_pose(rng: np.random.Generator) -> np.ndarray:
     return _look_at(pos, target)
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "Where is the camera?",
     "task": """
@@ -109,6 +110,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "The camera's pose",
     "task": """
@@ -157,6 +159,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "Which way does the camera look?",
     "task": """
@@ -238,6 +241,7 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q4 = {
     "title": "Camera position from a single marker",
     "task": """

@@ -60,6 +60,7 @@ _AMBIGUITY_WRONG = {
 }
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "Error grows with distance",
     "task": """
@@ -115,6 +116,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "Localize despite a misplaced marker",
     "task": """
@@ -220,6 +222,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "Two poses that both fit",
     "task": """

@@ -34,6 +34,7 @@ INTRO = """
     """
 
 
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
     "title": "Localize every frame of a drive",
     "task": """
@@ -156,6 +157,7 @@ def _q1(learner: str) -> Question:
     )
 
 
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
     "title": "From the camera's pose to the robot's",
     "task": """
@@ -258,6 +260,7 @@ def _q2(learner: str) -> Question:
     )
 
 
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q3 = {
     "title": "How far did the robot drive?",
     "task": """
