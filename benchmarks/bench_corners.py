@@ -201,7 +201,7 @@ def robustness(methods, n_scenes: int = 4) -> dict:
             for m in methods:
                 errs[m] += [
                     d.corners - truth[d.id]
-                    for d in detect_markers(image, dic, refine=m, params=params)
+                    for d in detect_markers(image, dic, refine=m, detector_params=params)
                     if d.id in truth
                 ]
         rows[label] = {m: (np.array(e), visible) for m, e in errs.items()}
@@ -242,7 +242,7 @@ def print_subpix_windows(dictionary: str, n_scenes: int = 3) -> None:
                 image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
                 e += [
                     d.corners - truth[d.id]
-                    for d in detect_markers(image, dictionary, refine="subpix", params=params)
+                    for d in detect_markers(image, dictionary, refine="subpix", detector_params=params)
                     if d.id in truth
                 ]
             r = np.linalg.norm(np.array(e).reshape(-1, 2), axis=1)

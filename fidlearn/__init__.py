@@ -15,7 +15,8 @@ try:
     from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
     from .camera import Camera
     from .data import data_dir, data_path
-    from .detection import Detection, detect_markers, draw_detections
+    from .detection import Detection, detect_markers, detect_markers_with_rejected
+    from .drawing import draw_detections
     from .errors import (
         CalibrationError,
         CameraError,
@@ -93,6 +94,7 @@ __all__ = [
     "data_path",
     "Detection",
     "detect_markers",
+    "detect_markers_with_rejected",
     "draw_detections",
     "render_scene",
     "look_at",

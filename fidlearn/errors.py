@@ -19,6 +19,7 @@ __all__ = [
     "DetectionError",
     "CalibrationError",
     "PoseError",
+    "UsageError",
 ]
 
 
@@ -64,3 +65,7 @@ class CalibrationError(FidlearnError):
 
 class PoseError(FidlearnError, ValueError):
     """Pose estimation cannot run on these inputs (wrong types, a solver that does not fit the data)."""
+
+
+class UsageError(FidlearnError):
+    """The command line itself is wrong (unknown option, missing argument, an output that would clobber an input)."""
