@@ -463,7 +463,7 @@ def test_calibrate_writes_the_camera_last(ws, capsys, monkeypatch):
     def broken(*a, **k):
         raise fidlearn.FidlearnError("drawing failed")
 
-    monkeypatch.setattr(c, "_draw_calibration_view", broken)
+    monkeypatch.setattr(c.calibrate, "draw_calibration_view", broken)
     before = snapshot(ws)
     status = cli.main(
         ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json", "--annotate", "seen"]

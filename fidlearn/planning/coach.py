@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from .. import frames
+from ..calibration.quality import coverage_grid
 from ..camera import Camera
 from ..errors import CalibrationError
 
@@ -179,14 +180,8 @@ class CalibrationCoach:
 
 
 def _coverage(camera: Camera, image_points_px: dict, grid=GRID) -> np.ndarray:
-    cols, rows = grid
-    out = np.zeros((rows, cols), dtype=int)
-    for pts in image_points_px.values():
-        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
-        c = np.clip(((pts[:, 0] + 0.5) * cols // camera.width).astype(int), 0, cols - 1)
-        r = np.clip(((pts[:, 1] + 0.5) * rows // camera.height).astype(int), 0, rows - 1)
-        np.add.at(out, (r, c), 1)
-    return out
+    """Board points per cell of a ``grid`` (columns, rows) over the picture, row 0 at the top."""
+    return coverage_grid(image_points_px.values(), camera.image_size, grid)
 
 
 _NINTHS = ["top left", "top", "top right", "left", "middle", "right", "bottom left", "bottom", "bottom right"]
