@@ -97,72 +97,13 @@ def refine_corners_edges(
     if M == 0:
         return C.copy()
     u, v, U3 = _profile_grid(int(n_lines), int(n_samples))
-    n_lines, n_samples = u.size, v.size
-    half, mid_sample = n_lines // 2, n_samples // 2
-    rows = np.arange(M * 4 * n_lines)
     Z = C.view(np.complex128)[..., 0]  # (M, 4) corners as x + iy
     shift = float(expand_px)
     for _ in range(iterations):
-        Dz = Z[:, _NEXT] - Z  # (M, 4) side vectors
-        L = np.maximum(np.abs(Dz), 1e-9)  # side lengths, px
-        # Outward unit normal: -i times the side direction when the corners turn clockwise on screen
-        # (y down), as OpenCV reports them for a marker seen from its front.
-        nz = Dz * (np.where((Dz[:, 0].conj() * Dz[:, 1]).imag >= 0, -1j, 1j)[:, None] / L)
-        cell = L.sum(1) * (0.25 / cells)  # (M,) px per cell
-        h = np.clip(0.6 * cell, 1.5, 5.0)  # profile half-length, px
-        margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)  # keep clear of the corners
-        span = 1.0 - 2.0 * margin
-        t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
-        pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[
-            ..., None, None
-        ]
-        # (x, y) pairs, one row per side: remap wants fewer than 32767 rows and columns
-        maps = pts.astype(np.complex64).view(np.float32).reshape(M * 4, n_lines * n_samples, 2)
-        prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
-        # Levels: the darkest sample of the inner half and the brightest of the outer half (a narrow
-        # quiet zone with a darker wall beyond still gives the paper's level), median over each side.
-        pin, pout = prof[..., : mid_sample + 1], prof[..., mid_sample:]
-        if inverted is None:  # which way round is the contrast larger?
-            imin, imax, omin, omax = pin.min(-1), pin.max(-1), pout.min(-1), pout.max(-1)
-            normal = ((omax - imin) >= (imax - omin)).mean(-1) >= 0.5  # (M, 4): dark inside
-            dark = np.sort(np.where(normal[..., None], imin, -imax), axis=2)[..., half]  # levels x polarity
-            light = np.sort(np.where(normal[..., None], omax, -omin), axis=2)[..., half]
-            prof = prof * np.where(normal, 1.0, -1.0).astype(np.float32)[..., None, None]
-        elif inverted:
-            dark = np.sort(-pin.max(-1), axis=2)[..., half]
-            light = np.sort(-pout.min(-1), axis=2)[..., half]
-            prof = -prof
-        else:
-            dark = np.sort(pin.min(-1), axis=2)[..., half]
-            light = np.sort(pout.max(-1), axis=2)[..., half]
-        level = 0.5 * (dark + light)
-        if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
-            g = float(gamma)
-            lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
-            level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
-        zf = (prof - level[..., None, None]).reshape(-1, n_samples)  # < 0 inside the edge
-        # The edge: the first sample at or above the mid level, k, and the one before it (outward from
-        # there the profile may fall again where a narrow quiet zone meets a darker wall).
-        k = np.maximum(np.argmax(zf >= 0, axis=-1), 1)
-        z0, z1 = zf[rows, k - 1], zf[rows, k]
-        dz = z0 - z1
-        found = (z0 <= 0) & (dz < 0)
-        pos = k + z0 / np.where(found, dz, -1.0)  # in samples, + 1
-        off = (pos.reshape(M, -1) - (mid_sample + 1)) * (h * (2.0 / (n_samples - 1)))[:, None] + shift
-        off = off.reshape(M, 4, n_lines)  # edge position outside the quad's side, px
-        w = (found.reshape(M, 4, n_lines) & (light - dark > 20.0)[..., None]).astype(np.float64)
-        # Weighted least squares off = alpha + beta u (u: the fixed 0..1 grid of profiles), twice:
-        # the second time without the profiles 0.75 px off the first line.
-        for final in (False, True):
-            s3 = w @ U3  # (M, 4, 3): sums of w, w u, w u^2
-            s2 = (w * off) @ U3[:, :2]  # sums of w off, w u off
-            sw, su, suu = s3[..., 0], s3[..., 1], s3[..., 2]
-            det = np.maximum(sw * suu - su * su, 1e-12)
-            alpha = (suu * s2[..., 0] - su * s2[..., 1]) / det
-            beta = (sw * s2[..., 1] - su * s2[..., 0]) / det
-            if not final:
-                w = w * (np.abs(off - alpha[..., None] - beta[..., None] * u) < 0.75)
+        Dz, L, nz, cell, h, margin, span, prof = _profiles(gray, Z, cells, u, v, shift)
+        prof, dark, light, level = _levels(prof, inverted, gamma)
+        off, w = _edge_offsets(prof, level, dark, light, h, shift)
+        alpha, beta, sw, det = _fit_lines(w, off, u, U3)
         b = beta / span  # the same line in t (0 at corner k, 1 at corner k+1)
         a = alpha - b * margin
         # Side k's line: through A = Z[k] + a n, direction Dz + b n; corner k = line k-1 x line k.
@@ -175,3 +116,89 @@ def refine_corners_edges(
         Z = np.where(ok[:, None], new, Z)
         shift = 0.0
     return np.stack([Z.real, Z.imag], axis=-1)
+
+
+def _profiles(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.ndarray, shift: float):
+    """The quads' geometry and the gray profiles across each side: (M, 4, N, S) float32."""
+    M = Z.shape[0]
+    n_lines, n_samples = u.size, v.size
+    Dz = Z[:, _NEXT] - Z  # (M, 4) side vectors
+    L = np.maximum(np.abs(Dz), 1e-9)  # side lengths, px
+    # Outward unit normal: -i times the side direction when the corners turn clockwise on screen
+    # (y down), as OpenCV reports them for a marker seen from its front.
+    nz = Dz * (np.where((Dz[:, 0].conj() * Dz[:, 1]).imag >= 0, -1j, 1j)[:, None] / L)
+    cell = L.sum(1) * (0.25 / cells)  # (M,) px per cell
+    h = np.clip(0.6 * cell, 1.5, 5.0)  # profile half-length, px
+    margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)  # keep clear of the corners
+    span = 1.0 - 2.0 * margin
+    t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
+    pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[
+        ..., None, None
+    ]
+    # (x, y) pairs, one row per side: remap wants fewer than 32767 rows and columns
+    maps = pts.astype(np.complex64).view(np.float32).reshape(M * 4, n_lines * n_samples, 2)
+    prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
+    return Dz, L, nz, cell, h, margin, span, prof
+
+
+def _levels(prof: np.ndarray, inverted: bool | None, gamma: float):
+    """Each side's dark and light level and the edge level between them (x polarity: dark inside)."""
+    n_lines, n_samples = prof.shape[2], prof.shape[3]
+    half, mid_sample = n_lines // 2, n_samples // 2
+    # Levels: the darkest sample of the inner half and the brightest of the outer half (a narrow
+    # quiet zone with a darker wall beyond still gives the paper's level), median over each side.
+    pin, pout = prof[..., : mid_sample + 1], prof[..., mid_sample:]
+    if inverted is None:  # which way round is the contrast larger?
+        imin, imax, omin, omax = pin.min(-1), pin.max(-1), pout.min(-1), pout.max(-1)
+        normal = ((omax - imin) >= (imax - omin)).mean(-1) >= 0.5  # (M, 4): dark inside
+        dark = np.sort(np.where(normal[..., None], imin, -imax), axis=2)[..., half]  # levels x polarity
+        light = np.sort(np.where(normal[..., None], omax, -omin), axis=2)[..., half]
+        prof = prof * np.where(normal, 1.0, -1.0).astype(np.float32)[..., None, None]
+    elif inverted:
+        dark = np.sort(-pin.max(-1), axis=2)[..., half]
+        light = np.sort(-pout.min(-1), axis=2)[..., half]
+        prof = -prof
+    else:
+        dark = np.sort(pin.min(-1), axis=2)[..., half]
+        light = np.sort(pout.max(-1), axis=2)[..., half]
+    level = 0.5 * (dark + light)
+    if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
+        g = float(gamma)
+        lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
+        level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
+    return prof, dark, light, level
+
+
+def _edge_offsets(prof, level, dark, light, h, shift: float):
+    """Each profile's edge position outside the quad's side (px, (M, 4, N)) and its weight (0 or 1)."""
+    M, _, n_lines, n_samples = prof.shape
+    mid_sample = n_samples // 2
+    rows = np.arange(M * 4 * n_lines)
+    zf = (prof - level[..., None, None]).reshape(-1, n_samples)  # < 0 inside the edge
+    # The edge: the first sample at or above the mid level, k, and the one before it (outward from
+    # there the profile may fall again where a narrow quiet zone meets a darker wall).
+    k = np.maximum(np.argmax(zf >= 0, axis=-1), 1)
+    z0, z1 = zf[rows, k - 1], zf[rows, k]
+    dz = z0 - z1
+    found = (z0 <= 0) & (dz < 0)
+    pos = k + z0 / np.where(found, dz, -1.0)  # in samples, + 1
+    off = (pos.reshape(M, -1) - (mid_sample + 1)) * (h * (2.0 / (n_samples - 1)))[:, None] + shift
+    off = off.reshape(M, 4, n_lines)  # edge position outside the quad's side, px
+    w = (found.reshape(M, 4, n_lines) & (light - dark > 20.0)[..., None]).astype(np.float64)
+    return off, w
+
+
+def _fit_lines(w, off, u, U3):
+    """Weighted least squares off = alpha + beta u (u: the fixed 0..1 grid of profiles), twice:
+    the second time without the profiles 0.75 px off the first line."""
+    for final in (False, True):
+        s3 = w @ U3  # (M, 4, 3): sums of w, w u, w u^2
+        s2 = (w * off) @ U3[:, :2]  # sums of w off, w u off
+        sw, su, suu = s3[..., 0], s3[..., 1], s3[..., 2]
+        det = np.maximum(sw * suu - su * su, 1e-12)
+        alpha = (suu * s2[..., 0] - su * s2[..., 1]) / det
+        beta = (sw * s2[..., 1] - su * s2[..., 0]) / det
+        if not final:
+            w = w * (np.abs(off - alpha[..., None] - beta[..., None] * u) < 0.75)
+    return alpha, beta, sw, det
