@@ -142,6 +142,30 @@ def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
     16-bit images are scaled to 8 bits by the bits they use (a 12-bit camera's
     0..4095 in a 16-bit PNG becomes 0..255, a full-range one is shifted by 8);
     float images in [0, 1] are accepted too. Anything else raises :class:`ImageError` saying what was received.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 1) or (H, W, 3) or (H, W, 4)
+        Gray, BGR or BGRA; uint8, uint16, or float32/float64 in [0, 1].
+    where : str
+        What the image is, for the error message (a file name, ``"frame"``).
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+        Contiguous; the input itself when it already is one.
+
+    Raises
+    ------
+    ImageError
+        Not an array, empty, not an image's shape, an unsupported pixel type, NaN in a float
+        image, or smaller than 8 pixels a side.
+
+    Examples
+    --------
+    >>> g = as_gray(np.full((10, 12, 3), 1.0))
+    >>> g.shape, g.dtype.name, int(g.max())
+    ((10, 12), 'uint8', 255)
     """
     if not isinstance(image, np.ndarray):
         raise ImageError(

@@ -20,7 +20,13 @@ from ._common import _board_squares, _check_output, _Progress, _refuse_clobber, 
 
 
 def add(sub) -> None:
-    """Register the command on the ``fidlearn`` parser's subparsers."""
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "calibrate",
         help="camera intrinsics and distortion from photos of a board",
@@ -92,7 +98,24 @@ def _print_result(cal: calibration.Calibration) -> None:
 
 
 def run(args) -> int:
-    """Calibrate, print, then write the annotations, the coach's picture and the camera."""
+    """Calibrate, print, then write the annotations, the coach's picture and the camera.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
     report = _check_output(args.report, (".png",), "--report") if args.report else None
     items = expand_inputs(args.inputs, videos=False)

@@ -9,7 +9,13 @@ from ._common import UNITS, _refuse_clobber
 
 
 def add(sub) -> None:
-    """Register the command on the ``fidlearn`` parser's subparsers."""
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "corners",
         help="world map (marker placements) to marker corners in mm",
@@ -24,7 +30,24 @@ def add(sub) -> None:
 
 
 def run(args) -> int:
-    """Write the corner file; print how many markers and whether they are coplanar."""
+    """Write the corner file; print how many markers and whether they are coplanar.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     _refuse_clobber([("-o", args.output)], [args.map])
     m = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=args.dictionary)
     m.save_corners(args.output)

@@ -23,7 +23,13 @@ def doctor_report() -> tuple[list[str], list[str]]:
 
 
 def add(sub) -> None:
-    """Register the command on the ``fidlearn`` parser's subparsers."""
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "doctor", help="check the Python, numpy and OpenCV installation", description="Check the installation."
     )
@@ -31,5 +37,16 @@ def add(sub) -> None:
 
 
 def run(args) -> int:
-    """Print the report; 1 when a problem was found."""
+    """Print the report; 1 when a problem was found.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the installation is sound, 1 when a problem was found.
+    """
     return doctor.run()

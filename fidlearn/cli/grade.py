@@ -13,7 +13,13 @@ from ._common import _check_output, _refuse_clobber
 
 
 def add_release(sub) -> None:
-    """Register ``fidlearn release`` on the ``fidlearn`` parser's subparsers."""
+    """Register ``fidlearn release`` on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "release",
         help="an exercise lesson for each learner of a class, its answers kept by the instructor",
@@ -31,7 +37,24 @@ def add_release(sub) -> None:
 
 
 def run_release(args) -> int:
-    """Write every learner's folder; print how many."""
+    """Write every learner's folder; print how many.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     _, data = read_bytes(args.learners, UsageError, "roster", MAX_TEXT_BYTES)
     learners = [
         line.strip()
@@ -46,7 +69,13 @@ def run_release(args) -> int:
 
 
 def add_grade(sub) -> None:
-    """Register ``fidlearn grade`` on the ``fidlearn`` parser's subparsers."""
+    """Register ``fidlearn grade`` on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "grade",
         help="grade learners' exercise notebooks, each in a sandbox, the answer key outside it",
@@ -71,7 +100,24 @@ def add_grade(sub) -> None:
 
 
 def run_grade(args) -> int:
-    """Make a class secret, or grade the notebooks into a CSV; print one line per notebook."""
+    """Make a class secret, or grade the notebooks into a CSV; print one line per notebook.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     if args.new_secret is not None:
         grading.new_secret(args.new_secret)
         print(f"{args.new_secret}: a new class secret; keep it private (it decides every learner's numbers)")

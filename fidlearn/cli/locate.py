@@ -41,7 +41,13 @@ NO_MARKER = "no known marker"
 
 
 def add(sub) -> None:
-    """Register the command on the ``fidlearn`` parser's subparsers."""
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "locate",
         help="camera pose in the world from the markers in images or a video",
@@ -271,7 +277,24 @@ def _check_args(args):
 
 
 def run(args) -> int:
-    """Locate in every frame; print the table and the closing lines. 128 + signal when interrupted."""
+    """Locate in every frame; print the table and the closing lines. 128 + signal when interrupted.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     items, json_path = _check_args(args)
     staging = _Staging(args.annotate, keep_on_interrupt=True)
     camera = _load_camera(args)  # the camera first: a map given as --camera is named as such

@@ -9,7 +9,13 @@ from ._common import _board_squares, _check_dpi, _check_output
 
 
 def add_markers(sub) -> None:
-    """Register ``fidlearn markers`` on the ``fidlearn`` parser's subparsers."""
+    """Register ``fidlearn markers`` on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "markers",
         help="print ArUco markers at exact size (PDF or PNG)",
@@ -30,7 +36,24 @@ def add_markers(sub) -> None:
 
 
 def run_markers(args) -> int:
-    """Write the marker pages; print where, how many, and how to print them."""
+    """Write the marker pages; print where, how many, and how to print them.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     out = _check_output(args.output, (".pdf", ".png"))
     _check_dpi(args.dpi)
     ids = printables.parse_ids(args.ids)
@@ -49,7 +72,13 @@ def run_markers(args) -> int:
 
 
 def add_board(sub) -> None:
-    """Register ``fidlearn board`` on the ``fidlearn`` parser's subparsers."""
+    """Register ``fidlearn board`` on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "board",
         help="print a checkerboard or ChArUco board at exact size",
@@ -74,7 +103,24 @@ def add_board(sub) -> None:
 
 
 def run_board(args) -> int:
-    """Write the board page; print what it holds and how to print it."""
+    """Write the board page; print what it holds and how to print it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     out = _check_output(args.output, (".pdf", ".png"))
     _check_dpi(args.dpi)
     squares = _board_squares(args)

@@ -38,7 +38,13 @@ Example: fidlearn render --map world_map.json --camera camera.json \\
 
 
 def add(sub) -> None:
-    """Register the command on the ``fidlearn`` parser's subparsers."""
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
     p = sub.add_parser(
         "render",
         help="synthetic picture of a world map seen from a pose",
@@ -146,7 +152,24 @@ def _truth_record(args, out: Path, camera, marker_map, T_world_camera, truth: di
 
 
 def run(args) -> int:
-    """Render the picture (and its truth file); print what is in view."""
+    """Render the picture (and its truth file); print what is in view.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     out, truth_path = _check_args(args)
     marker_map = _load_map(args)
     camera = _camera(args)

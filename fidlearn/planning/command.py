@@ -20,7 +20,13 @@ HELP = "predicted position error over a room seen from above, and where to add m
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The command's options, on ``p``."""
+    """The command's options, on ``p``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The parser to add the options to.
+    """
     p.add_argument("map", type=Path, help="world map JSON (full layout, or give --units and --marker-size-mm)")
     p.add_argument("--camera", type=Path, required=True, help="camera file (fidlearn JSON or OpenCV YAML)")
     p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
@@ -56,7 +62,24 @@ def _check(args) -> None:
 
 
 def run(args) -> int:
-    """Plan the room, write the picture, print the figures (and the suggestions with --suggest)."""
+    """Plan the room, write the picture, print the figures (and the suggestions with --suggest).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     _check(args)
     world = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm)
     camera = Camera.load(args.camera)
