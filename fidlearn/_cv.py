@@ -54,7 +54,6 @@ def first_line(exc: BaseException) -> str:
     Parameters
     ----------
     exc : BaseException
-        Usually a ``cv2.error``.
 
     Returns
     -------
@@ -125,11 +124,6 @@ def get_dictionary(name: str):
     Returns
     -------
     cv2.aruco.Dictionary
-
-    Raises
-    ------
-    DictionaryError
-        Unknown name.
     """
     require_aruco()
     return _ARUCO.getPredefinedDictionary(DICTIONARIES[dictionary_name(name)])
@@ -141,7 +135,6 @@ def dictionary_size(name: str) -> int:
     Parameters
     ----------
     name : str
-        A dictionary name.
 
     Returns
     -------
@@ -162,17 +155,11 @@ def dictionary_marker_bits(name: str) -> int:
     Parameters
     ----------
     name : str
-        A dictionary name.
 
     Returns
     -------
     int
         Inner cells per side.
-
-    Examples
-    --------
-    >>> dictionary_marker_bits("6X6_250")
-    6
     """
     return int(get_dictionary(name).markerSize)
 
@@ -238,7 +225,6 @@ def make_detector(dictionary: str, params=None, ids=None):
     Parameters
     ----------
     dictionary : str
-        A dictionary name.
     params : cv2.aruco.DetectorParameters, optional
         OpenCV's defaults when None.
     ids : iterable of int, optional
@@ -286,9 +272,7 @@ def detect(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, li
     Parameters
     ----------
     detector : cv2.aruco.ArucoDetector
-        The detector.
     gray : ndarray, shape (H, W), uint8
-        The picture.
 
     Returns
     -------
@@ -376,9 +360,7 @@ def generate_marker(dictionary: str, marker_id: int, side_px: int, border_bits: 
     Parameters
     ----------
     dictionary : str
-        A dictionary name.
     marker_id : int
-        The marker's id.
     side_px : int
         The image's side, pixels.
     border_bits : int
@@ -387,92 +369,10 @@ def generate_marker(dictionary: str, marker_id: int, side_px: int, border_bits: 
     Returns
     -------
     ndarray, shape (side_px, side_px), uint8
-
-    Examples
-    --------
-    >>> generate_marker("6X6_250", 23, 80).shape
-    (80, 80)
     """
     require_aruco()
     d = get_dictionary(dictionary)
     return _ARUCO.generateImageMarker(d, int(marker_id), int(side_px), borderBits=int(border_bits))
-
-
-def charuco_board(
-    squares_xy: tuple[int, int], square_size: float, marker_size: float, dictionary: str, legacy: bool = False
-):
-    """A ``cv2.aruco.CharucoBoard``; ``legacy=True`` for boards made before OpenCV 4.6 with an even row count.
-
-    Parameters
-    ----------
-    squares_xy : (int, int)
-        Squares along x and y.
-    square_size, marker_size : float
-        Side of a chess square and of a marker (any unit, the same for both; fidlearn uses mm).
-    dictionary : str
-        The markers' dictionary.
-    legacy : bool
-        The marker layout of OpenCV before 4.6.
-
-    Returns
-    -------
-    cv2.aruco.CharucoBoard
-    """
-    require_aruco()
-    board = _ARUCO.CharucoBoard(
-        tuple(int(v) for v in squares_xy), float(square_size), float(marker_size), get_dictionary(dictionary)
-    )
-    if legacy:
-        board.setLegacyPattern(True)
-    return board
-
-
-def charuco_detector(board):
-    """A ``cv2.aruco.CharucoDetector`` for a board.
-
-    Parameters
-    ----------
-    board : cv2.aruco.CharucoBoard
-        The board.
-
-    Returns
-    -------
-    cv2.aruco.CharucoDetector
-    """
-    require_aruco()
-    return _ARUCO.CharucoDetector(board)
-
-
-def detect_charuco(detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Run a ``CharucoDetector``: chess corners (N, 2) float64 px, their ids (N,) int64, and how many markers were seen.
-
-    ``detectBoard`` returns ``None`` for nothing found and ids shaped (N, 1)
-    before OpenCV 5, (N,) from 5.0; this always gives arrays.
-    Parameters
-    ----------
-    detector : cv2.aruco.CharucoDetector
-        The board's detector.
-    gray : ndarray, shape (H, W), uint8
-        The picture.
-
-    Returns
-    -------
-    corners : ndarray, shape (N, 2), float64
-        Chess corners, pixels.
-    ids : ndarray, shape (N,), int64
-        Their ids on the board.
-    n_markers : int
-        Markers seen.
-    """
-    corners, ids, _marker_corners, marker_ids = detector.detectBoard(gray)
-    n_markers = 0 if marker_ids is None else int(np.asarray(marker_ids).size)
-    if ids is None or corners is None or len(corners) == 0:
-        return np.zeros((0, 2)), np.zeros((0,), dtype=np.int64), n_markers
-    return (
-        np.asarray(corners, dtype=np.float64).reshape(-1, 2),
-        np.asarray(ids).reshape(-1).astype(np.int64),
-        n_markers,
-    )
 
 
 def detector_parameter_fields(params=None) -> dict:
@@ -486,7 +386,6 @@ def detector_parameter_fields(params=None) -> dict:
     Parameters
     ----------
     params : None, dict or cv2.aruco.DetectorParameters
-        The parameters.
 
     Returns
     -------
@@ -534,9 +433,7 @@ def detect_with_raw_rejected(detector, gray: np.ndarray) -> tuple[list[np.ndarra
     Parameters
     ----------
     detector : cv2.aruco.ArucoDetector
-        The detector.
     gray : ndarray, shape (H, W), uint8
-        The picture.
 
     Returns
     -------
@@ -555,10 +452,21 @@ def rejected_quads(rejected) -> list[np.ndarray]:
     Parameters
     ----------
     rejected : sequence of array-like or None
-        OpenCV's rejected candidates.
 
     Returns
     -------
     list of ndarray, shape (4, 2), float64
     """
     return [np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())]
+
+
+_CHARUCO = ("charuco_board", "charuco_detector", "detect_charuco")
+
+
+def __getattr__(name: str):
+    """The ChArUco helpers live in :mod:`fidlearn._cv_charuco` (it builds on this module)."""
+    if name in _CHARUCO:
+        from . import _cv_charuco  # noqa: PLC0415 - it imports this module: resolved on first use
+
+        return getattr(_cv_charuco, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

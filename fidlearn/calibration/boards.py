@@ -11,7 +11,7 @@ import math
 import cv2
 import numpy as np
 
-from .. import _cv
+from .. import _cv, _cv_charuco
 from ..errors import CalibrationError
 
 __all__ = ["find_checkerboard_corners"]
@@ -132,8 +132,8 @@ class _Charuco:
         candidates = both if legacy == "auto" else [bool(legacy)]
         self.detectors = []
         for flag in candidates:
-            board = _cv.charuco_board(squares, square_size_mm, marker_size_mm, self.dictionary, legacy=flag)
-            self.detectors.append((flag, board, _cv.charuco_detector(board)))
+            board = _cv_charuco.charuco_board(squares, square_size_mm, marker_size_mm, self.dictionary, legacy=flag)
+            self.detectors.append((flag, board, _cv_charuco.charuco_detector(board)))
         self.legacy = candidates[0]
         self.auto = len(candidates) > 1
         self.description = (
@@ -147,7 +147,7 @@ class _Charuco:
         return {flag: self._find(board, det, gray) for flag, board, det in self.detectors}
 
     def _find(self, board, detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
-        corners, ids, n_markers = _cv.detect_charuco(detector, gray)
+        corners, ids, n_markers = _cv_charuco.detect_charuco(detector, gray)
         if len(ids) < self.min_corners:
             if n_markers == 0:
                 return (
@@ -199,8 +199,10 @@ class _Charuco:
                 )
             )
         for squares, legacy, hint in tries:
-            board = _cv.charuco_board(squares, self.square_size_mm, self.marker_size_mm, self.dictionary, legacy=legacy)
-            detector = _cv.charuco_detector(board)
-            if any(len(_cv.detect_charuco(detector, g)[1]) >= self.min_corners for g in grays):
+            board = _cv_charuco.charuco_board(
+                squares, self.square_size_mm, self.marker_size_mm, self.dictionary, legacy=legacy
+            )
+            detector = _cv_charuco.charuco_detector(board)
+            if any(len(_cv_charuco.detect_charuco(detector, g)[1]) >= self.min_corners for g in grays):
                 return hint
         return ""
