@@ -15,19 +15,23 @@ try:
     from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
     from .camera import Camera
     from .data import data_dir, data_path
-    from .detection import Detection, detect_markers, draw_detections
+    from .detection import Detection, detect_markers, detect_markers_with_rejected
+    from .drawing import draw_detections
     from .errors import (
         CalibrationError,
         CameraError,
         DetectionError,
         DictionaryError,
+        ExerciseError,
         FidlearnError,
         FidlearnWarning,
+        GradingError,
         ImageError,
         MapError,
         NoMarkersError,
         PoseError,
         TransformError,
+        UsageError,
     )
     from .frames import (
         compose,
@@ -81,6 +85,9 @@ __all__ = [
     "NoMarkersError",
     "CalibrationError",
     "PoseError",
+    "ExerciseError",
+    "GradingError",
+    "UsageError",
     "compose",
     "invert_transform",
     "make_transform",
@@ -93,6 +100,7 @@ __all__ = [
     "data_path",
     "Detection",
     "detect_markers",
+    "detect_markers_with_rejected",
     "draw_detections",
     "render_scene",
     "look_at",

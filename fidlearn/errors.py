@@ -21,6 +21,7 @@ __all__ = [
     "PoseError",
     "ExerciseError",
     "GradingError",
+    "UsageError",
 ]
 
 
@@ -81,3 +82,7 @@ class ExerciseError(FidlearnError, KeyError):
 
 class GradingError(FidlearnError):
     """A grading run cannot start: a missing secret, a bad roster, an unknown lesson."""
+
+
+class UsageError(FidlearnError):
+    """The command line itself is wrong (unknown option, missing argument, an output that would clobber an input)."""

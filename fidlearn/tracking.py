@@ -88,7 +88,7 @@ class MarkerTracker:
     refine : str, optional
         Corner refinement, as for :func:`fidlearn.detect_markers` (default its default, ``"edges"``).
     detector_params : None, dict or cv2.aruco.DetectorParameters
-        OpenCV detector parameters, as for ``detect_markers(params=...)``.
+        OpenCV detector parameters, as for ``detect_markers(detector_params=...)``.
     full_every : int
         A full-frame detection at least every this many frames (1: every frame,
         no windows). It finds what the windows cannot: a marker that came out

@@ -707,7 +707,7 @@ DETECT_ARGUMENTS = [
     ("refinement not a string", {"refine": True}, FidlearnError, "unknown corner refinement True"),
     (
         "unknown detector parameter",
-        {"params": {"adaptiveTreshWinSizeMin": 3}},
+        {"detector_params": {"adaptiveTreshWinSizeMin": 3}},
         FidlearnError,
         "no field 'adaptiveTreshWinSizeMin'",
     ),

@@ -9,7 +9,7 @@ import pytest
 from fidlearn import frames
 from fidlearn.camera import Camera
 from fidlearn.data import data_path
-from fidlearn.detection import Detection
+from fidlearn.detection import Detection, load_image
 from fidlearn.errors import CameraError, FidlearnWarning, ImageError, NoMarkersError, PoseError
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import Pose, estimate_pose, locate, pose_jacobian
@@ -823,3 +823,13 @@ def test_locate_names_the_markers_it_saw_when_none_is_in_the_map():
     only_seven = MarkerMap({9: MarkerPlacement(9, (0.0, 0.0, 300.0), (0.0, 0.0, 0.0))}, 80, "ARUCO_ORIGINAL", "mm")
     with pytest.raises(NoMarkersError, match=r"0, 1, 2, 7"):
         locate(image, only_seven, CAM)
+
+
+def test_locate_passes_detector_params_to_the_detector():
+    """A detector told to ignore small markers finds none of the seed's, so locate says so."""
+    world = MarkerMap.load(data_path("world_map.json"))
+    camera = Camera.load(data_path("scenes", "camera.json"))
+    image = load_image(data_path("scenes", "scene_00.png"))
+    assert list(locate(image, world, camera).marker_ids) == [0, 1, 2]
+    with pytest.raises(NoMarkersError):
+        locate(image, world, camera, detector_params={"minMarkerPerimeterRate": 3.5})

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from .. import frames
+from ..calibration.quality import coverage_grid
 from ..camera import Camera
 from ..errors import CalibrationError
 
@@ -179,14 +180,8 @@ class CalibrationCoach:
 
 
 def _coverage(camera: Camera, image_points_px: dict, grid=GRID) -> np.ndarray:
-    cols, rows = grid
-    out = np.zeros((rows, cols), dtype=int)
-    for pts in image_points_px.values():
-        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
-        c = np.clip(((pts[:, 0] + 0.5) * cols // camera.width).astype(int), 0, cols - 1)
-        r = np.clip(((pts[:, 1] + 0.5) * rows // camera.height).astype(int), 0, rows - 1)
-        np.add.at(out, (r, c), 1)
-    return out
+    """Board points per cell of a ``grid`` (columns, rows) over the picture, row 0 at the top."""
+    return coverage_grid(image_points_px.values(), camera.image_size, grid)
 
 
 _NINTHS = ["top left", "top", "top right", "left", "middle", "right", "bottom left", "bottom", "bottom right"]
@@ -298,6 +293,14 @@ def coach(
     cov, u, good = _summary(camera, info, sigma_px, distance)
     coverage = _coverage(camera, image_points_px)
     tilts = {n: _tilt_deg(T_camera_board[n]) for n in names}
+    flags = _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts, other_sizes)
+    best = _next_view(camera, np.asarray(board_points_mm[names[0]], dtype=float), info, sigma_px, distance)
+    return CalibrationCoach(u, good, cov, coverage, tilts, flags, best)
+
+
+def _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts: dict, other_sizes: int) -> list[str]:
+    """What is wrong with the set, one sentence each."""
+    names = list(T_camera_board)
     flags = []
     if len(names) < MIN_VIEWS:
         flags.append(f"only {len(names)} views were used; take at least {MIN_VIEWS} (15 to 25 is usual)")
@@ -324,8 +327,12 @@ def coach(
             f"the board does not look flat in {', '.join(bent)}: its residuals follow a smooth bend; "
             "glue the print to something rigid and retake those views"
         )
+    return flags
+
+
+def _next_view(camera, board: np.ndarray, info, sigma_px: float, distance: float) -> NextView | None:
+    """The candidate photo that lowers the uncertainty most (None when no candidate shows the whole board)."""
     best = None
-    board = np.asarray(board_points_mm[names[0]], dtype=float)
     candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
     for T, where, tilt in candidates:
         if not _board_in_picture(camera, board, T):
@@ -345,7 +352,7 @@ def coach(
                     float(np.median(u_after)),
                 ),
             )
-    return CalibrationCoach(u, good, cov, coverage, tilts, flags, best[1] if best else None)
+    return best[1] if best else None
 
 
 def _board_in_picture(camera: Camera, board_mm: np.ndarray, T_camera_board: np.ndarray) -> bool:

@@ -55,7 +55,7 @@ def locate(
         ``"edges"`` (its default), ``"none"``, ``"subpix"``, ``"contour"`` or
         ``"apriltag"``; None for the default.
     detector_params : dict or cv2.aruco.DetectorParameters, optional
-        OpenCV detector parameters, passed to ``detect_markers(params=...)``.
+        OpenCV detector parameters, passed to ``detect_markers(detector_params=...)``.
     only_map_markers : bool
         Look only for the map's ids (the default, faster); False to detect the
         whole dictionary and list the other ids in ``Pose.ignored_ids``.
@@ -111,7 +111,7 @@ def _detect_map_markers(
     """
     det_kw = {} if refine is None else {"refine": refine}
     if detector_params is not None:
-        det_kw["params"] = detector_params
+        det_kw["detector_params"] = detector_params
     if not isinstance(only_map_markers, (bool, np.bool_)):
         raise PoseError(f"only_map_markers must be True or False, got {only_map_markers!r}")
     ids = marker_map.ids if only_map_markers else None
