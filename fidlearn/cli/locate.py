@@ -184,8 +184,6 @@ class _Locator:
             pose = None
         except PoseError as exc:  # a degenerate view: report the frame, keep going
             pose, failure = None, f"no pose: {_one_line(str(exc))}"
-        if pose is None and tracker is not None and tracker.last_detections and failure == NO_MARKER:
-            failure = "no pose: the map's markers found do not give a pose"
         if pose is None:  # what is in view, from the whole dictionary (as fidlearn.locate's error says)
             return None, detect_markers(frame.image, self.marker_map.dictionary, **self.refine), failure
         if tracker is not None:
