@@ -32,7 +32,7 @@ import numpy as np
 
 from . import _cv
 from ._io import atomic_write, file_mode_for
-from .errors import DictionaryError, FidlearnError
+from .errors import DictionaryError, FidlearnError, PrintError
 
 __all__ = [
     "PAPERS",
@@ -68,10 +68,6 @@ CUT_MARK_MM = 3.0  # [mm] length of a cut mark
 CUT_MARK_OFFSET_MM = 1.0  # [mm] from the cut corner to the start of its mark
 LABEL_MM = 7.0  # [mm] strip under each marker for its id and dictionary
 LINE_PT = 0.4  # [pt] width of cut marks
-
-
-class PrintError(FidlearnError, ValueError):
-    """A printable cannot be made as asked (does not fit the paper, bad id list, bad pattern)."""
 
 
 # -- parsing ------------------------------------------------------------------------------
@@ -173,10 +169,10 @@ class MarkerSheet:
     paper : str
     paper_mm : (float, float)
         Page (width, height) in mm.
-    size_mm : float
+    marker_size_mm : float
         Side of each black square (border included), mm.
     cell_mm : float
-        Side of one cell, mm (``size_mm`` / cells per side).
+        Side of one cell, mm (``marker_size_mm`` / cells per side).
     dictionary : str
     pages : list of list of (int, float, float)
         Per page: ``(id, x_mm, y_mm)``, the top-left corner of each black square
@@ -185,7 +181,7 @@ class MarkerSheet:
 
     paper: str
     paper_mm: tuple[float, float]
-    size_mm: float
+    marker_size_mm: float
     cell_mm: float
     dictionary: str
     pages: list[list[tuple[int, float, float]]] = field(repr=False)
@@ -198,7 +194,7 @@ class MarkerSheet:
     def __repr__(self) -> str:
         n = sum(len(p) for p in self.pages)
         return (
-            f"MarkerSheet({n} markers of {self.size_mm:g} mm, {self.dictionary}, {self.paper} "
+            f"MarkerSheet({n} markers of {self.marker_size_mm:g} mm, {self.dictionary}, {self.paper} "
             f"{self.paper_mm[0]:g}x{self.paper_mm[1]:g} mm, {len(self.pages)} page(s), {self.per_page} per page)"
         )
 
@@ -219,7 +215,7 @@ def _usable_area(paper_mm: tuple[float, float], strip: str = "bottom") -> tuple[
 
 
 def layout_markers(
-    ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+    ids: Sequence[int], marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
 ) -> MarkerSheet:
     """Place markers in a grid, as many per page as fit, with a white quiet zone of one cell.
 
@@ -227,7 +223,7 @@ def layout_markers(
     cell on every side, and a label strip under it; cut rectangles are
     :data:`GAP_MM` apart.
     """
-    size_mm = _positive_mm(size_mm, "--size-mm")
+    marker_size_mm = _positive_mm(marker_size_mm, "--size-mm")
     name = _cv.dictionary_name(dictionary)
     if isinstance(ids, str):
         ids = parse_ids(ids)  # "0-9", "0,3,7" as on the command line
@@ -242,16 +238,16 @@ def layout_markers(
         marker_cells(name, i)  # raises for an id outside the dictionary
     paper_mm = paper_size_mm(paper)
     cells = _cv.dictionary_marker_bits(name) + 2
-    cell = size_mm / cells
-    slot_w = size_mm + 2 * cell
-    slot_h = size_mm + 2 * cell + LABEL_MM
+    cell = marker_size_mm / cells
+    slot_w = marker_size_mm + 2 * cell
+    slot_h = marker_size_mm + 2 * cell + LABEL_MM
     x0, y0, uw, uh = _usable_area(paper_mm)
     cols = int((uw + GAP_MM + 1e-9) // (slot_w + GAP_MM))
     rows = int((uh + GAP_MM + 1e-9) // (slot_h + GAP_MM))
     if cols < 1 or rows < 1:
         largest = min(uw * cells / (cells + 2), (uh - LABEL_MM) * cells / (cells + 2))
         raise PrintError(
-            f"a {size_mm:g} mm marker (with its one-cell white margin and label) does not fit on "
+            f"a {marker_size_mm:g} mm marker (with its one-cell white margin and label) does not fit on "
             f"{paper} paper; the largest that fits is {math.floor(largest * 10) / 10:g} mm: lower --size-mm"
         )
     grid_w = cols * slot_w + (cols - 1) * GAP_MM
@@ -266,7 +262,7 @@ def layout_markers(
             r, c = divmod(k, cols)
             page.append((mid, left + c * (slot_w + GAP_MM) + cell, top + r * (slot_h + GAP_MM) + cell))
         pages.append(page)
-    return MarkerSheet(str(paper).lower(), paper_mm, size_mm, cell, name, pages)
+    return MarkerSheet(str(paper).lower(), paper_mm, marker_size_mm, cell, name, pages)
 
 
 # -- boards ---------------------------------------------------------------------------------
@@ -278,7 +274,7 @@ class BoardSheet:
     ----------
     squares : (int, int)
         Squares (columns, rows); the inner corners are one fewer each way.
-    square_mm : float
+    square_size_mm : float
     origin_mm : (float, float)
         Top-left corner of the board (of its top-left square) in the page frame, mm.
     paper, paper_mm, landscape
@@ -286,7 +282,7 @@ class BoardSheet:
     strip : {"bottom", "right"}
         Where the title, the ruler and the note sit.
     charuco : bool
-    marker_mm : float or None
+    marker_size_mm : float or None
         ChArUco only: side of each marker's black square.
     dictionary : str or None
         ChArUco only.
@@ -297,14 +293,14 @@ class BoardSheet:
     """
 
     squares: tuple[int, int]
-    square_mm: float
+    square_size_mm: float
     origin_mm: tuple[float, float]
     paper: str
     paper_mm: tuple[float, float]
     landscape: bool
     strip: str
     charuco: bool
-    marker_mm: float | None
+    marker_size_mm: float | None
     dictionary: str | None
     black: list[tuple[int, int]] = field(repr=False)
     markers: list[tuple[int, int, int]] = field(repr=False)
@@ -317,26 +313,26 @@ class BoardSheet:
     @property
     def board_mm(self) -> tuple[float, float]:
         """(width, height) of the board, mm."""
-        return (self.squares[0] * self.square_mm, self.squares[1] * self.square_mm)
+        return (self.squares[0] * self.square_size_mm, self.squares[1] * self.square_size_mm)
 
     def describe(self) -> str:
         """One line for the page and the terminal."""
         (c, r), (ic, ir) = self.squares, self.inner_corners
         if self.charuco:
             return (
-                f"ChArUco {c}x{r} squares ({ic}x{ir} inner corners), square {self.square_mm:g} mm, "
-                f"marker {self.marker_mm:g} mm, {self.dictionary}"
+                f"ChArUco {c}x{r} squares ({ic}x{ir} inner corners), square {self.square_size_mm:g} mm, "
+                f"marker {self.marker_size_mm:g} mm, {self.dictionary}"
             )
-        return f"checkerboard {ic}x{ir} inner corners ({c}x{r} squares), square {self.square_mm:g} mm"
+        return f"checkerboard {ic}x{ir} inner corners ({c}x{r} squares), square {self.square_size_mm:g} mm"
 
 
 #: The white margin kept around a board: QUIET_FRACTION of a square, at least QUIET_MIN_MM.
 QUIET_MIN_MM, QUIET_FRACTION = 3.0, 0.2
 
 
-def board_quiet_zone_mm(square_mm: float) -> float:
-    """The white margin (mm) a board of ``square_mm`` squares needs on every side."""
-    return max(QUIET_MIN_MM, QUIET_FRACTION * square_mm)
+def board_quiet_zone_mm(square_size_mm: float) -> float:
+    """The white margin (mm) a board of ``square_size_mm`` squares needs on every side."""
+    return max(QUIET_MIN_MM, QUIET_FRACTION * square_size_mm)
 
 
 #: Page arrangements tried for a board, in order of preference: (landscape, strip side).
@@ -357,11 +353,11 @@ def _largest_square(squares: tuple[int, int], paper: str, landscape: bool, strip
 
 def layout_board(
     squares: tuple[int, int],
-    square_mm: float,
+    square_size_mm: float,
     paper: str = "a4",
     charuco: bool = False,
     dictionary: str | None = None,
-    marker_mm: float | None = None,
+    marker_size_mm: float | None = None,
 ) -> BoardSheet:
     """Place a checkerboard or ChArUco board of ``squares`` (columns, rows) on one page.
 
@@ -372,36 +368,36 @@ def layout_board(
     cols, rows = (int(v) for v in squares)
     if cols < 3 or rows < 3:
         raise PrintError(f"a board needs at least 3x3 squares (2x2 inner corners), got {cols}x{rows} squares")
-    square_mm = _positive_mm(square_mm, "--square-mm")
+    square_size_mm = _positive_mm(square_size_mm, "--square-mm")
     paper_key = str(paper).lower()
     paper_size_mm(paper_key)
     fits = [
         (lan, strip)
         for lan, strip in _BOARD_ARRANGEMENTS
-        if square_mm <= _largest_square((cols, rows), paper_key, lan, strip) + 1e-9
+        if square_size_mm <= _largest_square((cols, rows), paper_key, lan, strip) + 1e-9
     ]
     if not fits:
         largest = max(_largest_square((cols, rows), paper_key, lan, strip) for lan, strip in _BOARD_ARRANGEMENTS)
         raise PrintError(
-            f"a {cols}x{rows}-square board of {square_mm:g} mm squares ({cols * square_mm:g} x {rows * square_mm:g} mm "
+            f"a {cols}x{rows}-square board of {square_size_mm:g} mm squares ({cols * square_size_mm:g} x {rows * square_size_mm:g} mm "
             f"plus a white margin) does not fit on {paper_key} paper; the largest square that fits is "
             f"{math.floor(largest * 10) / 10:g} mm: use --square-mm {math.floor(largest * 10) / 10:g} or less"
         )
     landscape, strip = fits[0]
     paper_mm = paper_size_mm(paper_key, landscape)
     x0, y0, uw, uh = _usable_area(paper_mm, strip)
-    origin = (x0 + (uw - cols * square_mm) / 2, y0 + (uh - rows * square_mm) / 2)
+    origin = (x0 + (uw - cols * square_size_mm) / 2, y0 + (uh - rows * square_size_mm) / 2)
     black: list[tuple[int, int]] = []
     markers: list[tuple[int, int, int]] = []
     name = None
     if charuco:
         name = _cv.dictionary_name(dictionary or "6X6_250")
-        if marker_mm is None:
+        if marker_size_mm is None:
             raise PrintError("a ChArUco board needs --marker-mm (the side of each marker, smaller than the square)")
-        marker_mm = _positive_mm(marker_mm, "--marker-mm")
-        if marker_mm >= square_mm:
+        marker_size_mm = _positive_mm(marker_size_mm, "--marker-mm")
+        if marker_size_mm >= square_size_mm:
             raise PrintError(
-                f"--marker-mm {marker_mm:g} must be smaller than --square-mm {square_mm:g}; try {0.75 * square_mm:g}"
+                f"--marker-mm {marker_size_mm:g} must be smaller than --square-mm {square_size_mm:g}; try {0.75 * square_size_mm:g}"
             )
         n_markers = (cols * rows) // 2
         if n_markers > _cv.dictionary_size(name):
@@ -409,13 +405,13 @@ def layout_board(
                 f"a {cols}x{rows} ChArUco board needs {n_markers} markers but {name} has only "
                 f"{_cv.dictionary_size(name)}; choose a bigger dictionary such as 6X6_250"
             )
-        board = _cv.charuco_board((cols, rows), square_mm, marker_mm, name)
+        board = _cv.charuco_board((cols, rows), square_size_mm, marker_size_mm, name)
         obj = np.asarray(board.getObjPoints(), dtype=np.float64).reshape(-1, 4, 3)
         ids = np.asarray(board.getIds()).reshape(-1)
         white = set()
         for mid, pts in zip(ids, obj):
             cx, cy = pts[:, :2].mean(axis=0)
-            c, r = int(cx // square_mm), int(cy // square_mm)
+            c, r = int(cx // square_size_mm), int(cy // square_size_mm)
             markers.append((int(mid), c, r))
             white.add((c, r))
         black = [(c, r) for r in range(rows) for c in range(cols) if (c, r) not in white]
@@ -423,14 +419,14 @@ def layout_board(
         black = [(c, r) for r in range(rows) for c in range(cols) if (c + r) % 2 == 0]
     return BoardSheet(
         (cols, rows),
-        square_mm,
+        square_size_mm,
         origin,
         paper_key,
         paper_mm,
         landscape,
         strip,
         bool(charuco),
-        marker_mm if charuco else None,
+        marker_size_mm if charuco else None,
         name,
         black,
         markers,
@@ -550,28 +546,28 @@ def marker_figures(sheet: MarkerSheet) -> list:
     for k, page in enumerate(sheet.pages):
         fig, ax = _page(sheet.paper_mm)
         title = (
-            f"fidlearn markers, {sheet.dictionary}, black square {sheet.size_mm:g} mm, "
+            f"fidlearn markers, {sheet.dictionary}, black square {sheet.marker_size_mm:g} mm, "
             f"page {k + 1} of {len(sheet.pages)}"
         )
         rects = []
         for mid, x, y in page:
             rects += _marker_rects(marker_cells(sheet.dictionary, mid), x, y, cell)
-            cut = (x - cell, y - cell, sheet.size_mm + 2 * cell, sheet.size_mm + 2 * cell + LABEL_MM)
+            cut = (x - cell, y - cell, sheet.marker_size_mm + 2 * cell, sheet.marker_size_mm + 2 * cell + LABEL_MM)
             _cut_marks(ax, *cut)
-            label_y = y + sheet.size_mm + cell + LABEL_MM / 2
-            long = f"id {mid}   {sheet.dictionary}   {sheet.size_mm:g} mm"
+            label_y = y + sheet.marker_size_mm + cell + LABEL_MM / 2
+            long = f"id {mid}   {sheet.dictionary}   {sheet.marker_size_mm:g} mm"
             if len(long) * 1.3 > cut[2]:  # about 1.3 mm per character at 7 pt
-                ax.text(x + sheet.size_mm / 2, label_y - 1.4, f"id {mid}", ha="center", va="center", fontsize=7)
+                ax.text(x + sheet.marker_size_mm / 2, label_y - 1.4, f"id {mid}", ha="center", va="center", fontsize=7)
                 ax.text(
-                    x + sheet.size_mm / 2,
+                    x + sheet.marker_size_mm / 2,
                     label_y + 1.6,
-                    f"{sheet.dictionary} {sheet.size_mm:g} mm",
+                    f"{sheet.dictionary} {sheet.marker_size_mm:g} mm",
                     ha="center",
                     va="center",
                     fontsize=5,
                 )
             else:
-                ax.text(x + sheet.size_mm / 2, label_y, long, ha="center", va="center", fontsize=7)
+                ax.text(x + sheet.marker_size_mm / 2, label_y, long, ha="center", va="center", fontsize=7)
         _fill_rects(ax, rects)
         _draw_strip(ax, sheet.paper_mm, "bottom", title)
         figs.append(fig)
@@ -581,13 +577,13 @@ def marker_figures(sheet: MarkerSheet) -> list:
 def board_figure(sheet: BoardSheet):
     """The matplotlib ``Figure`` of a :class:`BoardSheet` (nothing written)."""
     fig, ax = _page(sheet.paper_mm)
-    s = sheet.square_mm
+    s = sheet.square_size_mm
     ox, oy = sheet.origin_mm
     rects = [(ox + c * s, oy + r * s, s, s) for c, r in sheet.black]
     if sheet.charuco:
         cells_n = _cv.dictionary_marker_bits(sheet.dictionary) + 2
-        cell = sheet.marker_mm / cells_n
-        inset = (s - sheet.marker_mm) / 2
+        cell = sheet.marker_size_mm / cells_n
+        inset = (s - sheet.marker_size_mm) / 2
         for mid, c, r in sheet.markers:
             rects += _marker_rects(marker_cells(sheet.dictionary, mid), ox + c * s + inset, oy + r * s + inset, cell)
     _fill_rects(ax, rects)
@@ -660,7 +656,7 @@ def _write_pngs(figures: Sequence, names: list[Path], dpi: float) -> list[Path]:
 
 # -- one-call helpers -----------------------------------------------------------------------
 def markers_pdf(
-    path, ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+    path, ids: Sequence[int], marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
 ) -> MarkerSheet:
     """Write a (multi-page) PDF of markers at exact size; returns the layout.
 
@@ -670,22 +666,27 @@ def markers_pdf(
         The ``.pdf`` file to write (atomically).
     ids : sequence of int
         Marker ids, in print order.
-    size_mm : float
+    marker_size_mm : float
         Side of each black square (border included), mm.
     dictionary : str
         ArUco dictionary name, e.g. ``"ARUCO_ORIGINAL"`` or ``"6X6_250"``.
     paper : {"a4", "letter"}
     """
-    sheet = layout_markers(ids, size_mm, dictionary, paper)
+    sheet = layout_markers(ids, marker_size_mm, dictionary, paper)
     save_pages(marker_figures(sheet), _with_suffix(path, ".pdf"))
     return sheet
 
 
 def markers_png(
-    path, ids: Sequence[int], size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4", dpi: float = 300
+    path,
+    ids: Sequence[int],
+    marker_size_mm: float,
+    dictionary: str = "ARUCO_ORIGINAL",
+    paper: str = "a4",
+    dpi: float = 300,
 ) -> tuple[MarkerSheet, list[Path]]:
     """Write the marker pages as PNG at ``dpi``; returns the layout and the files written."""
-    sheet = layout_markers(ids, size_mm, dictionary, paper)
+    sheet = layout_markers(ids, marker_size_mm, dictionary, paper)
     return sheet, save_pages(marker_figures(sheet), _with_suffix(path, ".png"), dpi=dpi)
 
 
@@ -707,15 +708,15 @@ def _inner_corners(pattern) -> tuple[int, int]:
 def board_pdf(
     path,
     pattern: tuple[int, int],
-    square_mm: float,
+    square_size_mm: float,
     paper: str = "a4",
     charuco: bool = False,
     dictionary: str | None = None,
-    marker_mm: float | None = None,
+    marker_size_mm: float | None = None,
 ) -> BoardSheet:
     """Write a one-page PDF of a calibration board; ``pattern`` is INNER corners (9x6 -> 10x7 squares)."""
     pattern = _inner_corners(pattern)
-    sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_mm, paper, charuco, dictionary, marker_mm)
+    sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_size_mm, paper, charuco, dictionary, marker_size_mm)
     save_pages([board_figure(sheet)], _with_suffix(path, ".pdf"))
     return sheet
 
@@ -723,16 +724,16 @@ def board_pdf(
 def board_png(
     path,
     pattern: tuple[int, int],
-    square_mm: float,
+    square_size_mm: float,
     paper: str = "a4",
     charuco: bool = False,
     dictionary: str | None = None,
-    marker_mm: float | None = None,
+    marker_size_mm: float | None = None,
     dpi: float = 300,
 ) -> tuple[BoardSheet, list[Path]]:
     """Write a board page as PNG at ``dpi``; ``pattern`` is INNER corners. Returns the layout and the file."""
     pattern = _inner_corners(pattern)
-    sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_mm, paper, charuco, dictionary, marker_mm)
+    sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_size_mm, paper, charuco, dictionary, marker_size_mm)
     return sheet, save_pages([board_figure(sheet)], _with_suffix(path, ".png"), dpi=dpi)
 
 
