@@ -19,6 +19,8 @@ __all__ = [
     "DetectionError",
     "CalibrationError",
     "PoseError",
+    "PlotError",
+    "PrintError",
 ]
 
 
@@ -64,3 +66,11 @@ class CalibrationError(FidlearnError):
 
 class PoseError(FidlearnError, ValueError):
     """Pose estimation cannot run on these inputs (wrong types, a solver that does not fit the data)."""
+
+
+class PlotError(FidlearnError, ValueError):
+    """A figure cannot be drawn from these inputs (labels that do not match the points, no poses, not an image)."""
+
+
+class PrintError(FidlearnError, ValueError):
+    """A printable page cannot be laid out or written as asked (a size that does not fit, a bad id list)."""

@@ -36,6 +36,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from . import frames
 from .camera import Camera
+from .errors import PlotError
 from .markermap import MarkerMap
 
 __all__ = [
@@ -57,7 +58,7 @@ __all__ = [
     "draw_points",
     "draw_corner_labels",
     "draw_quads",
-    "draw_detections",
+    "plot_detections",
     "draw_reprojection",
     "draw_projected_markers",
 ]
@@ -77,7 +78,7 @@ def new_axes_3d(
         fig = plt.figure(figsize=figsize)
         ax = fig.add_subplot(projection="3d")
     if getattr(ax, "name", "") != "3d":
-        raise ValueError("ax must be a 3D Axes: fig.add_subplot(projection='3d')")
+        raise PlotError("ax must be a 3D Axes: fig.add_subplot(projection='3d')")
     ax.set_xlabel("X (mm)")
     ax.set_ylabel("Y (mm)")
     ax.set_zlabel("Z (mm)")
@@ -261,6 +262,16 @@ def draw_camera(
     return lines
 
 
+def _check_map_camera(marker_map, camera, call: str) -> None:
+    """Raise :class:`PlotError` unless the map is a MarkerMap and the camera a Camera (the map comes first)."""
+    if isinstance(marker_map, Camera) and isinstance(camera, MarkerMap):
+        raise PlotError(f"{call}: the map comes first, then the camera; the arguments are swapped")
+    if not isinstance(marker_map, MarkerMap):
+        raise PlotError(f"{call}: marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
+    if not isinstance(camera, Camera):
+        raise PlotError(f"{call}: camera must be a fidlearn.Camera, got {type(camera).__name__}")
+
+
 def _pose_matrix(pose) -> np.ndarray:
     T = getattr(pose, "T_world_camera", pose)
     return frames.check_transform(T, name="pose")
@@ -308,7 +319,7 @@ def plot_scene(
     ax = new_axes_3d(ax, elev=elev, azim=azim)
     Ts = [_pose_matrix(p) for p in poses]
     if labels is not None and len(labels) != len(Ts):
-        raise ValueError(f"plot_scene: {len(labels)} labels for {len(Ts)} poses")
+        raise PlotError(f"plot_scene: {len(labels)} labels for {len(Ts)} poses")
     pts = [np.zeros((1, 3))]
     if marker_map is not None:
         pts += list(marker_map.corners().values())
@@ -369,7 +380,7 @@ def draw_trajectory(
     """
     Ts = [_pose_matrix(p) for p in poses]
     if not Ts:
-        raise ValueError("draw_trajectory: no poses")
+        raise PlotError("draw_trajectory: no poses")
     pts = np.array([T[:3, 3] for T in Ts])
     (line,) = ax.plot(*pts.T, color=color, linestyle=linestyle, linewidth=1.5, label=label)
     ax.scatter(*pts[0], color=color, s=20, depthshade=False)
@@ -415,7 +426,7 @@ def plot_top_view(
     if truth is not None:
         tp, th = positions_and_headings(truth)
         if len(tp) != len(poses):
-            raise ValueError(f"plot_top_view: {len(tp)} true poses for {len(poses)} poses")
+            raise PlotError(f"plot_top_view: {len(tp)} true poses for {len(poses)} poses")
         ax.plot(tp[:, 0], tp[:, 1], "o-", color="0.6", markersize=3, linewidth=1, label="truth")
     p, h = positions_and_headings(poses)
     if len(p):
@@ -455,7 +466,7 @@ def _rgb(image: np.ndarray) -> tuple[np.ndarray, dict]:
         return image[:, :, ::-1], {}  # OpenCV's BGR to matplotlib's RGB
     if image.ndim == 3 and image.shape[2] == 4:
         return image[:, :, [2, 1, 0, 3]], {}
-    raise ValueError(f"show_image: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
+    raise PlotError(f"show_image: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
 
 
 def show_image(
@@ -501,7 +512,7 @@ def show_images(
     """A grid of images (gray or BGR) with optional titles; ticks hidden, each image framed."""
     n = len(images)
     if n == 0:
-        raise ValueError("show_images: no images")
+        raise PlotError("show_images: no images")
     ncols = max(1, min(ncols, n))
     nrows = -(-n // ncols)
     h, w = np.asarray(images[0]).shape[:2]
@@ -532,7 +543,7 @@ def draw_points(
     art = ax.scatter(pts[:, 0], pts[:, 1], c=color, marker=marker, s=markersize, linewidths=1.5)
     if labels is not None:
         if len(labels) != len(pts):
-            raise ValueError(f"draw_points: {len(labels)} labels for {len(pts)} points")
+            raise PlotError(f"draw_points: {len(labels)} labels for {len(pts)} points")
         for (u, v), text in zip(pts, labels):
             ax.annotate(str(text), (u, v), xytext=(4, -4), textcoords="offset points", color=color, fontsize=8)
     return art
@@ -547,7 +558,7 @@ def draw_corner_labels(
     """
     c = np.asarray(corners_px, dtype=float).reshape(-1, 2)
     if len(c) != len(names):
-        raise ValueError(f"draw_corner_labels: {len(c)} corners for {len(names)} names")
+        raise PlotError(f"draw_corner_labels: {len(c)} corners for {len(names)} names")
     centre = c.mean(axis=0)
     texts = []
     for name, p in zip(names, c):
@@ -595,7 +606,7 @@ def draw_quads(
     return lines
 
 
-def draw_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_labels: bool = True) -> list:
+def plot_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_labels: bool = True) -> list:
     """Outline detected markers (objects with ``.id`` and ``.corners`` (4, 2)) with ids and corner names."""
     return draw_quads(
         ax, [d.corners for d in detections], ids=[d.id for d in detections], color=color, corner_labels=corner_labels
@@ -613,7 +624,7 @@ def draw_reprojection(
     obs = np.asarray(observed_px, dtype=float).reshape(-1, 2)
     proj = np.asarray(projected_px, dtype=float).reshape(-1, 2)
     if obs.shape != proj.shape:
-        raise ValueError(f"draw_reprojection: {len(obs)} observed points but {len(proj)} projected")
+        raise PlotError(f"draw_reprojection: {len(obs)} observed points but {len(proj)} projected")
     ax.scatter(obs[:, 0], obs[:, 1], s=14, color="tab:green", label="observed")
     ax.scatter(proj[:, 0], proj[:, 1], s=30, marker="x", color=color, label="projected")
     tips = obs + scale * (proj - obs)
@@ -624,8 +635,8 @@ def draw_reprojection(
 
 def draw_projected_markers(
     ax: Axes,
-    camera: Camera,
     marker_map: MarkerMap,
+    camera: Camera,
     T_world_camera: np.ndarray,
     corner_labels: bool = True,
     color: str = "tab:blue",
@@ -637,6 +648,7 @@ def draw_projected_markers(
 
     Returns ``{id: (4, 2) corners_px}`` of the markers drawn.
     """
+    _check_map_camera(marker_map, camera, "draw_projected_markers(ax, marker_map, camera, T_world_camera)")
     w, h = camera.image_size
     out: dict[int, np.ndarray] = {}
     for mid, c in marker_map.corners().items():

@@ -80,12 +80,19 @@ MAX_RENDER_SAMPLES = 1_000_000_000
 MAX_FRAMES = 100_000
 
 
-def _check_scene(camera, marker_map, with_camera: bool = True) -> None:
-    if with_camera and not isinstance(camera, Camera):
-        raise FidlearnError(f"camera must be a fidlearn.Camera (Camera.load reads a file), got {type(camera).__name__}")
+def _check_scene(marker_map, camera, with_camera: bool = True, where: str = "render_scene") -> None:
+    """Raise a FidlearnError unless ``marker_map`` is a MarkerMap and ``camera`` a Camera (map first)."""
+    order = f"{where}(marker_map, camera, ...): the map comes first, then the camera"
+    if with_camera and isinstance(marker_map, Camera) and isinstance(camera, MarkerMap):
+        raise FidlearnError(f"{order}; the arguments are swapped")
     if not isinstance(marker_map, MarkerMap):
         raise FidlearnError(
-            f"marker_map must be a fidlearn.MarkerMap (MarkerMap.load reads a file), got {type(marker_map).__name__}"
+            f"marker_map must be a fidlearn.MarkerMap (MarkerMap.load reads a file), got {type(marker_map).__name__}; "
+            f"{order}"
+        )
+    if with_camera and not isinstance(camera, Camera):
+        raise FidlearnError(
+            f"camera must be a fidlearn.Camera (Camera.load reads a file), got {type(camera).__name__}; {order}"
         )
 
 
@@ -297,7 +304,7 @@ def _render(
     seed: int,
     supersample: int,
     blur_px: float,
-    noise_std: float,
+    noise_std_gray: float,
     gradient: float,
     gradient_angle_deg: float,
     wall_gray: float,
@@ -312,7 +319,7 @@ def _render(
             f"a {camera.width}x{camera.height} picture at supersample {k} is more than "
             f"{MAX_RENDER_SAMPLES / 1e9:g} billion samples; use a smaller picture or supersample"
         )
-    for name, value in (("blur_px", blur_px), ("noise_std", noise_std), ("wall_texture", wall_texture)):
+    for name, value in (("blur_px", blur_px), ("noise_std_gray", noise_std_gray), ("wall_texture", wall_texture)):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
         if not (math.isfinite(value) and value >= 0):
@@ -404,8 +411,8 @@ def _render(
         uu = (np.arange(width) / max(width - 1, 1) - 0.5) * math.cos(th)
         vv = (np.arange(height) / max(height - 1, 1) - 0.5) * math.sin(th)
         img = img * (1.0 + float(gradient) * (uu[None, :] + vv[:, None]))
-    if noise_std > 0:
-        img = img + rng.normal(0.0, float(noise_std), size=img.shape)
+    if noise_std_gray > 0:
+        img = img + rng.normal(0.0, float(noise_std_gray), size=img.shape)
     out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     if bgr:
         out = cv2.cvtColor(out, cv2.COLOR_GRAY2BGR)
@@ -457,7 +464,7 @@ def look_at(
 
 
 def visible_markers(
-    camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, margin_px: float = 2.0
+    marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, margin_px: float = 2.0
 ) -> dict[int, np.ndarray]:
     """True pixel corners of the markers a camera sees whole: ``{id: (4, 2) float64}``.
 
@@ -469,6 +476,8 @@ def visible_markers(
     another sheet is not considered: a marker hidden behind a nearer one is
     drawn hidden but still listed.
     """
+    _check_scene(marker_map, camera, where="visible_markers")
+    T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
     T_camera_world = frames.invert_transform(T_world_camera)
     eye = T_world_camera[:3, 3]
     out: dict[int, np.ndarray] = {}
@@ -494,13 +503,13 @@ def visible_markers(
 
 
 def render_scene(
-    camera: Camera,
     marker_map: MarkerMap,
+    camera: Camera,
     T_world_camera: np.ndarray,
     *,
     seed: int = 0,
     blur_px: float = 0.0,
-    noise_std: float = 0.0,
+    noise_std_gray: float = 0.0,
     gradient: float = 0.0,
     gradient_angle_deg: float = 30.0,
     supersample: int = 4,
@@ -526,7 +535,7 @@ def render_scene(
         Seed of ``numpy.random.default_rng`` for the wall texture and the noise.
     blur_px : float
         Standard deviation (pixels) of a Gaussian blur (defocus); 0 for none.
-    noise_std : float
+    noise_std_gray : float
         Standard deviation (gray levels) of Gaussian sensor noise; 0 for none.
     gradient : float
         Illumination change across the image as a fraction (0.3: 30 % brighter
@@ -558,13 +567,13 @@ def render_scene(
     >>> from fidlearn import Camera, MarkerMap, data_path
     >>> cam = Camera.from_fov(60, (640, 480))
     >>> wall = MarkerMap.load(data_path("world_map.json"))
-    >>> image, truth = render_scene(cam, wall, look_at([1200, 200, 250], [0, 200, 250]))
+    >>> image, truth = render_scene(wall, cam, look_at([1200, 200, 250], [0, 200, 250]))
     >>> image.shape, image.dtype, sorted(truth)
     ((480, 640), dtype('uint8'), [0, 1, 2])
     >>> np.allclose(truth[0], cam.project(wall.marker_corners(0), look_at([1200, 200, 250], [0, 200, 250])))
     True
     """
-    _check_scene(camera, marker_map)
+    _check_scene(marker_map, camera, where="render_scene")
     if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
         raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
@@ -585,14 +594,14 @@ def render_scene(
         seed=seed,
         supersample=supersample,
         blur_px=blur_px,
-        noise_std=noise_std,
+        noise_std_gray=noise_std_gray,
         gradient=gradient,
         gradient_angle_deg=gradient_angle_deg,
         wall_gray=wall_gray,
         wall_texture=wall_texture,
         bgr=bgr,
     )
-    return image, visible_markers(camera, marker_map, T_world_camera, margin_px=margin_px)
+    return image, visible_markers(marker_map, camera, T_world_camera, margin_px=margin_px)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -742,7 +751,7 @@ def render_calibration_views(
     fill_range: tuple[float, float] = (0.35, 0.7),
     margin_squares: float = 1.0,
     blur_px: float = 0.4,
-    noise_std: float = 1.5,
+    noise_std_gray: float = 1.5,
     gradient: float = 0.15,
     supersample: int = 4,
     wall_texture: float = 3.0,
@@ -775,7 +784,7 @@ def render_calibration_views(
         A ChArUco board (``cv2.aruco.CharucoBoard``) instead of a checkerboard.
     marker_size_mm, dictionary :
         ChArUco's marker side (default half a square) and dictionary.
-    blur_px, noise_std, gradient, supersample, wall_texture :
+    blur_px, noise_std_gray, gradient, supersample, wall_texture :
         As for :func:`render_scene`, applied to every view.
     views : sequence of int, optional
         Render only these views (indices into the ``n_views`` poses, which are
@@ -837,7 +846,11 @@ def render_calibration_views(
     )
     poses, points, images = [], [], []
     render_kwargs = dict(
-        blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture
+        blur_px=blur_px,
+        noise_std_gray=noise_std_gray,
+        gradient=gradient,
+        supersample=supersample,
+        wall_texture=wall_texture,
     )
     grays = dict(DEFAULT_GRAYS)
     for view in range(n_views):
@@ -924,17 +937,17 @@ class Trajectory:
         The camera's true pose (mm, world) in each frame.
     truth : list of dict
         Per frame, ``{id: (4, 2) float64}`` true pixel corners of the markers seen whole.
-    camera : Camera
-        The true camera.
     marker_map : MarkerMap
         The markers' true placements.
+    camera : Camera
+        The true camera.
     """
 
     images: list
     T_world_camera: list
     truth: list
-    camera: Camera
     marker_map: MarkerMap
+    camera: Camera
     seed: int = 0
     render_kwargs: dict = field(default_factory=dict)
 
@@ -982,7 +995,7 @@ def trajectory_poses(
     >>> len(poses), poses[0].shape
     (5, (4, 4))
     """
-    _check_scene(None, marker_map, with_camera=False)
+    _check_scene(marker_map, None, with_camera=False, where="trajectory_poses")
     if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or not 1 <= n_frames <= MAX_FRAMES:
         raise FidlearnError(f"n_frames must be a whole number from 1 to {MAX_FRAMES}, got {n_frames!r}")
     for name, value in (
@@ -1038,15 +1051,15 @@ def trajectory_poses(
 
 
 def render_trajectory(
-    camera: Camera,
     marker_map: MarkerMap,
+    camera: Camera,
     n_frames: int = 40,
     seed: int = 0,
     *,
     poses: Sequence[np.ndarray] | None = None,
     frames_to_render: Sequence[int] | None = None,
     blur_px: float = 0.5,
-    noise_std: float = 1.5,
+    noise_std_gray: float = 1.5,
     gradient: float = 0.1,
     supersample: int = 4,
     wall_texture: float = 3.0,
@@ -1054,7 +1067,7 @@ def render_trajectory(
 ) -> Trajectory:
     """Render a robot's drive past the markers (see :func:`trajectory_poses`), frame by frame.
 
-    Frame ``i`` is ``render_scene(camera, marker_map, poses[i], seed=seed * 1000 + i, ...)``.
+    Frame ``i`` is ``render_scene(marker_map, camera, poses[i], seed=seed * 1000 + i, ...)``.
     ``poses`` replaces the default drive; other keywords go to :func:`trajectory_poses`.
     ``frames_to_render`` keeps only those frame indices (each identical to the
     same frame of the whole drive).
@@ -1063,16 +1076,21 @@ def render_trajectory(
     --------
     >>> from fidlearn import Camera, MarkerMap, data_path
     >>> cam = Camera.from_fov(60, (320, 240))
-    >>> drive = render_trajectory(cam, MarkerMap.load(data_path("world_map.json")), n_frames=3)
+    >>> drive = render_trajectory(MarkerMap.load(data_path("world_map.json")), cam, n_frames=3)
     >>> len(drive), drive.images[0].shape, sorted(drive.truth[-1])
     (3, (240, 320), [0, 1, 2])
     """
+    _check_scene(marker_map, camera, where="render_trajectory")
     if poses is None:
         poses = trajectory_poses(marker_map, n_frames, seed, **trajectory_options)
     elif trajectory_options:
         raise FidlearnError(f"give either poses or trajectory options ({', '.join(trajectory_options)}), not both")
     render_kwargs = dict(
-        blur_px=blur_px, noise_std=noise_std, gradient=gradient, supersample=supersample, wall_texture=wall_texture
+        blur_px=blur_px,
+        noise_std_gray=noise_std_gray,
+        gradient=gradient,
+        supersample=supersample,
+        wall_texture=wall_texture,
     )
     chosen = list(range(len(poses))) if frames_to_render is None else [int(i) for i in frames_to_render]
     bad = [i for i in chosen if not 0 <= i < len(poses)]
@@ -1080,8 +1098,8 @@ def render_trajectory(
         raise FidlearnError(f"frames {bad} do not exist; the drive has {len(poses)} frames, 0 to {len(poses) - 1}")
     images, truths = [], []
     for i in chosen:
-        image, truth = render_scene(camera, marker_map, poses[i], seed=int(seed) * 1000 + i, **render_kwargs)
+        image, truth = render_scene(marker_map, camera, poses[i], seed=int(seed) * 1000 + i, **render_kwargs)
         images.append(image)
         truths.append(truth)
     kept = [np.asarray(poses[i], dtype=float) for i in chosen]
-    return Trajectory(images, kept, truths, camera, marker_map, seed=int(seed), render_kwargs=render_kwargs)
+    return Trajectory(images, kept, truths, marker_map, camera, seed=int(seed), render_kwargs=render_kwargs)
