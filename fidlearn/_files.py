@@ -9,9 +9,11 @@ any pixel is decoded, so a 74-byte PNG that declares 100000 x 100000 pixels cost
 
 from __future__ import annotations
 
+import difflib
 import os
 import stat
 import struct
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from .errors import FidlearnError
@@ -164,3 +166,42 @@ def check_image_bytes(path: Path, data: bytes, error: type[FidlearnError], max_p
         raise error(f"{path}: the PNG file is cut short (it has no end chunk); copy it again")
     if fmt == "JPEG" and not data.rstrip(b"\0\r\n ").endswith(b"\xff\xd9"):
         raise error(f"{path}: the JPEG file is cut short (it has no end marker); copy it again")
+
+
+def did_you_mean(field: object, known: Iterable[str], aliases: Mapping[str, str] | None = None) -> str:
+    """``": did you mean 'x'?"`` for a misspelt field name, or ``""`` when nothing is close.
+
+    Parameters
+    ----------
+    field : object
+        The field name the user wrote (compared stripped and in lower case).
+    known : iterable of str
+        The field names that exist.
+    aliases : mapping of str to str, optional
+        Other spellings of known names (keys in lower case, ``_`` for ``-`` and spaces, as in
+        ``{"k": "camera_matrix"}``); with them, ``-`` and spaces in ``field`` count as ``_`` and an
+        alias wins over a merely close name.
+
+    Returns
+    -------
+    str
+        The suffix to append to the message that names the unknown field.
+
+    Examples
+    --------
+    >>> did_you_mean("Markers ", ["markers", "units"])
+    ": did you mean 'markers'?"
+    >>> did_you_mean("intrinsics", ["camera_matrix"], aliases={"intrinsics": "camera_matrix"})
+    ": did you mean 'camera_matrix'?"
+    >>> did_you_mean("colour", ["units"])
+    ''
+    """
+    key = str(field).strip().lower()
+    guess = None
+    if aliases is not None:
+        key = key.replace("-", "_").replace(" ", "_")
+        guess = aliases.get(key) or aliases.get(key.replace("_", ""))
+    if guess is None:
+        close = difflib.get_close_matches(key, sorted(known), n=1, cutoff=0.6)
+        guess = close[0] if close else None
+    return f": did you mean {guess!r}?" if guess else ""

@@ -7,7 +7,6 @@ fidlearn compares uses this convention.
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
 import re
@@ -65,15 +64,6 @@ _ALIASES = {
 }
 #: Largest image side a camera file may declare (pixels).
 MAX_IMAGE_SIDE = 100_000
-
-
-def _did_you_mean(field: str) -> str:
-    key = str(field).strip().lower().replace("-", "_").replace(" ", "_")
-    guess = _ALIASES.get(key) or _ALIASES.get(key.replace("_", ""))
-    if guess is None:
-        close = difflib.get_close_matches(key, CAMERA_FIELDS, n=1, cutoff=0.6)
-        guess = close[0] if close else None
-    return f": did you mean {guess!r}?" if guess else ""
 
 
 def _as_K(K: Any, where: str) -> np.ndarray:
@@ -437,9 +427,9 @@ class Camera:
             )
         unknown = [k for k in d if k not in CAMERA_FIELDS]
         if unknown:
+            hint = _files.did_you_mean(unknown[0], CAMERA_FIELDS, _ALIASES)
             raise CameraError(
-                f"{source}: unknown field {unknown[0]!r}{_did_you_mean(unknown[0])}; a camera file holds "
-                f"{', '.join(CAMERA_FIELDS)}"
+                f"{source}: unknown field {unknown[0]!r}{hint}; a camera file holds {', '.join(CAMERA_FIELDS)}"
             )
         missing = [k for k in ("camera_matrix", "image_size") if k not in d]
         if missing:

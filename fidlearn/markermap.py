@@ -16,7 +16,6 @@ detection reports.
 
 from __future__ import annotations
 
-import difflib
 import math
 import numbers
 import os
@@ -29,13 +28,17 @@ from typing import Any
 import numpy as np
 
 from . import _cv, frames
+from ._files import did_you_mean
 from ._io import read_json, write_json_atomic
 from .errors import DictionaryError, MapError
 
-__all__ = ["MarkerMap", "MarkerPlacement", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL"]
+__all__ = ["MarkerMap", "MarkerPlacement", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL", "CORNER_NAMES"]
 
 #: Millimetres per unit for the units a map file may declare.
 UNITS_TO_MM: dict[str, float] = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "ft": 304.8}
+
+#: Corner names in the winding order used everywhere (ArUco's): top-left, top-right, bottom-right, bottom-left.
+CORNER_NAMES = ("TL", "TR", "BR", "BL")
 
 #: Corners of a unit marker relative to its top-left corner, rotation [0, 0, 0]: TL, TR, BR, BL.
 MARKER_CORNERS_LOCAL = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, -1.0]])
@@ -68,11 +71,6 @@ def _units_name(units: Any, where: str) -> str:
 
 #: Largest marker side a map may declare (mm): 10 m, beyond any print.
 MAX_MARKER_SIZE_MM = 10_000.0
-
-
-def _did_you_mean(field: str, known) -> str:
-    close = difflib.get_close_matches(str(field).strip().lower(), sorted(known), n=1, cutoff=0.6)
-    return f": did you mean {close[0]!r}?" if close else ""
 
 
 def _marker_size(size: Any, where: str) -> float:
@@ -142,6 +140,127 @@ def _marker_id(key: Any, where: str) -> int:
     return mid
 
 
+def _check_layout(d: Any, source: str) -> tuple[bool, Mapping]:
+    """``(full, markers)``: whether ``d`` is the full layout, and its id -> placement mapping.
+
+    Refuses what is not a map (a camera file, a corner file) and unknown fields, with the fix.
+    """
+    if not isinstance(d, Mapping):
+        raise MapError(f"{source}: expected a JSON object mapping marker ids to placements, got {type(d).__name__}")
+    if "camera_matrix" in d:  # the two files of the command line swapped
+        raise MapError(
+            f"{source}: this is a camera file (it has camera_matrix), not a world map (the map does not say "
+            "its units, marker size or placements); give the map of marker placements here (command line: "
+            "--map) and the camera file as the camera (--camera)"
+        )
+    full = "markers" in d
+    if not full and any(k in _FULL_KEYS for k in d):
+        others = [k for k in d if k not in _FULL_KEYS]
+        hint = f" (unknown field {others[0]!r}{did_you_mean(others[0], ['markers'])})" if others else ""
+        raise MapError(
+            f'{source}: the map has {", ".join(k for k in d if k in _FULL_KEYS)} but no "markers"{hint}; '
+            'a full map puts the placements under "markers": {"0": {"translation": [...], ...}}'
+        )
+    if not full and d and all(_is_corner_list(v) for v in d.values()):
+        raise MapError(
+            f"{source}: this is a corner file (four [x, y, z] corners in mm per id, as 'fidlearn corners' "
+            "writes it), not a world map; give the map of placements it was made from"
+        )
+    if not full:
+        return False, d
+    unknown = set(d) - _FULL_KEYS
+    if unknown:
+        field = sorted(unknown)[0]
+        raise MapError(
+            f"{source}: unknown field {field!r}{did_you_mean(field, _FULL_KEYS)}; a full map has "
+            f"{', '.join(sorted(_FULL_KEYS))}"
+        )
+    markers = d["markers"]
+    if not isinstance(markers, Mapping):
+        raise MapError(f'{source}: "markers" must be an object mapping ids to placements')
+    return True, markers
+
+
+def _disagree(name: str, given: Any, in_file: Any, source: str) -> bool:
+    """Whether a value given by the caller differs from the file's (units, marker size or dictionary)."""
+    if name == "units":
+        return str(given).lower() != str(in_file).lower()
+    if name == "marker_size_mm":
+        return not math.isclose(_marker_size(given, source), _marker_size(in_file, source))
+    return name == "dictionary" and _cv.dictionary_name(given) != _cv.dictionary_name(in_file)
+
+
+def _pick(d: Mapping, full: bool, name: str, given: Any, meaning: str, source: str) -> Any:
+    """The file's value of ``name`` or the caller's; both given must agree; neither: :class:`MapError` (``meaning``)."""
+    in_file = d.get(name) if full else None
+    if in_file is not None and given is not None and _disagree(name, given, in_file, source):
+        raise MapError(f"{source}: the file says {name} = {in_file!r} but {given!r} was given; drop one of them")
+    value = in_file if in_file is not None else given
+    if value is None:
+        raise MapError(f"{source}: {meaning}")
+    return value
+
+
+def _map_options(
+    d: Mapping, full: bool, units: Any, marker_size_mm: Any, dictionary: Any, source: str
+) -> tuple[str, Any, str]:
+    """``(units, marker size, dictionary)`` from the file and the caller: units and size are required."""
+    units = _pick(
+        d,
+        full,
+        "units",
+        units,
+        'no units: the map does not say its units; add "units": "ft" (or mm, cm, m, in) to the file, '
+        "or pass units= (command line: --units); fidlearn never guesses",
+        source,
+    )
+    units = _units_name(units, source)
+    size = _pick(
+        d,
+        full,
+        "marker_size_mm",
+        marker_size_mm,
+        'no marker size: add "marker_size_mm": 80 (the black square\'s side) to the file, '
+        "or pass marker_size_mm= (command line: --marker-size-mm)",
+        source,
+    )
+    try:
+        dictionary = (
+            _pick(d, full, "dictionary", dictionary, "", source)
+            if (dictionary or (full and d.get("dictionary")))
+            else "ARUCO_ORIGINAL"
+        )
+    except DictionaryError as exc:
+        raise MapError(f"{source}: {exc}") from None
+    return units, size, dictionary
+
+
+def _placements(markers: Mapping, units: str, source: str) -> dict[int, MarkerPlacement]:
+    """Each marker's placement, its translation converted from ``units`` to mm; :class:`MapError` with the fix."""
+    scale = UNITS_TO_MM[units]
+    placements: dict[int, MarkerPlacement] = {}
+    for key, value in markers.items():
+        mid = _marker_id(key, source)
+        where = f"{source}: marker {mid}"
+        if mid in placements:
+            raise MapError(f"{where} appears twice (as {key!r}); each marker id must be unique")
+        if not isinstance(value, Mapping):
+            raise MapError(f'{where} must be an object with "translation" and "rotation"')
+        extra = set(value) - {"translation", "rotation"}
+        if extra:
+            field = sorted(extra)[0]
+            raise MapError(
+                f"{where} has unknown field {field!r}{did_you_mean(field, ('translation', 'rotation'))}; "
+                "a placement has translation and rotation"
+            )
+        if "translation" not in value:
+            raise MapError(f'{where} has no "translation" (the world position of its top-left corner, in {units})')
+        t = _vector3(value["translation"], where, "translation", f"[x, y, z] in {units}")
+        r = _vector3(value.get("rotation", [0, 0, 0]), where, "rotation", "[roll, pitch, yaw] in degrees")
+        placements[mid] = MarkerPlacement(mid, tuple(v * scale for v in t), r)  # type: ignore[arg-type]
+    return placements
+
+
 class MarkerMap:
     """Markers placed in the world: ids, placements, marker size and dictionary.
 
@@ -199,102 +318,9 @@ class MarkerMap:
         "marker_size_mm": 80, "dictionary": "ARUCO_ORIGINAL", "markers": {...}}``.
         A value given both here and in the file must agree.
         """
-        if not isinstance(d, Mapping):
-            raise MapError(f"{source}: expected a JSON object mapping marker ids to placements, got {type(d).__name__}")
-        if "camera_matrix" in d:  # the two files of the command line swapped
-            raise MapError(
-                f"{source}: this is a camera file (it has camera_matrix), not a world map (the map does not say "
-                "its units, marker size or placements); give the map of marker placements here (command line: "
-                "--map) and the camera file as the camera (--camera)"
-            )
-        full = "markers" in d
-        if not full and any(k in _FULL_KEYS for k in d):
-            others = [k for k in d if k not in _FULL_KEYS]
-            hint = f" (unknown field {others[0]!r}{_did_you_mean(others[0], ['markers'])})" if others else ""
-            raise MapError(
-                f'{source}: the map has {", ".join(k for k in d if k in _FULL_KEYS)} but no "markers"{hint}; '
-                'a full map puts the placements under "markers": {"0": {"translation": [...], ...}}'
-            )
-        if not full and d and all(_is_corner_list(v) for v in d.values()):
-            raise MapError(
-                f"{source}: this is a corner file (four [x, y, z] corners in mm per id, as 'fidlearn corners' "
-                "writes it), not a world map; give the map of placements it was made from"
-            )
-        if full:
-            unknown = set(d) - _FULL_KEYS
-            if unknown:
-                field = sorted(unknown)[0]
-                raise MapError(
-                    f"{source}: unknown field {field!r}{_did_you_mean(field, _FULL_KEYS)}; a full map has "
-                    f"{', '.join(sorted(_FULL_KEYS))}"
-                )
-            markers = d["markers"]
-            if not isinstance(markers, Mapping):
-                raise MapError(f'{source}: "markers" must be an object mapping ids to placements')
-        else:
-            markers = d
-
-        def pick(name: str, given: Any, meaning: str) -> Any:
-            in_file = d.get(name) if full else None
-            if in_file is not None and given is not None:
-                if (
-                    (name == "units" and str(given).lower() != str(in_file).lower())
-                    or (
-                        name == "marker_size_mm"
-                        and not math.isclose(_marker_size(given, source), _marker_size(in_file, source))
-                    )
-                    or (name == "dictionary" and _cv.dictionary_name(given) != _cv.dictionary_name(in_file))
-                ):
-                    raise MapError(
-                        f"{source}: the file says {name} = {in_file!r} but {given!r} was given; drop one of them"
-                    )
-            value = in_file if in_file is not None else given
-            if value is None:
-                raise MapError(f"{source}: {meaning}")
-            return value
-
-        units = pick(
-            "units",
-            units,
-            'no units: the map does not say its units; add "units": "ft" (or mm, cm, m, in) to the file, '
-            "or pass units= (command line: --units); fidlearn never guesses",
-        )
-        units = _units_name(units, source)
-        size = pick(
-            "marker_size_mm",
-            marker_size_mm,
-            'no marker size: add "marker_size_mm": 80 (the black square\'s side) to the file, '
-            "or pass marker_size_mm= (command line: --marker-size-mm)",
-        )
-        try:
-            dictionary = (
-                pick("dictionary", dictionary, "")
-                if (dictionary or (full and d.get("dictionary")))
-                else "ARUCO_ORIGINAL"
-            )
-        except DictionaryError as exc:
-            raise MapError(f"{source}: {exc}") from None
-        scale = UNITS_TO_MM[units]
-        placements: dict[int, MarkerPlacement] = {}
-        for key, value in markers.items():
-            mid = _marker_id(key, source)
-            where = f"{source}: marker {mid}"
-            if mid in placements:
-                raise MapError(f"{where} appears twice (as {key!r}); each marker id must be unique")
-            if not isinstance(value, Mapping):
-                raise MapError(f'{where} must be an object with "translation" and "rotation"')
-            extra = set(value) - {"translation", "rotation"}
-            if extra:
-                field = sorted(extra)[0]
-                raise MapError(
-                    f"{where} has unknown field {field!r}{_did_you_mean(field, ('translation', 'rotation'))}; "
-                    "a placement has translation and rotation"
-                )
-            if "translation" not in value:
-                raise MapError(f'{where} has no "translation" (the world position of its top-left corner, in {units})')
-            t = _vector3(value["translation"], where, "translation", f"[x, y, z] in {units}")
-            r = _vector3(value.get("rotation", [0, 0, 0]), where, "rotation", "[roll, pitch, yaw] in degrees")
-            placements[mid] = MarkerPlacement(mid, tuple(v * scale for v in t), r)  # type: ignore[arg-type]
+        full, markers = _check_layout(d, source)
+        units, size, dictionary = _map_options(d, full, units, marker_size_mm, dictionary, source)
+        placements = _placements(markers, units, source)
         return cls(placements, _marker_size(size, source), dictionary, units, source)
 
     @classmethod
