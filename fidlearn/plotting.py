@@ -37,7 +37,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from . import frames
 from .camera import Camera
 from .errors import PlotError
-from .markermap import MarkerMap
+from .markermap import CORNER_NAMES, MarkerMap
 
 __all__ = [
     "AXIS_COLORS",
@@ -65,8 +65,6 @@ __all__ = [
 
 #: Colours of the X, Y and Z axes of every frame drawn.
 AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
-#: Corner names in the winding order used everywhere.
-CORNER_NAMES = ("TL", "TR", "BR", "BL")
 
 
 # -- 3D axes -----------------------------------------------------------------------------
@@ -163,7 +161,8 @@ def draw_markers(
     """Draw markers as filled squares at their world corners, with their ids.
 
     The top-left corner of each marker gets a red dot, so a wrong rotation in a
-    map shows at a glance; the id is written just above the marker's top edge. ``show_corners`` labels TL, TR, BR, BL too.
+    map shows at a glance; the id is written just above the marker's top edge. ``show_corners``
+    labels TL, TR, BR, BL too.
 
     Returns the Poly3DCollection: one polygon per marker, vertices TL, TR, BR, BL (mm).
     """
