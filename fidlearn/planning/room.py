@@ -60,7 +60,7 @@ class RoomPlan:
     target_mm: np.ndarray
 
     def fraction_within(self, error_mm: float, which: str = "toward") -> float:
-        """Fraction of the grid where the predicted error (``toward``, ``median`` or ``worst``) is at most ``error_mm``."""
+        """Fraction of the grid where the predicted error (``toward``, ``median`` or ``worst``) is <= ``error_mm``."""
         grid = {"toward": self.toward_mm, "median": self.median_mm, "worst": self.worst_mm}.get(which)
         if grid is None:
             raise FidlearnError(f"which must be 'toward', 'median' or 'worst', got {which!r}")
@@ -135,6 +135,27 @@ def _cell(marker_map, camera, eye, target, headings, sigma) -> tuple[float, floa
     return toward, med, worst, len(errs) / max(len(headings), 1), flip
 
 
+def _grid(marker_map: MarkerMap, area, height_mm, step_mm, headings) -> tuple[np.ndarray, np.ndarray]:
+    """The grid's place centres ``xs`` (N,) and ``ys`` (M,), mm, world, after checking the options."""
+    x0, y0, x1, y1 = _check_area(default_area(marker_map) if area is None else area)
+    for name, v in (("height_mm", height_mm), ("step_mm", step_mm)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+            raise FidlearnError(f"{name} must be a finite number of mm, got {v!r}")
+    if step_mm <= 0:
+        raise FidlearnError(f"step_mm must be positive, got {step_mm!r}")
+    if isinstance(headings, bool) or not isinstance(headings, (int, np.integer)) or not 0 <= headings <= 360:
+        raise FidlearnError(f"headings must be a whole number from 0 to 360, got {headings!r}")
+    xs = np.arange(x0 + step_mm / 2, x1, step_mm)
+    ys = np.arange(y0 + step_mm / 2, y1, step_mm)
+    if len(xs) * len(ys) > MAX_CELLS:
+        raise FidlearnError(
+            f"the grid has {len(xs) * len(ys)} places, more than {MAX_CELLS}: use a larger step_mm or a smaller area"
+        )
+    if len(xs) == 0 or len(ys) == 0:
+        raise FidlearnError(f"the area is smaller than one step of {step_mm} mm: use a smaller step_mm")
+    return xs, ys
+
+
 def plan_room(
     marker_map: MarkerMap,
     camera: Camera,
@@ -178,22 +199,7 @@ def plan_room(
         raise FidlearnError("plan_room needs a fidlearn.MarkerMap with at least one marker")
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
-    x0, y0, x1, y1 = _check_area(default_area(marker_map) if area is None else area)
-    for name, v in (("height_mm", height_mm), ("step_mm", step_mm)):
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
-            raise FidlearnError(f"{name} must be a finite number of mm, got {v!r}")
-    if step_mm <= 0:
-        raise FidlearnError(f"step_mm must be positive, got {step_mm!r}")
-    if isinstance(headings, bool) or not isinstance(headings, (int, np.integer)) or not 0 <= headings <= 360:
-        raise FidlearnError(f"headings must be a whole number from 0 to 360, got {headings!r}")
-    xs = np.arange(x0 + step_mm / 2, x1, step_mm)
-    ys = np.arange(y0 + step_mm / 2, y1, step_mm)
-    if len(xs) * len(ys) > MAX_CELLS:
-        raise FidlearnError(
-            f"the grid has {len(xs) * len(ys)} places, more than {MAX_CELLS}: use a larger step_mm or a smaller area"
-        )
-    if len(xs) == 0 or len(ys) == 0:
-        raise FidlearnError(f"the area is smaller than one step of {step_mm} mm: use a smaller step_mm")
+    xs, ys = _grid(marker_map, area, height_mm, step_mm, headings)
     target = _markers_centre(marker_map) if look_at_mm is None else np.asarray(look_at_mm, dtype=float).reshape(3)
     hs = [2 * math.pi * k / headings for k in range(headings)]
     out = np.empty((5, len(ys), len(xs)))
@@ -206,7 +212,7 @@ def plan_room(
 
 
 def _walls(marker_map: MarkerMap) -> list[tuple[int, np.ndarray]]:
-    """One reference marker per wall (markers with the same normal and plane), with the wall's in-plane horizontal direction."""
+    """One reference marker per wall (markers with the same normal and plane), with the wall's horizontal direction."""
     walls: list[tuple[int, np.ndarray, np.ndarray, float]] = []
     for mid in marker_map.ids:
         n = marker_map.normal(mid)
@@ -249,15 +255,15 @@ def _candidates(marker_map: MarkerMap, area, step_mm: float):
         span = max(x1 - x0, y1 - y0)
         for k in np.arange(-span, span + 1, step_mm):
             c = centre + k * along
-            if x0 - 500.0 <= c[0] <= x1 + 500.0 and y0 - 500.0 <= c[1] <= y1 + 500.0:
-                if all(
-                    np.linalg.norm(c - marker_map.marker_corners(i).mean(axis=0)) > 1.5 * marker_map.marker_size_mm
-                    for i in marker_map.ids
-                ):
-                    yield (
-                        _with_marker(marker_map, ref, c, new_id),
-                        f"add marker {new_id} beside marker {ref} at [{c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}] mm (its centre)",
-                    )
+            inside = x0 - 500.0 <= c[0] <= x1 + 500.0 and y0 - 500.0 <= c[1] <= y1 + 500.0
+            if inside and all(
+                np.linalg.norm(c - marker_map.marker_corners(i).mean(axis=0)) > 1.5 * marker_map.marker_size_mm
+                for i in marker_map.ids
+            ):
+                yield (
+                    _with_marker(marker_map, ref, c, new_id),
+                    f"add marker {new_id} beside marker {ref} at [{c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}] mm (its centre)",
+                )
 
 
 def suggest_markers(
