@@ -1,26 +1,7 @@
-"""Pictures for the course: the room in 3D (world axes, markers, cameras) and images with points.
+"""The room in 3D (world axes, markers, cameras, paths) and seen from above.
 
-Every function draws on an Axes it is given (or makes one) and returns what it
-drew, so a test can check the geometry without a browser. Nothing here is
-imported by ``import fidlearn``: use ``from fidlearn import plotting``.
-
-Conventions drawn here are the library's: world right-handed, Z up, mm;
-``T_world_camera`` is the camera's pose; the camera frame is OpenCV's (x right,
-y down, z forward); images are OpenCV's BGR arrays and pixel centres sit at
-integer coordinates, which is also where ``imshow`` puts them. World axes are
-drawn X red, Y green, Z blue.
-
-Examples
---------
->>> import numpy as np
->>> from fidlearn import Camera, MarkerMap, data_path, look_at, plotting
->>> m = MarkerMap.load(data_path("world_map.json"))
->>> cam = Camera.from_fov(60, (640, 480))
->>> T_world_camera = look_at([1500, 200, 250], [0, 120, 230])
->>> fig = plotting.plot_scene(m, poses=[T_world_camera], camera=cam)
->>> len(fig.axes)
-1
->>> import matplotlib.pyplot as plt; plt.close(fig)
+World right-handed, Z up, mm; ``T_world_camera`` is the camera's pose; the camera frame is
+OpenCV's (x right, y down, z forward). World axes are drawn X red, Y green, Z blue.
 """
 
 from __future__ import annotations
@@ -34,40 +15,15 @@ from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d projection)
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-from . import frames
-from .camera import Camera
-from .errors import PlotError
-from .markermap import CORNER_NAMES, MarkerMap
-
-__all__ = [
-    "AXIS_COLORS",
-    "CORNER_NAMES",
-    "new_axes_3d",
-    "set_axes_equal",
-    "draw_frame",
-    "draw_world_axes",
-    "draw_markers",
-    "draw_box",
-    "camera_frustum",
-    "draw_camera",
-    "plot_scene",
-    "draw_trajectory",
-    "plot_top_view",
-    "show_image",
-    "show_images",
-    "draw_points",
-    "draw_corner_labels",
-    "draw_quads",
-    "plot_detections",
-    "draw_reprojection",
-    "draw_projected_markers",
-]
+from .. import frames
+from ..camera import Camera
+from ..errors import PlotError
+from ..markermap import CORNER_NAMES, MarkerMap
 
 #: Colours of the X, Y and Z axes of every frame drawn.
 AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
 
 
-# -- 3D axes -----------------------------------------------------------------------------
 def new_axes_3d(
     ax: Axes | None = None, figsize: tuple[float, float] = (7.0, 6.0), elev: float = 20.0, azim: float = -35.0
 ) -> Axes:
@@ -261,16 +217,6 @@ def draw_camera(
     return lines
 
 
-def _check_map_camera(marker_map, camera, call: str) -> None:
-    """Raise :class:`PlotError` unless the map is a MarkerMap and the camera a Camera (the map comes first)."""
-    if isinstance(marker_map, Camera) and isinstance(camera, MarkerMap):
-        raise PlotError(f"{call}: the map comes first, then the camera; the arguments are swapped")
-    if not isinstance(marker_map, MarkerMap):
-        raise PlotError(f"{call}: marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
-    if not isinstance(camera, Camera):
-        raise PlotError(f"{call}: camera must be a fidlearn.Camera, got {type(camera).__name__}")
-
-
 def _pose_matrix(pose) -> np.ndarray:
     T = getattr(pose, "T_world_camera", pose)
     return frames.check_transform(T, name="pose")
@@ -451,212 +397,3 @@ def plot_top_view(
     if title:
         ax.set_title(title)
     return ax
-
-
-# -- images --------------------------------------------------------------------------------
-def _rgb(image: np.ndarray) -> tuple[np.ndarray, dict]:
-    image = np.asarray(image)
-    if image.ndim == 2:
-        kw = {"cmap": "gray"}
-        if image.dtype == np.uint8:
-            kw.update(vmin=0, vmax=255)
-        return image, kw
-    if image.ndim == 3 and image.shape[2] == 3:
-        return image[:, :, ::-1], {}  # OpenCV's BGR to matplotlib's RGB
-    if image.ndim == 3 and image.shape[2] == 4:
-        return image[:, :, [2, 1, 0, 3]], {}
-    raise PlotError(f"show_image: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
-
-
-def show_image(
-    ax: Axes | None,
-    image: np.ndarray,
-    points: np.ndarray | None = None,
-    labels: Sequence | None = None,
-    color: str = "tab:red",
-    title: str | None = None,
-    marker: str = "+",
-    markersize: float = 80.0,
-) -> Axes:
-    """Show an OpenCV image (gray, or BGR as OpenCV loads it) with optional points and labels.
-
-    Pixel centres sit at integer coordinates, as in OpenCV, so a point (u, v)
-    from OpenCV lands on the right pixel. Axes are in pixels, y down.
-
-    Parameters
-    ----------
-    ax : Axes or None
-        Where to draw (None: a new figure).
-    image : ndarray, shape (H, W) or (H, W, 3) BGR
-    points : array_like, shape (N, 2), optional
-        Pixel points (u, v) to mark.
-    labels : sequence, optional
-        One label per point, written beside it.
-    """
-    if ax is None:
-        h, w = np.asarray(image).shape[:2]
-        _, ax = plt.subplots(figsize=(6.4, 6.4 * h / max(w, 1)))
-    shown, kw = _rgb(image)
-    ax.imshow(shown, interpolation="nearest", **kw)
-    if points is not None:
-        draw_points(ax, points, labels=labels, color=color, marker=marker, markersize=markersize)
-    if title:
-        ax.set_title(title)
-    return ax
-
-
-def show_images(
-    images: Sequence[np.ndarray], titles: Sequence[str] | None = None, ncols: int = 4, width_in: float = 10.0
-) -> Figure:
-    """A grid of images (gray or BGR) with optional titles; ticks hidden, each image framed."""
-    n = len(images)
-    if n == 0:
-        raise PlotError("show_images: no images")
-    ncols = max(1, min(ncols, n))
-    nrows = -(-n // ncols)
-    h, w = np.asarray(images[0]).shape[:2]
-    fig, axes = plt.subplots(
-        nrows, ncols, figsize=(width_in, width_in / ncols * h / w * nrows + 0.4 * nrows), squeeze=False
-    )
-    for k, ax in enumerate(axes.flat):
-        if k < n:  # ticks hidden, the frame kept: a white margin stays visible on a white page
-            show_image(ax, images[k], title=titles[k] if titles is not None else None)
-            ax.set_xticks([])
-            ax.set_yticks([])
-        else:
-            ax.axis("off")
-    fig.tight_layout()
-    return fig
-
-
-def draw_points(
-    ax: Axes,
-    points: np.ndarray,
-    labels: Sequence | None = None,
-    color: str = "tab:red",
-    marker: str = "+",
-    markersize: float = 80.0,
-):
-    """Mark pixel points (N, 2) on an image Axes, with optional labels; returns the scatter artist."""
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    art = ax.scatter(pts[:, 0], pts[:, 1], c=color, marker=marker, s=markersize, linewidths=1.5)
-    if labels is not None:
-        if len(labels) != len(pts):
-            raise PlotError(f"draw_points: {len(labels)} labels for {len(pts)} points")
-        for (u, v), text in zip(pts, labels):
-            ax.annotate(str(text), (u, v), xytext=(4, -4), textcoords="offset points", color=color, fontsize=8)
-    return art
-
-
-def draw_corner_labels(
-    ax: Axes, corners_px: np.ndarray, names: Sequence[str] = CORNER_NAMES, color: str = "tab:red", fontsize: float = 8
-) -> list:
-    """Write TL, TR, BR, BL beside a quad's four corners (4, 2), pixels, each pushed away from the centre.
-
-    Returns the four Text artists, in corner order.
-    """
-    c = np.asarray(corners_px, dtype=float).reshape(-1, 2)
-    if len(c) != len(names):
-        raise PlotError(f"draw_corner_labels: {len(c)} corners for {len(names)} names")
-    centre = c.mean(axis=0)
-    texts = []
-    for name, p in zip(names, c):
-        d = p - centre
-        d = d / (np.linalg.norm(d) + 1e-12)
-        texts.append(
-            ax.annotate(
-                name,
-                tuple(p),
-                xytext=tuple(8 * d * [1, -1]),
-                textcoords="offset points",
-                color=color,
-                fontsize=fontsize,
-                ha="center",
-                va="center",
-            )
-        )
-    return texts
-
-
-def draw_quads(
-    ax: Axes,
-    quads_px: Sequence[np.ndarray],
-    ids: Sequence | None = None,
-    color: str = "lime",
-    corner_labels: bool = False,
-    linewidth: float = 1.5,
-) -> list:
-    """Outline quads (each (4, 2), pixels) on an image Axes, a dot on the first corner (TL), ids at centres.
-
-    Returns the outline Line2D artists, one per quad.
-    """
-    lines = []
-    for k, q in enumerate(quads_px):
-        q = np.asarray(q, dtype=float).reshape(4, 2)
-        closed = np.vstack([q, q[:1]])
-        (line,) = ax.plot(closed[:, 0], closed[:, 1], color=color, linewidth=linewidth)
-        lines.append(line)
-        ax.plot(q[0, 0], q[0, 1], "o", color="tab:red", markersize=4)
-        if ids is not None:
-            u, v = q.mean(axis=0)
-            ax.text(u, v, str(ids[k]), color=color, fontsize=10, ha="center", va="center", fontweight="bold")
-        if corner_labels:
-            draw_corner_labels(ax, q)
-    return lines
-
-
-def plot_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_labels: bool = True) -> list:
-    """Outline detected markers (objects with ``.id`` and ``.corners`` (4, 2)) with ids and corner names."""
-    return draw_quads(
-        ax, [d.corners for d in detections], ids=[d.id for d in detections], color=color, corner_labels=corner_labels
-    )
-
-
-def draw_reprojection(
-    ax: Axes, observed_px: np.ndarray, projected_px: np.ndarray, scale: float = 1.0, color: str = "tab:red"
-):
-    """Observed points (green dots) and the model's projections (red crosses), joined by error lines.
-
-    ``scale`` magnifies the error lines (10 shows a 0.3 px error as 3 px).
-    Returns the per-point error in pixels, shape (N,).
-    """
-    obs = np.asarray(observed_px, dtype=float).reshape(-1, 2)
-    proj = np.asarray(projected_px, dtype=float).reshape(-1, 2)
-    if obs.shape != proj.shape:
-        raise PlotError(f"draw_reprojection: {len(obs)} observed points but {len(proj)} projected")
-    ax.scatter(obs[:, 0], obs[:, 1], s=14, color="tab:green", label="observed")
-    ax.scatter(proj[:, 0], proj[:, 1], s=30, marker="x", color=color, label="projected")
-    tips = obs + scale * (proj - obs)
-    for a, b in zip(obs, tips):
-        ax.plot([a[0], b[0]], [a[1], b[1]], color=color, linewidth=1)
-    return np.linalg.norm(proj - obs, axis=1)
-
-
-def draw_projected_markers(
-    ax: Axes,
-    marker_map: MarkerMap,
-    camera: Camera,
-    T_world_camera: np.ndarray,
-    corner_labels: bool = True,
-    color: str = "tab:blue",
-) -> dict[int, np.ndarray]:
-    """What the camera sees of the map: each marker's corners projected, labelled TL, TR, BR, BL.
-
-    The Axes shows the whole image (pixels, y down). Markers behind the camera
-    are left out.
-
-    Returns ``{id: (4, 2) corners_px}`` of the markers drawn.
-    """
-    _check_map_camera(marker_map, camera, "draw_projected_markers(ax, marker_map, camera, T_world_camera)")
-    w, h = camera.image_size
-    out: dict[int, np.ndarray] = {}
-    for mid, c in marker_map.corners().items():
-        if not np.all(camera.points_in_front(c, T_world_camera)):
-            continue
-        out[mid] = camera.project(c, T_world_camera)
-    draw_quads(ax, list(out.values()), ids=list(out), color=color, corner_labels=corner_labels)
-    ax.set_xlim(-0.5, w - 0.5)
-    ax.set_ylim(h - 0.5, -0.5)
-    ax.set_aspect("equal")
-    ax.add_patch(plt.Rectangle((-0.5, -0.5), w, h, fill=False, edgecolor="k", linewidth=1))
-    return out
