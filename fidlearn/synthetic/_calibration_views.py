@@ -71,7 +71,18 @@ class CalibrationViews:
         return [frames.invert_transform(T) for T in self.T_world_camera]
 
     def board(self):
-        """The ``cv2.aruco.CharucoBoard`` (ChArUco only), sizes in mm."""
+        """The ChArUco board of the views.
+
+        Returns
+        -------
+        cv2.aruco.CharucoBoard
+            Sizes in mm.
+
+        Raises
+        ------
+        FidlearnError
+            For a checkerboard, which has none.
+        """
         if not self.charuco:
             raise FidlearnError("a checkerboard has no cv2.aruco board; use pattern_size and square_size_mm")
         return _cv.charuco_board(self.pattern_size, self.square_size_mm, self.marker_size_mm, self.dictionary)
@@ -312,6 +323,13 @@ def render_calibration_views(
     -------
     CalibrationViews
         Images, the true camera, the true poses and corner pixels.
+
+    Raises
+    ------
+    FidlearnError
+        If the board is malformed (fewer than 2 x 2 inner corners, a ChArUco marker not smaller
+        than its square), ``n_views`` < 1, a view index does not exist, or the board cannot be
+        placed in the picture.
 
     Examples
     --------

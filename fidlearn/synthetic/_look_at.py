@@ -14,17 +14,40 @@ from ..errors import FidlearnError
 def look_at(
     eye_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0), roll_deg: float = 0.0
 ) -> np.ndarray:
-    """The pose ``T_world_camera`` (4, 4) of a camera at ``eye_mm`` looking at ``target_mm``.
+    """The pose of a camera at ``eye_mm`` looking at ``target_mm``.
 
     The camera frame is OpenCV's (x right, y down, z forward); ``up`` (world)
     points up in the image, and ``roll_deg`` then turns the camera about its
     optical axis (positive: clockwise as the image shows it).
+
+    Parameters
+    ----------
+    eye_mm : array_like, shape (3,)
+        The camera's position in the world frame, mm.
+    target_mm : array_like, shape (3,)
+        The point it looks at, world frame, mm.
+    up : array_like, shape (3,)
+        The world direction that points up in the image; not parallel to the view direction.
+    roll_deg : float
+        Turn about the optical axis after aiming, degrees.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        ``T_world_camera``, mm: column 2 of its rotation is the view direction.
+
+    Raises
+    ------
+    FidlearnError
+        If the points are not 3 finite numbers, are the same point, or the view is parallel to ``up``.
 
     Examples
     --------
     >>> T = look_at([1500, 0, 300], [0, 0, 300])   # 1.5 m in front of the north wall
     >>> T[:3, 2].round(3).tolist()                 # the camera looks along -X
     [-1.0, 0.0, 0.0]
+    >>> T[:3, 3].tolist()                          # and stands at the eye
+    [1500.0, 0.0, 300.0]
     """
     eye, target = (
         frames.as_float_array(v, name, FidlearnError).reshape(-1)

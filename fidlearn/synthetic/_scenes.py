@@ -15,7 +15,7 @@ from ._renderer import _marker_sheet, _projected_size_px, _render, _texels_per_c
 def visible_markers(
     marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, margin_px: float = 2.0
 ) -> dict[int, np.ndarray]:
-    """True pixel corners of the markers a camera sees whole: ``{id: (4, 2) float64}``.
+    """True pixel corners of the markers a camera sees whole.
 
     A marker counts as visible when its four corners are in front of the
     camera, inside the image with ``margin_px`` to spare (pixel-centre
@@ -24,6 +24,37 @@ def visible_markers(
     3D corners (TL, TR, BR, BL), i.e. ``cv2.projectPoints``. Occlusion by
     another sheet is not considered: a marker hidden behind a nearer one is
     drawn hidden but still listed.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The markers' placements (mm, world). The map comes first, then the camera.
+    camera : Camera
+        Intrinsics, distortion and image size.
+    T_world_camera : array_like, shape (4, 4)
+        The camera's pose in the world, mm.
+    margin_px : float
+        How far inside the image every corner must be, pixels.
+
+    Returns
+    -------
+    dict of int to ndarray, shape (4, 2)
+        ``{id: corners_px}``, float64, TL, TR, BR, BL, pixel centres at integers.
+
+    Raises
+    ------
+    FidlearnError
+        If the map or the camera is not one (a swapped call says so).
+    TransformError
+        If ``T_world_camera`` is not a rigid transform.
+
+    Examples
+    --------
+    >>> from fidlearn import Camera, MarkerMap, data_path, look_at
+    >>> wall = MarkerMap.load(data_path("world_map.json"))
+    >>> seen = visible_markers(wall, Camera.from_fov(60, (640, 480)), look_at([1200, 200, 250], [0, 200, 250]))
+    >>> sorted(seen), seen[0].shape
+    ([0, 1, 2], (4, 2))
     """
     _check_scene(marker_map, camera, where="visible_markers")
     T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
@@ -74,10 +105,10 @@ def render_scene(
 
     Parameters
     ----------
+    marker_map : MarkerMap
+        The markers' placements (mm, world), size and dictionary. The map comes first, then the camera.
     camera : Camera
         Intrinsics, distortion and image size of the picture.
-    marker_map : MarkerMap
-        The markers' placements (mm, world), size and dictionary.
     T_world_camera : ndarray, shape (4, 4)
         The camera's pose in the world (mm), camera frame OpenCV's.
     seed : int
@@ -110,6 +141,17 @@ def render_scene(
         pixel centres at integers) of every marker seen whole, facing the
         camera (see :func:`visible_markers`). Markers partly outside the image
         or behind the camera are drawn as far as they are seen but left out.
+
+    Raises
+    ------
+    FidlearnError
+        If the map or the camera is not one (a swapped call says the map comes first), or an option
+        is out of range (``supersample`` 1 to 16, ``blur_px``, ``noise_std_gray`` and
+        ``wall_texture`` finite and >= 0, ``margin_cells`` >= 0).
+    CameraError
+        If the camera has a tilted sensor (more than 12 distortion coefficients in use).
+    TransformError
+        If ``T_world_camera`` is not a rigid transform.
 
     Examples
     --------

@@ -97,7 +97,7 @@ def trajectory_poses(
     height_mm: float | None = None,
     wobble_deg: float = 3.0,
 ) -> list[np.ndarray]:
-    """True poses ``T_world_camera`` (4, 4), mm, of a camera on a robot driving toward the markers.
+    """True poses of a camera on a robot driving toward the markers.
 
     The robot drives a gentle arc on the floor: from ``start_distance_mm`` in
     front of the markers (along their mean facing direction) and
@@ -106,6 +106,34 @@ def trajectory_poses(
     camera sits at the markers' height (``height_mm``, default their mean
     centre height), keeps pointing at the markers' centre, and sways a little
     (``wobble_deg``, smooth, seeded) with a millimetre of vibration.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The markers driven toward; they must face a common horizontal direction.
+    n_frames : int
+        Number of poses, 1 to :data:`MAX_FRAMES`.
+    seed : int
+        Seed of ``numpy.random.default_rng`` (sway phases, vibration).
+    start_distance_mm, end_distance_mm : float
+        Distance in front of the markers' centre at the start and at the end, mm.
+    start_lateral_mm, end_lateral_mm : float
+        Sideways offset at the start and at the end, mm.
+    height_mm : float, optional
+        Camera height (world Z), mm; by default the markers' mean centre height.
+    wobble_deg : float
+        Amplitude of the sway (pan; tilt and roll are smaller), degrees.
+
+    Returns
+    -------
+    list of ndarray, shape (4, 4)
+        ``T_world_camera`` per frame, mm, in driving order.
+
+    Raises
+    ------
+    FidlearnError
+        If the map is not a MarkerMap, an option is not a finite number, or the markers do not face a
+        common horizontal direction.
 
     Examples
     --------
@@ -173,9 +201,34 @@ def render_trajectory(
     """Render a robot's drive past the markers (see :func:`trajectory_poses`), frame by frame.
 
     Frame ``i`` is ``render_scene(marker_map, camera, poses[i], seed=seed * 1000 + i, ...)``.
-    ``poses`` replaces the default drive; other keywords go to :func:`trajectory_poses`.
-    ``frames_to_render`` keeps only those frame indices (each identical to the
-    same frame of the whole drive).
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The markers (mm, world). The map comes first, then the camera.
+    camera : Camera
+        The true camera.
+    n_frames, seed : int
+        Frames of the default drive, and the seed of the drive and of the pictures.
+    poses : sequence of array_like, shape (4, 4), optional
+        ``T_world_camera`` per frame (mm) instead of the default drive.
+    frames_to_render : sequence of int, optional
+        Keep only these frame indices (each identical to the same frame of the whole drive).
+    blur_px, noise_std_gray, gradient, supersample, wall_texture :
+        As for :func:`render_scene`, applied to every frame.
+    **trajectory_options
+        Passed to :func:`trajectory_poses` (not with ``poses``).
+
+    Returns
+    -------
+    Trajectory
+        The frames, their true poses and per frame the true corners of the markers seen whole.
+
+    Raises
+    ------
+    FidlearnError
+        If the map or the camera is not one (a swapped call says so), both ``poses`` and trajectory
+        options are given, or a frame index does not exist; or as :func:`render_scene`.
 
     Examples
     --------
