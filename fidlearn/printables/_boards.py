@@ -77,7 +77,13 @@ class BoardSheet:
         return (self.squares[0] * self.square_size_mm, self.squares[1] * self.square_size_mm)
 
     def describe(self) -> str:
-        """One line for the page and the terminal."""
+        """One line for the page and the terminal.
+
+        Returns
+        -------
+        str
+            The board's kind, squares, inner corners and sizes.
+        """
         (c, r), (ic, ir) = self.squares, self.inner_corners
         if self.charuco:
             return (
@@ -92,7 +98,18 @@ QUIET_MIN_MM, QUIET_FRACTION = 3.0, 0.2
 
 
 def board_quiet_zone_mm(square_size_mm: float) -> float:
-    """The white margin (mm) a board of ``square_size_mm`` squares needs on every side."""
+    """The white margin a board needs on every side.
+
+    Parameters
+    ----------
+    square_size_mm : float
+        Side of one square, mm.
+
+    Returns
+    -------
+    float
+        :data:`QUIET_FRACTION` of a square, at least :data:`QUIET_MIN_MM`, mm.
+    """
     return max(QUIET_MIN_MM, QUIET_FRACTION * square_size_mm)
 
 
@@ -170,11 +187,35 @@ def layout_board(
     dictionary: str | None = None,
     marker_size_mm: float | None = None,
 ) -> BoardSheet:
-    """Place a checkerboard or ChArUco board of ``squares`` (columns, rows) on one page.
+    """Place a checkerboard or ChArUco board on one page.
 
-    The page turns to landscape when the board only fits that way. A board
-    that does not fit at all raises :class:`PrintError` naming the largest
-    square that fits. The top-left square is black (OpenCV's ChArUco layout).
+    The page turns to landscape when the board only fits that way. The top-left square is black
+    (OpenCV's ChArUco layout).
+
+    Parameters
+    ----------
+    squares : (int, int)
+        Squares (columns, rows), at least 3 x 3; the inner corners are one fewer each way.
+    square_size_mm : float
+        Side of one square, mm.
+    paper : {"a4", "letter"}
+    charuco : bool
+        A ChArUco board: a marker in every white square.
+    dictionary : str, optional
+        ChArUco's dictionary (``"6X6_250"`` by default).
+    marker_size_mm : float, optional
+        ChArUco only, required: side of each marker's black square, mm, smaller than the square.
+
+    Returns
+    -------
+    BoardSheet
+        The layout (page frame, mm).
+
+    Raises
+    ------
+    PrintError
+        If the board is too small, does not fit the paper (the largest square that fits is named), or
+        a ChArUco marker is missing, not smaller than its square, or the dictionary is too small.
     """
     cols, rows = (int(v) for v in squares)
     if cols < 3 or rows < 3:
@@ -209,7 +250,18 @@ def layout_board(
 
 
 def board_figure(sheet: BoardSheet):
-    """The matplotlib ``Figure`` of a :class:`BoardSheet` (nothing written)."""
+    """The page of a :class:`BoardSheet` as a matplotlib figure (nothing written).
+
+    Parameters
+    ----------
+    sheet : BoardSheet
+        From :func:`layout_board`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The size of the paper, drawn in mm.
+    """
     fig, ax = _page(sheet.paper_mm)
     s = sheet.square_size_mm
     ox, oy = sheet.origin_mm
@@ -249,7 +301,27 @@ def board_pdf(
     dictionary: str | None = None,
     marker_size_mm: float | None = None,
 ) -> BoardSheet:
-    """Write a one-page PDF of a calibration board; ``pattern`` is INNER corners (9x6 -> 10x7 squares)."""
+    """Write a one-page PDF of a calibration board.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.pdf`` file to write (atomically).
+    pattern : (int, int) or str
+        INNER corners (columns, rows), e.g. ``(9, 6)`` or ``"9x6"``: a board of 10 x 7 squares.
+    square_size_mm, paper, charuco, dictionary, marker_size_mm :
+        As for :func:`layout_board`.
+
+    Returns
+    -------
+    BoardSheet
+        The layout.
+
+    Raises
+    ------
+    PrintError
+        For a malformed pattern, or as :func:`layout_board`.
+    """
     pattern = _inner_corners(pattern)
     sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_size_mm, paper, charuco, dictionary, marker_size_mm)
     save_pages([board_figure(sheet)], _with_suffix(path, ".pdf"))
@@ -266,7 +338,29 @@ def board_png(
     marker_size_mm: float | None = None,
     dpi: float = 300,
 ) -> tuple[BoardSheet, list[Path]]:
-    """Write a board page as PNG at ``dpi``; ``pattern`` is INNER corners. Returns the layout and the file."""
+    """Write a board page as PNG at ``dpi``.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.png`` file.
+    pattern, square_size_mm, paper, charuco, dictionary, marker_size_mm :
+        As for :func:`board_pdf`.
+    dpi : float
+        Resolution, 30 to 2400.
+
+    Returns
+    -------
+    sheet : BoardSheet
+        The layout.
+    files : list of Path
+        The file written.
+
+    Raises
+    ------
+    PrintError
+        As :func:`board_pdf` and :func:`save_pages`.
+    """
     pattern = _inner_corners(pattern)
     sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_size_mm, paper, charuco, dictionary, marker_size_mm)
     return sheet, save_pages([board_figure(sheet)], _with_suffix(path, ".png"), dpi=dpi)

@@ -29,9 +29,24 @@ from ._page import (
 
 
 def marker_cells(dictionary: str, marker_id: int) -> np.ndarray:
-    """The marker's cells, black border included: (n, n) bool, True = black, row 0 at the top.
+    """The marker's cells, black border included, row 0 at the top.
 
-    ``n`` is the dictionary's marker size plus 2 (7 for ARUCO_ORIGINAL, 8 for 6X6_250).
+    Parameters
+    ----------
+    dictionary : str
+        ArUco dictionary name.
+    marker_id : int
+        An id of that dictionary.
+
+    Returns
+    -------
+    ndarray of bool, shape (n, n)
+        True = black; ``n`` is the dictionary's marker size plus 2 (7 for ARUCO_ORIGINAL, 8 for 6X6_250).
+
+    Raises
+    ------
+    DictionaryError
+        For an unknown dictionary or an id it does not have.
     """
     name = _cv.dictionary_name(dictionary)
     size = _cv.dictionary_size(name)
@@ -88,6 +103,29 @@ def layout_markers(
     Each marker's cut rectangle holds the black square, a white margin of one
     cell on every side, and a label strip under it; cut rectangles are
     :data:`GAP_MM` apart.
+
+    Parameters
+    ----------
+    ids : sequence of int or str
+        Marker ids in print order, or a string such as ``"0-9"`` (:func:`parse_ids`).
+    marker_size_mm : float
+        Side of each black square (border included), mm.
+    dictionary : str
+        ArUco dictionary name.
+    paper : {"a4", "letter"}
+
+    Returns
+    -------
+    MarkerSheet
+        Where each marker goes on each page (page frame, mm).
+
+    Raises
+    ------
+    PrintError
+        For no ids, an id that is not a whole number, a size that is not a length or does not fit the
+        paper (the largest that fits is named).
+    DictionaryError
+        For an id the dictionary does not have.
     """
     marker_size_mm = _positive_mm(marker_size_mm, "--size-mm")
     name = _cv.dictionary_name(dictionary)
@@ -132,7 +170,18 @@ def layout_markers(
 
 
 def marker_figures(sheet: MarkerSheet) -> list:
-    """One matplotlib ``Figure`` per page of a :class:`MarkerSheet` (nothing written)."""
+    """The pages of a :class:`MarkerSheet` as matplotlib figures (nothing written).
+
+    Parameters
+    ----------
+    sheet : MarkerSheet
+        From :func:`layout_markers`.
+
+    Returns
+    -------
+    list of matplotlib.figure.Figure
+        One per page, the size of the paper, drawn in mm.
+    """
     figs = []
     cell = sheet.cell_mm
     for k, page in enumerate(sheet.pages):
@@ -169,7 +218,7 @@ def marker_figures(sheet: MarkerSheet) -> list:
 def markers_pdf(
     path, ids: Sequence[int], marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
 ) -> MarkerSheet:
-    """Write a (multi-page) PDF of markers at exact size; returns the layout.
+    """Write a (multi-page) PDF of markers at exact size.
 
     Parameters
     ----------
@@ -182,6 +231,16 @@ def markers_pdf(
     dictionary : str
         ArUco dictionary name, e.g. ``"ARUCO_ORIGINAL"`` or ``"6X6_250"``.
     paper : {"a4", "letter"}
+
+    Returns
+    -------
+    MarkerSheet
+        The layout.
+
+    Raises
+    ------
+    PrintError
+        As :func:`layout_markers`, or when ``path`` is not a ``.pdf``.
     """
     sheet = layout_markers(ids, marker_size_mm, dictionary, paper)
     save_pages(marker_figures(sheet), _with_suffix(path, ".pdf"))
@@ -196,6 +255,28 @@ def markers_png(
     paper: str = "a4",
     dpi: float = 300,
 ) -> tuple[MarkerSheet, list[Path]]:
-    """Write the marker pages as PNG at ``dpi``; returns the layout and the files written."""
+    """Write the marker pages as PNG at ``dpi``.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.png`` file (``stem-1.png``, ``stem-2.png``, ... for several pages).
+    ids, marker_size_mm, dictionary, paper :
+        As for :func:`markers_pdf`.
+    dpi : float
+        Resolution, 30 to 2400.
+
+    Returns
+    -------
+    sheet : MarkerSheet
+        The layout.
+    files : list of Path
+        The files written.
+
+    Raises
+    ------
+    PrintError
+        As :func:`layout_markers` and :func:`save_pages`.
+    """
     sheet = layout_markers(ids, marker_size_mm, dictionary, paper)
     return sheet, save_pages(marker_figures(sheet), _with_suffix(path, ".png"), dpi=dpi)

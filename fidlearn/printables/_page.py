@@ -40,8 +40,26 @@ MAX_ID_COUNT = 1024
 def parse_ids(text: str) -> list[int]:
     """Marker ids from ``"0-9"``, ``"0,3,7"`` or ``"0-3,8"`` (ranges inclusive), in the order given.
 
-    Raises :class:`PrintError` for anything else, for a reversed range and for
-    an id given twice (two markers with one id break localization).
+    Parameters
+    ----------
+    text : str
+        Ids and inclusive ranges separated by commas, as the command line's ``--ids``.
+
+    Returns
+    -------
+    list of int
+        The ids, at most :data:`MAX_ID_COUNT`.
+
+    Raises
+    ------
+    PrintError
+        For anything else, a reversed range, too many ids, and an id given twice (two markers with one
+        id break localization).
+
+    Examples
+    --------
+    >>> parse_ids("0-3,8")
+    [0, 1, 2, 3, 8]
     """
     if not isinstance(text, str) or not text.strip():
         raise PrintError("--ids is empty; give ids like 0-9, 0,3,7 or 0-3,8")
@@ -76,7 +94,30 @@ def parse_ids(text: str) -> list[int]:
 
 
 def parse_pattern(text: str, what: str = "--pattern") -> tuple[int, int]:
-    """``"9x6"`` -> ``(9, 6)`` (columns, rows); :class:`PrintError` for anything else."""
+    """``"9x6"`` as ``(9, 6)`` (columns, rows).
+
+    Parameters
+    ----------
+    text : str
+        ``COLUMNSxROWS``, at least 2 each way (``x``, ``X`` or ``×``).
+    what : str
+        The option's name in the error message.
+
+    Returns
+    -------
+    (int, int)
+        (columns, rows).
+
+    Raises
+    ------
+    PrintError
+        For anything else.
+
+    Examples
+    --------
+    >>> parse_pattern("9x6")
+    (9, 6)
+    """
     m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", str(text))
     if not m:
         raise PrintError(f"{what} {text!r} is not COLUMNSxROWS; write it like 9x6")
@@ -87,7 +128,30 @@ def parse_pattern(text: str, what: str = "--pattern") -> tuple[int, int]:
 
 
 def paper_size_mm(paper: str, landscape: bool = False) -> tuple[float, float]:
-    """(width, height) in mm of ``"a4"`` or ``"letter"``, portrait unless ``landscape``."""
+    """The size of a sheet of paper.
+
+    Parameters
+    ----------
+    paper : {"a4", "letter"}
+        Case does not matter.
+    landscape : bool
+        Turned: width and height swapped.
+
+    Returns
+    -------
+    (float, float)
+        (width, height), mm.
+
+    Raises
+    ------
+    PrintError
+        For an unknown paper.
+
+    Examples
+    --------
+    >>> paper_size_mm("a4", landscape=True)
+    (297.0, 210.0)
+    """
     key = str(paper).lower()
     if key not in PAPERS:
         raise PrintError(f"unknown paper {paper!r}; use {' or '.join(PAPERS)}")
@@ -233,6 +297,27 @@ def save_pages(figures: Sequence, path: str | os.PathLike, dpi: float | None = N
     Several PNG pages are named ``stem-1.png``, ``stem-2.png``, ... Every file
     is written to a temporary file first and renamed only when all pages are
     rendered, so a failure leaves nothing behind.
+
+    Parameters
+    ----------
+    figures : sequence of matplotlib.figure.Figure
+        The pages, each the size of the paper (:func:`marker_figures`, :func:`board_figure`).
+    path : path-like
+        ``.pdf`` or ``.png``.
+    dpi : float, optional
+        PNG resolution, 30 to 2400 (300 by default); ignored for PDF (vector).
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    PrintError
+        For another suffix or a dpi out of range.
+    FidlearnError
+        If the PNG's folder does not exist.
     """
     path = Path(path)
     suffix = path.suffix.lower()
