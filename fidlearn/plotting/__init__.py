@@ -47,9 +47,9 @@ from ._room import (
     draw_world_axes,
     new_axes_3d,
     plot_scene,
-    plot_top_view,
     set_axes_equal,
 )
+from ._top_view import plot_top_view
 
 __all__ = [
     "AXIS_COLORS",

@@ -51,10 +51,24 @@ def show_image(
     ax : Axes or None
         Where to draw (None: a new figure).
     image : ndarray, shape (H, W) or (H, W, 3) BGR
+        The picture (uint8 gray is shown 0..255).
     points : array_like, shape (N, 2), optional
         Pixel points (u, v) to mark.
     labels : sequence, optional
         One label per point, written beside it.
+    color, marker, markersize :
+        The points' style.
+    title : str, optional
+
+    Returns
+    -------
+    Axes
+        The Axes drawn on.
+
+    Raises
+    ------
+    PlotError
+        If ``image`` is not (H, W), (H, W, 3) or (H, W, 4), or the labels do not match the points.
     """
     if ax is None:
         h, w = np.asarray(image).shape[:2]
@@ -71,7 +85,29 @@ def show_image(
 def show_images(
     images: Sequence[np.ndarray], titles: Sequence[str] | None = None, ncols: int = 4, width_in: float = 10.0
 ) -> Figure:
-    """A grid of images (gray or BGR) with optional titles; ticks hidden, each image framed."""
+    """A grid of images (gray or BGR) with optional titles; ticks hidden, each image framed.
+
+    Parameters
+    ----------
+    images : sequence of ndarray, shape (H, W) or (H, W, 3)
+        The pictures, all shown at the first one's aspect.
+    titles : sequence of str, optional
+        One per image.
+    ncols : int
+        Columns of the grid.
+    width_in : float
+        Figure width, inches.
+
+    Returns
+    -------
+    Figure
+        One Axes per grid slot (unused slots hidden).
+
+    Raises
+    ------
+    PlotError
+        If there is no image or one is not an image.
+    """
     n = len(images)
     if n == 0:
         raise PlotError("show_images: no images")
@@ -100,7 +136,29 @@ def draw_points(
     marker: str = "+",
     markersize: float = 80.0,
 ):
-    """Mark pixel points (N, 2) on an image Axes, with optional labels; returns the scatter artist."""
+    """Mark pixel points on an image Axes, with optional labels.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        An image Axes (pixels, y down).
+    points : array_like, shape (N, 2)
+        Pixel points (u, v).
+    labels : sequence, optional
+        One label per point.
+    color, marker, markersize :
+        The points' style.
+
+    Returns
+    -------
+    matplotlib.collections.PathCollection
+        The scatter artist.
+
+    Raises
+    ------
+    PlotError
+        If the labels do not match the points.
+    """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     art = ax.scatter(pts[:, 0], pts[:, 1], c=color, marker=marker, s=markersize, linewidths=1.5)
     if labels is not None:
@@ -114,9 +172,28 @@ def draw_points(
 def draw_corner_labels(
     ax: Axes, corners_px: np.ndarray, names: Sequence[str] = CORNER_NAMES, color: str = "tab:red", fontsize: float = 8
 ) -> list:
-    """Write TL, TR, BR, BL beside a quad's four corners (4, 2), pixels, each pushed away from the centre.
+    """Write TL, TR, BR, BL beside a quad's four corners, each pushed away from the centre.
 
-    Returns the four Text artists, in corner order.
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        An image Axes (pixels, y down).
+    corners_px : array_like, shape (4, 2)
+        The quad's corners, pixels, in ``names`` order.
+    names : sequence of str
+        The corner names, :data:`~fidlearn.markermap.CORNER_NAMES` by default.
+    color : str
+    fontsize : float
+
+    Returns
+    -------
+    list of matplotlib.text.Annotation
+        The four labels, in corner order.
+
+    Raises
+    ------
+    PlotError
+        If there are not as many corners as names.
     """
     c = np.asarray(corners_px, dtype=float).reshape(-1, 2)
     if len(c) != len(names):
@@ -149,9 +226,25 @@ def draw_quads(
     corner_labels: bool = False,
     linewidth: float = 1.5,
 ) -> list:
-    """Outline quads (each (4, 2), pixels) on an image Axes, a dot on the first corner (TL), ids at centres.
+    """Outline quads on an image Axes, a dot on the first corner (TL), ids at centres.
 
-    Returns the outline Line2D artists, one per quad.
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        An image Axes (pixels, y down).
+    quads_px : sequence of array_like, shape (4, 2)
+        Corners, pixels, TL, TR, BR, BL.
+    ids : sequence, optional
+        One id per quad, written at its centre.
+    color : str
+    corner_labels : bool
+        Write TL, TR, BR, BL beside the corners.
+    linewidth : float
+
+    Returns
+    -------
+    list of matplotlib.lines.Line2D
+        The outlines, one per quad, closed (5 vertices).
     """
     lines = []
     for k, q in enumerate(quads_px):
@@ -169,7 +262,25 @@ def draw_quads(
 
 
 def plot_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_labels: bool = True) -> list:
-    """Outline detected markers (objects with ``.id`` and ``.corners`` (4, 2)) with ids and corner names."""
+    """Outline detected markers on an image Axes, with their ids and corner names (matplotlib).
+
+    :func:`fidlearn.draw_detections` draws them into the image itself (OpenCV).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        An image Axes (pixels, y down).
+    detections : sequence of Detection
+        Objects with ``.id`` and ``.corners`` (4, 2) pixels, TL, TR, BR, BL.
+    color : str
+    corner_labels : bool
+        Write TL, TR, BR, BL beside the corners.
+
+    Returns
+    -------
+    list of matplotlib.lines.Line2D
+        The outlines, one per detection.
+    """
     return draw_quads(
         ax, [d.corners for d in detections], ids=[d.id for d in detections], color=color, corner_labels=corner_labels
     )
@@ -180,8 +291,27 @@ def draw_reprojection(
 ):
     """Observed points (green dots) and the model's projections (red crosses), joined by error lines.
 
-    ``scale`` magnifies the error lines (10 shows a 0.3 px error as 3 px).
-    Returns the per-point error in pixels, shape (N,).
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        An image Axes (pixels, y down).
+    observed_px : array_like, shape (N, 2)
+        Measured pixels.
+    projected_px : array_like, shape (N, 2)
+        The model's pixels for the same points.
+    scale : float
+        Magnifies the error lines (10 shows a 0.3 px error as 3 px).
+    color : str
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The per-point error, pixels.
+
+    Raises
+    ------
+    PlotError
+        If the two sets have different lengths.
     """
     obs = np.asarray(observed_px, dtype=float).reshape(-1, 2)
     proj = np.asarray(projected_px, dtype=float).reshape(-1, 2)
@@ -218,7 +348,28 @@ def draw_projected_markers(
     The Axes shows the whole image (pixels, y down). Markers behind the camera
     are left out.
 
-    Returns ``{id: (4, 2) corners_px}`` of the markers drawn.
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        An image Axes (pixels, y down).
+    marker_map : MarkerMap
+        The markers (mm, world). The map comes first, then the camera.
+    camera : Camera
+    T_world_camera : array_like, shape (4, 4)
+        The camera's pose in the world, mm.
+    corner_labels : bool
+        Write TL, TR, BR, BL beside the corners.
+    color : str
+
+    Returns
+    -------
+    dict of int to ndarray, shape (4, 2)
+        ``{id: corners_px}`` of the markers drawn.
+
+    Raises
+    ------
+    PlotError
+        If the map or the camera is not one (a swapped call says the map comes first).
     """
     _check_map_camera(marker_map, camera, "draw_projected_markers(ax, marker_map, camera, T_world_camera)")
     w, h = camera.image_size

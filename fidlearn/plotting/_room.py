@@ -27,7 +27,27 @@ AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
 def new_axes_3d(
     ax: Axes | None = None, figsize: tuple[float, float] = (7.0, 6.0), elev: float = 20.0, azim: float = -35.0
 ) -> Axes:
-    """A 3D Axes labelled in mm (a new figure unless ``ax`` is given)."""
+    """A 3D Axes labelled in mm (a new figure unless ``ax`` is given).
+
+    Parameters
+    ----------
+    ax : Axes, optional
+        A 3D Axes to set up; by default a new figure's.
+    figsize : (float, float)
+        Size of the new figure, inches.
+    elev, azim : float
+        The view's elevation and azimuth, degrees.
+
+    Returns
+    -------
+    Axes
+        The 3D Axes, labelled X, Y, Z (mm).
+
+    Raises
+    ------
+    PlotError
+        If ``ax`` is a 2D Axes.
+    """
     if ax is None:
         fig = plt.figure(figsize=figsize)
         ax = fig.add_subplot(projection="3d")
@@ -81,10 +101,31 @@ def draw_frame(
     linewidth: float = 2.0,
     axis_names: Sequence[str] | None = None,
 ) -> list:
-    """Draw a frame's X, Y, Z axes (red, green, blue) at its pose ``T_world_frame`` (4, 4), mm.
+    """Draw a frame's X, Y, Z axes (red, green, blue) at its pose.
 
-    Returns the three Line3D artists, X first; each runs from the frame's origin
-    to origin + ``length_mm`` along that axis.
+    Parameters
+    ----------
+    ax : mpl_toolkits.mplot3d.axes3d.Axes3D
+        A 3D Axes in mm (:func:`new_axes_3d`).
+    T_world_frame : array_like, shape (4, 4)
+        The frame's pose in the world, mm.
+    length_mm : float
+        Length of each axis drawn, mm.
+    label : str, optional
+        Written at the frame's origin.
+    linewidth : float
+    axis_names : sequence of 3 str, optional
+        Written at the tips of X, Y and Z.
+
+    Returns
+    -------
+    list of Line3D
+        Three, X first; each runs from the origin to origin + ``length_mm`` along its axis.
+
+    Raises
+    ------
+    TransformError
+        If ``T_world_frame`` is not a rigid transform.
     """
     T = frames.check_transform(T_world_frame, name="T_world_frame")
     origin = T[:3, 3]
@@ -101,7 +142,21 @@ def draw_frame(
 
 
 def draw_world_axes(ax: Axes, length_mm: float = 300.0, label: str | None = "world") -> list:
-    """The world frame at the origin, axes labelled X, Y, Z. Returns the three Line3D artists."""
+    """The world frame at the origin, axes labelled X, Y, Z.
+
+    Parameters
+    ----------
+    ax : mpl_toolkits.mplot3d.axes3d.Axes3D
+        A 3D Axes in mm (:func:`new_axes_3d`).
+    length_mm : float
+        Length of each axis, mm.
+    label : str, optional
+
+    Returns
+    -------
+    list of Line3D
+        X, Y, Z.
+    """
     return draw_frame(ax, np.eye(4), length_mm, label=label, linewidth=2.5, axis_names=("X", "Y", "Z"))
 
 
@@ -117,10 +172,25 @@ def draw_markers(
     """Draw markers as filled squares at their world corners, with their ids.
 
     The top-left corner of each marker gets a red dot, so a wrong rotation in a
-    map shows at a glance; the id is written just above the marker's top edge. ``show_corners``
-    labels TL, TR, BR, BL too.
+    map shows at a glance; the id is written just above the marker's top edge.
 
-    Returns the Poly3DCollection: one polygon per marker, vertices TL, TR, BR, BL (mm).
+    Parameters
+    ----------
+    ax : mpl_toolkits.mplot3d.axes3d.Axes3D
+        A 3D Axes in mm (:func:`new_axes_3d`).
+    marker_map : MarkerMap
+    ids : iterable of int, optional
+        The markers to draw; all by default.
+    color : str
+    show_ids : bool
+    show_corners : bool
+        Label TL, TR, BR, BL too.
+    alpha : float
+
+    Returns
+    -------
+    Poly3DCollection
+        One polygon per marker, vertices TL, TR, BR, BL (mm, world).
     """
     corners = marker_map.corners()
     ids = list(corners) if ids is None else [int(i) for i in ids]
@@ -148,9 +218,21 @@ def draw_markers(
 def draw_box(
     ax: Axes, min_mm: Sequence[float], max_mm: Sequence[float], color: str = "0.6", linewidth: float = 0.8
 ) -> list:
-    """Outline an axis-aligned box (a room) from corner ``min_mm`` to corner ``max_mm`` (world, mm).
+    """Outline an axis-aligned box (a room) between two opposite corners.
 
-    Returns the 12 edge Line3D artists.
+    Parameters
+    ----------
+    ax : mpl_toolkits.mplot3d.axes3d.Axes3D
+        A 3D Axes in mm (:func:`new_axes_3d`).
+    min_mm, max_mm : array_like, shape (3,)
+        Opposite corners, world frame, mm.
+    color : str
+    linewidth : float
+
+    Returns
+    -------
+    list of Line3D
+        The 12 edges.
     """
     lo, hi = np.asarray(min_mm, dtype=float), np.asarray(max_mm, dtype=float)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
@@ -166,13 +248,25 @@ def draw_box(
 def camera_frustum(camera: Camera, T_world_camera: np.ndarray, depth_mm: float = 200.0) -> np.ndarray:
     """The camera's viewing pyramid in world coordinates: apex and the image's corners at ``depth_mm``.
 
+    Parameters
+    ----------
+    camera : Camera
+    T_world_camera : array_like, shape (4, 4)
+        The camera's pose in the world, mm.
+    depth_mm : float
+        Depth of the pyramid's base along the optical axis, mm.
+
     Returns
     -------
-    ndarray, shape (5, 3), mm, world frame
-        Row 0 is the camera centre; rows 1-4 are the rays through the image's
-        outer corners (TL, TR, BR, BL of the image, at pixel edges -0.5 and
-        w - 0.5) cut at depth ``depth_mm`` along the optical axis. Distortion is
-        ignored (the pinhole pyramid).
+    ndarray, shape (5, 3)
+        World frame, mm. Row 0 is the camera centre; rows 1-4 are the rays through the image's
+        outer corners (TL, TR, BR, BL of the image, at pixel edges -0.5 and w - 0.5) cut at depth
+        ``depth_mm``. Distortion is ignored (the pinhole pyramid).
+
+    Raises
+    ------
+    TransformError
+        If ``T_world_camera`` is not a rigid transform.
     """
     T = frames.check_transform(T_world_camera, name="T_world_camera")
     w, h = camera.image_size
@@ -191,15 +285,31 @@ def draw_camera(
     label: str | None = None,
     show_axes: bool = True,
 ) -> list:
-    """Draw a camera as its viewing pyramid (frustum) at its pose ``T_world_camera`` (4, 4), mm.
+    """Draw a camera as its viewing pyramid (frustum) at its pose.
 
     The pyramid's apex is the camera centre, its base the image at depth
     ``scale_mm``; the image's top edge is drawn thicker so "up in the image" can
     be read off the picture. With ``show_axes`` the camera's own x (red), y
     (green), z (blue, the optical axis) are drawn too.
 
-    Returns the frustum's Line3D artists: four edges from the apex to the image
-    corners TL, TR, BR, BL, then the base outline (closed, starting at TL).
+    Parameters
+    ----------
+    ax : mpl_toolkits.mplot3d.axes3d.Axes3D
+        A 3D Axes in mm (:func:`new_axes_3d`).
+    camera : Camera
+    T_world_camera : array_like, shape (4, 4)
+        The camera's pose in the world, mm.
+    scale_mm : float
+        Depth of the pyramid, mm.
+    color : str
+    label : str, optional
+    show_axes : bool
+
+    Returns
+    -------
+    list of Line3D
+        Four edges from the apex to the image corners TL, TR, BR, BL, then the base outline
+        (closed, starting at TL).
     """
     f = camera_frustum(camera, T_world_camera, scale_mm)
     lines = []
@@ -260,6 +370,13 @@ def plot_scene(
     -------
     Figure
         With one equal-aspect 3D Axes.
+
+    Raises
+    ------
+    PlotError
+        If the labels do not match the poses.
+    TransformError
+        If a pose is not a rigid transform.
     """
     ax = new_axes_3d(ax, elev=elev, azim=azim)
     Ts = [_pose_matrix(p) for p in poses]
@@ -322,6 +439,11 @@ def draw_trajectory(
     -------
     Line3D
         The path; its vertices are the camera positions (mm, world).
+
+    Raises
+    ------
+    PlotError
+        If there is no pose.
     """
     Ts = [_pose_matrix(p) for p in poses]
     if not Ts:
@@ -333,67 +455,3 @@ def draw_trajectory(
         for T in Ts[::every]:
             draw_camera(ax, camera, T, scale_mm, color=color, show_axes=False)
     return line
-
-
-def plot_top_view(
-    marker_map: MarkerMap | None = None,
-    poses: Sequence = (),
-    truth: Sequence | None = None,
-    ax: Axes | None = None,
-    arrow_mm: float = 150.0,
-    title: str | None = None,
-) -> Axes:
-    """The room seen from above (world X right, Y up the page): markers, camera positions and headings.
-
-    Each marker is drawn as its top edge seen from above (a short segment, its
-    id beside it); each pose as a dot with an arrow along its optical axis
-    projected on the floor. ``truth`` (poses in the same order) is drawn in
-    grey with lines joining each estimate to its true position.
-
-    Returns
-    -------
-    Axes
-        Equal-aspect, in mm. ``ax.lines[-1]`` is the estimated path (positions in order).
-    """
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6.5, 6.0))
-    if marker_map is not None:
-        for mid, c in marker_map.corners().items():
-            ax.plot(c[[0, 1], 0], c[[0, 1], 1], color="k", linewidth=3)
-            n = marker_map.normal(mid)
-            u, v = c[:2, :2].mean(axis=0) + 0.6 * marker_map.marker_size_mm * n[:2]
-            ax.annotate(str(mid), (u, v), ha="center", va="center", fontsize=9)
-
-    def positions_and_headings(ps):
-        Ts = [_pose_matrix(p) for p in ps]
-        return np.array([T[:3, 3] for T in Ts]).reshape(-1, 3), np.array([T[:3, 2] for T in Ts]).reshape(-1, 3)
-
-    if truth is not None:
-        tp, th = positions_and_headings(truth)
-        if len(tp) != len(poses):
-            raise PlotError(f"plot_top_view: {len(tp)} true poses for {len(poses)} poses")
-        ax.plot(tp[:, 0], tp[:, 1], "o-", color="0.6", markersize=3, linewidth=1, label="truth")
-    p, h = positions_and_headings(poses)
-    if len(p):
-        if truth is not None:
-            for a, b in zip(p, tp):
-                ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", linewidth=0.8)
-        flat = h[:, :2] / np.maximum(np.linalg.norm(h[:, :2], axis=1, keepdims=True), 1e-9)
-        ax.quiver(
-            p[:, 0],
-            p[:, 1],
-            flat[:, 0] * arrow_mm,
-            flat[:, 1] * arrow_mm,
-            angles="xy",
-            scale_units="xy",
-            scale=1,
-            color="tab:orange",
-            width=0.004,
-        )
-        ax.plot(p[:, 0], p[:, 1], "o-", color="tab:orange", markersize=3, linewidth=1, label="camera")
-    ax.set_aspect("equal")
-    ax.set_xlabel("X (mm)")
-    ax.set_ylabel("Y (mm)")
-    if title:
-        ax.set_title(title)
-    return ax
