@@ -60,7 +60,25 @@ class RoomPlan:
     target_mm: np.ndarray
 
     def fraction_within(self, error_mm: float, which: str = "toward") -> float:
-        """Fraction of the grid where the predicted error (``toward``, ``median`` or ``worst``) is <= ``error_mm``."""
+        """Fraction of the grid where the predicted error is at most ``error_mm``.
+
+        Parameters
+        ----------
+        error_mm : float
+            The largest acceptable camera-position error, mm.
+        which : {"toward", "median", "worst"}
+            Which grid: looking toward the markers, or the median or worst over level headings.
+
+        Returns
+        -------
+        float
+            From 0 to 1; places where no pose is possible count as outside.
+
+        Raises
+        ------
+        FidlearnError
+            For another ``which``.
+        """
         grid = {"toward": self.toward_mm, "median": self.median_mm, "worst": self.worst_mm}.get(which)
         if grid is None:
             raise FidlearnError(f"which must be 'toward', 'median' or 'worst', got {which!r}")
@@ -77,7 +95,17 @@ class RoomPlan:
 
 @dataclass(frozen=True)
 class Suggestion:
-    """One step of :func:`suggest_markers`: what to change, and the area within the target after it."""
+    """One step of :func:`suggest_markers`: what to change, and the area within the target after it.
+
+    Attributes
+    ----------
+    text : str
+        The change, in words ("print the markers at 120 mm instead of 80 mm", "add marker 7 beside marker 3 ...").
+    fraction_before, fraction_after : float
+        Fraction of the grid within the target before and after the change (0 to 1).
+    marker_map : MarkerMap
+        The map after the change.
+    """
 
     text: str
     fraction_before: float
@@ -96,7 +124,22 @@ def _check_area(area) -> tuple[float, float, float, float]:
 
 
 def default_area(marker_map: MarkerMap) -> tuple[float, float, float, float]:
-    """The floor area in front of the markers: 0.1 to 3 m out from them, 1 m beyond them sideways (mm)."""
+    """The floor area in front of the markers: 0.1 to 3 m out from them, 1 m beyond them sideways.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+
+    Returns
+    -------
+    (float, float, float, float)
+        ``x0, y0, x1, y1``, world frame, mm.
+
+    Raises
+    ------
+    FidlearnError
+        If the map has no markers.
+    """
     if not len(marker_map):
         raise FidlearnError("the map has no markers: there is nothing to plan around")
     pts = []
@@ -194,6 +237,13 @@ def plan_room(
     Returns
     -------
     RoomPlan
+        The predicted errors (mm) on the grid, and where a pose is possible.
+
+    Raises
+    ------
+    FidlearnError
+        If the map or the camera is not one, or an option is out of range (the area, a step that
+        is not positive, more than :data:`MAX_CELLS` places, headings outside 0 to 360).
     """
     if not isinstance(marker_map, MarkerMap) or not len(marker_map):
         raise FidlearnError("plan_room needs a fidlearn.MarkerMap with at least one marker")
@@ -286,10 +336,29 @@ def suggest_markers(
     the markers) within ``target_mm``. Stops when the whole area is within the target or no
     candidate helps.
 
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The markers as they are (mm, world). The map comes first, then the camera.
+    camera : Camera
+    target_mm : float
+        The camera-position error to reach, mm.
+    height_mm, area, step_mm, corner_sigma_px :
+        As for :func:`plan_room` (a coarser grid by default).
+    max_markers : int
+        Most markers to add.
+    sizes_mm : sequence of float
+        Marker sizes to try, as multiples of the current one.
+
     Returns
     -------
     list of Suggestion
         In the order to apply them; each carries the map after the change.
+
+    Raises
+    ------
+    FidlearnError
+        If ``target_mm`` is not a positive number, or as :func:`plan_room`.
     """
     if (
         isinstance(target_mm, bool)
