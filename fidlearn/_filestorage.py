@@ -88,10 +88,31 @@ def _filestorage_pixels(node, path: Path, name: str) -> int:
 
 
 def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | None, tuple[int, int]]:
-    """``(path, K, dist, (width, height))`` of an OpenCV FileStorage camera file; :class:`CameraError` with the fix.
+    """Read an OpenCV FileStorage camera file (YAML or XML).
 
-    The image size comes from the file's ``image_width``/``image_height`` or, when it has none, from
-    ``image_size``; both given must agree.
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    image_size : (int, int) or None
+        ``(width, height)`` in pixels; required when the file has no ``image_width``/``image_height``,
+        and must agree with them when it has.
+
+    Returns
+    -------
+    path : Path
+    K : ndarray, shape (3, 3)
+        ``camera_matrix``, pixels.
+    dist : ndarray or None
+        ``distortion_coefficients``, or None when the file has none.
+    image_size : (int, int)
+        (width, height), pixels.
+
+    Raises
+    ------
+    CameraError
+        With the fix: not readable, not FileStorage, nested too deep, a missing or malformed matrix,
+        no image size, or one that disagrees with ``image_size``.
     """
     path, data = _files.read_bytes(path, CameraError, "camera", _files.MAX_TEXT_BYTES)
     text = _filestorage_text(path, data)
@@ -138,7 +159,24 @@ def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | N
 
 
 def write_filestorage(path: Path, K: np.ndarray, dist: np.ndarray, image_size: tuple[int, int]) -> Path:
-    """Write a camera as OpenCV FileStorage (XML for ``.xml``, YAML otherwise), atomically."""
+    """Write a camera as OpenCV FileStorage (XML for ``.xml``, YAML otherwise), atomically.
+
+    Parameters
+    ----------
+    path : Path
+        The file to write.
+    K : ndarray, shape (3, 3)
+        The intrinsic matrix, pixels.
+    dist : ndarray
+        The distortion coefficients.
+    image_size : (int, int)
+        (width, height), pixels.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
 
     def write(tmp: Path) -> None:
         fs = cv2.FileStorage(
