@@ -87,7 +87,7 @@ def test_ink_lands_where_the_geometry_says_with_no_half_pixel_offset(wall):
     """
     camera = Camera([[800, 0, 300.3], [0, 800, 251.7], [0, 0, 1]], None, (640, 480))
     T = look_at([1000, 37.3, 270.1], [0, 37.3, 270.1])
-    image, truth = render_scene(wall, camera, T, wall_texture=0.0, paper_gray=230, ink_gray=25)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, paper_gray=230, ink_gray=25)
     tl, br = truth[0][0], truth[0][2]
     side = br[0] - tl[0]
     cells = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL).markerSize + 2
@@ -142,7 +142,7 @@ def test_exact_undistortion_inverts_opencvs_projection():
 def test_markers_behind_the_camera_are_neither_drawn_nor_in_the_truth(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([500, 190, 240], [2000, 190, 240])  # in the room, looking away from the wall
-    image, truth = render_scene(wall, camera, T, wall_texture=0.0, wall_gray=120)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
     assert truth == {}
     assert np.all(image == 120)
 
@@ -150,7 +150,7 @@ def test_markers_behind_the_camera_are_neither_drawn_nor_in_the_truth(wall):
 def test_markers_seen_from_behind_the_wall_are_not_drawn(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([-800, 190, 240], [0, 190, 240])  # behind the wall, facing the back of the sheets
-    image, truth = render_scene(wall, camera, T, wall_texture=0.0, wall_gray=120)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
     assert truth == {}
     assert np.all(image == 120)
 
@@ -172,7 +172,7 @@ def test_a_sheet_crossing_the_camera_plane_is_drawn_where_it_is_in_front(wall):
     T = look_at([20.0, 40.0, 260.0], [60.0, 2000.0, 250.0])
     depths = frames.transform_points(frames.invert_transform(T), wall.marker_corners(0))[:, 2]
     assert depths.min() < 0 < depths.max()  # marker 0 really crosses the camera's plane
-    image, truth = render_scene(wall, camera, T, wall_texture=0.0, wall_gray=120, paper_gray=230, ink_gray=25)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120, paper_gray=230, ink_gray=25)
     assert 0 not in truth
     # a few cm in front of the camera: a point of marker 0's black right border and one of its white margin
     ink_px, paper_px = np.round(camera.project(np.array([[0.0, 74.0, 262.0], [0.0, 86.0, 262.0]]), T)).astype(int)
@@ -226,12 +226,12 @@ def test_same_seed_same_pixels_and_another_seed_other_noise(wall):
 def test_blur_gradient_and_bgr(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([800, 190, 240], [0, 190, 240])
-    sharp, _ = render_scene(wall, camera, T, wall_texture=0.0)
-    blurred, _ = render_scene(wall, camera, T, wall_texture=0.0, blur_px=2.0)
+    sharp, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0)
+    blurred, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, blur_px=2.0)
     assert np.abs(np.diff(blurred.astype(float), axis=1)).max() < np.abs(np.diff(sharp.astype(float), axis=1)).max()
-    lit, _ = render_scene(wall, camera, T, wall_texture=0.0, gradient=0.4, gradient_angle_deg=0.0)
+    lit, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, gradient=0.4, gradient_angle_deg=0.0)
     assert lit[5, -5] > lit[5, 4] + 30  # brighter to the right
-    bgr, _ = render_scene(wall, camera, T, wall_texture=0.0, bgr=True)
+    bgr, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, bgr=True)
     assert bgr.shape == (240, 320, 3)
     np.testing.assert_array_equal(bgr[..., 1], sharp)
 

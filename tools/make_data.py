@@ -62,7 +62,7 @@ CALIBRATION = {
         "image_size": [640, 480],
         "source": "synthetic: the true camera of data/calibration (tools/make_data.py)",
     },
-    "render": {"blur_px": 0.4, "noise_std_gray": 1.5, "gradient": 0.15, "supersample": 4, "wall_texture": 3.0},
+    "render": {"blur_px": 0.4, "noise_std_gray": 1.5, "gradient": 0.15, "supersample": 4, "wall_texture_std_gray": 3.0},
 }
 
 SCENES = {
@@ -73,7 +73,7 @@ SCENES = {
         "image_size": [1280, 720],
         "source": "synthetic: the true camera of data/scenes (tools/make_data.py)",
     },
-    "render": {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2, "supersample": 4, "wall_texture": 3.0},
+    "render": {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2, "supersample": 4, "wall_texture_std_gray": 3.0},
     # (map, eye mm, target mm, roll deg): 1 to 3 m from the markers, from the front, the sides, above and below
     "views": [
         ("world_map.json", [1000, 190, 230], [0, 190, 230], 0.0),
@@ -115,7 +115,7 @@ TRAJECTORY = {
         "image_size": [640, 480],
         "source": "synthetic: the true camera of data/trajectory (tools/make_data.py)",
     },
-    "render": {"blur_px": 0.5, "noise_std_gray": 1.0, "gradient": 0.1, "supersample": 4, "wall_texture": 3.0},
+    "render": {"blur_px": 0.5, "noise_std_gray": 1.0, "gradient": 0.1, "supersample": 4, "wall_texture_std_gray": 3.0},
 }
 
 

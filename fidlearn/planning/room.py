@@ -325,12 +325,12 @@ def suggest_markers(
     area=None,
     step_mm: float = 500.0,
     max_markers: int = 3,
-    sizes_mm=(1.5, 2.0),
+    size_factors=(1.5, 2.0),
     corner_sigma_px: float | None = None,
 ) -> list[Suggestion]:
     """Changes that bring more of the area within ``target_mm``: a larger print, then added markers.
 
-    First the whole map at larger marker sizes (``sizes_mm`` times the current one) is tried;
+    First the whole map at larger marker sizes (``size_factors`` times the current one) is tried;
     then markers of the chosen size are added one at a time (up to ``max_markers``) on the walls
     the map already uses, each where it brings the largest fraction of the grid (looking toward
     the markers) within ``target_mm``. Stops when the whole area is within the target or no
@@ -347,7 +347,7 @@ def suggest_markers(
         As for :func:`plan_room` (a coarser grid by default).
     max_markers : int
         Most markers to add.
-    sizes_mm : sequence of float
+    size_factors : sequence of float
         Marker sizes to try, as multiples of the current one.
 
     Returns
@@ -384,7 +384,7 @@ def suggest_markers(
 
     current, now = marker_map, score(marker_map)
     steps: list[Suggestion] = []
-    for factor in sorted(sizes_mm):
+    for factor in sorted(size_factors):
         size = round(marker_map.marker_size_mm * float(factor))
         bigger = _with_size(marker_map, size)
         f = score(bigger)

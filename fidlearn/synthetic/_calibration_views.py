@@ -282,7 +282,7 @@ def render_calibration_views(
     noise_std_gray: float = 1.5,
     gradient: float = 0.15,
     supersample: int = 4,
-    wall_texture: float = 3.0,
+    wall_texture_std_gray: float = 3.0,
     views: Sequence[int] | None = None,
 ) -> CalibrationViews:
     """Pictures of a printed calibration board held as a careful person would, with the truth.
@@ -312,7 +312,7 @@ def render_calibration_views(
         A ChArUco board (``cv2.aruco.CharucoBoard``) instead of a checkerboard.
     marker_size_mm, dictionary :
         ChArUco's marker side (default half a square) and dictionary.
-    blur_px, noise_std_gray, gradient, supersample, wall_texture :
+    blur_px, noise_std_gray, gradient, supersample, wall_texture_std_gray :
         As for :func:`render_scene`, applied to every view.
     views : sequence of int, optional
         Render only these views (indices into the ``n_views`` poses, which are
@@ -357,7 +357,7 @@ def render_calibration_views(
         noise_std_gray=noise_std_gray,
         gradient=gradient,
         supersample=supersample,
-        wall_texture=wall_texture,
+        wall_texture_std_gray=wall_texture_std_gray,
     )
     images = [_render_view(camera, poses[view], sheet, seed, view, grays, render_kwargs) for view in chosen]
     return CalibrationViews(

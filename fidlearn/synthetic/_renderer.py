@@ -118,7 +118,7 @@ def _clip_polygon_in_front(points: np.ndarray, near: float) -> np.ndarray:
     return np.array(out).reshape(-1, 3)
 
 
-def _check_render_options(camera: Camera, supersample, blur_px, noise_std_gray, wall_texture) -> int:
+def _check_render_options(camera: Camera, supersample, blur_px, noise_std_gray, wall_texture_std_gray) -> int:
     """The supersampling factor ``k``, after checking the options; :class:`FidlearnError` names a wrong one."""
     if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
         raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
@@ -128,7 +128,11 @@ def _check_render_options(camera: Camera, supersample, blur_px, noise_std_gray, 
             f"a {camera.width}x{camera.height} picture at supersample {k} is more than "
             f"{MAX_RENDER_SAMPLES / 1e9:g} billion samples; use a smaller picture or supersample"
         )
-    for name, value in (("blur_px", blur_px), ("noise_std_gray", noise_std_gray), ("wall_texture", wall_texture)):
+    for name, value in (
+        ("blur_px", blur_px),
+        ("noise_std_gray", noise_std_gray),
+        ("wall_texture_std_gray", wall_texture_std_gray),
+    ):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
         if not (math.isfinite(value) and value >= 0):
@@ -136,12 +140,14 @@ def _check_render_options(camera: Camera, supersample, blur_px, noise_std_gray, 
     return k
 
 
-def _wall(rng: np.random.Generator, width: int, height: int, wall_gray: float, wall_texture: float) -> np.ndarray:
+def _wall(
+    rng: np.random.Generator, width: int, height: int, wall_gray: float, wall_texture_std_gray: float
+) -> np.ndarray:
     """The wall (height, width) float32: mid gray with a faint, smooth, seeded texture (fixed to the image)."""
     img = np.full((height, width), wall_gray, dtype=np.float32)
-    if wall_texture > 0:
+    if wall_texture_std_gray > 0:
         coarse = rng.standard_normal((height // 24 + 3, width // 24 + 3)).astype(np.float32)
-        img += np.float32(wall_texture) * cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC)
+        img += np.float32(wall_texture_std_gray) * cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC)
     return img
 
 
@@ -278,16 +284,16 @@ def _render(
     gradient: float,
     gradient_angle_deg: float,
     wall_gray: float,
-    wall_texture: float,
+    wall_texture_std_gray: float,
     bgr: bool,
 ) -> np.ndarray:
     """The picture (H, W) or (H, W, 3) uint8 the camera at ``T_world_camera`` (mm, world) takes of the sheets."""
-    k = _check_render_options(camera, supersample, blur_px, noise_std_gray, wall_texture)
+    k = _check_render_options(camera, supersample, blur_px, noise_std_gray, wall_texture_std_gray)
     width, height = camera.image_size
     rng = np.random.default_rng(_check_seed(seed))
     T_camera_world = frames.invert_transform(T_world_camera)
     nmap = _normalized_map(camera)
-    img = _wall(rng, width, height, wall_gray, wall_texture)
+    img = _wall(rng, width, height, wall_gray, wall_texture_std_gray)
     todo = _sheets_in_view(sheets, T_camera_world, nmap, width, height)
     if todo:
         _draw_sheets(img, todo, nmap, T_camera_world, k)

@@ -94,7 +94,7 @@ def render_scene(
     gradient_angle_deg: float = 30.0,
     supersample: int = 4,
     wall_gray: float = DEFAULT_GRAYS["wall"],
-    wall_texture: float = 3.0,
+    wall_texture_std_gray: float = 3.0,
     paper_gray: float = DEFAULT_GRAYS["paper"],
     ink_gray: float = DEFAULT_GRAYS["ink"],
     margin_cells: float = 1.0,
@@ -122,7 +122,7 @@ def render_scene(
         on one side than the other), along ``gradient_angle_deg`` from the x axis.
     supersample : int
         Sub-pixels per pixel side; each pixel is the mean of ``supersample**2`` samples.
-    wall_gray, wall_texture, paper_gray, ink_gray : float
+    wall_gray, wall_texture_std_gray, paper_gray, ink_gray : float
         Gray levels of the wall, its texture's standard deviation, the paper and the ink.
     margin_cells : float
         White quiet zone around each marker, in marker cells (a cell is
@@ -147,7 +147,7 @@ def render_scene(
     FidlearnError
         If the map or the camera is not one (a swapped call says the map comes first), or an option
         is out of range (``supersample`` 1 to 16, ``blur_px``, ``noise_std_gray`` and
-        ``wall_texture`` finite and >= 0, ``margin_cells`` >= 0).
+        ``wall_texture_std_gray`` finite and >= 0, ``margin_cells`` >= 0).
     CameraError
         If the camera has a tilted sensor (more than 12 distortion coefficients in use).
     TransformError
@@ -189,7 +189,7 @@ def render_scene(
         gradient=gradient,
         gradient_angle_deg=gradient_angle_deg,
         wall_gray=wall_gray,
-        wall_texture=wall_texture,
+        wall_texture_std_gray=wall_texture_std_gray,
         bgr=bgr,
     )
     return image, visible_markers(marker_map, camera, T_world_camera, margin_px=margin_px)

@@ -195,7 +195,7 @@ def render_trajectory(
     noise_std_gray: float = 1.5,
     gradient: float = 0.1,
     supersample: int = 4,
-    wall_texture: float = 3.0,
+    wall_texture_std_gray: float = 3.0,
     **trajectory_options: Any,
 ) -> Trajectory:
     """Render a robot's drive past the markers (see :func:`trajectory_poses`), frame by frame.
@@ -214,7 +214,7 @@ def render_trajectory(
         ``T_world_camera`` per frame (mm) instead of the default drive.
     frames_to_render : sequence of int, optional
         Keep only these frame indices (each identical to the same frame of the whole drive).
-    blur_px, noise_std_gray, gradient, supersample, wall_texture :
+    blur_px, noise_std_gray, gradient, supersample, wall_texture_std_gray :
         As for :func:`render_scene`, applied to every frame.
     **trajectory_options
         Passed to :func:`trajectory_poses` (not with ``poses``).
@@ -248,7 +248,7 @@ def render_trajectory(
         noise_std_gray=noise_std_gray,
         gradient=gradient,
         supersample=supersample,
-        wall_texture=wall_texture,
+        wall_texture_std_gray=wall_texture_std_gray,
     )
     chosen = list(range(len(poses))) if frames_to_render is None else [int(i) for i in frames_to_render]
     bad = [i for i in chosen if not 0 <= i < len(poses)]
