@@ -354,7 +354,7 @@ def test_draw_detections_marks_outline_id_and_named_corners(photo):
     changed = np.any(out != photo, axis=2)
     assert changed.sum() > 3000
     for d in dets:  # every corner is drawn over, and the first one (TL) is red
-        for k, (x, y) in enumerate(np.round(d.corners).astype(int)):
+        for _k, (x, y) in enumerate(np.round(d.corners).astype(int)):
             assert changed[y, x]
         x, y = np.round(d.corners[0]).astype(int)
         b, g, r = out[y, x].astype(int)

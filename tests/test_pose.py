@@ -674,8 +674,8 @@ def test_only_poses_a_camera_can_have_are_chosen():
     ordered = pose_mod._front_first(obs, CAM, [turned, behind_wall, true], refine_lm=True)
     assert ordered[0] is true
     assert behind_wall.problem.startswith(
-        "markers [0, 1, 2, 3, 4, 5] would be seen from behind (from the back of their printed face) by the pose that fits "
-        "the corners best (reprojection error 0.1 px): are their rotations in the map wrong (yaw 180"
+        "markers [0, 1, 2, 3, 4, 5] would be seen from behind (from the back of their printed face) by the pose "
+        "that fits the corners best (reprojection error 0.1 px): are their rotations in the map wrong (yaw 180"
     )
     assert behind_wall.problem.endswith("or the corners mirrored (TL, BL, BR, TR instead of TL, TR, BR, BL)?")
     assert turned.problem.startswith(

@@ -15,7 +15,7 @@ CAM = Camera([[500.0, 0, 320.4], [0, 500.0, 238.7], [0, 0, 1]], [-0.1, 0.05, 0.0
 def wall_map() -> MarkerMap:
     """Six 100 mm markers on the north wall (x = 0), facing +X; ids not consecutive."""
     p = {}
-    for k, (i, y, z) in enumerate(
+    for _k, (i, y, z) in enumerate(
         [(3, 0, 1500), (7, 400, 1500), (11, 800, 1500), (20, 100, 1100), (21, 500, 1100), (40, 900, 1150)]
     ):
         p[i] = MarkerPlacement(i, (0.0, float(y), float(z)), (0.0, 0.0, 0.0))

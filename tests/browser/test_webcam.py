@@ -272,7 +272,8 @@ def test_without_a_camera_the_notebook_says_why_and_offers_the_bundled_pictures(
             # ... and the snapshot cell stops Run All with the same advice, not a hang or a timeout.
             try:
                 page.wait_for_function(
-                    "() => [...document.querySelectorAll('.jp-OutputArea-output')].some(e => e.textContent.includes('WebcamError'))",
+                    "() => [...document.querySelectorAll('.jp-OutputArea-output')]"
+                    ".some(e => e.textContent.includes('WebcamError'))",
                     timeout=REDRAW_S * 1000,
                 )
             except playwright.TimeoutError:
