@@ -30,8 +30,12 @@ lab: $(STAMP)
 	set -x; exec $(BIN)/jupyter lab $$root --ServerApp.root_dir="$(CURDIR)" \
 		--LabApp.default_url=/lab/tree/$(FIRST_NOTEBOOK) $(LAB_ARGS)
 
+# Lint (ruff: the rules in pyproject.toml), then every unit test, every docstring example in
+# fidlearn and every numbered notebook (stored outputs compared exactly).
 test: $(STAMP)
-	$(BIN)/python -m pytest tests $(NOTEBOOKS) --nbval --nbval-sanitize-with notebooks/sanitize.cfg
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/python -m pytest tests fidlearn $(NOTEBOOKS) --doctest-modules --nbval --nbval-sanitize-with notebooks/sanitize.cfg
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks

@@ -77,7 +77,8 @@ def machine() -> list[tuple[str, str]]:
         [
             sys.executable,
             "-c",
-            "import cv2, numpy, fidlearn; print(cv2.__version__, numpy.__version__, fidlearn.__version__, cv2.getNumThreads())",
+            "import cv2, numpy, fidlearn; "
+            "print(cv2.__version__, numpy.__version__, fidlearn.__version__, cv2.getNumThreads())",
         ],
         capture_output=True,
         text=True,

@@ -51,7 +51,8 @@ def camera(size) -> Camera:
 
 
 def grid_map(n: int, spacing_mm: float, size_mm: float = 150.0, two_walls: bool = False) -> MarkerMap:
-    """``n`` markers on the north wall (x = 0) in rows of 4, ``spacing_mm`` apart; half on the west wall if ``two_walls``."""
+    """``n`` markers on the north wall (x = 0) in rows of 4, ``spacing_mm`` apart; half on the west wall
+    if ``two_walls``."""
     p = {}
     for k in range(n):
         if two_walls and k % 2:
@@ -238,7 +239,8 @@ def main(argv=None) -> int:
     lost = [r for r in everything if works(r["seed"], r["distance"]) and not works(r["locate"], r["distance"])]
     seed_lost = [r for r in everything if works(r["locate"], r["distance"]) and not works(r["seed"], r["distance"])]
     print(
-        f"\nAll {len(everything)} scenes: median error relative to the distance {100 * np.median(rel):.3f} % with locate, "
+        f"\nAll {len(everything)} scenes: median error relative to the distance "
+        f"{100 * np.median(rel):.3f} % with locate, "
         f"{100 * np.median(rel_seed):.3f} % with the seed pipeline (over the {len(both)} where both work): "
         f"ratio {ratio:.2f}. Scenes where the seed pipeline works and locate does not: {len(lost)}"
         + (
@@ -251,16 +253,19 @@ def main(argv=None) -> int:
         + f"; where locate works and the seed pipeline does not: {len(seed_lost)}."
     )
     print(
-        "\nOpenCV's EPnP is not made for coplanar points (it fails on nearly every one-wall scene and works on two walls); "
-        "IPPE needs them (it fails on two walls); `locate` picks IPPE or SQPNP by the data and refines with LM."
+        "\nOpenCV's EPnP is not made for coplanar points (it fails on nearly every one-wall scene "
+        "and works on two walls); IPPE needs them (it fails on two walls); `locate` picks IPPE or SQPNP by the data "
+        "and refines with LM."
     )
     print(f"\n({time.perf_counter() - t0:.0f} s)")
     print(
-        f"<!-- target: accuracy: median camera-position error of `locate` <= 0.5 x the seed pipeline's (distance, size, "
-        f"count, spread, noise sweep) | {ratio:.2f} x over {len(both)} scenes | {'yes' if ratio <= 0.5 else '**no**'} -->"
+        "<!-- target: accuracy: median camera-position error of `locate` <= 0.5 x the seed pipeline's "
+        f"(distance, size, count, spread, noise sweep) | {ratio:.2f} x over {len(both)} scenes | "
+        f"{'yes' if ratio <= 0.5 else '**no**'} -->"
     )
     print(
-        f"<!-- target: accuracy: no scene where the seed pipeline works and `locate` does not | {len(lost)} of {len(everything)} scenes | "
+        "<!-- target: accuracy: no scene where the seed pipeline works and `locate` does not | "
+        f"{len(lost)} of {len(everything)} scenes | "
         f"{'yes' if not lost else '**no**'} -->"
     )
     return 0

@@ -52,7 +52,8 @@ def synthetic_sweep(quick: bool) -> None:
     )
     print(f"   true camera: {truth!r}")
     print(
-        f"   {'tilt deg':>9}  {'views':>5}  {'|fx err| %':>10}  {'|fy err| %':>10}  {'pp err px':>9}  {'std fx %':>8}  {'rms px':>6}  used"
+        f"   {'tilt deg':>9}  {'views':>5}  {'|fx err| %':>10}  {'|fy err| %':>10}  "
+        f"{'pp err px':>9}  {'std fx %':>8}  {'rms px':>6}  used"
     )
     for lo, hi in tilts:
         sets = [render_calibration_views(truth, n_views=max(counts), seed=s, tilt_range_deg=(lo, hi)) for s in seeds]
@@ -73,7 +74,8 @@ def synthetic_sweep(quick: bool) -> None:
                 )
             r = np.array(rows)
             print(
-                f"   {lo:4.0f}-{hi:<4.0f}  {n:5d}  {r[:, 0].mean():10.3f}  {r[:, 1].mean():10.3f}  {r[:, 2].mean():9.2f}  "
+                f"   {lo:4.0f}-{hi:<4.0f}  {n:5d}  {r[:, 0].mean():10.3f}  {r[:, 1].mean():10.3f}  "
+                f"{r[:, 2].mean():9.2f}  "
                 f"{r[:, 3].mean():8.3f}  {r[:, 4].mean():6.3f}  {r[:, 5].mean():.1f}/{n}"
             )
 
@@ -154,7 +156,8 @@ def real_photos() -> None:
         ("ChArUco img_00..03", lambda: calibrate_charuco(charuco)),
     ]
     print(
-        f"   {'set':<38}  views  {'rms px':>6}  {'fx +- std':>14}  {'fy +- std':>14}  {'cx +- std':>13}  {'cy +- std':>13}  {'k1 +- std':>15}"
+        f"   {'set':<38}  views  {'rms px':>6}  {'fx +- std':>14}  {'fy +- std':>14}  "
+        f"{'cx +- std':>13}  {'cy +- std':>13}  {'k1 +- std':>15}"
     )
     for name, run in runs:
         cal = run()
@@ -168,7 +171,8 @@ def real_photos() -> None:
             print(f"      rejected {n.rsplit('/', 1)[-1]}: {reason}")
     print(
         f"   {'published tutorial_camera_charuco.yml':<38}  {'4/4':>5}  {0.182:6.3f}  {published.fx:7.2f}"
-        f"{'':8}  {published.fy:7.2f}{'':8}  {published.cx:6.2f}{'':8}  {published.cy:6.2f}{'':8}  {published.dist[0]:7.4f}"
+        f"{'':8}  {published.fy:7.2f}{'':8}  {published.cx:6.2f}{'':8}  "
+        f"{published.cy:6.2f}{'':8}  {published.dist[0]:7.4f}"
     )
 
 

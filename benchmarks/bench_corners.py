@@ -138,7 +138,8 @@ def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
 def print_accuracy(rows, methods, dictionary):
     print(f"\nCorner error [px] vs truth, {dictionary}, 640x480, blur 0.5-1.0 px, noise 1-2 gray levels")
     print(
-        "cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible; each method over the markers it found"
+        "cell: RMS / 95th percentile / mean radial offset (- = inwards); found/visible; "
+        "each method over the markers it found"
     )
     head = "| side px | " + " | ".join(methods) + " |"
     print(head)
@@ -201,7 +202,7 @@ def robustness(methods, n_scenes: int = 4) -> dict:
             for m in methods:
                 errs[m] += [
                     d.corners - truth[d.id]
-                    for d in detect_markers(image, dic, refine=m, params=params)
+                    for d in detect_markers(image, dic, refine=m, detector_params=params)
                     if d.id in truth
                 ]
         rows[label] = {m: (np.array(e), visible) for m, e in errs.items()}
@@ -242,7 +243,7 @@ def print_subpix_windows(dictionary: str, n_scenes: int = 3) -> None:
                 image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
                 e += [
                     d.corners - truth[d.id]
-                    for d in detect_markers(image, dictionary, refine="subpix", params=params)
+                    for d in detect_markers(image, dictionary, refine="subpix", detector_params=params)
                     if d.id in truth
                 ]
             r = np.linalg.norm(np.array(e).reshape(-1, 2), axis=1)
@@ -313,7 +314,8 @@ def print_real(rows):
     n = next(iter(rows.values()))["n"]
     print(f"\nReal photos: ChArUco board (5 photos, {n} marker detections), homography fit of the undistorted corners")
     print(
-        "| refinement | RMS [px] | RMS with a common marker scale [px] | that scale | mean offset from edges (dx, dy) [px] |"
+        "| refinement | RMS [px] | RMS with a common marker scale [px] | that scale | "
+        "mean offset from edges (dx, dy) [px] |"
     )
     print("|---|---|---|---|---|")
     for m, r in rows.items():
@@ -342,11 +344,11 @@ def timing(dictionary: str, methods, repeats: int, cpu: bool = False) -> dict:
         cv2.setNumThreads(1)
     for label, image, dic, mm, cam in cases:
         plain = cv2.aruco.ArucoDetector(_cv.get_dictionary(dic), cv2.aruco.DetectorParameters())
-        calls = {"plain detectMarkers": lambda: plain.detectMarkers(image)}
+        calls = {"plain detectMarkers": lambda plain=plain, image=image: plain.detectMarkers(image)}
         for m in methods:
-            calls[f"detect_markers {m}"] = lambda m=m: detect_markers(image, dic, refine=m)
+            calls[f"detect_markers {m}"] = lambda m=m, image=image, dic=dic: detect_markers(image, dic, refine=m)
         if locate is not None and mm is not None:
-            calls["locate (default)"] = lambda: locate(image, mm, cam)
+            calls["locate (default)"] = lambda image=image, mm=mm, cam=cam: locate(image, mm, cam)
         for f in calls.values():  # warm the caches
             f()
         samples = {k: [] for k in calls}

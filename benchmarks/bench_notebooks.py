@@ -89,7 +89,8 @@ def main(argv=None) -> int:
         ok = "yes" if r["cells"] < NOTEBOOK_LIMIT_S and not r["error"] else "**no**"
         note = f" (stopped: {r['error']})" if r["error"] else ""
         print(
-            f"| `{r['name']}` | {r['n']} | {r['cells']:.1f} s{note} | {r['kernel']:.1f} s | {r['slow']:.1f} s (cell {r['slow_index']}) | {ok} |",
+            f"| `{r['name']}` | {r['n']} | {r['cells']:.1f} s{note} | {r['kernel']:.1f} s | "
+            f"{r['slow']:.1f} s (cell {r['slow_index']}) | {ok} |",
             flush=True,
         )
     course = sum(r["cells"] for r in done)
@@ -107,11 +108,13 @@ def main(argv=None) -> int:
     slowest = max(done, key=lambda r: r["cells"]) if done else None
     if slowest:
         print(
-            f"<!-- target: course: every notebook runs in under 30 s | slowest `{slowest['name']}` {slowest['cells']:.1f} s "
+            "<!-- target: course: every notebook runs in under 30 s | "
+            f"slowest `{slowest['name']}` {slowest['cells']:.1f} s "
             f"({len(done)} notebooks) | {'yes' if slowest['cells'] < NOTEBOOK_LIMIT_S and not failed else '**no**'} -->"
         )
     print(
-        f"<!-- target: course: all numbered notebooks together in under 3 min | {course:.0f} s for {len(done)} notebooks "
+        "<!-- target: course: all numbered notebooks together in under 3 min | "
+        f"{course:.0f} s for {len(done)} notebooks "
         f"(+ {kernels:.0f} s of kernel starts) | {'yes' if course < COURSE_LIMIT_S and not skipped else '**no**'} -->"
     )
     return 0

@@ -194,7 +194,8 @@ def main(argv=None) -> int:
         "'predicted / measured' is 1 over the median of those quotients (1 when the prediction is right):\n"
     )
     print(
-        "| image | markers | scenes | pictures | median predicted (mm) | median measured (mm) | predicted / measured | flip likely |"
+        "| image | markers | scenes | pictures | median predicted (mm) | "
+        "median measured (mm) | predicted / measured | flip likely |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for r in groups:
@@ -217,7 +218,8 @@ def main(argv=None) -> int:
     print("| image | marker | predicted (mm) | measured (mm) | predicted / measured |\n|---|---|---|---|---|")
     for r in dist:
         print(
-            f"| {r['size'][0]}x{r['size'][1]} | {r['side_mm']:g} mm | {r['predicted']:.0f} | {r['measured']:.0f} | {r['ratio']:.2f} |"
+            f"| {r['size'][0]}x{r['size'][1]} | {r['side_mm']:g} mm | "
+            f"{r['predicted']:.0f} | {r['measured']:.0f} | {r['ratio']:.2f} |"
         )
     worst = max(abs(r["ratio"] - 1) for r in dist)
     print(
@@ -239,7 +241,8 @@ def main(argv=None) -> int:
         print(f"| {k} | {med[k]:.1f} | {', '.join(map(str, v))} |")
     saving = 1 - med["coach"] / med["random"]
     print(
-        f"\n<!-- target: coach: its next views reach fx within 0.1 % and < 0.3 px over 90 % of the picture with >= 30 % "
+        "\n<!-- target: coach: its next views reach fx within 0.1 % and < 0.3 px over 90 % of the picture "
+        "with >= 30 % "
         f"fewer views than random ones | {100 * saving:.0f} % fewer ({med['coach']:.1f} against {med['random']:.1f}) | "
         f"{'yes' if saving >= 0.3 else 'no'} -->"
     )
@@ -252,7 +255,8 @@ def main(argv=None) -> int:
     good_ok = all(n == 0 for name, n, total in flags if name == "good")
     print(
         f"\n<!-- target: coach: every seeded bad calibration set flagged, no good set flagged | "
-        f"{'all bad sets flagged' if bad_ok else 'a bad set missed'}, {'no good set flagged' if good_ok else 'a good set flagged'} | "
+        f"{'all bad sets flagged' if bad_ok else 'a bad set missed'}, "
+        f"{'no good set flagged' if good_ok else 'a good set flagged'} | "
         f"{'yes' if bad_ok and good_ok else 'no'} -->"
     )
     print(f"\n{time.perf_counter() - t0:.0f} s")

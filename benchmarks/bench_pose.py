@@ -176,7 +176,10 @@ def bench_rendered(n_per_map: int, rng) -> None:
         line = f"{name:<11}{n:>4}{np.median(errs['seed']) if errs['seed'] else float('nan'):>10.2f}{fails['seed']:>5}"
         for r in refines:
             e = np.array(errs[r])
-            line += f"{np.median(e):>17.2f}{np.percentile(e, 90):>7.1f}{e.max():>8.1f}{fails[r]:>5}{100 * cover[r] / max(len(e), 1):>6.0f}%"
+            line += (
+                f"{np.median(e):>17.2f}{np.percentile(e, 90):>7.1f}{e.max():>8.1f}{fails[r]:>5}"
+                f"{100 * cover[r] / max(len(e), 1):>6.0f}%"
+            )
         print(
             line
             + f"   (rejected: {n_rejected} well-detected markers, {n_rejected_bad_detection} detected > 0.5 px off)"
@@ -238,7 +241,8 @@ def bench_nees(n_trials: int, rng) -> None:
             ours, truth = np.array(ours), np.array(truth)
             print(
                 f"{name:<26}{sigma:>6.1f}{np.median(ours):>12.2f}{np.median(truth):>16.2f}"
-                f"{np.median(ours) / np.median(truth):>7.2f}{100 * np.mean(ours > 25):>10.1f}%{100 * np.mean(truth > 25):>11.1f}%"
+                f"{np.median(ours) / np.median(truth):>7.2f}{100 * np.mean(ours > 25):>10.1f}%"
+                f"{100 * np.mean(truth > 25):>11.1f}%"
                 f"{100 * np.mean(ours > 100):>6.1f}/{100 * np.mean(truth > 100):>5.1f}%{100 * amb / len(ours):>7.0f}%"
             )
 
@@ -314,7 +318,8 @@ def bench_coverage(n_trials: int, rng) -> None:
                     p = fidlearn.estimate_pose(dets, m, CAMERA, corner_sigma_px=sigma if given else None)
                     inside += p.position_ellipsoid_contains(T[:3, 3], 0.95)
                 print(
-                    f"{name:<10} sigma {sigma:.1f} px, {'given    ' if given else 'estimated'}: {100 * inside / n:5.1f} % of {n}"
+                    f"{name:<10} sigma {sigma:.1f} px, "
+                    f"{'given    ' if given else 'estimated'}: {100 * inside / n:5.1f} % of {n}"
                 )
 
 

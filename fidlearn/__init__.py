@@ -15,14 +15,17 @@ try:
     from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
     from .camera import Camera
     from .data import data_dir, data_path
-    from .detection import Detection, detect_markers, draw_detections
+    from .detection import Detection, detect_markers, detect_markers_with_rejected
+    from .drawing import draw_detections
     from .errors import (
         CalibrationError,
         CameraError,
         DetectionError,
         DictionaryError,
+        ExerciseError,
         FidlearnError,
         FidlearnWarning,
+        GradingError,
         ImageError,
         MapError,
         NoMarkersError,
@@ -30,6 +33,7 @@ try:
         PoseError,
         PrintError,
         TransformError,
+        UsageError,
     )
     from .frames import (
         compose,
@@ -83,6 +87,9 @@ __all__ = [
     "NoMarkersError",
     "CalibrationError",
     "PoseError",
+    "ExerciseError",
+    "GradingError",
+    "UsageError",
     "compose",
     "invert_transform",
     "make_transform",
@@ -95,6 +102,7 @@ __all__ = [
     "data_path",
     "Detection",
     "detect_markers",
+    "detect_markers_with_rejected",
     "draw_detections",
     "render_scene",
     "look_at",

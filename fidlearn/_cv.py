@@ -49,7 +49,17 @@ if _ARUCO is not None:
 
 
 def first_line(exc: BaseException) -> str:
-    """The informative line of a ``cv2.error`` (OpenCV's messages span several lines)."""
+    """The informative line of a ``cv2.error`` (OpenCV's messages span several lines).
+
+    Parameters
+    ----------
+    exc : BaseException
+
+    Returns
+    -------
+    str
+        The text after OpenCV's ``error:``, or the last line.
+    """
     lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
     for ln in lines:
         if "error:" in ln:
@@ -68,7 +78,28 @@ def require_aruco() -> None:
 
 
 def dictionary_name(name: str) -> str:
-    """Normalise a dictionary name: ``"DICT_6X6_250"``, ``"6x6_250"`` -> ``"6X6_250"``."""
+    """Normalise a dictionary name: ``"DICT_6X6_250"``, ``"6x6_250"`` -> ``"6X6_250"``.
+
+    Parameters
+    ----------
+    name : str
+        A dictionary name, any case, with or without ``DICT_``.
+
+    Returns
+    -------
+    str
+        The name as :data:`DICTIONARIES` spells it.
+
+    Raises
+    ------
+    DictionaryError
+        Not a name OpenCV knows (the message suggests close ones).
+
+    Examples
+    --------
+    >>> dictionary_name("dict_6x6_250")
+    '6X6_250'
+    """
     if not isinstance(name, str) or not name.strip():
         raise DictionaryError(f"dictionary name {name!r} is not a non-empty string; try 'ARUCO_ORIGINAL'")
     key = name.strip()
@@ -83,23 +114,73 @@ def dictionary_name(name: str) -> str:
 
 
 def get_dictionary(name: str):
-    """The ``cv2.aruco.Dictionary`` for a readable name."""
+    """The ``cv2.aruco.Dictionary`` for a readable name.
+
+    Parameters
+    ----------
+    name : str
+        A dictionary name (see :func:`dictionary_name`).
+
+    Returns
+    -------
+    cv2.aruco.Dictionary
+    """
     require_aruco()
     return _ARUCO.getPredefinedDictionary(DICTIONARIES[dictionary_name(name)])
 
 
 def dictionary_size(name: str) -> int:
-    """How many markers a dictionary holds (ids run from 0 to size - 1)."""
+    """How many markers a dictionary holds (ids run from 0 to size - 1).
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    int
+        Markers in it, e.g. 250 for ``6X6_250``.
+
+    Examples
+    --------
+    >>> dictionary_size("6X6_250"), dictionary_size("ARUCO_ORIGINAL")
+    (250, 1024)
+    """
     return int(get_dictionary(name).bytesList.shape[0])
 
 
 def dictionary_marker_bits(name: str) -> int:
-    """The marker's inner grid side in cells (6 for 6X6_250), without the black border."""
+    """The marker's inner grid side in cells (6 for 6X6_250), without the black border.
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    int
+        Inner cells per side.
+    """
     return int(get_dictionary(name).markerSize)
 
 
 def make_detector_parameters(**overrides):
-    """``cv2.aruco.DetectorParameters`` with attributes set by name."""
+    """``cv2.aruco.DetectorParameters`` with attributes set by name.
+
+    Parameters
+    ----------
+    **overrides
+        Field values by name, e.g. ``minMarkerPerimeterRate=0.02``.
+
+    Returns
+    -------
+    cv2.aruco.DetectorParameters
+
+    Raises
+    ------
+    FidlearnError
+        An unknown field, or a value of the wrong type.
+    """
     require_aruco()
     params = _ARUCO.DetectorParameters()
     for key, value in overrides.items():
@@ -121,6 +202,16 @@ def sub_dictionary(name: str, ids) -> object:
     can never be read as one inside. It is faster, because OpenCV compares every
     candidate quad that does not decode with every marker of the dictionary (1024 for
     ARUCO_ORIGINAL).
+    Parameters
+    ----------
+    name : str
+        A predefined dictionary's name.
+    ids : iterable of int
+        The markers to keep, in the order the detector will index them.
+
+    Returns
+    -------
+    cv2.aruco.Dictionary
     """
     require_aruco()
     full = get_dictionary(name)
@@ -129,7 +220,20 @@ def sub_dictionary(name: str, ids) -> object:
 
 
 def make_detector(dictionary: str, params=None, ids=None):
-    """A ``cv2.aruco.ArucoDetector`` for a dictionary name (only ``ids`` of it, if given)."""
+    """A ``cv2.aruco.ArucoDetector`` for a dictionary name (only ``ids`` of it, if given).
+
+    Parameters
+    ----------
+    dictionary : str
+    params : cv2.aruco.DetectorParameters, optional
+        OpenCV's defaults when None.
+    ids : iterable of int, optional
+        Only these markers (see :func:`sub_dictionary`: the detector then reports indices into ``ids``).
+
+    Returns
+    -------
+    cv2.aruco.ArucoDetector
+    """
     require_aruco()
     if params is None:
         params = make_detector_parameters()
@@ -146,13 +250,44 @@ CORNER_REFINE = {
 
 
 def corner_refine_flag(name: str) -> int:
-    """OpenCV's corner refinement constant for ``none``, ``subpix``, ``contour`` or ``apriltag``."""
+    """OpenCV's corner refinement constant for ``none``, ``subpix``, ``contour`` or ``apriltag``.
+
+    Parameters
+    ----------
+    name : str
+        ``"none"``, ``"subpix"``, ``"contour"`` or ``"apriltag"``.
+
+    Returns
+    -------
+    int
+        The ``cv2.aruco.CORNER_REFINE_*`` value.
+    """
     require_aruco()
     return int(getattr(_ARUCO, CORNER_REFINE[name]))
 
 
 def detect(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
-    """Run a detector; return corners as a list of (4, 2) float64, ids as (N,) int, and rejected quads."""
+    """Run a detector; return corners as a list of (4, 2) float64, ids as (N,) int, and rejected quads.
+
+    Parameters
+    ----------
+    detector : cv2.aruco.ArucoDetector
+    gray : ndarray, shape (H, W), uint8
+
+    Returns
+    -------
+    corners : list of ndarray, shape (4, 2), float64
+        Pixel corners TL, TR, BR, BL, unrefined beyond the detector's own refinement.
+    ids : ndarray, shape (N,), int64
+        The ids (indices into ``ids`` for a detector made with some ids only).
+    rejected : list of ndarray, shape (4, 2), float64
+        Candidate quads that did not decode.
+
+    Raises
+    ------
+    FidlearnError
+        OpenCV refused the detector parameters.
+    """
     corners, ids, rejected = _detect_markers(detector, gray)
     return normalize_detections(corners, ids) + (
         [np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())],
@@ -170,7 +305,20 @@ def _detect_markers(detector, gray: np.ndarray):
 
 
 def normalize_detections(corners, ids) -> tuple[list[np.ndarray], np.ndarray]:
-    """Corners (list of (4, 2) float64) and ids ((N,) int64) from any OpenCV release's output."""
+    """Corners (list of (4, 2) float64) and ids ((N,) int64) from any OpenCV release's output.
+
+    Parameters
+    ----------
+    corners : sequence of array-like
+        OpenCV's corners, (1, 4, 2) or (4, 2) each.
+    ids : array-like or None
+        OpenCV's ids, (N, 1) or (N,); None when nothing was found.
+
+    Returns
+    -------
+    corners : list of ndarray, shape (4, 2), float64
+    ids : ndarray, shape (N,), int64
+    """
     if ids is None or len(corners) == 0:
         return [], np.zeros((0,), dtype=np.int64)
     ids = np.asarray(ids).reshape(-1).astype(np.int64)
@@ -178,7 +326,23 @@ def normalize_detections(corners, ids) -> tuple[list[np.ndarray], np.ndarray]:
 
 
 def solvepnp_flag(name: str) -> int:
-    """The ``cv2.SOLVEPNP_*`` constant for a name such as ``"IPPE"``; the numbers differ between releases."""
+    """The ``cv2.SOLVEPNP_*`` constant for a name such as ``"IPPE"``; the numbers differ between releases.
+
+    Parameters
+    ----------
+    name : str
+        A method name, any case, e.g. ``"ippe"``, ``"sqpnp"``.
+
+    Returns
+    -------
+    int
+        The ``cv2.SOLVEPNP_*`` value.
+
+    Raises
+    ------
+    FidlearnError
+        This OpenCV has no such method (the message lists the known ones).
+    """
     attr = "SOLVEPNP_" + name.upper()
     if not hasattr(cv2, attr):
         known = sorted(
@@ -191,46 +355,24 @@ def solvepnp_flag(name: str) -> int:
 
 
 def generate_marker(dictionary: str, marker_id: int, side_px: int, border_bits: int = 1) -> np.ndarray:
-    """The marker's image (side_px x side_px, uint8, black border included)."""
+    """The marker's image (side_px x side_px, uint8, black border included).
+
+    Parameters
+    ----------
+    dictionary : str
+    marker_id : int
+    side_px : int
+        The image's side, pixels.
+    border_bits : int
+        Width of the black border, in cells.
+
+    Returns
+    -------
+    ndarray, shape (side_px, side_px), uint8
+    """
     require_aruco()
     d = get_dictionary(dictionary)
     return _ARUCO.generateImageMarker(d, int(marker_id), int(side_px), borderBits=int(border_bits))
-
-
-def charuco_board(
-    squares_xy: tuple[int, int], square_size: float, marker_size: float, dictionary: str, legacy: bool = False
-):
-    """A ``cv2.aruco.CharucoBoard``; ``legacy=True`` for boards made before OpenCV 4.6 with an even row count."""
-    require_aruco()
-    board = _ARUCO.CharucoBoard(
-        tuple(int(v) for v in squares_xy), float(square_size), float(marker_size), get_dictionary(dictionary)
-    )
-    if legacy:
-        board.setLegacyPattern(True)
-    return board
-
-
-def charuco_detector(board):
-    """A ``cv2.aruco.CharucoDetector`` for a board."""
-    require_aruco()
-    return _ARUCO.CharucoDetector(board)
-
-
-def detect_charuco(detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Run a ``CharucoDetector``: chess corners (N, 2) float64 px, their ids (N,) int64, and how many markers were seen.
-
-    ``detectBoard`` returns ``None`` for nothing found and ids shaped (N, 1)
-    before OpenCV 5, (N,) from 5.0; this always gives arrays.
-    """
-    corners, ids, _marker_corners, marker_ids = detector.detectBoard(gray)
-    n_markers = 0 if marker_ids is None else int(np.asarray(marker_ids).size)
-    if ids is None or corners is None or len(corners) == 0:
-        return np.zeros((0, 2)), np.zeros((0,), dtype=np.int64), n_markers
-    return (
-        np.asarray(corners, dtype=np.float64).reshape(-1, 2),
-        np.asarray(ids).reshape(-1).astype(np.int64),
-        n_markers,
-    )
 
 
 def detector_parameter_fields(params=None) -> dict:
@@ -241,6 +383,19 @@ def detector_parameter_fields(params=None) -> dict:
     releases (5.x adds e.g. ``relativeCornerRefinmentWinSize``), so it is read
     from the object rather than listed here. The values are plain numbers, so
     the sorted items make a cache key.
+    Parameters
+    ----------
+    params : None, dict or cv2.aruco.DetectorParameters
+
+    Returns
+    -------
+    dict
+        ``{field: value}`` for every field.
+
+    Raises
+    ------
+    FidlearnError
+        Another type of ``params``, or a dict naming a field OpenCV does not have.
     """
     require_aruco()
     overrides = {}
@@ -273,11 +428,45 @@ def detector_parameter_fields(params=None) -> dict:
 def detect_with_raw_rejected(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, tuple]:
     """Like :func:`detect`, but the rejected candidates stay as OpenCV returns them (converting
     hundreds of them costs time a caller that does not look at them need not pay); pass them to
-    :func:`rejected_quads` when they are wanted."""
+    :func:`rejected_quads` when they are wanted.
+
+    Parameters
+    ----------
+    detector : cv2.aruco.ArucoDetector
+    gray : ndarray, shape (H, W), uint8
+
+    Returns
+    -------
+    corners : list of ndarray, shape (4, 2), float64
+    ids : ndarray, shape (N,), int64
+    rejected : tuple
+        OpenCV's rejected candidates, unconverted.
+    """
     corners, ids, rejected = _detect_markers(detector, gray)
     return normalize_detections(corners, ids) + (rejected if rejected is not None else (),)
 
 
 def rejected_quads(rejected) -> list[np.ndarray]:
-    """Rejected candidates from OpenCV as a list of (4, 2) float64 pixel corners."""
+    """Rejected candidates from OpenCV as a list of (4, 2) float64 pixel corners.
+
+    Parameters
+    ----------
+    rejected : sequence of array-like or None
+
+    Returns
+    -------
+    list of ndarray, shape (4, 2), float64
+    """
     return [np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())]
+
+
+_CHARUCO = ("charuco_board", "charuco_detector", "detect_charuco")
+
+
+def __getattr__(name: str):
+    """The ChArUco helpers live in :mod:`fidlearn._cv_charuco` (it builds on this module)."""
+    if name in _CHARUCO:
+        from . import _cv_charuco  # noqa: PLC0415 - it imports this module: resolved on first use
+
+        return getattr(_cv_charuco, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -13,6 +13,18 @@ from collections.abc import Sequence
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``fidlearn``: the command line, or ``fidlearn doctor`` alone when the rest cannot import.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments after ``fidlearn`` (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (see :func:`fidlearn.cli.main`); 2 when fidlearn cannot start.
+    """
     args = list(sys.argv[1:] if argv is None else argv)
     try:
         from .cli import main as cli_main

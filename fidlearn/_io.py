@@ -40,6 +40,24 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
     ``NaN``/``Infinity`` literals, syntax errors, undecodable bytes, missing
     files, FIFOs, devices and files over 10 MB all raise ``error`` with the file
     name and a way to mend it.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    error : type of FidlearnError
+        The error class to raise (``MapError`` for a map, ``CameraError`` for a camera...).
+    what : str
+        What the file should hold, for the messages (``"world map"``).
+
+    Returns
+    -------
+    object
+        The parsed JSON.
+
+    Raises
+    ------
+    FidlearnError
+        ``error``, for every reason above.
     """
     path, raw = read_bytes(path, error, what, MAX_TEXT_BYTES)
     try:
@@ -77,6 +95,15 @@ def file_mode_for(path: str | os.PathLike) -> int:
     (``0o666`` less the umask). Temporary files from :func:`tempfile.mkstemp` are
     private (``0o600``): renamed into place unchanged, they would leave outputs
     that nobody else (a web server, a teammate, a robot's service user) can read.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file about to be written (it may not exist yet).
+
+    Returns
+    -------
+    int
+        Permission bits, e.g. ``0o644``.
     """
     try:
         return stat.S_IMODE(os.stat(path).st_mode)
@@ -92,6 +119,30 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
     ``write`` receives the temporary path and must create the file there.  If it
     raises, the temporary file is removed and ``path`` is untouched: no
     half-written output is ever left behind.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    write : callable(Path)
+        Writes the whole content to the temporary path it receives.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    FidlearnError
+        The folder does not exist, ``path`` is a folder, or the disk refused (full, no permission).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     out = atomic_write(Path(folder) / "a.txt", lambda tmp: tmp.write_text("whole"))
+    ...     out.read_text(), sorted(p.name for p in Path(folder).iterdir())
+    ('whole', ['a.txt'])
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
@@ -124,10 +175,36 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    """Write ``text`` (UTF-8) to ``path`` atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    text : str
+        Its content.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def write_json_atomic(path: str | os.PathLike, obj: Any) -> Path:
-    """Write ``obj`` as indented JSON to ``path`` atomically."""
+    """Write ``obj`` as indented JSON to ``path`` atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    obj : object
+        Anything ``json.dumps`` takes.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return write_text_atomic(path, json.dumps(obj, indent=2) + "\n")

@@ -36,7 +36,8 @@ def _as_bgr(frame: np.ndarray, index: int) -> np.ndarray:
     frame = np.asarray(frame)
     if frame.dtype != np.uint8:
         raise ImageError(
-            f"frame {index}: Y4M frames must be uint8 images, got dtype {frame.dtype}; convert with np.clip(x, 0, 255).astype(np.uint8)"
+            f"frame {index}: Y4M frames must be uint8 images, got dtype {frame.dtype}; "
+            "convert with np.clip(x, 0, 255).astype(np.uint8)"
         )
     if frame.ndim == 2:
         return cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
@@ -92,7 +93,8 @@ def write_y4m(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float 
                     f.write(f"YUV4MPEG2 W{size[1]} H{size[0]} F{round(fps * 1000)}:1000 Ip A1:1 C420jpeg\n".encode())
                 elif bgr.shape[:2] != size:
                     raise ImageError(
-                        f"frame {i} is {bgr.shape[1]}x{bgr.shape[0]}, frame 0 is {size[1]}x{size[0]}: all frames of a video must have one size"
+                        f"frame {i} is {bgr.shape[1]}x{bgr.shape[0]}, frame 0 is {size[1]}x{size[0]}: "
+                        "all frames of a video must have one size"
                     )
                 f.write(b"FRAME\n")
                 for plane in yuv420_planes(bgr):

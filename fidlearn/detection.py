@@ -13,9 +13,7 @@ the default, with the measurements, is in ``docs/corner_refinement.md``.
 from __future__ import annotations
 
 import numbers
-import os
 from collections import OrderedDict
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -23,15 +21,18 @@ from typing import Any
 import cv2
 import numpy as np
 
-from . import _cv, _files
+from . import _cv
 from .errors import DetectionError, DictionaryError, FidlearnError, ImageError
+from .images import load_image
+from .refinement import refine_corners_edges
 
 __all__ = [
     "Detection",
     "as_gray",
     "load_image",
     "detect_markers",
-    "draw_detections",
+    "detect_markers_with_rejected",
+    "draw_detections",  # noqa: F822 - from fidlearn.drawing, see __getattr__
     "refine_corners_edges",
     "REFINE_METHODS",
     "DEFAULT_REFINE",
@@ -46,31 +47,66 @@ REFINE_METHODS = ("none", "subpix", "contour", "apriltag", "edges")
 DEFAULT_REFINE = "edges"
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class Detection:
     """One detected marker.
+
+    Parameters
+    ----------
+    id : int
+        The marker's id in its dictionary (a whole number >= 0).
+    corners_px : array-like, shape (4, 2)
+        Pixel corners in the order TL, TR, BR, BL (the marker's own top-left,
+        whatever its rotation in the image), OpenCV pixel-centre convention.
+    corners : array-like, shape (4, 2), optional
+        The former name of ``corners_px``, still accepted as a keyword.
 
     Attributes
     ----------
     id : int
-        The marker's id in its dictionary.
+        The marker's id.
+    corners_px : ndarray, shape (4, 2), float64
+        Pixel corners TL, TR, BR, BL.
     corners : ndarray, shape (4, 2), float64
-        Pixel corners in the order TL, TR, BR, BL (the marker's own top-left,
-        whatever its rotation in the image), OpenCV pixel-centre convention.
+        The same array as ``corners_px`` (its former name, read-only).
+
+    Raises
+    ------
+    DetectionError
+        The id is not a whole number >= 0, or the corners are not (4, 2) numbers.
+
+    Examples
+    --------
+    >>> d = Detection(7, [[10, 10], [30, 10], [30, 30], [10, 30]])
+    >>> d.id, d.corners_px.shape, d.side_px
+    (7, (4, 2), 20.0)
+    >>> d.corners is d.corners_px
+    True
     """
 
     id: int
-    corners: np.ndarray
+    corners_px: np.ndarray
+
+    def __init__(self, id: int, corners_px: Any = None, *, corners: Any = None) -> None:  # noqa: A002 - the marker's id
+        if corners_px is None:
+            corners_px = corners
+        elif corners is not None:
+            raise DetectionError("give the corners once: corners_px (or its former name corners), not both")
+        if corners_px is None:
+            raise DetectionError(f"marker {id!r}: corners_px missing, (4, 2) pixels TL, TR, BR, BL")
+        object.__setattr__(self, "id", id)
+        object.__setattr__(self, "corners_px", corners_px)
+        self.__post_init__()
 
     def __post_init__(self) -> None:
         mid = self.id
-        if isinstance(mid, (bool, np.bool_)) or not isinstance(mid, numbers.Integral):
-            if not (isinstance(mid, numbers.Real) and float(mid).is_integer()):
-                raise DetectionError(f"Detection id must be a whole marker id, got {mid!r}")
+        not_integral = isinstance(mid, (bool, np.bool_)) or not isinstance(mid, numbers.Integral)
+        if not_integral and not (isinstance(mid, numbers.Real) and float(mid).is_integer()):
+            raise DetectionError(f"Detection id must be a whole marker id, got {mid!r}")
         if int(mid) < 0:
             raise DetectionError(f"Detection id {int(mid)} is negative; marker ids start at 0")
         try:
-            c = np.asarray(self.corners, dtype=np.float64)
+            c = np.asarray(self.corners_px, dtype=np.float64)
         except (TypeError, ValueError):
             raise DetectionError(f"marker {int(mid)}: corners must be numbers, (4, 2) pixels TL, TR, BR, BL") from None
         if c.size != 8:
@@ -78,60 +114,26 @@ class Detection:
                 f"marker {int(mid)}: corners have shape {c.shape}, expected (4, 2) pixels in the order TL, TR, BR, BL"
             )
         object.__setattr__(self, "id", int(mid))
-        object.__setattr__(self, "corners", c.reshape(4, 2))
+        object.__setattr__(self, "corners_px", c.reshape(4, 2))
+
+    @property
+    def corners(self) -> np.ndarray:
+        """The pixel corners (4, 2), TL, TR, BR, BL: the former name of :attr:`corners_px`."""
+        return self.corners_px
 
     @property
     def center(self) -> np.ndarray:
         """Mean of the four corners (2,), pixels."""
-        return self.corners.mean(axis=0)
+        return self.corners_px.mean(axis=0)
 
     @property
     def side_px(self) -> float:
         """Mean side length in pixels."""
-        return float(np.mean(np.linalg.norm(self.corners - np.roll(self.corners, -1, axis=0), axis=1)))
+        return float(np.mean(np.linalg.norm(self.corners_px - np.roll(self.corners_px, -1, axis=0), axis=1)))
 
     def __repr__(self) -> str:
-        pts = ", ".join(f"{n}=({x:.1f}, {y:.1f})" for n, (x, y) in zip(CORNER_NAMES, self.corners))
+        pts = ", ".join(f"{n}=({x:.1f}, {y:.1f})" for n, (x, y) in zip(CORNER_NAMES, self.corners_px))
         return f"Detection(id={self.id}, {pts})"
-
-
-def load_image(path: str | os.PathLike, max_pixels: int = _files.MAX_IMAGE_PIXELS) -> np.ndarray:
-    """Read an image file as OpenCV does (BGR or gray, uint8), with a clear error when it cannot.
-
-    Only a regular file is read (a folder, a FIFO or a device is refused before it is opened),
-    and the picture's size is read from its header first: one larger than ``max_pixels``
-    (100 megapixels unless raised) or a PNG or JPEG cut short is refused before decoding.
-    Every failure is an :class:`ImageError` naming the file. Safe to call from several threads.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The picture (PNG, JPEG, BMP, TIFF, ... whatever OpenCV decodes).
-    max_pixels : int
-        Largest picture to decode, width times height.
-
-    Returns
-    -------
-    ndarray, shape (H, W) or (H, W, 3) or (H, W, 4)
-        The pixels as stored (uint8, or uint16 for 16-bit files), BGR order.
-    """
-    if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)) or max_pixels < 1:
-        raise ImageError(f"max_pixels must be a positive whole number of pixels, got {max_pixels!r}")
-    path, data = _files.read_bytes(path, ImageError, "picture", _files.MAX_IMAGE_BYTES)
-    if not data:
-        raise ImageError(f"{path}: the file is empty; expected a PNG or JPEG image")
-    _files.check_image_bytes(path, data, ImageError, int(max_pixels))
-    try:
-        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
-    except cv2.error as exc:
-        raise ImageError(
-            f"{path}: OpenCV cannot decode it ({_cv.first_line(exc)}); is it truncated or another file type?"
-        ) from None
-    if image is None or image.size == 0:
-        raise ImageError(
-            f"{path}: not an image OpenCV can read (PNG, JPEG, BMP, TIFF...); is it truncated or another file type?"
-        )
-    return image
 
 
 def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
@@ -140,10 +142,35 @@ def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
     16-bit images are scaled to 8 bits by the bits they use (a 12-bit camera's
     0..4095 in a 16-bit PNG becomes 0..255, a full-range one is shifted by 8);
     float images in [0, 1] are accepted too. Anything else raises :class:`ImageError` saying what was received.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 1) or (H, W, 3) or (H, W, 4)
+        Gray, BGR or BGRA; uint8, uint16, or float32/float64 in [0, 1].
+    where : str
+        What the image is, for the error message (a file name, ``"frame"``).
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+        Contiguous; the input itself when it already is one.
+
+    Raises
+    ------
+    ImageError
+        Not an array, empty, not an image's shape, an unsupported pixel type, NaN in a float
+        image, or smaller than 8 pixels a side.
+
+    Examples
+    --------
+    >>> g = as_gray(np.full((10, 12, 3), 1.0))
+    >>> g.shape, g.dtype.name, int(g.max())
+    ((10, 12), 'uint8', 255)
     """
     if not isinstance(image, np.ndarray):
         raise ImageError(
-            f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}"
+            f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), "
+            f"got {type(image).__name__}"
         )
     if image.size == 0:
         raise ImageError(f"{where}: the image is empty (shape {image.shape})")
@@ -200,7 +227,7 @@ def _params_key(params: Any) -> Any:
         except TypeError:
             raise FidlearnError(
                 f"detector parameter values must be numbers or booleans, got {params!r}; "
-                "e.g. params={'minMarkerPerimeterRate': 0.02}"
+                "e.g. detector_params={'minMarkerPerimeterRate': 0.02}"
             ) from None
         return key
     return ("fields", tuple(sorted(_cv.detector_parameter_fields(params).items())))
@@ -252,15 +279,30 @@ def _wanted_ids(ids: Any, dictionary: str) -> tuple[int, ...]:
     return wanted
 
 
+def _detect(image: np.ndarray, dictionary: str, refine: str, detector_params: Any, ids: Any):
+    """Detections sorted by id, and OpenCV's raw rejected candidates."""
+    gray = as_gray(image)
+    name = _dictionary_name(dictionary) if isinstance(dictionary, str) else _cv.dictionary_name(dictionary)
+    method = _refine_name(refine)
+    wanted = None if ids is None else _wanted_ids(ids, name)
+    detector, cells, inverted = _detector(name, method, detector_params, wanted)
+    corners, ids, rejected = _cv.detect_with_raw_rejected(detector, gray)
+    if wanted is not None and len(ids):
+        ids = np.asarray(wanted, dtype=np.int64)[np.asarray(ids, dtype=np.int64)]
+    if len(corners) and method == "edges":
+        corners = list(refine_corners_edges(gray, np.stack(corners), cells, inverted=None if inverted else False))
+    order = sorted(range(len(ids)), key=lambda k: (int(ids[k]), float(corners[k][0, 1]), float(corners[k][0, 0])))
+    return [Detection(int(ids[k]), corners[k]) for k in order], rejected
+
+
 def detect_markers(
     image: np.ndarray,
     dictionary: str = "ARUCO_ORIGINAL",
     refine: str = DEFAULT_REFINE,
-    params: Any = None,
+    detector_params: Any = None,
     *,
     ids=None,
-    return_rejected: bool = False,
-):
+) -> list[Detection]:
     """Find the markers of one dictionary in an image.
 
     Parameters
@@ -275,7 +317,7 @@ def detect_markers(
         edges, about 0.03 px RMS on sharp synthetic markers of 30 px and more),
         or OpenCV's own ``"none"``, ``"subpix"``, ``"contour"``, ``"apriltag"``.
         See ``docs/corner_refinement.md`` for the measurements.
-    params : None, dict or cv2.aruco.DetectorParameters
+    detector_params : None, dict or cv2.aruco.DetectorParameters
         OpenCV detector parameters, as an object or as ``{field: value}``
         overrides of the defaults. ``refine`` always sets ``cornerRefinementMethod``.
     ids : iterable of int, optional
@@ -284,15 +326,11 @@ def detect_markers(
         can be mistaken for one of these), several times faster with a large
         dictionary: OpenCV compares every candidate quad with every marker it
         looks for. Markers outside ``ids`` are then not reported at all.
-    return_rejected : bool
-        Also return the candidate quads that did not decode as a marker.
 
     Returns
     -------
     list of Detection
-        Sorted by id; each ``corners`` is (4, 2) float64 pixels, TL, TR, BR, BL.
-    list of ndarray (4, 2), only with ``return_rejected=True``
-        The rejected candidates' corners (pixels, unrefined).
+        Sorted by id; each ``corners_px`` is (4, 2) float64 pixels, TL, TR, BR, BL.
 
     Raises
     ------
@@ -303,6 +341,10 @@ def detect_markers(
     FidlearnError
         Unknown refinement or parameter name.
 
+    See Also
+    --------
+    detect_markers_with_rejected : the same, with the candidates that did not decode.
+
     Examples
     --------
     >>> from fidlearn import _cv
@@ -311,289 +353,53 @@ def detect_markers(
     >>> [d.id for d in detect_markers(image, "6X6_250")]
     [23]
     """
-    gray = as_gray(image)
-    name = _dictionary_name(dictionary) if isinstance(dictionary, str) else _cv.dictionary_name(dictionary)
-    method = _refine_name(refine)
-    wanted = None if ids is None else _wanted_ids(ids, name)
-    detector, cells, inverted = _detector(name, method, params, wanted)
-    corners, ids, rejected = _cv.detect_with_raw_rejected(detector, gray)
-    if wanted is not None and len(ids):
-        ids = np.asarray(wanted, dtype=np.int64)[np.asarray(ids, dtype=np.int64)]
-    if len(corners) and method == "edges":
-        corners = list(refine_corners_edges(gray, np.stack(corners), cells, inverted=None if inverted else False))
-    order = sorted(range(len(ids)), key=lambda k: (int(ids[k]), float(corners[k][0, 1]), float(corners[k][0, 0])))
-    detections = [Detection(int(ids[k]), corners[k]) for k in order]
-    if return_rejected:
-        return detections, _cv.rejected_quads(rejected)
-    return detections
+    return _detect(image, dictionary, refine, detector_params, ids)[0]
 
 
-# ----------------------------------------------------------------------------------------------
-# Edge-line corner refinement
-# ----------------------------------------------------------------------------------------------
-
-_NEXT = np.array([1, 2, 3, 0])
-_PREV = np.array([3, 0, 1, 2])
-
-
-@lru_cache(maxsize=8)
-def _profile_grid(n_lines: int, n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions 0..1 along a side (N,), -1..1 across it (S,), and [1, u, u^2] (N, 3); read-only."""
-    u = np.linspace(0.0, 1.0, n_lines)
-    v = np.linspace(-1.0, 1.0, n_samples)
-    U3 = np.column_stack([np.ones_like(u), u, u * u])
-    for a in (u, v, U3):
-        a.flags.writeable = False
-    return u, v, U3
-
-
-def refine_corners_edges(
-    gray: np.ndarray,
-    corners: np.ndarray,
-    cells: int,
-    *,
-    inverted: bool | None = False,
-    n_lines: int = 16,
-    n_samples: int = 13,
-    iterations: int = 1,
-    expand_px: float = 0.5,
-    gamma: float = 1.0,
-) -> np.ndarray:
-    """Refine marker corners by fitting a straight line to each outer edge.
-
-    For each side of each quad, ``n_lines`` short profiles are sampled across
-    the edge (bilinear, one ``cv2.remap`` for every marker at once); each
-    profile's first crossing of the gray level half-way between the black
-    border and the white quiet zone gives a sub-pixel edge position; a
-    least-squares line goes through them (refitted once without the profiles
-    0.75 px off it); each corner is the intersection of its two sides' lines.
-    Blur rounds a corner but not the middle of an edge, so the intersection
-    lands on the true corner where windowed corner detectors are pulled
-    inwards. Numpy on arrays of all markers at once, points as complex numbers
-    (x + iy): about 0.25-0.45 ms for six markers.
-
-    Parameters
-    ----------
-    gray : ndarray (H, W) uint8
-    corners : ndarray (M, 4, 2) float
-        Pixel corners TL, TR, BR, BL of M markers: OpenCV's unrefined ones.
-    cells : int
-        Marker side in cells, black border included (8 for 6X6 with a 1-cell
-        border). Profiles reach 0.6 cell (1.5 to 5 px) each side of the edge,
-        so that they stay in the black border and the white quiet zone.
-    inverted : bool or None
-        Markers with a light border on a dark surround (OpenCV's
-        ``detectInvertedMarker``); None: tell each side by its contrast.
-    n_lines, n_samples : int
-        Profiles per side, samples per profile.
-    iterations : int
-        Passes; a second one starts from the first's corners (a little better below 30 px).
-    expand_px : float
-        Where the first pass centres its profiles, outside the input quad: OpenCV's
-        unrefined contour runs through the outermost dark pixels' centres, about
-        half a pixel inside the edge.
-    gamma : float
-        The edge is where the light reaching the sensor is half-way between
-        black and white. With 1 (the default) gray levels are taken as
-        proportional to light, as in fidlearn's synthetic pictures; a camera that
-        encodes its pictures with a gamma curve (sRGB: about 2.2) puts that point
-        at a higher gray level, and ``gamma=2.2`` finds it there
-        (docs/corner_refinement.md: real photos).
-
-    Returns
-    -------
-    ndarray (M, 4, 2) float64
-        Refined pixel corners (pixel centres at integers). A marker whose four
-        edges cannot all be fitted (too little contrast, too few crossings) or
-        whose corners would move more than ``max(3, cell / 2)`` px keeps its input corners.
-    """
-    C = np.ascontiguousarray(corners, dtype=np.float64).reshape(-1, 4, 2)
-    M = C.shape[0]
-    if M == 0:
-        return C.copy()
-    u, v, U3 = _profile_grid(int(n_lines), int(n_samples))
-    n_lines, n_samples = u.size, v.size
-    half, mid_sample = n_lines // 2, n_samples // 2
-    rows = np.arange(M * 4 * n_lines)
-    Z = C.view(np.complex128)[..., 0]  # (M, 4) corners as x + iy
-    shift = float(expand_px)
-    for _ in range(iterations):
-        Dz = Z[:, _NEXT] - Z  # (M, 4) side vectors
-        L = np.maximum(np.abs(Dz), 1e-9)  # side lengths, px
-        # Outward unit normal: -i times the side direction when the corners turn clockwise on screen
-        # (y down), as OpenCV reports them for a marker seen from its front.
-        nz = Dz * (np.where((Dz[:, 0].conj() * Dz[:, 1]).imag >= 0, -1j, 1j)[:, None] / L)
-        cell = L.sum(1) * (0.25 / cells)  # (M,) px per cell
-        h = np.clip(0.6 * cell, 1.5, 5.0)  # profile half-length, px
-        margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)  # keep clear of the corners
-        span = 1.0 - 2.0 * margin
-        t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
-        pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[
-            ..., None, None
-        ]
-        # (x, y) pairs, one row per side: remap wants fewer than 32767 rows and columns
-        maps = pts.astype(np.complex64).view(np.float32).reshape(M * 4, n_lines * n_samples, 2)
-        prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
-        # Levels: the darkest sample of the inner half and the brightest of the outer half (a narrow
-        # quiet zone with a darker wall beyond still gives the paper's level), median over each side.
-        pin, pout = prof[..., : mid_sample + 1], prof[..., mid_sample:]
-        if inverted is None:  # which way round is the contrast larger?
-            imin, imax, omin, omax = pin.min(-1), pin.max(-1), pout.min(-1), pout.max(-1)
-            normal = ((omax - imin) >= (imax - omin)).mean(-1) >= 0.5  # (M, 4): dark inside
-            dark = np.sort(np.where(normal[..., None], imin, -imax), axis=2)[..., half]  # levels x polarity
-            light = np.sort(np.where(normal[..., None], omax, -omin), axis=2)[..., half]
-            prof = prof * np.where(normal, 1.0, -1.0).astype(np.float32)[..., None, None]
-        elif inverted:
-            dark = np.sort(-pin.max(-1), axis=2)[..., half]
-            light = np.sort(-pout.min(-1), axis=2)[..., half]
-            prof = -prof
-        else:
-            dark = np.sort(pin.min(-1), axis=2)[..., half]
-            light = np.sort(pout.max(-1), axis=2)[..., half]
-        level = 0.5 * (dark + light)
-        if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
-            g = float(gamma)
-            lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
-            level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
-        zf = (prof - level[..., None, None]).reshape(-1, n_samples)  # < 0 inside the edge
-        # The edge: the first sample at or above the mid level, k, and the one before it (outward from
-        # there the profile may fall again where a narrow quiet zone meets a darker wall).
-        k = np.maximum(np.argmax(zf >= 0, axis=-1), 1)
-        z0, z1 = zf[rows, k - 1], zf[rows, k]
-        dz = z0 - z1
-        found = (z0 <= 0) & (dz < 0)
-        pos = k + z0 / np.where(found, dz, -1.0)  # in samples, + 1
-        off = (pos.reshape(M, -1) - (mid_sample + 1)) * (h * (2.0 / (n_samples - 1)))[:, None] + shift
-        off = off.reshape(M, 4, n_lines)  # edge position outside the quad's side, px
-        w = (found.reshape(M, 4, n_lines) & (light - dark > 20.0)[..., None]).astype(np.float64)
-        # Weighted least squares off = alpha + beta u (u: the fixed 0..1 grid of profiles), twice:
-        # the second time without the profiles 0.75 px off the first line.
-        for final in (False, True):
-            s3 = w @ U3  # (M, 4, 3): sums of w, w u, w u^2
-            s2 = (w * off) @ U3[:, :2]  # sums of w off, w u off
-            sw, su, suu = s3[..., 0], s3[..., 1], s3[..., 2]
-            det = np.maximum(sw * suu - su * su, 1e-12)
-            alpha = (suu * s2[..., 0] - su * s2[..., 1]) / det
-            beta = (sw * s2[..., 1] - su * s2[..., 0]) / det
-            if not final:
-                w = w * (np.abs(off - alpha[..., None] - beta[..., None] * u) < 0.75)
-        b = beta / span  # the same line in t (0 at corner k, 1 at corner k+1)
-        a = alpha - b * margin
-        # Side k's line: through A = Z[k] + a n, direction Dz + b n; corner k = line k-1 x line k.
-        A, d = Z + a * nz, Dz + b * nz
-        Ap, dp = A[:, _PREV], d[:, _PREV]
-        den = (dp.conj() * d).imag
-        ok = ((sw >= 4) & (det > 1e-9) & (np.abs(den) > 1e-9 * L * L)).all(1)
-        new = Ap + ((A - Ap).conj() * d).imag / np.where(ok[:, None], den, 1.0) * dp
-        ok &= np.abs(new - Z).max(1) < np.maximum(3.0, 0.5 * cell)
-        Z = np.where(ok[:, None], new, Z)
-        shift = 0.0
-    return np.stack([Z.real, Z.imag], axis=-1)
-
-
-# ----------------------------------------------------------------------------------------------
-# Drawing
-# ----------------------------------------------------------------------------------------------
-
-
-def _as_bgr(image: np.ndarray) -> np.ndarray:
-    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3:
-        return image.copy()
-    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 4:
-        return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
-    return cv2.cvtColor(as_gray(image), cv2.COLOR_GRAY2BGR)
-
-
-def _label(
-    img: np.ndarray, text: str, org: tuple[float, float], scale: float, thick: int, color, center: bool = True
-) -> None:
-    """Text with a dark box behind it so it reads on any background; ``org`` is its centre."""
-    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
-    x = int(round(org[0] - tw / 2)) if center else int(round(org[0]))
-    y = int(round(org[1] + th / 2))
-    H, W = img.shape[:2]
-    x = min(max(x, 1), max(W - tw - 2, 1))
-    y = min(max(y, th + 2), max(H - base - 1, th + 2))
-    pad = max(1, thick)
-    cv2.rectangle(img, (x - pad, y - th - pad), (x + tw + pad, y + base), (0, 0, 0), -1)
-    cv2.putText(img, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, color, thick, cv2.LINE_AA)
-
-
-def draw_detections(
+def detect_markers_with_rejected(
     image: np.ndarray,
-    detections: Sequence[Detection],
-    color: tuple[int, int, int] = (0, 200, 0),
+    dictionary: str = "ARUCO_ORIGINAL",
+    refine: str = DEFAULT_REFINE,
+    detector_params: Any = None,
     *,
-    corner_labels: bool = True,
-    show_ids: bool = True,
-    rejected: Sequence[np.ndarray] | None = None,
-) -> np.ndarray:
-    """A BGR copy of ``image`` with each marker's outline, id and named corners drawn.
-
-    The outline is drawn at sub-pixel precision; the first corner (TL) is a
-    filled red dot and every corner carries its name (TL, TR, BR, BL) outside
-    the marker, so the winding order is visible; the id sits in the middle.
-    Text size follows the image size (readable on 640x480).
+    ids=None,
+) -> tuple[list[Detection], list[np.ndarray]]:
+    """Find the markers as :func:`detect_markers` does, and the candidate quads that did not decode.
 
     Parameters
     ----------
-    image : ndarray
-        Gray, BGR or BGRA image (not modified).
-    detections : sequence of Detection
-    color : (b, g, r)
-        Outline colour.
-    corner_labels, show_ids : bool
-        Draw the corner names / the ids.
-    rejected : sequence of (4, 2) arrays, optional
-        Candidate quads that did not decode (from ``detect_markers(..., return_rejected=True)``),
-        drawn thin in magenta.
+    image, dictionary, refine, detector_params, ids :
+        As for :func:`detect_markers`.
 
     Returns
     -------
-    ndarray (H, W, 3) uint8
-        The annotated copy.
+    detections : list of Detection
+        Exactly what :func:`detect_markers` returns.
+    rejected : list of ndarray, shape (4, 2)
+        The rejected candidates' corners (pixels, unrefined), for
+        ``draw_detections(..., rejected=...)``.
+
+    Raises
+    ------
+    ImageError, DictionaryError, FidlearnError
+        As for :func:`detect_markers`.
+
+    Examples
+    --------
+    >>> from fidlearn import _cv
+    >>> image = np.pad(_cv.generate_marker("6X6_250", 23, 120), 40, constant_values=255)
+    >>> detections, rejected = detect_markers_with_rejected(image, "6X6_250")
+    >>> [d.id for d in detections], type(rejected).__name__
+    ([23], 'list')
     """
-    out = _as_bgr(image)
-    if isinstance(detections, (str, bytes)) or not hasattr(detections, "__iter__"):
-        raise DetectionError(
-            f"detections must be a list of Detection (from detect_markers), got {type(detections).__name__}"
-        )
-    detections = list(detections)
-    for det in detections:
-        if not isinstance(det, Detection):
-            raise DetectionError(
-                f"detections must hold Detection objects (from detect_markers), got {type(det).__name__}"
-            )
-    H, W = out.shape[:2]
-    unit = max(H, W) / 640.0
-    thick = max(1, int(round(1.5 * unit)))
-    scale = 0.42 * unit
-    shift = 4  # sub-pixel drawing: coordinates in 1/16 px
-    for quad in rejected or ():
-        q = np.round((np.asarray(quad, np.float64).reshape(4, 2)) * (1 << shift)).astype(np.int32)
-        cv2.polylines(out, [q], True, (255, 0, 255), 1, cv2.LINE_AA, shift)
-    for det in detections:
-        c = np.asarray(det.corners, np.float64).reshape(4, 2)
-        q = np.round(c * (1 << shift)).astype(np.int32)
-        cv2.polylines(out, [q], True, color, thick, cv2.LINE_AA, shift)
-        centre = c.mean(axis=0)
-        for k, (name, p) in enumerate(zip(CORNER_NAMES, c)):
-            dot = (0, 0, 255) if k == 0 else (255, 128, 0)
-            cv2.circle(
-                out,
-                tuple(int(v) for v in np.round(p * (1 << shift))),
-                int(round((2.5 + thick) * (1 << shift))),
-                dot,
-                -1,
-                cv2.LINE_AA,
-                shift,
-            )
-            if corner_labels:
-                away = p - centre
-                away = away / max(float(np.linalg.norm(away)), 1e-9)
-                at = p + away * 10.0 * unit
-                _label(out, name, (float(at[0]), float(at[1])), 0.8 * scale, max(1, thick - 1), (255, 255, 255))
-        if show_ids:
-            _label(out, str(det.id), (float(centre[0]), float(centre[1])), scale * 1.2, thick, (0, 255, 255))
-    return out
+    detections, rejected = _detect(image, dictionary, refine, detector_params, ids)
+    return detections, _cv.rejected_quads(rejected)
+
+
+def __getattr__(name: str):
+    """``draw_detections`` (and ``_as_bgr``) live in :mod:`fidlearn.drawing`; still importable from here."""
+    if name in ("draw_detections", "_as_bgr"):
+        from . import drawing  # noqa: PLC0415 - drawing imports this module: resolved on first use
+
+        return getattr(drawing, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

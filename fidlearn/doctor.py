@@ -49,7 +49,13 @@ def _version(dist: str) -> str | None:
 
 
 def installed_opencv_wheels() -> list[tuple[str, str]]:
-    """``(name, version)`` of every OpenCV wheel installed, sorted by name."""
+    """Every OpenCV wheel installed (two or more break each other: they all provide ``cv2``).
+
+    Returns
+    -------
+    list of (str, str)
+        ``(name, version)`` pairs, sorted by name; the version is the one Python imports.
+    """
     found = {}
     for dist in md.distributions():
         name = (dist.metadata.get("Name") or "").lower().replace("_", "-")
@@ -94,9 +100,15 @@ def _numpy_pair_problem(package: str, module_error: str, numpy_version: str | No
 
 
 def report() -> tuple[list[str], list[str]]:
-    """Lines describing the environment, and the problems found (empty when healthy).
+    """Describe the environment and find what is broken in it.
 
-    Each problem says what is wrong and ends with the one ``pip`` command that mends it.
+    Returns
+    -------
+    lines : list of str
+        One line per package or fact (versions, paths).
+    problems : list of str
+        Empty when healthy; each problem says what is wrong and ends with the one ``pip``
+        command that mends it.
     """
     from . import __version__
 
@@ -148,7 +160,13 @@ def report() -> tuple[list[str], list[str]]:
 
 
 def run() -> int:
-    """Print the report; 0 when healthy, 1 when a problem was found."""
+    """Print :func:`report` on standard output.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when healthy, 1 when a problem was found.
+    """
     lines, problems = report()
     for line in lines:
         print(line)

@@ -21,6 +21,9 @@ __all__ = [
     "PoseError",
     "PlotError",
     "PrintError",
+    "ExerciseError",
+    "GradingError",
+    "UsageError",
 ]
 
 
@@ -66,6 +69,25 @@ class CalibrationError(FidlearnError):
 
 class PoseError(FidlearnError, ValueError):
     """Pose estimation cannot run on these inputs (wrong types, a solver that does not fit the data)."""
+
+
+class ExerciseError(FidlearnError, KeyError):
+    """An exercise that does not exist (a lesson, a question) or a lesson's files that cannot be read.
+
+    It is also a :class:`KeyError`, as these were before, so ``except KeyError`` still catches it;
+    unlike a plain KeyError its message prints without quotes.
+    """
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if len(self.args) == 1 else super().__str__()
+
+
+class GradingError(FidlearnError):
+    """A grading run cannot start: a missing secret, a bad roster, an unknown lesson."""
+
+
+class UsageError(FidlearnError):
+    """The command line itself is wrong (unknown option, missing argument, an output that would clobber an input)."""
 
 
 class PlotError(FidlearnError, ValueError):

@@ -23,198 +23,78 @@ the two sides:
 
 from __future__ import annotations
 
-import base64
 import csv
-import hashlib
-import hmac
 import io
 import json
-import math
 import os
 import re
-import secrets
 import shutil
-import signal
-import subprocess
-import sys
 import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 from ._io import write_text_atomic
+
+# the class secret, plain data and the sandbox live in modules of their own; their names stay
+# importable from here
+from ._learners import learner_from_filename as learner_from_filename
+from ._learners import new_secret as new_secret
+from ._learners import normalize_learner as normalize_learner
+from ._learners import read_secret as read_secret
+from ._learners import variant_seed as variant_seed
+from ._plain import _ARRAY_KINDS as _ARRAY_KINDS
+from ._plain import MAX_DEPTH as MAX_DEPTH
+from ._plain import _bad as _bad
+from ._plain import _Unsupported as _Unsupported
+from ._plain import from_plain as from_plain
+from ._plain import to_plain as to_plain
+from ._sandbox import _RUNNER as _RUNNER
+from ._sandbox import ANSWERS_FILE as ANSWERS_FILE
+from ._sandbox import COLLECT_CELL as COLLECT_CELL
+from ._sandbox import INPUTS_FILE as INPUTS_FILE
+from ._sandbox import MAX_ANSWERS_BYTES as MAX_ANSWERS_BYTES
+from ._sandbox import _cell_errors as _cell_errors
+from ._sandbox import _clean_env as _clean_env
+from ._sandbox import _kill_group_leftovers as _kill_group_leftovers
+from ._sandbox import _limits as _limits
+from ._sandbox import _preflight as _preflight
+from ._sandbox import _read_answers as _read_answers
+from ._sandbox import _run_and_collect as _run_and_collect
+from ._sandbox import _run_as as _run_as
+from ._sandbox import _scratch_copy as _scratch_copy
+from ._sandbox import _Zero as _Zero
 from .errors import FidlearnError
-
-#: The inputs file a released notebook works with.
-INPUTS_FILE = "fidlearn_inputs.json"
-#: What the appended collection cell writes in the scratch folder.
-ANSWERS_FILE = "fidlearn_answers.json"
-#: Largest answers file read (bytes): far above any honest set of answers.
-MAX_ANSWERS_BYTES = 5_000_000
-#: Deepest nesting of an answer.
-MAX_DEPTH = 32
-
-
-class GradingError(FidlearnError):
-    """A grading run cannot start: a missing secret, a bad roster, an unknown lesson."""
-
-
-# ------------------------------------------------------------------------------------------------
-# the class secret and the learners
-# ------------------------------------------------------------------------------------------------
-def normalize_learner(learner: str) -> str:
-    """A learner id as graded: trimmed and lower-case ("Alice " and "alice" are one learner)."""
-    if not isinstance(learner, str) or not learner.strip():
-        raise GradingError(f"a learner id must be non-empty text, got {learner!r}")
-    text = " ".join(learner.split()).lower()
-    if len(text) > 200 or any(ord(c) < 32 for c in text):
-        raise GradingError(f"learner id {learner[:40]!r} is too long or holds control characters")
-    return text
-
-
-def new_secret(path: str | os.PathLike) -> Path:
-    """Write a new class secret (64 hex digits) to ``path``, readable by its owner only; refuses to overwrite."""
-    path = Path(path)
-    if path.exists():
-        raise GradingError(f"{path} exists; a class keeps one secret for the whole course (delete it only on purpose)")
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    with os.fdopen(fd, "w") as f:
-        f.write(secrets.token_hex(32) + "\n")
-    return path
-
-
-def read_secret(path: str | os.PathLike) -> bytes:
-    """The class secret from its file (made by :func:`new_secret`)."""
-    from ._files import MAX_TEXT_BYTES, read_bytes
-
-    path, data = read_bytes(path, GradingError, "class secret", MAX_TEXT_BYTES)
-    text = data.decode("ascii", "replace").strip()
-    if not re.fullmatch(r"[0-9a-f]{32,}", text):
-        raise GradingError(f"{path}: not a class secret (64 hex digits, as 'fidlearn grade --new-secret' writes it)")
-    return bytes.fromhex(text[: len(text) // 2 * 2])
-
-
-def variant_seed(secret: bytes, lesson: str, learner: str, question: str) -> int:
-    """The seed of one learner's numbers for one question: HMAC-SHA256 of the class secret."""
-    digest = hmac.new(secret, f"fidlearn-graded/{lesson}/{learner}/{question}".encode(), hashlib.sha256).digest()
-    return int.from_bytes(digest[:8], "little")
-
-
-# ------------------------------------------------------------------------------------------------
-# plain data: what crosses between the grader and a learner's kernel
-# ------------------------------------------------------------------------------------------------
-def to_plain(value: Any, depth: int = 0) -> Any:
-    """``value`` as JSON-ready plain data, fidlearn's own types and arrays tagged."""
-    from .camera import Camera
-    from .detection import Detection
-    from .markermap import MarkerMap
-
-    if depth > MAX_DEPTH:
-        raise ValueError("nested too deeply")
-    if value is None or isinstance(value, (bool, str)):
-        return value
-    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        v = float(value)
-        return v if math.isfinite(v) else {"__float__": repr(v)}
-    if isinstance(value, np.ndarray):
-        if value.dtype.kind not in "biuf":
-            return {"__unsupported__": f"array of {value.dtype}"}
-        raw = np.ascontiguousarray(value)
-        return {
-            "__array__": base64.b64encode(raw.tobytes()).decode("ascii"),
-            "dtype": raw.dtype.str,
-            "shape": list(raw.shape),
-        }
-    if isinstance(value, tuple):
-        return {"__tuple__": [to_plain(v, depth + 1) for v in value]}
-    if isinstance(value, list):
-        return [to_plain(v, depth + 1) for v in value]
-    if isinstance(value, dict):
-        return {"__dict__": [[to_plain(k, depth + 1), to_plain(v, depth + 1)] for k, v in value.items()]}
-    if isinstance(value, Camera):
-        return {"__camera__": value.to_dict()}
-    if isinstance(value, MarkerMap):
-        return {"__map__": value.to_dict()}
-    if isinstance(value, Detection):
-        return {"__detection__": [int(value.id), to_plain(np.asarray(value.corners, dtype=float))]}
-    return {"__unsupported__": type(value).__name__}
-
-
-_ARRAY_KINDS = {"b", "i", "u", "f"}
-
-
-def from_plain(value: Any, depth: int = 0) -> Any:
-    """The inverse of :func:`to_plain`; anything else (an unknown tag) raises ``ValueError``."""
-    from .camera import Camera
-    from .detection import Detection
-    from .markermap import MarkerMap
-
-    if depth > MAX_DEPTH:
-        raise ValueError("nested too deeply")
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    if isinstance(value, list):
-        return [from_plain(v, depth + 1) for v in value]
-    if not isinstance(value, dict) or len(value) not in (1, 3):
-        raise ValueError("not plain data")
-    if "__array__" in value:
-        dtype = np.dtype(str(value["dtype"]))
-        shape = tuple(int(n) for n in value["shape"])
-        if (
-            dtype.kind not in _ARRAY_KINDS
-            or len(shape) > 8
-            or any(n < 0 for n in shape)
-            or math.prod(shape) > 50_000_000
-        ):
-            raise ValueError("not an array fidlearn reads")
-        raw = base64.b64decode(value["__array__"], validate=True)
-        if len(raw) != math.prod(shape) * dtype.itemsize:
-            raise ValueError("array size does not match its shape")
-        return np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
-    ((tag, body),) = value.items()
-    if tag == "__float__":
-        return float(body) if body in ("nan", "inf", "-inf") else _bad(tag)
-    if tag == "__tuple__":
-        return tuple(from_plain(v, depth + 1) for v in body)
-    if tag == "__dict__":
-        out = {}
-        for item in body:
-            k = from_plain(item[0], depth + 1)
-            out[k if not isinstance(k, list) else tuple(k)] = from_plain(item[1], depth + 1)
-        return out
-    if tag == "__camera__":
-        return Camera.from_dict(body, source="an answer")
-    if tag == "__map__":
-        return MarkerMap.from_dict(body, source="an answer")
-    if tag == "__detection__":
-        return Detection(int(body[0]), from_plain(body[1], depth + 1))
-    if tag == "__unsupported__":
-        return _Unsupported(str(body)[:80])
-    return _bad(tag)
-
-
-def _bad(tag: str):
-    raise ValueError(f"unknown tag {tag[:40]!r}")
-
-
-@dataclass(frozen=True)
-class _Unsupported:
-    """An answer of a type that cannot be sent as plain data (a function, an open file...)."""
-
-    type_name: str
+from .errors import GradingError as GradingError
 
 
 # ------------------------------------------------------------------------------------------------
 # release: the learner's inputs, without answers
 # ------------------------------------------------------------------------------------------------
 def graded_questions(lesson: str, learner: str, secret: bytes) -> list:
-    """The questions of ``lesson`` for ``learner`` built from the class secret (with their answers)."""
+    """The questions of ``lesson`` for ``learner`` built from the class secret (with their answers).
+
+    Parameters
+    ----------
+    lesson : str or int
+        The lesson.
+    learner : str
+        The learner's id (normalized here).
+    secret : bytes
+        The class secret.
+
+    Returns
+    -------
+    list of Question
+
+    Raises
+    ------
+    ExerciseError
+        For an unknown lesson.
+    GradingError
+        For a learner id that cannot be used.
+    """
     from . import exercises
 
     number = exercises.lesson_number(lesson)
@@ -228,7 +108,30 @@ def graded_questions(lesson: str, learner: str, secret: bytes) -> list:
 
 
 def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
-    """What ``fidlearn_inputs.json`` holds for one learner: the lesson, the id and every question's inputs."""
+    """What ``fidlearn_inputs.json`` holds for one learner: the lesson, the id and every question's inputs.
+
+    Parameters
+    ----------
+    lesson : str or int
+        The lesson.
+    learner : str
+        The learner's id.
+    secret : bytes
+        The class secret.
+
+    Returns
+    -------
+    dict
+        ``{"fidlearn_graded": 1, "lesson", "learner", "questions": {name: {input: plain data}}}``;
+        no answers.
+
+    Raises
+    ------
+    ExerciseError
+        For an unknown lesson.
+    GradingError
+        For a learner id that cannot be used.
+    """
     from . import exercises
 
     number = exercises.lesson_number(lesson)
@@ -244,7 +147,31 @@ def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
 def release(
     lesson: str, learners: Sequence[str], secret_path: str | os.PathLike, out_dir: str | os.PathLike
 ) -> list[Path]:
-    """Write ``OUT/<learner>/`` for each learner: the lesson's student notebook and its inputs file."""
+    """Write ``OUT/<learner>/`` for each learner: the lesson's student notebook and its inputs file.
+
+    Parameters
+    ----------
+    lesson : str or int
+        The lesson.
+    learners : sequence of str
+        The learners' ids.
+    secret_path : str or os.PathLike
+        The class secret's file.
+    out_dir : str or os.PathLike
+        The folder to write into (its parent must exist).
+
+    Returns
+    -------
+    list of pathlib.Path
+        One folder per learner.
+
+    Raises
+    ------
+    ExerciseError
+        For an unknown lesson.
+    GradingError
+        For a missing secret or parent folder, an unusable learner id, or a learner listed twice.
+    """
     from . import exercises
 
     secret = read_secret(secret_path)
@@ -255,9 +182,7 @@ def release(
     ids = [normalize_learner(x) for x in learners]
     if len(set(ids)) != len(ids):
         raise GradingError("a learner is listed twice (ids are compared trimmed and in lower case)")
-    notebook = (
-        Path(exercises.__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name(number)
-    )
+    notebook = Path(__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name(number)
     made = []
     for learner in ids:
         folder = out / _folder_name(learner)
@@ -276,17 +201,19 @@ def _folder_name(learner: str) -> str:
 # ------------------------------------------------------------------------------------------------
 # grading: one notebook per process, answers as plain data
 # ------------------------------------------------------------------------------------------------
-COLLECT_CELL = (
-    "import json as _fl_json, os as _fl_os\n"
-    "from fidlearn import grading as _fl_grading\n"
-    "_fl_grading.collect(globals())\n"
-)
 
 
 def collect(namespace: dict, path: str = ANSWERS_FILE) -> None:
     """Write the answers of the graded lesson found in ``namespace`` as plain data (the appended cell).
 
     Runs in the learner's kernel, so the grader trusts nothing it writes beyond its form.
+
+    Parameters
+    ----------
+    namespace : dict
+        The notebook's globals; the first :class:`~fidlearn.exercises.Lesson` in it is collected.
+    path : str
+        The answers file to write.
     """
     from .exercises import Lesson
 
@@ -304,7 +231,19 @@ def collect(namespace: dict, path: str = ANSWERS_FILE) -> None:
 
 @dataclass
 class NotebookGrade:
-    """One learner's notebook: its score, a (question, status, message) row per question, and why not more."""
+    """One learner's notebook: its score, a (question, status, message) row per question, and why not more.
+
+    Parameters
+    ----------
+    notebook, learner, lesson : str
+        The notebook's path, the learner's id, the lesson.
+    results : list of (str, str, str)
+        ``(question, status, message)`` per question.
+    problem : str
+        Why it got 0 or took too long ("" when all went well).
+    cell_errors : list of str
+        The cells that raised (information only).
+    """
 
     notebook: str
     learner: str
@@ -315,90 +254,24 @@ class NotebookGrade:
 
     @property
     def score(self) -> int:
+        """How many questions are Correct.
+
+        Returns
+        -------
+        int
+        """
         return sum(1 for _, status, _ in self.results if status == "Correct")
 
     def line(self) -> str:
+        """One line for the grader's log: notebook, learner, lesson, score and any problem.
+
+        Returns
+        -------
+        str
+        """
         total = len(self.results)
         head = f"{self.notebook}: learner {self.learner!r}, lesson {self.lesson}: {self.score} of {total} correct"
         return head + (f" ({self.problem})" if self.problem else "")
-
-
-def _run_as(user: str | None):
-    """(uid, gid) to run kernels as: the named user, or 'nobody' when the grader is root; None otherwise
-    (and for ``""``: the grader's own user, as a self-study check does)."""
-    if user == "" or (os.geteuid() != 0 and user is None):
-        return None
-    import pwd
-
-    name = user or "nobody"
-    try:
-        entry = pwd.getpwnam(name)
-    except KeyError:
-        raise GradingError(f"--run-as {name}: no such user; create one (useradd --system {name})") from None
-    if os.geteuid() != 0 and entry.pw_uid != os.geteuid():
-        raise GradingError(f"--run-as {name} needs the grader to run as root")
-    return entry.pw_uid, entry.pw_gid
-
-
-def _limits(memory_mb: int, ids):
-    def apply() -> None:
-        import resource
-
-        os.setsid()
-        limit = memory_mb * 1024 * 1024
-        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-        if ids is not None:
-            os.setgroups([])
-            os.setgid(ids[1])
-            os.setuid(ids[0])
-
-    return apply
-
-
-#: The program a notebook runs under, in its own process: execute it, keep going after errors.
-_RUNNER = r"""
-import sys, nbformat
-from nbclient import NotebookClient
-nb = nbformat.read(sys.argv[1], as_version=4)
-nb.cells.append(nbformat.v4.new_code_cell(sys.argv[3]))
-client = NotebookClient(nb, timeout=int(sys.argv[2]), kernel_name="python3", allow_errors=True,
-                        resources={"metadata": {"path": "."}})
-try:
-    client.execute()
-    nbformat.write(nb, "executed.ipynb")
-except Exception as exc:
-    kind = type(exc).__name__
-    print("FIDLEARN-RUNNER " + ("timeout" if "Timeout" in kind else "dead" if "Dead" in kind else kind), file=sys.stderr)
-    sys.exit(3)
-"""
-
-
-def _clean_env(home: Path) -> dict:
-    """The kernel's whole environment: nothing of the instructor's (tokens, paths, FIDLEARN_*)."""
-    env = {
-        "PATH": os.defpath,
-        "HOME": str(home),
-        "LANG": "C.UTF-8",
-        "PYTHONDONTWRITEBYTECODE": "1",
-        "MPLBACKEND": "Agg",
-        "JUPYTER_RUNTIME_DIR": str(home / ".runtime"),
-        "JUPYTER_CONFIG_DIR": str(home / ".jupyter"),
-        "IPYTHONDIR": str(home / ".ipython"),
-    }
-    here = str(Path(__file__).resolve().parent.parent)
-    env["PYTHONPATH"] = here  # fidlearn itself, wherever it was installed from
-    return env
-
-
-def _read_answers(path: Path) -> dict:
-    from ._files import read_bytes
-
-    _, data = read_bytes(path, GradingError, "answers", MAX_ANSWERS_BYTES)
-    record = json.loads(data.decode("utf-8"))
-    if not isinstance(record, dict) or not isinstance(record.get("answers"), dict):
-        raise ValueError("not an answers record")
-    return {str(k): v for k, v in record["answers"].items()}
 
 
 def grade_one(
@@ -415,6 +288,37 @@ def grade_one(
 
     With ``secret`` None the notebook is checked against the self-study variant of ``learner``
     (whose answers the learner's own kernel also holds): a practice check, not a grade.
+
+    Parameters
+    ----------
+    notebook : path
+        The learner's ``.ipynb``; it runs in a scratch copy of its own.
+    lesson : str
+        The lesson, ``"03"`` or ``3``.
+    learner : str
+        The learner's id (trimmed and lower-cased when graded with a secret).
+    secret : bytes or None
+        The class secret (:func:`read_secret`), or None for a self-study check.
+    timeout_s : int
+        Seconds the notebook may run.
+    memory_mb : int
+        The kernel's memory limit, MB.
+    run_as : str, optional
+        The user the kernel runs as (default: ``nobody`` when the grader is root; ``""``: the
+        grader's own user).
+
+    Returns
+    -------
+    NotebookGrade
+        A (question, status, message) row per question; a notebook that crashed, hung or wrote
+        no answers gets 0 with the reason in ``problem``.
+
+    Raises
+    ------
+    ExerciseError
+        For an unknown lesson.
+    GradingError
+        For a learner id or a ``run_as`` user that cannot be used.
     """
     from . import exercises
 
@@ -430,118 +334,23 @@ def grade_one(
     ids = _run_as(run_as)
     scratch = Path(tempfile.mkdtemp(prefix="fidlearn-grade-"))
     try:
-        work, home = scratch / "work", scratch / "home"
-        work.mkdir()
-        home.mkdir()
-        try:
-            shutil.copyfile(notebook, work / "submission.ipynb")
-        except OSError as exc:
-            grade.problem = f"0: the notebook cannot be read ({exc.strerror})"
-            return grade
-        if secret is not None:
-            (work / INPUTS_FILE).write_text(json.dumps(inputs_record(number, learner, secret)), encoding="utf-8")
-        if ids is not None:
-            for p in (scratch, work, home, *work.iterdir()):
-                os.chown(p, *ids)
-        cmd = [sys.executable, "-c", _RUNNER, "submission.ipynb", str(max(5, timeout_s)), COLLECT_CELL]
+        inputs_json = json.dumps(inputs_record(number, learner, secret)) if secret is not None else None
+        work, home = _scratch_copy(scratch, notebook, inputs_json, ids)
         env = _clean_env(home)
         if secret is None and learner:
             env["FIDLEARN_LEARNER"] = learner  # a self-study notebook whose LEARNER is empty uses it
         t0 = time.monotonic()
-        try:
-            proc = subprocess.Popen(
-                cmd,
-                cwd=work,
-                env=env,
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.PIPE,
-                preexec_fn=_limits(memory_mb, ids),
-            )
-            try:
-                _, err = proc.communicate(timeout=timeout_s + 60)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.communicate()
-                grade.problem = f"0: the notebook ran longer than {timeout_s} s and was stopped"
-                return grade
-        finally:
-            _kill_group_leftovers(locals().get("proc"))
-        answers_path = work / ANSWERS_FILE
-        if not answers_path.is_file() or answers_path.is_symlink():
-            said = [ln for ln in err.decode("utf-8", "replace").splitlines() if ln.startswith("FIDLEARN-RUNNER ")]
-            kind = said[-1].split(" ", 1)[1] if said else ""
-            why = {
-                "timeout": f"a cell ran longer than {timeout_s} s and was stopped",
-                "dead": "its kernel died (it used more than the memory limit, or killed or exited itself)",
-            }.get(kind, f"it stopped before its answers were collected ({kind or 'no reason given'})")
-            grade.problem = f"0: {why}; no answers were collected"
-            return grade
-        try:
-            raw = _read_answers(answers_path)
-            answers = {name: from_plain(value) for name, value in raw.items()}
-        except (ValueError, TypeError, KeyError, RecursionError, FidlearnError) as exc:
-            grade.problem = f"0: its answers are not plain data ({str(exc)[:80]})"
-            return grade
+        answers = _run_and_collect(work, env, timeout_s, memory_mb, ids)
         grade.results = [_judge(q, answers.get(q.name)) for q in questions]
         grade.cell_errors = _cell_errors(work / "executed.ipynb")
         elapsed = time.monotonic() - t0
         if elapsed > timeout_s + 30:
             grade.problem = f"it took {elapsed:.0f} s"
-        return grade
+    except _Zero as exc:
+        grade.problem = f"0: {exc}"
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
-
-
-def _preflight(ids, run_as: str | None) -> None:
-    """The notebooks' user must be able to run this Python and import fidlearn and nbclient."""
-    if ids is None:
-        return
-    home = Path(tempfile.mkdtemp(prefix="fidlearn-grade-check-"))
-    try:
-        os.chown(home, *ids)
-        out = subprocess.run(
-            [sys.executable, "-c", "import fidlearn, nbclient, ipykernel"],
-            cwd=home,
-            env=_clean_env(home),
-            capture_output=True,
-            text=True,
-            timeout=120,
-            preexec_fn=_limits(4000, ids),
-        )
-    finally:
-        shutil.rmtree(home, ignore_errors=True)
-    if out.returncode != 0:
-        who = run_as or "nobody"
-        last = (out.stderr.strip().splitlines() or ["it exited with status %d" % out.returncode])[-1]
-        raise GradingError(
-            f"the user {who} cannot run {sys.executable} with fidlearn ({last[:120]}); install "
-            "Python and fidlearn where that user can read them (see docs/teaching.md), or pass "
-            "--run-as a user who can"
-        )
-
-
-def _cell_errors(path: Path) -> list[str]:
-    """``cell N raised NAME: VALUE`` for each failing cell of the executed notebook (information only)."""
-    try:
-        if not path.is_file() or path.is_symlink() or path.stat().st_size > 50_000_000:
-            return []
-        nb = json.loads(path.read_text(encoding="utf-8"))
-        out = []
-        for i, cell in enumerate(nb.get("cells", [])[:-1]):
-            for o in cell.get("outputs", []) or []:
-                if isinstance(o, dict) and o.get("output_type") == "error":
-                    out.append(f"cell {i} raised {str(o.get('ename'))[:60]}: {str(o.get('evalue'))[:120]}")
-        return out[:50]
-    except (OSError, ValueError, AttributeError):
-        return []
-
-
-def _kill_group_leftovers(proc) -> None:
-    if proc is not None:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)  # a kernel left running by a notebook that detached it
-        except (ProcessLookupError, PermissionError, OSError):
-            pass
+    return grade
 
 
 def _judge(question, answer) -> tuple[str, str, str]:
@@ -561,12 +370,6 @@ def _judge(question, answer) -> tuple[str, str, str]:
     return (r.question, r.status, r.message)
 
 
-def learner_from_filename(path: str | os.PathLike) -> str:
-    """``submissions/Alice.Smith.ipynb`` -> ``alice.smith``: the file's name without ``.ipynb``."""
-    name = Path(path).name
-    return normalize_learner(name[: -len(".ipynb")] if name.lower().endswith(".ipynb") else Path(path).stem)
-
-
 def grade(
     notebooks: Sequence[str | os.PathLike],
     lesson: str,
@@ -579,7 +382,36 @@ def grade(
     run_as: str | None = None,
     progress=None,
 ) -> list[NotebookGrade]:
-    """Grade a batch; the CSV (one row per question) is written whatever happens to any notebook."""
+    """Grade a batch; the CSV (one row per question) is written whatever happens to any notebook.
+
+    Parameters
+    ----------
+    notebooks : sequence of str or os.PathLike
+        The submitted notebooks.
+    lesson : str or int
+        Their lesson.
+    secret_path : str or os.PathLike
+        The class secret's file.
+    csv_path : str or os.PathLike
+        The CSV to write.
+    learner : str, optional
+        One learner id for every notebook; default: each notebook's file name.
+    timeout_s, memory_mb, run_as
+        As for :func:`grade_one`.
+    progress : callable, optional
+        ``progress(done, total, grade)`` after each notebook.
+
+    Returns
+    -------
+    list of NotebookGrade
+
+    Raises
+    ------
+    ExerciseError
+        For an unknown lesson.
+    GradingError
+        For a secret that cannot be read, or a ``run_as`` user who cannot run fidlearn.
+    """
     from . import exercises
 
     secret = read_secret(secret_path)

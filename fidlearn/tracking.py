@@ -50,7 +50,6 @@ Examples
 
 from __future__ import annotations
 
-import inspect
 from typing import Any
 
 import cv2
@@ -61,7 +60,7 @@ from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _refine_name, as_gray, refine_corners_edges
 from .errors import FidlearnError, NoMarkersError, PoseError
 from .markermap import MarkerMap
-from .pose import METHODS, Pose, estimate_pose
+from .pose import Pose, _check_pose_options, estimate_pose
 
 __all__ = ["MarkerTracker"]
 
@@ -89,7 +88,7 @@ class MarkerTracker:
     refine : str, optional
         Corner refinement, as for :func:`fidlearn.detect_markers` (default its default, ``"edges"``).
     detector_params : None, dict or cv2.aruco.DetectorParameters
-        OpenCV detector parameters, as for ``detect_markers(params=...)``.
+        OpenCV detector parameters, as for ``detect_markers(detector_params=...)``.
     full_every : int
         A full-frame detection at least every this many frames (1: every frame,
         no windows). It finds what the windows cannot: a marker that came out
@@ -98,7 +97,14 @@ class MarkerTracker:
         Fixed margin (pixels) added around each predicted marker, on top of half
         the marker's side and the predicted motion of its corners.
     **pose_options
-        Passed to :func:`fidlearn.estimate_pose` (``method``, ``reject_outliers``, ...).
+        Passed to :func:`fidlearn.estimate_pose` (``method``, ``refine_lm``,
+        ``reject_outliers``, ``corner_sigma_px``), checked here as :func:`fidlearn.locate`
+        checks them.
+
+    Raises
+    ------
+    FidlearnError
+        A bad argument, with what to give instead (:class:`PoseError` for a pose option).
 
     Attributes
     ----------
@@ -107,7 +113,7 @@ class MarkerTracker:
     full_detections : int
         How many of them ran a full-frame detection.
     last_pose : Pose or None
-        The pose of the last frame (None when it had none).
+        The pose of the last frame (None when :meth:`locate` raised for it).
     last_detections : list of Detection
         The last frame's detections (the map's markers only).
     last_full : bool
@@ -127,7 +133,8 @@ class MarkerTracker:
     ) -> None:
         if not isinstance(marker_map, MarkerMap):
             raise FidlearnError(
-                f"marker_map must be a fidlearn.MarkerMap (use MarkerMap.load('map.json')), got {type(marker_map).__name__}"
+                "marker_map must be a fidlearn.MarkerMap (use MarkerMap.load('map.json')), "
+                f"got {type(marker_map).__name__}"
             )
         if not isinstance(camera, Camera):
             raise FidlearnError(
@@ -143,22 +150,9 @@ class MarkerTracker:
         self.detector_params = detector_params
         self.full_every = int(full_every)
         self.search_px = float(search_px)
-        allowed = [
-            k
-            for k, v in inspect.signature(estimate_pose).parameters.items()
-            if v.kind is v.KEYWORD_ONLY or k == "method"
-        ]
-        unknown = sorted(set(pose_options) - set(allowed))
-        if unknown:
-            raise FidlearnError(
-                f"MarkerTracker: unknown pose option {', '.join(unknown)}; estimate_pose takes {', '.join(allowed)}"
-            )
-        method = str(pose_options.get("method", "auto")).lower()
-        if method != "auto" and method not in METHODS:
-            raise FidlearnError(
-                f"MarkerTracker: unknown method {pose_options['method']!r}; use 'auto' or one of {', '.join(METHODS)}"
-            )
-        self.pose_options = dict(pose_options)
+        self.pose_options = _check_pose_options(
+            pose_options, "MarkerTracker()", "refine, detector_params, full_every, search_px"
+        )
         fields = _cv.detector_parameter_fields(detector_params)  # checks the parameters now, not on frame 1
         fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if self.refine == "edges" else self.refine)
         self._fields = fields
@@ -193,38 +187,59 @@ class MarkerTracker:
         self._cam: Camera | None = None
 
     # -- public -----------------------------------------------------------------------------
-    def locate(self, image: np.ndarray) -> Pose | None:
-        """The camera's pose in the next frame, or None when no marker of the map is found (or the pose cannot be solved).
+    def locate(self, image: np.ndarray) -> Pose:
+        """The camera's pose in the next frame.
+
+        A frame without a pose raises, as :func:`fidlearn.locate` does: catch
+        :class:`~fidlearn.errors.NoMarkersError` (or its base
+        :class:`~fidlearn.errors.FidlearnError`) to skip it. The tracker carries on:
+        :attr:`last_pose` is then None and the next frame runs a full detection.
 
         Parameters
         ----------
-        image : ndarray
-            Gray or BGR frame (see :func:`fidlearn.detection.as_gray`). A frame of
-            another size than the last one starts the tracking afresh.
+        image : ndarray, shape (H, W) or (H, W, 3)
+            Gray or BGR frame, pixels (see :func:`fidlearn.detection.as_gray`). A frame
+            of another size than the last one starts the tracking afresh.
 
         Returns
         -------
-        Pose or None
-            What :func:`fidlearn.locate` gives for the frame when it finds the same
-            markers. The frame's detections (corners (4, 2) float64 pixels, TL, TR,
-            BR, BL, refined as :func:`fidlearn.detect_markers` does) are in
-            :attr:`last_detections`.
+        Pose
+            The camera's pose in the world (mm), what :func:`fidlearn.locate` gives for
+            the frame when it finds the same markers. The frame's detections (corners
+            (4, 2) float64 pixels, TL, TR, BR, BL, refined as
+            :func:`fidlearn.detect_markers` does) are in :attr:`last_detections`.
 
         Raises
         ------
+        NoMarkersError
+            No marker of the map is found in the frame, not even by a full-frame detection.
+        PoseError
+            The markers found give no pose (see :func:`fidlearn.estimate_pose`).
         ImageError
             ``image`` is not an image.
         CameraError
             The frame's aspect ratio differs from the camera's.
+
+        Examples
+        --------
+        >>> import numpy as np, fidlearn
+        >>> m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+        >>> tracker = MarkerTracker(m, fidlearn.Camera.from_fov(60, (640, 480)))
+        >>> try:
+        ...     tracker.locate(np.full((480, 640), 128, np.uint8))   # a blank wall
+        ... except fidlearn.NoMarkersError as e:
+        ...     print(str(e)[:22])
+        no marker was detected
         """
         gray = as_gray(image, where="frame")
-        dets = self._detect(gray)
-        pose = self._estimate(dets)
+        pose, error = self._estimate(self._detect(gray))
         if pose is None and not self.last_full:
             # the windows found too little to solve: look at the whole frame before giving up
-            pose = self._estimate(self._detect_full(gray))
+            pose, error = self._estimate(self._detect_full(gray))
         self._prev_T = None if self.last_pose is None else self.last_pose.T_world_camera
         self.last_pose = pose
+        if pose is None:
+            raise error
         return pose
 
     # -- internals --------------------------------------------------------------------------
@@ -266,13 +281,12 @@ class MarkerTracker:
         order = sorted(range(len(ids)), key=lambda k: (ids[k], float(corners[k][0, 1]), float(corners[k][0, 0])))
         return [Detection(ids[k], corners[k]) for k in order]
 
-    def _estimate(self, dets: list[Detection]) -> Pose | None:
+    def _estimate(self, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
+        """The pose from the detections, or None and why not (the options were checked when the tracker was made)."""
         try:
-            return estimate_pose(dets, self.marker_map, self._cam, **self.pose_options)
-        except NoMarkersError:
-            return None
-        except PoseError:  # a degenerate frame (the options were checked when the tracker was made)
-            return None
+            return estimate_pose(dets, self.marker_map, self._cam, **self.pose_options), None
+        except (NoMarkersError, PoseError) as e:  # no marker of the map, or a degenerate frame
+            return None, e
 
     def _predict(self) -> dict | None:
         """The map's markers that may be in view under the predicted pose: ``{'ids': (K,), 'corners': (K, 4, 2) px,

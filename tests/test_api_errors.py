@@ -59,6 +59,7 @@ BASELINES = {
     "transform_from_rvec_tvec": (([0.1, 0.2, 0.3], [1, 2, 3]), {}),
     "transform_points": ((T, np.zeros((2, 3))), {}),
     "detect_markers": ((IMAGE,), {}),
+    "detect_markers_with_rejected": ((IMAGE,), {}),
     "draw_detections": ((IMAGE, DETECTIONS), {}),
     "render_scene": ((CAMERA.scaled((320, 180)), WORLD, T), {"supersample": 1}),
     "look_at": (([1000, 0, 300], [0, 0, 300]), {}),

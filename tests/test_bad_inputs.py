@@ -707,7 +707,7 @@ DETECT_ARGUMENTS = [
     ("refinement not a string", {"refine": True}, FidlearnError, "unknown corner refinement True"),
     (
         "unknown detector parameter",
-        {"params": {"adaptiveTreshWinSizeMin": 3}},
+        {"detector_params": {"adaptiveTreshWinSizeMin": 3}},
         FidlearnError,
         "no field 'adaptiveTreshWinSizeMin'",
     ),
@@ -890,8 +890,8 @@ ESTIMATE_POSE = [
         lambda: ([Detection(0, np.array(SQUARE_PX)[[0, 3, 2, 1]])], seed_map(), camera_640()),
         {},
         PoseError,
-        "marker 0: its image corners [[100.0, 100.0], [100.0, 200.0], [200.0, 200.0], [200.0, 100.0]] "
-        "run anticlockwise",
+        "marker 0: its image corners "
+        "[[100.0, 100.0], [100.0, 200.0], [200.0, 200.0], [200.0, 100.0]] run anticlockwise",
     ),
     (
         "shuffled corners",
@@ -1405,7 +1405,8 @@ TRACKER_OPTIONS = [
     (
         "misspelt pose option",
         lambda m, c: MarkerTracker(m, c, metod="auto"),
-        "unknown pose option metod; estimate_pose takes method",
+        "MarkerTracker() got unknown option 'metod'; it takes refine, detector_params, full_every, search_px and "
+        "estimate_pose's corner_sigma_px, method",
     ),
     ("unknown method", lambda m, c: MarkerTracker(m, c, method="magic"), "unknown method 'magic'"),
     ("unknown refinement", lambda m, c: MarkerTracker(m, c, refine="sharp"), "unknown corner refinement 'sharp'"),

@@ -492,3 +492,21 @@ def test_square_size_in_metres_warns(right_grays):
         cal = calibrate_checkerboard(right_grays[:4], PATTERN, 0.025)
     T = next(iter(cal.T_camera_board.values()))
     assert T[2, 3] < 1.0  # the board "0.3 mm" from the camera: what the warning is about
+
+
+def test_the_quality_warnings_are_the_libraries_and_the_command_line_prints_them(tmp_path, capsys):
+    """A notebook user gets in Calibration.warnings the very sentences 'fidlearn calibrate' prints."""
+    from fidlearn.cli import main
+
+    photos = sorted(data_path("calibration").glob("view_*.png"))[:5]
+    cal = calibrate_checkerboard(photos, (9, 6), 25.0)
+    assert cal.coverage.shape == (3, 3) and cal.coverage.sum() == 5 * 54
+    assert cal.warnings and cal.warnings[0].startswith("only 5 views used")
+    assert all(f"warning: {w}" in cal.summary() for w in cal.warnings)
+    full = calibrate_checkerboard(data_path("calibration"), (9, 6), 25.0)
+    assert full.warnings == []  # 20 varied views covering the picture: nothing to say
+    argv = ["calibrate", *map(str, photos), "--pattern", "9x6", "--square-mm", "25", "-o", str(tmp_path / "c.json")]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    printed = [line[len("warning: ") :] for line in err.splitlines() if line.startswith("warning: ")]
+    assert printed == [" ".join(w.split()) for w in cal.warnings]

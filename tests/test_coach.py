@@ -169,3 +169,45 @@ def test_calibrate_prints_the_coach_and_draws_its_report(tmp_path, capsys):
     assert "calibration coach: reprojection uncertainty: median" in out and "next photo: put the board" in out
     assert (tmp_path / "report.png").read_bytes()[:4] == b"\x89PNG"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.json", "report.png"]
+
+
+def _coverage_before(camera, image_points_px, grid):
+    """The coach's own grid count as it was before it shared fidlearn.calibration.quality.coverage_grid."""
+    cols, rows = grid
+    out = np.zeros((rows, cols), dtype=int)
+    for pts in image_points_px.values():
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+        c = np.clip(((pts[:, 0] + 0.5) * cols // camera.width).astype(int), 0, cols - 1)
+        r = np.clip(((pts[:, 1] + 0.5) * rows // camera.height).astype(int), 0, rows - 1)
+        np.add.at(out, (r, c), 1)
+    return out
+
+
+def _ninths_before(points_px, image_size):
+    """The command line's 3x3 count as it was before (fidlearn.cli.coverage_grid)."""
+    w, h = image_size
+    grid = np.zeros((3, 3), dtype=int)
+    for pts in points_px:
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+        col = np.clip(((pts[:, 0] + 0.5) * 3 // w).astype(int), 0, 2)
+        row = np.clip(((pts[:, 1] + 0.5) * 3 // h).astype(int), 0, 2)
+        np.add.at(grid, (row, col), 1)
+    return grid
+
+
+@pytest.mark.parametrize("grid", [(3, 3), (8, 6), (1, 1), (5, 2)])
+def test_one_coverage_grid_serves_the_coach_and_the_command_line(grid):
+    from fidlearn.calibration.quality import coverage_grid
+    from fidlearn.cli import coverage_grid as cli_coverage_grid
+    from fidlearn.planning.coach import _coverage
+
+    rng = np.random.default_rng(7)
+    views = {f"v{k}": rng.uniform(-0.5, [CAMERA.width - 0.5, CAMERA.height - 0.5], size=(54, 2)) for k in range(12)}
+    views["edges"] = np.array([[-0.5, -0.5], [CAMERA.width - 0.5, CAMERA.height - 0.5], [CAMERA.width / 3 - 0.5, 0]])
+    np.testing.assert_array_equal(_coverage(CAMERA, views, grid), _coverage_before(CAMERA, views, grid))
+    np.testing.assert_array_equal(
+        coverage_grid(views.values(), CAMERA.image_size, grid), _coverage_before(CAMERA, views, grid)
+    )
+    np.testing.assert_array_equal(
+        cli_coverage_grid(views.values(), CAMERA.image_size), _ninths_before(views.values(), CAMERA.image_size)
+    )

@@ -110,7 +110,9 @@ def test_markermap_behaves_as_described(tmp_path):
 def test_detection_signatures():
     starts_with(fidlearn.detect_markers, ["image", "dictionary", "refine"])
     assert inspect.signature(fidlearn.detect_markers).parameters["dictionary"].default == "ARUCO_ORIGINAL"
-    starts_with(fidlearn.Detection, ["id", "corners"])
+    starts_with(fidlearn.Detection, ["id", "corners_px"])
+    d = fidlearn.Detection(3, [[0, 0], [1, 0], [1, 1], [0, 1]])
+    assert d.corners is d.corners_px  # the former name still reads the same array
 
 
 def test_pose_signatures():

@@ -15,6 +15,7 @@ from fidlearn.detection import (
     _detector,
     as_gray,
     detect_markers,
+    detect_markers_with_rejected,
     draw_detections,
     load_image,
     refine_corners_edges,
@@ -227,7 +228,7 @@ def test_rotating_the_image_permutes_nothing(photo):
 def test_inverted_markers_refine_too():
     cam, T = view(45)
     image, truth = render_scene(wall(), cam, T, seed=5, blur_px=0.7, noise_std_gray=1.5)
-    dets = detect_markers(255 - image, params={"detectInvertedMarker": True})
+    dets = detect_markers(255 - image, detector_params={"detectInvertedMarker": True})
     assert [d.id for d in dets] == sorted(truth)
     err = np.array([d.corners - truth[d.id] for d in dets])
     assert np.sqrt((err**2).sum(2).mean()) < 0.12
@@ -286,13 +287,13 @@ def test_unknown_refinement_and_parameter_are_clear_errors(photo):
     with pytest.raises(FidlearnError, match=r"unknown corner refinement 'subpixel'; use one of 'none', 'subpix'"):
         detect_markers(photo, "6X6_250", refine="subpixel")
     with pytest.raises(FidlearnError, match="DetectorParameters has no field 'winSize'"):
-        detect_markers(photo, "6X6_250", params={"winSize": 3})
+        detect_markers(photo, "6X6_250", detector_params={"winSize": 3})
     with pytest.raises(FidlearnError, match=r"detector parameter markerBorderBits=1.5: .*integer"):
-        detect_markers(photo, "6X6_250", params={"markerBorderBits": 1.5})
+        detect_markers(photo, "6X6_250", detector_params={"markerBorderBits": 1.5})
     with pytest.raises(FidlearnError, match="values must be numbers or booleans"):
-        detect_markers(photo, "6X6_250", params={"minMarkerPerimeterRate": [0.1]})
+        detect_markers(photo, "6X6_250", detector_params={"minMarkerPerimeterRate": [0.1]})
     with pytest.raises(FidlearnError, match="must be None, a dict of field overrides"):
-        detect_markers(photo, "6X6_250", params=[("minMarkerPerimeterRate", 0.1)])
+        detect_markers(photo, "6X6_250", detector_params=[("minMarkerPerimeterRate", 0.1)])
 
 
 def test_detector_is_built_once_per_dictionary_refinement_and_parameters(photo):
@@ -307,12 +308,12 @@ def test_detector_is_built_once_per_dictionary_refinement_and_parameters(photo):
     # parameters as an OpenCV object work and are honoured: markers this small are dropped
     params = cv2.aruco.DetectorParameters()
     params.minMarkerPerimeterRate = 0.25  # perimeter at least 0.25 * 640 = 160 px: only id 40 (44 px side)
-    assert [d.id for d in detect_markers(photo, "6X6_250", params=params)] == [40]
-    assert [d.id for d in detect_markers(photo, "6X6_250", params={"minMarkerPerimeterRate": 0.25})] == [40]
+    assert [d.id for d in detect_markers(photo, "6X6_250", detector_params=params)] == [40]
+    assert [d.id for d in detect_markers(photo, "6X6_250", detector_params={"minMarkerPerimeterRate": 0.25})] == [40]
 
 
 def test_rejected_candidates_on_request(photo):
-    dets, rejected = detect_markers(photo, "6X6_250", return_rejected=True)
+    dets, rejected = detect_markers_with_rejected(photo, "6X6_250")
     assert [d.id for d in dets] == PHOTO_IDS
     assert len(rejected) > 0 and all(r.shape == (4, 2) for r in rejected)
 
@@ -354,7 +355,7 @@ def test_draw_detections_marks_outline_id_and_named_corners(photo):
     changed = np.any(out != photo, axis=2)
     assert changed.sum() > 3000
     for d in dets:  # every corner is drawn over, and the first one (TL) is red
-        for _k, (x, y) in enumerate(np.round(d.corners).astype(int)):
+        for x, y in np.round(d.corners).astype(int):
             assert changed[y, x]
         x, y = np.round(d.corners[0]).astype(int)
         b, g, r = out[y, x].astype(int)
@@ -475,3 +476,24 @@ def test_detection_accepts_numpy_ids_and_flat_corners():
     d = Detection(np.int32(5), np.arange(8.0))
     assert d.id == 5 and type(d.id) is int and d.corners.shape == (4, 2)
     assert Detection(4.0, np.zeros((1, 4, 2))).id == 4
+
+
+def test_one_return_type_and_corners_px(photo):
+    """detect_markers always returns the list; the rejected candidates come from their own function."""
+    dets = detect_markers(photo, "6X6_250")
+    assert isinstance(dets, list)
+    with_rejected, rejected = detect_markers_with_rejected(photo, "6X6_250")
+    assert [d.id for d in with_rejected] == [d.id for d in dets]
+    for a, b in zip(dets, with_rejected):
+        np.testing.assert_array_equal(a.corners_px, b.corners_px)
+    assert all(np.asarray(q).shape == (4, 2) for q in rejected)
+    with pytest.raises(TypeError):
+        detect_markers(photo, "6X6_250", return_rejected=True)
+
+
+def test_detection_corners_keep_their_former_name():
+    quad = [[10, 10], [30, 10], [30, 30], [10, 30]]
+    for d in (Detection(5, quad), Detection(5, corners_px=quad), Detection(id=5, corners=quad)):
+        assert d.corners is d.corners_px and d.corners.shape == (4, 2) and d.corners.dtype == np.float64
+    with pytest.raises(FidlearnError, match="give the corners once"):
+        Detection(5, quad, corners=quad)

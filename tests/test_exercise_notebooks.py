@@ -4,7 +4,7 @@ The answer keys run in a real Jupyter kernel (nbclient) in strict mode, so a
 check that is not Correct fails the notebook. The student copies are run in
 this process, cell by cell, in strict "blank" mode: every check must say Not
 attempted, and nothing may raise. Both must match what
-``tools/make_student_copies.py`` builds from ``fidlearn/exercises.py``.
+``tools/make_student_copies.py`` builds from the lessons in ``fidlearn/exercises/lessons/``.
 """
 
 from __future__ import annotations

@@ -301,7 +301,7 @@ def test_unknown_strict_mode_is_refused():
 
 # -- personal variants -----------------------------------------------------------------------------
 def _inputs_equal(a, b) -> bool:
-    for k in a.keys():
+    for k in a:
         va, vb = a[k], b[k]
         if isinstance(va, (np.ndarray, list, tuple, float, int)) and not isinstance(va, bool):
             try:
@@ -331,7 +331,10 @@ def test_two_learners_get_different_data_and_are_each_checked(number):
 
 
 def test_the_variant_does_not_depend_on_the_python_hash_seed():
-    code = "from fidlearn import exercises; q = exercises.lesson('01', learner='alice').q1; print(q.inputs.hfov_deg, q.inputs.image_size)"
+    code = (
+        "from fidlearn import exercises; q = exercises.lesson('01', learner='alice').q1; "
+        "print(q.inputs.hfov_deg, q.inputs.image_size)"
+    )
     outs = {
         subprocess.run(
             [sys.executable, "-c", code],
@@ -597,3 +600,68 @@ def test_other_honest_methods_pass(learner):
         detect_markers(q.inputs.image, q.inputs.marker_map.dictionary), q.inputs.marker_map, q.inputs.camera
     )
     assert q.grade({"misplaced_id": pose.rejected_ids[0], "position_mm": pose.position_mm}).correct
+
+
+def test_unknown_lesson_or_question_is_an_exercise_error():
+    from fidlearn.errors import ExerciseError, FidlearnError
+
+    with pytest.raises(ExerciseError) as info:
+        exercises.lesson("42")
+    assert isinstance(info.value, FidlearnError) and isinstance(info.value, KeyError)
+    assert str(info.value).startswith("no exercises for lesson '42'; available: 01, 02")  # no KeyError quotes
+    with pytest.raises(ExerciseError, match=r"lesson 01 has no question 'q9'; it has \['q1', 'q2', 'q3', 'q4'\]"):
+        exercises.lesson("01")["q9"]
+
+
+def test_lessons_are_registered_in_notebook_order_and_lessons_stays_a_function():
+    assert list(exercises._LESSONS) == sorted(exercises._LESSONS)
+    assert callable(exercises.lessons) and list(exercises.lessons()) == list(exercises._LESSONS)
+    from fidlearn.exercises.lessons import MODULES
+
+    assert [m.NUMBER for m in MODULES] == list(exercises.lessons())
+    assert [m.TOPIC for m in MODULES] == list(exercises.lessons().values())
+
+
+def test_strict_mode_lives_in_a_context_variable():
+    """strict() is seen by this context only: a thread started elsewhere keeps its own mode."""
+    import contextvars
+    import threading
+
+    assert exercises.STRICT_STACK.get() == ()
+    seen = {}
+    with exercises.strict("blank"):
+        assert exercises.STRICT_STACK.get() == ("blank",) and exercises.strict_mode() == "blank"
+        with exercises.strict():
+            assert exercises.strict_mode() == "correct"
+        assert exercises.strict_mode() == "blank"
+        fresh = threading.Thread(target=lambda: seen.update(fresh=exercises.STRICT_STACK.get()))
+        fresh.start()
+        fresh.join()
+        copied = contextvars.copy_context()
+    assert exercises.STRICT_STACK.get() == ()
+    assert seen["fresh"] == ()  # a new thread starts from the default
+    assert copied[exercises.STRICT_STACK] == ("blank",)  # a copied context keeps what it saw
+
+
+def test_strict_mode_falls_back_on_the_environment(monkeypatch):
+    monkeypatch.setenv("FIDLEARN_STRICT", "blank")
+    assert exercises.strict_mode() == "blank"
+    with exercises.strict(False):
+        assert exercises.strict_mode() is None
+    monkeypatch.setenv("FIDLEARN_STRICT", "nonsense")
+    assert exercises.strict_mode() == "correct"  # an unreadable value is as strict as it gets
+
+
+def test_every_question_has_its_own_builder_in_notebook_order():
+    import inspect
+
+    from fidlearn.exercises.lessons import MODULES
+
+    for module in MODULES:
+        builders = [
+            name for name, f in inspect.getmembers(module, inspect.isfunction) if f.__module__ == module.__name__
+        ]
+        names = [q.name for q in exercises.lesson(module.NUMBER)]
+        assert [f"_{n}" for n in names] == sorted(b for b in builders if b[:2] == "_q" and b[2:].isdigit())
+        source = inspect.getsource(module)
+        assert [source.index(f"def _{n}(") for n in names] == sorted(source.index(f"def _{n}(") for n in names)

@@ -243,3 +243,22 @@ def test_grade_command_one_error_line(tmp_path):
         timeout=120,
     )
     assert out.returncode == 0 and oct((tmp_path / "s").stat().st_mode & 0o777) == "0o600"
+
+
+def test_release_writes_the_student_notebook_and_the_inputs(tmp_path):
+    secret = grading.new_secret(tmp_path / "class.secret")
+    folders = grading.release("3", ["Alice", "bob"], secret, tmp_path / "out")
+    assert [f.name for f in folders] == ["alice", "bob"]
+    student = Path(__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name("03")
+    for folder in folders:
+        assert (folder / student.name).read_bytes() == student.read_bytes()
+        record = json.loads((folder / grading.INPUTS_FILE).read_text())
+        assert record["lesson"] == "03" and record["learner"] == folder.name and "q1" in record["questions"]
+
+
+def test_grading_errors_are_fidlearn_errors():
+    from fidlearn.errors import ExerciseError, GradingError
+
+    assert grading.GradingError is GradingError and issubclass(GradingError, FidlearnError)
+    with pytest.raises(ExerciseError, match="no exercises for lesson '42'"):
+        grading.graded_questions("42", "alice", b"secret")

@@ -463,7 +463,7 @@ def test_calibrate_writes_the_camera_last(ws, capsys, monkeypatch):
     def broken(*a, **k):
         raise fidlearn.FidlearnError("drawing failed")
 
-    monkeypatch.setattr(c, "_draw_calibration_view", broken)
+    monkeypatch.setattr(c.calibrate, "draw_calibration_view", broken)
     before = snapshot(ws)
     status = cli.main(
         ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json", "--annotate", "seen"]
@@ -557,7 +557,7 @@ def test_the_cli_and_library_agree_with_a_misplaced_marker(ws, capsys):
     """A marker measured in the wrong place: a pose with the marker rejected, never a traceback."""
     rng = np.random.default_rng(4)
     bad = json.loads(json.dumps(SEED))
-    for trial in range(12):
+    for _trial in range(12):
         bad["markers"]["1"]["translation"] = [
             float(v) for v in np.array(SEED["markers"]["1"]["translation"]) + rng.normal(0, 0.5, 3)
         ]

@@ -9,7 +9,7 @@ import pytest
 from fidlearn import frames
 from fidlearn.camera import Camera
 from fidlearn.data import data_path
-from fidlearn.detection import Detection
+from fidlearn.detection import Detection, load_image
 from fidlearn.errors import CameraError, FidlearnWarning, ImageError, NoMarkersError, PoseError
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import Pose, estimate_pose, locate, pose_jacobian
@@ -756,6 +756,7 @@ def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
     r_true = np.array([3e-7, -2e-7, 1e-7])
     assert not cv2.Rodrigues(cv2.Rodrigues(r_true)[0])[0].any()  # the OpenCV behaviour worked around
     np.testing.assert_allclose(pose_mod._rotvec(cv2.Rodrigues(r_true)[0]), r_true, rtol=1e-6, atol=1e-15)
+    assert pose_mod._rotvec is frames._rotvec  # one small-angle fix, shared with rvec_tvec_from_transform
     # refine_pose_lm returns the tiny rotation of a camera looking straight at a wall
     P = np.array([[x, y, 2000.0 + 0.5 * x] for x in (-300.0, 0.0, 300.0) for y in (-200.0, 200.0)])
     T_cw = frames.make_transform(cv2.Rodrigues(r_true)[0], [10.0, -5.0, 30.0])
@@ -822,3 +823,13 @@ def test_locate_names_the_markers_it_saw_when_none_is_in_the_map():
     only_seven = MarkerMap({9: MarkerPlacement(9, (0.0, 0.0, 300.0), (0.0, 0.0, 0.0))}, 80, "ARUCO_ORIGINAL", "mm")
     with pytest.raises(NoMarkersError, match=r"0, 1, 2, 7"):
         locate(image, only_seven, CAM)
+
+
+def test_locate_passes_detector_params_to_the_detector():
+    """A detector told to ignore small markers finds none of the seed's, so locate says so."""
+    world = MarkerMap.load(data_path("world_map.json"))
+    camera = Camera.load(data_path("scenes", "camera.json"))
+    image = load_image(data_path("scenes", "scene_00.png"))
+    assert list(locate(image, world, camera).marker_ids) == [0, 1, 2]
+    with pytest.raises(NoMarkersError):
+        locate(image, world, camera, detector_params={"minMarkerPerimeterRate": 3.5})

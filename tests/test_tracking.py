@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fidlearn import Camera, MarkerMap, MarkerPlacement, MarkerTracker, detect_markers, locate
-from fidlearn.errors import CameraError, FidlearnError, ImageError
+from fidlearn.errors import CameraError, FidlearnError, ImageError, NoMarkersError
 from fidlearn.synthetic import render_trajectory
 
 CAM = Camera([[500.0, 0, 320.4], [0, 500.0, 238.7], [0, 0, 1]], [-0.1, 0.05, 0.0004, -0.0003, 0.0], (640, 480))
@@ -15,9 +15,7 @@ CAM = Camera([[500.0, 0, 320.4], [0, 500.0, 238.7], [0, 0, 1]], [-0.1, 0.05, 0.0
 def wall_map() -> MarkerMap:
     """Six 100 mm markers on the north wall (x = 0), facing +X; ids not consecutive."""
     p = {}
-    for _k, (i, y, z) in enumerate(
-        [(3, 0, 1500), (7, 400, 1500), (11, 800, 1500), (20, 100, 1100), (21, 500, 1100), (40, 900, 1150)]
-    ):
+    for i, y, z in [(3, 0, 1500), (7, 400, 1500), (11, 800, 1500), (20, 100, 1100), (21, 500, 1100), (40, 900, 1150)]:
         p[i] = MarkerPlacement(i, (0.0, float(y), float(z)), (0.0, 0.0, 0.0))
     return MarkerMap(p, 100.0, "ARUCO_ORIGINAL", "mm")
 
@@ -61,9 +59,11 @@ def test_pose_matches_truth_and_locate(drive):
 
 def test_recovers_after_a_frame_without_markers(drive):
     tracker = MarkerTracker(drive.marker_map, CAM)
-    assert tracker.locate(drive.images[0]) is not None
+    assert tracker.locate(drive.images[0]).marker_ids == (3, 7, 11, 20, 21, 40)
     blank = np.full_like(drive.images[0], 128)
-    assert tracker.locate(blank) is None and tracker.last_detections == []
+    with pytest.raises(NoMarkersError, match=r"no marker was detected; the map .* has ids \[3, 7, 11, 20, 21, 40\]"):
+        tracker.locate(blank)  # a frame without a pose raises, as fidlearn.locate does
+    assert tracker.last_pose is None and tracker.last_detections == []
     pose = tracker.locate(drive.images[2])
     assert tracker.last_full and tracker.full_detections == 3  # frame 0, the blank frame, then afresh
     assert np.linalg.norm(pose.position_mm - drive.T_world_camera[2][:3, 3]) < 3.0
@@ -128,7 +128,10 @@ def test_bgr_frames_and_pose_options(drive):
         (dict(search_px=-1), "search_px must be a number of pixels >= 0"),
         (dict(refine="sharp"), "unknown corner refinement 'sharp'"),
         (dict(method="dlt"), "unknown method 'dlt'"),
-        (dict(reject_outlier=False), "unknown pose option reject_outlier"),
+        # checked once, as locate checks them, not found wrong on every frame
+        (dict(corner_sigma_px=0), "corner_sigma_px must be a positive number of pixels, got 0"),
+        (dict(reject_outliers="no"), "reject_outliers must be True or False, got 'no'"),
+        (dict(reject_outlier=False), r"MarkerTracker\(\) got unknown option 'reject_outlier'; it takes refine, "),
         (dict(detector_params={"adaptiveThreshWinSize": 5}), "no field 'adaptiveThreshWinSize'"),
     ],
 )

@@ -1,7 +1,7 @@
 """Build the exercise notebooks: answer keys from fidlearn.exercises, student copies from the keys.
 
 One source, two copies. The answer keys ``notebooks/exercises/solutions/NN_topic.ipynb``
-are written from the lesson definitions in ``fidlearn/exercises.py`` (tasks, inputs and
+are written from the lesson definitions in ``fidlearn/exercises/lessons/`` (tasks, inputs and
 the solution code that ``qN.solution()`` shows); each student copy
 ``notebooks/exercises/NN_topic.ipynb`` is the key with every block between
 ``### BEGIN SOLUTION`` and ``### END SOLUTION`` replaced by a stub

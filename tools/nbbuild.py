@@ -273,7 +273,8 @@ def check_one(src: Path) -> list[str]:
         first = next((i for i, (a, b) in enumerate(zip(have, want)) if a != b), min(len(have), len(want)))
         problems.append(
             f"{name}: cells differ from {src.name} (first difference at cell {first}; "
-            f"{len(have)} cells in the notebook, {len(want)} in the source); rebuild: python tools/nbbuild.py {_show(src)}"
+            f"{len(have)} cells in the notebook, {len(want)} in the source); "
+            f"rebuild: python tools/nbbuild.py {_show(src)}"
         )
         return problems
     for i, c in enumerate(nb.cells):

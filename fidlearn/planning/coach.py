@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from .. import frames
+from ..calibration.quality import coverage_grid
 from ..camera import Camera
 from ..errors import CalibrationError
 
@@ -179,14 +180,8 @@ class CalibrationCoach:
 
 
 def _coverage(camera: Camera, image_points_px: dict, grid=GRID) -> np.ndarray:
-    cols, rows = grid
-    out = np.zeros((rows, cols), dtype=int)
-    for pts in image_points_px.values():
-        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
-        c = np.clip(((pts[:, 0] + 0.5) * cols // camera.width).astype(int), 0, cols - 1)
-        r = np.clip(((pts[:, 1] + 0.5) * rows // camera.height).astype(int), 0, rows - 1)
-        np.add.at(out, (r, c), 1)
-    return out
+    """Board points per cell of a ``grid`` (columns, rows) over the picture, row 0 at the top."""
+    return coverage_grid(image_points_px.values(), camera.image_size, grid)
 
 
 _NINTHS = ["top left", "top", "top right", "left", "middle", "right", "bottom left", "bottom", "bottom right"]
@@ -261,63 +256,6 @@ def _summary(camera: Camera, info: np.ndarray, sigma_px: float, distance_mm: flo
     return cov, u, float(np.mean(u < GOOD_UNCERTAINTY_PX))
 
 
-def _flags(n_views: int, tilts: dict, ninths: np.ndarray, other_sizes: int, bent: list) -> list[str]:
-    """What is wrong with a calibration set, each with its fix: too few views, all face-on, empty ninths of
-    the picture, photos of another size, a board that is not flat."""
-    flags = []
-    if n_views < MIN_VIEWS:
-        flags.append(f"only {n_views} views were used; take at least {MIN_VIEWS} (15 to 25 is usual)")
-    if max(tilts.values()) < FACE_ON_DEG:
-        flags.append(
-            f"every view is face-on (the largest tilt is {max(tilts.values()):.0f} deg): the focal length "
-            "and the distance cannot be told apart; tilt the board 20 to 45 deg in different directions"
-        )
-    empty = [_NINTHS[k] for k in np.flatnonzero(ninths.ravel() == 0)]
-    if empty:
-        flags.append(
-            f"no board point in the {', '.join(empty)} of the picture; the distortion there is a guess: take "
-            "views with the board reaching into it"
-        )
-    if other_sizes:
-        flags.append(
-            f"{other_sizes} photo{'s were' if other_sizes > 1 else ' was'} taken at another resolution and left "
-            "out: calibrate at the resolution you will run at, all photos alike"
-        )
-    if bent:
-        flags.append(
-            f"the board does not look flat in {', '.join(bent)}: its residuals follow a smooth bend; "
-            "glue the print to something rigid and retake those views"
-        )
-    return flags
-
-
-def _next_view(
-    camera: Camera, board: np.ndarray, info: np.ndarray, sigma_px: float, distance: float
-) -> NextView | None:
-    """The candidate view that most improves the picture's uncertainty, or None when none shows the board."""
-    best = None
-    candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
-    for T, where, tilt in candidates:
-        if not _board_in_picture(camera, board, T):
-            continue
-        _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma_px, distance)
-        # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
-        score = (min(good_after, 0.9), -float(np.mean(u_after**2)))
-        if best is None or score > best[0]:
-            best = (
-                score,
-                NextView(
-                    T,
-                    where,
-                    tilt,
-                    float(np.linalg.norm(T[:3, :3] @ board.mean(axis=0) + T[:3, 3])),
-                    good_after,
-                    float(np.median(u_after)),
-                ),
-            )
-    return best[1] if best else None
-
-
 def coach(
     camera: Camera,
     board_points_mm: dict,
@@ -361,12 +299,66 @@ def coach(
     cov, u, good = _summary(camera, info, sigma_px, distance)
     coverage = _coverage(camera, image_points_px)
     tilts = {n: _tilt_deg(T_camera_board[n]) for n in names}
-    ninths = _coverage(camera, image_points_px, (3, 3))
-    bent = bent_views(camera, board_points_mm, image_points_px, T_camera_board)
-    flags = _flags(len(names), tilts, ninths, other_sizes, bent)
-    board = np.asarray(board_points_mm[names[0]], dtype=float)
-    best = _next_view(camera, board, info, sigma_px, distance)
+    flags = _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts, other_sizes)
+    best = _next_view(camera, np.asarray(board_points_mm[names[0]], dtype=float), info, sigma_px, distance)
     return CalibrationCoach(u, good, cov, coverage, tilts, flags, best)
+
+
+def _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts: dict, other_sizes: int) -> list[str]:
+    """What is wrong with the set, one sentence each."""
+    names = list(T_camera_board)
+    flags = []
+    if len(names) < MIN_VIEWS:
+        flags.append(f"only {len(names)} views were used; take at least {MIN_VIEWS} (15 to 25 is usual)")
+    if max(tilts.values()) < FACE_ON_DEG:
+        flags.append(
+            f"every view is face-on (the largest tilt is {max(tilts.values()):.0f} deg): the focal length "
+            "and the distance cannot be told apart; tilt the board 20 to 45 deg in different directions"
+        )
+    ninths = _coverage(camera, image_points_px, (3, 3))
+    empty = [_NINTHS[k] for k in np.flatnonzero(ninths.ravel() == 0)]
+    if empty:
+        flags.append(
+            f"no board point in the {', '.join(empty)} of the picture; the distortion there is a guess: take "
+            "views with the board reaching into it"
+        )
+    if other_sizes:
+        flags.append(
+            f"{other_sizes} photo{'s were' if other_sizes > 1 else ' was'} taken at another resolution and left "
+            "out: calibrate at the resolution you will run at, all photos alike"
+        )
+    bent = bent_views(camera, board_points_mm, image_points_px, T_camera_board)
+    if bent:
+        flags.append(
+            f"the board does not look flat in {', '.join(bent)}: its residuals follow a smooth bend; "
+            "glue the print to something rigid and retake those views"
+        )
+    return flags
+
+
+def _next_view(camera, board: np.ndarray, info, sigma_px: float, distance: float) -> NextView | None:
+    """The candidate photo that lowers the uncertainty most (None when no candidate shows the whole board)."""
+    best = None
+    candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
+    for T, where, tilt in candidates:
+        if not _board_in_picture(camera, board, T):
+            continue
+        _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma_px, distance)
+        # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
+        score = (min(good_after, 0.9), -float(np.mean(u_after**2)))
+        if best is None or score > best[0]:
+            best = (
+                score,
+                NextView(
+                    T,
+                    where,
+                    tilt,
+                    float(np.linalg.norm(T[:3, :3] @ board.mean(axis=0) + T[:3, 3])),
+                    good_after,
+                    float(np.median(u_after)),
+                ),
+            )
+    return best[1] if best else None
 
 
 def _board_in_picture(camera: Camera, board_mm: np.ndarray, T_camera_board: np.ndarray) -> bool:

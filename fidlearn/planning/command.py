@@ -11,6 +11,7 @@ import numpy as np
 
 from .._io import atomic_write
 from ..camera import Camera
+from ..cli._common import _check_output, _floats, _refuse_clobber
 from ..errors import FidlearnError
 from ..markermap import MarkerMap
 from .room import default_area, plan_room, suggest_markers
@@ -18,17 +19,14 @@ from .room import default_area, plan_room, suggest_markers
 HELP = "predicted position error over a room seen from above, and where to add markers"
 
 
-def _numbers(text: str, n: int, option: str, meaning: str) -> list[float]:
-    try:
-        values = [float(t) for t in str(text).replace(" ", "").split(",")]
-    except ValueError:
-        values = []
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise FidlearnError(f"{option} {text!r}: expected {n} numbers separated by commas ({meaning})")
-    return values
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The command's options, on ``p``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The parser to add the options to.
+    """
     p.add_argument("map", type=Path, help="world map JSON (full layout, or give --units and --marker-size-mm)")
     p.add_argument("--camera", type=Path, required=True, help="camera file (fidlearn JSON or OpenCV YAML)")
     p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
@@ -54,15 +52,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _check(args) -> None:
-    out = args.output
-    if out.suffix.lower() != ".png":
-        raise FidlearnError(f"-o {out}: name the picture .png")
-    folder = out.parent if str(out.parent) else Path(".")
-    if not folder.is_dir():
-        raise FidlearnError(f"-o {out}: the folder {folder} does not exist; create it first")
-    for given in (args.map, args.camera):
-        if out.exists() and given.exists() and out.resolve() == given.resolve():
-            raise FidlearnError(f"-o {out} is one of the inputs; write the picture somewhere else")
+    """The output (a .png in a folder that exists, not an input) and the target, before any work."""
+    out = _check_output(args.output, (".png",))
+    _refuse_clobber([("-o", out)], [args.map, args.camera])
     if args.suggest and args.target_mm is None:
         raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
     if args.target_mm is not None and not (math.isfinite(args.target_mm) and args.target_mm > 0):
@@ -70,11 +62,29 @@ def _check(args) -> None:
 
 
 def run(args) -> int:
+    """Plan the room, write the picture, print the figures (and the suggestions with --suggest).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
     _check(args)
     world = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm)
     camera = Camera.load(args.camera)
-    area = _numbers(args.area, 4, "--area", "x0,y0,x1,y1 in mm") if args.area else default_area(world)
-    look = _numbers(args.look_at, 3, "--look-at", "x,y,z in mm") if args.look_at else None
+    area = _floats(args.area, 4, "--area", "x0,y0,x1,y1 in mm") if args.area else default_area(world)
+    look = _floats(args.look_at, 3, "--look-at", "x,y,z in mm") if args.look_at else None
 
     def progress(done: int, total: int) -> None:
         if sys.stderr.isatty():
@@ -107,7 +117,8 @@ def run(args) -> int:
         )
     if np.any(plan.flip[ok]):
         print(
-            f"  the planar flip is likely at {100 * plan.flip[ok].mean():.0f} % of those places: add a marker off their plane"
+            f"  the planar flip is likely at {100 * plan.flip[ok].mean():.0f} % of those places: "
+            "add a marker off their plane"
         )
     if args.target_mm is not None:
         print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
@@ -119,6 +130,7 @@ def run(args) -> int:
             print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
         for s in steps:
             print(
-                f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % within {args.target_mm:g} mm"
+                f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % "
+                f"within {args.target_mm:g} mm"
             )
     return 0

@@ -50,6 +50,20 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
 
     Grey where no pose is possible; a white line at ``target_mm`` when given; each marker as a
     black bar with an arrow along its normal.
+
+    Parameters
+    ----------
+    plan : RoomPlan
+        The result of :func:`fidlearn.plan_room`.
+    marker_map : MarkerMap
+        The map it was computed for.
+    target_mm : float, optional
+        Draw the contour of this predicted position error (mm).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One panel, or two when some level heading sees a marker.
     """
     panels = [(plan.toward_mm, "looking toward the markers")]
     if np.isfinite(plan.worst_mm).any():
@@ -75,12 +89,20 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
 
 
 def coach_figure(coach, camera) -> Figure:
-    """The calibration coach's picture: reprojection uncertainty over the image, with the board points and the next view.
+    """The calibration coach's picture: reprojection uncertainty over the image, with the board points and the
+    next view.
 
     Parameters
     ----------
     coach : CalibrationCoach
+        The coach's verdict on a calibration.
     camera : Camera
+        The calibrated camera (its image size sets the axes).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The uncertainty map (px) over the picture.
     """
     from .coach import GOOD_UNCERTAINTY_PX
 

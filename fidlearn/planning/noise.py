@@ -50,6 +50,16 @@ def corner_sigma_px(side_px: float | np.ndarray) -> float | np.ndarray:
     Linear interpolation of the measured table (:data:`NOISE_SIDE_PX`,
     :data:`NOISE_SIGMA_PX`), held constant outside it.
 
+    Parameters
+    ----------
+    side_px : float or ndarray
+        Apparent marker side (px, mean of the four sides).
+
+    Returns
+    -------
+    float or ndarray
+        Corner noise per axis (px), the shape of ``side_px``.
+
     Examples
     --------
     >>> round(float(corner_sigma_px(50.0)), 3)
@@ -60,6 +70,17 @@ def corner_sigma_px(side_px: float | np.ndarray) -> float | np.ndarray:
 
 def min_perimeter_px(image_size: tuple[int, int]) -> float:
     """The smallest marker perimeter (px) the default detector finds in a picture of ``image_size``.
+
+    Parameters
+    ----------
+    image_size : (int, int)
+        Width and height of the picture (px).
+
+    Returns
+    -------
+    float
+        The perimeter (px) below which markers are lost: the decoder's own limit or OpenCV's
+        ``minMarkerPerimeterRate`` rule, whichever is larger.
 
     Examples
     --------

@@ -157,7 +157,8 @@ def _seen(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray) -> 
             continue
         if float(np.min(sides)) < noise.MIN_SHORT_SIDE_PX:
             lost[mid] = (
-                f"seen too obliquely (a side of {np.min(sides):.0f} px, the detector needs {noise.MIN_SHORT_SIDE_PX:.0f})"
+                f"seen too obliquely (a side of {np.min(sides):.0f} px, "
+                f"the detector needs {noise.MIN_SHORT_SIDE_PX:.0f})"
             )
             continue
         seen[mid] = px
@@ -181,8 +182,14 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
     points_px : ndarray, shape (N, 2)
         Their exact projections (px).
     camera : Camera
+        The camera that sees them.
     sigma_px : ndarray, shape (N,)
         Corner noise of each point (px per axis).
+
+    Returns
+    -------
+    float
+        The probability, in [0, 0.5].
     """
     P = np.asarray(points_world, dtype=float)
     centred = P - P.mean(axis=0)

@@ -271,7 +271,7 @@ def plot_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_
     ax : matplotlib.axes.Axes
         An image Axes (pixels, y down).
     detections : sequence of Detection
-        Objects with ``.id`` and ``.corners`` (4, 2) pixels, TL, TR, BR, BL.
+        Objects with ``.id`` and ``.corners_px`` (4, 2) pixels, TL, TR, BR, BL.
     color : str
     corner_labels : bool
         Write TL, TR, BR, BL beside the corners.
@@ -282,7 +282,7 @@ def plot_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_
         The outlines, one per detection.
     """
     return draw_quads(
-        ax, [d.corners for d in detections], ids=[d.id for d in detections], color=color, corner_labels=corner_labels
+        ax, [d.corners_px for d in detections], ids=[d.id for d in detections], color=color, corner_labels=corner_labels
     )
 
 

@@ -24,7 +24,7 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import (Camera, CameraError, FidlearnWarning, MarkerMap, _cv, calibrate_checkerboard, data_path,
+from fidlearn import (Camera, CameraError, FidlearnWarning, MarkerMap, calibrate_checkerboard, data_path,
                       frames, locate, plotting, synthetic)
 from fidlearn.detection import detect_markers, load_image
 
@@ -65,8 +65,9 @@ plt.show()
 # here: the window must not reach the next corner). `cv2.findChessboardCornersSB` is a newer detector
 # that refines by itself. The synthetic views record the true corners: let us measure both.
 #
-# A 9 x 6 board looks the same turned by 180 degrees, so a detector may number its corners from either
-# end: compare corner lists only once their order agrees.
+# The 9 x 6 grid of inner corners looks the same turned by 180 degrees (only the colours of the squares
+# swap, and `findChessboardCorners` does not look at them), so a detector may number its corners from
+# either end: compare corner lists only once their order agrees.
 
 # %%
 gray = load_image(views[0])
@@ -265,7 +266,7 @@ def camera_pose(image, camera):
     points_world = np.vstack([wall.corners()[d.id] for d in detections])
     points_px = np.vstack([d.corners for d in detections])
     ok, rvec, tvec = cv2.solvePnP(points_world, points_px, camera.K, camera.dist,
-                                  flags=_cv.solvepnp_flag("ITERATIVE"))
+                                  flags=cv2.SOLVEPNP_ITERATIVE)
     T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
     residual = camera.project(points_world, T_world_camera) - points_px
     return T_world_camera, float(np.sqrt(np.mean(np.sum(residual**2, axis=1))))

@@ -16,10 +16,11 @@
 import json
 import math
 
+import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import Camera, MapError, MarkerMap, _cv, data_path, frames, look_at, plotting, render_scene
+from fidlearn import Camera, MapError, MarkerMap, data_path, frames, look_at, plotting, render_scene
 from fidlearn.detection import detect_markers
 
 np.set_printoptions(precision=3, suppress=True)
@@ -43,14 +44,15 @@ np.set_printoptions(precision=3, suppress=True)
 
 # %%
 names = ["ARUCO_ORIGINAL", "4X4_50", "6X6_250", "APRILTAG_36h11"]
-for name in names:
-    print(f"{name:15s} {_cv.dictionary_marker_bits(name)}x{_cv.dictionary_marker_bits(name)} bits, "
-          f"{_cv.dictionary_size(name):4d} markers")
-assert _cv.dictionary_size("ARUCO_ORIGINAL") == 1024 and _cv.dictionary_marker_bits("ARUCO_ORIGINAL") == 5
-assert _cv.dictionary_size("4X4_50") == 50 and _cv.dictionary_marker_bits("4X4_50") == 4
+dictionaries = {name: cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, "DICT_" + name)) for name in names}
+for name, d in dictionaries.items():
+    print(f"{name:15s} {d.markerSize}x{d.markerSize} bits, {len(d.bytesList):4d} markers")
+assert len(dictionaries["ARUCO_ORIGINAL"].bytesList) == 1024 and dictionaries["ARUCO_ORIGINAL"].markerSize == 5
+assert len(dictionaries["4X4_50"].bytesList) == 50 and dictionaries["4X4_50"].markerSize == 4
 
-images = [_cv.generate_marker(name, 0, 140) for name in names] + [_cv.generate_marker("ARUCO_ORIGINAL", i, 140)
-                                                                   for i in (1, 2, 3)]
+original = dictionaries["ARUCO_ORIGINAL"]
+images = ([cv2.aruco.generateImageMarker(d, 0, 140) for d in dictionaries.values()]
+          + [cv2.aruco.generateImageMarker(original, i, 140) for i in (1, 2, 3)])
 titles = [f"{name} id 0" for name in names] + [f"ARUCO_ORIGINAL id {i}" for i in (1, 2, 3)]
 fig = plotting.show_images([np.pad(im, 20, constant_values=255) for im in images], titles, ncols=7, width_in=14)
 plt.show()
@@ -67,7 +69,7 @@ plt.show()
 # excluded.
 
 # %%
-marker = _cv.generate_marker("ARUCO_ORIGINAL", 0, 140)  # 7 cells of 20 px
+marker = cv2.aruco.generateImageMarker(original, 0, 140)  # 7 cells of 20 px
 with_margin = np.pad(marker, 40, constant_values=255)    # 2 cells of white all round
 cable = with_margin.copy()
 cable[60:80, :41] = 0                                      # a dark cable touching the left edge
@@ -104,7 +106,7 @@ plt.show()
 camera = Camera.from_fov(60, (640, 480))
 one = MarkerMap.from_dict({"0": {"translation": [0, -40, 1040], "rotation": [0, 0, 0]}}, units="mm",
                           marker_size_mm=80)
-cells = _cv.dictionary_marker_bits("ARUCO_ORIGINAL") + 2
+cells = original.markerSize + 2
 views = [(0, 1), (25, 2), (-35, 3), (45, 4)]  # (yaw of the view in degrees, noise seed)
 distances_mm = [750, 1000, 1500, 2000, 2500, 3000, 3500, 4000, 4500, 5000, 6000, 7000]
 

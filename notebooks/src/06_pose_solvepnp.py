@@ -21,7 +21,7 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import Camera, MarkerMap, _cv, data_path, estimate_pose, frames, plotting
+from fidlearn import Camera, MarkerMap, data_path, estimate_pose, frames, plotting
 from fidlearn.detection import detect_markers, load_image
 
 np.set_printoptions(precision=3, suppress=True)
@@ -89,11 +89,11 @@ assert object_points.shape == (4 * len(used), 3) and image_points.shape == (4 * 
 # it, here we just use `frames.invert_transform`.
 #
 # All our markers lie on one wall, so the points are **coplanar**: `SOLVEPNP_IPPE` is the solver made for
-# that case. (Flag numbers changed in OpenCV 5, so `_cv.solvepnp_flag("IPPE")` looks them up by name.)
+# that case. (Always name the flag, `cv2.SOLVEPNP_IPPE`: the numbers behind the names changed in OpenCV 5.)
 
 # %%
 ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist,
-                              flags=_cv.solvepnp_flag("IPPE"))
+                              flags=cv2.SOLVEPNP_IPPE)
 assert ok
 print("rvec:", rvec.ravel(), " tvec (mm):", tvec.ravel())
 
@@ -125,7 +125,7 @@ maps = {name: MarkerMap.load(data_path(name)) for name in ("world_map.json", "tw
 
 def solve_position_error_mm(flag, obj, img, T_true):
     """Position error (mm) of cv2.solvePnP with one solver, or NaN when it reports failure."""
-    ok, r, t = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=_cv.solvepnp_flag(flag))
+    ok, r, t = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=getattr(cv2, "SOLVEPNP_" + flag))
     if not ok:
         return np.nan
     T = frames.invert_transform(frames.transform_from_rvec_tvec(r, t))

@@ -22,7 +22,7 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import Camera, MarkerMap, TransformError, _cv, data_path, frames, plotting
+from fidlearn import Camera, MarkerMap, TransformError, data_path, frames, plotting
 from fidlearn.detection import detect_markers, load_image
 
 np.set_printoptions(precision=3, suppress=True)
@@ -45,7 +45,7 @@ world_corners = world_map.corners()
 object_points = np.vstack([world_corners[d.id] for d in detections])  # (12, 3) mm, world
 image_points = np.vstack([d.corners for d in detections])             # (12, 2) px
 
-ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist, flags=_cv.solvepnp_flag("IPPE"))
+ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
 rvec, tvec = cv2.solvePnPRefineLM(object_points, image_points, camera.K, camera.dist, rvec, tvec)
 assert ok
 R, _ = cv2.Rodrigues(rvec)   # (3, 3)
@@ -180,7 +180,7 @@ for rec in scenes:
     obj = np.vstack([wc[d.id] for d in dets])
     img = np.vstack([d.corners for d in dets])
     flag = "IPPE" if m.is_coplanar() else "SQPNP"
-    ok, r, tv = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=_cv.solvepnp_flag(flag))
+    ok, r, tv = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=getattr(cv2, "SOLVEPNP_" + flag))
     r, tv = cv2.solvePnPRefineLM(obj, img, camera.K, camera.dist, r, tv)
     T_est = invert_closed_form(frames.transform_from_rvec_tvec(r, tv))
     T_true = np.array(rec["T_world_camera"])
@@ -199,16 +199,17 @@ for rec in scenes:
 # %%
 axis_world = T_world_camera[:3, 2]            # unit vector, world frame
 heading_deg = np.degrees(np.arctan2(axis_world[1], axis_world[0]))   # in the floor plane, from +X towards +Y
-tilt_down_deg = np.degrees(np.arcsin(-axis_world[2]))                # below the horizon
+elevation_deg = np.degrees(np.arcsin(axis_world[2]))                 # above the horizon when positive
 s = -C[0] / axis_world[0]                     # C + s * axis has X = 0
 hit = C + s * axis_world
 target = np.array(record["look_at"]["target_mm"], dtype=float)
-print(f"optical axis {axis_world}: heading {heading_deg:.1f} deg, {tilt_down_deg:.1f} deg below the horizon")
+side = "above" if elevation_deg > 0 else "below"
+print(f"optical axis {axis_world}: heading {heading_deg:.1f} deg, {abs(elevation_deg):.1f} deg {side} the horizon")
 print("it meets the wall at", hit.round(1), "mm; look_at's target was", target)
 assert np.linalg.norm(hit - target) < 10
 
 # %% [markdown]
-# (Here the camera looks slightly *up*, at markers above it: the tilt is negative.)
+# (Here the camera looks slightly *up*, at markers above it: the axis has a positive Z component.)
 #
 # ## 7. A pose from one marker, chained through the map
 #
@@ -224,7 +225,7 @@ side = world_map.marker_size_mm
 square = np.array([[-side / 2, side / 2, 0], [side / 2, side / 2, 0],      # TL, TR
                    [side / 2, -side / 2, 0], [-side / 2, -side / 2, 0]])   # BR, BL, in the marker's frame, mm
 marker0 = next(d for d in detections if d.id == 0)
-ok, r0, t0 = cv2.solvePnP(square, marker0.corners, camera.K, camera.dist, flags=_cv.solvepnp_flag("IPPE_SQUARE"))
+ok, r0, t0 = cv2.solvePnP(square, marker0.corners, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
 T_camera_marker = frames.transform_from_rvec_tvec(r0, t0)
 T_world_marker = world_map.T_world_marker(0)
 T_world_camera_1 = T_world_marker @ invert_closed_form(T_camera_marker)
@@ -270,7 +271,7 @@ square50 = np.array([[-s50 / 2, s50 / 2, 0], [s50 / 2, s50 / 2, 0], [s50 / 2, -s
 centres = {}
 for d in detect_markers(photo, "6X6_250"):
     ok, r, tv = cv2.solvePnP(square50, d.corners, photo_camera.K, photo_camera.dist,
-                             flags=_cv.solvepnp_flag("IPPE_SQUARE"))
+                             flags=cv2.SOLVEPNP_IPPE_SQUARE)
     centres[d.id] = tv.reshape(3)
     print(f"marker {d.id:3d}: centre at {centres[d.id].round(0)} mm in the camera frame, "
           f"{np.linalg.norm(tv):.0f} mm away")

@@ -21,7 +21,7 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
-from fidlearn import (Camera, MarkerMap, MarkerPlacement, _cv, data_path, estimate_pose, frames, look_at,
+from fidlearn import (Camera, MarkerMap, MarkerPlacement, data_path, estimate_pose, frames, look_at,
                       plotting, render_scene)
 from fidlearn.detection import Detection, detect_markers, load_image
 
@@ -233,8 +233,9 @@ print(f"the better-fitting pose was the wrong one in {wrong_pick} of 40 pictures
 assert 4 <= wrong_pick <= 36  # neither always right nor always wrong: a coin toss weighted by the noise
 
 # %% [markdown]
-# Remedies: more markers (spread, section 4), bigger markers or a closer camera, or a second plane; over time,
-# keep the solution that continues the previous frame's pose (notebook 09).
+# Remedies: more markers (spread, section 4), bigger markers or a closer camera, or a second plane. Over time
+# the flag helps too: when `ambiguous` is set, keep whichever of `pose` and `pose.alternative` continues the
+# previous frame's pose.
 #
 # ## 6. A misplaced marker
 #
@@ -293,7 +294,7 @@ def seed_pipeline(image, marker_map, refine="none", lm=False):
     corners3d = marker_map.corners()
     obj = np.vstack([corners3d[d.id] for d in dets if d.id in corners3d])
     img = np.vstack([d.corners for d in dets if d.id in corners3d])
-    ok, rvec, tvec = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=_cv.solvepnp_flag("IPPE"))
+    ok, rvec, tvec = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
     if ok and lm:
         rvec, tvec = cv2.solvePnPRefineLM(obj, img, camera.K, camera.dist, rvec, tvec)
     return frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec)) if ok else None

@@ -33,6 +33,7 @@ from IPython.display import display
 from fidlearn import (Camera, MarkerMap, MarkerTracker, board_pdf, calibrate_checkerboard, data_path, markers_pdf,
                       plotting)
 from fidlearn.detection import load_image
+from fidlearn.errors import NoMarkersError, PoseError
 from fidlearn.widgets import Webcam, figure_png
 
 np.set_printoptions(precision=3, suppress=True)
@@ -313,11 +314,14 @@ scene_view = w.Image(format="png", width=520)
 
 
 def show_pose(frame_bgr):
-    pose = tracker.locate(frame_bgr)
+    try:
+        pose, why = tracker.locate(frame_bgr), ""
+    except (NoMarkersError, PoseError) as e:  # a frame without a pose raises, as fidlearn.locate does
+        pose, why = None, "no marker of the map in view" if isinstance(e, NoMarkersError) else "no pose in this frame"
     live_log.append((cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2GRAY) if frame_bgr.ndim == 3 else frame_bgr, pose))
     del live_log[:-60]
     if pose is None:
-        pose_text.value = "no marker of the map in view"
+        pose_text.value = why
         return
     x, y, z = pose.position_mm
     flag = " <b style='color:#c00'>ambiguous</b>" if pose.ambiguous else ""

@@ -1,0 +1,187 @@
+"""How trustworthy a calibration's set of views is: coverage of the picture, variety of the board poses.
+
+A calibration can reach a small RMS and still be wrong where nothing was measured: with too
+few views, with views that all show the board face-on (the focal length and the distance
+cannot be told apart), or with parts of the picture where the board never was (the lens
+distortion there is extrapolated). :func:`quality_warnings` says so in sentences;
+:class:`~fidlearn.calibration.Calibration` carries them as ``.warnings`` and
+``fidlearn calibrate`` prints them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .. import frames
+
+__all__ = [
+    "coverage_grid",
+    "view_diversity",
+    "quality_warnings",
+    "MIN_GOOD_VIEWS",
+    "SPARSE_CELL_SHARE",
+    "MIN_TILT_SPREAD_DEG",
+    "DUPLICATE_DEG",
+    "DUPLICATE_FRACTION",
+]
+
+#: Fewer used views than this earns a warning: OpenCV's advice is 10 to 20 varied views.
+MIN_GOOD_VIEWS = 10
+#: A ninth of the picture with fewer corners than this share of an even spread (but some) earns a warning.
+SPARSE_CELL_SHARE = 0.1
+#: A calibration whose board normals all lie within this angle (deg) of each other is too flat a set.
+MIN_TILT_SPREAD_DEG = 10.0
+#: Two views closer than this (deg and fraction of the distance) are near duplicates.
+DUPLICATE_DEG, DUPLICATE_FRACTION = 2.0, 0.02
+_CELL_NAMES = (("top-left", "top", "top-right"), ("left", "centre", "right"), ("bottom-left", "bottom", "bottom-right"))
+
+
+def coverage_grid(points_px: Iterable, image_size: tuple[int, int], grid: tuple[int, int] = (3, 3)) -> np.ndarray:
+    """Board points counted per cell of a grid over the image.
+
+    Parameters
+    ----------
+    points_px : iterable of array-like, shape (N, 2)
+        One array of pixels per view (pixel centres at integers, so the image spans
+        -0.5 .. width - 0.5).
+    image_size : (int, int)
+        The image's width and height, pixels.
+    grid : (int, int)
+        Columns and rows of the grid (default 3x3: the ninths of the picture).
+
+    Returns
+    -------
+    ndarray, shape (rows, cols), int
+        Points per cell, row 0 at the top, column 0 at the left.
+
+    Examples
+    --------
+    >>> coverage_grid([[[0, 0], [639, 479]], [[320, 240]]], (640, 480))
+    array([[1, 0, 0],
+           [0, 1, 0],
+           [0, 0, 1]])
+    >>> coverage_grid([[[0, 0], [639, 479]]], (640, 480), grid=(2, 1))
+    array([[1, 1]])
+    """
+    w, h = image_size
+    cols, rows = grid
+    out = np.zeros((rows, cols), dtype=int)
+    for pts in points_px:
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+        c = np.clip(((pts[:, 0] + 0.5) * cols // w).astype(int), 0, cols - 1)
+        r = np.clip(((pts[:, 1] + 0.5) * rows // h).astype(int), 0, rows - 1)
+        np.add.at(out, (r, c), 1)
+    return out
+
+
+def view_diversity(T_camera_board: Mapping) -> tuple[float, list[tuple[str, str, float, float]]]:
+    """How different the board poses are.
+
+    Parameters
+    ----------
+    T_camera_board : mapping of str to array-like, shape (4, 4)
+        Each view's board pose in the camera frame (mm).
+
+    Returns
+    -------
+    spread_deg : float
+        The largest angle (deg) between the board's normals over all pairs of views (0 for one view).
+    duplicates : list of (str, str, float, float)
+        The near-duplicate pairs ``(a, b, angle_deg, moved_fraction)``: views whose board turned
+        less than ``DUPLICATE_DEG`` and moved less than ``DUPLICATE_FRACTION`` of its distance.
+
+    Examples
+    --------
+    >>> import fidlearn
+    >>> T = fidlearn.make_transform(np.eye(3), [0, 0, 500])
+    >>> T2 = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(30, 0, 0), [0, 0, 500])
+    >>> spread, dups = view_diversity({"a": T, "b": T, "c": T2})
+    >>> round(spread, 6), [(a, b) for a, b, _, _ in dups]
+    (30.0, [('a', 'b')])
+    """
+    names = list(T_camera_board)
+    normals = [np.asarray(T_camera_board[n])[:3, 2] for n in names]
+    spread = 0.0
+    duplicates = []
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            cos = float(np.clip(abs(normals[i] @ normals[j]), -1.0, 1.0))
+            spread = max(spread, math.degrees(math.acos(cos)))
+            Ti, Tj = np.asarray(T_camera_board[names[i]]), np.asarray(T_camera_board[names[j]])
+            angle = frames.rotation_angle_deg(Ti[:3, :3], Tj[:3, :3])
+            moved = float(np.linalg.norm(Ti[:3, 3] - Tj[:3, 3]) / max(np.linalg.norm(Ti[:3, 3]), 1e-9))
+            if angle < DUPLICATE_DEG and moved < DUPLICATE_FRACTION:
+                duplicates.append((names[i], names[j], angle, moved))
+    return spread, duplicates
+
+
+def _coverage_warnings(grid: np.ndarray) -> list[str]:
+    """Sentences about the ninths of the picture with no board point, or with few."""
+    out = []
+    empty = [_CELL_NAMES[r][k] for r in range(3) for k in range(3) if grid[r, k] == 0]
+    even_share = grid.sum() / 9.0
+    sparse = [_CELL_NAMES[r][k] for r in range(3) for k in range(3) if 0 < grid[r, k] < SPARSE_CELL_SHARE * even_share]
+    if empty:
+        out.append(
+            f"no board corner in the {', '.join(empty)} of the picture; hold the board there too, "
+            "or the lens distortion is guessed where nothing was measured"
+        )
+    if sparse:
+        counts = ", ".join(f"{grid[r, k]}" for r in range(3) for k in range(3) if _CELL_NAMES[r][k] in sparse)
+        out.append(
+            f"few board corners in the {', '.join(sparse)} of the picture ({counts}, under a tenth of the "
+            f"{even_share:.0f} an even spread gives); hold the board there too, or the lens distortion "
+            "is guessed where almost nothing was measured"
+        )
+    return out
+
+
+def quality_warnings(n_used: int, T_camera_board: Mapping, grid: np.ndarray) -> list[str]:
+    """What is wrong with a set of calibration views, one sentence each (empty when nothing is).
+
+    Parameters
+    ----------
+    n_used : int
+        Views the camera was computed from.
+    T_camera_board : mapping of str to array-like, shape (4, 4)
+        Each used view's board pose in the camera frame (mm).
+    grid : ndarray, shape (3, 3), int
+        Board points per ninth of the picture (:func:`coverage_grid`).
+
+    Returns
+    -------
+    list of str
+        In this order: too few views, views too alike, near-duplicate views, ninths of the
+        picture with no board point, ninths with few.
+
+    Examples
+    --------
+    >>> import fidlearn
+    >>> T = fidlearn.make_transform(np.eye(3), [0, 0, 500])
+    >>> for w in quality_warnings(1, {"a": T}, np.full((3, 3), 10)):
+    ...     print(w[:40])
+    only 1 views used; 10 to 20 views from v
+    """
+    out = []
+    if n_used < MIN_GOOD_VIEWS:
+        out.append(
+            f"only {n_used} views used; {MIN_GOOD_VIEWS} to 20 views from varied angles give a "
+            "trustworthy camera: take more photos"
+        )
+    spread, duplicates = view_diversity(T_camera_board)
+    if n_used > 1 and spread < MIN_TILT_SPREAD_DEG:
+        out.append(
+            f"views too similar: the board faces the camera within {spread:.1f} deg in every view; "
+            "tilt it 20 to 45 deg in different directions, or the focal length stays uncertain"
+        )
+    if duplicates:
+        a, b, _, _ = duplicates[0]
+        out.append(
+            f"{len(duplicates)} pair(s) of nearly identical views (e.g. {Path(a).name} and {Path(b).name}); "
+            "they add no information: move or tilt the board between photos"
+        )
+    return out + _coverage_warnings(grid)

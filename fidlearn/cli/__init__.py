@@ -1,0 +1,56 @@
+"""The ``fidlearn`` command line.
+
+Every command reports a user error as one line ``error: ...`` on stderr and
+exits with status 2: never a traceback, never a half-written output file.
+Inputs and output paths are checked before any work starts.
+
+What "no partial output" means for each kind of output:
+
+* one file (``-o``, ``--truth``): written to a hidden temporary file in the
+  same folder and renamed when complete (:func:`fidlearn._io.atomic_write`);
+  several PNG pages are all rendered before any is renamed.
+* ``locate --json``: one JSON line per frame, flushed as each frame is done
+  into a hidden temporary file, renamed to its name when the whole run ends
+  well (stopping a live camera with Ctrl-C is a good end; an error in frame
+  57 of a video leaves no file).
+* ``--annotate DIR``: images are staged in a hidden folder beside ``DIR`` and
+  moved into ``DIR`` (created if needed) only when the run succeeds.
+
+Warnings (:class:`~fidlearn.errors.FidlearnWarning`) print as one line
+``warning: ...`` on stderr and do not change the exit status.
+
+Every command is argument parsing, printing and file handling over library calls: one
+module per command (``corners``, ``doctor``, ``markers`` with ``board``, ``render``,
+``calibrate``, ``locate``, ``plan``, ``grade`` with ``release``), each with ``add(sub)``
+registering it and ``run(args)`` doing it; ``_common`` holds what they share and
+``_main`` the parser and :func:`main`.
+"""
+
+from __future__ import annotations
+
+# ruff: noqa: F401 - names kept importable from fidlearn.cli, where they were
+# Importing the commands loads OpenCV: one that cannot import fails here, where fidlearn._entry reports it.
+from ..calibration.quality import coverage_grid, view_diversity
+from ..doctor import OPENCV_WHEELS, WANTED_WHEEL
+from ..drawing import draw_calibration_view as _draw_calibration_view
+from ..drawing import draw_pose as _draw_pose
+from ..drawing import wrap_to_width as _wrap_to_width
+from ..errors import UsageError
+from ..images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from ._common import (
+    _check_output,
+    _floats,
+    _Interrupted,
+    _Parser,
+    _Progress,
+    _refuse_clobber,
+    _SafeStdout,
+    _Staging,
+    _StreamFile,
+)
+from ._main import COMMANDS, build_parser, main
+from .doctor import doctor_report
+from .locate import _fmt_row, _pose_record
+from .render import MAX_COORD_MM, MAX_RENDER_PIXELS
+
+__all__ = ["main", "build_parser"]

@@ -1,0 +1,376 @@
+"""What every command shares: the parser, output checks, signals, safe printing, progress, errors.
+
+Output rules (see :mod:`fidlearn.cli`): every output path is checked before any work
+(:func:`_check_output`, :func:`_refuse_clobber`); one file is written atomically; a stream of
+JSON lines goes through :class:`_StreamFile`; annotated pictures through :class:`_Staging`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+from .._io import file_mode_for
+from ..camera import Camera
+from ..errors import FidlearnError, UsageError
+from ..images import write_image
+from ..markermap import MarkerMap
+from ..printables import parse_pattern
+
+UNITS = ["mm", "cm", "m", "in", "ft"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, status 2, no usage dump
+        raise UsageError(f"{self.prog}: {message} (see '{self.prog} --help')")
+
+
+# -- output checks -------------------------------------------------------------------------------
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _refuse_clobber(
+    outputs: Sequence[tuple[str, Path | None]], inputs: Sequence[Path], annotate: Path | None = None
+) -> None:
+    """Before any work: no output may be one of the inputs, nor another output; no --annotate
+    folder may hold an input (its annotated copy would replace it)."""
+    named = [(opt, Path(p)) for opt, p in outputs if p is not None]
+    files = [Path(p) for p in inputs if p is not None]
+    for k, (opt, out) in enumerate(named):
+        for inp in files:
+            if _same_file(out, inp) or (not out.exists() and out.resolve() == inp.resolve()):
+                raise UsageError(
+                    f"{opt} {out} is one of the inputs ({inp}); write it under another name: nothing was written"
+                )
+        for opt2, out2 in named[:k]:
+            if out.resolve() == out2.resolve() or _same_file(out, out2):
+                raise UsageError(f"{opt} {out} and {opt2} {out2} are the same file; give each output its own name")
+    if annotate is not None:
+        _refuse_annotate_clobber(Path(annotate), files, named)
+
+
+def _refuse_annotate_clobber(annotate: Path, files: list[Path], named: list[tuple[str, Path]]) -> None:
+    folder = annotate.resolve()
+    for inp in files:
+        if inp.resolve().parent == folder:
+            raise UsageError(
+                f"--annotate {annotate} holds the input {inp}; its annotated copy would replace it: give another folder"
+            )
+    for opt, out in named:
+        if out.resolve().parent == folder:
+            raise UsageError(
+                f"--annotate {annotate} is where {opt} {out} goes; give the annotations a folder of their own"
+            )
+
+
+def _check_output(path: Path, suffixes: Sequence[str], option: str = "-o") -> Path:
+    """Refuse an output path before any work is done: wrong type, missing folder, or a folder."""
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise UsageError(f"{option} {path}: name the file {' or '.join(suffixes)}")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise UsageError(f"{option} {path}: the folder {folder} does not exist; create it first")
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a folder; give a file name")
+    return path
+
+
+def _floats(text: str, n: int, option: str, meaning: str) -> list[float]:
+    """``"1,2,3"`` -> [1.0, 2.0, 3.0]; a UsageError naming the option otherwise."""
+    parts = [t for t in str(text).replace(" ", "").split(",")]
+    try:
+        values = [float(t) for t in parts]
+    except ValueError:
+        values = []
+    if len(values) != n or not all(math.isfinite(v) for v in values):
+        raise UsageError(f"{option} {text!r}: expected {n} numbers separated by commas ({meaning})")
+    return values
+
+
+def _json_text(obj) -> str:
+    """Indented JSON with each innermost list of numbers on one line (readable matrices)."""
+    text = json.dumps(obj, indent=2)
+    return (
+        re.sub(
+            r"\[\s+([-+0-9.eE,\s]+?)\s+\]",
+            lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]",
+            text,
+        )
+        + "\n"
+    )
+
+
+# -- options shared by several commands ------------------------------------------------------------
+def _add_map_options(p, required: bool = True) -> None:
+    p.add_argument("--map", type=Path, required=required, metavar="MAP.json", help="world map (marker placements)")
+    p.add_argument("--units", choices=UNITS, help="units of a map that does not declare them")
+    p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
+
+
+def _add_image_size_option(p) -> None:
+    p.add_argument(
+        "--image-size",
+        metavar="WxH",
+        help="resolution the camera was calibrated at, for an OpenCV YAML file that does not say "
+        "(no image_width/image_height)",
+    )
+
+
+def _load_map(args) -> MarkerMap:
+    return MarkerMap.load(
+        args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=getattr(args, "dictionary", None)
+    )
+
+
+def _load_camera(args) -> Camera:
+    size = parse_pattern(args.image_size, "--image-size") if args.image_size else None
+    return Camera.load(args.camera, image_size=size)
+
+
+def _check_dpi(dpi: float) -> None:
+    if not 50 <= dpi <= 1200:
+        raise UsageError(f"--dpi {dpi:g}: give 50 to 1200 dots per inch (300 is a printer's)")
+
+
+def _board_squares(args) -> tuple[int, int]:
+    """The board's squares from ``--pattern`` (inner corners) or ``--squares``; ChArUco options checked."""
+    if args.pattern is not None:
+        cols, rows = parse_pattern(args.pattern, "--pattern")
+        squares = (cols + 1, rows + 1)
+    else:
+        squares = parse_pattern(args.squares, "--squares")
+    if not args.charuco and (args.dictionary or args.marker_mm is not None):
+        raise UsageError("--dictionary and --marker-mm describe a ChArUco board; add --charuco or drop them")
+    return squares
+
+
+# -- signals ---------------------------------------------------------------------------------------
+class _Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (a robot's supervisor, ``timeout``, a closed terminal), handled as Ctrl-C is."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _signal_name(exc: BaseException) -> str:
+    return signal.Signals(exc.signum).name if isinstance(exc, _Interrupted) else "SIGINT"
+
+
+def _exit_status(exc: BaseException) -> int:
+    """128 + the signal's number, as a shell reports a process a signal stopped."""
+    return 128 + (exc.signum if isinstance(exc, _Interrupted) else signal.SIGINT)
+
+
+def _raise_interrupted(signum, frame) -> None:
+    raise _Interrupted(signum)
+
+
+# -- printing --------------------------------------------------------------------------------------
+class _SafeStdout:
+    """The command's standard output: a reader that goes away (``| head``) silences it instead of
+    stopping the work, and a name the terminal cannot encode is printed with escapes."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.broken = False
+
+    def write(self, text: str) -> int:
+        if self.broken:
+            return len(text)
+        try:
+            try:
+                return self.stream.write(text)
+            except UnicodeEncodeError:
+                enc = getattr(self.stream, "encoding", None) or "ascii"
+                return self.stream.write(text.encode(enc, "backslashreplace").decode(enc))
+        except BrokenPipeError:
+            self._close()
+            return len(text)
+
+    def flush(self) -> None:
+        if not self.broken:
+            try:
+                self.stream.flush()
+            except BrokenPipeError:
+                self._close()
+
+    def _close(self) -> None:
+        # Python's advice for SIGPIPE: point the descriptor at the null device so that nothing
+        # (not even the interpreter's flush at exit) writes to the closed pipe again
+        self.broken = True
+        try:
+            fd = self.stream.fileno()
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, fd)
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+def _error(text: str) -> None:
+    line = f"error: {_one_line(text)}"
+    try:
+        print(line, file=sys.stderr)
+    except UnicodeEncodeError:
+        enc = getattr(sys.stderr, "encoding", None) or "ascii"
+        print(line.encode(enc, "backslashreplace").decode(enc), file=sys.stderr)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"warning: {_one_line(str(message))}", file=sys.stderr)
+
+
+class _Progress:
+    """A plain-text progress bar on stderr when it is a terminal; otherwise one counter line at the end."""
+
+    def __init__(self, what: str):
+        self.what = what
+        self.tty = sys.stderr.isatty()
+        self.done = 0
+        self.total = 0
+
+    def __call__(self, i: int, n: int, name: str) -> None:
+        self.done, self.total = i, n
+        if self.tty:
+            width = 24
+            filled = int(round(width * i / max(n, 1)))
+            label = Path(name).name[-30:]
+            sys.stderr.write(f"\r{self.what} [{'#' * filled}{'-' * (width - filled)}] {i}/{n} {label}\x1b[K")
+            sys.stderr.flush()
+
+    def clear(self) -> None:
+        if self.tty and self.total:
+            sys.stderr.write("\r\x1b[K")
+            sys.stderr.flush()
+
+    def finish(self, found: int) -> None:
+        """After a successful run: the counter line (non-terminal output only)."""
+        if not self.tty and self.total:
+            print(f"{self.what}: searched {self.total} images, board found in {found}", file=sys.stderr)
+
+
+# -- outputs written as the work goes ----------------------------------------------------------------
+class _StreamFile:
+    """A text output written record by record (JSON lines) to a hidden file beside its final name.
+
+    It takes the final name when the run ends or is interrupted (every record in it is whole);
+    on an error it is removed: an output is either whole up to the last frame done, or absent.
+    """
+
+    def __init__(self, path: Path, option: str):
+        self.path, self.option, self.count = Path(path), option, 0
+        self.tmp: Path | None = None
+        self.file = None
+
+    def __enter__(self):
+        folder = self.path.parent if str(self.path.parent) else Path(".")
+        try:
+            fd, name = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=folder)
+        except OSError as exc:
+            raise FidlearnError(
+                f"{self.option} {self.path}: cannot write in {folder} ({exc.strerror}); check the folder's permissions"
+            ) from None
+        self.tmp = Path(name)
+        self.file = os.fdopen(fd, "w", encoding="utf-8")
+        return self
+
+    def write(self, record: dict) -> None:
+        try:
+            self.file.write(json.dumps(record) + "\n")
+            self.file.flush()
+        except OSError as exc:
+            raise FidlearnError(
+                f"{self.option} {self.path}: cannot write it ({exc.strerror}); check the free disk space"
+            ) from None
+        self.count += 1
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        keep = exc_type is None or issubclass(exc_type, KeyboardInterrupt)
+        try:
+            self.file.close()
+            if keep:
+                os.chmod(self.tmp, file_mode_for(self.path))
+                os.replace(self.tmp, self.path)
+        except OSError as err:
+            keep = False
+            if exc_type is None:
+                raise FidlearnError(f"{self.option} {self.path}: cannot write it ({err.strerror})") from None
+        finally:
+            if not keep:
+                self.tmp.unlink(missing_ok=True)
+
+
+class _Staging:
+    """Annotated images staged in a hidden folder and moved into place only when the run succeeds."""
+
+    def __init__(self, folder: Path | None, keep_on_interrupt: bool = False):
+        self.folder = folder
+        self.keep_on_interrupt = keep_on_interrupt
+        self.replaced = 0
+        self.tmp: Path | None = None
+        self.names: set[str] = set()
+        if folder is not None:
+            parent = folder.parent if str(folder.parent) else Path(".")
+            if folder.exists() and not folder.is_dir():
+                raise UsageError(f"--annotate {folder}: is a file; give a folder")
+            if not parent.is_dir():
+                raise UsageError(f"--annotate {folder}: the folder {parent} does not exist; create it first")
+
+    def __enter__(self):
+        if self.folder is not None:
+            parent = self.folder.parent if str(self.folder.parent) else Path(".")
+            self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.folder.name}.", dir=parent))
+        return self
+
+    def save(self, name: str, image) -> None:
+        if self.tmp is None:
+            return
+        video, sep, frame = name.rpartition("#")
+        # "drive.mp4#7" -> drive_00007.png: the frame's own number, sortable
+        stem = f"{Path(video).stem}_{int(frame):05d}" if sep and frame.isdigit() else Path(name).stem
+        fname, k = f"{stem}.png", 1
+        while fname in self.names:
+            k += 1
+            fname = f"{stem}-{k}.png"
+        write_image(self.tmp / fname, image)
+        self.names.add(fname)  # only once the picture is whole: an interruption keeps whole pictures only
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if self.tmp is None:
+            return
+        try:
+            interrupted = exc_type is not None and issubclass(exc_type, KeyboardInterrupt)
+            if exc_type is None or (interrupted and self.keep_on_interrupt):
+                self.folder.mkdir(exist_ok=True)
+                for fname in sorted(self.names):
+                    self.replaced += (self.folder / fname).exists()
+                    os.replace(self.tmp / fname, self.folder / fname)
+        finally:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def said(self) -> str:
+        """What the folder received, for the closing line."""
+        again = f", replacing {self.replaced} earlier one{'s' if self.replaced != 1 else ''}" if self.replaced else ""
+        return f"{len(self.names)} annotated picture{'s' if len(self.names) != 1 else ''} in {self.folder}/{again}"

@@ -1,0 +1,147 @@
+"""``fidlearn calibrate``: camera intrinsics and distortion from photos of a board.
+
+The command reads the photos, calls :func:`fidlearn.calibrate_checkerboard` or
+:func:`fidlearn.calibrate_charuco`, prints the result with its ``warnings`` and the coach's
+advice, and writes the camera last (only when everything before it succeeded).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+from .. import calibration
+from .._io import atomic_write
+from ..drawing import draw_calibration_view
+from ..errors import FidlearnWarning, UsageError
+from ..images import expand_inputs
+from ..planning.coach import coach_calibration
+from ._common import _board_squares, _check_output, _Progress, _refuse_clobber, _Staging
+
+
+def add(sub) -> None:
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
+    p = sub.add_parser(
+        "calibrate",
+        help="camera intrinsics and distortion from photos of a board",
+        description=(
+            "Calibrate a camera from photos of a printed checkerboard (or a ChArUco board with --charuco). "
+            "Prints a table of every photo (board found, reprojection error, rejected and why), the "
+            "intrinsics with their standard deviations, how well the corners cover the picture, and "
+            "warnings when the views are too few (< 10), too alike, or leave parts of the picture empty. "
+            "Measure one printed square with calipers and give that as --square-mm."
+        ),
+    )
+    p.add_argument(
+        "inputs", nargs="+", type=Path, metavar="IMAGE_OR_FOLDER", help="photos of the board, or folders of them"
+    )
+    size = p.add_mutually_exclusive_group(required=True)
+    size.add_argument("--pattern", metavar="CxR", help="inner corners, e.g. 9x6 (a board of 10x7 squares)")
+    size.add_argument("--squares", metavar="CxR", help="squares, e.g. 5x7 (OpenCV's ChArUco count)")
+    p.add_argument("--square-mm", type=float, required=True, metavar="MM", help="side of one printed square, mm")
+    p.add_argument("--charuco", action="store_true", help="a ChArUco board")
+    p.add_argument("--marker-mm", type=float, metavar="MM", help="ChArUco marker side, mm")
+    p.add_argument("--dictionary", help="ChArUco dictionary (default 6X6_250)")
+    p.add_argument("--annotate", type=Path, metavar="DIR", help="save each photo with its detected corners drawn")
+    p.add_argument(
+        "--report",
+        type=Path,
+        metavar="REPORT.png",
+        help="draw the calibration's reprojection uncertainty over the picture and the next photo to take",
+    )
+    p.add_argument("-o", "--output", type=Path, required=True, help="camera file to write (.json, or OpenCV .yml/.xml)")
+    p.set_defaults(run=run)
+
+
+def _calibrate(args, paths: list[str], squares: tuple[int, int]) -> calibration.Calibration:
+    progress = _Progress("calibrate")
+    try:
+        if args.charuco:
+            cal = calibration.calibrate_charuco(
+                paths, squares, args.square_mm, args.marker_mm, args.dictionary or "6X6_250", progress=progress
+            )
+        else:
+            pattern = (squares[0] - 1, squares[1] - 1)
+            cal = calibration.calibrate_checkerboard(paths, pattern, args.square_mm, progress=progress)
+    finally:
+        progress.clear()
+    progress.finish(sum(1 for v in cal.views if v.found))
+    return cal
+
+
+def _print_result(cal: calibration.Calibration) -> None:
+    """The table of views, the camera with its standard deviations, the coverage; the warnings on stderr."""
+    c, sd = cal.camera, cal.std_intrinsics
+    print(cal.table())
+    print()
+    print(
+        f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board}, "
+        f"RMS reprojection error {cal.rms_px:.3f} px"
+    )
+    for name, value in (("fx", c.fx), ("fy", c.fy), ("cx", c.cx), ("cy", c.cy)):
+        print(f"  {name} {value:10.2f} ± {sd.get(name, float('nan')):.2f} px")
+    dist_names = calibration.INTRINSIC_NAMES[4 : 4 + len(c.dist)]
+    print(
+        "  distortion " + ", ".join(f"{n} {v:.4f} ± {sd.get(n, float('nan')):.4f}" for n, v in zip(dist_names, c.dist))
+    )
+    print("board corners per ninth of the picture (3x3 grid):")
+    for row in cal.coverage:
+        print("  " + " ".join(f"{v:6d}" for v in row))
+    for sentence in cal.warnings:
+        warnings.warn(sentence, FidlearnWarning, stacklevel=2)
+
+
+def run(args) -> int:
+    """Calibrate, print, then write the annotations, the coach's picture and the camera.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
+    out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
+    report = _check_output(args.report, (".png",), "--report") if args.report else None
+    items = expand_inputs(args.inputs, videos=False)
+    _refuse_clobber([("-o", out), ("--report", report)], [p for _, p in items], args.annotate)
+    staging = _Staging(args.annotate)
+    squares = _board_squares(args)
+    if args.charuco and args.marker_mm is None:
+        raise UsageError("--charuco needs --marker-mm, the side of one printed marker in mm")
+    paths = [str(p) for _, p in items]
+    cal = _calibrate(args, paths, squares)
+    _print_result(cal)
+    coached = coach_calibration(cal)
+    print("calibration coach: " + coached.report().replace("\n", "\n  "))
+    pattern = (squares[0] - 1, squares[1] - 1)
+    with staging:
+        if args.annotate:
+            for view, path in zip(cal.views, paths):  # views come back in input order
+                pts = cal.image_points_px.get(view.name)
+                staging.save(Path(path).name, draw_calibration_view(Path(path), view, pts, pattern, args.charuco))
+        if report is not None:
+            from ..planning.figure import coach_figure  # matplotlib: only when a picture is drawn (faster start)
+
+            fig = coach_figure(coached, cal.camera)
+            atomic_write(report, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
+        cal.camera.save(out)  # last: written only when everything before it succeeded
+    print(f"camera written to {out}" + (f"; the coach's picture in {report}" if report else ""))
+    if args.annotate:
+        print(staging.said())
+    return 0

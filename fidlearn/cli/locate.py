@@ -1,0 +1,332 @@
+"""``fidlearn locate``: the camera's pose in the world in pictures, videos and a live camera.
+
+The poses come from the library: :func:`fidlearn.locate` for each picture, one
+:class:`fidlearn.MarkerTracker` for each video (and the live camera), so the command line
+and a program give the same answers. This module reads the frames, prints the table, writes
+``--json`` (one line per frame, flushed as each is done) and ``--annotate`` pictures.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import Camera
+from ..detection import detect_markers
+from ..drawing import draw_pose
+from ..errors import CameraError, NoMarkersError, PoseError, UsageError
+from ..images import Frame, expand_inputs, read_frames
+from ..markermap import MarkerMap
+from ..pose import Pose, locate
+from ..tracking import MarkerTracker
+from ._common import (
+    _add_image_size_option,
+    _add_map_options,
+    _check_output,
+    _exit_status,
+    _Interrupted,
+    _load_camera,
+    _load_map,
+    _one_line,
+    _refuse_clobber,
+    _signal_name,
+    _Staging,
+    _StreamFile,
+)
+
+NO_MARKER = "no known marker"
+
+
+def add(sub) -> None:
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
+    p = sub.add_parser(
+        "locate",
+        help="camera pose in the world from the markers in images or a video",
+        description=(
+            "Find the camera's pose in the world for every image, every frame of a video "
+            "(.mp4, .avi, ...) or a live camera: detect the map's markers, solve PnP over all "
+            "of them, invert. One line per frame: position x, y, z (mm, world), roll, pitch, yaw "
+            "(deg, the camera frame's rotation in the world, as 'fidlearn render --pose' takes "
+            "it), the markers used, the RMS reprojection error (px) and whether a second pose "
+            "explains the image as well (ambiguous). A frame with no marker of the map is "
+            "reported, not an error. --json and --annotate are written only when the whole run "
+            "succeeds: --json goes to a hidden temporary file, flushed frame by frame, renamed at "
+            "the end; annotated images are staged in a hidden folder and moved into DIR at the end."
+        ),
+    )
+    p.add_argument(
+        "inputs", nargs="*", type=Path, metavar="IMAGE_OR_FOLDER_OR_VIDEO", help="images, folders of images, videos"
+    )
+    p.add_argument(
+        "--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)"
+    )
+    _add_image_size_option(p)
+    _add_map_options(p)
+    p.add_argument(
+        "--camera-index", type=int, metavar="N", help="also read a live camera (0 is the first); Ctrl-C stops"
+    )
+    p.add_argument("--json", type=Path, metavar="POSES.jsonl", help="write one JSON line per frame with T_world_camera")
+    p.add_argument(
+        "--annotate", type=Path, metavar="DIR", help="save each frame with the markers and the world axes drawn"
+    )
+    p.add_argument(
+        "--refine", choices=["edges", "subpix", "contour", "apriltag", "none"], help="corner refinement (default edges)"
+    )
+    p.add_argument(
+        "--max-megapixels",
+        type=float,
+        default=100.0,
+        metavar="MP",
+        help="largest picture read, in megapixels (default 100): a larger one is refused from its header",
+    )
+    p.set_defaults(run=run)
+
+
+def _fmt_row(name: str, width: int, pose=None, note: str = "") -> str:
+    if pose is None:
+        return f"{name:<{width}}  {note}"
+    x, y, z = np.round(pose.position_mm, 1) + 0.0  # + 0.0 turns -0.0 into 0.0
+    r, pi, yw = np.round(pose.rpy_deg, 1) + 0.0
+    ids = ",".join(str(i) for i in pose.marker_ids)
+    flag = "AMBIGUOUS" if pose.ambiguous else "-"
+    row = (
+        f"{name:<{width}} {x:9.1f} {y:9.1f} {z:9.1f} {r:7.1f} {pi:7.1f} {yw:7.1f}  {ids:<9} "
+        f"{pose.reprojection_rms_px:6.2f}  {flag}"
+    )
+    return row + (f"  {note}" if note else "")
+
+
+def _pose_record(name: str, pose: Pose) -> dict:
+    """One frame's JSON record: the pose (mm, deg), the markers used, the quality.
+
+    Parameters
+    ----------
+    name : str
+        The frame's name (a file name, ``"video.mp4#7"`` or ``"camera0#7"``).
+    pose : Pose
+        The frame's pose.
+
+    Returns
+    -------
+    dict
+        ``frame``, ``located`` (True), ``T_world_camera`` (4x4, mm), ``position_mm``, ``rpy_deg``,
+        ``position_std_mm`` (None when not determined), ``marker_ids``, ``reprojection_rms_px``,
+        ``ambiguous``, ``rejected_ids``, ``ignored_ids``, ``method`` and, for an ambiguous pose,
+        ``alternative_position_mm``. Every value is JSON (no NaN).
+    """
+    rec = {
+        "frame": name,
+        "located": True,
+        "T_world_camera": np.asarray(pose.T_world_camera).tolist(),
+        "position_mm": pose.position_mm.tolist(),
+        "rpy_deg": pose.rpy_deg.tolist(),
+        # null, not NaN, when the pose is not determined: NaN is not JSON (strict readers, fidlearn's own, refuse it)
+        "position_std_mm": pose.position_std_mm.tolist() if pose.covariance is not None else None,
+        "marker_ids": list(pose.marker_ids),
+        "reprojection_rms_px": pose.reprojection_rms_px,
+        "ambiguous": bool(pose.ambiguous),
+        "rejected_ids": list(pose.rejected_ids),
+        "ignored_ids": list(pose.ignored_ids),
+        "method": pose.method,
+    }
+    if pose.alternative is not None:
+        rec["alternative_position_mm"] = pose.alternative.position_mm.tolist()
+    return rec
+
+
+class _Locator:
+    """Poses frame after frame: :func:`fidlearn.locate` for a picture, a MarkerTracker per video or camera.
+
+    The camera is fitted to each resolution once (one warning when it is rescaled), and the
+    fitted camera is what the library receives.
+    """
+
+    def __init__(self, marker_map: MarkerMap, camera: Camera, refine: str | None, annotate: bool):
+        self.marker_map, self.camera, self.annotate = marker_map, camera, annotate
+        self.refine = {"refine": refine} if refine else {}
+        self.cameras: dict[tuple[int, int], Camera] = {}
+        self.trackers: dict[tuple[str, tuple[int, int]], MarkerTracker] = {}
+
+    def camera_for(self, frame: Frame) -> Camera:
+        size = (frame.image.shape[1], frame.image.shape[0])
+        if size not in self.cameras:  # rescale (and warn) once per resolution
+            try:
+                self.cameras[size] = self.camera.for_image(size)
+            except CameraError as exc:  # say which picture, in a folder of many
+                raise CameraError(f"{frame.name}: {exc}") from None
+        return self.cameras[size]
+
+    def _tracker(self, frame: Frame, cam: Camera) -> MarkerTracker:
+        key = (frame.source, (cam.width, cam.height))
+        if key not in self.trackers:
+            self.trackers[key] = MarkerTracker(self.marker_map, cam, **self.refine)
+        return self.trackers[key]
+
+    def pose(self, frame: Frame, cam: Camera) -> tuple[Pose | None, list, str]:
+        """The frame's pose (None when there is none), the markers to draw, and why there is no pose."""
+        tracker = self._tracker(frame, cam) if frame.kind != "image" else None
+        failure = NO_MARKER
+        try:
+            if tracker is None:
+                pose = locate(frame.image, self.marker_map, cam, **self.refine)
+            else:
+                pose = tracker.locate(frame.image)
+        except NoMarkersError:
+            pose = None
+        except PoseError as exc:  # a degenerate view: report the frame, keep going
+            pose, failure = None, f"no pose: {_one_line(str(exc))}"
+        if pose is None and tracker is not None and tracker.last_detections and failure == NO_MARKER:
+            failure = "no pose: the map's markers found do not give a pose"
+        if pose is None:  # what is in view, from the whole dictionary (as fidlearn.locate's error says)
+            return None, detect_markers(frame.image, self.marker_map.dictionary, **self.refine), failure
+        if tracker is not None:
+            return pose, tracker.last_detections, failure
+        detections = []
+        if self.annotate:
+            detections = detect_markers(frame.image, self.marker_map.dictionary, ids=self.marker_map.ids, **self.refine)
+        return pose, detections, failure
+
+
+def _row_and_record(name: str, width: int, pose: Pose | None, detections: list, failure: str) -> tuple[str, dict]:
+    """The frame's line in the table and its JSON record."""
+    if pose is None:
+        seen = sorted({d.id for d in detections})
+        note = failure
+        if failure == NO_MARKER and seen:
+            note += f" (saw ids {', '.join(map(str, seen))}, not in the map)"
+        return _fmt_row(name, width, None, note), {
+            "frame": name,
+            "located": False,
+            "reason": failure,
+            "detected_ids": seen,
+        }
+    note = f"rejected {list(pose.rejected_ids)}" if pose.rejected_ids else ""
+    return _fmt_row(name, width, pose, note), _pose_record(name, pose)
+
+
+class _Table:
+    """The frames done so far: the printed table and the counts for the closing line."""
+
+    def __init__(self, width: int):
+        self.width = width
+        self.frames = self.located = self.ambiguous = 0
+        self.rms: list[float] = []
+
+    def add(self, row: str, pose: Pose | None) -> None:
+        if pose is not None:
+            self.located += 1
+            self.ambiguous += bool(pose.ambiguous)
+            self.rms.append(pose.reprojection_rms_px)
+        if self.frames == 0:
+            w = self.width
+            print(
+                f"{'frame':<{w}} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7}  "
+                f"{'markers':<9} {'rms_px':>6}  ambiguous"
+            )
+        print(row, flush=True)
+
+    def summary(self) -> str:
+        med = f", median rms {statistics.median(self.rms):.2f} px" if self.rms else ""
+        amb = f", {self.ambiguous} ambiguous" if self.ambiguous else ""
+        n = self.frames
+        return f"{n} frames, {self.located} located ({100.0 * self.located / max(n, 1):.0f} %){med}{amb}"
+
+
+def _process(args, items, locator: _Locator, staging: _Staging, table: _Table, sink) -> None:
+    """Every frame: its pose, its record (written first: a row on the screen is always in the file), its row."""
+    with staging:
+        try:
+            for frame in read_frames(items, args.camera_index, int(args.max_megapixels * 1_000_000)):
+                cam = locator.camera_for(frame)
+                pose, detections, failure = locator.pose(frame, cam)
+                row, record = _row_and_record(frame.name, table.width, pose, detections, failure)
+                if sink is not None:
+                    sink.write(record)
+                table.add(row, pose)
+                staging.save(frame.name, draw_pose(frame.image, detections, cam, pose, locator.marker_map))
+                table.frames += 1
+        except KeyboardInterrupt as exc:
+            if args.camera_index is None or isinstance(exc, _Interrupted):
+                raise
+            # Ctrl-C stopping a live camera is its normal end: keep what was seen
+
+
+def _check_args(args):
+    """The inputs and the --json path, checked before any file is read."""
+    if not args.inputs and args.camera_index is None:
+        raise UsageError("give images, folders or videos to locate in, or --camera-index N for a live camera")
+    if args.camera_index is not None and not 0 <= args.camera_index <= 255:
+        # cv2.VideoCapture(-1) crashes the interpreter (segmentation fault) on OpenCV 4.x and 5.x
+        # when no camera is attached, and 2**31 overflows OpenCV's int: refuse both before OpenCV sees them.
+        raise UsageError(f"--camera-index {args.camera_index}: cameras are numbered 0 (the first camera) to 255")
+    if not 0.01 <= args.max_megapixels <= 2000:
+        raise UsageError(f"--max-megapixels {args.max_megapixels:g}: give 0.01 to 2000")
+    items = expand_inputs(args.inputs, videos=True)
+    json_path = _check_output(args.json, (".jsonl", ".json"), "--json") if args.json else None
+    _refuse_clobber([("--json", json_path)], [p for _, p in items] + [args.camera, args.map], args.annotate)
+    return items, json_path
+
+
+def run(args) -> int:
+    """Locate in every frame; print the table and the closing lines. 128 + signal when interrupted.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
+    items, json_path = _check_args(args)
+    staging = _Staging(args.annotate, keep_on_interrupt=True)
+    camera = _load_camera(args)  # the camera first: a map given as --camera is named as such
+    locator = _Locator(_load_map(args), camera, args.refine, args.annotate is not None)
+    width = max(
+        [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]
+    )
+    table = _Table(min(width, 40))
+    sink = None
+    try:
+        if json_path is not None:
+            with _StreamFile(json_path, "--json") as sink:
+                _process(args, items, locator, staging, table, sink)
+        else:
+            _process(args, items, locator, staging, table, None)
+    except KeyboardInterrupt as exc:
+        kept = []
+        if json_path is not None:
+            n = sink.count if sink is not None else 0
+            kept.append(f"{json_path} holds {n} whole frame record{'s' if n != 1 else ''}")
+        if args.annotate:
+            kept.append(staging.said())
+        print(
+            f"error: interrupted by {_signal_name(exc)} after {table.frames} frames"
+            + (f"; {'; '.join(kept)}" if kept else ""),
+            file=sys.stderr,
+        )
+        return _exit_status(exc)
+    if table.frames > 1 or args.camera_index is not None:
+        print(table.summary())
+    if json_path:
+        print(f"poses written to {json_path}")
+    if args.annotate:
+        print(staging.said())
+    return 0

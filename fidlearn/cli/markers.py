@@ -1,0 +1,134 @@
+"""``fidlearn markers`` and ``fidlearn board``: markers and calibration boards to print at exact size."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import printables
+from ._common import _board_squares, _check_dpi, _check_output
+
+
+def add_markers(sub) -> None:
+    """Register ``fidlearn markers`` on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
+    p = sub.add_parser(
+        "markers",
+        help="print ArUco markers at exact size (PDF or PNG)",
+        description=(
+            "Print ArUco markers at exact physical size: each black square measures --size-mm when "
+            "the page is printed at 100 % (no scaling). Each marker has a white margin of one cell, "
+            "its id and dictionary under it and cut marks; every page has a 100 mm ruler. "
+            "Markers that do not fit on one page go on the next."
+        ),
+    )
+    p.add_argument("--ids", required=True, help="marker ids: 0-9, 0,3,7 or 0-3,8")
+    p.add_argument("--size-mm", type=float, required=True, metavar="MM", help="side of the black square, mm")
+    p.add_argument("--dictionary", default="ARUCO_ORIGINAL", help="ArUco dictionary (default ARUCO_ORIGINAL)")
+    p.add_argument("--paper", choices=["a4", "letter"], default="a4", help="paper size (default a4)")
+    p.add_argument("--dpi", type=float, default=300, help="pixels per inch of PNG output (default 300)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="markers.pdf (vector) or markers.png")
+    p.set_defaults(run=run_markers)
+
+
+def run_markers(args) -> int:
+    """Write the marker pages; print where, how many, and how to print them.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
+    out = _check_output(args.output, (".pdf", ".png"))
+    _check_dpi(args.dpi)
+    ids = printables.parse_ids(args.ids)
+    sheet = printables.layout_markers(ids, args.size_mm, args.dictionary, args.paper)
+    files = printables.save_pages(printables.marker_figures(sheet), out, dpi=args.dpi)
+    pages = len(sheet.pages)
+    where = ", ".join(str(f) for f in files)
+    extra = f" at {args.dpi:g} dpi" if out.suffix.lower() == ".png" else ""
+    several = f", {sheet.per_page} per page" if pages > 1 else ""
+    print(
+        f"{where}: {len(ids)} marker{'s' if len(ids) > 1 else ''} of {sheet.size_mm:g} mm ({sheet.dictionary}) "
+        f"on {pages} {sheet.paper} page{'s' if pages > 1 else ''}{extra}{several}"
+    )
+    print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")
+    return 0
+
+
+def add_board(sub) -> None:
+    """Register ``fidlearn board`` on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
+    p = sub.add_parser(
+        "board",
+        help="print a checkerboard or ChArUco board at exact size",
+        description=(
+            "Print a calibration board at exact physical size with a 100 mm ruler. --pattern counts "
+            "INNER corners, as OpenCV's findChessboardCorners does (9x6 gives 10x7 squares); "
+            "--squares counts squares, as OpenCV's CharucoBoard does. The page turns to landscape "
+            "when the board only fits that way."
+        ),
+    )
+    size = p.add_mutually_exclusive_group(required=True)
+    size.add_argument("--pattern", metavar="CxR", help="inner corners, e.g. 9x6 (10x7 squares)")
+    size.add_argument("--squares", metavar="CxR", help="squares, e.g. 5x7 (4x6 inner corners)")
+    p.add_argument("--square-mm", type=float, required=True, metavar="MM", help="side of one square, mm")
+    p.add_argument("--charuco", action="store_true", help="a ChArUco board (markers in the white squares)")
+    p.add_argument("--dictionary", help="ChArUco dictionary (default 6X6_250)")
+    p.add_argument("--marker-mm", type=float, metavar="MM", help="ChArUco marker side, mm (smaller than the square)")
+    p.add_argument("--paper", choices=["a4", "letter"], default="a4", help="paper size (default a4)")
+    p.add_argument("--dpi", type=float, default=300, help="pixels per inch of PNG output (default 300)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="board.pdf (vector) or board.png")
+    p.set_defaults(run=run_board)
+
+
+def run_board(args) -> int:
+    """Write the board page; print what it holds and how to print it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
+    out = _check_output(args.output, (".pdf", ".png"))
+    _check_dpi(args.dpi)
+    squares = _board_squares(args)
+    sheet = printables.layout_board(
+        squares, args.square_mm, args.paper, args.charuco, args.dictionary or "6X6_250", args.marker_mm
+    )
+    files = printables.save_pages([printables.board_figure(sheet)], out, dpi=args.dpi)
+    turn = ", landscape" if sheet.landscape else ""
+    print(f"{files[0]}: {sheet.describe()}, {sheet.paper}{turn}")
+    print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")
+    return 0

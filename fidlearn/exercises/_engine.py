@@ -1,0 +1,492 @@
+"""The grading engine: a question, its inputs, the result of a check, and strict mode."""
+
+from __future__ import annotations
+
+import contextvars
+import copy
+import os
+import textwrap
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..detection import Detection
+
+CORRECT = "Correct"
+
+
+INCORRECT = "Incorrect"
+
+
+NOT_ATTEMPTED = "Not attempted"
+
+
+#: Graded mode (fidlearn.grading): an answer of the right form, kept for the instructor's grader.
+RECORDED = "Recorded"
+
+
+_NO_KEY = object()  # a graded question's answer key: never in the learner's kernel
+
+
+#: The imports every exercise notebook starts with; solution code may use these names.
+SETUP_CODE = "import math\nimport numpy as np\nimport cv2\nimport fidlearn\nfrom fidlearn import exercises, frames"
+
+
+BEGIN_SOLUTION = "### BEGIN SOLUTION"
+
+
+END_SOLUTION = "### END SOLUTION"
+
+
+_MISSING = object()
+
+
+_STRICT_WORDS = {
+    "": None,
+    "0": None,
+    "false": None,
+    "off": None,
+    "no": None,
+    "1": "correct",
+    "true": "correct",
+    "on": "correct",
+    "yes": "correct",
+    "correct": "correct",
+    "blank": "blank",
+    "not attempted": "blank",
+    "not-attempted": "blank",
+    "not_attempted": "blank",
+}
+
+
+def _parse_strict(value: Any) -> str | None:
+    if value is True:
+        return "correct"
+    if value is False or value is None:
+        return None
+    key = str(value).strip().lower()
+    if key not in _STRICT_WORDS:
+        raise ValueError(
+            f"strict mode {value!r} is unknown; use True or 'correct' (every check must be Correct), "
+            "'blank' (every check must be Not attempted) or False"
+        )
+    return _STRICT_WORDS[key]
+
+
+#: The strict modes switched on by :class:`strict` in this context, innermost last (a tuple, so a
+#: copied context never shares it). Empty: the environment variable ``FIDLEARN_STRICT`` decides.
+STRICT_STACK: contextvars.ContextVar[tuple] = contextvars.ContextVar("fidlearn_exercises_strict", default=())
+
+
+def strict_mode() -> str | None:
+    """The strict mode in force now: ``"correct"``, ``"blank"`` or ``None`` (off).
+
+    Returns
+    -------
+    str or None
+        The innermost :class:`strict` of this context, else what ``FIDLEARN_STRICT`` says
+        (an unreadable value counts as ``"correct"``).
+
+    Examples
+    --------
+    >>> with strict("blank"):
+    ...     strict_mode()
+    'blank'
+    """
+    stack = STRICT_STACK.get()
+    if stack:
+        return stack[-1]
+    try:
+        return _parse_strict(os.environ.get("FIDLEARN_STRICT", ""))
+    except ValueError:
+        return "correct"
+
+
+class strict:
+    """Strict mode for tests and graders: a check that is not as expected raises AssertionError.
+
+    ``strict()`` or ``strict(True)`` demands ``Correct``; ``strict("blank")``
+    demands ``Not attempted`` (an untouched student copy); ``strict(False)``
+    switches strict mode off. Use it as a context manager, or call it once
+    (then it stays on until :meth:`restore`). Without either, the environment
+    variable ``FIDLEARN_STRICT`` (``1`` or ``blank``) decides. The modes live in the
+    context variable :data:`STRICT_STACK`, so a thread or task started elsewhere keeps its own.
+
+    Parameters
+    ----------
+    mode : bool or str, default True
+        ``True``/``"correct"``, ``"blank"``, or ``False``/``None`` (off); the words of
+        ``FIDLEARN_STRICT`` (``"1"``, ``"on"``, ``"not attempted"``...) are accepted too.
+
+    Raises
+    ------
+    ValueError
+        For a mode that is none of these.
+
+    Examples
+    --------
+    >>> with strict():
+    ...     strict_mode()
+    'correct'
+    >>> STRICT_STACK.get()  # left: FIDLEARN_STRICT decides again
+    ()
+    """
+
+    def __init__(self, mode: Any = True):
+        self.mode = _parse_strict(mode)
+        STRICT_STACK.set((*STRICT_STACK.get(), self.mode))
+        self._active = True
+
+    def restore(self) -> None:
+        """Undo this strict() call: remove the latest switch to this mode from the context."""
+        if self._active:
+            stack = list(STRICT_STACK.get())
+            for i in range(len(stack) - 1, -1, -1):  # the latest push of this mode
+                if stack[i] == self.mode:
+                    del stack[i]
+                    break
+            STRICT_STACK.set(tuple(stack))
+            self._active = False
+
+    def __enter__(self) -> strict:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.restore()
+
+
+@dataclass(frozen=True)
+class Result:
+    """The outcome of one check: ``status`` is ``Correct``, ``Incorrect`` or ``Not attempted``.
+
+    Parameters
+    ----------
+    question : str
+        The question's name, ``"q1"``.
+    status : str
+        :data:`CORRECT`, :data:`INCORRECT`, :data:`NOT_ATTEMPTED` or (graded mode) :data:`RECORDED`.
+    message : str
+        What is wrong and a nudge, or a remark on a right answer ("" for none).
+
+    Examples
+    --------
+    >>> Result("q1", CORRECT, "well done").line
+    'Correct (q1): well done'
+    """
+
+    question: str
+    status: str
+    message: str
+
+    @property
+    def correct(self) -> bool:
+        """Whether the status is ``Correct``.
+
+        Returns
+        -------
+        bool
+        """
+        return self.status == CORRECT
+
+    @property
+    def line(self) -> str:
+        """The one line that :meth:`Question.check` prints.
+
+        Returns
+        -------
+        str
+            ``"<status> (<question>): <message>"``, without the colon part when there is no message.
+        """
+        return (
+            f"{self.status} ({self.question}): {self.message}" if self.message else f"{self.status} ({self.question})"
+        )
+
+    def __str__(self) -> str:
+        return self.line
+
+
+class _AnswerError(Exception):
+    """The learner's answer cannot be read as the kind of value asked for (the message says why)."""
+
+
+def _short(value: Any) -> str:
+    """A readable one-or-few-line view of an input (big arrays by shape only)."""
+    if isinstance(value, np.ndarray):
+        if value.size > 24:
+            return f"array of shape {value.shape}, dtype {value.dtype}"
+        return np.array2string(np.round(value, 4), separator=", ", suppress_small=True).replace("\n", "\n    ")
+    view = _short_collection(value)
+    if view is not None:
+        return view
+    if isinstance(value, float):
+        return f"{value:g}"
+    return repr(value)
+
+
+def _short_collection(value: Any) -> str | None:
+    """The view of a dict of long texts or a list of arrays or detections; None for anything else."""
+    if isinstance(value, dict) and value and all(isinstance(v, str) and len(v) > 30 for v in value.values()):
+        return "{\n" + "\n".join(f"      {k!r}: {v!r}," for k, v in value.items()) + "\n  }"
+    if isinstance(value, list) and value and all(isinstance(v, np.ndarray) for v in value) and value[0].size > 24:
+        shapes = {v.shape for v in value}
+        return (
+            f"list of {len(value)} arrays of shape {value[0].shape}"
+            if len(shapes) == 1
+            else f"list of {len(value)} arrays"
+        )
+    return _short_sequence(value)
+
+
+def _short_sequence(value: Any) -> str | None:
+    """The view of a short list of detections, arrays or dicts, or of a long sequence; None otherwise."""
+    if (
+        isinstance(value, list)
+        and 1 < len(value) <= 8
+        and all(isinstance(v, (Detection, np.ndarray, dict)) for v in value)
+    ):
+        return (
+            "[\n" + "\n".join(f"      {_short(v) if isinstance(v, np.ndarray) else repr(v)}," for v in value) + "\n  ]"
+        )
+    if isinstance(value, (list, tuple)) and len(value) > 8 and not isinstance(value[0], (int, float, str)):
+        return f"{type(value).__name__} of {len(value)} items, first: {value[0]!r}"
+    return None
+
+
+class Inputs:
+    """A question's inputs: read them as attributes (``q.inputs.K``) or keys (``q.inputs["K"]``).
+
+    Parameters
+    ----------
+    **values
+        The named inputs (arrays in mm, pixels or degrees as their names say).
+
+    Examples
+    --------
+    >>> inputs = Inputs(hfov_deg=60.0, image_size=(640, 480))
+    >>> inputs.hfov_deg, inputs["image_size"], list(inputs.keys())
+    (60.0, (640, 480), ['hfov_deg', 'image_size'])
+    """
+
+    def __init__(self, **values: Any):
+        self.__dict__.update(values)
+
+    def __getitem__(self, key: str) -> Any:
+        return self.__dict__[key]
+
+    def __iter__(self):
+        return iter(self.__dict__)
+
+    def keys(self):
+        """The names of the inputs, in the order the question gives them.
+
+        Returns
+        -------
+        dict_keys
+        """
+        return self.__dict__.keys()
+
+    def __repr__(self) -> str:
+        lines = [f"  {k} = {_short(v)}" for k, v in self.__dict__.items()]
+        return "Inputs(\n" + "\n".join(lines) + "\n)"
+
+
+Detector = Callable[[Any], bool]
+
+
+class Question:
+    """One exercise question: inputs, a hidden answer key, and feedback.
+
+    Parameters
+    ----------
+    name : str
+        ``"q1"``, ``"q2"``...: the variable name the notebook gives it.
+    title : str
+        The question's heading.
+    task : str
+        What to compute, in words (units and frames included); dedented.
+    inputs : dict
+        The data to compute from, shown as :class:`Inputs`.
+    expected : object
+        The answer key, in the form ``parse`` gives (``_NO_KEY`` in a graded lesson).
+    parse : callable
+        Reads a learner's answer into that form, or raises ``_AnswerError`` saying why not.
+    compare : callable
+        ``compare(value, expected)``: None when they agree, else what differs, in words.
+    wrong : sequence of (callable, str or callable)
+        Recognised mistakes: the first detector that is true for a wrong answer gives the message.
+    notes : sequence of (callable, str or callable)
+        Remarks on a right answer, the same way.
+    hint, solution : str
+        A nudge, and code that solves it in the notebook (dedented).
+    level : str
+        ``"easy"``, ``"medium"`` or ``"hard"``.
+    look : str
+        Code that shows the inputs as a picture in the notebook ("" for none).
+
+    Attributes
+    ----------
+    inputs : Inputs
+        The data to compute from (arrays in mm, pixels, degrees as named); also ``data``.
+    answer : object
+        The learner's answer; ``...`` or ``None`` means not attempted.
+    solution_code, look_code : str
+        The dedented ``solution`` and ``look``.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        title: str,
+        task: str,
+        inputs: dict,
+        expected: Any,
+        parse: Callable[[Any], Any],
+        compare: Callable[[Any, Any], str | None],
+        wrong: Sequence[tuple[Detector, Any]] = (),
+        notes: Sequence[tuple[Detector, Any]] = (),
+        hint: str = "",
+        solution: str = "",
+        level: str = "",
+        look: str = "",
+    ):
+        self.name = name
+        self.title = title
+        self.task = textwrap.dedent(task).strip()
+        self.inputs = Inputs(**inputs)
+        self.data = self.inputs
+        self._expected = expected
+        self._parse = parse
+        self._compare = compare
+        self._wrong = list(wrong)
+        self._notes = list(notes)
+        self._hint = textwrap.dedent(hint).strip()
+        self.solution_code = textwrap.dedent(solution).strip()
+        self.level = level
+        #: Code that shows the inputs as a picture in the notebook ("" for none).
+        self.look_code = textwrap.dedent(look).strip()
+        self.answer: Any = ...
+
+    # -- grading ------------------------------------------------------------------
+    def grade(self, answer: Any = _MISSING) -> Result:
+        """Judge an answer (default: ``self.answer``) and return a :class:`Result`; prints nothing.
+
+        A learner's answer that cannot be read gives ``Incorrect`` with the
+        reason; an error in the grading code itself raises.
+
+        Parameters
+        ----------
+        answer : object, optional
+            The answer to judge; without it, ``self.answer``.
+
+        Returns
+        -------
+        Result
+            ``Not attempted`` for ``...`` or None, ``Recorded`` in a graded lesson, else ``Correct`` or
+            ``Incorrect`` with the message.
+        """
+        if answer is _MISSING:
+            answer = self.answer
+        if answer is None or answer is Ellipsis:
+            return Result(
+                self.name,
+                NOT_ATTEMPTED,
+                (
+                    f"replace the ... in {self.name}.answer = ... with code that computes the answer, then run "
+                    f"{self.name}.check()"
+                ),
+            )
+        try:
+            value = self._parse(answer)
+        except _AnswerError as exc:
+            return Result(self.name, INCORRECT, str(exc))
+        if self._expected is _NO_KEY:
+            return Result(self.name, RECORDED, "the answer has the right form; your instructor's grader judges it")
+        diff = self._compare(value, self._expected)
+        if diff is None:
+            msg = "well done"
+            for detect, note in self._notes:
+                if _safe(detect, value):
+                    msg = note(value) if callable(note) else note
+                    break
+            return Result(self.name, CORRECT, msg)
+        for detect, message in self._wrong:
+            if _safe(detect, value):
+                return Result(self.name, INCORRECT, message(value) if callable(message) else message)
+        return Result(self.name, INCORRECT, f"{diff}; {self.name}.hint() gives a nudge")
+
+    def check(self, answer: Any = _MISSING) -> None:
+        """Print one line: ``Correct``, ``Incorrect`` (what is wrong, and a nudge) or ``Not attempted``.
+
+        ``check(value)`` first sets ``answer = value``. Outside strict mode it
+        never raises; in strict mode (see :class:`strict`) an unexpected
+        status raises :class:`AssertionError`.
+
+        Parameters
+        ----------
+        answer : object, optional
+            When given, it becomes ``self.answer`` first.
+
+        Raises
+        ------
+        AssertionError
+            Only in strict mode, for a status the mode does not expect.
+        """
+        if answer is not _MISSING:
+            self.answer = answer
+        mode = strict_mode()
+        try:
+            result = self.grade()
+        except Exception as exc:  # a bug in the grader must not break a lesson
+            if mode:
+                raise
+            result = Result(
+                self.name,
+                INCORRECT,
+                f"your answer could not be checked ({type(exc).__name__}: {exc}); check its type and shape",
+            )
+        print(result.line)
+        if mode == "correct" and result.status not in (CORRECT, RECORDED):
+            raise AssertionError(result.line)
+        if mode == "blank" and result.status != NOT_ATTEMPTED:
+            raise AssertionError(f"expected a blank answer, got: {result.line}")
+
+    def hint(self) -> None:
+        """Print a hint: ``Hint (q1): ...``."""
+        print(f"Hint ({self.name}): {self._hint}")
+
+    def solution(self) -> None:
+        """Print one way to solve it: code that, run in the notebook, makes ``check()`` say Correct.
+
+        In a graded lesson it says that the solution is not shown.
+        """
+        if self._expected is _NO_KEY:
+            print(f"Solution ({self.name}): not while the lesson is graded; q.hint() still helps")
+            return
+        print(f"Solution ({self.name}), one way to do it:\n")
+        print(self.solution_code)
+
+    def show(self) -> None:
+        """Print the task and the inputs."""
+        print(f"{self.name}. {self.title}\n\n{self.task}\n\n{self.name}.inputs = {self.inputs!r}")
+
+    def _fresh(self) -> Question:
+        """A copy with its own inputs (a learner may change them) and no answer yet."""
+        new = copy.copy(self)
+        new.inputs = copy.deepcopy(self.inputs)
+        new.data = new.inputs
+        new.answer = ...
+        return new
+
+    def __repr__(self) -> str:
+        status = self.grade().status if self.answer is not ... else NOT_ATTEMPTED
+        names = ", ".join(self.inputs.keys())
+        return f"<Question {self.name}: {self.title!r}; inputs: {names}; {status}>"
+
+
+def _safe(detect: Detector, value: Any) -> bool:
+    try:
+        return bool(detect(value))
+    except Exception:
+        return False

@@ -1,0 +1,114 @@
+"""Checking a learner's self-study notebook: :func:`grade_notebook` and its :class:`Grade`."""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+
+from ._engine import Result
+from ._registry import lesson_number
+
+
+@dataclass
+class Grade:
+    """The outcome of checking one notebook: the lesson, the learner id it used, a Result per question.
+
+    Parameters
+    ----------
+    path : str
+        The notebook.
+    lesson : str or None
+        Its lesson (None when the notebook never opened one).
+    learner : str or None
+        The learner id it was checked with.
+    results : list of Result
+        One per question.
+    errors : list of str
+        What went wrong running it (cells that raised, a crash).
+    """
+
+    path: str
+    lesson: str | None
+    learner: str | None
+    results: list
+    errors: list
+
+    @property
+    def n_correct(self) -> int:
+        """How many questions are Correct.
+
+        Returns
+        -------
+        int
+        """
+        return sum(r.correct for r in self.results)
+
+    def __str__(self) -> str:
+        head = (
+            f"{self.path}: lesson {self.lesson}, learner {self.learner!r}: {self.n_correct} of {len(self.results)} "
+            "correct"
+        )
+        lines = [head] + [f"  {r.line}" for r in self.results] + [f"  problem: {e}" for e in self.errors]
+        return "\n".join(lines)
+
+
+_LESSON_CALL = re.compile(r"exercises\.lesson\(\s*[\"']?(\d{1,2})[\"']?")
+
+
+def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout: int = 300) -> Grade:
+    """Check a learner's self-study notebook: run it in a sandbox, judge its answers outside it.
+
+    The notebook runs in a process of its own (see :mod:`fidlearn.grading`); its answers are
+    collected as plain data and judged here against the self-study variant of ``learner``.
+    This is a practice check: a self-study kernel holds its own answer key. For marks, release
+    the lesson with a class secret and grade with ``fidlearn grade``. Nothing in this process
+    changes: the learner id reaches the notebook through the sandbox's own environment.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The notebook (``.ipynb``).
+    learner : str, optional
+        The id the learner was told to use (a notebook whose ``LEARNER`` is empty runs with it).
+    timeout : int
+        Seconds the notebook may run.
+
+    Returns
+    -------
+    Grade
+        A Result per question; a notebook that never opened a lesson gets none, with the reason
+        in ``errors``.
+
+    Raises
+    ------
+    FidlearnError
+        When ``path`` is a folder, missing, or not a Jupyter notebook.
+    """
+    import nbformat
+
+    from .. import grading
+    from ..errors import FidlearnError
+
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        what = (
+            "is a folder; give the notebooks in it (folder/*.ipynb)"
+            if os.path.isdir(path)
+            else "no such notebook; check the path"
+        )
+        raise FidlearnError(f"{path}: {what}")
+    try:
+        nb = nbformat.read(path, as_version=4)
+    except Exception as exc:  # nbformat raises NotJSONError, UnicodeDecodeError, KeyError, validation errors...
+        raise FidlearnError(
+            f"{path}: not a Jupyter notebook ({type(exc).__name__}); give the learner's .ipynb file"
+        ) from None
+    found = {m.group(1) for c in nb.cells if c.cell_type == "code" for m in _LESSON_CALL.finditer(c.source)}
+    if len(found) != 1:
+        return Grade(path, None, learner, [], ["no exercises found: the notebook never ran ex = exercises.lesson(...)"])
+    number = lesson_number(found.pop())
+    g = grading.grade_one(path, number, learner or "", None, timeout_s=timeout, run_as="")
+    results = [Result(q, status, message) for q, status, message in g.results]
+    errors = list(g.cell_errors) + ([g.problem] if g.problem else [])
+    return Grade(path, number, learner or "", results, errors)

@@ -1,0 +1,107 @@
+"""Seeded scenery the lessons share: the generator of a learner's numbers, cameras, walls and markers."""
+
+from __future__ import annotations
+
+import contextvars
+import hashlib
+from collections.abc import Sequence
+
+import numpy as np
+
+from .. import frames
+from ..camera import Camera
+from ..detection import Detection
+from ..markermap import MarkerMap, MarkerPlacement
+
+#: The seed of graded variants while :func:`build_questions` builds them (see fidlearn.grading).
+_SEED: contextvars.ContextVar = contextvars.ContextVar("fidlearn_exercise_seed", default=None)
+
+
+def _rng(lesson_id: str, learner: str, question: str) -> np.random.Generator:
+    """A generator seeded from SHA-256 of the lesson, the learner's id and the question.
+
+    While :func:`build_questions` runs with a ``seed`` function (graded mode), that function
+    seeds it instead: HMAC of the class secret, which nobody without the secret can repeat.
+    """
+    seed_fn = _SEED.get()
+    if seed_fn is not None:
+        return np.random.default_rng(seed_fn(question))
+    digest = hashlib.sha256(f"fidlearn-exercises/{lesson_id}/{learner}/{question}".encode()).digest()
+    return np.random.default_rng(int.from_bytes(digest[:8], "little"))
+
+
+def _look_at(position_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0, 0, 1)) -> np.ndarray:
+    """``T_world_camera`` (4, 4) of an OpenCV camera at ``position_mm`` looking at ``target_mm`` (x right, y down).
+
+    Why not :func:`fidlearn.synthetic.look_at`: the two agree in value on every call the lessons
+    make, but not bit for bit. ``synthetic.look_at`` multiplies the rotation by ``rot_z(roll)``
+    even for a roll of 0, which turns some ``-0.0`` entries into ``+0.0`` (1,372 of 3,910
+    calls over 305 learners' lessons 02, 03, 06 and 07 differ in their bytes). A signed zero can
+    flip an ``atan2`` by 360 degrees and is part of the numbers a learner is handed, so the lessons
+    keep this function to stay bit-identical for every learner id ever used. Lessons 05 and 08
+    have always used ``synthetic.look_at`` and still do.
+    """
+    p = np.asarray(position_mm, dtype=float)
+    z = np.asarray(target_mm, dtype=float) - p
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, dtype=float))
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return frames.make_transform(np.column_stack([x, y, z]), p)
+
+
+_SIZES = [(640, 480), (800, 600), (1280, 720), (1920, 1080)]
+
+
+_WALL_YAW = {"north": 0, "south": 180, "west": 90, "east": -90}
+
+
+_ROOM_FT = {
+    "north": 0.0,
+    "south": 16.0,
+    "west": -6.0,
+    "east": 6.0,
+}  # wall positions: x for north/south, y for west/east
+
+
+def _wall_translation(
+    rng: np.random.Generator, wall: str, step: float, span: tuple, height: tuple, per_ft: float
+) -> list:
+    """A top-left corner on a wall of the room: along the wall within ``span``, at a height in ``height``.
+
+    ``step`` rounds the values; ``per_ft`` is the unit of the result per foot
+    (1 for feet, 304.8 for mm), the room's walls being given in feet.
+    """
+    along = float(np.round(rng.uniform(*span) / step) * step)
+    z = float(np.round(rng.uniform(*height) / step) * step)
+    if wall in ("north", "south"):
+        return [_ROOM_FT[wall] * per_ft, along, z]
+    return [along, _ROOM_FT[wall] * per_ft, z]
+
+
+def _wall_map(
+    rng: np.random.Generator, n: int, size_mm: float, first_id: int = 0, spread_mm: float = 900.0
+) -> MarkerMap:
+    """n markers on the north wall (x = 0, facing +X), top-left corners on a loose grid, mm."""
+    ids = first_id + np.sort(rng.choice(40, size=n, replace=False))
+    placements = {}
+    k = 0
+    while len(placements) < n:
+        y = float(np.round(rng.uniform(-spread_mm, spread_mm), -1))
+        z = float(np.round(rng.uniform(700, 1700), -1))
+        tl = np.array([0.0, y, z])
+        if all(np.abs(np.asarray(p.translation_mm) - tl)[1:].max() > 2 * size_mm for p in placements.values()):
+            mid = int(ids[k])
+            placements[mid] = MarkerPlacement(mid, (0.0, y, z), (0.0, 0.0, 0.0))
+            k += 1
+    return MarkerMap(placements, size_mm, "ARUCO_ORIGINAL", "mm")
+
+
+def _noisy_detections(
+    rng: np.random.Generator, camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, noise_px: float
+) -> list:
+    dets = []
+    for mid in marker_map.ids:
+        px = camera.project(marker_map.marker_corners(mid), T_world_camera)
+        dets.append(Detection(mid, np.round(px + rng.normal(0, noise_px, px.shape), 3)))
+    return dets

@@ -1,0 +1,372 @@
+"""Lesson 08: Accuracy and pitfalls.
+
+One builder per question, in the order the notebook asks them; each draws its numbers from
+its own generator (``_rng("08", learner, "qN")``), so a learner's variant of one question
+does not depend on the others.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from ... import _cv, frames
+from ...camera import Camera
+from ...markermap import MarkerMap, MarkerPlacement
+from .._engine import Question, _AnswerError
+from .._parsers import (
+    _array,
+    _close,
+    _cmp_array,
+    _parts,
+    _scalar,
+)
+from .._scenery import (
+    _noisy_detections,
+    _rng,
+    _wall_map,
+)
+
+NUMBER = "08"
+TOPIC = "accuracy"
+TITLE = "Accuracy and pitfalls"
+INTRO = """
+    What limits a pose: depth error that grows with the square of the distance, a marker that
+    moved after the map was measured, and the two-fold ambiguity of a small marker seen from afar.
+    """
+
+
+_AMBIGUITY_CHOICES = [
+    (
+        "flip",
+        "A small flat marker seen nearly face-on from far away: two mirror-image tilts project its "
+        "corners to almost the same pixels, and the corner noise cannot tell them apart.",
+    ),
+    ("id", "The marker's id was decoded wrongly, so the map gave the corners of another marker."),
+    ("distortion", "The lens distortion was not calibrated, so the corners are in the wrong places."),
+    ("too_few", "solvePnP needs at least 6 points; the 4 corners of one marker are too few for a pose."),
+]
+
+
+_AMBIGUITY_WRONG = {
+    "id": "a wrong id would give one bad pose with a large reprojection error, not two poses that both fit the corners",
+    "distortion": (
+        "the corners here are projected with the camera's own model; both candidates fit them to a fraction of a pixel"
+    ),
+    "too_few": (
+        "4 coplanar points are enough: IPPE (SOLVEPNP_IPPE_SQUARE) solves a square marker from its "
+        "4 corners; the trouble is that it finds TWO solutions"
+    ),
+}
+
+
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q1 = {
+    "title": "Error grows with distance",
+    "task": """
+        A marker of side `marker_size_mm` faces the camera squarely at each distance in
+        `distances_mm`; the camera's focal length is `camera.fx` px. Distance from apparent size is
+        Z = fx * s / w (w the side in pixels). If w is measured `side_error_px` pixels too large,
+        how far off is Z? Write code that gives the size of the depth error (mm, positive) at
+        each distance, an array like `distances_mm`, to first order (dZ = |dZ/dw| * side_error_px).
+        How does it grow when the distance doubles?
+        """,
+    "hint": "w = fx * s / Z, so dZ/dw = -fx * s / w^2 = -Z^2 / (fx * s). Multiply by side_error_px.",
+    "solution": """
+        Z = np.asarray(q1.inputs.distances_mm, dtype=float)
+        q1.answer = Z ** 2 / (q1.inputs.camera.fx * q1.inputs.marker_size_mm) * q1.inputs.side_error_px
+        """,
+    "level": "easy",
+}
+
+
+def _q1(learner: str) -> Question:
+    """q1: Error grows with distance."""
+    rng = _rng("08", learner, "q1")
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
+    size = float(np.round(rng.uniform(60, 200), -1) + 5 * rng.integers(0, 2))
+    dists = np.array([500.0, 1000.0, 2000.0, 4000.0, 8000.0])
+    err_px = float(rng.choice([0.2, 0.25, 0.3, 0.4, 0.5, 0.75, 1.0]))
+    dZ = dists**2 * err_px / (cam.fx * size)
+    return Question(
+        "q1",
+        inputs={"camera": cam, "marker_size_mm": size, "distances_mm": dists, "side_error_px": err_px},
+        expected=dZ,
+        parse=_array((len(dists),), "the depth errors"),
+        compare=_cmp_array(0.0, " mm", rtol=0.01),
+        wrong=[
+            (
+                lambda a: _close(a, dists * err_px / cam.fx, 0, 0.01),
+                (
+                    "that is the SIDEWAYS error of one pixel (Z / fx per px); the depth error from the apparent "
+                    "size grows with Z squared: |dZ/dw| = fx * s / w^2 = Z^2 / (fx * s)"
+                ),
+            ),
+            (
+                lambda a: _close(a, dists * err_px / size, 0, 0.01),
+                (
+                    "your error grows linearly with distance; differentiate Z = fx * s / w with respect to w: "
+                    "|dZ/dw| = Z^2 / (fx * s)"
+                ),
+            ),
+            (lambda a: _close(a * 1000, dZ, 0, 0.01), "that is in metres: the answer is asked in mm"),
+            (lambda a: _close(-a, dZ, 0, 0.01), "give the size of the error (positive)"),
+        ],
+        **_Q1,
+    )
+
+
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q2 = {
+    "title": "Localize despite a misplaced marker",
+    "task": """
+        Someone moved one marker after the map was measured: `marker_map` still has the old
+        position. Write code that detects the markers in `image` (the map's dictionary), finds the
+        marker the others disagree with (leave each marker out in turn: without the misplaced one
+        the rest fit each other to a fraction of a pixel; fidlearn.pose.estimate_pose can also do
+        it for you, read its result), and
+        localizes the camera without it. Answer {"misplaced_id": id, "position_mm": (3,) world mm}.
+        """,
+    "look": 'from fidlearn import plotting\nplotting.show_image(None, q2.inputs.image, title="q2.inputs.image");',
+    "hint": (
+        "estimate_pose(detections, marker_map, camera) leaves out a marker that disagrees and lists "
+        "it in pose.rejected_ids; or do it yourself: for each id, solve with the others only (reject_outliers=False) "
+        "and look at Pose.reprojection_rms_px: it drops when the misplaced marker is the one left "
+        "out."
+    ),
+    "solution": """
+        from fidlearn.detection import detect_markers
+        from fidlearn.pose import estimate_pose
+        m, cam = q2.inputs.marker_map, q2.inputs.camera
+        dets = [d for d in detect_markers(q2.inputs.image, m.dictionary) if d.id in m]
+        rms_without = {}                              # leave one out: do the others agree?
+        for left_out in dets:
+            others = [d for d in dets if d.id != left_out.id]
+            rms_without[left_out.id] = estimate_pose(others, m, cam, reject_outliers=False).reprojection_rms_px
+        worst_id = min(rms_without, key=rms_without.get)  # without it, the rest fit best
+        best = estimate_pose([d for d in dets if d.id != worst_id], m, cam, reject_outliers=False)
+        q2.answer = {"misplaced_id": worst_id, "position_mm": best.position_mm}
+        """,
+    "level": "hard",
+}
+
+
+def _q2_mistakes(bad, tol, all_pos, true_pos) -> list:
+    """The mistakes q2 names: (detector, message) pairs, in the order they are tried."""
+    return [
+        (
+            lambda a: (
+                a["misplaced_id"] == bad
+                and np.linalg.norm(a["position_mm"] - all_pos) < 3
+                and np.linalg.norm(all_pos - true_pos) > tol
+            ),
+            (
+                "the right marker, but your position still uses it: leave it out of the pose (estimate_pose "
+                "on the other detections, or read Pose.rejected_ids)"
+            ),
+        ),
+        (
+            lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["position_mm"] * 304.8 - true_pos) < tol,
+            "that position is in feet: give mm",
+        ),
+    ]
+
+
+def _q2(learner: str) -> Question:
+    """q2: Localize despite a misplaced marker."""
+    from ... import pose as _pose
+    from ... import synthetic
+    from ...detection import detect_markers
+
+    rng = _rng("08", learner, "q2")
+    cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 65))), (960, 720))
+    true_map = _wall_map(rng, 5, 150.0, spread_mm=700.0)
+    eye = np.round(rng.uniform([1800, -400, 1000], [2600, 400, 1400]))
+    T2 = synthetic.look_at(eye, [0.0, 0.0, 1250.0])
+    image, truth = synthetic.render_scene(
+        cam2, true_map, T2, seed=int(rng.integers(1 << 30)), blur_px=0.5, noise_std=1.5
+    )
+    bad = int(rng.choice(sorted(truth)))
+    shift = rng.choice([-1, 1]) * float(rng.uniform(80, 140))
+    placements = dict(true_map.placements)
+    p = placements[bad]
+    placements[bad] = MarkerPlacement(
+        bad, (p.translation_mm[0], p.translation_mm[1] + round(shift), p.translation_mm[2]), p.rotation_deg
+    )
+    wrong_map = MarkerMap(placements, true_map.marker_size_mm, true_map.dictionary, "mm")
+    dets = detect_markers(image, true_map.dictionary)
+    all_pos = _pose.estimate_pose(dets, wrong_map, cam2, reject_outliers=False).position_mm
+    good_pos = _pose.estimate_pose([d for d in dets if d.id != bad], wrong_map, cam2).position_mm
+    tol = max(25.0, 2 * float(np.linalg.norm(good_pos - T2[:3, 3])))
+    true_pos = T2[:3, 3]
+
+    def cmp2(a, _):
+        if a["misplaced_id"] != bad:
+            return (
+                f"marker {a['misplaced_id']} agrees with the others; leave each marker out in turn and see "
+                "which one the others do not explain"
+            )
+        err = float(np.linalg.norm(a["position_mm"] - true_pos))
+        if err > tol:
+            return f"the right marker, but your position is {err:.0f} mm from the truth (tolerance {tol:.0f} mm)"
+        return None
+
+    return Question(
+        "q2",
+        inputs={"image": image.copy(), "marker_map": wrong_map, "camera": cam2},
+        expected={"misplaced_id": bad, "position_mm": true_pos},
+        parse=_parts(misplaced_id=lambda v: int(_scalar("misplaced_id")(v)), position_mm=_array((3,), "position_mm")),
+        compare=cmp2,
+        wrong=_q2_mistakes(bad, tol, all_pos, true_pos),
+        **_Q2,
+    )
+
+
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q3 = {
+    "title": "Two poses that both fit",
+    "task": """
+        One marker, seen from about 3 m, was detected (`detections`); `marker_map` and `camera`
+        are as usual. fidlearn.pose.estimate_pose reports the pose as ambiguous, and the camera
+        position jumps from frame to frame. Write code that computes both candidate camera poses
+        (estimate_pose returns the second one as Pose.alternative; cv2.solvePnPGeneric with
+        SOLVEPNP_IPPE_SQUARE gives both too) and the distance in mm between the two candidate
+        camera positions. Then choose the explanation from `choices`. Answer
+        {"choice": letter, "separation_mm": distance}.
+        """,
+    "hint": (
+        "pose = estimate_pose(detections, marker_map, camera); np.linalg.norm(pose.position_mm - "
+        "pose.alternative.position_mm). Both fit the corners to a fraction of a pixel: which explanation "
+        "allows that?"
+    ),
+    "solution": """
+        from fidlearn.pose import estimate_pose
+        pose = estimate_pose(q3.inputs.detections, q3.inputs.marker_map, q3.inputs.camera)
+        separation = np.linalg.norm(pose.position_mm - pose.alternative.position_mm)
+        flip = next(k for k, text in q3.inputs.choices.items() if "face-on" in text)
+        q3.answer = {"choice": flip, "separation_mm": separation}
+        """,
+    "level": "hard",
+}
+
+
+def _q3_mistakes(right, sep) -> list:
+    """The mistakes q3 names: (detector, message) pairs, in the order they are tried."""
+    return [
+        (
+            lambda a: a["choice"] == right and abs(a["separation_mm"] * 1000 - sep) <= 0.15 * sep + 5,
+            "that separation is in metres: give mm",
+        ),
+        (
+            lambda a: a["choice"] == right and a["separation_mm"] < 1,
+            (
+                "the two candidates are far apart (the camera seems to swing to the other side): compare "
+                "pose.position_mm with pose.alternative.position_mm"
+            ),
+        ),
+    ]
+
+
+def _ambiguous_view(rng: np.random.Generator) -> tuple:
+    """q3's scene: one small marker seen from about 3 m, redrawn until its two candidate poses are far apart.
+
+    Returns ``(camera, marker_map, detections, separation_mm, separations_mm)``: the separation of
+    estimate_pose's two candidates, and the separations a learner may fairly give (raw IPPE too).
+    """
+    from ... import pose as _pose
+    from ... import synthetic
+
+    cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 70))), (1280, 720))
+    mid = int(rng.integers(0, 40))
+    m3 = MarkerMap(
+        {
+            mid: MarkerPlacement(
+                mid,
+                (0.0, float(np.round(rng.uniform(-300, 300))), float(np.round(rng.uniform(1000, 1400)))),
+                (0.0, 0.0, 0.0),
+            )
+        },
+        float(rng.choice([80, 100])),
+        "ARUCO_ORIGINAL",
+        "mm",
+    )
+    centre = m3.marker_corners(mid).mean(axis=0)
+    for _ in range(50):
+        T3 = synthetic.look_at(
+            centre + [float(rng.uniform(2800, 3600)), float(rng.uniform(-150, 150)), float(rng.uniform(-100, 100))],
+            centre,
+        )
+        det3 = _noisy_detections(rng, cam3, m3, T3, 0.3)
+        p3 = _pose.estimate_pose(det3, m3, cam3)
+        if (
+            p3.ambiguous
+            and p3.alternative is not None
+            and np.linalg.norm(p3.position_mm - p3.alternative.position_mm) > 250
+        ):
+            break
+    sep = float(np.linalg.norm(p3.position_mm - p3.alternative.position_mm))
+    # the two raw IPPE solutions (no refinement) are a fair answer too
+    s3 = m3.marker_size_mm / 2
+    local = np.array([[-s3, s3, 0], [s3, s3, 0], [s3, -s3, 0], [-s3, -s3, 0]])
+    _, rvs, tvs, _ = cv2.solvePnPGeneric(
+        local, det3[0].corners, cam3.K, cam3.dist, flags=_cv.solvepnp_flag("IPPE_SQUARE")
+    )
+    raw = [
+        frames.invert_transform(frames.transform_from_rvec_tvec(np.ravel(r), np.ravel(t)))[:3, 3]
+        for r, t in zip(rvs, tvs)
+    ]
+    seps = [sep] + ([float(np.linalg.norm(raw[0] - raw[1]))] if len(raw) == 2 else [])
+    return cam3, m3, det3, sep, seps
+
+
+def _q3(learner: str) -> Question:
+    """q3: Two poses that both fit."""
+    rng = _rng("08", learner, "q3")
+    cam3, m3, det3, sep, seps = _ambiguous_view(rng)
+    order = list(rng.permutation(len(_AMBIGUITY_CHOICES)))
+    letters = "ABCD"
+    choices = {letters[k]: _AMBIGUITY_CHOICES[i][1] for k, i in enumerate(order)}
+    right = letters[order.index(0)]
+    wrong_letters = {letters[k]: _AMBIGUITY_CHOICES[i][0] for k, i in enumerate(order) if i != 0}
+
+    def parse3(answer):
+        d = _parts(choice=lambda v: str(v).strip().upper()[:1], separation_mm=_scalar("separation_mm"))(answer)
+        if d["choice"] not in choices:
+            raise _AnswerError(f"choice must be one of {', '.join(choices)}, got {d['choice']!r}")
+        return d
+
+    def cmp3(a, _):
+        if a["choice"] != right:
+            return f"choice {a['choice']} does not explain it: {_AMBIGUITY_WRONG[wrong_letters[a['choice']]]}"
+        if all(abs(a["separation_mm"] - x) > 0.15 * x + 5 for x in seps):
+            return (
+                f"the explanation is right; the separation {a['separation_mm']:.0f} mm is not what the two "
+                "candidate poses give (within 15 %)"
+            )
+        return None
+
+    return Question(
+        "q3",
+        inputs={"detections": det3, "marker_map": m3, "camera": cam3, "choices": choices},
+        expected={"choice": right, "separation_mm": sep},
+        parse=parse3,
+        compare=cmp3,
+        wrong=_q3_mistakes(right, sep),
+        **_Q3,
+    )
+
+
+def build(learner: str) -> list[Question]:
+    """The questions of lesson 08 for one learner, in notebook order.
+
+    Parameters
+    ----------
+    learner : str
+        The learner's id; it seeds every question's numbers (``""``: the class's shared variant).
+
+    Returns
+    -------
+    list of Question
+        q1, q2, q3, with their answer keys.
+    """
+    return [_q1(learner), _q2(learner), _q3(learner)]

@@ -1,0 +1,331 @@
+"""Reading pictures and videos: image files, folders of them, video files and live cameras.
+
+Everything fidlearn reads as pixels comes through here: :func:`load_image` for one
+picture (checked from its header before a pixel is decoded), :func:`expand_inputs`
+for the files and folders a command line names, and :func:`read_frames` for the
+frames of all of them, videos and a live camera included.
+
+Pixel convention: OpenCV's (BGR order, the centre of the top-left pixel is (0, 0)).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+from . import _cv, _files
+from ._io import atomic_write
+from .errors import FidlearnError, FidlearnWarning, ImageError, UsageError
+
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "VIDEO_SUFFIXES",
+    "Frame",
+    "load_image",
+    "write_image",
+    "expand_inputs",
+    "open_capture",
+    "declared_frames",
+    "read_capture",
+    "read_frames",
+]
+
+#: File suffixes read as pictures (a folder stands for its files with these suffixes).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
+#: File suffixes read as videos.
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
+
+
+class Frame(NamedTuple):
+    """One picture to work on, from a file, a video or a camera.
+
+    Attributes
+    ----------
+    name : str
+        The file's name, or ``"video.mp4#7"`` (frame 7, counted from 0), or ``"camera0#7"``.
+    image : ndarray, shape (H, W) or (H, W, 3) or (H, W, 4)
+        The pixels as decoded (uint8 or uint16), BGR order.
+    source : str
+        Where it comes from: the image's or the video's path, or ``"camera0"``. Consecutive
+        frames of one video (or camera) share it.
+    kind : str
+        ``"image"``, ``"video"`` or ``"camera"``.
+    """
+
+    name: str
+    image: np.ndarray
+    source: str
+    kind: str
+
+
+def load_image(path: str | os.PathLike, max_pixels: int = _files.MAX_IMAGE_PIXELS) -> np.ndarray:
+    """Read an image file as OpenCV does (BGR or gray, uint8), with a clear error when it cannot.
+
+    Only a regular file is read (a folder, a FIFO or a device is refused before it is opened),
+    and the picture's size is read from its header first: one larger than ``max_pixels``
+    (100 megapixels unless raised) or a PNG or JPEG cut short is refused before decoding.
+    Safe to call from several threads.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The picture (PNG, JPEG, BMP, TIFF, ... whatever OpenCV decodes).
+    max_pixels : int
+        Largest picture to decode, width times height.
+
+    Returns
+    -------
+    ndarray, shape (H, W) or (H, W, 3) or (H, W, 4)
+        The pixels as stored (uint8, or uint16 for 16-bit files), BGR order.
+
+    Raises
+    ------
+    ImageError
+        The file is missing, not a regular file, empty, too large, cut short or not a picture;
+        the message names the file.
+
+    Examples
+    --------
+    >>> import fidlearn
+    >>> load_image(fidlearn.data_path("scenes/scene_00.png")).shape
+    (720, 1280)
+    """
+    if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)) or max_pixels < 1:
+        raise ImageError(f"max_pixels must be a positive whole number of pixels, got {max_pixels!r}")
+    path, data = _files.read_bytes(path, ImageError, "picture", _files.MAX_IMAGE_BYTES)
+    if not data:
+        raise ImageError(f"{path}: the file is empty; expected a PNG or JPEG image")
+    _files.check_image_bytes(path, data, ImageError, int(max_pixels))
+    try:
+        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:
+        raise ImageError(
+            f"{path}: OpenCV cannot decode it ({_cv.first_line(exc)}); is it truncated or another file type?"
+        ) from None
+    if image is None or image.size == 0:
+        raise ImageError(
+            f"{path}: not an image OpenCV can read (PNG, JPEG, BMP, TIFF...); is it truncated or another file type?"
+        )
+    return image
+
+
+def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
+    """Encode an image by its file suffix and write it atomically (whole, or not at all).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write; its suffix (``.png``, ``.jpg``, ...) chooses the encoding.
+    image : ndarray, shape (H, W) or (H, W, 3)
+        The pixels, BGR order.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    FidlearnError
+        OpenCV cannot encode that suffix, or the file cannot be written.
+    """
+    path = Path(path)
+    ok, buf = cv2.imencode(path.suffix.lower(), image)
+    if not ok:
+        raise FidlearnError(f"{path}: OpenCV cannot encode a {path.suffix} image; use .png")
+    return atomic_write(path, lambda tmp: tmp.write_bytes(buf.tobytes()))
+
+
+def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool) -> list[tuple[str, Path]]:
+    """Files and folders as ``[("image" | "video", path), ...]``, checked before any is read.
+
+    Parameters
+    ----------
+    paths : sequence of str or os.PathLike
+        Pictures, videos, and folders (each stands for its pictures, sorted by name).
+    videos : bool
+        Whether video files are accepted.
+
+    Returns
+    -------
+    list of (str, Path)
+        In the order given, a folder's pictures in name order.
+
+    Raises
+    ------
+    UsageError
+        A path that does not exist, a folder without pictures, or a file that is not a
+        picture (or a video) by its suffix.
+
+    Examples
+    --------
+    >>> import fidlearn
+    >>> items = expand_inputs([fidlearn.data_path("scenes")], videos=True)
+    >>> len(items), items[0][0], items[0][1].name
+    (10, 'image', 'scene_00.png')
+    """
+    items: list[tuple[str, Path]] = []
+    for path in paths:
+        path = Path(path)
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+            if not found:
+                raise UsageError(f"{path}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+            items += [("image", p) for p in found]
+        elif not path.exists():
+            raise UsageError(f"{path}: no such file or folder; check the path")
+        elif videos and path.suffix.lower() in VIDEO_SUFFIXES:
+            items.append(("video", path))
+        elif path.suffix.lower() in IMAGE_SUFFIXES:
+            items.append(("image", path))
+        else:
+            kinds = IMAGE_SUFFIXES + (VIDEO_SUFFIXES if videos else ())
+            raise UsageError(
+                f"{path}: not an image{' or a video' if videos else ''} by its name; expected {', '.join(kinds)}"
+            )
+    return items
+
+
+def open_capture(source: str | int, what: str) -> cv2.VideoCapture:
+    """An opened ``cv2.VideoCapture`` for a video file or a camera index.
+
+    Parameters
+    ----------
+    source : str or int
+        A video file's path, or a camera's index (0 is the first camera).
+    what : str
+        The name used in the error message.
+
+    Returns
+    -------
+    cv2.VideoCapture
+        Opened; release it when done.
+
+    Raises
+    ------
+    ImageError
+        OpenCV cannot open it.
+    """
+    cap = cv2.VideoCapture(source)
+    if not cap.isOpened():
+        cap.release()
+        if isinstance(source, int):
+            raise ImageError(f"camera {source}: cannot open it; check --camera-index (0 is the first camera)")
+        raise ImageError(f"{what}: OpenCV cannot open this video; is it truncated, or a codec OpenCV lacks?")
+    return cap
+
+
+def declared_frames(cap: cv2.VideoCapture) -> int:
+    """The frame count a video file's header announces (0 when it does not say).
+
+    Parameters
+    ----------
+    cap : cv2.VideoCapture
+        An opened video.
+
+    Returns
+    -------
+    int
+        Frames announced, 0 when unknown.
+    """
+    try:
+        count = float(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    except cv2.error:
+        return 0
+    return int(count) if count > 0 and count == count and count < 1e9 else 0
+
+
+def read_capture(cap: cv2.VideoCapture, prefix: str) -> Iterator[tuple[str, np.ndarray]]:
+    """Every frame of an opened capture as ``(f"{prefix}#{k}", frame)``, k from 0, until it ends.
+
+    Parameters
+    ----------
+    cap : cv2.VideoCapture
+        An opened video or camera.
+    prefix : str
+        The start of each frame's name.
+
+    Yields
+    ------
+    (str, ndarray)
+        The frame's name and its BGR pixels, (H, W, 3) uint8.
+    """
+    k = 0
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            return
+        yield f"{prefix}#{k}", frame
+        k += 1
+
+
+def _video_frames(path: Path) -> Iterator[Frame]:
+    cap = open_capture(str(path), str(path))
+    try:
+        n = 0
+        for name, frame in read_capture(cap, path.name):
+            n += 1
+            yield Frame(name, frame, str(path), "video")
+        if n == 0:
+            raise ImageError(f"{path}: the video has no frame OpenCV can decode")
+        declared = declared_frames(cap)
+        if declared > n:
+            warnings.warn(
+                f"{path}: the video ended after {n} of the {declared} frames its header announces; "
+                "the file may be truncated (an interrupted copy or recording)",
+                FidlearnWarning,
+                stacklevel=2,
+            )
+    finally:
+        cap.release()
+
+
+def read_frames(
+    items: Sequence[tuple[str, Path]], camera_index: int | None = None, max_pixels: int = _files.MAX_IMAGE_PIXELS
+) -> Iterator[Frame]:
+    """Every picture, every video frame, then every live camera frame, as :class:`Frame`.
+
+    Every video (and the camera) is opened once before the first frame, so a video that
+    cannot be read stops the run before anything is done.
+
+    Parameters
+    ----------
+    items : sequence of (str, Path)
+        ``("image" | "video", path)``, as :func:`expand_inputs` gives them.
+    camera_index : int, optional
+        Also read this live camera, after the files, until it stops.
+    max_pixels : int
+        Largest picture decoded (see :func:`load_image`).
+
+    Yields
+    ------
+    Frame
+
+    Raises
+    ------
+    ImageError
+        A picture or video that cannot be read, or a camera that cannot be opened.
+    """
+    for kind, path in items:
+        if kind == "video":
+            open_capture(str(path), str(path)).release()
+    if camera_index is not None:
+        open_capture(int(camera_index), "").release()
+    for kind, path in items:
+        if kind == "image":
+            yield Frame(path.name, load_image(path, max_pixels=max_pixels), str(path), "image")
+        else:
+            yield from _video_frames(path)
+    if camera_index is not None:
+        cap = open_capture(int(camera_index), "")
+        try:
+            for name, frame in read_capture(cap, f"camera{camera_index}"):
+                yield Frame(name, frame, f"camera{camera_index}", "camera")
+        finally:
+            cap.release()

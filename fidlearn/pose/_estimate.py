@@ -1,0 +1,348 @@
+"""estimate_pose: the camera's pose in the world from detected markers, in named steps."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import Camera
+from ..detection import Detection
+from ..errors import NoMarkersError, PoseError
+from ..frames import _rotvec
+from ..markermap import MarkerMap
+from ._checks import _check_quads, _cheirality
+from ._inputs import _check_inputs, _check_options
+from ._observations import _Candidate, _make_obs, _Obs, _side_px, _world
+from ._outliers import _reject_outliers
+from ._refine import _residuals, pose_jacobian
+from ._result import Pose
+from ._solvers import _solve
+from ._stats import (
+    AMBIGUITY_CHI2,
+    AMBIGUITY_MAX_SIGMA_PX,
+    PRIOR_DOF,
+    _covariance_from,
+    _estimated_sigma_inflation,
+    _mahalanobis2,
+    _sigma,
+)
+
+__all__ = ["estimate_pose"]
+
+#: A fit whose RMS reprojection error is above ``max(BAD_FIT_MIN_PX, BAD_FIT_REL * s)``,
+#: ``s`` the median side of the markers in the image (px), is not returned as a pose: the
+#: corners do not fit the map (:class:`PoseError`). Detectors place corners within a pixel or
+#: two. Measured (six or three markers, 25-80 px wide): a marker moved by 8-14 cm on a map of
+#: 150 mm markers drags the pose and leaves 0.15-0.32 side widths of RMS residual (still a pose,
+#: its residuals telling, see ``Pose.marker_rms_px``); positions in the wrong units (mm, cm,
+#: inch, foot, metre taken for another) leave 0.47-3.5, a corner order mixed up 0.67-5.
+BAD_FIT_REL = 0.4
+BAD_FIT_MIN_PX = 5.0
+
+
+def estimate_pose(
+    detections: Sequence[Detection],
+    marker_map: MarkerMap,
+    camera: Camera,
+    method: str = "auto",
+    *,
+    refine_lm: bool | None = None,
+    reject_outliers: bool = True,
+    corner_sigma_px: float | None = None,
+) -> Pose:
+    """The camera's pose in the world from detected markers, using every marker the map knows.
+
+    Parameters
+    ----------
+    detections : list of Detection
+        Detected markers (pixel corners TL, TR, BR, BL). Ids not in the map are
+        ignored and listed in ``Pose.ignored_ids``. An id detected twice keeps
+        its largest detection.
+    marker_map : MarkerMap or path
+        Where the markers are (world corners, mm). A path (str or
+        ``pathlib.Path``) is read with :meth:`MarkerMap.load`.
+    camera : Camera or path
+        Intrinsics and distortion at the resolution the corners were detected
+        at. A path is read with :meth:`Camera.load`.
+    method : {"auto", "ippe", "ippe_square", "sqpnp", "iterative", "epnp"}
+        ``"auto"`` (default) chooses by the data: ``ippe_square`` for one marker,
+        ``ippe`` for coplanar corners (both solutions kept), ``sqpnp`` for
+        markers on several planes, always followed by Levenberg-Marquardt on the
+        reprojection error. A named method runs that OpenCV solver alone (no
+        LM unless ``refine_lm=True``) so solvers can be compared; ``"iterative"``
+        is OpenCV's own LM from a DLT/homography start.
+    refine_lm : bool, optional
+        Refine with Levenberg-Marquardt on the reprojection error (fidlearn's
+        own, :func:`refine_pose_lm`: it minimises what ``cv2.solvePnPRefineLM``
+        does but runs to the optimum on far, poorly conditioned views).
+        Default: True for ``"auto"``, False for a named method.
+    reject_outliers : bool
+        With 3 or more markers, leave out a marker that disagrees with the
+        others (a marker measured wrongly on the wall) and list it in
+        ``Pose.rejected_ids``. The check is cheap: leave-one-out solves run only
+        when a marker's residual stands out from the others'. A marker is
+        rejected when its residual, predicted from the pose of the others, fails
+        the nested-model test at ``OUTLIER_P`` (chi-square with 8 degrees of
+        freedom when ``corner_sigma_px`` is given, else F(8, nu) with the noise
+        estimated from the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
+        With 2 markers nobody can tell which is wrong: nothing is rejected, but
+        ``Pose.marker_rms_px`` shows the disagreement.
+    corner_sigma_px : float, optional
+        Standard deviation (px, per coordinate) of the corner noise. If None it
+        is estimated from the residuals with ``2N - 6`` degrees of freedom,
+        blended with a prior of ``PRIOR_SIGMA_PX`` worth ``PRIOR_DOF`` degrees of
+        freedom (so one marker's 2 degrees of freedom do not claim a perfect
+        fit), and never below ``MIN_SIGMA_PX``; the covariance is then widened
+        for the uncertainty of that estimate (see :attr:`Pose.covariance`).
+
+    Returns
+    -------
+    Pose
+        ``Pose.ambiguous`` is True when the second planar solution's extra sum
+        of squared residuals is below ``AMBIGUITY_CHI2 * sigma^2``: the
+        likelihood ratio of the two poses is then above ``exp(-9/2)`` and the
+        corners cannot rule out the alternative. Only when the fit is good: a
+        sigma estimated from the residuals counts at most
+        ``AMBIGUITY_MAX_SIGMA_PX`` here (larger residuals are a wrong map or
+        camera, not noise, and make no second pose "as good").
+
+    Raises
+    ------
+    NoMarkersError
+        No detected marker is in the map.
+    PoseError
+        Bad inputs; a marker whose image corners are not a convex
+        quadrilateral running clockwise on screen (TL, TR, BR, BL as detection
+        reports them: collinear, repeated, mirrored or shuffled corners); no
+        pose that sees every used marker from its printed side with every
+        corner in front of the camera (a marker turned the wrong way in the
+        map); a best fit whose RMS reprojection error is above
+        ``max(BAD_FIT_MIN_PX, BAD_FIT_REL * median marker side in px)`` (the
+        corners do not fit the map: wrong positions, rotations, units, marker
+        size or camera); or a named method that cannot solve this data.
+
+    A missing pose is never returned as None: :func:`locate` and
+    :meth:`fidlearn.MarkerTracker.locate` raise the same errors.
+
+    Examples
+    --------
+    Corners projected from a known pose, with 0.3 px of noise:
+
+    >>> import numpy as np, fidlearn
+    >>> from fidlearn.detection import Detection
+    >>> m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+    >>> cam = fidlearn.Camera.from_fov(60, (640, 480))
+    >>> T_world_camera = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, 90), [1000, 150, 250])
+    >>> rng = np.random.default_rng(1)
+    >>> dets = [Detection(i, cam.project(c, T_world_camera) + rng.normal(0, 0.3, (4, 2)))
+    ...         for i, c in m.corners().items()]
+    >>> pose = estimate_pose(dets, m, cam, corner_sigma_px=0.3)
+    >>> pose.marker_ids, pose.method
+    ((0, 1, 2), 'ippe+lm')
+    >>> pose.position_ellipsoid_contains(T_world_camera[:3, 3])   # the truth is inside the 95 % ellipsoid
+    True
+    """
+    dets, marker_map, camera = _check_inputs(detections, marker_map, camera)
+    method = _check_options(method, refine_lm, reject_outliers, corner_sigma_px)
+    if refine_lm is None:
+        refine_lm = method == "auto"
+    refine_lm = bool(refine_lm)
+
+    corners_px, ignored = _known_corners(dets, marker_map)
+    world, faces = _world(marker_map)
+    obs = _make_obs(sorted(corners_px), corners_px, world, faces)
+    _check_quads(obs.ids, obs.img)
+    cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
+    rejected: list[int] = []
+    if reject_outliers and len(obs.ids) >= 3:
+        obs, cands, unrefined, rejected = _reject_outliers(
+            obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined
+        )
+    _check_fit(obs, cands[0])
+    data = _Data(obs, camera, world, corners_px, ignored, rejected, corner_sigma_px)
+    return _pose_from(data, cands, unrefined, method_used)
+
+
+def _known_corners(dets: list[Detection], marker_map: MarkerMap) -> tuple[dict[int, np.ndarray], list[int]]:
+    """The corners (4, 2), px, of each detected map marker (its largest detection), and the ids not in the map.
+
+    Raises :class:`NoMarkersError` when no detected marker is in the map.
+    """
+    corners_px: dict[int, np.ndarray] = {}
+    ignored: list[int] = []
+    for d in dets:
+        if d.id not in marker_map:
+            if d.id not in ignored:
+                ignored.append(d.id)
+            continue
+        if d.id in corners_px and corners_px[d.id] is not None:
+            prev = Detection(d.id, corners_px[d.id])
+            if prev.side_px >= d.side_px:
+                continue
+        corners_px[d.id] = d.corners
+    if not corners_px:
+        raise _no_markers_error(dets, marker_map)
+    return corners_px, ignored
+
+
+def _no_markers_error(dets: list[Detection], marker_map: MarkerMap) -> NoMarkersError:
+    """The error for detections none of which is in the map: what was seen, what the map holds, what to check."""
+    seen = sorted({d.id for d in dets})
+    what = f"the image shows markers {seen}, none of which is in the map" if seen else "no marker was detected"
+    return NoMarkersError(
+        f"{what}; the map ({marker_map.source}) has ids {marker_map.ids} in dictionary "
+        f"{marker_map.dictionary}. Check that the printed markers come from {marker_map.dictionary} "
+        "(detect with the map's dictionary), that the map lists the ids on the wall, and that the "
+        "markers are in view, in focus and large enough"
+    )
+
+
+def _check_fit(obs: _Obs, best: _Candidate) -> None:
+    """Raise :class:`PoseError` when the best pose fits too badly, or is none a camera can have.
+
+    ``best`` breaks :func:`_cheirality` only when every candidate does (``_solve`` puts the others
+    first). The fit is too bad when its RMS reprojection error is above ``max(BAD_FIT_MIN_PX,
+    BAD_FIT_REL * median marker side in px)``.
+    """
+    problem = _cheirality(obs, best)
+    rms = math.sqrt(best.sse / len(obs.obj))
+    side = float(np.median(_side_px(obs.img))) if rms > BAD_FIT_MIN_PX else 0.0  # the limit is at least the floor
+    if rms > max(BAD_FIT_MIN_PX, BAD_FIT_REL * side):
+        what = (
+            f"reprojection error {rms:.1f} px for markers {obs.ids}, which are about {side:.0f} px wide in the "
+            "image (a pose that fits leaves a pixel or two); check the map's positions and rotations, the marker "
+            "size, the units, the corner order (TL, TR, BR, BL) and the camera file"
+        )
+        note = f" ({best.problem_short})" if problem is not None else ""
+        raise PoseError(f"the corners do not fit the map: {what}{note}")
+    if problem is not None:
+        raise PoseError(problem)
+
+
+@dataclass
+class _Data:
+    """What every :class:`Pose` of one estimate shares: the data, then (from :func:`_pose_from`) noise and flip."""
+
+    obs: _Obs
+    camera: Camera
+    world: dict[int, np.ndarray]  # the map's corners (4, 3), mm, by id
+    corners_px: dict[int, np.ndarray]  # the detected corners (4, 2), px, by id
+    ignored: list[int]
+    rejected: list[int]
+    corner_sigma_px: float | None
+    dof: int = 0  # 2N - 6
+    sigma: float = 0.0  # the corner noise of the covariance, px
+    sigma_amb: float = 0.0  # the corner noise of the ambiguity test, px
+    alt: _Candidate | None = None  # the other planar solution, when it is distinct
+    ambiguous: bool = False
+
+
+def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate], method_used: str) -> Pose:
+    """The :class:`Pose` of the best candidate, with its noise, covariance and alternative."""
+    obs = data.obs
+    data.dof = 2 * len(obs.obj) - 6
+    data.sigma = _sigma(cands[0].sse, data.dof, data.corner_sigma_px)
+    # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
+    # camera, not noise, and must not make a poorer second pose look "as good" (nor hide the
+    # first pose's misfit behind it).
+    data.sigma_amb = data.sigma if data.corner_sigma_px is not None else min(data.sigma, AMBIGUITY_MAX_SIGMA_PX)
+    JtJ = cands[0].JtJ
+    if JtJ is None:
+        J = pose_jacobian(obs.obj, cands[0].T_world_camera, data.camera)
+        JtJ = J.T @ J
+    alt = data.alt = _alternative(obs, cands, unrefined, JtJ, data.sigma_amb)
+    data.ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * data.sigma_amb**2
+    alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
+    if alt is None:
+        return _build(data, cands[0], None, method_used, JtJ)
+    if data.ambiguous:  # its covariance enters this pose's
+        return _build(data, cands[0], _build(data, alt, None, alt_how), method_used, JtJ)
+    return _build(data, cands[0], lambda: _build(data, alt, None, alt_how), method_used, JtJ)
+
+
+def _alternative(
+    obs: _Obs, cands: list[_Candidate], unrefined: list[_Candidate], JtJ: np.ndarray, sigma_amb: float
+) -> _Candidate | None:
+    """The other planar solution (the "flip"), or None when no candidate is distinct from the best.
+
+    Refined, when LM keeps it apart as a second minimum; else as IPPE gave it, when LM ran from it
+    into the first one along a flat valley. It counts as another answer when it lies outside the
+    3-sigma ellipsoid of the best pose (squared Mahalanobis distance above AMBIGUITY_CHI2); it is
+    "as good" (ambiguous) when its extra sum of squared residuals is below AMBIGUITY_CHI2 sigma^2.
+    Near a single quadratic minimum the two numbers are equal, so a merely nearby pose is never
+    called ambiguous; both hold only when the error surface is far from quadratic, which is the
+    flip. Only a pose a camera can have counts (:func:`_cheirality`).
+    """
+    alt = next(
+        (
+            c
+            for c in cands[1:]
+            if _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2 and _cheirality(obs, c) is None
+        ),
+        None,
+    )
+    if alt is None and unrefined is not cands:
+        far = [
+            c
+            for c in unrefined
+            if c.sse > cands[0].sse
+            and _mahalanobis2(cands[0], c, JtJ, sigma_amb) > AMBIGUITY_CHI2
+            and _cheirality(obs, c) is None
+        ]
+        alt = min(far, key=lambda c: c.sse) if far else None
+    return alt
+
+
+def _build(
+    data: _Data,
+    c: _Candidate,
+    alternative: Pose | Callable[[], Pose] | None,
+    how: str,
+    JtJ_c: np.ndarray | None = None,
+) -> Pose:
+    """The :class:`Pose` of candidate ``c`` (``alternative`` may be a function that builds it on first use)."""
+    obs, camera = data.obs, data.camera
+    if c.r is None:
+        c.r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, False)
+        c.sse = float(c.r @ c.r)
+    r = c.r.reshape(-1, 4, 2)
+    residuals = {i: r[k] for k, i in enumerate(obs.ids)}
+    for i in data.rejected:
+        ri, _ = _residuals(data.world[i], data.corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
+        residuals[i] = ri.reshape(4, 2)
+    if JtJ_c is None:
+        Jc = pose_jacobian(obs.obj, c.T_world_camera, camera)
+        JtJ_c = Jc.T @ Jc
+    return Pose(
+        T_world_camera=c.T_world_camera,
+        marker_ids=tuple(obs.ids),
+        residuals_px=dict(sorted(residuals.items())),
+        reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
+        covariance=_covariance(data, c, alternative, JtJ_c),
+        sigma_px=data.sigma,
+        ambiguous=data.ambiguous,
+        alternative=alternative,
+        ignored_ids=tuple(data.ignored),
+        rejected_ids=tuple(data.rejected),
+        method=how,
+    )
+
+
+def _covariance(
+    data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None, JtJ_c: np.ndarray
+) -> np.ndarray | None:
+    """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
+    cov = _covariance_from(JtJ_c, data.sigma)  # one noise level for the data, whichever pose
+    if cov is not None and data.corner_sigma_px is None:
+        cov = cov * _estimated_sigma_inflation(data.dof + PRIOR_DOF)
+    alt = data.alt
+    if data.ambiguous and isinstance(alternative, Pose) and cov is not None and alternative.covariance is not None:
+        # Two poses explain the corners: report the second moment about this pose of the
+        # two-pose mixture, weighted by likelihood, so its ellipsoid reaches the other one.
+        w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * data.sigma_amb**2), 700.0)))
+        d = np.r_[_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C]
+        cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
+    return cov

@@ -1,0 +1,122 @@
+"""locate: detect the map's markers in an image and estimate the camera's pose."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ..camera import Camera
+from ..detection import Detection, detect_markers
+from ..errors import ImageError, PoseError
+from ..markermap import MarkerMap
+from ._estimate import estimate_pose
+from ._inputs import _as_camera, _as_map, _check_pose_options
+from ._result import Pose
+
+__all__ = ["locate"]
+
+
+def locate(
+    image: np.ndarray,
+    marker_map: MarkerMap | str | os.PathLike,
+    camera: Camera | str | os.PathLike,
+    *,
+    refine: str | None = None,
+    detector_params=None,
+    only_map_markers: bool = True,
+    **kw,
+) -> Pose:
+    """Detect the map's markers in an image and estimate the camera's pose.
+
+    By default only the map's markers are looked for: OpenCV compares every
+    candidate quad with every marker it looks for, so this costs a fraction of a
+    detection with the whole dictionary (1024 markers for ARUCO_ORIGINAL) and
+    finds the same markers at the same corners. Other markers of the dictionary
+    in view are then not reported in :attr:`Pose.ignored_ids` unless
+    ``only_map_markers=False``; when none of the map's markers is found, the
+    whole dictionary is searched once so that the error says which ids were seen.
+
+    Parameters
+    ----------
+    image : ndarray
+        Gray or BGR image (read a file with :func:`fidlearn.detection.load_image`).
+    marker_map : MarkerMap or path
+        The world map; its dictionary is used for detection. A path (str or
+        ``pathlib.Path``) is read with :meth:`MarkerMap.load` (in a loop over
+        many images, load it once and pass the MarkerMap).
+    camera : Camera or path
+        Fitted to the image with :meth:`Camera.for_image` (rescaled with a
+        :class:`FidlearnWarning` when only the resolution differs; a
+        :class:`CameraError` when the aspect ratio differs). A path is read
+        with :meth:`Camera.load`.
+    refine : str, optional
+        Corner refinement for :func:`fidlearn.detection.detect_markers`:
+        ``"edges"`` (its default), ``"none"``, ``"subpix"``, ``"contour"`` or
+        ``"apriltag"``; None for the default.
+    detector_params : dict or cv2.aruco.DetectorParameters, optional
+        OpenCV detector parameters, passed to ``detect_markers(detector_params=...)``.
+    only_map_markers : bool
+        Look only for the map's ids (the default, faster); False to detect the
+        whole dictionary and list the other ids in ``Pose.ignored_ids``.
+    **kw
+        Passed to :func:`estimate_pose` (``method``, ``refine_lm``,
+        ``reject_outliers``, ``corner_sigma_px``).
+
+    Returns
+    -------
+    Pose
+        The camera's pose in the world (``T_world_camera``, mm) with its uncertainty.
+
+    Raises
+    ------
+    ImageError
+        ``image`` is not an image array.
+    NoMarkersError
+        No marker of the map is detected (the message lists the ids seen, the map's ids and
+        dictionary, and what to check). A missing pose is never returned as None;
+        :meth:`fidlearn.MarkerTracker.locate` raises the same way for a video frame.
+    PoseError
+        Bad arguments, or the corners do not give a pose (see :func:`estimate_pose`).
+
+    Examples
+    --------
+    >>> import numpy as np, fidlearn
+    >>> from fidlearn.detection import load_image
+    >>> image = load_image(fidlearn.data_path("scenes", "scene_00.png"))   # rendered from [1000, 190, 230] mm
+    >>> pose = locate(image, fidlearn.data_path("world_map.json"), fidlearn.data_path("scenes", "camera.json"))
+    >>> pose.marker_ids, np.round(pose.position_mm, -1).tolist()
+    ((0, 1, 2), [1000.0, 190.0, 230.0])
+    """
+
+    # every argument is checked before the (costly) detection
+    if not isinstance(image, np.ndarray):
+        raise ImageError(
+            f"image must be a numpy array (use fidlearn.detection.load_image for a file), got {type(image).__name__}"
+        )
+    _check_pose_options(kw, "locate()", "refine, detector_params")
+    marker_map = _as_map(marker_map)
+    camera = _as_camera(camera).for_image(image)
+    detections = _detect_map_markers(image, marker_map, refine, detector_params, only_map_markers)
+    return estimate_pose(detections, marker_map, camera, **kw)
+
+
+def _detect_map_markers(
+    image: np.ndarray, marker_map: MarkerMap, refine: str | None, detector_params, only_map_markers: bool
+) -> list[Detection]:
+    """The map's markers in the image (every marker of the dictionary with ``only_map_markers=False``).
+
+    When none of the map's markers is found, the whole dictionary is searched once (without corner
+    refinement) so that estimate_pose's :class:`NoMarkersError` can say which ids were seen.
+    """
+    det_kw = {} if refine is None else {"refine": refine}
+    if detector_params is not None:
+        det_kw["detector_params"] = detector_params
+    if not isinstance(only_map_markers, (bool, np.bool_)):
+        raise PoseError(f"only_map_markers must be True or False, got {only_map_markers!r}")
+    ids = marker_map.ids if only_map_markers else None
+    detections = detect_markers(image, dictionary=marker_map.dictionary, ids=ids, **det_kw)
+    if not detections and only_map_markers:
+        # nothing of the map: detect the whole dictionary once, so the error lists what is in view
+        detections = detect_markers(image, dictionary=marker_map.dictionary, **{**det_kw, "refine": "none"})
+    return detections

@@ -1,0 +1,114 @@
+"""Statistics of a pose: the corner noise (sigma), the covariance, chi-square quantiles and Mahalanobis distances."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import PoseError
+from ..frames import _rotvec
+
+if TYPE_CHECKING:
+    from ._observations import _Candidate
+
+#: Prior corner noise (px) and its weight in degrees of freedom, blended with the
+#: residuals when ``corner_sigma_px`` is not given (see :func:`estimate_pose`).
+PRIOR_SIGMA_PX = 0.25
+PRIOR_DOF = 2.0
+#: Smallest corner noise (px) ever assumed: below this a covariance would claim
+#: more than any detector can deliver.
+MIN_SIGMA_PX = 0.02
+#: The alternative planar solution counts as "as good" when its extra sum of
+#: squared residuals is below this many sigma^2 (a likelihood ratio above
+#: exp(-9/2) ~ 1/90: the data cannot rule it out).
+AMBIGUITY_CHI2 = 9.0
+#: The ambiguity test never assumes a corner noise above this (px) when it estimates the noise
+#: from the residuals: no detector is that far off on a marker it decoded, so larger residuals
+#: are a wrong map or camera, and they must not make a poorer second pose look "as good".
+AMBIGUITY_MAX_SIGMA_PX = 3.0
+
+
+def _chi2_3_quantile(p: float) -> float:
+    """Quantile of the chi-square distribution with 3 degrees of freedom (7.815 for 0.95).
+
+    Its CDF has a closed form, ``erf(sqrt(x/2)) - sqrt(2x/pi) exp(-x/2)``: bisect on it.
+    """
+    if not 0 < p < 1:
+        raise PoseError(f"probability must be between 0 and 1 (exclusive), got {p}")
+    lo, hi = 0.0, 200.0
+    for _ in range(100):
+        mid = (lo + hi) / 2
+        cdf = math.erf(math.sqrt(mid / 2)) - math.sqrt(2 * mid / math.pi) * math.exp(-mid / 2)
+        if cdf < p:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
+
+
+def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -> float:
+    """Squared distance between two poses in units of the pose's uncertainty at ``a``."""
+    dtheta = _rotvec(b.R_wc @ a.R_wc.T)
+    d = np.concatenate([dtheta, b.C - a.C])
+    return float(d @ JtJ @ d) / sigma**2
+
+
+#: 95 % quantiles of the F distribution with (3, nu) degrees of freedom (standard tables),
+#: for the inflation of a covariance whose sigma was estimated with nu degrees of freedom.
+_F3_95 = (
+    (1, 215.7),
+    (2, 19.16),
+    (3, 9.28),
+    (4, 6.59),
+    (5, 5.41),
+    (6, 4.76),
+    (7, 4.35),
+    (8, 4.07),
+    (9, 3.86),
+    (10, 3.71),
+    (12, 3.49),
+    (15, 3.29),
+    (20, 3.10),
+    (24, 3.01),
+    (30, 2.92),
+    (40, 2.84),
+    (60, 2.76),
+    (120, 2.68),
+    (math.inf, 2.605),
+)
+_CHI2_3_95 = 7.8147
+
+
+def _estimated_sigma_inflation(nu: float) -> float:
+    """``3 F(3, nu; 0.95) / chi2(3; 0.95)``: how much wider the 95 % region is when sigma is estimated.
+
+    Hotelling: with sigma estimated from ``nu`` degrees of freedom, ``d^T (s^2 A)^-1 d / 3``
+    follows F(3, nu), not chi-square(3) / 3. Interpolated in 1/nu in the table above.
+    """
+    nu = max(float(nu), 1.0)
+    for (n0, f0), (n1, f1) in zip(_F3_95, _F3_95[1:]):
+        if nu <= n1:
+            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
+            f = f1 + (f0 - f1) * (x - x1) / (x0 - x1)
+            return 3.0 * f / _CHI2_3_95
+    return 3.0 * _F3_95[-1][1] / _CHI2_3_95
+
+
+def _sigma(sse: float, dof: int, corner_sigma_px: float | None) -> float:
+    if corner_sigma_px is not None:
+        return float(corner_sigma_px)
+    s2 = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + sse) / (PRIOR_DOF + max(dof, 0))
+    return max(math.sqrt(s2), MIN_SIGMA_PX)
+
+
+def _covariance_from(JtJ: np.ndarray, sigma: float) -> np.ndarray | None:
+    """``sigma^2 (J^T J)^-1``, symmetric; None when the pose is not determined (singular J^T J)."""
+    try:
+        cov = sigma**2 * np.linalg.inv(JtJ)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)):
+        return None
+    return (cov + cov.T) / 2
