@@ -111,12 +111,12 @@ def one_scene(m: MarkerMap, cam: Camera, distance_mm: float, rng, noise=(1.0, 2.
     for _ in range(50):
         T = viewpoint(m, distance_mm, rng)
         image, truth = render_scene(
-            cam,
             m,
+            cam,
             T,
             seed=int(rng.integers(1 << 30)),
             blur_px=float(rng.uniform(*blur)),
-            noise_std=float(rng.uniform(*noise)),
+            noise_std_gray=float(rng.uniform(*noise)),
             gradient=float(rng.uniform(0, 0.3)),
         )
         if any(_with_margin(c, cam) for c in truth.values()):

@@ -81,7 +81,7 @@ def scene(side_px: float, seed: int, dictionary: str, image_size=(640, 480), blu
     T = look_at(eye, centre, roll_deg=float(rng.uniform(0, 360)))
     blur = float(rng.uniform(0.5, 1.0)) if blur is None else blur
     noise = float(rng.uniform(1.0, 2.0)) if noise is None else noise
-    image, truth = render_scene(cam, mm, T, seed=seed, blur_px=blur, noise_std=noise, gradient=0.2)
+    image, truth = render_scene(mm, cam, T, seed=seed, blur_px=blur, noise_std_gray=noise, gradient=0.2)
     return image, truth, mm, cam
 
 
@@ -169,7 +169,7 @@ ROBUSTNESS_CASES = {  # label: (marker side px, dictionary, invert the picture, 
     "illumination gradient 60 %": (45, "ARUCO_ORIGINAL", False, {"gradient": 0.6}),
     "low contrast (ink 90, paper 170)": (45, "ARUCO_ORIGINAL", False, {"ink_gray": 90, "paper_gray": 170}),
     "blur 1.5 px, 30 px markers": (30, "ARUCO_ORIGINAL", False, {"blur_px": 1.5}),
-    "blur 2 px, noise 5": (45, "ARUCO_ORIGINAL", False, {"blur_px": 2.0, "noise_std": 5.0}),
+    "blur 2 px, noise 5": (45, "ARUCO_ORIGINAL", False, {"blur_px": 2.0, "noise_std_gray": 5.0}),
     "inverted markers (detectInvertedMarker)": (45, "ARUCO_ORIGINAL", True, {}),
     "6X6_250, 30 px": (30, "6X6_250", False, {}),
     "4X4_50, 25 px": (25, "4X4_50", False, {}),
@@ -191,9 +191,9 @@ def robustness(methods, n_scenes: int = 4) -> dict:
             eye = centre + cam.fx * MARKER_MM / side * np.array(
                 [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
             )
-            kw = {"blur_px": 0.7, "noise_std": 1.5, **extra}
+            kw = {"blur_px": 0.7, "noise_std_gray": 1.5, **extra}
             image, truth = render_scene(
-                cam, mm, look_at(eye, centre, roll_deg=float(rng.uniform(0, 360))), seed=s, **kw
+                mm, cam, look_at(eye, centre, roll_deg=float(rng.uniform(0, 360))), seed=s, **kw
             )
             if invert:
                 image = 255 - image

@@ -26,7 +26,7 @@ from fidlearn import Camera, MarkerMap, look_at, predict_accuracy, render_scene
 from fidlearn.errors import FidlearnError
 from fidlearn.planning import noise
 
-RENDER = {"blur_px": 0.5, "noise_std": 1.2, "gradient": 0.2}
+RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
 SIZES = [(640, 480), (1280, 720), (1920, 1080)]
 
 
@@ -71,7 +71,7 @@ def group_rows(n_scenes: int, n_seeds: int, seed: int = 7) -> list[dict]:
             used += 1
             flips += p.flip_likely
             for k in range(n_seeds):
-                image, _ = render_scene(camera, world, T, seed=1000 * tries + k, **RENDER)
+                image, _ = render_scene(world, camera, T, seed=1000 * tries + k, **RENDER)
                 try:
                     pose = fidlearn.locate(image, world, camera)
                     err = float(np.linalg.norm(pose.position_mm - T[:3, 3]))
@@ -113,7 +113,7 @@ def detected_fraction(camera: Camera, side_mm: float, distance_mm: float, trials
     found = 0
     for k in range(trials):
         T = look_at([distance_mm, 0, 1000], [0, 0, 1000], roll_deg=7.0 * k)
-        image, truth = render_scene(camera, world, T, seed=k, **RENDER)
+        image, truth = render_scene(world, camera, T, seed=k, **RENDER)
         found += bool(fidlearn.detect_markers(image, ids=[0])) if 0 in truth else 0
     return found / trials
 
@@ -161,7 +161,7 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11) -> None:
         camera = Camera.from_fov(60, SIZES[k % len(SIZES)])
         world = wall_map(rng, int(rng.integers(1, 13)))
         T = scene(rng, world, rng.uniform(500, 4000))
-        image, truth = render_scene(camera, world, T, seed=k, **RENDER)
+        image, truth = render_scene(world, camera, T, seed=k, **RENDER)
         for d in fidlearn.detect_markers(image, ids=world.ids):
             if d.id in truth:
                 t = truth[d.id]

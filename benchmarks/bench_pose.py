@@ -143,12 +143,12 @@ def bench_rendered(n_per_map: int, rng) -> None:
                 continue
             n += 1
             image, truth = render_scene(
-                CAMERA,
                 m,
+                CAMERA,
                 T,
                 seed=int(rng.integers(1 << 30)),
                 blur_px=rng.uniform(0.3, 1.0),
-                noise_std=rng.uniform(1.0, 4.0),
+                noise_std_gray=rng.uniform(1.0, 4.0),
                 gradient=rng.uniform(0, 0.3),
             )
             C = T[:3, 3]
@@ -330,7 +330,7 @@ def bench_speed(n_images: int, rng) -> None:
     while len(images) < n_images:
         T = random_view(m, rng)
         if all_visible(m, T):
-            images.append(render_scene(CAMERA, m, T, seed=len(images), blur_px=0.6, noise_std=2.0)[0])
+            images.append(render_scene(m, CAMERA, T, seed=len(images), blur_px=0.6, noise_std_gray=2.0)[0])
     det = _cv.make_detector(m.dictionary)
     from fidlearn.detection import detect_markers
 
@@ -376,7 +376,7 @@ def bench_misplaced(n_trials: int, rng) -> None:
             T = random_view(m, rng, (0.6, 1.6))
             if not all_visible(m, T):
                 continue
-            image, _ = render_scene(CAMERA, m, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std=2.0)
+            image, _ = render_scene(m, CAMERA, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std_gray=2.0)
             bad = int(rng.integers(len(m.ids)))
             pl = dict(m.placements)
             p0 = pl[bad]

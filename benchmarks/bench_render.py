@@ -29,7 +29,7 @@ import numpy as np
 from fidlearn import Camera, MarkerMap, data_path
 from fidlearn.synthetic import _normalized_map_cached, look_at, render_calibration_views, render_scene, trajectory_poses
 
-RENDER = dict(blur_px=0.5, noise_std=1.5, gradient=0.2, supersample=4)
+RENDER = dict(blur_px=0.5, noise_std_gray=1.5, gradient=0.2, supersample=4)
 
 
 def webcam(size) -> Camera:
@@ -69,21 +69,21 @@ def main(argv=None) -> int:
     cases = [
         (
             "1280x720, 3 markers at 1.2 m",
-            lambda: render_scene(hd, wall, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER),
+            lambda: render_scene(wall, hd, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER),
         ),
         (
             "1280x720, 3 markers at 0.4 m (close-up)",
-            lambda: render_scene(hd, wall, look_at([400, 190, 260], [0, 190, 240]), **RENDER),
+            lambda: render_scene(wall, hd, look_at([400, 190, 260], [0, 190, 240]), **RENDER),
         ),
         (
             "1280x720, sheets crossing the camera plane",
-            lambda: render_scene(hd, wall, look_at([20, 40, 260], [60, 2000, 250]), **RENDER),
+            lambda: render_scene(wall, hd, look_at([20, 40, 260], [60, 2000, 250]), **RENDER),
         ),
         (
             "640x480, 3 markers at 1.2 m",
-            lambda: render_scene(vga, wall, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER),
+            lambda: render_scene(wall, vga, look_at([1200, -200, 300], [0, 190, 240], roll_deg=5), **RENDER),
         ),
-        ("640x480, robot's drive frame 20", lambda: render_scene(vga, wall, drive_pose, **RENDER)),
+        ("640x480, robot's drive frame 20", lambda: render_scene(wall, vga, drive_pose, **RENDER)),
     ]
     per_view = [
         (

@@ -29,7 +29,9 @@ try:
         ImageError,
         MapError,
         NoMarkersError,
+        PlotError,
         PoseError,
+        PrintError,
         TransformError,
         UsageError,
     )
@@ -46,7 +48,7 @@ try:
     from .markermap import MarkerMap, MarkerPlacement
     from .planning import Prediction, plan_room, predict_accuracy
     from .pose import Pose, estimate_pose, locate
-    from .printables import PrintError, board_pdf, markers_pdf
+    from .printables import board_pdf, markers_pdf
     from .synthetic import (
         CalibrationViews,
         Trajectory,
@@ -119,6 +121,7 @@ __all__ = [
     "markers_pdf",
     "board_pdf",
     "PrintError",
+    "PlotError",
     "Prediction",
     "predict_accuracy",
     "plan_room",

@@ -9,9 +9,11 @@ any pixel is decoded, so a 74-byte PNG that declares 100000 x 100000 pixels cost
 
 from __future__ import annotations
 
+import difflib
 import os
 import stat
 import struct
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from .errors import FidlearnError
@@ -25,7 +27,26 @@ MAX_IMAGE_PIXELS = 100_000_000
 
 
 def as_path(path, error: type[FidlearnError], what: str) -> Path:
-    """``path`` as a Path, or ``error`` saying why it is not one."""
+    """``path`` as a Path.
+
+    Parameters
+    ----------
+    path : str, bytes or path-like
+        What the user gave.
+    error : type of FidlearnError
+        The error class to raise (``MapError`` for a map, ``CameraError`` for a camera, ...).
+    what : str
+        What the file is, for the message ("camera", "world map").
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    FidlearnError
+        ``error``, when ``path`` is not a path, is empty, or holds a NUL character or undecodable bytes.
+    """
     if isinstance(path, bytes):
         try:
             path = os.fsdecode(path)
@@ -56,7 +77,30 @@ def _kind(mode: int) -> str:
 
 
 def read_bytes(path, error: type[FidlearnError], what: str, limit: int) -> tuple[Path, bytes]:
-    """Read a whole regular file of at most ``limit`` bytes; ``error`` with the path and the fix otherwise."""
+    """Read a whole regular file of at most ``limit`` bytes.
+
+    Parameters
+    ----------
+    path : str, bytes or path-like
+        The file.
+    error : type of FidlearnError
+        The error class to raise.
+    what : str
+        What the file is, for the message.
+    limit : int
+        Largest size read, bytes.
+
+    Returns
+    -------
+    path : Path
+    data : bytes
+
+    Raises
+    ------
+    FidlearnError
+        ``error`` with the path and the fix: no such file, no permission, a folder, FIFO or device, or
+        a file over ``limit``.
+    """
     path = as_path(path, error, what)
     try:
         st = os.stat(path)
@@ -90,7 +134,24 @@ def read_bytes(path, error: type[FidlearnError], what: str, limit: int) -> tuple
 
 
 def image_size_from_header(data: bytes) -> tuple[str, int, int] | None:
-    """``(format, width, height)`` read from a PNG, JPEG, BMP, GIF or TIFF header; None for others."""
+    """The format and size a picture's header declares, read without decoding a pixel.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content (or at least its beginning).
+
+    Returns
+    -------
+    (str, int, int) or None
+        ``(format, width, height)`` for PNG, JPEG, BMP, GIF or TIFF (-1 for a size the header does
+        not give); None for another format.
+
+    Examples
+    --------
+    >>> image_size_from_header(b"GIF89a" + bytes([64, 0, 48, 0]))
+    ('GIF', 64, 48)
+    """
     if data[:8] == b"\x89PNG\r\n\x1a\n":
         if len(data) >= 24 and data[12:16] == b"IHDR":
             w, h = struct.unpack(">II", data[16:24])
@@ -147,7 +208,24 @@ def _tiff_size(data: bytes) -> tuple[int, int]:
 
 
 def check_image_bytes(path: Path, data: bytes, error: type[FidlearnError], max_pixels: int) -> None:
-    """Refuse, before decoding, a picture that is cut short or larger than ``max_pixels``."""
+    """Refuse, before decoding, a picture that is cut short or larger than ``max_pixels``.
+
+    Parameters
+    ----------
+    path : Path
+        The picture's path, for the message.
+    data : bytes
+        The file's content.
+    error : type of FidlearnError
+        The error class to raise.
+    max_pixels : int
+        Largest width x height accepted.
+
+    Raises
+    ------
+    FidlearnError
+        ``error``, when the header declares an empty or too large picture, or a PNG or JPEG has no end.
+    """
     head = image_size_from_header(data)
     if head is None:
         return
@@ -164,3 +242,42 @@ def check_image_bytes(path: Path, data: bytes, error: type[FidlearnError], max_p
         raise error(f"{path}: the PNG file is cut short (it has no end chunk); copy it again")
     if fmt == "JPEG" and not data.rstrip(b"\0\r\n ").endswith(b"\xff\xd9"):
         raise error(f"{path}: the JPEG file is cut short (it has no end marker); copy it again")
+
+
+def did_you_mean(field: object, known: Iterable[str], aliases: Mapping[str, str] | None = None) -> str:
+    """``": did you mean 'x'?"`` for a misspelt field name, or ``""`` when nothing is close.
+
+    Parameters
+    ----------
+    field : object
+        The field name the user wrote (compared stripped and in lower case).
+    known : iterable of str
+        The field names that exist.
+    aliases : mapping of str to str, optional
+        Other spellings of known names (keys in lower case, ``_`` for ``-`` and spaces, as in
+        ``{"k": "camera_matrix"}``); with them, ``-`` and spaces in ``field`` count as ``_`` and an
+        alias wins over a merely close name.
+
+    Returns
+    -------
+    str
+        The suffix to append to the message that names the unknown field.
+
+    Examples
+    --------
+    >>> did_you_mean("Markers ", ["markers", "units"])
+    ": did you mean 'markers'?"
+    >>> did_you_mean("intrinsics", ["camera_matrix"], aliases={"intrinsics": "camera_matrix"})
+    ": did you mean 'camera_matrix'?"
+    >>> did_you_mean("colour", ["units"])
+    ''
+    """
+    key = str(field).strip().lower()
+    guess = None
+    if aliases is not None:
+        key = key.replace("-", "_").replace(" ", "_")
+        guess = aliases.get(key) or aliases.get(key.replace("_", ""))
+    if guess is None:
+        close = difflib.get_close_matches(key, sorted(known), n=1, cutoff=0.6)
+        guess = close[0] if close else None
+    return f": did you mean {guess!r}?" if guess else ""

@@ -7,222 +7,42 @@ fidlearn compares uses this convention.
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
-import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 
 from . import _files, frames
-from ._io import atomic_write, read_json, write_json_atomic
+from ._camera_checks import (  # noqa: F401  (MAX_IMAGE_SIDE, _fmt_matrix: importable from here as before)
+    _ALIASES,
+    CAMERA_FIELDS,
+    DIST_LENGTHS,
+    MAX_IMAGE_SIDE,
+    _as_dist,
+    _as_K,
+    _as_size,
+    _fmt_matrix,
+    _short_source,
+)
+from ._filestorage import (  # noqa: F401  (the FileStorage helpers lived here)
+    MAX_FILESTORAGE_DEPTH,
+    _filestorage_matrix,
+    _filestorage_pixels,
+    _filestorage_text,
+    read_filestorage,
+    write_filestorage,
+)
+from ._io import read_json, write_json_atomic
 from .errors import CameraError, FidlearnWarning
 
 __all__ = ["Camera", "DIST_LENGTHS"]
 
 #: File names that hold pictures, never a camera (a swapped --camera argument).
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".mp4", ".avi", ".mov", ".mkv")
-
-#: Distortion vector lengths OpenCV understands: (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]).
-DIST_LENGTHS = (4, 5, 8, 12, 14)
-
-
-def _short_source(source: str) -> str:
-    path = Path(source)
-    return path.name if path.is_absolute() else source
-
-
-def _fmt_matrix(M: np.ndarray) -> str:
-    return "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in M) + "]"
-
-
-#: The fields of fidlearn's camera JSON; any other is refused (a misspelt distortion field was
-#: silently ignored, leaving a camera without distortion).
-CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source")
-#: Names other tools use for them, so the error can say which one was meant.
-_ALIASES = {
-    "distortion": "dist_coeffs",
-    "dist": "dist_coeffs",
-    "dist_coefs": "dist_coeffs",
-    "distcoeffs": "dist_coeffs",
-    "distortion_coefficients": "dist_coeffs",
-    "d": "dist_coeffs",
-    "k": "camera_matrix",
-    "intrinsics": "camera_matrix",
-    "matrix": "camera_matrix",
-    "cameramatrix": "camera_matrix",
-    "intrinsic_matrix": "camera_matrix",
-    "size": "image_size",
-    "resolution": "image_size",
-    "imagesize": "image_size",
-    "image_width": "image_size",
-    "image_height": "image_size",
-}
-#: Largest image side a camera file may declare (pixels).
-MAX_IMAGE_SIDE = 100_000
-
-
-def _did_you_mean(field: str) -> str:
-    key = str(field).strip().lower().replace("-", "_").replace(" ", "_")
-    guess = _ALIASES.get(key) or _ALIASES.get(key.replace("_", ""))
-    if guess is None:
-        close = difflib.get_close_matches(key, CAMERA_FIELDS, n=1, cutoff=0.6)
-        guess = close[0] if close else None
-    return f": did you mean {guess!r}?" if guess else ""
-
-
-def _as_K(K: Any, where: str) -> np.ndarray:
-    try:
-        K = np.array(K, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise CameraError(
-            f"{where}: camera_matrix is not numeric; expected 3x3 numbers [[fx,0,cx],[0,fy,cy],[0,0,1]]"
-        ) from None
-    if K.size == 9 and K.shape != (3, 3):
-        K = K.reshape(3, 3)
-    if K.shape != (3, 3):
-        raise CameraError(f"{where}: camera_matrix has shape {K.shape}, expected 3x3 [[fx,0,cx],[0,fy,cy],[0,0,1]]")
-    if not np.all(np.isfinite(K)):
-        raise CameraError(f"{where}: camera_matrix contains NaN or infinity")
-    if np.abs(K).max() > 1e8:
-        raise CameraError(
-            f"{where}: camera_matrix holds {np.abs(K).max():.3g}, beyond any camera (fx, fy, cx, cy are "
-            "pixels, a few hundred to a few thousand); check the file's units"
-        )
-    fx, fy = K[0, 0], K[1, 1]
-    if fx <= 0 or fy <= 0:
-        raise CameraError(
-            f"{where}: camera_matrix has focal lengths fx={fx:g}, fy={fy:g}; both must be positive "
-            "(in pixels); was the matrix transposed or written in another unit?"
-        )
-    if abs(K[0, 1]) > 1e-9:
-        raise CameraError(
-            f"{where}: camera_matrix has a skew term K[0][1] = {K[0, 1]:g}; OpenCV's projectPoints, solvePnP and "
-            "calibrateCamera ignore it, so every pose would be off by its effect; calibrate without skew "
-            "(OpenCV's default) or write 0 there"
-        )
-    if abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9 or abs(K[2, 2] - 1.0) > 1e-9:
-        hint = (
-            " (it looks transposed: cx, cy belong in the last column)" if abs(K[2, 0]) > 1 or abs(K[2, 1]) > 1 else ""
-        )
-        raise CameraError(f"{where}: camera_matrix must be [[fx,0,cx],[0,fy,cy],[0,0,1]]; got {_fmt_matrix(K)}{hint}")
-    return K
-
-
-def _as_dist(dist: Any, where: str) -> np.ndarray:
-    if dist is None:
-        return np.zeros(5)
-    try:
-        dist = np.array(dist, dtype=float).reshape(-1)
-    except (TypeError, ValueError, OverflowError):
-        raise CameraError(f"{where}: dist_coeffs is not a list of numbers") from None
-    if dist.size == 0:
-        return np.zeros(5)
-    if dist.size not in DIST_LENGTHS:
-        raise CameraError(
-            f"{where}: dist_coeffs has {dist.size} values; OpenCV takes 4, 5, 8, 12 or 14 "
-            "(k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]); use [] for no distortion"
-        )
-    if not np.all(np.isfinite(dist)):
-        raise CameraError(f"{where}: dist_coeffs contains NaN or infinity")
-    return dist
-
-
-def _as_size(image_size: Any, where: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in image_size)
-        ok = all(float(v) == int(v) for v in image_size)
-    except (TypeError, ValueError, OverflowError):
-        raise CameraError(f"{where}: image_size must be [width, height] in pixels, got {image_size!r}") from None
-    if not ok or w <= 0 or h <= 0:
-        raise CameraError(
-            f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}"
-        )
-    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
-        raise CameraError(
-            f"{where}: image_size {w}x{h} is beyond any camera ({MAX_IMAGE_SIDE} pixels a side at most); "
-            "is it [width, height] in pixels?"
-        )
-    return (w, h)
-
-
-#: Deepest nesting a FileStorage camera file may have (OpenCV's own files have 2); OpenCV's parser
-#: recurses once per level and a file nested 100,000 deep crashed the interpreter.
-MAX_FILESTORAGE_DEPTH = 16
-
-
-def _filestorage_text(path: Path, data: bytes) -> str:
-    """The file as text, refused before OpenCV parses it when it cannot be a camera file."""
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise CameraError(
-            f"{path}: not UTF-8 text (byte {exc.start}); an OpenCV camera file is YAML or XML text"
-        ) from None
-    if not text.strip():
-        raise CameraError(f"{path}: the file is empty; expected an OpenCV FileStorage camera file")
-    head = text.lstrip()[:16]
-    if not (head.startswith("%YAML") or head.startswith("<?xml") or head.startswith("<opencv_storage")):
-        raise CameraError(f"{path}: not an OpenCV FileStorage file; it should start with %YAML:1.0 or <?xml")
-    if head.startswith("%YAML"):
-        depth = deepest = 0
-        for ch in text:
-            if ch in "[{":
-                depth += 1
-                deepest = max(deepest, depth)
-            elif ch in "]}":
-                depth -= 1
-        indent = max((len(line) - len(line.lstrip(" ")) for line in text.splitlines() if line.strip()), default=0)
-        deepest = max(deepest, indent // 2)
-    else:
-        depth = deepest = 0
-        for m in re.finditer(r"<(/?)[A-Za-z_][^>]*?(/?)>", text):
-            if m.group(1):
-                depth -= 1
-            elif not m.group(2):
-                depth += 1
-                deepest = max(deepest, depth)
-    if deepest > MAX_FILESTORAGE_DEPTH:
-        raise CameraError(
-            f"{path}: nested {deepest} levels deep; an OpenCV camera file has 2 or 3 "
-            f"({MAX_FILESTORAGE_DEPTH} at most): is it the right file?"
-        )
-    return text
-
-
-def _filestorage_matrix(node, path: Path, name: str) -> np.ndarray | None:
-    """A FileStorage node's matrix, or CameraError when it is not a well-formed !!opencv-matrix."""
-    if not node.isMap():
-        raise CameraError(
-            f"{path}: {name} is not an !!opencv-matrix (a map with rows, cols, dt and data); "
-            "write it as OpenCV's calibration sample does"
-        )
-    dt = node.getNode("dt")
-    kind = dt.string() if not dt.empty() and dt.isString() else ""
-    if kind not in ("d", "f"):
-        raise CameraError(
-            f"{path}: {name} has dt: {kind or '?'}; a camera's numbers are real: write dt: d (or f), "
-            "as OpenCV's calibration sample does (dt: u would clip them to 0..255)"
-        )
-    try:
-        return node.mat()
-    except cv2.error:
-        raise CameraError(
-            f"{path}: {name} is a malformed !!opencv-matrix: rows x cols must equal the number of values in data"
-        ) from None
-
-
-def _filestorage_pixels(node, path: Path, name: str) -> int:
-    """A FileStorage node holding a positive whole number of pixels."""
-    value = node.real() if node.isReal() or node.isInt() else None
-    if value is None or not math.isfinite(value) or value != int(value):
-        raise CameraError(f"{path}: {name} must be a whole number of pixels, e.g. {name}: 640")
-    return int(value)
 
 
 @dataclass(eq=False)
@@ -281,10 +101,12 @@ class Camera:
 
     @property
     def width(self) -> int:
+        """Image width, in pixels."""
         return self.image_size[0]
 
     @property
     def height(self) -> int:
+        """Image height, in pixels."""
         return self.image_size[1]
 
     @property
@@ -295,11 +117,44 @@ class Camera:
 
     @property
     def has_distortion(self) -> bool:
+        """Whether any distortion coefficient is non-zero."""
         return bool(np.any(self.dist != 0))
 
     @classmethod
     def from_fov(cls, hfov_deg: float, image_size: tuple[int, int], dist=None, source: str = "") -> Camera:
-        """An ideal camera (square pixels, centred principal point) with a horizontal field of view."""
+        """An ideal camera (square pixels, centred principal point) with a horizontal field of view.
+
+        Parameters
+        ----------
+        hfov_deg : float
+            Horizontal field of view, degrees, strictly between 0 and 180.
+        image_size : (int, int)
+            ``(width, height)`` in pixels.
+        dist : array_like, optional
+            OpenCV distortion coefficients; ``None`` for none.
+        source : str
+            What made the camera, for the record; by default it says the field of view.
+
+        Returns
+        -------
+        Camera
+            ``fx = fy = (width / 2) / tan(hfov / 2)``, ``cx = (width - 1) / 2``, ``cy = (height - 1) / 2``
+            (pixel centres at integers).
+
+        Raises
+        ------
+        CameraError
+            If ``hfov_deg`` is not a number between 0 and 180 or ``image_size`` is not two positive whole
+            numbers.
+
+        Examples
+        --------
+        >>> cam = Camera.from_fov(90, (640, 480))
+        >>> round(cam.fx, 6), cam.cx, cam.cy
+        (320.0, 319.5, 239.5)
+        >>> [round(v, 1) for v in cam.fov_deg]
+        [90.0, 73.7]
+        """
         w, h = _as_size(image_size, source or "camera")
         if isinstance(hfov_deg, (bool, str, bytes)) or not isinstance(hfov_deg, (int, float, np.integer, np.floating)):
             raise CameraError(f"hfov_deg must be a number of degrees between 0 and 180, got {hfov_deg!r}")
@@ -320,11 +175,38 @@ class Camera:
 
     # -- projection -----------------------------------------------------------------
     def project(self, points_world: np.ndarray, T_world_camera: np.ndarray) -> np.ndarray:
-        """Project world points (N, 3), mm, to pixels (N, 2) for a camera at ``T_world_camera``.
+        """Project world points to pixels for a camera at ``T_world_camera``.
 
         Agrees with ``cv2.projectPoints`` (distortion included). Points behind the
         camera are projected too (their pixels are meaningless): use
         :meth:`points_in_front` to tell.
+
+        Parameters
+        ----------
+        points_world : array_like, shape (N, 3) or (3,)
+            Points in the world frame, mm.
+        T_world_camera : array_like, shape (4, 4)
+            The camera's pose in the world (mm); the camera frame is OpenCV's (x right, y down, z forward).
+
+        Returns
+        -------
+        ndarray, shape (N, 2) or (2,)
+            Pixel coordinates (u, v), pixel centres at integers; (2,) for a single point.
+
+        Raises
+        ------
+        CameraError
+            If ``points_world`` is not (N, 3).
+        TransformError
+            If ``T_world_camera`` is not a rigid transform.
+
+        Examples
+        --------
+        >>> cam = Camera.from_fov(90, (640, 480))
+        >>> T_world_camera = np.eye(4)   # at the origin, looking along world +Z
+        >>> cam.project([[0, 0, 1000], [500, 0, 1000]], T_world_camera).round(1)
+        array([[319.5, 239.5],
+               [479.5, 239.5]])
         """
         pts = frames.as_float_array(points_world, "points_world", CameraError)
         single = pts.ndim == 1
@@ -340,12 +222,43 @@ class Camera:
     def points_in_front(
         self, points_world: np.ndarray, T_world_camera: np.ndarray, min_depth_mm: float = 1.0
     ) -> np.ndarray:
-        """Boolean mask (N,) of the points with depth (camera z) above ``min_depth_mm``."""
+        """Which points are in front of the camera, deeper than ``min_depth_mm``.
+
+        Parameters
+        ----------
+        points_world : array_like, shape (N, 3)
+            Points in the world frame, mm.
+        T_world_camera : array_like, shape (4, 4)
+            The camera's pose in the world, mm.
+        min_depth_mm : float
+            Smallest depth (camera z, mm) that counts as in front.
+
+        Returns
+        -------
+        ndarray of bool, shape (N,)
+            True where the point's camera z is above ``min_depth_mm``.
+        """
         pts_cam = frames.transform_points(frames.invert_transform(T_world_camera), np.atleast_2d(points_world))
         return pts_cam[:, 2] > min_depth_mm
 
     def undistort_points(self, points_px: np.ndarray) -> np.ndarray:
-        """Remove lens distortion from pixel points (N, 2); returns ideal pinhole pixels (N, 2)."""
+        """Remove lens distortion from pixel points.
+
+        Parameters
+        ----------
+        points_px : array_like, shape (N, 2)
+            Observed (distorted) pixel coordinates.
+
+        Returns
+        -------
+        ndarray, shape (N, 2)
+            The ideal pinhole pixels (``cv2.undistortPoints`` with ``P=K``).
+
+        Raises
+        ------
+        CameraError
+            If the points are not (N, 2) or hold NaN or infinity.
+        """
         pts = frames.as_float_array(points_px, "points_px", CameraError)
         if pts.size == 0:
             return np.zeros((0, 2))
@@ -363,8 +276,25 @@ class Camera:
         A sensor read out at a lower resolution (binning, resizing) keeps its
         geometry, so K scales; pixel centres move with the pixel-centre
         convention (``c' = (c + 0.5) * s - 0.5``). Another aspect ratio means
-        the sensor was cropped differently, which no scaling can undo:
-        :class:`CameraError` says to calibrate at the resolution you run at.
+        the sensor was cropped differently, which no scaling can undo.
+
+        Parameters
+        ----------
+        image_size : (int, int)
+            The new ``(width, height)`` in pixels.
+        tol : float
+            Largest relative difference of the two scale factors still taken as the same aspect ratio.
+
+        Returns
+        -------
+        Camera
+            ``self`` when the size is unchanged, else a new camera (same distortion).
+
+        Raises
+        ------
+        CameraError
+            If the aspect ratio differs (width and height swapped is said so): calibrate at the resolution
+            you run at.
         """
         new_w, new_h = _as_size(image_size, "image_size")
         w, h = self.image_size
@@ -394,7 +324,25 @@ class Camera:
         return Camera(K, self.dist.copy(), (new_w, new_h), source=src)
 
     def for_image(self, image_or_size, warn: bool = True) -> Camera:
-        """This camera fitted to an image (an array or ``(width, height)``); warns when it had to rescale."""
+        """This camera fitted to an image, rescaled (with a warning) when the image has another size.
+
+        Parameters
+        ----------
+        image_or_size : ndarray or (int, int)
+            An image (H, W) or (H, W, 3), or its ``(width, height)`` in pixels.
+        warn : bool
+            Emit a :class:`FidlearnWarning` when the camera had to be rescaled.
+
+        Returns
+        -------
+        Camera
+            ``self`` or :meth:`scaled` to the image's size.
+
+        Raises
+        ------
+        CameraError
+            If the image's aspect ratio differs (see :meth:`scaled`).
+        """
         if isinstance(image_or_size, np.ndarray):
             size = (image_or_size.shape[1], image_or_size.shape[0])
         else:
@@ -413,7 +361,13 @@ class Camera:
 
     # -- files -------------------------------------------------------------------------
     def to_dict(self) -> dict:
-        """fidlearn's JSON layout: ``camera_matrix``, ``dist_coeffs``, ``image_size`` [w, h], ``source``."""
+        """fidlearn's JSON layout of the camera.
+
+        Returns
+        -------
+        dict
+            ``camera_matrix`` (3x3 list), ``dist_coeffs`` (list), ``image_size`` [width, height] and ``source``.
+        """
         return {
             "camera_matrix": self.K.tolist(),
             "dist_coeffs": self.dist.tolist(),
@@ -423,7 +377,26 @@ class Camera:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "camera") -> Camera:
-        """A camera from fidlearn's JSON layout."""
+        """A camera from fidlearn's JSON layout (as :meth:`to_dict` writes it).
+
+        Parameters
+        ----------
+        d : dict
+            ``camera_matrix`` (3x3, pixels), ``dist_coeffs`` (optional), ``image_size`` [width, height] and
+            ``source`` (optional); no other field.
+        source : str
+            Where ``d`` came from, named in error messages.
+
+        Returns
+        -------
+        Camera
+
+        Raises
+        ------
+        CameraError
+            If ``d`` is a world map, has an unknown field (with a guess at the meant one), misses a field or
+            holds a malformed value.
+        """
         if not isinstance(d, dict):
             raise CameraError(f"{source}: expected a JSON object with camera_matrix, dist_coeffs, image_size")
         if "camera_matrix" not in d and (
@@ -437,9 +410,9 @@ class Camera:
             )
         unknown = [k for k in d if k not in CAMERA_FIELDS]
         if unknown:
+            hint = _files.did_you_mean(unknown[0], CAMERA_FIELDS, _ALIASES)
             raise CameraError(
-                f"{source}: unknown field {unknown[0]!r}{_did_you_mean(unknown[0])}; a camera file holds "
-                f"{', '.join(CAMERA_FIELDS)}"
+                f"{source}: unknown field {unknown[0]!r}{hint}; a camera file holds {', '.join(CAMERA_FIELDS)}"
             )
         missing = [k for k in ("camera_matrix", "image_size") if k not in d]
         if missing:
@@ -450,23 +423,22 @@ class Camera:
         return cls(d["camera_matrix"], d.get("dist_coeffs"), d["image_size"], source=str(d.get("source") or source))
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write fidlearn's JSON (``.json``) or OpenCV FileStorage (``.yml``, ``.yaml``, ``.xml``), atomically."""
+        """Write the camera to a file, atomically.
+
+        Parameters
+        ----------
+        path : path-like
+            ``.yml``, ``.yaml`` or ``.xml`` for OpenCV FileStorage (``camera_matrix``,
+            ``distortion_coefficients``, ``image_width``, ``image_height``), anything else for fidlearn's JSON.
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
         path = Path(path)
         if path.suffix.lower() in (".yml", ".yaml", ".xml"):
-
-            def write(tmp: Path) -> None:
-                fs = cv2.FileStorage(
-                    str(tmp),
-                    cv2.FILE_STORAGE_WRITE
-                    | (cv2.FILE_STORAGE_FORMAT_XML if path.suffix.lower() == ".xml" else cv2.FILE_STORAGE_FORMAT_YAML),
-                )
-                fs.write("image_width", int(self.width))
-                fs.write("image_height", int(self.height))
-                fs.write("camera_matrix", self.K)
-                fs.write("distortion_coefficients", self.dist.reshape(1, -1))
-                fs.release()
-
-            return atomic_write(path, write)
+            return write_filestorage(path, self.K, self.dist, self.image_size)
         return write_json_atomic(path, self.to_dict())
 
     @classmethod
@@ -477,6 +449,23 @@ class Camera:
         ``image_width``/``image_height`` are read when present. A file without
         them (OpenCV's tutorial files) needs ``image_size`` from the caller: the
         resolution the camera was calibrated at.
+
+        Parameters
+        ----------
+        path : path-like
+            The camera file.
+        image_size : (int, int), optional
+            ``(width, height)`` in pixels; must agree with the file when it says its own.
+
+        Returns
+        -------
+        Camera
+            Its ``source`` is the file's path.
+
+        Raises
+        ------
+        CameraError
+            If the file is missing, unreadable, an image or a map, malformed, or disagrees with ``image_size``.
         """
         path = Path(path)
         if path.suffix.lower() in (".yml", ".yaml", ".xml"):
@@ -497,45 +486,5 @@ class Camera:
 
     @classmethod
     def _load_filestorage(cls, path: Path, image_size) -> Camera:
-        path, data = _files.read_bytes(path, CameraError, "camera", _files.MAX_TEXT_BYTES)
-        text = _filestorage_text(path, data)
-        try:
-            fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
-        except (cv2.error, SystemError) as exc:  # OpenCV 5 wraps parse errors in SystemError
-            cause = exc.__cause__ or exc.__context__ or exc
-            text = str(cause).strip()
-            msg = text.splitlines()[-1].strip() if text else "parse error"
-            raise CameraError(
-                f"{path}: not a readable OpenCV FileStorage file ({msg}); it should start with %YAML:1.0 or <?xml"
-            ) from None
-        try:
-            if not fs.isOpened():
-                raise CameraError(f"{path}: OpenCV cannot open it as FileStorage YAML/XML")
-            node_K = fs.getNode("camera_matrix")
-            if node_K.empty():
-                raise CameraError(f"{path}: no camera_matrix field; OpenCV's calibration files name it camera_matrix")
-            K = _filestorage_matrix(node_K, path, "camera_matrix")
-            if K is None:
-                raise CameraError(f"{path}: camera_matrix is not an !!opencv-matrix")
-            node_d = fs.getNode("distortion_coefficients")
-            dist = None if node_d.empty() else _filestorage_matrix(node_d, path, "distortion_coefficients")
-            w_node, h_node = fs.getNode("image_width"), fs.getNode("image_height")
-            file_size = None
-            if not w_node.empty() and not h_node.empty():
-                file_size = (
-                    _filestorage_pixels(w_node, path, "image_width"),
-                    _filestorage_pixels(h_node, path, "image_height"),
-                )
-        finally:
-            fs.release()
-        if file_size is None and image_size is None:
-            raise CameraError(
-                f"{path}: no image_width/image_height; pass image_size=(width, height), the resolution "
-                "the camera was calibrated at (the command line: --image-size WxH)"
-            )
-        if file_size is not None and image_size is not None and tuple(image_size) != file_size:
-            raise CameraError(
-                f"{path}: the file says {file_size[0]}x{file_size[1]}, the caller says "
-                f"{image_size[0]}x{image_size[1]}; use Camera.scaled() to change resolution"
-            )
-        return cls(K, dist, file_size or tuple(image_size), source=str(path))
+        path, K, dist, size = read_filestorage(path, image_size)
+        return cls(K, dist, size, source=str(path))

@@ -19,6 +19,8 @@ __all__ = [
     "DetectionError",
     "CalibrationError",
     "PoseError",
+    "PlotError",
+    "PrintError",
     "ExerciseError",
     "GradingError",
     "UsageError",
@@ -86,3 +88,11 @@ class GradingError(FidlearnError):
 
 class UsageError(FidlearnError):
     """The command line itself is wrong (unknown option, missing argument, an output that would clobber an input)."""
+
+
+class PlotError(FidlearnError, ValueError):
+    """A figure cannot be drawn from these inputs (labels that do not match the points, no poses, not an image)."""
+
+
+class PrintError(FidlearnError, ValueError):
+    """A printable page cannot be laid out or written as asked (a size that does not fit, a bad id list)."""

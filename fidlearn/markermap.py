@@ -16,11 +16,7 @@ detection reports.
 
 from __future__ import annotations
 
-import difflib
-import math
-import numbers
 import os
-import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,22 +26,47 @@ import numpy as np
 
 from . import _cv, frames
 from ._io import read_json, write_json_atomic
+from ._map_parse import (  # noqa: F401  (importable from here as before)
+    _FULL_KEYS,
+    MAX_MARKER_SIZE_MM,
+    UNITS_TO_MM,
+    _check_layout,
+    _disagree,
+    _is_corner_list,
+    _map_options,
+    _marker_id,
+    _marker_size,
+    _pick,
+    _placements,
+    _units_name,
+    _vector3,
+)
 from .errors import DictionaryError, MapError
 
-__all__ = ["MarkerMap", "MarkerPlacement", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL"]
+__all__ = ["MarkerMap", "MarkerPlacement", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL", "CORNER_NAMES"]
 
-#: Millimetres per unit for the units a map file may declare.
-UNITS_TO_MM: dict[str, float] = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "ft": 304.8}
+
+#: Corner names in the winding order used everywhere (ArUco's): top-left, top-right, bottom-right, bottom-left.
+CORNER_NAMES = ("TL", "TR", "BR", "BL")
 
 #: Corners of a unit marker relative to its top-left corner, rotation [0, 0, 0]: TL, TR, BR, BL.
 MARKER_CORNERS_LOCAL = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, -1.0]])
 
-_FULL_KEYS = {"units", "marker_size_mm", "dictionary", "markers", "name", "description"}
-
 
 @dataclass(frozen=True)
 class MarkerPlacement:
-    """One marker's placement: top-left corner (mm, world) and roll-pitch-yaw (degrees)."""
+    """One marker's placement: its top-left corner in the world and its roll-pitch-yaw.
+
+    Attributes
+    ----------
+    id : int
+        The marker id printed under the marker.
+    translation_mm : (float, float, float)
+        World position of the marker's top-left corner, mm.
+    rotation_deg : (float, float, float)
+        ``[roll, pitch, yaw]`` in degrees about the fixed world X, Y, Z axes, applied about the
+        top-left corner (``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``).
+    """
 
     id: int
     translation_mm: tuple[float, float, float]
@@ -57,99 +78,42 @@ class MarkerPlacement:
         return frames.rotation_from_rpy_deg(*self.rotation_deg)
 
 
-def _units_name(units: Any, where: str) -> str:
-    if not isinstance(units, str) or units.strip().lower() not in UNITS_TO_MM:
-        raise MapError(
-            f"{where}: unknown units {units!r}; use one of {', '.join(UNITS_TO_MM)} "
-            "(millimetres, centimetres, metres, inches, feet)"
-        )
-    return units.strip().lower()
-
-
-#: Largest marker side a map may declare (mm): 10 m, beyond any print.
-MAX_MARKER_SIZE_MM = 10_000.0
-
-
-def _did_you_mean(field: str, known) -> str:
-    close = difflib.get_close_matches(str(field).strip().lower(), sorted(known), n=1, cutoff=0.6)
-    return f": did you mean {close[0]!r}?" if close else ""
-
-
-def _marker_size(size: Any, where: str) -> float:
-    if isinstance(size, (bool, np.bool_)) or not isinstance(size, numbers.Real):
-        raise MapError(f"{where}: marker_size_mm must be a number (the black square's side in mm), got {size!r}")
-    try:
-        size = float(size)
-    except OverflowError:  # a whole number with hundreds of digits
-        raise MapError(
-            f"{where}: marker_size_mm is too large for a number; write the black square's side in mm"
-        ) from None
-    if not math.isfinite(size) or size <= 0:
-        raise MapError(
-            f"{where}: marker_size_mm is {size:g}; it must be positive: measure the black square's side "
-            "in mm (the white margin not included)"
-        )
-    if size > MAX_MARKER_SIZE_MM:
-        raise MapError(
-            f"{where}: marker_size_mm is {size:g}, more than {MAX_MARKER_SIZE_MM:g} mm; measure the black square's "
-            "side in millimetres"
-        )
-    if size < 1.0:  # no printer makes a marker under 1 mm: a size in metres, as OpenCV's tutorials write it
-        raise MapError(
-            f"{where}: marker_size_mm is {size:g}, under 1 mm; if that is metres, write it in mm ({size * 1000:g}): "
-            "the black square's side in millimetres"
-        )
-    return size
-
-
-def _vector3(value: Any, where: str, field: str, meaning: str) -> tuple[float, float, float]:
-    if not isinstance(value, (list, tuple)):
-        raise MapError(f"{where}: {field} must be a list of 3 numbers {meaning}, got {value!r}")
-    if len(value) != 3:
-        raise MapError(f"{where}: {field} has {len(value)} values, expected 3 {meaning}")
-    out = []
-    for v in value:
-        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
-            raise MapError(f"{where}: {field} contains {v!r}, which is not a number; expected 3 numbers {meaning}")
-        if isinstance(v, int) and abs(v) > 1e300:  # a whole number with hundreds of digits overflows float()
-            raise MapError(f"{where}: {field} contains a number too large for a float; check the units {meaning}")
-        if not math.isfinite(v):
-            raise MapError(f"{where}: {field} contains {v}, expected finite numbers {meaning}")
-        if abs(v) > 1e9:
-            raise MapError(f"{where}: {field} contains {v:g}, far beyond any room; check the units {meaning}")
-        out.append(float(v))
-    return (out[0], out[1], out[2])
-
-
-def _is_corner_list(value: Any) -> bool:
-    """Whether ``value`` looks like one marker of a corner file: four lists of three numbers."""
-    return (
-        isinstance(value, list)
-        and len(value) == 4
-        and all(isinstance(c, list) and len(c) == 3 and all(isinstance(v, numbers.Real) for v in c) for c in value)
-    )
-
-
-def _marker_id(key: Any, where: str) -> int:
-    text = str(key).strip()
-    if isinstance(key, bool) or not re.fullmatch(r"-?[0-9]+", text):
-        raise MapError(
-            f"{where}: marker id {key!r} is not a whole number; ids are the integers printed under each marker"
-        )
-    mid = int(text)
-    if mid < 0:
-        raise MapError(f"{where}: marker id {mid} is negative; ids start at 0")
-    return mid
-
-
 class MarkerMap:
     """Markers placed in the world: ids, placements, marker size and dictionary.
 
     Build one with :meth:`load` (a JSON file) or :meth:`from_dict`. Lengths are
     stored in millimetres, whatever unit the file used.
 
+    Parameters
+    ----------
+    placements : mapping of int to MarkerPlacement
+        Each marker's placement (mm, degrees), by id.
+    marker_size_mm : float
+        Side of each marker's black square (border included, white margin not), mm.
+    dictionary : str
+        ArUco dictionary name, e.g. ``"ARUCO_ORIGINAL"`` or ``"6X6_250"``.
+    units : {"mm", "cm", "m", "in", "ft"}
+        The units the map's file uses (kept to write it back the same way).
+    source : str
+        Where the map came from, named in error messages.
+
+    Attributes
+    ----------
+    placements : dict of int to MarkerPlacement
+        Sorted by id.
+    marker_size_mm, dictionary, units, source
+        As given (the dictionary's name normalized).
+
+    Raises
+    ------
+    MapError
+        If there is no marker, the size is not a positive length in mm, the units or the dictionary are
+        unknown, or an id does not exist in the dictionary.
+
     Examples
     --------
+    The seed's example (DESIGN.md): 80 mm markers, units ft, marker 0 at [0, 0, 1].
+
     >>> m = MarkerMap.from_dict({"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]}},
     ...                         units="ft", marker_size_mm=80)
     >>> m.corners()[0].tolist()
@@ -198,103 +162,45 @@ class MarkerMap:
         ``units`` and ``marker_size_mm`` given here. Full: ``{"units": "ft",
         "marker_size_mm": 80, "dictionary": "ARUCO_ORIGINAL", "markers": {...}}``.
         A value given both here and in the file must agree.
+
+        Parameters
+        ----------
+        d : mapping
+            The parsed JSON, either layout. ``translation`` is the top-left corner in ``units``;
+            ``rotation`` is ``[roll, pitch, yaw]`` in degrees (default ``[0, 0, 0]``).
+        units : {"mm", "cm", "m", "in", "ft"}, optional
+            Required when ``d`` does not say its units: fidlearn never guesses.
+        marker_size_mm : float, optional
+            Required when ``d`` does not say it: the black square's side, mm.
+        dictionary : str, optional
+            ArUco dictionary; ``"ARUCO_ORIGINAL"`` when neither ``d`` nor the caller says.
+        source : str
+            Where ``d`` came from, named in error messages.
+
+        Returns
+        -------
+        MarkerMap
+            Translations converted to mm.
+
+        Raises
+        ------
+        MapError
+            With the field and the fix: not a map (a camera or a corner file), unknown fields (with a
+            guess), no units or size, a value that disagrees with the file, a malformed placement.
+
+        Examples
+        --------
+        >>> seed = {"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]}}
+        >>> m = MarkerMap.from_dict(seed, units="ft", marker_size_mm=80)
+        >>> m.corners()[0].tolist()   # TL, TR, BR, BL, mm
+        [[0.0, 0.0, 304.8], [0.0, 80.0, 304.8], [0.0, 80.0, 224.8], [0.0, 0.0, 224.8]]
         """
-        if not isinstance(d, Mapping):
-            raise MapError(f"{source}: expected a JSON object mapping marker ids to placements, got {type(d).__name__}")
-        if "camera_matrix" in d:  # the two files of the command line swapped
-            raise MapError(
-                f"{source}: this is a camera file (it has camera_matrix), not a world map (the map does not say "
-                "its units, marker size or placements); give the map of marker placements here (command line: "
-                "--map) and the camera file as the camera (--camera)"
-            )
-        full = "markers" in d
-        if not full and any(k in _FULL_KEYS for k in d):
-            others = [k for k in d if k not in _FULL_KEYS]
-            hint = f" (unknown field {others[0]!r}{_did_you_mean(others[0], ['markers'])})" if others else ""
-            raise MapError(
-                f'{source}: the map has {", ".join(k for k in d if k in _FULL_KEYS)} but no "markers"{hint}; '
-                'a full map puts the placements under "markers": {"0": {"translation": [...], ...}}'
-            )
-        if not full and d and all(_is_corner_list(v) for v in d.values()):
-            raise MapError(
-                f"{source}: this is a corner file (four [x, y, z] corners in mm per id, as 'fidlearn corners' "
-                "writes it), not a world map; give the map of placements it was made from"
-            )
-        if full:
-            unknown = set(d) - _FULL_KEYS
-            if unknown:
-                field = sorted(unknown)[0]
-                raise MapError(
-                    f"{source}: unknown field {field!r}{_did_you_mean(field, _FULL_KEYS)}; a full map has "
-                    f"{', '.join(sorted(_FULL_KEYS))}"
-                )
-            markers = d["markers"]
-            if not isinstance(markers, Mapping):
-                raise MapError(f'{source}: "markers" must be an object mapping ids to placements')
-        else:
-            markers = d
-
-        def pick(name: str, given: Any, meaning: str) -> Any:
-            in_file = d.get(name) if full else None
-            if in_file is not None and given is not None:
-                if (
-                    (name == "units" and str(given).lower() != str(in_file).lower())
-                    or (
-                        name == "marker_size_mm"
-                        and not math.isclose(_marker_size(given, source), _marker_size(in_file, source))
-                    )
-                    or (name == "dictionary" and _cv.dictionary_name(given) != _cv.dictionary_name(in_file))
-                ):
-                    raise MapError(
-                        f"{source}: the file says {name} = {in_file!r} but {given!r} was given; drop one of them"
-                    )
-            value = in_file if in_file is not None else given
-            if value is None:
-                raise MapError(f"{source}: {meaning}")
-            return value
-
-        units = pick(
-            "units",
-            units,
-            'no units: the map does not say its units; add "units": "ft" (or mm, cm, m, in) to the file, '
-            "or pass units= (command line: --units); fidlearn never guesses",
-        )
-        units = _units_name(units, source)
-        size = pick(
-            "marker_size_mm",
-            marker_size_mm,
-            'no marker size: add "marker_size_mm": 80 (the black square\'s side) to the file, '
-            "or pass marker_size_mm= (command line: --marker-size-mm)",
-        )
-        try:
-            dictionary = (
-                pick("dictionary", dictionary, "")
-                if (dictionary or (full and d.get("dictionary")))
-                else "ARUCO_ORIGINAL"
-            )
-        except DictionaryError as exc:
-            raise MapError(f"{source}: {exc}") from None
-        scale = UNITS_TO_MM[units]
-        placements: dict[int, MarkerPlacement] = {}
-        for key, value in markers.items():
-            mid = _marker_id(key, source)
-            where = f"{source}: marker {mid}"
-            if mid in placements:
-                raise MapError(f"{where} appears twice (as {key!r}); each marker id must be unique")
-            if not isinstance(value, Mapping):
-                raise MapError(f'{where} must be an object with "translation" and "rotation"')
-            extra = set(value) - {"translation", "rotation"}
-            if extra:
-                field = sorted(extra)[0]
-                raise MapError(
-                    f"{where} has unknown field {field!r}{_did_you_mean(field, ('translation', 'rotation'))}; "
-                    "a placement has translation and rotation"
-                )
-            if "translation" not in value:
-                raise MapError(f'{where} has no "translation" (the world position of its top-left corner, in {units})')
-            t = _vector3(value["translation"], where, "translation", f"[x, y, z] in {units}")
-            r = _vector3(value.get("rotation", [0, 0, 0]), where, "rotation", "[roll, pitch, yaw] in degrees")
-            placements[mid] = MarkerPlacement(mid, tuple(v * scale for v in t), r)  # type: ignore[arg-type]
+        full, markers = _check_layout(d, source)
+        units, size, dictionary = _map_options(d, full, units, marker_size_mm, dictionary, source)
+        placements = {
+            mid: MarkerPlacement(mid, t, r)  # type: ignore[arg-type]
+            for mid, (t, r) in _placements(markers, units, source).items()
+        }
         return cls(placements, _marker_size(size, source), dictionary, units, source)
 
     @classmethod
@@ -305,7 +211,25 @@ class MarkerMap:
         marker_size_mm: float | None = None,
         dictionary: str | None = None,
     ) -> MarkerMap:
-        """Read a map file (bare or full layout); see :meth:`from_dict`."""
+        """Read a map file (bare or full layout); see :meth:`from_dict`.
+
+        Parameters
+        ----------
+        path : path-like
+            The JSON map file.
+        units, marker_size_mm, dictionary : optional
+            As for :meth:`from_dict`: needed when the file does not say them, and must agree when it does.
+
+        Returns
+        -------
+        MarkerMap
+            Its ``source`` is the file's path.
+
+        Raises
+        ------
+        MapError
+            If the file is missing or not JSON, or as :meth:`from_dict`.
+        """
         d = read_json(path, MapError, "world map")
         return cls.from_dict(d, units=units, marker_size_mm=marker_size_mm, dictionary=dictionary, source=str(path))
 
@@ -332,7 +256,23 @@ class MarkerMap:
         )
 
     def marker_corners(self, marker_id: int) -> np.ndarray:
-        """World corners (4, 3), mm, of one marker in TL, TR, BR, BL order."""
+        """One marker's corners in the world.
+
+        Parameters
+        ----------
+        marker_id : int
+            A marker of the map.
+
+        Returns
+        -------
+        ndarray, shape (4, 3)
+            World corners, mm, in TL, TR, BR, BL order (:data:`CORNER_NAMES`).
+
+        Raises
+        ------
+        MapError
+            If the map has no such marker.
+        """
         if marker_id not in self.placements:
             raise MapError(f"{self.source}: no marker {marker_id} in the map; it has {self.ids}")
         p = self.placements[marker_id]
@@ -341,14 +281,37 @@ class MarkerMap:
         return np.round(corners, 9) + 0.0  # drop -0.0 and 1e-14 noise from exact right angles
 
     def corners(self) -> dict[int, np.ndarray]:
-        """World corners of every marker: ``{id: (4, 3) array}``, mm, TL, TR, BR, BL."""
+        """Every marker's corners in the world.
+
+        Returns
+        -------
+        dict of int to ndarray, shape (4, 3)
+            ``{id: corners}``, mm, TL, TR, BR, BL.
+
+        Examples
+        --------
+        >>> m = MarkerMap.from_dict({"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]}},
+        ...                         units="ft", marker_size_mm=80)
+        >>> {i: c.shape for i, c in m.corners().items()}
+        {0: (4, 3)}
+        """
         return {mid: self.marker_corners(mid) for mid in self.placements}
 
     def T_world_marker(self, marker_id: int) -> np.ndarray:
-        """Pose (4, 4) of a marker's own frame in the world.
+        """Pose of a marker's own frame in the world.
 
         The marker frame is OpenCV's: origin at the marker's centre, x from TL
         to TR, y from BL to TL (up the marker), z out of the printed face.
+
+        Parameters
+        ----------
+        marker_id : int
+            A marker of the map.
+
+        Returns
+        -------
+        ndarray, shape (4, 4)
+            ``T_world_marker``, mm.
         """
         c = self.marker_corners(marker_id)
         x = (c[1] - c[0]) / self.marker_size_mm
@@ -357,11 +320,28 @@ class MarkerMap:
         return frames.make_transform(np.column_stack([x, y, z]), c.mean(axis=0))
 
     def normal(self, marker_id: int) -> np.ndarray:
-        """Unit normal (3,) of a marker's printed face, pointing towards where it can be seen from."""
+        """Unit normal of a marker's printed face, pointing towards where it can be seen from.
+
+        Parameters
+        ----------
+        marker_id : int
+            A marker of the map.
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            In the world frame.
+        """
         return self.T_world_marker(marker_id)[:3, 2].copy()
 
     def planarity_mm(self) -> float:
-        """Largest distance (mm) of any corner from the plane that fits all corners best."""
+        """How far the map is from flat.
+
+        Returns
+        -------
+        float
+            Largest distance (mm) of any corner from the plane that fits all corners best.
+        """
         pts = np.concatenate(list(self.corners().values()))
         centred = pts - pts.mean(axis=0)
         _, s, vt = np.linalg.svd(centred, full_matrices=False)
@@ -372,12 +352,28 @@ class MarkerMap:
 
         Coplanar maps suit IPPE (and have a two-fold ambiguity when seen from
         afar); maps on several walls need a general solver.
+
+        Parameters
+        ----------
+        tol_mm : float
+            Largest distance from the plane, mm.
+
+        Returns
+        -------
+        bool
         """
         return self.planarity_mm() <= tol_mm
 
     # -- output ------------------------------------------------------------------------
     def to_dict(self) -> dict:
-        """The full layout, in the map's own units."""
+        """The full layout, in the map's own units.
+
+        Returns
+        -------
+        dict
+            ``units``, ``marker_size_mm``, ``dictionary`` and ``markers`` (translation in ``units``,
+            rotation in degrees), as :meth:`from_dict` reads it.
+        """
         scale = UNITS_TO_MM[self.units]
         return {
             "units": self.units,
@@ -393,13 +389,41 @@ class MarkerMap:
         }
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write the full layout to ``path`` (atomically)."""
+        """Write the full layout as JSON (atomically).
+
+        Parameters
+        ----------
+        path : path-like
+            The file to write.
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
         return write_json_atomic(path, self.to_dict())
 
     def corners_dict(self) -> dict[str, list[list[float]]]:
-        """The seed's corner-file layout: ``{"0": [[x, y, z] x 4]}``, mm, TL, TR, BR, BL."""
+        """The seed's corner-file layout.
+
+        Returns
+        -------
+        dict of str to list
+            ``{"0": [[x, y, z], ...4]}``, mm, TL, TR, BR, BL.
+        """
         return {str(mid): [[float(v) for v in row] for row in c] for mid, c in self.corners().items()}
 
     def save_corners(self, path: str | os.PathLike) -> Path:
-        """Write :meth:`corners_dict` to ``path`` as JSON (atomically)."""
+        """Write :meth:`corners_dict` as JSON (atomically).
+
+        Parameters
+        ----------
+        path : path-like
+            The file to write.
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
         return write_json_atomic(path, self.corners_dict())

@@ -47,9 +47,27 @@ def grid_polylines_mm(
 ) -> list[np.ndarray]:
     """Lines of a flat grid square to the optical axis, in the camera frame.
 
-    Returns a list of (samples, 3) arrays, mm, camera frame (x right, y down,
-    z forward): vertical lines first, then horizontal ones. Each line is
-    sampled densely so lens distortion shows as curvature.
+    Parameters
+    ----------
+    depth_mm : float
+        Distance of the grid from the camera along z, mm.
+    half_width_mm, half_height_mm : float
+        Half the grid's width (x) and height (y), mm.
+    step_mm : float
+        Spacing of the grid lines, mm.
+    samples : int
+        Points per line: dense, so lens distortion shows as curvature.
+
+    Returns
+    -------
+    list of ndarray, shape (samples, 3)
+        Camera frame (x right, y down, z forward), mm: vertical lines first, then horizontal ones.
+
+    Examples
+    --------
+    >>> lines = grid_polylines_mm()
+    >>> len(lines), lines[0].shape
+    (30, (41, 3))
     """
     xs = np.arange(-half_width_mm, half_width_mm + 1e-9, step_mm)
     ys = np.arange(-half_height_mm, half_height_mm + 1e-9, step_mm)
@@ -74,9 +92,23 @@ def intrinsics_view_polylines(
 ) -> list[np.ndarray]:
     """The grid of :func:`grid_polylines_mm` projected by a camera with these intrinsics.
 
-    Returns a list of (samples, 2) pixel polylines (OpenCV pixel-centre
-    convention); the camera sits at the origin looking along +z, so the grid's
-    centre lands exactly on (cx, cy).
+    The camera sits at the origin looking along +z, so the grid's centre lands exactly on (cx, cy).
+
+    Parameters
+    ----------
+    fx, fy : float
+        Focal lengths, pixels.
+    cx, cy : float
+        Principal point, pixels.
+    k1 : float
+        First radial distortion coefficient.
+    image_size : (int, int)
+        (width, height), pixels.
+
+    Returns
+    -------
+    list of ndarray, shape (samples, 2)
+        Pixel polylines (OpenCV pixel-centre convention), in the order of :func:`grid_polylines_mm`.
     """
     cam = _camera(fx, fy, cx, cy, k1, image_size)
     return [cam.project(line, np.eye(4)) for line in grid_polylines_mm()]
@@ -143,7 +175,19 @@ def render_intrinsics_view(
 
 
 def figure_png(fig: Figure, dpi: float = 80) -> bytes:
-    """A Figure as PNG bytes (works whatever matplotlib backend is active)."""
+    """A Figure as PNG bytes (works whatever matplotlib backend is active).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    dpi : float
+        Resolution, dots per inch.
+
+    Returns
+    -------
+    bytes
+        The PNG file's content.
+    """
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()

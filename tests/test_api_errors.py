@@ -22,7 +22,7 @@ from fidlearn import Camera, Detection, FidlearnError, MarkerMap, frames
 WORLD = MarkerMap.load(fidlearn.data_path("world_map.json"))
 CAMERA = Camera.load(fidlearn.data_path("scenes/camera.json"))
 T = fidlearn.look_at([1000, 190, 230], [0, 190, 230])
-IMAGE, TRUTH = fidlearn.render_scene(CAMERA, WORLD, T, supersample=1)
+IMAGE, TRUTH = fidlearn.render_scene(WORLD, CAMERA, T, supersample=1)
 DETECTIONS = [Detection(i, c) for i, c in TRUTH.items()]
 
 BAD = {

@@ -969,7 +969,7 @@ def seed_scene():
     """The seed wall from 1.5 m at 1280x960, with its true pose."""
     camera = Camera.from_fov(60, (1280, 960))
     T_world_camera = look_at([1500, 150, 250], [0, 150, 250])
-    image, _ = render_scene(camera, seed_map(), T_world_camera)
+    image, _ = render_scene(seed_map(), camera, T_world_camera)
     return camera, image, T_world_camera
 
 
@@ -1331,13 +1331,13 @@ PRINTABLES = [
     ),
     (
         "ChArUco marker larger than its square",
-        lambda out: board_pdf(out / "b.pdf", (4, 6), 20, charuco=True, marker_mm=30),
+        lambda out: board_pdf(out / "b.pdf", (4, 6), 20, charuco=True, marker_size_mm=30),
         PrintError,
         "must be smaller than --square-mm 20",
     ),
     (
         "ChArUco board larger than its dictionary",
-        lambda out: board_pdf(out / "b.pdf", (14, 19), 10, charuco=True, marker_mm=7, dictionary="4X4_50"),
+        lambda out: board_pdf(out / "b.pdf", (14, 19), 10, charuco=True, marker_size_mm=7, dictionary="4X4_50"),
         PrintError,
         "needs 150 markers but 4X4_50 has only 50",
     ),

@@ -153,8 +153,8 @@ def test_a_scene_regenerates_from_its_record():
     camera = Camera.load(data_path("scenes", record["camera"]))
     item = record["images"][7]
     image, truth = render_scene(
-        camera,
         MarkerMap.load(data_path(item["map"])),
+        camera,
         np.array(item["T_world_camera"]),
         seed=item["seed"],
         **record["render"],
@@ -173,7 +173,7 @@ def test_trajectory_frames_regenerate_from_the_seed():
         np.testing.assert_allclose(pose, frame["T_world_camera"], atol=1e-9)
     frame = 23
     drive = render_trajectory(
-        camera, marker_map, seed=record["seed"], poses=poses, frames_to_render=[frame], **record["render"]
+        marker_map, camera, seed=record["seed"], poses=poses, frames_to_render=[frame], **record["render"]
     )
     assert sorted(drive.truth[0]) == record["frames"][frame]["visible_ids"]
     assert_same_pixels(drive.images[0], read_gray("trajectory", record["frames"][frame]["image"]), record["provenance"])

@@ -168,12 +168,14 @@ def write(tmp_path, text, name="map.json"):
             "marker_size_mm is -80; it must be positive",
         ),
         (
-            '{"units": "ft", "marker_size_mm": 80, "dictionary": "ARUCO_BOGUS", "markers": {"0": {"translation": [0, 0, 1]}}}',
+            '{"units": "ft", "marker_size_mm": 80, "dictionary": "ARUCO_BOGUS", '
+            '"markers": {"0": {"translation": [0, 0, 1]}}}',
             {},
             "unknown ArUco dictionary 'ARUCO_BOGUS'",
         ),
         (
-            '{"units": "ft", "marker_size_mm": 80, "dictionary": "4X4_50", "markers": {"77": {"translation": [0, 0, 1]}}}',
+            '{"units": "ft", "marker_size_mm": 80, "dictionary": "4X4_50", '
+            '"markers": {"77": {"translation": [0, 0, 1]}}}',
             {},
             "marker id 77 does not exist in dictionary 4X4_50, which has ids 0 to 49",
         ),

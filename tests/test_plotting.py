@@ -13,7 +13,9 @@ from mpl_toolkits.mplot3d import proj3d  # noqa: E402
 
 from fidlearn import (  # noqa: E402
     Camera,
+    FidlearnError,
     MarkerMap,
+    PlotError,
     frames,
     look_at,
     plotting,  # noqa: E402
@@ -197,7 +199,7 @@ def test_corner_labels_sit_beside_their_corners_in_order():
 def test_projected_markers_match_camera_project(seed_map, camera):
     _, ax = plt.subplots()
     T = look_at([1500, 200, 250], [0, 120, 230])
-    out = plotting.draw_projected_markers(ax, camera, seed_map, T)
+    out = plotting.draw_projected_markers(ax, seed_map, camera, T)
     assert sorted(out) == [0, 1, 2]
     for mid, px in out.items():
         assert np.allclose(px, camera.project(seed_map.corners()[mid], T))
@@ -206,7 +208,20 @@ def test_projected_markers_match_camera_project(seed_map, camera):
     assert ax.get_xlim() == (-0.5, 639.5) and ax.get_ylim() == (479.5, -0.5)
     # a camera behind the wall sees nothing
     _, ax2 = plt.subplots()
-    assert plotting.draw_projected_markers(ax2, camera, seed_map, look_at([-1500, 0, 250], [-3000, 0, 250])) == {}
+    assert plotting.draw_projected_markers(ax2, seed_map, camera, look_at([-1500, 0, 250], [-3000, 0, 250])) == {}
+
+
+def test_projected_markers_want_the_map_first(seed_map, camera):
+    _, ax = plt.subplots()
+    T = look_at([1500, 200, 250], [0, 120, 230])
+    with pytest.raises(FidlearnError, match="the map comes first, then the camera; the arguments are swapped"):
+        plotting.draw_projected_markers(ax, camera, seed_map, T)
+
+
+def test_plot_errors_are_fidlearn_errors_and_value_errors():
+    with pytest.raises(PlotError, match="no poses") as info:
+        plotting.draw_trajectory(plotting.new_axes_3d(), [])
+    assert isinstance(info.value, ValueError)
 
 
 def test_draw_reprojection_returns_the_errors():
@@ -215,12 +230,12 @@ def test_draw_reprojection_returns_the_errors():
     assert np.allclose(err, [5, 0])
 
 
-def test_draw_detections_outlines_each_quad_closed():
+def test_plot_detections_outlines_each_quad_closed():
     from fidlearn.detection import Detection
 
     _, ax = plt.subplots()
     d = Detection(7, [[10, 10], [50, 10], [50, 50], [10, 50]])
-    (line,) = plotting.draw_detections(ax, [d])
+    (line,) = plotting.plot_detections(ax, [d])
     xy = np.column_stack(line.get_data())
     assert np.allclose(xy, [[10, 10], [50, 10], [50, 50], [10, 50], [10, 10]])
     assert "7" in [t.get_text() for t in ax.texts]

@@ -351,7 +351,7 @@ def test_checkerboard_png_square_size(tmp_path):
 
 def test_charuco_pdf_detected_by_opencv(tmp_path):
     path = tmp_path / "charuco.pdf"
-    sheet = P.board_pdf(path, (4, 6), 30, "a4", charuco=True, dictionary="6X6_250", marker_mm=22)
+    sheet = P.board_pdf(path, (4, 6), 30, "a4", charuco=True, dictionary="6X6_250", marker_size_mm=22)
     assert sheet.squares == (5, 7)
     (gray,) = rasterize(path)
     board = _cv.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
@@ -367,7 +367,7 @@ def test_charuco_pdf_detected_by_opencv(tmp_path):
 
 
 def test_charuco_board_size_printed_on_page():
-    sheet = P.layout_board((10, 7), 25, "a4", charuco=True, dictionary="DICT_6X6_250", marker_mm=20)
+    sheet = P.layout_board((10, 7), 25, "a4", charuco=True, dictionary="DICT_6X6_250", marker_size_mm=20)
     assert sheet.describe() == "ChArUco 10x7 squares (9x6 inner corners), square 25 mm, marker 20 mm, 6X6_250"
     fig = P.board_figure(sheet)
     texts = [t.get_text() for t in fig.axes[0].texts]
@@ -405,9 +405,9 @@ def test_board_too_big_names_largest_square(tmp_path):
 
 def test_charuco_rejects_marker_bigger_than_square():
     with pytest.raises(PrintError, match="--marker-mm 30 must be smaller than --square-mm 25"):
-        P.layout_board((10, 7), 25, charuco=True, dictionary="6X6_250", marker_mm=30)
+        P.layout_board((10, 7), 25, charuco=True, dictionary="6X6_250", marker_size_mm=30)
     with pytest.raises(PrintError, match="needs 55 markers but 4X4_50 has only 50"):
-        P.layout_board((11, 10), 10, charuco=True, dictionary="4X4_50", marker_mm=7)
+        P.layout_board((11, 10), 10, charuco=True, dictionary="4X4_50", marker_size_mm=7)
 
 
 def test_unknown_output_type(tmp_path):

@@ -56,7 +56,7 @@ def aruco_detect(image, dictionary=cv2.aruco.DICT_ARUCO_ORIGINAL):
 def test_opencv_finds_every_visible_marker_at_its_true_corners(wall, size, dist, eye, target, roll):
     camera = Camera.from_fov(60, size, dist=dist)
     T = look_at(eye, target, roll_deg=roll)
-    image, truth = render_scene(camera, wall, T, seed=3, noise_std=1.5, blur_px=0.4, gradient=0.2)
+    image, truth = render_scene(wall, camera, T, seed=3, noise_std_gray=1.5, blur_px=0.4, gradient=0.2)
     assert sorted(truth) == [0, 1, 2]
     found = aruco_detect(image)
     assert sorted(found) == sorted(truth)
@@ -69,7 +69,7 @@ def test_opencv_finds_every_visible_marker_at_its_true_corners(wall, size, dist,
 def test_truth_is_exactly_the_projection_of_the_3d_corners(wall):
     camera = Camera.from_fov(55, (640, 480), dist=WIDE_LENS)
     T = look_at([900, -200, 350], [0, 190, 240], roll_deg=7)
-    _, truth = render_scene(camera, wall, T)
+    _, truth = render_scene(wall, camera, T)
     assert sorted(truth) == [0, 1, 2]
     rvec, tvec = frames.rvec_tvec_from_transform(frames.invert_transform(T))
     for mid, px in truth.items():
@@ -87,7 +87,7 @@ def test_ink_lands_where_the_geometry_says_with_no_half_pixel_offset(wall):
     """
     camera = Camera([[800, 0, 300.3], [0, 800, 251.7], [0, 0, 1]], None, (640, 480))
     T = look_at([1000, 37.3, 270.1], [0, 37.3, 270.1])
-    image, truth = render_scene(camera, wall, T, wall_texture=0.0, paper_gray=230, ink_gray=25)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, paper_gray=230, ink_gray=25)
     tl, br = truth[0][0], truth[0][2]
     side = br[0] - tl[0]
     cells = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL).markerSize + 2
@@ -108,7 +108,7 @@ def test_ink_lands_where_the_geometry_says_with_no_half_pixel_offset(wall):
 def test_distorted_checkerboard_corners_sit_on_their_projections():
     """cornerSubPix on an X-corner is unbiased: it checks the distortion mapping to a few hundredths of a pixel."""
     camera = Camera([[560, 0, 330.2], [0, 558, 236.4], [0, 0, 1]], [-0.3, 0.12, 0.001, -0.001, -0.02], (640, 480))
-    views = render_calibration_views(camera, n_views=9, seed=5, views=[0, 4, 8], noise_std=0.0, blur_px=0.0)
+    views = render_calibration_views(camera, n_views=9, seed=5, views=[0, 4, 8], noise_std_gray=0.0, blur_px=0.0)
     for image, truth in zip(views.images, views.image_points):
         ok, found = cv2.findChessboardCorners(image, (9, 6))
         assert ok
@@ -142,7 +142,7 @@ def test_exact_undistortion_inverts_opencvs_projection():
 def test_markers_behind_the_camera_are_neither_drawn_nor_in_the_truth(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([500, 190, 240], [2000, 190, 240])  # in the room, looking away from the wall
-    image, truth = render_scene(camera, wall, T, wall_texture=0.0, wall_gray=120)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
     assert truth == {}
     assert np.all(image == 120)
 
@@ -150,7 +150,7 @@ def test_markers_behind_the_camera_are_neither_drawn_nor_in_the_truth(wall):
 def test_markers_seen_from_behind_the_wall_are_not_drawn(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([-800, 190, 240], [0, 190, 240])  # behind the wall, facing the back of the sheets
-    image, truth = render_scene(camera, wall, T, wall_texture=0.0, wall_gray=120)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
     assert truth == {}
     assert np.all(image == 120)
 
@@ -158,7 +158,7 @@ def test_markers_seen_from_behind_the_wall_are_not_drawn(wall):
 def test_a_marker_partly_outside_the_frame_is_drawn_but_left_out_of_the_truth(wall):
     camera = Camera.from_fov(50, (640, 480))
     T = look_at([400, 226, 250], [0, 226, 250])  # the left image edge runs through marker 0
-    image, truth = render_scene(camera, wall, T)
+    image, truth = render_scene(wall, camera, T)
     assert sorted(truth) == [1, 2]
     px0 = camera.project(wall.marker_corners(0), T)
     assert np.any(px0[:, 0] < 0) and np.any(px0[:, 0] > 0)  # really straddles the edge
@@ -172,7 +172,7 @@ def test_a_sheet_crossing_the_camera_plane_is_drawn_where_it_is_in_front(wall):
     T = look_at([20.0, 40.0, 260.0], [60.0, 2000.0, 250.0])
     depths = frames.transform_points(frames.invert_transform(T), wall.marker_corners(0))[:, 2]
     assert depths.min() < 0 < depths.max()  # marker 0 really crosses the camera's plane
-    image, truth = render_scene(camera, wall, T, wall_texture=0.0, wall_gray=120, paper_gray=230, ink_gray=25)
+    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120, paper_gray=230, ink_gray=25)
     assert 0 not in truth
     # a few cm in front of the camera: a point of marker 0's black right border and one of its white margin
     ink_px, paper_px = np.round(camera.project(np.array([[0.0, 74.0, 262.0], [0.0, 86.0, 262.0]]), T)).astype(int)
@@ -194,7 +194,7 @@ def test_the_nearest_sheet_wins(front, back):
     )
     camera = Camera.from_fov(50, (640, 480))
     T = look_at([900, 60, 240], [0, 60, 240])
-    image, truth = render_scene(camera, scene, T)
+    image, truth = render_scene(scene, camera, T)
     assert sorted(truth) == sorted([front, back])  # the truth does not model occlusion
     found = aruco_detect(image)
     assert sorted(found) == [front]
@@ -204,8 +204,8 @@ def test_the_nearest_sheet_wins(front, back):
 def test_visible_means_in_front_inside_and_facing(wall):
     camera = Camera.from_fov(60, (640, 480))
     T = look_at([1000, 190, 240], [0, 190, 240])
-    assert sorted(visible_markers(camera, wall, T)) == [0, 1, 2]
-    tight = visible_markers(camera, wall, T, margin_px=300)
+    assert sorted(visible_markers(wall, camera, T)) == [0, 1, 2]
+    tight = visible_markers(wall, camera, T, margin_px=300)
     assert tight == {}
 
 
@@ -215,9 +215,9 @@ def test_visible_means_in_front_inside_and_facing(wall):
 def test_same_seed_same_pixels_and_another_seed_other_noise(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([800, 190, 240], [0, 190, 240])
-    a, _ = render_scene(camera, wall, T, seed=4, noise_std=2.0)
-    b, _ = render_scene(camera, wall, T, seed=4, noise_std=2.0)
-    c, _ = render_scene(camera, wall, T, seed=5, noise_std=2.0)
+    a, _ = render_scene(wall, camera, T, seed=4, noise_std_gray=2.0)
+    b, _ = render_scene(wall, camera, T, seed=4, noise_std_gray=2.0)
+    c, _ = render_scene(wall, camera, T, seed=5, noise_std_gray=2.0)
     np.testing.assert_array_equal(a, b)
     assert np.any(a != c)
     assert np.abs(a.astype(int) - c.astype(int)).mean() < 4
@@ -226,12 +226,12 @@ def test_same_seed_same_pixels_and_another_seed_other_noise(wall):
 def test_blur_gradient_and_bgr(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([800, 190, 240], [0, 190, 240])
-    sharp, _ = render_scene(camera, wall, T, wall_texture=0.0)
-    blurred, _ = render_scene(camera, wall, T, wall_texture=0.0, blur_px=2.0)
+    sharp, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0)
+    blurred, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, blur_px=2.0)
     assert np.abs(np.diff(blurred.astype(float), axis=1)).max() < np.abs(np.diff(sharp.astype(float), axis=1)).max()
-    lit, _ = render_scene(camera, wall, T, wall_texture=0.0, gradient=0.4, gradient_angle_deg=0.0)
+    lit, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, gradient=0.4, gradient_angle_deg=0.0)
     assert lit[5, -5] > lit[5, 4] + 30  # brighter to the right
-    bgr, _ = render_scene(camera, wall, T, wall_texture=0.0, bgr=True)
+    bgr, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, bgr=True)
     assert bgr.shape == (240, 320, 3)
     np.testing.assert_array_equal(bgr[..., 1], sharp)
 
@@ -240,14 +240,26 @@ def test_bad_options_say_what_to_do(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([800, 190, 240], [0, 190, 240])
     with pytest.raises(FidlearnError, match="supersample must be a whole number from 1 to 16"):
-        render_scene(camera, wall, T, supersample=0)
-    with pytest.raises(FidlearnError, match="noise_std must be a finite number >= 0"):
-        render_scene(camera, wall, T, noise_std=-1)
+        render_scene(wall, camera, T, supersample=0)
+    with pytest.raises(FidlearnError, match="noise_std_gray must be a finite number >= 0"):
+        render_scene(wall, camera, T, noise_std_gray=-1)
     tilted = Camera(camera.K, np.r_[np.zeros(12), 0.01, 0.0], (320, 240))
     with pytest.raises(CameraError, match="tilted sensor"):
-        render_scene(tilted, wall, T)
+        render_scene(wall, tilted, T)
     with pytest.raises(FidlearnError, match="eye .* and the target are the same point"):
         look_at([1, 2, 3], [1, 2, 3])
+
+
+def test_the_map_comes_before_the_camera(wall):
+    camera = Camera.from_fov(60, (320, 240))
+    T = look_at([800, 190, 240], [0, 190, 240])
+    for call in (render_scene, visible_markers):
+        with pytest.raises(FidlearnError, match=r"the map comes first, then the camera; the arguments are swapped"):
+            call(camera, wall, T)
+    with pytest.raises(FidlearnError, match=r"render_trajectory\(marker_map, camera, ...\): the map comes first"):
+        render_trajectory(camera, wall, n_frames=2)
+    with pytest.raises(FidlearnError, match="marker_map must be a fidlearn.MarkerMap .*the map comes first"):
+        render_scene("map.json", camera, T)
 
 
 def test_look_at_gives_an_opencv_camera_frame():
@@ -300,8 +312,8 @@ def test_the_drive_stays_at_marker_height_and_keeps_the_markers_in_view(wall):
     dist = [np.linalg.norm(T[:2, 3] - centre[:2]) for T in poses]
     assert dist[0] > 2000 and dist[-1] < 1100  # it drives toward the wall
     camera = Camera.from_fov(60, (320, 240))
-    drive = render_trajectory(camera, wall, n_frames=12, seed=1, frames_to_render=[0, 11])
+    drive = render_trajectory(wall, camera, n_frames=12, seed=1, frames_to_render=[0, 11])
     assert len(drive) == 2 and all(sorted(t) == [0, 1, 2] for t in drive.truth)
     np.testing.assert_array_equal(drive.T_world_camera[1], poses[11])
-    again = render_trajectory(camera, wall, n_frames=12, seed=1, frames_to_render=[11])
+    again = render_trajectory(wall, camera, n_frames=12, seed=1, frames_to_render=[11])
     np.testing.assert_array_equal(again.images[0], drive.images[1])

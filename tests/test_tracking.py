@@ -24,8 +24,8 @@ def wall_map() -> MarkerMap:
 def drive():
     """Eight consecutive frames (about 25 mm apart) of a robot driving toward the wall, 1.8 m to 0.8 m away."""
     return render_trajectory(
-        CAM,
         wall_map(),
+        CAM,
         n_frames=40,
         seed=3,
         start_distance_mm=1800.0,

@@ -16,6 +16,7 @@ import numpy as np  # noqa: E402
 
 from fidlearn import MarkerMap, frames  # noqa: E402
 from fidlearn.data import data_path, repo_dir  # noqa: E402
+from fidlearn.markermap import CORNER_NAMES  # noqa: E402
 
 OUT = repo_dir() / "docs" / "img" / "conventions.png"
 
@@ -47,7 +48,7 @@ def main(out: Path = OUT) -> Path:
         ax.plot(*loop.T, color="k", linewidth=1.5)
         ax.text(*(c.mean(axis=0) + [0, -10, 0]), f"id {mid}", fontsize=8)
     c0 = m.corners()[0]
-    for name, p, off in zip(("TL", "TR", "BR", "BL"), c0, ([0, -40, 12], [0, 8, 12], [0, 8, -28], [0, -40, -28])):
+    for name, p, off in zip(CORNER_NAMES, c0, ([0, -40, 12], [0, 8, 12], [0, 8, -28], [0, -40, -28])):
         ax.scatter(*p, color="m", s=18)
         ax.text(*(p + off), name, color="m", fontsize=9, fontweight="bold")
 

@@ -62,7 +62,7 @@ CALIBRATION = {
         "image_size": [640, 480],
         "source": "synthetic: the true camera of data/calibration (tools/make_data.py)",
     },
-    "render": {"blur_px": 0.4, "noise_std": 1.5, "gradient": 0.15, "supersample": 4, "wall_texture": 3.0},
+    "render": {"blur_px": 0.4, "noise_std_gray": 1.5, "gradient": 0.15, "supersample": 4, "wall_texture_std_gray": 3.0},
 }
 
 SCENES = {
@@ -73,7 +73,7 @@ SCENES = {
         "image_size": [1280, 720],
         "source": "synthetic: the true camera of data/scenes (tools/make_data.py)",
     },
-    "render": {"blur_px": 0.5, "noise_std": 1.2, "gradient": 0.2, "supersample": 4, "wall_texture": 3.0},
+    "render": {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2, "supersample": 4, "wall_texture_std_gray": 3.0},
     # (map, eye mm, target mm, roll deg): 1 to 3 m from the markers, from the front, the sides, above and below
     "views": [
         ("world_map.json", [1000, 190, 230], [0, 190, 230], 0.0),
@@ -115,7 +115,7 @@ TRAJECTORY = {
         "image_size": [640, 480],
         "source": "synthetic: the true camera of data/trajectory (tools/make_data.py)",
     },
-    "render": {"blur_px": 0.5, "noise_std": 1.0, "gradient": 0.1, "supersample": 4, "wall_texture": 3.0},
+    "render": {"blur_px": 0.5, "noise_std_gray": 1.0, "gradient": 0.1, "supersample": 4, "wall_texture_std_gray": 3.0},
 }
 
 
@@ -223,7 +223,7 @@ def make_scenes() -> None:
         marker_map = MarkerMap.load(DATA / map_name)
         T = look_at(eye, target, roll_deg=roll)
         seed = 100 + i
-        image, truth = render_scene(camera, marker_map, T, seed=seed, **SCENES["render"])
+        image, truth = render_scene(marker_map, camera, T, seed=seed, **SCENES["render"])
         name = f"scene_{i:02d}.png"
         write_png(folder / name, image)
         records.append(
@@ -259,7 +259,7 @@ def make_trajectory() -> None:
     (folder / "camera.json").chmod(0o644)
     marker_map = MarkerMap.load(DATA / TRAJECTORY["map"])
     poses = trajectory_poses(marker_map, TRAJECTORY["n_frames"], TRAJECTORY["seed"])
-    drive = render_trajectory(camera, marker_map, seed=TRAJECTORY["seed"], poses=poses, **TRAJECTORY["render"])
+    drive = render_trajectory(marker_map, camera, seed=TRAJECTORY["seed"], poses=poses, **TRAJECTORY["render"])
     records = []
     for i, (image, T, truth) in enumerate(zip(drive.images, drive.T_world_camera, drive.truth)):
         name = f"frame_{i:03d}.png"

@@ -282,6 +282,12 @@ def coach(
     Returns
     -------
     CalibrationCoach
+        The uncertainty over the picture, the flags with their fixes, and the next view to take.
+
+    Raises
+    ------
+    CalibrationError
+        If there is no view or ``sigma_px`` is not a positive number.
     """
     names = list(T_camera_board)
     if not names:

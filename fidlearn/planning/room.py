@@ -60,7 +60,25 @@ class RoomPlan:
     target_mm: np.ndarray
 
     def fraction_within(self, error_mm: float, which: str = "toward") -> float:
-        """Fraction of the grid where the predicted error (``toward``, ``median`` or ``worst``) is at most ``error_mm``."""
+        """Fraction of the grid where the predicted error is at most ``error_mm``.
+
+        Parameters
+        ----------
+        error_mm : float
+            The largest acceptable camera-position error, mm.
+        which : {"toward", "median", "worst"}
+            Which grid: looking toward the markers, or the median or worst over level headings.
+
+        Returns
+        -------
+        float
+            From 0 to 1; places where no pose is possible count as outside.
+
+        Raises
+        ------
+        FidlearnError
+            For another ``which``.
+        """
         grid = {"toward": self.toward_mm, "median": self.median_mm, "worst": self.worst_mm}.get(which)
         if grid is None:
             raise FidlearnError(f"which must be 'toward', 'median' or 'worst', got {which!r}")
@@ -77,7 +95,17 @@ class RoomPlan:
 
 @dataclass(frozen=True)
 class Suggestion:
-    """One step of :func:`suggest_markers`: what to change, and the area within the target after it."""
+    """One step of :func:`suggest_markers`: what to change, and the area within the target after it.
+
+    Attributes
+    ----------
+    text : str
+        The change, in words ("print the markers at 120 mm instead of 80 mm", "add marker 7 beside marker 3 ...").
+    fraction_before, fraction_after : float
+        Fraction of the grid within the target before and after the change (0 to 1).
+    marker_map : MarkerMap
+        The map after the change.
+    """
 
     text: str
     fraction_before: float
@@ -96,7 +124,22 @@ def _check_area(area) -> tuple[float, float, float, float]:
 
 
 def default_area(marker_map: MarkerMap) -> tuple[float, float, float, float]:
-    """The floor area in front of the markers: 0.1 to 3 m out from them, 1 m beyond them sideways (mm)."""
+    """The floor area in front of the markers: 0.1 to 3 m out from them, 1 m beyond them sideways.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+
+    Returns
+    -------
+    (float, float, float, float)
+        ``x0, y0, x1, y1``, world frame, mm.
+
+    Raises
+    ------
+    FidlearnError
+        If the map has no markers.
+    """
     if not len(marker_map):
         raise FidlearnError("the map has no markers: there is nothing to plan around")
     pts = []
@@ -133,6 +176,27 @@ def _cell(marker_map, camera, eye, target, headings, sigma) -> tuple[float, floa
     med = float(np.median(errs)) if errs else math.inf
     worst = float(np.max(errs)) if errs else math.inf
     return toward, med, worst, len(errs) / max(len(headings), 1), flip
+
+
+def _grid(marker_map: MarkerMap, area, height_mm, step_mm, headings) -> tuple[np.ndarray, np.ndarray]:
+    """The grid's place centres ``xs`` (N,) and ``ys`` (M,), mm, world, after checking the options."""
+    x0, y0, x1, y1 = _check_area(default_area(marker_map) if area is None else area)
+    for name, v in (("height_mm", height_mm), ("step_mm", step_mm)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+            raise FidlearnError(f"{name} must be a finite number of mm, got {v!r}")
+    if step_mm <= 0:
+        raise FidlearnError(f"step_mm must be positive, got {step_mm!r}")
+    if isinstance(headings, bool) or not isinstance(headings, (int, np.integer)) or not 0 <= headings <= 360:
+        raise FidlearnError(f"headings must be a whole number from 0 to 360, got {headings!r}")
+    xs = np.arange(x0 + step_mm / 2, x1, step_mm)
+    ys = np.arange(y0 + step_mm / 2, y1, step_mm)
+    if len(xs) * len(ys) > MAX_CELLS:
+        raise FidlearnError(
+            f"the grid has {len(xs) * len(ys)} places, more than {MAX_CELLS}: use a larger step_mm or a smaller area"
+        )
+    if len(xs) == 0 or len(ys) == 0:
+        raise FidlearnError(f"the area is smaller than one step of {step_mm} mm: use a smaller step_mm")
+    return xs, ys
 
 
 def plan_room(
@@ -173,27 +237,19 @@ def plan_room(
     Returns
     -------
     RoomPlan
+        The predicted errors (mm) on the grid, and where a pose is possible.
+
+    Raises
+    ------
+    FidlearnError
+        If the map or the camera is not one, or an option is out of range (the area, a step that
+        is not positive, more than :data:`MAX_CELLS` places, headings outside 0 to 360).
     """
     if not isinstance(marker_map, MarkerMap) or not len(marker_map):
         raise FidlearnError("plan_room needs a fidlearn.MarkerMap with at least one marker")
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
-    x0, y0, x1, y1 = _check_area(default_area(marker_map) if area is None else area)
-    for name, v in (("height_mm", height_mm), ("step_mm", step_mm)):
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
-            raise FidlearnError(f"{name} must be a finite number of mm, got {v!r}")
-    if step_mm <= 0:
-        raise FidlearnError(f"step_mm must be positive, got {step_mm!r}")
-    if isinstance(headings, bool) or not isinstance(headings, (int, np.integer)) or not 0 <= headings <= 360:
-        raise FidlearnError(f"headings must be a whole number from 0 to 360, got {headings!r}")
-    xs = np.arange(x0 + step_mm / 2, x1, step_mm)
-    ys = np.arange(y0 + step_mm / 2, y1, step_mm)
-    if len(xs) * len(ys) > MAX_CELLS:
-        raise FidlearnError(
-            f"the grid has {len(xs) * len(ys)} places, more than {MAX_CELLS}: use a larger step_mm or a smaller area"
-        )
-    if len(xs) == 0 or len(ys) == 0:
-        raise FidlearnError(f"the area is smaller than one step of {step_mm} mm: use a smaller step_mm")
+    xs, ys = _grid(marker_map, area, height_mm, step_mm, headings)
     target = _markers_centre(marker_map) if look_at_mm is None else np.asarray(look_at_mm, dtype=float).reshape(3)
     hs = [2 * math.pi * k / headings for k in range(headings)]
     out = np.empty((5, len(ys), len(xs)))
@@ -206,7 +262,7 @@ def plan_room(
 
 
 def _walls(marker_map: MarkerMap) -> list[tuple[int, np.ndarray]]:
-    """One reference marker per wall (markers with the same normal and plane), with the wall's in-plane horizontal direction."""
+    """One reference marker per wall (markers with the same normal and plane), with the wall's horizontal direction."""
     walls: list[tuple[int, np.ndarray, np.ndarray, float]] = []
     for mid in marker_map.ids:
         n = marker_map.normal(mid)
@@ -249,15 +305,15 @@ def _candidates(marker_map: MarkerMap, area, step_mm: float):
         span = max(x1 - x0, y1 - y0)
         for k in np.arange(-span, span + 1, step_mm):
             c = centre + k * along
-            if x0 - 500.0 <= c[0] <= x1 + 500.0 and y0 - 500.0 <= c[1] <= y1 + 500.0:
-                if all(
-                    np.linalg.norm(c - marker_map.marker_corners(i).mean(axis=0)) > 1.5 * marker_map.marker_size_mm
-                    for i in marker_map.ids
-                ):
-                    yield (
-                        _with_marker(marker_map, ref, c, new_id),
-                        f"add marker {new_id} beside marker {ref} at [{c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}] mm (its centre)",
-                    )
+            inside = x0 - 500.0 <= c[0] <= x1 + 500.0 and y0 - 500.0 <= c[1] <= y1 + 500.0
+            if inside and all(
+                np.linalg.norm(c - marker_map.marker_corners(i).mean(axis=0)) > 1.5 * marker_map.marker_size_mm
+                for i in marker_map.ids
+            ):
+                yield (
+                    _with_marker(marker_map, ref, c, new_id),
+                    f"add marker {new_id} beside marker {ref} at [{c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}] mm (its centre)",
+                )
 
 
 def suggest_markers(
@@ -269,21 +325,40 @@ def suggest_markers(
     area=None,
     step_mm: float = 500.0,
     max_markers: int = 3,
-    sizes_mm=(1.5, 2.0),
+    size_factors=(1.5, 2.0),
     corner_sigma_px: float | None = None,
 ) -> list[Suggestion]:
     """Changes that bring more of the area within ``target_mm``: a larger print, then added markers.
 
-    First the whole map at larger marker sizes (``sizes_mm`` times the current one) is tried;
+    First the whole map at larger marker sizes (``size_factors`` times the current one) is tried;
     then markers of the chosen size are added one at a time (up to ``max_markers``) on the walls
     the map already uses, each where it brings the largest fraction of the grid (looking toward
     the markers) within ``target_mm``. Stops when the whole area is within the target or no
     candidate helps.
 
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The markers as they are (mm, world). The map comes first, then the camera.
+    camera : Camera
+    target_mm : float
+        The camera-position error to reach, mm.
+    height_mm, area, step_mm, corner_sigma_px :
+        As for :func:`plan_room` (a coarser grid by default).
+    max_markers : int
+        Most markers to add.
+    size_factors : sequence of float
+        Marker sizes to try, as multiples of the current one.
+
     Returns
     -------
     list of Suggestion
         In the order to apply them; each carries the map after the change.
+
+    Raises
+    ------
+    FidlearnError
+        If ``target_mm`` is not a positive number, or as :func:`plan_room`.
     """
     if (
         isinstance(target_mm, bool)
@@ -309,7 +384,7 @@ def suggest_markers(
 
     current, now = marker_map, score(marker_map)
     steps: list[Suggestion] = []
-    for factor in sorted(sizes_mm):
+    for factor in sorted(size_factors):
         size = round(marker_map.marker_size_mm * float(factor))
         bigger = _with_size(marker_map, size)
         f = score(bigger)

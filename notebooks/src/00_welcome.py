@@ -93,7 +93,7 @@ print("true position (cm)      :", np.round(T_true[:3, 3] / 10).astype(int))
 assert error_mm < 10, f"the pose is {error_mm:.1f} mm off"
 
 ax = plotting.show_image(None, image, title="scene_00.png: the markers found, with their ids and corners")
-plotting.draw_detections(ax, detect_markers(image, world_map.dictionary))
+plotting.plot_detections(ax, detect_markers(image, world_map.dictionary))
 plt.show()
 
 # %% [markdown]

@@ -128,7 +128,7 @@ T_world_camera = look_at([1500, 150, 250], [0, 150, 250])  # 1.5 m in front of t
 fig, axes = plt.subplots(1, 2, figsize=(11, 4))
 for ax, f in zip(axes, (600.0, 1200.0)):
     cam_f = Camera([[f, 0, cx], [0, f, cy], [0, 0, 1]], None, (640, 480))
-    corners_px = plotting.draw_projected_markers(ax, cam_f, wall, T_world_camera)
+    corners_px = plotting.draw_projected_markers(ax, wall, cam_f, T_world_camera)
     side_px = np.linalg.norm(corners_px[0][1] - corners_px[0][0])
     ax.set_title(f"fx = {f:.0f} px: hfov {cam_f.fov_deg[0]:.1f} deg, marker 0 is {side_px:.1f} px wide")
     # an 80 mm marker 1500 mm away is fx * 80 / 1500 pixels wide

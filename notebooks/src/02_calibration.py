@@ -51,7 +51,7 @@ views = [rel(p) for p in sorted(data_path("calibration").glob("view_*.png"))]
 record = json.loads(data_path("calibration", "views.json").read_text())
 true_camera = Camera.load(data_path("calibration", "camera_true.json"))
 pattern = (9, 6)        # inner corners (columns, rows)
-square_mm = 25.0
+square_size_mm = 25.0
 print(len(views), "views; the true camera:", true_camera)
 
 fig = plotting.show_images([load_image(v) for v in views[:4]], [os.path.basename(v) for v in views[:4]], ncols=4)
@@ -118,7 +118,7 @@ assert len(c) == 54
 
 # %%
 board_mm = np.zeros((pattern[0] * pattern[1], 3), np.float32)
-board_mm[:, :2] = np.mgrid[0:pattern[0], 0:pattern[1]].T.reshape(-1, 2) * square_mm  # (i s, j s, 0)
+board_mm[:, :2] = np.mgrid[0:pattern[0], 0:pattern[1]].T.reshape(-1, 2) * square_size_mm  # (i s, j s, 0)
 
 object_points, image_points = [], []
 for v in views:
@@ -142,7 +142,7 @@ assert np.allclose(K[:2, 2], [true_camera.cx, true_camera.cy], atol=2.0)
 # in pixels), and reports each view, rejecting the ones that fail:
 
 # %%
-cal = calibrate_checkerboard(views, pattern, square_mm)
+cal = calibrate_checkerboard(views, pattern, square_size_mm)
 print(cal)
 assert np.allclose(cal.camera.K, K, atol=1.0)
 assert abs(cal.camera.fx / true_camera.fx - 1) < 0.005
@@ -186,7 +186,7 @@ zoomed_view = synthetic.render_calibration_views(zoomed, n_views=1, seed=3).imag
 empty_wall = np.full((480, 640), 128, np.uint8)
 half_size = cv2.resize(load_image(views[0]), (320, 240), interpolation=cv2.INTER_AREA)
 
-cal_bad = calibrate_checkerboard(views + [zoomed_view, empty_wall, half_size], pattern, square_mm)
+cal_bad = calibrate_checkerboard(views + [zoomed_view, empty_wall, half_size], pattern, square_size_mm)
 print(cal_bad.summary())
 statuses = [v.status for v in cal_bad.views[20:]]
 assert statuses == ["outlier", "not found", "other size"], statuses

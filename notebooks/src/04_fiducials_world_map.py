@@ -116,7 +116,7 @@ for Z in distances_mm:
     for yaw_deg, seed in views:
         a = math.radians(yaw_deg)
         T = look_at([Z * math.cos(a), Z * math.sin(a), 1000], [0, 0, 1000])
-        image, truth = render_scene(camera, one, T, blur_px=0.6, noise_std=2.0, seed=seed)
+        image, truth = render_scene(one, camera, T, blur_px=0.6, noise_std_gray=2.0, seed=seed)
         seen = [d for d in detect_markers(image, "ARUCO_ORIGINAL") if d.id == 0]
         if seen:
             hits += 1
@@ -293,7 +293,7 @@ fig = plotting.plot_scene(room, poses=[T_world_camera], camera=camera, scale_mm=
 plt.show()
 
 # %%
-image, truth = render_scene(camera, room, T_world_camera, blur_px=0.5, noise_std=1.5, seed=4)
+image, truth = render_scene(room, camera, T_world_camera, blur_px=0.5, noise_std_gray=1.5, seed=4)
 detections = detect_markers(image, "ARUCO_ORIGINAL")
 print("markers in view (truth):", sorted(truth), " detected:", [d.id for d in detections])
 assert sorted(truth) == [d.id for d in detections] == [1, 3, 4]
@@ -301,7 +301,7 @@ for d in detections:
     assert np.abs(d.corners - truth[d.id]).max() < 0.5  # pixels
 
 ax = plotting.show_image(None, image, title="the camera's view: detected markers with their corner names")
-plotting.draw_detections(ax, detections)
+plotting.plot_detections(ax, detections)
 plt.show()
 
 # %% [markdown]

@@ -106,7 +106,7 @@ detections = detect_markers(image, world_map.dictionary)
 print(detections)
 
 ax = plotting.show_image(None, image, title="scene_00.png: ids, and corners in winding order TL, TR, BR, BL")
-plotting.draw_detections(ax, detections)
+plotting.plot_detections(ax, detections)
 plt.show()
 
 # %% [markdown]

@@ -46,7 +46,7 @@ print("detected:", [d.id for d in detections], " in the map:", world_map.ids)
 print("true camera position (mm):", T_world_camera_true[:3, 3])
 
 ax = plotting.show_image(None, image, title=f"{record['image']}: three markers, twelve corners")
-plotting.draw_detections(ax, detections)
+plotting.plot_detections(ax, detections)
 plt.show()
 
 # %% [markdown]

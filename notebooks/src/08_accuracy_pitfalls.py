@@ -187,7 +187,7 @@ one = MarkerMap.from_dict({"0": {"translation": [0, 0, 1000], "rotation": [0, 0,
                           marker_size_mm=80, dictionary="ARUCO_ORIGINAL")
 small_camera = Camera.from_fov(60, (640, 480))
 T_far = look_at([2500, -400, 1200], [0, 40, 960])
-image, truth = render_scene(small_camera, one, T_far, blur_px=0.5, noise_std=1.5, seed=3)
+image, truth = render_scene(one, small_camera, T_far, blur_px=0.5, noise_std_gray=1.5, seed=3)
 pose = estimate_pose(detect_markers(image, one.dictionary), one, small_camera)
 alt = pose.alternative
 

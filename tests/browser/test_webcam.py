@@ -59,15 +59,15 @@ def drive():
     camera = Camera.load(data_path("trajectory", "camera.json"))
     world = MarkerMap.load(data_path("world_map.json"))
     return render_trajectory(
-        camera,
         world,
+        camera,
         n_frames=N_FRAMES,
         seed=29,
         start_distance_mm=900,
         end_distance_mm=500,
         start_lateral_mm=-250,
         end_lateral_mm=250,
-        noise_std=1.0,
+        noise_std_gray=1.0,
     )
 
 

@@ -1,0 +1,123 @@
+"""The checks a camera's numbers pass (K, distortion, image size), each error with its fix."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import CameraError
+
+#: Distortion vector lengths OpenCV understands: (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]).
+DIST_LENGTHS = (4, 5, 8, 12, 14)
+
+
+def _short_source(source: str) -> str:
+    path = Path(source)
+    return path.name if path.is_absolute() else source
+
+
+def _fmt_matrix(M: np.ndarray) -> str:
+    return "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in M) + "]"
+
+
+#: The fields of fidlearn's camera JSON; any other is refused (a misspelt distortion field was
+#: silently ignored, leaving a camera without distortion).
+CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source")
+#: Names other tools use for them, so the error can say which one was meant.
+_ALIASES = {
+    "distortion": "dist_coeffs",
+    "dist": "dist_coeffs",
+    "dist_coefs": "dist_coeffs",
+    "distcoeffs": "dist_coeffs",
+    "distortion_coefficients": "dist_coeffs",
+    "d": "dist_coeffs",
+    "k": "camera_matrix",
+    "intrinsics": "camera_matrix",
+    "matrix": "camera_matrix",
+    "cameramatrix": "camera_matrix",
+    "intrinsic_matrix": "camera_matrix",
+    "size": "image_size",
+    "resolution": "image_size",
+    "imagesize": "image_size",
+    "image_width": "image_size",
+    "image_height": "image_size",
+}
+#: Largest image side a camera file may declare (pixels).
+MAX_IMAGE_SIDE = 100_000
+
+
+def _as_K(K: Any, where: str) -> np.ndarray:
+    try:
+        K = np.array(K, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise CameraError(
+            f"{where}: camera_matrix is not numeric; expected 3x3 numbers [[fx,0,cx],[0,fy,cy],[0,0,1]]"
+        ) from None
+    if K.size == 9 and K.shape != (3, 3):
+        K = K.reshape(3, 3)
+    if K.shape != (3, 3):
+        raise CameraError(f"{where}: camera_matrix has shape {K.shape}, expected 3x3 [[fx,0,cx],[0,fy,cy],[0,0,1]]")
+    if not np.all(np.isfinite(K)):
+        raise CameraError(f"{where}: camera_matrix contains NaN or infinity")
+    if np.abs(K).max() > 1e8:
+        raise CameraError(
+            f"{where}: camera_matrix holds {np.abs(K).max():.3g}, beyond any camera (fx, fy, cx, cy are "
+            "pixels, a few hundred to a few thousand); check the file's units"
+        )
+    fx, fy = K[0, 0], K[1, 1]
+    if fx <= 0 or fy <= 0:
+        raise CameraError(
+            f"{where}: camera_matrix has focal lengths fx={fx:g}, fy={fy:g}; both must be positive "
+            "(in pixels); was the matrix transposed or written in another unit?"
+        )
+    if abs(K[0, 1]) > 1e-9:
+        raise CameraError(
+            f"{where}: camera_matrix has a skew term K[0][1] = {K[0, 1]:g}; OpenCV's projectPoints, solvePnP and "
+            "calibrateCamera ignore it, so every pose would be off by its effect; calibrate without skew "
+            "(OpenCV's default) or write 0 there"
+        )
+    if abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9 or abs(K[2, 2] - 1.0) > 1e-9:
+        hint = (
+            " (it looks transposed: cx, cy belong in the last column)" if abs(K[2, 0]) > 1 or abs(K[2, 1]) > 1 else ""
+        )
+        raise CameraError(f"{where}: camera_matrix must be [[fx,0,cx],[0,fy,cy],[0,0,1]]; got {_fmt_matrix(K)}{hint}")
+    return K
+
+
+def _as_dist(dist: Any, where: str) -> np.ndarray:
+    if dist is None:
+        return np.zeros(5)
+    try:
+        dist = np.array(dist, dtype=float).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        raise CameraError(f"{where}: dist_coeffs is not a list of numbers") from None
+    if dist.size == 0:
+        return np.zeros(5)
+    if dist.size not in DIST_LENGTHS:
+        raise CameraError(
+            f"{where}: dist_coeffs has {dist.size} values; OpenCV takes 4, 5, 8, 12 or 14 "
+            "(k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]); use [] for no distortion"
+        )
+    if not np.all(np.isfinite(dist)):
+        raise CameraError(f"{where}: dist_coeffs contains NaN or infinity")
+    return dist
+
+
+def _as_size(image_size: Any, where: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in image_size)
+        ok = all(float(v) == int(v) for v in image_size)
+    except (TypeError, ValueError, OverflowError):
+        raise CameraError(f"{where}: image_size must be [width, height] in pixels, got {image_size!r}") from None
+    if not ok or w <= 0 or h <= 0:
+        raise CameraError(
+            f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}"
+        )
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
+        raise CameraError(
+            f"{where}: image_size {w}x{h} is beyond any camera ({MAX_IMAGE_SIDE} pixels a side at most); "
+            "is it [width, height] in pixels?"
+        )
+    return (w, h)

@@ -1,0 +1,222 @@
+"""Reading a world map's JSON: the layout, the units, the marker size and each placement, every error with its fix."""
+
+from __future__ import annotations
+
+import math
+import numbers
+import re
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from . import _cv
+from ._files import did_you_mean
+from .errors import DictionaryError, MapError
+
+#: Millimetres per unit for the units a map file may declare.
+UNITS_TO_MM: dict[str, float] = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "ft": 304.8}
+
+
+_FULL_KEYS = {"units", "marker_size_mm", "dictionary", "markers", "name", "description"}
+
+
+def _units_name(units: Any, where: str) -> str:
+    if not isinstance(units, str) or units.strip().lower() not in UNITS_TO_MM:
+        raise MapError(
+            f"{where}: unknown units {units!r}; use one of {', '.join(UNITS_TO_MM)} "
+            "(millimetres, centimetres, metres, inches, feet)"
+        )
+    return units.strip().lower()
+
+
+#: Largest marker side a map may declare (mm): 10 m, beyond any print.
+MAX_MARKER_SIZE_MM = 10_000.0
+
+
+def _marker_size(size: Any, where: str) -> float:
+    if isinstance(size, (bool, np.bool_)) or not isinstance(size, numbers.Real):
+        raise MapError(f"{where}: marker_size_mm must be a number (the black square's side in mm), got {size!r}")
+    try:
+        size = float(size)
+    except OverflowError:  # a whole number with hundreds of digits
+        raise MapError(
+            f"{where}: marker_size_mm is too large for a number; write the black square's side in mm"
+        ) from None
+    if not math.isfinite(size) or size <= 0:
+        raise MapError(
+            f"{where}: marker_size_mm is {size:g}; it must be positive: measure the black square's side "
+            "in mm (the white margin not included)"
+        )
+    if size > MAX_MARKER_SIZE_MM:
+        raise MapError(
+            f"{where}: marker_size_mm is {size:g}, more than {MAX_MARKER_SIZE_MM:g} mm; measure the black square's "
+            "side in millimetres"
+        )
+    if size < 1.0:  # no printer makes a marker under 1 mm: a size in metres, as OpenCV's tutorials write it
+        raise MapError(
+            f"{where}: marker_size_mm is {size:g}, under 1 mm; if that is metres, write it in mm ({size * 1000:g}): "
+            "the black square's side in millimetres"
+        )
+    return size
+
+
+def _vector3(value: Any, where: str, field: str, meaning: str) -> tuple[float, float, float]:
+    if not isinstance(value, (list, tuple)):
+        raise MapError(f"{where}: {field} must be a list of 3 numbers {meaning}, got {value!r}")
+    if len(value) != 3:
+        raise MapError(f"{where}: {field} has {len(value)} values, expected 3 {meaning}")
+    out = []
+    for v in value:
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+            raise MapError(f"{where}: {field} contains {v!r}, which is not a number; expected 3 numbers {meaning}")
+        if isinstance(v, int) and abs(v) > 1e300:  # a whole number with hundreds of digits overflows float()
+            raise MapError(f"{where}: {field} contains a number too large for a float; check the units {meaning}")
+        if not math.isfinite(v):
+            raise MapError(f"{where}: {field} contains {v}, expected finite numbers {meaning}")
+        if abs(v) > 1e9:
+            raise MapError(f"{where}: {field} contains {v:g}, far beyond any room; check the units {meaning}")
+        out.append(float(v))
+    return (out[0], out[1], out[2])
+
+
+def _is_corner_list(value: Any) -> bool:
+    """Whether ``value`` looks like one marker of a corner file: four lists of three numbers."""
+    return (
+        isinstance(value, list)
+        and len(value) == 4
+        and all(isinstance(c, list) and len(c) == 3 and all(isinstance(v, numbers.Real) for v in c) for c in value)
+    )
+
+
+def _marker_id(key: Any, where: str) -> int:
+    text = str(key).strip()
+    if isinstance(key, bool) or not re.fullmatch(r"-?[0-9]+", text):
+        raise MapError(
+            f"{where}: marker id {key!r} is not a whole number; ids are the integers printed under each marker"
+        )
+    mid = int(text)
+    if mid < 0:
+        raise MapError(f"{where}: marker id {mid} is negative; ids start at 0")
+    return mid
+
+
+def _check_layout(d: Any, source: str) -> tuple[bool, Mapping]:
+    """``(full, markers)``: whether ``d`` is the full layout, and its id -> placement mapping.
+
+    Refuses what is not a map (a camera file, a corner file) and unknown fields, with the fix.
+    """
+    if not isinstance(d, Mapping):
+        raise MapError(f"{source}: expected a JSON object mapping marker ids to placements, got {type(d).__name__}")
+    if "camera_matrix" in d:  # the two files of the command line swapped
+        raise MapError(
+            f"{source}: this is a camera file (it has camera_matrix), not a world map (the map does not say "
+            "its units, marker size or placements); give the map of marker placements here (command line: "
+            "--map) and the camera file as the camera (--camera)"
+        )
+    full = "markers" in d
+    if not full and any(k in _FULL_KEYS for k in d):
+        others = [k for k in d if k not in _FULL_KEYS]
+        hint = f" (unknown field {others[0]!r}{did_you_mean(others[0], ['markers'])})" if others else ""
+        raise MapError(
+            f'{source}: the map has {", ".join(k for k in d if k in _FULL_KEYS)} but no "markers"{hint}; '
+            'a full map puts the placements under "markers": {"0": {"translation": [...], ...}}'
+        )
+    if not full and d and all(_is_corner_list(v) for v in d.values()):
+        raise MapError(
+            f"{source}: this is a corner file (four [x, y, z] corners in mm per id, as 'fidlearn corners' "
+            "writes it), not a world map; give the map of placements it was made from"
+        )
+    if not full:
+        return False, d
+    unknown = set(d) - _FULL_KEYS
+    if unknown:
+        field = sorted(unknown)[0]
+        raise MapError(
+            f"{source}: unknown field {field!r}{did_you_mean(field, _FULL_KEYS)}; a full map has "
+            f"{', '.join(sorted(_FULL_KEYS))}"
+        )
+    markers = d["markers"]
+    if not isinstance(markers, Mapping):
+        raise MapError(f'{source}: "markers" must be an object mapping ids to placements')
+    return True, markers
+
+
+def _disagree(name: str, given: Any, in_file: Any, source: str) -> bool:
+    """Whether a value given by the caller differs from the file's (units, marker size or dictionary)."""
+    if name == "units":
+        return str(given).lower() != str(in_file).lower()
+    if name == "marker_size_mm":
+        return not math.isclose(_marker_size(given, source), _marker_size(in_file, source))
+    return name == "dictionary" and _cv.dictionary_name(given) != _cv.dictionary_name(in_file)
+
+
+def _pick(d: Mapping, full: bool, name: str, given: Any, meaning: str, source: str) -> Any:
+    """The file's value of ``name`` or the caller's; both given must agree; neither: :class:`MapError` (``meaning``)."""
+    in_file = d.get(name) if full else None
+    if in_file is not None and given is not None and _disagree(name, given, in_file, source):
+        raise MapError(f"{source}: the file says {name} = {in_file!r} but {given!r} was given; drop one of them")
+    value = in_file if in_file is not None else given
+    if value is None:
+        raise MapError(f"{source}: {meaning}")
+    return value
+
+
+def _map_options(
+    d: Mapping, full: bool, units: Any, marker_size_mm: Any, dictionary: Any, source: str
+) -> tuple[str, Any, str]:
+    """``(units, marker size, dictionary)`` from the file and the caller: units and size are required."""
+    units = _pick(
+        d,
+        full,
+        "units",
+        units,
+        'no units: the map does not say its units; add "units": "ft" (or mm, cm, m, in) to the file, '
+        "or pass units= (command line: --units); fidlearn never guesses",
+        source,
+    )
+    units = _units_name(units, source)
+    size = _pick(
+        d,
+        full,
+        "marker_size_mm",
+        marker_size_mm,
+        'no marker size: add "marker_size_mm": 80 (the black square\'s side) to the file, '
+        "or pass marker_size_mm= (command line: --marker-size-mm)",
+        source,
+    )
+    try:
+        dictionary = (
+            _pick(d, full, "dictionary", dictionary, "", source)
+            if (dictionary or (full and d.get("dictionary")))
+            else "ARUCO_ORIGINAL"
+        )
+    except DictionaryError as exc:
+        raise MapError(f"{source}: {exc}") from None
+    return units, size, dictionary
+
+
+def _placements(markers: Mapping, units: str, source: str) -> dict[int, tuple]:
+    """``{id: (translation_mm, rotation_deg)}`` of each marker, converted from ``units`` to mm."""
+    scale = UNITS_TO_MM[units]
+    placements: dict[int, tuple] = {}
+    for key, value in markers.items():
+        mid = _marker_id(key, source)
+        where = f"{source}: marker {mid}"
+        if mid in placements:
+            raise MapError(f"{where} appears twice (as {key!r}); each marker id must be unique")
+        if not isinstance(value, Mapping):
+            raise MapError(f'{where} must be an object with "translation" and "rotation"')
+        extra = set(value) - {"translation", "rotation"}
+        if extra:
+            field = sorted(extra)[0]
+            raise MapError(
+                f"{where} has unknown field {field!r}{did_you_mean(field, ('translation', 'rotation'))}; "
+                "a placement has translation and rotation"
+            )
+        if "translation" not in value:
+            raise MapError(f'{where} has no "translation" (the world position of its top-left corner, in {units})')
+        t = _vector3(value["translation"], where, "translation", f"[x, y, z] in {units}")
+        r = _vector3(value.get("rotation", [0, 0, 0]), where, "rotation", "[roll, pitch, yaw] in degrees")
+        placements[mid] = (tuple(v * scale for v in t), r)
+    return placements

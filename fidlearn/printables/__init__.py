@@ -1,0 +1,93 @@
+"""Printable markers and calibration boards at exact physical size.
+
+Every page is drawn in millimetres on a figure the size of the paper, and every
+black cell of a marker or square of a board is a vector rectangle, so the
+printed black square measures exactly the size asked for when the page is
+printed at 100 % ("actual size", no "fit to page"). Each page carries a
+100 mm ruler with millimetre ticks to check that with calipers.
+
+The page frame: origin at the paper's top-left corner, x to the right, y down,
+millimetres. Nothing here opens a window: PDF pages go through matplotlib's
+PDF backend, PNG pages through Agg, both used directly (no ``pyplot``, no
+change to matplotlib's global state).
+
+Examples
+--------
+>>> parse_ids("0-3,8")
+[0, 1, 2, 3, 8]
+>>> parse_pattern("9x6")
+(9, 6)
+"""
+
+from __future__ import annotations
+
+from ..errors import PrintError
+from ._boards import (  # noqa: F401
+    _BOARD_ARRANGEMENTS,
+    QUIET_FRACTION,
+    QUIET_MIN_MM,
+    BoardSheet,
+    _inner_corners,
+    _largest_square,
+    board_figure,
+    board_pdf,
+    board_png,
+    board_quiet_zone_mm,
+    layout_board,
+)
+from ._markers import (
+    MarkerSheet,
+    layout_markers,
+    marker_cells,
+    marker_figures,
+    markers_pdf,
+    markers_png,
+)
+from ._page import (  # noqa: F401
+    CUT_MARK_MM,
+    CUT_MARK_OFFSET_MM,
+    GAP_MM,
+    LABEL_MM,
+    LINE_PT,
+    MAX_ID_COUNT,
+    PAGE_MARGIN_MM,
+    PAPERS,
+    RULER_MM,
+    STRIP_GAP_MM,
+    STRIP_LEN_MM,
+    STRIP_MM,
+    _cut_marks,
+    _draw_strip,
+    _fill_rects,
+    _marker_rects,
+    _page,
+    _positive_mm,
+    _usable_area,
+    _with_suffix,
+    _write_pngs,
+    paper_size_mm,
+    parse_ids,
+    parse_pattern,
+    save_pages,
+)
+
+__all__ = [
+    "PAPERS",
+    "PrintError",
+    "MarkerSheet",
+    "BoardSheet",
+    "parse_ids",
+    "parse_pattern",
+    "paper_size_mm",
+    "marker_cells",
+    "layout_markers",
+    "layout_board",
+    "board_quiet_zone_mm",
+    "marker_figures",
+    "board_figure",
+    "markers_pdf",
+    "markers_png",
+    "board_pdf",
+    "board_png",
+    "save_pages",
+]

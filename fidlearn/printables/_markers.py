@@ -1,0 +1,282 @@
+"""Printed ArUco markers: where each goes on the pages, and the pages."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import _cv
+from ..errors import DictionaryError, PrintError
+from ._page import (
+    GAP_MM,
+    LABEL_MM,
+    _cut_marks,
+    _draw_strip,
+    _fill_rects,
+    _marker_rects,
+    _page,
+    _positive_mm,
+    _usable_area,
+    _with_suffix,
+    paper_size_mm,
+    parse_ids,
+    save_pages,
+)
+
+
+def marker_cells(dictionary: str, marker_id: int) -> np.ndarray:
+    """The marker's cells, black border included, row 0 at the top.
+
+    Parameters
+    ----------
+    dictionary : str
+        ArUco dictionary name.
+    marker_id : int
+        An id of that dictionary.
+
+    Returns
+    -------
+    ndarray of bool, shape (n, n)
+        True = black; ``n`` is the dictionary's marker size plus 2 (7 for ARUCO_ORIGINAL, 8 for 6X6_250).
+
+    Raises
+    ------
+    DictionaryError
+        For an unknown dictionary or an id it does not have.
+    """
+    name = _cv.dictionary_name(dictionary)
+    size = _cv.dictionary_size(name)
+    if not 0 <= int(marker_id) < size:
+        raise DictionaryError(f"marker id {marker_id} does not exist in {name}, which has ids 0 to {size - 1}")
+    n = _cv.dictionary_marker_bits(name) + 2
+    return _cv.generate_marker(name, int(marker_id), n, border_bits=1) < 128
+
+
+@dataclass(frozen=True)
+class MarkerSheet:
+    """Where each marker goes on each page.
+
+    Attributes
+    ----------
+    paper : str
+    paper_mm : (float, float)
+        Page (width, height) in mm.
+    marker_size_mm : float
+        Side of each black square (border included), mm.
+    cell_mm : float
+        Side of one cell, mm (``marker_size_mm`` / cells per side).
+    dictionary : str
+    pages : list of list of (int, float, float)
+        Per page: ``(id, x_mm, y_mm)``, the top-left corner of each black square
+        in the page frame (origin top-left of the paper, y down).
+    """
+
+    paper: str
+    paper_mm: tuple[float, float]
+    marker_size_mm: float
+    cell_mm: float
+    dictionary: str
+    pages: list[list[tuple[int, float, float]]] = field(repr=False)
+
+    @property
+    def per_page(self) -> int:
+        """How many markers fit on one page."""
+        return max(len(p) for p in self.pages)
+
+    def __repr__(self) -> str:
+        n = sum(len(p) for p in self.pages)
+        return (
+            f"MarkerSheet({n} markers of {self.marker_size_mm:g} mm, {self.dictionary}, {self.paper} "
+            f"{self.paper_mm[0]:g}x{self.paper_mm[1]:g} mm, {len(self.pages)} page(s), {self.per_page} per page)"
+        )
+
+
+def layout_markers(
+    ids: Sequence[int], marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+) -> MarkerSheet:
+    """Place markers in a grid, as many per page as fit, with a white quiet zone of one cell.
+
+    Each marker's cut rectangle holds the black square, a white margin of one
+    cell on every side, and a label strip under it; cut rectangles are
+    :data:`GAP_MM` apart.
+
+    Parameters
+    ----------
+    ids : sequence of int or str
+        Marker ids in print order, or a string such as ``"0-9"`` (:func:`parse_ids`).
+    marker_size_mm : float
+        Side of each black square (border included), mm.
+    dictionary : str
+        ArUco dictionary name.
+    paper : {"a4", "letter"}
+
+    Returns
+    -------
+    MarkerSheet
+        Where each marker goes on each page (page frame, mm).
+
+    Raises
+    ------
+    PrintError
+        For no ids, an id that is not a whole number, a size that is not a length or does not fit the
+        paper (the largest that fits is named).
+    DictionaryError
+        For an id the dictionary does not have.
+    """
+    marker_size_mm = _positive_mm(marker_size_mm, "--size-mm")
+    name = _cv.dictionary_name(dictionary)
+    if isinstance(ids, str):
+        ids = parse_ids(ids)  # "0-9", "0,3,7" as on the command line
+    ids = list(ids) if isinstance(ids, Iterable) and not isinstance(ids, (bytes, bytearray)) else [ids]
+    wrong = [i for i in ids if isinstance(i, bool) or not isinstance(i, (int, np.integer))]
+    if wrong:
+        raise PrintError(f"marker id {wrong[0]!r} is not a whole number; give ids like range(10) or [0, 3, 7]")
+    ids = [int(i) for i in ids]
+    if not ids:
+        raise PrintError("no marker ids to print; give --ids like 0-9")
+    for i in ids:
+        marker_cells(name, i)  # raises for an id outside the dictionary
+    paper_mm = paper_size_mm(paper)
+    cells = _cv.dictionary_marker_bits(name) + 2
+    cell = marker_size_mm / cells
+    slot_w = marker_size_mm + 2 * cell
+    slot_h = marker_size_mm + 2 * cell + LABEL_MM
+    x0, y0, uw, uh = _usable_area(paper_mm)
+    cols = int((uw + GAP_MM + 1e-9) // (slot_w + GAP_MM))
+    rows = int((uh + GAP_MM + 1e-9) // (slot_h + GAP_MM))
+    if cols < 1 or rows < 1:
+        largest = min(uw * cells / (cells + 2), (uh - LABEL_MM) * cells / (cells + 2))
+        raise PrintError(
+            f"a {marker_size_mm:g} mm marker (with its one-cell white margin and label) does not fit on "
+            f"{paper} paper; the largest that fits is {math.floor(largest * 10) / 10:g} mm: lower --size-mm"
+        )
+    grid_w = cols * slot_w + (cols - 1) * GAP_MM
+    grid_h = rows * slot_h + (rows - 1) * GAP_MM
+    left = x0 + (uw - grid_w) / 2
+    top = y0 + (uh - grid_h) / 2
+    per_page = cols * rows
+    pages = []
+    for start in range(0, len(ids), per_page):
+        page = []
+        for k, mid in enumerate(ids[start : start + per_page]):
+            r, c = divmod(k, cols)
+            page.append((mid, left + c * (slot_w + GAP_MM) + cell, top + r * (slot_h + GAP_MM) + cell))
+        pages.append(page)
+    return MarkerSheet(str(paper).lower(), paper_mm, marker_size_mm, cell, name, pages)
+
+
+def marker_figures(sheet: MarkerSheet) -> list:
+    """The pages of a :class:`MarkerSheet` as matplotlib figures (nothing written).
+
+    Parameters
+    ----------
+    sheet : MarkerSheet
+        From :func:`layout_markers`.
+
+    Returns
+    -------
+    list of matplotlib.figure.Figure
+        One per page, the size of the paper, drawn in mm.
+    """
+    figs = []
+    cell = sheet.cell_mm
+    for k, page in enumerate(sheet.pages):
+        fig, ax = _page(sheet.paper_mm)
+        title = (
+            f"fidlearn markers, {sheet.dictionary}, black square {sheet.marker_size_mm:g} mm, "
+            f"page {k + 1} of {len(sheet.pages)}"
+        )
+        rects = []
+        for mid, x, y in page:
+            rects += _marker_rects(marker_cells(sheet.dictionary, mid), x, y, cell)
+            cut = (x - cell, y - cell, sheet.marker_size_mm + 2 * cell, sheet.marker_size_mm + 2 * cell + LABEL_MM)
+            _cut_marks(ax, *cut)
+            label_y = y + sheet.marker_size_mm + cell + LABEL_MM / 2
+            long = f"id {mid}   {sheet.dictionary}   {sheet.marker_size_mm:g} mm"
+            if len(long) * 1.3 > cut[2]:  # about 1.3 mm per character at 7 pt
+                ax.text(x + sheet.marker_size_mm / 2, label_y - 1.4, f"id {mid}", ha="center", va="center", fontsize=7)
+                ax.text(
+                    x + sheet.marker_size_mm / 2,
+                    label_y + 1.6,
+                    f"{sheet.dictionary} {sheet.marker_size_mm:g} mm",
+                    ha="center",
+                    va="center",
+                    fontsize=5,
+                )
+            else:
+                ax.text(x + sheet.marker_size_mm / 2, label_y, long, ha="center", va="center", fontsize=7)
+        _fill_rects(ax, rects)
+        _draw_strip(ax, sheet.paper_mm, "bottom", title)
+        figs.append(fig)
+    return figs
+
+
+def markers_pdf(
+    path, ids: Sequence[int], marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+) -> MarkerSheet:
+    """Write a (multi-page) PDF of markers at exact size.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.pdf`` file to write (atomically).
+    ids : sequence of int
+        Marker ids, in print order.
+    marker_size_mm : float
+        Side of each black square (border included), mm.
+    dictionary : str
+        ArUco dictionary name, e.g. ``"ARUCO_ORIGINAL"`` or ``"6X6_250"``.
+    paper : {"a4", "letter"}
+
+    Returns
+    -------
+    MarkerSheet
+        The layout.
+
+    Raises
+    ------
+    PrintError
+        As :func:`layout_markers`, or when ``path`` is not a ``.pdf``.
+    """
+    sheet = layout_markers(ids, marker_size_mm, dictionary, paper)
+    save_pages(marker_figures(sheet), _with_suffix(path, ".pdf"))
+    return sheet
+
+
+def markers_png(
+    path,
+    ids: Sequence[int],
+    marker_size_mm: float,
+    dictionary: str = "ARUCO_ORIGINAL",
+    paper: str = "a4",
+    dpi: float = 300,
+) -> tuple[MarkerSheet, list[Path]]:
+    """Write the marker pages as PNG at ``dpi``.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.png`` file (``stem-1.png``, ``stem-2.png``, ... for several pages).
+    ids, marker_size_mm, dictionary, paper :
+        As for :func:`markers_pdf`.
+    dpi : float
+        Resolution, 30 to 2400.
+
+    Returns
+    -------
+    sheet : MarkerSheet
+        The layout.
+    files : list of Path
+        The files written.
+
+    Raises
+    ------
+    PrintError
+        As :func:`layout_markers` and :func:`save_pages`.
+    """
+    sheet = layout_markers(ids, marker_size_mm, dictionary, paper)
+    return sheet, save_pages(marker_figures(sheet), _with_suffix(path, ".png"), dpi=dpi)

@@ -1,0 +1,40 @@
+"""Checks shared by the synthetic world's entry points, and its limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..camera import Camera
+from ..errors import FidlearnError
+from ..markermap import MarkerMap
+
+#: Gray levels of the synthetic world: the wall, the paper and the printed ink.
+DEFAULT_GRAYS = {"wall": 120.0, "paper": 230.0, "ink": 25.0}
+
+#: Most samples (pixels times supersample squared) one picture is rendered from.
+MAX_RENDER_SAMPLES = 1_000_000_000
+#: Most frames a trajectory may have.
+MAX_FRAMES = 100_000
+
+
+def _check_scene(marker_map, camera, with_camera: bool = True, where: str = "render_scene") -> None:
+    """Raise a FidlearnError unless ``marker_map`` is a MarkerMap and ``camera`` a Camera (map first)."""
+    order = f"{where}(marker_map, camera, ...): the map comes first, then the camera"
+    if with_camera and isinstance(marker_map, Camera) and isinstance(camera, MarkerMap):
+        raise FidlearnError(f"{order}; the arguments are swapped")
+    if not isinstance(marker_map, MarkerMap):
+        raise FidlearnError(
+            f"marker_map must be a fidlearn.MarkerMap (MarkerMap.load reads a file), got {type(marker_map).__name__}; "
+            f"{order}"
+        )
+    if with_camera and not isinstance(camera, Camera):
+        raise FidlearnError(
+            f"camera must be a fidlearn.Camera (Camera.load reads a file), got {type(camera).__name__}; {order}"
+        )
+
+
+def _check_seed(seed) -> int:
+    """A seed for ``numpy.random.default_rng``: a whole number from 0 to 2**63 - 1."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**63:
+        raise FidlearnError(f"seed must be a whole number from 0 to 2**63 - 1, got {seed!r}")
+    return int(seed)

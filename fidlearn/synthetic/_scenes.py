@@ -1,0 +1,195 @@
+"""Scenes of printed markers taped to walls, seen by a known camera, with the true corners."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import _cv, frames
+from ..camera import Camera
+from ..errors import FidlearnError
+from ..markermap import MarkerMap
+from ._checks import DEFAULT_GRAYS, _check_scene
+from ._renderer import _marker_sheet, _projected_size_px, _render, _texels_per_cell
+
+
+def visible_markers(
+    marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, margin_px: float = 2.0
+) -> dict[int, np.ndarray]:
+    """True pixel corners of the markers a camera sees whole.
+
+    A marker counts as visible when its four corners are in front of the
+    camera, inside the image with ``margin_px`` to spare (pixel-centre
+    convention: the image spans -0.5 .. width - 0.5) and its printed face
+    points toward the camera. Corners are ``camera.project`` of the marker's
+    3D corners (TL, TR, BR, BL), i.e. ``cv2.projectPoints``. Occlusion by
+    another sheet is not considered: a marker hidden behind a nearer one is
+    drawn hidden but still listed.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The markers' placements (mm, world). The map comes first, then the camera.
+    camera : Camera
+        Intrinsics, distortion and image size.
+    T_world_camera : array_like, shape (4, 4)
+        The camera's pose in the world, mm.
+    margin_px : float
+        How far inside the image every corner must be, pixels.
+
+    Returns
+    -------
+    dict of int to ndarray, shape (4, 2)
+        ``{id: corners_px}``, float64, TL, TR, BR, BL, pixel centres at integers.
+
+    Raises
+    ------
+    FidlearnError
+        If the map or the camera is not one (a swapped call says so).
+    TransformError
+        If ``T_world_camera`` is not a rigid transform.
+
+    Examples
+    --------
+    >>> from fidlearn import Camera, MarkerMap, data_path, look_at
+    >>> wall = MarkerMap.load(data_path("world_map.json"))
+    >>> seen = visible_markers(wall, Camera.from_fov(60, (640, 480)), look_at([1200, 200, 250], [0, 200, 250]))
+    >>> sorted(seen), seen[0].shape
+    ([0, 1, 2], (4, 2))
+    """
+    _check_scene(marker_map, camera, where="visible_markers")
+    T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
+    T_camera_world = frames.invert_transform(T_world_camera)
+    eye = T_world_camera[:3, 3]
+    out: dict[int, np.ndarray] = {}
+    lo_u, lo_v = -0.5 + margin_px, -0.5 + margin_px
+    hi_u, hi_v = camera.width - 0.5 - margin_px, camera.height - 0.5 - margin_px
+    for mid in marker_map.ids:
+        c = marker_map.marker_corners(mid)
+        pc = c @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]
+        if np.any(pc[:, 2] <= 1.0):
+            continue
+        if float(marker_map.normal(mid) @ (eye - c.mean(axis=0))) <= 0:
+            continue
+        # far outside the field of view the distortion polynomial folds back: test the pinhole first
+        xy = pc[:, :2] / pc[:, 2:3]
+        ideal = xy * [camera.fx, camera.fy] + [camera.cx, camera.cy]
+        slack = 0.5 * max(camera.width, camera.height)
+        if np.any(ideal < [lo_u - slack, lo_v - slack]) or np.any(ideal > [hi_u + slack, hi_v + slack]):
+            continue
+        px = camera.project(c, T_world_camera)
+        if np.all((px[:, 0] >= lo_u) & (px[:, 0] <= hi_u) & (px[:, 1] >= lo_v) & (px[:, 1] <= hi_v)):
+            out[mid] = px
+    return out
+
+
+def render_scene(
+    marker_map: MarkerMap,
+    camera: Camera,
+    T_world_camera: np.ndarray,
+    *,
+    seed: int = 0,
+    blur_px: float = 0.0,
+    noise_std_gray: float = 0.0,
+    gradient: float = 0.0,
+    gradient_angle_deg: float = 30.0,
+    supersample: int = 4,
+    wall_gray: float = DEFAULT_GRAYS["wall"],
+    wall_texture_std_gray: float = 3.0,
+    paper_gray: float = DEFAULT_GRAYS["paper"],
+    ink_gray: float = DEFAULT_GRAYS["ink"],
+    margin_cells: float = 1.0,
+    margin_px: float = 2.0,
+    bgr: bool = False,
+) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """Render what a camera sees of printed markers taped to walls, with the true corners.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The markers' placements (mm, world), size and dictionary. The map comes first, then the camera.
+    camera : Camera
+        Intrinsics, distortion and image size of the picture.
+    T_world_camera : ndarray, shape (4, 4)
+        The camera's pose in the world (mm), camera frame OpenCV's.
+    seed : int
+        Seed of ``numpy.random.default_rng`` for the wall texture and the noise.
+    blur_px : float
+        Standard deviation (pixels) of a Gaussian blur (defocus); 0 for none.
+    noise_std_gray : float
+        Standard deviation (gray levels) of Gaussian sensor noise; 0 for none.
+    gradient : float
+        Illumination change across the image as a fraction (0.3: 30 % brighter
+        on one side than the other), along ``gradient_angle_deg`` from the x axis.
+    supersample : int
+        Sub-pixels per pixel side; each pixel is the mean of ``supersample**2`` samples.
+    wall_gray, wall_texture_std_gray, paper_gray, ink_gray : float
+        Gray levels of the wall, its texture's standard deviation, the paper and the ink.
+    margin_cells : float
+        White quiet zone around each marker, in marker cells (a cell is
+        ``marker_size_mm / (bits + 2)``).
+    margin_px : float
+        How far inside the image a marker's corners must be to count as visible.
+    bgr : bool
+        Return a (H, W, 3) BGR image instead of gray.
+
+    Returns
+    -------
+    image : ndarray, shape (H, W) or (H, W, 3), uint8
+        The picture, at ``camera.image_size``.
+    truth : dict
+        ``{id: (4, 2) float64}``: the true pixel corners (TL, TR, BR, BL,
+        pixel centres at integers) of every marker seen whole, facing the
+        camera (see :func:`visible_markers`). Markers partly outside the image
+        or behind the camera are drawn as far as they are seen but left out.
+
+    Raises
+    ------
+    FidlearnError
+        If the map or the camera is not one (a swapped call says the map comes first), or an option
+        is out of range (``supersample`` 1 to 16, ``blur_px``, ``noise_std_gray`` and
+        ``wall_texture_std_gray`` finite and >= 0, ``margin_cells`` >= 0).
+    CameraError
+        If the camera has a tilted sensor (more than 12 distortion coefficients in use).
+    TransformError
+        If ``T_world_camera`` is not a rigid transform.
+
+    Examples
+    --------
+    >>> from fidlearn import Camera, MarkerMap, data_path, look_at
+    >>> cam = Camera.from_fov(60, (640, 480))
+    >>> wall = MarkerMap.load(data_path("world_map.json"))
+    >>> image, truth = render_scene(wall, cam, look_at([1200, 200, 250], [0, 200, 250]))
+    >>> image.shape, image.dtype, sorted(truth)
+    ((480, 640), dtype('uint8'), [0, 1, 2])
+    >>> np.allclose(truth[0], cam.project(wall.marker_corners(0), look_at([1200, 200, 250], [0, 200, 250])))
+    True
+    """
+    _check_scene(marker_map, camera, where="render_scene")
+    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
+        raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
+    T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
+    grays = {"wall": float(wall_gray), "paper": float(paper_gray), "ink": float(ink_gray)}
+    if margin_cells < 0:
+        raise FidlearnError(f"margin_cells must be >= 0 (the white quiet zone in marker cells), got {margin_cells}")
+    T_camera_world = frames.invert_transform(T_world_camera)
+    cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2
+    sheets = []
+    for mid in marker_map.ids:
+        size = _projected_size_px(marker_map.marker_corners(mid), camera, T_camera_world)
+        tpc = _texels_per_cell(size, cells, int(supersample))
+        sheets.append(_marker_sheet(marker_map, mid, tpc, margin_cells, grays))
+    image = _render(
+        camera,
+        T_world_camera,
+        sheets,
+        seed=seed,
+        supersample=supersample,
+        blur_px=blur_px,
+        noise_std_gray=noise_std_gray,
+        gradient=gradient,
+        gradient_angle_deg=gradient_angle_deg,
+        wall_gray=wall_gray,
+        wall_texture_std_gray=wall_texture_std_gray,
+        bgr=bgr,
+    )
+    return image, visible_markers(marker_map, camera, T_world_camera, margin_px=margin_px)
