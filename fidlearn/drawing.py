@@ -152,7 +152,7 @@ def _draw_world_axes(out: np.ndarray, camera, pose, length: float) -> None:
         cv2.putText(out, "XYZ"[k - 1], at, _FONT, 0.6, colour, 2, cv2.LINE_AA)
 
 
-def draw_pose(image: np.ndarray, detections: Sequence[Detection], camera, pose, marker_map) -> np.ndarray:
+def draw_pose(image: np.ndarray, detections: Sequence[Detection], marker_map, camera, pose) -> np.ndarray:
     """The frame with the detections, the world axes and the camera's pose written on it.
 
     Parameters
@@ -161,12 +161,12 @@ def draw_pose(image: np.ndarray, detections: Sequence[Detection], camera, pose, 
         The frame (not modified).
     detections : sequence of Detection
         The markers found in it (corners in pixels).
+    marker_map : MarkerMap
+        The world map; the axes drawn are twice its marker side long (mm).
     camera : Camera
         The camera fitted to the frame's size.
     pose : Pose or None
         The camera's pose in the world (mm); None writes "no known marker" in red.
-    marker_map : MarkerMap
-        The world map; the axes drawn are twice its marker side long (mm).
 
     Returns
     -------

@@ -39,7 +39,7 @@ Examples
 >>> import fidlearn
 >>> m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
 >>> cam = fidlearn.Camera.from_fov(60, (640, 480))
->>> drive = fidlearn.render_trajectory(cam, m, n_frames=40, frames_to_render=range(30, 34))
+>>> drive = fidlearn.render_trajectory(m, cam, n_frames=40, frames_to_render=range(30, 34))
 >>> tracker = MarkerTracker(m, cam)
 >>> poses = [tracker.locate(frame) for frame in drive.images]
 >>> [p.marker_ids for p in poses]

@@ -588,7 +588,7 @@ def test_every_image_type_users_have_is_detected(tmp_path, dtype, channels):
     for image in images:
         found = detect_markers(image, "ARUCO_ORIGINAL")
         assert [d.id for d in found] == [7]
-        np.testing.assert_allclose(found[0].corners, truth, atol=0.5)
+        np.testing.assert_allclose(found[0].corners_px, truth, atol=0.5)
 
 
 def write_png(path: Path) -> bytes:

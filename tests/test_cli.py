@@ -267,10 +267,10 @@ def test_calibrate_reproduces_the_true_camera(capsys, tmp_path):
     assert abs(cam.cx - truth.cx) < 1.5 and abs(cam.cy - truth.cy) < 1.5
     assert np.allclose(cam.dist[:2], truth.dist[:2], atol=0.03)
     # the printed intrinsics are the saved ones, with standard deviations
-    line = next(l for l in out.splitlines() if l.strip().startswith("fx"))
+    line = next(ln for ln in out.splitlines() if ln.strip().startswith("fx"))
     assert float(line.split()[1]) == pytest.approx(cam.fx, abs=0.006) and "±" in line
     assert "from 20 of 20 views" in out and "view_19.png" in out
-    grid = [[int(v) for v in l.split()] for l in out.split("(3x3 grid):\n")[1].splitlines()[:3]]
+    grid = [[int(v) for v in ln.split()] for ln in out.split("(3x3 grid):\n")[1].splitlines()[:3]]
     assert np.sum(grid) == 20 * 54 and np.min(grid) > 0
     assert sorted(p.name for p in (tmp_path / "ann").iterdir()) == [f"view_{i:02d}.png" for i in range(20)]
 
@@ -298,14 +298,14 @@ def test_calibrate_real_charuco_matches_opencv_and_warns(capsys, tmp_path):
     cam = Camera.load(out_path)
     found = np.array([cam.fx, cam.fy, cam.cx, cam.cy])
     std = np.array(
-        [float(l.split("±")[1].split()[0]) for l in out.splitlines() if l.strip()[:2] in ("fx", "fy", "cx", "cy")]
+        [float(ln.split("±")[1].split()[0]) for ln in out.splitlines() if ln.strip()[:2] in ("fx", "fy", "cx", "cy")]
     )
     # OpenCV's tutorial file (an older OpenCV, same four photos): within 3 of the printed standard deviations
     assert np.all(np.abs(found - [452.511, 456.767, 317.703, 277.752]) < 3 * std), (found, std)
     if cv2.__version__.startswith("5."):
         # published for OpenCV 5.0 (data/real/README): a plain cv2.calibrateCamera gives these
         assert np.allclose(found, [457.29, 461.32, 317.22, 275.61], atol=0.2)
-    warns = [l for l in err.splitlines() if l.startswith("warning: ")]
+    warns = [ln for ln in err.splitlines() if ln.startswith("warning: ")]
     assert any("only 4 views used" in w for w in warns)
     assert any("views too similar" in w for w in warns)  # OpenCV's four tutorial photos are all near face-on
     assert any("no board corner in the" in w for w in warns)
@@ -410,7 +410,7 @@ def test_locate_reproduces_known_poses(capsys, tmp_path, map_name):
         assert_pose_close(np.array(rec["T_world_camera"]), T_true, path.name)
         assert rec["reprojection_rms_px"] < 0.5
         # the printed line carries the same numbers
-        line = next(l for l in out.splitlines() if l.startswith(path.name))
+        line = next(ln for ln in out.splitlines() if ln.startswith(path.name))
         assert np.allclose([float(v) for v in line.split()[1:4]], rec["position_mm"], atol=0.051)
     assert f"{len(shots)} frames, {len(shots)} located (100 %), median rms" in out
     assert sorted(p.name for p in ann.iterdir()) == sorted(p.name for p, _ in shots)

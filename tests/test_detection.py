@@ -56,7 +56,9 @@ def radial_unit(corners: np.ndarray) -> np.ndarray:
 def test_photo_gives_the_published_ids(photo, refine):
     dets = detect_markers(photo, "6X6_250", refine=refine)
     assert [d.id for d in dets] == PHOTO_IDS
-    assert all(isinstance(d, Detection) and d.corners.shape == (4, 2) and d.corners.dtype == np.float64 for d in dets)
+    assert all(
+        isinstance(d, Detection) and d.corners_px.shape == (4, 2) and d.corners_px.dtype == np.float64 for d in dets
+    )
 
 
 def test_wrong_dictionary_finds_only_the_known_false_marker_on_the_box(photo):
@@ -73,7 +75,7 @@ def test_default_corners_agree_with_plain_opencv_within_a_pixel(photo):
     gray = as_gray(photo)
     ref = plain_opencv(gray, "6X6_250")
     dets = detect_markers(photo, "6X6_250")
-    diff = np.array([d.corners - ref[d.id] for d in dets])
+    diff = np.array([d.corners_px - ref[d.id] for d in dets])
     dist = np.linalg.norm(diff, axis=2)
     assert dist.mean() < 0.75 and dist.max() < 1.25
     # The difference is OpenCV's known bias: its unrefined contour runs through the outermost dark
@@ -81,7 +83,7 @@ def test_default_corners_agree_with_plain_opencv_within_a_pixel(photo):
     outward = (diff * radial_unit(np.array([ref[d.id] for d in dets]))).sum(axis=2).mean()
     assert 0.2 < outward < 0.8
     # "none" is exactly OpenCV's own answer
-    assert all(np.array_equal(d.corners, ref[d.id]) for d in detect_markers(photo, "6X6_250", refine="none"))
+    assert all(np.array_equal(d.corners_px, ref[d.id]) for d in detect_markers(photo, "6X6_250", refine="none"))
 
 
 def test_bgr_gray_bgra_and_16_bit_give_the_same_answer(photo):
@@ -97,7 +99,7 @@ def test_bgr_gray_bgra_and_16_bit_give_the_same_answer(photo):
     for dets in answers[1:]:
         assert [d.id for d in dets] == PHOTO_IDS
         for a, b in zip(answers[0], dets):
-            np.testing.assert_array_equal(a.corners, b.corners)
+            np.testing.assert_array_equal(a.corners_px, b.corners_px)
 
 
 def test_charuco_marker_corners_fit_the_board_geometry():
@@ -122,19 +124,19 @@ def test_charuco_marker_corners_fit_the_board_geometry():
         for refine in ("none", "subpix", DEFAULT_REFINE, "apriltag", "gamma"):
             if refine == "gamma":  # the edge half-way in light, for this camera's sRGB-like curve
                 dets = [d for d in detect_markers(image, "6X6_250", refine="none") if d.id in obj]
-                fine = refine_corners_edges(as_gray(image), np.stack([d.corners for d in dets]), 8, gamma=2.2)
+                fine = refine_corners_edges(as_gray(image), np.stack([d.corners_px for d in dets]), 8, gamma=2.2)
                 dets = [Detection(d.id, c) for d, c in zip(dets, fine)]
             else:
                 dets = [d for d in detect_markers(image, "6X6_250", refine=refine) if d.id in obj]
             assert len(dets) >= 13
             P = np.concatenate([obj[d.id] for d in dets])
             Q = cv2.undistortPoints(
-                np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K
+                np.concatenate([d.corners_px for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K
             ).reshape(-1, 2)
             H, _ = cv2.findHomography(P, Q, 0)
             res = Q - cv2.perspectiveTransform(P.reshape(-1, 1, 2), H).reshape(-1, 2)
             rms.setdefault(refine, []).append(res)
-            per[refine] = {d.id: d.corners for d in dets}
+            per[refine] = {d.id: d.corners_px for d in dets}
         shift += [per["apriltag"][i] - per[DEFAULT_REFINE][i] for i in per[DEFAULT_REFINE] if i in per["apriltag"]]
     rms = {k: float(np.sqrt((np.concatenate(v) ** 2).sum(1).mean())) for k, v in rms.items()}
     assert rms[DEFAULT_REFINE] < 0.5
@@ -178,7 +180,7 @@ def test_synthetic_corners_match_the_truth(side_px, seed):
     assert len(truth) == 6
     dets = detect_markers(image)  # ARUCO_ORIGINAL, the default refinement
     assert [d.id for d in dets] == sorted(truth)
-    err = np.array([d.corners - truth[d.id] for d in dets])
+    err = np.array([d.corners_px - truth[d.id] for d in dets])
     rms = np.sqrt((err**2).sum(2).mean())
     # Measured (docs/corner_refinement.md): 0.02-0.05 px RMS from 30 px up; bound with margin.
     assert rms < 0.12
@@ -186,7 +188,7 @@ def test_synthetic_corners_match_the_truth(side_px, seed):
     truths = np.array([truth[d.id] for d in dets])
     assert abs((err * radial_unit(truths)).sum(2).mean()) < 0.05  # neither inwards nor outwards
     # OpenCV's unrefined corners on the same picture sit about 0.5-0.8 px inside.
-    plain = np.array([d.corners - truth[d.id] for d in detect_markers(image, refine="none")])
+    plain = np.array([d.corners_px - truth[d.id] for d in detect_markers(image, refine="none")])
     assert np.sqrt((plain**2).sum(2).mean()) > 3 * rms
 
 
@@ -196,7 +198,7 @@ def test_gamma_moves_edges_outwards_on_linear_pictures():
     cam, T = view(45)
     image, truth = render_scene(wall(), cam, T, seed=6, blur_px=0.7, noise_std_gray=1.0)
     dets = detect_markers(image, refine="none")
-    C = np.stack([d.corners for d in dets])
+    C = np.stack([d.corners_px for d in dets])
     truths = np.array([truth[d.id] for d in dets])
     out = ((refine_corners_edges(image, C, 7, gamma=2.2) - truths) * radial_unit(truths)).sum(2).mean()
     linear = ((refine_corners_edges(image, C, 7) - truths) * radial_unit(truths)).sum(2).mean()
@@ -210,15 +212,15 @@ def test_rolled_camera_still_reports_each_markers_own_top_left_first(roll_deg):
     dets = detect_markers(image)
     assert [d.id for d in dets] == sorted(truth)
     for d in dets:
-        assert np.abs(d.corners - truth[d.id]).max() < 0.25, (d, truth[d.id])
+        assert np.abs(d.corners_px - truth[d.id]).max() < 0.25, (d, truth[d.id])
 
 
 def test_rotating_the_image_permutes_nothing(photo):
     # np.rot90 turns the picture 90 degrees counter-clockwise: pixel (x, y) goes to (y, W - 1 - x).
     gray = as_gray(photo)
     W = gray.shape[1]
-    before = {d.id: d.corners for d in detect_markers(gray, "6X6_250")}
-    after = {d.id: d.corners for d in detect_markers(np.rot90(gray), "6X6_250")}
+    before = {d.id: d.corners_px for d in detect_markers(gray, "6X6_250")}
+    after = {d.id: d.corners_px for d in detect_markers(np.rot90(gray), "6X6_250")}
     assert sorted(after) == PHOTO_IDS
     for i, c in before.items():
         expected = np.column_stack([c[:, 1], W - 1 - c[:, 0]])  # same corner order: TL stays first
@@ -230,7 +232,7 @@ def test_inverted_markers_refine_too():
     image, truth = render_scene(wall(), cam, T, seed=5, blur_px=0.7, noise_std_gray=1.5)
     dets = detect_markers(255 - image, detector_params={"detectInvertedMarker": True})
     assert [d.id for d in dets] == sorted(truth)
-    err = np.array([d.corners - truth[d.id] for d in dets])
+    err = np.array([d.corners_px - truth[d.id] for d in dets])
     assert np.sqrt((err**2).sum(2).mean()) < 0.12
 
 
@@ -239,7 +241,7 @@ def test_edge_refinement_takes_hundreds_of_markers_at_once():
     marker = _cv.generate_marker("ARUCO_ORIGINAL", 7, 70)
     image = cv2.GaussianBlur(cv2.copyMakeBorder(marker, 30, 30, 30, 30, cv2.BORDER_CONSTANT, value=235), (0, 0), 0.8)
     truth = np.array([[0, 0], [70, 0], [70, 70], [0, 70]], float) + 30 - 0.5
-    start = np.stack([d.corners for d in detect_markers(image, refine="none")] * 600)
+    start = np.stack([d.corners_px for d in detect_markers(image, refine="none")] * 600)
     fine = refine_corners_edges(image, start, 7)
     assert fine.shape == (600, 4, 2)
     assert np.abs(fine - truth).max() < 0.02
@@ -268,7 +270,7 @@ def test_every_predefined_dictionary_detects_its_own_last_marker(name):
     # the marker's outer corners in pixel-centre coordinates: -0.5 .. side - 0.5 inside the border
     side = 20 * cells
     truth = np.array([[0, 0], [side, 0], [side, side], [0, side]], float) + 60 - 0.5
-    assert np.abs(dets[0].corners - truth).max() < 0.1
+    assert np.abs(dets[0].corners_px - truth).max() < 0.1
 
 
 @pytest.mark.parametrize("spelling", ["6X6_250", "DICT_6X6_250", "6x6_250", "dict_6x6_250", " 6X6_250 "])
@@ -355,9 +357,9 @@ def test_draw_detections_marks_outline_id_and_named_corners(photo):
     changed = np.any(out != photo, axis=2)
     assert changed.sum() > 3000
     for d in dets:  # every corner is drawn over, and the first one (TL) is red
-        for x, y in np.round(d.corners).astype(int):
+        for x, y in np.round(d.corners_px).astype(int):
             assert changed[y, x]
-        x, y = np.round(d.corners[0]).astype(int)
+        x, y = np.round(d.corners_px[0]).astype(int)
         b, g, r = out[y, x].astype(int)
         assert r > 200 and g < 60 and b < 60
     assert changed[:, :].sum() < 0.25 * changed.size  # a figure, not a repaint
@@ -375,7 +377,7 @@ def test_draw_detections_labels_make_the_winding_visible(photo):
     diff = np.any(plain != labelled, axis=2)
     # each corner name sits just outside its corner, away from the marker's centre
     for d in dets:
-        for p in d.corners:
+        for p in d.corners_px:
             away = p - d.center
             q = np.round(p + 10.0 * away / np.linalg.norm(away)).astype(int)
             win = diff[max(q[1] - 6, 0) : q[1] + 7, max(q[0] - 8, 0) : q[0] + 9]
@@ -419,11 +421,11 @@ def test_ids_restriction_finds_the_same_markers_with_the_same_corners():
     from fidlearn.detection import load_image as _load
 
     img = _load(_dp("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg"))
-    every = {d.id: d.corners for d in detect_markers(img, "6X6_250")}
+    every = {d.id: d.corners_px for d in detect_markers(img, "6X6_250")}
     some = detect_markers(img, "6X6_250", ids=[203, 40, 62])
     assert [d.id for d in some] == [40, 62, 203]
     for d in some:
-        assert np.array_equal(d.corners, every[d.id])
+        assert np.array_equal(d.corners_px, every[d.id])
     assert detect_markers(img, "6X6_250", ids=[1, 2, 3]) == []
 
 
@@ -436,7 +438,7 @@ def test_ids_restriction_on_a_rendered_scene_matches_the_truth():
     dets = detect_markers(img, m.dictionary, ids=m.ids)
     assert [d.id for d in dets] == sorted(truth)
     for d in dets:
-        assert np.sqrt(np.mean((d.corners - truth[d.id]) ** 2)) < 0.3
+        assert np.sqrt(np.mean((d.corners_px - truth[d.id]) ** 2)) < 0.3
 
 
 @pytest.mark.parametrize(
@@ -474,7 +476,7 @@ def test_detection_refuses_what_is_not_a_detection(mid, corners, message):
 
 def test_detection_accepts_numpy_ids_and_flat_corners():
     d = Detection(np.int32(5), np.arange(8.0))
-    assert d.id == 5 and type(d.id) is int and d.corners.shape == (4, 2)
+    assert d.id == 5 and type(d.id) is int and d.corners_px.shape == (4, 2)
     assert Detection(4.0, np.zeros((1, 4, 2))).id == 4
 
 
@@ -494,6 +496,6 @@ def test_one_return_type_and_corners_px(photo):
 def test_detection_corners_keep_their_former_name():
     quad = [[10, 10], [30, 10], [30, 30], [10, 30]]
     for d in (Detection(5, quad), Detection(5, corners_px=quad), Detection(id=5, corners=quad)):
-        assert d.corners is d.corners_px and d.corners.shape == (4, 2) and d.corners.dtype == np.float64
+        assert d.corners_px is d.corners_px and d.corners_px.shape == (4, 2) and d.corners_px.dtype == np.float64
     with pytest.raises(FidlearnError, match="give the corners once"):
         Detection(5, quad, corners=quad)

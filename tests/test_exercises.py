@@ -444,12 +444,12 @@ def test_pnp_correspondences_with_an_unknown_marker():
     m = q.inputs.marker_map
     stray = next(d for d in dets if d.id not in m)
     obj = np.concatenate([m.marker_corners(d.id) if d.id in m else np.zeros((4, 3)) for d in dets])
-    img = np.concatenate([d.corners for d in dets])
+    img = np.concatenate([d.corners_px for d in dets])
     r = q.grade((obj, img))
     assert r.status == INCORRECT and f"marker {stray.id}" in r.message
     known = [d for d in dets if d.id in m]
     shuffled = np.concatenate([m.marker_corners(d.id)[::-1] for d in known])
-    assert "ITS pixel" in q.grade((shuffled, np.concatenate([d.corners for d in known]))).message
+    assert "ITS pixel" in q.grade((shuffled, np.concatenate([d.corners_px for d in known]))).message
 
 
 def test_pnp_camera_pose_instead_of_rvec_tvec():
@@ -568,7 +568,7 @@ def test_epnp_on_one_wall_is_explained():
     q, _ = key_of("06", "q2")
     m, cam = q.inputs.marker_map, q.inputs.camera
     obj = np.concatenate([m.marker_corners(d.id) for d in q.inputs.detections])
-    img = np.concatenate([d.corners for d in q.inputs.detections])
+    img = np.concatenate([d.corners_px for d in q.inputs.detections])
     ok, rvec, tvec = cv2.solvePnP(obj, img, cam.K, cam.dist, flags=_cv.solvepnp_flag("EPNP"))
     r = q.grade((rvec, tvec))
     assert r.status == INCORRECT and "EPnP is unreliable" in r.message

@@ -268,10 +268,10 @@ def test_inputs_are_checked():
     with pytest.raises(PoseError, match="camera must be a fidlearn.Camera"):
         estimate_pose(dets, m, CAM.K)
     with pytest.raises(PoseError, match=r"detections\[1\] is a tuple"):
-        estimate_pose([dets[0], (1, dets[1].corners)], m, CAM)
+        estimate_pose([dets[0], (1, dets[1].corners_px)], m, CAM)
     with pytest.raises(PoseError, match="detections must be a list"):
         estimate_pose(np.zeros((4, 2)), m, CAM)
-    bad = dets[2].corners.copy()
+    bad = dets[2].corners_px.copy()
     bad[1, 0] = np.nan
     with pytest.raises(PoseError, match=r"detections\[2\] \(marker 2\) has NaN"):
         estimate_pose(dets[:2] + [Detection(2, bad)], m, CAM)
@@ -296,11 +296,11 @@ def test_pose_conventions_match_opencv():
     # rvec, tvec are solvePnP's: projectPoints with them reproduces the corners up to the residuals
     for d in dets:
         px, _ = cv2.projectPoints(m.marker_corners(d.id), pose.rvec, pose.tvec, CAM.K, CAM.dist)
-        np.testing.assert_allclose(px.reshape(4, 2) + pose.residuals_px[d.id], d.corners, atol=1e-9)
+        np.testing.assert_allclose(px.reshape(4, 2) + pose.residuals_px[d.id], d.corners_px, atol=1e-9)
         assert np.abs(pose.residuals_px[d.id]).max() < 1.5
     ok, rvec, tvec = cv2.solvePnP(
         np.concatenate([m.marker_corners(d.id) for d in dets]),
-        np.concatenate([d.corners for d in dets]),
+        np.concatenate([d.corners_px for d in dets]),
         CAM.K,
         CAM.dist,
     )
@@ -518,7 +518,7 @@ def test_the_solver_is_as_good_as_lm_started_at_the_truth():
     for _ in range(100):
         dets = observe(m, T, sigma, rng)
         pose = estimate_pose(dets, m, CAM)
-        rvec, tvec = refine_pose_lm(obj, np.concatenate([d.corners for d in dets]), CAM, rvec0, tvec0)
+        rvec, tvec = refine_pose_lm(obj, np.concatenate([d.corners_px for d in dets]), CAM, rvec0, tvec0)
         C = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))[:3, 3]
         for est, out in ((pose.position_mm, ours), (C, truth)):
             e = est - T[:3, 3]
@@ -662,7 +662,7 @@ def test_only_poses_a_camera_can_have_are_chosen():
 
     m = wall_map()
     dets = observe(m, T_WALL)
-    obs = pose_mod._make_obs(m.ids, {d.id: d.corners for d in dets}, m.corners())
+    obs = pose_mod._make_obs(m.ids, {d.id: d.corners_px for d in dets}, m.corners())
     true = pose_mod._Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None, refined=True)
     # the camera mirrored through the wall (x = 0): it would see the markers' backs
     F = np.diag([-1.0, 1.0, 1.0])
@@ -683,7 +683,7 @@ def test_only_poses_a_camera_can_have_are_chosen():
     )
     # one marker of several seen from behind: it may be another one's rotation that is wrong
     one_back = pose_mod._Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None)
-    obs_one = pose_mod._make_obs([0, 1], {d.id: d.corners for d in dets}, _turned(m, 1, 180.0).corners())
+    obs_one = pose_mod._make_obs([0, 1], {d.id: d.corners_px for d in dets}, _turned(m, 1, 180.0).corners())
     assert pose_mod._cheirality(obs_one, one_back).endswith(
         "With markers [0, 1] in view, the wrong rotation may be another one's."
     )
@@ -719,7 +719,7 @@ def test_a_fit_far_worse_than_any_detector_is_refused():
         estimate_pose(dets, cm_as_mm, CAM)
     # every marker's corners listed from the wrong starting point (clockwise still): no pose fits
     with pytest.raises(PoseError, match="the corners do not fit the map: reprojection error"):
-        estimate_pose([Detection(d.id, d.corners[[1, 2, 3, 0]]) for d in dets], m, CAM, reject_outliers=False)
+        estimate_pose([Detection(d.id, d.corners_px[[1, 2, 3, 0]]) for d in dets], m, CAM, reject_outliers=False)
     # well below the threshold (0.4 marker sides): a marker 4 cm off still gives a (dragged) pose
     pose = estimate_pose(dets, _misplaced(m, 4, (0.0, 40.0, -25.0)), CAM, reject_outliers=False)
     side = np.median([d.side_px for d in dets])

@@ -36,7 +36,7 @@ def work(k: int) -> tuple:
     return (
         rec["image"],
         sorted(d.id for d in detections),
-        np.array([d.corners for d in detections]),
+        np.array([d.corners_px for d in detections]),
         by_estimate.T_world_camera,
         by_locate.T_world_camera,
         by_locate.ambiguous,

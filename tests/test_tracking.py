@@ -40,8 +40,8 @@ def test_same_markers_and_corners_as_detect_markers(drive):
     tracker = MarkerTracker(drive.marker_map, CAM)
     for image, truth in zip(drive.images, drive.truth):
         tracker.locate(image)
-        full = {d.id: d.corners for d in detect_markers(image, drive.marker_map.dictionary)}
-        got = {d.id: d.corners for d in tracker.last_detections}
+        full = {d.id: d.corners_px for d in detect_markers(image, drive.marker_map.dictionary)}
+        got = {d.id: d.corners_px for d in tracker.last_detections}
         assert sorted(got) == sorted(full) and set(truth) <= set(got)
         for i in got:
             np.testing.assert_allclose(got[i], full[i], atol=1e-6)

@@ -250,7 +250,7 @@ def _process(args, items, locator: _Locator, staging: _Staging, table: _Table, s
                 if sink is not None:
                     sink.write(record)
                 table.add(row, pose)
-                staging.save(frame.name, draw_pose(frame.image, detections, cam, pose, locator.marker_map))
+                staging.save(frame.name, draw_pose(frame.image, detections, locator.marker_map, cam, pose))
                 table.frames += 1
         except KeyboardInterrupt as exc:
             if args.camera_index is None or isinstance(exc, _Interrupted):

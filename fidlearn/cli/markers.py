@@ -64,7 +64,7 @@ def run_markers(args) -> int:
     extra = f" at {args.dpi:g} dpi" if out.suffix.lower() == ".png" else ""
     several = f", {sheet.per_page} per page" if pages > 1 else ""
     print(
-        f"{where}: {len(ids)} marker{'s' if len(ids) > 1 else ''} of {sheet.size_mm:g} mm ({sheet.dictionary}) "
+        f"{where}: {len(ids)} marker{'s' if len(ids) > 1 else ''} of {sheet.marker_size_mm:g} mm ({sheet.dictionary}) "
         f"on {pages} {sheet.paper} page{'s' if pages > 1 else ''}{extra}{several}"
     )
     print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")

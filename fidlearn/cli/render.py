@@ -132,7 +132,7 @@ def _camera(args):
     return camera
 
 
-def _truth_record(args, out: Path, camera, marker_map, T_world_camera, truth: dict) -> dict:
+def _truth_record(args, out: Path, marker_map, camera, T_world_camera, truth: dict) -> dict:
     """The truth file's content: the camera, the pose (mm, deg) and each marker's corners (px)."""
     return {
         "image": out.name,
@@ -146,7 +146,7 @@ def _truth_record(args, out: Path, camera, marker_map, T_world_camera, truth: di
         "markers_px": {str(k): v.tolist() for k, v in sorted(truth.items())},
         "pixel_convention": "pixel centres at integer coordinates; corners TL, TR, BR, BL",
         "seed": args.seed,
-        "noise_std": args.noise,
+        "noise_std_gray": args.noise,
         "blur_px": args.blur,
     }
 
@@ -175,12 +175,12 @@ def run(args) -> int:
     camera = _camera(args)
     T_world_camera = _pose_from_args(args)
     image, truth = synthetic.render_scene(
-        camera, marker_map, T_world_camera, seed=args.seed, noise_std=args.noise, blur_px=args.blur
+        marker_map, camera, T_world_camera, seed=args.seed, noise_std_gray=args.noise, blur_px=args.blur
     )
 
     def write_both(tmp_truth=None):
         if tmp_truth is not None:
-            record = _truth_record(args, out, camera, marker_map, T_world_camera, truth)
+            record = _truth_record(args, out, marker_map, camera, T_world_camera, truth)
             tmp_truth.write_text(_json_text(record), encoding="utf-8")
         write_image(out, image)
 

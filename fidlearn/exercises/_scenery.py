@@ -98,7 +98,7 @@ def _wall_map(
 
 
 def _noisy_detections(
-    rng: np.random.Generator, camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, noise_px: float
+    rng: np.random.Generator, marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, noise_px: float
 ) -> list:
     dets = []
     for mid in marker_map.ids:

@@ -96,6 +96,23 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
     pixel alike, and the pose found with that camera turns by as much, so a localization never
     sees it (mrcal makes the same correction). The result is ``sqrt(trace(P J C J^T P^T) / 2)``
     per cell, ``P`` removing the best-fitting rotation over the whole grid.
+
+    Parameters
+    ----------
+    camera : Camera
+        The calibrated camera.
+    covariance : ndarray, shape (n, n)
+        Covariance of its intrinsics ``[fx, fy, cx, cy, dist...]`` (px, and unitless for the
+        distortion), as :attr:`CalibrationCoach.covariance`.
+    distance_mm : float
+        Distance along each ray at which the point is taken (mm); the views' median distance.
+    grid : (int, int)
+        Cells across and down the picture.
+
+    Returns
+    -------
+    ndarray, shape (grid[1], grid[0])
+        The uncertainty (px per axis), row 0 at the top of the picture.
     """
     px = _pixel_grid(camera, grid)
     rays = cv2.undistortPoints(px.reshape(-1, 1, 2), camera.K, camera.dist).reshape(-1, 2)
@@ -111,7 +128,23 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
 
 @dataclass(frozen=True)
 class NextView:
-    """A board placement to photograph next, and what it would bring."""
+    """A board placement to photograph next, and what it would bring.
+
+    Attributes
+    ----------
+    T_camera_board : ndarray, shape (4, 4)
+        The board's pose in the camera frame (mm).
+    where : str
+        The part of the picture it should fill, in words ("the top left").
+    tilt : str
+        How to tilt it, in words.
+    distance_mm : float
+        Distance from the camera to the board (mm).
+    good_fraction_after : float
+        Fraction of the picture under :data:`GOOD_UNCERTAINTY_PX` once this view is added.
+    median_uncertainty_px_after : float
+        Median reprojection uncertainty (px per axis) once this view is added.
+    """
 
     T_camera_board: np.ndarray
     where: str
@@ -162,6 +195,13 @@ class CalibrationCoach:
         return float(math.sqrt(self.covariance[0, 0]))
 
     def report(self) -> str:
+        """The verdict in words, as ``fidlearn calibrate`` prints it.
+
+        Returns
+        -------
+        str
+            The uncertainty over the picture, one ``warning:`` line per flag, and the next photo.
+        """
         lines = [
             f"reprojection uncertainty: median {np.median(self.uncertainty_px):.2f} px, worst "
             f"{self.uncertainty_px.max():.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
@@ -371,7 +411,20 @@ def _board_in_picture(camera: Camera, board_mm: np.ndarray, T_camera_board: np.n
 
 
 def coach_calibration(calibration, other_sizes: int | None = None) -> CalibrationCoach:
-    """:func:`coach` on a :class:`~fidlearn.Calibration`'s own views and RMS."""
+    """:func:`coach` on a :class:`~fidlearn.Calibration`'s own views and RMS.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        The result of :func:`fidlearn.calibrate_checkerboard` or :func:`fidlearn.calibrate_charuco`.
+    other_sizes : int, optional
+        Photos left out for another resolution; by default counted from the calibration's views.
+
+    Returns
+    -------
+    CalibrationCoach
+        The verdict, with the corner noise taken from the calibration's RMS (per axis).
+    """
     if other_sizes is None:
         other_sizes = sum(1 for v in calibration.views if v.status == "other size")
     # OpenCV's RMS is over the 2D distance of each point: per axis it is RMS / sqrt(2)

@@ -119,7 +119,7 @@ def _check_pose(T_world_camera) -> np.ndarray:
     return frames.check_transform(T, "T_world_camera")
 
 
-def _seen(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray) -> tuple[dict, dict]:
+def _seen(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray) -> tuple[dict, dict]:
     """``({id: (4, 2) pixel corners}, {id: why it is not found})`` for every marker of the map."""
     T_camera_world = frames.invert_transform(T_world_camera)
     eye = T_world_camera[:3, 3]
@@ -267,7 +267,7 @@ def _predict(
         )
         if not ok or not math.isfinite(corner_sigma_px) or corner_sigma_px <= 0:
             raise FidlearnError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
-    seen, lost = _seen(camera, marker_map, T)
+    seen, lost = _seen(marker_map, camera, T)
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
     sigmas = {

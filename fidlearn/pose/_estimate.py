@@ -182,7 +182,7 @@ def _known_corners(dets: list[Detection], marker_map: MarkerMap) -> tuple[dict[i
             prev = Detection(d.id, corners_px[d.id])
             if prev.side_px >= d.side_px:
                 continue
-        corners_px[d.id] = d.corners
+        corners_px[d.id] = d.corners_px
     if not corners_px:
         raise _no_markers_error(dets, marker_map)
     return corners_px, ignored

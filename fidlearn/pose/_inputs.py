@@ -119,7 +119,7 @@ def _check_inputs(detections, marker_map, camera) -> tuple[list[Detection], Mark
                 f"detections[{k}] is a {type(d).__name__}, expected a Detection(id, corners (4, 2)); "
                 "build one with fidlearn.detection.Detection(marker_id, corners_px)"
             )
-    if dets and not np.isfinite(np.stack([d.corners for d in dets])).all():
-        k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners).all())
-        raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners.tolist()}")
+    if dets and not np.isfinite(np.stack([d.corners_px for d in dets])).all():
+        k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners_px).all())
+        raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners_px.tolist()}")
     return dets, marker_map, camera

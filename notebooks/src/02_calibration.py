@@ -264,7 +264,7 @@ def camera_pose(image, camera):
     """T_world_camera (4, 4) from the markers in image, and the reprojection RMS (px)."""
     detections = [d for d in detect_markers(image, wall.dictionary) if d.id in wall]
     points_world = np.vstack([wall.corners()[d.id] for d in detections])
-    points_px = np.vstack([d.corners for d in detections])
+    points_px = np.vstack([d.corners_px for d in detections])
     ok, rvec, tvec = cv2.solvePnP(points_world, points_px, camera.K, camera.dist,
                                   flags=cv2.SOLVEPNP_ITERATIVE)
     T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))

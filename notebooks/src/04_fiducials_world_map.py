@@ -120,7 +120,7 @@ for Z in distances_mm:
         seen = [d for d in detect_markers(image, "ARUCO_ORIGINAL") if d.id == 0]
         if seen:
             hits += 1
-            errors.append(np.sqrt(np.mean(np.sum((seen[0].corners - truth[0]) ** 2, axis=1))))
+            errors.append(np.sqrt(np.mean(np.sum((seen[0].corners_px - truth[0]) ** 2, axis=1))))
     ppc.append(camera.fx * 80 / Z / cells)
     rate.append(hits / len(views))
     error_px.append(np.mean(errors) if errors else np.nan)
@@ -298,7 +298,7 @@ detections = detect_markers(image, "ARUCO_ORIGINAL")
 print("markers in view (truth):", sorted(truth), " detected:", [d.id for d in detections])
 assert sorted(truth) == [d.id for d in detections] == [1, 3, 4]
 for d in detections:
-    assert np.abs(d.corners - truth[d.id]).max() < 0.5  # pixels
+    assert np.abs(d.corners_px - truth[d.id]).max() < 0.5  # pixels
 
 ax = plotting.show_image(None, image, title="the camera's view: detected markers with their corner names")
 plotting.plot_detections(ax, detections)

@@ -97,7 +97,7 @@ assert opencv_error_px.max() < 1.5  # right to about a pixel, even without refin
 
 # %% [markdown]
 # `fidlearn.detection.detect_markers(image, dictionary)` wraps the same detector (made once and cached) and
-# returns a list of `Detection(id, corners)`, sorted by id, corners as (4, 2) float64 pixels. It also refines
+# returns a list of `Detection(id, corners_px)`, sorted by id, corners as (4, 2) float64 pixels. It also refines
 # the corners: OpenCV offers `"subpix"`, `"contour"` and `"apriltag"`; fidlearn's default `"edges"` fits a
 # straight line to each of the marker's four outer edges and intersects neighbouring lines.
 
@@ -124,7 +124,7 @@ for rec in scenes[:6]:
     for r in refinements:
         found = detect_markers(img, world_map.dictionary, refine=r)
         assert sorted(d.id for d in found) == sorted(truth), (rec["image"], r)
-        errors[r] += [np.linalg.norm(d.corners - truth[d.id], axis=1) for d in found]
+        errors[r] += [np.linalg.norm(d.corners_px - truth[d.id], axis=1) for d in found]
 
 errors = {r: np.concatenate(e) for r, e in errors.items()}
 print("refinement   corners   mean error   max error (px)")
@@ -199,9 +199,9 @@ def turned_deg(quad):
 
 turns = {}
 for d in found:
-    turns[d.id] = turned_deg(d.corners)
-    print(f"marker {d.id:3d}: signed area {signed_area_px2(d.corners):6.0f} px^2, turned {turns[d.id]:3d} deg clockwise")
-    assert signed_area_px2(d.corners) > 0  # clockwise, every one
+    turns[d.id] = turned_deg(d.corners_px)
+    print(f"marker {d.id:3d}: signed area {signed_area_px2(d.corners_px):6.0f} px^2, turned {turns[d.id]:3d} deg clockwise")
+    assert signed_area_px2(d.corners_px) > 0  # clockwise, every one
 assert turns == {23: 0, 40: 0, 62: 180, 98: 0, 124: 90, 203: 0}
 
 # %% [markdown]
@@ -225,7 +225,7 @@ object_points = np.concatenate([world_map.marker_corners(d.id) for d in detectio
 wrong_poses = {}
 print("order                         solvePnP: position error  reprojection RMS")
 for name, order in orders.items():
-    image_points = np.concatenate([d.corners[order] for d in detections])
+    image_points = np.concatenate([d.corners_px[order] for d in detections])
     ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist)
     T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
     wrong_poses[name] = T_world_camera
@@ -239,7 +239,7 @@ for name, order in orders.items():
 
 for name, order in orders.items():
     try:
-        pose = estimate_pose([Detection(d.id, d.corners[order]) for d in detections], world_map, camera)
+        pose = estimate_pose([Detection(d.id, d.corners_px[order]) for d in detections], world_map, camera)
         print(f"estimate_pose, {name}: position error {np.linalg.norm(pose.position_mm - T_true[:3, 3]):.1f} mm")
         assert order == [0, 1, 2, 3]
     except PoseError as exc:
@@ -261,7 +261,7 @@ for name, order in orders.items():
 # %%
 marker0 = [d for d in detections if d.id == 0]
 right = estimate_pose(marker0, world_map, camera)
-rotated = estimate_pose([Detection(0, marker0[0].corners[[1, 2, 3, 0]])], world_map, camera)
+rotated = estimate_pose([Detection(0, marker0[0].corners_px[[1, 2, 3, 0]])], world_map, camera)
 for name, pose in (("right order", right), ("rotated order", rotated)):
     err = np.linalg.norm(pose.position_mm - T_true[:3, 3])
     turn = frames.rotation_angle_deg(pose.T_world_camera[:3, :3], T_true[:3, :3])

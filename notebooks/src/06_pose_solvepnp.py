@@ -65,7 +65,7 @@ for d in detections:
     if d.id not in world_corners:
         continue  # a marker that is not on our wall
     object_points.append(world_corners[d.id])
-    image_points.append(d.corners)
+    image_points.append(d.corners_px)
     used.append(d.id)
 object_points = np.vstack(object_points).astype(np.float64)  # (4N, 3) mm, world frame
 image_points = np.vstack(image_points).astype(np.float64)    # (4N, 2) px
@@ -138,7 +138,7 @@ for s, rec in enumerate(scenes):
     found = detect_markers(load_image(data_path("scenes", rec["image"])), m.dictionary)
     corners3d = m.corners()
     obj = np.vstack([corners3d[d.id] for d in found if d.id in corners3d])
-    img = np.vstack([d.corners for d in found if d.id in corners3d])
+    img = np.vstack([d.corners_px for d in found if d.id in corners3d])
     for j, flag in enumerate(solvers):
         table[s, j] = solve_position_error_mm(flag, obj, img, np.array(rec["T_world_camera"]))
 

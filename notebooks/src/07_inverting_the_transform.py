@@ -43,7 +43,7 @@ T_world_camera_true = np.array(record["T_world_camera"])
 detections = detect_markers(load_image(data_path("scenes", record["image"])), world_map.dictionary)
 world_corners = world_map.corners()
 object_points = np.vstack([world_corners[d.id] for d in detections])  # (12, 3) mm, world
-image_points = np.vstack([d.corners for d in detections])             # (12, 2) px
+image_points = np.vstack([d.corners_px for d in detections])             # (12, 2) px
 
 ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
 rvec, tvec = cv2.solvePnPRefineLM(object_points, image_points, camera.K, camera.dist, rvec, tvec)
@@ -178,7 +178,7 @@ for rec in scenes:
     dets = detect_markers(load_image(data_path("scenes", rec["image"])), m.dictionary)
     wc = m.corners()
     obj = np.vstack([wc[d.id] for d in dets])
-    img = np.vstack([d.corners for d in dets])
+    img = np.vstack([d.corners_px for d in dets])
     flag = "IPPE" if m.is_coplanar() else "SQPNP"
     ok, r, tv = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=getattr(cv2, "SOLVEPNP_" + flag))
     r, tv = cv2.solvePnPRefineLM(obj, img, camera.K, camera.dist, r, tv)
@@ -225,7 +225,7 @@ side = world_map.marker_size_mm
 square = np.array([[-side / 2, side / 2, 0], [side / 2, side / 2, 0],      # TL, TR
                    [side / 2, -side / 2, 0], [-side / 2, -side / 2, 0]])   # BR, BL, in the marker's frame, mm
 marker0 = next(d for d in detections if d.id == 0)
-ok, r0, t0 = cv2.solvePnP(square, marker0.corners, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
+ok, r0, t0 = cv2.solvePnP(square, marker0.corners_px, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
 T_camera_marker = frames.transform_from_rvec_tvec(r0, t0)
 T_world_marker = world_map.T_world_marker(0)
 T_world_camera_1 = T_world_marker @ invert_closed_form(T_camera_marker)
@@ -270,7 +270,7 @@ s50 = 50.0
 square50 = np.array([[-s50 / 2, s50 / 2, 0], [s50 / 2, s50 / 2, 0], [s50 / 2, -s50 / 2, 0], [-s50 / 2, -s50 / 2, 0]])
 centres = {}
 for d in detect_markers(photo, "6X6_250"):
-    ok, r, tv = cv2.solvePnP(square50, d.corners, photo_camera.K, photo_camera.dist,
+    ok, r, tv = cv2.solvePnP(square50, d.corners_px, photo_camera.K, photo_camera.dist,
                              flags=cv2.SOLVEPNP_IPPE_SQUARE)
     centres[d.id] = tv.reshape(3)
     print(f"marker {d.id:3d}: centre at {centres[d.id].round(0)} mm in the camera frame, "

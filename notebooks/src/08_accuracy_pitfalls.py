@@ -293,7 +293,7 @@ def seed_pipeline(image, marker_map, refine="none", lm=False):
     dets = detect_markers(image, marker_map.dictionary, refine=refine)
     corners3d = marker_map.corners()
     obj = np.vstack([corners3d[d.id] for d in dets if d.id in corners3d])
-    img = np.vstack([d.corners for d in dets if d.id in corners3d])
+    img = np.vstack([d.corners_px for d in dets if d.id in corners3d])
     ok, rvec, tvec = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
     if ok and lm:
         rvec, tvec = cv2.solvePnPRefineLM(obj, img, camera.K, camera.dist, rvec, tvec)

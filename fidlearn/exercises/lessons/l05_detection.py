@@ -65,7 +65,7 @@ def _scene(lesson_id: str, learner: str, question: str, n_markers: int, rotated:
     eye = np.round(rng.uniform([1700, -300, 1000], [2300, 300, 1400]))
     T = synthetic.look_at(eye, [0.0, float(np.round(rng.uniform(-100, 100))), 1150.0])
     image, truth = synthetic.render_scene(
-        cam, m, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std=2.0, gradient=0.15
+        m, cam, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std_gray=2.0, gradient=0.15
     )
     return cam, m, T, image, truth, rotated_id, dictionary
 
@@ -107,7 +107,7 @@ _Q1 = {
         """,
     "hint": (
         "from fidlearn.detection import detect_markers; detections = detect_markers(image, dictionary=...); "
-        "each has .id and .corners."
+        "each has .id and .corners_px."
     ),
     "look": 'from fidlearn import plotting\nplotting.show_image(None, q1.inputs.image, title="q1.inputs.image");',
     "solution": """
@@ -153,13 +153,13 @@ _Q2 = {
         TL, TR, BR, BL: the order the map uses and detection reports.
         """,
     "hint": (
-        "Keep the corners exactly as the detector returns them for that id: d.corners for the Detection "
+        "Keep the corners exactly as the detector returns them for that id: d.corners_px for the Detection "
         "with d.id == marker_id."
     ),
     "solution": """
         from fidlearn.detection import detect_markers
         detections = detect_markers(q2.inputs.image, dictionary=q2.inputs.dictionary)
-        q2.answer = next(d.corners for d in detections if d.id == q2.inputs.marker_id)
+        q2.answer = next(d.corners_px for d in detections if d.id == q2.inputs.marker_id)
         """,
     "level": "medium",
 }
@@ -209,7 +209,7 @@ _Q3 = {
     "solution": """
         from fidlearn.detection import detect_markers
         detections = detect_markers(q3.inputs.image, dictionary=q3.inputs.dictionary)
-        c = next(d.corners for d in detections if d.id == q3.inputs.marker_id)
+        c = next(d.corners_px for d in detections if d.id == q3.inputs.marker_id)
         dx, dy = c[1] - c[0]
         q3.answer = np.degrees(np.arctan2(dy, dx))
         """,

@@ -56,7 +56,7 @@ def _same_rows(a: np.ndarray, b: np.ndarray, tol: float = 0.01) -> bool:
 _Q1 = {
     "title": "2D-3D correspondences",
     "task": """
-        `detections` lists detected markers (fidlearn Detection: `.id`, `.corners` (4, 2) px,
+        `detections` lists detected markers (fidlearn Detection: `.id`, `.corners_px` (4, 2) px,
         TL, TR, BR, BL); one of them is not in the map. `marker_map` gives world corners
         (marker_map.marker_corners(id), (4, 3) mm, same order). Write code that builds the
         arrays solvePnP needs: object_points (N, 3) mm and image_points (N, 2) px, row k of one
@@ -64,13 +64,13 @@ _Q1 = {
         """,
     "hint": (
         "Loop over the detections, skip an id that is not in marker_map (`d.id in marker_map`), and "
-        "stack marker_map.marker_corners(d.id) and d.corners."
+        "stack marker_map.marker_corners(d.id) and d.corners_px."
     ),
     "solution": """
         m = q1.inputs.marker_map
         known = [d for d in q1.inputs.detections if d.id in m]
         object_points = np.concatenate([m.marker_corners(d.id) for d in known])
-        image_points = np.concatenate([d.corners for d in known])
+        image_points = np.concatenate([d.corners_px for d in known])
         q1.answer = (object_points, image_points)
         """,
     "level": "easy",
@@ -83,12 +83,12 @@ def _q1(learner: str) -> Question:
     cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
     m = _wall_map(rng, 4, float(rng.choice([100, 120, 150])))
     T = _look_at(np.round(rng.uniform([1800, -500, 1000], [3000, 500, 1500])), [0, 0, 1200])
-    dets = _noisy_detections(rng, cam, m, T, 0.2)
+    dets = _noisy_detections(rng, m, cam, T, 0.2)
     stray_id = int(max(m.ids) + 1 + rng.integers(0, 5))
-    stray = Detection(stray_id, np.round(dets[0].corners + [[-300, 150]], 3))
-    detections = sorted(dets + [stray], key=lambda d: d.corners[0, 0])
+    stray = Detection(stray_id, np.round(dets[0].corners_px + [[-300, 150]], 3))
+    detections = sorted(dets + [stray], key=lambda d: d.corners_px[0, 0])
     obj = np.concatenate([m.marker_corners(d.id) for d in detections if d.id in m])
-    img = np.concatenate([d.corners for d in detections if d.id in m])
+    img = np.concatenate([d.corners_px for d in detections if d.id in m])
     key_pairs = np.column_stack([obj, img])
 
     def parse_pairs(answer):
@@ -149,7 +149,7 @@ _Q2 = {
         m, cam = q2.inputs.marker_map, q2.inputs.camera
         known = [d for d in q2.inputs.detections if d.id in m]
         object_points = np.concatenate([m.marker_corners(d.id) for d in known])
-        image_points = np.concatenate([d.corners for d in known])
+        image_points = np.concatenate([d.corners_px for d in known])
         ok, rvec, tvec = cv2.solvePnP(object_points, image_points, cam.K, cam.dist)
         q2.answer = (rvec, tvec)
         """,
@@ -197,9 +197,9 @@ def _q2(learner: str) -> Question:
     T2 = _look_at(
         np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, float(np.round(rng.uniform(-200, 200))), 1200]
     )
-    dets2 = _noisy_detections(rng, cam2, m2, T2, 0.3)
+    dets2 = _noisy_detections(rng, m2, cam2, T2, 0.3)
     obj2 = np.concatenate([m2.marker_corners(d.id) for d in dets2])
-    img2 = np.concatenate([d.corners for d in dets2])
+    img2 = np.concatenate([d.corners_px for d in dets2])
     ok, rv, tv = cv2.solvePnP(obj2, img2, cam2.K, cam2.dist, flags=_cv.solvepnp_flag("ITERATIVE"))
     Tcw_key = frames.transform_from_rvec_tvec(rv.ravel(), tv.ravel())
     ok, rv_e, tv_e = cv2.solvePnP(obj2, img2, cam2.K, cam2.dist, flags=_cv.solvepnp_flag("EPNP"))
@@ -258,9 +258,9 @@ def _q3(learner: str) -> Question:
     cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
     m3 = _wall_map(rng, 4, 120.0)
     T3 = _look_at(np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, 0, 1200])
-    dets3 = _noisy_detections(rng, cam3, m3, T3, float(np.round(rng.uniform(0.3, 1.0), 2)))
+    dets3 = _noisy_detections(rng, m3, cam3, T3, float(np.round(rng.uniform(0.3, 1.0), 2)))
     obj3 = np.concatenate([m3.marker_corners(d.id) for d in dets3])
-    img3 = np.concatenate([d.corners for d in dets3])
+    img3 = np.concatenate([d.corners_px for d in dets3])
     ok, rv3, tv3 = cv2.solvePnP(obj3, img3, cam3.K, cam3.dist)
     rv3, tv3 = np.round(rv3.ravel(), 6), np.round(tv3.ravel(), 3)
     proj = cv2.projectPoints(obj3, rv3, tv3, cam3.K, cam3.dist)[0].reshape(-1, 2)

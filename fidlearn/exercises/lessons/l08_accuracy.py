@@ -184,7 +184,7 @@ def _q2(learner: str) -> Question:
     eye = np.round(rng.uniform([1800, -400, 1000], [2600, 400, 1400]))
     T2 = synthetic.look_at(eye, [0.0, 0.0, 1250.0])
     image, truth = synthetic.render_scene(
-        cam2, true_map, T2, seed=int(rng.integers(1 << 30)), blur_px=0.5, noise_std=1.5
+        true_map, cam2, T2, seed=int(rng.integers(1 << 30)), blur_px=0.5, noise_std_gray=1.5
     )
     bad = int(rng.choice(sorted(truth)))
     shift = rng.choice([-1, 1]) * float(rng.uniform(80, 140))
@@ -296,7 +296,7 @@ def _ambiguous_view(rng: np.random.Generator) -> tuple:
             centre + [float(rng.uniform(2800, 3600)), float(rng.uniform(-150, 150)), float(rng.uniform(-100, 100))],
             centre,
         )
-        det3 = _noisy_detections(rng, cam3, m3, T3, 0.3)
+        det3 = _noisy_detections(rng, m3, cam3, T3, 0.3)
         p3 = _pose.estimate_pose(det3, m3, cam3)
         if (
             p3.ambiguous
@@ -309,7 +309,7 @@ def _ambiguous_view(rng: np.random.Generator) -> tuple:
     s3 = m3.marker_size_mm / 2
     local = np.array([[-s3, s3, 0], [s3, s3, 0], [s3, -s3, 0], [-s3, -s3, 0]])
     _, rvs, tvs, _ = cv2.solvePnPGeneric(
-        local, det3[0].corners, cam3.K, cam3.dist, flags=_cv.solvepnp_flag("IPPE_SQUARE")
+        local, det3[0].corners_px, cam3.K, cam3.dist, flags=_cv.solvepnp_flag("IPPE_SQUARE")
     )
     raw = [
         frames.invert_transform(frames.transform_from_rvec_tvec(np.ravel(r), np.ravel(t)))[:3, 3]

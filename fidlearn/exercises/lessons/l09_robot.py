@@ -110,8 +110,8 @@ def _q1(learner: str) -> Question:
     cam = Camera.from_fov(float(np.round(rng.uniform(55, 65))), (960, 720))
     n = 6
     drive = synthetic.render_trajectory(
-        cam,
         m,
+        cam,
         n_frames=n,
         seed=int(rng.integers(1 << 20)),
         start_lateral_mm=float(rng.uniform(-700, -300)),
