@@ -104,7 +104,7 @@ def accuracy(dictionary: str, n_scenes: int, methods) -> dict:
         for s in range(n_scenes):
             image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
             visible += len(truth)
-            per = {m: {d.id: d.corners for d in detect_markers(image, dictionary, refine=m)} for m in methods}
+            per = {m: {d.id: d.corners_px for d in detect_markers(image, dictionary, refine=m)} for m in methods}
             if per["none"]:
                 ids = sorted(per["none"])
                 fine = refine_corners_edges(image, np.stack([per["none"][i] for i in ids]), cells, gamma=2.2)
@@ -201,7 +201,7 @@ def robustness(methods, n_scenes: int = 4) -> dict:
             params = {"detectInvertedMarker": True} if invert else None
             for m in methods:
                 errs[m] += [
-                    d.corners - truth[d.id]
+                    d.corners_px - truth[d.id]
                     for d in detect_markers(image, dic, refine=m, detector_params=params)
                     if d.id in truth
                 ]
@@ -242,7 +242,7 @@ def print_subpix_windows(dictionary: str, n_scenes: int = 3) -> None:
             for s in range(n_scenes):
                 image, truth, _, _ = scene(side, 1000 * side + s, dictionary)
                 e += [
-                    d.corners - truth[d.id]
+                    d.corners_px - truth[d.id]
                     for d in detect_markers(image, dictionary, refine="subpix", detector_params=params)
                     if d.id in truth
                 ]
@@ -279,25 +279,25 @@ def real_photos(methods) -> dict:
     names = ("img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg")
     for name in names:
         image = load_image(data_path("real", "opencv_charuco", name))
-        ref = {d.id: d.corners for d in detect_markers(image, "6X6_250", refine="edges")}
+        ref = {d.id: d.corners_px for d in detect_markers(image, "6X6_250", refine="edges")}
         gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
         for m in methods + ["edges, gamma 2.2"]:
             if m == "edges, gamma 2.2":  # the edge at half the light, for a camera with an sRGB-like curve
                 dets = [d for d in detect_markers(image, "6X6_250", refine="none") if d.id in obj]
-                fine = refine_corners_edges(gray, np.stack([d.corners for d in dets]), 8, gamma=2.2)
+                fine = refine_corners_edges(gray, np.stack([d.corners_px for d in dets]), 8, gamma=2.2)
                 dets = [Detection(d.id, c) for d, c in zip(dets, fine)]
             else:
                 dets = [d for d in detect_markers(image, "6X6_250", refine=m) if d.id in obj]
             P = np.stack([obj[d.id] for d in dets])
             Q = cv2.undistortPoints(
-                np.concatenate([d.corners for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K
+                np.concatenate([d.corners_px for d in dets]).reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K
             ).reshape(-1, 2)
             out[m]["h"].append(fit(P, Q))
             centre = P.mean(axis=1, keepdims=True)
             best = min((float((fit(centre + s * (P - centre), Q) ** 2).sum()), s) for s in np.linspace(0.95, 1.05, 201))
             out[m]["hs"].append(fit(centre + best[1] * (P - centre), Q))
             out[m]["s"].append(best[1])
-            out[m]["d"] += [d.corners - ref[d.id] for d in dets if d.id in ref]
+            out[m]["d"] += [d.corners_px - ref[d.id] for d in dets if d.id in ref]
     return {
         m: dict(
             h=float(np.sqrt((np.concatenate(v["h"]) ** 2).sum(1).mean())),

@@ -166,7 +166,7 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11) -> None:
             if d.id in truth:
                 t = truth[d.id]
                 sides.append(float(np.mean(np.linalg.norm(t - np.roll(t, 1, axis=0), axis=1))))
-                errs.append((d.corners - t).ravel())
+                errs.append((d.corners_px - t).ravel())
     sides, errs = np.array(sides), np.array(errs)
     edges = np.concatenate([[0], (noise.NOISE_SIDE_PX[1:] + noise.NOISE_SIDE_PX[:-1]) / 2, [np.inf]])
     print("| side (px) | markers | corner RMS per axis (px) | robust sigma (1.4826 MAD, px) |\n|---|---|---|---|")

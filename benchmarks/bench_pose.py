@@ -168,7 +168,7 @@ def bench_rendered(n_per_map: int, rng) -> None:
                 if r is None:
                     from fidlearn.detection import detect_markers
 
-                    found = {d.id: d.corners for d in detect_markers(image, m.dictionary)}
+                    found = {d.id: d.corners_px for d in detect_markers(image, m.dictionary)}
                     for i in p.rejected_ids:  # the map is right: was the detection wrong?
                         bad = i not in truth or np.abs(found[i] - truth[i]).max() > 0.5
                         n_rejected_bad_detection += bad

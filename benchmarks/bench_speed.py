@@ -310,9 +310,9 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     n_pose = 0
     for (image, _), truth, T in zip(frames, truths, poses):
         ids_plain = set(_cv.detect(plain, image)[1].tolist())
-        full_dets = {d.id: d.corners for d in detect_markers(image, DICT)}
+        full_dets = {d.id: d.corners_px for d in detect_markers(image, DICT)}
         pose = _tracked(tracker, image)
-        ours = {d.id: d.corners for d in tracker.last_detections}
+        ours = {d.id: d.corners_px for d in tracker.last_detections}
         found["plain detectMarkers"] += len(set(truth) & ids_plain)
         found["detect_markers (fidlearn default)"] += len(set(truth) & set(full_dets))
         found["MarkerTracker"] += len(set(truth) & set(ours))
