@@ -427,6 +427,7 @@ plt.show()
 # %%
 board = board_mm.astype(float)  # the 54 corners on the board, (54, 3) mm
 noise_px = 0.1
+cv2.setNumThreads(1)  # calibrateCamera's threads add up in a varying order: one thread repeats to the last digit
 
 
 def corner_pixels(T_camera_board, rng=None):
