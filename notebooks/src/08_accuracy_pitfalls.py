@@ -475,9 +475,8 @@ plt.show()
 # range (8 in 10 would be expected). Here the measured errors run about a third above the predicted medians (the
 # median ratio, 1.34); twelve pictures cannot say much more. It is a prediction for many pictures: one picture
 # can land anywhere in the range, and the benchmark (`benchmarks/bench_planning.py`) checks the medians over
-# many rendered rooms. Real photos have noisier corners than
-# renders (motion blur, compression, a soft print): there, pass the reprojection RMS of your own `locate` runs
-# as `corner_sigma_px`.
+# many rendered rooms. Real photos have noisier corners than renders (motion blur, compression, a soft print):
+# there, pass the reprojection RMS of your own `locate` runs as `corner_sigma_px`.
 #
 # ### The whole room at once
 #
@@ -558,7 +557,7 @@ display(fig)
 # metres apart, the lesson of section 4. Three 120 mm markers placed so keep every place of the area within
 # 10 mm looking at them (worst 7.7 mm), where the seed's three 80 mm markers close together leave a third of it
 # outside. Turning on the spot (right panel), the far part of the room still goes beyond 10 mm: a heading that
-# keeps only one marker in view is worse than one that sees all three.
+# keeps only one or two of the markers in view is worse than one that sees all three.
 #
 # The search is greedy (one marker at a time, each the best given the ones before) on a coarse grid (every
 # 50 cm, looking at the markers), so it can miss a better layout; it is a starting point for your own design.
