@@ -380,8 +380,9 @@ left_views = [v for v in cal.used if cal.image_points_px[v][:, 0].max() < true_c
 cal_left = calibrate_checkerboard(left_views, pattern, square_mm)
 coached_left = coach_calibration(cal_left)
 for label, c, k in (("all 20 views", cal, coached), (f"the {len(left_views)} left views", cal_left, coached_left)):
-    print(f"{label:17s}: RMS {c.rms_px:.3f} px, fx {c.camera.fx:.2f} px ({100 * (c.camera.fx / true_camera.fx - 1):+.2f} % "
-          f"from the truth), worst uncertainty {k.uncertainty_px.max():.2f} px")
+    fx_error_pct = 100 * (c.camera.fx / true_camera.fx - 1)
+    print(f"{label:17s}: RMS {c.rms_px:.3f} px, fx {c.camera.fx:.2f} px ({fx_error_pct:+.2f} % from the truth), "
+          f"worst uncertainty {k.uncertainty_px.max():.2f} px")
 print(coached_left.report())
 assert abs(cal_left.rms_px - cal.rms_px) < 0.005                       # the RMS does not see it
 assert abs(cal_left.camera.fx / true_camera.fx - 1) > 5 * abs(cal.camera.fx / true_camera.fx - 1)
@@ -464,7 +465,8 @@ def calibrate_and_coach(photos):
 
 
 rng = np.random.default_rng(2)
-ninths = [(u, v) for v in ((0.05, 0.35), (0.35, 0.65), (0.65, 0.95)) for u in ((0.05, 0.35), (0.35, 0.65), (0.65, 0.95))]
+thirds = ((0.05, 0.35), (0.35, 0.65), (0.65, 0.95))
+ninths = [(u, v) for v in thirds for u in thirds]  # (u range, v range) of each ninth of the picture, row by row
 make_set = {
     "spread and tilted": lambda: [board_pose(rng, *ninths[k % 9], tilt_deg=(10, 40)) for k in range(20)],
     "face-on": lambda: [board_pose(rng, tilt_deg=(0, 3)) for _ in range(20)],
@@ -579,8 +581,9 @@ plt.show()
 # get there within 30. The coach asks for what the set lacks: the board tilted strongly (its candidates tilt
 # 35 degrees) one way, then another way not yet seen, and close to the camera (mostly under half a metre), so it
 # fills most of the picture. Random photos are tilted 20 degrees on average, 60 cm away. The benchmark
-# (`benchmarks/bench_planning.py`) runs the same race with more seeds. With your own camera: `fidlearn calibrate photos/*.jpg --pattern 9x6
-# --square-mm 25 -o camera.json --report report.png`, then take the photo it names, and calibrate again.
+# (`benchmarks/bench_planning.py`) runs the same race with more seeds. With your own camera:
+# `fidlearn calibrate photos/*.jpg --pattern 9x6 --square-mm 25 -o camera.json --report report.png`, then take
+# the photo it names, and calibrate again.
 
 # %% [markdown]
 # ## Summary

@@ -390,8 +390,9 @@ predictions = {name: predict_accuracy(world_map, camera, T) for name, T in place
 for name, p in predictions.items():
     distance = np.linalg.norm(p.T_world_camera[:3, 3] - centre_seed)
     print(f"{name}, {distance / 1000:.1f} m from the markers:")
-    print("  found: " + ", ".join(f"marker {i} ({p.side_px[i]:.0f} px sides, corner noise {p.corner_sigma_px[i]:.3f} px)"
-                                  for i in p.marker_ids))
+    found = [f"marker {i} ({p.side_px[i]:.0f} px sides, corner noise {p.corner_sigma_px[i]:.3f} px)"
+             for i in p.marker_ids]
+    print("  found: " + ", ".join(found))
     for i, why in p.lost.items():
         print(f"  lost : marker {i}, {why}")
     print(f"  position std along X, Y, Z: {', '.join(f'{s:.1f}' for s in p.position_std_mm)} mm; "
