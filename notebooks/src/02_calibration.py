@@ -9,7 +9,9 @@
 # * how to read per-view errors, and which views to reject;
 # * calibrating a synthetic set (true camera known) and real photos (published numbers known);
 # * saving and loading `camera.json`;
-# * the trap of calibrating at one resolution and running at another, measured, and its fixes.
+# * the trap of calibrating at one resolution and running at another, measured, and its fixes;
+# * why a small RMS is not enough: the **reprojection uncertainty** across the picture, the calibration coach's
+#   warnings, and following its advice for the next photo against taking random ones.
 #
 # Notebook 01 explains K and the distortion coefficients.
 
@@ -23,10 +25,13 @@ import warnings
 import cv2
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import display
 
 from fidlearn import (Camera, CameraError, FidlearnWarning, MarkerMap, calibrate_checkerboard, data_path,
                       frames, locate, plotting, synthetic)
 from fidlearn.detection import detect_markers, load_image
+from fidlearn.planning import coach, coach_calibration
+from fidlearn.planning.figure import coach_figure
 
 np.set_printoptions(precision=3, suppress=True)
 
@@ -339,6 +344,248 @@ err_crop_fixed = report("4:3 crop, camera of the 4:3 mode", crop, crop_camera)
 assert err_crop_fixed < 5
 
 # %% [markdown]
+# ## 9. Is the calibration good enough? Why RMS is not enough
+#
+# The RMS says how well the board points fit the model **on the photos you took**. It does not say whether the
+# model is right: section 8 showed a wrong K behind a tiny reprojection error. Ask a calibration another
+# question: *if I calibrated again with new photos of the same kind, how far would the pixel of a point move?*
+# That is the **reprojection uncertainty**. As mrcal does, it is computed from the covariance of the fitted
+# intrinsics (how the corner noise spreads into fx, fy, cx, cy and the distortion, with every view's board pose
+# unknown too), carried to the pixels all over the picture. What a small turn of the camera would absorb is
+# left out: a principal point one pixel off moves every pixel alike, and a pose found with that camera simply
+# turns by as much.
+#
+# `fidlearn.planning.coach_calibration` computes this map for a `Calibration`, says in words what is wrong with
+# the set of photos, and which photo to take next (`fidlearn calibrate ... --report report.png` prints and
+# draws the same). The 20 bundled views first:
+
+# %%
+coached = coach_calibration(cal)
+print(coached.report())
+print(f"fx = {cal.camera.fx:.2f} ± {coached.fx_std_px:.2f} px; the true fx is {true_camera.fx:.2f} px")
+assert not coached.flags and coached.good_fraction > 0.99
+assert abs(cal.camera.fx - true_camera.fx) < 3 * coached.fx_std_px
+display(coach_figure(coached, cal.camera))
+
+# %% [markdown]
+# Under 0.3 px everywhere and no warning: these 20 views are enough. The uncertainty is largest toward the
+# picture's corners, farthest from most board points.
+#
+# ### A bad subset: the same photos, one part of the picture
+#
+# Keep only the views whose board stays in the left half of the picture, and calibrate again:
+
+# %%
+left_views = [v for v in cal.used if cal.image_points_px[v][:, 0].max() < true_camera.width / 2]
+cal_left = calibrate_checkerboard(left_views, pattern, square_mm)
+coached_left = coach_calibration(cal_left)
+for label, c, k in (("all 20 views", cal, coached), (f"the {len(left_views)} left views", cal_left, coached_left)):
+    fx_error_pct = 100 * (c.camera.fx / true_camera.fx - 1)
+    print(f"{label:17s}: RMS {c.rms_px:.3f} px, fx {c.camera.fx:.2f} px ({fx_error_pct:+.2f} % from the truth), "
+          f"worst uncertainty {k.uncertainty_px.max():.2f} px")
+print(coached_left.report())
+assert abs(cal_left.rms_px - cal.rms_px) < 0.005                       # the RMS does not see it
+assert abs(cal_left.camera.fx / true_camera.fx - 1) > 5 * abs(cal.camera.fx / true_camera.fx - 1)
+assert any("right" in f for f in coached_left.flags) and any("views" in f for f in coached_left.flags)
+
+fig, axes = plt.subplots(1, 2, figsize=(12, 4), layout="constrained")
+for ax, (label, c, k) in zip(axes, (("all 20 views", cal, coached), ("the left views only", cal_left, coached_left))):
+    im = ax.imshow(k.uncertainty_px, extent=[-0.5, true_camera.width - 0.5, true_camera.height - 0.5, -0.5],
+                   cmap="magma_r", vmin=0, vmax=0.3)
+    points = np.vstack(list(c.image_points_px.values()))
+    ax.plot(points[:, 0], points[:, 1], ".", color="tab:cyan", markersize=1.5)
+    ax.set_title(f"{label}: RMS {c.rms_px:.3f} px, fx {100 * (c.camera.fx / true_camera.fx - 1):+.2f} %", fontsize=10)
+    ax.set_xlabel("u (px)")
+axes[0].set_ylabel("v (px)")
+fig.colorbar(im, ax=list(axes), label="reprojection uncertainty (px)")
+fig.suptitle("the coach's map (dots: every board corner used)")
+plt.show()
+
+# %% [markdown]
+# The RMS is the same; the focal length is several times further from the truth (0.10 % against 0.01 %), the
+# uncertainty has more than doubled, most on the right, and the coach says why in words: too few views, and
+# nothing on the right side of the picture. The map stays under 0.3 px because the lens model is symmetric about
+# the picture's centre (the left side tells it about the right) and because these renders have very clean
+# corners (0.045 px). A real lens need not be symmetric, which is why the coach warns about coverage whatever
+# the map says; and real corners are noisier.
+#
+# ### Same RMS, another camera: sets with the noise of good real photos
+#
+# For the calibration a photo of the board is its 54 corner pixels. So we can simulate photos without rendering
+# them: place the board (a pose `T_camera_board`), project its corners with the true camera, add 0.1 px of
+# noise per axis (an RMS near 0.14 px: careful photos of a well-printed board). Three kinds of set:
+#
+# * **spread and tilted**: 20 photos, the board visiting each ninth of the picture in turn, tilted 10 to 40
+#   degrees;
+# * **face-on**: 20 photos all over the picture, but the board always square to the camera's axis (tilted less
+#   than 3 degrees);
+# * **only 6 photos**, spread and tilted.
+#
+# Each set is taken five times (new poses, new noise), as five people following the same advice would: how far
+# apart are their cameras, and did the coach predict it?
+
+# %%
+board = board_mm.astype(float)  # the 54 corners on the board, (54, 3) mm
+noise_px = 0.1
+cv2.setNumThreads(1)  # calibrateCamera's threads add up in a varying order: one thread repeats to the last digit
+
+
+def corner_pixels(T_camera_board, rng=None):
+    """The board's corners seen by the true camera from T_camera_board (54, 2) px, with noise if rng is given."""
+    rvec, tvec = frames.rvec_tvec_from_transform(T_camera_board)
+    px = cv2.projectPoints(board, rvec, tvec, true_camera.K, true_camera.dist)[0].reshape(-1, 2)
+    return px if rng is None else px + rng.normal(0.0, noise_px, px.shape)
+
+
+def board_pose(rng, u=(0.1, 0.9), v=(0.1, 0.9), tilt_deg=(0.0, 40.0)):
+    """A random T_camera_board with every corner in the picture: the board's centre on the ray through a pixel
+    drawn in the fractions u, v of the picture, 400 to 800 mm away, tilted about a random axis of the image plane."""
+    while True:
+        pixel = np.array([[[rng.uniform(*u) * true_camera.width, rng.uniform(*v) * true_camera.height]]])
+        ray = cv2.undistortPoints(pixel, true_camera.K, true_camera.dist).reshape(2)
+        centre = np.array([ray[0], ray[1], 1.0]) * rng.uniform(400, 800)
+        a = rng.uniform(0, 2 * np.pi)
+        R = cv2.Rodrigues(np.array([np.cos(a), np.sin(a), 0.0]) * np.radians(rng.uniform(*tilt_deg)))[0]
+        T = frames.make_transform(R, centre - R @ board.mean(axis=0))
+        px = corner_pixels(T)
+        if np.all(px >= 0) and np.all(px <= [true_camera.width - 1, true_camera.height - 1]):
+            return T
+
+
+def calibrate_and_coach(photos):
+    """cv2.calibrateCamera on corner lists, then the coach on the result: (RMS px, Camera, CalibrationCoach)."""
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([board_mm] * len(photos), [p.astype(np.float32) for p in photos],
+                                                     true_camera.image_size, None, None)
+    camera = Camera(K, dist.ravel(), true_camera.image_size)
+    names = [f"photo {i}" for i in range(len(photos))]
+    T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
+    # the coach wants the corner noise per axis; OpenCV's RMS is over both axes at once
+    verdict = coach(camera, dict.fromkeys(names, board), dict(zip(names, photos)), T, sigma_px=rms / np.sqrt(2))
+    return rms, camera, verdict
+
+
+rng = np.random.default_rng(2)
+thirds = ((0.05, 0.35), (0.35, 0.65), (0.65, 0.95))
+ninths = [(u, v) for v in thirds for u in thirds]  # (u range, v range) of each ninth of the picture, row by row
+make_set = {
+    "spread and tilted": lambda: [board_pose(rng, *ninths[k % 9], tilt_deg=(10, 40)) for k in range(20)],
+    "face-on": lambda: [board_pose(rng, tilt_deg=(0, 3)) for _ in range(20)],
+    "only 6 photos": lambda: [board_pose(rng, *ninths[k], tilt_deg=(10, 40)) for k in (0, 2, 4, 6, 8, 1)],
+}
+results = {}  # per set, per repetition: (RMS px, fx error %, the coach's fx std %, the coach's verdict)
+for name, make in make_set.items():
+    results[name] = []
+    for _ in range(5):
+        rms, camera, verdict = calibrate_and_coach([corner_pixels(T, rng) for T in make()])
+        results[name].append((rms, 100 * (camera.fx / true_camera.fx - 1), 100 * verdict.fx_std_px / true_camera.fx,
+                              verdict))
+    rms, fx_err, fx_std, verdicts = zip(*results[name])
+    print(f"{name}: RMS {min(rms):.3f} to {max(rms):.3f} px; fx from {min(fx_err):+.2f} % to {max(fx_err):+.2f} % "
+          f"of the truth, the coach's std {np.median(fx_std):.2f} %; uncertainty median "
+          f"{np.median([v.uncertainty_px for v in verdicts]):.2f} px")
+    for flag in verdicts[0].flags:
+        print("   warning:", flag)
+
+rms_all = [r[0] for rows in results.values() for r in rows]
+spread = {name: np.ptp([r[1] for r in rows]) for name, rows in results.items()}
+assert max(rms_all) - min(rms_all) < 0.02                                   # the same RMS, every set
+assert spread["face-on"] > 50 * spread["spread and tilted"]                  # not the same cameras at all
+assert all(abs(r[1]) < 3 * r[2] for rows in results.values() for r in rows)  # within the coach's 3 std, every one
+assert all(not r[3].flags for r in results["spread and tilted"])
+assert all(any("face-on" in f for f in r[3].flags) for r in results["face-on"])
+assert all(any("views" in f for f in r[3].flags) for r in results["only 6 photos"])
+
+fig, axes = plt.subplots(1, 3, figsize=(13, 3.6), layout="constrained")
+for ax, (name, rows) in zip(axes, results.items()):
+    fx_err = [r[1] for r in rows]
+    two_std = 2 * np.median([r[2] for r in rows])
+    ax.axhspan(-two_std, two_std, color="tab:blue", alpha=0.2, label="the coach: ±2 std")
+    ax.plot(range(1, 6), fx_err, "o", color="tab:red", label="each calibration")
+    ax.axhline(0, color="0.3", lw=1)
+    ax.set_xticks(range(1, 6))
+    ax.set_xlabel("repetition")
+    ax.set_title(f"{name}: RMS {min(r[0] for r in rows):.2f} to {max(r[0] for r in rows):.2f} px", fontsize=10)
+axes[0].set_ylabel("fx error against the truth (%)")
+axes[0].legend(loc="lower left", fontsize=8)
+fig.suptitle("five calibrations of each kind: the RMS is the same, the camera is not (mind each panel's scale)")
+plt.show()
+
+# %% [markdown]
+# Every calibration here has an RMS of 0.13 to 0.14 px; by the RMS they are all equally good. But the
+# face-on sets give focal lengths about 20 % off, either way: seen square on, a board twice as far with twice
+# the focal length makes the same picture, so nothing in the photos fixes fx (tilted views break the tie, their
+# near and far edges shrinking differently). Six photos fit with a small RMS too, and the coach expects twice
+# the scatter of twenty (a standard deviation of 0.26 % against 0.13 %). The coach predicted each scatter (the
+# blue band) from one set of photos alone, and said what was wrong in words.
+#
+# ### Following the coach's advice against random photos
+#
+# Start from 4 random photos; calibrate, and take one more, either **where the coach says** (its
+# `next_view`: a place in the picture and a tilt) or **at random** (anywhere in the picture, tilted up to 40
+# degrees, 40 to 80 cm away, as a person waving a board would). Stop when fx is within 0.1 % of the truth and
+# the coach's map is under 0.3 px over 90 % of the picture. Four runs of each, each pair from the same first 4
+# photos:
+
+# %%
+def photos_needed(strategy, seed, most=30):
+    """Calibrate, ask the coach, take one more photo, until fx is within 0.1 % of the truth and the map is under
+    0.3 px over 90 % of the picture (or `most` photos). Start from 4 random photos; each next one where the coach
+    says ("coach") or at random ("random"). Returns the history, [(photos, |fx error| %, fraction under 0.3 px)],
+    and the coach's requests in words."""
+    rng = np.random.default_rng(seed)
+    photos = [corner_pixels(board_pose(rng), rng) for _ in range(4)]
+    history, asked = [], []
+    while True:
+        rms, camera, verdict = calibrate_and_coach(photos)
+        history.append((len(photos), 100 * abs(camera.fx / true_camera.fx - 1), verdict.good_fraction))
+        if (history[-1][1] < 0.1 and verdict.good_fraction >= 0.9) or len(photos) == most:
+            return history, asked
+        if strategy == "coach":
+            T = verdict.next_view.T_camera_board  # the board where the coach says (a person puts it about there)
+            asked.append(f"{verdict.next_view.where}, {verdict.next_view.tilt}, "
+                         f"{verdict.next_view.distance_mm:.0f} mm away")
+        else:
+            T = board_pose(rng)
+        photos.append(corner_pixels(T, rng))
+
+
+runs = {(strategy, seed): photos_needed(strategy, seed) for seed in range(4) for strategy in ("coach", "random")}
+histories = {key: history for key, (history, asked) in runs.items()}
+needed = {s: [histories[s, seed][-1][0] for seed in range(4)] for s in ("coach", "random")}
+for s, n in needed.items():
+    print(f"{s:6s}: photos needed {n} (30: the goal not reached), median {np.median(n):.1f}")
+print("what the coach asked for in the second run:")
+for k, request in enumerate(runs["coach", 1][1], start=5):
+    print(f"  photo {k}: the board {request}")
+assert np.median(needed["coach"]) <= 0.7 * np.median(needed["random"])  # at least 30 % fewer photos
+
+fig, axes = plt.subplots(1, 2, figsize=(12, 4), layout="constrained")
+for (strategy, seed), history in histories.items():
+    n, fx_err, good = np.array(history).T
+    color = "tab:blue" if strategy == "coach" else "tab:orange"
+    label = ("the coach's next photo" if strategy == "coach" else "a random next photo") if seed == 0 else None
+    axes[0].semilogy(n, fx_err, "-", color=color, alpha=0.8, label=label)
+    axes[1].plot(n, 100 * good, "-", color=color, alpha=0.8, label=label)
+axes[0].axhline(0.1, color="0.4", ls="--", lw=1)
+axes[0].set_ylabel("fx error against the truth (%)")
+axes[1].axhline(90, color="0.4", ls="--", lw=1)
+axes[1].set_ylabel("picture under 0.3 px of uncertainty (%)")
+for ax in axes:
+    ax.set_xlabel("photos taken")
+    ax.legend(loc="best")
+fig.suptitle("four runs of each; dashed: the goal")
+plt.show()
+
+# %% [markdown]
+# The coach's photos reach the goal in about 10 photos; random ones need about three times as many, or never
+# get there within 30. The coach asks for what the set lacks: the board tilted strongly (its candidates tilt
+# 35 degrees) one way, then another way not yet seen, and close to the camera (mostly under half a metre), so it
+# fills most of the picture. Random photos are tilted 20 degrees on average, 60 cm away. The benchmark
+# (`benchmarks/bench_planning.py`) runs the same race with more seeds. With your own camera:
+# `fidlearn calibrate photos/*.jpg --pattern 9x6 --square-mm 25 -o camera.json --report report.png`, then take
+# the photo it names, and calibrate again.
+
+# %% [markdown]
 # ## Summary
 #
 # * Photos of a flat board of known geometry give K and the distortion: `cv2.findChessboardCorners` +
@@ -349,6 +596,10 @@ assert err_crop_fixed < 5
 #   Synthetic views reach 0.05 px; real photos 0.3 to 0.5 px.
 # * K belongs to one resolution and one sensor mode. Same aspect ratio: `Camera.scaled`. Another
 #   mode or crop: calibrate again. A wrong K hides behind a small reprojection error.
+# * The RMS does not tell a good set from a bad one: face-on views, one part of the picture, too few views all
+#   fit as well. The reprojection uncertainty does (`coach_calibration`, `fidlearn calibrate --report`): how far
+#   a pixel would move with new photos of the same kind. The coach names what the set lacks, and its next
+#   photos reach a good calibration with about a third of the photos that random ones need.
 #
 # **Exercises**: [exercises/02_calibration.ipynb](exercises/02_calibration.ipynb), with automatic
 # feedback (or `from fidlearn import exercises; ex = exercises.lesson("02")` in a new cell). Also try:
