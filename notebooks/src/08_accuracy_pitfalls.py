@@ -441,7 +441,7 @@ for k, (x, y) in enumerate(room_places):
     p = predict_accuracy(world_map, camera, T)
     draws = rng.multivariate_normal(np.zeros(3), p.covariance[3:, 3:], 4000)  # the camera centre's block, mm
     lo, hi = np.percentile(np.linalg.norm(draws, axis=1), [10, 90])
-    image, _ = render_scene(camera, world_map, T, seed=k, blur_px=0.5, noise_std=1.2, gradient=0.2)
+    image, _ = render_scene(world_map, camera, T, seed=k, blur_px=0.5, noise_std_gray=1.2, gradient=0.2)
     measured = np.linalg.norm(locate(image, world_map, camera).position_mm - T[:3, 3])
     rows.append((np.linalg.norm(T[:3, 3] - centre_seed), p.position_error_mm, lo, hi, measured))
     print(f"({x:5d}, {y:5d})      {rows[-1][0] / 1000:4.1f} m   {p.position_error_mm:7.2f} mm ({lo:6.2f} to {hi:6.2f})"
