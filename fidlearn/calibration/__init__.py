@@ -76,7 +76,7 @@ from __future__ import annotations
 # ruff: noqa: F401
 from . import quality  # noqa: F401 - fidlearn.calibration.quality
 from .api import _entries, _pattern, calibrate_charuco, calibrate_checkerboard
-from .boards import _Charuco, _Checkerboard, find_checkerboard_corners
+from .boards import _Charuco, _Checkerboard, checkerboard_points, find_checkerboard_corners
 from .quality import coverage_grid, quality_warnings, view_diversity
 from .result import Calibration, ViewResult, _display_names, _short
 from .run import INTRINSIC_NAMES, MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_MARGIN_PX, ProgressFn, _run
@@ -87,6 +87,7 @@ __all__ = [
     "calibrate_checkerboard",
     "calibrate_charuco",
     "find_checkerboard_corners",
+    "checkerboard_points",
     "coverage_grid",
     "view_diversity",
     "quality_warnings",

@@ -19,6 +19,33 @@ __all__ = ["find_checkerboard_corners"]
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
 
 
+def checkerboard_points(pattern_size: tuple[int, int], square_size_mm: float) -> np.ndarray:
+    """The inner corners of a flat checkerboard in the board's own frame.
+
+    Parameters
+    ----------
+    pattern_size : (int, int)
+        Inner corners across and down (columns, rows), as OpenCV counts them: 9x6 for a board of
+        10x7 squares.
+    square_size_mm : float
+        Side of one square (mm), measured on the print.
+
+    Returns
+    -------
+    ndarray, shape (columns * rows, 3)
+        The corners (mm), z = 0, in the order ``cv2.findChessboardCorners`` reports them: row
+        by row, x along a row.
+
+    Examples
+    --------
+    >>> checkerboard_points((3, 2), 25.0)[:4].tolist()
+    [[0.0, 0.0, 0.0], [25.0, 0.0, 0.0], [50.0, 0.0, 0.0], [0.0, 25.0, 0.0]]
+    """
+    cols, rows = pattern_size
+    jj, ii = np.mgrid[0:rows, 0:cols]
+    return np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * float(square_size_mm)
+
+
 class _Checkerboard:
     def __init__(self, pattern_size: tuple[int, int], square_size_mm: float, corner_finder: str):
         self.pattern_size = pattern_size
@@ -27,8 +54,7 @@ class _Checkerboard:
             raise CalibrationError(f"corner_finder {corner_finder!r} is unknown; use 'classic' or 'sb'")
         self.corner_finder = corner_finder
         cols, rows = pattern_size
-        jj, ii = np.mgrid[0:rows, 0:cols]
-        self.object_points = np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * square_size_mm
+        self.object_points = checkerboard_points(pattern_size, square_size_mm)
         self.description = f"checkerboard {cols}x{rows} inner corners, {square_size_mm:g} mm squares"
 
     def find(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import contextvars
 import hashlib
-from collections.abc import Sequence
 
 import numpy as np
 
-from .. import frames
 from ..camera import Camera
 from ..detection import Detection
 from ..markermap import MarkerMap, MarkerPlacement
@@ -28,26 +26,6 @@ def _rng(lesson_id: str, learner: str, question: str) -> np.random.Generator:
         return np.random.default_rng(seed_fn(question))
     digest = hashlib.sha256(f"fidlearn-exercises/{lesson_id}/{learner}/{question}".encode()).digest()
     return np.random.default_rng(int.from_bytes(digest[:8], "little"))
-
-
-def _look_at(position_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0, 0, 1)) -> np.ndarray:
-    """``T_world_camera`` (4, 4) of an OpenCV camera at ``position_mm`` looking at ``target_mm`` (x right, y down).
-
-    Why not :func:`fidlearn.synthetic.look_at`: the two agree in value on every call the lessons
-    make, but not bit for bit. ``synthetic.look_at`` multiplies the rotation by ``rot_z(roll)``
-    even for a roll of 0, which turns some ``-0.0`` entries into ``+0.0`` (1,372 of 3,910
-    calls over 305 learners' lessons 02, 03, 06 and 07 differ in their bytes). A signed zero can
-    flip an ``atan2`` by 360 degrees and is part of the numbers a learner is handed, so the lessons
-    keep this function to stay bit-identical for every learner id ever used. Lessons 05 and 08
-    have always used ``synthetic.look_at`` and still do.
-    """
-    p = np.asarray(position_mm, dtype=float)
-    z = np.asarray(target_mm, dtype=float) - p
-    z /= np.linalg.norm(z)
-    x = np.cross(z, np.asarray(up, dtype=float))
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    return frames.make_transform(np.column_stack([x, y, z]), p)
 
 
 _SIZES = [(640, 480), (800, 600), (1280, 720), (1920, 1080)]

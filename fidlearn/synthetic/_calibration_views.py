@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from .. import _cv, frames
+from ..calibration.boards import checkerboard_points
 from ..camera import Camera
 from ..errors import FidlearnError
 from ._checks import DEFAULT_GRAYS, _check_seed
@@ -194,8 +195,7 @@ def _board_geometry(charuco: bool, pattern_size, square_size_mm, marker_size_mm,
         pattern_size = tuple(int(v) for v in pattern_size)
         if min(pattern_size) < 2:
             raise FidlearnError(f"pattern_size {pattern_size} must count at least 2 x 2 inner corners")
-        jj, ii = np.mgrid[0 : pattern_size[1], 0 : pattern_size[0]]
-        object_points = np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * float(square_size_mm)
+        object_points = checkerboard_points(pattern_size, square_size_mm)
         centre = np.array([(pattern_size[0] - 1) * square_size_mm / 2, (pattern_size[1] - 1) * square_size_mm / 2, 0.0])
         board_w = (pattern_size[0] + 1) * square_size_mm
     # the outline that must stay in view: the pattern's corners plus a little of the outer squares

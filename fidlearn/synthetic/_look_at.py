@@ -69,5 +69,7 @@ def look_at(
         )
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
-    R = np.column_stack([x, y, z]) @ frames.rot_z(math.radians(roll_deg))
+    R = np.column_stack([x, y, z])
+    if roll_deg:  # no product for no roll: the rotation keeps the signs of its zeros
+        R = R @ frames.rot_z(math.radians(roll_deg))
     return frames.make_transform(R, eye)

@@ -377,7 +377,7 @@ display(coach_figure(coached, cal.camera))
 
 # %%
 left_views = [v for v in cal.used if cal.image_points_px[v][:, 0].max() < true_camera.width / 2]
-cal_left = calibrate_checkerboard(left_views, pattern, square_mm)
+cal_left = calibrate_checkerboard(left_views, pattern, square_size_mm)
 coached_left = coach_calibration(cal_left)
 for label, c, k in (("all 20 views", cal, coached), (f"the {len(left_views)} left views", cal_left, coached_left)):
     fx_error_pct = 100 * (c.camera.fx / true_camera.fx - 1)

@@ -13,7 +13,9 @@ import cv2
 import numpy as np
 
 from ... import frames
+from ...calibration.boards import checkerboard_points
 from ...camera import Camera
+from ...synthetic import look_at
 from .._engine import Question
 from .._parsers import (
     _array,
@@ -23,7 +25,6 @@ from .._parsers import (
 )
 from .._scenery import (
     _SIZES,
-    _look_at,
     _rng,
 )
 
@@ -34,13 +35,6 @@ INTRO = """
     From checkerboard corners to K: build the board's object points, run cv2.calibrateCamera, find
     the picture that does not belong, and carry K to another resolution.
     """
-
-
-def _board_points(pattern: tuple[int, int], square_mm: float) -> np.ndarray:
-    """Checkerboard inner corners (N, 3), mm, in the order cv2.findChessboardCorners reports them (rows of x)."""
-    cols, rows = pattern
-    jj, ii = np.mgrid[0:rows, 0:cols]
-    return np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * float(square_mm)
 
 
 def _calibration_views(
@@ -54,7 +48,7 @@ def _calibration_views(
         dist = extent * rng.uniform(1.6, 3.0)
         direction = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), -1.0])
         eye = centre + dist * direction / np.linalg.norm(direction)
-        T = _look_at(eye, centre + [rng.uniform(-0.3, 0.3) * extent, rng.uniform(-0.2, 0.2) * extent, 0], up=(0, -1, 0))
+        T = look_at(eye, centre + [rng.uniform(-0.3, 0.3) * extent, rng.uniform(-0.2, 0.2) * extent, 0], up=(0, -1, 0))
         T = T @ frames.make_transform(frames.rot_z(math.radians(rng.uniform(-20, 20))))
         px = camera.project(obj, T)
         if np.all(camera.points_in_front(obj, T)) and np.all((px > 5) & (px < np.array(camera.image_size) - 6)):
@@ -92,7 +86,7 @@ def _q1(learner: str) -> Question:
     rng = _rng("02", learner, "q1")
     pattern = (int(rng.integers(6, 10)), int(rng.integers(4, 7)))
     square_in = float(rng.choice([0.75, 1.0, 1.25, 1.5]))
-    obj = _board_points(pattern, square_in * 25.4)
+    obj = checkerboard_points(pattern, square_in * 25.4)
     cols, rows = pattern
     col_major = np.array([[i, j, 0] for i in range(cols) for j in range(rows)], dtype=float) * square_in * 25.4
     return Question(
@@ -166,7 +160,7 @@ def _q2(learner: str) -> Question:
     K_true[0, 2] += float(np.round(rng.uniform(-12, 12), 1))
     K_true[1, 2] += float(np.round(rng.uniform(-8, 8), 1))
     true_cam = Camera(K_true, true_cam.dist, size)
-    obj2 = _board_points((9, 6), 25.0)
+    obj2 = checkerboard_points((9, 6), 25.0)
     views = _calibration_views(rng, true_cam, obj2, 10, 0.15)
     _, K_key, _, _, _ = cv2.calibrateCamera(
         [obj2.astype(np.float32)] * len(views), [v.astype(np.float32) for v in views], size, None, None
@@ -244,7 +238,7 @@ def _q3(learner: str) -> Question:
     rng = _rng("02", learner, "q3")
     size3 = (1280, 720)
     cam3 = Camera.from_fov(float(np.round(rng.uniform(60, 75))), size3)
-    obj3 = _board_points((9, 6), 25.0)
+    obj3 = checkerboard_points((9, 6), 25.0)
     views3 = _calibration_views(rng, cam3, obj3, 9, 0.15)
     small = cam3.scaled((640, 360))
     odd = int(rng.integers(1, 9))

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ... import frames
+from ...synthetic import look_at
 from .._engine import Question
 from .._parsers import (
     _EXTRINSIC_MSG,
@@ -23,7 +24,6 @@ from .._parsers import (
     _T_is,
 )
 from .._scenery import (
-    _look_at,
     _rng,
 )
 
@@ -134,7 +134,7 @@ def _q2(learner: str) -> Question:
     """q2: World points in the camera frame."""
     rng = _rng("03", learner, "q2")
     cpos = np.round(rng.uniform([1500, -800, 900], [3500, 800, 1600]))
-    Twc = _look_at(cpos, np.round(rng.uniform([0, -400, 700], [0, 400, 1300])))
+    Twc = look_at(cpos, np.round(rng.uniform([0, -400, 700], [0, 400, 1300])))
     pts = np.round(np.column_stack([np.zeros(4), rng.uniform(-600, 600, 4), rng.uniform(300, 1800, 4)]))
     Tcw = frames.invert_transform(Twc)
     expected = frames.transform_points(Tcw, pts)
@@ -210,7 +210,7 @@ def _q3(learner: str) -> Question:
         + np.cross([0, 0, 1], normal) * rng.uniform(-500, 500)
         + [0, 0, rng.uniform(-300, 300)]
     )
-    Twc3 = _look_at(np.round(cpos), Twm[:3, 3])
+    Twc3 = look_at(np.round(cpos), Twm[:3, 3])
     Tcm = frames.invert_transform(Twc3) @ Twm
     return Question(
         "q3",
@@ -265,7 +265,7 @@ _Q4 = {
 def _q4(learner: str) -> Question:
     """q4: From rvec, tvec to a 4x4 matrix."""
     rng = _rng("03", learner, "q4")
-    Twc4 = _look_at(
+    Twc4 = look_at(
         np.round(rng.uniform([1500, -900, 900], [3500, 900, 1700])),
         np.round(rng.uniform([0, -300, 800], [0, 300, 1200])),
     )

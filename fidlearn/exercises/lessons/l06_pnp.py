@@ -15,6 +15,7 @@ import numpy as np
 from ... import _cv, frames
 from ...camera import Camera
 from ...detection import Detection
+from ...synthetic import look_at
 from .._engine import Question, _AnswerError
 from .._parsers import (
     _array,
@@ -24,7 +25,6 @@ from .._parsers import (
     _T_is,
 )
 from .._scenery import (
-    _look_at,
     _noisy_detections,
     _rng,
     _wall_map,
@@ -82,7 +82,7 @@ def _q1(learner: str) -> Question:
     rng = _rng("06", learner, "q1")
     cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
     m = _wall_map(rng, 4, float(rng.choice([100, 120, 150])))
-    T = _look_at(np.round(rng.uniform([1800, -500, 1000], [3000, 500, 1500])), [0, 0, 1200])
+    T = look_at(np.round(rng.uniform([1800, -500, 1000], [3000, 500, 1500])), [0, 0, 1200])
     dets = _noisy_detections(rng, m, cam, T, 0.2)
     stray_id = int(max(m.ids) + 1 + rng.integers(0, 5))
     stray = Detection(stray_id, np.round(dets[0].corners_px + [[-300, 150]], 3))
@@ -194,7 +194,7 @@ def _q2(learner: str) -> Question:
     rng = _rng("06", learner, "q2")
     cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
     m2 = _wall_map(rng, 5, 150.0)
-    T2 = _look_at(
+    T2 = look_at(
         np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, float(np.round(rng.uniform(-200, 200))), 1200]
     )
     dets2 = _noisy_detections(rng, m2, cam2, T2, 0.3)
@@ -257,7 +257,7 @@ def _q3(learner: str) -> Question:
     rng = _rng("06", learner, "q3")
     cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
     m3 = _wall_map(rng, 4, 120.0)
-    T3 = _look_at(np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, 0, 1200])
+    T3 = look_at(np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, 0, 1200])
     dets3 = _noisy_detections(rng, m3, cam3, T3, float(np.round(rng.uniform(0.3, 1.0), 2)))
     obj3 = np.concatenate([m3.marker_corners(d.id) for d in dets3])
     img3 = np.concatenate([d.corners_px for d in dets3])

@@ -14,6 +14,7 @@ import numpy as np
 
 from ... import frames
 from ...markermap import MarkerMap, MarkerPlacement
+from ...synthetic import look_at
 from .._engine import Question
 from .._parsers import (
     _EXTRINSIC_MSG,
@@ -26,7 +27,6 @@ from .._parsers import (
 )
 from .._scenery import (
     _WALL_YAW,
-    _look_at,
     _rng,
     _wall_translation,
 )
@@ -45,7 +45,7 @@ def _room_pose(rng: np.random.Generator) -> np.ndarray:
     """A camera somewhere in the room looking at the north wall (x = 0)."""
     pos = np.round(rng.uniform([1200, -1200, 800], [4000, 1200, 1800]))
     target = np.round(rng.uniform([0, -500, 700], [0, 500, 1400]))
-    return _look_at(pos, target)
+    return look_at(pos, target)
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
@@ -188,7 +188,7 @@ def _q3(learner: str) -> Question:
     rng = _rng("07", learner, "q3")
     pos3 = np.round(rng.uniform([1200, -1500, 1000], [4000, 1500, 2200]))
     target3 = np.round(rng.uniform([0, -900, 200], [0, 900, 1200]))
-    Twc3 = _look_at(pos3, target3)
+    Twc3 = look_at(pos3, target3)
     rvec3, tvec3 = frames.rvec_tvec_from_transform(frames.invert_transform(Twc3))
     rvec3, tvec3 = np.round(rvec3, 6), np.round(tvec3, 2)
     Twc3 = frames.invert_transform(frames.transform_from_rvec_tvec(rvec3, tvec3))
@@ -278,7 +278,7 @@ def _q4(learner: str) -> Question:
         + np.cross([0, 0, 1], n) * rng.uniform(-600, 600)
         + [0, 0, rng.uniform(-200, 400)]
     )
-    Twc4 = _look_at(np.round(cpos), Twm[:3, 3])
+    Twc4 = look_at(np.round(cpos), Twm[:3, 3])
     Tcm = frames.invert_transform(Twc4) @ Twm
     rvec4, tvec4 = frames.rvec_tvec_from_transform(Tcm)
     rvec4, tvec4 = np.round(rvec4, 6), np.round(tvec4, 2)
