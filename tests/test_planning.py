@@ -11,8 +11,9 @@ import pytest
 
 import fidlearn
 from fidlearn import Camera, Detection, FidlearnError, MarkerMap, estimate_pose, look_at, predict_accuracy
+from fidlearn.cli import plan as command
 from fidlearn.errors import TransformError
-from fidlearn.planning import command, noise, plan_room, suggest_markers
+from fidlearn.planning import noise, plan_room, suggest_markers
 from fidlearn.planning.predict import flip_probability
 
 

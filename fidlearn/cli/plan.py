@@ -1,8 +1,22 @@
-"""``fidlearn plan``: the position error to expect over a room, before printing (:mod:`fidlearn.planning.command`)."""
+"""``fidlearn plan``: predicted position error over a room, before printing, and what to add."""
 
 from __future__ import annotations
 
-from ..planning import command
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .._io import atomic_write
+from ..camera import Camera
+from ..errors import FidlearnError
+from ..markermap import MarkerMap
+from ..planning.room import default_area, plan_room, suggest_markers
+from ._common import _check_output, _floats, _refuse_clobber
+
+HELP = "predicted position error over a room seen from above, and where to add markers"
 
 
 def add(sub) -> None:
@@ -13,6 +27,123 @@ def add(sub) -> None:
     sub : argparse._SubParsersAction
         The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
     """
-    p = sub.add_parser("plan", help=command.HELP, description=command.__doc__)
-    command.add_arguments(p)
-    p.set_defaults(run=command.run)
+    p = sub.add_parser("plan", help=HELP, description=__doc__)
+    add_arguments(p)
+    p.set_defaults(run=run)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The command's options, on ``p``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The parser to add the options to.
+    """
+    p.add_argument("map", type=Path, help="world map JSON (full layout, or give --units and --marker-size-mm)")
+    p.add_argument("--camera", type=Path, required=True, help="camera file (fidlearn JSON or OpenCV YAML)")
+    p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
+    p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
+    p.add_argument("--height-mm", type=float, default=300.0, help="camera height above the floor (default 300)")
+    p.add_argument(
+        "--area", metavar="X0,Y0,X1,Y1", help="floor area to plan, mm (default: 3 m in front of the markers)"
+    )
+    p.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (default: the markers' centre)")
+    p.add_argument("--step-mm", type=float, default=250.0, help="grid spacing (default 250)")
+    p.add_argument("--headings", type=int, default=16, help="level headings tried per place (default 16; 0: skip)")
+    p.add_argument(
+        "--corner-sigma-px",
+        type=float,
+        metavar="PX",
+        help="your camera's corner noise (default: measured on fidlearn's renders, by marker size)",
+    )
+    p.add_argument("--target-mm", type=float, help="error to reach; drawn as a line, and the goal of --suggest")
+    p.add_argument(
+        "--suggest", action="store_true", help="say which marker size and where to add markers to reach --target-mm"
+    )
+    p.add_argument("-o", "--output", type=Path, required=True, help="picture to write (.png)")
+
+
+def _check(args) -> None:
+    """The output (a .png in a folder that exists, not an input) and the target, before any work."""
+    out = _check_output(args.output, (".png",))
+    _refuse_clobber([("-o", out)], [args.map, args.camera])
+    if args.suggest and args.target_mm is None:
+        raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
+    if args.target_mm is not None and not (math.isfinite(args.target_mm) and args.target_mm > 0):
+        raise FidlearnError(f"--target-mm {args.target_mm}: give a positive number of mm")
+
+
+def run(args) -> int:
+    """Plan the room, write the picture, print the figures (and the suggestions with --suggest).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
+    _check(args)
+    world = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm)
+    camera = Camera.load(args.camera)
+    area = _floats(args.area, 4, "--area", "x0,y0,x1,y1 in mm") if args.area else default_area(world)
+    look = _floats(args.look_at, 3, "--look-at", "x,y,z in mm") if args.look_at else None
+
+    def progress(done: int, total: int) -> None:
+        if sys.stderr.isatty():
+            print(f"\rplanning: row {done}/{total}", end="" if done < total else "\n", file=sys.stderr)
+
+    plan = plan_room(
+        world,
+        camera,
+        height_mm=args.height_mm,
+        area=area,
+        look_at_mm=look,
+        step_mm=args.step_mm,
+        headings=args.headings,
+        corner_sigma_px=args.corner_sigma_px,
+        progress=progress,
+    )
+    from ..planning.figure import plan_figure  # matplotlib only when drawing: the command starts faster
+
+    fig = plan_figure(plan, world, target_mm=args.target_mm)
+    atomic_write(args.output, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    ok = np.isfinite(plan.toward_mm)
+    print(
+        f"{args.output}: {len(plan.x_mm)}x{len(plan.y_mm)} places at {plan.height_mm:.0f} mm; "
+        f"a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers"
+    )
+    if ok.any():
+        print(
+            f"  predicted error looking at the markers: median {np.median(plan.toward_mm[ok]):.1f} mm, "
+            f"worst {np.max(plan.toward_mm[ok]):.1f} mm"
+        )
+    if np.any(plan.flip[ok]):
+        print(
+            f"  the planar flip is likely at {100 * plan.flip[ok].mean():.0f} % of those places: "
+            "add a marker off their plane"
+        )
+    if args.target_mm is not None:
+        print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
+    if args.suggest:
+        steps = suggest_markers(
+            world, camera, args.target_mm, height_mm=args.height_mm, area=area, corner_sigma_px=args.corner_sigma_px
+        )
+        if not steps:
+            print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
+        for s in steps:
+            print(
+                f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % "
+                f"within {args.target_mm:g} mm"
+            )
+    return 0
