@@ -18,6 +18,11 @@ from pathlib import Path
 
 from .errors import FidlearnError
 
+#: File suffixes read as pictures (a folder stands for its files with these suffixes).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
+#: File suffixes read as videos.
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
+
 #: Largest map or camera file read (bytes): far above any real one.
 MAX_TEXT_BYTES = 10 * 1024 * 1024
 #: Largest picture file read (bytes).

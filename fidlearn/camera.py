@@ -42,7 +42,6 @@ from .errors import CameraError, FidlearnWarning
 __all__ = ["Camera", "DIST_LENGTHS"]
 
 #: File names that hold pictures, never a camera (a swapped --camera argument).
-_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".mp4", ".avi", ".mov", ".mkv")
 
 
 @dataclass(eq=False)
@@ -470,7 +469,7 @@ class Camera:
         path = Path(path)
         if path.suffix.lower() in (".yml", ".yaml", ".xml"):
             return cls._load_filestorage(path, image_size)
-        if path.suffix.lower() in _IMAGE_SUFFIXES:
+        if path.suffix.lower() in _files.IMAGE_SUFFIXES + _files.VIDEO_SUFFIXES:
             raise CameraError(
                 f"{path}: this is an image, not a camera file; give the camera.json that 'fidlearn calibrate' "
                 "wrote (or OpenCV's calibration YAML) as the camera, and the image as an image"

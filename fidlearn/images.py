@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from . import _cv, _files
+from ._files import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 from ._io import atomic_write
 from .errors import FidlearnError, FidlearnWarning, ImageError, UsageError
 
@@ -35,11 +36,6 @@ __all__ = [
     "read_capture",
     "read_frames",
 ]
-
-#: File suffixes read as pictures (a folder stands for its files with these suffixes).
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
-#: File suffixes read as videos.
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
 
 
 class Frame(NamedTuple):
