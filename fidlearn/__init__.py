@@ -90,6 +90,8 @@ __all__ = [
     "ExerciseError",
     "GradingError",
     "UsageError",
+    "WebcamError",
+    "StrictModeError",
     "compose",
     "invert_transform",
     "make_transform",

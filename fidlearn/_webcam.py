@@ -38,7 +38,7 @@ import cv2
 import numpy as np
 import traitlets
 
-from .errors import FidlearnError, ImageError
+from .errors import ImageError, WebcamError
 
 __all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "status_message"]
 
@@ -70,10 +70,6 @@ STATUSES = {
     "error": "The camera failed to start: see the error above, then run the cell again.",
 }
 FAILED = {"denied", "no-camera", "busy", "insecure", "error"}
-
-
-class WebcamError(FidlearnError, ValueError):
-    """A camera that cannot deliver, or a request the camera widget cannot honour."""
 
 
 def status_message(status: str, error: str = "") -> str:

@@ -24,6 +24,8 @@ __all__ = [
     "ExerciseError",
     "GradingError",
     "UsageError",
+    "WebcamError",
+    "StrictModeError",
 ]
 
 
@@ -96,3 +98,11 @@ class PlotError(FidlearnError, ValueError):
 
 class PrintError(FidlearnError, ValueError):
     """A printable page cannot be laid out or written as asked (a size that does not fit, a bad id list)."""
+
+
+class WebcamError(FidlearnError, ValueError):
+    """A camera that cannot deliver, or a request the camera widget cannot honour."""
+
+
+class StrictModeError(FidlearnError, ValueError):
+    """An exercise strict mode that does not exist (``strict("yes")``); also a ValueError, as it was."""

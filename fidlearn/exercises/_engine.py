@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..detection import Detection
+from ..errors import StrictModeError
 
 CORRECT = "Correct"
 
@@ -68,7 +69,7 @@ def _parse_strict(value: Any) -> str | None:
         return None
     key = str(value).strip().lower()
     if key not in _STRICT_WORDS:
-        raise ValueError(
+        raise StrictModeError(
             f"strict mode {value!r} is unknown; use True or 'correct' (every check must be Correct), "
             "'blank' (every check must be Not attempted) or False"
         )
