@@ -32,8 +32,10 @@ try:
         PlotError,
         PoseError,
         PrintError,
+        StrictModeError,
         TransformError,
         UsageError,
+        WebcamError,
     )
     from .frames import (
         compose,
