@@ -107,9 +107,11 @@ def test_seeded_bad_sets_are_flagged_and_a_good_set_is_not(seed):
     assert any("does not look flat in view 7:" in f for f in bent.flags)
 
 
-def test_the_bend_test_is_a_chi_square_with_3_degrees_of_freedom():
-    assert coach_module._chi2_3_isf(0.05) == pytest.approx(7.8147, abs=1e-3)  # the textbook quantile
-    assert coach_module._chi2_3_isf(1e-3 / 20) == pytest.approx(22.55, abs=0.01)
+def test_the_bend_test_is_an_f_test_at_its_stated_false_alarm_rate():
+    # the textbook 95 % quantiles of F(3, nu), and chi-square(3) / 3 for a large nu
+    for nu, f95 in ((10, 3.71), (20, 3.10), (120, 2.68)):
+        assert coach_module._f3_isf(0.05, nu) == pytest.approx(f95, abs=0.005)
+    assert 3 * coach_module._f3_isf(0.05, 20000) == pytest.approx(7.815, abs=0.01)
     # flat boards, Gaussian noise: at a false-alarm rate of 0.2 per set (0.01 per view, 20 views)
     # about 1 - 0.99^20 = 18 % of the sets have a view called bent; 40 sets, binomial bounds
     rng = np.random.default_rng(11)

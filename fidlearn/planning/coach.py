@@ -197,17 +197,29 @@ def _tilt_deg(T_camera_board: np.ndarray) -> float:
     return float(math.degrees(math.acos(min(1.0, abs(float(T_camera_board[2, 2]))))))
 
 
-def _chi2_3_sf(x: float) -> float:
-    """Survival function of the chi-square distribution with 3 degrees of freedom."""
-    return math.erfc(math.sqrt(x / 2)) + math.sqrt(2 * x / math.pi) * math.exp(-x / 2)
+def _f3_sf(f: float, nu: int) -> float:
+    """Chance that an F(3, nu) variable exceeds ``f``; ``nu`` is rounded down to an even number.
+
+    ``P(F <= f) = I_x(3/2, m)`` (``x = 3 f / (3 f + nu)``, ``m = nu / 2``), the regularised
+    incomplete beta function, which for a whole ``m`` is the finite sum
+    ``x^(3/2) sum_k (3/2)_k / k! (1 - x)^k``, ``k = 0 .. m - 1``. Rounding ``nu`` down makes the
+    tail heavier: the test only gets more cautious.
+    """
+    m = max(int(nu) // 2, 1)
+    x = 3 * f / (3 * f + 2 * m) if f > 0 else 0.0
+    term, total = 1.0, 1.0
+    for k in range(1, m):
+        term *= (0.5 + k) / k * (1 - x)
+        total += term
+    return max(0.0, 1.0 - x**1.5 * total)
 
 
-def _chi2_3_isf(p: float) -> float:
-    """The value a chi-square with 3 degrees of freedom exceeds with probability ``p`` (bisection)."""
-    lo, hi = 0.0, 1000.0
+def _f3_isf(p: float, nu: int) -> float:
+    """The value an F(3, nu) variable exceeds with probability ``p`` (bisection on :func:`_f3_sf`)."""
+    lo, hi = 0.0, 1e4
     for _ in range(100):
         mid = (lo + hi) / 2
-        lo, hi = (mid, hi) if _chi2_3_sf(mid) > p else (lo, mid)
+        lo, hi = (mid, hi) if _f3_sf(mid, nu) > p else (lo, mid)
     return (lo + hi) / 2
 
 
@@ -232,18 +244,20 @@ def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_c
     """Views whose board was not flat: a bend explains their residuals beyond the corner noise.
 
     The whole calibration (the intrinsics, every view's board pose) is linearised at its
-    solution. For each view, the reduction of the squared residuals that a bend of its board
-    would bring (three coefficients, see below), on top of a refit of the intrinsics and every
-    pose, is divided by the corner noise ``s^2``: with a flat board and Gaussian noise it is a
-    chi-square with 3 degrees of freedom. A view is called bent when it exceeds the quantile at
-    ``BENT_FALSE_ALARM / V`` (``V`` views; 22.6 for 20 views), so at most one flat set in 1000 is
-    flagged. Views are tested in turn, the worst first, each found bend then being fitted too, so
-    that a bent view's pull on the intrinsics does not make the other views look bent.
-    ``s^2`` is the median over the views of their squared residuals per degree of freedom
-    (``2N - 6``): one bent view does not inflate it.
+    solution. For each view, ``t`` is how much a bend of its board (three coefficients, below)
+    would shrink the squared residuals once the intrinsics and every pose are refitted with it,
+    and ``F = (t / 3) / s^2``, ``s^2`` the corner noise: the larger of the set's typical noise (the
+    median over the views of their squared residuals per degree of freedom, ``2N - 6``: a bent
+    view does not inflate it) and the view's own (what its residuals leave beside the bend, over
+    ``2N - 9``: a blurred or badly detected photo is noisy, not bent). With a flat board and
+    Gaussian corner noise ``F`` is at most an F(3, 2N - 9) variable: a view is called bent when
+    it exceeds that distribution's quantile at ``BENT_FALSE_ALARM / V`` (``V`` views; 8.4 for 20
+    views of 54 points), so at most one flat set in 1000 gets a view called bent. Views are
+    tested worst first, each found bend then being fitted too, so that a bent view's pull on the
+    intrinsics does not make others look bent.
 
     The bend lifts each board point off its plane by ``c1 x^2 + c2 x y + c3 y^2`` (x, y its board
-    coordinates from the centre): a tilt or a shift of the board cannot undo it.
+    coordinates from the centre): no tilt or shift of the board undoes it.
 
     Parameters
     ----------
@@ -263,40 +277,57 @@ def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_c
     """
     names = list(T_camera_board)
     rows = [_bend_rows(camera, board_points_mm[n], image_points_px[n], T_camera_board[n]) for n in names]
-    dofs = [len(r) - 6 for r, *_ in rows]
-    if not names or min(dofs) <= 3:
+    dof = {k: len(r) - 9 for k, (r, *_) in enumerate(rows)}  # beside the pose and the bend
+    testable = {k for k, d in dof.items() if d >= 2}
+    if not testable:
         return []
-    s2 = float(np.median([float(r @ r) / d for (r, *_), d in zip(rows, dofs)]))
-    if s2 <= 0:
-        return []
-    # the linearised calibration: shared intrinsics, then 6 pose columns per view
-    start = np.cumsum([0] + [len(r) for r, *_ in rows])
-    G = np.zeros((start[-1], rows[0][2].shape[1] + 6 * len(names)))
-    for k, (_, Je, Ji, _) in enumerate(rows):
-        G[start[k] : start[k + 1], : Ji.shape[1]] = Ji
-        G[start[k] : start[k + 1], Ji.shape[1] + 6 * k : Ji.shape[1] + 6 * k + 6] = Je
-    r = np.concatenate([r for r, *_ in rows])
-    limit = _chi2_3_isf(BENT_FALSE_ALARM / len(names))
+    G, r, start = _linearised_calibration(rows)
+    typical = float(np.median([float(rows[k][0] @ rows[k][0]) / (dof[k] + 3) for k in testable]))
     bent: list[int] = []
-    while len(bent) < len(names):
-        Q = np.linalg.qr(G)[0]
-        rest = r - Q @ (Q.T @ r)
-        stats = {}
-        for k in set(range(len(names))) - set(bent):
-            B = np.zeros((len(r), 3))
-            B[start[k] : start[k + 1]] = rows[k][3]
-            B -= Q @ (Q.T @ B)
-            Qb, Rb = np.linalg.qr(B)
-            if np.min(np.abs(np.diag(Rb))) > 1e-9 * max(float(np.abs(Rb).max()), 1e-300):
-                stats[k] = float(np.sum((Qb.T @ rest) ** 2)) / s2
-        worst = max(stats, key=stats.get, default=None)
-        if worst is None or stats[worst] <= limit:
+    while testable - set(bent):
+        stats = _bend_statistics(G, r, start, rows, testable - set(bent))
+        F = {k: (t / 3) / max(typical, left / dof[k], 1e-300) for k, (t, left) in stats.items()}
+        worst = max(F, key=F.get, default=None)
+        if worst is None or F[worst] <= _f3_isf(BENT_FALSE_ALARM / len(names), dof[worst]):
             break
         bent.append(worst)
-        B = np.zeros((len(r), 3))
-        B[start[worst] : start[worst + 1]] = rows[worst][3]
-        G = np.column_stack([G, B])
+        G = np.column_stack([G, _bend_columns(start, rows, worst)])  # its bend is fitted from now on
     return [names[k] for k in bent]
+
+
+def _linearised_calibration(rows: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Jacobian of every view's residuals (shared intrinsics, then 6 pose columns per view), the
+    residuals, and where each view's rows start (and the last ends)."""
+    start = np.cumsum([0] + [len(r) for r, *_ in rows])
+    n = rows[0][2].shape[1]
+    G = np.zeros((start[-1], n + 6 * len(rows)))
+    for k, (_, Je, Ji, _) in enumerate(rows):
+        G[start[k] : start[k + 1], :n] = Ji
+        G[start[k] : start[k + 1], n + 6 * k : n + 6 * k + 6] = Je
+    return G, np.concatenate([r for r, *_ in rows]), start
+
+
+def _bend_columns(start: np.ndarray, rows: list, k: int) -> np.ndarray:
+    B = np.zeros((start[-1], 3))
+    B[start[k] : start[k + 1]] = rows[k][3]
+    return B
+
+
+def _bend_statistics(G: np.ndarray, r: np.ndarray, start: np.ndarray, rows: list, views) -> dict:
+    """Per view ``(t, q)`` (px^2): how much a bend of its board would shrink the squared residuals
+    once the model ``G`` is refitted too, and the view's own squared residuals left beside it."""
+    Q = np.linalg.qr(G)[0]
+    rest = r - Q @ (Q.T @ r)
+    out = {}
+    for k in views:
+        B = _bend_columns(start, rows, k)
+        B -= Q @ (Q.T @ B)
+        Qb, Rb = np.linalg.qr(B)
+        if np.min(np.abs(np.diag(Rb))) > 1e-9 * max(float(np.abs(Rb).max()), 1e-300):
+            c = Qb.T @ rest
+            left = (rest - Qb @ c)[start[k] : start[k + 1]]  # the view's residuals beside its bend
+            out[k] = (float(c @ c), float(left @ left))
+    return out
 
 
 def _candidates(camera: Camera, board_points_mm: np.ndarray, distance_mm: float):
