@@ -133,14 +133,18 @@ def test_the_bend_test_is_an_f_test_at_its_stated_false_alarm_rate():
     assert 1 <= flagged <= 14
 
 
-def test_opencvs_right02_is_the_bent_view_of_its_set():
-    # OpenCV's right02.jpg was taken with left02.jpg, whose board is bent; the calibration drops it
-    # as an outlier view by default: kept, it is the first view the bend test names, far above
-    # the limit (the others it names have 2 to 3 times the median view's residuals)
+def test_opencvs_right02_is_called_bent_and_its_noisiest_photos_are_not():
+    # OpenCV's right02.jpg was taken with left02.jpg, whose board is bent. The calibration drops
+    # right02 as an outlier view by default; kept, it is called bent (F 14 against a limit of 8).
+    # right05 and right13 have 2 to 3 times the median view's residuals, but no bow explains
+    # them beyond their own noise (F 4 and 2): noisy photos, not bent ones.
     views = sorted(glob.glob(str(fidlearn.data_path("real", "opencv_checkerboard_right")) + "/right*.jpg"))
-    cal = fidlearn.calibrate_checkerboard(views, (9, 6), 25.0, reject_outliers=False)
+    kept = fidlearn.calibrate_checkerboard(views, (9, 6), 25.0, reject_outliers=False)
+    bent = bent_views(kept.camera, kept.board_points_mm, kept.image_points_px, kept.T_camera_board)
+    assert any(n.endswith("right02.jpg") for n in bent)
+    cal = fidlearn.calibrate_checkerboard(views, (9, 6), 25.0)
     bent = bent_views(cal.camera, cal.board_points_mm, cal.image_points_px, cal.T_camera_board)
-    assert bent and bent[0].endswith("right02.jpg")
+    assert not any(n.endswith(("right05.jpg", "right13.jpg")) for n in bent)
 
 
 def test_the_next_view_helps_more_than_a_random_one():
