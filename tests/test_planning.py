@@ -39,12 +39,15 @@ def one_marker(size_mm: float = 160.0) -> MarkerMap:
 
 
 def _sample_positions(world, camera, T, sigma, n, seed):
+    # corners drawn with the noise the prediction assumes: each marker's corners jointly
+    # Gaussian with the covariance of noise.corner_covariance (one side's two corners share its line)
     rng = np.random.default_rng(seed)
     p = predict_accuracy(world, camera, T, corner_sigma_px=sigma)
     truth = {i: camera.project(world.marker_corners(i), T) for i in p.marker_ids}
+    root = {i: np.linalg.cholesky(noise.corner_covariance(truth[i], sigma)) for i in p.marker_ids}
     out = []
     for _ in range(n):
-        dets = [Detection(i, truth[i] + rng.normal(0.0, sigma, (4, 2))) for i in p.marker_ids]
+        dets = [Detection(i, truth[i] + (root[i] @ rng.normal(size=8)).reshape(4, 2)) for i in p.marker_ids]
         out.append(estimate_pose(dets, world, camera, corner_sigma_px=sigma, reject_outliers=False).position_mm)
     return p, np.array(out)
 
@@ -69,9 +72,13 @@ def test_predicted_covariance_equals_the_sample_covariance(world, camera, eye, t
 
 
 def test_one_marker_on_its_axis_matches_the_hand_computed_depth_error():
-    # A square of side s seen face-on at distance Z by a pinhole camera: each of the 8 pixel
-    # coordinates moves by f (s/2) / Z^2 per mm of depth, and depth decouples from the other
-    # five parameters by symmetry, so sigma_Z = sigma Z^2 / (sqrt(8) f s / 2) = sigma Z^2 / (sqrt(2) f s).
+    # A square of side s seen face-on at distance Z by a pinhole camera: its apparent side
+    # h = f s / Z, and depth decouples from the other five parameters by symmetry, so
+    # sigma_Z = Z sigma_h / h. The side is the distance between two opposite sides' fitted lines,
+    # whose offsets are each known to sigma / 2 (noise.corner_covariance: a corner's variance is
+    # the offset's plus 3 times as much from the slope); two such measures (across and down),
+    # so sigma_h = sqrt(2 (sigma / 2)^2 / 2) = sigma / 2 and sigma_Z = sigma Z^2 / (2 f s).
+    # (Four independent corners would give sigma Z^2 / (sqrt(2) f s).)
     cam = Camera(np.array([[800.0, 0, 639.5], [0, 800.0, 359.5], [0, 0, 1]]), np.zeros(5), (1280, 720))
     s, sigma = 160.0, 0.5
     for Z in (1000.0, 2000.0, 4000.0):
@@ -79,7 +86,35 @@ def test_one_marker_on_its_axis_matches_the_hand_computed_depth_error():
         p = predict_accuracy(one_marker(s), cam, T, corner_sigma_px=sigma)
         assert p.marker_ids == [0]
         assert p.side_px[0] == pytest.approx(800 * s / Z, rel=1e-9)
-        assert p.position_std_mm[0] == pytest.approx(sigma * Z**2 / (math.sqrt(2) * 800 * s), rel=1e-6)
+        assert p.position_std_mm[0] == pytest.approx(sigma * Z**2 / (2 * 800 * s), rel=1e-6)
+
+
+def test_corner_covariance_is_that_of_four_fitted_lines_and_their_intersections():
+    # Known answer from first principles: edge points spread evenly along each side of a square
+    # (201 per side, from corner to corner), each off by independent Gaussian noise across the
+    # side; a least-squares line per side, corners where neighbouring lines meet. Their sample
+    # covariance over 4000 trials is the model's (entries within 0.06 of the largest).
+    rng = np.random.default_rng(5)
+    L, n, trials, e_sigma = 40.0, 201, 4000, 0.2
+    q = np.array([[0.0, 0.0], [L, 0.0], [L, L], [0.0, L]])
+    t = np.linspace(0.0, 1.0, n) - 0.5
+    # per side: offset a and slope b of the fitted line (distance off the side at position t L)
+    off = rng.normal(0.0, e_sigma, (trials, 4, n))
+    b = np.sum(off * t, axis=2) / np.sum(t**2) / L
+    a = off.mean(axis=2)
+    d_start, d_end = a - b * L / 2, a + b * L / 2  # the line's shift at the side's two ends
+    side = np.roll(q, -1, axis=0) - q
+    normal = np.column_stack([-side[:, 1], side[:, 0]]) / L
+    corners = np.zeros((trials, 4, 2))
+    for k in range(4):  # corner k: end of side k - 1 and start of side k
+        A = np.array([normal[k - 1], normal[k]])
+        corners[:, k] = np.linalg.solve(A, np.stack([d_end[:, k - 1], d_start[:, k]])).T
+    sample = np.cov(corners.reshape(trials, 8).T)
+    model = noise.corner_covariance(q, math.sqrt(np.trace(sample) / 8))
+    assert np.abs(sample - model).max() < 0.06 * model.max()
+    # the marker's centre: half the variance four independent corners would give
+    centre = np.tile([0.25, 0.0], 4)
+    assert centre @ model @ centre == pytest.approx(0.5 * np.trace(model) / 8 / 4, rel=1e-9)
 
 
 def test_one_marker_face_on_and_far_is_flagged_as_a_likely_flip_and_a_tilted_view_is_not():
