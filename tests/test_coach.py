@@ -13,6 +13,7 @@ import pytest
 import fidlearn
 from fidlearn import Camera, frames
 from fidlearn.errors import CalibrationError
+from fidlearn.planning import bent_board
 from fidlearn.planning.coach import GOOD_UNCERTAINTY_PX, bent_views, coach, coach_calibration, uncertainty_map
 from fidlearn.planning.figure import coach_figure
 
@@ -110,8 +111,8 @@ def test_seeded_bad_sets_are_flagged_and_a_good_set_is_not(seed):
 def test_the_bend_test_is_an_f_test_at_its_stated_false_alarm_rate():
     # the textbook 95 % quantiles of F(3, nu), and chi-square(3) / 3 for a large nu
     for nu, f95 in ((10, 3.71), (20, 3.10), (120, 2.68)):
-        assert coach_module._f3_isf(0.05, nu) == pytest.approx(f95, abs=0.005)
-    assert 3 * coach_module._f3_isf(0.05, 20000) == pytest.approx(7.815, abs=0.01)
+        assert bent_board._f3_isf(0.05, nu) == pytest.approx(f95, abs=0.005)
+    assert 3 * bent_board._f3_isf(0.05, 20000) == pytest.approx(7.815, abs=0.01)
     # flat boards, Gaussian noise: at a false-alarm rate of 0.2 per set (0.01 per view, 20 views)
     # about 1 - 0.99^20 = 18 % of the sets have a view called bent; 40 sets, binomial bounds
     rng = np.random.default_rng(11)
@@ -128,7 +129,7 @@ def test_the_bend_test_is_an_f_test_at_its_stated_false_alarm_rate():
         cam = Camera(K, dist.ravel(), CAMERA.image_size)
         T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
         with pytest.MonkeyPatch.context() as mp:
-            mp.setattr(coach_module, "BENT_FALSE_ALARM", 0.2)
+            mp.setattr(bent_board, "BENT_FALSE_ALARM", 0.2)
             flagged += bool(bent_views(cam, dict.fromkeys(names, BOARD), dict(zip(names, observed)), T))
     assert 1 <= flagged <= 14
 
