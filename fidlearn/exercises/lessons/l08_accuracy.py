@@ -381,19 +381,11 @@ _Q4 = {
     "solution": """
         i = q4.inputs
         s, (y_lo, y_hi), (z_lo, z_hi) = i.marker_size_mm, i.wall_span_mm, i.height_range_mm
-        y_mid, z_low = (y_lo + y_hi - s) / 2, z_lo + s            # top-left corners, mm
-
-        def triangle(w):  # two markers low, w to either side of the middle; one w / 2 higher in the middle
-            spots = [(y_mid - w, z_low), (y_mid, z_low + w / 2), (y_mid + w, z_low)]
-            places = {k: fidlearn.MarkerPlacement(k, (0, y, z), (0, 0, 0)) for k, (y, z) in enumerate(spots)}
-            return fidlearn.MarkerMap(places, s)
-
-        def within(m):    # the part of the area within the target, as the check predicts it
-            plan = fidlearn.plan_room(m, i.camera, height_mm=i.height_mm, area=i.area_mm, step_mm=250, headings=0)
-            return plan.fraction_within(i.target_mm)
-
-        widest = (y_hi - y_lo - s) / 2
-        q4.answer = max((triangle(f * widest) for f in (0.45, 0.6, 0.75)), key=within)
+        y_mid, z_low = (y_lo + y_hi - s) / 2, z_lo + s   # top-left corners, mm
+        w = 0.6 * (y_hi - y_lo - s) / 2                  # wide, but the nearest places must still see one marker
+        spots = [(y_mid - w, z_low), (y_mid, z_low + w / 2), (y_mid + w, z_low)]  # two low, one higher between
+        places = {k: fidlearn.MarkerPlacement(k, (0, y, z), (0, 0, 0)) for k, (y, z) in enumerate(spots)}
+        q4.answer = fidlearn.MarkerMap(places, s)
         """,
     "level": "hard",
 }
