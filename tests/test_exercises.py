@@ -589,18 +589,19 @@ def test_design_bunched_and_close_layouts_say_why():
     s = q.inputs.marker_size_mm
     r = q.grade(_wall_map(_bunched(q), s))
     assert r.status == INCORRECT and "act as one small marker" in r.message and "Spread them" in r.message
-    # a level row across the wall: spread, but no height to tell the tilt about the row
+    # a short level row: spread enough not to be "bunched", but too little for the far end
     i = q.inputs
     y_lo, y_hi = i.wall_span_mm
-    z = i.height_range_mm[0] + s
-    row = [(0, y_lo + (y_hi - y_lo - s) * f, z) for f in (0.3, 0.5, 0.7)]
-    r = q.grade(_wall_map([(0, y_lo + 200, i.height_range_mm[1])] + row[1:], s))
-    too_wide = q.grade(_wall_map(_triangle(q, (y_hi - y_lo - s) / 2), s))
-    messages = [x.message for x in (r, too_wide) if x.status == INCORRECT]
-    assert messages, "expected at least one spread layout to fall short"
-    for m in messages:
-        assert "% of the area is predicted within 10 mm, 90 % is asked" in m and "worst " in m
-        assert "times the target" in m or "no pose is possible" in m
+    y, z = (y_lo + y_hi - s) / 2, i.height_range_mm[0] + s
+    r = q.grade(_wall_map([(0, y - 400, z), (0, y, z), (0, y + 400, z)], s))
+    assert r.status == INCORRECT and "% of the area is predicted within 10 mm, 90 % is asked" in r.message
+    assert "worst at the far end" in r.message and "times the target" in r.message
+    # as wide and as tall as the wall allows: the nearest places see no marker whole
+    q = exercises.lesson("08", learner="alice").q4
+    i = q.inputs
+    s, (y_lo, y_hi), (z_lo, z_hi) = i.marker_size_mm, i.wall_span_mm, i.height_range_mm
+    r = q.grade(_wall_map([(0, y_lo, z_hi), (0, (y_lo + y_hi - s) / 2, z_lo + s), (0, y_hi - s, z_hi)], s))
+    assert r.status == INCORRECT and "worst near the wall" in r.message and "no pose is possible" in r.message
 
 
 def test_design_answer_forms():

@@ -66,10 +66,15 @@ class _WallTask:
         return _rule_problem(self, m) or _coverage_problem(self, m)
 
     def praise(self, m: MarkerMap) -> str:
+        """What a right layout achieves: the part of the area within the target, the worst place."""
         grid = self.plan(m)
+        ok = np.isfinite(grid)
+        worst = f"the worst place {np.max(grid[ok]):.1f} mm" if ok.any() else ""
+        if not ok.all():
+            worst += f", no pose from {int(np.sum(~ok))} places (spread a little less)"
         return (
             f"well done: {100 * np.mean(grid <= self.target):.0f} % of the area is predicted within "
-            f"{self.target:g} mm ({100 * self.fraction:.0f} % asked); the worst place {np.max(grid):.1f} mm"
+            f"{self.target:g} mm ({100 * self.fraction:.0f} % asked); {worst}"
         )
 
 
