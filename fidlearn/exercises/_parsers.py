@@ -199,3 +199,20 @@ _T_HINTS = {
     ),
     (3, 4): "add the bottom row [0, 0, 0, 1]",
 }
+
+
+def _marker_map(answer: Any):
+    """A parser: a fidlearn MarkerMap, or a dict in the full map-file layout (``MarkerMap.from_dict``)."""
+    from ..markermap import MarkerMap
+
+    if isinstance(answer, MarkerMap):
+        return answer
+    if isinstance(answer, dict):
+        try:
+            return MarkerMap.from_dict(answer, source="your map")
+        except Exception as exc:  # the library's message says what to fix
+            raise _AnswerError(f"MarkerMap.from_dict cannot read your dict: {exc}") from None
+    raise _AnswerError(
+        f"give a fidlearn.MarkerMap or a dict in the full map-file layout (units, marker_size_mm, markers), got "
+        f"{type(answer).__name__}"
+    )

@@ -13,11 +13,13 @@ import numpy as np
 from ... import _cv, frames
 from ...camera import Camera
 from ...markermap import MarkerMap, MarkerPlacement
+from .._design import _WallTask
 from .._engine import Question, _AnswerError
 from .._parsers import (
     _array,
     _close,
     _cmp_array,
+    _marker_map,
     _parts,
     _scalar,
 )
@@ -356,6 +358,73 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q4 = {
+    "title": "Design: three markers, the whole area within the target",
+    "task": """
+        A robot's `camera` (with its lens distortion) rides `height_mm` above the floor in the floor area
+        `area_mm` = (x0, y0, x1, y1), mm, in front of the wall X = 0. You may print three markers of side
+        `marker_size_mm` and hang them on that wall, facing into the room (+X, rotation [0, 0, 0]), every
+        corner within `wall_span_mm` (Y, mm) and `height_range_mm` (Z, mm). Where? Answer a MarkerMap (or a
+        dict in the full map-file layout) with exactly three markers. The check predicts the camera's position
+        error looking toward the markers, `fidlearn.plan_room(your_map, camera, height_mm=height_mm,
+        area=area_mm, step_mm=250, headings=0)`, and wants `fraction_within(target_mm)` of at least
+        `fraction`. `fidlearn.planning.suggest_markers` may help; knowing why helps more.
+        """,
+    "hint": (
+        "From afar, markers close together act as one small marker: its corners hardly tell a small tilt of the "
+        "wall from a sideways shift of the camera, so spread the three along the wall AND in height (a wide "
+        "triangle). The far places are the hardest: the error grows with the square of the distance and shrinks "
+        "with the marker's size in pixels. But the camera looks at the middle of the markers: from the nearest "
+        "places at least one must still be whole in the picture. Try a few widths with plan_room and keep the best."
+    ),
+    "solution": """
+        i = q4.inputs
+        s, (y_lo, y_hi), (z_lo, z_hi) = i.marker_size_mm, i.wall_span_mm, i.height_range_mm
+        y_mid, z_low = (y_lo + y_hi - s) / 2, z_lo + s   # top-left corners, mm
+        w = 0.6 * (y_hi - y_lo - s) / 2                  # wide, but the nearest places must still see one marker
+        spots = [(y_mid - w, z_low), (y_mid, z_low + w / 2), (y_mid + w, z_low)]  # two low, one higher between
+        places = {k: fidlearn.MarkerPlacement(k, (0, y, z), (0, 0, 0)) for k, (y, z) in enumerate(spots)}
+        q4.answer = fidlearn.MarkerMap(places, s)
+        """,
+    "level": "hard",
+}
+
+
+def _q4(learner: str) -> Question:
+    """q4: Design: three markers, the whole area within the target."""
+    rng = _rng("08", learner, "q4")
+    size = [(1280, 720), (1024, 768), (1280, 960)][int(rng.integers(3))]
+    k1, k2 = float(np.round(rng.uniform(-0.06, -0.02), 3)), float(np.round(rng.uniform(0, 0.02), 3))
+    cam = Camera.from_fov(float(np.round(rng.uniform(60, 75))), size, dist=[k1, k2, 0, 0, 0])
+    height = float(np.round(rng.uniform(200, 500), -1))
+    x0, x1 = float(np.round(rng.uniform(800, 1200), -1)), float(np.round(rng.uniform(3000, 3600), -2))
+    marker = float(np.round(rng.uniform(26, 32) * x1 / cam.fx, -1))  # 26 to 32 px wide at the far end
+    width, yc = float(np.round(rng.uniform(2000, 3000), -2)), float(np.round(rng.uniform(-500, 500), -1))
+    area = (x0, yc - width / 2, x1, yc + width / 2)
+    span = (area[1] - 500, area[3] + 500)
+    heights = (float(np.round(rng.uniform(250, 400), -1)), float(np.round(rng.uniform(1500, 1900), -2)))
+    task = _WallTask(cam, height, area, marker, 10.0, 0.9, span, heights)
+    return Question(
+        "q4",
+        inputs={
+            "camera": cam,
+            "height_mm": height,
+            "area_mm": area,
+            "marker_size_mm": marker,
+            "wall_span_mm": span,
+            "height_range_mm": heights,
+            "target_mm": 10.0,
+            "fraction": 0.9,
+        },
+        expected=task,
+        parse=_marker_map,
+        compare=task.verdict,
+        notes=[(lambda m: True, task.praise)],
+        **_Q4,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 08 for one learner, in notebook order.
 
@@ -367,6 +436,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, with their answer keys.
+        q1 to q4, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]
