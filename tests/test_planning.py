@@ -319,3 +319,21 @@ def test_plan_command_refuses_to_write_over_its_input(tmp_path):
     with pytest.raises(FidlearnError, match="one of the inputs"):
         _run_plan([str(m), "--camera", str(fidlearn.data_path("scenes/camera.json")), "-o", str(m)])
     assert m.read_bytes() == before
+
+
+def test_a_grazing_marker_whose_planar_solution_is_nan_has_no_flip():
+    """OpenCV's IPPE returns NaN for a marker seen at a grazing angle: no second solution, no crash."""
+    from fidlearn import Camera, MarkerMap, MarkerPlacement, look_at, predict_accuracy
+
+    cam = Camera.from_fov(66, (1280, 960), dist=[-0.053, 0.019, 0, 0, 0])
+    m = MarkerMap(
+        {
+            0: MarkerPlacement(0, (0, -1390, 460), (0, 0, 0)),
+            1: MarkerPlacement(1, (0, 170, 1600), (0, 0, 0)),
+            2: MarkerPlacement(2, (0, 1730, 460), (0, 0, 0)),
+        },
+        80,
+    )
+    centre = np.mean([m.marker_corners(i).mean(axis=0) for i in m.ids], axis=0)
+    p = predict_accuracy(m, cam, look_at([715, -765, 420], centre))
+    assert p.possible and 0.0 <= p.flip_probability <= 0.5

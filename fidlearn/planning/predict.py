@@ -211,6 +211,8 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
     )
     found = []  # (weighted squared residual, rotation matrix) of each solution
     for rvec, tvec in zip(rvecs[:n], tvecs[:n]):
+        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
+            continue  # IPPE gives NaN for a marker seen at a grazing angle: no second solution there
         rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
         proj, _ = cv2.projectPoints(P, rvec, tvec, camera.K, camera.dist)
         found.append(
@@ -219,6 +221,9 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
                 cv2.Rodrigues(rvec)[0],
             )
         )
+    found = [f for f in found if math.isfinite(f[0]) and np.all(np.isfinite(f[1]))]
+    if len(found) < 2:
+        return 0.0
     found.sort(key=lambda f: f[0])
     R_true = found[0][1]  # exact corners: the true pose fits them exactly
     others = [d2 for d2, R in found[1:] if frames.rotation_angle_deg(R, R_true) > FLIP_MIN_ANGLE_DEG]
