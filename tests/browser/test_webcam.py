@@ -22,9 +22,11 @@ Checked, by reading the kernel's variables through a second kernel client:
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import json
 import os
+import queue
 import shutil
 import time
 from pathlib import Path
@@ -100,8 +102,21 @@ def _kernel_client(server: Lab):
     client = BlockingKernelClient(connection_file=files[0])
     client.load_connection_file()
     client.start_channels()
-    client.wait_for_ready(timeout=30)
-    return client
+    # Not client.wait_for_ready: after the kernel's reply it drains IOPub until IOPub is quiet for 0.2 s, which
+    # never happens while the notebook streams frames (every frame updates a widget). Ask kernel_info and wait
+    # for its reply, then for any IOPub message (the kernel's busy/idle status), so IOPub is connected too.
+    deadline = time.monotonic() + 30
+    while True:
+        msg_id = client.kernel_info()
+        with contextlib.suppress(queue.Empty):
+            while (
+                client.get_shell_msg(timeout=max(0.1, deadline - time.monotonic()))["parent_header"].get("msg_id")
+                != msg_id
+            ):
+                pass
+            client.get_iopub_msg(timeout=2)
+            return client
+        assert time.monotonic() < deadline, "the notebook's kernel did not answer kernel_info in 30 s"
 
 
 def _run(client, code: str) -> str:
