@@ -85,11 +85,12 @@ assert np.allclose(frames.transform_points(T_world_camera, p_camera), p_world)
 # ### `look_at`, derived
 #
 # `look_at(eye, target)` (used since notebook 01) builds this pose from two points and the world's up
-# direction, with three cross products. The columns of `R_world_camera` are the camera's axes in the world:
+# direction, with two cross products. The columns of `R_world_camera` are the camera's axes in the world:
 #
 # * **z** (forward) points from the eye to the target: $z = \dfrac{target - eye}{\lVert target - eye \rVert}$;
 # * **x** (right in the image) is at right angles to both the view and the world's up:
-#   $x = \dfrac{z \times up}{\lVert z \times up \rVert}$ (so the image's rows stay level: no roll);
+#   $x = \dfrac{z \times up}{\lVert z \times up \rVert}$ (so the image's rows stay level: the camera is not
+#   turned about its optical axis);
 # * **y** (down in the image) completes a right-handed frame: $y = z \times x$.
 #
 # With `up` = world Z, `z × up` points to the camera's right. The translation is the eye itself: the
@@ -375,7 +376,8 @@ assert abs(frames.rpy_deg_from_rotation(R_nudged)[0] - 30) > 45
 # yaw 90. It is not tilted: the angles describe `R_world_camera`, and R = I would put the camera's axes on
 # the world's. The optical frame's z (forward) would then be the world's Z: a camera with **R = I looks
 # at the ceiling**. Roll -90 (about X) tips its view down to the horizon (z onto +Y, y, the image's
-# down, onto -Z), and yaw 90 (about Z) turns it round to face the wall.
+# down, onto -Z), and yaw 90 (about Z) turns it round to face the wall. A camera tilted down by a few
+# degrees adds them to the -90 of the roll: in the optical frame a tilt shows up as roll, not pitch.
 
 # %%
 T_level = look_at([2000, 300, 1200], [0, 300, 1200])  # level, looking at the north wall
@@ -383,8 +385,11 @@ R_level = T_level[:3, :3]
 print("R_world_camera of the level camera:\n", R_level + 0.0)
 print("its roll, pitch, yaw:", frames.rpy_deg_from_rotation(R_level) + 0.0)
 assert np.allclose(frames.rpy_deg_from_rotation(R_level), [-90, 0, 90])
-print("the camera above (looking a little down): roll, pitch, yaw =",
-      frames.rpy_deg_from_rotation(T_world_camera[:3, :3]).round(1) + 0.0)
+rpy_above = frames.rpy_deg_from_rotation(T_world_camera[:3, :3])
+tilt_above = math.degrees(math.asin(-T_world_camera[2, 2]))  # how far its optical axis points below level
+print(f"the camera above looks {tilt_above:.1f} deg down: roll, pitch, yaw =", rpy_above.round(1) + 0.0,
+      f"(roll -90 - {tilt_above:.1f})")
+assert math.isclose(rpy_above[0], -90 - tilt_above) and abs(rpy_above[1]) < 1e-9
 
 steps = [np.eye(3), frames.rot_x(math.radians(-90)), frames.rot_z(math.radians(90)) @ frames.rot_x(math.radians(-90))]
 assert np.allclose(steps[2], R_level)
@@ -419,7 +424,7 @@ plt.show()
 
 # %% [markdown]
 # ROS keeps two frames per camera for this reason (REP-103, "suffix frames"): the **optical** frame
-# (`camera_optical`, OpenCV's x right, y down, z forward) and the **body** frame (`camera_link`, x forward,
+# (`camera_optical`, OpenCV's x right, y down, z forward) and the **body** frame (often `camera_link`: x forward,
 # y left, z up, like a robot). Between them is a fixed rotation: written in the body frame, the optical axes
 # are x_opt = -y_body (right is minus left), y_opt = -z_body (down is minus up) and z_opt = x_body (forward).
 # A level camera's **body** reports roll 0 and pitch 0: the angles a person expects.
@@ -720,7 +725,7 @@ assert np.allclose(M.T @ R_ros @ M, R_unity)
 F = np.diag([1.0, -1.0, 1.0])
 T_from_unity = frames.make_transform(M @ R_unity @ F, p_ros_mm)
 T_looking = look_at(p_ros_mm, p_ros_mm + 1000 * M @ forward_unity)
-print("T_world_camera from Unity's camera:\n", T_from_unity + 0.0)
+print("T_world_camera from Unity's camera:\n", T_from_unity.round(12) + 0.0)
 assert np.allclose(T_from_unity, T_looking)
 
 # %% [markdown]
@@ -748,7 +753,7 @@ print("body frame   : quaternion (x, y, z, w) =", frames.quaternion_from_matrix(
 # ## Summary
 #
 # * `T_a_b` (4x4) is the pose of frame b in frame a: `p_a = T_a_b @ p_b`; products chain their names,
-#   `T_world_marker = T_world_camera @ T_camera_marker`. `look_at` builds a pose from three cross products.
+#   `T_world_marker = T_world_camera @ T_camera_marker`. `look_at` builds a pose from two cross products.
 # * Rodrigues' formula $R = I + \sin\theta\, K + (1 - \cos\theta) K^2$ turns an axis-angle `rvec` into R;
 #   the trace and the antisymmetric part of R give it back. `cv2.Rodrigues` does both. solvePnP's
 #   `rvec, tvec` are the **extrinsics** `T_camera_world`; the camera's pose is their inverse, `[R^T, -R^T t]`.
