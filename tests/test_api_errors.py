@@ -73,6 +73,8 @@ BASELINES = {
     "check_rotation": ((np.eye(3),), {}),
     "check_transform": ((T,), {}),
     "rotation_angle_deg": ((np.eye(3), T[:3, :3]), {}),
+    "quaternion_from_matrix": ((T[:3, :3],), {}),
+    "matrix_from_quaternion": (([0.0, 0.0, 0.6, 0.8],), {}),
     "Camera.project": ((np.zeros((2, 3)), T), {}),
     "Camera.undistort_points": ((np.zeros((2, 2)) + 100,), {}),
     "Camera.scaled": (((640, 360),), {}),

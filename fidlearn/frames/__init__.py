@@ -10,9 +10,13 @@ Conventions (see ``docs/conventions.md``):
 * Roll, pitch and yaw are rotations about the *fixed* world X, Y and Z axes,
   applied in that order: ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (ROS REP-103).
 
-The functions live in three files, imported from here: ``_rotations.py`` (about one axis, roll-pitch-yaw,
-angles, rotation vectors), ``_transforms.py`` (make, invert, compose, apply, OpenCV's rvec/tvec) and
-``_checks.py`` (the checks that raise :class:`~fidlearn.errors.TransformError`).
+* Quaternions are ``(x, y, z, w)``, scalar last (ROS's ``geometry_msgs/Quaternion`` order), unit length,
+  returned in the canonical form ``w >= 0`` (``q`` and ``-q`` are the same rotation).
+
+The functions live in four files, imported from here: ``_rotations.py`` (about one axis, roll-pitch-yaw,
+angles, rotation vectors), ``_quaternions.py`` (to and from rotation matrices), ``_transforms.py`` (make,
+invert, compose, apply, OpenCV's rvec/tvec) and ``_checks.py`` (the checks that raise
+:class:`~fidlearn.errors.TransformError`).
 
 Examples
 --------
@@ -28,6 +32,7 @@ from __future__ import annotations
 from ._checks import _angle as _angle
 from ._checks import as_float_array as as_float_array
 from ._checks import check_rotation, check_transform
+from ._quaternions import matrix_from_quaternion, quaternion_from_matrix
 from ._rotations import _exact_trig_deg as _exact_trig_deg
 from ._rotations import _rotvec as _rotvec
 from ._rotations import (
@@ -62,6 +67,8 @@ __all__ = [
     "check_rotation",
     "check_transform",
     "rotation_angle_deg",
+    "quaternion_from_matrix",
+    "matrix_from_quaternion",
 ]
 
 # The public functions say they are fidlearn.frames': help(), repr() and the docs show the path to import.

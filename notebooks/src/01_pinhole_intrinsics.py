@@ -120,6 +120,8 @@ assert math.isclose(ideal.fx, f60) and math.isclose(ideal.fov_deg[0], 60.0)
 # What does the camera see of the markers on the wall? `data/world_map.json` places three 80 mm markers
 # on the north wall (notebook 04 explains the file). Below, the same camera 1.5 m from the wall with two
 # lenses: the projected corners carry the names TL, TR, BR, BL, the order used everywhere in fidlearn.
+# `look_at(eye, target)` gives the pose of a camera standing at `eye` and looking at `target` (a 4x4
+# matrix, `T_world_camera`); notebook 03 derives it from two cross products.
 
 # %%
 wall = MarkerMap.load(data_path("world_map.json"))
