@@ -82,12 +82,17 @@ def estimate_pose(
     reject_outliers : bool
         With 3 or more markers, leave out a marker that disagrees with the
         others (a marker measured wrongly on the wall) and list it in
-        ``Pose.rejected_ids``. The check is cheap: leave-one-out solves run only
-        when a marker's residual stands out from the others'. A marker is
-        rejected when its residual, predicted from the pose of the others, fails
-        the nested-model test at ``OUTLIER_P`` (chi-square with 8 degrees of
-        freedom when ``corner_sigma_px`` is given, else F(8, nu) with the noise
-        estimated from the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
+        ``Pose.rejected_ids``. First a screen that fires on pure noise with
+        probability ``SCREEN_P`` (1 %): the chi-square of the whole fit when
+        ``corner_sigma_px`` is given, else each marker's share of the sum of
+        squares that leaving it out would remove (a Beta, i.e. F, test free of
+        the unknown noise), computed from the one fit of all markers. The
+        marker it names is rejected when its residual, predicted from the pose
+        of the others (refined from the pose of all, so it keeps that planar
+        solution), fails the nested-model test at ``OUTLIER_P`` (chi-square
+        with 8 degrees of freedom when ``corner_sigma_px`` is given, else
+        F(8, nu) with the noise estimated from the others) and its RMS is above
+        ``OUTLIER_MIN_RMS_PX``.
         With 2 markers nobody can tell which is wrong: nothing is rejected, but
         ``Pose.marker_rms_px`` shows the disagreement.
     corner_sigma_px : float, optional

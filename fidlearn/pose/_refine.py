@@ -157,6 +157,12 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
 
     Returns R_wc, C, the sum of squared residuals, the residuals (2N,) and J^T J (6, 6) there.
     """
+    R_wc, C, sse, r, _, JtJ = _lm_full(obj, img, K, dist, R_wc, C, max_iterations, tol_sigma2)
+    return R_wc, C, sse, r, JtJ
+
+
+def _lm_full(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
+    """:func:`_lm`, returning also the Jacobian (2N, 6) at the end: R_wc, C, sse, r, J, J^T J."""
     r, J = _residuals(obj, img, K, dist, R_wc, C, True)
     sse = float(r @ r)
     lam = 1e-4
@@ -193,4 +199,4 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
             lam *= 10
             if lam > 1e8:
                 break
-    return R_wc, C, sse, r, JtJ
+    return R_wc, C, sse, r, J, JtJ

@@ -12,7 +12,7 @@ from ..errors import PoseError
 from ..markermap import MarkerMap
 from ._checks import _cheirality
 from ._observations import _Candidate, _Obs
-from ._refine import _lm, _residuals
+from ._refine import _lm_full, _residuals
 from ._stats import _sigma
 
 #: The solvers ``method=`` accepts besides ``"auto"``, with their OpenCV names.
@@ -78,8 +78,8 @@ def _from_R_t(obs: _Obs, camera: Camera, R_cw: np.ndarray, t: np.ndarray, sse: f
 
 
 def _lm_candidate(obs: _Obs, camera: Camera, start: _Candidate) -> _Candidate:
-    R_wc, C, sse, r, JtJ = _lm(obs.obj, obs.img, camera.K, camera.dist, start.R_wc, start.C)
-    return _Candidate(R_wc, C, sse, r, True, JtJ)
+    R_wc, C, sse, r, J, JtJ = _lm_full(obs.obj, obs.img, camera.K, camera.dist, start.R_wc, start.C)
+    return _Candidate(R_wc, C, sse, r, True, JtJ, J)
 
 
 def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
