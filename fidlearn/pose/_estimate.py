@@ -321,7 +321,7 @@ def _build(
     if JtJ_c is None:
         Jc = pose_jacobian(obs.obj, c.T_world_camera, camera)
         JtJ_c = Jc.T @ Jc
-    return Pose(
+    return Pose._trusted(
         T_world_camera=c.T_world_camera,
         marker_ids=tuple(obs.ids),
         residuals_px=dict(sorted(residuals.items())),

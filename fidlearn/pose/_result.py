@@ -96,6 +96,13 @@ class Pose:
     def __post_init__(self) -> None:
         self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
 
+    @classmethod
+    def _trusted(cls, **fields) -> Pose:
+        """A Pose from estimate_pose's own numbers (a rotation by construction): every field given, no check."""
+        pose = object.__new__(cls)
+        pose.__dict__.update(fields, _T_camera_world=None)
+        return pose
+
     def __getattribute__(self, name: str):
         value = object.__getattribute__(self, name)
         if name == "alternative" and callable(value):

@@ -105,12 +105,29 @@ def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
     return out
 
 
+_MARKER_POSE_CACHE: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _marker_pose_cached(marker_map: MarkerMap, obs: _Obs) -> tuple[np.ndarray, np.ndarray]:
+    """R (3, 3) and t (3,), mm, of ``marker_map.T_world_marker`` of the one marker in ``obs``, remembered by its
+    world corners (which fix it) for the last few markers."""
+    key = obs.obj.tobytes()
+    hit = _MARKER_POSE_CACHE.get(key)
+    if hit is None:
+        T = marker_map.T_world_marker(obs.ids[0])
+        hit = (T[:3, :3].copy(), T[:3, 3].copy())
+        hit[0].flags.writeable = hit[1].flags.writeable = False
+        if len(_MARKER_POSE_CACHE) >= 256:
+            _MARKER_POSE_CACHE.pop(next(iter(_MARKER_POSE_CACHE)))
+        _MARKER_POSE_CACHE[key] = hit
+    return hit
+
+
 def _solve_ippe_square(obs: _Obs, marker_map: MarkerMap, camera: Camera):
     """IPPE_SQUARE in the marker's own frame (centre origin, x right, y up), moved to the world."""
     s = marker_map.marker_size_mm
     local = np.array([[-s / 2, s / 2, 0], [s / 2, s / 2, 0], [s / 2, -s / 2, 0], [-s / 2, -s / 2, 0]])
-    T_world_marker = marker_map.T_world_marker(obs.ids[0])
-    R_wm, t_wm = T_world_marker[:3, :3], T_world_marker[:3, 3]
+    R_wm, t_wm = _marker_pose_cached(marker_map, obs)
     # T_camera_world = T_camera_marker @ inv(T_world_marker)
     return [
         (R_cm @ R_wm.T, t_cm - R_cm @ R_wm.T @ t_wm, sse)
