@@ -135,20 +135,17 @@ def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
 
     The same Jacobian as :func:`pose_jacobian`, written for speed (this runs in every LM step).
     """
-    d = obj - C
-    X_c = d @ R_wc  # rows: R_cw @ d = R_wc^T d
+    X_c = (obj - C) @ R_wc  # rows: R_cw @ (P - C) = R_wc^T (P - C)
     px, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
     r = img.reshape(-1) - px.reshape(-1)
     if not with_jacobian:
         return r, None
-    A = jac[:, 3:6] @ R_wc.T  # (2N, 3): d(px)/d(world displacement of the point)
-    dd = np.repeat(d, 2, axis=0)
-    J = np.empty((len(A), 6))
-    # row a of A times [d]x is a x d
-    J[:, 0] = A[:, 1] * dd[:, 2] - A[:, 2] * dd[:, 1]
-    J[:, 1] = A[:, 2] * dd[:, 0] - A[:, 0] * dd[:, 2]
-    J[:, 2] = A[:, 0] * dd[:, 1] - A[:, 1] * dd[:, 0]
-    np.negative(A, out=J[:, 3:])
+    # projectPoints' Jacobian at rvec = tvec = 0 is d(px)/d[w, t] for X_c -> X_c + w x X_c + t. Turning the
+    # camera by dtheta (world axes, on the left of R_wc) moves X_c by X_c x (R_cw dtheta), i.e. w = -R_cw dtheta;
+    # moving its centre by dC moves X_c by -R_cw dC. So J = jac[:, :6] @ diag(-R_cw, -R_cw).
+    B = np.zeros((6, 6))
+    B[:3, :3] = B[3:, 3:] = -R_wc.T
+    J = jac[:, :6] @ B
     return r, J
 
 
