@@ -56,6 +56,9 @@ WALL_YZ = [(0, 1500), (450, 1500), (900, 1500), (150, 1050), (600, 1050), (1050,
 MAX_RATIO = 3.0
 GROSS_NEES = 25.0
 FLIP_DEG = 5.0
+FLIP_MARKER_MM = 100.0
+FLIP_DIST_M = (0.8, 3.0)
+NO_FLIP_GAP = 100.0
 
 
 def wall_map(n: int, size_mm: float = 150.0) -> MarkerMap:
@@ -101,7 +104,8 @@ def observe(m: MarkerMap, T: np.ndarray, sigma: float, rng, shifted: dict | None
     out = []
     for i, c in m.corners().items():
         off = (shifted or {}).get(i)
-        out.append(Detection(i, CAMERA.project(c if off is None else c + off, T) + rng.normal(0, sigma, (4, 2))))
+        px = CAMERA.project(c if off is None else c + off, T)
+        out.append(Detection(i, px + rng.normal(0, sigma, (4, 2)) if sigma > 0 else px))
     return out
 
 
@@ -265,41 +269,74 @@ def rot_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
     return math.degrees(np.linalg.norm(cv2.Rodrigues(Ra @ Rb.T)[0]))
 
 
+def true_basin_minimum(obj: np.ndarray, img: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """R_world_camera (3, 3) of the least-squares minimum LM reaches from the true pose (run to 1e-8 px^2)."""
+    R, _, _, _, _ = pose_mod._lm(obj, img, CAMERA.K, CAMERA.dist, T[:3, :3].copy(), T[:3, 3].copy(), 200, 0.0)
+    return R
+
+
+def flip_gap(m: MarkerMap, T: np.ndarray, sigma: float) -> float:
+    """How much worse (in sigma^2) the other planar branch fits the noise-free corners than the truth.
+
+    0 when the two branches are not distinct (within the noise of each other: face-on). At ``NO_FLIP_GAP``
+    or more the flip is not possible: noise of ``sigma`` cannot bring it within the flag's test (its spread
+    is about ``2 sqrt(gap)``).
+    """
+    p0 = fidlearn.estimate_pose(observe(m, T, 0.0, None), m, CAMERA, corner_sigma_px=sigma)
+    if p0.alternative is None:
+        return 0.0
+    n = 4 * len(p0.marker_ids)
+    return (p0.alternative.reprojection_rms_px**2 - p0.reprojection_rms_px**2) * n / sigma**2
+
+
 def bench_flip(n_trials: int, rng) -> list[tuple[str, str, str]]:
     print(f"\n== 3. the planar flip: wrong branch = rotation > {FLIP_DEG:g} deg from LM's minimum from the truth ==")
-    print(f"{n_trials} views per row, 60 mm markers 1-4 m away, sigma 0.3-1 px (uniform), noise estimated")
+    print(
+        f"{n_trials} views per row, {FLIP_MARKER_MM:g} mm markers {FLIP_DIST_M[0]:g}-{FLIP_DIST_M[1]:g} m away, "
+        "sigma 0.3-1 px (uniform), noise estimated. 'no flip possible': the other branch fits the noise-free "
+        f"corners {NO_FLIP_GAP:g} sigma^2 worse than the truth (or there is none)"
+    )
     print("")
-    print("| markers | view angle deg | wrong branch | of those flagged, truth as alternative | flagged |")
-    print("|---|---|---|---|---|")
+    print(
+        "| markers | view angle deg | wrong branch | of those flagged, truth as alternative | flagged | "
+        "flagged where no flip is possible |"
+    )
+    print("|---|---|---|---|---|---|")
     wrong_all = said_all = 0
-    oblique_flag = oblique_n = 0
+    false_flag = no_flip = 0
     for n in (1, 2, 3, 4):
-        m = wall_map(n, 60.0)
+        m = wall_map(n, FLIP_MARKER_MM)
         obj = np.concatenate(list(m.corners().values()))
         for lo, hi in ((0, 15), (15, 30), (30, 45), (45, 60)):
-            wrong = said = flagged = 0
-            for T in scenes(m, n_trials, rng, dist_m=(1.0, 4.0), angle_deg=(lo, hi)):
+            wrong = said = flagged = row_false = row_no = 0
+            for T in scenes(m, n_trials, rng, dist_m=FLIP_DIST_M, angle_deg=(lo, hi)):
                 sigma = rng.uniform(0.3, 1.0)
                 dets = observe(m, T, sigma, rng)
                 img = np.concatenate([d.corners_px for d in dets])
-                R_min, _, _, _, _ = pose_mod._lm(obj, img, CAMERA.K, CAMERA.dist, T[:3, :3].copy(), T[:3, 3].copy())
+                R_min = true_basin_minimum(obj, img, T)
                 p = fidlearn.estimate_pose(dets, m, CAMERA)
                 flagged += p.ambiguous
+                if flip_gap(m, T, sigma) >= NO_FLIP_GAP:
+                    row_no += 1
+                    row_false += p.ambiguous
                 if rot_deg(p.T_world_camera[:3, :3], R_min) > FLIP_DEG:
                     wrong += 1
                     alt = p.alternative
                     said += p.ambiguous and alt is not None and rot_deg(alt.T_world_camera[:3, :3], R_min) <= FLIP_DEG
             wrong_all += wrong
             said_all += said
-            if lo >= 45:
-                oblique_flag += flagged
-                oblique_n += n_trials
+            false_flag += row_false
+            no_flip += row_no
             share = f"{100 * said / wrong:.0f} % of {wrong}" if wrong else "-"
-            print(f"| {n} | {lo}-{hi} | {100 * wrong / n_trials:.1f} % | {share} | {100 * flagged / n_trials:.1f} % |")
+            nf = f"{100 * row_false / row_no:.1f} % of {row_no}" if row_no else "-"
+            print(
+                f"| {n} | {lo}-{hi} | {100 * wrong / n_trials:.1f} % | {share} | "
+                f"{100 * flagged / n_trials:.1f} % | {nf} |"
+            )
     said_pct = 100 * said_all / max(wrong_all, 1)
-    ob_pct = 100 * oblique_flag / max(oblique_n, 1)
+    ff_pct = 100 * false_flag / max(no_flip, 1)
     print(f"\nwrong branch flagged with the truth as alternative: {said_pct:.1f} % of {wrong_all}")
-    print(f"flagged at 45-60 degrees: {ob_pct:.1f} % of {oblique_n}")
+    print(f"flagged where no flip is possible: {ff_pct:.2f} % of {no_flip}")
     return [
         (
             "estimate: >= 90 % of wrong-branch poses flagged ambiguous, truth as alternative (1-4 markers)",
@@ -307,9 +344,9 @@ def bench_flip(n_trials: int, rng) -> list[tuple[str, str, str]]:
             "yes" if said_pct >= 90 else "**no**",
         ),
         (
-            "estimate: ambiguous flag near zero on oblique views (45-60 deg, 1-4 markers)",
-            f"{ob_pct:.1f} %",
-            "yes" if ob_pct <= 2 else "**no**",
+            "estimate: ambiguous flag near zero (<= 1 %) where no flip is possible (1-4 markers, 0-60 deg)",
+            f"{ff_pct:.2f} % of {no_flip}",
+            "yes" if ff_pct <= 1 else "**no**",
         ),
     ]
 

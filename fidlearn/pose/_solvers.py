@@ -28,6 +28,10 @@ METHODS = {
 #: of the best one's refined sum of squared residuals (else they are kept as IPPE gave them).
 REFINE_GAP_CHI2 = 100.0
 
+#: solvePnPGeneric reports sqrt(sse / 2N) for N points, the RMS per coordinate (OpenCV 4 and 5): the
+#: sum of squared residuals is rms^2 * 2 * N.
+_RMS_COORDS = 2
+
 _PLANAR_TOL_MM = 1.0
 _PLANAR_TOL_REL = 0.01
 #: Off-plane thickness below this fraction of the extent: SQPnP's answer competes with IPPE's.
@@ -83,7 +87,8 @@ def _lm_candidate(obs: _Obs, camera: Camera, start: _Candidate) -> _Candidate:
 
 
 def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
-    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,), sse px^2); empty when the solver fails."""
+    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,), sse px^2, from the solver's reported RMS); empty
+    when the solver fails."""
     try:
         n, rvecs, tvecs, rms = cv2.solvePnPGeneric(
             np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3),
@@ -100,7 +105,7 @@ def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
         r = np.asarray(r, dtype=np.float64).reshape(3, 1)
         t = np.asarray(t, dtype=np.float64).reshape(3)
         if np.all(np.isfinite(r)) and np.all(np.isfinite(t)):
-            sse = float(rms[k]) ** 2 * len(obj) if k < len(rms) and np.isfinite(rms[k]) else None
+            sse = float(rms[k]) ** 2 * _RMS_COORDS * len(obj) if k < len(rms) and np.isfinite(rms[k]) else None
             out.append((cv2.Rodrigues(r)[0], t, sse))
     return out
 

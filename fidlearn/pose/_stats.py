@@ -26,6 +26,27 @@ MIN_SIGMA_PX = 0.02
 #: squared residuals is below this many sigma^2 (a likelihood ratio above
 #: exp(-9/2) ~ 1/90: the data cannot rule it out).
 AMBIGUITY_CHI2 = 9.0
+#: With sigma estimated from nu degrees of freedom the same likelihood-ratio level is
+#: F(1, nu; q) sigma^2 instead, q = P(chi-square(1) < AMBIGUITY_CHI2) = 0.9973 (the extra sum of
+#: squares over the estimated sigma^2 follows F(1, nu), not chi-square(1)): nu, F (scipy.stats.f.ppf).
+_AMBIGUITY_F1 = (
+    (1, 55602.3),
+    (2, 368.9),
+    (3, 84.99),
+    (4, 43.83),
+    (5, 30.33),
+    (6, 24.05),
+    (8, 18.29),
+    (10, 15.66),
+    (12, 14.17),
+    (15, 12.86),
+    (20, 11.71),
+    (30, 10.70),
+    (40, 10.23),
+    (60, 9.796),
+    (120, 9.386),
+    (math.inf, AMBIGUITY_CHI2),
+)
 #: The ambiguity test never assumes a corner noise above this (px) when it estimates the noise
 #: from the residuals: no detector is that far off on a marker it decoded, so larger residuals
 #: are a wrong map or camera, and they must not make a poorer second pose look "as good".
@@ -81,6 +102,20 @@ _F3_95 = (
     (math.inf, 2.605),
 )
 _CHI2_3_95 = 7.8147
+
+
+def _ambiguity_limit(nu: float | None) -> float:
+    """The "as good" limit of the flip's extra sum of squares, in sigma^2: AMBIGUITY_CHI2 with sigma given
+    (``nu`` None), else F(1, nu; 0.9973) for sigma estimated with ``nu`` degrees of freedom (interpolated in
+    1/nu in ``_AMBIGUITY_F1``, in logs)."""
+    if nu is None:
+        return AMBIGUITY_CHI2
+    nu = max(float(nu), 1.0)
+    for (n0, f0), (n1, f1) in zip(_AMBIGUITY_F1, _AMBIGUITY_F1[1:]):
+        if nu <= n1:
+            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
+            return math.exp(math.log(f1) + (math.log(f0) - math.log(f1)) * (x - x1) / (x0 - x1))
+    return AMBIGUITY_CHI2
 
 
 def _estimated_sigma_inflation(nu: float) -> float:
