@@ -107,6 +107,7 @@ from ._outliers import _deletion_q as _deletion_q
 from ._outliers import _left_out_test as _left_out_test
 from ._outliers import _outlier_threshold as _outlier_threshold
 from ._outliers import _reject_outliers as _reject_outliers
+from ._outliers import _rest_fit as _rest_fit
 from ._outliers import _screen as _screen
 from ._refine import _LM_TOL_PX2 as _LM_TOL_PX2
 from ._refine import _LM_TOL_SIGMA2 as _LM_TOL_SIGMA2

@@ -1,5 +1,5 @@
 """Markers that disagree with the others (measured wrongly on the wall): a screen with a stated false-alarm rate,
-then the nested-model test of the marker it names."""
+then leave-one-out fits from the pose of all and the nested-model test of the marker that explains most."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from ..camera import Camera
 from ..errors import PoseError
 from ._checks import _cheirality
 from ._observations import _Candidate, _Obs
-from ._refine import _lm_full, _residuals
+from ._refine import _lm, _residuals
 from ._solvers import _solve
 from ._stats import _beta_isf_int, _chi2_isf_even
 
@@ -115,18 +115,31 @@ def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float 
     return k
 
 
-def _left_out_test(obs: _Obs, best: _Candidate, k: int, camera: Camera, corner_sigma_px: float | None) -> bool:
-    """Whether marker k disagrees with the others: the nested-model test at ``OUTLIER_P``.
-
-    The others' pose is refined by LM from the pose of all (a local step: it stays on that
-    planar solution, however few the others), and marker k's corners predicted from it must
-    fail chi-square(8) (sigma given) or 8 F(8, nu) (sigma from the others' nu degrees of
-    freedom), with an RMS above ``OUTLIER_MIN_RMS_PX``.
-    """
+def _without(obs: _Obs, k: int) -> _Obs:
     sel = np.r_[0 : 4 * k, 4 * k + 4 : len(obs.obj)]
-    rest = _Obs([i for j, i in enumerate(obs.ids) if j != k], obs.obj[sel], obs.img[sel])
-    R_wc, C, sse, r, J, JtJ = _lm_full(rest.obj, rest.img, camera.K, camera.dist, best.R_wc, best.C)
-    dof = 2 * len(rest.obj) - 6
+    return _Obs([i for j, i in enumerate(obs.ids) if j != k], obs.obj[sel], obs.img[sel])
+
+
+def _rest_fit(obs: _Obs, best: _Candidate, k: int, camera: Camera) -> tuple:
+    """The pose of every marker but k, refined by LM from the pose of all: ``(R_wc, C, sse, JtJ)``.
+
+    A local step: it stays on the planar solution of all the markers, however few the others (two
+    coplanar markers left alone could flip to their other solution; here they cannot).
+    """
+    rest = _without(obs, k)
+    R_wc, C, sse, _, JtJ = _lm(rest.obj, rest.img, camera.K, camera.dist, best.R_wc, best.C)
+    return R_wc, C, sse, JtJ
+
+
+def _left_out_test(obs: _Obs, k: int, fit: tuple, camera: Camera, corner_sigma_px: float | None) -> bool:
+    """Whether marker k disagrees with the others (their pose ``fit``, :func:`_rest_fit`): the nested-model
+    test at ``OUTLIER_P``.
+
+    Marker k's corners predicted from the others' pose must fail chi-square(8) (sigma given) or
+    8 F(8, nu) (sigma from the others' nu degrees of freedom), with an RMS above ``OUTLIER_MIN_RMS_PX``.
+    """
+    R_wc, C, sse, JtJ = fit
+    dof = 2 * (len(obs.obj) - 4) - 6
     sigma = float(corner_sigma_px) if corner_sigma_px is not None else max(math.sqrt(sse / dof), OUTLIER_SIGMA_FLOOR_PX)
     r_out, J_out = _residuals(
         obs.obj[4 * k : 4 * k + 4], obs.img[4 * k : 4 * k + 4], camera.K, camera.dist, R_wc, C, True
@@ -141,17 +154,20 @@ def _left_out_test(obs: _Obs, best: _Candidate, k: int, camera: Camera, corner_s
 
 
 def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined):
-    """Leave out, one at a time, the marker :func:`_screen` names while :func:`_left_out_test` says it disagrees.
+    """While :func:`_screen` fires: leave out the marker whose absence explains the others best (each left
+    out in turn, :func:`_rest_fit`), if :func:`_left_out_test` says it disagrees with them.
 
     The poses then come from the solver on the remaining markers, as if only they had been seen.
     """
     rejected: list[int] = []
     while len(obs.ids) >= 3:
-        k = _screen(obs, cands[0], camera, corner_sigma_px)
-        if k is None or not _left_out_test(obs, cands[0], k, camera, corner_sigma_px):
+        if _screen(obs, cands[0], camera, corner_sigma_px) is None:
             break
-        sel = np.r_[0 : 4 * k, 4 * k + 4 : len(obs.obj)]
-        rest = _Obs([i for j, i in enumerate(obs.ids) if j != k], obs.obj[sel], obs.img[sel])
+        fits = [_rest_fit(obs, cands[0], j, camera) for j in range(len(obs.ids))]
+        k = min(range(len(fits)), key=lambda j: fits[j][2])
+        if not _left_out_test(obs, k, fits[k], camera, corner_sigma_px):
+            break
+        rest = _without(obs, k)
         try:
             rc, ru, _ = _solve(rest, marker_map, camera, method, refine_lm)
         except PoseError:
