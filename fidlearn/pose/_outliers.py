@@ -78,15 +78,16 @@ def _deletion_q(obs: _Obs, best: _Candidate, camera: Camera) -> np.ndarray | Non
         r, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, True)
         best.r, best.sse = r, float(r @ r)
     n = len(obs.ids)
+    # Woodbury: (I - J_k (J^T J)^-1 J_k^T)^-1 = I + J_k (J^T J - J_k^T J_k)^-1 J_k^T, the others' J^T J (6 x 6)
+    Jb = J.reshape(n, 8, 6)
+    Jt = Jb.transpose(0, 2, 1)
+    rb = r.reshape(n, 8)
+    g = (Jt @ rb[..., None])[..., 0]  # (n, 6): J_k^T r_k
     try:
-        JtJ_inv = np.linalg.inv(J.T @ J)
-        Jb = J.reshape(n, 8, 6)
-        A = np.eye(8) - Jb @ JtJ_inv @ Jb.transpose(0, 2, 1)
-        rb = r.reshape(n, 8, 1)
-        q = np.linalg.solve(A, rb)
+        x = np.linalg.solve((J.T @ J) - Jt @ Jb, g[..., None])[..., 0]
     except np.linalg.LinAlgError:
         return None
-    return (rb * q).sum(axis=(1, 2))
+    return (rb * rb).sum(axis=1) + (g * x).sum(axis=1)
 
 
 def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> int | None:

@@ -118,6 +118,7 @@ def _ambiguity_limit(nu: float | None) -> float:
     return AMBIGUITY_CHI2
 
 
+@functools.lru_cache(maxsize=64)
 def _estimated_sigma_inflation(nu: float) -> float:
     """``3 F(3, nu; 0.95) / chi2(3; 0.95)``: how much wider the 95 % region is when sigma is estimated.
 
