@@ -26,8 +26,10 @@ class Pose:
         Per marker: observed minus reprojected corners (px), TL, TR, BR, BL.
         Rejected markers are listed too (their residual under this pose).
     reprojection_rms_px : float
-        RMS over the used corners of the residual length (px), as
-        ``cv2.solvePnPGeneric`` reports it.
+        RMS over the used corners of the residual length (px),
+        ``sqrt(sum |r|^2 / N)`` for N corners (``cv2.solvePnPGeneric``
+        reports the RMS per coordinate, ``sqrt(sum |r|^2 / 2N)``: this over
+        ``sqrt(2)``).
     covariance : ndarray, shape (6, 6)
         Covariance of the camera's pose: ``[dtheta (rad, 3), position (mm, 3)]``
         where ``dtheta`` is a small rotation vector, in world axes, applied on
