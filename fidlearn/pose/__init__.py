@@ -102,9 +102,12 @@ from ._outliers import OUTLIER_CHI2 as OUTLIER_CHI2
 from ._outliers import OUTLIER_MIN_RMS_PX as OUTLIER_MIN_RMS_PX
 from ._outliers import OUTLIER_P as OUTLIER_P
 from ._outliers import OUTLIER_SIGMA_FLOOR_PX as OUTLIER_SIGMA_FLOOR_PX
-from ._outliers import _marker_chi2 as _marker_chi2
+from ._outliers import SCREEN_P as SCREEN_P
+from ._outliers import _deletion_q as _deletion_q
+from ._outliers import _left_out_test as _left_out_test
 from ._outliers import _outlier_threshold as _outlier_threshold
 from ._outliers import _reject_outliers as _reject_outliers
+from ._outliers import _rest_fit as _rest_fit
 from ._outliers import _screen as _screen
 from ._refine import _LM_TOL_PX2 as _LM_TOL_PX2
 from ._refine import _LM_TOL_SIGMA2 as _LM_TOL_SIGMA2

@@ -24,6 +24,7 @@ from ._stats import (
     AMBIGUITY_CHI2,
     AMBIGUITY_MAX_SIGMA_PX,
     PRIOR_DOF,
+    _ambiguity_limit,
     _covariance_from,
     _estimated_sigma_inflation,
     _mahalanobis2,
@@ -82,12 +83,17 @@ def estimate_pose(
     reject_outliers : bool
         With 3 or more markers, leave out a marker that disagrees with the
         others (a marker measured wrongly on the wall) and list it in
-        ``Pose.rejected_ids``. The check is cheap: leave-one-out solves run only
-        when a marker's residual stands out from the others'. A marker is
-        rejected when its residual, predicted from the pose of the others, fails
-        the nested-model test at ``OUTLIER_P`` (chi-square with 8 degrees of
-        freedom when ``corner_sigma_px`` is given, else F(8, nu) with the noise
-        estimated from the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
+        ``Pose.rejected_ids``. First a screen that fires on pure noise with
+        probability ``SCREEN_P`` (1 %): the chi-square of the whole fit when
+        ``corner_sigma_px`` is given, else each marker's share of the sum of
+        squares that leaving it out would remove (a Beta, i.e. F, test free of
+        the unknown noise), computed from the one fit of all markers. The
+        marker it names is rejected when its residual, predicted from the pose
+        of the others (refined from the pose of all, so it keeps that planar
+        solution), fails the nested-model test at ``OUTLIER_P`` (chi-square
+        with 8 degrees of freedom when ``corner_sigma_px`` is given, else
+        F(8, nu) with the noise estimated from the others) and its RMS is above
+        ``OUTLIER_MIN_RMS_PX``.
         With 2 markers nobody can tell which is wrong: nothing is rejected, but
         ``Pose.marker_rms_px`` shows the disagreement.
     corner_sigma_px : float, optional
@@ -102,12 +108,16 @@ def estimate_pose(
     -------
     Pose
         ``Pose.ambiguous`` is True when the second planar solution's extra sum
-        of squared residuals is below ``AMBIGUITY_CHI2 * sigma^2``: the
-        likelihood ratio of the two poses is then above ``exp(-9/2)`` and the
-        corners cannot rule out the alternative. Only when the fit is good: a
-        sigma estimated from the residuals counts at most
-        ``AMBIGUITY_MAX_SIGMA_PX`` here (larger residuals are a wrong map or
-        camera, not noise, and make no second pose "as good").
+        of squared residuals is below ``AMBIGUITY_CHI2 * sigma^2`` with
+        ``corner_sigma_px`` given: the likelihood ratio of the two poses is
+        then above ``exp(-9/2)`` and the corners cannot rule out the
+        alternative. With sigma estimated from ``nu = 2N - 6 + PRIOR_DOF``
+        degrees of freedom the limit is ``F(1, nu; 0.9973) * sigma^2`` (the
+        same level, allowing for the estimate: 44 sigma^2 for one marker, 12
+        for three, 9.8 for eight). Only when the fit is good: a sigma estimated
+        from the residuals counts at most ``AMBIGUITY_MAX_SIGMA_PX`` here
+        (larger residuals are a wrong map or camera, not noise, and make no
+        second pose "as good"; the limit is then the chi-square one).
 
     Raises
     ------
@@ -254,7 +264,10 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
         J = pose_jacobian(obs.obj, cands[0].T_world_camera, data.camera)
         JtJ = J.T @ J
     alt = data.alt = _alternative(obs, cands, unrefined, JtJ, data.sigma_amb)
-    data.ambiguous = alt is not None and (alt.sse - cands[0].sse) < AMBIGUITY_CHI2 * data.sigma_amb**2
+    # sigma estimated (not given, nor capped): its uncertainty widens the test (F instead of chi-square)
+    estimated = data.corner_sigma_px is None and data.sigma < AMBIGUITY_MAX_SIGMA_PX
+    nu = data.dof + PRIOR_DOF if estimated else None
+    data.ambiguous = alt is not None and (alt.sse - cands[0].sse) < _ambiguity_limit(nu) * data.sigma_amb**2
     alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
     if alt is None:
         return _build(data, cands[0], None, method_used, JtJ)
@@ -271,7 +284,8 @@ def _alternative(
     Refined, when LM keeps it apart as a second minimum; else as IPPE gave it, when LM ran from it
     into the first one along a flat valley. It counts as another answer when it lies outside the
     3-sigma ellipsoid of the best pose (squared Mahalanobis distance above AMBIGUITY_CHI2); it is
-    "as good" (ambiguous) when its extra sum of squared residuals is below AMBIGUITY_CHI2 sigma^2.
+    "as good" (ambiguous) when its extra sum of squared residuals is below AMBIGUITY_CHI2 sigma^2 (F(1, nu)
+    sigma^2 with sigma estimated, see :func:`_ambiguity_limit`).
     Near a single quadratic minimum the two numbers are equal, so a merely nearby pose is never
     called ambiguous; both hold only when the error surface is far from quadratic, which is the
     flip. Only a pose a camera can have counts (:func:`_cheirality`).
@@ -316,7 +330,7 @@ def _build(
     if JtJ_c is None:
         Jc = pose_jacobian(obs.obj, c.T_world_camera, camera)
         JtJ_c = Jc.T @ Jc
-    return Pose(
+    return Pose._trusted(
         T_world_camera=c.T_world_camera,
         marker_ids=tuple(obs.ids),
         residuals_px=dict(sorted(residuals.items())),

@@ -38,6 +38,7 @@ class _Candidate:
     r: np.ndarray | None  # (2N,) residuals, observed minus projected, px (None: not computed yet)
     refined: bool = False  # whether Levenberg-Marquardt ran from it
     JtJ: np.ndarray | None = None  # (6, 6) J^T J at this pose, when LM left it behind
+    J: np.ndarray | None = None  # (2N, 6) the Jacobian of the residuals' projections there, likewise
     problem: str | None = _UNCHECKED  # why it cannot be the camera (None: it can); see _cheirality
     problem_short: str = ""  # the same in one sentence, to follow another message
 

@@ -1,4 +1,5 @@
-"""Markers that disagree with the others (measured wrongly on the wall): a cheap screen, then leave-one-out."""
+"""Markers that disagree with the others (measured wrongly on the wall): a screen with a stated false-alarm rate,
+then leave-one-out fits from the pose of all and the nested-model test of the marker that explains most."""
 
 from __future__ import annotations
 
@@ -10,42 +11,22 @@ from ..camera import Camera
 from ..errors import PoseError
 from ._checks import _cheirality
 from ._observations import _Candidate, _Obs
-from ._refine import _residuals, pose_jacobian
+from ._refine import _lm, _residuals
 from ._solvers import _solve
+from ._stats import _beta_isf_int, _chi2_isf_even
 
 #: False-alarm probability of the test that rejects a marker (per marker tested): its 8
 #: residuals, predicted from the pose of the others, must have a Mahalanobis chi-square
 #: above the chi-square(8) quantile (sigma given) or above 8 F(8, nu) (sigma estimated from
 #: the others' nu degrees of freedom: the nested-model F test)...
 OUTLIER_P = 1e-4
-#: chi-square(8) quantile at OUTLIER_P (used in the cheap screen and with a known sigma).
+#: chi-square(8) quantile at OUTLIER_P (the test's limit with a known sigma).
 OUTLIER_CHI2 = 31.83
 #: ... and its RMS residual must also be above this many pixels (sub-pixel disagreement
 #: is detector bias or calibration, not a misplaced marker).
 OUTLIER_MIN_RMS_PX = 0.75
-#: Noise assumed when screening for outliers: never below this (px).
+#: Noise assumed in the test of a left-out marker when it is estimated: never below this (px).
 OUTLIER_SIGMA_FLOOR_PX = 0.3
-
-
-def _marker_chi2(
-    obs_rest: _Obs, cand: _Candidate, obj_out: np.ndarray, img_out: np.ndarray, camera: Camera, sigma: float
-) -> tuple[float, float]:
-    """Mahalanobis chi-square (8 dof) and RMS (px) of a left-out marker under the others' pose.
-
-    The prediction's covariance is ``sigma^2 (I + J_out (J_rest^T J_rest)^-1 J_out^T)``: the
-    corner noise plus the uncertainty of the pose fitted without it.
-    """
-    T = cand.T_world_camera
-    r, _ = _residuals(obj_out, img_out, camera.K, camera.dist, cand.R_wc, cand.C, False)
-    J_rest = pose_jacobian(obs_rest.obj, T, camera)
-    J_out = pose_jacobian(obj_out, T, camera)
-    try:
-        S = np.eye(len(r)) + J_out @ np.linalg.solve(J_rest.T @ J_rest, J_out.T)
-        chi2 = float(r @ np.linalg.solve(S, r)) / sigma**2
-    except np.linalg.LinAlgError:
-        chi2 = float(r @ r) / sigma**2
-    rms = float(np.sqrt(np.mean(np.sum(r.reshape(-1, 2) ** 2, axis=1))))
-    return chi2, rms
 
 
 #: 8 F(8, nu; 1 - OUTLIER_P) for nu degrees of freedom of the others' fit (computed by numerical
@@ -77,54 +58,123 @@ def _outlier_threshold(nu: float, sigma_known: bool) -> float:
     return OUTLIER_CHI2
 
 
-def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
-    """Cheap test: could one marker be an outlier? (per-marker residuals against a robust noise level)."""
-    r = best.r
-    if r is None:  # a solver's pose not refined (its residuals were left for later): compute them now
-        r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, False)
-    per = np.sum(r.reshape(-1, 8) ** 2, axis=1)  # sigma^2 * chi-square of each marker (8 values)
-    # A misplaced marker drags the pose and spreads its error over the others, at worst
-    # evenly: be generous here (this only decides whether the leave-one-out test runs), and
-    # look also at the overall fit, against the noise when it is given.
-    overall_rms = math.sqrt(float(np.sum(per)) / (4 * len(per)))
-    if overall_rms > max(OUTLIER_MIN_RMS_PX, 3.0 * (corner_sigma_px or 0.0)):
-        return True
-    if float(per.max()) <= (OUTLIER_CHI2 / 3) * OUTLIER_SIGMA_FLOOR_PX**2:
-        return False  # every marker fits within the noise floor: nothing to look for
-    robust = float(np.median(per)) / 8.0
-    sigma2 = max((corner_sigma_px or 0.0) ** 2, robust, OUTLIER_SIGMA_FLOOR_PX**2)
-    rms = np.sqrt(per / 4.0)
-    return bool(np.any((per / sigma2 > OUTLIER_CHI2 / 3) & (rms > OUTLIER_MIN_RMS_PX / 2)))
+#: False-alarm probability of the screen on pure noise: the chance that corners with only
+#: Gaussian noise (of ``corner_sigma_px`` when given) start the rejection test. Measured in
+#: ``benchmarks/bench_estimate.py`` and ``tests/test_pose_outliers.py``.
+SCREEN_P = 0.01
+
+
+def _deletion_q(obs: _Obs, best: _Candidate, camera: Camera) -> np.ndarray | None:
+    """Per marker, ``Q_k = r_k^T (I - H_kk)^-1 r_k`` (px^2): how much the sum of squared residuals drops
+    when marker k is left out, from the one fit of all (None when the pose is not determined).
+
+    ``H_kk`` is marker k's (8, 8) block of the hat matrix ``J (J^T J)^-1 J^T``. For a model linear
+    near the fit this is exact: ``Q_k / sigma^2`` is the chi-square (8 dof) of marker k's corners
+    predicted by the pose of the others, ``sse - Q_k`` the others' own sum of squares. No fit of a
+    subset is made, so no subset (two coplanar markers) can flip to its other planar solution.
+    """
+    r, J = best.r, best.J
+    if r is None or J is None:
+        r, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, True)
+        best.r, best.sse = r, float(r @ r)
+    n = len(obs.ids)
+    # Woodbury: (I - J_k (J^T J)^-1 J_k^T)^-1 = I + J_k (J^T J - J_k^T J_k)^-1 J_k^T, the others' J^T J (6 x 6)
+    Jb = J.reshape(n, 8, 6)
+    Jt = Jb.transpose(0, 2, 1)
+    rb = r.reshape(n, 8)
+    g = (Jt @ rb[..., None])[..., 0]  # (n, 6): J_k^T r_k
+    try:
+        x = np.linalg.solve((J.T @ J) - Jt @ Jb, g[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return None
+    return (rb * rb).sum(axis=1) + (g * x).sum(axis=1)
+
+
+def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> int | None:
+    """The marker that might be misplaced, or None: a test with false-alarm rate ``SCREEN_P`` on pure noise.
+
+    With ``corner_sigma_px`` given: the chi-square of the whole fit, ``sse / sigma^2`` against the
+    chi-square(2N - 6) quantile at ``1 - SCREEN_P``; when it fires, the marker with the largest
+    :func:`_deletion_q`. Without: the noise is unknown, so the test is on ratios, free of it: marker
+    k's ``Q_k / sse`` follows Beta(4, (2N - 14) / 2) on pure noise (the nested-model F test of
+    leaving it out, with the noise estimated from the others), tested at ``SCREEN_P / n`` for each
+    of the n markers (Bonferroni: at most ``SCREEN_P`` for the frame).
+    """
+    dof = 2 * len(obs.obj) - 6
+    if corner_sigma_px is not None:
+        if best.r is None:  # a solver's pose not refined (its residuals were left for later)
+            r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, False)
+            best.r, best.sse = r, float(r @ r)
+        if best.sse / corner_sigma_px**2 <= _chi2_isf_even(SCREEN_P, dof):
+            return None
+    q = _deletion_q(obs, best, camera)
+    if q is None:
+        return None
+    k = int(np.argmax(q))
+    if corner_sigma_px is None and not q[k] > _beta_isf_int(SCREEN_P / len(q), 4, (dof - 8) // 2) * best.sse:
+        return None
+    return k
+
+
+def _without(obs: _Obs, k: int) -> _Obs:
+    sel = np.r_[0 : 4 * k, 4 * k + 4 : len(obs.obj)]
+    return _Obs([i for j, i in enumerate(obs.ids) if j != k], obs.obj[sel], obs.img[sel])
+
+
+def _rest_fit(obs: _Obs, best: _Candidate, k: int, camera: Camera) -> tuple:
+    """The pose of every marker but k, refined by LM from the pose of all: ``(R_wc, C, sse, JtJ)``.
+
+    A local step: it stays on the planar solution of all the markers, however few the others (two
+    coplanar markers left alone could flip to their other solution; here they cannot).
+    """
+    rest = _without(obs, k)
+    R_wc, C, sse, _, JtJ = _lm(rest.obj, rest.img, camera.K, camera.dist, best.R_wc, best.C)
+    return R_wc, C, sse, JtJ
+
+
+def _left_out_test(obs: _Obs, k: int, fit: tuple, camera: Camera, corner_sigma_px: float | None) -> bool:
+    """Whether marker k disagrees with the others (their pose ``fit``, :func:`_rest_fit`): the nested-model
+    test at ``OUTLIER_P``.
+
+    Marker k's corners predicted from the others' pose must fail chi-square(8) (sigma given) or
+    8 F(8, nu) (sigma from the others' nu degrees of freedom), with an RMS above ``OUTLIER_MIN_RMS_PX``.
+    """
+    R_wc, C, sse, JtJ = fit
+    dof = 2 * (len(obs.obj) - 4) - 6
+    sigma = float(corner_sigma_px) if corner_sigma_px is not None else max(math.sqrt(sse / dof), OUTLIER_SIGMA_FLOOR_PX)
+    r_out, J_out = _residuals(
+        obs.obj[4 * k : 4 * k + 4], obs.img[4 * k : 4 * k + 4], camera.K, camera.dist, R_wc, C, True
+    )
+    try:
+        S = np.eye(8) + J_out @ np.linalg.solve(JtJ, J_out.T)
+        chi2 = float(r_out @ np.linalg.solve(S, r_out)) / sigma**2
+    except np.linalg.LinAlgError:
+        chi2 = float(r_out @ r_out) / sigma**2
+    rms = math.sqrt(float(r_out @ r_out) / 4)
+    return chi2 > _outlier_threshold(dof, corner_sigma_px is not None) and rms > OUTLIER_MIN_RMS_PX
 
 
 def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined):
-    """Leave-one-out: drop the marker whose removal explains the others best, while it is inconsistent."""
+    """While :func:`_screen` fires: leave out the marker whose absence explains the others best (each left
+    out in turn, :func:`_rest_fit`), if :func:`_left_out_test` says it disagrees with them.
+
+    The poses then come from the solver on the remaining markers, as if only they had been seen.
+    """
     rejected: list[int] = []
-    while len(obs.ids) >= 3 and _screen(obs, cands[0], camera, corner_sigma_px):
-        best = None
-        for k, mid in enumerate(obs.ids):
-            keep = [i for j, i in enumerate(obs.ids) if j != k]
-            sel = np.r_[0 : 4 * k, 4 * k + 4 : len(obs.obj)]
-            rest = _Obs(keep, obs.obj[sel], obs.img[sel])
-            try:
-                rc, ru, _ = _solve(rest, marker_map, camera, method, refine_lm)
-            except PoseError:
-                continue
-            if _cheirality(rest, rc[0]) is not None:
-                continue  # no pose a camera can have
-            if best is None or rc[0].sse < best[0]:
-                best = (rc[0].sse, k, mid, rest, rc, ru)
-        if best is None:
+    while len(obs.ids) >= 3:
+        if _screen(obs, cands[0], camera, corner_sigma_px) is None:
             break
-        score, k, mid, rest, rc, ru = best
-        dof = 2 * len(rest.obj) - 6
-        if corner_sigma_px is None:
-            sigma = max(math.sqrt(score / dof), OUTLIER_SIGMA_FLOOR_PX)
-        else:
-            sigma = float(corner_sigma_px)
-        chi2, rms = _marker_chi2(rest, rc[0], obs.obj[4 * k : 4 * k + 4], obs.img[4 * k : 4 * k + 4], camera, sigma)
-        if chi2 <= _outlier_threshold(dof, corner_sigma_px is not None) or rms <= OUTLIER_MIN_RMS_PX:
+        fits = [_rest_fit(obs, cands[0], j, camera) for j in range(len(obs.ids))]
+        k = min(range(len(fits)), key=lambda j: fits[j][2])
+        if not _left_out_test(obs, k, fits[k], camera, corner_sigma_px):
             break
-        rejected.append(mid)
+        rest = _without(obs, k)
+        try:
+            rc, ru, _ = _solve(rest, marker_map, camera, method, refine_lm)
+        except PoseError:
+            break
+        if _cheirality(rest, rc[0]) is not None:
+            break  # no pose a camera can have without it
+        rejected.append(obs.ids[k])
         obs, cands, unrefined = rest, rc, ru
     return obs, cands, unrefined, rejected

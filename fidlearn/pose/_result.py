@@ -26,8 +26,10 @@ class Pose:
         Per marker: observed minus reprojected corners (px), TL, TR, BR, BL.
         Rejected markers are listed too (their residual under this pose).
     reprojection_rms_px : float
-        RMS over the used corners of the residual length (px), as
-        ``cv2.solvePnPGeneric`` reports it.
+        RMS over the used corners of the residual length (px),
+        ``sqrt(sum |r|^2 / N)`` for N corners (``cv2.solvePnPGeneric``
+        reports the RMS per coordinate, ``sqrt(sum |r|^2 / 2N)``: this over
+        ``sqrt(2)``).
     covariance : ndarray, shape (6, 6)
         Covariance of the camera's pose: ``[dtheta (rad, 3), position (mm, 3)]``
         where ``dtheta`` is a small rotation vector, in world axes, applied on
@@ -95,6 +97,13 @@ class Pose:
 
     def __post_init__(self) -> None:
         self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
+
+    @classmethod
+    def _trusted(cls, **fields) -> Pose:
+        """A Pose from estimate_pose's own numbers (a rotation by construction): every field given, no check."""
+        pose = object.__new__(cls)
+        pose.__dict__.update(fields, _T_camera_world=None)
+        return pose
 
     def __getattribute__(self, name: str):
         value = object.__getattribute__(self, name)

@@ -12,7 +12,7 @@ from ..errors import PoseError
 from ..markermap import MarkerMap
 from ._checks import _cheirality
 from ._observations import _Candidate, _Obs
-from ._refine import _lm, _residuals
+from ._refine import _lm_full, _residuals
 from ._stats import _sigma
 
 #: The solvers ``method=`` accepts besides ``"auto"``, with their OpenCV names.
@@ -27,6 +27,10 @@ METHODS = {
 #: The other planar solutions are refined only when they start within this many sigma^2
 #: of the best one's refined sum of squared residuals (else they are kept as IPPE gave them).
 REFINE_GAP_CHI2 = 100.0
+
+#: solvePnPGeneric reports sqrt(sse / 2N) for N points, the RMS per coordinate (OpenCV 4 and 5): the
+#: sum of squared residuals is rms^2 * 2 * N.
+_RMS_COORDS = 2
 
 _PLANAR_TOL_MM = 1.0
 _PLANAR_TOL_REL = 0.01
@@ -78,12 +82,13 @@ def _from_R_t(obs: _Obs, camera: Camera, R_cw: np.ndarray, t: np.ndarray, sse: f
 
 
 def _lm_candidate(obs: _Obs, camera: Camera, start: _Candidate) -> _Candidate:
-    R_wc, C, sse, r, JtJ = _lm(obs.obj, obs.img, camera.K, camera.dist, start.R_wc, start.C)
-    return _Candidate(R_wc, C, sse, r, True, JtJ)
+    R_wc, C, sse, r, J, JtJ = _lm_full(obs.obj, obs.img, camera.K, camera.dist, start.R_wc, start.C)
+    return _Candidate(R_wc, C, sse, r, True, JtJ, J)
 
 
 def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
-    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,), sse px^2); empty when the solver fails."""
+    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,), sse px^2, from the solver's reported RMS); empty
+    when the solver fails."""
     try:
         n, rvecs, tvecs, rms = cv2.solvePnPGeneric(
             np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3),
@@ -100,17 +105,34 @@ def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
         r = np.asarray(r, dtype=np.float64).reshape(3, 1)
         t = np.asarray(t, dtype=np.float64).reshape(3)
         if np.all(np.isfinite(r)) and np.all(np.isfinite(t)):
-            sse = float(rms[k]) ** 2 * len(obj) if k < len(rms) and np.isfinite(rms[k]) else None
+            sse = float(rms[k]) ** 2 * _RMS_COORDS * len(obj) if k < len(rms) and np.isfinite(rms[k]) else None
             out.append((cv2.Rodrigues(r)[0], t, sse))
     return out
+
+
+_MARKER_POSE_CACHE: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _marker_pose_cached(marker_map: MarkerMap, obs: _Obs) -> tuple[np.ndarray, np.ndarray]:
+    """R (3, 3) and t (3,), mm, of ``marker_map.T_world_marker`` of the one marker in ``obs``, remembered by its
+    world corners (which fix it) for the last few markers."""
+    key = obs.obj.tobytes()
+    hit = _MARKER_POSE_CACHE.get(key)
+    if hit is None:
+        T = marker_map.T_world_marker(obs.ids[0])
+        hit = (T[:3, :3].copy(), T[:3, 3].copy())
+        hit[0].flags.writeable = hit[1].flags.writeable = False
+        if len(_MARKER_POSE_CACHE) >= 256:
+            _MARKER_POSE_CACHE.pop(next(iter(_MARKER_POSE_CACHE)))
+        _MARKER_POSE_CACHE[key] = hit
+    return hit
 
 
 def _solve_ippe_square(obs: _Obs, marker_map: MarkerMap, camera: Camera):
     """IPPE_SQUARE in the marker's own frame (centre origin, x right, y up), moved to the world."""
     s = marker_map.marker_size_mm
     local = np.array([[-s / 2, s / 2, 0], [s / 2, s / 2, 0], [s / 2, -s / 2, 0], [-s / 2, -s / 2, 0]])
-    T_world_marker = marker_map.T_world_marker(obs.ids[0])
-    R_wm, t_wm = T_world_marker[:3, :3], T_world_marker[:3, 3]
+    R_wm, t_wm = _marker_pose_cached(marker_map, obs)
     # T_camera_world = T_camera_marker @ inv(T_world_marker)
     return [
         (R_cm @ R_wm.T, t_cm - R_cm @ R_wm.T @ t_wm, sse)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from ..errors import PoseError
@@ -24,6 +26,27 @@ MIN_SIGMA_PX = 0.02
 #: squared residuals is below this many sigma^2 (a likelihood ratio above
 #: exp(-9/2) ~ 1/90: the data cannot rule it out).
 AMBIGUITY_CHI2 = 9.0
+#: With sigma estimated from nu degrees of freedom the same likelihood-ratio level is
+#: F(1, nu; q) sigma^2 instead, q = P(chi-square(1) < AMBIGUITY_CHI2) = 0.9973 (the extra sum of
+#: squares over the estimated sigma^2 follows F(1, nu), not chi-square(1)): nu, F (scipy.stats.f.ppf).
+_AMBIGUITY_F1 = (
+    (1, 55602.3),
+    (2, 368.9),
+    (3, 84.99),
+    (4, 43.83),
+    (5, 30.33),
+    (6, 24.05),
+    (8, 18.29),
+    (10, 15.66),
+    (12, 14.17),
+    (15, 12.86),
+    (20, 11.71),
+    (30, 10.70),
+    (40, 10.23),
+    (60, 9.796),
+    (120, 9.386),
+    (math.inf, AMBIGUITY_CHI2),
+)
 #: The ambiguity test never assumes a corner noise above this (px) when it estimates the noise
 #: from the residuals: no detector is that far off on a marker it decoded, so larger residuals
 #: are a wrong map or camera, and they must not make a poorer second pose look "as good".
@@ -81,6 +104,21 @@ _F3_95 = (
 _CHI2_3_95 = 7.8147
 
 
+def _ambiguity_limit(nu: float | None) -> float:
+    """The "as good" limit of the flip's extra sum of squares, in sigma^2: AMBIGUITY_CHI2 with sigma given
+    (``nu`` None), else F(1, nu; 0.9973) for sigma estimated with ``nu`` degrees of freedom (interpolated in
+    1/nu in ``_AMBIGUITY_F1``, in logs)."""
+    if nu is None:
+        return AMBIGUITY_CHI2
+    nu = max(float(nu), 1.0)
+    for (n0, f0), (n1, f1) in zip(_AMBIGUITY_F1, _AMBIGUITY_F1[1:]):
+        if nu <= n1:
+            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
+            return math.exp(math.log(f1) + (math.log(f0) - math.log(f1)) * (x - x1) / (x0 - x1))
+    return AMBIGUITY_CHI2
+
+
+@functools.lru_cache(maxsize=64)
 def _estimated_sigma_inflation(nu: float) -> float:
     """``3 F(3, nu; 0.95) / chi2(3; 0.95)``: how much wider the 95 % region is when sigma is estimated.
 
@@ -105,10 +143,61 @@ def _sigma(sse: float, dof: int, corner_sigma_px: float | None) -> float:
 
 def _covariance_from(JtJ: np.ndarray, sigma: float) -> np.ndarray | None:
     """``sigma^2 (J^T J)^-1``, symmetric; None when the pose is not determined (singular J^T J)."""
-    try:
-        cov = sigma**2 * np.linalg.inv(JtJ)
-    except np.linalg.LinAlgError:
+    ok, inv = cv2.invert(JtJ)  # LU, as numpy's inv (whose overhead is five times the work on 6 x 6)
+    if not ok:
         return None
+    cov = sigma**2 * inv
     if not np.all(np.isfinite(cov)):
         return None
     return (cov + cov.T) / 2
+
+
+def _chi2_sf_even(x: float, dof: int) -> float:
+    """P(X > x) for X chi-square with an even number ``dof`` of degrees of freedom (closed form, exact).
+
+    ``exp(-x/2) sum_{i < dof/2} (x/2)^i / i!``, summed in logs so that large ``x`` and ``dof`` do not overflow.
+    """
+    if x <= 0:
+        return 1.0
+    h = x / 2.0
+    logs = [-h + i * math.log(h) - math.lgamma(i + 1) for i in range(dof // 2)]
+    top = max(logs)
+    return math.exp(top) * math.fsum(math.exp(v - top) for v in logs)
+
+
+@functools.lru_cache(maxsize=256)
+def _chi2_isf_even(p: float, dof: int) -> float:
+    """The x with P(X > x) = p, X chi-square with an even ``dof`` (bisection on :func:`_chi2_sf_even`)."""
+    lo, hi = 0.0, float(dof) + 10.0
+    while _chi2_sf_even(hi, dof) > p:
+        hi *= 2.0
+    for _ in range(80):
+        mid = (lo + hi) / 2
+        if _chi2_sf_even(mid, dof) > p:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
+
+
+def _beta_sf_int(x: float, a: int, b: int) -> float:
+    """P(B > x) for B ~ Beta(a, b) with integer a, b: ``sum_{j < a} C(a+b-1, j) x^j (1-x)^(a+b-1-j)`` (exact)."""
+    if x <= 0:
+        return 1.0
+    if x >= 1:
+        return 0.0
+    n = a + b - 1
+    return math.fsum(math.comb(n, j) * x**j * (1 - x) ** (n - j) for j in range(a))
+
+
+@functools.lru_cache(maxsize=256)
+def _beta_isf_int(p: float, a: int, b: int) -> float:
+    """The x with P(B > x) = p, B ~ Beta(a, b), a and b integers (bisection on :func:`_beta_sf_int`)."""
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        mid = (lo + hi) / 2
+        if _beta_sf_int(mid, a, b) > p:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
