@@ -80,7 +80,7 @@ def quaternion_xyzw(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (4,) ``(x, y, z, w)`` of the rotation matrix ``R`` (3, 3), with ``w >= 0``.
 
     Shepperd's method (the largest of the four squares first, so no division by a small number);
-    the sign makes ``w`` non-negative, and when ``w == 0`` the first non-zero of x, y, z positive.
+    the sign makes ``w`` non-negative, and for a half turn (``w == 0``) the largest of x, y, z positive.
     """
     R = np.asarray(R, dtype=float)
     t = float(R[0, 0] + R[1, 1] + R[2, 2])
@@ -100,7 +100,11 @@ def quaternion_xyzw(R: np.ndarray) -> np.ndarray:
         q = [(R[0, 2] + R[2, 0]) / (4 * z), (R[1, 2] + R[2, 1]) / (4 * z), z, (R[1, 0] - R[0, 1]) / (4 * z)]
     q = np.array(q, dtype=float)
     q /= np.linalg.norm(q)
-    if q[3] < 0 or (q[3] == 0 and q[np.flatnonzero(q[:3])[0]] < 0):
+    if abs(q[3]) < 1e-12:  # a half turn: w is 0 up to rounding, so the largest of x, y, z decides the sign
+        q[3] = 0.0
+        if q[int(np.argmax(np.abs(q[:3])))] < 0:
+            q = -q
+    elif q[3] < 0:
         q = -q
     return q + 0.0  # no -0.0
 
