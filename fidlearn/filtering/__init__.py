@@ -12,7 +12,7 @@ The package: ``_so3.py`` (exp, log, quaternions), ``_filter.py`` (state, predict
 
 from __future__ import annotations
 
-from ._filter import GATE_CHI2, GATE_PROBABILITY, MAX_REJECTIONS
+from ._filter import AMBIGUOUS_INFLATION, GATE_CHI2, GATE_PROBABILITY, MAX_REJECTIONS
 from ._result import TrackedPose
 from ._smoother import smooth
 from ._track import DEFAULT_PROCESS_NOISE
@@ -26,4 +26,5 @@ __all__ = [
     "GATE_CHI2",
     "GATE_PROBABILITY",
     "MAX_REJECTIONS",
+    "AMBIGUOUS_INFLATION",
 ]

@@ -40,9 +40,10 @@ def check_process_noise(process_noise) -> tuple[float, float]:
         q_lin, q_ang = (float(v) for v in process_noise)
     except (TypeError, ValueError):
         q_lin = q_ang = math.nan
-    if not (math.isfinite(q_lin) and math.isfinite(q_ang) and q_lin > 0 and q_ang > 0):
+    if not (0 < q_lin <= 1e7 and 0 < q_ang <= 1e4):  # NaN fails too
         raise TrackingError(
-            f"process_noise must be two numbers > 0, (linear mm/s^2, angular rad/s^2) per sqrt(Hz), e.g. "
+            f"process_noise must be two numbers > 0 (at most 1e7 and 1e4), (linear mm/s^2, angular rad/s^2) "
+            f"per sqrt(Hz), e.g. "
             f"{DEFAULT_PROCESS_NOISE}, got {process_noise!r}"
         )
     return q_lin, q_ang
@@ -165,11 +166,12 @@ class _Track:
         the alternative): the nearer one in that metric wins, a fair choice whatever the metric.
         The alternative then enters with that covariance plus ``d d^T`` (``d`` the step between
         the two solutions), an upper bound of the mixture's second moment about it: a solution
-        IPPE ranked second is never trusted more than the frame's data allow.
+        IPPE ranked second is never trusted more than the frame's data allow. Either is widened by
+        ``AMBIGUOUS_INFLATION`` (see :mod:`fidlearn.filtering._filter`).
         """
         alt = pose.alternative if pose.ambiguous else None
         if alt is None:
-            return pose.T_world_camera, pose.covariance, False
+            return pose.T_world_camera, pose.covariance * (kf.AMBIGUOUS_INFLATION if pose.ambiguous else 1.0), False
         d_pose = kf.innovation(predicted, pose.T_world_camera, pose.covariance)[2]
         d_alt = kf.innovation(predicted, alt.T_world_camera, pose.covariance)[2]
         if d_alt < d_pose:
@@ -179,8 +181,8 @@ class _Track:
                     alt.position_mm - pose.position_mm,
                 ]
             )
-            return alt.T_world_camera, pose.covariance + np.outer(d, d), True
-        return pose.T_world_camera, pose.covariance, False
+            return alt.T_world_camera, kf.AMBIGUOUS_INFLATION * (pose.covariance + np.outer(d, d)), True
+        return pose.T_world_camera, kf.AMBIGUOUS_INFLATION * pose.covariance, False
 
     # -- the answer --------------------------------------------------------------------------
     def output(self, s: kf._State, status: str, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
