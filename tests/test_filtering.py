@@ -9,7 +9,7 @@ import fidlearn
 from fidlearn import frames
 from fidlearn.detection import Detection
 from fidlearn.errors import FidlearnError, TrackingError
-from fidlearn.filtering import GATE_CHI2, PoseTracker, TrackedPose, smooth
+from fidlearn.filtering import GATE_CHI2, MAX_REJECTIONS, PoseTracker, TrackedPose, smooth
 from fidlearn.filtering._so3 import exp_so3, log_so3, quaternion_xyzw, rotation_from_xyzw
 
 MAP = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
@@ -239,3 +239,24 @@ def test_tracked_pose_reads_well():
 
 def _pose():
     return fidlearn.estimate_pose(dets(pose_at(700.0), np.random.default_rng(0), 0.0), MAP, CAM, corner_sigma_px=0.3)
+
+
+def test_a_track_that_keeps_disagreeing_restarts():
+    rng = np.random.default_rng(6)
+    tracker = PoseTracker(MAP, CAM, process_noise=(1.0, 0.001), corner_sigma_px=0.3)
+    for k in range(20):
+        tracker.update(dets(pose_at(700.0), rng, 0.3), k / 30)
+    moved = pose_at(900.0, 300.0)  # the camera was carried elsewhere unseen
+    statuses = [tracker.update(dets(moved, rng, 0.3), (20 + k) / 30).status for k in range(MAX_REJECTIONS + 2)]
+    assert statuses == ["rejected"] * MAX_REJECTIONS + ["restarted", "measured"]
+    assert np.linalg.norm(tracker.last.position_mm - moved[:3, 3]) < 40.0  # two frames, each about 15 mm off
+
+
+def test_frames_as_images():
+    drive = fidlearn.render_trajectory(MAP, CAM, n_frames=40, frames_to_render=range(30, 36))
+    tracker = PoseTracker(MAP, CAM)
+    for k, (image, T) in enumerate(zip(drive.images, drive.T_world_camera)):
+        out = tracker.update(image if k != 3 else np.full_like(image, 128), k / 30)  # frame 3: a blank wall
+        assert out.status == ("started" if k == 0 else "predicted" if k == 3 else "measured")
+        assert np.linalg.norm(out.position_mm - T[:3, 3]) < (20.0 if k == 3 else 10.0)
+    assert "no marker" in tracker.update(np.full_like(image, 128), 0.3).reason
