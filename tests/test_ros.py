@@ -243,3 +243,19 @@ def test_mount_json(tmp_path):
         path.write_text(json.dumps(bad))
         with pytest.raises(RosFormatError, match=fragment):
             read_mount_json(path)
+
+
+def test_camera_info_reads_as_yaml_elsewhere():
+    """An independent YAML reader (PyYAML, when installed: jupyter-events brings it) reads what we write."""
+    yaml = pytest.importorskip("yaml")
+    cam = fidlearn.Camera(
+        [[612.3456789, 0, 320.1], [0, 611.9, 241.7], [0, 0, 1]], [0.1, -0.2, 0.001, 0.002, 0.05], (640, 480)
+    )
+    d = yaml.safe_load(camera_info_yaml(cam, "front_cam"))
+    assert d["image_width"] == 640 and d["image_height"] == 480 and d["camera_name"] == "front_cam"
+    assert d["camera_matrix"]["data"] == cam.K.reshape(-1).tolist() and d["camera_matrix"]["rows"] == 3
+    assert d["distortion_coefficients"]["data"] == cam.dist.tolist() and d["distortion_model"] == "plumb_bob"
+    assert d["projection_matrix"]["cols"] == 4 and d["rectification_matrix"]["data"] == np.eye(3).reshape(-1).tolist()
+    # and what PyYAML writes in that layout, fidlearn reads
+    back = camera_from_camera_info(yaml.safe_dump(d))
+    assert (back.K == cam.K).all() and (back.dist == cam.dist).all()
