@@ -32,11 +32,14 @@ try:
         PlotError,
         PoseError,
         PrintError,
+        RosFormatError,
         StrictModeError,
+        TrackingError,
         TransformError,
         UsageError,
         WebcamError,
     )
+    from .filtering import PoseTracker, TrackedPose, smooth
     from .frames import (
         compose,
         invert_transform,
@@ -94,6 +97,8 @@ __all__ = [
     "UsageError",
     "WebcamError",
     "StrictModeError",
+    "TrackingError",
+    "RosFormatError",
     "compose",
     "invert_transform",
     "make_transform",
@@ -114,6 +119,9 @@ __all__ = [
     "estimate_pose",
     "locate",
     "MarkerTracker",
+    "PoseTracker",
+    "TrackedPose",
+    "smooth",
     "render_calibration_views",
     "CalibrationViews",
     "render_trajectory",

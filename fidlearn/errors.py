@@ -26,6 +26,8 @@ __all__ = [
     "UsageError",
     "WebcamError",
     "StrictModeError",
+    "TrackingError",
+    "RosFormatError",
 ]
 
 
@@ -106,3 +108,13 @@ class WebcamError(FidlearnError, ValueError):
 
 class StrictModeError(FidlearnError, ValueError):
     """An exercise strict mode that does not exist (``strict("yes")``); also a ValueError, as it was."""
+
+
+class TrackingError(FidlearnError, ValueError):
+    """A pose tracker or smoother cannot use its input: time going backwards, a malformed odometry or mount,
+    a frame before the track has a pose."""
+
+
+class RosFormatError(FidlearnError, ValueError):
+    """A ROS or TUM file (camera_info YAML, odometry CSV, mount JSON) is malformed, or a camera or pose
+    cannot be written in ROS's conventions (a distortion model ROS does not have)."""

@@ -80,6 +80,10 @@ BASELINES = {
     "Camera.scaled": (((640, 360),), {}),
     "Camera.from_fov": ((60, (640, 480)), {}),
     "MarkerMap.corners": ((), {}),
+    "smooth": (
+        ([fidlearn.estimate_pose(DETECTIONS, WORLD, CAMERA), None], [0.0, 0.1]),
+        {"process_noise": (500.0, 1.0)},
+    ),
 }
 
 

@@ -44,6 +44,8 @@ def starts_with(fn, names: list[str]) -> None:
         "calibrate_charuco",
         "Calibration",
         "FidlearnError",
+        "PoseTracker",
+        "smooth",
     ],
 )
 def test_name_importable_from_fidlearn(name):
@@ -61,6 +63,8 @@ def test_error_classes_are_fidlearn_errors():
         "CalibrationError",
         "PoseError",
         "TransformError",
+        "TrackingError",
+        "RosFormatError",
     ):
         assert issubclass(getattr(fidlearn, name), fidlearn.FidlearnError), name
 
@@ -234,3 +238,11 @@ def test_user_error_is_status_2_one_line(tmp_path, capsys):
     assert status == 2
     assert err.startswith("error: ") and err.count("\n") == 1
     assert not (tmp_path / "c.json").exists()
+
+
+def test_pose_tracker_signatures():
+    starts_with(fidlearn.PoseTracker, ["marker_map", "camera"])
+    assert {"process_noise", "T_camera_base"} <= set(params(fidlearn.PoseTracker))
+    starts_with(fidlearn.PoseTracker.update, ["image_or_detections", "t_s", "odometry"])
+    starts_with(fidlearn.PoseTracker.predict, ["t_s"])
+    starts_with(fidlearn.smooth, ["poses", "times_s"])

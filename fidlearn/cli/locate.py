@@ -36,6 +36,7 @@ from ._common import (
     _Staging,
     _StreamFile,
 )
+from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_track_args, run_tracked
 
 NO_MARKER = "no known marker"
 
@@ -60,8 +61,11 @@ def add(sub) -> None:
             "explains the image as well (ambiguous). A frame with no marker of the map is "
             "reported, not an error. --json and --annotate are written only when the whole run "
             "succeeds: --json goes to a hidden temporary file, flushed frame by frame, renamed at "
-            "the end; annotated images are staged in a hidden folder and moved into DIR at the end."
+            "the end; annotated images are staged in a hidden folder and moved into DIR at the end. "
+            "With --track the poses go through a Kalman filter over time (see below)."
         ),
+        epilog=TRACK_HELP,
+        formatter_class=HelpFormatter,
     )
     p.add_argument(
         "inputs", nargs="*", type=Path, metavar="IMAGE_OR_FOLDER_OR_VIDEO", help="images, folders of images, videos"
@@ -88,6 +92,7 @@ def add(sub) -> None:
         metavar="MP",
         help="largest picture read, in megapixels (default 100): a larger one is refused from its header",
     )
+    add_track_options(p)
     p.set_defaults(run=run)
 
 
@@ -294,6 +299,10 @@ def run(args) -> int:
         as one ``error:`` line and exits with status 2.
     """
     items, json_path = _check_args(args)
+    track_out = check_track_args(args, [p for _, p in items])
+    if args.track:
+        camera = _load_camera(args)
+        return run_tracked(args, items, _Locator(_load_map(args), camera, args.refine, False), track_out)
     staging = _Staging(args.annotate, keep_on_interrupt=True)
     camera = _load_camera(args)  # the camera first: a map given as --camera is named as such
     locator = _Locator(_load_map(args), camera, args.refine, args.annotate is not None)

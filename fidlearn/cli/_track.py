@@ -1,0 +1,253 @@
+"""``fidlearn locate --track``: the frames' poses through a :class:`fidlearn.PoseTracker`, written as JSON lines,
+a TUM trajectory or ROS messages.
+
+The frames are taken in the order given, ``1 / --fps`` seconds apart (the first at t = 0 s);
+each frame's pose is what ``fidlearn locate`` gives without ``--track`` (:func:`fidlearn.locate`
+or a MarkerTracker), fed to one PoseTracker for the whole run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .. import frames
+from ..errors import UsageError
+from ..filtering import PoseTracker, TrackedPose
+from ..images import read_frames
+from ..ros import ros_pose, tum_line
+from ..ros._inputs import read_mount_json, read_odometry_csv
+from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
+
+FORMATS = {"jsonl": (".jsonl", ".json"), "tum": (".txt", ".tum"), "ros": (".jsonl", ".json")}
+
+TRACK_HELP = """\
+tracking (--track): the frames are one run, 1/--fps seconds apart from t = 0 s, in the order given.
+Each frame's pose goes through a Kalman filter on the pose (fidlearn.PoseTracker): ambiguous
+frames take the solution that agrees with the track (no flips), a frame that disagrees beyond
+the chi-square gate (0.999) is rejected and said so, frames without a marker are bridged.
+
+--odometry odom.csv   the robot base's pose in its odometry frame over time, metres and a
+                      quaternion, times in seconds on the frames' clock (t = 0 at the first frame):
+                        t_s,x_m,y_m,z_m,qx,qy,qz,qw
+                        0.000,0.0,0.0,0.0,0.0,0.0,0.0,1.0
+                      only the motion between frames is used; its uncertainty is --odometry-drift
+                      (default 0.02: 2 % of the distance and of the angle of each step).
+--mount mount.json    where the camera sits on the robot (REP-103 base: x forward, y left, z up):
+                        {"units": "mm", "camera_in_base": {"translation": [200, 0, 300],
+                         "rpy_deg": [0, 0, 0]}, "camera_axes": "link"}
+                      camera_axes "link": rpy 0 looks along the base's x; "optical": the rotation of
+                      the camera's optical frame (x right, y down, z forward). Or {"units": "mm",
+                      "T_camera_base": 4x4}. With it the output is the robot base's pose (base_link).
+--format              how -o is written: jsonl (one JSON line per frame: the tracked pose in mm and
+                      degrees, its covariance, status), tum (t x y z qx qy qz qw, metres), ros (one
+                      geometry_msgs/PoseWithCovarianceStamped per line as JSON: frame map, metres,
+                      quaternion x y z w, covariance in x y z rotX rotY rotZ order, m and rad)."""
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Wraps the description as usual, keeps the tracking notes (text with line breaks) as written."""
+
+    def _fill_text(self, text, width, indent):
+        if "\n" in text:
+            return "".join(indent + line for line in text.splitlines(keepends=True))
+        return super()._fill_text(text, width, indent)
+
+
+def add_track_options(p) -> None:
+    """The ``--track`` options of ``fidlearn locate``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The ``locate`` parser.
+    """
+    g = p.add_argument_group("tracking (see below)")
+    g.add_argument("--track", action="store_true", help="filter the poses over time (fidlearn.PoseTracker)")
+    g.add_argument("--fps", type=float, default=30.0, help="frames per second of the run (default 30)")
+    g.add_argument("--odometry", type=Path, metavar="ODOM.csv", help="the robot's odometry (format below)")
+    g.add_argument("--odometry-drift", type=float, default=0.02, metavar="FRACTION", help="default 0.02")
+    g.add_argument("--mount", type=Path, metavar="MOUNT.json", help="the camera's place on the robot (below)")
+    g.add_argument("--format", choices=list(FORMATS), help="how -o is written (default jsonl)")
+    g.add_argument("-o", "--output", type=Path, metavar="TRACK", help="write the tracked poses here")
+
+
+def check_track_args(args, inputs: list[Path]) -> Path | None:
+    """The tracking options checked before any work; the output path (None without -o).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    inputs : list of Path
+        The input files (the output may be none of them).
+
+    Returns
+    -------
+    Path or None
+        The checked output path.
+
+    Raises
+    ------
+    UsageError
+        A tracking option without --track, --format without -o, a bad --fps or drift, a clobbered input.
+    """
+    if not args.track:
+        used = [o for o, v in (("--odometry", args.odometry), ("--mount", args.mount), ("--format", args.format),
+                               ("-o", args.output)) if v is not None]  # fmt: skip
+        if used:
+            raise UsageError(f"{used[0]} belongs to tracking: add --track")
+        return None
+    if not 0.1 <= args.fps <= 10000:
+        raise UsageError(f"--fps {args.fps:g}: give the frames per second, 0.1 to 10000")
+    if not 0.0 < args.odometry_drift < 1.0:
+        raise UsageError(f"--odometry-drift {args.odometry_drift:g}: give a fraction between 0 and 1 (0.02 is 2 %)")
+    if args.format is not None and args.output is None:
+        raise UsageError("--format says how -o is written: give -o FILE")
+    if args.camera_index is not None:
+        raise UsageError("--track runs over files (videos, pictures); a live camera is not tracked yet")
+    if args.json is not None or args.annotate is not None:
+        raise UsageError(
+            "with --track the output is -o FILE (see --format); --json and --annotate are for untracked runs"
+        )
+    if args.output is None:
+        return None
+    out = _check_output(args.output, FORMATS[args.format or "jsonl"], "-o")
+    _refuse_clobber([("-o", out)], inputs + [args.camera, args.map, args.odometry, args.mount])
+    return out
+
+
+class _LineFile(_StreamFile):
+    """A stream of text lines (TUM) or JSON lines, written to a hidden file renamed at the end."""
+
+    def write(self, record) -> None:
+        if isinstance(record, str):
+            try:
+                self.file.write(record + "\n")
+                self.file.flush()
+            except OSError as exc:
+                raise UsageError(f"{self.option} {self.path}: cannot write it ({exc.strerror})") from None
+            self.count += 1
+        else:
+            super().write(record)
+
+
+def _record(name: str, out: TrackedPose, fmt: str) -> str | dict:
+    if fmt == "tum":
+        T = out.T_world_base if out.T_world_base is not None else out.T_world_camera
+        return tum_line(out.t_s, T)
+    if fmt == "ros":
+        return ros_pose(out)
+    base = out.T_world_base is not None
+    T, cov = (out.T_world_base, out.base_covariance) if base else (out.T_world_camera, out.covariance)
+    return {
+        "frame": name,
+        "t_s": out.t_s,
+        "body": "base" if base else "camera",
+        "T_world_body": T.tolist(),
+        "position_mm": T[:3, 3].tolist(),
+        "rpy_deg": frames.rpy_deg_from_rotation(T[:3, :3]).tolist(),
+        "covariance": cov.tolist(),
+        "status": out.status,
+        "flip_resolved": out.flip_resolved,
+        "reason": out.reason,
+    }
+
+
+def _row(name: str, width: int, out: TrackedPose | None) -> str:
+    if out is None:
+        return f"{name:<{width}}  no pose yet (the track starts at the first frame with a pose)"
+    T = out.T_world_base if out.T_world_base is not None else out.T_world_camera
+    cov = out.base_covariance if out.T_world_base is not None else out.covariance
+    x, y, z = np.round(T[:3, 3], 1) + 0.0
+    r, p, yw = np.round(frames.rpy_deg_from_rotation(T[:3, :3]), 1) + 0.0
+    std = float(np.sqrt(max(np.trace(cov[3:, 3:]), 0.0)))
+    note = "flip resolved" if out.flip_resolved else ""
+    if out.rejected:
+        note = out.reason.split(":")[0]
+    return (
+        f"{name:<{width}} {out.t_s:8.3f} {x:9.1f} {y:9.1f} {z:9.1f} {r:7.1f} {p:7.1f} {yw:7.1f} {std:7.1f}  "
+        f"{out.status:<9} {note}"
+    ).rstrip()
+
+
+class _Run:
+    """The frames done so far and what happened to them."""
+
+    def __init__(self, args, tracker: PoseTracker, odometry, sink):
+        self.args, self.tracker, self.odometry, self.sink = args, tracker, odometry, sink
+        self.fmt = args.format or "jsonl"
+        self.frames = 0
+        self.counts: dict[str, int] = {}
+
+    def frame(self, name: str, pose) -> TrackedPose | None:
+        """One frame's pose through the tracker; its record written."""
+        n, fps = self.frames, self.args.fps
+        odo = self.odometry.between((n - 1) / fps, n / fps) if self.odometry is not None and n > 0 else None
+        out = None
+        if pose is not None or self.tracker.started:  # before the first pose there is nothing to track
+            out = self.tracker.update(pose, n / fps, odometry=odo)
+            self.counts[out.status] = self.counts.get(out.status, 0) + 1
+            self.counts["flips resolved"] = self.counts.get("flips resolved", 0) + out.flip_resolved
+            if self.sink is not None:
+                self.sink.write(_record(name, out, self.fmt))
+        self.frames += 1
+        return out
+
+
+def _loop(run: _Run, items, locator, width: int) -> None:
+    if run.sink is not None and run.fmt == "tum":
+        run.sink.write("# timestamp tx ty tz qx qy qz qw")
+    for frame in read_frames(items, None, int(run.args.max_megapixels * 1_000_000)):
+        pose, _, _ = locator.pose(frame, locator.camera_for(frame))
+        print(_row(frame.name, width, run.frame(frame.name, pose)), flush=True)
+
+
+def run_tracked(args, items, locator, out_path: Path | None) -> int:
+    """Every frame through the tracker; the table, the closing line and the output file.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    items : list
+        The inputs as :func:`fidlearn.images.expand_inputs` gives them.
+    locator : fidlearn.cli.locate._Locator
+        The per-frame poses.
+    out_path : Path or None
+        The output file (checked).
+
+    Returns
+    -------
+    int
+        0 when done; 128 + signal when interrupted.
+    """
+    mount = read_mount_json(args.mount) if args.mount else None
+    odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
+    tracker = PoseTracker(locator.marker_map, locator.camera, T_camera_base=mount)
+    width = min(max([len(p.name) + 8 for _, p in items] + [5]), 40)
+    print(
+        f"{'frame':<{width}} {'t_s':>8} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7} "
+        f"{'std_mm':>7}  status"
+    )
+    sink = _LineFile(out_path, "-o") if out_path is not None else None
+    run = _Run(args, tracker, odometry, sink)
+    try:
+        with sink if sink is not None else contextlib.nullcontext():
+            _loop(run, items, locator, width)
+    except KeyboardInterrupt as exc:
+        kept = f"; {out_path} holds {sink.count} whole lines" if sink is not None else ""
+        print(f"error: interrupted by {_signal_name(exc)} after {run.frames} frames{kept}", file=sys.stderr)
+        return _exit_status(exc)
+    said = ", ".join(f"{v} {k}" for k, v in run.counts.items() if v)
+    print(f"{run.frames} frames tracked: {said or 'no pose'}")
+    if out_path is not None:
+        print(f"{run.fmt} track written to {out_path}")
+    return 0
+
+
+__all__ = ["add_track_options", "check_track_args", "run_tracked", "TRACK_HELP", "HelpFormatter"]

@@ -1,0 +1,115 @@
+""":func:`smooth`: the fixed-interval (Rauch-Tung-Striebel) smoother over a whole run."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..errors import TrackingError
+from ..pose import Pose
+from . import _filter as kf
+from ._result import TrackedPose
+from ._track import DEFAULT_PROCESS_NOISE, _Step, _Track
+
+
+def smooth(
+    poses: Sequence[Pose | None],
+    times_s: Sequence[float],
+    *,
+    odometry: Sequence[Any] | None = None,
+    process_noise: tuple[float, float] = DEFAULT_PROCESS_NOISE,
+    T_camera_base: Any = None,
+) -> list[TrackedPose]:
+    """The best pose at every frame of a finished run: every frame, past and future, informs each.
+
+    The forward pass is :class:`PoseTracker`'s filter (the same flips resolved, the same frames
+    rejected); the backward pass (Rauch-Tung-Striebel) carries the later frames back on the
+    manifold: ``x_s[k] = x_f[k] [+] G (x_s[k+1] [-] x_p[k+1])`` with
+    ``G = P_f[k] F^T P_p[k+1]^-1`` and ``[+]``, ``[-]`` the error-state moves
+    (``exp(dtheta) R`` for the rotation). A restart of the track starts a new segment; the
+    frames before the first pose are left out.
+
+    Parameters
+    ----------
+    poses : sequence of Pose or None
+        Each frame's pose (:func:`fidlearn.locate`), None for a frame without one.
+    times_s : sequence of float
+        The frames' times, seconds, non-decreasing, as many as ``poses``.
+    odometry : sequence of (ndarray (4, 4), ndarray (6, 6)) or None, optional
+        Per frame, the base's motion since the previous frame and its covariance (as for
+        :meth:`PoseTracker.update`), or None.
+    process_noise : (float, float)
+        As for :class:`PoseTracker`.
+    T_camera_base : array_like, shape (4, 4), optional
+        The mount, as for :class:`PoseTracker`.
+
+    Returns
+    -------
+    list of TrackedPose
+        One per frame from the first frame with a pose on, status ``"smoothed"`` (``reason`` and
+        ``flip_resolved`` as the forward pass gave them).
+
+    Raises
+    ------
+    TrackingError
+        Lengths that differ, times going backwards, malformed odometry, or no pose at all.
+
+    Examples
+    --------
+    >>> import numpy as np, fidlearn
+    >>> m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+    >>> cam = fidlearn.Camera.from_fov(60, (640, 480))
+    >>> T = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, 90), [1000, 150, 250])
+    >>> dets = [fidlearn.Detection(i, cam.project(c, T)) for i, c in m.corners().items()]
+    >>> pose = fidlearn.estimate_pose(dets, m, cam)
+    >>> out = smooth([pose, None, pose], [0.0, 0.1, 0.2])
+    >>> [p.status for p in out], np.round(out[1].position_mm, 3).tolist()
+    (['smoothed', 'smoothed', 'smoothed'], [1000.0, 150.0, 250.0])
+    """
+    for name, value in (("poses", poses), ("times_s", times_s)):
+        if not (isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim == 1)):
+            raise TrackingError(f"{name} must be a list with one entry per frame, got {type(value).__name__}")
+    n = len(poses)
+    if len(times_s) != n or (odometry is not None and len(odometry) != n):
+        raise TrackingError(
+            f"poses ({n}), times_s ({len(times_s)})"
+            + ("" if odometry is None else f" and odometry ({len(odometry)})")
+            + " must have one entry per frame"
+        )
+    track = _Track(process_noise, T_camera_base, record=True)
+    for k in range(n):
+        pose = poses[k]
+        if pose is not None and not isinstance(pose, Pose):
+            raise TrackingError(f"poses[{k}] must be a fidlearn.Pose or None, got {type(pose).__name__}")
+        if track.state is None and pose is None:
+            continue
+        track.step(pose, times_s[k], None if odometry is None else odometry[k], "no pose")
+    if not track.steps:
+        raise TrackingError("no frame has a pose: nothing to smooth")
+    states = _backward(track.steps)
+    return [_smoothed(track, s, step) for s, step in zip(states, track.steps)]
+
+
+def _backward(steps: list[_Step]) -> list[kf._State]:
+    """The smoothed state of every step (the backward pass, segment by segment)."""
+    out: list[kf._State] = [step.filtered for step in steps]
+    for k in range(len(steps) - 2, -1, -1):
+        nxt = steps[k + 1]
+        if nxt.F is None:  # the track restarted at k + 1: nothing flows back across it
+            continue
+        f = steps[k].filtered
+        try:
+            G = np.linalg.solve(nxt.predicted.P, nxt.F @ f.P).T  # P_f F^T P_p^-1
+        except np.linalg.LinAlgError:
+            continue
+        dx = G @ kf.boxminus(out[k + 1], nxt.predicted)
+        P = f.P + G @ (out[k + 1].P - nxt.predicted.P) @ G.T
+        out[k] = kf.boxplus(f, dx, 0.5 * (P + P.T))
+    return out
+
+
+def _smoothed(track: _Track, state: kf._State, step: _Step) -> TrackedPose:
+    o = step.out
+    return track.output(state, "smoothed", reason=o.reason, d2=o.mahalanobis2, pose=o.pose, flipped=o.flip_resolved)

@@ -1,0 +1,121 @@
+"""Rotations on the manifold: the exponential and logarithm of SO(3), its left Jacobian, and chi-square(6).
+
+Everything here is small dense numpy (no OpenCV call per frame): the filter runs these a few
+times per frame and must cost far less than the detection.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """The cross-product matrix (3, 3) of ``v`` (3,): ``skew(v) @ u == cross(v, u)``."""
+    x, y, z = float(v[0]), float(v[1]), float(v[2])
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def exp_so3(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of the rotation vector ``w`` (3,), rad (Rodrigues' formula, exact near 0)."""
+    th2 = float(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    K = skew(w)
+    if th2 < 1e-12:  # second order: the error is th^3 / 6, below 1e-18
+        return np.eye(3) + K + 0.5 * (K @ K)
+    th = math.sqrt(th2)
+    return np.eye(3) + (math.sin(th) / th) * K + ((1.0 - math.cos(th)) / th2) * (K @ K)
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (3,), rad, of the rotation matrix ``R`` (3, 3): the inverse of :func:`exp_so3`.
+
+    Angles up to pi; near pi the axis comes from the symmetric part (the skew part vanishes there).
+    """
+    c = max(-1.0, min(1.0, (float(R[0, 0] + R[1, 1] + R[2, 2]) - 1.0) / 2.0))
+    v = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s = math.sqrt(float(v @ v))  # sin(angle)
+    th = math.atan2(s, c)
+    if th < 1e-6:
+        return v * (1.0 + th * th / 6.0)
+    if th < math.pi - 1e-3:
+        return v * (th / s)
+    # near pi: sym(R) = c I + (1 - c) a a^T: the axis from the largest column of a a^T
+    A = (0.5 * (R + R.T) - c * np.eye(3)) / (1.0 - c)
+    k = int(np.argmax(np.diag(A)))
+    a = A[:, k] / math.sqrt(max(A[k, k], 1e-300))
+    if a @ v < 0:  # the sign that agrees with the (small) skew part
+        a = -a
+    return a * th
+
+
+def left_jacobian(w: np.ndarray) -> np.ndarray:
+    """Left Jacobian (3, 3) of SO(3) at ``w`` (3,): ``exp(w + d) ~= exp(J_l(w) d) exp(w)``."""
+    th2 = float(w @ w)
+    K = skew(w)
+    if th2 < 1e-12:
+        return np.eye(3) + 0.5 * K
+    th = math.sqrt(th2)
+    return np.eye(3) + ((1.0 - math.cos(th)) / th2) * K + ((th - math.sin(th)) / (th2 * th)) * (K @ K)
+
+
+def chi2_6_quantile(probability: float) -> float:
+    """The ``probability`` quantile of chi-square with 6 degrees of freedom (closed-form CDF, bisection).
+
+    ``CDF(x) = 1 - exp(-x/2) (1 + x/2 + x^2/8)``; e.g. 0.99 -> 16.812, 0.999 -> 22.458.
+    """
+    lo, hi = 0.0, 200.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        h = mid / 2.0
+        cdf = 1.0 - math.exp(-h) * (1.0 + h + h * h / 2.0)
+        if cdf < probability:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def quaternion_xyzw(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (4,) ``(x, y, z, w)`` of the rotation matrix ``R`` (3, 3), with ``w >= 0``.
+
+    Shepperd's method (the largest of the four squares first, so no division by a small number);
+    the sign makes ``w`` non-negative, and for a half turn (``w == 0``) the largest of x, y, z positive.
+    """
+    R = np.asarray(R, dtype=float)
+    t = float(R[0, 0] + R[1, 1] + R[2, 2])
+    d = (t, float(R[0, 0]), float(R[1, 1]), float(R[2, 2]))
+    k = int(np.argmax(d))
+    if k == 0:
+        w = 0.5 * math.sqrt(max(1.0 + t, 0.0))
+        q = [(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w), w]
+    elif k == 1:
+        x = 0.5 * math.sqrt(max(1.0 + 2 * R[0, 0] - t, 0.0))
+        q = [x, (R[0, 1] + R[1, 0]) / (4 * x), (R[0, 2] + R[2, 0]) / (4 * x), (R[2, 1] - R[1, 2]) / (4 * x)]
+    elif k == 2:
+        y = 0.5 * math.sqrt(max(1.0 + 2 * R[1, 1] - t, 0.0))
+        q = [(R[0, 1] + R[1, 0]) / (4 * y), y, (R[1, 2] + R[2, 1]) / (4 * y), (R[0, 2] - R[2, 0]) / (4 * y)]
+    else:
+        z = 0.5 * math.sqrt(max(1.0 + 2 * R[2, 2] - t, 0.0))
+        q = [(R[0, 2] + R[2, 0]) / (4 * z), (R[1, 2] + R[2, 1]) / (4 * z), z, (R[1, 0] - R[0, 1]) / (4 * z)]
+    q = np.array(q, dtype=float)
+    q /= np.linalg.norm(q)
+    if abs(q[3]) < 1e-12:  # a half turn: w is 0 up to rounding, so the largest of x, y, z decides the sign
+        q[3] = 0.0
+        if q[int(np.argmax(np.abs(q[:3])))] < 0:
+            q = -q
+    elif q[3] < 0:
+        q = -q
+    return q + 0.0  # no -0.0
+
+
+def rotation_from_xyzw(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of the unit quaternion ``q`` (4,) ``(x, y, z, w)`` (normalised first)."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )

@@ -1,0 +1,209 @@
+"""The track: measurements (a frame's :class:`Pose`, or none) and odometry fed to the filter, step by step.
+
+Shared by :class:`~fidlearn.filtering.PoseTracker` (live) and :func:`~fidlearn.filtering.smooth`
+(offline, which keeps every step's prediction for the backward pass).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import frames
+from ..errors import TrackingError
+from ..pose import Pose
+from . import _filter as kf
+from ._result import TrackedPose
+from ._so3 import log_so3
+
+#: Default process noise: white acceleration of the camera centre (mm/s^2 per sqrt(Hz)) and of its
+#: rotation (rad/s^2 per sqrt(Hz)): the velocity's standard deviation grows by this much in one second.
+DEFAULT_PROCESS_NOISE = (500.0, 1.0)
+
+
+@dataclass
+class _Step:
+    """One step of a recorded track: the transition F into it (None when a segment starts here),
+    the predicted and the filtered state, and what the output said."""
+
+    F: np.ndarray | None
+    predicted: kf._State
+    filtered: kf._State
+    out: TrackedPose
+
+
+def check_process_noise(process_noise) -> tuple[float, float]:
+    """``(linear_mm_s2, angular_rad_s2)``, both finite and > 0; TrackingError otherwise."""
+    try:
+        q_lin, q_ang = (float(v) for v in process_noise)
+    except (TypeError, ValueError):
+        q_lin = q_ang = math.nan
+    if not (0 < q_lin <= 1e7 and 0 < q_ang <= 1e4):  # NaN fails too
+        raise TrackingError(
+            f"process_noise must be two numbers > 0 (at most 1e7 and 1e4), (linear mm/s^2, angular rad/s^2) "
+            f"per sqrt(Hz), e.g. "
+            f"{DEFAULT_PROCESS_NOISE}, got {process_noise!r}"
+        )
+    return q_lin, q_ang
+
+
+def check_mount(T_camera_base) -> np.ndarray | None:
+    """The mount (4, 4, mm) as a checked rigid transform, or None."""
+    if T_camera_base is None:
+        return None
+    return frames.check_transform(T_camera_base, "T_camera_base")
+
+
+def check_odometry(odometry) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(T_prev_curr (4, 4) mm, covariance (6, 6))`` checked, or None."""
+    if odometry is None:
+        return None
+    if not isinstance(odometry, (tuple, list)) or len(odometry) != 2:
+        raise TrackingError(
+            "odometry must be a pair (T_prev_curr, covariance): the base's motion since the last frame "
+            "(4x4, mm) and its 6x6 covariance [rotation (rad), translation (mm)]"
+        )
+    T = frames.check_transform(odometry[0], "odometry T_prev_curr")
+    cov = np.asarray(odometry[1], dtype=float) if _numeric(odometry[1]) else None
+    if cov is None or cov.shape != (6, 6) or not np.isfinite(cov).all():
+        raise TrackingError("odometry covariance must be a 6x6 array of finite numbers ([rad, mm] order)")
+    scale = max(1.0, float(np.abs(cov).max()))
+    lowest = np.linalg.eigvalsh(0.5 * (cov + cov.T)).min()
+    if not np.allclose(cov, cov.T, rtol=1e-6, atol=1e-12) or lowest < -1e-9 * scale:
+        raise TrackingError("odometry covariance must be symmetric positive semi-definite")
+    return T, 0.5 * (cov + cov.T)
+
+
+def _numeric(value) -> bool:
+    try:
+        np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def check_time(t_s, last: float | None) -> float:
+    """The time as a float, never before ``last``; TrackingError otherwise."""
+    if isinstance(t_s, bool) or not isinstance(t_s, (int, float, np.integer, np.floating)) or not math.isfinite(t_s):
+        raise TrackingError(f"t_s must be a finite time in seconds, got {t_s!r}")
+    if last is not None and float(t_s) < last:
+        raise TrackingError(
+            f"t_s={float(t_s):.6f} s is before the last frame's {last:.6f} s; give frames in time order"
+        )
+    return float(t_s)
+
+
+class _Track:
+    """The filter's state and its steps (see the module's docstring)."""
+
+    def __init__(self, process_noise, T_camera_base, record: bool = False):
+        self.q_lin, self.q_ang = check_process_noise(process_noise)
+        self.T_camera_base = check_mount(T_camera_base)
+        self.state: kf._State | None = None
+        self.rejections = 0
+        self.steps: list[_Step] | None = [] if record else None
+
+    # -- one step ----------------------------------------------------------------------------
+    def step(self, pose: Pose | None, t_s: float, odometry, why: str = "") -> TrackedPose:
+        """Advance to ``t_s`` (odometry or the motion model), then correct with ``pose`` if it agrees."""
+        t = check_time(t_s, None if self.state is None else self.state.t)
+        odo = check_odometry(odometry)
+        if pose is not None and pose.covariance is None:
+            pose, why = None, "the frame's pose is not determined (no covariance)"
+        if self.state is None:
+            if pose is None:
+                raise TrackingError(
+                    f"no pose yet at t_s={t:.3f}: the track starts at the first frame with a pose "
+                    f"({why or 'none given'})"
+                )
+            return self._start(pose, t, "started", None)
+        predicted, F = self._predict(t, odo)
+        if pose is None:
+            status = "odometry" if odo is not None else "predicted"
+            return self._keep(F, predicted, predicted, status, reason=why)
+        T, cov, flipped = self._choose(pose, predicted)
+        r, S, d2 = kf.innovation(predicted, T, cov)
+        if d2 > kf.GATE_CHI2:
+            self.rejections += 1
+            if self.rejections > kf.MAX_REJECTIONS:
+                return self._start(pose, t, "restarted", None)
+            reason = (
+                f"disagrees with the track: squared Mahalanobis distance {d2:.1f} > {kf.GATE_CHI2:.1f} "
+                f"(chi-square, 6 degrees of freedom, {kf.GATE_PROBABILITY})"
+            )
+            return self._keep(F, predicted, predicted, "rejected", reason=reason, d2=d2)
+        self.rejections = 0
+        chosen = pose.alternative if flipped else pose
+        filtered = kf.update(predicted, r, S, cov)
+        return self._keep(F, predicted, filtered, "measured", d2=d2, pose=chosen, flipped=flipped)
+
+    def _predict(self, t: float, odo):
+        if odo is None:
+            return kf.predict_constant_velocity(self.state, t, self.q_lin, self.q_ang)
+        T_rel, cov_rel = kf.odometry_to_camera(odo[0], odo[1], self.T_camera_base)
+        return kf.predict_odometry(self.state, t, T_rel, cov_rel, self.q_lin, self.q_ang)
+
+    def _start(self, pose: Pose, t: float, status: str, F) -> TrackedPose:
+        self.rejections = 0
+        self.state = kf.start_state(pose.T_world_camera, pose.covariance, t)
+        return self._keep(F, self.state, self.state, status, pose=pose)
+
+    def _keep(self, F, predicted, filtered, status, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
+        self.state = filtered
+        out = self.output(filtered, status, reason=reason, d2=d2, pose=pose, flipped=flipped)
+        if self.steps is not None:
+            self.steps.append(_Step(F, predicted, filtered, out))
+        return out
+
+    # -- the measurement ---------------------------------------------------------------------
+    def _choose(self, pose: Pose, predicted: kf._State) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The solution that agrees with the prediction: the pose, or (ambiguous frames) its alternative.
+
+        Both are measured against the prediction with one covariance, the frame's own (for an
+        ambiguous frame :func:`fidlearn.estimate_pose` reports the two-pose mixture, which reaches
+        the alternative): the nearer one in that metric wins, a fair choice whatever the metric.
+        The alternative then enters with that covariance plus ``d d^T`` (``d`` the step between
+        the two solutions), an upper bound of the mixture's second moment about it: a solution
+        IPPE ranked second is never trusted more than the frame's data allow. Either is widened by
+        ``AMBIGUOUS_INFLATION`` (see :mod:`fidlearn.filtering._filter`).
+        """
+        alt = pose.alternative if pose.ambiguous else None
+        if alt is None:
+            return pose.T_world_camera, pose.covariance * (kf.AMBIGUOUS_INFLATION if pose.ambiguous else 1.0), False
+        d_pose = kf.innovation(predicted, pose.T_world_camera, pose.covariance)[2]
+        d_alt = kf.innovation(predicted, alt.T_world_camera, pose.covariance)[2]
+        if d_alt < d_pose:
+            d = np.concatenate(
+                [
+                    log_so3(alt.T_world_camera[:3, :3] @ pose.T_world_camera[:3, :3].T),
+                    alt.position_mm - pose.position_mm,
+                ]
+            )
+            return alt.T_world_camera, kf.AMBIGUOUS_INFLATION * (pose.covariance + np.outer(d, d)), True
+        return pose.T_world_camera, kf.AMBIGUOUS_INFLATION * pose.covariance, False
+
+    # -- the answer --------------------------------------------------------------------------
+    def output(self, s: kf._State, status: str, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
+        """The TrackedPose of state ``s``."""
+        T = s.T()
+        cov = 0.5 * (s.P[:6, :6] + s.P[:6, :6].T)
+        T_base = cov_base = None
+        if self.T_camera_base is not None:
+            T_base = T @ self.T_camera_base
+            cov_base = kf.mount_covariance(T, cov, self.T_camera_base)
+        return TrackedPose(
+            t_s=s.t,
+            T_world_camera=T,
+            covariance=cov,
+            status=status,
+            flip_resolved=flipped,
+            reason=reason,
+            mahalanobis2=d2,
+            pose=pose,
+            T_world_base=T_base,
+            base_covariance=cov_base,
+            velocity_mm_s=s.v.copy(),
+            angular_velocity_rad_s=s.w.copy(),
+        )

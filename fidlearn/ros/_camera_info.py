@@ -1,0 +1,284 @@
+"""Camera files in ROS's ``camera_info`` YAML (the camera_calibration layout), both ways, without a YAML library.
+
+The layout is fixed (``camera_calibration_parsers`` writes it, ``camera_info_manager`` reads it)::
+
+    image_width: 640
+    image_height: 480
+    camera_name: camera
+    camera_matrix:
+      rows: 3
+      cols: 3
+      data: [fx, 0, cx, 0, fy, cy, 0, 0, 1]
+    distortion_model: plumb_bob
+    distortion_coefficients:
+      rows: 1
+      cols: 5
+      data: [k1, k2, p1, p2, k3]
+    rectification_matrix: {rows: 3, cols: 3, data: identity}
+    projection_matrix: {rows: 3, cols: 4, data: [fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0]}
+
+so a small reader for exactly that (block mappings of scalars and matrices, flow or block
+lists, comments) is enough. Pixel convention: ROS's camera_info is OpenCV's (pixel centres at
+integers), so K is copied as it is.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .. import _files
+from .._io import write_text_atomic
+from ..camera import Camera
+from ..errors import CameraError, RosFormatError
+
+#: ROS distortion models fidlearn reads and writes, with their number of coefficients.
+MODELS = {"plumb_bob": 5, "rational_polynomial": 8}
+_NAME = re.compile(r"^[A-Za-z0-9_]+$")
+
+
+def _num(v: float) -> str:
+    return repr(float(v) + 0.0)  # the shortest text that reads back to the same float
+
+
+def _matrix(name: str, rows: int, cols: int, data) -> list[str]:
+    return [f"{name}:", f"  rows: {rows}", f"  cols: {cols}", "  data: [" + ", ".join(_num(v) for v in data) + "]"]
+
+
+def camera_info_yaml(camera: Camera, camera_name: str = "camera") -> str:
+    """The camera as ROS ``camera_info`` YAML text (camera_calibration's layout).
+
+    Parameters
+    ----------
+    camera : Camera
+        The camera. Distortion with 4 or 5 coefficients becomes ``plumb_bob`` (k3 = 0 added), 8
+        ``rational_polynomial``; the projection matrix is ``[K | 0]`` and the rectification the
+        identity (a single camera).
+    camera_name : str
+        Letters, digits and underscores (ROS's camera names).
+
+    Returns
+    -------
+    str
+        The YAML text.
+
+    Raises
+    ------
+    RosFormatError
+        A distortion with 12 or 14 coefficients (thin prism, tilt: no ROS model), or a bad name.
+
+    Examples
+    --------
+    >>> cam = Camera([[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], None, (640, 480))
+    >>> print(camera_info_yaml(cam).splitlines()[6])
+      data: [600.0, 0.0, 319.5, 0.0, 600.0, 239.5, 0.0, 0.0, 1.0]
+    """
+    if not isinstance(camera, Camera):
+        raise RosFormatError(f"expected a fidlearn Camera, got {type(camera).__name__}")
+    if not isinstance(camera_name, str) or not _NAME.match(camera_name):
+        raise RosFormatError(f"camera_name {camera_name!r}: use letters, digits and underscores only")
+    d = np.asarray(camera.dist, dtype=float).reshape(-1)
+    if d.size == 4:
+        d = np.r_[d, 0.0]
+    model = {5: "plumb_bob", 8: "rational_polynomial"}.get(d.size)
+    if model is None:
+        raise RosFormatError(
+            f"{camera.source or 'camera'}: {d.size} distortion coefficients (thin prism or tilt) have no ROS "
+            "distortion model; ROS knows plumb_bob (5) and rational_polynomial (8)"
+        )
+    K = camera.K
+    P = np.hstack([K, np.zeros((3, 1))])
+    lines = [f"image_width: {camera.width}", f"image_height: {camera.height}", f"camera_name: {camera_name}"]
+    lines += _matrix("camera_matrix", 3, 3, K.reshape(-1))
+    lines.append(f"distortion_model: {model}")
+    lines += _matrix("distortion_coefficients", 1, d.size, d)
+    lines += _matrix("rectification_matrix", 3, 3, np.eye(3).reshape(-1))
+    lines += _matrix("projection_matrix", 3, 4, P.reshape(-1))
+    return "\n".join(lines) + "\n"
+
+
+def save_camera_info(camera: Camera, path: str | os.PathLike, camera_name: str = "camera") -> Path:
+    """Write the camera as a ROS ``camera_info`` YAML file, atomically.
+
+    Parameters
+    ----------
+    camera : Camera
+        The camera.
+    path : path-like
+        The file (``.yaml`` or ``.yml``).
+    camera_name : str
+        As for :func:`camera_info_yaml`.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    RosFormatError
+        As for :func:`camera_info_yaml`.
+    """
+    return write_text_atomic(path, camera_info_yaml(camera, camera_name))
+
+
+# -- reading -------------------------------------------------------------------------------------------
+def _strip(line: str) -> str:
+    k = line.find("#")
+    return (line if k < 0 else line[:k]).rstrip()
+
+
+def _scalar(text: str):
+    t = text.strip().strip("'\"")
+    try:
+        return float(t) if re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", t) else t
+    except ValueError:
+        return t
+
+
+def _flow_list(text: str, source: str, key: str) -> list:
+    inner = text.strip()
+    if not (inner.startswith("[") and inner.endswith("]")):
+        raise RosFormatError(f"{source}: {key}: expected a list [a, b, ...]")
+    items = [v for v in inner[1:-1].split(",") if v.strip()]
+    return [_scalar(v) for v in items]
+
+
+def _value(rest: str, lines: list[str], k: int, source: str, key: str):
+    """The value after ``key:`` on line ``k`` (a scalar, a list, an inline mapping), or None when a block
+    mapping follows; and the index of the value's last line."""
+    if rest.startswith("[") and "]" not in rest:  # a flow list over several lines
+        while "]" not in rest and k + 1 < len(lines):
+            k += 1
+            rest += " " + lines[k].strip()
+    if rest.startswith("{"):
+        parts = [p.partition(":") for p in rest.strip("{} ").split(",")]
+        return {p[0].strip(): _scalar(p[2]) for p in parts}, k
+    if rest.startswith("["):
+        return _flow_list(rest, source, key), k
+    if rest:
+        return _scalar(rest), k
+    if k + 1 < len(lines) and lines[k + 1].strip().startswith("-"):  # a block list
+        items = []
+        while k + 1 < len(lines) and lines[k + 1].strip().startswith("-"):
+            k += 1
+            items.append(_scalar(lines[k].strip()[1:]))
+        return items, k
+    return None, k
+
+
+def _parse(text: str, source: str) -> dict:
+    """The fixed camera_info layout as nested dicts of scalars and lists."""
+    lines = [_strip(raw) for raw in text.splitlines()]
+    lines = [ln for ln in lines if ln.strip() and ln.strip() != "---" and not ln.startswith("%")]
+    out: dict = {}
+    stack: list[tuple[int, dict]] = [(-1, out)]
+    k = 0
+    while k < len(lines):
+        line = lines[k]
+        indent = len(line) - len(line.lstrip(" "))
+        body = line.strip()
+        while indent <= stack[-1][0]:
+            stack.pop()
+        key, sep, rest = body.partition(":")
+        if not sep or body.startswith("-"):
+            raise RosFormatError(f"{source}: cannot read the line {body!r}; expected 'key: value'")
+        value, k = _value(rest.strip(), lines, k, source, key.strip())
+        if value is None:
+            value = {}
+            stack[-1][1][key.strip()] = value
+            stack.append((indent, value))
+        else:
+            stack[-1][1][key.strip()] = value
+        k += 1
+    return out
+
+
+def _read_matrix(d: dict, key: str, shape, source: str) -> np.ndarray:
+    m = d.get(key)
+    if not isinstance(m, dict) or "data" not in m:
+        raise RosFormatError(f"{source}: missing {key} (rows, cols, data)")
+    data = m["data"]
+    if not isinstance(data, list) or not all(isinstance(v, float) for v in data):
+        raise RosFormatError(f"{source}: {key}.data must be a list of numbers")
+    rows, cols = m.get("rows"), m.get("cols")
+    if not isinstance(rows, float) or not isinstance(cols, float) or rows * cols != len(data):
+        raise RosFormatError(f"{source}: {key} says rows {rows} x cols {cols} but holds {len(data)} numbers")
+    if shape is not None and (int(rows), int(cols)) != shape:
+        raise RosFormatError(f"{source}: {key} must be {shape[0]}x{shape[1]}, got {int(rows)}x{int(cols)}")
+    return np.array(data, dtype=float).reshape(int(rows), int(cols))
+
+
+def camera_from_camera_info(text: str, source: str = "camera_info") -> Camera:
+    """A camera from ROS ``camera_info`` YAML text (see :func:`load_camera_info`).
+
+    Parameters
+    ----------
+    text : str
+        The YAML text in camera_calibration's layout.
+    source : str
+        Where it came from, named in messages.
+
+    Returns
+    -------
+    Camera
+        K from ``camera_matrix``, the distortion from ``distortion_coefficients`` and the size from
+        ``image_width``, ``image_height`` (the raw image's model: rectification and projection are
+        for rectified stereo images and are not used).
+
+    Raises
+    ------
+    RosFormatError
+        A missing field, a matrix of the wrong size, an unknown distortion model.
+    CameraError
+        Values no camera has (as :class:`fidlearn.Camera` checks them).
+    """
+    d = _parse(text, source)
+    for key in ("image_width", "image_height"):
+        v = d.get(key)
+        if not isinstance(v, float) or v != int(v) or v <= 0:
+            raise RosFormatError(f"{source}: {key} must be a whole number of pixels > 0, got {v!r}")
+    model = d.get("distortion_model", "plumb_bob")
+    K = _read_matrix(d, "camera_matrix", (3, 3), source)
+    dist = _read_matrix(d, "distortion_coefficients", None, source).reshape(-1)
+    if model not in MODELS:
+        raise RosFormatError(
+            f"{source}: distortion_model {model!r} is not one fidlearn reads; it reads {', '.join(MODELS)}"
+        )
+    if dist.size not in (0, MODELS[model]) and not (model == "plumb_bob" and dist.size == 4):
+        raise RosFormatError(f"{source}: {model} has {MODELS[model]} coefficients, the file gives {dist.size}")
+    try:
+        return Camera(K, dist if dist.size else None, (int(d["image_width"]), int(d["image_height"])), source=source)
+    except CameraError as exc:
+        raise CameraError(f"{source}: {exc}") from None
+
+
+def load_camera_info(path: str | os.PathLike) -> Camera:
+    """Read a ROS ``camera_info`` YAML file (as ``camera_calibration`` writes it) into a Camera.
+
+    Parameters
+    ----------
+    path : path-like
+        The YAML file.
+
+    Returns
+    -------
+    Camera
+        Its ``source`` is the path.
+
+    Raises
+    ------
+    RosFormatError
+        An unreadable or malformed file (see :func:`camera_from_camera_info`).
+    CameraError
+        Values no camera has.
+    """
+    path, data = _files.read_bytes(path, RosFormatError, "camera_info YAML file", _files.MAX_TEXT_BYTES)
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise RosFormatError(f"{path}: not UTF-8 text; give the camera_info YAML file") from None
+    return camera_from_camera_info(text, str(path))
