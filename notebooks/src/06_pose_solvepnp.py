@@ -43,7 +43,9 @@ image = load_image(data_path("scenes", record["image"]))
 T_world_camera_true = np.array(record["T_world_camera"])
 detections = detect_markers(image, world_map.dictionary)
 print("detected:", [d.id for d in detections], " in the map:", world_map.ids)
-print("true camera position (mm):", T_world_camera_true[:3, 3])
+markers_centre = np.vstack(list(world_map.corners().values())).mean(axis=0)
+print("true camera position (mm):", T_world_camera_true[:3, 3],
+      f"- {np.linalg.norm(T_world_camera_true[:3, 3] - markers_centre) / 1000:.1f} m from the markers' centre")
 
 ax = plotting.show_image(None, image, title=f"{record['image']}: three markers, twelve corners")
 plotting.plot_detections(ax, detections)
