@@ -632,8 +632,8 @@ display(fig)
 
 # %% [markdown]
 # The search's answer, step by step: print larger first (120 mm: a larger marker has less noisy corners and
-# tells the distance better), then **spread**: the two new markers go 1 m to either side of the first, two
-# metres apart, the lesson of section 4. Three 120 mm markers placed so keep nearly every place of the area
+# tells the distance better), then **spread**: the two new markers go a metre or more to either side of the
+# first (their centres are printed above), the lesson of section 4. Three 120 mm markers placed so keep nearly every place of the area
 # within 10 mm looking at them (the finer plan's fractions and worst place are printed above), where the seed's
 # three 80 mm markers close together leave a large part of it outside. Turning on the spot (right panel), the far part of the room still goes beyond 10 mm: a heading that
 # keeps only one or two of the markers in view is worse than one that sees all three.
