@@ -491,7 +491,7 @@ assert homography_rms["edges"] < 0.6 * opencv_best
 # with each other: how far, and in which direction, does each method's corner lie from the `edges` corner?
 
 # %%
-edges_photo = {d.id: d.corners_px for d in found}
+edges_photo = {d.id: d.corners_px for d in detect_markers(photo, "6X6_250", refine="edges")}
 print("refinement   mean distance from edges (px)   edges further out by (px)   mean shift (dx, dy) px")
 for r in ["none", "subpix", "contour", "apriltag"]:
     dist_px, outward_px, shift = [], [], []
