@@ -127,6 +127,9 @@ for rec in scenes[:6]:
         errors[r] += [np.linalg.norm(d.corners_px - truth[d.id], axis=1) for d in found]
 
 errors = {r: np.concatenate(e) for r, e in errors.items()}
+wall_centre = np.vstack(list(world_map.corners().values())).mean(axis=0)
+away_m = [np.linalg.norm(np.array(rec["T_world_camera"])[:3, 3] - wall_centre) / 1000 for rec in scenes[:6]]
+print(f"scenes 0 to 5: the camera {min(away_m):.1f} to {max(away_m):.1f} m from the markers")
 print("refinement   corners   mean error   max error (px)")
 for r, e in errors.items():
     print(f"{r:10s} {len(e):8d} {e.mean():11.3f} {e.max():11.3f}")
