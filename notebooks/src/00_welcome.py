@@ -28,6 +28,19 @@
 # ```
 
 # %% [markdown]
+# ## What you need before you start
+#
+# * **Python**: functions, loops, lists and dicts, f-strings; reading a traceback.
+# * **NumPy**: arrays and their `shape`, indexing and slicing (`a[:3, 3]`), `@` for matrix products,
+#   `np.linalg.norm`. The NumPy quickstart (https://numpy.org/doc/stable/user/quickstart.html) covers it.
+# * **Maths**: vectors and matrices (product, transpose, dot product), sine, cosine and arctangent, degrees
+#   against radians, similar triangles. Rotations and 4 x 4 transforms are taught in notebook 03; chapter 3 of
+#   *Modern Robotics* (Lynch and Park, free at http://modernrobotics.org) is the reference if you want more.
+# * **OpenCV**: nothing; every call is introduced where it is first used.
+# * **For the hands-on parts**: a printer that can print at 100 % ("actual size"), calipers or a steel rule to
+#   measure what it printed, a tape measure for the room, stiff card to glue the calibration board on, and a
+#   camera (a laptop's or a phone's). Everything else runs on the pictures bundled in `data/`.
+#
 # ## How to use the notebooks
 #
 # * Run the cells **from top to bottom**: click a cell and press **Shift-Enter** (run it and move on).
@@ -97,6 +110,22 @@ plotting.plot_detections(ax, detect_markers(image, world_map.dictionary))
 plt.show()
 
 # %% [markdown]
+# **Try it.** `data/scenes/` holds ten pictures, `scene_00.png` to `scene_09.png`; scenes 6 to 9 show markers on
+# two walls (another map, `two_walls_map.json`, named in `poses.json`). Will the position error be larger when
+# the camera stands further from the wall, and how much larger at twice the distance? **Predict first**, then
+# change `SCENE`, run, and compare a few scenes (notebook 08 explains what you see).
+
+# %%
+SCENE = 3  # 0 to 9
+
+record = json.loads(data_path("scenes", "poses.json").read_text())["images"][SCENE]
+scene_map = MarkerMap.load(data_path(record["map"]))
+found = locate(load_image(data_path("scenes", record["image"])), scene_map, camera)
+true_xyz = np.array(record["T_world_camera"])[:3, 3]
+print(f"{record['image']}: camera {true_xyz[0] / 1000:.1f} m out from the north wall, markers used "
+      f"{found.marker_ids}, position error {np.linalg.norm(found.position_mm - true_xyz):.1f} mm")
+
+# %% [markdown]
 # And the same in 3D: the wall's markers, and the camera at the pose found (the orange pyramid points
 # where the camera looks).
 
@@ -141,3 +170,15 @@ plt.show()
 #
 # **Exercises** start with notebook 01: [exercises/01_pinhole.ipynb](exercises/01_pinhole.ipynb).
 # Next: [01 The pinhole camera](01_pinhole_intrinsics.ipynb).
+
+# %% [markdown]
+# ## References
+#
+# * K. M. Lynch and F. C. Park, *Modern Robotics: Mechanics, Planning, and Control*, Cambridge University Press,
+#   2017, chapter 3 (rigid-body motions): http://modernrobotics.org
+# * OpenCV, "Detection of ArUco Markers": https://docs.opencv.org/4.x/d5/dae/tutorial_aruco_detection.html
+# * OpenCV, "Perspective-n-Point (PnP) pose computation": https://docs.opencv.org/4.x/d5/d1f/calib3d_solvePnP.html
+# * T. Collins and A. Bartoli, "Infinitesimal Plane-based Pose Estimation", International Journal of Computer
+#   Vision 109(3), 2014.
+# * Z. Zhang, "A flexible new technique for camera calibration", IEEE Transactions on Pattern Analysis and
+#   Machine Intelligence 22(11), 2000.

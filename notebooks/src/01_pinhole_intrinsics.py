@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from fidlearn import Camera, MarkerMap, data_path, look_at, plotting, widgets
+from fidlearn.synthetic import render_calibration_views
 
 np.set_printoptions(precision=3, suppress=True)
 
@@ -66,6 +67,41 @@ uvw = points_camera @ K.T
 by_matrix = uvw[:, :2] / uvw[:, 2:]
 assert np.allclose(by_hand, by_matrix)
 assert np.allclose(by_hand[0], [cx, cy])  # a point on the optical axis lands on the principal point
+
+# %% [markdown]
+# The same numbers as a drawing. Seen from above (left), a ray from each point to the camera's centre crosses
+# an **image plane** put at distance fx in front of it (in pixel units; a real sensor sits behind the lens, and
+# this "virtual" plane in front gives the same picture without turning it upside down). Where the ray crosses
+# the plane is `u - cx = fx X / Z`: similar triangles. Seen from the side (right), the same with fy and v.
+# The plane's width is the image's, 640 px, so the two outer rays show the field of view (section 3).
+
+# %%
+fig, (top, side) = plt.subplots(1, 2, figsize=(13, 4.8))
+colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
+for ax, axis, f, c, half, name in ((top, 0, fx, cx, 320, "X"), (side, 1, fy, cy, 240, "Y")):
+    ax.plot([0, 0], [0, 0], "k^", markersize=10)
+    ax.plot([-half, half], [f, f], color="0.3", linewidth=3)                  # the image plane, at depth f
+    ax.plot([0, -half * 2200 / f], [0, 2200], ":", color="0.5")               # the field of view's edges
+    ax.plot([0, half * 2200 / f], [0, 2200], ":", color="0.5")
+    ax.text(half, f, f"  image plane at\n  depth f = {f:.0f}", va="center", fontsize=8)
+    for k, (p, uv) in enumerate(zip(points_camera, by_hand)):
+        if p[axis] == 0 and k > 0:
+            continue                                                          # nothing to see in this view
+        crossing = f * p[axis] / p[2]                                         # similar triangles
+        assert np.isclose(crossing, uv[axis] - c)                             # = u - cx (or v - cy), px
+        ax.plot([0, p[axis]], [0, p[2]], color=colours[k], linewidth=1)
+        ax.plot(p[axis], p[2], "o", color=colours[k],
+                label=f"point {k}: {name} = {p[axis]:.0f}, Z = {p[2]:.0f} mm: crosses at {crossing:+.0f} px")
+        ax.plot(crossing, f, "s", color=colours[k], markersize=6)
+    ax.set_xlabel(f"{name} (mm; pixels on the image plane)" + (", pointing down" if axis == 1 else ""))
+    ax.set_ylabel("Z, forward (mm)")
+    ax.set_xlim(-900, 900)
+    ax.set_ylim(-100, 2250)
+    ax.legend(loc="lower left", fontsize=8)
+top.set_title("from above: u - cx = fx X / Z")
+side.set_title("from the side: v - cy = fy Y / Z")
+fig.tight_layout()
+plt.show()
 
 # %% [markdown]
 # ## 2. The same with OpenCV
@@ -127,12 +163,14 @@ assert math.isclose(ideal.fx, f60) and math.isclose(ideal.fov_deg[0], 60.0)
 wall = MarkerMap.load(data_path("world_map.json"))
 T_world_camera = look_at([1500, 150, 250], [0, 150, 250])  # 1.5 m in front of the wall, looking at it
 
-fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+fig, axes = plt.subplots(1, 2, figsize=(12, 4.4))
 for ax, f in zip(axes, (600.0, 1200.0)):
     cam_f = Camera([[f, 0, cx], [0, f, cy], [0, 0, 1]], None, (640, 480))
-    corners_px = plotting.draw_projected_markers(ax, wall, cam_f, T_world_camera)
+    # corner names only where the markers are big enough for them not to overlap
+    corners_px = plotting.draw_projected_markers(ax, wall, cam_f, T_world_camera, corner_labels=f > 1000)
     side_px = np.linalg.norm(corners_px[0][1] - corners_px[0][0])
-    ax.set_title(f"fx = {f:.0f} px: hfov {cam_f.fov_deg[0]:.1f} deg, marker 0 is {side_px:.1f} px wide")
+    ax.set_title(f"fx = {f:.0f} px: hfov {cam_f.fov_deg[0]:.1f} deg\nmarker 0 is {side_px:.1f} px wide", fontsize=10)
+    print(f"fx = {f:.0f} px: hfov {cam_f.fov_deg[0]:.1f} deg, marker 0 is {side_px:.1f} px wide")
     # an 80 mm marker 1500 mm away is fx * 80 / 1500 pixels wide
     assert math.isclose(side_px, f * 80 / 1500, rel_tol=1e-9)
 plt.show()
@@ -201,9 +239,7 @@ print("undistorted:\n", undistorted)
 assert np.allclose(undistorted, by_hand, rtol=0, atol=0.01)  # undistortion is iterative: within 0.01 px
 
 # %% [markdown]
-# Straight lines in the world stay straight in a pinhole image; with distortion they bend. Ignoring the
-# distortion of a real lens puts the corners of a marker near the image border several pixels off, and
-# the pose (notebook 06) absorbs that error.
+# Straight lines in the world stay straight in a pinhole image; with distortion they bend:
 
 # %%
 fig, axes = plt.subplots(1, 3, figsize=(13, 3.6), sharey=True)
@@ -218,16 +254,124 @@ for ax, (title, k1_demo) in zip(axes, [("pinhole (k1 = 0)", 0.0), ("barrel (k1 =
 plt.show()
 
 # %% [markdown]
+# ### What ignoring the distortion costs
+#
+# Suppose the lens distorts but the code passes `dist = 0` to `cv2.solvePnP` (notebook 06). The corners are
+# then off by the distortion, and the solver finds the pose that fits those wrong corners best: it **absorbs**
+# the error into a wrong pose, with a small reprojection error that does not warn you. Measure it with exact
+# projections (no detection noise) of the wall's markers, seen 0.9 m away near the edge of the picture, for
+# the strong lens above and for a mild one (a typical webcam), with the distortion modelled and ignored:
+
+# %%
+wall_points = np.vstack(list(wall.corners().values()))  # the 12 corners of the wall's markers, mm
+T_near_edge = look_at([900, -100, 400], [0, 350, 250])   # the markers land in the left half of the picture
+print("lens                   corners moved by   distortion   position error  reprojection RMS")
+ignored_error_mm = {}
+for lens_name, lens_dist in (("strong (k1 = -0.28)", dist), ("mild (k1 = -0.06)", np.array([-0.06, 0.08, 0, 0, 0]))):
+    seen_px = Camera(K, lens_dist, (640, 480)).project(wall_points, T_near_edge)     # what the camera sees
+    pinhole_px = Camera(K, None, (640, 480)).project(wall_points, T_near_edge)
+    moved = np.linalg.norm(seen_px - pinhole_px, axis=1)
+    for how, model_dist in (("modelled", lens_dist), ("ignored", np.zeros(5))):
+        ok, r, t = cv2.solvePnP(wall_points, seen_px, K, model_dist, flags=cv2.SOLVEPNP_IPPE)
+        r, t = cv2.solvePnPRefineLM(wall_points, seen_px, K, model_dist, r, t)
+        projected, _ = cv2.projectPoints(wall_points, r, t, K, model_dist)
+        rms = np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - seen_px) ** 2, axis=1)))
+        R, _ = cv2.Rodrigues(r)
+        position = (-R.T @ t).ravel()                    # the camera's position in the world (notebook 07)
+        err = np.linalg.norm(position - T_near_edge[:3, 3])
+        if how == "ignored":
+            ignored_error_mm[lens_name] = err
+        print(f"{lens_name:22s} {moved.min():6.1f} to {moved.max():4.1f} px   {how:9s} {err:10.1f} mm "
+              f"{rms:15.2f} px")
+        if how == "modelled":
+            assert err < 0.5 and rms < 0.01
+assert ignored_error_mm["strong (k1 = -0.28)"] > 10 and ignored_error_mm["mild (k1 = -0.06)"] > 2
+
+# %% [markdown]
+# With the distortion modelled the pose is exact. Ignored, the camera lands centimetres off with the strong
+# lens and millimetres off with the mild one, while the reprojection error stays around a pixel or less: small
+# enough to look like ordinary detection noise. Calibrate the distortion (notebook 02) and pass it on.
+#
+# ### Removing the distortion from a picture: `cv2.undistort`
+#
+# `cv2.undistort(image, K, dist)` resamples a whole picture as the pinhole camera would have taken it. Here a
+# rendered picture of a checkerboard through the strong lens above (`fidlearn.synthetic` knows the true corner
+# pixels), and the same picture undistorted. The rows of corners bend in the first and are straight in the
+# second; measured on the true corners (`cv2.undistortPoints` moves points the way `cv2.undistort` moves
+# pixels), the largest distance of a corner from its row's straight line:
+
+# %%
+board_view = render_calibration_views(lens, n_views=1, seed=3, fill_range=(0.85, 0.9), tilt_range_deg=(5, 10))
+distorted_image = board_view.images[0]
+undistorted_image = cv2.undistort(distorted_image, K, dist)
+
+
+def row_bend_px(points, pattern=(9, 6)):
+    """Largest distance (px) of a corner from the straight line fitted to its row of the board."""
+    worst = 0.0
+    for row in points.reshape(pattern[1], pattern[0], 2):
+        centre = row - row.mean(axis=0)
+        normal = np.linalg.svd(centre)[2][1]  # the direction across the row
+        worst = max(worst, float(np.abs(centre @ normal).max()))
+    return worst
+
+
+corners_distorted = board_view.image_points[0]
+corners_straight = cv2.undistortPoints(corners_distorted.reshape(-1, 1, 2), K, dist, P=K).reshape(-1, 2)
+print(f"rows of corners bend by up to {row_bend_px(corners_distorted):.2f} px in the picture, "
+      f"{row_bend_px(corners_straight):.3f} px after undistortion")
+assert row_bend_px(corners_distorted) > 2 and row_bend_px(corners_straight) < 0.05
+plotting.show_images([distorted_image, undistorted_image],
+                     ["through the lens (k1 = -0.28)", "cv2.undistort(image, K, dist)"], ncols=2, width_in=12)
+plt.show()
+
+# %% [markdown]
+# The undistorted picture loses a little at its edges (pixels that came from outside the sensor are black) and
+# is resampled, so detect markers in the **original** picture and give the distortion to `solvePnP`, as
+# fidlearn does; `cv2.undistort` is for looking, and for algorithms that need a pinhole picture.
+
+# %% [markdown]
+# ## Try it
+#
+# An 80 mm marker, 1.5 m in front of a camera with fx = 600 px. If you move the camera twice as far away, or
+# zoom to twice the focal length, how wide is the marker in the picture? And with half the field of view?
+# **Write your prediction down first**, then change the numbers and run the cell.
+
+# %%
+SIDE_MM = 80.0       # the marker's side
+DISTANCE_MM = 1500.0  # try 3000
+FX_PX = 600.0        # try 1200, or the fx of a 30 degree field of view
+
+marker = np.array([[-SIDE_MM / 2, 0, DISTANCE_MM], [SIDE_MM / 2, 0, DISTANCE_MM]])  # its left and right edge
+px, _ = cv2.projectPoints(marker, np.zeros(3), np.zeros(3), np.array([[FX_PX, 0, 319.5], [0, FX_PX, 239.5], [0, 0, 1]]),
+                          None)
+width_px = float(np.linalg.norm(px[1] - px[0]))
+print(f"{SIDE_MM:.0f} mm at {DISTANCE_MM:.0f} mm with fx = {FX_PX:.0f} px: {width_px:.1f} px wide "
+      f"(fx * side / Z = {FX_PX * SIDE_MM / DISTANCE_MM:.1f}); field of view {math.degrees(2 * math.atan(320 / FX_PX)):.1f} deg")
+
+# %% [markdown]
 # ## Summary
 #
 # * A camera maps a point (X, Y, Z) of its own frame to `u = fx X/Z + cx`, `v = fy Y/Z + cy`: the
 #   intrinsic matrix K holds fx, fy, cx, cy, all in **pixels**.
 # * The field of view is `2 atan(w / 2fx)`; a marker of side s at distance Z is about `fx s / Z` pixels wide.
 # * `cv2.projectPoints` (and `Camera.project`) add lens distortion, on normalized coordinates, with
-#   `dist = [k1, k2, p1, p2, k3]`; `Camera.undistort_points` removes it.
+#   `dist = [k1, k2, p1, p2, k3]`; `Camera.undistort_points` (and `cv2.undistortPoints`) removes it from points,
+#   `cv2.undistort` from a whole picture. Ignoring a real lens's distortion moves the pose by millimetres to
+#   centimetres with a reprojection error that does not warn you (measured above).
 # * K and the distortion belong to one camera **at one resolution**: notebook 02 measures them.
 #
 # **Exercises**: [exercises/01_pinhole.ipynb](exercises/01_pinhole.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("01")` in a new cell).
 #
 # Next: [02 Calibration](02_calibration.ipynb).
+
+# %% [markdown]
+# ## References
+#
+# * OpenCV, "Camera Calibration and 3D Reconstruction" (calib3d): the pinhole model, K and the distortion
+#   model, `projectPoints`, `undistort`, `undistortPoints`: https://docs.opencv.org/4.x/d9/d0c/group__calib3d.html
+# * R. Hartley and A. Zisserman, *Multiple View Geometry in Computer Vision*, 2nd ed., Cambridge University
+#   Press, 2004, chapter 6 (camera models).
+# * Z. Zhang, "A flexible new technique for camera calibration", IEEE Transactions on Pattern Analysis and
+#   Machine Intelligence 22(11), 2000: where K and the distortion come from (notebook 02).

@@ -165,6 +165,39 @@ for Z in (1000, 3000, 5000):
 assert math.isclose(marker_side_mm(1000, camera.fx, 7), 4 * 7 * 1000 / camera.fx)
 
 # %% [markdown]
+# ### Print at 100 %, then measure with calipers
+#
+# The map tells the solver how big a marker is, and the solver turns apparent size into distance. A printer set
+# to "fit to page" shrinks the page by a few per cent, and every distance comes out short by the same factor.
+# Print at **100 % ("actual size")**, then measure the black square with calipers (or a steel rule) and write
+# what you measured in the map's `marker_size_mm`. What a scale error costs, computed: the corners an 80 mm
+# marker printed at another scale would give a camera 1.5 m from it, given to `cv2.solvePnP` (notebook 06)
+# with the map's 80 mm:
+
+# %%
+def marker_square_mm(side_mm):
+    """A marker's corners TL, TR, BR, BL in its own frame (mm): the object points of cv2.SOLVEPNP_IPPE_SQUARE."""
+    h = side_mm / 2
+    return np.array([[-h, h, 0], [h, h, 0], [h, -h, 0], [-h, -h, 0]])
+
+
+def distance_with_map_size(printed_mm, map_mm=80.0, distance_mm=1500.0):
+    """Camera distance (mm) that solvePnP finds from the exact corners of a marker printed at printed_mm, told
+    it is map_mm; the camera looks at the marker from distance_mm, a little off its axis."""
+    rvec, tvec = np.array([0.3, 0.2, 0.0]), np.array([0.0, 0.0, distance_mm])
+    seen_px, _ = cv2.projectPoints(marker_square_mm(printed_mm), rvec, tvec, camera.K, camera.dist)
+    ok, r, t = cv2.solvePnP(marker_square_mm(map_mm), seen_px, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
+    return float(np.linalg.norm(t))  # notebook 06: tvec is the marker's centre in the camera frame
+
+
+print("printed side    scale   distance found (true 1500 mm)   error")
+for printed_mm in (80.0, 79.9, 79.2, 77.6):
+    found_mm = distance_with_map_size(printed_mm)
+    print(f"{printed_mm:8.1f} mm {printed_mm / 80:9.3f} {found_mm:17.1f} mm {found_mm - 1500:+22.1f} mm "
+          f"({100 * (found_mm / 1500 - 1):+.1f} %)")
+assert abs(distance_with_map_size(79.2) - 1500 * 80 / 79.2) < 0.5  # 1 % too small a print: 1 % too far
+
+# %% [markdown]
 # ## 4. The world map
 #
 # The world map says where each marker is. The world frame is right-handed with **Z up**; in the seed
@@ -305,11 +338,32 @@ plotting.plot_detections(ax, detections)
 plt.show()
 
 # %% [markdown]
+# A 1 % scale error is a 1 % distance error: 15 mm at 1.5 m, whatever the camera and however good the corners.
+# A print scaled to 97 % ("fit to page") costs 3 %. Calipers read the side to a tenth of a millimetre, which is
+# 0.1 % of an 80 mm marker (the 79.9 mm line). `fidlearn markers` prints a 100 mm ruler
+# beside the markers: measure it before you cut.
+#
+# ## Try it
+#
+# A marker printed for 4 pixels per cell at 3 m (section 3): how wide must it be for 5 m, and for the same 3 m
+# seen by a camera with half the focal length (a wider lens)? **Predict first** from `side = 4 (n + 2) Z / fx`,
+# then change the numbers and run.
+
+# %%
+DISTANCE_MM = 3000.0  # try 5000
+FX_PX = camera.fx     # try camera.fx / 2
+
+side_mm = marker_side_mm(DISTANCE_MM, FX_PX, cells)
+print(f"at {DISTANCE_MM / 1000:.1f} m with fx = {FX_PX:.0f} px: print the ARUCO_ORIGINAL black square at least "
+      f"{side_mm:.0f} mm wide ({side_mm * FX_PX / DISTANCE_MM / cells:.1f} px per cell)")
+
+# %% [markdown]
 # ## Summary
 #
 # * A dictionary is a set of bit patterns; detect with the dictionary you printed. Keep a white quiet
 #   zone around the black border, and measure the side on the black square.
-# * Plan for at least ~4 pixels per cell: side ≥ 4 (n + 2) Z / fx.
+# * Plan for at least ~4 pixels per cell: side ≥ 4 (n + 2) Z / fx. Print at 100 % and measure the printed
+#   square with calipers: a 1 % scale error is a 1 % distance error.
 # * A placement is the top-left corner (in the map's units) and `[roll, pitch, yaw]` in degrees;
 #   corners are `TL + s R c_k`, in mm, TL, TR, BR, BL. Units are declared, never guessed.
 # * North wall: rotation 0; south: yaw 180; west/east: yaw ±90; floor: pitch -90.
@@ -318,3 +372,13 @@ plt.show()
 # (or `from fidlearn import exercises; ex = exercises.lesson("04")` in a new cell).
 #
 # Next: [05 Detecting markers](05_detection_winding_order.ipynb).
+
+# %% [markdown]
+# ## References
+#
+# * OpenCV, "Detection of ArUco Markers" (dictionaries, printing markers):
+#   https://docs.opencv.org/4.x/d5/dae/tutorial_aruco_detection.html
+# * S. Garrido-Jurado, R. Muñoz-Salinas, F. J. Madrid-Cuevas and M. J. Marín-Jiménez, "Automatic generation and
+#   detection of highly reliable fiducial markers under occlusion", Pattern Recognition 47(6), 2014: ArUco.
+# * K. M. Lynch and F. C. Park, *Modern Robotics*, Cambridge University Press, 2017, chapter 3 (rotations and
+#   rigid-body transforms, for the map's placements): http://modernrobotics.org

@@ -43,7 +43,9 @@ image = load_image(data_path("scenes", record["image"]))
 T_world_camera_true = np.array(record["T_world_camera"])
 detections = detect_markers(image, world_map.dictionary)
 print("detected:", [d.id for d in detections], " in the map:", world_map.ids)
-print("true camera position (mm):", T_world_camera_true[:3, 3])
+markers_centre = np.vstack(list(world_map.corners().values())).mean(axis=0)
+print("true camera position (mm):", T_world_camera_true[:3, 3],
+      f"- {np.linalg.norm(T_world_camera_true[:3, 3] - markers_centre) / 1000:.1f} m from the markers' centre")
 
 ax = plotting.show_image(None, image, title=f"{record['image']}: three markers, twelve corners")
 plotting.plot_detections(ax, detections)
@@ -103,6 +105,27 @@ error_mm = np.linalg.norm(T_world_camera[:3, 3] - T_world_camera_true[:3, 3])
 angle_deg = frames.rotation_angle_deg(T_world_camera[:3, :3], T_world_camera_true[:3, :3])
 print(f"camera at {T_world_camera[:3, 3].round(1)} mm: {error_mm:.1f} mm and {angle_deg:.2f} deg from the truth")
 assert error_mm < 10 and angle_deg < 0.5
+
+# %% [markdown]
+# The usual way to look at a pose in OpenCV is to draw it: `cv2.drawFrameAxes(image, K, dist, rvec, tvec,
+# length)` projects a frame's x (red), y (green) and z (blue) axes, `length` mm long, with the pose `rvec, tvec`
+# of that frame **in the camera**. With solvePnP's `rvec, tvec` that frame is the world: its origin lies on the
+# floor below the wall, and its z points up. Each marker's own frame is `T_camera_marker = T_camera_world @
+# T_world_marker` (notebook 03), its z out of the marker's face:
+
+# %%
+axes_image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy()
+cv2.drawFrameAxes(axes_image, camera.K, camera.dist, rvec, tvec, 150, 3)   # the world frame, 150 mm axes
+for marker_id in used:
+    T_camera_marker = T_camera_world @ world_map.T_world_marker(marker_id)
+    r_m, _ = cv2.Rodrigues(T_camera_marker[:3, :3])
+    cv2.drawFrameAxes(axes_image, camera.K, camera.dist, r_m, T_camera_marker[:3, 3], 40, 2)
+origin_px, _ = cv2.projectPoints(np.zeros(3), rvec, tvec, camera.K, camera.dist)
+print(f"the world origin is drawn at pixel {origin_px.ravel().round(1)}")
+ax = plotting.show_image(None, axes_image, title="cv2.drawFrameAxes: the world frame (long axes) and each marker's frame")
+ax.set_xlim(origin_px[0, 0, 0] - 150, origin_px[0, 0, 0] + 250)
+ax.set_ylim(origin_px[0, 0, 1] + 60, origin_px[0, 0, 1] - 260)
+plt.show()
 
 # %% [markdown]
 # ## 4. Solvers compared
@@ -254,6 +277,26 @@ for rec in scenes:
 assert max(errors_mm) < 15 and np.median(errors_mm) < 3
 
 # %% [markdown]
+# ## Try it
+#
+# The corners are accurate to a few hundredths of a pixel here. What if they were noisier, say 0.5 px, as
+# OpenCV's unrefined corners are (notebook 05)? Will the camera move by millimetres or centimetres? And will the
+# reprojection RMS tell you? **Predict first**, then change `NOISE_PX` and run the cell.
+
+# %%
+NOISE_PX = 0.5  # standard deviation of the noise added to every corner, px; try 0.1, 1, 2
+
+rng = np.random.default_rng(0)
+noisy = image_points + rng.normal(0.0, NOISE_PX, image_points.shape)
+ok, r_noisy, t_noisy = cv2.solvePnP(object_points, noisy, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
+r_noisy, t_noisy = cv2.solvePnPRefineLM(object_points, noisy, camera.K, camera.dist, r_noisy, t_noisy)
+T_noisy = frames.invert_transform(frames.transform_from_rvec_tvec(r_noisy, t_noisy))
+projected_noisy, _ = cv2.projectPoints(object_points, r_noisy, t_noisy, camera.K, camera.dist)
+rms_noisy = np.sqrt(np.mean(np.sum((noisy - projected_noisy.reshape(-1, 2)) ** 2, axis=1)))
+print(f"corner noise {NOISE_PX} px: camera {np.linalg.norm(T_noisy[:3, 3] - T_world_camera_true[:3, 3]):.1f} mm "
+      f"from the truth, reprojection RMS {rms_noisy:.2f} px")
+
+# %% [markdown]
 # ## Summary
 #
 # * PnP needs matched pairs: each known marker gives four rows, world corners (mm) and pixel corners, in the
@@ -264,9 +307,22 @@ assert max(errors_mm) < 15 and np.median(errors_mm) < 3
 #   Levenberg-Marquardt (`cv2.solvePnPRefineLM`).
 # * The reprojection RMS (`cv2.projectPoints`) tells a good pose from a bad one without the truth: a few
 #   hundredths of a pixel here.
+# * `cv2.drawFrameAxes(image, K, dist, rvec, tvec, length)` draws a pose on the picture: the quickest check.
 # * `fidlearn.estimate_pose` does it all and matched the truth to a few mm on every scene.
 #
 # **Exercises**: [exercises/06_pnp.ipynb](exercises/06_pnp.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("06")` in a new cell).
 #
 # Next: [07 Where is the camera?](07_inverting_the_transform.ipynb)
+
+# %% [markdown]
+# ## References
+#
+# * OpenCV, "Perspective-n-Point (PnP) pose computation" (every solver, `solvePnPRefineLM`):
+#   https://docs.opencv.org/4.x/d5/d1f/calib3d_solvePnP.html and `solvePnP`, `drawFrameAxes` in
+#   https://docs.opencv.org/4.x/d9/d0c/group__calib3d.html
+# * T. Collins and A. Bartoli, "Infinitesimal Plane-based Pose Estimation", International Journal of Computer
+#   Vision 109(3), 2014: the IPPE solver.
+# * G. Terzakis and M. Lourakis, "A Consistently Fast and Globally Optimal Solution to the Perspective-n-Point
+#   Problem", ECCV 2020: SQPnP.
+# * V. Lepetit, F. Moreno-Noguer and P. Fua, "EPnP: An Accurate O(n) Solution to the PnP Problem", IJCV 81, 2009.

@@ -287,6 +287,23 @@ print(f"the six centres lie within {np.abs(off_plane_mm).max():.0f} mm of one pl
 assert np.abs(off_plane_mm).max() < 10
 
 # %% [markdown]
+# ## Try it
+#
+# Section 7 placed the camera from marker 0 alone. Will marker 1 or marker 2 alone do better or worse, and will
+# a wrong inverse (`tvec` taken for the position) be off by millimetres or by metres? **Predict first**, then
+# change `MARKER_ID` and run the cell.
+
+# %%
+MARKER_ID = 1  # 0, 1 or 2: the seed's wall
+
+seen = next(d for d in detections if d.id == MARKER_ID)
+ok, r_m, t_m = cv2.solvePnP(square, seen.corners_px, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
+T_found = world_map.T_world_marker(MARKER_ID) @ invert_closed_form(frames.transform_from_rvec_tvec(r_m, t_m))
+wrong = world_map.T_world_marker(MARKER_ID) @ frames.transform_from_rvec_tvec(r_m, t_m)  # no inverse at all
+print(f"marker {MARKER_ID} alone: camera {np.linalg.norm(T_found[:3, 3] - T_world_camera_true[:3, 3]):.1f} mm from "
+      f"the truth; without the inverse {np.linalg.norm(wrong[:3, 3] - T_world_camera_true[:3, 3]):.0f} mm")
+
+# %% [markdown]
 # ## Summary
 #
 # * `cv2.solvePnP` returns $T_{camera\_world}$: $p_c = R\,p_w + t$. `tvec` is the world origin seen from the
@@ -303,3 +320,12 @@ assert np.abs(off_plane_mm).max() < 10
 # (or `from fidlearn import exercises; ex = exercises.lesson("07")` in a new cell).
 #
 # Next: [08 Accuracy and pitfalls](08_accuracy_pitfalls.ipynb).
+
+# %% [markdown]
+# ## References
+#
+# * K. M. Lynch and F. C. Park, *Modern Robotics: Mechanics, Planning, and Control*, Cambridge University Press,
+#   2017, chapter 3 (rigid-body motions, the inverse of a transform, chaining frames): http://modernrobotics.org
+# * OpenCV, `solvePnP` and `SOLVEPNP_IPPE_SQUARE`: https://docs.opencv.org/4.x/d5/d1f/calib3d_solvePnP.html
+# * T. Collins and A. Bartoli, "Infinitesimal Plane-based Pose Estimation", International Journal of Computer
+#   Vision 109(3), 2014.

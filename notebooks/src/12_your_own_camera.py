@@ -358,3 +358,13 @@ else:
 # * A calibration is as good as its views: enough of them, over the whole picture, sharp (a low RMS). Compare
 #   with a set known to be good before you trust it.
 # * With a calibrated camera and printed markers, the pose is a few lines (notebooks 05-09), live.
+
+# %% [markdown]
+# ## References
+#
+# * Z. Zhang, "A flexible new technique for camera calibration", IEEE Transactions on Pattern Analysis and
+#   Machine Intelligence 22(11), 2000.
+# * OpenCV, "Camera calibration with OpenCV": https://docs.opencv.org/4.x/d4/d94/tutorial_camera_calibration.html
+# * OpenCV, "Detection of ArUco Markers": https://docs.opencv.org/4.x/d5/dae/tutorial_aruco_detection.html
+# * MDN, `MediaDevices.getUserMedia()` (how the browser lends its camera):
+#   https://developer.mozilla.org/en-US/docs/Web/API/MediaDevices/getUserMedia
