@@ -17,7 +17,6 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .. import frames
 from ..camera import Camera
 from ..detection import as_gray
 from ..errors import CalibrationError, ImageError
@@ -146,9 +145,10 @@ def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
             f"cv2.calibrateCamera failed ({msg}); take more views with the board tilted in different directions"
         ) from None
     dist = np.asarray(dist, dtype=np.float64).reshape(-1)
-    per_view = _stats.per_view_rms(obj, img, K, dist, rvecs, tvecs)
+    rotations = [cv2.Rodrigues(r)[0] for r in rvecs]
+    per_view = _stats.per_view_rms(obj, img, K, dist, rotations, tvecs)
     std_from = functools.partial(_std_dict, obj, img, K, dist, rvecs, tvecs, float(rms), int(flags))
-    return float(rms), K, dist, rvecs, tvecs, std_from, per_view
+    return float(rms), K, dist, rotations, tvecs, std_from, per_view
 
 
 def _std_dict(obj, img, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> dict:
@@ -229,11 +229,13 @@ def _reject_outliers(usable: list[_View], per_view: np.ndarray, min_views: int) 
 
 def _result(views: list[_View], usable: list[_View], size, fit: tuple, first_rms, finder, kind: str) -> Calibration:
     """The Calibration of the used views, with its coverage and warnings."""
-    rms, K, dist, rvecs, tvecs, std_from, per_view = fit
+    rms, K, dist, rotations, tvecs, std_from, per_view = fit
     T_camera_board = {}
-    for v, e, r, t in zip(usable, per_view, rvecs, tvecs):
+    for v, e, R, t in zip(usable, per_view, rotations, tvecs):
         v.rms_px = float(e)
-        T_camera_board[v.name] = frames.transform_from_rvec_tvec(np.asarray(r).reshape(3), np.asarray(t).reshape(3))
+        T = np.eye(4)  # frames.transform_from_rvec_tvec's matrix: cv2.Rodrigues of OpenCV's own (finite) rvec
+        T[:3, :3], T[:3, 3] = R, np.reshape(t, 3)
+        T_camera_board[v.name] = T
     board = finder.description + (", legacy layout" if getattr(finder, "legacy", False) else "")
     source = f"{kind}: {len(usable)} of {len(views)} views of a {board}, RMS {rms:.3f} px, OpenCV {cv2.__version__}"
     camera = Camera(K, dist, size, source=source)
