@@ -99,8 +99,13 @@ def std_intrinsics(obj: list, img: list, K, dist, rvecs, tvecs, rms_px: float, f
         schur += J_int.T @ J_int - W @ np.linalg.solve(J_pose.T @ J_pose, W.T)
         total += len(o)
     # the pose blocks eliminated: the intrinsics' block of the inverse is the inverse of the Schur complement
-    scale = 1.0 / np.sqrt(np.diag(schur))
-    cov = np.linalg.inv(schur * scale[:, None] * scale[None, :]) * scale[:, None] * scale[None, :]
+    diag = np.diag(schur).copy()
+    diag[~(diag > 0)] = 1.0  # a parameter no view constrains: left unscaled (and pinv below)
+    scale = np.outer(1.0 / np.sqrt(diag), 1.0 / np.sqrt(diag))
+    try:
+        cov = np.linalg.inv(schur * scale) * scale
+    except np.linalg.LinAlgError:  # singular, as OpenCV's eigen-decomposition allows: the pseudo-inverse
+        cov = np.linalg.pinv(schur * scale) * scale
     sigma2 = rms_px**2 * total / (2 * total - n_free - 6 * len(obj))
     out = np.zeros(len(free))
     out[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * sigma2)
