@@ -342,19 +342,44 @@ def _parse_corners(out: str) -> list[tuple[str, str, str]]:
     ]
 
 
+_CALIBRATION_SPEED_RE = re.compile(
+    r"^\s+(checkerboard\+std|checkerboard|charuco-rendered|charuco-photos)\s+(\d+)\s+[\d.]+\s+[\d.]+\s+([\d.]+)\s+([\d.]+)\s*$",
+    re.M,
+)
+_CALIBRATION_SPEED_WHAT = {
+    "checkerboard": "calibration: `calibrate_checkerboard` <= 1.10 x plain find + subpix + calibrateCamera, {n} views",
+    "checkerboard+std": "calibration: the same with `std_intrinsics` read, <= 1.10 x, {n} views",
+    "charuco-rendered": "calibration: `calibrate_charuco` <= 1.10 x plain CharucoDetector + calibrateCamera, {n} views",
+    "charuco-photos": "calibration: `calibrate_charuco` <= 1.10 x plain CharucoDetector + calibrateCamera, {n} photos",
+}
+
+
 def _parse_calibration(out: str) -> list[tuple[str, str, str]]:
-    errs = []
-    for line in out.split("1. Synthetic views", 1)[1].split("2. Corner finders", 1)[0].splitlines():
-        nums = line.split()
-        if len(nums) >= 4 and nums[1] == "20":
-            errs.append(float(nums[2]))
-    return [
-        (
-            "calibration: fx error with 20 views (synthetic, no target set)",
-            f"{min(errs):.3f} to {max(errs):.3f} %",
-            "see section",
+    rows = []
+    if "1. Synthetic views" in out:
+        errs = []
+        for line in out.split("1. Synthetic views", 1)[1].split("2. Corner finders", 1)[0].splitlines():
+            nums = line.split()
+            if len(nums) >= 4 and nums[1] == "20":
+                errs.append(float(nums[2]))
+        rows.append(
+            (
+                "calibration: fx error with 20 views (synthetic, no target set)",
+                f"{min(errs):.3f} to {max(errs):.3f} %",
+                "see section",
+            )
         )
-    ]
+    speed = out.split("4. Speed against plain OpenCV", 1)[1] if "4. Speed against plain OpenCV" in out else ""
+    for label, n, wall, cpu in _CALIBRATION_SPEED_RE.findall(speed):
+        w, c = float(wall), float(cpu)
+        rows.append(
+            (
+                _CALIBRATION_SPEED_WHAT[label].format(n=n),
+                f"{w:.2f} x wall, {c:.2f} x CPU",
+                _yes(w <= 1.10 and c <= 1.10),
+            )
+        )
+    return rows
 
 
 _PARSERS = {"pose": _parse_pose, "corners": _parse_corners, "calibration": _parse_calibration}

@@ -66,8 +66,18 @@ A small RMS does not make a trustworthy camera: :class:`Calibration` also carrie
 ``coverage`` (board points per ninth of the picture) and ``warnings`` (too few views,
 views too alike, parts of the picture empty), from :mod:`fidlearn.calibration.quality`.
 
+Speed
+-----
+``cv2.calibrateCamera`` runs once (twice when outlier views are rejected). The per-view
+errors come from one projection of every view's points with the returned camera and poses;
+the standard deviations of the intrinsics from the normal matrix ``cv2.calibrateCameraExtended``
+inverts, reduced to the intrinsics, when ``std_intrinsics`` is first read (``_stats``): the
+same numbers, without the inversion that made ``calibrateCameraExtended`` cost up to twice
+``calibrateCamera``. ``benchmarks/bench_calibration.py`` times the whole run against plain OpenCV.
+
 Layout: ``api`` (the two functions), ``boards`` (finding the board), ``run`` (the shared
-calibration run), ``result`` (:class:`Calibration`), ``quality`` (coverage and variety).
+calibration run), ``result`` (:class:`Calibration`), ``quality`` (coverage and variety), ``_stats`` (per-view
+errors and standard deviations).
 """
 
 from __future__ import annotations

@@ -10,7 +10,6 @@ distortion there is extrapolated). :func:`quality_warnings` says so in sentences
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -69,13 +68,11 @@ def coverage_grid(points_px: Iterable, image_size: tuple[int, int], grid: tuple[
     """
     w, h = image_size
     cols, rows = grid
-    out = np.zeros((rows, cols), dtype=int)
-    for pts in points_px:
-        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
-        c = np.clip(((pts[:, 0] + 0.5) * cols // w).astype(int), 0, cols - 1)
-        r = np.clip(((pts[:, 1] + 0.5) * rows // h).astype(int), 0, rows - 1)
-        np.add.at(out, (r, c), 1)
-    return out
+    arrays = [np.asarray(pts, dtype=float).reshape(-1, 2) for pts in points_px]
+    pts = np.concatenate(arrays) if arrays else np.zeros((0, 2))
+    c = np.clip(((pts[:, 0] + 0.5) * cols // w).astype(int), 0, cols - 1)
+    r = np.clip(((pts[:, 1] + 0.5) * rows // h).astype(int), 0, rows - 1)
+    return np.bincount(r * cols + c, minlength=rows * cols).reshape(rows, cols)
 
 
 def view_diversity(T_camera_board: Mapping) -> tuple[float, list[tuple[str, str, float, float]]]:
@@ -104,19 +101,33 @@ def view_diversity(T_camera_board: Mapping) -> tuple[float, list[tuple[str, str,
     (30.0, [('a', 'b')])
     """
     names = list(T_camera_board)
-    normals = [np.asarray(T_camera_board[n])[:3, 2] for n in names]
-    spread = 0.0
-    duplicates = []
-    for i in range(len(names)):
-        for j in range(i + 1, len(names)):
-            cos = float(np.clip(abs(normals[i] @ normals[j]), -1.0, 1.0))
-            spread = max(spread, math.degrees(math.acos(cos)))
-            Ti, Tj = np.asarray(T_camera_board[names[i]]), np.asarray(T_camera_board[names[j]])
-            angle = frames.rotation_angle_deg(Ti[:3, :3], Tj[:3, :3])
-            moved = float(np.linalg.norm(Ti[:3, 3] - Tj[:3, 3]) / max(np.linalg.norm(Ti[:3, 3]), 1e-9))
-            if angle < DUPLICATE_DEG and moved < DUPLICATE_FRACTION:
-                duplicates.append((names[i], names[j], angle, moved))
+    if len(names) < 2:
+        return 0.0, []
+    R, t = _rotations_and_translations(T_camera_board, names)
+    i, j = np.triu_indices(len(names), k=1)  # every pair, in the order (0, 1), (0, 2), ..., (1, 2), ...
+    normals = R[:, :, 2]
+    cos = np.clip(np.abs(np.sum(normals[i] * normals[j], axis=1)), -1.0, 1.0)
+    spread = float(np.degrees(np.arccos(cos)).max())
+    # the angle of R_i^T R_j from its trace, the sum of the element-wise products
+    trace = np.sum(R[i] * R[j], axis=(1, 2))
+    angle = np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
+    moved = np.linalg.norm(t[i] - t[j], axis=1) / np.maximum(np.linalg.norm(t[i], axis=1), 1e-9)
+    close = np.flatnonzero((angle < DUPLICATE_DEG) & (moved < DUPLICATE_FRACTION))
+    duplicates = [(names[i[k]], names[j[k]], float(angle[k]), float(moved[k])) for k in close]
     return spread, duplicates
+
+
+def _rotations_and_translations(T_camera_board: Mapping, names: list) -> tuple[np.ndarray, np.ndarray]:
+    """The views' rotations (n, 3, 3), checked at once (TransformError if one is not a rotation), translations."""
+    T = [np.asarray(T_camera_board[n], dtype=float) for n in names]
+    R = np.array([M[:3, :3] for M in T])
+    t = np.array([M[:3, 3] for M in T])
+    ok = np.isfinite(R).all(axis=(1, 2))
+    ok[ok] &= np.abs(np.transpose(R[ok], (0, 2, 1)) @ R[ok] - np.eye(3)).max(axis=(1, 2)) <= 1e-6
+    ok[ok] &= np.linalg.det(R[ok]) > 0
+    for k in np.flatnonzero(~ok):  # the one check that says what is wrong
+        frames.check_rotation(R[k], names[k])
+    return R, t
 
 
 def _coverage_warnings(grid: np.ndarray) -> list[str]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -62,8 +63,10 @@ class Calibration:
         Names of the views the camera was computed from, in input order.
     std_intrinsics : dict {str: float}
         Standard deviations of ``fx, fy, cx, cy`` (px) and of the distortion
-        coefficients ``k1, k2, p1, p2, k3, ...`` (``stdDeviationsIntrinsics``
-        of ``cv2.calibrateCameraExtended``).
+        coefficients ``k1, k2, p1, p2, k3, ...`` (0 for one held fixed), as
+        ``cv2.calibrateCameraExtended`` gives them (``stdDeviationsIntrinsics``).
+        Computed on first use (a few milliseconds), then kept; a dict given to the
+        constructor is kept as it is.
     rejected : list of (str, str)
         ``(name, reason)`` for every image not used.
     T_camera_board : dict {str: ndarray (4, 4)}
@@ -94,7 +97,7 @@ class Calibration:
     rms_px: float
     per_view_rms_px: dict
     used: list
-    std_intrinsics: dict
+    std_intrinsics: dict | None
     rejected: list
     T_camera_board: dict = field(default_factory=dict)
     views: list = field(default_factory=list)
@@ -104,6 +107,7 @@ class Calibration:
     first_rms_px: float | None = None
     coverage: np.ndarray | None = None
     warnings: list = field(default_factory=list)
+    _std_from: Callable[[], dict] | None = field(default=None, repr=False)
 
     @property
     def T_board_camera(self) -> dict:
@@ -166,6 +170,26 @@ class Calibration:
 
     def _repr_pretty_(self, p, cycle) -> None:  # IPython / Jupyter: the full summary
         p.text(repr(self) if cycle else self.summary())
+
+
+def _get_std(self: Calibration) -> dict:
+    if self._std is None and self._std_from is not None:
+        self._std = self._std_from()
+        self._std_from = None  # the points and poses it held are no longer needed
+    return self._std if self._std is not None else {}
+
+
+def _set_std(self: Calibration, value: dict | None) -> None:
+    self._std = None if value is None else dict(value)
+
+
+# std_intrinsics is a dataclass field (the constructor takes it) read through a property: None
+# stands for "not computed yet", and the first read computes it with _std_from.
+Calibration.std_intrinsics = property(  # type: ignore[assignment]
+    _get_std,
+    _set_std,
+    doc="Standard deviations of the intrinsics (px) and distortion coefficients, computed on first use.",
+)
 
 
 def _display_names(names: list[str]) -> tuple[list[str], str]:

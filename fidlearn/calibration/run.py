@@ -7,6 +7,7 @@ Everything here is shared by :func:`~fidlearn.calibration.calibrate_checkerboard
 
 from __future__ import annotations
 
+import functools
 import os
 from collections import Counter
 from collections.abc import Callable
@@ -16,11 +17,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .. import frames
 from ..camera import Camera
 from ..detection import as_gray
 from ..errors import CalibrationError, ImageError
 from ..images import load_image
+from . import _stats
 from .quality import coverage_grid, quality_warnings
 from .result import Calibration, ViewResult, _short
 
@@ -29,7 +30,7 @@ __all__ = ["MIN_VIEWS", "INTRINSIC_NAMES", "OUTLIER_FACTOR", "OUTLIER_MARGIN_PX"
 #: Fewest usable views a calibration accepts.
 MIN_VIEWS = 3
 
-#: Names of ``cv2.calibrateCameraExtended``'s ``stdDeviationsIntrinsics`` entries, in order.
+#: Names of the intrinsics (``cv2.calibrateCameraExtended``'s ``stdDeviationsIntrinsics`` entries), in order.
 INTRINSIC_NAMES = (
     "fx",
     "fy",
@@ -129,33 +130,31 @@ def _reject_duplicates(views: list[_View], tol_px: float = 1.0) -> None:
 
 
 def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
+    """``cv2.calibrateCamera`` and the per-view errors; the standard deviations wait in ``std_from``."""
     args = dict(flags=int(flags))
     if criteria is not None:
         args["criteria"] = criteria
+    obj = [o.astype(np.float32).reshape(-1, 1, 3) for o in obj]
+    img = [p.astype(np.float32).reshape(-1, 1, 2) for p in img]
     try:
-        out = cv2.calibrateCameraExtended(
-            [o.astype(np.float32).reshape(-1, 1, 3) for o in obj],
-            [p.astype(np.float32).reshape(-1, 1, 2) for p in img],
-            tuple(int(v) for v in image_size),
-            None,
-            None,
-            **args,
-        )
+        size = tuple(int(v) for v in image_size)
+        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, size, None, None, **args)
     except cv2.error as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "failed"
         raise CalibrationError(
             f"cv2.calibrateCamera failed ({msg}); take more views with the board tilted in different directions"
         ) from None
-    rms, K, dist, rvecs, tvecs, std_int, _std_ext, per_view = out
-    return (
-        float(rms),
-        K,
-        np.asarray(dist, dtype=np.float64).reshape(-1),
-        rvecs,
-        tvecs,
-        np.asarray(std_int).reshape(-1),
-        np.asarray(per_view).reshape(-1),
-    )
+    dist = np.asarray(dist, dtype=np.float64).reshape(-1)
+    rotations = [cv2.Rodrigues(r)[0] for r in rvecs]
+    per_view = _stats.per_view_rms(obj, img, K, dist, rotations, tvecs)
+    std_from = functools.partial(_std_dict, obj, img, K, dist, rvecs, tvecs, float(rms), int(flags))
+    return float(rms), K, dist, rotations, tvecs, std_from, per_view
+
+
+def _std_dict(obj, img, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> dict:
+    """``Calibration.std_intrinsics``: {name: standard deviation}, computed when first read."""
+    std = _stats.std_intrinsics(obj, img, K, dist, rvecs, tvecs, rms_px, flags)
+    return {n: float(v) for n, v in zip(INTRINSIC_NAMES[: 4 + len(dist)], std)}
 
 
 def _too_few(views: list[_View], size, hint: str, min_views: int) -> CalibrationError:
@@ -230,13 +229,13 @@ def _reject_outliers(usable: list[_View], per_view: np.ndarray, min_views: int) 
 
 def _result(views: list[_View], usable: list[_View], size, fit: tuple, first_rms, finder, kind: str) -> Calibration:
     """The Calibration of the used views, with its coverage and warnings."""
-    rms, K, dist, rvecs, tvecs, std, per_view = fit
+    rms, K, dist, rotations, tvecs, std_from, per_view = fit
     T_camera_board = {}
-    for v, e, r, t in zip(usable, per_view, rvecs, tvecs):
+    for v, e, R, t in zip(usable, per_view, rotations, tvecs):
         v.rms_px = float(e)
-        T_camera_board[v.name] = frames.transform_from_rvec_tvec(np.asarray(r).reshape(3), np.asarray(t).reshape(3))
-    names = INTRINSIC_NAMES[: 4 + len(dist)]
-    std_intrinsics = {n: float(s) for n, s in zip(names, std)}
+        T = np.eye(4)  # frames.transform_from_rvec_tvec's matrix: cv2.Rodrigues of OpenCV's own (finite) rvec
+        T[:3, :3], T[:3, 3] = R, np.reshape(t, 3)
+        T_camera_board[v.name] = T
     board = finder.description + (", legacy layout" if getattr(finder, "legacy", False) else "")
     source = f"{kind}: {len(usable)} of {len(views)} views of a {board}, RMS {rms:.3f} px, OpenCV {cv2.__version__}"
     camera = Camera(K, dist, size, source=source)
@@ -247,7 +246,7 @@ def _result(views: list[_View], usable: list[_View], size, fit: tuple, first_rms
         rms_px=rms,
         per_view_rms_px={v.name: v.rms_px for v in usable},
         used=[v.name for v in usable],
-        std_intrinsics=std_intrinsics,
+        std_intrinsics=None,  # computed from std_from when first read
         rejected=[(v.name, f"{v.status}: {v.reason}") for v in views if v.status != "used"],
         T_camera_board=T_camera_board,
         views=[ViewResult(v.name, v.status, v.n_found, v.rms_px, v.reason) for v in views],
@@ -257,6 +256,7 @@ def _result(views: list[_View], usable: list[_View], size, fit: tuple, first_rms
         first_rms_px=first_rms,
         coverage=grid,
         warnings=quality_warnings(len(usable), T_camera_board, grid),
+        _std_from=std_from,
     )
 
 
