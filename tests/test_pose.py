@@ -833,3 +833,22 @@ def test_locate_passes_detector_params_to_the_detector():
     assert list(locate(image, world, camera).marker_ids) == [0, 1, 2]
     with pytest.raises(NoMarkersError):
         locate(image, world, camera, detector_params={"minMarkerPerimeterRate": 3.5})
+
+
+@pytest.mark.parametrize("side_deg", [5.0, 15.0, 30.0])
+@pytest.mark.parametrize("n_markers", [1, 2])
+def test_level_view_with_mirror_symmetric_corners_is_solved(side_deg, n_markers):
+    """A camera level with the markers' centre, turned about the vertical: the exact corners are mirror-symmetric
+    in the image, where OpenCV's IPPE returns a pose 21 px off; the pose is still found, exactly."""
+    markers = {"0": {"translation": [0, -40, 1040], "rotation": [0, 0, 0]}}
+    if n_markers == 2:
+        markers["1"] = {"translation": [0, 160, 1040], "rotation": [0, 0, 0]}
+    marker_map = MarkerMap.from_dict(markers, units="mm", marker_size_mm=80)
+    camera = Camera.from_fov(60, (640, 480))
+    centre = np.mean([marker_map.marker_corners(i).mean(axis=0) for i in marker_map.ids], axis=0)
+    a = np.radians(side_deg)
+    eye = centre + [1500 * np.cos(a), 1500 * np.sin(a), 0.0]
+    T = look_at(eye, centre)
+    dets = [Detection(i, camera.project(marker_map.marker_corners(i), T)) for i in marker_map.ids]
+    pose = estimate_pose(dets, marker_map, camera)
+    np.testing.assert_allclose(pose.T_world_camera, T, atol=1e-6)

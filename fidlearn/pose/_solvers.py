@@ -181,9 +181,9 @@ def _solve_auto(obs: _Obs, marker_map: MarkerMap, camera: Camera, plane, planar:
     """The solver the data call for (see the package's docstring) and its raw solutions (R_cw, t, sse)."""
     thickness, extent, _, _ = plane
     if len(obs.ids) == 1:
-        method_used, raw = "ippe_square", _solve_ippe_square(obs, marker_map, camera)
+        method_used, raw = "ippe_square", _with_sqpnp_if_off(obs, camera, _solve_ippe_square(obs, marker_map, camera))
     elif planar:
-        method_used, raw = "ippe", _solve_ippe(obs, camera, plane)
+        method_used, raw = "ippe", _with_sqpnp_if_off(obs, camera, _solve_ippe(obs, camera, plane))
     else:
         method_used, raw = "sqpnp", _generic("SQPNP", obs.obj, obs.img, camera)
         if thickness < _NEAR_PLANAR_REL * extent:
@@ -196,6 +196,23 @@ def _solve_auto(obs: _Obs, marker_map: MarkerMap, camera: Camera, plane, planar:
                 method_used = name.lower()
                 break
     return method_used, raw
+
+
+#: IPPE's best solution leaving more than this RMS (px, per coordinate) asks SQPnP too.
+_IPPE_OFF_RMS_PX = 1.0
+
+
+def _with_sqpnp_if_off(obs: _Obs, camera: Camera, raw: list) -> list:
+    """IPPE's raw solutions, with SQPnP's added when IPPE's best leaves more than ``_IPPE_OFF_RMS_PX``.
+
+    OpenCV's IPPE (and IPPE_SQUARE) return a pose that fits nothing when the image of the points is exactly
+    mirror-symmetric (a rendered marker seen level and straight from the side: 21 px off for a 29 px marker),
+    where SQPnP is exact. Real corners are never that symmetric, and a frame IPPE fits costs nothing more.
+    """
+    sses = [sse for _, _, sse in raw if sse is not None]
+    if raw and sses and min(sses) <= _IPPE_OFF_RMS_PX**2 * _RMS_COORDS * len(obs.obj):
+        return raw
+    return raw + _generic("SQPNP", obs.obj, obs.img, camera)
 
 
 def _solve_named(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, plane, planar: bool) -> list:
