@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from ..frames import matrix_from_quaternion, quaternion_from_matrix
+
 
 def skew(v: np.ndarray) -> np.ndarray:
     """The cross-product matrix (3, 3) of ``v`` (3,): ``skew(v) @ u == cross(v, u)``."""
@@ -76,46 +78,6 @@ def chi2_6_quantile(probability: float) -> float:
     return 0.5 * (lo + hi)
 
 
-def quaternion_xyzw(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (4,) ``(x, y, z, w)`` of the rotation matrix ``R`` (3, 3), with ``w >= 0``.
-
-    Shepperd's method (the largest of the four squares first, so no division by a small number);
-    the sign makes ``w`` non-negative, and for a half turn (``w == 0``) the largest of x, y, z positive.
-    """
-    R = np.asarray(R, dtype=float)
-    t = float(R[0, 0] + R[1, 1] + R[2, 2])
-    d = (t, float(R[0, 0]), float(R[1, 1]), float(R[2, 2]))
-    k = int(np.argmax(d))
-    if k == 0:
-        w = 0.5 * math.sqrt(max(1.0 + t, 0.0))
-        q = [(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w), w]
-    elif k == 1:
-        x = 0.5 * math.sqrt(max(1.0 + 2 * R[0, 0] - t, 0.0))
-        q = [x, (R[0, 1] + R[1, 0]) / (4 * x), (R[0, 2] + R[2, 0]) / (4 * x), (R[2, 1] - R[1, 2]) / (4 * x)]
-    elif k == 2:
-        y = 0.5 * math.sqrt(max(1.0 + 2 * R[1, 1] - t, 0.0))
-        q = [(R[0, 1] + R[1, 0]) / (4 * y), y, (R[1, 2] + R[2, 1]) / (4 * y), (R[0, 2] - R[2, 0]) / (4 * y)]
-    else:
-        z = 0.5 * math.sqrt(max(1.0 + 2 * R[2, 2] - t, 0.0))
-        q = [(R[0, 2] + R[2, 0]) / (4 * z), (R[1, 2] + R[2, 1]) / (4 * z), z, (R[1, 0] - R[0, 1]) / (4 * z)]
-    q = np.array(q, dtype=float)
-    q /= np.linalg.norm(q)
-    if abs(q[3]) < 1e-12:  # a half turn: w is 0 up to rounding, so the largest of x, y, z decides the sign
-        q[3] = 0.0
-        if q[int(np.argmax(np.abs(q[:3])))] < 0:
-            q = -q
-    elif q[3] < 0:
-        q = -q
-    return q + 0.0  # no -0.0
-
-
-def rotation_from_xyzw(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) of the unit quaternion ``q`` (4,) ``(x, y, z, w)`` (normalised first)."""
-    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+#: Quaternions are fidlearn.frames' own: (x, y, z, w), canonical w >= 0 (see there).
+quaternion_xyzw = quaternion_from_matrix
+rotation_from_xyzw = matrix_from_quaternion
