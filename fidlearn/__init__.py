@@ -33,6 +33,7 @@ try:
         PoseError,
         PrintError,
         StrictModeError,
+        SurveyError,
         TransformError,
         UsageError,
         WebcamError,
@@ -51,6 +52,7 @@ try:
     from .planning import Prediction, plan_room, predict_accuracy
     from .pose import Pose, estimate_pose, locate
     from .printables import board_pdf, markers_pdf
+    from .survey import Survey, Suspect, survey
     from .synthetic import (
         CalibrationViews,
         Trajectory,
@@ -129,5 +131,9 @@ __all__ = [
     "Prediction",
     "predict_accuracy",
     "plan_room",
+    "survey",
+    "Survey",
+    "Suspect",
+    "SurveyError",
     "__version__",
 ]

@@ -26,6 +26,7 @@ __all__ = [
     "UsageError",
     "WebcamError",
     "StrictModeError",
+    "SurveyError",
 ]
 
 
@@ -106,3 +107,7 @@ class WebcamError(FidlearnError, ValueError):
 
 class StrictModeError(FidlearnError, ValueError):
     """An exercise strict mode that does not exist (``strict("yes")``); also a ValueError, as it was."""
+
+
+class SurveyError(FidlearnError, ValueError):
+    """A survey cannot run on these photos or options (too few photos, nothing tying them to the map)."""

@@ -44,6 +44,8 @@ def starts_with(fn, names: list[str]) -> None:
         "calibrate_charuco",
         "Calibration",
         "FidlearnError",
+        "survey",
+        "Survey",
     ],
 )
 def test_name_importable_from_fidlearn(name):

@@ -1,0 +1,158 @@
+"""The adjustment: build the problem, solve it (robust, then plain), its covariance, and the suspect test.
+
+The suspect test compares each taped marker's placement with where the photos alone put it.
+With ``C`` the marker's 6x6 covariance in the joint solution and ``P`` its tape prior's
+information (``diag(1/sigma_rot^2, 1/sigma_mm^2)``), the photos alone give the information
+``C^-1 - P`` (the prior touches only that marker's block, so this is exact for the linearised
+problem) and the estimate ``x + (C^-1 - P)^-1 P (x - tape)``. Its top-left corner minus the
+tape's, over the photos' covariance plus the tape's (``sigma_mm^2 I``), gives a squared
+Mahalanobis distance that is chi-square with 3 degrees of freedom for a correctly taped marker:
+above the ``SUSPECT_P`` quantile the marker is named.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..pose._stats import MIN_SIGMA_PX, _chi2_3_quantile
+from ._geometry import local_corners, log_so3
+from ._problem import Problem
+
+#: Level of the suspect test: a correctly taped marker is named with probability 1 - SUSPECT_P.
+SUSPECT_P = 0.99
+#: Robust loss of the first pass and its scale (residuals are in sigmas).
+ROBUST_LOSS = "soft_l1"
+ROBUST_SCALE = 3.0
+#: Corner noise assumed by the first pass when ``corner_sigma_px`` is not given, px.
+FIRST_SIGMA_PX = 0.25
+
+
+def build_problem(cams: list, slots: list[int], n_free: int, placed: dict, tape_priors: dict, opts: dict) -> Problem:
+    """The problem for the located photos ``cams`` and the marker slots ``slots`` (free first).
+
+    ``tape_priors`` is ``{id: (R, p)}`` for the free markers that keep a tape prior; ``opts`` holds
+    ``marker_size_mm``, ``sigma_px``, ``sigma_mm``, ``sigma_rot_rad``.
+    """
+    slot_of = {i: k for k, i in enumerate(slots)}
+    oc, om, ok, op = [], [], [], []
+    for c, ph in enumerate(cams):
+        for i, px in ph.corners.items():
+            if i in slot_of:
+                oc += [c] * 4
+                om += [slot_of[i]] * 4
+                ok += [0, 1, 2, 3]
+                op.append(px)
+    T_cw = [np.linalg.inv(ph.T_world_camera) for ph in cams]
+    prior_ids = [i for i in slots[:n_free] if i in tape_priors]
+    cam = cams[0].camera
+    return Problem(
+        K=cam.K,
+        dist=np.asarray(cam.dist, float).ravel(),
+        local=local_corners(opts["marker_size_mm"]),
+        R0_cam=np.array([T[:3, :3] for T in T_cw]),
+        t0_cam=np.array([T[:3, 3] for T in T_cw]),
+        R0_mark=np.array([placed[i][0] for i in slots]),
+        p0_mark=np.array([placed[i][1] for i in slots], float),
+        n_free=n_free,
+        obs_cam=np.array(oc, int),
+        obs_marker=np.array(om, int),
+        obs_corner=np.array(ok, int),
+        obs_px=np.concatenate(op).reshape(-1, 2),
+        sigma_px=opts["sigma_px"],
+        prior_slots=np.array([slot_of[i] for i in prior_ids], int),
+        prior_R=np.array([tape_priors[i][0] for i in prior_ids]).reshape(-1, 3, 3),
+        prior_p=np.array([tape_priors[i][1] for i in prior_ids], float).reshape(-1, 3),
+        sigma_mm=opts["sigma_mm"],
+        sigma_rot_rad=opts["sigma_rot_rad"],
+    )
+
+
+def fit(problem: Problem, x0: np.ndarray, robust: bool) -> np.ndarray:
+    """``scipy.optimize.least_squares`` (trust region, sparse Jacobian) from ``x0``."""
+    res = least_squares(
+        problem.residuals,
+        x0,
+        jac=problem.jacobian,
+        method="trf",
+        tr_solver="lsmr",
+        tr_options={"atol": 1e-10, "btol": 1e-10},
+        loss=ROBUST_LOSS if robust else "linear",
+        f_scale=ROBUST_SCALE,
+        x_scale="jac",
+        ftol=1e-8,
+        xtol=1e-8,
+        gtol=1e-8,
+        max_nfev=200 if robust else 30,
+    )
+    return _polish(problem, res.x) if not robust else res.x
+
+
+def _polish(problem: Problem, x: np.ndarray, steps: int = 6) -> np.ndarray:
+    """Gauss-Newton steps with a direct sparse solve, while the cost falls.
+
+    The trust-region steps of ``least_squares`` solve each step's linear problem iteratively (LSMR)
+    and creep along the weakly held directions (the whole map moving within the tape's sigma);
+    a few Newton steps on the normal equations finish the job to the last digit.
+    """
+    from scipy.sparse.linalg import spsolve
+
+    cost = float(np.sum(problem.residuals(x) ** 2))
+    for _ in range(steps):
+        J = problem.jacobian(x)
+        r = problem.residuals(x)
+        dx = spsolve((J.T @ J).tocsc(), -(J.T @ r))
+        if not np.all(np.isfinite(dx)):
+            break
+        new_cost = float(np.sum(problem.residuals(x + dx) ** 2))
+        if new_cost > cost:
+            break
+        x, done = x + dx, new_cost > cost * (1 - 1e-15)
+        cost = new_cost
+        if done:
+            break
+    return x
+
+
+def corner_sigma(problem: Problem, x: np.ndarray, gauge_free: bool) -> float:
+    """Corner noise (px) from the reprojection residuals, with their degrees of freedom."""
+    r = problem.reprojection_px(x)
+    dof = r.size - problem.n_params + (6 if gauge_free else 0)
+    return max(float(np.sqrt(np.sum(r**2) / max(dof, 1))), MIN_SIGMA_PX)
+
+
+def covariance(problem: Problem, x: np.ndarray) -> np.ndarray:
+    """``(J^T J)^-1`` of the whitened residuals at ``x``: the unknowns' covariance (dense)."""
+    J = problem.jacobian(x)
+    H = (J.T @ J).toarray()
+    try:
+        return np.linalg.inv(H)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(H)
+
+
+def marker_block(problem: Problem, C: np.ndarray, slot: int) -> np.ndarray:
+    """The 6x6 covariance ``[rotation (rad), top-left corner (mm)]`` of a free marker slot."""
+    k = 6 * (problem.n_cams + slot)
+    return C[k : k + 6, k : k + 6]
+
+
+def tape_test(problem: Problem, x: np.ndarray, C: np.ndarray, slot: int, tape, has_prior: bool):
+    """``(distance_mm, sigmas)`` of the photos' placement of a marker from its tape placement."""
+    _, _, R_mark, p_mark = problem.poses(x)
+    e = np.concatenate([log_so3(R_mark[slot] @ tape[0].T), p_mark[slot] - tape[1]])
+    Ck = marker_block(problem, C, slot)
+    if has_prior:
+        P = np.diag([problem.sigma_rot_rad**-2] * 3 + [problem.sigma_mm**-2] * 3)
+        C_photo = np.linalg.pinv(np.linalg.pinv(Ck) - P)
+        d = (e + C_photo @ P @ e)[3:]
+    else:
+        C_photo, d = Ck, e[3:]
+    S = C_photo[3:, 3:] + problem.sigma_mm**2 * np.eye(3)
+    m2 = float(d @ np.linalg.solve(S, d))
+    return float(np.linalg.norm(d)), float(np.sqrt(max(m2, 0.0)))
+
+
+def suspect_threshold() -> float:
+    """Squared-sigma threshold of the suspect test (chi-square, 3 degrees of freedom, ``SUSPECT_P``)."""
+    return _chi2_3_quantile(SUSPECT_P)
