@@ -209,3 +209,28 @@ def test_map_in_the_wrong_units_is_refused(room, units, factor, guess):
     wrong = with_placements(truth, pl, units=units)
     with pytest.raises(MapError, match=rf"look wrong; the distances fit units '{guess}'"):
         fidlearn.survey(photos(truth, poses[:4]), wrong, CAM)
+
+
+def test_bundled_photos_name_the_moved_marker_and_survey_the_room():
+    from fidlearn import data_path
+
+    folder = data_path("survey")
+    truth = MarkerMap.load(folder / "true_map.json")
+    tape = MarkerMap.load(folder / "tape_map.json")
+    paths = sorted(folder.glob("photo_*.jpg"))
+    s = fidlearn.survey(paths, tape, folder / "camera.json", map_sigma_mm=20)
+    assert s.suspect_ids == [7] and s.marker_map.units == "cm"
+    seen = [i for i in truth.ids if i not in s.unseen_ids]
+    got = np.concatenate([s.marker_map.corners()[i] for i in seen])
+    true = np.concatenate([truth.corners()[i] for i in seen])
+    assert rigid_rms_mm(got, true) < 1.0
+    assert len(s.camera_poses) == len(paths) and max(s.photo_rms_px.values()) < 0.5
+
+
+def rigid_rms_mm(a: np.ndarray, b: np.ndarray) -> float:
+    """RMS distance (mm) of points a from points b after the rigid motion that best lays a on b (Kabsch)."""
+    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
+    u, _, vt = np.linalg.svd(ca.T @ cb)
+    d = np.sign(np.linalg.det(u @ vt))
+    R = (u @ np.diag([1, 1, d]) @ vt).T
+    return float(np.sqrt(np.mean(np.sum((ca @ R.T - cb) ** 2, axis=1))))
