@@ -70,6 +70,11 @@ class Survey:
     map_sigma_mm, map_sigma_deg : float
         The tape's standard deviation on each coordinate of a top-left corner (mm) and on each
         rotation angle (degrees, derived: ``map_sigma_mm / marker_size_mm`` rad).
+    photos_per_marker : dict of int to int
+        How many photos used show each surveyed marker.
+    tests : dict of int to (float, float)
+        Every taped marker's suspect test: ``(distance_mm, sigmas)`` of where the photos alone put its
+        top-left corner from the tape's (the suspects are those above the chi-square threshold).
     """
 
     marker_map: MarkerMap
@@ -88,6 +93,7 @@ class Survey:
     corner_sigma_px: float
     map_sigma_mm: float
     map_sigma_deg: float
+    photos_per_marker: dict[int, int] = field(default_factory=dict)
     tests: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     @property

@@ -181,6 +181,7 @@ def _result(tape, photos, cams, slots, placed, problem, x, C, tests, dropped, un
         corner_sigma_px=float(problem.sigma_px),
         map_sigma_mm=float(s_mm),
         map_sigma_deg=float(np.degrees(s_rot)),
+        photos_per_marker={i: len(set(problem.obs_cam[problem.obs_marker == k])) for k, i in enumerate(slots)},
         tests=tests,
     )
 
