@@ -45,6 +45,11 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     if not sigma > 0:
         raise SurveyError(f"map_sigma_mm must be > 0 mm (math.inf to trust the photos alone), got {map_sigma_mm!r}")
     fixed = _fixed_ids(fixed_ids, marker_map)
+    if np.any(np.asarray(camera.dist, float).ravel()[12:]):
+        raise SurveyError(
+            f"{camera.source or 'the camera'}: the survey's projection has no tilted-sensor terms (tauX, tauY, "
+            "distortion coefficients 13 and 14); calibrate without CALIB_TILTED_MODEL"
+        )
     if math.isinf(sigma) and not fixed:
         raise SurveyError(
             "with map_sigma_mm=inf nothing ties the photos to the world: give fixed_ids (a marker whose "

@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 
 from ..synthetic._rays import _pixels_from_normalized
 from ._geometry import exp_so3, left_jacobian, left_jacobian_inv, log_so3, skew
@@ -103,7 +102,7 @@ class Problem:
         """Every residual (whitened), reprojection first then the tape priors."""
         return np.concatenate([(self.reprojection_px(x) / self.sigma_px).ravel(), self.prior_residuals(x).ravel()])
 
-    def jacobian(self, x: np.ndarray) -> sparse.csr_matrix:
+    def jacobian(self, x: np.ndarray):
         """The Jacobian of :meth:`residuals` at ``x``, sparse (CSR)."""
         R_cam, _, arm, P = self._points(x)
         D = _projection_jacobian(P, self.K, self.dist) / self.sigma_px  # (n, 2, 3)
@@ -126,8 +125,10 @@ class Problem:
         return _assemble(data, np.hstack(cols), self, x)
 
 
-def _assemble(data: np.ndarray, cols: np.ndarray, prob: Problem, x: np.ndarray) -> sparse.csr_matrix:
-    """Stack the corner blocks (n, 2, w) at columns (n, w) and the prior blocks into one sparse matrix."""
+def _assemble(data: np.ndarray, cols: np.ndarray, prob: Problem, x: np.ndarray):
+    """Stack the corner blocks (n, 2, w) at columns (n, w) and the prior blocks into one sparse matrix (CSR)."""
+    from scipy import sparse  # imported on first use: ``import fidlearn`` stays quick
+
     n, _, w = data.shape
     rows = np.repeat(np.arange(2 * n).reshape(n, 2, 1), w, axis=2)
     col = np.repeat(cols[:, None, :], 2, axis=1)

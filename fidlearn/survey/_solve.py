@@ -13,7 +13,6 @@ above the ``SUSPECT_P`` quantile the marker is named.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..pose._stats import MIN_SIGMA_PX, _chi2_3_quantile
 from ._geometry import local_corners, log_so3
@@ -70,6 +69,8 @@ def build_problem(cams: list, slots: list[int], n_free: int, placed: dict, tape_
 
 def fit(problem: Problem, x0: np.ndarray, robust: bool) -> np.ndarray:
     """``scipy.optimize.least_squares`` (trust region, sparse Jacobian) from ``x0``."""
+    from scipy.optimize import least_squares  # imported on first use: ``import fidlearn`` stays quick
+
     res = least_squares(
         problem.residuals,
         x0,
