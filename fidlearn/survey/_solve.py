@@ -20,8 +20,7 @@ from ._problem import Problem
 
 #: Level of the suspect test: a correctly taped marker is named with probability 1 - SUSPECT_P.
 SUSPECT_P = 0.99
-#: Robust loss of the first pass and its scale (residuals are in sigmas).
-ROBUST_LOSS = "soft_l1"
+#: Scale of the robust (soft-L1) loss of the first pass on the tape residuals, in sigmas.
 ROBUST_SCALE = 3.0
 #: Corner noise assumed by the first pass when ``corner_sigma_px`` is not given, px.
 FIRST_SIGMA_PX = 0.25
@@ -78,15 +77,36 @@ def fit(problem: Problem, x0: np.ndarray, robust: bool) -> np.ndarray:
         method="trf",
         tr_solver="lsmr",
         tr_options={"atol": 1e-10, "btol": 1e-10},
-        loss=ROBUST_LOSS if robust else "linear",
-        f_scale=ROBUST_SCALE,
+        loss=prior_loss(problem) if robust else "linear",
         x_scale="jac",
-        ftol=1e-8,
-        xtol=1e-8,
+        ftol=1e-6 if robust else 1e-8,
+        xtol=1e-6 if robust else 1e-8,
         gtol=1e-8,
-        max_nfev=200 if robust else 30,
+        max_nfev=200,
     )
     return _polish(problem, res.x) if not robust else res.x
+
+
+def prior_loss(problem: Problem):
+    """The first pass's loss: soft-L1 (scale ``ROBUST_SCALE`` sigmas) on the tape residuals, squares on the corners.
+
+    It is the tape that may be wrong by a lot (a marker moved after it was measured); the corners
+    are detected to a fraction of a pixel. A robust loss on the corners too would let the solver
+    give up a marker's corners in one photo and tilt it into a false minimum.
+    """
+    n_reproj = 2 * len(problem.obs_cam)
+    c2 = ROBUST_SCALE**2
+
+    def loss(z: np.ndarray) -> np.ndarray:
+        rho = np.empty((3, z.size))
+        rho[0], rho[1], rho[2] = z, 1.0, 0.0
+        t = 1.0 + z[n_reproj:] / c2
+        rho[0, n_reproj:] = 2 * c2 * (np.sqrt(t) - 1)
+        rho[1, n_reproj:] = 1 / np.sqrt(t)
+        rho[2, n_reproj:] = -0.5 / c2 * t**-1.5
+        return rho
+
+    return loss
 
 
 def _polish(problem: Problem, x: np.ndarray, steps: int = 6) -> np.ndarray:

@@ -26,6 +26,9 @@ from ._solve import (
 
 __all__ = ["survey"]
 
+#: At most this many markers are named suspects (and let go of their tape placement) in one survey.
+MAX_SUSPECTS = 4
+
 
 def survey(
     images, marker_map, camera, *, map_sigma_mm=10.0, fixed_ids=None, corner_sigma_px=None, progress=None
@@ -120,14 +123,20 @@ def _usable(photos: list) -> list:
 
 
 def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool):
-    """Robust pass, corner noise, then plain passes until the suspect test names no new marker."""
+    """Robust pass, corner noise, then plain passes until the suspect test names no new marker.
+
+    Suspects are named one at a time, the worst first (a marker far off can make its neighbours
+    look wrong until it is let go), and only among markers seen in two photos or more: one photo
+    cannot dispute the tape (a lone marker's pose may flip), it asks for another photo.
+    """
     problem = build_problem(cams, slots, n_free, placed, priors, opts)
+    seen_twice = {i for k, i in enumerate(slots) if len(set(problem.obs_cam[problem.obs_marker == k])) >= 2}
     x = fit(problem, np.zeros(problem.n_params), robust=True)
     if estimate_sigma:
         opts = {**opts, "sigma_px": corner_sigma(problem, x, gauge_free=False)}
     dropped: set[int] = set()
     threshold = suspect_threshold()
-    for _ in range(4):
+    for _ in range(MAX_SUSPECTS + 1):
         keep = {i: v for i, v in priors.items() if i not in dropped}
         problem = build_problem(cams, slots, n_free, placed, keep, opts)
         x = fit(problem, x, robust=False)
@@ -135,10 +144,10 @@ def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool):
         tests = {
             i: tape_test(problem, x, C, k, priors[i], i in keep) for k, i in enumerate(slots[:n_free]) if i in priors
         }
-        new = {i for i, (_, s) in tests.items() if s**2 > threshold} - dropped
-        if not new:
+        new = {i: s for i, (_, s) in tests.items() if s**2 > threshold and i in seen_twice and i not in dropped}
+        if not new or len(dropped) == MAX_SUSPECTS:
             break
-        dropped |= new
+        dropped.add(max(new, key=new.get))
     return problem, x, C, tests, dropped
 
 
