@@ -234,3 +234,15 @@ def rigid_rms_mm(a: np.ndarray, b: np.ndarray) -> float:
     d = np.sign(np.linalg.det(u @ vt))
     R = (u @ np.diag([1, 1, d]) @ vt).T
     return float(np.sqrt(np.mean(np.sum((ca @ R.T - cb) ** 2, axis=1))))
+
+
+def test_a_marker_in_one_photo_is_never_named_a_suspect(room):
+    truth, poses = room
+    frames = photos(truth, poses, 0.05, seed=3)
+    k = next(n for n, f in enumerate(frames) if any(d.id == 3 for d in f))
+    frames = [f if n == k else [d for d in f if d.id != 3] for n, f in enumerate(frames)]
+    tape = tape_measured(truth, 5.0, 0.5, moved={3: (0.0, 100.0, 0.0)}, seed=8)
+    s = fidlearn.survey(frames, tape, CAM, map_sigma_mm=5)
+    assert s.photos_per_marker[3] == 1
+    assert 3 not in s.suspect_ids  # one photo cannot dispute the tape
+    assert s.tests[3][1] > 3.4  # though the test alone would have named it

@@ -40,9 +40,11 @@ def survey(
     placement minus the tape's over ``map_sigma_mm`` (position, per coordinate) and
     ``map_sigma_mm / marker_size_mm`` radians (rotation: as if two corners one side apart were
     each off by the tape's sigma). ``scipy.optimize.least_squares`` solves it with a sparse
-    analytic Jacobian, first with a robust loss, then plainly; a marker whose tape placement
-    disagrees with the photos (a chi-square test at 1 %, see :mod:`fidlearn.survey._solve`) is
-    named a suspect and its tape prior dropped, so the photos alone place it.
+    analytic Jacobian, first with a soft-L1 loss on the tape residuals (so a marker taped 100 mm
+    off cannot drag the others), then plainly; a marker seen in two photos or more whose tape
+    placement disagrees with the photos (a chi-square test at 1 %, see :mod:`fidlearn.survey._solve`)
+    is named a suspect and its tape prior dropped, so the photos alone place it. The corner noise
+    is estimated from the residuals unless given; the covariances assume it, and the tape's sigma.
 
     Parameters
     ----------
