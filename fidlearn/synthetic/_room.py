@@ -85,7 +85,8 @@ def survey_walk(
     -------
     list of ndarray, shape (4, 4)
         ``T_world_camera`` (mm) of each photo: standing 1.2-1.8 m high, 1.2-4.5 m from the north
-        wall, looking at a point among the markers, turned up to 10 degrees about the optical axis.
+        wall, looking midway between the marker seen least so far and another one (so that every
+        marker is photographed several times), turned up to 10 degrees about the optical axis.
 
     Raises
     ------
@@ -98,12 +99,17 @@ def survey_walk(
     centres = np.array([c.mean(axis=0) for c in marker_map.corners().values()])
     X, Y, _ = ROOM_MM
     poses: list[np.ndarray] = []
-    for _ in range(200 * n_photos):
+    seen = np.zeros(len(centres))
+    for attempt in range(200 * n_photos):
+        # aim at the marker seen least so far (as a careful surveyor does), with one other
+        least = int(np.argmin(seen + rng.uniform(0, 0.5, len(seen))))
+        other = rng.choice([k for k in range(len(centres)) if k != least])
         eye = [rng.uniform(1200, X - 500), rng.uniform(500, Y - 500), rng.uniform(1200, 1800)]
-        pick = centres[rng.choice(len(centres), size=2, replace=False)].mean(axis=0)
-        T = look_at(eye, pick, roll_deg=float(rng.uniform(-10, 10)))
-        if len(visible_markers(marker_map, camera, T, margin_px=10.0)) >= min_markers:
+        T = look_at(eye, (centres[least] + centres[other]) / 2, roll_deg=float(rng.uniform(-10, 10)))
+        visible = [marker_map.ids.index(i) for i in visible_markers(marker_map, camera, T, margin_px=10.0)]
+        if len(visible) >= min_markers and (least in visible or attempt % 50 == 49):
             poses.append(T)
+            seen[visible] += 1
             if len(poses) == n_photos:
                 return poses
     raise ValueError(f"found only {len(poses)} poses that see {min_markers} markers; use a wider camera")
