@@ -18,6 +18,7 @@ import pytest
 
 import fidlearn
 from fidlearn import Camera, Detection, FidlearnError, MarkerMap, frames
+from fidlearn.synthetic import visible_markers
 
 WORLD = MarkerMap.load(fidlearn.data_path("world_map.json"))
 CAMERA = Camera.load(fidlearn.data_path("scenes/camera.json"))
@@ -78,6 +79,20 @@ BASELINES = {
     "Camera.scaled": (((640, 360),), {}),
     "Camera.from_fov": ((60, (640, 480)), {}),
     "MarkerMap.corners": ((), {}),
+    "survey": (
+        (
+            [
+                [
+                    Detection(i, c)
+                    for i, c in visible_markers(WORLD, CAMERA, fidlearn.look_at(eye, [0, 190, 230])).items()
+                ]
+                for eye in ([1000, 190, 230], [900, -100, 300], [1100, 450, 200])
+            ],
+            WORLD,
+            CAMERA,
+        ),
+        {"map_sigma_mm": 10.0, "fixed_ids": None, "corner_sigma_px": None},
+    ),
 }
 
 

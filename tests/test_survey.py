@@ -171,12 +171,12 @@ def test_photo_sharing_no_marker_is_left_out_with_the_reason(room):
         ({"images": "a.png"}, SurveyError, "images must be a list of photos"),
         ({"images": "one"}, SurveyError, "at least 2 photos"),
         ({"images": [1, 2]}, ImageError, r"images\[0\] is a int"),
-        ({"map_sigma_mm": -1}, SurveyError, "map_sigma_mm must be > 0"),
+        ({"map_sigma_mm": -1}, SurveyError, "map_sigma_mm must be above 0"),
         ({"map_sigma_mm": "ten"}, SurveyError, "map_sigma_mm must be a length"),
         ({"fixed_ids": [99]}, SurveyError, "fixed_ids has marker 99, which is not in the map"),
         ({"fixed_ids": ["a"]}, SurveyError, "fixed_ids must be marker ids"),
         ({"map_sigma_mm": math.inf}, SurveyError, "nothing ties the photos to the world"),
-        ({"corner_sigma_px": 0}, SurveyError, "corner_sigma_px must be a positive number"),
+        ({"corner_sigma_px": 0}, SurveyError, "corner_sigma_px must be a number of pixels above 0"),
     ],
 )
 def test_bad_options_say_what_to_do(room, kwargs, error, match):

@@ -6,6 +6,7 @@ corners of every marker of the map's dictionary (``{id: (4, 2) px}``, TL, TR, BR
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -22,6 +23,9 @@ from ..pose._inputs import _as_camera, _as_map
 
 #: At least this many photos must give a camera pose.
 MIN_PHOTOS = 2
+#: Largest tape sigma (mm) and corner noise (px) taken: beyond them the weights underflow.
+MAX_MAP_SIGMA_MM = 1e5
+MAX_CORNER_SIGMA_PX = 100.0
 
 
 @dataclass
@@ -38,12 +42,7 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     """``(marker_map, camera, sigma_mm, fixed)`` checked; raises SurveyError with the fix."""
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera)
-    try:
-        sigma = float(map_sigma_mm)
-    except (TypeError, ValueError):
-        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {map_sigma_mm!r}") from None
-    if not sigma > 0:
-        raise SurveyError(f"map_sigma_mm must be > 0 mm (math.inf to trust the photos alone), got {map_sigma_mm!r}")
+    sigma = _sigma_mm(map_sigma_mm)
     fixed = _fixed_ids(fixed_ids, marker_map)
     if np.any(np.asarray(camera.dist, float).ravel()[12:]):
         raise SurveyError(
@@ -55,9 +54,31 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
             "with map_sigma_mm=inf nothing ties the photos to the world: give fixed_ids (a marker whose "
             "placement is exact) or a finite map_sigma_mm"
         )
-    if corner_sigma_px is not None and not (isinstance(corner_sigma_px, (int, float)) and corner_sigma_px > 0):
-        raise SurveyError(f"corner_sigma_px must be a positive number of pixels or None, got {corner_sigma_px!r}")
+    if corner_sigma_px is not None and not (
+        isinstance(corner_sigma_px, (int, float, np.floating, np.integer))
+        and not isinstance(corner_sigma_px, bool)
+        and 0 < corner_sigma_px <= MAX_CORNER_SIGMA_PX
+    ):
+        raise SurveyError(
+            f"corner_sigma_px must be a number of pixels above 0 and at most {MAX_CORNER_SIGMA_PX:g}, or None to "
+            f"estimate it, got {corner_sigma_px!r}"
+        )
     return marker_map, camera, sigma, fixed
+
+
+def _sigma_mm(map_sigma_mm) -> float:
+    sigma = None
+    if not isinstance(map_sigma_mm, (bool, str, bytes)):
+        with contextlib.suppress(TypeError, ValueError):
+            sigma = float(map_sigma_mm)
+    if sigma is None:
+        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {map_sigma_mm!r}")
+    if not (0 < sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
+        raise SurveyError(
+            f"map_sigma_mm must be above 0 and at most {MAX_MAP_SIGMA_MM:g} mm, or math.inf to trust the photos "
+            f"alone, got {map_sigma_mm!r}"
+        )
+    return sigma
 
 
 def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
@@ -65,6 +86,8 @@ def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
         return ()
     if isinstance(fixed_ids, (int, np.integer)) and not isinstance(fixed_ids, bool):
         fixed_ids = [fixed_ids]
+    if isinstance(fixed_ids, (str, bytes)):
+        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {fixed_ids!r}")
     try:
         ids = tuple(sorted({int(i) for i in fixed_ids if not isinstance(i, bool) and int(i) == i}))
         if len(ids) != len(set(fixed_ids)):
