@@ -34,6 +34,7 @@ try:
         PrintError,
         RosFormatError,
         StrictModeError,
+        SurveyError,
         TrackingError,
         TransformError,
         UsageError,
@@ -54,6 +55,7 @@ try:
     from .planning import Prediction, plan_room, predict_accuracy
     from .pose import Pose, estimate_pose, locate
     from .printables import board_pdf, markers_pdf
+    from .survey import Survey, Suspect, survey
     from .synthetic import (
         CalibrationViews,
         Trajectory,
@@ -137,5 +139,9 @@ __all__ = [
     "Prediction",
     "predict_accuracy",
     "plan_room",
+    "survey",
+    "Survey",
+    "Suspect",
+    "SurveyError",
     "__version__",
 ]

@@ -18,7 +18,7 @@ from .errors import DictionaryError, MapError
 UNITS_TO_MM: dict[str, float] = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "ft": 304.8}
 
 
-_FULL_KEYS = {"units", "marker_size_mm", "dictionary", "markers", "name", "description"}
+_FULL_KEYS = {"units", "marker_size_mm", "dictionary", "markers", "name", "description", "surveyed"}
 
 
 def _units_name(units: Any, where: str) -> str:

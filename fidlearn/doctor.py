@@ -150,6 +150,14 @@ def report() -> tuple[list[str], list[str]]:
         problems.append(pair or f"matplotlib does not import ({err}): pip install '{_requirement('matplotlib')}'")
     else:
         lines.append(f"matplotlib {mpl.__version__}")
+    scipy, err = _import("scipy")
+    if scipy is None:
+        pair = _numpy_pair_problem("scipy", err, numpy_version) if _version("scipy") else None
+        problems.append(
+            pair or f"scipy does not import ({err}); fidlearn.survey needs it: pip install '{_requirement('scipy')}'"
+        )
+    else:
+        lines.append(f"scipy {scipy.__version__}")
     for dist in ("ipywidgets", "jupyterlab"):
         version = _version(dist)
         if version is None:

@@ -28,6 +28,7 @@ __all__ = [
     "StrictModeError",
     "TrackingError",
     "RosFormatError",
+    "SurveyError",
 ]
 
 
@@ -118,3 +119,7 @@ class TrackingError(FidlearnError, ValueError):
 class RosFormatError(FidlearnError, ValueError):
     """A ROS or TUM file (camera_info YAML, odometry CSV, mount JSON) is malformed, or a camera or pose
     cannot be written in ROS's conventions (a distortion model ROS does not have)."""
+
+
+class SurveyError(FidlearnError, ValueError):
+    """A survey cannot run on these photos or options (too few photos, nothing tying them to the map)."""

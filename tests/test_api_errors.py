@@ -18,6 +18,7 @@ import pytest
 
 import fidlearn
 from fidlearn import Camera, Detection, FidlearnError, MarkerMap, frames
+from fidlearn.synthetic import visible_markers
 
 WORLD = MarkerMap.load(fidlearn.data_path("world_map.json"))
 CAMERA = Camera.load(fidlearn.data_path("scenes/camera.json"))
@@ -83,6 +84,20 @@ BASELINES = {
     "smooth": (
         ([fidlearn.estimate_pose(DETECTIONS, WORLD, CAMERA), None], [0.0, 0.1]),
         {"process_noise": (500.0, 1.0)},
+    ),
+    "survey": (
+        (
+            [
+                [
+                    Detection(i, c)
+                    for i, c in visible_markers(WORLD, CAMERA, fidlearn.look_at(eye, [0, 190, 230])).items()
+                ]
+                for eye in ([1000, 190, 230], [900, -100, 300], [1100, 450, 200])
+            ],
+            WORLD,
+            CAMERA,
+        ),
+        {"map_sigma_mm": 10.0, "fixed_ids": None, "corner_sigma_px": None},
     ),
 }
 

@@ -1181,6 +1181,21 @@ COMMANDS = [
         "is not COLUMNSxROWS",
     ),
     (
+        "survey: one photo",
+        ["survey", "text.png", *LOCATE_ARGS, "-o", "s.json"],
+        "a survey needs at least 2 photos",
+    ),
+    (
+        "survey: output of unknown type",
+        ["survey", "text.png", "text.png", *LOCATE_ARGS, "-o", "s.txt"],
+        "name the file .json",
+    ),
+    (
+        "survey: negative tape sigma",
+        ["survey", "text.png", "text.png", *LOCATE_ARGS, "--map-sigma-mm", "-5", "-o", "s.json"],
+        "--map-sigma-mm -5: give a positive number of mm",
+    ),
+    (
         "render: missing camera file",
         ["render", "--map", "map.json", "--camera", "nope.yml", "--pose", "1000,190,230,-90,0,90", "-o", "r.png"],
         "nope.yml: no such file",

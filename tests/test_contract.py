@@ -46,6 +46,8 @@ def starts_with(fn, names: list[str]) -> None:
         "FidlearnError",
         "PoseTracker",
         "smooth",
+        "survey",
+        "Survey",
     ],
 )
 def test_name_importable_from_fidlearn(name):
@@ -186,7 +188,7 @@ def test_calibration_fields():
         assert isinstance(reason, str) and reason
 
 
-CLI_COMMANDS = ["corners", "calibrate", "locate", "markers", "board", "render", "doctor"]
+CLI_COMMANDS = ["corners", "calibrate", "locate", "markers", "board", "render", "doctor", "survey"]
 
 
 def test_cli_subcommands_exist():
@@ -202,6 +204,7 @@ def test_cli_subcommands_exist():
         ("locate", ["--camera", "--map", "--json", "--annotate"]),
         ("markers", ["--ids", "--size-mm", "--output"]),
         ("board", ["--pattern", "--square-mm", "--output"]),
+        ("survey", ["--camera", "--map", "--output", "--map-sigma-mm", "--fixed", "--plot"]),
     ],
 )
 def test_cli_options_exist(command, options):

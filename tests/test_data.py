@@ -16,7 +16,15 @@ import numpy as np
 import pytest
 
 from fidlearn import Camera, MarkerMap, data_dir, data_path
-from fidlearn.synthetic import render_calibration_views, render_scene, render_trajectory, trajectory_poses
+from fidlearn.synthetic import (
+    render_calibration_views,
+    render_scene,
+    render_trajectory,
+    survey_room,
+    survey_walk,
+    tape_measured,
+    trajectory_poses,
+)
 
 
 def read_json(*parts):
@@ -161,6 +169,28 @@ def test_a_scene_regenerates_from_its_record():
     )
     assert sorted(truth) == item["visible_ids"]
     assert_same_pixels(image, read_gray("scenes", item["image"]), record["provenance"])
+
+
+def test_a_survey_photo_regenerates_from_its_record_and_the_maps_are_what_they_say():
+    record = read_json("survey", "poses.json")
+    camera = Camera.load(data_path("survey", record["camera"]))
+    truth = MarkerMap.load(data_path("survey", record["true_map"]))
+    assert truth.corners().keys() == survey_room(record["marker_size_mm"]).corners().keys()
+    poses = survey_walk(truth, camera, record["n_photos"], record["seed"])
+    item = record["photos"][5]
+    np.testing.assert_allclose(poses[5], item["T_world_camera"], atol=1e-9)
+    image, seen = render_scene(truth, camera, poses[5], seed=item["seed"], **record["render"])
+    assert sorted(seen) == item["visible_ids"]
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, record["jpeg_quality"]])
+    assert_same_pixels(
+        cv2.imdecode(buf, cv2.IMREAD_UNCHANGED), read_gray("survey", item["image"]), record["provenance"]
+    )
+    tape, tp = MarkerMap.load(data_path("survey", record["tape_map"])), record["tape"]
+    moved = {int(k): tuple(v) for k, v in tp["moved"].items()}
+    again = tape_measured(truth, tp["sigma_mm"], tp["sigma_deg"], moved, tp["seed"], tp["units"])
+    assert tape.units == "cm" and max(np.abs(tape.corners()[i] - again.corners()[i]).max() for i in tape.ids) < 1e-6
+    off = np.subtract(tape.placements[7].translation_mm, truth.placements[7].translation_mm)
+    assert np.linalg.norm(off) > 60  # marker 7 was moved after it was taped
 
 
 def test_trajectory_frames_regenerate_from_the_seed():

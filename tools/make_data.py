@@ -1,6 +1,6 @@
 """Regenerate fidlearn's bundled data from seeds: ``make data`` or
 
-    .venv/bin/python tools/make_data.py [--only calibration|scenes|trajectory|real]
+    .venv/bin/python tools/make_data.py [--only calibration|scenes|trajectory|survey|real]
 
 Folders it writes (see data/README.md for what each holds):
 
@@ -12,6 +12,9 @@ Folders it writes (see data/README.md for what each holds):
   ``camera.json`` and ``poses.json``.
 * ``data/trajectory/``: a 40-frame drive of a robot's camera (640x480) with
   ``camera.json`` and ``poses.json``.
+* ``data/survey/``: 24 photos (1280x720 JPEG) of a walk through a room with 12
+  markers on three walls and the floor, ``camera.json``, ``true_map.json``,
+  ``tape_map.json`` (tape errors of 20 mm, marker 7 moved 100 mm) and ``poses.json``.
 * ``data/real/``: real photos from OpenCV's samples, kept in the repository
   with their provenance (data/README.md). They are not regenerated: ``make
   data`` only checks that they are all there. ``--import-real FOLDER`` copies
@@ -43,7 +46,16 @@ import fidlearn
 from fidlearn import Camera, MarkerMap, frames
 from fidlearn._io import atomic_write, write_json_atomic
 from fidlearn.data import repo_dir
-from fidlearn.synthetic import look_at, render_calibration_views, render_scene, render_trajectory, trajectory_poses
+from fidlearn.synthetic import (
+    look_at,
+    render_calibration_views,
+    render_scene,
+    render_trajectory,
+    survey_room,
+    survey_walk,
+    tape_measured,
+    trajectory_poses,
+)
 
 DATA = repo_dir() / "data"
 REAL_FOLDERS = ("opencv_checkerboard_right", "opencv_charuco", "opencv_aruco_photo")
@@ -116,6 +128,24 @@ TRAJECTORY = {
         "source": "synthetic: the true camera of data/trajectory (tools/make_data.py)",
     },
     "render": {"blur_px": 0.5, "noise_std_gray": 1.0, "gradient": 0.1, "supersample": 4, "wall_texture_std_gray": 3.0},
+}
+
+
+SURVEY = {
+    "seed": 23,
+    "n_photos": 24,
+    "marker_size_mm": 160.0,
+    "camera": {
+        "camera_matrix": [[962.5, 0.0, 641.2], [0.0, 961.8, 358.9], [0.0, 0.0, 1.0]],
+        "dist_coeffs": [-0.09, 0.03, 0.0004, -0.0003, 0.0],
+        "image_size": [1280, 720],
+        "source": "synthetic: the true camera of data/survey (tools/make_data.py)",
+    },
+    "render": {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2, "supersample": 4, "wall_texture_std_gray": 3.0},
+    "jpeg_quality": 90,
+    # the tape: every top-left corner off by 20 mm (sd, per coordinate), every rotation by 1 degree;
+    # marker 7 was moved 100 mm along its wall after it was measured
+    "tape": {"sigma_mm": 20.0, "sigma_deg": 1.0, "moved": {"7": [100.0, 0.0, 0.0]}, "seed": 24, "units": "cm"},
 }
 
 
@@ -290,6 +320,53 @@ def make_trajectory() -> None:
     print(f"trajectory: {len(records)} frames in {folder}")
 
 
+def make_survey() -> None:
+    folder = DATA / "survey"
+    fresh_folder(folder, "photo_*.jpg")
+    camera = Camera.from_dict(SURVEY["camera"])
+    camera.save(folder / "camera.json")
+    (folder / "camera.json").chmod(0o644)
+    truth = survey_room(SURVEY["marker_size_mm"])
+    write_json(folder / "true_map.json", truth.to_dict())
+    tape = SURVEY["tape"]
+    moved = {int(k): tuple(v) for k, v in tape["moved"].items()}
+    taped = tape_measured(truth, tape["sigma_mm"], tape["sigma_deg"], moved, tape["seed"], tape["units"])
+    write_json(folder / "tape_map.json", taped.to_dict())
+    records = []
+    for i, T in enumerate(survey_walk(truth, camera, SURVEY["n_photos"], SURVEY["seed"])):
+        name = f"photo_{i:02d}.jpg"
+        image, seen = render_scene(truth, camera, T, seed=SURVEY["seed"] * 1000 + i, **SURVEY["render"])
+        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, SURVEY["jpeg_quality"]])
+        if not ok:
+            raise RuntimeError(f"cannot encode {name}")
+        atomic_write(folder / name, lambda tmp, b=buf: tmp.write_bytes(b.tobytes()))
+        (folder / name).chmod(0o644)
+        records.append(
+            {
+                "image": name,
+                "T_world_camera": matrix(T),
+                "seed": SURVEY["seed"] * 1000 + i,
+                "visible_ids": sorted(int(k) for k in seen),
+                "corners_px": corners_json(seen),
+            }
+        )
+    write_json(
+        folder / "poses.json",
+        {
+            "what": "a walk through a 5 m x 4 m room with 12 markers on three walls and the floor; "
+            "photo i is rendered with seed seed * 1000 + i; T_world_camera in mm",
+            "camera": "camera.json",
+            "true_map": "true_map.json",
+            "tape_map": "tape_map.json",
+            "function": "fidlearn.synthetic.render_scene (room: survey_room, poses: survey_walk, tape: tape_measured)",
+            **{k: SURVEY[k] for k in ("seed", "n_photos", "marker_size_mm", "render", "jpeg_quality", "tape")},
+            "photos": records,
+            "provenance": provenance(),
+        },
+    )
+    print(f"survey: {len(records)} photos in {folder}")
+
+
 def check_real() -> None:
     """The real photos are part of the repository: say so if one of their folders is missing."""
     missing = [name for name in REAL_FOLDERS if not (repo_dir() / "data" / "real" / name).is_dir()]
@@ -325,7 +402,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Regenerate fidlearn's data/ folder from seeds.")
     parser.add_argument(
         "--only",
-        choices=["calibration", "scenes", "trajectory", "real"],
+        choices=["calibration", "scenes", "trajectory", "survey", "real"],
         action="append",
         help="regenerate only this part (repeatable); default: all",
     )
@@ -343,7 +420,7 @@ def main(argv: list[str] | None = None) -> int:
         DATA.mkdir(parents=True, exist_ok=True)
         # the hand-written seed map is an input of the scenes and the drive
         shutil.copyfile(repo_dir() / "data" / "world_map.json", DATA / "world_map.json")
-    parts = args.only or ["calibration", "scenes", "trajectory", "real"]
+    parts = args.only or ["calibration", "scenes", "trajectory", "survey", "real"]
     # check what must already be there before anything is rewritten
     if "real" in parts and args.import_real is None:
         check_real()
@@ -353,6 +430,8 @@ def main(argv: list[str] | None = None) -> int:
         make_scenes()
     if "trajectory" in parts:
         make_trajectory()
+    if "survey" in parts:
+        make_survey()
     if args.import_real is not None:
         import_real(args.import_real)
     return 0

@@ -21,7 +21,7 @@ Warnings (:class:`~fidlearn.errors.FidlearnWarning`) print as one line
 
 Every command is argument parsing, printing and file handling over library calls: one
 module per command (``corners``, ``doctor``, ``markers`` with ``board``, ``render``,
-``calibrate``, ``locate``, ``plan``, ``grade`` with ``release``), each with ``add(sub)``
+``calibrate``, ``locate``, ``survey``, ``plan``, ``grade`` with ``release``), each with ``add(sub)``
 registering it and ``run(args)`` doing it; ``_common`` holds what they share and
 ``_main`` the parser and :func:`main`.
 """

@@ -15,7 +15,7 @@ import cv2
 
 from .. import __version__
 from ..errors import FidlearnError, FidlearnWarning
-from . import calibrate, camera, corners, doctor, grade, locate, markers, plan, render
+from . import calibrate, camera, corners, doctor, grade, locate, markers, plan, render, survey
 from ._common import _error, _exit_status, _Parser, _raise_interrupted, _SafeStdout, _show_warning, _signal_name
 
 #: Subcommand builders, in the order ``fidlearn --help`` lists them.
@@ -26,6 +26,7 @@ COMMANDS: list[Callable] = [
     markers.add_markers,
     corners.add,
     locate.add,
+    survey.add,
     render.add,
     plan.add,
     grade.add_release,
@@ -40,6 +41,7 @@ from printer to pose:
   fidlearn markers --ids 0-2 --size-mm 80 -o markers.pdf           print, tape up, measure
   fidlearn corners map.json -o corners.json                        check the map
   fidlearn locate frames/ --camera camera.json --map map.json      the camera's pose
+  fidlearn survey photos/ --camera camera.json --map map.json -o surveyed.json   the map from photos
   fidlearn plan map.json --camera camera.json -o plan.png          the error to expect, before printing
 'fidlearn COMMAND --help' tells more."""
 

@@ -65,11 +65,15 @@ from ._renderer import (  # noqa: F401
     _sheet_region,
     _texels_per_cell,
 )
+from ._room import survey_room, survey_walk, tape_measured
 from ._scenes import render_scene, visible_markers
 from ._trajectory import Trajectory, render_trajectory, trajectory_poses
 
 __all__ = [
     "render_scene",
+    "survey_room",
+    "survey_walk",
+    "tape_measured",
     "visible_markers",
     "look_at",
     "render_calibration_views",

@@ -1,0 +1,250 @@
+"""The survey against the truth: rooms of 12 markers, 20 photos at 1280x720, a tape with errors.
+
+    python benchmarks/bench_survey.py            # 20 seeds, real renders of 3, the cost curve (about 10 minutes)
+    python benchmarks/bench_survey.py --quick    # 6 seeds, 1 rendered, a shorter curve
+
+Each seed: ``fidlearn.synthetic.survey_room`` (12 markers of 160 mm on three walls and the floor),
+20 photos from ``survey_walk(seed)`` seen by an HD webcam (1280x720, 67 degrees, mild barrel
+distortion), a tape map ``tape_measured(sigma 20 mm per coordinate, 1 degree)`` with one marker
+(``seed % 12``) moved 100 mm in its own plane, surveyed with ``map_sigma_mm=20``.
+
+The photos of most seeds are the true corners projected from the true poses plus Gaussian noise of
+``NOISE_PX`` per coordinate, in place of rendered pictures (rendering 20 photos costs about 10 s a
+seed). A few seeds are also rendered (``render_scene``, blur 0.5 px, noise 1.2 gray levels,
+gradient 0.2) and surveyed from their pictures with fidlearn's detector, to show the two agree.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import fidlearn
+from fidlearn import Camera, Detection, estimate_pose, render_scene, survey
+from fidlearn.synthetic import survey_room, survey_walk, tape_measured, visible_markers
+
+ROOT = Path(__file__).resolve().parent.parent
+CAMERA = Camera.from_dict(
+    {
+        "camera_matrix": [[962.5, 0.0, 641.2], [0.0, 961.8, 358.9], [0.0, 0.0, 1.0]],
+        "dist_coeffs": [-0.09, 0.03, 0.0004, -0.0003, 0.0],
+        "image_size": [1280, 720],
+    }
+)
+RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
+NOISE_PX = 0.05  # about what detect_markers (edges) gives on these renders: printed under the rendered table
+TAPE_MM, MOVED_MM = 20.0, 100.0
+
+
+def kabsch_rms(a: np.ndarray, b: np.ndarray) -> float:
+    """RMS (mm) of points a from points b after the rigid motion that lays a best on b."""
+    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
+    u, _, vt = np.linalg.svd(ca.T @ cb)
+    R = (u @ np.diag([1, 1, np.sign(np.linalg.det(u @ vt))]) @ vt).T
+    return float(np.sqrt(np.mean(np.sum((ca @ R.T - cb) ** 2, axis=1))))
+
+
+def corners_of(m, ids) -> np.ndarray:
+    return np.concatenate([m.corners()[i] for i in ids])
+
+
+def rms(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
+
+
+def room(seed: int, n_photos: int = 20):
+    truth = survey_room()
+    rng = np.random.default_rng(seed)
+    moved_id = seed % len(truth)
+    R = truth.placements[moved_id].R_world_marker
+    a = rng.uniform(0, 2 * np.pi)
+    shift = MOVED_MM * (np.cos(a) * R[:, 1] + np.sin(a) * R[:, 2])
+    tape = tape_measured(truth, TAPE_MM, 1.0, moved={moved_id: tuple(shift)}, seed=seed + 1000)
+    return truth, tape, moved_id, survey_walk(truth, CAMERA, n_photos, seed=seed)
+
+
+def projected(truth, poses, rng) -> list[list[Detection]]:
+    return [
+        [Detection(i, c + rng.normal(0, NOISE_PX, c.shape)) for i, c in visible_markers(truth, CAMERA, T).items()]
+        for T in poses
+    ]
+
+
+def rendered(truth, poses, seed: int, errors: list) -> list[np.ndarray]:
+    """The pictures; ``errors`` gets each detected corner's distance from the truth (px)."""
+    images = []
+    for k, T in enumerate(poses):
+        image, true = render_scene(truth, CAMERA, T, seed=seed * 1000 + k, **RENDER)
+        images.append(image)
+        for d in fidlearn.detect_markers(image):
+            if d.id in true:
+                errors += list(np.linalg.norm(d.corners_px - true[d.id], axis=1))
+    return images
+
+
+def locate_errors(truth, maps, seed: int) -> list[float]:
+    """Median position error (mm) of estimate_pose on 10 fresh views, for each map."""
+    rng = np.random.default_rng(seed + 7000)
+    views = survey_walk(truth, CAMERA, 10, seed=seed + 5000)
+    dets = projected(truth, views, rng)
+    out = []
+    for m in maps:
+        errs = [np.linalg.norm(estimate_pose(d, m, CAMERA).position_mm - T[:3, 3]) for d, T in zip(dets, views)]
+        out.append(float(np.median(errs)))
+    return out
+
+
+def measure(truth, tape, moved_id, photos, seed: int) -> dict:
+    t0, c0 = time.perf_counter(), time.process_time()
+    s = survey(photos, tape, CAMERA, map_sigma_mm=TAPE_MM)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    seen = [i for i in truth.ids if i not in s.unseen_ids]
+    true_c, got_c, tape_c = (corners_of(m, seen) for m in (truth, s.marker_map, tape))
+    inside = [s.position_ellipsoid_contains(i, truth.placements[i].translation_mm) for i in seen]
+    tested = [i for i in s.tests if i != moved_id]
+    ref, ref_id = _with_reference(truth, tape, moved_id)
+    s_ref = survey(photos, ref, CAMERA, map_sigma_mm=TAPE_MM, fixed_ids=[ref_id])
+    inside_ref = [s_ref.position_ellipsoid_contains(i, truth.placements[i].translation_mm) for i in seen if i != ref_id]
+    loc = locate_errors(truth, [tape, s.marker_map, s_ref.marker_map], seed)
+    return {
+        "abs": rms(got_c, true_c),
+        "shape": kabsch_rms(got_c, true_c),
+        "ref": rms(corners_of(s_ref.marker_map, seen), true_c),
+        "tape": rms(tape_c, true_c),
+        "tape_shape": kabsch_rms(tape_c, true_c),
+        "named": moved_id in s.suspect_ids,
+        "false": sum(i in s.suspect_ids for i in tested),
+        "good": len(tested),
+        "inside": sum(inside),
+        "n_inside": len(inside),
+        "inside_ref": sum(inside_ref),
+        "n_inside_ref": len(inside_ref),
+        "loc": loc,
+        "wall": wall,
+        "cpu": cpu,
+    }
+
+
+def _with_reference(truth, tape, moved_id):
+    """The tape map with one reference marker placed exactly (the room's origin marker, held fixed)."""
+    ref = 0 if moved_id else 1
+    pl = dict(tape.placements)
+    pl[ref] = truth.placements[ref]
+    return fidlearn.MarkerMap(pl, tape.marker_size_mm, tape.dictionary, tape.units, "tape with a reference"), ref
+
+
+def seed_table(rows: list[dict], seeds: list[int], title: str) -> None:
+    print(f"\n{title}\n")
+    print(
+        "| seed | tape RMS mm | surveyed RMS mm | shape RMS mm | with a reference marker mm | moved named | "
+        "good named | in 95 % ellipsoid | locate tape / surveyed / reference mm | survey s (CPU) |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for sd, r in zip(seeds, rows):
+        lt, ls, lr = r["loc"]
+        print(
+            f"| {sd} | {r['tape']:.1f} | {r['abs']:.1f} | {r['shape']:.2f} | {r['ref']:.2f} | "
+            f"{'yes' if r['named'] else '**no**'} | {r['false']}/{r['good']} | {r['inside']}/{r['n_inside']} | "
+            f"{lt:.1f} / {ls:.1f} / {lr:.1f} | {r['wall']:.1f} ({r['cpu']:.1f}) |"
+        )
+
+
+def summary(rows: list[dict]) -> None:
+    med = lambda k: float(np.median([r[k] for r in rows]))  # noqa: E731
+    named = 100 * np.mean([r["named"] for r in rows])
+    false = 100 * sum(r["false"] for r in rows) / max(sum(r["good"] for r in rows), 1)
+    cover = 100 * sum(r["inside"] for r in rows) / sum(r["n_inside"] for r in rows)
+    cover_ref = 100 * sum(r["inside_ref"] for r in rows) / sum(r["n_inside_ref"] for r in rows)
+    loc = np.array([r["loc"] for r in rows])
+    ratio, ratio_ref = np.median(loc[:, 0]) / np.median(loc[:, 1]), np.median(loc[:, 0]) / np.median(loc[:, 2])
+    print(f"\nsummary over {len(rows)} seeds (medians):")
+    print(
+        f"- corner RMS: tape {med('tape'):.1f} mm; surveyed {med('abs'):.1f} mm where the tape alone places the room, "
+        f"{med('ref'):.2f} mm with one reference marker held; shape (after the best rigid motion) "
+        f"{med('shape'):.2f} mm (tape's {med('tape_shape'):.1f} mm)"
+    )
+    print(f"- moved marker named: {named:.0f} % of seeds; a good marker named: {false:.1f} % of good markers")
+    print(
+        f"- true top-left corners inside their 95 % ellipsoid: {cover:.1f} % (with a reference marker held: "
+        f"{cover_ref:.1f} %)"
+    )
+    print(
+        f"- locate on fresh views, median position error: tape map {np.median(loc[:, 0]):.1f} mm, surveyed "
+        f"{np.median(loc[:, 1]):.1f} mm ({ratio:.1f}x better), with a reference marker {np.median(loc[:, 2]):.1f} mm "
+        f"({ratio_ref:.1f}x better)"
+    )
+    worst = max(r["wall"] for r in rows)
+    print(f"- survey time: median {med('wall'):.1f} s wall, {med('cpu'):.1f} s CPU; worst {worst:.1f} s wall")
+
+
+def cost_curve(counts: list[int]) -> None:
+    """CPU time of one survey against the number of photos, plotted into docs/img/survey_cost.png."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = []
+    for n in counts:
+        truth, tape, _, poses = room(100 + n, n)
+        photos = projected(truth, poses, np.random.default_rng(n))
+        c0, t0 = time.process_time(), time.perf_counter()
+        survey(photos, tape, CAMERA, map_sigma_mm=TAPE_MM)
+        rows.append((n, time.process_time() - c0, time.perf_counter() - t0))
+    print("\nCost against the number of photos (one room each, projected corners):\n")
+    print("| photos | CPU s | wall s |")
+    print("|---|---|---|")
+    for n, c, w in rows:
+        print(f"| {n} | {c:.2f} | {w:.2f} |")
+    fig, ax = plt.subplots(figsize=(5, 3.2))
+    ax.plot([r[0] for r in rows], [r[1] for r in rows], "o-", label="CPU")
+    ax.plot([r[0] for r in rows], [r[2] for r in rows], "s--", label="wall")
+    ax.set_xlabel("photos")
+    ax.set_ylabel("survey time (s)")
+    ax.set_title("fidlearn.survey: 12 markers, 1280x720")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    out = ROOT / "docs" / "img" / "survey_cost.png"
+    fig.savefig(out, dpi=100)
+    print(f"\n![survey time against the number of photos](img/{out.name})")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer seeds, one rendered, a shorter curve")
+    args = parser.parse_args(argv)
+    n_seeds, n_rendered = (6, 1) if args.quick else (20, 3)
+    counts = [10, 20, 50] if args.quick else [10, 20, 50, 100, 200]
+    print(
+        f"Rooms of 12 markers, 20 photos at 1280x720; tape sigma {TAPE_MM:g} mm plus one marker moved "
+        f"{MOVED_MM:g} mm; survey with map_sigma_mm={TAPE_MM:g}. Projected corners with {NOISE_PX} px noise in place "
+        "of renders for the seed table; the rendered table repeats some seeds from pictures."
+    )
+    seeds = list(range(n_seeds))
+    rows = []
+    for sd in seeds:
+        truth, tape, moved_id, poses = room(sd)
+        rows.append(measure(truth, tape, moved_id, projected(truth, poses, np.random.default_rng(sd)), sd))
+    seed_table(rows, seeds, f"Seeds, projected corners + {NOISE_PX} px Gaussian noise:")
+    summary(rows)
+    rendered_rows, errors = [], []
+    for sd in seeds[:n_rendered]:
+        truth, tape, moved_id, poses = room(sd)
+        rendered_rows.append(measure(truth, tape, moved_id, rendered(truth, poses, sd, errors), sd))
+    seed_table(rendered_rows, seeds[:n_rendered], "The same seeds from rendered pictures (detect_markers, edges):")
+    err = np.asarray(errors)
+    print(
+        f"\nCorners detected in these pictures: {np.sqrt(np.mean(err**2) / 2):.3f} px RMS per coordinate "
+        f"({len(err)} corners), against {NOISE_PX} px added to the projected ones."
+    )
+    cost_curve(counts)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,206 @@
+"""``fidlearn survey``: the marker map from photos, joined with the tape map.
+
+The work is the library's (:func:`fidlearn.survey`); this module reads the photos, prints the
+table and the suspects, and writes the surveyed map (and ``--plot``) only when the whole run
+succeeds, each through a hidden temporary file renamed at the end.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .._io import atomic_write
+from ..errors import UsageError
+from ..images import expand_inputs
+from ..survey import Survey, survey
+from ._common import (
+    _add_image_size_option,
+    _add_map_options,
+    _check_output,
+    _load_camera,
+    _load_map,
+    _Progress,
+    _refuse_clobber,
+)
+
+HELP = "the marker map from photos of the markers, joined with the tape-measured map"
+
+
+def add(sub) -> None:
+    """Register the command on the ``fidlearn`` parser's subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
+    """
+    p = sub.add_parser(
+        "survey",
+        help=HELP,
+        description=(
+            "Survey the markers from photos: every camera pose and every marker placement in one "
+            "least-squares fit of the detected corners, with the tape map as a prior (each top-left "
+            "corner within --map-sigma-mm). Prints a table per marker (tape and surveyed top-left "
+            "corner, their difference and the surveyed standard deviation, mm), names the markers "
+            "whose tape placement disagrees with the photos, and writes the surveyed map in the tape "
+            "map's units. Take 20 or more photos from different places, each showing two or more "
+            "markers, every marker in at least two photos."
+        ),
+    )
+    p.add_argument("photos", nargs="+", type=Path, metavar="PHOTO_OR_FOLDER", help="photos, or folders of photos")
+    p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or YAML)")
+    _add_image_size_option(p)
+    _add_map_options(p)
+    p.add_argument(
+        "--map-sigma-mm",
+        type=float,
+        default=10.0,
+        metavar="MM",
+        help="how well the tape placed each top-left corner, mm per coordinate (default 10; 'inf' with --fixed)",
+    )
+    p.add_argument(
+        "--fixed", type=int, action="append", metavar="ID", help="a marker whose placement is exact (repeatable)"
+    )
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="SURVEYED.json", help="surveyed map to write")
+    p.add_argument("--plot", type=Path, metavar="SURVEY.png", help="also draw the markers and the cameras in 3D")
+    p.set_defaults(run=run)
+
+
+def _check(args) -> list[Path]:
+    out = _check_output(args.output, (".json",))
+    plot = _check_output(args.plot, (".png",), "--plot") if args.plot is not None else None
+    photos = [path for _, path in expand_inputs(args.photos, videos=False)]
+    _refuse_clobber([("-o", out), ("--plot", plot)], [*photos, args.map, args.camera])
+    if math.isnan(args.map_sigma_mm) or args.map_sigma_mm <= 0:
+        raise UsageError(f"--map-sigma-mm {args.map_sigma_mm:g}: give a positive number of mm (e.g. 10)")
+    return photos
+
+
+def run(args) -> int:
+    """Survey, print the table and the suspects, write the map (and the figure).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when done.
+
+    Raises
+    ------
+    FidlearnError
+        A user error (too few photos, a map in the wrong units, ...); :func:`fidlearn.cli.main` prints it
+        as one ``error:`` line and exits with status 2.
+    """
+    photos = _check(args)
+    tape = _load_map(args)
+    camera = _load_camera(args)
+    progress = _Progress("survey")
+    try:
+        result = survey(photos, tape, camera, map_sigma_mm=args.map_sigma_mm, fixed_ids=args.fixed, progress=progress)
+    finally:
+        progress.clear()
+    for label, reason in result.unused:
+        print(f"warning: {Path(label).name} left out: {reason}", file=sys.stderr)
+    fig = _figure(result, camera) if args.plot is not None else None
+    result.save(args.output)
+    if fig is not None:
+        atomic_write(args.plot, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    _report(result, args)
+    return 0
+
+
+def _report(s: Survey, args) -> None:
+    print(
+        f"{args.output}: {len(s.marker_map)} markers surveyed from {len(s.camera_poses)} photos "
+        f"(corner noise {s.corner_sigma_px:.2f} px, tape sigma {s.map_sigma_mm:g} mm)"
+    )
+    print(table(s))
+    for sus in s.suspects:
+        print(sentence(sus))
+    if not s.suspects:
+        print("no marker disagrees with the photos more than the tape's sigma explains")
+
+
+def table(s: Survey) -> str:
+    """The per-marker table: tape and surveyed top-left corners, difference and std (mm), photos, note.
+
+    Parameters
+    ----------
+    s : Survey
+        A survey.
+
+    Returns
+    -------
+    str
+        One header line and one line per marker of the surveyed map.
+    """
+    head = (
+        f"{'id':>4} {'tape x, y, z (mm)':>24} {'surveyed x, y, z (mm)':>24} {'diff':>7} {'std':>6} {'photos':>6}  note"
+    )
+    lines = [head]
+    suspects = set(s.suspect_ids)
+    for i, p in s.marker_map.placements.items():
+        got = np.asarray(p.translation_mm)
+        if i in s.tape_map:
+            tape = np.asarray(s.tape_map.placements[i].translation_mm)
+            tape_text, diff = ", ".join(f"{v:.0f}" for v in tape), f"{np.linalg.norm(got - tape):7.1f}"
+        else:
+            tape_text, diff = "-", f"{'-':>7}"
+        std = float(np.linalg.norm(s.marker_position_std_mm[i]))
+        note = _note(s, i, suspects)
+        lines.append(
+            f"{i:>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} "
+            f"{s.photos_per_marker.get(i, 0):>6}  {note}"
+        )
+    return "\n".join(lines)
+
+
+def _note(s: Survey, i: int, suspects: set) -> str:
+    if i in suspects:
+        return "SUSPECT: measure again"
+    if i in s.added_ids:
+        return "added from the photos"
+    if i in s.fixed_ids:
+        return "fixed"
+    if i in s.unseen_ids:
+        return "in no photo: the tape's"
+    if s.photos_per_marker.get(i, 0) < 2:
+        return "in one photo only: take another"
+    return ""
+
+
+def sentence(suspect) -> str:
+    """A suspect in words: how far from the map, in mm and sigmas, and what to do.
+
+    Parameters
+    ----------
+    suspect : Suspect
+        One of :attr:`Survey.suspects`.
+
+    Returns
+    -------
+    str
+        E.g. ``"marker 7 is 96 mm from where the map says (12 sigma): measure it again"``.
+    """
+    return (
+        f"marker {suspect.id} is {suspect.distance_mm:.0f} mm from where the map says "
+        f"({suspect.sigmas:.0f} sigma): measure it again"
+    )
+
+
+def _figure(s: Survey, camera):
+    from ..plotting import draw_markers, plot_scene  # matplotlib only when drawing
+
+    poses = list(s.camera_poses.values())
+    title = "surveyed markers (dark) and tape (red); cameras of the photos"
+    fig = plot_scene(s.marker_map, poses, camera, labels=[None] * len(poses), scale_mm=150.0, title=title)
+    draw_markers(fig.axes[0], s.tape_map, color="tab:red", show_ids=False, alpha=0.35)
+    return fig

@@ -1,0 +1,31 @@
+"""The marker map from photos, joined with the tape: a bundle adjustment (:func:`survey`).
+
+Localization with a known map (:func:`fidlearn.locate`) trusts the map completely, and a map is
+only as good as the tape measure that made it. Photos of the markers from several places hold
+more: each shows where markers are relative to each other, to a fraction of a millimetre. The
+survey puts every camera pose and every marker placement (6 unknowns each) into one least-squares
+problem whose residuals are the corners' reprojection errors, and keeps the tape map as a prior
+(each placement within ``map_sigma_mm``) so the result stays where the tape put the room. A
+marker taped in the wrong place is named (:attr:`Survey.suspects`), markers absent from the map
+are added, and each placement comes with its 6x6 covariance.
+
+Modules: ``_inputs`` (photos to detected corners, the checks), ``_init`` (starting values, new
+markers, the units check), ``_geometry`` (rotation vectors and their Jacobians), ``_problem``
+(unknowns, residuals, sparse Jacobian), ``_solve`` (the passes, covariance, suspect test),
+``_result`` (:class:`Survey`) and ``_survey`` (:func:`survey`).
+
+Conventions: mm, ``T_a_b`` maps frame b into frame a, placements as in the map files (top-left
+corner, roll-pitch-yaw in degrees), camera frame OpenCV's.
+"""
+
+from __future__ import annotations
+
+from ._result import Survey, Suspect
+from ._solve import SUSPECT_P
+from ._survey import survey
+
+__all__ = ["survey", "Survey", "Suspect", "SUSPECT_P"]
+
+for _public in (survey, Survey, Suspect):
+    _public.__module__ = __name__
+del _public

@@ -1,0 +1,156 @@
+"""Starting values: each photo's camera pose from the tape map, new markers from the photos, the units check.
+
+The photos that show mapped markers are located with :func:`fidlearn.estimate_pose` on the tape
+map (its outlier rejection leaves a badly taped marker out). A marker absent from the map is
+placed from every located photo that shows it (IPPE_SQUARE on its four corners, chained with the
+photo's pose), keeping the placement that reprojects best in all of them; it needs two photos.
+Then photos that showed only new markers are located in turn, until nothing changes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import frames
+from ..detection import Detection
+from ..errors import FidlearnError, MapError
+from ..markermap import UNITS_TO_MM, MarkerMap, MarkerPlacement
+from ..pose import estimate_pose
+from ._geometry import local_corners, placement_from_photo
+from ._inputs import _Photo
+
+#: The map's distances may differ from the photos' by this factor before its units are called wrong.
+UNITS_FACTOR_LIMIT = 1.6
+
+
+def _map_of(placed: dict[int, tuple[np.ndarray, np.ndarray]], tape: MarkerMap) -> MarkerMap:
+    """A MarkerMap (mm) of the placements ``{id: (R_world_place, top_left_mm)}``."""
+    pl = {
+        i: MarkerPlacement(i, tuple(float(v) for v in p), tuple(float(a) for a in frames.rpy_deg_from_rotation(R)))
+        for i, (R, p) in placed.items()
+    }
+    return MarkerMap(pl, tape.marker_size_mm, tape.dictionary, tape.units, tape.source)
+
+
+def _locate(photo: _Photo, current: MarkerMap) -> None:
+    dets = [Detection(i, c) for i, c in photo.corners.items() if i in current]
+    if not dets:
+        seen = sorted(photo.corners)
+        photo.reason = (
+            f"shows no marker of the map (it shows {seen or 'no marker'}); take it again so that it also shows "
+            "a marker of the map"
+            if not seen
+            else f"shares no marker with the map or the other photos (it shows {seen}); take a photo that "
+            f"shows one of {seen} together with a mapped marker"
+        )
+        return
+    try:
+        photo.T_world_camera = estimate_pose(dets, current, photo.camera).T_world_camera
+        photo.reason = ""
+    except FidlearnError as exc:
+        photo.reason = f"no camera pose from the map ({exc})"
+
+
+def _place_new(marker_id: int, photos: list[_Photo], size_mm: float):
+    """The best placement of a new marker over the located photos that show it (None if none works)."""
+    local = local_corners(size_mm)
+    best, best_err = None, np.inf
+    for ph in photos:
+        cand = placement_from_photo(ph.corners[marker_id], ph.camera, ph.T_world_camera, size_mm)
+        if cand is None:
+            continue
+        world = local @ cand[0].T + cand[1]
+        err = sum(
+            float(np.sum((q.camera.project(world, q.T_world_camera) - q.corners[marker_id]) ** 2)) for q in photos
+        )
+        if err < best_err:
+            best, best_err = cand, err
+    return best
+
+
+def initial_values(photos: list[_Photo], tape: MarkerMap) -> tuple[dict, dict[int, str]]:
+    """Locate the photos and place new markers; ``(placed, unplaced)``.
+
+    ``placed`` is ``{id: (R_world_place, top_left_mm)}`` for the map's markers and the new ones
+    placed; ``unplaced`` is ``{id: reason}`` for markers seen but not placed.
+    """
+    placed = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
+    current = tape
+    while True:
+        for ph in photos:
+            if ph.T_world_camera is None:
+                _locate(ph, current)
+        located = [ph for ph in photos if ph.T_world_camera is not None]
+        new = sorted({i for ph in located for i in ph.corners if i not in placed})
+        added = False
+        for i in new:
+            showing = [ph for ph in located if i in ph.corners]
+            if len(showing) >= 2 and (cand := _place_new(i, showing, tape.marker_size_mm)) is not None:
+                placed[i] = cand
+                added = True
+        if not added:
+            break
+        current = _map_of(placed, tape)
+    return placed, _unplaced(photos, placed)
+
+
+def _unplaced(photos: list[_Photo], placed: dict) -> dict[int, str]:
+    out = {}
+    for i in sorted({i for ph in photos for i in ph.corners if i not in placed}):
+        showing = [ph for ph in photos if i in ph.corners and ph.T_world_camera is not None]
+        if len(showing) == 1:
+            out[i] = (
+                f"marker {i} is not in the map and is seen in only one photo ({showing[0].label}): take another "
+                f"photo that shows marker {i} together with a marker already placed"
+            )
+        elif not showing:
+            out[i] = (
+                f"marker {i} is not in the map and is seen only in photos that share no marker with it: take a photo "
+                f"that shows marker {i} together with a mapped marker"
+            )
+        else:
+            out[i] = f"marker {i}: no placement fits its corners in the photos that show it; check its id and size"
+    return out
+
+
+def check_units(photos: list[_Photo], tape: MarkerMap) -> None:
+    """Refuse a map whose distances disagree with the photos' by a factor (units written wrong).
+
+    In each photo, every pair of mapped markers gives a distance from the photo alone (the marker's
+    printed size sets the scale); the median ratio of the map's distances to these must be within
+    ``UNITS_FACTOR_LIMIT`` of 1.
+    """
+    ratios = []
+    for ph in photos:
+        ids = [i for i in ph.corners if i in tape]
+        if len(ids) < 2:
+            continue
+        seen = {i: placement_from_photo(ph.corners[i], ph.camera, np.eye(4), tape.marker_size_mm) for i in ids}
+        tl = {i: p.translation_mm for i, p in tape.placements.items()}
+        for a in range(len(ids)):
+            for b in range(a + 1, len(ids)):
+                i, j = ids[a], ids[b]
+                d_photo = np.linalg.norm(seen[i][1] - seen[j][1]) if seen[i] and seen[j] else 0.0
+                if d_photo > 2 * tape.marker_size_mm:
+                    ratios.append(np.linalg.norm(np.subtract(tl[i], tl[j])) / d_photo)
+    if not ratios:
+        return
+    r = float(np.median(ratios))
+    if 1 / UNITS_FACTOR_LIMIT < r < UNITS_FACTOR_LIMIT:
+        return
+    raise MapError(_units_message(r, tape))
+
+
+def _units_message(r: float, tape: MarkerMap) -> str:
+    scale = UNITS_TO_MM[tape.units]
+    guess = min(UNITS_TO_MM, key=lambda u: abs(np.log(UNITS_TO_MM[u] * r / scale)))
+    hint = (
+        f"; the distances fit units {guess!r}"
+        if guess != tape.units and abs(np.log(UNITS_TO_MM[guess] * r / scale)) < 0.4
+        else ""
+    )
+    return (
+        f"{tape.source}: the map's distances between markers are {r:.3g} times those the photos show: its units "
+        f"({tape.units}) or its marker_size_mm ({tape.marker_size_mm:g}) look wrong{hint}; fix the map, or check "
+        "the marker size with a ruler on one printed marker"
+    )

@@ -1,0 +1,143 @@
+"""The survey's inputs: photos (files, arrays or detections) to detected corners, and the checks.
+
+Each photo becomes a :class:`_Photo`: its label, the camera fitted to it, and the detected
+corners of every marker of the map's dictionary (``{id: (4, 2) px}``, TL, TR, BR, BL).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..camera import Camera
+from ..detection import Detection, detect_markers
+from ..errors import ImageError, SurveyError
+from ..images import load_image
+from ..markermap import MarkerMap
+from ..pose._inputs import _as_camera, _as_map
+
+#: At least this many photos must give a camera pose.
+MIN_PHOTOS = 2
+#: Largest tape sigma (mm) and corner noise (px) taken: beyond them the weights underflow.
+MAX_MAP_SIGMA_MM = 1e5
+MAX_CORNER_SIGMA_PX = 100.0
+
+
+@dataclass
+class _Photo:
+    label: str
+    camera: Camera
+    corners: dict[int, np.ndarray]
+    T_world_camera: np.ndarray | None = None
+    reason: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px) -> tuple:
+    """``(marker_map, camera, sigma_mm, fixed)`` checked; raises SurveyError with the fix."""
+    marker_map = _as_map(marker_map)
+    camera = _as_camera(camera)
+    sigma = _sigma_mm(map_sigma_mm)
+    fixed = _fixed_ids(fixed_ids, marker_map)
+    if np.any(np.asarray(camera.dist, float).ravel()[12:]):
+        raise SurveyError(
+            f"{camera.source or 'the camera'}: the survey's projection has no tilted-sensor terms (tauX, tauY, "
+            "distortion coefficients 13 and 14); calibrate without CALIB_TILTED_MODEL"
+        )
+    if math.isinf(sigma) and not fixed:
+        raise SurveyError(
+            "with map_sigma_mm=inf nothing ties the photos to the world: give fixed_ids (a marker whose "
+            "placement is exact) or a finite map_sigma_mm"
+        )
+    if corner_sigma_px is not None and not (
+        isinstance(corner_sigma_px, (int, float, np.floating, np.integer))
+        and not isinstance(corner_sigma_px, bool)
+        and 0 < corner_sigma_px <= MAX_CORNER_SIGMA_PX
+    ):
+        raise SurveyError(
+            f"corner_sigma_px must be a number of pixels above 0 and at most {MAX_CORNER_SIGMA_PX:g}, or None to "
+            f"estimate it, got {corner_sigma_px!r}"
+        )
+    return marker_map, camera, sigma, fixed
+
+
+def _sigma_mm(map_sigma_mm) -> float:
+    sigma = None
+    if not isinstance(map_sigma_mm, (bool, str, bytes)):
+        with contextlib.suppress(TypeError, ValueError):
+            sigma = float(map_sigma_mm)
+    if sigma is None:
+        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {map_sigma_mm!r}")
+    if not (0 < sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
+        raise SurveyError(
+            f"map_sigma_mm must be above 0 and at most {MAX_MAP_SIGMA_MM:g} mm, or math.inf to trust the photos "
+            f"alone, got {map_sigma_mm!r}"
+        )
+    return sigma
+
+
+def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
+    if fixed_ids is None:
+        return ()
+    if isinstance(fixed_ids, (int, np.integer)) and not isinstance(fixed_ids, bool):
+        fixed_ids = [fixed_ids]
+    if isinstance(fixed_ids, (str, bytes)):
+        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {fixed_ids!r}")
+    try:
+        ids = tuple(sorted({int(i) for i in fixed_ids if not isinstance(i, bool) and int(i) == i}))
+        if len(ids) != len(set(fixed_ids)):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {fixed_ids!r}") from None
+    missing = [i for i in ids if i not in marker_map]
+    if missing:
+        raise SurveyError(
+            f"fixed_ids has marker {missing[0]}, which is not in the map {marker_map.source} (ids {marker_map.ids}); "
+            "a fixed marker must have a placement"
+        )
+    return ids
+
+
+def _read_photos(images, marker_map: MarkerMap, camera: Camera, progress: Callable | None) -> list[_Photo]:
+    """Detect the dictionary's markers in every photo (or take the detections given)."""
+    if isinstance(images, (str, os.PathLike, np.ndarray)) or not isinstance(images, Sequence):
+        raise SurveyError(
+            f"images must be a list of photos (paths, arrays or lists of Detection), got {type(images).__name__}"
+        )
+    if len(images) < MIN_PHOTOS:
+        raise SurveyError(
+            f"a survey needs at least {MIN_PHOTOS} photos, got {len(images)}; take photos that each show two or "
+            "more markers, every marker in at least two of them"
+        )
+    photos = []
+    for i, item in enumerate(images):
+        photos.append(_one_photo(i, item, marker_map, camera))
+        if progress is not None:
+            progress(i + 1, len(images), photos[-1].label)
+    return photos
+
+
+def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:
+    if isinstance(item, (str, os.PathLike)):
+        label, item = str(item), load_image(item)
+    else:
+        label = f"photo {i}"
+    if isinstance(item, np.ndarray):
+        cam = camera.for_image(item)
+        dets = detect_markers(item, dictionary=marker_map.dictionary)
+    elif isinstance(item, Sequence) and all(isinstance(d, Detection) for d in item):
+        cam, dets = camera, list(item)
+    else:
+        raise ImageError(f"images[{i}] is a {type(item).__name__}; give a path, an image array or a list of Detection")
+    corners: dict[int, np.ndarray] = {}
+    for d in dets:
+        if d.id in corners:  # the same id twice in one photo: which one is where is unknowable
+            corners[d.id] = None  # type: ignore[assignment]
+        else:
+            corners[d.id] = np.asarray(d.corners_px, float)
+    return _Photo(label, cam, {k: v for k, v in corners.items() if v is not None})

@@ -1,0 +1,174 @@
+"""The result of a survey: :class:`Survey` and :class:`Suspect`."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from .._io import write_json_atomic
+from ..markermap import MarkerMap
+from ..pose._stats import _chi2_3_quantile
+
+__all__ = ["Survey", "Suspect"]
+
+
+class Suspect(NamedTuple):
+    """A marker whose tape placement disagrees with the photos.
+
+    Attributes
+    ----------
+    id : int
+        The marker.
+    distance_mm : float
+        How far the photos put its top-left corner from the tape's, mm.
+    sigmas : float
+        That difference in standard deviations (Mahalanobis, photos' and tape's uncertainty together).
+    """
+
+    id: int
+    distance_mm: float
+    sigmas: float
+
+
+@dataclass(eq=False)
+class Survey:
+    """The map from photos, joined with the tape: what :func:`fidlearn.survey` returns.
+
+    Attributes
+    ----------
+    marker_map : MarkerMap
+        The surveyed map: same units, marker size and dictionary as the tape map, usable by
+        :func:`fidlearn.locate`; markers the photos never showed keep their tape placement, markers
+        the map lacked are added.
+    tape_map : MarkerMap
+        The map given.
+    suspects : list of Suspect
+        Markers whose tape placement disagrees with the photos (their tape prior was left out of the
+        final adjustment), worst first.
+    marker_position_std_mm : dict of int to ndarray, shape (3,)
+        Standard deviation of each marker's top-left corner along world X, Y, Z, mm (0 for a fixed
+        marker; the tape's for a marker no photo showed).
+    marker_covariance : dict of int to ndarray, shape (6, 6)
+        ``[rotation (rad, 3), top-left corner (mm, 3)]``: the rotation a small rotation vector in
+        world axes applied on the left of the placement's; from the Jacobian at the solution.
+    camera_poses : dict of str to ndarray, shape (4, 4)
+        ``T_world_camera`` (mm) of every photo used, by its label (its path, or ``"photo i"``).
+    photo_rms_px, marker_rms_px : dict
+        Reprojection RMS (px, corner distance) per photo used and per marker surveyed.
+    unused : list of (str, str)
+        Photos left out, with the reason and what to do.
+    added_ids, unseen_ids, fixed_ids : tuple of int
+        Markers added from the photos; markers of the map no photo showed; markers held exactly.
+    unplaced : dict of int to str
+        Markers seen but not placed, with the reason and what photo to take.
+    corner_sigma_px : float
+        Corner noise the covariance assumes (px per coordinate): given, or estimated from the residuals.
+    map_sigma_mm, map_sigma_deg : float
+        The tape's standard deviation on each coordinate of a top-left corner (mm) and on each
+        rotation angle (degrees, derived: ``map_sigma_mm / marker_size_mm`` rad).
+    photos_per_marker : dict of int to int
+        How many photos used show each surveyed marker.
+    tests : dict of int to (float, float)
+        Every taped marker's suspect test: ``(distance_mm, sigmas)`` of where the photos alone put its
+        top-left corner from the tape's (the suspects are those above the chi-square threshold).
+    """
+
+    marker_map: MarkerMap
+    tape_map: MarkerMap
+    suspects: list[Suspect]
+    marker_position_std_mm: dict[int, np.ndarray]
+    marker_covariance: dict[int, np.ndarray]
+    camera_poses: dict[str, np.ndarray]
+    photo_rms_px: dict[str, float]
+    marker_rms_px: dict[int, float]
+    unused: list[tuple[str, str]]
+    added_ids: tuple[int, ...]
+    unseen_ids: tuple[int, ...]
+    fixed_ids: tuple[int, ...]
+    unplaced: dict[int, str]
+    corner_sigma_px: float
+    map_sigma_mm: float
+    map_sigma_deg: float
+    photos_per_marker: dict[int, int] = field(default_factory=dict)
+    tests: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def suspect_ids(self) -> list[int]:
+        """Ids of :attr:`suspects`."""
+        return [s.id for s in self.suspects]
+
+    def position_ellipsoid_contains(self, marker_id: int, point_mm, probability: float = 0.95) -> bool:
+        """Whether a point lies in a marker's confidence ellipsoid (top-left corner).
+
+        Parameters
+        ----------
+        marker_id : int
+            A surveyed marker.
+        point_mm : array-like, shape (3,)
+            World point, mm (e.g. the true top-left corner).
+        probability : float
+            Confidence level of the ellipsoid, between 0 and 1.
+
+        Returns
+        -------
+        bool
+            True when its squared Mahalanobis distance is at most the chi-square(3) quantile.
+
+        Raises
+        ------
+        KeyError
+            If the marker was not surveyed.
+        PoseError
+            ``probability`` is not between 0 and 1.
+        """
+        cov = self.marker_covariance[marker_id][3:, 3:]
+        d = np.asarray(point_mm, float).reshape(3) - np.asarray(self.marker_map.placements[marker_id].translation_mm)
+        if not np.any(cov):
+            return bool(np.allclose(d, 0.0))
+        return float(d @ np.linalg.solve(cov, d)) <= _chi2_3_quantile(probability)
+
+    def note(self) -> dict:
+        """The ``"surveyed"`` note :meth:`save` writes: how the map was made.
+
+        Returns
+        -------
+        dict
+            Photos used and left out, the tape and corner sigmas, fixed, added and suspect markers,
+            and each marker's position standard deviation (mm).
+        """
+        return {
+            "method": "bundle adjustment of the photos' marker corners with the tape map as a prior (fidlearn.survey)",
+            "photos_used": len(self.camera_poses),
+            "photos_unused": len(self.unused),
+            "map_sigma_mm": self.map_sigma_mm,
+            "corner_sigma_px": round(self.corner_sigma_px, 4),
+            "fixed_ids": list(self.fixed_ids),
+            "added_ids": list(self.added_ids),
+            "unseen_ids": list(self.unseen_ids),
+            "suspects": [
+                {"id": s.id, "distance_mm": round(s.distance_mm, 2), "sigmas": round(s.sigmas, 2)}
+                for s in self.suspects
+            ],
+            "position_std_mm": {
+                str(i): [round(float(v), 3) for v in s] for i, s in self.marker_position_std_mm.items()
+            },
+        }
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the surveyed map in the full layout, with a ``"surveyed"`` note (atomically).
+
+        Parameters
+        ----------
+        path : path-like
+            The JSON file to write; :meth:`fidlearn.MarkerMap.load` reads it back.
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
+        return write_json_atomic(path, {**self.marker_map.to_dict(), "surveyed": self.note()})

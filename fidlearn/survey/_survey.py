@@ -1,0 +1,201 @@
+"""survey(): the marker map from photos, joined with the tape."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from .. import frames
+from ..errors import FidlearnWarning, SurveyError
+from ..markermap import MarkerMap, MarkerPlacement
+from ._init import check_units, initial_values
+from ._inputs import MIN_PHOTOS, _check_options, _read_photos
+from ._result import Survey, Suspect
+from ._solve import (
+    FIRST_SIGMA_PX,
+    build_problem,
+    corner_sigma,
+    covariance,
+    fit,
+    marker_block,
+    suspect_threshold,
+    tape_test,
+)
+
+__all__ = ["survey"]
+
+#: At most this many markers are named suspects (and let go of their tape placement) in one survey.
+MAX_SUSPECTS = 4
+
+
+def survey(
+    images, marker_map, camera, *, map_sigma_mm=10.0, fixed_ids=None, corner_sigma_px=None, progress=None
+) -> Survey:
+    """The marker map from photos, joined with the tape map: a bundle adjustment.
+
+    Unknowns: every photo's camera pose and every marker's placement (6 each). Residuals: each
+    detected corner's reprojection (with distortion) over the corner noise, and each taped marker's
+    placement minus the tape's over ``map_sigma_mm`` (position, per coordinate) and
+    ``map_sigma_mm / marker_size_mm`` radians (rotation: as if two corners one side apart were
+    each off by the tape's sigma). ``scipy.optimize.least_squares`` solves it with a sparse
+    analytic Jacobian, first with a soft-L1 loss on the tape residuals (so a marker taped 100 mm
+    off cannot drag the others), then plainly; a marker seen in two photos or more whose tape
+    placement disagrees with the photos (a chi-square test at 1 %, see :mod:`fidlearn.survey._solve`)
+    is named a suspect and its tape prior dropped, so the photos alone place it. The corner noise
+    is estimated from the residuals unless given; the covariances assume it, and the tape's sigma.
+
+    Parameters
+    ----------
+    images : sequence
+        The photos: paths, image arrays (gray or BGR), or lists of :class:`fidlearn.Detection`
+        (already detected; corners in px, TL, TR, BR, BL). Markers are detected with
+        :func:`fidlearn.detect_markers` (edge refinement) in the map's dictionary.
+    marker_map : MarkerMap or path
+        The tape map: each marker's top-left corner and rotation, as measured.
+    camera : Camera or path
+        The calibrated camera (fitted to each image's size as :func:`fidlearn.locate` does).
+    map_sigma_mm : float
+        Standard deviation of the tape's top-left corners, mm per coordinate; ``math.inf`` to let
+        the photos alone decide (then ``fixed_ids`` hold the map in the world).
+    fixed_ids : int or sequence of int, optional
+        Markers whose tape placement is exact: held, not adjusted.
+    corner_sigma_px : float, optional
+        Corner noise, px per coordinate; estimated from the residuals when None.
+    progress : callable, optional
+        ``progress(i, n, label)`` after each photo is read.
+
+    Returns
+    -------
+    Survey
+        The surveyed map (same units as the tape map), the suspects, each marker's covariance, the
+        camera poses (``T_world_camera``, mm) and what could not be used.
+
+    Raises
+    ------
+    SurveyError
+        Fewer than 2 photos give a camera pose (the message says why and what photo to take),
+        bad options, or nothing ties the photos to the world.
+    MapError
+        The map cannot be read, or its distances disagree with the photos' by a factor (units).
+    ImageError
+        A photo cannot be read.
+    CameraError
+        The camera does not fit a photo.
+
+    Warns
+    -----
+    FidlearnWarning
+        For each marker seen but not placed (not in the map and in only one photo), saying what to take.
+    """
+    tape, camera, sigma_mm, fixed = _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
+    photos = _read_photos(images, tape, camera, progress)
+    check_units(photos, tape)
+    placed, unplaced = initial_values(photos, tape)
+    cams = _usable(photos)
+    for reason in unplaced.values():
+        warnings.warn(reason, FidlearnWarning, stacklevel=2)
+    seen = {i for ph in cams for i in ph.corners if i in placed}
+    free = sorted(seen - set(fixed))
+    slots = free + [i for i in fixed if i in seen]
+    if math.isinf(sigma_mm) and len(slots) == len(free):
+        raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
+    opts = {
+        "marker_size_mm": tape.marker_size_mm,
+        "sigma_px": corner_sigma_px or FIRST_SIGMA_PX,
+        "sigma_mm": sigma_mm,
+        "sigma_rot_rad": sigma_mm / tape.marker_size_mm,
+    }
+    priors = {} if math.isinf(sigma_mm) else {i: placed[i] for i in free if i in tape}
+    problem, x, C, tests, dropped = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None)
+    return _result(tape, photos, cams, slots, placed, problem, x, C, tests, dropped, unplaced, fixed)
+
+
+def _usable(photos: list) -> list:
+    cams = [ph for ph in photos if ph.T_world_camera is not None]
+    if len(cams) < MIN_PHOTOS:
+        why = "; ".join(f"{ph.label}: {ph.reason}" for ph in photos if ph.T_world_camera is None)
+        raise SurveyError(
+            f"only {len(cams)} of {len(photos)} photos give a camera pose, a survey needs {MIN_PHOTOS}: {why}"
+        )
+    if any(not np.array_equal(ph.camera.K, cams[0].camera.K) for ph in cams):
+        raise SurveyError("the photos have different sizes; survey with photos from one camera at one resolution")
+    return cams
+
+
+def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool):
+    """Robust pass, corner noise, then plain passes until the suspect test names no new marker.
+
+    Suspects are named one at a time, the worst first (a marker far off can make its neighbours
+    look wrong until it is let go), and only among markers seen in two photos or more: one photo
+    cannot dispute the tape (a lone marker's pose may flip), it asks for another photo.
+    """
+    problem = build_problem(cams, slots, n_free, placed, priors, opts)
+    seen_twice = {i for k, i in enumerate(slots) if len(set(problem.obs_cam[problem.obs_marker == k])) >= 2}
+    x = fit(problem, np.zeros(problem.n_params), robust=True)
+    if estimate_sigma:
+        opts = {**opts, "sigma_px": corner_sigma(problem, x, gauge_free=False)}
+    dropped: set[int] = set()
+    threshold = suspect_threshold()
+    for _ in range(MAX_SUSPECTS + 1):
+        keep = {i: v for i, v in priors.items() if i not in dropped}
+        problem = build_problem(cams, slots, n_free, placed, keep, opts)
+        x = fit(problem, x, robust=False)
+        C = covariance(problem, x)
+        tests = {
+            i: tape_test(problem, x, C, k, priors[i], i in keep) for k, i in enumerate(slots[:n_free]) if i in priors
+        }
+        new = {i: s for i, (_, s) in tests.items() if s**2 > threshold and i in seen_twice and i not in dropped}
+        if not new or len(dropped) == MAX_SUSPECTS:
+            break
+        dropped.add(max(new, key=new.get))
+    return problem, x, C, tests, dropped
+
+
+def _result(tape, photos, cams, slots, placed, problem, x, C, tests, dropped, unplaced, fixed) -> Survey:
+    R_cam, t_cam, R_mark, p_mark = problem.poses(x)
+    placements = dict(tape.placements)
+    cov, std = {}, {}
+    for k, i in enumerate(slots[: problem.n_free]):
+        rpy = tuple(float(a) for a in frames.rpy_deg_from_rotation(R_mark[k]))
+        placements[i] = MarkerPlacement(i, tuple(float(v) for v in p_mark[k]), rpy)
+        cov[i] = marker_block(problem, C, k)
+        std[i] = np.sqrt(np.maximum(np.diag(cov[i])[3:], 0.0))
+    for i in slots[problem.n_free :]:  # fixed: the tape's placement, exactly
+        cov[i], std[i] = np.zeros((6, 6)), np.zeros(3)
+    s_mm, s_rot = problem.sigma_mm, problem.sigma_rot_rad
+    unseen = tuple(i for i in tape.ids if i not in slots)
+    for i in unseen:
+        cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
+        std[i] = np.sqrt(np.diag(cov[i])[3:])
+    surveyed = MarkerMap(placements, tape.marker_size_mm, tape.dictionary, tape.units, f"survey of {tape.source}")
+    r = np.linalg.norm(problem.reprojection_px(x), axis=1)
+    poses = {}
+    for c, ph in enumerate(cams):
+        poses[ph.label] = frames.invert_transform(frames.make_transform(R_cam[c], t_cam[c]))
+    suspects = sorted((Suspect(i, *tests[i]) for i in dropped), key=lambda s: -s.sigmas)
+    return Survey(
+        marker_map=surveyed,
+        tape_map=tape,
+        suspects=suspects,
+        marker_position_std_mm=dict(sorted(std.items())),
+        marker_covariance=dict(sorted(cov.items())),
+        camera_poses=poses,
+        photo_rms_px={ph.label: _rms(r[problem.obs_cam == c]) for c, ph in enumerate(cams)},
+        marker_rms_px={i: _rms(r[problem.obs_marker == k]) for k, i in enumerate(slots)},
+        unused=[(ph.label, ph.reason) for ph in photos if ph.T_world_camera is None],
+        added_ids=tuple(i for i in slots if i not in tape),
+        unseen_ids=unseen,
+        fixed_ids=fixed,
+        unplaced=unplaced,
+        corner_sigma_px=float(problem.sigma_px),
+        map_sigma_mm=float(s_mm),
+        map_sigma_deg=float(np.degrees(s_rot)),
+        photos_per_marker={i: len(set(problem.obs_cam[problem.obs_marker == k])) for k, i in enumerate(slots)},
+        tests=tests,
+    )
+
+
+def _rms(r: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")

@@ -1,0 +1,157 @@
+"""A room for surveys: markers on three walls and the floor, a walk-through of photos, and a taped map."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..camera import Camera
+from ..frames import rotation_from_rpy_deg, rpy_deg_from_rotation
+from ..markermap import MarkerMap, MarkerPlacement
+from ._checks import _check_seed
+from ._look_at import look_at
+from ._scenes import visible_markers
+
+__all__ = ["survey_room", "survey_walk", "tape_measured"]
+
+#: Room size (x into the room from the north wall, y along it, z up), mm.
+ROOM_MM = (5000.0, 4000.0, 2500.0)
+
+
+def _wall_slots() -> list[tuple[str, float, float]]:
+    north = [("north", y, z) for y, z in ((700, 1700), (1600, 1300), (2500, 1800), (3300, 1400))]
+    west = [("west", x, z) for x, z in ((900, 1500), (2000, 1900), (3100, 1300))]
+    east = [("east", x, z) for x, z in ((1000, 1800), (2200, 1350), (3300, 1700))]
+    floor = [("floor", x, y) for x, y in ((1200, 1300), (1500, 2800))]
+    return north + west + east + floor
+
+
+def _placement(i: int, wall: str, a: float, b: float) -> MarkerPlacement:
+    X, Y, _ = ROOM_MM
+    if wall == "north":
+        return MarkerPlacement(i, (0.0, a, b), (0.0, 0.0, 0.0))
+    if wall == "west":  # y = 0, facing +Y
+        return MarkerPlacement(i, (a, 0.0, b), (0.0, 0.0, 90.0))
+    if wall == "east":  # y = Y, facing -Y
+        return MarkerPlacement(i, (a, Y, b), (0.0, 0.0, -90.0))
+    return MarkerPlacement(i, (a, b, 0.0), (0.0, -90.0, 0.0))  # floor, facing up
+
+
+def survey_room(marker_size_mm: float = 160.0, dictionary: str = "ARUCO_ORIGINAL") -> MarkerMap:
+    """The true map of a 5 m x 4 m room: 12 markers, 4 on the north wall, 3 on each side wall, 2 on the floor.
+
+    Parameters
+    ----------
+    marker_size_mm : float
+        Side of each marker, mm.
+    dictionary : str
+        ArUco dictionary of the markers (ids 0-11).
+
+    Returns
+    -------
+    MarkerMap
+        In mm: the north wall is the world YZ plane (markers facing +X), the west wall y = 0
+        (facing +Y, yaw 90), the east wall y = 4000 (facing -Y, yaw -90), the floor z = 0
+        (facing up, pitch -90).
+
+    Examples
+    --------
+    >>> m = survey_room()
+    >>> len(m), m.is_coplanar()
+    (12, False)
+    """
+    pl = {i: _placement(i, *slot) for i, slot in enumerate(_wall_slots())}
+    return MarkerMap(pl, marker_size_mm, dictionary, "mm", "survey room")
+
+
+def survey_walk(
+    marker_map: MarkerMap, camera: Camera, n_photos: int = 20, seed: int = 0, min_markers: int = 3
+) -> list[np.ndarray]:
+    """Camera poses of a walk through the room, each photo showing several markers whole.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The room (e.g. :func:`survey_room`).
+    camera : Camera
+        Intrinsics and image size.
+    n_photos : int
+        How many poses.
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    min_markers : int
+        Markers each photo must show whole.
+
+    Returns
+    -------
+    list of ndarray, shape (4, 4)
+        ``T_world_camera`` (mm) of each photo: standing 1.2-1.8 m high, 1.2-4.5 m from the north
+        wall, looking midway between the marker seen least so far and another one (so that every
+        marker is photographed several times), turned up to 10 degrees about the optical axis.
+
+    Raises
+    ------
+    ValueError
+        If ``n_photos`` is not a positive whole number, or poses that see enough markers cannot be found.
+    """
+    if not isinstance(n_photos, (int, np.integer)) or n_photos < 1:
+        raise ValueError(f"n_photos must be a positive whole number, got {n_photos!r}")
+    rng = np.random.default_rng(_check_seed(seed))
+    centres = np.array([c.mean(axis=0) for c in marker_map.corners().values()])
+    X, Y, _ = ROOM_MM
+    poses: list[np.ndarray] = []
+    seen = np.zeros(len(centres))
+    for attempt in range(200 * n_photos):
+        # aim at the marker seen least so far (as a careful surveyor does), with one other
+        least = int(np.argmin(seen + rng.uniform(0, 0.5, len(seen))))
+        other = rng.choice([k for k in range(len(centres)) if k != least])
+        eye = [rng.uniform(1200, X - 500), rng.uniform(500, Y - 500), rng.uniform(1200, 1800)]
+        T = look_at(eye, (centres[least] + centres[other]) / 2, roll_deg=float(rng.uniform(-10, 10)))
+        visible = [marker_map.ids.index(i) for i in visible_markers(marker_map, camera, T, margin_px=10.0)]
+        if len(visible) >= min_markers and (least in visible or attempt % 50 == 49):
+            poses.append(T)
+            seen[visible] += 1
+            if len(poses) == n_photos:
+                return poses
+    raise ValueError(f"found only {len(poses)} poses that see {min_markers} markers; use a wider camera")
+
+
+def tape_measured(
+    true_map: MarkerMap,
+    sigma_mm: float = 20.0,
+    sigma_deg: float = 1.0,
+    moved: dict[int, tuple[float, float, float]] | None = None,
+    seed: int = 0,
+    units: str = "mm",
+) -> MarkerMap:
+    """The map a tape measure gives: each placement off by Gaussian errors, some markers moved.
+
+    Parameters
+    ----------
+    true_map : MarkerMap
+        The truth.
+    sigma_mm : float
+        Standard deviation of each coordinate of each top-left corner, mm.
+    sigma_deg : float
+        Standard deviation of each rotation error, degrees (about world X, Y, Z, on the left).
+    moved : dict of int to (float, float, float), optional
+        Markers moved after taping: the tape's placement is the truth minus this displacement (mm).
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    units : {"mm", "cm", "m", "in", "ft"}
+        The units the map says it uses when saved.
+
+    Returns
+    -------
+    MarkerMap
+        Same ids, size and dictionary.
+    """
+    rng = np.random.default_rng(_check_seed(seed))
+    moved = moved or {}
+    pl = {}
+    for i, p in true_map.placements.items():
+        dt = rng.normal(0.0, sigma_mm, 3) - np.asarray(moved.get(i, (0.0, 0.0, 0.0)), float)
+        droll, dpitch, dyaw = rng.normal(0.0, sigma_deg, 3)
+        R = rotation_from_rpy_deg(droll, dpitch, dyaw) @ p.R_world_marker
+        rpy = tuple(float(a) for a in rpy_deg_from_rotation(R))
+        pl[i] = MarkerPlacement(i, tuple(float(v) for v in np.asarray(p.translation_mm) + dt), rpy)
+    return MarkerMap(pl, true_map.marker_size_mm, true_map.dictionary, units, "tape-measured map")

@@ -1,0 +1,248 @@
+"""fidlearn.survey: the map from photos joined with the tape, checked against rooms with known answers.
+
+The photos are the true corners of a synthetic room (``fidlearn.synthetic.survey_room``) projected
+from known poses, with or without Gaussian noise; the tape maps carry known errors.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import fidlearn
+from fidlearn.detection import Detection
+from fidlearn.errors import FidlearnWarning, ImageError, MapError, SurveyError
+from fidlearn.markermap import MarkerMap
+from fidlearn.survey._problem import Problem
+from fidlearn.synthetic import survey_room, survey_walk, tape_measured, visible_markers
+
+CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001, 0.0])
+
+
+@pytest.fixture(scope="module")
+def room():
+    truth = survey_room()
+    poses = survey_walk(truth, CAM, 20, seed=1)
+    return truth, poses
+
+
+def photos(truth, poses, noise_px=0.0, seed=0, drop=()):
+    rng = np.random.default_rng(seed)
+    out = []
+    for T in poses:
+        v = visible_markers(truth, CAM, T)
+        out.append([Detection(i, c + rng.normal(0, noise_px, c.shape)) for i, c in v.items() if i not in drop])
+    return out
+
+
+def with_placements(m: MarkerMap, placements: dict, units: str | None = None) -> MarkerMap:
+    return MarkerMap(placements, m.marker_size_mm, m.dictionary, units or m.units, m.source)
+
+
+def corner_error_mm(a: MarkerMap, b: MarkerMap, ids=None) -> float:
+    ca, cb = a.corners(), b.corners()
+    return max(float(np.abs(ca[i] - cb[i]).max()) for i in ids or b.ids)
+
+
+def test_noise_free_room_is_surveyed_exactly(room):
+    truth, poses = room
+    tape = tape_measured(truth, 20.0, 2.0, seed=3)
+    tape = with_placements(tape, {**tape.placements, 0: truth.placements[0]})
+    s = fidlearn.survey(photos(truth, poses), tape, CAM, map_sigma_mm=math.inf, fixed_ids=[0])
+    assert corner_error_mm(s.marker_map, truth) < 1e-6
+    assert len(s.camera_poses) == len(poses)
+    for T_true, T in zip(poses, s.camera_poses.values()):
+        assert np.abs(T[:3, 3] - T_true[:3, 3]).max() < 1e-6
+    assert s.suspects == [] and s.unused == []
+    assert max(s.photo_rms_px.values()) < 1e-6
+
+
+def test_jacobian_matches_finite_differences(room):
+    truth, poses = room
+    tape = tape_measured(truth, 20.0, 2.0, seed=4)
+    from fidlearn.survey._solve import build_problem
+    from fidlearn.survey._survey import _read_photos, initial_values
+
+    ph = _read_photos(photos(truth, poses[:6], 0.2), tape, CAM, None)
+    placed, _ = initial_values(ph, tape)
+    ids = sorted({i for p in ph for i in p.corners})
+    opts = {"marker_size_mm": 160.0, "sigma_px": 0.3, "sigma_mm": 20.0, "sigma_rot_rad": 0.1}
+    prob: Problem = build_problem(ph, ids[1:] + ids[:1], len(ids) - 1, placed, {i: placed[i] for i in ids[2:]}, opts)
+    x = np.random.default_rng(1).normal(0, 0.02, prob.n_params)
+    J = prob.jacobian(x).toarray()
+    num = np.zeros_like(J)
+    for k in range(prob.n_params):
+        e = np.zeros_like(x)
+        e[k] = 1e-6
+        num[:, k] = (prob.residuals(x + e) - prob.residuals(x - e)) / 2e-6
+    assert np.abs(J - num).max() < 1e-4 * max(1.0, np.abs(num).max())
+
+
+def test_moved_marker_is_named_and_surveyed_back(room):
+    truth, poses = room
+    tape = tape_measured(truth, 20.0, 1.0, moved={7: (0.0, 100.0, 0.0)}, seed=5)
+    s = fidlearn.survey(photos(truth, poses, 0.1), tape, CAM, map_sigma_mm=20)
+    assert s.suspect_ids[0] == 7, s.suspects
+    assert 60 < s.suspects[0].distance_mm < 160 and s.suspects[0].sigmas > 3.4
+    # where the photos put it: within the map's overall placement (the tape's gauge, ~10 mm) of the truth
+    moved = np.subtract(s.marker_map.placements[7].translation_mm, truth.placements[7].translation_mm)
+    assert np.linalg.norm(moved) < 40
+    tape_err = np.subtract(tape.placements[7].translation_mm, truth.placements[7].translation_mm)
+    assert np.linalg.norm(tape_err) > 80
+
+
+def test_marker_missing_from_the_map_is_added_at_its_true_place(room):
+    truth, poses = room
+    tape = with_placements(truth, {i: p for i, p in truth.placements.items() if i != 5})
+    s = fidlearn.survey(photos(truth, poses, 0.1, seed=2), tape, CAM, map_sigma_mm=1.0)
+    assert s.added_ids == (5,)
+    assert corner_error_mm(s.marker_map, truth, [5]) < 3.0
+    assert np.all(s.marker_position_std_mm[5] < 3.0)
+
+
+def test_gauge_held_by_the_tape(room):
+    truth, poses = room
+    tape = tape_measured(truth, 20.0, 0.0, seed=6)
+    s = fidlearn.survey(photos(truth, poses), tape, CAM, map_sigma_mm=20)
+    # noise-free photos fix the shape; the tape decides where it sits: the mean top-left corner
+    got = np.array([s.marker_map.placements[i].translation_mm for i in truth.ids])
+    taped = np.array([tape.placements[i].translation_mm for i in truth.ids])
+    true = np.array([truth.placements[i].translation_mm for i in truth.ids])
+    assert np.linalg.norm((got - taped).mean(axis=0)) < 2.0
+    assert np.linalg.norm((true - taped).mean(axis=0)) > 5.0  # the gauge came from the tape, not from the truth
+    d_got = np.linalg.norm(got[:, None] - got[None], axis=2)
+    d_true = np.linalg.norm(true[:, None] - true[None], axis=2)
+    # the shape is the photos' (to 0.2 mm: corners are never trusted beyond 0.02 px, so the tape pulls a little)
+    assert np.abs(d_got - d_true).max() < 0.2
+
+
+def test_gauge_held_by_fixed_ids(room):
+    truth, poses = room
+    tape = tape_measured(truth, 20.0, 1.0, seed=7)
+    s = fidlearn.survey(photos(truth, poses, 0.1), tape, CAM, map_sigma_mm=20, fixed_ids=2)
+    assert s.fixed_ids == (2,)
+    assert s.marker_map.placements[2] == tape.placements[2]
+    assert np.all(s.marker_position_std_mm[2] == 0)
+    assert not np.any(s.marker_covariance[2])
+
+
+def test_survey_saves_a_map_in_its_units_with_a_note(room, tmp_path):
+    truth, poses = room
+    tape = with_placements(truth, truth.placements, units="cm")
+    s = fidlearn.survey(photos(truth, poses[:8], 0.1), tape, CAM, map_sigma_mm=10)
+    path = s.save(tmp_path / "surveyed.json")
+    d = json.loads(path.read_text())
+    assert d["units"] == "cm" and d["surveyed"]["photos_used"] == 8
+    back = MarkerMap.load(path)
+    assert corner_error_mm(back, s.marker_map) < 1e-6
+    assert s.position_ellipsoid_contains(0, truth.placements[0].translation_mm, 0.999)
+    pose = fidlearn.estimate_pose(photos(truth, poses[:1])[0], back, CAM)
+    assert np.linalg.norm(pose.position_mm - poses[0][:3, 3]) < 20
+
+
+def test_marker_seen_in_one_photo_is_named_with_what_to_take(room):
+    truth, poses = room
+    frames = photos(truth, poses)
+    k = next(n for n, f in enumerate(frames) if any(d.id == 4 for d in f))
+    frames = [f if n == k else [d for d in f if d.id != 4] for n, f in enumerate(frames)]
+    tape = with_placements(truth, {i: p for i, p in truth.placements.items() if i != 4})
+    with pytest.warns(FidlearnWarning, match="marker 4 is not in the map and is seen in only one photo"):
+        s = fidlearn.survey(frames, tape, CAM)
+    assert 4 in s.unplaced and "take another photo" in s.unplaced[4]
+    assert 4 not in s.marker_map
+
+
+def test_photo_sharing_no_marker_is_left_out_with_the_reason(room):
+    truth, poses = room
+    frames = photos(truth, poses[:5]) + [[Detection(300, [[10, 10], [60, 10], [60, 60], [10, 60]])]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FidlearnWarning)
+        s = fidlearn.survey(frames, truth, CAM)
+    assert s.unused[0][0] == "photo 5" and "shares no marker with the map" in s.unused[0][1]
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        ({"images": "a.png"}, SurveyError, "images must be a list of photos"),
+        ({"images": "one"}, SurveyError, "at least 2 photos"),
+        ({"images": [1, 2]}, ImageError, r"images\[0\] is a int"),
+        ({"map_sigma_mm": -1}, SurveyError, "map_sigma_mm must be above 0"),
+        ({"map_sigma_mm": "ten"}, SurveyError, "map_sigma_mm must be a length"),
+        ({"fixed_ids": [99]}, SurveyError, "fixed_ids has marker 99, which is not in the map"),
+        ({"fixed_ids": ["a"]}, SurveyError, "fixed_ids must be marker ids"),
+        ({"map_sigma_mm": math.inf}, SurveyError, "nothing ties the photos to the world"),
+        ({"corner_sigma_px": 0}, SurveyError, "corner_sigma_px must be a number of pixels above 0"),
+    ],
+)
+def test_bad_options_say_what_to_do(room, kwargs, error, match):
+    truth, poses = room
+    args = {"images": photos(truth, poses[:3]), "map_sigma_mm": 10.0}
+    if kwargs.get("images") == "one":
+        kwargs = {"images": photos(truth, poses[:1])}
+    args.update(kwargs)
+    images = args.pop("images")
+    with pytest.raises(error, match=match):
+        fidlearn.survey(images, truth, CAM, **args)
+
+
+def test_too_few_located_photos(room):
+    truth, poses = room
+    frames = photos(truth, poses[:1]) + [[Detection(300, [[10, 10], [60, 10], [60, 60], [10, 60]])]]
+    with pytest.raises(SurveyError, match=r"only 1 of 2 photos give a camera pose.*photo 1: shares no marker"):
+        fidlearn.survey(frames, truth, CAM)
+
+
+@pytest.mark.parametrize("units, factor, guess", [("mm", 25.4, "in"), ("m", 1 / 1000, "mm")])
+def test_map_in_the_wrong_units_is_refused(room, units, factor, guess):
+    truth, poses = room
+    # the numbers were written in `guess` but the file says `units`
+    scale = fidlearn.markermap.UNITS_TO_MM
+    pl = {
+        i: fidlearn.MarkerPlacement(i, tuple(v / scale[guess] * scale[units] for v in p.translation_mm), p.rotation_deg)
+        for i, p in truth.placements.items()
+    }
+    wrong = with_placements(truth, pl, units=units)
+    with pytest.raises(MapError, match=rf"look wrong; the distances fit units '{guess}'"):
+        fidlearn.survey(photos(truth, poses[:4]), wrong, CAM)
+
+
+def test_bundled_photos_name_the_moved_marker_and_survey_the_room():
+    from fidlearn import data_path
+
+    folder = data_path("survey")
+    truth = MarkerMap.load(folder / "true_map.json")
+    tape = MarkerMap.load(folder / "tape_map.json")
+    paths = sorted(folder.glob("photo_*.jpg"))
+    s = fidlearn.survey(paths, tape, folder / "camera.json", map_sigma_mm=20)
+    assert s.suspect_ids == [7] and s.marker_map.units == "cm"
+    seen = [i for i in truth.ids if i not in s.unseen_ids]
+    got = np.concatenate([s.marker_map.corners()[i] for i in seen])
+    true = np.concatenate([truth.corners()[i] for i in seen])
+    assert rigid_rms_mm(got, true) < 1.0
+    assert len(s.camera_poses) == len(paths) and max(s.photo_rms_px.values()) < 0.5
+
+
+def rigid_rms_mm(a: np.ndarray, b: np.ndarray) -> float:
+    """RMS distance (mm) of points a from points b after the rigid motion that best lays a on b (Kabsch)."""
+    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
+    u, _, vt = np.linalg.svd(ca.T @ cb)
+    d = np.sign(np.linalg.det(u @ vt))
+    R = (u @ np.diag([1, 1, d]) @ vt).T
+    return float(np.sqrt(np.mean(np.sum((ca @ R.T - cb) ** 2, axis=1))))
+
+
+def test_a_marker_in_one_photo_is_never_named_a_suspect(room):
+    truth, poses = room
+    frames = photos(truth, poses, 0.05, seed=3)
+    k = next(n for n, f in enumerate(frames) if any(d.id == 3 for d in f))
+    frames = [f if n == k else [d for d in f if d.id != 3] for n, f in enumerate(frames)]
+    tape = tape_measured(truth, 5.0, 0.5, moved={3: (0.0, 100.0, 0.0)}, seed=8)
+    s = fidlearn.survey(frames, tape, CAM, map_sigma_mm=5)
+    assert s.photos_per_marker[3] == 1
+    assert 3 not in s.suspect_ids  # one photo cannot dispute the tape
+    assert s.tests[3][1] > 3.4  # though the test alone would have named it
