@@ -59,7 +59,7 @@ def test_student_copy_keeps_no_solution():
     key = exercises.answer_key_notebook("01")
     student = exercises.student_copy(key)
     text = "\n".join(c.source for c in student.cells)
-    assert exercises.BEGIN_SOLUTION not in text and "np.radians(q1.inputs.hfov_deg)" not in text
+    assert exercises.BEGIN_SOLUTION not in text and "np.radians(q1.inputs.dfov_deg)" not in text
     assert text.count(".answer = ...") == len(exercises.lesson("01"))
     with pytest.raises(ValueError, match="assigns no answer"):
         bad = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("### BEGIN SOLUTION\nx = 1\n### END SOLUTION")])

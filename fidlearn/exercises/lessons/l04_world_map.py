@@ -199,7 +199,8 @@ def _q2(learner: str) -> Question:
     for i, w in zip(ids, walls):
         along = float(np.round(rng.uniform(-150, 150)))
         z = float(np.round(rng.uniform(60, 200)))
-        tl = [room_cm[w], along, z] if w in ("north", "south") else [along, room_cm[w], z]
+        # along y on the north and south walls; along x, from the middle of the room, on the others
+        tl = [room_cm[w], along, z] if w in ("north", "south") else [243.84 + along, room_cm[w], z]
         measured.append({"id": i, "wall": w, "top_left_cm": tl})
     want = MarkerMap(
         {

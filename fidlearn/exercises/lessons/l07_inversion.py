@@ -317,6 +317,69 @@ def _q4(learner: str) -> Question:
     )
 
 
+#: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q5 = {
+    "title": "What is in the middle of the picture?",
+    "task": """
+        cv2.solvePnP gave `rvec` and `tvec` (mm) for a camera in the room looking at the north wall,
+        the plane x = 0. Write code that finds the point of the wall seen at the centre of the
+        picture (on the camera's optical axis): its world position, (3,) in mm.
+        """,
+    "hint": [
+        "Two things are needed in the world frame: where the camera is, and which way its optical axis points.",
+        "The axis leaves the camera's centre along the camera's own z; follow it until x reaches 0 "
+        "(a line meeting a plane: solve for how far along the line).",
+    ],
+    "solution": """
+        T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(q5.inputs.rvec, q5.inputs.tvec))
+        eye, axis = T_world_camera[:3, 3], T_world_camera[:3, 2]  # the camera's centre, its z axis in the world
+        s = -eye[0] / axis[0]                                     # how far along the axis until x = 0
+        q5.answer = eye + s * axis
+        """,
+    "level": "medium",
+}
+
+
+def _q5(learner: str) -> Question:
+    """q5: What is in the middle of the picture?"""
+    rng = _rng("07", learner, "q5")
+    Twc = _room_pose(rng)
+    rvec, tvec = frames.rvec_tvec_from_transform(frames.invert_transform(Twc))
+    rvec, tvec = np.round(rvec, 6), np.round(tvec, 2)
+    Twc = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
+
+    def hit(eye, axis):
+        return eye - eye[0] / axis[0] * axis
+
+    key = hit(Twc[:3, 3], Twc[:3, 2])
+    return Question(
+        "q5",
+        inputs={"rvec": rvec, "tvec": tvec},
+        expected=key,
+        parse=_array((3,), "the point", {(4,): "give x, y, z (3,), without the homogeneous 1"}),
+        compare=_cmp_array(1.0, " mm"),
+        wrong=[
+            (
+                lambda a: abs(a[0]) > 1.0,
+                "the point must lie on the north wall, x = 0: follow the optical axis until its x is 0",
+            ),
+            (
+                lambda a: np.linalg.norm(a) > 20000,
+                (
+                    "that point is far outside the room: the line you followed runs almost along the wall, so it "
+                    "is not the optical axis. The camera's axis in the world is the third COLUMN of "
+                    "T_world_camera's rotation, which is solvePnP's R[2, :], a ROW of R (not R[:, 2])"
+                ),
+            ),
+            (
+                lambda a: abs(tvec[0]) > 1e-6 and _close(a, hit(tvec, Twc[:3, 2]), 1.0),
+                "tvec is not where the camera is: its centre is -R.T @ tvec (lesson 07's q1)",
+            ),
+        ],
+        **_Q5,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 07 for one learner, in notebook order.
 
@@ -328,6 +391,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, q4, with their answer keys.
+        q1, q2, q3, q4, q5, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner)]
