@@ -134,7 +134,7 @@ def test_grading_a_learners_notebook(tmp_path):
     nbformat.write(nb, path)
     grade = exercises.grade_notebook(path, learner="erin")
     assert (grade.lesson, grade.learner) == ("07", "erin")
-    assert [r.status for r in grade.results] == ["Correct", "Incorrect", "Not attempted", "Not attempted"]
+    assert [r.status for r in grade.results] == ["Correct", "Incorrect"] + ["Not attempted"] * (len(ex) - 2)
     assert "extrinsic matrix" in grade.results[1].message
     assert len(grade.errors) == 1 and "ZeroDivisionError" in grade.errors[0]
-    assert str(grade).startswith(f"{path}: lesson 07, learner 'erin': 1 of 4 correct")
+    assert str(grade).startswith(f"{path}: lesson 07, learner 'erin': 1 of {len(ex)} correct")
