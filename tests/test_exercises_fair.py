@@ -216,3 +216,22 @@ def test_average_speed_mistakes(learner):
     assert "whole recording" in q.grade(d2 / (t[-1] - t[0])).message
     assert "3D path" in q.grade(d3 / (t[ok][-1] - t[ok][0])).message
     assert "m/s" in q.grade(v / 1000).message
+
+
+QUESTIONS = [(n, q.name) for n in exercises.lessons() for q in exercises.lesson(n)]
+
+
+@pytest.mark.parametrize("number,name", QUESTIONS)
+def test_no_hint_holds_the_line_that_answers(number, name):
+    q = exercises.lesson(number)[name]
+    answers = [ln.split("=", 1)[1].strip() for ln in q.solution_code.splitlines() if f"{name}.answer =" in ln]
+    for hint in q._hints:
+        assert not any(len(a) > 15 and a in hint for a in answers), (hint, answers)
+
+
+def test_most_questions_have_tiered_hints():
+    tiered = [(n, name) for n, name in QUESTIONS if len(exercises.lesson(n)[name]._hints) > 1]
+    assert len(tiered) * 2 >= len(QUESTIONS), tiered
+    for n, name in tiered:
+        hints = exercises.lesson(n)[name]._hints
+        assert len(set(hints)) == len(hints) and all(len(h) > 40 for h in hints)

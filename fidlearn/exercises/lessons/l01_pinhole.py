@@ -173,10 +173,14 @@ _Q2 = {
         z forward), in mm. Write code that projects them with the pinhole model and the intrinsic
         matrix `K` (no distortion) and gives their pixel coordinates, an (N, 2) array of (u, v).
         """,
-    "hint": (
-        "u = fx * X / Z + cx and v = fy * Y / Z + cy; in matrix form, p_h = K @ [X, Y, Z] and (u, "
-        "v) = p_h[:2] / p_h[2]."
-    ),
+    "hint": [
+        "A point twice as far away lands twice as close to the image centre: the depth divides.",
+        (
+            "Each coordinate is scaled by the focal length after dividing by the depth, then moved by the "
+            "principal point; in matrix form that is K times the point, followed by the division by its third "
+            "entry."
+        ),
+    ],
     "solution": """
         P = q2.inputs.points_camera_mm                      # (N, 3) mm, camera frame
         ph = P @ q2.inputs.K.T                              # rows of K @ p
@@ -245,7 +249,16 @@ _Q3 = {
         (a fidlearn Camera: `camera.fx`, `camera.K`). Write code that computes the distance from
         the camera to the marker along the optical axis, in millimetres.
         """,
-    "hint": "Similar triangles: side_px / fx = size_mm / Z. Convert inches to mm first (25.4 mm per inch).",
+    "hint": [
+        (
+            "Similar triangles: the marker's real size and its size on the image stand in the same ratio as two "
+            "distances from the pinhole. Which two?"
+        ),
+        (
+            "On the image side the distance is the focal length in pixels; on the world side it is the depth you "
+            "want. Convert inches to mm (25.4 mm per inch) first."
+        ),
+    ],
     "solution": """
         size_mm = q3.inputs.marker_size_in * 25.4
         q3.answer = q3.inputs.camera.fx * size_mm / q3.inputs.side_px
@@ -304,7 +317,13 @@ _Q4 = {
         that computes its horizontal and vertical fields of view in degrees, as a pair
         (hfov_deg, vfov_deg).
         """,
-    "hint": "The inverse of q1: hfov = 2 * atan((width / 2) / fx); vfov uses the height and fy. np.degrees converts.",
+    "hint": [
+        "Run q1 backwards: the same right triangle, now solved for the angle.",
+        (
+            "Half the image's width is opposite half the horizontal field of view and fx is next to it; the "
+            "vertical one uses the height and fy. The answer is asked in degrees."
+        ),
+    ],
     "solution": """
         K = q4.inputs.K
         w, h = q4.inputs.image_size

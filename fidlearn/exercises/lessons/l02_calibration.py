@@ -412,11 +412,10 @@ _Q5 = {
         camera from the pictures (fidlearn.calibration.calibrate_checkerboard, or
         cv2.findChessboardCorners + cv2.calibrateCamera) and gives K (3, 3).
         """,
-    "hint": (
-        "calibration = fidlearn.calibration.calibrate_checkerboard(images, pattern_size, square_size_mm); "
-        "calibration.camera.K. pattern_size counts INNER corners: a board of 8 x 6 squares has 7 "
-        "x 5."
-    ),
+    "hint": [
+        "The task names the function: read what its result holds (the calibrated camera, and the camera's K).",
+        "pattern_size counts INNER corners: a board of 8 x 6 squares has 7 x 5.",
+    ],
     "solution": """
         from fidlearn.calibration import calibrate_checkerboard
         calibration = calibrate_checkerboard(q5.inputs.images, q5.inputs.pattern_size, q5.inputs.square_size_mm)

@@ -50,10 +50,13 @@ _Q1 = {
         T_world_robot, a 4x4 homogeneous transform (you may use frames.rot_x / rot_y / rot_z,
         which take radians, or write the matrices yourself).
         """,
-    "hint": (
-        "R = frames.rot_z(yaw) @ frames.rot_y(pitch) @ frames.rot_x(roll) with the angles in radians; "
-        "then frames.make_transform(R, position)."
-    ),
+    "hint": [
+        "The order of the three turns matters, and so does the unit the rotation functions expect.",
+        (
+            "R = Rz(yaw) Ry(pitch) Rx(roll): yaw is applied last (outermost). frames.rot_x/y/z take radians; the "
+            "pose puts R and the position into one 4x4."
+        ),
+    ],
     "solution": """
         roll, pitch, yaw = np.radians(q1.inputs.rpy_deg)
         R = frames.rot_z(yaw) @ frames.rot_y(pitch) @ frames.rot_x(roll)
@@ -122,10 +125,13 @@ _Q2 = {
         x right, y down, z forward): an (N, 3) array in mm. Their z (depth) must come out positive:
         the camera sees them.
         """,
-    "hint": (
-        "p_camera = T_camera_world @ p_world, and T_camera_world is the inverse of T_world_camera "
-        "(frames.invert_transform). frames.transform_points applies a 4x4 to rows of points."
-    ),
+    "hint": [
+        "You have the camera's pose in the world; the points must go the other way, from world to camera.",
+        (
+            "Turning a transform round (its inverse) swaps the names: T_camera_world from T_world_camera. Apply "
+            "it to each point with a homogeneous 1 appended (frames.transform_points does rows of points)."
+        ),
+    ],
     "solution": """
         T_camera_world = frames.invert_transform(q2.inputs.T_world_camera)
         q2.answer = frames.transform_points(T_camera_world, q2.inputs.points_world_mm)

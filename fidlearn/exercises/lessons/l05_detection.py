@@ -220,7 +220,16 @@ _Q3 = {
         image's axes (x right, y DOWN): 0 means upright, 90 means turned a quarter turn clockwise
         as you look at the picture.
         """,
-    "hint": "c = the detection's corners; dx, dy = c[1] - c[0]; np.degrees(np.arctan2(dy, dx)).",
+    "hint": [
+        (
+            "The marker's top edge runs from its TL corner to its TR corner; its angle in the image is the angle "
+            "of that edge."
+        ),
+        (
+            "The angle of a vector (dx, dy) is atan2(dy, dx); in the image y points DOWN, so a positive angle "
+            "turns clockwise on the screen. Give degrees."
+        ),
+    ],
     "solution": """
         from fidlearn.detection import detect_markers
         detections = detect_markers(q3.inputs.image, dictionary=q3.inputs.dictionary)

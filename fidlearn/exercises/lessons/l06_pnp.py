@@ -272,10 +272,13 @@ _Q3 = {
         computes the RMS reprojection error in pixels: the square root of the mean of the SQUARED
         distances between reprojected and detected corners.
         """,
-    "hint": (
-        "proj, _ = cv2.projectPoints(object_points, rvec, tvec, K, dist); proj.reshape(-1, 2) - image_points "
-        "gives the residuals; RMS = sqrt(mean(dx^2 + dy^2))."
-    ),
+    "hint": [
+        "Put the corners back through the camera with the pose and compare them with the detected ones.",
+        (
+            "cv2.projectPoints reprojects (with K and dist); the error of one corner is the length of its (dx, "
+            "dy); RMS is the root of the mean of those lengths squared."
+        ),
+    ],
     "solution": """
         cam = q3.inputs.camera
         proj, _ = cv2.projectPoints(q3.inputs.object_points, q3.inputs.rvec, q3.inputs.tvec, cam.K, cam.dist)

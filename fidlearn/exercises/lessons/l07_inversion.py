@@ -118,7 +118,13 @@ _Q2 = {
         T_world_camera (4x4, mm): the transform that maps camera coordinates into world
         coordinates. Its last column holds the camera's position.
         """,
-    "hint": "Invert T_camera_world in closed form: [[R^T, -R^T t], [0, 0, 0, 1]] (frames.invert_transform does it).",
+    "hint": [
+        "solvePnP's pair is T_camera_world; the camera's pose is the same transform read the other way.",
+        (
+            "Inverting a rigid transform needs no general matrix inverse: the rotation's inverse is its "
+            "transpose, and the translation must be carried through that rotation too."
+        ),
+    ],
     "solution": """
         R, _ = cv2.Rodrigues(np.asarray(q2.inputs.rvec, dtype=float))
         t = np.ravel(q2.inputs.tvec)
@@ -168,10 +174,14 @@ _Q3 = {
         towards +Y, atan2(dy, dx)) and its tilt in degrees below the horizon (positive when
         looking down). Answer (heading_deg, tilt_down_deg).
         """,
-    "hint": (
-        "R_world_camera = R^T (R from cv2.Rodrigues(rvec)); its third column is the optical axis "
-        "d in the world. heading = atan2(d_y, d_x), tilt down = asin(-d_z)."
-    ),
+    "hint": [
+        "First find which way the camera looks in the WORLD frame; then turn that direction into two angles.",
+        (
+            "The optical axis is the camera's own z axis: a column of the camera's rotation in the world (the "
+            "inverse of solvePnP's). Heading is its direction on the floor, tilt how far it dips below the "
+            "horizon."
+        ),
+    ],
     "solution": """
         R, _ = cv2.Rodrigues(np.asarray(q3.inputs.rvec, dtype=float))
         d = R.T[:, 2]                                    # camera +z in world coordinates
@@ -250,10 +260,13 @@ _Q4 = {
         describe T_camera_marker. The marker's pose in the world is `T_world_marker`. Write code that
         computes the camera's position in the WORLD, (3,) mm.
         """,
-    "hint": (
-        "T_camera_marker = frames.transform_from_rvec_tvec(rvec, tvec); T_world_camera = T_world_marker "
-        "@ invert_transform(T_camera_marker); its last column is the position."
-    ),
+    "hint": [
+        "One marker is enough: the detection gives the marker in the camera, the map gives the marker in the world.",
+        (
+            "Write the frames under each factor and chain them so the inner names cancel: you need the "
+            "marker-to-camera transform the other way round."
+        ),
+    ],
     "solution": """
         T_camera_marker = frames.transform_from_rvec_tvec(q4.inputs.rvec, q4.inputs.tvec)
         T_world_camera = q4.inputs.T_world_marker @ frames.invert_transform(T_camera_marker)

@@ -75,7 +75,16 @@ _Q1 = {
         each distance, an array like `distances_mm`, to first order (dZ = |dZ/dw| * side_error_px).
         How does it grow when the distance doubles?
         """,
-    "hint": "w = fx * s / Z, so dZ/dw = -fx * s / w^2 = -Z^2 / (fx * s). Multiply by side_error_px.",
+    "hint": [
+        (
+            "The marker's width in pixels shrinks as it moves away: how fast does the depth change when that "
+            "width is off by a little?"
+        ),
+        (
+            "Differentiate Z = fx s / w with respect to w, then write the result with Z in place of w; the size "
+            "of the error is that slope times side_error_px."
+        ),
+    ],
     "solution": """
         Z = np.asarray(q1.inputs.distances_mm, dtype=float)
         q1.answer = Z ** 2 / (q1.inputs.camera.fx * q1.inputs.marker_size_mm) * q1.inputs.side_error_px

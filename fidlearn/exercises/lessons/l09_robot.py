@@ -43,10 +43,13 @@ _Q1 = {
         code that localizes every frame: detect, estimate the pose, and collect the camera's
         position in the world. Answer an (N, 3) array, mm, one row per frame in order.
         """,
-    "hint": (
-        "for image in images: pose = estimate_pose(detect_markers(image, marker_map.dictionary), "
-        "marker_map, camera); keep pose.position_mm."
-    ),
+    "hint": [
+        "Each frame is a lesson-07 problem on its own: detect, then localize.",
+        (
+            "fidlearn.detection.detect_markers and fidlearn.pose.estimate_pose do each step; keep the camera "
+            "position of each frame, in order."
+        ),
+    ],
     "look": (
         "from fidlearn import plotting\nfirst_middle_last = [0, len(q1.inputs.images) // 2, len(q1.inputs.images) "
         '- 1]\nplotting.show_images([q1.inputs.images[i] for i in first_middle_last], titles=[f"frame '
@@ -271,10 +274,13 @@ _Q3 = {
         the floor: the length of the path through the valid positions in order, using x and y
         only, in mm.
         """,
-    "hint": (
-        "Keep the rows without NaN (~np.isnan(p).any(axis=1)), take np.diff of their x, y and sum "
-        "the step lengths (np.linalg.norm along axis 1)."
-    ),
+    "hint": [
+        "A path's length is the sum of its steps; a lost frame is not a step.",
+        (
+            "Keep only the valid rows, take the differences of consecutive ones on the floor (x and y), and add "
+            "up their lengths."
+        ),
+    ],
     "solution": """
         p = np.asarray(q3.inputs.positions_mm, dtype=float)
         valid = p[~np.isnan(p).any(axis=1)]
