@@ -17,6 +17,27 @@ from pathlib import Path
 from .errors import GradingError
 
 
+def fold_learner(learner) -> str:
+    """A learner id folded to the form every variant is seeded with: blanks trimmed and merged, lower case.
+
+    Parameters
+    ----------
+    learner : object
+        The id as given (``None`` counts as ``""``, the class's shared variant).
+
+    Returns
+    -------
+    str
+        ``"  Alice   Smith "`` -> ``"alice smith"``; ``""`` stays ``""``.
+
+    Examples
+    --------
+    >>> fold_learner("Alice "), fold_learner(None)
+    ('alice', '')
+    """
+    return " ".join(str(learner or "").split()).lower()
+
+
 def normalize_learner(learner: str) -> str:
     """A learner id as graded: trimmed and lower-case ("Alice " and "alice" are one learner).
 
@@ -42,7 +63,7 @@ def normalize_learner(learner: str) -> str:
     """
     if not isinstance(learner, str) or not learner.strip():
         raise GradingError(f"a learner id must be non-empty text, got {learner!r}")
-    text = " ".join(learner.split()).lower()
+    text = fold_learner(learner)
     if len(text) > 200 or any(ord(c) < 32 for c in text):
         raise GradingError(f"learner id {learner[:40]!r} is too long or holds control characters")
     return text

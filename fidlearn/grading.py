@@ -1,8 +1,9 @@
 """Grading a class: the answer key never enters a learner's kernel.
 
-Self-study (``q.check()``, ``q.hint()``, ``q.solution()``) builds each question with its answer in
-the learner's own Python, which is what practice needs and what a grade must not rely on: a
-notebook could read ``q._expected``, patch the checker, print a fake result. Graded mode splits
+Self-study (``q.check()``, ``q.hint()``, ``q.solution()``) checks answers in the learner's own
+Python (the question object keeps no key; each check builds it afresh), which is what practice
+needs and what a grade must not rely on: a notebook could rebuild the key from the open library,
+patch the checker, print a fake result. Graded mode splits
 the two sides:
 
 * **release** (:func:`release`): the instructor's process builds each learner's questions from a

@@ -84,7 +84,7 @@ CHEATS = {
     "forges the answers file": (
         STUDENT,
         "import json, os\n"
-        "json.dump({'answers': {'q1': [[1, 0, 0, 0]] * 4, 'q2': 1, 'q3': 2, 'q4': 3}}, "
+        "json.dump({'answers': {'q1': [[1, 0, 0, 0]] * 4, 'q2': 1, 'q3': 2, 'q4': 3, 'q5': 4}}, "
         "open('fidlearn_answers.json', 'w'))\nos._exit(0)\n",
     ),
     "answers with a function": (STUDENT, "for q in ex:\n    q.answer = print\n"),
@@ -152,7 +152,7 @@ def test_honest_notebooks_keep_their_marks(batch):
     for who in ("Honest.One", "honest.two"):
         g = batch["grades"][who]
         assert g.learner == who.lower()
-        assert g.score == len(g.results) == 4, (g.results, g.problem)
+        assert g.score == len(g.results) == len(exercises.lesson("03")), (g.results, g.problem)
 
 
 def test_no_submission_was_changed_and_the_csv_has_every_row(batch):
@@ -163,7 +163,9 @@ def test_no_submission_was_changed_and_the_csv_has_every_row(batch):
         "honest.two",
     }
     scores = {r["learner"]: int(r["score"]) for r in rows}
-    assert scores["honest.one"] == 4 and all(v == 0 for k, v in scores.items() if k.startswith("cheater"))
+    assert scores["honest.one"] == len(exercises.lesson("03")) and all(
+        v == 0 for k, v in scores.items() if k.startswith("cheater")
+    )
 
 
 def test_the_learner_kernel_never_holds_the_key(tmp_path, monkeypatch):

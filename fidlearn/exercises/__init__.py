@@ -40,7 +40,7 @@ Examples
 >>> q1.check()  # doctest: +ELLIPSIS
 Not attempted (q1): ...
 >>> w, h = q1.inputs.image_size
->>> f = (w / 2) / math.tan(math.radians(q1.inputs.hfov_deg) / 2)
+>>> f = (math.hypot(w, h) / 2) / math.tan(math.radians(q1.inputs.dfov_deg) / 2)
 >>> q1.check([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])  # doctest: +ELLIPSIS
 Correct (q1): ...
 """

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import contextvars
 import copy
-import os
 import textwrap
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -13,7 +11,9 @@ from typing import Any
 import numpy as np
 
 from ..detection import Detection
-from ..errors import StrictModeError
+from ._strict import STRICT_STACK as STRICT_STACK
+from ._strict import strict as strict
+from ._strict import strict_mode
 
 CORRECT = "Correct"
 
@@ -42,120 +42,6 @@ END_SOLUTION = "### END SOLUTION"
 
 
 _MISSING = object()
-
-
-_STRICT_WORDS = {
-    "": None,
-    "0": None,
-    "false": None,
-    "off": None,
-    "no": None,
-    "1": "correct",
-    "true": "correct",
-    "on": "correct",
-    "yes": "correct",
-    "correct": "correct",
-    "blank": "blank",
-    "not attempted": "blank",
-    "not-attempted": "blank",
-    "not_attempted": "blank",
-}
-
-
-def _parse_strict(value: Any) -> str | None:
-    if value is True:
-        return "correct"
-    if value is False or value is None:
-        return None
-    key = str(value).strip().lower()
-    if key not in _STRICT_WORDS:
-        raise StrictModeError(
-            f"strict mode {value!r} is unknown; use True or 'correct' (every check must be Correct), "
-            "'blank' (every check must be Not attempted) or False"
-        )
-    return _STRICT_WORDS[key]
-
-
-#: The strict modes switched on by :class:`strict` in this context, innermost last (a tuple, so a
-#: copied context never shares it). Empty: the environment variable ``FIDLEARN_STRICT`` decides.
-STRICT_STACK: contextvars.ContextVar[tuple] = contextvars.ContextVar("fidlearn_exercises_strict", default=())
-
-
-def strict_mode() -> str | None:
-    """The strict mode in force now: ``"correct"``, ``"blank"`` or ``None`` (off).
-
-    Returns
-    -------
-    str or None
-        The innermost :class:`strict` of this context, else what ``FIDLEARN_STRICT`` says
-        (an unreadable value counts as ``"correct"``).
-
-    Examples
-    --------
-    >>> with strict("blank"):
-    ...     strict_mode()
-    'blank'
-    """
-    stack = STRICT_STACK.get()
-    if stack:
-        return stack[-1]
-    try:
-        return _parse_strict(os.environ.get("FIDLEARN_STRICT", ""))
-    except ValueError:
-        return "correct"
-
-
-class strict:
-    """Strict mode for tests and graders: a check that is not as expected raises AssertionError.
-
-    ``strict()`` or ``strict(True)`` demands ``Correct``; ``strict("blank")``
-    demands ``Not attempted`` (an untouched student copy); ``strict(False)``
-    switches strict mode off. Use it as a context manager, or call it once
-    (then it stays on until :meth:`restore`). Without either, the environment
-    variable ``FIDLEARN_STRICT`` (``1`` or ``blank``) decides. The modes live in the
-    context variable :data:`STRICT_STACK`, so a thread or task started elsewhere keeps its own.
-
-    Parameters
-    ----------
-    mode : bool or str, default True
-        ``True``/``"correct"``, ``"blank"``, or ``False``/``None`` (off); the words of
-        ``FIDLEARN_STRICT`` (``"1"``, ``"on"``, ``"not attempted"``...) are accepted too.
-
-    Raises
-    ------
-    ValueError
-        For a mode that is none of these.
-
-    Examples
-    --------
-    >>> with strict():
-    ...     strict_mode()
-    'correct'
-    >>> STRICT_STACK.get()  # left: FIDLEARN_STRICT decides again
-    ()
-    """
-
-    def __init__(self, mode: Any = True):
-        self.mode = _parse_strict(mode)
-        STRICT_STACK.set((*STRICT_STACK.get(), self.mode))
-        self._active = True
-
-    def restore(self) -> None:
-        """Undo this strict() call: remove the latest switch to this mode from the context."""
-        if self._active:
-            stack = list(STRICT_STACK.get())
-            for i in range(len(stack) - 1, -1, -1):  # the latest push of this mode
-                if stack[i] == self.mode:
-                    del stack[i]
-                    break
-            STRICT_STACK.set(tuple(stack))
-            self._active = False
-
-    def __enter__(self) -> strict:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.restore()
 
 
 @dataclass(frozen=True)
@@ -319,8 +205,11 @@ class Question:
         Recognised mistakes: the first detector that is true for a wrong answer gives the message.
     notes : sequence of (callable, str or callable)
         Remarks on a right answer, the same way.
-    hint, solution : str
-        A nudge, and code that solves it in the notebook (dedented).
+    hint : str or sequence of str
+        A nudge; a sequence gives tiered hints, shown one more per :meth:`hint` call: first a
+        nudge, then the idea, never the answer.
+    solution : str
+        Code that solves it in the notebook (dedented).
     level : str
         ``"easy"``, ``"medium"`` or ``"hard"``.
     look : str
@@ -347,7 +236,7 @@ class Question:
         compare: Callable[[Any, Any], str | None],
         wrong: Sequence[tuple[Detector, Any]] = (),
         notes: Sequence[tuple[Detector, Any]] = (),
-        hint: str = "",
+        hint: str | Sequence[str] = "",
         solution: str = "",
         level: str = "",
         look: str = "",
@@ -362,12 +251,15 @@ class Question:
         self._compare = compare
         self._wrong = list(wrong)
         self._notes = list(notes)
-        self._hint = textwrap.dedent(hint).strip()
+        self._hints = [textwrap.dedent(h).strip() for h in ([hint] if isinstance(hint, str) else hint)]
+        self._hints_shown = 0
         self.solution_code = textwrap.dedent(solution).strip()
         self.level = level
         #: Code that shows the inputs as a picture in the notebook ("" for none).
         self.look_code = textwrap.dedent(look).strip()
         self.answer: Any = ...
+        #: In a learner's copy: rebuilds the question with its key for each check (see :meth:`_fresh`).
+        self._judge: Callable[[], Question] | None = None
 
     # -- grading ------------------------------------------------------------------
     def grade(self, answer: Any = _MISSING) -> Result:
@@ -389,6 +281,8 @@ class Question:
         """
         if answer is _MISSING:
             answer = self.answer
+        if self._judge is not None:  # a learner's copy: the key is built here, for this check only
+            return self._judge().grade(answer)
         if answer is None or answer is Ellipsis:
             return Result(
                 self.name,
@@ -454,8 +348,19 @@ class Question:
             raise AssertionError(f"expected a blank answer, got: {result.line}")
 
     def hint(self) -> None:
-        """Print a hint: ``Hint (q1): ...``."""
-        print(f"Hint ({self.name}): {self._hint}")
+        """Print a hint: ``Hint (q1): ...``; tiered hints one more per call (``Hint (q1, 1 of 2): ...``)."""
+        n = len(self._hints)
+        k = min(self._hints_shown, n - 1)
+        self._hints_shown += 1
+        if n == 1:
+            print(f"Hint ({self.name}): {self._hints[0]}")
+            return
+        more = (
+            f" [{self.name}.hint() again gives the next hint]"
+            if k < n - 1
+            else " [that was the last hint: the rest is yours to work out]"
+        )
+        print(f"Hint ({self.name}, {k + 1} of {n}): {self._hints[k]}{more}")
 
     def solution(self) -> None:
         """Print one way to solve it: code that, run in the notebook, makes ``check()`` say Correct.
@@ -472,12 +377,22 @@ class Question:
         """Print the task and the inputs."""
         print(f"{self.name}. {self.title}\n\n{self.task}\n\n{self.name}.inputs = {self.inputs!r}")
 
-    def _fresh(self) -> Question:
-        """A copy with its own inputs (a learner may change them) and no answer yet."""
+    def _fresh(self, judge: Callable[[], Question] | None = None) -> Question:
+        """A copy with its own inputs (a learner may change them) and no answer yet.
+
+        With ``judge`` (a function that builds this question again, key included), the copy keeps
+        no answer key, no comparison and no list of mistakes (they hold the key): each check asks
+        ``judge`` for them, so the key is never an attribute of the learner's question.
+        """
         new = copy.copy(self)
         new.inputs = copy.deepcopy(self.inputs)
         new.data = new.inputs
         new.answer = ...
+        new._hints_shown = 0
+        if judge is not None:
+            new._judge = judge
+            new._expected = new._parse = new._compare = None
+            new._wrong, new._notes = [], []
         return new
 
     def __repr__(self) -> str:

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from .._learners import fold_learner
 from ..errors import ExerciseError
 from ._engine import _NO_KEY, Inputs, Question, Result
 from ._scenery import _SEED
@@ -42,6 +43,10 @@ class Lesson:
         The registered lesson (number, topic, title, introduction, builder).
     learner : str
         The learner's id ("" for the class's shared variant).
+    graded : bool
+        A graded lesson's shell: its questions keep their parsers (to record an answer's form)
+        and get no key. Otherwise each question is checked against a copy built for the check, so
+        the learner's question object holds no answer key.
 
     Attributes
     ----------
@@ -50,13 +55,16 @@ class Lesson:
         In notebook order; each is also an attribute (``ex.q1``).
     """
 
-    def __init__(self, info: _LessonInfo, learner: str):
+    def __init__(self, info: _LessonInfo, learner: str, graded: bool = False):
         self.number = info.number
         self.topic = info.topic
         self.title = info.title
         self.intro = info.intro
         self.learner = learner
-        self.questions: list[Question] = [q._fresh() for q in _built(info.number, learner)]
+        self.questions: list[Question] = [
+            q._fresh() if graded else q._fresh(functools.partial(_judge, info.number, learner, q.name))
+            for q in _built(info.number, learner)
+        ]
         for q in self.questions:
             setattr(self, q.name, q)
 
@@ -109,6 +117,11 @@ def _built(number: str, learner: str) -> tuple:
     return tuple(_LESSONS[number].build(learner))
 
 
+def _judge(number: str, learner: str, name: str) -> Question:
+    """Question ``name`` of a lesson with its answer key: what a learner's copy is checked with."""
+    return next(q for q in _built(number, learner) if q.name == name)
+
+
 def lessons() -> dict[str, str]:
     """The available lessons: ``{"01": "pinhole", ...}`` (number to topic).
 
@@ -137,8 +150,9 @@ def lesson(number: str | int, learner: str | None = None) -> Lesson:
         The lesson, ``"03"`` or ``3``.
     learner : str, optional
         Any id (a name, an e-mail, a student number): it seeds the learner's
-        own numbers. ``None`` or ``""`` takes ``$FIDLEARN_LEARNER``, else the
-        variant the whole class shares.
+        own numbers. It is folded once, here: trimmed, inner blanks merged, lower case, so
+        ``"Alice "`` and ``"alice"`` are one learner. ``None`` or ``""`` takes
+        ``$FIDLEARN_LEARNER``, else the variant the whole class shares.
 
     Returns
     -------
@@ -154,9 +168,9 @@ def lesson(number: str | int, learner: str | None = None) -> Lesson:
     --------
     >>> ex = lesson("01", learner="alice")
     >>> [q.name for q in ex]
-    ['q1', 'q2', 'q3', 'q4']
+    ['q1', 'q2', 'q3', 'q4', 'q5']
     >>> ex.q1.title
-    'K from a field of view'
+    'K from a diagonal field of view'
     """
     key = lesson_number(number)
     graded = Path(INPUTS_FILE)
@@ -164,7 +178,7 @@ def lesson(number: str | int, learner: str | None = None) -> Lesson:
         return _graded_lesson(key, graded)
     if not learner:
         learner = os.environ.get("FIDLEARN_LEARNER", "")
-    return Lesson(_LESSONS[key], str(learner).strip())
+    return Lesson(_LESSONS[key], fold_learner(learner))
 
 
 #: The file a graded lesson's inputs come in (written by ``fidlearn release``).
@@ -208,7 +222,7 @@ def build_questions(number: str, learner: str, seed: Callable[[str], int] | None
     number : str or int
         The lesson.
     learner : str
-        The learner's id.
+        The learner's id (folded as in :func:`lesson`: ``"Alice "`` is ``"alice"``).
     seed : callable, optional
         ``seed(question_name) -> int``: seeds every question's generator instead of the learner's id
         (graded mode: :func:`fidlearn.grading.variant_seed` of the class secret). It holds only while
@@ -225,7 +239,7 @@ def build_questions(number: str, learner: str, seed: Callable[[str], int] | None
     """
     token = _SEED.set(seed)
     try:
-        return list(_LESSONS[lesson_number(number)].build(learner))
+        return list(_LESSONS[lesson_number(number)].build(fold_learner(learner)))
     finally:
         _SEED.reset(token)
 
@@ -249,7 +263,7 @@ def _graded_lesson(key: str, path: Path) -> Lesson:
             f"this folder holds the inputs of lesson {lesson_of_file}, not {key}: "
             f"use exercises.lesson({lesson_of_file!r})"
         )
-    shell = Lesson(_LESSONS[key], "graded")
+    shell = Lesson(_LESSONS[key], "graded", graded=True)
     shell.learner = learner
     for q in shell.questions:
         q.inputs = Inputs(**questions.get(q.name, {}))

@@ -42,19 +42,29 @@ _ROOM_FT = {
 }  # wall positions: x for north/south, y for west/east
 
 
+#: The room every lesson's scenery stands in, mm: (x_min, y_min, z_min), (x_max, y_max, z_max).
+ROOM_MM = (
+    np.array([_ROOM_FT["north"] * 304.8, _ROOM_FT["west"] * 304.8, 0.0]),
+    np.array([_ROOM_FT["south"] * 304.8, _ROOM_FT["east"] * 304.8, 2700.0]),
+)
+
+
 def _wall_translation(
     rng: np.random.Generator, wall: str, step: float, span: tuple, height: tuple, per_ft: float
 ) -> list:
     """A top-left corner on a wall of the room: along the wall within ``span``, at a height in ``height``.
 
     ``step`` rounds the values; ``per_ft`` is the unit of the result per foot
-    (1 for feet, 304.8 for mm), the room's walls being given in feet.
+    (1 for feet, 304.8 for mm), the room's walls being given in feet. ``span`` is measured from
+    the middle of the wall, so on the west and east walls (which run along x, from the north wall
+    at x = 0 to the south wall) it is centred on the middle of the room, never behind a wall.
     """
     along = float(np.round(rng.uniform(*span) / step) * step)
     z = float(np.round(rng.uniform(*height) / step) * step)
     if wall in ("north", "south"):
         return [_ROOM_FT[wall] * per_ft, along, z]
-    return [along, _ROOM_FT[wall] * per_ft, z]
+    middle = (_ROOM_FT["north"] + _ROOM_FT["south"]) / 2 * per_ft
+    return [float(np.round((middle + along) / step) * step), _ROOM_FT[wall] * per_ft, z]
 
 
 def _wall_map(
@@ -83,3 +93,29 @@ def _noisy_detections(
         px = camera.project(marker_map.marker_corners(mid), T_world_camera)
         dets.append(Detection(mid, np.round(px + rng.normal(0, noise_px, px.shape), 3)))
     return dets
+
+
+def _sees_all(camera: Camera, marker_map: MarkerMap, T_world_camera: np.ndarray, margin_px: float = 10.0) -> bool:
+    """Whether every marker of the map is in front of the camera, faces it, and lies inside its image."""
+    corners = np.concatenate([marker_map.marker_corners(i) for i in marker_map.ids])
+    if not np.all(camera.points_in_front(corners, T_world_camera)):
+        return False
+    eye = T_world_camera[:3, 3]
+    if any(marker_map.normal(i) @ (eye - marker_map.marker_corners(i).mean(axis=0)) <= 0 for i in marker_map.ids):
+        return False
+    px = camera.project(corners, T_world_camera)
+    return bool(np.all((px >= margin_px) & (px <= np.array(camera.image_size) - 1 - margin_px)))
+
+
+def _pose_seeing_all(
+    rng: np.random.Generator, camera: Camera, marker_map: MarkerMap, draw, tries: int = 200
+) -> np.ndarray:
+    """A camera pose T_world_camera from ``draw(rng)``, drawn again until the camera sees every marker whole.
+
+    The first draw is kept when it is good, so a variant that was possible stays as it was.
+    """
+    for _ in range(tries):
+        T = draw(rng)
+        if _sees_all(camera, marker_map, T):
+            return T
+    raise RuntimeError("no camera pose in the drawn range sees every marker; widen the range")  # a lesson bug

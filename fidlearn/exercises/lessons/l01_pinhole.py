@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from ...camera import Camera
@@ -36,27 +37,32 @@ INTRO = """
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q1 = {
-    "title": "K from a field of view",
+    "title": "K from a diagonal field of view",
     "task": """
-        A camera with square pixels and its principal point in the middle of the image has a
-        horizontal field of view of `hfov_deg` degrees and images of `image_size` = (width, height)
-        pixels. Write code that computes its intrinsic matrix K, a (3, 3) array
+        A phone's data sheet gives its camera's field of view the way phone makers do: DIAGONALLY,
+        `dfov_deg` degrees from one corner of the picture to the opposite one. Its pictures are
+        `image_size` = (width, height) pixels, its pixels are square and its principal point is in
+        the middle. Write code that computes its intrinsic matrix K, a (3, 3) array
         `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]` in pixels. fidlearn puts pixel centres at integer
         coordinates, so the centre of the image is at ((width - 1) / 2, (height - 1) / 2).
+        (`Camera.from_fov` takes the horizontal field of view: it does not answer this one.)
         """,
-    "hint": (
-        "Draw the right triangle from the pinhole to the image's edge: tan(hfov/2) = (width/2) / "
-        "fx. Angles go to np.tan in radians."
-    ),
+    "hint": [
+        "Draw the right triangle from the pinhole to the image's corner: the angle at the pinhole is half the field "
+        "of view, and the side opposite it lies in the image plane.",
+        "The side opposite half the diagonal field of view is half the image's diagonal, in pixels; the side next "
+        "to it is the focal length in pixels. Angles go to np.tan in radians.",
+    ],
     "solution": """
         w, h = q1.inputs.image_size
-        f = (w / 2) / np.tan(np.radians(q1.inputs.hfov_deg) / 2)
+        half_diagonal = np.hypot(w, h) / 2                  # pixels, in the image plane
+        f = half_diagonal / np.tan(np.radians(q1.inputs.dfov_deg) / 2)
         K = np.array([[f, 0, (w - 1) / 2],
                       [0, f, (h - 1) / 2],
                       [0, 0, 1]])
         q1.answer = K
         """,
-    "level": "easy",
+    "level": "medium",
 }
 
 
@@ -80,12 +86,10 @@ def _compare_K(a: np.ndarray, b: np.ndarray) -> str | None:
     )
 
 
-def _q1_mistakes(w: int, h: int, hfov: float, f: float, K: np.ndarray) -> list:
+def _q1_mistakes(w: int, h: int, dfov: float, f: float, K: np.ndarray) -> list:
     """The mistakes q1 names: (detector, message) pairs, in the order they are tried."""
-    f_deg_as_rad = (w / 2) / math.tan(hfov / 2)
-    f_full = (w / 2) / math.tan(math.radians(hfov))
-    f_width = w / math.tan(math.radians(hfov) / 2)
-    f_height = (h / 2) / math.tan(math.radians(hfov) / 2)
+    d = math.hypot(w, h)
+    half = math.radians(dfov) / 2
     return [
         (
             lambda a: _close(a, K.T, 0.51),
@@ -95,23 +99,34 @@ def _q1_mistakes(w: int, h: int, hfov: float, f: float, K: np.ndarray) -> list:
             ),
         ),
         (
-            _fx_is(f_deg_as_rad),
+            _fx_is((w / 2) / math.tan(half)),
             (
-                "np.tan and math.tan take radians, and hfov_deg is in degrees: convert with np.radians (or "
+                "that takes the diagonal field of view for the horizontal one (as Camera.from_fov(dfov_deg, ...) "
+                "would): the angle spans the image's DIAGONAL, sqrt(w^2 + h^2), so tan(dfov/2) = (diagonal/2) / f"
+            ),
+        ),
+        (
+            _fx_is((d / 2) / math.tan(dfov / 2)),
+            (
+                "np.tan and math.tan take radians, and dfov_deg is in degrees: convert with np.radians (or "
                 "math.radians) first"
             ),
         ),
         (
-            _fx_is(f_full),
+            _fx_is((d / 2) / math.tan(2 * half)),
             (
-                "use HALF the field of view: the right triangle has the half-width w/2 opposite the angle "
-                "hfov/2, so tan(hfov/2) = (w/2) / f"
+                "use HALF the field of view: the right triangle has half the diagonal opposite the angle "
+                "dfov/2, so tan(dfov/2) = (diagonal/2) / f"
             ),
         ),
-        (_fx_is(f_width), "use HALF the image width: tan(hfov/2) = (w/2) / f"),
+        (_fx_is(d / math.tan(half)), "use HALF the image's diagonal: tan(dfov/2) = (diagonal/2) / f"),
         (
-            _fx_is(f_height),
-            "the horizontal field of view goes with the image WIDTH (image_size[0]), not the height",
+            _fx_is((h / 2) / math.tan(half)),
+            "the diagonal field of view goes with the image's DIAGONAL, sqrt(w^2 + h^2), not its height",
+        ),
+        (
+            _fx_is(((w + h) / 2) / math.tan(half)),
+            "the diagonal is sqrt(w^2 + h^2) (Pythagoras), not w + h: half of it is opposite dfov/2",
         ),
         (lambda a: abs(a[0, 0] - f) < 1e-3 * f and abs(a[1, 1] - f) > 1e-3 * f, "square pixels: fy equals fx"),
         (
@@ -122,21 +137,21 @@ def _q1_mistakes(w: int, h: int, hfov: float, f: float, K: np.ndarray) -> list:
 
 
 def _q1(learner: str) -> Question:
-    """q1: K from a field of view."""
+    """q1: K from a diagonal field of view."""
     rng = _rng("01", learner, "q1")
     w, h = _SIZES[rng.integers(len(_SIZES))]
-    hfov = float(np.round(rng.uniform(50, 95) * 2) / 2)
-    f = (w / 2) / math.tan(math.radians(hfov) / 2)
+    dfov = float(np.round(rng.uniform(60, 100) * 2) / 2)
+    f = (math.hypot(w, h) / 2) / math.tan(math.radians(dfov) / 2)
     K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
     return Question(
         "q1",
-        inputs={"hfov_deg": hfov, "image_size": (w, h)},
+        inputs={"dfov_deg": dfov, "image_size": (w, h)},
         expected=K,
         parse=_array(
             (3, 3), "K", {(3,): "that is a vector; K is a 3x3 matrix", (4, 4): "K is 3x3, not a 4x4 transform"}
         ),
         compare=_compare_K,
-        wrong=_q1_mistakes(w, h, hfov, f, K),
+        wrong=_q1_mistakes(w, h, dfov, f, K),
         notes=[
             (
                 lambda a: abs(a[0, 2] - K[0, 2]) > 0.25 or abs(a[1, 2] - K[1, 2]) > 0.25,
@@ -158,10 +173,14 @@ _Q2 = {
         z forward), in mm. Write code that projects them with the pinhole model and the intrinsic
         matrix `K` (no distortion) and gives their pixel coordinates, an (N, 2) array of (u, v).
         """,
-    "hint": (
-        "u = fx * X / Z + cx and v = fy * Y / Z + cy; in matrix form, p_h = K @ [X, Y, Z] and (u, "
-        "v) = p_h[:2] / p_h[2]."
-    ),
+    "hint": [
+        "A point twice as far away lands twice as close to the image centre: the depth divides.",
+        (
+            "Each coordinate is scaled by the focal length after dividing by the depth, then moved by the "
+            "principal point; in matrix form that is K times the point, followed by the division by its third "
+            "entry."
+        ),
+    ],
     "solution": """
         P = q2.inputs.points_camera_mm                      # (N, 3) mm, camera frame
         ph = P @ q2.inputs.K.T                              # rows of K @ p
@@ -230,7 +249,16 @@ _Q3 = {
         (a fidlearn Camera: `camera.fx`, `camera.K`). Write code that computes the distance from
         the camera to the marker along the optical axis, in millimetres.
         """,
-    "hint": "Similar triangles: side_px / fx = size_mm / Z. Convert inches to mm first (25.4 mm per inch).",
+    "hint": [
+        (
+            "Similar triangles: the marker's real size and its size on the image stand in the same ratio as two "
+            "distances from the pinhole. Which two?"
+        ),
+        (
+            "On the image side the distance is the focal length in pixels; on the world side it is the depth you "
+            "want. Convert inches to mm (25.4 mm per inch) first."
+        ),
+    ],
     "solution": """
         size_mm = q3.inputs.marker_size_in * 25.4
         q3.answer = q3.inputs.camera.fx * size_mm / q3.inputs.side_px
@@ -289,7 +317,13 @@ _Q4 = {
         that computes its horizontal and vertical fields of view in degrees, as a pair
         (hfov_deg, vfov_deg).
         """,
-    "hint": "The inverse of q1: hfov = 2 * atan((width / 2) / fx); vfov uses the height and fy. np.degrees converts.",
+    "hint": [
+        "Run q1 backwards: the same right triangle, now solved for the angle.",
+        (
+            "Half the image's width is opposite half the horizontal field of view and fx is next to it; the "
+            "vertical one uses the height and fy. The answer is asked in degrees."
+        ),
+    ],
     "solution": """
         K = q4.inputs.K
         w, h = q4.inputs.image_size
@@ -336,6 +370,87 @@ def _q4(learner: str) -> Question:
     )
 
 
+#: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q5 = {
+    "title": "Where a lens bends a point",
+    "task": """
+        A webcam's lens bends straight lines: its distortion `dist` = (k1, k2, p1, p2, k3) has
+        only the radial terms k1 and k2. `points_camera_mm` holds 5 points (N, 3) in the camera
+        frame, in mm. Write code that gives their pixels (N, 2) with the lens: divide by the depth
+        (x = X / Z, y = Y / Z), bend radially, x_d = x * (1 + k1 r^2 + k2 r^4) with r^2 = x^2 + y^2
+        (and y_d the same way), then u = fx x_d + cx, v = fy y_d + cy with `K`. Write the model
+        out; check it against cv2.projectPoints afterwards if you like.
+        """,
+    "hint": [
+        "Three steps in order: onto the plane at depth 1, bend there, then into pixels with K.",
+        "The bend factor 1 + k1 r^2 + k2 r^4 is the same for x and y of one point, and r is measured on the "
+        "plane at depth 1 (no pixels yet).",
+    ],
+    "solution": """
+        P = q5.inputs.points_camera_mm
+        K = q5.inputs.K
+        k1, k2 = q5.inputs.dist[0], q5.inputs.dist[1]
+        xy = P[:, :2] / P[:, 2:3]                          # the plane at depth 1
+        r2 = np.sum(xy ** 2, axis=1, keepdims=True)
+        xy_d = xy * (1 + k1 * r2 + k2 * r2 ** 2)            # the radial bend
+        q5.answer = xy_d * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+        """,
+    "level": "medium",
+}
+
+
+def _bent(P: np.ndarray, K: np.ndarray, k1: float, k2: float, r_of=lambda xy: xy) -> np.ndarray:
+    """Pixels of camera-frame points through a radial lens; ``r_of`` says where r is measured (a mistake)."""
+    xy = P[:, :2] / P[:, 2:3]
+    r2 = np.sum(r_of(xy) ** 2, axis=1, keepdims=True)
+    return xy * (1 + k1 * r2 + k2 * r2**2) * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+
+
+def _q5(learner: str) -> Question:
+    """q5: Where a lens bends a point."""
+    rng = _rng("01", learner, "q5")
+    w, h = _SIZES[rng.integers(len(_SIZES))]
+    K = Camera.from_fov(float(np.round(rng.uniform(60, 80))), (w, h)).K
+    k1, k2 = float(np.round(rng.uniform(-0.3, -0.12), 3)), float(np.round(rng.uniform(0.02, 0.08), 3))
+    n = 5
+    z = rng.uniform(800, 3000, n)
+    u = np.concatenate([rng.uniform(0.05, 0.2, 2), rng.uniform(0.8, 0.95, 2), rng.uniform(0.4, 0.6, 1)]) * w
+    v = rng.uniform(0.1 * h, 0.9 * h, n)
+    P = np.round(np.column_stack([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z]), 1)
+    dist = np.array([k1, k2, 0.0, 0.0, 0.0])
+    key = cv2.projectPoints(P, np.zeros(3), np.zeros(3), K, dist)[0].reshape(-1, 2)
+    pinhole = (P @ K.T)[:, :2] / P[:, 2:]
+    return Question(
+        "q5",
+        inputs={"K": K, "dist": dist, "points_camera_mm": P},
+        expected=key,
+        parse=_array((n, 2), "the pixels", {(2, n): "one ROW per point, please: transpose it"}),
+        compare=_cmp_array(0.05, " px"),
+        wrong=[
+            (
+                lambda a: _close(a, pinhole, 0.05),
+                (
+                    "the distortion was ignored: those are the pinhole pixels. This lens bends the points at the "
+                    "edges of the picture by several pixels: apply 1 + k1 r^2 + k2 r^4 on the plane at depth 1"
+                ),
+            ),
+            (
+                lambda a: _close(a, _bent(P, K, k1, k2, lambda xy: xy * [K[0, 0], K[1, 1]]), 0.05),
+                "r is measured on the plane at depth 1 (x = X / Z), not in pixels: bend before K, not after",
+            ),
+            (
+                lambda a: _close(a, _bent(P, K, k1, 0.0), 0.05),
+                "k2 is missing: the bend is 1 + k1 r^2 + k2 r^4",
+            ),
+            (
+                lambda a: _close(a, pinhole + (pinhole - key), 0.5),
+                "that bends the points the other way: barrel distortion (k1 < 0) pulls them TOWARDS the centre",
+            ),
+        ],
+        **_Q5,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 01 for one learner, in notebook order.
 
@@ -347,6 +462,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, q4, with their answer keys.
+        q1, q2, q3, q4, q5, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner)]

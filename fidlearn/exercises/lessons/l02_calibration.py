@@ -16,7 +16,7 @@ from ... import frames
 from ...calibration.boards import checkerboard_points
 from ...camera import Camera
 from ...synthetic import look_at
-from .._engine import Question
+from .._engine import Question, _AnswerError
 from .._parsers import (
     _array,
     _close,
@@ -131,22 +131,65 @@ _Q2 = {
     "title": "Calibrate from corner detections",
     "task": """
         A 9 x 6 checkerboard with 25 mm squares (its object points are in `object_points`, (54, 3)
-        mm) was detected in 10 pictures of `image_size` (width, height); `image_points` holds the
-        10 arrays of (54, 2) pixel corners. Write code that calibrates the camera with
-        cv2.calibrateCamera and gives its intrinsic matrix K (3, 3).
+        mm) was detected in 10 pictures whose arrays have `image_shape` = picture.shape, numpy's
+        (rows, columns); `image_points` holds the 10 arrays of (54, 2) pixel corners. Write code
+        that calibrates the camera with cv2.calibrateCamera and gives it as a fidlearn Camera:
+        `fidlearn.Camera(K, dist, image_size)`, with its distortion and its image size in
+        OpenCV's order, (width, height).
         """,
     "hint": (
-        "cv2.calibrateCamera wants a list of object-point arrays (one per view, float32) and a list "
-        "of image-point arrays; it returns rms, K, dist, rvecs, tvecs."
+        "cv2.calibrateCamera wants a list of object-point arrays (one per view, float32), a list of "
+        "image-point arrays and the image size, and returns rms, K, dist, rvecs, tvecs. Mind the order: "
+        "numpy's shape counts rows first, OpenCV's sizes count columns first."
     ),
     "solution": """
         obj = q2.inputs.object_points.astype(np.float32)
         imgs = [p.astype(np.float32) for p in q2.inputs.image_points]
-        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(imgs), imgs, q2.inputs.image_size, None, None)
-        q2.answer = K
+        rows, cols = q2.inputs.image_shape
+        size = (cols, rows)                                 # OpenCV: (width, height)
+        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(imgs), imgs, size, None, None)
+        q2.answer = fidlearn.Camera(K, dist, size)
         """,
     "level": "medium",
 }
+
+
+def _parse_camera(answer) -> tuple:
+    """q2's parser: a fidlearn Camera, read as (K, dist (5,), image_size (w, h))."""
+    if isinstance(answer, Camera):
+        return answer.K, np.resize(np.asarray(answer.dist, dtype=float).ravel(), 5), tuple(answer.image_size)
+    shape = np.shape(answer) if isinstance(answer, (np.ndarray, list, tuple)) else None
+    what = {(3, 3): "that is K alone", (5,): "that is the distortion vector alone"}.get(
+        (5,) if shape == (1, 5) else shape, f"got {type(answer).__name__}"
+    )
+    raise _AnswerError(
+        f"give the whole camera, fidlearn.Camera(K, dist, image_size): {what}; a camera is K, its "
+        "distortion and the image size they hold for"
+    )
+
+
+def _camera_comparer(size: tuple, f_tol: float, c_tol: float, k1_true: float, k1_tol: float):
+    """q2's comparison of a camera (K, dist, image_size) with the true one, within what calibration reaches."""
+
+    def cmp_camera(a, b):
+        K, dist, image_size = a
+        if image_size != size:
+            return f"the camera's image_size is {image_size}, the pictures are {size[0]} x {size[1]} (width x height)"
+        if abs(dist[0] - k1_true) > k1_tol:
+            return f"the distortion k1 = {dist[0]:.3f} is not what these corners show (within {k1_tol:.3f})"
+        if (
+            abs(K[0, 0] - b[0, 0]) <= f_tol
+            and abs(K[1, 1] - b[1, 1]) <= f_tol
+            and np.abs(K[:2, 2] - b[:2, 2]).max() <= c_tol
+            and abs(K[2, 2] - 1) < 1e-6
+        ):
+            return None
+        return (
+            f"your fx = {K[0, 0]:.1f}, cx = {K[0, 2]:.1f}, cy = {K[1, 2]:.1f} px are farther from the true camera "
+            f"than calibration on these corners gets (fx within {f_tol:.1f} px, cx, cy within {c_tol:.1f} px)"
+        )
+
+    return cmp_camera
 
 
 def _q2(learner: str) -> Question:
@@ -154,7 +197,7 @@ def _q2(learner: str) -> Question:
     rng = _rng("02", learner, "q2")
     size = _SIZES[int(rng.integers(1, 3))]
     true_cam = Camera.from_fov(
-        float(np.round(rng.uniform(55, 75))), size, dist=[float(np.round(rng.uniform(-0.15, 0.05), 3)), 0, 0, 0, 0]
+        float(np.round(rng.uniform(55, 75))), size, dist=[float(np.round(rng.uniform(-0.2, -0.06), 3)), 0, 0, 0, 0]
     )
     K_true = true_cam.K.copy()
     K_true[0, 2] += float(np.round(rng.uniform(-12, 12), 1))
@@ -162,43 +205,37 @@ def _q2(learner: str) -> Question:
     true_cam = Camera(K_true, true_cam.dist, size)
     obj2 = checkerboard_points((9, 6), 25.0)
     views = _calibration_views(rng, true_cam, obj2, 10, 0.15)
-    _, K_key, _, _, _ = cv2.calibrateCamera(
+    _, K_key, d_key, _, _ = cv2.calibrateCamera(
         [obj2.astype(np.float32)] * len(views), [v.astype(np.float32) for v in views], size, None, None
     )
     # judged against the true camera, with what calibration on these corners can reach
     f_tol2 = max(0.01 * K_true[0, 0], 3 * abs(K_key[0, 0] - K_true[0, 0]))
     c_tol2 = max(3.0, 3 * float(np.abs(K_key[:2, 2] - K_true[:2, 2]).max()))
-
-    def cmp_K(a, b):
-        if (
-            abs(a[0, 0] - b[0, 0]) <= f_tol2
-            and abs(a[1, 1] - b[1, 1]) <= f_tol2
-            and np.abs(a[:2, 2] - b[:2, 2]).max() <= c_tol2
-            and abs(a[2, 2] - 1) < 1e-6
-        ):
-            return None
-        return (
-            f"your fx = {a[0, 0]:.1f}, cx = {a[0, 2]:.1f}, cy = {a[1, 2]:.1f} px are farther from the true camera "
-            "than calibration "
-            f"on these corners gets (fx within {f_tol2:.1f} px, cx, cy within {c_tol2:.1f} px)"
-        )
-
+    k1_true = float(true_cam.dist[0])
+    k1_tol = max(0.02, 3 * abs(float(d_key.ravel()[0]) - k1_true))
+    cmp_camera = _camera_comparer(size, f_tol2, c_tol2, k1_true, k1_tol)
     return Question(
         "q2",
-        inputs={"object_points": obj2, "image_points": views, "image_size": size},
+        inputs={"object_points": obj2, "image_points": views, "image_shape": (size[1], size[0])},
         expected=K_true,
-        parse=_array(
-            (3, 3),
-            "K",
-            {
-                (5,): "that is the distortion vector; K is the 3x3 matrix calibrateCamera returns second",
-                (1, 5): "that is the distortion vector; K is the 3x3 matrix calibrateCamera returns second",
-                (): "that is the RMS error; K is the 3x3 matrix calibrateCamera returns second",
-            },
-        ),
-        compare=cmp_K,
+        parse=_parse_camera,
+        compare=cmp_camera,
         wrong=[
-            (lambda a: cmp_K(a.T, K_true) is None, "your K is transposed: cx and cy belong in the last column"),
+            (
+                lambda a: a[2] == (size[1], size[0]),
+                (
+                    f"the image size is swapped: you gave (height, width) = {(size[1], size[0])}, numpy's shape "
+                    f"order; OpenCV and fidlearn want (width, height) = {size}. calibrateCamera hardly notices "
+                    "(it only starts from the centre), but every later use of the camera does"
+                ),
+            ),
+            (
+                lambda a: not np.any(a[1]),
+                (
+                    "the distortion was ignored: your camera has dist = 0, but these corners bend (k1 about "
+                    f"{k1_true:.2f}); keep the dist that calibrateCamera returns"
+                ),
+            ),
         ],
         **_Q2,
     )
@@ -375,11 +412,10 @@ _Q5 = {
         camera from the pictures (fidlearn.calibration.calibrate_checkerboard, or
         cv2.findChessboardCorners + cv2.calibrateCamera) and gives K (3, 3).
         """,
-    "hint": (
-        "calibration = fidlearn.calibration.calibrate_checkerboard(images, pattern_size, square_size_mm); "
-        "calibration.camera.K. pattern_size counts INNER corners: a board of 8 x 6 squares has 7 "
-        "x 5."
-    ),
+    "hint": [
+        "The task names the function: read what its result holds (the calibrated camera, and the camera's K).",
+        "pattern_size counts INNER corners: a board of 8 x 6 squares has 7 x 5.",
+    ],
     "solution": """
         from fidlearn.calibration import calibrate_checkerboard
         calibration = calibrate_checkerboard(q5.inputs.images, q5.inputs.pattern_size, q5.inputs.square_size_mm)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from ... import frames
@@ -21,10 +22,13 @@ from .._parsers import (
     _close,
     _cmp_array,
     _cmp_transform,
+    _parts,
+    _scalar,
     _T_is,
 )
 from .._scenery import (
     _rng,
+    _wall_translation,
 )
 
 NUMBER = "03"
@@ -46,10 +50,13 @@ _Q1 = {
         T_world_robot, a 4x4 homogeneous transform (you may use frames.rot_x / rot_y / rot_z,
         which take radians, or write the matrices yourself).
         """,
-    "hint": (
-        "R = frames.rot_z(yaw) @ frames.rot_y(pitch) @ frames.rot_x(roll) with the angles in radians; "
-        "then frames.make_transform(R, position)."
-    ),
+    "hint": [
+        "The order of the three turns matters, and so does the unit the rotation functions expect.",
+        (
+            "R = Rz(yaw) Ry(pitch) Rx(roll): yaw is applied last (outermost). frames.rot_x/y/z take radians; the "
+            "pose puts R and the position into one 4x4."
+        ),
+    ],
     "solution": """
         roll, pitch, yaw = np.radians(q1.inputs.rpy_deg)
         R = frames.rot_z(yaw) @ frames.rot_y(pitch) @ frames.rot_x(roll)
@@ -118,10 +125,13 @@ _Q2 = {
         x right, y down, z forward): an (N, 3) array in mm. Their z (depth) must come out positive:
         the camera sees them.
         """,
-    "hint": (
-        "p_camera = T_camera_world @ p_world, and T_camera_world is the inverse of T_world_camera "
-        "(frames.invert_transform). frames.transform_points applies a 4x4 to rows of points."
-    ),
+    "hint": [
+        "You have the camera's pose in the world; the points must go the other way, from world to camera.",
+        (
+            "Turning a transform round (its inverse) swaps the names: T_camera_world from T_world_camera. Apply "
+            "it to each point with a homogeneous 1 appended (frames.transform_points does rows of points)."
+        ),
+    ],
     "solution": """
         T_camera_world = frames.invert_transform(q2.inputs.T_world_camera)
         q2.answer = frames.transform_points(T_camera_world, q2.inputs.points_world_mm)
@@ -199,9 +209,10 @@ def _q3(learner: str) -> Question:
     """q3: Chain the map and a detection."""
     rng = _rng("03", learner, "q3")
     yaw = float(rng.choice([0, 90, 180, -90]))
+    wall = {0: "north", 90: "west", 180: "south", -90: "east"}[int(yaw)]  # the wall it faces away from
     Twm = frames.make_transform(
         frames.rotation_from_rpy_deg(0, 0, yaw) @ np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], dtype=float),
-        np.round(rng.uniform([-1000, -1000, 800], [1000, 1000, 1500])),
+        _wall_translation(rng, wall, 1.0, (-1000, 1000), (800, 1500), per_ft=304.8),
     )
     normal = Twm[:3, 2]
     cpos = (
@@ -304,6 +315,71 @@ def _q4(learner: str) -> Question:
     )
 
 
+#: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q5 = {
+    "title": "What an rvec says",
+    "task": """
+        solvePnP answers rotations as a rotation vector `rvec` (3,). Without calling cv2.Rodrigues,
+        write code that reads off the rotation it describes: the unit axis it turns about (3,) and
+        the angle it turns by, in degrees (right-hand rule: thumb along the axis, fingers turning).
+        Answer {"axis": (3,), "angle_deg": angle}.
+        """,
+    "hint": [
+        "A rotation vector packs two things into three numbers: a direction and a length. Which is which?",
+        "Its direction is the axis and its length the angle in radians; the zero vector is no rotation at all.",
+    ],
+    "solution": """
+        rvec = np.asarray(q5.inputs.rvec, dtype=float)
+        angle = np.linalg.norm(rvec)                       # radians
+        q5.answer = {"axis": rvec / angle, "angle_deg": np.degrees(angle)}
+        """,
+    "level": "easy",
+}
+
+
+def _q5(learner: str) -> Question:
+    """q5: What an rvec says."""
+    rng = _rng("03", learner, "q5")
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    angle = float(rng.uniform(20, 170))
+    rvec = np.round(axis * math.radians(angle), 6)
+    angle = math.degrees(float(np.linalg.norm(rvec)))
+    axis = rvec / np.linalg.norm(rvec)
+
+    def R_of(a):
+        return cv2.Rodrigues(np.asarray(a["axis"]) / np.linalg.norm(a["axis"]) * math.radians(a["angle_deg"]))[0]
+
+    def cmp5(a, b):
+        if abs(np.linalg.norm(a["axis"]) - 1) > 1e-3:
+            return f"the axis has length {np.linalg.norm(a['axis']):.4g}: give a UNIT vector"
+        err = frames.rotation_angle_deg(R_of(a), cv2.Rodrigues(rvec)[0])
+        return None if err <= 0.05 else f"your axis and angle turn {err:.3g} deg away from the rvec's rotation"
+
+    return Question(
+        "q5",
+        inputs={"rvec": rvec},
+        expected={"axis": axis, "angle_deg": angle},
+        parse=_parts(axis=_array((3,), "axis"), angle_deg=_scalar("angle_deg")),
+        compare=cmp5,
+        wrong=[
+            (
+                lambda a: abs(a["angle_deg"] - math.radians(angle)) < 1e-3,
+                "that angle is in radians: the length of the rvec is radians, the answer is asked in degrees",
+            ),
+            (
+                lambda a: _close(a["axis"], rvec, 1e-4),
+                "the axis is the rvec's DIRECTION: divide it by its length (the length is the angle)",
+            ),
+            (
+                lambda a: _close(a["axis"], -axis, 1e-3) and abs(a["angle_deg"] - angle) < 0.05,
+                "the axis points the wrong way: turning by +angle about -axis is the opposite rotation",
+            ),
+        ],
+        **_Q5,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 03 for one learner, in notebook order.
 
@@ -315,6 +391,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, q4, with their answer keys.
+        q1, q2, q3, q4, q5, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner)]

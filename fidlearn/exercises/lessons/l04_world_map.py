@@ -199,7 +199,8 @@ def _q2(learner: str) -> Question:
     for i, w in zip(ids, walls):
         along = float(np.round(rng.uniform(-150, 150)))
         z = float(np.round(rng.uniform(60, 200)))
-        tl = [room_cm[w], along, z] if w in ("north", "south") else [along, room_cm[w], z]
+        # along y on the north and south walls; along x, from the middle of the room, on the others
+        tl = [room_cm[w], along, z] if w in ("north", "south") else [243.84 + along, room_cm[w], z]
         measured.append({"id": i, "wall": w, "top_left_cm": tl})
     want = MarkerMap(
         {
@@ -250,10 +251,17 @@ _Q3 = {
         along +Y). Hint of a method: build the 3x3 matrix whose columns are the marker's face
         normal, right and up directions in the world, then convert it.
         """,
-    "hint": (
-        "Columns of R: R @ [1,0,0] is the face normal (+Z on the floor), R @ [0,1,0] the right (up "
-        "x normal), R @ [0,0,1] the up direction. frames.rpy_deg_from_rotation(R) gives the angles."
-    ),
+    "hint": [
+        (
+            "A rotation matrix's columns are where the marker's own axes point in the world: its face normal, its"
+            " right and its up."
+        ),
+        (
+            "On the floor, face up, the normal is +Z; the up is given; the right is up x normal (right-handed, as"
+            " at rotation 0). The map wants that matrix as roll, pitch, yaw in degrees: frames has the "
+            "conversion."
+        ),
+    ],
     "solution": """
         up = np.asarray(q3.inputs.up_vector, dtype=float)
         normal = np.array([0.0, 0.0, 1.0])          # face up, off the floor
@@ -348,7 +356,13 @@ _Q4 = {
         face (towards the room, where a camera can see it). Use only its corners
         (marker_map.marker_corners(id), TL, TR, BR, BL). Answer {"center_mm": ..., "normal": ...}.
         """,
-    "hint": "centre = corners.mean(axis=0); right = TR - TL, up = TL - BL, normal = cross(right, up) / its norm.",
+    "hint": [
+        "The centre is where the four corners balance; the normal is perpendicular to two edges of the face.",
+        (
+            "Take two edges that start at one corner, in the order right then up, and their cross product; the "
+            "right-hand rule decides which side it points to. Make it unit length."
+        ),
+    ],
     "solution": """
         c = q4.inputs.marker_map.marker_corners(q4.inputs.marker_id)
         TL, TR, BR, BL = c

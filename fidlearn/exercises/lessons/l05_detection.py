@@ -10,14 +10,16 @@ import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
+import cv2
 import numpy as np
 
 from ... import frames
 from ...camera import Camera
 from ...markermap import MarkerMap, MarkerPlacement
+from ...synthetic import look_at
 from .._engine import Question, _AnswerError
-from .._parsers import _array, _close, _cmp_array, _corner_order, _scalar, _winding_message
-from .._scenery import _rng
+from .._parsers import _array, _close, _cmp_array, _cmp_scalar, _corner_order, _scalar, _winding_message
+from .._scenery import _pose_seeing_all, _rng
 
 NUMBER = "05"
 TOPIC = "detection"
@@ -40,11 +42,12 @@ class _Scene(NamedTuple):
     dictionary: str
 
 
-def _scene(lesson_id: str, learner: str, question: str, n_markers: int, rotated: bool, dictionaries: Sequence[str]):
-    """A seeded scene: (camera, marker_map, T_world_camera, image, truth, rotated_id, dictionary)."""
-    from ... import synthetic
+#: The lesson's scene: 5 markers, one of them turned, from one of these dictionaries.
+_SCENE_ARGS = (5, True, ("ARUCO_ORIGINAL", "4X4_50", "6X6_250"))
 
-    rng = _rng(lesson_id, learner, question)
+
+def _layout(rng: np.random.Generator, n_markers: int, rotated: bool, dictionaries: Sequence[str]) -> tuple:
+    """The scene before it is rendered: (camera, marker_map, T_world_camera, rotated_id, dictionary)."""
     dictionary = str(rng.choice(list(dictionaries)))
     cam = Camera.from_fov(float(np.round(rng.uniform(55, 70))), (800, 600))
     size = 120.0
@@ -62,8 +65,20 @@ def _scene(lesson_id: str, learner: str, question: str, n_markers: int, rotated:
         tl = tl - centre_offset
         placements[mid] = MarkerPlacement(mid, tuple(float(v) for v in tl), (roll, 0.0, 0.0))
     m = MarkerMap(placements, size, dictionary, "mm")
-    eye = np.round(rng.uniform([1700, -300, 1000], [2300, 300, 1400]))
-    T = synthetic.look_at(eye, [0.0, float(np.round(rng.uniform(-100, 100))), 1150.0])
+
+    def draw(r):
+        eye = np.round(r.uniform([1700, -300, 1000], [2300, 300, 1400]))
+        return look_at(eye, [0.0, float(np.round(r.uniform(-100, 100))), 1150.0])
+
+    return cam, m, _pose_seeing_all(rng, cam, m, draw), rotated_id, dictionary
+
+
+def _scene(lesson_id: str, learner: str, question: str, n_markers: int, rotated: bool, dictionaries: Sequence[str]):
+    """A seeded scene: (camera, marker_map, T_world_camera, image, truth, rotated_id, dictionary)."""
+    from ... import synthetic
+
+    rng = _rng(lesson_id, learner, question)
+    cam, m, T, rotated_id, dictionary = _layout(rng, n_markers, rotated, dictionaries)
     image, truth = synthetic.render_scene(
         m, cam, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std_gray=2.0, gradient=0.15
     )
@@ -205,7 +220,16 @@ _Q3 = {
         image's axes (x right, y DOWN): 0 means upright, 90 means turned a quarter turn clockwise
         as you look at the picture.
         """,
-    "hint": "c = the detection's corners; dx, dy = c[1] - c[0]; np.degrees(np.arctan2(dy, dx)).",
+    "hint": [
+        (
+            "The marker's top edge runs from its TL corner to its TR corner; its angle in the image is the angle "
+            "of that edge."
+        ),
+        (
+            "The angle of a vector (dx, dy) is atan2(dy, dx); in the image y points DOWN, so a positive angle "
+            "turns clockwise on the screen. Give degrees."
+        ),
+    ],
     "solution": """
         from fidlearn.detection import detect_markers
         detections = detect_markers(q3.inputs.image, dictionary=q3.inputs.dictionary)
@@ -256,6 +280,64 @@ def _q3(scene: _Scene) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q4 = {
+    "title": "How far can the detector see?",
+    "task": """
+        OpenCV's ArUco detector throws away every outline whose perimeter is shorter than
+        `min_perimeter_rate` (its `minMarkerPerimeterRate`) times the LARGER side of the image, in
+        pixels. A square marker of `marker_size_mm` faces `camera` squarely in the middle of the
+        picture. Write code that computes the farthest distance (mm, along the optical axis) at which
+        the detector still keeps it, by this rule alone (blur and noise can lose it sooner).
+        """,
+    "hint": [
+        "Two lengths must meet: the smallest perimeter the detector keeps, in pixels, and the marker's "
+        "perimeter in pixels at distance Z.",
+        "A marker of side s at depth Z is fx * s / Z pixels wide (similar triangles); its outline has four such sides.",
+    ],
+    "solution": """
+        cam = q4.inputs.camera
+        min_perimeter_px = q4.inputs.min_perimeter_rate * max(cam.image_size)
+        # the outline at depth Z is 4 sides of fx * s / Z pixels: solve 4 fx s / Z = min_perimeter_px
+        q4.answer = 4 * cam.fx * q4.inputs.marker_size_mm / min_perimeter_px
+        """,
+    "level": "medium",
+}
+
+
+def _q4(learner: str) -> Question:
+    """q4: How far can the detector see?"""
+    rng = _rng("05", learner, "q4")
+    size = [(640, 480), (1280, 720), (1920, 1080), (800, 600)][int(rng.integers(4))]
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 80))), size)
+    marker = float(rng.choice([50, 80, 100, 120, 150, 200]))
+    rate = float(cv2.aruco.DetectorParameters().minMarkerPerimeterRate)
+    z = 4 * cam.fx * marker / (rate * max(size))
+    return Question(
+        "q4",
+        inputs={"camera": cam, "marker_size_mm": marker, "min_perimeter_rate": rate},
+        expected=z,
+        parse=_scalar("the distance"),
+        compare=_cmp_scalar(0, " mm", rtol=2e-3),
+        wrong=[
+            (
+                lambda a: abs(a * 4 - z) <= 3e-3 * z,
+                "the detector's limit is on the PERIMETER, four sides of the marker, not on one side",
+            ),
+            (
+                lambda a: abs(a - z * max(size) / min(size)) <= 3e-3 * z,
+                "the rate multiplies the LARGER side of the image (max(width, height)), not the smaller",
+            ),
+            (lambda a: abs(a * 1000 - z) <= 3e-3 * z, "that is in metres: the answer is asked in mm"),
+            (
+                lambda a: abs(a - 4 * cam.fx * marker / rate) <= 3e-3 * z * max(size),
+                "the rate is a fraction of the image's larger side: multiply it by max(width, height) to get pixels",
+            ),
+        ],
+        **_Q4,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 05 for one learner, in notebook order.
 
@@ -267,7 +349,7 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, all about one rendered picture.
+        q1, q2, q3, all about one rendered picture, and q4, the detector's reach.
     """
-    scene = _Scene(*_scene("05", learner, "scene", 5, True, ["ARUCO_ORIGINAL", "4X4_50", "6X6_250"]))
-    return [_q1(scene), _q2(scene), _q3(scene)]
+    scene = _Scene(*_scene("05", learner, "scene", *_SCENE_ARGS))
+    return [_q1(scene), _q2(scene), _q3(scene), _q4(learner)]

@@ -19,6 +19,8 @@ from ...synthetic import look_at
 from .._engine import Question, _AnswerError
 from .._parsers import (
     _array,
+    _close,
+    _cmp_array,
     _cmp_scalar,
     _cmp_transform,
     _scalar,
@@ -26,6 +28,7 @@ from .._parsers import (
 )
 from .._scenery import (
     _noisy_detections,
+    _pose_seeing_all,
     _rng,
     _wall_map,
 )
@@ -50,6 +53,21 @@ def _same_rows(a: np.ndarray, b: np.ndarray, tol: float = 0.01) -> bool:
             return False
         free.remove(hit)
     return True
+
+
+def _lens(rng: np.random.Generator) -> list:
+    """A webcam's barrel distortion (k1, k2, p1, p2, k3): strong enough that ignoring it shows."""
+    return [float(np.round(rng.uniform(-0.25, -0.12), 3)), float(np.round(rng.uniform(0.0, 0.06), 3)), 0.0, 0.0, 0.0]
+
+
+def _shifted_inside(corners_px: np.ndarray, shift_px: tuple, image_size: tuple) -> np.ndarray:
+    """Corners moved by ``shift_px``, the shift turned back on an axis where it would leave the image."""
+    shift = np.array(shift_px, dtype=float)
+    for axis in (0, 1):
+        moved = corners_px[:, axis] + shift[axis]
+        if moved.min() < 10 or moved.max() > image_size[axis] - 11:
+            shift[axis] = -shift[axis]
+    return corners_px + shift
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
@@ -82,10 +100,12 @@ def _q1(learner: str) -> Question:
     rng = _rng("06", learner, "q1")
     cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
     m = _wall_map(rng, 4, float(rng.choice([100, 120, 150])))
-    T = look_at(np.round(rng.uniform([1800, -500, 1000], [3000, 500, 1500])), [0, 0, 1200])
+    T = _pose_seeing_all(
+        rng, cam, m, lambda r: look_at(np.round(r.uniform([1800, -500, 1000], [3000, 500, 1500])), [0, 0, 1200])
+    )
     dets = _noisy_detections(rng, m, cam, T, 0.2)
     stray_id = int(max(m.ids) + 1 + rng.integers(0, 5))
-    stray = Detection(stray_id, np.round(dets[0].corners_px + [[-300, 150]], 3))
+    stray = Detection(stray_id, np.round(_shifted_inside(dets[0].corners_px, (-300, 150), cam.image_size), 3))
     detections = sorted(dets + [stray], key=lambda d: d.corners_px[0, 0])
     obj = np.concatenate([m.marker_corners(d.id) for d in detections if d.id in m])
     img = np.concatenate([d.corners_px for d in detections if d.id in m])
@@ -157,9 +177,16 @@ _Q2 = {
 }
 
 
-def _q2_mistakes(Tcw_epnp, Tcw_key) -> list:
+def _q2_mistakes(Tcw_epnp, Tcw_key, Tcw_nodist) -> list:
     """The mistakes q2 names: (detector, message) pairs, in the order they are tried."""
     return [
+        (
+            _T_is(Tcw_nodist, 0.05, 1.0),
+            (
+                "the distortion was ignored: this camera's lens bends the picture (camera.dist is not zero), and "
+                "solvePnP without it fits a pinhole to bent corners; pass camera.dist as distCoeffs"
+            ),
+        ),
         (
             _T_is(frames.invert_transform(Tcw_key), 0.5, 15),
             (
@@ -192,10 +219,15 @@ def _q2_mistakes(Tcw_epnp, Tcw_key) -> list:
 def _q2(learner: str) -> Question:
     """q2: solvePnP over every marker."""
     rng = _rng("06", learner, "q2")
-    cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
+    cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720), dist=_lens(rng))
     m2 = _wall_map(rng, 5, 150.0)
-    T2 = look_at(
-        np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, float(np.round(rng.uniform(-200, 200))), 1200]
+    T2 = _pose_seeing_all(
+        rng,
+        cam2,
+        m2,
+        lambda r: look_at(
+            np.round(r.uniform([1500, -700, 900], [3000, 700, 1600])), [0, float(np.round(r.uniform(-200, 200))), 1200]
+        ),
     )
     dets2 = _noisy_detections(rng, m2, cam2, T2, 0.3)
     obj2 = np.concatenate([m2.marker_corners(d.id) for d in dets2])
@@ -204,6 +236,8 @@ def _q2(learner: str) -> Question:
     Tcw_key = frames.transform_from_rvec_tvec(rv.ravel(), tv.ravel())
     ok, rv_e, tv_e = cv2.solvePnP(obj2, img2, cam2.K, cam2.dist, flags=_cv.solvepnp_flag("EPNP"))
     Tcw_epnp = frames.transform_from_rvec_tvec(rv_e.ravel(), tv_e.ravel())
+    ok, rv_n, tv_n = cv2.solvePnP(obj2, img2, cam2.K, None, flags=_cv.solvepnp_flag("ITERATIVE"))
+    Tcw_nodist = frames.transform_from_rvec_tvec(rv_n.ravel(), tv_n.ravel())
 
     def parse_rt(answer):
         if isinstance(answer, np.ndarray) and answer.shape == (4, 4):
@@ -224,7 +258,7 @@ def _q2(learner: str) -> Question:
         expected=Tcw_key,
         parse=parse_rt,
         compare=_cmp_transform(0.5, 15.0),
-        wrong=_q2_mistakes(Tcw_epnp, Tcw_key),
+        wrong=_q2_mistakes(Tcw_epnp, Tcw_key, Tcw_nodist),
         **_Q2,
     )
 
@@ -238,10 +272,13 @@ _Q3 = {
         computes the RMS reprojection error in pixels: the square root of the mean of the SQUARED
         distances between reprojected and detected corners.
         """,
-    "hint": (
-        "proj, _ = cv2.projectPoints(object_points, rvec, tvec, K, dist); proj.reshape(-1, 2) - image_points "
-        "gives the residuals; RMS = sqrt(mean(dx^2 + dy^2))."
-    ),
+    "hint": [
+        "Put the corners back through the camera with the pose and compare them with the detected ones.",
+        (
+            "cv2.projectPoints reprojects (with K and dist); the error of one corner is the length of its (dx, "
+            "dy); RMS is the root of the mean of those lengths squared."
+        ),
+    ],
     "solution": """
         cam = q3.inputs.camera
         proj, _ = cv2.projectPoints(q3.inputs.object_points, q3.inputs.rvec, q3.inputs.tvec, cam.K, cam.dist)
@@ -255,9 +292,11 @@ _Q3 = {
 def _q3(learner: str) -> Question:
     """q3: Reprojection error."""
     rng = _rng("06", learner, "q3")
-    cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720))
+    cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720), dist=_lens(rng))
     m3 = _wall_map(rng, 4, 120.0)
-    T3 = look_at(np.round(rng.uniform([1500, -700, 900], [3000, 700, 1600])), [0, 0, 1200])
+    T3 = _pose_seeing_all(
+        rng, cam3, m3, lambda r: look_at(np.round(r.uniform([1500, -700, 900], [3000, 700, 1600])), [0, 0, 1200])
+    )
     dets3 = _noisy_detections(rng, m3, cam3, T3, float(np.round(rng.uniform(0.3, 1.0), 2)))
     obj3 = np.concatenate([m3.marker_corners(d.id) for d in dets3])
     img3 = np.concatenate([d.corners_px for d in dets3])
@@ -266,6 +305,8 @@ def _q3(learner: str) -> Question:
     proj = cv2.projectPoints(obj3, rv3, tv3, cam3.K, cam3.dist)[0].reshape(-1, 2)
     d = np.linalg.norm(proj - img3, axis=1)
     rms = float(np.sqrt(np.mean(d**2)))
+    proj_nodist = cv2.projectPoints(obj3, rv3, tv3, cam3.K, None)[0].reshape(-1, 2)
+    rms_nodist = float(np.sqrt(np.mean(np.sum((proj_nodist - img3) ** 2, axis=1))))
     return Question(
         "q3",
         inputs={"object_points": obj3, "image_points": img3, "rvec": rv3, "tvec": tv3, "camera": cam3},
@@ -273,6 +314,13 @@ def _q3(learner: str) -> Question:
         parse=_scalar("the RMS error"),
         compare=_cmp_scalar(1e-3, " px", rtol=1e-3),
         wrong=[
+            (
+                lambda a: abs(a - rms_nodist) < 1e-3 * rms_nodist,
+                (
+                    "the distortion was ignored: the corners were detected through a lens that bends them "
+                    "(camera.dist is not zero), so reproject with cv2.projectPoints(..., K, dist), not with K alone"
+                ),
+            ),
             (
                 lambda a: abs(a - d.mean()) < 1e-3,
                 "that is the mean distance; RMS is the square ROOT of the MEAN of the SQUARED distances",
@@ -301,6 +349,78 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q4 = {
+    "title": "Straighten the corners",
+    "task": """
+        `corners_px` (4, 2) are a marker's corners detected near the edge of a picture taken through
+        the lens of `camera` (K and its distortion `dist`). Before drawing straight lines through
+        them (or solving a pose by hand) they must be where an ideal pinhole camera with the same K
+        would have seen them. Write code that gives those corners, (4, 2) pixels.
+        """,
+    "hint": [
+        "Undoing the lens has no closed form, but OpenCV undoes it for you. Read what its undistortion returns.",
+        "cv2.undistortPoints returns points on the plane at depth 1 unless you tell it which camera matrix to "
+        "put them back into pixels with (its P argument).",
+    ],
+    "solution": """
+        cam = q4.inputs.camera
+        px = np.asarray(q4.inputs.corners_px, dtype=np.float64).reshape(-1, 1, 2)
+        q4.answer = cv2.undistortPoints(px, cam.K, cam.dist, P=cam.K).reshape(-1, 2)
+        """,
+    "level": "medium",
+}
+
+
+def _q4(learner: str) -> Question:
+    """q4: Straighten the corners."""
+    rng = _rng("06", learner, "q4")
+    cam = Camera.from_fov(float(np.round(rng.uniform(60, 80))), (1280, 720), dist=_lens(rng))
+    centre = np.array([rng.choice([1, -1]) * rng.uniform(380, 520), rng.choice([1, -1]) * rng.uniform(180, 260)])
+    side = float(rng.uniform(50, 90))
+    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * side / 2 + centre + cam.K[:2, 2]
+    ideal = np.round(square, 3)
+    rays = np.column_stack([(ideal - cam.K[:2, 2]) / [cam.fx, cam.fy], np.ones(4)])
+    corners = np.round(cv2.projectPoints(rays, np.zeros(3), np.zeros(3), cam.K, cam.dist)[0].reshape(-1, 2), 3)
+    key = cv2.undistortPoints(corners.reshape(-1, 1, 2), cam.K, cam.dist, P=cam.K).reshape(-1, 2)
+    normalized = cv2.undistortPoints(corners.reshape(-1, 1, 2), cam.K, cam.dist).reshape(-1, 2)
+    bent_twice = cv2.projectPoints(
+        np.column_stack([(corners - cam.K[:2, 2]) / [cam.fx, cam.fy], np.ones(4)]),
+        np.zeros(3),
+        np.zeros(3),
+        cam.K,
+        cam.dist,
+    )[0].reshape(-1, 2)
+    return Question(
+        "q4",
+        inputs={"camera": cam, "corners_px": corners},
+        expected=key,
+        parse=_array((4, 2), "the corners", {(4, 1, 2): "", (2, 4): "one ROW per corner: transpose it"}),
+        compare=_cmp_array(0.05, " px"),
+        wrong=[
+            (
+                lambda a: _close(a, corners, 0.05),
+                (
+                    "the distortion was ignored: those are the detected corners as they are. Near the edge this "
+                    "lens moves them by pixels; undo it with cv2.undistortPoints"
+                ),
+            ),
+            (
+                lambda a: _close(a, normalized, 1e-4),
+                (
+                    "those are on the plane at depth 1 (x = X / Z), not pixels: give cv2.undistortPoints P=K to "
+                    "put them back into pixels"
+                ),
+            ),
+            (
+                lambda a: _close(a, bent_twice, 0.05),
+                "that bends the corners a second time (cv2.projectPoints adds the lens): undistortion removes it",
+            ),
+        ],
+        **_Q4,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 06 for one learner, in notebook order.
 
@@ -312,6 +432,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, with their answer keys.
+        q1, q2, q3, q4, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]

@@ -118,7 +118,13 @@ _Q2 = {
         T_world_camera (4x4, mm): the transform that maps camera coordinates into world
         coordinates. Its last column holds the camera's position.
         """,
-    "hint": "Invert T_camera_world in closed form: [[R^T, -R^T t], [0, 0, 0, 1]] (frames.invert_transform does it).",
+    "hint": [
+        "solvePnP's pair is T_camera_world; the camera's pose is the same transform read the other way.",
+        (
+            "Inverting a rigid transform needs no general matrix inverse: the rotation's inverse is its "
+            "transpose, and the translation must be carried through that rotation too."
+        ),
+    ],
     "solution": """
         R, _ = cv2.Rodrigues(np.asarray(q2.inputs.rvec, dtype=float))
         t = np.ravel(q2.inputs.tvec)
@@ -168,10 +174,14 @@ _Q3 = {
         towards +Y, atan2(dy, dx)) and its tilt in degrees below the horizon (positive when
         looking down). Answer (heading_deg, tilt_down_deg).
         """,
-    "hint": (
-        "R_world_camera = R^T (R from cv2.Rodrigues(rvec)); its third column is the optical axis "
-        "d in the world. heading = atan2(d_y, d_x), tilt down = asin(-d_z)."
-    ),
+    "hint": [
+        "First find which way the camera looks in the WORLD frame; then turn that direction into two angles.",
+        (
+            "The optical axis is the camera's own z axis: a column of the camera's rotation in the world (the "
+            "inverse of solvePnP's). Heading is its direction on the floor, tilt how far it dips below the "
+            "horizon."
+        ),
+    ],
     "solution": """
         R, _ = cv2.Rodrigues(np.asarray(q3.inputs.rvec, dtype=float))
         d = R.T[:, 2]                                    # camera +z in world coordinates
@@ -250,10 +260,13 @@ _Q4 = {
         describe T_camera_marker. The marker's pose in the world is `T_world_marker`. Write code that
         computes the camera's position in the WORLD, (3,) mm.
         """,
-    "hint": (
-        "T_camera_marker = frames.transform_from_rvec_tvec(rvec, tvec); T_world_camera = T_world_marker "
-        "@ invert_transform(T_camera_marker); its last column is the position."
-    ),
+    "hint": [
+        "One marker is enough: the detection gives the marker in the camera, the map gives the marker in the world.",
+        (
+            "Write the frames under each factor and chain them so the inner names cancel: you need the "
+            "marker-to-camera transform the other way round."
+        ),
+    ],
     "solution": """
         T_camera_marker = frames.transform_from_rvec_tvec(q4.inputs.rvec, q4.inputs.tvec)
         T_world_camera = q4.inputs.T_world_marker @ frames.invert_transform(T_camera_marker)
@@ -317,6 +330,69 @@ def _q4(learner: str) -> Question:
     )
 
 
+#: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q5 = {
+    "title": "What is in the middle of the picture?",
+    "task": """
+        cv2.solvePnP gave `rvec` and `tvec` (mm) for a camera in the room looking at the north wall,
+        the plane x = 0. Write code that finds the point of the wall seen at the centre of the
+        picture (on the camera's optical axis): its world position, (3,) in mm.
+        """,
+    "hint": [
+        "Two things are needed in the world frame: where the camera is, and which way its optical axis points.",
+        "The axis leaves the camera's centre along the camera's own z; follow it until x reaches 0 "
+        "(a line meeting a plane: solve for how far along the line).",
+    ],
+    "solution": """
+        T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(q5.inputs.rvec, q5.inputs.tvec))
+        eye, axis = T_world_camera[:3, 3], T_world_camera[:3, 2]  # the camera's centre, its z axis in the world
+        s = -eye[0] / axis[0]                                     # how far along the axis until x = 0
+        q5.answer = eye + s * axis
+        """,
+    "level": "medium",
+}
+
+
+def _q5(learner: str) -> Question:
+    """q5: What is in the middle of the picture?"""
+    rng = _rng("07", learner, "q5")
+    Twc = _room_pose(rng)
+    rvec, tvec = frames.rvec_tvec_from_transform(frames.invert_transform(Twc))
+    rvec, tvec = np.round(rvec, 6), np.round(tvec, 2)
+    Twc = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
+
+    def hit(eye, axis):
+        return eye - eye[0] / axis[0] * axis
+
+    key = hit(Twc[:3, 3], Twc[:3, 2])
+    return Question(
+        "q5",
+        inputs={"rvec": rvec, "tvec": tvec},
+        expected=key,
+        parse=_array((3,), "the point", {(4,): "give x, y, z (3,), without the homogeneous 1"}),
+        compare=_cmp_array(1.0, " mm"),
+        wrong=[
+            (
+                lambda a: abs(a[0]) > 1.0,
+                "the point must lie on the north wall, x = 0: follow the optical axis until its x is 0",
+            ),
+            (
+                lambda a: np.linalg.norm(a) > 20000,
+                (
+                    "that point is far outside the room: the line you followed runs almost along the wall, so it "
+                    "is not the optical axis. The camera's axis in the world is the third COLUMN of "
+                    "T_world_camera's rotation, which is solvePnP's R[2, :], a ROW of R (not R[:, 2])"
+                ),
+            ),
+            (
+                lambda a: abs(tvec[0]) > 1e-6 and _close(a, hit(tvec, Twc[:3, 2]), 1.0),
+                "tvec is not where the camera is: its centre is -R.T @ tvec (lesson 07's q1)",
+            ),
+        ],
+        **_Q5,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 07 for one learner, in notebook order.
 
@@ -328,6 +404,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, q4, with their answer keys.
+        q1, q2, q3, q4, q5, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner)]

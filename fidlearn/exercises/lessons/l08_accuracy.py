@@ -13,6 +13,7 @@ import numpy as np
 from ... import _cv, frames
 from ...camera import Camera
 from ...markermap import MarkerMap, MarkerPlacement
+from ...synthetic import look_at
 from .._design import _WallTask
 from .._engine import Question, _AnswerError
 from .._parsers import (
@@ -25,6 +26,7 @@ from .._parsers import (
 )
 from .._scenery import (
     _noisy_detections,
+    _pose_seeing_all,
     _rng,
     _wall_map,
 )
@@ -73,7 +75,16 @@ _Q1 = {
         each distance, an array like `distances_mm`, to first order (dZ = |dZ/dw| * side_error_px).
         How does it grow when the distance doubles?
         """,
-    "hint": "w = fx * s / Z, so dZ/dw = -fx * s / w^2 = -Z^2 / (fx * s). Multiply by side_error_px.",
+    "hint": [
+        (
+            "The marker's width in pixels shrinks as it moves away: how fast does the depth change when that "
+            "width is off by a little?"
+        ),
+        (
+            "Differentiate Z = fx s / w with respect to w, then write the result with Z in place of w; the size "
+            "of the error is that slope times side_error_px."
+        ),
+    ],
     "solution": """
         Z = np.asarray(q1.inputs.distances_mm, dtype=float)
         q1.answer = Z ** 2 / (q1.inputs.camera.fx * q1.inputs.marker_size_mm) * q1.inputs.side_error_px
@@ -120,75 +131,116 @@ def _q1(learner: str) -> Question:
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
 _Q2 = {
-    "title": "Localize despite a misplaced marker",
+    "title": "Where did the misplaced marker go?",
     "task": """
-        Someone moved one marker after the map was measured: `marker_map` still has the old
-        position. Write code that detects the markers in `image` (the map's dictionary), finds the
-        marker the others disagree with (leave each marker out in turn: without the misplaced one
-        the rest fit each other to a fraction of a pixel; fidlearn.pose.estimate_pose can also do
-        it for you, read its result), and
-        localizes the camera without it. Answer {"misplaced_id": id, "position_mm": (3,) world mm}.
+        Someone moved one marker along its wall after the map was measured: `marker_map` still has
+        the old position. fidlearn.pose.estimate_pose finds that marker for you (the others do not
+        agree with it: it is in Pose.rejected_ids, and the pose is solved without it). What it does
+        not tell you is where the marker went. Write code that detects the markers in `image` (the
+        map's dictionary), finds the misplaced one and measures how it moved: its centre now minus
+        its centre in the map, a (3,) vector in world mm. Answer {"misplaced_id": id,
+        "moved_mm": (3,)}.
         """,
     "look": 'from fidlearn import plotting\nplotting.show_image(None, q2.inputs.image, title="q2.inputs.image");',
-    "hint": (
-        "estimate_pose(detections, marker_map, camera) leaves out a marker that disagrees and lists "
-        "it in pose.rejected_ids; or do it yourself: for each id, solve with the others only (reject_outliers=False) "
-        "and look at Pose.reprojection_rms_px: it drops when the misplaced marker is the one left "
-        "out."
-    ),
+    "hint": [
+        "The pose solved without the misplaced marker is trustworthy, and the marker still hangs on the same "
+        "wall. What does a pixel tell you about the point it saw, once you know where the camera is?",
+        "Each corner's pixel is a ray from the camera's centre (undistort it, turn it into the world frame with "
+        "the camera's rotation). Where does that ray meet the plane of the wall the marker hangs on?",
+    ],
     "solution": """
         from fidlearn.detection import detect_markers
         from fidlearn.pose import estimate_pose
         m, cam = q2.inputs.marker_map, q2.inputs.camera
         dets = [d for d in detect_markers(q2.inputs.image, m.dictionary) if d.id in m]
-        rms_without = {}                              # leave one out: do the others agree?
-        for left_out in dets:
-            others = [d for d in dets if d.id != left_out.id]
-            rms_without[left_out.id] = estimate_pose(others, m, cam, reject_outliers=False).reprojection_rms_px
-        worst_id = min(rms_without, key=rms_without.get)  # without it, the rest fit best
-        best = estimate_pose([d for d in dets if d.id != worst_id], m, cam, reject_outliers=False)
-        q2.answer = {"misplaced_id": worst_id, "position_mm": best.position_mm}
+        pose = estimate_pose(dets, m, cam)                # solved without the marker that disagrees
+        moved_id = pose.rejected_ids[0]
+        px = next(d for d in dets if d.id == moved_id).corners_px
+        xy = cv2.undistortPoints(px.reshape(-1, 1, 2), cam.K, cam.dist).reshape(-1, 2)  # z = 1 in the camera
+        R, eye = pose.T_world_camera[:3, :3], pose.T_world_camera[:3, 3]
+        rays = np.column_stack([xy, np.ones(len(xy))]) @ R.T   # world directions of the 4 corner rays
+        old = m.marker_corners(moved_id)
+        normal = m.normal(moved_id)                        # the wall's plane: through old[0], this normal
+        depth = ((old[0] - eye) @ normal) / (rays @ normal)
+        now = eye + depth[:, None] * rays                  # where the rays meet the wall
+        q2.answer = {"misplaced_id": moved_id, "moved_mm": now.mean(axis=0) - old.mean(axis=0)}
         """,
     "level": "hard",
 }
 
 
-def _q2_mistakes(bad, tol, all_pos, true_pos) -> list:
+def _moved_on_wall(detection, marker_map, camera, T_world_camera) -> np.ndarray:
+    """How the marker of ``detection`` moved on its wall: the rays of its corners meet the map's wall plane."""
+    xy = cv2.undistortPoints(detection.corners_px.reshape(-1, 1, 2), camera.K, camera.dist).reshape(-1, 2)
+    rays = np.column_stack([xy, np.ones(len(xy))]) @ T_world_camera[:3, :3].T
+    old = marker_map.marker_corners(detection.id)
+    normal = marker_map.normal(detection.id)
+    eye = T_world_camera[:3, 3]
+    depth = ((old[0] - eye) @ normal) / (rays @ normal)
+    return (eye + depth[:, None] * rays).mean(axis=0) - old.mean(axis=0)
+
+
+def _q2_mistakes(bad, tol, moved, biased, map_centre) -> list:
     """The mistakes q2 names: (detector, message) pairs, in the order they are tried."""
+
+    def near(v):
+        return lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["moved_mm"] - v) <= tol
+
     return [
+        (near(-moved), "that is the move the other way round: the centre NOW minus the centre in the map"),
         (
-            lambda a: (
-                a["misplaced_id"] == bad
-                and np.linalg.norm(a["position_mm"] - all_pos) < 3
-                and np.linalg.norm(all_pos - true_pos) > tol
-            ),
+            lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["moved_mm"]) < 5,
             (
-                "the right marker, but your position still uses it: leave it out of the pose (estimate_pose "
-                "on the other detections, or read Pose.rejected_ids)"
+                "your marker did not move: the map's corners give the map's centre back. Find where the marker "
+                "is now from its pixels: the rays through them, from the camera, meet the wall"
             ),
         ),
         (
-            lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["position_mm"] * 304.8 - true_pos) < tol,
-            "that position is in feet: give mm",
+            near(map_centre + moved),
+            "that is where the marker is now; the question asks how it MOVED: subtract its centre in the map",
+        ),
+        (
+            lambda a: (
+                a["misplaced_id"] == bad
+                and np.linalg.norm(a["moved_mm"] - biased) <= tol
+                and np.linalg.norm(biased - moved) > tol
+            ),
+            (
+                "the pose you cast the rays from still uses the misplaced marker, and it pulls the pose: solve it "
+                "without that marker (estimate_pose rejects it; use that pose)"
+            ),
+        ),
+        (
+            lambda a: a["misplaced_id"] == bad and np.linalg.norm(a["moved_mm"] * 10 - moved) <= tol,
+            "that looks like cm: give mm",
         ),
     ]
 
 
+def _q2_layout(rng: np.random.Generator) -> tuple:
+    """q2's scene before it is rendered: (camera, marker_map, T_world_camera), every marker in the picture."""
+    cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 65))), (960, 720))
+    true_map = _wall_map(rng, 5, 150.0, spread_mm=700.0)
+
+    def draw(r):
+        return look_at(np.round(r.uniform([1800, -400, 1000], [2600, 400, 1400])), [0.0, 0.0, 1250.0])
+
+    return cam2, true_map, _pose_seeing_all(rng, cam2, true_map, draw)
+
+
 def _q2(learner: str) -> Question:
-    """q2: Localize despite a misplaced marker."""
+    """q2: Where did the misplaced marker go?"""
     from ... import pose as _pose
     from ... import synthetic
     from ...detection import detect_markers
 
     rng = _rng("08", learner, "q2")
-    cam2 = Camera.from_fov(float(np.round(rng.uniform(55, 65))), (960, 720))
-    true_map = _wall_map(rng, 5, 150.0, spread_mm=700.0)
-    eye = np.round(rng.uniform([1800, -400, 1000], [2600, 400, 1400]))
-    T2 = synthetic.look_at(eye, [0.0, 0.0, 1250.0])
+    cam2, true_map, T2 = _q2_layout(rng)
     image, truth = synthetic.render_scene(
         true_map, cam2, T2, seed=int(rng.integers(1 << 30)), blur_px=0.5, noise_std_gray=1.5
     )
-    bad = int(rng.choice(sorted(truth)))
+    seen = sorted(set(truth) & {d.id for d in detect_markers(image, true_map.dictionary)})
+    bad = int(rng.choice(seen))  # a marker the learner's detection finds too
     shift = rng.choice([-1, 1]) * float(rng.uniform(80, 140))
     placements = dict(true_map.placements)
     p = placements[bad]
@@ -196,30 +248,33 @@ def _q2(learner: str) -> Question:
         bad, (p.translation_mm[0], p.translation_mm[1] + round(shift), p.translation_mm[2]), p.rotation_deg
     )
     wrong_map = MarkerMap(placements, true_map.marker_size_mm, true_map.dictionary, "mm")
-    dets = detect_markers(image, true_map.dictionary)
-    all_pos = _pose.estimate_pose(dets, wrong_map, cam2, reject_outliers=False).position_mm
-    good_pos = _pose.estimate_pose([d for d in dets if d.id != bad], wrong_map, cam2).position_mm
-    tol = max(25.0, 2 * float(np.linalg.norm(good_pos - T2[:3, 3])))
-    true_pos = T2[:3, 3]
+    dets = [d for d in detect_markers(image, true_map.dictionary) if d.id in seen]
+    moved = np.array([0.0, -float(round(shift)), 0.0])  # the map was shifted; the marker is where it was
+    bad_det = next(d for d in dets if d.id == bad)
+    good = _pose.estimate_pose([d for d in dets if d.id != bad], wrong_map, cam2, reject_outliers=False)
+    all_in = _pose.estimate_pose(dets, wrong_map, cam2, reject_outliers=False)
+    est = _moved_on_wall(bad_det, wrong_map, cam2, good.T_world_camera)
+    biased = _moved_on_wall(bad_det, wrong_map, cam2, all_in.T_world_camera)
+    tol = max(15.0, 3 * float(np.linalg.norm(est - moved)))
 
     def cmp2(a, _):
         if a["misplaced_id"] != bad:
             return (
-                f"marker {a['misplaced_id']} agrees with the others; leave each marker out in turn and see "
-                "which one the others do not explain"
+                f"marker {a['misplaced_id']} agrees with the others; leave each marker out in turn (or read "
+                "Pose.rejected_ids) and see which one the others do not explain"
             )
-        err = float(np.linalg.norm(a["position_mm"] - true_pos))
+        err = float(np.linalg.norm(a["moved_mm"] - moved))
         if err > tol:
-            return f"the right marker, but your position is {err:.0f} mm from the truth (tolerance {tol:.0f} mm)"
+            return f"the right marker, but your move is {err:.0f} mm from the truth (tolerance {tol:.0f} mm)"
         return None
 
     return Question(
         "q2",
         inputs={"image": image.copy(), "marker_map": wrong_map, "camera": cam2},
-        expected={"misplaced_id": bad, "position_mm": true_pos},
-        parse=_parts(misplaced_id=lambda v: int(_scalar("misplaced_id")(v)), position_mm=_array((3,), "position_mm")),
+        expected={"misplaced_id": bad, "moved_mm": moved},
+        parse=_parts(misplaced_id=lambda v: int(_scalar("misplaced_id")(v)), moved_mm=_array((3,), "moved_mm")),
         compare=cmp2,
-        wrong=_q2_mistakes(bad, tol, all_pos, true_pos),
+        wrong=_q2_mistakes(bad, tol, moved, biased, wrong_map.marker_corners(bad).mean(axis=0)),
         **_Q2,
     )
 

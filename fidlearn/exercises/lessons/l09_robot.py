@@ -43,10 +43,13 @@ _Q1 = {
         code that localizes every frame: detect, estimate the pose, and collect the camera's
         position in the world. Answer an (N, 3) array, mm, one row per frame in order.
         """,
-    "hint": (
-        "for image in images: pose = estimate_pose(detect_markers(image, marker_map.dictionary), "
-        "marker_map, camera); keep pose.position_mm."
-    ),
+    "hint": [
+        "Each frame is a lesson-07 problem on its own: detect, then localize.",
+        (
+            "fidlearn.detection.detect_markers and fidlearn.pose.estimate_pose do each step; keep the camera "
+            "position of each frame, in order."
+        ),
+    ],
     "look": (
         "from fidlearn import plotting\nfirst_middle_last = [0, len(q1.inputs.images) // 2, len(q1.inputs.images) "
         '- 1]\nplotting.show_images([q1.inputs.images[i] for i in first_middle_last], titles=[f"frame '
@@ -167,10 +170,12 @@ _Q2 = {
         (x_mm, y_mm, heading_deg), its origin's world x and y and the direction of its x axis in
         the world, atan2(dy, dx) in degrees.
         """,
-    "hint": (
-        "T_world_robot = T_world_camera @ frames.invert_transform(T_robot_camera); x, y = its last "
-        "column; heading = degrees(atan2(R[1, 0], R[0, 0]))."
-    ),
+    "hint": [
+        "Chain the frames by their names: you have T_world_camera and T_robot_camera and you want a transform "
+        "with 'world' on the left and 'robot' on the right. What must stand between them?",
+        "Names cancel when the inner ones match, T_a_c = T_a_b @ T_b_c, and turning a transform round swaps its "
+        "names (its inverse). The heading is where the robot's own x axis points once it is in the world frame.",
+    ],
     "solution": """
         T_world_robot = q2.inputs.T_world_camera @ frames.invert_transform(q2.inputs.T_robot_camera)
         heading = np.degrees(np.arctan2(T_world_robot[1, 0], T_world_robot[0, 0]))
@@ -269,10 +274,13 @@ _Q3 = {
         the floor: the length of the path through the valid positions in order, using x and y
         only, in mm.
         """,
-    "hint": (
-        "Keep the rows without NaN (~np.isnan(p).any(axis=1)), take np.diff of their x, y and sum "
-        "the step lengths (np.linalg.norm along axis 1)."
-    ),
+    "hint": [
+        "A path's length is the sum of its steps; a lost frame is not a step.",
+        (
+            "Keep only the valid rows, take the differences of consecutive ones on the floor (x and y), and add "
+            "up their lengths."
+        ),
+    ],
     "solution": """
         p = np.asarray(q3.inputs.positions_mm, dtype=float)
         valid = p[~np.isnan(p).any(axis=1)]
@@ -293,7 +301,7 @@ def _q3(learner: str) -> Question:
     bend = float(rng.uniform(150, 400))
     xy = start + np.outer(s, end - start) + np.outer(np.sin(np.pi * s) * bend, [0.6, 0.8])
     xy = xy + rng.normal(0, 4, xy.shape)
-    z = 300 + rng.normal(0, 2, k)
+    z = 300 + rng.normal(0, 15, k)  # the camera's height as the poses give it: noise of the estimate
     pts = np.round(np.column_stack([xy, z]), 1)
     lost = sorted(int(i) for i in rng.choice(np.arange(2, k - 2), size=2, replace=False))
     pts[lost] = np.nan
@@ -315,7 +323,11 @@ def _q3(learner: str) -> Question:
             ),
             (
                 lambda a: abs(a - length3) < 0.05,
-                "use x and y only: the camera's z wobbles a little but the robot drives on the floor",
+                (
+                    f"that is the 3D length of the camera's path, {length3 - length:.1f} mm more than the floor "
+                    "path: the robot drives on the flat floor and the camera's z only wobbles with the pose's "
+                    "noise, so each step up and down adds length that was never driven. Use x and y only"
+                ),
             ),
             (lambda a: abs(a * 1000 - length) < 0.5, "that is in metres: give mm"),
             (
@@ -330,6 +342,80 @@ def _q3(learner: str) -> Question:
     )
 
 
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q4 = {
+    "title": "How fast did the robot go?",
+    "task": """
+        `positions_mm` (N, 3) are the camera positions of a drive and `timestamps_s` (N,) the
+        times the frames were taken (the camera does not keep a perfect rhythm); where no marker was
+        seen the row is NaN, the first and last frames included. Write code that computes the
+        robot's average speed on the floor over the part of the drive that was localized, in mm/s:
+        the floor distance (x, y) through the valid positions divided by the time it took.
+        """,
+    "hint": [
+        "An average speed is one distance over one duration; both must cover the same stretch of the drive.",
+        "The stretch runs from the first localized frame to the last one: its time is the difference of THEIR "
+        "timestamps, whatever happened before or after.",
+    ],
+    "solution": """
+        p = np.asarray(q4.inputs.positions_mm, dtype=float)
+        t = np.asarray(q4.inputs.timestamps_s, dtype=float)
+        ok = ~np.isnan(p).any(axis=1)
+        distance = np.sum(np.linalg.norm(np.diff(p[ok, :2], axis=0), axis=1))
+        q4.answer = distance / (t[ok][-1] - t[ok][0])
+        """,
+    "level": "medium",
+}
+
+
+def _q4(learner: str) -> Question:
+    """q4: How fast did the robot go?"""
+    rng = _rng("09", learner, "q4")
+    k = 15
+    speed = float(rng.uniform(150, 400))  # mm/s
+    dt = rng.uniform(0.09, 0.11, k - 1)
+    t = np.round(np.concatenate([[0.0], np.cumsum(dt)]) + float(np.round(rng.uniform(10, 50), 2)), 3)
+    heading = float(rng.uniform(-np.pi, np.pi))
+    start = np.round(rng.uniform([1500, -600], [3000, 600]))
+    travelled = speed * (t - t[0])
+    xy = start + np.outer(travelled, [math.cos(heading), math.sin(heading)])
+    xy = xy + rng.normal(0, 3, xy.shape)
+    pts = np.round(np.column_stack([xy, 300 + rng.normal(0, 15, k)]), 1)
+    lost = [0, int(rng.integers(4, k - 4)), k - 1] + ([1] if rng.random() < 0.5 else [])
+    pts[lost] = np.nan
+    ok = ~np.isnan(pts[:, 0])
+    d2 = float(np.sum(np.linalg.norm(np.diff(pts[ok, :2], axis=0), axis=1)))
+    d3 = float(np.sum(np.linalg.norm(np.diff(pts[ok], axis=0), axis=1)))
+    span = float(t[ok][-1] - t[ok][0])
+    key = d2 / span
+    return Question(
+        "q4",
+        inputs={"positions_mm": pts, "timestamps_s": t},
+        expected=key,
+        parse=_scalar("the speed"),
+        compare=_cmp_scalar(0.01, " mm/s"),
+        wrong=[
+            (
+                lambda a: abs(a - d2 / (t[-1] - t[0])) < 0.01,
+                (
+                    "that divides by the whole recording, lost frames at the ends included; the distance only "
+                    "covers the first to the last LOCALIZED frame, so the time must too"
+                ),
+            ),
+            (
+                lambda a: abs(a - d2 / (0.1 * np.ptp(np.flatnonzero(ok)))) < 0.01,
+                "the frames are not exactly 0.1 s apart: use the timestamps, not a nominal frame rate",
+            ),
+            (
+                lambda a: abs(a - d3 / span) < 0.01,
+                "that is the 3D path of the camera: its z wobbles with the pose's noise; the floor speed uses x, y",
+            ),
+            (lambda a: abs(a * 1000 - key) < 0.01 * 1000, "that is in m/s: give mm/s"),
+        ],
+        **_Q4,
+    )
+
+
 def build(learner: str) -> list[Question]:
     """The questions of lesson 09 for one learner, in notebook order.
 
@@ -341,6 +427,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, with their answer keys.
+        q1, q2, q3, q4, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]
