@@ -71,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     --------
     >>> sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     >>> sorted(sub.choices)[:3]
-    ['board', 'calibrate', 'corners']
+    ['board', 'calibrate', 'camera']
     """
     parser = _Parser(
         prog="fidlearn",
