@@ -49,16 +49,17 @@ REFINE_METHODS = ("none", "subpix", "contour", "apriltag", "edges")
 DEFAULT_REFINE = "edges"
 
 #: OpenCV detector parameters fidlearn changes from OpenCV's defaults, chosen by measurement
-#: (``benchmarks/bench_detection.py``: recall and time on a video and on rendered rooms, ArUco and
-#: AprilTag dictionaries). ``minMarkerDistanceRate`` 0.05 instead of 0.125: with a white margin of
-#: one cell the paper's edge is 0.05 of the perimeter from the marker's, and OpenCV's filter of
-#: close candidates kept the wrong one (opencv/opencv_contrib#2913); ``perspectiveRemovePixelPerCell``
-#: 8 instead of 4 reads the cells of small markers (20-30 px) more surely; threshold windows 3 and
-#: 23 px (``adaptiveThreshWinSizeStep`` 20 instead of 10) drop OpenCV's middle pass of 13 px, about
-#: a third of its time, without a marker lost. A ``detector_params`` dict overrides these field by
-#: field; a ``cv2.aruco.DetectorParameters`` object is used as it is.
+#: (``benchmarks/bench_detection.py``: recall and time on a video, rendered rooms, walls of large
+#: markers and rooms in hard light, ArUco and AprilTag dictionaries). ``minMarkerDistanceRate`` 0.065
+#: instead of 0.125: with a white margin of one cell the paper's edge is about 0.05 of the perimeter
+#: from the marker's, and OpenCV's filter of close candidates kept the wrong one
+#: (opencv/opencv_contrib#2913); 0.05 lost large markers (100 px and more) instead.
+#: ``perspectiveRemovePixelPerCell`` 8 instead of 4 reads the cells of small markers (20-30 px) more
+#: surely; threshold windows 3 and 23 px (``adaptiveThreshWinSizeStep`` 20 instead of 10) drop
+#: OpenCV's middle pass of 13 px, about a third of its time. A ``detector_params`` dict overrides
+#: these field by field; a ``cv2.aruco.DetectorParameters`` object is used as it is.
 DEFAULT_DETECTOR_PARAMS = MappingProxyType(
-    {"minMarkerDistanceRate": 0.05, "perspectiveRemovePixelPerCell": 8, "adaptiveThreshWinSizeStep": 20}
+    {"minMarkerDistanceRate": 0.065, "perspectiveRemovePixelPerCell": 8, "adaptiveThreshWinSizeStep": 20}
 )
 
 
