@@ -16,6 +16,7 @@ import numbers
 from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
+from types import MappingProxyType
 from typing import Any
 
 import cv2
@@ -36,6 +37,7 @@ __all__ = [
     "refine_corners_edges",
     "REFINE_METHODS",
     "DEFAULT_REFINE",
+    "DEFAULT_DETECTOR_PARAMS",
 ]
 
 CORNER_NAMES = ("TL", "TR", "BR", "BL")
@@ -45,6 +47,20 @@ REFINE_METHODS = ("none", "subpix", "contour", "apriltag", "edges")
 
 #: The refinement used when none is asked for, chosen by measurement (docs/corner_refinement.md).
 DEFAULT_REFINE = "edges"
+
+#: OpenCV detector parameters fidlearn changes from OpenCV's defaults, chosen by measurement
+#: (``benchmarks/bench_detection.py``: recall and time on a video, rendered rooms, walls of large
+#: markers and rooms in hard light, ArUco and AprilTag dictionaries). ``minMarkerDistanceRate`` 0.065
+#: instead of 0.125: with a white margin of one cell the paper's edge is about 0.05 of the perimeter
+#: from the marker's, and OpenCV's filter of close candidates kept the wrong one
+#: (opencv/opencv_contrib#2913); 0.05 lost large markers (100 px and more) instead.
+#: ``perspectiveRemovePixelPerCell`` 8 instead of 4 reads the cells of small markers (20-30 px) more
+#: surely; threshold windows 3 and 23 px (``adaptiveThreshWinSizeStep`` 20 instead of 10) drop
+#: OpenCV's middle pass of 13 px, about a third of its time. A ``detector_params`` dict overrides
+#: these field by field; a ``cv2.aruco.DetectorParameters`` object is used as it is.
+DEFAULT_DETECTOR_PARAMS = MappingProxyType(
+    {"minMarkerDistanceRate": 0.065, "perspectiveRemovePixelPerCell": 8, "adaptiveThreshWinSizeStep": 20}
+)
 
 
 @dataclass(frozen=True, eq=False, init=False)
@@ -233,6 +249,14 @@ def _params_key(params: Any) -> Any:
     return ("fields", tuple(sorted(_cv.detector_parameter_fields(params).items())))
 
 
+def _detector_fields(params: Any) -> dict:
+    """Every OpenCV detector field for ``params``: fidlearn's defaults (:data:`DEFAULT_DETECTOR_PARAMS`)
+    under a dict of overrides (or None), a ``DetectorParameters`` object as it is."""
+    if params is None or isinstance(params, dict):
+        params = {**DEFAULT_DETECTOR_PARAMS, **(params or {})}
+    return _cv.detector_parameter_fields(params)
+
+
 def _detector(dictionary: str, refine: str, params: Any, ids: tuple[int, ...] | None = None):
     """The cached ``ArucoDetector`` for (dictionary, refinement, parameters, ids), its marker's side in
     cells and whether inverted markers (light border) may come out."""
@@ -241,7 +265,7 @@ def _detector(dictionary: str, refine: str, params: Any, ids: tuple[int, ...] | 
     if hit is not None:
         _DETECTOR_CACHE.move_to_end(key)
         return hit
-    fields = _cv.detector_parameter_fields(params)
+    fields = _detector_fields(params)
     # fidlearn's "edges" starts from OpenCV's unrefined corners.
     fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if refine == "edges" else refine)
     try:
@@ -318,8 +342,9 @@ def detect_markers(
         or OpenCV's own ``"none"``, ``"subpix"``, ``"contour"``, ``"apriltag"``.
         See ``docs/corner_refinement.md`` for the measurements.
     detector_params : None, dict or cv2.aruco.DetectorParameters
-        OpenCV detector parameters, as an object or as ``{field: value}``
-        overrides of the defaults. ``refine`` always sets ``cornerRefinementMethod``.
+        OpenCV detector parameters, as an object (used as it is) or as ``{field: value}``
+        overrides of fidlearn's defaults (:data:`DEFAULT_DETECTOR_PARAMS`, which change three of
+        OpenCV's for recall and speed). ``refine`` always sets ``cornerRefinementMethod``.
     ids : iterable of int, optional
         Look only for these markers of the dictionary (a world map's ids). The
         same markers come out as with the whole dictionary (none of the others

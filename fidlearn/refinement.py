@@ -128,7 +128,7 @@ def _profiles(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.
     # (y down), as OpenCV reports them for a marker seen from its front.
     nz = Dz * (np.where((Dz[:, 0].conj() * Dz[:, 1]).imag >= 0, -1j, 1j)[:, None] / L)
     cell = L.sum(1) * (0.25 / cells)  # (M,) px per cell
-    h = np.clip(0.6 * cell, 1.5, 5.0)  # profile half-length, px
+    h = np.minimum(np.maximum(0.6 * cell, 1.5), 5.0)  # profile half-length, px
     margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)  # keep clear of the corners
     span = 1.0 - 2.0 * margin
     t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
@@ -152,22 +152,27 @@ def _levels(prof: np.ndarray, inverted: bool | None, gamma: float):
     if inverted is None:  # which way round is the contrast larger?
         imin, imax, omin, omax = pin.min(-1), pin.max(-1), pout.min(-1), pout.max(-1)
         normal = ((omax - imin) >= (imax - omin)).mean(-1) >= 0.5  # (M, 4): dark inside
-        dark = np.sort(np.where(normal[..., None], imin, -imax), axis=2)[..., half]  # levels x polarity
-        light = np.sort(np.where(normal[..., None], omax, -omin), axis=2)[..., half]
+        dark = _kth(np.where(normal[..., None], imin, -imax), half)  # levels x polarity
+        light = _kth(np.where(normal[..., None], omax, -omin), half)
         prof = prof * np.where(normal, 1.0, -1.0).astype(np.float32)[..., None, None]
     elif inverted:
-        dark = np.sort(-pin.max(-1), axis=2)[..., half]
-        light = np.sort(-pout.min(-1), axis=2)[..., half]
+        dark = _kth(-pin.max(-1), half)
+        light = _kth(-pout.min(-1), half)
         prof = -prof
     else:
-        dark = np.sort(pin.min(-1), axis=2)[..., half]
-        light = np.sort(pout.max(-1), axis=2)[..., half]
+        dark = _kth(pin.min(-1), half)
+        light = _kth(pout.max(-1), half)
     level = 0.5 * (dark + light)
     if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
         g = float(gamma)
         lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
         level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
     return prof, dark, light, level
+
+
+def _kth(a: np.ndarray, k: int) -> np.ndarray:
+    """The k-th smallest value (0-based) along axis 2: ``np.sort(a, axis=2)[..., k]``, without the full sort."""
+    return np.partition(a, k, axis=2)[..., k]
 
 
 def _edge_offsets(prof, level, dark, light, h, shift: float):

@@ -57,7 +57,7 @@ import numpy as np
 
 from . import _cv, frames
 from .camera import Camera
-from .detection import DEFAULT_REFINE, Detection, _refine_name, as_gray, refine_corners_edges
+from .detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_name, as_gray, refine_corners_edges
 from .errors import FidlearnError, NoMarkersError, PoseError
 from .markermap import MarkerMap
 from .pose import Pose, _check_pose_options, estimate_pose
@@ -153,7 +153,7 @@ class MarkerTracker:
         self.pose_options = _check_pose_options(
             pose_options, "MarkerTracker()", "refine, detector_params, full_every, search_px"
         )
-        fields = _cv.detector_parameter_fields(detector_params)  # checks the parameters now, not on frame 1
+        fields = _detector_fields(detector_params)  # checks the parameters now, not on frame 1
         fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if self.refine == "edges" else self.refine)
         self._fields = fields
         self._cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2 * int(fields["markerBorderBits"])

@@ -9,10 +9,12 @@ import pytest
 from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, data_path
 from fidlearn.detection import (
     _DETECTOR_CACHE,
+    DEFAULT_DETECTOR_PARAMS,
     DEFAULT_REFINE,
     REFINE_METHODS,
     Detection,
     _detector,
+    _detector_fields,
     as_gray,
     detect_markers,
     detect_markers_with_rejected,
@@ -312,6 +314,55 @@ def test_detector_is_built_once_per_dictionary_refinement_and_parameters(photo):
     params.minMarkerPerimeterRate = 0.25  # perimeter at least 0.25 * 640 = 160 px: only id 40 (44 px side)
     assert [d.id for d in detect_markers(photo, "6X6_250", detector_params=params)] == [40]
     assert [d.id for d in detect_markers(photo, "6X6_250", detector_params={"minMarkerPerimeterRate": 0.25})] == [40]
+
+
+# ----------------------------------------------------------------------------------------------
+# fidlearn's detector parameters
+# ----------------------------------------------------------------------------------------------
+
+
+def test_fidlearn_defaults_sit_under_a_dict_of_overrides_and_never_change_an_opencv_object():
+    opencv = _cv.detector_parameter_fields(None)
+    ours = _detector_fields(None)
+    assert {k for k in ours if ours[k] != opencv[k]} == set(DEFAULT_DETECTOR_PARAMS)
+    assert all(ours[k] == pytest.approx(v) for k, v in DEFAULT_DETECTOR_PARAMS.items())
+    one = _detector_fields({"minMarkerDistanceRate": 0.1})
+    assert one["minMarkerDistanceRate"] == pytest.approx(0.1)
+    assert one["perspectiveRemovePixelPerCell"] == DEFAULT_DETECTOR_PARAMS["perspectiveRemovePixelPerCell"]
+    assert _detector_fields(cv2.aruco.DetectorParameters()) == opencv
+
+
+def test_opencv_defaults_given_as_an_object_give_opencvs_corners_refined_exactly_as_before(photo):
+    """The edges refinement is unchanged: on OpenCV's own unrefined corners it gives the same numbers."""
+    gray = as_gray(photo)
+    plain = plain_opencv(gray, "6X6_250")
+    dets = detect_markers(photo, "6X6_250", detector_params=cv2.aruco.DetectorParameters())
+    assert [d.id for d in dets] == sorted(plain) == PHOTO_IDS
+    expected = refine_corners_edges(gray, np.stack([plain[d.id] for d in dets]), 8, inverted=False)
+    np.testing.assert_allclose(np.stack([d.corners_px for d in dets]), expected, rtol=0, atol=1e-9)
+
+
+def test_defaults_find_markers_with_a_one_cell_margin_that_opencvs_defaults_lose():
+    """A row of nine 80 mm ARUCO_ORIGINAL markers with one-cell white margins, seen from 4.9 m at 1920x1080
+    (frame 5 of 20 of benchmarks/bench_speed.py's video): every one is found, at its rendered corners.
+    OpenCV's defaults (4.14 and 5.0) lose two of them to their filter of close candidates
+    (opencv/opencv_contrib#2913)."""
+    s = 5 / 19
+    eye = [5600 - 2500 * s, 700 + 1300 * s + 150 * np.sin(3 * s), 1300 + 10 * np.sin(7 * s)]
+    T = look_at(eye, [0.0, 1300 + 400 * np.sin(2.5 * s), 1250 - 250 * s], roll_deg=3 * np.sin(5 * s))
+    cam = Camera([[1371.0, 0, 961.3], [0, 1371.0, 538.2], [0, 0, 1]], [-0.08, 0.05, 3e-4, -2e-4, -0.01], (1920, 1080))
+    row = {18 + c: MarkerPlacement(18 + c, (0.0, c * 450.0 - 200.0, 1800.0), (0.0, 0.0, 0.0)) for c in range(9)}
+    m = MarkerMap(row, MARKER_MM, "ARUCO_ORIGINAL")
+    image, truth = render_scene(m, cam, T, seed=5, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
+    assert sorted(truth) == list(range(18, 27))
+    dets = detect_markers(image)
+    assert [d.id for d in dets] == list(range(18, 27))
+    assert max(np.abs(d.corners_px - truth[d.id]).max() for d in dets) < 0.3
+    # the same with the map's ids only (what locate runs) and on OpenCV's defaults, as OpenCV gives them
+    assert [d.id for d in detect_markers(image, ids=m.ids)] == list(range(18, 27))
+    plain = plain_opencv(image, "ARUCO_ORIGINAL")
+    ours = detect_markers(image, detector_params=cv2.aruco.DetectorParameters())
+    assert [d.id for d in ours] == sorted(plain)
 
 
 def test_rejected_candidates_on_request(photo):
