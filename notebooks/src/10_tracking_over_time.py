@@ -83,7 +83,7 @@ ax1.plot([0, 1500], [0, 0], "k", linewidth=4, label="the markers on the wall")
 ax1.set_xlabel("Y along the wall (mm)")
 ax1.set_ylabel("X from the wall (mm)")
 ax1.set_title("top view: the per-frame positions")
-ax1.legend(loc="upper right")
+ax1.legend(loc="center left")
 ax2.plot(times_s, angle_deg, ".", markersize=4, color="tab:orange")
 ax2.set_yscale("log")
 ax2.set_xlabel("time (s)")
@@ -93,8 +93,8 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# Near the wall the per-frame poses jitter by centimetres; far away some frames jump by tens of degrees and
-# metres: the corners of one small face-on marker fit two poses about equally well, and the noise decides which
+# Near the wall the per-frame poses jitter by centimetres and about a degree; far away most frames jump by 10 to
+# 20 degrees, and their positions by half a metre and more: the corners of one small face-on marker fit two poses about equally well, and the noise decides which
 # one `estimate_pose` ranks first. Each frame forgets the last one. A filter remembers.
 #
 # ## 2. A Kalman filter on the position, written out
@@ -213,7 +213,8 @@ plt.show()
 # %% [markdown]
 # Not every ambiguous frame is flipped: `flip_resolved` counts the frames where `estimate_pose` ranked the wrong
 # solution first and the tracker took the other. (Frames that disagree with both would be `rejected`, with a
-# `reason`.) The far frames stay less accurate than the near ones: one small marker is little information.
+# `reason`.) The far frames stay less accurate than the near ones (a few degrees in the plot): one small marker
+# is little information, and most of its frames arrive flipped.
 #
 # ## 5. What odometry adds: a gap bridged
 #
