@@ -24,6 +24,7 @@ from fidlearn.exercises.lessons import (
     l07_inversion,
     l08_accuracy,
     l09_robot,
+    l10_tracking,
 )
 from fidlearn.markermap import MarkerMap
 
@@ -277,6 +278,21 @@ def _s09_path(builder):
     return scene
 
 
+def _s10_q3(learner):
+    q = l10_tracking._q3(learner)
+    T_world_base = q.inputs.T_world_camera @ q.inputs.T_camera_base
+    return Scene(cameras=[q.inputs.T_world_camera], inside=[T_world_base[:3, 3]])  # the robot stands in the room
+
+
+def _s10_q4(learner):
+    q = l10_tracking._q4(learner)
+    T, path = q.inputs.T_world_base_start, [q.inputs.T_world_base_start[:3, 3]]
+    for step in q.inputs.odometry:
+        T = T @ step
+        path.append(T[:3, 3])
+    return Scene(inside=path)  # the robot drives on the room's floor
+
+
 #: Where each question's scene is, or why it has none (a str). Slow questions (rendered pictures,
 #: repeated calibrations) are in :data:`SLOW`, checked for fewer learners.
 SCENES = {
@@ -317,6 +333,10 @@ SCENES = {
     ("09", "q2"): _s09_q2,
     ("09", "q3"): _s09_path(l09_robot._q3),
     ("09", "q4"): _s09_path(l09_robot._q4),
+    ("10", "q1"): "three orientations of a robot on the floor",
+    ("10", "q2"): "positions along a line, one coordinate",
+    ("10", "q3"): _s10_q3,
+    ("10", "q4"): _s10_q4,
 }
 
 

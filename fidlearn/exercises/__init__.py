@@ -1,6 +1,6 @@
 """Classroom exercises with automatic feedback: ``q1.check()``, ``q1.hint()``, ``q1.solution()``.
 
-Each lesson (``"01"`` to ``"09"``) holds questions built from seeded synthetic
+Each lesson (``"01"`` to ``"10"``) holds questions built from seeded synthetic
 data. A question shows its inputs in ``q.inputs``; the learner writes code that
 computes the answer from them, assigns ``q.answer = ...`` (or calls
 ``q.check(value)``) and runs ``q.check()``, which prints one line:
