@@ -54,13 +54,13 @@ DEFAULT_REFINE = "edges"
 #: instead of 0.125: with a white margin of one cell the paper's edge is about 0.05 of the perimeter
 #: from the marker's, and OpenCV's filter of close candidates kept the wrong one
 #: (opencv/opencv_contrib#2913); 0.05 lost large markers (100 px and more) instead.
-#: ``perspectiveRemovePixelPerCell`` 8 instead of 4 reads the cells of small markers (20-30 px) more
-#: surely; threshold windows 3 and 23 px (``adaptiveThreshWinSizeStep`` 20 instead of 10) drop
-#: OpenCV's middle pass of 13 px, about a third of its time. A ``detector_params`` dict overrides
+#: Threshold windows 3 and 23 px (``adaptiveThreshWinSizeStep`` 20 instead of 10) drop OpenCV's
+#: middle pass of 13 px, about a third of its time. ``perspectiveRemovePixelPerCell`` stays OpenCV's
+#: 4: 8 reads the cells of small markers (20-30 px) a little more surely, but it also decoded a quad
+#: around a marker and its margin as that marker, a quarter turn off and 50 px away
+#: (``data/survey/photo_14.jpg``, marker 0). A ``detector_params`` dict overrides
 #: these field by field; a ``cv2.aruco.DetectorParameters`` object is used as it is.
-DEFAULT_DETECTOR_PARAMS = MappingProxyType(
-    {"minMarkerDistanceRate": 0.065, "perspectiveRemovePixelPerCell": 8, "adaptiveThreshWinSizeStep": 20}
-)
+DEFAULT_DETECTOR_PARAMS = MappingProxyType({"minMarkerDistanceRate": 0.065, "adaptiveThreshWinSizeStep": 20})
 
 
 @dataclass(frozen=True, eq=False, init=False)
