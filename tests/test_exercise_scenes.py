@@ -24,6 +24,7 @@ from fidlearn.exercises.lessons import (
     l07_inversion,
     l08_accuracy,
     l09_robot,
+    l11_mapping,
 )
 from fidlearn.markermap import MarkerMap
 
@@ -277,6 +278,17 @@ def _s09_path(builder):
     return scene
 
 
+def _s11_q2(learner):
+    cam, m, T = l11_mapping._q2_layout(_rng("11", learner, "q2"))
+    q = l11_mapping._q2(learner)
+    return Scene(marker_map=m, cameras=[T], camera=cam, pixels=q.inputs.detected_px)
+
+
+def _s11_q4(learner):
+    q = l11_mapping._q4(learner)
+    return Scene(marker_map=q.inputs.marker_map, cameras=list(q.inputs.candidates))
+
+
 #: Where each question's scene is, or why it has none (a str). Slow questions (rendered pictures,
 #: repeated calibrations) are in :data:`SLOW`, checked for fewer learners.
 SCENES = {
@@ -317,6 +329,10 @@ SCENES = {
     ("09", "q2"): _s09_q2,
     ("09", "q3"): _s09_path(l09_robot._q3),
     ("09", "q4"): _s09_path(l09_robot._q4),
+    ("11", "q1"): "numbers of photos and markers for a count",
+    ("11", "q2"): _s11_q2,
+    ("11", "q3"): "differences and covariances for a test",
+    ("11", "q4"): _s11_q4,
 }
 
 

@@ -1,4 +1,4 @@
-"""The nine lessons, one module each, registered here in notebook order.
+"""The ten lessons, one module each, registered here in notebook order.
 
 A lesson module holds ``NUMBER``, ``TOPIC``, ``TITLE``, ``INTRO`` and ``build(learner)``, which
 returns the lesson's questions in the order the notebook asks them. Each question ``qN`` has its
@@ -23,6 +23,7 @@ from . import (
     l07_inversion,
     l08_accuracy,
     l09_robot,
+    l11_mapping,
 )
 
 #: The lesson modules in notebook order.
@@ -36,6 +37,7 @@ MODULES = (
     l07_inversion,
     l08_accuracy,
     l09_robot,
+    l11_mapping,
 )
 
 for _module in MODULES:
