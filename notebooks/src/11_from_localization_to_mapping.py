@@ -416,6 +416,22 @@ assert max(shape_err) < tape_shape / 3 and shape_err[-1] < shape_err[0] / 3
 #
 # The residuals and the sparse Jacobian stay exactly the ones of this notebook.
 #
+# ## Summary
+#
+# * A survey is one least-squares problem: 6 unknowns per photo and per free marker, 2 residuals per detected
+#   corner and 6 per taped marker; its Jacobian is sparse (each corner touches 12 unknowns), which is what
+#   `scipy.optimize.least_squares` exploits.
+# * Photos alone fix the map's shape and scale, not where it is: 6 gauge freedoms. The tape (as a prior) or a
+#   fixed marker removes them.
+# * A robust loss on the tape keeps one wrong tape reading from dragging the rest; the Mahalanobis test, in
+#   sigmas and not in millimetres, names it.
+# * Ten photos or so, every marker in several of them, already give the map's shape to about a millimetre,
+#   where the tape gave centimetres.
+#
+# **Exercises**: [exercises/11_mapping.ipynb](exercises/11_mapping.ipynb), with automatic feedback
+# (or `from fidlearn import exercises; ex = exercises.lesson("11")` in a new cell): count a survey's unknowns,
+# build one residual by hand, find the moved marker, and choose the next photo.
+#
 # ## Try it
 #
 # * Survey with `fixed_ids=[0]` and `map_sigma_mm=float("inf")` (photos alone, marker 0 as the origin): which
