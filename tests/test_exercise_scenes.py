@@ -25,6 +25,7 @@ from fidlearn.exercises.lessons import (
     l08_accuracy,
     l09_robot,
     l10_tracking,
+    l11_mapping,
 )
 from fidlearn.markermap import MarkerMap
 
@@ -293,6 +294,17 @@ def _s10_q4(learner):
     return Scene(inside=path)  # the robot drives on the room's floor
 
 
+def _s11_q2(learner):
+    cam, m, T = l11_mapping._q2_layout(_rng("11", learner, "q2"))
+    q = l11_mapping._q2(learner)
+    return Scene(marker_map=m, cameras=[T], camera=cam, pixels=q.inputs.detected_px)
+
+
+def _s11_q4(learner):
+    q = l11_mapping._q4(learner)
+    return Scene(marker_map=q.inputs.marker_map, cameras=list(q.inputs.candidates))
+
+
 #: Where each question's scene is, or why it has none (a str). Slow questions (rendered pictures,
 #: repeated calibrations) are in :data:`SLOW`, checked for fewer learners.
 SCENES = {
@@ -337,6 +349,10 @@ SCENES = {
     ("10", "q2"): "positions along a line, one coordinate",
     ("10", "q3"): _s10_q3,
     ("10", "q4"): _s10_q4,
+    ("11", "q1"): "numbers of photos and markers for a count",
+    ("11", "q2"): _s11_q2,
+    ("11", "q3"): "differences and covariances for a test",
+    ("11", "q4"): _s11_q4,
 }
 
 

@@ -139,7 +139,7 @@ def lessons() -> dict[str, str]:
 
 
 def lesson(number: str | int, learner: str | None = None) -> Lesson:
-    """The exercises of lesson ``number`` (``"01"`` ... ``"10"``) for a learner.
+    """The exercises of lesson ``number`` (``"01"`` ... ``"11"``) for a learner.
 
     In a folder holding a graded lesson's inputs file (``fidlearn_inputs.json``, written by
     ``fidlearn release``), the questions come from that file and without their answers.

@@ -24,6 +24,7 @@ from . import (
     l08_accuracy,
     l09_robot,
     l10_tracking,
+    l11_mapping,
 )
 
 #: The lesson modules in notebook order.
@@ -38,6 +39,7 @@ MODULES = (
     l08_accuracy,
     l09_robot,
     l10_tracking,
+    l11_mapping,
 )
 
 for _module in MODULES:

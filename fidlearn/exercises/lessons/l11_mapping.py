@@ -1,0 +1,430 @@
+"""Lesson 11: From localization to mapping.
+
+One builder per question, in the order the notebook asks them; each draws its numbers from
+its own generator (``_rng("11", learner, "qN")``), so a learner's variant of one question
+does not depend on the others.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import frames
+from ...camera import Camera
+from ...markermap import MarkerMap, MarkerPlacement
+from ...synthetic import look_at, visible_markers
+from .._engine import Question
+from .._parsers import (
+    _array,
+    _close,
+    _cmp_array,
+    _cmp_scalar,
+    _scalar,
+)
+from .._scenery import (
+    _pose_seeing_all,
+    _rng,
+    _wall_map,
+)
+
+NUMBER = "11"
+TOPIC = "mapping"
+TITLE = "From localization to mapping"
+INTRO = """
+    Let photos measure the map: count a survey's unknowns, build one of its residuals by hand,
+    find the marker the tape put in the wrong place, and choose the photo that helps the map most.
+    """
+
+_CORNERS = ("top-left", "top-right", "bottom-right", "bottom-left")
+
+
+#: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q1 = {
+    "title": "Count the unknowns of a survey",
+    "task": """
+        A survey adjusts every photo's camera pose and every marker's placement at once.
+        `markers_seen` lists, for each photo, the ids of the markers it shows (every marker of the
+        map is in at least two photos); `fixed_ids` are markers whose placement is taken as exact.
+        Write code that computes how many unknowns the least-squares problem has.
+        """,
+    "hint": [
+        "An unknown is a number the solver may change. Which things does it move, and how many numbers is each?",
+        (
+            "A pose (a camera's, or a marker's placement) is 6 numbers: 3 of rotation, 3 of translation. The "
+            "detected corners are measurements (residuals), not unknowns; a fixed marker is not moved at all."
+        ),
+    ],
+    "solution": """
+        photos = len(q1.inputs.markers_seen)
+        markers = {i for seen in q1.inputs.markers_seen for i in seen}
+        q1.answer = 6 * photos + 6 * len(markers - set(q1.inputs.fixed_ids))
+        """,
+    "level": "easy",
+}
+
+
+def _q1_mistakes(n_photos: int, n_markers: int, n_fixed: int, n_seen: int) -> list:
+    """The mistakes q1 names: (detector, message) pairs, in the order they are tried."""
+    free = n_markers - n_fixed
+    return [
+        (
+            lambda a: a == 6 * (n_photos + n_markers),
+            "that counts the fixed marker(s) too: a fixed marker is held, not adjusted, so it has no unknowns",
+        ),
+        (
+            lambda a: n_fixed > 1 and a == 6 * (n_photos + n_markers - 1),
+            "every fixed marker removes its 6 unknowns, not only the first",
+        ),
+        (
+            lambda a: a in (4 * n_seen, 8 * n_seen, 12 * n_seen, 8 * n_seen + 6 * free),
+            (
+                "that counts corners (or their coordinates): those are the measurements, the residuals; the "
+                "unknowns are the poses, 6 per photo and 6 per free marker"
+            ),
+        ),
+        (
+            lambda a: a in (3 * (n_photos + free), 3 * (n_photos + n_markers)),
+            "a pose is 6 numbers, not 3: the rotation is unknown as well as the position",
+        ),
+        (lambda a: a == 6 * free, "the photos' camera poses are unknowns too: 6 per photo"),
+        (lambda a: a == 6 * n_photos, "the markers' placements are unknowns too: 6 per marker that is not fixed"),
+    ]
+
+
+def _q1(learner: str) -> Question:
+    """q1: Count the unknowns of a survey."""
+    rng = _rng("11", learner, "q1")
+    n_markers = int(rng.integers(6, 13))
+    ids = sorted(int(i) for i in rng.choice(50, size=n_markers, replace=False))
+    n_photos = int(rng.integers(8, 25))
+    while True:
+        seen = [
+            sorted(int(i) for i in rng.choice(ids, size=int(rng.integers(2, 6)), replace=False))
+            for _ in range(n_photos)
+        ]
+        counts = {i: sum(i in s for s in seen) for i in ids}
+        if min(counts.values()) >= 2:
+            break
+    fixed = sorted(int(i) for i in rng.choice(ids, size=int(rng.integers(1, 3)), replace=False))
+    n_seen = sum(len(s) for s in seen)
+    key = 6 * n_photos + 6 * (n_markers - len(fixed))
+    return Question(
+        "q1",
+        inputs={"markers_seen": seen, "fixed_ids": fixed},
+        expected=float(key),
+        parse=_scalar("the number of unknowns"),
+        compare=_cmp_scalar(0.5),
+        wrong=_q1_mistakes(n_photos, n_markers, len(fixed), n_seen),
+        **_Q1,
+    )
+
+
+#: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q2 = {
+    "title": "One residual by hand",
+    "task": """
+        One residual of a survey: where the current estimates put one corner in one photo, minus
+        where the detector found it. `marker_map` holds the marker's current placement, `corner`
+        which of its corners (0 top-left, 1 top-right, 2 bottom-right, 3 bottom-left), `T_camera_world`
+        the photo's current camera pose as the survey keeps it (world points into the camera frame,
+        mm), `camera` the calibrated camera (with its distortion) and `detected_px` the detected
+        corner (u, v). Write code that computes the residual (u, v), px: projected minus detected.
+        """,
+    "hint": [
+        "Three steps: the corner in the world, the corner in the photo (with everything the camera does to it), "
+        "then the difference in the survey's order.",
+        (
+            "MarkerMap.marker_corners gives the corners in the world, in winding order; Camera.project wants "
+            "T_world_camera (the inverse of the pose you are given) and applies the distortion; the residual is "
+            "projected minus detected."
+        ),
+    ],
+    "solution": """
+        m = q2.inputs.marker_map
+        X = m.marker_corners(m.ids[0])[q2.inputs.corner]
+        T_world_camera = frames.invert_transform(q2.inputs.T_camera_world)
+        projected = q2.inputs.camera.project(X, T_world_camera)
+        q2.answer = projected - q2.inputs.detected_px
+        """,
+    "level": "medium",
+}
+
+
+def _q2_layout(rng: np.random.Generator):
+    """The camera, the one-marker map and T_world_camera of q2 (a camera seeing the marker whole)."""
+    size = float(rng.choice([100.0, 150.0, 200.0]))
+    m = _wall_map(rng, 1, size, first_id=int(rng.integers(0, 20)), spread_mm=600.0)
+    dist = [float(np.round(rng.uniform(-0.2, -0.08), 3)), float(np.round(rng.uniform(0.02, 0.08), 3)), 0.0, 0.0, 0.0]
+    cam = Camera.from_fov(float(np.round(rng.uniform(55, 75))), (1280, 720), dist=dist if rng.random() < 0.6 else None)
+    centre = m.marker_corners(m.ids[0]).mean(axis=0)
+
+    def draw(r):
+        eye = [r.uniform(900, 2500), r.uniform(-900, 900), r.uniform(900, 1800)]
+        # aim away from the marker so it sits off the image's centre, where the lens bends most
+        return look_at(eye, centre + [0.0, r.uniform(-500, 500), r.uniform(-300, 300)], roll_deg=r.uniform(-8, 8))
+
+    return cam, m, _pose_seeing_all(rng, cam, m, draw)
+
+
+def _q2(learner: str) -> Question:
+    """q2: One residual by hand."""
+    rng = _rng("11", learner, "q2")
+    cam, m, T_wc = _q2_layout(rng)
+    k = int(rng.integers(0, 4))
+    corners = m.marker_corners(m.ids[0])
+    true_px = cam.project(corners, T_wc)
+    detected = np.round(true_px[k] + rng.normal(0, 0.6, 2), 3)
+    T_cw = frames.invert_transform(T_wc)
+    key = true_px[k] - detected
+    pinhole = Camera(cam.K, np.zeros(5), cam.image_size)
+    wrong = [
+        (
+            lambda a: _close(a, -key, 1e-3),
+            "that is detected minus projected: the survey's residual is projected minus detected",
+        ),
+        (
+            lambda a: _close(a, cam.project(corners[k], T_cw) - detected, 1e-2),
+            (
+                "Camera.project wants T_world_camera, and you gave it T_camera_world: invert the pose first "
+                "(frames.invert_transform)"
+            ),
+        ),
+        (
+            lambda a: (
+                cam.dist is not None
+                and np.any(np.asarray(cam.dist) != 0)
+                and _close(a, pinhole.project(corners[k], T_wc) - detected, 1e-2)
+            ),
+            "that projection leaves out the lens distortion; the survey projects with it (Camera.project does)",
+        ),
+        (lambda a: _close(a, true_px[k], 1e-2), "that is the projected corner; subtract the detected one"),
+    ]
+    for j in range(4):
+        if j != k:
+            wrong.append(
+                (
+                    lambda a, j=j: _close(a, true_px[j] - detected, 1e-2),
+                    f"that is the {_CORNERS[j]} corner; corner {k} is the {_CORNERS[k]} (TL, TR, BR, BL)",
+                )
+            )
+    return Question(
+        "q2",
+        inputs={"marker_map": m, "corner": k, "T_camera_world": T_cw, "camera": cam, "detected_px": detected},
+        expected=key,
+        parse=_array((2,), "the residual (u, v)"),
+        compare=_cmp_array(0.01, " px"),
+        wrong=wrong,
+        **_Q2,
+    )
+
+
+#: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q3 = {
+    "title": "Which marker did the tape put in the wrong place?",
+    "task": """
+        A survey compared each marker's tape position with where the photos alone put it.
+        `ids` (n,) are the markers, `differences_mm` (n, 3) the photos' position minus the tape's
+        (world, mm), and `covariances_mm2` (n, 3, 3) the covariance of each difference (the photos'
+        uncertainty plus the tape's, mm^2). Exactly one marker was moved after it was measured.
+        Write code that finds it: answer its id.
+        """,
+    "hint": [
+        "A difference means something only next to how large it could be by chance, and that depends on the "
+        "direction: some markers are pinned down much better in one direction than in another.",
+        (
+            "Measure each difference in sigmas with its own covariance: the Mahalanobis distance "
+            "sqrt(d^T C^-1 d) (np.linalg.solve). The moved marker has the largest."
+        ),
+    ],
+    "solution": """
+        d = np.asarray(q3.inputs.differences_mm, dtype=float)
+        C = np.asarray(q3.inputs.covariances_mm2, dtype=float)
+        sigmas = [np.sqrt(d[i] @ np.linalg.solve(C[i], d[i])) for i in range(len(d))]
+        q3.answer = q3.inputs.ids[int(np.argmax(sigmas))]
+        """,
+    "level": "medium",
+}
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    return frames.rotation_from_rpy_deg(*rng.uniform(-180, 180, 3))
+
+
+def _q3_data(rng: np.random.Generator):
+    """ids, differences (n, 3), covariances (n, 3, 3), the moved marker's row and a weakly held one's."""
+    n = int(rng.integers(6, 10))
+    ids = np.sort(rng.choice(40, size=n, replace=False)).astype(int)
+    moved, weak = (int(i) for i in rng.choice(n, size=2, replace=False))
+    d, C = np.zeros((n, 3)), np.zeros((n, 3, 3))
+    for i in range(n):
+        R = _random_rotation(rng)
+        s = rng.uniform(15, 22, 3) if i == moved else rng.uniform(18, 30, 3)
+        if i == weak:
+            s[0] = rng.uniform(60, 90)  # seen only from far along one direction: its depth is weakly held
+        C[i] = np.round(R @ np.diag(s**2) @ R.T, 1)
+        if i == moved:
+            axis = R[:, int(np.argmin(s))]  # moved along a well-held direction
+            d[i] = axis * rng.uniform(85, 110)
+        elif i == weak:
+            d[i] = R[:, 0] * s[0] * rng.uniform(2.0, 2.6) * rng.choice([-1, 1])
+        else:
+            z = rng.normal(0, 1, 3)
+            z *= min(1.0, 2.2 / np.linalg.norm(z))
+            d[i] = R @ (s * z)
+    return ids, np.round(d, 1), C, moved, weak
+
+
+def _q3(learner: str) -> Question:
+    """q3: Which marker did the tape put in the wrong place?"""
+    rng = _rng("11", learner, "q3")
+    ids, d, C, moved, _ = _q3_data(rng)
+    sig = np.array([np.sqrt(d[i] @ np.linalg.solve(C[i], d[i])) for i in range(len(d))])
+    diag = np.array([np.sqrt(np.sum(d[i] ** 2 / np.diag(C[i]))) for i in range(len(d))])
+    mm = np.linalg.norm(d, axis=1)
+    key = int(ids[int(np.argmax(sig))])
+    far, far_d, diag_pick = int(ids[int(np.argmax(mm))]), float(mm.max()), int(ids[int(np.argmax(diag))])
+    wrong = [
+        (
+            lambda a: int(round(a)) == far != key,
+            (
+                f"marker {far} is the farthest in mm ({far_d:.0f} mm), but its covariance is large in that "
+                "direction: in sigmas (Mahalanobis, sqrt(d^T C^-1 d)) it is within what chance allows"
+            ),
+        ),
+        (
+            lambda a: int(round(a)) == diag_pick != key,
+            (
+                "that weighs each axis by its variance alone; the covariance's off-diagonal terms tilt the "
+                "ellipsoid: solve with the whole 3x3 matrix"
+            ),
+        ),
+        (lambda a: int(round(a)) not in ids, f"answer one of the ids {ids.tolist()}, not a row number"),
+    ]
+    return Question(
+        "q3",
+        inputs={"ids": ids, "differences_mm": d, "covariances_mm2": C},
+        expected=float(key),
+        parse=_scalar("the marker's id"),
+        compare=lambda a, b: None if abs(a - b) < 0.5 else "that marker's difference is within what chance allows",
+        wrong=wrong,
+        **_Q3,
+    )
+
+
+#: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q4 = {
+    "title": "Which photo to take next?",
+    "task": """
+        A survey of the markers in `marker_map` reports each marker's position uncertainty
+        `position_std_mm` (n,), one per id of `marker_map.ids`, in that order. You can take one
+        more photo, from one of the camera poses `candidates` (k, 4, 4) (`T_world_camera`, mm) with
+        `camera`. Write code that picks the photo that helps the map most: the one that shows,
+        whole, the marker that is worst determined. Answer its index in `candidates` (from 0).
+        """,
+    "hint": [
+        "A photo improves only the markers it shows. Which marker needs it, and which candidate shows it?",
+        (
+            "The worst marker has the largest std; fidlearn.synthetic.visible_markers(marker_map, camera, T) "
+            "tells which markers a camera at T sees whole."
+        ),
+    ],
+    "solution": """
+        from fidlearn.synthetic import visible_markers
+        m = q4.inputs.marker_map
+        worst = m.ids[int(np.argmax(q4.inputs.position_std_mm))]
+        sees = [worst in visible_markers(m, q4.inputs.camera, T) for T in q4.inputs.candidates]
+        q4.answer = sees.index(True)
+        """,
+    "level": "medium",
+}
+
+
+def _q4_map(rng: np.random.Generator) -> MarkerMap:
+    """Five or six markers of 150 mm spread along the north wall, about 600 mm apart."""
+    n = int(rng.integers(5, 7))
+    ids = np.sort(rng.choice(40, size=n, replace=False)).astype(int)
+    ys = np.round(np.linspace(-1500, 1350, n) + rng.uniform(-60, 60, n), -1)
+    zs = np.round(rng.uniform(800, 1700, n), -1)
+    pl = {int(i): MarkerPlacement(int(i), (0.0, float(y), float(z)), (0.0, 0.0, 0.0)) for i, y, z in zip(ids, ys, zs)}
+    return MarkerMap(pl, 150.0, "ARUCO_ORIGINAL", "mm")
+
+
+def _q4_layout(rng: np.random.Generator):
+    """The map, camera, stds, candidates and the index of the candidate that sees the worst marker."""
+    m = _q4_map(rng)
+    cam = Camera.from_fov(float(np.round(rng.uniform(40, 50))), (1280, 720))
+    ids = m.ids
+    std = np.round(rng.uniform(1.0, 4.0, len(ids)), 1)
+    worst = int(rng.integers(len(ids)))
+    std[worst] = np.round(rng.uniform(9, 20), 1)
+    centres = {i: m.marker_corners(i).mean(axis=0) for i in ids}
+    while True:
+        others = [i for i in ids if i != ids[worst]]
+        targets = [ids[worst]] + [int(i) for i in rng.choice(others, size=2, replace=False)]
+        cands = [
+            look_at(
+                [rng.uniform(1200, 2200), centres[t][1] + rng.uniform(-300, 300), rng.uniform(1000, 1600)], centres[t]
+            )
+            for t in targets
+        ]
+        seen = [visible_markers(m, cam, T) for T in cands]
+        if (
+            ids[worst] in seen[0]
+            and all(ids[worst] not in s for s in seen[1:])
+            and all(t in s for t, s in zip(targets, seen))
+        ):
+            break
+    order = rng.permutation(3)
+    cands = [cands[i] for i in order]
+    seen = [seen[i] for i in order]
+    return m, cam, std, np.array(cands), seen, int(np.flatnonzero(order == 0)[0])
+
+
+def _q4(learner: str) -> Question:
+    """q4: Which photo to take next?"""
+    rng = _rng("11", learner, "q4")
+    m, cam, std, cands, seen, key = _q4_layout(rng)
+    most = max(range(3), key=lambda c: len(seen[c]))
+    best_id = m.ids[int(np.argmin(std))]
+    best = [c for c in range(3) if best_id in seen[c] and c != key]
+    worst_id = m.ids[int(np.argmax(std))]
+    wrong = [
+        (
+            lambda a: int(round(a)) == most != key,
+            f"that photo shows the most markers, but not marker {worst_id}, the worst determined: a photo helps "
+            "only the markers it shows",
+        ),
+        (
+            lambda a: int(round(a)) in best,
+            f"that photo shows marker {best_id}, the best determined already; look for the one with the largest std",
+        ),
+        (
+            lambda a: int(round(a)) == key + 1,
+            "the indices start at 0: candidates[0] is the first",
+        ),
+    ]
+    return Question(
+        "q4",
+        inputs={"marker_map": m, "camera": cam, "position_std_mm": std, "candidates": cands},
+        expected=float(key),
+        parse=_scalar("the candidate's index"),
+        compare=lambda a, b: None if abs(a - b) < 0.5 else "that photo does not show the worst-determined marker",
+        wrong=wrong,
+        **_Q4,
+    )
+
+
+def build(learner: str) -> list[Question]:
+    """The questions of lesson 11 for one learner, in notebook order.
+
+    Parameters
+    ----------
+    learner : str
+        The learner's id; it seeds every question's numbers (``""``: the class's shared variant).
+
+    Returns
+    -------
+    list of Question
+        q1, q2, q3, q4, with their answer keys.
+    """
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]

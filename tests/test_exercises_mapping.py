@@ -1,0 +1,118 @@
+"""Lesson 11 (from localization to mapping): each question's key is correct and its named mistakes are named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fidlearn import exercises, frames
+from fidlearn.camera import Camera
+from fidlearn.exercises import CORRECT, INCORRECT
+from fidlearn.synthetic import visible_markers
+
+LEARNERS = ["", "alice", "bob", "carol", "dan"]
+
+
+def key_of(name, learner=""):
+    q = exercises.lesson("11", learner=learner)[name]
+    ns: dict = {}
+    exec(exercises.SETUP_CODE, ns)
+    ns[q.name] = q
+    exec(q.solution_code, ns)
+    return q, q.answer
+
+
+@pytest.mark.parametrize("learner", LEARNERS)
+def test_unknowns_counted_by_hand(learner):
+    q, key = key_of("q1", learner)
+    seen, fixed = q.inputs.markers_seen, q.inputs.fixed_ids
+    markers = {i for s in seen for i in s}
+    assert key == 6 * len(seen) + 6 * (len(markers) - len(fixed)) and 1 <= len(fixed) <= 2
+    assert q.grade(key).status == CORRECT
+    r = q.grade(6 * (len(seen) + len(markers)))
+    assert r.status == INCORRECT and "fixed" in r.message
+    r = q.grade(4 * sum(len(s) for s in seen))
+    assert r.status == INCORRECT and "corners" in r.message
+    r = q.grade(3 * (len(seen) + len(markers) - len(fixed)))
+    assert r.status == INCORRECT and "6 numbers" in r.message
+
+
+def _distorted_learner():
+    for i in range(50):
+        q = exercises.lesson("11", learner=f"d{i}").q2
+        if q.inputs.camera.dist is not None and np.any(np.asarray(q.inputs.camera.dist) != 0):
+            return f"d{i}"
+    raise AssertionError("no variant with distortion")
+
+
+@pytest.mark.parametrize("learner", LEARNERS + [_distorted_learner()])
+def test_residual_by_hand_and_its_mistakes(learner):
+    q, key = key_of("q2", learner)
+    m, k, cam = q.inputs.marker_map, q.inputs.corner, q.inputs.camera
+    X = m.marker_corners(m.ids[0])
+    T_wc = frames.invert_transform(q.inputs.T_camera_world)
+    # the key by hand: into the camera frame, divide by depth, distort, K
+    P = X[k] @ q.inputs.T_camera_world[:3, :3].T + q.inputs.T_camera_world[:3, 3]
+    x, y = P[:2] / P[2]
+    k1, k2, p1, p2, k3 = (list(np.ravel(cam.dist)) + [0.0] * 5)[:5] if cam.dist is not None else [0.0] * 5
+    r2 = x * x + y * y
+    rad = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
+    xd, yd = x * rad + 2 * p1 * x * y + p2 * (r2 + 2 * x * x), y * rad + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    by_hand = np.array([cam.K[0, 0] * xd + cam.K[0, 2], cam.K[1, 1] * yd + cam.K[1, 2]]) - q.inputs.detected_px
+    assert np.allclose(by_hand, key, atol=1e-6)
+    assert q.grade(by_hand).status == CORRECT
+    r = q.grade(-key)
+    assert r.status == INCORRECT and "detected minus projected" in r.message
+    r = q.grade(cam.project(X[k], q.inputs.T_camera_world) - q.inputs.detected_px)
+    assert r.status == INCORRECT and "T_world_camera" in r.message
+    other = (k + 1) % 4
+    r = q.grade(cam.project(X[other], T_wc) - q.inputs.detected_px)
+    assert r.status == INCORRECT and "TL, TR, BR, BL" in r.message
+    if cam.dist is not None and np.any(np.asarray(cam.dist) != 0):
+        pinhole = Camera(cam.K, None, cam.image_size)
+        undistorted = pinhole.project(X[k], T_wc) - q.inputs.detected_px
+        assert np.abs(undistorted - key).max() > 0.05  # the lens matters in this variant
+        r = q.grade(undistorted)
+        assert r.status == INCORRECT and "distortion" in r.message
+
+
+@pytest.mark.parametrize("learner", LEARNERS)
+def test_misplaced_marker_in_sigmas_not_mm(learner):
+    q, key = key_of("q3", learner)
+    ids, d, C = q.inputs.ids, q.inputs.differences_mm, q.inputs.covariances_mm2
+    sig = [float(np.sqrt(d[i] @ np.linalg.solve(C[i], d[i]))) for i in range(len(ids))]
+    order = np.argsort(sig)
+    assert key == ids[order[-1]] and sig[order[-1]] > 3.37 > 2.7 > sig[order[-2]]  # 3.37: chi-square 3 dof, 99 %
+    far = int(ids[int(np.argmax(np.linalg.norm(d, axis=1)))])
+    assert far != key  # the farthest in mm is a weakly held marker, not the moved one
+    r = q.grade(far)
+    assert r.status == INCORRECT and "in sigmas" in r.message
+    r = q.grade(int(np.argmax(sig)) + 100)
+    assert r.status == INCORRECT and "ids" in r.message
+
+
+@pytest.mark.parametrize("learner", LEARNERS)
+def test_next_photo_shows_the_worst_marker(learner):
+    q, key = key_of("q4", learner)
+    m, cam = q.inputs.marker_map, q.inputs.camera
+    worst = m.ids[int(np.argmax(q.inputs.position_std_mm))]
+    sees = [worst in visible_markers(m, cam, T) for T in q.inputs.candidates]
+    assert sum(sees) == 1 and sees[key]
+    for c in range(len(q.inputs.candidates)):
+        if c != key:
+            assert q.grade(c).status == INCORRECT
+    best = m.ids[int(np.argmin(q.inputs.position_std_mm))]
+    for c, T in enumerate(q.inputs.candidates):
+        if c != key and best in visible_markers(m, cam, T):
+            assert "best determined" in q.grade(c).message or "most markers" in q.grade(c).message
+
+
+def test_only_the_moved_marker_fails_the_99_percent_test_for_100_learners():
+    from fidlearn.exercises.lessons import l11_mapping
+
+    for i in range(100):
+        q = l11_mapping._q3(f"learner{i:03d}")
+        d, C = q.inputs.differences_mm, q.inputs.covariances_mm2
+        sig = np.array([np.sqrt(d[k] @ np.linalg.solve(C[k], d[k])) for k in range(len(d))])
+        assert np.sum(sig > 3.37) == 1 and np.all(np.linalg.eigvalsh(C) > 0), (i, sig)
+        assert np.argmax(np.linalg.norm(d, axis=1)) != np.argmax(sig), i  # millimetres would pick the wrong one
