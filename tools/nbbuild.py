@@ -50,7 +50,7 @@ REPO = Path(__file__).resolve().parent.parent
 NOTEBOOKS = REPO / "notebooks"
 KERNEL_NAME = "python3"
 #: Seconds one cell may run before the build fails.
-CELL_TIMEOUT_S = 120
+CELL_TIMEOUT_S = 600
 
 _CELL_MARK = re.compile(r"^# %%(?P<rest>(\s.*)?)$")
 _MAGIC = re.compile(r"^# (?P<magic>%{1,2}[A-Za-z].*)$")

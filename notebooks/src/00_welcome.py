@@ -148,6 +148,9 @@ plt.show()
 # | [07 Where is the camera?](07_inverting_the_transform.ipynb) | inverting the extrinsics: the camera's pose in the world | [07](exercises/07_inversion.ipynb) |
 # | [08 Accuracy and pitfalls](08_accuracy_pitfalls.ipynb) | ambiguity of planar targets, noise, outliers, how sure the pose is | [08](exercises/08_accuracy.ipynb) |
 # | [09 Localizing a robot](09_localizing_a_robot.ipynb) | a moving camera, frame after frame | [09](exercises/09_robot.ipynb) |
+# | [10 Tracking over time](10_tracking_over_time.ipynb) | a Kalman filter on the pose, flips undone by continuity, odometry, ROS output | [10](exercises/10_tracking.ipynb) |
+# | [11 From localization to mapping](11_from_localization_to_mapping.ipynb) | the map from photos and the tape: bundle adjustment, the gauge, a moved marker found | [11](exercises/11_mapping.ipynb) |
+# | [12 Your own camera](12_your_own_camera.ipynb) | your webcam in JupyterLab: calibrate it, then localize it live | |
 #
 # ## Conventions (used in every notebook and in `fidlearn`)
 #

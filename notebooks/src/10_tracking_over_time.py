@@ -315,7 +315,8 @@ print(f"process noise {Q_TRY:.0f} mm/s^2: position RMS near {rms(e[~far]):.1f} m
 # (or `from fidlearn import exercises; ex = exercises.lesson("10")` in a new cell): the right mean of rotations,
 # choosing the process noise, the mount transform, and bridging a gap with odometry.
 #
-# Next: [12 Your own camera](12_your_own_camera.ipynb), or back to the start: [00 Welcome](00_welcome.ipynb).
+# Next: [11 From localization to mapping](11_from_localization_to_mapping.ipynb): the map itself from photos, the
+# step towards SLAM; then [12 Your own camera](12_your_own_camera.ipynb).
 
 # %% [markdown]
 # ## References
