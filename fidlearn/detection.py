@@ -54,13 +54,14 @@ DEFAULT_REFINE = "edges"
 #: instead of 0.125: with a white margin of one cell the paper's edge is about 0.05 of the perimeter
 #: from the marker's, and OpenCV's filter of close candidates kept the wrong one
 #: (opencv/opencv_contrib#2913); 0.05 lost large markers (100 px and more) instead.
-#: Threshold windows 3 and 23 px (``adaptiveThreshWinSizeStep`` 20 instead of 10) drop OpenCV's
-#: middle pass of 13 px, about a third of its time. ``perspectiveRemovePixelPerCell`` stays OpenCV's
-#: 4: 8 reads the cells of small markers (20-30 px) a little more surely, but it also decoded a quad
-#: around a marker and its margin as that marker, a quarter turn off and 50 px away
-#: (``data/survey/photo_14.jpg``, marker 0). A ``detector_params`` dict overrides
-#: these field by field; a ``cv2.aruco.DetectorParameters`` object is used as it is.
-DEFAULT_DETECTOR_PARAMS = MappingProxyType({"minMarkerDistanceRate": 0.065, "adaptiveThreshWinSizeStep": 20})
+#: Everything else stays OpenCV's: ``adaptiveThreshWinSizeStep`` 20 (windows 3 and 23 px, dropping
+#: the middle pass of 13 px) saves about a third of OpenCV's time but loses markers of the bundled
+#: video that OpenCV's windows find, and ``perspectiveRemovePixelPerCell`` 8, which reads the cells
+#: of small markers (20-30 px) a little more surely, also decoded a quad around a marker and its
+#: margin as that marker, a quarter turn off and 50 px away (``data/survey/photo_14.jpg``, marker 0).
+#: A ``detector_params`` dict overrides these field by field; a ``cv2.aruco.DetectorParameters``
+#: object is used as it is.
+DEFAULT_DETECTOR_PARAMS = MappingProxyType({"minMarkerDistanceRate": 0.065})
 
 
 @dataclass(frozen=True, eq=False, init=False)

@@ -328,7 +328,7 @@ def test_fidlearn_defaults_sit_under_a_dict_of_overrides_and_never_change_an_ope
     assert all(ours[k] == pytest.approx(v) for k, v in DEFAULT_DETECTOR_PARAMS.items())
     one = _detector_fields({"minMarkerDistanceRate": 0.1})
     assert one["minMarkerDistanceRate"] == pytest.approx(0.1)
-    assert one["adaptiveThreshWinSizeStep"] == DEFAULT_DETECTOR_PARAMS["adaptiveThreshWinSizeStep"]
+    assert one["adaptiveThreshWinSizeStep"] == opencv["adaptiveThreshWinSizeStep"]
     assert _detector_fields(cv2.aruco.DetectorParameters()) == opencv
 
 
