@@ -2,30 +2,16 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import frames
 from ..pose import Pose
+from ..pose._stats import _chi2_3_quantile
 
 #: What a TrackedPose can be: its ``status``.
 STATUSES = ("started", "measured", "rejected", "predicted", "odometry", "restarted", "smoothed")
-
-
-def _chi2_3_cdf(x: float) -> float:
-    """CDF of chi-square with 3 degrees of freedom (closed form)."""
-    return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
-
-
-def _chi2_3(probability: float) -> float:
-    """The ``probability`` quantile of chi-square(3), by bisection (0.95 -> 7.815)."""
-    lo, hi = 0.0, 100.0
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _chi2_3_cdf(mid) < probability else (lo, mid)
-    return 0.5 * (lo + hi)
 
 
 @dataclass(eq=False, repr=False)
@@ -138,7 +124,7 @@ class TrackedPose:
         if not (isinstance(probability, (int, float)) and 0.0 < probability < 1.0):
             raise TrackingError(f"probability must be between 0 and 1 (exclusive), got {probability!r}")
         d = np.asarray(point_mm, dtype=float).reshape(3) - self.position_mm
-        return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3(probability)
+        return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3_quantile(probability)
 
     def __repr__(self) -> str:
         x, y, z = self.position_mm

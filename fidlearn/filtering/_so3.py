@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from ..frames import matrix_from_quaternion, quaternion_from_matrix
+from ..pose._stats import _chi2_isf_even
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -62,20 +63,9 @@ def left_jacobian(w: np.ndarray) -> np.ndarray:
 
 
 def chi2_6_quantile(probability: float) -> float:
-    """The ``probability`` quantile of chi-square with 6 degrees of freedom (closed-form CDF, bisection).
-
-    ``CDF(x) = 1 - exp(-x/2) (1 + x/2 + x^2/8)``; e.g. 0.99 -> 16.812, 0.999 -> 22.458.
-    """
-    lo, hi = 0.0, 200.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        h = mid / 2.0
-        cdf = 1.0 - math.exp(-h) * (1.0 + h + h * h / 2.0)
-        if cdf < probability:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+    """The ``probability`` quantile of chi-square with 6 degrees of freedom (the closed-form even-dof
+    distribution of :mod:`fidlearn.pose`); e.g. 0.99 -> 16.812, 0.999 -> 22.458."""
+    return _chi2_isf_even(1.0 - probability, 6)
 
 
 #: Quaternions are fidlearn.frames' own: (x, y, z, w), canonical w >= 0 (see there).
