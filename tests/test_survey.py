@@ -246,3 +246,13 @@ def test_a_marker_in_one_photo_is_never_named_a_suspect(room):
     assert s.photos_per_marker[3] == 1
     assert 3 not in s.suspect_ids  # one photo cannot dispute the tape
     assert s.tests[3][1] > 3.4  # though the test alone would have named it
+
+
+def test_the_rotation_residual_is_exact_for_tiny_rotations():
+    """A marker's rotation off its tape value by 1e-7 rad: cv2.Rodrigues alone gives zero below about 1e-5 rad."""
+    from fidlearn import frames
+    from fidlearn.survey._geometry import exp_so3, log_so3
+
+    w = np.array([1e-7, -2e-7, 3e-7])
+    np.testing.assert_allclose(log_so3(exp_so3(w)), w, rtol=1e-6, atol=0)
+    np.testing.assert_allclose(log_so3(frames.rot_z(0.3)), [0, 0, 0.3], atol=1e-12)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ..frames import _rotvec
 from ..markermap import MARKER_CORNERS_LOCAL
 
 #: Placement axes (top-left corner frame: face normal X, along the top edge Y, up Z) from
@@ -45,9 +46,9 @@ def exp_so3(phi: np.ndarray) -> np.ndarray:
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (3,) of a rotation matrix (3, 3), exact near 0 and near pi."""
-    rvec, _ = cv2.Rodrigues(np.asarray(R, dtype=float))
-    return rvec.reshape(3)
+    """Rotation vector (3,) of a rotation matrix (3, 3): :func:`fidlearn.frames._rotvec`, exact for tiny
+    angles too (``cv2.Rodrigues`` alone returns zero below about 1e-5 rad)."""
+    return _rotvec(R)
 
 
 def left_jacobian(phi: np.ndarray) -> np.ndarray:
