@@ -51,6 +51,11 @@ class TrackedPose(_PoseReadouts):
         The camera centre's velocity, mm/s, world axes.
     angular_velocity_rad_s : ndarray, shape (3,)
         The camera's angular velocity, rad/s, world axes.
+    odometry_scale : float
+        What the odometry's translations are multiplied by to give the base's true motion, as learnt
+        from the poses so far (1.0 before any odometry: e.g. 0.97 when the wheels report 3 % too far).
+    odometry_scale_std : float
+        Its standard deviation (``ODOMETRY_SCALE_STD`` = 0.05 until odometry and poses have met).
     """
 
     t_s: float
@@ -65,6 +70,8 @@ class TrackedPose(_PoseReadouts):
     base_covariance: np.ndarray | None = None
     velocity_mm_s: np.ndarray | None = None
     angular_velocity_rad_s: np.ndarray | None = None
+    odometry_scale: float = 1.0
+    odometry_scale_std: float | None = None
 
     _error = TrackingError
 
