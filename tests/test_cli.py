@@ -899,3 +899,32 @@ def test_locate_names_the_picture_of_another_aspect_ratio(capsys, tmp_path):
     )
     assert_user_error(code, err, "c.png: camera calibrated at 1280x720", "cannot be used on 640x480")
     assert not (tmp_path / "p.jsonl").exists()
+
+
+def test_locate_detects_each_picture_once_and_draws_those_detections(capsys, tmp_path, monkeypatch):
+    """A picture with the map's markers is detected once (drawn from the same detections); one without
+    them twice at most: the map's markers, then the whole dictionary to say which ids are in view."""
+    import fidlearn.detection as detection
+
+    calls = []
+    real = detection._detect
+
+    def counting(image, *args, **kw):
+        calls.append(image.shape)
+        return real(image, *args, **kw)
+
+    monkeypatch.setattr(detection, "_detect", counting)
+    blank = np.full((720, 1280), 255, np.uint8)
+    cv2.imwrite(str(tmp_path / "blank.png"), blank)
+    scene = data_path("scenes", "scene_00.png")
+    for picture, most in ((scene, 1), (tmp_path / "blank.png", 2)):
+        calls.clear()
+        ann = tmp_path / f"ann_{most}"
+        code, out, err = run(
+            capsys, "locate", picture, "--camera", data_path("scenes", "camera.json"),
+            "--map", data_path("world_map.json"), "--annotate", ann,
+        )  # fmt: skip
+        assert code == 0, err
+        assert 1 <= len(calls) <= most, (picture, len(calls))
+        assert len(list(ann.iterdir())) == 1
+    assert "no known marker" in out or "no marker" in out

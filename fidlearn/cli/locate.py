@@ -20,7 +20,8 @@ from ..drawing import draw_pose
 from ..errors import CameraError, NoMarkersError, PoseError, UsageError
 from ..images import Frame, expand_inputs, read_frames
 from ..markermap import MarkerMap
-from ..pose import Pose, locate
+from ..pose import Pose, estimate_pose
+from ..pose._locate import _detect_map_markers
 from ..tracking import MarkerTracker
 from ._common import (
     _add_image_size_option,
@@ -177,25 +178,27 @@ class _Locator:
         return self.trackers[key]
 
     def pose(self, frame: Frame, cam: Camera) -> tuple[Pose | None, list, str]:
-        """The frame's pose (None when there is none), the markers to draw, and why there is no pose."""
+        """The frame's pose (None when there is none), the markers to draw, and why there is no pose.
+
+        A picture is detected once, as :func:`fidlearn.locate` does (the whole dictionary when none of the
+        map's markers is in view, so the row can say which ids were seen), and the same detections are drawn.
+        """
         tracker = self._tracker(frame, cam) if frame.kind != "image" else None
         failure = NO_MARKER
+        detections: list = []
         try:
             if tracker is None:
-                pose = locate(frame.image, self.marker_map, cam, **self.refine)
+                detections = _detect_map_markers(frame.image, self.marker_map, self.refine.get("refine"), None, True)
+                pose = estimate_pose(detections, self.marker_map, cam)
             else:
                 pose = tracker.locate(frame.image)
+                detections = tracker.last_detections
         except NoMarkersError:
             pose = None
         except PoseError as exc:  # a degenerate view: report the frame, keep going
             pose, failure = None, f"no pose: {_one_line(str(exc))}"
-        if pose is None:  # what is in view, from the whole dictionary (as fidlearn.locate's error says)
-            return None, detect_markers(frame.image, self.marker_map.dictionary, **self.refine), failure
-        if tracker is not None:
-            return pose, tracker.last_detections, failure
-        detections = []
-        if self.annotate:
-            detections = detect_markers(frame.image, self.marker_map.dictionary, ids=self.marker_map.ids, **self.refine)
+        if pose is None and tracker is not None:  # what is in view, from the whole dictionary
+            detections = detect_markers(frame.image, self.marker_map.dictionary, **self.refine)
         return pose, detections, failure
 
 

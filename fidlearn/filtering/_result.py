@@ -6,16 +6,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import frames
+from ..errors import TrackingError
 from ..pose import Pose
-from ..pose._stats import _chi2_3_quantile
+from ..pose._result import _PoseReadouts
 
 #: What a TrackedPose can be: its ``status``.
 STATUSES = ("started", "measured", "rejected", "predicted", "odometry", "restarted", "smoothed")
 
 
 @dataclass(eq=False, repr=False)
-class TrackedPose:
+class TrackedPose(_PoseReadouts):
     """The camera's (and the robot's) pose at one instant, as the tracker or the smoother gives it.
 
     Attributes
@@ -51,6 +51,11 @@ class TrackedPose:
         The camera centre's velocity, mm/s, world axes.
     angular_velocity_rad_s : ndarray, shape (3,)
         The camera's angular velocity, rad/s, world axes.
+    odometry_scale : float
+        What the odometry's translations are multiplied by to give the base's true motion, as learnt
+        from the poses so far (1.0 before any odometry: e.g. 0.97 when the wheels report 3 % too far).
+    odometry_scale_std : float
+        Its standard deviation (``ODOMETRY_SCALE_STD`` = 0.05 until odometry and poses have met).
     """
 
     t_s: float
@@ -65,6 +70,10 @@ class TrackedPose:
     base_covariance: np.ndarray | None = None
     velocity_mm_s: np.ndarray | None = None
     angular_velocity_rad_s: np.ndarray | None = None
+    odometry_scale: float = 1.0
+    odometry_scale_std: float | None = None
+
+    _error = TrackingError
 
     @property
     def rejected(self) -> bool:
@@ -75,56 +84,6 @@ class TrackedPose:
     def measured(self) -> bool:
         """True when a frame's pose corrected (or started) the track at this instant."""
         return self.status in ("measured", "started", "restarted")
-
-    @property
-    def position_mm(self) -> np.ndarray:
-        """Camera centre (3,), mm, world."""
-        return self.T_world_camera[:3, 3].copy()
-
-    @property
-    def rpy_deg(self) -> np.ndarray:
-        """Roll, pitch, yaw (3,), degrees, of ``R_world_camera`` (fixed world axes, as :attr:`Pose.rpy_deg`)."""
-        return frames.rpy_deg_from_rotation(self.T_world_camera[:3, :3])
-
-    @property
-    def position_std_mm(self) -> np.ndarray:
-        """Standard deviation (3,) of the camera centre along world X, Y, Z, mm."""
-        return np.sqrt(np.maximum(np.diag(self.covariance)[3:], 0.0))
-
-    def position_ellipsoid_contains(self, point_mm, probability: float = 0.95) -> bool:
-        """Whether a world point lies inside the camera centre's confidence ellipsoid.
-
-        Parameters
-        ----------
-        point_mm : array-like, shape (3,)
-            A point in the world frame, mm (e.g. the true camera position).
-        probability : float
-            The ellipsoid's confidence level, between 0 and 1 (exclusive).
-
-        Returns
-        -------
-        bool
-            True when the squared Mahalanobis distance of the point from :attr:`position_mm`
-            (under ``covariance[3:, 3:]``) is at most the chi-square(3) quantile of ``probability``.
-
-        Raises
-        ------
-        TrackingError
-            ``probability`` is not between 0 and 1.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> p = TrackedPose(0.0, np.eye(4), np.diag([1e-6] * 3 + [4.0] * 3), "measured")
-        >>> p.position_ellipsoid_contains([0, 0, 5.0]), p.position_ellipsoid_contains([0, 0, 6.0])
-        (True, False)
-        """
-        from ..errors import TrackingError
-
-        if not (isinstance(probability, (int, float)) and 0.0 < probability < 1.0):
-            raise TrackingError(f"probability must be between 0 and 1 (exclusive), got {probability!r}")
-        d = np.asarray(point_mm, dtype=float).reshape(3) - self.position_mm
-        return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3_quantile(probability)
 
     def __repr__(self) -> str:
         x, y, z = self.position_mm

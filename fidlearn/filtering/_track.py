@@ -142,8 +142,8 @@ class _Track:
     def _predict(self, t: float, odo):
         if odo is None:
             return kf.predict_constant_velocity(self.state, t, self.q_lin, self.q_ang)
-        T_rel, cov_rel = kf.odometry_to_camera(odo[0], odo[1], self.T_camera_base)
-        return kf.predict_odometry(self.state, t, T_rel, cov_rel, self.q_lin, self.q_ang)
+        T_rel, cov_rel, dt_dk = kf.odometry_to_camera(odo[0], odo[1], self.T_camera_base, self.state.k)
+        return kf.predict_odometry(self.state, t, T_rel, cov_rel, dt_dk, self.q_lin, self.q_ang)
 
     def _start(self, pose: Pose, t: float, status: str, F) -> TrackedPose:
         self.rejections = 0
@@ -167,11 +167,13 @@ class _Track:
         The alternative then enters with that covariance plus ``d d^T`` (``d`` the step between
         the two solutions), an upper bound of the mixture's second moment about it: a solution
         IPPE ranked second is never trusted more than the frame's data allow. Either is widened by
-        ``AMBIGUOUS_INFLATION`` (see :mod:`fidlearn.filtering._filter`).
+        ``AMBIGUOUS_INFLATION`` (see :mod:`fidlearn.filtering._filter`), and so is a pose from a single
+        marker that is not flagged: its error surface is as far from quadratic.
         """
         alt = pose.alternative if pose.ambiguous else None
         if alt is None:
-            return pose.T_world_camera, pose.covariance * (kf.AMBIGUOUS_INFLATION if pose.ambiguous else 1.0), False
+            wide = pose.ambiguous or len(pose.marker_ids) == 1
+            return pose.T_world_camera, pose.covariance * (kf.AMBIGUOUS_INFLATION if wide else 1.0), False
         d_pose = kf.innovation(predicted, pose.T_world_camera, pose.covariance)[2]
         d_alt = kf.innovation(predicted, alt.T_world_camera, pose.covariance)[2]
         if d_alt < d_pose:
@@ -206,4 +208,6 @@ class _Track:
             base_covariance=cov_base,
             velocity_mm_s=s.v.copy(),
             angular_velocity_rad_s=s.w.copy(),
+            odometry_scale=1.0 + s.k,
+            odometry_scale_std=math.sqrt(max(float(s.P[12, 12]), 0.0)),
         )

@@ -26,11 +26,15 @@ class PoseTracker:
     frame is ambiguous (a planar target far away or face-on), both planar solutions are compared
     with the prediction (squared Mahalanobis distance) and the one that agrees is used, so a flip
     never reaches the output (with the frame's covariance, which reaches the other solution, widened
-    by ``AMBIGUOUS_INFLATION`` = 2: near the flip the linearised covariance is too small).
+    by ``AMBIGUOUS_INFLATION`` = 2: near the flip the linearised covariance is too small; a pose from
+    one marker is widened alike, flagged or not).
     A pose further from the prediction than the chi-square gate
     (``GATE_PROBABILITY`` = 0.999, 6 degrees of freedom: 22.46) is rejected and the output says
     so; after ``MAX_REJECTIONS`` (5) rejections in a row the track restarts from the frame's
-    pose. A frame without a pose is bridged by the motion model, or by the odometry when given.
+    pose. A frame without a pose is bridged by the motion model, or by the odometry when given. The
+    odometry's scale (wheels a few percent larger or smaller than their nominal size) is learnt from
+    the poses as part of the state (:attr:`TrackedPose.odometry_scale`), so a gap is bridged with
+    the corrected odometry and its ellipsoid grows as the scale's uncertainty says.
 
     Parameters
     ----------

@@ -7,13 +7,76 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import frames
+from ..errors import PoseError
 from ._stats import _chi2_3_quantile
 
 __all__ = ["Pose"]
 
 
+class _PoseReadouts:
+    """What :class:`Pose` and :class:`fidlearn.filtering.TrackedPose` read off ``T_world_camera`` (4, 4, mm)
+    and ``covariance`` (6, 6, ``[dtheta (rad), camera centre (mm)]`` in world axes, or None)."""
+
+    #: The error a bad argument raises (the owning package's own).
+    _error: type = PoseError
+
+    @property
+    def position_mm(self) -> np.ndarray:
+        """Camera centre (3,) in world coordinates, mm."""
+        return self.T_world_camera[:3, 3].copy()
+
+    @property
+    def rpy_deg(self) -> np.ndarray:
+        """Roll, pitch, yaw (3,) in degrees of the camera's orientation in the world (``R_world_camera``,
+        fixed world axes)."""
+        return frames.rpy_deg_from_rotation(self.T_world_camera[:3, :3])
+
+    @property
+    def position_std_mm(self) -> np.ndarray:
+        """Standard deviation (3,) of the camera position along world X, Y, Z, mm (NaN without a covariance)."""
+        if self.covariance is None:
+            return np.full(3, np.nan)
+        return np.sqrt(np.maximum(np.diag(self.covariance)[3:], 0.0))
+
+    def position_ellipsoid_contains(self, point_mm: np.ndarray, probability: float = 0.95) -> bool:
+        """Whether a world point lies inside the camera position's confidence ellipsoid.
+
+        Parameters
+        ----------
+        point_mm : array-like, shape (3,)
+            A point in the world frame, mm (e.g. the true camera position).
+        probability : float
+            The ellipsoid's confidence level, between 0 and 1 (exclusive).
+
+        Returns
+        -------
+        bool
+            True when the squared Mahalanobis distance of the point from
+            :attr:`position_mm` (under ``covariance[3:, 3:]``) is at most the
+            chi-square(3) quantile of ``probability``; False when the covariance is None.
+
+        Raises
+        ------
+        PoseError
+            ``probability`` is not between 0 and 1 (:class:`TrackingError` for a ``TrackedPose``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> pose = Pose(np.eye(4), (0,), {}, 0.1, np.diag([1e-6, 1e-6, 1e-6, 4.0, 4.0, 4.0]), 0.1)
+        >>> pose.position_ellipsoid_contains([0.0, 0.0, 5.0]), pose.position_ellipsoid_contains([0.0, 0.0, 6.0])
+        (True, False)
+        """
+        if not (isinstance(probability, (int, float)) and 0.0 < probability < 1.0):
+            raise self._error(f"probability must be between 0 and 1 (exclusive), got {probability!r}")
+        if self.covariance is None:
+            return False
+        d = np.asarray(point_mm, dtype=float).reshape(3) - self.position_mm
+        return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3_quantile(probability)
+
+
 @dataclass(eq=False, repr=False)
-class Pose:
+class Pose(_PoseReadouts):
     """The camera's pose in the world, with its quality.
 
     Attributes
@@ -122,16 +185,6 @@ class Pose:
         return self._T_camera_world.copy()
 
     @property
-    def position_mm(self) -> np.ndarray:
-        """Camera centre (3,) in world coordinates, mm."""
-        return self.T_world_camera[:3, 3].copy()
-
-    @property
-    def rpy_deg(self) -> np.ndarray:
-        """Roll, pitch, yaw (3,) in degrees of the camera's orientation in the world (``R_world_camera``)."""
-        return frames.rpy_deg_from_rotation(self.T_world_camera[:3, :3])
-
-    @property
     def rvec(self) -> np.ndarray:
         """Rodrigues vector (3,) of ``T_camera_world``, as ``cv2.solvePnP`` returns it."""
         return frames.rvec_tvec_from_transform(self.T_camera_world)[0]
@@ -140,13 +193,6 @@ class Pose:
     def tvec(self) -> np.ndarray:
         """Translation (3,), mm, of ``T_camera_world``, as ``cv2.solvePnP`` returns it."""
         return self.T_camera_world[:3, 3].copy()
-
-    @property
-    def position_std_mm(self) -> np.ndarray:
-        """Standard deviation (3,) of the camera position along world X, Y, Z, mm."""
-        if self.covariance is None:
-            return np.full(3, np.nan)
-        return np.sqrt(np.maximum(np.diag(self.covariance)[3:], 0.0))
 
     @property
     def rotation_std_deg(self) -> np.ndarray:
@@ -159,41 +205,6 @@ class Pose:
     def marker_rms_px(self) -> dict[int, float]:
         """Per-marker RMS corner residual (px): a misplaced marker stands out here."""
         return {i: float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) for i, r in self.residuals_px.items()}
-
-    def position_ellipsoid_contains(self, point_mm: np.ndarray, probability: float = 0.95) -> bool:
-        """Whether a world point lies inside the camera position's confidence ellipsoid.
-
-        Parameters
-        ----------
-        point_mm : array-like, shape (3,)
-            A point in the world frame, mm (e.g. the true camera position).
-        probability : float
-            The ellipsoid's confidence level, between 0 and 1 (exclusive).
-
-        Returns
-        -------
-        bool
-            True when the squared Mahalanobis distance of the point from
-            :attr:`position_mm` (under ``covariance[3:, 3:]``) is at most the
-            chi-square(3) quantile of ``probability``; False when the covariance is None.
-
-        Raises
-        ------
-        PoseError
-            ``probability`` is not between 0 and 1.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> pose = Pose(np.eye(4), (0,), {}, 0.1, np.diag([1e-6, 1e-6, 1e-6, 4.0, 4.0, 4.0]), 0.1)
-        >>> pose.position_ellipsoid_contains([0.0, 0.0, 5.0]), pose.position_ellipsoid_contains([0.0, 0.0, 6.0])
-        (True, False)
-        """
-        if self.covariance is None:
-            return False
-        d = np.asarray(point_mm, dtype=float).reshape(3) - self.position_mm
-        m2 = float(d @ np.linalg.solve(self.covariance[3:, 3:], d))
-        return m2 <= _chi2_3_quantile(probability)
 
     def __repr__(self) -> str:
         x, y, z = self.position_mm

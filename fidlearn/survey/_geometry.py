@@ -1,9 +1,6 @@
-"""Rotations for the survey: rotation vectors, their Jacobians, and a marker's placement from a photo.
+"""The survey's geometry: a marker's corners in its placement frame and its placement seen in one photo.
 
-A rotation unknown is a rotation vector ``phi`` applied on the left of a reference rotation:
-``R = exp([phi]x) @ R0``. Its derivatives use the left Jacobian of SO(3)::
-
-    exp([phi + dphi]x) = exp([J_l(phi) dphi]x) exp([phi]x)     (to first order)
+Rotation unknowns step on SO(3) with :mod:`fidlearn.frames._so3` (re-exported here for the survey's modules).
 """
 
 from __future__ import annotations
@@ -11,68 +8,22 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..frames import _rotvec
+from ..frames._so3 import exp_so3, left_jacobian, left_jacobian_inv, log_so3, skew
 from ..markermap import MARKER_CORNERS_LOCAL
+
+__all__ = [
+    "exp_so3",
+    "left_jacobian",
+    "left_jacobian_inv",
+    "local_corners",
+    "log_so3",
+    "placement_from_photo",
+    "skew",
+]
 
 #: Placement axes (top-left corner frame: face normal X, along the top edge Y, up Z) from
 #: OpenCV's marker frame (x along the top edge, y up, z out of the face): ``R_place = R_m @ _M_TO_PLACE``.
 _M_TO_PLACE = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices of vectors (..., 3): ``skew(a) @ b == cross(a, b)``."""
-    v = np.asarray(v, dtype=float)
-    z = np.zeros(v.shape[:-1])
-    return np.stack(
-        [
-            np.stack([z, -v[..., 2], v[..., 1]], -1),
-            np.stack([v[..., 2], z, -v[..., 0]], -1),
-            np.stack([-v[..., 1], v[..., 0], z], -1),
-        ],
-        -2,
-    )
-
-
-def exp_so3(phi: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of rotation vectors (..., 3) (Rodrigues' formula)."""
-    phi = np.asarray(phi, dtype=float)
-    theta = np.linalg.norm(phi, axis=-1)[..., None, None]
-    K = skew(phi)
-    small = theta < 1e-8
-    t = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - theta**2 / 6, np.sin(t) / t)
-    b = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(t)) / t**2)
-    return np.eye(3) + a * K + b * (K @ K)
-
-
-def log_so3(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (3,) of a rotation matrix (3, 3): :func:`fidlearn.frames._rotvec`, exact for tiny
-    angles too (``cv2.Rodrigues`` alone returns zero below about 1e-5 rad)."""
-    return _rotvec(R)
-
-
-def left_jacobian(phi: np.ndarray) -> np.ndarray:
-    """Left Jacobians (..., 3, 3) of SO(3) at rotation vectors (..., 3)."""
-    phi = np.asarray(phi, dtype=float)
-    theta = np.linalg.norm(phi, axis=-1)[..., None, None]
-    K = skew(phi)
-    small = theta < 1e-6
-    t = np.where(small, 1.0, theta)
-    a = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(t)) / t**2)
-    b = np.where(small, 1.0 / 6 - theta**2 / 120, (t - np.sin(t)) / t**3)
-    return np.eye(3) + a * K + b * (K @ K)
-
-
-def left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
-    """Inverse (3, 3) of the left Jacobian of SO(3) at a rotation vector (3,)."""
-    phi = np.asarray(phi, dtype=float)
-    theta = float(np.linalg.norm(phi))
-    K = skew(phi)
-    if theta < 1e-6:
-        c = 1.0 / 12 + theta**2 / 720
-    else:
-        c = 1 / theta**2 - (1 + np.cos(theta)) / (2 * theta * np.sin(theta))
-    return np.eye(3) - 0.5 * K + c * (K @ K)
 
 
 def local_corners(marker_size_mm: float) -> np.ndarray:
