@@ -242,15 +242,22 @@ for name, run in runs.items():
           f"(status {run[gap[-1]].status!r}, reported std {np.linalg.norm(run[gap[-1]].position_std_mm):.0f} mm)")
 driven_mm = np.sum(np.linalg.norm(np.diff(true_position[gap[0] - 1: gap[-1] + 1], axis=0), axis=1))
 print(f"driven during the gap: {driven_mm:.0f} mm; 2 % of it is {0.02 * driven_mm:.0f} mm")
+before = runs["with odometry"][gap[0] - 1]
+print(f"odometry scale learnt before the gap: {before.odometry_scale:.3f} +/- {before.odometry_scale_std:.3f} "
+      f"(the truth: 1 / 1.02 = {1 / 1.02:.3f})")
 gap_err = {n: np.linalg.norm(np.array([r[k].position_mm for k in gap]) - true_position[list(gap)], axis=1).max()
            for n, r in runs.items()}
 assert gap_err["with odometry"] < 0.5 * gap_err["motion model only"]
 
 # %% [markdown]
 # The motion model assumes the velocity it had; the robot changed its speed and heading, and the guess drifts off
-# (its reported uncertainty, grown by the process noise, covers that). Odometry measures the motion itself:
-# what is left is about its 2 % drift over the distance driven. Either way the uncertainty shrinks again at the
-# first frame with markers.
+# (its reported uncertainty, grown by the process noise, covers that). Odometry measures the motion itself,
+# and its 2 % is not noise but a **bias**: every step too long by the same fraction, an error that adds up
+# along the drive and that the odometry's own covariance (independent from step to step) does not describe.
+# So the tracker keeps the odometry's scale in its state (`odometry_scale`, starting at 1 +/- 0.05) and learns
+# it from the frames with markers: before the gap it already knew the wheels report about 2 % too far, and
+# what is left across the gap is that estimate's uncertainty over the distance driven. Either way the
+# uncertainty shrinks again at the first frame with markers.
 #
 # ## 6. The smoother: when the whole run is known
 #
