@@ -102,6 +102,10 @@ def test_track_with_odometry(capsys, tmp_path, frames_dir):
     recs = [json.loads(line) for line in out.read_text().splitlines()]
     for rec, (_, truth) in zip(recs, SHOTS):
         assert np.linalg.norm(np.array(rec["position_mm"]) - truth[:3, 3]) < 35.0
+    # the odometry is the true path: the scale learnt is 1 within its (shrunk) uncertainty, and said
+    last = recs[-1]
+    assert abs(last["odometry_scale"] - 1.0) < 3 * last["odometry_scale_std"] < 3 * 0.05
+    assert f"odometry scale learnt from the poses: {last['odometry_scale']:.4f}" in stdout
 
 
 @pytest.mark.parametrize(

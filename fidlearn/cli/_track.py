@@ -44,9 +44,10 @@ the chi-square gate (0.999) is rejected and said so, frames without a marker are
                       the camera's optical frame (x right, y down, z forward). Or {"units": "mm",
                       "T_camera_base": 4x4}. With it the output is the robot base's pose (base_link).
 --format              how -o is written: jsonl (one JSON line per frame: the tracked pose in mm and
-                      degrees, its covariance, status), tum (t x y z qx qy qz qw, metres), ros (one
-                      geometry_msgs/PoseWithCovarianceStamped per line as JSON: frame map, metres,
-                      quaternion x y z w, covariance in x y z rotX rotY rotZ order, m and rad)."""
+                      degrees, its covariance, status, the odometry scale learnt so far), tum (t x y z
+                      qx qy qz qw, metres), ros (one geometry_msgs/PoseWithCovarianceStamped per line
+                      as JSON: frame map, metres, quaternion x y z w, covariance in x y z rotX rotY
+                      rotZ order, m and rad)."""
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -155,6 +156,8 @@ def _record(name: str, out: TrackedPose, fmt: str) -> str | dict:
         "status": out.status,
         "flip_resolved": out.flip_resolved,
         "reason": out.reason,
+        "odometry_scale": out.odometry_scale,
+        "odometry_scale_std": out.odometry_scale_std,
     }
 
 
@@ -183,6 +186,7 @@ class _Run:
         self.fmt = args.format or "jsonl"
         self.frames = 0
         self.counts: dict[str, int] = {}
+        self.last: TrackedPose | None = None
 
     def frame(self, name: str, pose) -> TrackedPose | None:
         """One frame's pose through the tracker; its record written."""
@@ -190,7 +194,7 @@ class _Run:
         odo = self.odometry.between((n - 1) / fps, n / fps) if self.odometry is not None and n > 0 else None
         out = None
         if pose is not None or self.tracker.started:  # before the first pose there is nothing to track
-            out = self.tracker.update(pose, n / fps, odometry=odo)
+            out = self.last = self.tracker.update(pose, n / fps, odometry=odo)
             self.counts[out.status] = self.counts.get(out.status, 0) + 1
             self.counts["flips resolved"] = self.counts.get("flips resolved", 0) + out.flip_resolved
             if self.sink is not None:
@@ -245,6 +249,9 @@ def run_tracked(args, items, locator, out_path: Path | None) -> int:
         return _exit_status(exc)
     said = ", ".join(f"{v} {k}" for k, v in run.counts.items() if v)
     print(f"{run.frames} frames tracked: {said or 'no pose'}")
+    if odometry is not None and run.last is not None:
+        scale, std = run.last.odometry_scale, run.last.odometry_scale_std
+        print(f"odometry scale learnt from the poses: {scale:.4f} +/- {std:.4f} (what its distances are multiplied by)")
     if out_path is not None:
         print(f"{run.fmt} track written to {out_path}")
     return 0
