@@ -7,7 +7,9 @@ on every frame of a video costs only the detection itself) and then refines the
 corners. The default refinement, ``"edges"``, is fidlearn's own: it fits a
 straight line to each of the marker's four outer edges from sub-pixel edge
 positions sampled across the edge, and intersects neighbouring lines. Why it is
-the default, with the measurements, is in ``docs/corner_refinement.md``.
+the default, with the measurements, is in ``docs/corner_refinement.md``. Whatever the refinement, every
+decoded quad must be its marker's outline (its four outer edges fitted there); the detector parameters
+fidlearn changes, and why, are in :data:`DEFAULT_DETECTOR_PARAMS`.
 """
 
 from __future__ import annotations

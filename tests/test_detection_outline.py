@@ -103,3 +103,16 @@ def test_a_faint_marker_opencv_finds_is_kept(contrast, base, seed):
     assert [d.id for d in dets] == [5]
     np.testing.assert_array_equal(dets[0].corners_px, quads[5])
     assert np.abs(dets[0].corners_px - truth).max() < 2.0
+
+
+def test_the_tracker_checks_its_quads_too(photo_14):
+    """MarkerTracker's full-frame detection of photo_14 with fidlearn's defaults: no marker at wrong corners (it
+    has no second reading inside a dropped quad, so marker 0 is missing rather than a quarter turn off)."""
+    from fidlearn import Camera, MarkerMap, MarkerTracker  # noqa: PLC0415 - only this test tracks
+
+    gray, truth = photo_14
+    tracker = MarkerTracker(MarkerMap.load(FOLDER / "true_map.json"), Camera.load(FOLDER / "camera.json"))
+    tracker.locate(gray)
+    dets = tracker.last_detections
+    assert {d.id for d in dets} >= set(truth) - {0}
+    assert max(np.abs(d.corners_px - truth[d.id]).max() for d in dets) < 0.2
