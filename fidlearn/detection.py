@@ -7,7 +7,9 @@ on every frame of a video costs only the detection itself) and then refines the
 corners. The default refinement, ``"edges"``, is fidlearn's own: it fits a
 straight line to each of the marker's four outer edges from sub-pixel edge
 positions sampled across the edge, and intersects neighbouring lines. Why it is
-the default, with the measurements, is in ``docs/corner_refinement.md``.
+the default, with the measurements, is in ``docs/corner_refinement.md``. Whatever the refinement, every
+decoded quad must be its marker's outline (its four outer edges fitted there); the detector parameters
+fidlearn changes, and why, are in :data:`DEFAULT_DETECTOR_PARAMS`.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 from . import _cv
 from .errors import DetectionError, DictionaryError, FidlearnError, ImageError
 from .images import load_image
-from .refinement import refine_corners_edges
+from .refinement import _refine_edges, refine_corners_edges
 
 __all__ = [
     "Detection",
@@ -48,16 +50,20 @@ REFINE_METHODS = ("none", "subpix", "contour", "apriltag", "edges")
 #: The refinement used when none is asked for, chosen by measurement (docs/corner_refinement.md).
 DEFAULT_REFINE = "edges"
 
-#: OpenCV detector parameters fidlearn changes from OpenCV's defaults: none, by measurement
-#: (``benchmarks/bench_detection.py``: recall on a video, rendered rooms, walls of large markers and
-#: rooms in hard light, ArUco and AprilTag dictionaries). ``minMarkerDistanceRate`` 0.065 with
-#: ``perspectiveRemovePixelPerCell`` 8 and threshold windows 3 and 23 px found 99.6 % of the video's
-#: markers against OpenCV's 98.9 %, but the larger cells decoded a quad around a marker and its margin
-#: as that marker, a quarter turn off and 50 px away (``data/survey/photo_14.jpg``, marker 0), and
-#: without them the smaller distance rate and the two windows found fewer markers than OpenCV's
-#: defaults (98.5 % and 98.8 %). A ``detector_params`` dict overrides OpenCV's defaults field by
-#: field; a ``cv2.aruco.DetectorParameters`` object is used as it is.
-DEFAULT_DETECTOR_PARAMS: MappingProxyType = MappingProxyType({})
+#: OpenCV detector parameters fidlearn changes from OpenCV's defaults, by measurement
+#: (``benchmarks/bench_detection.py``, docs/benchmarks.md: recall, false ids and wrong corners on a video,
+#: rendered rooms, walls of large markers, rooms in hard light and the bundled survey photos, ArUco and AprilTag
+#: dictionaries): ``minMarkerDistanceRate`` 0.065 (OpenCV's 0.125 drops a marker's outline for another quad when
+#: its white margin is one cell wide), ``perspectiveRemovePixelPerCell`` 8 (a small marker's cells read at 8
+#: samples, not 4) and threshold windows 3 and 23 px (step 20), which find 99.6 % of the video's markers
+#: against OpenCV's 98.9 % in about 0.7 x its time. Larger cells can also decode a quad around a marker and
+#: its white margin as the marker, a quarter turn off (``data/survey/photo_14.jpg``, marker 0): every
+#: detection's quad is checked to be its marker's outline, and read again inside when it is not (see
+#: :func:`detect_markers`). A ``detector_params`` dict overrides these field by field; a
+#: ``cv2.aruco.DetectorParameters`` object is used as it is.
+DEFAULT_DETECTOR_PARAMS: MappingProxyType = MappingProxyType(
+    {"minMarkerDistanceRate": 0.065, "perspectiveRemovePixelPerCell": 8, "adaptiveThreshWinSizeStep": 20}
+)
 
 
 @dataclass(frozen=True, eq=False, init=False)
@@ -301,19 +307,67 @@ def _wanted_ids(ids: Any, dictionary: str) -> tuple[int, ...]:
 
 
 def _detect(image: np.ndarray, dictionary: str, refine: str, detector_params: Any, ids: Any):
-    """Detections sorted by id, and OpenCV's raw rejected candidates."""
+    """Detections sorted by id; OpenCV's raw rejected candidates and the quads that are no marker's outline."""
     gray = as_gray(image)
     name = _dictionary_name(dictionary) if isinstance(dictionary, str) else _cv.dictionary_name(dictionary)
     method = _refine_name(refine)
     wanted = None if ids is None else _wanted_ids(ids, name)
     detector, cells, inverted = _detector(name, method, detector_params, wanted)
-    corners, ids, rejected = _cv.detect_with_raw_rejected(detector, gray)
-    if wanted is not None and len(ids):
-        ids = np.asarray(wanted, dtype=np.int64)[np.asarray(ids, dtype=np.int64)]
-    if len(corners) and method == "edges":
-        corners = list(refine_corners_edges(gray, np.stack(corners), cells, inverted=None if inverted else False))
-    order = sorted(range(len(ids)), key=lambda k: (int(ids[k]), float(corners[k][0, 1]), float(corners[k][0, 0])))
-    return [Detection(int(ids[k]), corners[k]) for k in order], rejected
+
+    def find(img: np.ndarray, x0: int = 0, y0: int = 0) -> tuple[list, list, Any]:
+        corners, found, rejected = _cv.detect_with_raw_rejected(detector, img)
+        if wanted is not None and len(found):
+            found = np.asarray(wanted, dtype=np.int64)[np.asarray(found, dtype=np.int64)]
+        return [c + (x0, y0) for c in corners], [int(i) for i in found], rejected
+
+    corners, found, rejected = find(gray)
+    dets, dropped = _outlined(gray, corners, found, cells, inverted, method == "edges")
+    if dropped:
+        dets = _read_inside(gray, find, dets, dropped, cells, inverted, method == "edges")
+    return dets, (*(rejected or ()), *(q.astype(np.float32).reshape(1, 4, 2) for _, q in dropped))
+
+
+def _outlined(gray: np.ndarray, corners: list, ids: list, cells: int, inverted: bool, refine: bool):
+    """The detections, sorted by id, whose quads are their markers' outlines, and ``(id, quad)`` of the others.
+
+    Every quad's four outer edges are fitted as the ``"edges"`` refinement does (profiles across each side
+    only, O(markers x side)); a quad whose sides show no dark border inside a light surround, or whose edges lie
+    more than ``max(3, cell / 2)`` px from it, is not the marker's outline: a decoder that samples large cells
+    can read a quad around a marker and its white margin as that marker, a quarter turn off
+    (``data/survey/photo_14.jpg``, marker 0). ``refine``: report the fitted corners, else OpenCV's."""
+    if not corners:
+        return [], []
+    fitted, ok = _refine_edges(gray, np.stack(corners), cells, None if inverted else False)
+    if refine:
+        corners = list(fitted)
+    keep = sorted(np.flatnonzero(ok), key=lambda k: (ids[k], float(corners[k][0, 1]), float(corners[k][0, 0])))
+    dropped = [(ids[k], np.asarray(corners[k], dtype=np.float64)) for k in np.flatnonzero(~ok)]
+    return [Detection(ids[k], corners[k]) for k in keep], dropped
+
+
+def _read_inside(gray: np.ndarray, find, dets: list, dropped: list, cells: int, inverted: bool, refine: bool):
+    """``dets`` with the markers read again inside the quads :func:`_outlined` dropped: the same detector on the
+    quad's bounding box (4 px more each side) with everything outside the quad, one pixel in, painted white, so
+    that the marker's own outline is the only one left; kept when it has the dropped quad's id and passes the
+    same check. O(quad's area), for the dropped quads only."""
+    H, W = gray.shape
+    corners, ids = [], []
+    for i, q in dropped:
+        x0, y0 = np.maximum(np.floor(q.min(axis=0)).astype(int) - 4, 0)
+        x1, y1 = np.minimum(np.ceil(q.max(axis=0)).astype(int) + 5, [W, H])
+        if min(x1 - x0, y1 - y0) < 16:
+            continue
+        inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.fillConvexPoly(inside, np.round(q - (x0, y0)).astype(np.int32), 1)
+        crop = np.where(cv2.erode(inside, np.ones((3, 3), np.uint8)) > 0, gray[y0:y1, x0:x1], 255).astype(np.uint8)
+        c, k, _ = find(crop, int(x0), int(y0))
+        corners += [cc for cc, kk in zip(c, k) if kk == i]
+        ids += [kk for kk in k if kk == i]
+    new, _ = _outlined(gray, corners, ids, cells, inverted, refine)
+    new = [d for d in new if not any(e.id == d.id and np.abs(e.corners_px - d.corners_px).max() < 2.0 for e in dets)]
+    if not new:
+        return dets
+    return sorted(dets + new, key=lambda d: (d.id, float(d.corners_px[0, 1]), float(d.corners_px[0, 0])))
 
 
 def detect_markers(
@@ -352,7 +406,13 @@ def detect_markers(
     Returns
     -------
     list of Detection
-        Sorted by id; each ``corners_px`` is (4, 2) float64 pixels, TL, TR, BR, BL.
+        Sorted by id; each ``corners_px`` is (4, 2) float64 pixels, TL, TR, BR, BL. Only quads that are
+        their marker's outline: OpenCV's decoded quads whose four outer edges are fitted (a dark border
+        inside a light surround on every side, the fitted edges within ``max(3, cell / 2)`` px of the quad;
+        profiles across the sides only, as the ``"edges"`` refinement samples them, whatever ``refine`` is).
+        A quad that is not (a marker and its white margin read as the marker, a quarter turn off) is
+        dropped, and the same detector reads its inside again with everything outside it painted white: the
+        marker found there with the same id, and passing the same check, is reported instead.
 
     Raises
     ------
@@ -398,8 +458,8 @@ def detect_markers_with_rejected(
     detections : list of Detection
         Exactly what :func:`detect_markers` returns.
     rejected : list of ndarray, shape (4, 2)
-        The rejected candidates' corners (pixels, unrefined), for
-        ``draw_detections(..., rejected=...)``.
+        The rejected candidates' corners (pixels, unrefined), then the decoded quads that were no
+        marker's outline (see :func:`detect_markers`), for ``draw_detections(..., rejected=...)``.
 
     Raises
     ------

@@ -18,6 +18,9 @@ __all__ = ["refine_corners_edges"]
 
 
 _NEXT = np.array([1, 2, 3, 0])
+#: Gray levels between a side's dark border and light surround below which its edge is not fitted (the
+#: corners stay as they came), and below which the side is taken as no marker's outline at all.
+_FIT_CONTRAST, _CHECK_CONTRAST = 20.0, 8.0
 _PREV = np.array([3, 0, 1, 2])
 
 
@@ -92,17 +95,37 @@ def refine_corners_edges(
         edges cannot all be fitted (too little contrast, too few crossings) or
         whose corners would move more than ``max(3, cell / 2)`` px keeps its input corners.
     """
+    return _refine_edges(gray, corners, cells, inverted, n_lines, n_samples, iterations, expand_px, gamma)[0]
+
+
+def _refine_edges(
+    gray: np.ndarray,
+    corners: np.ndarray,
+    cells: int,
+    inverted: bool | None = False,
+    n_lines: int = 16,
+    n_samples: int = 13,
+    iterations: int = 1,
+    expand_px: float = 0.5,
+    gamma: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`refine_corners_edges`' corners (M, 4, 2) and whether each marker's four edges were fitted (M,) bool.
+
+    False says that no dark border meets a light surround along the quad's sides, or that the edges found
+    lie more than ``max(3, cell / 2)`` px from them: the quad is not the outline of a marker's black border
+    (a marker's white margin decoded as the marker, ``data/survey/photo_14.jpg``), or too faint to fit."""
     C = np.ascontiguousarray(corners, dtype=np.float64).reshape(-1, 4, 2)
     M = C.shape[0]
     if M == 0:
-        return C.copy()
+        return C.copy(), np.ones(0, dtype=bool)
     u, v, U3 = _profile_grid(int(n_lines), int(n_samples))
     Z = C.view(np.complex128)[..., 0]  # (M, 4) corners as x + iy
     shift = float(expand_px)
+    fitted = np.ones(M, dtype=bool)
     for _ in range(iterations):
         Dz, L, nz, cell, h, margin, span, prof = _profiles(gray, Z, cells, u, v, shift)
         prof, dark, light, level = _levels(prof, inverted, gamma)
-        off, w = _edge_offsets(prof, level, dark, light, h, shift)
+        off, w = _edge_offsets(prof, level, dark, light, h, shift, _CHECK_CONTRAST)
         alpha, beta, sw, det = _fit_lines(w, off, u, U3)
         b = beta / span  # the same line in t (0 at corner k, 1 at corner k+1)
         a = alpha - b * margin
@@ -113,9 +136,11 @@ def refine_corners_edges(
         ok = ((sw >= 4) & (det > 1e-9) & (np.abs(den) > 1e-9 * L * L)).all(1)
         new = Ap + ((A - Ap).conj() * d).imag / np.where(ok[:, None], den, 1.0) * dp
         ok &= np.abs(new - Z).max(1) < np.maximum(3.0, 0.5 * cell)
-        Z = np.where(ok[:, None], new, Z)
+        fitted &= ok
+        # the corners move only where every side's contrast is enough to fit a line to it
+        Z = np.where((ok & (light - dark > _FIT_CONTRAST).all(1))[:, None], new, Z)
         shift = 0.0
-    return np.stack([Z.real, Z.imag], axis=-1)
+    return np.stack([Z.real, Z.imag], axis=-1), fitted
 
 
 def _profiles(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.ndarray, shift: float):
@@ -175,7 +200,7 @@ def _kth(a: np.ndarray, k: int) -> np.ndarray:
     return np.partition(a, k, axis=2)[..., k]
 
 
-def _edge_offsets(prof, level, dark, light, h, shift: float):
+def _edge_offsets(prof, level, dark, light, h, shift: float, min_contrast: float):
     """Each profile's edge position outside the quad's side (px, (M, 4, N)) and its weight (0 or 1)."""
     M, _, n_lines, n_samples = prof.shape
     mid_sample = n_samples // 2
@@ -190,7 +215,7 @@ def _edge_offsets(prof, level, dark, light, h, shift: float):
     pos = k + z0 / np.where(found, dz, -1.0)  # in samples, + 1
     off = (pos.reshape(M, -1) - (mid_sample + 1)) * (h * (2.0 / (n_samples - 1)))[:, None] + shift
     off = off.reshape(M, 4, n_lines)  # edge position outside the quad's side, px
-    w = (found.reshape(M, 4, n_lines) & (light - dark > 20.0)[..., None]).astype(np.float64)
+    w = (found.reshape(M, 4, n_lines) & (light - dark > min_contrast)[..., None]).astype(np.float64)
     return off, w
 
 

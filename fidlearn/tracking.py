@@ -57,7 +57,7 @@ import numpy as np
 
 from . import _cv, frames
 from .camera import Camera
-from .detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_name, as_gray, refine_corners_edges
+from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
 from .errors import FidlearnError, NoMarkersError, PoseError
 from .markermap import MarkerMap
 from .pose import Pose, _check_pose_options, estimate_pose
@@ -273,13 +273,8 @@ class MarkerTracker:
         return dets
 
     def _finish(self, gray: np.ndarray, corners: list, ids: list) -> list[Detection]:
-        """Refine the corners as detect_markers does and sort by id."""
-        if corners and self.refine == "edges":
-            corners = list(
-                refine_corners_edges(gray, np.stack(corners), self._cells, inverted=None if self._inverted else False)
-            )
-        order = sorted(range(len(ids)), key=lambda k: (ids[k], float(corners[k][0, 1]), float(corners[k][0, 0])))
-        return [Detection(ids[k], corners[k]) for k in order]
+        """Check and refine the corners as detect_markers does and sort by id."""
+        return _outlined(gray, corners, ids, self._cells, self._inverted, self.refine == "edges")[0]
 
     def _estimate(self, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
         """The pose from the detections, or None and why not (the options were checked when the tracker was made)."""
