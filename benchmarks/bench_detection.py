@@ -22,6 +22,8 @@ OpenCV's detector parameters behind fidlearn's defaults.
    for every dictionary family, 1 to 50 markers, 640x480 to 3840x2160, interleaved call by call, wall
    clock and CPU time of the same calls; the ratio is the median of the per-call ratios. The scaling is
    plotted in ``docs/img/detection_speed.png``.
+3. Where ``locate``'s time goes with one marker at 640x480 (``locate_profile.py``): its stages beside a
+   plain detection and OpenCV's own cheapest pose.
 """
 
 from __future__ import annotations
@@ -480,6 +482,16 @@ def main(argv=None) -> int:
     print_speed(rows)
     exponents(rows)
     plot(rows)
+    print(f"({time.perf_counter() - t0:.0f} s so far)\n")
+    print("### 3. Where `locate`'s time goes with one marker at 640x480\n")
+    print(
+        "The stages of `locate` for the one-marker wall of section 2 at 640x480, and OpenCV's own cheapest pose "
+        "(`solvePnP` IPPE_SQUARE + `solvePnPRefineLM` on the plain detection's corners), CPU time, the calls "
+        "interleaved, median over the repetitions (`benchmarks/locate_profile.py`).\n"
+    )
+    import locate_profile  # (it builds on this module's scenes)
+
+    locate_profile.report(repeats=60 if args.quick else 200)
     print(f"({time.perf_counter() - t0:.0f} s)\n")
     targets(summary, rows)
     return 0

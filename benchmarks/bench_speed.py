@@ -370,8 +370,10 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
         "filter of candidates closer than `minMarkerDistanceRate` (0.125 of the perimeter) keeps another quad "
         "instead of the marker's outline (with a white margin of one cell the paper's edge is 0.05 of the perimeter "
         "away; opencv/opencv_contrib#2913), or a small marker's cells are misread at 4 pixels per cell; OpenCV 4.14 "
-        "does the same. fidlearn's detector parameters (`minMarkerDistanceRate` 0.05, `perspectiveRemovePixelPerCell` "
-        "8, threshold windows 3 and 23 px: the sweep of `bench_detection.py`) find them (rows above)."
+        "does the same. fidlearn's detector parameters ("
+        + ", ".join(f"`{k}` {v}" for k, v in DEFAULT_DETECTOR_PARAMS.items())
+        + ": the sweep of `bench_detection.py`), with its check that every decoded quad is its marker's outline, "
+        "find them (rows above)."
     )
     print(
         f"\nThe tracker ran a full-frame detection on {', '.join(map(str, full))} of {n_frames} frames "
