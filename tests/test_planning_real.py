@@ -94,19 +94,18 @@ def test_a_marker_shift_is_predicted_as_estimate_pose_meets_it():
     )
 
 
-def test_noise_from_residuals_recovers_the_corner_noise_and_the_shift():
-    world, camera, T, p, truth, poses = _shifted_trials(0.2, 0.15, 60, seed=4)
-    ids = list(p.marker_ids)
-    a, b = [], []
-    for pose in poses:
-        J = pose_jacobian(np.concatenate([world.marker_corners(i) for i in ids]), pose.T_world_camera, camera)
-        s, h = noise.noise_from_residuals(
-            np.array([pose.residuals_px[i] for i in ids]), J, np.array([truth[i] for i in ids])
-        )
-        a.append(s**2)
-        b.append(h**2)
-    assert np.sqrt(np.mean(a)) == pytest.approx(0.2, rel=0.1)
-    assert np.sqrt(np.mean(b)) == pytest.approx(0.15, rel=0.2)
+@pytest.mark.parametrize("sigma, shift", [(0.2, 0.15), (0.3, 0.0), (0.05, 0.3)])
+def test_noise_from_a_pose_recovers_the_corner_noise_and_the_shift(sigma, shift):
+    world, camera, T, p, truth, poses = _shifted_trials(sigma, shift, 60, seed=4)
+    a, b = np.array([noise.noise_from_pose(pose, world, camera) for pose in poses]).T ** 2
+    assert np.sqrt(np.mean(a)) == pytest.approx(sigma, rel=0.1)
+    assert np.sqrt(np.mean(b)) == pytest.approx(shift, rel=0.2, abs=0.06)  # a shift of 0 is clipped at 0: biased up
+    # the same from the bare residuals, the Jacobian and the corners the pose saw
+    pose, ids = poses[0], list(poses[0].marker_ids)
+    J = pose_jacobian(np.concatenate([world.marker_corners(i) for i in ids]), pose.T_world_camera, camera)
+    seen = np.array([camera.project(world.marker_corners(i), pose.T_world_camera) + pose.residuals_px[i] for i in ids])
+    bare = noise.noise_from_residuals(np.array([pose.residuals_px[i] for i in ids]), J, seen)
+    assert bare == pytest.approx(noise.noise_from_pose(pose, world, camera))
 
 
 @pytest.mark.parametrize("shift", [-0.1, float("nan"), "0.2", True])
@@ -117,6 +116,10 @@ def test_a_bad_marker_shift_is_refused(shift):
         predict_accuracy(world, camera, look_at([1000, 190, 230], [0, 190, 230]), marker_shift_px=shift)
 
 
-def test_noise_from_residuals_needs_four_markers():
+def test_noise_needs_four_markers():
     with pytest.raises(ValueError, match="at least 4 markers"):
         noise.noise_from_residuals(np.zeros((3, 4, 2)), np.zeros((24, 6)), np.zeros((3, 4, 2)))
+    world, camera, T, p, truth, poses = _shifted_trials(0.2, 0.1, 1, seed=5)
+    three = estimate_pose([Detection(i, truth[i]) for i in p.marker_ids[:3]], world, camera)
+    with pytest.raises(ValueError, match="at least 4 markers"):
+        noise.noise_from_pose(three, world, camera)

@@ -4,8 +4,10 @@ Both models were measured on fidlearn's own renders (``fidlearn.synthetic.render
 the bundled scenes' settings: blur 0.5 px, sensor noise 1.2 gray levels, illumination gradient
 0.2) with the default ``edges`` corner refinement; ``python benchmarks/bench_planning.py
 --noise`` measures the noise table again, and the benchmark checks both against other renders.
-A real camera (motion blur, JPEG, a soft print) is noisier: pass the noise you measured
-(``corner_sigma_px``), e.g. the RMS reprojection error of your own ``locate`` runs.
+A real camera (motion blur, JPEG, a soft print) is noisier, and there the four corners of a
+marker also move together (:func:`marker_shift_covariance`): measure both on a photo of your own
+with many markers (:func:`noise_from_pose`) and pass them to ``predict_accuracy``
+(``corner_sigma_px``, ``marker_shift_px``).
 
 The four corners of one marker are not independent: the ``edges`` refinement fits a straight
 line to each side and intersects neighbouring lines, so the two corners of a side share that
@@ -161,9 +163,13 @@ def marker_shift_covariance(shift_px: float) -> np.ndarray:
 
     On real photos the corners of one marker also move together, by more than the ``edges``
     refinement's own noise (:func:`corner_covariance`) makes them: a marker printed or stuck a
-    little off its mapped place, a paper not quite flat, or the picture's own blur, shading and
+    little off its mapped place, a paper not quite flat, or the picture's blur, shading and
     compression pulling its outline one way. To the pose that is a shift of the whole marker, and
-    it does not average down over the corners of that marker.
+    it does not average down over the corners of that marker. Measured on OpenCV's ChArUco photos
+    against each photo's pose from its chessboard corners (``benchmarks/planning_real.py``): the
+    variance of a marker's centre is 1.3 (x) and 2.7 (y) times the mean variance of its corners,
+    where :func:`corner_covariance` alone says 0.5; the rotation and shape of the marker vary
+    0.3 to 0.5 times it, where that says 1.1 to 1.5.
 
     Parameters
     ----------
@@ -241,3 +247,44 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> tupl
     if b < 0:
         a, b = float(y.sum() / A[:, 0].sum()), 0.0
     return float(np.sqrt(max(a, 0.0))), float(np.sqrt(b))
+
+
+def noise_from_pose(pose, marker_map, camera) -> tuple[float, float]:
+    """Corner noise and marker shift (px per axis) of the picture a pose came from.
+
+    :func:`noise_from_residuals` on ``pose.residuals_px`` of the markers the pose used. Take a
+    pose from many markers (ten or more for a shift known to about 20 %) in a picture like the
+    ones you will take, and pass the two to :func:`~fidlearn.planning.predict_accuracy`.
+
+    Parameters
+    ----------
+    pose : fidlearn.Pose
+        From :func:`fidlearn.estimate_pose` or :func:`fidlearn.locate`, at least four markers used.
+    marker_map : MarkerMap
+        The map the pose was computed with (world, mm).
+    camera : Camera
+        The camera the pose was computed with.
+
+    Returns
+    -------
+    sigma_px : float
+        Corner noise per axis (px).
+    shift_px : float
+        The markers' common shift per axis (px).
+
+    Raises
+    ------
+    ValueError
+        The pose used fewer than four markers.
+    """
+    from ..pose import pose_jacobian
+
+    ids = list(pose.marker_ids)
+    if len(ids) < 4:
+        raise ValueError(
+            f"the pose used {len(ids)} markers; at least 4 markers are needed to tell a shift from the pose"
+        )
+    P = np.concatenate([marker_map.marker_corners(i) for i in ids])
+    residuals = np.array([pose.residuals_px[i] for i in ids])
+    projected = camera.project(P, pose.T_world_camera).reshape(-1, 4, 2)
+    return noise_from_residuals(residuals, pose_jacobian(P, pose.T_world_camera, camera), projected + residuals)
