@@ -172,7 +172,7 @@ def apparent_scale(photos: list[Photo], world: MarkerMap, camera: Camera) -> tup
 def subset_rows(photos, world, camera, noises, lo, hi, rng, most, diag_world) -> dict:
     """One group: every measured and predicted error of ``most`` subsets of ``lo``-``hi`` markers per photo."""
     a = np.array(noises) ** 2
-    keys = ("measured", "predicted", "difference", "model", "flagged", "flipped", "inside", "diag", "photo")
+    keys = ("measured", "predicted", "difference", "no_shift", "model", "flagged", "flipped", "inside", "diag", "photo")
     out: dict[str, list] = {k: [] for k in keys}
     for k, ph in enumerate(photos):
         sigma, shift = np.sqrt(np.delete(a, k, axis=0).mean(axis=0))  # the other photos' noise
@@ -189,6 +189,8 @@ def subset_rows(photos, world, camera, noises, lo, hi, rng, most, diag_world) ->
             out["predicted"].append(p.position_error_mm)
             out["difference"].append(median_norm(cov))
             out["model"].append(predict_accuracy(sub_map, camera, T).position_error_mm)
+            p0 = predict_accuracy(sub_map, camera, T, corner_sigma_px=float(sigma))
+            out["no_shift"].append(median_norm(p0.covariance[3:, 3:] + ref.covariance[3:, 3:]))
             out["flagged"].append(p.flip_likely)
             angle = frames.rotation_angle_deg(pose.T_world_camera[:3, :3], T[:3, :3])
             out["flipped"].append(angle > FLIP_MIN_ANGLE_DEG)
@@ -243,9 +245,9 @@ def _print_photos(r: dict) -> None:
 def _print_groups(r: dict) -> dict:
     print(
         "\n| markers | subsets | median measured (mm) | median predicted (mm) | median predicted difference (mm) | "
-        "**predicted difference / measured** | per photo | render model / measured | apparent size: measured "
-        "(mm), predicted / measured | inside 95 % ellipsoid | flip likely / flipped |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|"
+        "**predicted difference / measured** | per photo | without the shift / measured | render model / measured | "
+        "apparent size: measured (mm), predicted / measured | inside 95 % ellipsoid | flip likely / flipped |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
     ratios = group_ratios(r["groups"])
     for (lo, hi), d in r["groups"].items():
@@ -253,7 +255,8 @@ def _print_groups(r: dict) -> dict:
         print(
             f"| {lo if lo == hi else f'{lo}-{hi}'} | {len(d['measured'])} | {np.median(d['measured']):.2f} | "
             f"{np.median(d['predicted']):.2f} | {np.median(d['difference']):.2f} | **{ratios[(lo, hi)]:.2f}** | "
-            f"{min(per_photo):.2f}-{max(per_photo):.2f} | {ratio(d['measured'], d['model']):.2f} | "
+            f"{min(per_photo):.2f}-{max(per_photo):.2f} | {ratio(d['measured'], d['no_shift']):.2f} | "
+            f"{ratio(d['measured'], d['model']):.2f} | "
             f"{np.median(d['diag']):.2f}, {ratio(d['diag'], d['difference']):.2f} | "
             f"{100 * d['inside'].mean():.0f} % | {int(d['flagged'].sum())} / {int(d['flipped'].sum())} |"
         )
@@ -272,7 +275,8 @@ def report(most: int = 40) -> int:
         "`estimate_pose` with those markers only, its camera position against the reference. Predicted: "
         "`predict_accuracy` at the reference pose, the corner noise and marker shift estimated "
         "(`noise.noise_from_pose`) from the all-marker poses' residuals of the *other* photos; "
-        "'difference' adds the reference's own covariance, since what is measured is subset minus reference. "
+        "'difference' adds the reference's own covariance, since what is measured is subset minus reference; "
+        "'without the shift': the same with the corner noise alone. "
         "'render model': the default noise, measured on renders. 'apparent size': the errors with the map's "
         "markers at the size the detector sees them (a diagnostic, not the target). 'flip likely': the "
         "prediction's flag; 'flipped': rotation more than 5 deg from the reference's; both counted like the "

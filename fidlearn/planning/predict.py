@@ -276,8 +276,8 @@ def predict_accuracy(
         to marker; :func:`noise.marker_shift_covariance`), added to the corner noise; 0 (the
         default) as on renders. Real photos have one: on OpenCV's ChArUco photos 0.13 to 0.19 px
         beside 0.21 to 0.40 px of corner noise. It does not average down over a marker's corners,
-        so without it the poses from 4 to 17 markers of those photos were predicted about twice
-        too good. Measure both on a pose of your own from many markers
+        so without it the poses from 3 to 17 markers of those photos were predicted 1.8 times too
+        good (``benchmarks/planning_real.py``). Measure both on a pose of your own from many markers
         (:func:`noise.noise_from_pose`).
 
     Returns
