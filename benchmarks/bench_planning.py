@@ -26,6 +26,11 @@ from fidlearn import Camera, MarkerMap, look_at, predict_accuracy, render_scene
 from fidlearn.errors import FidlearnError
 from fidlearn.planning import noise
 
+try:  # run as a script (benchmarks/ on the path) or imported as benchmarks.bench_planning
+    import planning_real
+except ImportError:
+    from benchmarks import planning_real
+
 RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
 SIZES = [(640, 480), (1280, 720), (1920, 1080)]
 
@@ -210,6 +215,7 @@ def main(argv=None) -> int:
         f"scenes | {sum(within)} of {len(within)} groups (ratios {min(ratios):.2f} to {max(ratios):.2f}) | "
         f"{'yes' if all(within) else 'no'} -->"
     )
+    planning_real.report(most=15 if args.quick else 40)  # the same target on real photos with a known pose
     dist = max_distance_rows(3 if args.quick else 6)
     print(
         "\nFarthest a face-on marker is found (half of the trials), predicted from "

@@ -4,8 +4,10 @@ Both models were measured on fidlearn's own renders (``fidlearn.synthetic.render
 the bundled scenes' settings: blur 0.5 px, sensor noise 1.2 gray levels, illumination gradient
 0.2) with the default ``edges`` corner refinement; ``python benchmarks/bench_planning.py
 --noise`` measures the noise table again, and the benchmark checks both against other renders.
-A real camera (motion blur, JPEG, a soft print) is noisier: pass the noise you measured
-(``corner_sigma_px``), e.g. the RMS reprojection error of your own ``locate`` runs.
+A real camera (motion blur, JPEG, a soft print) is noisier, and there the four corners of a
+marker also move together (:func:`marker_shift_covariance`): measure both on a photo of your own
+with many markers (:func:`noise_from_pose`) and pass them to ``predict_accuracy``
+(``corner_sigma_px``, ``marker_shift_px``).
 
 The four corners of one marker are not independent: the ``edges`` refinement fits a straight
 line to each side and intersects neighbouring lines, so the two corners of a side share that
@@ -154,3 +156,135 @@ def corner_covariance(corners_px: np.ndarray, sigma_px: float) -> np.ndarray:
     C = Mi @ S @ Mi.T
     C = (C + C.T) / 2
     return C * (8.0 * float(sigma_px) ** 2 / np.trace(C))
+
+
+def marker_shift_covariance(shift_px: float) -> np.ndarray:
+    """Covariance (8, 8) of a marker's corners that all move by one common shift of ``shift_px`` per axis.
+
+    On real photos the corners of one marker also move together, by more than the ``edges``
+    refinement's own noise (:func:`corner_covariance`) makes them: a marker printed or stuck a
+    little off its mapped place, a paper not quite flat, or the picture's blur, shading and
+    compression pulling its outline one way. To the pose that is a shift of the whole marker, and
+    it does not average down over the corners of that marker. Measured on OpenCV's ChArUco photos
+    against each photo's pose from its chessboard corners (``benchmarks/planning_real.py``): the
+    variance of a marker's centre is 1.3 (x) and 2.7 (y) times the mean variance of its corners,
+    where :func:`corner_covariance` alone says 0.5; the rotation and shape of the marker vary
+    0.3 to 0.5 times it, where that says 1.1 to 1.5.
+
+    Parameters
+    ----------
+    shift_px : float
+        Standard deviation of the common shift per axis (px).
+
+    Returns
+    -------
+    ndarray, shape (8, 8)
+        Covariance of ``[x0, y0, x1, y1, x2, y2, x3, y3]`` (px^2).
+
+    Examples
+    --------
+    >>> C = marker_shift_covariance(0.2)
+    >>> round(float(C[0, 6]), 3), float(C[0, 1])  # x of TL and of BL move together; x and y do not
+    (0.04, 0.0)
+    """
+    return float(shift_px) ** 2 * np.kron(np.ones((4, 4)), np.eye(2))
+
+
+def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> tuple[float, float]:
+    """Corner noise and marker shift (px per axis) that explain a pose's residuals, by the method of moments.
+
+    The residuals of a least-squares pose are ``(I - H) e`` (``H`` the hat matrix of
+    ``jacobian``), ``e`` the corners' errors with covariance ``a C1 + b C2``: ``C1`` the
+    :func:`corner_covariance` of unit noise and ``C2`` the :func:`marker_shift_covariance` of a
+    unit shift, marker by marker. The spread of each marker's corners about their mean and the
+    spread of the markers' means have expectations linear in ``a`` and ``b``; matching both gives
+    ``sigma_px = sqrt(a)`` and ``shift_px = sqrt(b)`` (``b`` held at 0 when the match makes it
+    negative). The fit's own degrees of freedom are accounted for, so a pose from many markers
+    (``locate`` on a photo of your own) gives the noise to pass to :func:`predict_accuracy`.
+    Needs at least four markers to tell a shift from the pose.
+
+    Parameters
+    ----------
+    residuals_px : array-like, shape (M, 4, 2)
+        Observed minus reprojected corners of the M markers the pose used (px), TL, TR, BR, BL.
+    jacobian : ndarray, shape (8M, 6)
+        The corners' pixels against the pose at the solution (:func:`fidlearn.pose.pose_jacobian`),
+        rows in the order of ``residuals_px``.
+    corners_px : array-like, shape (M, 4, 2)
+        The markers' corners in the picture (px).
+
+    Returns
+    -------
+    sigma_px : float
+        Corner noise per axis, as :func:`corner_covariance` takes it (px).
+    shift_px : float
+        The markers' common shift per axis (px).
+
+    Raises
+    ------
+    ValueError
+        Fewer than four markers, or shapes that do not agree.
+    """
+    r = np.asarray(residuals_px, dtype=float).reshape(-1)
+    q = np.asarray(corners_px, dtype=float).reshape(-1, 4, 2)
+    M = len(q)
+    J = np.asarray(jacobian, dtype=float)
+    if M < 4 or r.size != 8 * M or J.shape != (8 * M, 6):
+        raise ValueError(
+            f"need the residuals (M, 4, 2), Jacobian (8M, 6) and corners (M, 4, 2) of at least 4 markers, "
+            f"got {r.size // 8} markers, a Jacobian of shape {J.shape} and {M} corner sets"
+        )
+    P = np.eye(8 * M) - J @ np.linalg.solve(J.T @ J, J.T)
+    mean = np.kron(np.eye(M), np.kron(np.full((4, 4), 0.25), np.eye(2)))  # each marker's mean, repeated
+    C1 = np.zeros((8 * M, 8 * M))
+    for m in range(M):
+        C1[8 * m : 8 * m + 8, 8 * m : 8 * m + 8] = corner_covariance(q[m], 1.0)
+    C2 = np.kron(np.eye(M), marker_shift_covariance(1.0))
+    stats = [mean, np.eye(8 * M) - mean]  # quadratic forms: the markers' means, the corners about them
+    A = np.array([[np.trace(S @ P @ C @ P.T) for C in (C1, C2)] for S in stats])
+    y = np.array([r @ S @ r for S in stats])
+    a, b = np.linalg.solve(A, y)
+    if b < 0:
+        a, b = float(y.sum() / A[:, 0].sum()), 0.0
+    return float(np.sqrt(max(a, 0.0))), float(np.sqrt(b))
+
+
+def noise_from_pose(pose, marker_map, camera) -> tuple[float, float]:
+    """Corner noise and marker shift (px per axis) of the picture a pose came from.
+
+    :func:`noise_from_residuals` on ``pose.residuals_px`` of the markers the pose used. Take a
+    pose from many markers (ten or more for a shift known to about 20 %) in a picture like the
+    ones you will take, and pass the two to :func:`~fidlearn.planning.predict_accuracy`.
+
+    Parameters
+    ----------
+    pose : fidlearn.Pose
+        From :func:`fidlearn.estimate_pose` or :func:`fidlearn.locate`, at least four markers used.
+    marker_map : MarkerMap
+        The map the pose was computed with (world, mm).
+    camera : Camera
+        The camera the pose was computed with.
+
+    Returns
+    -------
+    sigma_px : float
+        Corner noise per axis (px).
+    shift_px : float
+        The markers' common shift per axis (px).
+
+    Raises
+    ------
+    ValueError
+        The pose used fewer than four markers.
+    """
+    from ..pose import pose_jacobian
+
+    ids = list(pose.marker_ids)
+    if len(ids) < 4:
+        raise ValueError(
+            f"the pose used {len(ids)} markers; at least 4 markers are needed to tell a shift from the pose"
+        )
+    P = np.concatenate([marker_map.marker_corners(i) for i in ids])
+    residuals = np.array([pose.residuals_px[i] for i in ids])
+    projected = camera.project(P, pose.T_world_camera).reshape(-1, 4, 2)
+    return noise_from_residuals(residuals, pose_jacobian(P, pose.T_world_camera, camera), projected + residuals)

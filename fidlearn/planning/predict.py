@@ -246,7 +246,12 @@ def _least_squares_covariance(J: np.ndarray, JtJ: np.ndarray, blocks: list) -> n
 
 
 def predict_accuracy(
-    marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, *, corner_sigma_px: float | None = None
+    marker_map: MarkerMap,
+    camera: Camera,
+    T_world_camera: np.ndarray,
+    *,
+    corner_sigma_px: float | None = None,
+    marker_shift_px: float = 0.0,
 ) -> Prediction:
     """Predict the pose accuracy a camera at ``T_world_camera`` would get from ``marker_map``.
 
@@ -261,10 +266,19 @@ def predict_accuracy(
     corner_sigma_px : float, optional
         Corner noise (px per axis) for every marker. By default it depends on each marker's
         apparent size, as measured on fidlearn's renders (:func:`noise.corner_sigma_px`);
-        give your own camera's (the RMS reprojection error of ``locate``) for real photos.
+        for real photos give your own camera's, with ``marker_shift_px``, both from a pose of
+        your own with many markers (:func:`noise.noise_from_pose`).
         Either way the corners of one marker move together as the ``edges`` refinement makes
         them (:func:`noise.corner_covariance`), and the covariance is that of
         ``estimate_pose``'s unweighted least squares under that noise.
+    marker_shift_px : float
+        A shift common to the four corners of each marker (px per axis, independent from marker
+        to marker; :func:`noise.marker_shift_covariance`), added to the corner noise; 0 (the
+        default) as on renders. Real photos have one: on OpenCV's ChArUco photos 0.13 to 0.19 px
+        beside 0.21 to 0.40 px of corner noise. It does not average down over a marker's corners,
+        so without it the poses from 3 to 17 markers of those photos were predicted 1.8 times too
+        good (``benchmarks/planning_real.py``). Measure both on a pose of your own from many markers
+        (:func:`noise.noise_from_pose`).
 
     Returns
     -------
@@ -284,19 +298,33 @@ def predict_accuracy(
         raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
-    return _predict(marker_map, camera, _check_pose(T_world_camera), corner_sigma_px, with_flip=True)
+    return _predict(
+        marker_map, camera, _check_pose(T_world_camera), corner_sigma_px, with_flip=True, shift_px=marker_shift_px
+    )
+
+
+def _check_px(value, name: str, zero: bool) -> None:
+    """A positive (or, with ``zero``, non-negative) number of pixels, or None."""
+    if value is None:
+        return
+    ok = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
+    if not ok or not math.isfinite(value) or value < 0 or (value == 0 and not zero):
+        what = "non-negative" if zero else "positive"
+        raise FidlearnError(f"{name} must be a {what} number of pixels, got {value!r}")
 
 
 def _predict(
-    marker_map: MarkerMap, camera: Camera, T: np.ndarray, corner_sigma_px: float | None, with_flip: bool
+    marker_map: MarkerMap,
+    camera: Camera,
+    T: np.ndarray,
+    corner_sigma_px: float | None,
+    with_flip: bool,
+    shift_px: float = 0.0,
 ) -> Prediction:
     """:func:`predict_accuracy` on checked arguments; the flip is left out (0) unless ``with_flip``."""
-    if corner_sigma_px is not None:
-        ok = isinstance(corner_sigma_px, (int, float, np.floating, np.integer)) and not isinstance(
-            corner_sigma_px, bool
-        )
-        if not ok or not math.isfinite(corner_sigma_px) or corner_sigma_px <= 0:
-            raise FidlearnError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
+    _check_px(corner_sigma_px, "corner_sigma_px", zero=False)
+    shift_px = 0.0 if shift_px is None else shift_px
+    _check_px(shift_px, "marker_shift_px", zero=True)
     seen, lost = _seen(marker_map, camera, T)
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
@@ -326,7 +354,8 @@ def _predict(
             "the markers found do not fix the pose",
             lost,
         )
-    cov = _least_squares_covariance(J, JtJ, [noise.corner_covariance(seen[i], sigmas[i]) for i in ids])
+    blocks = [noise.corner_covariance(seen[i], sigmas[i]) + noise.marker_shift_covariance(shift_px) for i in ids]
+    cov = _least_squares_covariance(J, JtJ, blocks)
     cov_C = cov[3:, 3:]
     w, V = np.linalg.eigh(cov_C)
     median = float(np.median(np.linalg.norm((_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))
