@@ -101,3 +101,22 @@ def test_zero_leaves_the_prediction_unchanged(world, camera):
 def test_bad_size_errors_are_refused(world, camera, name, bad):
     with pytest.raises(FidlearnError, match=f"{name} must be a fraction"):
         predict_accuracy(world, camera, look_at([1000, 190, 230], [0, 190, 230]), **{name: bad})
+
+
+def test_the_room_plan_takes_the_size_error_and_refuses_a_bad_one(world, camera):
+    kw = {"area": (600, -500, 2100, 900), "step_mm": 500, "headings": 2, "corner_sigma_px": 0.2}
+    plain = fidlearn.plan_room(world, camera, **kw)
+    sized = fidlearn.plan_room(world, camera, **kw, marker_size_rel_std=0.01, marker_size_rel_std_each=0.005)
+    x, y = sized.x_mm[0], sized.y_mm[0]
+    T = look_at([x, y, sized.height_mm], sized.target_mm)
+    one = predict_accuracy(
+        world, camera, T, corner_sigma_px=0.2, marker_size_rel_std=0.01, marker_size_rel_std_each=0.005
+    )
+    assert sized.toward_mm[0, 0] == one.position_error_mm
+    ok = np.isfinite(plain.median_mm)
+    assert ok.any() and np.all(sized.median_mm[ok] > plain.median_mm[ok])
+    for bad in ({"marker_size_rel_std": -0.01}, {"marker_size_rel_std_each": 0.7}, {"marker_shift_px": -1.0}):
+        with pytest.raises(FidlearnError, match=next(iter(bad))):
+            fidlearn.plan_room(world, camera, **kw, **bad)
+        with pytest.raises(FidlearnError, match=next(iter(bad))):
+            fidlearn.planning.suggest_markers(world, camera, 5.0, area=kw["area"], **bad)
