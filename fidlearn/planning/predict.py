@@ -12,7 +12,9 @@ of one marker share its sides' fitted lines). Four independent corners per marke
 overstate the error of a pose from five or more markers by about 1.3 to 1.4 times (rendered
 rooms, 75 scenes per image size): such a pose rests on where each marker is, and a marker's
 centre is known twice as well (in variance) as four independent corners of the same noise would
-make it.
+make it. A size error of the printed markers (``marker_size_rel_std``: one scale for all, a printer's;
+``marker_size_rel_std_each``: each marker its own) is a nuisance parameter of the same fit: the map's
+size is taken as exact, and the pose error that size error induces through the least squares is added.
 """
 
 from __future__ import annotations
