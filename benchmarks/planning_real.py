@@ -158,36 +158,69 @@ def apparent_size_map(world: MarkerMap, scale: float) -> MarkerMap:
     return MarkerMap.from_dict({"units": "mm", "marker_size_mm": side, "dictionary": DICTIONARY, "markers": markers})
 
 
+def size_ratios(photo: Photo, world: MarkerMap, camera: Camera, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each detected marker's size / its size projected from the reference pose (least-squares scale about
+    its centre), and the variance the corner noise ``sigma`` alone gives that ratio (``noise.corner_covariance``;
+    a shift of the whole marker does not change it)."""
+    ratios, variances = [], []
+    for i, d in photo.detections.items():
+        t = camera.project(world.marker_corners(i), photo.reference.T_world_camera)
+        p, q = t - t.mean(axis=0), d.corners_px - d.corners_px.mean(axis=0)
+        pp = float(np.sum(p * p))
+        ratios.append(float(np.sum(q * p)) / pp)
+        variances.append(float(p.ravel() @ noise.corner_covariance(t, sigma) @ p.ravel()) / pp**2)
+    return np.array(ratios), np.array(variances)
+
+
 def apparent_scale(photos: list[Photo], world: MarkerMap, camera: Camera) -> tuple[float, float]:
     """Mean and standard deviation over markers of detected size / size projected from the reference pose."""
-    out = []
-    for ph in photos:
-        for i, d in ph.detections.items():
-            p = camera.project(world.marker_corners(i), ph.reference.T_world_camera)
-            p, q = p - p.mean(axis=0), d.corners_px - d.corners_px.mean(axis=0)
-            out.append(float(np.sum(q * p) / np.sum(p * p)))
+    out = np.concatenate([size_ratios(ph, world, camera, 1.0)[0] for ph in photos])
     return float(np.mean(out)), float(np.std(out))
 
 
-def subset_rows(photos, world, camera, noises, lo, hi, rng, most, diag_world) -> dict:
+def size_errors(photos: list[Photo], world: MarkerMap, camera: Camera, noises) -> list[tuple[float, float]]:
+    """Per photo, the markers' relative size error ``(common, each)`` from the *other* photos (leave one out).
+
+    ``common``: the RMS about 1 of the other photos' mean apparent size (detected / nominal, over each photo's
+    markers), a size error shared by all markers. ``each``: the spread of the markers' apparent sizes about
+    their photo's mean beyond what the photo's corner noise alone gives them (pooled over the other photos,
+    0 when the noise explains it all), a size error of each marker on its own.
+    """
+    per = [size_ratios(ph, world, camera, sigma) for ph, (sigma, _) in zip(photos, noises)]
+    out = []
+    for k in range(len(photos)):
+        others = [per[j] for j in range(len(photos)) if j != k]
+        common = math.sqrt(np.mean([(np.mean(r) - 1.0) ** 2 for r, _ in others]))
+        spread = sum(float(np.sum((r - np.mean(r)) ** 2)) for r, _ in others) / sum(len(r) - 1 for r, _ in others)
+        each = math.sqrt(max(spread - float(np.mean(np.concatenate([v for _, v in others]))), 0.0))
+        out.append((common, each))
+    return out
+
+
+def subset_rows(photos, world, camera, noises, sizes, lo, hi, rng, most, diag_world) -> dict:
     """One group: every measured and predicted error of ``most`` subsets of ``lo``-``hi`` markers per photo."""
     a = np.array(noises) ** 2
-    keys = ("measured", "predicted", "difference", "no_shift", "model", "flagged", "flipped", "inside", "diag", "photo")
-    out: dict[str, list] = {k: [] for k in keys}
+    keys = ("measured", "predicted", "difference", "no_size", "no_shift", "model", "flagged", "flipped", "inside")
+    out: dict[str, list] = {k: [] for k in (*keys, "diag", "photo")}
     for k, ph in enumerate(photos):
         sigma, shift = np.sqrt(np.delete(a, k, axis=0).mean(axis=0))  # the other photos' noise
+        common, each = sizes[k]  # and their markers' size error
         T, ref = ph.reference.T_world_camera, ph.reference
         for sub in subsets(sorted(ph.detections), lo, hi, rng, most):
             dets = [ph.detections[i] for i in sub]
             pose = fidlearn.estimate_pose(dets, world, camera)
             e = pose.position_mm - T[:3, 3]
             sub_map = MarkerMap({i: world.placements[i] for i in sub}, world.marker_size_mm, world.dictionary)
-            p = predict_accuracy(sub_map, camera, T, corner_sigma_px=float(sigma), marker_shift_px=float(shift))
+            kw = {"corner_sigma_px": float(sigma), "marker_shift_px": float(shift)}
+            p = predict_accuracy(sub_map, camera, T, **kw, marker_size_rel_std=common, marker_size_rel_std_each=each)
             cov = p.covariance[3:, 3:] + ref.covariance[3:, 3:]
             out["photo"].append(k)
             out["measured"].append(float(np.linalg.norm(e)))
             out["predicted"].append(p.position_error_mm)
             out["difference"].append(median_norm(cov))
+            out["no_size"].append(
+                median_norm(predict_accuracy(sub_map, camera, T, **kw).covariance[3:, 3:] + ref.covariance[3:, 3:])
+            )
             out["model"].append(predict_accuracy(sub_map, camera, T).position_error_mm)
             p0 = predict_accuracy(sub_map, camera, T, corner_sigma_px=float(sigma))
             out["no_shift"].append(median_norm(p0.covariance[3:, 3:] + ref.covariance[3:, 3:]))
@@ -211,11 +244,20 @@ def measure(camera: Camera | None = None, most: int = 40, seed: int = 1) -> dict
     world = board_map()
     photos = load_photos(camera)
     noises = [noise_of_photo(ph, world, camera) for ph in photos]
+    sizes = size_errors(photos, world, camera, noises)
     scale = apparent_scale(photos, world, camera)
     diag_world = apparent_size_map(world, scale[0])
     rng = np.random.default_rng(seed)
-    groups = {g: subset_rows(photos, world, camera, noises, *g, rng, most, diag_world) for g in GROUPS}
-    return {"groups": groups, "noises": noises, "photos": photos, "scale": scale, "world": world, "camera": camera}
+    groups = {g: subset_rows(photos, world, camera, noises, sizes, *g, rng, most, diag_world) for g in GROUPS}
+    return {
+        "groups": groups,
+        "noises": noises,
+        "sizes": sizes,
+        "photos": photos,
+        "scale": scale,
+        "world": world,
+        "camera": camera,
+    }
 
 
 def own_calibration() -> Camera:
@@ -232,22 +274,25 @@ def group_ratios(groups: dict) -> dict:
 def _print_photos(r: dict) -> None:
     print(
         "| photo | chessboard corners | reference RMS (px per axis) | reference predicted median error (mm) | "
-        "markers | corner noise (px) | marker shift (px) |\n|---|---|---|---|---|---|---|"
+        "markers | corner noise (px) | marker shift (px) | apparent size / nominal: mean, sd over markers | "
+        "size error from the other photos: common, each |\n|---|---|---|---|---|---|---|---|---|"
     )
-    for ph, (sigma, shift) in zip(r["photos"], r["noises"]):
-        ref = ph.reference
+    for ph, (sigma, shift), (common, each) in zip(r["photos"], r["noises"], r["sizes"]):
+        ref, q = ph.reference, size_ratios(ph, r["world"], r["camera"], sigma)[0]
         print(
             f"| {ph.name} | {len(ref.points_px)} | {ref.rms_px:.3f} | {ref.position_error_mm:.2f} | "
-            f"{len(ph.detections)} | {sigma:.3f} | {shift:.3f} |"
+            f"{len(ph.detections)} | {sigma:.3f} | {shift:.3f} | {q.mean():.4f}, {q.std():.4f} | "
+            f"{100 * common:.2f} %, {100 * each:.2f} % |"
         )
 
 
 def _print_groups(r: dict) -> dict:
     print(
         "\n| markers | subsets | median measured (mm) | median predicted (mm) | median predicted difference (mm) | "
-        "**predicted difference / measured** | per photo | without the shift / measured | render model / measured | "
+        "**predicted difference / measured** | per photo | without the size error / measured | "
+        "without the shift / measured | render model / measured | "
         "apparent size: measured (mm), predicted / measured | inside 95 % ellipsoid | flip likely / flipped |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
     ratios = group_ratios(r["groups"])
     for (lo, hi), d in r["groups"].items():
@@ -255,9 +300,10 @@ def _print_groups(r: dict) -> dict:
         print(
             f"| {lo if lo == hi else f'{lo}-{hi}'} | {len(d['measured'])} | {np.median(d['measured']):.2f} | "
             f"{np.median(d['predicted']):.2f} | {np.median(d['difference']):.2f} | **{ratios[(lo, hi)]:.2f}** | "
-            f"{min(per_photo):.2f}-{max(per_photo):.2f} | {ratio(d['measured'], d['no_shift']):.2f} | "
+            f"{min(per_photo):.2f}-{max(per_photo):.2f} | {ratio(d['measured'], d['no_size']):.2f} | "
+            f"{ratio(d['measured'], d['no_shift']):.2f} | "
             f"{ratio(d['measured'], d['model']):.2f} | "
-            f"{np.median(d['diag']):.2f}, {ratio(d['diag'], d['difference']):.2f} | "
+            f"{np.median(d['diag']):.2f}, {ratio(d['diag'], d['no_size']):.2f} | "
             f"{100 * d['inside'].mean():.0f} % | {int(d['flagged'].sum())} / {int(d['flipped'].sum())} |"
         )
     return ratios
@@ -274,11 +320,17 @@ def report(most: int = 40) -> int:
         f"places. Per photo every single marker and up to {most} random subsets of each other size; "
         "`estimate_pose` with those markers only, its camera position against the reference. Predicted: "
         "`predict_accuracy` at the reference pose, the corner noise and marker shift estimated "
-        "(`noise.noise_from_pose`) from the all-marker poses' residuals of the *other* photos; "
+        "(`noise.noise_from_pose`) from the all-marker poses' residuals of the *other* photos, and the markers' "
+        "size error from the *other* photos' markers (`size_errors`): common to all markers "
+        "(`marker_size_rel_std`) the RMS about 1 of those photos' mean apparent size (detected / nominal, scale "
+        "about each marker's centre against the reference's projection), each marker's own "
+        "(`marker_size_rel_std_each`) their spread beyond what their corner noise gives; "
         "'difference' adds the reference's own covariance, since what is measured is subset minus reference; "
-        "'without the shift': the same with the corner noise alone. "
+        "'without the size error': the same with the corner noise and shift alone; 'without the shift': with "
+        "the corner noise alone. "
         "'render model': the default noise, measured on renders. 'apparent size': the errors with the map's "
-        "markers at the size the detector sees them (a diagnostic, not the target). 'flip likely': the "
+        "markers at the size the detector sees them, against the prediction without the size error (a "
+        "diagnostic, not the target). 'flip likely': the "
         "prediction's flag; 'flipped': rotation more than 5 deg from the reference's; both counted like the "
         "others. Subsets of one photo share its detections and its reference: 'per photo' is the range of the "
         "photos' own ratios.\n"

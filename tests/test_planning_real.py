@@ -123,3 +123,26 @@ def test_noise_needs_four_markers():
     three = estimate_pose([Detection(i, truth[i]) for i in p.marker_ids[:3]], world, camera)
     with pytest.raises(ValueError, match="at least 4 markers"):
         noise.noise_from_pose(three, world, camera)
+
+
+def test_the_size_error_of_each_photo_comes_from_the_other_photos_only(measured):
+    photos, world, camera, noises = measured["photos"], measured["world"], measured["camera"], measured["noises"]
+    sizes = real.size_errors(photos, world, camera, noises)
+    assert sizes == measured["sizes"]
+    for common, each in sizes:
+        assert 0.005 < common < 0.02 and 0.0 <= each < 0.01  # the markers look 1 % smaller than printed
+    # the first photo's markers detected 5 % larger about their centres: its own size error does not move,
+    # every other photo's does
+    first = photos[0]
+    grown = {
+        i: fidlearn.Detection(i, d.corners_px.mean(axis=0) + 1.05 * (d.corners_px - d.corners_px.mean(axis=0)))
+        for i, d in first.detections.items()
+    }
+    changed = real.size_errors([real.Photo(first.name, first.reference, grown), *photos[1:]], world, camera, noises)
+    assert changed[0] == sizes[0]
+    assert all(c[0] != s[0] for c, s in zip(changed[1:], sizes[1:]))
+    # the ratio is the least-squares scale of the detected corners about their centre
+    r, v = real.size_ratios(real.Photo(first.name, first.reference, grown), world, camera, 0.2)
+    r0, v0 = real.size_ratios(first, world, camera, 0.2)
+    np.testing.assert_allclose(r, 1.05 * r0)
+    np.testing.assert_allclose(v, v0)

@@ -57,6 +57,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="PX",
         help="your camera's corner noise (default: measured on fidlearn's renders, by marker size)",
     )
+    p.add_argument(
+        "--marker-shift-px",
+        type=float,
+        default=0.0,
+        metavar="PX",
+        help="a shift common to each marker's four corners, px per axis (default 0; real photos: 0.1-0.2)",
+    )
+    p.add_argument(
+        "--marker-size-rel-std",
+        type=float,
+        default=0.0,
+        metavar="FRACTION",
+        help="the printed markers' size error common to all, as a fraction (default 0; 0.01 for 1 %%)",
+    )
     p.add_argument("--target-mm", type=float, help="error to reach; drawn as a line, and the goal of --suggest")
     p.add_argument(
         "--suggest", action="store_true", help="say which marker size and where to add markers to reach --target-mm"
@@ -72,6 +86,14 @@ def _check(args) -> None:
         raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
     if args.target_mm is not None and not (math.isfinite(args.target_mm) and args.target_mm > 0):
         raise FidlearnError(f"--target-mm {args.target_mm}: give a positive number of mm")
+    if args.corner_sigma_px is not None and not (math.isfinite(args.corner_sigma_px) and args.corner_sigma_px > 0):
+        raise FidlearnError(f"--corner-sigma-px {args.corner_sigma_px}: give a positive number of pixels")
+    if not (math.isfinite(args.marker_shift_px) and args.marker_shift_px >= 0):
+        raise FidlearnError(f"--marker-shift-px {args.marker_shift_px}: give a number of pixels, 0 or more")
+    if not (math.isfinite(args.marker_size_rel_std) and 0 <= args.marker_size_rel_std < 0.5):
+        raise FidlearnError(
+            f"--marker-size-rel-std {args.marker_size_rel_std}: give a fraction from 0 to below 0.5 (0.01 for 1 %)"
+        )
 
 
 def run(args) -> int:
@@ -113,6 +135,8 @@ def run(args) -> int:
         headings=args.headings,
         corner_sigma_px=args.corner_sigma_px,
         progress=progress,
+        marker_shift_px=args.marker_shift_px,
+        marker_size_rel_std=args.marker_size_rel_std,
     )
     from ..planning.figure import plan_figure  # matplotlib only when drawing: the command starts faster
 
@@ -136,14 +160,26 @@ def run(args) -> int:
     if args.target_mm is not None:
         print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
     if args.suggest:
-        steps = suggest_markers(
-            world, camera, args.target_mm, height_mm=args.height_mm, area=area, corner_sigma_px=args.corner_sigma_px
-        )
-        if not steps:
-            print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
-        for s in steps:
-            print(
-                f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % "
-                f"within {args.target_mm:g} mm"
-            )
+        _suggest(args, world, camera, area)
     return 0
+
+
+def _suggest(args, world: MarkerMap, camera: Camera, area) -> None:
+    """Print what to change to bring more of ``area`` within ``--target-mm``."""
+    steps = suggest_markers(
+        world,
+        camera,
+        args.target_mm,
+        height_mm=args.height_mm,
+        area=area,
+        corner_sigma_px=args.corner_sigma_px,
+        marker_shift_px=args.marker_shift_px,
+        marker_size_rel_std=args.marker_size_rel_std,
+    )
+    if not steps:
+        print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
+    for s in steps:
+        print(
+            f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % "
+            f"within {args.target_mm:g} mm"
+        )

@@ -12,7 +12,9 @@ of one marker share its sides' fitted lines). Four independent corners per marke
 overstate the error of a pose from five or more markers by about 1.3 to 1.4 times (rendered
 rooms, 75 scenes per image size): such a pose rests on where each marker is, and a marker's
 centre is known twice as well (in variance) as four independent corners of the same noise would
-make it.
+make it. A size error of the printed markers (``marker_size_rel_std``: one scale for all, a printer's;
+``marker_size_rel_std_each``: each marker its own) is a nuisance parameter of the same fit: the map's
+size is taken as exact, and the pose error that size error induces through the least squares is added.
 """
 
 from __future__ import annotations
@@ -252,6 +254,8 @@ def predict_accuracy(
     *,
     corner_sigma_px: float | None = None,
     marker_shift_px: float = 0.0,
+    marker_size_rel_std: float = 0.0,
+    marker_size_rel_std_each: float = 0.0,
 ) -> Prediction:
     """Predict the pose accuracy a camera at ``T_world_camera`` would get from ``marker_map``.
 
@@ -279,6 +283,24 @@ def predict_accuracy(
         so without it the poses from 3 to 17 markers of those photos were predicted 1.8 times too
         good (``benchmarks/planning_real.py``). Measure both on a pose of your own from many markers
         (:func:`noise.noise_from_pose`).
+    marker_size_rel_std : float
+        Standard deviation of the markers' printed size relative to the map's
+        ``marker_size_mm``, one factor common to all markers (a printer's scale: 0.01 for 1 %);
+        0 (the default) for markers exactly the map's size. ``estimate_pose`` uses the map's size,
+        so a marker 1 % larger puts the camera about 1 % of its distance too close; the pose
+        error that induces, ``(J^T J)^-1 J^T u`` per unit of relative size (``u`` the corners'
+        pixel motion as the markers grow), adds ``v v^T marker_size_rel_std^2`` to the
+        covariance. Each marker grows from its top-left corner, the point its placement gives
+        (:class:`~fidlearn.MarkerMap`): a printed marker stuck where its top-left corner was
+        measured. A marker whose outline only looks smaller (blur and gamma eat into a dark
+        border) shrinks about its centre instead; the two differ by a shift of every marker by
+        half its size change, which moves the camera by as much (0.14 mm for 1 % of 20 mm).
+        On OpenCV's ChArUco photos the markers are detected 1.0 % smaller than printed
+        (``benchmarks/planning_real.py``).
+    marker_size_rel_std_each : float
+        The same for a size error of each marker on its own, independent from marker to marker
+        (markers printed one by one); 0 by default. It adds ``u_m u_m^T`` times its square to
+        each marker's corner covariance.
 
     Returns
     -------
@@ -299,7 +321,14 @@ def predict_accuracy(
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
     return _predict(
-        marker_map, camera, _check_pose(T_world_camera), corner_sigma_px, with_flip=True, shift_px=marker_shift_px
+        marker_map,
+        camera,
+        _check_pose(T_world_camera),
+        corner_sigma_px,
+        with_flip=True,
+        shift_px=marker_shift_px,
+        size_rel_std=marker_size_rel_std,
+        size_rel_std_each=marker_size_rel_std_each,
     )
 
 
@@ -313,6 +342,28 @@ def _check_px(value, name: str, zero: bool) -> None:
         raise FidlearnError(f"{name} must be a {what} number of pixels, got {value!r}")
 
 
+def _check_rel(value, name: str) -> float:
+    """A relative standard deviation: a number from 0 up to (not including) 0.5; None counts as 0."""
+    if value is None:
+        return 0.0
+    ok = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
+    if not ok or not math.isfinite(value) or not 0 <= value < 0.5:
+        raise FidlearnError(
+            f"{name} must be a fraction of the marker size from 0 to below 0.5 (0.01 for 1 %), got {value!r}"
+        )
+    return float(value)
+
+
+def _size_motion(marker_map: MarkerMap, ids: list[int], J: np.ndarray) -> np.ndarray:
+    """(M, 8) pixel motion of each marker's corners per unit of relative size, growing from its top-left corner.
+
+    ``J``'s camera-centre columns are minus the corners' pixels against their world position.
+    """
+    grow = np.concatenate([marker_map.marker_corners(i) - marker_map.marker_corners(i)[0] for i in ids])
+    u = -np.einsum("nij,nj->ni", J.reshape(-1, 2, 6)[:, :, 3:], grow)
+    return u.reshape(len(ids), 8)
+
+
 def _predict(
     marker_map: MarkerMap,
     camera: Camera,
@@ -320,11 +371,15 @@ def _predict(
     corner_sigma_px: float | None,
     with_flip: bool,
     shift_px: float = 0.0,
+    size_rel_std: float = 0.0,
+    size_rel_std_each: float = 0.0,
 ) -> Prediction:
     """:func:`predict_accuracy` on checked arguments; the flip is left out (0) unless ``with_flip``."""
     _check_px(corner_sigma_px, "corner_sigma_px", zero=False)
     shift_px = 0.0 if shift_px is None else shift_px
     _check_px(shift_px, "marker_shift_px", zero=True)
+    size_rel_std = _check_rel(size_rel_std, "marker_size_rel_std")
+    size_rel_std_each = _check_rel(size_rel_std_each, "marker_size_rel_std_each")
     seen, lost = _seen(marker_map, camera, T)
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
@@ -355,7 +410,13 @@ def _predict(
             lost,
         )
     blocks = [noise.corner_covariance(seen[i], sigmas[i]) + noise.marker_shift_covariance(shift_px) for i in ids]
+    u = _size_motion(marker_map, ids, J) if size_rel_std or size_rel_std_each else None
+    if size_rel_std_each:
+        blocks = [b + size_rel_std_each**2 * np.outer(um, um) for b, um in zip(blocks, u)]
     cov = _least_squares_covariance(J, JtJ, blocks)
+    if size_rel_std:
+        v = np.linalg.solve(JtJ, J.T @ u.ravel())
+        cov = cov + size_rel_std**2 * np.outer(v, v)
     cov_C = cov[3:, 3:]
     w, V = np.linalg.eigh(cov_C)
     median = float(np.median(np.linalg.norm((_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))

@@ -18,7 +18,7 @@ from ..camera import Camera
 from ..errors import FidlearnError
 from ..markermap import UNITS_TO_MM, MarkerMap
 from ..synthetic import look_at
-from .predict import _predict, predict_accuracy
+from .predict import _check_px, _check_rel, _predict, predict_accuracy
 
 __all__ = ["RoomPlan", "Suggestion", "plan_room", "suggest_markers", "default_area"]
 
@@ -162,15 +162,36 @@ def _level_pose(eye: np.ndarray, heading_rad: float) -> np.ndarray:
     return look_at(eye, eye + [math.cos(heading_rad), math.sin(heading_rad), 0.0])
 
 
-def _cell(marker_map, camera, eye, target, headings, sigma) -> tuple[float, float, float, float, bool]:
+def _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each) -> dict:
+    """The noise options of :func:`predict_accuracy`, checked, as its keyword arguments."""
+    _check_px(corner_sigma_px, "corner_sigma_px", zero=False)
+    _check_px(marker_shift_px, "marker_shift_px", zero=True)
+    return {
+        "corner_sigma_px": corner_sigma_px,
+        "marker_shift_px": 0.0 if marker_shift_px is None else marker_shift_px,
+        "marker_size_rel_std": _check_rel(marker_size_rel_std, "marker_size_rel_std"),
+        "marker_size_rel_std_each": _check_rel(marker_size_rel_std_each, "marker_size_rel_std_each"),
+    }
+
+
+def _cell(marker_map, camera, eye, target, headings, kw: dict) -> tuple[float, float, float, float, bool]:
     if np.linalg.norm(target - eye) < 1.0:
         toward, flip = math.inf, False
     else:
-        p = predict_accuracy(marker_map, camera, look_at(eye, target), corner_sigma_px=sigma)
+        p = predict_accuracy(marker_map, camera, look_at(eye, target), **kw)
         toward, flip = p.position_error_mm, p.flip_likely
     errs = []
     for h in headings:
-        p = _predict(marker_map, camera, _level_pose(eye, h), sigma, with_flip=False)
+        p = _predict(
+            marker_map,
+            camera,
+            _level_pose(eye, h),
+            kw["corner_sigma_px"],
+            with_flip=False,
+            shift_px=kw["marker_shift_px"],
+            size_rel_std=kw["marker_size_rel_std"],
+            size_rel_std_each=kw["marker_size_rel_std_each"],
+        )
         if p.possible:
             errs.append(p.position_error_mm)
     med = float(np.median(errs)) if errs else math.inf
@@ -210,6 +231,9 @@ def plan_room(
     headings: int = 16,
     corner_sigma_px: float | None = None,
     progress=None,
+    marker_shift_px: float = 0.0,
+    marker_size_rel_std: float = 0.0,
+    marker_size_rel_std_each: float = 0.0,
 ) -> RoomPlan:
     """Predicted position error of a camera at every place of a horizontal grid.
 
@@ -233,6 +257,9 @@ def plan_room(
         Corner noise, as in :func:`predict_accuracy`.
     progress : callable, optional
         Called as ``progress(done, total)`` after each grid row.
+    marker_shift_px, marker_size_rel_std, marker_size_rel_std_each : float
+        A shift common to a marker's corners (px) and the markers' relative size error, common to all
+        and of each marker on its own, as in :func:`predict_accuracy`; 0 by default.
 
     Returns
     -------
@@ -243,19 +270,21 @@ def plan_room(
     ------
     FidlearnError
         If the map or the camera is not one, or an option is out of range (the area, a step that
-        is not positive, more than :data:`MAX_CELLS` places, headings outside 0 to 360).
+        is not positive, more than :data:`MAX_CELLS` places, headings outside 0 to 360), or a noise option
+        out of range.
     """
     if not isinstance(marker_map, MarkerMap) or not len(marker_map):
         raise FidlearnError("plan_room needs a fidlearn.MarkerMap with at least one marker")
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
     xs, ys = _grid(marker_map, area, height_mm, step_mm, headings)
+    kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each)
     target = _markers_centre(marker_map) if look_at_mm is None else np.asarray(look_at_mm, dtype=float).reshape(3)
     hs = [2 * math.pi * k / headings for k in range(headings)]
     out = np.empty((5, len(ys), len(xs)))
     for j, y in enumerate(ys):
         for i, x in enumerate(xs):
-            out[:, j, i] = _cell(marker_map, camera, np.array([x, y, height_mm]), target, hs, corner_sigma_px)
+            out[:, j, i] = _cell(marker_map, camera, np.array([x, y, height_mm]), target, hs, kw)
         if progress is not None:
             progress(j + 1, len(ys))
     return RoomPlan(xs, ys, float(height_mm), out[0], out[1], out[2], out[3], out[4].astype(bool), target)
@@ -316,6 +345,16 @@ def _candidates(marker_map: MarkerMap, area, step_mm: float):
                 )
 
 
+def _check_target(target_mm) -> None:
+    if (
+        isinstance(target_mm, bool)
+        or not isinstance(target_mm, (int, float, np.integer, np.floating))
+        or not math.isfinite(target_mm)
+        or target_mm <= 0
+    ):
+        raise FidlearnError(f"target_mm must be a positive number of mm, got {target_mm!r}")
+
+
 def suggest_markers(
     marker_map: MarkerMap,
     camera: Camera,
@@ -327,6 +366,9 @@ def suggest_markers(
     max_markers: int = 3,
     size_factors=(1.5, 2.0),
     corner_sigma_px: float | None = None,
+    marker_shift_px: float = 0.0,
+    marker_size_rel_std: float = 0.0,
+    marker_size_rel_std_each: float = 0.0,
 ) -> list[Suggestion]:
     """Changes that bring more of the area within ``target_mm``: a larger print, then added markers.
 
@@ -343,7 +385,7 @@ def suggest_markers(
     camera : Camera
     target_mm : float
         The camera-position error to reach, mm.
-    height_mm, area, step_mm, corner_sigma_px :
+    height_mm, area, step_mm, corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each :
         As for :func:`plan_room` (a coarser grid by default).
     max_markers : int
         Most markers to add.
@@ -360,15 +402,10 @@ def suggest_markers(
     FidlearnError
         If ``target_mm`` is not a positive number, or as :func:`plan_room`.
     """
-    if (
-        isinstance(target_mm, bool)
-        or not isinstance(target_mm, (int, float, np.integer, np.floating))
-        or not math.isfinite(target_mm)
-        or target_mm <= 0
-    ):
-        raise FidlearnError(f"target_mm must be a positive number of mm, got {target_mm!r}")
+    _check_target(target_mm)
     area = _check_area(default_area(marker_map) if area is None else area)
     target_point = _markers_centre(marker_map)
+    kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each)
 
     def score(m: MarkerMap) -> float:
         return plan_room(
@@ -379,7 +416,7 @@ def suggest_markers(
             look_at_mm=target_point,
             step_mm=step_mm,
             headings=0,
-            corner_sigma_px=corner_sigma_px,
+            **kw,
         ).fraction_within(target_mm)
 
     current, now = marker_map, score(marker_map)
