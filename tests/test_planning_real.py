@@ -9,6 +9,7 @@ import pytest
 import fidlearn
 from benchmarks import planning_real as real
 from fidlearn import Camera, Detection, FidlearnError, MarkerMap, estimate_pose, look_at, predict_accuracy
+from fidlearn.errors import PoseError
 from fidlearn.planning import noise
 from fidlearn.pose import pose_jacobian
 
@@ -117,11 +118,11 @@ def test_a_bad_marker_shift_is_refused(shift):
 
 
 def test_noise_needs_four_markers():
-    with pytest.raises(ValueError, match="at least 4 markers"):
+    with pytest.raises(PoseError, match="at least 4 markers"):
         noise.noise_from_residuals(np.zeros((3, 4, 2)), np.zeros((24, 6)), np.zeros((3, 4, 2)))
     world, camera, T, p, truth, poses = _shifted_trials(0.2, 0.1, 1, seed=5)
     three = estimate_pose([Detection(i, truth[i]) for i in p.marker_ids[:3]], world, camera)
-    with pytest.raises(ValueError, match="at least 4 markers"):
+    with pytest.raises(PoseError, match="at least 4 markers"):
         noise.noise_from_pose(three, world, camera)
 
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import PoseError
+
 #: Apparent marker side (px, mean of the four sides) at which the corner noise was measured ...
 NOISE_SIDE_PX = np.array([11, 13, 15, 18, 22, 27, 33, 40, 50, 65, 85, 110, 150, 200], dtype=float)
 #: ... and the measured corner noise per axis (px) at that side: the robust sigma (1.4826 times
@@ -222,7 +224,7 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> tupl
 
     Raises
     ------
-    ValueError
+    PoseError
         Fewer than four markers, or shapes that do not agree.
     """
     r = np.asarray(residuals_px, dtype=float).reshape(-1)
@@ -230,7 +232,7 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> tupl
     M = len(q)
     J = np.asarray(jacobian, dtype=float)
     if M < 4 or r.size != 8 * M or J.shape != (8 * M, 6):
-        raise ValueError(
+        raise PoseError(
             f"need the residuals (M, 4, 2), Jacobian (8M, 6) and corners (M, 4, 2) of at least 4 markers, "
             f"got {r.size // 8} markers, a Jacobian of shape {J.shape} and {M} corner sets"
         )
@@ -274,14 +276,14 @@ def noise_from_pose(pose, marker_map, camera) -> tuple[float, float]:
 
     Raises
     ------
-    ValueError
+    PoseError
         The pose used fewer than four markers.
     """
     from ..pose import pose_jacobian
 
     ids = list(pose.marker_ids)
     if len(ids) < 4:
-        raise ValueError(
+        raise PoseError(
             f"the pose used {len(ids)} markers; at least 4 markers are needed to tell a shift from the pose"
         )
     P = np.concatenate([marker_map.marker_corners(i) for i in ids])
