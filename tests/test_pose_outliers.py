@@ -172,7 +172,7 @@ def test_the_test_of_a_move_fires_on_pure_noise_at_its_stated_rate(n, sigma, giv
         q, blocks = _outliers._marker_stats(obs, best, CAM)
         limit = _outliers._displacement_limit(best.sse, n, sigma if given else None)
         fired += _outliers._most_displaced(obs, q, blocks, limit) is not None
-    expected = _outliers.DISPLACEMENT_P * trials  # 12.5 (Bonferroni over the markers: at most that)
+    expected = _outliers.DISPLACEMENT_P * trials  # 10 (Bonferroni over the markers: at most that)
     assert 0.3 * expected <= fired <= expected + 5 * math.sqrt(expected), fired
 
 
