@@ -162,18 +162,25 @@ def test_the_drop_of_a_move_is_what_refitting_with_that_move_removes():
 
 
 @pytest.mark.parametrize(("n", "sigma", "given", "seed"), [(3, 0.5, True, 8), (4, 1.0, False, 9)])
-def test_the_test_of_a_move_fires_on_pure_noise_at_its_stated_rate(n, sigma, given, seed):
+def test_the_test_of_a_move_fires_on_pure_noise_at_its_stated_rate(n, sigma, given, seed, monkeypatch):
+    # At 2 % (the limit's formula holds at any level; at the library's 0.2 % these trials would see 5)
+    monkeypatch.setattr(_outliers, "DISPLACEMENT_P", 0.02)
     rng = np.random.default_rng(seed)
     m = wall(n)
     poses = views(m, 30, rng)
     trials, fired = 2500, 0
     for t in range(trials):
         obs, best = _obs_and_fit(m, noisy(m, poses[t % 30], sigma, rng))
-        q, blocks = _outliers._marker_stats(obs, best, CAM)
         limit = _outliers._displacement_limit(best.sse, n, sigma if given else None)
-        fired += _outliers._most_displaced(obs, q, blocks, limit) is not None
-    expected = _outliers.DISPLACEMENT_P * trials  # 10 (Bonferroni over the markers: at most that)
-    assert 0.3 * expected <= fired <= expected + 5 * math.sqrt(expected), fired
+        fired += int((_outliers._displacement_drop(obs, best, CAM) > limit).sum())
+        if t < 300:  # the search by decreasing Q_k finds the largest drop above the limit, if any
+            q, blocks = _outliers._marker_stats(obs, best, CAM)
+            hit = _outliers._most_displaced(obs, q, blocks, limit)
+            drops = _outliers._displacement_drop(obs, best, CAM)
+            assert (hit is None) == (drops.max() <= limit) and (hit is None or hit[0] == int(np.argmax(drops)))
+    # each marker at 2 % / n: 50 marker-frames expected (binomial sd 7); a frame names one at most at 2 %
+    expected = 0.02 * trials
+    assert 0.7 * expected <= fired <= expected + 4 * math.sqrt(expected), fired
 
 
 def test_three_markers_at_1_px_a_marker_moved_30_mm_is_named():
