@@ -201,3 +201,14 @@ def _beta_isf_int(p: float, a: int, b: int) -> float:
         else:
             hi = mid
     return (lo + hi) / 2
+
+
+@functools.lru_cache(maxsize=256)
+def _f2_isf(p: float, nu: float) -> float:
+    """The x with P(F > x) = p for F ~ F(2, nu) (closed form, exact).
+
+    ``B = 2 F / (2 F + nu)`` follows Beta(1, nu / 2), whose survival function is ``(1 - b)^(nu / 2)``:
+    ``b = 1 - p^(2 / nu)``, ``F = (b / 2) / ((1 - b) / nu)``.
+    """
+    b = -math.expm1(2.0 * math.log(p) / nu)
+    return (b / 2.0) / ((1.0 - b) / nu)
