@@ -98,6 +98,8 @@ from ._observations import _Obs as _Obs
 from ._observations import _side_px as _side_px
 from ._observations import _world as _world
 from ._outliers import _OUTLIER_F8 as _OUTLIER_F8
+from ._outliers import DISPLACEMENT_MIN_RMS_PX as DISPLACEMENT_MIN_RMS_PX
+from ._outliers import DISPLACEMENT_P as DISPLACEMENT_P
 from ._outliers import OUTLIER_CHI2 as OUTLIER_CHI2
 from ._outliers import OUTLIER_MIN_RMS_PX as OUTLIER_MIN_RMS_PX
 from ._outliers import OUTLIER_P as OUTLIER_P

@@ -84,16 +84,20 @@ def estimate_pose(
         With 3 or more markers, leave out a marker that disagrees with the
         others (a marker measured wrongly on the wall) and list it in
         ``Pose.rejected_ids``. First a screen that fires on pure noise with
-        probability ``SCREEN_P`` (1 %): the chi-square of the whole fit when
-        ``corner_sigma_px`` is given, else each marker's share of the sum of
-        squares that leaving it out would remove (a Beta, i.e. F, test free of
-        the unknown noise), computed from the one fit of all markers. The
-        marker it names is rejected when its residual, predicted from the pose
-        of the others (refined from the pose of all, so it keeps that planar
-        solution), fails the nested-model test at ``OUTLIER_P`` (chi-square
-        with 8 degrees of freedom when ``corner_sigma_px`` is given, else
-        F(8, nu) with the noise estimated from the others) and its RMS is above
-        ``OUTLIER_MIN_RMS_PX``.
+        probability ``SCREEN_P`` (1 %), computed from the one fit of all markers,
+        of two tests: a marker moved in its own plane (the way a marker is
+        misplaced on a wall: 2 degrees of freedom, chi-square(2) or 2 F(2, nu),
+        at ``DISPLACEMENT_P`` = 0.2 % per frame), and any misfit (the chi-square
+        of the whole fit when ``corner_sigma_px`` is given, else each marker's
+        share of the sum of squares that leaving it out would remove: a Beta,
+        i.e. F, test free of the unknown noise). A marker whose move passes and
+        explains more than ``DISPLACEMENT_MIN_RMS_PX`` RMS is rejected. Otherwise
+        the marker whose absence explains the others best is rejected when its
+        residual, predicted from the pose of the others (refined from the pose
+        of all, so it keeps that planar solution), fails the nested-model test
+        at ``OUTLIER_P`` (chi-square with 8 degrees of freedom when
+        ``corner_sigma_px`` is given, else F(8, nu) with the noise estimated from
+        the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
         With 2 markers nobody can tell which is wrong: nothing is rejected, but
         ``Pose.marker_rms_px`` shows the disagreement.
     corner_sigma_px : float, optional
