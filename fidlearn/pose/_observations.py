@@ -41,6 +41,7 @@ class _Candidate:
     J: np.ndarray | None = None  # (2N, 6) the Jacobian of the residuals' projections there, likewise
     problem: str | None = _UNCHECKED  # why it cannot be the camera (None: it can); see _cheirality
     problem_short: str = ""  # the same in one sentence, to follow another message
+    marker_stats: object = field(default=_UNCHECKED, repr=False)  # _outliers._marker_stats at this pose, once
 
     @property
     def T_world_camera(self) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import PoseError
 from ._checks import _cheirality
-from ._observations import _Candidate, _Obs
+from ._observations import _UNCHECKED, _Candidate, _Obs
 from ._refine import _lm, _residuals
 from ._solvers import _solve
 from ._stats import _beta_isf_int, _chi2_isf_even, _f2_isf
@@ -84,7 +84,14 @@ def _marker_stats(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.ndarr
     """:func:`_deletion_q` (n,) and what :func:`_move_drop` needs too: the per-marker blocks ``J_k^T J_k``
     (n, 6, 6) and ``J_k^T r_k`` (n, 6), ``J^T J``, ``J`` and ``r``; and, for :func:`_suspects`, the sum of
     squares (n,) of each marker's corners predicted by the pose of the others, ``|(I - H_kk)^-1 r_k|^2`` (px^2).
-    None when the pose is not determined."""
+    None when the pose is not determined. Computed once per candidate pose (the screen, the test of a move
+    and the choice of suspects all read it)."""
+    if best.marker_stats is _UNCHECKED:
+        best.marker_stats = _marker_stats_of(obs, best, camera)
+    return best.marker_stats
+
+
+def _marker_stats_of(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.ndarray, tuple] | None:
     r, J = _fit_residuals(obs, best, camera)
     n = len(obs.ids)
     # Woodbury: (I - J_k (J^T J)^-1 J_k^T)^-1 = I + J_k (J^T J - J_k^T J_k)^-1 J_k^T, the others' J^T J (6 x 6)
