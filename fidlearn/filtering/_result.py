@@ -86,16 +86,7 @@ class TrackedPose(_PoseReadouts):
         return self.status in ("measured", "started", "restarted")
 
     def __repr__(self) -> str:
-        x, y, z = self.position_mm
-        r, p, yw = self.rpy_deg
-        sx, sy, sz = self.position_std_mm
-        parts = [
-            f"t_s={self.t_s:.3f}",
-            self.status,
-            f"position_mm=[{x:.1f}, {y:.1f}, {z:.1f}]",
-            f"rpy_deg=[{r:.1f}, {p:.1f}, {yw:.1f}]",
-            f"std_mm=[{sx:.1f}, {sy:.1f}, {sz:.1f}]",
-        ]
+        parts = [f"t_s={self.t_s:.3f}", self.status, *self._readout_parts()]
         if self.flip_resolved:
             parts.append("flip resolved")
         if self.reason:

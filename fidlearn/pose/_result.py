@@ -38,6 +38,17 @@ class _PoseReadouts:
             return np.full(3, np.nan)
         return np.sqrt(np.maximum(np.diag(self.covariance)[3:], 0.0))
 
+    def _readout_parts(self) -> list[str]:
+        """The position, roll-pitch-yaw and position standard deviation as ``repr`` shows them."""
+        x, y, z = self.position_mm
+        r, p, yw = self.rpy_deg
+        sx, sy, sz = self.position_std_mm
+        return [
+            f"position_mm=[{x:.1f}, {y:.1f}, {z:.1f}]",
+            f"rpy_deg=[{r:.1f}, {p:.1f}, {yw:.1f}]",
+            f"std_mm=[{sx:.1f}, {sy:.1f}, {sz:.1f}]",
+        ]
+
     def position_ellipsoid_contains(self, point_mm: np.ndarray, probability: float = 0.95) -> bool:
         """Whether a world point lies inside the camera position's confidence ellipsoid.
 
@@ -207,15 +218,13 @@ class Pose(_PoseReadouts):
         return {i: float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) for i, r in self.residuals_px.items()}
 
     def __repr__(self) -> str:
-        x, y, z = self.position_mm
-        r, p, yw = self.rpy_deg
-        sx, sy, sz = self.position_std_mm
+        position, rpy, std = self._readout_parts()
         parts = [
-            f"position_mm=[{x:.1f}, {y:.1f}, {z:.1f}]",
-            f"rpy_deg=[{r:.1f}, {p:.1f}, {yw:.1f}]",
+            position,
+            rpy,
             f"markers={list(self.marker_ids)}",
             f"rms={self.reprojection_rms_px:.2f} px",
-            f"std_mm=[{sx:.1f}, {sy:.1f}, {sz:.1f}]",
+            std,
             f"ambiguous={self.ambiguous}",
         ]
         if self.alternative is not None:
