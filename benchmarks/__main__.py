@@ -8,11 +8,11 @@
 Each benchmark runs as a subprocess of its own (``python benchmarks/bench_NAME.py``), with
 a time limit (15 minutes unless ``--timeout``: the longest, planning, takes 5-6 minutes on
 2 shared cores). Its printed output becomes one section of ``docs/benchmarks.md``; running
-some benchmarks replaces their sections and keeps the others as they were (each section says when and by which command it was measured). The
-summary table "target | measured | met?" is collected from lines
-``<!-- target: what | measured | yes/no -->`` in the sections (hidden when the page is
-rendered); for benchmarks that print none, from their tables (see ``_PARSERS``). Notes written
-by hand between ``<!-- begin notes -->`` and ``<!-- end notes -->`` under the summary are kept.
+some benchmarks replaces their sections and keeps the others as they were (each section says
+when and by which command it was measured). The summary table "target | measured | met?" is
+collected from lines ``<!-- target: what | measured | yes/no -->`` in the sections (hidden when
+the page is rendered); for benchmarks that print none, from their tables (see ``_PARSERS``).
+Notes written by hand between ``<!-- begin notes -->`` and ``<!-- end notes -->`` under the summary are kept.
 """
 
 from __future__ import annotations
