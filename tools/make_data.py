@@ -20,7 +20,9 @@ Folders it writes (see data/README.md for what each holds):
   data`` only checks that they are all there. ``--import-real FOLDER`` copies
   them in again from a folder holding ``opencv_checkerboard_right``,
   ``opencv_charuco`` and ``opencv_aruco_photo`` (the only option that reads
-  anything outside the repository, and only when given).
+  anything outside the repository, and only when given). The ChArUco board's
+  marker map, ``real/opencv_charuco/board_map.json``, is written from OpenCV's
+  board geometry.
 
 Everything it reads is in the repository; ``--data-dir`` writes elsewhere than
 ``data/`` (the tests do, to check that nothing outside is read).
@@ -378,6 +380,19 @@ def check_real() -> None:
     print(f"real: {', '.join(REAL_FOLDERS)} present in data/real (kept, not regenerated)")
 
 
+def make_charuco_map() -> None:
+    """``real/opencv_charuco/board_map.json``: the ChArUco board's 17 markers at their nominal places, a map
+    in the board's frame (the one ``benchmarks/planning_real.py`` measures the photos against)."""
+    sys.path.insert(0, str(repo_dir()))
+    from benchmarks.planning_real import board_map
+
+    path = DATA / "real" / "opencv_charuco" / "board_map.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    board_map().save(path)
+    path.chmod(0o644)
+    print(f"real: the ChArUco board's map in {path}")
+
+
 def import_real(source: Path) -> None:
     """Copy the real photos in from ``source`` (a folder holding the three sample folders)."""
     missing = [name for name in REAL_FOLDERS if not (source / name).is_dir()]
@@ -434,6 +449,8 @@ def main(argv: list[str] | None = None) -> int:
         make_survey()
     if args.import_real is not None:
         import_real(args.import_real)
+    if "real" in parts:
+        make_charuco_map()
     return 0
 
 
