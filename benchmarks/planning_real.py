@@ -98,10 +98,11 @@ def reference_pose(gray: np.ndarray, camera: Camera) -> Reference:
 _Z = np.random.default_rng(5).standard_normal((20000, 3))
 
 
-def median_norm(cov: np.ndarray) -> float:
-    """Median length of a zero-mean Gaussian vector with covariance ``cov`` (3x3)."""
+def median_norm(cov: np.ndarray, mean: np.ndarray | None = None) -> float:
+    """Median length of a Gaussian vector with covariance ``cov`` (3x3) about ``mean`` (default 0)."""
     w, V = np.linalg.eigh(cov)
-    return float(np.median(np.linalg.norm((_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))
+    draws = (_Z * np.sqrt(np.clip(w, 0, None))) @ V.T
+    return float(np.median(np.linalg.norm(draws if mean is None else draws + mean, axis=1)))
 
 
 @dataclass
@@ -140,11 +141,18 @@ def subsets(ids: list[int], lo: int, hi: int, rng: np.random.Generator, most: in
     return sorted(seen)
 
 
-def noise_of_photo(photo: Photo, world: MarkerMap, camera: Camera) -> tuple[float, float]:
-    """(corner sigma, marker shift) in px per axis from the residuals of the photo's all-marker pose
-    (``fidlearn.estimate_pose``; the reference is not used)."""
+def noise_of_photo(photo: Photo, world: MarkerMap, camera: Camera) -> noise.PhotoNoise:
+    """The corner noise, marker shift and marker size errors of the photo's all-marker pose
+    (``fidlearn.estimate_pose``, ``noise.noise_from_pose``; the reference is not used)."""
     pose = fidlearn.estimate_pose(list(photo.detections.values()), world, camera)
     return noise.noise_from_pose(pose, world, camera)
+
+
+def others_noise(noises: list[noise.PhotoNoise], k: int) -> noise.PhotoNoise:
+    """What the photos other than ``k`` measured: the RMS of their spreads, the mean of their common size error."""
+    others = np.array([n for j, n in enumerate(noises) if j != k])
+    rms = np.sqrt(np.mean(others[:, :3] ** 2, axis=0))
+    return noise.PhotoNoise(*(float(v) for v in rms), float(np.mean(others[:, 3])))
 
 
 def apparent_size_map(world: MarkerMap, scale: float) -> MarkerMap:
@@ -178,56 +186,45 @@ def apparent_scale(photos: list[Photo], world: MarkerMap, camera: Camera) -> tup
     return float(np.mean(out)), float(np.std(out))
 
 
-def size_errors(photos: list[Photo], world: MarkerMap, camera: Camera, noises) -> list[tuple[float, float]]:
-    """Per photo, the markers' relative size error ``(common, each)`` from the *other* photos (leave one out).
-
-    ``common``: the RMS about 1 of the other photos' mean apparent size (detected / nominal, over each photo's
-    markers), a size error shared by all markers. ``each``: the spread of the markers' apparent sizes about
-    their photo's mean beyond what the photo's corner noise alone gives them (pooled over the other photos,
-    0 when the noise explains it all), a size error of each marker on its own.
-    """
-    per = [size_ratios(ph, world, camera, sigma) for ph, (sigma, _) in zip(photos, noises)]
-    out = []
-    for k in range(len(photos)):
-        others = [per[j] for j in range(len(photos)) if j != k]
-        common = math.sqrt(np.mean([(np.mean(r) - 1.0) ** 2 for r, _ in others]))
-        spread = sum(float(np.sum((r - np.mean(r)) ** 2)) for r, _ in others) / sum(len(r) - 1 for r, _ in others)
-        each = math.sqrt(max(spread - float(np.mean(np.concatenate([v for _, v in others]))), 0.0))
-        out.append((common, each))
-    return out
-
-
-def subset_rows(photos, world, camera, noises, sizes, lo, hi, rng, most, diag_world) -> dict:
+def subset_rows(photos, world, camera, noises, lo, hi, rng, most, diag_world) -> dict:
     """One group: every measured and predicted error of ``most`` subsets of ``lo``-``hi`` markers per photo."""
-    a = np.array(noises) ** 2
-    keys = ("measured", "predicted", "difference", "no_size", "no_shift", "model", "flagged", "flipped", "inside")
-    out: dict[str, list] = {k: [] for k in (*keys, "diag", "photo")}
+    keys = ("measured", "predicted", "difference", "as_spread", "no_size", "no_shift", "model", "flagged", "flipped")
+    out: dict[str, list] = {k: [] for k in (*keys, "inside", "diag", "photo")}
     for k, ph in enumerate(photos):
-        sigma, shift = np.sqrt(np.delete(a, k, axis=0).mean(axis=0))  # the other photos' noise
-        common, each = sizes[k]  # and their markers' size error
+        other = others_noise(noises, k)  # the other photos' noise and size errors
         T, ref = ph.reference.T_world_camera, ph.reference
         for sub in subsets(sorted(ph.detections), lo, hi, rng, most):
             dets = [ph.detections[i] for i in sub]
             pose = fidlearn.estimate_pose(dets, world, camera)
             e = pose.position_mm - T[:3, 3]
             sub_map = MarkerMap({i: world.placements[i] for i in sub}, world.marker_size_mm, world.dictionary)
-            kw = {"corner_sigma_px": float(sigma), "marker_shift_px": float(shift)}
-            p = predict_accuracy(sub_map, camera, T, **kw, marker_size_rel_std=common, marker_size_rel_std_each=each)
+            kw = {"corner_sigma_px": other.corner_sigma_px, "marker_shift_px": other.marker_shift_px}
+            p = predict_accuracy(sub_map, camera, T, **other.kwargs())
             cov = p.covariance[3:, 3:] + ref.covariance[3:, 3:]
             out["photo"].append(k)
             out["measured"].append(float(np.linalg.norm(e)))
             out["predicted"].append(p.position_error_mm)
-            out["difference"].append(median_norm(cov))
+            out["difference"].append(median_norm(cov, p.position_bias_mm))
+            spread = predict_accuracy(
+                sub_map,
+                camera,
+                T,
+                **kw,
+                marker_size_rel_std_each=other.marker_size_rel_std_each,
+                marker_size_rel_std=abs(other.marker_size_rel_error),
+            )
+            out["as_spread"].append(median_norm(spread.covariance[3:, 3:] + ref.covariance[3:, 3:]))
             out["no_size"].append(
                 median_norm(predict_accuracy(sub_map, camera, T, **kw).covariance[3:, 3:] + ref.covariance[3:, 3:])
             )
             out["model"].append(predict_accuracy(sub_map, camera, T).position_error_mm)
-            p0 = predict_accuracy(sub_map, camera, T, corner_sigma_px=float(sigma))
+            p0 = predict_accuracy(sub_map, camera, T, corner_sigma_px=other.corner_sigma_px)
             out["no_shift"].append(median_norm(p0.covariance[3:, 3:] + ref.covariance[3:, 3:]))
             out["flagged"].append(p.flip_likely)
             angle = frames.rotation_angle_deg(pose.T_world_camera[:3, :3], T[:3, :3])
             out["flipped"].append(angle > FLIP_MIN_ANGLE_DEG)
-            out["inside"].append(float(e @ np.linalg.solve(cov, e)) <= CHI2_3_95)
+            d = e - p.position_bias_mm
+            out["inside"].append(float(d @ np.linalg.solve(cov, d)) <= CHI2_3_95)
             diag = fidlearn.estimate_pose(dets, diag_world, camera).position_mm - T[:3, 3]
             out["diag"].append(float(np.linalg.norm(diag)))
     return {k: np.array(v) for k, v in out.items()}
@@ -244,15 +241,13 @@ def measure(camera: Camera | None = None, most: int = 40, seed: int = 1) -> dict
     world = board_map()
     photos = load_photos(camera)
     noises = [noise_of_photo(ph, world, camera) for ph in photos]
-    sizes = size_errors(photos, world, camera, noises)
     scale = apparent_scale(photos, world, camera)
     diag_world = apparent_size_map(world, scale[0])
     rng = np.random.default_rng(seed)
-    groups = {g: subset_rows(photos, world, camera, noises, sizes, *g, rng, most, diag_world) for g in GROUPS}
+    groups = {g: subset_rows(photos, world, camera, noises, *g, rng, most, diag_world) for g in GROUPS}
     return {
         "groups": groups,
         "noises": noises,
-        "sizes": sizes,
         "photos": photos,
         "scale": scale,
         "world": world,
@@ -274,25 +269,27 @@ def group_ratios(groups: dict) -> dict:
 def _print_photos(r: dict) -> None:
     print(
         "| photo | chessboard corners | reference RMS (px per axis) | reference predicted median error (mm) | "
-        "markers | corner noise (px) | marker shift (px) | apparent size / nominal: mean, sd over markers | "
-        "size error from the other photos: common, each |\n|---|---|---|---|---|---|---|---|---|"
+        "markers | corner noise (px) | marker shift (px) | each marker's size (sd) | all markers' size (error) | "
+        "apparent size / nominal against the reference: mean, sd over markers |\n"
+        "|---|---|---|---|---|---|---|---|---|---|"
     )
-    for ph, (sigma, shift), (common, each) in zip(r["photos"], r["noises"], r["sizes"]):
-        ref, q = ph.reference, size_ratios(ph, r["world"], r["camera"], sigma)[0]
+    for ph, n in zip(r["photos"], r["noises"]):
+        ref, q = ph.reference, size_ratios(ph, r["world"], r["camera"], n.corner_sigma_px)[0]
         print(
             f"| {ph.name} | {len(ref.points_px)} | {ref.rms_px:.3f} | {ref.position_error_mm:.2f} | "
-            f"{len(ph.detections)} | {sigma:.3f} | {shift:.3f} | {q.mean():.4f}, {q.std():.4f} | "
-            f"{100 * common:.2f} %, {100 * each:.2f} % |"
+            f"{len(ph.detections)} | {n.corner_sigma_px:.3f} | {n.marker_shift_px:.3f} | "
+            f"{100 * n.marker_size_rel_std_each:.2f} % | {100 * n.marker_size_rel_error:+.2f} % | "
+            f"{q.mean():.4f}, {q.std():.4f} |"
         )
 
 
 def _print_groups(r: dict) -> dict:
     print(
         "\n| markers | subsets | median measured (mm) | median predicted (mm) | median predicted difference (mm) | "
-        "**predicted difference / measured** | per photo | without the size error / measured | "
-        "without the shift / measured | render model / measured | "
+        "**predicted difference / measured** | per photo | all markers' size error as a spread / measured | "
+        "without the size errors / measured | without the shift / measured | render model / measured | "
         "apparent size: measured (mm), predicted / measured | inside 95 % ellipsoid | flip likely / flipped |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
     ratios = group_ratios(r["groups"])
     for (lo, hi), d in r["groups"].items():
@@ -300,7 +297,8 @@ def _print_groups(r: dict) -> dict:
         print(
             f"| {lo if lo == hi else f'{lo}-{hi}'} | {len(d['measured'])} | {np.median(d['measured']):.2f} | "
             f"{np.median(d['predicted']):.2f} | {np.median(d['difference']):.2f} | **{ratios[(lo, hi)]:.2f}** | "
-            f"{min(per_photo):.2f}-{max(per_photo):.2f} | {ratio(d['measured'], d['no_size']):.2f} | "
+            f"{min(per_photo):.2f}-{max(per_photo):.2f} | {ratio(d['measured'], d['as_spread']):.2f} | "
+            f"{ratio(d['measured'], d['no_size']):.2f} | "
             f"{ratio(d['measured'], d['no_shift']):.2f} | "
             f"{ratio(d['measured'], d['model']):.2f} | "
             f"{np.median(d['diag']):.2f}, {ratio(d['diag'], d['no_size']):.2f} | "
@@ -319,15 +317,15 @@ def report(most: int = 40) -> int:
         "(IPPE + LM; its predicted error from their residual noise); the 17 markers are a map at their nominal "
         f"places. Per photo every single marker and up to {most} random subsets of each other size; "
         "`estimate_pose` with those markers only, its camera position against the reference. Predicted: "
-        "`predict_accuracy` at the reference pose, the corner noise and marker shift estimated "
-        "(`noise.noise_from_pose`) from the all-marker poses' residuals of the *other* photos, and the markers' "
-        "size error from the *other* photos' markers (`size_errors`): common to all markers "
-        "(`marker_size_rel_std`) the RMS about 1 of those photos' mean apparent size (detected / nominal, scale "
-        "about each marker's centre against the reference's projection), each marker's own "
-        "(`marker_size_rel_std_each`) their spread beyond what their corner noise gives; "
+        "`predict_accuracy` at the reference pose with what the *other* photos' all-marker poses measured "
+        "(`noise.noise_from_pose`, from their residuals alone, the reference unused): the corner noise, the "
+        "marker shift and each marker's own size error (RMS over those photos), and the size error common to "
+        "all markers (their mean; a known error, `marker_size_rel_error`: the prediction is the median "
+        "error about the bias it causes); "
         "'difference' adds the reference's own covariance, since what is measured is subset minus reference; "
-        "'without the size error': the same with the corner noise and shift alone; 'without the shift': with "
-        "the corner noise alone. "
+        "'all markers' size error as a spread': that error taken as a standard deviation "
+        "(`marker_size_rel_std`) instead; 'without the size errors': the corner noise and shift alone; "
+        "'without the shift': the corner noise alone. "
         "'render model': the default noise, measured on renders. 'apparent size': the errors with the map's "
         "markers at the size the detector sees them, against the prediction without the size error (a "
         "diagnostic, not the target). 'flip likely': the "
@@ -384,10 +382,11 @@ def single_marker_check(r: dict, draws: int = 60, seed: int = 0) -> tuple[float,
     second marker: the linearisation alone), and the real error standardised along the axes of each
     marker's predicted position covariance, ``(3, N)`` from the best-known axis to the worst."""
     world, camera = r["world"], r["camera"]
-    rng, a = np.random.default_rng(seed), np.array(r["noises"]) ** 2
+    rng = np.random.default_rng(seed)
     sim, pred, z = [], [], []
     for k, ph in enumerate(r["photos"]):
-        sigma, shift = np.sqrt(np.delete(a, k, axis=0).mean(axis=0))
+        other = others_noise(r["noises"], k)
+        sigma, shift = other.corner_sigma_px, other.marker_shift_px
         T = ph.reference.T_world_camera
         for n, i in enumerate(sorted(ph.detections)):
             P = world.marker_corners(i)
@@ -410,7 +409,7 @@ def single_marker_check(r: dict, draws: int = 60, seed: int = 0) -> tuple[float,
 
 
 def diagnose() -> int:
-    """Print why the real photos' groups miss: the noise's modes and the single markers' check; 0."""
+    """Print the real noise's modes against the edges model, and the single markers' check; 0."""
     r = measure(most=2)
     print("| mode | mean (px) | variance / mean corner variance | edges model |\n|---|---|---|---|")
     for name, (mean, var, model) in corner_modes(r).items():

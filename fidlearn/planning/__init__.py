@@ -8,7 +8,7 @@ take next.
 """
 
 from .coach import CalibrationCoach, NextView, coach, coach_calibration
-from .noise import corner_sigma_px, min_perimeter_px
+from .noise import PhotoNoise, corner_sigma_px, min_perimeter_px, noise_from_pose
 from .predict import Prediction, flip_probability, predict_accuracy
 from .room import RoomPlan, Suggestion, default_area, plan_room, suggest_markers
 
@@ -18,6 +18,8 @@ __all__ = [
     "flip_probability",
     "corner_sigma_px",
     "min_perimeter_px",
+    "PhotoNoise",
+    "noise_from_pose",
     "RoomPlan",
     "Suggestion",
     "plan_room",

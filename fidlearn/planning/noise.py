@@ -5,9 +5,9 @@ the bundled scenes' settings: blur 0.5 px, sensor noise 1.2 gray levels, illumin
 0.2) with the default ``edges`` corner refinement; ``python benchmarks/bench_planning.py
 --noise`` measures the noise table again, and the benchmark checks both against other renders.
 A real camera (motion blur, JPEG, a soft print) is noisier, and there the four corners of a
-marker also move together (:func:`marker_shift_covariance`): measure both on a photo of your own
-with many markers (:func:`noise_from_pose`) and pass them to ``predict_accuracy``
-(``corner_sigma_px``, ``marker_shift_px``).
+marker also move together (:func:`marker_shift_covariance`) and the markers look a little smaller
+or larger than printed: measure all of it on a photo of your own with many markers
+(:func:`noise_from_pose`, a :class:`PhotoNoise`) and pass it to ``predict_accuracy``.
 
 The four corners of one marker are not independent: the ``edges`` refinement fits a straight
 line to each side and intersects neighbouring lines, so the two corners of a side share that
@@ -15,6 +15,8 @@ side's line. :func:`corner_covariance` gives their joint covariance.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -192,18 +194,56 @@ def marker_shift_covariance(shift_px: float) -> np.ndarray:
     return float(shift_px) ** 2 * np.kron(np.ones((4, 4)), np.eye(2))
 
 
-def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> tuple[float, float]:
-    """Corner noise and marker shift (px per axis) that explain a pose's residuals, by the method of moments.
+class PhotoNoise(NamedTuple):
+    """What a picture's corners carry beyond the pose, as :func:`noise_from_residuals` measures it.
 
-    The residuals of a least-squares pose are ``(I - H) e`` (``H`` the hat matrix of
-    ``jacobian``), ``e`` the corners' errors with covariance ``a C1 + b C2``: ``C1`` the
-    :func:`corner_covariance` of unit noise and ``C2`` the :func:`marker_shift_covariance` of a
-    unit shift, marker by marker. The spread of each marker's corners about their mean and the
-    spread of the markers' means have expectations linear in ``a`` and ``b``; matching both gives
-    ``sigma_px = sqrt(a)`` and ``shift_px = sqrt(b)`` (``b`` held at 0 when the match makes it
-    negative). The fit's own degrees of freedom are accounted for, so a pose from many markers
-    (``locate`` on a photo of your own) gives the noise to pass to :func:`predict_accuracy`.
-    Needs at least four markers to tell a shift from the pose.
+    The field names are :func:`~fidlearn.planning.predict_accuracy`'s keywords:
+    ``predict_accuracy(world, camera, T, **noise.kwargs())``.
+
+    Attributes
+    ----------
+    corner_sigma_px : float
+        Corner noise per axis, as :func:`corner_covariance` takes it (px).
+    marker_shift_px : float
+        A shift common to the four corners of each marker, independent from marker to marker
+        (px per axis; :func:`marker_shift_covariance`).
+    marker_size_rel_std_each : float
+        Each marker's own apparent size error about its centre, relative (0.01 for 1 %).
+    marker_size_rel_error : float
+        The apparent size error common to all markers, relative to the map's size (-0.01: the
+        markers look 1 % smaller than the map says; blur and gamma eat into a dark border).
+    """
+
+    corner_sigma_px: float
+    marker_shift_px: float
+    marker_size_rel_std_each: float
+    marker_size_rel_error: float
+
+    def kwargs(self) -> dict:
+        """The four as keyword arguments of :func:`~fidlearn.planning.predict_accuracy`."""
+        return self._asdict()
+
+
+def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> PhotoNoise:
+    """The corner noise, marker shift and marker size errors that explain a pose's residuals.
+
+    The markers' common apparent size error is a seventh parameter of the fit: the residuals are
+    regressed on the pose's Jacobian and on every marker's growth about its own centre (``q - c``
+    per unit of relative size), and its coefficient is ``marker_size_rel_error``. What remains,
+    ``r = (I - H) e`` (``H`` the hat matrix of those seven columns), has the covariance
+    ``(I - H) (a C1 + b C2 + c C3) (I - H)^T``: ``C1`` the :func:`corner_covariance` of unit
+    noise, ``C2`` the :func:`marker_shift_covariance` of a unit shift and ``C3`` a unit relative
+    size error of each marker on its own, marker by marker. Three statistics of ``r`` have
+    expectations linear in ``a``, ``b`` and ``c``: the spread of the markers' means, of their
+    sizes, and of what is left of each marker's corners (its rotation and shape). Matching them
+    (non-negative least squares: a part the residuals do not show is 0) gives ``sigma = sqrt(a)``,
+    ``shift = sqrt(b)`` and ``size_each = sqrt(c)``. The fit's own degrees of freedom are
+    accounted for, so a pose from many markers (``locate`` on a photo of your own) gives the noise
+    to pass to :func:`~fidlearn.planning.predict_accuracy`. Needs at least four markers.
+
+    Telling the three apart matters for one marker: its tilt rests on the rotation and shape of its
+    corners, which on real photos vary 3 times less than independent corners of the same overall
+    noise would (OpenCV's ChArUco photos, ``benchmarks/planning_real.py --diagnose``).
 
     Parameters
     ----------
@@ -217,10 +257,7 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> tupl
 
     Returns
     -------
-    sigma_px : float
-        Corner noise per axis, as :func:`corner_covariance` takes it (px).
-    shift_px : float
-        The markers' common shift per axis (px).
+    PhotoNoise
 
     Raises
     ------
@@ -236,27 +273,35 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> tupl
             f"need the residuals (M, 4, 2), Jacobian (8M, 6) and corners (M, 4, 2) of at least 4 markers, "
             f"got {r.size // 8} markers, a Jacobian of shape {J.shape} and {M} corner sets"
         )
-    P = np.eye(8 * M) - J @ np.linalg.solve(J.T @ J, J.T)
-    mean = np.kron(np.eye(M), np.kron(np.full((4, 4), 0.25), np.eye(2)))  # each marker's mean, repeated
-    C1 = np.zeros((8 * M, 8 * M))
+    grow = (q - q.mean(axis=1, keepdims=True)).reshape(M, 8)  # each marker's corners per unit of relative size
+    A7 = np.column_stack([J, grow.ravel()])
+    coef = np.linalg.lstsq(A7, r, rcond=None)[0]
+    P = np.eye(8 * M) - A7 @ np.linalg.pinv(A7)
+    r = P @ r
+    C1, C3, size = (np.zeros((8 * M, 8 * M)) for _ in range(3))
     for m in range(M):
-        C1[8 * m : 8 * m + 8, 8 * m : 8 * m + 8] = corner_covariance(q[m], 1.0)
+        block = slice(8 * m, 8 * m + 8)
+        C1[block, block] = corner_covariance(q[m], 1.0)
+        C3[block, block] = np.outer(grow[m], grow[m])
+        size[block, block] = C3[block, block] / float(grow[m] @ grow[m])
     C2 = np.kron(np.eye(M), marker_shift_covariance(1.0))
-    stats = [mean, np.eye(8 * M) - mean]  # quadratic forms: the markers' means, the corners about them
-    A = np.array([[np.trace(S @ P @ C @ P.T) for C in (C1, C2)] for S in stats])
-    y = np.array([r @ S @ r for S in stats])
-    a, b = np.linalg.solve(A, y)
-    if b < 0:
-        a, b = float(y.sum() / A[:, 0].sum()), 0.0
-    return float(np.sqrt(max(a, 0.0))), float(np.sqrt(b))
+    from scipy.optimize import nnls  # scipy loads on first use: ``import fidlearn`` stays quick
+
+    mean = np.kron(np.eye(M), np.kron(np.full((4, 4), 0.25), np.eye(2)))  # each marker's mean, repeated
+    stats = [mean, size, np.eye(8 * M) - mean - size]  # quadratic forms: the markers' means, sizes, the rest
+    spread = [P @ C @ P for C in (C1, C2, C3)]  # each part's covariance of the residuals
+    A = np.array([[float(np.sum(S * R)) for R in spread] for S in stats])  # trace(S R), both symmetric
+    a, b, c = nnls(A, np.array([r @ S @ r for S in stats]))[0]
+    return PhotoNoise(float(np.sqrt(a)), float(np.sqrt(b)), float(np.sqrt(c)), float(coef[6]))
 
 
-def noise_from_pose(pose, marker_map, camera) -> tuple[float, float]:
-    """Corner noise and marker shift (px per axis) of the picture a pose came from.
+def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
+    """Corner noise, marker shift and marker size errors of the picture a pose came from.
 
     :func:`noise_from_residuals` on ``pose.residuals_px`` of the markers the pose used. Take a
     pose from many markers (ten or more for a shift known to about 20 %) in a picture like the
-    ones you will take, and pass the two to :func:`~fidlearn.planning.predict_accuracy`.
+    ones you will take, and pass the result to :func:`~fidlearn.planning.predict_accuracy`
+    (``**noise.kwargs()``).
 
     Parameters
     ----------
@@ -269,10 +314,7 @@ def noise_from_pose(pose, marker_map, camera) -> tuple[float, float]:
 
     Returns
     -------
-    sigma_px : float
-        Corner noise per axis (px).
-    shift_px : float
-        The markers' common shift per axis (px).
+    PhotoNoise
 
     Raises
     ------

@@ -15,6 +15,8 @@ centre is known twice as well (in variance) as four independent corners of the s
 make it. A size error of the printed markers (``marker_size_rel_std``: one scale for all, a printer's;
 ``marker_size_rel_std_each``: each marker its own) is a nuisance parameter of the same fit: the map's
 size is taken as exact, and the pose error that size error induces through the least squares is added.
+A size error known to be the same in every photo (``marker_size_rel_error``: real markers look a little
+smaller than printed) is a bias, not a spread: the median error is that of the covariance about it.
 """
 
 from __future__ import annotations
@@ -72,7 +74,8 @@ class Prediction:
     position_std_mm : ndarray, shape (3,)
         Standard deviation of the camera centre along world X, Y, Z (mm); inf without a pose.
     position_error_mm : float
-        Predicted median distance between the estimated and the true camera centre (mm).
+        Predicted median distance between the estimated and the true camera centre (mm), the
+        systematic part ``position_bias_mm`` included.
     flip_probability : float
         Chance that the other planar solution fits the corners better (0 when the markers are
         not coplanar or seen obliquely enough).
@@ -80,6 +83,11 @@ class Prediction:
         ``flip_probability > FLIP_LIKELY``: expect ``Pose.ambiguous`` and an occasional flip.
     reason : str
         Why no pose is possible, or ``""``.
+    lost : dict of int to str
+        Why each marker of the map that is not found is not.
+    position_bias_mm : ndarray, shape (3,)
+        The systematic error of the camera centre (mm) that a known size error of the markers
+        (``marker_size_rel_error``) causes; ``covariance`` is the spread about it.
     """
 
     T_world_camera: np.ndarray
@@ -92,6 +100,7 @@ class Prediction:
     flip_probability: float
     reason: str = ""
     lost: dict[int, str] = field(default_factory=dict)
+    position_bias_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def possible(self) -> bool:
@@ -256,6 +265,7 @@ def predict_accuracy(
     marker_shift_px: float = 0.0,
     marker_size_rel_std: float = 0.0,
     marker_size_rel_std_each: float = 0.0,
+    marker_size_rel_error: float = 0.0,
 ) -> Prediction:
     """Predict the pose accuracy a camera at ``T_world_camera`` would get from ``marker_map``.
 
@@ -278,11 +288,11 @@ def predict_accuracy(
     marker_shift_px : float
         A shift common to the four corners of each marker (px per axis, independent from marker
         to marker; :func:`noise.marker_shift_covariance`), added to the corner noise; 0 (the
-        default) as on renders. Real photos have one: on OpenCV's ChArUco photos 0.13 to 0.19 px
-        beside 0.21 to 0.40 px of corner noise. It does not average down over a marker's corners,
-        so without it the poses from 3 to 17 markers of those photos were predicted 1.8 times too
-        good (``benchmarks/planning_real.py``). Measure both on a pose of your own from many markers
-        (:func:`noise.noise_from_pose`).
+        default) as on renders. Real photos have one: on OpenCV's ChArUco photos 0.15 to 0.20 px
+        beside 0.10 to 0.36 px of corner noise. It does not average down over a marker's corners,
+        so without it the poses from 2 to 17 markers of those photos were predicted about 2 times
+        too good (``benchmarks/planning_real.py``). Measure both on a pose of your own from many
+        markers (:func:`noise.noise_from_pose`).
     marker_size_rel_std : float
         Standard deviation of the markers' printed size relative to the map's
         ``marker_size_mm``, one factor common to all markers (a printer's scale: 0.01 for 1 %);
@@ -295,12 +305,22 @@ def predict_accuracy(
         measured. A marker whose outline only looks smaller (blur and gamma eat into a dark
         border) shrinks about its centre instead; the two differ by a shift of every marker by
         half its size change, which moves the camera by as much (0.14 mm for 1 % of 20 mm).
-        On OpenCV's ChArUco photos the markers are detected 1.0 % smaller than printed
-        (``benchmarks/planning_real.py``).
+        A size error you have measured, the same in every photo, is ``marker_size_rel_error``.
     marker_size_rel_std_each : float
         The same for a size error of each marker on its own, independent from marker to marker
         (markers printed one by one); 0 by default. It adds ``u_m u_m^T`` times its square to
         each marker's corner covariance.
+    marker_size_rel_error : float
+        A size error known to be common to all markers (not a spread: -0.0125 when they look
+        1.25 % smaller than the map says), about each marker's centre: the markers' outlines as the
+        detector sees them, where blur and gamma eat into a dark border. It moves the pose by
+        ``(J^T J)^-1 J^T u`` times itself (``u`` the corners' pixel motion as every marker grows
+        about its centre), :attr:`Prediction.position_bias_mm`, and the median error is that of
+        the covariance about it. On OpenCV's ChArUco photos the markers look 1.2 to 1.3 % smaller
+        than printed, in every photo alike (``benchmarks/planning_real.py``): taken as a spread
+        instead, the error of a pose from two markers was predicted 0.79 times the measured. Measure it with
+        the others on a photo of your own (:func:`noise.noise_from_pose`); for markers printed
+        at the wrong size, correct ``marker_size_mm`` in the map instead.
 
     Returns
     -------
@@ -329,6 +349,7 @@ def predict_accuracy(
         shift_px=marker_shift_px,
         size_rel_std=marker_size_rel_std,
         size_rel_std_each=marker_size_rel_std_each,
+        size_rel_error=marker_size_rel_error,
     )
 
 
@@ -342,24 +363,25 @@ def _check_px(value, name: str, zero: bool) -> None:
         raise FidlearnError(f"{name} must be a {what} number of pixels, got {value!r}")
 
 
-def _check_rel(value, name: str) -> float:
-    """A relative standard deviation: a number from 0 up to (not including) 0.5; None counts as 0."""
+def _check_rel(value, name: str, signed: bool = False) -> float:
+    """A relative size error: a number from 0 (or, ``signed``, above -0.5) up to below 0.5; None counts as 0."""
     if value is None:
         return 0.0
     ok = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
-    if not ok or not math.isfinite(value) or not 0 <= value < 0.5:
-        raise FidlearnError(
-            f"{name} must be a fraction of the marker size from 0 to below 0.5 (0.01 for 1 %), got {value!r}"
-        )
+    if not ok or not math.isfinite(value) or not ((value > -0.5) if signed else (value >= 0)) or value >= 0.5:
+        span = "above -0.5 to below 0.5 (-0.01 for 1 % smaller)" if signed else "0 to below 0.5 (0.01 for 1 %)"
+        raise FidlearnError(f"{name} must be a fraction of the marker size from {span}, got {value!r}")
     return float(value)
 
 
-def _size_motion(marker_map: MarkerMap, ids: list[int], J: np.ndarray) -> np.ndarray:
-    """(M, 8) pixel motion of each marker's corners per unit of relative size, growing from its top-left corner.
+def _size_motion(marker_map: MarkerMap, ids: list[int], J: np.ndarray, about_centre: bool = False) -> np.ndarray:
+    """(M, 8) pixel motion of each marker's corners per unit of relative size, growing from its top-left
+    corner (or its centre).
 
     ``J``'s camera-centre columns are minus the corners' pixels against their world position.
     """
-    grow = np.concatenate([marker_map.marker_corners(i) - marker_map.marker_corners(i)[0] for i in ids])
+    corners = [marker_map.marker_corners(i) for i in ids]
+    grow = np.concatenate([c - (c.mean(axis=0) if about_centre else c[0]) for c in corners])
     u = -np.einsum("nij,nj->ni", J.reshape(-1, 2, 6)[:, :, 3:], grow)
     return u.reshape(len(ids), 8)
 
@@ -373,6 +395,7 @@ def _predict(
     shift_px: float = 0.0,
     size_rel_std: float = 0.0,
     size_rel_std_each: float = 0.0,
+    size_rel_error: float = 0.0,
 ) -> Prediction:
     """:func:`predict_accuracy` on checked arguments; the flip is left out (0) unless ``with_flip``."""
     _check_px(corner_sigma_px, "corner_sigma_px", zero=False)
@@ -380,6 +403,7 @@ def _predict(
     _check_px(shift_px, "marker_shift_px", zero=True)
     size_rel_std = _check_rel(size_rel_std, "marker_size_rel_std")
     size_rel_std_each = _check_rel(size_rel_std_each, "marker_size_rel_std_each")
+    size_rel_error = _check_rel(size_rel_error, "marker_size_rel_error", signed=True)
     seen, lost = _seen(marker_map, camera, T)
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
@@ -417,8 +441,12 @@ def _predict(
     if size_rel_std:
         v = np.linalg.solve(JtJ, J.T @ u.ravel())
         cov = cov + size_rel_std**2 * np.outer(v, v)
+    bias = np.zeros(3)
+    if size_rel_error:
+        u_centre = _size_motion(marker_map, ids, J, about_centre=True)
+        bias = size_rel_error * np.linalg.solve(JtJ, J.T @ u_centre.ravel())[3:]
     cov_C = cov[3:, 3:]
     w, V = np.linalg.eigh(cov_C)
-    median = float(np.median(np.linalg.norm((_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))
+    median = float(np.median(np.linalg.norm(bias + (_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))
     p_flip = flip_probability(P, px, camera, s) if with_flip else 0.0
-    return Prediction(T, ids, sides, sigmas, cov, np.sqrt(np.diag(cov_C)), median, p_flip, "", lost)
+    return Prediction(T, ids, sides, sigmas, cov, np.sqrt(np.diag(cov_C)), median, p_flip, "", lost, bias)

@@ -162,7 +162,9 @@ def _level_pose(eye: np.ndarray, heading_rad: float) -> np.ndarray:
     return look_at(eye, eye + [math.cos(heading_rad), math.sin(heading_rad), 0.0])
 
 
-def _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each) -> dict:
+def _noise(
+    corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, marker_size_rel_error
+) -> dict:
     """The noise options of :func:`predict_accuracy`, checked, as its keyword arguments."""
     _check_px(corner_sigma_px, "corner_sigma_px", zero=False)
     _check_px(marker_shift_px, "marker_shift_px", zero=True)
@@ -171,6 +173,7 @@ def _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_re
         "marker_shift_px": 0.0 if marker_shift_px is None else marker_shift_px,
         "marker_size_rel_std": _check_rel(marker_size_rel_std, "marker_size_rel_std"),
         "marker_size_rel_std_each": _check_rel(marker_size_rel_std_each, "marker_size_rel_std_each"),
+        "marker_size_rel_error": _check_rel(marker_size_rel_error, "marker_size_rel_error", signed=True),
     }
 
 
@@ -191,6 +194,7 @@ def _cell(marker_map, camera, eye, target, headings, kw: dict) -> tuple[float, f
             shift_px=kw["marker_shift_px"],
             size_rel_std=kw["marker_size_rel_std"],
             size_rel_std_each=kw["marker_size_rel_std_each"],
+            size_rel_error=kw["marker_size_rel_error"],
         )
         if p.possible:
             errs.append(p.position_error_mm)
@@ -234,6 +238,7 @@ def plan_room(
     marker_shift_px: float = 0.0,
     marker_size_rel_std: float = 0.0,
     marker_size_rel_std_each: float = 0.0,
+    marker_size_rel_error: float = 0.0,
 ) -> RoomPlan:
     """Predicted position error of a camera at every place of a horizontal grid.
 
@@ -257,9 +262,10 @@ def plan_room(
         Corner noise, as in :func:`predict_accuracy`.
     progress : callable, optional
         Called as ``progress(done, total)`` after each grid row.
-    marker_shift_px, marker_size_rel_std, marker_size_rel_std_each : float
-        A shift common to a marker's corners (px) and the markers' relative size error, common to all
-        and of each marker on its own, as in :func:`predict_accuracy`; 0 by default.
+    marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, marker_size_rel_error : float
+        A shift common to a marker's corners (px), the markers' relative size error (a spread common to
+        all, a spread of each marker on its own, a known error common to all), as in
+        :func:`predict_accuracy`; 0 by default (a :class:`~fidlearn.planning.noise.PhotoNoise` has them).
 
     Returns
     -------
@@ -278,7 +284,7 @@ def plan_room(
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
     xs, ys = _grid(marker_map, area, height_mm, step_mm, headings)
-    kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each)
+    kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, marker_size_rel_error)
     target = _markers_centre(marker_map) if look_at_mm is None else np.asarray(look_at_mm, dtype=float).reshape(3)
     hs = [2 * math.pi * k / headings for k in range(headings)]
     out = np.empty((5, len(ys), len(xs)))
@@ -369,6 +375,7 @@ def suggest_markers(
     marker_shift_px: float = 0.0,
     marker_size_rel_std: float = 0.0,
     marker_size_rel_std_each: float = 0.0,
+    marker_size_rel_error: float = 0.0,
 ) -> list[Suggestion]:
     """Changes that bring more of the area within ``target_mm``: a larger print, then added markers.
 
@@ -385,7 +392,8 @@ def suggest_markers(
     camera : Camera
     target_mm : float
         The camera-position error to reach, mm.
-    height_mm, area, step_mm, corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each :
+    height_mm, area, step_mm, corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, \
+    marker_size_rel_error :
         As for :func:`plan_room` (a coarser grid by default).
     max_markers : int
         Most markers to add.
@@ -405,7 +413,7 @@ def suggest_markers(
     _check_target(target_mm)
     area = _check_area(default_area(marker_map) if area is None else area)
     target_point = _markers_centre(marker_map)
-    kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each)
+    kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, marker_size_rel_error)
 
     def score(m: MarkerMap) -> float:
         return plan_room(
