@@ -77,3 +77,71 @@ def test_suggestions_are_made_with_the_size_error(capsys, tmp_path):
     # 1 % of the size is 1 % of the distance whatever the size: a larger print no longer helps, more markers do
     assert code == 0 and within(sized) < within(plain)
     assert "suggestion: print the markers" not in sized and "suggestion: add marker" in sized
+
+
+@pytest.fixture()
+def board_files(tmp_path):
+    """The ChArUco board of OpenCV's photos, its published camera as a fidlearn camera file, and a photo."""
+    camera = tmp_path / "camera.json"
+    Camera.load(data_path("real/opencv_charuco/tutorial_camera_charuco.yml"), image_size=(640, 480)).save(camera)
+    return data_path("real/opencv_charuco/board_map.json"), camera, data_path("real/opencv_charuco/img_00.jpg")
+
+
+def _board_plan(capsys, tmp_path, world, camera, *extra):
+    out = tmp_path / "out" / "plan.png"
+    out.parent.mkdir(exist_ok=True)
+    # the board's markers face -Z: cameras 400 mm in front of it, over the board
+    where = ["--height-mm", "-400", "--area", "0,0,200,280", "--step-mm", "100", "--headings", "0"]
+    code = main(["plan", str(world), "--camera", str(camera), *where, "-o", str(out), *extra])
+    stdout, stderr = capsys.readouterr()
+    return code, stdout, stderr, out
+
+
+def test_noise_measured_on_a_photo_is_said_and_used(capsys, tmp_path, board_files):
+    from fidlearn import detect_markers, estimate_pose
+    from fidlearn.images import load_image
+    from fidlearn.planning import noise
+
+    world_path, camera_path, photo = board_files
+    code, stdout, stderr, out = _board_plan(capsys, tmp_path, world_path, camera_path, "--noise-from", str(photo))
+    assert code == 0 and out.exists(), stderr
+    world, camera = MarkerMap.load(world_path), Camera.load(camera_path)
+    pose = estimate_pose(detect_markers(load_image(photo), world.dictionary), world, camera)
+    measured = noise.noise_from_pose(pose, world, camera)
+    assert (
+        f"noise measured on {photo} (17 markers): corner noise {measured.corner_sigma_px:.2f} px, marker shift "
+        f"{measured.marker_shift_px:.2f} px (per axis), marker size spread "
+        f"{100 * measured.marker_size_rel_std_each:.1f} %; the markers look "
+        f"{-100 * measured.marker_size_rel_error:.1f} % smaller than the map says"
+    ) in stdout
+    assert measured.marker_size_rel_error < -0.01  # the markers of these photos look 1.3 % smaller than printed
+    plan = plan_room(world, camera, height_mm=-400, area=(0, 0, 200, 280), step_mm=100, headings=0, **measured.kwargs())
+    ok = np.isfinite(plan.toward_mm)
+    assert ok.all() and _median(stdout) == pytest.approx(float(np.median(plan.toward_mm)), abs=0.051)
+    plain = plan_room(world, camera, height_mm=-400, area=(0, 0, 200, 280), step_mm=100, headings=0)
+    assert _median(stdout) > 2 * float(np.median(plain.toward_mm))  # a real photo's noise, not the renders'
+
+
+def test_noise_from_a_photo_that_cannot_give_it_ends_with_status_2_and_one_line(capsys, tmp_path, board_files):
+    world, camera, photo = board_files
+    small = tmp_path / "small.png"
+    import cv2
+
+    cv2.imwrite(str(small), cv2.resize(cv2.imread(str(photo)), (320, 240)))
+    cases = [
+        (["--noise-from", str(photo), "--corner-sigma-px", "0.2"], "leave out --corner-sigma-px"),
+        (["--noise-from", str(small)], "the photo is 320x240 and the camera 640x480"),
+        (["--noise-from", str(tmp_path / "none.jpg")], "none.jpg"),
+    ]
+    for extra, match in cases:
+        code, stdout, stderr, out = _board_plan(capsys, tmp_path, world, camera, *extra)
+        lines = stderr.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and lines[0].startswith("error:") and match in lines[0], stderr
+        assert not out.exists()
+    # a photo of the three markers of the bundled map: too few to tell a shift from the pose
+    out = tmp_path / "three.png"
+    scene = data_path("scenes/scene_00.png")
+    code = main(["plan", str(MAP), "--camera", str(CAMERA), "-o", str(out), "--noise-from", str(scene)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and f"--noise-from {scene}: the pose used 3 markers" in lines[0]
+    assert not out.exists()

@@ -11,9 +11,13 @@ import numpy as np
 
 from .._io import atomic_write
 from ..camera import Camera
-from ..errors import FidlearnError
+from ..detection import detect_markers
+from ..errors import CameraError, FidlearnError
+from ..images import load_image
 from ..markermap import MarkerMap
+from ..planning.noise import noise_from_pose
 from ..planning.room import default_area, plan_room, suggest_markers
+from ..pose import estimate_pose
 from ._common import _check_output, _floats, _refuse_clobber
 
 HELP = "predicted position error over a room seen from above, and where to add markers"
@@ -60,16 +64,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--marker-shift-px",
         type=float,
-        default=0.0,
         metavar="PX",
         help="a shift common to each marker's four corners, px per axis (default 0; real photos: 0.1-0.2)",
     )
     p.add_argument(
         "--marker-size-rel-std",
         type=float,
-        default=0.0,
         metavar="FRACTION",
         help="the printed markers' size error common to all, as a fraction (default 0; 0.01 for 1 %%)",
+    )
+    p.add_argument(
+        "--noise-from",
+        type=Path,
+        metavar="PHOTO",
+        help="measure the corner noise, marker shift and the markers' size errors on a photo of the map's markers "
+        "(four or more, at the camera's resolution) instead of giving them",
     )
     p.add_argument("--target-mm", type=float, help="error to reach; drawn as a line, and the goal of --suggest")
     p.add_argument(
@@ -81,13 +90,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _check(args) -> None:
     """The output (a .png in a folder that exists, not an input) and the target, before any work."""
     out = _check_output(args.output, (".png",))
-    _refuse_clobber([("-o", out)], [args.map, args.camera])
+    _refuse_clobber([("-o", out)], [args.map, args.camera, args.noise_from])
     if args.suggest and args.target_mm is None:
         raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
     if args.target_mm is not None and not (math.isfinite(args.target_mm) and args.target_mm > 0):
         raise FidlearnError(f"--target-mm {args.target_mm}: give a positive number of mm")
     if args.corner_sigma_px is not None and not (math.isfinite(args.corner_sigma_px) and args.corner_sigma_px > 0):
         raise FidlearnError(f"--corner-sigma-px {args.corner_sigma_px}: give a positive number of pixels")
+    given = [
+        name
+        for name, v in (
+            ("--corner-sigma-px", args.corner_sigma_px),
+            ("--marker-shift-px", args.marker_shift_px),
+            ("--marker-size-rel-std", args.marker_size_rel_std),
+        )
+        if v is not None
+    ]
+    if args.noise_from is not None and given:
+        raise FidlearnError(f"--noise-from measures the noise on the photo: leave out {', '.join(given)}")
+    if args.marker_shift_px is None:
+        args.marker_shift_px = 0.0
+    if args.marker_size_rel_std is None:
+        args.marker_size_rel_std = 0.0
     if not (math.isfinite(args.marker_shift_px) and args.marker_shift_px >= 0):
         raise FidlearnError(f"--marker-shift-px {args.marker_shift_px}: give a number of pixels, 0 or more")
     if not (math.isfinite(args.marker_size_rel_std) and 0 <= args.marker_size_rel_std < 0.5):
@@ -120,6 +144,7 @@ def run(args) -> int:
     camera = Camera.load(args.camera)
     area = _floats(args.area, 4, "--area", "x0,y0,x1,y1 in mm") if args.area else default_area(world)
     look = _floats(args.look_at, 3, "--look-at", "x,y,z in mm") if args.look_at else None
+    noise = _noise(args, world, camera)
 
     def progress(done: int, total: int) -> None:
         if sys.stderr.isatty():
@@ -133,10 +158,8 @@ def run(args) -> int:
         look_at_mm=look,
         step_mm=args.step_mm,
         headings=args.headings,
-        corner_sigma_px=args.corner_sigma_px,
         progress=progress,
-        marker_shift_px=args.marker_shift_px,
-        marker_size_rel_std=args.marker_size_rel_std,
+        **noise,
     )
     from ..planning.figure import plan_figure  # matplotlib only when drawing: the command starts faster
 
@@ -160,11 +183,41 @@ def run(args) -> int:
     if args.target_mm is not None:
         print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
     if args.suggest:
-        _suggest(args, world, camera, area)
+        _suggest(args, world, camera, area, noise)
     return 0
 
 
-def _suggest(args, world: MarkerMap, camera: Camera, area) -> None:
+def _noise(args, world: MarkerMap, camera: Camera) -> dict:
+    """The noise options of the prediction: measured on ``--noise-from``'s photo (and said), or as given."""
+    if args.noise_from is None:
+        return {
+            "corner_sigma_px": args.corner_sigma_px,
+            "marker_shift_px": args.marker_shift_px,
+            "marker_size_rel_std": args.marker_size_rel_std,
+        }
+    image = load_image(args.noise_from)
+    size = (image.shape[1], image.shape[0])
+    if size != camera.image_size:
+        raise CameraError(
+            f"--noise-from {args.noise_from}: the photo is {size[0]}x{size[1]} and the camera "
+            f"{camera.image_size[0]}x{camera.image_size[1]}; take it at the resolution the camera was calibrated at"
+        )
+    try:
+        pose = estimate_pose(detect_markers(image, world.dictionary), world, camera)
+        measured = noise_from_pose(pose, world, camera)
+    except FidlearnError as exc:
+        raise type(exc)(f"--noise-from {args.noise_from}: {exc}") from None
+    err = measured.marker_size_rel_error
+    print(
+        f"noise measured on {args.noise_from} ({len(pose.marker_ids)} markers): corner noise "
+        f"{measured.corner_sigma_px:.2f} px, marker shift {measured.marker_shift_px:.2f} px (per axis), marker size "
+        f"spread {100 * measured.marker_size_rel_std_each:.1f} %; the markers look {100 * abs(err):.1f} % "
+        f"{'smaller' if err < 0 else 'larger'} than the map says"
+    )
+    return measured.kwargs()
+
+
+def _suggest(args, world: MarkerMap, camera: Camera, area, noise: dict) -> None:
     """Print what to change to bring more of ``area`` within ``--target-mm``."""
     steps = suggest_markers(
         world,
@@ -172,9 +225,7 @@ def _suggest(args, world: MarkerMap, camera: Camera, area) -> None:
         args.target_mm,
         height_mm=args.height_mm,
         area=area,
-        corner_sigma_px=args.corner_sigma_px,
-        marker_shift_px=args.marker_shift_px,
-        marker_size_rel_std=args.marker_size_rel_std,
+        **noise,
     )
     if not steps:
         print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
