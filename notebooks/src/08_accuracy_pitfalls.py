@@ -17,6 +17,7 @@
 
 # %%
 # %matplotlib inline
+import itertools
 import json
 
 import cv2
@@ -28,7 +29,7 @@ from IPython.display import display
 from fidlearn import (Camera, MarkerMap, MarkerPlacement, data_path, estimate_pose, frames, locate, look_at, plan_room,
                       plotting, predict_accuracy, render_scene)
 from fidlearn.detection import Detection, detect_markers, load_image
-from fidlearn.planning import suggest_markers
+from fidlearn.planning import noise_from_pose, suggest_markers
 from fidlearn.planning.figure import plan_figure
 
 np.set_printoptions(precision=3, suppress=True)
@@ -554,8 +555,59 @@ plt.show()
 # range (8 in 10 would be expected). Here the measured errors run about half again above the predicted medians
 # (the median ratio, 1.53), two places at 3.4 and 3.9 m well above: twelve pictures cannot say much more. It
 # is a prediction for many pictures: one picture can land anywhere in the range, and the benchmark (`benchmarks/bench_planning.py`) checks the medians over
-# many rendered rooms. Real photos have noisier corners than renders (motion blur, compression, a soft print):
-# there, pass the reprojection RMS of your own `locate` runs as `corner_sigma_px`.
+# many rendered rooms. Real photos are another matter: the next cell.
+#
+# ### A real camera: measure its noise on one photo
+#
+# The corner noise above was measured on renders. A real camera is noisier (motion blur, compression, a soft
+# print), and its errors have a structure renders lack: the four corners of a marker **shift together**, and
+# the markers **look a little smaller than printed** (blur eats into the black border), the same in every photo.
+# `fidlearn.planning.noise_from_pose` measures all of it from the residuals of one pose of many markers, and
+# `predict_accuracy` takes what it returns (`**noise.kwargs()`).
+#
+# OpenCV's ChArUco photos (`data/real/opencv_charuco`: 17 markers of 20 mm on a board, 640 x 480) show the
+# difference. Measure the noise on `img_00`; then, in `img_01` to `img_03`, estimate the pose from every pair
+# of markers and compare it with the pose from all 17, which is about ten times better than a pair's and
+# stands in for the truth here.
+
+# %%
+board = MarkerMap.load(data_path("real/opencv_charuco/board_map.json"))
+real_camera = Camera.load(data_path("real/opencv_charuco/tutorial_camera_charuco.yml"), image_size=(640, 480))
+
+
+def board_markers(name):
+    image = load_image(data_path(f"real/opencv_charuco/{name}.jpg"))
+    return {d.id: d for d in detect_markers(image, board.dictionary)}
+
+
+first = board_markers("img_00")
+real_noise = noise_from_pose(estimate_pose(list(first.values()), board, real_camera), board, real_camera)
+print(f"measured on img_00 ({len(first)} markers): corner noise {real_noise.corner_sigma_px:.2f} px, "
+      f"each marker shifted {real_noise.marker_shift_px:.2f} px, the markers "
+      f"{-100 * real_noise.marker_size_rel_error:.1f} % smaller than printed")
+pairs = {"measured": [], "renders' noise": [], "img_00's noise": []}
+for name in ("img_01", "img_02", "img_03"):
+    seen = board_markers(name)
+    T_all = estimate_pose(list(seen.values()), board, real_camera).T_world_camera  # the 17-marker pose
+    for pair in itertools.combinations(sorted(seen), 2):
+        two = MarkerMap({i: board.placements[i] for i in pair}, board.marker_size_mm, board.dictionary)
+        pose = estimate_pose([seen[i] for i in pair], board, real_camera)
+        pairs["measured"].append(np.linalg.norm(pose.position_mm - T_all[:3, 3]))
+        pairs["renders' noise"].append(predict_accuracy(two, real_camera, T_all).position_error_mm)
+        pairs["img_00's noise"].append(
+            predict_accuracy(two, real_camera, T_all, **real_noise.kwargs()).position_error_mm)
+pairs = {k: np.array(v) for k, v in pairs.items()}
+print(f"{len(pairs['measured'])} pairs of markers; median error measured {np.median(pairs['measured']):.1f} mm")
+for k, label in (("renders' noise", "the renders' noise"), ("img_00's noise", "img_00's noise")):
+    print(f"  predicted with {label}: median {np.median(pairs[k]):.1f} mm, "
+          f"{np.median(pairs[k] / pairs['measured']):.2f} of the measured (median over pairs)")
+assert np.median(pairs["renders' noise"] / pairs["measured"]) < 0.3
+assert 0.6 < np.median(pairs["img_00's noise"] / pairs["measured"]) < 1.5
+
+# %% [markdown]
+# With the renders' noise the prediction is several times too good; with the noise measured on one photo of
+# the same camera it lands near the measured error. Do the same with your own camera before you plan a room:
+# one photo of four or more of your markers, then `fidlearn plan ... --noise-from photo.jpg`.
 #
 # ### The whole room at once
 #
