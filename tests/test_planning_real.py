@@ -151,8 +151,10 @@ def test_a_known_size_error_moves_the_camera_along_its_axis_by_as_much():
     c = camera.project(world.marker_corners(0), T)
     found = estimate_pose([Detection(0, c.mean(axis=0) + 1.01 * (c - c.mean(axis=0)))], world, camera)
     np.testing.assert_allclose(found.position_mm - T[:3, 3], p.position_bias_mm, atol=0.15)
+    assert "bias [-10.0, 0.0, 0.0] mm" in repr(p)  # first order: 1 % of the distance
     plain = predict_accuracy(world, camera, T, corner_sigma_px=0.001)
     np.testing.assert_array_equal(plain.position_bias_mm, np.zeros(3))
+    assert "bias" not in repr(plain)
     np.testing.assert_allclose(p.covariance, plain.covariance)  # the spread about the bias is the same
 
 

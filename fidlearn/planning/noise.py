@@ -242,8 +242,9 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> Phot
     to pass to :func:`~fidlearn.planning.predict_accuracy`. Needs at least four markers.
 
     Telling the three apart matters for one marker: its tilt rests on the rotation and shape of its
-    corners, which on real photos vary 3 times less than independent corners of the same overall
-    noise would (OpenCV's ChArUco photos, ``benchmarks/planning_real.py --diagnose``).
+    corners, which on real photos vary 2 to 3 times less (in variance) than independent corners of
+    the same overall noise would, and 3 times less than :func:`corner_covariance` makes them
+    (OpenCV's ChArUco photos, ``benchmarks/planning_real.py --diagnose``).
 
     Parameters
     ----------

@@ -126,9 +126,13 @@ class Prediction:
         std = ", ".join(f"{s:.1f}" for s in self.position_std_mm)
         flip = f", flip {100 * self.flip_probability:.0f} %" if self.flip_likely else ""
         sides = ", ".join(f"{i}: {self.side_px[i]:.0f} px" for i in self.marker_ids)
+        bias = ""
+        if np.any(self.position_bias_mm):
+            parts = (f"{b:.1f}" for b in self.position_bias_mm)
+            bias = ", bias [" + ", ".join("0.0" if t == "-0.0" else t for t in parts) + "] mm"
         return (
             f"Prediction({where}: markers {sides}; position error {self.position_error_mm:.1f} mm "
-            f"(median), std [{std}] mm{flip})"
+            f"(median), std [{std}] mm{bias}{flip})"
         )
 
 
