@@ -220,7 +220,14 @@ class PhotoNoise(NamedTuple):
     marker_size_rel_error: float
 
     def kwargs(self) -> dict:
-        """The four as keyword arguments of :func:`~fidlearn.planning.predict_accuracy`."""
+        """The four as keyword arguments of :func:`~fidlearn.planning.predict_accuracy`.
+
+        Returns
+        -------
+        dict
+            ``{field name: value}``; :func:`~fidlearn.planning.plan_room` and
+            :func:`~fidlearn.planning.suggest_markers` take them too.
+        """
         return self._asdict()
 
 
