@@ -259,6 +259,21 @@ def test_suggestions_reach_more_of_the_area(world, camera):
     assert final.fraction_within(5.0) == pytest.approx(steps[-1].fraction_after)
 
 
+def test_suggestions_on_an_area_smaller_than_the_room_grid(camera):
+    """A desk of 400 x 300 mm in front of one 40 mm marker: the default grid is a quarter of the shorter side
+    (75 mm), not the room's 500 mm, and the first added marker goes beside it on its wall."""
+    small = one_marker(40.0)
+    area = (300, -200, 700, 100)
+    steps = suggest_markers(small, camera, 1.0, height_mm=1000, area=area, max_markers=1)
+    assert steps and steps[0].fraction_after > steps[0].fraction_before
+    added = steps[-1].marker_map
+    new = max(added.ids)
+    np.testing.assert_allclose(added.normal(new), small.normal(0), atol=1e-9)  # on the same wall
+    assert added.marker_corners(new).mean(axis=0)[0] == pytest.approx(0.0, abs=1e-6)
+    again = plan_room(added, camera, height_mm=1000, area=area, step_mm=75, headings=0, look_at_mm=[0, 0, 1000])
+    assert again.fraction_within(1.0) == pytest.approx(steps[-1].fraction_after)
+
+
 def _run_plan(argv):
     p = argparse.ArgumentParser()
     command.add_arguments(p)
@@ -295,6 +310,9 @@ def test_plan_command_writes_the_picture_and_says_the_figures(tmp_path, capsys):
         (["--area", "1,2,3"], "expected 4 numbers"),
         (["--area", "5,0,1,1"], "x0 < x1"),
         (["--target-mm", "-3"], "positive"),
+        (["--step-mm", "0"], "--step-mm 0.0: give a positive number of mm"),
+        (["--step-mm", "nan"], "--step-mm nan: give a positive number of mm"),
+        (["--area", "0,0,200,280", "--step-mm", "250"], "the area is only 200 x 280 mm; give a step of 200 mm or less"),
     ],
 )
 def test_plan_command_refuses_bad_options(tmp_path, extra, match):
@@ -310,6 +328,47 @@ def test_plan_command_refuses_bad_options(tmp_path, extra, match):
             ]
         )
     assert not list(tmp_path.iterdir())
+
+
+def test_plan_command_says_when_no_suggestion_is_needed(tmp_path, capsys):
+    args = [str(fidlearn.data_path("world_map.json")), "--camera", str(fidlearn.data_path("scenes/camera.json"))]
+    near = ["--area", "200,-200,700,600", "--step-mm", "250", "--headings", "0", "--suggest", "-o"]
+    assert _run_plan([*args, *near, str(tmp_path / "p.png"), "--target-mm", "100"]) == 0
+    text = capsys.readouterr().out
+    assert "within 100 mm: 100 % of the area" in text
+    assert "suggestion: none needed; looking at the markers, the whole area is within 100 mm" in text
+    far = ["--area", "1500,-500,3000,1000", "--step-mm", "500", "--headings", "0", "--suggest", "-o"]
+    assert _run_plan([*args, *far, str(tmp_path / "q.png"), "--target-mm", "5"]) == 0
+    text = capsys.readouterr().out
+    assert "none needed" not in text and "suggestion: " in text and "within 5 mm: 100 %" not in text
+
+
+def test_plan_figure_draws_each_marker_as_seen_from_above(tmp_path):
+    """A marker on a wall is a bar (its outline from above has no area), one on the floor a square of its size."""
+    from matplotlib.patches import Polygon
+
+    from fidlearn.planning.figure import plan_figure
+
+    both = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 100.0,
+            "markers": {
+                "0": {"translation": [0, -50, 1050], "rotation": [0, 0, 0]},  # on the wall X = 0, facing +X
+                "1": {"translation": [1000, 0, 0], "rotation": [0, -90, 0]},  # on the floor, facing up
+            },
+        }
+    )
+    np.testing.assert_allclose(both.normal(1), [0, 0, 1], atol=1e-9)
+    plan = plan_room(both, Camera.from_fov(60, (640, 480)), height_mm=1500, area=(100, -500, 1500, 500), headings=0)
+    ax = plan_figure(plan, both).axes[0]
+    outlines = [p.get_xy()[:4] for p in ax.patches if isinstance(p, Polygon)]
+    areas = sorted(abs(cv2.contourArea(v.astype(np.float32))) for v in outlines)
+    assert areas == pytest.approx([0.0, 100.0 * 100.0], abs=1.0)
+    assert sorted(t.get_text().strip() for t in ax.texts if t.get_text().strip()) == ["0", "1"]
+    # one arrow along a normal: the wall marker's, +X; the floor marker's points up, out of the picture
+    (arrow,) = [t for t in ax.texts if getattr(t, "arrow_patch", None) is not None]
+    assert arrow.xy[0] > arrow.xyann[0] and arrow.xy[1] == pytest.approx(arrow.xyann[1])
 
 
 def test_plan_command_refuses_to_write_over_its_input(tmp_path):

@@ -95,6 +95,8 @@ def _check(args) -> None:
         raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
     if args.target_mm is not None and not (math.isfinite(args.target_mm) and args.target_mm > 0):
         raise FidlearnError(f"--target-mm {args.target_mm}: give a positive number of mm")
+    if not (math.isfinite(args.step_mm) and args.step_mm > 0):
+        raise FidlearnError(f"--step-mm {args.step_mm}: give a positive number of mm")
     if args.corner_sigma_px is not None and not (math.isfinite(args.corner_sigma_px) and args.corner_sigma_px > 0):
         raise FidlearnError(f"--corner-sigma-px {args.corner_sigma_px}: give a positive number of pixels")
     given = [
@@ -144,6 +146,12 @@ def run(args) -> int:
     camera = Camera.load(args.camera)
     area = _floats(args.area, 4, "--area", "x0,y0,x1,y1 in mm") if args.area else default_area(world)
     look = _floats(args.look_at, 3, "--look-at", "x,y,z in mm") if args.look_at else None
+    side = min(area[2] - area[0], area[3] - area[1])
+    if side > 0 and args.step_mm > side:
+        raise FidlearnError(
+            f"--step-mm {args.step_mm:g}: the area is only {area[2] - area[0]:g} x {area[3] - area[1]:g} mm; "
+            f"give a step of {side:g} mm or less"
+        )
     noise = _noise(args, world, camera)
 
     def progress(done: int, total: int) -> None:
@@ -183,7 +191,10 @@ def run(args) -> int:
     if args.target_mm is not None:
         print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
     if args.suggest:
-        _suggest(args, world, camera, area, noise)
+        if plan.fraction_within(args.target_mm) >= 0.999:
+            print(f"  suggestion: none needed; looking at the markers, the whole area is within {args.target_mm:g} mm")
+        else:
+            _suggest(args, world, camera, area, noise)
     return 0
 
 

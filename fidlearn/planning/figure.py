@@ -5,18 +5,25 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
 from ..markermap import MarkerMap
 from .room import RoomPlan
 
 
 def _draw_markers(ax, marker_map: MarkerMap) -> None:
+    """Each marker's outline seen from above (a bar on a wall, a square on the floor or the ceiling), with an
+    arrow along its normal where the normal is not vertical."""
     for mid in marker_map.ids:
         c = marker_map.marker_corners(mid)
-        ax.plot(c[[0, 1], 0], c[[0, 1], 1], color="black", lw=3, solid_capstyle="butt")
+        n = marker_map.normal(mid)
+        upright = np.hypot(n[0], n[1]) > 0.3
+        ax.fill(c[:, 0], c[:, 1], facecolor="none", edgecolor="black", lw=3 if upright else 1.5, joinstyle="miter")
         centre = c.mean(axis=0)
-        tip = centre + 150.0 * marker_map.normal(mid)
-        ax.annotate("", xy=tip[:2], xytext=centre[:2], arrowprops={"arrowstyle": "->", "color": "black", "lw": 0.8})
+        if upright:
+            tip = centre + 150.0 * n
+            arrow = {"arrowstyle": "->", "color": "black", "lw": 0.8}
+            ax.annotate("", xy=tip[:2], xytext=centre[:2], arrowprops=arrow)
         ax.text(centre[0], centre[1], f" {mid}", fontsize=8, ha="left", va="bottom")
 
 
@@ -48,8 +55,9 @@ def _panel(ax, plan: RoomPlan, grid: np.ndarray, title: str, norm, target_mm: fl
 def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None = None) -> Figure:
     """A figure of ``plan`` seen from above: error looking at the markers, and the worst level heading.
 
-    Grey where no pose is possible; a white line at ``target_mm`` when given; each marker as a
-    black bar with an arrow along its normal.
+    Grey where no pose is possible; a white line at ``target_mm`` when given; each marker as its
+    outline seen from above (a black bar with an arrow along its normal on a wall, a black square on
+    the floor or the ceiling).
 
     Parameters
     ----------
@@ -79,9 +87,13 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
         im = _panel(ax, plan, grid, title, norm, target_mm)
         _draw_markers(ax, marker_map)
     axes[0].set_ylabel("world Y (mm)")
-    fig.colorbar(im, ax=list(axes), label="predicted median position error (mm); grey: no pose", shrink=0.85)
+    bar = fig.colorbar(im, ax=list(axes), label="predicted median position error (mm); grey: no pose", shrink=0.85)
+    plain = FuncFormatter(lambda v, _: f"{v:g}")  # 0.9, 1, 20: not 9x10^-1
+    bar.ax.yaxis.set_major_formatter(plain)
+    if hi / lo < 10:  # less than a decade: label the minor ticks too, in plain numbers
+        bar.ax.yaxis.set_minor_formatter(plain)
     fig.suptitle(
-        f"Camera {plan.height_mm:.0f} mm above the floor"
+        f"Camera {abs(plan.height_mm):.0f} mm {'above' if plan.height_mm >= 0 else 'below'} the floor"
         + (f", white line: {target_mm:g} mm" if target_mm is not None else ""),
         fontsize=11,
     )

@@ -368,7 +368,7 @@ def suggest_markers(
     *,
     height_mm: float = 300.0,
     area=None,
-    step_mm: float = 500.0,
+    step_mm: float | None = None,
     max_markers: int = 3,
     size_factors=(1.5, 2.0),
     corner_sigma_px: float | None = None,
@@ -392,9 +392,13 @@ def suggest_markers(
     camera : Camera
     target_mm : float
         The camera-position error to reach, mm.
-    height_mm, area, step_mm, corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, \
+    height_mm, area, corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, \
     marker_size_rel_error :
-        As for :func:`plan_room` (a coarser grid by default).
+        As for :func:`plan_room`.
+    step_mm : float, optional
+        Spacing of the grid that scores each change and of the places tried along the walls, mm.
+        By default 500 mm, a coarser grid than :func:`plan_room`'s, or a quarter of the area's
+        shorter side where that is smaller, so that a small area (a desk, a board) has places too.
     max_markers : int
         Most markers to add.
     size_factors : sequence of float
@@ -412,6 +416,8 @@ def suggest_markers(
     """
     _check_target(target_mm)
     area = _check_area(default_area(marker_map) if area is None else area)
+    if step_mm is None:
+        step_mm = min(500.0, min(area[2] - area[0], area[3] - area[1]) / 4)
     target_point = _markers_centre(marker_map)
     kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, marker_size_rel_error)
 
