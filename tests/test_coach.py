@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import importlib
 import math
@@ -156,6 +157,32 @@ def test_the_next_view_helps_more_than_a_random_one():
     coached = judge(np.random.default_rng(1), poses + [first.next_view.T_camera_board])
     randoms = [judge(np.random.default_rng(1), poses + [board_pose(rng)]) for _ in range(5)]
     assert np.mean(coached.uncertainty_px**2) < min(np.mean(r.uncertainty_px**2) for r in randoms)
+
+
+def test_a_board_is_in_the_picture_only_with_its_outer_row_of_squares():
+    """Hand-computed: fx = fy = 500 px, no distortion, 640x480; the 9x6 board of 25 mm squares face-on on the
+    axis. Its inner corners span 200 x 125 mm, the print 250 x 175 mm: the print's half-width of 125 mm fits
+    the picture's 319.5 px from 391 mm / 2 = 195.6 mm on, its inner corners already from 156.5 mm."""
+    camera = Camera(np.array([[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]]), np.zeros(5), (640, 480))
+    face_on = lambda d: frames.make_transform(np.eye(3), [0.0, 0.0, d] - BOARD.mean(axis=0))  # noqa: E731
+    edge = 125.0 * 500.0 / 319.5
+    for d, inside in [(edge - 1.0, False), (edge + 1.0, True), (160.0, False), (600.0, True)]:
+        assert coach_module._board_in_picture(camera, BOARD, face_on(d)) is inside, d
+    outline = coach_module._printed_outline(BOARD)
+    np.testing.assert_allclose(outline.min(axis=0), [-25, -25, 0])
+    np.testing.assert_allclose(outline.max(axis=0), [225, 150, 0])
+
+
+def test_the_next_view_shows_the_whole_print_and_says_its_distance_in_cm(bundled):
+    verdict = coach_calibration(bundled)
+    view = verdict.next_view
+    px = bundled.camera.project(
+        frames.transform_points(view.T_camera_board, coach_module._printed_outline(BOARD)), np.eye(4)
+    )
+    assert np.all(px >= 0) and np.all(px <= np.array(bundled.camera.image_size) - 1)
+    assert view.distance_mm < 995 and f"about {view.distance_mm / 10:.0f} cm away" in str(view)
+    far = dataclasses.replace(view, distance_mm=1234.0)
+    assert "about 1.2 m away" in str(far)
 
 
 def test_uncertainty_scales_with_the_covariance_and_vanishes_without_it():

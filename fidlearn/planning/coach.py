@@ -158,9 +158,15 @@ class NextView:
     good_fraction_after: float
     median_uncertainty_px_after: float
 
+    def _distance(self) -> str:
+        """The distance as a person measures it: in cm under a metre (24 cm, not 0.2 m), else in m."""
+        if self.distance_mm < 995:
+            return f"{self.distance_mm / 10:.0f} cm"
+        return f"{self.distance_mm / 1000:.1f} m"
+
     def __str__(self) -> str:
         return (
-            f"put the board {self.where} of the picture, {self.tilt}, about {self.distance_mm / 1000:.1f} m "
+            f"put the board {self.where} of the picture, {self.tilt}, about {self._distance()} "
             f"away: {100 * self.good_fraction_after:.0f} % of the picture under {GOOD_UNCERTAINTY_PX} px"
         )
 
@@ -379,12 +385,28 @@ def _next_view(camera, board: np.ndarray, info, sigma_px: float, distance: float
     return best[1] if best else None
 
 
+def _printed_outline(board_mm: np.ndarray, per_side: int = 8) -> np.ndarray:
+    """Points along the edge of the printed board (board frame, mm): the rectangle of its inner corners
+    grown by one square on every side, since a detector needs the outer row of squares too."""
+    P = np.asarray(board_mm, dtype=float).reshape(-1, 3)
+    gaps = np.linalg.norm(P[:, None, :2] - P[None, :, :2], axis=-1)
+    square = float(gaps[gaps > 1e-9].min()) if len(P) > 1 else 0.0
+    x0, y0 = P[:, :2].min(axis=0) - square
+    x1, y1 = P[:, :2].max(axis=0) + square
+    t = np.linspace(0.0, 1.0, per_side, endpoint=False)
+    corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+    edge = np.concatenate([a + t[:, None] * (b - a) for a, b in zip(corners, np.roll(corners, -1, axis=0))])
+    return np.column_stack([edge, np.full(len(edge), P[:, 2].mean())])
+
+
 def _board_in_picture(camera: Camera, board_mm: np.ndarray, T_camera_board: np.ndarray) -> bool:
-    P = board_mm @ T_camera_board[:3, :3].T + T_camera_board[:3, 3]
+    """Whether the whole printed board (its inner corners and the outer row of squares) is in the picture."""
+    pts = np.concatenate([np.asarray(board_mm, dtype=float).reshape(-1, 3), _printed_outline(board_mm)])
+    P = pts @ T_camera_board[:3, :3].T + T_camera_board[:3, 3]
     if np.any(P[:, 2] <= 1.0):
         return False
     rvec, tvec = frames.rvec_tvec_from_transform(T_camera_board)
-    px = cv2.projectPoints(board_mm.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)[0].reshape(-1, 2)
+    px = cv2.projectPoints(pts.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)[0].reshape(-1, 2)
     return bool(np.all(px >= 0) and np.all(px[:, 0] <= camera.width - 1) and np.all(px[:, 1] <= camera.height - 1))
 
 
