@@ -85,8 +85,29 @@ def test_tools_read_nothing_outside_the_repository(tmp_path, script, args):
     assert not [p for p in opened if p.startswith(shared + "/")]
 
 
+def _same(made, kept, where: str) -> None:
+    """Equal, numbers to 1e-9 (relative; 1e-9 absolute near 0): the last of a pose's 15 digits differ between
+    processors, whose numpy and OpenCV kernels (AVX2, AVX-512) sum in different orders."""
+    if isinstance(kept, dict):
+        assert isinstance(made, dict) and made.keys() == kept.keys(), where
+        for k in kept:
+            _same(made[k], kept[k], f"{where}.{k}")
+    elif isinstance(kept, list):
+        assert isinstance(made, list) and len(made) == len(kept), where
+        for i, (m, k) in enumerate(zip(made, kept)):
+            _same(m, k, f"{where}[{i}]")
+    elif isinstance(kept, float) or isinstance(made, float):
+        assert made == pytest.approx(kept, rel=1e-9, abs=1e-9), where
+    else:
+        assert made == kept, where
+
+
 def test_make_data_writes_what_the_repository_holds(tmp_path):
     run_tool(tmp_path, "tools/make_data.py", "--data-dir", str(tmp_path / "data"), "--only", "calibration")
     made = json.loads((tmp_path / "data" / "calibration" / "views.json").read_text())
     kept = json.loads((ROOT / "data" / "calibration" / "views.json").read_text())
-    assert made["views"] == kept["views"]
+    _same(made["views"], kept["views"], "views")
+    moved = json.loads(json.dumps(kept["views"]))
+    moved[3]["distance_mm"] += 1e-3  # a micrometre: a real change, which the comparison must see
+    with pytest.raises(AssertionError, match=r"views\[3\]\.distance_mm"):
+        _same(moved, kept["views"], "views")

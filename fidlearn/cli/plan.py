@@ -99,6 +99,11 @@ def _check(args) -> None:
         raise FidlearnError(f"--step-mm {args.step_mm}: give a positive number of mm")
     if args.corner_sigma_px is not None and not (math.isfinite(args.corner_sigma_px) and args.corner_sigma_px > 0):
         raise FidlearnError(f"--corner-sigma-px {args.corner_sigma_px}: give a positive number of pixels")
+    _check_noise_options(args)
+
+
+def _check_noise_options(args) -> None:
+    """--noise-from or the noise given by hand, not both; the values given in range (0 where not given)."""
     given = [
         name
         for name, v in (

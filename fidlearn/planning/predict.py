@@ -390,6 +390,35 @@ def _size_motion(marker_map: MarkerMap, ids: list[int], J: np.ndarray, about_cen
     return u.reshape(len(ids), 8)
 
 
+def _covariance_and_bias(
+    marker_map: MarkerMap,
+    ids: list[int],
+    seen: dict,
+    sigmas: dict,
+    J: np.ndarray,
+    JtJ: np.ndarray,
+    shift_px: float,
+    size_rel_std: float,
+    size_rel_std_each: float,
+    size_rel_error: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pose's 6x6 covariance from every part of the noise model, and the camera position's bias (mm) from
+    the markers' known common size error."""
+    blocks = [noise.corner_covariance(seen[i], sigmas[i]) + noise.marker_shift_covariance(shift_px) for i in ids]
+    u = _size_motion(marker_map, ids, J) if size_rel_std or size_rel_std_each else None
+    if size_rel_std_each:
+        blocks = [b + size_rel_std_each**2 * np.outer(um, um) for b, um in zip(blocks, u)]
+    cov = _least_squares_covariance(J, JtJ, blocks)
+    if size_rel_std:
+        v = np.linalg.solve(JtJ, J.T @ u.ravel())
+        cov = cov + size_rel_std**2 * np.outer(v, v)
+    bias = np.zeros(3)
+    if size_rel_error:
+        u_centre = _size_motion(marker_map, ids, J, about_centre=True)
+        bias = size_rel_error * np.linalg.solve(JtJ, J.T @ u_centre.ravel())[3:]
+    return cov, bias
+
+
 def _predict(
     marker_map: MarkerMap,
     camera: Camera,
@@ -437,18 +466,9 @@ def _predict(
             "the markers found do not fix the pose",
             lost,
         )
-    blocks = [noise.corner_covariance(seen[i], sigmas[i]) + noise.marker_shift_covariance(shift_px) for i in ids]
-    u = _size_motion(marker_map, ids, J) if size_rel_std or size_rel_std_each else None
-    if size_rel_std_each:
-        blocks = [b + size_rel_std_each**2 * np.outer(um, um) for b, um in zip(blocks, u)]
-    cov = _least_squares_covariance(J, JtJ, blocks)
-    if size_rel_std:
-        v = np.linalg.solve(JtJ, J.T @ u.ravel())
-        cov = cov + size_rel_std**2 * np.outer(v, v)
-    bias = np.zeros(3)
-    if size_rel_error:
-        u_centre = _size_motion(marker_map, ids, J, about_centre=True)
-        bias = size_rel_error * np.linalg.solve(JtJ, J.T @ u_centre.ravel())[3:]
+    cov, bias = _covariance_and_bias(
+        marker_map, ids, seen, sigmas, J, JtJ, shift_px, size_rel_std, size_rel_std_each, size_rel_error
+    )
     cov_C = cov[3:, 3:]
     w, V = np.linalg.eigh(cov_C)
     median = float(np.median(np.linalg.norm(bias + (_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))

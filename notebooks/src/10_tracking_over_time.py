@@ -285,7 +285,7 @@ assert rms(smoothed_error) <= rms(tracked_error)
 last = tracked[-1]
 msg = ros.ros_pose(last)
 print({k: msg[k] for k in ("header", "child_frame_id")})
-print("position (m):", msg["pose"]["pose"]["position"])
+print("position (m):", {k: round(v, 6) for k, v in msg["pose"]["pose"]["position"].items()})  # to the micrometre
 print("orientation :", {k: round(v, 6) for k, v in msg["pose"]["pose"]["orientation"].items()})
 print("covariance diagonal (m^2 then rad^2):", [f"{v:.1e}" for v in np.diag(np.reshape(msg["pose"]["covariance"], (6, 6)))])
 print("TUM:", ros.tum_line(last.t_s, last.T_world_camera))
