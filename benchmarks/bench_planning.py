@@ -238,7 +238,8 @@ def main(argv=None) -> int:
         "\nThe calibration coach (`fidlearn.planning.coach`): views until fx is within 0.1 % of the truth and the "
         "reprojection uncertainty is under 0.3 px over 90 % of the picture, starting from 4 random views; then "
         "either the coach's next view or another random one (board anywhere in the picture, tilted 0 to 40 deg, "
-        f"400 to 800 mm away); corners with 0.1 px noise; the camera of data/calibration; {n_seeds} seeds, "
+        "400 to 800 mm away); every view shows the whole printed board, its outer row of squares too, as a "
+        f"detector needs; corners with 0.1 px noise; the camera of data/calibration; {n_seeds} seeds, "
         "at most 40 views:\n"
     )
     print("| strategy | views needed (median) | per seed |\n|---|---|---|")
