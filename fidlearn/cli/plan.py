@@ -16,7 +16,7 @@ from ..errors import CameraError, FidlearnError
 from ..images import load_image
 from ..markermap import MarkerMap
 from ..planning.noise import noise_from_pose
-from ..planning.room import default_area, plan_room, suggest_markers
+from ..planning.room import AREA_MET, default_area, plan_room, suggest_markers
 from ..pose import estimate_pose
 from ._common import _check_output, _floats, _refuse_clobber
 
@@ -93,13 +93,16 @@ def _check(args) -> None:
     _refuse_clobber([("-o", out)], [args.map, args.camera, args.noise_from])
     if args.suggest and args.target_mm is None:
         raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
-    if args.target_mm is not None and not (math.isfinite(args.target_mm) and args.target_mm > 0):
-        raise FidlearnError(f"--target-mm {args.target_mm}: give a positive number of mm")
-    if not (math.isfinite(args.step_mm) and args.step_mm > 0):
-        raise FidlearnError(f"--step-mm {args.step_mm}: give a positive number of mm")
-    if args.corner_sigma_px is not None and not (math.isfinite(args.corner_sigma_px) and args.corner_sigma_px > 0):
-        raise FidlearnError(f"--corner-sigma-px {args.corner_sigma_px}: give a positive number of pixels")
+    _positive(args.target_mm, "--target-mm", "mm")
+    _positive(args.step_mm, "--step-mm", "mm")
+    _positive(args.corner_sigma_px, "--corner-sigma-px", "pixels")
     _check_noise_options(args)
+
+
+def _positive(value: float | None, option: str, unit: str) -> None:
+    """A given ``option`` must be a positive finite number (``None``: not given, nothing to check)."""
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise FidlearnError(f"{option} {value}: give a positive number of {unit}")
 
 
 def _check_noise_options(args) -> None:
@@ -196,7 +199,7 @@ def run(args) -> int:
     if args.target_mm is not None:
         print(f"  within {args.target_mm:g} mm: {100 * plan.fraction_within(args.target_mm):.0f} % of the area")
     if args.suggest:
-        if plan.fraction_within(args.target_mm) >= 0.999:
+        if plan.fraction_within(args.target_mm) >= AREA_MET:
             print(f"  suggestion: none needed; looking at the markers, the whole area is within {args.target_mm:g} mm")
         else:
             _suggest(args, world, camera, area, noise)

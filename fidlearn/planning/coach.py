@@ -364,8 +364,9 @@ def _next_view(camera, board: np.ndarray, info, sigma_px: float, distance: float
     """The candidate photo that lowers the uncertainty most (None when no candidate shows the whole board)."""
     best = None
     candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
+    printed = _printed_points(board)  # once for every candidate
     for T, where, tilt in candidates:
-        if not _board_in_picture(camera, board, T):
+        if not _in_picture(camera, printed, T):
             continue
         _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma_px, distance)
         # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
@@ -399,9 +400,18 @@ def _printed_outline(board_mm: np.ndarray, per_side: int = 8) -> np.ndarray:
     return np.column_stack([edge, np.full(len(edge), P[:, 2].mean())])
 
 
+def _printed_points(board_mm: np.ndarray) -> np.ndarray:
+    """The board's inner corners and the edge of its print (board frame, mm): what must be in the picture."""
+    return np.concatenate([np.asarray(board_mm, dtype=float).reshape(-1, 3), _printed_outline(board_mm)])
+
+
 def _board_in_picture(camera: Camera, board_mm: np.ndarray, T_camera_board: np.ndarray) -> bool:
     """Whether the whole printed board (its inner corners and the outer row of squares) is in the picture."""
-    pts = np.concatenate([np.asarray(board_mm, dtype=float).reshape(-1, 3), _printed_outline(board_mm)])
+    return _in_picture(camera, _printed_points(board_mm), T_camera_board)
+
+
+def _in_picture(camera: Camera, pts: np.ndarray, T_camera_board: np.ndarray) -> bool:
+    """Whether every point of ``pts`` (board frame, mm; :func:`_printed_points`) is in front and in the picture."""
     P = pts @ T_camera_board[:3, :3].T + T_camera_board[:3, 3]
     if np.any(P[:, 2] <= 1.0):
         return False

@@ -24,6 +24,8 @@ __all__ = ["RoomPlan", "Suggestion", "plan_room", "suggest_markers", "default_ar
 
 #: Most grid cells a plan evaluates (each costs one prediction per heading).
 MAX_CELLS = 40_000
+#: Fraction of the area within the target at which it counts as met: suggest_markers stops there.
+AREA_MET = 0.999
 
 
 @dataclass(frozen=True, repr=False)
@@ -448,7 +450,7 @@ def suggest_markers(
             current, now = bigger, f
             break
     for _ in range(max_markers):
-        if now >= 0.999:
+        if now >= AREA_MET:
             break
         best = max(
             ((score(m), m, text) for m, text in _candidates(current, area, step_mm)), key=lambda t: t[0], default=None
