@@ -8,6 +8,8 @@ from pathlib import Path
 
 from .. import grading
 from .._files import MAX_TEXT_BYTES, read_bytes
+from .._gradebook import lms_path
+from .._learners import read_roster
 from ..errors import UsageError
 from ._common import _check_output, _refuse_clobber
 
@@ -55,17 +57,22 @@ def run_release(args) -> int:
         A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
         as one ``error:`` line and exits with status 2.
     """
-    _, data = read_bytes(args.learners, UsageError, "roster", MAX_TEXT_BYTES)
-    learners = [
-        line.strip()
-        for line in data.decode("utf-8", "replace").splitlines()
-        if line.strip() and not line.startswith("#")
-    ]
-    if not learners:
-        raise UsageError(f"--learners {args.learners}: no learner ids (one per line)")
-    folders = grading.release(args.lesson, learners, args.secret_file, args.output)
+    lines = _roster_lines(args.learners, "--learners")
+    folders = grading.release(args.lesson, lines, args.secret_file, args.output)
     print(f"{len(folders)} learner folders in {args.output}/ (lesson {args.lesson}); hand each learner their own")
     return 0
+
+
+def _roster_lines(path: Path, option: str) -> list[str]:
+    """The roster's lines, checked: every id a safe name, no two lines one learner (with the lines named)."""
+    _, data = read_bytes(path, UsageError, "roster", MAX_TEXT_BYTES)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise UsageError(f"{option} {path}: not UTF-8 text (byte {exc.start}); save the roster as UTF-8") from None
+    lines = text.splitlines()
+    read_roster(lines, f"{option} {path}")
+    return lines
 
 
 def add_grade(sub) -> None:
@@ -92,6 +99,18 @@ def add_grade(sub) -> None:
         "--learner", help="the learner of every notebook given (default: each file's name, e.g. alice.ipynb)"
     )
     p.add_argument("-o", "--output", type=Path, help="grades.csv: one row per question")
+    p.add_argument(
+        "--roster",
+        type=Path,
+        metavar="FILE",
+        help="the roster release used: unknown and missing learners are reported, each learner graded once",
+    )
+    p.add_argument(
+        "--format",
+        choices=("csv", "canvas", "moodle"),
+        default="csv",
+        help="also write a gradebook import beside -o: canvas (grades.canvas.csv) or moodle (grades.moodle.csv)",
+    )
     p.add_argument("--timeout", type=int, default=120, help="seconds a notebook may run (default 120)")
     p.add_argument("--memory-mb", type=int, default=3000, help="memory a notebook may use, MB (default 3000)")
     p.add_argument("--run-as", metavar="USER", help="run notebooks as this user (default 'nobody' when root)")
@@ -136,7 +155,9 @@ def run_grade(args) -> int:
     out = _check_output(args.output, (".csv",))
     if not 5 <= args.timeout <= 3600 or not 200 <= args.memory_mb <= 65536:
         raise UsageError("--timeout is 5 to 3600 s and --memory-mb 200 to 65536")
-    _refuse_clobber([("-o", out)], [*args.notebooks, args.secret_file])
+    roster = _roster_lines(args.roster, "--roster") if args.roster is not None else None
+    outputs = [("-o", out)] + ([("--format", lms_path(out, args.format))] if args.format != "csv" else [])
+    _refuse_clobber(outputs, [*args.notebooks, args.secret_file, *([args.roster] if args.roster else [])])
     for nb in args.notebooks:
         if not nb.is_file():
             raise UsageError(f"{nb}: no such notebook; give the learners' .ipynb files")
@@ -154,10 +175,17 @@ def run_grade(args) -> int:
         args.secret_file,
         out,
         learner=args.learner,
+        roster=roster,
+        formats=(args.format,),
         timeout_s=args.timeout,
         memory_mb=args.memory_mb,
         run_as=args.run_as,
         progress=progress,
     )
-    print(f"{len(grades)} notebooks graded; grades in {out}")
+    counted = sum(1 for g in grades if g.graded)
+    others = [g.problem for g in grades if not g.graded]
+    extra = f" and {lms_path(out, args.format)}" if args.format != "csv" else ""
+    print(f"{counted} notebooks graded; grades in {out}{extra}")
+    if others:
+        print(f"{len(others)} not graded (the CSV says why): " + "; ".join(others[:5]))
     return 0
