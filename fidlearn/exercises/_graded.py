@@ -63,12 +63,12 @@ class GradedQuestion:
         if self.answer is None or self.answer is Ellipsis:
             return Result(self.name, NOT_ATTEMPTED, f"replace the ... in {self.name}.answer = ... with your answer")
         try:
-            to_plain(self.answer)
+            kind = _unsupported(to_plain(self.answer))
         except Exception:  # noqa: BLE001 - any value that cannot be handed in
+            kind = type(self.answer).__name__
+        if kind:
             return Result(
-                self.name,
-                INCORRECT,
-                f"an answer of type {type(self.answer).__name__} cannot be handed in; give numbers, arrays or text",
+                self.name, INCORRECT, f"an answer of type {kind} cannot be handed in; give numbers, arrays or text"
             )
         return Result(self.name, RECORDED, "your answer is kept for your instructor, who grades it")
 
@@ -124,6 +124,17 @@ class GradedQuestion:
     def __repr__(self) -> str:
         names = ", ".join(self.inputs.keys())
         return f"<Question {self.name}: {self.title!r}; inputs: {names}; {self.result().status}>"
+
+
+def _unsupported(plain) -> str:
+    """The type name of the first part of an answer that cannot be handed in ("" when all can)."""
+    if isinstance(plain, dict):
+        if "__unsupported__" in plain:
+            return str(plain["__unsupported__"])
+        plain = list(plain.values())
+    if isinstance(plain, list):
+        return next((kind for kind in map(_unsupported, plain) if kind), "")
+    return ""
 
 
 class GradedLesson:
