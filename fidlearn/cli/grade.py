@@ -118,6 +118,31 @@ def add_grade(sub) -> None:
     p.set_defaults(run=run_grade)
 
 
+def _checked_grade_args(args) -> tuple[Path, list[str] | None]:
+    """The CSV to write and the roster's lines, once every option of ``grade`` is checked."""
+    missing = [
+        opt
+        for opt, v in (("--lesson", args.lesson), ("--secret-file", args.secret_file), ("-o", args.output))
+        if v is None
+    ]
+    if missing or not args.notebooks:
+        raise UsageError(
+            "give the notebooks, --lesson, --secret-file and -o grades.csv"
+            if not missing
+            else f"{missing[0]} is required to grade"
+        )
+    out = _check_output(args.output, (".csv",))
+    if not 5 <= args.timeout <= 3600 or not 200 <= args.memory_mb <= 65536:
+        raise UsageError("--timeout is 5 to 3600 s and --memory-mb 200 to 65536")
+    roster = _roster_lines(args.roster, "--roster") if args.roster is not None else None
+    outputs = [("-o", out)] + ([("--format", lms_path(out, args.format))] if args.format != "csv" else [])
+    _refuse_clobber(outputs, [*args.notebooks, args.secret_file, *([args.roster] if args.roster else [])])
+    for nb in args.notebooks:
+        if not nb.is_file():
+            raise UsageError(f"{nb}: no such notebook; give the learners' .ipynb files")
+    return out, roster
+
+
 def run_grade(args) -> int:
     """Make a class secret, or grade the notebooks into a CSV; print one line per notebook.
 
@@ -141,26 +166,7 @@ def run_grade(args) -> int:
         grading.new_secret(args.new_secret)
         print(f"{args.new_secret}: a new class secret; keep it private (it decides every learner's numbers)")
         return 0
-    missing = [
-        opt
-        for opt, v in (("--lesson", args.lesson), ("--secret-file", args.secret_file), ("-o", args.output))
-        if v is None
-    ]
-    if missing or not args.notebooks:
-        raise UsageError(
-            "give the notebooks, --lesson, --secret-file and -o grades.csv"
-            if not missing
-            else f"{missing[0]} is required to grade"
-        )
-    out = _check_output(args.output, (".csv",))
-    if not 5 <= args.timeout <= 3600 or not 200 <= args.memory_mb <= 65536:
-        raise UsageError("--timeout is 5 to 3600 s and --memory-mb 200 to 65536")
-    roster = _roster_lines(args.roster, "--roster") if args.roster is not None else None
-    outputs = [("-o", out)] + ([("--format", lms_path(out, args.format))] if args.format != "csv" else [])
-    _refuse_clobber(outputs, [*args.notebooks, args.secret_file, *([args.roster] if args.roster else [])])
-    for nb in args.notebooks:
-        if not nb.is_file():
-            raise UsageError(f"{nb}: no such notebook; give the learners' .ipynb files")
+    out, roster = _checked_grade_args(args)
     if os.geteuid() != 0 and args.run_as is None:
         print(
             "warning: grading as your own user: a notebook can read what you can; see docs/teaching.md", file=sys.stderr
