@@ -450,13 +450,26 @@ def grade(
             progress(k + 1, len(matched), g)
     for who in _gradebook.missing(matched, ids):
         grades.append(NotebookGrade("", who, number, [], "missing: no notebook was handed in", graded=False))
-    _write_csv(csv_path, grades)
-    out_of = len(exercises.build_questions(number, "")) if formats else 0
-    for fmt in formats:
-        if fmt != "csv":
-            scores = {g.learner: g.score if g.graded else None for g in grades if g.graded or g.notebook == ""}
-            _gradebook.write_lms(_gradebook.lms_path(csv_path, fmt), fmt, number, scores, out_of)
+    _write_all(csv_path, grades, number, [f for f in formats if f != "csv"])
     return grades
+
+
+def _write_all(csv_path, grades: list[NotebookGrade], number: str, formats: list[str]) -> None:
+    """The CSV and the gradebook imports, each atomically; all of them or (on a failure) none."""
+    from . import exercises
+
+    out_of = len(exercises.build_questions(number, "")) if formats else 0
+    scores = {g.learner: g.score if g.graded else None for g in grades if g.graded or g.notebook == ""}
+    written: list[Path] = []
+    try:
+        _write_csv(csv_path, grades)
+        written.append(Path(csv_path))
+        for fmt in formats:
+            written.append(_gradebook.write_lms(_gradebook.lms_path(csv_path, fmt), fmt, number, scores, out_of))
+    except BaseException:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
 
 
 def _write_csv(path, grades: list[NotebookGrade]) -> None:

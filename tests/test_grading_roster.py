@@ -257,7 +257,7 @@ def test_the_grade_command_writes_the_canvas_file(cls):
     assert (cls["tmp"] / "g.canvas.csv").read_text().splitlines()[2:] == ["alice,,,alice,,5", "bob,,,bob,,3"]
 
 
-@pytest.mark.parametrize("failure", ["disk", "signal"])
+@pytest.mark.parametrize("failure", ["disk", "disk at the canvas file", "signal"])
 def test_an_interrupted_or_refused_grade_writes_no_csv(cls, monkeypatch, failure):
     p = cls["paths"]
     out = cls["tmp"] / "grades.csv"
@@ -273,13 +273,17 @@ def test_an_interrupted_or_refused_grade_writes_no_csv(cls, monkeypatch, failure
         with pytest.raises(KeyboardInterrupt):
             grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out, run_as="")
     else:
+        real_write, writes = Path.write_text, []
 
         def full(self, *a, **k):
-            raise OSError(errno.ENOSPC, "No space left on device")
+            writes.append(self)
+            if failure == "disk" or len(writes) == 2:
+                raise OSError(errno.ENOSPC, "No space left on device")
+            return real_write(self, *a, **k)
 
         monkeypatch.setattr(Path, "write_text", full)
         with pytest.raises(FidlearnError, match="No space left on device"):
-            grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out, run_as="")
+            grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out, formats=("canvas",), run_as="")
     assert not [q for q in cls["tmp"].iterdir() if q.suffix == ".csv" or q.name.startswith(".grades")]
 
 
