@@ -10,8 +10,8 @@ the two sides:
   class secret (HMAC-SHA256 of the secret, the lesson, the learner and the question seeds the
   numbers, so nobody without the secret can rebuild them from the open library) and writes only
   their *inputs*, as plain data, into ``fidlearn_inputs.json`` beside the learner's notebook.
-  In a folder with that file, ``exercises.lesson(...)`` hands out questions without answers:
-  ``check()`` only says whether an answer has the right form.
+  In a folder with that file, ``exercises.lesson(...)`` hands out a graded lesson built from the
+  file alone: inputs, ``check()`` that records the answer, ``hint()``.
 * **grade** (:func:`grade`): each submitted notebook runs in a process of its own, in a scratch
   copy of its folder, with a time limit, a memory limit, an environment without the
   instructor's variables and, when the grader runs as root, as an unprivileged user. A cell
