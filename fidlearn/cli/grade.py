@@ -33,8 +33,13 @@ def add_release(sub) -> None:
     p.add_argument(
         "--secret-file", type=Path, required=True, help="the class secret ('fidlearn grade --new-secret FILE')"
     )
-    p.add_argument("--learners", type=Path, required=True, help="roster: one learner id per line")
-    p.add_argument("-o", "--output", type=Path, required=True, help="folder to write the learners' folders in")
+    p.add_argument(
+        "--learners",
+        type=Path,
+        required=True,
+        help="roster: one learner id per line (letters, digits, blanks, . _ - @ +; # starts a comment)",
+    )
+    p.add_argument("-o", "--output", type=Path, required=True, help="a new (or empty) folder for the learners' folders")
     p.set_defaults(run=run_release)
 
 
