@@ -193,7 +193,7 @@ class Question:
     inputs : dict
         The data to compute from, shown as :class:`Inputs`.
     expected : object
-        The answer key, in the form ``parse`` gives .
+        The answer key, in the form ``parse`` gives.
     parse : callable
         Reads a learner's answer into that form, or raises ``_AnswerError`` saying why not.
     compare : callable

@@ -134,11 +134,12 @@ def lessons() -> dict[str, str]:
     return {k: v.topic for k, v in sorted(_LESSONS.items())}
 
 
-def lesson(number: str | int, learner: str | None = None) -> Lesson:
+def lesson(number: str | int, learner: str | None = None) -> Lesson | GradedLesson:
     """The exercises of lesson ``number`` (``"01"`` ... ``"11"``) for a learner.
 
     In a folder holding a graded lesson's inputs file (``fidlearn_inputs.json``, written by
-    ``fidlearn release``), the questions come from that file and without their answers.
+    ``fidlearn release``), it is a :class:`GradedLesson` built from that file alone: inputs,
+    ``check()`` that records the answer and ``hint()``; no solution, no checker, no key.
 
     Parameters
     ----------
@@ -152,7 +153,7 @@ def lesson(number: str | int, learner: str | None = None) -> Lesson:
 
     Returns
     -------
-    Lesson
+    Lesson or GradedLesson
         Its questions, fresh (no answers yet).
 
     Raises
