@@ -10,13 +10,14 @@ once. Besides the detailed CSV, the scores can be written as a Canvas or Moodle 
 from __future__ import annotations
 
 import csv
+import hmac
 import io
 import json
 import os
 from pathlib import Path
 
 from ._io import write_text_atomic
-from ._learners import learner_from_filename, normalize_learner
+from ._learners import learner_from_filename, normalize_learner, release_tag
 from .errors import GradingError
 
 #: The gradebook formats ``grade --format`` writes besides the detailed CSV.
@@ -26,7 +27,7 @@ _MAX_NOTEBOOK_BYTES = 200_000_000
 
 
 def notebook_claim(path: str | os.PathLike) -> dict:
-    """The ``{"lesson", "learner"}`` a released notebook's metadata names ({} when it names none).
+    """The ``{"lesson", "learner", "tag"}`` a released notebook's metadata names ({} when it names none).
 
     Parameters
     ----------
@@ -36,20 +37,20 @@ def notebook_claim(path: str | os.PathLike) -> dict:
     Returns
     -------
     dict
-        ``{"lesson": "03", "learner": "alice"}``, or ``{}`` for a notebook without (or with
-        unreadable) release metadata.
+        ``{"lesson": "03", "learner": "alice", "tag": "..."}``, or ``{}`` for a notebook without
+        (or with unreadable) release metadata.
     """
     try:
         if os.path.getsize(path) > _MAX_NOTEBOOK_BYTES:
             return {}
         with open(path, encoding="utf-8") as f:
             meta = json.load(f).get("metadata", {}).get("fidlearn", {})
-        return {"lesson": str(meta["lesson"]), "learner": str(meta["learner"])}
+        return {"lesson": str(meta["lesson"]), "learner": str(meta["learner"]), "tag": str(meta.get("tag", ""))}
     except (OSError, ValueError, TypeError, KeyError, AttributeError, RecursionError):
         return {}
 
 
-def match(notebooks, number: str, learner: str | None, roster: list[str] | None) -> list[tuple]:
+def match(notebooks, number: str, learner: str | None, roster: list[str] | None, secret: bytes) -> list[tuple]:
     """Each notebook's learner, or why it is not graded: ``[(notebook, learner id, problem)]``.
 
     Parameters
@@ -62,6 +63,8 @@ def match(notebooks, number: str, learner: str | None, roster: list[str] | None)
         One learner id for every notebook (``--learner``), else each notebook's metadata, else its file name.
     roster : list of str or None
         The class's normalized ids.
+    secret : bytes
+        The class secret: a released notebook's tag must be the one release gave its id.
 
     Returns
     -------
@@ -73,23 +76,33 @@ def match(notebooks, number: str, learner: str | None, roster: list[str] | None)
     for nb in notebooks:
         claim = notebook_claim(nb)
         try:
-            who = given or claim.get("learner") or learner_from_filename(nb)
+            claimed = normalize_learner(claim["learner"]) if claim else None
+            who = given or claimed or learner_from_filename(nb)
         except GradingError as exc:
             out.append((nb, str(Path(nb).stem), f"not graded: {exc}"))
             continue
-        problem = ""
-        if claim and claim["learner"] != who:
-            problem = f"not graded: released to learner {claim['learner']!r}, not {who!r} (another learner's variant)"
-        elif claim and claim["lesson"] != number:
-            problem = f"not graded: released for lesson {claim['lesson']}, not {number}"
-        elif roster is not None and who not in roster:
+        problem = _problem(claim, claimed, who, number, secret)
+        if not problem and roster is not None and who not in roster:
             problem = f"not graded: learner {who!r} is not on the roster"
-        elif who in seen:
+        elif not problem and who in seen:
             problem = f"not graded: learner {who!r} handed in twice; graded {seen[who]}, not this one"
-        else:
+        elif not problem:
             seen[who] = str(nb)
         out.append((nb, who, problem))
     return out
+
+
+def _problem(claim: dict, claimed: str | None, who: str, number: str, secret: bytes) -> str:
+    """Why a released notebook is not graded as ``who`` ("" when it may be)."""
+    if not claim:
+        return ""
+    if claimed != who:
+        return f"not graded: released to learner {claimed!r}, not {who!r} (another learner's variant)"
+    if claim["lesson"] != number:
+        return f"not graded: released for lesson {claim['lesson']}, not {number}"
+    if not hmac.compare_digest(claim["tag"], release_tag(secret, number, who)):
+        return f"not graded: its learner id {who!r} was changed after release (the release tag does not match)"
+    return ""
 
 
 def missing(matched: list[tuple], roster: list[str] | None) -> list[str]:

@@ -248,6 +248,29 @@ def variant_seed(secret: bytes, lesson: str, learner: str, question: str) -> int
     return int.from_bytes(digest[:8], "little")
 
 
+def release_tag(secret: bytes, lesson: str, learner: str) -> str:
+    """The tag a released notebook carries beside its learner's id: nobody without the secret can make it.
+
+    Parameters
+    ----------
+    secret : bytes
+        The class secret.
+    lesson, learner : str
+        ``"03"`` and the normalized learner id.
+
+    Returns
+    -------
+    str
+        32 hex digits of HMAC-SHA256: a notebook whose id was edited to another learner's no longer matches.
+
+    Examples
+    --------
+    >>> len(release_tag(b"secret", "03", "alice"))
+    32
+    """
+    return hmac.new(secret, f"fidlearn-release/{lesson}/{learner}".encode(), hashlib.sha256).hexdigest()[:32]
+
+
 def learner_from_filename(path: str | os.PathLike) -> str:
     """``submissions/Alice.Smith.ipynb`` -> ``alice.smith``: the file's name without ``.ipynb``.
 

@@ -15,11 +15,11 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from ._learners import read_roster, read_secret
+from ._learners import read_roster, read_secret, release_tag
 from ._plain import to_plain
 from .errors import GradingError
 
-#: Where a released notebook says whose it is: ``metadata["fidlearn"] = {"lesson", "learner"}``.
+#: Where a released notebook says whose it is: ``metadata["fidlearn"] = {"lesson", "learner", "tag"}``.
 METADATA_KEY = "fidlearn"
 
 _GRADED_NOTE = (
@@ -57,7 +57,7 @@ def inputs_record(number: str, learner: str, questions: list) -> dict:
     }
 
 
-def released_notebook(source: Path, number: str, learner: str) -> str:
+def released_notebook(source: Path, number: str, learner: str, tag: str) -> str:
     """The student notebook as a learner receives it: outputs cleared, a graded note, their id in its metadata.
 
     Parameters
@@ -66,6 +66,8 @@ def released_notebook(source: Path, number: str, learner: str) -> str:
         The lesson's student notebook.
     number, learner : str
         The lesson and the learner's id.
+    tag : str
+        :func:`fidlearn._learners.release_tag` of the lesson and the id.
 
     Returns
     -------
@@ -81,7 +83,7 @@ def released_notebook(source: Path, number: str, learner: str) -> str:
     note = nbformat.v4.new_markdown_cell(_GRADED_NOTE)
     note["id"] = f"ex{number}-graded"
     nb.cells.insert(1, note)
-    nb.metadata[METADATA_KEY] = {"lesson": number, "learner": learner}
+    nb.metadata[METADATA_KEY] = {"lesson": number, "learner": learner, "tag": tag}
     return nbformat.writes(nb)
 
 
@@ -133,7 +135,8 @@ def release(number: str, learners: Sequence[str], secret_path, out_dir, *, build
             record = inputs_record(number, learner, build(number, learner, secret))
             _write(folder / "fidlearn_inputs.json", json.dumps(record))
             if notebook is not None:
-                _write(folder / notebook.name, released_notebook(notebook, number, learner))
+                text = released_notebook(notebook, number, learner, release_tag(secret, number, learner))
+                _write(folder / notebook.name, text)
         os.chmod(tmp, 0o777 & ~_umask())
         os.replace(tmp, out)
     except OSError as exc:

@@ -434,7 +434,7 @@ def grade(
     secret = read_secret(secret_path)
     number = exercises.lesson_number(lesson)
     ids = _learners.read_roster(list(roster), "the roster") if roster is not None else None
-    matched = _gradebook.match(notebooks, number, learner, ids)
+    matched = _gradebook.match(notebooks, number, learner, ids, secret)
     _preflight(_run_as(run_as), run_as)  # a user who cannot run this Python is refused before any notebook runs
     grades: list[NotebookGrade] = []
     for k, (nb, who, problem) in enumerate(matched):

@@ -255,7 +255,8 @@ def test_release_writes_the_student_notebook_and_the_inputs(tmp_path):
     source = nbformat.read(student, as_version=4)
     for folder in folders:
         nb = nbformat.read(folder / student.name, as_version=4)
-        assert nb.metadata["fidlearn"] == {"lesson": "03", "learner": folder.name}
+        tag = grading._learners.release_tag(grading.read_secret(secret), "03", folder.name)
+        assert nb.metadata["fidlearn"] == {"lesson": "03", "learner": folder.name, "tag": tag}
         assert [c.source for c in nb.cells if c.id != "ex03-graded"] == [c.source for c in source.cells]
         assert not any(c.get("outputs") for c in nb.cells)
         record = json.loads((folder / grading.INPUTS_FILE).read_text())

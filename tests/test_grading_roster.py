@@ -91,7 +91,8 @@ def test_release_names_folders_by_id_and_writes_nothing_outside(tmp_path, secret
     record = json.loads((folders[0] / grading.INPUTS_FILE).read_text())
     assert record["learner"] == "carol_smith" and record["lesson"] == LESSON
     nb = nbformat.read(folders[0] / exercises.notebook_name(LESSON), as_version=4)
-    assert nb.metadata["fidlearn"] == {"lesson": LESSON, "learner": "carol_smith"}
+    tag = grading._learners.release_tag(grading.read_secret(secret), LESSON, "carol_smith")
+    assert nb.metadata["fidlearn"] == {"lesson": LESSON, "learner": "carol_smith", "tag": tag}
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*before, "out"])
     with pytest.raises(GradingError, match="not an empty folder"):
         grading.release(LESSON, ["dave"], secret, tmp_path / "out")
@@ -184,20 +185,25 @@ def cls(tmp_path, secret, monkeypatch):
 
 def test_grade_matches_by_the_notebooks_id_and_reports_the_roster(cls):
     p = cls["paths"]
-    eve = cls["subs"] / "eve.ipynb"  # not released by fidlearn: its file name is its id
-    eve.write_bytes(p["alice"].read_bytes().replace(b'"learner": "alice"', b'"learner": "zed"'))
+    eve = cls["subs"] / "eve.ipynb"  # alice's notebook with bob's id put in its metadata
+    eve.write_bytes(p["alice"].read_bytes().replace(b'"learner": "alice"', b'"learner": "bob"'))
+    nb = nbformat.read(p["alice"], as_version=4)
+    del nb.metadata["fidlearn"]
+    zed = cls["subs"] / "zed.ipynb"  # not made by release: its file name is its id
+    nbformat.write(nb, zed)
     twice = cls["subs"] / "alice-again.ipynb"
     twice.write_bytes(p["alice"].read_bytes())
     roster = ["alice", "bob", "Carol", "dave@uni.edu", "frank"]
     out = cls["tmp"] / "grades.csv"
     grades = grading.grade(
-        [p["alice"], p["bob"], twice, eve, p["dave@uni.edu"]], LESSON, cls["secret"], out, roster=roster, run_as=""
+        [p["alice"], p["bob"], twice, eve, zed, p["dave@uni.edu"]], LESSON, cls["secret"], out, roster=roster, run_as=""
     )
     # alice's notebook is called bob.ipynb and bob's x1.ipynb: each is graded as its own learner, once
     assert cls["graded"] == [("bob.ipynb", "alice"), ("x1.ipynb", "bob"), ("d.ipynb", "dave@uni.edu")]
     problems = {(Path(g.notebook).name if g.notebook else "", g.learner): g.problem for g in grades}
     assert "handed in twice; graded" in problems[("alice-again.ipynb", "alice")]
-    assert "'zed' is not on the roster" in problems[("eve.ipynb", "zed")]
+    assert "'zed' is not on the roster" in problems[("zed.ipynb", "zed")]
+    assert "its learner id 'bob' was changed after release" in problems[("eve.ipynb", "bob")]
     assert problems[("", "carol")] == problems[("", "frank")] == "missing: no notebook was handed in"
     rows = list(csv.DictReader(out.open(encoding="utf-8")))
     scores = {(r["notebook"], r["learner"]): r["score"] for r in rows}
