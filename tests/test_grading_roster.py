@@ -322,3 +322,34 @@ def test_self_study_keeps_checks_and_solutions(capsys):
     ex.summary()
     text = capsys.readouterr().out
     assert "one way to do it" in text and "Incorrect (q1)" in text and "0 of 5 correct" in text
+
+
+@pytest.mark.slow
+def test_sigterm_during_release_leaves_nothing(tmp_path, secret):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    roster = tmp_path / "roster.txt"
+    roster.write_text("".join(f"learner{k:03d}\n" for k in range(400)))
+    before = sorted(p.name for p in tmp_path.iterdir())
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    cmd = [sys.executable, "-m", "fidlearn", "release", "--lesson", "1", "--secret-file", str(secret)]
+    proc = subprocess.Popen(
+        [*cmd, "--learners", str(roster), "-o", str(tmp_path / "out")],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not any(p.name.startswith(".out.") for p in tmp_path.iterdir()):
+        time.sleep(0.05)
+    time.sleep(0.5)  # some learners' folders are made
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert err == "error: interrupted by SIGTERM; nothing was written\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
