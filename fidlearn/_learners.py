@@ -1,8 +1,9 @@
 """The class secret and the learners' ids (see :mod:`fidlearn.grading`).
 
 A graded lesson seeds each learner's numbers with HMAC-SHA256 of a class secret, so nobody
-without the secret can rebuild them from the open library; learner ids are compared trimmed and
-in lower case.
+without the secret can rebuild them from the open library. One normalization
+(:func:`normalize_learner`) makes a learner's id, which is their folder's name, the seed of their
+numbers and what ``grade`` matches submissions by.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import hmac
 import os
 import re
 import secrets
+import tempfile
+import unicodedata
 from pathlib import Path
 
 from .errors import GradingError
@@ -38,8 +41,19 @@ def fold_learner(learner) -> str:
     return " ".join(str(learner or "").split()).lower()
 
 
+#: The longest learner id (characters, after normalization): ids are folder names, never cut short.
+MAX_ID = 64
+
+_ID_PUNCTUATION = "._-@+"
+
+
 def normalize_learner(learner: str) -> str:
-    """A learner id as graded: trimmed and lower-case ("Alice " and "alice" are one learner).
+    """A learner id as released, seeded and graded: one safe name per learner.
+
+    Unicode is put in NFKC form, blanks are trimmed and inner runs of blanks become one ``_``,
+    letters are lower-cased: ``" Carol  Smith"`` is ``carol_smith``, and so is ``carol_smith``
+    (one learner). The result is the learner's folder name, so anything that is no safe name is
+    refused rather than changed.
 
     Parameters
     ----------
@@ -49,24 +63,86 @@ def normalize_learner(learner: str) -> str:
     Returns
     -------
     str
-        Inner runs of blanks made one space, lower case.
+        Letters, digits and ``. _ - @ +`` only, at most :data:`MAX_ID` characters, not starting
+        with a dot.
 
     Raises
     ------
     GradingError
-        For an empty id, one over 200 characters, or one with control characters.
+        For an empty id, a control character, a path separator, ``.``/``..`` or a leading dot,
+        any other character, or more than :data:`MAX_ID` characters.
 
     Examples
     --------
-    >>> normalize_learner("  Alice   Smith ")
-    'alice smith'
+    >>> normalize_learner("  Carol   Smith "), normalize_learner("Bob@Uni.edu")
+    ('carol_smith', 'bob@uni.edu')
     """
     if not isinstance(learner, str) or not learner.strip():
         raise GradingError(f"a learner id must be non-empty text, got {learner!r}")
-    text = fold_learner(learner)
-    if len(text) > 200 or any(ord(c) < 32 for c in text):
-        raise GradingError(f"learner id {learner[:40]!r} is too long or holds control characters")
+    text = unicodedata.normalize("NFKC", learner)
+    shown = repr(learner[:40])
+    if any(unicodedata.category(c).startswith("C") for c in text):
+        raise GradingError(f"learner id {shown} holds control or invisible characters; type it plainly")
+    if "/" in text or "\\" in text:
+        raise GradingError(f"learner id {shown} holds a path separator (/ or \\); ids become folder names")
+    text = "_".join(text.split()).lower()
+    if text.startswith("."):
+        raise GradingError(f"learner id {shown} starts with a dot ('.', '..' and hidden names cannot be folders)")
+    bad = sorted({c for c in text if not (c.isalnum() or c in _ID_PUNCTUATION)})
+    if bad:
+        raise GradingError(
+            f"learner id {shown} holds {''.join(bad)!r}; use letters, digits, blanks and {_ID_PUNCTUATION} only"
+        )
+    if len(text) > MAX_ID:
+        raise GradingError(f"learner id {shown}... has {len(text)} characters; at most {MAX_ID}")
     return text
+
+
+def read_roster(lines: list[str], where: str) -> list[str]:
+    """The learner ids of a roster (one per line, ``#`` comments and blank lines skipped), each once.
+
+    Parameters
+    ----------
+    lines : list of str
+        The roster's lines.
+    where : str
+        The roster's name, for the messages.
+
+    Returns
+    -------
+    list of str
+        The normalized ids (:func:`normalize_learner`), in roster order.
+
+    Raises
+    ------
+    GradingError
+        For an id that is no safe name (with its line), two lines that are one learner (both named),
+        or a roster without ids.
+
+    Examples
+    --------
+    >>> read_roster(["# class A", "Alice", "", "Carol Smith"], "roster.txt")
+    ['alice', 'carol_smith']
+    """
+    seen: dict[str, tuple[int, str]] = {}
+    for n, line in enumerate(lines, 1):
+        raw = line.strip()
+        if not raw or raw.startswith("#"):
+            continue
+        try:
+            learner = normalize_learner(raw)
+        except GradingError as exc:
+            raise GradingError(f"{where}, line {n}: {exc}") from None
+        if learner in seen:
+            m, first = seen[learner]
+            raise GradingError(
+                f"{where}: line {m} {first!r} and line {n} {raw!r} are one learner ({learner!r}); "
+                "give each learner an id of their own"
+            )
+        seen[learner] = (n, raw)
+    if not seen:
+        raise GradingError(f"{where}: no learner ids (one per line)")
+    return list(seen)
 
 
 def new_secret(path: str | os.PathLike) -> Path:
@@ -90,10 +166,35 @@ def new_secret(path: str | os.PathLike) -> Path:
     path = Path(path)
     if path.exists():
         raise GradingError(f"{path} exists; a class keeps one secret for the whole course (delete it only on purpose)")
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    with os.fdopen(fd, "w") as f:
-        f.write(secrets.token_hex(32) + "\n")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise GradingError(f"{path}: the folder {folder} does not exist; create it first")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=folder)  # private: 0o600
+    except OSError as exc:
+        raise GradingError(f"{path}: cannot write in {folder} ({exc.strerror}); no secret was made") from None
+    try:
+        _write_all(fd, (secrets.token_hex(32) + "\n").encode())
+        os.fsync(fd)
+        os.close(fd)
+        fd = -1
+        os.link(tmp, path)  # appears whole or not at all, and never replaces a secret made meanwhile
+    except FileExistsError:
+        raise GradingError(f"{path} exists; a class keeps one secret for the whole course") from None
+    except OSError as exc:
+        raise GradingError(
+            f"{path}: cannot write it ({exc.strerror or exc}); check the free disk space; no secret was made"
+        ) from None
+    finally:
+        if fd >= 0:
+            os.close(fd)
+        os.unlink(tmp)
     return path
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    while data:
+        data = data[os.write(fd, data) :]
 
 
 def read_secret(path: str | os.PathLike) -> bytes:
@@ -145,6 +246,29 @@ def variant_seed(secret: bytes, lesson: str, learner: str, question: str) -> int
     """
     digest = hmac.new(secret, f"fidlearn-graded/{lesson}/{learner}/{question}".encode(), hashlib.sha256).digest()
     return int.from_bytes(digest[:8], "little")
+
+
+def release_tag(secret: bytes, lesson: str, learner: str) -> str:
+    """The tag a released notebook carries beside its learner's id: nobody without the secret can make it.
+
+    Parameters
+    ----------
+    secret : bytes
+        The class secret.
+    lesson, learner : str
+        ``"03"`` and the normalized learner id.
+
+    Returns
+    -------
+    str
+        32 hex digits of HMAC-SHA256: a notebook whose id was edited to another learner's no longer matches.
+
+    Examples
+    --------
+    >>> len(release_tag(b"secret", "03", "alice"))
+    32
+    """
+    return hmac.new(secret, f"fidlearn-release/{lesson}/{learner}".encode(), hashlib.sha256).hexdigest()[:32]
 
 
 def learner_from_filename(path: str | os.PathLike) -> str:

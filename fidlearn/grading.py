@@ -10,8 +10,8 @@ the two sides:
   class secret (HMAC-SHA256 of the secret, the lesson, the learner and the question seeds the
   numbers, so nobody without the secret can rebuild them from the open library) and writes only
   their *inputs*, as plain data, into ``fidlearn_inputs.json`` beside the learner's notebook.
-  In a folder with that file, ``exercises.lesson(...)`` hands out questions without answers:
-  ``check()`` only says whether an answer has the right form.
+  In a folder with that file, ``exercises.lesson(...)`` hands out a graded lesson built from the
+  file alone: inputs, ``check()`` that records the answer, ``hint()``.
 * **grade** (:func:`grade`): each submitted notebook runs in a process of its own, in a scratch
   copy of its folder, with a time limit, a memory limit, an environment without the
   instructor's variables and, when the grader runs as root, as an unprivileged user. A cell
@@ -19,7 +19,13 @@ the two sides:
   grader reads them (strict JSON, bounded), rebuilds the questions with their answers in its
   own process and judges there. Nothing printed, patched or written in the notebook can
   change a grade: a notebook that crashes, hangs, is killed or writes nonsense gets 0 with
-  the reason, and every other notebook of the batch is still graded; the CSV is always written.
+  the reason, and every other notebook of the batch is still graded; the CSV is written once
+  the batch is done (never half of it). Each notebook is matched to its learner by the id
+  that release wrote in its metadata (:mod:`fidlearn._gradebook`).
+
+In the learner's kernel a graded lesson is a :class:`~fidlearn.exercises.GradedLesson`, built
+from the inputs file alone: inputs, ``check()`` that records, ``hint()``; no solution, no
+checker, no key (:mod:`fidlearn.exercises._graded`).
 """
 
 from __future__ import annotations
@@ -28,7 +34,6 @@ import csv
 import io
 import json
 import os
-import re
 import shutil
 import tempfile
 import time
@@ -36,6 +41,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from . import _gradebook, _learners, _release
 from ._io import write_text_atomic
 
 # the class secret, plain data and the sandbox live in modules of their own; their names stay
@@ -109,7 +115,7 @@ def graded_questions(lesson: str, learner: str, secret: bytes) -> list:
 
 
 def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
-    """What ``fidlearn_inputs.json`` holds for one learner: the lesson, the id and every question's inputs.
+    """What ``fidlearn_inputs.json`` holds for one learner: the lesson, the id, every question's inputs.
 
     Parameters
     ----------
@@ -123,8 +129,8 @@ def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
     Returns
     -------
     dict
-        ``{"fidlearn_graded": 1, "lesson", "learner", "questions": {name: {input: plain data}}}``;
-        no answers.
+        ``{"fidlearn_graded": 1, "lesson", "learner", "questions": {name: {input: plain data}},
+        "about": {name: {"title", "task", "level", "hints"}}}``; no answers, no solutions.
 
     Raises
     ------
@@ -136,13 +142,8 @@ def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
     from . import exercises
 
     number = exercises.lesson_number(lesson)
-    questions = graded_questions(number, learner, secret)
-    return {
-        "fidlearn_graded": 1,
-        "lesson": number,
-        "learner": normalize_learner(learner),
-        "questions": {q.name: {k: to_plain(q.inputs[k]) for k in q.inputs} for q in questions},
-    }
+    learner = normalize_learner(learner)
+    return _release.inputs_record(number, learner, graded_questions(number, learner, secret))
 
 
 def release(
@@ -150,53 +151,45 @@ def release(
 ) -> list[Path]:
     """Write ``OUT/<learner>/`` for each learner: the lesson's student notebook and its inputs file.
 
+    Every folder is built in a temporary sibling of ``OUT`` and renamed into place at the end: a
+    release that fails (a full disk, Ctrl-C) leaves nothing, and nothing is written outside ``OUT``.
+
     Parameters
     ----------
     lesson : str or int
         The lesson.
     learners : sequence of str
-        The learners' ids.
+        The learners' ids (the roster's lines; see :func:`normalize_learner`).
     secret_path : str or os.PathLike
         The class secret's file.
     out_dir : str or os.PathLike
-        The folder to write into (its parent must exist).
+        The folder to create (its parent must exist; an existing one must be empty).
 
     Returns
     -------
     list of pathlib.Path
-        One folder per learner.
+        One folder per learner, named by their id.
 
     Raises
     ------
     ExerciseError
         For an unknown lesson.
     GradingError
-        For a missing secret or parent folder, an unusable learner id, or a learner listed twice.
+        For a missing secret or parent folder, an unusable learner id, two lines that are one
+        learner (both named), an output folder that is not empty, or a disk that refuses.
     """
     from . import exercises
 
-    secret = read_secret(secret_path)
     number = exercises.lesson_number(lesson)
-    out = Path(out_dir)
-    if not out.parent.is_dir():
-        raise GradingError(f"{out}: the folder {out.parent} does not exist; create it first")
-    ids = [normalize_learner(x) for x in learners]
-    if len(set(ids)) != len(ids):
-        raise GradingError("a learner is listed twice (ids are compared trimmed and in lower case)")
     notebook = Path(__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name(number)
-    made = []
-    for learner in ids:
-        folder = out / _folder_name(learner)
-        folder.mkdir(parents=True, exist_ok=True)
-        if notebook.is_file():
-            shutil.copyfile(notebook, folder / notebook.name)
-        write_text_atomic(folder / INPUTS_FILE, json.dumps(inputs_record(number, learner, secret)))
-        made.append(folder)
-    return made
-
-
-def _folder_name(learner: str) -> str:
-    return re.sub(r"[^a-z0-9._-]+", "_", learner)[:80] or "learner"
+    return _release.release(
+        number,
+        learners,
+        secret_path,
+        out_dir,
+        build=graded_questions,
+        notebook=notebook if notebook.is_file() else None,
+    )
 
 
 # ------------------------------------------------------------------------------------------------
@@ -212,13 +205,14 @@ def collect(namespace: dict, path: str = ANSWERS_FILE) -> None:
     Parameters
     ----------
     namespace : dict
-        The notebook's globals; the first :class:`~fidlearn.exercises.Lesson` in it is collected.
+        The notebook's globals; the first lesson (:class:`~fidlearn.exercises.GradedLesson` or
+        :class:`~fidlearn.exercises.Lesson`) in it is collected.
     path : str
         The answers file to write.
     """
-    from .exercises import Lesson
+    from .exercises import GradedLesson, Lesson
 
-    found = [v for v in namespace.values() if isinstance(v, Lesson)]
+    found = [v for v in namespace.values() if isinstance(v, (GradedLesson, Lesson))]
     answers = {}
     if found:
         for q in found[0]:
@@ -244,6 +238,9 @@ class NotebookGrade:
         Why it got 0 or took too long ("" when all went well).
     cell_errors : list of str
         The cells that raised (information only).
+    graded : bool
+        False for a notebook that was not run (unknown learner, handed in twice, another
+        learner's notebook) and for a roster's learner who handed in nothing.
     """
 
     notebook: str
@@ -252,6 +249,7 @@ class NotebookGrade:
     results: list = field(default_factory=list)
     problem: str = ""
     cell_errors: list = field(default_factory=list)
+    graded: bool = True
 
     @property
     def score(self) -> int:
@@ -270,6 +268,8 @@ class NotebookGrade:
         -------
         str
         """
+        if not self.graded:
+            return f"{self.notebook or '(no notebook)'}: learner {self.learner!r}, lesson {self.lesson}: {self.problem}"
         total = len(self.results)
         head = f"{self.notebook}: learner {self.learner!r}, lesson {self.lesson}: {self.score} of {total} correct"
         return head + (f" ({self.problem})" if self.problem else "")
@@ -378,12 +378,21 @@ def grade(
     csv_path,
     *,
     learner: str | None = None,
+    roster: Sequence[str] | None = None,
+    formats: Sequence[str] = (),
     timeout_s: int = 120,
     memory_mb: int = 3000,
     run_as: str | None = None,
     progress=None,
 ) -> list[NotebookGrade]:
-    """Grade a batch; the CSV (one row per question) is written whatever happens to any notebook.
+    """Grade a batch; the CSV (one row per question) is written once the whole batch is graded.
+
+    Each notebook is matched to its learner by the id its metadata carries (written by
+    :func:`release`), else ``learner``, else its file name. A notebook released to another
+    learner, for another lesson, of a learner not on the roster, or of a learner already graded
+    in this batch is not run: its row says why. With a roster, its learners who handed in
+    nothing get a row too. Whatever happens to a notebook, the batch goes on; an interrupted
+    batch (Ctrl-C, SIGTERM) writes nothing.
 
     Parameters
     ----------
@@ -396,7 +405,12 @@ def grade(
     csv_path : str or os.PathLike
         The CSV to write.
     learner : str, optional
-        One learner id for every notebook; default: each notebook's file name.
+        One learner id for every notebook; default: each notebook's metadata, else its file name.
+    roster : sequence of str, optional
+        The roster's lines (the file ``release`` used).
+    formats : sequence of str
+        Gradebook imports to write besides the CSV: ``"canvas"`` (``grades.canvas.csv``),
+        ``"moodle"`` (``grades.moodle.csv``).
     timeout_s, memory_mb, run_as
         As for :func:`grade_one`.
     progress : callable, optional
@@ -405,33 +419,57 @@ def grade(
     Returns
     -------
     list of NotebookGrade
+        One per notebook given, then one per roster learner who handed in nothing.
 
     Raises
     ------
     ExerciseError
         For an unknown lesson.
     GradingError
-        For a secret that cannot be read, or a ``run_as`` user who cannot run fidlearn.
+        For a secret that cannot be read, a roster or ``learner`` that cannot be used, or a
+        ``run_as`` user who cannot run fidlearn.
     """
     from . import exercises
 
     secret = read_secret(secret_path)
     number = exercises.lesson_number(lesson)
+    ids = _learners.read_roster(list(roster), "the roster") if roster is not None else None
+    matched = _gradebook.match(notebooks, number, learner, ids, secret)
     _preflight(_run_as(run_as), run_as)  # a user who cannot run this Python is refused before any notebook runs
     grades: list[NotebookGrade] = []
-    try:
-        for k, nb in enumerate(notebooks):
-            who = learner if learner is not None else learner_from_filename(nb)
+    for k, (nb, who, problem) in enumerate(matched):
+        if problem:
+            g = NotebookGrade(str(nb), who, number, [], problem, graded=False)
+        else:
             try:
                 g = grade_one(nb, number, who, secret, timeout_s=timeout_s, memory_mb=memory_mb, run_as=run_as)
             except FidlearnError as exc:
                 g = NotebookGrade(str(nb), who, number, [], f"0: {exc}")
-            grades.append(g)
-            if progress is not None:
-                progress(k + 1, len(notebooks), g)
-    finally:
-        _write_csv(csv_path, grades)
+        grades.append(g)
+        if progress is not None:
+            progress(k + 1, len(matched), g)
+    for who in _gradebook.missing(matched, ids):
+        grades.append(NotebookGrade("", who, number, [], "missing: no notebook was handed in", graded=False))
+    _write_all(csv_path, grades, number, [f for f in formats if f != "csv"])
     return grades
+
+
+def _write_all(csv_path, grades: list[NotebookGrade], number: str, formats: list[str]) -> None:
+    """The CSV and the gradebook imports, each atomically; all of them or (on a failure) none."""
+    from . import exercises
+
+    out_of = len(exercises.build_questions(number, "")) if formats else 0
+    scores = {g.learner: g.score if g.graded else None for g in grades if g.graded or g.notebook == ""}
+    written: list[Path] = []
+    try:
+        _write_csv(csv_path, grades)
+        written.append(Path(csv_path))
+        for fmt in formats:
+            written.append(_gradebook.write_lms(_gradebook.lms_path(csv_path, fmt), fmt, number, scores, out_of))
+    except BaseException:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
 
 
 def _write_csv(path, grades: list[NotebookGrade]) -> None:
@@ -439,8 +477,9 @@ def _write_csv(path, grades: list[NotebookGrade]) -> None:
     w = csv.writer(buf)
     w.writerow(["notebook", "learner", "lesson", "score", "question", "status", "message", "problem"])
     for g in grades:
+        score = g.score if g.graded else ""
         if not g.results:
-            w.writerow([g.notebook, g.learner, g.lesson, 0, "", "", "", g.problem])
+            w.writerow([g.notebook, g.learner, g.lesson, 0 if g.graded else "", "", "", "", g.problem])
         for q, status, message in g.results:
-            w.writerow([g.notebook, g.learner, g.lesson, g.score, q, status, message, g.problem])
+            w.writerow([g.notebook, g.learner, g.lesson, score, q, status, message, g.problem])
     write_text_atomic(path, buf.getvalue())

@@ -177,7 +177,7 @@ def test_the_learner_kernel_never_holds_the_key(tmp_path, monkeypatch):
     ex = exercises.lesson("03", "anyone")
     key = grading.graded_questions("03", "Alice", grading.read_secret(secret))
     for q, k in zip(ex, key):
-        assert q._expected is exercises._NO_KEY
+        assert isinstance(q, exercises.GradedQuestion) and not hasattr(q, "_expected")
         for name in k.inputs:
             a, b = q.inputs[name], k.inputs[name]
             if isinstance(a, np.ndarray):
@@ -252,8 +252,13 @@ def test_release_writes_the_student_notebook_and_the_inputs(tmp_path):
     folders = grading.release("3", ["Alice", "bob"], secret, tmp_path / "out")
     assert [f.name for f in folders] == ["alice", "bob"]
     student = Path(__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name("03")
+    source = nbformat.read(student, as_version=4)
     for folder in folders:
-        assert (folder / student.name).read_bytes() == student.read_bytes()
+        nb = nbformat.read(folder / student.name, as_version=4)
+        tag = grading._learners.release_tag(grading.read_secret(secret), "03", folder.name)
+        assert nb.metadata["fidlearn"] == {"lesson": "03", "learner": folder.name, "tag": tag}
+        assert [c.source for c in nb.cells if c.id != "ex03-graded"] == [c.source for c in source.cells]
+        assert not any(c.get("outputs") for c in nb.cells)
         record = json.loads((folder / grading.INPUTS_FILE).read_text())
         assert record["lesson"] == "03" and record["learner"] == folder.name and "q1" in record["questions"]
 

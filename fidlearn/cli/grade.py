@@ -8,6 +8,8 @@ from pathlib import Path
 
 from .. import grading
 from .._files import MAX_TEXT_BYTES, read_bytes
+from .._gradebook import lms_path
+from .._learners import read_roster
 from ..errors import UsageError
 from ._common import _check_output, _refuse_clobber
 
@@ -31,8 +33,13 @@ def add_release(sub) -> None:
     p.add_argument(
         "--secret-file", type=Path, required=True, help="the class secret ('fidlearn grade --new-secret FILE')"
     )
-    p.add_argument("--learners", type=Path, required=True, help="roster: one learner id per line")
-    p.add_argument("-o", "--output", type=Path, required=True, help="folder to write the learners' folders in")
+    p.add_argument(
+        "--learners",
+        type=Path,
+        required=True,
+        help="roster: one learner id per line (letters, digits, blanks, . _ - @ +; # starts a comment)",
+    )
+    p.add_argument("-o", "--output", type=Path, required=True, help="a new (or empty) folder for the learners' folders")
     p.set_defaults(run=run_release)
 
 
@@ -55,17 +62,22 @@ def run_release(args) -> int:
         A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
         as one ``error:`` line and exits with status 2.
     """
-    _, data = read_bytes(args.learners, UsageError, "roster", MAX_TEXT_BYTES)
-    learners = [
-        line.strip()
-        for line in data.decode("utf-8", "replace").splitlines()
-        if line.strip() and not line.startswith("#")
-    ]
-    if not learners:
-        raise UsageError(f"--learners {args.learners}: no learner ids (one per line)")
-    folders = grading.release(args.lesson, learners, args.secret_file, args.output)
+    lines = _roster_lines(args.learners, "--learners")
+    folders = grading.release(args.lesson, lines, args.secret_file, args.output)
     print(f"{len(folders)} learner folders in {args.output}/ (lesson {args.lesson}); hand each learner their own")
     return 0
+
+
+def _roster_lines(path: Path, option: str) -> list[str]:
+    """The roster's lines, checked: every id a safe name, no two lines one learner (with the lines named)."""
+    _, data = read_bytes(path, UsageError, "roster", MAX_TEXT_BYTES)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise UsageError(f"{option} {path}: not UTF-8 text (byte {exc.start}); save the roster as UTF-8") from None
+    lines = text.splitlines()
+    read_roster(lines, f"{option} {path}")
+    return lines
 
 
 def add_grade(sub) -> None:
@@ -92,11 +104,48 @@ def add_grade(sub) -> None:
         "--learner", help="the learner of every notebook given (default: each file's name, e.g. alice.ipynb)"
     )
     p.add_argument("-o", "--output", type=Path, help="grades.csv: one row per question")
+    p.add_argument(
+        "--roster",
+        type=Path,
+        metavar="FILE",
+        help="the roster release used: unknown and missing learners are reported, each learner graded once",
+    )
+    p.add_argument(
+        "--format",
+        choices=("csv", "canvas", "moodle"),
+        default="csv",
+        help="also write a gradebook import beside -o: canvas (grades.canvas.csv) or moodle (grades.moodle.csv)",
+    )
     p.add_argument("--timeout", type=int, default=120, help="seconds a notebook may run (default 120)")
     p.add_argument("--memory-mb", type=int, default=3000, help="memory a notebook may use, MB (default 3000)")
     p.add_argument("--run-as", metavar="USER", help="run notebooks as this user (default 'nobody' when root)")
     p.add_argument("--new-secret", type=Path, metavar="FILE", help="create a class secret in FILE and stop")
     p.set_defaults(run=run_grade)
+
+
+def _checked_grade_args(args) -> tuple[Path, list[str] | None]:
+    """The CSV to write and the roster's lines, once every option of ``grade`` is checked."""
+    missing = [
+        opt
+        for opt, v in (("--lesson", args.lesson), ("--secret-file", args.secret_file), ("-o", args.output))
+        if v is None
+    ]
+    if missing or not args.notebooks:
+        raise UsageError(
+            "give the notebooks, --lesson, --secret-file and -o grades.csv"
+            if not missing
+            else f"{missing[0]} is required to grade"
+        )
+    out = _check_output(args.output, (".csv",))
+    if not 5 <= args.timeout <= 3600 or not 200 <= args.memory_mb <= 65536:
+        raise UsageError("--timeout is 5 to 3600 s and --memory-mb 200 to 65536")
+    roster = _roster_lines(args.roster, "--roster") if args.roster is not None else None
+    outputs = [("-o", out)] + ([("--format", lms_path(out, args.format))] if args.format != "csv" else [])
+    _refuse_clobber(outputs, [*args.notebooks, args.secret_file, *([args.roster] if args.roster else [])])
+    for nb in args.notebooks:
+        if not nb.is_file():
+            raise UsageError(f"{nb}: no such notebook; give the learners' .ipynb files")
+    return out, roster
 
 
 def run_grade(args) -> int:
@@ -122,24 +171,7 @@ def run_grade(args) -> int:
         grading.new_secret(args.new_secret)
         print(f"{args.new_secret}: a new class secret; keep it private (it decides every learner's numbers)")
         return 0
-    missing = [
-        opt
-        for opt, v in (("--lesson", args.lesson), ("--secret-file", args.secret_file), ("-o", args.output))
-        if v is None
-    ]
-    if missing or not args.notebooks:
-        raise UsageError(
-            "give the notebooks, --lesson, --secret-file and -o grades.csv"
-            if not missing
-            else f"{missing[0]} is required to grade"
-        )
-    out = _check_output(args.output, (".csv",))
-    if not 5 <= args.timeout <= 3600 or not 200 <= args.memory_mb <= 65536:
-        raise UsageError("--timeout is 5 to 3600 s and --memory-mb 200 to 65536")
-    _refuse_clobber([("-o", out)], [*args.notebooks, args.secret_file])
-    for nb in args.notebooks:
-        if not nb.is_file():
-            raise UsageError(f"{nb}: no such notebook; give the learners' .ipynb files")
+    out, roster = _checked_grade_args(args)
     if os.geteuid() != 0 and args.run_as is None:
         print(
             "warning: grading as your own user: a notebook can read what you can; see docs/teaching.md", file=sys.stderr
@@ -154,10 +186,17 @@ def run_grade(args) -> int:
         args.secret_file,
         out,
         learner=args.learner,
+        roster=roster,
+        formats=(args.format,),
         timeout_s=args.timeout,
         memory_mb=args.memory_mb,
         run_as=args.run_as,
         progress=progress,
     )
-    print(f"{len(grades)} notebooks graded; grades in {out}")
+    counted = sum(1 for g in grades if g.graded)
+    others = [g.problem for g in grades if not g.graded]
+    extra = f" and {lms_path(out, args.format)}" if args.format != "csv" else ""
+    print(f"{counted} notebooks graded; grades in {out}{extra}")
+    if others:
+        print(f"{len(others)} not graded (the CSV says why): " + "; ".join(others[:5]))
     return 0

@@ -53,7 +53,6 @@ from ..errors import ExerciseError
 # the attribute ``fidlearn.exercises.lessons``, which is the function :func:`lessons` below.
 from . import lessons as _lesson_modules  # noqa: F401  (registers the lessons)
 from ._cli import _main as _main
-from ._engine import _NO_KEY as _NO_KEY
 from ._engine import (
     BEGIN_SOLUTION,
     CORRECT,
@@ -71,6 +70,7 @@ from ._engine import (
 )
 from ._engine import _AnswerError as _AnswerError
 from ._grade import Grade, grade_notebook
+from ._graded import GradedLesson, GradedQuestion
 from ._notebooks import answer_key_notebook, solution_blocks, student_copy
 from ._registry import _LESSONS as _LESSONS
 from ._registry import (
@@ -98,6 +98,8 @@ __all__ = [
     "ExerciseError",
     "Inputs",
     "Lesson",
+    "GradedLesson",
+    "GradedQuestion",
     "Question",
     "Result",
     "lesson",

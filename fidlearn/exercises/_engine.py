@@ -28,9 +28,6 @@ NOT_ATTEMPTED = "Not attempted"
 RECORDED = "Recorded"
 
 
-_NO_KEY = object()  # a graded question's answer key: never in the learner's kernel
-
-
 #: The imports every exercise notebook starts with; solution code may use these names.
 SETUP_CODE = "import math\nimport numpy as np\nimport cv2\nimport fidlearn\nfrom fidlearn import exercises, frames"
 
@@ -196,7 +193,7 @@ class Question:
     inputs : dict
         The data to compute from, shown as :class:`Inputs`.
     expected : object
-        The answer key, in the form ``parse`` gives (``_NO_KEY`` in a graded lesson).
+        The answer key, in the form ``parse`` gives.
     parse : callable
         Reads a learner's answer into that form, or raises ``_AnswerError`` saying why not.
     compare : callable
@@ -276,8 +273,7 @@ class Question:
         Returns
         -------
         Result
-            ``Not attempted`` for ``...`` or None, ``Recorded`` in a graded lesson, else ``Correct`` or
-            ``Incorrect`` with the message.
+            ``Not attempted`` for ``...`` or None, else ``Correct`` or ``Incorrect`` with the message.
         """
         if answer is _MISSING:
             answer = self.answer
@@ -296,8 +292,6 @@ class Question:
             value = self._parse(answer)
         except _AnswerError as exc:
             return Result(self.name, INCORRECT, str(exc))
-        if self._expected is _NO_KEY:
-            return Result(self.name, RECORDED, "the answer has the right form; your instructor's grader judges it")
         diff = self._compare(value, self._expected)
         if diff is None:
             msg = "well done"
@@ -363,13 +357,7 @@ class Question:
         print(f"Hint ({self.name}, {k + 1} of {n}): {self._hints[k]}{more}")
 
     def solution(self) -> None:
-        """Print one way to solve it: code that, run in the notebook, makes ``check()`` say Correct.
-
-        In a graded lesson it says that the solution is not shown.
-        """
-        if self._expected is _NO_KEY:
-            print(f"Solution ({self.name}): not while the lesson is graded; q.hint() still helps")
-            return
+        """Print one way to solve it: code that, run in the notebook, makes ``check()`` say Correct."""
         print(f"Solution ({self.name}), one way to do it:\n")
         print(self.solution_code)
 

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from .._learners import fold_learner
 from ..errors import ExerciseError
-from ._engine import _NO_KEY, Inputs, Question, Result
+from ._engine import Question, Result
+from ._graded import GradedLesson
 from ._scenery import _SEED
 
 
@@ -43,10 +44,6 @@ class Lesson:
         The registered lesson (number, topic, title, introduction, builder).
     learner : str
         The learner's id ("" for the class's shared variant).
-    graded : bool
-        A graded lesson's shell: its questions keep their parsers (to record an answer's form)
-        and get no key. Otherwise each question is checked against a copy built for the check, so
-        the learner's question object holds no answer key.
 
     Attributes
     ----------
@@ -55,15 +52,14 @@ class Lesson:
         In notebook order; each is also an attribute (``ex.q1``).
     """
 
-    def __init__(self, info: _LessonInfo, learner: str, graded: bool = False):
+    def __init__(self, info: _LessonInfo, learner: str):
         self.number = info.number
         self.topic = info.topic
         self.title = info.title
         self.intro = info.intro
         self.learner = learner
         self.questions: list[Question] = [
-            q._fresh() if graded else q._fresh(functools.partial(_judge, info.number, learner, q.name))
-            for q in _built(info.number, learner)
+            q._fresh(functools.partial(_judge, info.number, learner, q.name)) for q in _built(info.number, learner)
         ]
         for q in self.questions:
             setattr(self, q.name, q)
@@ -138,11 +134,12 @@ def lessons() -> dict[str, str]:
     return {k: v.topic for k, v in sorted(_LESSONS.items())}
 
 
-def lesson(number: str | int, learner: str | None = None) -> Lesson:
+def lesson(number: str | int, learner: str | None = None) -> Lesson | GradedLesson:
     """The exercises of lesson ``number`` (``"01"`` ... ``"11"``) for a learner.
 
     In a folder holding a graded lesson's inputs file (``fidlearn_inputs.json``, written by
-    ``fidlearn release``), the questions come from that file and without their answers.
+    ``fidlearn release``), it is a :class:`GradedLesson` built from that file alone: inputs,
+    ``check()`` that records the answer and ``hint()``; no solution, no checker, no key.
 
     Parameters
     ----------
@@ -156,7 +153,7 @@ def lesson(number: str | int, learner: str | None = None) -> Lesson:
 
     Returns
     -------
-    Lesson
+    Lesson or GradedLesson
         Its questions, fresh (no answers yet).
 
     Raises
@@ -208,7 +205,8 @@ def lesson_number(number: str | int) -> str:
     >>> lesson_number(3)
     '03'
     """
-    key = f"{int(number):02d}" if str(number).strip().isdigit() and len(str(number).strip()) < 4 else str(number)
+    text = str(number).strip()
+    key = f"{int(text):02d}" if text.isascii() and text.isdigit() and len(text) < 4 else str(number)
     if key not in _LESSONS:
         raise ExerciseError(f"no exercises for lesson {number!r}; available: {', '.join(sorted(_LESSONS))}")
     return key
@@ -244,16 +242,17 @@ def build_questions(number: str, learner: str, seed: Callable[[str], int] | None
         _SEED.reset(token)
 
 
-def _graded_lesson(key: str, path: Path) -> Lesson:
-    """A lesson whose inputs come from the grader's file and whose answers stay with the grader."""
+def _graded_lesson(key: str, path: Path) -> GradedLesson:
+    """A lesson whose inputs come from the grader's file: no question with a key is ever built here."""
     from .._plain import from_plain
 
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
-        questions = {
-            name: {k: from_plain(v) for k, v in inputs.items()} for name, inputs in record["questions"].items()
-        }
-        lesson_of_file, learner = str(record["lesson"]), str(record["learner"])
+        given = record["questions"].items()
+        record["questions"] = {str(name): {str(k): from_plain(v) for k, v in inputs.items()} for name, inputs in given}
+        lesson_of_file = str(record["lesson"])
+        info = _LESSONS[key]
+        shell = GradedLesson(record, info.topic, info.title, info.intro)
     except Exception as exc:  # noqa: BLE001 - a damaged inputs file: say so in one line
         raise ExerciseError(
             f"{path} is damaged ({type(exc).__name__}); ask your instructor for your lesson's files again"
@@ -263,12 +262,6 @@ def _graded_lesson(key: str, path: Path) -> Lesson:
             f"this folder holds the inputs of lesson {lesson_of_file}, not {key}: "
             f"use exercises.lesson({lesson_of_file!r})"
         )
-    shell = Lesson(_LESSONS[key], "graded", graded=True)
-    shell.learner = learner
-    for q in shell.questions:
-        q.inputs = Inputs(**questions.get(q.name, {}))
-        q.data = q.inputs
-        q._expected = _NO_KEY
     return shell
 
 
