@@ -223,6 +223,8 @@ def run_notebook(notebook: Path, inputs_json: str | None, plan: Plan, timeout_s:
         _scratch_copy(scratch, notebook, inputs_json, plan)
         cfg = _config(plan, timeout_s, memory_mb, scratch)
         how, channel, _ = _launch(plan, scratch, cfg, wall_s=timeout_s + 60, env=env)
+    except OSError as exc:
+        raise _Zero(f"its sandbox could not be started ({exc.strerror or exc})") from None
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     head, _, answers = channel.partition(b"\n")
