@@ -36,7 +36,10 @@ def as_unprivileged(uid: int, gid: int, paths: list[Path]) -> list[str] | None:
     cmd = [bwrap, "--dev-bind", "/", "/", "--die-with-parent"]
     for folder in sorted(closed, key=lambda p: len(p.parts)):
         cmd += ["--perms", "0755", "--tmpfs", str(folder)]
-    for path in paths:
-        if any(c in path.resolve().parents for c in closed):
-            cmd += ["--ro-bind", str(path.resolve()), str(path.resolve())]
+    inside = sorted({p.resolve() for p in paths if any(c in p.resolve().parents for c in closed)})
+    above = {a for p in inside for c in closed if c in p.parents for a in p.parents if c in a.parents}
+    for folder in sorted(above, key=lambda p: len(p.parts)):  # the folders between, open to others
+        cmd += ["--perms", "0755", "--dir", str(folder)]
+    for path in inside:
+        cmd += ["--ro-bind", str(path), str(path)]
     return [*cmd, setpriv, f"--reuid={uid}", f"--regid={gid}", "--clear-groups", "--"]

@@ -12,7 +12,9 @@ eating memory. Graded as the tests run (root in CI: notebooks as nobody in bubbl
 from __future__ import annotations
 
 import csv
+import json
 import os
+import pwd
 import random
 import re
 import resource
@@ -21,10 +23,12 @@ import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import nbformat
 import pytest
+from helpers import as_unprivileged, python_paths
 
 from fidlearn import _box, _sandbox, grading
 
@@ -269,3 +273,38 @@ def test_answers_are_read_with_strict_bounds():
     for data, why in bad.items():
         with pytest.raises(_sandbox._Zero, match=re.escape(why)):
             _sandbox.read_answers(data, names)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(as_unprivileged(0, 0, []) is None, reason="needs root, bubblewrap and setpriv to become nobody")
+def test_an_ordinary_user_grades_in_a_box_that_hides_their_own_secret():
+    """Graded by an ordinary user (nobody here), notebooks run as that user yet see neither secret nor class."""
+    nobody = pwd.getpwnam("nobody")
+    work = Path(tempfile.mkdtemp(prefix="fidlearn-user-class-"))
+    try:
+        subs = work / "submissions"
+        subs.mkdir()
+        secret = grading.new_secret(work / "class.secret")
+        shutil.copyfile(KEY, subs / "honest.ipynb")
+        nb = nbformat.read(STUDENT, as_version=4)
+        pre = f"SECRET = {str(secret)!r}\nSUBMISSIONS = {str(subs)!r}\nTOKEN = {TOKEN!r}\n"
+        nb.cells.append(nbformat.v4.new_code_cell(pre + CHEATS["reads"]))
+        nbformat.write(nb, subs / "reader.ipynb")
+        for p in (work, subs, secret, *subs.iterdir()):
+            os.chown(p, nobody.pw_uid, nobody.pw_gid)
+        script = (
+            "import json, sys\nfrom fidlearn import grading\n"
+            f"gs = grading.grade(sorted(__import__('glob').glob({str(subs)!r} + '/*.ipynb')), '03', "
+            f"{str(secret)!r}, {str(work / 'g.csv')!r}, timeout_s=60)\n"
+            "print(json.dumps({g.learner: [g.score, g.cell_errors[-1:], g.problem] for g in gs}))\n"
+        )
+        cmd = as_unprivileged(nobody.pw_uid, nobody.pw_gid, python_paths())
+        cmd += ["env", f"PYTHONPATH={ROOT}", f"HOME={work}", f"FIDLEARN_TEST_MARK={TOKEN}"]
+        cmd += [sys.executable, "-c", script]
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=work)
+        assert out.returncode == 0, out.stderr[-2000:]
+        got = json.loads(out.stdout.strip().splitlines()[-1])
+        assert got["honest"][0] == 5 and got["reader"][0] == 0, got
+        assert "found 0: []" in got["reader"][1][0], got
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
