@@ -8,6 +8,11 @@ it, lowers its limits (CPU time, memory, processes, open files, file size), drop
 notebook's user when the grader is root, executes the notebook and sends the answers back through
 a pipe. When the runner ends, the kernel tears its process namespace down: nothing a notebook
 started outlives its grading.
+
+As root, bubblewrap runs without a user namespace and the runner itself becomes the notebook's
+user: ``bwrap --unshare-user --uid 65534`` would only rename root inside the box (the process
+would still own, and read, root's files), whereas ``setuid`` makes it the real ``nobody``. Its
+own user namespace, made afterwards, gives the box a process count of its own.
 """
 
 from __future__ import annotations
