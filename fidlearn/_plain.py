@@ -16,6 +16,8 @@ import numpy as np
 
 #: Deepest nesting of an answer.
 MAX_DEPTH = 32
+#: Most items of an array read back.
+MAX_ARRAY_ITEMS = 50_000_000
 
 
 def to_plain(value: Any, depth: int = 0) -> Any:
@@ -127,11 +129,15 @@ def from_plain(value: Any, depth: int = 0) -> Any:
 
 def _array_from_plain(value: dict) -> np.ndarray:
     """A tagged array (base64 of its bytes, dtype, shape) back as an array of its own."""
-    dtype = np.dtype(str(value["dtype"]))
-    shape = tuple(int(n) for n in value["shape"])
-    if dtype.kind not in _ARRAY_KINDS or len(shape) > 8 or any(n < 0 for n in shape) or math.prod(shape) > 50_000_000:
+    shape, text = value.get("shape"), value.get("__array__")
+    if not isinstance(value.get("dtype"), str) or not isinstance(shape, list) or not isinstance(text, str):
         raise ValueError("not an array fidlearn reads")
-    raw = base64.b64decode(value["__array__"], validate=True)
+    if len(shape) > 8 or not all(type(n) is int and 0 <= n <= MAX_ARRAY_ITEMS for n in shape):
+        raise ValueError("an array's shape is up to 8 whole numbers, each 0 or more")
+    dtype = np.dtype(value["dtype"])
+    if dtype.kind not in _ARRAY_KINDS or math.prod(shape) > MAX_ARRAY_ITEMS:
+        raise ValueError("not an array fidlearn reads")
+    raw = base64.b64decode(text, validate=True)
     if len(raw) != math.prod(shape) * dtype.itemsize:
         raise ValueError("array size does not match its shape")
     return np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
@@ -145,11 +151,15 @@ def _tagged_from_plain(tag: str, body: Any, depth: int) -> Any:
 
     if tag == "__float__":
         return float(body) if body in ("nan", "inf", "-inf") else _bad(tag)
+    if tag in ("__tuple__", "__dict__", "__detection__") and not isinstance(body, list):
+        raise ValueError(f"{tag} holds a list")
     if tag == "__tuple__":
         return tuple(from_plain(v, depth + 1) for v in body)
     if tag == "__dict__":
         out = {}
         for item in body:
+            if not isinstance(item, list) or len(item) != 2:
+                raise ValueError("a __dict__ item is a [key, value] pair")
             k = from_plain(item[0], depth + 1)
             out[k if not isinstance(k, list) else tuple(k)] = from_plain(item[1], depth + 1)
         return out
@@ -158,7 +168,9 @@ def _tagged_from_plain(tag: str, body: Any, depth: int) -> Any:
     if tag == "__map__":
         return MarkerMap.from_dict(body, source="an answer")
     if tag == "__detection__":
-        return Detection(int(body[0]), from_plain(body[1], depth + 1))
+        if len(body) != 2 or type(body[0]) is not int:
+            raise ValueError("a __detection__ is [id, corners]")
+        return Detection(body[0], from_plain(body[1], depth + 1))
     if tag == "__unsupported__":
         return _Unsupported(str(body)[:80])
     return _bad(tag)

@@ -1,25 +1,29 @@
 """The sandbox a submitted notebook runs in (see :mod:`fidlearn.grading`).
 
-A notebook runs in a process of its own, in a scratch copy of its folder, with a time limit, a
-memory limit, an environment without the instructor's variables and, when the grader is root, as
-an unprivileged user; a cell appended to it writes the learner's answers as plain data, which the
-grader reads back here (strict JSON, bounded).
+Each notebook runs in a box of its own (:mod:`fidlearn._box`): with bubblewrap, a root of its own
+that holds only the system, the Python and fidlearn (read-only) and a size-limited scratch
+folder, no network, its own process namespace (everything it started dies with it), resource
+limits, an environment without the instructor's variables and, when the grader is root, the
+user ``nobody``. Without bubblewrap it runs as a plain process of that user, in a scratch folder
+(see docs/teaching.md for what that does not guarantee). A cell appended to the notebook writes
+its answers as plain data, which the grader reads back here with strict bounds.
 """
 
 from __future__ import annotations
 
-import contextlib
+import functools
 import json
+import math
 import os
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
+from . import _box
 from ._plain import from_plain
-from .errors import FidlearnError, GradingError
+from .errors import GradingError
 
 #: The inputs file a released notebook works with.
 INPUTS_FILE = "fidlearn_inputs.json"
@@ -34,189 +38,249 @@ COLLECT_CELL = (
     "_fl_grading.collect(globals())\n"
 )
 
-
-def _run_as(user: str | None):
-    """(uid, gid) to run kernels as: the named user, or 'nobody' when the grader is root; None otherwise
-    (and for ``""``: the grader's own user, as a self-study check does)."""
-    if user == "" or (os.geteuid() != 0 and user is None):
-        return None
-    import pwd
-
-    name = user or "nobody"
-    try:
-        entry = pwd.getpwnam(name)
-    except KeyError:
-        raise GradingError(f"--run-as {name}: no such user; create one (useradd --system {name})") from None
-    if os.geteuid() != 0 and entry.pw_uid != os.geteuid():
-        raise GradingError(f"--run-as {name} needs the grader to run as root")
-    return entry.pw_uid, entry.pw_gid
+_FIX = "install bubblewrap (apt-get install bubblewrap) or pass --run-as a user who can run that Python"
 
 
-def _limits(memory_mb: int, ids):
-    def apply() -> None:
-        import resource
+@dataclass(frozen=True)
+class Plan:
+    """How notebooks run: as whom (``ids`` None: the grader's own user), in a box or not, and what to warn."""
 
-        os.setsid()
-        limit = memory_mb * 1024 * 1024
-        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-        if ids is not None:
-            os.setgroups([])
-            os.setgid(ids[1])
-            os.setuid(ids[0])
-
-    return apply
-
-
-#: The program a notebook runs under, in its own process: execute it, keep going after errors.
-_RUNNER = r"""
-import sys, nbformat
-from nbclient import NotebookClient
-nb = nbformat.read(sys.argv[1], as_version=4)
-nb.cells.append(nbformat.v4.new_code_cell(sys.argv[3]))
-client = NotebookClient(nb, timeout=int(sys.argv[2]), kernel_name="python3", allow_errors=True,
-                        resources={"metadata": {"path": "."}})
-try:
-    client.execute()
-    nbformat.write(nb, "executed.ipynb")
-except Exception as exc:
-    kind = type(exc).__name__
-    said = "timeout" if "Timeout" in kind else "dead" if "Dead" in kind else kind
-    print("FIDLEARN-RUNNER " + said, file=sys.stderr)
-    sys.exit(3)
-"""
-
-
-def _clean_env(home: Path) -> dict:
-    """The kernel's whole environment: nothing of the instructor's (tokens, paths, FIDLEARN_*)."""
-    env = {
-        "PATH": os.defpath,
-        "HOME": str(home),
-        "LANG": "C.UTF-8",
-        "PYTHONDONTWRITEBYTECODE": "1",
-        "MPLBACKEND": "Agg",
-        "JUPYTER_RUNTIME_DIR": str(home / ".runtime"),
-        "JUPYTER_CONFIG_DIR": str(home / ".jupyter"),
-        "IPYTHONDIR": str(home / ".ipython"),
-    }
-    here = str(Path(__file__).resolve().parent.parent)
-    env["PYTHONPATH"] = here  # fidlearn itself, wherever it was installed from
-    return env
-
-
-def _read_answers(path: Path) -> dict:
-    from ._files import read_bytes
-
-    _, data = read_bytes(path, GradingError, "answers", MAX_ANSWERS_BYTES)
-    record = json.loads(data.decode("utf-8"))
-    if not isinstance(record, dict) or not isinstance(record.get("answers"), dict):
-        raise ValueError("not an answers record")
-    return {str(k): v for k, v in record["answers"].items()}
+    user: str
+    ids: tuple | None
+    bwrap: str | None
+    warning: str = ""
 
 
 class _Zero(Exception):
     """A notebook that earns 0: the message says why (the grade's ``problem``, after ``0: ``)."""
 
 
-def _scratch_copy(scratch: Path, notebook: Path, inputs_json: str | None, ids) -> tuple[Path, Path]:
-    """The scratch folders ``work`` (the notebook and, when graded, its inputs file) and ``home``."""
-    work, home = scratch / "work", scratch / "home"
-    work.mkdir()
-    home.mkdir()
+def _run_as(user: str | None) -> tuple[str, tuple | None]:
+    """(name, (uid, gid)) of the notebooks' user: ``user``, or nobody when the grader is root; ids None
+    for the grader's own user."""
+    import pwd
+
+    if user is not None and not user.strip():
+        raise GradingError("--run-as needs a user's name (without it, notebooks run as nobody when graded as root)")
+    if user is None and os.geteuid() != 0:
+        return pwd.getpwuid(os.geteuid()).pw_name, None
+    name = user or "nobody"
     try:
-        shutil.copyfile(notebook, work / "submission.ipynb")
+        entry = pwd.getpwnam(name)
+    except KeyError:
+        raise GradingError(f"--run-as {name}: no such user; give an existing user (e.g. nobody)") from None
+    if os.geteuid() != 0:
+        if entry.pw_uid != os.geteuid():
+            raise GradingError(f"--run-as {name} needs the grader to run as root")
+        return name, None
+    return name, (entry.pw_uid, entry.pw_gid)
+
+
+@functools.lru_cache(maxsize=8)
+def sandbox_plan(run_as: str | None = None) -> Plan:
+    """How this machine runs notebooks for ``run_as``: in bubblewrap when it works, else plainly.
+
+    Raises GradingError when neither works (the notebooks' user cannot run this Python).
+    """
+    name, ids = _run_as(run_as)
+    warning = ""
+    if ids is not None and ids[0] == 0:
+        warning = f"--run-as {name}: notebooks run as root and can read the class secret and every file here"
+    bwrap = _box.bwrap_path()
+    why = "bubblewrap is not installed"
+    if bwrap is not None:
+        failed = _check(Plan(name, ids, bwrap))
+        if not failed:
+            return Plan(name, ids, bwrap, warning)
+        why = f"bubblewrap cannot make a sandbox here ({failed})"
+    failed = _check(Plan(name, ids, None))
+    if failed:
+        raise GradingError(f"the user {name} cannot run {sys.executable} ({failed}); {_FIX}")
+    if not warning:
+        reach = "what you can (the class secret included)" if ids is None else f"every file {name} can"
+        warning = f"{why}: notebooks are not boxed and can read {reach}; install bubblewrap: apt-get install bubblewrap"
+    return Plan(name, ids, None, warning)
+
+
+def _check(plan: Plan) -> str:
+    """ "" when ``plan``'s user can run this Python with fidlearn and Jupyter in its box; else why not."""
+    try:
+        how, channel, output = _launch(plan, None, _config(plan, 60, 2000, check=True), wall_s=120)
+    except OSError as exc:
+        where = _closed_folder(os.path.realpath(sys.executable), plan.ids)
+        return f"{exc.strerror or exc}: {where or exc.filename}"
+    if channel.startswith(b'{"status": "ok"'):
+        return ""
+    lines = output.decode("utf-8", "replace").strip().splitlines()
+    return (lines or [f"it {how} without a word"])[-1][:160]
+
+
+def _closed_folder(path: str, ids) -> str:
+    """The first folder above ``path`` that others cannot enter (for the message), or ""."""
+    if ids is None:
+        return ""
+    for folder in reversed(Path(os.path.abspath(path)).parents):
+        st = folder.stat()
+        if not st.st_mode & 0o001 and st.st_uid != ids[0]:
+            return f"{folder} is closed to others (mode {st.st_mode & 0o777:o})"
+    return ""
+
+
+def _clean_env(home: str) -> dict:
+    """The kernel's whole environment: nothing of the instructor's (tokens, paths, FIDLEARN_*)."""
+    return {
+        "PATH": os.defpath,
+        "HOME": home,
+        "LANG": "C.UTF-8",
+        "PYTHONDONTWRITEBYTECODE": "1",
+        "MPLBACKEND": "Agg",
+        "JUPYTER_RUNTIME_DIR": f"{home}/.runtime",
+        "JUPYTER_CONFIG_DIR": f"{home}/.jupyter",
+        "IPYTHONDIR": f"{home}/.ipython",
+        "PYTHONPATH": str(Path(__file__).resolve().parent.parent),  # fidlearn itself, wherever it is
+    }
+
+
+def _config(plan: Plan, timeout_s: int, memory_mb: int, scratch: Path | None = None, check: bool = False) -> dict:
+    """The runner's settings: where its folders are, its user, its limits."""
+    if plan.bwrap is not None:
+        work, home, inbox = f"{_box.BOX_TMP}/work", f"{_box.BOX_TMP}/home", _box.BOX_IN
+    else:
+        base = scratch if scratch is not None else Path(tempfile.gettempdir())
+        work, home = str(base / "work"), str(base / "home")
+        inbox = work
+    return {
+        "fd": "{fd}",
+        "uid": plan.ids[0] if plan.ids and plan.bwrap else None,
+        "gid": plan.ids[1] if plan.ids and plan.bwrap else None,
+        "limits": _box.limits(memory_mb, timeout_s),
+        "work": work,
+        "home": home,
+        "inbox": inbox,
+        "timeout": max(5, timeout_s),
+        "cell": COLLECT_CELL,
+        "answers": ANSWERS_FILE,
+        "max_answers": MAX_ANSWERS_BYTES,
+        "check": check,
+    }
+
+
+def _launch(plan: Plan, scratch: Path | None, cfg: dict, *, wall_s: float, env: dict | None = None):
+    """Run the runner with ``cfg`` as ``plan`` says; (how it ended, channel bytes, output bytes)."""
+    env = dict(_clean_env(cfg["home"]), **(env or {}))
+    args = [sys.executable, "-c", _box.RUNNER, json.dumps(cfg).replace('"{fd}"', "{fd}")]
+    cap = MAX_ANSWERS_BYTES + 100_000
+    if plan.bwrap is not None:
+        inbox = scratch / "in" if scratch is not None else Path(tempfile.mkdtemp(prefix="fidlearn-grade-check-"))
+        inbox.chmod(0o755)
+        try:
+            cmd = _box.bwrap_command(plan.bwrap, inbox, env) + args
+            return _box.run_bounded(cmd, wall_s=wall_s, max_channel=cap)
+        finally:
+            if scratch is None:
+                shutil.rmtree(inbox, ignore_errors=True)
+    home = Path(cfg["home"])
+    if scratch is None:  # the check: a home of its own for the user
+        home = Path(tempfile.mkdtemp(prefix="fidlearn-grade-check-"))
+        cfg = dict(cfg, work=str(home / "work"), home=str(home / "home"), inbox=str(home / "work"))
+        env = dict(_clean_env(cfg["home"]))
+        args[-1] = json.dumps(cfg).replace('"{fd}"', "{fd}")
+    user = {} if plan.ids is None else {"user": plan.ids[0], "group": plan.ids[1], "extra_groups": []}
+    try:
+        if plan.ids is not None:
+            os.chown(home if scratch is None else scratch, *plan.ids)
+        return _box.run_bounded(args, wall_s=wall_s, max_channel=cap, cwd="/", env=env, **user)
+    finally:
+        if scratch is None:
+            shutil.rmtree(home, ignore_errors=True)
+
+
+def _scratch_copy(scratch: Path, notebook: Path, inputs_json: str | None, plan: Plan) -> None:
+    """Lay out the scratch folder: ``in/`` (bubblewrap) or ``work/`` and ``home/`` (plain)."""
+    inbox = scratch / ("in" if plan.bwrap else "work")
+    inbox.mkdir()
+    try:
+        shutil.copyfile(notebook, inbox / "submission.ipynb")
     except OSError as exc:
         raise _Zero(f"the notebook cannot be read ({exc.strerror})") from None
     if inputs_json is not None:
-        (work / INPUTS_FILE).write_text(inputs_json, encoding="utf-8")
-    if ids is not None:
-        for p in (scratch, work, home, *work.iterdir()):
-            os.chown(p, *ids)
-    return work, home
+        (inbox / INPUTS_FILE).write_text(inputs_json, encoding="utf-8")
+    if plan.bwrap:  # bound read-only in the box; the folder above it stays closed
+        inbox.chmod(0o755)
+        for p in inbox.iterdir():
+            p.chmod(0o644)
+        return
+    (scratch / "home").mkdir()
+    if plan.ids is not None:
+        for p in (scratch, inbox, scratch / "home", *inbox.iterdir()):
+            os.chown(p, *plan.ids)
 
 
-def _run_and_collect(work: Path, env: dict, timeout_s: int, memory_mb: int, ids) -> dict:
-    """Run ``work/submission.ipynb`` in a process of its own and read back its answers (plain data)."""
-    cmd = [sys.executable, "-c", _RUNNER, "submission.ipynb", str(max(5, timeout_s)), COLLECT_CELL]
-    proc = None
+def run_notebook(notebook: Path, inputs_json: str | None, plan: Plan, timeout_s: int, memory_mb: int, env=None):
+    """Run one notebook in its box; (answers as plain data parsed, cell errors). Raises _Zero."""
+    scratch = Path(tempfile.mkdtemp(prefix="fidlearn-grade-"))
     try:
-        proc = subprocess.Popen(
-            cmd,
-            cwd=work,
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            preexec_fn=_limits(memory_mb, ids),
-        )
-        try:
-            _, err = proc.communicate(timeout=timeout_s + 60)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
-            raise _Zero(f"the notebook ran longer than {timeout_s} s and was stopped") from None
+        _scratch_copy(scratch, notebook, inputs_json, plan)
+        cfg = _config(plan, timeout_s, memory_mb, scratch)
+        how, channel, _ = _launch(plan, scratch, cfg, wall_s=timeout_s + 60, env=env)
+    except OSError as exc:
+        raise _Zero(f"its sandbox could not be started ({exc.strerror or exc})") from None
     finally:
-        _kill_group_leftovers(proc)
-    answers_path = work / ANSWERS_FILE
-    if not answers_path.is_file() or answers_path.is_symlink():
-        said = [ln for ln in err.decode("utf-8", "replace").splitlines() if ln.startswith("FIDLEARN-RUNNER ")]
-        kind = said[-1].split(" ", 1)[1] if said else ""
+        shutil.rmtree(scratch, ignore_errors=True)
+    head, _, answers = channel.partition(b"\n")
+    try:
+        said = json.loads(head.decode("utf-8")) if len(head) < 100_000 else {}
+        status, errors = str(said["status"]), [str(e)[:200] for e in said["cell_errors"]][:50]
+    except (ValueError, TypeError, KeyError, RecursionError):
+        if how == "timeout":
+            raise _Zero(f"the notebook ran longer than {timeout_s} s and was stopped") from None
+        raise _Zero("it stopped before its answers were collected (no reason given)") from None
+    if status != "ok":
         why = {
             "timeout": f"a cell ran longer than {timeout_s} s and was stopped",
-            "dead": "its kernel died (it used more than the memory limit, or killed or exited itself)",
-        }.get(kind, f"it stopped before its answers were collected ({kind or 'no reason given'})")
+            "dead": "its kernel died (it used more than a limit, or killed or exited itself)",
+        }.get(status, f"it stopped before its answers were collected ({status[:60]})")
         raise _Zero(f"{why}; no answers were collected")
-    try:
-        raw = _read_answers(answers_path)
-        return {name: from_plain(value) for name, value in raw.items()}
-    except (ValueError, TypeError, KeyError, RecursionError, FidlearnError) as exc:
-        raise _Zero(f"its answers are not plain data ({str(exc)[:80]})") from None
+    return answers, errors
 
 
-def _preflight(ids, run_as: str | None) -> None:
-    """The notebooks' user must be able to run this Python and import fidlearn and nbclient."""
-    if ids is None:
-        return
-    home = Path(tempfile.mkdtemp(prefix="fidlearn-grade-check-"))
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"the number {text[:20]} is not finite")
+    return value
+
+
+def _short_int(text: str) -> int:
+    if len(text) > 40:
+        raise ValueError("an integer of more than 40 digits")
+    return int(text)
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def read_answers(data: bytes, names) -> dict:
+    """The answers record ``data`` (bytes a notebook wrote) as ``{question: value}``, strictly.
+
+    At most :data:`MAX_ANSWERS_BYTES`, UTF-8 JSON, finite numbers only, the one key ``answers``
+    holding the lesson's question names (``names``) only, each value plain data nested at most
+    ``MAX_DEPTH`` deep with bounded arrays. Anything else raises _Zero with the reason.
+    """
+    if len(data) > MAX_ANSWERS_BYTES:
+        raise _Zero(f"its answers file is larger than {MAX_ANSWERS_BYTES // 1_000_000} MB")
     try:
-        os.chown(home, *ids)
-        out = subprocess.run(
-            [sys.executable, "-c", "import fidlearn, nbclient, ipykernel"],
-            cwd=home,
-            env=_clean_env(home),
-            capture_output=True,
-            text=True,
-            timeout=120,
-            preexec_fn=_limits(4000, ids),
+        record = json.loads(
+            data.decode("utf-8"), parse_float=_finite, parse_int=_short_int, parse_constant=_no_constant
         )
-    finally:
-        shutil.rmtree(home, ignore_errors=True)
-    if out.returncode != 0:
-        who = run_as or "nobody"
-        last = (out.stderr.strip().splitlines() or [f"it exited with status {out.returncode:d}"])[-1]
-        raise GradingError(
-            f"the user {who} cannot run {sys.executable} with fidlearn ({last[:120]}); install "
-            "Python and fidlearn where that user can read them (see docs/teaching.md), or pass "
-            "--run-as a user who can"
-        )
-
-
-def _cell_errors(path: Path) -> list[str]:
-    """``cell N raised NAME: VALUE`` for each failing cell of the executed notebook (information only)."""
-    try:
-        if not path.is_file() or path.is_symlink() or path.stat().st_size > 50_000_000:
-            return []
-        nb = json.loads(path.read_text(encoding="utf-8"))
-        out = []
-        for i, cell in enumerate(nb.get("cells", [])[:-1]):
-            for o in cell.get("outputs", []) or []:
-                if isinstance(o, dict) and o.get("output_type") == "error":
-                    out.append(f"cell {i} raised {str(o.get('ename'))[:60]}: {str(o.get('evalue'))[:120]}")
-        return out[:50]
-    except (OSError, ValueError, AttributeError):
-        return []
-
-
-def _kill_group_leftovers(proc) -> None:
-    if proc is not None:
-        with contextlib.suppress(ProcessLookupError, PermissionError, OSError):
-            os.killpg(proc.pid, signal.SIGKILL)  # a kernel left running by a notebook that detached it
+        if not isinstance(record, dict) or set(record) != {"answers"} or not isinstance(record["answers"], dict):
+            raise ValueError("not an answers record")
+        unknown = sorted(set(record["answers"]) - set(names))
+        if unknown:
+            raise ValueError(f"questions this lesson does not have: {', '.join(unknown)[:60]}")
+        return {k: from_plain(v) for k, v in record["answers"].items()}
+    except RecursionError:
+        raise _Zero("its answers are not plain data (nested too deeply)") from None
+    except Exception as exc:  # noqa: BLE001 - whatever a crafted file does is this learner's 0
+        raise _Zero(f"its answers are not plain data ({str(exc)[:80] or type(exc).__name__})") from None

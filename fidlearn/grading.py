@@ -13,8 +13,10 @@ the two sides:
   In a folder with that file, ``exercises.lesson(...)`` hands out a graded lesson built from the
   file alone: inputs, ``check()`` that records the answer, ``hint()``.
 * **grade** (:func:`grade`): each submitted notebook runs in a process of its own, in a scratch
-  copy of its folder, with a time limit, a memory limit, an environment without the
-  instructor's variables and, when the grader runs as root, as an unprivileged user. A cell
+  copy of its folder, in a box of its own where bubblewrap works (no network, no other files,
+  its own processes that die with it), with time, memory, process and file limits, an
+  environment without the instructor's variables and, when the grader runs as root, as an
+  unprivileged user. A cell
   appended to it writes the learner's answers as plain data (numbers, arrays, text); the
   grader reads them (strict JSON, bounded), rebuilds the questions with their answers in its
   own process and judges there. Nothing printed, patched or written in the notebook can
@@ -34,8 +36,6 @@ import csv
 import io
 import json
 import os
-import shutil
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -57,21 +57,14 @@ from ._plain import _bad as _bad
 from ._plain import _Unsupported as _Unsupported
 from ._plain import from_plain as from_plain
 from ._plain import to_plain as to_plain
-from ._sandbox import _RUNNER as _RUNNER
 from ._sandbox import ANSWERS_FILE as ANSWERS_FILE
 from ._sandbox import COLLECT_CELL as COLLECT_CELL
 from ._sandbox import INPUTS_FILE as INPUTS_FILE
 from ._sandbox import MAX_ANSWERS_BYTES as MAX_ANSWERS_BYTES
-from ._sandbox import _cell_errors as _cell_errors
-from ._sandbox import _clean_env as _clean_env
-from ._sandbox import _kill_group_leftovers as _kill_group_leftovers
-from ._sandbox import _limits as _limits
-from ._sandbox import _preflight as _preflight
-from ._sandbox import _read_answers as _read_answers
-from ._sandbox import _run_and_collect as _run_and_collect
-from ._sandbox import _run_as as _run_as
-from ._sandbox import _scratch_copy as _scratch_copy
 from ._sandbox import _Zero as _Zero
+from ._sandbox import read_answers as read_answers
+from ._sandbox import run_notebook as run_notebook
+from ._sandbox import sandbox_plan as sandbox_plan
 from .errors import FidlearnError
 from .errors import GradingError as GradingError
 
@@ -305,8 +298,8 @@ def grade_one(
     memory_mb : int
         The kernel's memory limit, MB.
     run_as : str, optional
-        The user the kernel runs as (default: ``nobody`` when the grader is root; ``""``: the
-        grader's own user).
+        The user the kernel runs as (default: ``nobody`` when the grader is root, else the
+        grader's own user); the kernel runs in a bubblewrap box when bubblewrap works here.
 
     Returns
     -------
@@ -332,25 +325,19 @@ def grade_one(
         graded_questions(number, learner, secret) if secret is not None else exercises.build_questions(number, learner)
     )
     grade.results = [(q.name, "Not attempted", "no answer") for q in questions]
-    ids = _run_as(run_as)
-    scratch = Path(tempfile.mkdtemp(prefix="fidlearn-grade-"))
+    plan = sandbox_plan(run_as)
     try:
         inputs_json = json.dumps(inputs_record(number, learner, secret)) if secret is not None else None
-        work, home = _scratch_copy(scratch, notebook, inputs_json, ids)
-        env = _clean_env(home)
-        if secret is None and learner:
-            env["FIDLEARN_LEARNER"] = learner  # a self-study notebook whose LEARNER is empty uses it
+        env = {"FIDLEARN_LEARNER": learner} if secret is None and learner else None  # for an empty LEARNER
         t0 = time.monotonic()
-        answers = _run_and_collect(work, env, timeout_s, memory_mb, ids)
+        raw, grade.cell_errors = run_notebook(notebook, inputs_json, plan, timeout_s, memory_mb, env)
+        answers = read_answers(raw, [q.name for q in questions])
         grade.results = [_judge(q, answers.get(q.name)) for q in questions]
-        grade.cell_errors = _cell_errors(work / "executed.ipynb")
         elapsed = time.monotonic() - t0
         if elapsed > timeout_s + 30:
             grade.problem = f"it took {elapsed:.0f} s"
     except _Zero as exc:
         grade.problem = f"0: {exc}"
-    finally:
-        shutil.rmtree(scratch, ignore_errors=True)
     return grade
 
 
@@ -435,7 +422,7 @@ def grade(
     number = exercises.lesson_number(lesson)
     ids = _learners.read_roster(list(roster), "the roster") if roster is not None else None
     matched = _gradebook.match(notebooks, number, learner, ids, secret)
-    _preflight(_run_as(run_as), run_as)  # a user who cannot run this Python is refused before any notebook runs
+    sandbox_plan(run_as)  # a user who cannot run this Python is refused before any notebook runs
     grades: list[NotebookGrade] = []
     for k, (nb, who, problem) in enumerate(matched):
         if problem:

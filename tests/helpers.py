@@ -3,35 +3,43 @@
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@contextmanager
-def traversable_by_others(*paths: Path):
-    """Give 'others' the r and x bits on every folder above ``paths`` for the test, as a shared install has them.
-
-    The checkout, its venv and the Python it was made from (pyenv's lives under /root here)
-    must be reachable by the unprivileged user; the modes are put back afterwards.
-    """
-    changed = []
-    for path in paths:
-        for folder in [path, *path.parents]:
-            mode = folder.stat().st_mode
-            if not mode & stat.S_IXOTH or not mode & stat.S_IROTH:
-                changed.append((folder, mode))
-                folder.chmod(mode | stat.S_IXOTH | stat.S_IROTH)
-    try:
-        yield
-    finally:
-        for folder, mode in reversed(changed):
-            folder.chmod(stat.S_IMODE(mode))
-
-
 def python_paths() -> list[Path]:
     """The checkout, the venv and the base interpreter's installation."""
     return [ROOT, Path(sys.prefix), Path(os.path.realpath(sys.executable)).parent, Path(sys.base_prefix)]
+
+
+def as_unprivileged(uid: int, gid: int, paths: list[Path]) -> list[str] | None:
+    """A command prefix (bubblewrap, then setpriv) that runs a program as ``uid`` with ``paths`` reachable.
+
+    The machine's folders keep their modes: in a mount namespace of its own, each folder above
+    ``paths`` that others cannot enter (pyenv's /root, mode 700) is replaced by an empty tmpfs
+    (mode 755) into which ``paths`` are bound back. None where bubblewrap or setpriv is missing or
+    the caller is not root.
+    """
+    bwrap, setpriv = shutil.which("bwrap"), shutil.which("setpriv")
+    if os.geteuid() != 0 or bwrap is None or setpriv is None:
+        return None
+    closed = set()
+    for path in paths:
+        for folder in reversed(path.resolve().parents):
+            if not folder.stat().st_mode & stat.S_IXOTH:
+                closed.add(folder)
+                break
+    cmd = [bwrap, "--dev-bind", "/", "/", "--die-with-parent"]
+    for folder in sorted(closed, key=lambda p: len(p.parts)):
+        cmd += ["--perms", "0755", "--tmpfs", str(folder)]
+    inside = sorted({p.resolve() for p in paths if any(c in p.resolve().parents for c in closed)})
+    above = {a for p in inside for c in closed if c in p.parents for a in p.parents if c in a.parents}
+    for folder in sorted(above, key=lambda p: len(p.parts)):  # the folders between, open to others
+        cmd += ["--perms", "0755", "--dir", str(folder)]
+    for path in inside:
+        cmd += ["--ro-bind", str(path), str(path)]
+    return [*cmd, setpriv, f"--reuid={uid}", f"--regid={gid}", "--clear-groups", "--"]

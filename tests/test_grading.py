@@ -20,7 +20,6 @@ from pathlib import Path
 import nbformat
 import numpy as np
 import pytest
-from helpers import python_paths, traversable_by_others
 
 import fidlearn
 from fidlearn import exercises, grading
@@ -109,8 +108,7 @@ def batch(tmp_path_factory):
     before = {p.name: p.read_bytes() for p in subs.iterdir()}
     out = work / "grades.csv"
     notebooks = sorted(subs.glob("cheater*.ipynb")) + sorted(subs.glob("*onest*.ipynb"))
-    with traversable_by_others(*python_paths(), work) if AS_ROOT else _nothing():
-        grades = grading.grade(notebooks, "03", secret, out, timeout_s=20, memory_mb=2500)
+    grades = grading.grade(notebooks, "03", secret, out, timeout_s=20, memory_mb=2500)
     return {
         "grades": {Path(g.notebook).stem: g for g in grades},
         "names": dict(names),
@@ -118,14 +116,6 @@ def batch(tmp_path_factory):
         "before": before,
         "subs": subs,
     }
-
-
-class _nothing:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
 
 
 @pytest.mark.parametrize("k, cheat", list(enumerate(CHEATS)))
@@ -145,7 +135,9 @@ def test_the_reasons_say_what_happened(batch):
     assert "kernel died" in g["exits"].problem and "no answers were collected" in g["exits"].problem
     assert all(s == "Not attempted" for _, s, _ in g["builds another lesson"].results)
     assert any("cannot be graded" in m for _, _, m in g["answers with a function"].results)
-    assert all(s == "Incorrect" for _, s, _ in g["forges the answers file"].results)
+    # a kernel that exits after writing the file hands in nothing: only the appended cell's answers count
+    forged = g["forges the answers file"]
+    assert "kernel died" in forged.problem and all(s == "Not attempted" for _, s, _ in forged.results)
 
 
 def test_honest_notebooks_keep_their_marks(batch):

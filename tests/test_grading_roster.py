@@ -18,7 +18,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from fidlearn import exercises, grading
+from fidlearn import _sandbox, exercises, grading
 from fidlearn.cli import main
 from fidlearn.errors import ExerciseError, FidlearnError, GradingError
 
@@ -159,6 +159,9 @@ def test_release_cli_names_the_roster_line(tmp_path, secret):
     assert not (tmp_path / "o").exists()
 
 
+_NO_BOX = _sandbox.Plan(user="nobody", ids=None, bwrap=None)
+
+
 # -- grade: the roster, the metadata, the gradebooks ----------------------------------------------
 @pytest.fixture
 def cls(tmp_path, secret, monkeypatch):
@@ -180,6 +183,7 @@ def cls(tmp_path, secret, monkeypatch):
         return grading.NotebookGrade(str(nb), learner, number, results)
 
     monkeypatch.setattr(grading, "grade_one", fake)
+    monkeypatch.setattr(grading, "sandbox_plan", lambda run_as=None: _NO_BOX)  # no notebook runs here
     return {"paths": paths, "subs": subs, "secret": secret, "graded": graded, "tmp": tmp_path}
 
 
@@ -196,7 +200,7 @@ def test_grade_matches_by_the_notebooks_id_and_reports_the_roster(cls):
     roster = ["alice", "bob", "Carol", "dave@uni.edu", "frank"]
     out = cls["tmp"] / "grades.csv"
     grades = grading.grade(
-        [p["alice"], p["bob"], twice, eve, zed, p["dave@uni.edu"]], LESSON, cls["secret"], out, roster=roster, run_as=""
+        [p["alice"], p["bob"], twice, eve, zed, p["dave@uni.edu"]], LESSON, cls["secret"], out, roster=roster
     )
     # alice's notebook is called bob.ipynb and bob's x1.ipynb: each is graded as its own learner, once
     assert cls["graded"] == [("bob.ipynb", "alice"), ("x1.ipynb", "bob"), ("d.ipynb", "dave@uni.edu")]
@@ -213,10 +217,10 @@ def test_grade_matches_by_the_notebooks_id_and_reports_the_roster(cls):
 
 def test_a_notebook_is_never_graded_against_another_learners_variant(cls):
     p = cls["paths"]
-    grades = grading.grade([p["alice"]], LESSON, cls["secret"], cls["tmp"] / "g.csv", learner="bob", run_as="")
+    grades = grading.grade([p["alice"]], LESSON, cls["secret"], cls["tmp"] / "g.csv", learner="bob")
     assert cls["graded"] == [] and not grades[0].graded
     assert "released to learner 'alice', not 'bob'" in grades[0].problem
-    grades = grading.grade([p["alice"]], "02", cls["secret"], cls["tmp"] / "g.csv", run_as="")
+    grades = grading.grade([p["alice"]], "02", cls["secret"], cls["tmp"] / "g.csv")
     assert cls["graded"] == [] and "released for lesson 01, not 02" in grades[0].problem
 
 
@@ -224,9 +228,7 @@ def test_canvas_and_moodle_gradebooks(cls):
     p = cls["paths"]
     out = cls["tmp"] / "grades.csv"
     roster = ["alice", "bob", "carol", "dave@uni.edu"]
-    grading.grade(
-        [p["bob"], p["alice"]], LESSON, cls["secret"], out, roster=roster, formats=("canvas", "moodle"), run_as=""
-    )
+    grading.grade([p["bob"], p["alice"]], LESSON, cls["secret"], out, roster=roster, formats=("canvas", "moodle"))
     canvas = (cls["tmp"] / "grades.canvas.csv").read_text(encoding="utf-8")
     assert canvas.splitlines() == [
         "Student,ID,SIS User ID,SIS Login ID,Section,fidlearn lesson 01",
@@ -244,7 +246,7 @@ def test_canvas_and_moodle_gradebooks(cls):
         ["carol", ""],
         ["dave@uni.edu", ""],
     ]
-    grading.grade([p["dave@uni.edu"]], LESSON, cls["secret"], out, formats=("moodle",), run_as="")
+    grading.grade([p["dave@uni.edu"]], LESSON, cls["secret"], out, formats=("moodle",))
     moodle = list(csv.reader((cls["tmp"] / "grades.moodle.csv").open(encoding="utf-8")))
     assert moodle == [["Email address", "fidlearn lesson 01"], ["dave@uni.edu", "1"]]
 
@@ -256,7 +258,7 @@ def test_the_grade_command_writes_the_canvas_file(cls):
     out = cls["tmp"] / "g.csv"
     code, text, err = run(
         "grade", p["alice"], p["bob"], "--lesson", "1", "--secret-file", cls["secret"], "-o", out,
-        "--roster", roster, "--format", "canvas", "--run-as", "",
+        "--roster", roster, "--format", "canvas",
     )  # fmt: skip
     assert code == 0, err
     assert f"2 notebooks graded; grades in {out} and {cls['tmp'] / 'g.canvas.csv'}" in text
@@ -277,7 +279,7 @@ def test_an_interrupted_or_refused_grade_writes_no_csv(cls, monkeypatch, failure
 
         monkeypatch.setattr(grading, "grade_one", stop)
         with pytest.raises(KeyboardInterrupt):
-            grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out, run_as="")
+            grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out)
     else:
         real_write, writes = Path.write_text, []
 
@@ -289,7 +291,7 @@ def test_an_interrupted_or_refused_grade_writes_no_csv(cls, monkeypatch, failure
 
         monkeypatch.setattr(Path, "write_text", full)
         with pytest.raises(FidlearnError, match="No space left on device"):
-            grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out, formats=("canvas",), run_as="")
+            grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out, formats=("canvas",))
     assert not [q for q in cls["tmp"].iterdir() if q.suffix == ".csv" or q.name.startswith(".grades")]
 
 

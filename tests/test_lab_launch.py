@@ -24,12 +24,12 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from helpers import python_paths, traversable_by_others
+from helpers import as_unprivileged, python_paths
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV = Path(sys.prefix)
 FIRST = "notebooks/00_welcome.ipynb"
-USER = "fidlearn-lab"
+USER = "nobody"
 
 pytestmark = pytest.mark.skipif(
     not (VENV / "bin" / "jupyter").exists() or shutil.which("make") is None,
@@ -99,20 +99,16 @@ def test_make_lab_serves_the_first_notebook_for_the_current_user(tmp_path):
 
 
 @pytest.mark.skipif(
-    os.geteuid() != 0 or shutil.which("runuser") is None or shutil.which("useradd") is None,
-    reason="run as root to start the server as another, unprivileged user (the other test is that case)",
+    as_unprivileged(0, 0, []) is None,
+    reason="run as root with bubblewrap and setpriv to start the server as an unprivileged user (the other test is "
+    "that case)",
 )
 def test_make_lab_serves_the_first_notebook_for_an_unprivileged_user():
-    try:
-        pwd.getpwnam(USER)
-    except KeyError:
-        subprocess.run(["useradd", "--system", "--no-create-home", "--shell", "/usr/sbin/nologin", USER], check=True)
     user = pwd.getpwnam(USER)
     home = Path(tempfile.mkdtemp(prefix="fidlearn-lab-home-"))
     try:
         os.chown(home, user.pw_uid, user.pw_gid)
-        with traversable_by_others(*python_paths(), home):
-            status, log = run_lab(["runuser", "-u", USER, "--"], home)
+        status, log = run_lab(as_unprivileged(user.pw_uid, user.pw_gid, python_paths()), home)
         assert status == 200, log
         assert "--allow-root" not in log
         assert f"/lab/tree/{FIRST}?token=" in log

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
@@ -91,8 +90,9 @@ def add_grade(sub) -> None:
     p = sub.add_parser(
         "grade",
         help="grade learners' exercise notebooks, each in a sandbox, the answer key outside it",
-        description="Run each submitted notebook in a process of its own (scratch folder, time and memory "
-        "limits, no instructor's environment; as 'nobody' when run as root) and grade the answers "
+        description="Run each submitted notebook in a box of its own (bubblewrap: no network, no other "
+        "files, its processes killed after it; time, memory, process and file limits; no instructor's "
+        "environment; as 'nobody' when run as root) and grade the answers "
         "it leaves in the grader's process, against the variant the class secret gives that "
         "learner. A notebook that crashes, hangs or cheats gets 0 with the reason; the CSV is "
         "always written. Grading runs learners' code: see docs/teaching.md.",
@@ -118,7 +118,11 @@ def add_grade(sub) -> None:
     )
     p.add_argument("--timeout", type=int, default=120, help="seconds a notebook may run (default 120)")
     p.add_argument("--memory-mb", type=int, default=3000, help="memory a notebook may use, MB (default 3000)")
-    p.add_argument("--run-as", metavar="USER", help="run notebooks as this user (default 'nobody' when root)")
+    p.add_argument(
+        "--run-as",
+        metavar="USER",
+        help="run notebooks as this user (default: 'nobody' when root; each in a bubblewrap box where it works)",
+    )
     p.add_argument("--new-secret", type=Path, metavar="FILE", help="create a class secret in FILE and stop")
     p.set_defaults(run=run_grade)
 
@@ -172,10 +176,9 @@ def run_grade(args) -> int:
         print(f"{args.new_secret}: a new class secret; keep it private (it decides every learner's numbers)")
         return 0
     out, roster = _checked_grade_args(args)
-    if os.geteuid() != 0 and args.run_as is None:
-        print(
-            "warning: grading as your own user: a notebook can read what you can; see docs/teaching.md", file=sys.stderr
-        )
+    plan = grading.sandbox_plan(args.run_as)  # refuses a user who cannot run this Python, before any notebook
+    if plan.warning:
+        print(f"warning: {plan.warning}; see docs/teaching.md", file=sys.stderr)
 
     def progress(k: int, n: int, g) -> None:
         print(f"[{k}/{n}] {g.line()}", flush=True)

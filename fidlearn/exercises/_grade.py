@@ -108,7 +108,7 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
     if len(found) != 1:
         return Grade(path, None, learner, [], ["no exercises found: the notebook never ran ex = exercises.lesson(...)"])
     number = lesson_number(found.pop())
-    g = grading.grade_one(path, number, learner or "", None, timeout_s=timeout, run_as="")
+    g = grading.grade_one(path, number, learner or "", None, timeout_s=timeout)
     results = [Result(q, status, message) for q, status, message in g.results]
     errors = list(g.cell_errors) + ([g.problem] if g.problem else [])
     return Grade(path, number, learner or "", results, errors)
