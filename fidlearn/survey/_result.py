@@ -75,6 +75,17 @@ class Survey:
     tests : dict of int to (float, float)
         Every taped marker's suspect test: ``(distance_mm, sigmas)`` of where the photos alone put its
         top-left corner from the tape's (the suspects are those above the chi-square threshold).
+    tape_residual_mm : dict of int to float
+        Every taped marker's robust residual: the distance (mm) of its tape top-left corner from where
+        the photos alone put it, after the similarity that lays the photos' placements on the tape's,
+        fitted robustly (by the markers that agree). Markers seen in fewer than two photos are absent.
+    gross_ids : tuple of int
+        Markers whose robust residual exceeds :attr:`gross_threshold_mm`: their tape placement was
+        never used (the photos alone place them); they are also :attr:`suspects`.
+    gross_threshold_mm : float
+        The gross test's threshold (mm): ``GROSS_SIGMAS`` tape sigmas, or residual spreads when those
+        are larger, and at least one marker side; NaN when the test was not run (fewer than four
+        taped markers in two photos, or ``map_sigma_mm=inf``).
     """
 
     marker_map: MarkerMap
@@ -95,6 +106,9 @@ class Survey:
     map_sigma_deg: float
     photos_per_marker: dict[int, int] = field(default_factory=dict)
     tests: dict[int, tuple[float, float]] = field(default_factory=dict)
+    tape_residual_mm: dict[int, float] = field(default_factory=dict)
+    gross_ids: tuple[int, ...] = ()
+    gross_threshold_mm: float = float("nan")
 
     @property
     def suspect_ids(self) -> list[int]:
@@ -149,6 +163,7 @@ class Survey:
             "fixed_ids": list(self.fixed_ids),
             "added_ids": list(self.added_ids),
             "unseen_ids": list(self.unseen_ids),
+            "gross_ids": list(self.gross_ids),
             "suspects": [
                 {"id": s.id, "distance_mm": round(s.distance_mm, 2), "sigmas": round(s.sigmas, 2)}
                 for s in self.suspects
