@@ -29,7 +29,7 @@ from ..errors import MapError, SurveyError
 from ..markermap import MarkerMap, MarkerPlacement
 from ._init import UNITS_FACTOR_LIMIT, _units_message, initial_values
 from ._inputs import _Photo
-from ._solve import FIRST_SIGMA_PX, build_problem, fit
+from ._solve import FIRST_SIGMA_PX, _polish, build_problem
 
 #: A taped marker farther than this many tape sigmas (3D distance) from the photos is gross.
 GROSS_SIGMAS = 15.0
@@ -72,7 +72,7 @@ def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndar
     slots = [i for i in placed if i != ref] + [ref]
     opts = {"marker_size_mm": tape.marker_size_mm, "sigma_px": FIRST_SIGMA_PX, "sigma_mm": math.inf}
     problem = build_problem(cams, slots, len(slots) - 1, placed, {}, {**opts, "sigma_rot_rad": math.inf})
-    x = fit(problem, np.zeros(problem.n_params), robust=False)
+    x = _polish(problem, np.zeros(problem.n_params))  # Gauss-Newton: the start is the photos' own
     _, _, _, p_mark = problem.poses(x)
     return {i: p_mark[k] for k, i in enumerate(slots) if np.all(np.isfinite(p_mark[k]))}
 

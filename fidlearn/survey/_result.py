@@ -10,6 +10,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .._io import write_json_atomic
+from .._map_parse import _vector3
+from ..errors import MapError, SurveyError
 from ..markermap import MarkerMap
 from ..pose._stats import _chi2_3_quantile
 
@@ -185,5 +187,29 @@ class Survey:
         -------
         Path
             The file written.
+
+        Raises
+        ------
+        SurveyError
+            A placement lies beyond what :meth:`fidlearn.MarkerMap.load` reads (named).
         """
+        check_readable(self.marker_map)
         return write_json_atomic(path, {**self.marker_map.to_dict(), "surveyed": self.note()})
+
+
+def check_readable(marker_map: MarkerMap) -> None:
+    """Refuse a surveyed map that :meth:`MarkerMap.load` would not read back (a placement beyond any room).
+
+    Each placement, in the map's units, goes through the map reader's own check of a marker's numbers.
+    """
+    for i, entry in marker_map.to_dict()["markers"].items():
+        for key in ("translation", "rotation"):
+            try:
+                _vector3(entry[key], f"marker {i}", key, "")
+            except MapError as exc:
+                unit = marker_map.units if key == "translation" else "degrees"
+                raise SurveyError(
+                    f"the surveyed map cannot be written: marker {i}'s {key} {entry[key]} ({unit}) is beyond what "
+                    f"a map file holds, MarkerMap.load would refuse it ({str(exc).rstrip('; ')}): check marker {i}'s "
+                    "tape placement and id, and take photos that show it with other markers"
+                ) from None

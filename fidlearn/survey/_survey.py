@@ -13,7 +13,7 @@ from ..markermap import MarkerMap, MarkerPlacement
 from ._gross import GrossTest, gross_test
 from ._init import check_units, initial_values
 from ._inputs import MIN_PHOTOS, _check_options, _read_photos
-from ._result import Survey, Suspect
+from ._result import Survey, Suspect, check_readable
 from ._solve import (
     FIRST_SIGMA_PX,
     build_problem,
@@ -199,6 +199,7 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
         cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
         std[i] = np.sqrt(np.diag(cov[i])[3:])
     surveyed = MarkerMap(placements, tape.marker_size_mm, tape.dictionary, tape.units, f"survey of {tape.source}")
+    check_readable(surveyed)
     r = np.linalg.norm(problem.reprojection_px(x), axis=1)
     poses = {}
     for c, ph in enumerate(cams):
