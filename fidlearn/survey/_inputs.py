@@ -70,9 +70,15 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     ):
         raise SurveyError(
             f"corner_sigma_px must be a number of pixels above 0, from {MIN_CORNER_SIGMA_PX:g} to "
-            f"{MAX_CORNER_SIGMA_PX:g}, or None to estimate it, got {corner_sigma_px!r}"
+            f"{MAX_CORNER_SIGMA_PX:g}, or None to estimate it, got {_short(corner_sigma_px)}"
         )
     return marker_map, camera, sigma, fixed
+
+
+def _short(value) -> str:
+    """``repr(value)`` on one line, at most 60 characters (an array shows as one)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _sigma_mm(map_sigma_mm) -> float:
@@ -81,11 +87,12 @@ def _sigma_mm(map_sigma_mm) -> float:
         with contextlib.suppress(TypeError, ValueError):
             sigma = float(map_sigma_mm)
     if sigma is None:
-        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {map_sigma_mm!r}")
+        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {_short(map_sigma_mm)}")
     if not (MIN_MAP_SIGMA_MM <= sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
         raise SurveyError(
             f"map_sigma_mm must be above 0, from {MIN_MAP_SIGMA_MM:g} to {MAX_MAP_SIGMA_MM:g} mm (a placement "
-            f"known exactly is a fixed marker: fixed_ids), or math.inf to trust the photos alone, got {map_sigma_mm!r}"
+            f"known exactly is a fixed marker: fixed_ids), or math.inf to trust the photos alone, "
+            f"got {_short(map_sigma_mm)}"
         )
     return sigma
 
@@ -96,13 +103,13 @@ def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
     if isinstance(fixed_ids, (int, np.integer)) and not isinstance(fixed_ids, bool):
         fixed_ids = [fixed_ids]
     if isinstance(fixed_ids, (str, bytes)):
-        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {fixed_ids!r}")
+        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {_short(fixed_ids)}")
     try:
         ids = tuple(sorted({int(i) for i in fixed_ids if not isinstance(i, bool) and int(i) == i}))
         if len(ids) != len(set(fixed_ids)):
             raise ValueError
     except (TypeError, ValueError, OverflowError):
-        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {fixed_ids!r}") from None
+        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {_short(fixed_ids)}") from None
     missing = [i for i in ids if i not in marker_map]
     if missing:
         raise SurveyError(

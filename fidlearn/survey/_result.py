@@ -11,9 +11,10 @@ import numpy as np
 
 from .._io import write_json_atomic
 from .._map_parse import _vector3
-from ..errors import MapError, SurveyError
+from ..errors import MapError, PoseError, SurveyError
 from ..markermap import MarkerMap
 from ..pose._stats import _chi2_3_quantile
+from ._inputs import _short
 
 __all__ = ["Survey", "Suspect"]
 
@@ -136,13 +137,25 @@ class Survey:
 
         Raises
         ------
-        KeyError
-            If the marker was not surveyed.
+        SurveyError
+            The marker was not surveyed, or the point is not 3 finite numbers.
         PoseError
-            ``probability`` is not between 0 and 1.
+            ``probability`` is not a number between 0 and 1.
         """
+        if isinstance(marker_id, bool) or not _hashable(marker_id) or marker_id not in self.marker_covariance:
+            raise SurveyError(
+                f"marker {_short(marker_id)} was not surveyed; surveyed markers: {list(self.marker_covariance)}"
+            )
+        try:
+            point = np.asarray(point_mm, dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            point = np.full(3, np.nan)
+        if not np.all(np.isfinite(point)):
+            raise SurveyError(f"point_mm must be 3 finite numbers (a world point, mm), got {_short(point_mm)}")
+        if isinstance(probability, bool) or not isinstance(probability, (int, float, np.floating, np.integer)):
+            raise PoseError(f"probability must be a number between 0 and 1, got {_short(probability)}")
         cov = self.marker_covariance[marker_id][3:, 3:]
-        d = np.asarray(point_mm, float).reshape(3) - np.asarray(self.marker_map.placements[marker_id].translation_mm)
+        d = point - np.asarray(self.marker_map.placements[marker_id].translation_mm)
         if not np.any(cov):
             return bool(np.allclose(d, 0.0))
         return float(d @ np.linalg.solve(cov, d)) <= _chi2_3_quantile(probability)
@@ -191,10 +204,21 @@ class Survey:
         Raises
         ------
         SurveyError
-            A placement lies beyond what :meth:`fidlearn.MarkerMap.load` reads (named).
+            A placement lies beyond what :meth:`fidlearn.MarkerMap.load` reads (named), or ``path`` is
+            not a path.
         """
+        if not isinstance(path, (str, os.PathLike)) or not str(path):
+            raise SurveyError(f"save needs a file path (str or pathlib.Path) ending in .json, got {_short(path)}")
         check_readable(self.marker_map)
         return write_json_atomic(path, {**self.marker_map.to_dict(), "surveyed": self.note()})
+
+
+def _hashable(value) -> bool:
+    try:
+        hash(value)
+    except TypeError:
+        return False
+    return True
 
 
 def check_readable(marker_map: MarkerMap) -> None:
