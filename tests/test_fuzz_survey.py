@@ -22,7 +22,7 @@ import pytest
 import fidlearn
 from fidlearn import Detection, FidlearnError, MarkerMap, MarkerPlacement
 from fidlearn.errors import ImageError, SurveyError
-from fidlearn.survey._inputs import MAX_PHOTOS
+from fidlearn.survey._inputs import MAX_PHOTOS, MAX_SIGHTINGS
 from fidlearn.synthetic import survey_room, survey_walk, tape_measured, visible_markers
 
 CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001, 0.0])
@@ -150,6 +150,16 @@ def test_too_many_photos_are_refused_up_front_with_the_limit():
     with pytest.raises(SurveyError, match=rf"at most {MAX_PHOTOS} photos, got 2000"):
         run_survey(images=[PHOTOS[k % 5] for k in range(2000)], progress=lambda *a: calls.append(a))
     assert time.perf_counter() - t0 < 2.0 and calls == []
+
+
+def test_too_many_sightings_are_refused_after_reading_before_the_adjustment():
+    images = [PHOTOS[k % 5] for k in range(MAX_PHOTOS)]
+    sightings = sum(len(ph) for ph in images)
+    assert sightings > MAX_SIGHTINGS
+    t0 = time.perf_counter()
+    with pytest.raises(SurveyError, match=rf"show markers {sightings} times, a survey takes at most {MAX_SIGHTINGS}"):
+        run_survey(images=images)
+    assert time.perf_counter() - t0 < 5.0
 
 
 def test_a_placement_no_map_file_holds_is_never_written(baseline, tmp_path):

@@ -30,9 +30,11 @@ MAX_CORNER_SIGMA_PX = 100.0
 #: exactly is a fixed marker), no detector finds corners finer, and below them the weights overflow.
 MIN_MAP_SIGMA_MM = 0.01
 MIN_CORNER_SIGMA_PX = 0.001
-#: Most photos in one survey: the adjustment's work grows faster than the photos (about 30 s for
-#: 300 photos of detections on one core); a room needs 20 to 100.
+#: Most photos in one survey, refused before any is read (a room needs 20 to 100).
 MAX_PHOTOS = 400
+#: Most sightings (a marker detected in a photo) in one survey: the adjustment's work grows faster
+#: than them (about 20 s for 1,200, some 240 photos of 5 markers, on a busy 2-core machine).
+MAX_SIGHTINGS = 1200
 #: Detected corners farther than this many image sizes outside the image are refused.
 MAX_CORNER_OUTSIDE = 10
 
@@ -142,6 +144,12 @@ def _read_photos(images, marker_map: MarkerMap, camera: Camera, progress: Callab
         photos.append(_one_photo(i, item, marker_map, camera))
         if progress is not None:
             _report(progress, i + 1, len(images), photos[-1].label)
+    sightings = sum(len(ph.corners) for ph in photos)
+    if sightings > MAX_SIGHTINGS:
+        raise SurveyError(
+            f"the {len(photos)} photos show markers {sightings} times, a survey takes at most {MAX_SIGHTINGS} "
+            "sightings; keep fewer photos (a room needs 20 to 100), or survey the room in parts that share markers"
+        )
     return photos
 
 

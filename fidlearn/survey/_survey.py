@@ -73,7 +73,8 @@ def survey(
     corner_sigma_px : float, optional
         Corner noise, px per coordinate; estimated from the residuals when None.
     progress : callable, optional
-        ``progress(i, n, label)`` after each photo is read.
+        ``progress(i, n, label)`` after each photo is read. Whatever it raises stops the survey
+        as a :class:`~fidlearn.errors.SurveyError` naming it, with the original as ``__cause__``.
 
     Returns
     -------
@@ -85,9 +86,11 @@ def survey(
     ------
     SurveyError
         Fewer than 2 photos give a camera pose (the message says why and what photo to take),
-        bad options, nothing ties the photos to the world, no majority of the taped markers agrees
-        with the photos (the message names them), or a fixed marker is off by more than the room can
-        explain.
+        bad options (each with its range), more than ``MAX_PHOTOS`` photos (400, before reading any)
+        or ``MAX_SIGHTINGS`` markers detected in them (1,200), a ``progress`` function that raises
+        (its exception is the SurveyError's ``__cause__``), nothing ties the photos to the world,
+        no majority of the taped markers agrees with the photos (the message names them), or a fixed
+        marker is off by more than the room can explain.
     MapError
         The map cannot be read, or its distances disagree with the photos' by a factor (units).
     ImageError
