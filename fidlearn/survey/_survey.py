@@ -207,7 +207,7 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
     poses = {}
     for c, ph in enumerate(cams):
         poses[ph.label] = frames.invert_transform(frames.make_transform(R_cam[c], t_cam[c]))
-    suspects = sorted((Suspect(i, *tests[i]) for i in dropped), key=lambda s: -s.sigmas)
+    suspects = sorted((Suspect(i, *tests[i]) for i in dropped if i in tests), key=lambda s: -s.sigmas)
     return Survey(
         marker_map=surveyed,
         tape_map=tape,
