@@ -48,7 +48,7 @@ def test_survey_of_the_bundled_photos_names_the_moved_marker(capsys, tmp_path):
     assert "marker 7 is" in out and "mm from where the map says" in out and "measure it again" in out
     assert out.count("SUSPECT") == 1
     row = next(line for line in out.splitlines() if line.split()[:1] == ["7"])
-    assert 80 < float(row.split()[-6]) < 140  # the difference column, mm
+    assert 80 < float(row.split()[-7]) < 140  # the difference column, mm
     d = json.loads(out_path.read_text())
     assert d["units"] == "cm" and d["surveyed"]["suspects"][0]["id"] == 7
     truth = MarkerMap.load(FOLDER / "true_map.json")

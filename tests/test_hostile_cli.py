@@ -565,3 +565,45 @@ def test_the_cli_and_library_agree_with_a_misplaced_marker(ws, capsys):
         status = cli.main(["locate", "frames", "--camera", "camera.json", "--map", "moved.json", "--json", "p.jsonl"])
         err = capsys.readouterr().err
         assert status == 0 and "Traceback" not in err, err
+
+
+# -- survey: options out of range, too many photos, a tape map with no agreeing majority ---------
+SURVEY = fidlearn.data_path("survey")
+SURVEY_ARGS = ["--camera", str(SURVEY / "camera.json"), "--map", str(SURVEY / "tape_map.json"), "-o", "s.json"]
+
+
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (["--map-sigma-mm", "1e-300"], "--map-sigma-mm 1e-300: give a positive number of mm from 0.01 to 100000"),
+        (["--map-sigma-mm", "nan"], "--map-sigma-mm nan: give a positive number of mm from 0.01 to 100000"),
+        (["--map-sigma-mm=-inf"], "--map-sigma-mm -inf: give a positive number of mm"),
+        (["--map-sigma-mm", "2e5"], "--map-sigma-mm 200000: give a positive number of mm from 0.01 to 100000"),
+        (["--map-sigma-mm", "1e400"], "with map_sigma_mm=inf nothing ties the photos to the world"),
+        (["--fixed", str(10**40)], f"fixed_ids has marker {10**40}, which is not in the map"),
+    ],
+)
+def test_survey_options_out_of_range(ws, capsys, extra, match):
+    photos = [str(p) for p in sorted(SURVEY.glob("photo_*.jpg"))[:3]]
+    refused(ws, capsys, ["survey", *photos, *SURVEY_ARGS, *extra], match)
+
+
+def test_survey_of_2000_photos_is_refused_up_front(ws, capsys):
+    (ws / "many").mkdir()
+    photo = SURVEY / "photo_00.jpg"
+    for k in range(2000):
+        os.symlink(photo, ws / "many" / f"p{k:04d}.jpg")
+    t0 = time.perf_counter()
+    refused(ws, capsys, ["survey", "many", *SURVEY_ARGS], "2000 photos: a survey takes at most 400")
+    assert time.perf_counter() - t0 < 20
+
+
+def test_survey_of_a_tape_map_with_no_agreeing_majority_names_the_markers(ws, capsys):
+    tape = json.loads((SURVEY / "tape_map.json").read_text())  # cm
+    for i in range(7):
+        tape["markers"][str(i)]["translation"][2] += 200.0 * (i + 1)
+    _write(ws, "scrambled.json", json.dumps(tape))
+    argv = ["survey", str(SURVEY), *SURVEY_ARGS]
+    argv[argv.index(str(SURVEY / "tape_map.json"))] = "scrambled.json"
+    line = refused(ws, capsys, argv, "no majority; markers [0, 1, 2, 3, 4, 5, 6] are off")
+    assert "[7, 8, 9, 10, 11]" in line

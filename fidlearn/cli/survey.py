@@ -17,6 +17,7 @@ from .._io import atomic_write
 from ..errors import UsageError
 from ..images import expand_inputs
 from ..survey import Survey, survey
+from ..survey._inputs import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM
 from ._common import (
     _add_image_size_option,
     _add_map_options,
@@ -75,8 +76,17 @@ def _check(args) -> list[Path]:
     plot = _check_output(args.plot, (".png",), "--plot") if args.plot is not None else None
     photos = [path for _, path in expand_inputs(args.photos, videos=False)]
     _refuse_clobber([("-o", out), ("--plot", plot)], [*photos, args.map, args.camera])
-    if math.isnan(args.map_sigma_mm) or args.map_sigma_mm <= 0:
-        raise UsageError(f"--map-sigma-mm {args.map_sigma_mm:g}: give a positive number of mm (e.g. 10)")
+    sigma = args.map_sigma_mm
+    if not (MIN_MAP_SIGMA_MM <= sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
+        raise UsageError(
+            f"--map-sigma-mm {sigma:g}: give a positive number of mm from {MIN_MAP_SIGMA_MM:g} to "
+            f"{MAX_MAP_SIGMA_MM:g} (e.g. 10), or inf with --fixed"
+        )
+    if len(photos) > MAX_PHOTOS:
+        raise UsageError(
+            f"{len(photos)} photos: a survey takes at most {MAX_PHOTOS}; keep those that show the most markers "
+            "(a room needs 20 to 100)"
+        )
     return photos
 
 
@@ -130,7 +140,10 @@ def _report(s: Survey, args) -> None:
 
 
 def table(s: Survey) -> str:
-    """The per-marker table: tape and surveyed top-left corners, difference and std (mm), photos, note.
+    """The per-marker table: tape and surveyed top-left corners, difference, std and robust residual (mm), photos, note.
+
+    The robust residual (``resid``) is the tape corner's distance from where the photos alone put it
+    (:attr:`fidlearn.Survey.tape_residual_mm`), ``-`` when not tested.
 
     Parameters
     ----------
@@ -143,7 +156,8 @@ def table(s: Survey) -> str:
         One header line and one line per marker of the surveyed map.
     """
     head = (
-        f"{'id':>4} {'tape x, y, z (mm)':>24} {'surveyed x, y, z (mm)':>24} {'diff':>7} {'std':>6} {'photos':>6}  note"
+        f"{'id':>4} {'tape x, y, z (mm)':>24} {'surveyed x, y, z (mm)':>24} {'diff':>7} {'std':>6} {'resid':>7} "
+        f"{'photos':>6}  note"
     )
     lines = [head]
     suspects = set(s.suspect_ids)
@@ -156,14 +170,17 @@ def table(s: Survey) -> str:
             tape_text, diff = "-", f"{'-':>7}"
         std = float(np.linalg.norm(s.marker_position_std_mm[i]))
         note = _note(s, i, suspects)
+        resid = f"{s.tape_residual_mm[i]:7.0f}" if i in s.tape_residual_mm else f"{'-':>7}"
         lines.append(
-            f"{i:>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} "
+            f"{i:>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} {resid} "
             f"{s.photos_per_marker.get(i, 0):>6}  {note}"
         )
     return "\n".join(lines)
 
 
 def _note(s: Survey, i: int, suspects: set) -> str:
+    if i in s.gross_ids:
+        return "SUSPECT, far off: placed by the photos; measure again"
     if i in suspects:
         return "SUSPECT: measure again"
     if i in s.added_ids:

@@ -7,10 +7,12 @@ survey puts every camera pose and every marker placement (6 unknowns each) into 
 problem whose residuals are the corners' reprojection errors, and keeps the tape map as a prior
 (each placement within ``map_sigma_mm``) so the result stays where the tape put the room. A
 marker taped in the wrong place is named (:attr:`Survey.suspects`), markers absent from the map
-are added, and each placement comes with its 6x6 covariance.
+are added, and each placement comes with its 6x6 covariance. A marker taped metres off (a typo)
+is found first, by the photos alone (:attr:`Survey.gross_ids`), and never pulls the others.
 
 Modules: ``_inputs`` (photos to detected corners, the checks), ``_init`` (starting values, new
-markers, the units check), ``_geometry`` (rotation vectors and their Jacobians), ``_problem``
+markers, the units check), ``_gross`` (the photos alone against the tape: gross errors and
+the robust residuals), ``_geometry`` (rotation vectors and their Jacobians), ``_problem``
 (unknowns, residuals, sparse Jacobian), ``_solve`` (the passes, covariance, suspect test),
 ``_result`` (:class:`Survey`) and ``_survey`` (:func:`survey`).
 

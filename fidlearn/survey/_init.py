@@ -21,6 +21,9 @@ from ._inputs import _Photo
 
 #: The map's distances may differ from the photos' by this factor before its units are called wrong.
 UNITS_FACTOR_LIMIT = 1.6
+#: A new marker's placement is tried from this many photos (where it looks largest), judged in this many.
+NEW_CANDIDATES = 6
+NEW_JUDGES = 24
 
 
 def _map_of(placed: dict[int, tuple[np.ndarray, np.ndarray]], tape: MarkerMap) -> MarkerMap:
@@ -52,20 +55,33 @@ def _locate(photo: _Photo, current: MarkerMap) -> None:
 
 
 def _place_new(marker_id: int, photos: list[_Photo], size_mm: float):
-    """The best placement of a new marker over the located photos that show it (None if none works)."""
+    """The best placement of a new marker over the located photos that show it (None if none works).
+
+    Candidates come from the ``NEW_CANDIDATES`` photos where it looks largest, each judged by its
+    reprojection in up to ``NEW_JUDGES`` photos (evenly spread): the work grows with the photos, not
+    with their square.
+    """
     local = local_corners(size_mm)
     best, best_err = None, np.inf
-    for ph in photos:
+    area = [-_area(ph.corners[marker_id]) for ph in photos]
+    judges = [photos[k] for k in np.linspace(0, len(photos) - 1, min(len(photos), NEW_JUDGES)).astype(int)]
+    for ph in [photos[k] for k in np.argsort(area, kind="stable")[:NEW_CANDIDATES]]:
         cand = placement_from_photo(ph.corners[marker_id], ph.camera, ph.T_world_camera, size_mm)
         if cand is None:
             continue
         world = local @ cand[0].T + cand[1]
         err = sum(
-            float(np.sum((q.camera.project(world, q.T_world_camera) - q.corners[marker_id]) ** 2)) for q in photos
+            float(np.sum((q.camera.project(world, q.T_world_camera) - q.corners[marker_id]) ** 2)) for q in judges
         )
         if err < best_err:
             best, best_err = cand, err
     return best
+
+
+def _area(c: np.ndarray) -> float:
+    """Area (px^2) of a detected marker's outline (shoelace)."""
+    x, y = c[:, 0], c[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def initial_values(photos: list[_Photo], tape: MarkerMap) -> tuple[dict, dict[int, str]]:

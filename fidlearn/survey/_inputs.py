@@ -26,6 +26,17 @@ MIN_PHOTOS = 2
 #: Largest tape sigma (mm) and corner noise (px) taken: beyond them the weights underflow.
 MAX_MAP_SIGMA_MM = 1e5
 MAX_CORNER_SIGMA_PX = 100.0
+#: Smallest tape sigma (mm) and corner noise (px) taken: no tape measures finer (a placement known
+#: exactly is a fixed marker), no detector finds corners finer, and below them the weights overflow.
+MIN_MAP_SIGMA_MM = 0.01
+MIN_CORNER_SIGMA_PX = 0.001
+#: Most photos in one survey, refused before any is read (a room needs 20 to 100).
+MAX_PHOTOS = 400
+#: Most sightings (a marker detected in a photo) in one survey: the adjustment's work grows faster
+#: than them (about 20 s for 1,200, some 240 photos of 5 markers, on a busy 2-core machine).
+MAX_SIGHTINGS = 1200
+#: Detected corners farther than this many image sizes outside the image are refused.
+MAX_CORNER_OUTSIDE = 10
 
 
 @dataclass
@@ -57,13 +68,19 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     if corner_sigma_px is not None and not (
         isinstance(corner_sigma_px, (int, float, np.floating, np.integer))
         and not isinstance(corner_sigma_px, bool)
-        and 0 < corner_sigma_px <= MAX_CORNER_SIGMA_PX
+        and MIN_CORNER_SIGMA_PX <= corner_sigma_px <= MAX_CORNER_SIGMA_PX
     ):
         raise SurveyError(
-            f"corner_sigma_px must be a number of pixels above 0 and at most {MAX_CORNER_SIGMA_PX:g}, or None to "
-            f"estimate it, got {corner_sigma_px!r}"
+            f"corner_sigma_px must be a number of pixels above 0, from {MIN_CORNER_SIGMA_PX:g} to "
+            f"{MAX_CORNER_SIGMA_PX:g}, or None to estimate it, got {_short(corner_sigma_px)}"
         )
     return marker_map, camera, sigma, fixed
+
+
+def _short(value) -> str:
+    """``repr(value)`` on one line, at most 60 characters (an array shows as one)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _sigma_mm(map_sigma_mm) -> float:
@@ -72,11 +89,12 @@ def _sigma_mm(map_sigma_mm) -> float:
         with contextlib.suppress(TypeError, ValueError):
             sigma = float(map_sigma_mm)
     if sigma is None:
-        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {map_sigma_mm!r}")
-    if not (0 < sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
+        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {_short(map_sigma_mm)}")
+    if not (MIN_MAP_SIGMA_MM <= sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
         raise SurveyError(
-            f"map_sigma_mm must be above 0 and at most {MAX_MAP_SIGMA_MM:g} mm, or math.inf to trust the photos "
-            f"alone, got {map_sigma_mm!r}"
+            f"map_sigma_mm must be above 0, from {MIN_MAP_SIGMA_MM:g} to {MAX_MAP_SIGMA_MM:g} mm (a placement "
+            f"known exactly is a fixed marker: fixed_ids), or math.inf to trust the photos alone, "
+            f"got {_short(map_sigma_mm)}"
         )
     return sigma
 
@@ -87,13 +105,13 @@ def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
     if isinstance(fixed_ids, (int, np.integer)) and not isinstance(fixed_ids, bool):
         fixed_ids = [fixed_ids]
     if isinstance(fixed_ids, (str, bytes)):
-        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {fixed_ids!r}")
+        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {_short(fixed_ids)}")
     try:
         ids = tuple(sorted({int(i) for i in fixed_ids if not isinstance(i, bool) and int(i) == i}))
         if len(ids) != len(set(fixed_ids)):
             raise ValueError
-    except (TypeError, ValueError):
-        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {fixed_ids!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {_short(fixed_ids)}") from None
     missing = [i for i in ids if i not in marker_map]
     if missing:
         raise SurveyError(
@@ -114,12 +132,36 @@ def _read_photos(images, marker_map: MarkerMap, camera: Camera, progress: Callab
             f"a survey needs at least {MIN_PHOTOS} photos, got {len(images)}; take photos that each show two or "
             "more markers, every marker in at least two of them"
         )
+    if len(images) > MAX_PHOTOS:
+        raise SurveyError(
+            f"a survey takes at most {MAX_PHOTOS} photos, got {len(images)}; keep the {MAX_PHOTOS} that show the "
+            "most markers (a room needs 20 to 100), or survey the room in parts that share markers"
+        )
+    if progress is not None and not callable(progress):
+        raise SurveyError(f"progress must be a function progress(i, n, label) or None, got {type(progress).__name__}")
     photos = []
     for i, item in enumerate(images):
         photos.append(_one_photo(i, item, marker_map, camera))
         if progress is not None:
-            progress(i + 1, len(images), photos[-1].label)
+            _report(progress, i + 1, len(images), photos[-1].label)
+    sightings = sum(len(ph.corners) for ph in photos)
+    if sightings > MAX_SIGHTINGS:
+        raise SurveyError(
+            f"the {len(photos)} photos show markers {sightings} times, a survey takes at most {MAX_SIGHTINGS} "
+            "sightings; keep fewer photos (a room needs 20 to 100), or survey the room in parts that share markers"
+        )
     return photos
+
+
+def _report(progress: Callable, i: int, n: int, label: str) -> None:
+    """Call ``progress``; whatever it raises becomes a SurveyError naming it (the original as its cause)."""
+    try:
+        progress(i, n, label)
+    except Exception as exc:
+        raise SurveyError(
+            f"the progress function raised {type(exc).__name__} ({exc}) after photo {i} of {n}; the survey "
+            "stopped: mend the function (it is called as progress(i, n, label))"
+        ) from exc
 
 
 def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:
@@ -135,9 +177,23 @@ def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:
     else:
         raise ImageError(f"images[{i}] is a {type(item).__name__}; give a path, an image array or a list of Detection")
     corners: dict[int, np.ndarray] = {}
+    _check_corners(i, dets, cam)
     for d in dets:
         if d.id in corners:  # the same id twice in one photo: which one is where is unknowable
             corners[d.id] = None  # type: ignore[assignment]
         else:
             corners[d.id] = np.asarray(d.corners_px, float)
     return _Photo(label, cam, {k: v for k, v in corners.items() if v is not None})
+
+
+def _check_corners(i: int, dets, cam: Camera) -> None:
+    """Refuse corners that are not finite, or far outside the image (``MAX_CORNER_OUTSIDE`` image sizes)."""
+    limit = MAX_CORNER_OUTSIDE * max(cam.image_size)
+    for d in dets:
+        c = np.asarray(d.corners_px, float)
+        if not np.all(np.isfinite(c)) or np.abs(c).max() > limit:
+            raise ImageError(
+                f"images[{i}]: marker {d.id}'s corners ({', '.join(f'{v:.4g}' for v in c.ravel()[:2])}, ...) are not "
+                f"finite pixels within {limit:g} of the "
+                f"image ({cam.image_size[0]}x{cam.image_size[1]}); give the detections of that photo as detected"
+            )

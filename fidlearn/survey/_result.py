@@ -10,8 +10,11 @@ from typing import NamedTuple
 import numpy as np
 
 from .._io import write_json_atomic
+from .._map_parse import _vector3
+from ..errors import MapError, PoseError, SurveyError
 from ..markermap import MarkerMap
 from ..pose._stats import _chi2_3_quantile
+from ._inputs import _short
 
 __all__ = ["Survey", "Suspect"]
 
@@ -75,6 +78,17 @@ class Survey:
     tests : dict of int to (float, float)
         Every taped marker's suspect test: ``(distance_mm, sigmas)`` of where the photos alone put its
         top-left corner from the tape's (the suspects are those above the chi-square threshold).
+    tape_residual_mm : dict of int to float
+        Every taped marker's robust residual: the distance (mm) of its tape top-left corner from where
+        the photos alone put it, after the similarity that lays the photos' placements on the tape's,
+        fitted robustly (by the markers that agree). Markers seen in fewer than two photos are absent.
+    gross_ids : tuple of int
+        Markers whose robust residual exceeds :attr:`gross_threshold_mm`: their tape placement was
+        never used (the photos alone place them); they are also :attr:`suspects`.
+    gross_threshold_mm : float
+        The gross test's threshold (mm): ``GROSS_SIGMAS`` tape sigmas, or residual spreads when those
+        are larger, and at least one marker side; NaN when the test was not run (fewer than four
+        taped markers in two photos, or ``map_sigma_mm=inf``).
     """
 
     marker_map: MarkerMap
@@ -95,6 +109,9 @@ class Survey:
     map_sigma_deg: float
     photos_per_marker: dict[int, int] = field(default_factory=dict)
     tests: dict[int, tuple[float, float]] = field(default_factory=dict)
+    tape_residual_mm: dict[int, float] = field(default_factory=dict)
+    gross_ids: tuple[int, ...] = ()
+    gross_threshold_mm: float = float("nan")
 
     @property
     def suspect_ids(self) -> list[int]:
@@ -120,13 +137,25 @@ class Survey:
 
         Raises
         ------
-        KeyError
-            If the marker was not surveyed.
+        SurveyError
+            The marker was not surveyed, or the point is not 3 finite numbers.
         PoseError
-            ``probability`` is not between 0 and 1.
+            ``probability`` is not a number between 0 and 1.
         """
+        if isinstance(marker_id, bool) or not _hashable(marker_id) or marker_id not in self.marker_covariance:
+            raise SurveyError(
+                f"marker {_short(marker_id)} was not surveyed; surveyed markers: {list(self.marker_covariance)}"
+            )
+        try:
+            point = np.asarray(point_mm, dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            point = np.full(3, np.nan)
+        if not np.all(np.isfinite(point)):
+            raise SurveyError(f"point_mm must be 3 finite numbers (a world point, mm), got {_short(point_mm)}")
+        if isinstance(probability, bool) or not isinstance(probability, (int, float, np.floating, np.integer)):
+            raise PoseError(f"probability must be a number between 0 and 1, got {_short(probability)}")
         cov = self.marker_covariance[marker_id][3:, 3:]
-        d = np.asarray(point_mm, float).reshape(3) - np.asarray(self.marker_map.placements[marker_id].translation_mm)
+        d = point - np.asarray(self.marker_map.placements[marker_id].translation_mm)
         if not np.any(cov):
             return bool(np.allclose(d, 0.0))
         return float(d @ np.linalg.solve(cov, d)) <= _chi2_3_quantile(probability)
@@ -149,6 +178,7 @@ class Survey:
             "fixed_ids": list(self.fixed_ids),
             "added_ids": list(self.added_ids),
             "unseen_ids": list(self.unseen_ids),
+            "gross_ids": list(self.gross_ids),
             "suspects": [
                 {"id": s.id, "distance_mm": round(s.distance_mm, 2), "sigmas": round(s.sigmas, 2)}
                 for s in self.suspects
@@ -170,5 +200,40 @@ class Survey:
         -------
         Path
             The file written.
+
+        Raises
+        ------
+        SurveyError
+            A placement lies beyond what :meth:`fidlearn.MarkerMap.load` reads (named), or ``path`` is
+            not a path.
         """
+        if not isinstance(path, (str, os.PathLike)) or not str(path):
+            raise SurveyError(f"save needs a file path (str or pathlib.Path) ending in .json, got {_short(path)}")
+        check_readable(self.marker_map)
         return write_json_atomic(path, {**self.marker_map.to_dict(), "surveyed": self.note()})
+
+
+def _hashable(value) -> bool:
+    try:
+        hash(value)
+    except TypeError:
+        return False
+    return True
+
+
+def check_readable(marker_map: MarkerMap) -> None:
+    """Refuse a surveyed map that :meth:`MarkerMap.load` would not read back (a placement beyond any room).
+
+    Each placement, in the map's units, goes through the map reader's own check of a marker's numbers.
+    """
+    for i, entry in marker_map.to_dict()["markers"].items():
+        for key in ("translation", "rotation"):
+            try:
+                _vector3(entry[key], f"marker {i}", key, "")
+            except MapError as exc:
+                unit = marker_map.units if key == "translation" else "degrees"
+                raise SurveyError(
+                    f"the surveyed map cannot be written: marker {i}'s {key} {entry[key]} ({unit}) is beyond what "
+                    f"a map file holds, MarkerMap.load would refuse it ({str(exc).rstrip('; ')}): check marker {i}'s "
+                    "tape placement and id, and take photos that show it with other markers"
+                ) from None

@@ -10,9 +10,10 @@ import numpy as np
 from .. import frames
 from ..errors import FidlearnWarning, SurveyError
 from ..markermap import MarkerMap, MarkerPlacement
+from ._gross import GrossTest, gross_test
 from ._init import check_units, initial_values
 from ._inputs import MIN_PHOTOS, _check_options, _read_photos
-from ._result import Survey, Suspect
+from ._result import Survey, Suspect, check_readable
 from ._solve import (
     FIRST_SIGMA_PX,
     build_problem,
@@ -46,6 +47,14 @@ def survey(
     is named a suspect and its tape prior dropped, so the photos alone place it. The corner noise
     is estimated from the residuals unless given; the covariances assume it, and the tape's sigma.
 
+    Before all this, a gross test (:mod:`fidlearn.survey._gross`): the photos alone place every
+    marker seen in two photos up to the gauge, a similarity laying them on the tape map is fitted
+    robustly (by the markers that agree), and a taped marker farther from the photos than the room
+    can explain (``GROSS_SIGMAS`` tape sigmas or residual spreads, at least one marker side: a
+    typo, metres off) is a suspect whose tape placement is never used, so it cannot drag the
+    others; the survey is then the one it would be without that marker's tape entry. Each taped
+    marker's distance in that alignment is :attr:`Survey.tape_residual_mm`.
+
     Parameters
     ----------
     images : sequence
@@ -64,7 +73,8 @@ def survey(
     corner_sigma_px : float, optional
         Corner noise, px per coordinate; estimated from the residuals when None.
     progress : callable, optional
-        ``progress(i, n, label)`` after each photo is read.
+        ``progress(i, n, label)`` after each photo is read. Whatever it raises stops the survey
+        as a :class:`~fidlearn.errors.SurveyError` naming it, with the original as ``__cause__``.
 
     Returns
     -------
@@ -76,7 +86,11 @@ def survey(
     ------
     SurveyError
         Fewer than 2 photos give a camera pose (the message says why and what photo to take),
-        bad options, or nothing ties the photos to the world.
+        bad options (each with its range), more than ``MAX_PHOTOS`` photos (400, before reading any)
+        or ``MAX_SIGHTINGS`` markers detected in them (1,200), a ``progress`` function that raises
+        (its exception is the SurveyError's ``__cause__``), nothing ties the photos to the world,
+        no majority of the taped markers agrees with the photos (the message names them), or a fixed
+        marker is off by more than the room can explain.
     MapError
         The map cannot be read, or its distances disagree with the photos' by a factor (units).
     ImageError
@@ -91,8 +105,13 @@ def survey(
     """
     tape, camera, sigma_mm, fixed = _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     photos = _read_photos(images, tape, camera, progress)
-    check_units(photos, tape)
-    placed, unplaced = initial_values(photos, tape)
+    gross = gross_test(photos, tape, sigma_mm)
+    if set(gross.gross) & set(fixed):
+        raise SurveyError(_fixed_gross(gross, fixed))
+    clean = {i: p for i, p in tape.placements.items() if i not in gross.gross}
+    clean_map = MarkerMap(clean, tape.marker_size_mm, tape.dictionary, tape.units, tape.source)
+    check_units(photos, clean_map)
+    placed, unplaced = initial_values(photos, clean_map)
     cams = _usable(photos)
     for reason in unplaced.values():
         warnings.warn(reason, FidlearnWarning, stacklevel=2)
@@ -107,9 +126,19 @@ def survey(
         "sigma_mm": sigma_mm,
         "sigma_rot_rad": sigma_mm / tape.marker_size_mm,
     }
-    priors = {} if math.isinf(sigma_mm) else {i: placed[i] for i in free if i in tape}
-    problem, x, C, tests, dropped = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None)
-    return _result(tape, photos, cams, slots, placed, problem, x, C, tests, dropped, unplaced, fixed)
+    taped = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
+    priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in tape}
+    fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, set(gross.gross))
+    return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross)
+
+
+def _fixed_gross(gross: GrossTest, fixed) -> str:
+    bad = [i for i in gross.gross if i in fixed]
+    return (
+        f"fixed marker {bad[0]} is {gross.residual_mm[bad[0]]:.0f} mm from where the photos put it (more than the "
+        f"{gross.threshold_mm:.0f} mm the room can explain): a fixed placement must be exact; measure it again or "
+        "fix another marker"
+    )
 
 
 def _usable(photos: list) -> list:
@@ -124,19 +153,21 @@ def _usable(photos: list) -> list:
     return cams
 
 
-def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool):
+def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool, gross: set[int]):
     """Robust pass, corner noise, then plain passes until the suspect test names no new marker.
+
+    The gross markers' tape placements are left out from the start (they are suspects already).
 
     Suspects are named one at a time, the worst first (a marker far off can make its neighbours
     look wrong until it is let go), and only among markers seen in two photos or more: one photo
     cannot dispute the tape (a lone marker's pose may flip), it asks for another photo.
     """
-    problem = build_problem(cams, slots, n_free, placed, priors, opts)
+    dropped: set[int] = set(gross)
+    problem = build_problem(cams, slots, n_free, placed, {i: v for i, v in priors.items() if i not in gross}, opts)
     seen_twice = {i for k, i in enumerate(slots) if len(set(problem.obs_cam[problem.obs_marker == k])) >= 2}
     x = fit(problem, np.zeros(problem.n_params), robust=True)
     if estimate_sigma:
         opts = {**opts, "sigma_px": corner_sigma(problem, x, gauge_free=False)}
-    dropped: set[int] = set()
     threshold = suspect_threshold()
     for _ in range(MAX_SUSPECTS + 1):
         keep = {i: v for i, v in priors.items() if i not in dropped}
@@ -147,13 +178,14 @@ def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool):
             i: tape_test(problem, x, C, k, priors[i], i in keep) for k, i in enumerate(slots[:n_free]) if i in priors
         }
         new = {i: s for i, (_, s) in tests.items() if s**2 > threshold and i in seen_twice and i not in dropped}
-        if not new or len(dropped) == MAX_SUSPECTS:
+        if not new or len(dropped - gross) == MAX_SUSPECTS:
             break
         dropped.add(max(new, key=new.get))
     return problem, x, C, tests, dropped
 
 
-def _result(tape, photos, cams, slots, placed, problem, x, C, tests, dropped, unplaced, fixed) -> Survey:
+def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest) -> Survey:
+    problem, x, C, tests, dropped = fitted
     R_cam, t_cam, R_mark, p_mark = problem.poses(x)
     placements = dict(tape.placements)
     cov, std = {}, {}
@@ -170,11 +202,12 @@ def _result(tape, photos, cams, slots, placed, problem, x, C, tests, dropped, un
         cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
         std[i] = np.sqrt(np.diag(cov[i])[3:])
     surveyed = MarkerMap(placements, tape.marker_size_mm, tape.dictionary, tape.units, f"survey of {tape.source}")
+    check_readable(surveyed)
     r = np.linalg.norm(problem.reprojection_px(x), axis=1)
     poses = {}
     for c, ph in enumerate(cams):
         poses[ph.label] = frames.invert_transform(frames.make_transform(R_cam[c], t_cam[c]))
-    suspects = sorted((Suspect(i, *tests[i]) for i in dropped), key=lambda s: -s.sigmas)
+    suspects = sorted((Suspect(i, *tests[i]) for i in dropped if i in tests), key=lambda s: -s.sigmas)
     return Survey(
         marker_map=surveyed,
         tape_map=tape,
@@ -194,6 +227,9 @@ def _result(tape, photos, cams, slots, placed, problem, x, C, tests, dropped, un
         map_sigma_deg=float(np.degrees(s_rot)),
         photos_per_marker={i: len(set(problem.obs_cam[problem.obs_marker == k])) for k, i in enumerate(slots)},
         tests=tests,
+        tape_residual_mm=gross.residual_mm,
+        gross_ids=gross.gross,
+        gross_threshold_mm=gross.threshold_mm,
     )
 
 

@@ -1,0 +1,185 @@
+"""The gross test: tape placements off by more than the room can explain (a typo, a marker on another wall).
+
+First pass, the photos alone: starting from the marker seen in most photos, the photos are
+located and the markers placed in turn (as :func:`initial_values` does from the tape map), then
+adjusted with that marker held, so every marker seen in two photos or more is placed up to the
+gauge (where the room is, which way it faces). A similarity (rotation, translation, scale within
+``UNITS_FACTOR_LIMIT``) laying these top-left corners on the tape's is fitted robustly: from
+triples of taped markers (every triple, or ``MAX_TRIPLES`` drawn with a fixed seed), the one that
+most markers agree with (within the threshold), refitted on them. Each taped marker's distance
+from its aligned photo placement is its robust residual.
+
+Threshold: ``GROSS_SIGMAS`` times the tape's sigma, or times the residuals' own spread (from
+their median) when that is larger (a sigma given too small), and never less than one marker side
+(what the photos' own pose ambiguity could move a corner). A taped marker beyond it is gross: the
+survey places it from the photos alone. When no more than half of the taped markers agree, the
+map cannot be mended by leaving some out: the survey refuses it, naming the markers (or, when a
+majority agrees at a scale beyond ``UNITS_FACTOR_LIMIT``, saying the map's units look wrong).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+
+from ..errors import MapError, SurveyError
+from ..markermap import MarkerMap, MarkerPlacement
+from ._init import UNITS_FACTOR_LIMIT, _units_message, initial_values
+from ._inputs import _Photo
+from ._solve import FIRST_SIGMA_PX, _polish, build_problem
+
+#: A taped marker farther than this many tape sigmas (3D distance) from the photos is gross.
+GROSS_SIGMAS = 15.0
+#: At most this many triples of markers are tried as the alignment's seed.
+MAX_TRIPLES = 2000
+#: The median distance of a 3D Gaussian with unit sigma per coordinate (sqrt of chi-square(3)'s median).
+_MEDIAN_3D = 1.5382
+
+
+@dataclass
+class GrossTest:
+    """What the gross test found: each taped marker's robust residual (mm), the threshold, the gross markers."""
+
+    residual_mm: dict[int, float] = field(default_factory=dict)
+    threshold_mm: float = math.nan
+    gross: tuple[int, ...] = ()
+
+
+def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndarray]:
+    """Top-left corners (mm) of the markers seen in two photos or more, from the photos alone (any gauge)."""
+    copies = [_Photo(ph.label, ph.camera, ph.corners) for ph in photos]
+    counts: dict[int, int] = {}
+    for ph in copies:
+        for i in ph.corners:
+            counts[i] = counts.get(i, 0) + 1
+    if not counts:
+        return {}
+    ref = max(counts, key=lambda i: (counts[i], -i))
+    start = MarkerMap(
+        {ref: MarkerPlacement(ref, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))},
+        tape.marker_size_mm,
+        tape.dictionary,
+        "mm",
+        "the photos",
+    )
+    placed, _ = initial_values(copies, start)
+    cams = [ph for ph in copies if ph.T_world_camera is not None]
+    if len(cams) < 2 or len(placed) < 2:
+        return {i: np.asarray(p, float) for i, (_, p) in placed.items()}
+    slots = [i for i in placed if i != ref] + [ref]
+    opts = {"marker_size_mm": tape.marker_size_mm, "sigma_px": FIRST_SIGMA_PX, "sigma_mm": math.inf}
+    problem = build_problem(cams, slots, len(slots) - 1, placed, {}, {**opts, "sigma_rot_rad": math.inf})
+    x = _polish(problem, np.zeros(problem.n_params))  # Gauss-Newton: the start is the photos' own
+    _, _, _, p_mark = problem.poses(x)
+    return {i: p_mark[k] for k, i in enumerate(slots) if np.all(np.isfinite(p_mark[k]))}
+
+
+def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float) -> GrossTest:
+    """The taped markers that disagree with the photos by more than the room can explain.
+
+    Raises
+    ------
+    SurveyError
+        No more than half of the taped markers seen agree with the photos (naming them).
+    """
+    if not math.isfinite(sigma_mm):
+        return GrossTest()
+    seen = photo_placements(photos, tape)
+    ids = sorted(i for i in seen if i in tape)
+    if len(ids) < 4:  # a majority of three is two markers: too few to align
+        return GrossTest()
+    src = np.array([seen[i] for i in ids])
+    dst = np.array([tape.placements[i].translation_mm for i in ids], float)
+    floor = max(GROSS_SIGMAS * sigma_mm, tape.marker_size_mm)
+    inliers = _consensus(src, dst, floor)
+    threshold = floor
+    if 2 * int(inliers.sum()) > len(ids):
+        r = _residuals(src, dst, inliers)
+        threshold = max(floor, GROSS_SIGMAS * float(np.median(r)) / _MEDIAN_3D)
+        for _ in range(2):  # refit on the markers within the final threshold
+            inliers = r <= threshold
+            r = _residuals(src, dst, inliers) if 2 * int(inliers.sum()) > len(ids) else r
+        inliers = r <= threshold
+    else:
+        _refuse_units(src, dst, floor, tape)
+        r = _residuals(src, dst, inliers)
+    residual = {i: float(v) for i, v in zip(ids, r)}
+    if 2 * int(inliers.sum()) <= len(ids):
+        raise SurveyError(_no_majority(ids, inliers, residual, threshold, tape))
+    return GrossTest(residual, threshold, tuple(i for i, ok in zip(ids, inliers) if not ok))
+
+
+def _refuse_units(src: np.ndarray, dst: np.ndarray, threshold: float, tape: MarkerMap) -> None:
+    """Raise MapError when a majority agrees at a scale the units check refuses (the map's units are wrong)."""
+    inliers = _consensus(src, dst, threshold, limit=math.inf)
+    if 2 * int(inliers.sum()) > len(src):
+        sim = _similarity(src[inliers], dst[inliers], limit=math.inf)
+        if sim is not None:
+            raise MapError(_units_message(sim[0], tape))
+
+
+def _consensus(src: np.ndarray, dst: np.ndarray, threshold: float, limit: float = UNITS_FACTOR_LIMIT) -> np.ndarray:
+    """The inliers (bool, one per marker) of the best similarity seeded by a triple of markers.
+
+    The similarity's scale must lie within ``limit`` of 1; ``threshold`` is in the tape's mm.
+    """
+    n = len(src)
+    triples = list(combinations(range(n), 3)) if math.comb(n, 3) <= MAX_TRIPLES else None
+    if triples is None:
+        rng = np.random.default_rng(0)
+        triples = [tuple(rng.choice(n, 3, replace=False)) for _ in range(MAX_TRIPLES)]
+    best = np.zeros(n, bool)
+    best_key = (-1, math.inf)
+    for t in triples:
+        sim = _similarity(src[list(t)], dst[list(t)], limit)
+        if sim is None:
+            continue
+        d = np.linalg.norm(_apply(sim, src) - dst, axis=1)
+        ok = d <= threshold
+        key = (int(ok.sum()), float(np.sum(np.minimum(d, threshold))))
+        if key[0] > best_key[0] or (key[0] == best_key[0] and key[1] < best_key[1]):
+            best, best_key = ok, key
+    return best
+
+
+def _residuals(src: np.ndarray, dst: np.ndarray, inliers: np.ndarray) -> np.ndarray:
+    """Distances (mm) of the aligned photo placements from the tape's, the similarity fitted on ``inliers``."""
+    sim = _similarity(src[inliers], dst[inliers]) if inliers.sum() >= 3 else None
+    if sim is None:
+        return np.full(len(src), math.inf)
+    return np.linalg.norm(_apply(sim, src) - dst, axis=1)
+
+
+def _similarity(a: np.ndarray, b: np.ndarray, limit: float = UNITS_FACTOR_LIMIT):
+    """``(s, R, t)`` with ``s R a + t`` closest to ``b`` (Umeyama); None when degenerate or the scale is off."""
+    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
+    var = float(np.sum(ca**2))
+    if var <= 0 or not math.isfinite(var):
+        return None
+    u, sv, vt = np.linalg.svd(cb.T @ ca)
+    d = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(u @ vt)) or 1.0)])
+    R = u @ d @ vt
+    s = float(np.sum(sv * np.diag(d))) / var
+    if not (1 / limit < s < limit):
+        return None
+    return s, R, b.mean(axis=0) - s * R @ a.mean(axis=0)
+
+
+def _apply(sim, p: np.ndarray) -> np.ndarray:
+    s, R, t = sim
+    return s * p @ R.T + t
+
+
+def _no_majority(ids, inliers, residual, threshold: float, tape: MarkerMap) -> str:
+    agree = [i for i, ok in zip(ids, inliers) if ok]
+    off = [i for i, ok in zip(ids, inliers) if not ok]
+    worst = ", ".join(f"{i} ({residual[i] / 1000:.2g} m)" for i in off[:8] if math.isfinite(residual[i]))
+    return (
+        f"{tape.source}: the tape placements cannot agree with the photos: at most {len(agree)} of the "
+        f"{len(ids)} taped markers the photos place ({agree}) fit them within {threshold:.0f} mm, no majority; "
+        f"markers {off} are off{' by ' + worst if worst else ''}: check the map's ids and positions and measure "
+        "them again"
+    )
