@@ -136,6 +136,21 @@ class Prediction:
         )
 
 
+class _CachedMap:
+    """A map's ids, corners and normals, computed once: a plan asks for them at every place and heading."""
+
+    def __init__(self, marker_map: MarkerMap):
+        self.ids = marker_map.ids
+        self._corners = {i: marker_map.marker_corners(i) for i in self.ids}
+        self._normals = {i: marker_map.normal(i) for i in self.ids}
+
+    def marker_corners(self, marker_id: int) -> np.ndarray:
+        return self._corners[marker_id]
+
+    def normal(self, marker_id: int) -> np.ndarray:
+        return self._normals[marker_id]
+
+
 def _check_pose(T_world_camera) -> np.ndarray:
     try:
         T = np.asarray(T_world_camera, dtype=float)
@@ -357,14 +372,18 @@ def predict_accuracy(
     )
 
 
+#: Largest corner noise or marker shift (px) a prediction takes: beyond it no detector finds a marker.
+MAX_NOISE_PX = 100.0
+
+
 def _check_px(value, name: str, zero: bool) -> None:
-    """A positive (or, with ``zero``, non-negative) number of pixels, or None."""
+    """A positive (or, with ``zero``, non-negative) number of pixels up to :data:`MAX_NOISE_PX`, or None."""
     if value is None:
         return
     ok = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
-    if not ok or not math.isfinite(value) or value < 0 or (value == 0 and not zero):
+    if not ok or not math.isfinite(value) or value < 0 or (value == 0 and not zero) or value > MAX_NOISE_PX:
         what = "non-negative" if zero else "positive"
-        raise FidlearnError(f"{name} must be a {what} number of pixels, got {value!r}")
+        raise FidlearnError(f"{name} must be a {what} number of pixels up to {MAX_NOISE_PX:g}, got {value!r}")
 
 
 def _check_rel(value, name: str, signed: bool = False) -> float:
