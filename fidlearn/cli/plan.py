@@ -15,8 +15,8 @@ from ..detection import detect_markers
 from ..errors import CameraError, FidlearnError
 from ..images import load_image
 from ..markermap import MarkerMap
+from ..planning._checks import MAX_NOISE_PX
 from ..planning.noise import noise_from_pose
-from ..planning.predict import MAX_NOISE_PX
 from ..planning.room import AREA_MET, default_area, plan_room
 from ..planning.suggest import suggest_markers
 from ..pose import estimate_pose

@@ -17,6 +17,7 @@ from ..camera import Camera
 from ..errors import FidlearnError
 from ..markermap import MarkerMap
 from ..synthetic import look_at
+from . import _checks
 from .predict import _CachedMap, _check_px, _check_rel, _predict
 
 __all__ = ["RoomPlan", "plan_room", "default_area", "default_step"]
@@ -81,10 +82,12 @@ class RoomPlan:
         Raises
         ------
         FidlearnError
-            For another ``which``.
+            For another ``which``, or an ``error_mm`` that is not a number.
         """
+        if not _checks.is_number(error_mm) or math.isnan(error_mm):
+            raise FidlearnError(f"error_mm must be a number of mm, got {error_mm!r}")
         grid = {"toward": self.toward_mm, "median": self.median_mm, "worst": self.worst_mm}.get(which)
-        if grid is None:
+        if not isinstance(which, str) or grid is None:
             raise FidlearnError(f"which must be 'toward', 'median' or 'worst', got {which!r}")
         return float(np.mean(grid <= error_mm))
 
@@ -132,8 +135,10 @@ def default_area(marker_map: MarkerMap) -> tuple[float, float, float, float]:
     Raises
     ------
     FidlearnError
-        If the map has no markers.
+        If ``marker_map`` is not a MarkerMap or has no markers.
     """
+    if not isinstance(marker_map, MarkerMap):
+        raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
     if not len(marker_map):
         raise FidlearnError("the map has no markers: there is nothing to plan around")
     pts = []
