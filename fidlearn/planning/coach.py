@@ -237,13 +237,22 @@ class CalibrationCoach:
         -------
         str
             The uncertainty over the picture, one ``warning:`` line per flag, and the next photo.
+
+        Raises
+        ------
+        CalibrationError
+            If ``omit`` is not a collection.
         """
         lines = [
             f"reprojection uncertainty: median {np.median(self.uncertainty_px):.2f} px, worst "
             f"{self.uncertainty_px.max():.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
             f"{100 * self.good_fraction:.0f} % of the picture"
         ]
-        lines += [f"warning: {f}" for f in self.flags if f not in omit]
+        try:
+            skip = {o for o in omit if isinstance(o, str)}
+        except TypeError:
+            raise CalibrationError(f"omit must be a collection of flags (str), got {omit!r:.60}") from None
+        lines += [f"warning: {f}" for f in self.flags if f not in skip]
         if self.next_view is not None:
             lines.append(f"next photo: {self.next_view}")
         return "\n".join(lines)

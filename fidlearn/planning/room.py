@@ -86,7 +86,7 @@ class RoomPlan:
         """
         if not _checks.is_number(error_mm) or math.isnan(error_mm):
             raise FidlearnError(f"error_mm must be a number of mm, got {error_mm!r}")
-        grid = {"toward": self.toward_mm, "median": self.median_mm, "worst": self.worst_mm}.get(which)
+        grid = {"toward": self.toward_mm, "median": self.median_mm, "worst": self.worst_mm}.get(str(which))
         if not isinstance(which, str) or grid is None:
             raise FidlearnError(f"which must be 'toward', 'median' or 'worst', got {which!r}")
         return float(np.mean(grid <= error_mm))

@@ -9,6 +9,7 @@ new plan of :attr:`Suggestion.marker_map` says.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -21,8 +22,8 @@ from .room import AREA_MET, _check_area, _check_inputs, _grid, _noise, _plan, de
 
 __all__ = ["Suggestion", "suggest_markers"]
 
-#: Most predictions one round of the search may make (candidate places times grid places): about a minute.
-MAX_PREDICTIONS = 400_000
+#: Most predictions a search may make (grid places times the maps it scores): about a minute.
+MAX_PREDICTIONS = 40_000
 #: Most markers :func:`suggest_markers` adds, and the largest size factor it tries.
 MAX_ADDED, MAX_SIZE_FACTOR = 20, 10.0
 
@@ -123,7 +124,7 @@ def _check_options(target_mm, max_markers, size_factors) -> list[float]:
     if max_markers > MAX_ADDED:
         raise FidlearnError(f"max_markers must be a whole number from 0 to {MAX_ADDED}, got {max_markers!r}")
     try:
-        factors = [f for f in size_factors][: MAX_ADDED + 1]
+        factors = list(itertools.islice(size_factors, MAX_ADDED + 1))  # an endless iterator: refused, not read
     except TypeError:
         factors = None
     ok = factors is not None and len(factors) <= MAX_ADDED
@@ -189,7 +190,7 @@ def suggest_markers(
     ------
     FidlearnError
         If ``target_mm`` is not a positive number, ``max_markers`` or ``size_factors`` out of range, the
-        search would need more than :data:`MAX_PREDICTIONS` predictions a round, or as
+        search would need more than :data:`MAX_PREDICTIONS` predictions, or as
         :func:`~fidlearn.planning.plan_room`.
     """
     factors = _check_options(target_mm, max_markers, size_factors)
@@ -197,6 +198,22 @@ def suggest_markers(
     area = _check_area(default_area(marker_map) if area is None else area)
     grid = _grid(marker_map, area, height_mm, step_mm, 0)
     kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, marker_size_rel_error)
+
+    spacing = max(grid[2], min(2 * grid[2], 500.0))  # the places tried along the walls
+    cells = len(grid[0]) * len(grid[1])
+    along = len(_walls(marker_map)) * (2 * max(area[2] - area[0], area[3] - area[1]) / spacing + 1)
+    if cells * along > 10 * MAX_PREDICTIONS:  # before listing them: a long wall at a fine step has too many
+        raise FidlearnError(
+            f"the search would try about {along:.0f} places along the walls, each over {cells} grid places: "
+            f"use a larger step_mm or a smaller area"
+        )
+    tried = len(_places(marker_map, area, spacing))
+    work = cells * (1 + len(factors) + max_markers * tried)  # at most: later rounds try no more places
+    if work > MAX_PREDICTIONS:
+        raise FidlearnError(
+            f"the search would make up to {work} predictions ({tried} places along the walls, each over {cells} "
+            f"grid places), more than {MAX_PREDICTIONS}: use a larger step_mm, a smaller area or fewer max_markers"
+        )
 
     def score(m: MarkerMap) -> float:
         return _plan(m, camera, grid, float(height_mm), look_at_mm, 0, kw, with_flip=False).fraction_within(target_mm)
@@ -217,13 +234,7 @@ def suggest_markers(
     for _ in range(max_markers):
         if now >= AREA_MET:
             break
-        places = _places(current, area, max(grid[2], min(2 * grid[2], 500.0)))
-        cells = len(grid[0]) * len(grid[1])
-        if len(places) * cells > MAX_PREDICTIONS:
-            raise FidlearnError(
-                f"the search would try {len(places)} places, each over {cells} grid places: more than "
-                f"{MAX_PREDICTIONS} predictions; use a larger step_mm or a smaller area"
-            )
+        places = _places(current, area, spacing)
         best = max(((score(m), m, text) for m, text in _candidates(current, places)), key=lambda t: t[0], default=None)
         if best is None or best[0] <= now + 0.01:
             break
