@@ -137,6 +137,40 @@ def _check_options(target_mm, max_markers, size_factors) -> list[float]:
     return sorted(float(f) for f in factors)
 
 
+def _check_work(marker_map: MarkerMap, area, grid, spacing: float, n_factors: int, max_markers: int) -> None:
+    """Refuse, before any prediction, a search that would make more than :data:`MAX_PREDICTIONS` of them."""
+    cells = len(grid[0]) * len(grid[1])
+    along = len(_walls(marker_map)) * (2 * max(area[2] - area[0], area[3] - area[1]) / spacing + 1)
+    if cells * along > 10 * MAX_PREDICTIONS:  # before listing them: a long wall at a fine step has too many
+        raise FidlearnError(
+            f"the search would try about {along:.0f} places along the walls, each over {cells} grid places: "
+            f"use a larger step_mm or a smaller area"
+        )
+    tried = len(_places(marker_map, area, spacing))
+    work = cells * (1 + n_factors + max_markers * tried)  # at most: later rounds try no more places
+    if work > MAX_PREDICTIONS:
+        raise FidlearnError(
+            f"the search would make up to {work} predictions ({tried} places along the walls, each over {cells} "
+            f"grid places), more than {MAX_PREDICTIONS}: use a larger step_mm, a smaller area or fewer max_markers"
+        )
+
+
+def _larger_print(marker_map: MarkerMap, factors: list[float], score) -> tuple[list[Suggestion], float]:
+    """The first larger print that brings 2 % more of the area within the target, as a list of one (or none),
+    and the map's own score."""
+    now = score(marker_map)
+    for factor in factors:
+        size = round(marker_map.marker_size_mm * factor)
+        if size <= marker_map.marker_size_mm:  # markers under 2 mm: nothing larger to print in whole mm
+            continue
+        bigger = _with_size(marker_map, size)
+        f = score(bigger)
+        if f > now + 0.02:
+            text = f"print the markers at {size} mm instead of {marker_map.marker_size_mm:g} mm"
+            return [Suggestion(text, now, f, bigger)], now
+    return [], now
+
+
 def suggest_markers(
     marker_map: MarkerMap,
     camera: Camera,
@@ -200,37 +234,13 @@ def suggest_markers(
     kw = _noise(corner_sigma_px, marker_shift_px, marker_size_rel_std, marker_size_rel_std_each, marker_size_rel_error)
 
     spacing = max(grid[2], min(2 * grid[2], 500.0))  # the places tried along the walls
-    cells = len(grid[0]) * len(grid[1])
-    along = len(_walls(marker_map)) * (2 * max(area[2] - area[0], area[3] - area[1]) / spacing + 1)
-    if cells * along > 10 * MAX_PREDICTIONS:  # before listing them: a long wall at a fine step has too many
-        raise FidlearnError(
-            f"the search would try about {along:.0f} places along the walls, each over {cells} grid places: "
-            f"use a larger step_mm or a smaller area"
-        )
-    tried = len(_places(marker_map, area, spacing))
-    work = cells * (1 + len(factors) + max_markers * tried)  # at most: later rounds try no more places
-    if work > MAX_PREDICTIONS:
-        raise FidlearnError(
-            f"the search would make up to {work} predictions ({tried} places along the walls, each over {cells} "
-            f"grid places), more than {MAX_PREDICTIONS}: use a larger step_mm, a smaller area or fewer max_markers"
-        )
+    _check_work(marker_map, area, grid, spacing, len(factors), max_markers)
 
     def score(m: MarkerMap) -> float:
         return _plan(m, camera, grid, float(height_mm), look_at_mm, 0, kw, with_flip=False).fraction_within(target_mm)
 
-    current, now = marker_map, score(marker_map)
-    steps: list[Suggestion] = []
-    for factor in factors:
-        size = round(marker_map.marker_size_mm * factor)
-        if size <= marker_map.marker_size_mm:  # markers under 2 mm: nothing larger to print in whole mm
-            continue
-        bigger = _with_size(marker_map, size)
-        f = score(bigger)
-        if f > now + 0.02:
-            text = f"print the markers at {size} mm instead of {marker_map.marker_size_mm:g} mm"
-            steps.append(Suggestion(text, now, f, bigger))
-            current, now = bigger, f
-            break
+    steps, now = _larger_print(marker_map, factors, score)
+    current, now = (steps[-1].marker_map, steps[-1].fraction_after) if steps else (marker_map, now)
     for _ in range(max_markers):
         if now >= AREA_MET:
             break
