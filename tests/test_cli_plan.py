@@ -11,7 +11,7 @@ import pytest
 
 from fidlearn import Camera, MarkerMap, data_path
 from fidlearn.cli import main
-from fidlearn.planning import plan_room
+from fidlearn.planning import plan_room, suggest_markers
 
 MAP, CAMERA = data_path("world_map.json"), data_path("scenes/camera.json")
 COARSE = ["--step-mm", "500", "--headings", "0", "--corner-sigma-px", "0.2"]
@@ -197,6 +197,11 @@ def test_the_suggestions_applied_to_the_map_give_what_they_promise(capsys, tmp_p
     assert all(int(a[2]) == int(b[1]) for a, b in zip(steps, steps[1:]))  # each starts where the last ended
     promised = int(steps[-1][2])
     world = MarkerMap.load(MAP)
+    # the command says what the library finds with the same options
+    library = suggest_markers(world, Camera.load(CAMERA), 5.0, step_mm=500)
+    assert [(s.text, round(100 * s.fraction_before), round(100 * s.fraction_after)) for s in library] == [
+        (text, int(a), int(b)) for text, a, b in steps
+    ]
     applied = tmp_path / "applied.json"
     applied.write_text(json.dumps(_apply(world, [s[0] for s in steps])))
     same = re.search(r"to check: plan the changed map on the same places, (.*)", text).group(1).split()
