@@ -501,7 +501,7 @@ def test_the_quality_warnings_are_the_libraries_and_the_command_line_prints_them
     photos = sorted(data_path("calibration").glob("view_*.png"))[:5]
     cal = calibrate_checkerboard(photos, (9, 6), 25.0)
     assert cal.coverage.shape == (3, 3) and cal.coverage.sum() == 5 * 54
-    assert cal.warnings and cal.warnings[0].startswith("only 5 views used")
+    assert cal.warnings and cal.warnings[0].startswith("only 5 views were used")
     assert all(f"warning: {w}" in cal.summary() for w in cal.warnings)
     full = calibrate_checkerboard(data_path("calibration"), (9, 6), 25.0)
     assert full.warnings == []  # 20 varied views covering the picture: nothing to say

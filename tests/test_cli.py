@@ -306,7 +306,7 @@ def test_calibrate_real_charuco_matches_opencv_and_warns(capsys, tmp_path):
         # published for OpenCV 5.0 (data/real/README): a plain cv2.calibrateCamera gives these
         assert np.allclose(found, [457.29, 461.32, 317.22, 275.61], atol=0.2)
     warns = [ln for ln in err.splitlines() if ln.startswith("warning: ")]
-    assert any("only 4 views used" in w for w in warns)
+    assert any("only 4 views were used" in w for w in warns)
     assert any("views too similar" in w for w in warns)  # OpenCV's four tutorial photos are all near face-on
     assert any("no board corner in the" in w for w in warns)
 

@@ -3,6 +3,7 @@ to the prediction, and refused when out of range (status 2, one line on stderr, 
 
 from __future__ import annotations
 
+import json
 import re
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 
 from fidlearn import Camera, MarkerMap, data_path
 from fidlearn.cli import main
-from fidlearn.planning import plan_room
+from fidlearn.planning import plan_room, suggest_markers
 
 MAP, CAMERA = data_path("world_map.json"), data_path("scenes/camera.json")
 COARSE = ["--step-mm", "500", "--headings", "0", "--corner-sigma-px", "0.2"]
@@ -145,3 +146,71 @@ def test_noise_from_a_photo_that_cannot_give_it_ends_with_status_2_and_one_line(
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and f"--noise-from {scene}: the pose used 3 markers" in lines[0]
     assert not out.exists()
+
+
+def _apply(world: MarkerMap, lines: list[str]) -> dict:
+    """The map in the full layout (mm) with the printed suggestions applied: a larger print, and each added
+    marker where its line says its centre is, turned as the marker it is beside."""
+    d = {
+        "units": "mm",
+        "marker_size_mm": world.marker_size_mm,
+        "dictionary": world.dictionary,
+        "markers": {
+            str(i): {
+                "translation": world.marker_corners(i)[0].tolist(),
+                "rotation": world.to_dict()["markers"][str(i)]["rotation"],
+            }
+            for i in world.ids
+        },
+    }
+    for line in lines:
+        size = re.search(r"print the markers at (\d+) mm", line)
+        added = re.search(
+            r"add marker (\d+) beside marker (\d+) at \[(-?\d+), (-?\d+), (-?\d+)\] mm \(its centre\)", line
+        )
+        if size:
+            d["marker_size_mm"] = float(size.group(1))
+        elif added:
+            new, ref = added.group(1), added.group(2)
+            current = MarkerMap.from_dict(d)
+            corners = current.marker_corners(int(ref))
+            centre = np.array([float(added.group(k)) for k in (3, 4, 5)])
+            top_left = centre - (corners.mean(axis=0) - corners[0])  # same turn and size as its neighbour
+            d["markers"][new] = {"translation": top_left.tolist(), "rotation": d["markers"][ref]["rotation"]}
+        else:
+            raise AssertionError(f"a suggestion the test cannot apply: {line}")
+    return d
+
+
+def test_the_suggestions_applied_to_the_map_give_what_they_promise(capsys, tmp_path):
+    """One grid and one baseline: the first suggestion starts from the plan's own share within the target, and a
+    new plan of the map with every suggestion applied (from the printed words) ends where the last one said,
+    within one grid place's share (a centre printed to the millimetre)."""
+    grid = ["--step-mm", "500", "--headings", "0", "--target-mm", "5"]
+    out = tmp_path / "plan.png"
+    assert main(["plan", str(MAP), "--camera", str(CAMERA), *grid, "--suggest", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "6x5 places, 500 mm apart, camera at 300 mm" in text  # the step and the height, each named
+    share = int(re.search(r"within 5 mm: (\d+) % of the area", text).group(1))
+    steps = re.findall(r"suggestion: (.*): (\d+) % -> (\d+) % within 5 mm", text)
+    assert len(steps) >= 2 and int(steps[0][1]) == share
+    assert all(int(a[2]) == int(b[1]) for a, b in zip(steps, steps[1:]))  # each starts where the last ended
+    promised = int(steps[-1][2])
+    world = MarkerMap.load(MAP)
+    # the command says what the library finds with the same options
+    library = suggest_markers(world, Camera.load(CAMERA), 5.0, step_mm=500)
+    assert [(s.text, round(100 * s.fraction_before), round(100 * s.fraction_after)) for s in library] == [
+        (text, int(a), int(b)) for text, a, b in steps
+    ]
+    applied = tmp_path / "applied.json"
+    applied.write_text(json.dumps(_apply(world, [s[0] for s in steps])))
+    same = re.search(r"to check: plan the changed map on the same places, (.*)", text).group(1).split()
+    assert same[0] == "--area" and same[2:] == ["--step-mm", "500", "--height-mm", "300"]
+    assert (
+        main(["plan", str(applied), "--camera", str(CAMERA), *grid, *same[:2], "-o", str(tmp_path / "again.png")]) == 0
+    )
+    again = capsys.readouterr().out
+    assert "6x5 places, 500 mm apart" in again  # the same grid (the changed map's own default area is larger)
+    reached = int(re.search(r"within 5 mm: (\d+) % of the area", again).group(1))
+    assert abs(reached - promised) <= 100 / 30 + 1  # one place of 30, and the rounding of both percentages
+    assert promised > share + 20

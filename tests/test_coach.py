@@ -10,6 +10,7 @@ import math
 import cv2
 import numpy as np
 import pytest
+from matplotlib.colors import to_rgba
 
 import fidlearn
 from fidlearn import Camera, frames
@@ -282,3 +283,39 @@ def test_one_coverage_grid_serves_the_coach_and_the_command_line(grid):
     np.testing.assert_array_equal(
         cli_coverage_grid(views.values(), CAMERA.image_size), _ninths_before(views.values(), CAMERA.image_size)
     )
+
+
+def _legend_texts(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes for leg in [ax.get_legend()] if leg is not None for t in leg.get_texts()]
+
+
+def test_the_coach_figure_names_only_what_it_draws(bundled):
+    """The line at GOOD_UNCERTAINTY_PX is named in a legend only when it is drawn; no label names a line that is not."""
+    c = coach_calibration(bundled)  # the bundled 20 views: under 0.3 px everywhere, no line to draw
+    assert c.uncertainty_px.max() < GOOD_UNCERTAINTY_PX
+    fig = coach_figure(c, bundled.camera)
+    texts = [fig.axes[1].get_ylabel(), fig._suptitle.get_text(), *_legend_texts(fig)]
+    assert not any("line" in t for t in texts) and _legend_texts(fig) == []
+    assert not fig.axes[0].collections  # no contour
+    # the same verdict with a worse right half: the line is drawn, and the legend names it, in its colour
+    worse = c.uncertainty_px.copy()
+    worse[:, worse.shape[1] // 2 :] = 2 * GOOD_UNCERTAINTY_PX
+    fig = coach_figure(dataclasses.replace(c, uncertainty_px=worse), bundled.camera)
+    ax = fig.axes[0]
+    assert len(ax.collections) == 1  # the contour
+    assert _legend_texts(fig) == [f"{GOOD_UNCERTAINTY_PX} px"]
+    (handle,) = ax.get_legend().legend_handles
+    np.testing.assert_allclose(to_rgba(handle.get_color()), ax.collections[0].get_edgecolor()[0])
+    assert "line" not in fig.axes[1].get_ylabel()
+
+
+def test_calibrate_with_few_views_gives_one_warning_with_one_advice(tmp_path, capsys):
+    from fidlearn import cli
+
+    photos = sorted(fidlearn.data_path("calibration").glob("view_*.png"))[:5]
+    out = tmp_path / "camera.json"
+    assert cli.main(["calibrate", *map(str, photos), "--pattern", "9x6", "--square-mm", "25", "-o", str(out)]) == 0
+    stdout, stderr = capsys.readouterr()
+    said = (stdout + stderr).splitlines()
+    few = [ln for ln in said if "views" in ln and "warning:" in ln]
+    assert len(few) == 1 and few[0].strip() == "warning: only 5 views were used; take at least 10 (15 to 25 is usual)"

@@ -607,3 +607,48 @@ def test_survey_of_a_tape_map_with_no_agreeing_majority_names_the_markers(ws, ca
     argv[argv.index(str(SURVEY / "tape_map.json"))] = "scrambled.json"
     line = refused(ws, capsys, argv, "no majority; markers [0, 1, 2, 3, 4, 5, 6] are off")
     assert "[7, 8, 9, 10, 11]" in line
+
+
+# -- plan and calibrate: numbers beyond reason, work without bound ----------------------------------
+PLAN = ["plan", "map.json", "--camera", "camera.json", "--step-mm", "1000", "--headings", "0", "-o", "plan.png"]
+
+
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (["--corner-sigma-px", "1e300"], "--corner-sigma-px 1e+300: give a positive number of pixels up to 100"),
+        (["--marker-shift-px", "1e300"], "--marker-shift-px 1e+300: give a number of pixels, 0 or more, up to 100"),
+        (["--height-mm", "1e300"], "height_mm must be a finite number of mm, at most 1e+09"),
+        (["--area", "0,0,1e300,1e300"], "area must be a finite number of mm, at most 1e+09"),
+        (["--step-mm", "1e-300", "--area", "100,-1000,3000,1000"], "more than 40000: use a larger step_mm"),
+        (["--look-at", "1e400,0,300"], "--look-at"),
+    ],
+)
+def test_plan_numbers_beyond_reason(ws, capsys, extra, match):
+    refused(ws, capsys, [*PLAN, *extra], match)
+
+
+@pytest.mark.parametrize("far", ["1e300,0,300", "-1e300,1e300,0", "1e200,0,0"])
+def test_plan_looking_at_a_far_point_works_without_a_warning(ws, capsys, far):
+    """A far look-at point is a direction: the plan is made, and nothing but its figures is said."""
+    assert cli.main([*PLAN, "--look-at", far]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and "places, 1000 mm apart, camera at 300 mm" in out
+    assert (ws / "plan.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    "board, match",
+    [
+        (["--pattern", "200x100"], "--pattern 200x100: 20000 inner corners, more than 2500"),
+        (["--pattern", "99999999x99999999"], "inner corners, more than 2500"),
+        (
+            ["--squares", "60x60", "--charuco", "--marker-mm", "10"],
+            "--squares 60x60: 3481 inner corners, more than 2500",
+        ),
+    ],
+)
+def test_calibrate_refuses_a_board_too_large_up_front(ws, capsys, board, match):
+    start = time.monotonic()
+    refused(ws, capsys, ["calibrate", "photos", *board, "--square-mm", "25", "-o", "cam.json"], match)
+    assert time.monotonic() - start < 5  # before any photo is searched

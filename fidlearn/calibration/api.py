@@ -89,6 +89,11 @@ def _warn_if_metres(value_mm: float, what: str) -> None:
         )
 
 
+#: Most inner corners of a board (a checkerboard's pattern, a ChArUco board's chess corners): 50 x 50. A larger
+#: count is a typing slip, and its search and calibration would run for minutes.
+MAX_BOARD_CORNERS = 2500
+
+
 def _pattern(pattern_size: Any) -> tuple[int, int]:
     if isinstance(pattern_size, str):
         parts = pattern_size.lower().replace("*", "x").split("x")
@@ -110,6 +115,11 @@ def _pattern(pattern_size: Any) -> tuple[int, int]:
         raise CalibrationError(
             f"pattern_size {(cols, rows)} counts inner corners and needs at least 3 each way; "
             "a board of 10x7 squares has 9x6 inner corners"
+        )
+    if cols * rows > MAX_BOARD_CORNERS:
+        raise CalibrationError(
+            f"pattern_size {(cols, rows)} has {cols * rows} inner corners, more than {MAX_BOARD_CORNERS}, the most "
+            "fidlearn searches a photo for; count the inner corners again (a board of 10x7 squares has 9x6)"
         )
     return cols, rows
 
@@ -180,7 +190,7 @@ def calibrate_checkerboard(
     (615, 5, (3, 3))
     >>> for sentence in cal.warnings:  # what the RMS does not tell
     ...     print(sentence[:40])
-    only 5 views used; 10 to 20 views from v
+    only 5 views were used; take at least 10
     few board corners in the bottom-left, bo
 
     """
@@ -261,6 +271,11 @@ def calibrate_charuco(
         ) from None
     if min(sq) < 2:
         raise CalibrationError(f"squares {sq} must count at least 2 chess squares each way, e.g. (5, 7)")
+    if (sq[0] - 1) * (sq[1] - 1) > MAX_BOARD_CORNERS:
+        raise CalibrationError(
+            f"squares {sq} make {(sq[0] - 1) * (sq[1] - 1)} chess corners, more than {MAX_BOARD_CORNERS}, the most "
+            "fidlearn searches a photo for; count the squares again (OpenCV's tutorial board: (5, 7))"
+        )
     square = _check_positive(square_size_mm, "square_size_mm", "measure one printed chess square in millimetres")
     marker = _check_positive(
         marker_size_mm, "marker_size_mm", "measure one printed marker's black square in millimetres"

@@ -21,6 +21,7 @@ __all__ = [
     "coverage_grid",
     "view_diversity",
     "quality_warnings",
+    "few_views_warning",
     "MIN_GOOD_VIEWS",
     "SPARSE_CELL_SHARE",
     "MIN_TILT_SPREAD_DEG",
@@ -151,6 +152,30 @@ def _coverage_warnings(grid: np.ndarray) -> list[str]:
     return out
 
 
+def few_views_warning(n_used: int) -> str:
+    """The one sentence for a calibration from too few views (fewer than :data:`MIN_GOOD_VIEWS`).
+
+    The calibration's ``warnings`` and the calibration coach's flags both use it, so ``fidlearn calibrate``
+    gives this advice once.
+
+    Parameters
+    ----------
+    n_used : int
+        Views the camera was computed from.
+
+    Returns
+    -------
+    str
+        The warning, with its advice.
+
+    Examples
+    --------
+    >>> few_views_warning(5)
+    'only 5 views were used; take at least 10 (15 to 25 is usual)'
+    """
+    return f"only {n_used} views were used; take at least {MIN_GOOD_VIEWS} (15 to 25 is usual)"
+
+
 def quality_warnings(n_used: int, T_camera_board: Mapping, grid: np.ndarray) -> list[str]:
     """What is wrong with a set of calibration views, one sentence each (empty when nothing is).
 
@@ -175,14 +200,11 @@ def quality_warnings(n_used: int, T_camera_board: Mapping, grid: np.ndarray) -> 
     >>> T = fidlearn.make_transform(np.eye(3), [0, 0, 500])
     >>> for w in quality_warnings(1, {"a": T}, np.full((3, 3), 10)):
     ...     print(w[:40])
-    only 1 views used; 10 to 20 views from v
+    only 1 views were used; take at least 10
     """
     out = []
     if n_used < MIN_GOOD_VIEWS:
-        out.append(
-            f"only {n_used} views used; {MIN_GOOD_VIEWS} to 20 views from varied angles give a "
-            "trustworthy camera: take more photos"
-        )
+        out.append(few_views_warning(n_used))
     spread, duplicates = view_diversity(T_camera_board)
     if n_used > 1 and spread < MIN_TILT_SPREAD_DEG:
         out.append(

@@ -122,13 +122,20 @@ def run(args) -> int:
     _refuse_clobber([("-o", out), ("--report", report)], [p for _, p in items], args.annotate)
     staging = _Staging(args.annotate)
     squares = _board_squares(args)
+    corners = (squares[0] - 1) * (squares[1] - 1)
+    if corners > calibration.api.MAX_BOARD_CORNERS:
+        option = f"--pattern {args.pattern}" if args.pattern is not None else f"--squares {args.squares}"
+        raise UsageError(
+            f"{option}: {corners} inner corners, more than {calibration.api.MAX_BOARD_CORNERS}, the most fidlearn "
+            "searches a photo for; count the board again (9x6 inner corners for a board of 10x7 squares)"
+        )
     if args.charuco and args.marker_mm is None:
         raise UsageError("--charuco needs --marker-mm, the side of one printed marker in mm")
     paths = [str(p) for _, p in items]
     cal = _calibrate(args, paths, squares)
     _print_result(cal)
     coached = coach_calibration(cal)
-    print("calibration coach: " + coached.report().replace("\n", "\n  "))
+    print("calibration coach: " + coached.report(omit=cal.warnings).replace("\n", "\n  "))  # each warning once
     pattern = (squares[0] - 1, squares[1] - 1)
     with staging:
         if args.annotate:

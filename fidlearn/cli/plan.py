@@ -15,8 +15,10 @@ from ..detection import detect_markers
 from ..errors import CameraError, FidlearnError
 from ..images import load_image
 from ..markermap import MarkerMap
+from ..planning._checks import MAX_NOISE_PX
 from ..planning.noise import noise_from_pose
-from ..planning.room import AREA_MET, default_area, plan_room, suggest_markers
+from ..planning.room import AREA_MET, default_area, plan_room
+from ..planning.suggest import suggest_markers
 from ..pose import estimate_pose
 from ._common import _check_output, _floats, _refuse_clobber
 
@@ -95,14 +97,15 @@ def _check(args) -> None:
         raise FidlearnError("--suggest needs --target-mm, the error to reach (e.g. --target-mm 10)")
     _positive(args.target_mm, "--target-mm", "mm")
     _positive(args.step_mm, "--step-mm", "mm")
-    _positive(args.corner_sigma_px, "--corner-sigma-px", "pixels")
+    _positive(args.corner_sigma_px, "--corner-sigma-px", "pixels", MAX_NOISE_PX)
     _check_noise_options(args)
 
 
-def _positive(value: float | None, option: str, unit: str) -> None:
-    """A given ``option`` must be a positive finite number (``None``: not given, nothing to check)."""
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise FidlearnError(f"{option} {value}: give a positive number of {unit}")
+def _positive(value: float | None, option: str, unit: str, most: float = math.inf) -> None:
+    """A given ``option`` must be a positive finite number up to ``most`` (``None``: not given, nothing to check)."""
+    if value is not None and not (math.isfinite(value) and 0 < value <= most):
+        up_to = f" up to {most:g}" if math.isfinite(most) else ""
+        raise FidlearnError(f"{option} {value}: give a positive number of {unit}{up_to}")
 
 
 def _check_noise_options(args) -> None:
@@ -122,8 +125,10 @@ def _check_noise_options(args) -> None:
         args.marker_shift_px = 0.0
     if args.marker_size_rel_std is None:
         args.marker_size_rel_std = 0.0
-    if not (math.isfinite(args.marker_shift_px) and args.marker_shift_px >= 0):
-        raise FidlearnError(f"--marker-shift-px {args.marker_shift_px}: give a number of pixels, 0 or more")
+    if not (math.isfinite(args.marker_shift_px) and 0 <= args.marker_shift_px <= MAX_NOISE_PX):
+        raise FidlearnError(
+            f"--marker-shift-px {args.marker_shift_px}: give a number of pixels, 0 or more, up to {MAX_NOISE_PX:g}"
+        )
     if not (math.isfinite(args.marker_size_rel_std) and 0 <= args.marker_size_rel_std < 0.5):
         raise FidlearnError(
             f"--marker-size-rel-std {args.marker_size_rel_std}: give a fraction from 0 to below 0.5 (0.01 for 1 %)"
@@ -183,8 +188,7 @@ def run(args) -> int:
     atomic_write(args.output, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
     ok = np.isfinite(plan.toward_mm)
     print(
-        f"{args.output}: {len(plan.x_mm)}x{len(plan.y_mm)} places at {plan.height_mm:.0f} mm; "
-        f"a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers"
+        f"{args.output}: {plan.places()}; a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers"
     )
     if ok.any():
         print(
@@ -202,7 +206,7 @@ def run(args) -> int:
         if plan.fraction_within(args.target_mm) >= AREA_MET:
             print(f"  suggestion: none needed; looking at the markers, the whole area is within {args.target_mm:g} mm")
         else:
-            _suggest(args, world, camera, area, noise)
+            _suggest(args, world, camera, area, look, noise)
     return 0
 
 
@@ -236,20 +240,29 @@ def _noise(args, world: MarkerMap, camera: Camera) -> dict:
     return measured.kwargs()
 
 
-def _suggest(args, world: MarkerMap, camera: Camera, area, noise: dict) -> None:
-    """Print what to change to bring more of ``area`` within ``--target-mm``."""
+def _suggest(args, world: MarkerMap, camera: Camera, area, look, noise: dict) -> None:
+    """Print what to change to bring more of ``area`` within ``--target-mm``, scored on the plan's own grid."""
     steps = suggest_markers(
         world,
         camera,
         args.target_mm,
         height_mm=args.height_mm,
         area=area,
+        look_at_mm=look,
+        step_mm=args.step_mm,
         **noise,
     )
     if not steps:
         print("  suggestion: nothing tried helps; move the area closer to the markers or use a better camera")
+        return
     for s in steps:
         print(
             f"  suggestion: {s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % "
             f"within {args.target_mm:g} mm"
         )
+    same = (
+        f"--area {','.join(f'{v:.10g}' for v in area)} --step-mm {args.step_mm:.10g} --height-mm {args.height_mm:.10g}"
+    )
+    if look is not None:
+        same += f" --look-at {','.join(f'{v:.10g}' for v in look)}"
+    print(f"  to check: plan the changed map on the same places, {same}")

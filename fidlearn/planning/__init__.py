@@ -10,7 +10,8 @@ take next.
 from .coach import CalibrationCoach, NextView, coach, coach_calibration
 from .noise import PhotoNoise, corner_sigma_px, min_perimeter_px, noise_from_pose
 from .predict import Prediction, flip_probability, predict_accuracy
-from .room import RoomPlan, Suggestion, default_area, plan_room, suggest_markers
+from .room import RoomPlan, default_area, default_step, plan_room
+from .suggest import Suggestion, suggest_markers
 
 __all__ = [
     "Prediction",
@@ -25,6 +26,7 @@ __all__ = [
     "plan_room",
     "suggest_markers",
     "default_area",
+    "default_step",
     "CalibrationCoach",
     "NextView",
     "coach",

@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import frames
 from ..camera import Camera
+from . import _checks
 
 __all__ = ["BENT_FALSE_ALARM", "bent_views"]
 
@@ -101,7 +102,15 @@ def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_c
     -------
     list of str
         The names of the bent views, the most bent first; empty when none is.
+
+    Raises
+    ------
+    CalibrationError
+        If the camera is not a Camera, or a view is missing or malformed (the message names it).
     """
+    board_points_mm, image_points_px, T_camera_board = _checks.check_views(
+        camera, board_points_mm, image_points_px, T_camera_board
+    )
     names = list(T_camera_board)
     rows = [_bend_rows(camera, board_points_mm[n], image_points_px[n], T_camera_board[n]) for n in names]
     dof = {k: len(r) - 9 for k, (r, *_) in enumerate(rows)}  # beside the pose and the bend

@@ -18,9 +18,10 @@ import cv2
 import numpy as np
 
 from .. import frames
-from ..calibration.quality import coverage_grid
+from ..calibration.quality import MIN_GOOD_VIEWS, coverage_grid, few_views_warning
 from ..camera import Camera
 from ..errors import CalibrationError
+from . import _checks
 from .bent_board import BENT_FALSE_ALARM, bent_views
 
 __all__ = [
@@ -35,8 +36,9 @@ __all__ = [
 
 #: Reprojection uncertainty (px) under which a part of the picture counts as well calibrated.
 GOOD_UNCERTAINTY_PX = 0.3
-#: Fewer used views than this is flagged: a camera with 9 unknowns and every view's pose needs more.
-MIN_VIEWS = 10
+#: Fewer used views than this is flagged: a camera with 9 unknowns and every view's pose needs more
+#: (the calibration's own warnings use the same count and words).
+MIN_VIEWS = MIN_GOOD_VIEWS
 #: A view whose board is tilted less than this (deg) from face-on counts as face-on.
 FACE_ON_DEG = 15.0
 #: The picture is cut into this grid (columns, rows) for coverage and the uncertainty map.
@@ -77,7 +79,15 @@ def intrinsics_information(camera: Camera, board_points_mm: dict, T_camera_board
     -------
     ndarray, shape (4 + n_dist, 4 + n_dist)
         ``sigma^2`` times its inverse is the covariance of the intrinsics.
+
+    Raises
+    ------
+    CalibrationError
+        If the camera is not a Camera, or a view is missing or malformed (the message names it).
     """
+    board_points_mm, _, T_camera_board = _checks.check_views(
+        camera, board_points_mm, None, T_camera_board, pixels=False
+    )
     n = _n_intrinsics(camera)
     info = np.zeros((n, n))
     for name, T in T_camera_board.items():
@@ -118,7 +128,17 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
     -------
     ndarray, shape (grid[1], grid[0])
         The uncertainty (px per axis), row 0 at the top of the picture.
+
+    Raises
+    ------
+    CalibrationError
+        If the camera is not a Camera, the covariance not a finite (n, n) array, the distance not a
+        positive number of mm, or the grid not two whole numbers from 1 to 200.
     """
+    _checks.check_camera(camera)
+    covariance = _checks.check_covariance(covariance, _n_intrinsics(camera))
+    distance_mm = _checks.finite_distance(distance_mm)
+    grid = _checks.check_grid(grid)
     px = _pixel_grid(camera, grid)
     rays = cv2.undistortPoints(px.reshape(-1, 1, 2), camera.K, camera.dist).reshape(-1, 2)
     pts = np.column_stack([rays, np.ones(len(rays))]) * distance_mm
@@ -205,20 +225,34 @@ class CalibrationCoach:
     def fx_std_px(self) -> float:
         return float(math.sqrt(self.covariance[0, 0]))
 
-    def report(self) -> str:
+    def report(self, omit=()) -> str:
         """The verdict in words, as ``fidlearn calibrate`` prints it.
+
+        Parameters
+        ----------
+        omit : collection of str
+            Flags already said elsewhere (``fidlearn calibrate`` leaves out the calibration's own warnings).
 
         Returns
         -------
         str
             The uncertainty over the picture, one ``warning:`` line per flag, and the next photo.
+
+        Raises
+        ------
+        CalibrationError
+            If ``omit`` is not a collection.
         """
         lines = [
             f"reprojection uncertainty: median {np.median(self.uncertainty_px):.2f} px, worst "
             f"{self.uncertainty_px.max():.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
             f"{100 * self.good_fraction:.0f} % of the picture"
         ]
-        lines += [f"warning: {f}" for f in self.flags]
+        try:
+            skip = {o for o in omit if isinstance(o, str)}
+        except TypeError:
+            raise CalibrationError(f"omit must be a collection of flags (str), got {omit!r:.60}") from None
+        lines += [f"warning: {f}" for f in self.flags if f not in skip]
         if self.next_view is not None:
             lines.append(f"next photo: {self.next_view}")
         return "\n".join(lines)
@@ -311,13 +345,19 @@ def coach(
     Raises
     ------
     CalibrationError
-        If there is no view or ``sigma_px`` is not a positive number.
+        If there is no view, a view is missing or malformed (the message names it), the camera is not a
+        Camera, ``sigma_px`` is not a positive number of pixels (up to 100) or ``other_sizes`` not a count.
     """
+    if not (_checks.is_number(sigma_px) and 0 < sigma_px <= 100):
+        raise CalibrationError(f"sigma_px must be a positive number of pixels up to 100, got {sigma_px!r}")
+    if isinstance(other_sizes, bool) or not isinstance(other_sizes, (int, np.integer)) or other_sizes < 0:
+        raise CalibrationError(f"other_sizes must be a count of photos (0 or more), got {other_sizes!r}")
+    board_points_mm, image_points_px, T_camera_board = _checks.check_views(
+        camera, board_points_mm, image_points_px, T_camera_board
+    )
     names = list(T_camera_board)
     if not names:
         raise CalibrationError("no views to judge: the calibration used none")
-    if not (isinstance(sigma_px, (int, float, np.floating)) and math.isfinite(sigma_px) and sigma_px > 0):
-        raise CalibrationError(f"sigma_px must be a positive number of pixels, got {sigma_px!r}")
     distance = float(np.median([np.linalg.norm(T_camera_board[n][:3, 3]) for n in names]))
     info = intrinsics_information(camera, board_points_mm, T_camera_board)
     cov, u, good = _summary(camera, info, sigma_px, distance)
@@ -333,7 +373,7 @@ def _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts: dict
     names = list(T_camera_board)
     flags = []
     if len(names) < MIN_VIEWS:
-        flags.append(f"only {len(names)} views were used; take at least {MIN_VIEWS} (15 to 25 is usual)")
+        flags.append(few_views_warning(len(names)))
     if max(tilts.values()) < FACE_ON_DEG:
         flags.append(
             f"every view is face-on (the largest tilt is {max(tilts.values()):.0f} deg): the focal length "
@@ -434,7 +474,19 @@ def coach_calibration(calibration, other_sizes: int | None = None) -> Calibratio
     -------
     CalibrationCoach
         The verdict, with the corner noise taken from the calibration's RMS (per axis).
+
+    Raises
+    ------
+    CalibrationError
+        If ``calibration`` is not a Calibration, or as :func:`coach`.
     """
+    from ..calibration import Calibration
+
+    if not isinstance(calibration, Calibration):
+        raise CalibrationError(
+            f"calibration must be a fidlearn Calibration (from calibrate_checkerboard or calibrate_charuco), "
+            f"got {type(calibration).__name__}"
+        )
     if other_sizes is None:
         other_sizes = sum(1 for v in calibration.views if v.status == "other size")
     # OpenCV's RMS is over the 2D distance of each point: per axis it is RMS / sqrt(2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 
 from ..markermap import MarkerMap
@@ -101,8 +102,9 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
 
 
 def coach_figure(coach, camera) -> Figure:
-    """The calibration coach's picture: reprojection uncertainty over the image, with the board points and the
-    next view.
+    """The calibration coach's picture: reprojection uncertainty over the image, the line where it crosses
+    :data:`~fidlearn.planning.coach.GOOD_UNCERTAINTY_PX` (named in a legend, when the picture has both sides of
+    it), and the next view in the title.
 
     Parameters
     ----------
@@ -132,15 +134,17 @@ def coach_figure(coach, camera) -> Figure:
     rows, cols = u.shape
     xs = (np.arange(cols) + 0.5) * camera.width / cols - 0.5
     ys = (np.arange(rows) + 0.5) * camera.height / rows - 0.5
-    if u.min() < GOOD_UNCERTAINTY_PX < u.max():
+    if u.min() < GOOD_UNCERTAINTY_PX < u.max():  # the line and its legend entry only where it is drawn
         ax.contour(xs, ys, u, levels=[GOOD_UNCERTAINTY_PX], colors="deepskyblue", linewidths=1.5)
+        line = Line2D([], [], color="deepskyblue", linewidth=1.5, label=f"{GOOD_UNCERTAINTY_PX} px")
+        ax.legend(handles=[line], loc="lower right", fontsize=8, title="uncertainty", title_fontsize=8)
     if coach.next_view is not None:
         ax.set_title(f"next photo: {coach.next_view.where}, {coach.next_view.tilt}", fontsize=9)
     ax.set_xlim(-0.5, camera.width - 0.5)
     ax.set_ylim(camera.height - 0.5, -0.5)
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
-    fig.colorbar(im, ax=ax, shrink=0.8, label=f"reprojection uncertainty (px); blue line: {GOOD_UNCERTAINTY_PX} px")
+    fig.colorbar(im, ax=ax, shrink=0.8, label="reprojection uncertainty (px)")
     fig.suptitle(
         f"Calibration uncertainty: under {GOOD_UNCERTAINTY_PX} px over {100 * coach.good_fraction:.0f} % "
         "of the picture",

@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import PoseError
+from ._checks import check_number, float_array
 
 #: Apparent marker side (px, mean of the four sides) at which the corner noise was measured ...
 NOISE_SIDE_PX = np.array([11, 13, 15, 18, 22, 27, 33, 40, 50, 65, 85, 110, 150, 200], dtype=float)
@@ -80,8 +81,20 @@ def corner_sigma_px(side_px: float | np.ndarray) -> float | np.ndarray:
     --------
     >>> round(float(corner_sigma_px(50.0)), 3)
     0.041
+
+    Raises
+    ------
+    PoseError
+        If ``side_px`` is not a number or an array of numbers, or holds NaN.
     """
-    return np.interp(side_px, NOISE_SIDE_PX, NOISE_SIGMA_PX)
+    try:
+        side = np.asarray(side_px, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        side = None
+    if side is None or np.isnan(side).any() or side.size > 10_000_000:
+        raise PoseError(f"side_px must be a number of pixels (or an array of them, no NaN), got {side_px!r:.80}")
+    out = np.interp(side, NOISE_SIDE_PX, NOISE_SIGMA_PX)
+    return float(out) if out.ndim == 0 and not isinstance(side_px, np.ndarray) else out
 
 
 def min_perimeter_px(image_size: tuple[int, int]) -> float:
@@ -104,7 +117,18 @@ def min_perimeter_px(image_size: tuple[int, int]) -> float:
     65.7
     >>> min_perimeter_px((640, 480))
     34.0
+
+    Raises
+    ------
+    PoseError
+        If ``image_size`` is not two positive numbers of pixels (up to 1e6).
     """
+    try:
+        w, h = image_size
+    except (TypeError, ValueError):
+        w = h = None
+    for v in (w, h):
+        check_number(v, "image_size (width, height)", 1, 1e6, PoseError, " px")
     return max(DECODE_MIN_PERIMETER_PX, PERIMETER_RATE * PERIMETER_RULE_SLACK * max(image_size))
 
 
@@ -142,8 +166,14 @@ def corner_covariance(corners_px: np.ndarray, sigma_px: float) -> np.ndarray:
     >>> centre_x = np.tile([0.25, 0.0], 4)
     >>> round(float(centre_x @ C @ centre_x / (0.1**2 / 4)), 2)  # against independent corners
     0.5
+
+    Raises
+    ------
+    PoseError
+        If ``corners_px`` is not four finite (x, y) pixels or ``sigma_px`` not a number of pixels from 0 to 1e6.
     """
-    q = np.asarray(corners_px, dtype=float).reshape(4, 2)
+    q = float_array(corners_px, "corners_px", (4, 2), PoseError)
+    sigma_px = check_number(sigma_px, "sigma_px", 0.0, 1e6, PoseError, " px")
     side = np.roll(q, -1, axis=0) - q  # side k from corner k to corner k + 1
     normal = np.column_stack([-side[:, 1], side[:, 0]]) / np.linalg.norm(side, axis=1)[:, None]
     # rows: the displacement of side k's line at its start (corner k) and at its end (corner k + 1)
@@ -190,8 +220,18 @@ def marker_shift_covariance(shift_px: float) -> np.ndarray:
     >>> C = marker_shift_covariance(0.2)
     >>> round(float(C[0, 6]), 3), float(C[0, 1])  # x of TL and of BL move together; x and y do not
     (0.04, 0.0)
+
+    Raises
+    ------
+    PoseError
+        If ``shift_px`` is not a number of pixels from 0 to 1e6.
     """
+    shift_px = check_number(shift_px, "shift_px", 0.0, 1e6, PoseError, " px")
     return float(shift_px) ** 2 * np.kron(np.ones((4, 4)), np.eye(2))
+
+
+#: Most markers :func:`noise_from_residuals` takes (its matrices grow as their square).
+MAX_MARKERS = 200
 
 
 class PhotoNoise(NamedTuple):
@@ -270,13 +310,15 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> Phot
     Raises
     ------
     PoseError
-        Fewer than four markers, or shapes that do not agree.
+        Fewer than four markers or more than :data:`MAX_MARKERS`, shapes that do not agree, or NaN or infinity.
     """
-    r = np.asarray(residuals_px, dtype=float).reshape(-1)
-    q = np.asarray(corners_px, dtype=float).reshape(-1, 4, 2)
+    q = float_array(corners_px, "corners_px", (-1, 4, 2), PoseError)
     M = len(q)
-    J = np.asarray(jacobian, dtype=float)
-    if M < 4 or r.size != 8 * M or J.shape != (8 * M, 6):
+    if M > MAX_MARKERS:
+        raise PoseError(f"corners_px has {M} markers, more than {MAX_MARKERS}: measure the noise on fewer")
+    r = float_array(residuals_px, "residuals_px", (M, 4, 2), PoseError).reshape(-1)
+    J = float_array(jacobian, "jacobian", (8 * M, 6), PoseError)
+    if M < 4:
         raise PoseError(
             f"need the residuals (M, 4, 2), Jacobian (8M, 6) and corners (M, 4, 2) of at least 4 markers, "
             f"got {r.size // 8} markers, a Jacobian of shape {J.shape} and {M} corner sets"
@@ -327,11 +369,19 @@ def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     Raises
     ------
     PoseError
-        The pose used fewer than four markers.
+        The pose used fewer than four markers, or the arguments are not a Pose, a MarkerMap holding its
+        markers and a Camera.
     """
-    from ..pose import pose_jacobian
+    from ..camera import Camera
+    from ..markermap import MarkerMap
+    from ..pose import Pose, pose_jacobian
 
+    for value, name, kind in ((pose, "pose", Pose), (marker_map, "marker_map", MarkerMap), (camera, "camera", Camera)):
+        if not isinstance(value, kind):
+            raise PoseError(f"{name} must be a fidlearn {kind.__name__}, got {type(value).__name__}")
     ids = list(pose.marker_ids)
+    if any(i not in marker_map for i in ids):
+        raise PoseError(f"the pose used markers {ids}, not all in the map: give the map the pose was computed with")
     if len(ids) < 4:
         raise PoseError(
             f"the pose used {len(ids)} markers; at least 4 markers are needed to tell a shift from the pose"

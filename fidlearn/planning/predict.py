@@ -33,6 +33,7 @@ from ..errors import FidlearnError, TransformError
 from ..markermap import MarkerMap
 from ..pose import pose_jacobian
 from . import noise
+from ._checks import _check_px, _check_rel, check_flip_inputs
 
 __all__ = ["Prediction", "predict_accuracy", "flip_probability"]
 
@@ -136,6 +137,21 @@ class Prediction:
         )
 
 
+class _CachedMap:
+    """A map's ids, corners and normals, computed once: a plan asks for them at every place and heading."""
+
+    def __init__(self, marker_map: MarkerMap):
+        self.ids = marker_map.ids
+        self._corners = {i: marker_map.marker_corners(i) for i in self.ids}
+        self._normals = {i: marker_map.normal(i) for i in self.ids}
+
+    def marker_corners(self, marker_id: int) -> np.ndarray:
+        return self._corners[marker_id]
+
+    def normal(self, marker_id: int) -> np.ndarray:
+        return self._normals[marker_id]
+
+
 def _check_pose(T_world_camera) -> np.ndarray:
     try:
         T = np.asarray(T_world_camera, dtype=float)
@@ -215,8 +231,13 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
     -------
     float
         The probability, in [0, 0.5].
+
+    Raises
+    ------
+    PoseError
+        If the arrays are not finite, of these shapes with 4 to 10000 points, or ``sigma_px`` not positive.
     """
-    P = np.asarray(points_world, dtype=float)
+    P, points_px, sigma_px = check_flip_inputs(points_world, points_px, camera, sigma_px)
     centred = P - P.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
     if s[2] > 1e-6 * max(s[0], 1.0):
@@ -355,27 +376,6 @@ def predict_accuracy(
         size_rel_std_each=marker_size_rel_std_each,
         size_rel_error=marker_size_rel_error,
     )
-
-
-def _check_px(value, name: str, zero: bool) -> None:
-    """A positive (or, with ``zero``, non-negative) number of pixels, or None."""
-    if value is None:
-        return
-    ok = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
-    if not ok or not math.isfinite(value) or value < 0 or (value == 0 and not zero):
-        what = "non-negative" if zero else "positive"
-        raise FidlearnError(f"{name} must be a {what} number of pixels, got {value!r}")
-
-
-def _check_rel(value, name: str, signed: bool = False) -> float:
-    """A relative size error: a number from 0 (or, ``signed``, above -0.5) up to below 0.5; None counts as 0."""
-    if value is None:
-        return 0.0
-    ok = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
-    if not ok or not math.isfinite(value) or not ((value > -0.5) if signed else (value >= 0)) or value >= 0.5:
-        span = "above -0.5 to below 0.5 (-0.01 for 1 % smaller)" if signed else "0 to below 0.5 (0.01 for 1 %)"
-        raise FidlearnError(f"{name} must be a fraction of the marker size from {span}, got {value!r}")
-    return float(value)
 
 
 def _size_motion(marker_map: MarkerMap, ids: list[int], J: np.ndarray, about_centre: bool = False) -> np.ndarray:

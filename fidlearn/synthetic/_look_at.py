@@ -59,8 +59,11 @@ def look_at(
             f"{np.shape(eye_mm)} and {np.shape(target_mm)}"
         )
     z = target - eye
-    if np.linalg.norm(z) < 1e-9:
-        raise FidlearnError(f"look_at: the eye {eye.tolist()} and the target are the same point; move one of them")
+    if not np.all(np.isfinite(z)) or math.hypot(*z) < 1e-9:
+        what = "the same point" if np.all(np.isfinite(z)) else "too far apart to subtract"
+        raise FidlearnError(f"look_at: the eye {eye.tolist()} and the target are {what}; move one of them")
+    if np.max(np.abs(z)) > 1e150:  # a far target: scaled first, so that the norm does not overflow
+        z /= np.max(np.abs(z))
     z /= np.linalg.norm(z)
     x = np.cross(z, np.asarray(up, dtype=float))
     if np.linalg.norm(x) < 1e-9:
