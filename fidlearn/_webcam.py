@@ -38,6 +38,7 @@ import cv2
 import numpy as np
 import traitlets
 
+from ._files import image_size_from_header
 from .errors import ImageError, WebcamError
 
 __all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "status_message"]
@@ -45,6 +46,10 @@ __all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "s
 STATIC = pathlib.Path(__file__).resolve().parent / "static"
 #: Smallest and largest side (px) a learner may ask for.
 MIN_SIDE_PX, MAX_SIDE_PX = 16, 4096
+#: Largest frame side (px) and encoded size (bytes) accepted from the browser: twice the largest
+#: side asked for (a camera may deliver more than asked), and what a lossless 8192x8192 PNG can take.
+MAX_FRAME_SIDE_PX = 2 * MAX_SIDE_PX
+MAX_FRAME_BYTES = 256 * 2**20
 FALLBACK = (
     "Until it works, use the bundled pictures instead: set HAVE_CAMERA = False in the notebook and run "
     "it again (data/calibration stands in for your calibration views, data/trajectory for your live camera)."
@@ -90,12 +95,16 @@ def status_message(status: str, error: str = "") -> str:
 def decode_frame(data: bytes | memoryview, width: int | None = None, height: int | None = None) -> np.ndarray:
     """Decode PNG or JPEG bytes from the browser into a BGR image.
 
+    The browser is untrusted input: the bytes' size, the announced size and the size the picture's
+    header declares are checked before anything is decoded, so a 74-byte PNG that claims
+    100000x100000 pixels is refused without allocating them.
+
     Parameters
     ----------
     data : bytes or memoryview
-        The encoded frame.
+        The encoded frame (at most ``MAX_FRAME_BYTES``).
     width, height : int, optional
-        The size the browser reported (px); the decoded picture must have it.
+        The size the browser reported (px, 1 to ``MAX_FRAME_SIDE_PX``); the decoded picture must have it.
 
     Returns
     -------
@@ -104,23 +113,50 @@ def decode_frame(data: bytes | memoryview, width: int | None = None, height: int
     Raises
     ------
     ImageError
-        Empty or undecodable bytes, or a picture of another size than reported.
+        Empty, oversized or undecodable bytes, an announced size that is not a whole number of
+        pixels in range, or a picture of another size than reported.
     """
-    buf = np.frombuffer(bytes(data), dtype=np.uint8)
-    if buf.size == 0:
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ImageError(f"the camera frame must be bytes, got {type(data).__name__}")
+    raw = bytes(data)
+    if not raw:
         raise ImageError("the camera frame is empty (0 bytes): the browser sent no picture; run the cell again")
-    image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-    if image is None:
+    if len(raw) > MAX_FRAME_BYTES:
+        raise ImageError(f"the camera frame has {len(raw)} bytes, more than the limit of {MAX_FRAME_BYTES}")
+    announced = None if width is None and height is None else (_side(width, "width"), _side(height, "height"))
+    head = image_size_from_header(raw)
+    if head is None or head[0] not in ("PNG", "JPEG"):
         raise ImageError(
-            f"the camera frame ({buf.size} bytes, starting {bytes(buf[:8])!r}) is neither PNG nor "
-            "JPEG: it cannot be decoded"
+            f"the camera frame ({len(raw)} bytes, starting {raw[:8]!r}) is neither PNG nor JPEG: it cannot be decoded"
         )
-    if width is not None and height is not None and image.shape[:2] != (int(height), int(width)):
+    fmt, w, h = head
+    if not (0 < w <= MAX_FRAME_SIDE_PX and 0 < h <= MAX_FRAME_SIDE_PX):
+        said = f"says {w}x{h} pixels" if w >= 0 and h >= 0 else "gives no size"
+        raise ImageError(f"the camera frame's {fmt} header {said}; a frame is 1 to {MAX_FRAME_SIDE_PX} px a side")
+    if announced is not None and (w, h) != announced:
         raise ImageError(
-            f"the camera frame decodes to {image.shape[1]}x{image.shape[0]} px but the browser "
-            f"announced {width}x{height} px"
+            f"the camera frame's {fmt} header says {w}x{h} px but the browser announced "
+            f"{announced[0]}x{announced[1]} px"
         )
+    if (fmt == "PNG" and b"IEND" not in raw[-16:]) or (fmt == "JPEG" and not raw.endswith(b"\xff\xd9")):
+        raise ImageError(f"the camera frame ({len(raw)} bytes of {fmt}) is cut short: it has no end")
+    try:
+        image = cv2.imdecode(np.frombuffer(raw, dtype=np.uint8), cv2.IMREAD_COLOR)
+    except cv2.error:
+        image = None
+    if image is None or image.shape[:2] != (h, w):
+        raise ImageError(f"the camera frame ({len(raw)} bytes of {fmt}) is damaged: it cannot be decoded")
     return image
+
+
+def _side(value, name: str) -> int:
+    """A frame side the browser announced: a whole number of pixels, 1 to MAX_FRAME_SIDE_PX."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 < value <= MAX_FRAME_SIDE_PX:
+        raise ImageError(
+            f"the browser announced a frame {name} of {value!r:.40}; it must be a whole number of pixels, "
+            f"1 to {MAX_FRAME_SIDE_PX}"
+        )
+    return int(value)
 
 
 class FramePacer:
@@ -196,6 +232,10 @@ class Webcam(anywidget.AnyWidget):
         corners move by well under 0.1 px) or PNG (lossless, larger).
     status, error, message : str
         Set by the browser (see :data:`STATUSES`); ``message`` is the advice in words.
+    frames_dropped, drop_reason : int, str
+        Malformed frames from the browser (undecodable, a size that is not a number or beyond
+        ``MAX_FRAME_SIDE_PX``, a header that disagrees) are dropped, never raised in the kernel:
+        how many so far, and why the last one was.
 
     Examples
     --------
@@ -217,6 +257,8 @@ class Webcam(anywidget.AnyWidget):
     max_fps = traitlets.Any(5.0).tag(sync=True)
     stream_format = traitlets.Unicode("jpeg").tag(sync=True)
     jpeg_quality = traitlets.Float(0.92).tag(sync=True)
+    frames_dropped = traitlets.Int(0).tag(sync=True)
+    drop_reason = traitlets.Unicode("").tag(sync=True)
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -267,8 +309,16 @@ class Webcam(anywidget.AnyWidget):
         return self.status in FAILED
 
     def on_frame(self, callback: Callable[[np.ndarray], object], remove: bool = False) -> None:
-        """Call ``callback(frame_bgr)`` for each stream frame ((H, W, 3) uint8); ``remove=True`` unregisters it."""
+        """Call ``callback(frame_bgr)`` for each stream frame ((H, W, 3) uint8); ``remove=True`` unregisters it.
+
+        Raises :class:`WebcamError` for a callback that is not a function, or one to remove that was
+        never registered.
+        """
         if remove:
+            if callback not in self._callbacks:
+                raise WebcamError(
+                    f"on_frame(remove=True): {callback!r:.60} was not registered; registered: {len(self._callbacks)}"
+                )
             self._callbacks.remove(callback)
         elif not callable(callback):
             raise WebcamError(f"on_frame needs a function of one frame, got {type(callback).__name__}")
@@ -317,28 +367,44 @@ class Webcam(anywidget.AnyWidget):
         if self.failed:
             raise WebcamError(self.message)
 
-    def _on_message(self, _widget, content: dict, buffers: list) -> None:
-        if content.get("type") != "frame":
+    def _on_message(self, _widget, content, buffers) -> None:
+        """A message from the browser. It is untrusted: a malformed one is dropped (``frames_dropped``,
+        ``drop_reason``), never raised here, so the next good frame still arrives. Only an ``on_frame``
+        callback's own exception propagates (and stops the stream)."""
+        if not isinstance(content, dict) or content.get("type") != "frame":
             return
+        buffers = buffers if isinstance(buffers, (list, tuple)) else []
         if content.get("kind") == "snap":
             self._answer_snapshot(content, buffers)
         elif content.get("kind") == "stream":
             self._handle_stream_frame(content, buffers)
 
-    def _answer_snapshot(self, content: dict, buffers: list) -> None:
-        future = self._pending.get(content.get("id"))
+    def _drop(self, exc: BaseException) -> None:
+        """Count a malformed message from the browser and say why (``drop_reason``, ``last_error``)."""
+        self.frames_dropped += 1
+        self.drop_reason = str(exc)
+        self.last_error = exc
+
+    def _decode(self, content: dict, buffers) -> np.ndarray:
+        return decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
+
+    def _answer_snapshot(self, content: dict, buffers) -> None:
+        request = content.get("id")
+        future = self._pending.get(request) if isinstance(request, int) else None
         if future is None or future.done():
             return
-        if content.get("failed"):
+        failed = content.get("failed")
+        if failed:
             # The reply carries the failure too: the status shown is right even if a state update was lost.
-            failed = content["failed"] if content["failed"] in FAILED else "error"
-            self.error = str(content.get("error", self.error))
+            failed = failed if isinstance(failed, str) and failed in FAILED else "error"
+            self.error = str(content.get("error", self.error))[:500]
             self.status = failed
             future.set_exception(WebcamError(status_message(failed, self.error)))
             return
         try:
-            frame = decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
+            frame = self._decode(content, buffers)
         except ImageError as exc:
+            self._drop(exc)
             future.set_exception(exc)
             return
         self._note_size(frame)
@@ -352,11 +418,16 @@ class Webcam(anywidget.AnyWidget):
         if self.status != "streaming":
             self.status = "streaming"
 
-    def _handle_stream_frame(self, content: dict, buffers: list) -> None:
+    def _handle_stream_frame(self, content: dict, buffers) -> None:
         received = time.monotonic()
+        seq = content.get("seq")
         try:
             if self.streaming:
-                frame = decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
+                try:
+                    frame = self._decode(content, buffers)
+                except ImageError as exc:
+                    self._drop(exc)
+                    return
                 self.frames_received += 1
                 self._note_size(frame)
                 for callback in list(self._callbacks):
@@ -368,7 +439,8 @@ class Webcam(anywidget.AnyWidget):
             raise
         finally:
             wait_s = self.pacer.wait_s(received, time.monotonic())
-            self.send({"type": "ack", "seq": content.get("seq"), "wait_ms": round(1000 * wait_s)})
+            seq = seq if isinstance(seq, int) and not isinstance(seq, bool) else None
+            self.send({"type": "ack", "seq": seq, "wait_ms": round(1000 * wait_s)})
 
 
 def _check_format(value) -> str:
