@@ -14,7 +14,7 @@ from .. import _cv, frames
 from ..calibration.boards import checkerboard_points
 from ..camera import Camera
 from ..errors import FidlearnError
-from ._checks import DEFAULT_GRAYS, _check_seed
+from ._checks import DEFAULT_GRAYS, MAX_FRAMES, _check_render_work, _check_seed
 from ._renderer import _render, _Sheet
 
 
@@ -338,9 +338,12 @@ def render_calibration_views(
     >>> len(views), views.images[0].shape, views.image_points[0].shape
     (2, (480, 640), (54, 2))
     """
+    if not isinstance(camera, Camera):
+        raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
+    if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 1 <= n_views <= MAX_FRAMES:
+        raise FidlearnError(f"n_views must be a whole number from 1 to {MAX_FRAMES}, got {n_views!r:.40}")
     board = _board_geometry(charuco, pattern_size, square_size_mm, marker_size_mm, dictionary)
-    if n_views < 1:
-        raise FidlearnError(f"n_views must be at least 1, got {n_views}")
+    _check_render_work(camera, supersample, n_views if views is None else len(views), "views")
     rng = np.random.default_rng(_check_seed(seed))
     w = camera.image_size[0]
     options = (tilt_range_deg, fill_range)

@@ -123,10 +123,12 @@ def _check_render_options(camera: Camera, supersample, blur_px, noise_std_gray, 
     if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
         raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     k = int(supersample)
-    if camera.width * camera.height * k * k > MAX_RENDER_SAMPLES:
+    samples = camera.width * camera.height * k * k
+    if samples > MAX_RENDER_SAMPLES:
         raise FidlearnError(
-            f"a {camera.width}x{camera.height} picture at supersample {k} is more than "
-            f"{MAX_RENDER_SAMPLES / 1e9:g} billion samples; use a smaller picture or supersample"
+            f"a {camera.width}x{camera.height} picture at supersample {k} is {samples / 1e6:.4g} "
+            f"million samples, more than the limit of {MAX_RENDER_SAMPLES / 1e6:g} million (MAX_RENDER_SAMPLES, a few "
+            "seconds of work); use a smaller picture or supersample"
         )
     for name, value in (
         ("blur_px", blur_px),

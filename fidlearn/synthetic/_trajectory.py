@@ -13,7 +13,7 @@ from .. import frames
 from ..camera import Camera
 from ..errors import FidlearnError
 from ..markermap import MarkerMap
-from ._checks import MAX_FRAMES, _check_scene, _check_seed
+from ._checks import MAX_FRAMES, _check_render_work, _check_scene, _check_seed
 from ._look_at import look_at
 from ._scenes import render_scene
 
@@ -254,6 +254,7 @@ def render_trajectory(
     bad = [i for i in chosen if not 0 <= i < len(poses)]
     if bad:
         raise FidlearnError(f"frames {bad} do not exist; the drive has {len(poses)} frames, 0 to {len(poses) - 1}")
+    _check_render_work(camera, supersample, len(chosen), "frames")
     images, truths = [], []
     for i in chosen:
         image, truth = render_scene(marker_map, camera, poses[i], seed=int(seed) * 1000 + i, **render_kwargs)
