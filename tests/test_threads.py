@@ -7,7 +7,7 @@ descriptor now.
 
 Calibration, the survey and the planner give, from 3 threads at once, the single-thread answer to
 the last bit: ``cv2.calibrateCamera`` runs on one OpenCV worker under a lock
-(:func:`fidlearn._cv.opencv_single_thread` says why).
+(:func:`fidlearn._cv_threads.opencv_single_thread` says why).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .._cv import opencv_single_thread
+from .._cv_threads import opencv_single_thread
 from ..camera import Camera
 from ..detection import as_gray
 from ..errors import CalibrationError, ImageError
