@@ -116,13 +116,7 @@ def decode_frame(data: bytes | memoryview, width: int | None = None, height: int
         Empty, oversized or undecodable bytes, an announced size that is not a whole number of
         pixels in range, or a picture of another size than reported.
     """
-    if not isinstance(data, (bytes, bytearray, memoryview)):
-        raise ImageError(f"the camera frame must be bytes, got {type(data).__name__}")
-    raw = bytes(data)
-    if not raw:
-        raise ImageError("the camera frame is empty (0 bytes): the browser sent no picture; run the cell again")
-    if len(raw) > MAX_FRAME_BYTES:
-        raise ImageError(f"the camera frame has {len(raw)} bytes, more than the limit of {MAX_FRAME_BYTES}")
+    raw = _frame_bytes(data)
     announced = None if width is None and height is None else (_side(width, "width"), _side(height, "height"))
     head = image_size_from_header(raw)
     if head is None or head[0] not in ("PNG", "JPEG"):
@@ -147,6 +141,18 @@ def decode_frame(data: bytes | memoryview, width: int | None = None, height: int
     if image is None or image.shape[:2] != (h, w):
         raise ImageError(f"the camera frame ({len(raw)} bytes of {fmt}) is damaged: it cannot be decoded")
     return image
+
+
+def _frame_bytes(data) -> bytes:
+    """The frame's bytes: bytes-like, not empty, at most MAX_FRAME_BYTES; ImageError otherwise."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ImageError(f"the camera frame must be bytes, got {type(data).__name__}")
+    raw = bytes(data)
+    if not raw:
+        raise ImageError("the camera frame is empty (0 bytes): the browser sent no picture; run the cell again")
+    if len(raw) > MAX_FRAME_BYTES:
+        raise ImageError(f"the camera frame has {len(raw)} bytes, more than the limit of {MAX_FRAME_BYTES}")
+    return raw
 
 
 def _side(value, name: str) -> int:
@@ -374,10 +380,14 @@ class Webcam(anywidget.AnyWidget):
         if not isinstance(content, dict) or content.get("type") != "frame":
             return
         buffers = buffers if isinstance(buffers, (list, tuple)) else []
-        if content.get("kind") == "snap":
+        kind = content.get("kind")
+        if kind == "snap":
             self._answer_snapshot(content, buffers)
-        elif content.get("kind") == "stream":
+        elif kind == "stream":
             self._handle_stream_frame(content, buffers)
+        else:  # dropped, and acknowledged so that a stream waiting for it goes on
+            self._drop(WebcamError(f"a frame message of kind {kind!r:.40}; the browser sends 'snap' or 'stream'"))
+            self.send({"type": "ack", "seq": _seq(content), "wait_ms": 0})
 
     def _drop(self, exc: BaseException) -> None:
         """Count a malformed message from the browser and say why (``drop_reason``, ``last_error``)."""
@@ -420,7 +430,6 @@ class Webcam(anywidget.AnyWidget):
 
     def _handle_stream_frame(self, content: dict, buffers) -> None:
         received = time.monotonic()
-        seq = content.get("seq")
         try:
             if self.streaming:
                 try:
@@ -439,8 +448,13 @@ class Webcam(anywidget.AnyWidget):
             raise
         finally:
             wait_s = self.pacer.wait_s(received, time.monotonic())
-            seq = seq if isinstance(seq, int) and not isinstance(seq, bool) else None
-            self.send({"type": "ack", "seq": seq, "wait_ms": round(1000 * wait_s)})
+            self.send({"type": "ack", "seq": _seq(content), "wait_ms": round(1000 * wait_s)})
+
+
+def _seq(content: dict) -> int | None:
+    """The message's sequence number when it is one (a whole number), else None."""
+    seq = content.get("seq")
+    return seq if isinstance(seq, int) and not isinstance(seq, bool) else None
 
 
 def _check_format(value) -> str:

@@ -247,6 +247,10 @@ def camera_from_camera_info(text: str, source: str = "camera_info") -> Camera:
     CameraError
         Values no camera has (as :class:`fidlearn.Camera` checks them).
     """
+    if not isinstance(source, str):
+        raise RosFormatError(f"source must be text (where the YAML came from), got {type(source).__name__}")
+    if not isinstance(text, str):
+        raise RosFormatError(f"{source}: expected the camera_info YAML as text, got {type(text).__name__}")
     d = _parse(text, source)
     for key in ("image_width", "image_height"):
         v = d.get(key)

@@ -62,11 +62,14 @@ class Odometry:
     """
 
     def __init__(self, times_s, T_odom_base, drift: float = 0.02):
-        self.times_s = np.asarray(times_s, dtype=float).reshape(-1)
-        if self.times_s.size == 0 or np.any(np.diff(self.times_s) <= 0) or not np.isfinite(self.times_s).all():
-            raise RosFormatError("odometry times must be finite and strictly increasing")
-        if not (isinstance(drift, (int, float)) and 0 < drift < 1):
+        self.times_s = _times(times_s)
+        if not (isinstance(drift, (int, float)) and not isinstance(drift, bool) and 0 < drift < 1):
             raise RosFormatError(f"odometry drift must be a fraction between 0 and 1 (0.02 for 2 %), got {drift!r}")
+        if not isinstance(T_odom_base, (list, tuple, np.ndarray)) or len(T_odom_base) != self.times_s.size:
+            raise RosFormatError(
+                f"T_odom_base must be a list of 4x4 poses, one per time ({self.times_s.size}), "
+                f"got {type(T_odom_base).__name__}"
+            )
         try:
             self.poses = [frames.check_transform(T, "odometry pose") for T in T_odom_base]
         except TransformError as exc:
@@ -74,7 +77,16 @@ class Odometry:
         self.drift = float(drift)
 
     def pose_at(self, t_s: float) -> np.ndarray | None:
-        """The base's pose (4, 4, mm) at ``t_s``, interpolated (linear position, geodesic rotation); None outside."""
+        """The base's pose (4, 4, mm) at ``t_s``, interpolated (linear position, geodesic rotation); None outside.
+
+        Raises :class:`RosFormatError` when ``t_s`` is not a finite number.
+        """
+        if (
+            isinstance(t_s, bool)
+            or not isinstance(t_s, (int, float, np.integer, np.floating))
+            or not math.isfinite(t_s)
+        ):
+            raise RosFormatError(f"an odometry time must be a finite number of seconds, got {t_s!r:.40}")
         ts = self.times_s
         if not ts[0] <= t_s <= ts[-1]:
             return None
@@ -111,6 +123,17 @@ class Odometry:
         s_rot = self.drift * angle + 1e-4
         s_pos = self.drift * dist + 0.1
         return rel, np.diag([s_rot**2] * 3 + [s_pos**2] * 3)
+
+
+def _times(times_s) -> np.ndarray:
+    """The odometry's times as a float array: finite, strictly increasing, at most 1e12 s; RosFormatError."""
+    try:
+        ts = np.asarray(times_s, dtype=float).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        ts = np.zeros(0)
+    if ts.size == 0 or np.any(np.diff(ts) <= 0) or not (np.abs(ts) <= 1e12).all():
+        raise RosFormatError("odometry times must be a list of finite, strictly increasing seconds (at most 1e12)")
+    return ts
 
 
 def read_odometry_csv(path: str | os.PathLike, drift: float = 0.02) -> Odometry:

@@ -49,6 +49,50 @@ def _check_render_work(camera, supersample, n_pictures: int, what: str) -> None:
         )
 
 
+#: Most squares or inner corners a rendered board may count along a side.
+MAX_BOARD_SIDE = 200
+
+
+def _check_pattern(pattern_size, lowest: int) -> tuple[int, int]:
+    """Two whole numbers from ``lowest`` to ``MAX_BOARD_SIDE`` (columns, rows); FidlearnError otherwise."""
+    try:
+        cols, rows = pattern_size
+        ok = all(
+            isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lowest <= v <= MAX_BOARD_SIDE
+            for v in (cols, rows)
+        )
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise FidlearnError(
+            f"pattern_size must be two whole numbers (columns, rows) from {lowest} to {MAX_BOARD_SIDE}, "
+            f"e.g. (9, 6); got {pattern_size!r:.40}"
+        )
+    return int(cols), int(rows)
+
+
+def _check_length_mm(value, name: str) -> float:
+    """A length in mm: a number > 0 and at most 100 m; FidlearnError otherwise."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not 0 < value <= 1e5:
+        raise FidlearnError(f"{name} must be a number of millimetres > 0 (at most 1e5), got {value!r:.40}")
+    return float(value)
+
+
+def _check_indices(chosen, n: int, what: str) -> list[int]:
+    """The indices to render (all of ``range(n)`` for None): whole numbers, each from 0 to n - 1."""
+    if chosen is None:
+        return list(range(n))
+    if isinstance(chosen, (str, bytes, dict)) or not hasattr(chosen, "__iter__"):
+        raise FidlearnError(f"{what} must be a list of indices, got {type(chosen).__name__}")
+    out = list(chosen)
+    if not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) for i in out):
+        raise FidlearnError(f"{what} must be whole numbers, got {out!r:.60}")
+    bad = [int(i) for i in out if not 0 <= i < n]
+    if bad:
+        raise FidlearnError(f"{what} {bad[:10]} do not exist; there are {n}, 0 to {n - 1}")
+    return [int(i) for i in out]
+
+
 def _check_seed(seed) -> int:
     """A seed for ``numpy.random.default_rng``: a whole number from 0 to 2**63 - 1."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**63:
