@@ -39,7 +39,7 @@ import numpy as np
 import traitlets
 
 from ._files import image_size_from_header
-from .errors import ImageError, WebcamError
+from .errors import FidlearnError, ImageError, WebcamError
 
 __all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "status_message"]
 
@@ -239,9 +239,10 @@ class Webcam(anywidget.AnyWidget):
     status, error, message : str
         Set by the browser (see :data:`STATUSES`); ``message`` is the advice in words.
     frames_dropped, drop_reason : int, str
-        Malformed frames from the browser (undecodable, a size that is not a number or beyond
-        ``MAX_FRAME_SIDE_PX``, a header that disagrees) are dropped, never raised in the kernel:
-        how many so far, and why the last one was.
+        Malformed messages from the browser (a frame that cannot be decoded, a size that is not a
+        number or beyond ``MAX_FRAME_SIDE_PX``, a header that disagrees, a state update with a
+        status no camera has) are dropped, never raised in the kernel: how many so far, and why the
+        last one was.
 
     Examples
     --------
@@ -388,6 +389,24 @@ class Webcam(anywidget.AnyWidget):
         else:  # dropped, and acknowledged so that a stream waiting for it goes on
             self._drop(WebcamError(f"a frame message of kind {kind!r:.40}; the browser sends 'snap' or 'stream'"))
             self.send({"type": "ack", "seq": _seq(content), "wait_ms": 0})
+
+    def set_state(self, sync_data) -> None:
+        """Apply a state update from the browser, key by key: a malformed value (a status no camera has, text
+        for a size) is dropped as a malformed frame is (``frames_dropped``, ``drop_reason``), never raised."""
+        if not isinstance(sync_data, dict):
+            self._drop(WebcamError(f"a state update that is not a mapping ({type(sync_data).__name__})"))
+            return
+        for key, value in sync_data.items():
+            if not isinstance(key, str):
+                self._drop(WebcamError(f"a state update with the key {key!r:.40}, not a name"))
+                continue
+            before = getattr(self, key) if self.has_trait(key) else None
+            try:
+                super().set_state({key: value})
+            except (traitlets.TraitError, FidlearnError) as exc:
+                if before is not None:  # traitlets rolls back only its own TraitError
+                    self.set_trait(key, before)
+                self._drop(WebcamError(f"the browser set {key!r:.40} to {value!r:.40}: {exc}"))
 
     def _drop(self, exc: BaseException) -> None:
         """Count a malformed message from the browser and say why (``drop_reason``, ``last_error``)."""

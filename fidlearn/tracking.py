@@ -150,7 +150,7 @@ class MarkerTracker:
             and 0 <= search_px <= MAX_SEARCH_PX  # NaN and 10**40 fail too
         ):
             raise FidlearnError(
-                f"search_px must be a number of pixels from 0 to {MAX_SEARCH_PX:g}, got {search_px!r:.40}"
+                f"search_px must be a number of pixels >= 0 (at most {MAX_SEARCH_PX:g}), got {search_px!r:.40}"
             )
         self.marker_map = marker_map
         self.camera = camera

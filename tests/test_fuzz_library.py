@@ -363,3 +363,49 @@ def test_removing_an_unknown_callback_is_a_webcam_error():
     cam, _, _ = _webcam()
     with pytest.raises(WebcamError, match="was not registered"):
         cam.on_frame(print, remove=True)
+
+
+STATE_UPDATES = [
+    {"status": "sleeping"},
+    {"status": ["streaming"]},
+    {"actual_width": "abc"},
+    {"actual_width": float("nan")},
+    {"error": 5},
+    {"width": "abc"},
+    {"height": 10**40},
+    {"max_fps": "nan"},
+    {"streaming": "yes"},
+    {"stream_format": "webp"},
+    {7: 1},
+]
+
+
+@pytest.mark.parametrize("update", STATE_UPDATES, ids=[repr(u)[:30] for u in STATE_UPDATES])
+def test_a_malformed_state_update_from_the_browser_is_dropped_and_the_widget_unchanged(update):
+    cam, _, seen = _webcam()
+    before = {k: getattr(cam, k) for k in ("status", "actual_width", "width", "height", "max_fps", "streaming")}
+    cam.set_state(update)  # what the comm does with the browser's state message: never raises
+    assert cam.frames_dropped == 1 and ("the browser set" in cam.drop_reason or "not a name" in cam.drop_reason)
+    assert {k: getattr(cam, k) for k in before} == before
+    cam.set_state({"status": "streaming", "actual_width": 64})  # a good update still applies
+    assert cam.status == "streaming" and cam.actual_width == 64
+    cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 2, "width": 64, "height": 48}, [GOOD_PNG])
+    assert seen == [(48, 64, 3)]
+
+
+@pytest.mark.parametrize("label", list(BAD))
+def test_the_ros_writers_raise_only_fidlearn_errors_and_write_nothing(tmp_path, label):
+    bad = BAD[label]
+    calls = [
+        (ros.write_tum, [tmp_path / "a.txt", bad], {}),
+        (ros.write_tum, [tmp_path / "b.txt", [_tracker().last]], {"body": bad}),
+        (ros.write_tum, [bad, [_tracker().last]], {}),
+        (ros.save_camera_info, [bad, tmp_path / "c.yaml"], {}),
+        (ros.save_camera_info, [CAM, tmp_path / "d.yaml"], {"camera_name": bad}),
+        (ros.ros_pose, [POSE], {"body": bad}),
+    ]
+    for f, args, kwargs in calls:
+        out = _call_expecting_only_fidlearn_errors(f, args, kwargs, f"{f.__name__}(... {bad!r:.40} ...)")
+        if out is None and f is not ros.ros_pose and isinstance(args[0], type(tmp_path)):
+            assert not args[0].exists()  # nothing half-written
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary file left

@@ -125,7 +125,7 @@ def test_bgr_frames_and_pose_options(drive):
         (dict(marker_map="map.json"), "marker_map must be a fidlearn.MarkerMap"),
         (dict(camera=None), "camera must be a fidlearn.Camera"),
         (dict(full_every=0), "full_every must be a whole number of frames >= 1, got 0"),
-        (dict(search_px=-1), "search_px must be a number of pixels from 0 to"),
+        (dict(search_px=-1), "search_px must be a number of pixels >= 0"),
         (dict(refine="sharp"), "unknown corner refinement 'sharp'"),
         (dict(method="dlt"), "unknown method 'dlt'"),
         # checked once, as locate checks them, not found wrong on every frame

@@ -208,7 +208,7 @@ class _Run:
 _HEADER_BYTES = 256 * 1024
 
 
-def check_frame_sizes(items, camera) -> None:
+def check_frame_sizes(items, camera, max_pixels: float) -> None:
     """Refuse, before any frame is handled, pictures that the camera cannot fit (another aspect ratio).
 
     Each picture's size is read from its header; a folder that mixes sizes used to print the
@@ -220,6 +220,8 @@ def check_frame_sizes(items, camera) -> None:
         The inputs as :func:`fidlearn.images.expand_inputs` gives them (videos are checked when read).
     camera : Camera
         The camera file's camera.
+    max_pixels : float
+        Larger pictures are left to :func:`fidlearn.images.load_image`, which refuses them as such.
 
     Raises
     ------
@@ -236,7 +238,7 @@ def check_frame_sizes(items, camera) -> None:
         except OSError:
             continue  # reading the picture says what is wrong with it
         size = head[1:] if head is not None else (-1, -1)
-        if min(size) <= 0 or size in seen:
+        if min(size) <= 0 or size[0] * size[1] > max_pixels or size in seen:
             continue
         seen.add(size)
         try:
@@ -272,7 +274,7 @@ def run_tracked(args, items, locator, out_path: Path | None) -> int:
     int
         0 when done; 128 + signal when interrupted.
     """
-    check_frame_sizes(items, locator.camera)
+    check_frame_sizes(items, locator.camera, args.max_megapixels * 1e6)
     mount = read_mount_json(args.mount) if args.mount else None
     odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
     tracker = PoseTracker(locator.marker_map, locator.camera, T_camera_base=mount)

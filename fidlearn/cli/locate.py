@@ -308,7 +308,7 @@ def run(args) -> int:
         return run_tracked(args, items, _Locator(_load_map(args), camera, args.refine, False), track_out)
     staging = _Staging(args.annotate, keep_on_interrupt=True)
     camera = _load_camera(args)  # the camera first: a map given as --camera is named as such
-    check_frame_sizes(items, camera)  # one error line, before any frame's row or warning
+    check_frame_sizes(items, camera, args.max_megapixels * 1e6)  # one error line, before any frame's row or warning
     locator = _Locator(_load_map(args), camera, args.refine, args.annotate is not None)
     width = max(
         [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]

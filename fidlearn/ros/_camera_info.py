@@ -125,7 +125,8 @@ def save_camera_info(camera: Camera, path: str | os.PathLike, camera_name: str =
     RosFormatError
         As for :func:`camera_info_yaml`.
     """
-    return write_text_atomic(path, camera_info_yaml(camera, camera_name))
+    text = camera_info_yaml(camera, camera_name)
+    return write_text_atomic(_files.as_path(path, RosFormatError, "camera_info YAML file"), text)
 
 
 # -- reading -------------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import frames
+from .. import _files, frames
 from .._io import write_text_atomic
 from ..errors import RosFormatError
 from ..filtering import TrackedPose
@@ -31,8 +31,8 @@ def _body_pose(pose, body: str | None) -> tuple[np.ndarray, np.ndarray, str]:
     base = getattr(pose, "T_world_base", None)
     if body is None:
         body = "base_link" if base is not None else "camera_optical_frame"
-    if body not in BODIES:
-        raise RosFormatError(f"body {body!r} is not one of {', '.join(BODIES)}")
+    if not isinstance(body, str) or body not in BODIES:
+        raise RosFormatError(f"body {body!r:.40} is not one of {', '.join(BODIES)}")
     if pose.covariance is None:
         raise RosFormatError("this pose has no covariance (not determined); ROS's message needs one")
     if body == "base_link":
@@ -207,10 +207,14 @@ def write_tum(path: str | os.PathLike, poses: Sequence, *, body: str | None = No
     Raises
     ------
     RosFormatError
-        As for :func:`ros_pose`.
+        Poses that are not a list of TrackedPose; else as for :func:`ros_pose`.
     """
+    if isinstance(poses, (str, bytes, dict)) or not hasattr(poses, "__iter__"):
+        raise RosFormatError(f"poses must be a list of TrackedPose, got {type(poses).__name__}")
     lines = ["# timestamp tx ty tz qx qy qz qw"]
     for p in poses:
+        if not isinstance(p, TrackedPose):
+            raise RosFormatError(f"a TUM file is written from TrackedPose (they carry t_s), got {type(p).__name__}")
         T, _, _ = _body_pose(p, body)
         lines.append(tum_line(p.t_s, T))
-    return write_text_atomic(path, "\n".join(lines) + "\n")
+    return write_text_atomic(_files.as_path(path, RosFormatError, "TUM file"), "\n".join(lines) + "\n")
