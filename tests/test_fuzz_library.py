@@ -394,7 +394,8 @@ def test_a_malformed_state_update_from_the_browser_is_dropped_and_the_widget_unc
 
 
 @pytest.mark.parametrize("label", list(BAD))
-def test_the_ros_writers_raise_only_fidlearn_errors_and_write_nothing(tmp_path, label):
+def test_the_ros_writers_raise_only_fidlearn_errors_and_write_nothing(tmp_path, monkeypatch, label):
+    monkeypatch.chdir(tmp_path)  # a path of "abc" is a file name: written here, nowhere else
     bad = BAD[label]
     calls = [
         (ros.write_tum, [tmp_path / "a.txt", bad], {}),
