@@ -665,3 +665,9 @@ def test_render_at_the_largest_size_allowed_finishes_in_seconds(ws, capsys):
     import cv2
 
     assert cv2.imread(str(ws / "r.png"), cv2.IMREAD_GRAYSCALE).shape == (1181, 2100)
+
+
+def test_a_jpeg_whose_size_comes_after_its_first_4_kb_is_checked_too(ws, capsys):
+    """OpenCV's ArUco photo (640x480) gives its size after 4 KB of other blocks; the 16:9 camera does not fit it."""
+    shutil.copy(DATA / "real" / "opencv_aruco_photo" / "singlemarkersoriginal.jpg", ws / "frames" / "z.jpg")
+    refused(ws, capsys, ["locate", "frames", *LOC, "--track"], "z.jpg: camera calibrated at 1280x720 (aspect 1.778)")

@@ -234,7 +234,10 @@ def check_frame_sizes(items, camera, max_pixels: float) -> None:
             continue
         try:
             with open(path, "rb") as f:
-                head = image_size_from_header(f.read(_HEADER_BYTES))
+                data = f.read(4096)
+                head = image_size_from_header(data)
+                if head is not None and head[1] < 0:  # a JPEG whose EXIF block comes before its size
+                    head = image_size_from_header(data + f.read(_HEADER_BYTES))
         except OSError:
             continue  # reading the picture says what is wrong with it
         size = head[1:] if head is not None else (-1, -1)
