@@ -159,6 +159,16 @@ def _planner(_k: int) -> tuple:
     return plan.median_mm, plan.worst_mm, plan.seen_fraction, pred.covariance, pred.position_std_mm
 
 
+def _render_and_track(k: int) -> tuple:
+    """A rendered drive of 3 frames, located and smoothed: the renderer, the detector and the filter."""
+    world = MarkerMap.load(fidlearn.data_path("world_map.json"))
+    camera = Camera.from_fov(60, (320, 240))
+    drive = fidlearn.render_trajectory(world, camera, n_frames=3, seed=1, supersample=2)
+    poses = [locate(image, world, camera) for image in drive.images]
+    smoothed = fidlearn.smooth(poses, [0.0, 0.1, 0.2])
+    return (np.array(drive.images), *[p.T_world_camera for p in smoothed], *[p.covariance for p in smoothed])
+
+
 def _calibration_views() -> list:
     return [load_image(p) for p in sorted(fidlearn.data_path("calibration").glob("view_*.png"))[:8]]
 
@@ -168,8 +178,8 @@ CALIBRATION_VIEWS = _calibration_views()
 
 @pytest.mark.parametrize(
     "work, runs",
-    [(_calibration, 9), pytest.param(_survey, 3, marks=pytest.mark.slow), (_planner, 6)],
-    ids=["calibration", "survey", "planner"],
+    [(_calibration, 9), pytest.param(_survey, 3, marks=pytest.mark.slow), (_planner, 6), (_render_and_track, 6)],
+    ids=["calibration", "survey", "planner", "render and track"],
 )
 def test_three_threads_give_the_single_thread_answer_to_the_last_bit(work, runs):
     """cv2.calibrateCamera summed its terms in a different order from run to run (OpenCV's own worker
