@@ -5,7 +5,8 @@ it decoded; a thread that wrote to stderr meanwhile lost its message, and two th
 once could leave stderr pointed at the null device for good. Nothing in fidlearn redirects a file
 descriptor now.
 
-Calibration, the survey and the planner give, from 3 threads at once, the single-thread answer to
+Calibration, the survey, the planner, the renderer and the tracker give, from 3 threads at once, the
+single-thread answer to
 the last bit: ``cv2.calibrateCamera`` runs on one OpenCV worker under a lock
 (:func:`fidlearn._cv_threads.opencv_single_thread` says why).
 """
