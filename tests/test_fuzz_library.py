@@ -108,6 +108,11 @@ BASELINES = {
         (WORLD, CAM, 2),
         {"seed": 0, "supersample": 1, "frames_to_render": [1]},
     ),
+    "render_trajectory(poses=...)": (
+        lambda: synthetic.render_trajectory,
+        (WORLD, CAM),
+        {"poses": [T, T], "supersample": 1},
+    ),
     "render_calibration_views": (
         lambda: synthetic.render_calibration_views,
         (Camera.from_fov(60, (320, 240)), 2, (5, 4), 25.0),

@@ -245,6 +245,8 @@ def render_trajectory(
         poses = trajectory_poses(marker_map, n_frames, seed, **trajectory_options)
     elif trajectory_options:
         raise FidlearnError(f"give either poses or trajectory options ({', '.join(trajectory_options)}), not both")
+    elif isinstance(poses, (str, bytes, dict)) or not hasattr(poses, "__len__"):
+        raise FidlearnError(f"poses must be a list of 4x4 T_world_camera, got {type(poses).__name__}")
     render_kwargs = dict(
         blur_px=blur_px,
         noise_std_gray=noise_std_gray,
