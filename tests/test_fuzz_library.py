@@ -96,7 +96,11 @@ BASELINES = {
     "Camera.scaled": (lambda: CAM.scaled, ((320, 240),), {"tol": 0.01}),
     "Camera.project": (lambda: CAM.project, (np.array([[0.0, 0.0, 1000.0]]), np.eye(4)), {}),
     "Camera.undistort_points": (lambda: CAM.undistort_points, (np.array([[80.0, 60.0]]),), {}),
-    "MarkerTracker": (lambda: MarkerTracker, (WORLD, CAM), {"full_every": 30, "search_px": 10.0}),
+    "MarkerTracker": (
+        lambda: MarkerTracker,
+        (WORLD, CAM),
+        {"full_every": 30, "search_px": 10.0, "refine": "subpix", "detector_params": None, "corner_sigma_px": 0.3},
+    ),
     "MarkerTracker.locate": (lambda: MarkerTracker(WORLD, CAM).locate, (IMAGE,), {}),
     "render_scene": (
         lambda: synthetic.render_scene,
