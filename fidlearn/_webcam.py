@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import math
 import pathlib
 import time
 from collections.abc import Callable
@@ -186,6 +187,8 @@ class FramePacer:
 
     def wait_s(self, received_at_s: float, done_at_s: float) -> float:
         """Seconds the browser waits before sending the next frame (the frame arrived, then was handled)."""
+        if not all(isinstance(t, (int, float)) and math.isfinite(t) for t in (received_at_s, done_at_s)):
+            raise WebcamError(f"times must be finite numbers of seconds, got {received_at_s!r:.30}, {done_at_s!r:.30}")
         if done_at_s < received_at_s:
             raise WebcamError(f"done_at_s ({done_at_s}) is before received_at_s ({received_at_s})")
         self.frames += 1
@@ -352,8 +355,10 @@ class Webcam(anywidget.AnyWidget):
         arrives within ``timeout_s`` (the widget is not displayed?).
         """
         _check_format(format)
-        if not timeout_s > 0:
-            raise WebcamError(f"timeout_s must be positive, got {timeout_s!r}")
+        if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not 0 < timeout_s <= 3600:
+            raise WebcamError(
+                f"timeout_s must be a number of seconds, more than 0 and at most 3600, got {timeout_s!r:.40}"
+            )
         self._raise_if_failed()
         request = next(self._ids)
         future = asyncio.get_running_loop().create_future()

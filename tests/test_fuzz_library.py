@@ -419,3 +419,15 @@ def test_the_ros_writers_raise_only_fidlearn_errors_and_write_nothing(tmp_path, 
         if out is None and f is not ros.ros_pose and isinstance(args[0], type(tmp_path)):
             assert not args[0].exists()  # nothing half-written
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary file left
+
+
+@pytest.mark.parametrize("label", list(BAD))
+def test_snapshot_and_the_pacer_refuse_wrong_arguments_with_webcam_errors(label):
+    import asyncio
+
+    from fidlearn._webcam import FramePacer
+
+    cam, _, _ = _webcam()
+    bad = BAD[label]
+    for f, args in ((lambda t: asyncio.run(cam.snapshot(timeout_s=t)), [bad]), (FramePacer(5).wait_s, [bad, 1.0])):
+        _call_expecting_only_fidlearn_errors(f, args, {}, f"webcam {bad!r:.40}")
