@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import math
 import pathlib
 import time
 from collections.abc import Callable
@@ -38,13 +39,18 @@ import cv2
 import numpy as np
 import traitlets
 
-from .errors import ImageError, WebcamError
+from ._files import image_size_from_header
+from .errors import FidlearnError, ImageError, WebcamError
 
 __all__ = ["STATUSES", "FramePacer", "Webcam", "WebcamError", "decode_frame", "status_message"]
 
 STATIC = pathlib.Path(__file__).resolve().parent / "static"
 #: Smallest and largest side (px) a learner may ask for.
 MIN_SIDE_PX, MAX_SIDE_PX = 16, 4096
+#: Largest frame side (px) and encoded size (bytes) accepted from the browser: twice the largest
+#: side asked for (a camera may deliver more than asked), and what a lossless 8192x8192 PNG can take.
+MAX_FRAME_SIDE_PX = 2 * MAX_SIDE_PX
+MAX_FRAME_BYTES = 256 * 2**20
 FALLBACK = (
     "Until it works, use the bundled pictures instead: set HAVE_CAMERA = False in the notebook and run "
     "it again (data/calibration stands in for your calibration views, data/trajectory for your live camera)."
@@ -90,12 +96,16 @@ def status_message(status: str, error: str = "") -> str:
 def decode_frame(data: bytes | memoryview, width: int | None = None, height: int | None = None) -> np.ndarray:
     """Decode PNG or JPEG bytes from the browser into a BGR image.
 
+    The browser is untrusted input: the bytes' size, the announced size and the size the picture's
+    header declares are checked before anything is decoded, so a 74-byte PNG that claims
+    100000x100000 pixels is refused without allocating them.
+
     Parameters
     ----------
     data : bytes or memoryview
-        The encoded frame.
+        The encoded frame (at most ``MAX_FRAME_BYTES``).
     width, height : int, optional
-        The size the browser reported (px); the decoded picture must have it.
+        The size the browser reported (px, 1 to ``MAX_FRAME_SIDE_PX``); the decoded picture must have it.
 
     Returns
     -------
@@ -104,23 +114,56 @@ def decode_frame(data: bytes | memoryview, width: int | None = None, height: int
     Raises
     ------
     ImageError
-        Empty or undecodable bytes, or a picture of another size than reported.
+        Empty, oversized or undecodable bytes, an announced size that is not a whole number of
+        pixels in range, or a picture of another size than reported.
     """
-    buf = np.frombuffer(bytes(data), dtype=np.uint8)
-    if buf.size == 0:
-        raise ImageError("the camera frame is empty (0 bytes): the browser sent no picture; run the cell again")
-    image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-    if image is None:
+    raw = _frame_bytes(data)
+    announced = None if width is None and height is None else (_side(width, "width"), _side(height, "height"))
+    head = image_size_from_header(raw)
+    if head is None or head[0] not in ("PNG", "JPEG"):
         raise ImageError(
-            f"the camera frame ({buf.size} bytes, starting {bytes(buf[:8])!r}) is neither PNG nor "
-            "JPEG: it cannot be decoded"
+            f"the camera frame ({len(raw)} bytes, starting {raw[:8]!r}) is neither PNG nor JPEG: it cannot be decoded"
         )
-    if width is not None and height is not None and image.shape[:2] != (int(height), int(width)):
+    fmt, w, h = head
+    if not (0 < w <= MAX_FRAME_SIDE_PX and 0 < h <= MAX_FRAME_SIDE_PX):
+        said = f"says {w}x{h} pixels" if w >= 0 and h >= 0 else "gives no size"
+        raise ImageError(f"the camera frame's {fmt} header {said}; a frame is 1 to {MAX_FRAME_SIDE_PX} px a side")
+    if announced is not None and (w, h) != announced:
         raise ImageError(
-            f"the camera frame decodes to {image.shape[1]}x{image.shape[0]} px but the browser "
-            f"announced {width}x{height} px"
+            f"the camera frame's {fmt} header says {w}x{h} px but the browser announced "
+            f"{announced[0]}x{announced[1]} px"
         )
+    if (fmt == "PNG" and b"IEND" not in raw[-16:]) or (fmt == "JPEG" and not raw.endswith(b"\xff\xd9")):
+        raise ImageError(f"the camera frame ({len(raw)} bytes of {fmt}) is cut short: it has no end")
+    try:
+        image = cv2.imdecode(np.frombuffer(raw, dtype=np.uint8), cv2.IMREAD_COLOR)
+    except cv2.error:
+        image = None
+    if image is None or image.shape[:2] != (h, w):
+        raise ImageError(f"the camera frame ({len(raw)} bytes of {fmt}) is damaged: it cannot be decoded")
     return image
+
+
+def _frame_bytes(data) -> bytes:
+    """The frame's bytes: bytes-like, not empty, at most MAX_FRAME_BYTES; ImageError otherwise."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ImageError(f"the camera frame must be bytes, got {type(data).__name__}")
+    raw = bytes(data)
+    if not raw:
+        raise ImageError("the camera frame is empty (0 bytes): the browser sent no picture; run the cell again")
+    if len(raw) > MAX_FRAME_BYTES:
+        raise ImageError(f"the camera frame has {len(raw)} bytes, more than the limit of {MAX_FRAME_BYTES}")
+    return raw
+
+
+def _side(value, name: str) -> int:
+    """A frame side the browser announced: a whole number of pixels, 1 to MAX_FRAME_SIDE_PX."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 < value <= MAX_FRAME_SIDE_PX:
+        raise ImageError(
+            f"the browser announced a frame {name} of {value!r:.40}; it must be a whole number of pixels, "
+            f"1 to {MAX_FRAME_SIDE_PX}"
+        )
+    return int(value)
 
 
 class FramePacer:
@@ -144,6 +187,8 @@ class FramePacer:
 
     def wait_s(self, received_at_s: float, done_at_s: float) -> float:
         """Seconds the browser waits before sending the next frame (the frame arrived, then was handled)."""
+        if not all(isinstance(t, (int, float)) and math.isfinite(t) for t in (received_at_s, done_at_s)):
+            raise WebcamError(f"times must be finite numbers of seconds, got {received_at_s!r:.30}, {done_at_s!r:.30}")
         if done_at_s < received_at_s:
             raise WebcamError(f"done_at_s ({done_at_s}) is before received_at_s ({received_at_s})")
         self.frames += 1
@@ -196,6 +241,11 @@ class Webcam(anywidget.AnyWidget):
         corners move by well under 0.1 px) or PNG (lossless, larger).
     status, error, message : str
         Set by the browser (see :data:`STATUSES`); ``message`` is the advice in words.
+    frames_dropped, drop_reason : int, str
+        Malformed messages from the browser (a frame that cannot be decoded, a size that is not a
+        number or beyond ``MAX_FRAME_SIDE_PX``, a header that disagrees, a state update with a
+        status no camera has) are dropped, never raised in the kernel: how many so far, and why the
+        last one was.
 
     Examples
     --------
@@ -217,6 +267,8 @@ class Webcam(anywidget.AnyWidget):
     max_fps = traitlets.Any(5.0).tag(sync=True)
     stream_format = traitlets.Unicode("jpeg").tag(sync=True)
     jpeg_quality = traitlets.Float(0.92).tag(sync=True)
+    frames_dropped = traitlets.Int(0).tag(sync=True)
+    drop_reason = traitlets.Unicode("").tag(sync=True)
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -267,8 +319,16 @@ class Webcam(anywidget.AnyWidget):
         return self.status in FAILED
 
     def on_frame(self, callback: Callable[[np.ndarray], object], remove: bool = False) -> None:
-        """Call ``callback(frame_bgr)`` for each stream frame ((H, W, 3) uint8); ``remove=True`` unregisters it."""
+        """Call ``callback(frame_bgr)`` for each stream frame ((H, W, 3) uint8); ``remove=True`` unregisters it.
+
+        Raises :class:`WebcamError` for a callback that is not a function, or one to remove that was
+        never registered.
+        """
         if remove:
+            if callback not in self._callbacks:
+                raise WebcamError(
+                    f"on_frame(remove=True): {callback!r:.60} was not registered; registered: {len(self._callbacks)}"
+                )
             self._callbacks.remove(callback)
         elif not callable(callback):
             raise WebcamError(f"on_frame needs a function of one frame, got {type(callback).__name__}")
@@ -295,8 +355,10 @@ class Webcam(anywidget.AnyWidget):
         arrives within ``timeout_s`` (the widget is not displayed?).
         """
         _check_format(format)
-        if not timeout_s > 0:
-            raise WebcamError(f"timeout_s must be positive, got {timeout_s!r}")
+        if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not 0 < timeout_s <= 3600:
+            raise WebcamError(
+                f"timeout_s must be a number of seconds, more than 0 and at most 3600, got {timeout_s!r:.40}"
+            )
         self._raise_if_failed()
         request = next(self._ids)
         future = asyncio.get_running_loop().create_future()
@@ -317,28 +379,66 @@ class Webcam(anywidget.AnyWidget):
         if self.failed:
             raise WebcamError(self.message)
 
-    def _on_message(self, _widget, content: dict, buffers: list) -> None:
-        if content.get("type") != "frame":
+    def _on_message(self, _widget, content, buffers) -> None:
+        """A message from the browser. It is untrusted: a malformed one is dropped (``frames_dropped``,
+        ``drop_reason``), never raised here, so the next good frame still arrives. Only an ``on_frame``
+        callback's own exception propagates (and stops the stream)."""
+        if not isinstance(content, dict) or content.get("type") != "frame":
             return
-        if content.get("kind") == "snap":
+        buffers = buffers if isinstance(buffers, (list, tuple)) else []
+        kind = content.get("kind")
+        if kind == "snap":
             self._answer_snapshot(content, buffers)
-        elif content.get("kind") == "stream":
+        elif kind == "stream":
             self._handle_stream_frame(content, buffers)
+        else:  # dropped, and acknowledged so that a stream waiting for it goes on
+            self._drop(WebcamError(f"a frame message of kind {kind!r:.40}; the browser sends 'snap' or 'stream'"))
+            self.send({"type": "ack", "seq": _seq(content), "wait_ms": 0})
 
-    def _answer_snapshot(self, content: dict, buffers: list) -> None:
-        future = self._pending.get(content.get("id"))
+    def set_state(self, sync_data) -> None:
+        """Apply a state update from the browser, key by key: a malformed value (a status no camera has, text
+        for a size) is dropped as a malformed frame is (``frames_dropped``, ``drop_reason``), never raised."""
+        if not isinstance(sync_data, dict):
+            self._drop(WebcamError(f"a state update that is not a mapping ({type(sync_data).__name__})"))
+            return
+        for key, value in sync_data.items():
+            if not isinstance(key, str):
+                self._drop(WebcamError(f"a state update with the key {key!r:.40}, not a name"))
+                continue
+            before = getattr(self, key) if self.has_trait(key) else None
+            try:
+                super().set_state({key: value})
+            except (traitlets.TraitError, FidlearnError) as exc:
+                if before is not None:  # traitlets rolls back only its own TraitError
+                    self.set_trait(key, before)
+                self._drop(WebcamError(f"the browser set {key!r:.40} to {value!r:.40}: {exc}"))
+
+    def _drop(self, exc: BaseException) -> None:
+        """Count a malformed message from the browser and say why (``drop_reason``, ``last_error``)."""
+        self.frames_dropped += 1
+        self.drop_reason = str(exc)
+        self.last_error = exc
+
+    def _decode(self, content: dict, buffers) -> np.ndarray:
+        return decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
+
+    def _answer_snapshot(self, content: dict, buffers) -> None:
+        request = content.get("id")
+        future = self._pending.get(request) if isinstance(request, int) else None
         if future is None or future.done():
             return
-        if content.get("failed"):
+        failed = content.get("failed")
+        if failed:
             # The reply carries the failure too: the status shown is right even if a state update was lost.
-            failed = content["failed"] if content["failed"] in FAILED else "error"
-            self.error = str(content.get("error", self.error))
+            failed = failed if isinstance(failed, str) and failed in FAILED else "error"
+            self.error = str(content.get("error", self.error))[:500]
             self.status = failed
             future.set_exception(WebcamError(status_message(failed, self.error)))
             return
         try:
-            frame = decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
+            frame = self._decode(content, buffers)
         except ImageError as exc:
+            self._drop(exc)
             future.set_exception(exc)
             return
         self._note_size(frame)
@@ -352,11 +452,15 @@ class Webcam(anywidget.AnyWidget):
         if self.status != "streaming":
             self.status = "streaming"
 
-    def _handle_stream_frame(self, content: dict, buffers: list) -> None:
+    def _handle_stream_frame(self, content: dict, buffers) -> None:
         received = time.monotonic()
         try:
             if self.streaming:
-                frame = decode_frame(buffers[0] if buffers else b"", content.get("width"), content.get("height"))
+                try:
+                    frame = self._decode(content, buffers)
+                except ImageError as exc:
+                    self._drop(exc)
+                    return
                 self.frames_received += 1
                 self._note_size(frame)
                 for callback in list(self._callbacks):
@@ -368,7 +472,13 @@ class Webcam(anywidget.AnyWidget):
             raise
         finally:
             wait_s = self.pacer.wait_s(received, time.monotonic())
-            self.send({"type": "ack", "seq": content.get("seq"), "wait_ms": round(1000 * wait_s)})
+            self.send({"type": "ack", "seq": _seq(content), "wait_ms": round(1000 * wait_s)})
+
+
+def _seq(content: dict) -> int | None:
+    """The message's sequence number when it is one (a whole number), else None."""
+    seq = content.get("seq")
+    return seq if isinstance(seq, int) and not isinstance(seq, bool) else None
 
 
 def _check_format(value) -> str:

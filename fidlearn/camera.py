@@ -72,6 +72,10 @@ class Camera:
     source: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
+        if isinstance(self.source, os.PathLike):
+            self.source = os.fspath(self.source)
+        if not isinstance(self.source, str):
+            raise CameraError(f"source must be text (what produced the camera), got {type(self.source).__name__}")
         where = self.source or "camera"
         self.K = _as_K(self.K, where)
         self.dist = _as_dist(self.dist, where)
@@ -296,6 +300,8 @@ class Camera:
             you run at.
         """
         new_w, new_h = _as_size(image_size, "image_size")
+        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)) or not 0 <= tol <= 1:
+            raise CameraError(f"tol must be a fraction from 0 to 1 (0.01: 1 %), got {tol!r:.40}")
         w, h = self.image_size
         if (new_w, new_h) == (w, h):
             return self
@@ -466,7 +472,7 @@ class Camera:
         CameraError
             If the file is missing, unreadable, an image or a map, malformed, or disagrees with ``image_size``.
         """
-        path = Path(path)
+        path = _files.as_path(path, CameraError, "camera")
         if path.suffix.lower() in (".yml", ".yaml", ".xml"):
             return cls._load_filestorage(path, image_size)
         if path.suffix.lower() in _files.IMAGE_SUFFIXES + _files.VIDEO_SUFFIXES:

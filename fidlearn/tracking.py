@@ -64,6 +64,8 @@ from .pose import Pose, _check_pose_options, estimate_pose
 
 __all__ = ["MarkerTracker"]
 
+#: Largest margin (px) searched around a marker's predicted place: beyond it a full detection is as cheap.
+MAX_SEARCH_PX = 100_000.0
 #: Windows covering more than this fraction of the image: a full detection is as cheap.
 _MAX_WINDOW_FRACTION = 0.5
 #: Two windows become one when their bounding box is at most this much larger than the two together
@@ -142,8 +144,14 @@ class MarkerTracker:
             )
         if isinstance(full_every, bool) or not isinstance(full_every, (int, np.integer)) or full_every < 1:
             raise FidlearnError(f"full_every must be a whole number of frames >= 1, got {full_every!r}")
-        if not (isinstance(search_px, (int, float, np.number)) and np.isfinite(search_px) and search_px >= 0):
-            raise FidlearnError(f"search_px must be a number of pixels >= 0, got {search_px!r}")
+        if not (
+            isinstance(search_px, (int, float, np.number))
+            and not isinstance(search_px, bool)
+            and 0 <= search_px <= MAX_SEARCH_PX  # NaN and 10**40 fail too
+        ):
+            raise FidlearnError(
+                f"search_px must be a number of pixels >= 0 (at most {MAX_SEARCH_PX:g}), got {search_px!r:.40}"
+            )
         self.marker_map = marker_map
         self.camera = camera
         self.refine = _refine_name(refine)

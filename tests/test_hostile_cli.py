@@ -165,8 +165,8 @@ BOUNDS = [
     ("render --noise nan", ["--noise", "nan"], "--noise must be 0 to 255"),
     ("render --blur -1", ["--blur", "-1"], "--blur 0 to 100"),
     ("render --blur inf", ["--blur", "inf"], "--blur 0 to 100"),
-    ("render --size 100000x56250", ["--size", "100000x56250"], "at most 40 megapixels"),
-    ("render --size 20001x11251", ["--size", "20001x11251"], "at most 40 megapixels"),
+    ("render --size 100000x56250", ["--size", "100000x56250"], "at most 2.5 megapixels"),
+    ("render --size 20001x11251", ["--size", "20001x11251"], "at most 2.5 megapixels"),
     ("render --size 0x0", ["--size", "0x0"], "needs at least 2"),
 ]
 
@@ -652,3 +652,109 @@ def test_calibrate_refuses_a_board_too_large_up_front(ws, capsys, board, match):
     start = time.monotonic()
     refused(ws, capsys, ["calibrate", "photos", *board, "--square-mm", "25", "-o", "cam.json"], match)
     assert time.monotonic() - start < 5  # before any photo is searched
+
+
+# -- camera import, the track's frames, the mount file, render's size --------------------------------
+CAMERA_INFO = """image_width: 640
+image_height: 480
+camera_name: camera
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [600, 0, 319.5, 0, 600, 239.5, 0, 0, 1]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [-0.1, 0.01, 0, 0, 0]
+"""
+CAMERA_INFO_CASES = [
+    ("width 1e999", ("image_width: 640", "image_width: 1e999"), "image_width must be a whole number of pixels > 0"),
+    ("width 9x400", ("image_width: 640", "image_width: 9x400"), "image_width must be a whole number of pixels > 0"),
+    ("height -1e999", ("image_height: 480", "image_height: -1e999"), "image_height must be a whole number"),
+    ("rows 4.5", ("  rows: 1\n  cols: 5", "  rows: 4.5\n  cols: 2"), "distortion_coefficients.rows must be a whole"),
+    ("rows -1 cols -5", ("  rows: 1\n  cols: 5", "  rows: -1\n  cols: -5"), "rows must be a whole number >= 0"),
+    ("a model that is a list", ("model: plumb_bob", "model: [plumb_bob]"), "distortion_model must be a name"),
+    ("a model that is a mapping", ("model: plumb_bob", "model: {a: 1}"), "distortion_model must be a name"),
+]
+
+
+@pytest.mark.parametrize("change, match", [c[1:] for c in CAMERA_INFO_CASES], ids=[c[0] for c in CAMERA_INFO_CASES])
+def test_camera_import_of_a_hostile_camera_info(ws, capsys, change, match):
+    assert change[0] in CAMERA_INFO
+    (ws / "info.yaml").write_text(CAMERA_INFO.replace(*change))
+    refused(ws, capsys, ["camera", "import", "info.yaml", "-o", "imported.json"], match)
+
+
+def test_camera_import_of_the_unchanged_camera_info_works(ws, capsys):
+    (ws / "info.yaml").write_text(CAMERA_INFO)
+    assert cli.main(["camera", "import", "info.yaml", "-o", "imported.json"]) == 0
+    cam = fidlearn.Camera.load(ws / "imported.json")
+    assert cam.image_size == (640, 480) and cam.fx == 600.0 and cam.dist[0] == -0.1
+
+
+def _frames_of_two_aspects(ws: Path) -> None:
+    """frames/ with a 4:3 picture after the 16:9 scenes (the camera is 16:9)."""
+    import cv2
+
+    cv2.imwrite(str(ws / "frames" / "scene_09.png"), np.full((480, 640), 128, np.uint8))
+
+
+@pytest.mark.parametrize(
+    "track", [["--track"], ["--track", "-o", "track.jsonl"], []], ids=["track", "track -o", "locate"]
+)
+def test_frames_of_another_aspect_ratio_give_one_error_line_before_any_work(ws, capsys, track):
+    _frames_of_two_aspects(ws)
+    line = refused(ws, capsys, ["locate", "frames", *LOC, *track], "scene_09.png: camera calibrated at 1280x720")
+    assert "aspect" in line
+    assert capsys.readouterr().out == ""  # not even the table's header
+
+
+MOUNT = {"units": "mm", "camera_in_base": {"translation": [200, 0, 300], "rpy_deg": [0, 0, 0]}}
+MOUNT_CASES = [
+    ("axes for camera_axes", {**MOUNT, "axes": "optical"}, "unknown key 'axes': did you mean 'camera_axes'?"),
+    ("unit for units", {"unit": "mm", "camera_in_base": MOUNT["camera_in_base"]}, "did you mean 'units'?"),
+    ("a key of nothing", {**MOUNT, "colour": "red"}, "a mount file has units, camera_in_base, camera_axes"),
+    (
+        "rpy for rpy_deg",
+        {"units": "mm", "camera_in_base": {"translation": [0, 0, 0], "rpy": [0, 0, 0]}},
+        "unknown key 'rpy': did you mean 'rpy_deg'?",
+    ),
+    ("both poses", {**MOUNT, "T_camera_base": np.eye(4).tolist()}, "not both"),
+    ("units a list", {**MOUNT, "units": ["mm"]}, 'needs "units"'),
+    ("camera_axes a list", {**MOUNT, "camera_axes": ["link"]}, "camera_axes must be"),
+    ("1e300 m away", {**MOUNT, "camera_in_base": {"translation": [1e300, 0, 0], "rpy_deg": [0, 0, 0]}}, "check"),
+]
+
+
+@pytest.mark.parametrize("mount, match", [c[1:] for c in MOUNT_CASES], ids=[c[0] for c in MOUNT_CASES])
+def test_a_mount_file_with_an_unknown_or_wrong_key_is_refused(ws, capsys, mount, match):
+    (ws / "mount.json").write_text(json.dumps(mount))
+    refused(ws, capsys, ["locate", "frames", *LOC, "--track", "--mount", "mount.json", "-o", "t.jsonl"], match)
+
+
+def test_render_refuses_a_size_that_takes_minutes_naming_the_limit(ws, capsys):
+    refused(
+        ws,
+        capsys,
+        ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--size", "2560x1440"],
+        "at most 2.5 megapixels (1920x1080 fits)",
+    )
+
+
+@pytest.mark.slow
+def test_render_at_the_largest_size_allowed_finishes_in_seconds(ws, capsys):
+    """2.5 megapixels at the camera's 16:9 (2100x1181 is 2.48): seconds, where 40 megapixels took minutes."""
+    start = time.monotonic()
+    argv = ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--size", "2100x1181"]
+    assert cli.main(argv) == 0, capsys.readouterr().err
+    assert time.monotonic() - start < 30
+    import cv2
+
+    assert cv2.imread(str(ws / "r.png"), cv2.IMREAD_GRAYSCALE).shape == (1181, 2100)
+
+
+def test_a_jpeg_whose_size_comes_after_its_first_4_kb_is_checked_too(ws, capsys):
+    """OpenCV's ArUco photo (640x480) gives its size after 4 KB of other blocks; the 16:9 camera does not fit it."""
+    shutil.copy(DATA / "real" / "opencv_aruco_photo" / "singlemarkersoriginal.jpg", ws / "frames" / "z.jpg")
+    refused(ws, capsys, ["locate", "frames", *LOC, "--track"], "z.jpg: camera calibrated at 1280x720 (aspect 1.778)")

@@ -241,7 +241,7 @@ def test_bad_options_say_what_to_do(wall):
     T = look_at([800, 190, 240], [0, 190, 240])
     with pytest.raises(FidlearnError, match="supersample must be a whole number from 1 to 16"):
         render_scene(wall, camera, T, supersample=0)
-    with pytest.raises(FidlearnError, match="noise_std_gray must be a finite number >= 0"):
+    with pytest.raises(FidlearnError, match="noise_std_gray must be a number from 0 to 255"):
         render_scene(wall, camera, T, noise_std_gray=-1)
     tilted = Camera(camera.K, np.r_[np.zeros(12), 0.01, 0.0], (320, 240))
     with pytest.raises(CameraError, match="tilted sensor"):

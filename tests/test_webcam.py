@@ -165,13 +165,18 @@ def test_a_failing_callback_stops_the_stream_and_still_acknowledges():
     assert browser.sent[-1]["type"] == "ack" and browser.sent[-1]["seq"] == 7
 
 
-def test_a_corrupt_stream_frame_raises_and_stops():
+def test_a_corrupt_stream_frame_is_dropped_and_the_next_good_one_delivered():
     cam = Webcam()
-    _Browser(cam)
+    browser = _Browser(cam)
+    seen = []
+    cam.on_frame(lambda frame: seen.append(frame.shape))
     cam.start()
-    with pytest.raises(ImageError):
-        cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 1, "width": 64, "height": 48}, [b"garbage"])
-    assert cam.streaming is False
+    cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 1, "width": 64, "height": 48}, [b"garbage"])
+    assert cam.streaming is True and cam.frames_dropped == 1 and "neither PNG nor JPEG" in cam.drop_reason
+    assert isinstance(cam.last_error, ImageError) and browser.sent[-1]["seq"] == 1  # acknowledged all the same
+    _, png = cv2.imencode(".png", _frame())
+    cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 2, "width": 64, "height": 48}, [png.tobytes()])
+    assert seen == [(48, 64, 3)] and cam.frames_received == 1 and cam.frames_dropped == 1
 
 
 # -- snapshot ---------------------------------------------------------------------------------

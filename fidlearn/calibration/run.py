@@ -17,6 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from .._cv_threads import opencv_single_thread
 from ..camera import Camera
 from ..detection import as_gray
 from ..errors import CalibrationError, ImageError
@@ -138,7 +139,8 @@ def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
     img = [p.astype(np.float32).reshape(-1, 1, 2) for p in img]
     try:
         size = tuple(int(v) for v in image_size)
-        rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, size, None, None, **args)
+        with opencv_single_thread():  # the same answer to the last bit, from any number of threads
+            rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, size, None, None, **args)
     except cv2.error as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "failed"
         raise CalibrationError(

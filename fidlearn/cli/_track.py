@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames
-from ..errors import UsageError
+from .._files import image_size_from_header
+from ..errors import CameraError, UsageError
 from ..filtering import PoseTracker, TrackedPose
 from ..images import read_frames
 from ..ros import ros_pose, tum_line
@@ -203,6 +204,52 @@ class _Run:
         return out
 
 
+#: How much of a picture is read to find its size in its header (a JPEG's EXIF block comes first).
+_HEADER_BYTES = 256 * 1024
+
+
+def check_frame_sizes(items, camera, max_pixels: float) -> None:
+    """Refuse, before any frame is handled, pictures that the camera cannot fit (another aspect ratio).
+
+    Each picture's size is read from its header; a folder that mixes sizes used to print the
+    rescaling warning of its first pictures and then the error of a later one: now only the error.
+
+    Parameters
+    ----------
+    items : list
+        The inputs as :func:`fidlearn.images.expand_inputs` gives them (videos are checked when read).
+    camera : Camera
+        The camera file's camera.
+    max_pixels : float
+        Larger pictures are left to :func:`fidlearn.images.load_image`, which refuses them as such.
+
+    Raises
+    ------
+    CameraError
+        The first picture whose size the camera cannot be rescaled to, named.
+    """
+    seen: set[tuple[int, int]] = set()
+    for kind, path in items:
+        if kind != "image":
+            continue
+        try:
+            with open(path, "rb") as f:
+                data = f.read(4096)
+                head = image_size_from_header(data)
+                if head is not None and head[1] < 0:  # a JPEG whose EXIF block comes before its size
+                    head = image_size_from_header(data + f.read(_HEADER_BYTES))
+        except OSError:
+            continue  # reading the picture says what is wrong with it
+        size = head[1:] if head is not None else (-1, -1)
+        if min(size) <= 0 or size[0] * size[1] > max_pixels or size in seen:
+            continue
+        seen.add(size)
+        try:
+            camera.for_image(size, warn=False)
+        except CameraError as exc:
+            raise CameraError(f"{path.name}: {exc}") from None
+
+
 def _loop(run: _Run, items, locator, width: int) -> None:
     if run.sink is not None and run.fmt == "tum":
         run.sink.write("# timestamp tx ty tz qx qy qz qw")
@@ -230,6 +277,7 @@ def run_tracked(args, items, locator, out_path: Path | None) -> int:
     int
         0 when done; 128 + signal when interrupted.
     """
+    check_frame_sizes(items, locator.camera, args.max_megapixels * 1e6)
     mount = read_mount_json(args.mount) if args.mount else None
     odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
     tracker = PoseTracker(locator.marker_map, locator.camera, T_camera_base=mount)
@@ -257,4 +305,4 @@ def run_tracked(args, items, locator, out_path: Path | None) -> int:
     return 0
 
 
-__all__ = ["add_track_options", "check_track_args", "run_tracked", "TRACK_HELP", "HelpFormatter"]
+__all__ = ["add_track_options", "check_track_args", "check_frame_sizes", "run_tracked", "TRACK_HELP", "HelpFormatter"]

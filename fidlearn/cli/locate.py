@@ -37,7 +37,7 @@ from ._common import (
     _Staging,
     _StreamFile,
 )
-from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_track_args, run_tracked
+from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_frame_sizes, check_track_args, run_tracked
 
 NO_MARKER = "no known marker"
 
@@ -308,6 +308,7 @@ def run(args) -> int:
         return run_tracked(args, items, _Locator(_load_map(args), camera, args.refine, False), track_out)
     staging = _Staging(args.annotate, keep_on_interrupt=True)
     camera = _load_camera(args)  # the camera first: a map given as --camera is named as such
+    check_frame_sizes(items, camera, args.max_megapixels * 1e6)  # one error line, before any frame's row or warning
     locator = _Locator(_load_map(args), camera, args.refine, args.annotate is not None)
     width = max(
         [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]

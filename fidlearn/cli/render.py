@@ -72,8 +72,9 @@ def add(sub) -> None:
     p.set_defaults(run=run)
 
 
-#: Largest picture ``fidlearn render`` draws (pixels); rendering supersamples it 16 times.
-MAX_RENDER_PIXELS = 40_000_000
+#: Largest picture ``fidlearn render`` draws (pixels); rendering supersamples it 16 times, so this is
+#: ``synthetic.MAX_RENDER_SAMPLES`` / 16: 1920x1080 takes about 5 s. 40 megapixels took minutes.
+MAX_RENDER_PIXELS = 2_500_000
 #: Largest coordinate (mm) a pose on the command line may have: 100 km.
 MAX_COORD_MM = 1e8
 
@@ -126,7 +127,8 @@ def _camera(args):
         w, h = parse_pattern(args.size, "--size")
         if w * h > MAX_RENDER_PIXELS or max(w, h) > 20000:
             raise UsageError(
-                f"--size {w}x{h}: at most {MAX_RENDER_PIXELS // 1_000_000} megapixels and 20000 pixels a side"
+                f"--size {w}x{h}: at most {MAX_RENDER_PIXELS / 1e6:g} megapixels (1920x1080 fits) and 20000 pixels "
+                "a side; a larger picture takes minutes to render"
             )
         camera = camera.scaled((w, h))
     return camera

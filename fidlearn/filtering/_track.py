@@ -21,6 +21,11 @@ from ._so3 import log_so3
 #: Default process noise: white acceleration of the camera centre (mm/s^2 per sqrt(Hz)) and of its
 #: rotation (rad/s^2 per sqrt(Hz)): the velocity's standard deviation grows by this much in one second.
 DEFAULT_PROCESS_NOISE = (500.0, 1.0)
+#: Largest time (s, either sign) a frame may have: about 31,700 years, far beyond any clock (Unix
+#: seconds are 1.8e9 now); a gap of 1e300 s overflowed the prediction's covariance.
+MAX_TIME_S = 1e12
+#: Largest variance a pose's covariance may hold (rad^2 or mm^2): beyond it the pose says nothing.
+MAX_VARIANCE = 1e30
 
 
 @dataclass
@@ -86,13 +91,41 @@ def _numeric(value) -> bool:
 
 def check_time(t_s, last: float | None) -> float:
     """The time as a float, never before ``last``; TrackingError otherwise."""
-    if isinstance(t_s, bool) or not isinstance(t_s, (int, float, np.integer, np.floating)) or not math.isfinite(t_s):
-        raise TrackingError(f"t_s must be a finite time in seconds, got {t_s!r}")
+    if (
+        isinstance(t_s, bool)
+        or not isinstance(t_s, (int, float, np.integer, np.floating))
+        or not abs(float(t_s)) <= MAX_TIME_S  # NaN and huge integers fail too
+    ):
+        raise TrackingError(f"t_s must be a finite time in seconds (at most {MAX_TIME_S:g} either way), got {t_s!r}")
     if last is not None and float(t_s) < last:
         raise TrackingError(
             f"t_s={float(t_s):.6f} s is before the last frame's {last:.6f} s; give frames in time order"
         )
     return float(t_s)
+
+
+def check_pose(pose, where: str = "pose") -> None:
+    """A :class:`Pose` the filter can use: a 6x6 covariance (or None), its alternative likewise; TrackingError."""
+    if not isinstance(pose, Pose):
+        raise TrackingError(f"{where} must be a fidlearn.Pose or None, got {type(pose).__name__}")
+    frames.check_transform(pose.T_world_camera, f"{where}.T_world_camera")
+    cov = pose.covariance
+    if cov is not None:
+        arr = np.asarray(cov, dtype=float) if _numeric(cov) else None
+        if arr is None or arr.shape != (6, 6) or not (np.abs(arr) <= MAX_VARIANCE).all():
+            shape = "not numbers" if arr is None else f"shape {arr.shape}"
+            raise TrackingError(
+                f"{where}.covariance must be a 6x6 array of finite numbers (at most {MAX_VARIANCE:g}) "
+                f"[dtheta (rad), position (mm)], or None; got {shape}"
+            )
+        if not np.allclose(arr, arr.T, rtol=1e-6, atol=1e-12) or np.linalg.eigvalsh(arr).min() < -1e-9 * max(
+            1.0, float(np.abs(arr).max())
+        ):
+            raise TrackingError(f"{where}.covariance must be symmetric positive semi-definite")
+    if not isinstance(pose.marker_ids, (tuple, list)):
+        raise TrackingError(f"{where}.marker_ids must be a tuple of marker ids, got {type(pose.marker_ids).__name__}")
+    if pose.ambiguous and pose.alternative is not None:
+        check_pose(pose.alternative, f"{where}.alternative")
 
 
 class _Track:
@@ -110,6 +143,8 @@ class _Track:
         """Advance to ``t_s`` (odometry or the motion model), then correct with ``pose`` if it agrees."""
         t = check_time(t_s, None if self.state is None else self.state.t)
         odo = check_odometry(odometry)
+        if pose is not None:
+            check_pose(pose)
         if pose is not None and pose.covariance is None:
             pose, why = None, "the frame's pose is not determined (no covariance)"
         if self.state is None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from typing import Any
@@ -58,7 +59,7 @@ def _check_options(method, refine_lm, reject_outliers, corner_sigma_px) -> str:
         ok = isinstance(corner_sigma_px, (int, float, np.integer, np.floating)) and not isinstance(
             corner_sigma_px, bool
         )
-        if not (ok and np.isfinite(corner_sigma_px) and corner_sigma_px > 0):
+        if not (ok and 0 < float(corner_sigma_px) < math.inf):  # NaN fails too; float() of 10**40 is 1e40
             raise PoseError(f"corner_sigma_px must be a positive number of pixels, got {corner_sigma_px!r}")
     return method
 

@@ -80,9 +80,15 @@ class _PoseReadouts:
         """
         if not (isinstance(probability, (int, float)) and 0.0 < probability < 1.0):
             raise self._error(f"probability must be between 0 and 1 (exclusive), got {probability!r}")
+        try:
+            point = np.asarray(point_mm, dtype=float).reshape(3)
+        except (TypeError, ValueError, OverflowError):
+            point = np.full(3, np.nan)
+        if not np.isfinite(point).all():
+            raise self._error(f"point_mm must be 3 finite numbers (x, y, z in mm), got {point_mm!r:.60}")
         if self.covariance is None:
             return False
-        d = np.asarray(point_mm, dtype=float).reshape(3) - self.position_mm
+        d = point - self.position_mm
         return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3_quantile(probability)
 
 

@@ -24,6 +24,7 @@ integers), so K is copied as it is.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from pathlib import Path
@@ -37,6 +38,8 @@ from ..errors import CameraError, RosFormatError
 
 #: ROS distortion models fidlearn reads and writes, with their number of coefficients.
 MODELS = {"plumb_bob": 5, "rational_polynomial": 8}
+#: The largest width, height, rows or cols read (larger image sides are refused by :class:`Camera`).
+MAX_COUNT = 1e9
 _NAME = re.compile(r"^[A-Za-z0-9_]+$")
 
 
@@ -122,7 +125,8 @@ def save_camera_info(camera: Camera, path: str | os.PathLike, camera_name: str =
     RosFormatError
         As for :func:`camera_info_yaml`.
     """
-    return write_text_atomic(path, camera_info_yaml(camera, camera_name))
+    text = camera_info_yaml(camera, camera_name)
+    return write_text_atomic(_files.as_path(path, RosFormatError, "camera_info YAML file"), text)
 
 
 # -- reading -------------------------------------------------------------------------------------------
@@ -197,6 +201,11 @@ def _parse(text: str, source: str) -> dict:
     return out
 
 
+def _whole(v, low: float = 1) -> bool:
+    """Whether ``v`` (as :func:`_scalar` read it) is a whole number ``>= low`` that fits any camera file."""
+    return isinstance(v, float) and math.isfinite(v) and low <= v <= MAX_COUNT and v == int(v)
+
+
 def _read_matrix(d: dict, key: str, shape, source: str) -> np.ndarray:
     m = d.get(key)
     if not isinstance(m, dict) or "data" not in m:
@@ -205,7 +214,10 @@ def _read_matrix(d: dict, key: str, shape, source: str) -> np.ndarray:
     if not isinstance(data, list) or not all(isinstance(v, float) for v in data):
         raise RosFormatError(f"{source}: {key}.data must be a list of numbers")
     rows, cols = m.get("rows"), m.get("cols")
-    if not isinstance(rows, float) or not isinstance(cols, float) or rows * cols != len(data):
+    for name, v in (("rows", rows), ("cols", cols)):
+        if not _whole(v, 0):
+            raise RosFormatError(f"{source}: {key}.{name} must be a whole number >= 0, got {v!r}")
+    if rows * cols != len(data):
         raise RosFormatError(f"{source}: {key} says rows {rows} x cols {cols} but holds {len(data)} numbers")
     if shape is not None and (int(rows), int(cols)) != shape:
         raise RosFormatError(f"{source}: {key} must be {shape[0]}x{shape[1]}, got {int(rows)}x{int(cols)}")
@@ -236,12 +248,18 @@ def camera_from_camera_info(text: str, source: str = "camera_info") -> Camera:
     CameraError
         Values no camera has (as :class:`fidlearn.Camera` checks them).
     """
+    if not isinstance(source, str):
+        raise RosFormatError(f"source must be text (where the YAML came from), got {type(source).__name__}")
+    if not isinstance(text, str):
+        raise RosFormatError(f"{source}: expected the camera_info YAML as text, got {type(text).__name__}")
     d = _parse(text, source)
     for key in ("image_width", "image_height"):
         v = d.get(key)
-        if not isinstance(v, float) or v != int(v) or v <= 0:
+        if not _whole(v):
             raise RosFormatError(f"{source}: {key} must be a whole number of pixels > 0, got {v!r}")
     model = d.get("distortion_model", "plumb_bob")
+    if not isinstance(model, str):
+        raise RosFormatError(f"{source}: distortion_model must be a name ({', '.join(MODELS)}), got {model!r}")
     K = _read_matrix(d, "camera_matrix", (3, 3), source)
     dist = _read_matrix(d, "distortion_coefficients", None, source).reshape(-1)
     if model not in MODELS:

@@ -62,11 +62,14 @@ class Odometry:
     """
 
     def __init__(self, times_s, T_odom_base, drift: float = 0.02):
-        self.times_s = np.asarray(times_s, dtype=float).reshape(-1)
-        if self.times_s.size == 0 or np.any(np.diff(self.times_s) <= 0) or not np.isfinite(self.times_s).all():
-            raise RosFormatError("odometry times must be finite and strictly increasing")
-        if not (isinstance(drift, (int, float)) and 0 < drift < 1):
+        self.times_s = _times(times_s)
+        if not (isinstance(drift, (int, float)) and not isinstance(drift, bool) and 0 < drift < 1):
             raise RosFormatError(f"odometry drift must be a fraction between 0 and 1 (0.02 for 2 %), got {drift!r}")
+        if not isinstance(T_odom_base, (list, tuple, np.ndarray)) or len(T_odom_base) != self.times_s.size:
+            raise RosFormatError(
+                f"T_odom_base must be a list of 4x4 poses, one per time ({self.times_s.size}), "
+                f"got {type(T_odom_base).__name__}"
+            )
         try:
             self.poses = [frames.check_transform(T, "odometry pose") for T in T_odom_base]
         except TransformError as exc:
@@ -74,7 +77,16 @@ class Odometry:
         self.drift = float(drift)
 
     def pose_at(self, t_s: float) -> np.ndarray | None:
-        """The base's pose (4, 4, mm) at ``t_s``, interpolated (linear position, geodesic rotation); None outside."""
+        """The base's pose (4, 4, mm) at ``t_s``, interpolated (linear position, geodesic rotation); None outside.
+
+        Raises :class:`RosFormatError` when ``t_s`` is not a finite number.
+        """
+        if (
+            isinstance(t_s, bool)
+            or not isinstance(t_s, (int, float, np.integer, np.floating))
+            or not math.isfinite(t_s)
+        ):
+            raise RosFormatError(f"an odometry time must be a finite number of seconds, got {t_s!r:.40}")
         ts = self.times_s
         if not ts[0] <= t_s <= ts[-1]:
             return None
@@ -111,6 +123,17 @@ class Odometry:
         s_rot = self.drift * angle + 1e-4
         s_pos = self.drift * dist + 0.1
         return rel, np.diag([s_rot**2] * 3 + [s_pos**2] * 3)
+
+
+def _times(times_s) -> np.ndarray:
+    """The odometry's times as a float array: finite, strictly increasing, at most 1e12 s; RosFormatError."""
+    try:
+        ts = np.asarray(times_s, dtype=float).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        ts = np.zeros(0)
+    if ts.size == 0 or np.any(np.diff(ts) <= 0) or not (np.abs(ts) <= 1e12).all():
+        raise RosFormatError("odometry times must be a list of finite, strictly increasing seconds (at most 1e12)")
+    return ts
 
 
 def read_odometry_csv(path: str | os.PathLike, drift: float = 0.02) -> Odometry:
@@ -178,32 +201,83 @@ def read_mount_json(path: str | os.PathLike) -> np.ndarray:
         A missing or malformed file, unknown units or axes, a matrix that is not a rigid transform.
     """
     d = read_json(path, RosFormatError, "mount JSON file")
-    if not isinstance(d, dict) or d.get("units") not in _UNITS_MM:
-        raise RosFormatError(f'{path}: a mount file needs "units" (one of {", ".join(_UNITS_MM)})')
+    _check_mount_keys(d, path)
     k = _UNITS_MM[d["units"]]
     try:
         if "T_camera_base" in d:
             T = np.array(d["T_camera_base"], dtype=float)
             if T.shape == (4, 4):
                 T[:3, 3] *= k
-            return frames.check_transform(T, "T_camera_base")
-        m = d.get("camera_in_base")
-        if not isinstance(m, dict) or set(m) != {"translation", "rpy_deg"}:
-            raise RosFormatError(
-                f'{path}: give "camera_in_base": {{"translation": [x, y, z], "rpy_deg": [roll, pitch, yaw]}} '
-                'or "T_camera_base" (4x4)'
-            )
+            T = frames.check_transform(T, "T_camera_base")
+            _check_mount_reach(T[:3, 3], path)
+            return T
+        m = d["camera_in_base"]
         axes = d.get("camera_axes", "link")
-        if axes not in ("link", "optical"):
-            raise RosFormatError(f'{path}: camera_axes must be "link" or "optical", got {axes!r}')
+        if not isinstance(axes, str) or axes not in ("link", "optical"):
+            raise RosFormatError(f'{path}: camera_axes must be "link" or "optical", got {axes!r:.40}')
         R = frames.rotation_from_rpy_deg(*[float(v) for v in m["rpy_deg"]])
         if axes == "link":
             R = R @ R_OPTICAL_LINK.T  # R_base_optical = R_base_link @ R_link_optical
         t = np.array(m["translation"], dtype=float).reshape(3) * k
+        _check_mount_reach(t, path)
         return frames.invert_transform(frames.make_transform(R, t))
     except RosFormatError:
         raise
     except TransformError as exc:
         raise RosFormatError(f"{path}: {exc}") from None
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise RosFormatError(f"{path}: the mount's numbers are malformed ({exc})") from None
+
+
+#: The keys of a mount file, and of its ``camera_in_base``.
+MOUNT_KEYS = ("units", "camera_in_base", "camera_axes", "T_camera_base")
+PLACEMENT_KEYS = ("translation", "rpy_deg")
+#: Other names for the mount file's keys, so that the error can say which was meant.
+_MOUNT_ALIASES = {
+    "axes": "camera_axes",
+    "camera_axis": "camera_axes",
+    "frame": "camera_axes",
+    "unit": "units",
+    "camera": "camera_in_base",
+    "pose": "camera_in_base",
+    "mount": "camera_in_base",
+    "transform": "T_camera_base",
+    "matrix": "T_camera_base",
+}
+#: Farthest a camera may sit from the robot's base (mm): 100 m.
+MAX_MOUNT_MM = 1e5
+
+
+def _check_mount_keys(d, path) -> None:
+    """Every key known (a misspelt ``camera_axes`` was ignored, leaving the default), the units, one pose."""
+    if not isinstance(d, dict):
+        raise RosFormatError(f"{path}: a mount file is a JSON object with the keys {', '.join(MOUNT_KEYS)}")
+    for key in d:
+        if key not in MOUNT_KEYS:
+            raise RosFormatError(
+                f"{path}: unknown key {key!r:.60}{_files.did_you_mean(key, MOUNT_KEYS, _MOUNT_ALIASES)}; "
+                f"a mount file has {', '.join(MOUNT_KEYS)}"
+            )
+    units = d.get("units")
+    if not isinstance(units, str) or units not in _UNITS_MM:
+        raise RosFormatError(f'{path}: a mount file needs "units" (one of {", ".join(_UNITS_MM)})')
+    if ("T_camera_base" in d) == ("camera_in_base" in d):
+        raise RosFormatError(
+            f'{path}: give either "camera_in_base": {{"translation": [x, y, z], "rpy_deg": [roll, pitch, yaw]}} '
+            'or "T_camera_base" (4x4), ' + ("not both" if "T_camera_base" in d else "one of them")
+        )
+    m = d.get("camera_in_base", {"translation": 0, "rpy_deg": 0})
+    if not isinstance(m, dict) or set(m) != set(PLACEMENT_KEYS):
+        extra = [key for key in m if key not in PLACEMENT_KEYS] if isinstance(m, dict) else []
+        said = f"unknown key {extra[0]!r:.60}{_files.did_you_mean(extra[0], PLACEMENT_KEYS)}; " if extra else ""
+        raise RosFormatError(
+            f'{path}: camera_in_base: {said}give {{"translation": [x, y, z], "rpy_deg": [roll, pitch, yaw]}}'
+        )
+
+
+def _check_mount_reach(t_mm: np.ndarray, path) -> None:
+    if not np.all(np.abs(t_mm) <= MAX_MOUNT_MM):
+        raise RosFormatError(
+            f"{path}: the camera sits {np.abs(t_mm).max():g} mm from the base, more than {MAX_MOUNT_MM:g} mm; "
+            'check "units"'
+        )

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _files, frames
 from .._io import write_text_atomic
 from ..errors import RosFormatError
 from ..filtering import TrackedPose
@@ -30,8 +31,8 @@ def _body_pose(pose, body: str | None) -> tuple[np.ndarray, np.ndarray, str]:
     base = getattr(pose, "T_world_base", None)
     if body is None:
         body = "base_link" if base is not None else "camera_optical_frame"
-    if body not in BODIES:
-        raise RosFormatError(f"body {body!r} is not one of {', '.join(BODIES)}")
+    if not isinstance(body, str) or body not in BODIES:
+        raise RosFormatError(f"body {body!r:.40} is not one of {', '.join(BODIES)}")
     if pose.covariance is None:
         raise RosFormatError("this pose has no covariance (not determined); ROS's message needs one")
     if body == "base_link":
@@ -73,7 +74,10 @@ def ros_covariance(covariance: np.ndarray) -> list[float]:
     >>> [round(c[k * 7], 12) for k in range(6)]
     [4e-06, 9e-06, 1.6e-05, 0.0001, 0.0001, 0.0001]
     """
-    C = np.asarray(covariance, dtype=float)
+    try:
+        C = np.asarray(covariance, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        C = np.zeros(0)
     if C.shape != (6, 6) or not np.isfinite(C).all():
         raise RosFormatError("a pose covariance must be a 6x6 array of finite numbers")
     order = [3, 4, 5, 0, 1, 2]
@@ -175,9 +179,9 @@ def tum_line(t_s: float, T_world_body: np.ndarray) -> str:
     >>> tum_line(1.5, np.diag([1.0, -1.0, -1.0, 1.0]))   # turned 180 degrees about x, at the origin
     '1.500000000 0.000000000 0.000000000 0.000000000 1.000000000000 0.000000000000 0.000000000000 0.000000000000'
     """
-    T = np.asarray(T_world_body, dtype=float)
-    if T.shape != (4, 4) or not np.isfinite(T).all() or not math.isfinite(float(t_s)):
-        raise RosFormatError("a TUM line needs a finite time and a finite 4x4 pose")
+    if isinstance(t_s, bool) or not isinstance(t_s, (int, float, np.integer, np.floating)) or not abs(t_s) < 1e12:
+        raise RosFormatError(f"a TUM line needs a finite time in seconds (at most 1e12), got {t_s!r:.40}")
+    T = frames.check_transform(T_world_body, "T_world_body")
     q = quaternion_xyzw(T[:3, :3])
     p = T[:3, 3] / 1000.0 + 0.0
     return f"{float(t_s):.9f} " + " ".join(f"{v:.9f}" for v in p) + " " + " ".join(f"{v:.12f}" for v in q)
@@ -203,10 +207,14 @@ def write_tum(path: str | os.PathLike, poses: Sequence, *, body: str | None = No
     Raises
     ------
     RosFormatError
-        As for :func:`ros_pose`.
+        Poses that are not a list of TrackedPose; else as for :func:`ros_pose`.
     """
+    if isinstance(poses, (str, bytes, dict)) or not hasattr(poses, "__iter__"):
+        raise RosFormatError(f"poses must be a list of TrackedPose, got {type(poses).__name__}")
     lines = ["# timestamp tx ty tz qx qy qz qw"]
     for p in poses:
+        if not isinstance(p, TrackedPose):
+            raise RosFormatError(f"a TUM file is written from TrackedPose (they carry t_s), got {type(p).__name__}")
         T, _, _ = _body_pose(p, body)
         lines.append(tum_line(p.t_s, T))
-    return write_text_atomic(path, "\n".join(lines) + "\n")
+    return write_text_atomic(_files.as_path(path, RosFormatError, "TUM file"), "\n".join(lines) + "\n")

@@ -14,8 +14,16 @@ from .. import _cv, frames
 from ..calibration.boards import checkerboard_points
 from ..camera import Camera
 from ..errors import FidlearnError
-from ._checks import DEFAULT_GRAYS, _check_seed
-from ._renderer import _render, _Sheet
+from ._checks import (
+    DEFAULT_GRAYS,
+    MAX_FRAMES,
+    _check_indices,
+    _check_length_mm,
+    _check_pattern,
+    _check_render_work,
+    _check_seed,
+)
+from ._renderer import _check_render_options, _render, _Sheet
 
 
 @dataclass(eq=False)
@@ -175,6 +183,10 @@ class _Board:
 def _board_geometry(charuco: bool, pattern_size, square_size_mm, marker_size_mm, dictionary) -> _Board:
     """The board's corners, centre, width and outline; ChArUco's defaults filled in."""
     board = squares = None
+    pattern_size = _check_pattern(pattern_size, 2)
+    square_size_mm = _check_length_mm(square_size_mm, "square_size_mm")
+    if marker_size_mm is not None:
+        marker_size_mm = _check_length_mm(marker_size_mm, "marker_size_mm")
     if charuco:
         if tuple(pattern_size) == (9, 6):
             pattern_size = (5, 7)
@@ -338,9 +350,14 @@ def render_calibration_views(
     >>> len(views), views.images[0].shape, views.image_points[0].shape
     (2, (480, 640), (54, 2))
     """
+    if not isinstance(camera, Camera):
+        raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
+    if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 1 <= n_views <= MAX_FRAMES:
+        raise FidlearnError(f"n_views must be a whole number from 1 to {MAX_FRAMES}, got {n_views!r:.40}")
+    chosen = _check_indices(views, n_views, "views")
+    _check_render_options(camera, supersample, blur_px, noise_std_gray, wall_texture_std_gray)
     board = _board_geometry(charuco, pattern_size, square_size_mm, marker_size_mm, dictionary)
-    if n_views < 1:
-        raise FidlearnError(f"n_views must be at least 1, got {n_views}")
+    _check_render_work(camera, supersample, len(chosen), "views")
     rng = np.random.default_rng(_check_seed(seed))
     w = camera.image_size[0]
     options = (tilt_range_deg, fill_range)
@@ -348,10 +365,6 @@ def render_calibration_views(
     points = [camera.project(board.object_points, T) for T in poses]
     grays = dict(DEFAULT_GRAYS)
     sheet = _board_sheet(board, charuco, fill_range[1] * w * 1.2 * supersample, margin_squares, grays)
-    chosen = list(range(n_views)) if views is None else [int(v) for v in views]
-    bad = [v for v in chosen if not 0 <= v < n_views]
-    if bad:
-        raise FidlearnError(f"views {bad} do not exist; there are {n_views} views, 0 to {n_views - 1}")
     render_kwargs = dict(
         blur_px=blur_px,
         noise_std_gray=noise_std_gray,

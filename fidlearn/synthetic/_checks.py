@@ -11,8 +11,12 @@ from ..markermap import MarkerMap
 #: Gray levels of the synthetic world: the wall, the paper and the printed ink.
 DEFAULT_GRAYS = {"wall": 120.0, "paper": 230.0, "ink": 25.0}
 
-#: Most samples (pixels times supersample squared) one picture is rendered from.
-MAX_RENDER_SAMPLES = 1_000_000_000
+#: Most samples (pixels times supersample squared) one picture is rendered from: 1920x1080 at
+#: supersample 4 (33 million) takes about 4 s on a busy 2-core machine; a billion took minutes.
+MAX_RENDER_SAMPLES = 40_000_000
+#: Most samples all the pictures of one call (a drive, calibration views) are rendered from together:
+#: 200 frames of 640x480 at supersample 4.
+MAX_RENDER_SAMPLES_ALL = 1_000_000_000
 #: Most frames a trajectory may have.
 MAX_FRAMES = 100_000
 
@@ -31,6 +35,62 @@ def _check_scene(marker_map, camera, with_camera: bool = True, where: str = "ren
         raise FidlearnError(
             f"camera must be a fidlearn.Camera (Camera.load reads a file), got {type(camera).__name__}; {order}"
         )
+
+
+def _check_render_work(camera, supersample, n_pictures: int, what: str) -> None:
+    """Refuse up front a call whose pictures together need more than ``MAX_RENDER_SAMPLES_ALL`` samples."""
+    k = supersample if isinstance(supersample, (int, np.integer)) and not isinstance(supersample, bool) else 1
+    samples = camera.width * camera.height * max(int(k), 1) ** 2 * n_pictures
+    if samples > MAX_RENDER_SAMPLES_ALL:
+        raise FidlearnError(
+            f"{n_pictures} {what} of {camera.width}x{camera.height} at supersample {k} need {samples / 1e9:.3g} "
+            f"billion samples, more than the limit of {MAX_RENDER_SAMPLES_ALL / 1e9:g} billion "
+            "(MAX_RENDER_SAMPLES_ALL, minutes of work): render fewer, smaller or less supersampled pictures"
+        )
+
+
+#: Most squares or inner corners a rendered board may count along a side.
+MAX_BOARD_SIDE = 200
+
+
+def _check_pattern(pattern_size, lowest: int) -> tuple[int, int]:
+    """Two whole numbers from ``lowest`` to ``MAX_BOARD_SIDE`` (columns, rows); FidlearnError otherwise."""
+    try:
+        cols, rows = pattern_size
+        ok = all(
+            isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lowest <= v <= MAX_BOARD_SIDE
+            for v in (cols, rows)
+        )
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise FidlearnError(
+            f"pattern_size must be two whole numbers (columns, rows) from {lowest} to {MAX_BOARD_SIDE}, "
+            f"e.g. (9, 6); got {pattern_size!r:.40}"
+        )
+    return int(cols), int(rows)
+
+
+def _check_length_mm(value, name: str) -> float:
+    """A length in mm: a number > 0 and at most 100 m; FidlearnError otherwise."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not 0 < value <= 1e5:
+        raise FidlearnError(f"{name} must be a number of millimetres > 0 (at most 1e5), got {value!r:.40}")
+    return float(value)
+
+
+def _check_indices(chosen, n: int, what: str) -> list[int]:
+    """The indices to render (all of ``range(n)`` for None): whole numbers, each from 0 to n - 1."""
+    if chosen is None:
+        return list(range(n))
+    if isinstance(chosen, (str, bytes, dict)) or not hasattr(chosen, "__iter__"):
+        raise FidlearnError(f"{what} must be a list of indices, got {type(chosen).__name__}")
+    out = list(chosen)
+    if not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) for i in out):
+        raise FidlearnError(f"{what} must be whole numbers, got {out!r:.60}")
+    bad = [int(i) for i in out if not 0 <= i < n]
+    if bad:
+        raise FidlearnError(f"{what} {bad[:10]} do not exist; there are {n}, 0 to {n - 1}")
+    return [int(i) for i in out]
 
 
 def _check_seed(seed) -> int:

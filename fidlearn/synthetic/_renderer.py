@@ -123,20 +123,22 @@ def _check_render_options(camera: Camera, supersample, blur_px, noise_std_gray, 
     if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
         raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     k = int(supersample)
-    if camera.width * camera.height * k * k > MAX_RENDER_SAMPLES:
+    samples = camera.width * camera.height * k * k
+    if samples > MAX_RENDER_SAMPLES:
         raise FidlearnError(
-            f"a {camera.width}x{camera.height} picture at supersample {k} is more than "
-            f"{MAX_RENDER_SAMPLES / 1e9:g} billion samples; use a smaller picture or supersample"
+            f"a {camera.width}x{camera.height} picture at supersample {k} is {samples / 1e6:.4g} "
+            f"million samples, more than the limit of {MAX_RENDER_SAMPLES / 1e6:g} million (MAX_RENDER_SAMPLES, a few "
+            "seconds of work); use a smaller picture or supersample"
         )
-    for name, value in (
-        ("blur_px", blur_px),
-        ("noise_std_gray", noise_std_gray),
-        ("wall_texture_std_gray", wall_texture_std_gray),
+    for name, value, most in (
+        ("blur_px", blur_px, 100.0),
+        ("noise_std_gray", noise_std_gray, 255.0),
+        ("wall_texture_std_gray", wall_texture_std_gray, 255.0),
     ):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
-        if not (math.isfinite(value) and value >= 0):
-            raise FidlearnError(f"{name} must be a finite number >= 0, got {value!r}")
+            raise FidlearnError(f"{name} must be a number from 0 to {most:g}, got {value!r:.40}")
+        if not (math.isfinite(value) and 0 <= value <= most):
+            raise FidlearnError(f"{name} must be a number from 0 to {most:g}, got {value!r:.40}")
     return k
 
 

@@ -13,7 +13,7 @@ from .. import frames
 from ..camera import Camera
 from ..errors import FidlearnError
 from ..markermap import MarkerMap
-from ._checks import MAX_FRAMES, _check_scene, _check_seed
+from ._checks import MAX_FRAMES, _check_indices, _check_render_work, _check_scene, _check_seed
 from ._look_at import look_at
 from ._scenes import render_scene
 
@@ -239,10 +239,14 @@ def render_trajectory(
     (3, (240, 320), [0, 1, 2])
     """
     _check_scene(marker_map, camera, where="render_trajectory")
+    if frames_to_render is None and poses is None and isinstance(n_frames, int):  # refused before any pose is drawn
+        _check_render_work(camera, supersample, n_frames, "frames")
     if poses is None:
         poses = trajectory_poses(marker_map, n_frames, seed, **trajectory_options)
     elif trajectory_options:
         raise FidlearnError(f"give either poses or trajectory options ({', '.join(trajectory_options)}), not both")
+    elif isinstance(poses, (str, bytes, dict)) or not hasattr(poses, "__len__"):
+        raise FidlearnError(f"poses must be a list of 4x4 T_world_camera, got {type(poses).__name__}")
     render_kwargs = dict(
         blur_px=blur_px,
         noise_std_gray=noise_std_gray,
@@ -250,10 +254,8 @@ def render_trajectory(
         supersample=supersample,
         wall_texture_std_gray=wall_texture_std_gray,
     )
-    chosen = list(range(len(poses))) if frames_to_render is None else [int(i) for i in frames_to_render]
-    bad = [i for i in chosen if not 0 <= i < len(poses)]
-    if bad:
-        raise FidlearnError(f"frames {bad} do not exist; the drive has {len(poses)} frames, 0 to {len(poses) - 1}")
+    chosen = _check_indices(frames_to_render, len(poses), "frames_to_render")
+    _check_render_work(camera, supersample, len(chosen), "frames")
     images, truths = [], []
     for i in chosen:
         image, truth = render_scene(marker_map, camera, poses[i], seed=int(seed) * 1000 + i, **render_kwargs)
