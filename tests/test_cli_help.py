@@ -105,7 +105,20 @@ def test_one_placeholder_per_option_across_commands():
 def test_the_checks_see_what_they_refuse():
     assert REST.findall("see ``fidlearn plan`` and :func:`locate` or `docs`_") == ["``", "``", ":func:`", "`_"]
     assert REST.findall("a 'quoted' word, 9x6 inner corners, -o OUT.png") == []
-    for good in ("MM", "MAP.json", "WxH", "CxR", "X,Y,Z,R,P,Y", "CAMERA_INFO.yaml", "POSES.jsonl", "N"):
+    for good in ("MM", "MAP.json", "WxH", "CxR", "X,Y,Z,ROLL,PITCH,YAW", "CAMERA_INFO.yaml", "POSES.jsonl", "N"):
         assert PLACEHOLDER.fullmatch(good), good
     for bad in ("map", "notebooks", "Mm", "camera.json", "OUT/<learner>", "MAP.JSON x"):
         assert not PLACEHOLDER.fullmatch(bad), bad
+
+
+def test_options_explained_below_the_list_use_their_placeholder():
+    """``--mount MOUNT.json   where the camera sits``: the epilog names an option's value as the option list does."""
+    checked = 0
+    for words, parser in COMMANDS:
+        metavars = {o: m for action, m in _metavars(parser) for o in action.option_strings}
+        for line in _help(words).splitlines():
+            m = re.match(r"^\s*(--[\w-]+) (\S+)\s{2,}\S", line)
+            if m and m[1] in metavars:
+                assert m[2] == metavars[m[1]], (" ".join(words), line)
+                checked += line.lstrip() == line or m[1] == "--pose"  # written in an epilog
+    assert checked >= 2

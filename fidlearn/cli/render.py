@@ -59,7 +59,9 @@ def add(sub) -> None:
     )
     _add_image_size_option(p)
     pose = p.add_mutually_exclusive_group(required=True)
-    pose.add_argument("--pose", metavar="X,Y,Z,R,P,Y", help="camera position (mm) and roll,pitch,yaw (deg), see below")
+    pose.add_argument(
+        "--pose", metavar="X,Y,Z,ROLL,PITCH,YAW", help="camera position (mm) and roll,pitch,yaw (deg), see below"
+    )
     pose.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (mm); needs --from")
     p.add_argument("--from", dest="eye", metavar="X,Y,Z", help="camera position (mm) for --look-at")
     p.add_argument(
