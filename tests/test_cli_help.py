@@ -11,6 +11,7 @@ import argparse
 import contextlib
 import io
 import re
+import shlex
 
 import pytest
 
@@ -122,3 +123,12 @@ def test_options_explained_below_the_list_use_their_placeholder():
                 assert m[2] == metavars[m[1]], (" ".join(words), line)
                 checked += line.lstrip() == line or m[1] == "--pose"  # written in an epilog
     assert checked >= 2
+
+
+def test_the_examples_in_the_top_help_are_valid_command_lines():
+    """``fidlearn --help`` ends with the pipeline as commands: each one parses (names of the user's own files)."""
+    examples = [line.split("  ")[1].strip() for line in _help(()).splitlines() if line.startswith("  fidlearn ")]
+    assert len(examples) >= 6
+    for example in examples:
+        args = build_parser().parse_args(shlex.split(example)[1:])
+        assert callable(args.run), example

@@ -59,6 +59,7 @@ def _zeros_agree(made, kept, where: str) -> list[str]:
     return []
 
 
+@pytest.mark.slow
 def test_make_data_writes_the_repositorys_zeros(tmp_path):
     """The scenes (where -0.0 came from): regenerated, every JSON file has the repository's zeros, none negative.
 
