@@ -20,6 +20,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -37,6 +38,9 @@ EXCLUDED = {
     ),
     r"^\.venv/bin/python -m pytest tests/": "runs part of the test suite, which make test runs",
 }
+#: The documents show what OpenCV 5 prints (as the notebooks' stored outputs); other releases may
+#: differ in the last digit (make test-cv4, make test-floor).
+REFERENCE = cv2.__version__.split(".")[0] == "5"
 #: Options whose value is a file or folder that the command promises to write.
 OUTPUT_OPTIONS = ("-o", "--output", "--new-secret", "--json", "--annotate", "--truth", "--plot", "--report", "--ros")
 #: The first word of a command in an untagged fence (the grading guide's blocks have no language).
@@ -175,12 +179,32 @@ def normal(line: str) -> str:
     return " ".join(line.split())
 
 
-def stale_lines(shown: str, printed: str) -> list[str]:
-    """The lines of an output block that were not printed (``...`` stands for lines left out)."""
+NUMBER = re.compile(r"-?\d+(?:\.(\d+))?")
+
+
+def close_enough(shown: str, printed: str) -> bool:
+    """The same words, and every number within 3 units of its last shown digit or 2 %."""
+    if NUMBER.sub("#", normal(shown)) != NUMBER.sub("#", normal(printed)):
+        return False
+    for a, b in zip(NUMBER.finditer(shown), NUMBER.finditer(printed)):
+        unit = 10.0 ** -len(a[1] or "")
+        if abs(float(a[0]) - float(b[0])) > max(3 * unit, 0.02 * abs(float(a[0]))):
+            return False
+    return True
+
+
+def stale_lines(shown: str, printed: str, exact: bool = True) -> list[str]:
+    """The lines of an output block that were not printed (``...`` stands for lines left out).
+
+    ``exact=False`` (another OpenCV than the one that made the documents' outputs, as nbval-lax
+    for the notebooks) lets the last digits differ (:func:`close_enough`), never the words.
+    """
     printed_lines = {normal(line) for line in printed.splitlines()}
     missing = []
     for line in shown.splitlines():
         if normal(line) in ("", "...") or normal(line) in printed_lines:
+            continue
+        if not exact and any(close_enough(line, p) for p in printed.splitlines()):
             continue
         first = line.split()[0]
         near = [p for p in printed.splitlines() if p.split()[:1] == [first]]
@@ -193,7 +217,7 @@ def check_outputs(blocks: list[Fence], outputs: list[str], doc: str) -> int:
     for block, printed in zip(blocks, outputs):
         for shown in block.outputs:
             compared += len([line for line in shown.splitlines() if normal(line) not in ("", "...")])
-            stale += [f"{doc} line {block.line}: {m}" for m in stale_lines(shown, printed)]
+            stale += [f"{doc} line {block.line}: {m}" for m in stale_lines(shown, printed, exact=REFERENCE)]
     assert stale == [], "\n".join(stale)
     return compared
 
@@ -243,6 +267,11 @@ def test_the_output_check_sees_a_stale_number():
     assert stale_lines("frame x_mm\nscene_00.png 999.9 229.6\n...", printed) == []
     [stale] = stale_lines("scene_00.png 999.9 229.8\n...", printed)
     assert "229.8" in stale and "printed: scene_00.png   999.9   229.6" in stale
+    # on another OpenCV release the last digits may move, not the words nor the numbers' size
+    assert stale_lines("scene_00.png 999.9 229.8", printed, exact=False) == []
+    assert len(stale_lines("scene_00.png 999.9 235.1", printed, exact=False)) == 1
+    assert len(stale_lines("scene_00.png 999.9 229.8 px", printed, exact=False)) == 1
+    assert close_enough("rms 0.04 px", "rms 0.06 px") and not close_enough("rms 0.04 px", "rms 0.08 px")
 
 
 # -- running them ----------------------------------------------------------------------------------
@@ -284,8 +313,12 @@ def test_the_readme_library_snippet_prints_what_it_shows(tmp_path):
     printed = proc.stdout.splitlines()
     assert len(printed) == len(shown)
     for want, got in zip(shown, printed):
-        assert got.startswith(want.removesuffix("...)")), f"shown: {want}\nprinted: {got}"
-        assert re.findall(r"-?\d+\.\d+", want) == re.findall(r"-?\d+\.\d+", got)[: len(re.findall(r"-?\d+\.\d+", want))]
+        head = want.removesuffix("...)")
+        if REFERENCE:
+            assert got.startswith(head), f"shown: {want}\nprinted: {got}"
+        else:  # the same words and numbers, the last digits free (see stale_lines)
+            words = len(head.split())
+            assert close_enough(head, " ".join(got.split()[:words])), f"shown: {want}\nprinted: {got}"
 
 
 # -- the teaching guide ------------------------------------------------------------------------------
