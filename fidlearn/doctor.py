@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 import importlib.metadata as md
 import platform
+import re
 import sys
 from pathlib import Path
 
@@ -23,6 +24,12 @@ OPENCV_WHEELS = (
 )
 #: The one fidlearn depends on (the ArUco module is in contrib; headless: no GUI libraries).
 WANTED_WHEEL = "opencv-contrib-python-headless"
+#: Packages the notebooks need (checked by their metadata, never imported), and what needs each.
+NOTEBOOK_PACKAGES = {
+    "ipywidgets": "the notebooks' sliders and buttons",
+    "jupyterlab": "the notebooks (make lab)",
+    "anywidget": "the webcam widget (notebook 12, fidlearn.widgets.Webcam)",
+}
 
 
 def _requirement(name: str) -> str:
@@ -158,13 +165,45 @@ def report() -> tuple[list[str], list[str]]:
         )
     else:
         lines.append(f"scipy {scipy.__version__}")
-    for dist in ("ipywidgets", "jupyterlab"):
+    _check_packages(lines, problems)
+    return lines, problems
+
+
+def _check_packages(lines: list[str], problems: list[str]) -> None:
+    """Append the notebooks' packages and every other requirement of fidlearn: a version line, or a problem."""
+    for dist, needed_by in NOTEBOOK_PACKAGES.items():
         version = _version(dist)
         if version is None:
-            problems.append(f"{dist} is not installed; the notebooks need it: pip install '{_requirement(dist)}'")
+            problems.append(f"{dist} is not installed (used by {needed_by}): pip install '{_requirement(dist)}'")
         else:
             lines.append(f"{dist} {version}")
-    return lines, problems
+    for dist in _other_requirements():
+        version = _version(dist)
+        if version is None:
+            problems.append(f"{dist} is not installed (a dependency of fidlearn): pip install '{_requirement(dist)}'")
+        else:
+            lines.append(f"{dist} {version}")
+
+
+def _requirement_names() -> list[str]:
+    """The names of fidlearn's installed requirements (no extras such as ``[test]``), normalised."""
+    try:
+        requires = md.requires("fidlearn") or []
+    except md.PackageNotFoundError:
+        return []
+    names = []
+    for req in requires:
+        if "extra" in req.partition(";")[2]:
+            continue
+        name = re.split(r"[\s\[<>=!~;(]", req.strip(), maxsplit=1)[0]
+        names.append(name.lower().replace("_", "-"))
+    return names
+
+
+def _other_requirements() -> list[str]:
+    """Requirements of fidlearn that :func:`report` does not check by name (a dependency added later)."""
+    checked = {"numpy", "matplotlib", "scipy", *OPENCV_WHEELS, *NOTEBOOK_PACKAGES}
+    return [name for name in _requirement_names() if name not in checked]
 
 
 def run() -> int:

@@ -735,7 +735,7 @@ def cli_setup(tmp_path: Path) -> dict[str, Path]:
 
 
 CLI_CASES = [
-    ("no arguments to corners", ["corners"], "the following arguments are required: map, -o/--output"),
+    ("no arguments to corners", ["corners"], "the following arguments are required: MAP.json, -o/--output"),
     ("no output", ["corners", "map.json"], "required: -o/--output"),
     ("map does not exist", ["corners", "nope.json", "-o", "out.json"], "nope.json: no such file"),
     (
@@ -809,7 +809,7 @@ def test_bad_command_line(tmp_path, monkeypatch, capsys, argv, fragment):
     [
         (["corners", "map.json", "-o", "outdir"], "is a folder"),
         (["corners", "deep.json", "-o", "out.json"], "nested too deeply"),
-        (["corners", "--units", "ft", "-o", "out.json"], "required: map"),
+        (["corners", "--units", "ft", "-o", "out.json"], "required: MAP.json"),
     ],
     ids=["output is a folder", "map nested too deeply", "map missing"],
 )

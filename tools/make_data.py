@@ -173,8 +173,28 @@ def write_png(path: Path, image: np.ndarray) -> None:
     path.chmod(0o644)
 
 
+def plain(value: float, digits: int) -> float:
+    """``value`` rounded to ``digits``, with -0.0 written as 0.0.
+
+    Rounding a tiny negative number (a rotation's -1e-17) gives -0.0, which JSON keeps as
+    ``-0.0``: the files would change sign with the last bit of a processor's arithmetic.
+    """
+    return round(float(value), digits) + 0.0  # -0.0 + 0.0 == +0.0
+
+
+def positive_zeros(obj):
+    """``obj`` with every float -0.0 (in nested dicts and lists) made 0.0."""
+    if isinstance(obj, dict):
+        return {k: positive_zeros(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [positive_zeros(v) for v in obj]
+    if isinstance(obj, float):
+        return obj + 0.0
+    return obj
+
+
 def write_json(path: Path, obj) -> None:
-    write_json_atomic(path, obj)
+    write_json_atomic(path, positive_zeros(obj))
     path.chmod(0o644)
 
 
@@ -185,11 +205,11 @@ def fresh_folder(folder: Path, pattern: str) -> None:
 
 
 def matrix(T: np.ndarray) -> list:
-    return [[round(float(v), 12) for v in row] for row in np.asarray(T)]
+    return [[plain(v, 12) for v in row] for row in np.asarray(T)]
 
 
 def corners_json(truth: dict) -> dict:
-    return {str(i): [[round(float(v), 6) for v in p] for p in c] for i, c in sorted(truth.items())}
+    return {str(i): [[plain(v, 6) for v in p] for p in c] for i, c in sorted(truth.items())}
 
 
 # -- the folders ------------------------------------------------------------------------------------
@@ -220,9 +240,9 @@ def make_calibration() -> None:
                 "image": name,
                 "T_world_camera": matrix(T),
                 "T_camera_board": matrix(T_camera_board),
-                "distance_mm": round(float(np.linalg.norm(T_camera_board[:3, 3])), 3),
-                "board_rotation_deg": round(tilt, 3),
-                "corners_px": [[round(float(v), 6) for v in p] for p in px],
+                "distance_mm": plain(np.linalg.norm(T_camera_board[:3, 3]), 3),
+                "board_rotation_deg": plain(tilt, 3),
+                "corners_px": [[plain(v, 6) for v in p] for p in px],
             }
         )
     write_json(

@@ -32,13 +32,13 @@ Each frame's pose goes through a Kalman filter on the pose (fidlearn.PoseTracker
 frames take the solution that agrees with the track (no flips), a frame that disagrees beyond
 the chi-square gate (0.999) is rejected and said so, frames without a marker are bridged.
 
---odometry odom.csv   the robot base's pose in its odometry frame over time, metres and a
+--odometry ODOM.csv   the robot base's pose in its odometry frame over time, metres and a
                       quaternion, times in seconds on the frames' clock (t = 0 at the first frame):
                         t_s,x_m,y_m,z_m,qx,qy,qz,qw
                         0.000,0.0,0.0,0.0,0.0,0.0,0.0,1.0
                       only the motion between frames is used; its uncertainty is --odometry-drift
                       (default 0.02: 2 % of the distance and of the angle of each step).
---mount mount.json    where the camera sits on the robot (REP-103 base: x forward, y left, z up):
+--mount MOUNT.json    where the camera sits on the robot (REP-103 base: x forward, y left, z up):
                         {"units": "mm", "camera_in_base": {"translation": [200, 0, 300],
                          "rpy_deg": [0, 0, 0]}, "camera_axes": "link"}
                       camera_axes "link": rpy 0 looks along the base's x; "optical": the rotation of

@@ -21,9 +21,11 @@ def add(sub) -> None:
         help="world map (marker placements) to marker corners in mm",
         description="Turn a world map into the 3D corners of each marker (TL, TR, BR, BL, mm).",
     )
-    p.add_argument("map", type=Path, help="world map JSON (bare seed layout or full layout)")
+    p.add_argument("map", type=Path, metavar="MAP.json", help="world map JSON (bare seed layout or full layout)")
     p.add_argument("--units", choices=UNITS, help="units of a map that does not declare them")
-    p.add_argument("--marker-size-mm", type=float, help="side of the black square in mm, if the map does not say")
+    p.add_argument(
+        "--marker-size-mm", type=float, metavar="MM", help="side of the black square in mm, if the map does not say"
+    )
     p.add_argument("--dictionary", help="ArUco dictionary, if the map does not say (default ARUCO_ORIGINAL)")
     p.add_argument("-o", "--output", type=Path, required=True, help="corner file to write (JSON)")
     p.set_defaults(run=run)

@@ -24,7 +24,7 @@ def add_release(sub) -> None:
     p = sub.add_parser(
         "release",
         help="an exercise lesson for each learner of a class, its answers kept by the instructor",
-        description="Write OUT/<learner>/ for every learner of the roster: the lesson's student notebook and "
+        description="Write OUTPUT/LEARNER/ for every learner of the roster: the lesson's student notebook and "
         "fidlearn_inputs.json, that learner's numbers without their answers (seeded by the class "
         "secret). 'fidlearn grade' grades what comes back.",
     )
@@ -97,7 +97,7 @@ def add_grade(sub) -> None:
         "learner. A notebook that crashes, hangs or cheats gets 0 with the reason; the CSV is "
         "always written. Grading runs learners' code: see docs/teaching.md.",
     )
-    p.add_argument("notebooks", nargs="*", type=Path, help="submitted notebooks (.ipynb)")
+    p.add_argument("notebooks", nargs="*", type=Path, metavar="NOTEBOOK", help="submitted notebooks (.ipynb)")
     p.add_argument("--lesson", help="lesson number, e.g. 03")
     p.add_argument("--secret-file", type=Path, help="the class secret")
     p.add_argument(
@@ -117,7 +117,9 @@ def add_grade(sub) -> None:
         help="also write a gradebook import beside -o: canvas (grades.canvas.csv) or moodle (grades.moodle.csv)",
     )
     p.add_argument("--timeout", type=int, default=120, help="seconds a notebook may run (default 120)")
-    p.add_argument("--memory-mb", type=int, default=3000, help="memory a notebook may use, MB (default 3000)")
+    p.add_argument(
+        "--memory-mb", type=int, default=3000, metavar="MB", help="memory a notebook may use, MB (default 3000)"
+    )
     p.add_argument(
         "--run-as",
         metavar="USER",

@@ -23,6 +23,7 @@ from ..pose import estimate_pose
 from ._common import _check_output, _floats, _refuse_clobber
 
 HELP = "predicted position error over a room seen from above, and where to add markers"
+DESCRIPTION = "Predicted position error over a room, before printing, and what to add to reach a target."
 
 
 def add(sub) -> None:
@@ -33,7 +34,7 @@ def add(sub) -> None:
     sub : argparse._SubParsersAction
         The ``fidlearn`` parser's subcommands (``parser.add_subparsers()``).
     """
-    p = sub.add_parser("plan", help=HELP, description=__doc__)
+    p = sub.add_parser("plan", help=HELP, description=DESCRIPTION)
     add_arguments(p)
     p.set_defaults(run=run)
 
@@ -46,17 +47,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p : argparse.ArgumentParser
         The parser to add the options to.
     """
-    p.add_argument("map", type=Path, help="world map JSON (full layout, or give --units and --marker-size-mm)")
+    p.add_argument(
+        "map", type=Path, metavar="MAP.json", help="world map JSON (full layout, or give --units and --marker-size-mm)"
+    )
     p.add_argument("--camera", type=Path, required=True, help="camera file (fidlearn JSON or OpenCV YAML)")
     p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
     p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
-    p.add_argument("--height-mm", type=float, default=300.0, help="camera height above the floor (default 300)")
+    p.add_argument(
+        "--height-mm", type=float, default=300.0, metavar="MM", help="camera height above the floor (default 300)"
+    )
     p.add_argument(
         "--area", metavar="X0,Y0,X1,Y1", help="floor area to plan, mm (default: 3 m in front of the markers)"
     )
     p.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (default: the markers' centre)")
-    p.add_argument("--step-mm", type=float, default=250.0, help="grid spacing (default 250)")
-    p.add_argument("--headings", type=int, default=16, help="level headings tried per place (default 16; 0: skip)")
+    p.add_argument("--step-mm", type=float, default=250.0, metavar="MM", help="grid spacing (default 250)")
+    p.add_argument(
+        "--headings", type=int, default=16, metavar="N", help="level headings tried per place (default 16; 0: skip)"
+    )
     p.add_argument(
         "--corner-sigma-px",
         type=float,
@@ -82,7 +89,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="measure the corner noise, marker shift and the markers' size errors on a photo of the map's markers "
         "(four or more, at the camera's resolution) instead of giving them",
     )
-    p.add_argument("--target-mm", type=float, help="error to reach; drawn as a line, and the goal of --suggest")
+    p.add_argument(
+        "--target-mm", type=float, metavar="MM", help="error to reach; drawn as a line, and the goal of --suggest"
+    )
     p.add_argument(
         "--suggest", action="store_true", help="say which marker size and where to add markers to reach --target-mm"
     )

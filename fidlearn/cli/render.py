@@ -59,10 +59,14 @@ def add(sub) -> None:
     )
     _add_image_size_option(p)
     pose = p.add_mutually_exclusive_group(required=True)
-    pose.add_argument("--pose", metavar="X,Y,Z,R,P,Y", help="camera position (mm) and roll,pitch,yaw (deg), see below")
+    pose.add_argument(
+        "--pose", metavar="X,Y,Z,ROLL,PITCH,YAW", help="camera position (mm) and roll,pitch,yaw (deg), see below"
+    )
     pose.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (mm); needs --from")
     p.add_argument("--from", dest="eye", metavar="X,Y,Z", help="camera position (mm) for --look-at")
-    p.add_argument("--roll-deg", type=float, default=0.0, help="with --look-at: turn about the optical axis (deg)")
+    p.add_argument(
+        "--roll-deg", type=float, default=0.0, metavar="DEG", help="with --look-at: turn about the optical axis (deg)"
+    )
     p.add_argument("--size", metavar="WxH", help="render at another resolution of the same aspect ratio")
     p.add_argument("--seed", type=int, default=0, help="random seed of the wall texture and noise (default 0)")
     p.add_argument("--noise", type=float, default=0.0, metavar="STD", help="sensor noise, gray levels (default 0)")
