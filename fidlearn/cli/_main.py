@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 import cv2
 
 from .. import __version__
+from .._io import StagedOutputs
 from ..errors import FidlearnError, FidlearnWarning
 from . import calibrate, camera, corners, doctor, grade, locate, markers, plan, render, survey
 from ._common import _error, _exit_status, _Parser, _raise_interrupted, _SafeStdout, _show_warning, _signal_name
@@ -132,25 +133,44 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
+    outputs = None
     try:
         args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))
         if not getattr(args, "run", None):
             parser.print_help()
             return 2
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _outputs_of(args) as outputs:
             warnings.simplefilter("always", FidlearnWarning)
             warnings.showwarning = _show_warning
             return int(args.run(args) or 0)
     except FidlearnError as exc:
-        _error(str(exc))
+        _error(_with_written(str(exc), outputs))
         return 2
     except KeyboardInterrupt as exc:
-        _error(f"interrupted by {_signal_name(exc)}; nothing was written")
+        _error(f"interrupted by {_signal_name(exc)}; {outputs.written() if outputs else 'nothing was written'}")
         return _exit_status(exc)
     except OSError as exc:  # the disk, not the code: permission denied, disk full, ...
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        _error(f"{where}{exc.strerror or exc}; check the path and its permissions")
+        _error(_with_written(f"{where}{exc.strerror or exc}; check the path and its permissions", outputs))
         return 2
+
+
+#: Commands that write their files themselves, each as soon as it is ready (see fidlearn.grading).
+_WRITE_AS_THEY_GO = ("release", "grade")
+
+
+def _outputs_of(args):
+    """The command's outputs, staged and renamed together at its end (:class:`fidlearn._io.StagedOutputs`)."""
+    if args.command in _WRITE_AS_THEY_GO:
+        return contextlib.nullcontext()
+    return StagedOutputs()
+
+
+def _with_written(message: str, outputs: StagedOutputs | None) -> str:
+    """An error's line, saying what the command wrote before it when it wrote something."""
+    if outputs is None or not outputs.committed or outputs.written() in message:
+        return message
+    return f"{message}; {outputs.written()}"
 
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.

@@ -18,7 +18,7 @@ from ..markermap import MarkerMap
 from ..planning.noise import noise_from_pose
 from ..planning.room import AREA_MET, default_area, plan_room, suggest_markers
 from ..pose import estimate_pose
-from ._common import _check_output, _floats, _refuse_clobber
+from ._common import _check_output, _commit, _floats, _refuse_clobber
 
 HELP = "predicted position error over a room seen from above, and where to add markers"
 
@@ -181,6 +181,7 @@ def run(args) -> int:
 
     fig = plan_figure(plan, world, target_mm=args.target_mm)
     atomic_write(args.output, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    _commit()
     ok = np.isfinite(plan.toward_mm)
     print(
         f"{args.output}: {len(plan.x_mm)}x{len(plan.y_mm)} places at {plan.height_mm:.0f} mm; "
