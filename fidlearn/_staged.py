@@ -85,6 +85,22 @@ def signals_deferred():
             signal.raise_signal(caught[0])
 
 
+#: Test-only: ``KIND:N:SIGNAME`` (e.g. ``renamed:1:SIGTERM``) sends SIGNAME to this process at the N-th
+#: point of that kind ("staged": an output written whole; "renamed": one renamed in a commit; "committed":
+#: a commit done), so that a test can interrupt the real commit at exactly that step.
+SIGNAL_AT_VARIABLE = "FIDLEARN_TEST_SIGNAL_AT"
+_points: dict[str, int] = {}
+
+
+def _signal_point(kind: str) -> None:
+    spec = os.environ.get(SIGNAL_AT_VARIABLE, "").split(":")
+    if len(spec) != 3 or spec[0] != kind or not spec[1].isdigit() or not hasattr(signal, spec[2]):
+        return
+    _points[kind] = _points.get(kind, 0) + 1
+    if _points[kind] == int(spec[1]):
+        signal.raise_signal(getattr(signal, spec[2]))
+
+
 class _Entry:
     """One output: its hidden temporary file, its name, whether it is whole, the folder it belongs to."""
 
@@ -240,6 +256,7 @@ class StagedOutputs:
             self._drop([entry])
             raise
         entry.whole = True
+        _signal_point("staged")
         return entry.path
 
     def commit(self, entries: list[_Entry] | None = None) -> list[Path]:
@@ -270,6 +287,7 @@ class StagedOutputs:
                     self.staged.remove(entry)
                     self.committed.append(entry)
                     done.append(entry.path)
+                    _signal_point("renamed")
             except OSError as exc:
                 self.discard()
                 raise FidlearnError(
@@ -278,6 +296,7 @@ class StagedOutputs:
                 ) from None
             if entries is None:
                 self.discard()
+            _signal_point("committed")
         return done
 
     def discard(self) -> None:
