@@ -9,7 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from ._files import MAX_TEXT_BYTES, read_bytes
-from ._staged import StagedOutputs, current_outputs, file_mode_for, outputs_together, signals_deferred
+from ._staged import (
+    SIGNAL_AT_VARIABLE,
+    StagedOutputs,
+    current_outputs,
+    file_mode_for,
+    outputs_together,
+    signals_deferred,
+)
 from .errors import FidlearnError
 
 
@@ -160,6 +167,7 @@ def write_json_atomic(path: str | os.PathLike, obj: Any) -> Path:
 
 
 __all__ = [
+    "SIGNAL_AT_VARIABLE",
     "StagedOutputs",
     "atomic_write",
     "current_outputs",

@@ -19,6 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from .. import _staged
 from .._io import StagedOutputs, current_outputs, signals_deferred
 from ..camera import Camera
 from ..errors import FidlearnError, UsageError
@@ -299,9 +300,16 @@ class _StreamFile:
         self.file = None
 
     def __enter__(self):
-        self.entry = _outputs().temp(self.path)
+        outputs = _outputs()
+        self.entry = outputs.temp(self.path)
+        try:
+            os.chmod(self.entry.tmp, _staged.file_mode_for(self.path))  # not mkstemp's private 0o600
+            self.file = open(self.entry.tmp, "w", encoding="utf-8")  # noqa: SIM115 - closed in __exit__
+        except OSError as exc:
+            raise FidlearnError(
+                f"{self.option} {self.path}: cannot write it ({exc.strerror}); {outputs.written()}"
+            ) from None
         self.entry.whole = True  # no record yet is a whole file too
-        self.file = open(self.entry.tmp, "w", encoding="utf-8")  # noqa: SIM115 - closed in __exit__
         return self
 
     def write(self, record) -> None:
@@ -315,7 +323,8 @@ class _StreamFile:
                 self.count += 1
         except OSError as exc:
             raise FidlearnError(
-                f"{self.option} {self.path}: cannot write it ({exc.strerror}); check the free disk space"
+                f"{self.option} {self.path}: cannot write it ({exc.strerror}); check the free disk space; "
+                f"{_outputs().written()}"
             ) from None
 
     def __exit__(self, exc_type, exc, tb) -> None:
