@@ -124,10 +124,12 @@ def steps(name: str) -> dict[str, str]:
 @pytest.mark.parametrize("name", SWEPT)
 def test_a_signal_at_any_time_leaves_all_outputs_or_none(tmp_path, name):
     sig = signal.SIGINT if name == "calibrate" else signal.SIGTERM
-    fractions = [0.1 + 0.08 * k for k in range(13)]  # 0.1 .. 1.06 of the measured life
+    # 0.1 .. 1.06 of the measured life, and past it (a loaded machine stretches a run's life);
+    # the exact end, when the outputs appear, is hit by the steps below
+    fractions = [0.1 + 0.08 * k for k in range(13)] + [1.5]
     seen = sweep(tmp_path, name, fractions, sig)
-    print(f"{name}, {signal.Signals(sig).name} at 13 times: {dict(seen)}")  # shown by pytest -rP
-    assert seen["nothing written"] >= 1 and seen["all written"] + seen["finished"] >= 1, seen
+    print(f"{name}, {signal.Signals(sig).name} at {len(fractions)} times: {dict(seen)}")  # shown by pytest -rP
+    assert seen["nothing written"] + seen["all written"] >= len(fractions) // 2, seen  # most hit the command
     ref = tmp_path / "reference" / "out"
     for step, expected in steps(name).items():
         assert at_step(tmp_path, name, ref, step) == expected, step
