@@ -2,7 +2,7 @@
 
 The command reads the photos, calls :func:`fidlearn.calibrate_checkerboard` or
 :func:`fidlearn.calibrate_charuco`, prints the result with its ``warnings`` and the coach's
-advice, and writes the camera last (only when everything before it succeeded).
+advice, and writes the camera, the coach's picture and the annotations together, only when all of them are done.
 """
 
 from __future__ import annotations
