@@ -116,30 +116,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     int
         The exit status: 0 ok, 1 a problem found (``doctor``), 2 a user error, 128 + N stopped by signal N.
     """
-    _quiet_opencv()
-    stdout, handlers = sys.stdout, {}
-    sys.stdout = _SafeStdout(stdout)
+    stdout, handlers, done = sys.stdout, {}, []
     try:
         for sig in (signal.SIGTERM, signal.SIGHUP):
             with contextlib.suppress(ValueError, OSError):  # not the main thread: leave signals alone
                 handlers[sig] = signal.signal(sig, _raise_interrupted)
-        return _main(argv)
+        _quiet_opencv()
+        sys.stdout = _SafeStdout(stdout)
+        return _main(argv, done)
+    except KeyboardInterrupt as exc:  # outside the command's own handling (a second signal, or before it began)
+        _error(f"interrupted by {_signal_name(exc)}; {done[0].written() if done else 'nothing was written'}")
+        return _exit_status(exc)
     finally:
+        for sig in handlers:  # the command has said how it ended: a signal now changes nothing of it
+            signal.signal(sig, signal.SIG_IGN)
         for sig, old in handlers.items():
             signal.signal(sig, old)
         sys.stdout.flush()
         sys.stdout = stdout
 
 
-def _main(argv: Sequence[str] | None) -> int:
-    parser = build_parser()
+def _main(argv: Sequence[str] | None, done: list) -> int:
     outputs = None
     try:
+        parser = build_parser()
         args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))
         if not getattr(args, "run", None):
             parser.print_help()
             return 2
         with warnings.catch_warnings(), _outputs_of(args) as outputs:
+            if outputs is not None:  # what it writes, for a line about a signal that comes while it ends
+                done.append(outputs)
             warnings.simplefilter("always", FidlearnWarning)
             warnings.showwarning = _show_warning
             return int(args.run(args) or 0)
