@@ -631,3 +631,21 @@ def test_a_full_disk_at_the_camera_takes_back_the_report_and_the_annotations(ws,
         "folder's permissions; nothing was written"
     )
     assert snapshot(ws) == before  # neither the report nor the annotations, nor a hidden file
+
+
+def test_a_signal_during_a_c_extensions_import_is_an_interruption(ws, capsys, monkeypatch):
+    """A SIGTERM while matplotlib's Agg module initialises comes out as ``ImportError: initialization failed``."""
+    from fidlearn.cli import _common, corners
+
+    def importing(args):
+        try:
+            raise _common._Interrupted(signal.SIGTERM)
+        except KeyboardInterrupt as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr(corners, "run", importing)
+    before = snapshot(ws)
+    status = cli.main(["corners", "map.json", "-o", "c.json"])
+    assert status == 128 + signal.SIGTERM
+    assert capsys.readouterr().err.strip() == "error: interrupted by SIGTERM; nothing was written"
+    assert snapshot(ws) == before

@@ -160,6 +160,23 @@ def _main(argv: Sequence[str] | None, done: list) -> int:
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         _error(_with_written(f"{where}{exc.strerror or exc}; check the path and its permissions", outputs))
         return 2
+    except Exception as exc:
+        signalled = _interruption_in(exc)  # a C extension's import turns a signal into "initialization failed"
+        if signalled is None:
+            raise
+        _error(f"interrupted by {_signal_name(signalled)}; {outputs.written() if outputs else 'nothing was written'}")
+        return _exit_status(signalled)
+
+
+def _interruption_in(exc: BaseException) -> KeyboardInterrupt | None:
+    """The signal's ``KeyboardInterrupt`` that caused ``exc``, if one did."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 #: Commands that write their files themselves, each as soon as it is ready (see fidlearn.grading).
