@@ -8,6 +8,8 @@ pointing to it, never a traceback.
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -26,18 +28,60 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit status (see :func:`fidlearn.cli.main`); 2 when fidlearn cannot start.
     """
     args = list(sys.argv[1:] if argv is None else argv)
+    handlers = _stop_on_signals()
     try:
         from .cli import main as cli_main
-    except Exception as exc:  # noqa: BLE001 - a broken binary module fails in many ways; all are reported
-        if args[:1] == ["doctor"]:
-            from .doctor import run
+    except BaseException as exc:  # noqa: BLE001 - a broken binary module fails in many ways; all are reported
+        for sig, old in handlers.items():
+            signal.signal(sig, old)
+        return _cannot_start(exc, args)
+    for sig, old in handlers.items():
+        # the process's own command: ignored until the command line puts its own handler (no silent death)
+        signal.signal(sig, signal.SIG_IGN if argv is None else old)
+    status = cli_main(args)
+    if argv is None:  # the process's own command, done and said so: a signal while it exits changes nothing
+        for sig in (signal.SIGINT, *handlers):
+            signal.signal(sig, signal.SIG_IGN)
+    return status
 
-            return run()
-        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
-        print(
-            f"error: fidlearn cannot start ({reason}); run 'fidlearn doctor' to see which package is broken "
-            "and the pip command that mends it",
-            file=sys.stderr,
-        )
-        return 2
-    return cli_main(args)
+
+def _cannot_start(exc: BaseException, args: list[str]) -> int:
+    """The command line did not load: a signal, or a broken package (``fidlearn doctor`` still runs)."""
+    if isinstance(exc, KeyboardInterrupt):  # Ctrl-C, SIGTERM or SIGHUP while the command line loads
+        signum = getattr(exc, "signum", signal.SIGINT)
+        print(f"error: interrupted by {signal.Signals(signum).name}; nothing was written", file=sys.stderr)
+        return 128 + signum
+    if not isinstance(exc, Exception):
+        raise exc
+    if args[:1] == ["doctor"]:
+        from .doctor import run
+
+        return run()
+    reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+    print(
+        f"error: fidlearn cannot start ({reason}); run 'fidlearn doctor' to see which package is broken "
+        "and the pip command that mends it",
+        file=sys.stderr,
+    )
+    return 2
+
+
+class _Stopped(KeyboardInterrupt):
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _stop(signum, frame) -> None:
+    raise _Stopped(signum)
+
+
+def _stop_on_signals() -> dict:
+    """SIGTERM and SIGHUP stop the start as Ctrl-C does (one line, not a silent death); the old handlers."""
+    handlers = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None:
+            with contextlib.suppress(ValueError, OSError):  # not the main thread
+                handlers[sig] = signal.signal(sig, _stop)
+    return handlers

@@ -1,16 +1,22 @@
-"""Private file helpers: strict JSON reading and atomic writes."""
+"""Private file helpers: strict JSON reading and atomic writes (staged with :mod:`fidlearn._staged`)."""
 
 from __future__ import annotations
 
 import json
 import os
-import stat
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from ._files import MAX_TEXT_BYTES, read_bytes
+from ._staged import (
+    SIGNAL_AT_VARIABLE,
+    StagedOutputs,
+    current_outputs,
+    file_mode_for,
+    outputs_together,
+    signals_deferred,
+)
 from .errors import FidlearnError
 
 
@@ -88,37 +94,13 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         ) from None
 
 
-def file_mode_for(path: str | os.PathLike) -> int:
-    """The permission bits a file written at ``path`` should get.
-
-    An existing file keeps its own; a new one gets what ``open()`` would give it
-    (``0o666`` less the umask). Temporary files from :func:`tempfile.mkstemp` are
-    private (``0o600``): renamed into place unchanged, they would leave outputs
-    that nobody else (a web server, a teammate, a robot's service user) can read.
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file about to be written (it may not exist yet).
-
-    Returns
-    -------
-    int
-        Permission bits, e.g. ``0o644``.
-    """
-    try:
-        return stat.S_IMODE(os.stat(path).st_mode)
-    except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
-
-
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
     """Write a file through a temporary file in the same folder, then rename it.
 
     ``write`` receives the temporary path and must create the file there.  If it
     raises, the temporary file is removed and ``path`` is untouched: no
-    half-written output is ever left behind.
+    half-written output is ever left behind. Inside an active :class:`StagedOutputs`
+    the rename waits for its commit, with the other outputs of the same work.
     Parameters
     ----------
     path : str or os.PathLike
@@ -144,34 +126,8 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
     ...     out.read_text(), sorted(p.name for p in Path(folder).iterdir())
     ('whole', ['a.txt'])
     """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise FidlearnError(f"{path}: the folder {folder} does not exist; create it first")
-    if path.is_dir():
-        raise FidlearnError(f"{path}: is a folder; give the name of the file to write (a path inside it)")
-    try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=folder)
-    except OSError as exc:
-        raise FidlearnError(
-            f"{path}: cannot write in {folder} ({exc.strerror or exc}); check the folder's permissions"
-        ) from None
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        write(tmp)
-        os.chmod(tmp, file_mode_for(path))
-        os.replace(tmp, path)
-    except OSError as exc:  # disk full, permission denied, ...: name the user's file, never the hidden one
-        tmp.unlink(missing_ok=True)
-        raise FidlearnError(
-            f"{path}: cannot write it ({exc.strerror or exc}); check the free disk space and the "
-            "folder's permissions; nothing was written"
-        ) from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    with outputs_together() as outputs:
+        return outputs.stage(path, write)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
@@ -208,3 +164,17 @@ def write_json_atomic(path: str | os.PathLike, obj: Any) -> Path:
         ``path``.
     """
     return write_text_atomic(path, json.dumps(obj, indent=2) + "\n")
+
+
+__all__ = [
+    "SIGNAL_AT_VARIABLE",
+    "StagedOutputs",
+    "atomic_write",
+    "current_outputs",
+    "file_mode_for",
+    "outputs_together",
+    "read_json",
+    "signals_deferred",
+    "write_json_atomic",
+    "write_text_atomic",
+]

@@ -131,11 +131,35 @@ def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
     FidlearnError
         OpenCV cannot encode that suffix, or the file cannot be written.
     """
+    data = encode_image(path, image)
+    return atomic_write(path, lambda tmp: tmp.write_bytes(data))
+
+
+def encode_image(path: str | os.PathLike, image: np.ndarray) -> bytes:
+    """The bytes of an image file, encoded by the suffix of ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file's name; its suffix (``.png``, ``.jpg``, ...) chooses the encoding.
+    image : ndarray, shape (H, W) or (H, W, 3)
+        The pixels, BGR order.
+
+    Returns
+    -------
+    bytes
+        The encoded file.
+
+    Raises
+    ------
+    FidlearnError
+        OpenCV cannot encode that suffix.
+    """
     path = Path(path)
     ok, buf = cv2.imencode(path.suffix.lower(), image)
     if not ok:
         raise FidlearnError(f"{path}: OpenCV cannot encode a {path.suffix} image; use .png")
-    return atomic_write(path, lambda tmp: tmp.write_bytes(buf.tobytes()))
+    return buf.tobytes()
 
 
 def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool) -> list[tuple[str, Path]]:

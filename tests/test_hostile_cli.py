@@ -758,3 +758,87 @@ def test_a_jpeg_whose_size_comes_after_its_first_4_kb_is_checked_too(ws, capsys)
     """OpenCV's ArUco photo (640x480) gives its size after 4 KB of other blocks; the 16:9 camera does not fit it."""
     shutil.copy(DATA / "real" / "opencv_aruco_photo" / "singlemarkersoriginal.jpg", ws / "frames" / "z.jpg")
     refused(ws, capsys, ["locate", "frames", *LOC, "--track"], "z.jpg: camera calibrated at 1280x720 (aspect 1.778)")
+
+
+# -- interrupted or out of disk: every output of a command, or none, and a line that says which ---------
+def _signal_at(monkeypatch, step: str) -> None:
+    """The command sends itself a signal at an exact step of its outputs' commit (see fidlearn._staged)."""
+    from fidlearn import _staged
+
+    monkeypatch.setattr(_staged, "_points", {})
+    monkeypatch.setenv(_staged.SIGNAL_AT_VARIABLE, step)
+
+
+RENDER = ["render", *LOC, "--from", "1200,150,250", "--look-at", "0,150,250", "-o", "s.png", "--truth", "t.json"]
+
+
+def test_render_interrupted_with_its_picture_staged_writes_neither(ws, capsys, monkeypatch):
+    before = snapshot(ws)
+    _signal_at(monkeypatch, "staged:1:SIGTERM")
+    assert cli.main(RENDER) == 128 + signal.SIGTERM
+    assert capsys.readouterr().err.strip() == "error: interrupted by SIGTERM; nothing was written"
+    assert snapshot(ws) == before
+
+
+def test_render_interrupted_in_its_commit_writes_both_and_says_so(ws, capsys, monkeypatch):
+    _signal_at(monkeypatch, "renamed:1:SIGTERM")
+    assert cli.main(RENDER) == 128 + signal.SIGTERM
+    assert capsys.readouterr().err.strip() == "error: interrupted by SIGTERM; written: s.png, t.json"
+    assert cv2_shape(ws / "s.png") == (720, 1280, 3) and json.loads((ws / "t.json").read_text())["image"] == "s.png"
+    assert not [p for p in ws.rglob(".*")]
+
+
+def cv2_shape(path: Path) -> tuple:
+    import cv2
+
+    return cv2.imread(str(path)).shape
+
+
+def test_plan_interrupted_by_ctrl_c_with_its_picture_drawn_writes_nothing(ws, capsys, monkeypatch):
+    before = snapshot(ws)
+    _signal_at(monkeypatch, "staged:1:SIGINT")
+    argv = ["plan", "map.json", "--camera", "camera.json", "--step-mm", "1000", "--headings", "0", "-o", "p.png"]
+    assert cli.main(argv) == 128 + signal.SIGINT
+    assert capsys.readouterr().err.strip() == "error: interrupted by SIGINT; nothing was written"
+    assert snapshot(ws) == before
+
+
+def test_a_full_disk_at_the_camera_takes_back_the_report_and_the_annotations(ws, capsys, monkeypatch):
+    from fidlearn import _staged
+
+    real = _staged.file_mode_for
+
+    def full_at_the_camera(path):
+        if Path(path).name == "cam.json":
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(path)
+
+    monkeypatch.setattr(_staged, "file_mode_for", full_at_the_camera)
+    before = snapshot(ws)
+    argv = ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json"]
+    assert cli.main([*argv, "--report", "rep.png", "--annotate", "seen"]) == 2
+    err = capsys.readouterr().err  # the search's counter and the coach's warnings, then the error, last
+    assert [ln for ln in err.splitlines() if ln.startswith("error:")] == [err.splitlines()[-1]]
+    assert err.splitlines()[-1] == (
+        "error: cam.json: cannot write it (No space left on device); check the free disk space and the "
+        "folder's permissions; nothing was written"
+    )
+    assert snapshot(ws) == before  # neither the report nor the annotations, nor a hidden file
+
+
+def test_a_signal_during_a_c_extensions_import_is_an_interruption(ws, capsys, monkeypatch):
+    """A SIGTERM while matplotlib's Agg module initialises comes out as ``ImportError: initialization failed``."""
+    from fidlearn.cli import _common, corners
+
+    def importing(args):
+        try:
+            raise _common._Interrupted(signal.SIGTERM)
+        except KeyboardInterrupt as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr(corners, "run", importing)
+    before = snapshot(ws)
+    status = cli.main(["corners", "map.json", "-o", "c.json"])
+    assert status == 128 + signal.SIGTERM
+    assert capsys.readouterr().err.strip() == "error: interrupted by SIGTERM; nothing was written"
+    assert snapshot(ws) == before

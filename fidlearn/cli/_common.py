@@ -1,8 +1,10 @@
 """What every command shares: the parser, output checks, signals, safe printing, progress, errors.
 
 Output rules (see :mod:`fidlearn.cli`): every output path is checked before any work
-(:func:`_check_output`, :func:`_refuse_clobber`); one file is written atomically; a stream of
-JSON lines goes through :class:`_StreamFile`; annotated pictures through :class:`_Staging`.
+(:func:`_check_output`, :func:`_refuse_clobber`); one file is written atomically; every output
+is staged with the command's others (:class:`fidlearn._io.StagedOutputs`) and they take their names
+together; a stream of JSON lines goes through :class:`_StreamFile`; annotated pictures through
+:class:`_Staging`.
 """
 
 from __future__ import annotations
@@ -12,17 +14,16 @@ import json
 import math
 import os
 import re
-import shutil
 import signal
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from .._io import file_mode_for
+from .. import _staged
+from .._io import StagedOutputs, current_outputs, signals_deferred
 from ..camera import Camera
 from ..errors import FidlearnError, UsageError
-from ..images import write_image
+from ..images import encode_image
 from ..markermap import MarkerMap
 from ..printables import parse_pattern
 
@@ -272,62 +273,76 @@ class _Progress:
 
 
 # -- outputs written as the work goes ----------------------------------------------------------------
+def _outputs() -> StagedOutputs:
+    """The command's outputs (:func:`fidlearn.cli.main` opens them around every command)."""
+    outputs = current_outputs()
+    if outputs is None:
+        raise RuntimeError("a command's outputs are staged inside fidlearn.cli.main")
+    return outputs
+
+
+def _commit() -> None:
+    """Write every output staged so far under its name, all together (before saying they are written)."""
+    _outputs().commit()
+
+
 class _StreamFile:
     """A text output written record by record (JSON lines) to a hidden file beside its final name.
 
-    It takes the final name when the run ends or is interrupted (every record in it is whole);
-    on an error it is removed: an output is either whole up to the last frame done, or absent.
+    It takes its name with the command's other outputs when the run ends, or at once when the run is
+    interrupted (every record in it is whole); on an error it is removed: an output is either whole up
+    to the last frame done, or absent.
     """
 
     def __init__(self, path: Path, option: str):
         self.path, self.option, self.count = Path(path), option, 0
-        self.tmp: Path | None = None
+        self.entry = None
         self.file = None
 
     def __enter__(self):
-        folder = self.path.parent if str(self.path.parent) else Path(".")
+        outputs = _outputs()
+        self.entry = outputs.temp(self.path)
         try:
-            fd, name = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=folder)
+            os.chmod(self.entry.tmp, _staged.file_mode_for(self.path))  # not mkstemp's private 0o600
+            self.file = open(self.entry.tmp, "w", encoding="utf-8")  # noqa: SIM115 - closed in __exit__
         except OSError as exc:
             raise FidlearnError(
-                f"{self.option} {self.path}: cannot write in {folder} ({exc.strerror}); check the folder's permissions"
+                f"{self.option} {self.path}: cannot write it ({exc.strerror}); {outputs.written()}"
             ) from None
-        self.tmp = Path(name)
-        self.file = os.fdopen(fd, "w", encoding="utf-8")
+        self.entry.whole = True  # no record yet is a whole file too
         return self
 
-    def write(self, record: dict) -> None:
+    def write(self, record) -> None:
+        self._put(record if isinstance(record, str) else json.dumps(record))
+
+    def _put(self, line: str) -> None:
         try:
-            self.file.write(json.dumps(record) + "\n")
-            self.file.flush()
+            with signals_deferred():  # the record and its count together
+                self.file.write(line + "\n")
+                self.file.flush()
+                self.count += 1
         except OSError as exc:
             raise FidlearnError(
-                f"{self.option} {self.path}: cannot write it ({exc.strerror}); check the free disk space"
+                f"{self.option} {self.path}: cannot write it ({exc.strerror}); check the free disk space; "
+                f"{_outputs().written()}"
             ) from None
-        self.count += 1
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        keep = exc_type is None or issubclass(exc_type, KeyboardInterrupt)
         try:
             self.file.close()
-            if keep:
-                os.chmod(self.tmp, file_mode_for(self.path))
-                os.replace(self.tmp, self.path)
         except OSError as err:
-            keep = False
+            self.entry.whole = False
             if exc_type is None:
                 raise FidlearnError(f"{self.option} {self.path}: cannot write it ({err.strerror})") from None
-        finally:
-            if not keep:
-                self.tmp.unlink(missing_ok=True)
+        if exc_type is not None and issubclass(exc_type, KeyboardInterrupt):
+            _outputs().commit([self.entry])
 
 
 class _Staging:
-    """Annotated images staged in a hidden folder and moved into place only when the run succeeds."""
+    """Annotated images staged with the command's outputs, moved into their folder when they are committed."""
 
-    def __init__(self, folder: Path | None, keep_on_interrupt: bool = False):
+    def __init__(self, folder: Path | None):
         self.folder = folder
-        self.keep_on_interrupt = keep_on_interrupt
         self.replaced = 0
         self.tmp: Path | None = None
         self.names: set[str] = set()
@@ -340,8 +355,7 @@ class _Staging:
 
     def __enter__(self):
         if self.folder is not None:
-            parent = self.folder.parent if str(self.folder.parent) else Path(".")
-            self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.folder.name}.", dir=parent))
+            self.tmp = _outputs().staging_folder(self.folder)
         return self
 
     def save(self, name: str, image) -> None:
@@ -354,23 +368,16 @@ class _Staging:
         while fname in self.names:
             k += 1
             fname = f"{stem}-{k}.png"
-        write_image(self.tmp / fname, image)
-        self.names.add(fname)  # only once the picture is whole: an interruption keeps whole pictures only
+        data = encode_image(fname, image)
+        _outputs().stage(self.folder / fname, lambda tmp: tmp.write_bytes(data), folder=self.tmp, group=self.folder)
+        self.names.add(fname)
+        self.replaced += (self.folder / fname).exists()
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if self.tmp is None:
-            return
-        try:
-            interrupted = exc_type is not None and issubclass(exc_type, KeyboardInterrupt)
-            if exc_type is None or (interrupted and self.keep_on_interrupt):
-                self.folder.mkdir(exist_ok=True)
-                for fname in sorted(self.names):
-                    self.replaced += (self.folder / fname).exists()
-                    os.replace(self.tmp / fname, self.folder / fname)
-        finally:
-            shutil.rmtree(self.tmp, ignore_errors=True)
+        pass
 
     def said(self) -> str:
         """What the folder received, for the closing line."""
+        n = sum(1 for e in _outputs().committed if e.group == self.folder)
         again = f", replacing {self.replaced} earlier one{'s' if self.replaced != 1 else ''}" if self.replaced else ""
-        return f"{len(self.names)} annotated picture{'s' if len(self.names) != 1 else ''} in {self.folder}/{again}"
+        return f"{n} annotated picture{'s' if n != 1 else ''} in {self.folder}/{again}"

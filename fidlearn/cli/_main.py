@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 import cv2
 
 from .. import __version__
+from .._io import StagedOutputs
 from ..errors import FidlearnError, FidlearnWarning
 from . import calibrate, camera, corners, doctor, grade, locate, markers, plan, render, survey
 from ._common import _error, _exit_status, _Parser, _raise_interrupted, _SafeStdout, _show_warning, _signal_name
@@ -115,42 +116,85 @@ def main(argv: Sequence[str] | None = None) -> int:
     int
         The exit status: 0 ok, 1 a problem found (``doctor``), 2 a user error, 128 + N stopped by signal N.
     """
-    _quiet_opencv()
-    stdout, handlers = sys.stdout, {}
-    sys.stdout = _SafeStdout(stdout)
+    stdout, handlers, done = sys.stdout, {}, []
     try:
         for sig in (signal.SIGTERM, signal.SIGHUP):
             with contextlib.suppress(ValueError, OSError):  # not the main thread: leave signals alone
                 handlers[sig] = signal.signal(sig, _raise_interrupted)
-        return _main(argv)
+        _quiet_opencv()
+        sys.stdout = _SafeStdout(stdout)
+        return _main(argv, done)
+    except KeyboardInterrupt as exc:  # outside the command's own handling (a second signal, or before it began)
+        _error(f"interrupted by {_signal_name(exc)}; {done[0].written() if done else 'nothing was written'}")
+        return _exit_status(exc)
     finally:
+        for sig in handlers:  # the command has said how it ended: a signal now changes nothing of it
+            signal.signal(sig, signal.SIG_IGN)
         for sig, old in handlers.items():
             signal.signal(sig, old)
         sys.stdout.flush()
         sys.stdout = stdout
 
 
-def _main(argv: Sequence[str] | None) -> int:
-    parser = build_parser()
+def _main(argv: Sequence[str] | None, done: list) -> int:
+    outputs = None
     try:
+        parser = build_parser()
         args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))
         if not getattr(args, "run", None):
             parser.print_help()
             return 2
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _outputs_of(args) as outputs:
+            if outputs is not None:  # what it writes, for a line about a signal that comes while it ends
+                done.append(outputs)
             warnings.simplefilter("always", FidlearnWarning)
             warnings.showwarning = _show_warning
             return int(args.run(args) or 0)
     except FidlearnError as exc:
-        _error(str(exc))
+        _error(_with_written(str(exc), outputs))
         return 2
     except KeyboardInterrupt as exc:
-        _error(f"interrupted by {_signal_name(exc)}; nothing was written")
+        _error(f"interrupted by {_signal_name(exc)}; {outputs.written() if outputs else 'nothing was written'}")
         return _exit_status(exc)
     except OSError as exc:  # the disk, not the code: permission denied, disk full, ...
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        _error(f"{where}{exc.strerror or exc}; check the path and its permissions")
+        _error(_with_written(f"{where}{exc.strerror or exc}; check the path and its permissions", outputs))
         return 2
+    except Exception as exc:
+        signalled = _interruption_in(exc)  # a C extension's import turns a signal into "initialization failed"
+        if signalled is None:
+            raise
+        _error(f"interrupted by {_signal_name(signalled)}; {outputs.written() if outputs else 'nothing was written'}")
+        return _exit_status(signalled)
+
+
+def _interruption_in(exc: BaseException) -> KeyboardInterrupt | None:
+    """The signal's ``KeyboardInterrupt`` that caused ``exc``, if one did."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+#: Commands that write their files themselves, each as soon as it is ready (see fidlearn.grading).
+_WRITE_AS_THEY_GO = ("release", "grade")
+
+
+def _outputs_of(args):
+    """The command's outputs, staged and renamed together at its end (:class:`fidlearn._io.StagedOutputs`)."""
+    if args.command in _WRITE_AS_THEY_GO:
+        return contextlib.nullcontext()
+    return StagedOutputs()
+
+
+def _with_written(message: str, outputs: StagedOutputs | None) -> str:
+    """An error's line, saying what the command wrote before it when it wrote something."""
+    if outputs is None or not outputs.committed or outputs.written() in message:
+        return message
+    return f"{message}; {outputs.written()}"
 
 
 #: Options whose value is a comma-separated list of numbers that may start with a minus sign.

@@ -2,7 +2,7 @@
 
 The command reads the photos, calls :func:`fidlearn.calibrate_checkerboard` or
 :func:`fidlearn.calibrate_charuco`, prints the result with its ``warnings`` and the coach's
-advice, and writes the camera last (only when everything before it succeeded).
+advice, and writes the camera, the coach's picture and the annotations together, only when all of them are done.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from ..drawing import draw_calibration_view
 from ..errors import FidlearnWarning, UsageError
 from ..images import expand_inputs
 from ..planning.coach import coach_calibration
-from ._common import _board_squares, _check_output, _Progress, _refuse_clobber, _Staging
+from ._common import _board_squares, _check_output, _commit, _Progress, _refuse_clobber, _Staging
 
 
 def add(sub) -> None:
@@ -147,7 +147,8 @@ def run(args) -> int:
 
             fig = coach_figure(coached, cal.camera)
             atomic_write(report, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
-        cal.camera.save(out)  # last: written only when everything before it succeeded
+        cal.camera.save(out)
+    _commit()  # the camera, the report and the annotations take their names together
     print(f"camera written to {out}" + (f"; the coach's picture in {report}" if report else ""))
     if args.annotate:
         print(staging.said())

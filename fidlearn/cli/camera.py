@@ -7,7 +7,7 @@ from pathlib import Path
 from ..camera import Camera
 from ..printables import parse_pattern
 from ..ros import load_camera_info, save_camera_info
-from ._common import _check_output, _Parser, _refuse_clobber
+from ._common import _check_output, _commit, _Parser, _refuse_clobber
 
 
 def add(sub) -> None:
@@ -61,6 +61,7 @@ def run_export(args) -> int:
     size = parse_pattern(args.image_size, "--image-size") if args.image_size else None
     cam = Camera.load(args.camera, image_size=size)
     save_camera_info(cam, out, args.camera_name)
+    _commit()
     print(f"{out}: camera_info for {args.camera_name}, {cam.width}x{cam.height}, {cam.dist.size} distortion terms")
     return 0
 
@@ -87,5 +88,6 @@ def run_import(args) -> int:
     _refuse_clobber([("-o", out)], [args.camera_info])
     cam = load_camera_info(args.camera_info)
     cam.save(out)
+    _commit()
     print(f"{out}: camera {cam.width}x{cam.height} from {args.camera_info}")
     return 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..markermap import MarkerMap
-from ._common import UNITS, _refuse_clobber
+from ._common import UNITS, _commit, _refuse_clobber
 
 
 def add(sub) -> None:
@@ -53,6 +53,7 @@ def run(args) -> int:
     _refuse_clobber([("-o", args.output)], [args.map])
     m = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=args.dictionary)
     m.save_corners(args.output)
+    _commit()
     plane = (
         f"coplanar (within {m.planarity_mm():.2f} mm)"
         if m.is_coplanar()

@@ -27,11 +27,13 @@ from ._common import (
     _add_image_size_option,
     _add_map_options,
     _check_output,
+    _commit,
     _exit_status,
     _Interrupted,
     _load_camera,
     _load_map,
     _one_line,
+    _outputs,
     _refuse_clobber,
     _signal_name,
     _Staging,
@@ -306,7 +308,8 @@ def run(args) -> int:
     if args.track:
         camera = _load_camera(args)
         return run_tracked(args, items, _Locator(_load_map(args), camera, args.refine, False), track_out)
-    staging = _Staging(args.annotate, keep_on_interrupt=True)
+    _outputs().keep_on_interrupt = True  # every finished frame is kept
+    staging = _Staging(args.annotate)
     camera = _load_camera(args)  # the camera first: a map given as --camera is named as such
     check_frame_sizes(items, camera, args.max_megapixels * 1e6)  # one error line, before any frame's row or warning
     locator = _Locator(_load_map(args), camera, args.refine, args.annotate is not None)
@@ -322,6 +325,7 @@ def run(args) -> int:
         else:
             _process(args, items, locator, staging, table, None)
     except KeyboardInterrupt as exc:
+        _commit()
         kept = []
         if json_path is not None:
             n = sink.count if sink is not None else 0
@@ -334,6 +338,7 @@ def run(args) -> int:
             file=sys.stderr,
         )
         return _exit_status(exc)
+    _commit()
     if table.frames > 1 or args.camera_index is not None:
         print(table.summary())
     if json_path:

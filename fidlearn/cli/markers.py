@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import printables
-from ._common import _board_squares, _check_dpi, _check_output
+from ._common import _board_squares, _check_dpi, _check_output, _commit
 
 
 def add_markers(sub) -> None:
@@ -59,6 +59,7 @@ def run_markers(args) -> int:
     ids = printables.parse_ids(args.ids)
     sheet = printables.layout_markers(ids, args.size_mm, args.dictionary, args.paper)
     files = printables.save_pages(printables.marker_figures(sheet), out, dpi=args.dpi)
+    _commit()
     pages = len(sheet.pages)
     where = ", ".join(str(f) for f in files)
     extra = f" at {args.dpi:g} dpi" if out.suffix.lower() == ".png" else ""
@@ -128,6 +129,7 @@ def run_board(args) -> int:
         squares, args.square_mm, args.paper, args.charuco, args.dictionary or "6X6_250", args.marker_mm
     )
     files = printables.save_pages([printables.board_figure(sheet)], out, dpi=args.dpi)
+    _commit()
     turn = ", landscape" if sheet.landscape else ""
     print(f"{files[0]}: {sheet.describe()}, {sheet.paper}{turn}")
     print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")

@@ -20,7 +20,7 @@ from ..planning.noise import noise_from_pose
 from ..planning.room import AREA_MET, default_area, plan_room
 from ..planning.suggest import suggest_markers
 from ..pose import estimate_pose
-from ._common import _check_output, _floats, _refuse_clobber
+from ._common import _check_output, _commit, _floats, _refuse_clobber
 
 HELP = "predicted position error over a room seen from above, and where to add markers"
 DESCRIPTION = "Predicted position error over a room, before printing, and what to add to reach a target."
@@ -195,6 +195,7 @@ def run(args) -> int:
 
     fig = plan_figure(plan, world, target_mm=args.target_mm)
     atomic_write(args.output, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    _commit()
     ok = np.isfinite(plan.toward_mm)
     print(
         f"{args.output}: {plan.places()}; a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers"

@@ -17,6 +17,7 @@ from ._common import (
     _add_image_size_option,
     _add_map_options,
     _check_output,
+    _commit,
     _floats,
     _json_text,
     _load_camera,
@@ -184,16 +185,11 @@ def run(args) -> int:
         marker_map, camera, T_world_camera, seed=args.seed, noise_std_gray=args.noise, blur_px=args.blur
     )
 
-    def write_both(tmp_truth=None):
-        if tmp_truth is not None:
-            record = _truth_record(args, out, marker_map, camera, T_world_camera, truth)
-            tmp_truth.write_text(_json_text(record), encoding="utf-8")
-        write_image(out, image)
-
+    write_image(out, image)
     if truth_path is not None:
-        atomic_write(truth_path, write_both)
-    else:
-        write_both()
+        text = _json_text(_truth_record(args, out, marker_map, camera, T_world_camera, truth))
+        atomic_write(truth_path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    _commit()  # the picture and its truth take their names together
     seen = ", ".join(str(i) for i in sorted(truth)) or "none"
     print(
         f"{out}: {camera.width}x{camera.height}, markers seen whole: {seen}"

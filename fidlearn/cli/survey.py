@@ -22,6 +22,7 @@ from ._common import (
     _add_image_size_option,
     _add_map_options,
     _check_output,
+    _commit,
     _load_camera,
     _load_map,
     _Progress,
@@ -123,6 +124,7 @@ def run(args) -> int:
     result.save(args.output)
     if fig is not None:
         atomic_write(args.plot, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    _commit()  # the map and the plot take their names together
     _report(result, args)
     return 0
 

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write, file_mode_for
-from ..errors import FidlearnError, PrintError
+from .._io import atomic_write, outputs_together
+from ..errors import PrintError
 
 #: Paper sizes (width, height) in mm, portrait.
 PAPERS: dict[str, tuple[float, float]] = {"a4": (210.0, 297.0), "letter": (215.9, 279.4)}
@@ -346,32 +346,18 @@ def save_pages(figures: Sequence, path: str | os.PathLike, dpi: float | None = N
 
 
 def _write_pngs(figures: Sequence, names: list[Path], dpi: float) -> list[Path]:
-    import tempfile
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    tmps: list[Path] = []
-    try:
+    with outputs_together() as outputs:  # every page staged before any takes its name
         for fig, name in zip(figures, names):
-            folder = name.parent if str(name.parent) else Path(".")
-            if not folder.is_dir():
-                raise FidlearnError(f"{name}: the folder {folder} does not exist; create it first")
             w_mm, h_mm = fig.get_size_inches() * 25.4
             # whole pixels: Agg truncates, so ask for round(size) + a quarter pixel
             w_px, h_px = round(w_mm / 25.4 * dpi), round(h_mm / 25.4 * dpi)
             fig.set_size_inches((w_px + 0.25) / dpi, (h_px + 0.25) / dpi)
-            fd, tmp_name = tempfile.mkstemp(prefix=f".{name.name}.", suffix=".png", dir=folder)
-            os.close(fd)
-            tmps.append(Path(tmp_name))
             FigureCanvasAgg(fig)
-            fig.savefig(tmp_name, format="png", dpi=dpi, metadata={"Software": "fidlearn"})
-        for tmp, name in zip(tmps, names):
-            os.chmod(tmp, file_mode_for(name))
-            os.replace(tmp, name)
-    except BaseException:
-        for tmp in tmps:
-            tmp.unlink(missing_ok=True)
-        raise
+            outputs.stage(
+                name, lambda tmp, fig=fig: fig.savefig(tmp, format="png", dpi=dpi, metadata={"Software": "fidlearn"})
+            )
     return names
 
 
