@@ -92,6 +92,7 @@ def test_the_intrinsics_standard_deviations_equal_opencvs(bundled):
     assert c.good_fraction == 1.0 and c.uncertainty_px.max() < GOOD_UNCERTAINTY_PX
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_seeded_bad_sets_are_flagged_and_a_good_set_is_not(seed):
     rng = np.random.default_rng(seed)
@@ -110,6 +111,7 @@ def test_seeded_bad_sets_are_flagged_and_a_good_set_is_not(seed):
     assert any("does not look flat in view 7:" in f for f in bent.flags)
 
 
+@pytest.mark.slow
 def test_the_bend_test_is_an_f_test_at_its_stated_false_alarm_rate():
     # the textbook 95 % quantiles of F(3, nu), and chi-square(3) / 3 for a large nu
     for nu, f95 in ((10, 3.71), (20, 3.10), (120, 2.68)):

@@ -374,6 +374,7 @@ def test_every_question_says_where_its_scene_is():
     assert questions == set(SCENES) | set(SLOW)
 
 
+@pytest.mark.slow
 def test_every_variant_is_physically_possible_for_200_learners():
     bad = []
     for (number, name), scene_of in SCENES.items():

@@ -552,6 +552,7 @@ def _bunched(q):
     return [(0, y - 2 * s, z), (0, y - s / 2, z), (0, y + s, z)]
 
 
+@pytest.mark.slow
 def test_design_key_meets_the_target_and_bunched_markers_do_not_for_200_learners():
     """The key's triangle is Correct for 200 learners (at least 93 % of the area within 10 mm where 90 % is
     asked, 97 % or more for most), and three markers side by side are not (at most 80 % within): about 0.3 s per

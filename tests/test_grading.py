@@ -118,6 +118,7 @@ def batch(tmp_path_factory):
     }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k, cheat", list(enumerate(CHEATS)))
 def test_every_cheat_scores_zero_with_a_reason(batch, k, cheat):
     if cheat == "reads the class secret" and not AS_ROOT:
@@ -128,6 +129,7 @@ def test_every_cheat_scores_zero_with_a_reason(batch, k, cheat):
     assert reasons.strip()
 
 
+@pytest.mark.slow
 def test_the_reasons_say_what_happened(batch):
     g = {cheat: batch["grades"][f"cheater{k:02d}"] for k, cheat in enumerate(CHEATS)}
     assert "a cell ran longer than 20 s" in g["loops forever"].problem
@@ -140,6 +142,7 @@ def test_the_reasons_say_what_happened(batch):
     assert "kernel died" in forged.problem and all(s == "Not attempted" for _, s, _ in forged.results)
 
 
+@pytest.mark.slow
 def test_honest_notebooks_keep_their_marks(batch):
     for who in ("Honest.One", "honest.two"):
         g = batch["grades"][who]
@@ -147,6 +150,7 @@ def test_honest_notebooks_keep_their_marks(batch):
         assert g.score == len(g.results) == len(exercises.lesson("03")), (g.results, g.problem)
 
 
+@pytest.mark.slow
 def test_no_submission_was_changed_and_the_csv_has_every_row(batch):
     assert {p.name: p.read_bytes() for p in batch["subs"].iterdir()} == batch["before"]
     rows = list(csv.DictReader(batch["csv"].open()))

@@ -176,14 +176,58 @@ def test_readme_quick_start_is_exactly_make_lab_and_make_test():
 
 def test_makefile_has_the_two_commands_and_the_ci_targets():
     makefile = (ROOT / "Makefile").read_text()
-    for target in ("lab", "test", "test-cv4", "test-floor", "test-browser"):
+    for target in ("lab", "test", "test-slow", "test-cv4", "test-floor", "test-browser"):
         assert re.search(rf"^{re.escape(target)}:", makefile, re.M), f"Makefile has no '{target}' target"
     assert re.search(r'"opencv-contrib-python-headless<5"', makefile), "make test-cv4 must install the newest 4.x"
 
 
-def test_ci_runs_make_test_first_then_opencv_4_the_floors_and_the_browser():
+def test_ci_runs_make_test_first_then_the_slow_tests_opencv_4_the_floors_and_the_browser():
     lines = [
         line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines() if not line.strip().startswith("#")
     ]
     make_calls = [m.group(1) for line in lines for m in [re.search(r"\bmake (test[\w-]*)\s*$", line)] if m]
-    assert make_calls == ["test", "test-cv4", "test-floor", "test-browser"]
+    assert make_calls == ["test", "test-slow", "test-cv4", "test-floor", "test-browser"]
+
+
+def _existing_environment_commands() -> list[str]:
+    """The pytest commands of the README's "An existing environment" bullet, as written."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    bullet = re.search(r"^- \*\*An existing environment\*\*(.*?)(?=^- |^$)", readme, re.S | re.M)
+    assert bullet, "README.md has no '- **An existing environment**' bullet"
+    spans = re.findall(r"`([^`]*\bpytest [^`]*)`", bullet.group(1))
+    return [span.split("&&")[-1].strip() for span in spans]
+
+
+def test_the_readme_pytest_commands_collect_as_written():
+    """The bare ``pytest`` commands of the README collect every test (``benchmarks`` imports too) from the
+    checkout's top folder, with nothing but the installed package on ``sys.path``."""
+    import glob
+    import os
+    import shlex
+    import subprocess
+
+    commands = _existing_environment_commands()
+    assert len(commands) == 2 and all(c.startswith("pytest ") for c in commands), commands
+    pytest_exe = Path(sys.executable).with_name("pytest")
+    assert pytest_exe.exists(), f"{pytest_exe}: pytest's script is installed beside the Python that runs the tests"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONDONTWRITEBYTECODE"] = "1"  # nothing written into the checkout
+    selected = {}
+    for command in commands:
+        args = [a for word in shlex.split(command)[1:] for a in (sorted(glob.glob(word, root_dir=ROOT)) or [word])]
+        run = subprocess.run(
+            [str(pytest_exe), *args, "--collect-only", "-q", "-p", "no:cacheprovider"],
+            cwd=ROOT,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert run.returncode == 0, f"{command}\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}"
+        ids = [line for line in run.stdout.splitlines() if "::" in line]
+        selected[command] = ids
+    fast, slow = selected.values()
+    assert any(i.startswith("tests/test_planning_real.py::") for i in fast)  # imports benchmarks
+    assert any(i.startswith("notebooks/00_welcome.ipynb::") for i in fast)
+    assert any(i.startswith("fidlearn/") for i in fast)  # the docstring examples
+    assert slow and not set(fast) & set(slow)

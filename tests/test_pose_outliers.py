@@ -61,6 +61,7 @@ def screen_fires(m: MarkerMap, dets, sigma_given) -> bool:
     return pose_mod._screen(obs, cands[0], CAM, sigma_given) is not None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("n", "sigma", "given", "seed"), [(3, 1.0, False, 1), (4, 0.5, True, 2), (8, 0.3, False, 3)])
 def test_the_screen_fires_on_pure_noise_at_its_stated_rate(n, sigma, given, seed):
     rng = np.random.default_rng(seed)
@@ -161,6 +162,7 @@ def test_the_drop_of_a_move_is_what_refitting_with_that_move_removes():
     assert int(np.argmax(drop)) == 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("n", "sigma", "given", "seed"), [(3, 0.5, True, 8), (4, 1.0, False, 9)])
 def test_the_test_of_a_move_fires_on_pure_noise_at_its_stated_rate(n, sigma, given, seed, monkeypatch):
     # At 2 % (the limit's formula holds at any level; at the library's 0.2 % these trials would see 5)

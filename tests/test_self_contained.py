@@ -72,7 +72,7 @@ def outside(paths: list[str], tmp: Path) -> list[str]:
 @pytest.mark.parametrize(
     "script, args",
     [
-        ("tools/make_data.py", ["--data-dir", "{tmp}/data"]),
+        pytest.param("tools/make_data.py", ["--data-dir", "{tmp}/data"], marks=pytest.mark.slow),
         ("tools/make_conventions_figure.py", ["{tmp}/conventions.png"]),
     ],
 )
