@@ -11,6 +11,7 @@ import pytest
 
 import fidlearn
 from fidlearn import Camera, Detection, FidlearnError, MarkerMap, estimate_pose, look_at, predict_accuracy
+from fidlearn._staged import outputs_together
 from fidlearn.cli import plan as command
 from fidlearn.errors import TransformError
 from fidlearn.planning import noise, plan_room, suggest_markers
@@ -273,9 +274,11 @@ def test_suggestions_on_an_area_smaller_than_the_room_grid(camera):
 
 
 def _run_plan(argv):
+    """The plan command's ``run`` as ``fidlearn.cli.main`` calls it: its outputs committed together."""
     p = argparse.ArgumentParser()
     command.add_arguments(p)
-    return command.run(p.parse_args(argv))
+    with outputs_together():
+        return command.run(p.parse_args(argv))
 
 
 def test_plan_command_writes_the_picture_and_says_the_figures(tmp_path, capsys):
