@@ -15,9 +15,9 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+from .._plain import to_plain
+from ..errors import GradingError
 from ._learners import read_roster, read_secret, release_tag
-from ._plain import to_plain
-from .errors import GradingError
 
 #: Where a released notebook says whose it is: ``metadata["fidlearn"] = {"lesson", "learner", "tag"}``.
 METADATA_KEY = "fidlearn"
