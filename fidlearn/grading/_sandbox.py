@@ -1,6 +1,6 @@
 """The sandbox a submitted notebook runs in (see :mod:`fidlearn.grading`).
 
-Each notebook runs in a box of its own (:mod:`fidlearn._box`): with bubblewrap, a root of its own
+Each notebook runs in a box of its own (:mod:`fidlearn.grading._box`): with bubblewrap, a root of its own
 that holds only the system, the Python and fidlearn (read-only) and a size-limited scratch
 folder, no network, its own process namespace (everything it started dies with it), resource
 limits, an environment without the instructor's variables and, when the grader is root, the
