@@ -179,7 +179,8 @@ def cls(tmp_path, secret, monkeypatch):
     def fake(nb, number, learner, secret_bytes, **kw):
         graded.append((Path(nb).name, learner))
         scores = {"alice": 5, "bob": 3, "dave@uni.edu": 1, "eve": 4}
-        results = [(f"q{i}", "Correct" if i <= scores[learner] else "Incorrect", "") for i in range(1, 6)]
+        mark = {True: "Correct", False: "Incorrect"}
+        results = [exercises.Result(f"q{i}", mark[i <= scores[learner]], "") for i in range(1, 6)]
         return grading.NotebookGrade(str(nb), learner, number, results)
 
     monkeypatch.setattr(_grader, "grade_one", fake)

@@ -176,14 +176,14 @@ def collect(namespace: dict, path: str = ANSWERS_FILE) -> None:
 
 @dataclass
 class NotebookGrade:
-    """One learner's notebook: its score, a (question, status, message) row per question, and why not more.
+    """One learner's notebook: its score, a :class:`~fidlearn.exercises.Result` per question, and why not more.
 
     Parameters
     ----------
     notebook, learner, lesson : str
         The notebook's path, the learner's id, the lesson.
-    results : list of (str, str, str)
-        ``(question, status, message)`` per question.
+    results : list of Result
+        One :class:`~fidlearn.exercises.Result` per question (the type self-study checks give).
     problem : str
         Why it got 0 or took too long ("" when all went well).
     cell_errors : list of str
@@ -209,7 +209,7 @@ class NotebookGrade:
         -------
         int
         """
-        return sum(1 for _, status, _ in self.results if status == "Correct")
+        return sum(r.correct for r in self.results)
 
     def line(self) -> str:
         """One line for the grader's log: notebook, learner, lesson, score and any problem.
@@ -272,6 +272,7 @@ def grade_one(
         For a learner id or a ``run_as`` user that cannot be used.
     """
     from .. import exercises
+    from ..exercises._engine import NOT_ATTEMPTED, Result
 
     number = exercises.lesson_number(lesson)
     learner = normalize_learner(learner) if secret is not None else str(learner or "").strip()
@@ -281,7 +282,7 @@ def grade_one(
     questions = (
         graded_questions(number, learner, secret) if secret is not None else exercises.build_questions(number, learner)
     )
-    grade.results = [(q.name, "Not attempted", "no answer") for q in questions]
+    grade.results = [Result(q.name, NOT_ATTEMPTED, "no answer") for q in questions]
     plan = sandbox_plan(run_as)
     try:
         inputs_json = json.dumps(inputs_record(number, learner, secret)) if secret is not None else None
@@ -298,21 +299,23 @@ def grade_one(
     return grade
 
 
-def _judge(question, answer) -> tuple[str, str, str]:
+def _judge(question, answer):
     """Judge one answer in the grader's process: a bug in a learner's value can only make it wrong."""
+    from ..exercises._engine import INCORRECT, NOT_ATTEMPTED, Result
+
     if answer is None:
-        return (question.name, "Not attempted", "no answer")
+        return Result(question.name, NOT_ATTEMPTED, "no answer")
     if isinstance(answer, _Unsupported):
-        return (
+        return Result(
             question.name,
-            "Incorrect",
+            INCORRECT,
             f"an answer of type {answer.type_name} cannot be graded; give numbers, arrays or text",
         )
     try:
         r = question.grade(answer)
     except Exception as exc:  # noqa: BLE001 - an answer that breaks the checker is wrong, never fatal
-        return (question.name, "Incorrect", f"the answer could not be checked ({type(exc).__name__})")
-    return (r.question, r.status, r.message)
+        return Result(question.name, INCORRECT, f"the answer could not be checked ({type(exc).__name__})")
+    return r
 
 
 def grade(
@@ -424,6 +427,6 @@ def _write_csv(path, grades: list[NotebookGrade]) -> None:
         score = g.score if g.graded else ""
         if not g.results:
             w.writerow([g.notebook, g.learner, g.lesson, 0 if g.graded else "", "", "", "", g.problem])
-        for q, status, message in g.results:
-            w.writerow([g.notebook, g.learner, g.lesson, score, q, status, message, g.problem])
+        for r in g.results:
+            w.writerow([g.notebook, g.learner, g.lesson, score, r.question, r.status, r.message, g.problem])
     write_text_atomic(path, buf.getvalue())

@@ -6,7 +6,6 @@ import os
 import re
 from dataclasses import dataclass
 
-from ..exercises._engine import Result
 from ..exercises._registry import lesson_number
 
 
@@ -109,6 +108,5 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
         return Grade(path, None, learner, [], ["no exercises found: the notebook never ran ex = exercises.lesson(...)"])
     number = lesson_number(found.pop())
     g = _grader.grade_one(path, number, learner or "", None, timeout_s=timeout)
-    results = [Result(q, status, message) for q, status, message in g.results]
     errors = list(g.cell_errors) + ([g.problem] if g.problem else [])
-    return Grade(path, number, learner or "", results, errors)
+    return Grade(path, number, learner or "", g.results, errors)
