@@ -18,10 +18,10 @@ from fidlearn.detection import (
     as_gray,
     detect_markers,
     detect_markers_with_rejected,
-    draw_detections,
     load_image,
     refine_corners_edges,
 )
+from fidlearn.drawing import draw_detections
 from fidlearn.errors import DictionaryError, FidlearnError, ImageError
 from fidlearn.synthetic import look_at, render_scene
 
