@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 
 import fidlearn
-from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv
+from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, _cv_charuco
 from fidlearn.detection import REFINE_METHODS, Detection, detect_markers, refine_corners_edges
 from fidlearn.synthetic import look_at, render_scene
 
@@ -265,7 +265,7 @@ def real_photos(methods) -> dict:
     from fidlearn.detection import load_image
 
     cam = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
-    board = _cv.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
+    board = _cv_charuco.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
     obj = {
         int(i): np.asarray(o, float).reshape(4, 3)[:, :2]
         for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())

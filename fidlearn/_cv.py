@@ -458,15 +458,3 @@ def rejected_quads(rejected) -> list[np.ndarray]:
     list of ndarray, shape (4, 2), float64
     """
     return [np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())]
-
-
-_CHARUCO = ("charuco_board", "charuco_detector", "detect_charuco")
-
-
-def __getattr__(name: str):
-    """The ChArUco helpers live in :mod:`fidlearn._cv_charuco` (it builds on this module)."""
-    if name in _CHARUCO:
-        from . import _cv_charuco  # noqa: PLC0415 - it imports this module: resolved on first use
-
-        return getattr(_cv_charuco, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -35,7 +35,6 @@ __all__ = [
     "load_image",
     "detect_markers",
     "detect_markers_with_rejected",
-    "draw_detections",  # noqa: F822 - from fidlearn.drawing, see __getattr__
     "refine_corners_edges",
     "REFINE_METHODS",
     "DEFAULT_REFINE",
@@ -476,12 +475,3 @@ def detect_markers_with_rejected(
     """
     detections, rejected = _detect(image, dictionary, refine, detector_params, ids)
     return detections, _cv.rejected_quads(rejected)
-
-
-def __getattr__(name: str):
-    """``draw_detections`` (and ``_as_bgr``) live in :mod:`fidlearn.drawing`; still importable from here."""
-    if name in ("draw_detections", "_as_bgr"):
-        from . import drawing  # noqa: PLC0415 - drawing imports this module: resolved on first use
-
-        return getattr(drawing, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

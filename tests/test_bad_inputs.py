@@ -40,6 +40,7 @@ from fidlearn.errors import (
     ImageError,
     MapError,
 )
+from fidlearn.grading import _selfstudy_cli
 
 SEED = {
     "units": "ft",
@@ -1462,7 +1463,6 @@ def test_tracker_refuses_bad_frames_and_carries_on(seed_scene):
 
 
 # -- grading learners' notebooks ----------------------------------------------------------
-from fidlearn import exercises  # noqa: E402
 
 GRADE = [
     ("missing notebook", "nope.ipynb", "nope.ipynb: no such notebook; check the path"),
@@ -1480,7 +1480,7 @@ def test_bad_notebook_to_grade(tmp_path, monkeypatch, capsys, name, fragment):
     (tmp_path / "cut.ipynb").write_text('{"cells": [{"cell_type": "code", "source": "x = ')
     monkeypatch.chdir(tmp_path)
     before = sorted(p.name for p in tmp_path.rglob("*"))
-    status = exercises._main(["grade", name, "--csv", "grades.csv"])
+    status = _selfstudy_cli._main(["grade", name, "--csv", "grades.csv"])
     out, err = capsys.readouterr()
     lines = err.splitlines()
     assert status == 2 and len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], err

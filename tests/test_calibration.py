@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import fidlearn
+import fidlearn._cv_charuco
 from fidlearn import Camera, data_path
 from fidlearn.calibration import Calibration, calibrate_charuco, calibrate_checkerboard
 from fidlearn.errors import CalibrationError, DictionaryError, FidlearnError, FidlearnWarning
@@ -413,7 +414,7 @@ def test_charuco_legacy_layout_makes_no_difference_with_seven_rows(charuco_files
 @pytest.fixture(scope="module")
 def legacy_board_views():
     """Four perspective views of a 5x6 ChArUco board printed with the pre-4.6 layout."""
-    board = fidlearn._cv.charuco_board((5, 6), 40, 20, "6X6_250", legacy=True)
+    board = fidlearn._cv_charuco.charuco_board((5, 6), 40, 20, "6X6_250", legacy=True)
     sheet = board.generateImage((500, 600), marginSize=40)
     src = np.float32([[0, 0], [500, 0], [500, 600], [0, 600]])
     rng = np.random.default_rng(0)

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, data_path
+from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, _cv_charuco, data_path
 from fidlearn.detection import (
     _DETECTOR_CACHE,
     DEFAULT_DETECTOR_PARAMS,
@@ -18,10 +18,10 @@ from fidlearn.detection import (
     as_gray,
     detect_markers,
     detect_markers_with_rejected,
-    draw_detections,
     load_image,
     refine_corners_edges,
 )
+from fidlearn.drawing import draw_detections
 from fidlearn.errors import DictionaryError, FidlearnError, ImageError
 from fidlearn.synthetic import look_at, render_scene
 
@@ -114,7 +114,7 @@ def test_charuco_marker_corners_fit_the_board_geometry():
     and 0.37 px when the edge is placed half-way in light (``gamma=2.2``).
     """
     cam = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
-    board = _cv.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
+    board = _cv_charuco.charuco_board((5, 7), 40.0, 20.0, "6X6_250")
     obj = {
         int(i): np.asarray(o, float).reshape(4, 3)[:, :2]
         for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())

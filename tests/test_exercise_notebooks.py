@@ -17,7 +17,7 @@ import sys
 import nbformat
 import pytest
 
-from fidlearn import exercises
+from fidlearn import exercises, grading
 from fidlearn.data import repo_dir
 
 EXERCISES_DIR = repo_dir() / "notebooks" / "exercises"
@@ -132,7 +132,7 @@ def test_grading_a_learners_notebook(tmp_path):
             cell.source = cell.source.replace(stub.format(q="q3"), "q3.answer = 1 / 0")
     path = tmp_path / "07_erin.ipynb"
     nbformat.write(nb, path)
-    grade = exercises.grade_notebook(path, learner="erin")
+    grade = grading.grade_notebook(path, learner="erin")
     assert (grade.lesson, grade.learner) == ("07", "erin")
     assert [r.status for r in grade.results] == ["Correct", "Incorrect"] + ["Not attempted"] * (len(ex) - 2)
     assert "extrinsic matrix" in grade.results[1].message

@@ -745,8 +745,10 @@ def test_unknown_lesson_or_question_is_an_exercise_error():
 
 
 def test_lessons_are_registered_in_notebook_order_and_lessons_stays_a_function():
-    assert list(exercises._LESSONS) == sorted(exercises._LESSONS)
-    assert callable(exercises.lessons) and list(exercises.lessons()) == list(exercises._LESSONS)
+    from fidlearn.exercises._registry import _LESSONS
+
+    assert list(_LESSONS) == sorted(_LESSONS)
+    assert callable(exercises.lessons) and list(exercises.lessons()) == list(_LESSONS)
     from fidlearn.exercises.lessons import MODULES
 
     assert [m.NUMBER for m in MODULES] == list(exercises.lessons())

@@ -125,7 +125,7 @@ def test_every_cheat_scores_zero_with_a_reason(batch, k, cheat):
         pytest.skip("graded as the instructor's own user, a notebook can read the secret: docs/teaching.md says so")
     g = batch["grades"][f"cheater{k:02d}"]
     assert g.score == 0, (cheat, g.results, g.problem)
-    reasons = g.problem or "; ".join(f"{q}: {s} {m}" for q, s, m in g.results)
+    reasons = g.problem or "; ".join(f"{r.question}: {r.status} {r.message}" for r in g.results)
     assert reasons.strip()
 
 
@@ -135,11 +135,11 @@ def test_the_reasons_say_what_happened(batch):
     assert "a cell ran longer than 20 s" in g["loops forever"].problem
     assert "kernel died" in g["kills its kernel"].problem
     assert "kernel died" in g["exits"].problem and "no answers were collected" in g["exits"].problem
-    assert all(s == "Not attempted" for _, s, _ in g["builds another lesson"].results)
-    assert any("cannot be graded" in m for _, _, m in g["answers with a function"].results)
+    assert all(r.status == "Not attempted" for r in g["builds another lesson"].results)
+    assert any("cannot be graded" in r.message for r in g["answers with a function"].results)
     # a kernel that exits after writing the file hands in nothing: only the appended cell's answers count
     forged = g["forges the answers file"]
-    assert "kernel died" in forged.problem and all(s == "Not attempted" for _, s, _ in forged.results)
+    assert "kernel died" in forged.problem and all(r.status == "Not attempted" for r in forged.results)
 
 
 @pytest.mark.slow

@@ -241,7 +241,7 @@ def test_every_cheat_scores_zero(batch, who, cheat):
     g = batch["grades"][who]
     assert g.graded and len(g.results) == batch["n"], (cheat, g.problem)
     assert g.score == 0, (cheat, g.results, g.problem)
-    assert all(status in ("Incorrect", "Not attempted") for _, status, _ in g.results), (cheat, g.results)
+    assert all(r.status in ("Incorrect", "Not attempted") for r in g.results), (cheat, g.results)
 
 
 @pytest.mark.slow

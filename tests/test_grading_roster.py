@@ -18,9 +18,10 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from fidlearn import _sandbox, exercises, grading
+from fidlearn import exercises, grading
 from fidlearn.cli import main
 from fidlearn.errors import ExerciseError, FidlearnError, GradingError
+from fidlearn.grading import _grader, _learners, _sandbox
 
 LESSON = "01"
 
@@ -55,11 +56,11 @@ def test_unsafe_ids_are_refused(bad, why):
 
 def test_a_roster_with_two_lines_for_one_learner_names_both():
     with pytest.raises(GradingError, match=r"line 2 'a b' and line 4 'a_b' are one learner \('a_b'\)"):
-        grading._learners.read_roster(["alice", "a b", "# comment", "a_b"], "roster.txt")
+        _learners.read_roster(["alice", "a b", "# comment", "a_b"], "roster.txt")
     with pytest.raises(GradingError, match=r"roster.txt, line 2: learner id '\.\.'"):
-        grading._learners.read_roster(["alice", ".."], "roster.txt")
+        _learners.read_roster(["alice", ".."], "roster.txt")
     long_a, long_b = "x" * 63 + "a", "x" * 63 + "b"  # equal in their first 63 characters, two learners
-    assert grading._learners.read_roster([long_a, long_b], "r") == [long_a, long_b]
+    assert _learners.read_roster([long_a, long_b], "r") == [long_a, long_b]
 
 
 def test_lesson_numbers_are_ascii_digits_only():
@@ -91,7 +92,7 @@ def test_release_names_folders_by_id_and_writes_nothing_outside(tmp_path, secret
     record = json.loads((folders[0] / grading.INPUTS_FILE).read_text())
     assert record["learner"] == "carol_smith" and record["lesson"] == LESSON
     nb = nbformat.read(folders[0] / exercises.notebook_name(LESSON), as_version=4)
-    tag = grading._learners.release_tag(grading.read_secret(secret), LESSON, "carol_smith")
+    tag = _learners.release_tag(grading.read_secret(secret), LESSON, "carol_smith")
     assert nb.metadata["fidlearn"] == {"lesson": LESSON, "learner": "carol_smith", "tag": tag}
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*before, "out"])
     with pytest.raises(GradingError, match="not an empty folder"):
@@ -110,7 +111,7 @@ def test_the_inputs_file_holds_no_answer_and_the_seed_uses_the_id(secret):
 
 @pytest.mark.parametrize("failure", [OSError(errno.ENOSPC, "No space left on device"), KeyboardInterrupt()])
 def test_a_release_that_fails_leaves_nothing(tmp_path, secret, monkeypatch, failure):
-    from fidlearn import _release
+    from fidlearn.grading import _release
 
     calls = []
     real = _release._write
@@ -131,7 +132,6 @@ def test_a_release_that_fails_leaves_nothing(tmp_path, secret, monkeypatch, fail
 
 
 def test_new_secret_on_a_full_disk_leaves_no_file(tmp_path, monkeypatch):
-    from fidlearn import _learners
 
     def full(fd, data):
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -179,11 +179,12 @@ def cls(tmp_path, secret, monkeypatch):
     def fake(nb, number, learner, secret_bytes, **kw):
         graded.append((Path(nb).name, learner))
         scores = {"alice": 5, "bob": 3, "dave@uni.edu": 1, "eve": 4}
-        results = [(f"q{i}", "Correct" if i <= scores[learner] else "Incorrect", "") for i in range(1, 6)]
+        mark = {True: "Correct", False: "Incorrect"}
+        results = [exercises.Result(f"q{i}", mark[i <= scores[learner]], "") for i in range(1, 6)]
         return grading.NotebookGrade(str(nb), learner, number, results)
 
-    monkeypatch.setattr(grading, "grade_one", fake)
-    monkeypatch.setattr(grading, "sandbox_plan", lambda run_as=None: _NO_BOX)  # no notebook runs here
+    monkeypatch.setattr(_grader, "grade_one", fake)
+    monkeypatch.setattr(_grader, "sandbox_plan", lambda run_as=None: _NO_BOX)  # no notebook runs here
     return {"paths": paths, "subs": subs, "secret": secret, "graded": graded, "tmp": tmp_path}
 
 
@@ -270,14 +271,14 @@ def test_an_interrupted_or_refused_grade_writes_no_csv(cls, monkeypatch, failure
     p = cls["paths"]
     out = cls["tmp"] / "grades.csv"
     if failure == "signal":
-        real = grading.grade_one
+        real = _grader.grade_one
 
         def stop(nb, *a, **k):
             if cls["graded"]:
                 raise KeyboardInterrupt
             return real(nb, *a, **k)
 
-        monkeypatch.setattr(grading, "grade_one", stop)
+        monkeypatch.setattr(_grader, "grade_one", stop)
         with pytest.raises(KeyboardInterrupt):
             grading.grade([p["alice"], p["bob"]], LESSON, cls["secret"], out)
     else:

@@ -30,7 +30,8 @@ import nbformat
 import pytest
 from helpers import as_unprivileged, python_paths
 
-from fidlearn import _box, _sandbox, grading
+from fidlearn import grading
+from fidlearn.grading import _box, _sandbox
 
 ROOT = Path(__file__).resolve().parent.parent
 KEY = ROOT / "notebooks" / "exercises" / "solutions" / "03_extrinsics.ipynb"

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import _cv
+from fidlearn import _cv, _cv_charuco
 from fidlearn import printables as P
 from fidlearn.printables import PrintError
 
@@ -354,8 +354,8 @@ def test_charuco_pdf_detected_by_opencv(tmp_path):
     sheet = P.board_pdf(path, (4, 6), 30, "a4", charuco=True, dictionary="6X6_250", marker_size_mm=22)
     assert sheet.squares == (5, 7)
     (gray,) = rasterize(path)
-    board = _cv.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
-    ch_corners, ch_ids, m_corners, m_ids = _cv.charuco_detector(board).detectBoard(gray)
+    board = _cv_charuco.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
+    ch_corners, ch_ids, m_corners, m_ids = _cv_charuco.charuco_detector(board).detectBoard(gray)
     assert ch_ids is not None and sorted(np.asarray(ch_ids).ravel().tolist()) == list(range(4 * 6))
     assert sorted(np.asarray(m_ids).ravel().tolist()) == list(range(17))  # (5*7)//2 markers
     for c in m_corners:

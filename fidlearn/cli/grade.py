@@ -7,9 +7,9 @@ from pathlib import Path
 
 from .. import grading
 from .._files import MAX_TEXT_BYTES, read_bytes
-from .._gradebook import lms_path
-from .._learners import read_roster
 from ..errors import UsageError
+from ..grading._gradebook import lms_path
+from ..grading._learners import read_roster
 from ._common import _check_output, _refuse_clobber
 
 

@@ -25,7 +25,7 @@ machine and every Python run. Without an id (``learner=""``) the id comes from
 the environment variable ``FIDLEARN_LEARNER``, else the whole class shares one
 variant.
 
-Grading: :func:`grade_notebook` (or ``python -m fidlearn.exercises grade
+Grading: :func:`fidlearn.grading.grade_notebook` (or ``python -m fidlearn.exercises grade
 NOTEBOOK... --learner ID --csv FILE``) runs a learner's notebook in a fresh
 kernel and checks the answers its lesson holds. The answer-key notebooks are
 built from the lesson definitions here (:func:`answer_key_notebook`) and the
@@ -52,7 +52,6 @@ from ..errors import ExerciseError
 # The lesson modules register themselves first: the subpackage ``lessons`` would otherwise be
 # the attribute ``fidlearn.exercises.lessons``, which is the function :func:`lessons` below.
 from . import lessons as _lesson_modules  # noqa: F401  (registers the lessons)
-from ._cli import _main as _main
 from ._engine import (
     BEGIN_SOLUTION,
     CORRECT,
@@ -68,11 +67,8 @@ from ._engine import (
     strict,
     strict_mode,
 )
-from ._engine import _AnswerError as _AnswerError
-from ._grade import Grade, grade_notebook
 from ._graded import GradedLesson, GradedQuestion
 from ._notebooks import answer_key_notebook, solution_blocks, student_copy
-from ._registry import _LESSONS as _LESSONS
 from ._registry import (
     INPUTS_FILE,
     Lesson,
@@ -82,8 +78,6 @@ from ._registry import (
     lessons,
     notebook_name,
 )
-from ._scenery import _SEED as _SEED
-from ._scenery import _rng as _rng
 
 __all__ = [
     "CORRECT",
@@ -112,6 +106,4 @@ __all__ = [
     "answer_key_notebook",
     "student_copy",
     "solution_blocks",
-    "grade_notebook",
-    "Grade",
 ]

@@ -10,7 +10,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from .._learners import fold_learner
 from ..errors import ExerciseError
 from ._engine import Question, Result
 from ._graded import GradedLesson
@@ -27,6 +26,27 @@ class _LessonInfo:
 
 
 _LESSONS: dict[str, _LessonInfo] = {}
+
+
+def fold_learner(learner) -> str:
+    """A learner id folded to the form every variant is seeded with: blanks trimmed and merged, lower case.
+
+    Parameters
+    ----------
+    learner : object
+        The id as given (``None`` counts as ``""``, the class's shared variant).
+
+    Returns
+    -------
+    str
+        ``"  Alice   Smith "`` -> ``"alice smith"``; ``""`` stays ``""``.
+
+    Examples
+    --------
+    >>> fold_learner("Alice "), fold_learner(None)
+    ('alice', '')
+    """
+    return " ".join(str(learner or "").split()).lower()
 
 
 def _register(number: str, topic: str, title: str, intro: str, build: Callable[[str], list]) -> None:

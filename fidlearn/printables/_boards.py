@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _cv
+from .. import _cv, _cv_charuco
 from ..errors import PrintError
 from ._markers import marker_cells
 from ._page import (
@@ -166,7 +166,7 @@ def _charuco_squares(
             f"a {cols}x{rows} ChArUco board needs {n_markers} markers but {name} has only "
             f"{_cv.dictionary_size(name)}; choose a bigger dictionary such as 6X6_250"
         )
-    board = _cv.charuco_board((cols, rows), square_size_mm, marker_size_mm, name)
+    board = _cv_charuco.charuco_board((cols, rows), square_size_mm, marker_size_mm, name)
     obj = np.asarray(board.getObjPoints(), dtype=np.float64).reshape(-1, 4, 3)
     ids = np.asarray(board.getIds()).reshape(-1)
     markers, white = [], set()

@@ -10,7 +10,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .. import _cv, frames
+from .. import _cv, _cv_charuco, frames
 from ..calibration.boards import checkerboard_points
 from ..camera import Camera
 from ..errors import FidlearnError
@@ -94,7 +94,7 @@ class CalibrationViews:
         """
         if not self.charuco:
             raise FidlearnError("a checkerboard has no cv2.aruco board; use pattern_size and square_size_mm")
-        return _cv.charuco_board(self.pattern_size, self.square_size_mm, self.marker_size_mm, self.dictionary)
+        return _cv_charuco.charuco_board(self.pattern_size, self.square_size_mm, self.marker_size_mm, self.dictionary)
 
     def __repr__(self) -> str:
         kind = (
@@ -198,7 +198,7 @@ def _board_geometry(charuco: bool, pattern_size, square_size_mm, marker_size_mm,
             raise FidlearnError(
                 f"marker_size_mm ({marker_size_mm}) must be between 0 and square_size_mm ({square_size_mm})"
             )
-        board = _cv.charuco_board(pattern_size, square_size_mm, marker_size_mm, dictionary)
+        board = _cv_charuco.charuco_board(pattern_size, square_size_mm, marker_size_mm, dictionary)
         object_points = np.asarray(board.getChessboardCorners(), dtype=np.float64).reshape(-1, 3)
         squares = tuple(int(v) for v in pattern_size)
         centre = np.array([squares[0] * square_size_mm / 2, squares[1] * square_size_mm / 2, 0.0])

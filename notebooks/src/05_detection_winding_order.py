@@ -21,7 +21,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from fidlearn import Camera, MarkerMap, PoseError, data_path, estimate_pose, frames, plotting
-from fidlearn.detection import Detection, detect_markers, draw_detections, load_image, refine_corners_edges
+from fidlearn.detection import Detection, detect_markers, load_image, refine_corners_edges
+from fidlearn.drawing import draw_detections
 
 np.set_printoptions(precision=3, suppress=True)
 

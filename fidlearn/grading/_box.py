@@ -118,10 +118,10 @@ def bwrap_path() -> str | None:
 
 def python_mounts() -> list[str]:
     """The folders the notebook's Python needs: the interpreter's installation, the venv, fidlearn."""
-    from .data import repo_dir
+    from ..data import repo_dir
 
     paths = {sys.base_prefix, sys.prefix, str(Path(os.path.realpath(sys.executable)).parent)}
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parent.parent  # the fidlearn package
     paths.add(str(here))
     if (repo_dir() / "data").is_dir():
         paths.add(str(repo_dir() / "data"))

@@ -16,9 +16,9 @@ import json
 import os
 from pathlib import Path
 
-from ._io import write_text_atomic
+from .._io import write_text_atomic
+from ..errors import GradingError
 from ._learners import learner_from_filename, normalize_learner, release_tag
-from .errors import GradingError
 
 #: The gradebook formats ``grade --format`` writes besides the detailed CSV.
 FORMATS = ("csv", "canvas", "moodle")

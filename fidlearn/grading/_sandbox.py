@@ -1,6 +1,6 @@
 """The sandbox a submitted notebook runs in (see :mod:`fidlearn.grading`).
 
-Each notebook runs in a box of its own (:mod:`fidlearn._box`): with bubblewrap, a root of its own
+Each notebook runs in a box of its own (:mod:`fidlearn.grading._box`): with bubblewrap, a root of its own
 that holds only the system, the Python and fidlearn (read-only) and a size-limited scratch
 folder, no network, its own process namespace (everything it started dies with it), resource
 limits, an environment without the instructor's variables and, when the grader is root, the
@@ -21,9 +21,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from .._plain import from_plain
+from ..errors import GradingError
 from . import _box
-from ._plain import from_plain
-from .errors import GradingError
 
 #: The inputs file a released notebook works with.
 INPUTS_FILE = "fidlearn_inputs.json"
@@ -137,7 +137,7 @@ def _clean_env(home: str) -> dict:
         "JUPYTER_RUNTIME_DIR": f"{home}/.runtime",
         "JUPYTER_CONFIG_DIR": f"{home}/.jupyter",
         "IPYTHONDIR": f"{home}/.ipython",
-        "PYTHONPATH": str(Path(__file__).resolve().parent.parent),  # fidlearn itself, wherever it is
+        "PYTHONPATH": str(Path(__file__).resolve().parents[2]),  # fidlearn itself, wherever it is
     }
 
 

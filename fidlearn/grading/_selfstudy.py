@@ -6,8 +6,7 @@ import os
 import re
 from dataclasses import dataclass
 
-from ._engine import Result
-from ._registry import lesson_number
+from ..exercises._registry import lesson_number
 
 
 @dataclass
@@ -87,8 +86,8 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
     """
     import nbformat
 
-    from .. import grading
     from ..errors import FidlearnError
+    from . import _grader
 
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -108,7 +107,6 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
     if len(found) != 1:
         return Grade(path, None, learner, [], ["no exercises found: the notebook never ran ex = exercises.lesson(...)"])
     number = lesson_number(found.pop())
-    g = grading.grade_one(path, number, learner or "", None, timeout_s=timeout)
-    results = [Result(q, status, message) for q, status, message in g.results]
+    g = _grader.grade_one(path, number, learner or "", None, timeout_s=timeout)
     errors = list(g.cell_errors) + ([g.problem] if g.problem else [])
-    return Grade(path, number, learner or "", results, errors)
+    return Grade(path, number, learner or "", g.results, errors)

@@ -1,34 +1,4 @@
-"""Grading a class: the answer key never enters a learner's kernel.
-
-Self-study (``q.check()``, ``q.hint()``, ``q.solution()``) checks answers in the learner's own
-Python (the question object keeps no key; each check builds it afresh), which is what practice
-needs and what a grade must not rely on: a notebook could rebuild the key from the open library,
-patch the checker, print a fake result. Graded mode splits
-the two sides:
-
-* **release** (:func:`release`): the instructor's process builds each learner's questions from a
-  class secret (HMAC-SHA256 of the secret, the lesson, the learner and the question seeds the
-  numbers, so nobody without the secret can rebuild them from the open library) and writes only
-  their *inputs*, as plain data, into ``fidlearn_inputs.json`` beside the learner's notebook.
-  In a folder with that file, ``exercises.lesson(...)`` hands out a graded lesson built from the
-  file alone: inputs, ``check()`` that records the answer, ``hint()``.
-* **grade** (:func:`grade`): each submitted notebook runs in a process of its own, in a scratch
-  copy of its folder, in a box of its own where bubblewrap works (no network, no other files,
-  its own processes that die with it), with time, memory, process and file limits, an
-  environment without the instructor's variables and, when the grader runs as root, as an
-  unprivileged user. A cell
-  appended to it writes the learner's answers as plain data (numbers, arrays, text); the
-  grader reads them (strict JSON, bounded), rebuilds the questions with their answers in its
-  own process and judges there. Nothing printed, patched or written in the notebook can
-  change a grade: a notebook that crashes, hangs, is killed or writes nonsense gets 0 with
-  the reason, and every other notebook of the batch is still graded; the CSV is written once
-  the batch is done (never half of it). Each notebook is matched to its learner by the id
-  that release wrote in its metadata (:mod:`fidlearn._gradebook`).
-
-In the learner's kernel a graded lesson is a :class:`~fidlearn.exercises.GradedLesson`, built
-from the inputs file alone: inputs, ``check()`` that records, ``hint()``; no solution, no
-checker, no key (:mod:`fidlearn.exercises._graded`).
-"""
+"""The class grader: :func:`release`, :func:`grade` and :func:`grade_one` (see :mod:`fidlearn.grading`)."""
 
 from __future__ import annotations
 
@@ -41,32 +11,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._io import write_text_atomic
+from .._plain import _Unsupported, to_plain
+from ..data import repo_dir
+from ..errors import FidlearnError
 from . import _gradebook, _learners, _release
-from ._io import write_text_atomic
-
-# the class secret, plain data and the sandbox live in modules of their own; their names stay
-# importable from here
-from ._learners import learner_from_filename as learner_from_filename
-from ._learners import new_secret as new_secret
-from ._learners import normalize_learner as normalize_learner
-from ._learners import read_secret as read_secret
-from ._learners import variant_seed as variant_seed
-from ._plain import _ARRAY_KINDS as _ARRAY_KINDS
-from ._plain import MAX_DEPTH as MAX_DEPTH
-from ._plain import _bad as _bad
-from ._plain import _Unsupported as _Unsupported
-from ._plain import from_plain as from_plain
-from ._plain import to_plain as to_plain
-from ._sandbox import ANSWERS_FILE as ANSWERS_FILE
-from ._sandbox import COLLECT_CELL as COLLECT_CELL
-from ._sandbox import INPUTS_FILE as INPUTS_FILE
-from ._sandbox import MAX_ANSWERS_BYTES as MAX_ANSWERS_BYTES
-from ._sandbox import _Zero as _Zero
-from ._sandbox import read_answers as read_answers
-from ._sandbox import run_notebook as run_notebook
-from ._sandbox import sandbox_plan as sandbox_plan
-from .errors import FidlearnError
-from .errors import GradingError as GradingError
+from ._learners import normalize_learner, read_secret, variant_seed
+from ._sandbox import (
+    ANSWERS_FILE,
+    _Zero,
+    read_answers,
+    run_notebook,
+    sandbox_plan,
+)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -95,7 +52,7 @@ def graded_questions(lesson: str, learner: str, secret: bytes) -> list:
     GradingError
         For a learner id that cannot be used.
     """
-    from . import exercises
+    from .. import exercises
 
     number = exercises.lesson_number(lesson)
     return list(
@@ -132,7 +89,7 @@ def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
     GradingError
         For a learner id that cannot be used.
     """
-    from . import exercises
+    from .. import exercises
 
     number = exercises.lesson_number(lesson)
     learner = normalize_learner(learner)
@@ -171,10 +128,10 @@ def release(
         For a missing secret or parent folder, an unusable learner id, two lines that are one
         learner (both named), an output folder that is not empty, or a disk that refuses.
     """
-    from . import exercises
+    from .. import exercises
 
     number = exercises.lesson_number(lesson)
-    notebook = Path(__file__).resolve().parent.parent / "notebooks" / "exercises" / exercises.notebook_name(number)
+    notebook = repo_dir() / "notebooks" / "exercises" / exercises.notebook_name(number)
     return _release.release(
         number,
         learners,
@@ -203,7 +160,7 @@ def collect(namespace: dict, path: str = ANSWERS_FILE) -> None:
     path : str
         The answers file to write.
     """
-    from .exercises import GradedLesson, Lesson
+    from ..exercises import GradedLesson, Lesson
 
     found = [v for v in namespace.values() if isinstance(v, (GradedLesson, Lesson))]
     answers = {}
@@ -219,14 +176,14 @@ def collect(namespace: dict, path: str = ANSWERS_FILE) -> None:
 
 @dataclass
 class NotebookGrade:
-    """One learner's notebook: its score, a (question, status, message) row per question, and why not more.
+    """One learner's notebook: its score, a :class:`~fidlearn.exercises.Result` per question, and why not more.
 
     Parameters
     ----------
     notebook, learner, lesson : str
         The notebook's path, the learner's id, the lesson.
-    results : list of (str, str, str)
-        ``(question, status, message)`` per question.
+    results : list of Result
+        One :class:`~fidlearn.exercises.Result` per question (the type self-study checks give).
     problem : str
         Why it got 0 or took too long ("" when all went well).
     cell_errors : list of str
@@ -252,7 +209,7 @@ class NotebookGrade:
         -------
         int
         """
-        return sum(1 for _, status, _ in self.results if status == "Correct")
+        return sum(r.correct for r in self.results)
 
     def line(self) -> str:
         """One line for the grader's log: notebook, learner, lesson, score and any problem.
@@ -314,7 +271,8 @@ def grade_one(
     GradingError
         For a learner id or a ``run_as`` user that cannot be used.
     """
-    from . import exercises
+    from .. import exercises
+    from ..exercises._engine import NOT_ATTEMPTED, Result
 
     number = exercises.lesson_number(lesson)
     learner = normalize_learner(learner) if secret is not None else str(learner or "").strip()
@@ -324,7 +282,7 @@ def grade_one(
     questions = (
         graded_questions(number, learner, secret) if secret is not None else exercises.build_questions(number, learner)
     )
-    grade.results = [(q.name, "Not attempted", "no answer") for q in questions]
+    grade.results = [Result(q.name, NOT_ATTEMPTED, "no answer") for q in questions]
     plan = sandbox_plan(run_as)
     try:
         inputs_json = json.dumps(inputs_record(number, learner, secret)) if secret is not None else None
@@ -341,21 +299,23 @@ def grade_one(
     return grade
 
 
-def _judge(question, answer) -> tuple[str, str, str]:
+def _judge(question, answer):
     """Judge one answer in the grader's process: a bug in a learner's value can only make it wrong."""
+    from ..exercises._engine import INCORRECT, NOT_ATTEMPTED, Result
+
     if answer is None:
-        return (question.name, "Not attempted", "no answer")
+        return Result(question.name, NOT_ATTEMPTED, "no answer")
     if isinstance(answer, _Unsupported):
-        return (
+        return Result(
             question.name,
-            "Incorrect",
+            INCORRECT,
             f"an answer of type {answer.type_name} cannot be graded; give numbers, arrays or text",
         )
     try:
         r = question.grade(answer)
     except Exception as exc:  # noqa: BLE001 - an answer that breaks the checker is wrong, never fatal
-        return (question.name, "Incorrect", f"the answer could not be checked ({type(exc).__name__})")
-    return (r.question, r.status, r.message)
+        return Result(question.name, INCORRECT, f"the answer could not be checked ({type(exc).__name__})")
+    return r
 
 
 def grade(
@@ -416,7 +376,7 @@ def grade(
         For a secret that cannot be read, a roster or ``learner`` that cannot be used, or a
         ``run_as`` user who cannot run fidlearn.
     """
-    from . import exercises
+    from .. import exercises
 
     secret = read_secret(secret_path)
     number = exercises.lesson_number(lesson)
@@ -443,7 +403,7 @@ def grade(
 
 def _write_all(csv_path, grades: list[NotebookGrade], number: str, formats: list[str]) -> None:
     """The CSV and the gradebook imports, each atomically; all of them or (on a failure) none."""
-    from . import exercises
+    from .. import exercises
 
     out_of = len(exercises.build_questions(number, "")) if formats else 0
     scores = {g.learner: g.score if g.graded else None for g in grades if g.graded or g.notebook == ""}
@@ -467,6 +427,6 @@ def _write_csv(path, grades: list[NotebookGrade]) -> None:
         score = g.score if g.graded else ""
         if not g.results:
             w.writerow([g.notebook, g.learner, g.lesson, 0 if g.graded else "", "", "", "", g.problem])
-        for q, status, message in g.results:
-            w.writerow([g.notebook, g.learner, g.lesson, score, q, status, message, g.problem])
+        for r in g.results:
+            w.writerow([g.notebook, g.learner, g.lesson, score, r.question, r.status, r.message, g.problem])
     write_text_atomic(path, buf.getvalue())

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ._grade import grade_notebook
+from ._selfstudy import grade_notebook
 
 
 def _main(argv: Sequence[str] | None = None) -> int:

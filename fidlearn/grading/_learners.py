@@ -17,29 +17,7 @@ import tempfile
 import unicodedata
 from pathlib import Path
 
-from .errors import GradingError
-
-
-def fold_learner(learner) -> str:
-    """A learner id folded to the form every variant is seeded with: blanks trimmed and merged, lower case.
-
-    Parameters
-    ----------
-    learner : object
-        The id as given (``None`` counts as ``""``, the class's shared variant).
-
-    Returns
-    -------
-    str
-        ``"  Alice   Smith "`` -> ``"alice smith"``; ``""`` stays ``""``.
-
-    Examples
-    --------
-    >>> fold_learner("Alice "), fold_learner(None)
-    ('alice', '')
-    """
-    return " ".join(str(learner or "").split()).lower()
-
+from ..errors import GradingError
 
 #: The longest learner id (characters, after normalization): ids are folder names, never cut short.
 MAX_ID = 64
@@ -215,7 +193,7 @@ def read_secret(path: str | os.PathLike) -> bytes:
     GradingError
         When the file cannot be read or does not hold a secret (hex digits).
     """
-    from ._files import MAX_TEXT_BYTES, read_bytes
+    from .._files import MAX_TEXT_BYTES, read_bytes
 
     path, data = read_bytes(path, GradingError, "class secret", MAX_TEXT_BYTES)
     text = data.decode("ascii", "replace").strip()

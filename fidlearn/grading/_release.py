@@ -1,6 +1,6 @@
 """``release``: every learner's notebook and inputs, built in a temporary sibling folder and renamed into place.
 
-A learner's folder is named by their id (:func:`fidlearn._learners.normalize_learner`), which is
+A learner's folder is named by their id (:func:`fidlearn.grading._learners.normalize_learner`), which is
 also the seed of their numbers and what ``grade`` matches their notebook by (the notebook's
 metadata carries it). Nothing is ever written outside the output folder, no learner's files
 overwrite another's, and a release that fails (a full disk, Ctrl-C) leaves nothing behind.
@@ -15,9 +15,9 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+from .._plain import to_plain
+from ..errors import GradingError
 from ._learners import read_roster, read_secret, release_tag
-from ._plain import to_plain
-from .errors import GradingError
 
 #: Where a released notebook says whose it is: ``metadata["fidlearn"] = {"lesson", "learner", "tag"}``.
 METADATA_KEY = "fidlearn"
@@ -67,7 +67,7 @@ def released_notebook(source: Path, number: str, learner: str, tag: str) -> str:
     number, learner : str
         The lesson and the learner's id.
     tag : str
-        :func:`fidlearn._learners.release_tag` of the lesson and the id.
+        :func:`fidlearn.grading._learners.release_tag` of the lesson and the id.
 
     Returns
     -------
