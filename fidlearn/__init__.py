@@ -44,6 +44,7 @@ try:
     from .frames import (
         compose,
         invert_transform,
+        look_at,
         make_transform,
         rotation_from_rpy_deg,
         rpy_deg_from_rotation,
@@ -59,7 +60,6 @@ try:
     from .synthetic import (
         CalibrationViews,
         Trajectory,
-        look_at,
         render_calibration_views,
         render_scene,
         render_trajectory,

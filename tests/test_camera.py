@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import Camera, frames
+from fidlearn import Camera, _lens, frames
 from fidlearn.data import data_path
 from fidlearn.errors import CameraError, FidlearnWarning
 
@@ -195,3 +195,28 @@ def test_width_and_height_swapped_says_so():
         cam.for_image(image)
     ok = Camera(cam.K, None, (image.shape[1], image.shape[0]))
     assert ok.for_image(image) is ok
+
+
+def _wide_lens_and_grid():
+    lens = Camera.from_fov(90, (1280, 720), dist=[-0.4, 0.16, 0.001, -0.001, -0.02])
+    u, v = np.meshgrid(np.linspace(-0.5, 1279.5, 160), np.linspace(-0.5, 719.5, 90))  # the whole picture, edges too
+    return lens, np.stack([u.ravel(), v.ravel()], axis=1)
+
+
+def test_exact_undistortion_inverts_projection_over_a_wide_lens_picture():
+    lens, px = _wide_lens_and_grid()
+    xy = _lens.undistort_exact(px, lens.K, lens.dist)
+    pts = np.column_stack([xy * 1000.0, np.full(len(xy), 1000.0)])  # the rays at 1 m depth
+    reprojected = lens.project(pts, np.eye(4))  # OpenCV's projectPoints
+    np.testing.assert_allclose(reprojected, px, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(_lens.undistort_exact(reprojected, lens.K, lens.dist), xy, rtol=0, atol=1e-9)
+    ideal_px = xy @ lens.K[:2, :2].T + lens.K[:2, 2]
+    np.testing.assert_allclose(lens.undistort_points(px), ideal_px, rtol=0, atol=1e-8)
+    # OpenCV's default stops early: over a pixel off at this lens's corners, which the exact default is not
+    assert np.abs(lens.undistort_points(px, exact=False) - ideal_px).max() > 1.0
+
+
+def test_exact_undistortion_agrees_with_opencvs_iteration_run_to_tight_criteria():
+    lens, px = _wide_lens_and_grid()
+    by_opencv = _lens.undistort_cv_iter(px, lens.K, lens.dist, max_count=500, eps=1e-15)
+    np.testing.assert_allclose(_lens.undistort_exact(px, lens.K, lens.dist), by_opencv, rtol=0, atol=1e-9)

@@ -115,3 +115,14 @@ def test_rvec_of_a_tiny_rotation_is_not_zero(angle_rad):
     P = np.array([[900.0, 500.0, 1000.0]])
     exact = cam.K @ (R.T @ P[0])  # the camera at the origin: p_camera = R^T p_world
     np.testing.assert_allclose(cam.project(P, T)[0], exact[:2] / exact[2], atol=1e-9)
+
+
+def test_look_at_is_public_in_frames_and_the_same_function_in_synthetic():
+    from fidlearn import look_at as top_level
+    from fidlearn import synthetic
+
+    assert frames.look_at is synthetic.look_at is top_level
+    assert frames.look_at.__module__ == "fidlearn.frames"
+    T = frames.look_at([0.0, -2000.0, 500.0], [0.0, 0.0, 500.0])  # looking north (+Y), Z up
+    np.testing.assert_allclose(T[:3, :3], [[1, 0, 0], [0, 0, 1], [0, -1, 0]], atol=1e-15)  # x east, y down, z north
+    np.testing.assert_array_equal(T[:3, 3], [0.0, -2000.0, 500.0])

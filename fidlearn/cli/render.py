@@ -110,7 +110,7 @@ def _pose_from_args(args):
     _check_coords("--look-at", target)
     if not abs(args.roll_deg) <= 3600:
         raise UsageError("--roll-deg is degrees, -360 to 360")
-    return synthetic.look_at(eye, target, roll_deg=args.roll_deg)
+    return frames.look_at(eye, target, roll_deg=args.roll_deg)
 
 
 def _check_args(args) -> tuple[Path, Path | None]:

@@ -13,10 +13,10 @@ Conventions (see ``docs/conventions.md``):
 * Quaternions are ``(x, y, z, w)``, scalar last (ROS's ``geometry_msgs/Quaternion`` order), unit length,
   returned in the canonical form ``w >= 0`` (``q`` and ``-q`` are the same rotation).
 
-The functions live in four files, imported from here: ``_rotations.py`` (about one axis, roll-pitch-yaw,
+The functions live in five files, imported from here: ``_rotations.py`` (about one axis, roll-pitch-yaw,
 angles, rotation vectors), ``_quaternions.py`` (to and from rotation matrices), ``_transforms.py`` (make,
-invert, compose, apply, OpenCV's rvec/tvec) and ``_checks.py`` (the checks that raise
-:class:`~fidlearn.errors.TransformError`).
+invert, compose, apply, OpenCV's rvec/tvec), ``_look_at.py`` (a camera's pose aimed at a point: camera x right,
+y down, z forward) and ``_checks.py`` (the checks that raise :class:`~fidlearn.errors.TransformError`).
 
 Examples
 --------
@@ -32,6 +32,7 @@ from __future__ import annotations
 from ._checks import _angle as _angle
 from ._checks import as_float_array as as_float_array
 from ._checks import check_rotation, check_transform
+from ._look_at import look_at
 from ._quaternions import matrix_from_quaternion, quaternion_from_matrix
 from ._rotations import _exact_trig_deg as _exact_trig_deg
 from ._rotations import _rotvec as _rotvec
@@ -69,6 +70,7 @@ __all__ = [
     "rotation_angle_deg",
     "quaternion_from_matrix",
     "matrix_from_quaternion",
+    "look_at",
 ]
 
 # The public functions say they are fidlearn.frames': help(), repr() and the docs show the path to import.

@@ -15,8 +15,8 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import FidlearnError
+from ..frames import look_at
 from ..markermap import MarkerMap
-from ..synthetic import look_at
 from . import _checks
 from .predict import _CachedMap, _check_px, _check_rel, _predict
 

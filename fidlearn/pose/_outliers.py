@@ -10,13 +10,13 @@ import math
 import cv2
 import numpy as np
 
+from .. import _stats
 from ..camera import Camera
 from ..errors import PoseError
 from ._checks import _cheirality
 from ._observations import _UNCHECKED, _Candidate, _Obs
 from ._refine import _lm, _residuals
 from ._solvers import _solve
-from ._stats import _beta_isf_int, _chi2_isf_even, _f2_isf
 
 #: False-alarm probability of the test that rejects a marker (per marker tested): its 8
 #: residuals, predicted from the pose of the others, must have a Mahalanobis chi-square
@@ -191,7 +191,7 @@ def _displacement_limit(sse: float, n: int, corner_sigma_px: float | None) -> fl
     if corner_sigma_px is not None:
         return float(corner_sigma_px) ** 2 * -2.0 * math.log(p)  # chi-square(2): sf exp(-x / 2)
     nu = 8 * n - 6 - _DISPLACEMENT_DOF
-    t = _DISPLACEMENT_DOF * _f2_isf(p, nu)
+    t = _DISPLACEMENT_DOF * _stats.f_isf(p, 2, nu)
     limit = t * sse / (nu + t)  # drop nu / (sse - drop) = t
     return limit if sse - limit >= nu * OUTLIER_SIGMA_FLOOR_PX**2 else t * OUTLIER_SIGMA_FLOOR_PX**2
 
@@ -238,7 +238,7 @@ def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float 
         if best.r is None:  # a solver's pose not refined (its residuals were left for later)
             r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, False)
             best.r, best.sse = r, float(r @ r)
-        whole = best.sse / corner_sigma_px**2 > _chi2_isf_even(p_any, dof)
+        whole = best.sse / corner_sigma_px**2 > _stats.chi2_isf(p_any, dof)
         if not whole and best.sse <= _displacement_limit(best.sse, n, corner_sigma_px):
             return None  # no drop (at most sse) can pass either
     stats = _marker_stats(obs, best, camera)
@@ -251,7 +251,7 @@ def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float 
     k = int(np.argmax(q))
     if corner_sigma_px is not None:
         return k if whole else None
-    return k if q[k] > _beta_isf_int(p_any / n, 4, (dof - 8) // 2) * best.sse else None
+    return k if q[k] > _stats.beta_isf(p_any / n, 4, (dof - 8) // 2) * best.sse else None
 
 
 def _named_displaced(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> int | None:

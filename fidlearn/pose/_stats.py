@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from .. import _stats
 from ..errors import PoseError
 from ..frames import _rotvec
 
@@ -56,19 +57,11 @@ AMBIGUITY_MAX_SIGMA_PX = 3.0
 def _chi2_3_quantile(p: float) -> float:
     """Quantile of the chi-square distribution with 3 degrees of freedom (7.815 for 0.95).
 
-    Its CDF has a closed form, ``erf(sqrt(x/2)) - sqrt(2x/pi) exp(-x/2)``: bisect on it.
+    ``fidlearn._stats.chi2_ppf`` (scipy), with the probability checked.
     """
     if not 0 < p < 1:
         raise PoseError(f"probability must be between 0 and 1 (exclusive), got {p}")
-    lo, hi = 0.0, 200.0
-    for _ in range(100):
-        mid = (lo + hi) / 2
-        cdf = math.erf(math.sqrt(mid / 2)) - math.sqrt(2 * mid / math.pi) * math.exp(-mid / 2)
-        if cdf < p:
-            lo = mid
-        else:
-            hi = mid
-    return (lo + hi) / 2
+    return _stats.chi2_ppf(p, 3)
 
 
 def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -> float:
@@ -150,65 +143,3 @@ def _covariance_from(JtJ: np.ndarray, sigma: float) -> np.ndarray | None:
     if not np.all(np.isfinite(cov)):
         return None
     return (cov + cov.T) / 2
-
-
-def _chi2_sf_even(x: float, dof: int) -> float:
-    """P(X > x) for X chi-square with an even number ``dof`` of degrees of freedom (closed form, exact).
-
-    ``exp(-x/2) sum_{i < dof/2} (x/2)^i / i!``, summed in logs so that large ``x`` and ``dof`` do not overflow.
-    """
-    if x <= 0:
-        return 1.0
-    h = x / 2.0
-    logs = [-h + i * math.log(h) - math.lgamma(i + 1) for i in range(dof // 2)]
-    top = max(logs)
-    return math.exp(top) * math.fsum(math.exp(v - top) for v in logs)
-
-
-@functools.lru_cache(maxsize=256)
-def _chi2_isf_even(p: float, dof: int) -> float:
-    """The x with P(X > x) = p, X chi-square with an even ``dof`` (bisection on :func:`_chi2_sf_even`)."""
-    lo, hi = 0.0, float(dof) + 10.0
-    while _chi2_sf_even(hi, dof) > p:
-        hi *= 2.0
-    for _ in range(80):
-        mid = (lo + hi) / 2
-        if _chi2_sf_even(mid, dof) > p:
-            lo = mid
-        else:
-            hi = mid
-    return (lo + hi) / 2
-
-
-def _beta_sf_int(x: float, a: int, b: int) -> float:
-    """P(B > x) for B ~ Beta(a, b) with integer a, b: ``sum_{j < a} C(a+b-1, j) x^j (1-x)^(a+b-1-j)`` (exact)."""
-    if x <= 0:
-        return 1.0
-    if x >= 1:
-        return 0.0
-    n = a + b - 1
-    return math.fsum(math.comb(n, j) * x**j * (1 - x) ** (n - j) for j in range(a))
-
-
-@functools.lru_cache(maxsize=256)
-def _beta_isf_int(p: float, a: int, b: int) -> float:
-    """The x with P(B > x) = p, B ~ Beta(a, b), a and b integers (bisection on :func:`_beta_sf_int`)."""
-    lo, hi = 0.0, 1.0
-    for _ in range(60):
-        mid = (lo + hi) / 2
-        if _beta_sf_int(mid, a, b) > p:
-            lo = mid
-        else:
-            hi = mid
-    return (lo + hi) / 2
-
-
-@functools.lru_cache(maxsize=256)
-def _f2_isf(p: float, nu: float) -> float:
-    """The x with P(F > x) = p for F ~ F(2, nu) (closed form, exact).
-
-    ``B = 2 F / (2 F + nu)`` follows Beta(1, nu / 2), whose survival function is ``(1 - b)^(nu / 2)``:
-    ``b = 1 - p^(2 / nu)``, ``F = (b / 2) / ((1 - b) / nu)``.
-    """
-    b = -math.expm1(2.0 * math.log(p) / nu)
-    return (b / 2.0) / ((1.0 - b) / nu)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..synthetic._rays import _pixels_from_normalized
+from .._lens import pixels_from_normalized as _pixels_from_normalized
 from ._geometry import exp_so3, left_jacobian, left_jacobian_inv, log_so3, skew
 
 _H_NORM = 1e-6  # step of the central differences on normalized coordinates

@@ -9,11 +9,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import _stats
 from .._io import write_json_atomic
 from .._map_parse import _vector3
 from ..errors import MapError, PoseError, SurveyError
 from ..markermap import MarkerMap
-from ..pose._stats import _chi2_3_quantile
 from ._inputs import _short
 
 __all__ = ["Survey", "Suspect"]
@@ -158,7 +158,7 @@ class Survey:
         d = point - np.asarray(self.marker_map.placements[marker_id].translation_mm)
         if not np.any(cov):
             return bool(np.allclose(d, 0.0))
-        return float(d @ np.linalg.solve(cov, d)) <= _chi2_3_quantile(probability)
+        return float(d @ np.linalg.solve(cov, d)) <= _stats.chi2_ppf(probability, 3)
 
     def note(self) -> dict:
         """The ``"surveyed"`` note :meth:`save` writes: how the map was made.

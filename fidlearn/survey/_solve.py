@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..pose._stats import MIN_SIGMA_PX, _chi2_3_quantile
+from .. import _stats
+from ..pose._stats import MIN_SIGMA_PX
 from ._geometry import local_corners, log_so3
 from ._problem import Problem
 
@@ -180,4 +181,4 @@ def tape_test(problem: Problem, x: np.ndarray, C: np.ndarray, slot: int, tape, h
 
 def suspect_threshold() -> float:
     """Squared-sigma threshold of the suspect test (chi-square, 3 degrees of freedom, ``SUSPECT_P``)."""
-    return _chi2_3_quantile(SUSPECT_P)
+    return _stats.chi2_ppf(SUSPECT_P, 3)

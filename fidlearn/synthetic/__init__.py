@@ -37,6 +37,7 @@ edges (see ``data/README.md``).
 
 from __future__ import annotations
 
+from ..frames import look_at  # the same function as fidlearn.frames.look_at, kept importable here
 from ._calibration_views import (  # noqa: F401
     CalibrationViews,
     _board_pose,
@@ -45,7 +46,6 @@ from ._calibration_views import (  # noqa: F401
     render_calibration_views,
 )
 from ._checks import DEFAULT_GRAYS, MAX_FRAMES, MAX_RENDER_SAMPLES, _check_scene, _check_seed  # noqa: F401
-from ._look_at import look_at
 from ._rays import (  # noqa: F401
     _distort_normalized,
     _fine_rays,

@@ -147,7 +147,8 @@ def _board_pose(
     centre_board: np.ndarray,
 ) -> np.ndarray:
     """``T_camera_board``: the board's centre on the ray through ``target_px`` at ``distance_mm``, tilted."""
-    ray = camera.undistort_points(np.asarray(target_px, dtype=float).reshape(1, 2))[0]
+    # OpenCV's undistortion aims the board (a sub-pixel miss does not matter; the stored views keep their poses)
+    ray = camera.undistort_points(np.asarray(target_px, dtype=float).reshape(1, 2), exact=False)[0]
     ray = np.array([(ray[0] - camera.cx) / camera.fx, (ray[1] - camera.cy) / camera.fy, 1.0])
     centre_cam = ray / np.linalg.norm(ray) * distance_mm
     axis_angle = rng.uniform(0, 2 * math.pi)

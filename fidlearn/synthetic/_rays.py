@@ -7,54 +7,11 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from .._lens import distort_normalized as _distort_normalized  # noqa: F401
+from .._lens import pixels_from_normalized as _pixels_from_normalized  # noqa: F401
+from .._lens import undistort_exact as _undistort_exact
 from ..camera import Camera
 from ..errors import CameraError
-
-
-def _distort_normalized(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """OpenCV's distortion model on normalized points (N, 2): ideal -> distorted normalized."""
-    d = np.zeros(14)
-    d[: dist.size] = dist
-    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d[:12]
-    x, y = xy[:, 0], xy[:, 1]
-    r2 = x * x + y * y
-    r4 = r2 * r2
-    r6 = r4 * r2
-    radial = (1 + k1 * r2 + k2 * r4 + k3 * r6) / (1 + k4 * r2 + k5 * r4 + k6 * r6)
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r4
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r4
-    return np.stack([xd, yd], axis=1)
-
-
-def _pixels_from_normalized(xy: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    xd = _distort_normalized(xy, dist)
-    return np.stack([K[0, 0] * xd[:, 0] + K[0, 1] * xd[:, 1] + K[0, 2], K[1, 1] * xd[:, 1] + K[1, 2]], axis=1)
-
-
-def _undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations: int = 6) -> np.ndarray:
-    """Normalized ideal coordinates (N, 2) of pixels (N, 2), exact to about 1e-9 px.
-
-    ``cv2.undistortPoints`` alone stops after a few fixed-point steps (up to
-    half a pixel off at the corners of a wide lens); Newton steps on OpenCV's
-    own distortion model finish the job.
-    """
-    xy = cv2.undistortPoints(px.reshape(-1, 1, 2).astype(np.float64), K, dist).reshape(-1, 2)
-    if not np.any(dist):
-        return xy
-    h = 1e-7
-    for _ in range(iterations):
-        base = _pixels_from_normalized(xy, K, dist)
-        r = base - px
-        if np.abs(r).max() < 1e-9:
-            break
-        jx = (_pixels_from_normalized(xy + [h, 0.0], K, dist) - base) / h
-        jy = (_pixels_from_normalized(xy + [0.0, h], K, dist) - base) / h
-        det = jx[:, 0] * jy[:, 1] - jy[:, 0] * jx[:, 1]
-        det = np.where(np.abs(det) < 1e-12, 1e-12, det)
-        dx = (jy[:, 1] * r[:, 0] - jy[:, 0] * r[:, 1]) / det
-        dy = (-jx[:, 1] * r[:, 0] + jx[:, 0] * r[:, 1]) / det
-        xy = xy - np.stack([dx, dy], axis=1)
-    return xy
 
 
 @lru_cache(maxsize=4)

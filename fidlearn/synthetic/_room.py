@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera import Camera
-from ..frames import rotation_from_rpy_deg, rpy_deg_from_rotation
+from ..frames import look_at, rotation_from_rpy_deg, rpy_deg_from_rotation
 from ..markermap import MarkerMap, MarkerPlacement
 from ._checks import _check_seed
-from ._look_at import look_at
 from ._scenes import visible_markers
 
 __all__ = ["survey_room", "survey_walk", "tape_measured"]

@@ -12,9 +12,9 @@ import numpy as np
 from .. import frames
 from ..camera import Camera
 from ..errors import FidlearnError
+from ..frames import look_at
 from ..markermap import MarkerMap
 from ._checks import MAX_FRAMES, _check_indices, _check_render_work, _check_scene, _check_seed
-from ._look_at import look_at
 from ._scenes import render_scene
 
 

@@ -1,4 +1,4 @@
-"""``look_at``: the pose of a camera at one point looking at another."""
+"""``look_at``: the pose of a camera at one point looking at another (camera x right, y down, z forward)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .. import frames
 from ..errors import FidlearnError
+from ._checks import as_float_array
+from ._rotations import rot_z
+from ._transforms import make_transform
 
 
 def look_at(
@@ -50,7 +52,7 @@ def look_at(
     [1500.0, 0.0, 300.0]
     """
     eye, target = (
-        frames.as_float_array(v, name, FidlearnError).reshape(-1)
+        as_float_array(v, name, FidlearnError).reshape(-1)
         for v, name in ((eye_mm, "look_at: eye_mm"), (target_mm, "look_at: target_mm"))
     )
     if eye.shape != (3,) or target.shape != (3,) or not np.all(np.isfinite(eye)) or not np.all(np.isfinite(target)):
@@ -74,5 +76,5 @@ def look_at(
     y = np.cross(z, x)
     R = np.column_stack([x, y, z])
     if roll_deg:  # no product for no roll: the rotation keeps the signs of its zeros
-        R = R @ frames.rot_z(math.radians(roll_deg))
-    return frames.make_transform(R, eye)
+        R = R @ rot_z(math.radians(roll_deg))
+    return make_transform(R, eye)
