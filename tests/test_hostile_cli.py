@@ -842,3 +842,33 @@ def test_a_signal_during_a_c_extensions_import_is_an_interruption(ws, capsys, mo
     assert status == 128 + signal.SIGTERM
     assert capsys.readouterr().err.strip() == "error: interrupted by SIGTERM; nothing was written"
     assert snapshot(ws) == before
+
+
+# -- the odometry file's numbers -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("x_m", ["1e308", "-1e300", "2e6"])
+def test_odometry_positions_beyond_reason_are_one_line(ws, capsys, x_m):
+    (ws / "odom.csv").write_text(f"t_s,x_m,y_m,z_m,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n1,{x_m},0,0,0,0,0,1\n")
+    argv = ["locate", "frames", *LOC, "--track", "--odometry", "odom.csv", "-o", "t.jsonl"]
+    line = refused(ws, capsys, argv, "odom.csv: row 3: a position of")
+    assert "within 1000 km of its origin" in line
+
+
+def test_odometry_poses_beyond_reason_are_refused_in_the_library():
+    far = np.eye(4)
+    far[0, 3] = 2e12  # mm: 2e6 km
+    with pytest.raises(fidlearn.FidlearnError, match=r"odometry pose 1 is 2e\+09 m from its origin"):
+        fidlearn.ros.Odometry([0.0, 1.0], [np.eye(4), far])
+
+
+# -- grade's notebooks: a folder, or a link to the class secret ------------------------------------
+
+
+def test_grade_names_a_folder_and_a_link_to_the_secret(ws, capsys):
+    (ws / "class.secret").write_bytes(b"s" * 32)
+    (ws / "sub").mkdir()
+    (ws / "sub" / "eve.ipynb").symlink_to(ws / "class.secret")
+    grade = ["grade", "--lesson", "03", "--secret-file", "class.secret", "-o", "g.csv"]
+    refused(ws, capsys, [*grade[:1], "sub", *grade[1:]], "sub is a folder; give the notebooks in it (sub/*.ipynb)")
+    refused(ws, capsys, [*grade[:1], "sub/eve.ipynb", *grade[1:]], "is the class secret (class.secret), not a notebook")

@@ -148,9 +148,14 @@ def _checked_grade_args(args) -> tuple[Path, list[str] | None]:
     roster = _roster_lines(args.roster, "--roster") if args.roster is not None else None
     outputs = [("-o", out)] + ([("--format", lms_path(out, args.format))] if args.format != "csv" else [])
     _refuse_clobber(outputs, [*args.notebooks, args.secret_file, *([args.roster] if args.roster else [])])
+    secret = args.secret_file.resolve()
     for nb in args.notebooks:
+        if nb.is_dir():
+            raise UsageError(f"{nb} is a folder; give the notebooks in it ({nb}/*.ipynb)")
         if not nb.is_file():
             raise UsageError(f"{nb}: no such notebook; give the learners' .ipynb files")
+        if nb.resolve() == secret:
+            raise UsageError(f"{nb} is the class secret ({args.secret_file}), not a notebook: it is never graded")
     return out, roster
 
 

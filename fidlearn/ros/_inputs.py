@@ -38,6 +38,9 @@ from ..errors import RosFormatError, TransformError
 from ..filtering._so3 import exp_so3, log_so3, rotation_from_xyzw
 from ._pose import R_OPTICAL_LINK
 
+#: How far from its origin a robot's odometry may be, mm (1000 km): farther is a broken file.
+MAX_ODOMETRY_MM = 1e9
+
 ODOMETRY_COLUMNS = ("t_s", "x_m", "y_m", "z_m", "qx", "qy", "qz", "qw")
 _UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "ft": 304.8}
 
@@ -74,6 +77,12 @@ class Odometry:
             self.poses = [frames.check_transform(T, "odometry pose") for T in T_odom_base]
         except TransformError as exc:
             raise RosFormatError(str(exc)) from None
+        far = next((k for k, T in enumerate(self.poses) if not np.abs(T[:3, 3]).max() <= MAX_ODOMETRY_MM), None)
+        if far is not None:
+            raise RosFormatError(
+                f"odometry pose {far} is {np.abs(self.poses[far][:3, 3]).max() / 1000:.3g} m from its origin; "
+                f"a robot's odometry stays within {MAX_ODOMETRY_MM / 1e6:g} km of it (are the positions in metres?)"
+            )
         self.drift = float(drift)
 
     def pose_at(self, t_s: float) -> np.ndarray | None:
@@ -171,6 +180,11 @@ def read_odometry_csv(path: str | os.PathLike, drift: float = 0.02) -> Odometry:
             v = []
         if len(v) != 8 or not all(math.isfinite(x) for x in v):
             raise RosFormatError(f"{path}: row {n}: expected 8 numbers ({','.join(ODOMETRY_COLUMNS)})")
+        if max(abs(x) for x in v[1:4]) > MAX_ODOMETRY_MM / 1000:
+            raise RosFormatError(
+                f"{path}: row {n}: a position of {max(abs(x) for x in v[1:4]):.3g} m; a robot's odometry stays "
+                f"within {MAX_ODOMETRY_MM / 1e6:g} km of its origin (x_m, y_m, z_m are metres)"
+            )
         if np.linalg.norm(v[4:8]) < 1e-9:
             raise RosFormatError(f"{path}: row {n}: the quaternion is zero")
         times.append(v[0])
