@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import stat
 import sys
 from pathlib import Path
@@ -43,3 +45,21 @@ def as_unprivileged(uid: int, gid: int, paths: list[Path]) -> list[str] | None:
     for path in inside:
         cmd += ["--ro-bind", str(path), str(path)]
     return [*cmd, setpriv, f"--reuid={uid}", f"--regid={gid}", "--clear-groups", "--"]
+
+
+@contextlib.contextmanager
+def ctrl_c_as_a_terminal_gives_it():
+    """SIGINT raising KeyboardInterrupt here, and at its default in the commands started, for the block.
+
+    A test run started in the background by a non-interactive shell (CI, ``make test &``) inherits
+    SIGINT ignored, and so would every command a test starts; the tests of Ctrl-C need it as a
+    terminal gives it.
+    """
+    old = signal.getsignal(signal.SIGINT)
+    if old == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        if old == signal.SIG_IGN:
+            signal.signal(signal.SIGINT, old)

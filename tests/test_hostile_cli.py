@@ -22,11 +22,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import ctrl_c_as_a_terminal_gives_it
 
 import fidlearn
 from fidlearn import cli
 
 DATA = fidlearn.data_dir()
+
+
+@pytest.fixture(autouse=True)
+def _ctrl_c():
+    with ctrl_c_as_a_terminal_gives_it():
+        yield
 
 
 @pytest.fixture

@@ -30,8 +30,16 @@ from command_outputs import (
     snapshot,
     workspace,
 )
+from helpers import ctrl_c_as_a_terminal_gives_it
 
 from fidlearn._io import SIGNAL_AT_VARIABLE
+
+
+@pytest.fixture(autouse=True)
+def _ctrl_c():
+    with ctrl_c_as_a_terminal_gives_it():
+        yield
+
 
 SWEPT = ["survey", "calibrate", "render", "plan", "markers", "board", "corners"]
 
