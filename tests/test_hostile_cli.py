@@ -879,3 +879,24 @@ def test_grade_names_a_folder_and_a_link_to_the_secret(ws, capsys):
     grade = ["grade", "--lesson", "03", "--secret-file", "class.secret", "-o", "g.csv"]
     refused(ws, capsys, [*grade[:1], "sub", *grade[1:]], "sub is a folder; give the notebooks in it (sub/*.ipynb)")
     refused(ws, capsys, [*grade[:1], "sub/eve.ipynb", *grade[1:]], "is the class secret (class.secret), not a notebook")
+
+
+# -- warnings on stderr: fidlearn's own, never a library's deprecation notice ----------------------
+
+
+def test_a_librarys_deprecation_notice_is_not_a_line_for_the_user(ws, capsys, monkeypatch):
+    import warnings
+
+    from fidlearn.cli import corners
+
+    real = corners.run
+
+    def run(args):
+        warnings.warn("'parseString' deprecated - use 'parse_string'", DeprecationWarning, stacklevel=1)
+        warnings.warn("'resetCache' will go", PendingDeprecationWarning, stacklevel=1)
+        return real(args)
+
+    monkeypatch.setattr(corners, "run", run)
+    assert cli.main(["corners", "map.json", "-o", "c.json"]) == 0
+    assert capsys.readouterr().err == ""
+    assert (ws / "c.json").is_file()

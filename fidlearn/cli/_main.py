@@ -147,6 +147,9 @@ def _main(argv: Sequence[str] | None, done: list) -> int:
         with warnings.catch_warnings(), _outputs_of(args) as outputs:
             if outputs is not None:  # what it writes, for a line about a signal that comes while it ends
                 done.append(outputs)
+            # a library's deprecation notice is for its developers, not a line for the command's user
+            warnings.simplefilter("ignore", DeprecationWarning)
+            warnings.simplefilter("ignore", PendingDeprecationWarning)
             warnings.simplefilter("always", FidlearnWarning)
             warnings.showwarning = _show_warning
             return int(args.run(args) or 0)
