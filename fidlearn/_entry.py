@@ -42,7 +42,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:  # the process's own command, done and said so: a signal while it exits changes nothing
         for sig in (signal.SIGINT, *handlers):
             signal.signal(sig, signal.SIG_IGN)
+        if status >= 128:  # stopped by a signal, outputs settled and said: end now, as the signal would have
+            _end_now(status)
     return status
+
+
+def _end_now(status: int) -> None:
+    """Leave the process at once with ``status``, its streams flushed.
+
+    A command stopped by a signal has committed or removed its outputs and printed its line; the
+    interpreter's own shutdown after an interruption can still abort in a library's threads
+    (OpenCV's, BLAS's), so it is skipped, as the signal's default action would skip it.
+    """
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(status)
 
 
 def _cannot_start(exc: BaseException, args: list[str]) -> int:
