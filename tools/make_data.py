@@ -46,8 +46,8 @@ import numpy as np
 
 import fidlearn
 from fidlearn import Camera, MarkerMap, frames
-from fidlearn._io import atomic_write, write_json_atomic
 from fidlearn.data import repo_dir
+from fidlearn.io import atomic_write, write_json_atomic
 from fidlearn.synthetic import (
     look_at,
     render_calibration_views,

@@ -26,8 +26,8 @@ from pathlib import Path
 import nbformat
 
 from fidlearn import exercises
-from fidlearn._io import write_text_atomic
 from fidlearn.data import repo_dir
+from fidlearn.io import write_text_atomic
 
 EXERCISES_DIR = repo_dir() / "notebooks" / "exercises"
 SOLUTIONS_DIR = EXERCISES_DIR / "solutions"

@@ -9,7 +9,7 @@ What "no partial output" means for each kind of output:
 * every output of a command (``-o``, ``--truth``, ``--report``, ``--plot``, PNG pages,
   annotated pictures): written to a hidden temporary file beside its name, and all of
   them renamed together when the command has done its work
-  (:class:`fidlearn._io.StagedOutputs`), with SIGINT, SIGTERM and SIGHUP deferred
+  (:class:`fidlearn.io.StagedOutputs`), with SIGINT, SIGTERM and SIGHUP deferred
   during the renames: an interruption or a full disk at any moment leaves every output
   or none, and no temporary file; the ``error:`` line says which (``nothing was
   written``, or ``written: ...``).

@@ -2,7 +2,7 @@
 
 Output rules (see :mod:`fidlearn.cli`): every output path is checked before any work
 (:func:`_check_output`, :func:`_refuse_clobber`); one file is written atomically; every output
-is staged with the command's others (:class:`fidlearn._io.StagedOutputs`) and they take their names
+is staged with the command's others (:class:`fidlearn.io.StagedOutputs`) and they take their names
 together; a stream of JSON lines goes through :class:`_StreamFile`; annotated pictures through
 :class:`_Staging`.
 """
@@ -19,11 +19,10 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from .. import _staged
-from .._io import StagedOutputs, current_outputs, signals_deferred
 from ..camera import Camera
 from ..errors import FidlearnError, UsageError
 from ..images import encode_image
+from ..io import StagedOutputs, current_outputs, file_mode_for, signals_deferred
 from ..markermap import MarkerMap
 from ..printables import parse_pattern
 
@@ -303,7 +302,7 @@ class _StreamFile:
         outputs = _outputs()
         self.entry = outputs.temp(self.path)
         try:
-            os.chmod(self.entry.tmp, _staged.file_mode_for(self.path))  # not mkstemp's private 0o600
+            os.chmod(self.entry.tmp, file_mode_for(self.path))  # not mkstemp's private 0o600
             self.file = open(self.entry.tmp, "w", encoding="utf-8")  # noqa: SIM115 - closed in __exit__
         except OSError as exc:
             raise FidlearnError(

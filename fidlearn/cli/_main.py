@@ -14,8 +14,8 @@ from collections.abc import Callable, Sequence
 import cv2
 
 from .. import __version__
-from .._io import StagedOutputs
 from ..errors import FidlearnError, FidlearnWarning
+from ..io import StagedOutputs
 from . import calibrate, camera, corners, doctor, grade, locate, markers, plan, render, survey
 from ._common import _error, _exit_status, _Parser, _raise_interrupted, _SafeStdout, _show_warning, _signal_name
 
@@ -187,7 +187,7 @@ _WRITE_AS_THEY_GO = ("release", "grade")
 
 
 def _outputs_of(args):
-    """The command's outputs, staged and renamed together at its end (:class:`fidlearn._io.StagedOutputs`)."""
+    """The command's outputs, staged and renamed together at its end (:class:`fidlearn.io.StagedOutputs`)."""
     if args.command in _WRITE_AS_THEY_GO:
         return contextlib.nullcontext()
     return StagedOutputs()

@@ -16,12 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames
-from .._files import image_size_from_header
 from ..errors import CameraError, UsageError
 from ..filtering import PoseTracker, TrackedPose
 from ..images import read_frames
-from ..ros import ros_pose, tum_line
-from ..ros._inputs import read_mount_json, read_odometry_csv
+from ..io import image_size_from_header
+from ..ros import read_mount_json, read_odometry_csv, ros_pose, tum_line
 from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
 
 FORMATS = {"jsonl": (".jsonl", ".json"), "tum": (".txt", ".tum"), "ros": (".jsonl", ".json")}

@@ -11,10 +11,10 @@ import warnings
 from pathlib import Path
 
 from .. import calibration
-from .._io import atomic_write
 from ..drawing import draw_calibration_view
 from ..errors import FidlearnWarning, UsageError
 from ..images import expand_inputs
+from ..io import atomic_write
 from ..planning.coach import coach_calibration
 from ._common import _board_squares, _check_output, _commit, _Progress, _refuse_clobber, _Staging
 

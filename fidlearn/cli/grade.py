@@ -6,10 +6,9 @@ import sys
 from pathlib import Path
 
 from .. import grading
-from .._files import MAX_TEXT_BYTES, read_bytes
 from ..errors import UsageError
-from ..grading._gradebook import lms_path
-from ..grading._learners import read_roster
+from ..grading import lms_path, read_roster
+from ..io import MAX_TEXT_BYTES, read_bytes
 from ._common import _check_output, _refuse_clobber
 
 

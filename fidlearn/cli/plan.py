@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write
 from ..camera import Camera
 from ..detection import detect_markers
 from ..errors import CameraError, FidlearnError
 from ..images import load_image
+from ..io import atomic_write
 from ..markermap import MarkerMap
-from ..planning._checks import MAX_NOISE_PX
+from ..planning import MAX_NOISE_PX
 from ..planning.noise import noise_from_pose
 from ..planning.room import AREA_MET, default_area, plan_room
 from ..planning.suggest import suggest_markers

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames, synthetic
-from .._io import atomic_write
 from ..errors import FidlearnWarning, UsageError
 from ..images import write_image
+from ..io import atomic_write
 from ..printables import parse_pattern
 from ._common import (
     _add_image_size_option,

@@ -13,11 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write
 from ..errors import UsageError
 from ..images import expand_inputs
-from ..survey import Survey, survey
-from ..survey._inputs import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM
+from ..io import atomic_write
+from ..survey import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM, Survey, survey
 from ._common import (
     _add_image_size_option,
     _add_map_options,

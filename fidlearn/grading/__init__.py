@@ -37,6 +37,7 @@ nothing in ``exercises`` imports it.
 
 from .._plain import from_plain, to_plain
 from ..errors import GradingError
+from ._gradebook import lms_path
 from ._grader import (
     NotebookGrade,
     collect,
@@ -46,7 +47,7 @@ from ._grader import (
     inputs_record,
     release,
 )
-from ._learners import learner_from_filename, new_secret, normalize_learner, read_secret, variant_seed
+from ._learners import learner_from_filename, new_secret, normalize_learner, read_roster, read_secret, variant_seed
 from ._sandbox import ANSWERS_FILE, COLLECT_CELL, INPUTS_FILE, read_answers, run_notebook, sandbox_plan
 from ._selfstudy import Grade, grade_notebook
 
@@ -65,9 +66,11 @@ __all__ = [
     "graded_questions",
     "inputs_record",
     "learner_from_filename",
+    "lms_path",
     "new_secret",
     "normalize_learner",
     "read_answers",
+    "read_roster",
     "read_secret",
     "release",
     "run_notebook",

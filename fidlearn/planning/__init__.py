@@ -7,6 +7,7 @@ and the camera alone; :func:`plan_room` maps that answer over a room seen from a
 take next.
 """
 
+from ._checks import MAX_NOISE_PX
 from .coach import CalibrationCoach, NextView, coach, coach_calibration
 from .noise import PhotoNoise, corner_sigma_px, min_perimeter_px, noise_from_pose
 from .predict import Prediction, flip_probability, predict_accuracy
@@ -14,6 +15,7 @@ from .room import RoomPlan, default_area, default_step, plan_room
 from .suggest import Suggestion, suggest_markers
 
 __all__ = [
+    "MAX_NOISE_PX",
     "Prediction",
     "predict_accuracy",
     "flip_probability",

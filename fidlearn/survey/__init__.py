@@ -22,11 +22,12 @@ corner, roll-pitch-yaw in degrees), camera frame OpenCV's.
 
 from __future__ import annotations
 
+from ._inputs import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM
 from ._result import Survey, Suspect
 from ._solve import SUSPECT_P
 from ._survey import survey
 
-__all__ = ["survey", "Survey", "Suspect", "SUSPECT_P"]
+__all__ = ["survey", "Survey", "Suspect", "SUSPECT_P", "MAX_PHOTOS", "MIN_MAP_SIGMA_MM", "MAX_MAP_SIGMA_MM"]
 
 for _public in (survey, Survey, Suspect):
     _public.__module__ = __name__
