@@ -56,6 +56,7 @@ try:
     from .planning import Prediction, plan_room, predict_accuracy
     from .pose import Pose, estimate_pose, locate
     from .printables import board_pdf, markers_pdf
+    from .sequences import FrameLocator, track
     from .survey import Survey, Suspect, survey
     from .synthetic import (
         CalibrationViews,
@@ -143,5 +144,7 @@ __all__ = [
     "Survey",
     "Suspect",
     "SurveyError",
+    "track",
+    "FrameLocator",
     "__version__",
 ]

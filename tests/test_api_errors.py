@@ -18,6 +18,7 @@ import pytest
 
 import fidlearn
 from fidlearn import Camera, Detection, FidlearnError, MarkerMap, frames
+from fidlearn.images import Frame
 from fidlearn.synthetic import visible_markers
 
 WORLD = MarkerMap.load(fidlearn.data_path("world_map.json"))
@@ -81,6 +82,10 @@ BASELINES = {
     "Camera.scaled": (((640, 360),), {}),
     "Camera.from_fov": ((60, (640, 480)), {}),
     "MarkerMap.corners": ((), {}),
+    "track": (
+        ([Frame("scene.png", IMAGE, "scene.png", "image")], WORLD, CAMERA),
+        {"fps": 30.0, "refine": None, "T_camera_base": None, "odometry": None, "process_noise": (500.0, 1.0)},
+    ),
     "smooth": (
         ([fidlearn.estimate_pose(DETECTIONS, WORLD, CAMERA), None], [0.0, 0.1]),
         {"process_noise": (500.0, 1.0)},

@@ -2,8 +2,8 @@
 a TUM trajectory or ROS messages.
 
 The frames are taken in the order given, ``1 / --fps`` seconds apart (the first at t = 0 s);
-each frame's pose is what ``fidlearn locate`` gives without ``--track`` (:func:`fidlearn.locate`
-or a MarkerTracker), fed to one PoseTracker for the whole run.
+:func:`fidlearn.track` gives each frame's pose as ``fidlearn locate`` gives it without ``--track``
+and the tracked pose of one PoseTracker for the whole run. This module prints and writes them.
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames
-from ..errors import CameraError, UsageError
-from ..filtering import PoseTracker, TrackedPose
+from ..errors import UsageError
+from ..filtering import TrackedPose
 from ..images import read_frames
-from ..io import image_size_from_header
 from ..ros import read_mount_json, read_odometry_csv, ros_pose, tum_line
+from ..sequences import check_picture_sizes, track
 from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
 
 FORMATS = {"jsonl": (".jsonl", ".json"), "tum": (".txt", ".tum"), "ros": (".jsonl", ".json")}
@@ -181,84 +181,35 @@ def _row(name: str, width: int, out: TrackedPose | None) -> str:
 class _Run:
     """The frames done so far and what happened to them."""
 
-    def __init__(self, args, tracker: PoseTracker, odometry, sink):
-        self.args, self.tracker, self.odometry, self.sink = args, tracker, odometry, sink
+    def __init__(self, args, sink):
+        self.args, self.sink = args, sink
         self.fmt = args.format or "jsonl"
         self.frames = 0
         self.counts: dict[str, int] = {}
         self.last: TrackedPose | None = None
 
-    def frame(self, name: str, pose) -> TrackedPose | None:
-        """One frame's pose through the tracker; its record written."""
-        n, fps = self.frames, self.args.fps
-        odo = self.odometry.between((n - 1) / fps, n / fps) if self.odometry is not None and n > 0 else None
-        out = None
-        if pose is not None or self.tracker.started:  # before the first pose there is nothing to track
-            out = self.last = self.tracker.update(pose, n / fps, odometry=odo)
+    def frame(self, name: str, out: TrackedPose | None) -> None:
+        """One frame's tracked pose counted and its record written."""
+        if out is not None:
+            self.last = out
             self.counts[out.status] = self.counts.get(out.status, 0) + 1
             self.counts["flips resolved"] = self.counts.get("flips resolved", 0) + out.flip_resolved
             if self.sink is not None:
                 self.sink.write(_record(name, out, self.fmt))
         self.frames += 1
-        return out
 
 
-#: How much of a picture is read to find its size in its header (a JPEG's EXIF block comes first).
-_HEADER_BYTES = 256 * 1024
-
-
-def check_frame_sizes(items, camera, max_pixels: float) -> None:
-    """Refuse, before any frame is handled, pictures that the camera cannot fit (another aspect ratio).
-
-    Each picture's size is read from its header; a folder that mixes sizes used to print the
-    rescaling warning of its first pictures and then the error of a later one: now only the error.
-
-    Parameters
-    ----------
-    items : list
-        The inputs as :func:`fidlearn.images.expand_inputs` gives them (videos are checked when read).
-    camera : Camera
-        The camera file's camera.
-    max_pixels : float
-        Larger pictures are left to :func:`fidlearn.images.load_image`, which refuses them as such.
-
-    Raises
-    ------
-    CameraError
-        The first picture whose size the camera cannot be rescaled to, named.
-    """
-    seen: set[tuple[int, int]] = set()
-    for kind, path in items:
-        if kind != "image":
-            continue
-        try:
-            with open(path, "rb") as f:
-                data = f.read(4096)
-                head = image_size_from_header(data)
-                if head is not None and head[1] < 0:  # a JPEG whose EXIF block comes before its size
-                    head = image_size_from_header(data + f.read(_HEADER_BYTES))
-        except OSError:
-            continue  # reading the picture says what is wrong with it
-        size = head[1:] if head is not None else (-1, -1)
-        if min(size) <= 0 or size[0] * size[1] > max_pixels or size in seen:
-            continue
-        seen.add(size)
-        try:
-            camera.for_image(size, warn=False)
-        except CameraError as exc:
-            raise CameraError(f"{path.name}: {exc}") from None
-
-
-def _loop(run: _Run, items, locator, width: int) -> None:
+def _loop(run: _Run, steps, width: int) -> None:
     if run.sink is not None and run.fmt == "tum":
         run.sink.write("# timestamp tx ty tz qx qy qz qw")
-    for frame in read_frames(items, None, int(run.args.max_megapixels * 1_000_000)):
-        pose, _, _ = locator.pose(frame, locator.camera_for(frame))
-        print(_row(frame.name, width, run.frame(frame.name, pose)), flush=True)
+    for step in steps:
+        name = step.located.frame.name
+        run.frame(name, step.tracked)
+        print(_row(name, width, step.tracked), flush=True)
 
 
-def run_tracked(args, items, locator, out_path: Path | None) -> int:
-    """Every frame through the tracker; the table, the closing line and the output file.
+def run_tracked(args, items, marker_map, camera, out_path: Path | None) -> int:
+    """Every frame through :func:`fidlearn.track`; the table, the closing line and the output file.
 
     Parameters
     ----------
@@ -266,8 +217,10 @@ def run_tracked(args, items, locator, out_path: Path | None) -> int:
         The parsed command line.
     items : list
         The inputs as :func:`fidlearn.images.expand_inputs` gives them.
-    locator : fidlearn.cli.locate._Locator
-        The per-frame poses.
+    marker_map : MarkerMap
+        The world map.
+    camera : Camera
+        The camera file's camera.
     out_path : Path or None
         The output file (checked).
 
@@ -276,20 +229,23 @@ def run_tracked(args, items, locator, out_path: Path | None) -> int:
     int
         0 when done; 128 + signal when interrupted.
     """
-    check_frame_sizes(items, locator.camera, args.max_megapixels * 1e6)
+    check_picture_sizes(items, camera, args.max_megapixels * 1e6)
     mount = read_mount_json(args.mount) if args.mount else None
     odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
-    tracker = PoseTracker(locator.marker_map, locator.camera, T_camera_base=mount)
+    frames_in = read_frames(items, None, int(args.max_megapixels * 1_000_000))
+    steps = track(
+        frames_in, marker_map, camera, fps=args.fps, refine=args.refine, T_camera_base=mount, odometry=odometry
+    )
     width = min(max([len(p.name) + 8 for _, p in items] + [5]), 40)
     print(
         f"{'frame':<{width}} {'t_s':>8} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7} "
         f"{'std_mm':>7}  status"
     )
     sink = _LineFile(out_path, "-o") if out_path is not None else None
-    run = _Run(args, tracker, odometry, sink)
+    run = _Run(args, sink)
     try:
         with sink if sink is not None else contextlib.nullcontext():
-            _loop(run, items, locator, width)
+            _loop(run, steps, width)
     except KeyboardInterrupt as exc:
         kept = f"; {out_path} holds {sink.count} whole lines" if sink is not None else ""
         print(f"error: interrupted by {_signal_name(exc)} after {run.frames} frames{kept}", file=sys.stderr)
@@ -304,4 +260,4 @@ def run_tracked(args, items, locator, out_path: Path | None) -> int:
     return 0
 
 
-__all__ = ["add_track_options", "check_track_args", "check_frame_sizes", "run_tracked", "TRACK_HELP", "HelpFormatter"]
+__all__ = ["add_track_options", "check_track_args", "run_tracked", "TRACK_HELP", "HelpFormatter"]

@@ -14,15 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import Camera
-from ..detection import detect_markers
 from ..drawing import draw_pose
-from ..errors import CameraError, NoMarkersError, PoseError, UsageError
-from ..images import Frame, expand_inputs, read_frames
-from ..markermap import MarkerMap
-from ..pose import Pose, estimate_pose
-from ..pose._locate import _detect_map_markers
-from ..tracking import MarkerTracker
+from ..errors import UsageError
+from ..images import expand_inputs, read_frames
+from ..pose import Pose
+from ..sequences import NO_MARKER, FrameLocator, FramePose, check_picture_sizes
 from ._common import (
     _add_image_size_option,
     _add_map_options,
@@ -32,16 +28,13 @@ from ._common import (
     _Interrupted,
     _load_camera,
     _load_map,
-    _one_line,
     _outputs,
     _refuse_clobber,
     _signal_name,
     _Staging,
     _StreamFile,
 )
-from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_frame_sizes, check_track_args, run_tracked
-
-NO_MARKER = "no known marker"
+from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_track_args, run_tracked
 
 
 def add(sub) -> None:
@@ -131,83 +124,14 @@ def _pose_record(name: str, pose: Pose) -> dict:
         ``ambiguous``, ``rejected_ids``, ``ignored_ids``, ``method`` and, for an ambiguous pose,
         ``alternative_position_mm``. Every value is JSON (no NaN).
     """
-    rec = {
-        "frame": name,
-        "located": True,
-        "T_world_camera": np.asarray(pose.T_world_camera).tolist(),
-        "position_mm": pose.position_mm.tolist(),
-        "rpy_deg": pose.rpy_deg.tolist(),
-        # null, not NaN, when the pose is not determined: NaN is not JSON (strict readers, fidlearn's own, refuse it)
-        "position_std_mm": pose.position_std_mm.tolist() if pose.covariance is not None else None,
-        "marker_ids": list(pose.marker_ids),
-        "reprojection_rms_px": pose.reprojection_rms_px,
-        "ambiguous": bool(pose.ambiguous),
-        "rejected_ids": list(pose.rejected_ids),
-        "ignored_ids": list(pose.ignored_ids),
-        "method": pose.method,
-    }
-    if pose.alternative is not None:
-        rec["alternative_position_mm"] = pose.alternative.position_mm.tolist()
-    return rec
+    return {"frame": name, "located": True, **pose.to_dict()}
 
 
-class _Locator:
-    """Poses frame after frame: :func:`fidlearn.locate` for a picture, a MarkerTracker per video or camera.
-
-    The camera is fitted to each resolution once (one warning when it is rescaled), and the
-    fitted camera is what the library receives.
-    """
-
-    def __init__(self, marker_map: MarkerMap, camera: Camera, refine: str | None, annotate: bool):
-        self.marker_map, self.camera, self.annotate = marker_map, camera, annotate
-        self.refine = {"refine": refine} if refine else {}
-        self.cameras: dict[tuple[int, int], Camera] = {}
-        self.trackers: dict[tuple[str, tuple[int, int]], MarkerTracker] = {}
-
-    def camera_for(self, frame: Frame) -> Camera:
-        size = (frame.image.shape[1], frame.image.shape[0])
-        if size not in self.cameras:  # rescale (and warn) once per resolution
-            try:
-                self.cameras[size] = self.camera.for_image(size)
-            except CameraError as exc:  # say which picture, in a folder of many
-                raise CameraError(f"{frame.name}: {exc}") from None
-        return self.cameras[size]
-
-    def _tracker(self, frame: Frame, cam: Camera) -> MarkerTracker:
-        key = (frame.source, (cam.width, cam.height))
-        if key not in self.trackers:
-            self.trackers[key] = MarkerTracker(self.marker_map, cam, **self.refine)
-        return self.trackers[key]
-
-    def pose(self, frame: Frame, cam: Camera) -> tuple[Pose | None, list, str]:
-        """The frame's pose (None when there is none), the markers to draw, and why there is no pose.
-
-        A picture is detected once, as :func:`fidlearn.locate` does (the whole dictionary when none of the
-        map's markers is in view, so the row can say which ids were seen), and the same detections are drawn.
-        """
-        tracker = self._tracker(frame, cam) if frame.kind != "image" else None
-        failure = NO_MARKER
-        detections: list = []
-        try:
-            if tracker is None:
-                detections = _detect_map_markers(frame.image, self.marker_map, self.refine.get("refine"), None, True)
-                pose = estimate_pose(detections, self.marker_map, cam)
-            else:
-                pose = tracker.locate(frame.image)
-                detections = tracker.last_detections
-        except NoMarkersError:
-            pose = None
-        except PoseError as exc:  # a degenerate view: report the frame, keep going
-            pose, failure = None, f"no pose: {_one_line(str(exc))}"
-        if pose is None and tracker is not None:  # what is in view, from the whole dictionary
-            detections = detect_markers(frame.image, self.marker_map.dictionary, **self.refine)
-        return pose, detections, failure
-
-
-def _row_and_record(name: str, width: int, pose: Pose | None, detections: list, failure: str) -> tuple[str, dict]:
+def _row_and_record(name: str, width: int, located: FramePose) -> tuple[str, dict]:
     """The frame's line in the table and its JSON record."""
+    pose, failure = located.pose, located.reason
     if pose is None:
-        seen = sorted({d.id for d in detections})
+        seen = located.seen_ids
         note = failure
         if failure == NO_MARKER and seen:
             note += f" (saw ids {', '.join(map(str, seen))}, not in the map)"
@@ -249,18 +173,18 @@ class _Table:
         return f"{n} frames, {self.located} located ({100.0 * self.located / max(n, 1):.0f} %){med}{amb}"
 
 
-def _process(args, items, locator: _Locator, staging: _Staging, table: _Table, sink) -> None:
+def _process(args, items, locator: FrameLocator, staging: _Staging, table: _Table, sink) -> None:
     """Every frame: its pose, its record (written first: a row on the screen is always in the file), its row."""
     with staging:
         try:
             for frame in read_frames(items, args.camera_index, int(args.max_megapixels * 1_000_000)):
-                cam = locator.camera_for(frame)
-                pose, detections, failure = locator.pose(frame, cam)
-                row, record = _row_and_record(frame.name, table.width, pose, detections, failure)
+                located = locator.locate(frame)
+                row, record = _row_and_record(frame.name, table.width, located)
                 if sink is not None:
                     sink.write(record)
-                table.add(row, pose)
-                staging.save(frame.name, draw_pose(frame.image, detections, locator.marker_map, cam, pose))
+                table.add(row, located.pose)
+                image = draw_pose(frame.image, located.detections, locator.marker_map, located.camera, located.pose)
+                staging.save(frame.name, image)
                 table.frames += 1
         except KeyboardInterrupt as exc:
             if args.camera_index is None or isinstance(exc, _Interrupted):
@@ -307,12 +231,12 @@ def run(args) -> int:
     track_out = check_track_args(args, [p for _, p in items])
     if args.track:
         camera = _load_camera(args)
-        return run_tracked(args, items, _Locator(_load_map(args), camera, args.refine, False), track_out)
+        return run_tracked(args, items, _load_map(args), camera, track_out)
     _outputs().keep_on_interrupt = True  # every finished frame is kept
     staging = _Staging(args.annotate)
     camera = _load_camera(args)  # the camera first: a map given as --camera is named as such
-    check_frame_sizes(items, camera, args.max_megapixels * 1e6)  # one error line, before any frame's row or warning
-    locator = _Locator(_load_map(args), camera, args.refine, args.annotate is not None)
+    check_picture_sizes(items, camera, args.max_megapixels * 1e6)  # one error line, before any frame's row or warning
+    locator = FrameLocator(_load_map(args), camera, refine=args.refine)
     width = max(
         [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]
     )

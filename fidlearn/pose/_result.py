@@ -243,3 +243,66 @@ class Pose(_PoseReadouts):
             parts.append(f"ignored={list(self.ignored_ids)}")
         parts.append(f"method={self.method!r}")
         return "Pose(" + ", ".join(parts) + ")"
+
+    # -- JSON: the record ``fidlearn locate --json`` writes (bodies in _json.py) ---------------
+    def to_dict(self, *, full: bool = False) -> dict:
+        """The pose as JSON data: the record ``fidlearn locate --json`` writes for a located frame.
+
+        Parameters
+        ----------
+        full : bool
+            Also write what the record leaves out (``covariance``, ``sigma_px``, ``residuals_px``
+            and the ``alternative`` pose, each null when there is none), so that
+            :meth:`from_dict` gives this pose back whole.
+
+        Returns
+        -------
+        dict
+            ``T_world_camera`` (4x4, mm), ``position_mm``, ``rpy_deg``, ``position_std_mm`` (null when
+            the pose is not determined), ``marker_ids``, ``reprojection_rms_px``, ``ambiguous``,
+            ``rejected_ids``, ``ignored_ids``, ``method`` and, for a pose with an alternative,
+            ``alternative_position_mm``. Every value is JSON (lists, numbers, no NaN).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> pose = Pose(np.eye(4), (3,), {}, 0.25, None, 0.1, method="ippe+lm")
+        >>> d = pose.to_dict()
+        >>> d["position_mm"], d["marker_ids"], d["position_std_mm"]
+        ([0.0, 0.0, 0.0], [3], None)
+        >>> Pose.from_dict(d).to_dict() == d
+        True
+        """
+        from ._json import pose_to_dict
+
+        return pose_to_dict(self, full)
+
+    @classmethod
+    def from_dict(cls, d: dict, *, source: str = "pose") -> Pose:
+        """A pose from its JSON data (:meth:`to_dict`, or one line of ``fidlearn locate --json``).
+
+        Parameters
+        ----------
+        d : dict
+            ``T_world_camera``, ``marker_ids`` and ``reprojection_rms_px``, and optionally the other
+            fields :meth:`to_dict` writes. ``position_mm``, ``rpy_deg``, ``position_std_mm`` and
+            ``alternative_position_mm`` are read off the others and passed over, as are a
+            ``fidlearn locate --json`` line's ``frame`` and ``located``. Without ``full=True``'s
+            fields the pose has no covariance, no residuals, no alternative and a NaN ``sigma_px``.
+        source : str
+            Where ``d`` came from, named in error messages.
+
+        Returns
+        -------
+        Pose
+
+        Raises
+        ------
+        PoseError
+            ``d`` is not an object, misses a field, has an unknown field (with a guess at the meant
+            one), a value of the wrong kind, a ``T_world_camera`` that is not a rigid transform, or
+            is a frame that was not located.
+        """
+        from ._json import pose_from_dict
+
+        return pose_from_dict(cls, d, source)
