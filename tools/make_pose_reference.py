@@ -9,7 +9,7 @@ first two, the true corners without noise, and (with three or more markers) one 
 40 mm from where the map has it. Each variant runs with the noise estimated and given
 (``corner_sigma_px``). The file stores the corners it fed in, so the reference does not depend
 on the random generator, and per case the pose, the flag, the alternative, the covariance and
-the rejected markers, with the commit and versions that computed them.
+the rejected markers (``Pose.to_dict(full=True)``), with the commit and versions that computed them.
 
 ``tests/test_pose_reference.py`` runs estimate_pose on the stored corners and compares: the
 reference is what the code computed when the file was written (see ``provenance``); a change
@@ -45,28 +45,6 @@ def _variants(ids: list[int]) -> list[tuple[str, list[int]]]:
     if len(ids) >= 3:
         out.append(("two", ids[:2]))
     return out
-
-
-def _pose_record(pose) -> dict:
-    rec = {
-        "T_world_camera": pose.T_world_camera.tolist(),
-        "marker_ids": list(pose.marker_ids),
-        "rejected_ids": list(pose.rejected_ids),
-        "ambiguous": bool(pose.ambiguous),
-        "reprojection_rms_px": pose.reprojection_rms_px,
-        "sigma_px": pose.sigma_px,
-        "covariance": None if pose.covariance is None else pose.covariance.tolist(),
-        "method": pose.method,
-    }
-    alt = pose.alternative
-    rec["alternative"] = None
-    if alt is not None:
-        rec["alternative"] = {
-            "T_world_camera": alt.T_world_camera.tolist(),
-            "covariance": None if alt.covariance is None else alt.covariance.tolist(),
-            "method": alt.method,
-        }
-    return rec
 
 
 def cases() -> list[dict]:
@@ -108,7 +86,7 @@ def run(case: dict) -> dict:
     m = MarkerMap.load(data_path(case["map"]))
     camera = Camera.load(data_path("scenes", "camera.json"))
     dets = [Detection(int(i), np.asarray(c)) for i, c in case["corners_px"].items()]
-    return _pose_record(estimate_pose(dets, m, camera, corner_sigma_px=case["corner_sigma_px"]))
+    return estimate_pose(dets, m, camera, corner_sigma_px=case["corner_sigma_px"]).to_dict(full=True)
 
 
 def main(argv=None) -> int:
