@@ -10,16 +10,14 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera
-from ..detection import detect_markers
-from ..errors import CameraError, FidlearnError
+from ..errors import FidlearnError
 from ..images import load_image
 from ..io import atomic_write
 from ..markermap import MarkerMap
 from ..planning import MAX_NOISE_PX
-from ..planning.noise import noise_from_pose
+from ..planning.noise import noise_from_photo
 from ..planning.room import AREA_MET, default_area, plan_room
 from ..planning.suggest import suggest_markers
-from ..pose import estimate_pose
 from ._common import _check_output, _commit, _floats, _refuse_clobber
 
 HELP = "predicted position error over a room seen from above, and where to add markers"
@@ -229,20 +227,14 @@ def _noise(args, world: MarkerMap, camera: Camera) -> dict:
             "marker_size_rel_std": args.marker_size_rel_std,
         }
     image = load_image(args.noise_from)
-    size = (image.shape[1], image.shape[0])
-    if size != camera.image_size:
-        raise CameraError(
-            f"--noise-from {args.noise_from}: the photo is {size[0]}x{size[1]} and the camera "
-            f"{camera.image_size[0]}x{camera.image_size[1]}; take it at the resolution the camera was calibrated at"
-        )
     try:
-        pose = estimate_pose(detect_markers(image, world.dictionary), world, camera)
-        measured = noise_from_pose(pose, world, camera)
+        found = noise_from_photo(image, world, camera)
     except FidlearnError as exc:
         raise type(exc)(f"--noise-from {args.noise_from}: {exc}") from None
+    measured = found.noise
     err = measured.marker_size_rel_error
     print(
-        f"noise measured on {args.noise_from} ({len(pose.marker_ids)} markers): corner noise "
+        f"noise measured on {args.noise_from} ({len(found.pose.marker_ids)} markers): corner noise "
         f"{measured.corner_sigma_px:.2f} px, marker shift {measured.marker_shift_px:.2f} px (per axis), marker size "
         f"spread {100 * measured.marker_size_rel_std_each:.1f} %; the markers look {100 * abs(err):.1f} % "
         f"{'smaller' if err < 0 else 'larger'} than the map says"

@@ -9,7 +9,7 @@ take next.
 
 from ._checks import MAX_NOISE_PX
 from .coach import CalibrationCoach, NextView, coach, coach_calibration
-from .noise import PhotoNoise, corner_sigma_px, min_perimeter_px, noise_from_pose
+from .noise import MeasuredNoise, PhotoNoise, corner_sigma_px, min_perimeter_px, noise_from_photo, noise_from_pose
 from .predict import Prediction, flip_probability, predict_accuracy
 from .room import RoomPlan, default_area, default_step, plan_room
 from .suggest import Suggestion, suggest_markers
@@ -23,6 +23,8 @@ __all__ = [
     "min_perimeter_px",
     "PhotoNoise",
     "noise_from_pose",
+    "noise_from_photo",
+    "MeasuredNoise",
     "RoomPlan",
     "Suggestion",
     "plan_room",

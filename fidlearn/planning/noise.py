@@ -16,7 +16,8 @@ side's line. :func:`corner_covariance` gives their joint covariance.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -390,3 +391,96 @@ def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     residuals = np.array([pose.residuals_px[i] for i in ids])
     projected = camera.project(P, pose.T_world_camera).reshape(-1, 4, 2)
     return noise_from_residuals(residuals, pose_jacobian(P, pose.T_world_camera, camera), projected + residuals)
+
+
+@dataclass
+class MeasuredNoise:
+    """The noise measured on a photo (:func:`noise_from_photo`) and the pose it was measured with.
+
+    Attributes
+    ----------
+    noise : PhotoNoise
+        The corner noise, marker shift and marker size errors.
+    pose : fidlearn.Pose
+        The photo's pose, from every marker of the map in it.
+    """
+
+    noise: PhotoNoise
+    pose: Any
+
+    def kwargs(self) -> dict:
+        """The noise as keyword arguments of :func:`~fidlearn.planning.predict_accuracy` (:meth:`PhotoNoise.kwargs`).
+
+        Returns
+        -------
+        dict
+            ``{field name: value}``, as :func:`~fidlearn.planning.plan_room` takes them too.
+        """
+        return self.noise.kwargs()
+
+
+def noise_from_photo(image: np.ndarray, marker_map, camera) -> MeasuredNoise:
+    """Corner noise, marker shift and marker size errors measured on one photo of the map's markers.
+
+    The photo's markers are detected (the map's dictionary), its pose estimated
+    (:func:`fidlearn.estimate_pose`) and :func:`noise_from_pose` measures what its residuals hold.
+    Take the photo as the ones you will take (same camera, distance, light), with many markers in it.
+
+    Parameters
+    ----------
+    image : ndarray
+        The photo (gray or BGR; :func:`fidlearn.images.load_image` reads a file), at the resolution
+        the camera was calibrated at.
+    marker_map : MarkerMap
+        The world map (mm).
+    camera : Camera
+        The camera the photo was taken with.
+
+    Returns
+    -------
+    MeasuredNoise
+        The noise (``.noise``; ``.kwargs()`` for :func:`~fidlearn.planning.plan_room`) and the pose.
+
+    Raises
+    ------
+    CameraError
+        The photo has another size than the camera's calibration.
+    NoMarkersError
+        No marker of the map is in the photo.
+    PoseError
+        Fewer than four markers gave the pose, or the corners give no pose.
+    ImageError
+        ``image`` is not an image.
+
+    Examples
+    --------
+    OpenCV's ChArUco photo and its published camera: the markers look 1.3 % smaller than printed.
+
+    >>> import fidlearn
+    >>> from fidlearn.images import load_image
+    >>> real = fidlearn.data_path("real", "opencv_charuco")
+    >>> cam = fidlearn.Camera.load(real / "tutorial_camera_charuco.yml", image_size=(640, 480))
+    >>> board = fidlearn.MarkerMap.load(real / "board_map.json")
+    >>> measured = noise_from_photo(load_image(real / "img_00.jpg"), board, cam)
+    >>> len(measured.pose.marker_ids), round(100 * measured.noise.marker_size_rel_error, 1)
+    (17, -1.3)
+    """
+    from ..camera import Camera
+    from ..detection import detect_markers
+    from ..errors import CameraError, ImageError
+    from ..markermap import MarkerMap
+    from ..pose import estimate_pose
+
+    for value, name, kind in ((marker_map, "marker_map", MarkerMap), (camera, "camera", Camera)):
+        if not isinstance(value, kind):
+            raise PoseError(f"{name} must be a fidlearn {kind.__name__}, got {type(value).__name__}")
+    if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or image.size == 0:
+        raise ImageError(f"image must be a picture (a numpy array, H x W or H x W x 3), got {type(image).__name__}")
+    size = (image.shape[1], image.shape[0])
+    if size != camera.image_size:
+        raise CameraError(
+            f"the photo is {size[0]}x{size[1]} and the camera {camera.image_size[0]}x{camera.image_size[1]}; "
+            "take it at the resolution the camera was calibrated at"
+        )
+    pose = estimate_pose(detect_markers(image, marker_map.dictionary), marker_map, camera)
+    return MeasuredNoise(noise_from_pose(pose, marker_map, camera), pose)
