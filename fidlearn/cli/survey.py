@@ -11,8 +11,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
@@ -133,66 +131,11 @@ def _report(s: Survey, args) -> None:
         f"{args.output}: {len(s.marker_map)} markers surveyed from {len(s.camera_poses)} photos "
         f"(corner noise {s.corner_sigma_px:.2f} px, tape sigma {s.map_sigma_mm:g} mm)"
     )
-    print(table(s))
+    print(s.table())
     for sus in s.suspects:
         print(sentence(sus))
     if not s.suspects:
         print("no marker disagrees with the photos more than the tape's sigma explains")
-
-
-def table(s: Survey) -> str:
-    """The per-marker table: tape and surveyed top-left corners, difference, std and robust residual (mm), photos, note.
-
-    The robust residual (``resid``) is the tape corner's distance from where the photos alone put it
-    (:attr:`fidlearn.Survey.tape_residual_mm`), ``-`` when not tested.
-
-    Parameters
-    ----------
-    s : Survey
-        A survey.
-
-    Returns
-    -------
-    str
-        One header line and one line per marker of the surveyed map.
-    """
-    head = (
-        f"{'id':>4} {'tape x, y, z (mm)':>24} {'surveyed x, y, z (mm)':>24} {'diff':>7} {'std':>6} {'resid':>7} "
-        f"{'photos':>6}  note"
-    )
-    lines = [head]
-    suspects = set(s.suspect_ids)
-    for i, p in s.marker_map.placements.items():
-        got = np.asarray(p.translation_mm)
-        if i in s.tape_map:
-            tape = np.asarray(s.tape_map.placements[i].translation_mm)
-            tape_text, diff = ", ".join(f"{v:.0f}" for v in tape), f"{np.linalg.norm(got - tape):7.1f}"
-        else:
-            tape_text, diff = "-", f"{'-':>7}"
-        std = float(np.linalg.norm(s.marker_position_std_mm[i]))
-        note = _note(s, i, suspects)
-        resid = f"{s.tape_residual_mm[i]:7.0f}" if i in s.tape_residual_mm else f"{'-':>7}"
-        lines.append(
-            f"{i:>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} {resid} "
-            f"{s.photos_per_marker.get(i, 0):>6}  {note}"
-        )
-    return "\n".join(lines)
-
-
-def _note(s: Survey, i: int, suspects: set) -> str:
-    if i in s.gross_ids:
-        return "SUSPECT, far off: placed by the photos; measure again"
-    if i in suspects:
-        return "SUSPECT: measure again"
-    if i in s.added_ids:
-        return "added from the photos"
-    if i in s.fixed_ids:
-        return "fixed"
-    if i in s.unseen_ids:
-        return "in no photo: the tape's"
-    if s.photos_per_marker.get(i, 0) < 2:
-        return "in one photo only: take another"
-    return ""
 
 
 def sentence(suspect) -> str:

@@ -212,6 +212,58 @@ class Survey:
         check_readable(self.marker_map)
         return write_json_atomic(path, {**self.marker_map.to_dict(), "surveyed": self.note()})
 
+    def table(self) -> str:
+        """The per-marker table ``fidlearn survey`` prints: tape and surveyed corners, their difference.
+
+        One line per marker of the surveyed map: the tape's and the surveyed top-left corner (mm), their
+        distance (``diff``), the surveyed position's standard deviation (``std``, the length of its three),
+        the robust residual (``resid``: the tape corner's distance from where the photos alone put it,
+        :attr:`tape_residual_mm`, ``-`` when not tested), the photos that show the marker and a note
+        (a suspect, a marker added from the photos, fixed, in no photo, in one photo only).
+
+        Returns
+        -------
+        str
+            One header line and one line per marker, joined by newlines (no newline at the end).
+        """
+        head = (
+            f"{'id':>4} {'tape x, y, z (mm)':>24} {'surveyed x, y, z (mm)':>24} {'diff':>7} {'std':>6} {'resid':>7} "
+            f"{'photos':>6}  note"
+        )
+        lines = [head]
+        suspects = set(self.suspect_ids)
+        for i, p in self.marker_map.placements.items():
+            got = np.asarray(p.translation_mm)
+            if i in self.tape_map:
+                tape = np.asarray(self.tape_map.placements[i].translation_mm)
+                tape_text, diff = ", ".join(f"{v:.0f}" for v in tape), f"{np.linalg.norm(got - tape):7.1f}"
+            else:
+                tape_text, diff = "-", f"{'-':>7}"
+            std = float(np.linalg.norm(self.marker_position_std_mm[i]))
+            resid = f"{self.tape_residual_mm[i]:7.0f}" if i in self.tape_residual_mm else f"{'-':>7}"
+            lines.append(
+                f"{i:>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} {resid} "
+                f"{self.photos_per_marker.get(i, 0):>6}  {_table_note(self, i, suspects)}"
+            )
+        return "\n".join(lines)
+
+
+def _table_note(s: Survey, i: int, suspects: set) -> str:
+    """What the table says of marker ``i`` beside its numbers (empty for a marker well seen)."""
+    if i in s.gross_ids:
+        return "SUSPECT, far off: placed by the photos; measure again"
+    if i in suspects:
+        return "SUSPECT: measure again"
+    if i in s.added_ids:
+        return "added from the photos"
+    if i in s.fixed_ids:
+        return "fixed"
+    if i in s.unseen_ids:
+        return "in no photo: the tape's"
+    if s.photos_per_marker.get(i, 0) < 2:
+        return "in one photo only: take another"
+    return ""
+
 
 def _hashable(value) -> bool:
     try:
