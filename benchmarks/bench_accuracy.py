@@ -110,7 +110,7 @@ def one_scene(m: MarkerMap, cam: Camera, distance_mm: float, rng, noise=(1.0, 2.
     """Errors (mm; None = no pose) of every pipeline on one rendered scene; None when no marker is in view."""
     for _ in range(50):
         T = viewpoint(m, distance_mm, rng)
-        image, truth = render_scene(
+        scene = render_scene(
             m,
             cam,
             T,
@@ -119,6 +119,7 @@ def one_scene(m: MarkerMap, cam: Camera, distance_mm: float, rng, noise=(1.0, 2.
             noise_std_gray=float(rng.uniform(*noise)),
             gradient=float(rng.uniform(0, 0.3)),
         )
+        image, truth = scene.image, scene.truth
         if any(_with_margin(c, cam) for c in truth.values()):
             break
     else:

@@ -81,7 +81,8 @@ def scene(side_px: float, seed: int, dictionary: str, image_size=(640, 480), blu
     T = look_at(eye, centre, roll_deg=float(rng.uniform(0, 360)))
     blur = float(rng.uniform(0.5, 1.0)) if blur is None else blur
     noise = float(rng.uniform(1.0, 2.0)) if noise is None else noise
-    image, truth = render_scene(mm, cam, T, seed=seed, blur_px=blur, noise_std_gray=noise, gradient=0.2)
+    rendered = render_scene(mm, cam, T, seed=seed, blur_px=blur, noise_std_gray=noise, gradient=0.2)
+    image, truth = rendered.image, rendered.truth
     return image, truth, mm, cam
 
 
@@ -192,9 +193,8 @@ def robustness(methods, n_scenes: int = 4) -> dict:
                 [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
             )
             kw = {"blur_px": 0.7, "noise_std_gray": 1.5, **extra}
-            image, truth = render_scene(
-                mm, cam, look_at(eye, centre, roll_deg=float(rng.uniform(0, 360))), seed=s, **kw
-            )
+            rendered = render_scene(mm, cam, look_at(eye, centre, roll_deg=float(rng.uniform(0, 360))), seed=s, **kw)
+            image, truth = rendered.image, rendered.truth
             if invert:
                 image = 255 - image
             visible += len(truth)

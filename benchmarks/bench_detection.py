@@ -131,7 +131,8 @@ def video_frames(n: int) -> list:
     cells = _cv.dictionary_marker_bits(m.dictionary) + 2
     out = []
     for i, T in enumerate(walk_poses(n)):
-        image, truth = render_scene(m, cam, T, seed=i, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
+        scene = render_scene(m, cam, T, seed=i, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
+        image, truth = scene.image, scene.truth
         out.append((m.dictionary, image, truth, countable(truth, cells, cam.image_size)))
     return out
 
@@ -157,7 +158,8 @@ def room(rng: np.random.Generator, dictionary: str, k: int, hard: bool = False):
     T = look_at(eye, centre + rng.normal(0, 0.1 * side, 3), roll_deg=rng.uniform(-10, 10))
     blur = rng.uniform(0.5, 1.8) if hard else rng.uniform(0.3, 1.0)
     light = dict(noise_std_gray=3.0, gradient=0.35) if hard else dict(noise_std_gray=1.5, gradient=0.1)
-    image, truth = render_scene(m, cam, T, seed=k, blur_px=blur, supersample=2, **light)
+    scene = render_scene(m, cam, T, seed=k, blur_px=blur, supersample=2, **light)
+    image, truth = scene.image, scene.truth
     cells = _cv.dictionary_marker_bits(dictionary) + 2
     return dictionary, image, truth, countable(truth, cells, size)
 
@@ -297,7 +299,8 @@ def wall_scene(dictionary: str, n: int, size):
     centre = np.array([0.0, (cols - 1) * 150.0, 2000.0 - (rows - 1) * 150.0])
     dist = max(1500.0, cols * 300.0 / 0.95)
     T = look_at(centre + [dist, 0.15 * dist, 0.08 * dist], centre, roll_deg=5)
-    image, truth = render_scene(m, cam, T, seed=n, blur_px=0.6, noise_std_gray=1.5, gradient=0.1, supersample=1)
+    scene = render_scene(m, cam, T, seed=n, blur_px=0.6, noise_std_gray=1.5, gradient=0.1, supersample=1)
+    image, truth = scene.image, scene.truth
     return m, cam, image, truth
 
 

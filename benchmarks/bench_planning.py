@@ -76,7 +76,7 @@ def group_rows(n_scenes: int, n_seeds: int, seed: int = 7) -> list[dict]:
             used += 1
             flips += p.flip_likely
             for k in range(n_seeds):
-                image, _ = render_scene(world, camera, T, seed=1000 * tries + k, **RENDER)
+                image = render_scene(world, camera, T, seed=1000 * tries + k, **RENDER).image
                 try:
                     pose = fidlearn.locate(image, world, camera)
                     err = float(np.linalg.norm(pose.position_mm - T[:3, 3]))
@@ -118,7 +118,8 @@ def detected_fraction(camera: Camera, side_mm: float, distance_mm: float, trials
     found = 0
     for k in range(trials):
         T = look_at([distance_mm, 0, 1000], [0, 0, 1000], roll_deg=7.0 * k)
-        image, truth = render_scene(world, camera, T, seed=k, **RENDER)
+        rendered = render_scene(world, camera, T, seed=k, **RENDER)
+        image, truth = rendered.image, rendered.truth
         found += bool(fidlearn.detect_markers(image, ids=[0])) if 0 in truth else 0
     return found / trials
 
@@ -166,7 +167,8 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11) -> None:
         camera = Camera.from_fov(60, SIZES[k % len(SIZES)])
         world = wall_map(rng, int(rng.integers(1, 13)))
         T = scene(rng, world, rng.uniform(500, 4000))
-        image, truth = render_scene(world, camera, T, seed=k, **RENDER)
+        rendered = render_scene(world, camera, T, seed=k, **RENDER)
+        image, truth = rendered.image, rendered.truth
         for d in fidlearn.detect_markers(image, ids=world.ids):
             if d.id in truth:
                 t = truth[d.id]

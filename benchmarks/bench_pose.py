@@ -142,7 +142,7 @@ def bench_rendered(n_per_map: int, rng) -> None:
             if not all_visible(m, T):
                 continue
             n += 1
-            image, truth = render_scene(
+            scene = render_scene(
                 m,
                 CAMERA,
                 T,
@@ -151,6 +151,7 @@ def bench_rendered(n_per_map: int, rng) -> None:
                 noise_std_gray=rng.uniform(1.0, 4.0),
                 gradient=rng.uniform(0, 0.3),
             )
+            image, truth = scene.image, scene.truth
             C = T[:3, 3]
             s = seed_pipeline(image, m, CAMERA)
             if s is None:
@@ -330,7 +331,7 @@ def bench_speed(n_images: int, rng) -> None:
     while len(images) < n_images:
         T = random_view(m, rng)
         if all_visible(m, T):
-            images.append(render_scene(m, CAMERA, T, seed=len(images), blur_px=0.6, noise_std_gray=2.0)[0])
+            images.append(render_scene(m, CAMERA, T, seed=len(images), blur_px=0.6, noise_std_gray=2.0).image)
     det = _cv.make_detector(m.dictionary)
     from fidlearn.detection import detect_markers
 
@@ -376,7 +377,7 @@ def bench_misplaced(n_trials: int, rng) -> None:
             T = random_view(m, rng, (0.6, 1.6))
             if not all_visible(m, T):
                 continue
-            image, _ = render_scene(m, CAMERA, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std_gray=2.0)
+            image = render_scene(m, CAMERA, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std_gray=2.0).image
             bad = int(rng.integers(len(m.ids)))
             pl = dict(m.placements)
             p0 = pl[bad]

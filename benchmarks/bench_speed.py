@@ -112,7 +112,8 @@ def bench_locate(repeats: int) -> list:
     for size in ((640, 480), (1280, 720), (1920, 1080)):
         cam = webcam(size)
         for label, m, T in scenes():
-            image, truth = render_scene(m, cam, T, seed=1, blur_px=0.6, noise_std_gray=1.5, gradient=0.1)
+            scene = render_scene(m, cam, T, seed=1, blur_px=0.6, noise_std_gray=1.5, gradient=0.1)
+            image, truth = scene.image, scene.truth
             sides = [float(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1).min()) for c in truth.values()]
             plain = plain_detector()
             calls = {"plain": lambda: plain.detectMarkers(image), "locate": lambda: fidlearn.locate(image, m, cam)}
@@ -243,8 +244,11 @@ def bench_tracker(n_frames: int, passes: int) -> tuple:
     poses = walk_poses(n_frames)
     t0 = time.perf_counter()
     frames = [
-        render_scene(m, cam, T, seed=i, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
-        for i, T in enumerate(poses)
+        (scene.image, scene.truth)
+        for scene in (
+            render_scene(m, cam, T, seed=i, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
+            for i, T in enumerate(poses)
+        )
     ]
     render_s = time.perf_counter() - t0
     cells = _cv.dictionary_marker_bits(DICT) + 2

@@ -78,7 +78,8 @@ def rendered(truth, poses, seed: int, errors: list) -> list[np.ndarray]:
     """The pictures; ``errors`` gets each detected corner's distance from the truth (px)."""
     images = []
     for k, T in enumerate(poses):
-        image, true = render_scene(truth, CAMERA, T, seed=seed * 1000 + k, **RENDER)
+        scene = render_scene(truth, CAMERA, T, seed=seed * 1000 + k, **RENDER)
+        image, true = scene.image, scene.truth
         images.append(image)
         for d in fidlearn.detect_markers(image):
             if d.id in true:

@@ -102,7 +102,7 @@ def observe(world, cam, poses, look_y, rng):
         if dropped[k] or k in gap:
             out.append(None)
             continue
-        image, _ = render_scene(world, cam, T, seed=k, blur_px=0.5, noise_std_gray=1.0)
+        image = render_scene(world, cam, T, seed=k, blur_px=0.5, noise_std_gray=1.0).image
         t0 = time.perf_counter()
         dets = detect_markers(image, world.dictionary, ids=world.ids)
         if single[k]:  # one far marker: the one looked at

@@ -24,7 +24,8 @@ from fidlearn.synthetic import visible_markers
 WORLD = MarkerMap.load(fidlearn.data_path("world_map.json"))
 CAMERA = Camera.load(fidlearn.data_path("scenes/camera.json"))
 T = fidlearn.look_at([1000, 190, 230], [0, 190, 230])
-IMAGE, TRUTH = fidlearn.render_scene(WORLD, CAMERA, T, supersample=1)
+SCENE = fidlearn.render_scene(WORLD, CAMERA, T, supersample=1)
+IMAGE, TRUTH = SCENE.image, SCENE.truth
 DETECTIONS = [Detection(i, c) for i, c in TRUTH.items()]
 
 BAD = {

@@ -970,7 +970,7 @@ def seed_scene():
     """The seed wall from 1.5 m at 1280x960, with its true pose."""
     camera = Camera.from_fov(60, (1280, 960))
     T_world_camera = look_at([1500, 150, 250], [0, 150, 250])
-    image, _ = render_scene(seed_map(), camera, T_world_camera)
+    image = render_scene(seed_map(), camera, T_world_camera).image
     return camera, image, T_world_camera
 
 

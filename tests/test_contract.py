@@ -138,7 +138,7 @@ def scene():
     cam = fidlearn.Camera.from_fov(60, (640, 480))
     world = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
     T = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, 90), [900.0, 190.0, 230.0])
-    image, _truth = fidlearn.render_scene(world, cam, T)
+    image = fidlearn.render_scene(world, cam, T).image
     return image, world, cam, T
 
 

@@ -160,13 +160,14 @@ def test_a_scene_regenerates_from_its_record():
     record = read_json("scenes", "poses.json")
     camera = Camera.load(data_path("scenes", record["camera"]))
     item = record["images"][7]
-    image, truth = render_scene(
+    scene = render_scene(
         MarkerMap.load(data_path(item["map"])),
         camera,
         np.array(item["T_world_camera"]),
         seed=item["seed"],
         **record["render"],
     )
+    image, truth = scene.image, scene.truth
     assert sorted(truth) == item["visible_ids"]
     assert_same_pixels(image, read_gray("scenes", item["image"]), record["provenance"])
 
@@ -179,7 +180,8 @@ def test_a_survey_photo_regenerates_from_its_record_and_the_maps_are_what_they_s
     poses = survey_walk(truth, camera, record["n_photos"], record["seed"])
     item = record["photos"][5]
     np.testing.assert_allclose(poses[5], item["T_world_camera"], atol=1e-9)
-    image, seen = render_scene(truth, camera, poses[5], seed=item["seed"], **record["render"])
+    scene = render_scene(truth, camera, poses[5], seed=item["seed"], **record["render"])
+    image, seen = scene.image, scene.truth
     assert sorted(seen) == item["visible_ids"]
     ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, record["jpeg_quality"]])
     assert_same_pixels(

@@ -178,7 +178,8 @@ def view(side_px: float, az_deg: float = 20.0, el_deg: float = -10.0, roll_deg: 
 def test_synthetic_corners_match_the_truth(side_px, seed):
     mm = wall()
     cam, T = view(side_px, az_deg=25.0, el_deg=-15.0, roll_deg=20.0 * seed)
-    image, truth = render_scene(mm, cam, T, seed=seed, blur_px=0.8, noise_std_gray=1.5, gradient=0.2)
+    scene = render_scene(mm, cam, T, seed=seed, blur_px=0.8, noise_std_gray=1.5, gradient=0.2)
+    image, truth = scene.image, scene.truth
     assert len(truth) == 6
     dets = detect_markers(image)  # ARUCO_ORIGINAL, the default refinement
     assert [d.id for d in dets] == sorted(truth)
@@ -198,7 +199,8 @@ def test_gamma_moves_edges_outwards_on_linear_pictures():
     # The renderer's gray levels are proportional to light: gamma 2.2 puts the edge where a sRGB
     # camera would, which on these pictures is outside the true edge.
     cam, T = view(45)
-    image, truth = render_scene(wall(), cam, T, seed=6, blur_px=0.7, noise_std_gray=1.0)
+    scene = render_scene(wall(), cam, T, seed=6, blur_px=0.7, noise_std_gray=1.0)
+    image, truth = scene.image, scene.truth
     dets = detect_markers(image, refine="none")
     C = np.stack([d.corners_px for d in dets])
     truths = np.array([truth[d.id] for d in dets])
@@ -210,7 +212,8 @@ def test_gamma_moves_edges_outwards_on_linear_pictures():
 @pytest.mark.parametrize("roll_deg", [90.0, 180.0, 270.0])
 def test_rolled_camera_still_reports_each_markers_own_top_left_first(roll_deg):
     cam, T = view(50, roll_deg=roll_deg)
-    image, truth = render_scene(wall(), cam, T, seed=4, blur_px=0.6, noise_std_gray=1.0)
+    scene = render_scene(wall(), cam, T, seed=4, blur_px=0.6, noise_std_gray=1.0)
+    image, truth = scene.image, scene.truth
     dets = detect_markers(image)
     assert [d.id for d in dets] == sorted(truth)
     for d in dets:
@@ -231,7 +234,8 @@ def test_rotating_the_image_permutes_nothing(photo):
 
 def test_inverted_markers_refine_too():
     cam, T = view(45)
-    image, truth = render_scene(wall(), cam, T, seed=5, blur_px=0.7, noise_std_gray=1.5)
+    scene = render_scene(wall(), cam, T, seed=5, blur_px=0.7, noise_std_gray=1.5)
+    image, truth = scene.image, scene.truth
     dets = detect_markers(255 - image, detector_params={"detectInvertedMarker": True})
     assert [d.id for d in dets] == sorted(truth)
     err = np.array([d.corners_px - truth[d.id] for d in dets])
@@ -352,7 +356,8 @@ def test_a_row_of_far_markers_with_one_cell_margins_at_their_rendered_corners():
     cam = Camera([[1371.0, 0, 961.3], [0, 1371.0, 538.2], [0, 0, 1]], [-0.08, 0.05, 3e-4, -2e-4, -0.01], (1920, 1080))
     row = {18 + c: MarkerPlacement(18 + c, (0.0, c * 450.0 - 200.0, 1800.0), (0.0, 0.0, 0.0)) for c in range(9)}
     m = MarkerMap(row, MARKER_MM, "ARUCO_ORIGINAL")
-    image, truth = render_scene(m, cam, T, seed=5, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
+    scene = render_scene(m, cam, T, seed=5, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
+    image, truth = scene.image, scene.truth
     assert sorted(truth) == list(range(18, 27))
     dets = detect_markers(image)
     assert [d.id for d in dets] == list(range(18, 27))
@@ -483,7 +488,8 @@ def test_ids_restriction_on_a_rendered_scene_matches_the_truth():
 
     m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
     cam = fidlearn.Camera.from_fov(60, (640, 480))
-    img, truth = fidlearn.render_scene(m, cam, fidlearn.look_at([1500, 200, 300], [0, 200, 250]), seed=3)
+    scene = fidlearn.render_scene(m, cam, fidlearn.look_at([1500, 200, 300], [0, 200, 250]), seed=3)
+    img, truth = scene.image, scene.truth
     dets = detect_markers(img, m.dictionary, ids=m.ids)
     assert [d.id for d in dets] == sorted(truth)
     for d in dets:

@@ -36,7 +36,7 @@ WORLD = MarkerMap.load(fidlearn.data_path("world_map.json"))
 CAM = Camera.from_fov(60, (160, 120))
 T = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, 90), [1000, 150, 250])
 POSE = fidlearn.estimate_pose([Detection(i, CAM.project(c, T)) for i, c in WORLD.corners().items()], WORLD, CAM)
-IMAGE, _ = synthetic.render_scene(WORLD, CAM, T, supersample=1)
+IMAGE = synthetic.render_scene(WORLD, CAM, T, supersample=1).image
 ODO = (np.eye(4), np.eye(6) * 0.01)
 
 BAD = {

@@ -366,7 +366,8 @@ def test_locate_finds_the_camera_in_a_rendered_scene():
     from fidlearn.synthetic import render_scene
 
     m = wall_map()
-    image, truth = render_scene(m, CAM, T_WALL, seed=7, blur_px=0.6, noise_std_gray=2.0, gradient=0.2)
+    scene = render_scene(m, CAM, T_WALL, seed=7, blur_px=0.6, noise_std_gray=2.0, gradient=0.2)
+    image, truth = scene.image, scene.truth
     assert sorted(truth) == m.ids
     pose = locate(image, m, CAM)
     pos_err, ang_err = pose_errors(pose, T_WALL)
@@ -382,7 +383,8 @@ def test_locate_on_the_seed_map():
 
     m = MarkerMap.load(data_path("world_map.json"))
     T = synthetic_look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0], roll_deg=8.0)
-    image, truth = render_scene(m, CAM, T, seed=3, blur_px=0.5, noise_std_gray=1.5)
+    scene = render_scene(m, CAM, T, seed=3, blur_px=0.5, noise_std_gray=1.5)
+    image, truth = scene.image, scene.truth
     assert sorted(truth) == [0, 1, 2]
     pose = locate(image, m, CAM)
     assert pose.marker_ids == (0, 1, 2)
@@ -393,7 +395,7 @@ def test_locate_rescales_a_camera_of_another_resolution_and_refuses_another_aspe
     from fidlearn.synthetic import render_scene
 
     m = wall_map()
-    image, _ = render_scene(m, CAM, T_WALL, seed=8, blur_px=0.6, noise_std_gray=2.0)
+    image = render_scene(m, CAM, T_WALL, seed=8, blur_px=0.6, noise_std_gray=2.0).image
     big = CAM.scaled((1280, 960))  # calibrated at twice the resolution of the image
     with pytest.warns(FidlearnWarning, match="rescaled to 640x480"):
         pose = locate(image, m, big)
@@ -538,7 +540,7 @@ def test_locate_and_estimate_pose_take_paths_and_check_every_argument_first():
     camera_path = data_path("scenes", "camera.json")
     m, camera = MarkerMap.load(map_path), Camera.load(camera_path)
     T = look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0])
-    image, _ = render_scene(m, camera, T, seed=5, blur_px=0.5, noise_std_gray=1.0)
+    image = render_scene(m, camera, T, seed=5, blur_px=0.5, noise_std_gray=1.0).image
     pose = locate(image, m, camera)
     assert pose_errors(pose, T)[0] < 10.0
     for mp, cp in ((str(map_path), camera), (m, str(camera_path)), (map_path, camera_path)):
@@ -800,7 +802,8 @@ def _seed_room_with_a_stranger():
     placements[7] = MarkerPlacement(7, (0.0, 450.0, 304.8), (0.0, 0.0, 0.0))
     room = MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
     T_true = look_at([1400, 250, 300], [0, 250, 250])
-    image, truth = render_scene(room, CAM, T_true, seed=5, blur_px=0.5, noise_std_gray=1.0)
+    scene = render_scene(room, CAM, T_true, seed=5, blur_px=0.5, noise_std_gray=1.0)
+    image, truth = scene.image, scene.truth
     assert 7 in truth
     return m, image, T_true
 

@@ -56,7 +56,8 @@ def aruco_detect(image, dictionary=cv2.aruco.DICT_ARUCO_ORIGINAL):
 def test_opencv_finds_every_visible_marker_at_its_true_corners(wall, size, dist, eye, target, roll):
     camera = Camera.from_fov(60, size, dist=dist)
     T = look_at(eye, target, roll_deg=roll)
-    image, truth = render_scene(wall, camera, T, seed=3, noise_std_gray=1.5, blur_px=0.4, gradient=0.2)
+    rendered = render_scene(wall, camera, T, seed=3, noise_std_gray=1.5, blur_px=0.4, gradient=0.2)
+    image, truth = rendered.image, rendered.truth
     assert sorted(truth) == [0, 1, 2]
     found = aruco_detect(image)
     assert sorted(found) == sorted(truth)
@@ -69,7 +70,7 @@ def test_opencv_finds_every_visible_marker_at_its_true_corners(wall, size, dist,
 def test_truth_is_exactly_the_projection_of_the_3d_corners(wall):
     camera = Camera.from_fov(55, (640, 480), dist=WIDE_LENS)
     T = look_at([900, -200, 350], [0, 190, 240], roll_deg=7)
-    _, truth = render_scene(wall, camera, T)
+    truth = render_scene(wall, camera, T).truth
     assert sorted(truth) == [0, 1, 2]
     rvec, tvec = frames.rvec_tvec_from_transform(frames.invert_transform(T))
     for mid, px in truth.items():
@@ -87,7 +88,8 @@ def test_ink_lands_where_the_geometry_says_with_no_half_pixel_offset(wall):
     """
     camera = Camera([[800, 0, 300.3], [0, 800, 251.7], [0, 0, 1]], None, (640, 480))
     T = look_at([1000, 37.3, 270.1], [0, 37.3, 270.1])
-    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, paper_gray=230, ink_gray=25)
+    rendered = render_scene(wall, camera, T, wall_texture_std_gray=0.0, paper_gray=230, ink_gray=25)
+    image, truth = rendered.image, rendered.truth
     tl, br = truth[0][0], truth[0][2]
     side = br[0] - tl[0]
     cells = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL).markerSize + 2
@@ -142,7 +144,8 @@ def test_exact_undistortion_inverts_opencvs_projection():
 def test_markers_behind_the_camera_are_neither_drawn_nor_in_the_truth(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([500, 190, 240], [2000, 190, 240])  # in the room, looking away from the wall
-    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
+    rendered = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
+    image, truth = rendered.image, rendered.truth
     assert truth == {}
     assert np.all(image == 120)
 
@@ -150,7 +153,8 @@ def test_markers_behind_the_camera_are_neither_drawn_nor_in_the_truth(wall):
 def test_markers_seen_from_behind_the_wall_are_not_drawn(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([-800, 190, 240], [0, 190, 240])  # behind the wall, facing the back of the sheets
-    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
+    rendered = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120)
+    image, truth = rendered.image, rendered.truth
     assert truth == {}
     assert np.all(image == 120)
 
@@ -158,7 +162,8 @@ def test_markers_seen_from_behind_the_wall_are_not_drawn(wall):
 def test_a_marker_partly_outside_the_frame_is_drawn_but_left_out_of_the_truth(wall):
     camera = Camera.from_fov(50, (640, 480))
     T = look_at([400, 226, 250], [0, 226, 250])  # the left image edge runs through marker 0
-    image, truth = render_scene(wall, camera, T)
+    rendered = render_scene(wall, camera, T)
+    image, truth = rendered.image, rendered.truth
     assert sorted(truth) == [1, 2]
     px0 = camera.project(wall.marker_corners(0), T)
     assert np.any(px0[:, 0] < 0) and np.any(px0[:, 0] > 0)  # really straddles the edge
@@ -172,7 +177,8 @@ def test_a_sheet_crossing_the_camera_plane_is_drawn_where_it_is_in_front(wall):
     T = look_at([20.0, 40.0, 260.0], [60.0, 2000.0, 250.0])
     depths = frames.transform_points(frames.invert_transform(T), wall.marker_corners(0))[:, 2]
     assert depths.min() < 0 < depths.max()  # marker 0 really crosses the camera's plane
-    image, truth = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120, paper_gray=230, ink_gray=25)
+    rendered = render_scene(wall, camera, T, wall_texture_std_gray=0.0, wall_gray=120, paper_gray=230, ink_gray=25)
+    image, truth = rendered.image, rendered.truth
     assert 0 not in truth
     # a few cm in front of the camera: a point of marker 0's black right border and one of its white margin
     ink_px, paper_px = np.round(camera.project(np.array([[0.0, 74.0, 262.0], [0.0, 86.0, 262.0]]), T)).astype(int)
@@ -194,7 +200,8 @@ def test_the_nearest_sheet_wins(front, back):
     )
     camera = Camera.from_fov(50, (640, 480))
     T = look_at([900, 60, 240], [0, 60, 240])
-    image, truth = render_scene(scene, camera, T)
+    rendered = render_scene(scene, camera, T)
+    image, truth = rendered.image, rendered.truth
     assert sorted(truth) == sorted([front, back])  # the truth does not model occlusion
     found = aruco_detect(image)
     assert sorted(found) == [front]
@@ -215,9 +222,9 @@ def test_visible_means_in_front_inside_and_facing(wall):
 def test_same_seed_same_pixels_and_another_seed_other_noise(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([800, 190, 240], [0, 190, 240])
-    a, _ = render_scene(wall, camera, T, seed=4, noise_std_gray=2.0)
-    b, _ = render_scene(wall, camera, T, seed=4, noise_std_gray=2.0)
-    c, _ = render_scene(wall, camera, T, seed=5, noise_std_gray=2.0)
+    a = render_scene(wall, camera, T, seed=4, noise_std_gray=2.0).image
+    b = render_scene(wall, camera, T, seed=4, noise_std_gray=2.0).image
+    c = render_scene(wall, camera, T, seed=5, noise_std_gray=2.0).image
     np.testing.assert_array_equal(a, b)
     assert np.any(a != c)
     assert np.abs(a.astype(int) - c.astype(int)).mean() < 4
@@ -226,12 +233,12 @@ def test_same_seed_same_pixels_and_another_seed_other_noise(wall):
 def test_blur_gradient_and_bgr(wall):
     camera = Camera.from_fov(60, (320, 240))
     T = look_at([800, 190, 240], [0, 190, 240])
-    sharp, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0)
-    blurred, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, blur_px=2.0)
+    sharp = render_scene(wall, camera, T, wall_texture_std_gray=0.0).image
+    blurred = render_scene(wall, camera, T, wall_texture_std_gray=0.0, blur_px=2.0).image
     assert np.abs(np.diff(blurred.astype(float), axis=1)).max() < np.abs(np.diff(sharp.astype(float), axis=1)).max()
-    lit, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, gradient=0.4, gradient_angle_deg=0.0)
+    lit = render_scene(wall, camera, T, wall_texture_std_gray=0.0, gradient=0.4, gradient_angle_deg=0.0).image
     assert lit[5, -5] > lit[5, 4] + 30  # brighter to the right
-    bgr, _ = render_scene(wall, camera, T, wall_texture_std_gray=0.0, bgr=True)
+    bgr = render_scene(wall, camera, T, wall_texture_std_gray=0.0, bgr=True).image
     assert bgr.shape == (240, 320, 3)
     np.testing.assert_array_equal(bgr[..., 1], sharp)
 

@@ -275,7 +275,8 @@ def make_scenes() -> None:
         marker_map = MarkerMap.load(DATA / map_name)
         T = look_at(eye, target, roll_deg=roll)
         seed = 100 + i
-        image, truth = render_scene(marker_map, camera, T, seed=seed, **SCENES["render"])
+        scene = render_scene(marker_map, camera, T, seed=seed, **SCENES["render"])
+        image, truth = scene.image, scene.truth
         name = f"scene_{i:02d}.png"
         write_png(folder / name, image)
         records.append(
@@ -357,7 +358,8 @@ def make_survey() -> None:
     records = []
     for i, T in enumerate(survey_walk(truth, camera, SURVEY["n_photos"], SURVEY["seed"])):
         name = f"photo_{i:02d}.jpg"
-        image, seen = render_scene(truth, camera, T, seed=SURVEY["seed"] * 1000 + i, **SURVEY["render"])
+        scene = render_scene(truth, camera, T, seed=SURVEY["seed"] * 1000 + i, **SURVEY["render"])
+        image, seen = scene.image, scene.truth
         ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, SURVEY["jpeg_quality"]])
         if not ok:
             raise RuntimeError(f"cannot encode {name}")

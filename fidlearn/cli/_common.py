@@ -13,7 +13,6 @@ import argparse
 import json
 import math
 import os
-import re
 import signal
 import sys
 from collections.abc import Sequence
@@ -101,20 +100,6 @@ def _floats(text: str, n: int, option: str, meaning: str) -> list[float]:
     return values
 
 
-def _json_text(obj) -> str:
-    """Indented JSON with each innermost list of numbers on one line (readable matrices)."""
-    text = json.dumps(obj, indent=2)
-    return (
-        re.sub(
-            r"\[\s+([-+0-9.eE,\s]+?)\s+\]",
-            lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]",
-            text,
-        )
-        + "\n"
-    )
-
-
-# -- options shared by several commands ------------------------------------------------------------
 def _add_map_options(p, required: bool = True) -> None:
     p.add_argument("--map", type=Path, required=required, metavar="MAP.json", help="world map (marker placements)")
     p.add_argument("--units", choices=UNITS, help="units of a map that does not declare them")

@@ -6,12 +6,9 @@ import argparse
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 from .. import frames, synthetic
 from ..errors import FidlearnWarning, UsageError
 from ..images import write_image
-from ..io import atomic_write
 from ..printables import parse_pattern
 from ._common import (
     _add_image_size_option,
@@ -19,7 +16,6 @@ from ._common import (
     _check_output,
     _commit,
     _floats,
-    _json_text,
     _load_camera,
     _load_map,
     _refuse_clobber,
@@ -139,25 +135,6 @@ def _camera(args):
     return camera
 
 
-def _truth_record(args, out: Path, marker_map, camera, T_world_camera, truth: dict) -> dict:
-    """The truth file's content: the camera, the pose (mm, deg) and each marker's corners (px)."""
-    return {
-        "image": out.name,
-        "camera": camera.to_dict(),
-        "map": str(args.map),
-        "dictionary": marker_map.dictionary,
-        "marker_size_mm": marker_map.marker_size_mm,
-        "T_world_camera": np.asarray(T_world_camera).tolist(),
-        "position_mm": T_world_camera[:3, 3].tolist(),
-        "rpy_deg": frames.rpy_deg_from_rotation(T_world_camera[:3, :3]).tolist(),
-        "markers_px": {str(k): v.tolist() for k, v in sorted(truth.items())},
-        "pixel_convention": "pixel centres at integer coordinates; corners TL, TR, BR, BL",
-        "seed": args.seed,
-        "noise_std_gray": args.noise,
-        "blur_px": args.blur,
-    }
-
-
 def run(args) -> int:
     """Render the picture (and its truth file); print what is in view.
 
@@ -181,21 +158,19 @@ def run(args) -> int:
     marker_map = _load_map(args)
     camera = _camera(args)
     T_world_camera = _pose_from_args(args)
-    image, truth = synthetic.render_scene(
+    scene = synthetic.render_scene(
         marker_map, camera, T_world_camera, seed=args.seed, noise_std_gray=args.noise, blur_px=args.blur
     )
-
-    write_image(out, image)
+    write_image(out, scene.image)
     if truth_path is not None:
-        text = _json_text(_truth_record(args, out, marker_map, camera, T_world_camera, truth))
-        atomic_write(truth_path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+        scene.save_truth(truth_path, out.name, str(args.map))
     _commit()  # the picture and its truth take their names together
-    seen = ", ".join(str(i) for i in sorted(truth)) or "none"
+    seen = ", ".join(str(i) for i in sorted(scene.truth)) or "none"
     print(
         f"{out}: {camera.width}x{camera.height}, markers seen whole: {seen}"
         + (f"; truth in {truth_path}" if truth_path else "")
     )
-    if not truth:
+    if not scene.truth:
         warnings.warn(
             "no marker of the map is in view; check the pose (see 'fidlearn render --help')",
             FidlearnWarning,

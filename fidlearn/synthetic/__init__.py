@@ -66,11 +66,12 @@ from ._renderer import (  # noqa: F401
     _texels_per_cell,
 )
 from ._room import survey_room, survey_walk, tape_measured
-from ._scenes import render_scene, visible_markers
+from ._scenes import Scene, render_scene, visible_markers
 from ._trajectory import Trajectory, render_trajectory, trajectory_poses
 
 __all__ = [
     "render_scene",
+    "Scene",
     "survey_room",
     "survey_walk",
     "tape_measured",

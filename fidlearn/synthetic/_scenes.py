@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import json
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 
 from .. import _cv, frames
+from .._io import write_text_atomic
 from ..camera import Camera
 from ..errors import FidlearnError
 from ..markermap import MarkerMap
@@ -100,7 +107,7 @@ def render_scene(
     margin_cells: float = 1.0,
     margin_px: float = 2.0,
     bgr: bool = False,
-) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+) -> Scene:
     """Render what a camera sees of printed markers taped to walls, with the true corners.
 
     Parameters
@@ -134,13 +141,9 @@ def render_scene(
 
     Returns
     -------
-    image : ndarray, shape (H, W) or (H, W, 3), uint8
-        The picture, at ``camera.image_size``.
-    truth : dict
-        ``{id: (4, 2) float64}``: the true pixel corners (TL, TR, BR, BL,
-        pixel centres at integers) of every marker seen whole, facing the
-        camera (see :func:`visible_markers`). Markers partly outside the image
-        or behind the camera are drawn as far as they are seen but left out.
+    Scene
+        The picture (``.image``), the true corners of every marker seen whole (``.truth``) and
+        what it was rendered from; :meth:`Scene.save_truth` writes them down.
 
     Raises
     ------
@@ -158,10 +161,10 @@ def render_scene(
     >>> from fidlearn import Camera, MarkerMap, data_path, look_at
     >>> cam = Camera.from_fov(60, (640, 480))
     >>> wall = MarkerMap.load(data_path("world_map.json"))
-    >>> image, truth = render_scene(wall, cam, look_at([1200, 200, 250], [0, 200, 250]))
-    >>> image.shape, image.dtype, sorted(truth)
+    >>> scene = render_scene(wall, cam, look_at([1200, 200, 250], [0, 200, 250]))
+    >>> scene.image.shape, scene.image.dtype, sorted(scene.truth)
     ((480, 640), dtype('uint8'), [0, 1, 2])
-    >>> np.allclose(truth[0], cam.project(wall.marker_corners(0), look_at([1200, 200, 250], [0, 200, 250])))
+    >>> np.allclose(scene.truth[0], cam.project(wall.marker_corners(0), scene.T_world_camera))
     True
     """
     _check_scene(marker_map, camera, where="render_scene")
@@ -192,4 +195,117 @@ def render_scene(
         wall_texture_std_gray=wall_texture_std_gray,
         bgr=bgr,
     )
-    return image, visible_markers(marker_map, camera, T_world_camera, margin_px=margin_px)
+    truth = visible_markers(marker_map, camera, T_world_camera, margin_px=margin_px)
+    return Scene(image, truth, T_world_camera, camera, marker_map, seed, noise_std_gray, blur_px)
+
+
+@dataclass(eq=False)
+class Scene:
+    """A rendered picture with its truth: what :func:`render_scene` returns.
+
+    Attributes
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3), uint8
+        The picture, at ``camera.image_size``.
+    truth : dict of int to ndarray, shape (4, 2)
+        The true pixel corners (TL, TR, BR, BL, pixel centres at integers) of every marker seen
+        whole, facing the camera (see :func:`visible_markers`). Markers partly outside the image or
+        behind the camera are drawn as far as they are seen but left out.
+    T_world_camera : ndarray, shape (4, 4)
+        The camera's pose in the world (mm).
+    camera : Camera
+        The camera of the picture.
+    marker_map : MarkerMap
+        The markers rendered.
+    seed : int
+        The seed of the wall texture and the noise.
+    noise_std_gray : float
+        The sensor noise (gray levels).
+    blur_px : float
+        The defocus blur (px).
+    """
+
+    image: np.ndarray
+    truth: dict[int, np.ndarray]
+    T_world_camera: np.ndarray
+    camera: Camera
+    marker_map: MarkerMap
+    seed: int = 0
+    noise_std_gray: float = 0.0
+    blur_px: float = 0.0
+
+    def truth_record(self, image_name: str, map_name: str | None = None) -> dict:
+        """The truth file's content: the camera, the pose (mm, deg) and each marker's corners (px).
+
+        Parameters
+        ----------
+        image_name : str
+            The picture's file name, written as ``image``.
+        map_name : str, optional
+            The map file, written as ``map``; the map's own ``source`` when None.
+
+        Returns
+        -------
+        dict
+            ``image``, ``camera`` (:meth:`Camera.to_dict`), ``map``, ``dictionary``, ``marker_size_mm``,
+            ``T_world_camera`` (4x4, mm), ``position_mm``, ``rpy_deg``, ``markers_px`` (id to 4x2,
+            by id), ``pixel_convention``, ``seed``, ``noise_std_gray``, ``blur_px``.
+        """
+        T = np.asarray(self.T_world_camera)
+        return {
+            "image": str(image_name),
+            "camera": self.camera.to_dict(),
+            "map": self.marker_map.source if map_name is None else str(map_name),
+            "dictionary": self.marker_map.dictionary,
+            "marker_size_mm": self.marker_map.marker_size_mm,
+            "T_world_camera": T.tolist(),
+            "position_mm": T[:3, 3].tolist(),
+            "rpy_deg": frames.rpy_deg_from_rotation(T[:3, :3]).tolist(),
+            "markers_px": {str(k): v.tolist() for k, v in sorted(self.truth.items())},
+            "pixel_convention": "pixel centres at integer coordinates; corners TL, TR, BR, BL",
+            "seed": self.seed,
+            "noise_std_gray": self.noise_std_gray,
+            "blur_px": self.blur_px,
+        }
+
+    def save_truth(self, path: str | os.PathLike, image_name: str, map_name: str | None = None) -> Path:
+        """Write the truth file (:meth:`truth_record` as indented JSON, one matrix row a line), atomically.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The JSON file to write.
+        image_name : str
+            The picture's file name, written as ``image``.
+        map_name : str, optional
+            The map file, written as ``map``; the map's own ``source`` when None.
+
+        Returns
+        -------
+        Path
+            The file written (with the other outputs of an active :class:`fidlearn.io.StagedOutputs`).
+
+        Examples
+        --------
+        >>> import json, tempfile, pathlib
+        >>> from fidlearn import Camera, MarkerMap, data_path, look_at
+        >>> wall = MarkerMap.load(data_path("world_map.json"))
+        >>> scene = render_scene(wall, Camera.from_fov(60, (320, 240)), look_at([1200, 200, 250], [0, 200, 250]))
+        >>> out = scene.save_truth(pathlib.Path(tempfile.mkdtemp()) / "truth.json", "scene.png")
+        >>> sorted(json.loads(out.read_text())["markers_px"]), json.loads(out.read_text())["position_mm"]
+        (['0', '1', '2'], [1200.0, 200.0, 250.0])
+        """
+        return write_text_atomic(path, _json_text(self.truth_record(image_name, map_name)))
+
+
+def _json_text(obj) -> str:
+    """Indented JSON with each innermost list of numbers on one line (readable matrices)."""
+    text = json.dumps(obj, indent=2)
+    return (
+        re.sub(
+            r"\[\s+([-+0-9.eE,\s]+?)\s+\]",
+            lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]",
+            text,
+        )
+        + "\n"
+    )

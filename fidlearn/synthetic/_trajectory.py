@@ -258,8 +258,8 @@ def render_trajectory(
     _check_render_work(camera, supersample, len(chosen), "frames")
     images, truths = [], []
     for i in chosen:
-        image, truth = render_scene(marker_map, camera, poses[i], seed=int(seed) * 1000 + i, **render_kwargs)
-        images.append(image)
-        truths.append(truth)
+        scene = render_scene(marker_map, camera, poses[i], seed=int(seed) * 1000 + i, **render_kwargs)
+        images.append(scene.image)
+        truths.append(scene.truth)
     kept = [np.asarray(poses[i], dtype=float) for i in chosen]
     return Trajectory(images, kept, truths, marker_map, camera, seed=int(seed), render_kwargs=render_kwargs)

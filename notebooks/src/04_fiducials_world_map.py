@@ -116,7 +116,8 @@ for Z in distances_mm:
     for yaw_deg, seed in views:
         a = math.radians(yaw_deg)
         T = look_at([Z * math.cos(a), Z * math.sin(a), 1000], [0, 0, 1000])
-        image, truth = render_scene(one, camera, T, blur_px=0.6, noise_std_gray=2.0, seed=seed)
+        scene = render_scene(one, camera, T, blur_px=0.6, noise_std_gray=2.0, seed=seed)
+        image, truth = scene.image, scene.truth
         seen = [d for d in detect_markers(image, "ARUCO_ORIGINAL") if d.id == 0]
         if seen:
             hits += 1
@@ -326,7 +327,8 @@ fig = plotting.plot_scene(room, poses=[T_world_camera], camera=camera, scale_mm=
 plt.show()
 
 # %%
-image, truth = render_scene(room, camera, T_world_camera, blur_px=0.5, noise_std_gray=1.5, seed=4)
+scene = render_scene(room, camera, T_world_camera, blur_px=0.5, noise_std_gray=1.5, seed=4)
+image, truth = scene.image, scene.truth
 detections = detect_markers(image, "ARUCO_ORIGINAL")
 print("markers in view (truth):", sorted(truth), " detected:", [d.id for d in detections])
 assert sorted(truth) == [d.id for d in detections] == [1, 3, 4]

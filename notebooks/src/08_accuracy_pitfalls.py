@@ -194,7 +194,8 @@ one = MarkerMap.from_dict({"0": {"translation": [0, 0, 1000], "rotation": [0, 0,
                           marker_size_mm=80, dictionary="ARUCO_ORIGINAL")
 small_camera = Camera.from_fov(60, (640, 480))
 T_far = look_at([2500, -400, 1200], [0, 40, 960])
-image, truth = render_scene(one, small_camera, T_far, blur_px=0.5, noise_std_gray=1.5, seed=3)
+scene = render_scene(one, small_camera, T_far, blur_px=0.5, noise_std_gray=1.5, seed=3)
+image, truth = scene.image, scene.truth
 pose = estimate_pose(detect_markers(image, one.dictionary), one, small_camera)
 alt = pose.alternative
 
@@ -520,7 +521,7 @@ for k, (x, y) in enumerate(room_places):
     p = predict_accuracy(world_map, camera, T)
     draws = rng.multivariate_normal(np.zeros(3), p.covariance[3:, 3:], 4000)  # the camera centre's block, mm
     lo, hi = np.percentile(np.linalg.norm(draws, axis=1), [10, 90])
-    image, _ = render_scene(world_map, camera, T, seed=k, blur_px=0.5, noise_std_gray=1.2, gradient=0.2)
+    image = render_scene(world_map, camera, T, seed=k, blur_px=0.5, noise_std_gray=1.2, gradient=0.2).image
     measured = np.linalg.norm(locate(image, world_map, camera).position_mm - T[:3, 3])
     rows.append((np.linalg.norm(T[:3, 3] - centre_seed), p.position_error_mm, lo, hi, measured))
     print(f"({x:5d}, {y:5d})      {rows[-1][0] / 1000:4.1f} m   {p.position_error_mm:7.2f} mm ({lo:6.2f} to {hi:6.2f})"

@@ -79,9 +79,10 @@ def _scene(lesson_id: str, learner: str, question: str, n_markers: int, rotated:
 
     rng = _rng(lesson_id, learner, question)
     cam, m, T, rotated_id, dictionary = _layout(rng, n_markers, rotated, dictionaries)
-    image, truth = synthetic.render_scene(
+    rendered = synthetic.render_scene(
         m, cam, T, seed=int(rng.integers(1 << 30)), blur_px=0.6, noise_std_gray=2.0, gradient=0.15
     )
+    image, truth = rendered.image, rendered.truth
     return cam, m, T, image, truth, rotated_id, dictionary
 
 

@@ -236,9 +236,8 @@ def _q2(learner: str) -> Question:
 
     rng = _rng("08", learner, "q2")
     cam2, true_map, T2 = _q2_layout(rng)
-    image, truth = synthetic.render_scene(
-        true_map, cam2, T2, seed=int(rng.integers(1 << 30)), blur_px=0.5, noise_std_gray=1.5
-    )
+    scene = synthetic.render_scene(true_map, cam2, T2, seed=int(rng.integers(1 << 30)), blur_px=0.5, noise_std_gray=1.5)
+    image, truth = scene.image, scene.truth
     seen = sorted(set(truth) & {d.id for d in detect_markers(image, true_map.dictionary)})
     bad = int(rng.choice(seen))  # a marker the learner's detection finds too
     shift = rng.choice([-1, 1]) * float(rng.uniform(80, 140))
