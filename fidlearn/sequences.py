@@ -35,8 +35,7 @@ from typing import Any
 from .camera import Camera
 from .detection import Detection, detect_markers
 from .errors import CameraError, NoMarkersError, PoseError, TrackingError
-from .filtering import PoseTracker, TrackedPose
-from .filtering._track import DEFAULT_PROCESS_NOISE
+from .filtering import DEFAULT_PROCESS_NOISE, PoseTracker, TrackedPose
 from .images import Frame
 from .io import image_size_from_header
 from .markermap import MarkerMap
