@@ -18,6 +18,7 @@ import pytest
 from command_outputs import COMMANDS, command, environment, error_lines, hidden, snapshot, workspace
 
 from fidlearn import _staged, cli
+from fidlearn import io as fidlearn_io
 
 HEAVY = {"survey", "calibrate", "plan"}  # more than a few seconds each
 NAMES = [pytest.param(name, marks=pytest.mark.slow) if name in HEAVY else name for name in COMMANDS]
@@ -34,7 +35,8 @@ def _full_at_last_output(monkeypatch, name: str) -> None:
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(path)
 
-    monkeypatch.setattr(_staged, "file_mode_for", mode_then_full)
+    monkeypatch.setattr(_staged, "file_mode_for", mode_then_full)  # the staged outputs'
+    monkeypatch.setattr(fidlearn_io, "file_mode_for", mode_then_full)  # the command's streamed ones (--json)
 
 
 @pytest.mark.parametrize("name", NAMES)

@@ -18,10 +18,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from .. import io as fidlearn_io
 from ..camera import Camera
 from ..errors import FidlearnError, UsageError
 from ..images import encode_image
-from ..io import StagedOutputs, current_outputs, file_mode_for, signals_deferred
+from ..io import StagedOutputs, current_outputs, signals_deferred
 from ..markermap import MarkerMap
 from ..printables import parse_pattern
 
@@ -287,7 +288,7 @@ class _StreamFile:
         outputs = _outputs()
         self.entry = outputs.temp(self.path)
         try:
-            os.chmod(self.entry.tmp, file_mode_for(self.path))  # not mkstemp's private 0o600
+            os.chmod(self.entry.tmp, fidlearn_io.file_mode_for(self.path))  # not mkstemp's private 0o600
             self.file = open(self.entry.tmp, "w", encoding="utf-8")  # noqa: SIM115 - closed in __exit__
         except OSError as exc:
             raise FidlearnError(
