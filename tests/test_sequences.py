@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import fidlearn
+import fidlearn.cli
 from fidlearn import CameraError, FidlearnWarning, TrackingError, data_path
 from fidlearn.images import Frame, expand_inputs, load_image, read_frames, write_image
 from fidlearn.ros import Odometry
@@ -125,3 +126,20 @@ def test_track_checks_its_arguments_at_the_call():
     steps = track([load_image(SCENE)], WORLD, CAMERA)  # an image, not a Frame: said when reached
     with pytest.raises(TrackingError, match="frame 0 is a ndarray, not a fidlearn.images.Frame"):
         next(steps)
+
+
+def test_locate_track_prints_what_fidlearn_track_gives(tmp_path, capsys):
+    folder = tmp_path / "drive"
+    folder.mkdir()
+    for path, _ in DRIVE_SHOTS:
+        (folder / path.name).write_bytes(path.read_bytes())
+    out = tmp_path / "track.jsonl"
+    argv = ["locate", folder, "--map", data_path("world_map.json"), "--camera", data_path("trajectory", "camera.json")]
+    assert fidlearn.cli.main([str(a) for a in argv] + ["--track", "--fps", "10", "-o", str(out)]) == 0
+    capsys.readouterr()
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    steps = list(track(read_frames(expand_inputs([folder], videos=True)), WORLD, DRIVE_CAMERA, fps=10))
+    assert [r["frame"] for r in records] == [s.located.frame.name for s in steps]
+    for r, s in zip(records, steps):
+        assert (r["t_s"], r["status"]) == (s.t_s, s.tracked.status)
+        np.testing.assert_allclose(r["T_world_body"], s.tracked.T_world_camera, atol=1e-9)
