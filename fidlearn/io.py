@@ -16,8 +16,8 @@ command and the repository's scripts:
 Examples
 --------
 >>> import tempfile, pathlib
->>> folder = pathlib.Path(tempfile.mkdtemp())
->>> write_text_atomic(folder / "note.txt", "hello\\n").read_text()
+>>> with tempfile.TemporaryDirectory() as folder:
+...     write_text_atomic(pathlib.Path(folder) / "note.txt", "hello\\n").read_text()
 'hello\\n'
 >>> image_size_from_header(b"GIF89a" + bytes([64, 0, 48, 0]))
 ('GIF', 64, 48)

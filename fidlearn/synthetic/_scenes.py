@@ -291,8 +291,9 @@ class Scene:
         >>> from fidlearn import Camera, MarkerMap, data_path, look_at
         >>> wall = MarkerMap.load(data_path("world_map.json"))
         >>> scene = render_scene(wall, Camera.from_fov(60, (320, 240)), look_at([1200, 200, 250], [0, 200, 250]))
-        >>> out = scene.save_truth(pathlib.Path(tempfile.mkdtemp()) / "truth.json", "scene.png")
-        >>> sorted(json.loads(out.read_text())["markers_px"]), json.loads(out.read_text())["position_mm"]
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     truth = json.loads(scene.save_truth(pathlib.Path(folder) / "truth.json", "scene.png").read_text())
+        >>> sorted(truth["markers_px"]), truth["position_mm"]
         (['0', '1', '2'], [1200.0, 200.0, 250.0])
         """
         return write_text_atomic(path, _json_text(self.truth_record(image_name, map_name)))
