@@ -442,6 +442,22 @@ def test_ippe_on_one_marker_keeps_both_solutions():
     assert pose.alternative.reprojection_rms_px > 5 * pose.reprojection_rms_px
 
 
+def test_a_pose_is_slotted_pickles_with_its_alternative_and_builds_it_once():
+    import pickle
+
+    m = wall_map()
+    T = look_at([500.0, 200.0, 1300.0], [0.0, 60.0, 1440.0])
+    pose = estimate_pose(observe(m, T, 0.2, ids={0}), m, CAM, method="ippe")
+    assert not hasattr(pose, "__dict__")  # a plain slotted dataclass: attribute reads are slot reads
+    again = pickle.loads(pickle.dumps(pose))  # its alternative not yet built: pickled built
+    assert pose.alternative is pose.alternative  # built on the first read, then kept
+    assert repr(again) == repr(pose) and "alternative at" in repr(pose)
+    np.testing.assert_array_equal(again.alternative.T_world_camera, pose.alternative.T_world_camera)
+    assert again.alternative.method == pose.alternative.method == "ippe (not refined)"
+    with pytest.raises(TypeError):
+        Pose(np.eye(4), (0,), {}, 0.1, None, 0.1, True)  # the options are keyword-only
+
+
 # ---------------------------------------------------------------------------------------
 # The bundled data: rendered scenes with known poses, a real photo with known distances
 # ---------------------------------------------------------------------------------------

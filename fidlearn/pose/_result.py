@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +17,8 @@ __all__ = ["Pose"]
 class _PoseReadouts:
     """What :class:`Pose` and :class:`fidlearn.filtering.TrackedPose` read off ``T_world_camera`` (4, 4, mm)
     and ``covariance`` (6, 6, ``[dtheta (rad), camera centre (mm)]`` in world axes, or None)."""
+
+    __slots__ = ()
 
     #: The error a bad argument raises (the owning package's own).
     _error: type = PoseError
@@ -92,7 +95,7 @@ class _PoseReadouts:
         return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3_quantile(probability)
 
 
-@dataclass(eq=False, repr=False)
+@dataclass(slots=True, init=False, eq=False, repr=False)
 class Pose(_PoseReadouts):
     """The camera's pose in the world, with its quality.
 
@@ -169,29 +172,68 @@ class Pose(_PoseReadouts):
     covariance: np.ndarray | None
     sigma_px: float
     ambiguous: bool = False
-    alternative: Pose | None = None
+    #: The alternative as given: a Pose, None, or a function that builds it (see :attr:`alternative`).
+    _alternative: Pose | Callable[[], Pose] | None = None
     ignored_ids: tuple[int, ...] = ()
     rejected_ids: tuple[int, ...] = ()
     method: str = ""
     _T_camera_world: np.ndarray | None = field(default=None, init=False, repr=False)
 
-    def __post_init__(self) -> None:
-        self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
+    def __init__(
+        self,
+        T_world_camera: np.ndarray,
+        marker_ids: tuple[int, ...],
+        residuals_px: dict[int, np.ndarray],
+        reprojection_rms_px: float,
+        covariance: np.ndarray | None,
+        sigma_px: float,
+        *,
+        ambiguous: bool = False,
+        alternative: Pose | None = None,
+        ignored_ids: tuple[int, ...] = (),
+        rejected_ids: tuple[int, ...] = (),
+        method: str = "",
+    ) -> None:
+        self.T_world_camera = frames.check_transform(T_world_camera, "T_world_camera")
+        self.marker_ids, self.residuals_px = marker_ids, residuals_px
+        self.reprojection_rms_px, self.covariance, self.sigma_px = reprojection_rms_px, covariance, sigma_px
+        self.ambiguous, self._alternative = ambiguous, alternative
+        self.ignored_ids, self.rejected_ids, self.method = ignored_ids, rejected_ids, method
+        self._T_camera_world = None
 
     @classmethod
     def _trusted(cls, **fields) -> Pose:
-        """A Pose from estimate_pose's own numbers (a rotation by construction): every field given, no check."""
+        """A Pose from estimate_pose's own numbers (a rotation by construction): every field given, no check.
+
+        ``alternative`` may be a function that builds it on first use (see :attr:`alternative`).
+        """
         pose = object.__new__(cls)
-        pose.__dict__.update(fields, _T_camera_world=None)
+        pose._alternative = fields.pop("alternative")
+        for name, value in fields.items():
+            setattr(pose, name, value)
+        pose._T_camera_world = None
         return pose
 
-    def __getattribute__(self, name: str):
-        value = object.__getattribute__(self, name)
-        if name == "alternative" and callable(value):
-            # built on first use: most poses never need their (unambiguous) alternative
-            value = value()
-            object.__setattr__(self, "alternative", value)
+    @property
+    def alternative(self) -> Pose | None:
+        """The other planar (IPPE) solution, or None (see the class's Attributes).
+
+        Built on first read and kept: most poses never need their (unambiguous) alternative.
+        """
+        value = self._alternative
+        if callable(value):
+            value = self._alternative = value()
         return value
+
+    def __getstate__(self) -> dict:
+        """The fields to pickle or copy, the alternative built (a function that builds it does not pickle)."""
+        self.alternative  # noqa: B018 (builds it)
+        return {name: getattr(self, name) for name in self.__slots__}
+
+    def __setstate__(self, state: dict) -> None:
+        """Restore the fields :meth:`__getstate__` gave."""
+        for name, value in state.items():
+            setattr(self, name, value)
 
     # -- derived views -----------------------------------------------------------------
     @property
