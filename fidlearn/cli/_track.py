@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import frames
 from .._files import image_size_from_header
-from ..errors import CameraError, UsageError
+from ..errors import CameraError, OdometryRangeError, UsageError
 from ..filtering import PoseTracker, TrackedPose
 from ..images import read_frames
 from ..ros import ros_pose, tum_line
@@ -192,7 +192,10 @@ class _Run:
     def frame(self, name: str, pose) -> TrackedPose | None:
         """One frame's pose through the tracker; its record written."""
         n, fps = self.frames, self.args.fps
-        odo = self.odometry.between((n - 1) / fps, n / fps) if self.odometry is not None and n > 0 else None
+        odo = None
+        if self.odometry is not None and n > 0:
+            with contextlib.suppress(OdometryRangeError):  # a frame beyond the odometry: the motion model alone
+                odo = self.odometry.between((n - 1) / fps, n / fps)
         out = None
         if pose is not None or self.tracker.started:  # before the first pose there is nothing to track
             out = self.last = self.tracker.update(pose, n / fps, odometry=odo)
