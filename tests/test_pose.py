@@ -422,9 +422,11 @@ def test_levenberg_marquardt_reaches_the_least_squares_optimum():
     start[:3, :3] = cv2.Rodrigues(np.array([0.02, -0.03, 0.01]))[0] @ start[:3, :3]
     start[:3, 3] += [40.0, -30.0, 25.0]
     rvec0, tvec0 = frames.rvec_tvec_from_transform(frames.invert_transform(start))
-    rvec, tvec = refine_pose_lm(obj, img, CAM, rvec0, tvec0)
-    T = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
+    refined = refine_pose_lm(obj, img, CAM, rvec0, tvec0)
+    T = frames.invert_transform(refined.T_camera_world)
+    np.testing.assert_allclose(refined.T_camera_world, frames.transform_from_rvec_tvec(refined.rvec, refined.tvec))
     r = (img - CAM.project(obj, T)).ravel()
+    assert refined.reprojection_rms_px == pytest.approx(np.sqrt(r @ r / len(obj)), rel=1e-9)
     J = pose_jacobian(obj, T, CAM)
     # a stationary point: the gradient J^T r vanishes (relative to its scale)
     assert np.all(np.abs(J.T @ r) <= 1e-4 * np.sqrt(np.sum(J**2, axis=0)) * np.linalg.norm(r))
@@ -534,8 +536,8 @@ def test_the_solver_is_as_good_as_lm_started_at_the_truth():
     for _ in range(100):
         dets = observe(m, T, sigma, rng)
         pose = estimate_pose(dets, m, CAM)
-        rvec, tvec = refine_pose_lm(obj, np.concatenate([d.corners_px for d in dets]), CAM, rvec0, tvec0)
-        C = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))[:3, 3]
+        refined = refine_pose_lm(obj, np.concatenate([d.corners_px for d in dets]), CAM, rvec0, tvec0)
+        C = frames.invert_transform(refined.T_camera_world)[:3, 3]
         for est, out in ((pose.position_mm, ours), (C, truth)):
             e = est - T[:3, 3]
             out.append(e @ np.linalg.solve(P, e))
@@ -777,8 +779,7 @@ def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
     P = np.array([[x, y, 2000.0 + 0.5 * x] for x in (-300.0, 0.0, 300.0) for y in (-200.0, 200.0)])
     T_cw = frames.make_transform(cv2.Rodrigues(r_true)[0], [10.0, -5.0, 30.0])
     img = CAM.project(P, frames.invert_transform(T_cw))
-    rvec, tvec = refine_pose_lm(P, img, CAM, r_true, T_cw[:3, 3])
-    np.testing.assert_allclose(rvec, r_true, rtol=1e-3, atol=1e-12)
+    np.testing.assert_allclose(refine_pose_lm(P, img, CAM, r_true, T_cw[:3, 3]).rvec, r_true, rtol=1e-3, atol=1e-12)
     # the distance between two poses 1e-7 rad apart is not zero
     a = pose_mod._Candidate(np.eye(3), np.zeros(3), 0.0, None)
     b = pose_mod._Candidate(cv2.Rodrigues(np.array([1e-7, 0.0, 0.0]))[0], np.zeros(3), 0.0, None)
