@@ -364,7 +364,8 @@ def test_a_row_of_far_markers_with_one_cell_margins_at_their_rendered_corners():
 
 
 def test_rejected_candidates_on_request(photo):
-    dets, rejected = detect_markers_with_rejected(photo, "6X6_250")
+    found = detect_markers_with_rejected(photo, "6X6_250")
+    dets, rejected = found.detections, found.rejected
     assert [d.id for d in dets] == PHOTO_IDS
     assert len(rejected) > 0 and all(r.shape == (4, 2) for r in rejected)
 
@@ -533,7 +534,8 @@ def test_one_return_type_and_corners_px(photo):
     """detect_markers always returns the list; the rejected candidates come from their own function."""
     dets = detect_markers(photo, "6X6_250")
     assert isinstance(dets, list)
-    with_rejected, rejected = detect_markers_with_rejected(photo, "6X6_250")
+    found = detect_markers_with_rejected(photo, "6X6_250")
+    with_rejected, rejected = found.detections, found.rejected
     assert [d.id for d in with_rejected] == [d.id for d in dets]
     for a, b in zip(dets, with_rejected):
         np.testing.assert_array_equal(a.corners_px, b.corners_px)
