@@ -7,6 +7,7 @@ OpenCV's (x right, y down, z forward). World axes are drawn X red, Y green, Z bl
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -60,7 +61,23 @@ def new_axes_3d(
     return ax
 
 
-def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0.05) -> tuple[np.ndarray, float]:
+@dataclass(frozen=True, eq=False)
+class AxesCube:
+    """The cube a 3D Axes shows after :func:`set_axes_equal`.
+
+    Attributes
+    ----------
+    centre : ndarray, shape (3,)
+        Centre of the cube shown, mm.
+    half_range : float
+        Half the side of that cube, mm (the same on every axis).
+    """
+
+    centre: np.ndarray
+    half_range: float
+
+
+def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0.05) -> AxesCube:
     """Give a 3D Axes equal scales on X, Y and Z, so squares look square and right angles look right.
 
     Parameters
@@ -73,10 +90,8 @@ def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0
 
     Returns
     -------
-    centre : ndarray, shape (3,)
-        Centre of the cube shown, mm.
-    half_range : float
-        Half the side of that cube, mm (the same on every axis).
+    AxesCube
+        The ``centre`` (3,) and ``half_range`` of the cube shown, mm.
     """
     if points is None:
         lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
@@ -90,7 +105,7 @@ def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0
     ax.set_ylim3d(centre[1] - half, centre[1] + half)
     ax.set_zlim3d(centre[2] - half, centre[2] + half)
     ax.set_box_aspect((1, 1, 1))
-    return centre, half
+    return AxesCube(centre, half)
 
 
 def draw_frame(
