@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, InitVar, dataclass, field
 
 import numpy as np
 
@@ -95,7 +95,7 @@ class _PoseReadouts:
         return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3_quantile(probability)
 
 
-@dataclass(slots=True, init=False, eq=False, repr=False)
+@dataclass(slots=True, eq=False, repr=False)
 class Pose(_PoseReadouts):
     """The camera's pose in the world, with its quality.
 
@@ -171,35 +171,19 @@ class Pose(_PoseReadouts):
     reprojection_rms_px: float
     covariance: np.ndarray | None
     sigma_px: float
+    _: KW_ONLY
     ambiguous: bool = False
-    #: The alternative as given: a Pose, None, or a function that builds it (see :attr:`alternative`).
-    _alternative: Pose | Callable[[], Pose] | None = None
+    alternative: InitVar[Pose | None] = None  # read through the property set below the class
     ignored_ids: tuple[int, ...] = ()
     rejected_ids: tuple[int, ...] = ()
     method: str = ""
+    #: The alternative as given: a Pose, None, or a function that builds it (see :attr:`alternative`).
+    _alternative: Pose | Callable[[], Pose] | None = field(default=None, init=False, repr=False)
     _T_camera_world: np.ndarray | None = field(default=None, init=False, repr=False)
 
-    def __init__(
-        self,
-        T_world_camera: np.ndarray,
-        marker_ids: tuple[int, ...],
-        residuals_px: dict[int, np.ndarray],
-        reprojection_rms_px: float,
-        covariance: np.ndarray | None,
-        sigma_px: float,
-        *,
-        ambiguous: bool = False,
-        alternative: Pose | None = None,
-        ignored_ids: tuple[int, ...] = (),
-        rejected_ids: tuple[int, ...] = (),
-        method: str = "",
-    ) -> None:
-        self.T_world_camera = frames.check_transform(T_world_camera, "T_world_camera")
-        self.marker_ids, self.residuals_px = marker_ids, residuals_px
-        self.reprojection_rms_px, self.covariance, self.sigma_px = reprojection_rms_px, covariance, sigma_px
-        self.ambiguous, self._alternative = ambiguous, alternative
-        self.ignored_ids, self.rejected_ids, self.method = ignored_ids, rejected_ids, method
-        self._T_camera_world = None
+    def __post_init__(self, alternative: Pose | None) -> None:
+        self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
+        self._alternative = alternative
 
     @classmethod
     def _trusted(cls, **fields) -> Pose:
@@ -214,8 +198,7 @@ class Pose(_PoseReadouts):
         pose._T_camera_world = None
         return pose
 
-    @property
-    def alternative(self) -> Pose | None:
+    def _built_alternative(self) -> Pose | None:
         """The other planar (IPPE) solution, or None (see the class's Attributes).
 
         Built on first read and kept: most poses never need their (unambiguous) alternative.
@@ -227,7 +210,7 @@ class Pose(_PoseReadouts):
 
     def __getstate__(self) -> dict:
         """The fields to pickle or copy, the alternative built (a function that builds it does not pickle)."""
-        self.alternative  # noqa: B018 (builds it)
+        self._built_alternative()
         return {name: getattr(self, name) for name in self.__slots__}
 
     def __setstate__(self, state: dict) -> None:
@@ -285,3 +268,8 @@ class Pose(_PoseReadouts):
             parts.append(f"ignored={list(self.ignored_ids)}")
         parts.append(f"method={self.method!r}")
         return "Pose(" + ", ".join(parts) + ")"
+
+
+# A read-only property over the private slot, set after the class: a dataclass field (the ``alternative``
+# the constructor and dataclasses.replace take) and a property cannot share a name in the class body.
+Pose.alternative = property(Pose._built_alternative)  # type: ignore[assignment, method-assign]
