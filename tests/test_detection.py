@@ -162,7 +162,7 @@ def wall(dictionary: str = "ARUCO_ORIGINAL", n_cols: int = 3, n_rows: int = 2) -
         for c in range(n_cols):
             i = 3 + r * n_cols + c
             pl[i] = MarkerPlacement(i, (0.0, c * pitch, 1000.0 - r * pitch), (0.0, 0.0, 0.0))
-    return MarkerMap(pl, MARKER_MM, dictionary)
+    return MarkerMap(pl, MARKER_MM, dictionary=dictionary)
 
 
 def view(side_px: float, az_deg: float = 20.0, el_deg: float = -10.0, roll_deg: float = 0.0, size=(640, 480)):
@@ -351,7 +351,7 @@ def test_a_row_of_far_markers_with_one_cell_margins_at_their_rendered_corners():
     T = look_at(eye, [0.0, 1300 + 400 * np.sin(2.5 * s), 1250 - 250 * s], roll_deg=3 * np.sin(5 * s))
     cam = Camera([[1371.0, 0, 961.3], [0, 1371.0, 538.2], [0, 0, 1]], [-0.08, 0.05, 3e-4, -2e-4, -0.01], (1920, 1080))
     row = {18 + c: MarkerPlacement(18 + c, (0.0, c * 450.0 - 200.0, 1800.0), (0.0, 0.0, 0.0)) for c in range(9)}
-    m = MarkerMap(row, MARKER_MM, "ARUCO_ORIGINAL")
+    m = MarkerMap(row, MARKER_MM, dictionary="ARUCO_ORIGINAL")
     image, truth = render_scene(m, cam, T, seed=5, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
     assert sorted(truth) == list(range(18, 27))
     dets = detect_markers(image)

@@ -36,7 +36,7 @@ def wall_map(n_cols=3, n_rows=2, size=120.0, spacing=450.0) -> MarkerMap:
         for c in range(n_cols):
             placements[k] = MarkerPlacement(k, (0.0, c * spacing, 1500.0 - r * spacing), (0.0, 0.0, 0.0))
             k += 1
-    return MarkerMap(placements, size, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(placements, size, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def two_wall_map() -> MarkerMap:
@@ -49,7 +49,7 @@ def two_wall_map() -> MarkerMap:
         4: MarkerPlacement(4, (400.0, 0.0, 1200.0), (0.0, 0.0, 90.0)),
         5: MarkerPlacement(5, (700.0, 0.0, 800.0), (0.0, 0.0, 90.0)),
     }
-    return MarkerMap(p, 150.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(p, 150.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def observe(marker_map, T_world_camera, sigma=0.0, rng=None, camera=CAM, ids=None, extra=()):
@@ -157,7 +157,9 @@ def test_one_marker_uses_ippe_square():
 # Planar ambiguity
 # ---------------------------------------------------------------------------------------
 def test_one_marker_far_and_face_on_is_ambiguous_close_and_oblique_is_not():
-    m = MarkerMap({7: MarkerPlacement(7, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 80.0, "ARUCO_ORIGINAL", "mm")
+    m = MarkerMap(
+        {7: MarkerPlacement(7, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 80.0, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
     centre = m.T_world_marker(7)[:3, 3]
     rng = np.random.default_rng(3)
     far = look_at(centre + [2500.0, 60.0, 40.0], centre)
@@ -188,7 +190,7 @@ def _misplaced(m: MarkerMap, marker_id: int, shift_mm) -> MarkerMap:
     placements = dict(m.placements)
     p = placements[marker_id]
     placements[marker_id] = MarkerPlacement(marker_id, tuple(np.add(p.translation_mm, shift_mm)), p.rotation_deg)
-    return MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units="mm")
 
 
 def test_a_misplaced_marker_is_rejected_and_reported():
@@ -513,7 +515,9 @@ def test_markers_of_the_real_photo_are_70_to_90_cm_away():
     detections = detect_markers(image, "6X6_250")
     assert sorted(d.id for d in detections) == [23, 40, 62, 98, 124, 203]
     for d in detections:  # each marker alone, as its own 50 mm map
-        m = MarkerMap({d.id: MarkerPlacement(d.id, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))}, 50.0, "6X6_250", "mm")
+        m = MarkerMap(
+            {d.id: MarkerPlacement(d.id, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))}, 50.0, dictionary="6X6_250", units="mm"
+        )
         pose = estimate_pose([d], m, camera)
         distance = np.linalg.norm(pose.position_mm - m.T_world_marker(d.id)[:3, 3])
         assert 650.0 < distance < 950.0, (d.id, distance)
@@ -651,7 +655,7 @@ def _turned(m: MarkerMap, marker_id: int, yaw_deg: float) -> MarkerMap:
     placements[marker_id] = MarkerPlacement(
         marker_id, p.translation_mm, tuple(np.add(p.rotation_deg, [0.0, 0.0, yaw_deg]))
     )
-    return MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units="mm")
 
 
 def test_a_marker_turned_the_wrong_way_in_the_map_is_never_seen_from_behind():
@@ -725,8 +729,8 @@ def test_a_fit_far_worse_than_any_detector_is_refused():
             for i, p in m.placements.items()
         },
         m.marker_size_mm,
-        m.dictionary,
-        "mm",
+        dictionary=m.dictionary,
+        units="mm",
     )
     with pytest.raises(
         PoseError,
@@ -798,7 +802,9 @@ def test_noisy_corners_of_a_marker_seen_edge_on_are_not_called_mirrored():
         pose_mod._check_quads([7, 8], np.concatenate([folded, SQUARE[[0, 3, 2, 1]]]))
     # a camera estimated a little behind the plane of a marker seen at a grazing angle is a pose;
     # far behind it is not
-    m = MarkerMap({0: MarkerPlacement(0, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, "ARUCO_ORIGINAL", "mm")
+    m = MarkerMap(
+        {0: MarkerPlacement(0, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
     centre = m.T_world_marker(0)[:3, 3]
     obs = pose_mod._make_obs([0], {0: SQUARE}, m.corners())
     for elevation_deg, ok in ((30.0, True), (-5.0, True), (-20.0, False)):
@@ -815,7 +821,7 @@ def _seed_room_with_a_stranger():
     m = MarkerMap.load(data_path("world_map.json"))
     placements = dict(m.placements)
     placements[7] = MarkerPlacement(7, (0.0, 450.0, 304.8), (0.0, 0.0, 0.0))
-    room = MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+    room = MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units="mm")
     T_true = look_at([1400, 250, 300], [0, 250, 250])
     image, truth = render_scene(room, CAM, T_true, seed=5, blur_px=0.5, noise_std_gray=1.0)
     assert 7 in truth
@@ -837,7 +843,9 @@ def test_locate_looks_for_the_map_markers_only_and_lists_strangers_when_asked():
 
 def test_locate_names_the_markers_it_saw_when_none_is_in_the_map():
     m, image, _ = _seed_room_with_a_stranger()
-    only_seven = MarkerMap({9: MarkerPlacement(9, (0.0, 0.0, 300.0), (0.0, 0.0, 0.0))}, 80, "ARUCO_ORIGINAL", "mm")
+    only_seven = MarkerMap(
+        {9: MarkerPlacement(9, (0.0, 0.0, 300.0), (0.0, 0.0, 0.0))}, 80, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
     with pytest.raises(NoMarkersError, match=r"0, 1, 2, 7"):
         locate(image, only_seven, CAM)
 

@@ -102,6 +102,7 @@ def refine_pose_lm(
     camera: Camera,
     rvec: np.ndarray,
     tvec: np.ndarray,
+    *,
     max_iterations: int = 50,
 ) -> PoseRefinement:
     """Levenberg-Marquardt on the reprojection error from a starting pose.
