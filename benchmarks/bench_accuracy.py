@@ -63,7 +63,7 @@ def grid_map(n: int, spacing_mm: float, size_mm: float = 150.0, two_walls: bool 
         else:
             j = k // 2 if two_walls else k
             p[k] = MarkerPlacement(k, (0.0, (j % 4) * spacing_mm, 1500.0 - (j // 4) * spacing_mm), (0.0, 0.0, 0.0))
-    return MarkerMap(p, size_mm, DICT, "mm")
+    return MarkerMap(p, size_mm, dictionary=DICT, units="mm")
 
 
 def viewpoint(m: MarkerMap, distance_mm: float, rng) -> np.ndarray:

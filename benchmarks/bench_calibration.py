@@ -40,6 +40,7 @@ import numpy as np
 
 from fidlearn import Camera, data_path
 from fidlearn.calibration import calibrate_charuco, calibrate_checkerboard, find_checkerboard_corners
+from fidlearn.errors import BoardNotFoundError
 from fidlearn.images import load_image
 from fidlearn.synthetic import render_calibration_views
 
@@ -113,12 +114,19 @@ def _compare_finders(label: str, grays: list, true_points: list, truth: Camera) 
         ok, c = cv2.findChessboardCorners(gray, PATTERN)
         return cv2.cornerSubPix(gray, c, (11, 11), (-1, -1), crit).reshape(-1, 2).astype(float) if ok else None
 
+    def ours(finder):
+        def find(gray):
+            try:
+                return find_checkerboard_corners(gray, PATTERN, finder)
+            except BoardNotFoundError:
+                return None
+
+        return find
+
     finders = {
-        "findChessboardCorners + capped cornerSubPix (default)": lambda g: find_checkerboard_corners(
-            g, PATTERN, "classic"
-        ),
+        "findChessboardCorners + capped cornerSubPix (default)": ours("classic"),
         "findChessboardCorners + cornerSubPix 11 (OpenCV sample)": fixed11,
-        "findChessboardCornersSB, CALIB_CB_ACCURACY": lambda g: find_checkerboard_corners(g, PATTERN, "sb"),
+        "findChessboardCornersSB, CALIB_CB_ACCURACY": ours("sb"),
     }
     objp = np.zeros((54, 3), np.float32)
     objp[:, :2] = np.mgrid[0:9, 0:6].T.reshape(-1, 2) * SQUARE_MM

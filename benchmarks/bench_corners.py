@@ -57,7 +57,7 @@ def grid_map(n_cols: int, n_rows: int, dictionary: str, first_id: int = 0) -> Ma
         for c in range(n_cols):
             mid = first_id + r * n_cols + c
             placements[mid] = MarkerPlacement(mid, (0.0, c * pitch, 1000.0 - r * pitch), (0.0, 0.0, 0.0))
-    return MarkerMap(placements, MARKER_MM, dictionary)
+    return MarkerMap(placements, MARKER_MM, dictionary=dictionary)
 
 
 def scene(side_px: float, seed: int, dictionary: str, image_size=(640, 480), blur=None, noise=None):

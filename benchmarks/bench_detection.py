@@ -148,7 +148,7 @@ def room(rng: np.random.Generator, dictionary: str, k: int, hard: bool = False):
         int(i): MarkerPlacement(int(i), (0.0, (j % cols) * pitch, 1500.0 - (j // cols) * pitch), (0.0, 0.0, 0.0))
         for j, i in enumerate(ids)
     }
-    m = MarkerMap(places, side, dictionary, "mm", source="detection benchmark room")
+    m = MarkerMap(places, side, dictionary=dictionary, units="mm", source="detection benchmark room")
     size = SIZES[k % 3]
     cam = Camera.from_fov(60, size)
     centre = np.array([0.0, (cols - 1) * pitch / 2, 1500.0 - ((n - 1) // cols) * pitch / 2])
@@ -292,7 +292,7 @@ def wall_scene(dictionary: str, n: int, size):
     for j in range(n):
         i = j * step
         places[i] = MarkerPlacement(i, (0.0, (j % cols) * 300.0, 2000.0 - (j // cols) * 300.0), (0.0, 0.0, 0.0))
-    m = MarkerMap(places, 180.0, dictionary, "mm", source="detection benchmark wall")
+    m = MarkerMap(places, 180.0, dictionary=dictionary, units="mm", source="detection benchmark wall")
     w, h = size
     f = 1371.0 * w / 1920  # about 70 degrees wide
     cam = Camera([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]], [-0.08, 0.05, 0.0, 0.0, 0.0], size)

@@ -66,7 +66,7 @@ NO_FLIP_GAP = 100.0
 
 def wall_map(n: int, size_mm: float = 150.0) -> MarkerMap:
     p = {k: MarkerPlacement(k, (0.0, float(y), float(z)), (0.0, 0.0, 0.0)) for k, (y, z) in enumerate(WALL_YZ[:n])}
-    return MarkerMap(p, size_mm, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(p, size_mm, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def view(m: MarkerMap, rng, dist_m=(0.8, 3.0), angle_deg=(0.0, 50.0)) -> np.ndarray:

@@ -57,7 +57,7 @@ def wall_map() -> MarkerMap:
     p = {}
     for k, (y, z) in enumerate([(0, 1500), (450, 1500), (900, 1500), (150, 1050), (600, 1050), (1050, 1100)]):
         p[k] = MarkerPlacement(k, (0.0, float(y), float(z)), (0.0, 0.0, 0.0))
-    return MarkerMap(p, 120.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(p, 120.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def two_wall_map() -> MarkerMap:
@@ -69,7 +69,7 @@ def two_wall_map() -> MarkerMap:
         4: MarkerPlacement(4, (400.0, 0.0, 1200.0), (0.0, 0.0, 90.0)),
         5: MarkerPlacement(5, (700.0, 0.0, 800.0), (0.0, 0.0, 90.0)),
     }
-    return MarkerMap(p, 150.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(p, 150.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def random_view(marker_map: MarkerMap, rng, dist_range=(0.6, 2.5)) -> np.ndarray:
@@ -212,7 +212,9 @@ def nees_trial(m, T, sigma, rng, camera=CAMERA):
 
 
 def single_marker_map() -> MarkerMap:
-    return MarkerMap({3: MarkerPlacement(3, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(
+        {3: MarkerPlacement(3, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
 
 
 def bench_nees(n_trials: int, rng) -> None:
@@ -388,7 +390,7 @@ def bench_misplaced(n_trials: int, rng) -> None:
                 (p0.translation_mm[0], p0.translation_mm[1] + direction[0], p0.translation_mm[2] + direction[1]),
                 p0.rotation_deg,
             )
-            wrong_map = MarkerMap(pl, m.marker_size_mm, m.dictionary, "mm")
+            wrong_map = MarkerMap(pl, m.marker_size_mm, dictionary=m.dictionary, units="mm")
             try:
                 p_on = fidlearn.locate(image, wrong_map, CAMERA)
                 p_off = fidlearn.locate(image, wrong_map, CAMERA, reject_outliers=False)

@@ -73,7 +73,7 @@ def wall_map() -> MarkerMap:
         for c in range(4):
             i = 4 * r + c
             p[i] = MarkerPlacement(i, (0.0, c * 400.0, 1800.0 - r * 400.0), (0.0, 0.0, 0.0))
-    return MarkerMap(p, 150.0, DICT, "mm", source="speed benchmark wall")
+    return MarkerMap(p, 150.0, dictionary=DICT, units="mm", source="speed benchmark wall")
 
 
 def webcam(size) -> Camera:
@@ -203,7 +203,7 @@ def hall_map() -> MarkerMap:
         for z in (1000, 800):
             p[k] = MarkerPlacement(k, (2500.0, float(y), float(z)), (0.0, 0.0, 0.0))
             k += 1
-    return MarkerMap(p, 80.0, DICT, "mm", source="tracking benchmark hall")
+    return MarkerMap(p, 80.0, dictionary=DICT, units="mm", source="tracking benchmark hall")
 
 
 def walk_poses(n: int) -> list:

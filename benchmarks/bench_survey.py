@@ -63,8 +63,8 @@ def room(seed: int, n_photos: int = 20):
     R = truth.placements[moved_id].R_world_marker
     a = rng.uniform(0, 2 * np.pi)
     shift = MOVED_MM * (np.cos(a) * R[:, 1] + np.sin(a) * R[:, 2])
-    tape = tape_measured(truth, TAPE_MM, 1.0, moved={moved_id: tuple(shift)}, seed=seed + 1000)
-    return truth, tape, moved_id, survey_walk(truth, CAMERA, n_photos, seed=seed)
+    tape = tape_measured(truth, sigma_mm=TAPE_MM, sigma_deg=1.0, moved={moved_id: tuple(shift)}, seed=seed + 1000)
+    return truth, tape, moved_id, survey_walk(truth, CAMERA, n_photos=n_photos, seed=seed)
 
 
 def projected(truth, poses, rng) -> list[list[Detection]]:
@@ -90,7 +90,7 @@ def rendered(truth, poses, seed: int, errors: list) -> list[np.ndarray]:
 def locate_errors(truth, maps, seed: int) -> list[float]:
     """Median position error (mm) of estimate_pose on 10 fresh views, for each map."""
     rng = np.random.default_rng(seed + 7000)
-    views = survey_walk(truth, CAMERA, 10, seed=seed + 5000)
+    views = survey_walk(truth, CAMERA, n_photos=10, seed=seed + 5000)
     dets = projected(truth, views, rng)
     out = []
     for m in maps:
@@ -135,7 +135,9 @@ def _with_reference(truth, tape, moved_id):
     ref = 0 if moved_id else 1
     pl = dict(tape.placements)
     pl[ref] = truth.placements[ref]
-    return fidlearn.MarkerMap(pl, tape.marker_size_mm, tape.dictionary, tape.units, "tape with a reference"), ref
+    return fidlearn.MarkerMap(
+        pl, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source="tape with a reference"
+    ), ref
 
 
 def seed_table(rows: list[dict], seeds: list[int], title: str) -> None:

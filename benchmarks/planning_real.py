@@ -197,7 +197,9 @@ def subset_rows(photos, world, camera, noises, lo, hi, rng, most, diag_world) ->
             dets = [ph.detections[i] for i in sub]
             pose = fidlearn.estimate_pose(dets, world, camera)
             e = pose.position_mm - T[:3, 3]
-            sub_map = MarkerMap({i: world.placements[i] for i in sub}, world.marker_size_mm, world.dictionary)
+            sub_map = MarkerMap(
+                {i: world.placements[i] for i in sub}, world.marker_size_mm, dictionary=world.dictionary
+            )
             kw = {"corner_sigma_px": other.corner_sigma_px, "marker_shift_px": other.marker_shift_px}
             p = predict_accuracy(sub_map, camera, T, **other.kwargs())
             cov = p.covariance[3:, 3:] + ref.covariance[3:, 3:]
@@ -258,7 +260,7 @@ def measure(camera: Camera | None = None, most: int = 40, seed: int = 1) -> dict
 def own_calibration() -> Camera:
     """fidlearn's own calibration from img_00..03 (the photos the published one was computed from)."""
     paths = [str(fidlearn.data_path(f"{FOLDER}/{name}.jpg")) for name in PHOTOS if name.startswith("img_")]
-    return fidlearn.calibrate_charuco(paths, SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY).camera
+    return fidlearn.calibrate_charuco(paths, SQUARES, SQUARE_MM, MARKER_MM, dictionary=DICTIONARY).camera
 
 
 def group_ratios(groups: dict) -> dict:
@@ -402,7 +404,7 @@ def single_marker_check(r: dict, draws: int = 60, seed: int = 0) -> tuple[float,
             for _ in range(draws):
                 d = fidlearn.Detection(i, t + (L @ rng.normal(size=8)).reshape(4, 2))
                 sim.append(float(np.linalg.norm(fidlearn.estimate_pose([d], world, camera).position_mm - T[:3, 3])))
-            sub = MarkerMap({i: world.placements[i]}, MARKER_MM, DICTIONARY)
+            sub = MarkerMap({i: world.placements[i]}, MARKER_MM, dictionary=DICTIONARY)
             p = predict_accuracy(sub, camera, T, corner_sigma_px=float(sigma), marker_shift_px=float(shift))
             pred += [p.position_error_mm] * draws
     return ratio(np.array(sim), np.array(pred)), np.array(z).T

@@ -35,6 +35,7 @@ __all__ = [
     "load_image",
     "detect_markers",
     "detect_markers_with_rejected",
+    "DetectionsWithRejected",
     "refine_corners_edges",
     "REFINE_METHODS",
     "DEFAULT_REFINE",
@@ -437,6 +438,23 @@ def detect_markers(
     return _detect(image, dictionary, refine, detector_params, ids)[0]
 
 
+@dataclass(frozen=True)
+class DetectionsWithRejected:
+    """What :func:`detect_markers_with_rejected` returns.
+
+    Attributes
+    ----------
+    detections : list of Detection
+        Exactly what :func:`detect_markers` returns.
+    rejected : list of ndarray, shape (4, 2)
+        The rejected candidates' corners (pixels, unrefined), then the decoded quads that were no
+        marker's outline, for ``draw_detections(..., rejected=...)``.
+    """
+
+    detections: list[Detection]
+    rejected: list[np.ndarray]
+
+
 def detect_markers_with_rejected(
     image: np.ndarray,
     dictionary: str = "ARUCO_ORIGINAL",
@@ -444,7 +462,7 @@ def detect_markers_with_rejected(
     detector_params: Any = None,
     *,
     ids=None,
-) -> tuple[list[Detection], list[np.ndarray]]:
+) -> DetectionsWithRejected:
     """Find the markers as :func:`detect_markers` does, and the candidate quads that did not decode.
 
     Parameters
@@ -454,11 +472,9 @@ def detect_markers_with_rejected(
 
     Returns
     -------
-    detections : list of Detection
-        Exactly what :func:`detect_markers` returns.
-    rejected : list of ndarray, shape (4, 2)
-        The rejected candidates' corners (pixels, unrefined), then the decoded quads that were no
-        marker's outline (see :func:`detect_markers`), for ``draw_detections(..., rejected=...)``.
+    DetectionsWithRejected
+        ``detections``, exactly what :func:`detect_markers` returns, and ``rejected``, the
+        candidate quads (4, 2) that did not decode (see :func:`detect_markers`).
 
     Raises
     ------
@@ -469,9 +485,9 @@ def detect_markers_with_rejected(
     --------
     >>> from fidlearn import _cv
     >>> image = np.pad(_cv.generate_marker("6X6_250", 23, 120), 40, constant_values=255)
-    >>> detections, rejected = detect_markers_with_rejected(image, "6X6_250")
-    >>> [d.id for d in detections], type(rejected).__name__
+    >>> found = detect_markers_with_rejected(image, "6X6_250")
+    >>> [d.id for d in found.detections], type(found.rejected).__name__
     ([23], 'list')
     """
     detections, rejected = _detect(image, dictionary, refine, detector_params, ids)
-    return detections, _cv.rejected_quads(rejected)
+    return DetectionsWithRejected(detections, _cv.rejected_quads(rejected))

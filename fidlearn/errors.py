@@ -29,6 +29,8 @@ __all__ = [
     "TrackingError",
     "RosFormatError",
     "SurveyError",
+    "BoardNotFoundError",
+    "OdometryRangeError",
 ]
 
 
@@ -123,3 +125,11 @@ class RosFormatError(FidlearnError, ValueError):
 
 class SurveyError(FidlearnError, ValueError):
     """A survey cannot run on these photos or options (too few photos, nothing tying them to the map)."""
+
+
+class BoardNotFoundError(FidlearnError):
+    """A calibration board is not in a picture (or not all of it): nothing to calibrate from in that view."""
+
+
+class OdometryRangeError(FidlearnError):
+    """A time outside the odometry's samples: the robot's motion there is not known."""

@@ -124,6 +124,7 @@ class MarkerMap:
         self,
         placements: Mapping[int, MarkerPlacement],
         marker_size_mm: float,
+        *,
         dictionary: str = "ARUCO_ORIGINAL",
         units: str = "mm",
         source: str = "<map>",
@@ -151,6 +152,7 @@ class MarkerMap:
     def from_dict(
         cls,
         d: Mapping[str, Any],
+        *,
         units: str | None = None,
         marker_size_mm: float | None = None,
         dictionary: str | None = None,
@@ -201,7 +203,7 @@ class MarkerMap:
             mid: MarkerPlacement(mid, t, r)  # type: ignore[arg-type]
             for mid, (t, r) in _placements(markers, units, source).items()
         }
-        return cls(placements, _marker_size(size, source), dictionary, units, source)
+        return cls(placements, _marker_size(size, source), dictionary=dictionary, units=units, source=source)
 
     @classmethod
     def load(

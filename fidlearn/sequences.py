@@ -25,6 +25,7 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from collections.abc import Iterable, Iterator, Sequence
@@ -34,7 +35,7 @@ from typing import Any
 
 from .camera import Camera
 from .detection import Detection, detect_markers
-from .errors import CameraError, NoMarkersError, PoseError, TrackingError
+from .errors import CameraError, NoMarkersError, OdometryRangeError, PoseError, TrackingError
 from .filtering import DEFAULT_PROCESS_NOISE, PoseTracker, TrackedPose
 from .images import Frame
 from .io import image_size_from_header
@@ -346,7 +347,10 @@ def _steps(frames, locator: FrameLocator, tracker: PoseTracker, fps: float, odom
                 "fidlearn.images.read_frames, or wrap an image: Frame(name, image, source, kind))"
             )
         located = locator.locate(frame)
-        odo = odometry.between((n - 1) / fps, n / fps) if odometry is not None and n > 0 else None
+        odo = None
+        if odometry is not None and n > 0:
+            with contextlib.suppress(OdometryRangeError):  # a frame beyond the odometry: the motion model alone
+                odo = odometry.between((n - 1) / fps, n / fps)
         out = None
         if located.pose is not None or tracker.started:  # before the first pose there is nothing to track
             out = tracker.update(located.pose, n / fps, odometry=odo)

@@ -40,6 +40,7 @@ GRID_STEP_MM = 125.0
 
 def grid_polylines_mm(
     depth_mm: float = GRID_DEPTH_MM,
+    *,
     half_width_mm: float = GRID_HALF_WIDTH_MM,
     half_height_mm: float = GRID_HALF_HEIGHT_MM,
     step_mm: float = GRID_STEP_MM,
@@ -88,7 +89,7 @@ def _camera(fx: float, fy: float, cx: float, cy: float, k1: float, image_size: S
 
 
 def intrinsics_view_polylines(
-    fx: float, fy: float, cx: float, cy: float, k1: float = 0.0, image_size: Sequence[int] = (640, 480)
+    fx: float, fy: float, cx: float, cy: float, *, k1: float = 0.0, image_size: Sequence[int] = (640, 480)
 ) -> list[np.ndarray]:
     """The grid of :func:`grid_polylines_mm` projected by a camera with these intrinsics.
 
@@ -119,6 +120,7 @@ def render_intrinsics_view(
     fy: float,
     cx: float,
     cy: float,
+    *,
     k1: float = 0.0,
     image_size: Sequence[int] = (640, 480),
     figsize: tuple[float, float] = (6.4, 5.2),
@@ -148,7 +150,7 @@ def render_intrinsics_view(
     """
     w, h = (int(v) for v in image_size)
     cam = _camera(fx, fy, cx, cy, k1, (w, h))
-    polylines = intrinsics_view_polylines(fx, fy, cx, cy, k1, (w, h))
+    polylines = intrinsics_view_polylines(fx, fy, cx, cy, k1=k1, image_size=(w, h))
     fig = Figure(figsize=figsize)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
@@ -241,7 +243,7 @@ def intrinsics_explorer(camera: Camera | None = None, image_size: Sequence[int] 
     }
 
     def draw(fx: float, fy: float, cx: float, cy: float, k1: float) -> None:
-        fig = render_intrinsics_view(fx, fy, cx, cy, k1, (w, h))
+        fig = render_intrinsics_view(fx, fy, cx, cy, k1=k1, image_size=(w, h))
         display(Image(data=figure_png(fig), format="png"))
 
     out = W.interactive_output(draw, controls)

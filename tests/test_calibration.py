@@ -511,3 +511,14 @@ def test_the_quality_warnings_are_the_libraries_and_the_command_line_prints_them
     err = capsys.readouterr().err
     printed = [line[len("warning: ") :] for line in err.splitlines() if line.startswith("warning: ")]
     assert printed == [" ".join(w.split()) for w in cal.warnings]
+
+
+def test_a_checkerboard_not_in_the_picture_raises_board_not_found():
+    from fidlearn.calibration import find_checkerboard_corners
+    from fidlearn.errors import BoardNotFoundError
+
+    view = fidlearn.synthetic.render_calibration_views(Camera.from_fov(60, (640, 480)), n_views=1, seed=1).images[0]
+    for finder in ("classic", "sb"):
+        assert find_checkerboard_corners(view, (9, 6), finder).shape == (54, 2)
+        with pytest.raises(BoardNotFoundError, match=r"board not found \(5x4 inner corners\): is the whole board"):
+            find_checkerboard_corners(np.full((480, 640), 128, np.uint8), (5, 4), finder)  # a blank picture

@@ -13,7 +13,7 @@ import pytest
 
 import fidlearn
 from fidlearn import data_path, frames
-from fidlearn.calibration import Calibration, _stats, calibrate_checkerboard, view_diversity
+from fidlearn.calibration import Calibration, ViewDiversity, _stats, calibrate_checkerboard, view_diversity
 from fidlearn.errors import TransformError
 
 PATTERN, SQUARE_MM = (9, 6), 25.0
@@ -123,11 +123,12 @@ def test_view_diversity_is_its_pairwise_definition():
     for k in (3, 11, 11, 20):  # near duplicates: turned under 2 deg and moved under 2 %
         R = fidlearn.rotation_from_rpy_deg(*rng.uniform(-1, 1, 3)) @ T[f"v{k}"][:3, :3]
         T[f"v{k}_again{len(T)}"] = fidlearn.make_transform(R, T[f"v{k}"][:3, 3] * 1.005)
-    spread, duplicates = view_diversity(T)
+    diversity = view_diversity(T)
+    duplicates = [(d.a, d.b, d.angle_deg, d.moved_fraction) for d in diversity.duplicates]
     ref_spread, ref_duplicates = _diversity_pairwise(T)
-    assert spread == pytest.approx(ref_spread, abs=1e-9)
+    assert diversity.spread_deg == pytest.approx(ref_spread, abs=1e-9)
     assert [d[:2] for d in duplicates] == [d[:2] for d in ref_duplicates] and len(duplicates) >= 4
     np.testing.assert_allclose([d[2:] for d in duplicates], [d[2:] for d in ref_duplicates], atol=1e-6)
-    assert view_diversity({"a": T["v0"]}) == (0.0, []) and view_diversity({}) == (0.0, [])
+    assert view_diversity({"a": T["v0"]}) == ViewDiversity(0.0, []) == view_diversity({})
     with pytest.raises(TransformError):
         view_diversity({"a": T["v0"], "b": np.diag([1.0, 1.0, -1.0, 1.0])})

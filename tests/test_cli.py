@@ -362,9 +362,9 @@ def test_view_diversity_known_angles():
     face_on = frames.make_transform(np.eye(3), [0, 0, 1000])
     tilted = frames.make_transform(frames.rot_x(np.radians(30)), [0, 0, 1000])
     nudged = frames.make_transform(frames.rot_y(np.radians(1)), [5, 0, 1000])
-    spread, dups = view_diversity({"a": face_on, "b": tilted, "c": nudged})
-    assert spread == pytest.approx(np.degrees(np.arccos(np.cos(np.radians(30)) * np.cos(np.radians(1)))))
-    assert [(a, b) for a, b, _, _ in dups] == [("a", "c")]
+    diversity = view_diversity({"a": face_on, "b": tilted, "c": nudged})
+    assert diversity.spread_deg == pytest.approx(np.degrees(np.arccos(np.cos(np.radians(30)) * np.cos(np.radians(1)))))
+    assert [(d.a, d.b) for d in diversity.duplicates] == [("a", "c")]
 
 
 # -- locate ----------------------------------------------------------------------------------

@@ -177,7 +177,7 @@ def test_a_survey_photo_regenerates_from_its_record_and_the_maps_are_what_they_s
     camera = Camera.load(data_path("survey", record["camera"]))
     truth = MarkerMap.load(data_path("survey", record["true_map"]))
     assert truth.corners().keys() == survey_room(record["marker_size_mm"]).corners().keys()
-    poses = survey_walk(truth, camera, record["n_photos"], record["seed"])
+    poses = survey_walk(truth, camera, n_photos=record["n_photos"], seed=record["seed"])
     item = record["photos"][5]
     np.testing.assert_allclose(poses[5], item["T_world_camera"], atol=1e-9)
     scene = render_scene(truth, camera, poses[5], seed=item["seed"], **record["render"])
@@ -189,7 +189,9 @@ def test_a_survey_photo_regenerates_from_its_record_and_the_maps_are_what_they_s
     )
     tape, tp = MarkerMap.load(data_path("survey", record["tape_map"])), record["tape"]
     moved = {int(k): tuple(v) for k, v in tp["moved"].items()}
-    again = tape_measured(truth, tp["sigma_mm"], tp["sigma_deg"], moved, tp["seed"], tp["units"])
+    again = tape_measured(
+        truth, sigma_mm=tp["sigma_mm"], sigma_deg=tp["sigma_deg"], moved=moved, seed=tp["seed"], units=tp["units"]
+    )
     assert tape.units == "cm" and max(np.abs(tape.corners()[i] - again.corners()[i]).max() for i in tape.ids) < 1e-6
     off = np.subtract(tape.placements[7].translation_mm, truth.placements[7].translation_mm)
     assert np.linalg.norm(off) > 60  # marker 7 was moved after it was taped

@@ -162,7 +162,7 @@ def wall(dictionary: str = "ARUCO_ORIGINAL", n_cols: int = 3, n_rows: int = 2) -
         for c in range(n_cols):
             i = 3 + r * n_cols + c
             pl[i] = MarkerPlacement(i, (0.0, c * pitch, 1000.0 - r * pitch), (0.0, 0.0, 0.0))
-    return MarkerMap(pl, MARKER_MM, dictionary)
+    return MarkerMap(pl, MARKER_MM, dictionary=dictionary)
 
 
 def view(side_px: float, az_deg: float = 20.0, el_deg: float = -10.0, roll_deg: float = 0.0, size=(640, 480)):
@@ -355,7 +355,7 @@ def test_a_row_of_far_markers_with_one_cell_margins_at_their_rendered_corners():
     T = look_at(eye, [0.0, 1300 + 400 * np.sin(2.5 * s), 1250 - 250 * s], roll_deg=3 * np.sin(5 * s))
     cam = Camera([[1371.0, 0, 961.3], [0, 1371.0, 538.2], [0, 0, 1]], [-0.08, 0.05, 3e-4, -2e-4, -0.01], (1920, 1080))
     row = {18 + c: MarkerPlacement(18 + c, (0.0, c * 450.0 - 200.0, 1800.0), (0.0, 0.0, 0.0)) for c in range(9)}
-    m = MarkerMap(row, MARKER_MM, "ARUCO_ORIGINAL")
+    m = MarkerMap(row, MARKER_MM, dictionary="ARUCO_ORIGINAL")
     scene = render_scene(m, cam, T, seed=5, blur_px=0.5, noise_std_gray=1.5, gradient=0.1, supersample=2)
     image, truth = scene.image, scene.truth
     assert sorted(truth) == list(range(18, 27))
@@ -369,7 +369,8 @@ def test_a_row_of_far_markers_with_one_cell_margins_at_their_rendered_corners():
 
 
 def test_rejected_candidates_on_request(photo):
-    dets, rejected = detect_markers_with_rejected(photo, "6X6_250")
+    found = detect_markers_with_rejected(photo, "6X6_250")
+    dets, rejected = found.detections, found.rejected
     assert [d.id for d in dets] == PHOTO_IDS
     assert len(rejected) > 0 and all(r.shape == (4, 2) for r in rejected)
 
@@ -539,7 +540,8 @@ def test_one_return_type_and_corners_px(photo):
     """detect_markers always returns the list; the rejected candidates come from their own function."""
     dets = detect_markers(photo, "6X6_250")
     assert isinstance(dets, list)
-    with_rejected, rejected = detect_markers_with_rejected(photo, "6X6_250")
+    found = detect_markers_with_rejected(photo, "6X6_250")
+    with_rejected, rejected = found.detections, found.rejected
     assert [d.id for d in with_rejected] == [d.id for d in dets]
     for a, b in zip(dets, with_rejected):
         np.testing.assert_array_equal(a.corners_px, b.corners_px)

@@ -73,7 +73,8 @@ def test_photo_14_gives_every_marker_at_its_own_corners(photo_14, refine, ids):
 def test_the_dropped_quad_is_among_the_rejected(photo_14):
     gray, truth = photo_14
     bad = opencv_quads(gray, LARGE_CELLS)[0]
-    dets, rejected = detect_markers_with_rejected(gray, "ARUCO_ORIGINAL")
+    found = detect_markers_with_rejected(gray, "ARUCO_ORIGINAL")
+    dets, rejected = found.detections, found.rejected
     assert [d.id for d in dets] == sorted(truth)
     assert any(np.abs(r - bad).max() < 1e-3 for r in rejected)
 

@@ -119,8 +119,8 @@ BASELINES = {
     ),
     "render_calibration_views": (
         lambda: synthetic.render_calibration_views,
-        (Camera.from_fov(60, (320, 240)), 2, (5, 4), 25.0),
-        {"seed": 0, "supersample": 1, "views": [0]},
+        (Camera.from_fov(60, (320, 240)),),
+        {"n_views": 2, "pattern_size": (5, 4), "square_size_mm": 25.0, "seed": 0, "supersample": 1, "views": [0]},
     ),
     "decode_frame": (lambda: decode_frame, (cv2.imencode(".png", IMAGE)[1].tobytes(), 160, 120), {}),
 }
@@ -209,7 +209,7 @@ def test_render_sizes_that_take_minutes_are_refused_naming_the_limit():
     with pytest.raises(FidlearnError, match="MAX_RENDER_SAMPLES_ALL"):
         synthetic.render_trajectory(WORLD, Camera.from_fov(60, (640, 480)), 100_000, supersample=4)
     with pytest.raises(FidlearnError, match="MAX_RENDER_SAMPLES_ALL"):
-        synthetic.render_calibration_views(Camera.from_fov(60, (640, 480)), 100_000)
+        synthetic.render_calibration_views(Camera.from_fov(60, (640, 480)), n_views=100_000)
 
 
 # -- files, value by value ---------------------------------------------------------------------------

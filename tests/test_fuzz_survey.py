@@ -27,8 +27,8 @@ from fidlearn.synthetic import survey_room, survey_walk, tape_measured, visible_
 
 CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001, 0.0])
 ROOM = survey_room()
-POSES = survey_walk(ROOM, CAM, 5, seed=2)
-TAPE = tape_measured(ROOM, 10.0, 0.5, seed=3)
+POSES = survey_walk(ROOM, CAM, n_photos=5, seed=2)
+TAPE = tape_measured(ROOM, sigma_mm=10.0, sigma_deg=0.5, seed=3)
 PHOTOS = [[Detection(i, c) for i, c in visible_markers(ROOM, CAM, T).items()] for T in POSES]
 
 BAD = {
@@ -165,7 +165,7 @@ def test_too_many_sightings_are_refused_after_reading_before_the_adjustment():
 def test_a_placement_no_map_file_holds_is_never_written(baseline, tmp_path):
     far = dict(TAPE.placements)
     far[40] = MarkerPlacement(40, (8e20, 0.0, 0.0), (0.0, 0.0, 0.0))  # a marker no photo shows, far away
-    far_map = MarkerMap(far, TAPE.marker_size_mm, TAPE.dictionary, TAPE.units, "far.json")
+    far_map = MarkerMap(far, TAPE.marker_size_mm, dictionary=TAPE.dictionary, units=TAPE.units, source="far.json")
     with pytest.raises(SurveyError, match=r"marker 40's translation \[8e\+20, 0\.0, 0\.0\] \(mm\) is beyond"):
         run_survey(marker_map=far_map)
     import dataclasses
@@ -203,7 +203,7 @@ def test_random_corner_noise_and_tape_errors_give_a_sound_survey_or_an_error(see
     rng = np.random.default_rng(seed)
     noise = [1e-3, 0.5, 5.0, 50.0][seed % 4]
     images = [[Detection(d.id, d.corners_px + rng.normal(0, noise, (4, 2))) for d in ph] for ph in PHOTOS]
-    tape = tape_measured(ROOM, float(rng.choice([1.0, 50.0, 3000.0])), 5.0, seed=seed)
+    tape = tape_measured(ROOM, sigma_mm=float(rng.choice([1.0, 50.0, 3000.0])), sigma_deg=5.0, seed=seed)
     try:
         s = run_survey(images=images, marker_map=tape, map_sigma_mm=float(rng.choice([0.01, 20.0, 1e5])))
     except FidlearnError as exc:

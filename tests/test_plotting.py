@@ -111,8 +111,8 @@ def test_draw_box_draws_the_twelve_edges_of_the_room():
 
 def test_set_axes_equal_gives_every_axis_the_same_range():
     ax = plotting.new_axes_3d()
-    centre, half = plotting.set_axes_equal(ax, np.array([[0, 0, 0], [1000, 200, 50]]), margin=0)
-    assert np.allclose(centre, [500, 100, 25]) and half == pytest.approx(500)
+    cube = plotting.set_axes_equal(ax, np.array([[0, 0, 0], [1000, 200, 50]]), margin=0)
+    assert np.allclose(cube.centre, [500, 100, 25]) and cube.half_range == pytest.approx(500)
     ranges = [np.diff(lim)[0] for lim in (ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d())]
     assert np.allclose(ranges, 1000)
 

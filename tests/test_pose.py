@@ -36,7 +36,7 @@ def wall_map(n_cols=3, n_rows=2, size=120.0, spacing=450.0) -> MarkerMap:
         for c in range(n_cols):
             placements[k] = MarkerPlacement(k, (0.0, c * spacing, 1500.0 - r * spacing), (0.0, 0.0, 0.0))
             k += 1
-    return MarkerMap(placements, size, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(placements, size, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def two_wall_map() -> MarkerMap:
@@ -49,7 +49,7 @@ def two_wall_map() -> MarkerMap:
         4: MarkerPlacement(4, (400.0, 0.0, 1200.0), (0.0, 0.0, 90.0)),
         5: MarkerPlacement(5, (700.0, 0.0, 800.0), (0.0, 0.0, 90.0)),
     }
-    return MarkerMap(p, 150.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(p, 150.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def observe(marker_map, T_world_camera, sigma=0.0, rng=None, camera=CAM, ids=None, extra=()):
@@ -157,7 +157,9 @@ def test_one_marker_uses_ippe_square():
 # Planar ambiguity
 # ---------------------------------------------------------------------------------------
 def test_one_marker_far_and_face_on_is_ambiguous_close_and_oblique_is_not():
-    m = MarkerMap({7: MarkerPlacement(7, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 80.0, "ARUCO_ORIGINAL", "mm")
+    m = MarkerMap(
+        {7: MarkerPlacement(7, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 80.0, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
     centre = m.T_world_marker(7)[:3, 3]
     rng = np.random.default_rng(3)
     far = look_at(centre + [2500.0, 60.0, 40.0], centre)
@@ -188,7 +190,7 @@ def _misplaced(m: MarkerMap, marker_id: int, shift_mm) -> MarkerMap:
     placements = dict(m.placements)
     p = placements[marker_id]
     placements[marker_id] = MarkerPlacement(marker_id, tuple(np.add(p.translation_mm, shift_mm)), p.rotation_deg)
-    return MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units="mm")
 
 
 def test_a_misplaced_marker_is_rejected_and_reported():
@@ -424,9 +426,11 @@ def test_levenberg_marquardt_reaches_the_least_squares_optimum():
     start[:3, :3] = cv2.Rodrigues(np.array([0.02, -0.03, 0.01]))[0] @ start[:3, :3]
     start[:3, 3] += [40.0, -30.0, 25.0]
     rvec0, tvec0 = frames.rvec_tvec_from_transform(frames.invert_transform(start))
-    rvec, tvec = refine_pose_lm(obj, img, CAM, rvec0, tvec0)
-    T = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
+    refined = refine_pose_lm(obj, img, CAM, rvec0, tvec0)
+    T = frames.invert_transform(refined.T_camera_world)
+    np.testing.assert_allclose(refined.T_camera_world, frames.transform_from_rvec_tvec(refined.rvec, refined.tvec))
     r = (img - CAM.project(obj, T)).ravel()
+    assert refined.reprojection_rms_px == pytest.approx(np.sqrt(r @ r / len(obj)), rel=1e-9)
     J = pose_jacobian(obj, T, CAM)
     # a stationary point: the gradient J^T r vanishes (relative to its scale)
     assert np.all(np.abs(J.T @ r) <= 1e-4 * np.sqrt(np.sum(J**2, axis=0)) * np.linalg.norm(r))
@@ -442,6 +446,22 @@ def test_ippe_on_one_marker_keeps_both_solutions():
     assert pose.method == "ippe" and pose.alternative is not None and not pose.ambiguous
     assert pose_errors(pose, T)[0] < 10.0
     assert pose.alternative.reprojection_rms_px > 5 * pose.reprojection_rms_px
+
+
+def test_a_pose_is_slotted_pickles_with_its_alternative_and_builds_it_once():
+    import pickle
+
+    m = wall_map()
+    T = look_at([500.0, 200.0, 1300.0], [0.0, 60.0, 1440.0])
+    pose = estimate_pose(observe(m, T, 0.2, ids={0}), m, CAM, method="ippe")
+    assert not hasattr(pose, "__dict__")  # a plain slotted dataclass: attribute reads are slot reads
+    again = pickle.loads(pickle.dumps(pose))  # its alternative not yet built: pickled built
+    assert pose.alternative is pose.alternative  # built on the first read, then kept
+    assert repr(again) == repr(pose) and "alternative at" in repr(pose)
+    np.testing.assert_array_equal(again.alternative.T_world_camera, pose.alternative.T_world_camera)
+    assert again.alternative.method == pose.alternative.method == "ippe (not refined)"
+    with pytest.raises(TypeError):
+        Pose(np.eye(4), (0,), {}, 0.1, None, 0.1, True)  # the options are keyword-only
 
 
 # ---------------------------------------------------------------------------------------
@@ -497,7 +517,9 @@ def test_markers_of_the_real_photo_are_70_to_90_cm_away():
     detections = detect_markers(image, "6X6_250")
     assert sorted(d.id for d in detections) == [23, 40, 62, 98, 124, 203]
     for d in detections:  # each marker alone, as its own 50 mm map
-        m = MarkerMap({d.id: MarkerPlacement(d.id, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))}, 50.0, "6X6_250", "mm")
+        m = MarkerMap(
+            {d.id: MarkerPlacement(d.id, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))}, 50.0, dictionary="6X6_250", units="mm"
+        )
         pose = estimate_pose([d], m, camera)
         distance = np.linalg.norm(pose.position_mm - m.T_world_marker(d.id)[:3, 3])
         assert 650.0 < distance < 950.0, (d.id, distance)
@@ -520,8 +542,8 @@ def test_the_solver_is_as_good_as_lm_started_at_the_truth():
     for _ in range(100):
         dets = observe(m, T, sigma, rng)
         pose = estimate_pose(dets, m, CAM)
-        rvec, tvec = refine_pose_lm(obj, np.concatenate([d.corners_px for d in dets]), CAM, rvec0, tvec0)
-        C = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))[:3, 3]
+        refined = refine_pose_lm(obj, np.concatenate([d.corners_px for d in dets]), CAM, rvec0, tvec0)
+        C = frames.invert_transform(refined.T_camera_world)[:3, 3]
         for est, out in ((pose.position_mm, ours), (C, truth)):
             e = est - T[:3, 3]
             out.append(e @ np.linalg.solve(P, e))
@@ -635,7 +657,7 @@ def _turned(m: MarkerMap, marker_id: int, yaw_deg: float) -> MarkerMap:
     placements[marker_id] = MarkerPlacement(
         marker_id, p.translation_mm, tuple(np.add(p.rotation_deg, [0.0, 0.0, yaw_deg]))
     )
-    return MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units="mm")
 
 
 def test_a_marker_turned_the_wrong_way_in_the_map_is_never_seen_from_behind():
@@ -709,8 +731,8 @@ def test_a_fit_far_worse_than_any_detector_is_refused():
             for i, p in m.placements.items()
         },
         m.marker_size_mm,
-        m.dictionary,
-        "mm",
+        dictionary=m.dictionary,
+        units="mm",
     )
     with pytest.raises(
         PoseError,
@@ -763,8 +785,7 @@ def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
     P = np.array([[x, y, 2000.0 + 0.5 * x] for x in (-300.0, 0.0, 300.0) for y in (-200.0, 200.0)])
     T_cw = frames.make_transform(cv2.Rodrigues(r_true)[0], [10.0, -5.0, 30.0])
     img = CAM.project(P, frames.invert_transform(T_cw))
-    rvec, tvec = refine_pose_lm(P, img, CAM, r_true, T_cw[:3, 3])
-    np.testing.assert_allclose(rvec, r_true, rtol=1e-3, atol=1e-12)
+    np.testing.assert_allclose(refine_pose_lm(P, img, CAM, r_true, T_cw[:3, 3]).rvec, r_true, rtol=1e-3, atol=1e-12)
     # the distance between two poses 1e-7 rad apart is not zero
     a = pose_mod._Candidate(np.eye(3), np.zeros(3), 0.0, None)
     b = pose_mod._Candidate(cv2.Rodrigues(np.array([1e-7, 0.0, 0.0]))[0], np.zeros(3), 0.0, None)
@@ -783,7 +804,9 @@ def test_noisy_corners_of_a_marker_seen_edge_on_are_not_called_mirrored():
         pose_mod._check_quads([7, 8], np.concatenate([folded, SQUARE[[0, 3, 2, 1]]]))
     # a camera estimated a little behind the plane of a marker seen at a grazing angle is a pose;
     # far behind it is not
-    m = MarkerMap({0: MarkerPlacement(0, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, "ARUCO_ORIGINAL", "mm")
+    m = MarkerMap(
+        {0: MarkerPlacement(0, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
     centre = m.T_world_marker(0)[:3, 3]
     obs = pose_mod._make_obs([0], {0: SQUARE}, m.corners())
     for elevation_deg, ok in ((30.0, True), (-5.0, True), (-20.0, False)):
@@ -800,7 +823,7 @@ def _seed_room_with_a_stranger():
     m = MarkerMap.load(data_path("world_map.json"))
     placements = dict(m.placements)
     placements[7] = MarkerPlacement(7, (0.0, 450.0, 304.8), (0.0, 0.0, 0.0))
-    room = MarkerMap(placements, m.marker_size_mm, m.dictionary, "mm")
+    room = MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units="mm")
     T_true = look_at([1400, 250, 300], [0, 250, 250])
     scene = render_scene(room, CAM, T_true, seed=5, blur_px=0.5, noise_std_gray=1.0)
     image, truth = scene.image, scene.truth
@@ -823,7 +846,9 @@ def test_locate_looks_for_the_map_markers_only_and_lists_strangers_when_asked():
 
 def test_locate_names_the_markers_it_saw_when_none_is_in_the_map():
     m, image, _ = _seed_room_with_a_stranger()
-    only_seven = MarkerMap({9: MarkerPlacement(9, (0.0, 0.0, 300.0), (0.0, 0.0, 0.0))}, 80, "ARUCO_ORIGINAL", "mm")
+    only_seven = MarkerMap(
+        {9: MarkerPlacement(9, (0.0, 0.0, 300.0), (0.0, 0.0, 0.0))}, 80, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
     with pytest.raises(NoMarkersError, match=r"0, 1, 2, 7"):
         locate(image, only_seven, CAM)
 

@@ -32,7 +32,7 @@ WALL_YZ = [(0, 1500), (450, 1500), (900, 1500), (150, 1050), (600, 1050), (1050,
 
 def wall(n: int) -> MarkerMap:
     p = {k: MarkerPlacement(k, (0.0, float(y), float(z)), (0.0, 0.0, 0.0)) for k, (y, z) in enumerate(WALL_YZ[:n])}
-    return MarkerMap(p, 150.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(p, 150.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def views(m: MarkerMap, count: int, rng) -> list[np.ndarray]:

@@ -135,7 +135,7 @@ def test_marker_cells_match_opencv_image():
 @pytest.fixture(scope="module")
 def markers_80(tmp_path_factory):
     path = tmp_path_factory.mktemp("markers") / "markers.pdf"
-    sheet = P.markers_pdf(path, P.parse_ids("0-9"), 80, "ARUCO_ORIGINAL", "a4")
+    sheet = P.markers_pdf(path, P.parse_ids("0-9"), 80, dictionary="ARUCO_ORIGINAL", paper="a4")
     return path, sheet, rasterize(path)
 
 
@@ -263,7 +263,7 @@ def test_ruler_is_100mm_with_mm_ticks(markers_80):
 
 def test_markers_fit_one_page_when_small(tmp_path):
     path = tmp_path / "small.pdf"
-    P.markers_pdf(path, [0, 3, 7, 8], 40, "6X6_250", "letter")
+    P.markers_pdf(path, [0, 3, 7, 8], 40, dictionary="6X6_250", paper="letter")
     ((w, h),) = page_size_pt(path)
     assert (w, h) == pytest.approx((612, 792), abs=0.01)  # US letter, 8.5 x 11 in
     (gray,) = rasterize(path)
@@ -274,7 +274,7 @@ def test_markers_fit_one_page_when_small(tmp_path):
 
 
 def test_markers_png_at_dpi(tmp_path):
-    sheet, files = P.markers_png(tmp_path / "m.png", [4, 5], 80, "ARUCO_ORIGINAL", "a4", dpi=150)
+    sheet, files = P.markers_png(tmp_path / "m.png", [4, 5], 80, dictionary="ARUCO_ORIGINAL", paper="a4", dpi=150)
     assert files == [tmp_path / "m.png"]
     img = cv2.imread(str(files[0]), cv2.IMREAD_GRAYSCALE)
     assert img.shape == (round(297 / 25.4 * 150), round(210 / 25.4 * 150)) == (1754, 1240)
@@ -301,7 +301,7 @@ def test_marker_too_big_for_the_paper_names_the_largest(tmp_path):
 
 def test_marker_id_outside_dictionary(tmp_path):
     with pytest.raises(Exception, match="marker id 50 does not exist in 4X4_50, which has ids 0 to 49"):
-        P.markers_pdf(tmp_path / "m.pdf", [49, 50], 50, "4X4_50")
+        P.markers_pdf(tmp_path / "m.pdf", [49, 50], 50, dictionary="4X4_50")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -326,7 +326,7 @@ def chessboard_spacing_mm(gray, pattern, px_per_mm=PX_PER_MM):
 
 def test_checkerboard_pdf_square_size(tmp_path):
     path = tmp_path / "board.pdf"
-    sheet = P.board_pdf(path, (9, 6), 25, "a4")
+    sheet = P.board_pdf(path, (9, 6), 25, paper="a4")
     assert sheet.squares == (10, 7) and sheet.inner_corners == (9, 6)
     (gray,) = rasterize(path)
     # 250 x 175 mm only fits A4 turned to landscape
@@ -341,7 +341,7 @@ def test_checkerboard_pdf_square_size(tmp_path):
 
 
 def test_checkerboard_png_square_size(tmp_path):
-    sheet, files = P.board_png(tmp_path / "board.png", (6, 4), 20, "letter", dpi=200)
+    sheet, files = P.board_png(tmp_path / "board.png", (6, 4), 20, paper="letter", dpi=200)
     assert files == [tmp_path / "board.png"] and not sheet.landscape
     gray = cv2.imread(str(tmp_path / "board.png"), cv2.IMREAD_GRAYSCALE)
     assert gray.shape == (round(279.4 / 25.4 * 200), round(215.9 / 25.4 * 200)) == (2200, 1700)
@@ -351,7 +351,7 @@ def test_checkerboard_png_square_size(tmp_path):
 
 def test_charuco_pdf_detected_by_opencv(tmp_path):
     path = tmp_path / "charuco.pdf"
-    sheet = P.board_pdf(path, (4, 6), 30, "a4", charuco=True, dictionary="6X6_250", marker_size_mm=22)
+    sheet = P.board_pdf(path, (4, 6), 30, paper="a4", charuco=True, dictionary="6X6_250", marker_size_mm=22)
     assert sheet.squares == (5, 7)
     (gray,) = rasterize(path)
     board = _cv_charuco.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
@@ -367,7 +367,7 @@ def test_charuco_pdf_detected_by_opencv(tmp_path):
 
 
 def test_charuco_board_size_printed_on_page():
-    sheet = P.layout_board((10, 7), 25, "a4", charuco=True, dictionary="DICT_6X6_250", marker_size_mm=20)
+    sheet = P.layout_board((10, 7), 25, paper="a4", charuco=True, dictionary="DICT_6X6_250", marker_size_mm=20)
     assert sheet.describe() == "ChArUco 10x7 squares (9x6 inner corners), square 25 mm, marker 20 mm, 6X6_250"
     fig = P.board_figure(sheet)
     texts = [t.get_text() for t in fig.axes[0].texts]
@@ -381,7 +381,7 @@ def test_board_keeps_its_quiet_zone_inside_the_margins():
         ((7, 5), 30, "a4"),
         ((12, 9), 12, "letter"),
     ]:
-        sheet = P.layout_board(pattern, square, paper)
+        sheet = P.layout_board(pattern, square, paper=paper)
         q = P.board_quiet_zone_mm(square)
         (x, y), (w, h), (pw, ph) = sheet.origin_mm, sheet.board_mm, sheet.paper_mm
         assert x - q >= P.PAGE_MARGIN_MM - 1e-9 and y - q >= P.PAGE_MARGIN_MM - 1e-9
@@ -395,11 +395,11 @@ def test_board_keeps_its_quiet_zone_inside_the_margins():
 
 def test_board_too_big_names_largest_square(tmp_path):
     with pytest.raises(PrintError, match=r"the largest square that fits is (\d+\.\d) mm: use --square-mm") as e:
-        P.board_pdf(tmp_path / "b.pdf", (9, 6), 40, "a4")
+        P.board_pdf(tmp_path / "b.pdf", (9, 6), 40, paper="a4")
     largest = float(e.value.args[0].split("use --square-mm ")[1].split(" ")[0])
-    P.layout_board((10, 7), largest, "a4")  # fits
+    P.layout_board((10, 7), largest, paper="a4")  # fits
     with pytest.raises(PrintError):
-        P.layout_board((10, 7), largest + 0.2, "a4")
+        P.layout_board((10, 7), largest + 0.2, paper="a4")
     assert list(tmp_path.iterdir()) == []
 
 

@@ -10,7 +10,7 @@ import pytest
 
 import fidlearn
 from fidlearn import frames
-from fidlearn.errors import CameraError, RosFormatError
+from fidlearn.errors import CameraError, OdometryRangeError, RosFormatError
 from fidlearn.filtering import TrackedPose
 from fidlearn.ros import (
     camera_from_camera_info,
@@ -211,7 +211,10 @@ def test_odometry_csv(tmp_path):
     np.testing.assert_allclose(
         np.sqrt(np.diag(cov)), [0.02 * 0.04 + 1e-4] * 3 + [0.02 * np.linalg.norm(expected[:3, 3]) + 0.1] * 3
     )
-    assert odo.between(0.1, 0.5) is None  # past the last sample
+    with pytest.raises(OdometryRangeError, match=r"no odometry at 0.5 s: its samples run from 0 to 0.4 s"):
+        odo.between(0.1, 0.5)  # past the last sample
+    with pytest.raises(OdometryRangeError, match="no odometry at -0.1 s"):
+        odo.pose_at(-0.1)
     np.testing.assert_allclose(odo.pose_at(0.15)[:3, 3], [150, 0, 0], atol=1e-9)
     path.write_text("t,x,y\n0,0,0\n")
     with pytest.raises(RosFormatError, match="header"):

@@ -26,7 +26,7 @@ CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001,
 @pytest.fixture(scope="module")
 def room():
     truth = survey_room()
-    poses = survey_walk(truth, CAM, 20, seed=1)
+    poses = survey_walk(truth, CAM, n_photos=20, seed=1)
     return truth, poses
 
 
@@ -40,7 +40,7 @@ def photos(truth, poses, noise_px=0.0, seed=0, drop=()):
 
 
 def with_placements(m: MarkerMap, placements: dict, units: str | None = None) -> MarkerMap:
-    return MarkerMap(placements, m.marker_size_mm, m.dictionary, units or m.units, m.source)
+    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units=units or m.units, source=m.source)
 
 
 def corner_error_mm(a: MarkerMap, b: MarkerMap, ids=None) -> float:
@@ -50,7 +50,7 @@ def corner_error_mm(a: MarkerMap, b: MarkerMap, ids=None) -> float:
 
 def test_noise_free_room_is_surveyed_exactly(room):
     truth, poses = room
-    tape = tape_measured(truth, 20.0, 2.0, seed=3)
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3)
     tape = with_placements(tape, {**tape.placements, 0: truth.placements[0]})
     s = fidlearn.survey(photos(truth, poses), tape, CAM, map_sigma_mm=math.inf, fixed_ids=[0])
     assert corner_error_mm(s.marker_map, truth) < 1e-6
@@ -63,7 +63,7 @@ def test_noise_free_room_is_surveyed_exactly(room):
 
 def test_jacobian_matches_finite_differences(room):
     truth, poses = room
-    tape = tape_measured(truth, 20.0, 2.0, seed=4)
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=4)
     from fidlearn.survey._solve import build_problem
     from fidlearn.survey._survey import _read_photos, initial_values
 
@@ -84,7 +84,7 @@ def test_jacobian_matches_finite_differences(room):
 
 def test_moved_marker_is_named_and_surveyed_back(room):
     truth, poses = room
-    tape = tape_measured(truth, 20.0, 1.0, moved={7: (0.0, 100.0, 0.0)}, seed=5)
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=1.0, moved={7: (0.0, 100.0, 0.0)}, seed=5)
     s = fidlearn.survey(photos(truth, poses, 0.1), tape, CAM, map_sigma_mm=20)
     assert s.suspect_ids[0] == 7, s.suspects
     assert 60 < s.suspects[0].distance_mm < 160 and s.suspects[0].sigmas > 3.4
@@ -106,7 +106,7 @@ def test_marker_missing_from_the_map_is_added_at_its_true_place(room):
 
 def test_gauge_held_by_the_tape(room):
     truth, poses = room
-    tape = tape_measured(truth, 20.0, 0.0, seed=6)
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=0.0, seed=6)
     s = fidlearn.survey(photos(truth, poses), tape, CAM, map_sigma_mm=20)
     # noise-free photos fix the shape; the tape decides where it sits: the mean top-left corner
     got = np.array([s.marker_map.placements[i].translation_mm for i in truth.ids])
@@ -122,7 +122,7 @@ def test_gauge_held_by_the_tape(room):
 
 def test_gauge_held_by_fixed_ids(room):
     truth, poses = room
-    tape = tape_measured(truth, 20.0, 1.0, seed=7)
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=1.0, seed=7)
     s = fidlearn.survey(photos(truth, poses, 0.1), tape, CAM, map_sigma_mm=20, fixed_ids=2)
     assert s.fixed_ids == (2,)
     assert s.marker_map.placements[2] == tape.placements[2]
@@ -241,7 +241,7 @@ def test_a_marker_in_one_photo_is_never_named_a_suspect(room):
     frames = photos(truth, poses, 0.05, seed=3)
     k = next(n for n, f in enumerate(frames) if any(d.id == 3 for d in f))
     frames = [f if n == k else [d for d in f if d.id != 3] for n, f in enumerate(frames)]
-    tape = tape_measured(truth, 5.0, 0.5, moved={3: (0.0, 100.0, 0.0)}, seed=8)
+    tape = tape_measured(truth, sigma_mm=5.0, sigma_deg=0.5, moved={3: (0.0, 100.0, 0.0)}, seed=8)
     s = fidlearn.survey(frames, tape, CAM, map_sigma_mm=5)
     assert s.photos_per_marker[3] == 1
     assert 3 not in s.suspect_ids  # one photo cannot dispute the tape

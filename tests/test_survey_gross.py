@@ -40,12 +40,12 @@ def moved(tape: MarkerMap, moves: dict) -> MarkerMap:
     pl = dict(tape.placements)
     for i, d in moves.items():
         pl[i] = MarkerPlacement(i, tuple(np.add(pl[i].translation_mm, d)), pl[i].rotation_deg)
-    return MarkerMap(pl, tape.marker_size_mm, tape.dictionary, tape.units, tape.source)
+    return MarkerMap(pl, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
 
 
 def without(tape: MarkerMap, ids) -> MarkerMap:
     pl = {i: p for i, p in tape.placements.items() if i not in ids}
-    return MarkerMap(pl, tape.marker_size_mm, tape.dictionary, tape.units, tape.source)
+    return MarkerMap(pl, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
 
 
 def position(m: MarkerMap, i: int) -> np.ndarray:

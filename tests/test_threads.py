@@ -142,9 +142,9 @@ def _survey(_k: int) -> tuple:
     rng = np.random.default_rng(0)
     shots = [
         [Detection(i, c + rng.normal(0, 0.3, c.shape)) for i, c in visible_markers(truth, cam, T).items()]
-        for T in survey_walk(truth, cam, 4, seed=1)
+        for T in survey_walk(truth, cam, n_photos=4, seed=1)
     ]
-    s = fidlearn.survey(shots, tape_measured(truth, 20.0, 2.0, seed=3), cam)
+    s = fidlearn.survey(shots, tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3), cam)
     corners = s.marker_map.corners()
     return np.array([corners[i] for i in sorted(corners)]), np.array(list(s.photo_rms_px.values()))
 

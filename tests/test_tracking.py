@@ -17,7 +17,7 @@ def wall_map() -> MarkerMap:
     p = {}
     for i, y, z in [(3, 0, 1500), (7, 400, 1500), (11, 800, 1500), (20, 100, 1100), (21, 500, 1100), (40, 900, 1150)]:
         p[i] = MarkerPlacement(i, (0.0, float(y), float(z)), (0.0, 0.0, 0.0))
-    return MarkerMap(p, 100.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(p, 100.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 @pytest.fixture(scope="module")

@@ -106,7 +106,7 @@ def test_explorer_has_the_five_sliders_starting_at_the_camera(monkeypatch):
     real = widgets.render_intrinsics_view
 
     def spy(*args, **kw):
-        calls.append(args)
+        calls.append((*args, *kw.values()))
         return real(*args, **kw)
 
     monkeypatch.setattr(widgets, "render_intrinsics_view", spy)

@@ -353,10 +353,17 @@ def make_survey() -> None:
     write_json(folder / "true_map.json", truth.to_dict())
     tape = SURVEY["tape"]
     moved = {int(k): tuple(v) for k, v in tape["moved"].items()}
-    taped = tape_measured(truth, tape["sigma_mm"], tape["sigma_deg"], moved, tape["seed"], tape["units"])
+    taped = tape_measured(
+        truth,
+        sigma_mm=tape["sigma_mm"],
+        sigma_deg=tape["sigma_deg"],
+        moved=moved,
+        seed=tape["seed"],
+        units=tape["units"],
+    )
     write_json(folder / "tape_map.json", taped.to_dict())
     records = []
-    for i, T in enumerate(survey_walk(truth, camera, SURVEY["n_photos"], SURVEY["seed"])):
+    for i, T in enumerate(survey_walk(truth, camera, n_photos=SURVEY["n_photos"], seed=SURVEY["seed"])):
         name = f"photo_{i:02d}.jpg"
         scene = render_scene(truth, camera, T, seed=SURVEY["seed"] * 1000 + i, **SURVEY["render"])
         image, seen = scene.image, scene.truth

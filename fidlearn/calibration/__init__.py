@@ -87,7 +87,7 @@ from __future__ import annotations
 from . import quality  # noqa: F401 - fidlearn.calibration.quality
 from .api import _entries, _pattern, calibrate_charuco, calibrate_checkerboard
 from .boards import _Charuco, _Checkerboard, checkerboard_points, find_checkerboard_corners
-from .quality import coverage_grid, quality_warnings, view_diversity
+from .quality import DuplicateViews, ViewDiversity, coverage_grid, quality_warnings, view_diversity
 from .result import Calibration, ViewResult, _display_names, _short
 from .run import INTRINSIC_NAMES, MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_MARGIN_PX, ProgressFn, _run
 
@@ -100,6 +100,8 @@ __all__ = [
     "checkerboard_points",
     "coverage_grid",
     "view_diversity",
+    "ViewDiversity",
+    "DuplicateViews",
     "quality_warnings",
     "MIN_VIEWS",
 ]

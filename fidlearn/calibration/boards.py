@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from .. import _cv, _cv_charuco
-from ..errors import CalibrationError
+from ..errors import BoardNotFoundError, CalibrationError
 
 __all__ = ["find_checkerboard_corners"]
 
@@ -58,13 +58,10 @@ class _Checkerboard:
         self.description = f"checkerboard {cols}x{rows} inner corners, {square_size_mm:g} mm squares"
 
     def find(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
-        corners = find_checkerboard_corners(gray, self.pattern_size, self.corner_finder)
-        if corners is None:
-            cols, rows = self.pattern_size
-            return (
-                f"board not found ({cols}x{rows} inner corners): is the whole board in the picture, "
-                "sharp and evenly lit?"
-            )
+        try:
+            corners = find_checkerboard_corners(gray, self.pattern_size, self.corner_finder)
+        except BoardNotFoundError as exc:
+            return str(exc)
         return self.object_points, corners
 
     def diagnose(self, grays: list[np.ndarray]) -> str:
@@ -73,20 +70,23 @@ class _Checkerboard:
         if cols - 1 < 3 or rows - 1 < 3:
             return ""
         for gray in grays:
-            if find_checkerboard_corners(gray, (cols - 1, rows - 1), "classic", refine=False) is not None:
-                example = "" if (cols, rows) == (10, 7) else " (a board of 10x7 squares has 9x6 inner corners)"
-                return (
-                    f"the board is found with pattern_size=({cols - 1}, {rows - 1}) (command line: --pattern "
-                    f"{cols - 1}x{rows - 1}): pattern_size counts inner corners, not squares: a board of "
-                    f"{cols}x{rows} squares has {cols - 1}x{rows - 1} inner corners{example}"
-                )
+            try:
+                find_checkerboard_corners(gray, (cols - 1, rows - 1), "classic", refine=False)
+            except BoardNotFoundError:
+                continue
+            example = "" if (cols, rows) == (10, 7) else " (a board of 10x7 squares has 9x6 inner corners)"
+            return (
+                f"the board is found with pattern_size=({cols - 1}, {rows - 1}) (command line: --pattern "
+                f"{cols - 1}x{rows - 1}): pattern_size counts inner corners, not squares: a board of "
+                f"{cols}x{rows} squares has {cols - 1}x{rows - 1} inner corners{example}"
+            )
         return ""
 
 
 def find_checkerboard_corners(
     gray: np.ndarray, pattern_size: tuple[int, int], corner_finder: str = "classic", refine: bool = True
-) -> np.ndarray | None:
-    """Inner corners of a checkerboard, (cols * rows, 2) float64 px in OpenCV's order, or None.
+) -> np.ndarray:
+    """Inner corners of a checkerboard, (cols * rows, 2) float64 px in OpenCV's order.
 
     ``"classic"``: ``cv2.findChessboardCorners`` + ``cv2.cornerSubPix`` with
     the half-window ``min(11, floor(0.6 * s))``, ``s`` the shortest spacing
@@ -106,8 +106,13 @@ def find_checkerboard_corners(
 
     Returns
     -------
-    ndarray, shape (cols * rows, 2), float64, or None
-        The corners (pixels), row by row; None when the board is not found.
+    ndarray, shape (cols * rows, 2), float64
+        The corners (pixels), row by row.
+
+    Raises
+    ------
+    BoardNotFoundError
+        The board (all its ``cols x rows`` inner corners) is not found in the picture.
 
     Examples
     --------
@@ -121,11 +126,13 @@ def find_checkerboard_corners(
     if corner_finder == "sb":
         flags = cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE
         ok, corners = cv2.findChessboardCornersSB(gray, (cols, rows), flags=flags)
-        return np.asarray(corners, dtype=np.float64).reshape(-1, 2) if ok else None
+        if not ok:
+            raise _not_found(pattern_size)
+        return np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=flags)
     if not ok or corners is None:
-        return None
+        raise _not_found(pattern_size)
     if not refine:
         return np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     grid = corners.reshape(rows, cols, 2)
@@ -135,6 +142,14 @@ def find_checkerboard_corners(
     half = min(max(math.floor(0.6 * spacing), 2), 11)
     corners = cv2.cornerSubPix(gray, corners, (half, half), (-1, -1), _SUBPIX_CRITERIA)  # float32, refined in place
     return np.asarray(corners, dtype=np.float64).reshape(-1, 2)
+
+
+def _not_found(pattern_size: tuple[int, int]) -> BoardNotFoundError:
+    """The error for a checkerboard that is not in the picture, with what to check."""
+    cols, rows = pattern_size
+    return BoardNotFoundError(
+        f"board not found ({cols}x{rows} inner corners): is the whole board in the picture, sharp and evenly lit?"
+    )
 
 
 class _Charuco:

@@ -11,6 +11,7 @@ distortion there is extrapolated). :func:`quality_warnings` says so in sentences
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,8 @@ from .. import frames
 __all__ = [
     "coverage_grid",
     "view_diversity",
+    "ViewDiversity",
+    "DuplicateViews",
     "quality_warnings",
     "few_views_warning",
     "MIN_GOOD_VIEWS",
@@ -76,7 +79,45 @@ def coverage_grid(points_px: Iterable, image_size: tuple[int, int], grid: tuple[
     return np.bincount(r * cols + c, minlength=rows * cols).reshape(rows, cols)
 
 
-def view_diversity(T_camera_board: Mapping) -> tuple[float, list[tuple[str, str, float, float]]]:
+@dataclass(frozen=True)
+class DuplicateViews:
+    """Two views whose board poses are nearly the same (see :func:`view_diversity`).
+
+    Attributes
+    ----------
+    a, b : str
+        The two views' names, in the order they were given.
+    angle_deg : float
+        The rotation between the two board poses, degrees (below ``DUPLICATE_DEG``).
+    moved_fraction : float
+        How far the board moved between them, as a fraction of its distance in ``a`` (below
+        ``DUPLICATE_FRACTION``).
+    """
+
+    a: str
+    b: str
+    angle_deg: float
+    moved_fraction: float
+
+
+@dataclass(frozen=True)
+class ViewDiversity:
+    """How different a calibration's board poses are (what :func:`view_diversity` returns).
+
+    Attributes
+    ----------
+    spread_deg : float
+        The largest angle (deg) between the board's normals over all pairs of views (0 for one view).
+    duplicates : list of DuplicateViews
+        The near-duplicate pairs: views whose board turned less than ``DUPLICATE_DEG`` and moved
+        less than ``DUPLICATE_FRACTION`` of its distance.
+    """
+
+    spread_deg: float
+    duplicates: list[DuplicateViews] = field(default_factory=list)
+
+
+def view_diversity(T_camera_board: Mapping) -> ViewDiversity:
     """How different the board poses are.
 
     Parameters
@@ -86,24 +127,22 @@ def view_diversity(T_camera_board: Mapping) -> tuple[float, list[tuple[str, str,
 
     Returns
     -------
-    spread_deg : float
-        The largest angle (deg) between the board's normals over all pairs of views (0 for one view).
-    duplicates : list of (str, str, float, float)
-        The near-duplicate pairs ``(a, b, angle_deg, moved_fraction)``: views whose board turned
-        less than ``DUPLICATE_DEG`` and moved less than ``DUPLICATE_FRACTION`` of its distance.
+    ViewDiversity
+        ``spread_deg``, the largest angle between the board's normals, and ``duplicates``, the
+        pairs of nearly identical views.
 
     Examples
     --------
     >>> import fidlearn
     >>> T = fidlearn.make_transform(np.eye(3), [0, 0, 500])
     >>> T2 = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(30, 0, 0), [0, 0, 500])
-    >>> spread, dups = view_diversity({"a": T, "b": T, "c": T2})
-    >>> round(spread, 6), [(a, b) for a, b, _, _ in dups]
+    >>> diversity = view_diversity({"a": T, "b": T, "c": T2})
+    >>> round(diversity.spread_deg, 6), [(d.a, d.b) for d in diversity.duplicates]
     (30.0, [('a', 'b')])
     """
     names = list(T_camera_board)
     if len(names) < 2:
-        return 0.0, []
+        return ViewDiversity(0.0, [])
     R, t = _rotations_and_translations(T_camera_board, names)
     i, j = np.triu_indices(len(names), k=1)  # every pair, in the order (0, 1), (0, 2), ..., (1, 2), ...
     normals = R[:, :, 2]
@@ -114,8 +153,8 @@ def view_diversity(T_camera_board: Mapping) -> tuple[float, list[tuple[str, str,
     angle = np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
     moved = np.linalg.norm(t[i] - t[j], axis=1) / np.maximum(np.linalg.norm(t[i], axis=1), 1e-9)
     close = np.flatnonzero((angle < DUPLICATE_DEG) & (moved < DUPLICATE_FRACTION))
-    duplicates = [(names[i[k]], names[j[k]], float(angle[k]), float(moved[k])) for k in close]
-    return spread, duplicates
+    duplicates = [DuplicateViews(names[i[k]], names[j[k]], float(angle[k]), float(moved[k])) for k in close]
+    return ViewDiversity(spread, duplicates)
 
 
 def _rotations_and_translations(T_camera_board: Mapping, names: list) -> tuple[np.ndarray, np.ndarray]:
@@ -205,14 +244,15 @@ def quality_warnings(n_used: int, T_camera_board: Mapping, grid: np.ndarray) -> 
     out = []
     if n_used < MIN_GOOD_VIEWS:
         out.append(few_views_warning(n_used))
-    spread, duplicates = view_diversity(T_camera_board)
+    diversity = view_diversity(T_camera_board)
+    spread, duplicates = diversity.spread_deg, diversity.duplicates
     if n_used > 1 and spread < MIN_TILT_SPREAD_DEG:
         out.append(
             f"views too similar: the board faces the camera within {spread:.1f} deg in every view; "
             "tilt it 20 to 45 deg in different directions, or the focal length stays uncertain"
         )
     if duplicates:
-        a, b, _, _ = duplicates[0]
+        a, b = duplicates[0].a, duplicates[0].b
         out.append(
             f"{len(duplicates)} pair(s) of nearly identical views (e.g. {Path(a).name} and {Path(b).name}); "
             "they add no information: move or tilt the board between photos"

@@ -64,7 +64,12 @@ def _calibrate(args, paths: list[str], squares: tuple[int, int]) -> calibration.
     try:
         if args.charuco:
             cal = calibration.calibrate_charuco(
-                paths, squares, args.square_mm, args.marker_mm, args.dictionary or "6X6_250", progress=progress
+                paths,
+                squares,
+                args.square_mm,
+                args.marker_mm,
+                dictionary=args.dictionary or "6X6_250",
+                progress=progress,
             )
         else:
             pattern = (squares[0] - 1, squares[1] - 1)

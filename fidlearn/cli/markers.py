@@ -126,7 +126,12 @@ def run_board(args) -> int:
     _check_dpi(args.dpi)
     squares = _board_squares(args)
     sheet = printables.layout_board(
-        squares, args.square_mm, args.paper, args.charuco, args.dictionary or "6X6_250", args.marker_mm
+        squares,
+        args.square_mm,
+        paper=args.paper,
+        charuco=args.charuco,
+        dictionary=args.dictionary or "6X6_250",
+        marker_size_mm=args.marker_mm,
     )
     files = printables.save_pages([printables.board_figure(sheet)], out, dpi=args.dpi)
     _commit()

@@ -162,6 +162,6 @@ def _figure(s: Survey, camera):
 
     poses = list(s.camera_poses.values())
     title = "surveyed markers (dark) and tape (red); cameras of the photos"
-    fig = plot_scene(s.marker_map, poses, camera, labels=[None] * len(poses), scale_mm=150.0, title=title)
+    fig = plot_scene(s.marker_map, poses, camera=camera, labels=[None] * len(poses), scale_mm=150.0, title=title)
     draw_markers(fig.axes[0], s.tape_map, color="tab:red", show_ids=False, alpha=0.35)
     return fig

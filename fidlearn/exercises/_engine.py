@@ -231,6 +231,7 @@ class Question:
         expected: Any,
         parse: Callable[[Any], Any],
         compare: Callable[[Any, Any], str | None],
+        *,
         wrong: Sequence[tuple[Detector, Any]] = (),
         notes: Sequence[tuple[Detector, Any]] = (),
         hint: str | Sequence[str] = "",

@@ -82,7 +82,7 @@ def _wall_map(
             mid = int(ids[k])
             placements[mid] = MarkerPlacement(mid, (0.0, y, z), (0.0, 0.0, 0.0))
             k += 1
-    return MarkerMap(placements, size_mm, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(placements, size_mm, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def _noisy_detections(

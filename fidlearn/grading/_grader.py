@@ -288,7 +288,7 @@ def grade_one(
         inputs_json = json.dumps(inputs_record(number, learner, secret)) if secret is not None else None
         env = {"FIDLEARN_LEARNER": learner} if secret is None and learner else None  # for an empty LEARNER
         t0 = time.monotonic()
-        raw, grade.cell_errors = run_notebook(notebook, inputs_json, plan, timeout_s, memory_mb, env)
+        raw, grade.cell_errors = run_notebook(notebook, inputs_json, plan, timeout_s, memory_mb, env=env)
         answers = read_answers(raw, [q.name for q in questions])
         grade.results = [_judge(q, answers.get(q.name)) for q in questions]
         elapsed = time.monotonic() - t0

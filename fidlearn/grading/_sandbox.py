@@ -216,7 +216,7 @@ def _scratch_copy(scratch: Path, notebook: Path, inputs_json: str | None, plan: 
             os.chown(p, *plan.ids)
 
 
-def run_notebook(notebook: Path, inputs_json: str | None, plan: Plan, timeout_s: int, memory_mb: int, env=None):
+def run_notebook(notebook: Path, inputs_json: str | None, plan: Plan, timeout_s: int, memory_mb: int, *, env=None):
     """Run one notebook in its box; (answers as plain data parsed, cell errors). Raises _Zero."""
     scratch = Path(tempfile.mkdtemp(prefix="fidlearn-grade-"))
     try:

@@ -38,6 +38,7 @@ from ._images import (
 )
 from ._room import (
     AXIS_COLORS,
+    AxesCube,
     camera_frustum,
     draw_box,
     draw_camera,
@@ -56,6 +57,7 @@ __all__ = [
     "CORNER_NAMES",
     "new_axes_3d",
     "set_axes_equal",
+    "AxesCube",
     "draw_frame",
     "draw_world_axes",
     "draw_markers",

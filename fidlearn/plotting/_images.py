@@ -34,6 +34,7 @@ def _rgb(image: np.ndarray) -> tuple[np.ndarray, dict]:
 def show_image(
     ax: Axes | None,
     image: np.ndarray,
+    *,
     points: np.ndarray | None = None,
     labels: Sequence | None = None,
     color: str = "tab:red",
@@ -131,6 +132,7 @@ def show_images(
 def draw_points(
     ax: Axes,
     points: np.ndarray,
+    *,
     labels: Sequence | None = None,
     color: str = "tab:red",
     marker: str = "+",
@@ -170,7 +172,12 @@ def draw_points(
 
 
 def draw_corner_labels(
-    ax: Axes, corners_px: np.ndarray, names: Sequence[str] = CORNER_NAMES, color: str = "tab:red", fontsize: float = 8
+    ax: Axes,
+    corners_px: np.ndarray,
+    *,
+    names: Sequence[str] = CORNER_NAMES,
+    color: str = "tab:red",
+    fontsize: float = 8,
 ) -> list:
     """Write TL, TR, BR, BL beside a quad's four corners, each pushed away from the centre.
 
@@ -221,6 +228,7 @@ def draw_corner_labels(
 def draw_quads(
     ax: Axes,
     quads_px: Sequence[np.ndarray],
+    *,
     ids: Sequence | None = None,
     color: str = "lime",
     corner_labels: bool = False,
@@ -287,7 +295,7 @@ def plot_detections(ax: Axes, detections: Sequence, color: str = "lime", corner_
 
 
 def draw_reprojection(
-    ax: Axes, observed_px: np.ndarray, projected_px: np.ndarray, scale: float = 1.0, color: str = "tab:red"
+    ax: Axes, observed_px: np.ndarray, projected_px: np.ndarray, *, scale: float = 1.0, color: str = "tab:red"
 ):
     """Observed points (green dots) and the model's projections (red crosses), joined by error lines.
 
@@ -340,6 +348,7 @@ def draw_projected_markers(
     marker_map: MarkerMap,
     camera: Camera,
     T_world_camera: np.ndarray,
+    *,
     corner_labels: bool = True,
     color: str = "tab:blue",
 ) -> dict[int, np.ndarray]:

@@ -7,6 +7,7 @@ OpenCV's (x right, y down, z forward). World axes are drawn X red, Y green, Z bl
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -60,7 +61,23 @@ def new_axes_3d(
     return ax
 
 
-def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0.05) -> tuple[np.ndarray, float]:
+@dataclass(frozen=True, eq=False)
+class AxesCube:
+    """The cube a 3D Axes shows after :func:`set_axes_equal`.
+
+    Attributes
+    ----------
+    centre : ndarray, shape (3,)
+        Centre of the cube shown, mm.
+    half_range : float
+        Half the side of that cube, mm (the same on every axis).
+    """
+
+    centre: np.ndarray
+    half_range: float
+
+
+def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0.05) -> AxesCube:
     """Give a 3D Axes equal scales on X, Y and Z, so squares look square and right angles look right.
 
     Parameters
@@ -73,10 +90,8 @@ def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0
 
     Returns
     -------
-    centre : ndarray, shape (3,)
-        Centre of the cube shown, mm.
-    half_range : float
-        Half the side of that cube, mm (the same on every axis).
+    AxesCube
+        The ``centre`` (3,) and ``half_range`` of the cube shown, mm.
     """
     if points is None:
         lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
@@ -90,12 +105,13 @@ def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0
     ax.set_ylim3d(centre[1] - half, centre[1] + half)
     ax.set_zlim3d(centre[2] - half, centre[2] + half)
     ax.set_box_aspect((1, 1, 1))
-    return centre, half
+    return AxesCube(centre, half)
 
 
 def draw_frame(
     ax: Axes,
     T_world_frame: np.ndarray,
+    *,
     length_mm: float = 100.0,
     label: str | None = None,
     linewidth: float = 2.0,
@@ -157,12 +173,13 @@ def draw_world_axes(ax: Axes, length_mm: float = 300.0, label: str | None = "wor
     list of Line3D
         X, Y, Z.
     """
-    return draw_frame(ax, np.eye(4), length_mm, label=label, linewidth=2.5, axis_names=("X", "Y", "Z"))
+    return draw_frame(ax, np.eye(4), length_mm=length_mm, label=label, linewidth=2.5, axis_names=("X", "Y", "Z"))
 
 
 def draw_markers(
     ax: Axes,
     marker_map: MarkerMap,
+    *,
     ids: Iterable[int] | None = None,
     color: str = "0.2",
     show_ids: bool = True,
@@ -216,7 +233,7 @@ def draw_markers(
 
 
 def draw_box(
-    ax: Axes, min_mm: Sequence[float], max_mm: Sequence[float], color: str = "0.6", linewidth: float = 0.8
+    ax: Axes, min_mm: Sequence[float], max_mm: Sequence[float], *, color: str = "0.6", linewidth: float = 0.8
 ) -> list:
     """Outline an axis-aligned box (a room) between two opposite corners.
 
@@ -280,6 +297,7 @@ def draw_camera(
     ax: Axes,
     camera: Camera,
     T_world_camera: np.ndarray,
+    *,
     scale_mm: float = 200.0,
     color: str = "tab:orange",
     label: str | None = None,
@@ -321,7 +339,7 @@ def draw_camera(
     lines.append(line)
     ax.plot(*f[[1, 2]].T, color=color, linewidth=3.0)  # the image's top edge
     if show_axes:
-        draw_frame(ax, T_world_camera, 0.5 * scale_mm, linewidth=1.5)
+        draw_frame(ax, T_world_camera, length_mm=0.5 * scale_mm, linewidth=1.5)
     if label:
         ax.text(*f[0], f" {label}", fontsize=9, color=color)
     return lines
@@ -335,6 +353,7 @@ def _pose_matrix(pose) -> np.ndarray:
 def plot_scene(
     marker_map: MarkerMap | None = None,
     poses: Sequence = (),
+    *,
     camera: Camera | None = None,
     labels: Sequence[str] | None = None,
     ax: Axes | None = None,
@@ -405,10 +424,10 @@ def plot_scene(
     for i, T in enumerate(Ts):
         label = labels[i] if labels is not None else (f"camera {i}" if len(Ts) > 1 else "camera")
         if camera is not None:
-            draw_camera(ax, camera, T, scale_mm, label=label)
+            draw_camera(ax, camera, T, scale_mm=scale_mm, label=label)
             pts.append(camera_frustum(camera, T, scale_mm))
         else:
-            draw_frame(ax, T, scale_mm, label=label)
+            draw_frame(ax, T, length_mm=scale_mm, label=label)
             pts.append(frames.transform_points(T, np.eye(3) * scale_mm))
     set_axes_equal(ax, np.vstack(pts))
     if title:
@@ -419,6 +438,7 @@ def plot_scene(
 def draw_trajectory(
     ax: Axes,
     poses: Sequence,
+    *,
     color: str = "tab:purple",
     label: str | None = None,
     camera: Camera | None = None,
@@ -453,5 +473,5 @@ def draw_trajectory(
     ax.scatter(*pts[0], color=color, s=20, depthshade=False)
     if camera is not None and every > 0:
         for T in Ts[::every]:
-            draw_camera(ax, camera, T, scale_mm, color=color, show_axes=False)
+            draw_camera(ax, camera, T, scale_mm=scale_mm, color=color, show_axes=False)
     return line

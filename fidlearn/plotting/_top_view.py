@@ -16,6 +16,7 @@ from ._room import _pose_matrix
 def plot_top_view(
     marker_map: MarkerMap | None = None,
     poses: Sequence = (),
+    *,
     truth: Sequence | None = None,
     ax: Axes | None = None,
     arrow_mm: float = 150.0,

@@ -114,6 +114,7 @@ from ._outliers import _screen as _screen
 from ._refine import _LM_TOL_PX2 as _LM_TOL_PX2
 from ._refine import _LM_TOL_SIGMA2 as _LM_TOL_SIGMA2
 from ._refine import _ZERO3 as _ZERO3
+from ._refine import PoseRefinement as PoseRefinement
 from ._refine import _lm as _lm
 from ._refine import _residuals as _residuals
 from ._refine import pose_jacobian as pose_jacobian
@@ -147,11 +148,11 @@ from ._stats import _estimated_sigma_inflation as _estimated_sigma_inflation
 from ._stats import _mahalanobis2 as _mahalanobis2
 from ._stats import _sigma as _sigma
 
-__all__ = ["Pose", "estimate_pose", "locate", "METHODS", "pose_jacobian", "refine_pose_lm"]
+__all__ = ["Pose", "estimate_pose", "locate", "METHODS", "pose_jacobian", "refine_pose_lm", "PoseRefinement"]
 
 # The public names say they are fidlearn.pose's: help(), repr() and the docs show the path to import
 # (and the doctests of Pose's methods run with the class).
 _methods = [f for f in vars(Pose).values() if _inspect.isfunction(f)]
-for _public in (Pose, estimate_pose, locate, pose_jacobian, refine_pose_lm, *_methods):
+for _public in (Pose, estimate_pose, locate, pose_jacobian, refine_pose_lm, PoseRefinement, *_methods):
     _public.__module__ = __name__
 del _public, _methods

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
 from ..camera import Camera
-from ..frames import _rotvec
+from ..frames import _rotvec, transform_from_rvec_tvec
 
-__all__ = ["pose_jacobian", "refine_pose_lm"]
+__all__ = ["pose_jacobian", "refine_pose_lm", "PoseRefinement"]
 
 #: Levenberg-Marquardt stops when a step would lower the sum of squared residuals by less than
 #: this (px^2): a change of the pose far below its own uncertainty for any realistic corner noise.
@@ -68,14 +71,40 @@ def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: 
     return J.reshape(-1, 6)
 
 
+@dataclass(frozen=True, eq=False)
+class PoseRefinement:
+    """The pose :func:`refine_pose_lm` reached, in OpenCV's convention, and how well it fits.
+
+    Attributes
+    ----------
+    rvec : ndarray, shape (3,)
+        Rotation vector of the refined ``T_camera_world``, rad.
+    tvec : ndarray, shape (3,)
+        Its translation, mm.
+    reprojection_rms_px : float
+        RMS over the points of the residual length there (px), ``sqrt(sum |r|^2 / N)``, as
+        :attr:`fidlearn.Pose.reprojection_rms_px`.
+    """
+
+    rvec: np.ndarray
+    tvec: np.ndarray
+    reprojection_rms_px: float
+
+    @property
+    def T_camera_world(self) -> np.ndarray:
+        """The refined extrinsics (4, 4, mm): world points into the camera frame."""
+        return transform_from_rvec_tvec(self.rvec, self.tvec)
+
+
 def refine_pose_lm(
     points_world: np.ndarray,
     points_px: np.ndarray,
     camera: Camera,
     rvec: np.ndarray,
     tvec: np.ndarray,
+    *,
     max_iterations: int = 50,
-):
+) -> PoseRefinement:
     """Levenberg-Marquardt on the reprojection error from a starting pose.
 
     The steps are taken on the camera's pose (a small rotation in world axes and
@@ -100,10 +129,9 @@ def refine_pose_lm(
 
     Returns
     -------
-    rvec : ndarray, shape (3,)
-        Rotation vector of the refined ``T_camera_world``, rad.
-    tvec : ndarray, shape (3,)
-        Its translation, mm.
+    PoseRefinement
+        ``rvec`` and ``tvec`` of the refined ``T_camera_world`` (rad, mm) and the
+        ``reprojection_rms_px`` there.
 
     Examples
     --------
@@ -113,18 +141,20 @@ def refine_pose_lm(
     >>> cam = fidlearn.Camera.from_fov(60, (640, 480))
     >>> P = np.array([[-50.0, -50, 1000], [50, -50, 1000], [50, 50, 1000], [-50, 50, 1000]])
     >>> px = cam.project(P, np.eye(4))     # the camera at the world origin
-    >>> rvec, tvec = refine_pose_lm(P, px, cam, np.radians([1.0, 0, 0]), [10.0, 0, 0])
-    >>> bool(np.degrees(np.abs(rvec)).max() < 1e-4), bool(np.abs(tvec).max() < 1e-3)   # back to the truth
+    >>> refined = refine_pose_lm(P, px, cam, np.radians([1.0, 0, 0]), [10.0, 0, 0])
+    >>> bool(np.degrees(np.abs(refined.rvec)).max() < 1e-4), bool(np.abs(refined.tvec).max() < 1e-3)  # the truth
     (True, True)
+    >>> bool(refined.reprojection_rms_px < 1e-6)
+    True
     """
     obj = np.ascontiguousarray(points_world, dtype=np.float64).reshape(-1, 3)
     img = np.ascontiguousarray(points_px, dtype=np.float64).reshape(-1, 2)
     R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
     R_wc = R_cw.T
     C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
-    R_wc, C, _, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations, tol_sigma2=0.0)
+    R_wc, C, sse, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations, tol_sigma2=0.0)
     R_cw = R_wc.T
-    return _rotvec(R_cw), -R_cw @ C
+    return PoseRefinement(_rotvec(R_cw), -R_cw @ C, math.sqrt(sse / len(obj)))
 
 
 _ZERO3 = np.zeros(3)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import KW_ONLY, InitVar, dataclass, field
 
 import numpy as np
 
@@ -16,6 +17,8 @@ __all__ = ["Pose"]
 class _PoseReadouts:
     """What :class:`Pose` and :class:`fidlearn.filtering.TrackedPose` read off ``T_world_camera`` (4, 4, mm)
     and ``covariance`` (6, 6, ``[dtheta (rad), camera centre (mm)]`` in world axes, or None)."""
+
+    __slots__ = ()
 
     #: The error a bad argument raises (the owning package's own).
     _error: type = PoseError
@@ -92,7 +95,7 @@ class _PoseReadouts:
         return float(d @ np.linalg.solve(self.covariance[3:, 3:], d)) <= _chi2_3_quantile(probability)
 
 
-@dataclass(eq=False, repr=False)
+@dataclass(slots=True, eq=False, repr=False)
 class Pose(_PoseReadouts):
     """The camera's pose in the world, with its quality.
 
@@ -168,30 +171,52 @@ class Pose(_PoseReadouts):
     reprojection_rms_px: float
     covariance: np.ndarray | None
     sigma_px: float
+    _: KW_ONLY
     ambiguous: bool = False
-    alternative: Pose | None = None
+    alternative: InitVar[Pose | None] = None  # read through the property set below the class
     ignored_ids: tuple[int, ...] = ()
     rejected_ids: tuple[int, ...] = ()
     method: str = ""
+    #: The alternative as given: a Pose, None, or a function that builds it (see :attr:`alternative`).
+    _alternative: Pose | Callable[[], Pose] | None = field(default=None, init=False, repr=False)
     _T_camera_world: np.ndarray | None = field(default=None, init=False, repr=False)
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, alternative: Pose | None) -> None:
         self.T_world_camera = frames.check_transform(self.T_world_camera, "T_world_camera")
+        self._alternative = alternative
 
     @classmethod
     def _trusted(cls, **fields) -> Pose:
-        """A Pose from estimate_pose's own numbers (a rotation by construction): every field given, no check."""
+        """A Pose from estimate_pose's own numbers (a rotation by construction): every field given, no check.
+
+        ``alternative`` may be a function that builds it on first use (see :attr:`alternative`).
+        """
         pose = object.__new__(cls)
-        pose.__dict__.update(fields, _T_camera_world=None)
+        pose._alternative = fields.pop("alternative")
+        for name, value in fields.items():
+            setattr(pose, name, value)
+        pose._T_camera_world = None
         return pose
 
-    def __getattribute__(self, name: str):
-        value = object.__getattribute__(self, name)
-        if name == "alternative" and callable(value):
-            # built on first use: most poses never need their (unambiguous) alternative
-            value = value()
-            object.__setattr__(self, "alternative", value)
+    def _built_alternative(self) -> Pose | None:
+        """The other planar (IPPE) solution, or None (see the class's Attributes).
+
+        Built on first read and kept: most poses never need their (unambiguous) alternative.
+        """
+        value = self._alternative
+        if callable(value):
+            value = self._alternative = value()
         return value
+
+    def __getstate__(self) -> dict:
+        """The fields to pickle or copy, the alternative built (a function that builds it does not pickle)."""
+        self._built_alternative()
+        return {name: getattr(self, name) for name in self.__slots__}
+
+    def __setstate__(self, state: dict) -> None:
+        """Restore the fields :meth:`__getstate__` gave."""
+        for name, value in state.items():
+            setattr(self, name, value)
 
     # -- derived views -----------------------------------------------------------------
     @property
@@ -306,3 +331,7 @@ class Pose(_PoseReadouts):
         from ._json import pose_from_dict
 
         return pose_from_dict(cls, d, source)
+
+# A read-only property over the private slot, set after the class: a dataclass field (the ``alternative``
+# the constructor and dataclasses.replace take) and a property cannot share a name in the class body.
+Pose.alternative = property(Pose._built_alternative)  # type: ignore[assignment, method-assign]

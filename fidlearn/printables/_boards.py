@@ -182,6 +182,7 @@ def _charuco_squares(
 def layout_board(
     squares: tuple[int, int],
     square_size_mm: float,
+    *,
     paper: str = "a4",
     charuco: bool = False,
     dictionary: str | None = None,
@@ -296,6 +297,7 @@ def board_pdf(
     path,
     pattern: tuple[int, int],
     square_size_mm: float,
+    *,
     paper: str = "a4",
     charuco: bool = False,
     dictionary: str | None = None,
@@ -323,7 +325,14 @@ def board_pdf(
         For a malformed pattern, or as :func:`layout_board`.
     """
     pattern = _inner_corners(pattern)
-    sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_size_mm, paper, charuco, dictionary, marker_size_mm)
+    sheet = layout_board(
+        (pattern[0] + 1, pattern[1] + 1),
+        square_size_mm,
+        paper=paper,
+        charuco=charuco,
+        dictionary=dictionary,
+        marker_size_mm=marker_size_mm,
+    )
     save_pages([board_figure(sheet)], _with_suffix(path, ".pdf"))
     return sheet
 
@@ -332,6 +341,7 @@ def board_png(
     path,
     pattern: tuple[int, int],
     square_size_mm: float,
+    *,
     paper: str = "a4",
     charuco: bool = False,
     dictionary: str | None = None,
@@ -362,5 +372,12 @@ def board_png(
         As :func:`board_pdf` and :func:`save_pages`.
     """
     pattern = _inner_corners(pattern)
-    sheet = layout_board((pattern[0] + 1, pattern[1] + 1), square_size_mm, paper, charuco, dictionary, marker_size_mm)
+    sheet = layout_board(
+        (pattern[0] + 1, pattern[1] + 1),
+        square_size_mm,
+        paper=paper,
+        charuco=charuco,
+        dictionary=dictionary,
+        marker_size_mm=marker_size_mm,
+    )
     return sheet, save_pages([board_figure(sheet)], _with_suffix(path, ".png"), dpi=dpi)

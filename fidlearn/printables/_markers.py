@@ -216,7 +216,7 @@ def marker_figures(sheet: MarkerSheet) -> list:
 
 
 def markers_pdf(
-    path, ids: Sequence[int], marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+    path, ids: Sequence[int], marker_size_mm: float, *, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
 ) -> MarkerSheet:
     """Write a (multi-page) PDF of markers at exact size.
 
@@ -251,6 +251,7 @@ def markers_png(
     path,
     ids: Sequence[int],
     marker_size_mm: float,
+    *,
     dictionary: str = "ARUCO_ORIGINAL",
     paper: str = "a4",
     dpi: float = 300,

@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import _files, frames
 from .._io import read_json
-from ..errors import RosFormatError, TransformError
+from ..errors import OdometryRangeError, RosFormatError, TransformError
 from ..filtering._so3 import exp_so3, log_so3, rotation_from_xyzw
 from ._pose import R_OPTICAL_LINK
 
@@ -85,10 +85,11 @@ class Odometry:
             )
         self.drift = float(drift)
 
-    def pose_at(self, t_s: float) -> np.ndarray | None:
-        """The base's pose (4, 4, mm) at ``t_s``, interpolated (linear position, geodesic rotation); None outside.
+    def pose_at(self, t_s: float) -> np.ndarray:
+        """The base's pose (4, 4, mm) at ``t_s``, interpolated (linear position, geodesic rotation).
 
-        Raises :class:`RosFormatError` when ``t_s`` is not a finite number.
+        Raises :class:`RosFormatError` when ``t_s`` is not a finite number, :class:`OdometryRangeError`
+        when it is outside the samples.
         """
         if (
             isinstance(t_s, bool)
@@ -98,7 +99,10 @@ class Odometry:
             raise RosFormatError(f"an odometry time must be a finite number of seconds, got {t_s!r:.40}")
         ts = self.times_s
         if not ts[0] <= t_s <= ts[-1]:
-            return None
+            raise OdometryRangeError(
+                f"no odometry at {t_s:g} s: its samples run from {ts[0]:g} to {ts[-1]:g} s; record the odometry "
+                "over the whole video, or start the video's clock at the odometry's (the CSV's t_s column)"
+            )
         k = int(np.searchsorted(ts, t_s, side="right")) - 1
         if k >= len(ts) - 1:
             return self.poses[-1].copy()
@@ -109,7 +113,7 @@ class Odometry:
         T[:3, 3] = (1 - u) * a[:3, 3] + u * b[:3, 3]
         return T
 
-    def between(self, t0_s: float, t1_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+    def between(self, t0_s: float, t1_s: float) -> tuple[np.ndarray, np.ndarray]:
         """The base's motion ``T_prev_curr`` (4, 4, mm) from ``t0_s`` to ``t1_s`` and its covariance (6, 6).
 
         Parameters
@@ -119,13 +123,18 @@ class Odometry:
 
         Returns
         -------
-        (ndarray, ndarray) or None
+        (ndarray, ndarray)
             The motion and its covariance ``[rotation (rad), translation (mm)]``, as
-            :meth:`fidlearn.PoseTracker.update` takes them; None when a time is outside the samples.
+            :meth:`fidlearn.PoseTracker.update` takes them.
+
+        Raises
+        ------
+        OdometryRangeError
+            A time is outside the odometry's samples.
+        RosFormatError
+            A time is not a finite number.
         """
         a, b = self.pose_at(t0_s), self.pose_at(t1_s)
-        if a is None or b is None:
-            return None
         rel = frames.invert_transform(a) @ b
         angle = float(np.linalg.norm(log_so3(rel[:3, :3])))
         dist = float(np.linalg.norm(rel[:3, 3]))

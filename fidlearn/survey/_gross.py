@@ -61,9 +61,9 @@ def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndar
     start = MarkerMap(
         {ref: MarkerPlacement(ref, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))},
         tape.marker_size_mm,
-        tape.dictionary,
-        "mm",
-        "the photos",
+        dictionary=tape.dictionary,
+        units="mm",
+        source="the photos",
     )
     placed, _ = initial_values(copies, start)
     cams = [ph for ph in copies if ph.T_world_camera is not None]

@@ -32,7 +32,7 @@ def _map_of(placed: dict[int, tuple[np.ndarray, np.ndarray]], tape: MarkerMap) -
         i: MarkerPlacement(i, tuple(float(v) for v in p), tuple(float(a) for a in frames.rpy_deg_from_rotation(R)))
         for i, (R, p) in placed.items()
     }
-    return MarkerMap(pl, tape.marker_size_mm, tape.dictionary, tape.units, tape.source)
+    return MarkerMap(pl, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
 
 
 def _locate(photo: _Photo, current: MarkerMap) -> None:

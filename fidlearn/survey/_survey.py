@@ -109,7 +109,7 @@ def survey(
     if set(gross.gross) & set(fixed):
         raise SurveyError(_fixed_gross(gross, fixed))
     clean = {i: p for i, p in tape.placements.items() if i not in gross.gross}
-    clean_map = MarkerMap(clean, tape.marker_size_mm, tape.dictionary, tape.units, tape.source)
+    clean_map = MarkerMap(clean, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
     check_units(photos, clean_map)
     placed, unplaced = initial_values(photos, clean_map)
     cams = _usable(photos)
@@ -201,7 +201,9 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
     for i in unseen:
         cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
         std[i] = np.sqrt(np.diag(cov[i])[3:])
-    surveyed = MarkerMap(placements, tape.marker_size_mm, tape.dictionary, tape.units, f"survey of {tape.source}")
+    surveyed = MarkerMap(
+        placements, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=f"survey of {tape.source}"
+    )
     check_readable(surveyed)
     r = np.linalg.norm(problem.reprojection_px(x), axis=1)
     poses = {}

@@ -280,12 +280,12 @@ def _render_view(
 
 def render_calibration_views(
     camera: Camera,
+    *,
     n_views: int = 20,
     pattern_size: tuple[int, int] = (9, 6),
     square_size_mm: float = 25.0,
     seed: int = 0,
     charuco: bool = False,
-    *,
     marker_size_mm: float | None = None,
     dictionary: str = "6X6_250",
     tilt_range_deg: tuple[float, float] = (10.0, 45.0),

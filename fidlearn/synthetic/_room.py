@@ -59,11 +59,11 @@ def survey_room(marker_size_mm: float = 160.0, dictionary: str = "ARUCO_ORIGINAL
     (12, False)
     """
     pl = {i: _placement(i, *slot) for i, slot in enumerate(_wall_slots())}
-    return MarkerMap(pl, marker_size_mm, dictionary, "mm", "survey room")
+    return MarkerMap(pl, marker_size_mm, dictionary=dictionary, units="mm", source="survey room")
 
 
 def survey_walk(
-    marker_map: MarkerMap, camera: Camera, n_photos: int = 20, seed: int = 0, min_markers: int = 3
+    marker_map: MarkerMap, camera: Camera, *, n_photos: int = 20, seed: int = 0, min_markers: int = 3
 ) -> list[np.ndarray]:
     """Camera poses of a walk through the room, each photo showing several markers whole.
 
@@ -116,6 +116,7 @@ def survey_walk(
 
 def tape_measured(
     true_map: MarkerMap,
+    *,
     sigma_mm: float = 20.0,
     sigma_deg: float = 1.0,
     moved: dict[int, tuple[float, float, float]] | None = None,
@@ -153,4 +154,6 @@ def tape_measured(
         R = rotation_from_rpy_deg(droll, dpitch, dyaw) @ p.R_world_marker
         rpy = tuple(float(a) for a in rpy_deg_from_rotation(R))
         pl[i] = MarkerPlacement(i, tuple(float(v) for v in np.asarray(p.translation_mm) + dt), rpy)
-    return MarkerMap(pl, true_map.marker_size_mm, true_map.dictionary, units, "tape-measured map")
+    return MarkerMap(
+        pl, true_map.marker_size_mm, dictionary=true_map.dictionary, units=units, source="tape-measured map"
+    )

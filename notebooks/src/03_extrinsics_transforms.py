@@ -126,7 +126,7 @@ def room_picture(title, T_world_cam=T_world_camera, extra_handles=(), extra_poin
     ax = plotting.new_axes_3d(figsize=(8, 6))
     plotting.draw_world_axes(ax, 500, label=None)
     plotting.draw_markers(ax, wall, show_ids=False)
-    plotting.draw_camera(ax, camera, T_world_cam, 400)
+    plotting.draw_camera(ax, camera, T_world_cam, scale_mm=400)
     points = np.vstack([np.zeros((1, 3)), 500 * np.eye(3), *wall.corners().values(),
                         plotting.camera_frustum(camera, T_world_cam, 400), extra_points])
     plotting.set_axes_equal(ax, points)

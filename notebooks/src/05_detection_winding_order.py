@@ -296,7 +296,7 @@ fig = plotting.plot_scene(world_map, extra_points=frustums,
                           title="where the camera ends up when the corner order is wrong")
 ax = fig.axes[0]
 for name, (T, colour) in shown.items():
-    plotting.draw_camera(ax, camera, T, 150, color=colour, show_axes=False)[0].set_label(name)
+    plotting.draw_camera(ax, camera, T, scale_mm=150, color=colour, show_axes=False)[0].set_label(name)
 ax.legend(loc="upper left", fontsize=8)
 plt.show()
 

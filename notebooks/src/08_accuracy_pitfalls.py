@@ -224,7 +224,7 @@ plotting.plot_scene(one, ax=ax2, extra_points=np.vstack([plotting.camera_frustum
                                                          for T, _ in shown.values()]),
                     title="both solutions of the flip ambiguity")
 for name, (T, colour) in shown.items():
-    plotting.draw_camera(ax2, small_camera, T, 300, color=colour, show_axes=False)[0].set_label(name)
+    plotting.draw_camera(ax2, small_camera, T, scale_mm=300, color=colour, show_axes=False)[0].set_label(name)
 ax2.legend(loc="upper left", fontsize=8)
 plt.show()
 
@@ -267,7 +267,8 @@ detections = detect_markers(load_image(data_path("scenes", record["image"])), tw
 old = two_walls.placements[4]
 placements = dict(two_walls.placements)
 placements[4] = MarkerPlacement(4, tuple(np.add(old.translation_mm, [100.0, 0, 0])), old.rotation_deg)  # 10 cm off
-stale_map = MarkerMap(placements, two_walls.marker_size_mm, two_walls.dictionary, "mm", "map with marker 4 10 cm off")
+stale_map = MarkerMap(placements, two_walls.marker_size_mm, dictionary=two_walls.dictionary, units="mm",
+                      source="map with marker 4 10 cm off")
 
 naive = estimate_pose(detections, stale_map, camera, reject_outliers=False)
 robust = estimate_pose(detections, stale_map, camera)
@@ -334,7 +335,8 @@ def tape_error_mm(marker_map, T_world_camera, map_std_mm, trials=30, seed=0):
     for _ in range(trials):
         taped = {i: MarkerPlacement(i, tuple(np.add(p.translation_mm, [0.0, *rng.normal(0.0, map_std_mm, 2)])),
                                     p.rotation_deg) for i, p in marker_map.placements.items()}
-        measured = MarkerMap(taped, marker_map.marker_size_mm, marker_map.dictionary, "mm", "measured with a tape")
+        measured = MarkerMap(taped, marker_map.marker_size_mm, dictionary=marker_map.dictionary, units="mm",
+                             source="measured with a tape")
         pose = estimate_pose(exact, measured, camera, reject_outliers=False)
         errors.append(np.linalg.norm(pose.position_mm - T_world_camera[:3, 3]))
     return float(np.median(errors))
@@ -591,7 +593,7 @@ for name in ("img_01", "img_02", "img_03"):
     seen = board_markers(name)
     T_all = estimate_pose(list(seen.values()), board, real_camera).T_world_camera  # the 17-marker pose
     for pair in itertools.combinations(sorted(seen), 2):
-        two = MarkerMap({i: board.placements[i] for i in pair}, board.marker_size_mm, board.dictionary)
+        two = MarkerMap({i: board.placements[i] for i in pair}, board.marker_size_mm, dictionary=board.dictionary)
         pose = estimate_pose([seen[i] for i in pair], board, real_camera)
         pairs["measured"].append(np.linalg.norm(pose.position_mm - T_all[:3, 3]))
         pairs["renders' noise"].append(predict_accuracy(two, real_camera, T_all).position_error_mm)

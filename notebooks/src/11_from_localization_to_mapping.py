@@ -367,13 +367,13 @@ def shape_rms_mm(a, b):
 
 
 room = survey_room()
-room_tape = tape_measured(room, 20, 1, seed=5)
+room_tape = tape_measured(room, sigma_mm=20, sigma_deg=1, seed=5)
 truth_c = np.concatenate([room.marker_corners(i) for i in room.ids])
 rng = np.random.default_rng(11)
 counts = [6, 10, 16, 24]
 shape_err = []
 for n in counts:
-    walk_poses = survey_walk(room, camera, n, seed=3)
+    walk_poses = survey_walk(room, camera, n_photos=n, seed=3)
     dets = [
         [Detection(i, c + rng.normal(0, 0.1, c.shape)) for i, c in visible_markers(room, camera, T).items()]
         for T in walk_poses

@@ -287,7 +287,7 @@ if calibration is not None:
 
 # %%
 world_map = MarkerMap.load(data_path("world_map.json"))
-sheet = markers_pdf(OUT / "markers.pdf", world_map.ids, world_map.marker_size_mm, world_map.dictionary)
+sheet = markers_pdf(OUT / "markers.pdf", world_map.ids, world_map.marker_size_mm, dictionary=world_map.dictionary)
 print(f"wrote {OUT / 'markers.pdf'}: markers {world_map.ids}, {world_map.marker_size_mm:g} mm, {world_map.dictionary}")
 
 # %% [markdown]

@@ -210,8 +210,8 @@ def _q2(learner: str) -> Question:
             for m in measured
         },
         size2,
-        "ARUCO_ORIGINAL",
-        "cm",
+        dictionary="ARUCO_ORIGINAL",
+        units="cm",
     )
 
     def parse_map(answer):
@@ -384,7 +384,7 @@ def _q4(learner: str) -> Question:
             tuple(_wall_translation(rng, w, 10.0, (-1200, 1200), (600, 1800), per_ft=304.8)),
             (0.0, 0.0, float(_WALL_YAW[w])),
         )
-    m4 = MarkerMap(placements, float(rng.choice([80, 100, 150])), "ARUCO_ORIGINAL", "mm")
+    m4 = MarkerMap(placements, float(rng.choice([80, 100, 150])), dictionary="ARUCO_ORIGINAL", units="mm")
     ask = int(rng.choice(m4.ids[1:]))
     centre = m4.marker_corners(ask).mean(axis=0)
     nrm = m4.normal(ask)

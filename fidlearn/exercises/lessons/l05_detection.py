@@ -64,7 +64,7 @@ def _layout(rng: np.random.Generator, n_markers: int, rotated: bool, dictionarie
         centre_offset = R @ np.array([0.0, size / 2, -size / 2]) - np.array([0.0, size / 2, -size / 2])
         tl = tl - centre_offset
         placements[mid] = MarkerPlacement(mid, tuple(float(v) for v in tl), (roll, 0.0, 0.0))
-    m = MarkerMap(placements, size, dictionary, "mm")
+    m = MarkerMap(placements, size, dictionary=dictionary, units="mm")
 
     def draw(r):
         eye = np.round(r.uniform([1700, -300, 1000], [2300, 300, 1400]))

@@ -282,7 +282,9 @@ def _q4(learner: str) -> Question:
     wall = str(rng.choice(["north", "west", "east"]))
     yaw = _WALL_YAW[wall]
     t = _wall_translation(rng, wall, 10.0, (-1000, 1000), (700, 1600), per_ft=304.8)
-    mmap = MarkerMap({5: MarkerPlacement(5, tuple(t), (0.0, 0.0, float(yaw)))}, 150.0, "ARUCO_ORIGINAL", "mm")
+    mmap = MarkerMap(
+        {5: MarkerPlacement(5, tuple(t), (0.0, 0.0, float(yaw)))}, 150.0, dictionary="ARUCO_ORIGINAL", units="mm"
+    )
     Twm = mmap.T_world_marker(5)
     n = Twm[:3, 2]
     cpos = (

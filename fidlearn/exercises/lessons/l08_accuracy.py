@@ -246,7 +246,7 @@ def _q2(learner: str) -> Question:
     placements[bad] = MarkerPlacement(
         bad, (p.translation_mm[0], p.translation_mm[1] + round(shift), p.translation_mm[2]), p.rotation_deg
     )
-    wrong_map = MarkerMap(placements, true_map.marker_size_mm, true_map.dictionary, "mm")
+    wrong_map = MarkerMap(placements, true_map.marker_size_mm, dictionary=true_map.dictionary, units="mm")
     dets = [d for d in detect_markers(image, true_map.dictionary) if d.id in seen]
     moved = np.array([0.0, -float(round(shift)), 0.0])  # the map was shifted; the marker is where it was
     bad_det = next(d for d in dets if d.id == bad)
@@ -343,8 +343,8 @@ def _ambiguous_view(rng: np.random.Generator) -> tuple:
             )
         },
         float(rng.choice([80, 100])),
-        "ARUCO_ORIGINAL",
-        "mm",
+        dictionary="ARUCO_ORIGINAL",
+        units="mm",
     )
     centre = m3.marker_corners(mid).mean(axis=0)
     for _ in range(50):

@@ -346,7 +346,7 @@ def _q4_map(rng: np.random.Generator) -> MarkerMap:
     ys = np.round(np.linspace(-1500, 1350, n) + rng.uniform(-60, 60, n), -1)
     zs = np.round(rng.uniform(800, 1700, n), -1)
     pl = {int(i): MarkerPlacement(int(i), (0.0, float(y), float(z)), (0.0, 0.0, 0.0)) for i, y, z in zip(ids, ys, zs)}
-    return MarkerMap(pl, 150.0, "ARUCO_ORIGINAL", "mm")
+    return MarkerMap(pl, 150.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
 def _q4_layout(rng: np.random.Generator):
