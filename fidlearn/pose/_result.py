@@ -332,6 +332,7 @@ class Pose(_PoseReadouts):
 
         return pose_from_dict(cls, d, source)
 
+
 # A read-only property over the private slot, set after the class: a dataclass field (the ``alternative``
 # the constructor and dataclasses.replace take) and a property cannot share a name in the class body.
 Pose.alternative = property(Pose._built_alternative)  # type: ignore[assignment, method-assign]
