@@ -210,5 +210,5 @@ def charuco_pose(i: int, camera: Camera) -> Measured:
     """OpenCV's ChArUco-corner pose of photo ``i``: interpolated chess corners and ``cv2.solvePnP``."""
     corners, ids = charuco_corners(i)
     if len(ids) < MIN_CORNERS:
-        return Measured(None)
+        return Measured(None, None, len(ids))
     return _solve(chess_corners_mm()[ids], corners, camera, cv2.SOLVEPNP_ITERATIVE)
