@@ -111,13 +111,14 @@ def published_camera() -> Camera:
 
 @cache
 def photo(i: int) -> np.ndarray:
-    """Photo ``i`` as fidlearn reads it (BGR, uint8)."""
+    """Photo ``i`` as fidlearn reads it (grey, uint8: the set is stored grey)."""
     return load_image(data_path(FOLDER, f"{i}.png"))
 
 
 def gray(i: int) -> np.ndarray:
     """Photo ``i`` in gray, as OpenCV's detectors see it."""
-    return cv2.cvtColor(photo(i), cv2.COLOR_BGR2GRAY)
+    image = photo(i)
+    return image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
 
 
 @cache

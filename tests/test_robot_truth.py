@@ -85,7 +85,7 @@ def test_the_robot_photos_and_poses_are_read_as_published():
     cam = rc.published_camera()
     assert cam.K[0, 0] == pytest.approx(1352.02747) and cam.K[1, 2] == pytest.approx(627.2995)
     assert not np.any(cam.dist)
-    assert rc.photo(2).shape == (1200, 1600, 3)
+    assert rc.photo(2).shape == (1200, 1600)  # stored grey
     assert len(rc.charuco_corners(2)[1]) == 4  # only a corner of the board in view
 
 
