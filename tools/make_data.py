@@ -15,11 +15,11 @@ Folders it writes (see data/README.md for what each holds):
 * ``data/survey/``: 24 photos (1280x720 JPEG) of a walk through a room with 12
   markers on three walls and the floor, ``camera.json``, ``true_map.json``,
   ``tape_map.json`` (tape errors of 20 mm, marker 7 moved 100 mm) and ``poses.json``.
-* ``data/real/``: real photos from OpenCV's samples, kept in the repository
+* ``data/real/``: real photos from OpenCV's samples and a robot-held ChArUco board, kept in the repository
   with their provenance (data/README.md). They are not regenerated: ``make
   data`` only checks that they are all there. ``--import-real FOLDER`` copies
   them in again from a folder holding ``opencv_checkerboard_right``,
-  ``opencv_charuco`` and ``opencv_aruco_photo`` (the only option that reads
+  ``opencv_charuco``, ``opencv_aruco_photo`` and ``robot_charuco`` (the only option that reads
   anything outside the repository, and only when given). The ChArUco board's
   marker map, ``real/opencv_charuco/board_map.json``, is written from OpenCV's
   board geometry.
@@ -60,7 +60,7 @@ from fidlearn.synthetic import (
 )
 
 DATA = repo_dir() / "data"
-REAL_FOLDERS = ("opencv_checkerboard_right", "opencv_charuco", "opencv_aruco_photo")
+REAL_FOLDERS = ("opencv_checkerboard_right", "opencv_charuco", "opencv_aruco_photo", "robot_charuco")
 
 # -- recipes: every number that decides a picture ------------------------------------------------
 
@@ -422,6 +422,22 @@ def make_charuco_map() -> None:
     print(f"real: the ChArUco board's map in {path}")
 
 
+#: Real sets stored grey: their colour is not used (detection, corners and calibration read grey, the
+#: same pixels as cv2.cvtColor of the colour photo) and grey takes a third of the space.
+GREY_REAL = ("robot_charuco",)
+#: Files of a real set left out: the robot set's camera_intr.yaml is empty as published.
+SKIPPED_REAL = ("camera_intr.yaml",)
+
+
+def _write_grey_png(src: Path, dst: Path) -> None:
+    """A colour photo stored as the grey picture OpenCV makes of it, losslessly."""
+    image = cv2.imread(str(src), cv2.IMREAD_COLOR)
+    if image is None:
+        raise SystemExit(f"error: {src} is not a picture OpenCV can read")
+    if not cv2.imwrite(str(dst), cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), [cv2.IMWRITE_PNG_COMPRESSION, 9]):
+        raise SystemExit(f"error: could not write {dst}")
+
+
 def import_real(source: Path) -> None:
     """Copy the real photos in from ``source`` (a folder holding the three sample folders)."""
     missing = [name for name in REAL_FOLDERS if not (source / name).is_dir()]
@@ -436,9 +452,13 @@ def import_real(source: Path) -> None:
         dst = folder / name
         dst.mkdir(exist_ok=True)
         for f in sorted((source / name).iterdir()):
-            if f.is_file():
+            if not f.is_file() or f.name in SKIPPED_REAL:
+                continue
+            if name in GREY_REAL and f.suffix == ".png":
+                _write_grey_png(f, dst / f.name)
+            else:
                 shutil.copyfile(f, dst / f.name)
-                (dst / f.name).chmod(0o644)
+            (dst / f.name).chmod(0o644)
     print(f"real: {', '.join(REAL_FOLDERS)} copied from {source} to {folder}")
 
 
