@@ -51,7 +51,7 @@ from ..errors import ExerciseError
 
 # The lesson modules register themselves first: the subpackage ``lessons`` would otherwise be
 # the attribute ``fidlearn.exercises.lessons``, which is the function :func:`lessons` below.
-from . import lessons as _lesson_modules  # noqa: F401  (registers the lessons)
+from . import lessons as _lesson_modules  # registers the lessons
 from ._engine import (
     BEGIN_SOLUTION,
     CORRECT,
@@ -107,3 +107,5 @@ __all__ = [
     "student_copy",
     "solution_blocks",
 ]
+
+del _lesson_modules

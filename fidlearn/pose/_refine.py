@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 
 from ..camera import Camera
-from ..frames import _rotvec
+from ..frames._rotations import _rotvec
 
 __all__ = ["pose_jacobian", "refine_pose_lm"]
 
