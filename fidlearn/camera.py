@@ -17,25 +17,16 @@ import cv2
 import numpy as np
 
 from . import _files, _lens, frames
-from ._camera_checks import (  # noqa: F401  (MAX_IMAGE_SIDE, _fmt_matrix: importable from here as before)
+from ._camera_checks import (
     _ALIASES,
     CAMERA_FIELDS,
     DIST_LENGTHS,
-    MAX_IMAGE_SIDE,
     _as_dist,
     _as_K,
     _as_size,
-    _fmt_matrix,
     _short_source,
 )
-from ._filestorage import (  # noqa: F401  (the FileStorage helpers lived here)
-    MAX_FILESTORAGE_DEPTH,
-    _filestorage_matrix,
-    _filestorage_pixels,
-    _filestorage_text,
-    read_filestorage,
-    write_filestorage,
-)
+from ._filestorage import read_filestorage, write_filestorage
 from ._io import read_json, write_json_atomic
 from .errors import CameraError, FidlearnWarning
 from .frames._checks import as_float_array
