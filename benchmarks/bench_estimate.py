@@ -44,13 +44,13 @@ import fidlearn
 from fidlearn import pose as pose_mod
 from fidlearn.camera import Camera
 from fidlearn.detection import Detection
+from fidlearn.frames import look_at
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import _outliers as pose_outliers
 from fidlearn.pose._observations import _make_obs, _world
 from fidlearn.pose._outliers import _screen
 from fidlearn.pose._refine import _lm
 from fidlearn.pose._solvers import _solve
-from fidlearn.synthetic import look_at
 
 CAMERA = Camera(
     [[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]],

@@ -23,7 +23,8 @@ from fidlearn.detection import (
 )
 from fidlearn.drawing import draw_detections
 from fidlearn.errors import DictionaryError, FidlearnError, ImageError
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.frames import look_at
+from fidlearn.synthetic import render_scene
 
 PHOTO_IDS = [23, 40, 62, 98, 124, 203]  # published: opencv_contrib aruco tutorial, DICT_6X6_250
 MARKER_MM = 80.0

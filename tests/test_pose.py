@@ -382,11 +382,10 @@ def test_locate_finds_the_camera_in_a_rendered_scene():
 
 
 def test_locate_on_the_seed_map():
-    from fidlearn.synthetic import look_at as synthetic_look_at
     from fidlearn.synthetic import render_scene
 
     m = MarkerMap.load(data_path("world_map.json"))
-    T = synthetic_look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0], roll_deg=8.0)
+    T = frames.look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0], roll_deg=8.0)
     image, truth = render_scene(m, CAM, T, seed=3, blur_px=0.5, noise_std_gray=1.5)
     assert sorted(truth) == [0, 1, 2]
     pose = locate(image, m, CAM)
@@ -793,7 +792,8 @@ def test_noisy_corners_of_a_marker_seen_edge_on_are_not_called_mirrored():
 
 def _seed_room_with_a_stranger():
     """The seed map, and a picture of it with marker 7 (not in the map) taped beside marker 1."""
-    from fidlearn.synthetic import look_at, render_scene
+    from fidlearn.frames import look_at
+    from fidlearn.synthetic import render_scene
 
     m = MarkerMap.load(data_path("world_map.json"))
     placements = dict(m.placements)

@@ -22,12 +22,12 @@ from fidlearn._stats import chi2_isf as _chi2_isf_even
 from fidlearn._stats import chi2_sf as _chi2_sf_even
 from fidlearn._stats import f_isf
 from fidlearn.detection import Detection
+from fidlearn.frames import look_at
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import _outliers
 from fidlearn.pose._observations import _make_obs, _world
 from fidlearn.pose._outliers import _deletion_q, _screen
 from fidlearn.pose._solvers import _solve
-from fidlearn.synthetic import look_at
 
 CAM = fidlearn.Camera([[600.0, 0, 320.0], [0, 600.0, 240.0], [0, 0, 1]], [-0.1, 0.05, 0, 0, 0], (640, 480))
 WALL_YZ = [(0, 1500), (450, 1500), (900, 1500), (150, 1050), (600, 1050), (1050, 1100), (300, 600), (800, 650)]

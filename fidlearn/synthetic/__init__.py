@@ -37,7 +37,6 @@ edges (see ``data/README.md``).
 
 from __future__ import annotations
 
-from ..frames import look_at  # the same function as fidlearn.frames.look_at, kept importable here
 from ._calibration_views import CalibrationViews, render_calibration_views
 from ._checks import DEFAULT_GRAYS, MAX_FRAMES, MAX_RENDER_SAMPLES
 from ._room import survey_room, survey_walk, tape_measured
@@ -50,7 +49,6 @@ __all__ = [
     "survey_walk",
     "tape_measured",
     "visible_markers",
-    "look_at",
     "render_calibration_views",
     "CalibrationViews",
     "trajectory_poses",
