@@ -60,12 +60,9 @@ from ._engine import (
     NOT_ATTEMPTED,
     RECORDED,
     SETUP_CODE,
-    STRICT_STACK,
     Inputs,
     Question,
     Result,
-    strict,
-    strict_mode,
 )
 from ._graded import GradedLesson, GradedQuestion
 from ._notebooks import answer_key_notebook, solution_blocks, student_copy
@@ -78,6 +75,7 @@ from ._registry import (
     lessons,
     notebook_name,
 )
+from ._strict import STRICT_STACK, strict, strict_mode
 
 __all__ = [
     "CORRECT",
