@@ -44,9 +44,13 @@ import fidlearn
 from fidlearn import pose as pose_mod
 from fidlearn.camera import Camera
 from fidlearn.detection import Detection
+from fidlearn.frames import look_at
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import _outliers as pose_outliers
-from fidlearn.synthetic import look_at
+from fidlearn.pose._observations import _make_obs, _world
+from fidlearn.pose._outliers import _screen
+from fidlearn.pose._refine import _lm
+from fidlearn.pose._solvers import _solve
 
 CAMERA = Camera(
     [[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]],
@@ -187,11 +191,11 @@ def bench_speed(n_scenes: int, reps: int, rng) -> list[tuple[str, str, str]]:
 
 def screen_fires(m: MarkerMap, dets, sigma_given: float | None) -> bool:
     """Whether the screen fires on the full fit (the first step of estimate_pose's rejection)."""
-    world, faces = pose_mod._world(m)
+    world, faces = _world(m)
     corners = {d.id: d.corners_px for d in dets}
-    obs = pose_mod._make_obs(sorted(corners), corners, world, faces)
-    cands, _, _ = pose_mod._solve(obs, m, CAMERA, "auto", True)
-    return pose_mod._screen(obs, cands[0], CAMERA, sigma_given) is not None
+    obs = _make_obs(sorted(corners), corners, world, faces)
+    cands, _, _ = _solve(obs, m, CAMERA, "auto", True)
+    return _screen(obs, cands[0], CAMERA, sigma_given) is not None
 
 
 def bench_rejection(n_trials: int, rng) -> list[tuple[str, str, str]]:
@@ -338,7 +342,7 @@ def rot_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
 
 def true_basin_minimum(obj: np.ndarray, img: np.ndarray, T: np.ndarray) -> np.ndarray:
     """R_world_camera (3, 3) of the least-squares minimum LM reaches from the true pose (run to 1e-8 px^2)."""
-    R, _, _, _, _ = pose_mod._lm(obj, img, CAMERA.K, CAMERA.dist, T[:3, :3].copy(), T[:3, 3].copy(), 200, 0.0)
+    R, _, _, _, _ = _lm(obj, img, CAMERA.K, CAMERA.dist, T[:3, :3].copy(), T[:3, 3].copy(), 200, 0.0)
     return R
 
 

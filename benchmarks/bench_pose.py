@@ -37,8 +37,10 @@ from fidlearn import _cv, frames
 from fidlearn import pose as pose_mod
 from fidlearn.camera import Camera
 from fidlearn.detection import Detection
+from fidlearn.frames import look_at
 from fidlearn.markermap import MarkerMap, MarkerPlacement
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.pose._refine import _lm
+from fidlearn.synthetic import render_scene
 
 CAMERA = Camera(
     [[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]],
@@ -205,7 +207,7 @@ def nees_trial(m, T, sigma, rng, camera=CAMERA):
     J = pose_mod.pose_jacobian(obj, T, camera)
     P = sigma**2 * np.linalg.inv(J.T @ J)[3:, 3:]
     pose = fidlearn.estimate_pose(dets, m, camera, corner_sigma_px=sigma)
-    _, C_lm, _, _, _ = pose_mod._lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy(), tol_sigma2=0.0)
+    _, C_lm, _, _, _ = _lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy(), tol_sigma2=0.0)
     e1 = pose.position_mm - T[:3, 3]
     e2 = C_lm - T[:3, 3]
     return float(e1 @ np.linalg.solve(P, e1)), float(e2 @ np.linalg.solve(P, e2)), pose.ambiguous
@@ -280,9 +282,7 @@ def bench_nees_bundled(n_per_scene: int, rng) -> None:
             for _ in range(n_per_scene):
                 img = camera.project(obj, T) + rng.normal(0, sigma, (len(obj), 2))
                 p = fidlearn.estimate_pose([Det(i, img[4 * j : 4 * j + 4]) for j, i in enumerate(ids)], m, camera)
-                _, C, _, _, _ = pose_mod._lm(
-                    obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy(), tol_sigma2=0.0
-                )
+                _, C, _, _, _ = _lm(obj, img, camera.K, camera.dist, T[:3, :3].copy(), T[:3, 3].copy(), tol_sigma2=0.0)
                 a, b = nees(p.position_mm), nees(C)
                 ours.append(a)
                 truth.append(b)

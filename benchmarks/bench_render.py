@@ -27,7 +27,9 @@ import cv2
 import numpy as np
 
 from fidlearn import Camera, MarkerMap, data_path
-from fidlearn.synthetic import _normalized_map_cached, look_at, render_calibration_views, render_scene, trajectory_poses
+from fidlearn.frames import look_at
+from fidlearn.synthetic import render_calibration_views, render_scene, trajectory_poses
+from fidlearn.synthetic._rays import _normalized_map_cached
 
 RENDER = dict(blur_px=0.5, noise_std_gray=1.5, gradient=0.2, supersample=4)
 

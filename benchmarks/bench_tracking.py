@@ -108,7 +108,7 @@ def observe(world, cam, poses, look_y, rng):
         if single[k]:  # one far marker: the one looked at
             target = int(np.argmin([abs(y + SIDE_MM / 2 - look_y[k]) for y in MARKERS_Y]))
             dets = [d for d in dets if d.id == target]
-        dets = [Detection(d.id, d.corners + rng.normal(0, 1.0, (4, 2))) for d in dets]
+        dets = [Detection(d.id, d.corners_px + rng.normal(0, 1.0, (4, 2))) for d in dets]
         try:
             out.append(fidlearn.estimate_pose(dets, world, cam, corner_sigma_px=1.0))
         except (NoMarkersError, PoseError):

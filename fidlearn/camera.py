@@ -17,27 +17,19 @@ import cv2
 import numpy as np
 
 from . import _files, _lens, frames
-from ._camera_checks import (  # noqa: F401  (MAX_IMAGE_SIDE, _fmt_matrix: importable from here as before)
+from ._camera_checks import (
     _ALIASES,
     CAMERA_FIELDS,
     DIST_LENGTHS,
-    MAX_IMAGE_SIDE,
     _as_dist,
     _as_K,
     _as_size,
-    _fmt_matrix,
     _short_source,
 )
-from ._filestorage import (  # noqa: F401  (the FileStorage helpers lived here)
-    MAX_FILESTORAGE_DEPTH,
-    _filestorage_matrix,
-    _filestorage_pixels,
-    _filestorage_text,
-    read_filestorage,
-    write_filestorage,
-)
+from ._filestorage import read_filestorage, write_filestorage
 from ._io import read_json, write_json_atomic
 from .errors import CameraError, FidlearnWarning
+from .frames._checks import as_float_array
 
 __all__ = ["Camera", "DIST_LENGTHS"]
 
@@ -211,7 +203,7 @@ class Camera:
         array([[319.5, 239.5],
                [479.5, 239.5]])
         """
-        pts = frames.as_float_array(points_world, "points_world", CameraError)
+        pts = as_float_array(points_world, "points_world", CameraError)
         single = pts.ndim == 1
         pts = np.atleast_2d(pts)
         if pts.ndim == 0 or pts.shape[-1] != 3 or pts.size == 0:
@@ -264,7 +256,7 @@ class Camera:
         CameraError
             If the points are not (N, 2) or hold NaN or infinity.
         """
-        pts = frames.as_float_array(points_px, "points_px", CameraError)
+        pts = as_float_array(points_px, "points_px", CameraError)
         if pts.size == 0:
             return np.zeros((0, 2))
         if pts.ndim == 0 or pts.shape[-1] != 2:

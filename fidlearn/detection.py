@@ -77,8 +77,6 @@ class Detection:
     corners_px : array-like, shape (4, 2)
         Pixel corners in the order TL, TR, BR, BL (the marker's own top-left,
         whatever its rotation in the image), OpenCV pixel-centre convention.
-    corners : array-like, shape (4, 2), optional
-        The former name of ``corners_px``, still accepted as a keyword.
 
     Attributes
     ----------
@@ -86,8 +84,6 @@ class Detection:
         The marker's id.
     corners_px : ndarray, shape (4, 2), float64
         Pixel corners TL, TR, BR, BL.
-    corners : ndarray, shape (4, 2), float64
-        The same array as ``corners_px`` (its former name, read-only).
 
     Raises
     ------
@@ -99,18 +95,14 @@ class Detection:
     >>> d = Detection(7, [[10, 10], [30, 10], [30, 30], [10, 30]])
     >>> d.id, d.corners_px.shape, d.side_px
     (7, (4, 2), 20.0)
-    >>> d.corners_px is d.corners_px
-    True
+    >>> d.center.tolist()
+    [20.0, 20.0]
     """
 
     id: int
     corners_px: np.ndarray
 
-    def __init__(self, id: int, corners_px: Any = None, *, corners: Any = None) -> None:  # noqa: A002 - the marker's id
-        if corners_px is None:
-            corners_px = corners
-        elif corners is not None:
-            raise DetectionError("give the corners once: corners_px (or its former name corners), not both")
+    def __init__(self, id: int, corners_px: Any = None) -> None:  # noqa: A002 - the marker's id
         if corners_px is None:
             raise DetectionError(f"marker {id!r}: corners_px missing, (4, 2) pixels TL, TR, BR, BL")
         object.__setattr__(self, "id", id)
@@ -134,11 +126,6 @@ class Detection:
             )
         object.__setattr__(self, "id", int(mid))
         object.__setattr__(self, "corners_px", c.reshape(4, 2))
-
-    @property
-    def corners(self) -> np.ndarray:
-        """The pixel corners (4, 2), TL, TR, BR, BL: the former name of :attr:`corners_px`."""
-        return self.corners_px
 
     @property
     def center(self) -> np.ndarray:

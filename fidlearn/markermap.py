@@ -26,20 +26,13 @@ import numpy as np
 
 from . import _cv, frames
 from ._io import read_json, write_json_atomic
-from ._map_parse import (  # noqa: F401  (importable from here as before)
-    _FULL_KEYS,
-    MAX_MARKER_SIZE_MM,
+from ._map_parse import (
     UNITS_TO_MM,
     _check_layout,
-    _disagree,
-    _is_corner_list,
     _map_options,
-    _marker_id,
     _marker_size,
-    _pick,
     _placements,
     _units_name,
-    _vector3,
 )
 from .errors import DictionaryError, MapError
 

@@ -60,7 +60,8 @@ from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
 from .errors import FidlearnError, NoMarkersError, PoseError
 from .markermap import MarkerMap
-from .pose import Pose, _check_pose_options, estimate_pose
+from .pose import Pose, estimate_pose
+from .pose._inputs import _check_pose_options
 
 __all__ = ["MarkerTracker"]
 

@@ -842,8 +842,9 @@ from fidlearn.calibration import calibrate_checkerboard  # noqa: E402
 from fidlearn.data import data_path  # noqa: E402
 from fidlearn.detection import Detection  # noqa: E402
 from fidlearn.errors import CalibrationError, NoMarkersError, PoseError  # noqa: E402
+from fidlearn.frames import look_at  # noqa: E402
 from fidlearn.pose import estimate_pose, locate  # noqa: E402
-from fidlearn.synthetic import look_at, render_scene  # noqa: E402
+from fidlearn.synthetic import render_scene  # noqa: E402
 
 SQUARE_PX = [[100.0, 100.0], [200.0, 100.0], [200.0, 200.0], [100.0, 200.0]]
 

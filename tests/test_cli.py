@@ -333,7 +333,7 @@ def test_calibrate_duplicate_photo_warns(capsys, tmp_path):
 
 
 def test_progress_bar_on_a_terminal(capsys, monkeypatch):
-    from fidlearn.cli import _Progress
+    from fidlearn.cli._common import _Progress
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     bar = _Progress("calibrate")
@@ -348,7 +348,7 @@ def test_progress_bar_on_a_terminal(capsys, monkeypatch):
 
 
 def test_coverage_grid_known_cells():
-    from fidlearn.cli import coverage_grid
+    from fidlearn.calibration import coverage_grid
 
     pts = np.array([[0, 0], [639, 479], [319.5, 239.5], [212, 10], [214, 10]])
     grid = coverage_grid([pts[:3], pts[3:]], (640, 480))
@@ -357,7 +357,7 @@ def test_coverage_grid_known_cells():
 
 
 def test_view_diversity_known_angles():
-    from fidlearn.cli import view_diversity
+    from fidlearn.calibration import view_diversity
 
     face_on = frames.make_transform(np.eye(3), [0, 0, 1000])
     tilted = frames.make_transform(frames.rot_x(np.radians(30)), [0, 0, 1000])
@@ -824,13 +824,13 @@ def test_calibrate_warns_when_a_third_of_the_picture_is_nearly_empty(capsys, tmp
 def test_annotation_text_wraps_instead_of_being_cut():
     # A rejected view's reason was cut at 90 characters and ran off a 640 px picture, losing
     # "blurred, or a corner found in the wrong place?", the part that says what to do.
-    from fidlearn.cli import _wrap_to_width
+    from fidlearn.drawing import wrap_to_width
 
     text = (
         "outlier: reprojection RMS 1.20 px, above 0.72 px (max of 3 x the median 0.22 px and median + 0.5 px): "
         "blurred, or a corner found in the wrong place?"
     )
-    lines = _wrap_to_width(text, 624, 0.45)
+    lines = wrap_to_width(text, 624, 0.45)
     assert len(lines) == 2
     assert " ".join(lines) == text
     assert all(cv2.getTextSize(line, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] <= 624 for line in lines)
@@ -864,7 +864,7 @@ def test_pose_record_is_strict_json_when_the_covariance_is_undetermined():
     # A pose without a covariance (singular J^T J) wrote "position_std_mm": [NaN, NaN, NaN],
     # which no strict JSON reader (fidlearn's read_json included) accepts.
     from fidlearn import Pose
-    from fidlearn.cli import _pose_record
+    from fidlearn.cli.locate import _pose_record
 
     pose = Pose(
         T_world_camera=np.eye(4),

@@ -258,7 +258,7 @@ def _coverage_before(camera, image_points_px, grid):
 
 
 def _ninths_before(points_px, image_size):
-    """The command line's 3x3 count as it was before (fidlearn.cli.coverage_grid)."""
+    """The command line's 3x3 count as it was before (coverage_grid's default grid)."""
     w, h = image_size
     grid = np.zeros((3, 3), dtype=int)
     for pts in points_px:
@@ -272,7 +272,6 @@ def _ninths_before(points_px, image_size):
 @pytest.mark.parametrize("grid", [(3, 3), (8, 6), (1, 1), (5, 2)])
 def test_one_coverage_grid_serves_the_coach_and_the_command_line(grid):
     from fidlearn.calibration.quality import coverage_grid
-    from fidlearn.cli import coverage_grid as cli_coverage_grid
     from fidlearn.planning.coach import _coverage
 
     rng = np.random.default_rng(7)
@@ -283,7 +282,7 @@ def test_one_coverage_grid_serves_the_coach_and_the_command_line(grid):
         coverage_grid(views.values(), CAMERA.image_size, grid), _coverage_before(CAMERA, views, grid)
     )
     np.testing.assert_array_equal(
-        cli_coverage_grid(views.values(), CAMERA.image_size), _ninths_before(views.values(), CAMERA.image_size)
+        coverage_grid(views.values(), CAMERA.image_size), _ninths_before(views.values(), CAMERA.image_size)
     )
 
 

@@ -118,7 +118,7 @@ def test_detection_signatures():
     assert inspect.signature(fidlearn.detect_markers).parameters["dictionary"].default == "ARUCO_ORIGINAL"
     starts_with(fidlearn.Detection, ["id", "corners_px"])
     d = fidlearn.Detection(3, [[0, 0], [1, 0], [1, 1], [0, 1]])
-    assert d.corners is d.corners_px  # the former name still reads the same array
+    assert d.corners_px.shape == (4, 2) and not hasattr(d, "corners")  # one name for the pixel corners
 
 
 def test_pose_signatures():
@@ -150,9 +150,9 @@ def test_detect_gray_and_bgr_tl_tr_br_bl(scene):
         assert [d.id for d in dets] == [0, 1, 2]
         for d in dets:
             assert isinstance(d, fidlearn.Detection)
-            assert d.corners.shape == (4, 2) and d.corners.dtype == np.float64
+            assert d.corners_px.shape == (4, 2) and d.corners_px.dtype == np.float64
             truth = cam.project(world.corners()[d.id], T)  # TL, TR, BR, BL
-            np.testing.assert_allclose(d.corners, truth, atol=0.3)
+            np.testing.assert_allclose(d.corners_px, truth, atol=0.3)
 
 
 def test_pose_fields(scene):

@@ -23,7 +23,8 @@ from fidlearn.detection import (
 )
 from fidlearn.drawing import draw_detections
 from fidlearn.errors import DictionaryError, FidlearnError, ImageError
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.frames import look_at
+from fidlearn.synthetic import render_scene
 
 PHOTO_IDS = [23, 40, 62, 98, 124, 203]  # published: opencv_contrib aruco tutorial, DICT_6X6_250
 MARKER_MM = 80.0
@@ -550,9 +551,13 @@ def test_one_return_type_and_corners_px(photo):
         detect_markers(photo, "6X6_250", return_rejected=True)
 
 
-def test_detection_corners_keep_their_former_name():
+def test_detection_corners_have_one_name():
     quad = [[10, 10], [30, 10], [30, 30], [10, 30]]
-    for d in (Detection(5, quad), Detection(5, corners_px=quad), Detection(id=5, corners=quad)):
-        assert d.corners_px is d.corners_px and d.corners_px.shape == (4, 2) and d.corners_px.dtype == np.float64
-    with pytest.raises(FidlearnError, match="give the corners once"):
-        Detection(5, quad, corners=quad)
+    for d in (Detection(5, quad), Detection(5, corners_px=quad), Detection(id=5, corners_px=quad)):
+        assert d.corners_px.shape == (4, 2) and d.corners_px.dtype == np.float64
+        np.testing.assert_array_equal(d.corners_px, quad)
+    assert not hasattr(Detection(5, quad), "corners")  # the former name is gone: corners_px only
+    with pytest.raises(TypeError, match="corners"):
+        Detection(5, corners=quad)
+    with pytest.raises(FidlearnError, match="corners_px missing"):
+        Detection(5)

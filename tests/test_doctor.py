@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from fidlearn import cli, doctor
+from fidlearn import doctor
+from fidlearn.cli.doctor import doctor_report
 
 WANTED = "opencv-contrib-python-headless"
 
@@ -36,7 +37,7 @@ def opencv_problems(problems: list[str]) -> list[str]:
 
 def test_the_test_environment_has_one_opencv_wheel():
     """The baseline the fakes are added to: exactly fidlearn's own wheel, and no OpenCV problem."""
-    lines, problems = cli.doctor_report()
+    lines, problems = doctor_report()
     wheel_line = next(line for line in lines if line.startswith("OpenCV wheels installed: "))
     assert wheel_line == f"OpenCV wheels installed: {WANTED} {md.version(WANTED)}"
     assert opencv_problems(problems) == []
@@ -46,7 +47,7 @@ def test_the_test_environment_has_one_opencv_wheel():
 def test_a_second_wheel_is_named_for_removal(tmp_path, monkeypatch, other):
     fake_wheel(tmp_path, other, "4.10.0.84")
     monkeypatch.syspath_prepend(str(tmp_path))
-    lines, problems = cli.doctor_report()
+    lines, problems = doctor_report()
     assert f"{other} 4.10.0.84" in next(line for line in lines if line.startswith("OpenCV wheels installed"))
     [problem] = opencv_problems(problems)
     assert problem.startswith("2 OpenCV wheels share the cv2 name and break each other")
@@ -58,7 +59,7 @@ def test_every_extra_wheel_is_named(tmp_path, monkeypatch):
     fake_wheel(tmp_path, "opencv-python", "4.10.0.84")
     fake_wheel(tmp_path, "opencv-contrib-python", "4.9.0.80")
     monkeypatch.syspath_prepend(str(tmp_path))
-    [problem] = opencv_problems(cli.doctor_report()[1])
+    [problem] = opencv_problems(doctor_report()[1])
     assert problem.startswith("3 OpenCV wheels")
     assert f"pip uninstall -y opencv-contrib-python opencv-python && pip install --force-reinstall {WANTED}" in problem
 
@@ -68,7 +69,7 @@ def test_metadata_name_spelling_does_not_hide_a_wheel(tmp_path, monkeypatch):
     info = fake_wheel(tmp_path, "opencv-python", "4.5.5.64")
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: OpenCV_Python\nVersion: 4.5.5.64\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    [problem] = opencv_problems(cli.doctor_report()[1])
+    [problem] = opencv_problems(doctor_report()[1])
     assert "pip uninstall -y opencv-python " in problem
 
 
@@ -86,7 +87,7 @@ def test_fidlearns_wheel_is_kept_even_when_it_is_not_installed(monkeypatch):
         FakeDist("numpy", "2.0.0"),
     ]
     monkeypatch.setattr(doctor.md, "distributions", lambda: iter(fakes))
-    [problem] = opencv_problems(cli.doctor_report()[1])
+    [problem] = opencv_problems(doctor_report()[1])
     assert f"pip uninstall -y opencv-python opencv-python-headless && pip install --force-reinstall {WANTED}" in problem
 
 
@@ -94,7 +95,7 @@ def test_unrelated_packages_are_not_counted(tmp_path, monkeypatch):
     fake_wheel(tmp_path, "opencv-python-stubs", "0.1")
     fake_wheel(tmp_path, "python-opencv-helpers", "1.0")
     monkeypatch.syspath_prepend(str(tmp_path))
-    assert opencv_problems(cli.doctor_report()[1]) == []
+    assert opencv_problems(doctor_report()[1]) == []
 
 
 def test_doctor_command_reports_the_problem_and_fails(tmp_path):

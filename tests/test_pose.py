@@ -11,8 +11,13 @@ from fidlearn.camera import Camera
 from fidlearn.data import data_path
 from fidlearn.detection import Detection, load_image
 from fidlearn.errors import CameraError, FidlearnWarning, ImageError, NoMarkersError, PoseError
+from fidlearn.frames._rotations import _rotvec
 from fidlearn.markermap import MarkerMap, MarkerPlacement
-from fidlearn.pose import Pose, estimate_pose, locate, pose_jacobian
+from fidlearn.pose import Pose, _refine, estimate_pose, locate, pose_jacobian
+from fidlearn.pose._checks import _check_quads, _cheirality
+from fidlearn.pose._observations import _Candidate, _make_obs
+from fidlearn.pose._solvers import _front_first
+from fidlearn.pose._stats import _mahalanobis2
 
 CAM = Camera([[800.0, 0, 319.5], [0, 800.0, 239.5], [0, 0, 1]], [-0.12, 0.08, 0.001, -0.0005, 0.0], (640, 480))
 
@@ -380,11 +385,10 @@ def test_locate_finds_the_camera_in_a_rendered_scene():
 
 
 def test_locate_on_the_seed_map():
-    from fidlearn.synthetic import look_at as synthetic_look_at
     from fidlearn.synthetic import render_scene
 
     m = MarkerMap.load(data_path("world_map.json"))
-    T = synthetic_look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0], roll_deg=8.0)
+    T = frames.look_at([900.0, 250.0, 350.0], [0.0, 140.0, 230.0], roll_deg=8.0)
     scene = render_scene(m, CAM, T, seed=3, blur_px=0.5, noise_std_gray=1.5)
     image, truth = scene.image, scene.truth
     assert sorted(truth) == [0, 1, 2]
@@ -682,20 +686,17 @@ def test_a_marker_turned_the_wrong_way_in_the_map_is_never_seen_from_behind():
 
 def test_only_poses_a_camera_can_have_are_chosen():
     """A mirror-image candidate that fits better loses to one that sees the markers' faces; none left raises."""
-    from fidlearn import pose as pose_mod
 
     m = wall_map()
     dets = observe(m, T_WALL)
-    obs = pose_mod._make_obs(m.ids, {d.id: d.corners_px for d in dets}, m.corners())
-    true = pose_mod._Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None, refined=True)
+    obs = _make_obs(m.ids, {d.id: d.corners_px for d in dets}, m.corners())
+    true = _Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None, refined=True)
     # the camera mirrored through the wall (x = 0): it would see the markers' backs
     F = np.diag([-1.0, 1.0, 1.0])
-    behind_wall = pose_mod._Candidate(F @ T_WALL[:3, :3] @ F, F @ T_WALL[:3, 3], 0.5, None, refined=True)
+    behind_wall = _Candidate(F @ T_WALL[:3, :3] @ F, F @ T_WALL[:3, 3], 0.5, None, refined=True)
     # the camera turned round on the spot: every corner behind it
-    turned = pose_mod._Candidate(
-        T_WALL[:3, :3] @ np.diag([-1.0, 1.0, -1.0]), T_WALL[:3, 3].copy(), 0.25, None, refined=True
-    )
-    ordered = pose_mod._front_first(obs, CAM, [turned, behind_wall, true], refine_lm=True)
+    turned = _Candidate(T_WALL[:3, :3] @ np.diag([-1.0, 1.0, -1.0]), T_WALL[:3, 3].copy(), 0.25, None, refined=True)
+    ordered = _front_first(obs, CAM, [turned, behind_wall, true], refine_lm=True)
     assert ordered[0] is true
     assert behind_wall.problem.startswith(
         "markers [0, 1, 2, 3, 4, 5] would be seen from behind (from the back of their printed face) by the pose "
@@ -706,14 +707,14 @@ def test_only_poses_a_camera_can_have_are_chosen():
         "markers [0, 1, 2, 3, 4, 5] would be behind the camera in the pose that fits the corners best"
     )
     # one marker of several seen from behind: it may be another one's rotation that is wrong
-    one_back = pose_mod._Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None)
-    obs_one = pose_mod._make_obs([0, 1], {d.id: d.corners_px for d in dets}, _turned(m, 1, 180.0).corners())
-    assert pose_mod._cheirality(obs_one, one_back).endswith(
+    one_back = _Candidate(T_WALL[:3, :3].copy(), T_WALL[:3, 3].copy(), 1.0, None)
+    obs_one = _make_obs([0, 1], {d.id: d.corners_px for d in dets}, _turned(m, 1, 180.0).corners())
+    assert _cheirality(obs_one, one_back).endswith(
         "With markers [0, 1] in view, the wrong rotation may be another one's."
     )
     assert one_back.problem.startswith("marker 1 would be seen from behind (from the back of its printed face)")
     # no candidate left: the best one's problem is what estimate_pose reports
-    assert pose_mod._front_first(obs, CAM, [turned, behind_wall], refine_lm=True)[0] is turned
+    assert _front_first(obs, CAM, [turned, behind_wall], refine_lm=True)[0] is turned
     assert true.problem is None
     # the true pose's checks agree with the map's own normals and Camera.points_in_front
     for i in m.ids:
@@ -774,51 +775,50 @@ def test_a_bad_fit_does_not_make_the_flip_look_as_good():
 
 def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
     """cv2.Rodrigues returns exactly zero below about 1e-5 rad; the pose maths must not."""
-    from fidlearn import pose as pose_mod
     from fidlearn.pose import refine_pose_lm
 
     r_true = np.array([3e-7, -2e-7, 1e-7])
     assert not cv2.Rodrigues(cv2.Rodrigues(r_true)[0])[0].any()  # the OpenCV behaviour worked around
-    np.testing.assert_allclose(pose_mod._rotvec(cv2.Rodrigues(r_true)[0]), r_true, rtol=1e-6, atol=1e-15)
-    assert pose_mod._rotvec is frames._rotvec  # one small-angle fix, shared with rvec_tvec_from_transform
+    np.testing.assert_allclose(_rotvec(cv2.Rodrigues(r_true)[0]), r_true, rtol=1e-6, atol=1e-15)
+    assert _refine._rotvec is _rotvec  # one small-angle fix in frames, shared with rvec_tvec_from_transform
     # refine_pose_lm returns the tiny rotation of a camera looking straight at a wall
     P = np.array([[x, y, 2000.0 + 0.5 * x] for x in (-300.0, 0.0, 300.0) for y in (-200.0, 200.0)])
     T_cw = frames.make_transform(cv2.Rodrigues(r_true)[0], [10.0, -5.0, 30.0])
     img = CAM.project(P, frames.invert_transform(T_cw))
     np.testing.assert_allclose(refine_pose_lm(P, img, CAM, r_true, T_cw[:3, 3]).rvec, r_true, rtol=1e-3, atol=1e-12)
     # the distance between two poses 1e-7 rad apart is not zero
-    a = pose_mod._Candidate(np.eye(3), np.zeros(3), 0.0, None)
-    b = pose_mod._Candidate(cv2.Rodrigues(np.array([1e-7, 0.0, 0.0]))[0], np.zeros(3), 0.0, None)
-    assert pose_mod._mahalanobis2(a, b, np.diag([1e14, 1, 1, 1, 1, 1.0]), 1.0) == pytest.approx(1.0, rel=1e-6)
+    a = _Candidate(np.eye(3), np.zeros(3), 0.0, None)
+    b = _Candidate(cv2.Rodrigues(np.array([1e-7, 0.0, 0.0]))[0], np.zeros(3), 0.0, None)
+    assert _mahalanobis2(a, b, np.diag([1e14, 1, 1, 1, 1, 1.0]), 1.0) == pytest.approx(1.0, rel=1e-6)
 
 
 def test_noisy_corners_of_a_marker_seen_edge_on_are_not_called_mirrored():
     """Benchmarks feed true corners plus noise: a marker a few pixels wide may fold over; it is not a mistake."""
-    from fidlearn import pose as pose_mod
 
     folded = np.array([[345.3, 281.1], [344.0, 290.3], [339.3, 308.6], [341.3, 300.0]])  # 5 px wide, 1 px noise
     flipped = folded * [-1.0, 1.0] + [690.0, 0.0]  # its mirror image: anticlockwise, by noise
     assert np.sum(flipped[:, 0] * np.roll(flipped[:, 1], -1) - np.roll(flipped[:, 0], -1) * flipped[:, 1]) < 0
-    pose_mod._check_quads([7, 8], np.concatenate([folded, flipped]))  # no PoseError
+    _check_quads([7, 8], np.concatenate([folded, flipped]))  # no PoseError
     with pytest.raises(PoseError, match="marker 8: .* run anticlockwise"):
-        pose_mod._check_quads([7, 8], np.concatenate([folded, SQUARE[[0, 3, 2, 1]]]))
+        _check_quads([7, 8], np.concatenate([folded, SQUARE[[0, 3, 2, 1]]]))
     # a camera estimated a little behind the plane of a marker seen at a grazing angle is a pose;
     # far behind it is not
     m = MarkerMap(
         {0: MarkerPlacement(0, (0.0, 0.0, 1000.0), (0.0, 0.0, 0.0))}, 100.0, dictionary="ARUCO_ORIGINAL", units="mm"
     )
     centre = m.T_world_marker(0)[:3, 3]
-    obs = pose_mod._make_obs([0], {0: SQUARE}, m.corners())
+    obs = _make_obs([0], {0: SQUARE}, m.corners())
     for elevation_deg, ok in ((30.0, True), (-5.0, True), (-20.0, False)):
         e = np.radians(elevation_deg)
         T = look_at(centre + 2000.0 * np.array([np.sin(e), np.cos(e), 0.0]), centre)
-        cand = pose_mod._Candidate(T[:3, :3], T[:3, 3], 0.0, None)
-        assert (pose_mod._cheirality(obs, cand) is None) == ok, elevation_deg
+        cand = _Candidate(T[:3, :3], T[:3, 3], 0.0, None)
+        assert (_cheirality(obs, cand) is None) == ok, elevation_deg
 
 
 def _seed_room_with_a_stranger():
     """The seed map, and a picture of it with marker 7 (not in the map) taped beside marker 1."""
-    from fidlearn.synthetic import look_at, render_scene
+    from fidlearn.frames import look_at
+    from fidlearn.synthetic import render_scene
 
     m = MarkerMap.load(data_path("world_map.json"))
     placements = dict(m.placements)

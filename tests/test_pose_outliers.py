@@ -22,9 +22,12 @@ from fidlearn._stats import chi2_isf as _chi2_isf_even
 from fidlearn._stats import chi2_sf as _chi2_sf_even
 from fidlearn._stats import f_isf
 from fidlearn.detection import Detection
+from fidlearn.frames import look_at
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import _outliers
-from fidlearn.synthetic import look_at
+from fidlearn.pose._observations import _make_obs, _world
+from fidlearn.pose._outliers import _deletion_q, _screen
+from fidlearn.pose._solvers import _solve
 
 CAM = fidlearn.Camera([[600.0, 0, 320.0], [0, 600.0, 240.0], [0, 0, 1]], [-0.1, 0.05, 0, 0, 0], (640, 480))
 WALL_YZ = [(0, 1500), (450, 1500), (900, 1500), (150, 1050), (600, 1050), (1050, 1100), (300, 600), (800, 650)]
@@ -58,11 +61,11 @@ def noisy(m: MarkerMap, T: np.ndarray, sigma: float, rng, moved: dict | None = N
 
 
 def screen_fires(m: MarkerMap, dets, sigma_given) -> bool:
-    world, faces = pose_mod._world(m)
+    world, faces = _world(m)
     corners = {d.id: d.corners_px for d in dets}
-    obs = pose_mod._make_obs(sorted(corners), corners, world, faces)
-    cands, _, _ = pose_mod._solve(obs, m, CAM, "auto", True)
-    return pose_mod._screen(obs, cands[0], CAM, sigma_given) is not None
+    obs = _make_obs(sorted(corners), corners, world, faces)
+    cands, _, _ = _solve(obs, m, CAM, "auto", True)
+    return _screen(obs, cands[0], CAM, sigma_given) is not None
 
 
 @pytest.mark.slow
@@ -96,12 +99,12 @@ def test_the_screen_names_the_marker_whose_removal_explains_the_rest():
     m = wall(6)
     T = views(m, 1, np.random.default_rng(5))[0]
     dets = noisy(m, T, 0.0, np.random.default_rng(6), {2: np.array([0.0, 40.0, 0.0])})
-    world, faces = pose_mod._world(m)
+    world, faces = _world(m)
     corners = {d.id: d.corners_px for d in dets}
-    obs = pose_mod._make_obs(sorted(corners), corners, world, faces)
-    best = pose_mod._solve(obs, m, CAM, "auto", True)[0][0]
-    q = pose_mod._deletion_q(obs, best, CAM)
-    assert int(np.argmax(q)) == 2 and pose_mod._screen(obs, best, CAM, None) == 2
+    obs = _make_obs(sorted(corners), corners, world, faces)
+    best = _solve(obs, m, CAM, "auto", True)[0][0]
+    q = _deletion_q(obs, best, CAM)
+    assert int(np.argmax(q)) == 2 and _screen(obs, best, CAM, None) == 2
     rest = [d for d in dets if d.id != 2]
     sse_rest = fidlearn.estimate_pose(rest, m, CAM, reject_outliers=False).reprojection_rms_px ** 2 * 20
     assert best.sse - q[2] == pytest.approx(sse_rest, abs=0.02 * best.sse)
@@ -119,10 +122,10 @@ def test_the_quantiles_are_exact():
 
 
 def _obs_and_fit(m: MarkerMap, dets):
-    world, faces = pose_mod._world(m)
+    world, faces = _world(m)
     corners = {d.id: d.corners_px for d in dets}
-    obs = pose_mod._make_obs(sorted(corners), corners, world, faces)
-    return obs, pose_mod._solve(obs, m, CAM, "auto", True)[0][0]
+    obs = _make_obs(sorted(corners), corners, world, faces)
+    return obs, _solve(obs, m, CAM, "auto", True)[0][0]
 
 
 def _refit_sse(m: MarkerMap, dets, T0: np.ndarray, k: int | None) -> float:
@@ -157,7 +160,7 @@ def test_the_drop_of_a_move_is_what_refitting_with_that_move_removes():
     dets = noisy(m, T, 0.5, rng, {1: 6.0 * (c[0] - c[3]) / np.linalg.norm(c[0] - c[3])})
     obs, best = _obs_and_fit(m, dets)
     drop = _outliers._displacement_drop(obs, best, CAM)
-    q = pose_mod._deletion_q(obs, best, CAM)
+    q = _deletion_q(obs, best, CAM)
     sse0 = _refit_sse(m, dets, T, None)
     assert best.sse == pytest.approx(sse0, rel=1e-6)
     for k in range(4):

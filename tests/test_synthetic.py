@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from fidlearn import Camera, FidlearnError, MarkerMap, data_path, frames
+from fidlearn._lens import distort_normalized as _distort_normalized
+from fidlearn._lens import undistort_exact as _undistort_exact
 from fidlearn.errors import CameraError
+from fidlearn.frames import look_at
 from fidlearn.synthetic import (
-    _distort_normalized,
-    _undistort_exact,
-    look_at,
     render_calibration_views,
     render_scene,
     render_trajectory,

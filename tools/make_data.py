@@ -47,9 +47,9 @@ import numpy as np
 import fidlearn
 from fidlearn import Camera, MarkerMap, frames
 from fidlearn.data import repo_dir
+from fidlearn.frames import look_at
 from fidlearn.io import atomic_write, write_json_atomic
 from fidlearn.synthetic import (
-    look_at,
     render_calibration_views,
     render_scene,
     render_trajectory,

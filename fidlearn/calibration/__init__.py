@@ -82,14 +82,12 @@ errors and standard deviations).
 
 from __future__ import annotations
 
-# the private names are re-exported for the code and tests that used fidlearn/calibration.py
-# ruff: noqa: F401
 from . import quality  # noqa: F401 - fidlearn.calibration.quality
-from .api import _entries, _pattern, calibrate_charuco, calibrate_checkerboard
-from .boards import _Charuco, _Checkerboard, checkerboard_points, find_checkerboard_corners
+from .api import calibrate_charuco, calibrate_checkerboard
+from .boards import checkerboard_points, find_checkerboard_corners
 from .quality import DuplicateViews, ViewDiversity, coverage_grid, quality_warnings, view_diversity
-from .result import Calibration, ViewResult, _display_names, _short
-from .run import INTRINSIC_NAMES, MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_MARGIN_PX, ProgressFn, _run
+from .result import Calibration, ViewResult
+from .run import INTRINSIC_NAMES, MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_MARGIN_PX, ProgressFn
 
 __all__ = [
     "Calibration",
@@ -104,4 +102,8 @@ __all__ = [
     "DuplicateViews",
     "quality_warnings",
     "MIN_VIEWS",
+    "INTRINSIC_NAMES",
+    "OUTLIER_FACTOR",
+    "OUTLIER_MARGIN_PX",
+    "ProgressFn",
 ]

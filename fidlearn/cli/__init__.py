@@ -33,29 +33,7 @@ registering it and ``run(args)`` doing it; ``_common`` holds what they share and
 
 from __future__ import annotations
 
-# ruff: noqa: F401 - names kept importable from fidlearn.cli, where they were
 # Importing the commands loads OpenCV: one that cannot import fails here, where fidlearn._entry reports it.
-from ..calibration.quality import coverage_grid, view_diversity
-from ..doctor import OPENCV_WHEELS, WANTED_WHEEL
-from ..drawing import draw_calibration_view as _draw_calibration_view
-from ..drawing import draw_pose as _draw_pose
-from ..drawing import wrap_to_width as _wrap_to_width
-from ..errors import UsageError
-from ..images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
-from ._common import (
-    _check_output,
-    _floats,
-    _Interrupted,
-    _Parser,
-    _Progress,
-    _refuse_clobber,
-    _SafeStdout,
-    _Staging,
-    _StreamFile,
-)
-from ._main import COMMANDS, build_parser, main
-from .doctor import doctor_report
-from .locate import _fmt_row, _pose_record
-from .render import MAX_COORD_MM, MAX_RENDER_PIXELS
+from ._main import build_parser, main
 
 __all__ = ["main", "build_parser"]

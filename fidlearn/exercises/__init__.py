@@ -51,7 +51,7 @@ from ..errors import ExerciseError
 
 # The lesson modules register themselves first: the subpackage ``lessons`` would otherwise be
 # the attribute ``fidlearn.exercises.lessons``, which is the function :func:`lessons` below.
-from . import lessons as _lesson_modules  # noqa: F401  (registers the lessons)
+from . import lessons as _lesson_modules  # registers the lessons
 from ._engine import (
     BEGIN_SOLUTION,
     CORRECT,
@@ -60,12 +60,9 @@ from ._engine import (
     NOT_ATTEMPTED,
     RECORDED,
     SETUP_CODE,
-    STRICT_STACK,
     Inputs,
     Question,
     Result,
-    strict,
-    strict_mode,
 )
 from ._graded import GradedLesson, GradedQuestion
 from ._notebooks import answer_key_notebook, solution_blocks, student_copy
@@ -78,6 +75,7 @@ from ._registry import (
     lessons,
     notebook_name,
 )
+from ._strict import STRICT_STACK, strict, strict_mode
 
 __all__ = [
     "CORRECT",
@@ -107,3 +105,5 @@ __all__ = [
     "student_copy",
     "solution_blocks",
 ]
+
+del _lesson_modules

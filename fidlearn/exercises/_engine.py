@@ -11,8 +11,6 @@ from typing import Any
 import numpy as np
 
 from ..detection import Detection
-from ._strict import STRICT_STACK as STRICT_STACK
-from ._strict import strict as strict
 from ._strict import strict_mode
 
 CORRECT = "Correct"

@@ -29,13 +29,9 @@ True
 
 from __future__ import annotations
 
-from ._checks import _angle as _angle
-from ._checks import as_float_array as as_float_array
 from ._checks import check_rotation, check_transform
 from ._look_at import look_at
 from ._quaternions import matrix_from_quaternion, quaternion_from_matrix
-from ._rotations import _exact_trig_deg as _exact_trig_deg
-from ._rotations import _rotvec as _rotvec
 from ._rotations import (
     rot_x,
     rot_y,
@@ -74,6 +70,6 @@ __all__ = [
 ]
 
 # The public functions say they are fidlearn.frames': help(), repr() and the docs show the path to import.
-for _public in (as_float_array, *(globals()[_name] for _name in __all__)):
+for _public in (globals()[_name] for _name in __all__):
     _public.__module__ = __name__
 del _public

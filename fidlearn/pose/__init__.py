@@ -69,35 +69,10 @@ from __future__ import annotations
 
 import inspect as _inspect
 
-from ..frames import _rotvec as _rotvec
-from ._checks import _BEHIND_TOL_DEG as _BEHIND_TOL_DEG
-from ._checks import _MIN_QUAD_AREA_PX2 as _MIN_QUAD_AREA_PX2
-from ._checks import _QUAD_MARGIN_PX as _QUAD_MARGIN_PX
-from ._checks import _SIN_BEHIND_TOL as _SIN_BEHIND_TOL
-from ._checks import _check_quads as _check_quads
-from ._checks import _cheirality as _cheirality
 from ._estimate import BAD_FIT_MIN_PX as BAD_FIT_MIN_PX
 from ._estimate import BAD_FIT_REL as BAD_FIT_REL
 from ._estimate import estimate_pose as estimate_pose
-from ._inputs import _ESTIMATE_OPTIONS as _ESTIMATE_OPTIONS
-from ._inputs import _as_camera as _as_camera
-from ._inputs import _as_map as _as_map
-from ._inputs import _check_inputs as _check_inputs
-from ._inputs import _check_options as _check_options
-from ._inputs import _check_pose_options as _check_pose_options
 from ._locate import locate as locate
-from ._observations import _NEXT as _NEXT
-from ._observations import _UNCHECKED as _UNCHECKED
-from ._observations import _WORLD_CACHE as _WORLD_CACHE
-from ._observations import _YZX as _YZX
-from ._observations import _ZXY as _ZXY
-from ._observations import _Candidate as _Candidate
-from ._observations import _faces_of as _faces_of
-from ._observations import _make_obs as _make_obs
-from ._observations import _Obs as _Obs
-from ._observations import _side_px as _side_px
-from ._observations import _world as _world
-from ._outliers import _OUTLIER_F8 as _OUTLIER_F8
 from ._outliers import DISPLACEMENT_MIN_RMS_PX as DISPLACEMENT_MIN_RMS_PX
 from ._outliers import DISPLACEMENT_P as DISPLACEMENT_P
 from ._outliers import OUTLIER_CHI2 as OUTLIER_CHI2
@@ -105,54 +80,46 @@ from ._outliers import OUTLIER_MIN_RMS_PX as OUTLIER_MIN_RMS_PX
 from ._outliers import OUTLIER_P as OUTLIER_P
 from ._outliers import OUTLIER_SIGMA_FLOOR_PX as OUTLIER_SIGMA_FLOOR_PX
 from ._outliers import SCREEN_P as SCREEN_P
-from ._outliers import _deletion_q as _deletion_q
-from ._outliers import _left_out_test as _left_out_test
-from ._outliers import _outlier_threshold as _outlier_threshold
-from ._outliers import _reject_outliers as _reject_outliers
-from ._outliers import _rest_fit as _rest_fit
-from ._outliers import _screen as _screen
-from ._refine import _LM_TOL_PX2 as _LM_TOL_PX2
-from ._refine import _LM_TOL_SIGMA2 as _LM_TOL_SIGMA2
-from ._refine import _ZERO3 as _ZERO3
 from ._refine import PoseRefinement as PoseRefinement
-from ._refine import _lm as _lm
-from ._refine import _residuals as _residuals
 from ._refine import pose_jacobian as pose_jacobian
 from ._refine import refine_pose_lm as refine_pose_lm
 from ._result import Pose as Pose
-from ._solvers import _NEAR_PLANAR_REL as _NEAR_PLANAR_REL
-from ._solvers import _PLANAR_TOL_MM as _PLANAR_TOL_MM
-from ._solvers import _PLANAR_TOL_REL as _PLANAR_TOL_REL
-from ._solvers import _PLANE_CACHE as _PLANE_CACHE
 from ._solvers import METHODS as METHODS
 from ._solvers import REFINE_GAP_CHI2 as REFINE_GAP_CHI2
-from ._solvers import _from_R_t as _from_R_t
-from ._solvers import _front_first as _front_first
-from ._solvers import _generic as _generic
-from ._solvers import _lm_candidate as _lm_candidate
-from ._solvers import _plane_fit as _plane_fit
-from ._solvers import _plane_fit_cached as _plane_fit_cached
-from ._solvers import _solve as _solve
-from ._solvers import _solve_ippe as _solve_ippe
-from ._solvers import _solve_ippe_square as _solve_ippe_square
-from ._stats import _CHI2_3_95 as _CHI2_3_95
-from ._stats import _F3_95 as _F3_95
 from ._stats import AMBIGUITY_CHI2 as AMBIGUITY_CHI2
 from ._stats import AMBIGUITY_MAX_SIGMA_PX as AMBIGUITY_MAX_SIGMA_PX
 from ._stats import MIN_SIGMA_PX as MIN_SIGMA_PX
 from ._stats import PRIOR_DOF as PRIOR_DOF
 from ._stats import PRIOR_SIGMA_PX as PRIOR_SIGMA_PX
-from ._stats import _chi2_3_quantile as _chi2_3_quantile
-from ._stats import _covariance_from as _covariance_from
-from ._stats import _estimated_sigma_inflation as _estimated_sigma_inflation
-from ._stats import _mahalanobis2 as _mahalanobis2
-from ._stats import _sigma as _sigma
 
-__all__ = ["Pose", "estimate_pose", "locate", "METHODS", "pose_jacobian", "refine_pose_lm", "PoseRefinement"]
+__all__ = [
+    "Pose",
+    "estimate_pose",
+    "locate",
+    "METHODS",
+    "pose_jacobian",
+    "refine_pose_lm",
+    "PoseRefinement",
+    "AMBIGUITY_CHI2",
+    "AMBIGUITY_MAX_SIGMA_PX",
+    "BAD_FIT_MIN_PX",
+    "BAD_FIT_REL",
+    "DISPLACEMENT_MIN_RMS_PX",
+    "DISPLACEMENT_P",
+    "MIN_SIGMA_PX",
+    "OUTLIER_CHI2",
+    "OUTLIER_MIN_RMS_PX",
+    "OUTLIER_P",
+    "OUTLIER_SIGMA_FLOOR_PX",
+    "PRIOR_DOF",
+    "PRIOR_SIGMA_PX",
+    "REFINE_GAP_CHI2",
+    "SCREEN_P",
+]
 
 # The public names say they are fidlearn.pose's: help(), repr() and the docs show the path to import
 # (and the doctests of Pose's methods run with the class).
 _methods = [f for f in vars(Pose).values() if _inspect.isfunction(f)]
-for _public in (Pose, estimate_pose, locate, pose_jacobian, refine_pose_lm, PoseRefinement, *_methods):
+for _public in (Pose, estimate_pose, locate, pose_jacobian, refine_pose_lm, *_methods):
     _public.__module__ = __name__
-del _public, _methods
+del _public, _methods, _inspect

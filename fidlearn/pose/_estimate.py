@@ -11,7 +11,7 @@ import numpy as np
 from ..camera import Camera
 from ..detection import Detection
 from ..errors import NoMarkersError, PoseError
-from ..frames import _rotvec
+from ..frames._rotations import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
 from ._inputs import _check_inputs, _check_options

@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 
 from ..camera import Camera
-from ..frames import _rotvec, transform_from_rvec_tvec
+from ..frames import transform_from_rvec_tvec
+from ..frames._rotations import _rotvec
 
 __all__ = ["pose_jacobian", "refine_pose_lm", "PoseRefinement"]
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import _stats
 from ..errors import PoseError
-from ..frames import _rotvec
+from ..frames._rotations import _rotvec
 
 if TYPE_CHECKING:
     from ._observations import _Candidate

@@ -22,13 +22,10 @@ Examples
 from __future__ import annotations
 
 from ..errors import PrintError
-from ._boards import (  # noqa: F401
-    _BOARD_ARRANGEMENTS,
+from ._boards import (
     QUIET_FRACTION,
     QUIET_MIN_MM,
     BoardSheet,
-    _inner_corners,
-    _largest_square,
     board_figure,
     board_pdf,
     board_png,
@@ -43,7 +40,7 @@ from ._markers import (
     markers_pdf,
     markers_png,
 )
-from ._page import (  # noqa: F401
+from ._page import (
     CUT_MARK_MM,
     CUT_MARK_OFFSET_MM,
     GAP_MM,
@@ -56,15 +53,6 @@ from ._page import (  # noqa: F401
     STRIP_GAP_MM,
     STRIP_LEN_MM,
     STRIP_MM,
-    _cut_marks,
-    _draw_strip,
-    _fill_rects,
-    _marker_rects,
-    _page,
-    _positive_mm,
-    _usable_area,
-    _with_suffix,
-    _write_pngs,
     paper_size_mm,
     parse_ids,
     parse_pattern,
@@ -90,4 +78,17 @@ __all__ = [
     "board_pdf",
     "board_png",
     "save_pages",
+    "QUIET_FRACTION",
+    "QUIET_MIN_MM",
+    "CUT_MARK_MM",
+    "CUT_MARK_OFFSET_MM",
+    "GAP_MM",
+    "LABEL_MM",
+    "LINE_PT",
+    "MAX_ID_COUNT",
+    "PAGE_MARGIN_MM",
+    "RULER_MM",
+    "STRIP_GAP_MM",
+    "STRIP_LEN_MM",
+    "STRIP_MM",
 ]

@@ -37,34 +37,8 @@ edges (see ``data/README.md``).
 
 from __future__ import annotations
 
-from ..frames import look_at  # the same function as fidlearn.frames.look_at, kept importable here
-from ._calibration_views import (  # noqa: F401
-    CalibrationViews,
-    _board_pose,
-    _charuco_sheet,
-    _checkerboard_sheet,
-    render_calibration_views,
-)
-from ._checks import DEFAULT_GRAYS, MAX_FRAMES, MAX_RENDER_SAMPLES, _check_scene, _check_seed  # noqa: F401
-from ._rays import (  # noqa: F401
-    _distort_normalized,
-    _fine_rays,
-    _normalized_map,
-    _normalized_map_cached,
-    _pixels_from_normalized,
-    _undistort_exact,
-)
-from ._renderer import (  # noqa: F401
-    _MAX_TEXELS_PER_CELL,
-    _STRIP_SUBPIXELS,
-    _clip_polygon_in_front,
-    _marker_sheet,
-    _projected_size_px,
-    _render,
-    _Sheet,
-    _sheet_region,
-    _texels_per_cell,
-)
+from ._calibration_views import CalibrationViews, render_calibration_views
+from ._checks import DEFAULT_GRAYS, MAX_FRAMES, MAX_RENDER_SAMPLES
 from ._room import survey_room, survey_walk, tape_measured
 from ._scenes import Scene, render_scene, visible_markers
 from ._trajectory import Trajectory, render_trajectory, trajectory_poses
@@ -76,7 +50,6 @@ __all__ = [
     "survey_walk",
     "tape_measured",
     "visible_markers",
-    "look_at",
     "render_calibration_views",
     "CalibrationViews",
     "trajectory_poses",

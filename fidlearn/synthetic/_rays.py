@@ -7,8 +7,6 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .._lens import distort_normalized as _distort_normalized  # noqa: F401
-from .._lens import pixels_from_normalized as _pixels_from_normalized  # noqa: F401
 from .._lens import undistort_exact as _undistort_exact
 from ..camera import Camera
 from ..errors import CameraError

@@ -27,6 +27,8 @@ from . import (
     l11_mapping,
 )
 
+__all__ = ["MODULES"]
+
 #: The lesson modules in notebook order.
 MODULES = (
     l01_pinhole,
@@ -44,3 +46,4 @@ MODULES = (
 
 for _module in MODULES:
     _register(_module.NUMBER, _module.TOPIC, _module.TITLE, _module.INTRO, _module.build)
+del _module, _register
