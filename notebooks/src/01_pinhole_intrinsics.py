@@ -363,7 +363,8 @@ px, _ = cv2.projectPoints(
 width_px = float(np.linalg.norm(px[1] - px[0]))
 print(
     f"{SIDE_MM:.0f} mm at {DISTANCE_MM:.0f} mm with fx = {FX_PX:.0f} px: {width_px:.1f} px wide "
-    f"(fx * side / Z = {FX_PX * SIDE_MM / DISTANCE_MM:.1f}); field of view {math.degrees(2 * math.atan(320 / FX_PX)):.1f} deg"
+    f"(fx * side / Z = {FX_PX * SIDE_MM / DISTANCE_MM:.1f}); "
+    f"field of view {math.degrees(2 * math.atan(320 / FX_PX)):.1f} deg"
 )
 
 # %% [markdown]

@@ -259,7 +259,8 @@ assert abs(cal_real.camera.fx / cal_all.camera.fx - 1) < 0.01  # one view fewer,
 with tempfile.TemporaryDirectory() as folder:
     path = os.path.join(folder, "camera.json")
     cal_real.camera.save(path)
-    saved = json.load(open(path))
+    with open(path) as f:
+        saved = json.load(f)
     loaded = Camera.load(path)
 print(sorted(saved))
 print("image_size:", saved["image_size"])
@@ -675,7 +676,8 @@ print("views   calibration RMS (px)   |fx error| (%)   camera position error in 
 for n in view_counts:
     rms, fx_err, pos_err = np.array(count_results[n]).T
     print(
-        f"{n:5d} {np.median(rms):16.3f} {np.median(fx_err):18.3f} {np.median(pos_err):16.2f}      {np.round(pos_err, 2)}"
+        f"{n:5d} {np.median(rms):16.3f} {np.median(fx_err):18.3f} {np.median(pos_err):16.2f}      "
+        f"{np.round(pos_err, 2)}"
     )
 position_median = {n: np.median([r[2] for r in count_results[n]]) for n in view_counts}
 assert position_median[5] > 2 * position_median[25]  # few views: a worse camera...

@@ -40,7 +40,8 @@ np.set_printoptions(precision=3, suppress=True)
 # the original frame; they are unit vectors at right angles (R^T R = I) and det R = +1 (no mirror).
 # A rotation by θ about Z:
 #
-# $$R_z(\theta) = \begin{pmatrix} \cos\theta & -\sin\theta & 0 \\ \sin\theta & \cos\theta & 0 \\ 0 & 0 & 1 \end{pmatrix}$$
+# $$R_z(\theta) = \begin{pmatrix} \cos\theta & -\sin\theta & 0 \\ \sin\theta & \cos\theta & 0 \\
+# 0 & 0 & 1 \end{pmatrix}$$
 
 # %%
 theta = math.radians(90)  # radians inside the maths; degrees only at the edges
@@ -121,7 +122,7 @@ wall = MarkerMap.load(data_path("world_map.json"))
 camera = Camera.from_fov(60, (640, 480))
 
 
-def room_picture(title, T_world_cam=T_world_camera, extra_handles=(), extra_points=np.zeros((0, 3))):
+def room_picture(title, T_world_cam=T_world_camera, extra_handles=(), extra_points=()):
     """The seed wall, the world axes and one camera in 3D, explained by a legend; returns the Axes."""
     ax = plotting.new_axes_3d(figsize=(8, 6))
     plotting.draw_world_axes(ax, 500, label=None)
@@ -133,7 +134,7 @@ def room_picture(title, T_world_cam=T_world_camera, extra_handles=(), extra_poin
             500 * np.eye(3),
             *wall.corners().values(),
             plotting.camera_frustum(camera, T_world_cam, 400),
-            extra_points,
+            np.reshape(extra_points, (-1, 3)),
         ]
     )
     plotting.set_axes_equal(ax, points)
@@ -476,8 +477,9 @@ print("and the optical-in-body rotation itself is rpy", frames.rpy_deg_from_rota
 # $$R(q) = \begin{pmatrix} 1 - 2(y^2 + z^2) & 2(xy - wz) & 2(xz + wy) \\ 2(xy + wz) & 1 - 2(x^2 + z^2) &
 # 2(yz - wx) \\ 2(xz - wy) & 2(yz + wx) & 1 - 2(x^2 + y^2) \end{pmatrix}$$
 #
-# and back: $\operatorname{tr} R = 4w^2 - 1$, and the differences $(R_{21} - R_{12},\ R_{02} - R_{20},\ R_{10} - R_{01})$
-# (where Rodrigues' formula read $2 k \sin\theta$ from) are $4w\,(x, y, z)$. So $w = \tfrac12\sqrt{1 + \operatorname{tr} R}$ and
+# and back: $\operatorname{tr} R = 4w^2 - 1$, and the differences
+# $(R_{21} - R_{12},\ R_{02} - R_{20},\ R_{10} - R_{01})$ (where Rodrigues' formula read $2 k \sin\theta$ from)
+# are $4w\,(x, y, z)$. So $w = \tfrac12\sqrt{1 + \operatorname{tr} R}$ and
 # $(x, y, z) = (R_{21} - R_{12},\ R_{02} - R_{20},\ R_{10} - R_{01}) / 4w$. That divides by w: fine until
 # near a half turn, where w goes to 0. `fidlearn.frames.quaternion_from_matrix` then starts from the
 # largest of x, y, z, w instead (Shepperd's method) and returns the form with w >= 0.
@@ -557,7 +559,8 @@ assert math.isclose(angle_q, frames.rotation_angle_deg(R_any, R_rpy), abs_tol=1e
 # Slerp (spherical linear interpolation, Shoemake 1985) writes it out: with $\cos\Omega = q_0 \cdot q_1$
 # (after flipping q1 if the dot product is negative: the double cover, the shorter way round),
 #
-# $$\operatorname{slerp}(q_0, q_1, t) = \frac{\sin((1 - t)\Omega)}{\sin\Omega}\, q_0 + \frac{\sin(t\Omega)}{\sin\Omega}\, q_1$$
+# $$\operatorname{slerp}(q_0, q_1, t) = \frac{\sin((1 - t)\Omega)}{\sin\Omega}\, q_0
+# + \frac{\sin(t\Omega)}{\sin\Omega}\, q_1$$
 #
 # Two shortcuts people take instead: **nlerp**, a straight line between q0 and q1 pushed back to unit
 # length (the right path, the wrong speed: it hurries through the middle), and **averaging rotation
@@ -721,7 +724,7 @@ plt.show()
 
 # %%
 def quaternion_product(a, b):
-    """a * b for (x, y, z, w) quaternions: the rotation b first, then a."""
+    """The product a * b of (x, y, z, w) quaternions: the rotation b first, then a."""
     va, wa, vb, wb = a[:3], a[3], b[:3], b[3]
     return np.append(wa * vb + wb * va + np.cross(va, vb), wa * wb - va @ vb)
 

@@ -222,7 +222,8 @@ turns = {}
 for d in found:
     turns[d.id] = turned_deg(d.corners_px)
     print(
-        f"marker {d.id:3d}: signed area {signed_area_px2(d.corners_px):6.0f} px^2, turned {turns[d.id]:3d} deg clockwise"
+        f"marker {d.id:3d}: signed area {signed_area_px2(d.corners_px):6.0f} px^2, turned {turns[d.id]:3d} deg "
+        "clockwise"
     )
     assert signed_area_px2(d.corners_px) > 0  # clockwise, every one
 assert turns == {23: 0, 40: 0, 62: 180, 98: 0, 124: 90, 203: 0}

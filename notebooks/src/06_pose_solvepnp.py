@@ -137,7 +137,8 @@ plt.show()
 # `solvePnP` knows several algorithms:
 #
 # * **IPPE**: closed form for points on a plane; gives both poses of the planar ambiguity (notebook 08).
-# * **SQPnP**: a globally optimal solver (sequential quadratic programming) for any layout, planar or not, from 3 points.
+# * **SQPnP**: a globally optimal solver (sequential quadratic programming) for any layout, planar or not, from 3
+#   points.
 # * **ITERATIVE** (the default): a start from a homography (planar) or DLT (non-planar, needs 6 points), then
 #   Levenberg-Marquardt on the reprojection error.
 # * **EPnP**: expresses the points through four control points; fast, for many non-coplanar points.

@@ -23,7 +23,6 @@ import json
 import cv2
 import matplotlib.pyplot as plt
 import numpy as np
-
 from IPython.display import display
 
 from fidlearn import (
@@ -232,10 +231,12 @@ print(
     f"chosen     : {pose.position_mm.round(0)} mm, RMS {pose.reprojection_rms_px:.2f} px, {err:5.0f} mm from the truth"
 )
 print(
-    f"alternative: {alt.position_mm.round(0)} mm, RMS {alt.reprojection_rms_px:.2f} px, {err_alt:5.0f} mm from the truth"
+    f"alternative: {alt.position_mm.round(0)} mm, RMS {alt.reprojection_rms_px:.2f} px, {err_alt:5.0f} mm from the "
+    "truth"
 )
 print(
-    f"the two solutions are {apart:.0f} mm apart; the reported uncertainty spans both: std {pose.position_std_mm.round(0)} mm"
+    f"the two solutions are {apart:.0f} mm apart; the reported uncertainty spans both: std "
+    f"{pose.position_std_mm.round(0)} mm"
 )
 assert pose.ambiguous and alt is not None
 assert pose.reprojection_rms_px < 0.2 and alt.reprojection_rms_px < 0.2  # both fit the corners
@@ -633,7 +634,8 @@ plt.show()
 # half a metre to a quarter of a metre at 4 m, and 10 of the 12 measured errors fall inside the predicted
 # range (8 in 10 would be expected). Here the measured errors run about half again above the predicted medians
 # (the median ratio, 1.53), two places at 3.4 and 3.9 m well above: twelve pictures cannot say much more. It
-# is a prediction for many pictures: one picture can land anywhere in the range, and the benchmark (`benchmarks/bench_planning.py`) checks the medians over
+# is a prediction for many pictures: one picture can land anywhere in the range, and the benchmark
+# (`benchmarks/bench_planning.py`) checks the medians over
 # many rendered rooms. Real photos are another matter: the next cell.
 #
 # ### A real camera: measure its noise on one photo
@@ -829,7 +831,8 @@ print(f"{DISTANCE_MM / 1000:.1f} m: square law from 1 m predicts {predicted_mm:.
 # * The position error grows as the **square of the distance** and in proportion to the **corner noise**.
 # * With several markers, **spread** beats size; markers on **two planes** are best. One small marker from
 #   afar is **ambiguous**: two poses fit, `Pose.alternative` holds the other, `Pose.ambiguous` warns.
-# * A marker that moved drags the pose by centimetres to decimetres; `estimate_pose` rejects it (`Pose.rejected_ids`) when
+# * A marker that moved drags the pose by centimetres to decimetres; `estimate_pose` rejects it (`Pose.rejected_ids`)
+#   when
 #   three or more markers are seen, and the per-marker residuals (`Pose.marker_rms_px`) show it.
 # * Refined corners (most of the gain), a solver suited to the layout and LM make fidlearn's median error on
 #   the seed's wall many times smaller than the seed's pipeline's, on the same pictures (the factor is printed

@@ -17,10 +17,9 @@
 # %matplotlib inline
 import json
 
+import cv2
 import matplotlib.pyplot as plt
 import numpy as np
-
-import cv2
 
 from fidlearn import Camera, MarkerMap, NoMarkersError, PoseTracker, data_path, estimate_pose, frames, plotting
 from fidlearn.detection import detect_markers, load_image
@@ -117,7 +116,8 @@ for k in np.flatnonzero(found):
     )
 floor_err_mm = np.linalg.norm(position[:, :2] - true_position[:, :2], axis=1)
 print(
-    f"floor (X, Y) error: up to {np.nanmax(floor_err_mm):.1f} mm, drawn up to {MAGNIFY * np.nanmax(floor_err_mm):.0f} mm long"
+    f"floor (X, Y) error: up to {np.nanmax(floor_err_mm):.1f} mm, drawn up to {MAGNIFY * np.nanmax(floor_err_mm):.0f} "
+    "mm long"
 )
 ax1.legend(loc="lower left")
 
@@ -312,8 +312,10 @@ for k, (p, t) in enumerate(zip(poses, times_s)):
         predicted = replay.predict(t)
         for name, sol in (("ranked first", p), ("alternative ", p.alternative)):
             print(
-                f"frame {k}, {name}: squared Mahalanobis distance {mahalanobis2(predicted, sol.T_world_camera, p.covariance):.1f} "
-                f"from the prediction, {frames.rotation_angle_deg(sol.T_world_camera[:3, :3], T_true[k][:3, :3]):.2f} deg "
+                f"frame {k}, {name}: squared Mahalanobis distance "
+                f"{mahalanobis2(predicted, sol.T_world_camera, p.covariance):.1f} "
+                f"from the prediction, {frames.rotation_angle_deg(sol.T_world_camera[:3, :3], T_true[k][:3, :3]):.2f} "
+                "deg "
                 "from the truth"
             )
     out = replay.update(p, t)
@@ -329,7 +331,8 @@ assert len(ambiguous) >= 1 and flips == 0
 
 # %% [markdown]
 # On this drive `estimate_pose` already ranked the right solution first, and the prediction agrees: the
-# alternative, 2 to 3 degrees away, is farther from it (close to the wall the two solutions differ little). Far away, with one small marker seen face-on, the frame's own ranking
+# alternative, 2 to 3 degrees away, is farther from it (close to the wall the two solutions differ little). Far away,
+# with one small marker seen face-on, the frame's own ranking
 # is a coin toss and the prediction decides; notebook 10 shows a drive with thirty such flips, every one undone.
 
 # %% [markdown]

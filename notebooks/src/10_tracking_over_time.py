@@ -84,8 +84,10 @@ print(
     f"ambiguous frames: {sum(p.ambiguous for p in poses)}"
 )
 print(
-    f"per frame: position RMS {np.sqrt(np.mean(error_mm**2)):.0f} mm; near {np.sqrt(np.mean(error_mm[~far] ** 2)):.0f} mm, "
-    f"far {np.sqrt(np.mean(error_mm[far] ** 2)):.0f} mm; flipped frames (> {FLIP_DEG} deg): {(angle_deg > FLIP_DEG).sum()}"
+    f"per frame: position RMS {np.sqrt(np.mean(error_mm**2)):.0f} mm; near "
+    f"{np.sqrt(np.mean(error_mm[~far] ** 2)):.0f} mm, "
+    f"far {np.sqrt(np.mean(error_mm[far] ** 2)):.0f} mm; flipped frames (> {FLIP_DEG} deg): "
+    f"{(angle_deg > FLIP_DEG).sum()}"
 )
 assert (angle_deg > FLIP_DEG).sum() >= 10 and not (angle_deg[~far] > FLIP_DEG).any()
 
@@ -107,7 +109,8 @@ plt.show()
 
 # %% [markdown]
 # Near the wall the per-frame poses jitter by centimetres and about a degree; far away most frames jump by 10 to
-# 20 degrees, and their positions by half a metre and more: the corners of one small face-on marker fit two poses about equally well, and the noise decides which
+# 20 degrees, and their positions by half a metre and more: the corners of one small face-on marker fit two poses
+# about equally well, and the noise decides which
 # one `estimate_pose` ranks first. Each frame forgets the last one. A filter remembers.
 #
 # ## 2. A Kalman filter on the position, written out
@@ -151,7 +154,8 @@ theirs = np.array([tracker.update(poses[k], times_s[k]).position_mm for k in nea
 gap_mm = np.linalg.norm(ours - theirs, axis=1)
 rms = lambda e: float(np.sqrt(np.mean(np.asarray(e) ** 2)))  # noqa: E731
 print(
-    f"near frames: per frame RMS {rms(error_mm[near]):.1f} mm, our filter {rms(np.linalg.norm(ours - true_position[near], axis=1)):.1f} mm"
+    f"near frames: per frame RMS {rms(error_mm[near]):.1f} mm, our filter "
+    f"{rms(np.linalg.norm(ours - true_position[near], axis=1)):.1f} mm"
 )
 print(f"our filter against PoseTracker's position: largest difference {gap_mm.max():.2f} mm")
 assert gap_mm.max() < 2.0
@@ -220,8 +224,10 @@ tracked_angle = np.array(
 )
 tracked_error = np.linalg.norm(np.array([o.position_mm for o in tracked]) - true_position, axis=1)
 print(
-    f"flipped frames (> {FLIP_DEG} deg): per frame {(angle_deg > FLIP_DEG).sum()}, tracked {(tracked_angle > FLIP_DEG).sum()}; "
-    f"flips undone by the tracker: {sum(o.flip_resolved for o in tracked)}, frames rejected: {sum(o.rejected for o in tracked)}"
+    f"flipped frames (> {FLIP_DEG} deg): per frame {(angle_deg > FLIP_DEG).sum()}, tracked "
+    f"{(tracked_angle > FLIP_DEG).sum()}; "
+    f"flips undone by the tracker: {sum(o.flip_resolved for o in tracked)}, frames rejected: "
+    f"{sum(o.rejected for o in tracked)}"
 )
 print(
     f"position RMS: per frame {rms(error_mm):.0f} mm, tracked {rms(tracked_error):.0f} mm; "

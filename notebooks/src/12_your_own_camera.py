@@ -326,10 +326,7 @@ print(f"wrote {OUT / 'markers.pdf'}: markers {world_map.ids}, {world_map.marker_
 
 # %%
 live_log = []  # the last frames' (gray frame, pose or None), for a look afterwards
-if HAVE_CAMERA:
-    camera = Camera.load(OUT / "camera.json")
-else:
-    camera = Camera.load(data_path("trajectory", "camera.json"))
+camera = Camera.load(OUT / "camera.json" if HAVE_CAMERA else data_path("trajectory", "camera.json"))
 tracker = MarkerTracker(world_map, camera)
 pose_text = w.HTML()
 scene_view = w.Image(format="png", width=520)
