@@ -34,7 +34,8 @@ def test_rpy_round_trip(rpy):
 def test_rpy_at_gimbal_lock_keeps_the_rotation():
     R = frames.rotation_from_rpy_deg(30, 90, 10)
     rpy = frames.rpy_deg_from_rotation(R)
-    assert rpy[0] == 0.0 and rpy[1] == pytest.approx(90)
+    assert rpy[0] == 0.0
+    assert rpy[1] == pytest.approx(90)
     assert np.allclose(frames.rotation_from_rpy_deg(*rpy), R)
 
 
@@ -64,7 +65,8 @@ def test_rvec_tvec_round_trip_and_opencv_agreement():
     R_cv, _ = cv2.Rodrigues(rvec)
     assert np.allclose(T[:3, :3], R_cv)
     r2, t2 = frames.rvec_tvec_from_transform(T)
-    assert np.allclose(r2, rvec) and np.allclose(t2, tvec)
+    assert np.allclose(r2, rvec)
+    assert np.allclose(t2, tvec)
 
 
 def test_transform_points_shapes():
@@ -77,7 +79,7 @@ def test_transform_points_shapes():
 
 
 @pytest.mark.parametrize(
-    "matrix, message",
+    ("matrix", "message"),
     [
         (np.eye(3), r"shape \(3, 3\), expected a \(4, 4\)"),
         (np.diag([1.0, 1.0, 1.0, 2.0]), r"bottom row \[0.0, 0.0, 0.0, 2.0\]"),

@@ -211,7 +211,7 @@ def test_each_baseline_works(name):
 
 
 @pytest.mark.parametrize(
-    "name, argument", [(name, arg) for name, (_, kwargs) in sorted(CASES.items()) for arg in kwargs]
+    ("name", "argument"), [(name, arg) for name, (_, kwargs) in sorted(CASES.items()) for arg in kwargs]
 )
 def test_one_wrong_argument_at_a_time(name, argument):
     function, kwargs = CASES[name]
