@@ -987,7 +987,7 @@ def seed_scene():
 
 
 LOCATE = [
-    ("a file name for the image", lambda img: "scene.png", ImageError, "use fidlearn.detection.load_image"),
+    ("a file name for the image", lambda _img: "scene.png", ImageError, "use fidlearn.detection.load_image"),
     ("a blank picture", lambda img: np.full_like(img, 255), NoMarkersError, "no marker was detected"),
     ("another aspect ratio", lambda img: img[:720], CameraError, "calibrate at the resolution you run at"),
     ("int32 pixels", lambda img: img.astype(np.int32), ImageError, "pixel type int32 is not supported"),
@@ -1422,7 +1422,7 @@ def test_charuco_calibration_with_an_unknown_dictionary():
 from fidlearn.tracking import MarkerTracker  # noqa: E402
 
 TRACKER_OPTIONS = [
-    ("a map file name", lambda m, c: MarkerTracker("map.json", c), "use MarkerMap.load('map.json')"),
+    ("a map file name", lambda _m, c: MarkerTracker("map.json", c), "use MarkerMap.load('map.json')"),
     ("K instead of a camera", lambda m, c: MarkerTracker(m, c.K), "use Camera.load('camera.json')"),
     (
         "full_every 0",
@@ -1459,7 +1459,7 @@ def test_bad_tracker_options(make, fragment):
 
 
 TRACKER_FRAMES = [
-    ("a file name", lambda img: "frame.png", ImageError, "use fidlearn.detection.load_image"),
+    ("a file name", lambda _img: "frame.png", ImageError, "use fidlearn.detection.load_image"),
     ("float with NaN", lambda img: np.full(img.shape, np.nan), ImageError, "contains NaN or infinity"),
     ("int32 pixels", lambda img: img.astype(np.int32), ImageError, "pixel type int32"),
     ("another aspect ratio", lambda img: img[:100], CameraError, "calibrate at the resolution you run at"),

@@ -487,7 +487,7 @@ def test_charuco_wrong_dictionary_and_bad_sizes(charuco_files):
         calibrate_charuco(charuco_files, square_size_mm=-1)
 
 
-def test_charuco_partly_hidden_board_still_counts(charuco_files, charuco_cal):
+def test_charuco_partly_hidden_board_still_counts(charuco_files):
     occluded = data_path("real", "opencv_charuco", "chocclusion_original.jpg")
     cal = calibrate_charuco(list(charuco_files) + [occluded], reject_outliers=False)
     view = cal.views[-1]

@@ -62,8 +62,8 @@ def test_student_copy_keeps_no_solution():
     assert exercises.BEGIN_SOLUTION not in text
     assert "np.radians(q1.inputs.dfov_deg)" not in text
     assert text.count(".answer = ...") == len(exercises.lesson("01"))
+    bad = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("### BEGIN SOLUTION\nx = 1\n### END SOLUTION")])
     with pytest.raises(ValueError, match="assigns no answer"):
-        bad = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("### BEGIN SOLUTION\nx = 1\n### END SOLUTION")])
         exercises.student_copy(bad)
 
 

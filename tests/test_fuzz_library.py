@@ -319,7 +319,7 @@ def _webcam():
 
     cam = Webcam()
     sent = []
-    cam.send = lambda content, buffers=None: sent.append(content)
+    cam.send = lambda content, buffers=None: sent.append(content)  # noqa: ARG005 (Widget.send's signature)
     seen = []
     cam.on_frame(lambda frame: seen.append(frame.shape))
     cam.start()

@@ -132,7 +132,7 @@ CASES = {
             "step_mm": 500.0,
             "headings": 2,
             "corner_sigma_px": 0.2,
-            "progress": lambda done, total: None,
+            "progress": lambda _done, _total: None,
             "marker_shift_px": 0.1,
             "marker_size_rel_std": 0.01,
             "marker_size_rel_std_each": 0.0,

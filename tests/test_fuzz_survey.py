@@ -132,7 +132,7 @@ class Mine(Exception):
 
 @pytest.mark.parametrize("error", [ZeroDivisionError, Mine, KeyError, TypeError])
 def test_a_progress_function_that_raises_stops_the_survey_as_a_survey_error(error):
-    def progress(i, n, label):
+    def progress(i, _n, _label):
         if i == 3:
             raise error("boom")
 
@@ -189,7 +189,7 @@ def test_the_baseline_is_sound(baseline, tmp_path):
 
 
 @pytest.mark.parametrize("bad", list(BAD))
-def test_ellipsoid_and_save_with_wrong_arguments(baseline, bad, tmp_path):
+def test_ellipsoid_and_save_with_wrong_arguments(baseline, bad):
     for call in (
         lambda: baseline.position_ellipsoid_contains(BAD[bad], [0, 0, 0]),
         lambda: baseline.position_ellipsoid_contains(0, BAD[bad]),

@@ -137,7 +137,7 @@ def test_a_release_that_fails_leaves_nothing(tmp_path, secret, monkeypatch, fail
 
 def test_new_secret_on_a_full_disk_leaves_no_file(tmp_path, monkeypatch):
 
-    def full(fd, data):
+    def full(_fd, _data):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(_learners, "_write_all", full)
@@ -187,7 +187,7 @@ def cls(tmp_path, secret, monkeypatch):
         (subs / as_name).write_bytes((folder / name).read_bytes())
     graded = []
 
-    def fake(nb, number, learner, secret_bytes, **kw):
+    def fake(nb, number, learner, _secret_bytes, **_kwargs):
         graded.append((Path(nb).name, learner))
         scores = {"alice": 5, "bob": 3, "dave@uni.edu": 1, "eve": 4}
         mark = {True: "Correct", False: "Incorrect"}
@@ -195,7 +195,7 @@ def cls(tmp_path, secret, monkeypatch):
         return grading.NotebookGrade(str(nb), learner, number, results)
 
     monkeypatch.setattr(_grader, "grade_one", fake)
-    monkeypatch.setattr(_grader, "sandbox_plan", lambda run_as=None: _NO_BOX)  # no notebook runs here
+    monkeypatch.setattr(_grader, "sandbox_plan", lambda _run_as=None: _NO_BOX)  # no notebook runs here
     return {"paths": paths, "subs": subs, "secret": secret, "graded": graded, "tmp": tmp_path}
 
 

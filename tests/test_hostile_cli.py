@@ -448,7 +448,7 @@ def test_fifos_and_devices_are_refused_without_blocking(ws, capsys, kind):
 
 # -- writing: the user's path in every error, nothing half-written -------------------------------
 def test_a_full_disk_names_the_users_file_not_the_hidden_one(ws, capsys, monkeypatch):
-    def full(src, dst):
+    def full(_src, _dst):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(os, "replace", full)
@@ -471,7 +471,7 @@ def test_annotate_says_when_it_replaces_earlier_pictures(ws, capsys):
 def test_calibrate_writes_the_camera_last(ws, capsys, monkeypatch):
     from fidlearn import cli as c
 
-    def broken(*a, **k):
+    def broken(*_args, **_kwargs):
         raise fidlearn.FidlearnError("drawing failed")
 
     monkeypatch.setattr(c.calibrate, "draw_calibration_view", broken)
@@ -701,7 +701,7 @@ def test_camera_import_of_a_hostile_camera_info(ws, capsys, change, match):
     refused(ws, capsys, ["camera", "import", "info.yaml", "-o", "imported.json"], match)
 
 
-def test_camera_import_of_the_unchanged_camera_info_works(ws, capsys):
+def test_camera_import_of_the_unchanged_camera_info_works(ws):
     (ws / "info.yaml").write_text(CAMERA_INFO)
     assert cli.main(["camera", "import", "info.yaml", "-o", "imported.json"]) == 0
     cam = fidlearn.Camera.load(ws / "imported.json")
@@ -848,7 +848,7 @@ def test_a_signal_during_a_c_extensions_import_is_an_interruption(ws, capsys, mo
     """A SIGTERM while matplotlib's Agg module initialises comes out as ``ImportError: initialization failed``."""
     from fidlearn.cli import _common, corners
 
-    def importing(args):
+    def importing(_args):
         try:
             raise _common._Interrupted(signal.SIGTERM)
         except KeyboardInterrupt as exc:

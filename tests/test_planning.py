@@ -354,7 +354,7 @@ def test_plan_command_says_when_no_suggestion_is_needed(tmp_path, capsys):
     assert "within 5 mm: 100 %" not in text
 
 
-def test_plan_figure_draws_each_marker_as_seen_from_above(tmp_path):
+def test_plan_figure_draws_each_marker_as_seen_from_above():
     """A marker on a wall is a bar (its outline from above has no area), one on the floor a square of its size."""
     from matplotlib.patches import Polygon
 

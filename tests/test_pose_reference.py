@@ -97,11 +97,12 @@ def the_method_of_the_reference(monkeypatch):
       which allows for the uncertainty of that estimate.
     """
     monkeypatch.setattr(pose_solvers, "_RMS_COORDS", 1)
-    monkeypatch.setattr(pose_estimate, "_ambiguity_limit", lambda nu: pose_stats.AMBIGUITY_CHI2)
+    monkeypatch.setattr(pose_estimate, "_ambiguity_limit", lambda _nu: pose_stats.AMBIGUITY_CHI2)
 
 
 @pytest.mark.parametrize("case", CASES, ids=[_name(c) for c in CASES])
-def test_the_faster_code_gives_the_reference_answer_by_the_same_method(case, the_method_of_the_reference):
+@pytest.mark.usefixtures("the_method_of_the_reference")
+def test_the_faster_code_gives_the_reference_answer_by_the_same_method(case):
     _check(_run(case), case["expected"])
 
 

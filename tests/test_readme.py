@@ -220,7 +220,7 @@ def check_outputs(blocks: list[Fence], outputs: list[str], doc: str) -> int:
     return compared
 
 
-def check_promised(copy: Path, blocks: list[Fence], skip=lambda command: False) -> list[str]:
+def check_promised(copy: Path, blocks: list[Fence], skip=lambda _command: False) -> list[str]:
     made = []
     for block in blocks:
         for command in commands(block):
@@ -328,7 +328,6 @@ def test_the_readme_library_snippet_prints_what_it_shows(tmp_path):
 
 def prepare_by_hand(copy: Path):
     """What the guide asks the instructor to do between two commands, done before the command needs it."""
-
     released: list[str] = []
 
     def run(command: str) -> list[str]:

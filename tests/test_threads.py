@@ -162,7 +162,7 @@ def _planner(_k: int) -> tuple:
     return plan.median_mm, plan.worst_mm, plan.seen_fraction, pred.covariance, pred.position_std_mm
 
 
-def _render_and_track(k: int) -> tuple:
+def _render_and_track(_k: int) -> tuple:
     """A rendered drive of 3 frames, located and smoothed: the renderer, the detector and the filter."""
     world = MarkerMap.load(fidlearn.data_path("world_map.json"))
     camera = Camera.from_fov(60, (320, 240))

@@ -36,7 +36,7 @@ class _Browser:
 
     def __init__(self, cam):
         self.sent = []
-        cam.send = lambda content, buffers=None: self.sent.append(content)
+        cam.send = lambda content, buffers=None: self.sent.append(content)  # noqa: ARG005 (Widget.send's signature)
 
 
 # -- decoding ------------------------------------------------------------------------------
@@ -155,7 +155,7 @@ def test_a_failing_callback_stops_the_stream_and_still_acknowledges():
     cam = Webcam()
     browser = _Browser(cam)
 
-    def broken(frame):
+    def broken(_frame):
         raise RuntimeError("boom")
 
     cam.on_frame(broken)
