@@ -95,7 +95,7 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         ) from None
 
 
-def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
+def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
     """Write a file through a temporary file in the same folder, then rename it.
 
     ``write`` receives the temporary path and must create the file there.  If it

@@ -239,7 +239,7 @@ def _error(text: str) -> None:
         print(line.encode(enc, "backslashreplace").decode(enc), file=sys.stderr)
 
 
-def _show_warning(message, _category, _filename, _lineno, _file=None, _line=None) -> None:
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ARG001 (warnings.showwarning's signature)
     print(f"warning: {_one_line(str(message))}", file=sys.stderr)
 
 
