@@ -10,6 +10,7 @@ import asyncio
 import cv2
 import numpy as np
 import pytest
+from y4m import read_y4m, write_y4m, yuv420_planes
 
 from fidlearn import FidlearnError
 from fidlearn._webcam import (
@@ -20,7 +21,6 @@ from fidlearn._webcam import (
     decode_frame,
     status_message,
 )
-from fidlearn._y4m import read_y4m, write_y4m, yuv420_planes
 from fidlearn.data import data_path
 from fidlearn.errors import ImageError
 from fidlearn.widgets import Webcam

@@ -44,8 +44,8 @@ from test_lab import (
 )
 
 from fidlearn import Camera, MarkerMap, data_path, render_trajectory
-from fidlearn._y4m import write_y4m
 from fidlearn.data import repo_dir
+from tests.y4m import write_y4m
 
 NOTEBOOK = "12_your_own_camera.ipynb"
 N_FRAMES = 8
