@@ -35,7 +35,7 @@ lab: $(STAMP)
 	set -x; exec $(BIN)/jupyter lab $$root --ServerApp.root_dir="$(CURDIR)" \
 		--LabApp.default_url=/lab/tree/$(FIRST_NOTEBOOK) $(LAB_ARGS)
 
-# Lint (ruff: the rules in pyproject.toml), then every unit test, every docstring example in
+# Lint (ruff: the rules in pyproject.toml), type-check (mypy: the modules in pyproject.toml), then every unit test, every docstring example in
 # fidlearn and every numbered notebook (stored outputs compared exactly), on both cores; the tests
 # marked slow (long sweeps, a class graded in the sandbox) are left to make test-slow.
 # Debian's bubblewrap boxes each graded notebook (tests/test_grading_sandbox.py); installed as root when missing.
@@ -46,6 +46,7 @@ $(BWRAP):
 test: $(STAMP) $(BWRAP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/python -m mypy
 	$(BIN)/python -m pytest -m "not slow" $(XDIST) tests fidlearn $(NOTEBOOKS) --doctest-modules --nbval --nbval-sanitize-with notebooks/sanitize.cfg
 
 # The tests marked @pytest.mark.slow: 200-learner sweeps, false-alarm rates measured over many

@@ -218,7 +218,6 @@ def score(corners, ids, truth: dict, counted: dict) -> tuple[int, int, int]:
 def checked(dictionary: str, overrides: dict):
     """fidlearn's detection without refinement (OpenCV's corners, the outline check) as ``(corners, ids)``, with
     OpenCV's defaults changed by ``overrides``; None: fidlearn's defaults."""
-
     params = None
     if overrides is not None:  # over OpenCV's defaults, not fidlearn's: a whole DetectorParameters object
         params = cv2.aruco.DetectorParameters()

@@ -202,6 +202,7 @@ def sub_dictionary(name: str, ids) -> object:
     can never be read as one inside. It is faster, because OpenCV compares every
     candidate quad that does not decode with every marker of the dictionary (1024 for
     ARUCO_ORIGINAL).
+
     Parameters
     ----------
     name : str
@@ -383,6 +384,7 @@ def detector_parameter_fields(params=None) -> dict:
     releases (5.x adds e.g. ``relativeCornerRefinmentWinSize``), so it is read
     from the object rather than listed here. The values are plain numbers, so
     the sorted items make a cache key.
+
     Parameters
     ----------
     params : None, dict or cv2.aruco.DetectorParameters

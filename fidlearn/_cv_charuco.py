@@ -63,6 +63,7 @@ def detect_charuco(detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
 
     ``detectBoard`` returns ``None`` for nothing found and ids shaped (N, 1)
     before OpenCV 5, (N,) from 5.0; this always gives arrays.
+
     Parameters
     ----------
     detector : cv2.aruco.CharucoDetector

@@ -89,7 +89,7 @@ class _Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
-def _stop(signum, frame) -> None:
+def _stop(signum, _frame) -> None:
     raise _Stopped(signum)
 
 

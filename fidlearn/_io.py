@@ -46,6 +46,7 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
     ``NaN``/``Infinity`` literals, syntax errors, undecodable bytes, missing
     files, FIFOs, devices and files over 10 MB all raise ``error`` with the file
     name and a way to mend it.
+
     Parameters
     ----------
     path : str or os.PathLike
@@ -94,13 +95,14 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         ) from None
 
 
-def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
+def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
     """Write a file through a temporary file in the same folder, then rename it.
 
     ``write`` receives the temporary path and must create the file there.  If it
     raises, the temporary file is removed and ``path`` is untouched: no
     half-written output is ever left behind. Inside an active :class:`StagedOutputs`
     the rename waits for its commit, with the other outputs of the same work.
+
     Parameters
     ----------
     path : str or os.PathLike

@@ -28,6 +28,7 @@ def file_mode_for(path: str | os.PathLike) -> int:
     (``0o666`` less the umask). Temporary files from :func:`tempfile.mkstemp` are
     private (``0o600``): renamed into place unchanged, they would leave outputs
     that nobody else (a web server, a teammate, a robot's service user) can read.
+
     Parameters
     ----------
     path : str or os.PathLike
@@ -72,7 +73,7 @@ def signals_deferred():
     try:
         for sig in _SIGNALS:
             if signal.getsignal(sig) is not None:  # None: set outside Python, cannot be put back
-                old[sig] = signal.signal(sig, lambda signum, frame: caught.append(signum))
+                old[sig] = signal.signal(sig, lambda signum, _frame: caught.append(signum))
         yield
     finally:
         for sig, handler in old.items():

@@ -300,7 +300,7 @@ class Webcam(anywidget.AnyWidget):
         return proposal["value"]
 
     @traitlets.observe("status", "error")
-    def _update_message(self, change):
+    def _update_message(self, _change):
         self.message = status_message(self.status, self.error)
 
     @traitlets.observe("max_fps")

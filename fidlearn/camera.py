@@ -322,7 +322,7 @@ class Camera:
         return Camera(K, self.dist.copy(), (new_w, new_h), source=src)
 
     def for_image(self, image_or_size, warn: bool = True) -> Camera:
-        """This camera fitted to an image, rescaled (with a warning) when the image has another size.
+        """The camera fitted to an image, rescaled (with a warning) when the image has another size.
 
         Parameters
         ----------

@@ -1,4 +1,4 @@
-"""Reading a user's files safely and writing outputs that appear whole or not at all.
+r"""Reading a user's files safely and writing outputs that appear whole or not at all.
 
 Everything fidlearn itself reads and writes goes through these, and so do the ``fidlearn``
 command and the repository's scripts:
@@ -17,8 +17,8 @@ Examples
 --------
 >>> import tempfile, pathlib
 >>> with tempfile.TemporaryDirectory() as folder:
-...     write_text_atomic(pathlib.Path(folder) / "note.txt", "hello\\n").read_text()
-'hello\\n'
+...     write_text_atomic(pathlib.Path(folder) / "note.txt", "hello\n").read_text()
+'hello\n'
 >>> image_size_from_header(b"GIF89a" + bytes([64, 0, 48, 0]))
 ('GIF', 64, 48)
 """

@@ -162,7 +162,8 @@ def _profiles(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.
     ]
     # (x, y) pairs, one row per side: remap wants fewer than 32767 rows and columns
     maps = pts.astype(np.complex64).view(np.float32).reshape(M * 4, n_lines * n_samples, 2)
-    prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    # a two-channel map1 needs no map2, which OpenCV's type stubs do not allow for
+    prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
     prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
     return Dz, L, nz, cell, h, margin, span, prof
 

@@ -146,7 +146,7 @@ def test_every_public_callable_has_a_baseline():
     assert not missing, f"no baseline for {missing}: add one so its arguments are attacked too"
 
 
-@pytest.mark.parametrize("name, position, keyword, bad", list(cases()))
+@pytest.mark.parametrize(("name", "position", "keyword", "bad"), list(cases()))
 def test_wrong_arguments_raise_only_fidlearn_errors(name, position, keyword, bad):
     f = _callable(name)
     args, kwargs = BASELINES[name]

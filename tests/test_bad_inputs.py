@@ -192,7 +192,7 @@ MAP_FILES = [
 ]
 
 
-@pytest.mark.parametrize("content, kwargs, fragment", [c[1:] for c in MAP_FILES], ids=[c[0] for c in MAP_FILES])
+@pytest.mark.parametrize(("content", "kwargs", "fragment"), [c[1:] for c in MAP_FILES], ids=[c[0] for c in MAP_FILES])
 def test_bad_map_file(tmp_path, content, kwargs, fragment):
     path = tmp_path / "map.json"
     if isinstance(content, str):
@@ -273,8 +273,10 @@ def test_map_loader_fuzz_gives_a_map_or_a_map_error(d, units, size, dictionary):
         assert str(exc).startswith("fuzz.json: ")
         return
     corners = m.corners()
-    assert corners and all(c.shape == (4, 3) and np.all(np.isfinite(c)) for c in corners.values())
-    assert m.marker_size_mm > 0 and math.isfinite(m.marker_size_mm)
+    assert corners
+    assert all(c.shape == (4, 3) and np.all(np.isfinite(c)) for c in corners.values())
+    assert m.marker_size_mm > 0
+    assert math.isfinite(m.marker_size_mm)
     assert all(0 <= i < _cv.dictionary_size(m.dictionary) for i in m.ids)
 
 
@@ -367,12 +369,16 @@ def test_camera_loader_fuzz_gives_a_camera_or_a_camera_error(d):
         cam = Camera.from_dict(d, source="fuzz.json")
     except CameraError:
         return
-    assert cam.K.shape == (3, 3) and np.all(np.isfinite(cam.K)) and cam.fx > 0 and cam.fy > 0
-    assert cam.width > 0 and cam.height > 0
+    assert cam.K.shape == (3, 3)
+    assert np.all(np.isfinite(cam.K))
+    assert cam.fx > 0
+    assert cam.fy > 0
+    assert cam.width > 0
+    assert cam.height > 0
     assert np.all(np.isfinite(cam.dist))
 
 
-@pytest.mark.parametrize("content, fragment", [c[1:] for c in CAMERA_JSON], ids=[c[0] for c in CAMERA_JSON])
+@pytest.mark.parametrize(("content", "fragment"), [c[1:] for c in CAMERA_JSON], ids=[c[0] for c in CAMERA_JSON])
 def test_bad_camera_json(tmp_path, content, fragment):
     path = tmp_path / "camera.json"
     path.write_text(content)
@@ -478,7 +484,9 @@ CAMERA_YAML = [
 ]
 
 
-@pytest.mark.parametrize("content, kwargs, fragment", [c[1:] for c in CAMERA_YAML], ids=[c[0] for c in CAMERA_YAML])
+@pytest.mark.parametrize(
+    ("content", "kwargs", "fragment"), [c[1:] for c in CAMERA_YAML], ids=[c[0] for c in CAMERA_YAML]
+)
 def test_bad_camera_yaml(tmp_path, content, kwargs, fragment):
     path = tmp_path / "camera.yml"
     if isinstance(content, bytes):
@@ -564,7 +572,7 @@ def marker_scene(dtype=np.uint8, channels: int = 1) -> tuple[np.ndarray, np.ndar
 
 
 @pytest.mark.parametrize(
-    "dtype, channels",
+    ("dtype", "channels"),
     [
         (np.uint8, 1),
         (np.uint8, 3),
@@ -584,7 +592,8 @@ def test_every_image_type_users_have_is_detected(tmp_path, dtype, channels):
         path = tmp_path / "scene.png"
         assert cv2.imwrite(str(path), img)
         loaded = load_image(path)
-        assert loaded.dtype == dtype and loaded.shape == img.shape
+        assert loaded.dtype == dtype
+        assert loaded.shape == img.shape
         images.append(loaded)
     for image in images:
         found = detect_markers(image, "ARUCO_ORIGINAL")
@@ -620,7 +629,7 @@ IMAGE_FILES = [
 ]
 
 
-@pytest.mark.parametrize("make, fragment", [c[1:] for c in IMAGE_FILES], ids=[c[0] for c in IMAGE_FILES])
+@pytest.mark.parametrize(("make", "fragment"), [c[1:] for c in IMAGE_FILES], ids=[c[0] for c in IMAGE_FILES])
 def test_bad_image_file(tmp_path, make, fragment):
     path = tmp_path / "photo.png"
     make(path)
@@ -687,7 +696,7 @@ IMAGE_ARRAYS = [
 ]
 
 
-@pytest.mark.parametrize("image, fragment", [c[1:] for c in IMAGE_ARRAYS], ids=[c[0] for c in IMAGE_ARRAYS])
+@pytest.mark.parametrize(("image", "fragment"), [c[1:] for c in IMAGE_ARRAYS], ids=[c[0] for c in IMAGE_ARRAYS])
 @pytest.mark.parametrize("entry", [as_gray, detect_markers], ids=["as_gray", "detect_markers"])
 def test_bad_image_array(entry, image, fragment):
     with pytest.raises(ImageError) as info:
@@ -716,7 +725,7 @@ DETECT_ARGUMENTS = [
 
 
 @pytest.mark.parametrize(
-    "kwargs, error, fragment", [c[1:] for c in DETECT_ARGUMENTS], ids=[c[0] for c in DETECT_ARGUMENTS]
+    ("kwargs", "error", "fragment"), [c[1:] for c in DETECT_ARGUMENTS], ids=[c[0] for c in DETECT_ARGUMENTS]
 )
 def test_bad_detect_arguments(kwargs, error, fragment):
     img, _ = marker_scene()
@@ -789,7 +798,7 @@ CLI_CASES = [
 ]
 
 
-@pytest.mark.parametrize("argv, fragment", [c[1:] for c in CLI_CASES], ids=[c[0] for c in CLI_CASES])
+@pytest.mark.parametrize(("argv", "fragment"), [c[1:] for c in CLI_CASES], ids=[c[0] for c in CLI_CASES])
 def test_bad_command_line(tmp_path, monkeypatch, capsys, argv, fragment):
     cli_setup(tmp_path)
     monkeypatch.chdir(tmp_path)
@@ -798,7 +807,8 @@ def test_bad_command_line(tmp_path, monkeypatch, capsys, argv, fragment):
     out, err = capsys.readouterr()
     assert status == 2
     lines = err.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
     assert fragment in lines[0]
     assert "Traceback" not in out + err
     # No output file, and no temporary file left behind.
@@ -806,7 +816,7 @@ def test_bad_command_line(tmp_path, monkeypatch, capsys, argv, fragment):
 
 
 @pytest.mark.parametrize(
-    "argv, fragment",
+    ("argv", "fragment"),
     [
         (["corners", "map.json", "-o", "outdir"], "is a folder"),
         (["corners", "deep.json", "-o", "out.json"], "nested too deeply"),
@@ -824,7 +834,9 @@ def test_bad_command_line_in_a_real_process(tmp_path, argv, fragment):
     assert proc.returncode == 2, proc.stderr
     assert proc.stdout == ""
     lines = proc.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], proc.stderr
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("error: "), proc.stderr
+    assert fragment in lines[0], proc.stderr
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
 
 
@@ -957,7 +969,7 @@ ESTIMATE_POSE = [
 
 
 @pytest.mark.parametrize(
-    "make, kwargs, error, fragment", [c[1:] for c in ESTIMATE_POSE], ids=[c[0] for c in ESTIMATE_POSE]
+    ("make", "kwargs", "error", "fragment"), [c[1:] for c in ESTIMATE_POSE], ids=[c[0] for c in ESTIMATE_POSE]
 )
 def test_bad_estimate_pose_input(make, kwargs, error, fragment):
     detections, marker_map, camera = make()
@@ -976,14 +988,14 @@ def seed_scene():
 
 
 LOCATE = [
-    ("a file name for the image", lambda img: "scene.png", ImageError, "use fidlearn.detection.load_image"),
+    ("a file name for the image", lambda _img: "scene.png", ImageError, "use fidlearn.detection.load_image"),
     ("a blank picture", lambda img: np.full_like(img, 255), NoMarkersError, "no marker was detected"),
     ("another aspect ratio", lambda img: img[:720], CameraError, "calibrate at the resolution you run at"),
     ("int32 pixels", lambda img: img.astype(np.int32), ImageError, "pixel type int32 is not supported"),
 ]
 
 
-@pytest.mark.parametrize("change, error, fragment", [c[1:] for c in LOCATE], ids=[c[0] for c in LOCATE])
+@pytest.mark.parametrize(("change", "error", "fragment"), [c[1:] for c in LOCATE], ids=[c[0] for c in LOCATE])
 def test_bad_locate_input(seed_scene, change, error, fragment):
     camera, image, _ = seed_scene
     with pytest.raises(error) as info:
@@ -1038,7 +1050,9 @@ CALIBRATE = [
 ]
 
 
-@pytest.mark.parametrize("images, pattern, square, fragment", [c[1:] for c in CALIBRATE], ids=[c[0] for c in CALIBRATE])
+@pytest.mark.parametrize(
+    ("images", "pattern", "square", "fragment"), [c[1:] for c in CALIBRATE], ids=[c[0] for c in CALIBRATE]
+)
 def test_bad_calibration_input(tmp_path, images, pattern, square, fragment):
     calib_setup(tmp_path)
     if isinstance(images, str):
@@ -1205,7 +1219,7 @@ COMMANDS = [
 ]
 
 
-@pytest.mark.parametrize("argv, fragment", [c[1:] for c in COMMANDS], ids=[c[0] for c in COMMANDS])
+@pytest.mark.parametrize(("argv", "fragment"), [c[1:] for c in COMMANDS], ids=[c[0] for c in COMMANDS])
 def test_bad_command(tmp_path, monkeypatch, capsys, argv, fragment):
     commands_setup(tmp_path)
     monkeypatch.chdir(tmp_path)
@@ -1213,7 +1227,9 @@ def test_bad_command(tmp_path, monkeypatch, capsys, argv, fragment):
     status = cli_main(argv)
     out, err = capsys.readouterr()
     lines = err.splitlines()
-    assert status == 2 and len(lines) == 1 and lines[0].startswith("error: "), err
+    assert status == 2, err
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
     assert fragment in lines[0]
     assert "Traceback" not in out + err
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
@@ -1230,7 +1246,8 @@ def test_negative_camera_index_in_a_real_process(tmp_path):
         timeout=60,
     )
     assert proc.returncode == 2, (proc.returncode, proc.stderr)
-    assert proc.stderr.startswith("error: --camera-index -1") and len(proc.stderr.splitlines()) == 1
+    assert proc.stderr.startswith("error: --camera-index -1")
+    assert len(proc.stderr.splitlines()) == 1
 
 
 def test_video_that_ends_early_gives_the_frames_before_the_cut(tmp_path, monkeypatch, capsys):
@@ -1361,7 +1378,7 @@ PRINTABLES = [
 ]
 
 
-@pytest.mark.parametrize("make, error, fragment", [c[1:] for c in PRINTABLES], ids=[c[0] for c in PRINTABLES])
+@pytest.mark.parametrize(("make", "error", "fragment"), [c[1:] for c in PRINTABLES], ids=[c[0] for c in PRINTABLES])
 def test_bad_printable(tmp_path, make, error, fragment):
     with pytest.raises(error) as info:
         make(tmp_path)
@@ -1384,7 +1401,7 @@ CHARUCO = [
 ]
 
 
-@pytest.mark.parametrize("images, kwargs, fragment", [c[1:] for c in CHARUCO], ids=[c[0] for c in CHARUCO])
+@pytest.mark.parametrize(("images", "kwargs", "fragment"), [c[1:] for c in CHARUCO], ids=[c[0] for c in CHARUCO])
 def test_bad_charuco_calibration_input(images, kwargs, fragment):
     with pytest.raises(CalibrationError) as info:
         calibrate_charuco(images, **kwargs)
@@ -1406,7 +1423,7 @@ def test_charuco_calibration_with_an_unknown_dictionary():
 from fidlearn.tracking import MarkerTracker  # noqa: E402
 
 TRACKER_OPTIONS = [
-    ("a map file name", lambda m, c: MarkerTracker("map.json", c), "use MarkerMap.load('map.json')"),
+    ("a map file name", lambda _m, c: MarkerTracker("map.json", c), "use MarkerMap.load('map.json')"),
     ("K instead of a camera", lambda m, c: MarkerTracker(m, c.K), "use Camera.load('camera.json')"),
     (
         "full_every 0",
@@ -1435,7 +1452,7 @@ TRACKER_OPTIONS = [
 ]
 
 
-@pytest.mark.parametrize("make, fragment", [c[1:] for c in TRACKER_OPTIONS], ids=[c[0] for c in TRACKER_OPTIONS])
+@pytest.mark.parametrize(("make", "fragment"), [c[1:] for c in TRACKER_OPTIONS], ids=[c[0] for c in TRACKER_OPTIONS])
 def test_bad_tracker_options(make, fragment):
     with pytest.raises(FidlearnError) as info:
         make(seed_map(), camera_640())
@@ -1443,7 +1460,7 @@ def test_bad_tracker_options(make, fragment):
 
 
 TRACKER_FRAMES = [
-    ("a file name", lambda img: "frame.png", ImageError, "use fidlearn.detection.load_image"),
+    ("a file name", lambda _img: "frame.png", ImageError, "use fidlearn.detection.load_image"),
     ("float with NaN", lambda img: np.full(img.shape, np.nan), ImageError, "contains NaN or infinity"),
     ("int32 pixels", lambda img: img.astype(np.int32), ImageError, "pixel type int32"),
     ("another aspect ratio", lambda img: img[:100], CameraError, "calibrate at the resolution you run at"),
@@ -1474,7 +1491,7 @@ GRADE = [
 ]
 
 
-@pytest.mark.parametrize("name, fragment", [c[1:] for c in GRADE], ids=[c[0] for c in GRADE])
+@pytest.mark.parametrize(("name", "fragment"), [c[1:] for c in GRADE], ids=[c[0] for c in GRADE])
 def test_bad_notebook_to_grade(tmp_path, monkeypatch, capsys, name, fragment):
     """``python -m fidlearn.exercises grade``: one ``error:`` line and status 2, as every fidlearn command."""
     commands_setup(tmp_path)
@@ -1484,7 +1501,10 @@ def test_bad_notebook_to_grade(tmp_path, monkeypatch, capsys, name, fragment):
     status = _selfstudy_cli._main(["grade", name, "--csv", "grades.csv"])
     out, err = capsys.readouterr()
     lines = err.splitlines()
-    assert status == 2 and len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], err
+    assert status == 2, err
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
+    assert fragment in lines[0], err
     assert out == ""
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
 
@@ -1564,7 +1584,8 @@ def test_command_line_fuzz_succeeds_or_says_one_error_line(tmp_path_factory, cap
     assert "Traceback" not in out + err
     if status == 2:
         lines = err.splitlines()
-        assert len(lines) == 1 and lines[0].startswith("error: "), err
+        assert len(lines) == 1, err
+        assert lines[0].startswith("error: "), err
         assert sorted(p.name for p in folder.rglob("*")) == before
     else:
         assert status == 0, (status, err)

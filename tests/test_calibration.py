@@ -76,8 +76,10 @@ def test_checkerboard_all_views_agrees_with_plain_opencv(right_files, right_cal_
     assert cal.camera.cx == pytest.approx(ref["K"][0, 2], abs=1.0)
     assert cal.camera.cy == pytest.approx(ref["K"][1, 2], abs=1.0)
     # the published facts of the photos (realdata README): fx, fy about 542, cx about 328, cy about 247
-    assert cal.camera.fx == pytest.approx(542, abs=2) and cal.camera.fy == pytest.approx(542, abs=2)
-    assert cal.used == [str(f) for f in right_files] and cal.rejected == []
+    assert cal.camera.fx == pytest.approx(542, abs=2)
+    assert cal.camera.fy == pytest.approx(542, abs=2)
+    assert cal.used == [str(f) for f in right_files]
+    assert cal.rejected == []
     assert cal.camera.image_size == (640, 480)
 
 
@@ -96,13 +98,16 @@ def test_outlier_view_is_rejected_and_reported(right_files, right_cal, plain_ope
     cal = right_cal
     right02 = str(right_files[1])
     assert [n for n, _ in cal.rejected] == [right02]
-    assert "outlier" in cal.rejected[0][1] and "1.20 px" in cal.rejected[0][1]
+    assert "outlier" in cal.rejected[0][1]
+    assert "1.20 px" in cal.rejected[0][1]
     view = next(v for v in cal.views if v.name == right02)
-    assert view.status == "outlier" and view.rms_px == pytest.approx(1.20, abs=0.01)
+    assert view.status == "outlier"
+    assert view.rms_px == pytest.approx(1.20, abs=0.01)
     # the same 12 views through plain OpenCV give the same camera
     ref = plain_opencv(cal.used)
     assert len(cal.used) == 12
-    assert _rel(cal.camera.fx, ref["K"][0, 0]) < 0.005 and _rel(cal.camera.fy, ref["K"][1, 1]) < 0.005
+    assert _rel(cal.camera.fx, ref["K"][0, 0]) < 0.005
+    assert _rel(cal.camera.fy, ref["K"][1, 1]) < 0.005
     assert cal.rms_px == pytest.approx(ref["rms"], abs=1e-3)
     assert cal.rms_px < cal.first_rms_px == pytest.approx(0.459, abs=0.01)
     # and dropping it moves fx by less than 0.5 % from all 13
@@ -124,9 +129,12 @@ def test_board_poses_reproject_to_the_reported_errors(right_cal):
 def test_report_reads_well(right_cal):
     cal = right_cal
     text = repr(cal)
-    assert text.startswith("Calibration(12/13 views, rms=0.3") and "fx=541" in text and "right02.jpg" in text
+    assert text.startswith("Calibration(12/13 views, rms=0.3")
+    assert "fx=541" in text
+    assert "right02.jpg" in text
     table = cal.table().splitlines()
-    assert table[0].startswith("views in ") and table[0].endswith("opencv_checkerboard_right")
+    assert table[0].startswith("views in ")
+    assert table[0].endswith("opencv_checkerboard_right")
     assert table[1].split() == ["view", "found", "points", "rms", "px", "status"]
     assert len(table) == 2 + 13
     assert table[3].split()[:5] == ["right02.jpg", "yes", "54", "1.203", "outlier:"]
@@ -171,7 +179,8 @@ def test_mixed_inputs_other_size_and_blank_are_rejected_with_reasons(right_files
     assert cal.used == [str(right_files[2]), "image 1", str(right_files[4]), "image 5"]
     reasons = dict(cal.rejected)
     assert set(reasons) == {"image 2", "image 4"}
-    assert "800x600" in reasons["image 2"] and "640x480" in reasons["image 2"]
+    assert "800x600" in reasons["image 2"]
+    assert "640x480" in reasons["image 2"]
     assert "calibrate at the resolution you run at" in reasons["image 2"]
     assert reasons["image 4"].startswith("not found: board not found (9x6 inner corners)")
     assert [v.status for v in cal.views] == ["used", "used", "other size", "used", "not found", "used"]
@@ -183,7 +192,8 @@ def test_majority_size_wins_even_when_first_image_differs(right_grays):
     small = cv2.resize(right_grays[0], (320, 240))
     cal = calibrate_checkerboard([small] + right_grays, PATTERN, SQUARE_MM, reject_outliers=False)
     assert cal.camera.image_size == (640, 480)
-    assert cal.rejected[0][0] == "image 0" and "320x240 but the others are 640x480" in cal.rejected[0][1]
+    assert cal.rejected[0][0] == "image 0"
+    assert "320x240 but the others are 640x480" in cal.rejected[0][1]
 
 
 def test_unreadable_files_are_rejected_with_the_image_error(tmp_path, right_grays):
@@ -224,7 +234,7 @@ def test_swapped_pattern_size_is_found_all_the_same(right_grays):
 
 
 @pytest.mark.parametrize(
-    "square, match",
+    ("square", "match"),
     [
         (0, "square_size_mm must be positive, got 0"),
         (-25, "square_size_mm must be positive"),
@@ -238,7 +248,7 @@ def test_bad_square_size(square, match, right_grays):
 
 
 @pytest.mark.parametrize(
-    "pattern, match",
+    ("pattern", "match"),
     [
         ((2, 6), r"needs at least 3 each way; a board of 10x7 squares has 9x6 inner corners"),
         ((9.5, 6), "two whole numbers"),
@@ -313,9 +323,12 @@ def test_synthetic_views_recover_the_true_camera():
     files = sorted(data_path("calibration").glob("view_*.png"))
     assert len(files) == 20
     cal = calibrate_checkerboard(files, PATTERN, SQUARE_MM)
-    assert _rel(cal.camera.fx, truth.fx) < 0.005 and _rel(cal.camera.fy, truth.fy) < 0.005
-    assert abs(cal.camera.cx - truth.cx) < 2 and abs(cal.camera.cy - truth.cy) < 2
-    assert cal.rms_px < 0.15 and not cal.rejected
+    assert _rel(cal.camera.fx, truth.fx) < 0.005
+    assert _rel(cal.camera.fy, truth.fy) < 0.005
+    assert abs(cal.camera.cx - truth.cx) < 2
+    assert abs(cal.camera.cy - truth.cy) < 2
+    assert cal.rms_px < 0.15
+    assert not cal.rejected
     # the board poses too: the true T_camera_board of each view, within 1 mm / 0.3 degree
     views = json.loads(data_path("calibration", "views.json").read_text())["views"]
     for f, v in zip(files, views):
@@ -332,7 +345,8 @@ def test_sector_corner_finder_also_works_on_synthetic_views():
     truth = Camera.load(data_path("calibration", "camera_true.json"))
     files = sorted(data_path("calibration").glob("view_*.png"))[::4]
     cal = calibrate_checkerboard(files, PATTERN, SQUARE_MM, corner_finder="sb")
-    assert len(cal.used) == 5 and _rel(cal.camera.fx, truth.fx) < 0.01
+    assert len(cal.used) == 5
+    assert _rel(cal.camera.fx, truth.fx) < 0.01
     # the default finder does better on the same views (the module docstring's measurement)
     classic = calibrate_checkerboard(files, PATTERN, SQUARE_MM)
     assert _rel(classic.camera.fx, truth.fx) < _rel(cal.camera.fx, truth.fx)
@@ -370,13 +384,17 @@ def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, char
     cal = charuco_cal
     assert cal.used == [str(f) for f in charuco_files]
     assert all(v.n_points == 24 for v in cal.views)
-    assert _rel(cal.camera.fx, K[0, 0]) < 0.005 and _rel(cal.camera.fy, K[1, 1]) < 0.005
-    assert cal.rms_px == pytest.approx(rms, abs=2e-3) and cal.rms_px == pytest.approx(0.188, abs=0.01)
+    assert _rel(cal.camera.fx, K[0, 0]) < 0.005
+    assert _rel(cal.camera.fy, K[1, 1]) < 0.005
+    assert cal.rms_px == pytest.approx(rms, abs=2e-3)
+    assert cal.rms_px == pytest.approx(0.188, abs=0.01)
     published = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"), image_size=(640, 480))
     assert published.fx == pytest.approx(452.511, abs=1e-3)
     if fidlearn._cv.OPENCV_VERSION >= (5, 0, 0):
-        assert _rel(cal.camera.fx, published.fx) < 0.015 and _rel(cal.camera.fy, published.fy) < 0.015
-        assert abs(cal.camera.cx - published.cx) < 3 and abs(cal.camera.cy - published.cy) < 3
+        assert _rel(cal.camera.fx, published.fx) < 0.015
+        assert _rel(cal.camera.fy, published.fy) < 0.015
+        assert abs(cal.camera.cx - published.cx) < 3
+        assert abs(cal.camera.cy - published.cy) < 3
     else:
         # OpenCV 4.x's calibrateCamera, given the very same 4 x 24 points, settles elsewhere in this
         # poorly conditioned problem (fx 479.8, cy 256.8 on 4.14 against 457.3, 275.6 on 5.0, same RMS):
@@ -389,15 +407,18 @@ def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, char
     assert "legacy" not in cal.board
     # 3.5 % on OpenCV 5.0, 2.9 % on 4.14 (see above): either way more than the 1 % that asks for more views
     uncertain_pct = 100 * cal.std_intrinsics["fx"] / cal.camera.fx
-    assert uncertain_pct > 2 and f"fx is uncertain to {uncertain_pct:.1f} %: add views" in cal.summary()
+    assert uncertain_pct > 2
+    assert f"fx is uncertain to {uncertain_pct:.1f} %: add views" in cal.summary()
 
 
 def test_charuco_synthetic_views_recover_the_true_camera_and_board_poses():
     truth = Camera.load(data_path("calibration", "camera_true.json"))
     views = fidlearn.render_calibration_views(truth, n_views=6, seed=3, charuco=True)
     cal = calibrate_charuco(views.images, squares=(5, 7), square_size_mm=40, marker_size_mm=20)
-    assert _rel(cal.camera.fx, truth.fx) < 0.005 and _rel(cal.camera.fy, truth.fy) < 0.005
-    assert abs(cal.camera.cx - truth.cx) < 2 and abs(cal.camera.cy - truth.cy) < 2
+    assert _rel(cal.camera.fx, truth.fx) < 0.005
+    assert _rel(cal.camera.fy, truth.fy) < 0.005
+    assert abs(cal.camera.cx - truth.cx) < 2
+    assert abs(cal.camera.cy - truth.cy) < 2
     for i, T_true in enumerate(views.T_camera_board):
         T = cal.T_camera_board[f"image {i}"]  # ChArUco's board frame is fixed: no symmetric flip
         assert np.linalg.norm(T[:3, 3] - T_true[:3, 3]) < 0.005 * np.linalg.norm(T_true[:3, 3])
@@ -466,11 +487,12 @@ def test_charuco_wrong_dictionary_and_bad_sizes(charuco_files):
         calibrate_charuco(charuco_files, square_size_mm=-1)
 
 
-def test_charuco_partly_hidden_board_still_counts(charuco_files, charuco_cal):
+def test_charuco_partly_hidden_board_still_counts(charuco_files):
     occluded = data_path("real", "opencv_charuco", "chocclusion_original.jpg")
     cal = calibrate_charuco(list(charuco_files) + [occluded], reject_outliers=False)
     view = cal.views[-1]
-    assert view.status == "used" and 6 <= view.n_points < 24
+    assert view.status == "used"
+    assert 6 <= view.n_points < 24
 
 
 def test_squares_hint_names_the_option_once(right_grays):
@@ -501,8 +523,10 @@ def test_the_quality_warnings_are_the_libraries_and_the_command_line_prints_them
 
     photos = sorted(data_path("calibration").glob("view_*.png"))[:5]
     cal = calibrate_checkerboard(photos, (9, 6), 25.0)
-    assert cal.coverage.shape == (3, 3) and cal.coverage.sum() == 5 * 54
-    assert cal.warnings and cal.warnings[0].startswith("only 5 views were used")
+    assert cal.coverage.shape == (3, 3)
+    assert cal.coverage.sum() == 5 * 54
+    assert cal.warnings
+    assert cal.warnings[0].startswith("only 5 views were used")
     assert all(f"warning: {w}" in cal.summary() for w in cal.warnings)
     full = calibrate_checkerboard(data_path("calibration"), (9, 6), 25.0)
     assert full.warnings == []  # 20 varied views covering the picture: nothing to say

@@ -39,12 +39,14 @@ def right_points():
     return files, obj, img
 
 
-def test_camera_rms_and_std_devs_are_opencvs(right_points, one_thread):
+@pytest.mark.usefixtures("one_thread")
+def test_camera_rms_and_std_devs_are_opencvs(right_points):
     files, obj, img = right_points
     cal = calibrate_checkerboard(files, PATTERN, SQUARE_MM, reject_outliers=False)
     rms, K, dist, _r, _t, std_int, _std_ext, per_view = cv2.calibrateCameraExtended(obj, img, (640, 480), None, None)
     # the same camera and RMS, to the bit
-    assert np.array_equal(cal.camera.K, K) and np.array_equal(cal.camera.dist, dist.ravel())
+    assert np.array_equal(cal.camera.K, K)
+    assert np.array_equal(cal.camera.dist, dist.ravel())
     assert cal.rms_px == rms
     # the standard deviations, computed on first read, are calibrateCameraExtended's
     std = cal.std_intrinsics
@@ -65,6 +67,7 @@ def test_per_view_errors_are_those_of_the_returned_camera_and_poses(right_points
         assert cal.per_view_rms_px[name] == pytest.approx(np.sqrt(np.mean(np.sum(e**2, axis=1))), rel=1e-9)
 
 
+@pytest.mark.usefixtures("one_thread")
 @pytest.mark.parametrize(
     "flags",
     [
@@ -76,12 +79,13 @@ def test_per_view_errors_are_those_of_the_returned_camera_and_poses(right_points
         cv2.CALIB_THIN_PRISM_MODEL,
     ],
 )
-def test_std_devs_follow_the_flags_like_opencv(right_points, flags, one_thread):
+def test_std_devs_follow_the_flags_like_opencv(right_points, flags):
     _files, obj, img = right_points
     rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, (640, 480), None, None, flags=flags)
     ref = cv2.calibrateCameraExtended(obj, img, (640, 480), None, None, flags=flags)
-    assert np.array_equal(ref[1], K) and ref[0] == rms
-    ours = _stats.std_intrinsics(obj, img, K, dist, rvecs, tvecs, rms, flags)
+    assert np.array_equal(ref[1], K)
+    assert ref[0] == rms
+    ours = _stats.std_intrinsics(obj, K, dist, rvecs, tvecs, rms, flags)
     theirs = ref[5].ravel()[: len(ours)]
     assert np.array_equal(ours == 0, theirs == 0)  # the parameters held fixed
     np.testing.assert_allclose(ours, theirs, rtol=1e-4)
@@ -91,10 +95,12 @@ def test_std_devs_given_are_kept_and_a_calibration_pickles(right_points):
     files, _obj, _img = right_points
     cal = calibrate_checkerboard(files[:5], PATTERN, SQUARE_MM)
     again = pickle.loads(pickle.dumps(cal))  # before the first read: the inputs travel along
-    assert again.std_intrinsics == cal.std_intrinsics and again.camera.fx == cal.camera.fx
+    assert again.std_intrinsics == cal.std_intrinsics
+    assert again.camera.fx == cal.camera.fx
     given = Calibration(cal.camera, cal.rms_px, cal.per_view_rms_px, cal.used, {"fx": 1.5}, [])
     assert given.std_intrinsics == {"fx": 1.5}
-    assert "fx=" in repr(given) and "±1.50" in repr(given)
+    assert "fx=" in repr(given)
+    assert "±1.50" in repr(given)
     assert Calibration(cal.camera, 0.1, {}, [], None, []).std_intrinsics == {}
 
 
@@ -127,7 +133,8 @@ def test_view_diversity_is_its_pairwise_definition():
     duplicates = [(d.a, d.b, d.angle_deg, d.moved_fraction) for d in diversity.duplicates]
     ref_spread, ref_duplicates = _diversity_pairwise(T)
     assert diversity.spread_deg == pytest.approx(ref_spread, abs=1e-9)
-    assert [d[:2] for d in duplicates] == [d[:2] for d in ref_duplicates] and len(duplicates) >= 4
+    assert [d[:2] for d in duplicates] == [d[:2] for d in ref_duplicates]
+    assert len(duplicates) >= 4
     np.testing.assert_allclose([d[2:] for d in duplicates], [d[2:] for d in ref_duplicates], atol=1e-6)
     assert view_diversity({"a": T["v0"]}) == ViewDiversity(0.0, []) == view_diversity({})
     with pytest.raises(TransformError):

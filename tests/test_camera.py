@@ -49,7 +49,8 @@ def test_undistort_inverts_distortion(cam):
 def test_json_round_trip(cam, tmp_path):
     path = cam.save(tmp_path / "camera.json")
     back = Camera.load(path)
-    assert np.array_equal(back.K, cam.K) and np.array_equal(back.dist, cam.dist)
+    assert np.array_equal(back.K, cam.K)
+    assert np.array_equal(back.dist, cam.dist)
     assert back.image_size == (1280, 720)
     assert json.loads(path.read_text())["image_size"] == [1280, 720]
 
@@ -58,7 +59,8 @@ def test_json_round_trip(cam, tmp_path):
 def test_filestorage_round_trip(cam, tmp_path, suffix):
     path = cam.save(tmp_path / f"camera{suffix}")
     back = Camera.load(path)
-    assert np.allclose(back.K, cam.K) and np.allclose(back.dist, cam.dist)
+    assert np.allclose(back.K, cam.K)
+    assert np.allclose(back.dist, cam.dist)
     assert back.image_size == (1280, 720)
 
 
@@ -74,8 +76,10 @@ def test_loads_opencv_tutorial_yaml(tmp_path):
 
 def test_scaled_keeps_the_geometry(cam):
     half = cam.scaled((640, 360))
-    assert half.fx == pytest.approx(400) and half.fy == pytest.approx(402.5)
-    assert half.cx == pytest.approx(319.5) and half.cy == pytest.approx(179.5)  # centre stays the centre
+    assert half.fx == pytest.approx(400)
+    assert half.fy == pytest.approx(402.5)
+    assert half.cx == pytest.approx(319.5)  # centre stays the centre
+    assert half.cy == pytest.approx(179.5)
     # the same 3D point lands at half the pixel coordinates (+ the pixel-centre shift)
     p = np.array([[120.0, -40, 900]])
     assert np.allclose((cam.project(p, np.eye(4)) + 0.5) / 2 - 0.5, half.project(p, np.eye(4)))
@@ -98,7 +102,8 @@ def test_for_image_warns_when_it_rescales(cam):
 
 def test_from_fov():
     cam = Camera.from_fov(90, (640, 480))
-    assert cam.fx == pytest.approx(320) and cam.fov_deg[0] == pytest.approx(90)
+    assert cam.fx == pytest.approx(320)
+    assert cam.fov_deg[0] == pytest.approx(90)
 
 
 def test_repr_is_readable(cam):
@@ -109,7 +114,7 @@ GOOD = {"camera_matrix": K.tolist(), "dist_coeffs": DIST.tolist(), "image_size":
 
 
 @pytest.mark.parametrize(
-    "change, message",
+    ("change", "message"),
     [
         ({"camera_matrix": [[800, 0], [0, 800]]}, r"camera_matrix has shape \(2, 2\), expected 3x3"),
         (
@@ -150,7 +155,7 @@ def test_camera_file_nan_and_missing_fields(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "text, message",
+    ("text", "message"),
     [
         ("", "the file is empty"),
         ("%YAML:1.0\ncamera_matrix: [1, 2\n", "not a readable OpenCV FileStorage file|cannot open it"),
@@ -166,7 +171,8 @@ def test_filestorage_errors(tmp_path, text, message):
 
 def test_repr_names_the_file_not_its_absolute_path(cam, tmp_path):
     back = Camera.load(cam.save(tmp_path / "camera.json"))
-    assert "source='camera.json'" in repr(back) and str(tmp_path) not in repr(back)
+    assert "source='camera.json'" in repr(back)
+    assert str(tmp_path) not in repr(back)
 
 
 def test_map_or_image_given_as_the_camera_says_so(tmp_path):

@@ -67,7 +67,8 @@ def ideal_camera(tmp_path_factory):
 # -- help, doctor ------------------------------------------------------------------------
 def test_help_lists_every_command_subprocess():
     code, out, err = run_subprocess("--help")
-    assert code == 0 and err == ""
+    assert code == 0
+    assert err == ""
     for cmd in ("board", "calibrate", "markers", "corners", "locate", "render", "doctor"):
         assert f"    {cmd} " in out
 
@@ -76,7 +77,8 @@ def test_doctor_exit_0_subprocess():
     code, out, err = run_subprocess("doctor")
     assert code == 0, out + err
     assert out.strip().endswith("all good")
-    assert "OpenCV" in out and "cv2.aruco.ArucoDetector: yes" in out
+    assert "OpenCV" in out
+    assert "cv2.aruco.ArucoDetector: yes" in out
 
 
 def test_unknown_option_is_one_line(capsys):
@@ -95,7 +97,8 @@ def test_corners_seed_map_in_feet(capsys, seed_bare, tmp_path):
     # the seed's documented answer for marker 0 at [0, 0, 1] ft, 80 mm
     assert np.allclose(corners["0"], [[0, 0, 304.8], [0, 80, 304.8], [0, 80, 224.8], [0, 0, 224.8]])
     assert np.allclose(corners["2"][0], [0, 152.4, 228.6])
-    assert "corners of 3 markers" in out and "coplanar" in out
+    assert "corners of 3 markers" in out
+    assert "coplanar" in out
 
 
 def test_corners_missing_units_is_an_error(capsys, seed_bare, tmp_path):
@@ -162,7 +165,8 @@ def test_board_charuco_png(capsys, tmp_path):
     gray = cv2.imread(str(tmp_path / "ch.png"), cv2.IMREAD_GRAYSCALE)
     board = cv2.aruco.CharucoBoard((5, 7), 30.0, 22.0, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250))
     ch_corners, ch_ids, _, _ = cv2.aruco.CharucoDetector(board).detectBoard(gray)
-    assert ch_ids is not None and len(ch_ids) == 24
+    assert ch_ids is not None
+    assert len(ch_ids) == 24
 
 
 def test_board_too_big_says_largest(capsys, tmp_path):
@@ -212,7 +216,8 @@ def test_render_pose_and_look_at_agree_with_truth(capsys, ideal_camera, tmp_path
     truth = json.loads((tmp_path / "truth.json").read_text())
     T = np.array(truth["T_world_camera"])
     assert np.allclose(T, frames.make_transform(frames.rotation_from_rpy_deg(-90, 0, 90), [1200, 150, 250]))
-    assert np.allclose(truth["rpy_deg"], [-90, 0, 90]) and truth["position_mm"] == [1200, 150, 250]
+    assert np.allclose(truth["rpy_deg"], [-90, 0, 90])
+    assert truth["position_mm"] == [1200, 150, 250]
     # the truth is what the camera model projects, and what a detector finds in the image
     cam, m = Camera.load(ideal_camera), MarkerMap.load(wall)
     det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL))
@@ -263,15 +268,20 @@ def test_calibrate_reproduces_the_true_camera(capsys, tmp_path):
     assert err == "calibrate: searched 20 images, board found in 20\n"
     truth, cam = Camera.load(data_path("calibration", "camera_true.json")), Camera.load(out_path)
     assert cam.image_size == truth.image_size == (640, 480)
-    assert cam.fx == pytest.approx(truth.fx, rel=2e-3) and cam.fy == pytest.approx(truth.fy, rel=2e-3)
-    assert abs(cam.cx - truth.cx) < 1.5 and abs(cam.cy - truth.cy) < 1.5
+    assert cam.fx == pytest.approx(truth.fx, rel=2e-3)
+    assert cam.fy == pytest.approx(truth.fy, rel=2e-3)
+    assert abs(cam.cx - truth.cx) < 1.5
+    assert abs(cam.cy - truth.cy) < 1.5
     assert np.allclose(cam.dist[:2], truth.dist[:2], atol=0.03)
     # the printed intrinsics are the saved ones, with standard deviations
     line = next(ln for ln in out.splitlines() if ln.strip().startswith("fx"))
-    assert float(line.split()[1]) == pytest.approx(cam.fx, abs=0.006) and "±" in line
-    assert "from 20 of 20 views" in out and "view_19.png" in out
+    assert float(line.split()[1]) == pytest.approx(cam.fx, abs=0.006)
+    assert "±" in line
+    assert "from 20 of 20 views" in out
+    assert "view_19.png" in out
     grid = [[int(v) for v in ln.split()] for ln in out.split("(3x3 grid):\n")[1].splitlines()[:3]]
-    assert np.sum(grid) == 20 * 54 and np.min(grid) > 0
+    assert np.sum(grid) == 20 * 54
+    assert np.min(grid) > 0
     assert sorted(p.name for p in (tmp_path / "ann").iterdir()) == [f"view_{i:02d}.png" for i in range(20)]
 
 
@@ -344,7 +354,8 @@ def test_progress_bar_on_a_terminal(capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.startswith("\rcalibrate [######------------------] 1/4 view_1.png")
     assert "\rcalibrate [########################] 4/4 view_4.png" in err
-    assert err.endswith("\r\x1b[K") and "\n" not in err
+    assert err.endswith("\r\x1b[K")
+    assert "\n" not in err
 
 
 def test_coverage_grid_known_cells():
@@ -406,7 +417,8 @@ def test_locate_reproduces_known_poses(capsys, tmp_path, map_name):
     records = [json.loads(line) for line in jsonl.read_text().splitlines()]
     assert [r["frame"] for r in records] == [p.name for p, _ in shots]
     for rec, (path, T_true) in zip(records, shots):
-        assert rec["located"] and not rec["ambiguous"], rec
+        assert rec["located"], rec
+        assert not rec["ambiguous"], rec
         assert_pose_close(np.array(rec["T_world_camera"]), T_true, path.name)
         assert rec["reprojection_rms_px"] < 0.5
         # the printed line carries the same numbers
@@ -421,7 +433,8 @@ def test_locate_reproduces_known_poses(capsys, tmp_path, map_name):
 def test_locate_bare_map_in_feet(capsys, tmp_path):
     """The seed's bare map with --units ft --marker-size-mm 80 gives the same poses as the full map."""
     full = json.loads(data_path("world_map.json").read_text())
-    assert full["units"] == "ft" and full["marker_size_mm"] == 80
+    assert full["units"] == "ft"
+    assert full["marker_size_mm"] == 80
     bare = tmp_path / "bare.json"
     bare.write_text(json.dumps(full["markers"]))
     shots = scenes_truth()["world_map.json"][:2]
@@ -462,7 +475,8 @@ def test_locate_frame_without_markers_is_reported(capsys, tmp_path, ideal_camera
         tmp_path / "p.jsonl",
     )
     assert code == 0, err
-    assert "wall.png" in out and "no known marker" in out
+    assert "wall.png" in out
+    assert "no known marker" in out
     rec = json.loads((tmp_path / "p.jsonl").read_text())
     assert rec == {"frame": "wall.png", "located": False, "reason": "no known marker", "detected_ids": []}
     stranger = tmp_path / "stranger.png"  # a marker, but not one of the map's
@@ -714,7 +728,8 @@ def test_locate_video_annotated_frames_are_named_by_frame_number(capsys, tmp_pat
         "drive_00001.png",
         "drive_00002.png",
     ]
-    assert "drive.avi#1" in out and "no known marker" in out
+    assert "drive.avi#1" in out
+    assert "no known marker" in out
     marked = cv2.imread(str(tmp_path / "ann" / "drive_00001.png"))
     red = (marked[:, :, 2] > 200) & (marked[:, :, 1] < 80) & (marked[:, :, 0] < 80)  # the red "no known marker"
     assert red.sum() > 50
@@ -743,7 +758,8 @@ def test_locate_and_render_take_image_size_for_a_yaml_camera_without_one(capsys,
     code, out, err = run(capsys, "locate", photo, "--camera", yml, "--image-size", "640x480", "--map", desk)
     assert code == 0, err
     row = out.splitlines()[1].split()
-    assert row[0] == "singlemarkersoriginal.jpg" and row[7] == "23"
+    assert row[0] == "singlemarkersoriginal.jpg"
+    assert row[7] == "23"
     # data/README.md: each marker is 0.7 to 0.9 m from the camera
     assert 700 <= np.linalg.norm([float(v) for v in row[1:4]]) <= 900
     code, out, err = run(
@@ -818,7 +834,8 @@ def test_calibrate_warns_when_a_third_of_the_picture_is_nearly_empty(capsys, tmp
         "-o",
         tmp_path / "camera.json",
     )
-    assert code == 0 and "warning" not in err  # 20 views that visit every part of the picture
+    assert code == 0  # 20 views that visit every part of the picture
+    assert "warning" not in err
 
 
 def test_annotation_text_wraps_instead_of_being_cut():

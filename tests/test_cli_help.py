@@ -100,7 +100,9 @@ def test_one_placeholder_per_option_across_commands():
             for option in set(action.option_strings) - PER_COMMAND:
                 seen.setdefault(option, {}).setdefault(metavar, []).append(" ".join(words))
     assert {option: uses for option, uses in seen.items() if len(uses) > 1} == {}
-    assert len(seen["--camera"]) == 1 and len(seen["--map"]) == 1 and "--image-size" in seen
+    assert len(seen["--camera"]) == 1
+    assert len(seen["--map"]) == 1
+    assert "--image-size" in seen
 
 
 def test_the_checks_see_what_they_refuse():

@@ -97,7 +97,8 @@ def test_locate_json_is_marker_tracker_on_a_video(tmp_path, capsys):
     for record, frame in zip(records, frames):
         pose = _tracked(tracker, frame)
         if pose is None:
-            assert record["located"] is False and record["reason"] == "no known marker", record
+            assert record["located"] is False, record
+            assert record["reason"] == "no known marker", record
         else:
             _same_pose(record, pose)
             located += 1

@@ -30,7 +30,8 @@ def _median(stdout: str) -> float:
 
 def test_the_shift_and_the_size_error_reach_the_prediction(capsys, tmp_path):
     code, plain, _, out = _plan(capsys, tmp_path)
-    assert code == 0 and out.exists()
+    assert code == 0
+    assert out.exists()
     code, noisy, _, _ = _plan(capsys, tmp_path, "--marker-shift-px", "0.15", "--marker-size-rel-std", "0.01")
     assert code == 0
     # the figures printed are those of plan_room with the same options
@@ -43,7 +44,7 @@ def test_the_shift_and_the_size_error_reach_the_prediction(capsys, tmp_path):
 
 
 @pytest.mark.parametrize(
-    "extra, match",
+    ("extra", "match"),
     [
         (["--marker-shift-px", "-0.1"], "--marker-shift-px -0.1: give a number of pixels, 0 or more"),
         (["--marker-shift-px", "nan"], "--marker-shift-px nan"),
@@ -57,14 +58,19 @@ def test_bad_noise_options_end_with_status_2_and_one_line(capsys, tmp_path, extr
     code, stdout, stderr, out = _plan(capsys, tmp_path, *extra)
     assert code == 2
     lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error:") and match in lines[0], stderr
-    assert not out.exists() and not list(tmp_path.iterdir())
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("error:"), stderr
+    assert match in lines[0], stderr
+    assert not out.exists()
+    assert not list(tmp_path.iterdir())
 
 
 def test_a_size_error_that_is_not_a_number_is_refused_by_the_parser(capsys, tmp_path):
     code, _, stderr, out = _plan(capsys, tmp_path, "--marker-size-rel-std", "1%")
     lines = stderr.strip().splitlines()
-    assert code == 2 and len(lines) == 1 and "--marker-size-rel-std: invalid float value: '1%'" in lines[0]
+    assert code == 2
+    assert len(lines) == 1
+    assert "--marker-size-rel-std: invalid float value: '1%'" in lines[0]
     assert not out.exists()
 
 
@@ -73,14 +79,17 @@ def test_suggestions_are_made_with_the_size_error(capsys, tmp_path):
         return int(re.search(r"within 3 mm: (\d+) % of the area", text).group(1))
 
     code, plain, _, _ = _plan(capsys, tmp_path, "--target-mm", "3", "--suggest")
-    assert code == 0 and "suggestion: print the markers at 120 mm" in plain
+    assert code == 0
+    assert "suggestion: print the markers at 120 mm" in plain
     code, sized, _, _ = _plan(capsys, tmp_path, "--target-mm", "3", "--suggest", "--marker-size-rel-std", "0.01")
     # 1 % of the size is 1 % of the distance whatever the size: a larger print no longer helps, more markers do
-    assert code == 0 and within(sized) < within(plain)
-    assert "suggestion: print the markers" not in sized and "suggestion: add marker" in sized
+    assert code == 0
+    assert within(sized) < within(plain)
+    assert "suggestion: print the markers" not in sized
+    assert "suggestion: add marker" in sized
 
 
-@pytest.fixture()
+@pytest.fixture
 def board_files(tmp_path):
     """The ChArUco board of OpenCV's photos, its published camera as a fidlearn camera file, and a photo."""
     camera = tmp_path / "camera.json"
@@ -105,7 +114,8 @@ def test_noise_measured_on_a_photo_is_said_and_used(capsys, tmp_path, board_file
 
     world_path, camera_path, photo = board_files
     code, stdout, stderr, out = _board_plan(capsys, tmp_path, world_path, camera_path, "--noise-from", str(photo))
-    assert code == 0 and out.exists(), stderr
+    assert code == 0, stderr
+    assert out.exists(), stderr
     world, camera = MarkerMap.load(world_path), Camera.load(camera_path)
     pose = estimate_pose(detect_markers(load_image(photo), world.dictionary), world, camera)
     measured = noise.noise_from_pose(pose, world, camera)
@@ -118,7 +128,8 @@ def test_noise_measured_on_a_photo_is_said_and_used(capsys, tmp_path, board_file
     assert measured.marker_size_rel_error < -0.01  # the markers of these photos look 1.3 % smaller than printed
     plan = plan_room(world, camera, height_mm=-400, area=(0, 0, 200, 280), step_mm=100, headings=0, **measured.kwargs())
     ok = np.isfinite(plan.toward_mm)
-    assert ok.all() and _median(stdout) == pytest.approx(float(np.median(plan.toward_mm)), abs=0.051)
+    assert ok.all()
+    assert _median(stdout) == pytest.approx(float(np.median(plan.toward_mm)), abs=0.051)
     plain = plan_room(world, camera, height_mm=-400, area=(0, 0, 200, 280), step_mm=100, headings=0)
     assert _median(stdout) > 2 * float(np.median(plain.toward_mm))  # a real photo's noise, not the renders'
 
@@ -137,14 +148,19 @@ def test_noise_from_a_photo_that_cannot_give_it_ends_with_status_2_and_one_line(
     for extra, match in cases:
         code, stdout, stderr, out = _board_plan(capsys, tmp_path, world, camera, *extra)
         lines = stderr.strip().splitlines()
-        assert code == 2 and len(lines) == 1 and lines[0].startswith("error:") and match in lines[0], stderr
+        assert code == 2, stderr
+        assert len(lines) == 1, stderr
+        assert lines[0].startswith("error:"), stderr
+        assert match in lines[0], stderr
         assert not out.exists()
     # a photo of the three markers of the bundled map: too few to tell a shift from the pose
     out = tmp_path / "three.png"
     scene = data_path("scenes/scene_00.png")
     code = main(["plan", str(MAP), "--camera", str(CAMERA), "-o", str(out), "--noise-from", str(scene)])
     lines = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(lines) == 1 and f"--noise-from {scene}: the pose used 3 markers" in lines[0]
+    assert code == 2
+    assert len(lines) == 1
+    assert f"--noise-from {scene}: the pose used 3 markers" in lines[0]
     assert not out.exists()
 
 
@@ -193,7 +209,8 @@ def test_the_suggestions_applied_to_the_map_give_what_they_promise(capsys, tmp_p
     assert "6x5 places, 500 mm apart, camera at 300 mm" in text  # the step and the height, each named
     share = int(re.search(r"within 5 mm: (\d+) % of the area", text).group(1))
     steps = re.findall(r"suggestion: (.*): (\d+) % -> (\d+) % within 5 mm", text)
-    assert len(steps) >= 2 and int(steps[0][1]) == share
+    assert len(steps) >= 2
+    assert int(steps[0][1]) == share
     assert all(int(a[2]) == int(b[1]) for a, b in zip(steps, steps[1:]))  # each starts where the last ended
     promised = int(steps[-1][2])
     world = MarkerMap.load(MAP)
@@ -205,7 +222,8 @@ def test_the_suggestions_applied_to_the_map_give_what_they_promise(capsys, tmp_p
     applied = tmp_path / "applied.json"
     applied.write_text(json.dumps(_apply(world, [s[0] for s in steps])))
     same = re.search(r"to check: plan the changed map on the same places, (.*)", text).group(1).split()
-    assert same[0] == "--area" and same[2:] == ["--step-mm", "500", "--height-mm", "300"]
+    assert same[0] == "--area"
+    assert same[2:] == ["--step-mm", "500", "--height-mm", "300"]
     assert (
         main(["plan", str(applied), "--camera", str(CAMERA), *grid, *same[:2], "-o", str(tmp_path / "again.png")]) == 0
     )

@@ -45,12 +45,15 @@ def test_survey_of_the_bundled_photos_names_the_moved_marker(capsys, tmp_path):
         plot,
     )
     assert code == 0, err
-    assert "marker 7 is" in out and "mm from where the map says" in out and "measure it again" in out
+    assert "marker 7 is" in out
+    assert "mm from where the map says" in out
+    assert "measure it again" in out
     assert out.count("SUSPECT") == 1
     row = next(line for line in out.splitlines() if line.split()[:1] == ["7"])
     assert 80 < float(row.split()[-7]) < 140  # the difference column, mm
     d = json.loads(out_path.read_text())
-    assert d["units"] == "cm" and d["surveyed"]["suspects"][0]["id"] == 7
+    assert d["units"] == "cm"
+    assert d["surveyed"]["suspects"][0]["id"] == 7
     truth = MarkerMap.load(FOLDER / "true_map.json")
     got = MarkerMap.load(out_path)
     moved = np.linalg.norm(np.subtract(got.placements[7].translation_mm, truth.placements[7].translation_mm))
@@ -103,7 +106,7 @@ def _gray_photos(tmp_path, n=2):
 
 
 @pytest.mark.parametrize(
-    "case, match",
+    ("case", "match"),
     [
         ("one photo", "a survey needs at least 2 photos"),
         ("no marker", r"only 0 of 2 photos give a camera pose.*shows no marker of the map"),
@@ -137,7 +140,8 @@ def test_user_errors_exit_2_with_one_line_and_write_nothing(capsys, tmp_path, ca
     before = TAPE.read_bytes()
     code, out, err = run(capsys, *args)
     assert code == 2
-    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ")
+    assert len(err.strip().splitlines()) == 1
+    assert err.startswith("error: ")
     assert re.search(match, err), err
     assert TAPE.read_bytes() == before
     assert case == "clobber" or not out_path.exists()

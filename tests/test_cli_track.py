@@ -27,7 +27,9 @@ def run(capsys, *argv):
 def assert_user_error(code, err, *fragments):
     assert code == 2
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
+    assert "Traceback" not in err, err
     for f in fragments:
         assert f in lines[0], lines[0]
 
@@ -47,7 +49,9 @@ def test_track_jsonl_agrees_with_the_library_and_the_truth(capsys, tmp_path, fra
     assert code == 0, err
     assert "20 frames tracked: 1 started, 19 measured" in stdout
     recs = [json.loads(line) for line in out.read_text().splitlines()]
-    assert len(recs) == 20 and recs[0]["status"] == "started" and recs[1]["t_s"] == pytest.approx(1 / 30)
+    assert len(recs) == 20
+    assert recs[0]["status"] == "started"
+    assert recs[1]["t_s"] == pytest.approx(1 / 30)
     # the library, frame by frame: fidlearn.locate then PoseTracker.update
     m, cam = fidlearn.MarkerMap.load(MAP), fidlearn.Camera.load(CAMERA)
     tracker = fidlearn.PoseTracker(m, cam)
@@ -75,7 +79,8 @@ def test_track_tum_and_ros_with_a_mount(capsys, tmp_path, frames_dir):
     for row, msg, (_, truth) in zip(rows, msgs, SHOTS):
         v = np.array(row, dtype=float)
         p, q = msg["pose"]["pose"]["position"], msg["pose"]["pose"]["orientation"]
-        assert msg["child_frame_id"] == "base_link" and msg["header"]["frame_id"] == "map"
+        assert msg["child_frame_id"] == "base_link"
+        assert msg["header"]["frame_id"] == "map"
         np.testing.assert_allclose(v[1:4], [p["x"], p["y"], p["z"]], atol=1e-9)
         np.testing.assert_allclose(v[4:], [q["x"], q["y"], q["z"], q["w"]], atol=1e-11)
         true_base = truth @ T_camera_base
@@ -109,7 +114,7 @@ def test_track_with_odometry(capsys, tmp_path, frames_dir):
 
 
 @pytest.mark.parametrize(
-    "extra, fragment",
+    ("extra", "fragment"),
     [
         (["--odometry", "odom.csv"], "add --track"),
         (["--track", "--format", "tum"], "give -o FILE"),
@@ -124,7 +129,8 @@ def test_track_bad_inputs(capsys, tmp_path, frames_dir, monkeypatch, extra, frag
     monkeypatch.chdir(tmp_path)
     code, _, err = run(capsys, "locate", frames_dir, "--camera", CAMERA, "--map", MAP, *extra)
     assert_user_error(code, err, fragment)
-    assert not list(tmp_path.glob("t*")) and not list(tmp_path.glob(".*"))
+    assert not list(tmp_path.glob("t*"))
+    assert not list(tmp_path.glob(".*"))
 
 
 def test_track_output_may_not_be_an_input(capsys, frames_dir):
@@ -138,10 +144,13 @@ def test_camera_export_import_round_trip(capsys, tmp_path):
     ci, back = tmp_path / "camera_info.yaml", tmp_path / "camera.json"
     code, out, err = run(capsys, "camera", "export", CAMERA, "--ros", ci, "--camera-name", "front")
     assert code == 0, err
-    assert "camera_name: front\n" in ci.read_text() and "distortion_model: plumb_bob\n" in ci.read_text()
+    assert "camera_name: front\n" in ci.read_text()
+    assert "distortion_model: plumb_bob\n" in ci.read_text()
     assert run(capsys, "camera", "import", ci, "-o", back)[0] == 0
     a, b = fidlearn.Camera.load(CAMERA), fidlearn.Camera.load(back)
-    assert (a.K == b.K).all() and (a.dist == b.dist).all() and a.image_size == b.image_size
+    assert (a.K == b.K).all()
+    assert (a.dist == b.dist).all()
+    assert a.image_size == b.image_size
 
 
 def test_camera_bad_inputs(capsys, tmp_path):

@@ -89,7 +89,8 @@ def test_the_intrinsics_standard_deviations_equal_opencvs(bundled):
     for k, name in enumerate(["fx", "fy", "cx", "cy"]):
         assert std[k] == pytest.approx(bundled.std_intrinsics[name], rel=0.05)
     assert c.flags == []  # the bundled set is a good one
-    assert c.good_fraction == 1.0 and c.uncertainty_px.max() < GOOD_UNCERTAINTY_PX
+    assert c.good_fraction == 1.0
+    assert c.uncertainty_px.max() < GOOD_UNCERTAINTY_PX
 
 
 @pytest.mark.slow
@@ -156,7 +157,8 @@ def test_the_next_view_helps_more_than_a_random_one():
     rng = np.random.default_rng(5)
     poses = [board_pose(rng) for _ in range(5)]
     first = judge(np.random.default_rng(1), poses)
-    assert first.next_view is not None and "put the board" in str(first.next_view)
+    assert first.next_view is not None
+    assert "put the board" in str(first.next_view)
     coached = judge(np.random.default_rng(1), poses + [first.next_view.T_camera_board])
     randoms = [judge(np.random.default_rng(1), poses + [board_pose(rng)]) for _ in range(5)]
     assert np.mean(coached.uncertainty_px**2) < min(np.mean(r.uncertainty_px**2) for r in randoms)
@@ -182,8 +184,10 @@ def test_the_next_view_shows_the_whole_print_and_says_its_distance_in_cm(bundled
     px = bundled.camera.project(
         frames.transform_points(view.T_camera_board, coach_module._printed_outline(BOARD)), np.eye(4)
     )
-    assert np.all(px >= 0) and np.all(px <= np.array(bundled.camera.image_size) - 1)
-    assert view.distance_mm < 995 and f"about {view.distance_mm / 10:.0f} cm away" in str(view)
+    assert np.all(px >= 0)
+    assert np.all(px <= np.array(bundled.camera.image_size) - 1)
+    assert view.distance_mm < 995
+    assert f"about {view.distance_mm / 10:.0f} cm away" in str(view)
     far = dataclasses.replace(view, distance_mm=1234.0)
     assert "about 1.2 m away" in str(far)
 
@@ -205,7 +209,8 @@ def test_a_principal_point_error_alone_is_absorbed_by_the_pose():
     cov_fx = np.zeros((9, 9))
     cov_fx[0, 0] = 1.0  # fx by 1 px: a scale, not absorbed at the edges
     u = uncertainty_map(pinhole, cov_fx, 600.0)
-    assert u[:, [0, -1]].min() > 0.2 and u[:, [0, -1]].min() > 3 * u[:, 3:5].max()
+    assert u[:, [0, -1]].min() > 0.2
+    assert u[:, [0, -1]].min() > 3 * u[:, 3:5].max()
 
 
 def test_coach_refuses_an_empty_set_and_a_bad_sigma():
@@ -240,7 +245,8 @@ def test_calibrate_prints_the_coach_and_draws_its_report(tmp_path, capsys):
     )
     out = capsys.readouterr().out
     assert status == 0
-    assert "calibration coach: reprojection uncertainty: median" in out and "next photo: put the board" in out
+    assert "calibration coach: reprojection uncertainty: median" in out
+    assert "next photo: put the board" in out
     assert (tmp_path / "report.png").read_bytes()[:4] == b"\x89PNG"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.json", "report.png"]
 
@@ -296,7 +302,8 @@ def test_the_coach_figure_names_only_what_it_draws(bundled):
     assert c.uncertainty_px.max() < GOOD_UNCERTAINTY_PX
     fig = coach_figure(c, bundled.camera)
     texts = [fig.axes[1].get_ylabel(), fig._suptitle.get_text(), *_legend_texts(fig)]
-    assert not any("line" in t for t in texts) and _legend_texts(fig) == []
+    assert not any("line" in t for t in texts)
+    assert _legend_texts(fig) == []
     assert not fig.axes[0].collections  # no contour
     # the same verdict with a worse right half: the line is drawn, and the legend names it, in its colour
     worse = c.uncertainty_px.copy()
@@ -319,4 +326,5 @@ def test_calibrate_with_few_views_gives_one_warning_with_one_advice(tmp_path, ca
     stdout, stderr = capsys.readouterr()
     said = (stdout + stderr).splitlines()
     few = [ln for ln in said if "views" in ln and "warning:" in ln]
-    assert len(few) == 1 and few[0].strip() == "warning: only 5 views were used; take at least 10 (15 to 25 is usual)"
+    assert len(few) == 1
+    assert few[0].strip() == "warning: only 5 views were used; take at least 10 (15 to 25 is usual)"

@@ -87,14 +87,16 @@ def test_camera_behaves_as_described(tmp_path):
     np.testing.assert_array_equal(back.K, cam.K)
     assert back.image_size == (640, 480)
     half = cam.scaled((320, 240))
-    assert half.image_size == (320, 240) and half.fx == pytest.approx(300.0)
+    assert half.image_size == (320, 240)
+    assert half.fx == pytest.approx(300.0)
     assert half.cx == pytest.approx((319.5 + 0.5) / 2 - 0.5)  # pixel centres at integers
 
 
 def test_markermap_signatures():
     starts_with(fidlearn.MarkerMap.load, ["path", "units", "marker_size_mm"])
     load = inspect.signature(fidlearn.MarkerMap.load).parameters
-    assert load["units"].default is None and load["marker_size_mm"].default is None
+    assert load["units"].default is None
+    assert load["marker_size_mm"].default is None
     starts_with(fidlearn.MarkerMap.from_dict, ["d"])
     assert {"units", "marker_size_mm"} <= set(params(fidlearn.MarkerMap.from_dict))
     starts_with(fidlearn.MarkerMap.save_corners, ["path"])
@@ -118,7 +120,8 @@ def test_detection_signatures():
     assert inspect.signature(fidlearn.detect_markers).parameters["dictionary"].default == "ARUCO_ORIGINAL"
     starts_with(fidlearn.Detection, ["id", "corners_px"])
     d = fidlearn.Detection(3, [[0, 0], [1, 0], [1, 1], [0, 1]])
-    assert d.corners_px.shape == (4, 2) and not hasattr(d, "corners")  # one name for the pixel corners
+    assert d.corners_px.shape == (4, 2)  # one name for the pixel corners
+    assert not hasattr(d, "corners")
 
 
 def test_pose_signatures():
@@ -150,7 +153,8 @@ def test_detect_gray_and_bgr_tl_tr_br_bl(scene):
         assert [d.id for d in dets] == [0, 1, 2]
         for d in dets:
             assert isinstance(d, fidlearn.Detection)
-            assert d.corners_px.shape == (4, 2) and d.corners_px.dtype == np.float64
+            assert d.corners_px.shape == (4, 2)
+            assert d.corners_px.dtype == np.float64
             truth = cam.project(world.corners()[d.id], T)  # TL, TR, BR, BL
             np.testing.assert_allclose(d.corners_px, truth, atol=0.3)
 
@@ -159,7 +163,8 @@ def test_pose_fields(scene):
     image, world, cam, T = scene
     pose = fidlearn.locate(image, world, cam)
     assert isinstance(pose, fidlearn.Pose)
-    assert pose.T_world_camera.shape == (4, 4) and pose.T_camera_world.shape == (4, 4)
+    assert pose.T_world_camera.shape == (4, 4)
+    assert pose.T_camera_world.shape == (4, 4)
     np.testing.assert_allclose(pose.T_world_camera @ pose.T_camera_world, np.eye(4), atol=1e-9)
     np.testing.assert_allclose(pose.position_mm, T[:3, 3], atol=3.0)
     np.testing.assert_allclose(pose.rpy_deg, [-90, 0, 90], atol=0.3)
@@ -185,7 +190,8 @@ def test_calibration_fields():
     assert len(cal.per_view_rms_px) >= 10
     for item in cal.rejected:  # (image, reason)
         image, reason = item
-        assert isinstance(reason, str) and reason
+        assert isinstance(reason, str)
+        assert reason
 
 
 CLI_COMMANDS = ["corners", "calibrate", "locate", "markers", "board", "render", "doctor", "survey"]
@@ -197,7 +203,7 @@ def test_cli_subcommands_exist():
 
 
 @pytest.mark.parametrize(
-    "command, options",
+    ("command", "options"),
     [
         ("corners", ["--units", "--marker-size-mm", "--output"]),
         ("calibrate", ["--pattern", "--square-mm", "--output"]),
@@ -239,7 +245,8 @@ def test_user_error_is_status_2_one_line(tmp_path, capsys):
     status = cli.main(["corners", str(tmp_path / "missing.json"), "-o", str(tmp_path / "c.json")])
     err = capsys.readouterr().err
     assert status == 2
-    assert err.startswith("error: ") and err.count("\n") == 1
+    assert err.startswith("error: ")
+    assert err.count("\n") == 1
     assert not (tmp_path / "c.json").exists()
 
 

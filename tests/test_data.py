@@ -33,12 +33,15 @@ def read_json(*parts):
 
 def read_gray(*parts):
     image = cv2.imread(str(data_path(*parts)), cv2.IMREAD_UNCHANGED)
-    assert image is not None and image.ndim == 2 and image.dtype == np.uint8
+    assert image is not None
+    assert image.ndim == 2
+    assert image.dtype == np.uint8
     return image
 
 
 def assert_same_pixels(rendered: np.ndarray, committed: np.ndarray, provenance: dict) -> None:
-    assert rendered.shape == committed.shape and rendered.dtype == committed.dtype
+    assert rendered.shape == committed.shape
+    assert rendered.dtype == committed.dtype
     if provenance["opencv"] == cv2.__version__ and provenance["numpy"] == np.__version__:
         np.testing.assert_array_equal(rendered, committed)
     else:  # another OpenCV or NumPy release: rounding may differ, the picture may not
@@ -71,7 +74,8 @@ def test_real_photos_are_all_there_and_readable():
         ("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg"),
     ]:
         image = cv2.imread(str(data_path(*parts)))
-        assert image is not None and image.shape[:2] == (480, 640)
+        assert image is not None
+        assert image.shape[:2] == (480, 640)
     # the published numbers of the tutorial's ChArUco calibration (data/README.md)
     cam = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
     assert (cam.fx, cam.fy, cam.cx, cam.cy) == pytest.approx((452.511, 456.767, 317.703, 277.752), abs=1e-3)
@@ -82,7 +86,9 @@ def test_real_photos_are_all_there_and_readable():
 def test_two_walls_map_adds_side_walls_to_the_seed_map():
     seed = MarkerMap.load(data_path("world_map.json"))
     both = MarkerMap.load(data_path("two_walls_map.json"))
-    assert both.ids == [0, 1, 2, 3, 4, 5] and both.marker_size_mm == 80 and both.dictionary == seed.dictionary
+    assert both.ids == [0, 1, 2, 3, 4, 5]
+    assert both.marker_size_mm == 80
+    assert both.dictionary == seed.dictionary
     for mid in seed.ids:
         np.testing.assert_allclose(both.marker_corners(mid), seed.marker_corners(mid), atol=1e-9)
     np.testing.assert_allclose(both.normal(3), [0, 1, 0], atol=1e-12)  # west wall, facing east into the room
@@ -97,7 +103,8 @@ def test_synthetic_checkerboard_views_calibrate_back_to_the_true_camera():
     truth = Camera.load(data_path("calibration", "camera_true.json"))
     record = read_json("calibration", "views.json")
     pattern = tuple(record["arguments"]["pattern_size"])
-    assert pattern == (9, 6) and len(record["views"]) == 20
+    assert pattern == (9, 6)
+    assert len(record["views"]) == 20
     object_points = np.array(record["object_points_mm"], dtype=np.float32)
     found = []
     for view in record["views"]:
@@ -144,18 +151,21 @@ def test_a_calibration_view_regenerates_from_its_recipe():
 def test_scene_records_hold_the_projection_of_the_map_and_opencv_finds_them():
     record = read_json("scenes", "poses.json")
     camera = Camera.load(data_path("scenes", record["camera"]))
-    assert camera.image_size == (1280, 720) and len(record["images"]) == 10
+    assert camera.image_size == (1280, 720)
+    assert len(record["images"]) == 10
     detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL))
     for item in record["images"]:
         marker_map = MarkerMap.load(data_path(item["map"]))
         T = np.array(item["T_world_camera"])
         distance = np.linalg.norm(T[:3, 3] - np.mean([c.mean(axis=0) for c in marker_map.corners().values()], axis=0))
         assert 900 < distance < 3100
-        assert item["visible_ids"] and [int(k) for k in item["corners_px"]] == item["visible_ids"]
+        assert item["visible_ids"]
+        assert [int(k) for k in item["corners_px"]] == item["visible_ids"]
         for mid, px in item["corners_px"].items():
             np.testing.assert_allclose(px, camera.project(marker_map.marker_corners(int(mid)), T), atol=1e-5)
         _, ids, _ = detector.detectMarkers(read_gray("scenes", item["image"]))
-        assert ids is not None and set(item["visible_ids"]) <= set(np.ravel(ids).tolist()), item["image"]
+        assert ids is not None, item["image"]
+        assert set(item["visible_ids"]) <= set(np.ravel(ids).tolist()), item["image"]
     assert {item["map"] for item in record["images"]} == {"world_map.json", "two_walls_map.json"}
 
 
@@ -195,7 +205,8 @@ def test_a_survey_photo_regenerates_from_its_record_and_the_maps_are_what_they_s
     again = tape_measured(
         truth, sigma_mm=tp["sigma_mm"], sigma_deg=tp["sigma_deg"], moved=moved, seed=tp["seed"], units=tp["units"]
     )
-    assert tape.units == "cm" and max(np.abs(tape.corners()[i] - again.corners()[i]).max() for i in tape.ids) < 1e-6
+    assert tape.units == "cm"
+    assert max(np.abs(tape.corners()[i] - again.corners()[i]).max() for i in tape.ids) < 1e-6
     off = np.subtract(tape.placements[7].translation_mm, truth.placements[7].translation_mm)
     assert np.linalg.norm(off) > 60  # marker 7 was moved after it was taped
 
@@ -227,7 +238,8 @@ def test_the_drive_is_seen_by_opencv_and_its_solvepnp_agrees_with_the_true_poses
     for frame in (record["frames"][0], record["frames"][20], record["frames"][39]):
         corners, ids, _ = detector.detectMarkers(read_gray("trajectory", frame["image"]))
         ids = np.ravel(ids).tolist()
-        assert set(frame["visible_ids"]) <= set(ids) and frame["visible_ids"] == [0, 1, 2]
+        assert set(frame["visible_ids"]) <= set(ids)
+        assert frame["visible_ids"] == [0, 1, 2]
         object_points = np.concatenate([marker_map.marker_corners(i) for i in ids])
         image_points = np.concatenate([np.asarray(c, dtype=float).reshape(4, 2) for c in corners])
         ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist, flags=cv2.SOLVEPNP_ITERATIVE)

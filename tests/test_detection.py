@@ -80,7 +80,8 @@ def test_default_corners_agree_with_plain_opencv_within_a_pixel(photo):
     dets = detect_markers(photo, "6X6_250")
     diff = np.array([d.corners_px - ref[d.id] for d in dets])
     dist = np.linalg.norm(diff, axis=2)
-    assert dist.mean() < 0.75 and dist.max() < 1.25
+    assert dist.mean() < 0.75
+    assert dist.max() < 1.25
     # The difference is OpenCV's known bias: its unrefined contour runs through the outermost dark
     # pixels, about half a pixel inside the edge, so the edge fit moves corners outwards.
     outward = (diff * radial_unit(np.array([ref[d.id] for d in dets]))).sum(axis=2).mean()
@@ -143,12 +144,14 @@ def test_charuco_marker_corners_fit_the_board_geometry():
         shift += [per["apriltag"][i] - per[DEFAULT_REFINE][i] for i in per[DEFAULT_REFINE] if i in per["apriltag"]]
     rms = {k: float(np.sqrt((np.concatenate(v) ** 2).sum(1).mean())) for k, v in rms.items()}
     assert rms[DEFAULT_REFINE] < 0.5
-    assert rms[DEFAULT_REFINE] < 0.6 * rms["none"] and rms[DEFAULT_REFINE] < 0.6 * rms["subpix"]
+    assert rms[DEFAULT_REFINE] < 0.6 * rms["none"]
+    assert rms[DEFAULT_REFINE] < 0.6 * rms["subpix"]
     # This camera encodes light with a gamma curve: the edge half-way in light fits better still.
     assert rms["gamma"] < 0.92 * rms[DEFAULT_REFINE]
     # The AprilTag refinement reports corners shifted by about half a pixel down and right.
     dx, dy = np.concatenate(shift).mean(axis=0)
-    assert 0.3 < dx < 0.6 and 0.3 < dy < 0.6
+    assert 0.3 < dx < 0.6
+    assert 0.3 < dy < 0.6
 
 
 # ----------------------------------------------------------------------------------------------
@@ -175,7 +178,7 @@ def view(side_px: float, az_deg: float = 20.0, el_deg: float = -10.0, roll_deg: 
     return cam, look_at(eye, centre, roll_deg=roll_deg)
 
 
-@pytest.mark.parametrize("side_px, seed", [(30, 1), (45, 2), (80, 3)])
+@pytest.mark.parametrize(("side_px", "seed"), [(30, 1), (45, 2), (80, 3)])
 def test_synthetic_corners_match_the_truth(side_px, seed):
     mm = wall()
     cam, T = view(side_px, az_deg=25.0, el_deg=-15.0, roll_deg=20.0 * seed)
@@ -207,7 +210,8 @@ def test_gamma_moves_edges_outwards_on_linear_pictures():
     truths = np.array([truth[d.id] for d in dets])
     out = ((refine_corners_edges(image, C, 7, gamma=2.2) - truths) * radial_unit(truths)).sum(2).mean()
     linear = ((refine_corners_edges(image, C, 7) - truths) * radial_unit(truths)).sum(2).mean()
-    assert abs(linear) < 0.05 and 0.3 < out < 1.2
+    assert abs(linear) < 0.05
+    assert 0.3 < out < 1.2
 
 
 @pytest.mark.parametrize("roll_deg", [90.0, 180.0, 270.0])
@@ -366,14 +370,16 @@ def test_a_row_of_far_markers_with_one_cell_margins_at_their_rendered_corners():
     assert max(np.abs(d.corners_px - truth[d.id]).max() for d in dets) < 0.3
     assert [d.id for d in detect_markers(image, ids=m.ids)] == [d.id for d in dets]
     coarse = detect_markers(image, detector_params={"perspectiveRemovePixelPerCell": 4})
-    assert len(coarse) < 9 and max(np.abs(d.corners_px - truth[d.id]).max() for d in coarse) < 0.3
+    assert len(coarse) < 9
+    assert max(np.abs(d.corners_px - truth[d.id]).max() for d in coarse) < 0.3
 
 
 def test_rejected_candidates_on_request(photo):
     found = detect_markers_with_rejected(photo, "6X6_250")
     dets, rejected = found.detections, found.rejected
     assert [d.id for d in dets] == PHOTO_IDS
-    assert len(rejected) > 0 and all(r.shape == (4, 2) for r in rejected)
+    assert len(rejected) > 0
+    assert all(r.shape == (4, 2) for r in rejected)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -382,7 +388,7 @@ def test_rejected_candidates_on_request(photo):
 
 
 @pytest.mark.parametrize(
-    "bad, message",
+    ("bad", "message"),
     [
         (None, "expected a numpy array"),
         ("photo.jpg", "expected a numpy array"),
@@ -409,7 +415,8 @@ def test_draw_detections_marks_outline_id_and_named_corners(photo):
     before = photo.copy()
     out = draw_detections(photo, dets)
     np.testing.assert_array_equal(photo, before)  # the input is untouched
-    assert out.shape == photo.shape and out.dtype == np.uint8
+    assert out.shape == photo.shape
+    assert out.dtype == np.uint8
     changed = np.any(out != photo, axis=2)
     assert changed.sum() > 3000
     for d in dets:  # every corner is drawn over, and the first one (TL) is red
@@ -417,7 +424,9 @@ def test_draw_detections_marks_outline_id_and_named_corners(photo):
             assert changed[y, x]
         x, y = np.round(d.corners_px[0]).astype(int)
         b, g, r = out[y, x].astype(int)
-        assert r > 200 and g < 60 and b < 60
+        assert r > 200
+        assert g < 60
+        assert b < 60
     assert changed[:, :].sum() < 0.25 * changed.size  # a figure, not a repaint
     gray_out = draw_detections(as_gray(photo), dets, corner_labels=False, show_ids=False)
     assert gray_out.shape == photo.shape
@@ -499,7 +508,7 @@ def test_ids_restriction_on_a_rendered_scene_matches_the_truth():
 
 
 @pytest.mark.parametrize(
-    "ids, error, message",
+    ("ids", "error", "message"),
     [
         ([], FidlearnError, "ids must be whole marker ids"),
         ([0, 1.5], FidlearnError, "ids must be whole marker ids"),
@@ -515,7 +524,7 @@ def test_ids_restriction_rejects_bad_ids(ids, error, message):
 
 
 @pytest.mark.parametrize(
-    "mid, corners, message",
+    ("mid", "corners", "message"),
     [
         (1.7, np.zeros((4, 2)), "id must be a whole marker id, got 1.7"),
         ("3", np.zeros((4, 2)), "id must be a whole marker id"),
@@ -533,7 +542,9 @@ def test_detection_refuses_what_is_not_a_detection(mid, corners, message):
 
 def test_detection_accepts_numpy_ids_and_flat_corners():
     d = Detection(np.int32(5), np.arange(8.0))
-    assert d.id == 5 and type(d.id) is int and d.corners_px.shape == (4, 2)
+    assert d.id == 5
+    assert type(d.id) is int
+    assert d.corners_px.shape == (4, 2)
     assert Detection(4.0, np.zeros((1, 4, 2))).id == 4
 
 
@@ -554,7 +565,8 @@ def test_one_return_type_and_corners_px(photo):
 def test_detection_corners_have_one_name():
     quad = [[10, 10], [30, 10], [30, 30], [10, 30]]
     for d in (Detection(5, quad), Detection(5, corners_px=quad), Detection(id=5, corners_px=quad)):
-        assert d.corners_px.shape == (4, 2) and d.corners_px.dtype == np.float64
+        assert d.corners_px.shape == (4, 2)
+        assert d.corners_px.dtype == np.float64
         np.testing.assert_array_equal(d.corners_px, quad)
     assert not hasattr(Detection(5, quad), "corners")  # the former name is gone: corners_px only
     with pytest.raises(TypeError, match="corners"):

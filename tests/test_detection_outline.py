@@ -92,7 +92,7 @@ def faint_marker(contrast: float, base: float, seed: int) -> tuple[np.ndarray, n
     return image, square @ R[:, :2].T + R[:, 2]
 
 
-@pytest.mark.parametrize("contrast, base, seed", [(18, 20, 2), (19, 150, 2), (20, 90, 1)])
+@pytest.mark.parametrize(("contrast", "base", "seed"), [(18, 20, 2), (19, 150, 2), (20, 90, 1)])
 def test_a_faint_marker_opencv_finds_is_kept(contrast, base, seed):
     """The check asks for 8 gray levels across each side, not the 20 the edges refinement needs to move the
     corners: a faint marker that OpenCV decodes but the refinement leaves alone is still reported, at OpenCV's

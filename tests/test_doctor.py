@@ -150,7 +150,8 @@ def test_other_commands_say_in_one_line_to_run_the_doctor(tmp_path):
         timeout=120,
         cwd=tmp_path,
     )
-    assert out.returncode == 2 and out.stdout == ""
+    assert out.returncode == 2
+    assert out.stdout == ""
     [line] = out.stderr.splitlines()
     assert line.startswith("error: fidlearn cannot start (ImportError: numpy.core.multiarray failed to import)")
     assert "run 'fidlearn doctor'" in line

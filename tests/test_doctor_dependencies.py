@@ -18,7 +18,8 @@ def pyproject_dependencies() -> list[str]:
     text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
     block = re.search(r"^dependencies = \[(.*?)^\]", text, re.S | re.M).group(1)
     names = re.findall(r'^\s*"([A-Za-z0-9_.-]+)', block, re.M)
-    assert len(names) >= 7 and "anywidget" in names, names
+    assert len(names) >= 7, names
+    assert "anywidget" in names, names
     return [n.lower().replace("_", "-") for n in names]
 
 

@@ -59,10 +59,11 @@ def test_student_copy_keeps_no_solution():
     key = exercises.answer_key_notebook("01")
     student = exercises.student_copy(key)
     text = "\n".join(c.source for c in student.cells)
-    assert exercises.BEGIN_SOLUTION not in text and "np.radians(q1.inputs.dfov_deg)" not in text
+    assert exercises.BEGIN_SOLUTION not in text
+    assert "np.radians(q1.inputs.dfov_deg)" not in text
     assert text.count(".answer = ...") == len(exercises.lesson("01"))
+    bad = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("### BEGIN SOLUTION\nx = 1\n### END SOLUTION")])
     with pytest.raises(ValueError, match="assigns no answer"):
-        bad = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("### BEGIN SOLUTION\nx = 1\n### END SOLUTION")])
         exercises.student_copy(bad)
 
 
@@ -136,5 +137,6 @@ def test_grading_a_learners_notebook(tmp_path):
     assert (grade.lesson, grade.learner) == ("07", "erin")
     assert [r.status for r in grade.results] == ["Correct", "Incorrect"] + ["Not attempted"] * (len(ex) - 2)
     assert "extrinsic matrix" in grade.results[1].message
-    assert len(grade.errors) == 1 and "ZeroDivisionError" in grade.errors[0]
+    assert len(grade.errors) == 1
+    assert "ZeroDivisionError" in grade.errors[0]
     assert str(grade).startswith(f"{path}: lesson 07, learner 'erin': 1 of {len(ex)} correct")

@@ -38,7 +38,7 @@ def grade(number: str, name: str, answer, learner: str = "") -> exercises.Result
 
 # -- the solution each question shows passes its own check, for several learners --------------
 @pytest.mark.parametrize("learner", ["alice", "Bob Smith <bob@example.org>"])  # "" runs in the notebooks
-@pytest.mark.parametrize("number,name", QUESTIONS)
+@pytest.mark.parametrize(("number", "name"), QUESTIONS)
 def test_solution_passes_its_own_check(number, name, learner, capsys):
     q = exercises.lesson(number, learner=learner)[name]
     run_solution(q)
@@ -47,16 +47,17 @@ def test_solution_passes_its_own_check(number, name, learner, capsys):
     assert capsys.readouterr().out.splitlines()[-1].startswith(f"Correct ({name})")
 
 
-@pytest.mark.parametrize("number,name", QUESTIONS)
+@pytest.mark.parametrize(("number", "name"), QUESTIONS)
 def test_blank_answers_are_not_attempted(number, name, capsys):
     q = exercises.lesson(number)[name]
     q.check()
     q.check(None)
     out = capsys.readouterr().out.splitlines()
-    assert len(out) == 2 and all(line.startswith(f"Not attempted ({name}): ") for line in out)
+    assert len(out) == 2
+    assert all(line.startswith(f"Not attempted ({name}): ") for line in out)
 
 
-@pytest.mark.parametrize("number,name", QUESTIONS)
+@pytest.mark.parametrize(("number", "name"), QUESTIONS)
 def test_garbage_answers_are_incorrect_and_never_raise(number, name, capsys):
     q = exercises.lesson(number)[name]
     for junk in ("42", 7, [1, 2], np.zeros((5, 5)), {"x": 1}, object()):
@@ -66,14 +67,16 @@ def test_garbage_answers_are_incorrect_and_never_raise(number, name, capsys):
     assert all(line.startswith(f"Incorrect ({name}): ") for line in out), out
 
 
-@pytest.mark.parametrize("number,name", QUESTIONS)
+@pytest.mark.parametrize(("number", "name"), QUESTIONS)
 def test_hint_and_solution_print_text_and_code(number, name, capsys):
     q = exercises.lesson(number)[name]
     q.hint()
     q.solution()
     out = capsys.readouterr().out
-    assert out.startswith((f"Hint ({name}): ", f"Hint ({name}, 1 of ")) and len(out) > 60
-    assert q.solution_code in out and f"{name}.answer" in q.solution_code
+    assert out.startswith((f"Hint ({name}): ", f"Hint ({name}, 1 of "))
+    assert len(out) > 60
+    assert q.solution_code in out
+    assert f"{name}.answer" in q.solution_code
 
 
 # -- common wrong answers are named ---------------------------------------------------------------
@@ -87,7 +90,9 @@ def key_of(number: str, name: str, learner: str = ""):
 def test_transposed_K(learner):
     q, K = key_of("01", "q1", learner)
     r = q.grade(np.asarray(K).T)
-    assert r.status == INCORRECT and "transposed" in r.message and "last COLUMN" in r.message
+    assert r.status == INCORRECT
+    assert "transposed" in r.message
+    assert "last COLUMN" in r.message
 
 
 def _K_with_f(q, f, cx=None, cy=None):
@@ -101,7 +106,8 @@ def test_degrees_for_radians_in_tan(learner):
     w, h = q.inputs.image_size
     f = (math.hypot(w, h) / 2) / np.tan(q.inputs.dfov_deg / 2)  # forgot np.radians
     r = q.grade(_K_with_f(q, f))
-    assert r.status == INCORRECT and "radians" in r.message
+    assert r.status == INCORRECT
+    assert "radians" in r.message
 
 
 @pytest.mark.parametrize("learner", ["", "carol", "dora"])
@@ -112,7 +118,8 @@ def test_diagonal_field_of_view_mistakes(learner):
     d = math.hypot(w, h)
     from_fov = fidlearn.Camera.from_fov(q.inputs.dfov_deg, (w, h)).K  # the one-liner that answers another question
     r = q.grade(from_fov)
-    assert r.status == INCORRECT and "diagonal field of view for the horizontal" in r.message
+    assert r.status == INCORRECT
+    assert "diagonal field of view for the horizontal" in r.message
     for f, words in (
         ((d / 2) / math.tan(2 * half), "HALF the field of view"),
         (d / math.tan(half), "HALF the image's diagonal"),
@@ -120,7 +127,8 @@ def test_diagonal_field_of_view_mistakes(learner):
         (((w + h) / 2) / math.tan(half), "Pythagoras"),
     ):
         r = q.grade(_K_with_f(q, f))
-        assert r.status == INCORRECT and words in r.message, (words, r.message)
+        assert r.status == INCORRECT, (words, r.message)
+        assert words in r.message, (words, r.message)
 
 
 def test_cx_at_half_width_is_correct_with_a_note():
@@ -128,7 +136,8 @@ def test_cx_at_half_width_is_correct_with_a_note():
     w, h = q.inputs.image_size
     f = (math.hypot(w, h) / 2) / math.tan(math.radians(q.inputs.dfov_deg) / 2)
     r = q.grade(_K_with_f(q, f, w / 2, h / 2))
-    assert r.status == CORRECT and "(width - 1) / 2" in r.message
+    assert r.status == CORRECT
+    assert "(width - 1) / 2" in r.message
 
 
 def test_projection_mistakes():
@@ -141,17 +150,21 @@ def test_projection_mistakes():
     assert q.grade(cv2.projectPoints(P, np.zeros(3), np.zeros(3), K, None)[0]).status == CORRECT  # (N, 1, 2) accepted
 
 
-@pytest.mark.parametrize("factor,unit", [(25.4, "inches"), (304.8, "feet"), (1000, "metres")])
+@pytest.mark.parametrize(("factor", "unit"), [(25.4, "inches"), (304.8, "feet"), (1000, "metres")])
 def test_distance_in_the_wrong_unit(factor, unit):
     q, d = key_of("01", "q3")
     r = q.grade(d / factor)
-    assert r.status == INCORRECT and unit in r.message and "mm" in r.message
+    assert r.status == INCORRECT
+    assert unit in r.message
+    assert "mm" in r.message
 
 
 def test_fov_in_radians():
     q, fov = key_of("01", "q4")
     r = q.grade(np.radians(fov))
-    assert r.status == INCORRECT and "radians" in r.message and "degrees" in r.message
+    assert r.status == INCORRECT
+    assert "radians" in r.message
+    assert "degrees" in r.message
 
 
 def test_rpy_degrees_fed_to_radian_functions_and_wrong_order():
@@ -159,10 +172,12 @@ def test_rpy_degrees_fed_to_radian_functions_and_wrong_order():
     roll, pitch, yaw = q.inputs.rpy_deg
     R_deg = frames.rot_z(yaw) @ frames.rot_y(pitch) @ frames.rot_x(roll)
     r = q.grade(frames.make_transform(R_deg, q.inputs.position_mm))
-    assert r.status == INCORRECT and "np.radians" in r.message
+    assert r.status == INCORRECT
+    assert "np.radians" in r.message
     r, p, y = np.radians(q.inputs.rpy_deg)
     res = q.grade(frames.make_transform(frames.rot_x(r) @ frames.rot_y(p) @ frames.rot_z(y), q.inputs.position_mm))
-    assert res.status == INCORRECT and "Rz(yaw) @ Ry(pitch) @ Rx(roll)" in res.message
+    assert res.status == INCORRECT
+    assert "Rz(yaw) @ Ry(pitch) @ Rx(roll)" in res.message
     assert "T_robot_world" in q.grade(frames.invert_transform(T)).message
 
 
@@ -170,21 +185,24 @@ def test_forgot_to_invert_the_camera_pose():
     q, _ = key_of("03", "q2")
     wrong = frames.transform_points(q.inputs.T_world_camera, q.inputs.points_world_mm)
     r = q.grade(wrong)
-    assert r.status == INCORRECT and "invert_transform" in r.message
+    assert r.status == INCORRECT
+    assert "invert_transform" in r.message
 
 
-@pytest.mark.parametrize("number,name", [("03", "q3"), ("07", "q2")])
+@pytest.mark.parametrize(("number", "name"), [("03", "q3"), ("07", "q2")])
 def test_extrinsic_matrix_where_the_camera_pose_is_asked(number, name):
     q, T_world_camera = key_of(number, name)
     r = q.grade(frames.invert_transform(T_world_camera))
-    assert r.status == INCORRECT and "extrinsic matrix T_camera_world" in r.message
+    assert r.status == INCORRECT
+    assert "extrinsic matrix T_camera_world" in r.message
     assert "T_world_camera = frames.invert_transform(T_camera_world)" in r.message
 
 
 def test_names_that_do_not_chain():
     q, _ = key_of("03", "q3")
     r = q.grade(q.inputs.T_world_marker @ q.inputs.T_camera_marker)
-    assert r.status == INCORRECT and "do not chain" in r.message
+    assert r.status == INCORRECT
+    assert "do not chain" in r.message
 
 
 def test_rvec_versus_rotation_matrix():
@@ -193,18 +211,24 @@ def test_rvec_versus_rotation_matrix():
     r = q.grade(
         frames.make_transform(frames.rot_z(rvec[2]) @ frames.rot_y(rvec[1]) @ frames.rot_x(rvec[0]), q.inputs.tvec)
     )
-    assert r.status == INCORRECT and "Rodrigues" in r.message and "not roll, pitch, yaw" in r.message
+    assert r.status == INCORRECT
+    assert "Rodrigues" in r.message
+    assert "not roll, pitch, yaw" in r.message
     r = q.grade(rvec)  # the bare rvec where a 4x4 matrix is asked
-    assert r.status == INCORRECT and "cv2.Rodrigues(rvec)" in r.message
+    assert r.status == INCORRECT
+    assert "cv2.Rodrigues(rvec)" in r.message
     r = q.grade(T[:3, :3])
-    assert r.status == INCORRECT and "4x4" in r.message
+    assert r.status == INCORRECT
+    assert "4x4" in r.message
     assert "inverted" in q.grade(frames.invert_transform(T)).message
 
 
 def test_feet_for_mm_in_a_placement():
     q, C = key_of("04", "q1")
     r = q.grade(C / 304.8)
-    assert r.status == INCORRECT and "feet" in r.message and "304.8" in r.message
+    assert r.status == INCORRECT
+    assert "feet" in r.message
+    assert "304.8" in r.message
     p = q.inputs.placement
     R = frames.rotation_from_rpy_deg(*p["rotation"])
     s = q.inputs.marker_size_mm
@@ -227,10 +251,12 @@ def test_map_in_cm_declared_as_mm():
     q, d = key_of("04", "q2")
     d = dict(d, units="mm")
     r = q.grade(d)
-    assert r.status == INCORRECT and '"cm"' in r.message
+    assert r.status == INCORRECT
+    assert '"cm"' in r.message
     no_units = {k: v for k, v in d.items() if k != "units"}
     r = q.grade(no_units)
-    assert r.status == INCORRECT and "no units" in r.message
+    assert r.status == INCORRECT
+    assert "no units" in r.message
 
 
 def test_map_marker_facing_the_wall():
@@ -239,7 +265,9 @@ def test_map_marker_facing_the_wall():
     bad = dict(d, markers=dict(d["markers"]))
     bad["markers"][first] = dict(bad["markers"][first], rotation=[0, 0, 180 + bad["markers"][first]["rotation"][2]])
     r = q.grade(bad)
-    assert r.status == INCORRECT and f"marker {first}" in r.message and "into the room" in r.message
+    assert r.status == INCORRECT
+    assert f"marker {first}" in r.message
+    assert "into the room" in r.message
 
 
 def test_floor_marker_radians_and_upside_down():
@@ -255,7 +283,8 @@ def test_floor_marker_radians_and_upside_down():
 def test_normal_into_the_wall():
     q, ans = key_of("04", "q4")
     r = q.grade({"center_mm": ans["center_mm"], "normal": -np.asarray(ans["normal"])})
-    assert r.status == INCORRECT and "INTO the wall" in r.message
+    assert r.status == INCORRECT
+    assert "INTO the wall" in r.message
 
 
 def test_camera_position_mistakes():
@@ -271,7 +300,8 @@ def test_heading_from_a_row_instead_of_a_column():
     R, _ = cv2.Rodrigues(q.inputs.rvec)
     d = R[:, 2]
     r = q.grade((np.degrees(np.arctan2(d[1], d[0])), np.degrees(np.arcsin(-d[2]))))
-    assert r.status == INCORRECT and "third ROW of R" in r.message
+    assert r.status == INCORRECT
+    assert "third ROW of R" in r.message
     assert "radians" in q.grade(np.radians(ans)).message
 
 
@@ -337,7 +367,8 @@ def test_two_learners_get_different_data_and_are_each_checked(number):
     for qa, qb in zip(alice, bob):
         run_solution(qa)
         run_solution(qb)
-        assert qa.grade().correct and qb.grade().correct
+        assert qa.grade().correct
+        assert qb.grade().correct
         same_answer = _inputs_equal(exercises.Inputs(a=qa.answer), exercises.Inputs(a=qb.answer))
         if qa.name in differ and not isinstance(qa.answer, dict) and not same_answer:
             assert qb.grade(qa.answer).status == INCORRECT, f"{number} {qa.name}: alice's answer passes bob's check"
@@ -380,7 +411,8 @@ def test_summary_counts(capsys):
     ex.summary()
     out = capsys.readouterr().out.splitlines()
     assert out[0] == f"Lesson 07: 1 of {len(ex)} correct"
-    assert out[1].startswith("  q1 [Correct]") and out[2].startswith("  q2 [Not attempted]")
+    assert out[1].startswith("  q1 [Correct]")
+    assert out[2].startswith("  q2 [Not attempted]")
 
 
 def test_exercises_is_importable_from_fidlearn():
@@ -404,9 +436,12 @@ def test_calibrated_camera_with_a_swapped_size_or_no_distortion(learner):
     q, cam = key_of("02", "q2", learner)
     w, h = cam.image_size
     r = q.grade(fidlearn.Camera(cam.K, cam.dist, (h, w)))
-    assert r.status == INCORRECT and "swapped" in r.message and "(width, height)" in r.message
+    assert r.status == INCORRECT
+    assert "swapped" in r.message
+    assert "(width, height)" in r.message
     r = q.grade(fidlearn.Camera(cam.K, None, cam.image_size))
-    assert r.status == INCORRECT and "distortion was ignored" in r.message
+    assert r.status == INCORRECT
+    assert "distortion was ignored" in r.message
     assert "K alone" in q.grade(cam.K).message
     assert "distortion vector" in q.grade(np.zeros(5)).message
 
@@ -414,7 +449,8 @@ def test_calibrated_camera_with_a_swapped_size_or_no_distortion(learner):
 def test_bad_view_counted_from_one():
     q, idx = key_of("02", "q3")
     r = q.grade(idx + 1)
-    assert r.status == INCORRECT and "counts from 0" in r.message
+    assert r.status == INCORRECT
+    assert "counts from 0" in r.message
 
 
 def test_scaled_K_mistakes():
@@ -426,7 +462,8 @@ def test_scaled_K_mistakes():
     s = q.inputs.new_size[0] / q.inputs.calibrated_size[0]
     naive = np.array(q.inputs.K, dtype=float) * [[s], [s], [1]]
     r = q.grade(naive)  # c * s instead of (c + 0.5) * s - 0.5: within half a pixel
-    assert r.status == CORRECT and "(c + 0.5) * s - 0.5" in r.message
+    assert r.status == CORRECT
+    assert "(c + 0.5) * s - 0.5" in r.message
 
 
 def test_detection_with_the_wrong_dictionary_finds_nothing():
@@ -436,7 +473,8 @@ def test_detection_with_the_wrong_dictionary_finds_nothing():
     other = "4X4_50" if q.inputs.dictionary != "4X4_50" else "6X6_250"
     found = [d.id for d in detect_markers(q.inputs.image, dictionary=other)]
     r = q.grade(found)
-    assert r.status == INCORRECT and repr(q.inputs.dictionary) in r.message
+    assert r.status == INCORRECT
+    assert repr(q.inputs.dictionary) in r.message
     assert q.grade(list(ids)[:-1]).status == INCORRECT
 
 
@@ -446,7 +484,8 @@ def test_detected_corners_sorted_by_image_position_name_the_winding():
     by_position = C[np.lexsort((C[:, 0], C[:, 1]))]
     r = q.grade(by_position)
     assert r.status == INCORRECT
-    assert r.message.startswith("your corners are in the order") and "detection reports TL, TR, BR, BL" in r.message
+    assert r.message.startswith("your corners are in the order")
+    assert "detection reports TL, TR, BR, BL" in r.message
     assert "swapped" in q.grade(C[:, ::-1]).message
 
 
@@ -465,7 +504,8 @@ def test_pnp_correspondences_with_an_unknown_marker():
     obj = np.concatenate([m.marker_corners(d.id) if d.id in m else np.zeros((4, 3)) for d in dets])
     img = np.concatenate([d.corners_px for d in dets])
     r = q.grade((obj, img))
-    assert r.status == INCORRECT and f"marker {stray.id}" in r.message
+    assert r.status == INCORRECT
+    assert f"marker {stray.id}" in r.message
     known = [d for d in dets if d.id in m]
     shuffled = np.concatenate([m.marker_corners(d.id)[::-1] for d in known])
     assert "ITS pixel" in q.grade((shuffled, np.concatenate([d.corners_px for d in known]))).message
@@ -475,7 +515,8 @@ def test_pnp_camera_pose_instead_of_rvec_tvec():
     q, (rvec, tvec) = key_of("06", "q2")
     T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(np.ravel(rvec), np.ravel(tvec)))
     r = q.grade(frames.rvec_tvec_from_transform(T_world_camera))
-    assert r.status == INCORRECT and "T_camera_world" in r.message
+    assert r.status == INCORRECT
+    assert "T_camera_world" in r.message
 
 
 def test_rms_mistakes():
@@ -491,7 +532,8 @@ def test_rms_mistakes():
 def test_depth_error_linear_in_distance_is_named():
     q, _ = key_of("08", "q1")
     r = q.grade(q.inputs.distances_mm * q.inputs.side_error_px / q.inputs.camera.fx)
-    assert r.status == INCORRECT and "Z squared" in r.message
+    assert r.status == INCORRECT
+    assert "Z squared" in r.message
 
 
 @pytest.mark.parametrize("learner", ["", "alice"])
@@ -511,7 +553,8 @@ def test_misplaced_marker_move_mistakes(learner):
     assert "cm" in q.grade({"misplaced_id": bad, "moved_mm": moved / 10}).message
     other = next(i for i in m.ids if i != bad)
     r = q.grade({"misplaced_id": other, "moved_mm": moved})
-    assert r.status == INCORRECT and f"marker {other} agrees with the others" in r.message
+    assert r.status == INCORRECT
+    assert f"marker {other} agrees with the others" in r.message
 
 
 def test_ambiguity_wrong_explanations_say_why():
@@ -519,9 +562,11 @@ def test_ambiguity_wrong_explanations_say_why():
     for letter in q.inputs.choices:
         if letter != ans["choice"]:
             r = q.grade({"choice": letter, "separation_mm": ans["separation_mm"]})
-            assert r.status == INCORRECT and f"choice {letter} does not explain it" in r.message
+            assert r.status == INCORRECT
+            assert f"choice {letter} does not explain it" in r.message
     r = q.grade({"choice": ans["choice"], "separation_mm": ans["separation_mm"] / 1000})
-    assert r.status == INCORRECT and "metres" in r.message
+    assert r.status == INCORRECT
+    assert "metres" in r.message
 
 
 # -- lesson 08, q4: the design exercise ----------------------------------------------------------
@@ -566,13 +611,16 @@ def test_design_key_meets_the_target_and_bunched_markers_do_not_for_200_learners
         assert r.status == CORRECT, (k, r.line)
         assert np.mean(q._judge()._expected.plan(key) <= 10.0) >= 0.93, k
         r = q.grade(_wall_map(_bunched(q), i.marker_size_mm))
-        assert r.status == INCORRECT and "within" in r.message and "of each other" in r.message, (k, r.line)
+        assert r.status == INCORRECT, (k, r.line)
+        assert "within" in r.message, (k, r.line)
+        assert "of each other" in r.message, (k, r.line)
 
 
 def test_design_check_takes_a_plain_dict_and_says_how_much_of_the_area_is_within_10_mm():
     q, key = key_of("08", "q4")
     r = q.grade(key.to_dict())
-    assert r.status == CORRECT and "of the area is predicted within 10 mm" in r.message
+    assert r.status == CORRECT
+    assert "of the area is predicted within 10 mm" in r.message
 
 
 def test_design_rules_of_the_wall_are_named():
@@ -596,27 +644,34 @@ def test_design_rules_of_the_wall_are_named():
     ]
     for answer, words in cases:
         r = q.grade(answer)
-        assert r.status == INCORRECT and words in r.message, (words, r.line)
+        assert r.status == INCORRECT, (words, r.line)
+        assert words in r.message, (words, r.line)
 
 
 def test_design_bunched_and_close_layouts_say_why():
     q, _ = key_of("08", "q4")
     s = q.inputs.marker_size_mm
     r = q.grade(_wall_map(_bunched(q), s))
-    assert r.status == INCORRECT and "act as one small marker" in r.message and "Spread them" in r.message
+    assert r.status == INCORRECT
+    assert "act as one small marker" in r.message
+    assert "Spread them" in r.message
     # a short level row: spread enough not to be "bunched", but too little for the far end
     i = q.inputs
     y_lo, y_hi = i.wall_span_mm
     y, z = (y_lo + y_hi - s) / 2, i.height_range_mm[0] + s
     r = q.grade(_wall_map([(0, y - 400, z), (0, y, z), (0, y + 400, z)], s))
-    assert r.status == INCORRECT and "% of the area is predicted within 10 mm, 90 % is asked" in r.message
-    assert "worst at the far end" in r.message and "times the target" in r.message
+    assert r.status == INCORRECT
+    assert "% of the area is predicted within 10 mm, 90 % is asked" in r.message
+    assert "worst at the far end" in r.message
+    assert "times the target" in r.message
     # as wide and as tall as the wall allows: the nearest places see no marker whole
     q = exercises.lesson("08", learner="alice").q4
     i = q.inputs
     s, (y_lo, y_hi), (z_lo, z_hi) = i.marker_size_mm, i.wall_span_mm, i.height_range_mm
     r = q.grade(_wall_map([(0, y_lo, z_hi), (0, (y_lo + y_hi - s) / 2, z_lo + s), (0, y_hi - s, z_hi)], s))
-    assert r.status == INCORRECT and "worst near the wall" in r.message and "no pose is possible" in r.message
+    assert r.status == INCORRECT
+    assert "worst near the wall" in r.message
+    assert "no pose is possible" in r.message
 
 
 def test_design_answer_forms():
@@ -625,9 +680,11 @@ def test_design_answer_forms():
     assert q.grade(key.to_dict()).status == CORRECT  # the full map-file layout
     bare = key.to_dict()["markers"]
     r = q.grade(bare)
-    assert r.status == INCORRECT and "MarkerMap.from_dict cannot read your dict" in r.message
+    assert r.status == INCORRECT
+    assert "MarkerMap.from_dict cannot read your dict" in r.message
     r = q.grade([1, 2, 3])
-    assert r.status == INCORRECT and "give a fidlearn.MarkerMap" in r.message
+    assert r.status == INCORRECT
+    assert "give a fidlearn.MarkerMap" in r.message
 
 
 def test_robot_positions_given_as_tvecs():
@@ -638,17 +695,21 @@ def test_robot_positions_given_as_tvecs():
     m, cam = q.inputs.marker_map, q.inputs.camera
     tvecs = np.array([estimate_pose(detect_markers(im, m.dictionary), m, cam).tvec for im in q.inputs.images])
     r = q.grade(tvecs)
-    assert r.status == INCORRECT and "tvecs" in r.message and "T_camera_world" in r.message
+    assert r.status == INCORRECT
+    assert "tvecs" in r.message
+    assert "T_camera_world" in r.message
 
 
 def test_robot_pose_mistakes():
     q, ans = key_of("09", "q2")
     Twc = q.inputs.T_world_camera
     r = q.grade((Twc[0, 3], Twc[1, 3], ans[2]))
-    assert r.status == INCORRECT and "CAMERA" in r.message
+    assert r.status == INCORRECT
+    assert "CAMERA" in r.message
     d = Twc[:3, 2]
     r = q.grade((ans[0], ans[1], np.degrees(np.arctan2(d[1], d[0]))))
-    assert r.status == INCORRECT and "optical axis" in r.message
+    assert r.status == INCORRECT
+    assert "optical axis" in r.message
 
 
 def test_path_length_mistakes():
@@ -675,7 +736,8 @@ def test_module_example_runs():
     import doctest
 
     result = doctest.testmod(exercises, optionflags=doctest.ELLIPSIS)
-    assert result.attempted >= 4 and result.failed == 0
+    assert result.attempted >= 4
+    assert result.failed == 0
 
 
 @pytest.mark.parametrize("number", LESSONS)
@@ -701,7 +763,8 @@ def test_epnp_on_one_wall_is_explained():
     img = np.concatenate([d.corners_px for d in q.inputs.detections])
     ok, rvec, tvec = cv2.solvePnP(obj, img, cam.K, cam.dist, flags=_cv.solvepnp_flag("EPNP"))
     r = q.grade((rvec, tvec))
-    assert r.status == INCORRECT and "EPnP is unreliable" in r.message
+    assert r.status == INCORRECT
+    assert "EPnP is unreliable" in r.message
     ok, rvec, tvec = cv2.solvePnP(obj, img, cam.K, cam.dist, flags=_cv.solvepnp_flag("SQPNP"))
     assert q.grade((rvec, tvec)).status == CORRECT
 
@@ -711,7 +774,9 @@ def test_far_frame_off_by_corner_error_gets_the_refinement_nudge():
     off = np.array(positions, dtype=float)
     off[0] += [0.0, 400.0, 0.0]
     r = q.grade(off)
-    assert r.status == INCORRECT and r.message.startswith("frame 0 is") and "refine the corners" in r.message
+    assert r.status == INCORRECT
+    assert r.message.startswith("frame 0 is")
+    assert "refine the corners" in r.message
 
 
 @pytest.mark.parametrize("learner", ["", "carol"])
@@ -724,13 +789,15 @@ def test_other_honest_methods_pass(learner):
     ex5 = exercises.lesson("05", learner=learner)
     corners, ids, _ = _cv.detect(_cv.make_detector(ex5.q2.inputs.dictionary), ex5.q2.inputs.image)
     c = corners[list(ids).index(ex5.q2.inputs.marker_id)]
-    assert ex5.q1.grade(list(ids)).correct and ex5.q2.grade(c).correct
+    assert ex5.q1.grade(list(ids)).correct
+    assert ex5.q2.grade(c).correct
     q = exercises.lesson("08", learner=learner).q2
     pose = estimate_pose(
         detect_markers(q.inputs.image, q.inputs.marker_map.dictionary), q.inputs.marker_map, q.inputs.camera
     )
     r = q.grade({"misplaced_id": pose.rejected_ids[0], "position_mm": pose.position_mm})
-    assert r.status == INCORRECT and "moved_mm" in r.message  # the one-call answer no longer answers the question
+    assert r.status == INCORRECT  # the one-call answer no longer answers the question
+    assert "moved_mm" in r.message
 
 
 def test_unknown_lesson_or_question_is_an_exercise_error():
@@ -738,7 +805,8 @@ def test_unknown_lesson_or_question_is_an_exercise_error():
 
     with pytest.raises(ExerciseError) as info:
         exercises.lesson("42")
-    assert isinstance(info.value, FidlearnError) and isinstance(info.value, KeyError)
+    assert isinstance(info.value, FidlearnError)
+    assert isinstance(info.value, KeyError)
     assert str(info.value).startswith("no exercises for lesson '42'; available: 01, 02")  # no KeyError quotes
     with pytest.raises(ExerciseError, match=r"lesson 01 has no question 'q9'; it has \['q1', 'q2', 'q3', 'q4', 'q5'\]"):
         exercises.lesson("01")["q9"]
@@ -748,7 +816,8 @@ def test_lessons_are_registered_in_notebook_order_and_lessons_stays_a_function()
     from fidlearn.exercises._registry import _LESSONS
 
     assert list(_LESSONS) == sorted(_LESSONS)
-    assert callable(exercises.lessons) and list(exercises.lessons()) == list(_LESSONS)
+    assert callable(exercises.lessons)
+    assert list(exercises.lessons()) == list(_LESSONS)
     from fidlearn.exercises.lessons import MODULES
 
     assert [m.NUMBER for m in MODULES] == list(exercises.lessons())
@@ -763,7 +832,8 @@ def test_strict_mode_lives_in_a_context_variable():
     assert exercises.STRICT_STACK.get() == ()
     seen = {}
     with exercises.strict("blank"):
-        assert exercises.STRICT_STACK.get() == ("blank",) and exercises.strict_mode() == "blank"
+        assert exercises.STRICT_STACK.get() == ("blank",)
+        assert exercises.strict_mode() == "blank"
         with exercises.strict():
             assert exercises.strict_mode() == "correct"
         assert exercises.strict_mode() == "blank"

@@ -57,7 +57,10 @@ def test_learner_id_from_the_environment_and_the_grader_are_folded_too(monkeypat
 @pytest.mark.parametrize("number", list(exercises.lessons()))
 def test_no_answer_key_on_the_learners_question(number):
     for q in exercises.lesson(number, learner="erin"):
-        assert q._expected is None and q._compare is None and q._wrong == [] and q._notes == []
+        assert q._expected is None
+        assert q._compare is None
+        assert q._wrong == []
+        assert q._notes == []
         held = [v for k, v in vars(q).items() if k not in ("inputs", "data", "_judge")]
         assert not any(isinstance(v, (np.ndarray, dict)) for v in held), q.name
 
@@ -77,10 +80,14 @@ def test_tiered_hints_come_one_at_a_time_and_never_hold_the_answer(capsys):
     second = capsys.readouterr().out
     q.hint()
     third = capsys.readouterr().out
-    assert first.startswith("Hint (q2, 1 of 2)") and second.startswith("Hint (q2, 2 of 2)") and second == third
+    assert first.startswith("Hint (q2, 1 of 2)")
+    assert second.startswith("Hint (q2, 2 of 2)")
+    assert second == third
     assert "last hint" in second
     for text in (first, second):  # the formula and the code are the learner's to write
-        assert "T_world_camera @" not in text and "invert_transform" not in text and "atan2" not in text
+        assert "T_world_camera @" not in text
+        assert "invert_transform" not in text
+        assert "atan2" not in text
 
 
 # -- wrong answers named ---------------------------------------------------------------------------
@@ -91,7 +98,9 @@ def test_the_3d_path_length_is_refused_for_the_floor_path(learner):
     valid = p[~np.isnan(p).any(axis=1)]
     length3 = float(np.sum(np.linalg.norm(np.diff(valid, axis=0), axis=1)))
     r = q.grade(length3)
-    assert r.status == INCORRECT and "3D length" in r.message and "floor" in r.message
+    assert r.status == INCORRECT
+    assert "3D length" in r.message
+    assert "floor" in r.message
 
 
 # -- distortion ------------------------------------------------------------------------------------
@@ -114,7 +123,8 @@ def test_a_third_of_the_questions_with_a_camera_have_distortion():
             cams = _cameras(q)
             with_camera += bool(cams)
             with_distortion += any(cams)
-    assert with_camera >= 10 and with_distortion * 3 >= with_camera, (with_distortion, with_camera)
+    assert with_camera >= 10, (with_distortion, with_camera)
+    assert with_distortion * 3 >= with_camera, (with_distortion, with_camera)
 
 
 # -- the questions added to make the course deeper: each names its mistakes ------------------------
@@ -155,7 +165,8 @@ def test_pnp_and_reprojection_without_distortion_are_named(learner):
     img = np.concatenate([d.corners_px for d in q.inputs.detections])
     _, rvec, tvec = cv2.solvePnP(obj, img, cam.K, None)
     r = q.grade((rvec, tvec))
-    assert r.status == INCORRECT and "distortion was ignored" in r.message
+    assert r.status == INCORRECT
+    assert "distortion was ignored" in r.message
     q3 = exercises.lesson("06", learner=learner).q3
     c3 = q3.inputs.camera
     proj = cv2.projectPoints(q3.inputs.object_points, q3.inputs.rvec, q3.inputs.tvec, c3.K, None)[0].reshape(-1, 2)
@@ -221,7 +232,7 @@ def test_average_speed_mistakes(learner):
 QUESTIONS = [(n, q.name) for n in exercises.lessons() for q in exercises.lesson(n)]
 
 
-@pytest.mark.parametrize("number,name", QUESTIONS)
+@pytest.mark.parametrize(("number", "name"), QUESTIONS)
 def test_no_hint_holds_the_line_that_answers(number, name):
     q = exercises.lesson(number)[name]
     answers = [ln.split("=", 1)[1].strip() for ln in q.solution_code.splitlines() if f"{name}.answer =" in ln]
@@ -234,4 +245,5 @@ def test_most_questions_have_tiered_hints():
     assert len(tiered) * 2 >= len(QUESTIONS), tiered
     for n, name in tiered:
         hints = exercises.lesson(n)[name]._hints
-        assert len(set(hints)) == len(hints) and all(len(h) > 40 for h in hints)
+        assert len(set(hints)) == len(hints)
+        assert all(len(h) > 40 for h in hints)

@@ -27,14 +27,18 @@ def test_unknowns_counted_by_hand(learner):
     q, key = key_of("q1", learner)
     seen, fixed = q.inputs.markers_seen, q.inputs.fixed_ids
     markers = {i for s in seen for i in s}
-    assert key == 6 * len(seen) + 6 * (len(markers) - len(fixed)) and 1 <= len(fixed) <= 2
+    assert key == 6 * len(seen) + 6 * (len(markers) - len(fixed))
+    assert 1 <= len(fixed) <= 2
     assert q.grade(key).status == CORRECT
     r = q.grade(6 * (len(seen) + len(markers)))
-    assert r.status == INCORRECT and "fixed" in r.message
+    assert r.status == INCORRECT
+    assert "fixed" in r.message
     r = q.grade(4 * sum(len(s) for s in seen))
-    assert r.status == INCORRECT and "corners" in r.message
+    assert r.status == INCORRECT
+    assert "corners" in r.message
     r = q.grade(3 * (len(seen) + len(markers) - len(fixed)))
-    assert r.status == INCORRECT and "6 numbers" in r.message
+    assert r.status == INCORRECT
+    assert "6 numbers" in r.message
 
 
 def _distorted_learner():
@@ -62,18 +66,22 @@ def test_residual_by_hand_and_its_mistakes(learner):
     assert np.allclose(by_hand, key, atol=1e-6)
     assert q.grade(by_hand).status == CORRECT
     r = q.grade(-key)
-    assert r.status == INCORRECT and "detected minus projected" in r.message
+    assert r.status == INCORRECT
+    assert "detected minus projected" in r.message
     r = q.grade(cam.project(X[k], q.inputs.T_camera_world) - q.inputs.detected_px)
-    assert r.status == INCORRECT and "T_world_camera" in r.message
+    assert r.status == INCORRECT
+    assert "T_world_camera" in r.message
     other = (k + 1) % 4
     r = q.grade(cam.project(X[other], T_wc) - q.inputs.detected_px)
-    assert r.status == INCORRECT and "TL, TR, BR, BL" in r.message
+    assert r.status == INCORRECT
+    assert "TL, TR, BR, BL" in r.message
     if cam.dist is not None and np.any(np.asarray(cam.dist) != 0):
         pinhole = Camera(cam.K, None, cam.image_size)
         undistorted = pinhole.project(X[k], T_wc) - q.inputs.detected_px
         assert np.abs(undistorted - key).max() > 0.05  # the lens matters in this variant
         r = q.grade(undistorted)
-        assert r.status == INCORRECT and "distortion" in r.message
+        assert r.status == INCORRECT
+        assert "distortion" in r.message
 
 
 @pytest.mark.parametrize("learner", LEARNERS)
@@ -82,13 +90,16 @@ def test_misplaced_marker_in_sigmas_not_mm(learner):
     ids, d, C = q.inputs.ids, q.inputs.differences_mm, q.inputs.covariances_mm2
     sig = [float(np.sqrt(d[i] @ np.linalg.solve(C[i], d[i]))) for i in range(len(ids))]
     order = np.argsort(sig)
-    assert key == ids[order[-1]] and sig[order[-1]] > 3.37 > 2.7 > sig[order[-2]]  # 3.37: chi-square 3 dof, 99 %
+    assert key == ids[order[-1]]  # 3.37: chi-square 3 dof, 99 %
+    assert sig[order[-1]] > 3.37 > 2.7 > sig[order[-2]]
     far = int(ids[int(np.argmax(np.linalg.norm(d, axis=1)))])
     assert far != key  # the farthest in mm is a weakly held marker, not the moved one
     r = q.grade(far)
-    assert r.status == INCORRECT and "in sigmas" in r.message
+    assert r.status == INCORRECT
+    assert "in sigmas" in r.message
     r = q.grade(int(np.argmax(sig)) + 100)
-    assert r.status == INCORRECT and "ids" in r.message
+    assert r.status == INCORRECT
+    assert "ids" in r.message
 
 
 @pytest.mark.parametrize("learner", LEARNERS)
@@ -97,7 +108,8 @@ def test_next_photo_shows_the_worst_marker(learner):
     m, cam = q.inputs.marker_map, q.inputs.camera
     worst = m.ids[int(np.argmax(q.inputs.position_std_mm))]
     sees = [worst in visible_markers(m, cam, T) for T in q.inputs.candidates]
-    assert sum(sees) == 1 and sees[key]
+    assert sum(sees) == 1
+    assert sees[key]
     for c in range(len(q.inputs.candidates)):
         if c != key:
             assert q.grade(c).status == INCORRECT
@@ -114,5 +126,6 @@ def test_only_the_moved_marker_fails_the_99_percent_test_for_100_learners():
         q = l11_mapping._q3(f"learner{i:03d}")
         d, C = q.inputs.differences_mm, q.inputs.covariances_mm2
         sig = np.array([np.sqrt(d[k] @ np.linalg.solve(C[k], d[k])) for k in range(len(d))])
-        assert np.sum(sig > 3.37) == 1 and np.all(np.linalg.eigvalsh(C) > 0), (i, sig)
+        assert np.sum(sig > 3.37) == 1, (i, sig)
+        assert np.all(np.linalg.eigvalsh(C) > 0), (i, sig)
         assert np.argmax(np.linalg.norm(d, axis=1)) != np.argmax(sig), i  # millimetres would pick the wrong one

@@ -89,7 +89,8 @@ def test_an_injected_flip_never_reaches_the_output():
     T, p = _ambiguous_far_pose(rng)
     truth_to_alt = np.linalg.norm(p.alternative.position_mm - T[:3, 3])
     flip_deg = frames.rotation_angle_deg(p.alternative.T_world_camera[:3, :3], T[:3, :3])
-    assert truth_to_alt > 500 and flip_deg > 10  # a flip is far from the truth
+    assert truth_to_alt > 500  # a flip is far from the truth
+    assert flip_deg > 10
     tracker = PoseTracker(MAP, CAM, process_noise=(1.0, 0.001), corner_sigma_px=0.3)
     for k in range(20):  # the track starts on all three markers at the same pose (their exact corners)
         tracker.update(dets(T, rng, 0.0), k / 30)
@@ -119,7 +120,9 @@ def test_a_frame_far_off_is_rejected_and_said_so():
         tracker.update(dets(T, rng, 0.3), k / 30)
     off = fidlearn.estimate_pose(dets(pose_at(900.0, 300.0), rng, 0.3), MAP, CAM, corner_sigma_px=0.3)
     out = tracker.update(off, 1.0)
-    assert out.rejected and out.status == "rejected" and "chi-square" in out.reason
+    assert out.rejected
+    assert out.status == "rejected"
+    assert "chi-square" in out.reason
     assert out.mahalanobis2 > GATE_CHI2
     assert np.linalg.norm(out.position_mm - T[:3, 3]) < 3.0
 
@@ -165,7 +168,8 @@ def test_predict_leaves_the_track_alone():
     np.testing.assert_allclose(ahead.position_mm, last.position_mm + 0.5 * last.velocity_mm_s, atol=1e-9)
     assert abs(ahead.position_mm[1] - (poses[-1][1, 3] + 150.0)) < 20.0  # 0.5 s at 300 mm/s
     assert (ahead.position_std_mm > last.position_std_mm).all()
-    assert tracker.last is last and tracker.predict(times[-1]).t_s == times[-1]
+    assert tracker.last is last
+    assert tracker.predict(times[-1]).t_s == times[-1]
 
 
 def test_the_mount_gives_the_base_pose_and_its_covariance():
@@ -198,7 +202,8 @@ def test_smooth_beats_the_filter_and_keeps_the_truth():
     tracker = PoseTracker(MAP, CAM, process_noise=(50.0, 0.05))
     filtered = [tracker.update(p, t) for p, t in zip(measured, times)]
     smoothed = smooth(measured, times, process_noise=(50.0, 0.05))
-    assert len(smoothed) == 90 and all(s.status == "smoothed" for s in smoothed)
+    assert len(smoothed) == 90
+    assert all(s.status == "smoothed" for s in smoothed)
     err = lambda out: np.sqrt(np.mean([np.sum((o.position_mm - T[:3, 3]) ** 2) for o, T in zip(out, poses)]))  # noqa: E731
     assert err(smoothed) < 0.8 * err(filtered)
     # exact measurements: the smoother returns the truth
@@ -208,7 +213,7 @@ def test_smooth_beats_the_filter_and_keeps_the_truth():
 
 
 @pytest.mark.parametrize(
-    "call, fragment",
+    ("call", "fragment"),
     [
         (lambda t: t.update(None, 0.0), "no pose yet"),
         (lambda t: t.predict(1.0), "nothing to predict"),
@@ -240,7 +245,9 @@ def test_bad_options_are_fidlearn_errors():
 
 def test_tracked_pose_reads_well():
     out = PoseTracker(MAP, CAM).update(_pose(), 0.0)
-    assert isinstance(out, TrackedPose) and out.measured and not out.rejected
+    assert isinstance(out, TrackedPose)
+    assert out.measured
+    assert not out.rejected
     assert repr(out).startswith("TrackedPose(t_s=0.000, started, position_mm=[700.0, 150.0, 250.0]")
 
 

@@ -34,7 +34,8 @@ def test_rpy_round_trip(rpy):
 def test_rpy_at_gimbal_lock_keeps_the_rotation():
     R = frames.rotation_from_rpy_deg(30, 90, 10)
     rpy = frames.rpy_deg_from_rotation(R)
-    assert rpy[0] == 0.0 and rpy[1] == pytest.approx(90)
+    assert rpy[0] == 0.0
+    assert rpy[1] == pytest.approx(90)
     assert np.allclose(frames.rotation_from_rpy_deg(*rpy), R)
 
 
@@ -64,7 +65,8 @@ def test_rvec_tvec_round_trip_and_opencv_agreement():
     R_cv, _ = cv2.Rodrigues(rvec)
     assert np.allclose(T[:3, :3], R_cv)
     r2, t2 = frames.rvec_tvec_from_transform(T)
-    assert np.allclose(r2, rvec) and np.allclose(t2, tvec)
+    assert np.allclose(r2, rvec)
+    assert np.allclose(t2, tvec)
 
 
 def test_transform_points_shapes():
@@ -77,7 +79,7 @@ def test_transform_points_shapes():
 
 
 @pytest.mark.parametrize(
-    "matrix, message",
+    ("matrix", "message"),
     [
         (np.eye(3), r"shape \(3, 3\), expected a \(4, 4\)"),
         (np.diag([1.0, 1.0, 1.0, 2.0]), r"bottom row \[0.0, 0.0, 0.0, 2.0\]"),
@@ -121,7 +123,8 @@ def test_look_at_is_public_in_frames_and_at_the_top_level_only():
     from fidlearn import look_at as top_level
     from fidlearn import synthetic
 
-    assert frames.look_at is top_level and not hasattr(synthetic, "look_at")
+    assert frames.look_at is top_level
+    assert not hasattr(synthetic, "look_at")
     assert frames.look_at.__module__ == "fidlearn.frames"
     T = frames.look_at([0.0, -2000.0, 500.0], [0.0, 0.0, 500.0])  # looking north (+Y), Z up
     np.testing.assert_allclose(T[:3, :3], [[1, 0, 0], [0, 0, 1], [0, -1, 0]], atol=1e-15)  # x east, y down, z north

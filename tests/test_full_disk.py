@@ -48,10 +48,13 @@ def test_a_full_disk_writes_nothing(tmp_path, capsys, monkeypatch, name):
     status = cli.main(COMMANDS[name][0])
     out, err = capsys.readouterr()
     [line] = error_lines(err)
-    assert status == 2 and err.rstrip().endswith(line), err
-    assert "(No space left on device)" in line and line.endswith("; nothing was written"), line
+    assert status == 2, err
+    assert err.rstrip().endswith(line), err
+    assert "(No space left on device)" in line, line
+    assert line.endswith("; nothing was written"), line
     assert "/." not in line  # the user's file named, never the hidden one
-    assert snapshot(ws / "out") == {} and not hidden(ws)
+    assert snapshot(ws / "out") == {}
+    assert not hidden(ws)
     assert {k: v for k, v in snapshot(ws).items() if not k.startswith("out/")} == inputs
 
 
@@ -89,6 +92,8 @@ def test_a_really_full_disk_writes_nothing(tmp_path, name):
     assert done.returncode == 0, done.stderr
     err = (ws / "err.txt").read_text()
     [line] = error_lines(err)
-    assert (ws / "status.txt").read_text().strip() == "2" and err.rstrip().endswith(line), err
-    assert "(No space left on device)" in line and line.endswith("; nothing was written"), line
+    assert (ws / "status.txt").read_text().strip() == "2", err
+    assert err.rstrip().endswith(line), err
+    assert "(No space left on device)" in line, line
+    assert line.endswith("; nothing was written"), line
     assert (ws / "left.txt").read_text() == ""  # no output, no temporary file, in the sandbox's tmpfs

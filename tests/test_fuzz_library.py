@@ -172,7 +172,7 @@ def test_every_baseline_works():
             factory()(*args, **kwargs)  # raises if the baseline itself is wrong
 
 
-@pytest.mark.parametrize("name, position, keyword, bad", list(cases()))
+@pytest.mark.parametrize(("name", "position", "keyword", "bad"), list(cases()))
 def test_wrong_arguments_raise_only_fidlearn_errors(name, position, keyword, bad):
     factory, args, kwargs = BASELINES[name]
     args, kwargs = list(args), dict(kwargs)
@@ -319,7 +319,7 @@ def _webcam():
 
     cam = Webcam()
     sent = []
-    cam.send = lambda content, buffers=None: sent.append(content)
+    cam.send = lambda content, buffers=None: sent.append(content)  # noqa: ARG005 (Widget.send's signature)
     seen = []
     cam.on_frame(lambda frame: seen.append(frame.shape))
     cam.start()
@@ -337,7 +337,7 @@ def webcam_cases():
         yield pytest.param(None, content, [GOOD_PNG], id=f"content={content!r:.20}")
 
 
-@pytest.mark.parametrize("kind, change, buffers", list(webcam_cases()))
+@pytest.mark.parametrize(("kind", "change", "buffers"), list(webcam_cases()))
 def test_a_malformed_browser_message_is_dropped_and_the_next_frame_delivered(kind, change, buffers):
     import asyncio
 
@@ -354,10 +354,13 @@ def test_a_malformed_browser_message_is_dropped_and_the_next_frame_delivered(kin
     finally:
         loop.close()
     if kind == "stream" and not seen:
-        assert cam.frames_dropped == 1 and cam.drop_reason
-        assert sent and sent[-1]["type"] == "ack"  # the browser may send the next frame
+        assert cam.frames_dropped == 1
+        assert cam.drop_reason
+        assert sent  # the browser may send the next frame
+        assert sent[-1]["type"] == "ack"
     cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 2, "width": 64, "height": 48}, [GOOD_PNG])
-    assert seen[-1] == (48, 64, 3) and cam.streaming
+    assert seen[-1] == (48, 64, 3)
+    assert cam.streaming
 
 
 def test_a_header_claiming_100000_pixels_a_side_is_refused_before_decoding():
@@ -394,10 +397,12 @@ def test_a_malformed_state_update_from_the_browser_is_dropped_and_the_widget_unc
     cam, _, seen = _webcam()
     before = {k: getattr(cam, k) for k in ("status", "actual_width", "width", "height", "max_fps", "streaming")}
     cam.set_state(update)  # what the comm does with the browser's state message: never raises
-    assert cam.frames_dropped == 1 and ("the browser set" in cam.drop_reason or "not a name" in cam.drop_reason)
+    assert cam.frames_dropped == 1
+    assert "the browser set" in cam.drop_reason or "not a name" in cam.drop_reason
     assert {k: getattr(cam, k) for k in before} == before
     cam.set_state({"status": "streaming", "actual_width": 64})  # a good update still applies
-    assert cam.status == "streaming" and cam.actual_width == 64
+    assert cam.status == "streaming"
+    assert cam.actual_width == 64
     cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 2, "width": 64, "height": 48}, [GOOD_PNG])
     assert seen == [(48, 64, 3)]
 

@@ -132,7 +132,7 @@ CASES = {
             "step_mm": 500.0,
             "headings": 2,
             "corner_sigma_px": 0.2,
-            "progress": lambda done, total: None,
+            "progress": lambda _done, _total: None,
             "marker_shift_px": 0.1,
             "marker_size_rel_std": 0.01,
             "marker_size_rel_std_each": 0.0,
@@ -211,7 +211,7 @@ def test_each_baseline_works(name):
 
 
 @pytest.mark.parametrize(
-    "name, argument", [(name, arg) for name, (_, kwargs) in sorted(CASES.items()) for arg in kwargs]
+    ("name", "argument"), [(name, arg) for name, (_, kwargs) in sorted(CASES.items()) for arg in kwargs]
 )
 def test_one_wrong_argument_at_a_time(name, argument):
     function, kwargs = CASES[name]

@@ -62,7 +62,8 @@ def run_survey(**changes):
 
 def assert_sound(s, tmp_path) -> None:
     for i, p in s.marker_map.placements.items():
-        assert np.all(np.isfinite(p.translation_mm)) and np.all(np.isfinite(p.rotation_deg)), i
+        assert np.all(np.isfinite(p.translation_mm)), i
+        assert np.all(np.isfinite(p.rotation_deg)), i
     back = MarkerMap.load(s.save(tmp_path / "s.json"))
     assert back.ids == s.marker_map.ids
 
@@ -79,7 +80,8 @@ def test_each_argument_wrong(arg, bad, tmp_path):
     try:
         s = run_survey(**{arg: BAD[bad]})
     except FidlearnError as exc:
-        assert str(exc) and "\n" not in str(exc)
+        assert str(exc)
+        assert "\n" not in str(exc)
     else:
         assert (arg, bad) in ACCEPTED, f"{arg}={bad!r} was accepted"
         assert_sound(s, tmp_path)
@@ -90,7 +92,8 @@ def test_each_argument_wrong(arg, bad, tmp_path):
 def test_each_photo_wrong(bad):
     if bad == "empty list":  # a photo in which nothing was detected: left out, with the reason
         s = run_survey(images=[BAD[bad], *PHOTOS[1:]])
-        assert s.unused[0][0] == "photo 0" and "shows no marker" in s.unused[0][1]
+        assert s.unused[0][0] == "photo 0"
+        assert "shows no marker" in s.unused[0][1]
         return
     with pytest.raises(FidlearnError):
         run_survey(images=[BAD[bad], *PHOTOS[1:]])
@@ -129,7 +132,7 @@ class Mine(Exception):
 
 @pytest.mark.parametrize("error", [ZeroDivisionError, Mine, KeyError, TypeError])
 def test_a_progress_function_that_raises_stops_the_survey_as_a_survey_error(error):
-    def progress(i, n, label):
+    def progress(i, _n, _label):
         if i == 3:
             raise error("boom")
 
@@ -149,7 +152,8 @@ def test_too_many_photos_are_refused_up_front_with_the_limit():
     t0 = time.perf_counter()
     with pytest.raises(SurveyError, match=rf"at most {MAX_PHOTOS} photos, got 2000"):
         run_survey(images=[PHOTOS[k % 5] for k in range(2000)], progress=lambda *a: calls.append(a))
-    assert time.perf_counter() - t0 < 2.0 and calls == []
+    assert time.perf_counter() - t0 < 2.0
+    assert calls == []
 
 
 def test_too_many_sightings_are_refused_after_reading_before_the_adjustment():
@@ -178,13 +182,14 @@ def test_a_placement_no_map_file_holds_is_never_written(baseline, tmp_path):
 
 def test_the_baseline_is_sound(baseline, tmp_path):
     assert_sound(baseline, tmp_path)
-    assert baseline.gross_ids == () and len(baseline.tape_residual_mm) >= 4
+    assert baseline.gross_ids == ()
+    assert len(baseline.tape_residual_mm) >= 4
     assert all(baseline.photos_per_marker[i] >= 2 for i in baseline.tape_residual_mm)
     assert max(baseline.tape_residual_mm.values()) < baseline.gross_threshold_mm
 
 
 @pytest.mark.parametrize("bad", list(BAD))
-def test_ellipsoid_and_save_with_wrong_arguments(baseline, bad, tmp_path):
+def test_ellipsoid_and_save_with_wrong_arguments(baseline, bad):
     for call in (
         lambda: baseline.position_ellipsoid_contains(BAD[bad], [0, 0, 0]),
         lambda: baseline.position_ellipsoid_contains(0, BAD[bad]),

@@ -119,7 +119,7 @@ def batch(tmp_path_factory):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("k, cheat", list(enumerate(CHEATS)))
+@pytest.mark.parametrize(("k", "cheat"), list(enumerate(CHEATS)))
 def test_every_cheat_scores_zero_with_a_reason(batch, k, cheat):
     if cheat == "reads the class secret" and not AS_ROOT:
         pytest.skip("graded as the instructor's own user, a notebook can read the secret: docs/teaching.md says so")
@@ -134,12 +134,14 @@ def test_the_reasons_say_what_happened(batch):
     g = {cheat: batch["grades"][f"cheater{k:02d}"] for k, cheat in enumerate(CHEATS)}
     assert "a cell ran longer than 20 s" in g["loops forever"].problem
     assert "kernel died" in g["kills its kernel"].problem
-    assert "kernel died" in g["exits"].problem and "no answers were collected" in g["exits"].problem
+    assert "kernel died" in g["exits"].problem
+    assert "no answers were collected" in g["exits"].problem
     assert all(r.status == "Not attempted" for r in g["builds another lesson"].results)
     assert any("cannot be graded" in r.message for r in g["answers with a function"].results)
     # a kernel that exits after writing the file hands in nothing: only the appended cell's answers count
     forged = g["forges the answers file"]
-    assert "kernel died" in forged.problem and all(r.status == "Not attempted" for r in forged.results)
+    assert "kernel died" in forged.problem
+    assert all(r.status == "Not attempted" for r in forged.results)
 
 
 @pytest.mark.slow
@@ -159,9 +161,8 @@ def test_no_submission_was_changed_and_the_csv_has_every_row(batch):
         "honest.two",
     }
     scores = {r["learner"]: int(r["score"]) for r in rows}
-    assert scores["honest.one"] == len(exercises.lesson("03")) and all(
-        v == 0 for k, v in scores.items() if k.startswith("cheater")
-    )
+    assert scores["honest.one"] == len(exercises.lesson("03"))
+    assert all(v == 0 for k, v in scores.items() if k.startswith("cheater"))
 
 
 def test_the_learner_kernel_never_holds_the_key(tmp_path, monkeypatch):
@@ -173,7 +174,8 @@ def test_the_learner_kernel_never_holds_the_key(tmp_path, monkeypatch):
     ex = exercises.lesson("03", "anyone")
     key = grading.graded_questions("03", "Alice", grading.read_secret(secret))
     for q, k in zip(ex, key):
-        assert isinstance(q, exercises.GradedQuestion) and not hasattr(q, "_expected")
+        assert isinstance(q, exercises.GradedQuestion)
+        assert not hasattr(q, "_expected")
         for name in k.inputs:
             a, b = q.inputs[name], k.inputs[name]
             if isinstance(a, np.ndarray):
@@ -190,7 +192,8 @@ def test_plain_data_round_trips_and_refuses_anything_else():
     value = {"a": np.arange(6.0).reshape(2, 3), 3: (1, 2.5, "x"), "m": world, "nan": float("nan")}
     back = grading.from_plain(json.loads(json.dumps(grading.to_plain(value))))
     np.testing.assert_array_equal(back["a"], value["a"])
-    assert back[3] == (1, 2.5, "x") and back["m"].corners()[0].tolist() == world.corners()[0].tolist()
+    assert back[3] == (1, 2.5, "x")
+    assert back["m"].corners()[0].tolist() == world.corners()[0].tolist()
     for bad in (
         {"__pickle__": "x"},
         {"__array__": "AAAA", "dtype": "<f8", "shape": [10]},
@@ -240,7 +243,8 @@ def test_grade_command_one_error_line(tmp_path):
         text=True,
         timeout=120,
     )
-    assert out.returncode == 0 and oct((tmp_path / "s").stat().st_mode & 0o777) == "0o600"
+    assert out.returncode == 0
+    assert oct((tmp_path / "s").stat().st_mode & 0o777) == "0o600"
 
 
 def test_release_writes_the_student_notebook_and_the_inputs(tmp_path):
@@ -256,12 +260,15 @@ def test_release_writes_the_student_notebook_and_the_inputs(tmp_path):
         assert [c.source for c in nb.cells if c.id != "ex03-graded"] == [c.source for c in source.cells]
         assert not any(c.get("outputs") for c in nb.cells)
         record = json.loads((folder / grading.INPUTS_FILE).read_text())
-        assert record["lesson"] == "03" and record["learner"] == folder.name and "q1" in record["questions"]
+        assert record["lesson"] == "03"
+        assert record["learner"] == folder.name
+        assert "q1" in record["questions"]
 
 
 def test_grading_errors_are_fidlearn_errors():
     from fidlearn.errors import ExerciseError, GradingError
 
-    assert grading.GradingError is GradingError and issubclass(GradingError, FidlearnError)
+    assert grading.GradingError is GradingError
+    assert issubclass(GradingError, FidlearnError)
     with pytest.raises(ExerciseError, match="no exercises for lesson '42'"):
         grading.graded_questions("42", "alice", b"secret")

@@ -236,10 +236,11 @@ def batch(tmp_path_factory):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("who, cheat", [(f"cheat{k:02d}", c) for k, c in enumerate([*CHEATS, EDITED_OUTPUTS])])
+@pytest.mark.parametrize(("who", "cheat"), [(f"cheat{k:02d}", c) for k, c in enumerate([*CHEATS, EDITED_OUTPUTS])])
 def test_every_cheat_scores_zero(batch, who, cheat):
     g = batch["grades"][who]
-    assert g.graded and len(g.results) == batch["n"], (cheat, g.problem)
+    assert g.graded, (cheat, g.problem)
+    assert len(g.results) == batch["n"], (cheat, g.problem)
     assert g.score == 0, (cheat, g.results, g.problem)
     assert all(r.status in ("Incorrect", "Not attempted") for r in g.results), (cheat, g.results)
 

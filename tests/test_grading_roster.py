@@ -35,7 +35,7 @@ def run(*argv) -> tuple[int, str, str]:
 
 # -- ids ------------------------------------------------------------------------------------------
 @pytest.mark.parametrize(
-    "given, learner",
+    ("given", "learner"),
     [("  Carol   Smith ", "carol_smith"), ("carol_smith", "carol_smith"), ("Bob@Uni.EDU", "bob@uni.edu"),
      ("José", "josé"), ("x" * 64, "x" * 64)],
 )  # fmt: skip
@@ -44,7 +44,7 @@ def test_one_normalization(given, learner):
 
 
 @pytest.mark.parametrize(
-    "bad, why",
+    ("bad", "why"),
     [("", "non-empty"), ("   ", "non-empty"), ("..", "dot"), (".", "dot"), (".hidden", "dot"),
      ("a/b", "path separator"), ("..\\x", "path separator"), ("alice?", "'?'"), ("a\x00b", "control"),
      ("a\tb", "control"), ("a\u200bb", "control"), ("x" * 65, "at most 64")],
@@ -90,7 +90,8 @@ def test_release_names_folders_by_id_and_writes_nothing_outside(tmp_path, secret
     folders = grading.release(LESSON, ["Carol Smith", "bob"], secret, tmp_path / "out")
     assert [f.name for f in folders] == ["carol_smith", "bob"]
     record = json.loads((folders[0] / grading.INPUTS_FILE).read_text())
-    assert record["learner"] == "carol_smith" and record["lesson"] == LESSON
+    assert record["learner"] == "carol_smith"
+    assert record["lesson"] == LESSON
     nb = nbformat.read(folders[0] / exercises.notebook_name(LESSON), as_version=4)
     tag = _learners.release_tag(grading.read_secret(secret), LESSON, "carol_smith")
     assert nb.metadata["fidlearn"] == {"lesson": LESSON, "learner": "carol_smith", "tag": tag}
@@ -105,7 +106,8 @@ def test_the_inputs_file_holds_no_answer_and_the_seed_uses_the_id(secret):
     assert record == grading.inputs_record(LESSON, "carol_smith", key)
     questions = grading.graded_questions(LESSON, "carol_smith", key)
     text = json.dumps(record)
-    assert "solution" not in text and "expected" not in text
+    assert "solution" not in text
+    assert "expected" not in text
     assert all(q.solution_code not in text for q in questions)
 
 
@@ -127,18 +129,23 @@ def test_a_release_that_fails_leaves_nothing(tmp_path, secret, monkeypatch, fail
     with pytest.raises(GradingError if isinstance(failure, OSError) else KeyboardInterrupt) as info:
         grading.release(LESSON, ["alice", "bob", "carol"], secret, tmp_path / "out")
     if isinstance(failure, OSError):
-        assert "No space left on device" in str(info.value) and "nothing was written" in str(info.value)
-    assert len(calls) == 3 and sorted(p.name for p in tmp_path.iterdir()) == before
+        assert "No space left on device" in str(info.value)
+        assert "nothing was written" in str(info.value)
+    assert len(calls) == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
 def test_new_secret_on_a_full_disk_leaves_no_file(tmp_path, monkeypatch):
 
-    def full(fd, data):
+    def full(_fd, _data):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(_learners, "_write_all", full)
     code, out, err = run("grade", "--new-secret", tmp_path / "class.secret")
-    assert code == 2 and err.startswith("error: ") and err.count("\n") == 1 and "no secret was made" in err
+    assert code == 2
+    assert err.startswith("error: ")
+    assert err.count("\n") == 1
+    assert "no secret was made" in err
     assert list(tmp_path.iterdir()) == []
 
 
@@ -146,16 +153,20 @@ def test_release_cli_names_the_roster_line(tmp_path, secret):
     roster = tmp_path / "roster.txt"
     roster.write_text("alice\n# a comment\nA  B\na_b\n")
     code, _, err = run("release", "--lesson", "1", "--secret-file", secret, "--learners", roster, "-o", tmp_path / "o")
-    assert code == 2 and err.count("\n") == 1
+    assert code == 2
+    assert err.count("\n") == 1
     assert "line 3 'A B' and line 4 'a_b' are one learner" in err  # the error line merges blanks
     roster.write_text("alice\nbob/../../x\n")
     code, _, err = run("release", "--lesson", "1", "--secret-file", secret, "--learners", roster, "-o", tmp_path / "o")
-    assert code == 2 and "line 2" in err and "path separator" in err
+    assert code == 2
+    assert "line 2" in err
+    assert "path separator" in err
     roster.write_text("alice\n")
     code, _, err = run(
         "release", "--lesson", "\u0661", "--secret-file", secret, "--learners", roster, "-o", tmp_path / "o"
     )
-    assert code == 2 and "no exercises for lesson" in err
+    assert code == 2
+    assert "no exercises for lesson" in err
     assert not (tmp_path / "o").exists()
 
 
@@ -176,7 +187,7 @@ def cls(tmp_path, secret, monkeypatch):
         (subs / as_name).write_bytes((folder / name).read_bytes())
     graded = []
 
-    def fake(nb, number, learner, secret_bytes, **kw):
+    def fake(nb, number, learner, _secret_bytes, **_kwargs):
         graded.append((Path(nb).name, learner))
         scores = {"alice": 5, "bob": 3, "dave@uni.edu": 1, "eve": 4}
         mark = {True: "Correct", False: "Incorrect"}
@@ -184,7 +195,7 @@ def cls(tmp_path, secret, monkeypatch):
         return grading.NotebookGrade(str(nb), learner, number, results)
 
     monkeypatch.setattr(_grader, "grade_one", fake)
-    monkeypatch.setattr(_grader, "sandbox_plan", lambda run_as=None: _NO_BOX)  # no notebook runs here
+    monkeypatch.setattr(_grader, "sandbox_plan", lambda _run_as=None: _NO_BOX)  # no notebook runs here
     return {"paths": paths, "subs": subs, "secret": secret, "graded": graded, "tmp": tmp_path}
 
 
@@ -212,17 +223,20 @@ def test_grade_matches_by_the_notebooks_id_and_reports_the_roster(cls):
     assert problems[("", "carol")] == problems[("", "frank")] == "missing: no notebook was handed in"
     rows = list(csv.DictReader(out.open(encoding="utf-8")))
     scores = {(r["notebook"], r["learner"]): r["score"] for r in rows}
-    assert scores[(str(p["alice"]), "alice")] == "5" and scores[(str(twice), "alice")] == ""
+    assert scores[(str(p["alice"]), "alice")] == "5"
+    assert scores[(str(twice), "alice")] == ""
     assert len([r for r in rows if r["learner"] == "alice" and r["score"] == "5"]) == 5  # one row per question
 
 
 def test_a_notebook_is_never_graded_against_another_learners_variant(cls):
     p = cls["paths"]
     grades = grading.grade([p["alice"]], LESSON, cls["secret"], cls["tmp"] / "g.csv", learner="bob")
-    assert cls["graded"] == [] and not grades[0].graded
+    assert cls["graded"] == []
+    assert not grades[0].graded
     assert "released to learner 'alice', not 'bob'" in grades[0].problem
     grades = grading.grade([p["alice"]], "02", cls["secret"], cls["tmp"] / "g.csv")
-    assert cls["graded"] == [] and "released for lesson 01, not 02" in grades[0].problem
+    assert cls["graded"] == []
+    assert "released for lesson 01, not 02" in grades[0].problem
 
 
 def test_canvas_and_moodle_gradebooks(cls):
@@ -301,7 +315,8 @@ def test_a_graded_lesson_records_and_says_so(tmp_path, secret, monkeypatch, caps
     folder = grading.release(LESSON, ["alice"], secret, tmp_path / "out")[0]
     monkeypatch.chdir(folder)
     ex = exercises.lesson(LESSON)
-    assert isinstance(ex, exercises.GradedLesson) and ex.learner == "alice"
+    assert isinstance(ex, exercises.GradedLesson)
+    assert ex.learner == "alice"
     q = ex.q1
     for absent in ("solution", "solution_code", "_expected", "_parse", "_compare", "_wrong", "_notes", "_judge"):
         assert not hasattr(q, absent), absent
@@ -311,7 +326,8 @@ def test_a_graded_lesson_records_and_says_so(tmp_path, secret, monkeypatch, caps
     text = capsys.readouterr().out
     assert "Recorded (q1): your answer is kept for your instructor" in text
     assert "Incorrect (q2): an answer of type builtin_function_or_method cannot be handed in" in text
-    assert "Lesson 01 for learner 'alice' (graded): 1 of 5 answers recorded" in text and "of 5 correct" not in text
+    assert "Lesson 01 for learner 'alice' (graded): 1 of 5 answers recorded" in text
+    assert "of 5 correct" not in text
     with pytest.raises(AttributeError, match="not in a graded lesson"):
         q.solution()
     with exercises.strict("correct"), pytest.raises(AssertionError, match="Not attempted"):
@@ -324,7 +340,9 @@ def test_self_study_keeps_checks_and_solutions(capsys):
     ex.q1.check(0)
     ex.summary()
     text = capsys.readouterr().out
-    assert "one way to do it" in text and "Incorrect (q1)" in text and "0 of 5 correct" in text
+    assert "one way to do it" in text
+    assert "Incorrect (q1)" in text
+    assert "0 of 5 correct" in text
 
 
 @pytest.mark.slow

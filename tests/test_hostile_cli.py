@@ -67,7 +67,8 @@ def refused(ws: Path, capsys, argv: list[str], match: str) -> str:
     out, err = capsys.readouterr()
     lines = err.strip().splitlines()
     assert status == 2, (out, err)
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
     assert match in lines[0], lines[0]
     assert "Traceback" not in err
     assert snapshot(ws) == before  # inputs unchanged, nothing written, no temporary file left
@@ -152,7 +153,7 @@ CLOBBER = [
 ]
 
 
-@pytest.mark.parametrize("argv, match", [c[1:] for c in CLOBBER], ids=[c[0] for c in CLOBBER])
+@pytest.mark.parametrize(("argv", "match"), [c[1:] for c in CLOBBER], ids=[c[0] for c in CLOBBER])
 def test_an_output_over_an_input_is_refused_before_any_work(ws, capsys, argv, match):
     target = (
         "camera.json" if "camera" in " ".join(argv[-2:]) or "--json" in argv and "link.json" in argv else "map.json"
@@ -178,7 +179,7 @@ BOUNDS = [
 ]
 
 
-@pytest.mark.parametrize("extra, match", [c[1:] for c in BOUNDS], ids=[c[0] for c in BOUNDS])
+@pytest.mark.parametrize(("extra", "match"), [c[1:] for c in BOUNDS], ids=[c[0] for c in BOUNDS])
 def test_render_options_out_of_range(ws, capsys, extra, match):
     refused(ws, capsys, ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", *extra], match)
 
@@ -196,7 +197,7 @@ POSES = [
 ]
 
 
-@pytest.mark.parametrize("extra, match", [c[1:] for c in POSES], ids=[c[0] for c in POSES])
+@pytest.mark.parametrize(("extra", "match"), [c[1:] for c in POSES], ids=[c[0] for c in POSES])
 def test_render_poses_out_of_range(ws, capsys, extra, match):
     refused(ws, capsys, ["render", *LOC, "-o", "r.png", *extra], match)
 
@@ -215,7 +216,7 @@ IDS = [
 ]
 
 
-@pytest.mark.parametrize("ids, match", IDS)
+@pytest.mark.parametrize(("ids", "match"), IDS)
 def test_marker_ids_of_any_range_answer_at_once(ws, capsys, ids, match):
     t0 = time.perf_counter()
     refused(ws, capsys, ["markers", "--ids", ids, "--size-mm", "80", "-o", "m.pdf"], match)
@@ -319,7 +320,7 @@ CAMERAS = [
 ]
 
 
-@pytest.mark.parametrize("name, content, match", [c[:1] + c[2:] for c in CAMERAS], ids=[c[1] for c in CAMERAS])
+@pytest.mark.parametrize(("name", "content", "match"), [c[:1] + c[2:] for c in CAMERAS], ids=[c[1] for c in CAMERAS])
 def test_camera_files_that_say_something_else(ws, capsys, name, content, match):
     _write(ws, name, content)
     refused(ws, capsys, ["locate", "frames", "--camera", name, "--map", "map.json", "--json", "p.jsonl"], match)
@@ -368,7 +369,7 @@ MAPS = [
 ]
 
 
-@pytest.mark.parametrize("content, match", [c[1:] for c in MAPS], ids=[c[0] for c in MAPS])
+@pytest.mark.parametrize(("content", "match"), [c[1:] for c in MAPS], ids=[c[0] for c in MAPS])
 def test_map_files_that_say_something_else(ws, capsys, content, match):
     _write(ws, "bad_map.json", content)
     refused(ws, capsys, ["corners", "bad_map.json", "-o", "corners.json"], match)
@@ -404,7 +405,7 @@ IMAGES = [
 ]
 
 
-@pytest.mark.parametrize("name, content, match", [c[1:] for c in IMAGES], ids=[c[0] for c in IMAGES])
+@pytest.mark.parametrize(("name", "content", "match"), [c[1:] for c in IMAGES], ids=[c[0] for c in IMAGES])
 def test_pictures_that_are_not_what_they_say(ws, capsys, name, content, match):
     _write(ws, name, content)
     refused(ws, capsys, ["locate", name, *LOC, "--json", "p.jsonl"], match)
@@ -439,19 +440,22 @@ def test_fifos_and_devices_are_refused_without_blocking(ws, capsys, kind):
     before = {p.name for p in ws.iterdir()}
     assert cli.main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and ("is a FIFO" in err[0] or "is a device" in err[0]), err
+    assert len(err) == 1, err
+    assert "is a FIFO" in err[0] or "is a device" in err[0], err
     assert {p.name for p in ws.iterdir()} == before
     assert time.perf_counter() - t0 < 5
 
 
 # -- writing: the user's path in every error, nothing half-written -------------------------------
 def test_a_full_disk_names_the_users_file_not_the_hidden_one(ws, capsys, monkeypatch):
-    def full(src, dst):
+    def full(_src, _dst):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(os, "replace", full)
     line = refused(ws, capsys, ["corners", "map.json", "-o", "corners.json"], "corners.json: cannot write it")
-    assert "No space left on device" in line and "/." not in line and ".tmp" not in line
+    assert "No space left on device" in line
+    assert "/." not in line
+    assert ".tmp" not in line
 
 
 def test_annotate_says_when_it_replaces_earlier_pictures(ws, capsys):
@@ -467,7 +471,7 @@ def test_annotate_says_when_it_replaces_earlier_pictures(ws, capsys):
 def test_calibrate_writes_the_camera_last(ws, capsys, monkeypatch):
     from fidlearn import cli as c
 
-    def broken(*a, **k):
+    def broken(*_args, **_kwargs):
         raise fidlearn.FidlearnError("drawing failed")
 
     monkeypatch.setattr(c.calibrate, "draw_calibration_view", broken)
@@ -476,7 +480,8 @@ def test_calibrate_writes_the_camera_last(ws, capsys, monkeypatch):
         ["calibrate", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json", "--annotate", "seen"]
     )
     errors = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("error:")]
-    assert status == 2 and errors == ["error: drawing failed"]
+    assert status == 2
+    assert errors == ["error: drawing failed"]
     assert snapshot(ws) == before  # no camera file: annotation failed before it would have been written
 
 
@@ -526,7 +531,8 @@ def test_a_signal_keeps_every_finished_frame(ws, sig):
     assert line.startswith(f"error: interrupted by {signal.Signals(sig).name} after ")
     assert f"poses.jsonl holds {len(records)} whole frame record" in line
     assert f"{len(pictures)} annotated picture" in line
-    assert 5 <= len(records) < 40 and all(r["located"] for r in records)
+    assert 5 <= len(records) < 40
+    assert all(r["located"] for r in records)
     assert records == [json.loads(r) for r in (ws / "poses.jsonl").read_text().splitlines()]
     assert len(records) - 1 <= len(pictures) <= len(records)  # a frame's picture is saved after its record
     assert not [p for p in ws.rglob(".*")], "a hidden temporary file was left behind"
@@ -571,7 +577,8 @@ def test_the_cli_and_library_agree_with_a_misplaced_marker(ws, capsys):
         (ws / "moved.json").write_text(json.dumps(bad))
         status = cli.main(["locate", "frames", "--camera", "camera.json", "--map", "moved.json", "--json", "p.jsonl"])
         err = capsys.readouterr().err
-        assert status == 0 and "Traceback" not in err, err
+        assert status == 0, err
+        assert "Traceback" not in err, err
 
 
 # -- survey: options out of range, too many photos, a tape map with no agreeing majority ---------
@@ -580,7 +587,7 @@ SURVEY_ARGS = ["--camera", str(SURVEY / "camera.json"), "--map", str(SURVEY / "t
 
 
 @pytest.mark.parametrize(
-    "extra, match",
+    ("extra", "match"),
     [
         (["--map-sigma-mm", "1e-300"], "--map-sigma-mm 1e-300: give a positive number of mm from 0.01 to 100000"),
         (["--map-sigma-mm", "nan"], "--map-sigma-mm nan: give a positive number of mm from 0.01 to 100000"),
@@ -621,7 +628,7 @@ PLAN = ["plan", "map.json", "--camera", "camera.json", "--step-mm", "1000", "--h
 
 
 @pytest.mark.parametrize(
-    "extra, match",
+    ("extra", "match"),
     [
         (["--corner-sigma-px", "1e300"], "--corner-sigma-px 1e+300: give a positive number of pixels up to 100"),
         (["--marker-shift-px", "1e300"], "--marker-shift-px 1e+300: give a number of pixels, 0 or more, up to 100"),
@@ -640,12 +647,13 @@ def test_plan_looking_at_a_far_point_works_without_a_warning(ws, capsys, far):
     """A far look-at point is a direction: the plan is made, and nothing but its figures is said."""
     assert cli.main([*PLAN, "--look-at", far]) == 0
     out, err = capsys.readouterr()
-    assert err == "" and "places, 1000 mm apart, camera at 300 mm" in out
+    assert err == ""
+    assert "places, 1000 mm apart, camera at 300 mm" in out
     assert (ws / "plan.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.mark.parametrize(
-    "board, match",
+    ("board", "match"),
     [
         (["--pattern", "200x100"], "--pattern 200x100: 20000 inner corners, more than 2500"),
         (["--pattern", "99999999x99999999"], "inner corners, more than 2500"),
@@ -686,18 +694,20 @@ CAMERA_INFO_CASES = [
 ]
 
 
-@pytest.mark.parametrize("change, match", [c[1:] for c in CAMERA_INFO_CASES], ids=[c[0] for c in CAMERA_INFO_CASES])
+@pytest.mark.parametrize(("change", "match"), [c[1:] for c in CAMERA_INFO_CASES], ids=[c[0] for c in CAMERA_INFO_CASES])
 def test_camera_import_of_a_hostile_camera_info(ws, capsys, change, match):
     assert change[0] in CAMERA_INFO
     (ws / "info.yaml").write_text(CAMERA_INFO.replace(*change))
     refused(ws, capsys, ["camera", "import", "info.yaml", "-o", "imported.json"], match)
 
 
-def test_camera_import_of_the_unchanged_camera_info_works(ws, capsys):
+def test_camera_import_of_the_unchanged_camera_info_works(ws):
     (ws / "info.yaml").write_text(CAMERA_INFO)
     assert cli.main(["camera", "import", "info.yaml", "-o", "imported.json"]) == 0
     cam = fidlearn.Camera.load(ws / "imported.json")
-    assert cam.image_size == (640, 480) and cam.fx == 600.0 and cam.dist[0] == -0.1
+    assert cam.image_size == (640, 480)
+    assert cam.fx == 600.0
+    assert cam.dist[0] == -0.1
 
 
 def _frames_of_two_aspects(ws: Path) -> None:
@@ -734,7 +744,7 @@ MOUNT_CASES = [
 ]
 
 
-@pytest.mark.parametrize("mount, match", [c[1:] for c in MOUNT_CASES], ids=[c[0] for c in MOUNT_CASES])
+@pytest.mark.parametrize(("mount", "match"), [c[1:] for c in MOUNT_CASES], ids=[c[0] for c in MOUNT_CASES])
 def test_a_mount_file_with_an_unknown_or_wrong_key_is_refused(ws, capsys, mount, match):
     (ws / "mount.json").write_text(json.dumps(mount))
     refused(ws, capsys, ["locate", "frames", *LOC, "--track", "--mount", "mount.json", "-o", "t.jsonl"], match)
@@ -791,7 +801,8 @@ def test_render_interrupted_in_its_commit_writes_both_and_says_so(ws, capsys, mo
     _signal_at(monkeypatch, "renamed:1:SIGTERM")
     assert cli.main(RENDER) == 128 + signal.SIGTERM
     assert capsys.readouterr().err.strip() == "error: interrupted by SIGTERM; written: s.png, t.json"
-    assert cv2_shape(ws / "s.png") == (720, 1280, 3) and json.loads((ws / "t.json").read_text())["image"] == "s.png"
+    assert cv2_shape(ws / "s.png") == (720, 1280, 3)
+    assert json.loads((ws / "t.json").read_text())["image"] == "s.png"
     assert not [p for p in ws.rglob(".*")]
 
 
@@ -837,7 +848,7 @@ def test_a_signal_during_a_c_extensions_import_is_an_interruption(ws, capsys, mo
     """A SIGTERM while matplotlib's Agg module initialises comes out as ``ImportError: initialization failed``."""
     from fidlearn.cli import _common, corners
 
-    def importing(args):
+    def importing(_args):
         try:
             raise _common._Interrupted(signal.SIGTERM)
         except KeyboardInterrupt as exc:

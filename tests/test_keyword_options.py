@@ -108,7 +108,8 @@ def test_the_rule_knows_an_option_from_an_input():
         """Four after self."""
 
     assert "make color, label keyword-only" in _too_many_positional(options_positional)
-    assert _too_many_positional(inputs_positional) == "" and _too_many_positional(method) == ""
+    assert _too_many_positional(inputs_positional) == ""
+    assert _too_many_positional(method) == ""
 
 
 def test_no_public_callable_takes_an_option_beyond_the_fourth_positional_parameter():

@@ -31,8 +31,11 @@ def make_data():
 def test_rounding_never_keeps_a_negative_zero(make_data):
     plain, matrix = make_data["plain"], make_data["matrix"]
     assert math.copysign(1.0, plain(-1e-17, 12)) == 1.0
-    assert plain(-0.0, 6) == 0.0 and math.copysign(1.0, plain(-0.0, 6)) == 1.0
-    assert plain(-0.25, 1) == -0.2 and plain(-1.5e-7, 6) == 0.0 and plain(-2e-6, 6) == -2e-6
+    assert plain(-0.0, 6) == 0.0
+    assert math.copysign(1.0, plain(-0.0, 6)) == 1.0
+    assert plain(-0.25, 1) == -0.2
+    assert plain(-1.5e-7, 6) == 0.0
+    assert plain(-2e-6, 6) == -2e-6
     rotation = np.array([[0.0, -1e-17, 1.0], [-1.0, 0.0, -3e-18], [0.0, -1.0, 0.0]])
     assert NEGATIVE_ZERO.findall(json.dumps(matrix(rotation))) == []
     assert json.dumps(matrix(rotation)) == "[[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]"
@@ -74,7 +77,8 @@ def test_make_data_writes_the_repositorys_zeros(tmp_path):
         timeout=300,
     )
     written = sorted(p.relative_to(out) for p in out.rglob("*.json"))
-    assert Path("scenes/poses.json") in written and Path("two_walls_map.json") in written
+    assert Path("scenes/poses.json") in written
+    assert Path("two_walls_map.json") in written
     kept_poses = json.loads((ROOT / "data" / "scenes" / "poses.json").read_text())
     same_build = kept_poses["provenance"] == json.loads((out / "scenes" / "poses.json").read_text())["provenance"]
     for rel in written:

@@ -60,7 +60,7 @@ def test_default_rotation_faces_plus_x_and_square_has_the_stated_side():
     assert np.allclose(T[:3, 3], c.mean(axis=0))
 
 
-@pytest.mark.parametrize("units, factor", [("mm", 1), ("cm", 10), ("m", 1000), ("in", 25.4), ("ft", 304.8)])
+@pytest.mark.parametrize(("units", "factor"), [("mm", 1), ("cm", 10), ("m", 1000), ("in", 25.4), ("ft", 304.8)])
 def test_units(units, factor):
     c = corners_of({"translation": [1, 2, 3], "rotation": [0, 0, 0]}, units=units)
     assert np.allclose(c[0], np.array([1, 2, 3]) * factor)
@@ -78,7 +78,8 @@ def test_full_layout_round_trip(tmp_path):
     m = MarkerMap.from_dict(SEED_BARE, units="ft", marker_size_mm=80, dictionary="DICT_ARUCO_ORIGINAL")
     path = m.save(tmp_path / "map.json")
     m2 = MarkerMap.load(path)
-    assert m2.units == "ft" and m2.dictionary == "ARUCO_ORIGINAL"
+    assert m2.units == "ft"
+    assert m2.dictionary == "ARUCO_ORIGINAL"
     for i in m.ids:
         assert np.allclose(m.corners()[i], m2.corners()[i])
 
@@ -105,7 +106,7 @@ def write(tmp_path, text, name="map.json"):
 
 
 @pytest.mark.parametrize(
-    "text, kwargs, message",
+    ("text", "kwargs", "message"),
     [
         (
             '{"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},',

@@ -18,7 +18,8 @@ PHOTO = load_image(REAL / "img_00.jpg")
 
 def test_the_photo_gives_the_noise_of_its_pose():
     found = noise_from_photo(PHOTO, BOARD, CAMERA)
-    assert isinstance(found, MeasuredNoise) and len(found.pose.marker_ids) == 17
+    assert isinstance(found, MeasuredNoise)
+    assert len(found.pose.marker_ids) == 17
     pose = fidlearn.estimate_pose(fidlearn.detect_markers(PHOTO, BOARD.dictionary), BOARD, CAMERA)
     np.testing.assert_allclose(found.pose.T_world_camera, pose.T_world_camera, atol=1e-12)
     assert found.noise == pytest.approx(noise_from_pose(pose, BOARD, CAMERA))

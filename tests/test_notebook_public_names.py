@@ -74,7 +74,8 @@ def test_the_check_sees_private_names():
 
 
 def test_notebooks_are_found():
-    assert len(NOTEBOOKS) >= 20 and len(SOURCES) >= 10
+    assert len(NOTEBOOKS) >= 20
+    assert len(SOURCES) >= 10
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS + SOURCES, ids=lambda p: p.relative_to(repo_dir()).as_posix())

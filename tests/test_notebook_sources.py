@@ -52,7 +52,7 @@ def test_parse_percent_splits_code_and_markdown_cells():
 
 
 @pytest.mark.parametrize(
-    "text, message",
+    ("text", "message"),
     [
         ("x = 1\n# %%\ny = 2\n", "code before the first"),
         ("# %% [markdown]\nnot a comment\n", "must start with '# '"),
@@ -78,7 +78,8 @@ def test_check_reports_a_stale_notebook(tmp_path: Path):
     assert nbbuild.check_one(src) == []
     src.write_text("# %%\nx = 2\n")
     (problem,) = nbbuild.check_one(src)
-    assert "cells differ" in problem and "nbbuild.py" in problem
+    assert "cells differ" in problem
+    assert "nbbuild.py" in problem
     nb.cells[0].source = "x = 2"
     nb.cells[0].execution_count = None
     nbformat.write(nb, str(tmp_path / "01_demo.ipynb"))
@@ -109,7 +110,8 @@ def test_build_executes_and_leaves_out_what_varies(tmp_path: Path):
     assert [c.id for c in nb.cells] == ["cell-000", "cell-001", "cell-002"]
     assert nb.cells[1].outputs[0].text == f"{tmp_path.name} 42\n"  # run in the notebook's folder
     widget_out = nb.cells[2].outputs[0]
-    assert "text/plain" in widget_out.data and nbbuild._WIDGET_MIME not in widget_out.data
+    assert "text/plain" in widget_out.data
+    assert nbbuild._WIDGET_MIME not in widget_out.data
     assert "widgets" not in nb.metadata
     assert all("execution" not in c.metadata for c in nb.cells)
     assert nbbuild.check_one(src) == []

@@ -125,4 +125,5 @@ def test_the_rules_catch_a_private_face(tmp_path):
     assert sorted(n for n in face["imported"] if _private(n) and n not in face["deleted"]) == ["_helper"]
     assert face["all"] == ["shown", "_helper", "absent"]
     assert "absent" not in set(face["imported"]) | face["defined"]
-    assert "hidden" in face["imported"] and "hidden" not in face["all"]
+    assert "hidden" in face["imported"]
+    assert "hidden" not in face["all"]

@@ -98,7 +98,8 @@ def test_every_dependency_has_a_bounded_range():
     for group, deps in groups.items():
         for name, spec in deps.items():
             ops = {s.operator for s in spec}
-            assert ">=" in ops and "<" in ops, f"pyproject.toml [{group}] {name}{spec}: give a lower and an upper bound"
+            assert ">=" in ops, f"pyproject.toml [{group}] {name}{spec}: give a lower and an upper bound"
+            assert "<" in ops, f"pyproject.toml [{group}] {name}{spec}: give a lower and an upper bound"
 
 
 def test_opencv_spans_4_14_to_5():
@@ -156,9 +157,8 @@ def test_binder_installs_the_package_itself():
     # Anything Binder pins besides the package must agree with pyproject.toml.
     wanted = {**runtime_deps(), **extra("test")}
     for name, spec in requirements([line for line in lines if line not in local]).items():
-        assert name in wanted and spec == wanted[name], (
-            f"binder/requirements.txt: {name}{spec} disagrees with pyproject.toml"
-        )
+        assert name in wanted, f"binder/requirements.txt: {name}{spec} disagrees with pyproject.toml"
+        assert spec == wanted[name], f"binder/requirements.txt: {name}{spec} disagrees with pyproject.toml"
     runtime = (ROOT / "binder" / "runtime.txt").read_text().strip()
     match = re.fullmatch(r"python-(\d+\.\d+)", runtime)
     assert match, f"binder/runtime.txt should read python-3.X, got {runtime!r}"
@@ -207,7 +207,8 @@ def test_the_readme_pytest_commands_collect_as_written():
     import subprocess
 
     commands = _existing_environment_commands()
-    assert len(commands) == 2 and all(c.startswith("pytest ") for c in commands), commands
+    assert len(commands) == 2, commands
+    assert all(c.startswith("pytest ") for c in commands), commands
     pytest_exe = Path(sys.executable).with_name("pytest")
     assert pytest_exe.exists(), f"{pytest_exe}: pytest's script is installed beside the Python that runs the tests"
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
@@ -230,4 +231,5 @@ def test_the_readme_pytest_commands_collect_as_written():
     assert any(i.startswith("tests/test_planning_real.py::") for i in fast)  # imports benchmarks
     assert any(i.startswith("notebooks/00_welcome.ipynb::") for i in fast)
     assert any(i.startswith("fidlearn/") for i in fast)  # the docstring examples
-    assert slow and not set(fast) & set(slow)
+    assert slow
+    assert not set(fast) & set(slow)

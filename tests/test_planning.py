@@ -54,7 +54,7 @@ def _sample_positions(world, camera, T, sigma, n, seed):
 
 
 @pytest.mark.parametrize(
-    "eye, target, sigma",
+    ("eye", "target", "sigma"),
     [
         ([1000, 190, 230], [0, 190, 230], 0.3),  # face-on, 1 m
         ([1500, -600, 420], [0, 190, 230], 0.5),  # oblique, 1.7 m
@@ -123,7 +123,8 @@ def test_one_marker_face_on_and_far_is_flagged_as_a_likely_flip_and_a_tilted_vie
     face_on = predict_accuracy(one_marker(80), cam, look_at([3000, 0, 1000], [0, 0, 1000]), corner_sigma_px=0.5)
     assert face_on.flip_probability == 0.0  # the two solutions meet: one answer, however noisy
     far = predict_accuracy(one_marker(80), cam, look_at([2000, 600, 1000], [0, 0, 1000]), corner_sigma_px=0.5)
-    assert far.flip_likely and 0.1 < far.flip_probability < 0.5
+    assert far.flip_likely
+    assert 0.1 < far.flip_probability < 0.5
     near = predict_accuracy(one_marker(80), cam, look_at([600, 600, 1000], [0, 0, 1000]), corner_sigma_px=0.5)
     assert not near.flip_likely
     world = MarkerMap.load(fidlearn.data_path("two_walls_map.json"))
@@ -167,10 +168,12 @@ def test_the_flip_probability_predicts_how_often_estimate_pose_picks_the_wrong_b
 
 def test_markers_out_of_sight_say_why(world, camera):
     p = predict_accuracy(world, camera, look_at([1000, 190, 230], [2000, 190, 230]))  # looking away
-    assert not p.possible and p.position_error_mm == math.inf
+    assert not p.possible
+    assert p.position_error_mm == math.inf
     assert "behind the camera" in p.reason
     far = predict_accuracy(world, camera, look_at([20000, 190, 230], [0, 190, 230]))
-    assert not far.possible and "too small" in far.reason
+    assert not far.possible
+    assert "too small" in far.reason
     assert "no pose" in repr(far)
 
 
@@ -189,7 +192,7 @@ def test_flip_probability_is_zero_for_points_off_a_plane(camera):
 
 
 @pytest.mark.parametrize(
-    "bad, match",
+    ("bad", "match"),
     [
         (np.eye(3), "shape"),
         ("pose", "4x4"),
@@ -237,7 +240,8 @@ def test_plan_on_one_marker_on_its_axis_grows_with_the_cube_of_the_distance():
 def test_plan_headings_and_the_area_behind_the_wall(world, camera):
     plan = plan_room(world, camera, area=(-1000, -500, 2000, 900), step_mm=500, headings=8)
     behind = plan.x_mm < 0
-    assert np.all(np.isinf(plan.toward_mm[:, behind])) and np.all(plan.seen_fraction[:, behind] == 0)
+    assert np.all(np.isinf(plan.toward_mm[:, behind]))
+    assert np.all(plan.seen_fraction[:, behind] == 0)
     front = ~behind
     assert np.all(np.isfinite(plan.toward_mm[:, front]))
     finite = np.isfinite(plan.worst_mm)
@@ -263,13 +267,15 @@ def test_suggestions_on_an_area_smaller_than_the_room_grid(camera):
     small = one_marker(40.0)
     area = (300, -200, 700, 100)
     steps = suggest_markers(small, camera, 1.0, height_mm=1000, area=area, max_markers=1)
-    assert steps and steps[0].fraction_after > steps[0].fraction_before
+    assert steps
+    assert steps[0].fraction_after > steps[0].fraction_before
     added = steps[-1].marker_map
     new = max(added.ids)
     np.testing.assert_allclose(added.normal(new), small.normal(0), atol=1e-9)  # on the same wall
     assert added.marker_corners(new).mean(axis=0)[0] == pytest.approx(0.0, abs=1e-6)
     again = plan_room(added, camera, height_mm=1000, area=area, headings=0)  # plan_room's default grid is the same
-    assert again.step_mm == 75.0 and again.toward_mm.shape == (4, 5)
+    assert again.step_mm == 75.0
+    assert again.toward_mm.shape == (4, 5)
     assert again.fraction_within(1.0) == steps[-1].fraction_after
 
 
@@ -298,14 +304,16 @@ def test_plan_command_writes_the_picture_and_says_the_figures(tmp_path, capsys):
             str(out),
         ]
     )
-    assert rc == 0 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert rc == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = capsys.readouterr().out
-    assert "a pose is possible at" in text and "within 10 mm" in text
+    assert "a pose is possible at" in text
+    assert "within 10 mm" in text
     assert [p.name for p in tmp_path.iterdir()] == ["plan.png"]
 
 
 @pytest.mark.parametrize(
-    "extra, match",
+    ("extra", "match"),
     [
         (["--suggest"], "--suggest needs --target-mm"),
         (["--area", "1,2,3"], "expected 4 numbers"),
@@ -341,10 +349,12 @@ def test_plan_command_says_when_no_suggestion_is_needed(tmp_path, capsys):
     far = ["--area", "1500,-500,3000,1000", "--step-mm", "500", "--headings", "0", "--suggest", "-o"]
     assert _run_plan([*args, *far, str(tmp_path / "q.png"), "--target-mm", "5"]) == 0
     text = capsys.readouterr().out
-    assert "none needed" not in text and "suggestion: " in text and "within 5 mm: 100 %" not in text
+    assert "none needed" not in text
+    assert "suggestion: " in text
+    assert "within 5 mm: 100 %" not in text
 
 
-def test_plan_figure_draws_each_marker_as_seen_from_above(tmp_path):
+def test_plan_figure_draws_each_marker_as_seen_from_above():
     """A marker on a wall is a bar (its outline from above has no area), one on the floor a square of its size."""
     from matplotlib.patches import Polygon
 
@@ -369,7 +379,8 @@ def test_plan_figure_draws_each_marker_as_seen_from_above(tmp_path):
     assert sorted(t.get_text().strip() for t in ax.texts if t.get_text().strip()) == ["0", "1"]
     # one arrow along a normal: the wall marker's, +X; the floor marker's points up, out of the picture
     (arrow,) = [t for t in ax.texts if getattr(t, "arrow_patch", None) is not None]
-    assert arrow.xy[0] > arrow.xyann[0] and arrow.xy[1] == pytest.approx(arrow.xyann[1])
+    assert arrow.xy[0] > arrow.xyann[0]
+    assert arrow.xy[1] == pytest.approx(arrow.xyann[1])
 
 
 def test_plan_command_refuses_to_write_over_its_input(tmp_path):
@@ -396,4 +407,5 @@ def test_a_grazing_marker_whose_planar_solution_is_nan_has_no_flip():
     )
     centre = np.mean([m.marker_corners(i).mean(axis=0) for i in m.ids], axis=0)
     p = predict_accuracy(m, cam, look_at([715, -765, 420], centre))
-    assert p.possible and 0.0 <= p.flip_probability <= 0.5
+    assert p.possible
+    assert 0.0 <= p.flip_probability <= 0.5

@@ -30,7 +30,8 @@ def test_the_board_map_is_the_boards_nominal_geometry():
     np.testing.assert_allclose(c[3] - c[0], [0, 20, 0], atol=1e-9)
     np.testing.assert_allclose(world.normal(0), [0, 0, -1], atol=1e-9)  # facing the camera, at negative z
     bundled = MarkerMap.load(fidlearn.data_path(f"{real.FOLDER}/board_map.json"))  # the course's copy
-    assert bundled.ids == world.ids and bundled.dictionary == world.dictionary
+    assert bundled.ids == world.ids
+    assert bundled.dictionary == world.dictionary
     for i in world.ids:
         np.testing.assert_allclose(bundled.marker_corners(i), world.marker_corners(i), atol=1e-9)
 
@@ -46,9 +47,11 @@ def test_the_reference_pose_reprojects_the_chessboard_corners_and_the_markers(me
         assert ref.position_error_mm < 1.0
         assert len(ph.detections) >= 13
         res = real.marker_residuals(ph, world, camera)
-        assert np.sqrt(np.mean(res**2)) < 0.5 and np.abs(res).max() < 2.0
+        assert np.sqrt(np.mean(res**2)) < 0.5
+        assert np.abs(res).max() < 2.0
     scale, spread = measured["scale"]
-    assert 0.98 < scale < 1.0 and spread < 0.02  # the markers look 1 % smaller than printed
+    assert 0.98 < scale < 1.0  # the markers look 1 % smaller than printed
+    assert spread < 0.02
 
 
 def test_subset_errors_lie_where_the_prediction_says(measured):
@@ -59,7 +62,8 @@ def test_subset_errors_lie_where_the_prediction_says(measured):
         # 1 to 3 predicted standard deviations; nothing in a marker-only pose's residuals shows that offset
         assert d["inside"].mean() > (0.5 if hi <= 6 else 0.1), (lo, hi)
         if lo >= 2:
-            assert not d["flagged"].any() and not d["flipped"].any()
+            assert not d["flagged"].any()
+            assert not d["flipped"].any()
         assert real.ratio(d["measured"], d["model"]) < 0.5  # the renders' noise is far too small here
 
 
@@ -113,7 +117,7 @@ def test_a_marker_shift_is_predicted_as_estimate_pose_meets_it():
 
 
 @pytest.mark.parametrize(
-    "sigma, shift, each, error",
+    ("sigma", "shift", "each", "error"),
     [(0.2, 0.15, 0.0, 0.0), (0.3, 0.0, 0.0, 0.0), (0.05, 0.3, 0.0, 0.0), (0.1, 0.15, 0.005, -0.0125)],
 )
 def test_noise_from_a_pose_recovers_the_corner_noise_the_shift_and_the_size_errors(sigma, shift, each, error):
@@ -204,8 +208,10 @@ def test_noise_needs_four_markers():
 def test_each_photos_prediction_uses_the_other_photos_noise_only(measured):
     noises = measured["noises"]
     for n in noises:  # each photo's all-marker pose: the markers look 1.2 to 1.4 % smaller than printed
-        assert 0.05 < n.corner_sigma_px < 0.5 and 0.1 < n.marker_shift_px < 0.3
-        assert 0.0 <= n.marker_size_rel_std_each < 0.01 and -0.015 < n.marker_size_rel_error < -0.01
+        assert 0.05 < n.corner_sigma_px < 0.5
+        assert 0.1 < n.marker_shift_px < 0.3
+        assert 0.0 <= n.marker_size_rel_std_each < 0.01
+        assert -0.015 < n.marker_size_rel_error < -0.01
     first = real.others_noise(noises, 0)
     rest = np.array(noises[1:])
     assert first.corner_sigma_px == pytest.approx(np.sqrt(np.mean(rest[:, 0] ** 2)))

@@ -41,7 +41,7 @@ def _trials(world, camera, T, sigma, common, each, n, seed):
 
 
 @pytest.mark.parametrize(
-    "eye, target, sigma, common, each",
+    ("eye", "target", "sigma", "common", "each"),
     [
         ([1000, 190, 230], [0, 190, 230], 0.1, 0.005, 0.0),  # face-on, 1 m: the scale tilts the pose
         ([1500, -600, 420], [0, 190, 230], 0.2, 0.02, 0.0),  # oblique, 1.7 m
@@ -93,7 +93,8 @@ def test_zero_leaves_the_prediction_unchanged(world, camera):
     T = look_at([1500, -600, 420], [0, 190, 230])
     a = predict_accuracy(world, camera, T, marker_shift_px=0.1)
     b = predict_accuracy(world, camera, T, marker_shift_px=0.1, marker_size_rel_std=0.0, marker_size_rel_std_each=0)
-    assert np.array_equal(a.covariance, b.covariance) and a.position_error_mm == b.position_error_mm
+    assert np.array_equal(a.covariance, b.covariance)
+    assert a.position_error_mm == b.position_error_mm
 
 
 @pytest.mark.parametrize("name", ["marker_size_rel_std", "marker_size_rel_std_each"])
@@ -114,7 +115,8 @@ def test_the_room_plan_takes_the_size_error_and_refuses_a_bad_one(world, camera)
     )
     assert sized.toward_mm[0, 0] == one.position_error_mm
     ok = np.isfinite(plain.median_mm)
-    assert ok.any() and np.all(sized.median_mm[ok] > plain.median_mm[ok])
+    assert ok.any()
+    assert np.all(sized.median_mm[ok] > plain.median_mm[ok])
     for bad in ({"marker_size_rel_std": -0.01}, {"marker_size_rel_std_each": 0.7}, {"marker_shift_px": -1.0}):
         with pytest.raises(FidlearnError, match=next(iter(bad))):
             fidlearn.plan_room(world, camera, **kw, **bad)

@@ -112,7 +112,8 @@ def test_draw_box_draws_the_twelve_edges_of_the_room():
 def test_set_axes_equal_gives_every_axis_the_same_range():
     ax = plotting.new_axes_3d()
     cube = plotting.set_axes_equal(ax, np.array([[0, 0, 0], [1000, 200, 50]]), margin=0)
-    assert np.allclose(cube.centre, [500, 100, 25]) and cube.half_range == pytest.approx(500)
+    assert np.allclose(cube.centre, [500, 100, 25])
+    assert cube.half_range == pytest.approx(500)
     ranges = [np.diff(lim)[0] for lim in (ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d())]
     assert np.allclose(ranges, 1000)
 
@@ -127,7 +128,8 @@ def test_plot_scene_includes_markers_cameras_and_world_axes(seed_map, camera):
     # every camera centre and every corner lies inside the (cubic) view
     lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
     pts = np.vstack([T[:3, 3] for T in poses] + list(seed_map.corners().values()))
-    assert np.all(pts >= lims[:, 0]) and np.all(pts <= lims[:, 1])
+    assert np.all(pts >= lims[:, 0])
+    assert np.all(pts <= lims[:, 1])
     assert np.allclose(np.diff(lims, axis=1), np.diff(lims, axis=1)[0])
 
 
@@ -157,7 +159,8 @@ def test_top_view_puts_cameras_at_their_xy_with_headings(seed_map):
     path = np.column_stack(ax.lines[-1].get_data())
     assert np.allclose(path, [[1500, 0], [1000, 500]])
     (quiver,) = [c for c in ax.collections if c.__class__.__name__ == "Quiver"]
-    assert np.allclose(quiver.U, [-150, -150]) and np.allclose(quiver.V, [0, 0], atol=1e-9)  # looking at -X
+    assert np.allclose(quiver.U, [-150, -150])  # looking at -X
+    assert np.allclose(quiver.V, [0, 0], atol=1e-9)
     # the seed's markers on the north wall (x = 0), seen from above: segments along Y at x = 0
     walls = [np.column_stack(line.get_data()) for line in ax.lines[:3]]
     assert all(np.allclose(w[:, 0], 0) for w in walls)
@@ -193,7 +196,8 @@ def test_corner_labels_sit_beside_their_corners_in_order():
     assert np.allclose([t.xy for t in texts], quad)
     # TL's label is pushed up-left (away from the centre): offset x < 0, and y > 0 in points (up)
     dx, dy = texts[0].xyann
-    assert dx < 0 and dy > 0
+    assert dx < 0
+    assert dy > 0
 
 
 def test_projected_markers_match_camera_project(seed_map, camera):
@@ -205,7 +209,8 @@ def test_projected_markers_match_camera_project(seed_map, camera):
         assert np.allclose(px, camera.project(seed_map.corners()[mid], T))
     # seen from inside the room the wall's +Y runs to the right: TR right of TL
     assert out[0][1, 0] > out[0][0, 0]
-    assert ax.get_xlim() == (-0.5, 639.5) and ax.get_ylim() == (479.5, -0.5)
+    assert ax.get_xlim() == (-0.5, 639.5)
+    assert ax.get_ylim() == (479.5, -0.5)
     # a camera behind the wall sees nothing
     _, ax2 = plt.subplots()
     assert plotting.draw_projected_markers(ax2, seed_map, camera, look_at([-1500, 0, 250], [-3000, 0, 250])) == {}

@@ -91,10 +91,13 @@ def test_several_coplanar_markers_give_the_pose_within_mm():
     for trial in range(5):
         pose = estimate_pose(observe(m, T_WALL, 0.3, rng), m, CAM)
         pos_err, ang_err = pose_errors(pose, T_WALL)
-        assert pos_err < 5.0 and ang_err < 0.2, (trial, pos_err, ang_err)
+        assert pos_err < 5.0, (trial, pos_err, ang_err)
+        assert ang_err < 0.2, (trial, pos_err, ang_err)
         assert pose.method == "ippe+lm"
         assert pose.marker_ids == tuple(range(6))
-        assert not pose.ambiguous and not pose.rejected_ids and not pose.ignored_ids
+        assert not pose.ambiguous
+        assert not pose.rejected_ids
+        assert not pose.ignored_ids
         assert 0.15 < pose.reprojection_rms_px < 0.6
 
 
@@ -114,7 +117,8 @@ def test_markers_on_two_walls_use_a_general_solver():
         dets = observe(m, T, 0.3, rng)
         pose = estimate_pose(dets, m, CAM)
         pos_err, ang_err = pose_errors(pose, T)
-        assert pos_err < 15.0 and ang_err < 0.3  # about 3.5 mm std per axis at 3 m
+        assert pos_err < 15.0  # about 3.5 mm std per axis at 3 m
+        assert ang_err < 0.3
         assert pose.position_ellipsoid_contains(T[:3, 3], 0.999)
         assert pose.method == "sqpnp+lm"
     with pytest.raises(PoseError, match=r"method='ippe' needs coplanar points.*sqpnp"):
@@ -135,7 +139,8 @@ def test_every_named_solver_finds_the_exact_pose(method):
     m, T = (wall_map(), T_WALL) if method == "ippe" else (two_wall_map(), T_TWO_WALLS)
     pose = estimate_pose(observe(m, T), m, CAM, method=method)
     pos_err, ang_err = pose_errors(pose, T)
-    assert pos_err < 0.5 and ang_err < 0.01
+    assert pos_err < 0.5
+    assert ang_err < 0.01
     assert pose.method == method  # a named solver runs alone
     dets = observe(m, T, 0.3)
     refined = estimate_pose(dets, m, CAM, method=method, refine_lm=True)
@@ -175,7 +180,8 @@ def test_one_marker_far_and_face_on_is_ambiguous_close_and_oblique_is_not():
         n_far += p_far.ambiguous
         if p_far.ambiguous:
             alt = p_far.alternative
-            assert isinstance(alt, Pose) and alt.alternative is None
+            assert isinstance(alt, Pose)
+            assert alt.alternative is None
             # the two poses are really different: the flip tilts the camera by degrees
             assert frames.rotation_angle_deg(alt.T_world_camera, p_far.T_world_camera) > 2.0
             # and the reported uncertainty reaches the other one
@@ -185,7 +191,8 @@ def test_one_marker_far_and_face_on_is_ambiguous_close_and_oblique_is_not():
         p_near = estimate_pose(observe(m, near, 0.3, rng), m, CAM)
         n_near += p_near.ambiguous
         assert pose_errors(p_near, near)[0] < 10.0
-    assert n_far >= 9 and n_near == 0
+    assert n_far >= 9
+    assert n_near == 0
 
 
 # ---------------------------------------------------------------------------------------
@@ -205,10 +212,12 @@ def test_a_misplaced_marker_is_rejected_and_reported():
     dragged = estimate_pose(dets, wrong_map, CAM, reject_outliers=False)
     pose = estimate_pose(dets, wrong_map, CAM)
     assert pose.rejected_ids == (4,)
-    assert 4 not in pose.marker_ids and 4 in pose.residuals_px
+    assert 4 not in pose.marker_ids
+    assert 4 in pose.residuals_px
     assert pose_errors(pose, T_WALL)[0] < 5.0
     assert pose_errors(dragged, T_WALL)[0] > 2 * pose_errors(pose, T_WALL)[0]
-    assert max(pose.marker_rms_px, key=pose.marker_rms_px.get) == 4 and pose.marker_rms_px[4] > 10
+    assert max(pose.marker_rms_px, key=pose.marker_rms_px.get) == 4
+    assert pose.marker_rms_px[4] > 10
     assert "rejected=[4]" in repr(pose)
     # the same data with the right map rejects nothing
     assert estimate_pose(dets, true_map, CAM).rejected_ids == ()
@@ -221,7 +230,8 @@ def test_a_misplaced_marker_of_three_is_rejected_and_heavy_noise_rejects_nothing
     rng = np.random.default_rng(11)
     for _ in range(5):
         pose = estimate_pose(observe(true_map, T, 0.3, rng), wrong_map, CAM)
-        assert pose.rejected_ids == (2,) and pose.marker_ids == (0, 1)
+        assert pose.rejected_ids == (2,)
+        assert pose.marker_ids == (0, 1)
         assert pose_errors(pose, T)[0] < 25.0
     # pure Gaussian noise of 1.5 px on three small markers: no marker is singled out
     rejected = sum(bool(estimate_pose(observe(true_map, T, 1.5, rng), true_map, CAM).rejected_ids) for _ in range(40))
@@ -232,7 +242,8 @@ def test_with_two_markers_nothing_is_rejected_but_the_residual_tells():
     true_map = wall_map()
     wrong_map = _misplaced(true_map, 1, (0.0, 40.0, 0.0))
     pose = estimate_pose(observe(true_map, T_WALL, 0.3, ids={0, 1}), wrong_map, CAM)
-    assert pose.rejected_ids == () and pose.marker_ids == (0, 1)
+    assert pose.rejected_ids == ()
+    assert pose.marker_ids == (0, 1)
     assert pose.reprojection_rms_px > 5 * 0.3  # five times the corner noise
     assert min(pose.marker_rms_px.values()) > 1.0  # the error is shared: which marker is wrong cannot be told
 
@@ -311,11 +322,15 @@ def test_pose_conventions_match_opencv():
         CAM.K,
         CAM.dist,
     )
-    assert ok and np.allclose(rvec.ravel(), pose.rvec, atol=1e-3) and np.allclose(tvec.ravel(), pose.tvec, atol=0.5)
+    assert ok
+    assert np.allclose(rvec.ravel(), pose.rvec, atol=1e-3)
+    assert np.allclose(tvec.ravel(), pose.tvec, atol=0.5)
     np.testing.assert_allclose(pose.rpy_deg, frames.rpy_deg_from_rotation(pose.T_world_camera[:3, :3]))
     text = repr(pose)
     x, y, z = pose.position_mm
-    assert f"position_mm=[{x:.1f}, {y:.1f}, {z:.1f}]" in text and "ambiguous=False" in text and "std_mm=" in text
+    assert f"position_mm=[{x:.1f}, {y:.1f}, {z:.1f}]" in text
+    assert "ambiguous=False" in text
+    assert "std_mm=" in text
 
 
 def test_pose_jacobian_matches_finite_differences():
@@ -378,8 +393,10 @@ def test_locate_finds_the_camera_in_a_rendered_scene():
     assert sorted(truth) == m.ids
     pose = locate(image, m, CAM)
     pos_err, ang_err = pose_errors(pose, T_WALL)
-    assert pos_err < 5.0 and ang_err < 0.2, (pos_err, ang_err)
-    assert pose.marker_ids == tuple(m.ids) and pose.rejected_ids == ()
+    assert pos_err < 5.0, (pos_err, ang_err)
+    assert ang_err < 0.2, (pos_err, ang_err)
+    assert pose.marker_ids == tuple(m.ids)
+    assert pose.rejected_ids == ()
     assert pose.reprojection_rms_px < 0.5
     assert pose.position_ellipsoid_contains(T_WALL[:3, 3], 0.999)
 
@@ -394,7 +411,8 @@ def test_locate_on_the_seed_map():
     assert sorted(truth) == [0, 1, 2]
     pose = locate(image, m, CAM)
     assert pose.marker_ids == (0, 1, 2)
-    assert pose_errors(pose, T)[0] < 8.0 and pose_errors(pose, T)[1] < 0.5
+    assert pose_errors(pose, T)[0] < 8.0
+    assert pose_errors(pose, T)[1] < 0.5
 
 
 def test_locate_rescales_a_camera_of_another_resolution_and_refuses_another_aspect():
@@ -447,7 +465,9 @@ def test_ippe_on_one_marker_keeps_both_solutions():
     m = wall_map()
     T = look_at([500.0, 200.0, 1300.0], [0.0, 60.0, 1440.0])
     pose = estimate_pose(observe(m, T, 0.2, ids={0}), m, CAM, method="ippe")
-    assert pose.method == "ippe" and pose.alternative is not None and not pose.ambiguous
+    assert pose.method == "ippe"
+    assert pose.alternative is not None
+    assert not pose.ambiguous
     assert pose_errors(pose, T)[0] < 10.0
     assert pose.alternative.reprojection_rms_px > 5 * pose.reprojection_rms_px
 
@@ -461,7 +481,8 @@ def test_a_pose_is_slotted_pickles_with_its_alternative_and_builds_it_once():
     assert not hasattr(pose, "__dict__")  # a plain slotted dataclass: attribute reads are slot reads
     again = pickle.loads(pickle.dumps(pose))  # its alternative not yet built: pickled built
     assert pose.alternative is pose.alternative  # built on the first read, then kept
-    assert repr(again) == repr(pose) and "alternative at" in repr(pose)
+    assert repr(again) == repr(pose)
+    assert "alternative at" in repr(pose)
     np.testing.assert_array_equal(again.alternative.T_world_camera, pose.alternative.T_world_camera)
     assert again.alternative.method == pose.alternative.method == "ippe (not refined)"
     with pytest.raises(TypeError):
@@ -502,7 +523,8 @@ def test_locate_on_the_bundled_scenes_beats_the_seed_pipeline():
         pose = locate(image, m, camera)
         assert set(pose.marker_ids) == set(entry["visible_ids"]), entry["image"]
         err, ang = pose_errors(pose, T)
-        assert err < 15.0 and ang < 0.5, (entry["image"], err, ang)
+        assert err < 15.0, (entry["image"], err, ang)
+        assert ang < 0.5, (entry["image"], err, ang)
         assert pose.position_ellipsoid_contains(T[:3, 3], 0.999), entry["image"]
         ours.append(err)
         if m.is_coplanar():
@@ -527,7 +549,8 @@ def test_markers_of_the_real_photo_are_70_to_90_cm_away():
         pose = estimate_pose([d], m, camera)
         distance = np.linalg.norm(pose.position_mm - m.T_world_marker(d.id)[:3, 3])
         assert 650.0 < distance < 950.0, (d.id, distance)
-        assert pose.reprojection_rms_px < 0.5 and not pose.ambiguous
+        assert pose.reprojection_rms_px < 0.5
+        assert not pose.ambiguous
 
 
 def test_the_solver_is_as_good_as_lm_started_at_the_truth():
@@ -612,7 +635,7 @@ SQUARE = np.array([[100.0, 100.0], [160.0, 100.0], [160.0, 160.0], [100.0, 160.0
 
 
 @pytest.mark.parametrize(
-    "corners, message",
+    ("corners", "message"),
     [
         (
             SQUARE[[0, 3, 2, 1]],
@@ -681,12 +704,12 @@ def test_a_marker_turned_the_wrong_way_in_the_map_is_never_seen_from_behind():
         estimate_pose(two, wrong, CAM)
     # with a third marker the turned one disagrees with the others and is left out
     pose = estimate_pose(dets, wrong, CAM)
-    assert pose.rejected_ids == (1,) and pose_errors(pose, T)[0] < 1e-3
+    assert pose.rejected_ids == (1,)
+    assert pose_errors(pose, T)[0] < 1e-3
 
 
 def test_only_poses_a_camera_can_have_are_chosen():
     """A mirror-image candidate that fits better loses to one that sees the markers' faces; none left raises."""
-
     m = wall_map()
     dets = observe(m, T_WALL)
     obs = _make_obs(m.ids, {d.id: d.corners_px for d in dets}, m.corners())
@@ -760,8 +783,10 @@ def test_a_bad_fit_does_not_make_the_flip_look_as_good():
     wrong = _misplaced(m, 1, (0.0, 19.0, -73.0))
     dets = observe(m, T)
     pose = estimate_pose(dets, wrong, CAM)
-    assert pose.reprojection_rms_px > 4.0 and pose.sigma_px > pose_mod.AMBIGUITY_MAX_SIGMA_PX
-    assert pose.alternative is not None and not pose.ambiguous
+    assert pose.reprojection_rms_px > 4.0
+    assert pose.sigma_px > pose_mod.AMBIGUITY_MAX_SIGMA_PX
+    assert pose.alternative is not None
+    assert not pose.ambiguous
     # what the residuals alone would have said
     extra = (pose.alternative.reprojection_rms_px**2 - pose.reprojection_rms_px**2) * len(pose.marker_ids) * 4
     assert (
@@ -794,7 +819,6 @@ def test_rotations_below_opencvs_rodrigues_threshold_are_kept():
 
 def test_noisy_corners_of_a_marker_seen_edge_on_are_not_called_mirrored():
     """Benchmarks feed true corners plus noise: a marker a few pixels wide may fold over; it is not a mistake."""
-
     folded = np.array([[345.3, 281.1], [344.0, 290.3], [339.3, 308.6], [341.3, 300.0]])  # 5 px wide, 1 px noise
     flipped = folded * [-1.0, 1.0] + [690.0, 0.0]  # its mirror image: anticlockwise, by noise
     assert np.sum(flipped[:, 0] * np.roll(flipped[:, 1], -1) - np.roll(flipped[:, 0], -1) * flipped[:, 1]) < 0
@@ -836,7 +860,8 @@ def test_locate_looks_for_the_map_markers_only_and_lists_strangers_when_asked():
     fast = locate(image, m, CAM)
     full = locate(image, m, CAM, only_map_markers=False)
     assert fast.marker_ids == full.marker_ids == (0, 1, 2)
-    assert fast.ignored_ids == () and full.ignored_ids == (7,)
+    assert fast.ignored_ids == ()
+    assert full.ignored_ids == (7,)
     # the same corners, so the same pose, and the true one (within 1 % of the 1.4 m distance)
     assert np.allclose(fast.T_world_camera, full.T_world_camera)
     assert np.linalg.norm(fast.position_mm - T_true[:3, 3]) < 14.0

@@ -66,7 +66,9 @@ def test_the_record_is_what_locate_writes(pose, tmp_path):
     assert line == {"frame": "scene_00.png", "located": True, **json.loads(json.dumps(pose.to_dict()))}
     back = Pose.from_dict(line, source="poses.jsonl line 1")  # a locate line is read as it is
     np.testing.assert_allclose(back.T_world_camera, pose.T_world_camera, atol=1e-12)
-    assert back.marker_ids == pose.marker_ids and back.covariance is None and np.isnan(back.sigma_px)
+    assert back.marker_ids == pose.marker_ids
+    assert back.covariance is None
+    assert np.isnan(back.sigma_px)
 
 
 def test_the_full_record_round_trips_through_json(pose, ambiguous):
@@ -76,7 +78,8 @@ def test_the_full_record_round_trips_through_json(pose, ambiguous):
         assert back.to_dict(full=True) == d
         np.testing.assert_allclose(back.covariance, p.covariance, rtol=1e-12)
         assert back.marker_rms_px == pytest.approx(p.marker_rms_px)
-        assert back.sigma_px == p.sigma_px and back.ambiguous == p.ambiguous
+        assert back.sigma_px == p.sigma_px
+        assert back.ambiguous == p.ambiguous
     back = Pose.from_dict(json.loads(json.dumps(ambiguous.to_dict(full=True))))
     np.testing.assert_allclose(back.alternative.T_world_camera, ambiguous.alternative.T_world_camera, atol=1e-9)
     assert "alternative_position_mm" in ambiguous.to_dict()
@@ -90,9 +93,9 @@ def test_the_short_record_round_trips_what_it_holds(pose):
 
 
 @pytest.mark.parametrize(
-    "change, message",
+    ("change", "message"),
     [
-        (lambda d: [1, 2], r"expected a JSON object"),
+        (lambda _d: [1, 2], r"expected a JSON object"),
         (lambda d: {k: v for k, v in d.items() if k != "marker_ids"}, r"missing field marker_ids"),
         (lambda d: {**d, "marker_id": [1]}, r"unknown field 'marker_id': did you mean 'marker_ids'\?"),
         (lambda d: {**d, "T_world_camera": np.eye(4)[:3].tolist()}, r"T_world_camera must be a 4x4 rigid"),

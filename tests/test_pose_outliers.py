@@ -104,7 +104,8 @@ def test_the_screen_names_the_marker_whose_removal_explains_the_rest():
     obs = _make_obs(sorted(corners), corners, world, faces)
     best = _solve(obs, m, CAM, "auto", True)[0][0]
     q = _deletion_q(obs, best, CAM)
-    assert int(np.argmax(q)) == 2 and _screen(obs, best, CAM, None) == 2
+    assert int(np.argmax(q)) == 2
+    assert _screen(obs, best, CAM, None) == 2
     rest = [d for d in dets if d.id != 2]
     sse_rest = fidlearn.estimate_pose(rest, m, CAM, reject_outliers=False).reprojection_rms_px ** 2 * 20
     assert best.sse - q[2] == pytest.approx(sse_rest, abs=0.02 * best.sse)
@@ -186,7 +187,8 @@ def test_the_test_of_a_move_fires_on_pure_noise_at_its_stated_rate(n, sigma, giv
             q, blocks = _outliers._marker_stats(obs, best, CAM)
             hit = _outliers._most_displaced(obs, q, blocks, limit)
             drops = _outliers._displacement_drop(obs, best, CAM)
-            assert (hit is None) == (drops.max() <= limit) and (hit is None or hit[0] == int(np.argmax(drops)))
+            assert (hit is None) == (drops.max() <= limit)
+            assert hit is None or hit[0] == int(np.argmax(drops))
     # each marker at 2 % / n: 50 marker-frames expected (binomial sd 7); a frame names one at most at 2 %
     expected = 0.02 * trials
     assert 0.7 * expected <= fired <= expected + 4 * math.sqrt(expected), fired
@@ -207,7 +209,8 @@ def test_three_markers_at_1_px_a_marker_moved_30_mm_is_named():
         ).rejected_ids
         named += bad in rejected
         other += any(i != bad for i in rejected)
-    assert named >= 0.85 * len(poses) and other <= 0.06 * len(poses), (named, other)  # 180 and 9 of 200
+    assert named >= 0.85 * len(poses), (named, other)  # 180 and 9 of 200
+    assert other <= 0.06 * len(poses), (named, other)
 
 
 def test_the_f_quantile_of_a_move_is_exact():

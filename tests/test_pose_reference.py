@@ -37,7 +37,8 @@ def _same_pose(T, T_ref, what):
     T, T_ref = np.asarray(T), np.asarray(T_ref)
     dp = float(np.abs(T[:3, 3] - T_ref[:3, 3]).max())
     dr = float(np.abs(T[:3, :3] - T_ref[:3, :3]).max())
-    assert dp <= POSITION_TOL_MM and dr <= ROTATION_TOL, f"{what}: position off by {dp:.2e} mm, rotation by {dr:.2e}"
+    assert dp <= POSITION_TOL_MM, f"{what}: position off by {dp:.2e} mm, rotation by {dr:.2e}"
+    assert dr <= ROTATION_TOL, f"{what}: position off by {dp:.2e} mm, rotation by {dr:.2e}"
 
 
 def _same_cov(cov, cov_ref, what):
@@ -54,7 +55,8 @@ def test_the_reference_covers_flips_rejections_and_both_noise_options():
     kinds = {(c["expected"]["ambiguous"], bool(c["expected"]["rejected_ids"])) for c in CASES}
     assert {(True, False), (False, False), (True, True), (False, True)} <= kinds
     assert {c["corner_sigma_px"] for c in CASES} == {None, 0.5}
-    assert any(len(c["corners_px"]) == 1 for c in CASES) and any(len(c["corners_px"]) >= 5 for c in CASES)
+    assert any(len(c["corners_px"]) == 1 for c in CASES)
+    assert any(len(c["corners_px"]) >= 5 for c in CASES)
 
 
 def _name(c):
@@ -68,8 +70,10 @@ def _run(case):
 
 def _check(pose, ref):
     """Raise AssertionError unless ``pose`` is the reference answer ``ref``."""
-    assert list(pose.marker_ids) == ref["marker_ids"] and list(pose.rejected_ids) == ref["rejected_ids"]
-    assert pose.ambiguous == ref["ambiguous"] and pose.method == ref["method"]
+    assert list(pose.marker_ids) == ref["marker_ids"]
+    assert list(pose.rejected_ids) == ref["rejected_ids"]
+    assert pose.ambiguous == ref["ambiguous"]
+    assert pose.method == ref["method"]
     _same_pose(pose.T_world_camera, ref["T_world_camera"], "pose")
     assert pose.sigma_px == pytest.approx(ref["sigma_px"], rel=1e-6)
     assert pose.reprojection_rms_px == pytest.approx(ref["reprojection_rms_px"], rel=1e-6, abs=1e-9)
@@ -93,11 +97,12 @@ def the_method_of_the_reference(monkeypatch):
       which allows for the uncertainty of that estimate.
     """
     monkeypatch.setattr(pose_solvers, "_RMS_COORDS", 1)
-    monkeypatch.setattr(pose_estimate, "_ambiguity_limit", lambda nu: pose_stats.AMBIGUITY_CHI2)
+    monkeypatch.setattr(pose_estimate, "_ambiguity_limit", lambda _nu: pose_stats.AMBIGUITY_CHI2)
 
 
 @pytest.mark.parametrize("case", CASES, ids=[_name(c) for c in CASES])
-def test_the_faster_code_gives_the_reference_answer_by_the_same_method(case, the_method_of_the_reference):
+@pytest.mark.usefixtures("the_method_of_the_reference")
+def test_the_faster_code_gives_the_reference_answer_by_the_same_method(case):
     _check(_run(case), case["expected"])
 
 
@@ -132,7 +137,8 @@ def test_only_the_listed_answers_changed_and_the_poses_hardly():
         except AssertionError:
             changed.add(_name(case))
             # the markers used and rejected are the same; the pose is the same minimum (to LM's tolerance)
-            assert list(pose.marker_ids) == ref["marker_ids"] and list(pose.rejected_ids) == ref["rejected_ids"]
+            assert list(pose.marker_ids) == ref["marker_ids"]
+            assert list(pose.rejected_ids) == ref["rejected_ids"]
             dp = np.abs(pose.T_world_camera[:3, 3] - np.asarray(ref["T_world_camera"])[:3, 3]).max()
             assert dp < 0.5 * np.sqrt(np.diag(np.asarray(ref["covariance"]))[3:]).min(), _name(case)
     assert changed == CHANGED

@@ -90,7 +90,7 @@ def ruler_ticks_mm(gray, px_per_mm=PX_PER_MM):
 
 # -- parsing ------------------------------------------------------------------------------
 @pytest.mark.parametrize(
-    "text, ids",
+    ("text", "ids"),
     [("0-9", list(range(10))), ("0,3,7", [0, 3, 7]), ("0-3,8", [0, 1, 2, 3, 8]), (" 5 ", [5]), ("12-12", [12])],
 )
 def test_parse_ids(text, ids):
@@ -98,7 +98,7 @@ def test_parse_ids(text, ids):
 
 
 @pytest.mark.parametrize(
-    "text, message",
+    ("text", "message"),
     [
         ("", "empty"),
         ("a-b", "not an id or a range"),
@@ -124,7 +124,9 @@ def test_parse_pattern():
 
 def test_marker_cells_match_opencv_image():
     cells = P.marker_cells("ARUCO_ORIGINAL", 7)
-    assert cells.shape == (7, 7) and cells[0].all() and cells[:, 0].all()  # black border
+    assert cells.shape == (7, 7)  # black border
+    assert cells[0].all()
+    assert cells[:, 0].all()
     img = _cv.generate_marker("ARUCO_ORIGINAL", 7, 70)
     assert np.array_equal(cells, img[5::10, 5::10] < 128)
     with pytest.raises(Exception, match="has ids 0 to 249"):
@@ -150,7 +152,8 @@ def test_markers_pdf_exact_size_and_ids(markers_80):
             sides = side_mm(c)
             assert np.all(np.abs(sides - 80.0) < 0.5), sides
         for w, h in black_square_sizes_mm(gray):
-            assert abs(w - 80.0) < 0.5 and abs(h - 80.0) < 0.5, (w, h)
+            assert abs(w - 80.0) < 0.5, (w, h)
+            assert abs(h - 80.0) < 0.5, (w, h)
         assert len(black_square_sizes_mm(gray)) == len(ids)
         found += ids.tolist()
     assert sorted(found) == list(range(10))  # every id once, none misread
@@ -192,7 +195,8 @@ def test_each_marker_has_its_id_under_it(markers_80):
             ((label, (bx0, by0, bx1, by1)),) = [(t, b) for t, b in boxes.items() if t.startswith(f"id {i} ")]
             assert label == f"id {i} ARUCO_ORIGINAL 80 mm"
             assert x0 < (bx0 + bx1) / 2 < x1  # centred under the marker
-            assert bottom + cell_px < by0 and by1 < bottom + cell_px + 7 * PX_PER_MM  # below its quiet zone
+            assert bottom + cell_px < by0  # below its quiet zone
+            assert by1 < bottom + cell_px + 7 * PX_PER_MM
         assert "100 mm ruler: print at 100 % (actual size)," in boxes
         assert f"fidlearn markers, ARUCO_ORIGINAL, black square 80 mm, page {k + 1} of 5" in boxes
 
@@ -327,7 +331,8 @@ def chessboard_spacing_mm(gray, pattern, px_per_mm=PX_PER_MM):
 def test_checkerboard_pdf_square_size(tmp_path):
     path = tmp_path / "board.pdf"
     sheet = P.board_pdf(path, (9, 6), 25, paper="a4")
-    assert sheet.squares == (10, 7) and sheet.inner_corners == (9, 6)
+    assert sheet.squares == (10, 7)
+    assert sheet.inner_corners == (9, 6)
     (gray,) = rasterize(path)
     # 250 x 175 mm only fits A4 turned to landscape
     assert np.allclose(gray.shape, (210 * PX_PER_MM, 297 * PX_PER_MM), atol=1)
@@ -336,13 +341,15 @@ def test_checkerboard_pdf_square_size(tmp_path):
     assert np.all(np.abs(spacing - 25.0) < 0.2), (spacing.min(), spacing.max())
     assert abs(spacing.mean() - 25.0) < 0.05
     ticks = ruler_ticks_mm(gray)
-    assert ticks is not None and len(ticks) == 101
+    assert ticks is not None
+    assert len(ticks) == 101
     assert ticks[-1] - ticks[0] == pytest.approx(100.0, abs=0.2)
 
 
 def test_checkerboard_png_square_size(tmp_path):
     sheet, files = P.board_png(tmp_path / "board.png", (6, 4), 20, paper="letter", dpi=200)
-    assert files == [tmp_path / "board.png"] and not sheet.landscape
+    assert files == [tmp_path / "board.png"]
+    assert not sheet.landscape
     gray = cv2.imread(str(tmp_path / "board.png"), cv2.IMREAD_GRAYSCALE)
     assert gray.shape == (round(279.4 / 25.4 * 200), round(215.9 / 25.4 * 200)) == (2200, 1700)
     spacing = chessboard_spacing_mm(gray, (6, 4), 200 / 25.4)
@@ -356,7 +363,8 @@ def test_charuco_pdf_detected_by_opencv(tmp_path):
     (gray,) = rasterize(path)
     board = _cv_charuco.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
     ch_corners, ch_ids, m_corners, m_ids = _cv_charuco.charuco_detector(board).detectBoard(gray)
-    assert ch_ids is not None and sorted(np.asarray(ch_ids).ravel().tolist()) == list(range(4 * 6))
+    assert ch_ids is not None
+    assert sorted(np.asarray(ch_ids).ravel().tolist()) == list(range(4 * 6))
     assert sorted(np.asarray(m_ids).ravel().tolist()) == list(range(17))  # (5*7)//2 markers
     for c in m_corners:
         assert np.all(np.abs(side_mm(np.asarray(c).reshape(4, 2)) - 22.0) < 0.5)
@@ -384,8 +392,10 @@ def test_board_keeps_its_quiet_zone_inside_the_margins():
         sheet = P.layout_board(pattern, square, paper=paper)
         q = P.board_quiet_zone_mm(square)
         (x, y), (w, h), (pw, ph) = sheet.origin_mm, sheet.board_mm, sheet.paper_mm
-        assert x - q >= P.PAGE_MARGIN_MM - 1e-9 and y - q >= P.PAGE_MARGIN_MM - 1e-9
-        assert x + w + q <= pw - P.PAGE_MARGIN_MM + 1e-9 and y + h + q <= ph - P.PAGE_MARGIN_MM + 1e-9
+        assert x - q >= P.PAGE_MARGIN_MM - 1e-9
+        assert y - q >= P.PAGE_MARGIN_MM - 1e-9
+        assert x + w + q <= pw - P.PAGE_MARGIN_MM + 1e-9
+        assert y + h + q <= ph - P.PAGE_MARGIN_MM + 1e-9
         # and off the ruler strip
         if sheet.strip == "bottom":
             assert y + h + q <= ph - P.PAGE_MARGIN_MM - P.STRIP_MM + 1e-9

@@ -123,7 +123,9 @@ def test_map_survives_the_file_round_trip(placements, units, s, tmp_path_factory
     m.save(path)
     again = MarkerMap.load(path)
     assert again.ids == sorted(placements) == m.ids
-    assert again.units == units and again.marker_size_mm == s and again.dictionary == "ARUCO_ORIGINAL"
+    assert again.units == units
+    assert again.marker_size_mm == s
+    assert again.dictionary == "ARUCO_ORIGINAL"
     for i in m.ids:
         np.testing.assert_allclose(again.marker_corners(i), m.marker_corners(i), atol=1e-6)
         np.testing.assert_allclose(m.marker_corners(i)[0], placements[i][0], atol=1e-6 * (1 + scale))
@@ -185,7 +187,8 @@ RODRIGUES_ATOL = 2e-6
 @given(T=rigid_transforms())
 def test_rvec_tvec_round_trip_from_a_transform(T):
     rvec, tvec = frames.rvec_tvec_from_transform(T)
-    assert rvec.shape == (3,) and tvec.shape == (3,)
+    assert rvec.shape == (3,)
+    assert tvec.shape == (3,)
     assert np.linalg.norm(rvec) <= math.pi + 1e-9
     back = frames.transform_from_rvec_tvec(rvec, tvec)
     np.testing.assert_allclose(back[:3, :3], T[:3, :3], atol=RODRIGUES_ATOL)
@@ -228,7 +231,8 @@ def test_rpy_of_any_rotation_rebuilds_it(rpy):
     R = frames.rotation_from_rpy_deg(*rpy)
     roll, pitch, yaw = frames.rpy_deg_from_rotation(R)
     assert -90 - 1e-9 <= pitch <= 90 + 1e-9
-    assert -180 - 1e-9 <= roll <= 180 + 1e-9 and -180 - 1e-9 <= yaw <= 180 + 1e-9
+    assert -180 - 1e-9 <= roll <= 180 + 1e-9
+    assert -180 - 1e-9 <= yaw <= 180 + 1e-9
     np.testing.assert_allclose(frames.rotation_from_rpy_deg(roll, pitch, yaw), R, atol=1e-6)
 
 

@@ -24,7 +24,7 @@ HAND = [
 ]
 
 
-@pytest.mark.parametrize("R, q", HAND)
+@pytest.mark.parametrize(("R", "q"), HAND)
 def test_hand_computed_quaternions(R, q):
     assert frames.quaternion_from_matrix(R) == pytest.approx(q, abs=1e-15)
     assert np.allclose(frames.matrix_from_quaternion(q), R, atol=1e-15)
@@ -53,7 +53,8 @@ def test_round_trip_and_agreement_with_rodrigues():
         angle = rng.uniform(0, math.pi)
         R = cv2.Rodrigues(angle * axis)[0]
         q = frames.quaternion_from_matrix(R)
-        assert q[3] >= 0 and math.isclose(np.linalg.norm(q), 1.0)
+        assert q[3] >= 0
+        assert math.isclose(np.linalg.norm(q), 1.0)
         # the definition: vector part k sin(theta/2), scalar cos(theta/2)
         assert np.allclose(q, [*(axis * math.sin(angle / 2)), math.cos(angle / 2)], atol=1e-12)
         assert np.allclose(frames.matrix_from_quaternion(q), R, atol=1e-12)
@@ -66,7 +67,7 @@ def test_a_quaternion_with_few_digits_is_normalised():
 
 
 @pytest.mark.parametrize(
-    "q, message",
+    ("q", "message"),
     [
         ([0, 0, 1], "4 finite numbers"),
         ([0, 0, 0, float("nan")], "4 finite numbers"),

@@ -220,7 +220,7 @@ def check_outputs(blocks: list[Fence], outputs: list[str], doc: str) -> int:
     return compared
 
 
-def check_promised(copy: Path, blocks: list[Fence], skip=lambda command: False) -> list[str]:
+def check_promised(copy: Path, blocks: list[Fence], skip=lambda _command: False) -> list[str]:
     made = []
     for block in blocks:
         for command in commands(block):
@@ -254,7 +254,8 @@ def test_the_readme_has_its_commands_and_outputs():
 def test_every_exclusion_matches_a_documented_command():
     documented = [c for path in (README, TEACHING) for b in command_blocks(path) for c in commands(b)]
     for pattern, why in EXCLUDED.items():
-        assert why and any(re.search(pattern, c) for c in documented), pattern
+        assert why, pattern
+        assert any(re.search(pattern, c) for c in documented), pattern
     assert excluded("fidlearn locate --camera-index 0 --camera c.json --map m.json") is not None
     assert excluded("fidlearn locate data/scenes --camera c.json --map m.json") is None
     assert excluded(".venv/bin/python tools/make_student_copies.py --check") is None
@@ -264,12 +265,14 @@ def test_the_output_check_sees_a_stale_number():
     printed = "frame   x_mm\nscene_00.png   999.9   229.6\n10 frames\n"
     assert stale_lines("frame x_mm\nscene_00.png 999.9 229.6\n...", printed) == []
     [stale] = stale_lines("scene_00.png 999.9 229.8\n...", printed)
-    assert "229.8" in stale and "printed: scene_00.png   999.9   229.6" in stale
+    assert "229.8" in stale
+    assert "printed: scene_00.png   999.9   229.6" in stale
     # on another OpenCV release the last digits may move, not the words nor the numbers' size
     assert stale_lines("scene_00.png 999.9 229.8", printed, exact=False) == []
     assert len(stale_lines("scene_00.png 999.9 235.1", printed, exact=False)) == 1
     assert len(stale_lines("scene_00.png 999.9 229.8 px", printed, exact=False)) == 1
-    assert close_enough("rms 0.04 px", "rms 0.06 px") and not close_enough("rms 0.04 px", "rms 0.08 px")
+    assert close_enough("rms 0.04 px", "rms 0.06 px")
+    assert not close_enough("rms 0.04 px", "rms 0.08 px")
 
 
 # -- running them ----------------------------------------------------------------------------------
@@ -298,7 +301,8 @@ def test_every_readme_command_runs_and_prints_what_the_readme_shows(tmp_path):
 def test_the_readme_library_snippet_prints_what_it_shows(tmp_path):
     [snippet] = [f for f in fences(README) if f.lang == "python"]
     shown = [line.split("#", 1)[1].strip() for line in snippet.text.splitlines() if line.startswith("print(")]
-    assert shown and all(s.endswith("...)") for s in shown)
+    assert shown
+    assert all(s.endswith("...)") for s in shown)
     proc = subprocess.run(
         [sys.executable, "-c", snippet.text],
         cwd=fresh_copy(tmp_path / "fidlearn"),
@@ -324,7 +328,6 @@ def test_the_readme_library_snippet_prints_what_it_shows(tmp_path):
 
 def prepare_by_hand(copy: Path):
     """What the guide asks the instructor to do between two commands, done before the command needs it."""
-
     released: list[str] = []
 
     def run(command: str) -> list[str]:
@@ -373,7 +376,8 @@ def test_the_teaching_table_covers_every_lesson():
     table = text.split("## The course in one table", 1)[1].split("\n## ", 1)[0]
     rows = {r.split("|")[1].strip(): r for r in table.splitlines() if re.match(r"\| \d\d \|", r)}
     notebooks = sorted(p.name[:2] for p in (ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
-    assert notebooks[0] == "00" and len(notebooks) >= 13
+    assert notebooks[0] == "00"
+    assert len(notebooks) >= 13
     assert sorted(rows) == notebooks
     for number, row in rows.items():
         cells = [c.strip() for c in row.strip().strip("|").split("|")]

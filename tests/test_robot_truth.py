@@ -66,7 +66,8 @@ def test_pose_error_and_nees_have_known_answers():
     a = _pose([0.0, 0.0, 0.0], [0.0, 0.0, 500.0])
     b = a @ _pose([0.0, 0.0, 2.0], [3.0, 4.0, 0.0])  # 2 degrees about the board's z, 5 mm along it
     position, rotation = he.pose_error(a, b, np.zeros(3))
-    assert position == pytest.approx(5.0) and rotation == pytest.approx(2.0)
+    assert position == pytest.approx(5.0)
+    assert rotation == pytest.approx(2.0)
     # the camera 1 mm off along x under a covariance of 0.25 mm^2 there: NEES 4
     cov = np.diag([1e-6, 1e-6, 1e-6, 0.25, 1.0, 1.0])
     assert he.nees(_pose([0, 0, 0], [1.0, 0, 0]), np.eye(4), cov) == pytest.approx(4.0)
@@ -83,7 +84,8 @@ def test_the_robot_photos_and_poses_are_read_as_published():
     R = rc.robot_pose(0)[:3, :3]
     np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
     cam = rc.published_camera()
-    assert cam.K[0, 0] == pytest.approx(1352.02747) and cam.K[1, 2] == pytest.approx(627.2995)
+    assert cam.K[0, 0] == pytest.approx(1352.02747)
+    assert cam.K[1, 2] == pytest.approx(627.2995)
     assert not np.any(cam.dist)
     assert rc.photo(2).shape == (1200, 1600)  # stored grey
     assert len(rc.charuco_corners(2)[1]) == 4  # only a corner of the board in view
@@ -92,7 +94,8 @@ def test_the_robot_photos_and_poses_are_read_as_published():
 def test_on_the_real_photos_the_robot_agrees_with_plain_opencv_as_published():
     """Plain OpenCV with its own calibration: about 0.75-2.9 mm and 0.1-0.45 degrees, 8 mm for the farthest photo."""
     camera, rms = rc.opencv_calibration()
-    assert rms < 0.6 and camera.dist[0] == pytest.approx(-0.14, abs=0.02)  # the lens's barrel distortion
+    assert rms < 0.6  # the lens's barrel distortion
+    assert camera.dist[0] == pytest.approx(-0.14, abs=0.02)
     robots = [rc.robot_pose(i) for i in range(rc.N_PHOTOS)]
     seen = [rc.charuco_pose(i, camera).T_camera_board for i in range(rc.N_PHOTOS)]
     judged = [0, 9, 11, 15]  # the three worst of the near photos and the farthest
@@ -102,7 +105,9 @@ def test_on_the_real_photos_the_robot_agrees_with_plain_opencv_as_published():
         distance_m = np.linalg.norm(truth[:3, 3]) / 1000
         if k == 15:
             assert distance_m > 1.3
-            assert 3.0 < position < 8.0 and rotation < 1.5
+            assert 3.0 < position < 8.0
+            assert rotation < 1.5
         else:
             assert distance_m < 0.8
-            assert 0.3 < position < 2.9 and rotation < 0.45
+            assert 0.3 < position < 2.9
+            assert rotation < 0.45

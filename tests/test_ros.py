@@ -36,13 +36,15 @@ def test_ros_pose_of_the_optical_frame_by_hand():
     assert msg["header"] == {"stamp": {"sec": 12, "nanosec": 500_000_000}, "frame_id": "map"}
     assert msg["child_frame_id"] == "camera_optical_frame"
     p, q = msg["pose"]["pose"]["position"], msg["pose"]["pose"]["orientation"]
-    assert list(p) == ["x", "y", "z"] and list(q) == ["x", "y", "z", "w"]
+    assert list(p) == ["x", "y", "z"]
+    assert list(q) == ["x", "y", "z", "w"]
     np.testing.assert_allclose([p["x"], p["y"], p["z"]], [1.0, 0.15, 0.25], atol=1e-12)
     # R = [[0,0,-1],[1,0,0],[0,-1,0]]: trace 0, w = 1/2, x = (R21-R12)/4w = -1/2, y = (R02-R20)/4w = -1/2, z = 1/2
     np.testing.assert_allclose([q["x"], q["y"], q["z"], q["w"]], [-0.5, -0.5, 0.5, 0.5], atol=1e-12)
     cov = np.array(msg["pose"]["covariance"]).reshape(6, 6)
     np.testing.assert_allclose(np.diag(cov), [4e-6, 9e-6, 16e-6, 1e-4, 4e-4, 9e-4], rtol=1e-12, atol=0)
-    assert cov[0, 3] == pytest.approx(1e-5, abs=1e-18) and cov[3, 0] == cov[0, 3]  # x-rotX: 0.01 rad mm = 1e-5 rad m
+    assert cov[0, 3] == pytest.approx(1e-5, abs=1e-18)  # x-rotX: 0.01 rad mm = 1e-5 rad m
+    assert cov[3, 0] == cov[0, 3]
     assert np.count_nonzero(cov) == 8
 
 
@@ -71,7 +73,8 @@ def test_ros_pose_of_the_camera_link_and_of_the_base_by_hand():
         corner_sigma_px=0.3,
     )
     msg = ros_pose(tracker.update(pose, 3.25))
-    assert msg["child_frame_id"] == "base_link" and msg["header"]["stamp"] == {"sec": 3, "nanosec": 250_000_000}
+    assert msg["child_frame_id"] == "base_link"
+    assert msg["header"]["stamp"] == {"sec": 3, "nanosec": 250_000_000}
     p, q = msg["pose"]["pose"]["position"], msg["pose"]["pose"]["orientation"]
     np.testing.assert_allclose([p["x"], p["y"], p["z"]], [1.5, 0.15, 0.0], atol=1e-9)
     np.testing.assert_allclose([q["x"], q["y"], q["z"], q["w"]], [0, 0, 1, 0], atol=1e-9)
@@ -81,8 +84,11 @@ def test_ros_covariance_order_and_units():
     C = np.arange(36, dtype=float).reshape(6, 6)
     C = C + C.T
     out = np.array(ros_covariance(C)).reshape(6, 6)
-    assert out[0, 0] == C[3, 3] / 1e6 and out[2, 5] == C[5, 2] / 1e3 and out[5, 3] == C[2, 0]
-    assert out[3, 4] == C[0, 1] and out[1, 3] == C[4, 0] / 1e3
+    assert out[0, 0] == C[3, 3] / 1e6
+    assert out[2, 5] == C[5, 2] / 1e3
+    assert out[5, 3] == C[2, 0]
+    assert out[3, 4] == C[0, 1]
+    assert out[1, 3] == C[4, 0] / 1e3
 
 
 def test_stamp_carries_and_bad_inputs():
@@ -108,7 +114,8 @@ def test_tum_by_hand(tmp_path):
     ]
     path = write_tum(tmp_path / "track.txt", poses)
     rows = [r.split() for r in path.read_text().splitlines()]
-    assert rows[0][0] == "#" and len(rows) == 5
+    assert rows[0][0] == "#"
+    assert len(rows) == 5
     for k, r in enumerate(rows[1:]):
         v = np.array(r, dtype=float)
         np.testing.assert_allclose(v[:4], [0.1 * k, 0.01 * k, -0.005, 0.001], atol=1e-9)
@@ -127,7 +134,8 @@ def test_tum_by_hand(tmp_path):
 def test_camera_info_round_trips(tmp_path, dist):
     cam = fidlearn.Camera([[612.345678901, 0, 320.1], [0, 611.9, 241.7], [0, 0, 1]], dist, (640, 480))
     back = load_camera_info(save_camera_info(cam, tmp_path / "camera_info.yaml", "front_cam"))
-    assert (back.K == cam.K).all() and back.image_size == (640, 480)
+    assert (back.K == cam.K).all()
+    assert back.image_size == (640, 480)
     d = np.r_[cam.dist, 0.0] if cam.dist.size == 4 else cam.dist
     assert (back.dist == d).all()
     text = camera_info_yaml(cam, "front_cam")
@@ -172,7 +180,7 @@ def test_camera_info_as_ros_writes_it():
 
 
 @pytest.mark.parametrize(
-    "edit, fragment",
+    ("edit", "fragment"),
     [
         (lambda t: t.replace("distortion_model: plumb_bob", "distortion_model: equidistant"), "equidistant"),
         (lambda t: t.replace("cols: 5", "cols: 4"), "holds 5 numbers"),
@@ -255,10 +263,16 @@ def test_camera_info_reads_as_yaml_elsewhere():
         [[612.3456789, 0, 320.1], [0, 611.9, 241.7], [0, 0, 1]], [0.1, -0.2, 0.001, 0.002, 0.05], (640, 480)
     )
     d = yaml.safe_load(camera_info_yaml(cam, "front_cam"))
-    assert d["image_width"] == 640 and d["image_height"] == 480 and d["camera_name"] == "front_cam"
-    assert d["camera_matrix"]["data"] == cam.K.reshape(-1).tolist() and d["camera_matrix"]["rows"] == 3
-    assert d["distortion_coefficients"]["data"] == cam.dist.tolist() and d["distortion_model"] == "plumb_bob"
-    assert d["projection_matrix"]["cols"] == 4 and d["rectification_matrix"]["data"] == np.eye(3).reshape(-1).tolist()
+    assert d["image_width"] == 640
+    assert d["image_height"] == 480
+    assert d["camera_name"] == "front_cam"
+    assert d["camera_matrix"]["data"] == cam.K.reshape(-1).tolist()
+    assert d["camera_matrix"]["rows"] == 3
+    assert d["distortion_coefficients"]["data"] == cam.dist.tolist()
+    assert d["distortion_model"] == "plumb_bob"
+    assert d["projection_matrix"]["cols"] == 4
+    assert d["rectification_matrix"]["data"] == np.eye(3).reshape(-1).tolist()
     # and what PyYAML writes in that layout, fidlearn reads
     back = camera_from_camera_info(yaml.safe_dump(d))
-    assert (back.K == cam.K).all() and (back.dist == cam.dist).all()
+    assert (back.K == cam.K).all()
+    assert (back.dist == cam.dist).all()

@@ -19,23 +19,27 @@ T = look_at([1200, 200, 250], [0, 200, 250])
 def test_the_scene_holds_the_picture_its_truth_and_what_it_came_from():
     scene = render_scene(WORLD, CAMERA, T, seed=7, noise_std_gray=1.5, blur_px=0.5)
     assert isinstance(scene, Scene)
-    assert scene.image.shape == (240, 320) and scene.image.dtype == np.uint8
+    assert scene.image.shape == (240, 320)
+    assert scene.image.dtype == np.uint8
     assert sorted(scene.truth) == sorted(visible_markers(WORLD, CAMERA, T)) == [0, 1, 2]
     for i, corners in scene.truth.items():
         np.testing.assert_array_equal(corners, CAMERA.project(WORLD.marker_corners(i), T))
     np.testing.assert_array_equal(scene.T_world_camera, T)
-    assert scene.camera is CAMERA and scene.marker_map is WORLD
+    assert scene.camera is CAMERA
+    assert scene.marker_map is WORLD
     assert (scene.seed, scene.noise_std_gray, scene.blur_px) == (7, 1.5, 0.5)
 
 
 def test_the_truth_record_says_the_pose_and_the_corners():
     scene = render_scene(WORLD, CAMERA, T, seed=2)
     rec = scene.truth_record("scene.png", "maps/world_map.json")
-    assert rec["image"] == "scene.png" and rec["map"] == "maps/world_map.json"
+    assert rec["image"] == "scene.png"
+    assert rec["map"] == "maps/world_map.json"
     assert rec["position_mm"] == [1200.0, 200.0, 250.0]
     assert np.allclose(rec["rpy_deg"], [-90.0, 0.0, 90.0])  # facing -X, level
     assert rec["markers_px"] == {str(i): scene.truth[i].tolist() for i in (0, 1, 2)}
-    assert rec["camera"] == CAMERA.to_dict() and rec["dictionary"] == WORLD.dictionary
+    assert rec["camera"] == CAMERA.to_dict()
+    assert rec["dictionary"] == WORLD.dictionary
     assert (rec["seed"], rec["noise_std_gray"], rec["blur_px"]) == (2, 0.0, 0.0)
     assert scene.truth_record("scene.png")["map"] == WORLD.source
 

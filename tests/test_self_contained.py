@@ -70,7 +70,7 @@ def outside(paths: list[str], tmp: Path) -> list[str]:
 
 
 @pytest.mark.parametrize(
-    "script, args",
+    ("script", "args"),
     [
         pytest.param("tools/make_data.py", ["--data-dir", "{tmp}/data"], marks=pytest.mark.slow),
         ("tools/make_conventions_figure.py", ["{tmp}/conventions.png"]),
@@ -89,11 +89,13 @@ def _same(made, kept, where: str) -> None:
     """Equal, numbers to 1e-9 (relative; 1e-9 absolute near 0): the last of a pose's 15 digits differ between
     processors, whose numpy and OpenCV kernels (AVX2, AVX-512) sum in different orders."""
     if isinstance(kept, dict):
-        assert isinstance(made, dict) and made.keys() == kept.keys(), where
+        assert isinstance(made, dict), where
+        assert made.keys() == kept.keys(), where
         for k in kept:
             _same(made[k], kept[k], f"{where}.{k}")
     elif isinstance(kept, list):
-        assert isinstance(made, list) and len(made) == len(kept), where
+        assert isinstance(made, list), where
+        assert len(made) == len(kept), where
         for i, (m, k) in enumerate(zip(made, kept)):
             _same(m, k, f"{where}[{i}]")
     elif isinstance(kept, float) or isinstance(made, float):

@@ -31,7 +31,8 @@ def picture(path, image=None) -> Frame:
 
 def test_a_picture_is_located_where_it_was_rendered():
     located = FrameLocator(WORLD, CAMERA).locate(picture(SCENE))
-    assert located.reason == "" and located.pose is not None
+    assert located.reason == ""
+    assert located.pose is not None
     assert np.linalg.norm(located.pose.position_mm - SCENE_T[:3, 3]) < 5.0
     assert located.pose.marker_ids == (0, 1, 2)
     assert sorted(d.id for d in located.detections) == [0, 1, 2]
@@ -54,7 +55,8 @@ def test_the_camera_is_rescaled_once_per_resolution():
     assert said == [
         "camera calibrated at 1280x720 rescaled to 640x360; calibrating at the resolution you run at is more accurate"
     ]
-    assert cams[0] is cams[1] is cams[2] and cams[0].image_size == (640, 360)
+    assert cams[0] is cams[1] is cams[2]
+    assert cams[0].image_size == (640, 360)
     np.testing.assert_allclose(cams[0].K[:2], CAMERA.K[:2] / 2, atol=0.5)
 
 
@@ -112,7 +114,8 @@ def test_track_bridges_with_odometry_and_waits_for_the_first_pose():
     base = [Ts[0], Ts[0], Ts[1], Ts[2], Ts[2] @ fidlearn.make_transform(np.eye(3), [0, 0, 10])]
     odometry = Odometry([k / 10 for k in range(5)], base, drift=0.02)
     steps = list(track(run, WORLD, DRIVE_CAMERA, fps=10, odometry=odometry))
-    assert steps[0].tracked is None and steps[0].located.reason == NO_MARKER  # nothing to track yet
+    assert steps[0].tracked is None  # nothing to track yet
+    assert steps[0].located.reason == NO_MARKER
     assert [s.tracked.status for s in steps[1:]] == ["started", "measured", "measured", "odometry"]
 
 

@@ -79,13 +79,16 @@ def outcome(ws: Path, status: int, err: str, sig: int, ref: Path) -> str:
     assert not hidden(ws), f"temporary files left behind: {hidden(ws)}"
     lines = error_lines(err)
     if status == 0:  # done before the signal (or while it exited, when a signal changes nothing)
-        assert same_outputs(ws / "out", ref) and not lines, err
+        assert same_outputs(ws / "out", ref), err
+        assert not lines, err
         return "finished"
     if status == -sig:  # before fidlearn's own code ran: Python was still importing numpy and OpenCV
-        assert got == {} and not lines, err
+        assert got == {}, err
+        assert not lines, err
         return "killed while Python started"
     assert status == 128 + sig, err
-    assert len(lines) == 1 and err.rstrip().endswith(lines[0]), err
+    assert len(lines) == 1, err
+    assert err.rstrip().endswith(lines[0]), err
     line = lines[0]
     assert line.startswith(f"error: interrupted by {signal.Signals(sig).name}; "), line
     if line.endswith("; nothing was written"):

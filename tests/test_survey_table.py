@@ -38,8 +38,13 @@ def test_the_table_has_a_line_per_marker_with_the_known_numbers(surveyed):
         assert surveyed == pytest.approx(truth.placements[i].translation_mm, abs=0.5)
         assert int(row[78:84]) == counts[i]
         if i != 5:
-            assert float(row[55:62]) == 0.0 and row[70:77].strip() == "-"  # tape and photos agree exactly
-    assert rows[0].endswith("  fixed") and rows[0][4:29].strip() == "0, 700, 1700" and float(rows[0][63:69]) == 0.0
-    assert rows[5][4:29].strip() == "-" and rows[5][55:62].strip() == "-" and rows[5].endswith("added from the photos")
+            assert float(row[55:62]) == 0.0  # tape and photos agree exactly
+            assert row[70:77].strip() == "-"
+    assert rows[0].endswith("  fixed")
+    assert rows[0][4:29].strip() == "0, 700, 1700"
+    assert float(rows[0][63:69]) == 0.0
+    assert rows[5][4:29].strip() == "-"
+    assert rows[5][55:62].strip() == "-"
+    assert rows[5].endswith("added from the photos")
     assert rows[1].endswith("  ")  # no note: the marker is well seen
     assert not s.table().endswith("\n")

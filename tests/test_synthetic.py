@@ -45,7 +45,7 @@ def aruco_detect(image, dictionary=cv2.aruco.DICT_ARUCO_ORIGINAL):
 
 
 @pytest.mark.parametrize(
-    "size, dist, eye, target, roll",
+    ("size", "dist", "eye", "target", "roll"),
     [
         ((640, 480), None, [1000, 190, 240], [0, 190, 240], 0.0),
         ((640, 480), WIDE_LENS, [700, -300, 400], [0, 150, 230], 10.0),
@@ -74,7 +74,8 @@ def test_truth_is_exactly_the_projection_of_the_3d_corners(wall):
     assert sorted(truth) == [0, 1, 2]
     rvec, tvec = frames.rvec_tvec_from_transform(frames.invert_transform(T))
     for mid, px in truth.items():
-        assert px.shape == (4, 2) and px.dtype == np.float64
+        assert px.shape == (4, 2)
+        assert px.dtype == np.float64
         np.testing.assert_array_equal(px, camera.project(wall.marker_corners(mid), T))
         ref, _ = cv2.projectPoints(wall.marker_corners(mid).reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
         np.testing.assert_allclose(px, ref.reshape(4, 2), atol=1e-9)
@@ -166,7 +167,8 @@ def test_a_marker_partly_outside_the_frame_is_drawn_but_left_out_of_the_truth(wa
     image, truth = rendered.image, rendered.truth
     assert sorted(truth) == [1, 2]
     px0 = camera.project(wall.marker_corners(0), T)
-    assert np.any(px0[:, 0] < 0) and np.any(px0[:, 0] > 0)  # really straddles the edge
+    assert np.any(px0[:, 0] < 0)  # really straddles the edge
+    assert np.any(px0[:, 0] > 0)
     assert image[:, :5].min() < 60  # its ink reaches the image border
     assert set(truth) <= set(aruco_detect(image))
 
@@ -182,12 +184,13 @@ def test_a_sheet_crossing_the_camera_plane_is_drawn_where_it_is_in_front(wall):
     assert 0 not in truth
     # a few cm in front of the camera: a point of marker 0's black right border and one of its white margin
     ink_px, paper_px = np.round(camera.project(np.array([[0.0, 74.0, 262.0], [0.0, 86.0, 262.0]]), T)).astype(int)
-    assert np.all((ink_px > 0) & (ink_px < [319, 239])) and np.all((paper_px > 0) & (paper_px < [319, 239]))
+    assert np.all((ink_px > 0) & (ink_px < [319, 239]))
+    assert np.all((paper_px > 0) & (paper_px < [319, 239]))
     assert image[ink_px[1], ink_px[0]] < 40
     assert image[paper_px[1], paper_px[0]] > 215
 
 
-@pytest.mark.parametrize("front, back", [(7, 3), (3, 7)])
+@pytest.mark.parametrize(("front", "back"), [(7, 3), (3, 7)])
 def test_the_nearest_sheet_wins(front, back):
     """One marker hangs 100 mm in front of another and hides it, whichever id comes first."""
     scene = MarkerMap.from_dict(
@@ -299,11 +302,14 @@ def test_calibration_views_tell_the_truth_and_render_one_view_alone():
 def test_charuco_views_are_found_by_opencvs_charuco_detector():
     camera = Camera([[600, 0, 322], [0, 601, 238], [0, 0, 1]], [-0.1, 0.03, 0, 0, 0], (640, 480))
     views = render_calibration_views(camera, n_views=2, seed=3, charuco=True)
-    assert views.pattern_size == (5, 7) and views.square_size_mm == 40 and views.marker_size_mm == 20
+    assert views.pattern_size == (5, 7)
+    assert views.square_size_mm == 40
+    assert views.marker_size_mm == 20
     detector = cv2.aruco.CharucoDetector(views.board())
     for image, truth in zip(views.images, views.image_points):
         corners, ids, _, _ = detector.detectBoard(image)
-        assert ids is not None and len(ids) == 24
+        assert ids is not None
+        assert len(ids) == 24
         err = corners.reshape(-1, 2) - truth[np.ravel(ids)]
         assert np.sqrt((err**2).sum(axis=1).mean()) < 0.2
 
@@ -317,10 +323,12 @@ def test_the_drive_stays_at_marker_height_and_keeps_the_markers_in_view(wall):
         to_markers = (centre - T[:3, 3]) / np.linalg.norm(centre - T[:3, 3])
         assert to_markers @ T[:3, 2] > np.cos(np.radians(10))  # looking at the markers, give or take the sway
     dist = [np.linalg.norm(T[:2, 3] - centre[:2]) for T in poses]
-    assert dist[0] > 2000 and dist[-1] < 1100  # it drives toward the wall
+    assert dist[0] > 2000  # it drives toward the wall
+    assert dist[-1] < 1100
     camera = Camera.from_fov(60, (320, 240))
     drive = render_trajectory(wall, camera, n_frames=12, seed=1, frames_to_render=[0, 11])
-    assert len(drive) == 2 and all(sorted(t) == [0, 1, 2] for t in drive.truth)
+    assert len(drive) == 2
+    assert all(sorted(t) == [0, 1, 2] for t in drive.truth)
     np.testing.assert_array_equal(drive.T_world_camera[1], poses[11])
     again = render_trajectory(wall, camera, n_frames=12, seed=1, frames_to_render=[11])
     np.testing.assert_array_equal(again.images[0], drive.images[1])

@@ -56,7 +56,9 @@ def test_eight_threads_give_the_answers_of_one():
         together = list(pool.map(work, range(n)))
     for k, got in enumerate(together):
         want = alone[k % len(POSES)]
-        assert got[0] == want[0] and got[1] == want[1] and got[5] == want[5]
+        assert got[0] == want[0]
+        assert got[1] == want[1]
+        assert got[5] == want[5]
         np.testing.assert_array_equal(got[2], want[2])
         np.testing.assert_array_equal(got[3], want[3])
         np.testing.assert_array_equal(got[4], want[4])
@@ -160,7 +162,7 @@ def _planner(_k: int) -> tuple:
     return plan.median_mm, plan.worst_mm, plan.seen_fraction, pred.covariance, pred.position_std_mm
 
 
-def _render_and_track(k: int) -> tuple:
+def _render_and_track(_k: int) -> tuple:
     """A rendered drive of 3 frames, located and smoothed: the renderer, the detector and the filter."""
     world = MarkerMap.load(fidlearn.data_path("world_map.json"))
     camera = Camera.from_fov(60, (320, 240))
@@ -178,7 +180,7 @@ CALIBRATION_VIEWS = _calibration_views()
 
 
 @pytest.mark.parametrize(
-    "work, runs",
+    ("work", "runs"),
     [(_calibration, 9), pytest.param(_survey, 3, marks=pytest.mark.slow), (_planner, 6), (_render_and_track, 6)],
     ids=["calibration", "survey", "planner", "render and track"],
 )

@@ -42,7 +42,8 @@ def test_same_markers_and_corners_as_detect_markers(drive):
         tracker.locate(image)
         full = {d.id: d.corners_px for d in detect_markers(image, drive.marker_map.dictionary)}
         got = {d.id: d.corners_px for d in tracker.last_detections}
-        assert sorted(got) == sorted(full) and set(truth) <= set(got)
+        assert sorted(got) == sorted(full)
+        assert set(truth) <= set(got)
         for i in got:
             np.testing.assert_allclose(got[i], full[i], atol=1e-6)
     # the windows did the work: one full detection, on the first frame
@@ -63,9 +64,11 @@ def test_recovers_after_a_frame_without_markers(drive):
     blank = np.full_like(drive.images[0], 128)
     with pytest.raises(NoMarkersError, match=r"no marker was detected; the map .* has ids \[3, 7, 11, 20, 21, 40\]"):
         tracker.locate(blank)  # a frame without a pose raises, as fidlearn.locate does
-    assert tracker.last_pose is None and tracker.last_detections == []
+    assert tracker.last_pose is None
+    assert tracker.last_detections == []
     pose = tracker.locate(drive.images[2])
-    assert tracker.last_full and tracker.full_detections == 3  # frame 0, the blank frame, then afresh
+    assert tracker.last_full  # frame 0, the blank frame, then afresh
+    assert tracker.full_detections == 3
     assert np.linalg.norm(pose.position_mm - drive.T_world_camera[2][:3, 3]) < 3.0
 
 
@@ -83,17 +86,20 @@ def test_a_covered_marker_costs_a_larger_window_not_a_full_detection(drive):
     tracker = MarkerTracker(drive.marker_map, CAM)
     tracker.locate(drive.images[0])
     pose = tracker.locate(cover(drive.images[1], drive.truth[1], [7]))
-    assert not tracker.last_full and tracker.full_detections == 1
+    assert not tracker.last_full
+    assert tracker.full_detections == 1
     assert pose.marker_ids == (3, 11, 20, 21, 40)
     tracker.locate(drive.images[2])  # marker 7 is predicted from the map, so its window finds it again
-    assert not tracker.last_full and [d.id for d in tracker.last_detections] == [3, 7, 11, 20, 21, 40]
+    assert not tracker.last_full
+    assert [d.id for d in tracker.last_detections] == [3, 7, 11, 20, 21, 40]
 
 
 def test_most_markers_missing_calls_for_a_full_detection(drive):
     tracker = MarkerTracker(drive.marker_map, CAM)
     tracker.locate(drive.images[0])
     pose = tracker.locate(cover(drive.images[1], drive.truth[1], [3, 7, 11, 20]))
-    assert tracker.last_full and tracker.full_detections == 2
+    assert tracker.last_full
+    assert tracker.full_detections == 2
     assert pose.marker_ids == (21, 40)
     assert np.linalg.norm(pose.position_mm - drive.T_world_camera[1][:3, 3]) < 10.0
 
@@ -120,7 +126,7 @@ def test_bgr_frames_and_pose_options(drive):
 
 
 @pytest.mark.parametrize(
-    "kwargs, match",
+    ("kwargs", "match"),
     [
         (dict(marker_map="map.json"), "marker_map must be a fidlearn.MarkerMap"),
         (dict(camera=None), "camera must be a fidlearn.Camera"),

@@ -10,6 +10,7 @@ import asyncio
 import cv2
 import numpy as np
 import pytest
+from y4m import read_y4m, write_y4m, yuv420_planes
 
 from fidlearn import FidlearnError
 from fidlearn._webcam import (
@@ -20,7 +21,6 @@ from fidlearn._webcam import (
     decode_frame,
     status_message,
 )
-from fidlearn._y4m import read_y4m, write_y4m, yuv420_planes
 from fidlearn.data import data_path
 from fidlearn.errors import ImageError
 from fidlearn.widgets import Webcam
@@ -36,7 +36,7 @@ class _Browser:
 
     def __init__(self, cam):
         self.sent = []
-        cam.send = lambda content, buffers=None: self.sent.append(content)
+        cam.send = lambda content, buffers=None: self.sent.append(content)  # noqa: ARG005 (Widget.send's signature)
 
 
 # -- decoding ------------------------------------------------------------------------------
@@ -45,7 +45,8 @@ def test_png_frame_decodes_to_the_same_pixels():
     _, png = cv2.imencode(".png", frame)
 
     out = decode_frame(png.tobytes(), 64, 48)
-    assert out.shape == (48, 64, 3) and out.dtype == np.uint8
+    assert out.shape == (48, 64, 3)
+    assert out.dtype == np.uint8
     np.testing.assert_array_equal(out, frame)
 
 
@@ -56,7 +57,8 @@ def test_jpeg_frame_decodes_within_the_stated_tolerance():
     _, jpg = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 92])
     out = decode_frame(memoryview(jpg.tobytes()), 640, 480)
     diff = np.abs(cv2.cvtColor(out, cv2.COLOR_BGR2GRAY).astype(int) - gray)
-    assert diff.mean() < 1.5 and np.percentile(diff, 99) <= 6, (diff.mean(), np.percentile(diff, 99))
+    assert diff.mean() < 1.5, (diff.mean(), np.percentile(diff, 99))
+    assert np.percentile(diff, 99) <= 6, (diff.mean(), np.percentile(diff, 99))
 
 
 @pytest.mark.parametrize("data", [b"", b"not an image at all", b"\x89PNG\r\n\x1a\n" + b"\0" * 40])
@@ -153,7 +155,7 @@ def test_a_failing_callback_stops_the_stream_and_still_acknowledges():
     cam = Webcam()
     browser = _Browser(cam)
 
-    def broken(frame):
+    def broken(_frame):
         raise RuntimeError("boom")
 
     cam.on_frame(broken)
@@ -161,8 +163,10 @@ def test_a_failing_callback_stops_the_stream_and_still_acknowledges():
     _, png = cv2.imencode(".png", _frame())
     with pytest.raises(RuntimeError, match="boom"):
         cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 7, "width": 64, "height": 48}, [png.tobytes()])
-    assert cam.streaming is False and isinstance(cam.last_error, RuntimeError)
-    assert browser.sent[-1]["type"] == "ack" and browser.sent[-1]["seq"] == 7
+    assert cam.streaming is False
+    assert isinstance(cam.last_error, RuntimeError)
+    assert browser.sent[-1]["type"] == "ack"
+    assert browser.sent[-1]["seq"] == 7
 
 
 def test_a_corrupt_stream_frame_is_dropped_and_the_next_good_one_delivered():
@@ -172,11 +176,16 @@ def test_a_corrupt_stream_frame_is_dropped_and_the_next_good_one_delivered():
     cam.on_frame(lambda frame: seen.append(frame.shape))
     cam.start()
     cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 1, "width": 64, "height": 48}, [b"garbage"])
-    assert cam.streaming is True and cam.frames_dropped == 1 and "neither PNG nor JPEG" in cam.drop_reason
-    assert isinstance(cam.last_error, ImageError) and browser.sent[-1]["seq"] == 1  # acknowledged all the same
+    assert cam.streaming is True
+    assert cam.frames_dropped == 1
+    assert "neither PNG nor JPEG" in cam.drop_reason
+    assert isinstance(cam.last_error, ImageError)  # acknowledged all the same
+    assert browser.sent[-1]["seq"] == 1
     _, png = cv2.imencode(".png", _frame())
     cam._on_message(cam, {"type": "frame", "kind": "stream", "seq": 2, "width": 64, "height": 48}, [png.tobytes()])
-    assert seen == [(48, 64, 3)] and cam.frames_received == 1 and cam.frames_dropped == 1
+    assert seen == [(48, 64, 3)]
+    assert cam.frames_received == 1
+    assert cam.frames_dropped == 1
 
 
 # -- snapshot ---------------------------------------------------------------------------------
@@ -190,7 +199,8 @@ def test_snapshot_resolves_with_the_browser_reply():
         task = asyncio.ensure_future(cam.snapshot(timeout_s=5))
         await asyncio.sleep(0)
         request = browser.sent[-1]
-        assert request["type"] == "snap" and request["format"] == "png"
+        assert request["type"] == "snap"
+        assert request["format"] == "png"
         cam._on_message(
             cam, {"type": "frame", "kind": "snap", "id": request["id"], "width": 64, "height": 48}, [png.tobytes()]
         )
@@ -210,10 +220,12 @@ def test_snapshot_without_a_displayed_widget_times_out_with_advice():
 @pytest.mark.parametrize("status", sorted(FAILED))
 def test_every_failure_says_what_to_do_and_offers_the_bundled_pictures(status):
     text = status_message(status, "NotAllowedError: Permission denied")
-    assert "bundled pictures" in text and "NotAllowedError" in text
+    assert "bundled pictures" in text
+    assert "NotAllowedError" in text
     cam = Webcam()
     cam.status, cam.error = status, "NotFoundError: Requested device not found"
-    assert cam.failed and not cam.available
+    assert cam.failed
+    assert not cam.available
     assert cam.message == status_message(status, cam.error)
     with pytest.raises(WebcamError, match="bundled pictures"):
         cam.start()
@@ -238,7 +250,9 @@ def test_the_javascript_ships_in_the_package():
     from fidlearn._webcam import STATIC
 
     js = (STATIC / "webcam.js").read_text()
-    assert "export default" in js and "getUserMedia" in js and "import " not in js  # no network, no build
+    assert "export default" in js  # no network, no build
+    assert "getUserMedia" in js
+    assert "import " not in js
 
 
 # -- Y4M ------------------------------------------------------------------------------------------
@@ -256,12 +270,16 @@ def test_y4m_round_trip_keeps_gray_within_one_level(tmp_path):
 
 def test_y4m_planes_of_gray_and_colour():
     y, u, v = yuv420_planes(np.full((5, 7), 255, np.uint8))
-    assert y.shape == (5, 7) and u.shape == v.shape == (3, 4)
-    assert (y == 235).all() and (u == 128).all() and (v == 128).all()
+    assert y.shape == (5, 7)
+    assert u.shape == v.shape == (3, 4)
+    assert (y == 235).all()
+    assert (u == 128).all()
+    assert (v == 128).all()
     red = np.zeros((4, 4, 3), np.uint8)
     red[..., 2] = 255
     _, u, v = yuv420_planes(red)
-    assert (v > 200).all() and (u < 128).all()
+    assert (v > 200).all()
+    assert (u < 128).all()
 
 
 def test_y4m_refuses_mixed_sizes_and_leaves_no_file(tmp_path):

@@ -67,13 +67,16 @@ def test_render_is_pure_and_changes_when_fx_changes():
     xa = np.concatenate([line.get_xdata() for line in ax_a.lines[:n_lines]])
     xb = np.concatenate([line.get_xdata() for line in ax_b.lines[:n_lines]])
     assert not np.allclose(xa, xb)
-    assert "fx=500" in ax_a.get_title() and "fx=900" in ax_b.get_title()
+    assert "fx=500" in ax_a.get_title()
+    assert "fx=900" in ax_b.get_title()
     # the field of view in the title is the camera's
     hfov = Camera([[500, 0, 319.5], [0, 500, 239.5], [0, 0, 1]], None, (640, 480)).fov_deg[0]
     assert f"{hfov:.1f} x" in ax_a.get_title()
-    assert ax_a.get_xlim() == (-0.5, 639.5) and ax_a.get_ylim() == (479.5, -0.5)
+    assert ax_a.get_xlim() == (-0.5, 639.5)
+    assert ax_a.get_ylim() == (479.5, -0.5)
     png_a, png_b = widgets.figure_png(fig_a), widgets.figure_png(fig_b)
-    assert png_a.startswith(b"\x89PNG") and png_a != png_b
+    assert png_a.startswith(b"\x89PNG")
+    assert png_a != png_b
     assert widgets.figure_png(widgets.render_intrinsics_view(**BASE)) == png_a  # same input, same picture
 
 
@@ -120,4 +123,5 @@ def test_explorer_has_the_five_sliders_starting_at_the_camera(monkeypatch):
     assert (s["fx"].value, s["fy"].value, s["cx"].value, s["cy"].value, s["k1"].value) == (700, 710, 300, 250, -0.1)
     assert calls[-1] == (700.0, 710.0, 300.0, 250.0, -0.1, (640, 480))  # drawn once at start
     s["fx"].value = 1200.0  # moving a slider redraws with the new value
-    assert calls[-1][0] == 1200.0 and len(calls) == 2
+    assert calls[-1][0] == 1200.0
+    assert len(calls) == 2

@@ -81,7 +81,7 @@ def per_view_rms(obj: list, img: list, K: np.ndarray, dist: np.ndarray, rotation
     return np.sqrt(np.add.reduceat(np.sum(e * e, axis=1), np.cumsum(counts) - counts) / counts)
 
 
-def std_intrinsics(obj: list, img: list, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> np.ndarray:
+def std_intrinsics(obj: list, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> np.ndarray:
     """Standard deviations of ``fx, fy, cx, cy, dist...`` (0 for a parameter held fixed), as OpenCV's.
 
     The arguments are those of ``cv2.calibrateCamera`` and what it returned (``rms_px`` its RMS).

@@ -149,17 +149,17 @@ def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
     dist = np.asarray(dist, dtype=np.float64).reshape(-1)
     rotations = [cv2.Rodrigues(r)[0] for r in rvecs]
     per_view = _stats.per_view_rms(obj, img, K, dist, rotations, tvecs)
-    std_from = functools.partial(_std_dict, obj, img, K, dist, rvecs, tvecs, float(rms), int(flags))
+    std_from = functools.partial(_std_dict, obj, K, dist, rvecs, tvecs, float(rms), int(flags))
     return float(rms), K, dist, rotations, tvecs, std_from, per_view
 
 
-def _std_dict(obj, img, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> dict:
+def _std_dict(obj, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> dict:
     """``Calibration.std_intrinsics``: {name: standard deviation}, computed when first read."""
-    std = _stats.std_intrinsics(obj, img, K, dist, rvecs, tvecs, rms_px, flags)
+    std = _stats.std_intrinsics(obj, K, dist, rvecs, tvecs, rms_px, flags)
     return {n: float(v) for n, v in zip(INTRINSIC_NAMES[: 4 + len(dist)], std)}
 
 
-def _too_few(views: list[_View], size, hint: str, min_views: int) -> CalibrationError:
+def _too_few(views: list[_View], hint: str, min_views: int) -> CalibrationError:
     n_used = sum(v.status == "used" for v in views)
     groups: dict[str, list[str]] = {}
     for v in views:
@@ -286,7 +286,7 @@ def _run(
     usable = [v for v in views if v.status == "used"]
     if len(usable) < min_views:
         hint = finder.diagnose(failed_grays) if not usable else ""
-        raise _too_few(views, size, hint, min_views)
+        raise _too_few(views, hint, min_views)
     fit = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria)
     first_rms = None
     if reject_outliers and len(usable) > min_views and _reject_outliers(usable, fit[6], min_views):

@@ -162,7 +162,7 @@ def _exit_status(exc: BaseException) -> int:
     return 128 + (exc.signum if isinstance(exc, _Interrupted) else signal.SIGINT)
 
 
-def _raise_interrupted(signum, frame) -> None:
+def _raise_interrupted(signum, _frame) -> None:
     raise _Interrupted(signum)
 
 
@@ -224,7 +224,7 @@ def _error(text: str) -> None:
         print(line.encode(enc, "backslashreplace").decode(enc), file=sys.stderr)
 
 
-def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ARG001 (warnings.showwarning's signature)
     print(f"warning: {_one_line(str(message))}", file=sys.stderr)
 
 

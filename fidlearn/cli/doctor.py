@@ -36,7 +36,7 @@ def add(sub) -> None:
     p.set_defaults(run=run)
 
 
-def run(args) -> int:
+def run(args) -> int:  # noqa: ARG001 (every command's run takes the parsed arguments; doctor has none)
     """Print the report; 1 when a problem was found.
 
     Parameters

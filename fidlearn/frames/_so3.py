@@ -26,12 +26,12 @@ def skew(v: np.ndarray) -> np.ndarray:
     if v.ndim == 1:
         x, y, z = float(v[0]), float(v[1]), float(v[2])
         return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    z = np.zeros(v.shape[:-1])
+    zero = np.zeros(v.shape[:-1])
     return np.stack(
         [
-            np.stack([z, -v[..., 2], v[..., 1]], -1),
-            np.stack([v[..., 2], z, -v[..., 0]], -1),
-            np.stack([-v[..., 1], v[..., 0], z], -1),
+            np.stack([zero, -v[..., 2], v[..., 1]], -1),
+            np.stack([v[..., 2], zero, -v[..., 0]], -1),
+            np.stack([-v[..., 1], v[..., 0], zero], -1),
         ],
         -2,
     )

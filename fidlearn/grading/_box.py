@@ -145,10 +145,10 @@ def bwrap_command(bwrap: str, inbox: Path, env: dict) -> list[str]:
     cmd += ["--dev", "/dev", "--proc", "/proc", "--perms", "1777", "--size", str(TMP_BYTES), "--tmpfs", BOX_TMP]
     mounts = python_mounts()
     above = {str(a) for m in mounts for a in Path(m).parents if str(a) != "/"}
-    above = sorted(
+    opened = sorted(
         (a for a in above if a != BOX_TMP and not any(a == s or a.startswith(s + "/") for s in _SYSTEM)), key=len
     )
-    for folder in above:  # open to the notebook's user, whatever the modes of the machine's folders
+    for folder in opened:  # open to the notebook's user, whatever the modes of the machine's folders
         cmd += ["--perms", "0755", "--dir", folder]
     for folder in mounts:
         cmd += ["--ro-bind", folder, folder]

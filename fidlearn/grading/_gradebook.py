@@ -71,7 +71,8 @@ def match(notebooks, number: str, learner: str | None, roster: list[str] | None,
     list of tuple
         ``(notebook, learner, "")`` to grade, ``(notebook, learner, problem)`` not to grade.
     """
-    out, seen = [], {}
+    out: list[tuple] = []
+    seen: dict[str, str] = {}
     given = normalize_learner(learner) if learner is not None else None
     for nb in notebooks:
         claim = notebook_claim(nb)

@@ -103,7 +103,7 @@ def sandbox_plan(run_as: str | None = None) -> Plan:
 
 
 def _check(plan: Plan) -> str:
-    """ "" when ``plan``'s user can run this Python with fidlearn and Jupyter in its box; else why not."""
+    """An empty string when ``plan``'s user can run this Python with fidlearn and Jupyter in its box; else why not."""
     try:
         how, channel, output = _launch(plan, None, _config(plan, 60, 2000, check=True), wall_s=120)
     except OSError as exc:

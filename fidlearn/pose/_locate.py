@@ -88,7 +88,6 @@ def locate(
     >>> pose.marker_ids, np.round(pose.position_mm, -1).tolist()
     ((0, 1, 2), [1000.0, 190.0, 230.0])
     """
-
     # every argument is checked before the (costly) detection
     if not isinstance(image, np.ndarray):
         raise ImageError(

@@ -92,10 +92,10 @@ from fidlearn.detection import detect_markers, load_image
 
 np.set_printoptions(precision=3, suppress=True)
 
-camera = Camera.load(data_path("scenes", "camera.json"))       # step 1: a calibrated camera
-world_map = MarkerMap.load(data_path("world_map.json"))          # steps 2-3: where the markers are
+camera = Camera.load(data_path("scenes", "camera.json"))  # step 1: a calibrated camera
+world_map = MarkerMap.load(data_path("world_map.json"))  # steps 2-3: where the markers are
 image = load_image(data_path("scenes", "scene_00.png"))
-pose = locate(image, world_map, camera)                          # steps 4-5: detect, solvePnP, invert
+pose = locate(image, world_map, camera)  # steps 4-5: detect, solvePnP, invert
 
 truth = json.loads(data_path("scenes", "poses.json").read_text())["images"][0]
 T_true = np.array(truth["T_world_camera"])
@@ -122,8 +122,10 @@ record = json.loads(data_path("scenes", "poses.json").read_text())["images"][SCE
 scene_map = MarkerMap.load(data_path(record["map"]))
 found = locate(load_image(data_path("scenes", record["image"])), scene_map, camera)
 true_xyz = np.array(record["T_world_camera"])[:3, 3]
-print(f"{record['image']}: camera {true_xyz[0] / 1000:.1f} m out from the north wall, markers used "
-      f"{found.marker_ids}, position error {np.linalg.norm(found.position_mm - true_xyz):.1f} mm")
+print(
+    f"{record['image']}: camera {true_xyz[0] / 1000:.1f} m out from the north wall, markers used "
+    f"{found.marker_ids}, position error {np.linalg.norm(found.position_mm - true_xyz):.1f} mm"
+)
 
 # %% [markdown]
 # And the same in 3D: the wall's markers, and the camera at the pose found (the orange pyramid points

@@ -49,12 +49,14 @@ fx, fy, cx, cy = 600.0, 600.0, 319.5, 239.5  # pixels
 K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]])
 
 # four points in the camera frame, mm: 2 m in front of the camera
-points_camera = np.array([
-    [0.0, 0.0, 2000.0],      # on the optical axis
-    [500.0, 0.0, 2000.0],    # half a metre to the right
-    [0.0, -300.0, 2000.0],   # 30 cm up (y points down)
-    [500.0, 250.0, 1000.0],  # closer
-])
+points_camera = np.array(
+    [
+        [0.0, 0.0, 2000.0],  # on the optical axis
+        [500.0, 0.0, 2000.0],  # half a metre to the right
+        [0.0, -300.0, 2000.0],  # 30 cm up (y points down)
+        [500.0, 250.0, 1000.0],  # closer
+    ]
+)
 
 X, Y, Z = points_camera.T
 u = fx * X / Z + cx
@@ -80,18 +82,23 @@ fig, (top, side) = plt.subplots(1, 2, figsize=(13, 4.8))
 colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
 for ax, axis, f, c, half, name in ((top, 0, fx, cx, 320, "X"), (side, 1, fy, cy, 240, "Y")):
     ax.plot([0, 0], [0, 0], "k^", markersize=10)
-    ax.plot([-half, half], [f, f], color="0.3", linewidth=3)                  # the image plane, at depth f
-    ax.plot([0, -half * 2200 / f], [0, 2200], ":", color="0.5")               # the field of view's edges
+    ax.plot([-half, half], [f, f], color="0.3", linewidth=3)  # the image plane, at depth f
+    ax.plot([0, -half * 2200 / f], [0, 2200], ":", color="0.5")  # the field of view's edges
     ax.plot([0, half * 2200 / f], [0, 2200], ":", color="0.5")
     ax.text(half, f, f"  image plane at\n  depth f = {f:.0f}", va="center", fontsize=8)
     for k, (p, uv) in enumerate(zip(points_camera, by_hand)):
         if p[axis] == 0 and k > 0:
-            continue                                                          # nothing to see in this view
-        crossing = f * p[axis] / p[2]                                         # similar triangles
-        assert np.isclose(crossing, uv[axis] - c)                             # = u - cx (or v - cy), px
+            continue  # nothing to see in this view
+        crossing = f * p[axis] / p[2]  # similar triangles
+        assert np.isclose(crossing, uv[axis] - c)  # = u - cx (or v - cy), px
         ax.plot([0, p[axis]], [0, p[2]], color=colours[k], linewidth=1)
-        ax.plot(p[axis], p[2], "o", color=colours[k],
-                label=f"point {k}: {name} = {p[axis]:.0f}, Z = {p[2]:.0f} mm: crosses at {crossing:+.0f} px")
+        ax.plot(
+            p[axis],
+            p[2],
+            "o",
+            color=colours[k],
+            label=f"point {k}: {name} = {p[axis]:.0f}, Z = {p[2]:.0f} mm: crosses at {crossing:+.0f} px",
+        )
         ax.plot(crossing, f, "s", color=colours[k], markersize=6)
     ax.set_xlabel(f"{name} (mm; pixels on the image plane)" + (", pointing down" if axis == 1 else ""))
     ax.set_ylabel("Z, forward (mm)")
@@ -244,8 +251,9 @@ assert np.allclose(undistorted, by_hand, rtol=0, atol=1e-6)  # Newton steps to m
 
 # %%
 fig, axes = plt.subplots(1, 3, figsize=(13, 3.6), sharey=True)
-for ax, (title, k1_demo) in zip(axes, [("pinhole (k1 = 0)", 0.0), ("barrel (k1 = -0.3)", -0.3),
-                                       ("pincushion (k1 = +0.3)", 0.3)]):
+for ax, (title, k1_demo) in zip(
+    axes, [("pinhole (k1 = 0)", 0.0), ("barrel (k1 = -0.3)", -0.3), ("pincushion (k1 = +0.3)", 0.3)]
+):
     for line in widgets.intrinsics_view_polylines(554, 554, 319.5, 239.5, k1=k1_demo):
         ax.plot(line[:, 0], line[:, 1], color="tab:blue", linewidth=0.8)
     ax.set_xlim(-0.5, 639.5)
@@ -265,11 +273,11 @@ plt.show()
 
 # %%
 wall_points = np.vstack(list(wall.corners().values()))  # the 12 corners of the wall's markers, mm
-T_near_edge = look_at([900, -100, 400], [0, 350, 250])   # the markers land in the left half of the picture
+T_near_edge = look_at([900, -100, 400], [0, 350, 250])  # the markers land in the left half of the picture
 print("lens                   corners moved by   distortion   position error  reprojection RMS")
 ignored_error_mm = {}
 for lens_name, lens_dist in (("strong (k1 = -0.28)", dist), ("mild (k1 = -0.06)", np.array([-0.06, 0.08, 0, 0, 0]))):
-    seen_px = Camera(K, lens_dist, (640, 480)).project(wall_points, T_near_edge)     # what the camera sees
+    seen_px = Camera(K, lens_dist, (640, 480)).project(wall_points, T_near_edge)  # what the camera sees
     pinhole_px = Camera(K, None, (640, 480)).project(wall_points, T_near_edge)
     moved = np.linalg.norm(seen_px - pinhole_px, axis=1)
     for how, model_dist in (("modelled", lens_dist), ("ignored", np.zeros(5))):
@@ -278,12 +286,11 @@ for lens_name, lens_dist in (("strong (k1 = -0.28)", dist), ("mild (k1 = -0.06)"
         projected, _ = cv2.projectPoints(wall_points, r, t, K, model_dist)
         rms = np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - seen_px) ** 2, axis=1)))
         R, _ = cv2.Rodrigues(r)
-        position = (-R.T @ t).ravel()                    # the camera's position in the world (notebook 07)
+        position = (-R.T @ t).ravel()  # the camera's position in the world (notebook 07)
         err = np.linalg.norm(position - T_near_edge[:3, 3])
         if how == "ignored":
             ignored_error_mm[lens_name] = err
-        print(f"{lens_name:22s} {moved.min():6.1f} to {moved.max():4.1f} px   {how:9s} {err:10.1f} mm "
-              f"{rms:15.2f} px")
+        print(f"{lens_name:22s} {moved.min():6.1f} to {moved.max():4.1f} px   {how:9s} {err:10.1f} mm {rms:15.2f} px")
         if how == "modelled":
             assert err < 0.5 and rms < 0.01
 assert ignored_error_mm["strong (k1 = -0.28)"] > 10 and ignored_error_mm["mild (k1 = -0.06)"] > 2
@@ -319,11 +326,17 @@ def row_bend_px(points, pattern=(9, 6)):
 
 corners_distorted = board_view.image_points[0]
 corners_straight = cv2.undistortPoints(corners_distorted.reshape(-1, 1, 2), K, dist, P=K).reshape(-1, 2)
-print(f"rows of corners bend by up to {row_bend_px(corners_distorted):.2f} px in the picture, "
-      f"{row_bend_px(corners_straight):.3f} px after undistortion")
+print(
+    f"rows of corners bend by up to {row_bend_px(corners_distorted):.2f} px in the picture, "
+    f"{row_bend_px(corners_straight):.3f} px after undistortion"
+)
 assert row_bend_px(corners_distorted) > 2 and row_bend_px(corners_straight) < 0.05
-plotting.show_images([distorted_image, undistorted_image],
-                     ["through the lens (k1 = -0.28)", "cv2.undistort(image, K, dist)"], ncols=2, width_in=12)
+plotting.show_images(
+    [distorted_image, undistorted_image],
+    ["through the lens (k1 = -0.28)", "cv2.undistort(image, K, dist)"],
+    ncols=2,
+    width_in=12,
+)
 plt.show()
 
 # %% [markdown]
@@ -339,16 +352,20 @@ plt.show()
 # **Write your prediction down first**, then change the numbers and run the cell.
 
 # %%
-SIDE_MM = 80.0       # the marker's side
+SIDE_MM = 80.0  # the marker's side
 DISTANCE_MM = 1500.0  # try 3000
-FX_PX = 600.0        # try 1200, or the fx of a 30 degree field of view
+FX_PX = 600.0  # try 1200, or the fx of a 30 degree field of view
 
 marker = np.array([[-SIDE_MM / 2, 0, DISTANCE_MM], [SIDE_MM / 2, 0, DISTANCE_MM]])  # its left and right edge
-px, _ = cv2.projectPoints(marker, np.zeros(3), np.zeros(3), np.array([[FX_PX, 0, 319.5], [0, FX_PX, 239.5], [0, 0, 1]]),
-                          None)
+px, _ = cv2.projectPoints(
+    marker, np.zeros(3), np.zeros(3), np.array([[FX_PX, 0, 319.5], [0, FX_PX, 239.5], [0, 0, 1]]), None
+)
 width_px = float(np.linalg.norm(px[1] - px[0]))
-print(f"{SIDE_MM:.0f} mm at {DISTANCE_MM:.0f} mm with fx = {FX_PX:.0f} px: {width_px:.1f} px wide "
-      f"(fx * side / Z = {FX_PX * SIDE_MM / DISTANCE_MM:.1f}); field of view {math.degrees(2 * math.atan(320 / FX_PX)):.1f} deg")
+print(
+    f"{SIDE_MM:.0f} mm at {DISTANCE_MM:.0f} mm with fx = {FX_PX:.0f} px: {width_px:.1f} px wide "
+    f"(fx * side / Z = {FX_PX * SIDE_MM / DISTANCE_MM:.1f}); "
+    f"field of view {math.degrees(2 * math.atan(320 / FX_PX)):.1f} deg"
+)
 
 # %% [markdown]
 # ## Summary

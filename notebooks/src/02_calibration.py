@@ -27,8 +27,18 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from fidlearn import (Camera, CameraError, FidlearnWarning, MarkerMap, calibrate_checkerboard, data_path,
-                      frames, locate, plotting, synthetic)
+from fidlearn import (
+    Camera,
+    CameraError,
+    FidlearnWarning,
+    MarkerMap,
+    calibrate_checkerboard,
+    data_path,
+    frames,
+    locate,
+    plotting,
+    synthetic,
+)
 from fidlearn.detection import detect_markers, load_image
 from fidlearn.planning import coach, coach_calibration
 from fidlearn.planning.figure import coach_figure
@@ -39,6 +49,7 @@ np.set_printoptions(precision=3, suppress=True)
 def rel(path):
     """A data file's path relative to this notebook's folder: short, and the same on every machine."""
     return os.path.relpath(path)
+
 
 # %% [markdown]
 # ## 1. The checkerboard
@@ -55,7 +66,7 @@ def rel(path):
 views = [rel(p) for p in sorted(data_path("calibration").glob("view_*.png"))]
 record = json.loads(data_path("calibration", "views.json").read_text())
 true_camera = Camera.load(data_path("calibration", "camera_true.json"))
-pattern = (9, 6)        # inner corners (columns, rows)
+pattern = (9, 6)  # inner corners (columns, rows)
 square_size_mm = 25.0
 print(len(views), "views; the true camera:", true_camera)
 
@@ -76,7 +87,9 @@ plt.show()
 
 # %%
 gray = load_image(views[0])
-found, corners = cv2.findChessboardCorners(gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+found, corners = cv2.findChessboardCorners(
+    gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+)
 assert found
 criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 0.001)
 refined = cv2.cornerSubPix(gray, corners.copy(), (5, 5), (-1, -1), criteria).reshape(-1, 2)  # it works in place
@@ -90,8 +103,10 @@ rms = lambda a, b: float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))  # noqa
 if rms(corners_sb[::-1], true_px) < rms(corners_sb, true_px):
     print("SB numbered the corners from the other end of the board")
     corners_sb = corners_sb[::-1]
-print(f"corner error vs truth: findChessboardCorners alone {rms(corners.reshape(-1, 2), true_px):.3f} px, "
-      f"+ cornerSubPix {rms(refined, true_px):.3f} px, SB {rms(corners_sb, true_px):.3f} px")
+print(
+    f"corner error vs truth: findChessboardCorners alone {rms(corners.reshape(-1, 2), true_px):.3f} px, "
+    f"+ cornerSubPix {rms(refined, true_px):.3f} px, SB {rms(corners_sb, true_px):.3f} px"
+)
 assert rms(refined, true_px) < 0.1
 
 ax = plotting.show_image(None, gray, title=f"{os.path.basename(views[0])}: 54 inner corners, in order 0 to 53")
@@ -106,7 +121,9 @@ plt.show()
 real_views = [rel(p) for p in sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))]
 real = load_image(real_views[0])
 real_gray = cv2.cvtColor(real, cv2.COLOR_BGR2GRAY) if real.ndim == 3 else real
-found, c = cv2.findChessboardCorners(real_gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+found, c = cv2.findChessboardCorners(
+    real_gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+)
 assert found
 c = cv2.cornerSubPix(real_gray, c, (11, 11), (-1, -1), criteria).reshape(-1, 2)
 ax = plotting.show_image(None, real, points=c, title=f"{os.path.basename(real_views[0])}: {len(c)} corners found")
@@ -123,7 +140,7 @@ assert len(c) == 54
 
 # %%
 board_mm = np.zeros((pattern[0] * pattern[1], 3), np.float32)
-board_mm[:, :2] = np.mgrid[0:pattern[0], 0:pattern[1]].T.reshape(-1, 2) * square_size_mm  # (i s, j s, 0)
+board_mm[:, :2] = np.mgrid[0 : pattern[0], 0 : pattern[1]].T.reshape(-1, 2) * square_size_mm  # (i s, j s, 0)
 
 object_points, image_points = [], []
 for v in views:
@@ -167,8 +184,10 @@ name = cal.used[0]
 t_25 = cal.T_camera_board[name][:3, 3]
 t_50 = cal_50.T_camera_board[name][:3, 3]
 print("K with 25 mm squares:\n", cal.camera.K, "\nK with 50 mm squares:\n", cal_50.camera.K)
-print(f"board distance in {os.path.basename(name)}: {np.linalg.norm(t_25):.1f} mm (25 mm squares), "
-      f"{np.linalg.norm(t_50):.1f} mm (50 mm squares)")
+print(
+    f"board distance in {os.path.basename(name)}: {np.linalg.norm(t_25):.1f} mm (25 mm squares), "
+    f"{np.linalg.norm(t_50):.1f} mm (50 mm squares)"
+)
 assert np.allclose(cal_50.camera.K, cal.camera.K, rtol=1e-6)
 assert np.allclose(t_50, 2 * t_25, rtol=1e-6)
 
@@ -240,7 +259,8 @@ assert abs(cal_real.camera.fx / cal_all.camera.fx - 1) < 0.01  # one view fewer,
 with tempfile.TemporaryDirectory() as folder:
     path = os.path.join(folder, "camera.json")
     cal_real.camera.save(path)
-    saved = json.load(open(path))
+    with open(path) as f:
+        saved = json.load(f)
     loaded = Camera.load(path)
 print(sorted(saved))
 print("image_size:", saved["image_size"])
@@ -270,8 +290,7 @@ def camera_pose(image, camera):
     detections = [d for d in detect_markers(image, wall.dictionary) if d.id in wall]
     points_world = np.vstack([wall.corners()[d.id] for d in detections])
     points_px = np.vstack([d.corners_px for d in detections])
-    ok, rvec, tvec = cv2.solvePnP(points_world, points_px, camera.K, camera.dist,
-                                  flags=cv2.SOLVEPNP_ITERATIVE)
+    ok, rvec, tvec = cv2.solvePnP(points_world, points_px, camera.K, camera.dist, flags=cv2.SOLVEPNP_ITERATIVE)
     T_world_camera = frames.invert_transform(frames.transform_from_rvec_tvec(rvec, tvec))
     residual = camera.project(points_world, T_world_camera) - points_px
     return T_world_camera, float(np.sqrt(np.mean(np.sum(residual**2, axis=1))))
@@ -280,8 +299,10 @@ def camera_pose(image, camera):
 def report(label, image, camera):
     T, rms_px = camera_pose(image, camera)
     error_mm = np.linalg.norm(T[:3, 3] - T_true[:3, 3])
-    print(f"{label:42s} image {image.shape[1]}x{image.shape[0]}, camera {camera.width}x{camera.height}: "
-          f"position error {error_mm:7.1f} mm, reprojection RMS {rms_px:.2f} px")
+    print(
+        f"{label:42s} image {image.shape[1]}x{image.shape[0]}, camera {camera.width}x{camera.height}: "
+        f"position error {error_mm:7.1f} mm, reprojection RMS {rms_px:.2f} px"
+    )
     return error_mm
 
 
@@ -339,7 +360,9 @@ assert err_crop_wrong > 100
 # %%
 K_crop = scene_camera.K.copy()
 K_crop[0, 2] -= 160  # the principal point, in the cropped image's pixels
-crop_camera = Camera(K_crop, scene_camera.dist, (960, 720), source="the 1280x720 camera, cropped to the middle 960 columns")
+crop_camera = Camera(
+    K_crop, scene_camera.dist, (960, 720), source="the 1280x720 camera, cropped to the middle 960 columns"
+)
 err_crop_fixed = report("4:3 crop, camera of the 4:3 mode", crop, crop_camera)
 assert err_crop_fixed < 5
 
@@ -381,17 +404,24 @@ cal_left = calibrate_checkerboard(left_views, pattern, square_size_mm)
 coached_left = coach_calibration(cal_left)
 for label, c, k in (("all 20 views", cal, coached), (f"the {len(left_views)} left views", cal_left, coached_left)):
     fx_error_pct = 100 * (c.camera.fx / true_camera.fx - 1)
-    print(f"{label:17s}: RMS {c.rms_px:.3f} px, fx {c.camera.fx:.2f} px ({fx_error_pct:+.2f} % from the truth), "
-          f"worst uncertainty {k.uncertainty_px.max():.2f} px")
+    print(
+        f"{label:17s}: RMS {c.rms_px:.3f} px, fx {c.camera.fx:.2f} px ({fx_error_pct:+.2f} % from the truth), "
+        f"worst uncertainty {k.uncertainty_px.max():.2f} px"
+    )
 print(coached_left.report())
-assert abs(cal_left.rms_px - cal.rms_px) < 0.005                       # the RMS does not see it
+assert abs(cal_left.rms_px - cal.rms_px) < 0.005  # the RMS does not see it
 assert abs(cal_left.camera.fx / true_camera.fx - 1) > 5 * abs(cal.camera.fx / true_camera.fx - 1)
 assert any("right" in f for f in coached_left.flags) and any("views" in f for f in coached_left.flags)
 
 fig, axes = plt.subplots(1, 2, figsize=(12, 4), layout="constrained")
 for ax, (label, c, k) in zip(axes, (("all 20 views", cal, coached), ("the left views only", cal_left, coached_left))):
-    im = ax.imshow(k.uncertainty_px, extent=[-0.5, true_camera.width - 0.5, true_camera.height - 0.5, -0.5],
-                   cmap="magma_r", vmin=0, vmax=0.3)
+    im = ax.imshow(
+        k.uncertainty_px,
+        extent=[-0.5, true_camera.width - 0.5, true_camera.height - 0.5, -0.5],
+        cmap="magma_r",
+        vmin=0,
+        vmax=0.3,
+    )
     points = np.vstack(list(c.image_points_px.values()))
     ax.plot(points[:, 0], points[:, 1], ".", color="tab:cyan", markersize=1.5)
     ax.set_title(f"{label}: RMS {c.rms_px:.3f} px, fx {100 * (c.camera.fx / true_camera.fx - 1):+.2f} %", fontsize=10)
@@ -454,8 +484,9 @@ def board_pose(rng, u=(0.1, 0.9), v=(0.1, 0.9), tilt_deg=(0.0, 40.0)):
 
 def calibrate_and_coach(photos):
     """cv2.calibrateCamera on corner lists, then the coach on the result: (RMS px, Camera, CalibrationCoach)."""
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([board_mm] * len(photos), [p.astype(np.float32) for p in photos],
-                                                     true_camera.image_size, None, None)
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(
+        [board_mm] * len(photos), [p.astype(np.float32) for p in photos], true_camera.image_size, None, None
+    )
     camera = Camera(K, dist.ravel(), true_camera.image_size)
     names = [f"photo {i}" for i in range(len(photos))]
     T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
@@ -477,21 +508,24 @@ for name, make in make_set.items():
     results[name] = []
     for _ in range(5):
         rms, camera, verdict = calibrate_and_coach([corner_pixels(T, rng) for T in make()])
-        results[name].append((rms, 100 * (camera.fx / true_camera.fx - 1), 100 * verdict.fx_std_px / true_camera.fx,
-                              verdict))
+        results[name].append(
+            (rms, 100 * (camera.fx / true_camera.fx - 1), 100 * verdict.fx_std_px / true_camera.fx, verdict)
+        )
     rms, fx_err, fx_std, verdicts = zip(*results[name])
-    print(f"{name}: RMS {min(rms):.3f} to {max(rms):.3f} px; fx from {min(fx_err):+.2f} % to {max(fx_err):+.2f} % "
-          f"of the truth, the coach's std {np.median(fx_std):.2f} %; uncertainty median "
-          f"{np.median([v.uncertainty_px for v in verdicts]):.2f} px")
+    print(
+        f"{name}: RMS {min(rms):.3f} to {max(rms):.3f} px; fx from {min(fx_err):+.2f} % to {max(fx_err):+.2f} % "
+        f"of the truth, the coach's std {np.median(fx_std):.2f} %; uncertainty median "
+        f"{np.median([v.uncertainty_px for v in verdicts]):.2f} px"
+    )
     for flag in verdicts[0].flags:
         print("   warning:", flag)
 
 rms_median = [np.median([r[0] for r in rows]) for rows in results.values()]
 spread = {name: np.ptp([r[1] for r in rows]) for name, rows in results.items()}
-assert max(rms_median) - min(rms_median) < 0.02                             # the same RMS, every kind of set
-assert spread["face-on"] > 50 * spread["spread and tilted"]                  # not the same cameras at all
+assert max(rms_median) - min(rms_median) < 0.02  # the same RMS, every kind of set
+assert spread["face-on"] > 50 * spread["spread and tilted"]  # not the same cameras at all
 well_posed = results["spread and tilted"] + results["only 6 photos"]
-assert all(abs(r[1]) < 3 * r[2] for r in well_posed)                        # within the coach's 3 std, every one
+assert all(abs(r[1]) < 3 * r[2] for r in well_posed)  # within the coach's 3 std, every one
 # face-on, fx is not determined at all: the coach says so with a std of several per cent (the fit may even
 # stop in a far-off minimum: OpenCV 4.x takes one of these five sets to an fx 2.5 times too long)
 assert all(r[2] > 5 for r in results["face-on"])
@@ -530,6 +564,7 @@ plt.show()
 # the coach's map is under 0.3 px over 90 % of the picture. Four runs of each, each pair from the same first 4
 # photos:
 
+
 # %%
 def photos_needed(strategy, seed, most=30):
     """Calibrate, ask the coach, take one more photo, until fx is within 0.1 % of the truth and the map is under
@@ -546,8 +581,9 @@ def photos_needed(strategy, seed, most=30):
             return history, asked
         if strategy == "coach":
             T = verdict.next_view.T_camera_board  # the board where the coach says (a person puts it about there)
-            asked.append(f"{verdict.next_view.where}, {verdict.next_view.tilt}, "
-                         f"{verdict.next_view.distance_mm:.0f} mm away")
+            asked.append(
+                f"{verdict.next_view.where}, {verdict.next_view.tilt}, {verdict.next_view.distance_mm:.0f} mm away"
+            )
         else:
             T = board_pose(rng)
         taken[strategy].append(T)
@@ -570,8 +606,10 @@ for s, n in needed.items():
     print(f"{s:6s}: photos needed {n} (30: the goal not reached), median {np.median(n):.1f}")
 for s in ("coach", "random"):
     tilt, distance = np.array([tilt_and_distance(T) for T in taken[s]]).T
-    print(f"{s:6s}: the photos it took are tilted {np.mean(tilt):.0f} deg on average, {np.median(distance):.0f} mm away "
-          f"(median), {100 * np.mean(distance < 500):.0f} % of them under half a metre")
+    print(
+        f"{s:6s}: the photos it took are tilted {np.mean(tilt):.0f} deg on average, {np.median(distance):.0f} mm away "
+        f"(median), {100 * np.mean(distance < 500):.0f} % of them under half a metre"
+    )
 print("what the coach asked for in the second run:")
 for k, request in enumerate(runs["coach", 1][1], start=5):
     print(f"  photo {k}: the board {request}")
@@ -630,12 +668,17 @@ for seed in range(3):
             r, t = cv2.solvePnPRefineLM(board_points, px, K_n, dist_n, r, t)
             position = -cv2.Rodrigues(r)[0].T @ t.ravel()  # the camera in the board's frame (notebook 07)
             position_err.append(np.linalg.norm(position - T_true[:3, 3]))
-        count_results[n].append((rms, 100 * abs(K_n[0, 0] / true_camera.fx - 1), np.sqrt(np.mean(np.square(position_err)))))
+        count_results[n].append(
+            (rms, 100 * abs(K_n[0, 0] / true_camera.fx - 1), np.sqrt(np.mean(np.square(position_err))))
+        )
 
 print("views   calibration RMS (px)   |fx error| (%)   camera position error in new photos (mm RMS; each seed)")
 for n in view_counts:
     rms, fx_err, pos_err = np.array(count_results[n]).T
-    print(f"{n:5d} {np.median(rms):16.3f} {np.median(fx_err):18.3f} {np.median(pos_err):16.2f}      {np.round(pos_err, 2)}")
+    print(
+        f"{n:5d} {np.median(rms):16.3f} {np.median(fx_err):18.3f} {np.median(pos_err):16.2f}      "
+        f"{np.round(pos_err, 2)}"
+    )
 position_median = {n: np.median([r[2] for r in count_results[n]]) for n in view_counts}
 assert position_median[5] > 2 * position_median[25]  # few views: a worse camera...
 assert np.ptp([r[0] for n in view_counts for r in count_results[n]]) < 0.02  # ...with the same RMS
@@ -671,8 +714,10 @@ rendered = synthetic.render_calibration_views(true_camera, n_views=N_VIEWS, seed
 rng = np.random.default_rng(0)
 noisy = [(p + rng.normal(0.0, noise_px, p.shape)).astype(np.float32) for p in rendered.image_points]
 rms, K_n, dist_n, _, _ = cv2.calibrateCamera([board_points] * N_VIEWS, noisy, true_camera.image_size, None, None)
-print(f"{N_VIEWS} views: RMS {rms:.3f} px, fx {K_n[0, 0]:.1f} px against the true {true_camera.fx:.1f} "
-      f"({100 * (K_n[0, 0] / true_camera.fx - 1):+.2f} %), k1 {dist_n.ravel()[0]:+.3f} against {true_camera.dist[0]:+.3f}")
+print(
+    f"{N_VIEWS} views: RMS {rms:.3f} px, fx {K_n[0, 0]:.1f} px against the true {true_camera.fx:.1f} "
+    f"({100 * (K_n[0, 0] / true_camera.fx - 1):+.2f} %), k1 {dist_n.ravel()[0]:+.3f} against {true_camera.dist[0]:+.3f}"
+)
 
 # %% [markdown]
 # ## Summary

@@ -40,7 +40,8 @@ np.set_printoptions(precision=3, suppress=True)
 # the original frame; they are unit vectors at right angles (R^T R = I) and det R = +1 (no mirror).
 # A rotation by θ about Z:
 #
-# $$R_z(\theta) = \begin{pmatrix} \cos\theta & -\sin\theta & 0 \\ \sin\theta & \cos\theta & 0 \\ 0 & 0 & 1 \end{pmatrix}$$
+# $$R_z(\theta) = \begin{pmatrix} \cos\theta & -\sin\theta & 0 \\ \sin\theta & \cos\theta & 0 \\
+# 0 & 0 & 1 \end{pmatrix}$$
 
 # %%
 theta = math.radians(90)  # radians inside the maths; degrees only at the edges
@@ -121,23 +122,35 @@ wall = MarkerMap.load(data_path("world_map.json"))
 camera = Camera.from_fov(60, (640, 480))
 
 
-def room_picture(title, T_world_cam=T_world_camera, extra_handles=(), extra_points=np.zeros((0, 3))):
+def room_picture(title, T_world_cam=T_world_camera, extra_handles=(), extra_points=()):
     """The seed wall, the world axes and one camera in 3D, explained by a legend; returns the Axes."""
     ax = plotting.new_axes_3d(figsize=(8, 6))
     plotting.draw_world_axes(ax, 500, label=None)
     plotting.draw_markers(ax, wall, show_ids=False)
     plotting.draw_camera(ax, camera, T_world_cam, scale_mm=400)
-    points = np.vstack([np.zeros((1, 3)), 500 * np.eye(3), *wall.corners().values(),
-                        plotting.camera_frustum(camera, T_world_cam, 400), extra_points])
+    points = np.vstack(
+        [
+            np.zeros((1, 3)),
+            500 * np.eye(3),
+            *wall.corners().values(),
+            plotting.camera_frustum(camera, T_world_cam, 400),
+            np.reshape(extra_points, (-1, 3)),
+        ]
+    )
     plotting.set_axes_equal(ax, points)
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_major_locator(MaxNLocator(4))  # fewer ticks: no numbers run into each other
-    handles = [Line2D([], [], color=c, linewidth=2, label=f"{name}: world {w} (long, at the origin), camera {k}")
-               for c, name, w, k in zip(plotting.AXIS_COLORS, ("red", "green", "blue"), "XYZ",
-                                        ("x (right)", "y (down)", "z (forward)"))]
-    handles += [Line2D([], [], color="tab:orange", label="camera: apex = lens, thick edge = image top"),
-                Line2D([], [], color="0.2", marker="s", linestyle="", label="markers 0, 1, 2 (red dot: TL)"),
-                *extra_handles]
+    handles = [
+        Line2D([], [], color=c, linewidth=2, label=f"{name}: world {w} (long, at the origin), camera {k}")
+        for c, name, w, k in zip(
+            plotting.AXIS_COLORS, ("red", "green", "blue"), "XYZ", ("x (right)", "y (down)", "z (forward)")
+        )
+    ]
+    handles += [
+        Line2D([], [], color="tab:orange", label="camera: apex = lens, thick edge = image top"),
+        Line2D([], [], color="0.2", marker="s", linestyle="", label="markers 0, 1, 2 (red dot: TL)"),
+        *extra_handles,
+    ]
     ax.legend(handles=handles, loc="center left", bbox_to_anchor=(1.08, 0.5), fontsize=8)
     ax.set_title(title)
     return ax
@@ -191,6 +204,7 @@ assert np.allclose(cv2.Rodrigues(rvec_any)[0], R_any)  # and back
 # from both is accurate at every angle; the axis is then the antisymmetric part divided by $\sin\theta$.
 # Near $\theta = 180$ deg $\sin\theta \to 0$ and the axis must come from the symmetric part instead
 # (`cv2.Rodrigues` does that); the hand version below stops short of a half turn.
+
 
 # %%
 def cross_matrix(k):
@@ -362,8 +376,12 @@ for r in (30.0, 20.0, 0.0, -60.0):  # any roll + yaw = 30 at pitch -90: one rota
 # near the lock the angles are unstable: a 0.2 deg nudge swings roll and yaw by tens of degrees
 R_near = frames.rotation_from_rpy_deg(30, -89.9, 0)
 R_nudged = frames.rot_x(math.radians(0.2)) @ R_near
-print("rpy (30, -89.9, 0), turned by", round(frames.rotation_angle_deg(R_near, R_nudged), 3), "deg about X, reads",
-      frames.rpy_deg_from_rotation(R_nudged).round(1))
+print(
+    "rpy (30, -89.9, 0), turned by",
+    round(frames.rotation_angle_deg(R_near, R_nudged), 3),
+    "deg about X, reads",
+    frames.rpy_deg_from_rotation(R_nudged).round(1),
+)
 assert abs(frames.rpy_deg_from_rotation(R_nudged)[0] - 30) > 45
 
 # %% [markdown]
@@ -387,8 +405,11 @@ print("its roll, pitch, yaw:", frames.rpy_deg_from_rotation(R_level) + 0.0)
 assert np.allclose(frames.rpy_deg_from_rotation(R_level), [-90, 0, 90])
 rpy_above = frames.rpy_deg_from_rotation(T_world_camera[:3, :3])
 tilt_above = math.degrees(math.asin(-T_world_camera[2, 2]))  # how far its optical axis points below level
-print(f"the camera above looks {tilt_above:.1f} deg down: roll, pitch, yaw =", rpy_above.round(1) + 0.0,
-      f"(roll -90 - {tilt_above:.1f})")
+print(
+    f"the camera above looks {tilt_above:.1f} deg down: roll, pitch, yaw =",
+    rpy_above.round(1) + 0.0,
+    f"(roll -90 - {tilt_above:.1f})",
+)
 assert math.isclose(rpy_above[0], -90 - tilt_above) and abs(rpy_above[1]) < 1e-9
 
 steps = [np.eye(3), frames.rot_x(math.radians(-90)), frames.rot_z(math.radians(90)) @ frames.rot_x(math.radians(-90))]
@@ -396,8 +417,11 @@ assert np.allclose(steps[2], R_level)
 assert np.allclose(look_at([0, 0, 0], [0, 0, 1], up=(0, -1, 0))[:3, :3], steps[0])  # R = I: looking up
 
 fig, axes = plt.subplots(1, 3, figsize=(14, 4.8), subplot_kw={"projection": "3d"})
-titles = ["R = I: the camera looks at the ceiling", "after roll -90 (about X): level, facing +Y",
-          "after yaw 90 (about Z): facing the wall (-X)"]
+titles = [
+    "R = I: the camera looks at the ceiling",
+    "after roll -90 (about X): level, facing +Y",
+    "after yaw 90 (about Z): facing the wall (-X)",
+]
 image = np.array([[-0.28, -0.21, 0.5], [0.28, -0.21, 0.5], [0.28, 0.21, 0.5], [-0.28, 0.21, 0.5]])  # y < 0: top
 for ax, R, title in zip(axes, steps, titles):
     for k in range(3):
@@ -415,9 +439,11 @@ for ax, R, title in zip(axes, steps, titles):
     ax.set_box_aspect((1, 1, 1))
     ax.view_init(elev=18, azim=-62)
     ax.set_title(title, fontsize=10)
-handles = [Line2D([], [], color="0.3", linestyle=":", label="world X, Y, Z (Z up)"),
-           Line2D([], [], color="0.3", linewidth=3, label="camera x right, y down, z forward"),
-           Line2D([], [], color="tab:orange", linewidth=3, label="the image (thick: its top edge)")]
+handles = [
+    Line2D([], [], color="0.3", linestyle=":", label="world X, Y, Z (Z up)"),
+    Line2D([], [], color="0.3", linewidth=3, label="camera x right, y down, z forward"),
+    Line2D([], [], color="tab:orange", linewidth=3, label="the image (thick: its top edge)"),
+]
 fig.legend(handles=handles, loc="lower center", ncol=3)
 fig.suptitle("roll -90, pitch 0, yaw 90: the level camera built from R = I (colours: x/X red, y/Y green, z/Z blue)")
 plt.show()
@@ -451,11 +477,13 @@ print("and the optical-in-body rotation itself is rpy", frames.rpy_deg_from_rota
 # $$R(q) = \begin{pmatrix} 1 - 2(y^2 + z^2) & 2(xy - wz) & 2(xz + wy) \\ 2(xy + wz) & 1 - 2(x^2 + z^2) &
 # 2(yz - wx) \\ 2(xz - wy) & 2(yz + wx) & 1 - 2(x^2 + y^2) \end{pmatrix}$$
 #
-# and back: $\operatorname{tr} R = 4w^2 - 1$, and the differences $(R_{21} - R_{12},\ R_{02} - R_{20},\ R_{10} - R_{01})$
-# (where Rodrigues' formula read $2 k \sin\theta$ from) are $4w\,(x, y, z)$. So $w = \tfrac12\sqrt{1 + \operatorname{tr} R}$ and
+# and back: $\operatorname{tr} R = 4w^2 - 1$, and the differences
+# $(R_{21} - R_{12},\ R_{02} - R_{20},\ R_{10} - R_{01})$ (where Rodrigues' formula read $2 k \sin\theta$ from)
+# are $4w\,(x, y, z)$. So $w = \tfrac12\sqrt{1 + \operatorname{tr} R}$ and
 # $(x, y, z) = (R_{21} - R_{12},\ R_{02} - R_{20},\ R_{10} - R_{01}) / 4w$. That divides by w: fine until
 # near a half turn, where w goes to 0. `fidlearn.frames.quaternion_from_matrix` then starts from the
 # largest of x, y, z, w instead (Shepperd's method) and returns the form with w >= 0.
+
 
 # %%
 def quaternion_from_rvec(rvec):
@@ -467,9 +495,13 @@ def quaternion_from_rvec(rvec):
 
 def rotation_from_quaternion(q):
     x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def quaternion_from_rotation(R):
@@ -486,9 +518,9 @@ assert np.allclose(rotation_from_quaternion(q_z90), Rz)
 for rv in np.array(rvecs, dtype=float):
     q = quaternion_from_rvec(rv)
     R_cv = cv2.Rodrigues(rv)[0]
-    assert np.abs(rotation_from_quaternion(q) - R_cv).max() < 1e-12   # q -> R, against OpenCV
-    assert np.abs(quaternion_from_rotation(R_cv) - q).max() < 1e-12   # R -> q, by the trace
-    assert np.abs(frames.quaternion_from_matrix(R_cv) - q).max() < 1e-12   # fidlearn's helpers agree
+    assert np.abs(rotation_from_quaternion(q) - R_cv).max() < 1e-12  # q -> R, against OpenCV
+    assert np.abs(quaternion_from_rotation(R_cv) - q).max() < 1e-12  # R -> q, by the trace
+    assert np.abs(frames.quaternion_from_matrix(R_cv) - q).max() < 1e-12  # fidlearn's helpers agree
     assert np.abs(frames.matrix_from_quaternion(q) - R_cv).max() < 1e-12
 print(f"{len(rvecs)} rotations: quaternion <-> R by hand, OpenCV and fidlearn.frames agree to 1e-12")
 
@@ -512,8 +544,10 @@ assert np.allclose(q_canonical, -q_350) and np.allclose(q_canonical, quaternion_
 
 q_a, q_b = frames.quaternion_from_matrix(R_any), frames.quaternion_from_matrix(R_rpy)
 angle_q = math.degrees(2 * math.acos(min(1.0, abs(q_a @ q_b))))
-print(f"angle between two orientations: {angle_q:.3f} deg from the quaternions, "
-      f"{frames.rotation_angle_deg(R_any, R_rpy):.3f} deg from the matrices")
+print(
+    f"angle between two orientations: {angle_q:.3f} deg from the quaternions, "
+    f"{frames.rotation_angle_deg(R_any, R_rpy):.3f} deg from the matrices"
+)
 assert math.isclose(angle_q, frames.rotation_angle_deg(R_any, R_rpy), abs_tol=1e-6)
 
 # %% [markdown]
@@ -525,11 +559,13 @@ assert math.isclose(angle_q, frames.rotation_angle_deg(R_any, R_rpy), abs_tol=1e
 # Slerp (spherical linear interpolation, Shoemake 1985) writes it out: with $\cos\Omega = q_0 \cdot q_1$
 # (after flipping q1 if the dot product is negative: the double cover, the shorter way round),
 #
-# $$\operatorname{slerp}(q_0, q_1, t) = \frac{\sin((1 - t)\Omega)}{\sin\Omega}\, q_0 + \frac{\sin(t\Omega)}{\sin\Omega}\, q_1$$
+# $$\operatorname{slerp}(q_0, q_1, t) = \frac{\sin((1 - t)\Omega)}{\sin\Omega}\, q_0
+# + \frac{\sin(t\Omega)}{\sin\Omega}\, q_1$$
 #
 # Two shortcuts people take instead: **nlerp**, a straight line between q0 and q1 pushed back to unit
 # length (the right path, the wrong speed: it hurries through the middle), and **averaging rotation
 # vectors**, $(1 - t)\, r_0 + t\, r_1$ (the wrong path: the axis wanders, unless one end is R = I).
+
 
 # %%
 def slerp(q0, q1, t):
@@ -573,8 +609,10 @@ for name, Rs in paths.items():
     travelled[name] = np.array([frames.rotation_angle_deg(R0, R) for R in Rs])
     off_path[name] = max(off_arc_deg(R) for R in Rs)
     lag[name] = np.abs(travelled[name] - ts * total).max()
-    print(f"{name:32s}: off the arc by up to {off_path[name]:5.2f} deg, "
-          f"ahead of or behind constant speed by up to {lag[name]:5.2f} deg")
+    print(
+        f"{name:32s}: off the arc by up to {off_path[name]:5.2f} deg, "
+        f"ahead of or behind constant speed by up to {lag[name]:5.2f} deg"
+    )
 assert off_path["slerp"] < 1e-4 and lag["slerp"] < 1e-4
 assert off_path["nlerp (normalised straight line)"] < 1e-4 and lag["nlerp (normalised straight line)"] > 1
 assert off_path["average of rotation vectors"] > 1
@@ -588,8 +626,11 @@ fig = plt.figure(figsize=(12, 5))
 ax3 = fig.add_subplot(1, 2, 1, projection="3d")
 u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 25), np.linspace(0, np.pi, 13))
 ax3.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="0.85", linewidth=0.5)
-styles = {"slerp": ("tab:blue", "-", 3), "nlerp (normalised straight line)": ("tab:orange", "--", 2),
-          "average of rotation vectors": ("tab:red", "-", 1.5)}
+styles = {
+    "slerp": ("tab:blue", "-", 3),
+    "nlerp (normalised straight line)": ("tab:orange", "--", 2),
+    "average of rotation vectors": ("tab:red", "-", 1.5),
+}
 for name, Rs in paths.items():
     colour, line, width = styles[name]
     tips = np.array([R[:, 0] for R in Rs])
@@ -642,7 +683,7 @@ assert T_world_camera[2, 2] < 0 and T_yup_camera[1, 2] < 0
 # an OpenGL-style camera (y up, z backwards) at the same place
 T_camera_glcamera = np.diag([1.0, -1.0, -1.0, 1.0])
 T_yup_glcamera = T_yup_camera @ T_camera_glcamera
-assert np.allclose(T_yup_glcamera[:3, 3], T_yup_camera[:3, 3])   # same place
+assert np.allclose(T_yup_glcamera[:3, 3], T_yup_camera[:3, 3])  # same place
 assert np.allclose(T_yup_glcamera[:3, 2], -T_yup_camera[:3, 2])  # it looks along its -z
 
 # %% [markdown]
@@ -652,8 +693,9 @@ assert np.allclose(T_yup_glcamera[:3, 2], -T_yup_camera[:3, 2])  # it looks alon
 # %%
 T_world_yup = frames.invert_transform(T_yup_world)
 prime = Line2D([], [], color="0.3", linewidth=1, label="X', Y', Z': the Y-up world (thin, longer)")
-ax = room_picture("Z-up world (X, Y, Z) and Y-up world (X', Y', Z')", extra_handles=[prime],
-                  extra_points=1000 * np.eye(3))
+ax = room_picture(
+    "Z-up world (X, Y, Z) and Y-up world (X', Y', Z')", extra_handles=[prime], extra_points=1000 * np.eye(3)
+)
 plotting.draw_frame(ax, T_world_yup, length_mm=900, linewidth=1, axis_names=("X'", "Y'", "Z'"))
 plt.show()
 
@@ -679,9 +721,10 @@ plt.show()
 # applies z, then x, then y, so that is 30 deg about x (in Unity, nose down) and then 90 deg about y (a turn
 # to the right, seen from above). Its forward vector should point right and down.
 
+
 # %%
 def quaternion_product(a, b):
-    """a * b for (x, y, z, w) quaternions: the rotation b first, then a."""
+    """The product a * b of (x, y, z, w) quaternions: the rotation b first, then a."""
     va, wa, vb, wb = a[:3], a[3], b[:3], b[3]
     return np.append(wa * vb + wb * va + np.cross(va, vb), wa * wb - va @ vb)
 
@@ -702,8 +745,11 @@ p_ros_mm = 1000 * M @ p_unity
 q_ros = np.array([-q_unity[2], q_unity[0], -q_unity[1], q_unity[3]])
 R_ros = frames.matrix_from_quaternion(q_ros)
 print("ROS:   position", p_ros_mm, "mm, rotation (x, y, z, w)", q_ros.round(5))
-print("       roll, pitch, yaw =", frames.rpy_deg_from_rotation(R_ros).round(6) + 0.0,
-      "(pitch +30: nose down in ROS; yaw -90: turned right)")
+print(
+    "       roll, pitch, yaw =",
+    frames.rpy_deg_from_rotation(R_ros).round(6) + 0.0,
+    "(pitch +30: nose down in ROS; yaw -90: turned right)",
+)
 assert np.allclose(R_ros, M @ R_unity @ M.T) and math.isclose(np.linalg.det(R_ros), 1.0)
 assert np.allclose(R_ros @ [1, 0, 0], M @ forward_unity)  # ROS's forward (x) is Unity's forward (z)
 assert np.allclose(frames.rpy_deg_from_rotation(R_ros), [0, 30, -90])
@@ -739,7 +785,7 @@ assert np.allclose(T_from_unity, T_looking)
 
 # %%
 tilt_deg = 20.0  # down from level (try 0, 45, -30, 89.9)
-pan_deg = 30.0   # to the left of facing the wall (try 0, 90, 180)
+pan_deg = 30.0  # to the left of facing the wall (try 0, 90, 180)
 
 t_rad, p_rad = math.radians(tilt_deg), math.radians(pan_deg)
 view = [-math.cos(t_rad) * math.cos(p_rad), -math.cos(t_rad) * math.sin(p_rad), -math.sin(t_rad)]

@@ -51,8 +51,9 @@ assert len(dictionaries["ARUCO_ORIGINAL"].bytesList) == 1024 and dictionaries["A
 assert len(dictionaries["4X4_50"].bytesList) == 50 and dictionaries["4X4_50"].markerSize == 4
 
 original = dictionaries["ARUCO_ORIGINAL"]
-images = ([cv2.aruco.generateImageMarker(d, 0, 140) for d in dictionaries.values()]
-          + [cv2.aruco.generateImageMarker(original, i, 140) for i in (1, 2, 3)])
+images = [cv2.aruco.generateImageMarker(d, 0, 140) for d in dictionaries.values()] + [
+    cv2.aruco.generateImageMarker(original, i, 140) for i in (1, 2, 3)
+]
 titles = [f"{name} id 0" for name in names] + [f"ARUCO_ORIGINAL id {i}" for i in (1, 2, 3)]
 fig = plotting.show_images([np.pad(im, 20, constant_values=255) for im in images], titles, ncols=7, width_in=14)
 plt.show()
@@ -70,9 +71,9 @@ plt.show()
 
 # %%
 marker = cv2.aruco.generateImageMarker(original, 0, 140)  # 7 cells of 20 px
-with_margin = np.pad(marker, 40, constant_values=255)    # 2 cells of white all round
+with_margin = np.pad(marker, 40, constant_values=255)  # 2 cells of white all round
 cable = with_margin.copy()
-cable[60:80, :41] = 0                                      # a dark cable touching the left edge
+cable[60:80, :41] = 0  # a dark cable touching the left edge
 cases = {
     "white margin all round": with_margin,
     "no margin, dark wall": np.pad(marker, 40, constant_values=0),
@@ -104,8 +105,7 @@ plt.show()
 
 # %%
 camera = Camera.from_fov(60, (640, 480))
-one = MarkerMap.from_dict({"0": {"translation": [0, -40, 1040], "rotation": [0, 0, 0]}}, units="mm",
-                          marker_size_mm=80)
+one = MarkerMap.from_dict({"0": {"translation": [0, -40, 1040], "rotation": [0, 0, 0]}}, units="mm", marker_size_mm=80)
 cells = original.markerSize + 2
 views = [(0, 1), (25, 2), (-35, 3), (45, 4)]  # (yaw of the view in degrees, noise seed)
 distances_mm = [750, 1000, 1500, 2000, 2500, 3000, 3500, 4000, 4500, 5000, 6000, 7000]
@@ -130,7 +130,7 @@ ppc, rate, error_px = np.array(ppc), np.array(rate), np.array(error_px)
 print("pixels per cell:", ppc.round(1))
 print("detected      :", rate.round(2))
 assert np.all(rate[ppc >= 2.5] == 1.0)  # always found with 2.5 px per cell or more
-assert np.all(rate[ppc < 1.0] == 0.0)   # never with less than 1
+assert np.all(rate[ppc < 1.0] == 0.0)  # never with less than 1
 assert np.nanmax(error_px[ppc >= 4]) < 0.2  # and accurate corners when cells are big
 
 fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.5))
@@ -154,6 +154,7 @@ plt.show()
 # and focus. A safe rule: **at least 4 pixels per cell** at the furthest distance you
 # need. Then the side to print follows:
 
+
 # %%
 def marker_side_mm(distance_mm, fx_px, cells, px_per_cell=4.0):
     """Black-square side (mm) that gives px_per_cell pixels per cell at distance_mm."""
@@ -161,8 +162,10 @@ def marker_side_mm(distance_mm, fx_px, cells, px_per_cell=4.0):
 
 
 for Z in (1000, 3000, 5000):
-    print(f"to be read at {Z / 1000:.0f} m by this camera: print ARUCO_ORIGINAL markers at least "
-          f"{marker_side_mm(Z, camera.fx, cells):.0f} mm wide")
+    print(
+        f"to be read at {Z / 1000:.0f} m by this camera: print ARUCO_ORIGINAL markers at least "
+        f"{marker_side_mm(Z, camera.fx, cells):.0f} mm wide"
+    )
 assert math.isclose(marker_side_mm(1000, camera.fx, 7), 4 * 7 * 1000 / camera.fx)
 
 # %% [markdown]
@@ -174,6 +177,7 @@ assert math.isclose(marker_side_mm(1000, camera.fx, 7), 4 * 7 * 1000 / camera.fx
 # what you measured in the map's `marker_size_mm`. What a scale error costs, computed: the corners an 80 mm
 # marker printed at another scale would give a camera 1.5 m from it, given to `cv2.solvePnP` (notebook 06)
 # with the map's 80 mm:
+
 
 # %%
 def marker_square_mm(side_mm):
@@ -194,8 +198,10 @@ def distance_with_map_size(printed_mm, map_mm=80.0, distance_mm=1500.0):
 print("printed side    scale   distance found (true 1500 mm)   error")
 for printed_mm in (80.0, 79.9, 79.2, 77.6):
     found_mm = distance_with_map_size(printed_mm)
-    print(f"{printed_mm:8.1f} mm {printed_mm / 80:9.3f} {found_mm:17.1f} mm {found_mm - 1500:+22.1f} mm "
-          f"({100 * (found_mm / 1500 - 1):+.1f} %)")
+    print(
+        f"{printed_mm:8.1f} mm {printed_mm / 80:9.3f} {found_mm:17.1f} mm {found_mm - 1500:+22.1f} mm "
+        f"({100 * (found_mm / 1500 - 1):+.1f} %)"
+    )
 assert abs(distance_with_map_size(79.2) - 1500 * 80 / 79.2) < 0.5  # 1 % too small a print: 1 % too far
 
 # %% [markdown]
@@ -243,9 +249,11 @@ assert np.allclose(by_hand, corners[0])
 # fidlearn loads it as it is, but it never guesses the units: they must be given.
 
 # %%
-bare = {"0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},
-        "1": {"translation": [0, 1, 1], "rotation": [0, 0, 0]},
-        "2": {"translation": [0, 0.5, 0.75], "rotation": [0, 0, 0]}}
+bare = {
+    "0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},
+    "1": {"translation": [0, 1, 1], "rotation": [0, 0, 0]},
+    "2": {"translation": [0, 0.5, 0.75], "rotation": [0, 0, 0]},
+}
 try:
     MarkerMap.from_dict(bare, marker_size_mm=80)
 except MapError as exc:
@@ -276,13 +284,15 @@ print(json.dumps(wall.corners_dict(), indent=None))
 
 # %%
 room_dict = {
-    "units": "mm", "marker_size_mm": 150, "dictionary": "ARUCO_ORIGINAL",
+    "units": "mm",
+    "marker_size_mm": 150,
+    "dictionary": "ARUCO_ORIGINAL",
     "markers": {
-        "0": {"translation": [0, 1400, 1300], "rotation": [0, 0, 0]},       # north wall, faces +X
+        "0": {"translation": [0, 1400, 1300], "rotation": [0, 0, 0]},  # north wall, faces +X
         "1": {"translation": [4000, 1600, 1300], "rotation": [0, 0, 180]},  # south wall, faces -X
-        "2": {"translation": [2100, 0, 1300], "rotation": [0, 0, 90]},      # west wall (Y = 0), faces +Y
+        "2": {"translation": [2100, 0, 1300], "rotation": [0, 0, 90]},  # west wall (Y = 0), faces +Y
         "3": {"translation": [1900, 3000, 1300], "rotation": [0, 0, -90]},  # east wall (Y = 3000), faces -Y
-        "4": {"translation": [2500, 1700, 0], "rotation": [0, -90, 0]},     # floor, faces up
+        "4": {"translation": [2500, 1700, 0], "rotation": [0, -90, 0]},  # floor, faces up
     },
 }
 room = MarkerMap.from_dict(room_dict)
@@ -321,9 +331,16 @@ assert wall.is_coplanar() and not room.is_coplanar()
 
 # %%
 T_world_camera = look_at([300, 300, 1600], [3000, 2500, 700])
-fig = plotting.plot_scene(room, poses=[T_world_camera], camera=camera, scale_mm=500,
-                          room_mm=[[0, 0, 0], [4000, 3000, 2000]], azim=-60, elev=25,
-                          title="4 m x 3 m room, 150 mm markers on four walls and the floor")
+fig = plotting.plot_scene(
+    room,
+    poses=[T_world_camera],
+    camera=camera,
+    scale_mm=500,
+    room_mm=[[0, 0, 0], [4000, 3000, 2000]],
+    azim=-60,
+    elev=25,
+    title="4 m x 3 m room, 150 mm markers on four walls and the floor",
+)
 plt.show()
 
 # %%
@@ -353,11 +370,13 @@ plt.show()
 
 # %%
 DISTANCE_MM = 3000.0  # try 5000
-FX_PX = camera.fx     # try camera.fx / 2
+FX_PX = camera.fx  # try camera.fx / 2
 
 side_mm = marker_side_mm(DISTANCE_MM, FX_PX, cells)
-print(f"at {DISTANCE_MM / 1000:.1f} m with fx = {FX_PX:.0f} px: print the ARUCO_ORIGINAL black square at least "
-      f"{side_mm:.0f} mm wide ({side_mm * FX_PX / DISTANCE_MM / cells:.1f} px per cell)")
+print(
+    f"at {DISTANCE_MM / 1000:.1f} m with fx = {FX_PX:.0f} px: print the ARUCO_ORIGINAL black square at least "
+    f"{side_mm:.0f} mm wide ({side_mm * FX_PX / DISTANCE_MM / cells:.1f} px per cell)"
+)
 
 # %% [markdown]
 # ## Summary

@@ -55,7 +55,7 @@ from cv2 import aruco
 
 gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
 try:
-    dictionary = aruco.Dictionary_get(aruco.DICT_ARUCO_ORIGINAL)          # the seed's code
+    dictionary = aruco.Dictionary_get(aruco.DICT_ARUCO_ORIGINAL)  # the seed's code
     params = aruco.DetectorParameters_create()
     corners, ids, rejected = aruco.detectMarkers(gray, dictionary, parameters=params)
 except AttributeError as exc:
@@ -177,7 +177,8 @@ plt.show()
 
 # %%
 photo_corners, photo_ids, _ = aruco.ArucoDetector(
-    aruco.getPredefinedDictionary(aruco.DICT_6X6_250), aruco.DetectorParameters()).detectMarkers(photo)
+    aruco.getPredefinedDictionary(aruco.DICT_6X6_250), aruco.DetectorParameters()
+).detectMarkers(photo)
 drawn = photo.copy() if photo.ndim == 3 else cv2.cvtColor(photo, cv2.COLOR_GRAY2BGR)
 cv2.aruco.drawDetectedMarkers(drawn, photo_corners, np.asarray(photo_ids).reshape(-1, 1))
 print("drawDetectedMarkers on", len(photo_corners), "markers, ids", sorted(np.asarray(photo_ids).ravel().tolist()))
@@ -202,6 +203,7 @@ plt.show()
 # Let us check the order from the geometry. In an image (y down) a quad listed clockwise has a positive
 # signed area by the shoelace formula, and the side from TL to TR points along the marker's "right":
 
+
 # %%
 def signed_area_px2(quad):
     """Shoelace area of a (4, 2) quad in image coordinates: positive when listed clockwise on screen."""
@@ -219,7 +221,10 @@ def turned_deg(quad):
 turns = {}
 for d in found:
     turns[d.id] = turned_deg(d.corners_px)
-    print(f"marker {d.id:3d}: signed area {signed_area_px2(d.corners_px):6.0f} px^2, turned {turns[d.id]:3d} deg clockwise")
+    print(
+        f"marker {d.id:3d}: signed area {signed_area_px2(d.corners_px):6.0f} px^2, turned {turns[d.id]:3d} deg "
+        "clockwise"
+    )
     assert signed_area_px2(d.corners_px) > 0  # clockwise, every one
 assert turns == {23: 0, 40: 0, 62: 180, 98: 0, 124: 90, 203: 0}
 
@@ -284,16 +289,22 @@ rotated = estimate_pose([Detection(0, marker0[0].corners_px[[1, 2, 3, 0]])], wor
 for name, pose in (("right order", right), ("rotated order", rotated)):
     err = np.linalg.norm(pose.position_mm - T_true[:3, 3])
     turn = frames.rotation_angle_deg(pose.T_world_camera[:3, :3], T_true[:3, :3])
-    print(f"marker 0 alone, {name:13s}: position error {err:4.0f} mm, orientation error {turn:3.0f} deg, "
-          f"reprojection RMS {pose.reprojection_rms_px:.2f} px")
+    print(
+        f"marker 0 alone, {name:13s}: position error {err:4.0f} mm, orientation error {turn:3.0f} deg, "
+        f"reprojection RMS {pose.reprojection_rms_px:.2f} px"
+    )
 assert np.linalg.norm(right.position_mm - T_true[:3, 3]) < 20
 assert np.linalg.norm(rotated.position_mm - T_true[:3, 3]) > 150 and rotated.reprojection_rms_px < 0.5
 
-shown = {"true pose": (T_true, "tab:green"), "one marker, rotated order": (rotated.T_world_camera, "tab:orange"),
-         "three, mirrored order (solvePnP)": (wrong_poses["TL, BL, BR, TR (mirrored)"], "tab:red")}
+shown = {
+    "true pose": (T_true, "tab:green"),
+    "one marker, rotated order": (rotated.T_world_camera, "tab:orange"),
+    "three, mirrored order (solvePnP)": (wrong_poses["TL, BL, BR, TR (mirrored)"], "tab:red"),
+}
 frustums = np.vstack([plotting.camera_frustum(camera, T, 150) for T, _ in shown.values()])
-fig = plotting.plot_scene(world_map, extra_points=frustums,
-                          title="where the camera ends up when the corner order is wrong")
+fig = plotting.plot_scene(
+    world_map, extra_points=frustums, title="where the camera ends up when the corner order is wrong"
+)
 ax = fig.axes[0]
 for name, (T, colour) in shown.items():
     plotting.draw_camera(ax, camera, T, scale_mm=150, color=colour, show_axes=False)[0].set_label(name)
@@ -323,18 +334,18 @@ CELLS = 7  # ARUCO_ORIGINAL: 5 x 5 bits and a one-cell black border
 def edge_points(gray, quad, cells, n_profiles=16, n_steps=13):
     """Sub-pixel edge points (list of four (n, 2) arrays, px) across the sides TL-TR, TR-BR, BR-BL, BL-TL."""
     cell_px = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1).mean() / cells
-    half = np.clip(0.6 * cell_px, 1.5, 5.0)          # each profile reaches 0.6 cell either side of the side
+    half = np.clip(0.6 * cell_px, 1.5, 5.0)  # each profile reaches 0.6 cell either side of the side
     steps = np.linspace(-half, half, n_steps)
     sides = []
     for k in range(4):
         a, b = quad[k], quad[(k + 1) % 4]
         along = (b - a) / np.linalg.norm(b - a)
-        normal = np.array([along[1], -along[0]])      # points outwards: corners run clockwise on screen
+        normal = np.array([along[1], -along[0]])  # points outwards: corners run clockwise on screen
         margin = min((0.5 * cell_px + 1.5) / np.linalg.norm(b - a), 0.3)
         t = np.linspace(margin, 1 - margin, n_profiles)
         # OpenCV's outline runs through the centres of the outermost dark pixels: start half a pixel out
         starts = a + t[:, None] * (b - a) + 0.5 * normal
-        samples_xy = starts[:, None, :] + steps[None, :, None] * normal      # (n_profiles, n_steps, 2)
+        samples_xy = starts[:, None, :] + steps[None, :, None] * normal  # (n_profiles, n_steps, 2)
         profiles = cv2.remap(gray, samples_xy.astype(np.float32), None, cv2.INTER_LINEAR).astype(float)
         mid = n_steps // 2
         black = np.median(profiles[:, : mid + 1].min(axis=1))
@@ -342,7 +353,7 @@ def edge_points(gray, quad, cells, n_profiles=16, n_steps=13):
         level = 0.5 * (black + white)
         points = []
         for start, row in zip(starts, profiles):
-            j = int(np.argmax(row >= level))          # first sample at or above the half-way level
+            j = int(np.argmax(row >= level))  # first sample at or above the half-way level
             if j == 0:
                 continue
             s = steps[j - 1] + (level - row[j - 1]) / (row[j] - row[j - 1]) * (steps[j] - steps[j - 1])
@@ -380,7 +391,7 @@ for k in range(4):
     e = [np.linalg.norm(c[k] - true_corners[0][k]) for c in (quad, subpixel[0], ours, library)]
     print(f"{names[k]:6s} {e[0]:14.3f} {e[1]:15.3f} {e[2]:14.3f} {e[3]:15.3f}")
 assert np.abs(ours - true_corners[0]).max() < 0.15
-assert np.abs(ours - library).max() < 0.05       # the few lines above are fidlearn's method
+assert np.abs(ours - library).max() < 0.05  # the few lines above are fidlearn's method
 assert np.linalg.norm(quad - true_corners[0], axis=1).mean() > 3 * np.linalg.norm(ours - true_corners[0], axis=1).mean()
 
 # %% [markdown]
@@ -391,8 +402,10 @@ assert np.linalg.norm(quad - true_corners[0], axis=1).mean() > 3 * np.linalg.nor
 fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))
 x0, y0 = np.floor(quad.min(axis=0)) - 6
 x1, y1 = np.ceil(quad.max(axis=0)) + 6
-for ax, (left, right, top, bottom) in ((ax1, (x0, x1, y0, y1)),
-                                       (ax2, (ours[0][0] - 5, ours[0][0] + 5, ours[0][1] - 5, ours[0][1] + 5))):
+for ax, (left, right, top, bottom) in (
+    (ax1, (x0, x1, y0, y1)),
+    (ax2, (ours[0][0] - 5, ours[0][0] + 5, ours[0][1] - 5, ours[0][1] + 5)),
+):
     ax.imshow(gray, cmap="gray", vmin=0, vmax=255, interpolation="nearest")
     for k, (p, d) in enumerate(lines):
         ends = p + np.outer([-200, 200], d)
@@ -401,8 +414,9 @@ for ax, (left, right, top, bottom) in ((ax1, (x0, x1, y0, y1)),
     ax.plot(edge_xy[:, 0], edge_xy[:, 1], ".", color="tab:orange", markersize=5, label="edge points (half-way level)")
     ax.plot(quad[:, 0], quad[:, 1], "x", color="tab:red", markersize=9, mew=2, label="OpenCV, unrefined")
     ax.plot(subpixel[0][:, 0], subpixel[0][:, 1], "^", color="tab:purple", markersize=7, label="OpenCV, subpix")
-    ax.plot(ours[:, 0], ours[:, 1], "o", mfc="none", color="tab:green", markersize=10, mew=2,
-            label="intersection (edges)")
+    ax.plot(
+        ours[:, 0], ours[:, 1], "o", mfc="none", color="tab:green", markersize=10, mew=2, label="intersection (edges)"
+    )
     ax.plot(true_corners[0][:, 0], true_corners[0][:, 1], "+", color="yellow", markersize=12, mew=2, label="truth")
     ax.set_xlim(left, right)
     ax.set_ylim(bottom, top)
@@ -425,6 +439,7 @@ plt.show()
 # Measure it: the **radial offset** of each corner, its error along the direction from the marker's centre
 # to the true corner (negative = inwards), over the 72 corners of scenes 0 to 5:
 
+
 # %%
 def radial_offset_px(found_quad, true_quad):
     """Signed offset (px, (4,)) of each corner along the outward direction from the marker's centre."""
@@ -438,8 +453,9 @@ for rec in scenes[:6]:
     img = load_image(data_path("scenes", rec["image"]))
     truth = {int(i): np.array(c) for i, c in rec["corners_px"].items()}
     for r in refinements:
-        radial[r] += [radial_offset_px(d.corners_px, truth[d.id]) for d in detect_markers(img, world_map.dictionary,
-                                                                                          refine=r)]
+        radial[r] += [
+            radial_offset_px(d.corners_px, truth[d.id]) for d in detect_markers(img, world_map.dictionary, refine=r)
+        ]
 radial = {r: np.concatenate(v) for r, v in radial.items()}
 print("refinement   mean radial offset (px, negative = inwards)   corners inside the truth")
 for r, v in radial.items():
@@ -463,10 +479,13 @@ assert abs(radial["edges"].mean()) < 0.05
 # %%
 charuco_camera = Camera.load(data_path("real", "opencv_charuco", "tutorial_camera_charuco.yml"))
 board = aruco.CharucoBoard((5, 7), 40.0, 20.0, aruco.getPredefinedDictionary(aruco.DICT_6X6_250))
-board_xy = {int(i): np.asarray(o, float).reshape(4, 3)[:, :2]
-            for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())}  # mm on the board
-board_photos = [load_image(data_path("real", "opencv_charuco", n))
-                for n in ("img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg")]
+board_xy = {
+    int(i): np.asarray(o, float).reshape(4, 3)[:, :2] for i, o in zip(np.ravel(board.getIds()), board.getObjPoints())
+}  # mm on the board
+board_photos = [
+    load_image(data_path("real", "opencv_charuco", n))
+    for n in ("img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg")
+]
 
 homography_rms = {}
 for r in ["none", "subpix", "contour", "apriltag", "edges"]:
@@ -474,8 +493,12 @@ for r in ["none", "subpix", "contour", "apriltag", "edges"]:
     for ph in board_photos:
         dets = [d for d in detect_markers(ph, "6X6_250", refine=r) if d.id in board_xy]
         on_board = np.concatenate([board_xy[d.id] for d in dets])
-        in_photo = cv2.undistortPoints(np.concatenate([d.corners_px for d in dets]).reshape(-1, 1, 2),
-                                       charuco_camera.K, charuco_camera.dist, P=charuco_camera.K).reshape(-1, 2)
+        in_photo = cv2.undistortPoints(
+            np.concatenate([d.corners_px for d in dets]).reshape(-1, 1, 2),
+            charuco_camera.K,
+            charuco_camera.dist,
+            P=charuco_camera.K,
+        ).reshape(-1, 2)
         H, _ = cv2.findHomography(on_board, in_photo, 0)  # 0: plain least squares, every corner counts
         residuals.append(in_photo - cv2.perspectiveTransform(on_board.reshape(-1, 1, 2), H).reshape(-1, 2))
         n_markers += len(dets)
@@ -505,8 +528,10 @@ for r in ["none", "subpix", "contour", "apriltag"]:
         outward_px.append(-radial_offset_px(d.corners_px, e))  # > 0: the edges corner lies further out
         shift.append(d.corners_px - e)
     dist_px, outward_px, shift = np.concatenate(dist_px), np.concatenate(outward_px), np.concatenate(shift)
-    print(f"{r:10s} {dist_px.mean():22.2f} {outward_px.mean():27.2f}      ({shift[:, 0].mean():+.2f}, "
-          f"{shift[:, 1].mean():+.2f})")
+    print(
+        f"{r:10s} {dist_px.mean():22.2f} {outward_px.mean():27.2f}      ({shift[:, 0].mean():+.2f}, "
+        f"{shift[:, 1].mean():+.2f})"
+    )
     if r in ("none", "contour"):
         assert outward_px.mean() > 0.3  # the same inward offset as on the renders
 
@@ -521,16 +546,23 @@ for r in ["none", "subpix", "contour", "apriltag"]:
 # plain `cv2.aruco.ArucoDetector`:
 
 # %%
-scene_images = [(load_image(data_path("scenes", rec["image"])),
-                 {int(i): np.array(c) for i, c in rec["corners_px"].items()}) for rec in scenes[:6]]
-cells_px = [np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1).mean() / CELLS
-            for _, truth in scene_images for c in truth.values()]
-print(f"cell size of the markers: {min(cells_px):.1f} to {max(cells_px):.1f} px; 0.3 cell = "
-      f"{0.3 * min(cells_px):.1f} to {0.3 * max(cells_px):.1f} px")
+scene_images = [
+    (load_image(data_path("scenes", rec["image"])), {int(i): np.array(c) for i, c in rec["corners_px"].items()})
+    for rec in scenes[:6]
+]
+cells_px = [
+    np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1).mean() / CELLS
+    for _, truth in scene_images
+    for c in truth.values()
+]
+print(
+    f"cell size of the markers: {min(cells_px):.1f} to {max(cells_px):.1f} px; 0.3 cell = "
+    f"{0.3 * min(cells_px):.1f} to {0.3 * max(cells_px):.1f} px"
+)
 settings = [
     ("CORNER_REFINE_NONE", {}),
     ("CORNER_REFINE_SUBPIX", {"cornerRefinementWinSize": 2}),
-    ("CORNER_REFINE_SUBPIX", {"cornerRefinementWinSize": 5}),   # the default
+    ("CORNER_REFINE_SUBPIX", {"cornerRefinementWinSize": 5}),  # the default
     ("CORNER_REFINE_SUBPIX", {"cornerRefinementWinSize": 10}),
     ("CORNER_REFINE_SUBPIX", {"cornerRefinementWinSize": 10, "relativeCornerRefinmentWinSize": 0.5}),
     ("CORNER_REFINE_SUBPIX", {"cornerRefinementWinSize": 10, "relativeCornerRefinmentWinSize": 1.0}),
@@ -553,13 +585,19 @@ for method, extra in settings:
             err.append(np.linalg.norm(c - truth[int(i)], axis=1))
             rad.append(radial_offset_px(c, truth[int(i)]))
     err, rad = np.concatenate(err), np.concatenate(rad)
-    window = ", ".join(f"{k.replace('cornerRefinement', '').replace('relativeCornerRefinment', 'relative')}={v}"
-                       for k, v in extra.items())
+    window = ", ".join(
+        f"{k.replace('cornerRefinement', '').replace('relativeCornerRefinment', 'relative')}={v}"
+        for k, v in extra.items()
+    )
     table[(method, window)] = float(np.sqrt(np.mean(err**2)))
-    print(f"{method:24s} {window:34s} {len(err):7d} {table[(method, window)]:10.3f} {err.max():10.3f} {rad.mean():+7.3f}")
+    print(
+        f"{method:24s} {window:34s} {len(err):7d} {table[(method, window)]:10.3f} {err.max():10.3f} {rad.mean():+7.3f}"
+    )
 edges_rms = float(np.sqrt(np.mean(errors["edges"] ** 2)))
-print(f"{'fidlearn edges':24s} {'':34s} {len(errors['edges']):7d} {edges_rms:10.3f} {errors['edges'].max():10.3f} "
-      f"{radial['edges'].mean():+7.3f}")
+print(
+    f"{'fidlearn edges':24s} {'':34s} {len(errors['edges']):7d} {edges_rms:10.3f} {errors['edges'].max():10.3f} "
+    f"{radial['edges'].mean():+7.3f}"
+)
 best_plain = min(table.values())
 print(f"best plain OpenCV setting: {best_plain:.3f} px RMS, {best_plain / edges_rms:.0f} x fidlearn's edges")
 assert table[("CORNER_REFINE_SUBPIX", "WinSize=5")] == table[("CORNER_REFINE_SUBPIX", "WinSize=10")]
@@ -586,8 +624,10 @@ blurred = cv2.GaussianBlur(image, (0, 0), BLUR_PX) if BLUR_PX > 0 else image.cop
 for r in ("none", "subpix", "edges"):
     got = detect_markers(blurred, world_map.dictionary, refine=r)
     e = np.concatenate([np.linalg.norm(d.corners_px - true_corners[d.id], axis=1) for d in got]) if got else []
-    print(f"blur {BLUR_PX} px, {r:6s}: {len(got)} markers, mean corner error "
-          f"{np.mean(e) if len(e) else float('nan'):.3f} px")
+    print(
+        f"blur {BLUR_PX} px, {r:6s}: {len(got)} markers, mean corner error "
+        f"{np.mean(e) if len(e) else float('nan'):.3f} px"
+    )
 
 # %% [markdown]
 # ## Summary

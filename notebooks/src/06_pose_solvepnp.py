@@ -44,8 +44,11 @@ T_world_camera_true = np.array(record["T_world_camera"])
 detections = detect_markers(image, world_map.dictionary)
 print("detected:", [d.id for d in detections], " in the map:", world_map.ids)
 markers_centre = np.vstack(list(world_map.corners().values())).mean(axis=0)
-print("true camera position (mm):", T_world_camera_true[:3, 3],
-      f"- {np.linalg.norm(T_world_camera_true[:3, 3] - markers_centre) / 1000:.1f} m from the markers' centre")
+print(
+    "true camera position (mm):",
+    T_world_camera_true[:3, 3],
+    f"- {np.linalg.norm(T_world_camera_true[:3, 3] - markers_centre) / 1000:.1f} m from the markers' centre",
+)
 
 ax = plotting.show_image(None, image, title=f"{record['image']}: three markers, twelve corners")
 plotting.plot_detections(ax, detections)
@@ -70,7 +73,7 @@ for d in detections:
     image_points.append(d.corners_px)
     used.append(d.id)
 object_points = np.vstack(object_points).astype(np.float64)  # (4N, 3) mm, world frame
-image_points = np.vstack(image_points).astype(np.float64)    # (4N, 2) px
+image_points = np.vstack(image_points).astype(np.float64)  # (4N, 2) px
 
 print("object_points", object_points.shape, " image_points", image_points.shape, " markers", used)
 names = ["TL", "TR", "BR", "BL"]
@@ -94,8 +97,7 @@ assert object_points.shape == (4 * len(used), 3) and image_points.shape == (4 * 
 # that case. (Always name the flag, `cv2.SOLVEPNP_IPPE`: the numbers behind the names changed in OpenCV 5.)
 
 # %%
-ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist,
-                              flags=cv2.SOLVEPNP_IPPE)
+ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
 assert ok
 print("rvec:", rvec.ravel(), " tvec (mm):", tvec.ravel())
 
@@ -115,14 +117,16 @@ assert error_mm < 10 and angle_deg < 0.5
 
 # %%
 axes_image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy()
-cv2.drawFrameAxes(axes_image, camera.K, camera.dist, rvec, tvec, 150, 3)   # the world frame, 150 mm axes
+cv2.drawFrameAxes(axes_image, camera.K, camera.dist, rvec, tvec, 150, 3)  # the world frame, 150 mm axes
 for marker_id in used:
     T_camera_marker = T_camera_world @ world_map.T_world_marker(marker_id)
     r_m, _ = cv2.Rodrigues(T_camera_marker[:3, :3])
     cv2.drawFrameAxes(axes_image, camera.K, camera.dist, r_m, T_camera_marker[:3, 3], 40, 2)
 origin_px, _ = cv2.projectPoints(np.zeros(3), rvec, tvec, camera.K, camera.dist)
 print(f"the world origin is drawn at pixel {origin_px.ravel().round(1)}")
-ax = plotting.show_image(None, axes_image, title="cv2.drawFrameAxes: the world frame (long axes) and each marker's frame")
+ax = plotting.show_image(
+    None, axes_image, title="cv2.drawFrameAxes: the world frame (long axes) and each marker's frame"
+)
 ax.set_xlim(origin_px[0, 0, 0] - 150, origin_px[0, 0, 0] + 250)
 ax.set_ylim(origin_px[0, 0, 1] + 60, origin_px[0, 0, 1] - 260)
 plt.show()
@@ -133,7 +137,8 @@ plt.show()
 # `solvePnP` knows several algorithms:
 #
 # * **IPPE**: closed form for points on a plane; gives both poses of the planar ambiguity (notebook 08).
-# * **SQPnP**: a globally optimal solver (sequential quadratic programming) for any layout, planar or not, from 3 points.
+# * **SQPnP**: a globally optimal solver (sequential quadratic programming) for any layout, planar or not, from 3
+#   points.
 # * **ITERATIVE** (the default): a start from a homography (planar) or DLT (non-planar, needs 6 points), then
 #   Levenberg-Marquardt on the reprojection error.
 # * **EPnP**: expresses the points through four control points; fast, for many non-coplanar points.
@@ -172,10 +177,10 @@ for s, rec in enumerate(scenes):
     print(f"{s:5d}  {rec['map']:19s}{cells}")
 
 planar, walls = table[:6], table[6:]
-assert np.all(planar[:, :3] < 20)                    # IPPE, SQPnP, iterative: within 2 cm on one wall
-assert np.median(planar[:, 3]) > 500                 # EPnP on coplanar points: metres off
-assert np.all(np.isnan(walls[:, 0]))                 # IPPE refuses points that are not on one plane
-assert np.all(walls[:, 1:] < 20)                     # the others handle two walls
+assert np.all(planar[:, :3] < 20)  # IPPE, SQPnP, iterative: within 2 cm on one wall
+assert np.median(planar[:, 3]) > 500  # EPnP on coplanar points: metres off
+assert np.all(np.isnan(walls[:, 0]))  # IPPE refuses points that are not on one plane
+assert np.all(walls[:, 1:] < 20)  # the others handle two walls
 
 # %% [markdown]
 # What the table shows:
@@ -198,6 +203,7 @@ assert np.all(walls[:, 1:] < 20)                     # the others handle two wal
 # a pixel; a wrong map, a wrong corner order (notebook 05) or a wrong camera leaves pixels or more.
 #
 # `cv2.solvePnPRefineLM` polishes a pose by Levenberg-Marquardt on exactly this error:
+
 
 # %%
 def reprojection(rvec, tvec):
@@ -272,8 +278,10 @@ for rec in scenes:
     m = maps[rec["map"]]
     p = estimate_pose(detect_markers(load_image(data_path("scenes", rec["image"])), m.dictionary), m, camera)
     errors_mm.append(np.linalg.norm(p.position_mm - np.array(rec["T_world_camera"])[:3, 3]))
-    print(f"{rec['image']}: {p.method:9s} {len(p.marker_ids)} markers, RMS {p.reprojection_rms_px:.2f} px, "
-          f"error {errors_mm[-1]:5.1f} mm")
+    print(
+        f"{rec['image']}: {p.method:9s} {len(p.marker_ids)} markers, RMS {p.reprojection_rms_px:.2f} px, "
+        f"error {errors_mm[-1]:5.1f} mm"
+    )
 assert max(errors_mm) < 15 and np.median(errors_mm) < 3
 
 # %% [markdown]
@@ -293,8 +301,10 @@ r_noisy, t_noisy = cv2.solvePnPRefineLM(object_points, noisy, camera.K, camera.d
 T_noisy = frames.invert_transform(frames.transform_from_rvec_tvec(r_noisy, t_noisy))
 projected_noisy, _ = cv2.projectPoints(object_points, r_noisy, t_noisy, camera.K, camera.dist)
 rms_noisy = np.sqrt(np.mean(np.sum((noisy - projected_noisy.reshape(-1, 2)) ** 2, axis=1)))
-print(f"corner noise {NOISE_PX} px: camera {np.linalg.norm(T_noisy[:3, 3] - T_world_camera_true[:3, 3]):.1f} mm "
-      f"from the truth, reprojection RMS {rms_noisy:.2f} px")
+print(
+    f"corner noise {NOISE_PX} px: camera {np.linalg.norm(T_noisy[:3, 3] - T_world_camera_true[:3, 3]):.1f} mm "
+    f"from the truth, reprojection RMS {rms_noisy:.2f} px"
+)
 
 # %% [markdown]
 # ## Summary

@@ -43,13 +43,13 @@ T_world_camera_true = np.array(record["T_world_camera"])
 detections = detect_markers(load_image(data_path("scenes", record["image"])), world_map.dictionary)
 world_corners = world_map.corners()
 object_points = np.vstack([world_corners[d.id] for d in detections])  # (12, 3) mm, world
-image_points = np.vstack([d.corners_px for d in detections])             # (12, 2) px
+image_points = np.vstack([d.corners_px for d in detections])  # (12, 2) px
 
 ok, rvec, tvec = cv2.solvePnP(object_points, image_points, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
 rvec, tvec = cv2.solvePnPRefineLM(object_points, image_points, camera.K, camera.dist, rvec, tvec)
 assert ok
-R, _ = cv2.Rodrigues(rvec)   # (3, 3)
-t = tvec.reshape(3)          # (3,) mm
+R, _ = cv2.Rodrigues(rvec)  # (3, 3)
+t = tvec.reshape(3)  # (3,) mm
 print("tvec (mm)                :", t)
 print("true camera position (mm):", T_world_camera_true[:3, 3])
 
@@ -65,14 +65,14 @@ print("true camera position (mm):", T_world_camera_true[:3, 3])
 
 # %%
 T_camera_world = frames.make_transform(R, t)
-corners_camera = object_points @ R.T + t                 # R p + t for every row
+corners_camera = object_points @ R.T + t  # R p + t for every row
 assert np.allclose(corners_camera, frames.transform_points(T_camera_world, object_points))
 print("corners in the camera frame (mm), first marker:\n", corners_camera[:4])
 print("their depth z (mm):", corners_camera[:, 2].round(0))
 
 reprojected = camera.project(corners_camera, np.eye(4))  # the camera frame is now the "world"
-assert np.abs(reprojected - image_points).max() < 0.2      # pixels
-assert np.all(corners_camera[:, 2] > 0)                    # every corner in front of the camera
+assert np.abs(reprojected - image_points).max() < 0.2  # pixels
+assert np.all(corners_camera[:, 2] > 0)  # every corner in front of the camera
 
 # %% [markdown]
 # ## 2. The inverse, derived
@@ -93,6 +93,7 @@ assert np.all(corners_camera[:, 2] > 0)                    # every corner in fro
 #
 # and the columns of $R^T$ are the camera's own axes (x right, y down, z along the optical axis) written in
 # world coordinates. No general matrix inverse is needed: a transpose and a product.
+
 
 # %%
 def invert_closed_form(T_a_b):
@@ -197,10 +198,10 @@ for rec in scenes:
 # wall. Follow the optical axis from C until it meets the wall (the plane X = 0):
 
 # %%
-axis_world = T_world_camera[:3, 2]            # unit vector, world frame
-heading_deg = np.degrees(np.arctan2(axis_world[1], axis_world[0]))   # in the floor plane, from +X towards +Y
-elevation_deg = np.degrees(np.arcsin(axis_world[2]))                 # above the horizon when positive
-s = -C[0] / axis_world[0]                     # C + s * axis has X = 0
+axis_world = T_world_camera[:3, 2]  # unit vector, world frame
+heading_deg = np.degrees(np.arctan2(axis_world[1], axis_world[0]))  # in the floor plane, from +X towards +Y
+elevation_deg = np.degrees(np.arcsin(axis_world[2]))  # above the horizon when positive
+s = -C[0] / axis_world[0]  # C + s * axis has X = 0
 hit = C + s * axis_world
 target = np.array(record["look_at"]["target_mm"], dtype=float)
 side = "above" if elevation_deg > 0 else "below"
@@ -222,8 +223,14 @@ assert np.linalg.norm(hit - target) < 10
 
 # %%
 side = world_map.marker_size_mm
-square = np.array([[-side / 2, side / 2, 0], [side / 2, side / 2, 0],      # TL, TR
-                   [side / 2, -side / 2, 0], [-side / 2, -side / 2, 0]])   # BR, BL, in the marker's frame, mm
+square = np.array(
+    [
+        [-side / 2, side / 2, 0],
+        [side / 2, side / 2, 0],  # TL, TR
+        [side / 2, -side / 2, 0],
+        [-side / 2, -side / 2, 0],
+    ]
+)  # BR, BL, in the marker's frame, mm
 marker0 = next(d for d in detections if d.id == 0)
 ok, r0, t0 = cv2.solvePnP(square, marker0.corners_px, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
 T_camera_marker = frames.transform_from_rvec_tvec(r0, t0)
@@ -249,8 +256,15 @@ assert np.allclose(frames.transform_points(T_world_marker, square), world_corner
 # the dotted line is the optical axis, from C to where it meets the wall.
 
 # %%
-fig = plotting.plot_scene(world_map, poses=[T_world_camera], camera=camera, labels=["camera (found)"], scale_mm=250,
-                          extra_points=np.vstack([C, hit]), title="scene_02: the camera's pose in the world")
+fig = plotting.plot_scene(
+    world_map,
+    poses=[T_world_camera],
+    camera=camera,
+    labels=["camera (found)"],
+    scale_mm=250,
+    extra_points=np.vstack([C, hit]),
+    title="scene_02: the camera's pose in the world",
+)
 ax = fig.axes[0]
 ax.plot(*np.column_stack([C, hit]), color="tab:orange", linestyle=":", linewidth=1)  # the optical axis to the wall
 plt.show()
@@ -263,18 +277,17 @@ plt.show()
 # translation is the distance to the marker's centre, and the six centres must lie on one plane, the paper.
 
 # %%
-photo_camera = Camera.load(data_path("real", "opencv_aruco_photo", "tutorial_camera_params.yml"),
-                           image_size=(640, 480))
+photo_camera = Camera.load(data_path("real", "opencv_aruco_photo", "tutorial_camera_params.yml"), image_size=(640, 480))
 photo = load_image(data_path("real", "opencv_aruco_photo", "singlemarkersoriginal.jpg"))
 s50 = 50.0
 square50 = np.array([[-s50 / 2, s50 / 2, 0], [s50 / 2, s50 / 2, 0], [s50 / 2, -s50 / 2, 0], [-s50 / 2, -s50 / 2, 0]])
 centres = {}
 for d in detect_markers(photo, "6X6_250"):
-    ok, r, tv = cv2.solvePnP(square50, d.corners_px, photo_camera.K, photo_camera.dist,
-                             flags=cv2.SOLVEPNP_IPPE_SQUARE)
+    ok, r, tv = cv2.solvePnP(square50, d.corners_px, photo_camera.K, photo_camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
     centres[d.id] = tv.reshape(3)
-    print(f"marker {d.id:3d}: centre at {centres[d.id].round(0)} mm in the camera frame, "
-          f"{np.linalg.norm(tv):.0f} mm away")
+    print(
+        f"marker {d.id:3d}: centre at {centres[d.id].round(0)} mm in the camera frame, {np.linalg.norm(tv):.0f} mm away"
+    )
 distances = np.array([np.linalg.norm(c) for c in centres.values()])
 assert np.all((distances > 650) & (distances < 950))
 
@@ -282,8 +295,10 @@ P = np.array(list(centres.values()))
 _, sv, vt = np.linalg.svd(P - P.mean(axis=0))
 normal = vt[2]
 off_plane_mm = (P - P.mean(axis=0)) @ normal
-print(f"the six centres lie within {np.abs(off_plane_mm).max():.0f} mm of one plane; "
-      f"the camera is {abs(P.mean(axis=0) @ normal):.0f} mm above it")
+print(
+    f"the six centres lie within {np.abs(off_plane_mm).max():.0f} mm of one plane; "
+    f"the camera is {abs(P.mean(axis=0) @ normal):.0f} mm above it"
+)
 assert np.abs(off_plane_mm).max() < 10
 
 # %% [markdown]
@@ -300,8 +315,10 @@ seen = next(d for d in detections if d.id == MARKER_ID)
 ok, r_m, t_m = cv2.solvePnP(square, seen.corners_px, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
 T_found = world_map.T_world_marker(MARKER_ID) @ invert_closed_form(frames.transform_from_rvec_tvec(r_m, t_m))
 wrong = world_map.T_world_marker(MARKER_ID) @ frames.transform_from_rvec_tvec(r_m, t_m)  # no inverse at all
-print(f"marker {MARKER_ID} alone: camera {np.linalg.norm(T_found[:3, 3] - T_world_camera_true[:3, 3]):.1f} mm from "
-      f"the truth; without the inverse {np.linalg.norm(wrong[:3, 3] - T_world_camera_true[:3, 3]):.0f} mm")
+print(
+    f"marker {MARKER_ID} alone: camera {np.linalg.norm(T_found[:3, 3] - T_world_camera_true[:3, 3]):.1f} mm from "
+    f"the truth; without the inverse {np.linalg.norm(wrong[:3, 3] - T_world_camera_true[:3, 3]):.0f} mm"
+)
 
 # %% [markdown]
 # ## Summary

@@ -23,11 +23,22 @@ import json
 import cv2
 import matplotlib.pyplot as plt
 import numpy as np
-
 from IPython.display import display
 
-from fidlearn import (Camera, MarkerMap, MarkerPlacement, data_path, estimate_pose, frames, locate, look_at, plan_room,
-                      plotting, predict_accuracy, render_scene)
+from fidlearn import (
+    Camera,
+    MarkerMap,
+    MarkerPlacement,
+    data_path,
+    estimate_pose,
+    frames,
+    locate,
+    look_at,
+    plan_room,
+    plotting,
+    predict_accuracy,
+    render_scene,
+)
 from fidlearn.detection import Detection, detect_markers, load_image
 from fidlearn.planning import noise_from_pose, suggest_markers
 from fidlearn.planning.figure import plan_figure
@@ -45,7 +56,7 @@ np.set_printoptions(precision=3, suppress=True)
 
 # %%
 camera = Camera.load(data_path("scenes", "camera.json"))  # the 1280 x 720 webcam of the scenes
-world_map = MarkerMap.load(data_path("world_map.json"))    # the seed's three 80 mm markers
+world_map = MarkerMap.load(data_path("world_map.json"))  # the seed's three 80 mm markers
 
 
 def median_error_mm(marker_map, T_world_camera, noise_px=0.2, trials=30, seed=0):
@@ -80,8 +91,9 @@ assert median_error_mm(world_map, T_check, noise_px=0.0, trials=1) < 1e-3
 # %%
 centre = np.array([0.0, 80.0, 250.0])  # middle of the three markers
 distances_mm = np.array([500, 750, 1000, 1500, 2000, 3000, 4000])
-error_vs_distance = np.array([median_error_mm(world_map, look_at(centre + [Z, 0.3 * Z, 0.1 * Z], centre))
-                              for Z in distances_mm])
+error_vs_distance = np.array(
+    [median_error_mm(world_map, look_at(centre + [Z, 0.3 * Z, 0.1 * Z], centre)) for Z in distances_mm]
+)
 for Z, e in zip(distances_mm, error_vs_distance):
     print(f"{Z / 1000:4.2f} m: median position error {e:6.1f} mm")
 
@@ -112,19 +124,27 @@ assert ratio.max() / ratio.min() < 1.6  # proportional, within the scatter of 30
 # seed's layout), three spread over a metre, six spread; and then the three spread with two more on the side
 # walls. And one marker at 1.5 m, printed at different sizes.
 
+
 # %%
 def wall(*tl_yz, size=80.0):
     """A map of markers on the north wall (X = 0), their top-left corners at (y, z) mm."""
-    return MarkerMap.from_dict({str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]} for k, (y, z) in enumerate(tl_yz)},
-                               units="mm", marker_size_mm=size)
+    return MarkerMap.from_dict(
+        {str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]} for k, (y, z) in enumerate(tl_yz)},
+        units="mm",
+        marker_size_mm=size,
+    )
 
 
 spread3 = [(-300, 700), (600, 700), (150, 0)]
-side_walls = MarkerMap.from_dict({
-    **{str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]} for k, (y, z) in enumerate(spread3)},
-    "3": {"translation": [500, -400, 450], "rotation": [0, 0, 90]},   # west wall, facing +Y
-    "4": {"translation": [600, 800, 450], "rotation": [0, 0, -90]},   # east wall, facing -Y
-}, units="mm", marker_size_mm=80)
+side_walls = MarkerMap.from_dict(
+    {
+        **{str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]} for k, (y, z) in enumerate(spread3)},
+        "3": {"translation": [500, -400, 450], "rotation": [0, 0, 90]},  # west wall, facing +Y
+        "4": {"translation": [600, 800, 450], "rotation": [0, 0, -90]},  # east wall, facing -Y
+    },
+    units="mm",
+    marker_size_mm=80,
+)
 layouts = {
     "1 marker": wall((160, 340)),
     "3 close together": wall((100, 400), (200, 400), (150, 300)),
@@ -138,9 +158,9 @@ for name, e in error_vs_layout.items():
     print(f"{name:28s}: median position error {e:6.1f} mm")
 
 e = list(error_vs_layout.values())
-assert e[0] > e[1] > e[2] > e[3] > e[4]            # each step helps
-assert e[1] / e[2] > 5                               # spreading the same three markers: 5x better or more
-assert e[4] < 2                                      # a second plane pins the pose down
+assert e[0] > e[1] > e[2] > e[3] > e[4]  # each step helps
+assert e[1] / e[2] > 5  # spreading the same three markers: 5x better or more
+assert e[4] < 2  # a second plane pins the pose down
 
 sizes_mm = np.array([40, 80, 160, 320])
 T_single = look_at([1500, 300, 400], [0, 160, 300])
@@ -152,8 +172,9 @@ assert np.all(np.diff(error_vs_size) < 0) and error_vs_size[0] / error_vs_size[-
 # %%
 fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
 axes[0].loglog(distances_mm / 1000, error_vs_distance, "o-", label="measured")
-axes[0].loglog(distances_mm / 1000, error_vs_distance[2] * (distances_mm / 1000) ** 2, "--", color="0.5",
-               label="∝ distance²")
+axes[0].loglog(
+    distances_mm / 1000, error_vs_distance[2] * (distances_mm / 1000) ** 2, "--", color="0.5", label="∝ distance²"
+)
 axes[0].set_xticks([0.5, 1, 2, 4], ["0.5", "1", "2", "4"])
 axes[0].minorticks_off()
 axes[0].set_xlabel("distance (m)")
@@ -190,8 +211,12 @@ plt.show()
 # rendered picture: one 80 mm marker, 2.6 m away, a 640 x 480 camera.
 
 # %%
-one = MarkerMap.from_dict({"0": {"translation": [0, 0, 1000], "rotation": [0, 0, 0]}}, units="mm",
-                          marker_size_mm=80, dictionary="ARUCO_ORIGINAL")
+one = MarkerMap.from_dict(
+    {"0": {"translation": [0, 0, 1000], "rotation": [0, 0, 0]}},
+    units="mm",
+    marker_size_mm=80,
+    dictionary="ARUCO_ORIGINAL",
+)
 small_camera = Camera.from_fov(60, (640, 480))
 T_far = look_at([2500, -400, 1200], [0, 40, 960])
 scene = render_scene(one, small_camera, T_far, blur_px=0.5, noise_std_gray=1.5, seed=3)
@@ -203,13 +228,21 @@ err = np.linalg.norm(pose.position_mm - T_far[:3, 3])
 err_alt = np.linalg.norm(alt.position_mm - T_far[:3, 3])
 apart = np.linalg.norm(pose.position_mm - alt.position_mm)
 print(f"ambiguous: {pose.ambiguous}")
-print(f"chosen     : {pose.position_mm.round(0)} mm, RMS {pose.reprojection_rms_px:.2f} px, {err:5.0f} mm from the truth")
-print(f"alternative: {alt.position_mm.round(0)} mm, RMS {alt.reprojection_rms_px:.2f} px, {err_alt:5.0f} mm from the truth")
-print(f"the two solutions are {apart:.0f} mm apart; the reported uncertainty spans both: std {pose.position_std_mm.round(0)} mm")
+print(
+    f"chosen     : {pose.position_mm.round(0)} mm, RMS {pose.reprojection_rms_px:.2f} px, {err:5.0f} mm from the truth"
+)
+print(
+    f"alternative: {alt.position_mm.round(0)} mm, RMS {alt.reprojection_rms_px:.2f} px, {err_alt:5.0f} mm from the "
+    "truth"
+)
+print(
+    f"the two solutions are {apart:.0f} mm apart; the reported uncertainty spans both: std "
+    f"{pose.position_std_mm.round(0)} mm"
+)
 assert pose.ambiguous and alt is not None
-assert pose.reprojection_rms_px < 0.2 and alt.reprojection_rms_px < 0.2   # both fit the corners
-assert apart > 500                                                          # and disagree by half a metre
-assert min(err, err_alt) < 150                                              # the truth is near one of them
+assert pose.reprojection_rms_px < 0.2 and alt.reprojection_rms_px < 0.2  # both fit the corners
+assert apart > 500  # and disagree by half a metre
+assert min(err, err_alt) < 150  # the truth is near one of them
 
 fig = plt.figure(figsize=(12, 4.5))
 ax1 = fig.add_subplot(1, 2, 1)
@@ -218,11 +251,17 @@ plotting.draw_quads(ax1, [truth[0]], corner_labels=True)
 ax1.set_xlim(truth[0][:, 0].mean() - 60, truth[0][:, 0].mean() + 60)
 ax1.set_ylim(truth[0][:, 1].mean() + 45, truth[0][:, 1].mean() - 45)
 ax2 = fig.add_subplot(1, 2, 2, projection="3d")
-shown = {"true pose": (T_far, "tab:green"), "chosen": (pose.T_world_camera, "tab:orange"),
-         "alternative": (alt.T_world_camera, "tab:purple")}
-plotting.plot_scene(one, ax=ax2, extra_points=np.vstack([plotting.camera_frustum(small_camera, T, 300)
-                                                         for T, _ in shown.values()]),
-                    title="both solutions of the flip ambiguity")
+shown = {
+    "true pose": (T_far, "tab:green"),
+    "chosen": (pose.T_world_camera, "tab:orange"),
+    "alternative": (alt.T_world_camera, "tab:purple"),
+}
+plotting.plot_scene(
+    one,
+    ax=ax2,
+    extra_points=np.vstack([plotting.camera_frustum(small_camera, T, 300) for T, _ in shown.values()]),
+    title="both solutions of the flip ambiguity",
+)
 for name, (T, colour) in shown.items():
     plotting.draw_camera(ax2, small_camera, T, scale_mm=300, color=colour, show_axes=False)[0].set_label(name)
 ax2.legend(loc="upper left", fontsize=8)
@@ -267,20 +306,27 @@ detections = detect_markers(load_image(data_path("scenes", record["image"])), tw
 old = two_walls.placements[4]
 placements = dict(two_walls.placements)
 placements[4] = MarkerPlacement(4, tuple(np.add(old.translation_mm, [100.0, 0, 0])), old.rotation_deg)  # 10 cm off
-stale_map = MarkerMap(placements, two_walls.marker_size_mm, dictionary=two_walls.dictionary, units="mm",
-                      source="map with marker 4 10 cm off")
+stale_map = MarkerMap(
+    placements,
+    two_walls.marker_size_mm,
+    dictionary=two_walls.dictionary,
+    units="mm",
+    source="map with marker 4 10 cm off",
+)
 
 naive = estimate_pose(detections, stale_map, camera, reject_outliers=False)
 robust = estimate_pose(detections, stale_map, camera)
 for name, p in (("all markers", naive), ("outliers rejected", robust)):
     e = np.linalg.norm(p.position_mm - T_true[:3, 3])
     rms = {i: round(v, 1) for i, v in p.marker_rms_px.items()}
-    print(f"{name:18s}: error {e:5.1f} mm, RMS {p.reprojection_rms_px:5.2f} px, rejected {list(p.rejected_ids)}, "
-          f"per-marker RMS {rms}")
+    print(
+        f"{name:18s}: error {e:5.1f} mm, RMS {p.reprojection_rms_px:5.2f} px, rejected {list(p.rejected_ids)}, "
+        f"per-marker RMS {rms}"
+    )
 assert robust.rejected_ids == (4,)
 assert np.linalg.norm(robust.position_mm - T_true[:3, 3]) < 5
 assert np.linalg.norm(naive.position_mm - T_true[:3, 3]) > 10
-assert naive.reprojection_rms_px > 1.0   # the residuals give the mistake away
+assert naive.reprojection_rms_px > 1.0  # the residuals give the mistake away
 
 # %% [markdown]
 # Plain OpenCV has its own answer to outliers: `cv2.solvePnPRansac` solves from random minimal sets of
@@ -296,16 +342,21 @@ img_all = np.vstack([d.corners_px for d in seen])
 corner_ids = np.repeat([d.id for d in seen], 4)
 ransac_error_mm = {}
 for threshold_px in (2.0, 8.0):
-    ok, r, t, inliers = cv2.solvePnPRansac(obj_all, img_all, camera.K, camera.dist, iterationsCount=200,
-                                           reprojectionError=threshold_px, confidence=0.999)
+    ok, r, t, inliers = cv2.solvePnPRansac(
+        obj_all, img_all, camera.K, camera.dist, iterationsCount=200, reprojectionError=threshold_px, confidence=0.999
+    )
     inliers = np.asarray(inliers).reshape(-1)
     T_ransac = frames.invert_transform(frames.transform_from_rvec_tvec(r, t))
     ransac_error_mm[threshold_px] = np.linalg.norm(T_ransac[:3, 3] - T_true[:3, 3])
     outlier_ids = sorted(set(np.delete(corner_ids, inliers).tolist()))
-    print(f"solvePnPRansac, threshold {threshold_px:.0f} px: {len(inliers)} of {len(corner_ids)} corners inliers, "
-          f"outliers on markers {outlier_ids}, error {ransac_error_mm[threshold_px]:.1f} mm")
-print(f"estimate_pose               : rejected markers {list(robust.rejected_ids)}, "
-      f"error {np.linalg.norm(robust.position_mm - T_true[:3, 3]):.1f} mm")
+    print(
+        f"solvePnPRansac, threshold {threshold_px:.0f} px: {len(inliers)} of {len(corner_ids)} corners inliers, "
+        f"outliers on markers {outlier_ids}, error {ransac_error_mm[threshold_px]:.1f} mm"
+    )
+print(
+    f"estimate_pose               : rejected markers {list(robust.rejected_ids)}, "
+    f"error {np.linalg.norm(robust.position_mm - T_true[:3, 3]):.1f} mm"
+)
 assert ransac_error_mm[2.0] < 10
 
 # %% [markdown]
@@ -326,6 +377,7 @@ assert ransac_error_mm[2.0] < 10
 # wall: Y and Z)? The seed's three markers close together, and the three spread over a metre of section 4,
 # seen from 1.5 m:
 
+
 # %%
 def tape_error_mm(marker_map, T_world_camera, map_std_mm, trials=30, seed=0):
     """Median camera position error (mm) when every marker's map position is off by N(0, map_std_mm) in Y and Z."""
@@ -333,24 +385,37 @@ def tape_error_mm(marker_map, T_world_camera, map_std_mm, trials=30, seed=0):
     exact = [Detection(i, camera.project(c, T_world_camera)) for i, c in marker_map.corners().items()]
     errors = []
     for _ in range(trials):
-        taped = {i: MarkerPlacement(i, tuple(np.add(p.translation_mm, [0.0, *rng.normal(0.0, map_std_mm, 2)])),
-                                    p.rotation_deg) for i, p in marker_map.placements.items()}
-        measured = MarkerMap(taped, marker_map.marker_size_mm, dictionary=marker_map.dictionary, units="mm",
-                             source="measured with a tape")
+        taped = {
+            i: MarkerPlacement(
+                i, tuple(np.add(p.translation_mm, [0.0, *rng.normal(0.0, map_std_mm, 2)])), p.rotation_deg
+            )
+            for i, p in marker_map.placements.items()
+        }
+        measured = MarkerMap(
+            taped,
+            marker_map.marker_size_mm,
+            dictionary=marker_map.dictionary,
+            units="mm",
+            source="measured with a tape",
+        )
         pose = estimate_pose(exact, measured, camera, reject_outliers=False)
         errors.append(np.linalg.norm(pose.position_mm - T_world_camera[:3, 3]))
     return float(np.median(errors))
 
 
 map_std_levels_mm = [0.0, 1.0, 2.0, 5.0]
-tape_layouts = {"seed's 3, close together": (world_map, look_at(centre + [1500, 450, 150], centre)),
-                "3 spread over 1 m": (layouts["3 spread over 1 m"], look_at([1500, 200, 400], [0, 200, 300]))}
+tape_layouts = {
+    "seed's 3, close together": (world_map, look_at(centre + [1500, 450, 150], centre)),
+    "3 spread over 1 m": (layouts["3 spread over 1 m"], look_at([1500, 200, 400], [0, 200, 300])),
+}
 tape_table = {}
 print("map error (mm, std)      " + "".join(f"{s:8.0f}" for s in map_std_levels_mm) + "   (median position error, mm)")
 for name, (m, T) in tape_layouts.items():
     tape_table[name] = [tape_error_mm(m, T, s) for s in map_std_levels_mm]
     print(f"{name:24s} " + "".join(f"{e:8.1f}" for e in tape_table[name]))
-print(f"a map error of 1 mm moves a corner by about {camera.fx * 1 / 1500:.2f} px at 1.5 m: like that much corner noise")
+print(
+    f"a map error of 1 mm moves a corner by about {camera.fx * 1 / 1500:.2f} px at 1.5 m: like that much corner noise"
+)
 assert tape_table["seed's 3, close together"][0] < 0.1
 assert tape_table["seed's 3, close together"][1] > 2 * tape_table["3 spread over 1 m"][1]
 assert tape_table["seed's 3, close together"][3] > tape_table["seed's 3, close together"][1]
@@ -394,15 +459,19 @@ for rec, img in zip(scenes, pictures):
     T = np.array(rec["T_world_camera"])
     T_seed = seed_pipeline(img, m)
     seed_errors.append(np.nan if T_seed is None else np.linalg.norm(T_seed[:3, 3] - T[:3, 3]))
-    fid_errors.append(np.linalg.norm(estimate_pose(detect_markers(img, m.dictionary), m, camera).position_mm - T[:3, 3]))
+    fid_errors.append(
+        np.linalg.norm(estimate_pose(detect_markers(img, m.dictionary), m, camera).position_mm - T[:3, 3])
+    )
     seed_text = "fails" if T_seed is None else f"{seed_errors[-1]:.1f}"
     print(f"{rec['image']}  {seed_text:>10s}  {fid_errors[-1]:13.1f}")
 seed_errors, fid_errors = np.array(seed_errors), np.array(fid_errors)
 
 one_wall = slice(0, 6)
-print(f"median over scenes 0-5 (one wall): seed {np.median(seed_errors[one_wall]):.1f} mm, "
-      f"fidlearn {np.median(fid_errors[one_wall]):.1f} mm: "
-      f"{np.median(seed_errors[one_wall]) / np.median(fid_errors[one_wall]):.0f} times smaller")
+print(
+    f"median over scenes 0-5 (one wall): seed {np.median(seed_errors[one_wall]):.1f} mm, "
+    f"fidlearn {np.median(fid_errors[one_wall]):.1f} mm: "
+    f"{np.median(seed_errors[one_wall]) / np.median(fid_errors[one_wall]):.0f} times smaller"
+)
 assert np.median(fid_errors[one_wall]) < np.median(seed_errors[one_wall]) / 5
 assert np.all(np.isnan(seed_errors[6:]))  # IPPE on two walls: solvePnP reports failure
 assert np.all(fid_errors < 15)
@@ -430,12 +499,14 @@ print("corners      pose          median error   worst (mm), scenes 0-5")
 steps = {}
 for refine in ("none", "edges"):
     for lm in (False, True):
-        errs = [np.linalg.norm(seed_pipeline(img, world_map, refine, lm)[:3, 3] - np.array(rec["T_world_camera"])[:3, 3])
-                for rec, img in zip(scenes[:6], pictures[:6])]
+        errs = [
+            np.linalg.norm(seed_pipeline(img, world_map, refine, lm)[:3, 3] - np.array(rec["T_world_camera"])[:3, 3])
+            for rec, img in zip(scenes[:6], pictures[:6])
+        ]
         steps[refine, lm] = np.median(errs)
         print(f"{refine:10s}   {'IPPE + LM' if lm else 'IPPE':10s} {np.median(errs):12.1f} {max(errs):10.1f}")
-assert steps["edges", False] < steps["none", False] / 5   # refined corners: the big step
-assert steps["edges", True] < steps["edges", False]        # LM: the last factor
+assert steps["edges", False] < steps["none", False] / 5  # refined corners: the big step
+assert steps["edges", True] < steps["edges", False]  # LM: the last factor
 assert np.isclose(steps["none", False], np.median(seed_errors[one_wall]))
 
 # %% [markdown]
@@ -472,20 +543,23 @@ predictions = {name: predict_accuracy(world_map, camera, T) for name, T in place
 for name, p in predictions.items():
     distance = np.linalg.norm(p.T_world_camera[:3, 3] - centre_seed)
     print(f"{name}, {distance / 1000:.1f} m from the markers:")
-    found = [f"marker {i} ({p.side_px[i]:.0f} px sides, corner noise {p.corner_sigma_px[i]:.3f} px)"
-             for i in p.marker_ids]
+    found = [
+        f"marker {i} ({p.side_px[i]:.0f} px sides, corner noise {p.corner_sigma_px[i]:.3f} px)" for i in p.marker_ids
+    ]
     print("  found: " + ", ".join(found))
     for i, why in p.lost.items():
         print(f"  lost : marker {i}, {why}")
-    print(f"  position std along X, Y, Z: {', '.join(f'{s:.1f}' for s in p.position_std_mm)} mm; "
-          f"median error {p.position_error_mm:.1f} mm; flip probability {100 * p.flip_probability:.0f} %")
+    print(
+        f"  position std along X, Y, Z: {', '.join(f'{s:.1f}' for s in p.position_std_mm)} mm; "
+        f"median error {p.position_error_mm:.1f} mm; flip probability {100 * p.flip_probability:.0f} %"
+    )
 
 side, close, along, far = predictions.values()
 assert side.marker_ids == [0, 1, 2] and side.position_error_mm < 5
 assert close.marker_ids == [0, 2] and "not whole" in close.lost[1]
 assert along.marker_ids == [1] and all("obliquely" in why for why in along.lost.values())
 assert far.flip_likely and far.position_error_mm > 100
-assert far.position_std_mm[0] < far.position_std_mm[1] / 3   # far, face-on: worst across the line of sight
+assert far.position_std_mm[0] < far.position_std_mm[1] / 3  # far, face-on: worst across the line of sight
 
 # %% [markdown]
 # Read each line as a question answered before any picture exists:
@@ -513,8 +587,20 @@ assert far.position_std_mm[0] < far.position_std_mm[1] / 3   # far, face-on: wor
 # from it).
 
 # %%
-room_places = [(500, 300), (800, -400), (1000, 900), (1500, 0), (1800, -1200), (2200, 1300), (2500, -300),
-               (3000, 600), (3000, -1400), (3500, -800), (3800, 1000), (4000, 200)]
+room_places = [
+    (500, 300),
+    (800, -400),
+    (1000, 900),
+    (1500, 0),
+    (1800, -1200),
+    (2200, 1300),
+    (2500, -300),
+    (3000, 600),
+    (3000, -1400),
+    (3500, -800),
+    (3800, 1000),
+    (4000, 200),
+]
 rng = np.random.default_rng(8)
 rows = []  # (distance, predicted median, 10th percentile, 90th percentile, measured), mm
 print("place (x, y) mm   distance   predicted median (80 % range)   measured")
@@ -526,13 +612,17 @@ for k, (x, y) in enumerate(room_places):
     image = render_scene(world_map, camera, T, seed=k, blur_px=0.5, noise_std_gray=1.2, gradient=0.2).image
     measured = np.linalg.norm(locate(image, world_map, camera).position_mm - T[:3, 3])
     rows.append((np.linalg.norm(T[:3, 3] - centre_seed), p.position_error_mm, lo, hi, measured))
-    print(f"({x:5d}, {y:5d})      {rows[-1][0] / 1000:4.1f} m   {p.position_error_mm:7.2f} mm ({lo:6.2f} to {hi:6.2f})"
-          f"   {measured:7.2f} mm")
+    print(
+        f"({x:5d}, {y:5d})      {rows[-1][0] / 1000:4.1f} m   {p.position_error_mm:7.2f} mm ({lo:6.2f} to {hi:6.2f})"
+        f"   {measured:7.2f} mm"
+    )
 rows = np.array(rows)
 ratio = rows[:, 4] / rows[:, 1]
 inside = int(np.sum((rows[:, 2] <= rows[:, 4]) & (rows[:, 4] <= rows[:, 3])))
-print(f"measured / predicted median: {ratio.min():.2f} to {ratio.max():.2f}, median {np.median(ratio):.2f}; "
-      f"{inside} of {len(rows)} measured errors inside the predicted 80 % range")
+print(
+    f"measured / predicted median: {ratio.min():.2f} to {ratio.max():.2f}, median {np.median(ratio):.2f}; "
+    f"{inside} of {len(rows)} measured errors inside the predicted 80 % range"
+)
 assert 0.5 < np.median(ratio) < 2 and ratio.min() > 0.25 and ratio.max() < 4
 assert inside >= 7
 
@@ -557,7 +647,8 @@ plt.show()
 # half a metre to a quarter of a metre at 4 m, and 10 of the 12 measured errors fall inside the predicted
 # range (8 in 10 would be expected). Here the measured errors run about half again above the predicted medians
 # (the median ratio, 1.53), two places at 3.4 and 3.9 m well above: twelve pictures cannot say much more. It
-# is a prediction for many pictures: one picture can land anywhere in the range, and the benchmark (`benchmarks/bench_planning.py`) checks the medians over
+# is a prediction for many pictures: one picture can land anywhere in the range, and the benchmark
+# (`benchmarks/bench_planning.py`) checks the medians over
 # many rendered rooms. Real photos are another matter: the next cell.
 #
 # ### A real camera: measure its noise on one photo
@@ -585,9 +676,11 @@ def board_markers(name):
 
 first = board_markers("img_00")
 real_noise = noise_from_pose(estimate_pose(list(first.values()), board, real_camera), board, real_camera)
-print(f"measured on img_00 ({len(first)} markers): corner noise {real_noise.corner_sigma_px:.2f} px, "
-      f"each marker shifted {real_noise.marker_shift_px:.2f} px, the markers "
-      f"{-100 * real_noise.marker_size_rel_error:.1f} % smaller than printed")
+print(
+    f"measured on img_00 ({len(first)} markers): corner noise {real_noise.corner_sigma_px:.2f} px, "
+    f"each marker shifted {real_noise.marker_shift_px:.2f} px, the markers "
+    f"{-100 * real_noise.marker_size_rel_error:.1f} % smaller than printed"
+)
 pairs = {"measured": [], "renders' noise": [], "img_00's noise": []}
 for name in ("img_01", "img_02", "img_03"):
     seen = board_markers(name)
@@ -598,12 +691,15 @@ for name in ("img_01", "img_02", "img_03"):
         pairs["measured"].append(np.linalg.norm(pose.position_mm - T_all[:3, 3]))
         pairs["renders' noise"].append(predict_accuracy(two, real_camera, T_all).position_error_mm)
         pairs["img_00's noise"].append(
-            predict_accuracy(two, real_camera, T_all, **real_noise.kwargs()).position_error_mm)
+            predict_accuracy(two, real_camera, T_all, **real_noise.kwargs()).position_error_mm
+        )
 pairs = {k: np.array(v) for k, v in pairs.items()}
 print(f"{len(pairs['measured'])} pairs of markers; median error measured {np.median(pairs['measured']):.1f} mm")
 for k, label in (("renders' noise", "the renders' noise"), ("img_00's noise", "img_00's noise")):
-    print(f"  predicted with {label}: median {np.median(pairs[k]):.1f} mm, "
-          f"{np.median(pairs[k] / pairs['measured']):.2f} of the measured (median over pairs)")
+    print(
+        f"  predicted with {label}: median {np.median(pairs[k]):.1f} mm, "
+        f"{np.median(pairs[k] / pairs['measured']):.2f} of the measured (median over pairs)"
+    )
 assert np.median(pairs["renders' noise"] / pairs["measured"]) < 0.3
 assert 0.6 < np.median(pairs["img_00's noise"] / pairs["measured"]) < 1.5
 
@@ -626,16 +722,27 @@ assert 0.6 < np.median(pairs["img_00's noise"] / pairs["measured"]) < 1.5
 room = (0, -1500, 4250, 1500)  # x0, y0, x1, y1 (mm): 4.25 m out from the wall, 3 m along it
 plan = plan_room(world_map, camera, area=room, step_mm=250, headings=8)
 print(plan)
-print(f"within 10 mm looking toward the markers: {100 * plan.fraction_within(10.0):.0f} % of the places; "
-      f"no pose possible: {100 * np.mean(~np.isfinite(plan.toward_mm)):.0f} %")
+print(
+    f"within 10 mm looking toward the markers: {100 * plan.fraction_within(10.0):.0f} % of the places; "
+    f"no pose possible: {100 * np.mean(~np.isfinite(plan.toward_mm)):.0f} %"
+)
 print(f"turning on the spot, a pose is possible from at most {np.max(plan.seen_fraction) * 8:.0f} of the 8 headings")
 assert 0.3 < plan.fraction_within(10.0) < 0.9
 assert np.max(plan.seen_fraction) <= 0.25
 
 fig = plan_figure(plan, world_map, target_mm=10)
 ax = fig.axes[0]
-ax.scatter(np.array(room_places)[:, 0], np.array(room_places)[:, 1], c=rows[:, 4], cmap="viridis",
-           norm=ax.images[0].norm, s=70, edgecolors="white", linewidths=1.5, zorder=3)
+ax.scatter(
+    np.array(room_places)[:, 0],
+    np.array(room_places)[:, 1],
+    c=rows[:, 4],
+    cmap="viridis",
+    norm=ax.images[0].norm,
+    s=70,
+    edgecolors="white",
+    linewidths=1.5,
+    zorder=3,
+)
 ax.set_title("looking toward the markers\n(circles: the twelve places, coloured by their measured error)", fontsize=10)
 display(fig)
 
@@ -665,22 +772,31 @@ steps = suggest_markers(start, camera, 10.0, area=area, max_markers=2)
 for s in steps:
     print(f"{s.text}: {100 * s.fraction_before:.0f} % -> {100 * s.fraction_after:.0f} % of the area within 10 mm")
 design = steps[-1].marker_map
-print("the design:", {i: np.round(design.corners()[i].mean(axis=0)).tolist() for i in design.ids},
-      f"(centres, mm), {design.marker_size_mm:g} mm markers")
+print(
+    "the design:",
+    {i: np.round(design.corners()[i].mean(axis=0)).tolist() for i in design.ids},
+    f"(centres, mm), {design.marker_size_mm:g} mm markers",
+)
 assert len(design) == 3 and steps[-1].fraction_after > 0.95
 assert np.ptp([design.corners()[i].mean(axis=0)[1] for i in design.ids]) > 1500  # spread along the wall
 
 seed_plan = plan_room(world_map, camera, area=area, step_mm=250, headings=0)
 design_plan = plan_room(design, camera, area=area, step_mm=250, headings=8)
 posed = {name: p.toward_mm[np.isfinite(p.toward_mm)] for name, p in (("seed", seed_plan), ("design", design_plan))}
-print(f"within 10 mm, looking at the markers (every 25 cm, the grid the search scored on): the seed's three markers "
-      f"{100 * seed_plan.fraction_within(10.0):.0f} %, the design {100 * design_plan.fraction_within(10.0):.0f} % "
-      f"(the search promised {100 * steps[-1].fraction_after:.0f} %)")
-print(f"worst predicted error where a pose is possible: {np.max(posed['seed']):.1f} mm and "
-      f"{np.max(posed['design']):.1f} mm; no pose at {design_plan.toward_mm.size - posed['seed'].size} and "
-      f"{design_plan.toward_mm.size - posed['design'].size} of the {design_plan.toward_mm.size} places")
-print(f"turning on the spot, the design's worst heading is within 10 mm at "
-      f"{100 * design_plan.fraction_within(10.0, 'worst'):.0f} % of the places")
+print(
+    f"within 10 mm, looking at the markers (every 25 cm, the grid the search scored on): the seed's three markers "
+    f"{100 * seed_plan.fraction_within(10.0):.0f} %, the design {100 * design_plan.fraction_within(10.0):.0f} % "
+    f"(the search promised {100 * steps[-1].fraction_after:.0f} %)"
+)
+print(
+    f"worst predicted error where a pose is possible: {np.max(posed['seed']):.1f} mm and "
+    f"{np.max(posed['design']):.1f} mm; no pose at {design_plan.toward_mm.size - posed['seed'].size} and "
+    f"{design_plan.toward_mm.size - posed['design'].size} of the {design_plan.toward_mm.size} places"
+)
+print(
+    f"turning on the spot, the design's worst heading is within 10 mm at "
+    f"{100 * design_plan.fraction_within(10.0, 'worst'):.0f} % of the places"
+)
 assert design_plan.fraction_within(10.0) == steps[-1].fraction_after  # the promise, kept
 assert design_plan.fraction_within(10.0) > 0.95 and np.max(posed["design"]) < 15
 assert seed_plan.fraction_within(10.0) < 0.8
@@ -719,8 +835,7 @@ display(fig)
 DISTANCE_MM = 2500.0  # try 6000, or 600
 
 predicted_mm = error_vs_distance[2] * (DISTANCE_MM / distances_mm[2]) ** 2  # the square law from 1 m
-measured_mm = median_error_mm(world_map, look_at(centre + [DISTANCE_MM, 0.3 * DISTANCE_MM, 0.1 * DISTANCE_MM],
-                                                 centre))
+measured_mm = median_error_mm(world_map, look_at(centre + [DISTANCE_MM, 0.3 * DISTANCE_MM, 0.1 * DISTANCE_MM], centre))
 print(f"{DISTANCE_MM / 1000:.1f} m: square law from 1 m predicts {predicted_mm:.1f} mm, measured {measured_mm:.1f} mm")
 
 # %% [markdown]
@@ -729,7 +844,8 @@ print(f"{DISTANCE_MM / 1000:.1f} m: square law from 1 m predicts {predicted_mm:.
 # * The position error grows as the **square of the distance** and in proportion to the **corner noise**.
 # * With several markers, **spread** beats size; markers on **two planes** are best. One small marker from
 #   afar is **ambiguous**: two poses fit, `Pose.alternative` holds the other, `Pose.ambiguous` warns.
-# * A marker that moved drags the pose by centimetres to decimetres; `estimate_pose` rejects it (`Pose.rejected_ids`) when
+# * A marker that moved drags the pose by centimetres to decimetres; `estimate_pose` rejects it (`Pose.rejected_ids`)
+#   when
 #   three or more markers are seen, and the per-marker residuals (`Pose.marker_rms_px`) show it.
 # * Refined corners (most of the gain), a solver suited to the layout and LM make fidlearn's median error on
 #   the seed's wall many times smaller than the seed's pipeline's, on the same pictures (the factor is printed

@@ -17,10 +17,9 @@
 # %matplotlib inline
 import json
 
+import cv2
 import matplotlib.pyplot as plt
 import numpy as np
-
-import cv2
 
 from fidlearn import Camera, MarkerMap, NoMarkersError, PoseTracker, data_path, estimate_pose, frames, plotting
 from fidlearn.detection import detect_markers, load_image
@@ -42,11 +41,14 @@ world_map = MarkerMap.load(data_path(drive["map"]))
 frames_info = drive["frames"]
 T_true = [np.array(f["T_world_camera"]) for f in frames_info]
 images = [load_image(data_path("trajectory", f["image"])) for f in frames_info]
-print(f"{len(images)} frames of {images[0].shape[1]} x {images[0].shape[0]}; map {drive['map']}, markers {world_map.ids}")
+print(
+    f"{len(images)} frames of {images[0].shape[1]} x {images[0].shape[0]}; map {drive['map']}, markers {world_map.ids}"
+)
 assert len(images) == len(T_true) == drive["n_frames"] == 40
 
-fig = plotting.show_images([images[k] for k in (0, 13, 26, 39)], [f"frame {k}" for k in (0, 13, 26, 39)], ncols=4,
-                           width_in=14)
+fig = plotting.show_images(
+    [images[k] for k in (0, 13, 26, 39)], [f"frame {k}" for k in (0, 13, 26, 39)], ncols=4, width_in=14
+)
 plt.show()
 
 # %% [markdown]
@@ -70,14 +72,20 @@ found = [p is not None for p in poses]
 position = np.array([p.position_mm if p is not None else np.full(3, np.nan) for p in poses])
 true_position = np.array([T[:3, 3] for T in T_true])
 error_mm = np.linalg.norm(position - true_position, axis=1)
-angle_deg = np.array([frames.rotation_angle_deg(p.T_world_camera[:3, :3], T[:3, :3]) if p is not None else np.nan
-                      for p, T in zip(poses, T_true)])
+angle_deg = np.array(
+    [
+        frames.rotation_angle_deg(p.T_world_camera[:3, :3], T[:3, :3]) if p is not None else np.nan
+        for p, T in zip(poses, T_true)
+    ]
+)
 distance_mm = np.linalg.norm(true_position - world_map.corners()[2].mean(axis=0), axis=1)  # to the middle marker
 
 print(f"localized {sum(found)} of {len(poses)} frames; ambiguous: {sum(p.ambiguous for p in poses if p)}")
 for k in (0, 13, 26, 39):
-    print(f"frame {k:2d}: {distance_mm[k] / 1000:.1f} m from the wall's markers, position {position[k].round(0)} mm, "
-          f"true {true_position[k].round(0)} mm, error {error_mm[k]:.1f} mm, {angle_deg[k]:.2f} deg")
+    print(
+        f"frame {k:2d}: {distance_mm[k] / 1000:.1f} m from the wall's markers, position {position[k].round(0)} mm, "
+        f"true {true_position[k].round(0)} mm, error {error_mm[k]:.1f} mm, {angle_deg[k]:.2f} deg"
+    )
 assert all(found)
 
 # %% [markdown]
@@ -89,15 +97,28 @@ assert all(found)
 
 # %%
 fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(14, 5.2), gridspec_kw={"width_ratios": [1, 1.3]})
-plotting.plot_top_view(world_map, poses=[p for p in poses if p], truth=[T for T, ok in zip(T_true, found) if ok], ax=ax1,
-                       title="top view: estimated (orange) and true (grey) path;\nred: floor error x 20")
+plotting.plot_top_view(
+    world_map,
+    poses=[p for p in poses if p],
+    truth=[T for T, ok in zip(T_true, found) if ok],
+    ax=ax1,
+    title="top view: estimated (orange) and true (grey) path;\nred: floor error x 20",
+)
 MAGNIFY = 20
 for k in np.flatnonzero(found):
     tip = true_position[k, :2] + MAGNIFY * (position[k, :2] - true_position[k, :2])
-    ax1.plot([true_position[k, 0], tip[0]], [true_position[k, 1], tip[1]], color="tab:red", linewidth=1.5,
-             label=f"floor error x {MAGNIFY}" if k == 0 else None)
+    ax1.plot(
+        [true_position[k, 0], tip[0]],
+        [true_position[k, 1], tip[1]],
+        color="tab:red",
+        linewidth=1.5,
+        label=f"floor error x {MAGNIFY}" if k == 0 else None,
+    )
 floor_err_mm = np.linalg.norm(position[:, :2] - true_position[:, :2], axis=1)
-print(f"floor (X, Y) error: up to {np.nanmax(floor_err_mm):.1f} mm, drawn up to {MAGNIFY * np.nanmax(floor_err_mm):.0f} mm long")
+print(
+    f"floor (X, Y) error: up to {np.nanmax(floor_err_mm):.1f} mm, drawn up to {MAGNIFY * np.nanmax(floor_err_mm):.0f} "
+    "mm long"
+)
 ax1.legend(loc="lower left")
 
 std_mm = np.array([np.linalg.norm(p.position_std_mm) if p else np.nan for p in poses])
@@ -127,8 +148,10 @@ far, near = slice(0, 20), slice(20, 40)
 all_corners = np.vstack(list(world_map.corners().values()))
 span_mm = np.ptp(all_corners, axis=0)
 print(f"the markers' corners span {span_mm[1] / 10:.0f} cm sideways (Y) and {span_mm[2] / 10:.0f} cm vertically (Z)")
-print(f"position error, all frames : median {np.nanmedian(error_mm):5.1f} mm, mean {np.nanmean(error_mm):5.1f} mm, "
-      f"max {np.nanmax(error_mm):5.1f} mm")
+print(
+    f"position error, all frames : median {np.nanmedian(error_mm):5.1f} mm, mean {np.nanmean(error_mm):5.1f} mm, "
+    f"max {np.nanmax(error_mm):5.1f} mm"
+)
 print(f"  first half (1.5-2.2 m)   : median {np.nanmedian(error_mm[far]):5.1f} mm")
 print(f"  second half (0.7-1.5 m)  : median {np.nanmedian(error_mm[near]):5.1f} mm")
 print(f"orientation error          : median {np.nanmedian(angle_deg):5.2f} deg, max {np.nanmax(angle_deg):5.2f} deg")
@@ -156,16 +179,25 @@ from math import comb
 
 inside = [p.position_ellipsoid_contains(t) for p, t in zip(poses, true_position) if p is not None]
 n = len(inside)
-print(f"truth inside the 95 % ellipsoid in {sum(inside)} of {n} frames; an exact covariance: {0.95 * n:.0f} of {n} "
-      f"expected ({95} %)")
-d2 = np.array([(p.position_mm - t) @ np.linalg.solve(p.covariance[3:, 3:], p.position_mm - t)
-               for p, t in zip(poses, true_position) if p is not None])
+print(
+    f"truth inside the 95 % ellipsoid in {sum(inside)} of {n} frames; an exact covariance: {0.95 * n:.0f} of {n} "
+    f"expected ({95} %)"
+)
+d2 = np.array(
+    [
+        (p.position_mm - t) @ np.linalg.solve(p.covariance[3:, 3:], p.position_mm - t)
+        for p, t in zip(poses, true_position)
+        if p is not None
+    ]
+)
 print(f"squared Mahalanobis distance: mean {d2.mean():.2f} (3 if the covariance were exact), largest {d2.max():.2f}")
 p_this_many = sum(comb(n, j) * 0.95**j * 0.05 ** (n - j) for j in range(sum(inside), n + 1))
-print(f"with an exact covariance, {sum(inside)} or more of {n} would happen with probability {p_this_many:.2f}; "
-      f"the reported standard deviations are about {np.sqrt(3 / d2.mean()):.1f} x the errors actually made")
-assert sum(inside) >= 0.8 * n          # not overconfident
-assert d2.mean() < 3                   # on the safe side: conservative
+print(
+    f"with an exact covariance, {sum(inside)} or more of {n} would happen with probability {p_this_many:.2f}; "
+    f"the reported standard deviations are about {np.sqrt(3 / d2.mean()):.1f} x the errors actually made"
+)
+assert sum(inside) >= 0.8 * n  # not overconfident
+assert d2.mean() < 3  # on the safe side: conservative
 
 # %% [markdown]
 # ## 5. How far did the robot drive? Noise adds length
@@ -175,6 +207,7 @@ assert d2.mean() < 3                   # on the safe side: conservative
 # moving average (here over 5 frames, along the drive) removes most of the zig-zag, at the price of a little lag
 # and of rounding sharp turns.
 # (A real robot would fuse the camera with its wheel odometry in a Kalman filter: section 6 and notebook 10.)
+
 
 # %%
 def path_length_mm(points):
@@ -188,20 +221,23 @@ def moving_average(points, window=5):
     out = np.empty_like(points)
     half = window // 2
     for k in range(len(points)):
-        out[k] = np.nanmean(points[max(0, k - half): k + half + 1], axis=0)
+        out[k] = np.nanmean(points[max(0, k - half) : k + half + 1], axis=0)
     return out
 
 
-floor_true = true_position[:, :2]   # the floor plane: x and y only
+floor_true = true_position[:, :2]  # the floor plane: x and y only
 floor_est = position[:, :2]
 floor_smooth = moving_average(floor_est, window=5)
 inner = slice(2, -2)  # the first and last two frames have no full window: leave them out of every length
-lengths = {"true": path_length_mm(floor_true[inner]), "estimated": path_length_mm(floor_est[inner]),
-           "estimated, smoothed": path_length_mm(floor_smooth[inner])}
+lengths = {
+    "true": path_length_mm(floor_true[inner]),
+    "estimated": path_length_mm(floor_est[inner]),
+    "estimated, smoothed": path_length_mm(floor_smooth[inner]),
+}
 for name, length in lengths.items():
     print(f"{name:20s}: {length / 1000:.3f} m driven ({length - lengths['true']:+.0f} mm)")
 
-assert lengths["estimated"] > lengths["true"]                       # noise only adds length
+assert lengths["estimated"] > lengths["true"]  # noise only adds length
 excess_raw = lengths["estimated"] - lengths["true"]
 excess_smooth = abs(lengths["estimated, smoothed"] - lengths["true"])
 assert excess_smooth < excess_raw / 3 and excess_smooth / lengths["true"] < 0.01
@@ -229,15 +265,21 @@ base_true = np.array([T @ T_camera_base for T in T_true])
 base = np.array([o.T_world_base for o in tracked])
 heading_deg = np.degrees(np.arctan2(base[:, 1, 0], base[:, 0, 0]))
 for k in (0, 13, 26, 39):
-    print(f"frame {k:2d}: base at x {base[k, 0, 3]:6.0f} y {base[k, 1, 3]:5.0f} z {base[k, 2, 3]:4.0f} mm, heading "
-          f"{heading_deg[k]:6.1f} deg (true {np.degrees(np.arctan2(base_true[k, 1, 0], base_true[k, 0, 0])):6.1f})")
-print(f"the base's height over the drive: {base[:, 2, 3].min():.0f} to {base[:, 2, 3].max():.0f} mm "
-      f"(true {base_true[:, 2, 3].min():.0f} to {base_true[:, 2, 3].max():.0f} mm)")
+    print(
+        f"frame {k:2d}: base at x {base[k, 0, 3]:6.0f} y {base[k, 1, 3]:5.0f} z {base[k, 2, 3]:4.0f} mm, heading "
+        f"{heading_deg[k]:6.1f} deg (true {np.degrees(np.arctan2(base_true[k, 1, 0], base_true[k, 0, 0])):6.1f})"
+    )
+print(
+    f"the base's height over the drive: {base[:, 2, 3].min():.0f} to {base[:, 2, 3].max():.0f} mm "
+    f"(true {base_true[:, 2, 3].min():.0f} to {base_true[:, 2, 3].max():.0f} mm)"
+)
 assert np.allclose(base[5], tracked[5].T_world_camera @ T_camera_base)
 base_error = np.linalg.norm(base[:, :3, 3] - base_true[:, :3, 3], axis=1)
 tracked_error = np.linalg.norm(np.array([o.position_mm for o in tracked]) - true_position, axis=1)
-print(f"camera position error: per frame median {np.median(error_mm):.1f} mm, max {error_mm.max():.1f} mm; "
-      f"tracked median {np.median(tracked_error):.1f} mm, max {tracked_error.max():.1f} mm")
+print(
+    f"camera position error: per frame median {np.median(error_mm):.1f} mm, max {error_mm.max():.1f} mm; "
+    f"tracked median {np.median(tracked_error):.1f} mm, max {tracked_error.max():.1f} mm"
+)
 print(f"base position error: median {np.median(base_error):.1f} mm, max {base_error.max():.1f} mm")
 assert tracked_error.max() < error_mm.max() and np.median(base_error) < 20
 
@@ -253,11 +295,13 @@ assert tracked_error.max() < error_mm.max() and np.median(base_error) < 20
 # covariance (squared Mahalanobis distance). Below, both solutions of each ambiguous frame, measured against the
 # prediction the tracker had made, and what it kept.
 
+
 # %%
 def mahalanobis2(predicted, T, covariance):
     """Squared Mahalanobis distance of a pose from a prediction: [rotation (rad), position (mm)] residual."""
-    r = np.concatenate([cv2.Rodrigues(T[:3, :3] @ predicted.T_world_camera[:3, :3].T)[0].ravel(),
-                        T[:3, 3] - predicted.position_mm])
+    r = np.concatenate(
+        [cv2.Rodrigues(T[:3, :3] @ predicted.T_world_camera[:3, :3].T)[0].ravel(), T[:3, 3] - predicted.position_mm]
+    )
     return float(r @ np.linalg.solve(predicted.covariance + covariance, r))
 
 
@@ -267,21 +311,28 @@ for k, (p, t) in enumerate(zip(poses, times_s)):
     if k in ambiguous:
         predicted = replay.predict(t)
         for name, sol in (("ranked first", p), ("alternative ", p.alternative)):
-            print(f"frame {k}, {name}: squared Mahalanobis distance {mahalanobis2(predicted, sol.T_world_camera, p.covariance):.1f} "
-                  f"from the prediction, {frames.rotation_angle_deg(sol.T_world_camera[:3, :3], T_true[k][:3, :3]):.2f} deg "
-                  "from the truth")
+            print(
+                f"frame {k}, {name}: squared Mahalanobis distance "
+                f"{mahalanobis2(predicted, sol.T_world_camera, p.covariance):.1f} "
+                f"from the prediction, {frames.rotation_angle_deg(sol.T_world_camera[:3, :3], T_true[k][:3, :3]):.2f} "
+                "deg "
+                "from the truth"
+            )
     out = replay.update(p, t)
     if k in ambiguous:
         kept = "the alternative (flip undone)" if out.flip_resolved else "the solution ranked first"
-        print(f"frame {k}: the tracker kept {kept}; its output is "
-              f"{frames.rotation_angle_deg(out.T_world_camera[:3, :3], T_true[k][:3, :3]):.2f} deg from the truth")
+        print(
+            f"frame {k}: the tracker kept {kept}; its output is "
+            f"{frames.rotation_angle_deg(out.T_world_camera[:3, :3], T_true[k][:3, :3]):.2f} deg from the truth"
+        )
 flips = sum(frames.rotation_angle_deg(o.T_world_camera[:3, :3], T[:3, :3]) > 2 for o, T in zip(tracked, T_true))
 print(f"ambiguous frames: {len(ambiguous)}; tracked frames more than 2 deg off: {flips}")
 assert len(ambiguous) >= 1 and flips == 0
 
 # %% [markdown]
 # On this drive `estimate_pose` already ranked the right solution first, and the prediction agrees: the
-# alternative, 2 to 3 degrees away, is farther from it (close to the wall the two solutions differ little). Far away, with one small marker seen face-on, the frame's own ranking
+# alternative, 2 to 3 degrees away, is farther from it (close to the wall the two solutions differ little). Far away,
+# with one small marker seen face-on, the frame's own ranking
 # is a coin toss and the prediction decides; notebook 10 shows a drive with thirty such flips, every one undone.
 
 # %% [markdown]
@@ -296,8 +347,10 @@ WINDOW = 9  # frames; try 1, 3, 15
 
 smoothed = moving_average(floor_est, window=WINDOW)
 length_mm = path_length_mm(smoothed[inner])
-print(f"window {WINDOW:2d}: {length_mm / 1000:.3f} m driven ({length_mm - lengths['true']:+.0f} mm against the truth), "
-      f"largest distance from the true path {np.nanmax(np.linalg.norm(smoothed - floor_true, axis=1)):.1f} mm")
+print(
+    f"window {WINDOW:2d}: {length_mm / 1000:.3f} m driven ({length_mm - lengths['true']:+.0f} mm against the truth), "
+    f"largest distance from the true path {np.nanmax(np.linalg.norm(smoothed - floor_true, axis=1)):.1f} mm"
+)
 
 # %% [markdown]
 # ## Summary

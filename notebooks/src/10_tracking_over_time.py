@@ -42,8 +42,15 @@ np.set_printoptions(precision=3, suppress=True)
 # %%
 SIDE_MM, TOP_Z, FPS, N = 300.0, 1300.0, 30.0, 210
 EYE_Z = TOP_Z - SIDE_MM / 2
-world = MarkerMap.from_dict({"units": "mm", "marker_size_mm": SIDE_MM, "markers": {
-    str(i): {"translation": [0.0, y, TOP_Z], "rotation": [0, 0, 0]} for i, y in enumerate([0.0, 600.0, 1200.0])}})
+world = MarkerMap.from_dict(
+    {
+        "units": "mm",
+        "marker_size_mm": SIDE_MM,
+        "markers": {
+            str(i): {"translation": [0.0, y, TOP_Z], "rotation": [0, 0, 0]} for i, y in enumerate([0.0, 600.0, 1200.0])
+        },
+    }
+)
 camera = Camera.from_fov(60, (640, 480))
 
 
@@ -62,18 +69,26 @@ times_s = np.arange(N) / FPS
 corners = world.corners()
 far = true_position[:, 0] > 2100  # 2.1 m and more from the wall: only the middle marker
 rng = np.random.default_rng(7)
-detections = [[Detection(i, camera.project(corners[i], T) + rng.normal(0, 1.0, (4, 2)))
-               for i in ([1] if far[k] else corners)] for k, T in enumerate(T_true)]
+detections = [
+    [Detection(i, camera.project(corners[i], T) + rng.normal(0, 1.0, (4, 2))) for i in ([1] if far[k] else corners)]
+    for k, T in enumerate(T_true)
+]
 poses = [estimate_pose(d, world, camera, corner_sigma_px=1.0) for d in detections]
 
 position = np.array([p.position_mm for p in poses])
 error_mm = np.linalg.norm(position - true_position, axis=1)
 angle_deg = np.array([frames.rotation_angle_deg(p.T_world_camera[:3, :3], T[:3, :3]) for p, T in zip(poses, T_true)])
 FLIP_DEG = 10  # an orientation more than 10 deg off: the wrong planar solution, not noise
-print(f"{N} frames over {times_s[-1]:.1f} s; {far.sum()} frames far away with one marker; "
-      f"ambiguous frames: {sum(p.ambiguous for p in poses)}")
-print(f"per frame: position RMS {np.sqrt(np.mean(error_mm ** 2)):.0f} mm; near {np.sqrt(np.mean(error_mm[~far] ** 2)):.0f} mm, "
-      f"far {np.sqrt(np.mean(error_mm[far] ** 2)):.0f} mm; flipped frames (> {FLIP_DEG} deg): {(angle_deg > FLIP_DEG).sum()}")
+print(
+    f"{N} frames over {times_s[-1]:.1f} s; {far.sum()} frames far away with one marker; "
+    f"ambiguous frames: {sum(p.ambiguous for p in poses)}"
+)
+print(
+    f"per frame: position RMS {np.sqrt(np.mean(error_mm**2)):.0f} mm; near "
+    f"{np.sqrt(np.mean(error_mm[~far] ** 2)):.0f} mm, "
+    f"far {np.sqrt(np.mean(error_mm[far] ** 2)):.0f} mm; flipped frames (> {FLIP_DEG} deg): "
+    f"{(angle_deg > FLIP_DEG).sum()}"
+)
 assert (angle_deg > FLIP_DEG).sum() >= 10 and not (angle_deg[~far] > FLIP_DEG).any()
 
 fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(14, 4.5))
@@ -94,7 +109,8 @@ plt.show()
 
 # %% [markdown]
 # Near the wall the per-frame poses jitter by centimetres and about a degree; far away most frames jump by 10 to
-# 20 degrees, and their positions by half a metre and more: the corners of one small face-on marker fit two poses about equally well, and the noise decides which
+# 20 degrees, and their positions by half a metre and more: the corners of one small face-on marker fit two poses
+# about equally well, and the noise decides which
 # one `estimate_pose` ranks first. Each frame forgets the last one. A filter remembers.
 #
 # ## 2. A Kalman filter on the position, written out
@@ -123,10 +139,10 @@ def kalman_position(measured, covariances, times, q=Q_LIN):
         F = np.eye(6)
         F[:3, 3:] = np.eye(3) * dt
         Q = q**2 * np.block([[np.eye(3) * dt**3 / 3, np.eye(3) * dt**2 / 2], [np.eye(3) * dt**2 / 2, np.eye(3) * dt]])
-        x, P = F @ x, F @ P @ F.T + Q                                   # predict
+        x, P = F @ x, F @ P @ F.T + Q  # predict
         S = H @ P @ H.T + covariances[k]
         K = P @ H.T @ np.linalg.inv(S)
-        x, P = x + K @ (measured[k] - H @ x), (np.eye(6) - K @ H) @ P   # update
+        x, P = x + K @ (measured[k] - H @ x), (np.eye(6) - K @ H) @ P  # update
         out.append(x[:3].copy())
     return np.array(out)
 
@@ -137,7 +153,10 @@ tracker = PoseTracker(world, camera, process_noise=(Q_LIN, 0.6))
 theirs = np.array([tracker.update(poses[k], times_s[k]).position_mm for k in near])
 gap_mm = np.linalg.norm(ours - theirs, axis=1)
 rms = lambda e: float(np.sqrt(np.mean(np.asarray(e) ** 2)))  # noqa: E731
-print(f"near frames: per frame RMS {rms(error_mm[near]):.1f} mm, our filter {rms(np.linalg.norm(ours - true_position[near], axis=1)):.1f} mm")
+print(
+    f"near frames: per frame RMS {rms(error_mm[near]):.1f} mm, our filter "
+    f"{rms(np.linalg.norm(ours - true_position[near], axis=1)):.1f} mm"
+)
 print(f"our filter against PoseTracker's position: largest difference {gap_mm.max():.2f} mm")
 assert gap_mm.max() < 2.0
 assert rms(np.linalg.norm(ours - true_position[near], axis=1)) < 0.7 * rms(error_mm[near])
@@ -156,6 +175,7 @@ assert rms(np.linalg.norm(ours - true_position[near], axis=1)) < 0.7 * rms(error
 # own numbers (rotation vectors, Euler angles) instead goes wrong near +-180 deg, where those numbers wrap.
 # Two headings, 170 deg and -170 deg: both face nearly backwards, 20 deg apart.
 
+
 # %%
 def rz(deg):
     return frames.rotation_from_rpy_deg(0, 0, deg)
@@ -172,12 +192,18 @@ def log_so3(R):
 
 
 Ra, Rb = rz(170), rz(-170)
-euler_mean = rz((170 + -170) / 2)                                     # average the yaws
-rvec_mean = exp_so3((log_so3(Ra) + log_so3(Rb)) / 2)                  # average the rotation vectors
-manifold_mean = Ra @ exp_so3(0.5 * log_so3(Ra.T @ Rb))               # halfway along the shortest turn from Ra to Rb
-for name, R in (("average of yaws", euler_mean), ("average of rotation vectors", rvec_mean), ("on the manifold", manifold_mean)):
-    print(f"{name:28s}: heading {frames.rpy_deg_from_rotation(R)[2]:7.1f} deg, "
-          f"{frames.rotation_angle_deg(R, Ra):5.1f} and {frames.rotation_angle_deg(R, Rb):5.1f} deg from the two")
+euler_mean = rz((170 + -170) / 2)  # average the yaws
+rvec_mean = exp_so3((log_so3(Ra) + log_so3(Rb)) / 2)  # average the rotation vectors
+manifold_mean = Ra @ exp_so3(0.5 * log_so3(Ra.T @ Rb))  # halfway along the shortest turn from Ra to Rb
+for name, R in (
+    ("average of yaws", euler_mean),
+    ("average of rotation vectors", rvec_mean),
+    ("on the manifold", manifold_mean),
+):
+    print(
+        f"{name:28s}: heading {frames.rpy_deg_from_rotation(R)[2]:7.1f} deg, "
+        f"{frames.rotation_angle_deg(R, Ra):5.1f} and {frames.rotation_angle_deg(R, Rb):5.1f} deg from the two"
+    )
 assert frames.rotation_angle_deg(manifold_mean, rz(180)) < 1e-9 and frames.rotation_angle_deg(rvec_mean, rz(0)) < 1e-9
 
 # %% [markdown]
@@ -193,12 +219,20 @@ assert frames.rotation_angle_deg(manifold_mean, rz(180)) < 1e-9 and frames.rotat
 # %%
 tracker = PoseTracker(world, camera, process_noise=(Q_LIN, 0.6))
 tracked = [tracker.update(p, t) for p, t in zip(poses, times_s)]
-tracked_angle = np.array([frames.rotation_angle_deg(o.T_world_camera[:3, :3], T[:3, :3]) for o, T in zip(tracked, T_true)])
+tracked_angle = np.array(
+    [frames.rotation_angle_deg(o.T_world_camera[:3, :3], T[:3, :3]) for o, T in zip(tracked, T_true)]
+)
 tracked_error = np.linalg.norm(np.array([o.position_mm for o in tracked]) - true_position, axis=1)
-print(f"flipped frames (> {FLIP_DEG} deg): per frame {(angle_deg > FLIP_DEG).sum()}, tracked {(tracked_angle > FLIP_DEG).sum()}; "
-      f"flips undone by the tracker: {sum(o.flip_resolved for o in tracked)}, frames rejected: {sum(o.rejected for o in tracked)}")
-print(f"position RMS: per frame {rms(error_mm):.0f} mm, tracked {rms(tracked_error):.0f} mm; "
-      f"far frames {rms(error_mm[far]):.0f} -> {rms(tracked_error[far]):.0f} mm")
+print(
+    f"flipped frames (> {FLIP_DEG} deg): per frame {(angle_deg > FLIP_DEG).sum()}, tracked "
+    f"{(tracked_angle > FLIP_DEG).sum()}; "
+    f"flips undone by the tracker: {sum(o.flip_resolved for o in tracked)}, frames rejected: "
+    f"{sum(o.rejected for o in tracked)}"
+)
+print(
+    f"position RMS: per frame {rms(error_mm):.0f} mm, tracked {rms(tracked_error):.0f} mm; "
+    f"far frames {rms(error_mm[far]):.0f} -> {rms(tracked_error[far]):.0f} mm"
+)
 assert (tracked_angle > FLIP_DEG).sum() == 0 and rms(tracked_error) < 0.5 * rms(error_mm)
 
 fig, ax = plt.subplots(figsize=(14, 3.8))
@@ -234,19 +268,27 @@ for a, b in zip(T_true[:-1], T_true[1:]):
 runs = {}
 for name, use_odometry in (("motion model only", False), ("with odometry", True)):
     tracker = PoseTracker(world, camera, process_noise=(Q_LIN, 0.6))
-    runs[name] = [tracker.update(None if k in gap else poses[k], times_s[k], odometry[k] if use_odometry else None)
-                  for k in range(N)]
+    runs[name] = [
+        tracker.update(None if k in gap else poses[k], times_s[k], odometry[k] if use_odometry else None)
+        for k in range(N)
+    ]
 for name, run in runs.items():
     err = np.linalg.norm(np.array([run[k].position_mm for k in gap]) - true_position[list(gap)], axis=1)
-    print(f"{name:18s}: largest error in the 1 s gap {err.max():6.1f} mm, at its end {err[-1]:6.1f} mm "
-          f"(status {run[gap[-1]].status!r}, reported std {np.linalg.norm(run[gap[-1]].position_std_mm):.0f} mm)")
-driven_mm = np.sum(np.linalg.norm(np.diff(true_position[gap[0] - 1: gap[-1] + 1], axis=0), axis=1))
+    print(
+        f"{name:18s}: largest error in the 1 s gap {err.max():6.1f} mm, at its end {err[-1]:6.1f} mm "
+        f"(status {run[gap[-1]].status!r}, reported std {np.linalg.norm(run[gap[-1]].position_std_mm):.0f} mm)"
+    )
+driven_mm = np.sum(np.linalg.norm(np.diff(true_position[gap[0] - 1 : gap[-1] + 1], axis=0), axis=1))
 print(f"driven during the gap: {driven_mm:.0f} mm; 2 % of it is {0.02 * driven_mm:.0f} mm")
 before = runs["with odometry"][gap[0] - 1]
-print(f"odometry scale learnt before the gap: {before.odometry_scale:.3f} +/- {before.odometry_scale_std:.3f} "
-      f"(the truth: 1 / 1.02 = {1 / 1.02:.3f})")
-gap_err = {n: np.linalg.norm(np.array([r[k].position_mm for k in gap]) - true_position[list(gap)], axis=1).max()
-           for n, r in runs.items()}
+print(
+    f"odometry scale learnt before the gap: {before.odometry_scale:.3f} +/- {before.odometry_scale_std:.3f} "
+    f"(the truth: 1 / 1.02 = {1 / 1.02:.3f})"
+)
+gap_err = {
+    n: np.linalg.norm(np.array([r[k].position_mm for k in gap]) - true_position[list(gap)], axis=1).max()
+    for n, r in runs.items()
+}
 assert gap_err["with odometry"] < 0.5 * gap_err["motion model only"]
 
 # %% [markdown]
@@ -287,7 +329,10 @@ msg = ros.ros_pose(last)
 print({k: msg[k] for k in ("header", "child_frame_id")})
 print("position (m):", {k: round(v, 6) for k, v in msg["pose"]["pose"]["position"].items()})  # to the micrometre
 print("orientation :", {k: round(v, 6) for k, v in msg["pose"]["pose"]["orientation"].items()})
-print("covariance diagonal (m^2 then rad^2):", [f"{v:.1e}" for v in np.diag(np.reshape(msg["pose"]["covariance"], (6, 6)))])
+print(
+    "covariance diagonal (m^2 then rad^2):",
+    [f"{v:.1e}" for v in np.diag(np.reshape(msg["pose"]["covariance"], (6, 6)))],
+)
 print("TUM:", ros.tum_line(last.t_s, last.T_world_camera))
 q = msg["pose"]["pose"]["orientation"]
 assert np.allclose(frames.matrix_from_quaternion([q["x"], q["y"], q["z"], q["w"]]), last.T_world_camera[:3, :3])
@@ -304,8 +349,10 @@ Q_TRY = 3000.0  # mm/s^2 per sqrt(Hz); try 30, 300, 3000
 
 tracker = PoseTracker(world, camera, process_noise=(Q_TRY, 0.6 * Q_TRY / Q_LIN))
 e = np.linalg.norm(np.array([tracker.update(p, t).position_mm for p, t in zip(poses, times_s)]) - true_position, axis=1)
-print(f"process noise {Q_TRY:.0f} mm/s^2: position RMS near {rms(e[~far]):.1f} mm, far {rms(e[far]):.1f} mm "
-      f"(per frame: {rms(error_mm[~far]):.1f} and {rms(error_mm[far]):.1f} mm)")
+print(
+    f"process noise {Q_TRY:.0f} mm/s^2: position RMS near {rms(e[~far]):.1f} mm, far {rms(e[far]):.1f} mm "
+    f"(per frame: {rms(error_mm[~far]):.1f} and {rms(error_mm[far]):.1f} mm)"
+)
 
 # %% [markdown]
 # ## Summary

@@ -30,8 +30,16 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from fidlearn import (Camera, MarkerMap, MarkerTracker, board_pdf, calibrate_checkerboard, data_path, markers_pdf,
-                      plotting)
+from fidlearn import (
+    Camera,
+    MarkerMap,
+    MarkerTracker,
+    board_pdf,
+    calibrate_checkerboard,
+    data_path,
+    markers_pdf,
+    plotting,
+)
 from fidlearn.detection import load_image
 from fidlearn.errors import NoMarkersError, PoseError
 from fidlearn.widgets import Webcam, figure_png
@@ -152,8 +160,9 @@ if HAVE_CAMERA:
         latest.update(frame=frame_bgr, corners=corners)
         covered = coverage_map([c for _, c in captured], (frame_bgr.shape[1], frame_bgr.shape[0]))
         preview.value = jpeg(annotate(frame_bgr, corners, covered))
-        info.value = (f"{len(captured)} views captured, {covered.mean():.0%} of the picture covered; "
-                      + ("<b>board found</b>: capture!" if corners is not None else "board not found"))
+        info.value = f"{len(captured)} views captured, {covered.mean():.0%} of the picture covered; " + (
+            "<b>board found</b>: capture!" if corners is not None else "board not found"
+        )
 
     def on_capture(_button):
         if latest["corners"] is not None:
@@ -189,11 +198,14 @@ if len(views) >= MIN_VIEWS:
     print(f"calibrated from {len(calibration.used)} of {len(views)} views of {source}")
     print(calibration.table())
 else:
-    print(f"{len(views)} views captured from {source}: at least {MIN_VIEWS} are needed. Capture more views in "
-          "section 2, then run this cell again.")
+    print(
+        f"{len(views)} views captured from {source}: at least {MIN_VIEWS} are needed. Capture more views in "
+        "section 2, then run this cell again."
+    )
 
 # %% [markdown]
 # The warnings: what to fix before you trust the numbers.
+
 
 # %%
 def calibration_warnings(cal, covered, min_views=MIN_VIEWS):
@@ -202,8 +214,10 @@ def calibration_warnings(cal, covered, min_views=MIN_VIEWS):
     if len(cal.used) < min_views:
         notes.append(f"only {len(cal.used)} views used: capture at least {min_views}")
     if covered.mean() < 0.7:
-        notes.append(f"the views cover {covered.mean():.0%} of the picture: hold the board near the edges and "
-                     "corners too, or the distortion there is a guess")
+        notes.append(
+            f"the views cover {covered.mean():.0%} of the picture: hold the board near the edges and "
+            "corners too, or the distortion there is a guess"
+        )
     if cal.rms_px > 1.0:
         notes.append(f"RMS {cal.rms_px:.2f} px is high: blurred or moving views, or a board that is not flat")
     for name, why in cal.rejected:
@@ -247,7 +261,9 @@ if calibration is not None:
 # careful set of real photos reaches. Your set is compared with it, in words.
 
 # %%
-real_views = [Path(os.path.relpath(p)) for p in sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))]
+real_views = [
+    Path(os.path.relpath(p)) for p in sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))
+]
 reference = calibrate_checkerboard(real_views, PATTERN, 25.0)
 ref_size = (reference.camera.width, reference.camera.height)
 ref_cover = coverage_map(reference.image_points_px.values(), ref_size).mean()
@@ -265,13 +281,19 @@ def verdict(cal, ref_views, ref_cover, ref_rms):
         lines.append(f"- too few views ({len(cal.used)}; the reference uses {ref_views}): capture more.")
     if cover < min(ref_cover, 0.7):
         ok = False
-        lines.append(f"- the views cover less of the picture than the reference ({cover:.0%} < {ref_cover:.0%}): "
-                     "hold the board near the edges and corners.")
+        lines.append(
+            f"- the views cover less of the picture than the reference ({cover:.0%} < {ref_cover:.0%}): "
+            "hold the board near the edges and corners."
+        )
     if cal.rms_px > max(2 * ref_rms, 1.0):
         ok = False
-        lines.append(f"- RMS {cal.rms_px:.2f} px is more than twice the reference's {ref_rms:.2f} px: drop blurred "
-                     "views, light the board evenly, keep it flat.")
-    lines.append("Good enough: use this camera.json." if ok else "Not good enough yet: fix the points above and calibrate again.")
+        lines.append(
+            f"- RMS {cal.rms_px:.2f} px is more than twice the reference's {ref_rms:.2f} px: drop blurred "
+            "views, light the board evenly, keep it flat."
+        )
+    lines.append(
+        "Good enough: use this camera.json." if ok else "Not good enough yet: fix the points above and calibrate again."
+    )
     return "\n".join(lines)
 
 
@@ -304,10 +326,7 @@ print(f"wrote {OUT / 'markers.pdf'}: markers {world_map.ids}, {world_map.marker_
 
 # %%
 live_log = []  # the last frames' (gray frame, pose or None), for a look afterwards
-if HAVE_CAMERA:
-    camera = Camera.load(OUT / "camera.json")
-else:
-    camera = Camera.load(data_path("trajectory", "camera.json"))
+camera = Camera.load(OUT / "camera.json" if HAVE_CAMERA else data_path("trajectory", "camera.json"))
 tracker = MarkerTracker(world_map, camera)
 pose_text = w.HTML()
 scene_view = w.Image(format="png", width=520)
@@ -325,8 +344,10 @@ def show_pose(frame_bgr):
         return
     x, y, z = pose.position_mm
     flag = " <b style='color:#c00'>ambiguous</b>" if pose.ambiguous else ""
-    pose_text.value = (f"camera at x {x:.0f}, y {y:.0f}, z {z:.0f} mm; roll/pitch/yaw {np.round(pose.rpy_deg, 1)} deg; "
-                       f"markers {list(pose.marker_ids)}, RMS {pose.reprojection_rms_px:.2f} px{flag}")
+    pose_text.value = (
+        f"camera at x {x:.0f}, y {y:.0f}, z {z:.0f} mm; roll/pitch/yaw {np.round(pose.rpy_deg, 1)} deg; "
+        f"markers {list(pose.marker_ids)}, RMS {pose.reprojection_rms_px:.2f} px{flag}"
+    )
     fig = plotting.plot_scene(world_map, [pose], camera=camera, title="world, markers and your camera")
     scene_view.value = figure_png(fig, dpi=60)
     plt.close(fig)

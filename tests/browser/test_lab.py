@@ -219,7 +219,7 @@ def lab(tmp_path):
         assert _sha256(notebook) == before, f"{notebook} was modified by the browser test"
 
 
-def _settled_picture(page, widget, server: Lab) -> tuple[str, bytes]:
+def _settled_picture(widget, server: Lab) -> tuple[str, bytes]:
     """The widget's picture once the kernel is idle and its <img> has stopped changing: (src, PNG screenshot).
 
     Each slider change redraws (clear the Output, show a new <img>), so an element taken too early
@@ -316,7 +316,7 @@ def test_intrinsics_notebook_runs_and_its_slider_redraws_the_figure(lab):
             widget = page.locator(".jp-OutputArea-output .widget-vbox").filter(has=page.locator(".widget-slider")).first
             widget.wait_for(timeout=REDRAW_S * 1000)
             assert widget.locator(".widget-slider").count() == 5
-            src_before, shot_before = _settled_picture(page, widget, server)
+            src_before, shot_before = _settled_picture(widget, server)
 
             fx = widget.locator(".widget-slider").filter(has=page.locator("label", has_text=re.compile(r"^fx$")))
             readout = fx.locator(".widget-readout")
@@ -335,7 +335,7 @@ def test_intrinsics_notebook_runs_and_its_slider_redraws_the_figure(lab):
                 arg=src_before,
                 timeout=REDRAW_S * 1000,
             )
-            src_after, shot_after = _settled_picture(page, widget, server)
+            src_after, shot_after = _settled_picture(widget, server)
             value_after = readout.inner_text()
             assert float(value_after) > float(value_before), (value_before, value_after)
             assert src_after != src_before, "the figure did not change when fx moved"

@@ -44,8 +44,8 @@ from test_lab import (
 )
 
 from fidlearn import Camera, MarkerMap, data_path, render_trajectory
-from fidlearn._y4m import write_y4m
 from fidlearn.data import repo_dir
+from tests.y4m import write_y4m
 
 NOTEBOOK = "12_your_own_camera.ipynb"
 N_FRAMES = 8
@@ -207,7 +207,8 @@ print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_heig
                 client.stop_channels()
             browser.close()
 
-    assert facts["status"] == "streaming" and facts["size"] == [640, 480], facts
+    assert facts["status"] == "streaming", facts
+    assert facts["size"] == [640, 480], facts
     assert facts["error"] == "None", facts
     assert 0 < facts["fps"] <= 5.5, f"the stream ran at {facts['fps']:.2f} fps, max_fps is 5"
     sources = drive.images
@@ -216,7 +217,8 @@ print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_heig
 
     # The snapshot (PNG over the comm) is one of the rendered frames, to a gray level.
     snap_gray = data["snapshot"][..., 1]
-    assert (data["snapshot"][..., 0] == snap_gray).all() and (data["snapshot"][..., 2] == snap_gray).all()
+    assert (data["snapshot"][..., 0] == snap_gray).all()
+    assert (data["snapshot"][..., 2] == snap_gray).all()
     snap_k, best, second = _identify(snap_gray, sources)
     assert np.abs(snap_gray.astype(int) - sources[snap_k]).max() <= 1, (snap_k, best)
     assert second > 4, f"frames {snap_k} and its nearest neighbour are too alike to tell apart ({second:.2f})"
@@ -225,7 +227,8 @@ print(json.dumps(dict(status=cam.status, size=[cam.actual_width, cam.actual_heig
     seen, errors_mm = set(), []
     for i, (gray, T) in enumerate(zip(data["grays"], data["T"])):
         k, best, second = _identify(gray, sources)
-        assert best < 2.0 and second > 4.0, f"streamed frame {i}: nearest source {k} at {best:.2f}, next {second:.2f}"
+        assert best < 2.0, f"streamed frame {i}: nearest source {k} at {best:.2f}, next {second:.2f}"
+        assert second > 4.0, f"streamed frame {i}: nearest source {k} at {best:.2f}, next {second:.2f}"
         assert not np.isnan(T).any(), f"streamed frame {i} (source {k}): no pose"
         error_mm = np.linalg.norm(T[:3, 3] - drive.T_world_camera[k][:3, 3])
         assert error_mm < POSE_TOL_MM, f"streamed frame {i} (source {k}): {error_mm:.2f} mm from the truth"
@@ -282,7 +285,8 @@ def test_without_a_camera_the_notebook_says_why_and_offers_the_bundled_pictures(
                 )
             except playwright.TimeoutError:
                 raise AssertionError(f"the widget says {message.inner_text()!r}, not {words!r}") from None
-            assert "HAVE_CAMERA = False" in message.inner_text() and "bundled pictures" in message.inner_text()
+            assert "HAVE_CAMERA = False" in message.inner_text()
+            assert "bundled pictures" in message.inner_text()
             assert not page.locator(".fidlearn-webcam video").first.is_visible()
             # ... and the snapshot cell stops Run All with the same advice, not a hang or a timeout.
             try:
@@ -296,7 +300,8 @@ def test_without_a_camera_the_notebook_says_why_and_offers_the_bundled_pictures(
                 raise AssertionError("the snapshot cell shows no WebcamError") from None
             text = next(t for t in page.locator(".jp-OutputArea-output").all_inner_texts() if "WebcamError" in t)
             last = [line for line in text.splitlines() if line.startswith("WebcamError:")][-1]
-            assert words in last and "bundled pictures" in last, last  # the refusal's advice, not a timeout
+            assert words in last, last  # the refusal's advice, not a timeout
+            assert "bundled pictures" in last, last
         finally:
             browser.close()
     client = _kernel_client(server)

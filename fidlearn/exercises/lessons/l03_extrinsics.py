@@ -350,7 +350,7 @@ def _q5(learner: str) -> Question:
     def R_of(a):
         return cv2.Rodrigues(np.asarray(a["axis"]) / np.linalg.norm(a["axis"]) * math.radians(a["angle_deg"]))[0]
 
-    def cmp5(a, b):
+    def cmp5(a, _key):
         if abs(np.linalg.norm(a["axis"]) - 1) > 1e-3:
             return f"the axis has length {np.linalg.norm(a['axis']):.4g}: give a UNIT vector"
         err = frames.rotation_angle_deg(R_of(a), cv2.Rodrigues(rvec)[0])

@@ -473,7 +473,7 @@ def _q4(learner: str) -> Question:
         expected=task,
         parse=_marker_map,
         compare=task.verdict,
-        notes=[(lambda m: True, task.praise)],
+        notes=[(lambda _m: True, task.praise)],
         **_Q4,
     )
 

@@ -27,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import ImageError
+from fidlearn.errors import ImageError
 
 __all__ = ["read_y4m", "write_y4m", "yuv420_planes"]
 
