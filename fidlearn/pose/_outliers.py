@@ -343,6 +343,11 @@ _SUSPECTS = 3
 OUTLIER_POOR_FIT_PX = 2.0
 
 
+def _poor_fit(obs: _Obs, best: _Candidate) -> bool:
+    """Whether the fit of all leaves more than ``OUTLIER_POOR_FIT_PX`` RMS per corner."""
+    return best.sse > OUTLIER_POOR_FIT_PX**2 * len(obs.obj)
+
+
 def _suspects(obs: _Obs, best: _Candidate, camera: Camera) -> list[int]:
     """The markers worth a leave-one-out fit: all of them up to ``_LEAVE_EACH_OUT`` markers, else the
     ``_SUSPECTS`` largest :func:`_deletion_q` (all when it cannot be computed); none when no marker's
@@ -362,22 +367,25 @@ def _suspects(obs: _Obs, best: _Candidate, camera: Camera) -> list[int]:
 
 
 def _to_leave_out(obs: _Obs, marker_map, best: _Candidate, camera: Camera, corner_sigma_px: float | None):
-    """The marker to leave out and the solve of the others (:func:`_rest_fit`), or None: the one whose
-    absence explains the others best, each of the
-    :func:`_suspects` left out in turn and the others solved afresh (:func:`_rest_fit`). It is left out when
-    it is the marker displaced on its wall (:func:`_named_displaced`) or else when :func:`_left_out_test`
-    says it disagrees with the others.
+    """The marker to leave out and the solve of the others (:func:`_rest_fit`), or None.
 
-    The marker displaced on its wall is kept unless leaving out another explains the others better by more than
-    the left-out test's limit (sigma^2 times chi-square(8) or 8 F(8, nu)): among markers in a row a move is
-    explained almost as well by leaving out a neighbour, and the move's own test (2 degrees of freedom) is the
-    sharper judge; but a displacement linearised at a pose the misplaced marker dragged can name a good one.
+    The marker displaced on its wall (:func:`_named_displaced`) is left out at once when the others, solved
+    without it, agree (:func:`_agree`). Otherwise each of the :func:`_suspects` is left out in turn, the
+    others solved afresh, and the marker whose absence explains them best is left out when it is the one
+    displaced or else when :func:`_left_out_test` says it disagrees with them. The displaced marker is kept
+    unless leaving out another explains the others better by more than the left-out test's limit (sigma^2
+    times chi-square(8) or 8 F(8, nu)): among markers in a row a move is explained almost as well by leaving
+    out a neighbour, and the move's own test (2 degrees of freedom) is the sharper judge; but a move
+    linearised at a pose the misplaced marker dragged (onto the other planar solution) can name a good one.
     """
     named = _named_displaced(obs, best, camera, corner_sigma_px)
-    tried = _suspects(obs, best, camera)
-    if named is not None and named not in tried:
-        tried.append(named)
-    fits = {j: fit for j in tried if (fit := _rest_fit(obs, marker_map, j, camera)) is not None}
+    fits = {} if named is None else {named: _rest_fit(obs, marker_map, named, camera)}
+    if fits.get(named) is not None and _agree(_without(obs, named), fits[named][4][0][0], camera, corner_sigma_px):
+        return named, fits[named][4]
+    for j in _suspects(obs, best, camera):
+        if j not in fits:
+            fits[j] = _rest_fit(obs, marker_map, j, camera)
+    fits = {j: fit for j, fit in fits.items() if fit is not None}
     if not fits:
         return None
     k = min(fits, key=lambda j: fits[j][2])
@@ -388,6 +396,14 @@ def _to_leave_out(obs: _Obs, marker_map, best: _Candidate, camera: Camera, corne
     return (k, fits[k][4]) if _left_out_test(obs, k, fits[k], camera, corner_sigma_px) else None
 
 
+def _agree(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
+    """Whether the markers of ``obs`` agree with each other at their fit ``best``: neither a fit leaving more
+    than ``OUTLIER_POOR_FIT_PX`` nor (with 3 markers or more) the screen fires."""
+    if _poor_fit(obs, best):
+        return False
+    return len(obs.ids) < 3 or _screen(obs, best, camera, corner_sigma_px) is None
+
+
 def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined):
     """While :func:`_screen` fires, or the fit of all leaves more than ``OUTLIER_POOR_FIT_PX``: leave out
     the marker :func:`_to_leave_out` names.
@@ -396,8 +412,7 @@ def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_si
     """
     rejected: list[int] = []
     while len(obs.ids) >= 3:
-        poor = cands[0].sse > OUTLIER_POOR_FIT_PX**2 * len(obs.obj)
-        if not poor and _screen(obs, cands[0], camera, corner_sigma_px) is None:
+        if not _poor_fit(obs, cands[0]) and _screen(obs, cands[0], camera, corner_sigma_px) is None:
             break
         hit = _to_leave_out(obs, marker_map, cands[0], camera, corner_sigma_px)
         if hit is None:
