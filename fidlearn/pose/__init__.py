@@ -78,6 +78,7 @@ from ._outliers import DISPLACEMENT_P as DISPLACEMENT_P
 from ._outliers import OUTLIER_CHI2 as OUTLIER_CHI2
 from ._outliers import OUTLIER_MIN_RMS_PX as OUTLIER_MIN_RMS_PX
 from ._outliers import OUTLIER_P as OUTLIER_P
+from ._outliers import OUTLIER_POOR_FIT_PX as OUTLIER_POOR_FIT_PX
 from ._outliers import OUTLIER_SIGMA_FLOOR_PX as OUTLIER_SIGMA_FLOOR_PX
 from ._outliers import SCREEN_P as SCREEN_P
 from ._refine import PoseRefinement as PoseRefinement

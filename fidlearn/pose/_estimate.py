@@ -90,12 +90,18 @@ def estimate_pose(
         at ``DISPLACEMENT_P`` = 0.2 % per frame), and any misfit (the chi-square
         of the whole fit when ``corner_sigma_px`` is given, else each marker's
         share of the sum of squares that leaving it out would remove: a Beta,
-        i.e. F, test free of the unknown noise). A marker whose move passes and
-        explains more than ``DISPLACEMENT_MIN_RMS_PX`` RMS is rejected. Otherwise
-        the marker whose absence explains the others best is rejected when its
-        residual, predicted from the pose of the others (refined from the pose
-        of all, so it keeps that planar solution), fails the nested-model test
-        at ``OUTLIER_P`` (chi-square with 8 degrees of freedom when
+        i.e. F, test free of the unknown noise). A fit of all leaving more than
+        ``OUTLIER_POOR_FIT_PX`` RMS is tested whatever the screen says. A marker
+        whose move passes and explains more than ``DISPLACEMENT_MIN_RMS_PX`` RMS
+        is rejected when the others, solved afresh without it (as if only they
+        had been seen: both planar solutions, refined), agree. Otherwise each
+        marker is left out in turn (the 3 likeliest beyond 8 markers) and the
+        others solved afresh; the marker whose move passes is still rejected
+        unless leaving out another explains the others clearly better (by more
+        than the limit below). Else the marker whose absence explains the others best is
+        rejected when its residual, predicted from the pose of the others
+        (solved without it), fails the nested-model test at
+        ``OUTLIER_P`` (chi-square with 8 degrees of freedom when
         ``corner_sigma_px`` is given, else F(8, nu) with the noise estimated from
         the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
         With 2 markers nobody can tell which is wrong: nothing is rejected, but

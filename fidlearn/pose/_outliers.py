@@ -1,7 +1,8 @@
 """Markers that disagree with the others (measured wrongly on the wall): a screen with a stated false-alarm rate,
-then the test of a marker displaced in its plane (2 degrees of freedom, the way a marker is misplaced) and, when
-no such move explains the misfit, leave-one-out fits from the pose of all and the nested-model test of the
-marker that explains most (its 8 corner coordinates free: a marker turned, a wrong corner)."""
+then leave-one-out fits, the others solved afresh each time (both planar solutions), and the marker whose
+absence explains the others best: left out when it is the marker displaced in its plane (2 degrees of freedom,
+the way a marker is misplaced), else when it fails the nested-model test (its 8 corner coordinates free: a
+marker turned, a wrong corner)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from ..camera import Camera
 from ..errors import PoseError
 from ._checks import _cheirality
 from ._observations import _UNCHECKED, _Candidate, _Obs
-from ._refine import _lm, _residuals
+from ._refine import _residuals
 from ._solvers import _solve
 
 #: False-alarm probability of the test that rejects a marker (per marker tested): its 8
@@ -266,18 +267,42 @@ def _named_displaced(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_p
 
 def _without(obs: _Obs, k: int) -> _Obs:
     sel = np.r_[0 : 4 * k, 4 * k + 4 : len(obs.obj)]
-    return _Obs([i for j, i in enumerate(obs.ids) if j != k], obs.obj[sel], obs.img[sel])
+    rest = _Obs([i for j, i in enumerate(obs.ids) if j != k], obs.obj[sel], obs.img[sel])
+    if obs._faces is not None:
+        rest._faces = np.delete(obs._faces, k, axis=0)
+    return rest
 
 
-def _rest_fit(obs: _Obs, best: _Candidate, k: int, camera: Camera) -> tuple:
-    """The pose of every marker but k, refined by LM from the pose of all: ``(R_wc, C, sse, JtJ)``.
+def _rest_fit(obs: _Obs, marker_map, k: int, camera: Camera) -> tuple | None:
+    """The pose of every marker but k, solved afresh: ``(R_wc, C, sse, JtJ, solved)``, ``solved`` what
+    :func:`_solve` returned (method ``"auto"``, refined), or None when no pose is found.
 
-    A local step: it stays on the planar solution of all the markers, however few the others (two
-    coplanar markers left alone could flip to their other solution; here they cannot).
+    The others are solved as if only they had been seen (coplanar: IPPE's two solutions, each refined by
+    LM, the better kept), not refined from the pose of all: a misplaced marker can drag that pose onto
+    the other planar solution, from which a local step never reaches the others' own pose.
     """
     rest = _without(obs, k)
-    R_wc, C, sse, _, JtJ = _lm(rest.obj, rest.img, camera.K, camera.dist, best.R_wc, best.C)
-    return R_wc, C, sse, JtJ
+    try:
+        solved = _solve(rest, marker_map, camera, "auto", True)
+    except PoseError:
+        return None
+    best = solved[0][0]
+    if best.problem is not None:
+        return None  # no pose a camera can have
+    JtJ = best.JtJ
+    if JtJ is None:
+        _, J = _residuals(rest.obj, rest.img, camera.K, camera.dist, best.R_wc, best.C, True)
+        JtJ = J.T @ J
+    return best.R_wc, best.C, best.sse, JtJ, solved
+
+
+def _rest_noise(obs: _Obs, sse: float, corner_sigma_px: float | None) -> tuple[int, float]:
+    """The degrees of freedom of a fit of all markers but one, and the noise (px) of the test of the one:
+    ``corner_sigma_px`` when given, else estimated from that fit's ``sse``, never below ``OUTLIER_SIGMA_FLOOR_PX``."""
+    dof = 2 * (len(obs.obj) - 4) - 6
+    if corner_sigma_px is not None:
+        return dof, float(corner_sigma_px)
+    return dof, max(math.sqrt(sse / dof), OUTLIER_SIGMA_FLOOR_PX)
 
 
 def _left_out_test(obs: _Obs, k: int, fit: tuple, camera: Camera, corner_sigma_px: float | None) -> bool:
@@ -287,9 +312,8 @@ def _left_out_test(obs: _Obs, k: int, fit: tuple, camera: Camera, corner_sigma_p
     Marker k's corners predicted from the others' pose must fail chi-square(8) (sigma given) or
     8 F(8, nu) (sigma from the others' nu degrees of freedom), with an RMS above ``OUTLIER_MIN_RMS_PX``.
     """
-    R_wc, C, sse, JtJ = fit
-    dof = 2 * (len(obs.obj) - 4) - 6
-    sigma = float(corner_sigma_px) if corner_sigma_px is not None else max(math.sqrt(sse / dof), OUTLIER_SIGMA_FLOOR_PX)
+    R_wc, C, sse, JtJ = fit[:4]
+    dof, sigma = _rest_noise(obs, sse, corner_sigma_px)
     r_out, J_out = _residuals(
         obs.obj[4 * k : 4 * k + 4], obs.img[4 * k : 4 * k + 4], camera.K, camera.dist, R_wc, C, True
     )
@@ -302,17 +326,34 @@ def _left_out_test(obs: _Obs, k: int, fit: tuple, camera: Camera, corner_sigma_p
     return chi2 > _outlier_threshold(dof, corner_sigma_px is not None) and rms > OUTLIER_MIN_RMS_PX
 
 
-#: How many markers, those whose absence lowers the linearised sum of squares most, are refit by LM
-#: when the screen fires: the refits agree with the linearised ranking to second order, and a
-#: frame of 50 markers then costs 3 refits, not 50.
+#: With up to this many markers every one is left out in turn (a fresh solve of the others each) when the
+#: test runs: few markers are where one misplaced marker drags the pose of all furthest, and then the
+#: sums of squares linearised at that pose (:func:`_deletion_q`) can rank the markers wrongly.
+_LEAVE_EACH_OUT = 8
+#: Above ``_LEAVE_EACH_OUT`` markers, how many, those whose absence lowers the linearised sum of squares
+#: most, are solved afresh without them: the fits agree with the linearised ranking to second order
+#: there, and a frame of 50 markers then costs 3 solves, not 50.
 _SUSPECTS = 3
+
+#: A fit of all the markers leaving more than this RMS reprojection error (px per corner) is tested by
+#: leaving each marker out even when :func:`_screen` does not fire: far above any detector's noise, the
+#: pose of all may sit on the other planar solution, where the screen's statistics, linearised there,
+#: miss the misplaced marker. Pure noise of a detector (a pixel or less) never comes near it, so the
+#: screen's rate ``SCREEN_P`` on pure noise holds.
+OUTLIER_POOR_FIT_PX = 2.0
+
+
+def _poor_fit(obs: _Obs, best: _Candidate) -> bool:
+    """Whether the fit of all leaves more than ``OUTLIER_POOR_FIT_PX`` RMS per corner."""
+    return best.sse > OUTLIER_POOR_FIT_PX**2 * len(obs.obj)
 
 
 def _suspects(obs: _Obs, best: _Candidate, camera: Camera) -> list[int]:
-    """The markers worth a leave-one-out refit: the ``_SUSPECTS`` largest :func:`_deletion_q` (all when it
-    cannot be computed); none when no marker's corners, predicted by the pose of the others, are off by
-    even half of ``OUTLIER_MIN_RMS_PX`` (a frame of sharp corners whose small errors are not alike: the
-    screen's ratio test fires there, and no marker could be rejected)."""
+    """The markers worth a leave-one-out fit: all of them up to ``_LEAVE_EACH_OUT`` markers, else the
+    ``_SUSPECTS`` largest :func:`_deletion_q` (all when it cannot be computed); none when no marker's
+    corners, predicted by the pose of the others, are off by even half of ``OUTLIER_MIN_RMS_PX`` (a frame of
+    sharp corners whose small errors are not alike: the screen's ratio test fires there, and no marker
+    could be rejected)."""
     n = len(obs.ids)
     stats = _marker_stats(obs, best, camera)
     if stats is None:
@@ -320,33 +361,67 @@ def _suspects(obs: _Obs, best: _Candidate, camera: Camera) -> list[int]:
     q, predicted_sq = stats[0], stats[1][5]
     if not np.sqrt(predicted_sq.max() / 4) > 0.5 * OUTLIER_MIN_RMS_PX:
         return []
-    if n <= _SUSPECTS:
+    if n <= _LEAVE_EACH_OUT:
         return list(range(n))
     return [int(j) for j in np.argsort(-q, kind="stable")[:_SUSPECTS]]
 
 
+def _to_leave_out(obs: _Obs, marker_map, best: _Candidate, camera: Camera, corner_sigma_px: float | None):
+    """The marker to leave out and the solve of the others (:func:`_rest_fit`), or None.
+
+    The marker displaced on its wall (:func:`_named_displaced`) is left out at once when the others, solved
+    without it, agree (:func:`_agree`). Otherwise each of the :func:`_suspects` is left out in turn, the
+    others solved afresh, and the marker whose absence explains them best is left out when it is the one
+    displaced or else when :func:`_left_out_test` says it disagrees with them. The displaced marker is kept
+    unless leaving out another explains the others better by more than the left-out test's limit (sigma^2
+    times chi-square(8) or 8 F(8, nu)): among markers in a row a move is explained almost as well by leaving
+    out a neighbour, and the move's own test (2 degrees of freedom) is the sharper judge; but a move
+    linearised at a pose the misplaced marker dragged (onto the other planar solution) can name a good one.
+    """
+    named = _named_displaced(obs, best, camera, corner_sigma_px)
+    fits = {} if named is None else {named: _rest_fit(obs, marker_map, named, camera)}
+    if fits.get(named) is not None and _agree(_without(obs, named), fits[named][4][0][0], camera, corner_sigma_px):
+        return named, fits[named][4]
+    for j in _suspects(obs, best, camera):
+        if j not in fits:
+            fits[j] = _rest_fit(obs, marker_map, j, camera)
+    fits = {j: fit for j, fit in fits.items() if fit is not None}
+    if not fits:
+        return None
+    k = min(fits, key=lambda j: fits[j][2])
+    if named in fits:
+        dof, sigma = _rest_noise(obs, fits[k][2], corner_sigma_px)
+        if fits[named][2] - fits[k][2] <= _outlier_threshold(dof, corner_sigma_px is not None) * sigma**2:
+            return named, fits[named][4]
+    return (k, fits[k][4]) if _left_out_test(obs, k, fits[k], camera, corner_sigma_px) else None
+
+
+def _agree(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> bool:
+    """Whether the markers of ``obs`` agree with each other at their fit ``best``: neither a fit leaving more
+    than ``OUTLIER_POOR_FIT_PX`` nor (with 3 markers or more) the screen fires."""
+    if _poor_fit(obs, best):
+        return False
+    return len(obs.ids) < 3 or _screen(obs, best, camera, corner_sigma_px) is None
+
+
 def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined):
-    """While :func:`_screen` fires: leave out the marker displaced on its wall (:func:`_named_displaced`) or,
-    when no move explains the misfit, the marker whose absence explains the others best (the
-    :func:`_suspects` left out in turn, :func:`_rest_fit`) if :func:`_left_out_test` says it disagrees with them.
+    """While :func:`_screen` fires, or the fit of all leaves more than ``OUTLIER_POOR_FIT_PX``: leave out
+    the marker :func:`_to_leave_out` names.
 
     The poses then come from the solver on the remaining markers, as if only they had been seen.
     """
     rejected: list[int] = []
     while len(obs.ids) >= 3:
-        if _screen(obs, cands[0], camera, corner_sigma_px) is None:
+        if not _poor_fit(obs, cands[0]) and _screen(obs, cands[0], camera, corner_sigma_px) is None:
             break
-        k = _named_displaced(obs, cands[0], camera, corner_sigma_px)
-        if k is None:
-            fits = {j: _rest_fit(obs, cands[0], j, camera) for j in _suspects(obs, cands[0], camera)}
-            if not fits:
-                break
-            k = min(fits, key=lambda j: fits[j][2])
-            if not _left_out_test(obs, k, fits[k], camera, corner_sigma_px):
-                break
+        hit = _to_leave_out(obs, marker_map, cands[0], camera, corner_sigma_px)
+        if hit is None:
+            break
+        k, solved = hit
         rest = _without(obs, k)
-        try:
-            rc, ru, _ = _solve(rest, marker_map, camera, method, refine_lm)
+        try:  # the leave-one-out solve is the solver's own when it is the one asked for
+            reuse = method == "auto" and refine_lm
+            rc, ru, _ = solved if reuse else _solve(rest, marker_map, camera, method, refine_lm)
         except PoseError:
             break
         if _cheirality(rest, rc[0]) is not None:
