@@ -97,7 +97,6 @@ from ._observations import _make_obs as _make_obs
 from ._observations import _Obs as _Obs
 from ._observations import _side_px as _side_px
 from ._observations import _world as _world
-from ._outliers import _OUTLIER_F8 as _OUTLIER_F8
 from ._outliers import DISPLACEMENT_MIN_RMS_PX as DISPLACEMENT_MIN_RMS_PX
 from ._outliers import DISPLACEMENT_P as DISPLACEMENT_P
 from ._outliers import OUTLIER_CHI2 as OUTLIER_CHI2
@@ -134,8 +133,6 @@ from ._solvers import _plane_fit_cached as _plane_fit_cached
 from ._solvers import _solve as _solve
 from ._solvers import _solve_ippe as _solve_ippe
 from ._solvers import _solve_ippe_square as _solve_ippe_square
-from ._stats import _CHI2_3_95 as _CHI2_3_95
-from ._stats import _F3_95 as _F3_95
 from ._stats import AMBIGUITY_CHI2 as AMBIGUITY_CHI2
 from ._stats import AMBIGUITY_MAX_SIGMA_PX as AMBIGUITY_MAX_SIGMA_PX
 from ._stats import MIN_SIGMA_PX as MIN_SIGMA_PX
