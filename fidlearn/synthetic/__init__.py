@@ -47,12 +47,9 @@ from ._calibration_views import (  # noqa: F401
 )
 from ._checks import DEFAULT_GRAYS, MAX_FRAMES, MAX_RENDER_SAMPLES, _check_scene, _check_seed  # noqa: F401
 from ._rays import (  # noqa: F401
-    _distort_normalized,
     _fine_rays,
     _normalized_map,
     _normalized_map_cached,
-    _pixels_from_normalized,
-    _undistort_exact,
 )
 from ._renderer import (  # noqa: F401
     _MAX_TEXELS_PER_CELL,
