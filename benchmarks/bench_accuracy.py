@@ -34,7 +34,8 @@ import numpy as np
 import fidlearn
 from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, frames
 from fidlearn.detection import detect_markers
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.frames import look_at
+from fidlearn.synthetic import render_scene
 
 DICT = "ARUCO_ORIGINAL"
 SOLVERS = ("ippe", "sqpnp", "iterative", "epnp")

@@ -43,7 +43,8 @@ import numpy as np
 import fidlearn
 from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, _cv_charuco
 from fidlearn.detection import REFINE_METHODS, Detection, detect_markers, refine_corners_edges
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.frames import look_at
+from fidlearn.synthetic import render_scene
 
 MARKER_MM = 80.0  # printed marker side [mm]
 SIDES_PX = (15, 20, 30, 45, 60, 90, 120, 150)  # nominal marker side in the image [px]

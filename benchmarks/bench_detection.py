@@ -48,7 +48,8 @@ from fidlearn.detection import (
     load_image,
     refine_corners_edges,
 )
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.frames import look_at
+from fidlearn.synthetic import render_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 PLOT = ROOT / "docs" / "img" / "detection_speed.png"

@@ -44,9 +44,9 @@ import fidlearn
 from fidlearn import pose as pose_mod
 from fidlearn.camera import Camera
 from fidlearn.detection import Detection
+from fidlearn.frames import look_at
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.pose import _outliers as pose_outliers
-from fidlearn.synthetic import look_at
 
 CAMERA = Camera(
     [[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]],

@@ -37,8 +37,9 @@ from fidlearn import _cv, frames
 from fidlearn import pose as pose_mod
 from fidlearn.camera import Camera
 from fidlearn.detection import Detection
+from fidlearn.frames import look_at
 from fidlearn.markermap import MarkerMap, MarkerPlacement
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.synthetic import render_scene
 
 CAMERA = Camera(
     [[600.0, 0, 321.0], [0, 600.0, 238.0], [0, 0, 1]],

@@ -37,7 +37,8 @@ import fidlearn
 from fidlearn import Camera, MarkerMap, MarkerPlacement, MarkerTracker, _cv
 from fidlearn.detection import DEFAULT_DETECTOR_PARAMS, _detector, as_gray, detect_markers, refine_corners_edges
 from fidlearn.errors import NoMarkersError, PoseError
-from fidlearn.synthetic import look_at, render_scene
+from fidlearn.frames import look_at
+from fidlearn.synthetic import render_scene
 
 DICT = "ARUCO_ORIGINAL"
 

@@ -14,9 +14,9 @@ import math
 import numpy as np
 
 from ..camera import Camera
+from ..frames import look_at
 from ..markermap import MarkerMap
 from ..planning import plan_room, predict_accuracy
-from ..synthetic import look_at
 
 #: Unit slips: factor the positions must be multiplied by to be mm, and what the numbers then were.
 _UNIT_SLIPS = {1000.0: "metres", 304.8: "feet", 25.4: "inches", 10.0: "centimetres"}

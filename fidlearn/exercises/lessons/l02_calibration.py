@@ -15,7 +15,7 @@ import numpy as np
 from ... import frames
 from ...calibration.boards import checkerboard_points
 from ...camera import Camera
-from ...synthetic import look_at
+from ...frames import look_at
 from .._engine import Question, _AnswerError
 from .._parsers import (
     _array,

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from ... import frames
-from ...synthetic import look_at
+from ...frames import look_at
 from .._engine import Question
 from .._parsers import (
     _EXTRINSIC_MSG,

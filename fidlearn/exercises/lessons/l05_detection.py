@@ -15,8 +15,8 @@ import numpy as np
 
 from ... import frames
 from ...camera import Camera
+from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
-from ...synthetic import look_at
 from .._engine import Question, _AnswerError
 from .._parsers import _array, _close, _cmp_array, _cmp_scalar, _corner_order, _scalar, _winding_message
 from .._scenery import _pose_seeing_all, _rng

@@ -15,7 +15,7 @@ import numpy as np
 from ... import _cv, frames
 from ...camera import Camera
 from ...detection import Detection
-from ...synthetic import look_at
+from ...frames import look_at
 from .._engine import Question, _AnswerError
 from .._parsers import (
     _array,

@@ -13,8 +13,8 @@ import cv2
 import numpy as np
 
 from ... import frames
+from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
-from ...synthetic import look_at
 from .._engine import Question
 from .._parsers import (
     _EXTRINSIC_MSG,

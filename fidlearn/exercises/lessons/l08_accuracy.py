@@ -12,8 +12,8 @@ import numpy as np
 
 from ... import _cv, frames
 from ...camera import Camera
+from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
-from ...synthetic import look_at
 from .._design import _WallTask
 from .._engine import Question, _AnswerError
 from .._parsers import (
@@ -331,7 +331,6 @@ def _ambiguous_view(rng: np.random.Generator) -> tuple:
     estimate_pose's two candidates, and the separations a learner may fairly give (raw IPPE too).
     """
     from ... import pose as _pose
-    from ... import synthetic
 
     cam3 = Camera.from_fov(float(np.round(rng.uniform(55, 70))), (1280, 720))
     mid = int(rng.integers(0, 40))
@@ -349,7 +348,7 @@ def _ambiguous_view(rng: np.random.Generator) -> tuple:
     )
     centre = m3.marker_corners(mid).mean(axis=0)
     for _ in range(50):
-        T3 = synthetic.look_at(
+        T3 = look_at(
             centre + [float(rng.uniform(2800, 3600)), float(rng.uniform(-150, 150)), float(rng.uniform(-100, 100))],
             centre,
         )

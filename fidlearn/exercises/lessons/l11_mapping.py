@@ -11,8 +11,9 @@ import numpy as np
 
 from ... import frames
 from ...camera import Camera
+from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
-from ...synthetic import look_at, visible_markers
+from ...synthetic import visible_markers
 from .._engine import Question
 from .._parsers import (
     _array,
