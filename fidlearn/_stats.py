@@ -1,6 +1,8 @@
 """Chi-square, beta and F quantiles and survival functions, over ``scipy.special`` (exact to machine precision).
 
-The pose's outlier and ambiguity tests, the survey's suspects and the tracker's gates use these.
+The pose's covariance inflation, outlier and ambiguity tests, the survey's suspects and gross test, the
+bent-board test of a calibration and the tracker's gates use these: every quantile in fidlearn comes from here
+(the functions exist in scipy 1.11 and later; ``betaincc`` and ``betainccinv`` are the newest).
 """
 
 from __future__ import annotations

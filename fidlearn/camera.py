@@ -13,7 +13,6 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from . import _files, _lens, frames
@@ -172,7 +171,8 @@ class Camera:
     def project(self, points_world: np.ndarray, T_world_camera: np.ndarray) -> np.ndarray:
         """Project world points to pixels for a camera at ``T_world_camera``.
 
-        Agrees with ``cv2.projectPoints`` (distortion included). Points behind the
+        Agrees with ``cv2.projectPoints`` (distortion included: ``fidlearn._lens``, the model
+        :meth:`undistort_points` inverts). Points behind the
         camera are projected too (their pixels are meaningless): use
         :meth:`points_in_front` to tell.
 
@@ -208,10 +208,8 @@ class Camera:
         pts = np.atleast_2d(pts)
         if pts.ndim == 0 or pts.shape[-1] != 3 or pts.size == 0:
             raise CameraError(f"points_world has shape {np.shape(points_world)}, expected (N, 3) in mm")
-        T_camera_world = frames.invert_transform(T_world_camera)
-        rvec, tvec = frames.rvec_tvec_from_transform(T_camera_world)
-        px, _ = cv2.projectPoints(pts.reshape(-1, 1, 3), rvec, tvec, self.K, self.dist)
-        px = px.reshape(-1, 2)
+        in_camera = frames.transform_points(frames.invert_transform(T_world_camera), pts)
+        px = _lens.project_points(in_camera, self.K, self.dist)
         return px[0] if single else px
 
     def points_in_front(

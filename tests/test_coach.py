@@ -13,7 +13,7 @@ import pytest
 from matplotlib.colors import to_rgba
 
 import fidlearn
-from fidlearn import Camera, frames
+from fidlearn import Camera, _stats, frames
 from fidlearn.errors import CalibrationError
 from fidlearn.planning import bent_board
 from fidlearn.planning.coach import GOOD_UNCERTAINTY_PX, bent_views, coach, coach_calibration, uncertainty_map
@@ -116,8 +116,8 @@ def test_seeded_bad_sets_are_flagged_and_a_good_set_is_not(seed):
 def test_the_bend_test_is_an_f_test_at_its_stated_false_alarm_rate():
     # the textbook 95 % quantiles of F(3, nu), and chi-square(3) / 3 for a large nu
     for nu, f95 in ((10, 3.71), (20, 3.10), (120, 2.68)):
-        assert bent_board._f3_isf(0.05, nu) == pytest.approx(f95, abs=0.005)
-    assert 3 * bent_board._f3_isf(0.05, 20000) == pytest.approx(7.815, abs=0.01)
+        assert _stats.f_isf(0.05, 3, nu) == pytest.approx(f95, abs=0.005)
+    assert 3 * _stats.f_isf(0.05, 3, 20000) == pytest.approx(7.815, abs=0.01)
     # flat boards, Gaussian noise: at a false-alarm rate of 0.2 per set (0.01 per view, 20 views)
     # about 1 - 0.99^20 = 18 % of the sets have a view called bent; 40 sets, binomial bounds
     rng = np.random.default_rng(11)

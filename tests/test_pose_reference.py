@@ -11,6 +11,7 @@ undone, every answer is the reference's; as they are, only the listed answers di
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -86,8 +87,37 @@ def _check(pose, ref):
         assert alt.method == alt_ref["method"]
 
 
+#: The reference's covariance inflation ``3 F(3, nu; 0.95) / chi2(3; 0.95)``: F interpolated in 1/nu between
+#: these quantiles as a table prints them (3 or 4 digits), over chi2(3; 0.95) = 7.8147. It is now exact
+#: (``fidlearn._stats``): up to 0.1 % larger or smaller, which moves the covariances by as much and nothing else.
+_REFERENCE_F3_95 = (
+    (1, 215.7), (2, 19.16), (3, 9.28), (4, 6.59), (5, 5.41), (6, 4.76), (7, 4.35), (8, 4.07), (9, 3.86), (10, 3.71),
+    (12, 3.49), (15, 3.29), (20, 3.10), (24, 3.01), (30, 2.92), (40, 2.84), (60, 2.76), (120, 2.68), (math.inf, 2.605),
+)  # fmt: skip
+
+
+def _reference_inflation(nu):
+    nu = max(float(nu), 1.0)
+    for (n0, f0), (n1, f1) in zip(_REFERENCE_F3_95, _REFERENCE_F3_95[1:]):
+        if nu <= n1:
+            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
+            return 3.0 * (f1 + (f0 - f1) * (x - x1) / (x0 - x1)) / 7.8147
+    return 3.0 * 2.605 / 7.8147
+
+
 @pytest.fixture
-def the_method_of_the_reference(monkeypatch):
+def the_reference_quantiles(monkeypatch):
+    """The covariance inflation as the reference computed it (the rest of the method is as now)."""
+    monkeypatch.setattr(pose_estimate, "_estimated_sigma_inflation", _reference_inflation)
+
+
+def test_the_reference_quantiles_differ_from_the_exact_ones_by_their_rounding_alone():
+    for nu in (3, 7, 10, 13, 22, 50, 90, 200, 1000):
+        assert pose_stats._estimated_sigma_inflation(nu) == pytest.approx(_reference_inflation(nu), rel=1.5e-3)
+
+
+@pytest.fixture
+def the_method_of_the_reference(monkeypatch, request):
     """The two changes of method made on purpose since the reference, undone (everything else is as now).
 
     * IPPE's own reprojection error was read as ``rms^2 N`` where OpenCV reports ``sqrt(sse / 2N)``: the
@@ -96,6 +126,7 @@ def the_method_of_the_reference(monkeypatch):
     * The flip's "as good" limit was ``AMBIGUITY_CHI2 sigma^2`` with sigma estimated; it is now F(1, nu),
       which allows for the uncertainty of that estimate.
     """
+    request.getfixturevalue("the_reference_quantiles")  # on the reference's quantile tables too
     monkeypatch.setattr(pose_solvers, "_RMS_COORDS", 1)
     monkeypatch.setattr(pose_estimate, "_ambiguity_limit", lambda _nu: pose_stats.AMBIGUITY_CHI2)
 
@@ -128,6 +159,7 @@ CHANGED = {
 }
 
 
+@pytest.mark.usefixtures("the_reference_quantiles")
 def test_only_the_listed_answers_changed_and_the_poses_hardly():
     changed = set()
     for case in CASES:

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from fidlearn import Camera, FidlearnError, MarkerMap, data_path, frames
-from fidlearn._lens import distort_normalized as _distort_normalized
-from fidlearn._lens import undistort_exact as _undistort_exact
+from fidlearn._lens import distort_normalized, undistort_exact
 from fidlearn.errors import CameraError
 from fidlearn.frames import look_at
 from fidlearn.synthetic import (
@@ -134,9 +133,9 @@ def test_exact_undistortion_inverts_opencvs_projection():
         np.column_stack([xy, np.ones(len(xy))]).reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist
     )
     ref = ref.reshape(-1, 2)
-    mine = _distort_normalized(xy, dist) * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+    mine = distort_normalized(xy, dist) * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
     np.testing.assert_allclose(mine, ref, atol=1e-9)
-    np.testing.assert_allclose(_undistort_exact(ref, K, dist), xy, atol=1e-10)
+    np.testing.assert_allclose(undistort_exact(ref, K, dist), xy, atol=1e-10)
 
 
 # -- what is and is not in the truth ---------------------------------------------------------------

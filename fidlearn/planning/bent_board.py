@@ -13,7 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .. import frames
+from .. import _stats, frames
 from ..camera import Camera
 from . import _checks
 
@@ -23,32 +23,6 @@ __all__ = ["BENT_FALSE_ALARM", "bent_views"]
 #: corner noise, at most this fraction of sets has a view called bent (each of V views is tested
 #: at ``BENT_FALSE_ALARM / V``, Bonferroni).
 BENT_FALSE_ALARM = 1e-3
-
-
-def _f3_sf(f: float, nu: int) -> float:
-    """Chance that an F(3, nu) variable exceeds ``f``; ``nu`` is rounded down to an even number.
-
-    ``P(F <= f) = I_x(3/2, m)`` (``x = 3 f / (3 f + nu)``, ``m = nu / 2``), the regularised
-    incomplete beta function, which for a whole ``m`` is the finite sum
-    ``x^(3/2) sum_k (3/2)_k / k! (1 - x)^k``, ``k = 0 .. m - 1``. Rounding ``nu`` down makes the
-    tail heavier: the test only gets more cautious.
-    """
-    m = max(int(nu) // 2, 1)
-    x = 3 * f / (3 * f + 2 * m) if f > 0 else 0.0
-    term, total = 1.0, 1.0
-    for k in range(1, m):
-        term *= (0.5 + k) / k * (1 - x)
-        total += term
-    return max(0.0, 1.0 - x**1.5 * total)
-
-
-def _f3_isf(p: float, nu: int) -> float:
-    """The value an F(3, nu) variable exceeds with probability ``p`` (bisection on :func:`_f3_sf`)."""
-    lo, hi = 0.0, 1e4
-    for _ in range(100):
-        mid = (lo + hi) / 2
-        lo, hi = (mid, hi) if _f3_sf(mid, nu) > p else (lo, mid)
-    return (lo + hi) / 2
 
 
 def _bend_rows(camera: Camera, points_mm: np.ndarray, image_px: np.ndarray, T: np.ndarray):
@@ -124,7 +98,7 @@ def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_c
         stats = _bend_statistics(G, r, start, rows, testable - set(bent))
         F = {k: (t / 3) / max(typical, left / dof[k], 1e-300) for k, (t, left) in stats.items()}
         worst = max(F, key=F.get, default=None)
-        if worst is None or F[worst] <= _f3_isf(BENT_FALSE_ALARM / len(names), dof[worst]):
+        if worst is None or F[worst] <= _stats.f_isf(BENT_FALSE_ALARM / len(names), 3, dof[worst]):
             break
         bent.append(worst)
         G = np.column_stack([G, _bend_columns(start, rows, worst)])  # its bend is fitted from now on

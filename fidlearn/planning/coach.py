@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .. import frames
+from .. import _lens, frames
 from ..calibration.quality import MIN_GOOD_VIEWS, coverage_grid, few_views_warning
 from ..camera import Camera
 from ..errors import CalibrationError
@@ -140,7 +140,7 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
     distance_mm = _checks.finite_distance(distance_mm)
     grid = _checks.check_grid(grid)
     px = _pixel_grid(camera, grid)
-    rays = cv2.undistortPoints(px.reshape(-1, 1, 2), camera.K, camera.dist).reshape(-1, 2)
+    rays = _lens.undistort_exact(px, camera.K, camera.dist)
     pts = np.column_stack([rays, np.ones(len(rays))]) * distance_mm
     _, jac = cv2.projectPoints(pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.K, camera.dist)
     n = _n_intrinsics(camera)
@@ -301,7 +301,7 @@ def _candidates(camera: Camera, board_points_mm: np.ndarray, distance_mm: float)
     for (i, j), where in places.items():
         u = (0.2 + 0.3 * i) * camera.width
         v = (0.2 + 0.3 * j) * camera.height
-        ray = cv2.undistortPoints(np.array([[[u, v]]]), camera.K, camera.dist).reshape(2)
+        ray = _lens.undistort_exact(np.array([[u, v]]), camera.K, camera.dist)[0]
         C = np.array([ray[0], ray[1], 1.0]) * distance_mm
         for tilt, R in tilts.items():
             T = frames.make_transform(R, C - R @ centre)
@@ -455,8 +455,7 @@ def _in_picture(camera: Camera, pts: np.ndarray, T_camera_board: np.ndarray) -> 
     P = pts @ T_camera_board[:3, :3].T + T_camera_board[:3, 3]
     if np.any(P[:, 2] <= 1.0):
         return False
-    rvec, tvec = frames.rvec_tvec_from_transform(T_camera_board)
-    px = cv2.projectPoints(pts.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)[0].reshape(-1, 2)
+    px = _lens.project_points(P, camera.K, camera.dist)
     return bool(np.all(px >= 0) and np.all(px[:, 0] <= camera.width - 1) and np.all(px[:, 1] <= camera.height - 1))
 
 

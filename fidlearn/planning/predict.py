@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .. import frames
+from .. import _lens, frames
 from ..camera import Camera
 from ..errors import FidlearnError, TransformError
 from ..markermap import MarkerMap
@@ -250,13 +250,9 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
         if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
             continue  # IPPE gives NaN for a marker seen at a grazing angle: no second solution there
         rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
-        proj, _ = cv2.projectPoints(P, rvec, tvec, camera.K, camera.dist)
-        found.append(
-            (
-                float(np.sum(np.sum((proj.reshape(-1, 2) - points_px) ** 2, axis=1) / sigma_px**2)),
-                cv2.Rodrigues(rvec)[0],
-            )
-        )
+        R = cv2.Rodrigues(rvec)[0]
+        proj = _lens.project_points(P @ R.T + tvec.ravel(), camera.K, camera.dist)
+        found.append((float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / sigma_px**2)), R))
     found = [f for f in found if math.isfinite(f[0]) and np.all(np.isfinite(f[1]))]
     if len(found) < 2:
         return 0.0

@@ -6,6 +6,7 @@ marker turned, a wrong corner)."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
@@ -24,8 +25,8 @@ from ._solvers import _solve
 #: above the chi-square(8) quantile (sigma given) or above 8 F(8, nu) (sigma estimated from
 #: the others' nu degrees of freedom: the nested-model F test)...
 OUTLIER_P = 1e-4
-#: chi-square(8) quantile at OUTLIER_P (the test's limit with a known sigma).
-OUTLIER_CHI2 = 31.83
+#: chi-square(8) quantile at OUTLIER_P (the test's limit with a known sigma): 31.83.
+OUTLIER_CHI2 = _stats.chi2_isf(OUTLIER_P, 8)
 #: ... and its RMS residual must also be above this many pixels (sub-pixel disagreement
 #: is detector bias or calibration, not a misplaced marker).
 OUTLIER_MIN_RMS_PX = 0.75
@@ -33,33 +34,24 @@ OUTLIER_MIN_RMS_PX = 0.75
 OUTLIER_SIGMA_FLOOR_PX = 0.3
 
 
-#: 8 F(8, nu; 1 - OUTLIER_P) for nu degrees of freedom of the others' fit (computed by numerical
-#: integration of the F distribution; the limit is the chi-square(8) quantile).
-_OUTLIER_F8 = (
-    (10, 125.9),
-    (14, 83.66),
-    (18, 67.01),
-    (26, 53.0),
-    (34, 46.9),
-    (42, 43.51),
-    (58, 39.87),
-    (90, 36.78),
-    (180, 34.21),
-    (math.inf, OUTLIER_CHI2),
-)
+#: Below this many degrees of freedom of the others' fit the limit grows as 1 / nu^2 from its value here,
+#: steeply more careful than F itself would be wary of so few.
+_OUTLIER_MIN_NU = 10
 
 
 def _outlier_threshold(nu: float, sigma_known: bool) -> float:
-    """The chi-square a left-out marker must exceed: chi-square(8) or 8 F(8, nu), interpolated in 1/nu."""
+    """The chi-square a left-out marker must exceed: chi-square(8) at ``OUTLIER_P`` with sigma known, else
+    8 F(8, nu; 1 - OUTLIER_P) (125.9 at nu = 10, 34.21 at 180, OUTLIER_CHI2 in the limit)."""
     if sigma_known:
         return OUTLIER_CHI2
-    if nu <= _OUTLIER_F8[0][0]:
-        return _OUTLIER_F8[0][1] * (_OUTLIER_F8[0][0] / max(nu, 1.0)) ** 2  # steeply more careful below
-    for (n0, t0), (n1, t1) in zip(_OUTLIER_F8, _OUTLIER_F8[1:]):
-        if nu <= n1:
-            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
-            return math.exp(math.log(t1) + (math.log(t0) - math.log(t1)) * (x - x1) / (x0 - x1))
-    return OUTLIER_CHI2
+    if nu <= _OUTLIER_MIN_NU:
+        return _outlier_f8(_OUTLIER_MIN_NU) * (_OUTLIER_MIN_NU / max(nu, 1.0)) ** 2
+    return _outlier_f8(float(nu))
+
+
+@functools.lru_cache(maxsize=256)
+def _outlier_f8(nu: float) -> float:
+    return 8.0 * _stats.f_isf(OUTLIER_P, 8, nu)
 
 
 #: False-alarm probability of the screen on pure noise: the chance that corners with only

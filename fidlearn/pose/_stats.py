@@ -29,25 +29,7 @@ MIN_SIGMA_PX = 0.02
 AMBIGUITY_CHI2 = 9.0
 #: With sigma estimated from nu degrees of freedom the same likelihood-ratio level is
 #: F(1, nu; q) sigma^2 instead, q = P(chi-square(1) < AMBIGUITY_CHI2) = 0.9973 (the extra sum of
-#: squares over the estimated sigma^2 follows F(1, nu), not chi-square(1)): nu, F (scipy.stats.f.ppf).
-_AMBIGUITY_F1 = (
-    (1, 55602.3),
-    (2, 368.9),
-    (3, 84.99),
-    (4, 43.83),
-    (5, 30.33),
-    (6, 24.05),
-    (8, 18.29),
-    (10, 15.66),
-    (12, 14.17),
-    (15, 12.86),
-    (20, 11.71),
-    (30, 10.70),
-    (40, 10.23),
-    (60, 9.796),
-    (120, 9.386),
-    (math.inf, AMBIGUITY_CHI2),
-)
+#: squares over the estimated sigma^2 follows F(1, nu), not chi-square(1)): see :func:`_ambiguity_limit`.
 #: The ambiguity test never assumes a corner noise above this (px) when it estimates the noise
 #: from the residuals: no detector is that far off on a marker it decoded, so larger residuals
 #: are a wrong map or camera, and they must not make a poorer second pose look "as good".
@@ -71,44 +53,18 @@ def _mahalanobis2(a: _Candidate, b: _Candidate, JtJ: np.ndarray, sigma: float) -
     return float(d @ JtJ @ d) / sigma**2
 
 
-#: 95 % quantiles of the F distribution with (3, nu) degrees of freedom (standard tables),
-#: for the inflation of a covariance whose sigma was estimated with nu degrees of freedom.
-_F3_95 = (
-    (1, 215.7),
-    (2, 19.16),
-    (3, 9.28),
-    (4, 6.59),
-    (5, 5.41),
-    (6, 4.76),
-    (7, 4.35),
-    (8, 4.07),
-    (9, 3.86),
-    (10, 3.71),
-    (12, 3.49),
-    (15, 3.29),
-    (20, 3.10),
-    (24, 3.01),
-    (30, 2.92),
-    (40, 2.84),
-    (60, 2.76),
-    (120, 2.68),
-    (math.inf, 2.605),
-)
-_CHI2_3_95 = 7.8147
-
-
 def _ambiguity_limit(nu: float | None) -> float:
     """The "as good" limit of the flip's extra sum of squares, in sigma^2: AMBIGUITY_CHI2 with sigma given
-    (``nu`` None), else F(1, nu; 0.9973) for sigma estimated with ``nu`` degrees of freedom (interpolated in
-    1/nu in ``_AMBIGUITY_F1``, in logs)."""
+    (``nu`` None), else F(1, nu; q), q = P(chi-square(1) < AMBIGUITY_CHI2), for sigma estimated with ``nu``
+    degrees of freedom (55602 at nu = 1, 15.66 at 10, 9.386 at 120, AMBIGUITY_CHI2 in the limit)."""
     if nu is None:
         return AMBIGUITY_CHI2
-    nu = max(float(nu), 1.0)
-    for (n0, f0), (n1, f1) in zip(_AMBIGUITY_F1, _AMBIGUITY_F1[1:]):
-        if nu <= n1:
-            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
-            return math.exp(math.log(f1) + (math.log(f0) - math.log(f1)) * (x - x1) / (x0 - x1))
-    return AMBIGUITY_CHI2
+    return _f1_ambiguity(max(float(nu), 1.0))
+
+
+@functools.lru_cache(maxsize=256)
+def _f1_ambiguity(nu: float) -> float:
+    return _stats.f_isf(_stats.chi2_sf(AMBIGUITY_CHI2, 1), 1, nu)
 
 
 @functools.lru_cache(maxsize=64)
@@ -116,15 +72,10 @@ def _estimated_sigma_inflation(nu: float) -> float:
     """``3 F(3, nu; 0.95) / chi2(3; 0.95)``: how much wider the 95 % region is when sigma is estimated.
 
     Hotelling: with sigma estimated from ``nu`` degrees of freedom, ``d^T (s^2 A)^-1 d / 3``
-    follows F(3, nu), not chi-square(3) / 3. Interpolated in 1/nu in the table above.
+    follows F(3, nu), not chi-square(3) / 3 (F(3, 10; 0.95) = 3.708, chi2(3; 0.95) = 7.815).
     """
     nu = max(float(nu), 1.0)
-    for (n0, f0), (n1, f1) in zip(_F3_95, _F3_95[1:]):
-        if nu <= n1:
-            x0, x1, x = 1.0 / n0, (0.0 if math.isinf(n1) else 1.0 / n1), 1.0 / nu
-            f = f1 + (f0 - f1) * (x - x1) / (x0 - x1)
-            return 3.0 * f / _CHI2_3_95
-    return 3.0 * _F3_95[-1][1] / _CHI2_3_95
+    return 3.0 * _stats.f_isf(0.05, 3, nu) / _stats.chi2_ppf(0.95, 3)
 
 
 def _sigma(sse: float, dof: int, corner_sigma_px: float | None) -> float:

@@ -25,6 +25,7 @@ from itertools import combinations
 
 import numpy as np
 
+from .. import _stats
 from ..errors import MapError, SurveyError
 from ..markermap import MarkerMap, MarkerPlacement
 from ._init import UNITS_FACTOR_LIMIT, _units_message, initial_values
@@ -36,7 +37,7 @@ GROSS_SIGMAS = 15.0
 #: At most this many triples of markers are tried as the alignment's seed.
 MAX_TRIPLES = 2000
 #: The median distance of a 3D Gaussian with unit sigma per coordinate (sqrt of chi-square(3)'s median).
-_MEDIAN_3D = 1.5382
+_MEDIAN_3D = math.sqrt(_stats.chi2_ppf(0.5, 3))  # 1.5382
 
 
 @dataclass

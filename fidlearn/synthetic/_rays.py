@@ -1,4 +1,5 @@
-"""Camera rays: the normalized (undistorted) coordinates of every pixel and sub-pixel, with OpenCV's distortion."""
+"""Camera rays: the normalized (undistorted) coordinates of every pixel and sub-pixel, by the camera's lens model
+(``fidlearn._lens``, the one ``Camera.project`` and ``Camera.undistort_points`` use)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .._lens import undistort_exact as _undistort_exact
+from .._lens import undistort_exact
 from ..camera import Camera
 from ..errors import CameraError
 
@@ -18,7 +19,7 @@ def _normalized_map_cached(key: bytes, width: int, height: int) -> np.ndarray:
     K, dist = K_dist[:9].reshape(3, 3), K_dist[9:]
     u, v = np.meshgrid(np.arange(-1.0, width + 1.0), np.arange(-1.0, height + 1.0))
     px = np.stack([u.ravel(), v.ravel()], axis=1)
-    xy = _undistort_exact(px, K, dist)
+    xy = undistort_exact(px, K, dist)
     out = xy.reshape(height + 2, width + 2, 2).astype(np.float32)
     out.setflags(write=False)
     return out
