@@ -111,6 +111,7 @@ __all__ = [
     "OUTLIER_CHI2",
     "OUTLIER_MIN_RMS_PX",
     "OUTLIER_P",
+    "OUTLIER_POOR_FIT_PX",
     "OUTLIER_SIGMA_FLOOR_PX",
     "PRIOR_DOF",
     "PRIOR_SIGMA_PX",
