@@ -69,25 +69,14 @@ def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
 
     Parameters
     ----------
-    lesson : str or int
-        The lesson.
-    learner : str
-        The learner's id.
-    secret : bytes
-        The class secret.
+    lesson, learner, secret
+        As for :func:`graded_questions` (which also says what it raises).
 
     Returns
     -------
     dict
         ``{"fidlearn_graded": 1, "lesson", "learner", "questions": {name: {input: plain data}},
         "about": {name: {"title", "task", "level", "hints"}}}``; no answers, no solutions.
-
-    Raises
-    ------
-    ExerciseError
-        For an unknown lesson.
-    GradingError
-        For a learner id that cannot be used.
     """
     from .. import exercises
 
