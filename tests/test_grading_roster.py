@@ -192,7 +192,7 @@ def cls(tmp_path, secret, monkeypatch):
         scores = {"alice": 5, "bob": 3, "dave@uni.edu": 1, "eve": 4}
         mark = {True: "Correct", False: "Incorrect"}
         results = [exercises.Result(f"q{i}", mark[i <= scores[learner]], "") for i in range(1, 6)]
-        return grading.NotebookGrade(str(nb), learner, number, results)
+        return grading.Grade(str(nb), learner, number, results)
 
     monkeypatch.setattr(_grader, "grade_one", fake)
     monkeypatch.setattr(_grader, "sandbox_plan", lambda _run_as=None: _NO_BOX)  # no notebook runs here

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..detection import Detection
+from ..errors import ExerciseError
 from ._strict import strict_mode
 
 CORRECT = "Correct"
@@ -177,7 +178,85 @@ class Inputs:
 Detector = Callable[[Any], bool]
 
 
-class Question:
+class _Asked:
+    """What every question shows a learner: its task and inputs (:meth:`show`) and tiered hints (:meth:`hint`)."""
+
+    name: str
+    title: str
+    task: str
+    inputs: Inputs
+    _hints: list
+    _hints_shown: int
+    #: The tail of the last of several hints.
+    _LAST_HINT = " [that was the last hint: the rest is yours to work out]"
+
+    def hint(self) -> None:
+        """Print a hint: ``Hint (q1): ...``; tiered hints one more per call (``Hint (q1, 1 of 2): ...``)."""
+        n = len(self._hints)
+        k = min(self._hints_shown, n - 1)
+        self._hints_shown += 1
+        if n == 1:
+            print(f"Hint ({self.name}): {self._hints[0]}")
+            return
+        more = f" [{self.name}.hint() again gives the next hint]" if k < n - 1 else self._LAST_HINT
+        print(f"Hint ({self.name}, {k + 1} of {n}): {self._hints[k]}{more}")
+
+    def show(self) -> None:
+        """Print the task and the inputs."""
+        print(f"{self.name}. {self.title}\n\n{self.task}\n\n{self.name}.inputs = {self.inputs!r}")
+
+    def _describe(self, status: str) -> str:
+        """The question's ``repr`` with its status."""
+        names = ", ".join(self.inputs.keys())
+        return f"<Question {self.name}: {self.title!r}; inputs: {names}; {status}>"
+
+
+class _Questions:
+    """A lesson's questions for one learner: iteration, ``len``, ``lesson["q1"]`` and the per-question lines."""
+
+    number: str
+    questions: list
+
+    def __iter__(self):
+        return iter(self.questions)
+
+    def __len__(self) -> int:
+        return len(self.questions)
+
+    def __getitem__(self, name: str):
+        """The question called ``name`` (``ex["q1"]``).
+
+        Raises
+        ------
+        ExerciseError
+            When the lesson has no such question (it is a KeyError too).
+        """
+        for q in self.questions:
+            if q.name == name:
+                return q
+        raise ExerciseError(f"lesson {self.number} has no question {name!r}; it has {[q.name for q in self.questions]}")
+
+    def _print_rows(self, results: list[Result]) -> None:
+        """Print one line per question: its name, status and title."""
+        for q, r in zip(self.questions, results):
+            print(f"  {q.name} [{r.status}] {q.title}")
+
+    def _listing(self) -> str:
+        """One line per question: its name, title and level."""
+        return "\n".join(f"  {q.name}: {q.title} ({q.level})" for q in self.questions)
+
+
+def _say(result: Result, accepted: tuple[str, ...]) -> None:
+    """Print the result's line; in strict mode, raise for a status the mode does not expect."""
+    print(result.line)
+    mode = strict_mode()
+    if mode == "correct" and result.status not in accepted:
+        raise AssertionError(result.line)
+    if mode == "blank" and result.status != NOT_ATTEMPTED:
+        raise AssertionError(f"expected a blank answer, got: {result.line}")
+
+
+class Question(_Asked):
     """One exercise question: inputs, a hidden answer key, and feedback.
 
     Parameters
@@ -334,35 +413,12 @@ class Question:
                 INCORRECT,
                 f"your answer could not be checked ({type(exc).__name__}: {exc}); check its type and shape",
             )
-        print(result.line)
-        if mode == "correct" and result.status not in (CORRECT, RECORDED):
-            raise AssertionError(result.line)
-        if mode == "blank" and result.status != NOT_ATTEMPTED:
-            raise AssertionError(f"expected a blank answer, got: {result.line}")
-
-    def hint(self) -> None:
-        """Print a hint: ``Hint (q1): ...``; tiered hints one more per call (``Hint (q1, 1 of 2): ...``)."""
-        n = len(self._hints)
-        k = min(self._hints_shown, n - 1)
-        self._hints_shown += 1
-        if n == 1:
-            print(f"Hint ({self.name}): {self._hints[0]}")
-            return
-        more = (
-            f" [{self.name}.hint() again gives the next hint]"
-            if k < n - 1
-            else " [that was the last hint: the rest is yours to work out]"
-        )
-        print(f"Hint ({self.name}, {k + 1} of {n}): {self._hints[k]}{more}")
+        _say(result, (CORRECT, RECORDED))
 
     def solution(self) -> None:
         """Print one way to solve it: code that, run in the notebook, makes ``check()`` say Correct."""
         print(f"Solution ({self.name}), one way to do it:\n")
         print(self.solution_code)
-
-    def show(self) -> None:
-        """Print the task and the inputs."""
-        print(f"{self.name}. {self.title}\n\n{self.task}\n\n{self.name}.inputs = {self.inputs!r}")
 
     def _fresh(self, judge: Callable[[], Question] | None = None) -> Question:
         """A copy with its own inputs (a learner may change them) and no answer yet.
@@ -383,9 +439,7 @@ class Question:
         return new
 
     def __repr__(self) -> str:
-        status = self.grade().status if self.answer is not ... else NOT_ATTEMPTED
-        names = ", ".join(self.inputs.keys())
-        return f"<Question {self.name}: {self.title!r}; inputs: {names}; {status}>"
+        return self._describe(self.grade().status if self.answer is not ... else NOT_ATTEMPTED)
 
 
 def _safe(detect: Detector, value: Any) -> bool:

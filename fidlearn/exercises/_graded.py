@@ -12,14 +12,12 @@ from __future__ import annotations
 import textwrap
 from typing import Any
 
-from ..errors import ExerciseError
-from ._engine import INCORRECT, NOT_ATTEMPTED, RECORDED, Inputs, Result
-from ._strict import strict_mode
+from ._engine import INCORRECT, NOT_ATTEMPTED, RECORDED, Inputs, Result, _Asked, _Questions, _say
 
 _MISSING = object()
 
 
-class GradedQuestion:
+class GradedQuestion(_Asked):
     """One question of a graded lesson: its inputs, :meth:`check` (records the answer) and :meth:`hint`.
 
     Parameters
@@ -49,6 +47,8 @@ class GradedQuestion:
         self._hints = [str(h) for h in hints] or ["no hint for this question"]
         self._hints_shown = 0
         self.answer: Any = ...
+
+    _LAST_HINT = " [that was the last hint]"
 
     def result(self) -> Result:
         """``Recorded`` when the answer can be handed in, ``Not attempted`` or ``Incorrect`` (why not).
@@ -90,28 +90,7 @@ class GradedQuestion:
         """
         if answer is not _MISSING:
             self.answer = answer
-        result = self.result()
-        print(result.line)
-        mode = strict_mode()
-        if mode == "correct" and result.status != RECORDED:
-            raise AssertionError(result.line)
-        if mode == "blank" and result.status != NOT_ATTEMPTED:
-            raise AssertionError(f"expected a blank answer, got: {result.line}")
-
-    def hint(self) -> None:
-        """Print a hint: ``Hint (q1): ...``; tiered hints one more per call."""
-        n = len(self._hints)
-        k = min(self._hints_shown, n - 1)
-        self._hints_shown += 1
-        if n == 1:
-            print(f"Hint ({self.name}): {self._hints[0]}")
-            return
-        more = f" [{self.name}.hint() again gives the next hint]" if k < n - 1 else " [that was the last hint]"
-        print(f"Hint ({self.name}, {k + 1} of {n}): {self._hints[k]}{more}")
-
-    def show(self) -> None:
-        """Print the task and the inputs."""
-        print(f"{self.name}. {self.title}\n\n{self.task}\n\n{self.name}.inputs = {self.inputs!r}")
+        _say(self.result(), (RECORDED,))
 
     def __getattr__(self, name: str):
         if name in ("solution", "solution_code", "grade"):
@@ -122,8 +101,7 @@ class GradedQuestion:
         raise AttributeError(name)
 
     def __repr__(self) -> str:
-        names = ", ".join(self.inputs.keys())
-        return f"<Question {self.name}: {self.title!r}; inputs: {names}; {self.result().status}>"
+        return self._describe(self.result().status)
 
 
 def _unsupported(plain) -> str:
@@ -137,7 +115,7 @@ def _unsupported(plain) -> str:
     return ""
 
 
-class GradedLesson:
+class GradedLesson(_Questions):
     """A graded lesson's questions for one learner: ``ex.q1``... and :meth:`summary`.
 
     Parameters
@@ -174,25 +152,6 @@ class GradedLesson:
             self.questions.append(q)
             setattr(self, q.name, q)
 
-    def __iter__(self):
-        return iter(self.questions)
-
-    def __len__(self) -> int:
-        return len(self.questions)
-
-    def __getitem__(self, name: str) -> GradedQuestion:
-        """The question called ``name`` (``ex["q1"]``).
-
-        Raises
-        ------
-        ExerciseError
-            When the lesson has no such question.
-        """
-        for q in self.questions:
-            if q.name == name:
-                return q
-        raise ExerciseError(f"lesson {self.number} has no question {name!r}; it has {[q.name for q in self.questions]}")
-
     def results(self) -> list[Result]:
         """Each question's state: ``Recorded``, ``Not attempted`` or why it cannot be handed in.
 
@@ -210,9 +169,7 @@ class GradedLesson:
             f"Lesson {self.number} for learner {self.learner!r} (graded): {n} of {len(res)} answers recorded; "
             "your instructor grades them after you hand in this notebook"
         )
-        for q, r in zip(self.questions, res):
-            print(f"  {q.name} [{r.status}] {q.title}")
+        self._print_rows(res)
 
     def __repr__(self) -> str:
-        qs = "\n".join(f"  {q.name}: {q.title} ({q.level})" for q in self.questions)
-        return f"Lesson {self.number}: {self.title}, learner {self.learner!r} (graded)\n{qs}"
+        return f"Lesson {self.number}: {self.title}, learner {self.learner!r} (graded)\n{self._listing()}"

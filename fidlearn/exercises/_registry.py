@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ExerciseError
-from ._engine import Question, Result
+from ._engine import Question, Result, _Questions
 from ._graded import GradedLesson
 from ._scenery import _SEED
 
@@ -53,7 +53,7 @@ def _register(number: str, topic: str, title: str, intro: str, build: Callable[[
     _LESSONS[number] = _LessonInfo(number, topic, title, textwrap.dedent(intro).strip(), build)
 
 
-class Lesson:
+class Lesson(_Questions):
     """The questions of one lesson for one learner: ``ex.q1``, ``ex.q2``... and :meth:`summary`.
 
     Made by :func:`lesson`; every question is a fresh copy, so a learner may change its inputs.
@@ -84,25 +84,6 @@ class Lesson:
         for q in self.questions:
             setattr(self, q.name, q)
 
-    def __iter__(self):
-        return iter(self.questions)
-
-    def __len__(self) -> int:
-        return len(self.questions)
-
-    def __getitem__(self, name: str) -> Question:
-        """The question called ``name`` (``ex["q1"]``).
-
-        Raises
-        ------
-        ExerciseError
-            When the lesson has no such question (it is a KeyError too).
-        """
-        for q in self.questions:
-            if q.name == name:
-                return q
-        raise ExerciseError(f"lesson {self.number} has no question {name!r}; it has {[q.name for q in self.questions]}")
-
     def results(self) -> list[Result]:
         """The current result of every question (prints nothing).
 
@@ -118,13 +99,11 @@ class Lesson:
         n_ok = sum(r.correct for r in res)
         who = f" for learner {self.learner!r}" if self.learner else ""
         print(f"Lesson {self.number}{who}: {n_ok} of {len(res)} correct")
-        for q, r in zip(self.questions, res):
-            print(f"  {q.name} [{r.status}] {q.title}")
+        self._print_rows(res)
 
     def __repr__(self) -> str:
         who = f", learner {self.learner!r}" if self.learner else ", the class's shared variant"
-        qs = "\n".join(f"  {q.name}: {q.title} ({q.level})" for q in self.questions)
-        return f"Lesson {self.number}: {self.title}{who}\n{qs}"
+        return f"Lesson {self.number}: {self.title}{who}\n{self._listing()}"
 
 
 @functools.lru_cache(maxsize=64)

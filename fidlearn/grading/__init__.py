@@ -37,9 +37,9 @@ nothing in ``exercises`` imports it.
 
 from .._plain import from_plain, to_plain
 from ..errors import GradingError
+from ._grade import Grade
 from ._gradebook import lms_path
 from ._grader import (
-    NotebookGrade,
     collect,
     grade,
     grade_one,
@@ -49,7 +49,7 @@ from ._grader import (
 )
 from ._learners import learner_from_filename, new_secret, normalize_learner, read_roster, read_secret, variant_seed
 from ._sandbox import ANSWERS_FILE, COLLECT_CELL, INPUTS_FILE, read_answers, run_notebook, sandbox_plan
-from ._selfstudy import Grade, grade_notebook
+from ._selfstudy import grade_notebook
 
 __all__ = [
     "ANSWERS_FILE",
@@ -57,7 +57,6 @@ __all__ = [
     "INPUTS_FILE",
     "Grade",
     "GradingError",
-    "NotebookGrade",
     "collect",
     "from_plain",
     "grade",

@@ -8,7 +8,6 @@ import json
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._io import write_text_atomic
@@ -16,6 +15,7 @@ from .._plain import _Unsupported, to_plain
 from ..data import repo_dir
 from ..errors import FidlearnError
 from . import _gradebook, _learners, _release
+from ._grade import Grade
 from ._learners import normalize_learner, read_secret, variant_seed
 from ._sandbox import (
     ANSWERS_FILE,
@@ -69,25 +69,14 @@ def inputs_record(lesson: str, learner: str, secret: bytes) -> dict:
 
     Parameters
     ----------
-    lesson : str or int
-        The lesson.
-    learner : str
-        The learner's id.
-    secret : bytes
-        The class secret.
+    lesson, learner, secret
+        As for :func:`graded_questions` (which also says what it raises).
 
     Returns
     -------
     dict
         ``{"fidlearn_graded": 1, "lesson", "learner", "questions": {name: {input: plain data}},
         "about": {name: {"title", "task", "level", "hints"}}}``; no answers, no solutions.
-
-    Raises
-    ------
-    ExerciseError
-        For an unknown lesson.
-    GradingError
-        For a learner id that cannot be used.
     """
     from .. import exercises
 
@@ -174,57 +163,6 @@ def collect(namespace: dict, path: str = ANSWERS_FILE) -> None:
         json.dump({"answers": answers}, f)
 
 
-@dataclass
-class NotebookGrade:
-    """One learner's notebook: its score, a :class:`~fidlearn.exercises.Result` per question, and why not more.
-
-    Parameters
-    ----------
-    notebook, learner, lesson : str
-        The notebook's path, the learner's id, the lesson.
-    results : list of Result
-        One :class:`~fidlearn.exercises.Result` per question (the type self-study checks give).
-    problem : str
-        Why it got 0 or took too long ("" when all went well).
-    cell_errors : list of str
-        The cells that raised (information only).
-    graded : bool
-        False for a notebook that was not run (unknown learner, handed in twice, another
-        learner's notebook) and for a roster's learner who handed in nothing.
-    """
-
-    notebook: str
-    learner: str
-    lesson: str
-    results: list = field(default_factory=list)
-    problem: str = ""
-    cell_errors: list = field(default_factory=list)
-    graded: bool = True
-
-    @property
-    def score(self) -> int:
-        """How many questions are Correct.
-
-        Returns
-        -------
-        int
-        """
-        return sum(r.correct for r in self.results)
-
-    def line(self) -> str:
-        """One line for the grader's log: notebook, learner, lesson, score and any problem.
-
-        Returns
-        -------
-        str
-        """
-        if not self.graded:
-            return f"{self.notebook or '(no notebook)'}: learner {self.learner!r}, lesson {self.lesson}: {self.problem}"
-        total = len(self.results)
-        head = f"{self.notebook}: learner {self.learner!r}, lesson {self.lesson}: {self.score} of {total} correct"
-        return head + (f" ({self.problem})" if self.problem else "")
-
-
 def grade_one(
     notebook: str | os.PathLike,
     lesson: str,
@@ -234,7 +172,7 @@ def grade_one(
     timeout_s: int = 120,
     memory_mb: int = 3000,
     run_as: str | None = None,
-) -> NotebookGrade:
+) -> Grade:
     """Run one submitted notebook in its own process and grade its answers in this one.
 
     With ``secret`` None the notebook is checked against the self-study variant of ``learner``
@@ -260,8 +198,8 @@ def grade_one(
 
     Returns
     -------
-    NotebookGrade
-        A (question, status, message) row per question; a notebook that crashed, hung or wrote
+    Grade
+        A :class:`~fidlearn.exercises.Result` per question; a notebook that crashed, hung or wrote
         no answers gets 0 with the reason in ``problem``.
 
     Raises
@@ -272,12 +210,12 @@ def grade_one(
         For a learner id or a ``run_as`` user that cannot be used.
     """
     from .. import exercises
-    from ..exercises._engine import NOT_ATTEMPTED, Result
+    from ..exercises import NOT_ATTEMPTED, Result
 
     number = exercises.lesson_number(lesson)
     learner = normalize_learner(learner) if secret is not None else str(learner or "").strip()
     notebook = Path(notebook)
-    grade = NotebookGrade(str(notebook), learner, number)
+    grade = Grade(str(notebook), learner, number)
     # the key: built here, never written anywhere
     questions = (
         graded_questions(number, learner, secret) if secret is not None else exercises.build_questions(number, learner)
@@ -301,7 +239,7 @@ def grade_one(
 
 def _judge(question, answer):
     """Judge one answer in the grader's process: a bug in a learner's value can only make it wrong."""
-    from ..exercises._engine import INCORRECT, NOT_ATTEMPTED, Result
+    from ..exercises import INCORRECT, NOT_ATTEMPTED, Result
 
     if answer is None:
         return Result(question.name, NOT_ATTEMPTED, "no answer")
@@ -331,7 +269,7 @@ def grade(
     memory_mb: int = 3000,
     run_as: str | None = None,
     progress=None,
-) -> list[NotebookGrade]:
+) -> list[Grade]:
     """Grade a batch; the CSV (one row per question) is written once the whole batch is graded.
 
     Each notebook is matched to its learner by the id its metadata carries (written by
@@ -365,7 +303,7 @@ def grade(
 
     Returns
     -------
-    list of NotebookGrade
+    list of Grade
         One per notebook given, then one per roster learner who handed in nothing.
 
     Raises
@@ -383,25 +321,25 @@ def grade(
     ids = _learners.read_roster(list(roster), "the roster") if roster is not None else None
     matched = _gradebook.match(notebooks, number, learner, ids, secret)
     sandbox_plan(run_as)  # a user who cannot run this Python is refused before any notebook runs
-    grades: list[NotebookGrade] = []
+    grades: list[Grade] = []
     for k, (nb, who, problem) in enumerate(matched):
         if problem:
-            g = NotebookGrade(str(nb), who, number, [], problem, graded=False)
+            g = Grade(str(nb), who, number, [], problem, graded=False)
         else:
             try:
                 g = grade_one(nb, number, who, secret, timeout_s=timeout_s, memory_mb=memory_mb, run_as=run_as)
             except FidlearnError as exc:
-                g = NotebookGrade(str(nb), who, number, [], f"0: {exc}")
+                g = Grade(str(nb), who, number, [], f"0: {exc}")
         grades.append(g)
         if progress is not None:
             progress(k + 1, len(matched), g)
     for who in _gradebook.missing(matched, ids):
-        grades.append(NotebookGrade("", who, number, [], "missing: no notebook was handed in", graded=False))
+        grades.append(Grade("", who, number, [], "missing: no notebook was handed in", graded=False))
     _write_all(csv_path, grades, number, [f for f in formats if f != "csv"])
     return grades
 
 
-def _write_all(csv_path, grades: list[NotebookGrade], number: str, formats: list[str]) -> None:
+def _write_all(csv_path, grades: list[Grade], number: str, formats: list[str]) -> None:
     """The CSV and the gradebook imports, each atomically; all of them or (on a failure) none."""
     from .. import exercises
 
@@ -419,7 +357,7 @@ def _write_all(csv_path, grades: list[NotebookGrade], number: str, formats: list
         raise
 
 
-def _write_csv(path, grades: list[NotebookGrade]) -> None:
+def _write_csv(path, grades: list[Grade]) -> None:
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["notebook", "learner", "lesson", "score", "question", "status", "message", "problem"])

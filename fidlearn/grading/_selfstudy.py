@@ -1,57 +1,14 @@
-"""Checking a learner's self-study notebook: :func:`grade_notebook` and its :class:`Grade`."""
+"""Checking a learner's self-study notebook: :func:`grade_notebook`, which gives a :class:`Grade`."""
 
 from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import replace
 
-from ..exercises._registry import lesson_number
+from ._grade import Grade
 
-
-@dataclass
-class Grade:
-    """The outcome of checking one notebook: the lesson, the learner id it used, a Result per question.
-
-    Parameters
-    ----------
-    path : str
-        The notebook.
-    lesson : str or None
-        Its lesson (None when the notebook never opened one).
-    learner : str or None
-        The learner id it was checked with.
-    results : list of Result
-        One per question.
-    errors : list of str
-        What went wrong running it (cells that raised, a crash).
-    """
-
-    path: str
-    lesson: str | None
-    learner: str | None
-    results: list
-    errors: list
-
-    @property
-    def n_correct(self) -> int:
-        """How many questions are Correct.
-
-        Returns
-        -------
-        int
-        """
-        return sum(r.correct for r in self.results)
-
-    def __str__(self) -> str:
-        head = (
-            f"{self.path}: lesson {self.lesson}, learner {self.learner!r}: {self.n_correct} of {len(self.results)} "
-            "correct"
-        )
-        lines = [head] + [f"  {r.line}" for r in self.results] + [f"  problem: {e}" for e in self.errors]
-        return "\n".join(lines)
-
-
+_NO_LESSON = "no exercises found: the notebook never ran ex = exercises.lesson(...)"
 _LESSON_CALL = re.compile(r"exercises\.lesson\(\s*[\"']?(\d{1,2})[\"']?")
 
 
@@ -77,7 +34,7 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
     -------
     Grade
         A Result per question; a notebook that never opened a lesson gets none, with the reason
-        in ``errors``.
+        in ``problem`` (and ``errors``).
 
     Raises
     ------
@@ -87,6 +44,7 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
     import nbformat
 
     from ..errors import FidlearnError
+    from ..exercises import lesson_number
     from . import _grader
 
     path = os.fspath(path)
@@ -105,8 +63,7 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
         ) from None
     found = {m.group(1) for c in nb.cells if c.cell_type == "code" for m in _LESSON_CALL.finditer(c.source)}
     if len(found) != 1:
-        return Grade(path, None, learner, [], ["no exercises found: the notebook never ran ex = exercises.lesson(...)"])
+        return Grade(path, learner, None, problem=_NO_LESSON)
     number = lesson_number(found.pop())
     g = _grader.grade_one(path, number, learner or "", None, timeout_s=timeout)
-    errors = list(g.cell_errors) + ([g.problem] if g.problem else [])
-    return Grade(path, number, learner or "", g.results, errors)
+    return replace(g, notebook=path, learner=learner or "")

@@ -43,8 +43,8 @@ def _main(argv: Sequence[str] | None = None) -> int:
         w.writerow(["notebook", "lesson", "learner", "question", "status", "message"])
         for grade in grades:
             for r in grade.results:
-                w.writerow([grade.path, grade.lesson, grade.learner, r.question, r.status, r.message])
+                w.writerow([grade.notebook, grade.lesson, grade.learner, r.question, r.status, r.message])
             for e in grade.errors:
-                w.writerow([grade.path, grade.lesson, grade.learner, "", "problem", e])
+                w.writerow([grade.notebook, grade.lesson, grade.learner, "", "problem", e])
         write_text_atomic(args.csv, buf.getvalue())
     return 0
