@@ -65,6 +65,8 @@ def test_fixed_marker_is_written_exactly(capsys, tmp_path):
     tape = json.loads(TAPE.read_text())
     assert json.loads(out_path.read_text())["markers"]["0"] == tape["markers"]["0"]
     assert " fixed" in out
+    assert "tape sigma learnt from the tape residuals: " in out and " mm per coordinate" in out  # the default
+    assert "print scale (photos against the tape): " in out
 
 
 def test_marker_in_one_photo_gets_a_warning_saying_what_to_take(capsys, tmp_path):
