@@ -14,6 +14,12 @@ The print scale: the photos measure the room in printed marker sides, the tape i
 a printer at 98.7 % makes the photos' room 1/0.987 times the true one. The gross test's
 similarity laying the photos' top-left corners on the tape's has that scale; its standard error is
 ``s_fit / sqrt(sum |a_i - a_mean|^2)`` (``s_fit`` the per-coordinate spread of the fit's residuals).
+It is applied (the adjustment's marker side is ``scale * marker_size_mm``, and so is the surveyed
+map's) only when the sigma is learnt and the scale is more than ``SCALE_SIGMAS`` standard errors
+from 1: a scale the photos see clearly and left out stretches every tape residual with the
+distance from the room's middle (1.3 % over 2 m is 26 mm), which the learnt sigma would take for
+tape error and the suspect test for moved markers; a scale within its error, applied, would only
+add that error to the room's size. A sigma given keeps the survey as it was: the scale is reported.
 """
 
 from __future__ import annotations
