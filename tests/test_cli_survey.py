@@ -47,6 +47,7 @@ def test_survey_of_the_bundled_photos_names_the_moved_marker(capsys, tmp_path):
     assert code == 0, err
     assert "marker 7 is" in out and "mm from where the map says" in out and "measure it again" in out
     assert out.count("SUSPECT") == 1
+    assert "tape sigma 20 mm" in out and "tape sigma learnt" not in out  # --map-sigma-mm overrides the learning
     row = next(line for line in out.splitlines() if line.split()[:1] == ["7"])
     assert 80 < float(row.split()[-7]) < 140  # the difference column, mm
     d = json.loads(out_path.read_text())
