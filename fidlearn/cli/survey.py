@@ -137,9 +137,9 @@ def _report(s: Survey, args) -> None:
         else f"{args.output}: {len(s.marker_map)} markers surveyed from {len(s.camera_poses)} photos "
         f"(corner noise {s.corner_sigma_px:.2f} px)"
     )
+    print(s.table())
     for line in s.learnt():
         print(line)
-    print(s.table())
     for sus in s.suspects:
         print(sentence(sus))
     if not s.suspects:
