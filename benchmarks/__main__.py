@@ -394,6 +394,20 @@ def _parse_survey(out: str) -> list[tuple[str, str, str]]:
     named, false = num(r"moved marker named: ([\d.]+) %"), num(r"a good marker named: ([\d.]+) %")
     cover, ratio = num(r"inside their 95 % ellipsoid: ([\d.]+) %"), num(r"surveyed [\d.]+ mm \(([\d.]+)x better\)")
     worst = num(r"worst ([\d.]+) s wall")
+    learnt = re.search(
+        r"sigma learnt: exactly the moved marker named in (\d+) of (\d+) rooms, error / limit at worst ([\d.]+)", out
+    )
+    rows = []
+    if learnt:
+        exact, rooms, ratio_limit = int(learnt.group(1)), int(learnt.group(2)), float(learnt.group(3))
+        rows.append(
+            (
+                "survey: tape sigma learnt (20 mm, a marker moved 100 mm): exactly the moved marker named, "
+                "room within 1.15x of the tape's limit",
+                f"{exact} of {rooms} rooms named exactly; {ratio_limit:.2f}x the limit at worst",
+                _yes(exact == rooms and ratio_limit <= 1.15),
+            )
+        )
     return [
         (
             "survey: corners within 3 mm RMS of the truth (goal 1.5)",
@@ -405,7 +419,7 @@ def _parse_survey(out: str) -> list[tuple[str, str, str]]:
         ("survey: true positions inside the 95 % ellipsoids 90-98 %", f"{cover:.1f} %", _yes(90 <= cover <= 98)),
         ("survey: locate >= 3x more accurate with the surveyed map (fresh views)", f"{ratio:.1f}x", _yes(ratio >= 3)),
         ("survey: under 10 s (20 photos, 2 shared cores)", f"{worst:.1f} s wall at worst", _yes(worst < 10)),
-    ]
+    ] + rows
 
 
 _PARSERS = {

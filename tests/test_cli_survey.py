@@ -49,6 +49,8 @@ def test_survey_of_the_bundled_photos_names_the_moved_marker(capsys, tmp_path):
     assert "mm from where the map says" in out
     assert "measure it again" in out
     assert out.count("SUSPECT") == 1
+    assert "tape sigma 20 mm" in out  # --map-sigma-mm overrides the learning
+    assert "tape sigma learnt" not in out
     row = next(line for line in out.splitlines() if line.split()[:1] == ["7"])
     assert 80 < float(row.split()[-7]) < 140  # the difference column, mm
     d = json.loads(out_path.read_text())
@@ -68,6 +70,9 @@ def test_fixed_marker_is_written_exactly(capsys, tmp_path):
     tape = json.loads(TAPE.read_text())
     assert json.loads(out_path.read_text())["markers"]["0"] == tape["markers"]["0"]
     assert " fixed" in out
+    assert "tape sigma learnt from the tape residuals: " in out  # the default
+    assert " mm per coordinate" in out
+    assert "print scale (photos against the tape): " in out
 
 
 def test_marker_in_one_photo_gets_a_warning_saying_what_to_take(capsys, tmp_path):

@@ -50,7 +50,13 @@ BAD = {
 }
 ARGS = ["images", "marker_map", "camera", "map_sigma_mm", "fixed_ids", "corner_sigma_px", "progress"]
 #: A wrong value the survey may accept (running then to the end): None where None means "not given".
-ACCEPTED = {("fixed_ids", "None"), ("corner_sigma_px", "None"), ("progress", "None"), ("fixed_ids", "empty list")}
+ACCEPTED = {
+    ("map_sigma_mm", "None"),
+    ("fixed_ids", "None"),
+    ("corner_sigma_px", "None"),
+    ("progress", "None"),
+    ("fixed_ids", "empty list"),
+}
 
 
 def run_survey(**changes):

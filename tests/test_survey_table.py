@@ -17,10 +17,12 @@ CAM = fidlearn.Camera.from_fov(70, (1280, 720))
 @pytest.fixture(scope="module")
 def surveyed():
     truth = survey_room()
-    poses = survey_walk(truth, CAM, 20, seed=1)
+    poses = survey_walk(truth, CAM, n_photos=20, seed=1)
     seen = [visible_markers(truth, CAM, T) for T in poses]
     photos = [[Detection(i, c) for i, c in v.items()] for v in seen]
-    tape = MarkerMap({i: p for i, p in truth.placements.items() if i != 5}, truth.marker_size_mm, truth.dictionary)
+    tape = MarkerMap(
+        {i: p for i, p in truth.placements.items() if i != 5}, truth.marker_size_mm, dictionary=truth.dictionary
+    )
     s = fidlearn.survey(photos, tape, CAM, map_sigma_mm=math.inf, fixed_ids=[0])
     counts = {i: sum(i in v for v in seen) for i in truth.ids}
     return s, truth, counts

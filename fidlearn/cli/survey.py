@@ -57,9 +57,12 @@ def add(sub) -> None:
     p.add_argument(
         "--map-sigma-mm",
         type=float,
-        default=10.0,
+        default=None,
         metavar="MM",
-        help="how well the tape placed each top-left corner, mm per coordinate (default 10; 'inf' with --fixed)",
+        help=(
+            "how well the tape placed each top-left corner, mm per coordinate (default: learnt from the tape's "
+            "residuals, with the markers' print scale; 'inf' with --fixed)"
+        ),
     )
     p.add_argument(
         "--fixed", type=int, action="append", metavar="ID", help="a marker whose placement is exact (repeatable)"
@@ -75,7 +78,7 @@ def _check(args) -> list[Path]:
     photos = [path for _, path in expand_inputs(args.photos, videos=False)]
     _refuse_clobber([("-o", out), ("--plot", plot)], [*photos, args.map, args.camera])
     sigma = args.map_sigma_mm
-    if not (MIN_MAP_SIGMA_MM <= sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
+    if sigma is not None and not (MIN_MAP_SIGMA_MM <= sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
         raise UsageError(
             f"--map-sigma-mm {sigma:g}: give a positive number of mm from {MIN_MAP_SIGMA_MM:g} to "
             f"{MAX_MAP_SIGMA_MM:g} (e.g. 10), or inf with --fixed"
@@ -130,8 +133,13 @@ def _report(s: Survey, args) -> None:
     print(
         f"{args.output}: {len(s.marker_map)} markers surveyed from {len(s.camera_poses)} photos "
         f"(corner noise {s.corner_sigma_px:.2f} px, tape sigma {s.map_sigma_mm:g} mm)"
+        if not s.map_sigma_learnt
+        else f"{args.output}: {len(s.marker_map)} markers surveyed from {len(s.camera_poses)} photos "
+        f"(corner noise {s.corner_sigma_px:.2f} px)"
     )
     print(s.table())
+    for line in s.learnt():
+        print(line)
     for sus in s.suspects:
         print(sentence(sus))
     if not s.suspects:

@@ -5,7 +5,8 @@ only as good as the tape measure that made it. Photos of the markers from severa
 more: each shows where markers are relative to each other, to a fraction of a millimetre. The
 survey puts every camera pose and every marker placement (6 unknowns each) into one least-squares
 problem whose residuals are the corners' reprojection errors, and keeps the tape map as a prior
-(each placement within ``map_sigma_mm``) so the result stays where the tape put the room. A
+(each placement within ``map_sigma_mm``, learnt from the tape residuals unless given, with the
+markers' print scale) so the result stays where the tape put the room. A
 marker taped in the wrong place is named (:attr:`Survey.suspects`), markers absent from the map
 are added, and each placement comes with its 6x6 covariance. A marker taped metres off (a typo)
 is found first, by the photos alone (:attr:`Survey.gross_ids`), and never pulls the others.
@@ -14,7 +15,8 @@ Modules: ``_inputs`` (photos to detected corners, the checks), ``_init`` (starti
 markers, the units check), ``_gross`` (the photos alone against the tape: gross errors and
 the robust residuals), ``_geometry`` (rotation vectors and their Jacobians), ``_problem``
 (unknowns, residuals, sparse Jacobian), ``_solve`` (the passes, covariance, suspect test),
-``_result`` (:class:`Survey`) and ``_survey`` (:func:`survey`).
+``_variance`` (the tape's sigma and the print scale learnt), ``_result`` (:class:`Survey`) and
+``_survey`` (:func:`survey`).
 
 Conventions: mm, ``T_a_b`` maps frame b into frame a, placements as in the map files (top-left
 corner, roll-pitch-yaw in degrees), camera frame OpenCV's.

@@ -31,6 +31,7 @@ from ..markermap import MarkerMap, MarkerPlacement
 from ._init import UNITS_FACTOR_LIMIT, _units_message, initial_values
 from ._inputs import _Photo
 from ._solve import FIRST_SIGMA_PX, _polish, build_problem
+from ._variance import print_scale
 
 #: A taped marker farther than this many tape sigmas (3D distance) from the photos is gross.
 GROSS_SIGMAS = 15.0
@@ -47,6 +48,9 @@ class GrossTest:
     residual_mm: dict[int, float] = field(default_factory=dict)
     threshold_mm: float = math.nan
     gross: tuple[int, ...] = ()
+    spread_mm: float = math.nan  # the residuals' robust spread per coordinate (median / _MEDIAN_3D)
+    scale: float = math.nan  # the similarity's scale: the markers' print scale
+    scale_se: float = math.nan
 
 
 def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndarray]:
@@ -78,15 +82,17 @@ def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndar
     return {i: p_mark[k] for k, i in enumerate(slots) if np.all(np.isfinite(p_mark[k]))}
 
 
-def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float) -> GrossTest:
+def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float | None) -> GrossTest:
     """The taped markers that disagree with the photos by more than the room can explain.
+
+    ``sigma_mm`` None (to be learnt): the threshold is the residuals' own spread (and one marker side).
 
     Raises
     ------
     SurveyError
         No more than half of the taped markers seen agree with the photos (naming them).
     """
-    if not math.isfinite(sigma_mm):
+    if sigma_mm is not None and not math.isfinite(sigma_mm):
         return GrossTest()
     seen = photo_placements(photos, tape)
     ids = sorted(i for i in seen if i in tape)
@@ -94,7 +100,7 @@ def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float) -> GrossT
         return GrossTest()
     src = np.array([seen[i] for i in ids])
     dst = np.array([tape.placements[i].translation_mm for i in ids], float)
-    floor = max(GROSS_SIGMAS * sigma_mm, tape.marker_size_mm)
+    floor = max(GROSS_SIGMAS * (sigma_mm or 0.0), tape.marker_size_mm)
     inliers = _consensus(src, dst, floor)
     threshold = floor
     if 2 * int(inliers.sum()) > len(ids):
@@ -110,7 +116,9 @@ def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float) -> GrossT
     residual = {i: float(v) for i, v in zip(ids, r)}
     if 2 * int(inliers.sum()) <= len(ids):
         raise SurveyError(_no_majority(ids, inliers, residual, threshold, tape))
-    return GrossTest(residual, threshold, tuple(i for i, ok in zip(ids, inliers) if not ok))
+    gross = tuple(i for i, ok in zip(ids, inliers) if not ok)
+    scale, scale_se = print_scale(src, dst, r, _similarity)
+    return GrossTest(residual, threshold, gross, float(np.median(r)) / _MEDIAN_3D, scale, scale_se)
 
 
 def _refuse_units(src: np.ndarray, dst: np.ndarray, threshold: float, tape: MarkerMap) -> None:

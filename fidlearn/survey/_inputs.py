@@ -60,7 +60,7 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
             f"{camera.source or 'the camera'}: the survey's projection has no tilted-sensor terms (tauX, tauY, "
             "distortion coefficients 13 and 14); calibrate without CALIB_TILTED_MODEL"
         )
-    if math.isinf(sigma) and not fixed:
+    if sigma is not None and math.isinf(sigma) and not fixed:
         raise SurveyError(
             "with map_sigma_mm=inf nothing ties the photos to the world: give fixed_ids (a marker whose "
             "placement is exact) or a finite map_sigma_mm"
@@ -83,13 +83,18 @@ def _short(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _sigma_mm(map_sigma_mm) -> float:
+def _sigma_mm(map_sigma_mm) -> float | None:
+    """The tape's sigma checked (mm); None to learn it from the tape residuals."""
+    if map_sigma_mm is None:
+        return None
     sigma = None
     if not isinstance(map_sigma_mm, (bool, str, bytes)):
         with contextlib.suppress(TypeError, ValueError):
             sigma = float(map_sigma_mm)
     if sigma is None:
-        raise SurveyError(f"map_sigma_mm must be a length in mm (e.g. 10), got {_short(map_sigma_mm)}")
+        raise SurveyError(
+            f"map_sigma_mm must be a length in mm (e.g. 10), or None to learn it, got {_short(map_sigma_mm)}"
+        )
     if not (MIN_MAP_SIGMA_MM <= sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
         raise SurveyError(
             f"map_sigma_mm must be above 0, from {MIN_MAP_SIGMA_MM:g} to {MAX_MAP_SIGMA_MM:g} mm (a placement "

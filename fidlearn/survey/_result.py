@@ -71,8 +71,9 @@ class Survey:
     corner_sigma_px : float
         Corner noise the covariance assumes (px per coordinate): given, or estimated from the residuals.
     map_sigma_mm, map_sigma_deg : float
-        The tape's standard deviation on each coordinate of a top-left corner (mm) and on each
-        rotation angle (degrees, derived: ``map_sigma_mm / marker_size_mm`` rad).
+        The tape's standard deviation on each coordinate of a top-left corner (mm), given or learnt
+        (:attr:`map_sigma_learnt`), and on each rotation angle (degrees, derived:
+        ``map_sigma_mm / marker_size_mm`` rad).
     photos_per_marker : dict of int to int
         How many photos used show each surveyed marker.
     tests : dict of int to (float, float)
@@ -89,6 +90,20 @@ class Survey:
         The gross test's threshold (mm): ``GROSS_SIGMAS`` tape sigmas, or residual spreads when those
         are larger, and at least one marker side; NaN when the test was not run (fewer than four
         taped markers in two photos, or ``map_sigma_mm=inf``).
+    map_sigma_learnt : bool
+        Whether :attr:`map_sigma_mm` was learnt from the tape residuals (``map_sigma_mm=None``): the
+        variance component of the taped markers' positions, the suspects left out.
+    map_sigma_se_mm : float
+        Standard error of a learnt :attr:`map_sigma_mm` (``sigma / sqrt(2 r)``, ``r`` the tape
+        residuals' redundancy); NaN when given.
+    print_scale, print_scale_se : float
+        The markers' print scale and its standard error: the scale of the similarity laying the photos'
+        top-left corners on the tape's (0.987: printed at 98.7 %, or a tape that reads long); NaN when
+        the gross test did not run.
+    print_scale_applied : bool
+        Whether the survey used the marker side ``print_scale * marker_size_mm`` (only when the sigma is
+        learnt and the scale is more than 3 standard errors from 1); the surveyed map then has that
+        marker size.
     """
 
     marker_map: MarkerMap
@@ -112,6 +127,11 @@ class Survey:
     tape_residual_mm: dict[int, float] = field(default_factory=dict)
     gross_ids: tuple[int, ...] = ()
     gross_threshold_mm: float = float("nan")
+    map_sigma_learnt: bool = False
+    map_sigma_se_mm: float = float("nan")
+    print_scale: float = float("nan")
+    print_scale_se: float = float("nan")
+    print_scale_applied: bool = False
 
     @property
     def suspect_ids(self) -> list[int]:
@@ -174,6 +194,8 @@ class Survey:
             "photos_used": len(self.camera_poses),
             "photos_unused": len(self.unused),
             "map_sigma_mm": self.map_sigma_mm,
+            "map_sigma_learnt": self.map_sigma_learnt,
+            "print_scale": self.print_scale if self.print_scale == self.print_scale else None,
             "corner_sigma_px": round(self.corner_sigma_px, 4),
             "fixed_ids": list(self.fixed_ids),
             "added_ids": list(self.added_ids),
@@ -211,6 +233,34 @@ class Survey:
             raise SurveyError(f"save needs a file path (str or pathlib.Path) ending in .json, got {_short(path)}")
         check_readable(self.marker_map)
         return write_json_atomic(path, {**self.marker_map.to_dict(), "surveyed": self.note()})
+
+    def learnt(self) -> list[str]:
+        """What the survey learnt of the tape, in words: its sigma (when learnt) and the markers' print scale.
+
+        Returns
+        -------
+        list of str
+            One line for a learnt :attr:`map_sigma_mm` (with its standard error), one for the print
+            scale when the gross test measured it (whether it was applied, or is within its error).
+        """
+        lines = []
+        if self.map_sigma_learnt:
+            lines.append(
+                f"tape sigma learnt from the tape residuals: {self.map_sigma_mm:.1f} +/- {self.map_sigma_se_mm:.1f} mm "
+                "per coordinate (give --map-sigma-mm / map_sigma_mm to set it)"
+            )
+        if self.print_scale == self.print_scale:
+            pct, se = 100 * self.print_scale, 100 * self.print_scale_se
+            if self.print_scale_applied:
+                what = (
+                    f"applied: marker side {self.marker_map.marker_size_mm:.1f} mm; check a printed marker with a ruler"
+                )
+            elif abs(self.print_scale - 1) > 3 * self.print_scale_se:
+                what = "more than 3 standard errors from 100 %, not applied (the tape's sigma was given)"
+            else:
+                what = "within 3 standard errors of 100 %, not applied"
+            lines.append(f"print scale (photos against the tape): {pct:.2f} +/- {se:.2f} %, {what}")
+        return lines
 
     def table(self) -> str:
         """The per-marker table ``fidlearn survey`` prints: tape and surveyed corners, their difference.

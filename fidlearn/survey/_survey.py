@@ -12,7 +12,7 @@ from ..errors import FidlearnWarning, SurveyError
 from ..markermap import MarkerMap, MarkerPlacement
 from ._gross import GrossTest, gross_test
 from ._init import check_units, initial_values
-from ._inputs import MIN_PHOTOS, _check_options, _read_photos
+from ._inputs import MAX_MAP_SIGMA_MM, MIN_MAP_SIGMA_MM, MIN_PHOTOS, _check_options, _read_photos
 from ._result import Survey, Suspect, check_readable
 from ._solve import (
     FIRST_SIGMA_PX,
@@ -24,6 +24,7 @@ from ._solve import (
     suspect_threshold,
     tape_test,
 )
+from ._variance import SIGMA_RTOL, SIGMA_STEPS, START_SIGMA_MM, next_sigma, scale_applies, sigma_error
 
 __all__ = ["survey"]
 
@@ -32,7 +33,7 @@ MAX_SUSPECTS = 4
 
 
 def survey(
-    images, marker_map, camera, *, map_sigma_mm=10.0, fixed_ids=None, corner_sigma_px=None, progress=None
+    images, marker_map, camera, *, map_sigma_mm=None, fixed_ids=None, corner_sigma_px=None, progress=None
 ) -> Survey:
     """The marker map from photos, joined with the tape map: a bundle adjustment.
 
@@ -45,7 +46,8 @@ def survey(
     off cannot drag the others), then plainly; a marker seen in two photos or more whose tape
     placement disagrees with the photos (a chi-square test at 1 %, see :mod:`fidlearn.survey._solve`)
     is named a suspect and its tape prior dropped, so the photos alone place it. The corner noise
-    is estimated from the residuals unless given; the covariances assume it, and the tape's sigma.
+    is estimated from the residuals unless given; the covariances assume it, and the tape's sigma
+    (given, or learnt from the tape residuals when ``map_sigma_mm`` is None).
 
     Before all this, a gross test (:mod:`fidlearn.survey._gross`): the photos alone place every
     marker seen in two photos up to the gauge, a similarity laying them on the tape map is fitted
@@ -65,9 +67,15 @@ def survey(
         The tape map: each marker's top-left corner and rotation, as measured.
     camera : Camera or path
         The calibrated camera (fitted to each image's size as :func:`fidlearn.locate` does).
-    map_sigma_mm : float
+    map_sigma_mm : float or None
         Standard deviation of the tape's top-left corners, mm per coordinate; ``math.inf`` to let
-        the photos alone decide (then ``fixed_ids`` hold the map in the world).
+        the photos alone decide (then ``fixed_ids`` hold the map in the world). None (the default):
+        learnt from the tape residuals, a variance component (Helmert, Foerstner: the sum of the
+        squared tape position residuals over their redundancy, iterated to a fixed point from the
+        gross test's robust spread, the suspects left out; :mod:`fidlearn.survey._variance`), with
+        its standard error (:attr:`Survey.map_sigma_se_mm`); the markers' print scale is then
+        applied when it is more than 3 standard errors from 1 (:attr:`Survey.print_scale`). A
+        number given is used as it is, and the print scale only reported.
     fixed_ids : int or sequence of int, optional
         Markers whose tape placement is exact: held, not adjusted.
     corner_sigma_px : float, optional
@@ -118,18 +126,34 @@ def survey(
     seen = {i for ph in cams for i in ph.corners if i in placed}
     free = sorted(seen - set(fixed))
     slots = free + [i for i in fixed if i in seen]
+    learn = sigma_mm is None
+    sigma_mm, scale = _start(sigma_mm, gross)
     if math.isinf(sigma_mm) and len(slots) == len(free):
         raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
     opts = {
-        "marker_size_mm": tape.marker_size_mm,
+        "marker_size_mm": tape.marker_size_mm * scale,
         "sigma_px": corner_sigma_px or FIRST_SIGMA_PX,
         "sigma_mm": sigma_mm,
         "sigma_rot_rad": sigma_mm / tape.marker_size_mm,
     }
     taped = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
     priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in tape}
-    fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, set(gross.gross))
-    return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross)
+    fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, set(gross.gross), learn)
+    learnt = {"learnt": learn, "scale": scale, "size": tape.marker_size_mm}
+    return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross, learnt)
+
+
+def _start(sigma_mm: float | None, gross: GrossTest) -> tuple[float, float]:
+    """``(sigma_mm, print scale)`` the adjustment starts from: as given (scale 1), or to be learnt.
+
+    To be learnt (None): the gross test's robust spread (or ``START_SIGMA_MM``), and its print scale
+    when it is significant (:func:`fidlearn.survey._variance.scale_applies`).
+    """
+    if sigma_mm is not None:
+        return sigma_mm, 1.0
+    start = gross.spread_mm if math.isfinite(gross.spread_mm) else START_SIGMA_MM
+    scale = gross.scale if scale_applies(gross.scale, gross.scale_se) else 1.0
+    return min(max(start, MIN_MAP_SIGMA_MM), MAX_MAP_SIGMA_MM), scale
 
 
 def _fixed_gross(gross: GrossTest, fixed) -> str:
@@ -153,21 +177,40 @@ def _usable(photos: list) -> list:
     return cams
 
 
-def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool, gross: set[int]):
-    """Robust pass, corner noise, then plain passes until the suspect test names no new marker.
+def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool, gross: set[int], learn: bool):
+    """Robust pass, corner noise, then the suspect passes; with ``learn``, the tape's sigma to its fixed point.
 
     The gross markers' tape placements are left out from the start (they are suspects already).
+    The tape's sigma is learnt as :mod:`fidlearn.survey._variance` says: each step re-solves (and
+    re-tests the suspects) at the sigma the last solution's tape residuals give.
+    """
+    problem = build_problem(cams, slots, n_free, placed, {i: v for i, v in priors.items() if i not in gross}, opts)
+    seen_twice = {i for k, i in enumerate(slots) if len(set(problem.obs_cam[problem.obs_marker == k])) >= 2}
+    x = fit(problem, np.zeros(problem.n_params), robust=True)
+    if estimate_sigma:
+        opts = {**opts, "sigma_px": corner_sigma(problem, x, gauge_free=False)}
+    fitted = _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice, gross)
+    redundancy = math.nan
+    for _ in range(SIGMA_STEPS if learn and priors else 0):
+        problem, x, C = fitted[:3]
+        sigma, redundancy = next_sigma(problem, x, C)
+        done = abs(sigma / opts["sigma_mm"] - 1) < SIGMA_RTOL
+        ratio = opts["sigma_rot_rad"] / opts["sigma_mm"]
+        opts = {**opts, "sigma_mm": sigma, "sigma_rot_rad": sigma * ratio}
+        fitted = _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice, gross)
+        if done:
+            break
+    return (*fitted, redundancy)
+
+
+def _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice: set[int], gross: set[int]):
+    """Plain passes from ``x`` until the suspect test names no new marker.
 
     Suspects are named one at a time, the worst first (a marker far off can make its neighbours
     look wrong until it is let go), and only among markers seen in two photos or more: one photo
     cannot dispute the tape (a lone marker's pose may flip), it asks for another photo.
     """
     dropped: set[int] = set(gross)
-    problem = build_problem(cams, slots, n_free, placed, {i: v for i, v in priors.items() if i not in gross}, opts)
-    seen_twice = {i for k, i in enumerate(slots) if len(set(problem.obs_cam[problem.obs_marker == k])) >= 2}
-    x = fit(problem, np.zeros(problem.n_params), robust=True)
-    if estimate_sigma:
-        opts = {**opts, "sigma_px": corner_sigma(problem, x, gauge_free=False)}
     threshold = suspect_threshold()
     for _ in range(MAX_SUSPECTS + 1):
         keep = {i: v for i, v in priors.items() if i not in dropped}
@@ -184,8 +227,8 @@ def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool, gro
     return problem, x, C, tests, dropped
 
 
-def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest) -> Survey:
-    problem, x, C, tests, dropped = fitted
+def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest, learnt: dict) -> Survey:
+    problem, x, C, tests, dropped, redundancy = fitted
     R_cam, t_cam, R_mark, p_mark = problem.poses(x)
     placements = dict(tape.placements)
     cov, std = {}, {}
@@ -202,7 +245,11 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
         cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
         std[i] = np.sqrt(np.diag(cov[i])[3:])
     surveyed = MarkerMap(
-        placements, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=f"survey of {tape.source}"
+        placements,
+        learnt["size"] * learnt["scale"],
+        dictionary=tape.dictionary,
+        units=tape.units,
+        source=f"survey of {tape.source}",
     )
     check_readable(surveyed)
     r = np.linalg.norm(problem.reprojection_px(x), axis=1)
@@ -232,6 +279,11 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
         tape_residual_mm=gross.residual_mm,
         gross_ids=gross.gross,
         gross_threshold_mm=gross.threshold_mm,
+        map_sigma_learnt=learnt["learnt"],
+        map_sigma_se_mm=sigma_error(float(s_mm), redundancy) if learnt["learnt"] else math.nan,
+        print_scale=gross.scale,
+        print_scale_se=gross.scale_se,
+        print_scale_applied=learnt["scale"] != 1.0,
     )
 
 
