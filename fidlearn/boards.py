@@ -133,7 +133,11 @@ class Board:
         if self.kind not in _KINDS:
             raise BoardError(f"kind {self.kind!r} is unknown; use Board.checkerboard(...) or Board.charuco(...)")
         cols, rows = _two_counts(self.squares, "squares", "(10, 7)")
-        square = _length_mm(self.square_size_mm, "square_size_mm", "measure one printed square in millimetres")
+        square = _length_mm(
+            self.square_size_mm,
+            "square_size_mm",
+            "measure one printed square in millimetres (command line: --square-mm)",
+        )
         object.__setattr__(self, "squares", (cols, rows))
         object.__setattr__(self, "square_size_mm", square)
         if self.kind == "checkerboard":
@@ -163,11 +167,15 @@ class Board:
             raise BoardError(
                 "a ChArUco board needs marker_size_mm (command line: --marker-mm), smaller than the square"
             )
-        marker = _length_mm(self.marker_size_mm, "marker_size_mm", "measure one printed marker's black square")
+        marker = _length_mm(
+            self.marker_size_mm,
+            "marker_size_mm",
+            "measure one printed marker's black square (command line: --marker-mm)",
+        )
         if marker >= square:
             raise BoardError(
-                f"marker_size_mm ({marker:g}) must be smaller than square_size_mm ({square:g}): the markers sit "
-                f"inside the white squares; try {0.75 * square:g} "
+                f"marker_size_mm ({marker:g}) must be smaller than square_size_mm ({square:g}) (command line: "
+                f"--marker-mm, --square-mm): the markers sit inside the white squares; try {0.75 * square:g} "
                 "(OpenCV's tutorial board: 40 mm squares, 20 mm markers)"
             )
         name = _cv.dictionary_name(self.dictionary or "6X6_250")

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 import fidlearn
-from fidlearn import Camera, Detection, FidlearnError, MarkerMap, ros, synthetic
+from fidlearn import Board, Camera, Detection, FidlearnError, MarkerMap, ros, synthetic
 from fidlearn._webcam import MAX_FRAME_SIDE_PX, decode_frame
 from fidlearn.errors import ImageError, TrackingError, WebcamError
 from fidlearn.filtering import PoseTracker, smooth
@@ -119,7 +119,7 @@ BASELINES = {
     ),
     "render_calibration_views": (
         lambda: synthetic.render_calibration_views,
-        (Camera.from_fov(60, (320, 240)), 2, (5, 4), 25.0),
+        (Camera.from_fov(60, (320, 240)), 2, Board.checkerboard((5, 4), 25.0)),
         {"seed": 0, "supersample": 1, "views": [0]},
     ),
     "decode_frame": (lambda: decode_frame, (cv2.imencode(".png", IMAGE)[1].tobytes(), 160, 120), {}),
