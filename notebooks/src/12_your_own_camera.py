@@ -30,8 +30,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from fidlearn import (Camera, MarkerMap, MarkerTracker, board_pdf, calibrate_checkerboard, data_path, markers_pdf,
-                      plotting)
+from fidlearn import (Board, Camera, MarkerMap, MarkerTracker, board_pdf, calibrate_checkerboard, data_path,
+                      markers_pdf, plotting)
 from fidlearn.detection import load_image
 from fidlearn.errors import NoMarkersError, PoseError
 from fidlearn.widgets import Webcam, figure_png
@@ -96,7 +96,7 @@ plt.show()
 # %%
 PATTERN = (9, 6)  # inner corners (columns, rows)
 SQUARE_MM = 25.0  # measure your print!
-board_pdf(OUT / "board.pdf", PATTERN, SQUARE_MM)
+board_pdf(OUT / "board.pdf", Board.checkerboard(PATTERN, SQUARE_MM))
 print("printed board:", OUT / "board.pdf")
 COVERAGE_CELLS = (8, 6)  # the picture cut into 8 x 6 cells
 
