@@ -54,7 +54,7 @@ def _pose_record(pose) -> dict:
         "rejected_ids": list(pose.rejected_ids),
         "ambiguous": bool(pose.ambiguous),
         "reprojection_rms_px": pose.reprojection_rms_px,
-        "sigma_px": pose.sigma_px,
+        "sigma_px": pose.corner_sigma_px,
         "covariance": None if pose.covariance is None else pose.covariance.tolist(),
         "method": pose.method,
     }

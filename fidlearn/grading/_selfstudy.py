@@ -55,7 +55,7 @@ class Grade:
 _LESSON_CALL = re.compile(r"exercises\.lesson\(\s*[\"']?(\d{1,2})[\"']?")
 
 
-def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout: int = 300) -> Grade:
+def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout_s: int = 300) -> Grade:
     """Check a learner's self-study notebook: run it in a sandbox, judge its answers outside it.
 
     The notebook runs in a process of its own (see :mod:`fidlearn.grading`); its answers are
@@ -70,7 +70,7 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
         The notebook (``.ipynb``).
     learner : str, optional
         The id the learner was told to use (a notebook whose ``LEARNER`` is empty runs with it).
-    timeout : int
+    timeout_s : int
         Seconds the notebook may run.
 
     Returns
@@ -107,6 +107,6 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
     if len(found) != 1:
         return Grade(path, None, learner, [], ["no exercises found: the notebook never ran ex = exercises.lesson(...)"])
     number = lesson_number(found.pop())
-    g = _grader.grade_one(path, number, learner or "", None, timeout_s=timeout)
+    g = _grader.grade_one(path, number, learner or "", None, timeout_s=timeout_s)
     errors = list(g.cell_errors) + ([g.problem] if g.problem else [])
     return Grade(path, number, learner or "", g.results, errors)

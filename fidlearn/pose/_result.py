@@ -114,7 +114,7 @@ class Pose(_PoseReadouts):
         Covariance of the camera's pose: ``[dtheta (rad, 3), position (mm, 3)]``
         where ``dtheta`` is a small rotation vector, in world axes, applied on
         the left of ``R_world_camera`` (``R = expm([dtheta]x) @ R_est``) and
-        position is the camera centre in the world. ``sigma_px^2 (J^T J)^-1``
+        position is the camera centre in the world. ``corner_sigma_px^2 (J^T J)^-1``
         with ``J`` the Jacobian of the corner pixels at the solution
         (:func:`pose_jacobian`): the Cramer-Rao bound when ``corner_sigma_px``
         is given. When sigma is estimated from the residuals it is multiplied
@@ -143,7 +143,7 @@ class Pose(_PoseReadouts):
         truth was always inside, at a mean squared Mahalanobis distance of
         0.25 instead of 3) and too small for a worse one. Give
         ``corner_sigma_px`` when you know your detector's noise.
-    sigma_px : float
+    corner_sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes: given, or
         estimated from the residuals (see :func:`estimate_pose`).
     ambiguous : bool
@@ -167,7 +167,7 @@ class Pose(_PoseReadouts):
     residuals_px: dict[int, np.ndarray]
     reprojection_rms_px: float
     covariance: np.ndarray | None
-    sigma_px: float
+    corner_sigma_px: float
     ambiguous: bool = False
     alternative: Pose | None = None
     ignored_ids: tuple[int, ...] = ()
