@@ -308,8 +308,8 @@ def _candidates(camera: Camera, board_points_mm: np.ndarray, distance_mm: float)
             yield T, where, tilt
 
 
-def _summary(camera: Camera, info: np.ndarray, corner_sigma_px: float, distance_mm: float):
-    cov = corner_sigma_px**2 * np.linalg.pinv(info)
+def _summary(camera: Camera, info: np.ndarray, sigma: float, distance_mm: float):
+    cov = sigma**2 * np.linalg.pinv(info)
     u = uncertainty_map(camera, cov, distance_mm)
     return cov, u, float(np.mean(u < GOOD_UNCERTAINTY_PX))
 
@@ -349,9 +349,7 @@ def coach(
         Camera, ``corner_sigma_px`` is not a positive number of pixels (up to 100) or ``other_sizes`` not a count.
     """
     if not (_checks.is_number(corner_sigma_px) and 0 < corner_sigma_px <= 100):
-        raise CalibrationError(
-            f"corner_sigma_px must be a positive number of pixels up to 100, got {corner_sigma_px!r}"
-        )
+        raise CalibrationError(f"corner_sigma_px must be a number of pixels, above 0 to 100, got {corner_sigma_px!r}")
     if isinstance(other_sizes, bool) or not isinstance(other_sizes, (int, np.integer)) or other_sizes < 0:
         raise CalibrationError(f"other_sizes must be a count of photos (0 or more), got {other_sizes!r}")
     board_points_mm, image_points_px, T_camera_board = _checks.check_views(
@@ -402,7 +400,7 @@ def _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts: dict
     return flags
 
 
-def _next_view(camera, board: np.ndarray, info, corner_sigma_px: float, distance: float) -> NextView | None:
+def _next_view(camera, board: np.ndarray, info, sigma: float, distance: float) -> NextView | None:
     """The candidate photo that lowers the uncertainty most (None when no candidate shows the whole board)."""
     best = None
     candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
@@ -410,9 +408,7 @@ def _next_view(camera, board: np.ndarray, info, corner_sigma_px: float, distance
     for T, where, tilt in candidates:
         if not _in_picture(camera, printed, T):
             continue
-        _, u_after, good_after = _summary(
-            camera, info + _marginal_information(camera, board, T), corner_sigma_px, distance
-        )
+        _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma, distance)
         # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
         score = (min(good_after, 0.9), -float(np.mean(u_after**2)))
         if best is None or score > best[0]:
