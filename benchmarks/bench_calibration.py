@@ -38,11 +38,13 @@ import time
 import cv2
 import numpy as np
 
-from fidlearn import Camera, data_path
+from fidlearn import Board, Camera, data_path
 from fidlearn.calibration import calibrate_charuco, calibrate_checkerboard, find_checkerboard_corners
 from fidlearn.errors import BoardNotFoundError
 from fidlearn.images import load_image
 from fidlearn.synthetic import render_calibration_views
+
+TUTORIAL = Board.charuco((5, 7), 40, 20)  # OpenCV's tutorial ChArUco board
 
 PATTERN = (9, 6)
 SQUARE_MM = 25.0
@@ -169,7 +171,7 @@ def real_photos() -> None:
             "checkerboard right*.jpg, SB finder",
             lambda: calibrate_checkerboard(files, PATTERN, SQUARE_MM, corner_finder="sb", reject_outliers=False),
         ),
-        ("ChArUco img_00..03", lambda: calibrate_charuco(charuco)),
+        ("ChArUco img_00..03", lambda: calibrate_charuco(charuco, TUTORIAL)),
     ]
     print(
         f"   {'set':<38}  views  {'rms px':>6}  {'fx +- std':>14}  {'fy +- std':>14}  "
@@ -239,7 +241,7 @@ def _plain_charuco(grays: list) -> tuple:
 def speed(quick: bool) -> None:
     truth = Camera.load(data_path("calibration", "camera_true.json"))
     views = list(render_calibration_views(truth, n_views=60, seed=1).images)
-    charuco_views = list(render_calibration_views(truth, n_views=10, seed=2, charuco=True).images)
+    charuco_views = list(render_calibration_views(truth, n_views=10, board=TUTORIAL, seed=2).images)
     photos = [load_image(data_path("real", "opencv_charuco", f"img_0{i}.jpg")) for i in range(4)]
     photos = [cv2.cvtColor(p, cv2.COLOR_BGR2GRAY) if p.ndim == 3 else p for p in photos]
     print(
@@ -262,7 +264,7 @@ def speed(quick: bool) -> None:
 
         rows.append(("checkerboard+std", n, with_std, k))
     for label, ims, k in (("charuco-rendered", charuco_views, 7), ("charuco-photos", photos, 9)):
-        rows.append((label, len(ims), lambda ims=ims: calibrate_charuco(ims), k if not quick else 3))
+        rows.append((label, len(ims), lambda ims=ims: calibrate_charuco(ims, TUTORIAL), k if not quick else 3))
     for label, n, f, k in rows:
         plain = (lambda n=n: _plain_checkerboard(views[:n])) if label.startswith("checker") else None
         if plain is None:

@@ -333,7 +333,7 @@ def _calibrate(camera_true: Camera, board: np.ndarray, observed: list, other_siz
         {n: board for n in names},
         dict(zip(names, observed)),
         T,
-        sigma_px=max(rms / math.sqrt(2), 1e-3),
+        corner_sigma_px=max(rms / math.sqrt(2), 1e-3),
         other_sizes=other_sizes,
     )
     return cam, c

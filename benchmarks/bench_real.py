@@ -88,7 +88,7 @@ def coverage(measured: list[rc.Measured], truth: list[np.ndarray]) -> dict:
         nees.append(he.nees(T_world_camera, m.pose.T_world_camera, m.pose.covariance))
         inside6.append(nees[-1] <= he.CHI2_6_95)
         inside3.append(bool(m.pose.position_ellipsoid_contains(T_world_camera[:3, 3])))
-        sigma.append(m.pose.sigma_px)
+        sigma.append(m.pose.corner_sigma_px)
     return {"nees": np.array(nees), "inside6": inside6, "inside3": inside3, "sigma_px": np.array(sigma)}
 
 

@@ -27,8 +27,8 @@ import cv2
 import numpy as np
 
 import fidlearn
-from fidlearn import Camera, MarkerMap, frames, predict_accuracy
-from fidlearn._cv_charuco import charuco_board, charuco_detector, detect_charuco
+from fidlearn import Board, Camera, MarkerMap, frames, predict_accuracy
+from fidlearn._cv_charuco import charuco_detector, detect_charuco
 from fidlearn.detection import load_image
 from fidlearn.planning import noise
 from fidlearn.planning.predict import FLIP_MIN_ANGLE_DEG
@@ -48,7 +48,7 @@ CHI2_3_95 = 7.814728
 
 
 def board():
-    return charuco_board(SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY)
+    return Board.charuco(SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY).cv_board()
 
 
 def board_map() -> MarkerMap:
@@ -260,7 +260,7 @@ def measure(camera: Camera | None = None, most: int = 40, seed: int = 1) -> dict
 def own_calibration() -> Camera:
     """fidlearn's own calibration from img_00..03 (the photos the published one was computed from)."""
     paths = [str(fidlearn.data_path(f"{FOLDER}/{name}.jpg")) for name in PHOTOS if name.startswith("img_")]
-    return fidlearn.calibrate_charuco(paths, SQUARES, SQUARE_MM, MARKER_MM, dictionary=DICTIONARY).camera
+    return fidlearn.calibrate_charuco(paths, Board.charuco(SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY)).camera
 
 
 def group_ratios(groups: dict) -> dict:

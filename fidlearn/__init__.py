@@ -12,12 +12,14 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 try:
+    from .boards import Board
     from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
     from .camera import Camera
     from .data import data_dir, data_path
     from .detection import Detection, detect_markers, detect_markers_with_rejected
     from .drawing import draw_detections
     from .errors import (
+        BoardError,
         CalibrationError,
         CameraError,
         DetectionError,
@@ -130,6 +132,8 @@ __all__ = [
     "render_trajectory",
     "trajectory_poses",
     "Trajectory",
+    "Board",
+    "BoardError",
     "Calibration",
     "calibrate_checkerboard",
     "calibrate_charuco",

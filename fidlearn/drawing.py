@@ -16,6 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from .boards import Board
 from .detection import CORNER_NAMES, Detection, as_gray
 from .errors import DetectionError
 from .images import load_image
@@ -190,9 +191,7 @@ def draw_pose(image: np.ndarray, detections: Sequence[Detection], marker_map, ca
     return out
 
 
-def draw_calibration_view(
-    path: str | os.PathLike, view, points_px, pattern: tuple[int, int], charuco: bool
-) -> np.ndarray:
+def draw_calibration_view(path: str | os.PathLike, view, points_px, board: Board) -> np.ndarray:
     """One calibration photo with its board corners drawn and what became of it written on top.
 
     Parameters
@@ -203,10 +202,9 @@ def draw_calibration_view(
         What the calibration made of it (status, RMS in px, reason).
     points_px : ndarray, shape (N, 2), or None
         The board corners found (pixels); None when the board was not found.
-    pattern : (int, int)
-        The checkerboard's inner corners (columns, rows).
-    charuco : bool
-        A ChArUco board: its corners are drawn as circles (OpenCV's checkerboard drawing needs the full grid).
+    board : Board
+        The board; a ChArUco board's corners are drawn as circles (OpenCV's checkerboard drawing
+        needs the full grid).
 
     Returns
     -------
@@ -222,12 +220,12 @@ def draw_calibration_view(
     unit = max(out.shape[:2]) / 640
     if points_px is not None:
         pts = np.asarray(points_px, dtype=np.float32).reshape(-1, 1, 2)
-        if charuco:
+        if board.is_charuco:
             for u, v in pts.reshape(-1, 2):
                 centre = (int(round(u * 16)), int(round(v * 16)))
                 cv2.circle(out, centre, int(4 * unit * 16), (0, 200, 0), 1, cv2.LINE_AA, 4)
         else:
-            cv2.drawChessboardCorners(out, pattern, pts, True)
+            cv2.drawChessboardCorners(out, board.inner_corners, pts, True)
         text = f"{view.status}: {len(pts)} corners, rms {view.rms_px:.3f} px"
         colour = (0, 160, 0)
     else:

@@ -18,6 +18,7 @@ __all__ = [
     "NoMarkersError",
     "DetectionError",
     "CalibrationError",
+    "BoardError",
     "PoseError",
     "PlotError",
     "PrintError",
@@ -103,6 +104,13 @@ class PlotError(FidlearnError, ValueError):
 
 class PrintError(FidlearnError, ValueError):
     """A printable page cannot be laid out or written as asked (a size that does not fit, a bad id list)."""
+
+
+class BoardError(CalibrationError, PrintError):
+    """A calibration board (its counts, sizes, markers or dictionary) is malformed.
+
+    It is both a :class:`CalibrationError` and a :class:`PrintError`: the same board is calibrated with and printed.
+    """
 
 
 class WebcamError(FidlearnError, ValueError):

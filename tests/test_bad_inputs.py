@@ -29,7 +29,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fidlearn import Camera, MarkerMap, _cv
+from fidlearn import Board, Camera, MarkerMap, _cv
 from fidlearn.cli import main as cli_main
 from fidlearn.detection import as_gray, detect_markers, load_image
 from fidlearn.errors import (
@@ -1155,12 +1155,13 @@ COMMANDS = [
     (
         "board: marker larger than its square",
         ["board", "--squares", "5x7", "--charuco", "--square-mm", "20", "--marker-mm", "30", "-o", "b.pdf"],
-        "must be smaller than --square-mm 20",
+        "must be smaller than square_size_mm (20) (command line: --marker-mm, --square-mm)",
     ),
     (
         "board: NaN square",
         ["board", "--pattern", "9x6", "--square-mm", "nan", "-o", "b.pdf"],
-        "must be a positive length in mm, got nan",
+        "square_size_mm must be positive, at most 100 m, got nan; measure one printed square in millimetres "
+        "(command line: --square-mm)",
     ),
     (
         "render: negative noise",
@@ -1331,47 +1332,57 @@ PRINTABLES = [
         PrintError,
         "runs backwards; write 3-5",
     ),
-    ("board pattern in words", lambda out: board_pdf(out / "b.pdf", "9 by 6", 25), PrintError, "write it like 9x6"),
+    (
+        "board pattern in words",
+        lambda out: board_pdf(out / "b.pdf", Board.checkerboard("9 by 6", 25)),
+        PrintError,
+        "write it like 9x6",
+    ),
     (
         "board pattern of 3 numbers",
-        lambda out: board_pdf(out / "b.pdf", (9, 6, 1), 25),
+        lambda out: board_pdf(out / "b.pdf", Board.checkerboard((9, 6, 1), 25)),
         PrintError,
-        "e.g. (9, 6) or '9x6'",
+        "two whole numbers (columns, rows), e.g. (9, 6)",
     ),
     (
         "board pattern of floats",
-        lambda out: board_pdf(out / "b.pdf", (9.5, 6), 25),
+        lambda out: board_pdf(out / "b.pdf", Board.checkerboard((9.5, 6), 25)),
         PrintError,
-        "must be two whole numbers of inner corners",
+        "must be two whole numbers",
     ),
     (
         "board of 1x1 corners",
-        lambda out: board_pdf(out / "b.pdf", (1, 1), 25),
+        lambda out: board_pdf(out / "b.pdf", Board.checkerboard((1, 1), 25)),
         PrintError,
-        "at least 3x3 squares (2x2 inner corners)",
+        "at least 2x2 inner corners, got 1x1",
     ),
-    ("board of negative size", lambda out: board_pdf(out / "b.pdf", (-9, 6), 25), PrintError, "at least 3x3 squares"),
+    (
+        "board of negative size",
+        lambda out: board_pdf(out / "b.pdf", Board.checkerboard((-9, 6), 25)),
+        PrintError,
+        "at least 2x2 inner corners",
+    ),
     (
         "board with zero squares",
-        lambda out: board_pdf(out / "b.pdf", (9, 6), 0),
+        lambda out: board_pdf(out / "b.pdf", Board.checkerboard((9, 6), 0)),
         PrintError,
-        "must be a positive length in mm",
+        "square_size_mm must be positive",
     ),
     (
         "board larger than the paper",
-        lambda out: board_pdf(out / "b.pdf", (9, 6), 1000),
+        lambda out: board_pdf(out / "b.pdf", Board.checkerboard((9, 6), 1000)),
         PrintError,
         "the largest square that fits is",
     ),
     (
         "ChArUco marker larger than its square",
-        lambda out: board_pdf(out / "b.pdf", (4, 6), 20, charuco=True, marker_size_mm=30),
+        lambda out: board_pdf(out / "b.pdf", Board.charuco((5, 7), 20, 30)),
         PrintError,
-        "must be smaller than --square-mm 20",
+        "must be smaller than square_size_mm (20) (command line: --marker-mm, --square-mm)",
     ),
     (
         "ChArUco board larger than its dictionary",
-        lambda out: board_pdf(out / "b.pdf", (14, 19), 10, charuco=True, marker_size_mm=7, dictionary="4X4_50"),
+        lambda out: board_pdf(out / "b.pdf", Board.charuco((15, 20), 10, 7, "4X4_50")),
         PrintError,
         "needs 150 markers but 4X4_50 has only 50",
     ),
@@ -1388,13 +1399,8 @@ def test_bad_printable(tmp_path, make, error, fragment):
 
 CHARUCO = [
     ("no images", [], {}, "no images given"),
-    ("1x1 squares", [BLANK] * 3, {"squares": (1, 1)}, "must count at least 2 chess squares each way"),
-    (
-        "marker larger than its square",
-        [BLANK] * 3,
-        {"square_size_mm": 20, "marker_size_mm": 30},
-        "must be smaller than square_size_mm (20)",
-    ),
+    ("a checkerboard", [BLANK] * 3, {"board": Board.checkerboard((9, 6), 25)}, "a checkerboard goes to calibrate_"),
+    ("a board's counts", [BLANK] * 3, {"board": (5, 7)}, "board must be a fidlearn.Board.charuco(squares, "),
     ("unknown legacy value", [BLANK] * 3, {"legacy": "maybe"}, "legacy must be True, False or 'auto'"),
     ("too few corners asked for", [BLANK] * 3, {"min_corners": 0}, "min_corners must be at least 4"),
     ("no board in the pictures", [BLANK] * 3, {}, "no 6X6_250 marker in the picture; check the dictionary"),
@@ -1404,19 +1410,19 @@ CHARUCO = [
 @pytest.mark.parametrize(("images", "kwargs", "fragment"), [c[1:] for c in CHARUCO], ids=[c[0] for c in CHARUCO])
 def test_bad_charuco_calibration_input(images, kwargs, fragment):
     with pytest.raises(CalibrationError) as info:
-        calibrate_charuco(images, **kwargs)
+        calibrate_charuco(images, **({"board": Board.charuco((5, 7), 40, 20)} | kwargs))
     assert fragment in str(info.value)
 
 
 def test_printables_take_ids_and_patterns_as_the_command_line_writes_them(tmp_path):
     sheet = markers_pdf(tmp_path / "m.pdf", "0-3,8", 50)
     assert [i for page in sheet.pages for i, _, _ in page] == [0, 1, 2, 3, 8]
-    assert board_pdf(tmp_path / "b.pdf", "9x6", 20).squares == (10, 7)
+    assert board_pdf(tmp_path / "b.pdf", Board.checkerboard("9x6", 20)).board.squares == (10, 7)
 
 
 def test_charuco_calibration_with_an_unknown_dictionary():
     with pytest.raises(DictionaryError, match="unknown ArUco dictionary 'nope'"):
-        calibrate_charuco([BLANK] * 3, dictionary="nope")
+        calibrate_charuco([BLANK] * 3, Board.charuco((5, 7), 40, 20, "nope"))
 
 
 # -- the tracker ----------------------------------------------------------------------------

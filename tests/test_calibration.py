@@ -11,12 +11,13 @@ import pytest
 
 import fidlearn
 import fidlearn._cv_charuco
-from fidlearn import Camera, data_path
+from fidlearn import Board, Camera, data_path
 from fidlearn.calibration import Calibration, calibrate_charuco, calibrate_checkerboard
 from fidlearn.errors import CalibrationError, DictionaryError, FidlearnError, FidlearnWarning
 
 PATTERN = (9, 6)
 SQUARE_MM = 25.0  # stand-in: the photos' square size was never published (scales extrinsics only)
+TUTORIAL = Board.charuco((5, 7), 40, 20)  # OpenCV's tutorial ChArUco board
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
 
 
@@ -247,6 +248,31 @@ def test_bad_square_size(square, match, right_grays):
         calibrate_checkerboard(right_grays, PATTERN, square)
 
 
+def test_a_board_value_calibrates_as_its_counts_and_size_do(right_files, right_cal_all):
+    cal = calibrate_checkerboard(right_files, board=Board.checkerboard(PATTERN, SQUARE_MM), reject_outliers=False)
+    np.testing.assert_array_equal(cal.camera.K, right_cal_all.camera.K)
+    assert cal.board == "checkerboard 9x6 inner corners, 25 mm squares"
+
+
+@pytest.mark.parametrize(
+    ("args", "kwargs", "match"),
+    [
+        ((PATTERN, SQUARE_MM), {"board": Board.checkerboard(PATTERN, SQUARE_MM)}, "give the board once"),
+        ((), {}, r"needs the board: board=Board.checkerboard\(\(9, 6\), 25\)"),
+        ((PATTERN,), {}, "needs the board"),
+        ((), {"board": TUTORIAL}, "a ChArUco board goes to calibrate_charuco"),
+        ((), {"board": Board.checkerboard((2, 6), SQUARE_MM)}, "needs at least 3 inner corners each way"),
+    ],
+)
+def test_the_board_is_given_once(args, kwargs, match, right_grays):
+    with pytest.raises(CalibrationError, match=match):
+        calibrate_checkerboard(right_grays, *args, **kwargs)
+    if "board" not in kwargs:
+        return
+    with pytest.raises(CalibrationError, match="a checkerboard goes to calibrate_checkerboard"):
+        calibrate_charuco(right_grays, Board.checkerboard(PATTERN, SQUARE_MM))
+
+
 @pytest.mark.parametrize(
     ("pattern", "match"),
     [
@@ -367,7 +393,7 @@ def charuco_files():
 
 @pytest.fixture(scope="module")
 def charuco_cal(charuco_files):
-    return calibrate_charuco(charuco_files, squares=(5, 7), square_size_mm=40, marker_size_mm=20, dictionary="6X6_250")
+    return calibrate_charuco(charuco_files, Board.charuco((5, 7), 40, 20, "6X6_250"))
 
 
 def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, charuco_cal):
@@ -413,8 +439,8 @@ def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, char
 
 def test_charuco_synthetic_views_recover_the_true_camera_and_board_poses():
     truth = Camera.load(data_path("calibration", "camera_true.json"))
-    views = fidlearn.render_calibration_views(truth, n_views=6, seed=3, charuco=True)
-    cal = calibrate_charuco(views.images, squares=(5, 7), square_size_mm=40, marker_size_mm=20)
+    views = fidlearn.render_calibration_views(truth, n_views=6, board=TUTORIAL, seed=3)
+    cal = calibrate_charuco(views.images, TUTORIAL)
     assert _rel(cal.camera.fx, truth.fx) < 0.005
     assert _rel(cal.camera.fy, truth.fy) < 0.005
     assert abs(cal.camera.cx - truth.cx) < 2
@@ -427,7 +453,7 @@ def test_charuco_synthetic_views_recover_the_true_camera_and_board_poses():
 
 
 def test_charuco_legacy_layout_makes_no_difference_with_seven_rows(charuco_files, charuco_cal):
-    cal = calibrate_charuco(charuco_files, legacy=True)
+    cal = calibrate_charuco(charuco_files, TUTORIAL, legacy=True)
     np.testing.assert_allclose(cal.camera.K, charuco_cal.camera.K, rtol=1e-6)
     assert cal.board.endswith("legacy layout")
 
@@ -448,7 +474,7 @@ def legacy_board_views():
 
 
 def test_charuco_auto_finds_an_old_boards_layout(legacy_board_views):
-    cal = calibrate_charuco(legacy_board_views, squares=(5, 6), reject_outliers=False)
+    cal = calibrate_charuco(legacy_board_views, Board.charuco((5, 6), 40, 20), reject_outliers=False)
     assert cal.board.endswith("legacy layout")
     assert [v.n_points for v in cal.views] == [20] * 4  # every inner corner of 5x6 squares
 
@@ -459,11 +485,11 @@ def test_charuco_wrong_layout_says_to_try_legacy(legacy_board_views):
         match=r"only 0 chess corners \(need 6\); a board with an even number of rows "
         r"printed before OpenCV 4.6 needs legacy=True",
     ):
-        calibrate_charuco(legacy_board_views, squares=(5, 6), legacy=False)
+        calibrate_charuco(legacy_board_views, Board.charuco((5, 6), 40, 20), legacy=False)
     with pytest.raises(
         CalibrationError, match=r"The board is found with legacy=True: boards with an even number of rows"
     ):
-        calibrate_charuco(legacy_board_views, squares=(5, 6), legacy=False)
+        calibrate_charuco(legacy_board_views, Board.charuco((5, 6), 40, 20), legacy=False)
 
 
 def test_charuco_swapped_squares_gets_the_hint(charuco_files):
@@ -473,23 +499,23 @@ def test_charuco_swapped_squares_gets_the_hint(charuco_files):
         r"found: 17 markers but only 0 chess corners \(need 6\); check squares=\(7, 5\).*"
         r"The board is found with squares=\(5, 7\): squares counts \(x, y\)",
     ):
-        calibrate_charuco(charuco_files[:3], squares=(7, 5))
+        calibrate_charuco(charuco_files[:3], Board.charuco((7, 5), 40, 20))
 
 
 def test_charuco_wrong_dictionary_and_bad_sizes(charuco_files):
     with pytest.raises(CalibrationError, match=r"no 4X4_50 marker in the picture; check the dictionary"):
-        calibrate_charuco(charuco_files[:3], dictionary="4X4_50")
+        calibrate_charuco(charuco_files[:3], Board.charuco((5, 7), 40, 20, "4X4_50"))
     with pytest.raises(DictionaryError, match="unknown ArUco dictionary"):
-        calibrate_charuco(charuco_files[:3], dictionary="7X7_BOGUS")
+        calibrate_charuco(charuco_files[:3], Board.charuco((5, 7), 40, 20, "7X7_BOGUS"))
     with pytest.raises(CalibrationError, match=r"marker_size_mm \(40\) must be smaller than square_size_mm \(40\)"):
-        calibrate_charuco(charuco_files, square_size_mm=40, marker_size_mm=40)
+        calibrate_charuco(charuco_files, Board.charuco((5, 7), 40, 40))
     with pytest.raises(CalibrationError, match="square_size_mm must be positive"):
-        calibrate_charuco(charuco_files, square_size_mm=-1)
+        calibrate_charuco(charuco_files, Board.charuco((5, 7), -1, 20))
 
 
 def test_charuco_partly_hidden_board_still_counts(charuco_files):
     occluded = data_path("real", "opencv_charuco", "chocclusion_original.jpg")
-    cal = calibrate_charuco(list(charuco_files) + [occluded], reject_outliers=False)
+    cal = calibrate_charuco(list(charuco_files) + [occluded], TUTORIAL, reject_outliers=False)
     view = cal.views[-1]
     assert view.status == "used"
     assert 6 <= view.n_points < 24

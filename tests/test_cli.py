@@ -889,7 +889,7 @@ def test_pose_record_is_strict_json_when_the_covariance_is_undetermined():
         residuals_px={0: np.zeros((4, 2))},
         reprojection_rms_px=0.0,
         covariance=None,
-        sigma_px=0.25,
+        corner_sigma_px=0.25,
     )
     rec = _pose_record("frame.png", pose)
     assert rec["position_std_mm"] is None

@@ -72,7 +72,7 @@ def judge(rng, poses, other_sizes=0, bend_view=None, sigma=0.1):
         {n: BOARD for n in names},
         dict(zip(names, observed)),
         T,
-        sigma_px=rms / math.sqrt(2),
+        corner_sigma_px=rms / math.sqrt(2),
         other_sizes=other_sizes,
     )
 
@@ -215,9 +215,9 @@ def test_a_principal_point_error_alone_is_absorbed_by_the_pose():
 
 def test_coach_refuses_an_empty_set_and_a_bad_sigma():
     with pytest.raises(CalibrationError, match="no views"):
-        coach(CAMERA, {}, {}, {}, sigma_px=0.1)
-    with pytest.raises(CalibrationError, match="sigma_px"):
-        coach(CAMERA, {"a": BOARD}, {"a": BOARD[:, :2]}, {"a": np.eye(4)}, sigma_px=0)
+        coach(CAMERA, {}, {}, {}, corner_sigma_px=0.1)
+    with pytest.raises(CalibrationError, match="corner_sigma_px"):
+        coach(CAMERA, {"a": BOARD}, {"a": BOARD[:, :2]}, {"a": np.eye(4)}, corner_sigma_px=0)
 
 
 def test_coach_figure_draws(bundled):

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import Camera, MarkerMap, data_dir, data_path
+from fidlearn import Board, Camera, MarkerMap, data_dir, data_path
 from fidlearn.synthetic import (
     render_calibration_views,
     render_scene,
@@ -135,8 +135,7 @@ def test_a_calibration_view_regenerates_from_its_recipe():
     again = render_calibration_views(
         camera,
         n_views=args.pop("n_views"),
-        pattern_size=tuple(args.pop("pattern_size")),
-        square_size_mm=args.pop("square_size_mm"),
+        board=Board.checkerboard(args.pop("pattern_size"), args.pop("square_size_mm")),
         seed=args.pop("seed"),
         views=[view],
         **args,

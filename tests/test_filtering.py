@@ -77,9 +77,9 @@ def _flipped(p: fidlearn.Pose) -> fidlearn.Pose:
     """The same frame with its two solutions swapped: the first-ranked one is the wrong one."""
     a = p.alternative
     return fidlearn.Pose(
-        a.T_world_camera, p.marker_ids, p.residuals_px, p.reprojection_rms_px, p.covariance, p.sigma_px,
+        a.T_world_camera, p.marker_ids, p.residuals_px, p.reprojection_rms_px, p.covariance, p.corner_sigma_px,
         ambiguous=True, alternative=fidlearn.Pose(
-            p.T_world_camera, p.marker_ids, p.residuals_px, p.reprojection_rms_px, a.covariance, p.sigma_px
+            p.T_world_camera, p.marker_ids, p.residuals_px, p.reprojection_rms_px, a.covariance, p.corner_sigma_px
         ),
     )  # fmt: skip
 

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 import fidlearn
-from fidlearn import Camera, Detection, FidlearnError, MarkerMap, ros, synthetic
+from fidlearn import Board, Camera, Detection, FidlearnError, MarkerMap, ros, synthetic
 from fidlearn._webcam import MAX_FRAME_SIDE_PX, decode_frame
 from fidlearn.errors import ImageError, TrackingError, WebcamError
 from fidlearn.filtering import PoseTracker, smooth
@@ -120,7 +120,7 @@ BASELINES = {
     "render_calibration_views": (
         lambda: synthetic.render_calibration_views,
         (Camera.from_fov(60, (320, 240)),),
-        {"n_views": 2, "pattern_size": (5, 4), "square_size_mm": 25.0, "seed": 0, "supersample": 1, "views": [0]},
+        {"n_views": 2, "board": Board.checkerboard((5, 4), 25.0), "seed": 0, "supersample": 1, "views": [0]},
     ),
     "decode_frame": (lambda: decode_frame, (cv2.imencode(".png", IMAGE)[1].tobytes(), 160, 120), {}),
 }

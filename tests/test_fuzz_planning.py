@@ -113,12 +113,12 @@ CASES = {
             "points_world": WORLD.marker_corners(0),
             "points_px": CAMERA.project(WORLD.marker_corners(0), T_SEE),
             "camera": CAMERA,
-            "sigma_px": np.full(4, 0.2),
+            "corner_sigma_px": np.full(4, 0.2),
         },
     ),
     "corner_sigma_px": (noise_module.corner_sigma_px, {"side_px": 30.0}),
     "min_perimeter_px": (noise_module.min_perimeter_px, {"image_size": (1280, 720)}),
-    "corner_covariance": (noise_module.corner_covariance, {"corners_px": _Q, "sigma_px": 0.1}),
+    "corner_covariance": (noise_module.corner_covariance, {"corners_px": _Q, "corner_sigma_px": 0.1}),
     "marker_shift_covariance": (noise_module.marker_shift_covariance, {"shift_px": 0.1}),
     "noise_from_pose": (noise_from_pose, {"pose": POSE, "marker_map": FOUR, "camera": CAMERA}),
     "plan_room": (
@@ -165,7 +165,7 @@ CASES = {
             "board_points_mm": _BOARDS,
             "image_points_px": _PIXELS,
             "T_camera_board": _POSES,
-            "sigma_px": 0.2,
+            "corner_sigma_px": 0.2,
             "other_sizes": 0,
         },
     ),
@@ -226,7 +226,7 @@ def test_the_methods_of_the_results():
     for bad in BAD:
         _call(plan.fraction_within, {"error_mm": bad})
         _call(plan.fraction_within, {"error_mm": 5.0, "which": bad})
-    verdict = coach(_CAL_CAMERA, _BOARDS, _PIXELS, _POSES, sigma_px=0.2)
+    verdict = coach(_CAL_CAMERA, _BOARDS, _PIXELS, _POSES, corner_sigma_px=0.2)
     for bad in BAD:
         text = _call(verdict.report, {"omit": bad})
         assert text is None or text.startswith("reprojection uncertainty")
@@ -274,7 +274,7 @@ def test_huge_boards_views_and_marker_sets_are_refused_up_front():
     many = np.zeros((20_000, 3))
     _refused_fast(
         flip_probability,
-        {"points_world": many, "points_px": many[:, :2], "camera": CAMERA, "sigma_px": np.ones(20_000)},
+        {"points_world": many, "points_px": many[:, :2], "camera": CAMERA, "corner_sigma_px": np.ones(20_000)},
         "4 to 10000",
     )
     big = np.array([[i, j, 0.0] for j in range(100) for i in range(100)])
@@ -285,7 +285,7 @@ def test_huge_boards_views_and_marker_sets_are_refused_up_front():
             "board_points_mm": {"a": big},
             "image_points_px": {"a": big[:, :2]},
             "T_camera_board": {"a": _POSES["v0"]},
-            "sigma_px": 0.2,
+            "corner_sigma_px": 0.2,
         },
         "from 4 to 5000",
     )
@@ -297,7 +297,7 @@ def test_huge_boards_views_and_marker_sets_are_refused_up_front():
             "board_points_mm": dict.fromkeys(views, _BOARD),
             "image_points_px": dict.fromkeys(views, _PIXELS["v0"]),
             "T_camera_board": views,
-            "sigma_px": 0.2,
+            "corner_sigma_px": 0.2,
         },
         "more than 1000",
     )

@@ -377,7 +377,7 @@ def test_covariance_is_the_cramer_rao_bound_at_the_truth():
     pose = estimate_pose(observe(m, T_WALL), m, CAM, corner_sigma_px=0.4)
     J = pose_jacobian(np.concatenate(list(m.corners().values())), T_WALL, CAM)
     np.testing.assert_allclose(pose.covariance, 0.4**2 * np.linalg.inv(J.T @ J), rtol=1e-5, atol=1e-12)
-    assert pose.sigma_px == 0.4
+    assert pose.corner_sigma_px == 0.4
     np.testing.assert_allclose(pose.position_std_mm, np.sqrt(np.diag(pose.covariance)[3:]))
 
 
@@ -784,7 +784,7 @@ def test_a_bad_fit_does_not_make_the_flip_look_as_good():
     dets = observe(m, T)
     pose = estimate_pose(dets, wrong, CAM)
     assert pose.reprojection_rms_px > 4.0
-    assert pose.sigma_px > pose_mod.AMBIGUITY_MAX_SIGMA_PX
+    assert pose.corner_sigma_px > pose_mod.AMBIGUITY_MAX_SIGMA_PX
     assert pose.alternative is not None
     assert not pose.ambiguous
     # what the residuals alone would have said
@@ -792,10 +792,10 @@ def test_a_bad_fit_does_not_make_the_flip_look_as_good():
     assert (
         pose_mod.AMBIGUITY_CHI2 * pose_mod.AMBIGUITY_MAX_SIGMA_PX**2
         < extra
-        < pose_mod.AMBIGUITY_CHI2 * pose.sigma_px**2
+        < pose_mod.AMBIGUITY_CHI2 * pose.corner_sigma_px**2
     )
     # a given corner noise is taken at its word
-    assert estimate_pose(dets, wrong, CAM, corner_sigma_px=pose.sigma_px).ambiguous
+    assert estimate_pose(dets, wrong, CAM, corner_sigma_px=pose.corner_sigma_px).ambiguous
 
 
 def test_rotations_below_opencvs_rodrigues_threshold_are_kept():

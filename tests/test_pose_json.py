@@ -68,7 +68,7 @@ def test_the_record_is_what_locate_writes(pose, tmp_path):
     np.testing.assert_allclose(back.T_world_camera, pose.T_world_camera, atol=1e-12)
     assert back.marker_ids == pose.marker_ids
     assert back.covariance is None
-    assert np.isnan(back.sigma_px)
+    assert np.isnan(back.corner_sigma_px)
 
 
 def test_the_full_record_round_trips_through_json(pose, ambiguous):
@@ -78,7 +78,7 @@ def test_the_full_record_round_trips_through_json(pose, ambiguous):
         assert back.to_dict(full=True) == d
         np.testing.assert_allclose(back.covariance, p.covariance, rtol=1e-12)
         assert back.marker_rms_px == pytest.approx(p.marker_rms_px)
-        assert back.sigma_px == p.sigma_px
+        assert back.corner_sigma_px == p.corner_sigma_px
         assert back.ambiguous == p.ambiguous
     back = Pose.from_dict(json.loads(json.dumps(ambiguous.to_dict(full=True))))
     np.testing.assert_allclose(back.alternative.T_world_camera, ambiguous.alternative.T_world_camera, atol=1e-9)

@@ -76,7 +76,7 @@ def _check(pose, ref):
     assert pose.ambiguous == ref["ambiguous"]
     assert pose.method == ref["method"]
     _same_pose(pose.T_world_camera, ref["T_world_camera"], "pose")
-    assert pose.sigma_px == pytest.approx(ref["sigma_px"], rel=1e-6)
+    assert pose.corner_sigma_px == pytest.approx(ref["sigma_px"], rel=1e-6)
     assert pose.reprojection_rms_px == pytest.approx(ref["reprojection_rms_px"], rel=1e-6, abs=1e-9)
     _same_cov(pose.covariance, ref["covariance"], "covariance")
     alt, alt_ref = pose.alternative, ref["alternative"]

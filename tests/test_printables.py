@@ -10,8 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import _cv, _cv_charuco
+from fidlearn import Board, _cv, _cv_charuco
 from fidlearn import printables as P
+from fidlearn.boards import parse_grid
 from fidlearn.printables import PrintError
 
 pdfium = pytest.importorskip("pypdfium2")
@@ -113,13 +114,13 @@ def test_parse_ids_rejects(text, message):
         P.parse_ids(text)
 
 
-def test_parse_pattern():
-    assert P.parse_pattern("9x6") == (9, 6)
-    assert P.parse_pattern("5X7") == (5, 7)
+def test_parse_grid():
+    assert parse_grid("9x6") == (9, 6)
+    assert parse_grid("5X7") == (5, 7)
     with pytest.raises(PrintError, match="'9by6' is not COLUMNSxROWS; write it like 9x6"):
-        P.parse_pattern("9by6")
+        parse_grid("9by6")
     with pytest.raises(PrintError, match="at least 2"):
-        P.parse_pattern("1x6")
+        parse_grid("1x6")
 
 
 def test_marker_cells_match_opencv_image():
@@ -330,9 +331,9 @@ def chessboard_spacing_mm(gray, pattern, px_per_mm=PX_PER_MM):
 
 def test_checkerboard_pdf_square_size(tmp_path):
     path = tmp_path / "board.pdf"
-    sheet = P.board_pdf(path, (9, 6), 25, paper="a4")
-    assert sheet.squares == (10, 7)
-    assert sheet.inner_corners == (9, 6)
+    sheet = P.board_pdf(path, Board.checkerboard((9, 6), 25), "a4")
+    assert sheet.board.squares == (10, 7)
+    assert sheet.board.inner_corners == (9, 6)
     (gray,) = rasterize(path)
     # 250 x 175 mm only fits A4 turned to landscape
     assert np.allclose(gray.shape, (210 * PX_PER_MM, 297 * PX_PER_MM), atol=1)
@@ -347,7 +348,7 @@ def test_checkerboard_pdf_square_size(tmp_path):
 
 
 def test_checkerboard_png_square_size(tmp_path):
-    sheet, files = P.board_png(tmp_path / "board.png", (6, 4), 20, paper="letter", dpi=200)
+    sheet, files = P.board_png(tmp_path / "board.png", Board.checkerboard((6, 4), 20), "letter", dpi=200)
     assert files == [tmp_path / "board.png"]
     assert not sheet.landscape
     gray = cv2.imread(str(tmp_path / "board.png"), cv2.IMREAD_GRAYSCALE)
@@ -358,8 +359,8 @@ def test_checkerboard_png_square_size(tmp_path):
 
 def test_charuco_pdf_detected_by_opencv(tmp_path):
     path = tmp_path / "charuco.pdf"
-    sheet = P.board_pdf(path, (4, 6), 30, paper="a4", charuco=True, dictionary="6X6_250", marker_size_mm=22)
-    assert sheet.squares == (5, 7)
+    sheet = P.board_pdf(path, Board.parse("4x6", 30, charuco=True, marker_size_mm=22, dictionary="6X6_250"), "a4")
+    assert sheet.board.squares == (5, 7)
     (gray,) = rasterize(path)
     board = _cv_charuco.charuco_board((5, 7), 30.0, 22.0, "6X6_250")
     ch_corners, ch_ids, m_corners, m_ids = _cv_charuco.charuco_detector(board).detectBoard(gray)
@@ -375,7 +376,7 @@ def test_charuco_pdf_detected_by_opencv(tmp_path):
 
 
 def test_charuco_board_size_printed_on_page():
-    sheet = P.layout_board((10, 7), 25, paper="a4", charuco=True, dictionary="DICT_6X6_250", marker_size_mm=20)
+    sheet = P.layout_board(Board.charuco((10, 7), 25, 20, "DICT_6X6_250"), "a4")
     assert sheet.describe() == "ChArUco 10x7 squares (9x6 inner corners), square 25 mm, marker 20 mm, 6X6_250"
     fig = P.board_figure(sheet)
     texts = [t.get_text() for t in fig.axes[0].texts]
@@ -389,7 +390,7 @@ def test_board_keeps_its_quiet_zone_inside_the_margins():
         ((7, 5), 30, "a4"),
         ((12, 9), 12, "letter"),
     ]:
-        sheet = P.layout_board(pattern, square, paper=paper)
+        sheet = P.layout_board(Board("checkerboard", pattern, square), paper)
         q = P.board_quiet_zone_mm(square)
         (x, y), (w, h), (pw, ph) = sheet.origin_mm, sheet.board_mm, sheet.paper_mm
         assert x - q >= P.PAGE_MARGIN_MM - 1e-9
@@ -405,19 +406,21 @@ def test_board_keeps_its_quiet_zone_inside_the_margins():
 
 def test_board_too_big_names_largest_square(tmp_path):
     with pytest.raises(PrintError, match=r"the largest square that fits is (\d+\.\d) mm: use --square-mm") as e:
-        P.board_pdf(tmp_path / "b.pdf", (9, 6), 40, paper="a4")
+        P.board_pdf(tmp_path / "b.pdf", Board.checkerboard((9, 6), 40), "a4")
     largest = float(e.value.args[0].split("use --square-mm ")[1].split(" ")[0])
-    P.layout_board((10, 7), largest, paper="a4")  # fits
+    P.layout_board(Board.checkerboard((9, 6), largest), "a4")  # fits
     with pytest.raises(PrintError):
-        P.layout_board((10, 7), largest + 0.2, paper="a4")
+        P.layout_board(Board.checkerboard((9, 6), largest + 0.2), "a4")
     assert list(tmp_path.iterdir()) == []
 
 
 def test_charuco_rejects_marker_bigger_than_square():
-    with pytest.raises(PrintError, match="--marker-mm 30 must be smaller than --square-mm 25"):
-        P.layout_board((10, 7), 25, charuco=True, dictionary="6X6_250", marker_size_mm=30)
+    with pytest.raises(PrintError, match=r"marker_size_mm \(30\) must be smaller than square_size_mm \(25\)"):
+        Board.charuco((10, 7), 25, 30)
     with pytest.raises(PrintError, match="needs 55 markers but 4X4_50 has only 50"):
-        P.layout_board((11, 10), 10, charuco=True, dictionary="4X4_50", marker_size_mm=7)
+        Board.charuco((11, 10), 10, 7, "4X4_50")
+    with pytest.raises(PrintError, match=r"board must be a fidlearn.Board"):
+        P.layout_board((10, 7), "a4")
 
 
 def test_unknown_output_type(tmp_path):
@@ -438,7 +441,7 @@ def test_png_pages_get_umask_permissions(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "make", [lambda out: P.markers_pdf(out, [0], 0.08), lambda out: P.board_pdf(out, (9, 6), 0.025)]
+    "make", [lambda out: P.markers_pdf(out, [0], 0.08), lambda out: P.board_pdf(out, Board.checkerboard((9, 6), 0.025))]
 )
 def test_sizes_in_metres_are_refused(tmp_path, make):
     # 0.08 (metres, as OpenCV's tutorials write it) printed a sheet of 0.08 mm markers.

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import Camera, FidlearnError, MarkerMap, data_path, frames
+from fidlearn import Board, Camera, FidlearnError, MarkerMap, data_path, frames
 from fidlearn._lens import distort_normalized, undistort_exact
 from fidlearn.errors import CameraError
 from fidlearn.frames import look_at
@@ -300,17 +300,27 @@ def test_calibration_views_tell_the_truth_and_render_one_view_alone():
 
 def test_charuco_views_are_found_by_opencvs_charuco_detector():
     camera = Camera([[600, 0, 322], [0, 601, 238], [0, 0, 1]], [-0.1, 0.03, 0, 0, 0], (640, 480))
-    views = render_calibration_views(camera, n_views=2, seed=3, charuco=True)
-    assert views.pattern_size == (5, 7)
-    assert views.square_size_mm == 40
-    assert views.marker_size_mm == 20
-    detector = cv2.aruco.CharucoDetector(views.board())
+    views = render_calibration_views(camera, n_views=2, board=Board.charuco((5, 7), 40, 20), seed=3)
+    assert views.board.squares == (5, 7)
+    assert views.board.square_size_mm == 40
+    assert views.board.marker_size_mm == 20
+    detector = cv2.aruco.CharucoDetector(views.board.cv_board())
     for image, truth in zip(views.images, views.image_points):
         corners, ids, _, _ = detector.detectBoard(image)
         assert ids is not None
         assert len(ids) == 24
         err = corners.reshape(-1, 2) - truth[np.ravel(ids)]
         assert np.sqrt((err**2).sum(axis=1).mean()) < 0.2
+
+
+def test_a_calibration_board_must_be_a_board():
+    camera = Camera.from_fov(60, (320, 240))
+    with pytest.raises(FidlearnError, match=r"board must be a fidlearn.Board \(Board.checkerboard"):
+        render_calibration_views(camera, n_views=1, board=(9, 6))
+    views = render_calibration_views(camera, n_views=1, board=Board.checkerboard((5, 4), 20), supersample=1)
+    assert views.board.inner_corners == (5, 4)
+    assert views.image_points[0].shape == (20, 2)
+    assert "checkerboard 5x4 inner corners, 20 mm squares" in repr(views)
 
 
 def test_the_drive_stays_at_marker_height_and_keeps_the_markers_in_view(wall):

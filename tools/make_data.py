@@ -45,7 +45,7 @@ import cv2
 import numpy as np
 
 import fidlearn
-from fidlearn import Camera, MarkerMap, frames
+from fidlearn import Board, Camera, MarkerMap, frames
 from fidlearn.data import repo_dir
 from fidlearn.frames import look_at
 from fidlearn.io import atomic_write, write_json_atomic
@@ -224,8 +224,7 @@ def make_calibration() -> None:
     views = render_calibration_views(
         camera,
         n_views=CALIBRATION["n_views"],
-        pattern_size=tuple(CALIBRATION["pattern_size"]),
-        square_size_mm=CALIBRATION["square_size_mm"],
+        board=Board.checkerboard(CALIBRATION["pattern_size"], CALIBRATION["square_size_mm"]),
         seed=CALIBRATION["seed"],
         **CALIBRATION["render"],
     )

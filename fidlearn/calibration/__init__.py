@@ -75,7 +75,8 @@ inverts, reduced to the intrinsics, when ``std_intrinsics`` is first read (``_st
 same numbers, without the inversion that made ``calibrateCameraExtended`` cost up to twice
 ``calibrateCamera``. ``benchmarks/bench_calibration.py`` times the whole run against plain OpenCV.
 
-Layout: ``api`` (the two functions), ``boards`` (finding the board), ``run`` (the shared
+The board itself is a :class:`fidlearn.Board` (:mod:`fidlearn.boards`). Layout: ``api`` (the two
+functions), ``boards`` (finding the board), ``run`` (the shared
 calibration run), ``result`` (:class:`Calibration`), ``quality`` (coverage and variety), ``_stats`` (per-view
 errors and standard deviations).
 """
@@ -84,7 +85,7 @@ from __future__ import annotations
 
 from . import quality  # noqa: F401 - fidlearn.calibration.quality
 from .api import calibrate_charuco, calibrate_checkerboard
-from .boards import checkerboard_points, find_checkerboard_corners
+from .boards import find_checkerboard_corners
 from .quality import DuplicateViews, ViewDiversity, coverage_grid, quality_warnings, view_diversity
 from .result import Calibration, ViewResult
 from .run import INTRINSIC_NAMES, MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_MARGIN_PX, ProgressFn
@@ -95,7 +96,6 @@ __all__ = [
     "calibrate_checkerboard",
     "calibrate_charuco",
     "find_checkerboard_corners",
-    "checkerboard_points",
     "coverage_grid",
     "view_diversity",
     "ViewDiversity",

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..boards import Board
 from ..errors import CalibrationError, FidlearnWarning
 from ..images import IMAGE_SUFFIXES
 from .boards import _Charuco, _Checkerboard
@@ -89,11 +90,6 @@ def _warn_if_metres(value_mm: float, what: str) -> None:
         )
 
 
-#: Most inner corners of a board (a checkerboard's pattern, a ChArUco board's chess corners): 50 x 50. A larger
-#: count is a typing slip, and its search and calibration would run for minutes.
-MAX_BOARD_CORNERS = 2500
-
-
 def _pattern(pattern_size: Any) -> tuple[int, int]:
     if isinstance(pattern_size, str):
         parts = pattern_size.lower().replace("*", "x").split("x")
@@ -111,24 +107,49 @@ def _pattern(pattern_size: Any) -> tuple[int, int]:
         raise CalibrationError(
             f"pattern_size {pattern_size!r} must be two whole numbers (columns, rows) of inner corners, e.g. (9, 6)"
         )
-    if cols < 3 or rows < 3:
+    return cols, rows
+
+
+def _checkerboard(pattern_size: Any, square_size_mm: Any, board: Any) -> Board:
+    """The board of :func:`calibrate_checkerboard`: ``board``, or made from ``pattern_size`` and ``square_size_mm``."""
+    if board is not None:
+        if pattern_size is not None or square_size_mm is not None:
+            raise CalibrationError(
+                "give the board once: board=Board.checkerboard(...) or pattern_size and square_size_mm, not both"
+            )
+        if not isinstance(board, Board) or board.is_charuco:
+            raise CalibrationError(
+                f"board must be a fidlearn.Board.checkerboard(inner_corners, square_size_mm), got {board!r:.80}; "
+                "a ChArUco board goes to calibrate_charuco"
+            )
+    elif pattern_size is None or square_size_mm is None:
         raise CalibrationError(
-            f"pattern_size {(cols, rows)} counts inner corners and needs at least 3 each way; "
+            "calibrate_checkerboard needs the board: board=Board.checkerboard((9, 6), 25) "
+            "or pattern_size=(9, 6), square_size_mm=25 (inner corners, and one printed square in mm)"
+        )
+    else:
+        cols, rows = _pattern(pattern_size)
+        square = _check_positive(square_size_mm, "square_size_mm", "measure one printed square in millimetres")
+        if cols < 3 or rows < 3:
+            raise CalibrationError(
+                f"pattern_size {(cols, rows)} counts inner corners and needs at least 3 each way; "
+                "a board of 10x7 squares has 9x6 inner corners"
+            )
+        board = Board.checkerboard((cols, rows), square)
+    if min(board.inner_corners) < 3:
+        raise CalibrationError(
+            f"{board.describe()}: OpenCV's finder needs at least 3 inner corners each way; "
             "a board of 10x7 squares has 9x6 inner corners"
         )
-    if cols * rows > MAX_BOARD_CORNERS:
-        raise CalibrationError(
-            f"pattern_size {(cols, rows)} has {cols * rows} inner corners, more than {MAX_BOARD_CORNERS}, the most "
-            "fidlearn searches a photo for; count the inner corners again (a board of 10x7 squares has 9x6)"
-        )
-    return cols, rows
+    return board
 
 
 def calibrate_checkerboard(
     images: Sequence[Any] | str | os.PathLike,
-    pattern_size: tuple[int, int] | str,
-    square_size_mm: float,
+    pattern_size: tuple[int, int] | str | None = None,
+    square_size_mm: float | None = None,
     *,
+    board: Board | None = None,
     progress: ProgressFn | None = None,
     reject_outliers: bool = True,
     reject_duplicates: bool = False,
@@ -145,12 +166,16 @@ def calibrate_checkerboard(
         (a folder stands for its image files, ``"photos/*.jpg"`` for the
         files it matches, sorted). Each is reported by
         its path, or ``"image i"`` (i from 0) for an array.
-    pattern_size : (int, int) or str
+    pattern_size : (int, int) or str, optional
         INNER corners (columns, rows), e.g. ``(9, 6)`` or ``"9x6"``: a board
-        of 10x7 squares has 9x6 inner corners.
-    square_size_mm : float
+        of 10x7 squares has 9x6 inner corners. With ``square_size_mm``, the
+        same as ``board=Board.checkerboard(pattern_size, square_size_mm)``.
+    square_size_mm : float, optional
         Side of one printed square, measured on the print (mm). It scales
         the board poses only, never ``K``.
+    board : Board, optional
+        The checkerboard (:meth:`fidlearn.Board.checkerboard`), in place of
+        ``pattern_size`` and ``square_size_mm``.
     progress : callable(i, n, name), optional
         Called after each image is searched (i from 1 to n); nothing is
         printed otherwise.
@@ -184,8 +209,9 @@ def calibrate_checkerboard(
     Examples
     --------
     >>> import fidlearn
+    >>> from fidlearn import Board
     >>> photos = sorted(fidlearn.data_path("calibration").glob("view_*.png"))  # 20 rendered views, fx 615
-    >>> cal = calibrate_checkerboard(photos[:5], (9, 6), 25.0)
+    >>> cal = calibrate_checkerboard(photos[:5], board=Board.checkerboard((9, 6), 25.0))
     >>> round(cal.camera.fx), len(cal.used), cal.coverage.shape
     (615, 5, (3, 3))
     >>> for sentence in cal.warnings:  # what the RMS does not tell
@@ -194,10 +220,9 @@ def calibrate_checkerboard(
     few board corners in the bottom-left, bo
 
     """
-    pattern = _pattern(pattern_size)
-    square = _check_positive(square_size_mm, "square_size_mm", "measure one printed square in millimetres")
-    _warn_if_metres(square, "square_size_mm")
-    finder = _Checkerboard(pattern, square, corner_finder)
+    board = _checkerboard(pattern_size, square_size_mm, board)
+    _warn_if_metres(board.square_size_mm, "square_size_mm")
+    finder = _Checkerboard(board, corner_finder)
     entries = _entries(images)
     return _run(
         entries,
@@ -214,11 +239,8 @@ def calibrate_checkerboard(
 
 def calibrate_charuco(
     images: Sequence[Any] | str | os.PathLike,
-    squares: tuple[int, int] = (5, 7),
-    square_size_mm: float = 40.0,
-    marker_size_mm: float = 20.0,
+    board: Board,
     *,
-    dictionary: str = "6X6_250",
     legacy: bool | str = "auto",
     progress: ProgressFn | None = None,
     reject_outliers: bool = True,
@@ -236,13 +258,10 @@ def calibrate_charuco(
     ----------
     images : sequence of (ndarray or path), or a folder
         As for :func:`calibrate_checkerboard`.
-    squares : (int, int)
-        SQUARES (x, y) of the board, as ``cv2.aruco.CharucoBoard`` counts them
-        (OpenCV's tutorial board: (5, 7)).
-    square_size_mm, marker_size_mm : float
-        Printed side of a chess square and of a marker (mm), marker < square.
-    dictionary : str
-        The markers' ArUco dictionary, e.g. ``"6X6_250"``.
+    board : Board
+        The ChArUco board (:meth:`fidlearn.Board.charuco`): its SQUARES (x, y), as
+        ``cv2.aruco.CharucoBoard`` counts them (OpenCV's tutorial board: (5, 7)), the printed
+        side of a chess square and of a marker (mm), and the markers' dictionary.
     legacy : bool or "auto"
         The marker layout of boards made before OpenCV 4.6 (matters only with
         an even number of rows); ``"auto"`` keeps whichever finds more corners.
@@ -261,34 +280,15 @@ def calibrate_charuco(
         Bad arguments, or fewer than 3 usable views (the message says why the others failed,
         and suggests swapped squares or the other marker layout when nothing was found).
     """
-    try:
-        sq = tuple(int(v) for v in squares)
-        if len(sq) != 2:
-            raise ValueError
-    except (TypeError, ValueError):
+    if not isinstance(board, Board) or not board.is_charuco:
         raise CalibrationError(
-            f"squares {squares!r} must be two whole numbers (x, y) of chess squares, e.g. (5, 7)"
-        ) from None
-    if min(sq) < 2:
-        raise CalibrationError(f"squares {sq} must count at least 2 chess squares each way, e.g. (5, 7)")
-    if (sq[0] - 1) * (sq[1] - 1) > MAX_BOARD_CORNERS:
-        raise CalibrationError(
-            f"squares {sq} make {(sq[0] - 1) * (sq[1] - 1)} chess corners, more than {MAX_BOARD_CORNERS}, the most "
-            "fidlearn searches a photo for; count the squares again (OpenCV's tutorial board: (5, 7))"
+            f"board must be a fidlearn.Board.charuco(squares, square_size_mm, marker_size_mm, dictionary), "
+            f"got {board!r:.80}; a checkerboard goes to calibrate_checkerboard"
         )
-    square = _check_positive(square_size_mm, "square_size_mm", "measure one printed chess square in millimetres")
-    marker = _check_positive(
-        marker_size_mm, "marker_size_mm", "measure one printed marker's black square in millimetres"
-    )
-    _warn_if_metres(square, "square_size_mm")
-    if marker >= square:
-        raise CalibrationError(
-            f"marker_size_mm ({marker:g}) must be smaller than square_size_mm ({square:g}): the markers sit inside "
-            "the white squares (OpenCV's tutorial board: 40 mm squares, 20 mm markers)"
-        )
+    _warn_if_metres(board.square_size_mm, "square_size_mm")
     if int(min_corners) < 4:
         raise CalibrationError(f"min_corners must be at least 4, got {min_corners}")
-    finder = _Charuco(sq, square, marker, dictionary, legacy, min_corners)
+    finder = _Charuco(board, legacy, min_corners)
     entries = _entries(images)
     return _run(
         entries,

@@ -7,11 +7,13 @@ Pixel convention: OpenCV's, pixel centres at integer coordinates. Board frame: s
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
 
-from .. import _cv, _cv_charuco
+from .. import _cv_charuco
+from ..boards import Board
 from ..errors import BoardNotFoundError, CalibrationError
 
 __all__ = ["find_checkerboard_corners"]
@@ -19,43 +21,14 @@ __all__ = ["find_checkerboard_corners"]
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
 
 
-def checkerboard_points(pattern_size: tuple[int, int], square_size_mm: float) -> np.ndarray:
-    """The inner corners of a flat checkerboard in the board's own frame.
-
-    Parameters
-    ----------
-    pattern_size : (int, int)
-        Inner corners across and down (columns, rows), as OpenCV counts them: 9x6 for a board of
-        10x7 squares.
-    square_size_mm : float
-        Side of one square (mm), measured on the print.
-
-    Returns
-    -------
-    ndarray, shape (columns * rows, 3)
-        The corners (mm), z = 0, in the order ``cv2.findChessboardCorners`` reports them: row
-        by row, x along a row.
-
-    Examples
-    --------
-    >>> checkerboard_points((3, 2), 25.0)[:4].tolist()
-    [[0.0, 0.0, 0.0], [25.0, 0.0, 0.0], [50.0, 0.0, 0.0], [0.0, 25.0, 0.0]]
-    """
-    cols, rows = pattern_size
-    jj, ii = np.mgrid[0:rows, 0:cols]
-    return np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]) * float(square_size_mm)
-
-
 class _Checkerboard:
-    def __init__(self, pattern_size: tuple[int, int], square_size_mm: float, corner_finder: str):
-        self.pattern_size = pattern_size
-        self.square_size_mm = square_size_mm
+    def __init__(self, board: Board, corner_finder: str):
+        self.pattern_size = board.inner_corners
         if corner_finder not in ("classic", "sb"):
             raise CalibrationError(f"corner_finder {corner_finder!r} is unknown; use 'classic' or 'sb'")
         self.corner_finder = corner_finder
-        cols, rows = pattern_size
-        self.object_points = checkerboard_points(pattern_size, square_size_mm)
-        self.description = f"checkerboard {cols}x{rows} inner corners, {square_size_mm:g} mm squares"
+        self.object_points = board.object_points()
+        self.description = board.describe()
 
     def find(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
         try:
@@ -153,18 +126,10 @@ def _not_found(pattern_size: tuple[int, int]) -> BoardNotFoundError:
 
 
 class _Charuco:
-    def __init__(
-        self,
-        squares: tuple[int, int],
-        square_size_mm: float,
-        marker_size_mm: float,
-        dictionary: str,
-        legacy: bool | str,
-        min_corners: int,
-    ):
-        self.squares = squares
-        self.square_size_mm, self.marker_size_mm = square_size_mm, marker_size_mm
-        self.dictionary = _cv.dictionary_name(dictionary)
+    def __init__(self, board: Board, legacy: bool | str, min_corners: int):
+        self.board = board
+        squares = self.squares = board.squares
+        self.dictionary = board.dictionary
         self.min_corners = int(min_corners)
         if legacy not in (True, False, "auto"):
             raise CalibrationError(f"legacy must be True, False or 'auto', got {legacy!r}")
@@ -173,14 +138,11 @@ class _Charuco:
         candidates = both if legacy == "auto" else [bool(legacy)]
         self.detectors = []
         for flag in candidates:
-            board = _cv_charuco.charuco_board(squares, square_size_mm, marker_size_mm, self.dictionary, legacy=flag)
-            self.detectors.append((flag, board, _cv_charuco.charuco_detector(board)))
+            cv_board = board.cv_board(legacy=flag)
+            self.detectors.append((flag, cv_board, _cv_charuco.charuco_detector(cv_board)))
         self.legacy = candidates[0]
         self.auto = len(candidates) > 1
-        self.description = (
-            f"ChArUco {squares[0]}x{squares[1]} squares, {square_size_mm:g} mm squares, "
-            f"{marker_size_mm:g} mm markers, {self.dictionary}"
-        )
+        self.description = board.describe()
         self.n_corners = (squares[0] - 1) * (squares[1] - 1)
 
     def find_all(self, gray: np.ndarray) -> dict:
@@ -240,10 +202,7 @@ class _Charuco:
                 )
             )
         for squares, legacy, hint in tries:
-            board = _cv_charuco.charuco_board(
-                squares, self.square_size_mm, self.marker_size_mm, self.dictionary, legacy=legacy
-            )
-            detector = _cv_charuco.charuco_detector(board)
+            detector = _cv_charuco.charuco_detector(replace(self.board, squares=squares).cv_board(legacy=legacy))
             if any(len(_cv_charuco.detect_charuco(detector, g)[1]) >= self.min_corners for g in grays):
                 return hint
         return ""

@@ -19,12 +19,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .. import io as fidlearn_io
+from ..boards import MAX_BOARD_CORNERS, Board, parse_grid
 from ..camera import Camera
 from ..errors import FidlearnError, UsageError
 from ..images import encode_image
 from ..io import StagedOutputs, current_outputs, signals_deferred
 from ..markermap import MarkerMap
-from ..printables import parse_pattern
 
 UNITS = ["mm", "cm", "m", "in", "ft"]
 
@@ -123,7 +123,7 @@ def _load_map(args) -> MarkerMap:
 
 
 def _load_camera(args) -> Camera:
-    size = parse_pattern(args.image_size, "--image-size") if args.image_size else None
+    size = parse_grid(args.image_size, "--image-size") if args.image_size else None
     return Camera.load(args.camera, image_size=size)
 
 
@@ -132,16 +132,30 @@ def _check_dpi(dpi: float) -> None:
         raise UsageError(f"--dpi {dpi:g}: give 50 to 1200 dots per inch (300 is a printer's)")
 
 
-def _board_squares(args) -> tuple[int, int]:
-    """The board's squares from ``--pattern`` (inner corners) or ``--squares``; ChArUco options checked."""
-    if args.pattern is not None:
-        cols, rows = parse_pattern(args.pattern, "--pattern")
-        squares = (cols + 1, rows + 1)
-    else:
-        squares = parse_pattern(args.squares, "--squares")
+def _board(args) -> Board:
+    """The board from ``--pattern`` (inner corners) or ``--squares``, ``--square-mm`` and the ChArUco options."""
     if not args.charuco and (args.dictionary or args.marker_mm is not None):
         raise UsageError("--dictionary and --marker-mm describe a ChArUco board; add --charuco or drop them")
-    return squares
+    if args.charuco and args.marker_mm is None:
+        raise UsageError("--charuco needs --marker-mm, the side of one printed marker in mm (smaller than the square)")
+    option, text, counts = (
+        ("--pattern", args.pattern, "inner") if args.pattern is not None else ("--squares", args.squares, "squares")
+    )
+    cols, rows = parse_grid(text, option)
+    corners = (cols - 1) * (rows - 1) if counts == "squares" else cols * rows
+    if corners > MAX_BOARD_CORNERS:  # said before the board is built: the message names the option
+        raise UsageError(
+            f"{option} {text}: {corners} inner corners, more than {MAX_BOARD_CORNERS}, the most fidlearn "
+            "searches a photo for; count the board again (9x6 inner corners for a board of 10x7 squares)"
+        )
+    return Board.parse(
+        text,
+        args.square_mm,
+        counts=counts,
+        charuco=args.charuco,
+        marker_size_mm=args.marker_mm,
+        dictionary=args.dictionary,
+    )
 
 
 # -- signals ---------------------------------------------------------------------------------------

@@ -11,12 +11,13 @@ import warnings
 from pathlib import Path
 
 from .. import calibration
+from ..boards import Board
 from ..drawing import draw_calibration_view
-from ..errors import FidlearnWarning, UsageError
+from ..errors import FidlearnWarning
 from ..images import expand_inputs
 from ..io import atomic_write
 from ..planning.coach import coach_calibration
-from ._common import _board_squares, _check_output, _commit, _Progress, _refuse_clobber, _Staging
+from ._common import _board, _check_output, _commit, _Progress, _refuse_clobber, _Staging
 
 
 def add(sub) -> None:
@@ -59,21 +60,13 @@ def add(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _calibrate(args, paths: list[str], squares: tuple[int, int]) -> calibration.Calibration:
+def _calibrate(paths: list[str], board: Board) -> calibration.Calibration:
     progress = _Progress("calibrate")
     try:
-        if args.charuco:
-            cal = calibration.calibrate_charuco(
-                paths,
-                squares,
-                args.square_mm,
-                args.marker_mm,
-                dictionary=args.dictionary or "6X6_250",
-                progress=progress,
-            )
+        if board.is_charuco:
+            cal = calibration.calibrate_charuco(paths, board, progress=progress)
         else:
-            pattern = (squares[0] - 1, squares[1] - 1)
-            cal = calibration.calibrate_checkerboard(paths, pattern, args.square_mm, progress=progress)
+            cal = calibration.calibrate_checkerboard(paths, board=board, progress=progress)
     finally:
         progress.clear()
     progress.finish(sum(1 for v in cal.views if v.found))
@@ -126,27 +119,17 @@ def run(args) -> int:
     items = expand_inputs(args.inputs, videos=False)
     _refuse_clobber([("-o", out), ("--report", report)], [p for _, p in items], args.annotate)
     staging = _Staging(args.annotate)
-    squares = _board_squares(args)
-    corners = (squares[0] - 1) * (squares[1] - 1)
-    if corners > calibration.api.MAX_BOARD_CORNERS:
-        option = f"--pattern {args.pattern}" if args.pattern is not None else f"--squares {args.squares}"
-        raise UsageError(
-            f"{option}: {corners} inner corners, more than {calibration.api.MAX_BOARD_CORNERS}, the most fidlearn "
-            "searches a photo for; count the board again (9x6 inner corners for a board of 10x7 squares)"
-        )
-    if args.charuco and args.marker_mm is None:
-        raise UsageError("--charuco needs --marker-mm, the side of one printed marker in mm")
+    board = _board(args)
     paths = [str(p) for _, p in items]
-    cal = _calibrate(args, paths, squares)
+    cal = _calibrate(paths, board)
     _print_result(cal)
     coached = coach_calibration(cal)
     print("calibration coach: " + coached.report(omit=cal.warnings).replace("\n", "\n  "))  # each warning once
-    pattern = (squares[0] - 1, squares[1] - 1)
     with staging:
         if args.annotate:
             for view, path in zip(cal.views, paths):  # views come back in input order
                 pts = cal.image_points_px.get(view.name)
-                staging.save(Path(path).name, draw_calibration_view(Path(path), view, pts, pattern, args.charuco))
+                staging.save(Path(path).name, draw_calibration_view(Path(path), view, pts, board))
         if report is not None:
             from ..planning.figure import coach_figure  # matplotlib: only when a picture is drawn (faster start)
 

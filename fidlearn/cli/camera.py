@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..boards import parse_grid
 from ..camera import Camera
-from ..printables import parse_pattern
 from ..ros import load_camera_info, save_camera_info
 from ._common import _check_output, _commit, _Parser, _refuse_clobber
 
@@ -58,7 +58,7 @@ def run_export(args) -> int:
     """
     out = _check_output(args.ros, (".yaml", ".yml"), "--ros")
     _refuse_clobber([("--ros", out)], [args.camera])
-    size = parse_pattern(args.image_size, "--image-size") if args.image_size else None
+    size = parse_grid(args.image_size, "--image-size") if args.image_size else None
     cam = Camera.load(args.camera, image_size=size)
     save_camera_info(cam, out, args.camera_name)
     _commit()

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import printables
-from ._common import _board_squares, _check_dpi, _check_output, _commit
+from ._common import _board, _check_dpi, _check_output, _commit
 
 
 def add_markers(sub) -> None:
@@ -124,15 +124,7 @@ def run_board(args) -> int:
     """
     out = _check_output(args.output, (".pdf", ".png"))
     _check_dpi(args.dpi)
-    squares = _board_squares(args)
-    sheet = printables.layout_board(
-        squares,
-        args.square_mm,
-        paper=args.paper,
-        charuco=args.charuco,
-        dictionary=args.dictionary or "6X6_250",
-        marker_size_mm=args.marker_mm,
-    )
+    sheet = printables.layout_board(_board(args), args.paper)
     files = printables.save_pages([printables.board_figure(sheet)], out, dpi=args.dpi)
     _commit()
     turn = ", landscape" if sheet.landscape else ""

@@ -7,9 +7,9 @@ import warnings
 from pathlib import Path
 
 from .. import frames, synthetic
+from ..boards import parse_grid
 from ..errors import FidlearnWarning, UsageError
 from ..images import write_image
-from ..printables import parse_pattern
 from ._common import (
     _add_image_size_option,
     _add_map_options,
@@ -125,7 +125,7 @@ def _camera(args):
     """The camera file's camera, at --size when given."""
     camera = _load_camera(args)
     if args.size:
-        w, h = parse_pattern(args.size, "--size")
+        w, h = parse_grid(args.size, "--size")
         if w * h > MAX_RENDER_PIXELS or max(w, h) > 20000:
             raise UsageError(
                 f"--size {w}x{h}: at most {MAX_RENDER_PIXELS / 1e6:g} megapixels (1920x1080 fits) and 20000 pixels "

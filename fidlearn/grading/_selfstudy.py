@@ -12,7 +12,7 @@ _NO_LESSON = "no exercises found: the notebook never ran ex = exercises.lesson(.
 _LESSON_CALL = re.compile(r"exercises\.lesson\(\s*[\"']?(\d{1,2})[\"']?")
 
 
-def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout: int = 300) -> Grade:
+def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout_s: int = 300) -> Grade:
     """Check a learner's self-study notebook: run it in a sandbox, judge its answers outside it.
 
     The notebook runs in a process of its own (see :mod:`fidlearn.grading`); its answers are
@@ -27,7 +27,7 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
         The notebook (``.ipynb``).
     learner : str, optional
         The id the learner was told to use (a notebook whose ``LEARNER`` is empty runs with it).
-    timeout : int
+    timeout_s : int
         Seconds the notebook may run.
 
     Returns
@@ -65,5 +65,5 @@ def grade_notebook(path: str | os.PathLike, learner: str | None = None, timeout:
     if len(found) != 1:
         return Grade(path, learner, None, problem=_NO_LESSON)
     number = lesson_number(found.pop())
-    g = _grader.grade_one(path, number, learner or "", None, timeout_s=timeout)
+    g = _grader.grade_one(path, number, learner or "", None, timeout_s=timeout_s)
     return replace(g, notebook=path, learner=learner or "")

@@ -133,16 +133,16 @@ def finite_distance(distance_mm) -> float:
     return d
 
 
-def check_flip_inputs(points_world, points_px, camera, sigma_px) -> tuple:
+def check_flip_inputs(points_world, points_px, camera, corner_sigma_px) -> tuple:
     """The inputs of :func:`~fidlearn.planning.flip_probability`, checked: (N, 3), (N, 2) and (N,) float arrays."""
     check_camera(camera, PoseError)
     P = float_array(points_world, "points_world", (-1, 3), PoseError)
     if not 4 <= len(P) <= 10_000:
         raise PoseError(f"points_world has {len(P)} points: give 4 to 10000 marker corners")
     q = float_array(points_px, "points_px", (len(P), 2), PoseError)
-    s = float_array(sigma_px, "sigma_px", (len(P),), PoseError)
+    s = float_array(corner_sigma_px, "corner_sigma_px", (len(P),), PoseError)
     if np.any(s <= 0) or np.max(np.abs(P)) > 1e9 or np.max(np.abs(q)) > 1e9:
-        raise PoseError("sigma_px must be positive and the points within 1e9 mm and px: check the units")
+        raise PoseError("corner_sigma_px must be positive and the points within 1e9 mm and px: check the units")
     return P, q, s
 
 

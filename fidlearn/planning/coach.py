@@ -308,8 +308,8 @@ def _candidates(camera: Camera, board_points_mm: np.ndarray, distance_mm: float)
             yield T, where, tilt
 
 
-def _summary(camera: Camera, info: np.ndarray, sigma_px: float, distance_mm: float):
-    cov = sigma_px**2 * np.linalg.pinv(info)
+def _summary(camera: Camera, info: np.ndarray, sigma: float, distance_mm: float):
+    cov = sigma**2 * np.linalg.pinv(info)
     u = uncertainty_map(camera, cov, distance_mm)
     return cov, u, float(np.mean(u < GOOD_UNCERTAINTY_PX))
 
@@ -320,7 +320,7 @@ def coach(
     image_points_px: dict,
     T_camera_board: dict,
     *,
-    sigma_px: float,
+    corner_sigma_px: float,
     other_sizes: int = 0,
 ) -> CalibrationCoach:
     """Judge a calibration set and say which photo to take next.
@@ -332,7 +332,7 @@ def coach(
     board_points_mm, image_points_px, T_camera_board : dict by view name
         Board points (N, 3) mm, their pixels (N, 2) and the board poses (4, 4) mm, as a
         :class:`~fidlearn.Calibration` holds them.
-    sigma_px : float
+    corner_sigma_px : float
         Corner noise (px per axis): the calibration's RMS reprojection error over sqrt(2).
     other_sizes : int
         Photos left out because they had another resolution (a mixed set is flagged).
@@ -346,10 +346,10 @@ def coach(
     ------
     CalibrationError
         If there is no view, a view is missing or malformed (the message names it), the camera is not a
-        Camera, ``sigma_px`` is not a positive number of pixels (up to 100) or ``other_sizes`` not a count.
+        Camera, ``corner_sigma_px`` is not a positive number of pixels (up to 100) or ``other_sizes`` not a count.
     """
-    if not (_checks.is_number(sigma_px) and 0 < sigma_px <= 100):
-        raise CalibrationError(f"sigma_px must be a positive number of pixels up to 100, got {sigma_px!r}")
+    if not (_checks.is_number(corner_sigma_px) and 0 < corner_sigma_px <= 100):
+        raise CalibrationError(f"corner_sigma_px must be a number of pixels, above 0 to 100, got {corner_sigma_px!r}")
     if isinstance(other_sizes, bool) or not isinstance(other_sizes, (int, np.integer)) or other_sizes < 0:
         raise CalibrationError(f"other_sizes must be a count of photos (0 or more), got {other_sizes!r}")
     board_points_mm, image_points_px, T_camera_board = _checks.check_views(
@@ -360,11 +360,11 @@ def coach(
         raise CalibrationError("no views to judge: the calibration used none")
     distance = float(np.median([np.linalg.norm(T_camera_board[n][:3, 3]) for n in names]))
     info = intrinsics_information(camera, board_points_mm, T_camera_board)
-    cov, u, good = _summary(camera, info, sigma_px, distance)
+    cov, u, good = _summary(camera, info, corner_sigma_px, distance)
     coverage = _coverage(camera, image_points_px)
     tilts = {n: _tilt_deg(T_camera_board[n]) for n in names}
     flags = _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts, other_sizes)
-    best = _next_view(camera, np.asarray(board_points_mm[names[0]], dtype=float), info, sigma_px, distance)
+    best = _next_view(camera, np.asarray(board_points_mm[names[0]], dtype=float), info, corner_sigma_px, distance)
     return CalibrationCoach(u, good, cov, coverage, tilts, flags, best)
 
 
@@ -400,7 +400,7 @@ def _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts: dict
     return flags
 
 
-def _next_view(camera, board: np.ndarray, info, sigma_px: float, distance: float) -> NextView | None:
+def _next_view(camera, board: np.ndarray, info, sigma: float, distance: float) -> NextView | None:
     """The candidate photo that lowers the uncertainty most (None when no candidate shows the whole board)."""
     best = None
     candidates = [c for d in (0.7 * distance, distance) for c in _candidates(camera, board, d)]
@@ -408,7 +408,7 @@ def _next_view(camera, board: np.ndarray, info, sigma_px: float, distance: float
     for T, where, tilt in candidates:
         if not _in_picture(camera, printed, T):
             continue
-        _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma_px, distance)
+        _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma, distance)
         # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
         score = (min(good_after, 0.9), -float(np.mean(u_after**2)))
         if best is None or score > best[0]:
@@ -494,6 +494,6 @@ def coach_calibration(calibration, other_sizes: int | None = None) -> Calibratio
         calibration.board_points_mm,
         calibration.image_points_px,
         calibration.T_camera_board,
-        sigma_px=max(calibration.rms_px / math.sqrt(2), 1e-3),
+        corner_sigma_px=max(calibration.rms_px / math.sqrt(2), 1e-3),
         other_sizes=other_sizes,
     )

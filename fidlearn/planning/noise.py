@@ -133,7 +133,7 @@ def min_perimeter_px(image_size: tuple[int, int]) -> float:
     return max(DECODE_MIN_PERIMETER_PX, PERIMETER_RATE * PERIMETER_RULE_SLACK * max(image_size))
 
 
-def corner_covariance(corners_px: np.ndarray, sigma_px: float) -> np.ndarray:
+def corner_covariance(corners_px: np.ndarray, corner_sigma_px: float) -> np.ndarray:
     """Joint covariance of one marker's four corners, as the ``edges`` refinement makes them.
 
     Each side's line is fitted to edge points spread along it: its mean offset has a variance
@@ -142,7 +142,7 @@ def corner_covariance(corners_px: np.ndarray, sigma_px: float) -> np.ndarray:
     one side therefore move against each other along that side's normal (correlation -0.5 on a
     square) and the marker's centre is known twice as well (in variance) as four independent
     corners of the same noise would make it; its scale too, its rotation worse. ``v`` is set so
-    that the mean variance of the eight coordinates is ``sigma_px ** 2``, the per-axis corner
+    that the mean variance of the eight coordinates is ``corner_sigma_px ** 2``, the per-axis corner
     noise of :func:`corner_sigma_px`. Measured on the renders of the noise table (667 markers of
     15 px or more): the centre has 0.6, the scale 0.5 and the rotation 1.4 times the variance of
     independent corners; this model says 0.5, 0.5 and 1.5.
@@ -151,7 +151,7 @@ def corner_covariance(corners_px: np.ndarray, sigma_px: float) -> np.ndarray:
     ----------
     corners_px : array-like, shape (4, 2)
         The marker's corners in the picture (px), in order around it (TL, TR, BR, BL).
-    sigma_px : float
+    corner_sigma_px : float
         Corner noise per axis (px).
 
     Returns
@@ -171,10 +171,10 @@ def corner_covariance(corners_px: np.ndarray, sigma_px: float) -> np.ndarray:
     Raises
     ------
     PoseError
-        If ``corners_px`` is not four finite (x, y) pixels or ``sigma_px`` not a number of pixels from 0 to 1e6.
+        If ``corners_px`` is not four finite (x, y) pixels or ``corner_sigma_px`` not a number of pixels from 0 to 1e6.
     """
     q = float_array(corners_px, "corners_px", (4, 2), PoseError)
-    sigma_px = check_number(sigma_px, "sigma_px", 0.0, 1e6, PoseError, " px")
+    corner_sigma_px = check_number(corner_sigma_px, "corner_sigma_px", 0.0, 1e6, PoseError, " px")
     side = np.roll(q, -1, axis=0) - q  # side k from corner k to corner k + 1
     normal = np.column_stack([-side[:, 1], side[:, 0]]) / np.linalg.norm(side, axis=1)[:, None]
     # rows: the displacement of side k's line at its start (corner k) and at its end (corner k + 1)
@@ -187,10 +187,10 @@ def corner_covariance(corners_px: np.ndarray, sigma_px: float) -> np.ndarray:
     try:
         Mi = np.linalg.inv(M)
     except np.linalg.LinAlgError:  # a degenerate quad: no line model, independent corners
-        return float(sigma_px) ** 2 * np.eye(8)
+        return float(corner_sigma_px) ** 2 * np.eye(8)
     C = Mi @ S @ Mi.T
     C = (C + C.T) / 2
-    return C * (8.0 * float(sigma_px) ** 2 / np.trace(C))
+    return C * (8.0 * float(corner_sigma_px) ** 2 / np.trace(C))
 
 
 def marker_shift_covariance(shift_px: float) -> np.ndarray:

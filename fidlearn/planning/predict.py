@@ -206,7 +206,9 @@ def _seen(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray) -> 
     return seen, lost
 
 
-def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Camera, sigma_px: np.ndarray) -> float:
+def flip_probability(
+    points_world: np.ndarray, points_px: np.ndarray, camera: Camera, corner_sigma_px: np.ndarray
+) -> float:
     """Chance that the other planar solution fits noisy corners better than the true pose.
 
     With exact corners ``points_px``, the second IPPE solution refined by Levenberg-Marquardt
@@ -224,7 +226,7 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
         Their exact projections (px).
     camera : Camera
         The camera that sees them.
-    sigma_px : ndarray, shape (N,)
+    corner_sigma_px : ndarray, shape (N,)
         Corner noise of each point (px per axis).
 
     Returns
@@ -235,9 +237,9 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
     Raises
     ------
     PoseError
-        If the arrays are not finite, of these shapes with 4 to 10000 points, or ``sigma_px`` not positive.
+        If the arrays are not finite, of these shapes with 4 to 10000 points, or ``corner_sigma_px`` not positive.
     """
-    P, points_px, sigma_px = check_flip_inputs(points_world, points_px, camera, sigma_px)
+    P, points_px, corner_sigma_px = check_flip_inputs(points_world, points_px, camera, corner_sigma_px)
     centred = P - P.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
     if s[2] > 1e-6 * max(s[0], 1.0):
@@ -252,7 +254,7 @@ def flip_probability(points_world: np.ndarray, points_px: np.ndarray, camera: Ca
         rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
         R = cv2.Rodrigues(rvec)[0]
         proj = _lens.project_points(P @ R.T + tvec.ravel(), camera.K, camera.dist)
-        found.append((float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / sigma_px**2)), R))
+        found.append((float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / corner_sigma_px**2)), R))
     found = [f for f in found if math.isfinite(f[0]) and np.all(np.isfinite(f[1]))]
     if len(found) < 2:
         return 0.0

@@ -346,7 +346,7 @@ def _build(
         residuals_px=dict(sorted(residuals.items())),
         reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
         covariance=_covariance(data, c, alternative, JtJ_c),
-        sigma_px=data.sigma,
+        corner_sigma_px=data.sigma,
         ambiguous=data.ambiguous,
         alternative=alternative,
         ignored_ids=tuple(data.ignored),

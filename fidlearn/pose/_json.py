@@ -25,7 +25,7 @@ RECORD_FIELDS = (
     "alternative_position_mm",
 )
 #: What ``full=True`` adds: everything else a Pose holds.
-FULL_FIELDS = ("covariance", "sigma_px", "residuals_px", "alternative")
+FULL_FIELDS = ("covariance", "corner_sigma_px", "residuals_px", "alternative")
 #: A ``fidlearn locate --json`` line's own fields, read past.
 FRAME_FIELDS = ("frame", "located")
 
@@ -49,7 +49,7 @@ def pose_to_dict(pose, full: bool) -> dict:
         rec["alternative_position_mm"] = pose.alternative.position_mm.tolist()
     if full:
         rec["covariance"] = None if pose.covariance is None else np.asarray(pose.covariance).tolist()
-        rec["sigma_px"] = float(pose.sigma_px) if math.isfinite(pose.sigma_px) else None
+        rec["corner_sigma_px"] = float(pose.corner_sigma_px) if math.isfinite(pose.corner_sigma_px) else None
         rec["residuals_px"] = {str(i): np.asarray(r).tolist() for i, r in pose.residuals_px.items()}
         rec["alternative"] = None if pose.alternative is None else pose_to_dict(pose.alternative, True)
     return rec
@@ -134,7 +134,7 @@ def pose_from_dict(cls, d, source: str):
         residuals_px=_residuals(d.get("residuals_px", {}), source),
         reprojection_rms_px=_number(d["reprojection_rms_px"], "reprojection_rms_px", source),
         covariance=_covariance(d.get("covariance"), source),
-        sigma_px=_number(d.get("sigma_px"), "sigma_px", source, allow_none=True),
+        corner_sigma_px=_number(d.get("corner_sigma_px"), "corner_sigma_px", source, allow_none=True),
         ambiguous=d.get("ambiguous", False),
         alternative=alternative,
         ignored_ids=_ids(d, "ignored_ids", source),

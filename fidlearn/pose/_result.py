@@ -117,7 +117,7 @@ class Pose(_PoseReadouts):
         Covariance of the camera's pose: ``[dtheta (rad, 3), position (mm, 3)]``
         where ``dtheta`` is a small rotation vector, in world axes, applied on
         the left of ``R_world_camera`` (``R = expm([dtheta]x) @ R_est``) and
-        position is the camera centre in the world. ``sigma_px^2 (J^T J)^-1``
+        position is the camera centre in the world. ``corner_sigma_px^2 (J^T J)^-1``
         with ``J`` the Jacobian of the corner pixels at the solution
         (:func:`pose_jacobian`): the Cramer-Rao bound when ``corner_sigma_px``
         is given. When sigma is estimated from the residuals it is multiplied
@@ -146,7 +146,7 @@ class Pose(_PoseReadouts):
         truth was always inside, at a mean squared Mahalanobis distance of
         0.25 instead of 3) and too small for a worse one. Give
         ``corner_sigma_px`` when you know your detector's noise.
-    sigma_px : float
+    corner_sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes: given, or
         estimated from the residuals (see :func:`estimate_pose`).
     ambiguous : bool
@@ -170,7 +170,7 @@ class Pose(_PoseReadouts):
     residuals_px: dict[int, np.ndarray]
     reprojection_rms_px: float
     covariance: np.ndarray | None
-    sigma_px: float
+    corner_sigma_px: float
     _: KW_ONLY
     ambiguous: bool = False
     alternative: InitVar[Pose | None] = None  # read through the property set below the class
@@ -276,7 +276,7 @@ class Pose(_PoseReadouts):
         Parameters
         ----------
         full : bool
-            Also write what the record leaves out (``covariance``, ``sigma_px``, ``residuals_px``
+            Also write what the record leaves out (``covariance``, ``corner_sigma_px``, ``residuals_px``
             and the ``alternative`` pose, each null when there is none), so that
             :meth:`from_dict` gives this pose back whole.
 
@@ -313,7 +313,7 @@ class Pose(_PoseReadouts):
             fields :meth:`to_dict` writes. ``position_mm``, ``rpy_deg``, ``position_std_mm`` and
             ``alternative_position_mm`` are read off the others and passed over, as are a
             ``fidlearn locate --json`` line's ``frame`` and ``located``. Without ``full=True``'s
-            fields the pose has no covariance, no residuals, no alternative and a NaN ``sigma_px``.
+            fields the pose has no covariance, no residuals, no alternative and a NaN ``corner_sigma_px``.
         source : str
             Where ``d`` came from, named in error messages.
 

@@ -15,8 +15,9 @@ Examples
 --------
 >>> parse_ids("0-3,8")
 [0, 1, 2, 3, 8]
->>> parse_pattern("9x6")
-(9, 6)
+>>> from fidlearn import Board
+>>> layout_board(Board.checkerboard((9, 6), 25)).board.squares
+(10, 7)
 """
 
 from __future__ import annotations
@@ -55,7 +56,6 @@ from ._page import (
     STRIP_MM,
     paper_size_mm,
     parse_ids,
-    parse_pattern,
     save_pages,
 )
 
@@ -65,7 +65,6 @@ __all__ = [
     "MarkerSheet",
     "BoardSheet",
     "parse_ids",
-    "parse_pattern",
     "paper_size_mm",
     "marker_cells",
     "layout_markers",

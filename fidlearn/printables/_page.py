@@ -93,40 +93,6 @@ def parse_ids(text: str) -> list[int]:
     return ids
 
 
-def parse_pattern(text: str, what: str = "--pattern") -> tuple[int, int]:
-    """``"9x6"`` as ``(9, 6)`` (columns, rows).
-
-    Parameters
-    ----------
-    text : str
-        ``COLUMNSxROWS``, at least 2 each way (``x``, ``X`` or ``×``).
-    what : str
-        The option's name in the error message.
-
-    Returns
-    -------
-    (int, int)
-        (columns, rows).
-
-    Raises
-    ------
-    PrintError
-        For anything else.
-
-    Examples
-    --------
-    >>> parse_pattern("9x6")
-    (9, 6)
-    """
-    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", str(text))
-    if not m:
-        raise PrintError(f"{what} {text!r} is not COLUMNSxROWS; write it like 9x6")
-    cols, rows = int(m.group(1)), int(m.group(2))
-    if cols < 2 or rows < 2:
-        raise PrintError(f"{what} {text}: needs at least 2 in each direction, e.g. 9x6")
-    return cols, rows
-
-
 def paper_size_mm(paper: str, landscape: bool = False) -> tuple[float, float]:
     """The size of a sheet of paper.
 

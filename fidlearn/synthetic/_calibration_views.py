@@ -5,21 +5,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import cv2
 import numpy as np
 
-from .. import _cv, _cv_charuco, frames
-from ..calibration.boards import checkerboard_points
+from .. import frames
+from ..boards import Board
 from ..camera import Camera
 from ..errors import FidlearnError
 from ._checks import (
     DEFAULT_GRAYS,
     MAX_FRAMES,
     _check_indices,
-    _check_length_mm,
-    _check_pattern,
     _check_render_work,
     _check_seed,
 )
@@ -48,14 +45,8 @@ class CalibrationViews:
         ``getChessboardCorners()`` ids 0..N-1 for ChArUco).
     image_points : list of ndarray (N, 2)
         True pixel positions of those corners per view (``cv2.projectPoints``).
-    pattern_size : (int, int)
-        Checkerboard: inner corners (columns, rows); ChArUco: squares (x, y).
-    square_size_mm, marker_size_mm : float
-        The printed sizes (``marker_size_mm`` is 0 for a checkerboard).
-    charuco : bool
-        Whether the board is ChArUco.
-    dictionary : str
-        ChArUco's marker dictionary ("" for a checkerboard).
+    board : Board
+        The printed board (``views.board.cv_board()`` is OpenCV's ChArUco board).
     """
 
     images: list
@@ -63,11 +54,7 @@ class CalibrationViews:
     T_world_camera: list
     object_points: np.ndarray
     image_points: list
-    pattern_size: tuple
-    square_size_mm: float
-    marker_size_mm: float = 0.0
-    charuco: bool = False
-    dictionary: str = ""
+    board: Board
     seed: int = 0
     render_kwargs: dict = field(default_factory=dict)
 
@@ -79,39 +66,15 @@ class CalibrationViews:
         """The board's pose in each camera frame (4, 4), mm: what ``cv2.calibrateCamera`` estimates."""
         return [frames.invert_transform(T) for T in self.T_world_camera]
 
-    def board(self):
-        """The ChArUco board of the views.
-
-        Returns
-        -------
-        cv2.aruco.CharucoBoard
-            Sizes in mm.
-
-        Raises
-        ------
-        FidlearnError
-            For a checkerboard, which has none.
-        """
-        if not self.charuco:
-            raise FidlearnError("a checkerboard has no cv2.aruco board; use pattern_size and square_size_mm")
-        return _cv_charuco.charuco_board(self.pattern_size, self.square_size_mm, self.marker_size_mm, self.dictionary)
-
     def __repr__(self) -> str:
-        kind = (
-            f"ChArUco {self.pattern_size[0]}x{self.pattern_size[1]} squares, {self.dictionary}"
-            if self.charuco
-            else f"checkerboard {self.pattern_size[0]}x{self.pattern_size[1]} inner corners"
-        )
         w, h = self.camera.image_size
-        return (
-            f"CalibrationViews({len(self)} views {w}x{h}, {kind}, square {self.square_size_mm:g} mm, {self.camera!r})"
-        )
+        return f"CalibrationViews({len(self)} views {w}x{h}, {self.board.describe()}, {self.camera!r})"
 
 
 def _checkerboard_sheet(
-    pattern_size: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict
+    squares_xy: tuple[int, int], square_size_mm: float, tps: int, margin_squares: float, grays: dict
 ) -> _Sheet:
-    cols, rows = pattern_size[0] + 1, pattern_size[1] + 1  # squares
+    cols, rows = squares_xy
     m = int(round(margin_squares * tps))
     jj, ii = np.mgrid[0:rows, 0:cols]
     squares = np.where((ii + jj) % 2 == 0, grays["ink"], grays["paper"]).astype(np.float32)  # top-left square black
@@ -167,53 +130,29 @@ def _board_pose(
 
 
 @dataclass(eq=False)
-class _Board:
+class _Geometry:
     """A calibration board's geometry, in its own frame (mm): what the views are made of."""
 
-    pattern_size: tuple
-    square_size_mm: float
-    marker_size_mm: float | None
-    cv_board: Any  # cv2.aruco.CharucoBoard, or None for a checkerboard
-    squares: tuple | None  # ChArUco's squares (x, y)
+    board: Board
     object_points: np.ndarray  # (N, 3), mm
     centre: np.ndarray  # (3,), mm
     width_mm: float
     outline: np.ndarray  # (4, 3), mm: the part that must stay in view
 
 
-def _board_geometry(charuco: bool, pattern_size, square_size_mm, marker_size_mm, dictionary) -> _Board:
-    """The board's corners, centre, width and outline; ChArUco's defaults filled in."""
-    board = squares = None
-    pattern_size = _check_pattern(pattern_size, 2)
-    square_size_mm = _check_length_mm(square_size_mm, "square_size_mm")
-    if marker_size_mm is not None:
-        marker_size_mm = _check_length_mm(marker_size_mm, "marker_size_mm")
-    if charuco:
-        if tuple(pattern_size) == (9, 6):
-            pattern_size = (5, 7)
-        if square_size_mm == 25.0 and marker_size_mm is None:
-            square_size_mm, marker_size_mm = 40.0, 20.0
-        if marker_size_mm is None:
-            marker_size_mm = square_size_mm / 2
-        if not 0 < marker_size_mm < square_size_mm:
-            raise FidlearnError(
-                f"marker_size_mm ({marker_size_mm}) must be between 0 and square_size_mm ({square_size_mm})"
-            )
-        board = _cv_charuco.charuco_board(pattern_size, square_size_mm, marker_size_mm, dictionary)
-        object_points = np.asarray(board.getChessboardCorners(), dtype=np.float64).reshape(-1, 3)
-        squares = tuple(int(v) for v in pattern_size)
-        centre = np.array([squares[0] * square_size_mm / 2, squares[1] * square_size_mm / 2, 0.0])
-        board_w = squares[0] * square_size_mm
-    else:
-        pattern_size = tuple(int(v) for v in pattern_size)
-        if min(pattern_size) < 2:
-            raise FidlearnError(f"pattern_size {pattern_size} must count at least 2 x 2 inner corners")
-        object_points = checkerboard_points(pattern_size, square_size_mm)
-        centre = np.array([(pattern_size[0] - 1) * square_size_mm / 2, (pattern_size[1] - 1) * square_size_mm / 2, 0.0])
-        board_w = (pattern_size[0] + 1) * square_size_mm
-    # the outline that must stay in view: the pattern's corners plus a little of the outer squares
+def _board_geometry(board: Board) -> _Geometry:
+    """The board's corners, centre, width and outline."""
+    if not isinstance(board, Board):
+        raise FidlearnError(
+            f"board must be a fidlearn.Board (Board.checkerboard(...) or Board.charuco(...)), got {board!r:.60}"
+        )
+    s = board.square_size_mm
+    object_points = board.object_points()
+    width_mm = board.squares[0] * s
+    # the printed squares' centre; the outline that must stay in view: the corners plus a little of the outer squares
     lo, hi = object_points.min(axis=0), object_points.max(axis=0)
-    pad = 0.6 * square_size_mm
+    centre = (lo + hi) / 2
+    pad = 0.6 * s
     outline = np.array(
         [
             [lo[0] - pad, lo[1] - pad, 0],
@@ -222,14 +161,14 @@ def _board_geometry(charuco: bool, pattern_size, square_size_mm, marker_size_mm,
             [lo[0] - pad, hi[1] + pad, 0],
         ]
     )
-    return _Board(pattern_size, square_size_mm, marker_size_mm, board, squares, object_points, centre, board_w, outline)
+    return _Geometry(board, object_points, centre, width_mm, outline)
 
 
 #: Where the board's centre aims, as fractions of the image (x, y): a 3 x 3 grid, visited in turn.
 _GRID = [(gx, gy) for gy in (0.22, 0.5, 0.78) for gx in (0.2, 0.5, 0.8)]
 
 
-def _place_board(camera: Camera, rng: np.random.Generator, view: int, board: _Board, options: tuple) -> np.ndarray:
+def _place_board(camera: Camera, rng: np.random.Generator, view: int, board: _Geometry, options: tuple) -> np.ndarray:
     """``T_world_camera`` (board frame, mm) of one view, drawn until the whole outline is in the image."""
     tilt_range_deg, fill_range = options
     w, h = camera.image_size
@@ -253,13 +192,12 @@ def _place_board(camera: Camera, rng: np.random.Generator, view: int, board: _Bo
     raise FidlearnError(f"could not place the board in view {view} of a {w}x{h} camera; try a smaller fill_range")
 
 
-def _board_sheet(board: _Board, charuco: bool, widest_px: float, margin_squares: float, grays: dict) -> _Sheet:
+def _board_sheet(board: Board, widest_px: float, margin_squares: float, grays: dict) -> _Sheet:
     """One texture for all views, fine enough for the closest one (``widest_px``: its width in sub-pixels)."""
-    cells = board.pattern_size[0] if charuco else board.pattern_size[0] + 1
-    tps = int(np.clip(math.ceil(widest_px / cells), 8, 160))
-    if charuco:
-        return _charuco_sheet(board.cv_board, board.squares, board.square_size_mm, tps, margin_squares, grays)
-    return _checkerboard_sheet(board.pattern_size, board.square_size_mm, tps, margin_squares, grays)
+    tps = int(np.clip(math.ceil(widest_px / board.squares[0]), 8, 160))
+    if board.is_charuco:
+        return _charuco_sheet(board.cv_board(), board.squares, board.square_size_mm, tps, margin_squares, grays)
+    return _checkerboard_sheet(board.squares, board.square_size_mm, tps, margin_squares, grays)
 
 
 def _render_view(
@@ -282,12 +220,8 @@ def render_calibration_views(
     camera: Camera,
     *,
     n_views: int = 20,
-    pattern_size: tuple[int, int] = (9, 6),
-    square_size_mm: float = 25.0,
+    board: Board | None = None,
     seed: int = 0,
-    charuco: bool = False,
-    marker_size_mm: float | None = None,
-    dictionary: str = "6X6_250",
     tilt_range_deg: tuple[float, float] = (10.0, 45.0),
     fill_range: tuple[float, float] = (0.35, 0.7),
     margin_squares: float = 1.0,
@@ -312,19 +246,12 @@ def render_calibration_views(
         The true camera (its distortion included).
     n_views : int
         How many pictures.
-    pattern_size : (int, int)
-        Checkerboard: inner corners (columns, rows), OpenCV's ``patternSize``.
-        ChArUco: squares (x, y); ``(9, 6)`` is taken to mean the usual
-        ``(5, 7)`` when ``charuco=True``.
-    square_size_mm : float
-        Side of a printed square (mm). ChArUco defaults to 40 mm squares
-        with 20 mm markers when ``square_size_mm`` is left at 25.
+    board : Board, optional
+        The printed board: ``Board.checkerboard((9, 6), 25)`` when not given;
+        a ChArUco board (``Board.charuco((5, 7), 40, 20)``) renders
+        ``cv2.aruco.CharucoBoard``'s own picture.
     seed : int
         Seed of ``numpy.random.default_rng``: poses, wall texture and noise.
-    charuco : bool
-        A ChArUco board (``cv2.aruco.CharucoBoard``) instead of a checkerboard.
-    marker_size_mm, dictionary :
-        ChArUco's marker side (default half a square) and dictionary.
     blur_px, noise_std_gray, gradient, supersample, wall_texture_std_gray :
         As for :func:`render_scene`, applied to every view.
     views : sequence of int, optional
@@ -340,9 +267,8 @@ def render_calibration_views(
     Raises
     ------
     FidlearnError
-        If the board is malformed (fewer than 2 x 2 inner corners, a ChArUco marker not smaller
-        than its square), ``n_views`` < 1, a view index does not exist, or the board cannot be
-        placed in the picture.
+        If ``board`` is not a :class:`~fidlearn.Board`, ``n_views`` < 1, a view index does not
+        exist, or the board cannot be placed in the picture.
 
     Examples
     --------
@@ -357,15 +283,15 @@ def render_calibration_views(
         raise FidlearnError(f"n_views must be a whole number from 1 to {MAX_FRAMES}, got {n_views!r:.40}")
     chosen = _check_indices(views, n_views, "views")
     _check_render_options(camera, supersample, blur_px, noise_std_gray, wall_texture_std_gray)
-    board = _board_geometry(charuco, pattern_size, square_size_mm, marker_size_mm, dictionary)
+    geometry = _board_geometry(Board.checkerboard((9, 6), 25.0) if board is None else board)
     _check_render_work(camera, supersample, len(chosen), "views")
     rng = np.random.default_rng(_check_seed(seed))
     w = camera.image_size[0]
     options = (tilt_range_deg, fill_range)
-    poses = [_place_board(camera, rng, view, board, options) for view in range(n_views)]
-    points = [camera.project(board.object_points, T) for T in poses]
+    poses = [_place_board(camera, rng, view, geometry, options) for view in range(n_views)]
+    points = [camera.project(geometry.object_points, T) for T in poses]
     grays = dict(DEFAULT_GRAYS)
-    sheet = _board_sheet(board, charuco, fill_range[1] * w * 1.2 * supersample, margin_squares, grays)
+    sheet = _board_sheet(geometry.board, fill_range[1] * w * 1.2 * supersample, margin_squares, grays)
     render_kwargs = dict(
         blur_px=blur_px,
         noise_std_gray=noise_std_gray,
@@ -378,13 +304,9 @@ def render_calibration_views(
         images=images,
         camera=camera,
         T_world_camera=[poses[v] for v in chosen],
-        object_points=board.object_points,
+        object_points=geometry.object_points,
         image_points=[points[v] for v in chosen],
-        pattern_size=tuple(board.pattern_size),
-        square_size_mm=float(board.square_size_mm),
-        marker_size_mm=float(board.marker_size_mm or 0.0),
-        charuco=bool(charuco),
-        dictionary=_cv.dictionary_name(dictionary) if charuco else "",
+        board=geometry.board,
         seed=int(seed),
         render_kwargs=render_kwargs,
     )

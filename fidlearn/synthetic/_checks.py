@@ -49,35 +49,6 @@ def _check_render_work(camera, supersample, n_pictures: int, what: str) -> None:
         )
 
 
-#: Most squares or inner corners a rendered board may count along a side.
-MAX_BOARD_SIDE = 200
-
-
-def _check_pattern(pattern_size, lowest: int) -> tuple[int, int]:
-    """Two whole numbers from ``lowest`` to ``MAX_BOARD_SIDE`` (columns, rows); FidlearnError otherwise."""
-    try:
-        cols, rows = pattern_size
-        ok = all(
-            isinstance(v, (int, np.integer)) and not isinstance(v, bool) and lowest <= v <= MAX_BOARD_SIDE
-            for v in (cols, rows)
-        )
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise FidlearnError(
-            f"pattern_size must be two whole numbers (columns, rows) from {lowest} to {MAX_BOARD_SIDE}, "
-            f"e.g. (9, 6); got {pattern_size!r:.40}"
-        )
-    return int(cols), int(rows)
-
-
-def _check_length_mm(value, name: str) -> float:
-    """A length in mm: a number > 0 and at most 100 m; FidlearnError otherwise."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not 0 < value <= 1e5:
-        raise FidlearnError(f"{name} must be a number of millimetres > 0 (at most 1e5), got {value!r:.40}")
-    return float(value)
-
-
 def _check_indices(chosen, n: int, what: str) -> list[int]:
     """The indices to render (all of ``range(n)`` for None): whole numbers, each from 0 to n - 1."""
     if chosen is None:

@@ -491,7 +491,7 @@ def calibrate_and_coach(photos):
     names = [f"photo {i}" for i in range(len(photos))]
     T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
     # the coach wants the corner noise per axis; OpenCV's RMS is over both axes at once
-    verdict = coach(camera, dict.fromkeys(names, board), dict(zip(names, photos)), T, sigma_px=rms / np.sqrt(2))
+    verdict = coach(camera, dict.fromkeys(names, board), dict(zip(names, photos)), T, corner_sigma_px=rms / np.sqrt(2))
     return rms, camera, verdict
 
 

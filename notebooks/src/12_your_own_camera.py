@@ -31,6 +31,7 @@ import numpy as np
 from IPython.display import display
 
 from fidlearn import (
+    Board,
     Camera,
     MarkerMap,
     MarkerTracker,
@@ -104,7 +105,7 @@ plt.show()
 # %%
 PATTERN = (9, 6)  # inner corners (columns, rows)
 SQUARE_MM = 25.0  # measure your print!
-board_pdf(OUT / "board.pdf", PATTERN, SQUARE_MM)
+board_pdf(OUT / "board.pdf", Board.checkerboard(PATTERN, SQUARE_MM))
 print("printed board:", OUT / "board.pdf")
 COVERAGE_CELLS = (8, 6)  # the picture cut into 8 x 6 cells
 

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from ... import frames
-from ...calibration.boards import checkerboard_points
+from ...boards import Board
 from ...camera import Camera
 from ...frames import look_at
 from .._engine import Question, _AnswerError
@@ -86,7 +86,7 @@ def _q1(learner: str) -> Question:
     rng = _rng("02", learner, "q1")
     pattern = (int(rng.integers(6, 10)), int(rng.integers(4, 7)))
     square_in = float(rng.choice([0.75, 1.0, 1.25, 1.5]))
-    obj = checkerboard_points(pattern, square_in * 25.4)
+    obj = Board.checkerboard(pattern, square_in * 25.4).object_points()
     cols, rows = pattern
     col_major = np.array([[i, j, 0] for i in range(cols) for j in range(rows)], dtype=float) * square_in * 25.4
     return Question(
@@ -203,7 +203,7 @@ def _q2(learner: str) -> Question:
     K_true[0, 2] += float(np.round(rng.uniform(-12, 12), 1))
     K_true[1, 2] += float(np.round(rng.uniform(-8, 8), 1))
     true_cam = Camera(K_true, true_cam.dist, size)
-    obj2 = checkerboard_points((9, 6), 25.0)
+    obj2 = Board.checkerboard((9, 6), 25.0).object_points()
     views = _calibration_views(rng, true_cam, obj2, 10, 0.15)
     _, K_key, d_key, _, _ = cv2.calibrateCamera(
         [obj2.astype(np.float32)] * len(views), [v.astype(np.float32) for v in views], size, None, None
@@ -275,7 +275,7 @@ def _q3(learner: str) -> Question:
     rng = _rng("02", learner, "q3")
     size3 = (1280, 720)
     cam3 = Camera.from_fov(float(np.round(rng.uniform(60, 75))), size3)
-    obj3 = checkerboard_points((9, 6), 25.0)
+    obj3 = Board.checkerboard((9, 6), 25.0).object_points()
     views3 = _calibration_views(rng, cam3, obj3, 9, 0.15)
     small = cam3.scaled((640, 360))
     odd = int(rng.integers(1, 9))
@@ -444,7 +444,7 @@ def _q5(learner: str) -> Question:
     )
     square5 = float(rng.choice([20, 25, 30]))
     views5 = synthetic.render_calibration_views(
-        cam5, n_views=6, pattern_size=(7, 5), square_size_mm=square5, seed=int(rng.integers(1 << 20)), supersample=2
+        cam5, n_views=6, board=Board.checkerboard((7, 5), square5), seed=int(rng.integers(1 << 20)), supersample=2
     )
     key5 = calibrate_checkerboard(views5.images, (7, 5), square5).camera.K
     f_tol = max(0.015 * f5, 3 * abs(key5[0, 0] - f5))
