@@ -7,59 +7,10 @@ together), and the graph of fidlearn modules is checked for circles.
 
 from __future__ import annotations
 
-import ast
-from pathlib import Path
+from tools.package_map import module_graph
 
-import fidlearn
-
-ROOT = Path(fidlearn.__file__).resolve().parent
-
-
-def _modules() -> dict[str, Path]:
-    """Every module of fidlearn by dotted name (a package by its own name, for its ``__init__.py``)."""
-    found = {}
-    for path in sorted(ROOT.rglob("*.py")):
-        parts = ("fidlearn",) + path.relative_to(ROOT).with_suffix("").parts
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        found[".".join(parts)] = path
-    return found
-
-
-def _targets(name: str, path: Path, known: dict) -> set[str]:
-    """The fidlearn modules that ``name`` (at ``path``) imports, lazily or not."""
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    wanted = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            wanted.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")[: len(package.split(".")) - node.level + 1]
-                base = ".".join(base + ([node.module] if node.module else []))
-            else:
-                base = node.module or ""
-            for alias in node.names:  # a submodule by its own name, any other name from the module
-                sub = f"{base}.{alias.name}"
-                wanted.add(sub if sub in known else base)
-    out = set()
-    for target in wanted:
-        if target not in known:
-            continue
-        out.add(target)
-        # the packages on the way are run too, except fidlearn itself and the importer's own packages
-        parts = target.split(".")
-        for i in range(2, len(parts)):
-            parent = ".".join(parts[:i])
-            if not (name == parent or name.startswith(parent + ".")):
-                out.add(parent)
-    out.discard(name)
-    return out
-
-
-def _graph() -> dict[str, set[str]]:
-    known = _modules()
-    return {name: _targets(name, path, known) for name, path in known.items()}
+# one reader of the imports, shared with the package map in CONTRIBUTING.md
+_graph = module_graph
 
 
 def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
