@@ -204,3 +204,40 @@ def test_filestorage_with_a_bad_fisheye_flag_is_refused(tmp_path):
     (tmp_path / "c.yml").write_text(text)
     with pytest.raises(CameraError, match="fisheye_model must be 0"):
         Camera.load(tmp_path / "c.yml")
+
+
+@pytest.mark.parametrize(
+    ("dist", "model", "ros_model"),
+    [
+        ([0.1, -0.2, 0.001, 0.002, 0.05], "pinhole", "plumb_bob"),
+        ([0.1, -0.2, 0.001, 0.002, 0.05, 0.01, 0.02, 0.03], "pinhole", "rational_polynomial"),
+        (D_FE, "fisheye", "equidistant"),
+    ],
+)
+def test_ros_camera_info_round_trips_each_model(tmp_path, dist, model, ros_model):
+    from fidlearn.ros import camera_info_yaml, load_camera_info, save_camera_info
+
+    cam = Camera(K_FE, dist, SIZE, model=model)
+    assert f"distortion_model: {ros_model}\n" in camera_info_yaml(cam)
+    back = load_camera_info(save_camera_info(cam, tmp_path / "camera_info.yaml"))
+    assert back.model == model
+    assert np.array_equal(back.dist, cam.dist)
+    assert np.array_equal(back.K, cam.K)
+
+
+def test_ros_equidistant_as_ross_calibrator_writes_it():
+    from fidlearn.ros import camera_from_camera_info
+
+    text = (
+        "image_width: 800\nimage_height: 503\ncamera_name: narrow_stereo\ncamera_matrix:\n  rows: 3\n  cols: 3\n"
+        "  data: [290.050152, 0.000000, 399.938345, 0.000000, 289.392837, 273.885669, 0.000000, 0.000000, 1.000000]\n"
+        "distortion_model: equidistant\ndistortion_coefficients:\n  rows: 1\n  cols: 4\n"
+        "  data: [-0.030464, -0.019695, 0.002098, 0.001030]\n"
+    )
+    cam = camera_from_camera_info(text)
+    assert cam.model == "fisheye"
+    np.testing.assert_array_equal(cam.dist, D_FE)
+    from fidlearn.errors import RosFormatError
+
+    with pytest.raises(RosFormatError, match="equidistant has 4 coefficients"):
+        camera_from_camera_info(text.replace("cols: 4", "cols: 5").replace("0.001030]", "0.001030, 0.0]"))
