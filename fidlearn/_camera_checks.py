@@ -182,6 +182,16 @@ def _check_picture(image: Any, size: tuple[int, int]) -> None:
         )
 
 
+def refuse_fisheye(camera: Any, what: str, error: type[Exception]) -> None:
+    """``error`` when ``camera`` is a fisheye and ``what`` models OpenCV's pinhole lens only, with the mend."""
+    if getattr(camera, "model", "pinhole") == "fisheye":
+        raise error(
+            f"{what} models OpenCV's pinhole lens only, and {camera.source or 'the camera'} is a fisheye: "
+            "undistort the pictures (camera.undistort_image(image)) and use the undistorted camera "
+            "(camera.undistorted()), or a pinhole calibration of the lens"
+        )
+
+
 def _check_hfov(hfov_deg: Any) -> None:
     if isinstance(hfov_deg, (bool, str, bytes)) or not isinstance(hfov_deg, (int, float, np.integer, np.floating)):
         raise CameraError(f"hfov_deg must be a number of degrees between 0 and 180, got {hfov_deg!r}")

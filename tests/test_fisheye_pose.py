@@ -69,3 +69,28 @@ def test_estimate_pose_leaves_out_a_marker_beyond_90_degrees():
     pose = fidlearn.estimate_pose([*dets, beyond], walls, wide)
     assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 1e-3  # exact corners: the exact pose
     assert 5 not in pose.marker_ids
+
+
+def test_what_models_the_pinhole_only_refuses_a_fisheye_with_the_mend(scenes):
+    from fidlearn.errors import FidlearnError
+    from fidlearn.planning import plan_room, predict_accuracy
+    from fidlearn.survey import survey
+
+    scene = scenes[0]
+    calls = [
+        lambda cam: predict_accuracy(scene.marker_map, cam, scene.T_world_camera),
+        lambda cam: plan_room(scene.marker_map, cam),
+        lambda cam: survey([scene.image], scene.marker_map, cam),
+    ]
+    for call in calls:
+        with pytest.raises(FidlearnError, match=r"pinhole lens only.*camera\.undistorted\(\)"):
+            call(scene.camera)
+    # the mend: the undistorted picture with the undistorted camera
+    # (OpenCV's new camera for this 180-degree lens is a narrow 80 px focal length: twice the picture size)
+    ideal = scene.camera.undistorted(0.0, (1600, 1006))
+    picture = scene.camera.undistort_image(scene.image, 0.0, (1600, 1006))
+    pose = fidlearn.locate(picture, scene.marker_map, ideal)
+    err = pose.position_mm - scene.T_world_camera[:3, 3]
+    assert np.all(np.abs(err) < 3 * pose.position_std_mm)
+    assert np.linalg.norm(err) < 10.0
+    assert predict_accuracy(scene.marker_map, ideal, scene.T_world_camera) is not None
