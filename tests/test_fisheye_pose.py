@@ -74,6 +74,7 @@ def test_estimate_pose_leaves_out_a_marker_beyond_90_degrees():
 def test_what_models_the_pinhole_only_refuses_a_fisheye_with_the_mend(scenes):
     from fidlearn.errors import FidlearnError
     from fidlearn.planning import plan_room, predict_accuracy
+    from fidlearn.pose import pose_jacobian, refine_pose_lm
     from fidlearn.survey import survey
 
     scene = scenes[0]
@@ -81,6 +82,8 @@ def test_what_models_the_pinhole_only_refuses_a_fisheye_with_the_mend(scenes):
         lambda cam: predict_accuracy(scene.marker_map, cam, scene.T_world_camera),
         lambda cam: plan_room(scene.marker_map, cam),
         lambda cam: survey([scene.image], scene.marker_map, cam),
+        lambda cam: pose_jacobian(scene.marker_map.marker_corners(0), scene.T_world_camera, cam),
+        lambda cam: refine_pose_lm(scene.marker_map.marker_corners(0), scene.truth[0], cam, np.zeros(3), np.ones(3)),
     ]
     for call in calls:
         with pytest.raises(FidlearnError, match=r"pinhole lens only.*camera\.undistorted\(\)"):
