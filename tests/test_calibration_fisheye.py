@@ -128,3 +128,18 @@ def test_the_command_line_calibrates_a_fisheye(tmp_path):
         "error: --report draws the pinhole model's uncertainty; leave it out with --model fisheye"
     ]
     assert not (tmp_path / "c.json").exists()
+
+
+def test_charuco_takes_the_model_too():
+    from fidlearn.calibration import calibrate_charuco
+
+    photos = sorted(fidlearn.data_path("real", "opencv_charuco").glob("img_*.jpg"))
+    board = Board.charuco((5, 7), 40, 20, "DICT_6X6_250")
+    fish = calibrate_charuco(photos, board, model="fisheye")
+    assert fish.camera.model == "fisheye"
+    assert fish.rms_px < 0.25
+    # OpenCV's tutorial lens is a plain one: the held-out errors are within 10 %, so auto keeps the pinhole
+    auto = calibrate_charuco(photos, board, model="auto")
+    assert auto.camera.model == "pinhole"
+    assert auto.camera.fx == pytest.approx(457.3, abs=0.1)  # plain cv2.calibrateCamera's (data/README.md)
+    assert abs(fish.camera.fx / auto.camera.fx - 1) < 0.01
