@@ -143,3 +143,30 @@ def test_charuco_takes_the_model_too():
     assert auto.camera.model == "pinhole"
     assert auto.camera.fx == pytest.approx(457.3, abs=0.1)  # plain cv2.calibrateCamera's (data/README.md)
     assert abs(fish.camera.fx / auto.camera.fx - 1) < 0.01
+
+
+def test_the_fisheyes_standard_deviations_match_the_spread_of_repeated_calibrations():
+    from fidlearn import frames
+
+    truth = Camera([[290.0, 0, 399.5], [0, 289.5, 273.5], [0, 0, 1]], [-0.03, -0.02, 0.002, 0.001], (800, 503))
+    truth = Camera(truth.K, truth.dist, truth.image_size, model="fisheye")
+    obj = _board_points()
+    rng = np.random.default_rng(0)
+    views = []
+    while len(views) < 10:  # the board seen whole from random places 15 to 30 cm away
+        eye = np.r_[rng.uniform(-250, 250, 2) + [62.5, 87.5], -rng.uniform(150, 300)]
+        T = frames.look_at(eye, np.r_[rng.uniform(-50, 175), rng.uniform(-50, 225), 0.0], up=(0, -1, 0))
+        px = truth.project(obj, T)
+        if np.all((px > 5) & (px < [795, 498])):
+            views.append(px)
+    fx, cx, predicted = [], [], []
+    for _ in range(40):
+        img = [p + rng.normal(0, 0.3, p.shape) for p in views]
+        fit = _calibrate_points([obj] * len(img), img, (800, 503), 0, None, "fisheye")
+        fx.append(fit[1][0, 0])
+        cx.append(fit[1][0, 2])
+        std = fit[5]()
+        predicted.append([std["fx"], std["cx"]])
+    ratio = np.array([np.std(fx, ddof=1), np.std(cx, ddof=1)]) / np.mean(predicted, axis=0)
+    assert np.all((ratio > 0.7) & (ratio < 1.45))  # 40 repeats: the spread itself is known to about 11 %
+    assert abs(np.mean(fx) - 290.0) < 3 * np.std(fx, ddof=1) / np.sqrt(40)  # and unbiased
