@@ -1,0 +1,153 @@
+"""The motion noise and the poses' noise scale, learnt from the innovations while the track runs.
+
+A Kalman filter is optimal when its innovations (each frame's pose minus the prediction, whitened by
+their covariance ``S``) are white: no correlation from one frame to the next. A process noise too small
+makes the track lag behind the motion and the innovations of consecutive frames point the same way
+(positive correlation); one too large makes the track follow each frame's noise, and the next
+prediction carries that noise with the opposite sign (negative correlation). Scaling both the process
+noise and the poses' covariance by one factor leaves the gain, hence the correlation, unchanged: the
+correlation fixes their ratio, whatever the scale of the poses' covariance. The scale itself is read
+from the innovations' size (NIS, the squared Mahalanobis distance, 6 on average when the noise is
+right).
+
+So, frame after frame (separately for the position, which sets ``q_lin``, and the rotation, which sets
+``q_ang``): ``log q^2 += ADAPT_RATE * rho``, with ``rho`` the correlation of consecutive whitened
+innovations averaged over about ``WINDOW_FRAMES`` frames; and ``log r += SCALE_RATE * (NIS / 6 - 1)``
+for the scale ``r`` of the poses' covariance. ``q`` stays within ``[PROCESS_NOISE_FLOOR,
+PROCESS_NOISE_CEILING]``: at the floor a parked robot's track is still smooth. A sudden manoeuvre (a
+frame further than ``MANOEUVRE_CHI2`` from a prediction made with the learnt noise) is followed at once:
+that step's process noise is raised, up to the ceiling, until the frame's distance is ``MANOEUVRE_CHI2``
+(a frame that the ceiling cannot explain is rejected by the gate as before).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _stats
+from ._so3 import chi2_6_quantile
+
+#: The process noise a learning track starts from: (mm/s^2, rad/s^2) per sqrt(Hz).
+PROCESS_NOISE_START = (100.0, 0.2)
+#: The least process noise learnt: a parked robot's track is as smooth as this allows.
+PROCESS_NOISE_FLOOR = (2.0, 0.004)
+#: The most: the white acceleration of a manoeuvre at its sharpest (3 m/s^2 in one frame at 30 fps is
+#: about 550 mm/s^2 per sqrt(Hz); a turn started within a frame, 10 rad/s^2 per sqrt(Hz)).
+PROCESS_NOISE_CEILING = (5000.0, 20.0)
+#: How many frames the innovations' correlation is averaged over.
+WINDOW_FRAMES = 10
+#: The step of ``log q^2`` per frame and unit correlation...
+ADAPT_RATE = 0.4
+#: ... and of ``log r`` per frame and unit excess of ``NIS / 6``.
+SCALE_RATE = 0.1
+#: The range of the poses' covariance scale ``r``.
+SCALE_RANGE = (0.05, 20.0)
+#: A frame further than this from the prediction (6 degrees of freedom, probability 0.99) is a manoeuvre.
+MANOEUVRE_CHI2 = chi2_6_quantile(0.99)
+#: A whitened innovation block is clipped to this length before it teaches anything (an outlier or a
+#: manoeuvre teaches no more than a frame at the 0.999 quantile of chi-square with 3 degrees of freedom).
+_CLIP = math.sqrt(16.27)
+
+
+@dataclass
+class _Block:
+    """The learning state of one block (rotation or position): ``log q^2`` and the running correlation."""
+
+    log_q2: float
+    floor: float
+    ceiling: float
+    prev: np.ndarray | None = None
+    rho: float = 0.0
+
+    @property
+    def q(self) -> float:
+        return math.exp(0.5 * self.log_q2)
+
+    def learn(self, e: np.ndarray) -> None:
+        """Take one whitened innovation block ``e`` (3,)."""
+        norm = float(np.linalg.norm(e))
+        if self.prev is not None and norm > 0:
+            cos = float(e @ self.prev) / (norm * float(np.linalg.norm(self.prev)))
+            a = 1.0 / WINDOW_FRAMES
+            self.rho += a * (cos - self.rho)
+            step = ADAPT_RATE * cos
+            self.log_q2 = min(max(self.log_q2 + step, 2 * math.log(self.floor)), 2 * math.log(self.ceiling))
+        self.prev = e if norm > 0 else None
+
+
+class NoiseLearner:
+    """The learnt process noise ``(q_lin, q_ang)`` and poses' covariance scale of one track."""
+
+    def __init__(
+        self, start: tuple[float, float] = PROCESS_NOISE_START, scale: float = 1.0, frozen: bool = False
+    ) -> None:
+        self.rot = _Block(2 * math.log(start[1]), PROCESS_NOISE_FLOOR[1], PROCESS_NOISE_CEILING[1])
+        self.pos = _Block(2 * math.log(start[0]), PROCESS_NOISE_FLOOR[0], PROCESS_NOISE_CEILING[0])
+        self.log_r = math.log(scale)
+        self.frozen = frozen  # learnt already (the smoother's second pass): the manoeuvres alone remain
+
+    @property
+    def q(self) -> tuple[float, float]:
+        """``(q_lin, q_ang)`` now."""
+        return self.pos.q, self.rot.q
+
+    @property
+    def scale(self) -> float:
+        """What the poses' covariance is multiplied by."""
+        return math.exp(self.log_r)
+
+    def headroom(self) -> float:
+        """How much the process noise may be multiplied by for one step (both blocks stay under the ceiling)."""
+        return min(self.pos.ceiling / self.pos.q, self.rot.ceiling / self.rot.q) ** 2
+
+    def learn(self, r: np.ndarray, S: np.ndarray, d2: float) -> None:
+        """Take one frame's innovation ``r`` (6,) ``[rotation, position]``, its covariance ``S`` and ``r^T S^-1 r``."""
+        if self.frozen:
+            return
+        for block, sl in ((self.rot, slice(0, 3)), (self.pos, slice(3, 6))):
+            try:
+                L = np.linalg.cholesky(S[sl, sl])
+            except np.linalg.LinAlgError:
+                continue
+            block.learn(np.linalg.solve(L, r[sl]))
+        excess = min(d2, MANOEUVRE_CHI2) / 6.0 - 1.0
+        self.log_r = min(max(self.log_r + SCALE_RATE * excess, math.log(SCALE_RANGE[0])), math.log(SCALE_RANGE[1]))
+
+    def forget_lag(self) -> None:
+        """A gap in the measurements (or a restart): the next innovation has no predecessor to correlate with."""
+        self.rot.prev = self.pos.prev = None
+
+
+def manoeuvre_inflation(P_pred: np.ndarray, Q: np.ndarray, r: np.ndarray, R: np.ndarray, most: float) -> float:
+    """The least ``lam`` in ``[1, most]`` with ``r^T (P_pred + (lam - 1) Q + R)^-1 r <= MANOEUVRE_CHI2``
+    (``most`` when none: the caller's gate then decides); bisection on ``log lam``."""
+
+    def d2(lam: float) -> float:
+        S = P_pred[:6, :6] + (lam - 1.0) * Q[:6, :6] + R
+        try:
+            return float(r @ np.linalg.solve(S, r))
+        except np.linalg.LinAlgError:
+            return math.inf
+
+    if most <= 1.0 or d2(most) > MANOEUVRE_CHI2:
+        return max(most, 1.0)
+    lo, hi = 0.0, math.log(most)
+    for _ in range(20):
+        mid = 0.5 * (lo + hi)
+        if d2(math.exp(mid)) > MANOEUVRE_CHI2:
+            lo = mid
+        else:
+            hi = mid
+    return math.exp(hi)
+
+
+def nis_band(frames: int, probability: float = 0.95) -> tuple[float, float]:
+    """The central ``probability`` interval of the mean of ``frames`` NIS values of a consistent track
+    (chi-square with ``6 * frames`` degrees of freedom, divided by ``frames``); (0, inf) for none."""
+    if frames < 1:
+        return 0.0, math.inf
+    tail = 0.5 * (1.0 - probability)
+    return _stats.chi2_ppf(tail, 6 * frames) / frames, _stats.chi2_isf(tail, 6 * frames) / frames
