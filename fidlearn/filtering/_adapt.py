@@ -23,7 +23,7 @@ that step's process noise is raised, up to the ceiling, until the frame's distan
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,17 +39,19 @@ PROCESS_NOISE_FLOOR = (2.0, 0.004)
 PROCESS_NOISE_CEILING = (5000.0, 20.0)
 #: How many frames the innovations' correlation is averaged over.
 WINDOW_FRAMES = 10
+#: The innovations compared with each new one: the last ``LAGS`` (lag 1 alone is fooled by poses whose
+#: errors alternate from frame to frame; a lagging track makes every lag positive).
+LAGS = 2
+#: The correlation aimed at.
+RHO_TARGET = 0.0
 #: The step of ``log q^2`` per frame and unit correlation...
 ADAPT_RATE = 0.4
 #: ... and of ``log r`` per frame and unit excess of ``NIS / 6``.
-SCALE_RATE = 0.1
+SCALE_RATE = 0.03
 #: The range of the poses' covariance scale ``r``.
 SCALE_RANGE = (0.05, 20.0)
 #: A frame further than this from the prediction (6 degrees of freedom, probability 0.99) is a manoeuvre.
 MANOEUVRE_CHI2 = chi2_6_quantile(0.99)
-#: A whitened innovation block is clipped to this length before it teaches anything (an outlier or a
-#: manoeuvre teaches no more than a frame at the 0.999 quantile of chi-square with 3 degrees of freedom).
-_CLIP = math.sqrt(16.27)
 
 
 @dataclass
@@ -59,7 +61,7 @@ class _Block:
     log_q2: float
     floor: float
     ceiling: float
-    prev: np.ndarray | None = None
+    prev: list[np.ndarray] = field(default_factory=list)
     rho: float = 0.0
 
     @property
@@ -69,13 +71,16 @@ class _Block:
     def learn(self, e: np.ndarray) -> None:
         """Take one whitened innovation block ``e`` (3,)."""
         norm = float(np.linalg.norm(e))
-        if self.prev is not None and norm > 0:
-            cos = float(e @ self.prev) / (norm * float(np.linalg.norm(self.prev)))
-            a = 1.0 / WINDOW_FRAMES
-            self.rho += a * (cos - self.rho)
-            step = ADAPT_RATE * cos
+        if norm == 0:
+            return
+        e = e / norm
+        cosines = [float(e @ p) for p in self.prev if p is not None]
+        if cosines:
+            cos = sum(cosines) / len(cosines)
+            self.rho += (cos - self.rho) / WINDOW_FRAMES
+            step = ADAPT_RATE * (cos - RHO_TARGET)
             self.log_q2 = min(max(self.log_q2 + step, 2 * math.log(self.floor)), 2 * math.log(self.ceiling))
-        self.prev = e if norm > 0 else None
+        self.prev = ([e] + self.prev)[:LAGS]
 
 
 class NoiseLearner:
@@ -113,12 +118,21 @@ class NoiseLearner:
             except np.linalg.LinAlgError:
                 continue
             block.learn(np.linalg.solve(L, r[sl]))
-        excess = min(d2, MANOEUVRE_CHI2) / 6.0 - 1.0
+        if d2 > MANOEUVRE_CHI2:  # the motion, not the poses' noise: the manoeuvre's inflation teaches the motion noise
+            return
+        excess = d2 / 6.0 - 1.0
         self.log_r = min(max(self.log_r + SCALE_RATE * excess, math.log(SCALE_RANGE[0])), math.log(SCALE_RANGE[1]))
+
+    def manoeuvre(self, inflation: float) -> None:
+        """A frame needed the process noise multiplied by ``inflation`` for one step: keep half of it (in log)."""
+        if self.frozen or inflation <= 1.0:
+            return
+        for block in (self.rot, self.pos):
+            block.log_q2 = min(block.log_q2 + 0.5 * math.log(inflation), 2 * math.log(block.ceiling))
 
     def forget_lag(self) -> None:
         """A gap in the measurements (or a restart): the next innovation has no predecessor to correlate with."""
-        self.rot.prev = self.pos.prev = None
+        self.rot.prev, self.pos.prev = [], []
 
 
 def manoeuvre_inflation(P_pred: np.ndarray, Q: np.ndarray, r: np.ndarray, R: np.ndarray, most: float) -> float:

@@ -210,6 +210,7 @@ class _Track:
         assert self.state is not None
         Q = kf._white_acceleration(predicted.t - self.state.t, *self.learner.q)
         lam = manoeuvre_inflation(predicted.P, Q, r, cov, self.learner.headroom())
+        self.learner.manoeuvre(lam)
         wide = predicted.copy()
         wide.P = predicted.P + (lam - 1.0) * Q
         return wide, kf.innovation(wide, T, cov)
