@@ -11,13 +11,19 @@ from the innovations' size (NIS, the squared Mahalanobis distance, 6 on average 
 right).
 
 So, frame after frame (separately for the position, which sets ``q_lin``, and the rotation, which sets
-``q_ang``): ``log q^2 += ADAPT_RATE * rho``, with ``rho`` the correlation of consecutive whitened
-innovations averaged over about ``WINDOW_FRAMES`` frames; and ``log r += SCALE_RATE * (NIS / 6 - 1)``
-for the scale ``r`` of the poses' covariance. ``q`` stays within ``[PROCESS_NOISE_FLOOR,
-PROCESS_NOISE_CEILING]``: at the floor a parked robot's track is still smooth. A sudden manoeuvre (a
-frame further than ``MANOEUVRE_CHI2`` from a prediction made with the learnt noise) is followed at once:
-that step's process noise is raised, up to the ceiling, until the frame's distance is ``MANOEUVRE_CHI2``
-(a frame that the ceiling cannot explain is rejected by the gate as before).
+``q_ang``): ``log q^2 += ADAPT_RATE * c``, with ``c`` the mean cosine between the new whitened innovation
+and the last ``LAGS`` ones (lag 1 alone is fooled by poses whose errors alternate from frame to frame;
+a lagging track makes every lag positive); and ``log r += SCALE_RATE * (NIS / 6 - 1)`` for the scale
+``r`` of the poses' covariance (slowly: an error the poses share from frame to frame, which the
+innovations cannot see, would otherwise teach it too small). ``q`` stays within
+``[PROCESS_NOISE_FLOOR, PROCESS_NOISE_CEILING]``: at the floor a parked robot's track is still smooth
+(the way down is slow, the lower ``q`` the weaker the correlation that tells it: on a parked camera's
+rendered frames the track's jitter is about half the frames' after 2 s, a fifth after 10 s). A sudden
+manoeuvre (a frame further than ``MANOEUVRE_CHI2`` from a prediction made with the learnt noise) is
+followed at once: that step's process noise is raised, up to the ceiling, until the frame's distance is
+``MANOEUVRE_CHI2``, and half of that raise (in log) is kept; a frame the ceiling cannot explain is
+rejected by the gate as before. Such a frame teaches ``r`` nothing (the motion, not the poses' noise,
+put it there).
 """
 
 from __future__ import annotations
@@ -34,17 +40,12 @@ from ._so3 import chi2_6_quantile
 PROCESS_NOISE_START = (100.0, 0.2)
 #: The least process noise learnt: a parked robot's track is as smooth as this allows.
 PROCESS_NOISE_FLOOR = (2.0, 0.004)
-#: The most: the white acceleration of a manoeuvre at its sharpest (3 m/s^2 in one frame at 30 fps is
-#: about 550 mm/s^2 per sqrt(Hz); a turn started within a frame, 10 rad/s^2 per sqrt(Hz)).
+#: The most, for one manoeuvre's step: a velocity change ``dv`` within one frame needs ``q = dv / sqrt(dt)``;
+#: at 30 fps 5000 mm/s^2 per sqrt(Hz) is 0.9 m/s, and 20 rad/s^2 a turn of 3.6 rad/s started within a frame.
 PROCESS_NOISE_CEILING = (5000.0, 20.0)
-#: How many frames the innovations' correlation is averaged over.
-WINDOW_FRAMES = 10
-#: The innovations compared with each new one: the last ``LAGS`` (lag 1 alone is fooled by poses whose
-#: errors alternate from frame to frame; a lagging track makes every lag positive).
+#: The innovations each new one is compared with: the last ``LAGS``.
 LAGS = 2
-#: The correlation aimed at.
-RHO_TARGET = 0.0
-#: The step of ``log q^2`` per frame and unit correlation...
+#: The step of ``log q^2`` per frame and unit cosine...
 ADAPT_RATE = 0.4
 #: ... and of ``log r`` per frame and unit excess of ``NIS / 6``.
 SCALE_RATE = 0.03
@@ -56,13 +57,12 @@ MANOEUVRE_CHI2 = chi2_6_quantile(0.99)
 
 @dataclass
 class _Block:
-    """The learning state of one block (rotation or position): ``log q^2`` and the running correlation."""
+    """The learning state of one block (rotation or position): ``log q^2`` and the last whitened innovations."""
 
     log_q2: float
     floor: float
     ceiling: float
     prev: list[np.ndarray] = field(default_factory=list)
-    rho: float = 0.0
 
     @property
     def q(self) -> float:
@@ -76,9 +76,7 @@ class _Block:
         e = e / norm
         cosines = [float(e @ p) for p in self.prev if p is not None]
         if cosines:
-            cos = sum(cosines) / len(cosines)
-            self.rho += (cos - self.rho) / WINDOW_FRAMES
-            step = ADAPT_RATE * (cos - RHO_TARGET)
+            step = ADAPT_RATE * sum(cosines) / len(cosines)
             self.log_q2 = min(max(self.log_q2 + step, 2 * math.log(self.floor)), 2 * math.log(self.ceiling))
         self.prev = ([e] + self.prev)[:LAGS]
 
