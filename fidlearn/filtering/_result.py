@@ -59,10 +59,6 @@ class TrackedPose(_PoseReadouts):
     process_noise : (float, float) or None
         The process noise in force after this step, ``(q_lin mm/s^2, q_ang rad/s^2)`` per sqrt(Hz): the
         tracker's fixed one, or what it has learnt from the frames so far (``process_noise=None``).
-    pose_covariance_scale : float
-        What the frames' pose covariances are multiplied by before they enter the filter: learnt with the
-        process noise from the innovations' size (e.g. 0.4 when the poses' covariances are 2.5 times too
-        large), 1.0 with a fixed process noise.
     """
 
     t_s: float
@@ -80,7 +76,6 @@ class TrackedPose(_PoseReadouts):
     odometry_scale: float = 1.0
     odometry_scale_std: float | None = None
     process_noise: tuple[float, float] | None = None
-    pose_covariance_scale: float = 1.0
 
     _error = TrackingError
 

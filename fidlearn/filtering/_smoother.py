@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -109,9 +108,8 @@ def _relearnt(first: _Track, T_camera_base) -> _Track:
     assert first.steps is not None
     learnt = [s.out.process_noise for s in first.steps if s.out.measured and s.out.process_noise is not None]
     log_q = np.mean(np.log(np.array(learnt, dtype=float)), axis=0)
-    log_r = float(np.mean([math.log(s.out.pose_covariance_scale) for s in first.steps if s.out.measured]))
     track = _Track(None, T_camera_base, record=True)
-    track.learner = NoiseLearner((float(np.exp(log_q[0])), float(np.exp(log_q[1]))), math.exp(log_r), frozen=True)
+    track.learner = NoiseLearner((float(np.exp(log_q[0])), float(np.exp(log_q[1]))), frozen=True)
     return track
 
 

@@ -15,7 +15,7 @@ from .. import frames
 from ..errors import TrackingError
 from ..pose import Pose
 from . import _filter as kf
-from ._adapt import MANOEUVRE_CHI2, NoiseLearner, manoeuvre_inflation
+from ._adapt import MANOEUVRE_CHI2, PROCESS_NOISE_START, NoiseLearner, manoeuvre_inflation
 from ._result import TrackedPose
 from ._so3 import log_so3
 
@@ -138,6 +138,11 @@ def alternative(pose: Pose) -> Pose | None:
     return alt
 
 
+def _well_determined(pose: Pose | None) -> bool:
+    """A pose from several markers that is not ambiguous: one that may teach the motion noise."""
+    return pose is not None and not pose.ambiguous and len(pose.marker_ids) > 1
+
+
 class _Track:
     """The filter's state and its steps (see the module's docstring)."""
 
@@ -155,11 +160,6 @@ class _Track:
         """The process noise in force: ``(q_lin, q_ang)``, fixed or learnt so far."""
         return self.learner.q if self.learner is not None else self.fixed  # type: ignore[return-value]
 
-    @property
-    def scale(self) -> float:
-        """What the poses' covariance is multiplied by (learnt with the process noise; 1 when it is fixed)."""
-        return self.learner.scale if self.learner is not None else 1.0
-
     # -- one step ----------------------------------------------------------------------------
     def step(self, pose: Pose | None, t_s: float, odometry, why: str = "") -> TrackedPose:
         """Advance to ``t_s`` (odometry or the motion model), then correct with ``pose`` if it agrees."""
@@ -176,32 +176,39 @@ class _Track:
                     f"({why or 'none given'})"
                 )
             return self._start(pose, t, "started", None)
-        predicted, F = self._predict(t, odo)
+        well_determined = _well_determined(pose)
+        predicted, F = self._predict(t, odo, well_determined)
         if pose is None:
             status = "odometry" if odo is not None else "predicted"
             return self._keep(F, predicted, predicted, status, reason=why)
         T, cov, flipped = self._choose(pose, predicted)
-        cov = cov * self.scale
+        # only a well-determined pose teaches the noise or tells a manoeuvre: an ambiguous one, or one from a
+        # single marker, has heavy tails and errors that persist from frame to frame (and a flip is no manoeuvre)
+        learner = self.learner if well_determined else None
         r, S, d2 = kf.innovation(predicted, T, cov)
-        learnt = (r, S, d2)
-        if self.learner is not None and odo is None and d2 > MANOEUVRE_CHI2:
+        learnt = (r, S)
+        if learner is not None and odo is None and d2 > MANOEUVRE_CHI2:
             predicted, (r, S, d2) = self._manoeuvre(predicted, T, cov, r)
         if d2 > kf.GATE_CHI2:
-            self.rejections += 1
-            if self.rejections > kf.MAX_REJECTIONS:
-                return self._start(pose, t, "restarted", None)
-            reason = (
-                f"disagrees with the track: squared Mahalanobis distance {d2:.1f} > {kf.GATE_CHI2:.1f} "
-                f"(chi-square, 6 degrees of freedom, {kf.GATE_PROBABILITY})"
-            )
-            return self._keep(F, predicted, predicted, "rejected", reason=reason, d2=d2)
+            return self._reject(F, predicted, pose, t, d2)
         self.rejections = 0
         self.nis_sum, self.nis_count = self.nis_sum + d2, self.nis_count + 1
-        if self.learner is not None:
-            self.learner.learn(*learnt)
+        if learner is not None:
+            learner.learn(*learnt)
         chosen = alternative(pose) if flipped else pose
         filtered = kf.update(predicted, r, S, cov)
         return self._keep(F, predicted, filtered, "measured", d2=d2, pose=chosen, flipped=flipped)
+
+    def _reject(self, F, predicted: kf._State, pose: Pose, t: float, d2: float) -> TrackedPose:
+        """A frame beyond the gate: the prediction is the output (or, after too many, the track restarts)."""
+        self.rejections += 1
+        if self.rejections > kf.MAX_REJECTIONS:
+            return self._start(pose, t, "restarted", None)
+        reason = (
+            f"disagrees with the track: squared Mahalanobis distance {d2:.1f} > {kf.GATE_CHI2:.1f} "
+            f"(chi-square, 6 degrees of freedom, {kf.GATE_PROBABILITY})"
+        )
+        return self._keep(F, predicted, predicted, "rejected", reason=reason, d2=d2)
 
     def _manoeuvre(self, predicted: kf._State, T: np.ndarray, cov: np.ndarray, r: np.ndarray):
         """The prediction with this step's process noise raised until the frame fits (a sudden manoeuvre), and
@@ -215,9 +222,14 @@ class _Track:
         wide.P = predicted.P + (lam - 1.0) * Q
         return wide, kf.innovation(wide, T, cov)
 
-    def _predict(self, t: float, odo):
+    def _predict(self, t: float, odo, well_determined: bool):
+        """The prediction to ``t``. Before a frame that cannot teach the noise (no pose, an ambiguous one, one
+        marker) the learnt noise is trusted no lower than ``PROCESS_NOISE_START``: what was learnt on
+        well-determined frames need not hold while the frames cannot check it."""
         assert self.state is not None
         q_lin, q_ang = self.q
+        if self.learner is not None and not well_determined:
+            q_lin, q_ang = max(q_lin, PROCESS_NOISE_START[0]), max(q_ang, PROCESS_NOISE_START[1])
         if odo is None:
             return kf.predict_constant_velocity(self.state, t, q_lin, q_ang)
         T_rel, cov_rel, dt_dk = kf.odometry_to_camera(odo[0], odo[1], self.T_camera_base, self.state.k)
@@ -228,7 +240,7 @@ class _Track:
         if self.learner is not None:
             self.learner.forget_lag()
         assert pose.covariance is not None
-        self.state = kf.start_state(pose.T_world_camera, np.asarray(pose.covariance) * self.scale, t)
+        self.state = kf.start_state(pose.T_world_camera, np.asarray(pose.covariance), t)
         return self._keep(F, self.state, self.state, status, pose=pose)
 
     def _keep(self, F, predicted, filtered, status, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
@@ -294,5 +306,4 @@ class _Track:
             odometry_scale=1.0 + s.k,
             odometry_scale_std=math.sqrt(max(float(s.P[12, 12]), 0.0)),
             process_noise=self.q,
-            pose_covariance_scale=self.scale,
         )

@@ -41,10 +41,12 @@ class PoseTracker:
     innovations of consecutive frames, whitened, are uncorrelated when the process noise is right,
     point the same way when it is too small (the track lags) and opposite ways when it is too large
     (the track follows each frame's noise); the process noise is raised or lowered accordingly, frame
-    by frame, between a floor (a parked robot stays smooth) and a ceiling, and the scale of the poses'
-    covariances is learnt from the innovations' size. A frame that only a sudden manoeuvre explains
-    (beyond the 0.99 quantile) raises that step's process noise until it fits, so a sudden turn is
-    followed at once. :meth:`consistency` says how the track's NIS compares with its 95 % band.
+    by frame, between a floor (a parked robot stays smooth) and a ceiling; only poses from several
+    markers that are not ambiguous teach it, and before any other frame it is taken no lower than
+    ``PROCESS_NOISE_START`` (what was learnt need not hold where the frames cannot check it). A frame
+    that only a sudden manoeuvre explains (beyond the 0.99 quantile) raises that step's process noise
+    until it fits, so a sudden turn is followed at once. The poses' covariances are taken as given:
+    :meth:`consistency` says how the track's NIS compares with its 95 % band.
 
     Parameters
     ----------
@@ -172,7 +174,7 @@ class PoseTracker:
         dict
             ``frames`` (measured frames, the start and rejected frames not counted), ``mean_nis``
             (NaN for none), ``band`` (low, high) and ``consistent`` (the mean inside the band), with
-            ``process_noise`` and ``pose_covariance_scale`` in force now.
+            and the ``process_noise`` in force now.
 
         Examples
         --------
@@ -192,7 +194,6 @@ class PoseTracker:
             "band": (lo, hi),
             "consistent": bool(lo <= mean <= hi),
             "process_noise": self._track.q,
-            "pose_covariance_scale": self._track.scale,
         }
 
     def predict(self, t_s: float) -> TrackedPose:
