@@ -257,10 +257,13 @@ def report(r: dict) -> bool:
           f"(truth {1 / 1.02:.4f}).")  # fmt: skip
     c = r["consistency"]
     q = np.median([o.process_noise for o in r["outs_default"]], axis=0)
+    P = np.array([T[:3, 3] for T in r["truth"]])
+    errors = [(o, o.position_mm - t) for o, t in zip(r["outs_default"], P)]
+    nees = [float(d @ np.linalg.solve(o.covariance[3:, 3:], d)) for o, d in errors]
     print(f"\nThe learnt noise (default): process noise median ({q[0]:.0f} mm/s^2, {q[1]:.3f} rad/s^2) per sqrt(Hz) "
-          f"over the run; mean NIS {c['mean_nis']:.2f} over {c['frames']} measured frames, 95 % band "
-          f"{c['band'][0]:.2f}-{c['band'][1]:.2f}; the poses' covariance scale learnt "
-          f"{c['pose_covariance_scale']:.2f}.")  # fmt: skip
+          f"over the run; mean NIS {c['mean_nis']:.2f} over {c['frames']} measured frames (95 % band "
+          f"{c['band'][0]:.2f}-{c['band'][1]:.2f}); mean position NEES against the truth {np.mean(nees):.2f} "
+          f"(3 degrees of freedom) over all frames.")  # fmt: skip
     targets = [
         ("tracking: position RMS at most 0.5x per-frame locate", f"{ratio:.2f}x", ratio <= 0.5),
         ("tracking: no flip in the output", f"{trk['flips']} (locate: {cols[0]['flips']} of {trk['amb']})",
