@@ -113,7 +113,7 @@ class NoiseLearner:
             block.log_q2 = min(block.log_q2 + 0.5 * math.log(inflation), 2 * math.log(block.ceiling))
 
     def forget_lag(self) -> None:
-        """A gap in the measurements (or a restart): the next innovation has no predecessor to correlate with."""
+        """The track (re)starts: the next innovation has no predecessor to be compared with."""
         self.rot.prev, self.pos.prev = [], []
 
 
