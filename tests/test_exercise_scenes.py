@@ -353,6 +353,10 @@ SCENES = {
     ("11", "q2"): _s11_q2,
     ("11", "q3"): "differences and covariances for a test",
     ("11", "q4"): _s11_q4,
+    ("12", "q1"): "a marker size, a printed size and a distance for a ratio",
+    ("12", "q2"): "the bundled calibration views' corners for a count of cells",
+    ("12", "q3"): "an uncertainty map and warnings for a verdict",
+    ("12", "q4"): "two camera poses and a point for a prediction (every pixel checked inside the picture)",
 }
 
 
