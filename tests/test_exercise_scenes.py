@@ -357,6 +357,10 @@ SCENES = {
     ("12", "q2"): "the bundled calibration views' corners for a count of cells",
     ("12", "q3"): "an uncertainty map and warnings for a verdict",
     ("12", "q4"): "two camera poses and a point for a prediction (every pixel checked inside the picture)",
+    ("13", "q1"): "a robot, a static camera and a board for a chain of transforms",
+    ("13", "q2"): "rotation vectors of motion pairs for an alignment",
+    ("13", "q3"): "motion pairs for a linear least-squares solve",
+    ("13", "q4"): "a chain and a measured pose for a comparison",
 }
 
 

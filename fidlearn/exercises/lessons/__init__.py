@@ -26,6 +26,7 @@ from . import (
     l10_tracking,
     l11_mapping,
     l12_own_camera,
+    l13_hand_eye,
 )
 
 __all__ = ["MODULES"]
@@ -44,6 +45,7 @@ MODULES = (
     l10_tracking,
     l11_mapping,
     l12_own_camera,
+    l13_hand_eye,
 )
 
 for _module in MODULES:
