@@ -353,6 +353,14 @@ SCENES = {
     ("11", "q2"): _s11_q2,
     ("11", "q3"): "differences and covariances for a test",
     ("11", "q4"): _s11_q4,
+    ("12", "q1"): "a marker size, a printed size and a distance for a ratio",
+    ("12", "q2"): "the bundled calibration views' corners for a count of cells",
+    ("12", "q3"): "an uncertainty map and warnings for a verdict",
+    ("12", "q4"): "two camera poses and a point for a prediction (every pixel checked inside the picture)",
+    ("13", "q1"): "a robot, a static camera and a board for a chain of transforms",
+    ("13", "q2"): "rotation vectors of motion pairs for an alignment",
+    ("13", "q3"): "motion pairs for a linear least-squares solve",
+    ("13", "q4"): "a chain and a measured pose for a comparison",
 }
 
 

@@ -115,3 +115,46 @@ def test_build_executes_and_leaves_out_what_varies(tmp_path: Path):
     assert "widgets" not in nb.metadata
     assert all("execution" not in c.metadata for c in nb.cells)
     assert nbbuild.check_one(src) == []
+
+
+@pytest.mark.parametrize(
+    ("markdown", "fields"),
+    [
+        ("no fields here {not one}", []),
+        ("ratio {{ ratio:.2f }} of {{n}}", [("ratio", ".2f"), ("n", "")]),
+        ("a slice {{ x[1:3] }}", [("x[1:3]", "")]),
+        ("a share {{ hits / total:.1% }}", [("hits / total", ".1%")]),
+        ("a dict {{ {'a': 1}['a'] }}", [("{'a': 1}['a']", "")]),
+    ],
+)
+def test_prose_fields_are_found_with_their_format(markdown, fields):
+    assert nbbuild.prose_fields(markdown) == fields
+
+
+def test_prose_numbers_come_from_the_cells_above(tmp_path: Path):
+    """A number cited in a markdown cell is the value the code above it computed, not what the code computes later."""
+    import nbformat
+
+    src = tmp_path / "src" / "01_demo.py"
+    src.parent.mkdir()
+    src.write_text(
+        "# %%\nratio = 1.3912\nprint(ratio)\n\n"
+        "# %% [markdown]\n# The median ratio is {{ ratio:.2f }} ({{ ratio:.0% }}).\n\n"
+        "# %%\nratio = 5\nprint(ratio)\n"
+    )
+    nbbuild.build(src, quiet=True)
+    nb = nbformat.read(str(tmp_path / "01_demo.ipynb"), as_version=4)
+    assert nb.cells[1].source == "The median ratio is 1.39 (139%)."
+    assert [c.execution_count for c in nb.cells if c.cell_type == "code"] == [1, 2]
+    assert nbbuild.check_one(src) == []  # the template, not the rendered text, is compared with the source
+    src.write_text(src.read_text().replace("{{ ratio:.2f }}", "{{ ratio:.3f }}"))
+    assert "cells differ" in nbbuild.check_one(src)[0]
+
+
+def test_a_field_that_cannot_be_computed_stops_the_build(tmp_path: Path):
+    src = tmp_path / "src" / "01_demo.py"
+    src.parent.mkdir()
+    src.write_text("# %%\nx = 1\n\n# %% [markdown]\n# We saw {{ y }}.\n")
+    with pytest.raises(nbbuild.BuildError, match="markdown cell 1"):
+        nbbuild.build(src, quiet=True)
+    assert not (tmp_path / "01_demo.ipynb").exists()

@@ -18,6 +18,14 @@ A notebook is written as a "percent" script, ``notebooks/src/NN_topic.py``::
   starts with ``# NBVAL_IGNORE_OUTPUT``: nbval then runs it without comparing.
 * Anything before the first ``# %%`` must be blank or comments; it is ignored
   (a place for a licence line or a note to authors).
+* A number in the prose comes from the code, never typed by hand: in a markdown
+  cell, ``{{ expr }}`` or ``{{ expr:spec }}`` (a format spec such as ``.2f``)
+  is evaluated in the kernel when the build reaches that cell, with the names the
+  cells above it made, and replaced by ``format(expr, spec)``. The notebook
+  stores the rendered text (what a learner reads) and keeps the template in the
+  cell's metadata (``fidlearn.template``), so ``--check`` compares the template
+  with the source, and a changed output can never leave a stale number in the
+  sentence that cites it.
 
 ``notebooks/src/NN_topic.py`` builds ``notebooks/NN_topic.ipynb`` (in general:
 ``<dir>/src/<name>.py`` builds ``<dir>/<name>.ipynb``), executed top to bottom
@@ -55,6 +63,11 @@ CELL_TIMEOUT_S = 600
 _CELL_MARK = re.compile(r"^# %%(?P<rest>(\s.*)?)$")
 _MAGIC = re.compile(r"^# (?P<magic>%{1,2}[A-Za-z].*)$")
 _WIDGET_MIME = "application/vnd.jupyter.widget-view+json"
+#: ``{{ expr }}`` or ``{{ expr:spec }}`` in a markdown cell: a value from the kernel.
+_FIELD = re.compile(r"\{\{(?P<body>.+?)\}\}", re.DOTALL)
+_SPEC = re.compile(r"^[<>=^]?[+\- ]?#?0?\d*[,_]?(\.\d+)?[bcdeEfFgGnosxX%]?$")
+#: Where a rendered markdown cell keeps its template.
+TEMPLATE_KEY = "fidlearn"
 
 
 class BuildError(Exception):
@@ -128,6 +141,34 @@ def parse_percent(text: str, where: str = "<source>") -> list[Cell]:
     if not cells:
         raise BuildError(f"{where}: no cells; a notebook source starts its cells with '# %%' lines")
     return cells
+
+
+def prose_fields(markdown: str) -> list[tuple[str, str]]:
+    """The ``(expr, spec)`` of every ``{{ expr:spec }}`` field in a markdown cell, in order.
+
+    The spec is the text after the last ``:`` when it is a format spec (``.2f``, ``,``, ``.1%``),
+    so an expression may hold colons of its own (``x[1:3]``).
+    """
+    fields = []
+    for m in _FIELD.finditer(markdown):
+        body = m.group("body").strip()
+        expr, _, spec = body.rpartition(":")
+        if not expr or not _SPEC.match(spec.strip()):
+            expr, spec = body, ""
+        fields.append((expr.strip(), spec.strip()))
+    return fields
+
+
+def render_prose(markdown: str, values: list[str]) -> str:
+    """``markdown`` with its fields replaced, in order, by ``values``."""
+    it = iter(values)
+    return _FIELD.sub(lambda _m: next(it), markdown)
+
+
+def _field_code(fields: list[tuple[str, str]]) -> str:
+    """Code that prints the formatted fields as one JSON list (run without touching the kernel's history)."""
+    items = ", ".join(f"format(({expr}), {spec!r})" for expr, spec in fields)
+    return f"print(__import__('json').dumps([{items}]))"
 
 
 def notebook_path(src: Path) -> Path:
@@ -231,7 +272,7 @@ def build(src: Path, execute: bool = True, quiet: bool = False) -> Path:
             allow_errors=False,
         )
         try:
-            client.execute()
+            _execute(client, nb, src.name)
         except CellExecutionError as exc:
             raise BuildError(f"{src.name}: a cell failed, the notebook was not written:\n{exc}") from None
     _stabilise(nb)
@@ -247,6 +288,53 @@ def build(src: Path, execute: bool = True, quiet: bool = False) -> Path:
             f"{'executed in %.1f s' % (time.monotonic() - t0) if execute else 'not executed'}"
         )
     return out
+
+
+def _execute(client, nb, name: str) -> None:
+    """Run the code cells in order, rendering each markdown cell's fields when the run reaches it."""
+    client.reset_execution_trackers()
+    with client.setup_kernel():
+        for index, cell in enumerate(nb.cells):
+            if cell.cell_type == "markdown":
+                _render_cell(client, nb, cell, index, name)
+            else:
+                client.execute_cell(cell, index, execution_count=client.code_cells_executed + 1)
+        client.set_widgets_metadata()
+
+
+def _render_cell(client, nb, cell, index: int, name: str) -> None:
+    """Replace a markdown cell's ``{{ expr }}`` fields by their values in the running kernel."""
+    import json
+
+    import nbformat
+    from nbclient.exceptions import CellExecutionError
+
+    fields = prose_fields(cell.source)
+    if not fields:
+        return
+    probe = nbformat.v4.new_code_cell(_field_code(fields))
+    try:
+        client.execute_cell(probe, index, store_history=False)
+    except CellExecutionError as exc:
+        raise BuildError(
+            f"{name}: markdown cell {index}: a field could not be computed from the cells above it "
+            f"({', '.join(e for e, _ in fields)}):\n{exc}"
+        ) from None
+    finally:
+        # nbclient files the probe in the markdown cell's place and counts it as a code cell: undo both.
+        nb.cells[index] = cell
+        client.code_cells_executed -= 1
+    text = "".join(o.get("text", "") for o in probe.outputs if o.get("output_type") == "stream")
+    values = json.loads(text.strip().splitlines()[-1])
+    cell.metadata[TEMPLATE_KEY] = {"template": cell.source}
+    cell.source = render_prose(cell.source, values)
+
+
+def source_of(cell) -> str:
+    """A built cell's source as written in the percent script (a rendered markdown cell's template)."""
+    if cell.cell_type == "markdown":
+        return cell.get("metadata", {}).get(TEMPLATE_KEY, {}).get("template", cell.source)
+    return cell.source
 
 
 # -- checking --------------------------------------------------------------------------
@@ -267,7 +355,7 @@ def check_one(src: Path) -> list[str]:
         return [f"{name}: missing; build it with: python tools/nbbuild.py {_show(src)}"]
     want = parse_percent(src.read_text(encoding="utf-8"), where=_show(src))
     nb = nbformat.read(str(out), as_version=4)
-    have = [Cell(c.cell_type, c.source) for c in nb.cells]
+    have = [Cell(c.cell_type, source_of(c)) for c in nb.cells]
     problems = []
     if have != want:
         first = next((i for i, (a, b) in enumerate(zip(have, want)) if a != b), min(len(have), len(want)))

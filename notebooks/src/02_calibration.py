@@ -81,9 +81,48 @@ plt.show()
 # here: the window must not reach the next corner). `cv2.findChessboardCornersSB` is a newer detector
 # that refines by itself. The synthetic views record the true corners: let us measure both.
 #
-# The 9 x 6 grid of inner corners looks the same turned by 180 degrees (only the colours of the squares
-# swap, and `findChessboardCorners` does not look at them), so a detector may number its corners from
-# either end: compare corner lists only once their order agrees.
+# Turned by 180 degrees, the 9 x 6 grid of inner corners lands on itself; only the colours of the squares
+# swap. Does a detector number the corners from a corner of the *board* (it reads the colours) or of the
+# *picture*? Find out: detect in every view upright and turned, and see which physical corner each
+# detector calls corner 0 (the synthetic views record the true corners, true corner 0 first).
+
+
+# %%
+def physical_corner0(gray, sb):
+    """Which end of the board a detector numbers from: 'first' (the true corner 0) or 'last' (corner 53)."""
+    ok, c = (
+        cv2.findChessboardCornersSB(gray, pattern)
+        if sb
+        else cv2.findChessboardCorners(gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    )
+    assert ok
+    return c.reshape(-1, 2)[0]
+
+
+starts = {}  # (detector, turned) -> how many views it numbered from the true corner 0
+for i, v in enumerate(views):
+    g = load_image(v)
+    h, w = g.shape[:2]
+    true_px = np.array(record["views"][i]["corners_px"])
+    for name, sb in (("classic", False), ("SB", True)):
+        for turned in (False, True):
+            c0 = physical_corner0(cv2.rotate(g, cv2.ROTATE_180) if turned else g, sb)
+            if turned:
+                c0 = np.array([w - 1, h - 1]) - c0  # back into the upright picture's pixels
+            from_first = np.linalg.norm(c0 - true_px[0]) < np.linalg.norm(c0 - true_px[-1])
+            starts[name, turned] = starts.get((name, turned), 0) + int(from_first)
+n_views = len(views)
+for (name, turned), n in starts.items():
+    print(f"{name:7s} {'turned ' if turned else 'upright'}: numbered from the true corner 0 in {n} of {n_views} views")
+assert starts["classic", False] == starts["classic", True] == n_views
+assert starts["SB", False] == starts["SB", True] == 0
+
+# %% [markdown]
+# Both detectors read the colours: each numbers from the same physical corner of the board whichever way up
+# the picture is ({{ starts["classic", True] }} of {{ n_views }} turned views for `findChessboardCorners`,
+# like upright). But they disagree on *which* corner: `findChessboardCornersSB` starts at the other end in
+# all {{ n_views - starts["SB", True] }}. So compare corner lists from two detectors only once their order
+# agrees.
 
 # %%
 gray = load_image(views[0])

@@ -643,10 +643,13 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# The prediction follows the measured error over three orders of magnitude, from a tenth of a millimetre at
-# half a metre to a quarter of a metre at 4 m, and 10 of the 12 measured errors fall inside the predicted
-# range (8 in 10 would be expected). Here the measured errors run about half again above the predicted medians
-# (the median ratio, 1.53), two places at 3.4 and 3.9 m well above: twelve pictures cannot say much more. It
+# The prediction follows the measured error over three orders of magnitude, from
+# {{ rows[order[0], 4]:.1f }} mm at {{ rows[order[0], 0] / 1000:.1f }} m to {{ rows[order[-1], 4]:.0f }} mm at
+# {{ rows[order[-1], 0] / 1000:.1f }} m, and {{ inside }} of the {{ len(rows) }} measured errors fall inside the
+# predicted range (8 in 10 would be expected). Here the measured errors run
+# {{ abs(np.median(ratio) - 1):.0% }} {{ "above" if np.median(ratio) > 1 else "below" }} the predicted medians
+# (the median ratio, {{ np.median(ratio):.2f }}), the farthest off at {{ rows[np.argmax(ratio), 0] / 1000:.1f }} m
+# ({{ ratio.max():.1f }} times the prediction): {{ len(rows) }} pictures cannot say much more. It
 # is a prediction for many pictures: one picture can land anywhere in the range, and the benchmark
 # (`benchmarks/bench_planning.py`) checks the medians over
 # many rendered rooms. Real photos are another matter: the next cell.

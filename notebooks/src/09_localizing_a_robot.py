@@ -333,7 +333,8 @@ assert len(ambiguous) >= 1 and flips == 0
 # On this drive `estimate_pose` already ranked the right solution first, and the prediction agrees: the
 # alternative, 2 to 3 degrees away, is farther from it (close to the wall the two solutions differ little). Far away,
 # with one small marker seen face-on, the frame's own ranking
-# is a coin toss and the prediction decides; notebook 10 shows a drive with thirty such flips, every one undone.
+# is a coin toss and the prediction decides; notebook 10 drives far from a single small marker, where the
+# frame-by-frame orientation flips again and again and the tracked one never does.
 
 # %% [markdown]
 # ## Try it

@@ -6,8 +6,8 @@
 # * how to bring your laptop's camera into the notebook, even when the kernel runs on a server far away;
 # * how to calibrate it live: hold a printed checkerboard up, watch the corners found and the picture fill up,
 #   capture views, and read the per-view table and the warnings;
-# * whether your calibration is good enough, measured against the procedure on real photos;
-# * how to print markers and watch your camera's pose, live, in a 3D view of the world.
+# * whether your calibration is good enough: the coach of notebook 02, live, saying which photo to take next;
+# * how to print markers and watch your camera's pose, live, in a 3D view of the world (`MarkerTracker`).
 #
 # On JupyterHub or Binder the camera is on your laptop but Python runs on a server: `cv2.VideoCapture(0)`
 # would look for a camera on the server. The `Webcam` widget asks *your browser* for the camera
@@ -38,11 +38,15 @@ from fidlearn import (
     board_pdf,
     calibrate_checkerboard,
     data_path,
+    locate,
     markers_pdf,
     plotting,
 )
 from fidlearn.detection import load_image
-from fidlearn.errors import NoMarkersError, PoseError
+from fidlearn.errors import FidlearnError, NoMarkersError, PoseError
+from fidlearn.planning import coach_calibration
+from fidlearn.planning.coach import GOOD_UNCERTAINTY_PX
+from fidlearn.planning.figure import coach_figure
 from fidlearn.widgets import Webcam, figure_png
 
 np.set_printoptions(precision=3, suppress=True)
@@ -100,7 +104,8 @@ plt.show()
 # Then run the next cell and hold the board in front of the camera. Each frame shows the corners it finds
 # (coloured lines) and, in red, the cells of the picture no captured view has covered yet. Press **Capture**
 # when the board is found (still, sharp, fully in view); move it: near and far, tilted left, right, up and
-# down, in every corner of the picture. 15 to 25 views is plenty.
+# down, in every corner of the picture. From the sixth view on, each capture calibrates what you have and the
+# coach (notebook 02) says where to put the board next. 15 to 25 views is plenty.
 
 # %%
 PATTERN = (9, 6)  # inner corners (columns, rows)
@@ -149,6 +154,7 @@ def jpeg(image_bgr):
 
 # %%
 captured = []  # (frame, corners) of every view captured
+COACH_FROM = 6  # views captured before the coach speaks
 if HAVE_CAMERA:
     latest = {"frame": None, "corners": None}
     preview = w.Image(format="jpeg", width=480)
@@ -165,14 +171,23 @@ if HAVE_CAMERA:
             "<b>board found</b>: capture!" if corners is not None else "board not found"
         )
 
+    advice = w.HTML()
+
     def on_capture(_button):
-        if latest["corners"] is not None:
-            captured.append((latest["frame"], latest["corners"]))
+        if latest["corners"] is None:
+            return
+        captured.append((latest["frame"], latest["corners"]))
+        if len(captured) >= COACH_FROM:
+            try:
+                so_far = coach_calibration(calibrate_checkerboard([f for f, _ in captured], PATTERN, SQUARE_MM))
+                advice.value = "<br>".join(so_far.report().splitlines())
+            except FidlearnError as e:  # a set the calibration refuses says why
+                advice.value = f"not yet: {e}"
 
     capture.on_click(on_capture)
     cam.on_frame(show_calibration_frame)
     cam.start()
-    display(w.VBox([w.HBox([capture, info]), preview]))
+    display(w.VBox([w.HBox([capture, info]), preview, advice]))
 else:
     print("No camera: section 3 calibrates from the bundled views in data/calibration instead.")
 
@@ -205,40 +220,53 @@ else:
     )
 
 # %% [markdown]
-# The warnings: what to fix before you trust the numbers.
-
+# ## 4. Is your calibration good enough? Ask the coach
+#
+# Notebook 02 showed why a low RMS is not enough (a wrong K can hide behind a tiny reprojection error) and taught
+# the coach: the **reprojection uncertainty** over the whole picture, what is wrong with the set in words, and
+# the photo to take next. Your calibration is good enough when the coach has no warning and the uncertainty is
+# under its threshold over nearly all the picture (here: 90 %). Otherwise take the photo it asks for, calibrate
+# again, and ask again.
 
 # %%
-def calibration_warnings(cal, covered, min_views=MIN_VIEWS):
-    """Plain-language warnings about a calibration: list of str (empty when nothing is wrong)."""
-    notes = []
-    if len(cal.used) < min_views:
-        notes.append(f"only {len(cal.used)} views used: capture at least {min_views}")
-    if covered.mean() < 0.7:
-        notes.append(
-            f"the views cover {covered.mean():.0%} of the picture: hold the board near the edges and "
-            "corners too, or the distortion there is a guess"
-        )
-    if cal.rms_px > 1.0:
-        notes.append(f"RMS {cal.rms_px:.2f} px is high: blurred or moving views, or a board that is not flat")
-    for name, why in cal.rejected:
-        notes.append(f"{name} was left out: {why}")
-    for key, std in cal.std_intrinsics.items():
-        value = getattr(cal.camera, key, None)
-        if value and key in ("fx", "fy") and std / value > 0.01:
-            notes.append(f"{key} is uncertain by {std / value:.1%}: add views tilted 30-45 degrees")
-    return notes
+GOOD_FRACTION = 0.90
 
+
+def good_enough(coached):
+    """The verdict: no warning from the coach, and the uncertainty small over GOOD_FRACTION of the picture."""
+    return not coached.flags and coached.good_fraction >= GOOD_FRACTION
+
+
+print(f"good enough: no warning, under {GOOD_UNCERTAINTY_PX} px over {GOOD_FRACTION:.0%} of the picture")
 
 if calibration is not None:
-    size = (calibration.camera.width, calibration.camera.height)
-    covered = coverage_map(calibration.image_points_px.values(), size)
-    fig, ax = plt.subplots(figsize=(4, 3))
-    ax.imshow(covered, cmap="Greens", vmin=0, vmax=1, extent=(0, size[0], size[1], 0))
-    ax.set_title(f"coverage: {covered.mean():.0%} of {covered.size} cells")
-    plt.show()
-    for note in calibration_warnings(calibration, covered) or ["no warning"]:
-        print("-", note)
+    coached = coach_calibration(calibration)
+    print(coached.report())
+    print(
+        "Good enough: use this camera.json."
+        if good_enough(coached)
+        else "Not good enough yet: fix what the coach says, take the photo it asks for, and calibrate again."
+    )
+    display(coach_figure(coached, calibration.camera))
+
+# %% [markdown]
+# For comparison, the same judge on a careful set of real photos: OpenCV's 13 photos of a 9 x 6 board
+# (`data/real/opencv_checkerboard_right`, notebook 02).
+
+# %%
+real_views = [
+    Path(os.path.relpath(p)) for p in sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))
+]
+reference = calibrate_checkerboard(real_views, PATTERN, 25.0)
+reference_coached = coach_calibration(reference)
+print(f"real photos: {len(reference.used)} views, RMS {reference.rms_px:.2f} px")
+print(reference_coached.report())
+print("good enough" if good_enough(reference_coached) else "not good enough yet")
+
+# %% [markdown]
+# {{ 100 * reference_coached.good_fraction:.0f }} % of that picture is under {{ GOOD_UNCERTAINTY_PX }} px of
+# uncertainty, with {{ len(reference_coached.flags) }} warning(s) from the coach. The RMS alone
+# ({{ reference.rms_px:.2f }} px) would not tell you either way.
 
 # %% [markdown]
 # Save it: `camera.json` records K, the distortion and the picture's size the camera delivered (the size you
@@ -255,58 +283,11 @@ if calibration is not None:
         assert saved["image_size"] == [cam.actual_width, cam.actual_height]
 
 # %% [markdown]
-# ## 4. Is your calibration good enough?
-#
-# The same procedure on OpenCV's real photos (`data/real/opencv_checkerboard_right`: 13 photos of a 9 x 6
-# board, notebook 02) gives a reference: how many views, how much of the picture they cover, and the RMS a
-# careful set of real photos reaches. Your set is compared with it, in words.
-
-# %%
-real_views = [
-    Path(os.path.relpath(p)) for p in sorted(data_path("real", "opencv_checkerboard_right").glob("right*.jpg"))
-]
-reference = calibrate_checkerboard(real_views, PATTERN, 25.0)
-ref_size = (reference.camera.width, reference.camera.height)
-ref_cover = coverage_map(reference.image_points_px.values(), ref_size).mean()
-print(f"reference (real photos): {len(reference.used)} views, {ref_cover:.0%} covered, RMS {reference.rms_px:.2f} px")
-
-
-def verdict(cal, ref_views, ref_cover, ref_rms):
-    """Whether a calibration is good enough, in words, against a reference set."""
-    size = (cal.camera.width, cal.camera.height)
-    cover = coverage_map(cal.image_points_px.values(), size).mean()
-    lines = [f"yours: {len(cal.used)} views, {cover:.0%} covered, RMS {cal.rms_px:.2f} px"]
-    ok = True
-    if len(cal.used) < min(ref_views, MIN_VIEWS):
-        ok = False
-        lines.append(f"- too few views ({len(cal.used)}; the reference uses {ref_views}): capture more.")
-    if cover < min(ref_cover, 0.7):
-        ok = False
-        lines.append(
-            f"- the views cover less of the picture than the reference ({cover:.0%} < {ref_cover:.0%}): "
-            "hold the board near the edges and corners."
-        )
-    if cal.rms_px > max(2 * ref_rms, 1.0):
-        ok = False
-        lines.append(
-            f"- RMS {cal.rms_px:.2f} px is more than twice the reference's {ref_rms:.2f} px: drop blurred "
-            "views, light the board evenly, keep it flat."
-        )
-    lines.append(
-        "Good enough: use this camera.json." if ok else "Not good enough yet: fix the points above and calibrate again."
-    )
-    return "\n".join(lines)
-
-
-if calibration is not None:
-    print(verdict(calibration, len(reference.used), ref_cover, reference.rms_px))
-
-# %% [markdown]
 # ## 5. Print the markers
 #
 # The seed's world (`data/world_map.json`) has three 80 mm markers on a wall. `markers_pdf` lays them out at
 # their exact size (print at 100 %); tape them to a wall as the map says, or write a map of where you put them
-# (notebook 04). The same from a terminal: `fidlearn markers 0 1 2 --size-mm 80`.
+# (notebook 04). The same from a terminal: `fidlearn markers --ids 0-2 --size-mm 80 -o markers.pdf`.
 
 # %%
 world_map = MarkerMap.load(data_path("world_map.json"))
@@ -316,8 +297,12 @@ print(f"wrote {OUT / 'markers.pdf'}: markers {world_map.ids}, {world_map.marker_
 # %% [markdown]
 # ## 6. Where is your camera? Live
 #
-# Point the camera at the markers and move it. Each frame goes through `MarkerTracker` (notebook 09):
-# detection, `estimate_pose`, inversion. The pose is printed and the 3D view shows the world, the markers
+# Point the camera at the markers and move it. Each frame goes through `MarkerTracker`: the pipeline of
+# notebooks 05-07 (detection, `estimate_pose`, the inversion), frame after frame. What it adds for a live camera
+# is speed: it looks for each marker only near where the last frame saw it (a window around its predicted
+# corners), with a full-frame detection every few frames to find markers that come into view. It does not
+# smooth the pose over time; that is `PoseTracker`'s job (notebook 10). The pose is printed and the 3D view
+# shows the world, the markers
 # and the camera. **ambiguous** means two poses explain the picture almost equally well (one marker, seen
 # nearly face on, notebook 08): move so that two markers are in view, or look at the marker at an angle.
 #
@@ -369,6 +354,23 @@ else:
     display(w.VBox([pose_text, scene_view]))
 
 # %% [markdown]
+# What the windows save, on the bundled drive's 40 frames: how many frames needed a full-frame detection, and
+# whether the poses are the ones `fidlearn.locate` finds on each whole frame.
+
+# %%
+drive = json.loads(data_path("trajectory", "poses.json").read_text())
+drive_camera = Camera.load(data_path("trajectory", "camera.json"))
+replay = MarkerTracker(world_map, drive_camera)
+gap_mm = []
+for f in drive["frames"]:
+    image = load_image(data_path("trajectory", f["image"]))
+    gap_mm.append(np.linalg.norm(replay.locate(image).position_mm - locate(image, world_map, drive_camera).position_mm))
+print(
+    f"{replay.frames} frames, {replay.full_detections} full-frame detections; windowed and whole-frame poses differ "
+    f"by at most {max(gap_mm):.2f} mm"
+)
+
+# %% [markdown]
 # Press **Stop the camera** when you are done (the browser's camera light goes out when you close the
 # notebook). `cam.frames_received` counts the frames Python handled, and `cam.pacer.measured_fps` their rate:
 # never more than `max_fps`, and less when the pose and the drawing take longer than a frame's time.
@@ -377,9 +379,30 @@ else:
 #
 # * The camera is the browser's, not the server's: the widget carries its frames to Python, one at a time, no
 #   faster than Python keeps up with.
-# * A calibration is as good as its views: enough of them, over the whole picture, sharp (a low RMS). Compare
-#   with a set known to be good before you trust it.
+# * A calibration is as good as its views: enough of them, over the whole picture, tilted, sharp. The coach
+#   judges the set by its uncertainty over the picture, not by the RMS, and says which photo to take next.
+# * `MarkerTracker` runs the pipeline frame after frame, searching only where the markers were.
 # * With a calibrated camera and printed markers, the pose is a few lines (notebooks 05-09), live.
+
+# %% [markdown]
+# ## Try it (no camera needed)
+#
+# * The cell below calibrates from only the first `N_VIEWS` bundled views and asks the coach. With 6 views,
+#   what does it flag, and where does it want the next photo? Raise `N_VIEWS` until it is good enough: how many
+#   views did it take?
+# * Set `full_every=1` in the `MarkerTracker(...)` of the drive above (a full detection on every frame): do the
+#   poses change?
+
+# %%
+N_VIEWS = 6
+bundled = [Path(os.path.relpath(p)) for p in sorted(data_path("calibration").glob("view_*.png"))]
+few = coach_calibration(calibrate_checkerboard(bundled[:N_VIEWS], PATTERN, 25.0))
+print(few.report())
+print("good enough" if good_enough(few) else "not good enough yet")
+
+# %% [markdown]
+# **Exercises**: [exercises/12_own_camera.ipynb](exercises/12_own_camera.ipynb), with automatic feedback (or
+# `from fidlearn import exercises; ex = exercises.lesson("12")` in a new cell): they run on the bundled pictures.
 
 # %% [markdown]
 # ## References

@@ -1,4 +1,4 @@
-"""The ten lessons, one module each, registered here in notebook order.
+"""The lessons, one module each, registered here in notebook order.
 
 A lesson module holds ``NUMBER``, ``TOPIC``, ``TITLE``, ``INTRO`` and ``build(learner)``, which
 returns the lesson's questions in the order the notebook asks them. Each question ``qN`` has its
@@ -25,6 +25,8 @@ from . import (
     l09_robot,
     l10_tracking,
     l11_mapping,
+    l12_own_camera,
+    l13_hand_eye,
 )
 
 __all__ = ["MODULES"]
@@ -42,6 +44,8 @@ MODULES = (
     l09_robot,
     l10_tracking,
     l11_mapping,
+    l12_own_camera,
+    l13_hand_eye,
 )
 
 for _module in MODULES:

@@ -87,10 +87,14 @@ _Q1 = {
         Write code that computes its 4 corners in world mm, a (4, 3) array in the order
         TL, TR, BR, BL (do not use MarkerMap: that is what you are rebuilding).
         """,
-    "hint": (
-        "Convert the translation to mm (x 304.8). R = frames.rotation_from_rpy_deg(*rotation). The "
-        "corners are TL + R @ offset with offsets s*[0,0,0], s*[0,1,0], s*[0,1,-1], s*[0,0,-1]."
-    ),
+    "hint": [
+        "Two steps: bring the placement into mm, then walk from the top-left corner along the marker's own axes.",
+        (
+            "The rotation (roll, pitch, yaw in degrees) turns the marker's frame into the world; in that frame the "
+            "marker's right is +y and its up is +z, so TR is one side to the right of TL, BR one side right and one "
+            "down, BL one side down (notebook 04)."
+        ),
+    ],
     "solution": """
         p = q1.inputs.placement
         s = q1.inputs.marker_size_mm

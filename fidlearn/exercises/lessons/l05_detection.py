@@ -57,7 +57,8 @@ def _layout(rng: np.random.Generator, n_markers: int, rotated: bool, dictionarie
     rotated_id = int(rng.choice(ids)) if rotated else None
     for k, (mid, y) in enumerate(zip(ids, ys)):
         z = 1150.0 + (180.0 if k % 2 else -120.0) + float(rng.uniform(-40, 40))
-        roll = float(rng.choice([90, 180, -90])) if mid == rotated_id else 0.0
+        # never exactly upside down: at 180 deg a sign error in the angle (q3) would give the same answer
+        roll = float(rng.choice([90, 165, -165, -90])) if mid == rotated_id else 0.0
         # a marker rotated about its top-left corner: shift it so that it stays where it was meant to be
         tl = np.array([0.0, np.round(y), np.round(z)])
         R = frames.rotation_from_rpy_deg(roll, 0, 0)
@@ -121,10 +122,14 @@ _Q1 = {
         Write code that detects them (fidlearn.detection.detect_markers, or OpenCV's
         cv2.aruco.ArucoDetector) and gives the sorted list of their ids.
         """,
-    "hint": (
-        "from fidlearn.detection import detect_markers; detections = detect_markers(image, dictionary=...); "
-        "each has .id and .corners_px."
-    ),
+    "hint": [
+        "The detector must be told which dictionary the markers were printed from; with the wrong one it finds "
+        "nothing, or the wrong ids.",
+        (
+            "fidlearn's detection (notebook 05) takes the picture and the dictionary and returns one detection per "
+            "marker, each with its id. The question wants the ids, in increasing order."
+        ),
+    ],
     "look": 'from fidlearn import plotting\nplotting.show_image(None, q1.inputs.image, title="q1.inputs.image");',
     "solution": """
         from fidlearn.detection import detect_markers

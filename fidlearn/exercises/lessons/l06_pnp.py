@@ -161,10 +161,14 @@ _Q2 = {
         `detections`. Write code that estimates the camera's extrinsics with cv2.solvePnP using
         the corners of ALL markers at once. Answer (rvec, tvec) as solvePnP returns them.
         """,
-    "hint": (
-        "Build object_points and image_points over all detections (as in q1), then ok, rvec, tvec "
-        "= cv2.solvePnP(object_points, image_points, camera.K, camera.dist)."
-    ),
+    "hint": [
+        "One solve over every marker at once: pair every 3D corner of the map with its detected pixel (as in q1).",
+        (
+            "OpenCV's PnP solver takes those pairs with the camera matrix and the distortion, and answers with the "
+            "world seen from the camera: a rotation vector and a translation. Keep the lens in: the corners were "
+            "detected in the distorted picture."
+        ),
+    ],
     "solution": """
         m, cam = q2.inputs.marker_map, q2.inputs.camera
         known = [d for d in q2.inputs.detections if d.id in m]

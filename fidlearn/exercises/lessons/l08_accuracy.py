@@ -290,11 +290,14 @@ _Q3 = {
         camera positions. Then choose the explanation from `choices`. Answer
         {"choice": letter, "separation_mm": distance}.
         """,
-    "hint": (
-        "pose = estimate_pose(detections, marker_map, camera); np.linalg.norm(pose.position_mm - "
-        "pose.alternative.position_mm). Both fit the corners to a fraction of a pixel: which explanation "
-        "allows that?"
-    ),
+    "hint": [
+        "A flat target seen from afar has two poses that fit its corners almost equally well (notebook 08).",
+        (
+            "fidlearn's pose keeps the runner-up solution of a planar target beside the one it ranked first; "
+            "measure how far apart the two camera positions are. Both fit the corners to a fraction of a pixel: "
+            "which explanation allows that?"
+        ),
+    ],
     "solution": """
         from fidlearn.pose import estimate_pose
         pose = estimate_pose(q3.inputs.detections, q3.inputs.marker_map, q3.inputs.camera)

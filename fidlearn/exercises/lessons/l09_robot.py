@@ -373,21 +373,24 @@ def _q4(learner: str) -> Question:
     rng = _rng("09", learner, "q4")
     k = 15
     speed = float(rng.uniform(150, 400))  # mm/s
-    dt = rng.uniform(0.09, 0.11, k - 1)
-    t = np.round(np.concatenate([[0.0], np.cumsum(dt)]) + float(np.round(rng.uniform(10, 50), 2)), 3)
-    heading = float(rng.uniform(-np.pi, np.pi))
-    start = np.round(rng.uniform([1500, -600], [3000, 600]))
-    travelled = speed * (t - t[0])
-    xy = start + np.outer(travelled, [math.cos(heading), math.sin(heading)])
-    xy = xy + rng.normal(0, 3, xy.shape)
-    pts = np.round(np.column_stack([xy, 300 + rng.normal(0, 15, k)]), 1)
-    lost = [0, int(rng.integers(4, k - 4)), k - 1] + ([1] if rng.random() < 0.5 else [])
-    pts[lost] = np.nan
-    ok = ~np.isnan(pts[:, 0])
-    d2 = float(np.sum(np.linalg.norm(np.diff(pts[ok, :2], axis=0), axis=1)))
-    d3 = float(np.sum(np.linalg.norm(np.diff(pts[ok], axis=0), axis=1)))
-    span = float(t[ok][-1] - t[ok][0])
-    key = d2 / span
+    while True:  # an uneven rhythm that a nominal 0.1 s per frame cannot pass for
+        dt = rng.uniform(0.09, 0.11, k - 1)
+        t = np.round(np.concatenate([[0.0], np.cumsum(dt)]) + float(np.round(rng.uniform(10, 50), 2)), 3)
+        heading = float(rng.uniform(-np.pi, np.pi))
+        start = np.round(rng.uniform([1500, -600], [3000, 600]))
+        travelled = speed * (t - t[0])
+        xy = start + np.outer(travelled, [math.cos(heading), math.sin(heading)])
+        xy = xy + rng.normal(0, 3, xy.shape)
+        pts = np.round(np.column_stack([xy, 300 + rng.normal(0, 15, k)]), 1)
+        lost = [0, int(rng.integers(4, k - 4)), k - 1] + ([1] if rng.random() < 0.5 else [])
+        pts[lost] = np.nan
+        ok = ~np.isnan(pts[:, 0])
+        d2 = float(np.sum(np.linalg.norm(np.diff(pts[ok, :2], axis=0), axis=1)))
+        d3 = float(np.sum(np.linalg.norm(np.diff(pts[ok], axis=0), axis=1)))
+        span = float(t[ok][-1] - t[ok][0])
+        key = d2 / span
+        if abs(d2 / (0.1 * np.ptp(np.flatnonzero(ok))) - key) > 1.0:
+            break
     return Question(
         "q4",
         inputs={"positions_mm": pts, "timestamps_s": t},

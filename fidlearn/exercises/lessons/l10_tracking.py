@@ -89,10 +89,14 @@ def _cmp_rotation(tol_deg: float):
 def _q1(learner: str) -> Question:
     """q1: The mean of three rotations."""
     rng = _rng("10", learner, "q1")
-    yaws = [180 - rng.uniform(5, 15), 180 + rng.uniform(5, 15), 180 + rng.uniform(-3, 3)]
-    Rs = np.array([frames.rotation_from_rpy_deg(*rng.uniform(-3, 3, 2), yaw) for yaw in yaws])
-    Rs = np.array([frames.rotation_from_rpy_deg(*np.round(frames.rpy_deg_from_rotation(R), 3)) for R in Rs])
-    key = _manifold_mean(Rs)
+    backwards = frames.rotation_from_rpy_deg(0, 0, 180)
+    while True:  # the mean must be none of the three, nor the plain "backwards" the task mentions
+        yaws = [180 - rng.uniform(5, 15), 180 + rng.uniform(5, 15), 180 + rng.uniform(-3, 3)]
+        Rs = np.array([frames.rotation_from_rpy_deg(*rng.uniform(-3, 3, 2), yaw) for yaw in yaws])
+        Rs = np.array([frames.rotation_from_rpy_deg(*np.round(frames.rpy_deg_from_rotation(R), 3)) for R in Rs])
+        key = _manifold_mean(Rs)
+        if min(frames.rotation_angle_deg(key, R) for R in (*Rs, backwards)) > 2.0:
+            break
     rvec_mean = _exp(np.mean([_log(R) for R in Rs], axis=0))
     euler_mean = frames.rotation_from_rpy_deg(*np.mean([frames.rpy_deg_from_rotation(R) for R in Rs], axis=0))
     elementwise = Rs.mean(axis=0)

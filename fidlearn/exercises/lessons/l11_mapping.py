@@ -350,6 +350,10 @@ def _q4_map(rng: np.random.Generator) -> MarkerMap:
     return MarkerMap(pl, 150.0, dictionary="ARUCO_ORIGINAL", units="mm")
 
 
+#: Candidate photos offered in q4.
+_Q4_N = 10
+
+
 def _q4_layout(rng: np.random.Generator):
     """The map, camera, stds, candidates and the index of the candidate that sees the worst marker."""
     m = _q4_map(rng)
@@ -359,25 +363,24 @@ def _q4_layout(rng: np.random.Generator):
     worst = int(rng.integers(len(ids)))
     std[worst] = np.round(rng.uniform(9, 20), 1)
     centres = {i: m.marker_corners(i).mean(axis=0) for i in ids}
-    while True:
-        others = [i for i in ids if i != ids[worst]]
-        targets = [ids[worst]] + [int(i) for i in rng.choice(others, size=2, replace=False)]
-        cands = [
-            look_at(
-                [rng.uniform(1200, 2200), centres[t][1] + rng.uniform(-300, 300), rng.uniform(1000, 1600)], centres[t]
+    others = [int(i) for i in ids if i != ids[worst]]
+
+    def candidate(target: int, must_see_worst: bool):
+        """A pose aimed at one marker that shows it whole, and shows the worst marker only when it must."""
+        while True:
+            T = look_at(
+                [rng.uniform(1200, 2200), centres[target][1] + rng.uniform(-300, 300), rng.uniform(1000, 1600)],
+                centres[target],
             )
-            for t in targets
-        ]
-        seen = [visible_markers(m, cam, T) for T in cands]
-        if (
-            ids[worst] in seen[0]
-            and all(ids[worst] not in s for s in seen[1:])
-            and all(t in s for t, s in zip(targets, seen))
-        ):
-            break
-    order = rng.permutation(3)
-    cands = [cands[i] for i in order]
-    seen = [seen[i] for i in order]
+            seen = visible_markers(m, cam, T)
+            if target in seen and (ids[worst] in seen) == must_see_worst:
+                return T, seen
+
+    # Enough candidates that guessing the index is no way to answer: one shows the worst marker, the rest not.
+    picks = [candidate(ids[worst], True)] + [candidate(int(t), False) for t in rng.choice(others, size=_Q4_N - 1)]
+    order = rng.permutation(_Q4_N)
+    cands = [picks[i][0] for i in order]
+    seen = [picks[i][1] for i in order]
     return m, cam, std, np.array(cands), seen, int(np.flatnonzero(order == 0)[0])
 
 
@@ -385,9 +388,9 @@ def _q4(learner: str) -> Question:
     """q4: Which photo to take next?"""
     rng = _rng("11", learner, "q4")
     m, cam, std, cands, seen, key = _q4_layout(rng)
-    most = max(range(3), key=lambda c: len(seen[c]))
+    most = max(range(_Q4_N), key=lambda c: len(seen[c]))
     best_id = m.ids[int(np.argmin(std))]
-    best = [c for c in range(3) if best_id in seen[c] and c != key]
+    best = [c for c in range(_Q4_N) if best_id in seen[c] and c != key]
     worst_id = m.ids[int(np.argmax(std))]
     wrong = [
         (
