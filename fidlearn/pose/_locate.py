@@ -113,9 +113,13 @@ def _detect_map_markers(
         det_kw["detector_params"] = detector_params
     if not isinstance(only_map_markers, (bool, np.bool_)):
         raise PoseError(f"only_map_markers must be True or False, got {only_map_markers!r}")
-    ids = marker_map.ids if only_map_markers else None
-    detections = detect_markers(image, dictionary=marker_map.dictionary, ids=ids, **det_kw)
+    names = marker_map.dictionaries  # one detector per dictionary the map uses
+    dictionary = names[0] if len(names) == 1 else names
+    ids = None
+    if only_map_markers:
+        ids = marker_map.ids if len(names) == 1 else {n: marker_map.ids_in(n) for n in names}
+    detections = detect_markers(image, dictionary=dictionary, ids=ids, **det_kw)
     if not detections and only_map_markers:
         # nothing of the map: detect the whole dictionary once, so the error lists what is in view
-        detections = detect_markers(image, dictionary=marker_map.dictionary, **{**det_kw, "refine": "none"})
+        detections = detect_markers(image, dictionary=dictionary, **{**det_kw, "refine": "none"})
     return detections
