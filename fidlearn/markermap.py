@@ -37,6 +37,7 @@ from ._map_parse import (
     _placements,
     _units_name,
 )
+from ._wpilib import is_wpilib, map_from_wpilib, to_wpilib
 from .errors import DictionaryError, MapError
 
 __all__ = ["MarkerMap", "MarkerPlacement", "MarkerKey", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL", "CORNER_NAMES"]
@@ -73,7 +74,7 @@ class MarkerMap:
     placements : dict of int to MarkerPlacement
         Sorted by id.
     marker_size_mm, dictionary, units, source
-        As given (the dictionary's name normalized).
+        As given (the dictionary's name normalized). ``field_m``: a WPILib layout's field (length, width), m, else None.
 
     Raises
     ------
@@ -101,6 +102,7 @@ class MarkerMap:
         source: str = "<map>",
     ):
         self.source = source
+        self.field_m: tuple[float, float] | None = None  # a WPILib layout's field (length, width), m
         self.marker_size_mm = _marker_size(marker_size_mm, source)
         try:
             self.dictionary = _cv.dictionary_name(dictionary)
@@ -122,12 +124,13 @@ class MarkerMap:
         dictionary: str | None = None,
         source: str = "<map>",
     ) -> MarkerMap:
-        """A map from the seed's bare layout or the full layout.
+        """A map from the seed's bare layout, the full layout or a WPILib AprilTag field layout.
 
         Bare: ``{"0": {"translation": [...], "rotation": [...]}, ...}`` with
         ``units`` and ``marker_size_mm`` given here. Full: ``{"units": "ft",
         "marker_size_mm": 80, "dictionary": "ARUCO_ORIGINAL", "markers": {...}}``.
-        A value given both here and in the file must agree.
+        A value given both here and in the file must agree. WPILib's ``{"tags": [...], "field": {...}}``
+        (metres, each tag's centre; docs/conventions.md) with ``dictionary`` and ``marker_size_mm`` given here.
 
         Parameters
         ----------
@@ -161,6 +164,8 @@ class MarkerMap:
         >>> m.corners()[0].tolist()   # TL, TR, BR, BL, mm
         [[0.0, 0.0, 304.8], [0.0, 80.0, 304.8], [0.0, 80.0, 224.8], [0.0, 0.0, 224.8]]
         """
+        if is_wpilib(d):
+            return map_from_wpilib(cls, d, units, marker_size_mm, dictionary, source)
         full, markers = _check_layout(d, source)
         units, size, dictionary = _map_options(d, full, units, marker_size_mm, dictionary, source)
         try:
@@ -449,20 +454,25 @@ class MarkerMap:
             "markers": {str(key): _entry(p, scale) for key, p in self.placements.items()},
         }
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write the full layout as JSON (atomically).
+    def save(self, path: str | os.PathLike, format: str = "fidlearn") -> Path:  # noqa: A002 - the file's format
+        """Write the map as JSON (atomically): the full layout, or a WPILib AprilTag field layout.
 
         Parameters
         ----------
         path : path-like
             The file to write.
+        format : {"fidlearn", "wpilib"}
+            ``"wpilib"``: ``{"tags": [...], "field": {...}}``, metres, each tag's centre and quaternion (the
+            field's size as loaded, else the tags' extent); the map's markers must share one dictionary and size.
 
         Returns
         -------
         Path
             The file written.
         """
-        return write_json_atomic(path, self.to_dict())
+        if format not in ("fidlearn", "wpilib"):
+            raise MapError(f"unknown map format {format!r}; use 'fidlearn' (the full layout) or 'wpilib'")
+        return write_json_atomic(path, self.to_dict() if format == "fidlearn" else to_wpilib(self, self.field_m))
 
     def corners_dict(self) -> dict[str, list[list[float]]]:
         """The seed's corner-file layout.

@@ -56,6 +56,7 @@ import cv2
 import numpy as np
 
 from . import _cv, frames
+from ._wpilib import outside_field
 from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
 from .errors import FidlearnError, NoMarkersError, PoseError
@@ -315,9 +316,11 @@ class MarkerTracker:
     def _estimate(self, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
         """The pose from the detections, or None and why not (the options were checked when the tracker was made)."""
         try:
-            return estimate_pose(dets, self.marker_map, self._cam, **self.pose_options), None
+            pose = estimate_pose(dets, self.marker_map, self._cam, **self.pose_options)
         except (NoMarkersError, PoseError) as e:  # no marker of the map, or a degenerate frame
             return None, e
+        problem = outside_field(self.marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirror
+        return (pose, None) if problem is None else (None, PoseError(problem))
 
     def _predict(self) -> dict | None:
         """The map's markers that may be in view under the predicted pose: ``{'ids': (K,), 'corners': (K, 4, 2) px,

@@ -6,6 +6,7 @@ import os
 
 import numpy as np
 
+from .._wpilib import outside_field
 from ..camera import Camera
 from ..detection import Detection, detect_markers
 from ..errors import ImageError, PoseError
@@ -97,7 +98,11 @@ def locate(
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera).for_image(image)
     detections = _detect_map_markers(image, marker_map, refine, detector_params, only_map_markers)
-    return estimate_pose(detections, marker_map, camera, **kw)
+    pose = estimate_pose(detections, marker_map, camera, **kw)
+    problem = outside_field(marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirrored corners
+    if problem is not None:
+        raise PoseError(problem)
+    return pose
 
 
 def _detect_map_markers(
