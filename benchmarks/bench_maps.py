@@ -1,4 +1,4 @@
-"""Maps as people build them: 80 mm and 200 mm markers of two dictionaries in one map, located on renders.
+"""Maps as people build them: 80 mm and 200 mm markers of two dictionaries in one map, and the print's scale.
 
     python benchmarks/bench_maps.py            # about 20 s
     python benchmarks/bench_maps.py --quick    # fewer scenes
@@ -9,7 +9,8 @@ One wall holds four 80 mm ARUCO_ORIGINAL markers (ids 0-3) and two 200 mm 4X4_50
 rolled up to 15 degrees; ``fidlearn.locate`` runs with its defaults. Reported: the median and 90th
 percentile camera-position error, the frames without a pose, and the frames where a big marker is
 in view but not among the pose's markers. The same scenes with every marker taken as 80 mm (the map
-without its per-marker sizes) show what the sizes are worth.
+without its per-marker sizes) show what the sizes are worth. Then the print's scale
+(``fidlearn.survey.check_print``) from single renders of eight markers printed at 98 %.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 import fidlearn
 from fidlearn import Camera, MarkerMap, locate
 from fidlearn.frames import look_at
+from fidlearn.survey import check_print
 from fidlearn.synthetic import render_scene
 
 MIXED = {
@@ -101,7 +103,34 @@ def main(argv=None) -> int:
         f"big markers used when seen | {sized['median']:.2f} mm, {sized['no_pose']} without, "
         f"{sized['big_unused']} unused | {'yes' if met else 'no'} -->"
     )
+    print_scale_table(8 if args.quick else 24)
     return 0
+
+
+def print_scale_table(n: int) -> None:
+    """``fidlearn.survey.check_print`` on renders of a wall of eight 80 mm markers printed at 98 %."""
+    markers = {str(i): {"translation": [0, 250 * (i % 4), 1600 - 250 * (i // 4)]} for i in range(8)}
+    taped = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": markers})
+    printed = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80 * 0.98, "markers": markers})
+    cam = Camera([[900, 0, 639.5], [0, 900, 359.5], [0, 0, 1]], [-0.05, 0.02, 0, 0, 0], (1280, 720))
+    rng = np.random.default_rng(21)
+    errors, z = [], []
+    for k in range(n):
+        eye = [rng.uniform(900, 1600), rng.uniform(0, 750), rng.uniform(1000, 1600)]
+        T = look_at(eye, [0, 375, 1350], roll_deg=rng.uniform(-10, 10))
+        r = check_print(render_scene(printed, cam, T, seed=k, noise_std_gray=2.0, blur_px=0.6).image, taped, cam)
+        errors.append(r.scale - 0.98)
+        z.append((r.scale - 0.98) / r.scale_std)
+    e = 100 * np.abs(errors)
+    print(
+        f"\nPrint scale from one photo (`check_print`), {n} renders 1280x720 of 8 markers printed at 98 %, 0.9-1.6 m "
+        f"away: error median {np.median(e):.3f} %, largest {e.max():.3f} %; error / reported standard error: "
+        f"RMS {np.sqrt(np.mean(np.square(z))):.2f}."
+    )
+    print(
+        f"\n<!-- target: maps: print scale from one photo within 0.2 % (98 % print) | largest error {e.max():.3f} % "
+        f"| {'yes' if e.max() <= 0.2 else 'no'} -->"
+    )
 
 
 if __name__ == "__main__":
