@@ -155,8 +155,7 @@ class Detection:
 
     def __repr__(self) -> str:
         pts = ", ".join(f"{n}=({x:.1f}, {y:.1f})" for n, (x, y) in zip(CORNER_NAMES, self.corners_px))
-        where = f", {self.dictionary}" if self.dictionary is not None else ""
-        return f"Detection(id={self.id}{where}, {pts})"
+        return f"Detection(id={self.id}, {pts})"
 
 
 # ----------------------------------------------------------------------------------------------
