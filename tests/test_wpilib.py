@@ -169,3 +169,19 @@ def test_a_map_without_a_field_is_not_bounded():
     mirrored.field_m = None
     sc = render_scene(m, CAM, T_ONE, seed=2, noise_std_gray=2)
     assert locate(sc.image, mirrored, CAM).position_mm[0] < -900
+
+
+def test_fidlearn_locate_takes_a_field_layout_with_its_family_and_size(tmp_path, capsys):
+    from fidlearn.cli import main
+    from fidlearn.images import write_image
+
+    m = crescendo()
+    write_image(tmp_path / "frame.png", render_scene(m, CAM, T_ONE, seed=2, noise_std_gray=2).image)
+    CAM.save(tmp_path / "camera.json")
+    argv = ["locate", str(tmp_path / "frame.png"), "--camera", str(tmp_path / "camera.json"), "--map", str(CRESCENDO)]
+    assert main([*argv, "--dictionary", "apriltag_36h11", "--marker-size-mm", "165.1"]) == 0
+    assert "frame.png" in capsys.readouterr().out
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "does not say its tags' dictionary or marker_size_mm" in err[0]

@@ -29,7 +29,6 @@ def add(sub) -> None:
     )
     p.add_argument("photo", type=Path, metavar="PHOTO", help="a photo of 4 or more of the map's markers")
     _add_map_options(p)
-    p.add_argument("--dictionary", help="ArUco dictionary, if the map does not say (default ARUCO_ORIGINAL)")
     p.add_argument("--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or YAML)")
     _add_image_size_option(p)
     p.set_defaults(run=run)
