@@ -54,7 +54,7 @@ try:
         transform_from_rvec_tvec,
         transform_points,
     )
-    from .markermap import MarkerMap, MarkerPlacement
+    from .markermap import MarkerKey, MarkerMap, MarkerPlacement
     from .planning import Prediction, plan_room, predict_accuracy
     from .pose import Pose, estimate_pose, locate
     from .printables import board_pdf, markers_pdf
@@ -86,6 +86,7 @@ __all__ = [
     "Camera",
     "MarkerMap",
     "MarkerPlacement",
+    "MarkerKey",
     "FidlearnError",
     "FidlearnWarning",
     "MapError",

@@ -6,11 +6,12 @@ import math
 import numbers
 import re
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from . import _cv
+from . import _cv, frames
 from ._files import did_you_mean
 from .errors import DictionaryError, MapError
 
@@ -34,28 +35,26 @@ def _units_name(units: Any, where: str) -> str:
 MAX_MARKER_SIZE_MM = 10_000.0
 
 
-def _marker_size(size: Any, where: str) -> float:
+def _marker_size(size: Any, where: str, field: str = "marker_size_mm") -> float:
     if isinstance(size, (bool, np.bool_)) or not isinstance(size, numbers.Real):
-        raise MapError(f"{where}: marker_size_mm must be a number (the black square's side in mm), got {size!r}")
+        raise MapError(f"{where}: {field} must be a number (the black square's side in mm), got {size!r}")
     try:
         size = float(size)
     except OverflowError:  # a whole number with hundreds of digits
-        raise MapError(
-            f"{where}: marker_size_mm is too large for a number; write the black square's side in mm"
-        ) from None
+        raise MapError(f"{where}: {field} is too large for a number; write the black square's side in mm") from None
     if not math.isfinite(size) or size <= 0:
         raise MapError(
-            f"{where}: marker_size_mm is {size:g}; it must be positive: measure the black square's side "
+            f"{where}: {field} is {size:g}; it must be positive: measure the black square's side "
             "in mm (the white margin not included)"
         )
     if size > MAX_MARKER_SIZE_MM:
         raise MapError(
-            f"{where}: marker_size_mm is {size:g}, more than {MAX_MARKER_SIZE_MM:g} mm; measure the black square's "
+            f"{where}: {field} is {size:g}, more than {MAX_MARKER_SIZE_MM:g} mm; measure the black square's "
             "side in millimetres"
         )
     if size < 1.0:  # no printer makes a marker under 1 mm: a size in metres, as OpenCV's tutorials write it
         raise MapError(
-            f"{where}: marker_size_mm is {size:g}, under 1 mm; if that is metres, write it in mm ({size * 1000:g}): "
+            f"{where}: {field} is {size:g}, under 1 mm; if that is metres, write it in mm ({size * 1000:g}): "
             "the black square's side in millimetres"
         )
     return size
@@ -196,27 +195,193 @@ def _map_options(
     return units, size, dictionary
 
 
-def _placements(markers: Mapping, units: str, source: str) -> dict[int, tuple]:
-    """``{id: (translation_mm, rotation_deg)}`` of each marker, converted from ``units`` to mm."""
+class MarkerKey(int):
+    """A marker of a map drawn from another dictionary than the map's own: its id, and that dictionary.
+
+    A map's markers are identified by (dictionary, id): the same id may be printed from two dictionaries
+    (a 4X4_50 marker 3 and an ARUCO_ORIGINAL marker 3 are different markers). Markers of the map's own
+    dictionary keep their plain ``int`` ids as keys; a marker of another dictionary is keyed by a
+    ``MarkerKey``, an ``int`` (its id, for arithmetic and formatting with ``:d``) that equals only a
+    ``MarkerKey`` of the same id and dictionary, never a plain id. Its text is ``"4X4_50:3"``, as the map
+    file writes the key.
+
+    Parameters
+    ----------
+    marker_id : int
+        The id in ``dictionary``.
+    dictionary : str
+        The dictionary's name (normalized, e.g. ``"4X4_50"``).
+
+    Attributes
+    ----------
+    id : int
+        The plain id.
+    dictionary : str
+        The dictionary's name.
+
+    Examples
+    --------
+    >>> k = MarkerKey(3, "4X4_50")
+    >>> k == 3, k == MarkerKey(3, "4X4_50"), str(k), k.id
+    (False, True, '4X4_50:3', 3)
+    """
+
+    dictionary: str
+
+    def __new__(cls, marker_id: int, dictionary: str) -> MarkerKey:
+        obj = super().__new__(cls, int(marker_id))
+        obj.dictionary = str(dictionary)
+        return obj
+
+    @property
+    def id(self) -> int:
+        """The plain id in :attr:`dictionary`."""
+        return int(self)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, MarkerKey) and int(self) == int(other) and self.dictionary == other.dictionary
+
+    def __ne__(self, other: object) -> bool:
+        return not self.__eq__(other)
+
+    def __hash__(self) -> int:
+        return hash((int(self), self.dictionary))
+
+    def __repr__(self) -> str:
+        return f"{self.dictionary}:{int(self)}"
+
+    __str__ = __repr__
+
+    def __reduce__(self):
+        return (MarkerKey, (int(self), self.dictionary))
+
+
+_KEY = re.compile(r"\s*(?:(?P<dictionary>[A-Za-z0-9_]+)\s*:\s*)?(?P<id>-?[0-9]+)\s*")
+_MARKER_FIELDS = ("translation", "rotation", "size_mm", "dictionary")
+
+
+def _entry_dictionary(key: Any, value: Mapping, source: str) -> str | None:
+    """The dictionary a marker entry names, by its key (``"4X4_50:3"``) or its ``"dictionary"`` field (both: must
+    agree); None when it names none."""
+    m = _KEY.fullmatch(str(key)) if not isinstance(key, bool) else None
+    names = []
+    for given in (m and m["dictionary"], value.get("dictionary")):
+        if given is None:
+            continue
+        try:
+            names.append(_cv.dictionary_name(given))
+        except (DictionaryError, TypeError, AttributeError) as exc:
+            raise MapError(f"{source}: marker {key!r}: {exc}") from None
+    if len(set(names)) > 1:
+        raise MapError(
+            f"{source}: marker {key!r} names dictionary {names[0]} in its key but {names[1]} in its "
+            '"dictionary" field; drop one of them'
+        )
+    return names[0] if names else None
+
+
+def _placements(markers: Mapping, units: str, source: str, dictionary: str = "ARUCO_ORIGINAL") -> dict[int, tuple]:
+    """``{key: (id, translation_mm, rotation_deg, size_mm or None, dictionary or None)}`` of each marker, converted
+    from ``units`` to mm. The key is the id for a marker of the map's ``dictionary`` (its dictionary then None), a
+    :class:`MarkerKey` for a marker of another."""
     scale = UNITS_TO_MM[units]
     placements: dict[int, tuple] = {}
     for key, value in markers.items():
-        mid = _marker_id(key, source)
-        where = f"{source}: marker {mid}"
-        if mid in placements:
-            raise MapError(f"{where} appears twice (as {key!r}); each marker id must be unique")
+        m = _KEY.fullmatch(str(key)) if not isinstance(key, bool) else None
+        mid = _marker_id(m["id"] if m else key, source)
         if not isinstance(value, Mapping):
-            raise MapError(f'{where} must be an object with "translation" and "rotation"')
-        extra = set(value) - {"translation", "rotation"}
+            raise MapError(f'{source}: marker {key} must be an object with "translation" and "rotation"')
+        name = _entry_dictionary(key, value, source)
+        name = None if name == dictionary else name
+        mkey = mid if name is None else MarkerKey(mid, name)
+        where = f"{source}: marker {mkey}"
+        if mkey in placements:
+            raise MapError(f"{where} appears twice (as {key!r}); each marker (dictionary, id) must be unique")
+        extra = set(value) - set(_MARKER_FIELDS)
         if extra:
             field = sorted(extra)[0]
             raise MapError(
-                f"{where} has unknown field {field!r}{did_you_mean(field, ('translation', 'rotation'))}; "
-                "a placement has translation and rotation"
+                f"{where} has unknown field {field!r}{did_you_mean(field, _MARKER_FIELDS)}; "
+                "a placement has translation and rotation, and may have size_mm and dictionary"
             )
         if "translation" not in value:
             raise MapError(f'{where} has no "translation" (the world position of its top-left corner, in {units})')
         t = _vector3(value["translation"], where, "translation", f"[x, y, z] in {units}")
         r = _vector3(value.get("rotation", [0, 0, 0]), where, "rotation", "[roll, pitch, yaw] in degrees")
-        placements[mid] = (tuple(v * scale for v in t), r)
+        size = value.get("size_mm")
+        if size is not None:
+            size = _marker_size(size, where, "size_mm")
+        placements[mkey] = (mid, tuple(v * scale for v in t), r, size, name)
     return placements
+
+
+@dataclass(frozen=True)
+class MarkerPlacement:
+    """One marker's placement: its top-left corner in the world and its roll-pitch-yaw.
+
+    Attributes
+    ----------
+    id : int
+        The marker id printed under the marker.
+    translation_mm : (float, float, float)
+        World position of the marker's top-left corner, mm.
+    rotation_deg : (float, float, float)
+        ``[roll, pitch, yaw]`` in degrees about the fixed world X, Y, Z axes, applied about the
+        top-left corner (``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``).
+    size_mm : float or None
+        This marker's black square side, mm; None: the map's ``marker_size_mm``.
+    dictionary : str or None
+        This marker's dictionary; None: the map's ``dictionary``.
+    """
+
+    id: int
+    translation_mm: tuple[float, float, float]
+    rotation_deg: tuple[float, float, float]
+    size_mm: float | None = None
+    dictionary: str | None = None
+
+    @property
+    def R_world_marker(self) -> np.ndarray:
+        """Rotation (3, 3) of the placement, ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
+        return frames.rotation_from_rpy_deg(*self.rotation_deg)
+
+
+def _entry(p: MarkerPlacement, scale: float) -> dict:
+    """A placement as the full layout writes it, in units of ``scale`` mm."""
+    out: dict[str, Any] = {
+        "translation": [round(v / scale, 9) for v in p.translation_mm],
+        "rotation": list(p.rotation_deg),
+    }
+    if p.size_mm is not None:
+        out["size_mm"] = p.size_mm
+    if p.dictionary is not None:
+        out["dictionary"] = p.dictionary
+    return out
+
+
+def _keyed(placements: Mapping[int, MarkerPlacement], dictionary: str, source: str) -> dict[int, MarkerPlacement]:
+    """The placements keyed as the map keys them (:meth:`MarkerMap.key`), each size checked and each dictionary
+    named as the map names it (None for the map's own), sorted by id; raises :class:`MapError` for a marker twice
+    or an id its dictionary does not have."""
+    out: dict[int, MarkerPlacement] = {}
+    for p in placements.values():
+        name = p.dictionary
+        if name is not None:
+            try:
+                name = _cv.dictionary_name(name)
+            except DictionaryError as exc:
+                raise MapError(f"{source}: marker {p.id}: {exc}") from None
+        name = None if name == dictionary else name
+        size = None if p.size_mm is None else _marker_size(p.size_mm, f"{source}: marker {p.id}", "size_mm")
+        key = int(p.id) if name is None else MarkerKey(int(p.id), name)
+        if key in out:
+            raise MapError(f"{source}: marker {key} appears twice; each marker (dictionary, id) must be unique")
+        count = _cv.dictionary_size(name or dictionary)
+        if not 0 <= int(p.id) < count:
+            raise MapError(
+                f"{source}: marker id {p.id} does not exist in dictionary {name or dictionary}, "
+                f"which has ids 0 to {count - 1}; check the id or the dictionary"
+            )
+        out[key] = MarkerPlacement(int(p.id), p.translation_mm, p.rotation_deg, size, name)
+    order = {n: k for k, n in enumerate([dictionary, *sorted({p.dictionary or "" for p in out.values()})])}
+    return dict(sorted(out.items(), key=lambda kv: (int(kv[0]), order[kv[1].dictionary or dictionary])))

@@ -80,7 +80,8 @@ def to_plain(value: Any, depth: int = 0) -> Any:
     if isinstance(value, MarkerMap):
         return {"__map__": value.to_dict()}
     if isinstance(value, Detection):
-        return {"__detection__": [int(value.id), to_plain(np.asarray(value.corners_px, dtype=float))]}
+        body = [int(value.id), to_plain(np.asarray(value.corners_px, dtype=float))]
+        return {"__detection__": body if value.dictionary is None else [*body, value.dictionary]}
     return {"__unsupported__": type(value).__name__}
 
 
@@ -168,9 +169,9 @@ def _tagged_from_plain(tag: str, body: Any, depth: int) -> Any:
     if tag == "__map__":
         return MarkerMap.from_dict(body, source="an answer")
     if tag == "__detection__":
-        if len(body) != 2 or type(body[0]) is not int:
-            raise ValueError("a __detection__ is [id, corners]")
-        return Detection(body[0], from_plain(body[1], depth + 1))
+        if len(body) not in (2, 3) or type(body[0]) is not int or (len(body) == 3 and type(body[2]) is not str):
+            raise ValueError("a __detection__ is [id, corners] or [id, corners, dictionary]")
+        return Detection(body[0], from_plain(body[1], depth + 1), *body[2:])
     if tag == "__unsupported__":
         return _Unsupported(str(body)[:80])
     return _bad(tag)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numbers
 from collections import OrderedDict
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from types import MappingProxyType
@@ -25,8 +26,8 @@ import cv2
 import numpy as np
 
 from . import _cv
-from .errors import DetectionError, DictionaryError, FidlearnError, ImageError
-from .images import load_image
+from .errors import DetectionError, DictionaryError, FidlearnError
+from .images import as_gray, load_image
 from .refinement import _refine_edges, refine_corners_edges
 
 __all__ = [
@@ -77,6 +78,10 @@ class Detection:
     corners_px : array-like, shape (4, 2)
         Pixel corners in the order TL, TR, BR, BL (the marker's own top-left,
         whatever its rotation in the image), OpenCV pixel-centre convention.
+    dictionary : str, optional
+        The dictionary the marker was read in (:func:`detect_markers` says it). None: the map's own,
+        whichever map the detection meets. A marker is (dictionary, id): a map matches a detection
+        to its marker ``marker_map.key(id, dictionary)``.
 
     Attributes
     ----------
@@ -84,6 +89,8 @@ class Detection:
         The marker's id.
     corners_px : ndarray, shape (4, 2), float64
         Pixel corners TL, TR, BR, BL.
+    dictionary : str or None
+        As given.
 
     Raises
     ------
@@ -101,12 +108,19 @@ class Detection:
 
     id: int
     corners_px: np.ndarray
+    dictionary: str | None
 
-    def __init__(self, id: int, corners_px: Any = None) -> None:  # noqa: A002 - the marker's id
+    def __init__(self, id: int, corners_px: Any = None, dictionary: str | None = None) -> None:  # noqa: A002
         if corners_px is None:
             raise DetectionError(f"marker {id!r}: corners_px missing, (4, 2) pixels TL, TR, BR, BL")
         object.__setattr__(self, "id", id)
         object.__setattr__(self, "corners_px", corners_px)
+        if dictionary is not None:
+            try:
+                dictionary = _dictionary_name(dictionary)
+            except (DictionaryError, TypeError, AttributeError):
+                raise DetectionError(f"marker {id!r}: unknown dictionary {dictionary!r}") from None
+        object.__setattr__(self, "dictionary", dictionary)
         self.__post_init__()
 
     def __post_init__(self) -> None:
@@ -126,6 +140,8 @@ class Detection:
             )
         object.__setattr__(self, "id", int(mid))
         object.__setattr__(self, "corners_px", c.reshape(4, 2))
+        if not hasattr(self, "dictionary"):
+            object.__setattr__(self, "dictionary", None)
 
     @property
     def center(self) -> np.ndarray:
@@ -140,69 +156,6 @@ class Detection:
     def __repr__(self) -> str:
         pts = ", ".join(f"{n}=({x:.1f}, {y:.1f})" for n, (x, y) in zip(CORNER_NAMES, self.corners_px))
         return f"Detection(id={self.id}, {pts})"
-
-
-def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
-    """An 8-bit single-channel view of a gray, BGR or BGRA image (uint8 or uint16).
-
-    16-bit images are scaled to 8 bits by the bits they use (a 12-bit camera's
-    0..4095 in a 16-bit PNG becomes 0..255, a full-range one is shifted by 8);
-    float images in [0, 1] are accepted too. Anything else raises :class:`ImageError` saying what was received.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W) or (H, W, 1) or (H, W, 3) or (H, W, 4)
-        Gray, BGR or BGRA; uint8, uint16, or float32/float64 in [0, 1].
-    where : str
-        What the image is, for the error message (a file name, ``"frame"``).
-
-    Returns
-    -------
-    ndarray, shape (H, W), uint8
-        Contiguous; the input itself when it already is one.
-
-    Raises
-    ------
-    ImageError
-        Not an array, empty, not an image's shape, an unsupported pixel type, NaN in a float
-        image, or smaller than 8 pixels a side.
-
-    Examples
-    --------
-    >>> g = as_gray(np.full((10, 12, 3), 1.0))
-    >>> g.shape, g.dtype.name, int(g.max())
-    ((10, 12), 'uint8', 255)
-    """
-    if not isinstance(image, np.ndarray):
-        raise ImageError(
-            f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), "
-            f"got {type(image).__name__}"
-        )
-    if image.size == 0:
-        raise ImageError(f"{where}: the image is empty (shape {image.shape})")
-    if image.ndim == 3 and image.shape[2] == 1:
-        image = image[:, :, 0]
-    if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (3, 4)):
-        raise ImageError(f"{where}: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
-    if image.dtype == np.uint16:
-        # Shift by the bits the picture uses, not always 8: a 10- or 12-bit camera saved as 16-bit
-        # PNG (0..1023, 0..4095) became a black 0..3 / 0..15 picture in which nothing is found.
-        shift = max(int(image.max()).bit_length() - 8, 0)
-        image = (image >> shift).astype(np.uint8)
-    elif image.dtype in (np.float32, np.float64):
-        if not np.all(np.isfinite(image)):
-            raise ImageError(f"{where}: the float image contains NaN or infinity")
-        if image.min() < 0 or image.max() > 1:
-            raise ImageError(f"{where}: a float image must hold values in [0, 1], got {image.min():g}..{image.max():g}")
-        image = np.round(image * 255).astype(np.uint8)
-    elif image.dtype != np.uint8:
-        raise ImageError(f"{where}: pixel type {image.dtype} is not supported; use uint8 (or uint16)")
-    if image.ndim == 3:
-        code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
-        image = cv2.cvtColor(image, code)
-    if min(image.shape[:2]) < 8:
-        raise ImageError(f"{where}: {image.shape[1]}x{image.shape[0]} pixels is too small to hold a marker")
-    return np.ascontiguousarray(image)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -293,9 +246,44 @@ def _wanted_ids(ids: Any, dictionary: str) -> tuple[int, ...]:
     return wanted
 
 
-def _detect(image: np.ndarray, dictionary: str, refine: str, detector_params: Any, ids: Any):
-    """Detections sorted by id; OpenCV's raw rejected candidates and the quads that are no marker's outline."""
+def _detect(image: np.ndarray, dictionary: Any, refine: str, detector_params: Any, ids: Any):
+    """Detections sorted by id (then dictionary, in the order given); OpenCV's raw rejected candidates and the quads
+    that are no marker's outline. Several dictionaries: one detector each (OpenCV 4 and 5 alike), ``ids`` then a
+    mapping of dictionary to ids (a dictionary it does not name is not searched)."""
+    if isinstance(dictionary, (list, tuple)):
+        return _detect_several(image, dictionary, refine, detector_params, ids)
+    return _detect_one(as_gray(image), dictionary, refine, detector_params, ids)
+
+
+def _detect_several(image: np.ndarray, dictionaries: Any, refine: str, detector_params: Any, ids: Any):
+    if not dictionaries:
+        raise DictionaryError("no dictionary to detect; give one name such as 'ARUCO_ORIGINAL', or a list of names")
     gray = as_gray(image)
+    names = list(
+        dict.fromkeys(_dictionary_name(d) if isinstance(d, str) else _cv.dictionary_name(d) for d in dictionaries)
+    )
+    if ids is not None and not isinstance(ids, Mapping):
+        raise FidlearnError(
+            f"with several dictionaries, ids must map each dictionary to its ids, e.g. {{{names[0]!r}: [0, 1]}}; "
+            f"got {type(ids).__name__}"
+        )
+    wanted = None if ids is None else {_dictionary_name(k): v for k, v in ids.items()}
+    dets: list[Detection] = []
+    rejected: list = []
+    for name in names:
+        if wanted is not None and not wanted.get(name):
+            continue
+        found, rej = _detect_one(gray, name, refine, detector_params, None if wanted is None else wanted[name])
+        dets += found
+        rejected += list(rej)
+    order = {n: k for k, n in enumerate(names)}
+    dets.sort(
+        key=lambda d: (d.id, order.get(d.dictionary or "", 0), float(d.corners_px[0, 1]), float(d.corners_px[0, 0]))
+    )
+    return dets, tuple(rejected)
+
+
+def _detect_one(gray: np.ndarray, dictionary: Any, refine: str, detector_params: Any, ids: Any):
     name = _dictionary_name(dictionary) if isinstance(dictionary, str) else _cv.dictionary_name(dictionary)
     method = _refine_name(refine)
     wanted = None if ids is None else _wanted_ids(ids, name)
@@ -311,6 +299,7 @@ def _detect(image: np.ndarray, dictionary: str, refine: str, detector_params: An
     dets, dropped = _outlined(gray, corners, found, cells, inverted, method == "edges")
     if dropped:
         dets = _read_inside(gray, find, dets, dropped, cells, inverted, method == "edges")
+    dets = [Detection(d.id, d.corners_px, name) for d in dets]
     return dets, (*(rejected or ()), *(q.astype(np.float32).reshape(1, 4, 2) for _, q in dropped))
 
 
@@ -371,9 +360,11 @@ def detect_markers(
     ----------
     image : ndarray, (H, W) gray or (H, W, 3) BGR or (H, W, 4) BGRA, uint8 or uint16
         The picture (see :func:`as_gray` for what is accepted).
-    dictionary : str
+    dictionary : str or sequence of str
         The ArUco dictionary by readable name: ``"ARUCO_ORIGINAL"``, ``"6X6_250"``,
-        ``"APRILTAG_36h11"``... (the ``DICT_`` prefix and the case do not matter).
+        ``"APRILTAG_36h11"``... (the ``DICT_`` prefix and the case do not matter). Several names
+        (a map's ``dictionaries``): each is searched with its own detector, and every detection says
+        its dictionary, so the same id in two dictionaries comes out as two markers.
     refine : str
         Corner refinement: ``"edges"`` (the default: line fits to the four outer
         edges, about 0.03 px RMS on sharp synthetic markers of 30 px and more),
@@ -388,12 +379,14 @@ def detect_markers(
         same markers come out as with the whole dictionary (none of the others
         can be mistaken for one of these), several times faster with a large
         dictionary: OpenCV compares every candidate quad with every marker it
-        looks for. Markers outside ``ids`` are then not reported at all.
+        looks for. Markers outside ``ids`` are then not reported at all. With several
+        dictionaries, a mapping ``{dictionary: ids}``.
 
     Returns
     -------
     list of Detection
-        Sorted by id; each ``corners_px`` is (4, 2) float64 pixels, TL, TR, BR, BL. Only quads that are
+        Sorted by id (then by dictionary, in the order given), each with its ``dictionary``; each
+        ``corners_px`` is (4, 2) float64 pixels, TL, TR, BR, BL. Only quads that are
         their marker's outline: OpenCV's decoded quads whose four outer edges are fitted (a dark border
         inside a light surround on every side, the fitted edges within ``max(3, cell / 2)`` px of the quad;
         profiles across the sides only, as the ``"edges"`` refinement samples them, whatever ``refine`` is).

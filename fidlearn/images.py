@@ -29,6 +29,7 @@ __all__ = [
     "VIDEO_SUFFIXES",
     "Frame",
     "load_image",
+    "as_gray",
     "write_image",
     "expand_inputs",
     "open_capture",
@@ -349,3 +350,66 @@ def read_frames(
                 yield Frame(name, frame, f"camera{camera_index}", "camera")
         finally:
             cap.release()
+
+
+def as_gray(image: np.ndarray, where: str = "image") -> np.ndarray:
+    """An 8-bit single-channel view of a gray, BGR or BGRA image (uint8 or uint16).
+
+    16-bit images are scaled to 8 bits by the bits they use (a 12-bit camera's
+    0..4095 in a 16-bit PNG becomes 0..255, a full-range one is shifted by 8);
+    float images in [0, 1] are accepted too. Anything else raises :class:`ImageError` saying what was received.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 1) or (H, W, 3) or (H, W, 4)
+        Gray, BGR or BGRA; uint8, uint16, or float32/float64 in [0, 1].
+    where : str
+        What the image is, for the error message (a file name, ``"frame"``).
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+        Contiguous; the input itself when it already is one.
+
+    Raises
+    ------
+    ImageError
+        Not an array, empty, not an image's shape, an unsupported pixel type, NaN in a float
+        image, or smaller than 8 pixels a side.
+
+    Examples
+    --------
+    >>> g = as_gray(np.full((10, 12, 3), 1.0))
+    >>> g.shape, g.dtype.name, int(g.max())
+    ((10, 12), 'uint8', 255)
+    """
+    if not isinstance(image, np.ndarray):
+        raise ImageError(
+            f"{where}: expected a numpy array (use fidlearn.detection.load_image for a file), "
+            f"got {type(image).__name__}"
+        )
+    if image.size == 0:
+        raise ImageError(f"{where}: the image is empty (shape {image.shape})")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (3, 4)):
+        raise ImageError(f"{where}: shape {image.shape} is not an image; expected (H, W) gray or (H, W, 3) BGR")
+    if image.dtype == np.uint16:
+        # Shift by the bits the picture uses, not always 8: a 10- or 12-bit camera saved as 16-bit
+        # PNG (0..1023, 0..4095) became a black 0..3 / 0..15 picture in which nothing is found.
+        shift = max(int(image.max()).bit_length() - 8, 0)
+        image = (image >> shift).astype(np.uint8)
+    elif image.dtype in (np.float32, np.float64):
+        if not np.all(np.isfinite(image)):
+            raise ImageError(f"{where}: the float image contains NaN or infinity")
+        if image.min() < 0 or image.max() > 1:
+            raise ImageError(f"{where}: a float image must hold values in [0, 1], got {image.min():g}..{image.max():g}")
+        image = np.round(image * 255).astype(np.uint8)
+    elif image.dtype != np.uint8:
+        raise ImageError(f"{where}: pixel type {image.dtype} is not supported; use uint8 (or uint16)")
+    if image.ndim == 3:
+        code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        image = cv2.cvtColor(image, code)
+    if min(image.shape[:2]) < 8:
+        raise ImageError(f"{where}: {image.shape[1]}x{image.shape[0]} pixels is too small to hold a marker")
+    return np.ascontiguousarray(image)

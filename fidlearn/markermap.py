@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,15 +27,20 @@ from . import _cv, frames
 from ._io import read_json, write_json_atomic
 from ._map_parse import (
     UNITS_TO_MM,
+    MarkerKey,
+    MarkerPlacement,
     _check_layout,
+    _entry,
+    _keyed,
     _map_options,
     _marker_size,
     _placements,
     _units_name,
 )
+from ._wpilib import is_wpilib, map_from_wpilib, to_wpilib
 from .errors import DictionaryError, MapError
 
-__all__ = ["MarkerMap", "MarkerPlacement", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL", "CORNER_NAMES"]
+__all__ = ["MarkerMap", "MarkerPlacement", "MarkerKey", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL", "CORNER_NAMES"]
 
 
 #: Corner names in the winding order used everywhere (ArUco's): top-left, top-right, bottom-right, bottom-left.
@@ -44,31 +48,6 @@ CORNER_NAMES = ("TL", "TR", "BR", "BL")
 
 #: Corners of a unit marker relative to its top-left corner, rotation [0, 0, 0]: TL, TR, BR, BL.
 MARKER_CORNERS_LOCAL = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, -1.0]])
-
-
-@dataclass(frozen=True)
-class MarkerPlacement:
-    """One marker's placement: its top-left corner in the world and its roll-pitch-yaw.
-
-    Attributes
-    ----------
-    id : int
-        The marker id printed under the marker.
-    translation_mm : (float, float, float)
-        World position of the marker's top-left corner, mm.
-    rotation_deg : (float, float, float)
-        ``[roll, pitch, yaw]`` in degrees about the fixed world X, Y, Z axes, applied about the
-        top-left corner (``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``).
-    """
-
-    id: int
-    translation_mm: tuple[float, float, float]
-    rotation_deg: tuple[float, float, float]
-
-    @property
-    def R_world_marker(self) -> np.ndarray:
-        """Rotation (3, 3) of the placement, ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
-        return frames.rotation_from_rpy_deg(*self.rotation_deg)
 
 
 class MarkerMap:
@@ -95,7 +74,7 @@ class MarkerMap:
     placements : dict of int to MarkerPlacement
         Sorted by id.
     marker_size_mm, dictionary, units, source
-        As given (the dictionary's name normalized).
+        As given (the dictionary's name normalized). ``field_m``: a WPILib layout's field (length, width), m, else None.
 
     Raises
     ------
@@ -123,22 +102,16 @@ class MarkerMap:
         source: str = "<map>",
     ):
         self.source = source
+        self.field_m: tuple[float, float] | None = None  # a WPILib layout's field (length, width), m
         self.marker_size_mm = _marker_size(marker_size_mm, source)
         try:
             self.dictionary = _cv.dictionary_name(dictionary)
         except DictionaryError as exc:
             raise MapError(f"{source}: {exc}") from None
         self.units = _units_name(units, source)
-        self.placements: dict[int, MarkerPlacement] = dict(sorted(placements.items()))
+        self.placements: dict[int, MarkerPlacement] = _keyed(placements, self.dictionary, source)
         if not self.placements:
             raise MapError(f"{source}: the map has no markers; add at least one placement")
-        size = _cv.dictionary_size(self.dictionary)
-        too_big = [i for i in self.placements if i >= size]
-        if too_big:
-            raise MapError(
-                f"{source}: marker id {too_big[0]} does not exist in dictionary {self.dictionary}, "
-                f"which has ids 0 to {size - 1}; check the id or the dictionary"
-            )
 
     # -- construction ------------------------------------------------------------------
     @classmethod
@@ -151,12 +124,13 @@ class MarkerMap:
         dictionary: str | None = None,
         source: str = "<map>",
     ) -> MarkerMap:
-        """A map from the seed's bare layout or the full layout.
+        """A map from the seed's bare layout, the full layout or a WPILib AprilTag field layout.
 
         Bare: ``{"0": {"translation": [...], "rotation": [...]}, ...}`` with
         ``units`` and ``marker_size_mm`` given here. Full: ``{"units": "ft",
         "marker_size_mm": 80, "dictionary": "ARUCO_ORIGINAL", "markers": {...}}``.
-        A value given both here and in the file must agree.
+        A value given both here and in the file must agree. WPILib's ``{"tags": [...], "field": {...}}``
+        (metres, each tag's centre; docs/conventions.md) with ``dictionary`` and ``marker_size_mm`` given here.
 
         Parameters
         ----------
@@ -190,11 +164,17 @@ class MarkerMap:
         >>> m.corners()[0].tolist()   # TL, TR, BR, BL, mm
         [[0.0, 0.0, 304.8], [0.0, 80.0, 304.8], [0.0, 80.0, 224.8], [0.0, 0.0, 224.8]]
         """
+        if is_wpilib(d):
+            return map_from_wpilib(cls, d, units, marker_size_mm, dictionary, source)
         full, markers = _check_layout(d, source)
         units, size, dictionary = _map_options(d, full, units, marker_size_mm, dictionary, source)
+        try:
+            dictionary = _cv.dictionary_name(dictionary)
+        except DictionaryError as exc:
+            raise MapError(f"{source}: {exc}") from None
         placements = {
-            mid: MarkerPlacement(mid, t, r)  # type: ignore[arg-type]
-            for mid, (t, r) in _placements(markers, units, source).items()
+            key: MarkerPlacement(mid, t, r, s, name)  # type: ignore[arg-type]
+            for key, (mid, t, r, s, name) in _placements(markers, units, source, dictionary).items()
         }
         return cls(placements, _marker_size(size, source), dictionary=dictionary, units=units, source=source)
 
@@ -245,10 +225,108 @@ class MarkerMap:
 
     def __repr__(self) -> str:
         plane = "coplanar" if self.is_coplanar() else "not coplanar"
+        sizes = sorted({self.marker_size(k) for k in self.placements})
+        size = " and ".join(f"{v:g}" for v in sizes) + " mm"
         return (
-            f"MarkerMap({len(self)} markers {self.ids}, {self.marker_size_mm:g} mm, {self.dictionary}, "
+            f"MarkerMap({len(self)} markers {self.ids}, {size}, {' and '.join(self.dictionaries)}, "
             f"file units {self.units}, {plane})"
         )
+
+    @property
+    def dictionaries(self) -> list[str]:
+        """The dictionaries the markers come from: the map's own first, then the others by name."""
+        others = {p.dictionary for p in self.placements.values() if p.dictionary is not None}
+        return [self.dictionary, *sorted(others - {self.dictionary})]
+
+    def marker_size(self, marker_id: int) -> float:
+        """One marker's black square side: its own ``size_mm``, else the map's ``marker_size_mm``.
+
+        Parameters
+        ----------
+        marker_id : int or MarkerKey
+            A marker of the map (a :class:`MarkerKey` for a marker of another dictionary than the map's).
+
+        Returns
+        -------
+        float
+            mm.
+
+        Raises
+        ------
+        MapError
+            If the map has no such marker.
+        """
+        return self._placement(marker_id).size_mm or self.marker_size_mm
+
+    def marker_dictionary(self, marker_id: int) -> str:
+        """One marker's dictionary: its own, else the map's.
+
+        Parameters
+        ----------
+        marker_id : int or MarkerKey
+            A marker of the map.
+
+        Returns
+        -------
+        str
+            The dictionary's name.
+
+        Raises
+        ------
+        MapError
+            If the map has no such marker.
+        """
+        return self._placement(marker_id).dictionary or self.dictionary
+
+    def key(self, marker_id: int, dictionary: str | None = None) -> int:
+        """The map's key of the marker ``marker_id`` of ``dictionary``: a marker is (dictionary, id).
+
+        Parameters
+        ----------
+        marker_id : int
+            The id printed on the marker.
+        dictionary : str, optional
+            Its dictionary; None: the map's.
+
+        Returns
+        -------
+        int or MarkerKey
+            The plain id for a marker of the map's dictionary, else ``MarkerKey(marker_id, dictionary)``; whether
+            the map holds it is ``key in marker_map``.
+
+        Examples
+        --------
+        >>> m = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": {
+        ...     "3": {"translation": [0, 0, 0]},
+        ...     "4X4_50:3": {"translation": [0, 500, 0], "size_mm": 200}}})
+        >>> m.key(3), m.key(3, "4X4_50"), m.marker_size(m.key(3, "DICT_4X4_50"))
+        (3, 4X4_50:3, 200.0)
+        """
+        if dictionary is None or dictionary == self.dictionary:
+            return int(marker_id)
+        name = _cv.dictionary_name(dictionary)
+        return int(marker_id) if name == self.dictionary else MarkerKey(int(marker_id), name)
+
+    def ids_in(self, dictionary: str) -> list[int]:
+        """The plain ids of the map's markers of one dictionary.
+
+        Parameters
+        ----------
+        dictionary : str
+            A dictionary's name.
+
+        Returns
+        -------
+        list of int
+            Sorted.
+        """
+        name = _cv.dictionary_name(dictionary)
+        return sorted(p.id for p in self.placements.values() if (p.dictionary or self.dictionary) == name)
+
+    def _placement(self, marker_id: int) -> MarkerPlacement:
+        if marker_id not in self.placements:
+            raise MapError(f"{self.source}: no marker {marker_id} in the map; it has {self.ids}")
+        return self.placements[marker_id]
 
     def marker_corners(self, marker_id: int) -> np.ndarray:
         """One marker's corners in the world.
@@ -268,10 +346,8 @@ class MarkerMap:
         MapError
             If the map has no such marker.
         """
-        if marker_id not in self.placements:
-            raise MapError(f"{self.source}: no marker {marker_id} in the map; it has {self.ids}")
-        p = self.placements[marker_id]
-        local = MARKER_CORNERS_LOCAL * self.marker_size_mm
+        p = self._placement(marker_id)
+        local = MARKER_CORNERS_LOCAL * (p.size_mm or self.marker_size_mm)
         corners = local @ p.R_world_marker.T + np.asarray(p.translation_mm)
         return np.round(corners, 9) + 0.0  # drop -0.0 and 1e-14 noise from exact right angles
 
@@ -309,8 +385,9 @@ class MarkerMap:
             ``T_world_marker``, mm.
         """
         c = self.marker_corners(marker_id)
-        x = (c[1] - c[0]) / self.marker_size_mm
-        y = (c[0] - c[3]) / self.marker_size_mm
+        s = self.marker_size(marker_id)
+        x = (c[1] - c[0]) / s
+        y = (c[0] - c[3]) / s
         z = np.cross(x, y)
         return frames.make_transform(np.column_stack([x, y, z]), c.mean(axis=0))
 
@@ -374,29 +451,28 @@ class MarkerMap:
             "units": self.units,
             "marker_size_mm": self.marker_size_mm,
             "dictionary": self.dictionary,
-            "markers": {
-                str(mid): {
-                    "translation": [round(v / scale, 9) for v in p.translation_mm],
-                    "rotation": list(p.rotation_deg),
-                }
-                for mid, p in self.placements.items()
-            },
+            "markers": {str(key): _entry(p, scale) for key, p in self.placements.items()},
         }
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write the full layout as JSON (atomically).
+    def save(self, path: str | os.PathLike, format: str = "fidlearn") -> Path:  # noqa: A002 - the file's format
+        """Write the map as JSON (atomically): the full layout, or a WPILib AprilTag field layout.
 
         Parameters
         ----------
         path : path-like
             The file to write.
+        format : {"fidlearn", "wpilib"}
+            ``"wpilib"``: ``{"tags": [...], "field": {...}}``, metres, each tag's centre and quaternion (the
+            field's size as loaded, else the tags' extent); the map's markers must share one dictionary and size.
 
         Returns
         -------
         Path
             The file written.
         """
-        return write_json_atomic(path, self.to_dict())
+        if format not in ("fidlearn", "wpilib"):
+            raise MapError(f"unknown map format {format!r}; use 'fidlearn' (the full layout) or 'wpilib'")
+        return write_json_atomic(path, self.to_dict() if format == "fidlearn" else to_wpilib(self, self.field_m))
 
     def corners_dict(self) -> dict[str, list[list[float]]]:
         """The seed's corner-file layout.

@@ -195,7 +195,8 @@ class FrameLocator:
             pose, reason = None, f"no pose: {' '.join(str(exc).split())}"
         if pose is None and tracker is not None:  # what is in view, from the whole dictionary
             options = {"refine": self.refine} if self.refine is not None else {}
-            detections = detect_markers(frame.image, self.marker_map.dictionary, **options)
+            names = self.marker_map.dictionaries
+            detections = detect_markers(frame.image, names if len(names) > 1 else names[0], **options)
         return FramePose(frame, cam, pose, list(detections), "" if pose is not None else reason)
 
 

@@ -56,6 +56,7 @@ import cv2
 import numpy as np
 
 from . import _cv, frames
+from ._wpilib import outside_field
 from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
 from .errors import FidlearnError, NoMarkersError, PoseError
@@ -165,21 +166,35 @@ class MarkerTracker:
         fields = _detector_fields(detector_params)  # checks the parameters now, not on frame 1
         fields["cornerRefinementMethod"] = _cv.corner_refine_flag("none" if self.refine == "edges" else self.refine)
         self._fields = fields
-        self._cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2 * int(fields["markerBorderBits"])
         self._inverted = bool(fields["detectInvertedMarker"])
-        self._detectors: dict[tuple[int, int], Any] = {}
-        ids = marker_map.ids
-        self._ids = np.array(ids, dtype=np.int64)
-        self._world = np.stack([marker_map.marker_corners(i) for i in ids]) if ids else np.zeros((0, 4, 3))
-        self._normals = np.stack([marker_map.normal(i) for i in ids]) if ids else np.zeros((0, 3))
-        # The map's markers only, in map order: OpenCV compares every candidate that does not decode
-        # with every marker of the dictionary (most of detectMarkers' time with 1024-marker ARUCO_ORIGINAL).
-        self._dictionary = _cv.sub_dictionary(marker_map.dictionary, ids)
+        self._detectors: dict[tuple[int, int, int], Any] = {}
+        self._index_map(marker_map, 2 * int(fields["markerBorderBits"]))
         self.reset()
+
+    def _index_map(self, marker_map: MarkerMap, border: int) -> None:
+        """The map's markers as the detectors see them: keys, world corners, normals, one group per dictionary
+        ``(name, keys, cells per side)`` and its dictionary of the map's ids only."""
+        keys = marker_map.ids  # a marker is (dictionary, id): its map key
+        self._ids = np.empty(len(keys), dtype=object)
+        self._ids[:] = keys
+        self._world = np.stack([marker_map.marker_corners(i) for i in keys]) if keys else np.zeros((0, 4, 3))
+        self._normals = np.stack([marker_map.normal(i) for i in keys]) if keys else np.zeros((0, 3))
+        # Per dictionary of the map, the map's markers only: OpenCV compares every candidate that does not decode
+        # with every marker of the dictionary (most of detectMarkers' time with 1024-marker ARUCO_ORIGINAL).
+        self._groups = [
+            (
+                name,
+                [marker_map.key(i, name) for i in marker_map.ids_in(name)],
+                _cv.dictionary_marker_bits(name) + border,
+            )
+            for name in marker_map.dictionaries
+        ]
+        self._dictionaries = [_cv.sub_dictionary(name, marker_map.ids_in(name)) for name in marker_map.dictionaries]
 
     def __repr__(self) -> str:
         return (
-            f"MarkerTracker({len(self.marker_map)} markers, {self.marker_map.dictionary}, refine={self.refine!r}, "
+            f"MarkerTracker({len(self.marker_map)} markers, {' and '.join(self.marker_map.dictionaries)}, "
+            f"refine={self.refine!r}, "
             f"full_every={self.full_every}; {self.frames} frames, {self.full_detections} full detections)"
         )
 
@@ -273,24 +288,39 @@ class MarkerTracker:
 
     def _detect_full(self, gray: np.ndarray) -> list[Detection]:
         H, W = gray.shape
-        c, i, _ = _cv.detect(self._window_detector(W, H, W, H), gray)
-        dets = self._finish(gray, list(c), [int(self._ids[k]) for k in i])
+        found: list = []
+        for g, (_, keys, _) in enumerate(self._groups):
+            c, i, _ = _cv.detect(self._window_detector(W, H, W, H, g), gray)
+            found += [(ck, keys[ik], g) for ck, ik in zip(c, i)]
+        dets = self._finish(gray, found)
         self.full_detections += 1
         self._since_full = 0
         self.last_full = True
         self.last_detections = dets
         return dets
 
-    def _finish(self, gray: np.ndarray, corners: list, ids: list) -> list[Detection]:
-        """Check and refine the corners as detect_markers does and sort by id."""
-        return _outlined(gray, corners, ids, self._cells, self._inverted, self.refine == "edges")[0]
+    def _finish(self, gray: np.ndarray, found: list) -> list[Detection]:
+        """Check and refine the corners ``[(corners, key, group)]`` as detect_markers does and sort by id."""
+        out: list[Detection] = []
+        for g, (name, _, cells) in enumerate(self._groups):
+            mine = [(c, int(k)) for c, k, gk in found if gk == g]
+            dets = _outlined(
+                gray, [c for c, _ in mine], [k for _, k in mine], cells, self._inverted, self.refine == "edges"
+            )
+            out += [Detection(d.id, d.corners_px, name) for d in dets[0]]
+        if len(self._groups) > 1:
+            order = {n: k for k, (n, _, _) in enumerate(self._groups)}
+            out.sort(key=lambda d: (d.id, order[d.dictionary]))
+        return out
 
     def _estimate(self, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
         """The pose from the detections, or None and why not (the options were checked when the tracker was made)."""
         try:
-            return estimate_pose(dets, self.marker_map, self._cam, **self.pose_options), None
+            pose = estimate_pose(dets, self.marker_map, self._cam, **self.pose_options)
         except (NoMarkersError, PoseError) as e:  # no marker of the map, or a degenerate frame
             return None, e
+        problem = outside_field(self.marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirror
+        return (pose, None) if problem is None else (None, PoseError(problem))
 
     def _predict(self) -> dict | None:
         """The map's markers that may be in view under the predicted pose: ``{'ids': (K,), 'corners': (K, 4, 2) px,
@@ -339,39 +369,41 @@ class MarkerTracker:
         boxes = _merge_boxes([(*a, *b) for a, b in zip(lo[ok], hi[ok])])
         if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in boxes) > _MAX_WINDOW_FRACTION * W * H:
             return None
-        found_c: list = []
-        found_i: list = []
-        self._search(gray, boxes, found_c, found_i)
+        found: list = []
+        self._search(gray, boxes, found)
         # Markers seen last frame and predicted whole and well inside the image, but not found: once more in
         # larger windows (a wrong prediction); if most are still missing, the prediction failed: a full detection.
         inside = ((corners.min(axis=1) > pad[:, None]) & (corners.max(axis=1) < [W, H] - pad[:, None])).all(axis=1)
-        expected = {int(i) for i, ins in zip(ids, inside) if ins} & {d.id for d in self.last_detections}
-        missing = [k for k, i in enumerate(ids) if int(i) in expected and int(i) not in found_i]
+        seen = {self.marker_map.key(d.id, d.dictionary) for d in self.last_detections}
+        expected = {i for i, ins in zip(ids, inside) if ins} & seen
+        missing = [k for k, i in enumerate(ids) if i in expected and all(i != f[1] for f in found)]
         if missing:
             big = side[missing] + 2.0 * motion[missing] + 3.0 * self.search_px
             lo2 = np.maximum(np.floor(corners[missing].min(axis=1) - big[:, None]).astype(int), 0)
             hi2 = np.minimum(np.ceil(corners[missing].max(axis=1) + big[:, None]).astype(int) + 1, [W, H])
-            self._search(gray, _merge_boxes([(*a, *b) for a, b in zip(lo2, hi2)]), found_c, found_i)
-            if 2 * len(expected - set(found_i)) > len(expected):
+            self._search(gray, _merge_boxes([(*a, *b) for a, b in zip(lo2, hi2)]), found)
+            if 2 * len(expected - {f[1] for f in found}) > len(expected):
                 return None
-        return self._finish(gray, found_c, found_i)
+        return self._finish(gray, found)
 
-    def _search(self, gray: np.ndarray, boxes: list, found_c: list, found_i: list) -> None:
-        """Detect in each window ``(x0, y0, x1, y1)``; append corners (full-frame pixels) and ids not found yet."""
+    def _search(self, gray: np.ndarray, boxes: list, found: list) -> None:
+        """Detect in each window ``(x0, y0, x1, y1)`` with each dictionary's detector; append ``(corners (full-frame
+        pixels), key, dictionary's group)`` of the markers not found yet."""
         H, W = gray.shape
         for x0, y0, x1, y1 in boxes:
-            c, i, _ = _cv.detect(self._window_detector(x1 - x0, y1 - y0, W, H), gray[y0:y1, x0:x1])
-            for ck, ik in zip(c, i):
-                ck, ik = ck + [x0, y0], int(self._ids[ik])
-                if any(j == ik and np.abs(cj - ck).max() < 2.0 for cj, j in zip(found_c, found_i)):
-                    continue  # the same marker in an overlapping window
-                found_c.append(ck)
-                found_i.append(ik)
+            for g, (_, keys, _) in enumerate(self._groups):
+                c, i, _ = _cv.detect(self._window_detector(x1 - x0, y1 - y0, W, H, g), gray[y0:y1, x0:x1])
+                for ck, ik in zip(c, i):
+                    ck, key = ck + [x0, y0], keys[ik]
+                    if any(j == key and np.abs(cj - ck).max() < 2.0 for cj, j, _ in found):
+                        continue  # the same marker in an overlapping window
+                    found.append((ck, key, g))
 
-    def _window_detector(self, w: int, h: int, W: int, H: int):
-        """An ArucoDetector whose marker size limits, in pixels, are those of the full W x H frame."""
+    def _window_detector(self, w: int, h: int, W: int, H: int, group: int = 0):
+        """An ArucoDetector of one of the map's dictionaries whose marker size limits, in pixels, are those of the
+        full W x H frame."""
         q = max(W, H) if (w, h) == (W, H) else -(-max(w, h) // _LENGTH_STEP_PX) * _LENGTH_STEP_PX
-        key = (q, max(W, H))
+        key = (q, max(W, H), group)
         det = self._detectors.get(key)
         if det is None:
             fields = dict(self._fields)
@@ -379,7 +411,7 @@ class MarkerTracker:
             fields["minMarkerPerimeterRate"] = float(fields["minMarkerPerimeterRate"]) * scale
             fields["maxMarkerPerimeterRate"] = float(fields["maxMarkerPerimeterRate"]) * scale
             det = self._detectors[key] = cv2.aruco.ArucoDetector(
-                self._dictionary, _cv.make_detector_parameters(**fields)
+                self._dictionaries[group], _cv.make_detector_parameters(**fields)
             )
         return det
 

@@ -85,7 +85,9 @@ def test_unknown_option_is_one_line(capsys):
     code, out, err = run(capsys, "markers", "--ids", "0-3", "--size-mm", "50", "-o", "m.pdf", "--colour", "red")
     assert_user_error(code, err, "unrecognized arguments: --colour", "--help")
     code, out, err = run(capsys, "markers", "--ids", "0-3")
-    assert_user_error(code, err, "required: --size-mm, -o/--output")
+    assert_user_error(code, err, "required: -o/--output")
+    code, out, err = run(capsys, "markers", "--ids", "0-3", "-o", "m.pdf")
+    assert_user_error(code, err, "give --ids and --size-mm (e.g. --ids 0-9 --size-mm 80), or --map MAP.json")
 
 
 # -- corners -------------------------------------------------------------------------------

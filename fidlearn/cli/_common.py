@@ -105,6 +105,9 @@ def _add_map_options(p, required: bool = True) -> None:
     p.add_argument("--map", type=Path, required=required, metavar="MAP.json", help="world map (marker placements)")
     p.add_argument("--units", choices=UNITS, help="units of a map that does not declare them")
     p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
+    p.add_argument(
+        "--dictionary", help="ArUco dictionary, if the map does not say (a WPILib field layout: apriltag_36h11)"
+    )
 
 
 def _add_image_size_option(p) -> None:

@@ -16,7 +16,7 @@ import cv2
 from .. import __version__
 from ..errors import FidlearnError, FidlearnWarning
 from ..io import StagedOutputs
-from . import calibrate, camera, corners, doctor, grade, locate, markers, plan, render, survey
+from . import calibrate, camera, check_print, corners, doctor, grade, locate, markers, plan, render, survey
 from ._common import _error, _exit_status, _Parser, _raise_interrupted, _SafeStdout, _show_warning, _signal_name
 
 #: Subcommand builders, in the order ``fidlearn --help`` lists them.
@@ -28,6 +28,7 @@ COMMANDS: list[Callable] = [
     corners.add,
     locate.add,
     survey.add,
+    check_print.add,
     render.add,
     plan.add,
     grade.add_release,

@@ -5,7 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import printables
-from ._common import _board, _check_dpi, _check_output, _commit
+from ..errors import UsageError
+from ..markermap import MarkerMap
+from ._common import UNITS, _board, _check_dpi, _check_output, _commit
 
 
 def add_markers(sub) -> None:
@@ -26,9 +28,18 @@ def add_markers(sub) -> None:
             "Markers that do not fit on one page go on the next."
         ),
     )
-    p.add_argument("--ids", required=True, help="marker ids: 0-9, 0,3,7 or 0-3,8")
-    p.add_argument("--size-mm", type=float, required=True, metavar="MM", help="side of the black square, mm")
-    p.add_argument("--dictionary", default="ARUCO_ORIGINAL", help="ArUco dictionary (default ARUCO_ORIGINAL)")
+    p.add_argument("--ids", help="marker ids: 0-9, 0,3,7 or 0-3,8")
+    p.add_argument(
+        "--map",
+        type=Path,
+        metavar="MAP.json",
+        help="print every marker of a world map instead, each at its own size from its own dictionary",
+    )
+    p.add_argument("--units", choices=UNITS, help="units of a map that does not declare them")
+    p.add_argument(
+        "--size-mm", type=float, metavar="MM", help="side of the black square, mm (with --map: if the map does not say)"
+    )
+    p.add_argument("--dictionary", help="ArUco dictionary (default ARUCO_ORIGINAL, or the map's)")
     p.add_argument("--paper", choices=["a4", "letter"], default="a4", help="paper size (default a4)")
     p.add_argument("--dpi", type=float, default=300, help="pixels per inch of PNG output (default 300)")
     p.add_argument("-o", "--output", type=Path, required=True, help="markers.pdf (vector) or markers.png")
@@ -56,20 +67,34 @@ def run_markers(args) -> int:
     """
     out = _check_output(args.output, (".pdf", ".png"))
     _check_dpi(args.dpi)
-    ids = printables.parse_ids(args.ids)
-    sheet = printables.layout_markers(ids, args.size_mm, args.dictionary, args.paper)
-    files = printables.save_pages(printables.marker_figures(sheet), out, dpi=args.dpi)
+    sheets = _sheets(args)
+    figures = [fig for sheet in sheets for fig in printables.marker_figures(sheet)]
+    files = printables.save_pages(figures, out, dpi=args.dpi)
     _commit()
-    pages = len(sheet.pages)
+    pages = len(figures)
     where = ", ".join(str(f) for f in files)
     extra = f" at {args.dpi:g} dpi" if out.suffix.lower() == ".png" else ""
-    several = f", {sheet.per_page} per page" if pages > 1 else ""
-    print(
-        f"{where}: {len(ids)} marker{'s' if len(ids) > 1 else ''} of {sheet.marker_size_mm:g} mm ({sheet.dictionary}) "
-        f"on {pages} {sheet.paper} page{'s' if pages > 1 else ''}{extra}{several}"
-    )
+    several = f", {sheets[0].per_page} per page" if pages > 1 and len(sheets) == 1 else ""
+    kinds = []
+    for sheet in sheets:
+        n = sum(len(p) for p in sheet.pages)
+        kinds.append(f"{n} marker{'s' if n > 1 else ''} of {sheet.marker_size_mm:g} mm ({sheet.dictionary})")
+    print(f"{where}: {' and '.join(kinds)} on {pages} {sheets[0].paper} page{'s' if pages > 1 else ''}{extra}{several}")
     print("print at 100 % (actual size, no 'fit to page') and check the 100 mm ruler with calipers")
     return 0
+
+
+def _sheets(args) -> list:
+    """The sheets to print: the ids at one size, or every marker of ``--map`` at its own."""
+    if args.map is not None:
+        if args.ids is not None:
+            raise UsageError("give --ids or --map, not both: --map prints every marker of the map")
+        marker_map = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.size_mm, dictionary=args.dictionary)
+        return printables.layout_map_markers(marker_map, args.paper)
+    if args.ids is None or args.size_mm is None:
+        raise UsageError("give --ids and --size-mm (e.g. --ids 0-9 --size-mm 80), or --map MAP.json")
+    ids = printables.parse_ids(args.ids)
+    return [printables.layout_markers(ids, args.size_mm, args.dictionary or "ARUCO_ORIGINAL", args.paper)]
 
 
 def add_board(sub) -> None:

@@ -194,15 +194,16 @@ def _known_corners(dets: list[Detection], marker_map: MarkerMap) -> tuple[dict[i
     corners_px: dict[int, np.ndarray] = {}
     ignored: list[int] = []
     for d in dets:
-        if d.id not in marker_map:
-            if d.id not in ignored:
-                ignored.append(d.id)
+        key = marker_map.key(d.id, d.dictionary)  # a marker is (dictionary, id)
+        if key not in marker_map:
+            if key not in ignored:
+                ignored.append(key)
             continue
-        if d.id in corners_px and corners_px[d.id] is not None:
-            prev = Detection(d.id, corners_px[d.id])
+        if key in corners_px and corners_px[key] is not None:
+            prev = Detection(d.id, corners_px[key])
             if prev.side_px >= d.side_px:
                 continue
-        corners_px[d.id] = d.corners_px
+        corners_px[key] = d.corners_px
     if not corners_px:
         raise _no_markers_error(dets, marker_map)
     return corners_px, ignored
@@ -214,7 +215,8 @@ def _no_markers_error(dets: list[Detection], marker_map: MarkerMap) -> NoMarkers
     what = f"the image shows markers {seen}, none of which is in the map" if seen else "no marker was detected"
     return NoMarkersError(
         f"{what}; the map ({marker_map.source}) has ids {marker_map.ids} in dictionary "
-        f"{marker_map.dictionary}. Check that the printed markers come from {marker_map.dictionary} "
+        f"{' and '.join(marker_map.dictionaries)}. Check that the printed markers come from "
+        f"{' and '.join(marker_map.dictionaries)} "
         "(detect with the map's dictionary), that the map lists the ids on the wall, and that the "
         "markers are in view, in focus and large enough"
     )

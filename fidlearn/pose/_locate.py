@@ -6,6 +6,7 @@ import os
 
 import numpy as np
 
+from .._wpilib import outside_field
 from ..camera import Camera
 from ..detection import Detection, detect_markers
 from ..errors import ImageError, PoseError
@@ -97,7 +98,11 @@ def locate(
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera).for_image(image)
     detections = _detect_map_markers(image, marker_map, refine, detector_params, only_map_markers)
-    return estimate_pose(detections, marker_map, camera, **kw)
+    pose = estimate_pose(detections, marker_map, camera, **kw)
+    problem = outside_field(marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirrored corners
+    if problem is not None:
+        raise PoseError(problem)
+    return pose
 
 
 def _detect_map_markers(
@@ -113,9 +118,13 @@ def _detect_map_markers(
         det_kw["detector_params"] = detector_params
     if not isinstance(only_map_markers, (bool, np.bool_)):
         raise PoseError(f"only_map_markers must be True or False, got {only_map_markers!r}")
-    ids = marker_map.ids if only_map_markers else None
-    detections = detect_markers(image, dictionary=marker_map.dictionary, ids=ids, **det_kw)
+    names = marker_map.dictionaries  # one detector per dictionary the map uses
+    dictionary = names[0] if len(names) == 1 else names
+    ids = None
+    if only_map_markers:
+        ids = marker_map.ids if len(names) == 1 else {n: marker_map.ids_in(n) for n in names}
+    detections = detect_markers(image, dictionary=dictionary, ids=ids, **det_kw)
     if not detections and only_map_markers:
         # nothing of the map: detect the whole dictionary once, so the error lists what is in view
-        detections = detect_markers(image, dictionary=marker_map.dictionary, **{**det_kw, "refine": "none"})
+        detections = detect_markers(image, dictionary=dictionary, **{**det_kw, "refine": "none"})
     return detections

@@ -130,7 +130,7 @@ def _marker_pose_cached(marker_map: MarkerMap, obs: _Obs) -> tuple[np.ndarray, n
 
 def _solve_ippe_square(obs: _Obs, marker_map: MarkerMap, camera: Camera):
     """IPPE_SQUARE in the marker's own frame (centre origin, x right, y up), moved to the world."""
-    s = marker_map.marker_size_mm
+    s = marker_map.marker_size(obs.ids[0])
     local = np.array([[-s / 2, s / 2, 0], [s / 2, s / 2, 0], [s / 2, -s / 2, 0], [-s / 2, -s / 2, 0]])
     R_wm, t_wm = _marker_pose_cached(marker_map, obs)
     # T_camera_world = T_camera_marker @ inv(T_world_marker)

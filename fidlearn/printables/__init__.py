@@ -35,6 +35,7 @@ from ._boards import (
 )
 from ._markers import (
     MarkerSheet,
+    layout_map_markers,
     layout_markers,
     marker_cells,
     marker_figures,
@@ -68,6 +69,7 @@ __all__ = [
     "paper_size_mm",
     "marker_cells",
     "layout_markers",
+    "layout_map_markers",
     "layout_board",
     "board_quiet_zone_mm",
     "marker_figures",

@@ -281,3 +281,55 @@ def markers_png(
     """
     sheet = layout_markers(ids, marker_size_mm, dictionary, paper)
     return sheet, save_pages(marker_figures(sheet), _with_suffix(path, ".png"), dpi=dpi)
+
+
+def layout_map_markers(marker_map, paper: str = "a4") -> list[MarkerSheet]:
+    """Lay out every marker of a world map at its own size, from its own dictionary.
+
+    Markers of one dictionary and one size share a :class:`MarkerSheet` (laid out as
+    :func:`layout_markers` does); a map whose markers all have the map's size and dictionary gives one.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The map; each marker's ``marker_size(key)`` and ``marker_dictionary(key)``.
+    paper : {"a4", "letter"}
+
+    Returns
+    -------
+    list of MarkerSheet
+        One per (dictionary, size), the map's dictionary first, then by size.
+
+    Raises
+    ------
+    PrintError
+        A marker too large for the paper (the largest that fits is named).
+
+    Examples
+    --------
+    >>> from fidlearn import MarkerMap
+    >>> m = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": {
+    ...     "0": {"translation": [0, 0, 0]}, "1": {"translation": [0, 100, 0]},
+    ...     "4X4_50:0": {"translation": [0, 300, 0], "size_mm": 140}}})
+    >>> [(s.dictionary, s.marker_size_mm, s.pages[0][0][0]) for s in layout_map_markers(m)]
+    [('ARUCO_ORIGINAL', 80.0, 0), ('4X4_50', 140.0, 0)]
+    """
+    groups: dict[tuple[int, float, str], list[int]] = {}
+    order = {name: k for k, name in enumerate(marker_map.dictionaries)}
+    for key in marker_map.ids:
+        name = marker_map.marker_dictionary(key)
+        groups.setdefault((order[name], marker_map.marker_size(key), name), []).append(int(key))
+    sheets = []
+    for (_, size, name), ids in sorted(groups.items()):
+        try:
+            sheets.append(layout_markers(ids, size, name, paper))
+        except PrintError as exc:
+            largest = str(exc).split("; ")[-1].split(":")[0]
+            keys = [str(k) for k in marker_map.ids if marker_map.marker_size(k) == size]
+            raise PrintError(
+                f"{marker_map.source}: marker{'s' if len(keys) > 1 else ''} {', '.join(keys)} "
+                f"{'are' if len(keys) > 1 else 'is'} {size:g} mm, too large for one {paper} page "
+                f"({largest}); print those with a print shop's large-format printer at 100 %, and the others here "
+                "from a map without them"
+            ) from None
+    return sheets

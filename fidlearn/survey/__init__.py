@@ -25,12 +25,24 @@ corner, roll-pitch-yaw in degrees), camera frame OpenCV's.
 from __future__ import annotations
 
 from ._inputs import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM
+from ._print_check import MIN_PRINT_MARKERS, PrintCheck, check_print
 from ._result import Survey, Suspect
 from ._solve import SUSPECT_P
 from ._survey import survey
 
-__all__ = ["survey", "Survey", "Suspect", "SUSPECT_P", "MAX_PHOTOS", "MIN_MAP_SIGMA_MM", "MAX_MAP_SIGMA_MM"]
+__all__ = [
+    "survey",
+    "Survey",
+    "Suspect",
+    "check_print",
+    "PrintCheck",
+    "MIN_PRINT_MARKERS",
+    "SUSPECT_P",
+    "MAX_PHOTOS",
+    "MIN_MAP_SIGMA_MM",
+    "MAX_MAP_SIGMA_MM",
+]
 
-for _public in (survey, Survey, Suspect):
+for _public in (survey, Survey, Suspect, check_print, PrintCheck):
     _public.__module__ = __name__
 del _public

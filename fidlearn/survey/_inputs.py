@@ -57,6 +57,13 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     refuse_fisheye(camera, "the survey", SurveyError)
     sigma = _sigma_mm(map_sigma_mm)
     fixed = _fixed_ids(fixed_ids, marker_map)
+    mixed = [k for k in marker_map.ids if marker_map.placements[k].size_mm not in (None, marker_map.marker_size_mm)]
+    if mixed or len(marker_map.dictionaries) > 1:
+        what = f"markers {[str(k) for k in mixed]} have their own size_mm" if mixed else "it uses several dictionaries"
+        raise SurveyError(
+            f"{marker_map.source}: the survey takes a map whose markers share one size and one dictionary, but "
+            f"{what}; survey each size and dictionary with a map of its own markers"
+        )
     if np.any(np.asarray(camera.dist, float).ravel()[12:]):
         raise SurveyError(
             f"{camera.source or 'the camera'}: the survey's projection has no tilted-sensor terms (tauX, tauY, "

@@ -48,10 +48,11 @@ class _Sheet:
 def _marker_sheet(
     marker_map: MarkerMap, marker_id: int, texels_per_cell: int, margin_cells: float, grays: dict
 ) -> _Sheet:
-    cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2
+    dictionary = marker_map.marker_dictionary(marker_id)  # each marker its own dictionary and size
+    cells = _cv.dictionary_marker_bits(dictionary) + 2
     n = cells * texels_per_cell
     m = int(round(margin_cells * texels_per_cell))
-    marker = _cv.generate_marker(marker_map.dictionary, marker_id, n).astype(np.float32) / 255.0
+    marker = _cv.generate_marker(dictionary, int(marker_id), n).astype(np.float32) / 255.0
     tex = np.full((n + 2 * m, n + 2 * m), grays["paper"], dtype=np.float32)
     tex[m : m + n, m : m + n] = grays["ink"] + (grays["paper"] - grays["ink"]) * marker
     c = marker_map.marker_corners(marker_id)

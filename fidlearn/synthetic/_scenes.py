@@ -176,9 +176,9 @@ def render_scene(
     if margin_cells < 0:
         raise FidlearnError(f"margin_cells must be >= 0 (the white quiet zone in marker cells), got {margin_cells}")
     T_camera_world = frames.invert_transform(T_world_camera)
-    cells = _cv.dictionary_marker_bits(marker_map.dictionary) + 2
     sheets = []
     for mid in marker_map.ids:
+        cells = _cv.dictionary_marker_bits(marker_map.marker_dictionary(mid)) + 2
         size = _projected_size_px(marker_map.marker_corners(mid), camera, T_camera_world)
         tpc = _texels_per_cell(size, cells, int(supersample))
         sheets.append(_marker_sheet(marker_map, mid, tpc, margin_cells, grays))
