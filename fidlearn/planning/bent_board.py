@@ -11,8 +11,8 @@ Significance alone calls a flat board bent whenever the residuals have any smoot
 white noise does not explain (a lens the model describes a little wrong, a corner finder's bias):
 with enough corners a bow of a tenth of a millimetre is significant. A view is therefore called
 bent only when its fitted bow is also physically large: a sag of at least :data:`BENT_MIN_SAG_MM`
-from the best plane through the board's points. A flat screen or a glass-backed print stays under
-it; a sheet lifting off its backing does not (OpenCV's ``right02.jpg``, bowed 1.5 mm).
+from the best plane through the board's points. A board shown on a flat screen or printed on glass
+is flat to far less; a sheet lifting off its backing is not (OpenCV's ``right02.jpg``, 1.5 mm).
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def board_bends(camera: Camera, board_points_mm: dict, image_points_px: dict, T_
     views of 54 points), so at most one flat set in 1000 gets a view called bent. It is called
     bent when, besides, the fitted bow's sag (its points' highest minus lowest off their best
     plane) is at least :data:`BENT_MIN_SAG_MM`: residual structure that no bend of a size a
-    board can have explains (a lens the model cannot describe, a flat screen's pixels) is not a
+    board can have explains (a lens the model describes a little wrong, a corner finder's bias) is not a
     bent board. Views are taken worst first, each found bend then being fitted too, so that a
     bent view's pull on the intrinsics does not make others look bent.
 
