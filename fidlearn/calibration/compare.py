@@ -179,8 +179,8 @@ def _jacobian(which: int, index, thetas, cams, px, w) -> np.ndarray:
         plus, minus = [t.copy() for t in thetas], [t.copy() for t in thetas]
         plus[which][j] += step
         minus[which][j] -= step
-        dp = _difference(*plus, *cams, px, w)[0]
-        dm = _difference(*minus, *cams, px, w)[0]
+        dp = _difference(plus[0], plus[1], cams[0], cams[1], px, w)[0]
+        dm = _difference(minus[0], minus[1], cams[0], cams[1], px, w)[0]
         cols.append(((dp - dm) / (2 * step)).ravel())
     return np.column_stack(cols)
 
@@ -287,9 +287,9 @@ def compare_calibrations(
     'agree'
     """
     (cam_a, cov_a), (cam_b, cov_b) = (_camera_and_covariance(x, w, inflate) for x, w in ((a, "a"), (b, "b")))
-    for cam, which in ((cam_a, "a"), (cam_b, "b")):
+    for cam, label in ((cam_a, "a"), (cam_b, "b")):
         if getattr(cam, "model", "pinhole") != "pinhole":
-            raise CalibrationError(f"{which}: a {cam.model} camera; only pinhole calibrations are compared")
+            raise CalibrationError(f"{label}: a {cam.model} camera; only pinhole calibrations are compared")
     if cam_a.image_size != cam_b.image_size:
         raise CalibrationError(
             f"a is {cam_a.width}x{cam_a.height}, b {cam_b.width}x{cam_b.height}: compare calibrations at one "
@@ -301,7 +301,7 @@ def compare_calibrations(
     px = np.column_stack([X.ravel(), Y.ravel()])
     cams, thetas = (cam_a, cam_b), [_params(cam_a), _params(cam_b)]
     weights = _weights(cams, (cov_a, cov_b), px)
-    d, R = _difference(*thetas, *cams, px, weights)
+    d, R = _difference(thetas[0], thetas[1], cam_a, cam_b, px, weights)
     C = None
     for which, cov in enumerate((cov_a, cov_b)):
         if cov is not None:
