@@ -118,7 +118,10 @@ def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
     True
     """
     views = getattr(cal, "T_camera_board", None)
-    if not isinstance(views, dict) or not views or getattr(cal.camera, "model", "pinhole") != "pinhole":
+    model = getattr(getattr(cal, "camera", None), "model", "pinhole")
+    if model != "pinhole":
+        raise CalibrationError(f"a {model} calibration: the uncertainty is measured for the pinhole model only")
+    if not isinstance(views, dict) or not views:
         raise CalibrationError(
             "the uncertainty needs a pinhole calibration with its views (calibrate_checkerboard or "
             "calibrate_charuco), not a camera file: calibrate from the photos"
