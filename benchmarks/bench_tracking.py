@@ -15,7 +15,8 @@ are dropped at random and 2 s (60 frames) give no marker at all (the camera cove
 odometry is the true motion between frames with its translation 2 % too long and 0.5 % noise.
 
 The tracker (``fidlearn.PoseTracker`` with ``process_noise=(300, 0.6)``, chosen for this robot's
-accelerations; the default ``(500, 1)`` is shown beside it) gets each frame's pose (None for a
+accelerations; the default, which learns it from the frames, is shown beside it, and so is the smoother with
+the fixed and the learnt noise) gets each frame's pose (None for a
 dropped frame); a second run also gets the odometry. Measured: the position RMS of both against
 the truth; flips (an ambiguous frame whose output is nearer, in rotation, to the wrong planar
 solution than to the truth); the lag (the least-squares tau in ``error = -tau * velocity``,
@@ -163,6 +164,7 @@ def run(n: int) -> dict:
         "outs_default": outs_default,
         "single": single[first:], "gap": [k - first for k in gap], "locate_s": locate_s, "cost": cost,
         "cost_cpu": cost_cpu, "smoothed": fidlearn.smooth(meas, times[first:], process_noise=ROBOT_NOISE),
+        "smoothed_learnt": fidlearn.smooth(meas, times[first:]), "consistency": default.consistency(),
     }  # fmt: skip
 
 
@@ -224,9 +226,10 @@ def report(r: dict) -> bool:
     multi = ~r["single"]
     gap = np.zeros(len(r["truth"]), bool)
     gap[r["gap"]] = True
-    names = ["per-frame locate", f"tracker {ROBOT_NOISE}", "tracker, default (500, 1)", "tracker + odometry",
-             "smoother (offline)"]  # fmt: skip
-    cols = [column(r, o, has, multi, gap) for o in (None, r["outs"], r["outs_default"], r["outs_odo"], r["smoothed"])]
+    names = ["per-frame locate", f"tracker {ROBOT_NOISE}", "tracker, learnt (default)", "tracker + odometry",
+             f"smoother {ROBOT_NOISE}", "smoother, learnt (default)"]  # fmt: skip
+    runs = (None, r["outs"], r["outs_default"], r["outs_odo"], r["smoothed"], r["smoothed_learnt"])
+    cols = [column(r, o, has, multi, gap) for o in runs]
     trk, odo = cols[1], cols[3]
     cost_ms = 1000 * float(np.median(r["cost"]))
     cpu_ms = 1000 * float(np.sum(r["cost_cpu"]) / len(r["cost_cpu"]))
@@ -252,6 +255,15 @@ def report(r: dict) -> bool:
           f"covariance (2 % of each step, independent from step to step) does not describe, is learnt: "
           f"odometry_scale {odo['scale']:.4f} +/- {odo['scale_std']:.4f} at the end "
           f"(truth {1 / 1.02:.4f}).")  # fmt: skip
+    c = r["consistency"]
+    q = np.median([o.process_noise for o in r["outs_default"]], axis=0)
+    P = np.array([T[:3, 3] for T in r["truth"]])
+    errors = [(o, o.position_mm - t) for o, t in zip(r["outs_default"], P)]
+    nees = [float(d @ np.linalg.solve(o.covariance[3:, 3:], d)) for o, d in errors]
+    print(f"\nThe learnt noise (default): process noise median ({q[0]:.0f} mm/s^2, {q[1]:.3f} rad/s^2) per sqrt(Hz) "
+          f"over the run; mean NIS {c['mean_nis']:.2f} over {c['frames']} measured frames (95 % band "
+          f"{c['band'][0]:.2f}-{c['band'][1]:.2f}); mean position NEES against the truth {np.mean(nees):.2f} "
+          f"(3 degrees of freedom) over all frames.")  # fmt: skip
     targets = [
         ("tracking: position RMS at most 0.5x per-frame locate", f"{ratio:.2f}x", ratio <= 0.5),
         ("tracking: no flip in the output", f"{trk['flips']} (locate: {cols[0]['flips']} of {trk['amb']})",

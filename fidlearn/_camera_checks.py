@@ -24,7 +24,7 @@ def _fmt_matrix(M: np.ndarray) -> str:
 
 #: The fields of fidlearn's camera JSON; any other is refused (a misspelt distortion field was
 #: silently ignored, leaving a camera without distortion).
-CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source")
+CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source", "model")
 #: Names other tools use for them, so the error can say which one was meant.
 _ALIASES = {
     "distortion": "dist_coeffs",
@@ -43,6 +43,9 @@ _ALIASES = {
     "imagesize": "image_size",
     "image_width": "image_size",
     "image_height": "image_size",
+    "distortion_model": "model",
+    "camera_model": "model",
+    "lens_model": "model",
 }
 #: Largest image side a camera file may declare (pixels).
 MAX_IMAGE_SIDE = 100_000
@@ -86,15 +89,36 @@ def _as_K(K: Any, where: str) -> np.ndarray:
     return K
 
 
-def _as_dist(dist: Any, where: str) -> np.ndarray:
+#: The lens models a camera may have (``fidlearn._lens``).
+MODELS = ("pinhole", "fisheye")
+
+
+def _as_model(model: Any, where: str) -> str:
+    if not isinstance(model, str) or model not in MODELS:
+        fix = (
+            " (cv2.fisheye's Kannala-Brandt lens is 'fisheye')" if str(model).lower() in ("equidistant", "kb4") else ""
+        )
+        raise CameraError(
+            f"{where}: model must be 'pinhole' (OpenCV's 4 to 14 coefficients) or 'fisheye' (cv2.fisheye's 4), "
+            f"got {model!r:.40}{fix}"
+        )
+    return model
+
+
+def _as_dist(dist: Any, where: str, model: str = "pinhole") -> np.ndarray:
     if dist is None:
-        return np.zeros(5)
+        return np.zeros(4 if model == "fisheye" else 5)
     try:
         dist = np.array(dist, dtype=float).reshape(-1)
     except (TypeError, ValueError, OverflowError):
         raise CameraError(f"{where}: dist_coeffs is not a list of numbers") from None
     if dist.size == 0:
-        return np.zeros(5)
+        return np.zeros(4 if model == "fisheye" else 5)
+    if model == "fisheye" and dist.size != 4:
+        raise CameraError(
+            f"{where}: a fisheye camera has 4 distortion coefficients (k1 k2 k3 k4, cv2.fisheye's), got "
+            f"{dist.size}; use model='pinhole' for OpenCV's 5, 8, 12 or 14"
+        )
     if dist.size not in DIST_LENGTHS:
         raise CameraError(
             f"{where}: dist_coeffs has {dist.size} values; OpenCV takes 4, 5, 8, 12 or 14 "
@@ -121,3 +145,55 @@ def _as_size(image_size: Any, where: str) -> tuple[int, int]:
             "is it [width, height] in pixels?"
         )
     return (w, h)
+
+
+def _check_aspect(size: tuple[int, int], new: tuple[int, int], tol: float) -> None:
+    """CameraError when a camera of ``size`` cannot be scaled to ``new`` (another aspect ratio)."""
+    (w, h), (new_w, new_h) = size, new
+    if abs((new_w / w) / (new_h / h) - 1.0) <= tol:
+        return
+    if (new_w, new_h) == (h, w):  # numpy's image.shape[:2] is (height, width)
+        raise CameraError(
+            f"camera made for {w}x{h} (width x height) used on {new_w}x{new_h} images: width and height "
+            "are swapped. If the camera's image_size came from image.shape[:2], that is (height, width): "
+            "give (image.shape[1], image.shape[0]). If the pictures are turned to portrait, K does not "
+            "apply to them: rotate them back, or calibrate at the resolution you run at"
+        )
+    raise CameraError(
+        f"camera calibrated at {w}x{h} (aspect {w / h:.3f}) cannot be used on {new_w}x{new_h} "
+        f"images (aspect {new_w / new_h:.3f}): another aspect ratio crops the sensor differently, "
+        "so K does not scale; calibrate at the resolution you run at"
+    )
+
+
+def _as_alpha(alpha: Any) -> float:
+    if isinstance(alpha, bool) or not isinstance(alpha, (int, float, np.integer, np.floating)) or not 0 <= alpha <= 1:
+        raise CameraError(f"alpha must be a number from 0 (crop to the picture) to 1 (keep it all), got {alpha!r:.40}")
+    return float(alpha)
+
+
+def _check_picture(image: Any, size: tuple[int, int]) -> None:
+    if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or image.size == 0:
+        raise CameraError("image must be a picture array (H, W) or (H, W, C); read it with fidlearn.load_image")
+    if (image.shape[1], image.shape[0]) != tuple(size):
+        raise CameraError(
+            f"image is {image.shape[1]}x{image.shape[0]}, the camera {size[0]}x{size[1]}; "
+            "undistort with camera.for_image(image) when the picture was resized"
+        )
+
+
+def refuse_fisheye(camera: Any, what: str, error: type[Exception]) -> None:
+    """``error`` when ``camera`` is a fisheye and ``what`` models OpenCV's pinhole lens only, with the mend."""
+    if getattr(camera, "model", "pinhole") == "fisheye":
+        raise error(
+            f"{what} models OpenCV's pinhole lens only, and {camera.source or 'the camera'} is a fisheye: "
+            "undistort the pictures (camera.undistort_image(image)) and use the undistorted camera "
+            "(camera.undistorted()), or a pinhole calibration of the lens"
+        )
+
+
+def _check_hfov(hfov_deg: Any) -> None:
+    if isinstance(hfov_deg, (bool, str, bytes)) or not isinstance(hfov_deg, (int, float, np.integer, np.floating)):
+        raise CameraError(f"hfov_deg must be a number of degrees between 0 and 180, got {hfov_deg!r}")
+    if not 0 < hfov_deg < 180:
+        raise CameraError(f"hfov_deg must be between 0 and 180 degrees, got {hfov_deg}")

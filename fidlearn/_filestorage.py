@@ -87,7 +87,17 @@ def _filestorage_pixels(node, path: Path, name: str) -> int:
     return int(value)
 
 
-def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | None, tuple[int, int]]:
+def _filestorage_model(node, path: Path) -> str:
+    """The lens model of OpenCV's calibration sample's ``fisheye_model`` (0 or 1; absent: pinhole)."""
+    if node.empty():
+        return "pinhole"
+    value = node.real() if node.isReal() or node.isInt() else None
+    if value not in (0, 1):
+        raise CameraError(f"{path}: fisheye_model must be 0 (pinhole) or 1 (cv2.fisheye), as OpenCV's sample writes")
+    return "fisheye" if value == 1 else "pinhole"
+
+
+def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | None, tuple[int, int], str]:
     """Read an OpenCV FileStorage camera file (YAML or XML).
 
     Parameters
@@ -107,6 +117,8 @@ def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | N
         ``distortion_coefficients``, or None when the file has none.
     image_size : (int, int)
         (width, height), pixels.
+    model : str
+        ``"fisheye"`` when the file says ``fisheye_model: 1`` (OpenCV's calibration sample), else ``"pinhole"``.
 
     Raises
     ------
@@ -134,6 +146,7 @@ def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | N
         K = _filestorage_matrix(node_K, path, "camera_matrix")
         if K is None:
             raise CameraError(f"{path}: camera_matrix is not an !!opencv-matrix")
+        model = _filestorage_model(fs.getNode("fisheye_model"), path)
         node_d = fs.getNode("distortion_coefficients")
         dist = None if node_d.empty() else _filestorage_matrix(node_d, path, "distortion_coefficients")
         w_node, h_node = fs.getNode("image_width"), fs.getNode("image_height")
@@ -155,10 +168,12 @@ def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | N
             f"{path}: the file says {file_size[0]}x{file_size[1]}, the caller says "
             f"{image_size[0]}x{image_size[1]}; use Camera.scaled() to change resolution"
         )
-    return path, K, dist, file_size or tuple(image_size)
+    return path, K, dist, file_size or tuple(image_size), model
 
 
-def write_filestorage(path: Path, K: np.ndarray, dist: np.ndarray, image_size: tuple[int, int]) -> Path:
+def write_filestorage(
+    path: Path, K: np.ndarray, dist: np.ndarray, image_size: tuple[int, int], model: str = "pinhole"
+) -> Path:
     """Write a camera as OpenCV FileStorage (XML for ``.xml``, YAML otherwise), atomically.
 
     Parameters
@@ -171,6 +186,8 @@ def write_filestorage(path: Path, K: np.ndarray, dist: np.ndarray, image_size: t
         The distortion coefficients.
     image_size : (int, int)
         (width, height), pixels.
+    model : str
+        ``"fisheye"`` adds ``fisheye_model: 1``, as OpenCV's calibration sample writes it.
 
     Returns
     -------
@@ -186,6 +203,8 @@ def write_filestorage(path: Path, K: np.ndarray, dist: np.ndarray, image_size: t
         )
         fs.write("image_width", int(image_size[0]))
         fs.write("image_height", int(image_size[1]))
+        if model == "fisheye":
+            fs.write("fisheye_model", 1)
         fs.write("camera_matrix", K)
         fs.write("distortion_coefficients", dist.reshape(1, -1))
         fs.release()

@@ -1,8 +1,16 @@
-"""OpenCV's lens model on normalized points, and its exact inverse.
+"""OpenCV's lens models on normalized points, and their exact inverses.
 
 ``Camera.project`` and ``Camera.undistort_points``, the renderer (``fidlearn.synthetic``), the survey's residuals
-and the planners use these, so that projection and undistortion are one model everywhere: OpenCV's 4, 5, 8, 12 or
-14 coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tau_x tau_y]]]]), as ``cv2.projectPoints`` computes them.
+and the planners use these, so that projection and undistortion are one model everywhere:
+
+* ``"pinhole"``: OpenCV's 4, 5, 8, 12 or 14 coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tau_x tau_y]]]]),
+  as ``cv2.projectPoints`` computes them;
+* ``"fisheye"``: OpenCV's Kannala-Brandt model (``cv2.fisheye``), 4 coefficients k1..k4: a ray at angle
+  ``theta`` from the optical axis lands at the distance
+  ``theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)`` from the principal point (in
+  focal lengths), as ``cv2.fisheye.projectPoints`` computes it.
+
+Normalized points are ``(X / Z, Y / Z)`` for both models, so a fisheye ray must stay within 90 degrees of the axis.
 """
 
 from __future__ import annotations
@@ -12,6 +20,8 @@ import numpy as np
 
 #: Largest pixel error the exact inversion stops at (machine precision for pixel coordinates up to ~1e4).
 EXACT_TOL_PX = 1e-9
+#: The lens models, by the name ``Camera.model`` holds.
+MODELS = ("pinhole", "fisheye")
 
 
 def tilt_matrix(tau_x: float, tau_y: float) -> np.ndarray:
@@ -25,8 +35,25 @@ def tilt_matrix(tau_x: float, tau_y: float) -> np.ndarray:
     return back @ rot
 
 
-def distort_normalized(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """OpenCV's distortion model on normalized points (N, 2): ideal -> distorted normalized (a tilted sensor too)."""
+def _fisheye_theta_d(theta: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    t2 = theta * theta
+    k1, k2, k3, k4 = np.ravel(dist)[:4]
+    return theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
+
+
+def _fisheye_distort(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """``cv2.fisheye``'s distortion on normalized points (N, 2), its guard at the axis included."""
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    big = r > 1e-8
+    safe_r = np.where(big, r, 1.0)
+    scale = np.where(big, _fisheye_theta_d(np.arctan(r), dist) / safe_r, 1.0)
+    return xy * scale[:, None]
+
+
+def distort_normalized(xy: np.ndarray, dist: np.ndarray, model: str = "pinhole") -> np.ndarray:
+    """The lens's distortion on normalized points (N, 2): ideal -> distorted normalized (a tilted sensor too)."""
+    if model == "fisheye":
+        return _fisheye_distort(xy, dist)
     d = np.zeros(14)
     d[: dist.size] = np.ravel(dist)
     k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d[:12]
@@ -45,14 +72,14 @@ def distort_normalized(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
     return np.stack([xd, yd], axis=1)
 
 
-def pixels_from_normalized(xy: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+def pixels_from_normalized(xy: np.ndarray, K: np.ndarray, dist: np.ndarray, model: str = "pinhole") -> np.ndarray:
     """Pixels (N, 2) of ideal normalized points (N, 2): the distortion, then ``K``."""
-    xd = distort_normalized(xy, dist)
+    xd = distort_normalized(xy, dist, model)
     return np.stack([K[0, 0] * xd[:, 0] + K[0, 1] * xd[:, 1] + K[0, 2], K[1, 1] * xd[:, 1] + K[1, 2]], axis=1)
 
 
-def project_points(points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """Pixels (N, 2) of points (N, 3) in the camera frame, as ``cv2.projectPoints`` gives them.
+def project_points(points: np.ndarray, K: np.ndarray, dist: np.ndarray, model: str = "pinhole") -> np.ndarray:
+    """Pixels (N, 2) of points (N, 3) in the camera frame, as ``cv2.projectPoints`` (or ``cv2.fisheye``'s) gives them.
 
     Divided by their depth (a depth of 0 is taken as 1, as OpenCV does; points behind the camera get
     meaningless pixels), then :func:`pixels_from_normalized`.
@@ -60,7 +87,7 @@ def project_points(points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.nd
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     z = pts[:, 2:3]
     inv = np.where(z != 0, 1.0 / np.where(z != 0, z, 1.0), 1.0)
-    return pixels_from_normalized(pts[:, :2] * inv, K, dist)
+    return pixels_from_normalized(pts[:, :2] * inv, K, dist, model)
 
 
 def undistort_cv_iter(px: np.ndarray, K: np.ndarray, dist: np.ndarray, max_count: int = 200, eps: float = 1e-15):
@@ -89,8 +116,54 @@ def _newton_step(xy: np.ndarray, px: np.ndarray, K: np.ndarray, dist: np.ndarray
     return np.stack([dx, dy], axis=1), r
 
 
-def undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations: int = 6) -> np.ndarray:
+def fisheye_angles(px: np.ndarray, K: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each pixel's ray angle ``theta`` (N,) from the axis through the fisheye model (radians, up to pi; NaN
+    where no ray reaches: beyond the lens's fold), its distorted normalized point (N, 2) and ``theta_d`` (N,).
+
+    Newton steps on ``theta_d(theta) = |distorted normalized point|``, to machine precision.
+    """
+    yd = (px[:, 1] - K[1, 2]) / K[1, 1]
+    xd = (px[:, 0] - K[0, 2] - K[0, 1] * yd) / K[0, 0]
+    theta_d = np.hypot(xd, yd)
+    k1, k2, k3, k4 = np.ravel(dist)[:4]
+
+    def slope(t: np.ndarray) -> np.ndarray:
+        t2 = t * t
+        return 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+
+    theta = np.minimum(theta_d, np.pi)
+    for _ in range(50):
+        s = slope(theta)
+        step = (_fisheye_theta_d(theta, dist) - theta_d) / np.where(s > 0, s, 1.0)
+        theta = np.clip(theta - step, 0.0, np.pi)
+        if np.all(np.abs(step) < 1e-15):
+            break
+    reached = np.abs(_fisheye_theta_d(theta, dist) - theta_d) <= 1e-12 * np.maximum(1.0, theta_d)
+    theta = np.where(reached & (slope(theta) > 0), theta, np.nan)
+    return theta, np.stack([xd, yd], axis=1), theta_d
+
+
+def _fisheye_undistort(px: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Normalized ideal coordinates (N, 2) of pixels (N, 2) through the fisheye model (:func:`fisheye_angles`).
+
+    NaN for a pixel whose ray is 90 degrees or more off the axis (no normalized point), or that no ray reaches.
+    """
+    theta, xyd, theta_d = fisheye_angles(px, K, dist)
+    ok = theta < np.pi / 2 - 1e-9  # NaN compares False
+    safe = np.where(ok, theta, 0.0)
+    scale = np.where(theta_d > 1e-12, np.tan(safe) / np.where(theta_d > 1e-12, theta_d, 1.0), 1.0)
+    xy = xyd * scale[:, None]
+    xy[~ok] = np.nan
+    return xy
+
+
+def undistort_exact(
+    px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations: int = 6, model: str = "pinhole"
+) -> np.ndarray:
     """Normalized ideal coordinates (N, 2) of pixels (N, 2), exact to about 1e-9 px.
+
+    The fisheye model is inverted along the radius (:func:`_fisheye_undistort`), to machine precision;
+    pixels no ray in front of the camera reaches are NaN there.
 
     ``cv2.undistortPoints`` alone stops after a few fixed-point steps (up to
     half a pixel off at the corners of a wide lens); Newton steps on OpenCV's
@@ -99,6 +172,8 @@ def undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations:
     turns back (no ray reaches them) are left where the steps end.
     """
     px = np.asarray(px, dtype=np.float64).reshape(-1, 2)
+    if model == "fisheye":
+        return _fisheye_undistort(px, K, dist)
     xy = cv2.undistortPoints(px.reshape(-1, 1, 2), K, dist).reshape(-1, 2)
     if not np.any(dist):
         return xy
@@ -110,9 +185,57 @@ def undistort_exact(px: np.ndarray, K: np.ndarray, dist: np.ndarray, iterations:
     return xy
 
 
-def undistort_pixels(px: np.ndarray, K: np.ndarray, dist: np.ndarray, exact: bool = True) -> np.ndarray:
+def undistort_pixels(
+    px: np.ndarray, K: np.ndarray, dist: np.ndarray, exact: bool = True, model: str = "pinhole"
+) -> np.ndarray:
     """Ideal pinhole pixels (N, 2) of observed pixels (N, 2): exact, or OpenCV's few fixed-point steps."""
     if not exact:
-        return cv2.undistortPoints(px.reshape(-1, 1, 2), K, dist, P=K).reshape(-1, 2)
-    xy = undistort_exact(px, K, dist)
+        src = px.reshape(-1, 1, 2).astype(np.float64)
+        if model == "fisheye":
+            return cv2.fisheye.undistortPoints(src, K, dist.reshape(1, 4), P=K).reshape(-1, 2)
+        return cv2.undistortPoints(src, K, dist, P=K).reshape(-1, 2)
+    xy = undistort_exact(px, K, dist, model=model)
     return np.stack([K[0, 0] * xy[:, 0] + K[0, 1] * xy[:, 1] + K[0, 2], K[1, 1] * xy[:, 1] + K[1, 2]], axis=1)
+
+
+def new_camera_matrix(
+    K: np.ndarray, dist: np.ndarray, model: str, size: tuple[int, int], alpha: float, new_size: tuple[int, int]
+) -> np.ndarray:
+    """The camera matrix (3, 3) of the undistorted picture: OpenCV's choice for each model.
+
+    ``cv2.getOptimalNewCameraMatrix`` with ``alpha`` (pinhole) or
+    ``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify`` with ``balance=alpha`` (fisheye): 0 keeps only
+    pixels with picture behind them, 1 keeps every pixel of the picture.
+    """
+    if model == "fisheye":
+        return cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(
+            K, dist.reshape(1, 4), tuple(size), np.eye(3), balance=float(alpha), new_size=tuple(new_size)
+        )
+    newK, _ = cv2.getOptimalNewCameraMatrix(K, dist, tuple(size), float(alpha), tuple(new_size))
+    return newK
+
+
+def undistort_maps(
+    K: np.ndarray, dist: np.ndarray, model: str, new_K: np.ndarray, new_size: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Maps (H, W) float32 for ``cv2.remap``: where each pixel of the ideal camera ``new_K`` is in the picture.
+
+    Each output pixel's ray goes through the lens model (:func:`pixels_from_normalized`), as
+    ``cv2.initUndistortRectifyMap`` (or ``cv2.fisheye``'s) does it.
+    """
+    w, h = int(new_size[0]), int(new_size[1])
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    y = (v.ravel() - new_K[1, 2]) / new_K[1, 1]
+    x = (u.ravel() - new_K[0, 2] - new_K[0, 1] * y) / new_K[0, 0]
+    px = pixels_from_normalized(np.stack([x, y], axis=1), K, dist, model)
+    return px[:, 0].reshape(h, w).astype(np.float32), px[:, 1].reshape(h, w).astype(np.float32)
+
+
+def fisheye_fov_deg(K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> tuple[float, float]:
+    """A fisheye's horizontal and vertical field of view (degrees): the ray angles at the picture's edges
+    through the principal point (NaN where an edge is beyond the lens's reach)."""
+    w, h = size
+    cx, cy = K[0, 2], K[1, 2]
+    ends = np.array([[-0.5, cy], [w - 0.5, cy], [cx, -0.5], [cx, h - 0.5]])
+    ang = np.degrees(fisheye_angles(ends, K, dist)[0])
+    return (float(ang[0] + ang[1]), float(ang[2] + ang[3]))

@@ -1,4 +1,4 @@
-"""The pinhole camera with lens distortion: intrinsics K, distortion and image size.
+"""The camera: intrinsics K, lens distortion (OpenCV's pinhole model or ``cv2.fisheye``'s) and image size.
 
 Pixel convention: OpenCV's. The centre of the top-left pixel is at (0, 0), so
 the image spans -0.5 .. width-0.5 horizontally. Every corner position that
@@ -10,45 +10,52 @@ from __future__ import annotations
 import math
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+import cv2
 import numpy as np
 
-from . import _files, _lens, frames
+from . import _camera_io, _lens, frames
 from ._camera_checks import (
-    _ALIASES,
-    CAMERA_FIELDS,
     DIST_LENGTHS,
+    MODELS,
+    _as_alpha,
     _as_dist,
     _as_K,
+    _as_model,
     _as_size,
+    _check_aspect,
+    _check_hfov,
+    _check_picture,
     _short_source,
 )
-from ._filestorage import read_filestorage, write_filestorage
-from ._io import read_json, write_json_atomic
 from .errors import CameraError, FidlearnWarning
 from .frames._checks import as_float_array
 
-__all__ = ["Camera", "DIST_LENGTHS"]
-
-#: File names that hold pictures, never a camera (a swapped --camera argument).
+__all__ = ["Camera", "DIST_LENGTHS", "MODELS"]
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, init=False)
 class Camera:
-    """A calibrated camera: pinhole intrinsics ``K`` (3, 3), distortion ``dist`` and ``image_size``.
+    """A calibrated camera: intrinsics ``K`` (3, 3), lens distortion ``dist``, ``image_size`` and lens ``model``.
 
     Parameters
     ----------
     K : array_like, shape (3, 3)
         Intrinsic matrix ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels.
-    dist : array_like, shape (4,), (5,), (8,), (12,) or (14,), optional
-        OpenCV distortion coefficients (k1, k2, p1, p2, k3, ...). ``None`` for none.
+    dist : array_like, optional
+        The distortion coefficients; ``None`` for none. Pinhole: OpenCV's 4, 5, 8, 12 or 14
+        (k1, k2, p1, p2, k3, k4, k5, k6, s1..s4, tau_x, tau_y: rational and thin-prism terms, tilted
+        sensor). Fisheye: ``cv2.fisheye``'s 4 (k1..k4).
     image_size : (int, int)
         ``(width, height)`` in pixels of the images the camera was calibrated at.
     source : str
         What produced this camera (a file, a calibration run), for the record.
+    model : {"pinhole", "fisheye"}
+        The lens model (keyword only): ``"pinhole"``, OpenCV's ``projectPoints``, or ``"fisheye"``,
+        OpenCV's Kannala-Brandt model (``cv2.fisheye.projectPoints``) for lenses of 120 degrees and more.
 
     Examples
     --------
@@ -58,19 +65,24 @@ class Camera:
     """
 
     K: np.ndarray
-    dist: np.ndarray | None
+    dist: np.ndarray
     image_size: tuple[int, int]
-    source: str = field(default="", compare=False)
+    source: str
+    model: str
 
-    def __post_init__(self) -> None:
-        if isinstance(self.source, os.PathLike):
-            self.source = os.fspath(self.source)
-        if not isinstance(self.source, str):
-            raise CameraError(f"source must be text (what produced the camera), got {type(self.source).__name__}")
-        where = self.source or "camera"
-        self.K = _as_K(self.K, where)
-        self.dist = _as_dist(self.dist, where)
-        self.image_size = _as_size(self.image_size, where)
+    def __init__(
+        self, K: Any, dist: Any, image_size: Any, source: str | os.PathLike = "", *, model: str = "pinhole"
+    ) -> None:
+        if isinstance(source, os.PathLike):
+            source = os.fspath(source)
+        if not isinstance(source, str):
+            raise CameraError(f"source must be text (what produced the camera), got {type(source).__name__}")
+        self.source = source
+        where = source or "camera"
+        self.model = _as_model(model, where)
+        self.K = _as_K(K, where)
+        self.dist = _as_dist(dist, where, self.model)
+        self.image_size = _as_size(image_size, where)
 
     # -- read-only views -------------------------------------------------------------
     @property
@@ -105,8 +117,10 @@ class Camera:
 
     @property
     def fov_deg(self) -> tuple[float, float]:
-        """Horizontal and vertical field of view in degrees (pinhole, ignoring distortion)."""
+        """Horizontal and vertical field of view in degrees (pinhole: ignoring distortion; fisheye: through it)."""
         w, h = self.image_size
+        if self.model == "fisheye":
+            return _lens.fisheye_fov_deg(self.K, self.dist, self.image_size)
         return (math.degrees(2 * math.atan(w / (2 * self.fx))), math.degrees(2 * math.atan(h / (2 * self.fy))))
 
     @property
@@ -115,7 +129,7 @@ class Camera:
         return bool(np.any(self.dist != 0))
 
     @classmethod
-    def from_fov(cls, hfov_deg: float, image_size: tuple[int, int], dist=None, source: str = "") -> Camera:
+    def from_fov(cls, hfov_deg: float, image_size: tuple[int, int], dist: Any = None, source: str = "") -> Camera:
         """An ideal camera (square pixels, centred principal point) with a horizontal field of view.
 
         Parameters
@@ -150,10 +164,7 @@ class Camera:
         [90.0, 73.7]
         """
         w, h = _as_size(image_size, source or "camera")
-        if isinstance(hfov_deg, (bool, str, bytes)) or not isinstance(hfov_deg, (int, float, np.integer, np.floating)):
-            raise CameraError(f"hfov_deg must be a number of degrees between 0 and 180, got {hfov_deg!r}")
-        if not 0 < hfov_deg < 180:
-            raise CameraError(f"hfov_deg must be between 0 and 180 degrees, got {hfov_deg}")
+        _check_hfov(hfov_deg)
         f = (w / 2) / math.tan(math.radians(hfov_deg) / 2)
         K = [[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]]
         return cls(K, dist, (w, h), source=source or f"ideal camera, {hfov_deg:g} deg horizontal FOV")
@@ -163,16 +174,18 @@ class Camera:
         d = ", ".join(f"{v:.4g}" for v in self.dist)
         # a file's name, not its absolute path: reprs are printed in notebooks and logs
         src = f", source={_short_source(self.source)!r}" if self.source else ""
+        lens = ", model='fisheye'" if self.model == "fisheye" else ""
         return (
-            f"Camera({w}x{h}, fx={self.fx:.2f}, fy={self.fy:.2f}, cx={self.cx:.2f}, cy={self.cy:.2f}, dist=[{d}]{src})"
+            f"Camera({w}x{h}, fx={self.fx:.2f}, fy={self.fy:.2f}, cx={self.cx:.2f}, cy={self.cy:.2f}, "
+            f"dist=[{d}]{lens}{src})"
         )
 
     # -- projection -----------------------------------------------------------------
     def project(self, points_world: np.ndarray, T_world_camera: np.ndarray) -> np.ndarray:
         """Project world points to pixels for a camera at ``T_world_camera``.
 
-        Agrees with ``cv2.projectPoints`` (distortion included: ``fidlearn._lens``, the model
-        :meth:`undistort_points` inverts). Points behind the
+        Agrees with ``cv2.projectPoints`` (or ``cv2.fisheye.projectPoints`` for a fisheye; distortion
+        included: ``fidlearn._lens``, the model :meth:`undistort_points` inverts). Points behind the
         camera are projected too (their pixels are meaningless): use
         :meth:`points_in_front` to tell.
 
@@ -209,7 +222,7 @@ class Camera:
         if pts.ndim == 0 or pts.shape[-1] != 3 or pts.size == 0:
             raise CameraError(f"points_world has shape {np.shape(points_world)}, expected (N, 3) in mm")
         in_camera = frames.transform_points(frames.invert_transform(T_world_camera), pts)
-        px = _lens.project_points(in_camera, self.K, self.dist)
+        px = _lens.project_points(in_camera, self.K, self.dist, self.model)
         return px[0] if single else px
 
     def points_in_front(
@@ -242,12 +255,14 @@ class Camera:
         points_px : array_like, shape (N, 2)
             Observed (distorted) pixel coordinates.
         exact : bool
-            True: Newton steps to 1e-9 px. False: ``cv2.undistortPoints`` (faster; 0.5 px off at wide corners).
+            True: Newton steps to 1e-9 px. False: ``cv2.undistortPoints`` (``cv2.fisheye.undistortPoints``;
+            faster, 0.5 px off at wide corners).
 
         Returns
         -------
         ndarray, shape (N, 2)
-            The ideal pinhole pixels (the ideal normalized points through ``K``).
+            The ideal pinhole pixels (the ideal normalized points through ``K``). A fisheye pixel whose ray
+            is 90 degrees or more off the axis (or beyond the lens's fold) has no pinhole pixel: NaN.
 
         Raises
         ------
@@ -261,7 +276,72 @@ class Camera:
             raise CameraError(f"points_px has shape {pts.shape}, expected (N, 2) pixels")
         if not np.all(np.isfinite(pts)):
             raise CameraError("points_px contains NaN or infinity")
-        return _lens.undistort_pixels(pts.reshape(-1, 2), self.K, self.dist, exact)
+        return _lens.undistort_pixels(pts.reshape(-1, 2), self.K, self.dist, exact, self.model)
+
+    # -- undistorted pictures -----------------------------------------------------------
+    def undistorted(self, alpha: float = 0.0, image_size: tuple[int, int] | None = None) -> Camera:
+        """The ideal camera (no distortion) of the undistorted picture that :meth:`undistort_image` makes.
+
+        Parameters
+        ----------
+        alpha : float
+            From 0 to 1: 0 keeps only pixels with picture behind them (cropped), 1 keeps every pixel of
+            the picture (black borders). ``cv2.getOptimalNewCameraMatrix``'s ``alpha`` for a pinhole camera,
+            ``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify``'s ``balance`` for a fisheye.
+        image_size : (int, int), optional
+            ``(width, height)`` of the undistorted picture; the camera's own by default.
+
+        Returns
+        -------
+        Camera
+            A pinhole camera without distortion; a CameraError if ``alpha`` is not a number from 0 to 1 or
+            ``image_size`` not two positive whole numbers.
+        """
+        alpha = _as_alpha(alpha)
+        size = self.image_size if image_size is None else _as_size(image_size, "image_size")
+        new_K = _lens.new_camera_matrix(self.K, self.dist, self.model, self.image_size, alpha, size)
+        new_K[0, 1] = 0.0  # no skew: OpenCV's estimate leaves rounding there
+        src = f"{self.source or 'camera'} undistorted (alpha {alpha:g})"
+        return Camera(new_K, None, size, source=src)
+
+    def undistort_maps(self, alpha: float = 0.0, image_size: tuple[int, int] | None = None) -> tuple[np.ndarray, ...]:
+        """The maps for ``cv2.remap`` that undistort a picture onto :meth:`undistorted`'s camera.
+
+        Parameters
+        ----------
+        alpha, image_size :
+            As for :meth:`undistorted`.
+
+        Returns
+        -------
+        map_x, map_y : ndarray, shape (height, width), float32
+            Where each undistorted pixel lies in the camera's picture (pixels), from the same lens model
+            as :meth:`project`: ``cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR)``.
+        """
+        ideal = self.undistorted(alpha, image_size)
+        return _lens.undistort_maps(self.K, self.dist, self.model, ideal.K, ideal.image_size)
+
+    def undistort_image(
+        self, image: np.ndarray, alpha: float = 0.0, image_size: tuple[int, int] | None = None
+    ) -> np.ndarray:
+        """The picture without lens distortion, as :meth:`undistorted`'s camera would have taken it.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W) or (H, W, C)
+            A picture at the camera's ``image_size``.
+        alpha, image_size :
+            As for :meth:`undistorted`.
+
+        Returns
+        -------
+        ndarray
+            The undistorted picture (bilinear interpolation, black where no pixel of ``image`` lies); a
+            CameraError if ``image`` is not a picture of the camera's size, or as for :meth:`undistorted`.
+        """
+        _check_picture(image, self.image_size)
+        map_x, map_y = self.undistort_maps(alpha, image_size)
+        return cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
     # -- resolution ------------------------------------------------------------------
     def scaled(self, image_size: tuple[int, int], tol: float = 0.01) -> Camera:
@@ -297,19 +377,7 @@ class Camera:
         if (new_w, new_h) == (w, h):
             return self
         sx, sy = new_w / w, new_h / h
-        if abs(sx / sy - 1.0) > tol:
-            if (new_w, new_h) == (h, w):  # numpy's image.shape[:2] is (height, width)
-                raise CameraError(
-                    f"camera made for {w}x{h} (width x height) used on {new_w}x{new_h} images: width and height "
-                    "are swapped. If the camera's image_size came from image.shape[:2], that is (height, width): "
-                    "give (image.shape[1], image.shape[0]). If the pictures are turned to portrait, K does not "
-                    "apply to them: rotate them back, or calibrate at the resolution you run at"
-                )
-            raise CameraError(
-                f"camera calibrated at {w}x{h} (aspect {w / h:.3f}) cannot be used on {new_w}x{new_h} "
-                f"images (aspect {new_w / new_h:.3f}): another aspect ratio crops the sensor differently, "
-                "so K does not scale; calibrate at the resolution you run at"
-            )
+        _check_aspect((w, h), (new_w, new_h), tol)
         K = self.K.copy()
         K[0, 0] *= sx
         K[0, 1] *= sx
@@ -317,9 +385,9 @@ class Camera:
         K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
         K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
         src = f"{self.source or 'camera'} scaled from {w}x{h} to {new_w}x{new_h}"
-        return Camera(K, self.dist.copy(), (new_w, new_h), source=src)
+        return Camera(K, self.dist.copy(), (new_w, new_h), source=src, model=self.model)
 
-    def for_image(self, image_or_size, warn: bool = True) -> Camera:
+    def for_image(self, image_or_size: Any, warn: bool = True) -> Camera:
         """The camera fitted to an image, rescaled (with a warning) when the image has another size.
 
         Parameters
@@ -337,7 +405,7 @@ class Camera:
         Raises
         ------
         CameraError
-            If the image's aspect ratio differs (see :meth:`scaled`).
+            If the image's aspect ratio differs (:meth:`scaled`).
         """
         if isinstance(image_or_size, np.ndarray):
             size = (image_or_size.shape[1], image_or_size.shape[0])
@@ -362,14 +430,10 @@ class Camera:
         Returns
         -------
         dict
-            ``camera_matrix`` (3x3 list), ``dist_coeffs`` (list), ``image_size`` [width, height] and ``source``.
+            ``camera_matrix`` (3x3 list), ``dist_coeffs`` (list), ``image_size`` [width, height], ``source``,
+            and ``model`` for a fisheye (a file without it is a pinhole camera).
         """
-        return {
-            "camera_matrix": self.K.tolist(),
-            "dist_coeffs": self.dist.tolist(),
-            "image_size": list(self.image_size),
-            "source": self.source,
-        }
+        return _camera_io.camera_to_dict(self)
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "camera") -> Camera:
@@ -378,45 +442,19 @@ class Camera:
         Parameters
         ----------
         d : dict
-            ``camera_matrix`` (3x3, pixels), ``dist_coeffs`` (optional), ``image_size`` [width, height] and
-            ``source`` (optional); no other field.
+            ``camera_matrix`` (3x3, pixels), ``dist_coeffs`` (optional), ``image_size`` [width, height],
+            ``source`` (optional) and ``model`` (optional, ``"pinhole"`` by default); no other field.
         source : str
             Where ``d`` came from, named in error messages.
 
         Returns
         -------
         Camera
-
-        Raises
-        ------
-        CameraError
-            If ``d`` is a world map, has an unknown field (with a guess at the meant one), misses a field or
-            holds a malformed value.
+            Or CameraError if ``d`` is a world map, has an unknown field (with a guess at the meant one),
+            misses a field or holds a malformed value.
         """
-        if not isinstance(d, dict):
-            raise CameraError(f"{source}: expected a JSON object with camera_matrix, dist_coeffs, image_size")
-        if "camera_matrix" not in d and (
-            "markers" in d or "units" in d or any(isinstance(v, dict) and "translation" in v for v in d.values())
-        ):
-            raise CameraError(
-                f"{source}: missing field camera_matrix: this is a world map (marker placements), not a camera "
-                "file; give the camera file "
-                "(camera_matrix, dist_coeffs, image_size, as 'fidlearn calibrate' writes it) as the camera "
-                "(command line: --camera) and the map as the map (--map)"
-            )
-        unknown = [k for k in d if k not in CAMERA_FIELDS]
-        if unknown:
-            hint = _files.did_you_mean(unknown[0], CAMERA_FIELDS, _ALIASES)
-            raise CameraError(
-                f"{source}: unknown field {unknown[0]!r}{hint}; a camera file holds {', '.join(CAMERA_FIELDS)}"
-            )
-        missing = [k for k in ("camera_matrix", "image_size") if k not in d]
-        if missing:
-            raise CameraError(
-                f"{source}: missing field {', '.join(missing)}; a camera file needs camera_matrix (3x3), "
-                "dist_coeffs and image_size [width, height]"
-            )
-        return cls(d["camera_matrix"], d.get("dist_coeffs"), d["image_size"], source=str(d.get("source") or source))
+        cam: Camera = _camera_io.camera_from_dict(cls, d, source)
+        return cam
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the camera to a file, atomically.
@@ -425,26 +463,24 @@ class Camera:
         ----------
         path : path-like
             ``.yml``, ``.yaml`` or ``.xml`` for OpenCV FileStorage (``camera_matrix``,
-            ``distortion_coefficients``, ``image_width``, ``image_height``), anything else for fidlearn's JSON.
+            ``distortion_coefficients``, ``image_width``, ``image_height``, and ``fisheye_model: 1`` for a
+            fisheye, as OpenCV's calibration sample writes it), anything else for fidlearn's JSON.
 
         Returns
         -------
         Path
             The file written.
         """
-        path = Path(path)
-        if path.suffix.lower() in (".yml", ".yaml", ".xml"):
-            return write_filestorage(path, self.K, self.dist, self.image_size)
-        return write_json_atomic(path, self.to_dict())
+        return _camera_io.save_camera(self, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike, image_size: tuple[int, int] | None = None) -> Camera:
         """Read a camera file: fidlearn's JSON or OpenCV FileStorage YAML/XML.
 
         FileStorage files need ``camera_matrix`` and ``distortion_coefficients``;
-        ``image_width``/``image_height`` are read when present. A file without
-        them (OpenCV's tutorial files) needs ``image_size`` from the caller: the
-        resolution the camera was calibrated at.
+        ``image_width``/``image_height`` are read when present, and ``fisheye_model: 1`` makes a
+        fisheye camera. A file without the size (OpenCV's tutorial files) needs ``image_size`` from the
+        caller: the resolution the camera was calibrated at.
 
         Parameters
         ----------
@@ -456,31 +492,8 @@ class Camera:
         Returns
         -------
         Camera
-            Its ``source`` is the file's path.
-
-        Raises
-        ------
-        CameraError
-            If the file is missing, unreadable, an image or a map, malformed, or disagrees with ``image_size``.
+            Its ``source`` is the file's path; a CameraError if the file is missing, unreadable, an image or
+            a map, malformed, or disagrees with ``image_size``.
         """
-        path = _files.as_path(path, CameraError, "camera")
-        if path.suffix.lower() in (".yml", ".yaml", ".xml"):
-            return cls._load_filestorage(path, image_size)
-        if path.suffix.lower() in _files.IMAGE_SUFFIXES + _files.VIDEO_SUFFIXES:
-            raise CameraError(
-                f"{path}: this is an image, not a camera file; give the camera.json that 'fidlearn calibrate' "
-                "wrote (or OpenCV's calibration YAML) as the camera, and the image as an image"
-            )
-        d = read_json(path, CameraError, "camera")
-        cam = cls.from_dict(d, source=str(path))
-        if image_size is not None and tuple(image_size) != cam.image_size:
-            raise CameraError(
-                f"{path}: the file says image_size {list(cam.image_size)}, the caller says {list(image_size)}; "
-                "use Camera.scaled() to change resolution"
-            )
+        cam: Camera = _camera_io.load_camera(cls, path, image_size)
         return cam
-
-    @classmethod
-    def _load_filestorage(cls, path: Path, image_size) -> Camera:
-        path, K, dist, size = read_filestorage(path, image_size)
-        return cls(K, dist, size, source=str(path))

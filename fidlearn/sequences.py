@@ -275,7 +275,7 @@ def track(
     refine: str | None = None,
     T_camera_base: Any = None,
     odometry: Odometry | None = None,
-    process_noise: tuple[float, float] = DEFAULT_PROCESS_NOISE,
+    process_noise: tuple[float, float] | None = DEFAULT_PROCESS_NOISE,
 ) -> Iterator[TrackStep]:
     """Every frame's pose through one :class:`fidlearn.PoseTracker`: frames in, tracked poses out.
 
@@ -301,8 +301,9 @@ def track(
     odometry : fidlearn.ros.Odometry, optional
         The robot base's odometry on the frames' clock (:func:`fidlearn.ros.read_odometry_csv`): the
         motion between frames replaces the constant-velocity prediction.
-    process_noise : (float, float)
-        The tracker's motion noise (see :class:`fidlearn.PoseTracker`).
+    process_noise : (float, float) or None
+        The tracker's motion noise (see :class:`fidlearn.PoseTracker`); None (the default) learns it
+        from the frames.
 
     Returns
     -------

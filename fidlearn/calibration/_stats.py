@@ -24,6 +24,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .. import _lens
+
 __all__: list[str] = []
 
 
@@ -66,8 +68,11 @@ def free_intrinsics(flags: int, n_dist: int) -> np.ndarray:
     return free[: 4 + n_dist]
 
 
-def per_view_rms(obj: list, img: list, K: np.ndarray, dist: np.ndarray, rotations, tvecs) -> np.ndarray:
-    """RMS reprojection error (px) of each view at the given camera and poses, in one projection.
+def per_view_rms(
+    obj: list, img: list, K: np.ndarray, dist: np.ndarray, rotations, tvecs, model: str = "pinhole"
+) -> np.ndarray:
+    """RMS reprojection error (px) of each view at the given camera and poses, in one projection (``model``:
+    the lens, ``fidlearn._lens``'s for a fisheye).
 
     ``obj[i]`` (N_i, 1, 3) and ``img[i]`` (N_i, 1, 2) as passed to ``cv2.calibrateCamera``;
     ``rotations[i]`` (3, 3) the rotation of view i's rvec, ``tvecs[i]`` its translation.
@@ -76,7 +81,10 @@ def per_view_rms(obj: list, img: list, K: np.ndarray, dist: np.ndarray, rotation
     in_camera = np.concatenate(
         [o.reshape(-1, 3).astype(np.float64) @ R.T + np.reshape(t, 3) for o, R, t in zip(obj, rotations, tvecs)]
     )
-    proj, _ = cv2.projectPoints(in_camera, np.zeros(3), np.zeros(3), K, dist)
+    if model == "fisheye":
+        proj = _lens.project_points(in_camera, K, dist, model)
+    else:
+        proj, _ = cv2.projectPoints(in_camera, np.zeros(3), np.zeros(3), K, dist)
     e = proj.reshape(-1, 2) - np.concatenate([p.reshape(-1, 2) for p in img]).astype(np.float64)
     return np.sqrt(np.add.reduceat(np.sum(e * e, axis=1), np.cumsum(counts) - counts) / counts)
 
@@ -98,6 +106,32 @@ def std_intrinsics(obj: list, K, dist, rvecs, tvecs, rms_px: float, flags: int) 
         W = J_int.T @ J_pose
         schur += J_int.T @ J_int - W @ np.linalg.solve(J_pose.T @ J_pose, W.T)
         total += len(o)
+    return _std_from_schur(schur, free, rms_px, total, len(obj))
+
+
+def std_intrinsics_fisheye(obj: list, K, dist, rvecs, tvecs, rms_px: float) -> np.ndarray:
+    """Standard deviations of ``fx, fy, cx, cy, k1..k4`` of a ``cv2.fisheye.calibrate`` result (skew fixed at 0).
+
+    The same reduction as :func:`std_intrinsics`, with the Jacobian of ``cv2.fisheye.projectPoints``
+    (columns: f (2), c (2), k (4), rvec (3), tvec (3), skew).
+    """
+    D = np.asarray(dist, dtype=np.float64).reshape(1, 4)
+    free = np.ones(8, dtype=bool)
+    schur = np.zeros((8, 8))
+    total = 0
+    for o, r, t in zip(obj, rvecs, tvecs):
+        pts = np.asarray(o, np.float64).reshape(-1, 1, 3)
+        _, J = cv2.fisheye.projectPoints(pts, np.reshape(r, (3, 1)), np.reshape(t, (3, 1)), K, D)
+        J_pose, J_int = J[:, 8:14], J[:, :8]
+        W = J_int.T @ J_pose
+        schur += J_int.T @ J_int - W @ np.linalg.solve(J_pose.T @ J_pose, W.T)
+        total += len(pts)
+    return _std_from_schur(schur, free, rms_px, total, len(obj))
+
+
+def _std_from_schur(schur: np.ndarray, free: np.ndarray, rms_px: float, total: int, n_views: int) -> np.ndarray:
+    """Standard deviations from the Schur complement of the pose blocks (the free intrinsics), 0 for fixed ones."""
+    n_free = int(free.sum())
     # the pose blocks eliminated: the intrinsics' block of the inverse is the inverse of the Schur complement
     diag = np.diag(schur).copy()
     diag[~(diag > 0)] = 1.0  # a parameter no view constrains: left unscaled (and pinv below)
@@ -106,7 +140,7 @@ def std_intrinsics(obj: list, K, dist, rvecs, tvecs, rms_px: float, flags: int) 
         cov = np.linalg.inv(schur * scale) * scale
     except np.linalg.LinAlgError:  # singular, as OpenCV's eigen-decomposition allows: the pseudo-inverse
         cov = np.linalg.pinv(schur * scale) * scale
-    sigma2 = rms_px**2 * total / (2 * total - n_free - 6 * len(obj))
+    sigma2 = rms_px**2 * total / (2 * total - n_free - 6 * n_views)
     out = np.zeros(len(free))
     out[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * sigma2)
     return out

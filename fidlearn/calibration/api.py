@@ -16,6 +16,7 @@ import numpy as np
 from ..boards import Board
 from ..errors import CalibrationError, FidlearnWarning
 from ..images import IMAGE_SUFFIXES
+from ._models import check_model
 from .boards import _Charuco, _Checkerboard
 from .result import Calibration
 from .run import ProgressFn, _run
@@ -156,6 +157,7 @@ def calibrate_checkerboard(
     corner_finder: str = "classic",
     flags: int = 0,
     criteria: tuple | None = None,
+    model: str = "pinhole",
 ) -> Calibration:
     """Calibrate a camera from photos of a printed checkerboard.
 
@@ -191,7 +193,15 @@ def calibrate_checkerboard(
         ``findChessboardCorners`` + capped ``cornerSubPix`` (default, measured
         more accurate) or ``findChessboardCornersSB``.
     flags, criteria :
-        Passed to ``cv2.calibrateCamera`` (e.g. ``cv2.CALIB_RATIONAL_MODEL``).
+        Passed to ``cv2.calibrateCamera`` (e.g. ``cv2.CALIB_RATIONAL_MODEL``), or to
+        ``cv2.fisheye.calibrate`` with ``model="fisheye"`` (by default ``CALIB_RECOMPUTE_EXTRINSIC`` and
+        ``CALIB_FIX_SKEW``).
+    model : {"pinhole", "fisheye", "auto"}
+        The lens model: OpenCV's pinhole model (``cv2.calibrateCamera``), its fisheye model
+        (``cv2.fisheye.calibrate``, lenses of 120 degrees and more), or ``"auto"``: the fisheye when its
+        reprojection error on views left out of its calibration is at least 10 % below the pinhole's (5
+        groups of views held out in turn; ``Calibration.held_out_rms_px`` holds both errors), the pinhole
+        otherwise. ``"auto"`` takes no ``flags``.
 
     Returns
     -------
@@ -221,6 +231,7 @@ def calibrate_checkerboard(
 
     """
     board = _checkerboard(pattern_size, square_size_mm, board)
+    model = check_model(model, flags)
     _warn_if_metres(board.square_size_mm, "square_size_mm")
     finder = _Checkerboard(board, corner_finder)
     entries = _entries(images)
@@ -234,6 +245,7 @@ def calibrate_checkerboard(
         criteria,
         "calibrate_checkerboard",
         reject_duplicates,
+        model=model,
     )
 
 
@@ -248,6 +260,7 @@ def calibrate_charuco(
     min_corners: int = 6,
     flags: int = 0,
     criteria: tuple | None = None,
+    model: str = "pinhole",
 ) -> Calibration:
     """Calibrate a camera from photos of a ChArUco board (a checkerboard with ArUco markers in its white squares).
 
@@ -265,7 +278,7 @@ def calibrate_charuco(
     legacy : bool or "auto"
         The marker layout of boards made before OpenCV 4.6 (matters only with
         an even number of rows); ``"auto"`` keeps whichever finds more corners.
-    progress, reject_outliers, reject_duplicates, flags, criteria :
+    progress, reject_outliers, reject_duplicates, flags, criteria, model :
         As for :func:`calibrate_checkerboard`.
     min_corners : int
         Fewest chess corners a view must show to be used.
@@ -285,6 +298,7 @@ def calibrate_charuco(
             f"board must be a fidlearn.Board.charuco(squares, square_size_mm, marker_size_mm, dictionary), "
             f"got {board!r:.80}; a checkerboard goes to calibrate_checkerboard"
         )
+    model = check_model(model, flags)
     _warn_if_metres(board.square_size_mm, "square_size_mm")
     if int(min_corners) < 4:
         raise CalibrationError(f"min_corners must be at least 4, got {min_corners}")
@@ -300,4 +314,5 @@ def calibrate_charuco(
         criteria,
         "calibrate_charuco",
         reject_duplicates,
+        model=model,
     )

@@ -91,6 +91,9 @@ class Calibration:
         few views, views too alike or nearly identical, parts of the picture with no board
         point or few (:func:`~fidlearn.calibration.quality.quality_warnings`). Empty when
         nothing is wrong; ``fidlearn calibrate`` prints each as a warning.
+    held_out_rms_px : dict {str: float} or None
+        With ``model="auto"``: each lens model's RMS reprojection error (px) on views left out of its
+        calibration (``"pinhole"``, ``"fisheye"``); the camera's ``model`` is the lower. None otherwise.
     """
 
     camera: Camera
@@ -108,6 +111,7 @@ class Calibration:
     coverage: np.ndarray | None = None
     warnings: list = field(default_factory=list)
     _std_from: Callable[[], dict] | None = field(default=None, repr=False)
+    held_out_rms_px: dict | None = None
 
     @property
     def T_board_camera(self) -> dict:
@@ -149,6 +153,9 @@ class Calibration:
         ]
         if self.first_rms_px is not None:
             head.append(f"  RMS before removing outlier views: {self.first_rms_px:.3f} px")
+        if self.held_out_rms_px:
+            errs = ", ".join(f"{m} {e:.3f} px" for m, e in self.held_out_rms_px.items())
+            head.append(f"  lens model {self.camera.model}: RMS on held-out views {errs}")
         if "fx" in s and s["fx"] > 0.01 * self.camera.fx:
             head.append(
                 f"  fx is uncertain to {100 * s['fx'] / self.camera.fx:.1f} %: add views with the board "

@@ -22,7 +22,7 @@ from ..camera import Camera
 from ..detection import as_gray
 from ..errors import CalibrationError, ImageError
 from ..images import load_image
-from . import _stats
+from . import _models, _stats
 from .quality import coverage_grid, quality_warnings
 from .result import Calibration, ViewResult, _short
 
@@ -130,8 +130,11 @@ def _reject_duplicates(views: list[_View], tol_px: float = 1.0) -> None:
             kept.append(v)
 
 
-def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
-    """``cv2.calibrateCamera`` and the per-view errors; the standard deviations wait in ``std_from``."""
+def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria, model: str = "pinhole"):
+    """``cv2.calibrateCamera`` (``cv2.fisheye.calibrate``) and the per-view errors; the standard deviations wait
+    in ``std_from``."""
+    if model == "fisheye":
+        return _calibrate_fisheye(obj, img, image_size, flags, criteria)
     args = dict(flags=int(flags))
     if criteria is not None:
         args["criteria"] = criteria
@@ -151,6 +154,25 @@ def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria):
     per_view = _stats.per_view_rms(obj, img, K, dist, rotations, tvecs)
     std_from = functools.partial(_std_dict, obj, K, dist, rvecs, tvecs, float(rms), int(flags))
     return float(rms), K, dist, rotations, tvecs, std_from, per_view
+
+
+def _calibrate_fisheye(obj: list, img: list, image_size, flags: int, criteria):
+    """As :func:`_calibrate_points`, with ``cv2.fisheye.calibrate``; the RMS over every point, as OpenCV's pinhole
+    one is (``cv2.fisheye.calibrate`` reports another measure)."""
+    size = (int(image_size[0]), int(image_size[1]))
+    _, K, dist, rvecs, tvecs = _models.calibrate_fisheye(obj, img, size, int(flags), criteria)
+    rotations = [cv2.Rodrigues(np.asarray(r, np.float64).reshape(3))[0] for r in rvecs]
+    tvecs = [np.asarray(t, np.float64).reshape(3, 1) for t in tvecs]
+    per_view = _stats.per_view_rms(obj, img, K, dist, rotations, tvecs, "fisheye")
+    counts = np.array([len(np.reshape(o, (-1, 3))) for o in obj])
+    rms = float(np.sqrt(np.sum(per_view**2 * counts) / counts.sum()))
+    std_from = functools.partial(_std_dict_fisheye, obj, K, dist, rvecs, tvecs, rms)
+    return rms, K, dist, rotations, tvecs, std_from, per_view
+
+
+def _std_dict_fisheye(obj, K, dist, rvecs, tvecs, rms_px: float) -> dict:
+    std = _stats.std_intrinsics_fisheye(obj, K, dist, rvecs, tvecs, rms_px)
+    return {n: float(v) for n, v in zip(_models.FISHEYE_NAMES, std)}
 
 
 def _std_dict(obj, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> dict:
@@ -229,8 +251,10 @@ def _reject_outliers(usable: list[_View], per_view: np.ndarray, min_views: int) 
     return True
 
 
-def _result(views: list[_View], usable: list[_View], size, fit: tuple, first_rms, finder, kind: str) -> Calibration:
-    """The Calibration of the used views, with its coverage and warnings."""
+def _result(
+    views: list[_View], usable: list[_View], size, fit: tuple, first_rms, finder, kind: str, model: tuple = ("pinhole",)
+) -> Calibration:
+    """The Calibration of the used views, with its coverage and warnings; ``model`` is (model, held-out errors)."""
     rms, K, dist, rotations, tvecs, std_from, per_view = fit
     T_camera_board = {}
     for v, e, R, t in zip(usable, per_view, rotations, tvecs):
@@ -239,8 +263,11 @@ def _result(views: list[_View], usable: list[_View], size, fit: tuple, first_rms
         T[:3, :3], T[:3, 3] = R, np.reshape(t, 3)
         T_camera_board[v.name] = T
     board = finder.description + (", legacy layout" if getattr(finder, "legacy", False) else "")
-    source = f"{kind}: {len(usable)} of {len(views)} views of a {board}, RMS {rms:.3f} px, OpenCV {cv2.__version__}"
-    camera = Camera(K, dist, size, source=source)
+    lens = "" if model[0] == "pinhole" else f", {model[0]} model"
+    source = (
+        f"{kind}: {len(usable)} of {len(views)} views of a {board}{lens}, RMS {rms:.3f} px, OpenCV {cv2.__version__}"
+    )
+    camera = Camera(K, dist, size, source=source, model=model[0])
     image_points_px = {v.name: v.img for v in usable}
     grid = coverage_grid(image_points_px.values(), camera.image_size)
     return Calibration(
@@ -259,6 +286,7 @@ def _result(views: list[_View], usable: list[_View], size, fit: tuple, first_rms
         coverage=grid,
         warnings=quality_warnings(len(usable), T_camera_board, grid),
         _std_from=std_from,
+        held_out_rms_px=model[1] if len(model) > 1 else None,
     )
 
 
@@ -273,8 +301,10 @@ def _run(
     kind: str,
     reject_duplicates: bool = False,
     min_views: int = MIN_VIEWS,
+    model: str = "pinhole",
 ) -> Calibration:
-    """Detect, select the usable views, calibrate (twice when outlier views are rejected)."""
+    """Detect, select the usable views, choose the lens model (``"auto"``), calibrate (twice when outlier views
+    are rejected)."""
     if not entries:
         raise CalibrationError(f"no images given; calibration needs at least {min_views} views of the board")
     views, failed_grays = _detect_all(entries, find, progress)
@@ -287,10 +317,13 @@ def _run(
     if len(usable) < min_views:
         hint = finder.diagnose(failed_grays) if not usable else ""
         raise _too_few(views, hint, min_views)
-    fit = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria)
+    chosen: tuple = (model,)
+    if model == "auto":
+        chosen = _models.choose_model([v.obj for v in usable], [v.img for v in usable], size, criteria)
+    fit = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria, chosen[0])
     first_rms = None
     if reject_outliers and len(usable) > min_views and _reject_outliers(usable, fit[6], min_views):
         first_rms = fit[0]
         usable = [v for v in views if v.status == "used"]
-        fit = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria)
-    return _result(views, usable, size, fit, first_rms, finder, kind)
+        fit = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria, chosen[0])
+    return _result(views, usable, size, fit, first_rms, finder, kind, chosen)

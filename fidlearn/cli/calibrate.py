@@ -13,7 +13,7 @@ from pathlib import Path
 from .. import calibration
 from ..boards import Board
 from ..drawing import draw_calibration_view
-from ..errors import CalibrationError, FidlearnWarning
+from ..errors import CalibrationError, FidlearnWarning, UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
 from ..planning.coach import coach_calibration
@@ -51,6 +51,13 @@ def add(sub) -> None:
     p.add_argument("--dictionary", help="ChArUco dictionary (default 6X6_250)")
     p.add_argument("--annotate", type=Path, metavar="DIR", help="save each photo with its detected corners drawn")
     p.add_argument(
+        "--model",
+        choices=("pinhole", "fisheye", "auto"),
+        default="pinhole",
+        help="lens model: pinhole (OpenCV's 5 coefficients, default), fisheye (cv2.fisheye, 120 degrees and "
+        "more) or auto (the fisheye when its error on held-out views is at least 10 %% lower)",
+    )
+    p.add_argument(
         "--report",
         type=Path,
         metavar="REPORT.png",
@@ -60,13 +67,13 @@ def add(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _calibrate(paths: list[str], board: Board) -> calibration.Calibration:
+def _calibrate(paths: list[str], board: Board, model: str = "pinhole") -> calibration.Calibration:
     progress = _Progress("calibrate")
     try:
         if board.is_charuco:
-            cal = calibration.calibrate_charuco(paths, board, progress=progress)
+            cal = calibration.calibrate_charuco(paths, board, progress=progress, model=model)
         else:
-            cal = calibration.calibrate_checkerboard(paths, board=board, progress=progress)
+            cal = calibration.calibrate_checkerboard(paths, board=board, progress=progress, model=model)
     finally:
         progress.clear()
     progress.finish(sum(1 for v in cal.views if v.found))
@@ -94,10 +101,14 @@ def _print_result(cal: calibration.Calibration) -> None:
         )
     for name, value in (("fx", c.fx), ("fy", c.fy), ("cx", c.cx), ("cy", c.cy)):
         print(f"  {name} {value:10.2f} ± {sd.get(name, float('nan')):.2f} px ({white.get(name, float('nan')):.2f})")
-    dist_names = calibration.INTRINSIC_NAMES[4 : 4 + len(c.dist)]
+    names = ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4") if c.model == "fisheye" else calibration.INTRINSIC_NAMES
+    dist_names = names[4 : 4 + len(c.dist)]
     print(
         "  distortion " + ", ".join(f"{n} {v:.4f} ± {sd.get(n, float('nan')):.4f}" for n, v in zip(dist_names, c.dist))
     )
+    if cal.held_out_rms_px:
+        errs = ", ".join(f"{m} {e:.3f} px" for m, e in cal.held_out_rms_px.items())
+        print(f"lens model {c.model}, chosen by the RMS reprojection error on held-out views: {errs}")
     print("board corners per ninth of the picture (3x3 grid):")
     for row in cal.coverage:
         print("  " + " ".join(f"{v:6d}" for v in row))
@@ -126,21 +137,27 @@ def run(args) -> int:
     """
     out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
     report = _check_output(args.report, (".png",), "--report") if args.report else None
+    if report is not None and args.model == "fisheye":
+        raise UsageError("--report draws the pinhole model's uncertainty; leave it out with --model fisheye")
     items = expand_inputs(args.inputs, videos=False)
     _refuse_clobber([("-o", out), ("--report", report)], [p for _, p in items], args.annotate)
     staging = _Staging(args.annotate)
     board = _board(args)
     paths = [str(p) for _, p in items]
-    cal = _calibrate(paths, board)
+    cal = _calibrate(paths, board, args.model)
     _print_result(cal)
-    coached = coach_calibration(cal)
-    print("calibration coach: " + coached.report(omit=cal.warnings).replace("\n", "\n  "))  # each warning once
+    coached = None
+    if cal.camera.model == "pinhole":  # the coach's uncertainty model is the pinhole's
+        coached = coach_calibration(cal)
+        print("calibration coach: " + coached.report(omit=cal.warnings).replace("\n", "\n  "))  # each warning once
+    elif report is not None:
+        raise UsageError("--report draws the pinhole model's uncertainty; leave it out with a fisheye camera")
     with staging:
         if args.annotate:
             for view, path in zip(cal.views, paths):  # views come back in input order
                 pts = cal.image_points_px.get(view.name)
                 staging.save(Path(path).name, draw_calibration_view(Path(path), view, pts, board))
-        if report is not None:
+        if report is not None and coached is not None:
             from ..planning.figure import coach_figure  # matplotlib: only when a picture is drawn (faster start)
 
             fig = coach_figure(coached, cal.camera)

@@ -56,6 +56,9 @@ class TrackedPose(_PoseReadouts):
         from the poses so far (1.0 before any odometry: e.g. 0.97 when the wheels report 3 % too far).
     odometry_scale_std : float
         Its standard deviation (``ODOMETRY_SCALE_STD`` = 0.05 until odometry and poses have met).
+    process_noise : (float, float) or None
+        The process noise in force after this step, ``(q_lin mm/s^2, q_ang rad/s^2)`` per sqrt(Hz): the
+        tracker's fixed one, or what it has learnt from the frames so far (``process_noise=None``).
     """
 
     t_s: float
@@ -72,6 +75,7 @@ class TrackedPose(_PoseReadouts):
     angular_velocity_rad_s: np.ndarray | None = None
     odometry_scale: float = 1.0
     odometry_scale_std: float | None = None
+    process_noise: tuple[float, float] | None = None
 
     _error = TrackingError
 

@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import TrackingError
 from ..pose import Pose
 from . import _filter as kf
+from ._adapt import NoiseLearner
 from ._result import TrackedPose
 from ._track import DEFAULT_PROCESS_NOISE, _Step, _Track
 
@@ -19,7 +20,7 @@ def smooth(
     times_s: Sequence[float],
     *,
     odometry: Sequence[Any] | None = None,
-    process_noise: tuple[float, float] = DEFAULT_PROCESS_NOISE,
+    process_noise: tuple[float, float] | None = DEFAULT_PROCESS_NOISE,
     T_camera_base: Any = None,
 ) -> list[TrackedPose]:
     """The best pose at every frame of a finished run: every frame, past and future, informs each.
@@ -40,8 +41,10 @@ def smooth(
     odometry : sequence of (ndarray (4, 4), ndarray (6, 6)) or None, optional
         Per frame, the base's motion since the previous frame and its covariance (as for
         :meth:`PoseTracker.update`), or None.
-    process_noise : (float, float)
-        As for :class:`PoseTracker`.
+    process_noise : (float, float) or None
+        As for :class:`PoseTracker`. None (the default): learnt by a first forward pass, then the
+        noise it learnt (averaged over the run, geometrically) is used for the whole run, sudden
+        manoeuvres still followed as by the tracker.
     T_camera_base : array_like, shape (4, 4), optional
         The mount, as for :class:`PoseTracker`.
 
@@ -78,8 +81,17 @@ def smooth(
             + ("" if odometry is None else f" and odometry ({len(odometry)})")
             + " must have one entry per frame"
         )
-    track = _Track(process_noise, T_camera_base, record=True)
-    for k in range(n):
+    track = _forward(poses, times_s, odometry, _Track(process_noise, T_camera_base, record=True))
+    if track.learner is not None:  # the noise learnt over the whole run, then the run again with it
+        track = _forward(poses, times_s, odometry, _relearnt(track, T_camera_base))
+    assert track.steps is not None
+    states = _backward(track.steps)
+    return [_smoothed(track, s, step) for s, step in zip(states, track.steps)]
+
+
+def _forward(poses, times_s, odometry, track: _Track) -> _Track:
+    """The forward pass: every frame from the first pose on through ``track`` (which records its steps)."""
+    for k in range(len(poses)):
         pose = poses[k]
         if pose is not None and not isinstance(pose, Pose):
             raise TrackingError(f"poses[{k}] must be a fidlearn.Pose or None, got {type(pose).__name__}")
@@ -88,8 +100,17 @@ def smooth(
         track.step(pose, times_s[k], None if odometry is None else odometry[k], "no pose")
     if not track.steps:
         raise TrackingError("no frame has a pose: nothing to smooth")
-    states = _backward(track.steps)
-    return [_smoothed(track, s, step) for s, step in zip(states, track.steps)]
+    return track
+
+
+def _relearnt(first: _Track, T_camera_base) -> _Track:
+    """A track whose noise is what ``first`` learnt, averaged (geometrically) over the run's measured frames."""
+    assert first.steps is not None
+    learnt = [s.out.process_noise for s in first.steps if s.out.measured and s.out.process_noise is not None]
+    log_q = np.mean(np.log(np.array(learnt, dtype=float)), axis=0)
+    track = _Track(None, T_camera_base, record=True)
+    track.learner = NoiseLearner((float(np.exp(log_q[0])), float(np.exp(log_q[1]))), frozen=True)
+    return track
 
 
 def _backward(steps: list[_Step]) -> list[kf._State]:

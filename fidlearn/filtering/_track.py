@@ -15,12 +15,14 @@ from .. import frames
 from ..errors import TrackingError
 from ..pose import Pose
 from . import _filter as kf
+from ._adapt import MANOEUVRE_CHI2, PROCESS_NOISE_START, NoiseLearner, manoeuvre_inflation
 from ._result import TrackedPose
 from ._so3 import log_so3
 
-#: Default process noise: white acceleration of the camera centre (mm/s^2 per sqrt(Hz)) and of its
-#: rotation (rad/s^2 per sqrt(Hz)): the velocity's standard deviation grows by this much in one second.
-DEFAULT_PROCESS_NOISE = (500.0, 1.0)
+#: Default process noise: None, learnt from the innovations (:mod:`fidlearn.filtering._adapt`). A fixed
+#: one is white acceleration of the camera centre (mm/s^2 per sqrt(Hz)) and of its rotation (rad/s^2 per
+#: sqrt(Hz)): the velocity's standard deviation grows by this much in one second.
+DEFAULT_PROCESS_NOISE = None
 #: Largest time (s, either sign) a frame may have: about 31,700 years, far beyond any clock (Unix
 #: seconds are 1.8e9 now); a gap of 1e300 s overflowed the prediction's covariance.
 MAX_TIME_S = 1e12
@@ -39,17 +41,18 @@ class _Step:
     out: TrackedPose
 
 
-def check_process_noise(process_noise) -> tuple[float, float]:
-    """``(linear_mm_s2, angular_rad_s2)``, both finite and > 0; TrackingError otherwise."""
+def check_process_noise(process_noise) -> tuple[float, float] | None:
+    """None (learn it), or ``(linear_mm_s2, angular_rad_s2)``, both finite and > 0; TrackingError otherwise."""
+    if process_noise is None:
+        return None
     try:
         q_lin, q_ang = (float(v) for v in process_noise)
     except (TypeError, ValueError):
         q_lin = q_ang = math.nan
     if not (0 < q_lin <= 1e7 and 0 < q_ang <= 1e4):  # NaN fails too
         raise TrackingError(
-            f"process_noise must be two numbers > 0 (at most 1e7 and 1e4), (linear mm/s^2, angular rad/s^2) "
-            f"per sqrt(Hz), e.g. "
-            f"{DEFAULT_PROCESS_NOISE}, got {process_noise!r}"
+            f"process_noise must be None (learnt from the frames) or two numbers > 0 (at most 1e7 and 1e4), "
+            f"(linear mm/s^2, angular rad/s^2) per sqrt(Hz), e.g. (50, 0.1), got {process_noise!r}"
         )
     return q_lin, q_ang
 
@@ -124,19 +127,38 @@ def check_pose(pose, where: str = "pose") -> None:
             raise TrackingError(f"{where}.covariance must be symmetric positive semi-definite")
     if not isinstance(pose.marker_ids, (tuple, list)):
         raise TrackingError(f"{where}.marker_ids must be a tuple of marker ids, got {type(pose.marker_ids).__name__}")
-    if pose.ambiguous and pose.alternative is not None:
-        check_pose(pose.alternative, f"{where}.alternative")
+    alt = alternative(pose)
+    if pose.ambiguous and alt is not None:
+        check_pose(alt, f"{where}.alternative")
+
+
+def alternative(pose: Pose) -> Pose | None:
+    """The pose's other planar solution, or None (:attr:`fidlearn.Pose.alternative`, a property)."""
+    alt: Pose | None = getattr(pose, "alternative")  # noqa: B009 (declared as an InitVar, read as a property)
+    return alt
+
+
+def _well_determined(pose: Pose | None) -> bool:
+    """A pose from several markers that is not ambiguous: one that may teach the motion noise."""
+    return pose is not None and not pose.ambiguous and len(pose.marker_ids) > 1
 
 
 class _Track:
     """The filter's state and its steps (see the module's docstring)."""
 
     def __init__(self, process_noise, T_camera_base, record: bool = False):
-        self.q_lin, self.q_ang = check_process_noise(process_noise)
+        self.fixed = check_process_noise(process_noise)
+        self.learner = NoiseLearner() if self.fixed is None else None
         self.T_camera_base = check_mount(T_camera_base)
         self.state: kf._State | None = None
         self.rejections = 0
         self.steps: list[_Step] | None = [] if record else None
+        self.nis_sum, self.nis_count = 0.0, 0
+
+    @property
+    def q(self) -> tuple[float, float]:
+        """The process noise in force: ``(q_lin, q_ang)``, fixed or learnt so far."""
+        return self.learner.q if self.learner is not None else self.fixed  # type: ignore[return-value]
 
     # -- one step ----------------------------------------------------------------------------
     def step(self, pose: Pose | None, t_s: float, odometry, why: str = "") -> TrackedPose:
@@ -154,35 +176,71 @@ class _Track:
                     f"({why or 'none given'})"
                 )
             return self._start(pose, t, "started", None)
-        predicted, F = self._predict(t, odo)
+        well_determined = _well_determined(pose)
+        predicted, F = self._predict(t, odo, well_determined)
         if pose is None:
             status = "odometry" if odo is not None else "predicted"
             return self._keep(F, predicted, predicted, status, reason=why)
         T, cov, flipped = self._choose(pose, predicted)
+        # only a well-determined pose teaches the noise or tells a manoeuvre: an ambiguous one, or one from a
+        # single marker, has heavy tails and errors that persist from frame to frame (and a flip is no manoeuvre)
+        learner = self.learner if well_determined else None
         r, S, d2 = kf.innovation(predicted, T, cov)
+        learnt = (r, S)
+        if learner is not None and odo is None and d2 > MANOEUVRE_CHI2:
+            predicted, (r, S, d2) = self._manoeuvre(predicted, T, cov, r)
         if d2 > kf.GATE_CHI2:
-            self.rejections += 1
-            if self.rejections > kf.MAX_REJECTIONS:
-                return self._start(pose, t, "restarted", None)
-            reason = (
-                f"disagrees with the track: squared Mahalanobis distance {d2:.1f} > {kf.GATE_CHI2:.1f} "
-                f"(chi-square, 6 degrees of freedom, {kf.GATE_PROBABILITY})"
-            )
-            return self._keep(F, predicted, predicted, "rejected", reason=reason, d2=d2)
+            return self._reject(F, predicted, pose, t, d2)
         self.rejections = 0
-        chosen = pose.alternative if flipped else pose
+        self.nis_sum, self.nis_count = self.nis_sum + d2, self.nis_count + 1
+        if learner is not None:
+            learner.learn(*learnt)
+        chosen = alternative(pose) if flipped else pose
         filtered = kf.update(predicted, r, S, cov)
         return self._keep(F, predicted, filtered, "measured", d2=d2, pose=chosen, flipped=flipped)
 
-    def _predict(self, t: float, odo):
+    def _reject(self, F, predicted: kf._State, pose: Pose, t: float, d2: float) -> TrackedPose:
+        """A frame beyond the gate: the prediction is the output (or, after too many, the track restarts)."""
+        self.rejections += 1
+        if self.rejections > kf.MAX_REJECTIONS:
+            return self._start(pose, t, "restarted", None)
+        reason = (
+            f"disagrees with the track: squared Mahalanobis distance {d2:.1f} > {kf.GATE_CHI2:.1f} "
+            f"(chi-square, 6 degrees of freedom, {kf.GATE_PROBABILITY})"
+        )
+        return self._keep(F, predicted, predicted, "rejected", reason=reason, d2=d2)
+
+    def _manoeuvre(self, predicted: kf._State, T: np.ndarray, cov: np.ndarray, r: np.ndarray):
+        """The prediction with this step's process noise raised until the frame fits (a sudden manoeuvre), and
+        the frame's innovation from it; at most up to the learner's ceiling."""
+        assert self.learner is not None
+        assert self.state is not None
+        Q = kf._white_acceleration(predicted.t - self.state.t, *self.learner.q)
+        lam = manoeuvre_inflation(predicted.P, Q, r, cov, self.learner.headroom())
+        self.learner.manoeuvre(lam)
+        wide = predicted.copy()
+        wide.P = predicted.P + (lam - 1.0) * Q
+        return wide, kf.innovation(wide, T, cov)
+
+    def _predict(self, t: float, odo, well_determined: bool):
+        """The prediction to ``t``. Before a frame that cannot teach the noise (no pose, an ambiguous one, one
+        marker) the learnt noise is trusted no lower than ``PROCESS_NOISE_START``: what was learnt on
+        well-determined frames need not hold while the frames cannot check it."""
+        assert self.state is not None
+        q_lin, q_ang = self.q
+        if self.learner is not None and not well_determined:
+            q_lin, q_ang = max(q_lin, PROCESS_NOISE_START[0]), max(q_ang, PROCESS_NOISE_START[1])
         if odo is None:
-            return kf.predict_constant_velocity(self.state, t, self.q_lin, self.q_ang)
+            return kf.predict_constant_velocity(self.state, t, q_lin, q_ang)
         T_rel, cov_rel, dt_dk = kf.odometry_to_camera(odo[0], odo[1], self.T_camera_base, self.state.k)
-        return kf.predict_odometry(self.state, t, T_rel, cov_rel, dt_dk, self.q_lin, self.q_ang)
+        return kf.predict_odometry(self.state, t, T_rel, cov_rel, dt_dk, q_lin, q_ang)
 
     def _start(self, pose: Pose, t: float, status: str, F) -> TrackedPose:
         self.rejections = 0
-        self.state = kf.start_state(pose.T_world_camera, pose.covariance, t)
+        if self.learner is not None:
+            self.learner.forget_lag()
+        assert pose.covariance is not None
+        self.state = kf.start_state(pose.T_world_camera, np.asarray(pose.covariance), t)
         return self._keep(F, self.state, self.state, status, pose=pose)
 
     def _keep(self, F, predicted, filtered, status, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
@@ -205,12 +263,14 @@ class _Track:
         ``AMBIGUOUS_INFLATION`` (see :mod:`fidlearn.filtering._filter`), and so is a pose from a single
         marker that is not flagged: its error surface is as far from quadratic.
         """
-        alt = pose.alternative if pose.ambiguous else None
+        alt = alternative(pose) if pose.ambiguous else None
+        assert pose.covariance is not None
+        cov = np.asarray(pose.covariance, dtype=float)
         if alt is None:
             wide = pose.ambiguous or len(pose.marker_ids) == 1
-            return pose.T_world_camera, pose.covariance * (kf.AMBIGUOUS_INFLATION if wide else 1.0), False
-        d_pose = kf.innovation(predicted, pose.T_world_camera, pose.covariance)[2]
-        d_alt = kf.innovation(predicted, alt.T_world_camera, pose.covariance)[2]
+            return pose.T_world_camera, cov * (kf.AMBIGUOUS_INFLATION if wide else 1.0), False
+        d_pose = kf.innovation(predicted, pose.T_world_camera, cov)[2]
+        d_alt = kf.innovation(predicted, alt.T_world_camera, cov)[2]
         if d_alt < d_pose:
             d = np.concatenate(
                 [
@@ -218,8 +278,8 @@ class _Track:
                     alt.position_mm - pose.position_mm,
                 ]
             )
-            return alt.T_world_camera, kf.AMBIGUOUS_INFLATION * (pose.covariance + np.outer(d, d)), True
-        return pose.T_world_camera, kf.AMBIGUOUS_INFLATION * pose.covariance, False
+            return alt.T_world_camera, kf.AMBIGUOUS_INFLATION * (cov + np.outer(d, d)), True
+        return pose.T_world_camera, kf.AMBIGUOUS_INFLATION * cov, False
 
     # -- the answer --------------------------------------------------------------------------
     def output(self, s: kf._State, status: str, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
@@ -245,4 +305,5 @@ class _Track:
             angular_velocity_rad_s=s.w.copy(),
             odometry_scale=1.0 + s.k,
             odometry_scale_std=math.sqrt(max(float(s.P[12, 12]), 0.0)),
+            process_noise=self.q,
         )

@@ -13,6 +13,7 @@ from ..markermap import MarkerMap
 from ..pose import Pose, estimate_pose
 from ..tracking import MarkerTracker
 from . import _filter as kf
+from ._adapt import nis_band
 from ._result import TrackedPose
 from ._track import DEFAULT_PROCESS_NOISE, _Track, check_time
 
@@ -36,16 +37,29 @@ class PoseTracker:
     the poses as part of the state (:attr:`TrackedPose.odometry_scale`), so a gap is bridged with
     the corrected odometry and its ellipsoid grows as the scale's uncertainty says.
 
+    The motion noise is learnt from the frames by default (:mod:`fidlearn.filtering._adapt`): the
+    innovations of consecutive frames, whitened, are uncorrelated when the process noise is right,
+    point the same way when it is too small (the track lags) and opposite ways when it is too large
+    (the track follows each frame's noise); the process noise is raised or lowered accordingly, frame
+    by frame, between a floor (a parked robot stays smooth) and a ceiling; only poses from several
+    markers that are not ambiguous teach it, and before any other frame it is taken no lower than
+    ``PROCESS_NOISE_START`` (what was learnt need not hold where the frames cannot check it). A frame
+    that only a sudden manoeuvre explains (beyond the 0.99 quantile) raises that step's process noise
+    until it fits, so a sudden turn is followed at once. The poses' covariances are taken as given:
+    :meth:`consistency` says how the track's NIS compares with its 95 % band.
+
     Parameters
     ----------
     marker_map : MarkerMap
         The world map (mm).
     camera : Camera
         The camera (fitted to each frame's size as :class:`fidlearn.MarkerTracker` does).
-    process_noise : (float, float)
-        White acceleration of the motion model: linear (mm/s^2 per sqrt(Hz)) and angular
-        (rad/s^2 per sqrt(Hz)); the velocity's standard deviation grows by this much in one
-        second. Larger follows faster motion with less smoothing. Default ``(500, 1)``.
+    process_noise : (float, float) or None
+        None (the default): learnt from the frames, as above (:attr:`TrackedPose.process_noise` says
+        what it is at each frame). Two numbers: a fixed white acceleration of the motion model,
+        linear (mm/s^2 per sqrt(Hz)) and angular (rad/s^2 per sqrt(Hz)); the velocity's standard
+        deviation grows by this much in one second. Larger follows faster motion with less smoothing;
+        the poses' covariances are then taken as they are.
     T_camera_base : array_like, shape (4, 4), optional
         The mount: the robot base's frame in the camera frame (mm; ``p_camera = T_camera_base @
         p_base``). With it every :class:`TrackedPose` also gives ``T_world_base`` and its
@@ -84,7 +98,7 @@ class PoseTracker:
         marker_map: MarkerMap,
         camera: Camera,
         *,
-        process_noise: tuple[float, float] = DEFAULT_PROCESS_NOISE,
+        process_noise: tuple[float, float] | None = DEFAULT_PROCESS_NOISE,
         T_camera_base: Any = None,
         **pose_options: Any,
     ) -> None:
@@ -93,7 +107,7 @@ class PoseTracker:
         self.camera = camera
         self.pose_options = {k: v for k, v in pose_options.items() if k in self._detector.pose_options}
         self._track = _Track(process_noise, T_camera_base)
-        self.process_noise = (self._track.q_lin, self._track.q_ang)
+        self.process_noise = self._track.fixed
         self.T_camera_base = self._track.T_camera_base
         self.last: TrackedPose | None = None
 
@@ -147,6 +161,41 @@ class PoseTracker:
         self.last = self._track.step(pose, t_s, odometry, why)
         return self.last
 
+    def consistency(self) -> dict[str, Any]:
+        """How well the track's predictions agree with the frames so far: the mean NIS and its 95 % band.
+
+        The NIS of a frame is its :attr:`TrackedPose.mahalanobis2` (chi-square with 6 degrees of freedom
+        when the track's noise is right); over ``n`` frames its mean lies in the band 95 % of the time.
+        Below the band the track is more cautious than it needs to be, above it overconfident (or the
+        frames' covariances are too small).
+
+        Returns
+        -------
+        dict
+            ``frames`` (measured frames, the start and rejected frames not counted), ``mean_nis``
+            (NaN for none), ``band`` (low, high) and ``consistent`` (the mean inside the band), with
+            and the ``process_noise`` in force now.
+
+        Examples
+        --------
+        >>> import fidlearn
+        >>> m = fidlearn.MarkerMap.load(fidlearn.data_path("world_map.json"))
+        >>> PoseTracker(m, fidlearn.Camera.from_fov(60, (640, 480))).consistency()["frames"]
+        0
+
+        Over 100 frames the band is 5.34 to 6.70.
+        """
+        n = self._track.nis_count
+        mean = self._track.nis_sum / n if n else float("nan")
+        lo, hi = nis_band(n)
+        return {
+            "frames": n,
+            "mean_nis": mean,
+            "band": (lo, hi),
+            "consistent": bool(lo <= mean <= hi),
+            "process_noise": self._track.q,
+        }
+
     def predict(self, t_s: float) -> TrackedPose:
         """The pose expected at ``t_s`` from the motion model; the track itself does not change.
 
@@ -168,7 +217,7 @@ class PoseTracker:
         if self._track.state is None:
             raise TrackingError("nothing to predict: no frame has given a pose yet; call update() with frames first")
         t = check_time(t_s, self._track.state.t)
-        state, _ = kf.predict_constant_velocity(self._track.state, t, self._track.q_lin, self._track.q_ang)
+        state, _ = kf.predict_constant_velocity(self._track.state, t, *self._track.q)
         return self._track.output(state, "predicted")
 
     def _measure(self, item) -> tuple[Pose | None, str]:

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .. import frames
+from .._camera_checks import refuse_fisheye
 from ..camera import Camera
 from ..errors import CalibrationError, FidlearnError, PoseError
 
@@ -31,6 +32,7 @@ def check_camera(camera, error=CalibrationError) -> Camera:
     """``camera`` if it is a :class:`~fidlearn.Camera`."""
     if not isinstance(camera, Camera):
         raise error(f"camera must be a fidlearn.Camera (Camera.load(path) reads one), got {type(camera).__name__}")
+    refuse_fisheye(camera, "the planner", error)
     return camera
 
 

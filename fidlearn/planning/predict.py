@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from .. import _lens, frames
+from .._camera_checks import refuse_fisheye
 from ..camera import Camera
 from ..errors import FidlearnError, TransformError
 from ..markermap import MarkerMap
@@ -363,6 +364,7 @@ def predict_accuracy(
         raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
+    refuse_fisheye(camera, "predict_accuracy", FidlearnError)
     return _predict(
         marker_map,
         camera,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Mapping
@@ -123,4 +124,24 @@ def _check_inputs(detections, marker_map, camera) -> tuple[list[Detection], Mark
     if dets and not np.isfinite(np.stack([d.corners_px for d in dets])).all():
         k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners_px).all())
         raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners_px.tolist()}")
+    if camera.model == "fisheye":
+        dets, camera = _as_pinhole(dets, camera)
     return dets, marker_map, camera
+
+
+def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection], Camera]:
+    """A fisheye's detections as the distortion-free pinhole camera with the same K sees them.
+
+    Each corner is undistorted exactly (``Camera.undistort_points``, the inverse of ``Camera.project``); a
+    marker with a corner 90 degrees or more off the axis has no pinhole picture and is left out. The pose's
+    reprojection errors are then in those ideal pixels, which are wider than the picture's own away from
+    the centre (about 1 / cos^2 of the angle off the axis).
+    """
+    ideal = camera.undistort_points(np.concatenate([d.corners_px for d in dets])) if dets else np.zeros((0, 2))
+    out = []
+    for k, d in enumerate(dets):
+        corners = ideal[4 * k : 4 * k + 4]
+        if np.isfinite(corners).all():
+            out.append(dataclasses.replace(d, corners_px=corners))
+    pinhole = Camera(camera.K, None, camera.image_size, source=f"{camera.source or 'camera'} undistorted")
+    return out, pinhole

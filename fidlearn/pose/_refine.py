@@ -8,7 +8,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .._camera_checks import refuse_fisheye
 from ..camera import Camera
+from ..errors import PoseError
 from ..frames import transform_from_rvec_tvec
 from ..frames._rotations import _rotvec
 
@@ -53,6 +55,7 @@ def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: 
     >>> J.shape, bool(np.isclose(J[0, 3], -cam.fx / 1000))
     ((2, 6), True)
     """
+    refuse_fisheye(camera, "pose_jacobian", PoseError)
     P = np.asarray(points_world, dtype=float).reshape(-1, 3)
     R_wc = T_world_camera[:3, :3]
     C = T_world_camera[:3, 3]
@@ -148,6 +151,7 @@ def refine_pose_lm(
     >>> bool(refined.reprojection_rms_px < 1e-6)
     True
     """
+    refuse_fisheye(camera, "refine_pose_lm", PoseError)
     obj = np.ascontiguousarray(points_world, dtype=np.float64).reshape(-1, 3)
     img = np.ascontiguousarray(points_px, dtype=np.float64).reshape(-1, 2)
     R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))

@@ -36,8 +36,9 @@ from .._io import write_text_atomic
 from ..camera import Camera
 from ..errors import CameraError, RosFormatError
 
-#: ROS distortion models fidlearn reads and writes, with their number of coefficients.
-MODELS = {"plumb_bob": 5, "rational_polynomial": 8}
+#: ROS distortion models fidlearn reads and writes, with their number of coefficients. ``equidistant`` is
+#: OpenCV's fisheye model (``image_geometry`` calls ``cv::fisheye`` for it): a Camera with ``model="fisheye"``.
+MODELS = {"plumb_bob": 5, "rational_polynomial": 8, "equidistant": 4}
 #: The largest width, height, rows or cols read (larger image sides are refused by :class:`Camera`).
 MAX_COUNT = 1e9
 _NAME = re.compile(r"^[A-Za-z0-9_]+$")
@@ -57,9 +58,9 @@ def camera_info_yaml(camera: Camera, camera_name: str = "camera") -> str:
     Parameters
     ----------
     camera : Camera
-        The camera. Distortion with 4 or 5 coefficients becomes ``plumb_bob`` (k3 = 0 added), 8
-        ``rational_polynomial``; the projection matrix is ``[K | 0]`` and the rectification the
-        identity (a single camera).
+        The camera. A pinhole distortion with 4 or 5 coefficients becomes ``plumb_bob`` (k3 = 0 added), 8
+        ``rational_polynomial``; a fisheye camera ``equidistant``; the projection matrix is ``[K | 0]`` and
+        the rectification the identity (a single camera).
     camera_name : str
         Letters, digits and underscores (ROS's camera names).
 
@@ -84,13 +85,17 @@ def camera_info_yaml(camera: Camera, camera_name: str = "camera") -> str:
     if not isinstance(camera_name, str) or not _NAME.match(camera_name):
         raise RosFormatError(f"camera_name {camera_name!r}: use letters, digits and underscores only")
     d = np.asarray(camera.dist, dtype=float).reshape(-1)
-    if d.size == 4:
-        d = np.r_[d, 0.0]
-    model = {5: "plumb_bob", 8: "rational_polynomial"}.get(d.size)
+    if camera.model == "fisheye":
+        model: str | None = "equidistant"
+    else:
+        if d.size == 4:
+            d = np.r_[d, 0.0]
+        model = {5: "plumb_bob", 8: "rational_polynomial"}.get(d.size)
     if model is None:
         raise RosFormatError(
             f"{camera.source or 'camera'}: {d.size} distortion coefficients (thin prism or tilt) have no ROS "
-            "distortion model; ROS knows plumb_bob (5) and rational_polynomial (8)"
+            "distortion model; ROS knows plumb_bob (5), rational_polynomial (8) and equidistant (fisheye, 4): "
+            "calibrate with the 5- or 8-coefficient model for ROS"
         )
     K = camera.K
     P = np.hstack([K, np.zeros((3, 1))])
@@ -239,7 +244,7 @@ def camera_from_camera_info(text: str, source: str = "camera_info") -> Camera:
     Camera
         K from ``camera_matrix``, the distortion from ``distortion_coefficients`` and the size from
         ``image_width``, ``image_height`` (the raw image's model: rectification and projection are
-        for rectified stereo images and are not used).
+        for rectified stereo images and are not used); ``equidistant`` makes a fisheye camera.
 
     Raises
     ------
@@ -269,7 +274,9 @@ def camera_from_camera_info(text: str, source: str = "camera_info") -> Camera:
     if dist.size not in (0, MODELS[model]) and not (model == "plumb_bob" and dist.size == 4):
         raise RosFormatError(f"{source}: {model} has {MODELS[model]} coefficients, the file gives {dist.size}")
     try:
-        return Camera(K, dist if dist.size else None, (int(d["image_width"]), int(d["image_height"])), source=source)
+        size = (int(d["image_width"]), int(d["image_height"]))
+        lens = "fisheye" if model == "equidistant" else "pinhole"
+        return Camera(K, dist if dist.size else None, size, source=source, model=lens)
     except CameraError as exc:
         raise CameraError(f"{source}: {exc}") from None
 

@@ -14,12 +14,12 @@ from ..errors import CameraError
 
 
 @lru_cache(maxsize=4)
-def _normalized_map_cached(key: bytes, width: int, height: int) -> np.ndarray:
+def _normalized_map_cached(key: bytes, width: int, height: int, model: str = "pinhole") -> np.ndarray:
     K_dist = np.frombuffer(key, dtype=np.float64)
     K, dist = K_dist[:9].reshape(3, 3), K_dist[9:]
     u, v = np.meshgrid(np.arange(-1.0, width + 1.0), np.arange(-1.0, height + 1.0))
     px = np.stack([u.ravel(), v.ravel()], axis=1)
-    xy = undistort_exact(px, K, dist)
+    xy = undistort_exact(px, K, dist, model=model)
     out = xy.reshape(height + 2, width + 2, 2).astype(np.float32)
     out.setflags(write=False)
     return out
@@ -36,7 +36,7 @@ def _normalized_map(camera: Camera) -> np.ndarray:
             f"{camera.dist[12]:g}, {camera.dist[13]:g}); use at most 12 distortion coefficients"
         )
     key = np.concatenate([camera.K.ravel(), camera.dist.ravel()]).astype(np.float64).tobytes()
-    return _normalized_map_cached(key, camera.width, camera.height)
+    return _normalized_map_cached(key, camera.width, camera.height, camera.model)
 
 
 def _fine_rays(nmap: np.ndarray, u0: int, u1: int, v0: int, v1: int, k: int) -> np.ndarray:

@@ -81,7 +81,8 @@ def visible_markers(
         xy = pc[:, :2] / pc[:, 2:3]
         ideal = xy * [camera.fx, camera.fy] + [camera.cx, camera.cy]
         slack = 0.5 * max(camera.width, camera.height)
-        if np.any(ideal < [lo_u - slack, lo_v - slack]) or np.any(ideal > [hi_u + slack, hi_v + slack]):
+        far = np.any(ideal < [lo_u - slack, lo_v - slack]) or np.any(ideal > [hi_u + slack, hi_v + slack])
+        if far and camera.model == "pinhole":  # the fisheye's angle-based model does not fold back there
             continue
         px = camera.project(c, T_world_camera)
         if np.all((px[:, 0] >= lo_u) & (px[:, 0] <= hi_u) & (px[:, 1] >= lo_v) & (px[:, 1] <= hi_v)):

@@ -1,0 +1,99 @@
+"""A fisheye camera end to end: the renderer draws through the fisheye model (the detected corners land on the
+true ones), and locate / estimate_pose find the known pose from the exactly undistorted corners."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fidlearn
+from fidlearn import Camera, MarkerMap, frames
+from fidlearn.pose._inputs import _check_inputs
+from fidlearn.synthetic import render_scene
+
+#: ROS's calibration of the real fisheye lens of data/real/fisheye_checkerboard (mono set).
+K_FE = np.array([[290.050152, 0.0, 399.938345], [0.0, 289.392837, 273.885669], [0.0, 0.0, 1.0]])
+D_FE = np.array([-0.030464, -0.019695, 0.002098, 0.001030])
+EYES = [[500.0, 150.0, 300.0], [600.0, -100.0, 250.0], [450.0, 400.0, 400.0]]
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    cam = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    walls = MarkerMap.load(fidlearn.data_path("two_walls_map.json"))
+    out = []
+    for seed, eye in enumerate(EYES):
+        T = frames.look_at(eye, [0.0, 150.0, 260.0], roll_deg=5 * seed)
+        out.append(render_scene(walls, cam, T, seed=seed, blur_px=0.5, noise_std_gray=1.0))
+    return out
+
+
+def test_the_renderer_draws_through_the_fisheye(scenes):
+    for scene in scenes:
+        assert scene.camera.model == "fisheye"
+        dets = fidlearn.detect_markers(scene.image, scene.marker_map.dictionary)
+        matched = [d for d in dets if d.id in scene.truth]
+        assert len(matched) >= 3
+        for d in matched:  # a pinhole drawing of these corners would be tens of pixels away
+            assert np.abs(d.corners_px - scene.truth[d.id]).max() < 0.3
+    # markers far off the axis (80 degrees) are seen whole, as the fisheye sees them
+    assert 3 in scenes[2].truth
+
+
+def test_locate_finds_the_known_pose_with_a_fisheye_camera(scenes):
+    for scene in scenes:
+        pose = fidlearn.locate(scene.image, scene.marker_map, scene.camera)
+        T = scene.T_world_camera
+        assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 2.0  # 0.7 to 1.1 mm at half a metre
+        R = pose.T_world_camera[:3, :3].T @ T[:3, :3]
+        assert np.degrees(np.arccos(min(1.0, (np.trace(R) - 1) / 2))) < 0.2
+        assert pose.reprojection_rms_px < 0.3
+    # the same photos read as a pinhole camera with the same four numbers: the pose is far off
+    scene = scenes[0]
+    wrong = fidlearn.locate(scene.image, scene.marker_map, Camera(K_FE, D_FE, (800, 503)))
+    assert np.linalg.norm(wrong.position_mm - scene.T_world_camera[:3, 3]) > 10.0
+
+
+def test_estimate_pose_leaves_out_a_marker_beyond_90_degrees():
+    wide = Camera([[200, 0, 399.5], [0, 200, 251.5], [0, 0, 1]], [0.0] * 4, (800, 503), model="fisheye")
+    walls = MarkerMap.load(fidlearn.data_path("two_walls_map.json"))
+    T = frames.look_at([500.0, 150.0, 300.0], [0.0, 150.0, 260.0])
+    dets = [fidlearn.detection.Detection(m, wide.project(walls.marker_corners(m), T)) for m in (0, 1, 2)]
+    # a known marker reported in the picture's corner, which this lens sees 103 degrees off the axis
+    beyond = fidlearn.detection.Detection(5, [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
+    kept, _, pinhole = _check_inputs([*dets, beyond], walls, wide)
+    assert [d.id for d in kept] == [0, 1, 2]
+    assert pinhole.model == "pinhole"
+    assert not pinhole.has_distortion
+    np.testing.assert_allclose(kept[0].corners_px, wide.undistort_points(dets[0].corners_px))
+    pose = fidlearn.estimate_pose([*dets, beyond], walls, wide)
+    assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 1e-3  # exact corners: the exact pose
+    assert 5 not in pose.marker_ids
+
+
+def test_what_models_the_pinhole_only_refuses_a_fisheye_with_the_mend(scenes):
+    from fidlearn.errors import FidlearnError
+    from fidlearn.planning import plan_room, predict_accuracy
+    from fidlearn.pose import pose_jacobian, refine_pose_lm
+    from fidlearn.survey import survey
+
+    scene = scenes[0]
+    calls = [
+        lambda cam: predict_accuracy(scene.marker_map, cam, scene.T_world_camera),
+        lambda cam: plan_room(scene.marker_map, cam),
+        lambda cam: survey([scene.image], scene.marker_map, cam),
+        lambda cam: pose_jacobian(scene.marker_map.marker_corners(0), scene.T_world_camera, cam),
+        lambda cam: refine_pose_lm(scene.marker_map.marker_corners(0), scene.truth[0], cam, np.zeros(3), np.ones(3)),
+    ]
+    for call in calls:
+        with pytest.raises(FidlearnError, match=r"pinhole lens only.*camera\.undistorted\(\)"):
+            call(scene.camera)
+    # the mend: the undistorted picture with the undistorted camera
+    # (OpenCV's new camera for this 180-degree lens is a narrow 80 px focal length: twice the picture size)
+    ideal = scene.camera.undistorted(0.0, (1600, 1006))
+    picture = scene.camera.undistort_image(scene.image, 0.0, (1600, 1006))
+    pose = fidlearn.locate(picture, scene.marker_map, ideal)
+    err = pose.position_mm - scene.T_world_camera[:3, 3]
+    assert np.all(np.abs(err) < 3 * pose.position_std_mm)
+    assert np.linalg.norm(err) < 10.0
+    assert predict_accuracy(scene.marker_map, ideal, scene.T_world_camera) is not None
