@@ -13,7 +13,7 @@ __version__ = "0.1.0"
 
 try:
     from .boards import Board
-    from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard
+    from .calibration import Calibration, calibrate_charuco, calibrate_checkerboard, compare_calibrations
     from .camera import Camera
     from .data import data_dir, data_path
     from .detection import Detection, detect_markers, detect_markers_with_rejected
@@ -138,6 +138,7 @@ __all__ = [
     "Calibration",
     "calibrate_checkerboard",
     "calibrate_charuco",
+    "compare_calibrations",
     "markers_pdf",
     "board_pdf",
     "PrintError",

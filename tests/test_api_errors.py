@@ -78,6 +78,10 @@ BASELINES = {
     "rotation_angle_deg": ((np.eye(3), T[:3, :3]), {}),
     "quaternion_from_matrix": ((T[:3, :3],), {}),
     "matrix_from_quaternion": (([0.0, 0.0, 0.6, 0.8],), {}),
+    "compare_calibrations": (
+        (CAMERA, Camera(CAMERA.K * [[1.001], [1.0], [1.0]], CAMERA.dist, CAMERA.image_size)),
+        {"grid": (8, 6), "tolerance_px": 1.0, "inflate": True},
+    ),
     "Camera.project": ((np.zeros((2, 3)), T), {}),
     "Camera.undistort_points": ((np.zeros((2, 2)) + 100,), {}),
     "Camera.scaled": (((640, 360),), {}),

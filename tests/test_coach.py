@@ -109,7 +109,7 @@ def test_seeded_bad_sets_are_flagged_and_a_good_set_is_not(seed):
     assert any("2 photos were taken at another resolution" in f for f in mixed.flags)
     bent = judge(rng, [board_pose(rng, region=k % 9) for k in range(20)], bend_view=7)
     # view 7 alone: its pull on the intrinsics does not make the other views look bent
-    assert any("does not look flat in view 7:" in f for f in bent.flags)
+    assert any("does not look flat in view 7 (4." in f for f in bent.flags)  # its 4 mm bow, measured
 
 
 @pytest.mark.slow
@@ -135,6 +135,7 @@ def test_the_bend_test_is_an_f_test_at_its_stated_false_alarm_rate():
         T = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(names, rvecs, tvecs)}
         with pytest.MonkeyPatch.context() as mp:
             mp.setattr(bent_board, "BENT_FALSE_ALARM", 0.2)
+            mp.setattr(bent_board, "BENT_MIN_SAG_MM", 0.0)  # the statistical test alone
             flagged += bool(bent_views(cam, dict.fromkeys(names, BOARD), dict(zip(names, observed)), T))
     assert 1 <= flagged <= 14
 

@@ -60,6 +60,15 @@ row, y down the board (the pattern is symmetric, so a view's origin may sit at
 the opposite end of the board); a ChArUco board's is its own: the outer corner
 of the top-left square, x along the top edge (``board.getChessboardCorners()``).
 
+Uncertainty and cross-validation
+--------------------------------
+``std_intrinsics`` are OpenCV's: white corner noise only. Real views also share errors within a
+view (a board not quite flat, a lens the model describes a little wrong), and two independent
+sets of one camera then differ by several of those standard deviations.
+:func:`intrinsics_uncertainty` inflates the covariance by the views' measured pull beyond white
+noise (:mod:`fidlearn.calibration.uncertainty`); :func:`compare_calibrations` says whether two
+calibrations project alike across the picture within that noise (:mod:`fidlearn.calibration.compare`).
+
 Quality
 -------
 A small RMS does not make a trustworthy camera: :class:`Calibration` also carries
@@ -78,7 +87,8 @@ same numbers, without the inversion that made ``calibrateCameraExtended`` cost u
 The board itself is a :class:`fidlearn.Board` (:mod:`fidlearn.boards`). Layout: ``api`` (the two
 functions), ``boards`` (finding the board), ``run`` (the shared
 calibration run), ``result`` (:class:`Calibration`), ``quality`` (coverage and variety), ``_stats`` (per-view
-errors and standard deviations).
+errors and standard deviations), ``uncertainty`` (the covariance with the views' own error),
+``compare`` (two calibrations side by side).
 """
 
 from __future__ import annotations
@@ -86,9 +96,11 @@ from __future__ import annotations
 from . import quality  # noqa: F401 - fidlearn.calibration.quality
 from .api import calibrate_charuco, calibrate_checkerboard
 from .boards import find_checkerboard_corners
+from .compare import CalibrationComparison, compare_calibrations
 from .quality import DuplicateViews, ViewDiversity, coverage_grid, quality_warnings, view_diversity
 from .result import Calibration, ViewResult
 from .run import INTRINSIC_NAMES, MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_MARGIN_PX, ProgressFn
+from .uncertainty import IntrinsicsUncertainty, intrinsics_uncertainty
 
 __all__ = [
     "Calibration",
@@ -96,6 +108,10 @@ __all__ = [
     "calibrate_checkerboard",
     "calibrate_charuco",
     "find_checkerboard_corners",
+    "compare_calibrations",
+    "CalibrationComparison",
+    "intrinsics_uncertainty",
+    "IntrinsicsUncertainty",
     "coverage_grid",
     "view_diversity",
     "ViewDiversity",

@@ -16,13 +16,14 @@ import cv2
 from .. import __version__
 from ..errors import FidlearnError, FidlearnWarning
 from ..io import StagedOutputs
-from . import calibrate, camera, check_print, corners, doctor, grade, locate, markers, plan, render, survey
+from . import calibrate, camera, check_print, compare, corners, doctor, grade, locate, markers, plan, render, survey
 from ._common import _error, _exit_status, _Parser, _raise_interrupted, _SafeStdout, _show_warning, _signal_name
 
 #: Subcommand builders, in the order ``fidlearn --help`` lists them.
 COMMANDS: list[Callable] = [
     markers.add_board,
     calibrate.add,
+    compare.add,
     camera.add,
     markers.add_markers,
     corners.add,

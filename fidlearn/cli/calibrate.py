@@ -13,7 +13,7 @@ from pathlib import Path
 from .. import calibration
 from ..boards import Board
 from ..drawing import draw_calibration_view
-from ..errors import FidlearnWarning, UsageError
+from ..errors import CalibrationError, FidlearnWarning, UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
 from ..planning.coach import coach_calibration
@@ -82,15 +82,25 @@ def _calibrate(paths: list[str], board: Board, model: str = "pinhole") -> calibr
 
 def _print_result(cal: calibration.Calibration) -> None:
     """The table of views, the camera with its standard deviations, the coverage; the warnings on stderr."""
-    c, sd = cal.camera, cal.std_intrinsics
+    c, white = cal.camera, cal.std_intrinsics
+    try:
+        u = calibration.intrinsics_uncertainty(cal)
+        sd, k2 = {**white, **u.std}, u.k2
+    except CalibrationError:  # too few points to tell: OpenCV's alone
+        sd, k2 = white, None
     print(cal.table())
     print()
     print(
         f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board}, "
         f"RMS reprojection error {cal.rms_px:.3f} px"
     )
+    if k2 is not None:
+        print(
+            f"standard deviations with what the views share beyond corner noise (k^2 = {k2:.1f}); "
+            "corner noise alone (OpenCV's) in brackets"
+        )
     for name, value in (("fx", c.fx), ("fy", c.fy), ("cx", c.cx), ("cy", c.cy)):
-        print(f"  {name} {value:10.2f} ± {sd.get(name, float('nan')):.2f} px")
+        print(f"  {name} {value:10.2f} ± {sd.get(name, float('nan')):.2f} px ({white.get(name, float('nan')):.2f})")
     names = ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4") if c.model == "fisheye" else calibration.INTRINSIC_NAMES
     dist_names = names[4 : 4 + len(c.dist)]
     print(

@@ -22,7 +22,7 @@ from ..calibration.quality import MIN_GOOD_VIEWS, coverage_grid, few_views_warni
 from ..camera import Camera
 from ..errors import CalibrationError
 from . import _checks
-from .bent_board import BENT_FALSE_ALARM, bent_views
+from .bent_board import BENT_FALSE_ALARM, bend_flag, bent_views, board_bends
 
 __all__ = [
     "BENT_FALSE_ALARM",
@@ -391,12 +391,9 @@ def _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts: dict
             f"{other_sizes} photo{'s were' if other_sizes > 1 else ' was'} taken at another resolution and left "
             "out: calibrate at the resolution you will run at, all photos alike"
         )
-    bent = bent_views(camera, board_points_mm, image_points_px, T_camera_board)
+    bent = board_bends(camera, board_points_mm, image_points_px, T_camera_board)
     if bent:
-        flags.append(
-            f"the board does not look flat in {', '.join(bent)}: its residuals follow a smooth bend; "
-            "glue the print to something rigid and retake those views"
-        )
+        flags.append(bend_flag(bent, len(names)))
     return flags
 
 

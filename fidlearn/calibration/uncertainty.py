@@ -1,0 +1,154 @@
+"""How uncertain a calibration's intrinsics really are: the corner noise plus what the model cannot explain.
+
+OpenCV's standard deviations (``Calibration.std_intrinsics``) assume every corner's error is
+independent white noise of the RMS's size. Real views break that: a board that is not quite
+flat, a lens the model describes a little wrong, a corner finder's bias that follows the
+squares' shape all leave residuals that are alike within a view. Such a view pulls the
+intrinsics its own way, as a whole, and two independent sets of photos of one camera then
+differ by several times their stated standard deviations (measured in docs/benchmarks.md).
+
+:func:`intrinsics_uncertainty` measures that pull from the data. Linearised at the solution,
+view ``v``'s share of the gradient on the intrinsics is ``s_v = Jv^T r_v`` (``Jv`` its
+Jacobian on the intrinsics with its own pose's columns projected out, ``r_v`` its residuals).
+With white corner noise of variance ``sigma^2``,
+``E[sum_v s_v^T S^-1 s_v] = sigma^2 (p - sum_v tr((S^-1 S_v)^2))`` exactly (``S_v = Jv^T Jv``,
+``S = sum_v S_v``, ``p`` free intrinsics). The ratio of what is observed to that expectation,
+``k^2``, is how much more each view pulls than white noise would (a per-view random error term
+estimated from the data, the scalar form of the view-clustered sandwich covariance): the stated
+covariance is OpenCV's times ``max(1, k^2)``. Pooled over every view and parameter, ``k^2``
+stays steady with a handful of views, where a full clustered covariance would not.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .. import frames
+from ..errors import CalibrationError
+from .run import INTRINSIC_NAMES
+
+__all__ = ["IntrinsicsUncertainty", "intrinsics_uncertainty"]
+
+
+@dataclass(frozen=True)
+class IntrinsicsUncertainty:
+    """The covariance of a calibration's free intrinsics, with and without the views' own error.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The free intrinsics, in order (``fx, fy, cx, cy, k1, ...``; those held fixed left out).
+    covariance : ndarray, shape (p, p)
+        Their covariance, inflated by ``inflation`` (px and the coefficients' own units).
+    white_covariance : ndarray, shape (p, p)
+        The covariance white corner noise alone would give (OpenCV's ``stdDeviationsIntrinsics``
+        are the square roots of its diagonal).
+    inflation : float
+        ``max(1, k^2)``: how much the views pull the intrinsics beyond white noise, in variance.
+    k2 : float
+        The measured ratio itself (about 1 with white noise; below 1 by chance).
+    """
+
+    names: tuple
+    covariance: np.ndarray
+    white_covariance: np.ndarray
+    inflation: float
+    k2: float
+
+    @property
+    def std(self) -> dict:
+        """The inflated standard deviations, by name (a dict like ``Calibration.std_intrinsics``)."""
+        return dict(zip(self.names, np.sqrt(np.diag(self.covariance)).tolist()))
+
+    @property
+    def white_std(self) -> dict:
+        """The white-noise standard deviations (OpenCV's), by name."""
+        return dict(zip(self.names, np.sqrt(np.diag(self.white_covariance)).tolist()))
+
+
+def _view_terms(camera, obj: np.ndarray, img: np.ndarray, T: np.ndarray, free: np.ndarray):
+    """One view's pose-projected intrinsics Jacobian ``Jv`` (2N, p) and residuals (2N,)."""
+    rvec, tvec = frames.rvec_tvec_from_transform(T)
+    proj, J = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
+    r = (img.reshape(-1, 2) - proj.reshape(-1, 2)).ravel()
+    J_pose, J_int = J[:, :6], J[:, 6 : 10 + len(camera.dist)][:, free]
+    Jv = J_int - J_pose @ np.linalg.lstsq(J_pose, J_int, rcond=None)[0]
+    return Jv, r - J_pose @ np.linalg.lstsq(J_pose, r, rcond=None)[0]
+
+
+def _free(cal) -> np.ndarray:
+    n = 4 + len(cal.camera.dist)
+    std = cal.std_intrinsics or {}
+    return np.array([std.get(k, 1.0) > 0 for k in INTRINSIC_NAMES[:n]], dtype=bool)
+
+
+def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
+    """The covariance of a calibration's intrinsics that covers what its views share beyond white noise.
+
+    See the module's docstring for the estimate; in short, OpenCV's covariance times
+    ``max(1, k^2)``, ``k^2`` the views' measured pull on the intrinsics over what white corner
+    noise of the calibration's RMS would give.
+
+    Parameters
+    ----------
+    cal : Calibration
+        A calibration (``calibrate_checkerboard`` or ``calibrate_charuco``) of the pinhole model,
+        with its views' points and poses.
+
+    Returns
+    -------
+    IntrinsicsUncertainty
+
+    Raises
+    ------
+    CalibrationError
+        If ``cal`` is not a calibration with its views (a camera file has none), or holds fewer
+        points than parameters.
+
+    Examples
+    --------
+    >>> from fidlearn import Board, calibrate_checkerboard
+    >>> from fidlearn.data import data_path
+    >>> cal = calibrate_checkerboard(data_path("calibration"), board=Board.checkerboard((9, 6), 25))
+    >>> u = intrinsics_uncertainty(cal)
+    >>> bool(u.std["fx"] >= cal.std_intrinsics["fx"])
+    True
+    """
+    views = getattr(cal, "T_camera_board", None)
+    model = getattr(getattr(cal, "camera", None), "model", "pinhole")
+    if model != "pinhole":
+        raise CalibrationError(f"a {model} calibration: the uncertainty is measured for the pinhole model only")
+    if not isinstance(views, dict) or not views:
+        raise CalibrationError(
+            "the uncertainty needs a pinhole calibration with its views (calibrate_checkerboard or "
+            "calibrate_charuco), not a camera file: calibrate from the photos"
+        )
+    free = _free(cal)
+    terms = [
+        _view_terms(
+            cal.camera,
+            np.asarray(cal.board_points_mm[n], dtype=float),
+            np.asarray(cal.image_points_px[n], dtype=float),
+            views[n],
+            free,
+        )
+        for n in views
+    ]
+    p = int(free.sum())
+    dof = sum(len(r) for _, r in terms) - p - 6 * len(terms)
+    if dof < 1:
+        raise CalibrationError(f"{len(terms)} views give too few points for {p} intrinsics: add views")
+    sigma2 = sum(float(r @ r) for _, r in terms) / dof
+    S_v = [Jv.T @ Jv for Jv, _ in terms]
+    S_inv = np.linalg.pinv(sum(S_v))
+    s = [Jv.T @ r for Jv, r in terms]
+    observed = sum(float(g @ S_inv @ g) for g in s)
+    expected = sigma2 * (p - sum(float(np.trace(S_inv @ Sv @ S_inv @ Sv)) for Sv in S_v))
+    k2 = observed / expected if expected > 0 else 1.0
+    white = sigma2 * S_inv
+    inflation = max(1.0, k2)
+    names = tuple(k for k, f in zip(INTRINSIC_NAMES, free) if f)
+    return IntrinsicsUncertainty(names, white * inflation, white, inflation, float(k2))
