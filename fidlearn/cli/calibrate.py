@@ -79,7 +79,7 @@ def _print_result(cal: calibration.Calibration) -> None:
     print(cal.table())
     print()
     print(
-        f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board}, "
+        f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board_description}, "
         f"RMS reprojection error {cal.rms_px:.3f} px"
     )
     for name, value in (("fx", c.fx), ("fy", c.fy), ("cx", c.cx), ("cy", c.cy)):
