@@ -75,7 +75,8 @@ def _calibrate(paths: list[str], board: Board) -> calibration.Calibration:
 
 def _print_result(cal: calibration.Calibration) -> None:
     """The table of views, the camera with its standard deviations, the coverage; the warnings on stderr."""
-    c, sd = cal.camera, cal.std_intrinsics
+    c, sd = cal.camera, cal.std_intrinsics or {}
+    dist = list(c.dist) if c.dist is not None else []
     print(cal.table())
     print()
     print(
@@ -84,12 +85,10 @@ def _print_result(cal: calibration.Calibration) -> None:
     )
     for name, value in (("fx", c.fx), ("fy", c.fy), ("cx", c.cx), ("cy", c.cy)):
         print(f"  {name} {value:10.2f} ± {sd.get(name, float('nan')):.2f} px")
-    dist_names = calibration.INTRINSIC_NAMES[4 : 4 + len(c.dist)]
-    print(
-        "  distortion " + ", ".join(f"{n} {v:.4f} ± {sd.get(n, float('nan')):.4f}" for n, v in zip(dist_names, c.dist))
-    )
+    dist_names = calibration.INTRINSIC_NAMES[4 : 4 + len(dist)]
+    print("  distortion " + ", ".join(f"{n} {v:.4f} ± {sd.get(n, float('nan')):.4f}" for n, v in zip(dist_names, dist)))
     print("board corners per ninth of the picture (3x3 grid):")
-    for row in cal.coverage:
+    for row in cal.coverage if cal.coverage is not None else []:  # a run's Calibration has its coverage
         print("  " + " ".join(f"{v:6d}" for v in row))
     for sentence in cal.warnings:
         warnings.warn(sentence, FidlearnWarning, stacklevel=2)

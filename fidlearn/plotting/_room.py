@@ -354,7 +354,7 @@ def plot_scene(
     poses: Sequence = (),
     *,
     camera: Camera | None = None,
-    labels: Sequence[str] | None = None,
+    labels: Sequence[str | None] | None = None,
     ax: Axes3D | None = None,
     scale_mm: float | None = None,
     world_axes_mm: float | None = None,
@@ -375,8 +375,8 @@ def plot_scene(
         ``T_world_camera`` attribute (a ``Pose``).
     camera : Camera, optional
         Gives the frustums their shape; without it each pose is drawn as axes.
-    labels : sequence of str, optional
-        One label per pose.
+    labels : sequence of str or None, optional
+        One label per pose (None for none).
     scale_mm : float, optional
         Depth of the drawn frustums; by default a fifth of the scene's size.
     extra_points : array_like, shape (N, 3), optional
