@@ -26,6 +26,7 @@ version itself.  Known differences:
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import cv2
 import numpy as np
@@ -34,7 +35,8 @@ from .errors import DictionaryError, FidlearnError
 
 OPENCV_VERSION: tuple[int, int, int] = tuple(int(x) for x in re.findall(r"\d+", cv2.__version__)[:3])  # type: ignore[assignment]
 
-_ARUCO = getattr(cv2, "aruco", None)
+#: ``cv2.aruco``, or None when this OpenCV has none (checked by :func:`require_aruco` before each use).
+_ARUCO: Any = getattr(cv2, "aruco", None)
 
 #: Readable dictionary names (without the ``DICT_`` prefix) to OpenCV constants.
 DICTIONARIES: dict[str, int] = {}
@@ -193,7 +195,7 @@ def make_detector_parameters(**overrides):
     return params
 
 
-def sub_dictionary(name: str, ids) -> object:
+def sub_dictionary(name: str, ids) -> cv2.aruco.Dictionary:
     """A ``cv2.aruco.Dictionary`` holding only ``ids`` of a predefined dictionary, in that order.
 
     A detector built on it reports the index into ``ids``, not the id. It finds the

@@ -220,7 +220,7 @@ class StagedOutputs:
             ) from None
         return entry
 
-    def stage(self, path: str | os.PathLike, write: Callable[[Path], None], **where) -> Path:
+    def stage(self, path: str | os.PathLike, write: Callable[[Path], object], **where) -> Path:
         """Write an output to its hidden file now; it takes its name at :meth:`commit`.
 
         Parameters

@@ -297,6 +297,51 @@ class Board:
             raise BoardError("a dictionary describes a ChArUco board; give its marker size too, or drop the dictionary")
         return cls("checkerboard", squares, square_size_mm)
 
+    @classmethod
+    def from_description(cls, text: str) -> Board:
+        """The board that :meth:`describe` named, read back from its words.
+
+        fidlearn before the :class:`Board` value kept a calibration's board as this description only;
+        a camera file's ``source`` holds it too (``"... views of a checkerboard 9x6 inner corners, 25 mm
+        squares, RMS ..."``), and the description may stand anywhere in ``text``.
+
+        Parameters
+        ----------
+        text : str
+            Words holding ``checkerboard CxR inner corners, S mm squares`` or ``ChArUco XxY squares,
+            S mm squares, M mm markers, DICTIONARY``.
+
+        Returns
+        -------
+        Board
+            Its sizes as written there (:meth:`describe` keeps 6 significant digits).
+
+        Raises
+        ------
+        BoardError
+            When ``text`` names no board this way, or names one that is not a board.
+
+        Examples
+        --------
+        >>> Board.from_description("checkerboard 9x6 inner corners, 25 mm squares").squares
+        (10, 7)
+        >>> Board.from_description("ChArUco 5x7 squares, 40 mm squares, 20 mm markers, 6X6_250").marker_size_mm
+        20.0
+        """
+        number = r"(\d+(?:\.\d*)?(?:e[+-]?\d+)?)"
+        text = str(text)
+        m = re.search(rf"ChArUco (\d+)x(\d+) squares, {number} mm squares, {number} mm markers, (\w+)", text)
+        if m:
+            squares = (int(m.group(1)), int(m.group(2)))
+            return cls.charuco(squares, float(m.group(3)), float(m.group(4)), m.group(5))
+        m = re.search(rf"checkerboard (\d+)x(\d+) inner corners, {number} mm squares", text)
+        if m:
+            return cls.checkerboard((int(m.group(1)), int(m.group(2))), float(m.group(3)))
+        raise BoardError(
+            f"{text!r:.80} names no board; expected Board.describe()'s words, e.g. "
+            "'checkerboard 9x6 inner corners, 25 mm squares'"
+        )
+
     @property
     def inner_corners(self) -> tuple[int, int]:
         """(columns, rows) of inner corners: the ``patternSize`` of ``cv2.findChessboardCorners``."""
@@ -362,6 +407,8 @@ class Board:
         """
         if not self.is_charuco:
             raise BoardError("a checkerboard has no cv2.aruco board; its points are Board.object_points()")
+        assert self.marker_size_mm is not None  # a ChArUco board's marker size and dictionary are set by __post_init__
+        assert self.dictionary is not None
         return _cv_charuco.charuco_board(
             self.squares, self.square_size_mm, self.marker_size_mm, self.dictionary, legacy=legacy
         )

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numbers
 from collections import OrderedDict
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from types import MappingProxyType
@@ -348,7 +348,7 @@ def _read_inside(gray: np.ndarray, find, dets: list, dropped: list, cells: int, 
 
 def detect_markers(
     image: np.ndarray,
-    dictionary: str = "ARUCO_ORIGINAL",
+    dictionary: str | Sequence[str] = "ARUCO_ORIGINAL",
     refine: str = DEFAULT_REFINE,
     detector_params: Any = None,
     *,
@@ -437,7 +437,7 @@ class DetectionsWithRejected:
 
 def detect_markers_with_rejected(
     image: np.ndarray,
-    dictionary: str = "ARUCO_ORIGINAL",
+    dictionary: str | Sequence[str] = "ARUCO_ORIGINAL",
     refine: str = DEFAULT_REFINE,
     detector_params: Any = None,
     *,

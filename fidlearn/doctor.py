@@ -14,6 +14,7 @@ import platform
 import re
 import sys
 from pathlib import Path
+from types import ModuleType
 
 #: Every wheel on PyPI that installs a ``cv2`` package; two of them break each other.
 OPENCV_WHEELS = (
@@ -63,9 +64,10 @@ def installed_opencv_wheels() -> list[tuple[str, str]]:
     list of (str, str)
         ``(name, version)`` pairs, sorted by name; the version is the one Python imports.
     """
-    found = {}
+    found: dict[str, str] = {}
     for dist in md.distributions():
-        name = (dist.metadata.get("Name") or "").lower().replace("_", "-")
+        # typeshed's PackageMetadata omits get(), which the email Message behind it has
+        name = (dist.metadata.get("Name") or "").lower().replace("_", "-")  # type: ignore[attr-defined]
         if name in OPENCV_WHEELS:
             found.setdefault(name, dist.version)  # the first on sys.path: the one Python uses
     return sorted(found.items())
@@ -79,7 +81,7 @@ def _major_minor(version: str | None) -> tuple[int, int]:
         return (0, 0)
 
 
-def _import(module: str) -> tuple[object | None, str]:
+def _import(module: str) -> tuple[ModuleType | None, str]:
     """The module, or None and why it does not import (one line)."""
     try:
         return importlib.import_module(module), ""
@@ -143,7 +145,7 @@ def report() -> tuple[list[str], list[str]]:
             pair or f"OpenCV does not import ({err}): pip install --force-reinstall '{_requirement(WANTED_WHEEL)}'"
         )
     else:
-        lines.append(f"OpenCV {cv2.__version__} ({Path(cv2.__file__).parent})")
+        lines.append(f"OpenCV {cv2.__version__} ({Path(cv2.__file__ or '?').parent})")
         has_aruco = hasattr(cv2, "aruco") and hasattr(cv2.aruco, "ArucoDetector")
         lines.append(f"cv2.aruco.ArucoDetector: {'yes' if has_aruco else 'no'}")
         if not has_aruco:

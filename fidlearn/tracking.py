@@ -263,6 +263,7 @@ class MarkerTracker:
         self._prev_T = None if self.last_pose is None else self.last_pose.T_world_camera
         self.last_pose = pose
         if pose is None:
+            assert error is not None  # _estimate gives a pose or why not
             raise error
         return pose
 
@@ -310,11 +311,12 @@ class MarkerTracker:
             out += [Detection(d.id, d.corners_px, name) for d in dets[0]]
         if len(self._groups) > 1:
             order = {n: k for k, (n, _, _) in enumerate(self._groups)}
-            out.sort(key=lambda d: (d.id, order[d.dictionary]))
+            out.sort(key=lambda d: (d.id, order[str(d.dictionary)]))
         return out
 
     def _estimate(self, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
         """The pose from the detections, or None and why not (the options were checked when the tracker was made)."""
+        assert self._cam is not None  # set by _detect
         try:
             pose = estimate_pose(dets, self.marker_map, self._cam, **self.pose_options)
         except (NoMarkersError, PoseError) as e:  # no marker of the map, or a degenerate frame
@@ -325,6 +327,8 @@ class MarkerTracker:
     def _predict(self) -> dict | None:
         """The map's markers that may be in view under the predicted pose: ``{'ids': (K,), 'corners': (K, 4, 2) px,
         'motion': (K,) px}``, motion being how far the velocity moved each marker's corners; None if none is."""
+        assert self.last_pose is not None  # called only after a pose was found
+        assert self._cam is not None
         T_last = self.last_pose.T_world_camera
         if self._prev_T is not None:  # constant velocity: the last step once more
             T_pred = T_last @ frames.invert_transform(self._prev_T) @ T_last

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import io
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -81,9 +82,9 @@ def grid_polylines_mm(
 
 def _camera(fx: float, fy: float, cx: float, cy: float, k1: float, image_size: Sequence[int]) -> Camera:
     return Camera(
-        [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]],
-        [k1, 0.0, 0.0, 0.0, 0.0],
-        tuple(image_size),
+        np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]),
+        np.array([k1, 0.0, 0.0, 0.0, 0.0]),
+        cast("tuple[int, int]", tuple(image_size)),  # Camera checks that it is two whole numbers
         source="intrinsics explorer",
     )
 
@@ -215,9 +216,9 @@ def intrinsics_explorer(camera: Camera | None = None, image_size: Sequence[int] 
     from IPython.display import Image, display
 
     if camera is None:
-        camera = Camera.from_fov(60.0, tuple(image_size))
+        camera = Camera.from_fov(60.0, cast("tuple[int, int]", tuple(image_size)))
     w, h = camera.image_size
-    k1 = float(camera.dist[0]) if camera.dist.size else 0.0
+    k1 = float(camera.dist[0]) if camera.dist is not None and camera.dist.size else 0.0
     style = {"description_width": "30px"}
     layout = W.Layout(width="330px")
 

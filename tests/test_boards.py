@@ -113,6 +113,35 @@ def test_bad_boards_say_how_to_mend(make, message):
     assert isinstance(info.value, PrintError)
 
 
+@pytest.mark.parametrize(
+    "board",
+    [
+        Board.checkerboard((9, 6), 25),
+        Board.checkerboard("3x2", 12.5),
+        Board.charuco((5, 7), 36.195, 18.256),
+        Board.charuco((8, 11), 15, 11, "APRILTAG_36h11"),
+    ],
+)
+def test_a_board_is_read_back_from_its_description(board):
+    assert Board.from_description(board.describe()) == board
+    # a camera file's source names the board amid other words
+    source = f"calibrate_charuco: 12 of 13 views of a {board.describe()}, legacy layout, RMS 0.210 px, OpenCV 4.10.0"
+    assert Board.from_description(source) == board
+
+
+@pytest.mark.parametrize(
+    ("text", "error", "message"),
+    [
+        ("a board on the wall", BoardError, "names no board"),
+        ("checkerboard 1x6 inner corners, 25 mm squares", BoardError, "at least 2x2 inner corners"),
+        ("ChArUco 5x7 squares, 40 mm squares, 50 mm markers, 6X6_250", BoardError, "must be smaller"),
+    ],
+)
+def test_a_description_that_names_no_board_says_so(text, error, message):
+    with pytest.raises(error, match=message):
+        Board.from_description(text)
+
+
 def test_a_board_is_a_frozen_value():
     a, b = Board.checkerboard((9, 6), 25), Board("checkerboard", (10, 7), 25.0)
     assert a == b

@@ -13,7 +13,7 @@ import fidlearn
 import fidlearn._cv_charuco
 from fidlearn import Board, Camera, data_path
 from fidlearn.calibration import Calibration, calibrate_charuco, calibrate_checkerboard
-from fidlearn.errors import CalibrationError, DictionaryError, FidlearnError, FidlearnWarning
+from fidlearn.errors import BoardError, CalibrationError, DictionaryError, FidlearnError, FidlearnWarning
 
 PATTERN = (9, 6)
 SQUARE_MM = 25.0  # stand-in: the photos' square size was never published (scales extrinsics only)
@@ -248,10 +248,31 @@ def test_bad_square_size(square, match, right_grays):
         calibrate_checkerboard(right_grays, PATTERN, square)
 
 
+def test_a_calibration_given_the_board_in_words_reads_it_as_a_board():
+    """Earlier fidlearn kept Calibration.board as Board.describe()'s text: that text still makes a Calibration."""
+    camera = Camera.from_fov(60.0, (640, 480))
+    old = Calibration(camera, 0.2, {}, [], None, [], board="checkerboard 9x6 inner corners, 25 mm squares")
+    assert old.board == Board.checkerboard(PATTERN, SQUARE_MM)
+    assert not old.legacy_layout
+    text = "ChArUco 5x6 squares, 40 mm squares, 20 mm markers, 4X4_50, legacy layout"
+    legacy = Calibration(camera, 0.2, {}, [], None, [], board=text)
+    assert legacy.board == Board.charuco((5, 6), 40, 20, "4X4_50")
+    assert legacy.legacy_layout
+    assert legacy.board_description == text
+    assert legacy.summary().startswith(f"Calibration of {text}: 0 of 0 views used")
+    for none in (Calibration(camera, 0.2, {}, [], None, []), Calibration(camera, 0.2, {}, [], None, [], board="")):
+        assert none.board is None
+        assert none.board_description == ""
+    with pytest.raises(BoardError, match="names no board"):
+        Calibration(camera, 0.2, {}, [], None, [], board="the board on the wall")
+
+
 def test_a_board_value_calibrates_as_its_counts_and_size_do(right_files, right_cal_all):
     cal = calibrate_checkerboard(right_files, board=Board.checkerboard(PATTERN, SQUARE_MM), reject_outliers=False)
     np.testing.assert_array_equal(cal.camera.K, right_cal_all.camera.K)
-    assert cal.board == "checkerboard 9x6 inner corners, 25 mm squares"
+    assert cal.board == Board.checkerboard(PATTERN, SQUARE_MM)
+    assert cal.board_description == "checkerboard 9x6 inner corners, 25 mm squares"
+    assert cal.board_description in cal.camera.source  # the camera file keeps the board in words
 
 
 @pytest.mark.parametrize(
@@ -430,7 +451,9 @@ def test_charuco_matches_plain_opencv_and_the_published_file(charuco_files, char
     # 4 views pin fx down poorly: its standard deviation says so (about 16 px)
     assert 5 < cal.std_intrinsics["fx"] < 40
     assert "ChArUco 5x7 squares, 40 mm squares, 20 mm markers, 6X6_250" in cal.camera.source
-    assert "legacy" not in cal.board
+    assert cal.board == TUTORIAL
+    assert not cal.legacy_layout
+    assert "legacy" not in cal.board_description
     # 3.5 % on OpenCV 5.0, 2.9 % on 4.14 (see above): either way more than the 1 % that asks for more views
     uncertain_pct = 100 * cal.std_intrinsics["fx"] / cal.camera.fx
     assert uncertain_pct > 2
@@ -455,7 +478,8 @@ def test_charuco_synthetic_views_recover_the_true_camera_and_board_poses():
 def test_charuco_legacy_layout_makes_no_difference_with_seven_rows(charuco_files, charuco_cal):
     cal = calibrate_charuco(charuco_files, TUTORIAL, legacy=True)
     np.testing.assert_allclose(cal.camera.K, charuco_cal.camera.K, rtol=1e-6)
-    assert cal.board.endswith("legacy layout")
+    assert cal.legacy_layout
+    assert cal.board_description.endswith("legacy layout")
 
 
 @pytest.fixture(scope="module")
@@ -475,7 +499,10 @@ def legacy_board_views():
 
 def test_charuco_auto_finds_an_old_boards_layout(legacy_board_views):
     cal = calibrate_charuco(legacy_board_views, Board.charuco((5, 6), 40, 20), reject_outliers=False)
-    assert cal.board.endswith("legacy layout")
+    assert cal.board == Board.charuco((5, 6), 40, 20)
+    assert cal.legacy_layout
+    assert cal.board_description == "ChArUco 5x6 squares, 40 mm squares, 20 mm markers, 6X6_250, legacy layout"
+    assert cal.board_description in cal.camera.source
     assert [v.n_points for v in cal.views] == [20] * 4  # every inner corner of 5x6 squares
 
 

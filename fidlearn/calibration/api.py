@@ -29,7 +29,7 @@ def _entries(images: Any) -> list[tuple[str, Any]]:
     if isinstance(images, (str, os.PathLike)):
         folder = Path(images)
         if folder.is_dir():
-            files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            files: list[Path] | list[str] = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
             if not files:
                 raise CalibrationError(f"{folder}: no image files (.png, .jpg, ...) in this folder")
             images = files

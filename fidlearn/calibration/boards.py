@@ -23,6 +23,7 @@ _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.00
 
 class _Checkerboard:
     def __init__(self, board: Board, corner_finder: str):
+        self.board = board
         self.pattern_size = board.inner_corners
         if corner_finder not in ("classic", "sb"):
             raise CalibrationError(f"corner_finder {corner_finder!r} is unknown; use 'classic' or 'sb'")

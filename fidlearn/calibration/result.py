@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import frames
+from ..boards import Board
 from ..camera import Camera
 
 __all__ = ["Calibration", "ViewResult"]
@@ -74,8 +75,10 @@ class Calibration:
         docstring for the board frame.
     views : list of ViewResult
         Every input image, in input order (for :meth:`table`).
-    board : str
-        The board, in words.
+    board : Board or None
+        The board the views show (:class:`fidlearn.Board`); None for a Calibration made by hand
+        without one. The text of earlier fidlearn (``Board.describe()``'s words, perhaps with
+        ``", legacy layout"``) is read into a Board. :attr:`board_description` says it in words.
     image_points_px : dict {str: ndarray (N, 2)}
         Each used view's detected board points (px, pixel centres at integers).
     board_points_mm : dict {str: ndarray (N, 3)}
@@ -94,24 +97,48 @@ class Calibration:
     held_out_rms_px : dict {str: float} or None
         With ``model="auto"``: each lens model's RMS reprojection error (px) on views left out of its
         calibration (``"pinhole"``, ``"fisheye"``); the camera's ``model`` is the lower. None otherwise.
+    legacy_layout : bool
+        A ChArUco board found with the marker layout of OpenCV before 4.6 (``legacy=True`` or found
+        so by ``legacy="auto"``).
     """
 
     camera: Camera
     rms_px: float
     per_view_rms_px: dict
     used: list
+    _std: dict | None = field(default=None, init=False, repr=False)  # std_intrinsics, once computed
     std_intrinsics: dict | None
     rejected: list
     T_camera_board: dict = field(default_factory=dict)
     views: list = field(default_factory=list)
-    board: str = ""
+    board: Board | None = None
     image_points_px: dict = field(default_factory=dict)
     board_points_mm: dict = field(default_factory=dict)
     first_rms_px: float | None = None
     coverage: np.ndarray | None = None
     warnings: list = field(default_factory=list)
+    legacy_layout: bool = False
     _std_from: Callable[[], dict] | None = field(default=None, repr=False)
     held_out_rms_px: dict | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.board, str):  # earlier fidlearn's description: "" for none
+            text: str = self.board
+            self.legacy_layout = self.legacy_layout or text.endswith(", legacy layout")
+            self.board = Board.from_description(text) if text else None
+
+    @property
+    def board_description(self) -> str:
+        """The board in words, as the camera's ``source`` names it (``", legacy layout"`` for the old marker layout).
+
+        Returns
+        -------
+        str
+            ``Board.describe()``, ``""`` for no board.
+        """
+        if self.board is None:
+            return ""
+        return self.board.describe() + (", legacy layout" if self.legacy_layout else "")
 
     @property
     def T_board_camera(self) -> dict:
@@ -144,10 +171,11 @@ class Calibration:
         str
             Several lines: what Jupyter shows for a Calibration.
         """
-        s = self.std_intrinsics
+        s = self.std_intrinsics or {}
         std = ", ".join(f"{k} {s[k]:.2f}" for k in ("fx", "fy", "cx", "cy") if k in s)
         head = [
-            f"Calibration of {self.board}: {len(self.used)} of {len(self.views)} views used, RMS {self.rms_px:.3f} px",
+            f"Calibration of {self.board_description}: {len(self.used)} of {len(self.views)} views used, "
+            f"RMS {self.rms_px:.3f} px",
             f"  {self.camera!r}",
             f"  standard deviations (px): {std}",
         ]
@@ -166,13 +194,14 @@ class Calibration:
 
     def __repr__(self) -> str:
         c = self.camera
-        s = self.std_intrinsics
+        dist = c.dist if c.dist is not None else np.zeros(0)
+        s = self.std_intrinsics or {}
         rej = f", rejected={[n for n, _ in self.rejected]}" if self.rejected else ""
         return (
             f"Calibration({len(self.used)}/{len(self.views)} views, rms={self.rms_px:.3f} px, "
             f"fx={c.fx:.2f}±{s.get('fx', float('nan')):.2f}, fy={c.fy:.2f}±{s.get('fy', float('nan')):.2f}, "
             f"cx={c.cx:.2f}±{s.get('cx', float('nan')):.2f}, cy={c.cy:.2f}±{s.get('cy', float('nan')):.2f}, "
-            f"dist=[{', '.join(f'{v:.4g}' for v in c.dist)}], {c.width}x{c.height}{rej})"
+            f"dist=[{', '.join(f'{v:.4g}' for v in dist)}], {c.width}x{c.height}{rej})"
         )
 
     def _repr_pretty_(self, p, cycle) -> None:  # IPython / Jupyter: the full summary

@@ -109,16 +109,25 @@ def _choose_size(views: list[_View]) -> tuple[int, int] | None:
     return next(s for s in sizes if counts[s] == best)  # the most common; on a tie, the first seen
 
 
+def _points(view: _View) -> tuple[np.ndarray, np.ndarray]:
+    """A used view's board points (mm) and image points (px)."""
+    assert view.obj is not None, "a used view has its points"
+    assert view.img is not None, "a used view has its points"
+    return view.obj, view.img
+
+
 def _reject_duplicates(views: list[_View], tol_px: float = 1.0) -> None:
     """Reject views whose board sits where an earlier view's did: they add no information, only weight."""
     kept: list[_View] = []
     for v in views:
         if v.status != "used":
             continue
+        v_obj, v_img = _points(v)
         for k in kept:
-            if k.img.shape != v.img.shape or not np.allclose(k.obj, v.obj):
+            k_obj, k_img = _points(k)
+            if k_img.shape != v_img.shape or not np.allclose(k_obj, v_obj):
                 continue
-            d = min(np.abs(k.img - v.img).max(), np.abs(k.img[::-1] - v.img).max())
+            d = min(np.abs(k_img - v_img).max(), np.abs(k_img[::-1] - v_img).max())
             if d < tol_px:
                 v.status = "duplicate"
                 v.reason = (
@@ -135,7 +144,7 @@ def _calibrate_points(obj: list, img: list, image_size, flags: int, criteria, mo
     in ``std_from``."""
     if model == "fisheye":
         return _calibrate_fisheye(obj, img, image_size, flags, criteria)
-    args = dict(flags=int(flags))
+    args: dict[str, Any] = dict(flags=int(flags))
     if criteria is not None:
         args["criteria"] = criteria
     obj = [o.astype(np.float32).reshape(-1, 1, 3) for o in obj]
@@ -262,7 +271,8 @@ def _result(
         T = np.eye(4)  # frames.transform_from_rvec_tvec's matrix: cv2.Rodrigues of OpenCV's own (finite) rvec
         T[:3, :3], T[:3, 3] = R, np.reshape(t, 3)
         T_camera_board[v.name] = T
-    board = finder.description + (", legacy layout" if getattr(finder, "legacy", False) else "")
+    legacy = bool(getattr(finder, "legacy", False))
+    board = finder.description + (", legacy layout" if legacy else "")
     lens = "" if model[0] == "pinhole" else f", {model[0]} model"
     source = (
         f"{kind}: {len(usable)} of {len(views)} views of a {board}{lens}, RMS {rms:.3f} px, OpenCV {cv2.__version__}"
@@ -279,12 +289,13 @@ def _result(
         rejected=[(v.name, f"{v.status}: {v.reason}") for v in views if v.status != "used"],
         T_camera_board=T_camera_board,
         views=[ViewResult(v.name, v.status, v.n_found, v.rms_px, v.reason) for v in views],
-        board=board,
+        board=finder.board,
         image_points_px=image_points_px,
         board_points_mm={v.name: v.obj for v in usable},
         first_rms_px=first_rms,
         coverage=grid,
         warnings=quality_warnings(len(usable), T_camera_board, grid),
+        legacy_layout=legacy,
         _std_from=std_from,
         held_out_rms_px=model[1] if len(model) > 1 else None,
     )
@@ -318,6 +329,7 @@ def _run(
         hint = finder.diagnose(failed_grays) if not usable else ""
         raise _too_few(views, hint, min_views)
     chosen: tuple = (model,)
+    assert size is not None, "used views have a size"
     if model == "auto":
         chosen = _models.choose_model([v.obj for v in usable], [v.img for v in usable], size, criteria)
     fit = _calibrate_points([v.obj for v in usable], [v.img for v in usable], size, flags, criteria, chosen[0])

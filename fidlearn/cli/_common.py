@@ -297,9 +297,7 @@ class _StreamFile:
     """
 
     def __init__(self, path: Path, option: str):
-        self.path, self.option, self.count = Path(path), option, 0
-        self.entry = None
-        self.file = None
+        self.path, self.option, self.count = Path(path), option, 0  # entry and file: made by __enter__
 
     def __enter__(self):
         outputs = _outputs()
@@ -361,7 +359,7 @@ class _Staging:
         return self
 
     def save(self, name: str, image) -> None:
-        if self.tmp is None:
+        if self.tmp is None or self.folder is None:  # no --annotate
             return
         video, sep, frame = name.rpartition("#")
         # "drive.mp4#7" -> drive_00007.png: the frame's own number, sortable

@@ -118,7 +118,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     int
         The exit status: 0 ok, 1 a problem found (``doctor``), 2 a user error, 128 + N stopped by signal N.
     """
-    stdout, handlers, done = sys.stdout, {}, []
+    stdout, handlers = sys.stdout, {}
+    done: list[StagedOutputs] = []  # the command's outputs, once it has any
     try:
         for sig in (signal.SIGTERM, signal.SIGHUP):
             with contextlib.suppress(ValueError, OSError):  # not the main thread: leave signals alone
@@ -173,7 +174,7 @@ def _main(argv: Sequence[str] | None, done: list) -> int:
         return _exit_status(signalled)
 
 
-def _interruption_in(exc: BaseException) -> KeyboardInterrupt | None:
+def _interruption_in(exc: BaseException | None) -> KeyboardInterrupt | None:
     """The signal's ``KeyboardInterrupt`` that caused ``exc``, if one did."""
     seen = set()
     while exc is not None and id(exc) not in seen:

@@ -144,7 +144,9 @@ def _record(name: str, out: TrackedPose, fmt: str) -> str | dict:
     if fmt == "ros":
         return ros_pose(out)
     base = out.T_world_base is not None
-    T, cov = (out.T_world_base, out.base_covariance) if base else (out.T_world_camera, out.covariance)
+    T = out.T_world_base if out.T_world_base is not None else out.T_world_camera
+    cov = out.base_covariance if base else out.covariance
+    assert cov is not None  # the tracker gives the base's covariance with its pose
     return {
         "frame": name,
         "t_s": out.t_s,
@@ -166,6 +168,7 @@ def _row(name: str, width: int, out: TrackedPose | None) -> str:
         return f"{name:<{width}}  no pose yet (the track starts at the first frame with a pose)"
     T = out.T_world_base if out.T_world_base is not None else out.T_world_camera
     cov = out.base_covariance if out.T_world_base is not None else out.covariance
+    assert cov is not None  # the tracker gives the base's covariance with its pose
     x, y, z = np.round(T[:3, 3], 1) + 0.0
     r, p, yw = np.round(frames.rpy_deg_from_rotation(T[:3, :3]), 1) + 0.0
     std = float(np.sqrt(max(np.trace(cov[3:, 3:]), 0.0)))

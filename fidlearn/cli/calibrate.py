@@ -82,7 +82,7 @@ def _calibrate(paths: list[str], board: Board, model: str = "pinhole") -> calibr
 
 def _print_result(cal: calibration.Calibration) -> None:
     """The table of views, the camera with its standard deviations, the coverage; the warnings on stderr."""
-    c, white = cal.camera, cal.std_intrinsics
+    c, white = cal.camera, cal.std_intrinsics or {}
     try:
         u = calibration.intrinsics_uncertainty(cal)
         sd, k2 = {**white, **u.std}, u.k2
@@ -91,7 +91,7 @@ def _print_result(cal: calibration.Calibration) -> None:
     print(cal.table())
     print()
     print(
-        f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board}, "
+        f"camera {c.width}x{c.height} from {len(cal.used)} of {len(cal.views)} views of a {cal.board_description}, "
         f"RMS reprojection error {cal.rms_px:.3f} px"
     )
     if k2 is not None:
@@ -110,7 +110,7 @@ def _print_result(cal: calibration.Calibration) -> None:
         errs = ", ".join(f"{m} {e:.3f} px" for m, e in cal.held_out_rms_px.items())
         print(f"lens model {c.model}, chosen by the RMS reprojection error on held-out views: {errs}")
     print("board corners per ninth of the picture (3x3 grid):")
-    for row in cal.coverage:
+    for row in cal.coverage if cal.coverage is not None else []:  # a run's Calibration has its coverage
         print("  " + " ".join(f"{v:6d}" for v in row))
     for sentence in cal.warnings:
         warnings.warn(sentence, FidlearnWarning, stacklevel=2)

@@ -62,7 +62,8 @@ def run_export(args) -> int:
     cam = Camera.load(args.camera, image_size=size)
     save_camera_info(cam, out, args.camera_name)
     _commit()
-    print(f"{out}: camera_info for {args.camera_name}, {cam.width}x{cam.height}, {cam.dist.size} distortion terms")
+    n_dist = len(cam.dist) if cam.dist is not None else 0
+    print(f"{out}: camera_info for {args.camera_name}, {cam.width}x{cam.height}, {n_dist} distortion terms")
     return 0
 
 

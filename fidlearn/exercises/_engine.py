@@ -6,7 +6,7 @@ import copy
 import textwrap
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -175,7 +175,29 @@ class Inputs:
         return "Inputs(\n" + "\n".join(lines) + "\n)"
 
 
-Detector = Callable[[Any], bool]
+Detector = Callable[[Any], bool | np.bool_]
+
+
+class _QuestionWords(TypedDict):
+    title: str
+    task: str
+
+
+class QuestionText(_QuestionWords, total=False):
+    """A :class:`Question`'s words, kept apart from its code: ``Question(..., **text)``.
+
+    Attributes
+    ----------
+    title, task : str
+        Required.
+    hint : str or sequence of str
+    solution, level, look : str
+    """
+
+    hint: str | Sequence[str]
+    solution: str
+    level: str
+    look: str
 
 
 class _Asked:
@@ -322,8 +344,8 @@ class Question(_Asked):
         self.inputs = Inputs(**inputs)
         self.data = self.inputs
         self._expected = expected
-        self._parse = parse
-        self._compare = compare
+        self._parse: Callable[[Any], Any] | None = parse  # None in a learner's copy (see _fresh)
+        self._compare: Callable[[Any, Any], str | None] | None = compare
         self._wrong = list(wrong)
         self._notes = list(notes)
         self._hints = [textwrap.dedent(h).strip() for h in ([hint] if isinstance(hint, str) else hint)]
@@ -366,6 +388,8 @@ class Question(_Asked):
                     f"{self.name}.check()"
                 ),
             )
+        assert self._parse is not None  # only a learner's copy, judged above, has none
+        assert self._compare is not None
         try:
             value = self._parse(answer)
         except _AnswerError as exc:

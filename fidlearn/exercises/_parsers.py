@@ -71,7 +71,8 @@ def _scalar(what: str) -> Callable[[Any], float]:
             raise _AnswerError(f"your answer ({what}) should be a number, got the text {answer!r}")
         a = (
             np.asarray(answer, dtype=float)
-            if not isinstance(answer, (dict, list, tuple)) or np.size(answer) == 1
+            # numpy's stub takes array-likes only; np.size counts a dict too (one object)
+            if not isinstance(answer, (dict, list, tuple)) or np.size(answer) == 1  # type: ignore[arg-type]
             else None
         )
         if a is None or a.size != 1:
@@ -173,7 +174,8 @@ def _corner_order(answer: np.ndarray, expected: np.ndarray, atol: float) -> tupl
     return tuple(order)
 
 
-def _winding_message(order: tuple[str, ...], what: str = "detection reports") -> str:
+def _winding_message(order: tuple[str, ...] | None, what: str = "detection reports") -> str:
+    assert order is not None, "called for an order that its detector found"
     return (
         f"your corners are in the order {', '.join(order)}: {what} TL, TR, BR, BL "
         "(clockwise as seen from the front, starting at the marker's own top-left)"

@@ -72,7 +72,7 @@ def _wall_map(
 ) -> MarkerMap:
     """n markers on the north wall (x = 0, facing +X), top-left corners on a loose grid, mm."""
     ids = first_id + np.sort(rng.choice(40, size=n, replace=False))
-    placements = {}
+    placements: dict[int, MarkerPlacement] = {}
     k = 0
     while len(placements) < n:
         y = float(np.round(rng.uniform(-spread_mm, spread_mm), -1))

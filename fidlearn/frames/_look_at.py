@@ -6,6 +6,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import FidlearnError
 from ._checks import as_float_array
@@ -14,7 +15,7 @@ from ._transforms import make_transform
 
 
 def look_at(
-    eye_mm: Sequence[float], target_mm: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0), roll_deg: float = 0.0
+    eye_mm: ArrayLike, target_mm: ArrayLike, up: Sequence[float] = (0.0, 0.0, 1.0), roll_deg: float = 0.0
 ) -> np.ndarray:
     """The pose of a camera at ``eye_mm`` looking at ``target_mm``.
 

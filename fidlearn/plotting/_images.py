@@ -6,6 +6,7 @@ Pixel centres sit at integer coordinates (OpenCV's convention), which is also wh
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -20,7 +21,7 @@ from ..markermap import CORNER_NAMES, MarkerMap
 def _rgb(image: np.ndarray) -> tuple[np.ndarray, dict]:
     image = np.asarray(image)
     if image.ndim == 2:
-        kw = {"cmap": "gray"}
+        kw: dict[str, Any] = {"cmap": "gray"}
         if image.dtype == np.uint8:
             kw.update(vmin=0, vmax=255)
         return image, kw

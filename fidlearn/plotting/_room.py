@@ -11,9 +11,8 @@ from dataclasses import dataclass
 
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.axes import Axes
 from matplotlib.figure import Figure
-from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d projection)
+from mpl_toolkits.mplot3d import Axes3D  # also registers the 3d projection
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from .. import frames
@@ -26,8 +25,8 @@ AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
 
 
 def new_axes_3d(
-    ax: Axes | None = None, figsize: tuple[float, float] = (7.0, 6.0), elev: float = 20.0, azim: float = -35.0
-) -> Axes:
+    ax: Axes3D | None = None, figsize: tuple[float, float] = (7.0, 6.0), elev: float = 20.0, azim: float = -35.0
+) -> Axes3D:
     """A 3D Axes labelled in mm (a new figure unless ``ax`` is given).
 
     Parameters
@@ -77,7 +76,7 @@ class AxesCube:
     half_range: float
 
 
-def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0.05) -> AxesCube:
+def set_axes_equal(ax: Axes3D, points: np.ndarray | None = None, margin: float = 0.05) -> AxesCube:
     """Give a 3D Axes equal scales on X, Y and Z, so squares look square and right angles look right.
 
     Parameters
@@ -109,7 +108,7 @@ def set_axes_equal(ax: Axes, points: np.ndarray | None = None, margin: float = 0
 
 
 def draw_frame(
-    ax: Axes,
+    ax: Axes3D,
     T_world_frame: np.ndarray,
     *,
     length_mm: float = 100.0,
@@ -157,7 +156,7 @@ def draw_frame(
     return lines
 
 
-def draw_world_axes(ax: Axes, length_mm: float = 300.0, label: str | None = "world") -> list:
+def draw_world_axes(ax: Axes3D, length_mm: float = 300.0, label: str | None = "world") -> list:
     """The world frame at the origin, axes labelled X, Y, Z.
 
     Parameters
@@ -177,7 +176,7 @@ def draw_world_axes(ax: Axes, length_mm: float = 300.0, label: str | None = "wor
 
 
 def draw_markers(
-    ax: Axes,
+    ax: Axes3D,
     marker_map: MarkerMap,
     *,
     ids: Iterable[int] | None = None,
@@ -233,7 +232,7 @@ def draw_markers(
 
 
 def draw_box(
-    ax: Axes, min_mm: Sequence[float], max_mm: Sequence[float], *, color: str = "0.6", linewidth: float = 0.8
+    ax: Axes3D, min_mm: Sequence[float], max_mm: Sequence[float], *, color: str = "0.6", linewidth: float = 0.8
 ) -> list:
     """Outline an axis-aligned box (a room) between two opposite corners.
 
@@ -294,7 +293,7 @@ def camera_frustum(camera: Camera, T_world_camera: np.ndarray, depth_mm: float =
 
 
 def draw_camera(
-    ax: Axes,
+    ax: Axes3D,
     camera: Camera,
     T_world_camera: np.ndarray,
     *,
@@ -355,8 +354,8 @@ def plot_scene(
     poses: Sequence = (),
     *,
     camera: Camera | None = None,
-    labels: Sequence[str] | None = None,
-    ax: Axes | None = None,
+    labels: Sequence[str | None] | None = None,
+    ax: Axes3D | None = None,
     scale_mm: float | None = None,
     world_axes_mm: float | None = None,
     title: str | None = None,
@@ -376,8 +375,8 @@ def plot_scene(
         ``T_world_camera`` attribute (a ``Pose``).
     camera : Camera, optional
         Gives the frustums their shape; without it each pose is drawn as axes.
-    labels : sequence of str, optional
-        One label per pose.
+    labels : sequence of str or None, optional
+        One label per pose (None for none).
     scale_mm : float, optional
         Depth of the drawn frustums; by default a fifth of the scene's size.
     extra_points : array_like, shape (N, 3), optional
@@ -436,7 +435,7 @@ def plot_scene(
 
 
 def draw_trajectory(
-    ax: Axes,
+    ax: Axes3D,
     poses: Sequence,
     *,
     color: str = "tab:purple",

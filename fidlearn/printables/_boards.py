@@ -219,6 +219,8 @@ def board_figure(sheet: BoardSheet):
     ox, oy = sheet.origin_mm
     rects = [(ox + c * s, oy + r * s, s, s) for c, r in sheet.black]
     if board.is_charuco:
+        assert board.marker_size_mm is not None  # a ChArUco Board has a marker size and a dictionary
+        assert board.dictionary is not None
         cells_n = _cv.dictionary_marker_bits(board.dictionary) + 2
         cell = board.marker_size_mm / cells_n
         inset = (s - board.marker_size_mm) / 2

@@ -6,6 +6,7 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -96,7 +97,7 @@ class MarkerSheet:
 
 
 def layout_markers(
-    ids: Sequence[int], marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
+    ids: Iterable[Any] | str | int, marker_size_mm: float, dictionary: str = "ARUCO_ORIGINAL", paper: str = "a4"
 ) -> MarkerSheet:
     """Place markers in a grid, as many per page as fit, with a white quiet zone of one cell.
 
@@ -106,7 +107,7 @@ def layout_markers(
 
     Parameters
     ----------
-    ids : sequence of int or str
+    ids : iterable of int, int or str
         Marker ids in print order, or a string such as ``"0-9"`` (:func:`parse_ids`).
     marker_size_mm : float
         Side of each black square (border included), mm.

@@ -11,6 +11,7 @@ import os
 import re
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -125,7 +126,7 @@ def paper_size_mm(paper: str, landscape: bool = False) -> tuple[float, float]:
     return (h, w) if landscape else (w, h)
 
 
-def _positive_mm(value: float, what: str) -> float:
+def _positive_mm(value: Any, what: str) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -158,7 +159,7 @@ def _page(paper_mm: tuple[float, float]):
 
     w, h = paper_mm
     fig = Figure(figsize=(w / 25.4, h / 25.4))
-    ax = fig.add_axes([0, 0, 1, 1])
+    ax = fig.add_axes((0, 0, 1, 1))
     ax.set_axis_off()
     ax.set_xlim(0, w)
     ax.set_ylim(h, 0)

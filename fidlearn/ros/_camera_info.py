@@ -28,6 +28,7 @@ import math
 import os
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -218,7 +219,8 @@ def _read_matrix(d: dict, key: str, shape, source: str) -> np.ndarray:
     data = m["data"]
     if not isinstance(data, list) or not all(isinstance(v, float) for v in data):
         raise RosFormatError(f"{source}: {key}.data must be a list of numbers")
-    rows, cols = m.get("rows"), m.get("cols")
+    rows: Any = m.get("rows")  # checked next
+    cols: Any = m.get("cols")
     for name, v in (("rows", rows), ("cols", cols)):
         if not _whole(v, 0):
             raise RosFormatError(f"{source}: {key}.{name} must be a whole number >= 0, got {v!r}")

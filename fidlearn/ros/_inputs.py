@@ -197,7 +197,7 @@ def read_odometry_csv(path: str | os.PathLike, drift: float = 0.02) -> Odometry:
         if np.linalg.norm(v[4:8]) < 1e-9:
             raise RosFormatError(f"{path}: row {n}: the quaternion is zero")
         times.append(v[0])
-        poses.append(frames.make_transform(rotation_from_xyzw(v[4:8]), np.array(v[1:4]) * 1000.0))
+        poses.append(frames.make_transform(rotation_from_xyzw(np.array(v[4:8])), np.array(v[1:4]) * 1000.0))
     try:
         return Odometry(times, poses, drift)
     except RosFormatError as exc:

@@ -36,12 +36,12 @@ def _body_pose(pose, body: str | None) -> tuple[np.ndarray, np.ndarray, str]:
     if pose.covariance is None:
         raise RosFormatError("this pose has no covariance (not determined); ROS's message needs one")
     if body == "base_link":
-        if base is None:
+        if base is None or not isinstance(pose, TrackedPose):  # a Pose has no base
             raise RosFormatError(
                 "base_link needs the mount: give the tracker T_camera_base (the command line: --mount mount.json), "
                 "or ask for camera_optical_frame or camera_link"
             )
-        return base, pose.base_covariance, body
+        return base, np.asarray(pose.base_covariance, dtype=float), body
     T = np.asarray(pose.T_world_camera, dtype=float)
     if body == "camera_link":  # a pure rotation about the camera centre: same error coordinates
         T = T.copy()

@@ -8,8 +8,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ..frames import rpy_deg_from_rotation
 from ..frames._so3 import exp_so3, left_jacobian, left_jacobian_inv, log_so3, skew
-from ..markermap import MARKER_CORNERS_LOCAL
+from ..markermap import MARKER_CORNERS_LOCAL, MarkerPlacement
 
 __all__ = [
     "exp_so3",
@@ -17,6 +18,7 @@ __all__ = [
     "left_jacobian_inv",
     "local_corners",
     "log_so3",
+    "placement_of",
     "placement_from_photo",
     "skew",
 ]
@@ -51,3 +53,10 @@ def placement_from_photo(
     centre = T_world_camera[:3, :3] @ tvec.reshape(3) + T_world_camera[:3, 3]
     top_left = centre + R_wm @ obj[0]
     return R_wm @ _M_TO_PLACE, top_left
+
+
+def placement_of(marker_id: int, R_world_place: np.ndarray, top_left_mm: np.ndarray) -> MarkerPlacement:
+    """The :class:`MarkerPlacement` of a rotation (3, 3) and a top-left corner (3,), mm."""
+    x, y, z = (float(v) for v in top_left_mm)
+    roll, pitch, yaw = (float(a) for a in rpy_deg_from_rotation(R_world_place))
+    return MarkerPlacement(marker_id, (x, y, z), (roll, pitch, yaw))

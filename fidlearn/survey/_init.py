@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import frames
 from ..detection import Detection
 from ..errors import FidlearnError, MapError
-from ..markermap import UNITS_TO_MM, MarkerMap, MarkerPlacement
+from ..markermap import UNITS_TO_MM, MarkerMap
 from ..pose import estimate_pose
-from ._geometry import local_corners, placement_from_photo
+from ._geometry import local_corners, placement_from_photo, placement_of
 from ._inputs import _Photo
 
 #: The map's distances may differ from the photos' by this factor before its units are called wrong.
@@ -28,10 +27,7 @@ NEW_JUDGES = 24
 
 def _map_of(placed: dict[int, tuple[np.ndarray, np.ndarray]], tape: MarkerMap) -> MarkerMap:
     """A MarkerMap (mm) of the placements ``{id: (R_world_place, top_left_mm)}``."""
-    pl = {
-        i: MarkerPlacement(i, tuple(float(v) for v in p), tuple(float(a) for a in frames.rpy_deg_from_rotation(R)))
-        for i, (R, p) in placed.items()
-    }
+    pl = {i: placement_of(i, R, p) for i, (R, p) in placed.items()}
     return MarkerMap(pl, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
 
 
@@ -146,7 +142,8 @@ def check_units(photos: list[_Photo], tape: MarkerMap) -> None:
         for a in range(len(ids)):
             for b in range(a + 1, len(ids)):
                 i, j = ids[a], ids[b]
-                d_photo = np.linalg.norm(seen[i][1] - seen[j][1]) if seen[i] and seen[j] else 0.0
+                si, sj = seen[i], seen[j]
+                d_photo = np.linalg.norm(si[1] - sj[1]) if si and sj else 0.0
                 if d_photo > 2 * tape.marker_size_mm:
                     ratios.append(np.linalg.norm(np.subtract(tl[i], tl[j])) / d_photo)
     if not ratios:

@@ -9,7 +9,8 @@ import numpy as np
 
 from .. import frames
 from ..errors import FidlearnWarning, SurveyError
-from ..markermap import MarkerMap, MarkerPlacement
+from ..markermap import MarkerMap
+from ._geometry import placement_of
 from ._gross import GrossTest, gross_test
 from ._init import check_units, initial_values
 from ._inputs import MAX_MAP_SIGMA_MM, MIN_MAP_SIGMA_MM, MIN_PHOTOS, _check_options, _read_photos
@@ -223,7 +224,7 @@ def _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice: se
         new = {i: s for i, (_, s) in tests.items() if s**2 > threshold and i in seen_twice and i not in dropped}
         if not new or len(dropped - gross) == MAX_SUSPECTS:
             break
-        dropped.add(max(new, key=new.get))
+        dropped.add(max(new, key=new.__getitem__))
     return problem, x, C, tests, dropped
 
 
@@ -233,8 +234,7 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
     placements = dict(tape.placements)
     cov, std = {}, {}
     for k, i in enumerate(slots[: problem.n_free]):
-        rpy = tuple(float(a) for a in frames.rpy_deg_from_rotation(R_mark[k]))
-        placements[i] = MarkerPlacement(i, tuple(float(v) for v in p_mark[k]), rpy)
+        placements[i] = placement_of(i, R_mark[k], p_mark[k])
         cov[i] = marker_block(problem, C, k)
         std[i] = np.sqrt(np.maximum(np.diag(cov[i])[3:], 0.0))
     for i in slots[problem.n_free :]:  # fixed: the tape's placement, exactly

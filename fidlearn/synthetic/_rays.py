@@ -30,6 +30,7 @@ def _normalized_map(camera: Camera) -> np.ndarray:
 
     Entry ``[j, i]`` belongs to the pixel centre ``u = i - 1``, ``v = j - 1``.
     """
+    assert camera.dist is not None  # Camera makes it an array
     if camera.dist.size == 14 and np.any(camera.dist[12:]):
         raise CameraError(
             f"{camera.source or 'camera'}: the renderer does not model a tilted sensor (tau_x, tau_y = "

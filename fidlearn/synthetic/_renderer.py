@@ -215,10 +215,12 @@ def _draw_sheet(
         if crossing:
             maps[w <= 0] = -10.0  # behind the camera
         np.clip(maps, -10.0, 1e6, out=maps)
-        looked = cv2.remap(tex2, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
+        # OpenCV's stub wants a map2; a two-channel float map1 has none
+        looked = cv2.remap(tex2, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))  # type: ignore[call-overload]
         ink, alpha = looked[..., 0], looked[..., 1]
         sl = (slice((s0 - V0) * k, (s1 - V0) * k), slice((u0 - U0) * k, (u1 - U0) * k))
         if depth_test:
+            assert wbuf is not None  # made whenever sheets overlap
             wb = wbuf[sl]
             hidden = w <= wb
             alpha[hidden] = 0.0

@@ -16,7 +16,7 @@ __all__ = ["survey_room", "survey_walk", "tape_measured"]
 ROOM_MM = (5000.0, 4000.0, 2500.0)
 
 
-def _wall_slots() -> list[tuple[str, float, float]]:
+def _wall_slots() -> list[tuple[str, int, int]]:
     north = [("north", y, z) for y, z in ((700, 1700), (1600, 1300), (2500, 1800), (3300, 1400))]
     west = [("west", x, z) for x, z in ((900, 1500), (2000, 1900), (3100, 1300))]
     east = [("east", x, z) for x, z in ((1000, 1800), (2200, 1350), (3300, 1700))]
@@ -152,8 +152,9 @@ def tape_measured(
         dt = rng.normal(0.0, sigma_mm, 3) - np.asarray(moved.get(i, (0.0, 0.0, 0.0)), float)
         droll, dpitch, dyaw = rng.normal(0.0, sigma_deg, 3)
         R = rotation_from_rpy_deg(droll, dpitch, dyaw) @ p.R_world_marker
-        rpy = tuple(float(a) for a in rpy_deg_from_rotation(R))
-        pl[i] = MarkerPlacement(i, tuple(float(v) for v in np.asarray(p.translation_mm) + dt), rpy)
+        roll, pitch, yaw = (float(a) for a in rpy_deg_from_rotation(R))
+        x, y, z = (float(v) for v in np.asarray(p.translation_mm) + dt)
+        pl[i] = MarkerPlacement(i, (x, y, z), (roll, pitch, yaw))
     return MarkerMap(
         pl, true_map.marker_size_mm, dictionary=true_map.dictionary, units=units, source="tape-measured map"
     )

@@ -247,7 +247,7 @@ def render_trajectory(
         raise FidlearnError(f"give either poses or trajectory options ({', '.join(trajectory_options)}), not both")
     elif isinstance(poses, (str, bytes, dict)) or not hasattr(poses, "__len__"):
         raise FidlearnError(f"poses must be a list of 4x4 T_world_camera, got {type(poses).__name__}")
-    render_kwargs = dict(
+    render_kwargs: dict[str, Any] = dict(
         blur_px=blur_px,
         noise_std_gray=noise_std_gray,
         gradient=gradient,

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from ...camera import Camera
-from .._engine import Detector, Question
+from .._engine import Detector, Question, QuestionText
 from .._parsers import (
     _array,
     _close,
@@ -36,7 +36,7 @@ INTRO = """
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "K from a diagonal field of view",
     "task": """
         A phone's data sheet gives its camera's field of view the way phone makers do: DIAGONALLY,
@@ -166,7 +166,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "Project points with K",
     "task": """
         `points_camera_mm` holds 5 points (N, 3) in the camera frame (OpenCV's: x right, y down,
@@ -241,7 +241,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "How far is the marker?",
     "task": """
         A square marker `marker_size_in` inches wide faces the camera squarely, in the middle of the
@@ -310,7 +310,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Field of view from K",
     "task": """
         Given the intrinsic matrix `K` of a camera and its `image_size` (width, height), write code
@@ -371,7 +371,7 @@ def _q4(learner: str) -> Question:
 
 
 #: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q5 = {
+_Q5: QuestionText = {
     "title": "Where a lens bends a point",
     "task": """
         A webcam's lens bends straight lines: its distortion `dist` = (k1, k2, p1, p2, k3) has

@@ -16,7 +16,7 @@ from ... import frames
 from ...boards import Board
 from ...camera import Camera
 from ...frames import look_at
-from .._engine import Question, _AnswerError
+from .._engine import Question, QuestionText, _AnswerError
 from .._parsers import (
     _array,
     _close,
@@ -43,7 +43,7 @@ def _calibration_views(
     """Pixel corners (N, 2) of a board seen from n_views varied poses, with Gaussian noise."""
     centre = obj.mean(axis=0)
     extent = float(np.ptp(obj[:, 0]))
-    views = []
+    views: list[np.ndarray] = []
     while len(views) < n_views:
         dist = extent * rng.uniform(1.6, 3.0)
         direction = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), -1.0])
@@ -57,7 +57,7 @@ def _calibration_views(
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "The board's object points",
     "task": """
         Your checkerboard has `pattern_size` = (columns, rows) INNER corners and squares of
@@ -127,7 +127,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "Calibrate from corner detections",
     "task": """
         A 9 x 6 checkerboard with 25 mm squares (its object points are in `object_points`, (54, 3)
@@ -159,9 +159,8 @@ def _parse_camera(answer) -> tuple:
     if isinstance(answer, Camera):
         return answer.K, np.resize(np.asarray(answer.dist, dtype=float).ravel(), 5), tuple(answer.image_size)
     shape = np.shape(answer) if isinstance(answer, (np.ndarray, list, tuple)) else None
-    what = {(3, 3): "that is K alone", (5,): "that is the distortion vector alone"}.get(
-        (5,) if shape == (1, 5) else shape, f"got {type(answer).__name__}"
-    )
+    hints: dict[tuple[int, ...] | None, str] = {(3, 3): "that is K alone", (5,): "that is the distortion vector alone"}
+    what = hints.get((5,) if shape == (1, 5) else shape, f"got {type(answer).__name__}")
     raise _AnswerError(
         f"give the whole camera, fidlearn.Camera(K, dist, image_size): {what}; a camera is K, its "
         "distortion and the image size they hold for"
@@ -211,7 +210,7 @@ def _q2(learner: str) -> Question:
     # judged against the true camera, with what calibration on these corners can reach
     f_tol2 = max(0.01 * K_true[0, 0], 3 * abs(K_key[0, 0] - K_true[0, 0]))
     c_tol2 = max(3.0, 3 * float(np.abs(K_key[:2, 2] - K_true[:2, 2]).max()))
-    k1_true = float(true_cam.dist[0])
+    k1_true = float(np.asarray(true_cam.dist).ravel()[0])
     k1_tol = max(0.02, 3 * abs(float(d_key.ravel()[0]) - k1_true))
     cmp_camera = _camera_comparer(size, f_tol2, c_tol2, k1_true, k1_tol)
     return Question(
@@ -242,7 +241,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Find the picture that does not belong",
     "task": """
         Your class pooled its checkerboard pictures; one of the 9 views in
@@ -307,7 +306,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "K at another resolution",
     "task": """
         The camera was calibrated at `calibrated_size` (width, height) with intrinsic matrix `K`;
@@ -357,7 +356,7 @@ def _q4(learner: str) -> Question:
     """q4: K at another resolution."""
     rng = _rng("02", learner, "q4")
     big = _SIZES[int(rng.integers(2, 4))]
-    new = [
+    sizes = [
         (w, h)
         for w, h in (
             (big[0] // 2, big[1] // 2),
@@ -368,7 +367,7 @@ def _q4(learner: str) -> Question:
         )
         if (w, h) != big
     ]
-    new = new[int(rng.integers(len(new)))]
+    new = sizes[int(rng.integers(len(sizes)))]
     cam4 = Camera.from_fov(float(np.round(rng.uniform(55, 80))), big)
     K4 = cam4.K.copy()
     K4[0, 2] += float(np.round(rng.uniform(-20, 20), 1))
@@ -404,7 +403,7 @@ def _q4(learner: str) -> Question:
 
 
 #: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q5 = {
+_Q5: QuestionText = {
     "title": "Calibrate from pictures",
     "task": """
         `images` are 6 gray photos (320 x 240) of a printed checkerboard with `pattern_size` =
@@ -434,12 +433,14 @@ def _q5(learner: str) -> Question:
     rng = _rng("02", learner, "q5")
     f5 = float(np.round(rng.uniform(260, 340)))
     cam5 = Camera(
-        [
-            [f5, 0, 159.5 + float(np.round(rng.uniform(-4, 4), 1))],
-            [0, f5, 119.5 + float(np.round(rng.uniform(-3, 3), 1))],
-            [0, 0, 1],
-        ],
-        [float(np.round(rng.uniform(-0.15, 0.0), 3)), 0, 0, 0, 0],
+        np.array(
+            [
+                [f5, 0, 159.5 + float(np.round(rng.uniform(-4, 4), 1))],
+                [0, f5, 119.5 + float(np.round(rng.uniform(-3, 3), 1))],
+                [0, 0, 1],
+            ]
+        ),
+        np.array([float(np.round(rng.uniform(-0.15, 0.0), 3)), 0, 0, 0, 0]),
         (320, 240),
     )
     square5 = float(rng.choice([20, 25, 30]))

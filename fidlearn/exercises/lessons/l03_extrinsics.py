@@ -14,7 +14,7 @@ import numpy as np
 
 from ... import frames
 from ...frames import look_at
-from .._engine import Question
+from .._engine import Question, QuestionText
 from .._parsers import (
     _EXTRINSIC_MSG,
     _T_HINTS,
@@ -41,7 +41,7 @@ INTRO = """
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "A robot's pose from roll, pitch and yaw",
     "task": """
         A robot stands at `position_mm` (x, y, z in the world, mm) with orientation `rpy_deg` =
@@ -117,7 +117,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "World points in the camera frame",
     "task": """
         A camera's pose is `T_world_camera` (4x4, mm). `points_world_mm` are 4 points on the wall
@@ -185,7 +185,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Chain the map and a detection",
     "task": """
         The map says where a marker is: `T_world_marker`. A single-marker detection says where the
@@ -251,7 +251,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "From rvec, tvec to a 4x4 matrix",
     "task": """
         cv2.solvePnP returned `rvec` and `tvec` (mm). Write code that turns them into the 4x4
@@ -316,7 +316,7 @@ def _q4(learner: str) -> Question:
 
 
 #: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q5 = {
+_Q5: QuestionText = {
     "title": "What an rvec says",
     "task": """
         solvePnP answers rotations as a rotation vector `rvec` (3,). Without calling cv2.Rodrigues,

@@ -7,11 +7,13 @@ does not depend on the others.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ... import frames
 from ...markermap import MarkerMap, MarkerPlacement
-from .._engine import Question, _AnswerError
+from .._engine import Question, QuestionText, _AnswerError
 from .._parsers import (
     _array,
     _close,
@@ -77,7 +79,7 @@ def _map_diagnosis(got: MarkerMap, want: MarkerMap) -> str | None:
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "Corners from a placement in feet",
     "task": """
         Marker `marker_id` hangs on the wall named in `wall`. The map gives its `placement`: "translation"
@@ -161,7 +163,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "Write the world map",
     "task": """
         You measured 4 markers with a tape in centimetres: `measured` lists each marker's id, its
@@ -199,7 +201,7 @@ def _q2(learner: str) -> Question:
     walls = [str(w) for w in rng.choice(list(_WALL_YAW), size=4)]
     walls[0], walls[1] = "north", "east"
     room_cm = {"north": 0.0, "south": 487.68, "west": -182.88, "east": 182.88}
-    measured = []
+    measured: list[dict[str, Any]] = []  # the map file's entries
     for i, w in zip(ids, walls):
         along = float(np.round(rng.uniform(-150, 150)))
         z = float(np.round(rng.uniform(60, 200)))
@@ -244,7 +246,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "A marker on the floor",
     "task": """
         A marker lies flat on the floor, printed face up. Its own "up" direction (from its bottom
@@ -352,7 +354,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Centre and facing direction",
     "task": """
         `marker_map` is a fidlearn MarkerMap. For marker `marker_id`, write code that computes its

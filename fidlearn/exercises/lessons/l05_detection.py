@@ -17,7 +17,7 @@ from ... import frames
 from ...camera import Camera
 from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
-from .._engine import Question, _AnswerError
+from .._engine import Question, QuestionText, _AnswerError
 from .._parsers import _array, _close, _cmp_array, _cmp_scalar, _corner_order, _scalar, _winding_message
 from .._scenery import _pose_seeing_all, _rng
 
@@ -64,7 +64,8 @@ def _layout(rng: np.random.Generator, n_markers: int, rotated: bool, dictionarie
         R = frames.rotation_from_rpy_deg(roll, 0, 0)
         centre_offset = R @ np.array([0.0, size / 2, -size / 2]) - np.array([0.0, size / 2, -size / 2])
         tl = tl - centre_offset
-        placements[mid] = MarkerPlacement(mid, tuple(float(v) for v in tl), (roll, 0.0, 0.0))
+        tx, ty, tz = (float(v) for v in tl)
+        placements[mid] = MarkerPlacement(mid, (tx, ty, tz), (roll, 0.0, 0.0))
     m = MarkerMap(placements, size, dictionary=dictionary, units="mm")
 
     def draw(r):
@@ -115,7 +116,7 @@ def _cmp_ids(a, b):
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "Which markers are in the picture?",
     "task": """
         `image` is a gray picture (H, W) of a wall with markers from the dictionary `dictionary`.
@@ -165,7 +166,7 @@ def _q1(scene: _Scene) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "The corners of a turned marker, in order",
     "task": """
         Marker `marker_id` hangs turned on the wall, so its own top-left corner is not the
@@ -218,7 +219,7 @@ def _q2(scene: _Scene) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "How is the marker turned?",
     "task": """
         From the detected corners of marker `marker_id`, write code that computes the direction of
@@ -287,7 +288,7 @@ def _q3(scene: _Scene) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "How far can the detector see?",
     "task": """
         OpenCV's ArUco detector throws away every outline whose perimeter is shorter than

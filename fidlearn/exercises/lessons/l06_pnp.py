@@ -16,7 +16,7 @@ from ... import _cv, frames
 from ...camera import Camera
 from ...detection import Detection
 from ...frames import look_at
-from .._engine import Question, _AnswerError
+from .._engine import Question, QuestionText, _AnswerError
 from .._parsers import (
     _array,
     _close,
@@ -71,7 +71,7 @@ def _shifted_inside(corners_px: np.ndarray, shift_px: tuple, image_size: tuple) 
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "2D-3D correspondences",
     "task": """
         `detections` lists detected markers (fidlearn Detection: `.id`, `.corners_px` (4, 2) px,
@@ -154,7 +154,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "solvePnP over every marker",
     "task": """
         The camera `camera` (K, dist) saw the 5 markers of `marker_map`; their detections are in
@@ -268,7 +268,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Reprojection error",
     "task": """
         solvePnP on `object_points` (N, 3) mm and `image_points` (N, 2) px gave `rvec`, `tvec`.
@@ -354,7 +354,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Straighten the corners",
     "task": """
         `corners_px` (4, 2) are a marker's corners detected near the edge of a picture taken through

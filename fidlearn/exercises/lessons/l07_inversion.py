@@ -15,7 +15,7 @@ import numpy as np
 from ... import frames
 from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
-from .._engine import Question
+from .._engine import Question, QuestionText
 from .._parsers import (
     _EXTRINSIC_MSG,
     _T_HINTS,
@@ -49,7 +49,7 @@ def _room_pose(rng: np.random.Generator) -> np.ndarray:
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "Where is the camera?",
     "task": """
         cv2.solvePnP gave `rvec` and `tvec` (mm) for a camera looking at the north wall. Write code
@@ -111,7 +111,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "The camera's pose",
     "task": """
         From solvePnP's `rvec`, `tvec` (mm), write code that builds the camera's pose in the world,
@@ -166,7 +166,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Which way does the camera look?",
     "task": """
         From solvePnP's `rvec`, `tvec`, write code that finds where the camera's optical axis
@@ -252,7 +252,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Camera position from a single marker",
     "task": """
         solvePnP on the 4 corners of one marker, with the corners given in the MARKER's own frame
@@ -333,7 +333,7 @@ def _q4(learner: str) -> Question:
 
 
 #: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q5 = {
+_Q5: QuestionText = {
     "title": "What is in the middle of the picture?",
     "task": """
         cv2.solvePnP gave `rvec` and `tvec` (mm) for a camera in the room looking at the north wall,

@@ -15,7 +15,7 @@ from ...camera import Camera
 from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
 from .._design import _WallTask
-from .._engine import Question, _AnswerError
+from .._engine import Question, QuestionText, _AnswerError
 from .._parsers import (
     _array,
     _close,
@@ -65,7 +65,7 @@ _AMBIGUITY_WRONG = {
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "Error grows with distance",
     "task": """
         A marker of side `marker_size_mm` faces the camera squarely at each distance in
@@ -130,7 +130,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "Where did the misplaced marker go?",
     "task": """
         Someone moved one marker along its wall after the map was measured: `marker_map` still has
@@ -279,7 +279,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Two poses that both fit",
     "task": """
         One marker, seen from about 3 m, was detected (`detections`); `marker_map` and `camera`
@@ -356,13 +356,11 @@ def _ambiguous_view(rng: np.random.Generator) -> tuple:
         )
         det3 = _noisy_detections(rng, m3, cam3, T3, 0.3)
         p3 = _pose.estimate_pose(det3, m3, cam3)
-        if (
-            p3.ambiguous
-            and p3.alternative is not None
-            and np.linalg.norm(p3.position_mm - p3.alternative.position_mm) > 250
-        ):
+        # Pose.alternative is a property set after the class; mypy sees only the dataclass's InitVar
+        alt3 = p3.alternative  # type: ignore[attr-defined]
+        if p3.ambiguous and alt3 is not None and np.linalg.norm(p3.position_mm - alt3.position_mm) > 250:
             break
-    sep = float(np.linalg.norm(p3.position_mm - p3.alternative.position_mm))
+    sep = float(np.linalg.norm(p3.position_mm - alt3.position_mm))
     # the two raw IPPE solutions (no refinement) are a fair answer too
     s3 = m3.marker_size_mm / 2
     local = np.array([[-s3, s3, 0], [s3, s3, 0], [s3, -s3, 0], [-s3, -s3, 0]])
@@ -415,7 +413,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Design: three markers, the whole area within the target",
     "task": """
         A robot's `camera` (with its lens distortion) rides `height_mm` above the floor in the floor area

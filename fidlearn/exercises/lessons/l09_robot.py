@@ -14,7 +14,7 @@ import numpy as np
 from ... import frames
 from ...camera import Camera
 from ...markermap import MarkerMap
-from .._engine import Question
+from .._engine import Question, QuestionText
 from .._parsers import (
     _array,
     _close,
@@ -35,7 +35,7 @@ INTRO = """
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "Localize every frame of a drive",
     "task": """
         A camera on a robot drove toward the seed wall (`marker_map`, the course's world_map.json)
@@ -98,9 +98,7 @@ def _localize(images: list, marker_map: MarkerMap, camera: Camera) -> tuple[np.n
         p = _pose.estimate_pose(detect_markers(image, m.dictionary), m, cam)
         est.append(p.position_mm)
         tvecs.append(p.tvec)
-    est = np.array(est)
-    tvecs = np.array(tvecs)
-    return est, tvecs
+    return np.array(est), np.array(tvecs)
 
 
 def _q1(learner: str) -> Question:
@@ -161,7 +159,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "From the camera's pose to the robot's",
     "task": """
         The camera is bolted to the robot, turned a little to one side: `T_robot_camera` (4x4, mm)
@@ -266,7 +264,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "How far did the robot drive?",
     "task": """
         `positions_mm` (N, 3) are the camera positions of a drive, one per frame; in the frames
@@ -343,7 +341,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "How fast did the robot go?",
     "task": """
         `positions_mm` (N, 3) are the camera positions of a drive and `timestamps_s` (N,) the

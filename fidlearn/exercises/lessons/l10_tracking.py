@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from ... import frames
-from .._engine import Question
+from .._engine import Question, QuestionText
 from .._parsers import _T_HINTS, _array, _cmp_transform, _scalar, _T_is
 from .._scenery import _rng
 
@@ -49,7 +49,7 @@ def _manifold_mean(rotations: np.ndarray) -> np.ndarray:
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "The mean of three rotations",
     "task": """
         A robot was put three times at the same spot, facing the same way (backwards, about 180 deg
@@ -92,7 +92,7 @@ def _q1(learner: str) -> Question:
     backwards = frames.rotation_from_rpy_deg(0, 0, 180)
     while True:  # the mean must be none of the three, nor the plain "backwards" the task mentions
         yaws = [180 - rng.uniform(5, 15), 180 + rng.uniform(5, 15), 180 + rng.uniform(-3, 3)]
-        Rs = np.array([frames.rotation_from_rpy_deg(*rng.uniform(-3, 3, 2), yaw) for yaw in yaws])
+        Rs = np.array([frames.rotation_from_rpy_deg(*np.append(rng.uniform(-3, 3, 2), yaw)) for yaw in yaws])
         Rs = np.array([frames.rotation_from_rpy_deg(*np.round(frames.rpy_deg_from_rotation(R), 3)) for R in Rs])
         key = _manifold_mean(Rs)
         if min(frames.rotation_angle_deg(key, R) for R in (*Rs, backwards)) > 2.0:
@@ -182,7 +182,7 @@ def _lag_frames(error: np.ndarray, velocity: np.ndarray, fps: float) -> float:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "Choosing the process noise",
     "task": """
         A robot drove along a line for 5 s; `measured_mm` (N,) are its positions as the camera gave
@@ -278,7 +278,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "The robot's pose from the camera's",
     "task": """
         The camera is mounted on a robot; the mount is `T_camera_base` (4x4, mm), the robot base's
@@ -340,7 +340,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Bridging a gap with odometry",
     "task": """
         The camera was covered for a second. The last pose before the gap is `T_world_base_start`

@@ -7,6 +7,8 @@ does not depend on the others.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from ... import frames
@@ -14,7 +16,7 @@ from ...camera import Camera
 from ...frames import look_at
 from ...markermap import MarkerMap, MarkerPlacement
 from ...synthetic import visible_markers
-from .._engine import Question
+from .._engine import Detector, Question, QuestionText
 from .._parsers import (
     _array,
     _close,
@@ -40,7 +42,7 @@ _CORNERS = ("top-left", "top-right", "bottom-right", "bottom-left")
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "Count the unknowns of a survey",
     "task": """
         A survey adjusts every photo's camera pose and every marker's placement at once.
@@ -121,7 +123,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "One residual by hand",
     "task": """
         One residual of a survey: where the current estimates put one corner in one photo, minus
@@ -178,7 +180,7 @@ def _q2(learner: str) -> Question:
     T_cw = frames.invert_transform(T_wc)
     key = true_px[k] - detected
     pinhole = Camera(cam.K, np.zeros(5), cam.image_size)
-    wrong = [
+    wrong: list[tuple[Detector, str]] = [
         (
             lambda a: _close(a, -key, 1e-3),
             "that is detected minus projected: the survey's residual is projected minus detected",
@@ -204,7 +206,7 @@ def _q2(learner: str) -> Question:
         if j != k:
             wrong.append(
                 (
-                    lambda a, j=j: _close(a, true_px[j] - detected, 1e-2),
+                    partial(_close, b=true_px[j] - detected, atol=1e-2),
                     f"that is the {_CORNERS[j]} corner; corner {k} is the {_CORNERS[k]} (TL, TR, BR, BL)",
                 )
             )
@@ -220,7 +222,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Which marker did the tape put in the wrong place?",
     "task": """
         A survey compared each marker's tape position with where the photos alone put it.
@@ -313,7 +315,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Which photo to take next?",
     "task": """
         A survey of the markers in `marker_map` reports each marker's position uncertainty

@@ -14,7 +14,7 @@ import numpy as np
 from ... import frames
 from ...data import data_path
 from ...frames import look_at
-from .._engine import Question
+from .._engine import Question, QuestionText
 from .._parsers import _array, _close, _cmp_array, _cmp_scalar, _parts, _scalar
 
 NUMBER = "12"
@@ -32,7 +32,7 @@ GOOD_UNCERTAINTY_PX = 0.3
 GOOD_FRACTION = 0.9
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "Markers printed at the wrong size",
     "task": """
         The map says the markers' black squares are `map_size_mm` wide. Your printer scaled the page:
@@ -95,7 +95,7 @@ def _rng_for(learner: str, question: str) -> np.random.Generator:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "How much of the picture do the views cover?",
     "task": """
         `corners_px` holds the inner corners (pixels, (54, 2) each) of some bundled calibration views
@@ -186,7 +186,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Good enough? The coach's verdict",
     "task": """
         The coach judged a calibration: `uncertainty_px` is its reprojection uncertainty over the
@@ -260,7 +260,7 @@ def _q3(learner: str) -> Question:
         compare=compare,
         wrong=[
             (
-                lambda a: abs(a["fraction"] - fraction) <= 1e-6 and flags and a["good"],
+                lambda a: abs(a["fraction"] - fraction) <= 1e-6 and bool(flags) and bool(a["good"]),
                 "the uncertainty is small enough, but the coach has a warning: fix it first",
             ),
             (
@@ -281,7 +281,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Where will the marker be in the next frame?",
     "task": """
         MarkerTracker looks for each marker near where it expects it. The camera's poses in the last

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from ... import frames
 from ...frames import look_at
-from .._engine import Question
+from .._engine import Question, QuestionText
 from .._parsers import _T_HINTS, _array, _close, _cmp_array, _cmp_scalar, _cmp_transform, _scalar, _T_is
 from .._scenery import _rng
 
@@ -48,7 +48,7 @@ def _camera_board(T_base_camera, T_base_tool, T_tool_board) -> np.ndarray:
 
 
 #: q1's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q1 = {
+_Q1: QuestionText = {
     "title": "The board in the camera, from the robot",
     "task": """
         The camera stands at `T_base_camera` in the robot's base frame; the board is clamped on the
@@ -103,7 +103,7 @@ def _q1(learner: str) -> Question:
 
 
 #: q2's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q2 = {
+_Q2: QuestionText = {
     "title": "The hand-eye rotation",
     "task": """
         Pairs of photos give motions A (of the flange, in the base) and B (of the board, seen from
@@ -150,7 +150,7 @@ def _q2(learner: str) -> Question:
     alpha = np.array([Rotation.from_matrix(a[:3, :3]).as_rotvec() for a in A]) + rng.normal(0, 2e-4, (len(A), 3))
     beta = np.array([Rotation.from_matrix(b[:3, :3]).as_rotvec() for b in B]) + rng.normal(0, 2e-4, (len(B), 3))
     alpha, beta = np.round(alpha, 6), np.round(beta, 6)
-    key = _kabsch(sum(np.outer(a, b) for a, b in zip(alpha, beta)))
+    key = _kabsch(np.sum([np.outer(a, b) for a, b in zip(alpha, beta)], axis=0))
     transposed = key.T
     return Question(
         "q2",
@@ -178,7 +178,7 @@ def _q2(learner: str) -> Question:
 
 
 #: q3's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q3 = {
+_Q3: QuestionText = {
     "title": "Then the hand-eye translation",
     "task": """
         With the rotation R_X known, the translation part of A X = X B is linear in t_X:
@@ -241,7 +241,7 @@ def _q3(learner: str) -> Question:
 
 
 #: q4's words: its title and task (the notebook's markdown), hint, solution code and level.
-_Q4 = {
+_Q4: QuestionText = {
     "title": "Judge a photo by the robot",
     "task": """
         The chain was fitted without this photo: `T_base_camera`, `T_tool_board`, and the robot's
