@@ -11,6 +11,7 @@ may use.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -268,6 +269,7 @@ class BagFrames:
     def __init__(self, path: Path, image_topic: str, camera_info_topic: str | None, count: int):
         self.path, self.image_topic, self.camera_info_topic, self.count = path, image_topic, camera_info_topic, count
         self.frame_id: str | None = None
+        self._cameras: list[tuple[int, Camera]] | None = None
 
     def __repr__(self) -> str:
         return f"BagFrames({str(self.path)!r}, {self.image_topic!r}, {self.count} images)"
@@ -275,13 +277,10 @@ class BagFrames:
     def __len__(self) -> int:
         return self.count
 
-    def _reader(self):
-        from rosbags.highlevel import AnyReader
-
-        return AnyReader([self.path], default_typestore=_typestore())
-
     def cameras(self) -> list[tuple[int, Camera]]:
         """Every CameraInfo of the topic as ``(stamp ns, Camera)``, in stamp order (empty without a topic).
+
+        Read once (when :func:`read_bag` checks them) and kept.
 
         Returns
         -------
@@ -295,22 +294,30 @@ class BagFrames:
         """
         if self.camera_info_topic is None:
             return []
+        if self._cameras is None:
+            self._cameras = self._read_cameras(None)
+        return list(self._cameras)
+
+    def _read_cameras(self, reader) -> list[tuple[int, Camera]]:
+        if self.camera_info_topic is None:
+            return []
         out: list[tuple[int, Camera]] = []
         seen: dict[tuple, Camera] = {}
         source = f"{self.path.name} {self.camera_info_topic}"
-        for msg, logtime in self._messages(self.camera_info_topic):
+        for msg, logtime in self._messages(self.camera_info_topic, reader):
             key = (msg.width, msg.height, str(msg.distortion_model), tuple(msg.k), tuple(msg.d))
             if key not in seen:
                 seen[key] = camera_from_message(msg, source)
             out.append((_stamp_ns(msg.header, logtime), seen[key]))
         return sorted(out, key=lambda sc: sc[0])
 
-    def _messages(self, topic: str) -> Iterator[tuple[Any, int]]:
+    def _messages(self, topic: str, reader=None) -> Iterator[tuple[Any, int]]:
+        """The topic's messages, deserialized, with their log times (from ``reader`` if open, else a new one)."""
         try:
-            with self._reader() as reader:
-                conns = [c for c in reader.connections if c.topic == topic]
-                for conn, logtime, raw in reader.messages(connections=conns):
-                    yield reader.deserialize(raw, conn.msgtype), logtime
+            with contextlib.nullcontext(reader) if reader is not None else contextlib.closing(_open(self.path)) as bag:
+                conns = [c for c in bag.connections if c.topic == topic]
+                for conn, logtime, raw in bag.messages(connections=conns):
+                    yield bag.deserialize(raw, conn.msgtype), logtime
         except (FidlearnError, GeneratorExit, KeyboardInterrupt):
             raise
         except Exception as exc:  # rosbags' and its storage libraries' errors: a file cut short or not a bag
@@ -369,21 +376,28 @@ def read_bag(
     for name, v in (("image_topic", image_topic), ("camera_info_topic", camera_info_topic)):
         if v is not None and not isinstance(v, str):
             raise RosFormatError(f"{name} must be a topic name like '/camera/image_raw', got {type(v).__name__}")
-    try:
-        from rosbags.highlevel import AnyReader
+    with contextlib.closing(_open(path)) as reader:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        counts: dict[str, int] = {}
+        for c in reader.connections:
+            counts[c.topic] = counts.get(c.topic, 0) + int(c.msgcount)
+        topic = _topic(topics, (IMAGE, COMPRESSED), image_topic, path, "image", "image_topic")
+        if topic is None:
+            raise RosFormatError(f"{path}: no sensor_msgs/msg/Image or CompressedImage topic in this bag")
+        if counts.get(topic, 0) == 0:
+            raise RosFormatError(f"{path}: the topic {topic} holds no images")
+        frames = BagFrames(path, topic, _info_topic(topics, topic, camera_info_topic, path), counts[topic])
+        frames._cameras = frames._read_cameras(reader)  # checked now: an unknown camera before any image
+    return frames
 
-        with AnyReader([path], default_typestore=_typestore()) as reader:
-            topics = {c.topic: c.msgtype for c in reader.connections}
-            counts: dict[str, int] = {}
-            for c in reader.connections:
-                counts[c.topic] = counts.get(c.topic, 0) + int(c.msgcount)
+
+def _open(path: Path):
+    """An open rosbags AnyReader (to close), or the bag's error said plainly."""
+    from rosbags.highlevel import AnyReader
+
+    try:
+        reader = AnyReader([path], default_typestore=_typestore())
+        reader.open()
     except Exception as exc:  # not a bag, cut short, an unknown storage
         raise _broken(path, exc) from None
-    topic = _topic(topics, (IMAGE, COMPRESSED), image_topic, path, "image", "image_topic")
-    if topic is None:
-        raise RosFormatError(f"{path}: no sensor_msgs/msg/Image or CompressedImage topic in this bag")
-    if counts.get(topic, 0) == 0:
-        raise RosFormatError(f"{path}: the topic {topic} holds no images")
-    frames = BagFrames(path, topic, _info_topic(topics, topic, camera_info_topic, path), counts[topic])
-    frames.cameras()  # checked now: an uncalibrated or unknown camera before any image
-    return frames
+    return reader
