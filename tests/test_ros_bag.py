@@ -4,6 +4,7 @@ here from rendered frames, so the poses are compared with the truth."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -329,3 +330,79 @@ def test_locate_bag_user_errors(tmp_path, capsys, drive):
         "out.mcap",
         "small.json",
     ]
+
+
+# -- the live view ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("track", [False, True])
+def test_live_view_serves_the_poses_the_command_writes(tmp_path, drive, track):
+    """``locate BAG --live 0``: a WebSocket client sees the channels, decodes the poses, equal to the output's
+    (--json's without --track, -o OUT.mcap's with it)."""
+    import os
+    import signal
+    import struct
+    import subprocess
+    import sys
+
+    import websocket
+
+    bag = write_image_bag(tmp_path / "in.mcap", drive.images, CAM, stamps())
+    env = {**os.environ, "PYTHONPATH": str(Path(fidlearn.__file__).parent.parent)}
+    cmd = [sys.executable, "-m", "fidlearn", "locate", str(bag), "--map", str(data_path("world_map.json")),
+           "--live", "0"]  # fmt: skip
+    cmd += ["--track", "-o", str(tmp_path / "out.mcap")] if track else ["--json", str(tmp_path / "poses.jsonl")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+    try:
+        line = proc.stdout.readline()
+        while line and not line.startswith("live view: ws://127.0.0.1:"):  # the table's header may come first
+            line = proc.stdout.readline()
+        assert line, "no live view"
+        ws = websocket.create_connection(line.split()[2], subprotocols=["foxglove.sdk.v1"], timeout=20)
+        channels = {}
+        while not channels:
+            msg = json.loads(ws.recv())
+            if msg["op"] == "advertise":
+                channels = {c["id"]: c for c in msg["channels"]}
+        topics = {c["topic"]: c for c in channels.values()}
+        assert topics["/fidlearn/pose"]["schemaName"] == "geometry_msgs/msg/PoseWithCovarianceStamped"
+        assert topics["/fidlearn/pose"]["encoding"] == "cdr"
+        assert {"/fidlearn/image/compressed", "/fidlearn/path", "/fidlearn/markers", "/tf"} <= set(topics)
+        subs = [{"id": k, "channelId": cid} for k, cid in enumerate(channels)]
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+        got = {}
+        while min(len(got.get(t, [])) for t in ("/fidlearn/pose", "/fidlearn/path")) < N:  # a path follows each pose
+            data = ws.recv()
+            if isinstance(data, bytes) and data[0] == 1:
+                sub, log_time = struct.unpack_from("<IQ", data, 1)
+                topic = channels[subs[sub]["channelId"]]["topic"]
+                got.setdefault(topic, []).append((log_time, data[13:]))
+        while "open at" not in line:  # the run is done: --json is written
+            line = proc.stdout.readline()
+            assert line, "the command ended before its live view"
+        ws.close()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            code = proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            raise
+    assert code == 0, proc.stderr.read()
+    store = typestore()
+    if track:
+        written = messages(tmp_path / "out.mcap", "/fidlearn/pose")
+        want = [[m.pose.pose.position.x * 1000, m.pose.pose.position.y * 1000, m.pose.pose.position.z * 1000]
+                for _, m in written]  # fmt: skip
+    else:
+        want = [json.loads(x)["position_mm"] for x in (tmp_path / "poses.jsonl").read_text().splitlines()]
+    assert len(want) == N
+    assert [t for t, _ in got["/fidlearn/pose"]] == stamps()
+    for (_, raw), position in zip(got["/fidlearn/pose"], want):
+        msg = store.deserialize_cdr(raw, "geometry_msgs/msg/PoseWithCovarianceStamped")
+        p = msg.pose.pose.position
+        assert [p.x * 1000, p.y * 1000, p.z * 1000] == pytest.approx(position, abs=1e-9)
+        assert msg.pose.covariance[0] > 0
+    assert ("/fidlearn/odometry" in got) == track
+    image = store.deserialize_cdr(got["/fidlearn/image/compressed"][0][1], "sensor_msgs/msg/CompressedImage")
+    assert cv2.imdecode(np.asarray(image.data), cv2.IMREAD_COLOR).shape == (480, 640, 3)
+    path = store.deserialize_cdr(got["/fidlearn/path"][-1][1], "nav_msgs/msg/Path")
+    assert len(path.poses) == N

@@ -23,6 +23,7 @@ from ..ros import read_mount_json, read_odometry_csv, ros_pose, tum_line
 from ..sequences import check_picture_sizes, track
 from ._bag import BagRun, BagSink
 from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
+from ._live import LiveRun
 
 FORMATS = {"jsonl": (".jsonl", ".json"), "tum": (".txt", ".tum"), "ros": (".jsonl", ".json"), "bag": (".mcap", "")}
 
@@ -215,13 +216,28 @@ class _Run:
         self.frames += 1
 
 
-def _loop(run: _Run, steps, width: int) -> None:
+def _loop(run: _Run, steps, width: int, live: LiveRun | None) -> None:
     if run.sink is not None and run.fmt == "tum":
         run.sink.write("# timestamp tx ty tz qx qy qz qw")
     for step in steps:
         name = step.located.frame.name
+        if live is not None:
+            live.frame(run.frames, step.located, step.tracked)
         run.frame(name, step.tracked)
         print(_row(name, width, step.tracked), flush=True)
+
+
+def _timed_frames(args, items, bag_run: BagRun | None):
+    """The frames and their times: a bag's by their stamps, else None (1 / --fps apart)."""
+    if bag_run is not None:
+        return bag_run.frames(), bag_run.times()
+    return read_frames(items, None, int(args.max_megapixels * 1_000_000)), None
+
+
+def _sink(args, out_path: Path | None, bag_run, marker_map, mount) -> _LineFile | BagSink | None:
+    if out_path is None:
+        return None
+    return BagSink(out_path, bag_run, marker_map, mount) if args.format == "bag" else _LineFile(out_path, "-o")
 
 
 def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run: BagRun | None = None) -> int:
@@ -251,10 +267,7 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
         check_picture_sizes(items, camera, args.max_megapixels * 1e6)
     mount = read_mount_json(args.mount) if args.mount else None
     odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
-    if bag_run is None:
-        frames_in, times = read_frames(items, None, int(args.max_megapixels * 1_000_000)), None
-    else:
-        frames_in, times = bag_run.frames(), bag_run.times()
+    frames_in, times = _timed_frames(args, items, bag_run)
     steps = track(
         frames_in, marker_map, camera, fps=args.fps, refine=args.refine, T_camera_base=mount, odometry=odometry,
         times=times,
@@ -264,14 +277,15 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
         f"{'frame':<{width}} {'t_s':>8} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7} "
         f"{'std_mm':>7}  status"
     )
-    sink: _LineFile | BagSink | None = _LineFile(out_path, "-o") if out_path is not None else None
-    if out_path is not None and args.format == "bag":
-        sink = BagSink(out_path, bag_run, marker_map, mount)
+    sink = _sink(args, out_path, bag_run, marker_map, mount)
     run = _Run(args, sink)
+    live = LiveRun(args, marker_map, bag_run, mount) if args.live is not None else None
     try:
         with sink if sink is not None else contextlib.nullcontext():
-            _loop(run, steps, width)
+            _loop(run, steps, width, live)
     except KeyboardInterrupt as exc:
+        if live is not None:
+            live.close()
         what = "poses" if isinstance(sink, BagSink) else "whole lines"
         kept = f"; {out_path} holds {sink.count} {what}" if sink is not None else ""
         print(f"error: interrupted by {_signal_name(exc)} after {run.frames} frames{kept}", file=sys.stderr)
@@ -283,6 +297,8 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
         print(f"odometry scale learnt from the poses: {scale:.4f} +/- {std:.4f} (what its distances are multiplied by)")
     if out_path is not None:
         print(f"{run.fmt} track written to {out_path}")
+    if live is not None:
+        live.hold()
     return 0
 
 

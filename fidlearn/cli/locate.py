@@ -36,6 +36,7 @@ from ._common import (
     _Staging,
     _StreamFile,
 )
+from ._live import LiveRun, add_live_option
 from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_track_args, run_tracked
 
 
@@ -99,6 +100,7 @@ def add(sub) -> None:
     )
     add_track_options(p)
     add_bag_options(p)
+    add_live_option(p)
     p.set_defaults(run=run)
 
 
@@ -183,7 +185,7 @@ class _Table:
         return f"{n} frames, {self.located} located ({100.0 * self.located / max(n, 1):.0f} %){med}{amb}"
 
 
-def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _Table, sink, bag_sink=None) -> None:
+def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _Table, sink, bag_sink, live) -> None:
     """Every frame: its pose, its record (written first: a row on the screen is always in the file), its row."""
     with staging, bag_sink if bag_sink is not None else contextlib.nullcontext():
         try:
@@ -197,6 +199,8 @@ def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _
                 table.add(row, located.pose)
                 image = draw_pose(frame.image, located.detections, locator.marker_map, located.camera, located.pose)
                 staging.save(frame.name, image)
+                if live is not None:
+                    live.frame(table.frames, located, located.pose)
                 table.frames += 1
         except KeyboardInterrupt as exc:
             if args.camera_index is None or isinstance(exc, _Interrupted):
@@ -276,6 +280,7 @@ def run(args) -> int:
     marker_map = _load_map(args)
     locator = FrameLocator(marker_map, camera, refine=args.refine)
     bag_sink = BagSink(track_out, bag_run, marker_map) if track_out is not None else None
+    live = LiveRun(args, marker_map, bag_run) if args.live is not None else None
     width = max(
         [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]
     )
@@ -284,11 +289,13 @@ def run(args) -> int:
     try:
         if json_path is not None:
             with _StreamFile(json_path, "--json") as sink:
-                _process(args, frames_in, locator, staging, table, sink, bag_sink)
+                _process(args, frames_in, locator, staging, table, sink, bag_sink, live)
         else:
-            _process(args, frames_in, locator, staging, table, None, bag_sink)
+            _process(args, frames_in, locator, staging, table, None, bag_sink, live)
     except KeyboardInterrupt as exc:
         _commit()
+        if live is not None:
+            live.close()
         _say_interrupted(
             exc, args, table, [(json_path, sink, "whole frame record"), (track_out, bag_sink, "pose")], staging
         )
@@ -302,4 +309,6 @@ def run(args) -> int:
         print(staging.said())
     if bag_sink is not None:
         print(f"{bag_sink.count} poses written to {track_out}")
+    if live is not None:
+        live.hold()
     return 0

@@ -22,6 +22,7 @@ from ._bag import BagFrame, BagFrames, camera_from_message, decode_image, is_bag
 from ._bag_out import BagWriter, marker_array, write_image_bag
 from ._camera_info import camera_from_camera_info, camera_info_yaml, load_camera_info, save_camera_info
 from ._inputs import ODOMETRY_COLUMNS, Odometry, read_mount_json, read_odometry_csv
+from ._live import LiveView
 from ._pose import BODIES, R_OPTICAL_LINK, ros_covariance, ros_pose, tum_line, write_tum
 
 __all__ = [
@@ -34,6 +35,7 @@ __all__ = [
     "BagWriter",
     "write_image_bag",
     "marker_array",
+    "LiveView",
     "ros_pose",
     "ros_covariance",
     "tum_line",

@@ -202,6 +202,65 @@ def _twist(tracked: TrackedPose, T_body: np.ndarray) -> dict:
     return {"linear": dict(zip("xyz", map(float, lin))), "angular": dict(zip("xyz", map(float, ang)))}
 
 
+def mount_tf(T_camera_base, stamp_ns: int, camera_frame: str):
+    """The mount as ``tf2_msgs/msg/TFMessage``: ``base_link`` -> the camera's frame (for ``/tf_static``).
+
+    Parameters
+    ----------
+    T_camera_base : array_like, shape (4, 4)
+        The mount (mm).
+    stamp_ns : int
+        The header stamp, nanoseconds.
+    camera_frame : str
+        The camera's TF frame.
+
+    Returns
+    -------
+    object
+        The message.
+    """
+    T_base_camera = frames.invert_transform(frames.check_transform(T_camera_base, "T_camera_base"))
+    return _tf(_stamp_ns(stamp_ns), "base_link", camera_frame, T_base_camera)
+
+
+def pose_messages(stamp_ns: int, pose: Pose | TrackedPose, camera_frame: str = "camera") -> list[tuple[str, object]]:
+    """One frame's pose as ROS 2 messages: ``[(topic, message), ...]`` for ``/fidlearn/pose``, ``/tf``, odometry.
+
+    Parameters
+    ----------
+    stamp_ns : int
+        The image's stamp, nanoseconds.
+    pose : Pose or TrackedPose
+        The frame's pose (a Pose: the camera's) or the tracker's (the robot base's with a mount):
+        ``/fidlearn/odometry`` is written for a tracked pose only.
+    camera_frame : str
+        The camera's TF frame (the child of ``map`` on ``/tf`` without a mount).
+
+    Returns
+    -------
+    list of (str, object)
+        The topics (see :data:`TOPICS` for their types) and rosbags messages.
+
+    Raises
+    ------
+    RosFormatError
+        A pose without covariance, a bad stamp.
+    """
+    stamp_ns = _stamp_ns(stamp_ns)
+    tracked = isinstance(pose, TrackedPose)
+    body = "base_link" if tracked and pose.T_world_base is not None else "camera_optical_frame"
+    msg = ros_pose(pose, stamp_ns / 1e9, body=body)
+    msg["header"]["stamp"] = stamp_dict(stamp_ns)
+    child = "base_link" if msg.pop("child_frame_id") == "base_link" else camera_frame
+    T = np.asarray(pose.T_world_base if body == "base_link" else pose.T_world_camera, dtype=float)
+    out = [(POSE_TOPIC, build(TOPICS[POSE_TOPIC], msg)), ("/tf", _tf(stamp_ns, "map", child, T))]
+    if tracked:
+        twist = {"twist": _twist(pose, T), "covariance": [-1.0] + [0.0] * 35}
+        odo = {"header": msg["header"], "child_frame_id": child, "pose": msg["pose"], "twist": twist}
+        out.append((ODOMETRY_TOPIC, build(TOPICS[ODOMETRY_TOPIC], odo)))
+    return out
+
+
 class BagWriter:
     """Poses into a ROS 2 bag (MCAP storage), each at its image's stamp; written whole or not at all.
 
@@ -266,13 +325,8 @@ class BagWriter:
             return
         self._started = True
         if self.mount is not None:
-            T_base_camera = frames.invert_transform(self.mount)
-            self._bag.put(
-                "/tf_static",
-                TOPICS["/tf_static"],
-                _tf(stamp_ns, "base_link", self.camera_frame, T_base_camera),
-                stamp_ns,
-            )  # noqa: E501
+            mount = mount_tf(self.mount, stamp_ns, self.camera_frame)
+            self._bag.put("/tf_static", TOPICS["/tf_static"], mount, stamp_ns)
         if self.marker_map is not None:
             self._bag.put(MARKERS_TOPIC, TOPICS[MARKERS_TOPIC], marker_array(self.marker_map, stamp_ns), stamp_ns)
 
@@ -292,20 +346,10 @@ class BagWriter:
             A pose without covariance, a bad stamp, a full disk.
         """
         stamp_ns = _stamp_ns(stamp_ns)
-        tracked = isinstance(pose, TrackedPose)
-        body = "base_link" if tracked and pose.T_world_base is not None else "camera_optical_frame"
-        msg = ros_pose(pose, stamp_ns / 1e9, body=body)
-        msg["header"]["stamp"] = stamp_dict(stamp_ns)
-        child = msg.pop("child_frame_id")
-        child = "base_link" if child == "base_link" else self.camera_frame
+        found = pose_messages(stamp_ns, pose, self.camera_frame)
         self._start(stamp_ns)
-        self._bag.put(POSE_TOPIC, TOPICS[POSE_TOPIC], build(TOPICS[POSE_TOPIC], msg), stamp_ns)
-        T = pose.T_world_base if body == "base_link" else pose.T_world_camera
-        self._bag.put("/tf", TOPICS["/tf"], _tf(stamp_ns, "map", child, np.asarray(T, dtype=float)), stamp_ns)
-        if tracked:
-            twist = {"twist": _twist(pose, np.asarray(T, dtype=float)), "covariance": [-1.0] + [0.0] * 35}
-            odo = {"header": msg["header"], "child_frame_id": child, "pose": msg["pose"], "twist": twist}
-            self._bag.put(ODOMETRY_TOPIC, TOPICS[ODOMETRY_TOPIC], build(TOPICS[ODOMETRY_TOPIC], odo), stamp_ns)
+        for topic, message in found:
+            self._bag.put(topic, TOPICS[topic], message, stamp_ns)
         self.poses += 1
 
     def close(self) -> Path:
