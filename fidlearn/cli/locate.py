@@ -211,7 +211,9 @@ def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _
 def _check_args(args):
     """The inputs (a bag, or pictures and videos) and the --json path, checked before any file is read."""
     if not args.inputs and args.camera_index is None:
-        raise UsageError("give images, folders or videos to locate in, or --camera-index N for a live camera")
+        raise UsageError(
+            "give images, folders, videos or a ROS 2 bag to locate in, or --camera-index N for a live camera"
+        )
     if args.camera_index is not None and not 0 <= args.camera_index <= 255:
         # cv2.VideoCapture(-1) crashes the interpreter (segmentation fault) on OpenCV 4.x and 5.x
         # when no camera is attached, and 2**31 overflows OpenCV's int: refuse both before OpenCV sees them.
