@@ -257,7 +257,7 @@ class TrackStep:
     located : FramePose
         The frame's own pose (as :meth:`FrameLocator.locate` gives it).
     t_s : float
-        The frame's time, seconds (``index / fps``).
+        The frame's time, seconds (``index / fps``, or the time given for it).
     tracked : TrackedPose or None
         The tracked pose at ``t_s``; None before the first frame with a pose (nothing to track yet).
     """
@@ -277,6 +277,7 @@ def track(
     T_camera_base: Any = None,
     odometry: Odometry | None = None,
     process_noise: tuple[float, float] | None = DEFAULT_PROCESS_NOISE,
+    times: Iterable[float] | None = None,
 ) -> Iterator[TrackStep]:
     """Every frame's pose through one :class:`fidlearn.PoseTracker`: frames in, tracked poses out.
 
@@ -305,6 +306,9 @@ def track(
     process_noise : (float, float) or None
         The tracker's motion noise (see :class:`fidlearn.PoseTracker`); None (the default) learns it
         from the frames.
+    times : iterable of float, optional
+        Each frame's time in seconds, increasing (e.g. a bag's header stamps, from 0 at the first
+        frame), taken one per frame as the frames are read; instead of ``index / fps``.
 
     Returns
     -------
@@ -315,8 +319,9 @@ def track(
     Raises
     ------
     TrackingError
-        ``fps`` is not a positive number, ``frames`` is not iterable (an item that is not a Frame
-        raises when it is reached), ``odometry`` is not an Odometry, a bad ``process_noise``.
+        ``fps`` is not a positive number, ``frames`` is not iterable (an item that is not a Frame,
+        or a time that is not after the previous one, raises when it is reached), ``odometry`` is
+        not an Odometry, a bad ``process_noise``.
     FidlearnError
         A map, camera or mount that is not one (each its own error).
     """
@@ -338,11 +343,32 @@ def track(
     tracker = PoseTracker(
         locator.marker_map, locator.camera, process_noise=process_noise, T_camera_base=T_camera_base, **options
     )
-    return _steps(frames, locator, tracker, float(fps), odometry)
+    return _steps(frames, locator, tracker, float(fps), odometry, times)
 
 
-def _steps(frames, locator: FrameLocator, tracker: PoseTracker, fps: float, odometry) -> Iterator[TrackStep]:
+def _timed(frames: Iterator, fps: float, times) -> Iterator[tuple[Any, float]]:
+    """``(frame, t_s)``: the frame read first, then its time (a time may be known once its frame is read)."""
+    if times is None:
+        yield from ((frame, n / fps) for n, frame in enumerate(frames))
+        return
+    clock = iter(times)
+    last = -math.inf
     for n, frame in enumerate(frames):
+        t = next(clock, None)
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
+            raise TrackingError(f"frame {n} has no time in seconds (times gave {t!r:.40}); give one per frame")
+        if not t > last:
+            raise TrackingError(
+                f"frame {n}'s time {t:.9f} s is not after the previous frame's {last:.9f} s; "
+                "the frames must be in time order, each at its own time"
+            )
+        last = float(t)
+        yield frame, last
+
+
+def _steps(frames, locator: FrameLocator, tracker: PoseTracker, fps: float, odometry, times) -> Iterator[TrackStep]:
+    prev = 0.0
+    for n, (frame, t_s) in enumerate(_timed(frames, fps, times)):
         if not isinstance(frame, Frame):
             raise TrackingError(
                 f"frame {n} is a {type(frame).__name__}, not a fidlearn.images.Frame (read files with "
@@ -352,8 +378,9 @@ def _steps(frames, locator: FrameLocator, tracker: PoseTracker, fps: float, odom
         odo = None
         if odometry is not None and n > 0:
             with contextlib.suppress(OdometryRangeError):  # a frame beyond the odometry: the motion model alone
-                odo = odometry.between((n - 1) / fps, n / fps)
+                odo = odometry.between(prev, t_s)
         out = None
         if located.pose is not None or tracker.started:  # before the first pose there is nothing to track
-            out = tracker.update(located.pose, n / fps, odometry=odo)
-        yield TrackStep(located, n / fps, out)
+            out = tracker.update(located.pose, t_s, odometry=odo)
+        prev = t_s
+        yield TrackStep(located, t_s, out)

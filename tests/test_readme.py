@@ -32,6 +32,7 @@ EXCLUDED = {
     r"^make lab\b": "starts JupyterLab and a browser, and serves until stopped",
     r"^make test\b": "runs the whole test suite, this test included",
     r"--camera-index 0\b": "reads a live camera, which a test machine does not have",
+    r"--live\b": "serves the live view to Foxglove until Ctrl-C (tests/test_ros_bag.py connects to it)",
     r"^\.venv/bin/python tools/make_student_copies\.py\s*(#|$)": (
         "rebuilds and executes every exercise notebook (minutes); tests/test_exercise_notebooks.py "
         "checks that the stored ones are current, as the --check the guide runs first does"

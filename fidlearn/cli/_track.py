@@ -21,9 +21,11 @@ from ..filtering import TrackedPose
 from ..images import read_frames
 from ..ros import read_mount_json, read_odometry_csv, ros_pose, tum_line
 from ..sequences import check_picture_sizes, track
+from ._bag import BagRun, BagSink
 from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
+from ._live import LiveRun
 
-FORMATS = {"jsonl": (".jsonl", ".json"), "tum": (".txt", ".tum"), "ros": (".jsonl", ".json")}
+FORMATS = {"jsonl": (".jsonl", ".json"), "tum": (".txt", ".tum"), "ros": (".jsonl", ".json"), "bag": (".mcap", "")}
 
 TRACK_HELP = """\
 tracking (--track): the frames are one run, 1/--fps seconds apart from t = 0 s, in the order given.
@@ -47,7 +49,8 @@ the chi-square gate (0.999) is rejected and said so, frames without a marker are
                       degrees, its covariance, status, the odometry scale learnt so far), tum (t x y z
                       qx qy qz qw, metres), ros (one geometry_msgs/PoseWithCovarianceStamped per line
                       as JSON: frame map, metres, quaternion x y z w, covariance in x y z rotX rotY
-                      rotZ order, m and rad)."""
+                      rotZ order, m and rad), bag (a ROS 2 bag: -o OUT.mcap, or a new folder; see
+                      ROS 2 bags below; chosen by the name .mcap)."""
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -97,12 +100,16 @@ def check_track_args(args, inputs: list[Path]) -> Path | None:
     UsageError
         A tracking option without --track, --format without -o, a bad --fps or drift, a clobbered input.
     """
+    if args.output is not None and args.format is None and Path(args.output).suffix.lower() == ".mcap":
+        args.format = "bag"
     if not args.track:
-        used = [o for o, v in (("--odometry", args.odometry), ("--mount", args.mount), ("--format", args.format),
-                               ("-o", args.output)) if v is not None]  # fmt: skip
+        bag = args.format == "bag"
+        used = [o for o, v in (("--odometry", args.odometry), ("--mount", args.mount),
+                               ("--format", None if bag else args.format), ("-o", None if bag else args.output))
+                if v is not None]  # fmt: skip
         if used:
             raise UsageError(f"{used[0]} belongs to tracking: add --track")
-        return None
+        return _output(args, inputs)
     if not 0.1 <= args.fps <= 10000:
         raise UsageError(f"--fps {args.fps:g}: give the frames per second, 0.1 to 10000")
     if not 0.0 < args.odometry_drift < 1.0:
@@ -115,10 +122,18 @@ def check_track_args(args, inputs: list[Path]) -> Path | None:
         raise UsageError(
             "with --track the output is -o FILE (see --format); --json and --annotate are for untracked runs"
         )
+    return _output(args, inputs)
+
+
+def _output(args, inputs: list[Path]) -> Path | None:
+    if args.format is not None and args.output is None:
+        raise UsageError("--format says how -o is written: give -o FILE")
     if args.output is None:
         return None
     out = _check_output(args.output, FORMATS[args.format or "jsonl"], "-o")
-    _refuse_clobber([("-o", out)], inputs + [args.camera, args.map, args.odometry, args.mount])
+    _refuse_clobber([("-o", out), ("--json", args.json)], inputs + [args.camera, args.map, args.odometry, args.mount])
+    if args.format == "bag" and out.exists():
+        raise UsageError(f"-o {out} exists; a bag is never written over: give a new name")
     return out
 
 
@@ -197,21 +212,38 @@ class _Run:
             self.last = out
             self.counts[out.status] = self.counts.get(out.status, 0) + 1
             self.counts["flips resolved"] = self.counts.get("flips resolved", 0) + out.flip_resolved
-            if self.sink is not None:
+            if isinstance(self.sink, BagSink):
+                self.sink.put(self.frames, out)
+            elif self.sink is not None:
                 self.sink.write(_record(name, out, self.fmt))
         self.frames += 1
 
 
-def _loop(run: _Run, steps, width: int) -> None:
+def _loop(run: _Run, steps, width: int, live: LiveRun | None) -> None:
     if run.sink is not None and run.fmt == "tum":
         run.sink.write("# timestamp tx ty tz qx qy qz qw")
     for step in steps:
         name = step.located.frame.name
+        if live is not None:
+            live.frame(run.frames, step.located, step.tracked)
         run.frame(name, step.tracked)
         print(_row(name, width, step.tracked), flush=True)
 
 
-def run_tracked(args, items, marker_map, camera, out_path: Path | None) -> int:
+def _timed_frames(args, items, bag_run: BagRun | None):
+    """The frames and their times: a bag's by their stamps, else None (1 / --fps apart)."""
+    if bag_run is not None:
+        return bag_run.frames(), bag_run.times()
+    return read_frames(items, None, int(args.max_megapixels * 1_000_000)), None
+
+
+def _sink(args, out_path: Path | None, bag_run, marker_map, mount) -> _LineFile | BagSink | None:
+    if out_path is None:
+        return None
+    return BagSink(out_path, bag_run, marker_map, mount) if args.format == "bag" else _LineFile(out_path, "-o")
+
+
+def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run: BagRun | None = None) -> int:
     """Every frame through :func:`fidlearn.track`; the table, the closing line and the output file.
 
     Parameters
@@ -226,31 +258,39 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None) -> int:
         The camera file's camera.
     out_path : Path or None
         The output file (checked).
+    bag_run : BagRun, optional
+        The input bag: its frames, timed by their stamps.
 
     Returns
     -------
     int
         0 when done; 128 + signal when interrupted.
     """
-    check_picture_sizes(items, camera, args.max_megapixels * 1e6)
+    if bag_run is None:
+        check_picture_sizes(items, camera, args.max_megapixels * 1e6)
     mount = read_mount_json(args.mount) if args.mount else None
     odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
-    frames_in = read_frames(items, None, int(args.max_megapixels * 1_000_000))
+    frames_in, times = _timed_frames(args, items, bag_run)
     steps = track(
-        frames_in, marker_map, camera, fps=args.fps, refine=args.refine, T_camera_base=mount, odometry=odometry
-    )
+        frames_in, marker_map, camera, fps=args.fps, refine=args.refine, T_camera_base=mount, odometry=odometry,
+        times=times,
+    )  # fmt: skip
     width = min(max([len(p.name) + 8 for _, p in items] + [5]), 40)
     print(
         f"{'frame':<{width}} {'t_s':>8} {'x_mm':>9} {'y_mm':>9} {'z_mm':>9} {'roll':>7} {'pitch':>7} {'yaw':>7} "
         f"{'std_mm':>7}  status"
     )
-    sink = _LineFile(out_path, "-o") if out_path is not None else None
+    sink = _sink(args, out_path, bag_run, marker_map, mount)
     run = _Run(args, sink)
+    live = LiveRun(args, marker_map, bag_run, mount) if args.live is not None else None
     try:
         with sink if sink is not None else contextlib.nullcontext():
-            _loop(run, steps, width)
+            _loop(run, steps, width, live)
     except KeyboardInterrupt as exc:
-        kept = f"; {out_path} holds {sink.count} whole lines" if sink is not None else ""
+        if live is not None:
+            live.close()
+        what = "poses" if isinstance(sink, BagSink) else "whole lines"
+        kept = f"; {out_path} holds {sink.count} {what}" if sink is not None else ""
         print(f"error: interrupted by {_signal_name(exc)} after {run.frames} frames{kept}", file=sys.stderr)
         return _exit_status(exc)
     said = ", ".join(f"{v} {k}" for k, v in run.counts.items() if v)
@@ -260,6 +300,8 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None) -> int:
         print(f"odometry scale learnt from the poses: {scale:.4f} +/- {std:.4f} (what its distances are multiplied by)")
     if out_path is not None:
         print(f"{run.fmt} track written to {out_path}")
+    if live is not None:
+        live.hold()
     return 0
 
 

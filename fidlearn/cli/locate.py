@@ -8,6 +8,7 @@ and a program give the same answers. This module reads the frames, prints the ta
 
 from __future__ import annotations
 
+import contextlib
 import statistics
 import sys
 from pathlib import Path
@@ -19,6 +20,7 @@ from ..errors import UsageError
 from ..images import expand_inputs, read_frames
 from ..pose import Pose
 from ..sequences import NO_MARKER, FrameLocator, FramePose, check_picture_sizes
+from ._bag import BAG_HELP, BagRun, BagSink, add_bag_options, bag_input
 from ._common import (
     _add_image_size_option,
     _add_map_options,
@@ -34,6 +36,7 @@ from ._common import (
     _Staging,
     _StreamFile,
 )
+from ._live import LiveRun, add_live_option
 from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_track_args, run_tracked
 
 
@@ -60,14 +63,21 @@ def add(sub) -> None:
             "the end; annotated images are staged in a hidden folder and moved into DIR at the end. "
             "With --track the poses go through a Kalman filter over time (see below)."
         ),
-        epilog=TRACK_HELP,
+        epilog=TRACK_HELP + "\n\n" + BAG_HELP,
         formatter_class=HelpFormatter,
     )
     p.add_argument(
-        "inputs", nargs="*", type=Path, metavar="IMAGE_OR_FOLDER_OR_VIDEO", help="images, folders of images, videos"
+        "inputs",
+        nargs="*",
+        type=Path,
+        metavar="IMAGE_OR_FOLDER_OR_VIDEO_OR_BAG",
+        help="images, folders of images, videos, or one ROS 2 bag (a folder with metadata.yaml, or a .mcap file)",
     )
     p.add_argument(
-        "--camera", type=Path, required=True, metavar="CAMERA", help="camera file (fidlearn JSON or OpenCV YAML)"
+        "--camera",
+        type=Path,
+        metavar="CAMERA",
+        help="camera file (fidlearn JSON or OpenCV YAML); a bag's CameraInfo stands in for it when not given",
     )
     _add_image_size_option(p)
     _add_map_options(p)
@@ -89,6 +99,8 @@ def add(sub) -> None:
         help="largest picture read, in megapixels (default 100): a larger one is refused from its header",
     )
     add_track_options(p)
+    add_bag_options(p)
+    add_live_option(p)
     p.set_defaults(run=run)
 
 
@@ -173,18 +185,22 @@ class _Table:
         return f"{n} frames, {self.located} located ({100.0 * self.located / max(n, 1):.0f} %){med}{amb}"
 
 
-def _process(args, items, locator: FrameLocator, staging: _Staging, table: _Table, sink) -> None:
+def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _Table, sink, bag_sink, live) -> None:
     """Every frame: its pose, its record (written first: a row on the screen is always in the file), its row."""
-    with staging:
+    with staging, bag_sink if bag_sink is not None else contextlib.nullcontext():
         try:
-            for frame in read_frames(items, args.camera_index, int(args.max_megapixels * 1_000_000)):
+            for frame in frames_in:
                 located = locator.locate(frame)
                 row, record = _row_and_record(frame.name, table.width, located)
                 if sink is not None:
                     sink.write(record)
+                if bag_sink is not None:
+                    bag_sink.put(table.frames, located.pose)
                 table.add(row, located.pose)
                 image = draw_pose(frame.image, located.detections, locator.marker_map, located.camera, located.pose)
                 staging.save(frame.name, image)
+                if live is not None:
+                    live.frame(table.frames, located, located.pose)
                 table.frames += 1
         except KeyboardInterrupt as exc:
             if args.camera_index is None or isinstance(exc, _Interrupted):
@@ -193,19 +209,45 @@ def _process(args, items, locator: FrameLocator, staging: _Staging, table: _Tabl
 
 
 def _check_args(args):
-    """The inputs and the --json path, checked before any file is read."""
+    """The inputs (a bag, or pictures and videos) and the --json path, checked before any file is read."""
     if not args.inputs and args.camera_index is None:
-        raise UsageError("give images, folders or videos to locate in, or --camera-index N for a live camera")
+        raise UsageError(
+            "give images, folders, videos or a ROS 2 bag to locate in, or --camera-index N for a live camera"
+        )
     if args.camera_index is not None and not 0 <= args.camera_index <= 255:
         # cv2.VideoCapture(-1) crashes the interpreter (segmentation fault) on OpenCV 4.x and 5.x
         # when no camera is attached, and 2**31 overflows OpenCV's int: refuse both before OpenCV sees them.
         raise UsageError(f"--camera-index {args.camera_index}: cameras are numbered 0 (the first camera) to 255")
     if not 0.01 <= args.max_megapixels <= 2000:
         raise UsageError(f"--max-megapixels {args.max_megapixels:g}: give 0.01 to 2000")
-    items = expand_inputs(args.inputs, videos=True)
+    bag = bag_input(args)
+    items = expand_inputs(args.inputs, videos=True) if bag is None else [("video", bag)]
     json_path = _check_output(args.json, (".jsonl", ".json"), "--json") if args.json else None
     _refuse_clobber([("--json", json_path)], [p for _, p in items] + [args.camera, args.map], args.annotate)
-    return items, json_path
+    return items, json_path, bag
+
+
+def _frames_in(args, items, camera, bag_run):
+    if bag_run is not None:
+        return bag_run.frames()
+    check_picture_sizes(items, camera, args.max_megapixels * 1e6)  # one error line, before any frame's row or warning
+    return read_frames(items, args.camera_index, int(args.max_megapixels * 1_000_000))
+
+
+def _say_interrupted(exc, args, table: _Table, streams, staging: _Staging) -> None:
+    """The closing line of an interrupted run: what each output holds."""
+    kept = []
+    for path, sink, what in streams:
+        if path is not None:
+            n = sink.count if sink is not None else 0
+            kept.append(f"{path} holds {n} {what}{'s' if n != 1 else ''}")
+    if args.annotate:
+        kept.append(staging.said())
+    print(
+        f"error: interrupted by {_signal_name(exc)} after {table.frames} frames"
+        + (f"; {'; '.join(kept)}" if kept else ""),
+        file=sys.stderr,
+    )
 
 
 def run(args) -> int:
@@ -227,16 +269,24 @@ def run(args) -> int:
         A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
         as one ``error:`` line and exits with status 2.
     """
-    items, json_path = _check_args(args)
+    items, json_path, bag = _check_args(args)
     track_out = check_track_args(args, [p for _, p in items])
+    camera = _load_camera(args) if args.camera is not None else None  # first: a map given as --camera is named
+    bag_run = BagRun(args, bag, camera) if bag is not None else None
+    camera = bag_run.camera if bag_run is not None else camera
     if args.track:
-        camera = _load_camera(args)
-        return run_tracked(args, items, _load_map(args), camera, track_out)
+        return run_tracked(args, items, _load_map(args), camera, track_out, bag_run)
     _outputs().keep_on_interrupt = True  # every finished frame is kept
     staging = _Staging(args.annotate)
-    camera = _load_camera(args)  # the camera first: a map given as --camera is named as such
-    check_picture_sizes(items, camera, args.max_megapixels * 1e6)  # one error line, before any frame's row or warning
-    locator = FrameLocator(_load_map(args), camera, refine=args.refine)
+    frames_in = _frames_in(args, items, camera, bag_run)
+    marker_map = _load_map(args)
+    assert camera is not None, "_check_args asks for --camera unless the input is a bag"
+    locator = FrameLocator(marker_map, camera, refine=args.refine)
+    bag_sink = None
+    if track_out is not None:
+        assert bag_run is not None, "check_track_args allows a bag output only for a bag input"
+        bag_sink = BagSink(track_out, bag_run, marker_map)
+    live = LiveRun(args, marker_map, bag_run) if args.live is not None else None
     width = max(
         [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]
     )
@@ -245,21 +295,15 @@ def run(args) -> int:
     try:
         if json_path is not None:
             with _StreamFile(json_path, "--json") as sink:
-                _process(args, items, locator, staging, table, sink)
+                _process(args, frames_in, locator, staging, table, sink, bag_sink, live)
         else:
-            _process(args, items, locator, staging, table, None)
+            _process(args, frames_in, locator, staging, table, None, bag_sink, live)
     except KeyboardInterrupt as exc:
         _commit()
-        kept = []
-        if json_path is not None:
-            n = sink.count if sink is not None else 0
-            kept.append(f"{json_path} holds {n} whole frame record{'s' if n != 1 else ''}")
-        if args.annotate:
-            kept.append(staging.said())
-        print(
-            f"error: interrupted by {_signal_name(exc)} after {table.frames} frames"
-            + (f"; {'; '.join(kept)}" if kept else ""),
-            file=sys.stderr,
+        if live is not None:
+            live.close()
+        _say_interrupted(
+            exc, args, table, [(json_path, sink, "whole frame record"), (track_out, bag_sink, "pose")], staging
         )
         return _exit_status(exc)
     _commit()
@@ -269,4 +313,8 @@ def run(args) -> int:
         print(f"poses written to {json_path}")
     if args.annotate:
         print(staging.said())
+    if bag_sink is not None:
+        print(f"{bag_sink.count} poses written to {track_out}")
+    if live is not None:
+        live.hold()
     return 0

@@ -1,0 +1,484 @@
+"""ROS 2 bags out: poses as ``geometry_msgs``, ``nav_msgs`` and ``tf2_msgs`` messages, the map as markers.
+
+A bag is written to a hidden folder beside its name and takes its name only when it is closed whole
+(:meth:`BagWriter.close`): ``OUT.mcap`` is a lone MCAP file (what Foxglove and ``ros2 bag`` open),
+any other name a rosbag2 folder (``metadata.yaml`` and its MCAP file). An existing path is never
+written over.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .. import frames
+from .._staged import signals_deferred
+from ..camera import Camera
+from ..errors import FidlearnError, RosFormatError
+from ..filtering import TrackedPose
+from ..filtering._so3 import quaternion_xyzw
+from ..markermap import MarkerMap
+from ..pose import Pose
+from ._bag import info_topic_beside
+from ._camera_info import camera_info_yaml
+from ._messages import build, stamp_dict, typestore
+from ._pose import ros_pose
+
+POSE_TOPIC = "/fidlearn/pose"
+ODOMETRY_TOPIC = "/fidlearn/odometry"
+MARKERS_TOPIC = "/fidlearn/markers"
+TOPICS = {
+    POSE_TOPIC: "geometry_msgs/msg/PoseWithCovarianceStamped",
+    ODOMETRY_TOPIC: "nav_msgs/msg/Odometry",
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
+    MARKERS_TOPIC: "visualization_msgs/msg/MarkerArray",
+}
+
+
+class _Target:
+    """A bag written in a hidden folder beside ``path``, renamed to ``path`` when whole."""
+
+    def __init__(self, path, what: str):
+        if isinstance(path, bool) or not isinstance(path, (str, os.PathLike)):
+            raise RosFormatError(f"{what}: give a path (a .mcap file or a new folder), got {type(path).__name__}")
+        self.path = Path(path)
+        self.lone = self.path.suffix.lower() == ".mcap"
+        folder = self.path.parent if str(self.path.parent) else Path(".")
+        if os.path.lexists(self.path):
+            raise RosFormatError(f"{self.path} exists; a bag is never written over: give a new name")
+        if not folder.is_dir():
+            raise RosFormatError(f"{self.path}: the folder {folder} does not exist; create it first")
+        try:
+            with signals_deferred():
+                self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", dir=folder))
+        except OSError as exc:
+            raise RosFormatError(f"{self.path}: cannot write in {folder} ({exc.strerror})") from None
+        self.bag = self.tmp / (self.path.stem if self.lone else self.path.name)
+
+    def commit(self) -> None:
+        with signals_deferred():
+            try:
+                if self.lone:
+                    (inner,) = sorted(self.bag.glob("*.mcap"))
+                    os.replace(inner, self.path)
+                elif os.path.lexists(self.path):
+                    raise RosFormatError(f"{self.path} appeared while the bag was written; it is left as it was")
+                else:
+                    os.rename(self.bag, self.path)
+            except OSError as exc:
+                raise RosFormatError(f"{self.path}: cannot write it ({exc.strerror})") from None
+            finally:
+                shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def abort(self) -> None:
+        with signals_deferred():
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+class _Bag:
+    """rosbags' writer (MCAP storage) with one connection per topic, messages serialized as CDR."""
+
+    def __init__(self, path, what: str):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        self.target = _Target(path, what)
+        self.store = typestore()
+        self.writer = Writer(self.target.bag, version=8, storage_plugin=StoragePlugin.MCAP)
+        self.connections: dict = {}
+        self.count = 0
+        try:
+            self.writer.open()
+        except Exception as exc:
+            self.target.abort()
+            raise RosFormatError(f"{self.target.path}: cannot write it ({exc})") from None
+
+    def put(self, topic: str, typename: str, message, stamp_ns: int) -> None:
+        if topic not in self.connections:
+            self.connections[topic] = self.writer.add_connection(topic, typename, typestore=self.store)
+        data = self.store.serialize_cdr(message, typename)
+        try:
+            self.writer.write(self.connections[topic], int(stamp_ns), data)
+        except OSError as exc:
+            raise RosFormatError(
+                f"{self.target.path}: cannot write it ({exc.strerror}); check the free disk space"
+            ) from None
+        self.count += 1
+
+    def close(self) -> Path:
+        try:
+            with signals_deferred():
+                self.writer.close()
+        except OSError as exc:
+            self.target.abort()
+            raise RosFormatError(f"{self.target.path}: cannot write it ({exc.strerror})") from None
+        self.target.commit()
+        return self.target.path
+
+    def abort(self) -> None:
+        with contextlib.suppress(Exception):  # the bag is thrown away: an error closing it changes nothing
+            self.writer.close()
+        self.target.abort()
+
+
+def _stamp_ns(value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < 2**63:
+        raise RosFormatError(f"a stamp is a whole number of nanoseconds >= 0, got {value!r:.40}")
+    return int(value)
+
+
+def _transform_dict(T_mm: np.ndarray) -> dict:
+    q = quaternion_xyzw(T_mm[:3, :3])
+    t = T_mm[:3, 3] / 1000.0
+    return {
+        "translation": dict(zip("xyz", (float(v) for v in t))),
+        "rotation": dict(zip("xyzw", (float(v) for v in q))),
+    }
+
+
+def _tf(stamp_ns: int, parent: str, child: str, T_mm: np.ndarray):
+    header = {"stamp": stamp_dict(stamp_ns), "frame_id": parent}
+    return build(
+        "tf2_msgs/msg/TFMessage",
+        {"transforms": [{"header": header, "child_frame_id": child, "transform": _transform_dict(T_mm)}]},
+    )
+
+
+def marker_array(marker_map: MarkerMap, stamp_ns: int = 0, frame_id: str = "map"):
+    """The map's markers as a ``visualization_msgs/msg/MarkerArray``: a thin square and its id for each.
+
+    Parameters
+    ----------
+    marker_map : MarkerMap
+        The map (mm; written in metres).
+    stamp_ns : int
+        The header stamp, nanoseconds.
+    frame_id : str
+        The frame the markers are placed in.
+
+    Returns
+    -------
+    object
+        The message: namespace ``fidlearn_markers`` (CUBE, the marker's side by its side by 1 mm, at its
+        centre, white) and ``fidlearn_marker_ids`` (TEXT_VIEW_FACING with the id), the marker's id as
+        each message's id.
+    """
+    header = {"stamp": stamp_dict(_stamp_ns(stamp_ns)), "frame_id": str(frame_id)}
+    markers = []
+    for mid in marker_map.ids:
+        T = marker_map.T_world_marker(mid)
+        c = marker_map.marker_corners(mid)
+        side = float(np.linalg.norm(c[1] - c[0])) / 1000.0
+        pose = _transform_dict(T)
+        pose = {"position": pose["translation"], "orientation": pose["rotation"]}
+        markers.append(
+            {"header": header, "ns": "fidlearn_markers", "id": int(mid), "type": 1, "pose": pose,
+             "scale": {"x": side, "y": side, "z": 0.001}, "color": {"r": 1.0, "g": 1.0, "b": 1.0, "a": 1.0}}
+        )  # fmt: skip
+        markers.append(
+            {"header": header, "ns": "fidlearn_marker_ids", "id": int(mid), "type": 9, "pose": pose,
+             "scale": {"z": side / 2}, "color": {"r": 1.0, "g": 0.6, "b": 0.0, "a": 1.0}, "text": str(mid)}
+        )  # fmt: skip
+    return build("visualization_msgs/msg/MarkerArray", {"markers": markers})
+
+
+def _twist(tracked: TrackedPose, T_body: np.ndarray) -> dict:
+    """The body's velocity in its own axes (as nav_msgs/Odometry has it), m/s and rad/s."""
+    w = np.zeros(3) + np.asarray(tracked.angular_velocity_rad_s, dtype=float)
+    v = (
+        np.zeros(3)
+        + np.asarray(tracked.velocity_mm_s, dtype=float)
+        + np.cross(w, T_body[:3, 3] - tracked.T_world_camera[:3, 3])
+    )
+    R = T_body[:3, :3].T
+    lin, ang = R @ v / 1000.0, R @ w
+    return {"linear": dict(zip("xyz", map(float, lin))), "angular": dict(zip("xyz", map(float, ang)))}
+
+
+def mount_tf(T_camera_base, stamp_ns: int, camera_frame: str):
+    """The mount as ``tf2_msgs/msg/TFMessage``: ``base_link`` -> the camera's frame (for ``/tf_static``).
+
+    Parameters
+    ----------
+    T_camera_base : array_like, shape (4, 4)
+        The mount (mm).
+    stamp_ns : int
+        The header stamp, nanoseconds.
+    camera_frame : str
+        The camera's TF frame.
+
+    Returns
+    -------
+    object
+        The message.
+    """
+    T_base_camera = frames.invert_transform(frames.check_transform(T_camera_base, "T_camera_base"))
+    return _tf(_stamp_ns(stamp_ns), "base_link", camera_frame, T_base_camera)
+
+
+def pose_messages(stamp_ns: int, pose: Pose | TrackedPose, camera_frame: str = "camera") -> list[tuple[str, object]]:
+    """One frame's pose as ROS 2 messages: ``[(topic, message), ...]`` for ``/fidlearn/pose``, ``/tf``, odometry.
+
+    Parameters
+    ----------
+    stamp_ns : int
+        The image's stamp, nanoseconds.
+    pose : Pose or TrackedPose
+        The frame's pose (a Pose: the camera's) or the tracker's (the robot base's with a mount):
+        ``/fidlearn/odometry`` is written for a tracked pose only.
+    camera_frame : str
+        The camera's TF frame (the child of ``map`` on ``/tf`` without a mount).
+
+    Returns
+    -------
+    list of (str, object)
+        The topics (see :data:`TOPICS` for their types) and rosbags messages.
+
+    Raises
+    ------
+    RosFormatError
+        A pose without covariance, a bad stamp.
+    """
+    stamp_ns = _stamp_ns(stamp_ns)
+    tracked = pose if isinstance(pose, TrackedPose) else None
+    body = "base_link" if tracked is not None and tracked.T_world_base is not None else "camera_optical_frame"
+    msg = ros_pose(pose, stamp_ns / 1e9, body=body)
+    msg["header"]["stamp"] = stamp_dict(stamp_ns)
+    child = "base_link" if msg.pop("child_frame_id") == "base_link" else camera_frame
+    T = np.asarray(
+        tracked.T_world_base if tracked is not None and body == "base_link" else pose.T_world_camera, dtype=float
+    )
+    out = [(POSE_TOPIC, build(TOPICS[POSE_TOPIC], msg)), ("/tf", _tf(stamp_ns, "map", child, T))]
+    if tracked is not None:
+        twist = {"twist": _twist(tracked, T), "covariance": [-1.0] + [0.0] * 35}
+        odo = {"header": msg["header"], "child_frame_id": child, "pose": msg["pose"], "twist": twist}
+        out.append((ODOMETRY_TOPIC, build(TOPICS[ODOMETRY_TOPIC], odo)))
+    return out
+
+
+class BagWriter:
+    """Poses into a ROS 2 bag (MCAP storage), each at its image's stamp; written whole or not at all.
+
+    Topics: ``/fidlearn/pose`` (``geometry_msgs/msg/PoseWithCovarianceStamped``), ``/fidlearn/odometry``
+    (``nav_msgs/msg/Odometry``, tracked poses only: the velocities in the body's axes, their covariance
+    unknown: -1 first), ``/tf`` (``map`` -> the camera frame, or ``map`` -> ``base_link`` with a mount),
+    ``/tf_static`` (``base_link`` -> the camera frame: the mount) and ``/fidlearn/markers``
+    (``visualization_msgs/msg/MarkerArray``, the map, once at the first stamp). Metres, REP-103,
+    covariances in ROS's order (:func:`fidlearn.ros.ros_covariance`).
+
+    Parameters
+    ----------
+    path : path-like
+        ``OUT.mcap`` (a lone MCAP file) or a new folder (a rosbag2 folder); it must not exist.
+    marker_map : MarkerMap, optional
+        Written as markers.
+    T_camera_base : array_like, shape (4, 4), optional
+        The camera's mount on the robot (mm), written on ``/tf_static``.
+    camera_frame : str
+        The camera's TF frame (the images' ``header.frame_id``).
+
+    Raises
+    ------
+    RosFormatError
+        The path exists or its folder does not.
+
+    Examples
+    --------
+    >>> import fidlearn, tempfile, os
+    >>> from fidlearn.filtering import TrackedPose
+    >>> T = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, 90), [1000, 150, 250])
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with BagWriter(os.path.join(folder, "poses.mcap")) as bag:
+    ...         bag.write(1_700_000_000_500_000_000, TrackedPose(0.5, T, np.eye(6), "measured"))
+    ...     sorted(os.listdir(folder))
+    ['poses.mcap']
+    """
+
+    def __init__(self, path, marker_map: MarkerMap | None = None, *, T_camera_base=None, camera_frame="camera"):
+        if marker_map is not None and not isinstance(marker_map, MarkerMap):
+            raise RosFormatError(f"marker_map must be a fidlearn MarkerMap, got {type(marker_map).__name__}")
+        if not isinstance(camera_frame, str) or not camera_frame.strip() or camera_frame.strip() != camera_frame:
+            raise RosFormatError(f"camera_frame must be a TF frame name like 'camera', got {camera_frame!r:.40}")
+        self.mount = None if T_camera_base is None else frames.check_transform(T_camera_base, "T_camera_base")
+        self.marker_map, self.camera_frame = marker_map, camera_frame
+        self._bag = _Bag(path, "BagWriter")
+        self.path = self._bag.target.path
+        self.poses = 0
+        self._started = False
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def _start(self, stamp_ns: int) -> None:
+        if self._started:
+            return
+        self._started = True
+        if self.mount is not None:
+            mount = mount_tf(self.mount, stamp_ns, self.camera_frame)
+            self._bag.put("/tf_static", TOPICS["/tf_static"], mount, stamp_ns)
+        if self.marker_map is not None:
+            self._bag.put(MARKERS_TOPIC, TOPICS[MARKERS_TOPIC], marker_array(self.marker_map, stamp_ns), stamp_ns)
+
+    def write(self, stamp_ns: int, pose: Pose | TrackedPose) -> None:
+        """One frame's pose: ``/fidlearn/pose``, ``/tf`` and, for a tracked pose, ``/fidlearn/odometry``.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            The image's stamp, nanoseconds (the messages' header stamp and the bag's time).
+        pose : Pose or TrackedPose
+            The frame's pose (a Pose: the camera's), or the tracker's (the robot base's with a mount).
+
+        Raises
+        ------
+        RosFormatError
+            A pose without covariance, a bad stamp, a full disk.
+        """
+        stamp_ns = _stamp_ns(stamp_ns)
+        found = pose_messages(stamp_ns, pose, self.camera_frame)
+        self._start(stamp_ns)
+        for topic, message in found:
+            self._bag.put(topic, TOPICS[topic], message, stamp_ns)
+        self.poses += 1
+
+    def close(self) -> Path:
+        """Finish the bag and give it its name.
+
+        Returns
+        -------
+        Path
+            The bag written.
+
+        Raises
+        ------
+        RosFormatError
+            The disk refused; nothing is left behind.
+        """
+        return self._bag.close()
+
+    def abort(self) -> None:
+        """Throw the bag away: nothing is left behind."""
+        self._bag.abort()
+
+
+def write_image_bag(
+    path,
+    images: Sequence[np.ndarray],
+    camera: Camera | None,
+    stamps_ns: Sequence[int],
+    *,
+    image_topic: str = "/camera/image_raw",
+    encoding: str = "bgr8",
+    frame_id: str = "camera",
+) -> Path:
+    """Images (and the camera's CameraInfo beside each) into a ROS 2 bag, as a camera driver records them.
+
+    Parameters
+    ----------
+    path : path-like
+        ``OUT.mcap`` or a new folder (see :class:`BagWriter`).
+    images : sequence of ndarray
+        uint8 pictures, gray or BGR.
+    camera : Camera or None
+        Written as ``sensor_msgs/msg/CameraInfo`` on the image topic's ``camera_info`` (None: none).
+    stamps_ns : sequence of int
+        Each image's header stamp, nanoseconds.
+    image_topic : str
+        The topic; ``.../compressed`` writes ``sensor_msgs/msg/CompressedImage`` (PNG).
+    encoding : str
+        ``bgr8``, ``rgb8``, ``mono8`` or ``bayer_rggb8`` (a BGR picture sampled to the mosaic).
+    frame_id : str
+        The images' ``header.frame_id``.
+
+    Returns
+    -------
+    Path
+        The bag.
+
+    Raises
+    ------
+    RosFormatError
+        As for :class:`BagWriter`; an encoding not listed; as many stamps as images needed.
+    """
+    if encoding not in ("bgr8", "rgb8", "mono8", "bayer_rggb8"):
+        raise RosFormatError(f"encoding {encoding!r:.40}: write bgr8, rgb8, mono8 or bayer_rggb8")
+    if len(images) != len(stamps_ns):
+        raise RosFormatError(f"{len(images)} images and {len(stamps_ns)} stamps: give one stamp per image")
+    bag = _Bag(path, "write_image_bag")
+    try:
+        info_topic = info_topic_beside(image_topic)
+        info = _camera_info(camera) if camera is not None else None
+        for image, stamp in zip(images, stamps_ns):
+            header = {"stamp": stamp_dict(_stamp_ns(stamp)), "frame_id": frame_id}
+            typename, msg = _image_message(np.asarray(image), header, encoding, image_topic.endswith("/compressed"))
+            bag.put(image_topic, typename, build(typename, msg), stamp)
+            if info is not None:
+                bag.put(
+                    info_topic,
+                    "sensor_msgs/msg/CameraInfo",
+                    build("sensor_msgs/msg/CameraInfo", {**info, "header": header}),
+                    stamp,
+                )  # noqa: E501
+    except BaseException:
+        bag.abort()
+        raise
+    return bag.close()
+
+
+def _camera_info(camera: Camera) -> dict:
+    if not isinstance(camera, Camera):
+        raise RosFormatError(f"camera must be a fidlearn Camera or None, got {type(camera).__name__}")
+    text = camera_info_yaml(camera)  # the distortion models ROS knows (and fidlearn's refusal of the others)
+    model = text.split("distortion_model: ", 1)[1].split("\n", 1)[0]
+    d = np.asarray(camera.dist, dtype=float).reshape(-1)
+    d = np.r_[d, 0.0] if d.size == 4 else d
+    P = np.hstack([camera.K, np.zeros((3, 1))])
+    return {"height": camera.height, "width": camera.width, "distortion_model": model, "d": d,
+            "k": camera.K.reshape(-1), "r": np.eye(3).reshape(-1), "p": P.reshape(-1)}  # fmt: skip
+
+
+def _image_message(image: np.ndarray, header: dict, encoding: str, compressed: bool) -> tuple[str, dict]:
+    if image.dtype != np.uint8 or image.ndim not in (2, 3):
+        raise RosFormatError("images must be uint8 pictures, gray (H, W) or BGR (H, W, 3)")
+    bgr = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    if compressed:
+        ok, png = cv2.imencode(".png", image)
+        if not ok:
+            raise FidlearnError("OpenCV could not encode the picture as PNG")
+        return "sensor_msgs/msg/CompressedImage", {"header": header, "format": "png", "data": png.reshape(-1)}
+    if encoding == "mono8":
+        pixels = bgr[:, :, 0] if image.ndim == 2 else cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+    elif encoding == "rgb8":
+        pixels = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    elif encoding == "bayer_rggb8":
+        pixels = np.empty(bgr.shape[:2], np.uint8)  # R G / G B: row 0 red and green, row 1 green and blue
+        pixels[0::2, 0::2], pixels[0::2, 1::2] = bgr[0::2, 0::2, 2], bgr[0::2, 1::2, 1]
+        pixels[1::2, 0::2], pixels[1::2, 1::2] = bgr[1::2, 0::2, 1], bgr[1::2, 1::2, 0]
+    else:
+        pixels = bgr
+    h, w = pixels.shape[:2]
+    step = pixels.strides[0] if pixels.flags.c_contiguous else w * (3 if pixels.ndim == 3 else 1)
+    data = np.ascontiguousarray(pixels).reshape(-1)
+    msg = {
+        "header": header,
+        "height": h,
+        "width": w,
+        "encoding": encoding,
+        "is_bigendian": 0,
+        "step": step,
+        "data": data,
+    }
+    return "sensor_msgs/msg/Image", msg
