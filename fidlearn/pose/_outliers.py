@@ -16,6 +16,7 @@ from .. import _stats
 from ..camera import Camera
 from ..errors import PoseError
 from ._checks import _cheirality
+from ._noise import _SHIFT8, SPLIT_MIN_MARKERS, _noise_parts, _pose_covariance
 from ._observations import _UNCHECKED, _Candidate, _Obs
 from ._refine import _residuals
 from ._solvers import _solve
@@ -30,6 +31,12 @@ OUTLIER_CHI2 = _stats.chi2_isf(OUTLIER_P, 8)
 #: ... and its RMS residual must also be above this many pixels (sub-pixel disagreement
 #: is detector bias or calibration, not a misplaced marker).
 OUTLIER_MIN_RMS_PX = 0.75
+#: A marker whose corners, predicted from the others' pose, are off by less than this fraction of its side (RMS,
+#: px over px) is kept: a board bent by a fraction of a millimetre or a camera model a little off does that to
+#: markers (the robot's photos: a 5x7 ChArUco board's outer column 0.3-0.8 mm off flat, up to 6 % of an 18 mm
+#: marker's side; chosen on its photos 0, 2, ..., 14, the odd ones held out), a marker moved on its wall is off
+#: by a good part of its size (lesson 08: 80-140 mm moves of 150 mm markers).
+MODEL_ERROR_REL = 0.1
 #: Noise assumed in the test of a left-out marker when it is estimated: never below this (px).
 OUTLIER_SIGMA_FLOOR_PX = 0.3
 
@@ -396,6 +403,45 @@ def _agree(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float |
     return len(obs.ids) < 3 or _screen(obs, best, camera, corner_sigma_px) is None
 
 
+def _model_error_explains(obs: _Obs, k: int, rest_best: _Candidate, camera: Camera, corner_sigma_px) -> bool:
+    """Whether marker k's misfit is what a bent board or a model error does, not a moved marker.
+
+    Marker k's corners are predicted from the others' pose ``rest_best``. Small: their RMS misfit is below
+    ``MODEL_ERROR_REL`` of the marker's side in the image (a board bent by a fraction of a millimetre, a camera
+    model a little off: a marker moved on its wall is off by a good part of its size). Shared: with at least
+    ``SPLIT_MIN_MARKERS`` others, the noise of the others' fit is measured from its residuals (corner noise,
+    each marker's shift and size error, :func:`._noise._noise_parts`) and the misfit's chi-square under it
+    (plus the others' pose's covariance) is below the left-out test's limit (8 F(8, nu) at ``OUTLIER_P``):
+    the others are off by as much, so the marker is kept.
+    """
+    sl = slice(4 * k, 4 * k + 4)
+    r_k, J_k = _residuals(obs.obj[sl], obs.img[sl], camera.K, camera.dist, rest_best.R_wc, rest_best.C, True)
+    side = float(np.mean(_side_lengths(obs.img[sl])))
+    if math.sqrt(float(r_k @ r_k) / 4) < MODEL_ERROR_REL * side:
+        return True
+    rest = _without(obs, k)
+    if len(rest.ids) < SPLIT_MIN_MARKERS:
+        return False
+    r, J = _residuals(rest.obj, rest.img, camera.K, camera.dist, rest_best.R_wc, rest_best.C, True)
+    q = rest.img.reshape(-1, 4, 2)
+    parts = _noise_parts(r, J, q, corner_sigma_px)
+    cov = _pose_covariance(J, q, parts)
+    if cov is None:
+        return False
+    g = (obs.img[sl] - obs.img[sl].mean(axis=0)).reshape(8)
+    S = parts.a * np.eye(8) + parts.b * _SHIFT8 + parts.c * np.outer(g, g) + J_k @ cov @ J_k.T
+    try:
+        chi2 = float(r_k @ np.linalg.solve(S, r_k))
+    except np.linalg.LinAlgError:
+        return False
+    return chi2 <= _outlier_threshold(8 * len(rest.ids) - 7, False)
+
+
+def _side_lengths(quad: np.ndarray) -> np.ndarray:
+    """The four sides (px) of a marker's corners (4, 2)."""
+    return np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+
+
 def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined):
     """While :func:`_screen` fires, or the fit of all leaves more than ``OUTLIER_POOR_FIT_PX``: leave out
     the marker :func:`_to_leave_out` names.
@@ -410,6 +456,8 @@ def _reject_outliers(obs: _Obs, marker_map, camera, method, refine_lm, corner_si
         if hit is None:
             break
         k, solved = hit
+        if _model_error_explains(obs, k, solved[0][0], camera, corner_sigma_px):
+            break  # a bent board or a model error: small, shared by the others, not a moved marker
         rest = _without(obs, k)
         try:  # the leave-one-out solve is the solver's own when it is the one asked for
             reuse = method == "auto" and refine_lm
