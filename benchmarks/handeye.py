@@ -278,8 +278,18 @@ def nees(T_world_camera_true: np.ndarray, T_world_camera: np.ndarray, covariance
     return float(e @ np.linalg.solve(covariance, e))
 
 
-def _camera_error(T_true: np.ndarray, T_world_camera: np.ndarray) -> np.ndarray:
-    """``[dtheta, C_true - C]`` (rad, mm) of :func:`nees`: the parametrisation of ``fidlearn.Pose.covariance``."""
+def camera_error(T_true: np.ndarray, T_world_camera: np.ndarray) -> np.ndarray:
+    """``[dtheta, C_true - C]`` (rad, mm) of :func:`nees`: the parametrisation of ``fidlearn.Pose.covariance``.
+
+    Parameters
+    ----------
+    T_true, T_world_camera : ndarray, shape (4, 4)
+        The camera's true and measured pose.
+
+    Returns
+    -------
+    ndarray, shape (6,)
+    """
     dtheta = Rotation.from_matrix(T_true[:3, :3] @ T_world_camera[:3, :3].T).as_rotvec()
     return np.concatenate([dtheta, T_true[:3, 3] - T_world_camera[:3, 3]])
 
@@ -340,7 +350,7 @@ def predict_with_covariance(
         step = np.zeros(12)
         step[j] = h[j]
         J[..., j] = (residuals(p0 + step) - residuals(p0 - step)) / (2 * h[j])
-        D[:, j] = (_camera_error(camera_in_board(p0 + step), T0) - _camera_error(camera_in_board(p0 - step), T0)) / (
+        D[:, j] = (camera_error(camera_in_board(p0 + step), T0) - camera_error(camera_in_board(p0 - step), T0)) / (
             2 * h[j]
         )
     Binv = np.linalg.inv(np.einsum("nai,naj->ij", J, J))

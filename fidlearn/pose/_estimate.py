@@ -102,7 +102,11 @@ def estimate_pose(
         (solved without it), fails the nested-model test at
         ``OUTLIER_P`` (chi-square with 8 degrees of freedom when
         ``corner_sigma_px`` is given, else F(8, nu) with the noise estimated from
-        the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
+        the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``. A marker so named
+        is still kept when its misfit is what a bent board or a model error does
+        (small, shared): under ``MODEL_ERROR_REL`` (a tenth) of its side, or
+        (with 4 other markers or more) no larger than the others' own shifts and
+        size errors, measured from their residuals, make likely.
         With 2 markers nobody can tell which is wrong: nothing is rejected, but
         ``Pose.marker_rms_px`` shows the disagreement.
     corner_sigma_px : float, optional
@@ -110,8 +114,9 @@ def estimate_pose(
         is estimated from the residuals with ``2N - 6`` degrees of freedom,
         blended with a prior of ``PRIOR_SIGMA_PX`` worth ``PRIOR_DOF`` degrees of
         freedom (so one marker's 2 degrees of freedom do not claim a perfect
-        fit), and never below ``MIN_SIGMA_PX``; the covariance is then widened
-        for the uncertainty of that estimate (see :attr:`Pose.covariance`).
+        fit), and never below ``MIN_SIGMA_PX``. The covariance measures more than
+        this from the residuals (each marker's shift and size error too) and is
+        widened for the uncertainty of those estimates (see :attr:`Pose.covariance`).
 
     Returns
     -------

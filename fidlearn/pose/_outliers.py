@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import cast
 
 import cv2
 import numpy as np
@@ -88,7 +89,7 @@ def _marker_stats(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.ndarr
     and the choice of suspects all read it)."""
     if best.marker_stats is _UNCHECKED:
         best.marker_stats = _marker_stats_of(obs, best, camera)
-    return best.marker_stats
+    return cast("tuple[np.ndarray, tuple] | None", best.marker_stats)
 
 
 def _marker_stats_of(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.ndarray, tuple] | None:
@@ -378,17 +379,19 @@ def _to_leave_out(obs: _Obs, marker_map, best: _Candidate, camera: Camera, corne
     linearised at a pose the misplaced marker dragged (onto the other planar solution) can name a good one.
     """
     named = _named_displaced(obs, best, camera, corner_sigma_px)
-    fits = {} if named is None else {named: _rest_fit(obs, marker_map, named, camera)}
-    if fits.get(named) is not None and _agree(_without(obs, named), fits[named][4][0][0], camera, corner_sigma_px):
-        return named, fits[named][4]
+    tried: dict[int, tuple | None] = {}
+    if named is not None:
+        first = tried[named] = _rest_fit(obs, marker_map, named, camera)
+        if first is not None and _agree(_without(obs, named), first[4][0][0], camera, corner_sigma_px):
+            return named, first[4]
     for j in _suspects(obs, best, camera):
-        if j not in fits:
-            fits[j] = _rest_fit(obs, marker_map, j, camera)
-    fits = {j: fit for j, fit in fits.items() if fit is not None}
+        if j not in tried:
+            tried[j] = _rest_fit(obs, marker_map, j, camera)
+    fits = {j: fit for j, fit in tried.items() if fit is not None}
     if not fits:
         return None
     k = min(fits, key=lambda j: fits[j][2])
-    if named in fits:
+    if named is not None and named in fits:
         dof, sigma = _rest_noise(obs, fits[k][2], corner_sigma_px)
         if fits[named][2] - fits[k][2] <= _outlier_threshold(dof, corner_sigma_px is not None) * sigma**2:
             return named, fits[named][4]
