@@ -276,3 +276,85 @@ def nees(T_world_camera_true: np.ndarray, T_world_camera: np.ndarray, covariance
     dtheta = Rotation.from_matrix(T_world_camera_true[:3, :3] @ T_world_camera[:3, :3].T).as_rotvec()
     e = np.concatenate([dtheta, T_world_camera_true[:3, 3] - T_world_camera[:3, 3]])
     return float(e @ np.linalg.solve(covariance, e))
+
+
+def camera_error(T_true: np.ndarray, T_world_camera: np.ndarray) -> np.ndarray:
+    """``[dtheta, C_true - C]`` (rad, mm) of :func:`nees`: the parametrisation of ``fidlearn.Pose.covariance``.
+
+    Parameters
+    ----------
+    T_true, T_world_camera : ndarray, shape (4, 4)
+        The camera's true and measured pose.
+
+    Returns
+    -------
+    ndarray, shape (6,)
+    """
+    dtheta = Rotation.from_matrix(T_true[:3, :3] @ T_world_camera[:3, :3].T).as_rotvec()
+    return np.concatenate([dtheta, T_true[:3, 3] - T_world_camera[:3, 3]])
+
+
+def predict_with_covariance(
+    T_base_tool: list[np.ndarray],
+    T_camera_board: list[np.ndarray | None],
+    points_board: np.ndarray,
+    k: int,
+    **kw,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Photo ``k``'s board pose from a fit to the other photos, and the covariance of that prediction.
+
+    The covariance is the fit's own: the 12 fitted parameters' covariance, cluster-robust over the
+    photos (``B^-1 (sum_p J_p^T r_p r_p^T J_p) B^-1``, ``B = J^T J``, each photo's residuals one cluster,
+    times ``n / (n - 2)`` for the two photos' worth of parameters), carried to the camera's pose in the
+    board's frame (6, 6; ``[dtheta (rad), camera centre (mm)]``, as ``fidlearn.Pose.covariance`` and
+    :func:`nees`). It holds the scatter of the other photos (the robot's repeatability and their
+    vision errors, averaged over the fit), not the robot's own error at photo ``k``.
+
+    Parameters
+    ----------
+    T_base_tool, T_camera_board, points_board
+        As for :func:`leave_one_out`.
+    k : int
+        The photo predicted.
+    **kw
+        Passed to :func:`fit`.
+
+    Returns
+    -------
+    T_camera_board : ndarray (4, 4)
+        The predicted board pose (mm).
+    covariance : ndarray (6, 6)
+        Of the camera's pose in the board's frame.
+    """
+    keep = [i for i, T in enumerate(T_camera_board) if T is not None and i != k]
+    tools = [T_base_tool[i] for i in keep]
+    seen = [T_camera_board[i] for i in keep]
+    rw = fit(tools, seen, points_board, **kw)
+    P = np.c_[np.asarray(points_board, dtype=float), np.ones(len(points_board))].T
+    seen_pts = np.einsum("nij,jk->nik", np.asarray(seen, dtype=float), P)[:, :3]
+    p0 = np.concatenate([_to_params(rw.T_base_camera), _to_params(rw.T_tool_board)])
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        robot = np.einsum("ij,njk,kl->nil", invert(_from_params(p[:6])), np.asarray(tools), _from_params(p[6:]) @ P)
+        return (robot[:, :3] - seen_pts).reshape(len(tools), -1)
+
+    def camera_in_board(p: np.ndarray) -> np.ndarray:
+        return invert(invert(_from_params(p[:6])) @ T_base_tool[k] @ _from_params(p[6:]))
+
+    h = np.r_[np.full(3, 1e-6), np.full(3, 1e-3), np.full(3, 1e-6), np.full(3, 1e-3)]
+    r0 = residuals(p0)
+    T0 = camera_in_board(p0)
+    J = np.empty((*r0.shape, 12))
+    D = np.empty((6, 12))
+    for j in range(12):
+        step = np.zeros(12)
+        step[j] = h[j]
+        J[..., j] = (residuals(p0 + step) - residuals(p0 - step)) / (2 * h[j])
+        D[:, j] = (camera_error(camera_in_board(p0 + step), T0) - camera_error(camera_in_board(p0 - step), T0)) / (
+            2 * h[j]
+        )
+    Binv = np.linalg.inv(np.einsum("nai,naj->ij", J, J))
+    g = np.einsum("nai,na->ni", J, r0)  # each photo's J_p^T r_p
+    n = len(tools)
+    cov_p = Binv @ (g.T @ g) @ Binv * n / (n - 2)
+    return predict(rw, T_base_tool[k]), D @ cov_p @ D.T

@@ -154,9 +154,8 @@ def opencv_calibration(photos=range(N_PHOTOS)) -> tuple[Camera, float]:
 
 def fidlearn_calibration(photos=range(N_PHOTOS)) -> tuple[Camera, float]:
     """fidlearn's calibration from the photos (:func:`fidlearn.calibration.calibrate_charuco`) and its RMS (px)."""
-    result = calibrate_charuco(
-        [photo(i) for i in photos], SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY, min_corners=MIN_CORNERS
-    )
+    board_spec = fidlearn.Board.charuco(SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY)
+    result = calibrate_charuco([photo(i) for i in photos], board_spec, min_corners=MIN_CORNERS)
     return result.camera, float(result.rms_px)
 
 

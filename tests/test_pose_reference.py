@@ -4,8 +4,9 @@ The reference holds the bundled scenes' corners (true corners of data/scenes/pos
 noise; one marker moved 40 mm in some) and the poses, flags, alternatives and covariances that
 estimate_pose computed when it was written (its ``provenance`` names the commit). Faster code must
 give the same numbers by the same method: positions to 1e-6 mm, rotations to 1e-9, covariances to
-1e-6 relative. Two changes of method were made on purpose since (see ``the_method_of_the_reference``):
-undone, every answer is the reference's; as they are, only the listed answers differ.
+1e-6 relative. Three changes of method were made on purpose since (see ``the_method_of_the_reference`` and
+``the_covariance_of_the_reference``): undone, every answer is the reference's; as they are, only the listed
+answers differ.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from fidlearn import Camera, MarkerMap, estimate_pose
 from fidlearn.data import data_path
 from fidlearn.detection import Detection
 from fidlearn.pose import _estimate as pose_estimate
+from fidlearn.pose import _noise as pose_noise
 from fidlearn.pose import _solvers as pose_solvers
 from fidlearn.pose import _stats as pose_stats
 
@@ -105,15 +107,33 @@ def _reference_inflation(nu):
     return 3.0 * 2.605 / 7.8147
 
 
+def _reference_noise(r, _J, _q, corner_sigma_px):
+    """The noise of the reference's covariance: independent corners of one sigma, ``sigma^2 (J^T J)^-1``
+    (estimated as :func:`fidlearn.pose._stats._sigma` does, then widened for ``2N - 6 + PRIOR_DOF`` degrees of
+    freedom); the marker shift and size errors and the common size error came later."""
+    dof = len(r) - 6  # 2N - 6 for N corners
+    sigma = pose_stats._sigma(float(r @ r), dof, corner_sigma_px)
+    nu = None if corner_sigma_px is not None else dof + pose_stats.PRIOR_DOF
+    return pose_noise._NoiseParts(sigma**2, 0.0, 0.0, nu=nu)
+
+
 @pytest.fixture
-def the_reference_quantiles(monkeypatch):
-    """The covariance inflation as the reference computed it (the rest of the method is as now)."""
-    monkeypatch.setattr(pose_estimate, "_estimated_sigma_inflation", _reference_inflation)
+def the_covariance_of_the_reference(monkeypatch):
+    """The covariance as the reference computed it: corner noise alone (the rest of the method is as now)."""
+    monkeypatch.setattr(pose_estimate, "_noise_parts", _reference_noise)
+
+
+@pytest.fixture
+def the_reference_quantiles(monkeypatch, request):
+    """The covariance (its rule and its inflation) as the reference computed it (the rest of the method is as
+    now)."""
+    request.getfixturevalue("the_covariance_of_the_reference")
+    monkeypatch.setattr(pose_noise, "_inflation", _reference_inflation)
 
 
 def test_the_reference_quantiles_differ_from_the_exact_ones_by_their_rounding_alone():
     for nu in (3, 7, 10, 13, 22, 50, 90, 200, 1000):
-        assert pose_stats._estimated_sigma_inflation(nu) == pytest.approx(_reference_inflation(nu), rel=1.5e-3)
+        assert pose_noise._inflation(nu) == pytest.approx(_reference_inflation(nu), rel=1.5e-3)
 
 
 @pytest.fixture

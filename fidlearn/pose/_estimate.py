@@ -15,9 +15,10 @@ from ..frames._rotations import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
 from ._inputs import _check_inputs, _check_options
+from ._noise import _noise_parts, _NoiseParts, _pose_covariance
 from ._observations import _Candidate, _make_obs, _Obs, _side_px, _world
 from ._outliers import _reject_outliers
-from ._refine import _residuals, pose_jacobian
+from ._refine import _residuals
 from ._result import Pose
 from ._solvers import _solve
 from ._stats import (
@@ -25,8 +26,6 @@ from ._stats import (
     AMBIGUITY_MAX_SIGMA_PX,
     PRIOR_DOF,
     _ambiguity_limit,
-    _covariance_from,
-    _estimated_sigma_inflation,
     _mahalanobis2,
     _sigma,
 )
@@ -103,7 +102,11 @@ def estimate_pose(
         (solved without it), fails the nested-model test at
         ``OUTLIER_P`` (chi-square with 8 degrees of freedom when
         ``corner_sigma_px`` is given, else F(8, nu) with the noise estimated from
-        the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``.
+        the others) and its RMS is above ``OUTLIER_MIN_RMS_PX``. A marker so named
+        is still kept when its misfit is what a bent board or a model error does
+        (small, shared): under ``MODEL_ERROR_REL`` (a tenth) of its side, or
+        (with 4 other markers or more) no larger than the others' own shifts and
+        size errors, measured from their residuals, make likely.
         With 2 markers nobody can tell which is wrong: nothing is rejected, but
         ``Pose.marker_rms_px`` shows the disagreement.
     corner_sigma_px : float, optional
@@ -111,8 +114,9 @@ def estimate_pose(
         is estimated from the residuals with ``2N - 6`` degrees of freedom,
         blended with a prior of ``PRIOR_SIGMA_PX`` worth ``PRIOR_DOF`` degrees of
         freedom (so one marker's 2 degrees of freedom do not claim a perfect
-        fit), and never below ``MIN_SIGMA_PX``; the covariance is then widened
-        for the uncertainty of that estimate (see :attr:`Pose.covariance`).
+        fit), and never below ``MIN_SIGMA_PX``. The covariance measures more than
+        this from the residuals (each marker's shift and size error too) and is
+        widened for the uncertainty of those estimates (see :attr:`Pose.covariance`).
 
     Returns
     -------
@@ -260,21 +264,23 @@ class _Data:
     sigma_amb: float = 0.0  # the corner noise of the ambiguity test, px
     alt: _Candidate | None = None  # the other planar solution, when it is distinct
     ambiguous: bool = False
+    noise: _NoiseParts | None = None  # what the best pose's residuals hold: the noise of every pose's covariance
 
 
 def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate], method_used: str) -> Pose:
     """The :class:`Pose` of the best candidate, with its noise, covariance and alternative."""
-    obs = data.obs
+    obs, camera, best = data.obs, data.camera, cands[0]
+    r0, J0 = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, True)
+    if best.r is None:
+        best.r, best.sse = r0, float(r0 @ r0)
+    data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px)
     data.dof = 2 * len(obs.obj) - 6
     data.sigma = _sigma(cands[0].sse, data.dof, data.corner_sigma_px)
     # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
     # camera, not noise, and must not make a poorer second pose look "as good" (nor hide the
     # first pose's misfit behind it).
     data.sigma_amb = data.sigma if data.corner_sigma_px is not None else min(data.sigma, AMBIGUITY_MAX_SIGMA_PX)
-    JtJ = cands[0].JtJ
-    if JtJ is None:
-        J = pose_jacobian(obs.obj, cands[0].T_world_camera, data.camera)
-        JtJ = J.T @ J
+    JtJ = cands[0].JtJ if cands[0].JtJ is not None else J0.T @ J0
     alt = data.alt = _alternative(obs, cands, unrefined, JtJ, data.sigma_amb)
     # sigma estimated (not given, nor capped): its uncertainty widens the test (F instead of chi-square)
     estimated = data.corner_sigma_px is None and data.sigma < AMBIGUITY_MAX_SIGMA_PX
@@ -282,10 +288,10 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
     data.ambiguous = alt is not None and (alt.sse - cands[0].sse) < _ambiguity_limit(nu) * data.sigma_amb**2
     alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
     if alt is None:
-        return _build(data, cands[0], None, method_used, JtJ)
+        return _build(data, cands[0], None, method_used)
     if data.ambiguous:  # its covariance enters this pose's
-        return _build(data, cands[0], _build(data, alt, None, alt_how), method_used, JtJ)
-    return _build(data, cands[0], lambda: _build(data, alt, None, alt_how), method_used, JtJ)
+        return _build(data, cands[0], _build(data, alt, None, alt_how), method_used)
+    return _build(data, cands[0], lambda: _build(data, alt, None, alt_how), method_used)
 
 
 def _alternative(
@@ -327,7 +333,6 @@ def _build(
     c: _Candidate,
     alternative: Pose | Callable[[], Pose] | None,
     how: str,
-    JtJ_c: np.ndarray | None = None,
 ) -> Pose:
     """The :class:`Pose` of candidate ``c`` (``alternative`` may be a function that builds it on first use)."""
     obs, camera = data.obs, data.camera
@@ -339,15 +344,12 @@ def _build(
     for i in data.rejected:
         ri, _ = _residuals(data.world[i], data.corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
         residuals[i] = ri.reshape(4, 2)
-    if JtJ_c is None:
-        Jc = pose_jacobian(obs.obj, c.T_world_camera, camera)
-        JtJ_c = Jc.T @ Jc
     return Pose._trusted(
         T_world_camera=c.T_world_camera,
         marker_ids=tuple(obs.ids),
         residuals_px=dict(sorted(residuals.items())),
         reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
-        covariance=_covariance(data, c, alternative, JtJ_c),
+        covariance=_covariance(data, c, alternative),
         corner_sigma_px=data.sigma,
         ambiguous=data.ambiguous,
         alternative=alternative,
@@ -357,15 +359,19 @@ def _build(
     )
 
 
-def _covariance(
-    data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None, JtJ_c: np.ndarray
-) -> np.ndarray | None:
+def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None) -> np.ndarray | None:
     """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
-    cov = _covariance_from(JtJ_c, data.sigma)  # one noise level for the data, whichever pose
-    if cov is not None and data.corner_sigma_px is None:
-        cov = cov * _estimated_sigma_inflation(data.dof + PRIOR_DOF)
+    obs, camera = data.obs, data.camera
+    _, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, True)
+    cov = None if data.noise is None else _pose_covariance(J, obs.img.reshape(-1, 4, 2), data.noise)
     alt = data.alt
-    if data.ambiguous and isinstance(alternative, Pose) and cov is not None and alternative.covariance is not None:
+    if (
+        data.ambiguous
+        and alt is not None
+        and isinstance(alternative, Pose)
+        and cov is not None
+        and alternative.covariance is not None
+    ):
         # Two poses explain the corners: report the second moment about this pose of the
         # two-pose mixture, weighted by likelihood, so its ellipsoid reaches the other one.
         w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * data.sigma_amb**2), 700.0)))

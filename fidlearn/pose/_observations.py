@@ -80,7 +80,7 @@ def _world(marker_map: MarkerMap) -> tuple[dict[int, np.ndarray], dict[int, np.n
 
     The cache holds while the map's placements and marker size stay the same.
     """
-    key = (marker_map.marker_size_mm, tuple(marker_map.placements.values()))
+    key: tuple | None = (marker_map.marker_size_mm, tuple(marker_map.placements.values()))
     try:
         hit = _WORLD_CACHE.get(marker_map)
     except TypeError:  # an unhashable map: no cache

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import KW_ONLY, InitVar, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,6 +20,10 @@ class _PoseReadouts:
     and ``covariance`` (6, 6, ``[dtheta (rad), camera centre (mm)]`` in world axes, or None)."""
 
     __slots__ = ()
+
+    if TYPE_CHECKING:  # the fields of the classes that read them off
+        T_world_camera: np.ndarray
+        covariance: np.ndarray | None
 
     #: The error a bad argument raises (the owning package's own).
     _error: type = PoseError
@@ -117,35 +122,34 @@ class Pose(_PoseReadouts):
         Covariance of the camera's pose: ``[dtheta (rad, 3), position (mm, 3)]``
         where ``dtheta`` is a small rotation vector, in world axes, applied on
         the left of ``R_world_camera`` (``R = expm([dtheta]x) @ R_est``) and
-        position is the camera centre in the world. ``corner_sigma_px^2 (J^T J)^-1``
-        with ``J`` the Jacobian of the corner pixels at the solution
-        (:func:`pose_jacobian`): the Cramer-Rao bound when ``corner_sigma_px``
-        is given. When sigma is estimated from the residuals it is multiplied
-        by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu = 2N - 6 +
-        PRIOR_DOF``) so that the 95 % ellipsoid still holds the true position
-        95 % of the time: 1.08 with six markers, 1.2 with three, 2.5 with one.
-        When the pose is ``ambiguous`` it is instead the second moment, about
-        this pose, of the mixture of both poses (weights from their likelihood
-        ratio), so the ellipsoid reaches the alternative. The alternative's own
-        covariance is the local one. None if the pose is not determined.
+        position is the camera centre in the world. The noise of each marker's 8 corner coordinates is
+        ``a I + b S + c g g^T``: corner noise ``a``, a shift ``b`` of its four corners together (a marker
+        printed or stuck a little off, a board not quite flat, blur pulling its outline one way) and its own
+        relative size error ``c`` (``g`` its corners about their centre), all measured from this pose's
+        residuals with the degrees of freedom the fit used (the pose and the apparent size error common to
+        all markers fitted first); the covariance is ``(J^T J)^-1 J^T Sigma J (J^T J)^-1``, ``J`` the
+        Jacobian of the corner pixels at the solution (:func:`pose_jacobian`), plus the effect of that
+        common size error (the pose takes it for distance). With fewer than 4 markers the three cannot be
+        told apart: the residuals scale a prior mix (``PRIOR_SIGMA_PX``, ``PRIOR_SHIFT_PX``,
+        ``PRIOR_SIZE_REL`` in ``fidlearn.pose._noise``, worth ``PRIOR_DOF`` degrees of freedom). With
+        ``corner_sigma_px`` given, ``a`` is its square (and with fewer than 4 markers the covariance is
+        the Cramer-Rao bound ``corner_sigma_px^2 (J^T J)^-1``). The estimate's own uncertainty widens it
+        by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu`` Satterthwaite's over the parts). When
+        the pose is ``ambiguous`` it is instead the second moment, about this pose, of the mixture of
+        both poses (weights from their likelihood ratio), so the ellipsoid reaches the alternative. The
+        alternative's own covariance is the local one, with the same noise. None if the pose is not
+        determined.
 
-        What it promises: when the corner errors are independent, Gaussian,
-        of the sigma used, the 95 % ellipsoid
-        (:meth:`position_ellipsoid_contains`) holds the true position about
-        95 % of the time. Measured in ``benchmarks/bench_pose.py`` (corners
-        with Gaussian noise of 0.3 and 1 px, 400 views each): 91-96 % for
-        three and six markers, sigma given or estimated; one marker 94 % and
-        89 % with sigma given, 96 % (0.3 px) and only 68 % (1 px) with sigma
-        estimated, because its 2 degrees of freedom leave the estimate to the
-        prior below. It knows only the corner noise: an error of the map, the
-        marker size or the calibration is not in it. An estimated sigma is
-        blended with a prior of ``PRIOR_SIGMA_PX`` (0.25 px) worth
-        ``PRIOR_DOF`` degrees of freedom, so with few markers the ellipsoid
-        is too large (conservative) for a detector better than that (on the
-        bundled rendered scenes fidlearn's corners are 0.02-0.1 px off: the
-        truth was always inside, at a mean squared Mahalanobis distance of
-        0.25 instead of 3) and too small for a worse one. Give
-        ``corner_sigma_px`` when you know your detector's noise.
+        What it promises: the 95 % ellipsoid (:meth:`position_ellipsoid_contains`) holds the true
+        position about 95 % of the time when the errors are of those kinds. Measured: on renders with
+        Gaussian corner noise of 0.5 px, four markers (``tests/test_pose.py``), 97 % with sigma given or
+        estimated; on real photos
+        (``python -m benchmarks real``, docs/benchmarks.md): the robot's photos of a slightly bent ChArUco
+        board, the truth's own covariance added, 14 of 16 camera positions inside; the course's ChArUco
+        photos against their chessboard pose, 89-99 % with 1 to 3 markers but 77 % with 4-6 and only 46 %
+        with 7-17 markers: errors all markers share (a size gradient across the board, a calibration a
+        little off) leave no trace in the residuals and are not in it. An error of the map larger than a marker's
+        shift (a marker moved on the wall) is for the outlier screen, not the covariance.
     corner_sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes: given, or
         estimated from the residuals (see :func:`estimate_pose`).
@@ -258,8 +262,8 @@ class Pose(_PoseReadouts):
             std,
             f"ambiguous={self.ambiguous}",
         ]
-        if self.alternative is not None:
-            a = self.alternative
+        a = self._built_alternative()
+        if a is not None:
             ax, ay, az = a.position_mm
             parts.append(f"alternative at [{ax:.1f}, {ay:.1f}, {az:.1f}] rms={a.reprojection_rms_px:.2f} px")
         if self.rejected_ids:
@@ -335,4 +339,4 @@ class Pose(_PoseReadouts):
 
 # A read-only property over the private slot, set after the class: a dataclass field (the ``alternative``
 # the constructor and dataclasses.replace take) and a property cannot share a name in the class body.
-Pose.alternative = property(Pose._built_alternative)  # type: ignore[assignment, method-assign]
+Pose.alternative = property(Pose._built_alternative)  # type: ignore[assignment, method-assign, attr-defined]
