@@ -249,9 +249,10 @@ def flip_probability(
 
 
 def _flip(
-    P: np.ndarray, points_px: np.ndarray, camera: Camera, corner_sigma_px: np.ndarray
+    P: np.ndarray, points_px: np.ndarray, camera: Camera, corner_sigma_px: np.ndarray, blocks: list | None = None
 ) -> tuple[float, np.ndarray]:
-    """:func:`flip_probability` on checked inputs, and the camera centre (mm, world) of the other solution
+    """:func:`flip_probability` on checked inputs, and the camera centre (mm, world) of the other solution;
+    with ``blocks`` (each marker's (8, 8) corner covariance) the residuals are weighed by them instead
     (NaN when there is none)."""
     none = (0.0, np.full(3, np.nan))
     centred = P - P.mean(axis=0)
@@ -270,7 +271,12 @@ def _flip(
         proj = _lens.project_points(
             P @ R.T + tvec.ravel(), camera.K, np.zeros(5) if camera.dist is None else camera.dist
         )
-        d2 = float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / corner_sigma_px**2))
+        r = (proj - points_px).reshape(-1, 8) if blocks is not None else None
+        d2 = (
+            float(sum(rm @ np.linalg.pinv(C) @ rm for rm, C in zip(r, blocks)))
+            if r is not None and blocks is not None
+            else float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / corner_sigma_px**2))
+        )
         found.append((d2, R, -R.T @ tvec.ravel()))
     found = [f for f in found if math.isfinite(f[0]) and np.all(np.isfinite(f[1]))]
     if len(found) < 2:
@@ -489,7 +495,7 @@ def _predict(
         marker_map, ids, seen, sigmas, J, JtJ, shift_px, size_rel_std, size_rel_std_each, size_rel_error
     )
     cov_C = cov[3:, 3:]
-    p_flip, C_other = _flip(P, px, camera, s) if with_flip else (0.0, np.full(3, np.nan))
+    p_flip, C_other = _flip(P, px, camera, s, blocks) if with_flip else (0.0, np.full(3, np.nan))
     rotation_std_deg = math.degrees(math.sqrt(max(float(np.max(np.diag(cov)[:3])), 0.0)))
     errors = sampling._position_errors(
         P, T, camera, cov_C, blocks, common, with_flip and rotation_std_deg > sampling.NONLINEAR_ROTATION_DEG
