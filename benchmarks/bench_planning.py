@@ -28,8 +28,9 @@ from fidlearn.planning import noise
 
 try:  # run as a script (benchmarks/ on the path) or imported as benchmarks.bench_planning
     import planning_real
+    import planning_robot
 except ImportError:
-    from benchmarks import planning_real
+    from benchmarks import planning_real, planning_robot
 
 RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
 SIZES = [(640, 480), (1280, 720), (1920, 1080)]
@@ -251,6 +252,7 @@ def main(argv=None) -> int:
         f"{'yes' if all(within) else 'no'} -->"
     )
     planning_real.report(most=15 if args.quick else 40)  # the same target on real photos with a known pose
+    planning_robot.report(most=8 if args.quick else 20)  # and on the robot's photos
     dist = max_distance_rows(3 if args.quick else 6)
     print(
         "\nFarthest a face-on marker is found (half of the trials), predicted from "
