@@ -17,6 +17,7 @@ make it. A size error of the printed markers (``marker_size_rel_std``: one scale
 size is taken as exact, and the pose error that size error induces through the least squares is added.
 A size error known to be the same in every photo (``marker_size_rel_error``: real markers look a little
 smaller than printed) is a bias, not a spread: the median error is that of the covariance about it.
+The median, 90th percentile and RMS of the position error are those of draws (:mod:`.sampling`).
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ class Prediction:
         Standard deviation of the camera centre along world X, Y, Z (mm); inf without a pose.
     position_error_mm : float
         Predicted median distance between the estimated and the true camera centre (mm), the
-        systematic part ``position_bias_mm`` included.
+        systematic part ``position_bias_mm`` and the planar flip (``flip_probability``) included.
     flip_probability : float
         Chance that the other planar solution fits the corners better (0 when the markers are
         not coplanar or seen obliquely enough).
@@ -479,18 +480,8 @@ def _predict(
     JtJ = J.T @ J
     d = np.sqrt(np.diag(JtJ))
     if np.any(d <= 0) or np.linalg.cond(JtJ / np.outer(d, d)) > 1e12:  # columns in rad and mm: compare scaled
-        return Prediction(
-            T,
-            ids,
-            sides,
-            sigmas,
-            None,
-            np.full(3, np.inf),
-            math.inf,
-            0.0,
-            "the markers found do not fix the pose",
-            lost,
-        )
+        why = "the markers found do not fix the pose"
+        return Prediction(T, ids, sides, sigmas, None, np.full(3, np.inf), math.inf, 0.0, why, lost)
     cov, bias, blocks, common = _covariance_and_bias(
         marker_map, ids, seen, sigmas, J, JtJ, shift_px, size_rel_std, size_rel_std_each, size_rel_error
     )
