@@ -28,8 +28,9 @@ from fidlearn.planning import noise
 
 try:  # run as a script (benchmarks/ on the path) or imported as benchmarks.bench_planning
     import planning_real
+    import planning_robot
 except ImportError:
-    from benchmarks import planning_real
+    from benchmarks import planning_real, planning_robot
 
 RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
 SIZES = [(640, 480), (1280, 720), (1920, 1080)]
@@ -66,6 +67,7 @@ def group_rows(n_scenes: int, n_seeds: int, seed: int = 7) -> list[dict]:
     for size, (lo, hi) in groups:
         camera = Camera.from_fov(60, size)
         ratios, predicted, measured, flips, t0, used, tries = [], [], [], 0, time.perf_counter(), 0, 0
+        squares, inside = [], []  # (measured / predicted RMS)^2, and measured <= predicted 90th percentile
         while used < n_scenes and tries < 5 * n_scenes:
             tries += 1
             world = wall_map(rng, int(rng.integers(lo, hi + 1)))
@@ -83,6 +85,8 @@ def group_rows(n_scenes: int, n_seeds: int, seed: int = 7) -> list[dict]:
                 except FidlearnError:
                     err = math.inf  # no pose where one was predicted: counts as a large error
                 ratios.append(err / p.position_error_mm)
+                squares.append((err / p.position_rms_mm) ** 2)
+                inside.append(err <= p.position_p90_mm)
                 predicted.append(p.position_error_mm)
                 measured.append(err)
         ratio = float(np.median(ratios)) if ratios else math.nan
@@ -95,6 +99,10 @@ def group_rows(n_scenes: int, n_seeds: int, seed: int = 7) -> list[dict]:
                 "predicted": float(np.median(predicted)),
                 "measured": float(np.median(measured)),
                 "ratio": 1.0 / ratio if ratio else math.nan,
+                "squares": squares,
+                "inside": inside,
+                "rms_ratio": math.sqrt(float(np.mean(squares))) if squares else math.nan,
+                "p90_coverage": float(np.mean(inside)) if inside else math.nan,
                 "flip_likely": flips,
                 "seconds": time.perf_counter() - t0,
             }
@@ -184,6 +192,30 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11) -> None:
         print(f"| {side:.0f} | {int(sel.sum())} | {rms:.3f} | {robust:.3f} |")
 
 
+def _print_tails(groups: list[dict]) -> None:
+    """The tail over all pictures: RMS of measured over predicted, and the 90th-percentile coverage."""
+    squares = np.concatenate([r["squares"] for r in groups])
+    inside = np.concatenate([r["inside"] for r in groups])
+    finite = np.isfinite(squares)
+    rms = math.sqrt(float(np.mean(squares[finite])))
+    print(
+        "\n'RMS measured / predicted': each picture's error over its scene's predicted RMS error "
+        "(`Prediction.position_rms_mm`), root mean square over the pictures (1 when the tail is right); "
+        "'within predicted p90': pictures whose error is at most the predicted 90th percentile "
+        f"(`Prediction.position_p90_mm`; 90 % when right). Over all {len(squares)} pictures "
+        f"({int((~finite).sum())} without a pose, left out of the RMS): RMS measured / predicted {rms:.2f}, "
+        f"{100 * inside.mean():.0f} % within the predicted 90th percentile."
+    )
+    print(
+        f"\n<!-- target: planning: RMS of measured / predicted position error within 0.8-1.25 over rendered scenes | "
+        f"{rms:.2f} | {'yes' if 0.8 <= rms <= 1.25 else 'no'} -->"
+    )
+    print(
+        f"\n<!-- target: planning: predicted 90th-percentile position error covers 85-95 % of rendered pictures | "
+        f"{100 * inside.mean():.0f} % | {'yes' if 0.85 <= inside.mean() <= 0.95 else 'no'} -->"
+    )
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -202,14 +234,16 @@ def main(argv=None) -> int:
     )
     print(
         "| image | markers | scenes | pictures | median predicted (mm) | "
-        "median measured (mm) | predicted / measured | flip likely |"
+        "median measured (mm) | predicted / measured | RMS measured / predicted | within predicted p90 | flip likely |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in groups:
         print(
             f"| {r['size'][0]}x{r['size'][1]} | {r['markers'][0]}-{r['markers'][1]} | {r['n']} | {r['samples']} | "
-            f"{r['predicted']:.2f} | {r['measured']:.2f} | {r['ratio']:.2f} | {r['flip_likely']} |"
+            f"{r['predicted']:.2f} | {r['measured']:.2f} | {r['ratio']:.2f} | {r['rms_ratio']:.2f} | "
+            f"{100 * r['p90_coverage']:.0f} % | {r['flip_likely']} |"
         )
+    _print_tails(groups)
     ratios = [r["ratio"] for r in groups if math.isfinite(r["ratio"])]
     within = [0.75 <= q <= 1.25 for q in ratios]
     print(
@@ -218,6 +252,7 @@ def main(argv=None) -> int:
         f"{'yes' if all(within) else 'no'} -->"
     )
     planning_real.report(most=15 if args.quick else 40)  # the same target on real photos with a known pose
+    planning_robot.report(most=8 if args.quick else 20)  # and on the robot's photos
     dist = max_distance_rows(3 if args.quick else 6)
     print(
         "\nFarthest a face-on marker is found (half of the trials), predicted from "

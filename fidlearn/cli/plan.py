@@ -201,7 +201,8 @@ def run(args) -> int:
     if ok.any():
         print(
             f"  predicted error looking at the markers: median {np.median(plan.toward_mm[ok]):.1f} mm, "
-            f"worst {np.max(plan.toward_mm[ok]):.1f} mm"
+            f"worst {np.max(plan.toward_mm[ok]):.1f} mm; 90th percentile (nine poses in ten within it): "
+            f"median {np.median(plan.toward_p90_mm[ok]):.1f} mm, worst {np.max(plan.toward_p90_mm[ok]):.1f} mm"
         )
     if np.any(plan.flip[ok]):
         print(

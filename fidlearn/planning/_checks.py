@@ -44,7 +44,7 @@ def float_array(value, name: str, shape: tuple, error=FidlearnError) -> np.ndarr
         a = None
     want = ", ".join("N" if s == -1 else str(s) for s in shape) + ("," if len(shape) == 1 else "")
     ok = a is not None and a.ndim == len(shape) and all(s in (-1, n) for s, n in zip(shape, a.shape))
-    if not ok or a.size == 0:
+    if a is None or not ok or a.size == 0:
         got = "nothing usable" if a is None else f"shape {a.shape}"
         raise error(f"{name} must be an array of shape ({want}) of numbers, got {got}")
     if not np.all(np.isfinite(a)):

@@ -88,6 +88,7 @@ def plan_figure(plan: RoomPlan, marker_map: MarkerMap, target_mm: float | None =
         im = _panel(ax, plan, grid, title, norm, target_mm)
         _draw_markers(ax, marker_map)
     axes[0].set_ylabel("world Y (mm)")
+    assert im is not None  # one panel at least
     bar = fig.colorbar(im, ax=list(axes), label="predicted median position error (mm); grey: no pose", shrink=0.85)
     plain = FuncFormatter(lambda v, _: f"{v:g}")  # 0.9, 1, 20: not 9x10^-1
     bar.ax.yaxis.set_major_formatter(plain)
@@ -125,7 +126,7 @@ def coach_figure(coach, camera) -> Figure:
     u = coach.uncertainty_px
     im = ax.imshow(
         u,
-        extent=[-0.5, camera.width - 0.5, camera.height - 0.5, -0.5],
+        extent=(-0.5, camera.width - 0.5, camera.height - 0.5, -0.5),
         cmap="magma_r",
         vmin=0.0,
         vmax=max(float(u.max()), 2 * GOOD_UNCERTAINTY_PX),

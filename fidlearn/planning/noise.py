@@ -124,6 +124,8 @@ def min_perimeter_px(image_size: tuple[int, int]) -> float:
     PoseError
         If ``image_size`` is not two positive numbers of pixels (up to 1e6).
     """
+    w: object
+    h: object
     try:
         w, h = image_size
     except (TypeError, ValueError):

@@ -17,6 +17,7 @@ make it. A size error of the printed markers (``marker_size_rel_std``: one scale
 size is taken as exact, and the pose error that size error induces through the least squares is added.
 A size error known to be the same in every photo (``marker_size_rel_error``: real markers look a little
 smaller than printed) is a bias, not a spread: the median error is that of the covariance about it.
+The median, 90th percentile and RMS of the position error are those of draws (:mod:`.sampling`).
 """
 
 from __future__ import annotations
@@ -33,14 +34,10 @@ from ..camera import Camera
 from ..errors import FidlearnError, TransformError
 from ..markermap import MarkerMap
 from ..pose import pose_jacobian
-from . import noise
+from . import noise, sampling
 from ._checks import _check_px, _check_rel, check_flip_inputs
 
 __all__ = ["Prediction", "predict_accuracy", "flip_probability"]
-
-#: Fixed standard normal draws: the median of the position error of a Gaussian with a given
-#: covariance is computed from these, so a prediction is the same every time.
-_Z = np.random.default_rng(20261124).standard_normal((4000, 3))
 
 #: A second planar solution counts as a flip when its rotation is this far from the true one
 #: (degrees); nearer, the two are one answer within the noise.
@@ -77,7 +74,7 @@ class Prediction:
         Standard deviation of the camera centre along world X, Y, Z (mm); inf without a pose.
     position_error_mm : float
         Predicted median distance between the estimated and the true camera centre (mm), the
-        systematic part ``position_bias_mm`` included.
+        systematic part ``position_bias_mm`` and the planar flip (``flip_probability``) included.
     flip_probability : float
         Chance that the other planar solution fits the corners better (0 when the markers are
         not coplanar or seen obliquely enough).
@@ -90,6 +87,13 @@ class Prediction:
     position_bias_mm : ndarray, shape (3,)
         The systematic error of the camera centre (mm) that a known size error of the markers
         (``marker_size_rel_error``) causes; ``covariance`` is the spread about it.
+    position_p90_mm : float
+        Predicted 90th percentile of the distance between the estimated and the true camera centre
+        (mm): nine poses in ten are at least this close. Its tail is that of the solutions, not of the
+        linearization (:mod:`~fidlearn.planning.sampling` where the rotation is poorly known) and holds
+        the planar flip (``flip_probability``); inf without a pose.
+    position_rms_mm : float
+        Predicted root mean square of that distance (mm), likewise; inf without a pose.
     """
 
     T_world_camera: np.ndarray
@@ -103,6 +107,8 @@ class Prediction:
     reason: str = ""
     lost: dict[int, str] = field(default_factory=dict)
     position_bias_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    position_p90_mm: float = math.inf
+    position_rms_mm: float = math.inf
 
     @property
     def possible(self) -> bool:
@@ -241,31 +247,49 @@ def flip_probability(
         If the arrays are not finite, of these shapes with 4 to 10000 points, or ``corner_sigma_px`` not positive.
     """
     P, points_px, corner_sigma_px = check_flip_inputs(points_world, points_px, camera, corner_sigma_px)
+    return _flip(P, points_px, camera, corner_sigma_px)[0]
+
+
+def _flip(
+    P: np.ndarray, points_px: np.ndarray, camera: Camera, corner_sigma_px: np.ndarray, blocks: list | None = None
+) -> tuple[float, np.ndarray]:
+    """:func:`flip_probability` on checked inputs, and the camera centre (mm, world) of the other solution;
+    with ``blocks`` (each marker's (8, 8) corner covariance) the residuals are weighed by them instead
+    (NaN when there is none)."""
+    none = (0.0, np.full(3, np.nan))
     centred = P - P.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
     if s[2] > 1e-6 * max(s[0], 1.0):
-        return 0.0
+        return none
     n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
         P.reshape(-1, 1, 3), points_px.reshape(-1, 1, 2), camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE
     )
-    found = []  # (weighted squared residual, rotation matrix) of each solution
+    found = []  # (weighted squared residual, rotation matrix, camera centre) of each solution
     for rvec, tvec in zip(rvecs[:n], tvecs[:n]):
         if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
             continue  # IPPE gives NaN for a marker seen at a grazing angle: no second solution there
         rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
         R = cv2.Rodrigues(rvec)[0]
-        proj = _lens.project_points(P @ R.T + tvec.ravel(), camera.K, camera.dist)
-        found.append((float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / corner_sigma_px**2)), R))
+        proj = _lens.project_points(
+            P @ R.T + tvec.ravel(), camera.K, np.zeros(5) if camera.dist is None else camera.dist
+        )
+        r = (proj - points_px).reshape(-1, 8) if blocks is not None else None
+        d2 = (
+            float(sum(rm @ np.linalg.pinv(C) @ rm for rm, C in zip(r, blocks)))
+            if r is not None and blocks is not None
+            else float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / corner_sigma_px**2))
+        )
+        found.append((d2, R, -R.T @ tvec.ravel()))
     found = [f for f in found if math.isfinite(f[0]) and np.all(np.isfinite(f[1]))]
     if len(found) < 2:
-        return 0.0
+        return none
     found.sort(key=lambda f: f[0])
     R_true = found[0][1]  # exact corners: the true pose fits them exactly
-    others = [d2 for d2, R in found[1:] if frames.rotation_angle_deg(R, R_true) > FLIP_MIN_ANGLE_DEG]
+    others = [(d2, C) for d2, R, C in found[1:] if frames.rotation_angle_deg(R, R_true) > FLIP_MIN_ANGLE_DEG]
     if not others:
-        return 0.0
-    best = others[0]
-    return 0.5 * math.erfc(math.sqrt(best) / 2 / math.sqrt(2))
+        return none
+    best, C_other = others[0]
+    return 0.5 * math.erfc(math.sqrt(best) / 2 / math.sqrt(2)), C_other
 
 
 def _least_squares_covariance(J: np.ndarray, JtJ: np.ndarray, blocks: list) -> np.ndarray:
@@ -401,22 +425,25 @@ def _covariance_and_bias(
     size_rel_std: float,
     size_rel_std_each: float,
     size_rel_error: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The pose's 6x6 covariance from every part of the noise model, and the camera position's bias (mm) from
-    the markers' known common size error."""
+) -> tuple[np.ndarray, np.ndarray, list[np.ndarray], np.ndarray]:
+    """The pose's 6x6 covariance from every part of the noise model, the camera position's bias (mm) from
+    the markers' known common size error, each marker's (8, 8) corner covariance and the camera position's
+    (3, 3) covariance from the common size spread alone."""
     blocks = [noise.corner_covariance(seen[i], sigmas[i]) + noise.marker_shift_covariance(shift_px) for i in ids]
-    u = _size_motion(marker_map, ids, J) if size_rel_std or size_rel_std_each else None
+    u = _size_motion(marker_map, ids, J) if size_rel_std or size_rel_std_each else np.zeros((len(ids), 8))
     if size_rel_std_each:
         blocks = [b + size_rel_std_each**2 * np.outer(um, um) for b, um in zip(blocks, u)]
     cov = _least_squares_covariance(J, JtJ, blocks)
+    common = np.zeros((3, 3))
     if size_rel_std:
         v = np.linalg.solve(JtJ, J.T @ u.ravel())
         cov = cov + size_rel_std**2 * np.outer(v, v)
+        common = size_rel_std**2 * np.outer(v[3:], v[3:])
     bias = np.zeros(3)
     if size_rel_error:
         u_centre = _size_motion(marker_map, ids, J, about_centre=True)
         bias = size_rel_error * np.linalg.solve(JtJ, J.T @ u_centre.ravel())[3:]
-    return cov, bias
+    return cov, bias, blocks, common
 
 
 def _predict(
@@ -430,7 +457,8 @@ def _predict(
     size_rel_std_each: float = 0.0,
     size_rel_error: float = 0.0,
 ) -> Prediction:
-    """:func:`predict_accuracy` on checked arguments; the flip is left out (0) unless ``with_flip``."""
+    """:func:`predict_accuracy` on checked arguments; the flip (0) and the sampled tail are left out unless
+    ``with_flip``."""
     _check_px(corner_sigma_px, "corner_sigma_px", zero=False)
     shift_px = 0.0 if shift_px is None else shift_px
     _check_px(shift_px, "marker_shift_px", zero=True)
@@ -454,23 +482,16 @@ def _predict(
     JtJ = J.T @ J
     d = np.sqrt(np.diag(JtJ))
     if np.any(d <= 0) or np.linalg.cond(JtJ / np.outer(d, d)) > 1e12:  # columns in rad and mm: compare scaled
-        return Prediction(
-            T,
-            ids,
-            sides,
-            sigmas,
-            None,
-            np.full(3, np.inf),
-            math.inf,
-            0.0,
-            "the markers found do not fix the pose",
-            lost,
-        )
-    cov, bias = _covariance_and_bias(
+        why = "the markers found do not fix the pose"
+        return Prediction(T, ids, sides, sigmas, None, np.full(3, np.inf), math.inf, 0.0, why, lost)
+    cov, bias, blocks, common = _covariance_and_bias(
         marker_map, ids, seen, sigmas, J, JtJ, shift_px, size_rel_std, size_rel_std_each, size_rel_error
     )
     cov_C = cov[3:, 3:]
-    w, V = np.linalg.eigh(cov_C)
-    median = float(np.median(np.linalg.norm(bias + (_Z * np.sqrt(np.clip(w, 0, None))) @ V.T, axis=1)))
-    p_flip = flip_probability(P, px, camera, s) if with_flip else 0.0
-    return Prediction(T, ids, sides, sigmas, cov, np.sqrt(np.diag(cov_C)), median, p_flip, "", lost, bias)
+    p_flip, C_other = _flip(P, px, camera, s, blocks) if with_flip else (0.0, np.full(3, np.nan))
+    rotation_std_deg = math.degrees(math.sqrt(max(float(np.max(np.diag(cov)[:3])), 0.0)))
+    errors = sampling._position_errors(
+        P, T, camera, cov_C, blocks, common, with_flip and rotation_std_deg > sampling.NONLINEAR_ROTATION_DEG
+    )
+    median, p90, rms = sampling._error_stats(errors + bias, p_flip, C_other - T[:3, 3])
+    return Prediction(T, ids, sides, sigmas, cov, np.sqrt(np.diag(cov_C)), median, p_flip, "", lost, bias, p90, rms)

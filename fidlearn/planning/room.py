@@ -52,6 +52,9 @@ class RoomPlan:
         The point the cameras of ``toward_mm`` look at.
     step_mm : float
         The grid's spacing (mm), along X and Y alike.
+    toward_p90_mm : ndarray, shape (ny, nx), or None
+        The 90th percentile of the position error looking toward ``target_mm``
+        (:attr:`~fidlearn.planning.Prediction.position_p90_mm`): nine poses in ten are within it.
     """
 
     x_mm: np.ndarray
@@ -64,6 +67,7 @@ class RoomPlan:
     flip: np.ndarray
     target_mm: np.ndarray
     step_mm: float = math.nan
+    toward_p90_mm: np.ndarray | None = None
 
     def fraction_within(self, error_mm: float, which: str = "toward") -> float:
         """Fraction of the grid where the predicted error is at most ``error_mm``.
@@ -142,15 +146,15 @@ def default_area(marker_map: MarkerMap) -> tuple[float, float, float, float]:
         raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
     if not len(marker_map):
         raise FidlearnError("the map has no markers: there is nothing to plan around")
-    pts = []
+    pts: list[np.ndarray] = []
     for mid in marker_map.ids:
         c = marker_map.marker_corners(mid).mean(axis=0)
         n = marker_map.normal(mid)
         side = np.cross([0.0, 0.0, 1.0], n)
         side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.zeros(3)
         pts += [c + out * n + lat * side for out in (100.0, 3000.0) for lat in (-1000.0, 1000.0)]
-    pts = np.array(pts)[:, :2]
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    xy = np.array(pts)[:, :2]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
     return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
 
@@ -159,7 +163,7 @@ def _markers_centre(marker_map: MarkerMap) -> np.ndarray:
 
 
 def _level_pose(eye: np.ndarray, heading_rad: float) -> np.ndarray:
-    return look_at(eye, eye + [math.cos(heading_rad), math.sin(heading_rad), 0.0])
+    return look_at(eye.tolist(), (eye + [math.cos(heading_rad), math.sin(heading_rad), 0.0]).tolist())
 
 
 def _noise(
@@ -178,7 +182,8 @@ def _noise(
 
 
 def _cell(marker_map, camera, eye, target, headings, kw: dict, with_flip: bool) -> tuple:
-    """``(toward, median, worst, seen fraction, flip)`` of one place; the flip only ``with_flip``."""
+    """``(toward, median, worst, seen fraction, flip, toward's 90th percentile)`` of one place; the flip only
+    ``with_flip``."""
     args = (
         kw["corner_sigma_px"],
         kw["marker_shift_px"],
@@ -187,10 +192,10 @@ def _cell(marker_map, camera, eye, target, headings, kw: dict, with_flip: bool) 
         kw["marker_size_rel_error"],
     )
     if math.hypot(*(target - eye)) < 1.0:
-        toward, flip = math.inf, False
+        toward, flip, p90 = math.inf, False, math.inf
     else:
         p = _predict(marker_map, camera, look_at(eye, target), args[0], with_flip, *args[1:])
-        toward, flip = p.position_error_mm, p.flip_likely
+        toward, flip, p90 = p.position_error_mm, p.flip_likely, p.position_p90_mm
     errs = []
     for h in headings:
         p = _predict(marker_map, camera, _level_pose(eye, h), args[0], False, *args[1:])
@@ -198,7 +203,7 @@ def _cell(marker_map, camera, eye, target, headings, kw: dict, with_flip: bool) 
             errs.append(p.position_error_mm)
     med = float(np.median(errs)) if errs else math.inf
     worst = float(np.max(errs)) if errs else math.inf
-    return toward, med, worst, len(errs) / max(len(headings), 1), flip
+    return toward, med, worst, len(errs) / max(len(headings), 1), flip, p90
 
 
 #: Largest coordinate (mm) of a plan's area, height and look-at point: 1000 km.
@@ -290,14 +295,14 @@ def _plan(marker_map, camera, grid, height_mm, look_at_mm, headings, kw, progres
     xs, ys, step = grid
     target = _look_at_point(look_at_mm, marker_map)
     hs = [2 * math.pi * k / headings for k in range(headings)]
-    out = np.empty((5, len(ys), len(xs)))
+    out = np.empty((6, len(ys), len(xs)))
     cached = _CachedMap(marker_map)
     for j, y in enumerate(ys):
         for i, x in enumerate(xs):
             out[:, j, i] = _cell(cached, camera, np.array([x, y, height_mm]), target, hs, kw, with_flip)
         if progress is not None:
             progress(j + 1, len(ys))
-    return RoomPlan(xs, ys, float(height_mm), out[0], out[1], out[2], out[3], out[4].astype(bool), target, step)
+    return RoomPlan(xs, ys, float(height_mm), out[0], out[1], out[2], out[3], out[4].astype(bool), target, step, out[5])
 
 
 def plan_room(

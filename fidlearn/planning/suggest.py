@@ -127,9 +127,12 @@ def _check_options(target_mm, max_markers, size_factors) -> list[float]:
         factors = list(itertools.islice(size_factors, MAX_ADDED + 1))  # an endless iterator: refused, not read
     except TypeError:
         factors = None
-    ok = factors is not None and len(factors) <= MAX_ADDED
-    ok = ok and all(isinstance(f, (int, float, np.integer, np.floating)) and not isinstance(f, bool) for f in factors)
-    if not ok or not all(1 < f <= MAX_SIZE_FACTOR for f in factors):  # NaN fails the comparison too
+    ok = (
+        factors is not None
+        and len(factors) <= MAX_ADDED
+        and all(isinstance(f, (int, float, np.integer, np.floating)) and not isinstance(f, bool) for f in factors)
+    )
+    if factors is None or not ok or not all(1 < f <= MAX_SIZE_FACTOR for f in factors):  # NaN fails the comparison too
         raise FidlearnError(
             f"size_factors must be up to {MAX_ADDED} numbers above 1 and at most {MAX_SIZE_FACTOR:g} (the larger "
             f"prints to try, as multiples of the map's marker size; () for none), got {size_factors!r}"
