@@ -14,7 +14,7 @@ from ..errors import NoMarkersError, PoseError
 from ..frames._rotations import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
-from ._inputs import _check_inputs, _check_options
+from ._inputs import _check_inputs_lens, _check_options, _lens_covariance, _lens_jacobians, _lens_sse
 from ._observations import _Candidate, _make_obs, _Obs, _side_px, _world
 from ._outliers import _reject_outliers
 from ._refine import _residuals, pose_jacobian
@@ -165,7 +165,7 @@ def estimate_pose(
     >>> pose.position_ellipsoid_contains(T_world_camera[:3, 3])   # the truth is inside the 95 % ellipsoid
     True
     """
-    dets, marker_map, camera = _check_inputs(detections, marker_map, camera)
+    dets, marker_map, camera, lens = _check_inputs_lens(detections, marker_map, camera)
     method = _check_options(method, refine_lm, reject_outliers, corner_sigma_px)
     if refine_lm is None:
         refine_lm = method == "auto"
@@ -183,6 +183,8 @@ def estimate_pose(
         )
     _check_fit(obs, cands[0])
     data = _Data(obs, camera, world, corners_px, ignored, rejected, corner_sigma_px)
+    if lens is not None:  # a fisheye's corners, undistorted: their noise is wider near the edge
+        data.lens_D = _lens_jacobians(lens, obs.img)
     return _pose_from(data, cands, unrefined, method_used)
 
 
@@ -258,13 +260,14 @@ class _Data:
     sigma_amb: float = 0.0  # the corner noise of the ambiguity test, px
     alt: _Candidate | None = None  # the other planar solution, when it is distinct
     ambiguous: bool = False
+    lens_D: np.ndarray | None = None  # a fisheye's d(picture px) / d(ideal px) (N, 2, 2) at the corners
 
 
 def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate], method_used: str) -> Pose:
     """The :class:`Pose` of the best candidate, with its noise, covariance and alternative."""
     obs = data.obs
     data.dof = 2 * len(obs.obj) - 6
-    data.sigma = _sigma(cands[0].sse, data.dof, data.corner_sigma_px)
+    data.sigma = _sigma(_picture_sse(data, cands[0]), data.dof, data.corner_sigma_px)
     # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
     # camera, not noise, and must not make a poorer second pose look "as good" (nor hide the
     # first pose's misfit behind it).
@@ -284,6 +287,16 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
     if data.ambiguous:  # its covariance enters this pose's
         return _build(data, cands[0], _build(data, alt, None, alt_how), method_used, JtJ)
     return _build(data, cands[0], lambda: _build(data, alt, None, alt_how), method_used, JtJ)
+
+
+def _picture_sse(data: _Data, c: _Candidate) -> float:
+    """Candidate ``c``'s sum of squared residuals in the picture's pixels (a fisheye's, not the ideal ones)."""
+    if data.lens_D is None:
+        return c.sse
+    if c.r is None:
+        c.r, _ = _residuals(data.obs.obj, data.obs.img, data.camera.K, data.camera.dist, c.R_wc, c.C, False)
+        c.sse = float(c.r @ c.r)
+    return _lens_sse(data.lens_D, c.r)
 
 
 def _alternative(
@@ -359,7 +372,11 @@ def _covariance(
     data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None, JtJ_c: np.ndarray
 ) -> np.ndarray | None:
     """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
-    cov = _covariance_from(JtJ_c, data.sigma)  # one noise level for the data, whichever pose
+    if data.lens_D is None:
+        cov = _covariance_from(JtJ_c, data.sigma)  # one noise level for the data, whichever pose
+    else:
+        J = c.J if c.J is not None else pose_jacobian(data.obs.obj, c.T_world_camera, data.camera)
+        cov = _lens_covariance(data.lens_D, J, data.sigma)
     if cov is not None and data.corner_sigma_px is None:
         cov = cov * _estimated_sigma_inflation(data.dof + PRIOR_DOF)
     alt = data.alt
