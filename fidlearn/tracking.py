@@ -56,6 +56,7 @@ import cv2
 import numpy as np
 
 from . import _cv, frames
+from ._lens import pixels_from_normalized
 from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
 from .errors import FidlearnError, NoMarkersError, PoseError
@@ -309,12 +310,8 @@ class MarkerTracker:
         facing = np.einsum("ij,ij->i", self._normals, eye - centre) > 0
         front = (pc[..., 2] > 10.0).all(axis=1)
         keep = facing & front
-        if keep.any():  # pinhole first: far outside the view the distortion polynomial folds back
-            xy = pc[keep, :, :2] / pc[keep, :, 2:3]
-            ideal = xy * [cam.fx, cam.fy] + [cam.cx, cam.cy]
-            slack = 0.5 * max(cam.width, cam.height)
-            near = ((ideal > [-slack, -slack]) & (ideal < [cam.width + slack, cam.height + slack])).all(axis=(1, 2))
-            keep[np.flatnonzero(keep)[~near]] = False
+        if keep.any():
+            keep[np.flatnonzero(keep)[~_near_view(cam, pc[keep])]] = False
         if not keep.any():
             return None
         sel = np.flatnonzero(keep)
@@ -382,6 +379,23 @@ class MarkerTracker:
                 self._dictionary, _cv.make_detector_parameters(**fields)
             )
         return det
+
+
+def _near_view(cam: Camera, pc: np.ndarray) -> np.ndarray:
+    """Which markers (corners (K, 4, 3) in the camera frame, mm, in front of it) land within half a picture of it.
+
+    A pinhole's by its ideal pixels (far outside the view its distortion polynomial folds back); a fisheye's by
+    its own projection, which grows with the angle off the axis up to 90 degrees (its ideal pixels would run
+    off to infinity there and drop the markers near the edge of the picture).
+    """
+    xy = (pc[..., :2] / pc[..., 2:3]).reshape(-1, 2)
+    if cam.model == "fisheye":
+        px = pixels_from_normalized(xy, cam.K, cam.dist, "fisheye")
+    else:
+        px = xy * [cam.fx, cam.fy] + [cam.cx, cam.cy]
+    px = px.reshape(-1, 4, 2)
+    slack = 0.5 * max(cam.width, cam.height)
+    return ((px > [-slack, -slack]) & (px < [cam.width + slack, cam.height + slack])).all(axis=(1, 2))
 
 
 def _nearest_rotation(R: np.ndarray) -> np.ndarray:
