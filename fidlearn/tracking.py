@@ -50,12 +50,14 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import cv2
 import numpy as np
 
 from . import _cv, frames
+from ._fisheye_edges import straighten_edges_fisheye
 from ._lens import pixels_from_normalized
 from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
@@ -283,8 +285,12 @@ class MarkerTracker:
         return dets
 
     def _finish(self, gray: np.ndarray, corners: list, ids: list) -> list[Detection]:
-        """Check and refine the corners as detect_markers does and sort by id."""
-        return _outlined(gray, corners, ids, self._cells, self._inverted, self.refine == "edges")[0]
+        """Check and refine the corners as detect_markers does (on a fisheye, as locate does) and sort by id."""
+        dets = _outlined(gray, corners, ids, self._cells, self._inverted, self.refine == "edges")[0]
+        if self._cam is not None and self._cam.model == "fisheye" and self.refine == "edges" and dets:
+            fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in dets]), self._cam, self._cells)
+            dets = [dataclasses.replace(d, corners_px=f) for d, f in zip(dets, fixed)]
+        return dets
 
     def _estimate(self, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
         """The pose from the detections, or None and why not (the options were checked when the tracker was made)."""

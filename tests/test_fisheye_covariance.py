@@ -10,6 +10,7 @@ import pytest
 
 import fidlearn
 from fidlearn import Camera, MarkerMap, frames
+from fidlearn._fisheye_edges import straighten_edges_fisheye
 from fidlearn.detection import Detection
 from fidlearn.pose._inputs import _lens_jacobians
 from fidlearn.synthetic import render_scene
@@ -91,3 +92,34 @@ def test_a_rendered_pose_from_the_edge_states_more_uncertainty_than_one_from_the
     every = fidlearn.estimate_pose(dets, WALL, CAM)
     assert np.linalg.norm(every.position_mm - T_r[:3, 3]) < 3.0
     assert np.linalg.norm(every.position_std_mm) < size["edge"]
+
+
+def test_edges_refinement_on_a_fisheye_loses_its_straight_line_bias():
+    T_r = frames.look_at([450.0, -100.0, 60.0], [0.0, 200.0, -100.0], roll_deg=-8)
+    scene = render_scene(WALL, CAM, T_r, seed=4, blur_px=0.5, noise_std_gray=2.0)
+    dets = [d for d in fidlearn.detect_markers(scene.image, WALL.dictionary) if d.id in scene.truth]
+    raw = np.stack([d.corners_px for d in dets])
+    truth = np.stack([scene.truth[d.id] for d in dets])
+    fixed = straighten_edges_fisheye(raw, CAM, 7)
+    rms_raw = np.sqrt(np.mean((raw - truth) ** 2))
+    rms_fixed = np.sqrt(np.mean((fixed - truth) ** 2))
+    assert rms_raw > 0.2  # 0.27 px: lines fitted to curved sides
+    assert rms_fixed < 0.5 * rms_raw  # 0.07 px
+    np.testing.assert_array_equal(straighten_edges_fisheye(raw, Camera(CAM.K, None, (W, H)), 7), raw)
+    pose = fidlearn.locate(scene.image, WALL, CAM)  # locate takes the bias out of its "edges" corners
+    assert np.linalg.norm(pose.position_mm - T_r[:3, 3]) < 0.4
+    bent = fidlearn.locate(scene.image, WALL, CAM, refine="subpix")
+    assert np.linalg.norm(pose.position_mm - T_r[:3, 3]) < np.linalg.norm(bent.position_mm - T_r[:3, 3])
+
+
+@pytest.mark.slow
+def test_rendered_fisheye_poses_are_covered_about_95_percent():
+    rng = np.random.default_rng(11)
+    inside, n = 0, 40
+    for seed in range(n):
+        eye = [rng.uniform(300, 700), rng.uniform(-400, 400), rng.uniform(-300, 300)]
+        T_r = frames.look_at(eye, [0.0, rng.uniform(-300, 300), rng.uniform(-200, 200)], roll_deg=rng.uniform(-20, 20))
+        scene = render_scene(WALL, CAM, T_r, seed=seed, blur_px=0.5, noise_std_gray=2.0)
+        pose = fidlearn.locate(scene.image, WALL, CAM)
+        inside += pose.position_ellipsoid_contains(T_r[:3, 3])
+    assert 0.85 <= inside / n <= 1.0
