@@ -401,7 +401,8 @@ def _near_view(cam: Camera, pc: np.ndarray) -> np.ndarray:
         px = xy * [cam.fx, cam.fy] + [cam.cx, cam.cy]
     px = px.reshape(-1, 4, 2)
     slack = 0.5 * max(cam.width, cam.height)
-    return ((px > [-slack, -slack]) & (px < [cam.width + slack, cam.height + slack])).all(axis=(1, 2))
+    inside = (px > [-slack, -slack]) & (px < [cam.width + slack, cam.height + slack])
+    return np.asarray(inside.all(axis=(1, 2)))
 
 
 def _nearest_rotation(R: np.ndarray) -> np.ndarray:
