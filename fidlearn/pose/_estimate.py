@@ -14,7 +14,14 @@ from ..errors import NoMarkersError, PoseError
 from ..frames._rotations import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
-from ._inputs import _check_inputs_lens, _check_options, _lens_covariance, _lens_jacobians, _lens_sse
+from ._inputs import (
+    _check_inputs_lens,
+    _check_options,
+    _lens_covariance,
+    _lens_jacobians,
+    _lens_refine,
+    _lens_sse,
+)
 from ._observations import _Candidate, _make_obs, _Obs, _side_px, _world
 from ._outliers import _reject_outliers
 from ._refine import _residuals, pose_jacobian
@@ -185,6 +192,7 @@ def estimate_pose(
     data = _Data(obs, camera, world, corners_px, ignored, rejected, corner_sigma_px)
     if lens is not None:  # a fisheye's corners, undistorted: their noise is wider near the edge
         data.lens_D = _lens_jacobians(lens, obs.img)
+        cands[0] = _weighted(data, cands[0])
     return _pose_from(data, cands, unrefined, method_used)
 
 
@@ -261,6 +269,8 @@ class _Data:
     alt: _Candidate | None = None  # the other planar solution, when it is distinct
     ambiguous: bool = False
     lens_D: np.ndarray | None = None  # a fisheye's d(picture px) / d(ideal px) (N, 2, 2) at the corners
+    weighted: _Candidate | None = None  # the candidate refined with those weights (:func:`_weighted`)
+    weighted_J: np.ndarray | None = None  # its weighted Jacobian (2N, 6)
 
 
 def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate], method_used: str) -> Pose:
@@ -287,6 +297,15 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
     if data.ambiguous:  # its covariance enters this pose's
         return _build(data, cands[0], _build(data, alt, None, alt_how), method_used, JtJ)
     return _build(data, cands[0], lambda: _build(data, alt, None, alt_how), method_used, JtJ)
+
+
+def _weighted(data: _Data, c: _Candidate) -> _Candidate:
+    """Candidate ``c`` refined to fit the fisheye's picture pixels (:func:`~._inputs._lens_refine`)."""
+    obs, camera = data.obs, data.camera
+    R_wc, C, data.weighted_J = _lens_refine(obs.obj, obs.img, camera, data.lens_D, c.R_wc, c.C)
+    r, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, True)
+    data.weighted = _Candidate(R_wc, C, float(r @ r), r, refined=c.refined, JtJ=J.T @ J, J=J)
+    return data.weighted
 
 
 def _picture_sse(data: _Data, c: _Candidate) -> float:
@@ -374,7 +393,9 @@ def _covariance(
     """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
     if data.lens_D is None:
         cov = _covariance_from(JtJ_c, data.sigma)  # one noise level for the data, whichever pose
-    else:
+    elif c is data.weighted and data.weighted_J is not None:  # the weighted fit: sigma^2 (J_w^T J_w)^-1
+        cov = _covariance_from(data.weighted_J.T @ data.weighted_J, data.sigma)
+    else:  # a candidate fitted in ideal pixels alike
         J = c.J if c.J is not None else pose_jacobian(data.obs.obj, c.T_world_camera, data.camera)
         cov = _lens_covariance(data.lens_D, J, data.sigma)
     if cov is not None and data.corner_sigma_px is None:
