@@ -50,12 +50,15 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import cv2
 import numpy as np
 
 from . import _cv, frames
+from ._fisheye_edges import straighten_edges_fisheye
+from ._lens import pixels_from_normalized
 from ._wpilib import outside_field
 from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
@@ -301,14 +304,19 @@ class MarkerTracker:
         return dets
 
     def _finish(self, gray: np.ndarray, found: list) -> list[Detection]:
-        """Check and refine the corners ``[(corners, key, group)]`` as detect_markers does and sort by id."""
+        """Check and refine the corners ``[(corners, key, group)]`` as detect_markers does (on a fisheye, as locate
+        does) and sort by id."""
         out: list[Detection] = []
+        fisheye = self._cam is not None and self._cam.model == "fisheye" and self.refine == "edges"
         for g, (name, _, cells) in enumerate(self._groups):
             mine = [(c, int(k)) for c, k, gk in found if gk == g]
             dets = _outlined(
                 gray, [c for c, _ in mine], [k for _, k in mine], cells, self._inverted, self.refine == "edges"
-            )
-            out += [Detection(d.id, d.corners_px, name) for d in dets[0]]
+            )[0]
+            if fisheye and dets and self._cam is not None:
+                fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in dets]), self._cam, cells)
+                dets = [dataclasses.replace(d, corners_px=f) for d, f in zip(dets, fixed)]
+            out += [Detection(d.id, d.corners_px, name) for d in dets]
         if len(self._groups) > 1:
             order = {n: k for k, (n, _, _) in enumerate(self._groups)}
             out.sort(key=lambda d: (d.id, order[str(d.dictionary)]))
@@ -343,12 +351,8 @@ class MarkerTracker:
         facing = np.einsum("ij,ij->i", self._normals, eye - centre) > 0
         front = (pc[..., 2] > 10.0).all(axis=1)
         keep = facing & front
-        if keep.any():  # pinhole first: far outside the view the distortion polynomial folds back
-            xy = pc[keep, :, :2] / pc[keep, :, 2:3]
-            ideal = xy * [cam.fx, cam.fy] + [cam.cx, cam.cy]
-            slack = 0.5 * max(cam.width, cam.height)
-            near = ((ideal > [-slack, -slack]) & (ideal < [cam.width + slack, cam.height + slack])).all(axis=(1, 2))
-            keep[np.flatnonzero(keep)[~near]] = False
+        if keep.any():
+            keep[np.flatnonzero(keep)[~_near_view(cam, pc[keep])]] = False
         if not keep.any():
             return None
         sel = np.flatnonzero(keep)
@@ -418,6 +422,24 @@ class MarkerTracker:
                 self._dictionaries[group], _cv.make_detector_parameters(**fields)
             )
         return det
+
+
+def _near_view(cam: Camera, pc: np.ndarray) -> np.ndarray:
+    """Which markers (corners (K, 4, 3) in the camera frame, mm, in front of it) land within half a picture of it.
+
+    A pinhole's by its ideal pixels (far outside the view its distortion polynomial folds back); a fisheye's by
+    its own projection, which grows with the angle off the axis up to 90 degrees (its ideal pixels would run
+    off to infinity there and drop the markers near the edge of the picture).
+    """
+    xy = (pc[..., :2] / pc[..., 2:3]).reshape(-1, 2)
+    if cam.model == "fisheye":
+        px = pixels_from_normalized(xy, cam.K, cam.dist, "fisheye")
+    else:
+        px = xy * [cam.fx, cam.fy] + [cam.cx, cam.cy]
+    px = px.reshape(-1, 4, 2)
+    slack = 0.5 * max(cam.width, cam.height)
+    inside = (px > [-slack, -slack]) & (px < [cam.width + slack, cam.height + slack])
+    return np.asarray(inside.all(axis=(1, 2)))
 
 
 def _nearest_rotation(R: np.ndarray) -> np.ndarray:

@@ -199,6 +199,7 @@ def run(args) -> int:
         f"{args.output}: {plan.places()}; a pose is possible at {100 * ok.mean():.0f} % of them looking at the markers"
     )
     if ok.any():
+        assert plan.toward_p90_mm is not None, "plan_room fills the 90th percentile"
         print(
             f"  predicted error looking at the markers: median {np.median(plan.toward_mm[ok]):.1f} mm, "
             f"worst {np.max(plan.toward_mm[ok]):.1f} mm; 90th percentile (nine poses in ten within it): "

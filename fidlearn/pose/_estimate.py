@@ -14,11 +14,18 @@ from ..errors import NoMarkersError, PoseError
 from ..frames._rotations import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
-from ._inputs import _check_inputs, _check_options
+from ._inputs import (
+    _check_inputs_lens,
+    _check_options,
+    _lens_covariance,
+    _lens_jacobians,
+    _lens_refine,
+    _lens_sse,
+)
 from ._noise import _noise_parts, _NoiseParts, _pose_covariance
 from ._observations import _Candidate, _make_obs, _Obs, _side_px, _world
 from ._outliers import _reject_outliers
-from ._refine import _residuals
+from ._refine import _residuals, pose_jacobian
 from ._result import Pose
 from ._solvers import _solve
 from ._stats import (
@@ -26,6 +33,8 @@ from ._stats import (
     AMBIGUITY_MAX_SIGMA_PX,
     PRIOR_DOF,
     _ambiguity_limit,
+    _covariance_from,
+    _estimated_sigma_inflation,
     _mahalanobis2,
     _sigma,
 )
@@ -169,7 +178,7 @@ def estimate_pose(
     >>> pose.position_ellipsoid_contains(T_world_camera[:3, 3])   # the truth is inside the 95 % ellipsoid
     True
     """
-    dets, marker_map, camera = _check_inputs(detections, marker_map, camera)
+    dets, marker_map, camera, lens = _check_inputs_lens(detections, marker_map, camera)
     method = _check_options(method, refine_lm, reject_outliers, corner_sigma_px)
     if refine_lm is None:
         refine_lm = method == "auto"
@@ -187,6 +196,9 @@ def estimate_pose(
         )
     _check_fit(obs, cands[0])
     data = _Data(obs, camera, world, corners_px, ignored, rejected, corner_sigma_px)
+    if lens is not None:  # a fisheye's corners, undistorted: their noise is wider near the edge
+        data.lens_D = _lens_jacobians(lens, obs.img)
+        cands[0] = _weighted(data, cands[0])
     return _pose_from(data, cands, unrefined, method_used)
 
 
@@ -265,6 +277,9 @@ class _Data:
     alt: _Candidate | None = None  # the other planar solution, when it is distinct
     ambiguous: bool = False
     noise: _NoiseParts | None = None  # what the best pose's residuals hold: the noise of every pose's covariance
+    lens_D: np.ndarray | None = None  # a fisheye's d(picture px) / d(ideal px) (N, 2, 2) at the corners
+    weighted: _Candidate | None = None  # the candidate refined with those weights (:func:`_weighted`)
+    weighted_J: np.ndarray | None = None  # its weighted Jacobian (2N, 6)
 
 
 def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate], method_used: str) -> Pose:
@@ -275,7 +290,7 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
         best.r, best.sse = r0, float(r0 @ r0)
     data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px)
     data.dof = 2 * len(obs.obj) - 6
-    data.sigma = _sigma(cands[0].sse, data.dof, data.corner_sigma_px)
+    data.sigma = _sigma(_picture_sse(data, cands[0]), data.dof, data.corner_sigma_px)
     # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
     # camera, not noise, and must not make a poorer second pose look "as good" (nor hide the
     # first pose's misfit behind it).
@@ -292,6 +307,26 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
     if data.ambiguous:  # its covariance enters this pose's
         return _build(data, cands[0], _build(data, alt, None, alt_how), method_used)
     return _build(data, cands[0], lambda: _build(data, alt, None, alt_how), method_used)
+
+
+def _weighted(data: _Data, c: _Candidate) -> _Candidate:
+    """Candidate ``c`` refined to fit the fisheye's picture pixels (:func:`~._inputs._lens_refine`)."""
+    obs, camera = data.obs, data.camera
+    assert data.lens_D is not None, "set for a fisheye before the weighted fit"
+    R_wc, C, data.weighted_J = _lens_refine(obs.obj, obs.img, camera, data.lens_D, c.R_wc, c.C)
+    r, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, True)
+    data.weighted = _Candidate(R_wc, C, float(r @ r), r, refined=c.refined, JtJ=J.T @ J, J=J)
+    return data.weighted
+
+
+def _picture_sse(data: _Data, c: _Candidate) -> float:
+    """Candidate ``c``'s sum of squared residuals in the picture's pixels (a fisheye's, not the ideal ones)."""
+    if data.lens_D is None:
+        return c.sse
+    if c.r is None:
+        c.r, _ = _residuals(data.obs.obj, data.obs.img, data.camera.K, data.camera.dist, c.R_wc, c.C, False)
+        c.sse = float(c.r @ c.r)
+    return _lens_sse(data.lens_D, c.r)
 
 
 def _alternative(
@@ -348,7 +383,7 @@ def _build(
         T_world_camera=c.T_world_camera,
         marker_ids=tuple(obs.ids),
         residuals_px=dict(sorted(residuals.items())),
-        reprojection_rms_px=math.sqrt(c.sse / len(obs.obj)),
+        reprojection_rms_px=math.sqrt(_picture_sse(data, c) / len(obs.obj)),  # a fisheye: in its picture
         covariance=_covariance(data, c, alternative),
         corner_sigma_px=data.sigma,
         ambiguous=data.ambiguous,
@@ -362,8 +397,17 @@ def _build(
 def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None) -> np.ndarray | None:
     """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
     obs, camera = data.obs, data.camera
-    _, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, True)
-    cov = None if data.noise is None else _pose_covariance(J, obs.img.reshape(-1, 4, 2), data.noise)
+    if data.lens_D is None:  # the noise each pose's own residuals hold (corner noise, marker shift and size)
+        _, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, True)
+        cov = None if data.noise is None else _pose_covariance(J, obs.img.reshape(-1, 4, 2), data.noise)
+    else:  # a fisheye: corner noise in the picture's pixels, carried through the lens
+        if c is data.weighted and data.weighted_J is not None:  # the weighted fit: sigma^2 (J_w^T J_w)^-1
+            cov = _covariance_from(data.weighted_J.T @ data.weighted_J, data.sigma)
+        else:  # a candidate fitted in ideal pixels alike
+            J = c.J if c.J is not None else pose_jacobian(obs.obj, c.T_world_camera, camera)
+            cov = _lens_covariance(data.lens_D, J, data.sigma)
+        if cov is not None and data.corner_sigma_px is None:
+            cov = cov * _estimated_sigma_inflation(data.dof + PRIOR_DOF)
     alt = data.alt
     if (
         data.ambiguous

@@ -8,12 +8,15 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
+import cv2
 import numpy as np
 
+from .._lens import pixels_from_normalized
 from ..camera import Camera
 from ..detection import Detection
 from ..errors import PoseError
 from ..markermap import MarkerMap
+from ._refine import _residuals
 from ._solvers import METHODS
 
 _ESTIMATE_OPTIONS = frozenset({"method", "refine_lm", "reject_outliers", "corner_sigma_px"})
@@ -106,6 +109,13 @@ def _check_pose_options(options: Mapping[str, Any], caller: str, takes: str) -> 
 
 
 def _check_inputs(detections, marker_map, camera) -> tuple[list[Detection], MarkerMap, Camera]:
+    """The checked detections, map and camera (a fisheye's detections undistorted: see :func:`_as_pinhole`)."""
+    dets, marker_map, camera, _ = _check_inputs_lens(detections, marker_map, camera)
+    return dets, marker_map, camera
+
+
+def _check_inputs_lens(detections, marker_map, camera) -> tuple[list[Detection], MarkerMap, Camera, Camera | None]:
+    """:func:`_check_inputs`, and the fisheye camera the detections were undistorted from (None for a pinhole)."""
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera)
     if isinstance(detections, Detection):
@@ -125,8 +135,9 @@ def _check_inputs(detections, marker_map, camera) -> tuple[list[Detection], Mark
         k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners_px).all())
         raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners_px.tolist()}")
     if camera.model == "fisheye":
-        dets, camera = _as_pinhole(dets, camera)
-    return dets, marker_map, camera
+        pinhole_dets, pinhole = _as_pinhole(dets, camera)
+        return pinhole_dets, marker_map, pinhole, camera
+    return dets, marker_map, camera, None
 
 
 def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection], Camera]:
@@ -145,3 +156,84 @@ def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection],
             out.append(dataclasses.replace(d, corners_px=corners))
     pinhole = Camera(camera.K, None, camera.image_size, source=f"{camera.source or 'camera'} undistorted")
     return out, pinhole
+
+
+def _lens_jacobians(lens: Camera, ideal_px: np.ndarray) -> np.ndarray:
+    """``d(picture px) / d(ideal px)`` (N, 2, 2) of a fisheye at each undistorted corner (N, 2).
+
+    The inverse of the undistortion's local Jacobian: a picture's corner noise ``sigma^2 I`` is
+    ``sigma^2 D^-1 D^-T`` in the ideal pixels (wider near the picture's edge). Central differences of
+    ``Camera.project``'s model, 0.01 ideal px apart (the model is smooth within 90 degrees of the axis).
+    """
+    h = 1e-2
+    ideal = np.asarray(ideal_px, dtype=float).reshape(-1, 2)
+    K = lens.K
+    steps = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
+    pts = (ideal[:, None, :] + steps[None]).reshape(-1, 2)
+    xy = np.stack(
+        [(pts[:, 0] - K[0, 2] - K[0, 1] * (pts[:, 1] - K[1, 2]) / K[1, 1]) / K[0, 0], (pts[:, 1] - K[1, 2]) / K[1, 1]],
+        axis=1,
+    )
+    px = pixels_from_normalized(xy, K, lens.dist, "fisheye").reshape(-1, 4, 2)
+    D = np.empty((len(ideal), 2, 2))
+    D[:, :, 0] = (px[:, 0] - px[:, 1]) / (2 * h)
+    D[:, :, 1] = (px[:, 2] - px[:, 3]) / (2 * h)
+    return D
+
+
+def _lens_sse(D: np.ndarray, r: np.ndarray) -> float:
+    """The sum of squared residuals (2N,) in ideal px, as the picture's pixels measure them (``D r`` per corner)."""
+    w = np.einsum("nij,nj->ni", D, r.reshape(-1, 2))
+    return float(np.sum(w * w))
+
+
+def _lens_covariance(D: np.ndarray, J: np.ndarray, sigma: float) -> np.ndarray | None:
+    """The pose covariance (6, 6) of the least-squares fit in ideal pixels, for a fisheye's picture noise ``sigma``.
+
+    The fit weighs every ideal pixel alike, ``(J^T J)^-1 J^T e``; each corner's noise ``e`` is
+    ``sigma^2 D^-1 D^-T`` (:func:`_lens_jacobians`), so the covariance is the sandwich
+    ``sigma^2 (J^T J)^-1 (sum_i J_i^T D_i^-1 D_i^-T J_i) (J^T J)^-1``, ``J_i`` the corner's two rows of the
+    pose Jacobian ``J`` (2N, 6) in ideal pixels. Corners near the edge, which the undistortion stretches,
+    weigh more in it. None when the pose is not determined.
+    """
+    G = np.linalg.inv(D)  # (N, 2, 2): d(ideal px) / d(picture px)
+    GJ = np.einsum("nij,njk->nik", G, J.reshape(-1, 2, 6)).reshape(-1, 6)
+    ok, bread = cv2.invert(J.T @ J)
+    if not ok:
+        return None
+    cov = sigma**2 * bread @ (GJ.T @ GJ) @ bread
+    if not np.all(np.isfinite(cov)):
+        return None
+    return (cov + cov.T) / 2
+
+
+def _lens_refine(obj: np.ndarray, img: np.ndarray, camera: Camera, D: np.ndarray, R_wc: np.ndarray, C: np.ndarray):
+    """The pose that fits the corners as the fisheye's picture measures them (each residual ``D r``), from a start.
+
+    Gauss-Newton on the ideal-pixel residuals weighted by :func:`_lens_jacobians` (``D^T D`` per corner): the
+    maximum-likelihood pose for equal noise in the picture, where the fit in ideal pixels trusts the stretched
+    corners near the edge too much. Returns R_wc, C and the weighted Jacobian (2N, 6) there; the start when no
+    step lowers the weighted sum of squares.
+    """
+
+    def weighted(R, c):
+        r, J = _residuals(obj, img, camera.K, camera.dist, R, c, True)
+        Dr = np.einsum("nij,nj->ni", D, r.reshape(-1, 2)).reshape(-1)
+        DJ = np.einsum("nij,njk->nik", D, J.reshape(-1, 2, 6)).reshape(-1, 6)
+        return float(Dr @ Dr), Dr, DJ
+
+    sse, r, J = weighted(R_wc, C)
+    for _ in range(10):
+        ok, step = cv2.solve(J.T @ J, (J.T @ r).reshape(6, 1))
+        if not ok:
+            break
+        step = step.reshape(6)
+        dR, _ = cv2.Rodrigues(step[:3].reshape(3, 1))
+        sse_new, r_new, J_new = weighted(dR @ R_wc, C + step[3:])
+        if not sse_new < sse:
+            break
+        done = sse - sse_new < 1e-10 * max(sse, 1e-12) + 1e-12
+        R_wc, C, sse, r, J = dR @ R_wc, C + step[3:], sse_new, r_new, J_new
+        if done:
+            break
+    return R_wc, C, J

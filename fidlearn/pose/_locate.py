@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 
 import numpy as np
 
+from .. import _cv
+from .._fisheye_edges import straighten_edges_fisheye
 from .._wpilib import outside_field
 from ..camera import Camera
-from ..detection import Detection, detect_markers
+from ..detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_name, detect_markers
 from ..errors import ImageError, PoseError
 from ..markermap import MarkerMap
 from ._estimate import estimate_pose
@@ -98,11 +101,23 @@ def locate(
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera).for_image(image)
     detections = _detect_map_markers(image, marker_map, refine, detector_params, only_map_markers)
+    if camera.model == "fisheye" and (DEFAULT_REFINE if refine is None else _refine_name(refine)) == "edges":
+        detections = _straightened(detections, camera, marker_map.dictionary, detector_params)
     pose = estimate_pose(detections, marker_map, camera, **kw)
     problem = outside_field(marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirrored corners
     if problem is not None:
         raise PoseError(problem)
     return pose
+
+
+def _straightened(detections: list[Detection], camera: Camera, dictionary: str, detector_params) -> list[Detection]:
+    """Fisheye corners from the "edges" refinement without its straight-line bias (:mod:`fidlearn._fisheye_edges`)."""
+    if not detections:
+        return detections
+    border = int(_detector_fields(detector_params)["markerBorderBits"])
+    cells = _cv.dictionary_marker_bits(dictionary) + 2 * border
+    fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in detections]), camera, cells)
+    return [dataclasses.replace(d, corners_px=f) for d, f in zip(detections, fixed)]
 
 
 def _detect_map_markers(

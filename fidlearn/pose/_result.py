@@ -114,7 +114,8 @@ class Pose(_PoseReadouts):
         Per marker: observed minus reprojected corners (px), TL, TR, BR, BL.
         Rejected markers are listed too (their residual under this pose).
     reprojection_rms_px : float
-        RMS over the used corners of the residual length (px),
+        RMS over the used corners of the residual length (px; on a fisheye camera in the picture's
+        own pixels, while ``residuals_px`` are in the undistorted ones),
         ``sqrt(sum |r|^2 / N)`` for N corners (``cv2.solvePnPGeneric``
         reports the RMS per coordinate, ``sqrt(sum |r|^2 / 2N)``: this over
         ``sqrt(2)``).

@@ -1,0 +1,282 @@
+"""A 160-degree fisheye: pose accuracy against a pinhole of the same pixel count and against plain OpenCV's fisheye
+pipeline, the cost of the fisheye path, and the real fisheye sets' calibrations against each other.
+
+    python benchmarks/bench_fisheye.py            # 24 scenes (about 3 minutes on 2 shared cores)
+    python benchmarks/bench_fisheye.py --quick    # 10 scenes
+
+The scenes: 120 mm markers 300 mm apart on a wall 3 m x 1.8 m (world X = 0, facing +X); a camera 0.3-0.7 m from
+it, looking at a random point of the wall, rolled up to 20 degrees, sees them from the centre of the picture to
+80 degrees off the axis. Each pose is rendered (``fidlearn.render_scene``, blur 0.5 px, 2 gray levels of noise)
+twice at 800 x 600: through an equidistant fisheye of 160 degrees across the width (fx = 286 px) and through a
+pinhole of 100 degrees (fx = 336 px). Seeds 0 to n/2 - 1 were looked at while the fisheye path was written, the
+others are held out and reported on their own. Errors are the camera position's against the truth.
+
+* fidlearn: ``fidlearn.locate(image, map, camera)`` (its default corner refinement, ``"edges"``), and with
+  ``refine="contour"``.
+* vs the pinhole: both poses from the markers both pictures show (each camera's own detections,
+  ``estimate_pose``; the fisheye's corners straightened as ``locate`` does), where both show at least one.
+* plain OpenCV's fisheye pipeline: ``cv2.aruco.ArucoDetector`` (default parameters),
+  ``cv2.fisheye.undistortPoints`` (to the pixels of K), ``cv2.solvePnP`` SQPNP on every detected map corner, then
+  ``cv2.solvePnPRefineLM``.
+* speed: ``locate`` of the fisheye picture with the fisheye camera against ``locate`` of the same picture with the
+  pinhole camera of the same K (the pinhole path: the same detection, no undistortion), interleaved call by call;
+  the median of the per-pair ratios.
+* real sets: ``calibrate_checkerboard(..., model="fisheye")`` of each of data/real/fisheye_checkerboard's three sets
+  (six photos each, one lens) against the others: the difference of each intrinsic over the two sets' stated
+  standard deviations combined (about 1 when they are honest, 2 at most for 95 % of the numbers).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import itertools
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import fidlearn  # noqa: E402
+from fidlearn import Board, Camera, MarkerMap, frames, render_scene  # noqa: E402
+from fidlearn._fisheye_edges import straighten_edges_fisheye  # noqa: E402
+from fidlearn.calibration import calibrate_checkerboard  # noqa: E402
+from fidlearn.errors import FidlearnError  # noqa: E402
+from fidlearn.pose._locate import _detect_map_markers  # noqa: E402
+
+W, H = 800, 600
+F_FE = (W / 2) / math.radians(80)
+FISHEYE = Camera([[F_FE, 0, W / 2 - 0.5], [0, F_FE, H / 2 - 0.5], [0, 0, 1]], [0.0] * 4, (W, H), model="fisheye")
+PINHOLE = Camera.from_fov(100, (W, H))
+FISHEYE_AS_PINHOLE = Camera(FISHEYE.K, None, (W, H))
+WALL = MarkerMap.from_dict(
+    {
+        str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]}
+        for k, (y, z) in enumerate((y, z) for y in range(-1500, 1501, 300) for z in range(-900, 901, 300))
+    },
+    marker_size_mm=120,
+    units="mm",
+)
+
+
+def pose_of(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(1000 + seed)
+    eye = [rng.uniform(300, 700), rng.uniform(-400, 400), rng.uniform(-300, 300)]
+    at = [0.0, rng.uniform(-600, 600), rng.uniform(-400, 400)]
+    return frames.look_at(eye, at, roll_deg=rng.uniform(-20, 20))
+
+
+def opencv_fisheye(image: np.ndarray, cam: Camera) -> np.ndarray | None:
+    """Plain OpenCV: detect, cv2.fisheye.undistortPoints, SQPNP, RefineLM; the camera position (mm) or None."""
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL))
+    corners, ids, _ = det.detectMarkers(image)
+    if ids is None:
+        return None
+    obj, img = [], []
+    for c, i in zip(corners, ids.ravel()):
+        if int(i) in WALL:
+            obj.append(WALL.marker_corners(int(i)))
+            img.append(c.reshape(4, 2))
+    if not obj:
+        return None
+    pts = cv2.fisheye.undistortPoints(np.concatenate(img).reshape(-1, 1, 2), cam.K, cam.dist.reshape(4, 1), P=cam.K)
+    obj_a = np.concatenate(obj).astype(np.float64)
+    ok, rvec, tvec = cv2.solvePnP(obj_a, pts, cam.K, None, flags=cv2.SOLVEPNP_SQPNP)
+    if not ok:
+        return None
+    rvec, tvec = cv2.solvePnPRefineLM(obj_a, pts, cam.K, None, rvec, tvec)
+    R, _ = cv2.Rodrigues(rvec)
+    return (-R.T @ tvec).ravel()
+
+
+def error_of(fn, truth: np.ndarray) -> float:
+    try:
+        p = fn()
+    except FidlearnError:
+        return math.inf
+    if p is None:
+        return math.inf
+    pos = p.position_mm if hasattr(p, "position_mm") else p
+    return float(np.linalg.norm(pos - truth))
+
+
+def scene_row(seed: int) -> dict:
+    T = pose_of(seed)
+    truth = T[:3, 3]
+    fe = render_scene(WALL, FISHEYE, T, seed=seed, blur_px=0.5, noise_std_gray=2.0).image
+    ph = render_scene(WALL, PINHOLE, T, seed=seed, blur_px=0.5, noise_std_gray=2.0).image
+    det_fe = [d for d in fidlearn.detect_markers(fe, WALL.dictionary) if d.id in WALL]
+    if det_fe:  # as locate does on a fisheye: the "edges" refinement's straight-line bias taken out
+        fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in det_fe]), FISHEYE, 7)
+        det_fe = [dataclasses.replace(d, corners_px=c) for d, c in zip(det_fe, fixed)]
+    det_ph = [d for d in fidlearn.detect_markers(ph, WALL.dictionary) if d.id in WALL]
+    both = {d.id for d in det_fe} & {d.id for d in det_ph}
+    row = {
+        "seed": seed,
+        "markers": len(det_fe),
+        "both": len(both),
+        "fidlearn": error_of(lambda: fidlearn.locate(fe, WALL, FISHEYE), truth),
+        "contour": error_of(lambda: fidlearn.locate(fe, WALL, FISHEYE, refine="contour"), truth),
+        "opencv": error_of(lambda: opencv_fisheye(fe, FISHEYE), truth),
+        "image": fe,
+    }
+    if both:
+        row["fe_both"] = error_of(
+            lambda: fidlearn.estimate_pose([d for d in det_fe if d.id in both], WALL, FISHEYE), truth
+        )
+        row["ph_both"] = error_of(
+            lambda: fidlearn.estimate_pose([d for d in det_ph if d.id in both], WALL, PINHOLE), truth
+        )
+    return row
+
+
+def accuracy(rows: list[dict], title: str) -> tuple[float, float, int]:
+    fl = np.array([r["fidlearn"] for r in rows])
+    cv = np.array([r["opencv"] for r in rows])
+    paired = [r for r in rows if "fe_both" in r and math.isfinite(r["fe_both"]) and math.isfinite(r["ph_both"])]
+    fb = np.array([r["fe_both"] for r in paired])
+    pb = np.array([r["ph_both"] for r in paired])
+    ok_cv = np.isfinite(cv)
+    ratio_cv = float(np.median(fl[ok_cv]) / np.median(cv[ok_cv])) if ok_cv.any() else math.nan
+    ratio_ph = float(np.median(fb) / np.median(pb)) if paired else math.nan
+    fails = int((~np.isfinite(fl)).sum() + (fl[np.isfinite(fl)] > 50).sum())
+    co = np.array([r["contour"] for r in rows])
+    print(
+        f"| {title} | {len(rows)} | {np.median(fl[np.isfinite(fl)]):.2f} | {fails} | {np.median(co):.2f} | "
+        f"{np.median(cv[ok_cv]):.2f} ({int((~ok_cv).sum())} failed) | {ratio_cv:.2f} | "
+        f"{len(paired)} | {np.median(fb):.2f} | {np.median(pb):.2f} | {ratio_ph:.2f} |"
+    )
+    return ratio_cv, ratio_ph, fails
+
+
+def resolution_note() -> str:
+    """How much larger the pinhole draws what both see: its pixels per radian over the fisheye's, off the axis."""
+    fp, ff = PINHOLE.fx, FISHEYE.fx
+    parts = []
+    for deg in (0, 30, 50):
+        th = math.radians(deg)
+        radial = fp / math.cos(th) ** 2 / ff
+        across = fp / math.cos(th) / (ff * (th / math.sin(th) if th else 1.0))
+        parts.append(f"{deg} degrees {radial:.1f} x along the radius and {across:.1f} x across it")
+    return (
+        "\nThe same pixel count spread over 160 degrees instead of 100: the pinhole draws the markers both see larger, "
+        f"at {'; '.join(parts)} (fx {fp:.0f} px against {ff:.0f} px per radian), so its corners place them "
+        "that much more finely."
+    )
+
+
+def speed(images: list[np.ndarray], reps: int) -> float:
+    """``locate`` with the fisheye camera over the pinhole path on the same picture: detection, then the pose of the
+    same (already undistorted) corners with the pinhole camera of the same K; the median of the per-pair ratios."""
+    ideal = []
+    for im in images:
+        dets = _detect_map_markers(im, WALL, None, None, True)
+        und = [dataclasses.replace(d, corners_px=FISHEYE.undistort_points(d.corners_px)) for d in dets]
+        ideal.append([d for d in und if np.isfinite(d.corners_px).all()])
+    ratios = []
+    for _ in range(reps):
+        for im, und in zip(images, ideal):
+            t0 = time.perf_counter()
+            fidlearn.locate(im, WALL, FISHEYE)
+            t1 = time.perf_counter()
+            _detect_map_markers(im, WALL, None, None, True)  # locate's detection
+            fidlearn.estimate_pose(und, WALL, FISHEYE_AS_PINHOLE)
+            t2 = time.perf_counter()
+            ratios.append((t1 - t0) / (t2 - t1))
+    return float(np.median(ratios))
+
+
+def real_sets() -> None:
+    real = fidlearn.data_path("real", "fisheye_checkerboard")
+    board = Board.checkerboard((6, 8), 25.0)
+    cals = {}
+    for name in ("mono", "left", "right"):
+        cal = calibrate_checkerboard(sorted((real / name).glob("*.png")), board=board, model="fisheye")
+        cals[name] = cal
+    names = ["fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"]
+    print("\n| set | " + " | ".join(names) + " |")
+    print("|---|" + "---|" * len(names))
+    for name, cal in cals.items():
+        c = cal.camera
+        vals = [c.fx, c.fy, c.cx, c.cy, *np.ravel(c.dist)[:4]]
+        std = [cal.std_intrinsics[k] for k in names]
+        print(f"| {name} | " + " | ".join(f"{v:.4g} ± {s:.2g}" for v, s in zip(vals, std)) + " |")
+    zs = []
+    print("\n| sets | " + " | ".join(names) + " |")
+    print("|---|" + "---|" * len(names))
+    for a, b in itertools.combinations(cals, 2):
+        ca, cb = cals[a].camera, cals[b].camera
+        va = np.r_[ca.fx, ca.fy, ca.cx, ca.cy, np.ravel(ca.dist)[:4]]
+        vb = np.r_[cb.fx, cb.fy, cb.cx, cb.cy, np.ravel(cb.dist)[:4]]
+        sa = np.array([cals[a].std_intrinsics[k] for k in names])
+        sb = np.array([cals[b].std_intrinsics[k] for k in names])
+        z = np.abs(va - vb) / np.hypot(sa, sb)
+        zs.extend(z)
+        print(f"| {a} - {b} | " + " | ".join(f"{v:.1f}" for v in z) + " |")
+    zs_a = np.array(zs)
+    print(
+        f"\nDifference over the combined stated standard deviation: median {np.median(zs_a):.2f}, "
+        f"{int((zs_a > 2).sum())} of {len(zs_a)} above 2, largest {zs_a.max():.1f}."
+    )
+    print(
+        f"<!-- target: fisheye: the real sets' fisheye calibrations agree within their stated uncertainty | "
+        f"{int((zs_a > 2).sum())} of {len(zs_a)} intrinsics more than 2 sigma apart | "
+        f"{'yes' if (zs_a > 2).mean() <= 0.1 else '**no**'} -->"
+    )
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="10 scenes instead of 24, fewer timing repetitions")
+    args = parser.parse_args(argv)
+    n = 10 if args.quick else 24
+    t0 = time.perf_counter()
+    print(f"Load average when it started: {', '.join(f'{v:.1f}' for v in os.getloadavg())} (2 cores, shared).\n")
+    rows = [scene_row(seed) for seed in range(n)]
+    print(
+        "| scenes | n | fidlearn median (mm) | fidlearn failures | refine='contour' median (mm) | "
+        "OpenCV fisheye median (mm) | ratio to OpenCV | "
+        "scenes both see | fisheye, shared markers (mm) | pinhole, shared markers (mm) | ratio to pinhole |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    accuracy(rows[: n // 2], f"seeds 0-{n // 2 - 1} (looked at)")
+    held = accuracy(rows[n // 2 :], f"seeds {n // 2}-{n - 1} (held out)")
+    ratio_cv, ratio_ph, fails = accuracy(rows, "all")
+    print(resolution_note())
+    print(
+        f"\nMarkers detected per fisheye scene: {min(r['markers'] for r in rows)} to {max(r['markers'] for r in rows)}."
+    )
+    ratio_t = speed([r["image"] for r in rows[:4]], 3 if args.quick else 8)
+    print(
+        f"\nSpeed: `locate` with the fisheye camera over the pinhole path on the same picture (`locate`'s detection, "
+        "then `estimate_pose` of the already undistorted corners with the pinhole camera of the same K): "
+        f"median ratio {ratio_t:.2f} (load average now {', '.join(f'{v:.1f}' for v in os.getloadavg())})."
+    )
+    real_sets()
+    print(f"\n({time.perf_counter() - t0:.0f} s)")
+    print(
+        f"<!-- target: fisheye: pose median error <= 1.5 x a pinhole's of the same pixel count (shared markers) | "
+        f"{ratio_ph:.2f} x (held out {held[1]:.2f} x) | {'yes' if ratio_ph <= 1.5 else '**no**'} -->"
+    )
+    print(
+        f"<!-- target: fisheye: pose median error <= 0.3 x plain OpenCV's fisheye pipeline | {ratio_cv:.2f} x "
+        f"(held out {held[0]:.2f} x) | {'yes' if ratio_cv <= 0.3 else '**no**'} -->"
+    )
+    print(
+        f"<!-- target: fisheye: no failure on the rendered fisheye scenes | {fails} of {len(rows)} | "
+        f"{'yes' if fails == 0 else '**no**'} -->"
+    )
+    print(
+        f"<!-- target: fisheye: `locate` on a fisheye camera <= 1.2 x the pinhole path on the same picture | "
+        f"{ratio_t:.2f} x | {'yes' if ratio_t <= 1.2 else '**no**'} -->"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
