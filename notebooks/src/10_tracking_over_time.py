@@ -512,7 +512,8 @@ print(
 #
 # **Exercises**: [exercises/10_tracking.ipynb](exercises/10_tracking.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("10")` in a new cell): the right mean of rotations,
-# choosing the process noise, the mount transform, and bridging a gap with odometry.
+# choosing the process noise, the mount transform, bridging a gap with odometry, and whether a filter is
+# consistent (its mean NIS against the band).
 #
 # Next: [11 From localization to mapping](11_from_localization_to_mapping.ipynb): the map itself from photos, the
 # step towards SLAM; then [12 Your own camera](12_your_own_camera.ipynb).
