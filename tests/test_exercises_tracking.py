@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from fidlearn import exercises, frames
 from fidlearn.exercises import CORRECT, INCORRECT
@@ -123,3 +124,62 @@ def test_q4_the_wrong_order_of_composition_is_named(learner):
     yaw = np.degrees(np.arctan2(key[1, 0], key[0, 0]) - np.arctan2(start[1, 0], start[0, 0]))
     turns = np.degrees([np.arctan2(s[1, 0], s[0, 0]) for s in steps]).sum()
     assert abs((yaw - turns + 180) % 360 - 180) < 1e-6
+
+
+def _nis_and_bands(q):
+    r, S = np.asarray(q.inputs.innovations), np.asarray(q.inputs.S)
+    k = len(r)
+    mean = float(np.mean([ri @ np.linalg.solve(Si, ri) for ri, Si in zip(r, S)]))
+    return mean, k, chi2.ppf([0.025, 0.975], 6 * k) / k
+
+
+@pytest.mark.parametrize("learner", LEARNERS)
+def test_q5_the_identity_the_sum_and_wrong_bands_are_named(learner):
+    q, key = key_of("q5", learner)
+    mean, k, (lo, hi) = _nis_and_bands(q)
+    assert key["mean_nis"] == pytest.approx(mean, rel=1e-9)
+    assert key["consistent"] == (lo <= mean <= hi)
+    r = np.asarray(q.inputs.innovations)
+    res = q.grade({"mean_nis": float(np.mean(np.sum(r**2, axis=1))), "consistent": key["consistent"]})
+    assert res.status == INCORRECT
+    assert "identity" in res.message
+    res = q.grade({"mean_nis": k * mean, "consistent": key["consistent"]})
+    assert res.status == INCORRECT
+    assert "sum" in res.message
+    flipped = {"mean_nis": mean, "consistent": not key["consistent"]}
+    res = q.grade(flipped)
+    assert res.status == INCORRECT
+    one_lo, one_hi = chi2.ppf([0.025, 0.975], 6)
+    three_lo, three_hi = chi2.ppf([0.025, 0.975], 3 * k) / k
+    if (one_lo <= mean <= one_hi) == flipped["consistent"]:
+        assert "ONE chi-square(6)" in res.message
+    elif (three_lo <= mean <= three_hi) == flipped["consistent"]:
+        assert "3 degrees of freedom" in res.message
+    else:
+        assert "the verdict is not" in res.message
+    assert q.grade({"mean_nis": mean * 1.01, "consistent": key["consistent"]}).status == INCORRECT
+    assert q.grade((mean, key["consistent"])).status == CORRECT
+
+
+def test_q5_the_wrong_bands_are_named_for_the_learners_they_fool():
+    seen = set()
+    for learner in ("0", "1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11"):
+        q = l10_tracking._q5(learner)
+        mean, k, (lo, hi) = _nis_and_bands(q)
+        message = q.grade({"mean_nis": mean, "consistent": not (lo <= mean <= hi)}).message
+        seen |= {name for name in ("ONE chi-square(6)", "3 degrees of freedom") if name in message}
+    assert seen == {"ONE chi-square(6)", "3 degrees of freedom"}
+
+
+def test_q5_every_variant_of_100_learners_is_solvable_clear_of_the_band_and_of_every_kind():
+    kinds = set()
+    for i in range(100):
+        q, key = key_of("q5", str(i))
+        assert q.grade(key).status == CORRECT
+        mean, k, (lo, hi) = _nis_and_bands(q)
+        assert 40 <= k <= 80
+        margin = 0.25 * (hi - lo)
+        assert not lo - margin < mean < lo + margin  # never near an edge
+        assert not hi - margin < mean < hi + margin
+        kinds.add("consistent" if lo <= mean <= hi else "overconfident" if mean > hi else "cautious")
+    assert kinds == {"consistent", "overconfident", "cautious"}

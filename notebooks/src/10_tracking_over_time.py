@@ -8,7 +8,9 @@
 #   checked against `fidlearn.PoseTracker`;
 # * rotations on the manifold: why averaging rotation vectors or Euler angles is wrong, with numbers;
 # * how continuity resolves the ambiguous frames, what odometry adds across a gap, the smoother against the
-#   causal filter, and the pose in ROS's and TUM's formats.
+#   causal filter, and the pose in ROS's and TUM's formats;
+# * whether the filter's noises are right: the process noise learnt from the data, checked by the NIS (no truth
+#   needed) and the NEES (against the truth).
 #
 # Run the cells from top to bottom (Shift-Enter). The whole notebook runs in a few seconds.
 
@@ -365,6 +367,119 @@ q = msg["pose"]["pose"]["orientation"]
 assert np.allclose(frames.matrix_from_quaternion([q["x"], q["y"], q["z"], q["w"]]), last.T_world_camera[:3, :3])
 
 # %% [markdown]
+# ## 8. What the data says about the noise: NIS and NEES
+#
+# So far the process noise was chosen by hand, `(300 mm/s^2, 0.6 rad/s^2)`. Left out (`process_noise=None`, the
+# default), `PoseTracker` learns it from the innovations while it drives: if consecutive innovations point the
+# same way the track lags and `q` grows; if they alternate it follows the noise and `q` shrinks
+# (`TrackedPose.process_noise` is the value in force after each frame). Did it learn well? Two checks:
+#
+# * **NIS** (normalized innovation squared), `r^T S^-1 r`: the frame's innovation `r` (6 numbers) against its
+#   covariance `S`, what `TrackedPose.mahalanobis2` holds. When the filter's noises are right it is chi-square
+#   with 6 degrees of freedom: mean 6. It needs no truth, so a robot can check itself while it drives;
+#   `PoseTracker.consistency()` gives the mean over the run and the 95 % band of that mean.
+# * **NEES** (normalized estimation error squared), `e^T P^-1 e`: the track's true error `e` (rotation vector
+#   `log(R_true R^T)`, then the centre's error) against its own covariance `P`. Also mean 6, but it needs the
+#   truth: here the frames were made from known poses, so we have it.
+
+# %%
+from scipy.stats import chi2
+
+
+def nees(out, T):
+    """The NEES of one tracked pose against the true T_world_camera (6 degrees of freedom)."""
+    e = np.r_[log_so3(T[:3, :3] @ out.T_world_camera[:3, :3].T), T[:3, 3] - out.T_world_camera[:3, 3]]
+    return float(e @ np.linalg.solve(out.covariance, e))
+
+
+def run_noise(process_noise):
+    """Track the drive with one process noise (None: learnt); (outputs, consistency, NIS per frame, NEES)."""
+    tracker = PoseTracker(world, camera, process_noise=process_noise)
+    out = [tracker.update(p, t) for p, t in zip(poses, times_s)]
+    nis = np.array([o.mahalanobis2 if o.status == "measured" else np.nan for o in out])
+    return out, tracker.consistency(), nis, np.array([nees(o, T) for o, T in zip(out, T_true)])
+
+
+learnt, check, nis, nees_k = run_noise(None)
+q_learnt = np.array([o.process_noise for o in learnt])
+lo, hi = check["band"]
+band_near = chi2.ppf([0.025, 0.975], 6 * np.isfinite(nis[~far]).sum()) / np.isfinite(nis[~far]).sum()
+nis_near, nis_far = np.nanmean(nis[~far]), np.nanmean(nis[far])
+nees_near, nees_far = nees_k[~far].mean(), nees_k[far].mean()
+learnt_error = np.linalg.norm(np.array([o.position_mm for o in learnt]) - true_position, axis=1)
+print(
+    f"learnt process noise at the end: {q_learnt[-1, 0]:.0f} mm/s^2, {q_learnt[-1, 1]:.2f} rad/s^2 "
+    f"(from {q_learnt[:, 0].min():.0f} to {q_learnt[:, 0].max():.0f} mm/s^2 on the way)"
+)
+print(
+    f"mean NIS over {check['frames']} frames: {check['mean_nis']:.2f}, 95 % band {lo:.2f} to {hi:.2f}, "
+    f"consistent: {check['consistent']}; near frames {nis_near:.2f} (band {band_near[0]:.2f} to "
+    f"{band_near[1]:.2f}), far frames {nis_far:.2f}"
+)
+print(f"mean NEES: near frames {nees_near:.2f}, far frames {nees_far:.2f}")
+print(f"position RMS: learnt noise {rms(learnt_error):.0f} mm, chosen by hand {rms(tracked_error):.0f} mm")
+verdict = "inside" if check["consistent"] else "below" if check["mean_nis"] < lo else "above"
+near_verdict = "inside" if band_near[0] <= nis_near <= band_near[1] else "below" if nis_near < band_near[0] else "above"
+assert np.isfinite(nees_k).all() and rms(learnt_error) < 0.5 * rms(error_mm) and nis_far < nis_near
+
+fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(15, 3.8))
+ax1.plot(times_s, q_learnt[:, 0], color="tab:blue")
+ax1.axhline(Q_LIN, color="0.5", linestyle="--", label="chosen by hand")
+ax1.set_yscale("log")
+ax1.set_xlabel("time (s)")
+ax1.set_ylabel("learnt q_lin (mm/s^2 per sqrt(Hz))")
+ax1.set_title("the process noise, learnt")
+ax1.legend()
+for ax, values, name in ((ax2, nis, "NIS (no truth needed)"), (ax3, nees_k, "NEES (against the truth)")):
+    ax.plot(times_s, values, ".", markersize=4, color="tab:orange")
+    ax.axhspan(*chi2.ppf([0.025, 0.975], 6), color="tab:green", alpha=0.15, label="95 % of one chi-square(6)")
+    ax.axhline(6, color="tab:green")
+    ax.axvspan(times_s[far][0], times_s[far][-1], color="0.9", label="far: one marker")
+    ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_title(name)
+    ax.legend(loc="upper left", fontsize=8)
+fig.tight_layout()
+plt.show()
+
+# %% [markdown]
+# After its first second the learnt noise moves between {{ q_learnt[30:, 0].min():.0f }} and
+# {{ q_learnt[30:, 0].max():.0f }} mm/s^2, the same order as the hand-chosen {{ Q_LIN:.0f }}, and the track is as
+# good (position RMS {{ rms(learnt_error):.0f }} mm, {{ rms(tracked_error):.0f }} with the hand-chosen noise). Over
+# the whole run the mean NIS is {{ check["mean_nis"]:.2f }}, {{ verdict }} its 95 % band ({{ lo:.2f }} to
+# {{ hi:.2f }}). The per-frame picture says why: near the wall the mean is {{ nis_near:.2f }}, {{ near_verdict }}
+# its band ({{ band_near[0]:.2f }} to {{ band_near[1]:.2f }}), the far frames' {{ nis_far:.2f }}: a single
+# marker's pose reports a covariance larger than its error (an ambiguous frame's is widened on purpose), so the
+# filter is more cautious there than it needs to be, which is the safe side. The NEES
+# agrees: {{ nees_near:.2f }} near and {{ nees_far:.2f }} far, against the 6 of an honest covariance.
+#
+# What does an **inconsistent** filter look like? Fix the process noise far from the truth and look at the same
+# two numbers.
+
+# %%
+for name, pn in (("100x too small", (Q_LIN / 100, 0.006)), ("100x too large", (Q_LIN * 100, 60.0))):
+    _, c, _, ne = run_noise(pn)
+    print(
+        f"{name}: mean NIS {c['mean_nis']:.2f} (band {c['band'][0]:.2f} to {c['band'][1]:.2f}), "
+        f"mean NEES {ne.mean():.1f}"
+    )
+    if name.endswith("small"):
+        small_nis, small_nees = c["mean_nis"], ne.mean()
+    else:
+        large_nis, large_nees = c["mean_nis"], ne.mean()
+assert small_nis > hi and large_nis < lo and small_nees > 3 * hi and large_nees < hi
+
+# %% [markdown]
+# Too small a noise ({{ Q_LIN / 100:.0f }} mm/s^2): the track believes the robot barely accelerates, its
+# predictions are confidently wrong, the NIS is {{ small_nis:.2f }}, **above** the band, and the NEES
+# ({{ small_nees:.0f }}) says its covariance understates its error many times over: an overconfident filter,
+# the kind that then rejects good frames. Too large ({{ Q_LIN * 100:.0f }} mm/s^2): every prediction is so
+# uncertain that each innovation looks small, the NIS is {{ large_nis:.2f }}, **below** the band: a cautious
+# filter that follows each frame's noise. Its NEES ({{ large_nees:.1f }}) still looks fine, because the track
+# is then the frames themselves, with their own covariance. The NIS catches both without any truth: the check
+# a robot can run on itself.
+
+# %% [markdown]
 # ## Try it: the process noise
 #
 # `process_noise=(linear, angular)` says how hard the robot may accelerate. Small: the track trusts its
@@ -390,11 +505,15 @@ print(
 # * Rotations are corrected and compared with exp and log, never by averaging rotation vectors or Euler angles.
 # * Continuity picks the right planar solution of an ambiguous frame; odometry carries the track across a gap;
 #   the smoother, when the run is over, uses the future frames too.
+# * Left out, the process noise is learnt from the innovations; the mean NIS against its chi-square band
+#   (`PoseTracker.consistency()`) checks the filter without any truth: above the band overconfident, below it
+#   cautious. The NEES checks the same against the truth, when there is one.
 # * `fidlearn.ros` speaks ROS (PoseWithCovarianceStamped, REP-103/105) and the TUM trajectory format.
 #
 # **Exercises**: [exercises/10_tracking.ipynb](exercises/10_tracking.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("10")` in a new cell): the right mean of rotations,
-# choosing the process noise, the mount transform, and bridging a gap with odometry.
+# choosing the process noise, the mount transform, bridging a gap with odometry, and whether a filter is
+# consistent (its mean NIS against the band).
 #
 # Next: [11 From localization to mapping](11_from_localization_to_mapping.ipynb): the map itself from photos, the
 # step towards SLAM; then [12 Your own camera](12_your_own_camera.ipynb).
