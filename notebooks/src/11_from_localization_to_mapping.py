@@ -352,6 +352,33 @@ print(
 # so the room as a whole is only as well placed as 12 tape readings average out), but its *shape* is right to a
 # millimetre, and marker 7 is back where it belongs. `locate` with it is {{ loc_tape / loc_survey:.0f }} times better.
 #
+# ### What you do not know: how good was the tape?
+#
+# Above we told the survey the tape's accuracy (`map_sigma_mm=20`), which a user cannot know. Left out (the
+# default, `map_sigma_mm=None`), the survey **learns it from the data**: once the photos have placed the markers,
+# the tape readings' residuals show how far the tape really was off, as a variance component (the robust loss
+# keeps marker 7's 100 mm from inflating it). It also checks the printed markers' common scale (a printer at
+# 98.7 % is common), which would shrink every distance the photos measure.
+
+# %%
+learnt = survey(detections, tape_map, camera)  # no map_sigma_mm: learnt from the tape's residuals
+print(
+    f"tape sigma learnt: {learnt.map_sigma_mm:.1f} +/- {learnt.map_sigma_se_mm:.1f} mm per coordinate "
+    f"(learnt: {learnt.map_sigma_learnt}); suspects {learnt.suspect_ids}"
+)
+print(f"printed markers at {100 * learnt.print_scale:.2f} +/- {100 * learnt.print_scale_se:.2f} % of the map's size")
+learnt_err = corner_error_mm(learnt.marker_map)
+print(f"top-left corners from the truth: surveyed RMS {np.sqrt(np.mean(np.square(list(learnt_err.values())))):.1f} mm")
+assert learnt.map_sigma_learnt and learnt.suspect_ids == [7]
+assert abs(learnt.print_scale - 1) < learnt.print_scale_se  # the sentence below says so
+
+# %% [markdown]
+# The tape was off by 20 mm per coordinate (the way the data set was made); the survey, never told, says
+# {{ learnt.map_sigma_mm:.0f }} mm, give or take {{ learnt.map_sigma_se_mm:.0f }}, and names the same marker.
+# The markers printed at {{ 100 * learnt.print_scale:.1f }} % (100 % is within one standard error,
+# {{ 100 * learnt.print_scale_se:.1f }} %: these renders print true). A number a user cannot know is learnt from
+# the data and reported with its uncertainty: `learnt.map_sigma_se_mm` says how far to trust it.
+#
 # ## 7. Accuracy against the number of photos
 #
 # How many photos does a survey need? A quick sweep on a room that is not rendered (`survey_room`, the walks of
