@@ -239,7 +239,7 @@ def _check_options(grid, tolerance_px) -> tuple[int, int, float]:
 
 
 def compare_calibrations(
-    a, b, grid: tuple[int, int] = (32, 24), tolerance_px: float = 1.0, inflate: bool = True
+    a, b, *, grid: tuple[int, int] = (32, 24), tolerance_px: float = 1.0, inflate: bool = True
 ) -> CalibrationComparison:
     """How far apart two calibrations of one camera project across the picture, and is it beyond their noise.
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 
 from ..drawing import draw_pose
-from ..ros._live import LiveView
+from ..ros import LiveView
 from ._bag import BagRun
 
 #: How long the command waits for a viewer before it starts without one, seconds.

@@ -250,6 +250,26 @@ def _say_interrupted(exc, args, table: _Table, streams, staging: _Staging) -> No
     )
 
 
+def _inputs(args):
+    """The checked inputs, the --json path, the bag output, the camera (or the bag's) and the bag being read."""
+    items, json_path, bag = _check_args(args)
+    track_out = check_track_args(args, [p for _, p in items])
+    camera = _load_camera(args) if args.camera is not None else None  # first: a map given as --camera is named
+    bag_run = BagRun(args, bag, camera) if bag is not None else None
+    camera = bag_run.camera if bag_run is not None else camera
+    return items, json_path, track_out, camera, bag_run
+
+
+def _sinks(args, track_out, bag_run, marker_map):
+    """Where the untracked poses go besides the table: a ROS 2 bag, the live view."""
+    bag_sink = None
+    if track_out is not None:
+        assert bag_run is not None, "check_track_args allows a bag output only for a bag input"
+        bag_sink = BagSink(track_out, bag_run, marker_map)
+    live = LiveRun(args, marker_map, bag_run) if args.live is not None else None
+    return bag_sink, live
+
+
 def run(args) -> int:
     """Locate in every frame; print the table and the closing lines. 128 + signal when interrupted.
 
@@ -269,11 +289,7 @@ def run(args) -> int:
         A user error (``UsageError`` for the command line itself); :func:`fidlearn.cli.main` prints it
         as one ``error:`` line and exits with status 2.
     """
-    items, json_path, bag = _check_args(args)
-    track_out = check_track_args(args, [p for _, p in items])
-    camera = _load_camera(args) if args.camera is not None else None  # first: a map given as --camera is named
-    bag_run = BagRun(args, bag, camera) if bag is not None else None
-    camera = bag_run.camera if bag_run is not None else camera
+    items, json_path, track_out, camera, bag_run = _inputs(args)
     if args.track:
         return run_tracked(args, items, _load_map(args), camera, track_out, bag_run)
     _outputs().keep_on_interrupt = True  # every finished frame is kept
@@ -282,11 +298,7 @@ def run(args) -> int:
     marker_map = _load_map(args)
     assert camera is not None, "_check_args asks for --camera unless the input is a bag"
     locator = FrameLocator(marker_map, camera, refine=args.refine)
-    bag_sink = None
-    if track_out is not None:
-        assert bag_run is not None, "check_track_args allows a bag output only for a bag input"
-        bag_sink = BagSink(track_out, bag_run, marker_map)
-    live = LiveRun(args, marker_map, bag_run) if args.live is not None else None
+    bag_sink, live = _sinks(args, track_out, bag_run, marker_map)
     width = max(
         [len(p.name) + (8 if k == "video" else 0) for k, p in items] + [len(f"camera{args.camera_index}#00000"), 5]
     )

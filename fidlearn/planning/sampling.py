@@ -77,7 +77,12 @@ def _noise_draws(blocks: list[np.ndarray], draws: int) -> np.ndarray:
 
 
 def sampled_position_errors(
-    points_world: np.ndarray, T_world_camera: np.ndarray, camera: Camera, blocks: list[np.ndarray], draws: int = DRAWS
+    points_world: np.ndarray,
+    T_world_camera: np.ndarray,
+    camera: Camera,
+    blocks: list[np.ndarray],
+    *,
+    draws: int = DRAWS,
 ) -> np.ndarray:
     """Camera-centre errors (draws, 3), world axes, mm, of the least-squares pose from noisy corners.
 
