@@ -58,9 +58,11 @@ def test_track_jsonl_agrees_with_the_library_and_the_truth(capsys, tmp_path, fra
     for k, (rec, (path, truth)) in enumerate(zip(recs, SHOTS)):
         lib = tracker.update(fidlearn.locate(fidlearn.images.load_image(path), m, cam), k / 30)
         np.testing.assert_allclose(rec["T_world_body"], lib.T_world_camera, atol=1e-6)
-        assert (
-            np.linalg.norm(np.array(rec["position_mm"]) - truth[:3, 3]) < 35.0
-        )  # 2.2 m away at the start (one frame: up to 30 mm)
+        # 2.2 m away, one frame is up to 39 mm off (and states 20-60 mm per axis). The track starts at rest and,
+        # with frames that noisy, needs about 6 frames to learn the speed: up to 43 mm behind meanwhile, then
+        # at most 24 mm off
+        error = np.linalg.norm(np.array(rec["position_mm"]) - truth[:3, 3])
+        assert error < (50.0 if k < 6 else 30.0)
 
 
 def test_track_tum_and_ros_with_a_mount(capsys, tmp_path, frames_dir):
@@ -76,7 +78,7 @@ def test_track_tum_and_ros_with_a_mount(capsys, tmp_path, frames_dir):
     rows = [r.split() for r in tum.read_text().splitlines()[1:]]
     msgs = [json.loads(line) for line in ros.read_text().splitlines()]
     assert len(rows) == len(msgs) == 20
-    for row, msg, (_, truth) in zip(rows, msgs, SHOTS):
+    for k, (row, msg, (_, truth)) in enumerate(zip(rows, msgs, SHOTS)):
         v = np.array(row, dtype=float)
         p, q = msg["pose"]["pose"]["position"], msg["pose"]["pose"]["orientation"]
         assert msg["child_frame_id"] == "base_link"
@@ -84,9 +86,10 @@ def test_track_tum_and_ros_with_a_mount(capsys, tmp_path, frames_dir):
         np.testing.assert_allclose(v[1:4], [p["x"], p["y"], p["z"]], atol=1e-9)
         np.testing.assert_allclose(v[4:], [q["x"], q["y"], q["z"], q["w"]], atol=1e-11)
         true_base = truth @ T_camera_base
-        assert (
-            np.linalg.norm(v[1:4] * 1000 - true_base[:3, 3]) < 45.0
-        )  # metres in the file; the base is 0.36 m from the camera
+        # metres in the file; the base is 0.36 m from the camera: up to 47 mm off while the track, started at
+        # rest, learns the speed (6 frames, as above), at most 27 mm after
+        error = np.linalg.norm(v[1:4] * 1000 - true_base[:3, 3])
+        assert error < (55.0 if k < 6 else 35.0)
         assert frames.rotation_angle_deg(rotation_from_xyzw(v[4:]), true_base[:3, :3]) < 2.0
         assert len(msg["pose"]["covariance"]) == 36
 
