@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from helpers import ctrl_c_as_a_terminal_gives_it
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Writer
 
@@ -354,7 +355,8 @@ def test_live_view_serves_the_poses_the_command_writes(tmp_path, drive, track):
     cmd = [sys.executable, "-m", "fidlearn", "locate", str(bag), "--map", str(data_path("world_map.json")),
            "--live", "0"]  # fmt: skip
     cmd += ["--track", "-o", str(tmp_path / "out.mcap")] if track else ["--json", str(tmp_path / "poses.jsonl")]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+    with ctrl_c_as_a_terminal_gives_it():  # a background test run would start the command with Ctrl-C ignored
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
     try:
         line = proc.stdout.readline()
         while line and not line.startswith("live view: ws://127.0.0.1:"):  # the table's header may come first
