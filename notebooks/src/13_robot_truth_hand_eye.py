@@ -173,8 +173,12 @@ def nearest_rotation(M):
 
 def hand_eye(photos_used, method="ChArUco corners"):
     """T_base_camera and T_tool_board (mm) from the photos' robot poses and one method's board poses."""
+    return refine(*closed_form(photos_used, measured[method]), list(photos_used), measured[method])
+
+
+def closed_form(photos_used, T_cb):
+    """Park and Martin's closed form: T_base_camera, then T_tool_board as the photos' mean."""
     used = list(photos_used)
-    T_cb = measured[method]
     pairs = [(i, j) for i in used for j in used if i < j]
     A = [T_base_tool[i] @ frames.invert_transform(T_base_tool[j]) for i, j in pairs]
     B = [T_cb[i] @ frames.invert_transform(T_cb[j]) for i, j in pairs]
@@ -186,7 +190,7 @@ def hand_eye(photos_used, method="ChArUco corners"):
     T_tool_board = frames.make_transform(
         nearest_rotation(np.mean([T[:3, :3] for T in each], axis=0)), np.mean([T[:3, 3] for T in each], axis=0)
     )
-    return refine(T_base_camera, T_tool_board, used, T_cb)
+    return T_base_camera, T_tool_board
 
 
 def as_params(T):
@@ -230,8 +234,9 @@ if hasattr(cv2, "calibrateHandEye"):  # OpenCV 4: the same method, for a camera 
         [T[:3, 3] for T in T_cb],
         method=cv2.CALIB_HAND_EYE_PARK,
     )
-    assert frames.rotation_angle_deg(R_cv, T_base_camera[:3, :3]) < 0.1
-    assert np.linalg.norm(t_cv.ravel() - T_base_camera[:3, 3]) < 2.0
+    ours = closed_form(range(N), T_cb)[0]  # before the refinement, which OpenCV does not do
+    assert frames.rotation_angle_deg(R_cv, ours[:3, :3]) < 0.1
+    assert np.linalg.norm(t_cv.ravel() - ours[:3, 3]) < 2.0
 print("the camera in the robot's base (mm):")
 print(T_base_camera)
 print(f"the board's origin is {np.linalg.norm(T_tool_board[:3, 3]):.1f} mm from the flange")
