@@ -1,4 +1,4 @@
-"""Helpers shared by tests that run something as another, unprivileged user."""
+"""Helpers shared by tests: the command line run in-process, exercises solved, commands run as another user."""
 
 from __future__ import annotations
 
@@ -63,3 +63,44 @@ def ctrl_c_as_a_terminal_gives_it():
     finally:
         if old == signal.SIG_IGN:
             signal.signal(signal.SIGINT, old)
+
+
+def run_cli(capsys, *argv):
+    """Run the ``fidlearn`` command in-process; returns (status, stdout, stderr)."""
+    from fidlearn.cli import main
+
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_user_error(code, err, *fragments):
+    """A user error as the CLI reports it: status 2, one ``error:`` line holding every fragment, no traceback."""
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
+    assert "Traceback" not in err, err
+    for f in fragments:
+        assert f in lines[0], lines[0]
+
+
+def solved(lesson: str, name: str, learner: str):
+    """A lesson's question for a learner and the answer its shown solution computes."""
+    from fidlearn import exercises
+
+    q = exercises.lesson(lesson, learner=learner)[name]
+    ns: dict = {}
+    exec(exercises.SETUP_CODE, ns)
+    ns[name] = q
+    exec(q.solution_code, ns)
+    return q, q.answer
+
+
+def named(q, answer, words: str) -> None:
+    """A wrong answer graded incorrect, with a message naming the mistake (``words``)."""
+    from fidlearn.exercises import INCORRECT
+
+    r = q.grade(answer)
+    assert r.status == INCORRECT, (answer, r)
+    assert words in r.message, r.message

@@ -15,9 +15,10 @@ import sys
 import cv2
 import numpy as np
 import pytest
+from helpers import assert_user_error
+from helpers import run_cli as run
 
 from fidlearn import Camera, MarkerMap, _cv, data_dir, data_path, frames
-from fidlearn.cli import main
 
 SEED_BARE = {  # the seed's bare layout: no units, no size
     "0": {"translation": [0, 0, 1], "rotation": [0, 0, 0]},
@@ -26,28 +27,11 @@ SEED_BARE = {  # the seed's bare layout: no units, no size
 }
 
 
-def run(capsys, *argv):
-    """Run the CLI in-process; returns (status, stdout, stderr)."""
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def run_subprocess(*argv, cwd=None):
     proc = subprocess.run(
         [sys.executable, "-m", "fidlearn", *map(str, argv)], capture_output=True, text=True, cwd=cwd, timeout=120
     )
     return proc.returncode, proc.stdout, proc.stderr
-
-
-def assert_user_error(code, err, *fragments):
-    assert code == 2
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("error: "), err
-    assert "Traceback" not in err
-    for f in fragments:
-        assert f in lines[0], lines[0]
 
 
 @pytest.fixture

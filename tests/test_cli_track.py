@@ -6,32 +6,17 @@ import json
 
 import numpy as np
 import pytest
+from helpers import assert_user_error
+from helpers import run_cli as run
 
 import fidlearn
 from fidlearn import data_path, frames
-from fidlearn.cli import main
 from fidlearn.filtering._so3 import rotation_from_xyzw
 
 RECORD = json.loads(data_path("trajectory", "poses.json").read_text())
 SHOTS = [(data_path("trajectory", f["image"]), np.array(f["T_world_camera"])) for f in RECORD["frames"]]
 CAMERA = data_path("trajectory", "camera.json")
 MAP = data_path("world_map.json")
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def assert_user_error(code, err, *fragments):
-    assert code == 2
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("error: "), err
-    assert "Traceback" not in err, err
-    for f in fragments:
-        assert f in lines[0], lines[0]
 
 
 @pytest.fixture(scope="module")

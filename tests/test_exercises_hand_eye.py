@@ -3,26 +3,18 @@ learner ids 0-49 here and 0-999 in the slow run."""
 
 from __future__ import annotations
 
+import helpers
 import numpy as np
 import pytest
 
-from fidlearn import exercises
-from fidlearn.exercises import CORRECT, INCORRECT
+from fidlearn.exercises import CORRECT
 
 
 def solved(name: str, learner: str):
-    q = exercises.lesson("13", learner=learner)[name]
-    ns: dict = {}
-    exec(exercises.SETUP_CODE, ns)
-    ns[name] = q
-    exec(q.solution_code, ns)
-    return q, q.answer
+    return helpers.solved("13", name, learner)
 
 
-def named(q, answer, words: str) -> None:
-    r = q.grade(answer)
-    assert r.status == INCORRECT, r
-    assert words in r.message, r.message
+named = helpers.named
 
 
 def check_learner(learner: str) -> None:

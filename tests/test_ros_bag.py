@@ -9,13 +9,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from helpers import ctrl_c_as_a_terminal_gives_it
+from helpers import assert_user_error, ctrl_c_as_a_terminal_gives_it
+from helpers import run_cli as run
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Writer
 
 import fidlearn
 from fidlearn import data_path
-from fidlearn.cli import main
 from fidlearn.errors import CameraError, RosFormatError, TrackingError
 from fidlearn.filtering._so3 import rotation_from_xyzw
 from fidlearn.images import Frame
@@ -38,22 +38,6 @@ def drive():
 def stamps(n=N):
     """The recorded frames' header stamps (ns), with a fraction of a second that a float would round."""
     return [T0 + 123_456_789 + 50_000_000 * k for k in INDEX[:n]]
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def assert_user_error(code, err, *fragments):
-    assert code == 2
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("error: "), err
-    assert "Traceback" not in err, err
-    for f in fragments:
-        assert f in lines[0], lines[0]
 
 
 def messages(path, topic):
