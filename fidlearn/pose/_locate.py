@@ -111,13 +111,20 @@ def locate(
 
 
 def _straightened(detections: list[Detection], camera: Camera, dictionary: str, detector_params) -> list[Detection]:
-    """Fisheye corners from the "edges" refinement without its straight-line bias (:mod:`fidlearn._fisheye_edges`)."""
-    if not detections:
-        return detections
+    """Fisheye corners from the "edges" refinement without its straight-line bias (:mod:`fidlearn._fisheye_edges`).
+
+    Each marker is corrected with its own dictionary's cells (a map may mix dictionaries); ``dictionary``
+    stands in for a detection that does not say its own.
+    """
     border = int(_detector_fields(detector_params)["markerBorderBits"])
-    cells = _cv.dictionary_marker_bits(dictionary) + 2 * border
-    fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in detections]), camera, cells)
-    return [dataclasses.replace(d, corners_px=f) for d, f in zip(detections, fixed)]
+    out = list(detections)
+    for name in {d.dictionary or dictionary for d in detections}:
+        mine = [k for k, d in enumerate(detections) if (d.dictionary or dictionary) == name]
+        cells = _cv.dictionary_marker_bits(name) + 2 * border
+        fixed = straighten_edges_fisheye(np.stack([detections[k].corners_px for k in mine]), camera, cells)
+        for k, f in zip(mine, fixed):
+            out[k] = dataclasses.replace(detections[k], corners_px=f)
+    return out
 
 
 def _detect_map_markers(
