@@ -299,14 +299,14 @@ def from_params(x):
 
 def fit_chain(photos, T_cb, start):
     """T_base_camera and T_tool_board (mm) that put the board's corners where the photos' poses put them."""
+    tool = np.array([T_base_tool[i] for i in photos])  # (n, 4, 4): numpy multiplies the stacks at once
+    seen = np.array([T_cb[i] for i in photos])
 
     def residuals(x):
         X, Y = from_params(x[:6]), from_params(x[6:])
-        return np.concatenate(
-            [((frames.invert_transform(X) @ T_base_tool[i] @ Y - T_cb[i]) @ homogeneous)[:3].ravel() for i in photos]
-        )
+        return ((frames.invert_transform(X) @ tool @ Y - seen) @ homogeneous)[:, :3].ravel()
 
-    x = least_squares(residuals, start).x
+    x = least_squares(residuals, start, method="lm").x
     return from_params(x[:6]), from_params(x[6:])
 
 
