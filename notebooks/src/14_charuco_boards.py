@@ -131,10 +131,10 @@ assert max(found_error["chess"]) < 0.1 < found_error["marker"][-1]
 #
 # ## 2. Calibrating from ChArUco photos
 #
-# Today's OpenCV (4.8 and later, 5.x) has no `calibrateCameraCharuco`: `CharucoDetector` finds the corners,
-# `board.matchImagePoints` pairs each found corner with its place on the board, and the ordinary
-# `cv2.calibrateCamera` does the rest. A corner needs no partner on every photo: a view that shows part of the
-# board still counts.
+# OpenCV 5 has no `calibrateCameraCharuco` (OpenCV 4's contrib build keeps it for old code). The way that works
+# on both: `CharucoDetector` finds the corners, `board.matchImagePoints` pairs each found corner with its place
+# on the board, and the ordinary `cv2.calibrateCamera` does the rest. A corner needs no partner on every photo:
+# a view that shows part of the board still counts.
 
 # %%
 object_points, image_points = [], []
