@@ -24,7 +24,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from fidlearn import Board, Camera, calibrate_charuco, data_path, frames
+from fidlearn import Board, Camera, MarkerMap, calibrate_charuco, data_path, detect_markers, estimate_pose, frames
 from fidlearn.detection import load_image
 
 np.set_printoptions(precision=3, suppress=True)
@@ -226,9 +226,9 @@ plt.show()
 #
 # Notebook 13's robot holds a ChArUco board (5 x 7 squares of 36.195 mm, markers of 18.256 mm) in front of a
 # camera that stands still; the robot's encoders, through the hand-eye chain, say where the board is without
-# looking at the pixels. Here the same photos judge two poses from one detection: `cv2.solvePnP` on the 24
-# **chess corners**, and on the 68 **marker corners** of the same `detectBoard` call. The camera is calibrated
-# from the chess corners of all 16 photos, as in notebook 13.
+# looking at the pixels. Here the same photos judge two poses from one detection: `cv2.solvePnP` on the (up to)
+# 24 **chess corners**, and on the (up to 68) **marker corners** of the same `detectBoard` call. The camera is
+# calibrated from the chess corners of all 16 photos, as in notebook 13.
 
 # %%
 ROBOT = data_path("real", "robot_charuco")
@@ -276,6 +276,30 @@ noisier = np.median(residual["marker corners"]) / np.median(residual["chess corn
 # Here only the refinement, started from a rough guess (the board 200 mm out from the flange, the camera where
 # the first photo then puts it), and, for each photo, fitted to the *other* photos
 # (leave-one-out) on each method's own poses, so that neither method is judged by a chain made from the other.
+#
+# A third contender: `fidlearn.estimate_pose` on the markers alone, whose corners `detect_markers` moves onto
+# the markers' edges (the `edges` refinement of notebook 05). The board becomes a marker map whose "world" is
+# the board's frame, built as in notebook 13.
+
+# %%
+R_board_marker = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [-1.0, 0.0, 0.0]])  # marker axes in the board's
+rpy = [float(a) for a in frames.rpy_deg_from_rotation(R_board_marker)]
+board_map = MarkerMap.from_dict(
+    {
+        "units": "mm",
+        "marker_size_mm": 18.256,
+        "dictionary": "6X6_250",
+        "markers": {str(i): {"translation": list(c[0]), "rotation": rpy} for i, c in enumerate(robot_marker_mm)},
+    }
+)
+robot_camera = Camera(K, dist.ravel(), (1600, 1200))
+measured["fidlearn (markers)"] = {}
+for i in use:
+    seen = [d for d in detect_markers(load_image(ROBOT / f"{i}.png"), "6X6_250") if d.id < 17]
+    pose = estimate_pose(seen, board_map, robot_camera)
+    measured["fidlearn (markers)"][i] = frames.invert_transform(pose.T_world_camera)
+print(f"fidlearn's pose of photo {use[0]}, T_camera_board (mm):")
+print(measured["fidlearn (markers)"][use[0]])
 
 
 # %%
@@ -333,29 +357,37 @@ for name, T_cb in measured.items():
         turns[name].append(frames.rotation_angle_deg(T_cb[i][:3, :3], predicted[:3, :3]))
     e = np.array(errors[name])
     print(
-        f"{name:15s}: board centre vs the robot, median {np.median(e):.2f} mm, worst {e.max():.2f} mm; "
+        f"{name:18s}: board centre vs the robot, median {np.median(e):.2f} mm, worst {e.max():.2f} mm; "
         f"rotation median {np.median(turns[name]):.3f} deg"
     )
-assert np.median(turns["chess corners"]) < np.median(turns["marker corners"])
+assert np.median(turns["chess corners"]) < min(
+    np.median(turns["marker corners"]), np.median(turns["fidlearn (markers)"])
+)
 
-fig, ax = plt.subplots(figsize=(11, 3.2))
-for k, (name, e) in enumerate(errors.items()):
-    ax.bar(np.arange(len(use)) + 0.4 * (k - 0.5), e, width=0.4, label=name)
-ax.set_xticks(range(len(use)), [str(i) for i in use])
-ax.set_xlabel("photo")
-ax.set_ylabel("board centre vs the robot (mm)")
-ax.legend()
+fig, axes = plt.subplots(2, 1, figsize=(11, 5.6), sharex=True)
+for ax, what, label in (
+    (axes[0], errors, "board centre vs the robot (mm)"),
+    (axes[1], turns, "turn vs the robot (deg)"),
+):
+    for k, (name, e) in enumerate(what.items()):
+        ax.bar(np.arange(len(use)) + 0.27 * (k - 1), e, width=0.27, label=name)
+    ax.set_ylabel(label)
+axes[1].set_xticks(range(len(use)), [str(i) for i in use])
+axes[1].set_xlabel("photo")
+axes[0].legend()
 plt.show()
 
 # %% [markdown]
 # Judged by a robot that never saw the pixels, the chess corners put the board's centre within
 # {{ np.median(errors["chess corners"]):.2f }} mm of the robot's answer (median), the marker corners of the
-# same detection within {{ np.median(errors["marker corners"]):.2f }} mm: both are about as close as the
-# robot's truth can tell (notebook 13: the chain fitted to all photos misses the measured corners by about
-# that much). The board's turn tells them apart: {{ np.median(turns["chess corners"]):.3f }} degrees from
-# the robot's (median) with the chess corners, {{ np.median(turns["marker corners"]):.3f }} with the marker
-# corners, whose errors (OpenCV's detector with no corner refinement here) tilt the board. Fewer points, each
-# surer, beat more points that are each less sure.
+# same detection within {{ np.median(errors["marker corners"]):.2f }} mm and fidlearn's refined marker corners
+# within {{ np.median(errors["fidlearn (markers)"]):.2f }} mm: all about as close as the robot's truth can tell
+# (notebook 13: the chain fitted to all photos misses the measured corners by about that much). The board's turn
+# tells them apart: {{ np.median(turns["chess corners"]):.3f }} degrees from the robot's (median) with the chess
+# corners, {{ np.median(turns["marker corners"]):.3f }} with OpenCV's marker corners (its detector refines no
+# corner by default) and {{ np.median(turns["fidlearn (markers)"]):.3f }} with fidlearn's: refining the marker
+# corners wins back part of the gap, and the chess corners are better still. Fewer points, each surer, beat more
+# points that are each less sure. With a ChArUco board in the picture, take its chess corners.
 #
 # ## What you have learnt
 #
