@@ -118,8 +118,8 @@ for kind in found_error:
     for sigma in blurs:
         picture = cv2.GaussianBlur(corner_picture(kind, 31.3, 32.6), (0, 0), sigma).astype(np.float32)
         start = np.array([[[32.3, 31.6]]], np.float32)
-        found = cv2.cornerSubPix(picture, start, (5, 5), (-1, -1), criteria).ravel()
-        found_error[kind].append(float(np.linalg.norm(found - [31.3, 32.6])))
+        spot = cv2.cornerSubPix(picture, start, (5, 5), (-1, -1), criteria).ravel()
+        found_error[kind].append(float(np.linalg.norm(spot - [31.3, 32.6])))
 for kind, e in found_error.items():
     print(f"{kind:6s} corner error (px) at blur sigma {blurs}: {np.round(e, 2)}")
 assert max(found_error["chess"]) < 0.1 < found_error["marker"][-1]
@@ -127,7 +127,7 @@ assert max(found_error["chess"]) < 0.1 < found_error["marker"][-1]
 # %% [markdown]
 # With a blur of {{ blurs[-1] }} px the square's corner is found {{ found_error["marker"][-1]:.2f }} px off, the
 # crossing {{ found_error["chess"][-1]:.2f }} px: the saddle does not move. Real marker corners have that bias
-# (notebook 05 measures it and fidlearn's `edges` refinement removes much of it); chess corners do not need it.
+# (notebook 05 measures it; fidlearn's `edges` refinement works against it); chess corners do not have it.
 #
 # ## 2. Calibrating from ChArUco photos
 #
@@ -219,7 +219,7 @@ plt.show()
 # %% [markdown]
 # The glare hid {{ len(np.ravel(ids0)) - len(before) }} markers; the board's geometry brought back
 # {{ len(set(after) - set(before)) }}, and with them the chess corners go from {{ chess_counts[0] }} to
-# {{ chess_counts[1] }}. The markers under the mouse stay lost: no quad was found there, and
+# {{ chess_counts[1] }}. The markers under the mouse stay lost: no quad there has a marker's outline, and
 # `refineDetectedMarkers` only re-reads quads the detector rejected. It never invents a marker.
 #
 # ## 4. What the chess corners buy: the robot's verdict
