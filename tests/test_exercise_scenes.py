@@ -362,6 +362,9 @@ SCENES = {
     ("13", "q2"): "rotation vectors of motion pairs for an alignment",
     ("13", "q3"): "motion pairs for a linear least-squares solve",
     ("13", "q4"): "a chain and a measured pose for a comparison",
+    ("14", "q1"): "one marker of a board in front of a pinhole camera (its builder keeps every pixel inside)",
+    ("14", "q2"): "a board's markers and quads in front of a pinhole camera (its builder keeps the board inside)",
+    ("14", "q3"): "numbers of corners per view for a count",
 }
 
 
