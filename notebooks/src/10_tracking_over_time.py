@@ -597,8 +597,8 @@ plt.show()
 # a hundredth ({{ Q_LIN / 100:.0f }} mm/s^2) the filter believes the robot barely accelerates; when it does, the
 # predictions are off by many of their own standard deviations: a mean NIS of {{ mean_nis[0.01]:.0f }} and a NEES
 # of {{ mean_nees[0.01]:.0f }}. An overconfident filter, and a gate (`PoseTracker` rejects a frame beyond the
-# chi-square's 0.999 quantile) would then reject good frames, {{ gated_small:.0% }}
-# of them here. Too large ({{ Q_LIN * 10:.0f }} mm/s^2): the NIS sinks to {{ mean_nis[10]:.2f }}, while the NEES
+# chi-square's 0.999 quantile) would then reject good frames: {{ gated_small:.0% }} of them lie beyond it
+# here. Too large ({{ Q_LIN * 10:.0f }} mm/s^2): the NIS sinks to {{ mean_nis[10]:.2f }}, while the NEES
 # ({{ mean_nees[10]:.1f }}) still looks fine, because the track is then the frames themselves, with their own
 # covariance. The NIS catches both sides without any truth: the check a robot can run on itself.
 #
