@@ -350,6 +350,7 @@ SCENES = {
     ("10", "q3"): _s10_q3,
     ("10", "q4"): _s10_q4,
     ("10", "q5"): "innovations and their covariances for a consistency test",
+    ("10", "q6"): "two orientations of a camera for a rotation innovation",
     ("11", "q1"): "numbers of photos and markers for a count",
     ("11", "q2"): _s11_q2,
     ("11", "q3"): "differences and covariances for a test",
