@@ -362,6 +362,9 @@ SCENES = {
     ("13", "q2"): "rotation vectors of motion pairs for an alignment",
     ("13", "q3"): "motion pairs for a linear least-squares solve",
     ("13", "q4"): "a chain and a measured pose for a comparison",
+    ("15", "q1"): "a camera-frame point for the fisheye formula (its pixel drawn inside the picture)",
+    ("15", "q2"): "a width and a field of view for a formula",
+    ("15", "q3"): "differences and their noise for a ratio",
 }
 
 

@@ -27,6 +27,7 @@ from . import (
     l11_mapping,
     l12_own_camera,
     l13_hand_eye,
+    l15_wide_lenses,
 )
 
 __all__ = ["MODULES"]
@@ -46,6 +47,7 @@ MODULES = (
     l11_mapping,
     l12_own_camera,
     l13_hand_eye,
+    l15_wide_lenses,
 )
 
 for _module in MODULES:
