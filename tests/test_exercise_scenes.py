@@ -366,6 +366,9 @@ SCENES = {
     ("14", "q1"): "one marker of a board in front of a pinhole camera (its builder keeps every pixel inside)",
     ("14", "q2"): "a board's markers and quads in front of a pinhole camera (its builder keeps the board inside)",
     ("14", "q3"): "numbers of corners per view for a count",
+    ("15", "q1"): "a camera-frame point for the fisheye formula (its pixel drawn inside the picture)",
+    ("15", "q2"): "a width and a field of view for a formula",
+    ("15", "q3"): "differences and their noise for a ratio",
 }
 
 

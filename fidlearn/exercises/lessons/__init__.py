@@ -28,6 +28,7 @@ from . import (
     l12_own_camera,
     l13_hand_eye,
     l14_charuco,
+    l15_wide_lenses,
 )
 
 __all__ = ["MODULES"]
@@ -48,6 +49,7 @@ MODULES = (
     l12_own_camera,
     l13_hand_eye,
     l14_charuco,
+    l15_wide_lenses,
 )
 
 for _module in MODULES:
