@@ -20,6 +20,7 @@ from .. import _cv
 from ..camera import Camera
 from ..detection import Detection, _detector_fields, as_gray, detect_markers
 from ..markermap import MarkerMap
+from ._observations import _world
 
 #: Smallest predicted side (px) worth a second look; OpenCV needs about this many to decode a marker.
 MIN_SIDE_PX = 16.0
@@ -30,27 +31,31 @@ def missed_in_view(
 ) -> list[tuple[int, str, np.ndarray]]:
     """``(key, dictionary, predicted corners)`` of the map's markers not in ``found`` that the pose puts whole
     in the picture (their outline half a cell wider plus 4 px inside it), facing the camera, with sides of
-    :data:`MIN_SIDE_PX` or more."""
+    :data:`MIN_SIDE_PX` or more. One projection for all of them (the map's corners cached per map)."""
+    corners, faces = _world(marker_map)
+    keys = [k for k in corners if k not in found]
+    if not keys:
+        return []
+    T = np.asarray(T_world_camera, dtype=np.float64)
+    face = np.array([faces[k] for k in keys])
+    # the printed side towards the camera: the normal points at the camera's centre
+    facing = face[:, 3:6] @ T[:3, 3] - face[:, 6] > 0
+    keys = [k for k, f in zip(keys, facing) if f]
+    if not keys:
+        return []
+    world = np.concatenate([corners[k] for k in keys])
+    depth = (world - T[:3, 3]) @ T[:3, 2]
+    q = np.asarray(camera.project(world, T), dtype=np.float64).reshape(-1, 4, 2)
+    ok = (depth.reshape(-1, 4) > 0).all(axis=1) & np.isfinite(q).all(axis=(1, 2))
+    side = np.linalg.norm(np.roll(q, -1, axis=1) - q, axis=2).min(axis=1)
     border = int(_detector_fields(detector_params)["markerBorderBits"])
+    names = [marker_map.marker_dictionary(k) for k in keys]
+    cells = {n: _cv.dictionary_marker_bits(n) + 2 * border for n in set(names)}
+    wide = _widened(q, np.array([cells[n] for n in names]))
     W, H = camera.image_size
-    T_camera_world = np.linalg.inv(np.asarray(T_world_camera, dtype=np.float64))
-    out = []
-    for key in marker_map:
-        if key in found:
-            continue
-        world = np.asarray(marker_map.marker_corners(key), dtype=np.float64)
-        in_cam = world @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]
-        if (in_cam[:, 2] <= 0).any():
-            continue
-        q = np.asarray(camera.project(world, T_world_camera), dtype=np.float64).reshape(4, 2)
-        if not np.isfinite(q).all() or _winding(q) <= 0:  # behind the marker: its back faces the camera
-            continue
-        name = marker_map.marker_dictionary(key)
-        wide = _widened(q, _cv.dictionary_marker_bits(name) + 2 * border)
-        side = float(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).min())
-        if side >= MIN_SIDE_PX and (wide >= 4).all() and (wide[:, 0] <= W - 5).all() and (wide[:, 1] <= H - 5).all():
-            out.append((key, name, q))
-    return out
+    ok &= (side >= MIN_SIDE_PX) & (wide >= 4).all(axis=(1, 2))
+    ok &= (wide[:, :, 0] <= W - 5).all(axis=1) & (wide[:, :, 1] <= H - 5).all(axis=1)
+    return [(keys[k], names[k], q[k]) for k in np.flatnonzero(ok)]
 
 
 def read_again(image: np.ndarray, missed: list, refine: str | None, detector_params) -> list[Detection]:
@@ -79,14 +84,9 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
     return found
 
 
-def _widened(q: np.ndarray, cells: int) -> np.ndarray:
-    """The quad ``q`` grown about its centre by half a cell each side (``cells`` across the marker)."""
-    c = q.mean(axis=0)
-    return c + (q - c) * (1.0 + 1.0 / cells)
-
-
-def _winding(q: np.ndarray) -> float:
-    """Twice the signed area of the quad in pixel coordinates (x right, y down): positive for a marker's
-    corners TL, TR, BR, BL seen from its printed side."""
-    x, y = q[:, 0], q[:, 1]
-    return float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+def _widened(q: np.ndarray, cells) -> np.ndarray:
+    """Quads ``q`` (..., 4, 2) grown about their centres by half a cell each side (``cells`` across each
+    marker: a number, or one per quad)."""
+    c = q.mean(axis=-2, keepdims=True)
+    grow = 1.0 + 1.0 / np.asarray(cells, dtype=np.float64)
+    return c + (q - c) * np.reshape(grow, np.shape(grow) + (1, 1))
