@@ -16,6 +16,7 @@ from helpers import run_cli
 
 import fidlearn
 from fidlearn import Camera, MarkerMap, MarkerPlacement
+from fidlearn._wpilib import layout_format
 from fidlearn.data import data_path
 from fidlearn.errors import SurveyError
 from fidlearn.frames import look_at
@@ -114,6 +115,8 @@ def test_the_centres_standard_deviation_comes_from_the_corners_and_the_rotation(
 
 def test_the_corrected_layout_is_written_as_a_wpilib_layout(field, tmp_path):
     _, official, truth, s = field
+    assert s.layout_format == "wpilib"
+    assert official.to_dict()["units"] == "m"
     out = s.save(tmp_path / "surveyed.json")
     d = json.loads(out.read_text())
     assert set(d) == {"tags", "field"}
@@ -130,6 +133,12 @@ def test_the_corrected_layout_is_written_as_a_wpilib_layout(field, tmp_path):
     assert "surveyed" in full
     with pytest.raises(SurveyError, match="unknown map format"):
         s.save(tmp_path / "x.json", format="yaml")
+    # the same map read from the full layout is saved as the full layout
+    again = MarkerMap.load(tmp_path / "full.json")
+    assert again.to_dict()["markers"] == s.marker_map.to_dict()["markers"]
+    assert layout_format(again) == "fidlearn"
+    assert layout_format(official) == "wpilib"
+    assert s.tag_report()[-1] == "tags moved from the official layout: 3"
 
 
 def test_fidlearn_survey_reports_each_tag_against_the_official_layout(field, tmp_path, capsys):

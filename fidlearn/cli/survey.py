@@ -11,12 +11,10 @@ import math
 import sys
 from pathlib import Path
 
-from .._wpilib import layout_format
 from ..errors import UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
 from ..survey import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM, Survey, survey
-from ..survey._layout import tag_changes_text
 from ._common import (
     _add_image_size_option,
     _add_map_options,
@@ -147,9 +145,9 @@ def _report(s: Survey, args) -> None:
         print(sentence(sus))
     if not s.suspects:
         print("no marker disagrees with the photos more than the tape's sigma explains")
-    if layout_format(s.tape_map) == "wpilib":  # an official field layout: which tags moved, in its format
+    if s.layout_format == "wpilib":  # an official field layout: which tags moved, in its format
         print(f"{args.output}: written as a WPILib field layout, as {args.map.name} was")
-        for line in tag_changes_text(s.tag_changes(), f"the official layout {args.map.name}"):
+        for line in s.tag_report(f"the official layout {args.map.name}"):
             print(line)
 
 

@@ -16,7 +16,7 @@ from .._wpilib import layout_format, to_wpilib
 from ..errors import MapError, PoseError, SurveyError
 from ..markermap import MarkerMap
 from ._inputs import _short
-from ._layout import TagChange, tag_changes
+from ._layout import TagChange, tag_changes, tag_changes_text
 
 __all__ = ["Survey", "Suspect"]
 
@@ -256,6 +256,27 @@ class Survey:
             :func:`fidlearn.survey._layout.tag_changes`.
         """
         return tag_changes(self)
+
+    def tag_report(self, layout: str = "the official layout") -> list[str]:
+        """:meth:`tag_changes` in words, the lines ``fidlearn survey`` prints for a WPILib layout.
+
+        Parameters
+        ----------
+        layout : str
+            What the survey started from, for the lines' wording (e.g. ``"the official layout field.json"``).
+
+        Returns
+        -------
+        list of str
+            A title, a header, one line per tag (distance and angle with the survey's standard deviations, the
+            offset, the suspect test's sigmas, a verdict) and a last line naming the moved tags, or saying none moved.
+        """
+        return tag_changes_text(self.tag_changes(), layout)
+
+    @property
+    def layout_format(self) -> str:
+        """The starting map's file format, what :meth:`save` writes by default: ``"wpilib"`` or ``"fidlearn"``."""
+        return layout_format(self.tape_map)
 
     def learnt(self) -> list[str]:
         """What the survey learnt of the tape, in words: its sigma (when learnt) and the markers' print scale.
