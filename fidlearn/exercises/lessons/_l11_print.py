@@ -23,8 +23,8 @@ _Q5: QuestionText = {
         order), so that `locate` works with the sizes the markers really have.
         """,
     "hint": [
-        "A printer's scale multiplies every length on the page by the same factor: a large marker loses more "
-        "millimetres than a small one, the same fraction.",
+        "A printer's scale multiplies every length on the page by the same factor: a large marker grows or "
+        "shrinks by more millimetres than a small one, by the same fraction.",
         "Find that factor from the markers you measured (what the ruler says over what you asked for, averaged), "
         "then apply it to each marker's own size.",
     ],
@@ -64,8 +64,8 @@ def _q5_mistakes(size_mm: np.ndarray, asked: float, measured: np.ndarray) -> lis
     return [
         (
             lambda a: _close(a, size_mm + offset, _TOL_MM),
-            f"that takes {abs(offset):.2f} mm off every marker alike; a printer scales: a {size_mm.max():g} mm "
-            "marker loses more millimetres than a small one, the same fraction",
+            f"that changes every marker by the same {offset:+.2f} mm; a printer scales: a {size_mm.max():g} mm "
+            "marker changes by more millimetres than a small one, by the same fraction",
         ),
         (
             lambda a: _close(a, size_mm / scale, _TOL_MM),
