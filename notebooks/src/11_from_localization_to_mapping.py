@@ -528,6 +528,8 @@ assert max(shape_err) < tape_shape / 3 and shape_err[-1] < shape_err[0] / 3
 #   sigmas and not in millimetres, names it.
 # * Ten photos or so, every marker in several of them, already give the map's shape to about a millimetre,
 #   where the tape gave centimetres.
+# * A printer's scale shows in one photo of four taped markers (`check_print`) and in a survey
+#   (`print_scale`): write the printed sizes in the map (`size_mm`) or print again at 100 %.
 #
 # **Exercises**: [exercises/11_mapping.ipynb](exercises/11_mapping.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("11")` in a new cell): count a survey's unknowns,
