@@ -355,6 +355,7 @@ SCENES = {
     ("11", "q2"): _s11_q2,
     ("11", "q3"): "differences and covariances for a test",
     ("11", "q4"): _s11_q4,
+    ("11", "q5"): "printed and measured marker sides for a scale",
     ("12", "q1"): "a marker size, a printed size and a distance for a ratio",
     ("12", "q2"): "the bundled calibration views' corners for a count of cells",
     ("12", "q3"): "an uncertainty map and warnings for a verdict",
