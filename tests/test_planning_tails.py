@@ -80,7 +80,7 @@ def test_a_small_marker_seen_face_on_gets_the_tail_of_estimate_pose(distance):
 def test_the_90th_percentile_of_an_error_along_one_axis_is_1_645_sigma():
     z = np.random.default_rng(0).standard_normal(20000)
     errors = np.column_stack([3.0 * z, np.zeros_like(z), np.zeros_like(z)])
-    median, p90, rms = _error_stats(errors, 0.0, np.full(3, np.nan))
+    median, p90, rms = _error_stats([(1.0, errors, 0.0, np.full(3, np.nan))])
     assert median == pytest.approx(3.0 * 0.6745, rel=0.03)
     assert p90 == pytest.approx(3.0 * 1.6449, rel=0.03)
     assert rms == pytest.approx(3.0, rel=0.03)
@@ -88,7 +88,7 @@ def test_the_90th_percentile_of_an_error_along_one_axis_is_1_645_sigma():
 
 def test_a_likely_flip_puts_the_other_solution_in_the_tail():
     z = np.random.default_rng(0).standard_normal((20000, 3))
-    median, p90, rms = _error_stats(z, 0.2, np.array([1000.0, 0.0, 0.0]))  # one pose in five 1 m off
+    median, p90, rms = _error_stats([(1.0, z, 0.2, np.array([1000.0, 0.0, 0.0]))])  # one pose in five 1 m off
     assert median < 3.0
     assert p90 == pytest.approx(1000.0, rel=0.01)
     assert rms == pytest.approx(math.sqrt(0.2) * 1000.0, rel=0.01)

@@ -25,23 +25,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
-from .. import _lens, frames
+from .. import frames
 from .._camera_checks import refuse_fisheye
 from ..camera import Camera
 from ..errors import FidlearnError, TransformError
 from ..markermap import MarkerMap
 from ..pose import pose_jacobian
-from . import noise, sampling
-from ._checks import _check_px, _check_rel, check_flip_inputs
+from . import finding, noise, sampling
+from ._checks import _check_px, _check_rel
+from .flip import FLIP_MIN_ANGLE_DEG, _flip, flip_probability
 
-__all__ = ["Prediction", "predict_accuracy", "flip_probability"]
-
-#: A second planar solution counts as a flip when its rotation is this far from the true one
-#: (degrees); nearer, the two are one answer within the noise.
-FLIP_MIN_ANGLE_DEG = 5.0
+__all__ = ["Prediction", "predict_accuracy", "flip_probability", "FLIP_MIN_ANGLE_DEG"]
 
 #: A prediction says ``flip_likely`` when the wrong planar branch wins in more than this
 #: fraction of frames.
@@ -74,10 +70,11 @@ class Prediction:
         Standard deviation of the camera centre along world X, Y, Z (mm); inf without a pose.
     position_error_mm : float
         Predicted median distance between the estimated and the true camera centre (mm), the
-        systematic part ``position_bias_mm`` and the planar flip (``flip_probability``) included.
+        systematic part ``position_bias_mm``, the planar flip (``flip_probability``) and the markers
+        the detector may miss (``found_probability``) included; given that a pose is found.
     flip_probability : float
         Chance that the other planar solution fits the corners better (0 when the markers are
-        not coplanar or seen obliquely enough).
+        not coplanar or seen obliquely enough), over the subsets of markers that may be found.
     flip_likely : bool
         ``flip_probability > FLIP_LIKELY``: expect ``Pose.ambiguous`` and an occasional flip.
     reason : str
@@ -94,6 +91,14 @@ class Prediction:
         the planar flip (``flip_probability``); inf without a pose.
     position_rms_mm : float
         Predicted root mean square of that distance (mm), likewise; inf without a pose.
+    found_probability : dict of int to float
+        Each of ``marker_ids``' chance of being found (:func:`~fidlearn.planning.finding.found_probability`):
+        markers near the detector's limit are missed now and then, and the pose from those that are
+        left is worse (a single one may flip). The median, 90th percentile and RMS are over the
+        subsets that may be found (:func:`~fidlearn.planning.finding.found_subsets`); ``covariance`` and
+        ``position_std_mm`` are those of a pose from all of ``marker_ids``.
+    pose_probability : float
+        Chance that at least one marker is found, and so that there is a pose at all.
     """
 
     T_world_camera: np.ndarray
@@ -109,6 +114,8 @@ class Prediction:
     position_bias_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     position_p90_mm: float = math.inf
     position_rms_mm: float = math.inf
+    found_probability: dict[int, float] = field(default_factory=dict)
+    pose_probability: float = 1.0
 
     @property
     def possible(self) -> bool:
@@ -211,85 +218,6 @@ def _seen(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray) -> 
             continue
         seen[mid] = px
     return seen, lost
-
-
-def flip_probability(
-    points_world: np.ndarray, points_px: np.ndarray, camera: Camera, corner_sigma_px: np.ndarray
-) -> float:
-    """Chance that the other planar solution fits noisy corners better than the true pose.
-
-    With exact corners ``points_px``, the second IPPE solution refined by Levenberg-Marquardt
-    leaves a weighted sum of squared residuals ``D^2``. With Gaussian corner noise the
-    difference of the two fits is about ``D^2 + 2 D sigma z``, so the wrong branch wins with
-    probability ``Phi(-D / 2)`` (``D`` in units of sigma). A second solution within
-    :data:`FLIP_MIN_ANGLE_DEG` of the true rotation is no flip (seen face-on the two meet);
-    0 when the points are not coplanar.
-
-    Parameters
-    ----------
-    points_world : ndarray, shape (N, 3)
-        Marker corners (mm).
-    points_px : ndarray, shape (N, 2)
-        Their exact projections (px).
-    camera : Camera
-        The camera that sees them.
-    corner_sigma_px : ndarray, shape (N,)
-        Corner noise of each point (px per axis).
-
-    Returns
-    -------
-    float
-        The probability, in [0, 0.5].
-
-    Raises
-    ------
-    PoseError
-        If the arrays are not finite, of these shapes with 4 to 10000 points, or ``corner_sigma_px`` not positive.
-    """
-    P, points_px, corner_sigma_px = check_flip_inputs(points_world, points_px, camera, corner_sigma_px)
-    return _flip(P, points_px, camera, corner_sigma_px)[0]
-
-
-def _flip(
-    P: np.ndarray, points_px: np.ndarray, camera: Camera, corner_sigma_px: np.ndarray, blocks: list | None = None
-) -> tuple[float, np.ndarray]:
-    """:func:`flip_probability` on checked inputs, and the camera centre (mm, world) of the other solution;
-    with ``blocks`` (each marker's (8, 8) corner covariance) the residuals are weighed by them instead
-    (NaN when there is none)."""
-    none = (0.0, np.full(3, np.nan))
-    centred = P - P.mean(axis=0)
-    s = np.linalg.svd(centred, compute_uv=False)
-    if s[2] > 1e-6 * max(s[0], 1.0):
-        return none
-    n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
-        P.reshape(-1, 1, 3), points_px.reshape(-1, 1, 2), camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE
-    )
-    found = []  # (weighted squared residual, rotation matrix, camera centre) of each solution
-    for rvec, tvec in zip(rvecs[:n], tvecs[:n]):
-        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
-            continue  # IPPE gives NaN for a marker seen at a grazing angle: no second solution there
-        rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
-        R = cv2.Rodrigues(rvec)[0]
-        proj = _lens.project_points(
-            P @ R.T + tvec.ravel(), camera.K, np.zeros(5) if camera.dist is None else camera.dist
-        )
-        r = (proj - points_px).reshape(-1, 8) if blocks is not None else None
-        d2 = (
-            float(sum(rm @ np.linalg.pinv(C) @ rm for rm, C in zip(r, blocks)))
-            if r is not None and blocks is not None
-            else float(np.sum(np.sum((proj - points_px) ** 2, axis=1) / corner_sigma_px**2))
-        )
-        found.append((d2, R, -R.T @ tvec.ravel()))
-    found = [f for f in found if math.isfinite(f[0]) and np.all(np.isfinite(f[1]))]
-    if len(found) < 2:
-        return none
-    found.sort(key=lambda f: f[0])
-    R_true = found[0][1]  # exact corners: the true pose fits them exactly
-    others = [(d2, C) for d2, R, C in found[1:] if frames.rotation_angle_deg(R, R_true) > FLIP_MIN_ANGLE_DEG]
-    if not others:
-        return none
-    best, C_other = others[0]
-    return 0.5 * math.erfc(math.sqrt(best) / 2 / math.sqrt(2)), C_other
 
 
 def _least_squares_covariance(J: np.ndarray, JtJ: np.ndarray, blocks: list) -> np.ndarray:
@@ -475,6 +403,63 @@ def _predict(
     if not ids:
         why = "; ".join(f"{i}: {r}" for i, r in sorted(lost.items())) or "the map has no markers"
         return Prediction(T, [], {}, {}, None, np.full(3, np.inf), math.inf, 0.0, f"no marker found ({why})", lost)
+    model = (shift_px, size_rel_std, size_rel_std_each, size_rel_error)
+    full = _pose_model(marker_map, camera, T, ids, seen, sigmas, model, with_flip)
+    if full is None:
+        why = "the markers found do not fix the pose"
+        return Prediction(T, ids, sides, sigmas, None, np.full(3, np.inf), math.inf, 0.0, why, lost)
+    cov, bias = full[0], full[1]
+    found, pose_probability, components = {}, 1.0, [(1.0, *full[2:])]
+    if with_flip:  # the markers near the detector's limit may be missed: mix the subsets that may be found
+        found = {i: finding.found_probability(sides[i]) for i in ids}
+        subsets, pose_probability = finding.found_subsets(found)
+        components = [(w, *m[2:]) for w, m in _subset_models(marker_map, camera, T, subsets, full, seen, sigmas, model)]
+    median, p90, rms = sampling._error_stats(components)
+    p_flip = sum(c[0] * c[2] for c in components) / sum(c[0] for c in components)
+    return Prediction(
+        T,
+        ids,
+        sides,
+        sigmas,
+        cov,
+        np.sqrt(np.diag(cov[3:, 3:])),
+        median,
+        p_flip,
+        "",
+        lost,
+        bias,
+        p90,
+        rms,
+        found,
+        pose_probability,
+    )
+
+
+def _subset_models(marker_map, camera, T, subsets: list, full: tuple, seen: dict, sigmas: dict, model: tuple) -> list:
+    """``[(weight, model)]`` of each subset of markers (:func:`_pose_model`; ``full`` that of all of them),
+    those that fix the pose."""
+    ids = sorted(seen)
+    out = []
+    for w, sub in subsets:
+        m = full if sub == ids else _pose_model(marker_map, camera, T, sub, seen, sigmas, model, True)
+        if m is not None:
+            out.append((w, m))
+    return out
+
+
+def _pose_model(
+    marker_map: MarkerMap,
+    camera: Camera,
+    T: np.ndarray,
+    ids: list[int],
+    seen: dict,
+    sigmas: dict,
+    model: tuple,
+    with_flip: bool,
+) -> tuple | None:
+    """``(covariance, bias, position error draws with the bias, flip probability, flip's camera offset)`` of
+    a pose from the markers ``ids`` under the noise ``model`` (shift, size spreads, size error); None when
+    they do not fix the pose."""
     P = np.concatenate([marker_map.marker_corners(i) for i in ids])
     px = np.concatenate([seen[i] for i in ids])
     s = np.repeat([sigmas[i] for i in ids], 4)
@@ -482,16 +467,11 @@ def _predict(
     JtJ = J.T @ J
     d = np.sqrt(np.diag(JtJ))
     if np.any(d <= 0) or np.linalg.cond(JtJ / np.outer(d, d)) > 1e12:  # columns in rad and mm: compare scaled
-        why = "the markers found do not fix the pose"
-        return Prediction(T, ids, sides, sigmas, None, np.full(3, np.inf), math.inf, 0.0, why, lost)
-    cov, bias, blocks, common = _covariance_and_bias(
-        marker_map, ids, seen, sigmas, J, JtJ, shift_px, size_rel_std, size_rel_std_each, size_rel_error
-    )
-    cov_C = cov[3:, 3:]
+        return None
+    cov, bias, blocks, common = _covariance_and_bias(marker_map, ids, seen, sigmas, J, JtJ, *model)
     p_flip, C_other = _flip(P, px, camera, s, blocks) if with_flip else (0.0, np.full(3, np.nan))
     rotation_std_deg = math.degrees(math.sqrt(max(float(np.max(np.diag(cov)[:3])), 0.0)))
     errors = sampling._position_errors(
-        P, T, camera, cov_C, blocks, common, with_flip and rotation_std_deg > sampling.NONLINEAR_ROTATION_DEG
+        P, T, camera, cov[3:, 3:], blocks, common, with_flip and rotation_std_deg > sampling.NONLINEAR_ROTATION_DEG
     )
-    median, p90, rms = sampling._error_stats(errors + bias, p_flip, C_other - T[:3, 3])
-    return Prediction(T, ids, sides, sigmas, cov, np.sqrt(np.diag(cov_C)), median, p_flip, "", lost, bias, p90, rms)
+    return cov, bias, errors + bias, p_flip, C_other - T[:3, 3]

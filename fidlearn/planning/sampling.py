@@ -162,15 +162,21 @@ def _position_errors(
     return errors + _gaussian_draws(common)[: len(errors)] if np.any(common) else errors
 
 
-def _error_stats(errors: np.ndarray, p_flip: float, flip_offset: np.ndarray) -> tuple[float, float, float]:
-    """Median, 90th percentile and RMS of the length of ``errors`` (K, 3), mixed with the same errors moved
+def _error_stats(components: list[tuple[float, np.ndarray, float, np.ndarray]]) -> tuple[float, float, float]:
+    """Median, 90th percentile and RMS of the error's length over a mixture: each component
+    ``(weight, errors, p_flip, flip_offset)`` holds draws ``errors`` (K, 3), mixed with the same errors moved
     by ``flip_offset`` (the other planar solution) in a fraction ``p_flip``."""
-    d = np.linalg.norm(errors, axis=1)
-    weights = np.full(len(d), 1.0 - p_flip)
-    if p_flip > 0 and np.all(np.isfinite(flip_offset)):
-        d = np.concatenate([d, np.linalg.norm(errors + flip_offset, axis=1)])
-        weights = np.concatenate([weights, np.full(len(errors), p_flip)])
+    lengths, weights = [], []
+    for w, errors, p_flip, flip_offset in components:
+        d = np.linalg.norm(errors, axis=1)
+        flips = p_flip > 0 and bool(np.all(np.isfinite(flip_offset)))
+        lengths.append(d)
+        weights.append(np.full(len(d), w * (1.0 - p_flip if flips else 1.0) / len(d)))
+        if flips:
+            lengths.append(np.linalg.norm(errors + flip_offset, axis=1))
+            weights.append(np.full(len(d), w * p_flip / len(d)))
+    d, weight = np.concatenate(lengths), np.concatenate(weights)
     order = np.argsort(d)
-    d, cum = d[order], np.cumsum(weights[order]) / np.sum(weights)
-    median, p90 = (float(d[min(np.searchsorted(cum, q), len(d) - 1)]) for q in (0.5, 0.9))
-    return median, p90, float(np.sqrt(np.sum(weights * d**2) / np.sum(weights)))
+    d, cum = d[order], np.cumsum(weight[order]) / np.sum(weight)
+    median, p90 = (float(d[min(int(np.searchsorted(cum, q)), len(d) - 1)]) for q in (0.5, 0.9))
+    return median, p90, float(np.sqrt(np.sum(weight[order] * d**2) / np.sum(weight)))
