@@ -362,11 +362,13 @@ print(
 #   as the square law of notebook 08 predicts; the orientation stayed within a degree or so.
 # * The reported 95 % ellipsoid held the true position in every frame, more often than the 95 % an exact
 #   covariance would give: the uncertainty is **conservative** (its ellipsoids are larger than the errors, see
-#   the Mahalanobis distances), safe to plan with but pessimistic, not a measure of the error itself. The
-#   reason: with fewer than four markers in view `estimate_pose` cannot measure from the residuals how far each
-#   marker's corners move together, and assumes what real photos show (a shift of each marker about twice its
-#   corner noise); these rendered frames have none. On real photos the same covariance is about right (see
-#   docs/benchmarks.md, section `real`).
+#   the Mahalanobis distances): pessimistic here, not a measure of the error itself. The reason: with fewer
+#   than four markers in view `estimate_pose` cannot measure from the residuals how far each marker's corners
+#   move together, and assumes what real photos show (a shift of each marker about twice its corner noise);
+#   these rendered frames have none. It is not always on the safe side: on real photos it is about right with
+#   a few markers in view, but too small with many, whose corners share errors that no residual shows (see
+#   docs/benchmarks.md, section `real`). Plan with it as a guide, and check it against a truth where you can
+#   (notebook 13 does, with a robot).
 # * Frame-by-frame noise makes a path look longer than it is; smoothing over a few frames (or fusing with
 #   odometry) fixes most of it.
 # * The robot's pose is the camera's carried through the mount, `T_world_base = T_world_camera @ T_camera_base`;
