@@ -147,7 +147,8 @@ class MarkerMap(_Entries):
         Bare: ``{"0": {"translation": [...], "rotation": [...]}, ...}`` with
         ``units`` and ``marker_size_mm`` given here. Full: ``{"units": "ft",
         "marker_size_mm": 80, "dictionary": "ARUCO_ORIGINAL", "markers": {...}}``.
-        A value given both here and in the file must agree. WPILib's ``{"tags": [...], "field": {...}}``
+        A value given both here and in the file must agree. The full layout may place boards and tag bundles
+        as rigid entries too (``"boards"``, ``"bundles"``: :mod:`fidlearn.markermap_entries`). WPILib's ``{"tags": [...], "field": {...}}``
         (metres, each tag's centre; docs/conventions.md) with ``dictionary`` and ``marker_size_mm`` given here.
 
         Parameters
