@@ -140,7 +140,10 @@ def _with_chess(
         R_wc, C, k, r, J = _fit(obj, img, camera, w, E, P, start)
         start = (R_wc, C, k)
         weights = 1.0 / s**2
-        s, red, A_m, A_c, Ninv = _components(r, J, n_m, s, P)
+        try:
+            s, red, A_m, A_c, Ninv = _components(r, J, n_m, s, P)
+        except np.linalg.LinAlgError:  # the corners do not determine the pose and the markers' nuisances
+            return pose
         second = (k * k + np.diag(Ninv)[6:])[:-1]  # EM: each marker's shift and size, mean and variance
         old, v = (
             v,
