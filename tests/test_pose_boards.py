@@ -105,3 +105,30 @@ def test_board_corners_bad_input_says_what_to_give():
         estimate_pose(dets, m, CAMERA, board_corners={"table": (np.arange(24) + 1, chess["table"][1])})
     few = {"table": (np.arange(3), chess["table"][1][:3])}  # too few chess corners: the markers' pose
     assert "+chess" not in estimate_pose(dets, m, CAMERA, board_corners=few).method
+
+
+def test_locate_with_a_bundle_of_markers_on_one_object():
+    from fidlearn.synthetic import render_scene
+
+    bundle = {
+        "translation": [0, 0, 1000],
+        "markers": {
+            "1": {"translation": [0, 0, 0]},
+            "2": {"translation": [0, 200, 0], "rotation": [0, -10, 0]},
+            "3": {"translation": [-50, 100, -150], "size_mm": 80},
+        },
+    }
+    m = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 100,
+            "markers": {"0": {"translation": [0, -300, 1200]}},
+            "bundles": {"dock": bundle},
+        }  # fmt: skip
+    )
+    np.testing.assert_allclose(m.corners()[3][0], [-50, 100, 850])
+    T = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, 90), [1500, 0, 900])
+    pose = locate(render_scene(m, CAMERA, T).image, m, CAMERA)
+    assert pose.marker_ids == (0, 1, 2, 3)
+    assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 1.5  # 1.5 m away
+    assert pose.position_ellipsoid_contains(T[:3, 3], 0.99)
