@@ -152,7 +152,13 @@ def map_from_wpilib(cls: Any, d: Mapping, units: Any, marker_size_mm: Any, dicti
     }
     out = cls(placements, size, dictionary=dictionary, units="m", source=source)
     out.field_m = field_size_m(d, source)
+    out.layout_format = "wpilib"  # what a map made from it (a survey's) is saved as by default
     return out
+
+
+def layout_format(marker_map: Any) -> str:
+    """``"wpilib"`` for a map read from a WPILib field layout, else ``"fidlearn"`` (the format to save it back in)."""
+    return "wpilib" if getattr(marker_map, "layout_format", None) == "wpilib" else "fidlearn"
 
 
 #: How far outside a WPILib layout's field (m) a camera may be before its pose is refused: a robot's camera

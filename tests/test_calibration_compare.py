@@ -200,3 +200,69 @@ def test_cli_refuses_a_folder_without_its_board_before_any_work(capsys, tmp_path
     assert captured.out == ""
     assert captured.err.count("\n") == 1
     assert captured.err.startswith("error: B ")
+
+
+FISHEYE = data_path("real", "fisheye_checkerboard")
+
+
+def test_a_fisheye_focal_length_change_moves_each_pixel_by_its_distance_from_the_centre():
+    # equidistant: r = f theta, so a focal length 1 % longer moves every pixel 1 % further out; the picture's
+    # corners, 104 degrees off the axis, have no ray a pinhole-style x/z can carry: left out
+    K = np.array([[250.0, 0, 399.5], [0, 250.0, 251.5], [0, 0, 1]])
+    a = Camera(K, [0.0] * 4, (800, 504), model="fisheye")
+    b = Camera([[252.5, 0, 399.5], [0, 252.5, 251.5], [0, 0, 1]], [0.0] * 4, (800, 504), model="fisheye")
+    c = compare_calibrations(a, b, grid=(9, 7))
+    theta = np.hypot(*(c.grid_px - [399.5, 251.5]).transpose(2, 0, 1)) / 250.0
+    inside = theta < np.radians(89.0)
+    np.testing.assert_allclose(c.difference_px[inside], 0.01 * (c.grid_px[inside] - [399.5, 251.5]), atol=1e-6)
+    assert np.all(np.isnan(c.difference_px[theta > np.radians(91.0)]))
+    assert c.rotation_deg < 1e-4  # none: arccos near 1 is good to about 1e-6 degrees
+
+
+def _fisheye_set(views: dict) -> Calibration:
+    """A fisheye Calibration of stored corners {name: (48, 2) px} of data/real/fisheye_checkerboard."""
+    from fidlearn.calibration.run import _calibrate_points
+
+    obj = np.zeros((48, 3))
+    obj[:, :2] = np.mgrid[0:6, 0:8].T.reshape(-1, 2) * 25.0
+    img = [np.asarray(v, float) for v in views.values()]
+    rms, K, dist, rotations, tvecs, _, per_view = _calibrate_points(
+        [obj] * len(img), img, (800, 503), 0, None, "fisheye"
+    )
+    T = {n: frames.make_transform(R, np.ravel(t)) for n, R, t in zip(views, rotations, tvecs)}
+    return Calibration(
+        camera=Camera(K, dist, (800, 503), model="fisheye"),
+        rms_px=rms,
+        per_view_rms_px=dict(zip(views, per_view)),
+        used=list(views),
+        std_intrinsics=None,
+        rejected=[],
+        T_camera_board=T,
+        image_points_px=dict(zip(views, img)),
+        board_points_mm={n: obj for n in views},
+    )
+
+
+def test_a_fisheye_calibrations_white_uncertainty_is_opencvs():
+    cal = calibrate_checkerboard(
+        sorted((FISHEYE / "mono").glob("*.png")), board=Board.checkerboard((6, 8), 25), model="fisheye"
+    )
+    u = intrinsics_uncertainty(cal)
+    assert u.names == ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4")
+    for name, std in cal.std_intrinsics.items():  # the same Schur complement, reached another way
+        assert u.white_std[name] == pytest.approx(std, rel=1e-6)
+    assert u.inflation > 2  # six real views of a wide lens share far more than white noise
+
+
+def test_two_copies_of_a_fisheye_lens_differ_beyond_noise_and_two_halves_of_one_agree():
+    import json
+
+    sets = json.loads((FISHEYE / "corners.json").read_text())["sets"]
+    left = list(sets["left"].items())
+    even, odd = _fisheye_set(dict(left[0::2])), _fisheye_set(dict(left[1::2]))
+    halves = compare_calibrations(even, odd, tolerance_px=2.0)
+    assert halves.verdict == "agree", halves  # 0.6 times the noise
+    # the right camera of the stereo pair: its principal point 3 to 4 px from the left one's
+    pair = compare_calibrations(_fisheye_set(sets["left"]), _fisheye_set(sets["right"]), tolerance_px=2.0)
+    assert pair.verdict == "differ beyond noise", pair  # 2.9 times
+    assert 0.5 < pair.rms_difference_px < 3.0

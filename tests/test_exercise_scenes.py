@@ -350,10 +350,12 @@ SCENES = {
     ("10", "q3"): _s10_q3,
     ("10", "q4"): _s10_q4,
     ("10", "q5"): "innovations and their covariances for a consistency test",
+    ("10", "q6"): "two orientations of a camera for a rotation innovation",
     ("11", "q1"): "numbers of photos and markers for a count",
     ("11", "q2"): _s11_q2,
     ("11", "q3"): "differences and covariances for a test",
     ("11", "q4"): _s11_q4,
+    ("11", "q5"): "printed and measured marker sides for a scale",
     ("12", "q1"): "a marker size, a printed size and a distance for a ratio",
     ("12", "q2"): "the bundled calibration views' corners for a count of cells",
     ("12", "q3"): "an uncertainty map and warnings for a verdict",
@@ -362,6 +364,12 @@ SCENES = {
     ("13", "q2"): "rotation vectors of motion pairs for an alignment",
     ("13", "q3"): "motion pairs for a linear least-squares solve",
     ("13", "q4"): "a chain and a measured pose for a comparison",
+    ("14", "q1"): "one marker of a board in front of a pinhole camera (its builder keeps every pixel inside)",
+    ("14", "q2"): "a board's markers and quads in front of a pinhole camera (its builder keeps the board inside)",
+    ("14", "q3"): "numbers of corners per view for a count",
+    ("15", "q1"): "a camera-frame point for the fisheye formula (its pixel drawn inside the picture)",
+    ("15", "q2"): "a width and a field of view for a formula",
+    ("15", "q3"): "differences and their noise for a ratio",
 }
 
 

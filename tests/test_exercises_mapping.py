@@ -129,3 +129,54 @@ def test_only_the_moved_marker_fails_the_99_percent_test_for_100_learners():
         assert np.sum(sig > 3.37) == 1, (i, sig)
         assert np.all(np.linalg.eigvalsh(C) > 0), (i, sig)
         assert np.argmax(np.linalg.norm(d, axis=1)) != np.argmax(sig), i  # millimetres would pick the wrong one
+
+
+def _q5_wrong_answers(q):
+    """The answers q5's named mistakes give, by hand: an offset, the inverse scale, one size, the sizes asked."""
+    ids, size = list(q.inputs.ids), np.asarray(q.inputs.size_mm)
+    measured = np.asarray(q.inputs.measured_mm)
+    asked = size[ids.index(q.inputs.measured_ids[0])]
+    scale = measured.mean() / asked
+    return {
+        "same fraction": size + (measured.mean() - asked),
+        "divides by the scale": size / scale,
+        "mixes sizes": np.full(len(size), measured.mean()),
+        "the sizes you asked": size,
+        "percentage": 100 * scale * size,
+    }
+
+
+@pytest.mark.parametrize("learner", LEARNERS)
+def test_the_size_mm_for_a_printers_scale_and_its_mistakes(learner):
+    q, key = key_of("q5", learner)
+    ids, size = list(q.inputs.ids), np.asarray(q.inputs.size_mm)
+    measured_ids, measured = list(q.inputs.measured_ids), np.asarray(q.inputs.measured_mm)
+    # the measured markers are all of one size, the smallest; the map holds at least one other size
+    asked = {size[ids.index(i)] for i in measured_ids}
+    assert len(asked) == 1
+    assert asked == {size.min()}
+    assert len(set(size)) >= 2
+    # the key by hand: every marker's side times measured over asked
+    scale = measured.mean() / size.min()
+    assert np.allclose(key, size * scale)
+    assert 0.94 < scale < 1.06
+    assert abs(scale - 1) > 0.008
+    assert q.grade(key).status == CORRECT
+    assert q.grade(np.round(key, 1)).status == CORRECT  # a size rounded to 0.1 mm, as a map file holds it
+    for words, wrong in _q5_wrong_answers(q).items():
+        r = q.grade(wrong)
+        assert r.status == INCORRECT, words
+        assert words in r.message, (words, r.message)
+
+
+def test_no_q5_variant_lets_a_named_mistake_pass_for_learners_0_to_999():
+    from fidlearn.exercises.lessons import _l11_print
+
+    for i in range(1000):
+        q = _l11_print._q5(str(i))
+        ids, size = list(q.inputs.ids), np.asarray(q.inputs.size_mm)
+        key = size * np.mean(np.asarray(q.inputs.measured_mm) / size[ids.index(q.inputs.measured_ids[0])])
+        assert q.grade(key).status == CORRECT, i
+        for words, wrong in _q5_wrong_answers(q).items():
+            assert q.grade(wrong).status == INCORRECT, (i, words)
+        assert len(set(np.asarray(q.inputs.size_mm))) >= 2, i

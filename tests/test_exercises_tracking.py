@@ -183,3 +183,39 @@ def test_q5_every_variant_of_100_learners_is_solvable_clear_of_the_band_and_of_e
         assert not hi - margin < mean < hi + margin
         kinds.add("consistent" if lo <= mean <= hi else "overconfident" if mean > hi else "cautious")
     assert kinds == {"consistent", "overconfident", "cautious"}
+
+
+@pytest.mark.parametrize("learner", LEARNERS)
+def test_q6_camera_axes_sign_subtraction_and_degrees_are_named(learner):
+    q, key = key_of("q6", learner)
+    R_pred, R_meas = np.asarray(q.inputs.R_pred), np.asarray(q.inputs.R_meas)
+    # the key turns the prediction into the measurement, on the left, in radians
+    assert np.abs(_exp(key) @ R_pred - R_meas).max() < 1e-6
+    assert 2 <= np.degrees(np.linalg.norm(key)) <= 8
+    assert q.grade(key + 5e-5).status == CORRECT
+    for answer, words in (
+        (_log(R_pred.T @ R_meas), "camera's own axes"),
+        (-key, "sign"),
+        (_log(R_meas) - _log(R_pred), "subtracts the two rotation vectors"),
+        (np.degrees(key), "degrees"),
+    ):
+        r = q.grade(answer)
+        assert r.status == INCORRECT, (learner, words)
+        assert words in r.message
+    assert q.grade(key + 1e-3).status == INCORRECT
+    assert q.grade(np.zeros(3)).status == INCORRECT
+
+
+def test_q6_no_variant_of_the_first_thousand_learners_lets_a_named_mistake_pass():
+    seen_near_180 = 0
+    for i in range(1000):
+        q = l10_tracking._q6(str(i))
+        R_pred, R_meas = np.asarray(q.inputs.R_pred), np.asarray(q.inputs.R_meas)
+        key = _log(R_meas @ R_pred.T)
+        assert q.grade(key).status == CORRECT
+        assert 2 <= np.degrees(np.linalg.norm(key)) <= 8
+        for mistake in (_log(R_pred.T @ R_meas), -key, _log(R_meas) - _log(R_pred), np.degrees(key)):
+            assert q.grade(mistake).status == INCORRECT, i
+            assert np.abs(mistake - key).max() > 5e-3
+        seen_near_180 += frames.rotation_angle_deg(R_pred, np.eye(3)) > 150
+    assert seen_near_180 > 100  # many predictions are turned far round, where rotation vectors wrap

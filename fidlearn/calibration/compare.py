@@ -28,7 +28,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import CalibrationError
-from .uncertainty import intrinsics_uncertainty
+from .uncertainty import _names, intrinsics_uncertainty
 
 __all__ = ["CalibrationComparison", "compare_calibrations", "DIFFER_RATIO", "VERDICTS"]
 
@@ -126,7 +126,7 @@ def _camera_and_covariance(x, which: str, inflate: bool):
     if not isinstance(camera, Camera):
         raise CalibrationError(f"{which}: expected a Calibration or a Camera, got {type(x).__name__}")
     u = intrinsics_uncertainty(x)
-    names = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
+    names = _names(camera)
     index = [names.index(n) for n in u.names]
     return camera, (np.array(index), u.covariance if inflate else u.white_covariance)
 
@@ -137,7 +137,7 @@ def _params(cam: Camera) -> np.ndarray:
 
 def _camera(theta: np.ndarray, like: Camera) -> Camera:
     K = np.array([[theta[0], 0.0, theta[2]], [0.0, theta[1], theta[3]], [0.0, 0.0, 1.0]])
-    return Camera(K, theta[4:], like.image_size)
+    return Camera(K, theta[4:], like.image_size, model=like.model)
 
 
 def _rays(cam: Camera, px: np.ndarray) -> np.ndarray:
@@ -167,7 +167,13 @@ def _difference(ta, tb, cam_a, cam_b, px, w) -> tuple[np.ndarray, np.ndarray]:
     R = _rotation(va, _rays(b, px), w)
     ok = np.all(np.isfinite(va), axis=1)
     d = np.full(px.shape, np.nan)
-    d[ok] = b.project(va[ok] @ R.T, np.eye(4)) - px[ok]
+    turned = va[ok] @ R.T
+    with np.errstate(over="ignore", invalid="ignore"):  # rays far outside b's picture: checked below
+        pb = b.project(turned, np.eye(4))
+        # a ray b cannot hold (behind a pinhole, past where a fisheye's polynomial turns back) has no pixel in b
+        back = _rays(b, np.where(np.isfinite(pb), pb, 0.0))
+    held = np.sum(back * turned, axis=1) > np.cos(1e-6)
+    d[np.flatnonzero(ok)[held]] = pb[held] - px[ok][held]
     return d, R
 
 
@@ -192,8 +198,14 @@ def _projection_variance(cam: Camera, cov, px: np.ndarray) -> np.ndarray:
     v = _rays(cam, px)
     ok = np.all(np.isfinite(v), axis=1)
     out = np.full(len(px), np.inf)
-    _, J = cv2.projectPoints(v[ok].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.K, cam.dist)
-    Ji = J[:, 6:][:, cov[0]].reshape(-1, 2, len(cov[0]))
+    if cam.model == "fisheye":  # columns: f (2), c (2), k (4), rvec (3), tvec (3), skew
+        zero = np.zeros((3, 1))
+        _, J = cv2.fisheye.projectPoints(v[ok].reshape(-1, 1, 3), zero, zero, cam.K, cam.dist.reshape(1, 4))
+        J = J[:, :8]
+    else:
+        _, J = cv2.projectPoints(v[ok].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.K, cam.dist)
+        J = J[:, 6:]
+    Ji = J[:, cov[0]].reshape(-1, 2, len(cov[0]))
     out[ok] = np.einsum("nij,jk,nik->n", Ji, cov[1], Ji)
     return out
 
@@ -254,7 +266,9 @@ def compare_calibrations(
     a, b : Calibration or Camera
         Two calibrations of one camera at one resolution. A :class:`~fidlearn.camera.Camera` (a
         camera file) carries no uncertainty: beside a Calibration it is taken as exact; two
-        Cameras are compared, but the verdict is "cannot tell".
+        Cameras are compared, but the verdict is "cannot tell". Either may be a pinhole or a
+        fisheye camera (a pinhole fitted to a fisheye lens against a fisheye fitted to it shows
+        where the pinhole model fails).
     grid : (int, int)
         Columns and rows of pixels compared, spread over the whole picture.
     tolerance_px : float
@@ -272,8 +286,8 @@ def compare_calibrations(
     Raises
     ------
     CalibrationError
-        If ``a`` or ``b`` is neither a Calibration nor a Camera, is not a pinhole camera, or the
-        two are of different resolutions; if ``grid`` or ``tolerance_px`` is not positive.
+        If ``a`` or ``b`` is neither a Calibration nor a Camera, or the two are of different
+        resolutions; if ``grid`` or ``tolerance_px`` is not positive.
 
     Examples
     --------
@@ -287,9 +301,6 @@ def compare_calibrations(
     'agree'
     """
     (cam_a, cov_a), (cam_b, cov_b) = (_camera_and_covariance(x, w, inflate) for x, w in ((a, "a"), (b, "b")))
-    for cam, label in ((cam_a, "a"), (cam_b, "b")):
-        if getattr(cam, "model", "pinhole") != "pinhole":
-            raise CalibrationError(f"{label}: a {cam.model} camera; only pinhole calibrations are compared")
     if cam_a.image_size != cam_b.image_size:
         raise CalibrationError(
             f"a is {cam_a.width}x{cam_a.height}, b {cam_b.width}x{cam_b.height}: compare calibrations at one "

@@ -28,6 +28,7 @@ import numpy as np
 
 from .. import frames
 from ..errors import CalibrationError
+from ._models import FISHEYE_NAMES
 from .run import INTRINSIC_NAMES
 
 __all__ = ["IntrinsicsUncertainty", "intrinsics_uncertainty"]
@@ -72,17 +73,26 @@ class IntrinsicsUncertainty:
 def _view_terms(camera, obj: np.ndarray, img: np.ndarray, T: np.ndarray, free: np.ndarray):
     """One view's pose-projected intrinsics Jacobian ``Jv`` (2N, p) and residuals (2N,)."""
     rvec, tvec = frames.rvec_tvec_from_transform(T)
-    proj, J = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
+    if camera.model == "fisheye":  # columns: f (2), c (2), k (4), rvec (3), tvec (3), skew
+        D = camera.dist.reshape(1, 4)
+        proj, J = cv2.fisheye.projectPoints(obj.reshape(-1, 1, 3), rvec.reshape(3, 1), tvec.reshape(3, 1), camera.K, D)
+        J_pose, J_int = J[:, 8:14], J[:, :8][:, free]
+    else:
+        proj, J = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
+        J_pose, J_int = J[:, :6], J[:, 6 : 10 + len(camera.dist)][:, free]
     r = (img.reshape(-1, 2) - proj.reshape(-1, 2)).ravel()
-    J_pose, J_int = J[:, :6], J[:, 6 : 10 + len(camera.dist)][:, free]
     Jv = J_int - J_pose @ np.linalg.lstsq(J_pose, J_int, rcond=None)[0]
     return Jv, r - J_pose @ np.linalg.lstsq(J_pose, r, rcond=None)[0]
 
 
+def _names(camera) -> tuple:
+    """The intrinsics' names in ``[fx, fy, cx, cy, *dist]`` order, for the camera's lens model."""
+    return FISHEYE_NAMES if camera.model == "fisheye" else INTRINSIC_NAMES[: 4 + len(camera.dist)]
+
+
 def _free(cal) -> np.ndarray:
-    n = 4 + len(cal.camera.dist)
     std = cal.std_intrinsics or {}
-    return np.array([std.get(k, 1.0) > 0 for k in INTRINSIC_NAMES[:n]], dtype=bool)
+    return np.array([std.get(k, 1.0) > 0 for k in _names(cal.camera)], dtype=bool)
 
 
 def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
@@ -95,8 +105,8 @@ def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
     Parameters
     ----------
     cal : Calibration
-        A calibration (``calibrate_checkerboard`` or ``calibrate_charuco``) of the pinhole model,
-        with its views' points and poses.
+        A calibration (``calibrate_checkerboard`` or ``calibrate_charuco``) of the pinhole or the
+        fisheye model (``fx, fy, cx, cy, k1..k4``), with its views' points and poses.
 
     Returns
     -------
@@ -118,12 +128,9 @@ def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
     True
     """
     views = getattr(cal, "T_camera_board", None)
-    model = getattr(getattr(cal, "camera", None), "model", "pinhole")
-    if model != "pinhole":
-        raise CalibrationError(f"a {model} calibration: the uncertainty is measured for the pinhole model only")
     if not isinstance(views, dict) or not views:
         raise CalibrationError(
-            "the uncertainty needs a pinhole calibration with its views (calibrate_checkerboard or "
+            "the uncertainty needs a calibration with its views (calibrate_checkerboard or "
             "calibrate_charuco), not a camera file: calibrate from the photos"
         )
     free = _free(cal)
@@ -150,5 +157,5 @@ def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
     k2 = observed / expected if expected > 0 else 1.0
     white = sigma2 * S_inv
     inflation = max(1.0, k2)
-    names = tuple(k for k, f in zip(INTRINSIC_NAMES, free) if f)
+    names = tuple(k for k, f in zip(_names(cal.camera), free) if f)
     return IntrinsicsUncertainty(names, white * inflation, white, inflation, float(k2))

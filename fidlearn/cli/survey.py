@@ -46,8 +46,9 @@ def add(sub) -> None:
             "corner within --map-sigma-mm). Prints a table per marker (tape and surveyed top-left "
             "corner, their difference and the surveyed standard deviation, mm), names the markers "
             "whose tape placement disagrees with the photos, and writes the surveyed map in the tape "
-            "map's units. Take 20 or more photos from different places, each showing two or more "
-            "markers, every marker in at least two photos."
+            "map's units (from a WPILib field layout: the corrected layout, and a table of how far "
+            "each tag is from the official one, naming the tags moved beyond the noise). Take 20 or more photos from "
+            "different places, each showing two or more markers, every marker in at least two photos."
         ),
     )
     p.add_argument("photos", nargs="+", type=Path, metavar="PHOTO_OR_FOLDER", help="photos, or folders of photos")
@@ -144,6 +145,10 @@ def _report(s: Survey, args) -> None:
         print(sentence(sus))
     if not s.suspects:
         print("no marker disagrees with the photos more than the tape's sigma explains")
+    if s.layout_format == "wpilib":  # an official field layout: which tags moved, in its format
+        print(f"{args.output}: written as a WPILib field layout, as {args.map.name} was")
+        for line in s.tag_report(f"the official layout {args.map.name}"):
+            print(line)
 
 
 def sentence(suspect) -> str:

@@ -19,6 +19,7 @@ from ..markermap import BoardEntry, MarkerMap
 from ._estimate import estimate_pose
 from ._inputs import _as_camera, _as_map, _check_pose_options
 from ._result import Pose
+from ._second_look import missed_in_view, read_again
 
 __all__ = ["locate"]
 
@@ -42,6 +43,10 @@ def locate(
     in view are then not reported in :attr:`Pose.ignored_ids` unless
     ``only_map_markers=False``; when none of the map's markers is found, the
     whole dictionary is searched once so that the error says which ids were seen.
+    A map marker that the pose puts whole in the picture, facing the camera, but that the
+    detector missed (OpenCV can keep the outline of its white margin instead of its own) is
+    read again inside its predicted outline, and the pose estimated again with it
+    (:mod:`fidlearn.pose._second_look`).
 
     Parameters
     ----------
@@ -106,10 +111,20 @@ def locate(
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera).for_image(image)
     detections = _detect_map_markers(image, marker_map, refine, detector_params, only_map_markers)
-    if camera.model == "fisheye" and (DEFAULT_REFINE if refine is None else _refine_name(refine)) == "edges":
+    straighten = camera.model == "fisheye" and (DEFAULT_REFINE if refine is None else _refine_name(refine)) == "edges"
+    if straighten:
         detections = _straightened(detections, camera, marker_map.dictionary, detector_params)
-    chess = _board_corners(image, marker_map, detections) if camera.model != "fisheye" else None
+    pinhole = camera.model != "fisheye"  # a ChArUco board entry's chess corners join a pinhole's pose
+    chess = _board_corners(image, marker_map, detections) if pinhole else None
     pose = estimate_pose(detections, marker_map, camera, board_corners=chess, **kw)
+    found = {marker_map.key(d.id, d.dictionary) for d in detections}
+    missed = missed_in_view(marker_map, camera, pose.T_world_camera, found, detector_params)
+    more = read_again(image, missed, refine, detector_params) if missed else []
+    if more:  # markers the detector missed, found where the pose puts them
+        if straighten:
+            more = _straightened(more, camera, marker_map.dictionary, detector_params)
+        chess = _board_corners(image, marker_map, detections + more) if pinhole else None
+        pose = estimate_pose(detections + more, marker_map, camera, board_corners=chess, **kw)
     problem = outside_field(marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirrored corners
     if problem is not None:
         raise PoseError(problem)

@@ -144,13 +144,15 @@ class Pose(_PoseReadouts):
         What it promises: the 95 % ellipsoid (:meth:`position_ellipsoid_contains`) holds the true
         position about 95 % of the time when the errors are of those kinds. Measured: on renders with
         Gaussian corner noise of 0.5 px, four markers (``tests/test_pose.py``), 97 % with sigma given or
-        estimated; on real photos
-        (``python -m benchmarks real``, docs/benchmarks.md): the robot's photos of a slightly bent ChArUco
-        board, the truth's own covariance added, 14 of 16 camera positions inside; the course's ChArUco
-        photos against their chessboard pose, 89-99 % with 1 to 3 markers but 77 % with 4-6 and only 46 %
-        with 7-17 markers: errors all markers share (a size gradient across the board, a calibration a
-        little off) leave no trace in the residuals and are not in it. An error of the map larger than a marker's
-        shift (a marker moved on the wall) is for the outlier screen, not the covariance.
+        estimated, 95-96.5 % on six and twelve markers (``tests/test_pose_noise.py``); with fewer than 4
+        markers and the noise estimated, 99 % (the prior mix holds a marker shift these renders lack); on
+        real photos (``python -m benchmarks real``, docs/benchmarks.md): the robot's photos of a slightly
+        bent ChArUco board, the truth's own covariance added, 14 of 16 camera positions inside; the course's
+        ChArUco photos against their chessboard pose, 89-99 % with 1 to 3 markers but 77 % with 4-6 and only
+        46 % with 7-17 markers: an error all markers share (there a scale along the line of sight between the
+        default edge fit's corners on markers 23-26 px across and the chessboard corners; 82-87 % with
+        OpenCV's corner refinements) leaves no trace in the residuals and is not in it. An error of the map larger than a marker's shift
+        (a marker moved on the wall) is for the outlier screen, not the covariance.
     corner_sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes: given, or
         estimated from the residuals (see :func:`estimate_pose`).

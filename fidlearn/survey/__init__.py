@@ -15,7 +15,8 @@ Modules: ``_inputs`` (photos to detected corners, the checks), ``_init`` (starti
 markers, the units check), ``_gross`` (the photos alone against the tape: gross errors and
 the robust residuals), ``_geometry`` (rotation vectors and their Jacobians), ``_problem``
 (unknowns, residuals, sparse Jacobian), ``_solve`` (the passes, covariance, suspect test),
-``_variance`` (the tape's sigma and the print scale learnt), ``_result`` (:class:`Survey`) and
+``_variance`` (the tape's sigma and the print scale learnt), ``_layout`` (each tag against the starting
+map, an official field layout: :class:`TagChange`), ``_result`` (:class:`Survey`) and
 ``_survey`` (:func:`survey`).
 
 Conventions: mm, ``T_a_b`` maps frame b into frame a, placements as in the map files (top-left
@@ -25,6 +26,7 @@ corner, roll-pitch-yaw in degrees), camera frame OpenCV's.
 from __future__ import annotations
 
 from ._inputs import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM
+from ._layout import TagChange
 from ._print_check import MIN_PRINT_MARKERS, PrintCheck, check_print
 from ._result import Survey, Suspect
 from ._solve import SUSPECT_P
@@ -34,6 +36,7 @@ __all__ = [
     "survey",
     "Survey",
     "Suspect",
+    "TagChange",
     "check_print",
     "PrintCheck",
     "MIN_PRINT_MARKERS",
@@ -43,6 +46,6 @@ __all__ = [
     "MAX_MAP_SIGMA_MM",
 ]
 
-for _public in (survey, Survey, Suspect, check_print, PrintCheck):
+for _public in (survey, Survey, Suspect, TagChange, check_print, PrintCheck):
     _public.__module__ = __name__
 del _public

@@ -12,9 +12,11 @@ import numpy as np
 from .. import _stats
 from .._io import write_json_atomic
 from .._map_parse import _vector3
+from .._wpilib import layout_format, to_wpilib
 from ..errors import MapError, PoseError, SurveyError
 from ..markermap import MarkerMap
 from ._inputs import _short
+from ._layout import TagChange, tag_changes, tag_changes_text
 
 __all__ = ["Survey", "Suspect"]
 
@@ -210,13 +212,18 @@ class Survey:
             },
         }
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write the surveyed map in the full layout, with a ``"surveyed"`` note (atomically).
+    def save(self, path: str | os.PathLike, format: str | None = None) -> Path:  # noqa: A002 - the file's format
+        """Write the surveyed map (atomically): the full layout with a ``"surveyed"`` note, or a WPILib layout.
 
         Parameters
         ----------
         path : path-like
             The JSON file to write; :meth:`fidlearn.MarkerMap.load` reads it back.
+        format : {None, "fidlearn", "wpilib"}
+            None (the default): the format of the map the survey started from, so a survey of a field from
+            its official WPILib layout writes the corrected layout (tags' centres and quaternions, metres,
+            the official field's size; the file has no room for the note). ``"fidlearn"``: the full layout
+            with the note.
 
         Returns
         -------
@@ -231,8 +238,45 @@ class Survey:
         """
         if not isinstance(path, (str, os.PathLike)) or not str(path):
             raise SurveyError(f"save needs a file path (str or pathlib.Path) ending in .json, got {_short(path)}")
+        if format not in (None, "fidlearn", "wpilib"):
+            raise SurveyError(f"unknown map format {_short(format)}; use 'fidlearn' (the full layout) or 'wpilib'")
         check_readable(self.marker_map)
+        if (format or layout_format(self.tape_map)) == "wpilib":
+            return write_json_atomic(path, to_wpilib(self.marker_map, getattr(self.tape_map, "field_m", None)))
         return write_json_atomic(path, {**self.marker_map.to_dict(), "surveyed": self.note()})
+
+    def tag_changes(self) -> list[TagChange]:
+        """How far each tag of the starting map (an official field layout) is from where the survey puts it.
+
+        Returns
+        -------
+        list of TagChange
+            Per tag: the centres' distance (mm) and the faces' angle (deg), each with the survey's standard
+            deviation, the suspect test's sigmas and whether the tag moved beyond the noise (a suspect); see
+            :func:`fidlearn.survey._layout.tag_changes`.
+        """
+        return tag_changes(self)
+
+    def tag_report(self, layout: str = "the official layout") -> list[str]:
+        """:meth:`tag_changes` in words, the lines ``fidlearn survey`` prints for a WPILib layout.
+
+        Parameters
+        ----------
+        layout : str
+            What the survey started from, for the lines' wording (e.g. ``"the official layout field.json"``).
+
+        Returns
+        -------
+        list of str
+            A title, a header, one line per tag (distance and angle with the survey's standard deviations, the
+            offset, the suspect test's sigmas, a verdict) and a last line naming the moved tags, or saying none moved.
+        """
+        return tag_changes_text(self.tag_changes(), layout)
+
+    @property
+    def layout_format(self) -> str:
+        """The starting map's file format, what :meth:`save` writes by default: ``"wpilib"`` or ``"fidlearn"``."""
+        return layout_format(self.tape_map)
 
     def learnt(self) -> list[str]:
         """What the survey learnt of the tape, in words: its sigma (when learnt) and the markers' print scale.

@@ -154,6 +154,8 @@ plt.show()
 # | [11 From localization to mapping](11_from_localization_to_mapping.ipynb) | the map from photos and the tape: bundle adjustment, the gauge, a moved marker found | [11](exercises/11_mapping.ipynb) |
 # | [12 Your own camera](12_your_own_camera.ipynb) | your webcam in JupyterLab: calibrate it with the coach, then localize it live | [12](exercises/12_own_camera.ipynb) |
 # | [13 The robot's truth](13_robot_truth_hand_eye.ipynb) | real photos judged by an industrial robot: hand-eye calibration, leave-one-out | [13](exercises/13_hand_eye.ipynb) |
+# | [14 ChArUco boards](14_charuco_boards.ipynb) | chess corners named by markers: calibration, `refineDetectedMarkers`, the pose judged by the robot | [14](exercises/14_charuco.ipynb) |
+# | [15 Wide lenses](15_wide_lenses.ipynb) | fisheye and wide-angle cameras: the fisheye model, undistortion and what it loses, two calibrations cross-validated, a pose at the edge | [15](exercises/15_wide_lenses.ipynb) |
 #
 # ## Conventions (used in every notebook and in `fidlearn`)
 #

@@ -9,6 +9,7 @@
 # * why the problem's Jacobian is sparse, and what that buys;
 # * the gauge freedom: why photos alone cannot say where the room is, and how the tape or one fixed marker pins it;
 # * how a robust loss and a chi-square test find a marker that was moved after it was measured;
+# * how to measure your printer's scale from one photo, and what to write in the map;
 # * how the map's accuracy grows with the number of photos, and what full SLAM adds on top.
 #
 # This is the first step from localization (a known map, notebooks 06-09) towards SLAM (the map and the
@@ -22,10 +23,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import sparse
 
-from fidlearn import Camera, Detection, MarkerMap, data_path, detect_markers, estimate_pose, survey
+from fidlearn import Camera, Detection, MarkerMap, data_path, detect_markers, estimate_pose, locate, survey
 from fidlearn.detection import load_image
+from fidlearn.frames import look_at
 from fidlearn.markermap import MARKER_CORNERS_LOCAL
-from fidlearn.synthetic import survey_room, survey_walk, tape_measured, visible_markers
+from fidlearn.survey import check_print
+from fidlearn.synthetic import render_scene, survey_room, survey_walk, tape_measured, visible_markers
 
 np.set_printoptions(precision=3, suppress=True)
 
@@ -379,6 +382,74 @@ assert abs(learnt.print_scale - 1) < learnt.print_scale_se  # the sentence below
 # {{ 100 * learnt.print_scale_se:.1f }} %: these renders print true). A number a user cannot know is learnt from
 # the data and reported with its uncertainty: `learnt.map_sigma_se_mm` says how far to trust it.
 #
+# ### Your printer's scale
+#
+# These renders print true; your printer may not. Printers often scale the page ("fit to page" gives about
+# 98.7 %), and then every marker is smaller than the map says. A smaller marker looks like one farther away: a
+# pose from one marker stretches its distance by 1/0.987, 13 mm per metre. One photo of four or more markers whose
+# top-left corners you taped tells the scale: `check_print` (`fidlearn check-print` on the command line) places
+# each marker alone from its corners and its map size, and lays those top-left corners on the tape's with a
+# similarity; its scale is the print's. Eight 80 mm markers on a wall, printed at 98.7 %, one photo:
+
+# %%
+wall = {str(i): {"translation": [0, 250 * (i % 4), 1600 - 250 * (i // 4)]} for i in range(8)}
+asked = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": wall})  # the map: 80 mm asked
+printed = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80 * 0.987, "markers": wall})  # what came out
+T_photo = look_at([1300, 500, 1500], [0, 375, 1350], roll_deg=4)
+photo = render_scene(printed, camera, T_photo, seed=3, noise_std_gray=2.0, blur_px=0.6).image
+check = check_print(photo, asked, camera)
+print(f"check_print: scale {check.scale:.4f} +/- {check.scale_std:.4f} from markers {list(check.marker_ids)}")
+print(check.advice())
+resized = MarkerMap.from_dict({"units": "mm", "marker_size_mm": round(80 * check.scale, 2), "markers": wall})
+one = [d for d in detect_markers(photo, asked.dictionary) if d.id == 5]  # a pose from one marker
+
+
+def off_mm(m, dets=None):
+    """How far (mm) the camera's position from this photo is from the truth with map m (locate, or dets)."""
+    pose = locate(photo, m, camera) if dets is None else estimate_pose(dets, m, camera)
+    return float(np.linalg.norm(pose.position_mm - T_photo[:3, 3]))
+
+
+far = np.linalg.norm(T_photo[:3, 3] - printed.marker_corners(5).mean(axis=0))
+one_asked, one_resized = off_mm(asked, one), off_mm(resized, one)
+print(
+    f"marker 5 alone, {far:.0f} mm away: {one_asked:.1f} mm off with size_mm 80, "
+    f"{one_resized:.1f} mm with size_mm {resized.marker_size_mm:g}"
+)
+print(f"all eight (locate): {off_mm(asked):.1f} mm off with size_mm 80, {off_mm(resized):.1f} mm with the printed size")
+assert abs(check.scale - 0.987) < 3 * check.scale_std and one_resized < one_asked / 3
+
+# %% [markdown]
+# The photo says {{ 100 * check.scale:.2f }} % give or take {{ 100 * check.scale_std:.2f }} %. The pose from
+# marker 5 alone is {{ one_asked:.0f }} mm off until the map has the printed size ({{ one_resized:.1f }} mm
+# after); with all eight markers in view the taped top-left corners hold the distance, so the damage shows in
+# views of one or two markers. Two mends: **set `size_mm`** to what the printer made (the map's
+# `marker_size_mm`, or each marker's own `size_mm` in a map that mixes sizes: every size times the same scale),
+# or **print again at 100 %** ("actual size", no fitting to the page) and keep the map. A ruler confirms either:
+# 80 mm at 98.7 % is 78.96 mm, a millimetre you can see across the black square.
+#
+# The survey measures the same scale from all its photos (`print_scale`, against the tape's top-left corners).
+# The room of section 1 printed at 98.7 %, its map still saying 160 mm, corners projected as in section 7 below:
+
+# %%
+room_printed = survey_room(marker_size_mm=160 * 0.987)  # top-left corners where they were taped
+taped = tape_measured(room_printed, sigma_mm=20, sigma_deg=1, seed=5)
+taped = MarkerMap(taped.placements, 160.0, dictionary=taped.dictionary, units=taped.units)  # the map says 160 mm
+rng = np.random.default_rng(7)
+printed_dets = [
+    [Detection(i, c + rng.normal(0, 0.1, c.shape)) for i, c in visible_markers(room_printed, camera, T).items()]
+    for T in survey_walk(room_printed, camera, n_photos=20, seed=3)
+]
+scaled = survey(printed_dets, taped, camera, corner_sigma_px=0.1)
+for line in scaled.learnt():
+    print(line)
+assert scaled.print_scale_applied and abs(scaled.print_scale - 0.987) < 3 * scaled.print_scale_se
+
+# %% [markdown]
+# With the tape's sigma learnt, a scale more than 3 standard errors from 100 % is applied: the surveyed map says
+# {{ scaled.marker_map.marker_size_mm:.1f }} mm. The exercises end with the other way round: a ruler's readings,
+# and the `size_mm` to write for markers of several sizes.
+#
 # ## 7. Accuracy against the number of photos
 #
 # How many photos does a survey need? A quick sweep on a room that is not rendered (`survey_room`, the walks of
@@ -457,10 +528,12 @@ assert max(shape_err) < tape_shape / 3 and shape_err[-1] < shape_err[0] / 3
 #   sigmas and not in millimetres, names it.
 # * Ten photos or so, every marker in several of them, already give the map's shape to about a millimetre,
 #   where the tape gave centimetres.
+# * A printer's scale shows in one photo of four taped markers (`check_print`) and in a survey
+#   (`print_scale`): write the printed sizes in the map (`size_mm`) or print again at 100 %.
 #
 # **Exercises**: [exercises/11_mapping.ipynb](exercises/11_mapping.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("11")` in a new cell): count a survey's unknowns,
-# build one residual by hand, find the moved marker, and choose the next photo.
+# build one residual by hand, find the moved marker, choose the next photo, and write the sizes your printer made.
 #
 # ## Try it
 #

@@ -27,6 +27,8 @@ from . import (
     l11_mapping,
     l12_own_camera,
     l13_hand_eye,
+    l14_charuco,
+    l15_wide_lenses,
 )
 
 __all__ = ["MODULES"]
@@ -46,6 +48,8 @@ MODULES = (
     l11_mapping,
     l12_own_camera,
     l13_hand_eye,
+    l14_charuco,
+    l15_wide_lenses,
 )
 
 for _module in MODULES:

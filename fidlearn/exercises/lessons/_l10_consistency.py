@@ -1,15 +1,17 @@
-"""Lesson 10, q5: is the filter consistent? The mean NIS of a run against its 95 % band.
+"""Lesson 10, q5: is the filter consistent? The mean NIS of a run against its 95 % band; q6: the rotation
+innovation of an update, ``log(R_meas R_pred^T)``.
 
-Kept apart from :mod:`.l10_tracking` (which lists ``_q5`` in its ``build``) for that module's length.
+Kept apart from :mod:`.l10_tracking` (which lists ``_q5`` and ``_q6`` in its ``build``) for that module's length.
 """
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
-from ... import _stats
+from ... import _stats, frames
 from .._engine import Question, QuestionText, _AnswerError
-from .._parsers import _parts, _scalar
+from .._parsers import _array, _cmp_array, _parts, _scalar
 from .._scenery import _rng
 
 #: q5's words: its title and task (the notebook's markdown), hint, solution code and level.
@@ -141,4 +143,101 @@ def _q5(learner: str) -> Question:
             ),
         ],
         **_Q5,
+    )
+
+
+#: q6's words: its title and task (the notebook's markdown), hint, solution code and level.
+_Q6: QuestionText = {
+    "title": "The rotation innovation",
+    "task": """
+        The tracker predicted the camera's orientation for this frame, `R_pred` (3x3, R_world_camera);
+        the frame's pose says `R_meas`. The filter's rotation error is a small rotation vector in world
+        axes, applied on the left: `R_meas = exp([r]x) R_pred`. Write code that computes the rotation
+        part of the innovation, `r` (3,), in radians: what the update weighs with the Kalman gain.
+        """,
+    "hint": [
+        "Two rotations do not subtract like vectors: the difference between them is itself a rotation, the one "
+        "that turns the prediction into the measurement. Find that rotation first, then its rotation vector.",
+        "The error is applied on the left, in world axes: the rotation that, applied after R_pred, gives R_meas. "
+        "Undoing a rotation is its transpose; OpenCV's Rodrigues turns a rotation matrix into its rotation vector.",
+    ],
+    "solution": """
+        R_pred, R_meas = np.asarray(q6.inputs.R_pred), np.asarray(q6.inputs.R_meas)
+        q6.answer = cv2.Rodrigues(R_meas @ R_pred.T)[0].ravel()
+        """,
+    "level": "medium",
+}
+
+#: q6's tolerance on each component of r, rad (0.006 deg); every named wrong answer lies 50 times further.
+_Q6_TOL = 1e-4
+
+
+def _rvec(R: np.ndarray) -> np.ndarray:
+    """A rotation matrix to its rotation vector (3,), rad."""
+    return cv2.Rodrigues(np.asarray(R, dtype=float))[0].ravel()
+
+
+def _q6_wrong(R_pred: np.ndarray, R_meas: np.ndarray) -> dict[str, np.ndarray]:
+    """The rotation vectors of q6's named mistakes."""
+    return {
+        "camera axes": _rvec(R_pred.T @ R_meas),
+        "sign": _rvec(R_pred @ R_meas.T),
+        "subtracted": _rvec(R_meas) - _rvec(R_pred),
+        "degrees": np.degrees(_rvec(R_meas @ R_pred.T)),
+    }
+
+
+def _q6_pair(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A predicted orientation (a camera facing a wall, turned well round) and a measured one a few degrees off,
+    every named mistake far from the key."""
+    while True:
+        yaw = float(rng.uniform(120, 178) * rng.choice([-1, 1]))
+        rpy = np.round([-90 + rng.uniform(-15, 15), rng.uniform(-15, 15), yaw], 3)
+        R_pred = np.round(frames.rotation_from_rpy_deg(*rpy), 9)
+        axis = rng.normal(size=3)
+        r = axis / np.linalg.norm(axis) * np.radians(rng.uniform(2, 8))
+        R_meas = np.round(cv2.Rodrigues(r)[0] @ R_pred, 9)
+        key = _rvec(R_meas @ R_pred.T)
+        if all(np.abs(w - key).max() > 50 * _Q6_TOL for w in _q6_wrong(R_pred, R_meas).values()):
+            return R_pred, R_meas
+
+
+def _q6(learner: str) -> Question:
+    """q6: The rotation innovation."""
+    rng = _rng("10", learner, "q6")
+    R_pred, R_meas = _q6_pair(rng)
+    key = _rvec(R_meas @ R_pred.T)
+    wrong = _q6_wrong(R_pred, R_meas)
+
+    def near(v):
+        return lambda a: a.shape == (3,) and np.abs(a - v).max() <= _Q6_TOL
+
+    return Question(
+        "q6",
+        inputs={"R_pred": R_pred, "R_meas": R_meas},
+        expected=key,
+        parse=_array((3,), "the rotation innovation r"),
+        compare=_cmp_array(_Q6_TOL, " rad"),
+        wrong=[
+            (
+                near(wrong["camera axes"]),
+                (
+                    "that is the rotation in the camera's own axes, applied on the right (R_meas = R_pred exp(r)): "
+                    "the same turn, written in other axes. The filter's error is in world axes, applied on the left"
+                ),
+            ),
+            (
+                near(wrong["sign"]),
+                "the sign is turned round: that rotation takes the measurement to the prediction, not the other way",
+            ),
+            (
+                near(wrong["subtracted"]),
+                (
+                    "that subtracts the two rotation vectors: rotation vectors do not add or subtract like "
+                    "positions (near 180 deg they even wrap). Compose the rotations first, then take the log"
+                ),
+            ),
+            (near(wrong["degrees"]), "that is in degrees; the innovation is in radians"),
+        ],
+        **_Q6,
     )

@@ -16,7 +16,7 @@ from ... import frames
 from .._engine import Question, QuestionText
 from .._parsers import _T_HINTS, _array, _cmp_transform, _scalar, _T_is
 from .._scenery import _rng
-from ._l10_consistency import _Q5, _q5  # noqa: F401 (q5, kept apart for the module's length)
+from ._l10_consistency import _Q5, _Q6, _q5, _q6  # noqa: F401 (q5 and q6, kept apart for the module's length)
 
 NUMBER = "10"
 TOPIC = "tracking"
@@ -24,7 +24,8 @@ TITLE = "Tracking over time"
 INTRO = """
     Filter the pose over time: the mean of rotations done right, the process noise chosen for a
     stated lag, the robot's pose from the camera's through the mount, a gap without markers
-    bridged with odometry, and whether a filter is consistent (its mean NIS against its band).
+    bridged with odometry, whether a filter is consistent (its mean NIS against its band), and the
+    rotation innovation of an update.
     """
 
 
@@ -437,6 +438,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, q4, q5, with their answer keys.
+        q1 to q6, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner), _q6(learner)]

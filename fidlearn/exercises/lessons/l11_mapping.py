@@ -29,13 +29,15 @@ from .._scenery import (
     _rng,
     _wall_map,
 )
+from ._l11_print import _Q5, _q5  # noqa: F401 (q5, kept apart for the module's length)
 
 NUMBER = "11"
 TOPIC = "mapping"
 TITLE = "From localization to mapping"
 INTRO = """
     Let photos measure the map: count a survey's unknowns, build one of its residuals by hand,
-    find the marker the tape put in the wrong place, and choose the photo that helps the map most.
+    find the marker the tape put in the wrong place, choose the photo that helps the map most, and
+    write in the map the sizes your printer really made.
     """
 
 _CORNERS = ("top-left", "top-right", "bottom-right", "bottom-left")
@@ -431,6 +433,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, q4, with their answer keys.
+        q1, q2, q3, q4, q5, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner)]

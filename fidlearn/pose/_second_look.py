@@ -1,0 +1,92 @@
+"""A second look for the map's markers the pose puts whole in the picture but the detector missed.
+
+OpenCV drops a candidate quad that lies closer than ``minMarkerDistanceRate`` x its perimeter to a larger
+one and keeps the larger: the outline of a marker's white margin on a darker wall can push the marker's own
+outline out when the margin is about one cell wide, and the marker is then not found at all though it is
+whole and sharp (a 200 mm 4X4_50 marker 60 px wide in ``benchmarks/bench_maps.py``). Lowering the rate for
+the whole picture loses other markers (``docs/benchmarks.md``, detection). Once the other markers give a
+pose, each map marker it predicts whole in the picture, facing the camera, and not detected is read again
+in its predicted outline, half a cell wider each side, with everything outside painted white: the margin's
+outline is gone and the marker's is the only quad left. O(the missed markers' areas); nothing when every
+marker predicted in view was found.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .. import _cv
+from ..camera import Camera
+from ..detection import Detection, _detector_fields, as_gray, detect_markers
+from ..markermap import MarkerMap
+from ._observations import _world
+
+#: Smallest predicted side (px) worth a second look; OpenCV needs about this many to decode a marker.
+MIN_SIDE_PX = 16.0
+
+
+def missed_in_view(
+    marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray, found: set, detector_params
+) -> list[tuple[int, str, np.ndarray]]:
+    """``(key, dictionary, predicted corners)`` of the map's markers not in ``found`` that the pose puts whole
+    in the picture (their outline half a cell wider plus 4 px inside it), facing the camera, with sides of
+    :data:`MIN_SIDE_PX` or more. One projection for all of them (the map's corners cached per map)."""
+    corners, faces = _world(marker_map)
+    keys = [k for k in corners if k not in found]
+    if not keys:
+        return []
+    T = np.asarray(T_world_camera, dtype=np.float64)
+    face = np.array([faces[k] for k in keys])
+    # the printed side towards the camera: the normal points at the camera's centre
+    facing = face[:, 3:6] @ T[:3, 3] - face[:, 6] > 0
+    keys = [k for k, f in zip(keys, facing) if f]
+    if not keys:
+        return []
+    world = np.concatenate([corners[k] for k in keys])
+    depth = (world - T[:3, 3]) @ T[:3, 2]
+    q = np.asarray(camera.project(world, T), dtype=np.float64).reshape(-1, 4, 2)
+    ok = (depth.reshape(-1, 4) > 0).all(axis=1) & np.isfinite(q).all(axis=(1, 2))
+    side = np.linalg.norm(np.roll(q, -1, axis=1) - q, axis=2).min(axis=1)
+    border = int(_detector_fields(detector_params)["markerBorderBits"])
+    names = [marker_map.marker_dictionary(k) for k in keys]
+    cells = {n: _cv.dictionary_marker_bits(n) + 2 * border for n in set(names)}
+    wide = _widened(q, np.array([cells[n] for n in names]))
+    W, H = camera.image_size
+    ok &= (side >= MIN_SIDE_PX) & (wide >= 4).all(axis=(1, 2))
+    ok &= (wide[:, :, 0] <= W - 5).all(axis=1) & (wide[:, :, 1] <= H - 5).all(axis=1)
+    return [(keys[k], names[k], q[k]) for k in np.flatnonzero(ok)]
+
+
+def read_again(image: np.ndarray, missed: list, refine: str | None, detector_params) -> list[Detection]:
+    """The markers of ``missed`` (from :func:`missed_in_view`) found by ``detect_markers`` (the same
+    refinement and parameters) in their predicted outline half a cell wider each side, the outside painted
+    white; each found with its own id and dictionary, corners in the whole picture's pixels."""
+    gray = as_gray(image)
+    border = int(_detector_fields(detector_params)["markerBorderBits"])
+    H, W = gray.shape
+    kw = {} if refine is None else {"refine": refine}
+    if detector_params is not None:
+        kw["detector_params"] = detector_params
+    found = []
+    for key, name, q in missed:
+        wide = _widened(q, _cv.dictionary_marker_bits(name) + 2 * border)
+        x0, y0 = np.maximum(np.floor(wide.min(axis=0)).astype(int) - 4, 0)
+        x1, y1 = np.minimum(np.ceil(wide.max(axis=0)).astype(int) + 5, [W, H])
+        inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.fillConvexPoly(inside, np.round(wide - (x0, y0)).astype(np.int32), 1)
+        crop = np.where(inside > 0, gray[y0:y1, x0:x1], 255).astype(np.uint8)
+        plain = int(key)
+        for d in detect_markers(crop, name, ids=[plain], **kw):
+            if d.id == plain:
+                found.append(Detection(plain, d.corners_px + (x0, y0), name))
+                break
+    return found
+
+
+def _widened(q: np.ndarray, cells) -> np.ndarray:
+    """Quads ``q`` (..., 4, 2) grown about their centres by half a cell each side (``cells`` across each
+    marker: a number, or one per quad)."""
+    c = q.mean(axis=-2, keepdims=True)
+    grow = 1.0 + 1.0 / np.asarray(cells, dtype=np.float64)
+    return c + (q - c) * np.reshape(grow, np.shape(grow) + (1, 1))
