@@ -148,8 +148,9 @@ class MarkerMap(_Entries):
         ``units`` and ``marker_size_mm`` given here. Full: ``{"units": "ft",
         "marker_size_mm": 80, "dictionary": "ARUCO_ORIGINAL", "markers": {...}}``.
         A value given both here and in the file must agree. The full layout may place boards and tag bundles
-        as rigid entries too (``"boards"``, ``"bundles"``: :mod:`fidlearn.markermap_entries`). WPILib's ``{"tags": [...], "field": {...}}``
-        (metres, each tag's centre; docs/conventions.md) with ``dictionary`` and ``marker_size_mm`` given here.
+        as rigid entries too (``"boards"``, ``"bundles"``: :mod:`fidlearn.markermap_entries`).
+        WPILib's ``{"tags": [...], "field": {...}}`` (metres, each tag's centre; docs/conventions.md) with
+        ``dictionary`` and ``marker_size_mm`` given here.
 
         Parameters
         ----------
