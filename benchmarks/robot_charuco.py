@@ -11,6 +11,8 @@ Ways to measure a photo's board pose, all on the same camera:
   finds, against the board's markers as a marker map (what :func:`fidlearn.locate` does);
 * ``opencv_markers``: plain ``cv2.solvePnP`` on the same marker corners (``SOLVEPNP_ITERATIVE`` or
   ``SOLVEPNP_IPPE``), what a user would write;
+* ``fidlearn_entry``: :func:`fidlearn.locate` with the board as one ChArUco entry of the map, whose chess
+  corners join the marker corners;
 * ``charuco``: OpenCV's ChArUco chess corners (``CharucoDetector``, interpolated from the markers)
   and ``cv2.solvePnP``.
 """
@@ -29,6 +31,7 @@ from fidlearn import Camera, MarkerMap, frames
 from fidlearn.calibration import calibrate_charuco
 from fidlearn.data import data_path
 from fidlearn.detection import detect_markers, load_image
+from fidlearn.markermap_entries import BOARD_TO_WORLD
 
 from .handeye import invert, transform
 
@@ -70,6 +73,17 @@ def board_map() -> MarkerMap:
     return MarkerMap.from_dict(
         {"units": "mm", "marker_size_mm": MARKER_MM, "dictionary": DICTIONARY, "markers": markers},
         source="robot ChArUco board 5x7",
+    )
+
+
+@cache
+def board_entry_map() -> MarkerMap:
+    """The board as one ChArUco entry of a map whose world is the board's frame (rotation: the board's axes)."""
+    rpy = [float(v) for v in frames.rpy_deg_from_rotation(BOARD_TO_WORLD.T)]
+    entry = {"type": "charuco", "translation": [0, 0, 0], "rotation": rpy, "squares": list(SQUARES)}
+    entry.update(square_mm=SQUARE_MM, marker_mm=MARKER_MM, dictionary=DICTIONARY)
+    return MarkerMap.from_dict(
+        {"units": "mm", "marker_size_mm": MARKER_MM, "boards": {"robot": entry}}, source="robot ChArUco board entry"
     )
 
 
@@ -182,6 +196,15 @@ def fidlearn_pose(i: int, camera: Camera, **kw) -> Measured:
     """fidlearn's pose of the board in photo ``i`` (:func:`fidlearn.estimate_pose`, keywords passed on)."""
     try:
         pose = fidlearn.estimate_pose(list(markers(i)), board_map(), camera, **kw)
+    except fidlearn.FidlearnError:
+        return Measured(None)
+    return Measured(invert(pose.T_world_camera), pose, 4 * len(pose.marker_ids))
+
+
+def fidlearn_entry_pose(i: int, camera: Camera) -> Measured:
+    """:func:`fidlearn.locate` of photo ``i`` with the board as a ChArUco map entry (its chess corners used)."""
+    try:
+        pose = fidlearn.locate(photo(i), board_entry_map(), camera)
     except fidlearn.FidlearnError:
         return Measured(None)
     return Measured(invert(pose.T_world_camera), pose, 4 * len(pose.marker_ids))

@@ -11,7 +11,7 @@ import numpy as np
 
 from ._cv import _ARUCO, get_dictionary, require_aruco
 
-__all__ = ["charuco_board", "charuco_detector", "detect_charuco"]
+__all__ = ["charuco_board", "charuco_detector", "detect_charuco", "interpolate_charuco"]
 
 
 def charuco_board(
@@ -87,3 +87,36 @@ def detect_charuco(detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
         np.asarray(ids).reshape(-1).astype(np.int64),
         n_markers,
     )
+
+
+def interpolate_charuco(board, gray: np.ndarray, marker_corners: list, marker_ids) -> tuple[np.ndarray, np.ndarray]:
+    """A ChArUco board's chess corners interpolated from markers already detected, refined on the image.
+
+    ``CharucoDetector.detectBoard`` with the markers given (it then detects none itself): the same call on
+    OpenCV 4.8 to 5.x; its ids shaped (N, 1) before 5.0 and (N,) from 5.0, ``None`` for none.
+
+    Parameters
+    ----------
+    board : cv2.aruco.CharucoBoard
+    gray : ndarray, shape (H, W), uint8
+    marker_corners : list of ndarray, shape (4, 2)
+        The board's detected markers, pixels, TL, TR, BR, BL.
+    marker_ids : sequence of int
+        Their ids.
+
+    Returns
+    -------
+    corners : ndarray, shape (N, 2), float64
+        Chess corners, pixels.
+    ids : ndarray, shape (N,), int64
+        Their ids on the board.
+    """
+    require_aruco()
+    if not len(marker_corners):
+        return np.zeros((0, 2)), np.zeros((0,), dtype=np.int64)
+    mc = [np.asarray(c, dtype=np.float32).reshape(1, 4, 2) for c in marker_corners]
+    mi = np.asarray(marker_ids, dtype=np.int32).reshape(-1, 1)
+    corners, ids, _, _ = _ARUCO.CharucoDetector(board).detectBoard(gray, markerCorners=mc, markerIds=mi)
+    if ids is None or corners is None or len(corners) == 0:
+        return np.zeros((0, 2)), np.zeros((0,), dtype=np.int64)
+    return np.asarray(corners, dtype=np.float64).reshape(-1, 2), np.asarray(ids).reshape(-1).astype(np.int64)

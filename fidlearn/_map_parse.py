@@ -19,7 +19,17 @@ from .errors import DictionaryError, MapError
 UNITS_TO_MM: dict[str, float] = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "ft": 304.8}
 
 
-_FULL_KEYS = {"units", "marker_size_mm", "dictionary", "markers", "name", "description", "surveyed"}
+_FULL_KEYS = {
+    "units",
+    "marker_size_mm",
+    "dictionary",
+    "markers",
+    "boards",
+    "bundles",
+    "name",
+    "description",
+    "surveyed",
+}
 
 
 def _units_name(units: Any, where: str) -> str:
@@ -113,7 +123,7 @@ def _check_layout(d: Any, source: str) -> tuple[bool, Mapping]:
             "its units, marker size or placements); give the map of marker placements here (command line: "
             "--map) and the camera file as the camera (--camera)"
         )
-    full = "markers" in d
+    full = any(k in d for k in ("markers", "boards", "bundles"))
     if not full and any(k in _FULL_KEYS for k in d):
         others = [k for k in d if k not in _FULL_KEYS]
         hint = f" (unknown field {others[0]!r}{did_you_mean(others[0], ['markers'])})" if others else ""
@@ -135,7 +145,7 @@ def _check_layout(d: Any, source: str) -> tuple[bool, Mapping]:
             f"{source}: unknown field {field!r}{did_you_mean(field, _FULL_KEYS)}; a full map has "
             f"{', '.join(sorted(_FULL_KEYS))}"
         )
-    markers = d["markers"]
+    markers = d.get("markers", {})
     if not isinstance(markers, Mapping):
         raise MapError(f'{source}: "markers" must be an object mapping ids to placements')
     return True, markers

@@ -17,7 +17,7 @@ detection reports.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -39,8 +39,18 @@ from ._map_parse import (
 )
 from ._wpilib import is_wpilib, map_from_wpilib, to_wpilib
 from .errors import DictionaryError, MapError
+from .markermap_entries import BoardEntry, BundleEntry, _Entries, _merge_placements, _parse_entries
 
-__all__ = ["MarkerMap", "MarkerPlacement", "MarkerKey", "UNITS_TO_MM", "MARKER_CORNERS_LOCAL", "CORNER_NAMES"]
+__all__ = [
+    "MarkerMap",
+    "MarkerPlacement",
+    "MarkerKey",
+    "BoardEntry",
+    "BundleEntry",
+    "UNITS_TO_MM",
+    "MARKER_CORNERS_LOCAL",
+    "CORNER_NAMES",
+]
 
 
 #: Corner names in the winding order used everywhere (ArUco's): top-left, top-right, bottom-right, bottom-left.
@@ -50,7 +60,7 @@ CORNER_NAMES = ("TL", "TR", "BR", "BL")
 MARKER_CORNERS_LOCAL = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, -1.0]])
 
 
-class MarkerMap:
+class MarkerMap(_Entries):
     """Markers placed in the world: ids, placements, marker size and dictionary.
 
     Build one with :meth:`load` (a JSON file) or :meth:`from_dict`. Lengths are
@@ -68,6 +78,8 @@ class MarkerMap:
         The units the map's file uses (kept to write it back the same way).
     source : str
         Where the map came from, named in error messages.
+    entries : sequence of BoardEntry or BundleEntry
+        Rigid entries (:mod:`fidlearn.markermap_entries`): their markers join ``placements``.
 
     Attributes
     ----------
@@ -75,6 +87,8 @@ class MarkerMap:
         Sorted by id.
     marker_size_mm, dictionary, units, source
         As given (the dictionary's name normalized). ``field_m``: a WPILib layout's field (length, width), m, else None.
+    entries : dict of str to BoardEntry or BundleEntry
+        The rigid entries by name; ``owner`` maps each of their markers' keys to its entry's name.
 
     Raises
     ------
@@ -100,6 +114,7 @@ class MarkerMap:
         dictionary: str = "ARUCO_ORIGINAL",
         units: str = "mm",
         source: str = "<map>",
+        entries: Sequence[BoardEntry | BundleEntry] = (),
     ):
         self.source = source
         self.field_m: tuple[float, float] | None = None  # a WPILib layout's field (length, width), m
@@ -109,7 +124,10 @@ class MarkerMap:
         except DictionaryError as exc:
             raise MapError(f"{source}: {exc}") from None
         self.units = _units_name(units, source)
-        self.placements: dict[int, MarkerPlacement] = _keyed(placements, self.dictionary, source)
+        singles = _keyed(placements, self.dictionary, source)
+        merged, self.owner = _merge_placements(singles, list(entries), self.dictionary, source)
+        self.entries = {e.name: e for e in entries}
+        self.placements: dict[int, MarkerPlacement] = _keyed(dict(enumerate(merged)), self.dictionary, source)
         if not self.placements:
             raise MapError(f"{source}: the map has no markers; add at least one placement")
 
@@ -129,8 +147,10 @@ class MarkerMap:
         Bare: ``{"0": {"translation": [...], "rotation": [...]}, ...}`` with
         ``units`` and ``marker_size_mm`` given here. Full: ``{"units": "ft",
         "marker_size_mm": 80, "dictionary": "ARUCO_ORIGINAL", "markers": {...}}``.
-        A value given both here and in the file must agree. WPILib's ``{"tags": [...], "field": {...}}``
-        (metres, each tag's centre; docs/conventions.md) with ``dictionary`` and ``marker_size_mm`` given here.
+        A value given both here and in the file must agree. The full layout may place boards and tag bundles
+        as rigid entries too (``"boards"``, ``"bundles"``: :mod:`fidlearn.markermap_entries`).
+        WPILib's ``{"tags": [...], "field": {...}}`` (metres, each tag's centre; docs/conventions.md) with
+        ``dictionary`` and ``marker_size_mm`` given here.
 
         Parameters
         ----------
@@ -176,7 +196,10 @@ class MarkerMap:
             key: MarkerPlacement(mid, t, r, s, name)  # type: ignore[arg-type]
             for key, (mid, t, r, s, name) in _placements(markers, units, source, dictionary).items()
         }
-        return cls(placements, _marker_size(size, source), dictionary=dictionary, units=units, source=source)
+        entries = _parse_entries(d, units, source, dictionary) if full else []
+        return cls(
+            placements, _marker_size(size, source), dictionary=dictionary, units=units, source=source, entries=entries
+        )
 
     @classmethod
     def load(
@@ -406,36 +429,6 @@ class MarkerMap:
         """
         return self.T_world_marker(marker_id)[:3, 2].copy()
 
-    def planarity_mm(self) -> float:
-        """How far the map is from flat.
-
-        Returns
-        -------
-        float
-            Largest distance (mm) of any corner from the plane that fits all corners best.
-        """
-        pts = np.concatenate(list(self.corners().values()))
-        centred = pts - pts.mean(axis=0)
-        _, s, vt = np.linalg.svd(centred, full_matrices=False)
-        return float(np.abs(centred @ vt[2]).max())
-
-    def is_coplanar(self, tol_mm: float = 1.0) -> bool:
-        """Whether every corner lies within ``tol_mm`` of one plane.
-
-        Coplanar maps suit IPPE (and have a two-fold ambiguity when seen from
-        afar); maps on several walls need a general solver.
-
-        Parameters
-        ----------
-        tol_mm : float
-            Largest distance from the plane, mm.
-
-        Returns
-        -------
-        bool
-        """
-        return self.planarity_mm() <= tol_mm
-
     # -- output ------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """The full layout, in the map's own units.
@@ -451,7 +444,8 @@ class MarkerMap:
             "units": self.units,
             "marker_size_mm": self.marker_size_mm,
             "dictionary": self.dictionary,
-            "markers": {str(key): _entry(p, scale) for key, p in self.placements.items()},
+            "markers": {str(key): _entry(p, scale) for key, p in self.placements.items() if key not in self.owner},
+            **self.entries_dict(scale),
         }
 
     def save(self, path: str | os.PathLike, format: str = "fidlearn") -> Path:  # noqa: A002 - the file's format

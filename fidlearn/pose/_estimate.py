@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,9 +14,11 @@ from ..errors import NoMarkersError, PoseError
 from ..frames._rotations import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
+from ._chess import _with_chess
 from ._inputs import (
     _check_inputs_lens,
     _check_options,
+    _chess_pairs,
     _lens_covariance,
     _lens_jacobians,
     _lens_refine,
@@ -61,6 +63,7 @@ def estimate_pose(
     refine_lm: bool | None = None,
     reject_outliers: bool = True,
     corner_sigma_px: float | None = None,
+    board_corners: Mapping[str, tuple] | None = None,
 ) -> Pose:
     """The camera's pose in the world from detected markers, using every marker the map knows.
 
@@ -126,6 +129,11 @@ def estimate_pose(
         fit), and never below ``MIN_SIGMA_PX``. The covariance measures more than
         this from the residuals (each marker's shift and size error too) and is
         widened for the uncertainty of those estimates (see :attr:`Pose.covariance`).
+    board_corners : mapping of str to (ids, corners_px), optional
+        Chess corners of the map's ChArUco board entries, by entry name: ids (N,) on the board and pixels
+        (N, 2), as OpenCV's ChArUco interpolation gives them (:func:`locate` finds them). They join the
+        marker corners with their own noise, measured from their residuals (:mod:`fidlearn.pose._chess`);
+        the pose's ``method`` then ends in ``"+chess"``. Pinhole cameras only (a fisheye's are not used).
 
     Returns
     -------
@@ -183,6 +191,7 @@ def estimate_pose(
     if refine_lm is None:
         refine_lm = method == "auto"
     refine_lm = bool(refine_lm)
+    obj_c, img_c = _chess_pairs(board_corners, marker_map)
 
     corners_px, ignored = _known_corners(dets, marker_map)
     world, faces = _world(marker_map)
@@ -199,7 +208,8 @@ def estimate_pose(
     if lens is not None:  # a fisheye's corners, undistorted: their noise is wider near the edge
         data.lens_D = _lens_jacobians(lens, obs.img)
         cands[0] = _weighted(data, cands[0])
-    return _pose_from(data, cands, unrefined, method_used)
+    pose = _pose_from(data, cands, unrefined, method_used)
+    return pose if lens is not None else _with_chess(pose, obs.obj, obs.img, camera, obj_c, img_c)
 
 
 def _known_corners(dets: list[Detection], marker_map: MarkerMap) -> tuple[dict[int, np.ndarray], list[int]]:

@@ -237,3 +237,39 @@ def _lens_refine(obj: np.ndarray, img: np.ndarray, camera: Camera, D: np.ndarray
         if done:
             break
     return R_wc, C, J
+
+
+def _chess_pairs(board_corners, marker_map: MarkerMap) -> tuple[np.ndarray, np.ndarray]:
+    """The 2D-3D pairs of ChArUco board entries' chess corners: world (N, 3), mm, and pixels (N, 2).
+
+    ``board_corners`` maps a ChArUco board entry's name to ``(ids (N,), corners_px (N, 2))`` as OpenCV's
+    ChArUco interpolation gives them (:func:`fidlearn._cv_charuco.interpolate_charuco`); None: no pairs.
+    Raises :class:`PoseError` for a name the map has no ChArUco board by, an id the board has not, or corners
+    that are not finite pixels.
+    """
+    if board_corners is None:
+        return np.zeros((0, 3)), np.zeros((0, 2))
+    if not isinstance(board_corners, Mapping):
+        raise PoseError("board_corners must map a ChArUco board entry's name to (ids, corners_px), or be None")
+    world = marker_map.chess_corners()
+    obj, img = [np.zeros((0, 3))], [np.zeros((0, 2))]
+    for name, value in board_corners.items():
+        if name not in world:
+            raise PoseError(
+                f"board_corners names {name!r}, but the map's ChArUco boards are {sorted(world)}; "
+                "give the chess corners of a board entry of the map"
+            )
+        try:
+            ids = np.asarray(value[0]).reshape(-1)
+            px = np.asarray(value[1], dtype=float).reshape(len(ids), 2)
+        except (TypeError, ValueError, IndexError):
+            raise PoseError(f"board_corners[{name!r}] must be (ids (N,), corners_px (N, 2))") from None
+        if not (np.issubdtype(ids.dtype, np.integer) and ids.size == len(set(ids.tolist()))):
+            raise PoseError(f"board_corners[{name!r}]: the ids must be distinct whole numbers")
+        if ids.size and (ids.min() < 0 or ids.max() >= len(world[name])):
+            raise PoseError(f"board_corners[{name!r}]: ids run 0 to {len(world[name]) - 1} on that board")
+        if not np.isfinite(px).all():
+            raise PoseError(f"board_corners[{name!r}] has NaN or infinite corners")
+        obj.append(world[name][ids])
+        img.append(px)
+    return np.concatenate(obj), np.concatenate(img)

@@ -5,15 +5,17 @@ from __future__ import annotations
 import dataclasses
 import os
 
+import cv2
 import numpy as np
 
 from .. import _cv
+from .._cv_charuco import interpolate_charuco
 from .._fisheye_edges import straighten_edges_fisheye
 from .._wpilib import outside_field
 from ..camera import Camera
 from ..detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_name, detect_markers
 from ..errors import ImageError, PoseError
-from ..markermap import MarkerMap
+from ..markermap import BoardEntry, MarkerMap
 from ._estimate import estimate_pose
 from ._inputs import _as_camera, _as_map, _check_pose_options
 from ._result import Pose
@@ -70,7 +72,10 @@ def locate(
         whole dictionary and list the other ids in ``Pose.ignored_ids``.
     **kw
         Passed to :func:`estimate_pose` (``method``, ``refine_lm``,
-        ``reject_outliers``, ``corner_sigma_px``).
+        ``reject_outliers``, ``corner_sigma_px``). A ChArUco board entry of the map
+        seen in the image adds its chess corners, interpolated from its detected markers
+        and refined on the image (OpenCV's ``CharucoDetector``), to the pose
+        (``estimate_pose(board_corners=...)``; a pinhole camera's).
 
     Returns
     -------
@@ -109,14 +114,17 @@ def locate(
     straighten = camera.model == "fisheye" and (DEFAULT_REFINE if refine is None else _refine_name(refine)) == "edges"
     if straighten:
         detections = _straightened(detections, camera, marker_map.dictionary, detector_params)
-    pose = estimate_pose(detections, marker_map, camera, **kw)
+    pinhole = camera.model != "fisheye"  # a ChArUco board entry's chess corners join a pinhole's pose
+    chess = _board_corners(image, marker_map, detections) if pinhole else None
+    pose = estimate_pose(detections, marker_map, camera, board_corners=chess, **kw)
     found = {marker_map.key(d.id, d.dictionary) for d in detections}
     missed = missed_in_view(marker_map, camera, pose.T_world_camera, found, detector_params)
     more = read_again(image, missed, refine, detector_params) if missed else []
     if more:  # markers the detector missed, found where the pose puts them
         if straighten:
             more = _straightened(more, camera, marker_map.dictionary, detector_params)
-        pose = estimate_pose(detections + more, marker_map, camera, **kw)
+        chess = _board_corners(image, marker_map, detections + more) if pinhole else None
+        pose = estimate_pose(detections + more, marker_map, camera, board_corners=chess, **kw)
     problem = outside_field(marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirrored corners
     if problem is not None:
         raise PoseError(problem)
@@ -163,3 +171,22 @@ def _detect_map_markers(
         # nothing of the map: detect the whole dictionary once, so the error lists what is in view
         detections = detect_markers(image, dictionary=dictionary, **{**det_kw, "refine": "none"})
     return detections
+
+
+def _board_corners(image: np.ndarray, marker_map: MarkerMap, detections: list[Detection]) -> dict | None:
+    """The chess corners of each ChArUco board entry whose markers were detected: ``{name: (ids, px)}``, or None."""
+    boards = {n: e for n, e in marker_map.entries.items() if isinstance(e, BoardEntry) and e.kind == "charuco"}
+    if not boards:
+        return None
+    gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    if gray.dtype != np.uint8:
+        return None
+    out = {}
+    for name, entry in boards.items():
+        mine = [d for d in detections if marker_map.owner.get(marker_map.key(d.id, d.dictionary)) == name]
+        if not mine:
+            continue
+        corners, ids = interpolate_charuco(entry.cv_board(), gray, [d.corners_px for d in mine], [d.id for d in mine])
+        if len(ids):
+            out[name] = (ids, corners)
+    return out or None
