@@ -151,8 +151,9 @@ class Pose(_PoseReadouts):
         ChArUco photos against their chessboard pose, 89-99 % with 1 to 3 markers but 77 % with 4-6 and only
         46 % with 7-17 markers: an error all markers share (there a scale along the line of sight between the
         default edge fit's corners on markers 23-26 px across and the chessboard corners; 82-87 % with
-        OpenCV's corner refinements) leaves no trace in the residuals and is not in it. An error of the map larger than a marker's shift
-        (a marker moved on the wall) is for the outlier screen, not the covariance.
+        OpenCV's corner refinements) leaves no trace in the residuals and is not in it. An error of the
+        map larger than a marker's shift (a marker moved on the wall) is for the outlier screen, not the
+        covariance.
     corner_sigma_px : float
         The corner noise (px, per coordinate) the covariance assumes: given, or
         estimated from the residuals (see :func:`estimate_pose`).
