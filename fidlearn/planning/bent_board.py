@@ -161,13 +161,13 @@ def board_bends(camera: Camera, board_points_mm: dict, image_points_px: dict, T_
     testable = {k for k, d in dof.items() if d >= 2}
     if not testable:
         return []
-    G, r, start = _linearised_calibration(rows)
+    start = np.cumsum([0] + [len(r) for r, *_ in rows])
     typical = float(np.median([float(rows[k][0] @ rows[k][0]) / (dof[k] + 3) for k in testable]))
     bent: list[Bend] = []
     done: set[int] = set()
     while testable - done:
         found = []
-        for k, (t, left, c, R_inv) in _bend_statistics(G, r, start, rows, testable - done).items():
+        for k, (t, left, c, R_inv) in _bend_statistics(rows, start, done, testable - done).items():
             s2 = max(typical, left / dof[k], 1e-300)
             limit = _stats.f_isf(BENT_FALSE_ALARM / len(names), 3, dof[k])
             sag, grad = _sag(board_points_mm[names[k]], c)
@@ -178,8 +178,7 @@ def board_bends(camera: Camera, board_points_mm: dict, image_points_px: dict, T_
             break
         k, worst = max(found, key=lambda kb: kb[1].F)
         bent.append(worst)
-        done.add(k)
-        G = np.column_stack([G, _bend_columns(start, rows, k)])  # its bend is fitted from now on
+        done.add(k)  # its bend is fitted from now on
     return bent
 
 
@@ -195,38 +194,38 @@ def _sag(points_mm: np.ndarray, c: np.ndarray) -> tuple[float, np.ndarray]:
     return float(z[hi] - z[lo]), F[hi] - F[lo]
 
 
-def _linearised_calibration(rows: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The Jacobian of every view's residuals (shared intrinsics, then 6 pose columns per view), the
-    residuals, and where each view's rows start (and the last ends)."""
-    start = np.cumsum([0] + [len(r) for r, *_ in rows])
-    n = rows[0][2].shape[1]
-    G = np.zeros((start[-1], n + 6 * len(rows)))
-    for k, (_, Je, Ji, _) in enumerate(rows):
-        G[start[k] : start[k + 1], :n] = Ji
-        G[start[k] : start[k + 1], n + 6 * k : n + 6 * k + 6] = Je
-    return G, np.concatenate([r for r, *_ in rows]), start
+def _projector(rows: list, fitted: set) -> tuple[list, np.ndarray, np.ndarray]:
+    """The calibration's column space, by blocks: per view an orthonormal basis of its own columns (its
+    pose, and its bend once fitted), then one of the shared intrinsics' columns beside those; and the
+    residuals left outside the whole space."""
+    local, shared, r_out = [], [], []
+    for k, (r, Je, Ji, B) in enumerate(rows):
+        Qe = np.linalg.qr(np.column_stack([Je, B]) if k in fitted else Je)[0]
+        local.append(Qe)
+        shared.append(Ji - Qe @ (Qe.T @ Ji))
+        r_out.append(r - Qe @ (Qe.T @ r))
+    Qi = np.linalg.qr(np.vstack(shared))[0]
+    r_perp = np.concatenate(r_out)
+    return local, Qi, r_perp - Qi @ (Qi.T @ r_perp)
 
 
-def _bend_columns(start: np.ndarray, rows: list, k: int) -> np.ndarray:
-    B = np.zeros((start[-1], 3))
-    B[start[k] : start[k + 1]] = rows[k][3]
-    return B
-
-
-def _bend_statistics(G: np.ndarray, r: np.ndarray, start: np.ndarray, rows: list, views) -> dict:
+def _bend_statistics(rows: list, start: np.ndarray, fitted: set, views) -> dict:
     """Per view ``(t, q, c, R^-1)``: how much a bend of its board would shrink the squared residuals
-    once the model ``G`` is refitted too (px^2), the view's own squared residuals left beside it,
-    the bend's coefficients (mm) and the factor of their covariance (``s^2 R^-1 R^-T``)."""
-    Q = np.linalg.qr(G)[0]
-    rest = r - Q @ (Q.T @ r)
+    once the intrinsics, every pose and the bends in ``fitted`` are refitted too (px^2), the view's own
+    squared residuals left beside it, the bend's coefficients (mm) and the factor of their covariance
+    (``s^2 R^-1 R^-T``). The calibration's columns are taken by blocks (each view's pose, then the shared
+    intrinsics beside them): the same projection as one QR of the whole Jacobian, at a fraction of its cost."""
+    local, Qi, rest = _projector(rows, fitted)
     out = {}
     for k in views:
-        B = _bend_columns(start, rows, k)
-        B -= Q @ (Q.T @ B)
+        a, b = start[k], start[k + 1]
+        Bk = rows[k][3] - local[k] @ (local[k].T @ rows[k][3])
+        B = -Qi @ (Qi[a:b].T @ Bk)
+        B[a:b] += Bk
         Qb, Rb = np.linalg.qr(B)
         if np.min(np.abs(np.diag(Rb))) > 1e-9 * max(float(np.abs(Rb).max()), 1e-300):
             c = Qb.T @ rest
-            left = (rest - Qb @ c)[start[k] : start[k + 1]]  # the view's residuals beside its bend
+            left = (rest - Qb @ c)[a:b]  # the view's residuals beside its bend
             out[k] = (float(c @ c), float(left @ left), np.linalg.solve(Rb, c), np.linalg.inv(Rb))
     return out
 
