@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._camera_checks import refuse_fisheye
 from ..camera import Camera
 from ..detection import Detection, detect_markers
 from ..errors import ImageError, SurveyError
@@ -54,7 +53,6 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     """``(marker_map, camera, sigma_mm, fixed)`` checked; raises SurveyError with the fix."""
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera)
-    refuse_fisheye(camera, "the survey", SurveyError)
     sigma = _sigma_mm(map_sigma_mm)
     fixed = _fixed_ids(fixed_ids, marker_map)
     mixed = [k for k in marker_map.ids if marker_map.placements[k].size_mm not in (None, marker_map.marker_size_mm)]
