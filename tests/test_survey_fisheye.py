@@ -194,3 +194,20 @@ def test_print_scale_from_a_fisheye_photo():
         assert len(r.marker_ids) == 8
         assert abs(r.scale - 0.98) <= 0.002, (k, r)
         assert abs(r.scale - 0.98) <= 4 * r.scale_std + 3e-4
+
+
+def test_a_marker_beyond_90_degrees_off_the_axis_is_left_out(room):
+    from fidlearn.survey._survey import _read_photos
+
+    truth, poses = room
+    # 350 px per radian: the picture's corners are 120 degrees off the axis, where no normalized point is
+    wide = fidlearn.Camera(
+        np.array([[350.0, 0, 640], [0, 350.0, 360], [0, 0, 1]]), np.zeros(4), (1280, 720), "", model="fisheye"
+    )
+    seen = [[Detection(i, c) for i, c in visible_markers(truth, wide, T).items()] for T in poses[:2]]
+    far = Detection(11, np.array([[1200.0, 20.0], [1270.0, 20.0], [1270.0, 80.0], [1200.0, 80.0]]))
+    assert np.all(np.isnan(wide.undistort_points(far.corners_px)))
+    kept = [d for d in seen[0] if d.id != 11]
+    ph = _read_photos([[*kept, far], seen[1]], truth, wide, None)
+    assert sorted(ph[0].corners) == sorted(d.id for d in kept)
+    assert sorted(ph[1].corners) == sorted(d.id for d in seen[1])

@@ -195,7 +195,10 @@ def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:
             corners[d.id] = None  # type: ignore[assignment]
         else:
             corners[d.id] = np.asarray(d.corners_px, float)
-    return _Photo(label, cam, {k: v for k, v in corners.items() if v is not None})
+    kept = {k: v for k, v in corners.items() if v is not None}
+    if cam.model == "fisheye":  # a ray 90 degrees or more off the axis has no normalized point: left out
+        kept = {k: v for k, v in kept.items() if np.all(np.isfinite(cam.undistort_points(v)))}
+    return _Photo(label, cam, kept)
 
 
 def _check_corners(i: int, dets, cam: Camera) -> None:
