@@ -182,7 +182,7 @@ def test_cli_surveys_rendered_fisheye_pictures(tmp_path, capsys):
     g = np.array([got.placements[i].translation_mm for i in truth.ids])
     t = np.array([truth.placements[i].translation_mm for i in truth.ids])
     dg, dt = (np.linalg.norm(a[:, None] - a[None], axis=2) for a in (g, t))
-    assert np.abs(dg - dt).max() < 15.0
+    assert np.abs(dg - dt).max() < 6.0  # 2.7 mm measured, from detected corners
 
 
 def test_print_scale_from_a_fisheye_photo():
