@@ -75,13 +75,11 @@ def test_what_models_the_pinhole_only_refuses_a_fisheye_with_the_mend(scenes):
     from fidlearn.errors import FidlearnError
     from fidlearn.planning import plan_room, predict_accuracy
     from fidlearn.pose import pose_jacobian, refine_pose_lm
-    from fidlearn.survey import survey
 
     scene = scenes[0]
     calls = [
         lambda cam: predict_accuracy(scene.marker_map, cam, scene.T_world_camera),
         lambda cam: plan_room(scene.marker_map, cam),
-        lambda cam: survey([scene.image], scene.marker_map, cam),
         lambda cam: pose_jacobian(scene.marker_map.marker_corners(0), scene.T_world_camera, cam),
         lambda cam: refine_pose_lm(scene.marker_map.marker_corners(0), scene.truth[0], cam, np.zeros(3), np.ones(3)),
     ]

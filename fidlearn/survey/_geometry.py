@@ -39,13 +39,17 @@ def placement_from_photo(
     """One marker's placement seen in one photo: ``(R_world_place (3, 3), top-left corner (3,), mm)``.
 
     IPPE_SQUARE on the four corners in the marker's own frame, then chained with the camera's
-    pose in the world. None when OpenCV finds no pose.
+    pose in the world. A fisheye's corners are undistorted exactly first (``camera.undistort_points``),
+    as OpenCV's solvePnP models the pinhole lens only. None when OpenCV finds no pose.
     """
     s = float(marker_size_mm)
     obj = np.array([[-s / 2, s / 2, 0], [s / 2, s / 2, 0], [s / 2, -s / 2, 0], [-s / 2, -s / 2, 0]])
-    ok, rvec, tvec = cv2.solvePnP(
-        obj, np.asarray(corners_px, float).reshape(4, 1, 2), camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE
-    )
+    px, dist = np.asarray(corners_px, float).reshape(4, 2), camera.dist
+    if getattr(camera, "model", "pinhole") == "fisheye":
+        px, dist = camera.undistort_points(px), np.zeros(5)
+        if not np.all(np.isfinite(px)):
+            return None
+    ok, rvec, tvec = cv2.solvePnP(obj, px.reshape(4, 1, 2), camera.K, dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
     if not ok or not np.all(np.isfinite(rvec)):
         return None
     R_cm = cv2.Rodrigues(rvec)[0]

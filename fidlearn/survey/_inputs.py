@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._camera_checks import refuse_fisheye
 from ..camera import Camera
 from ..detection import Detection, detect_markers
 from ..errors import ImageError, SurveyError
@@ -54,7 +53,6 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     """``(marker_map, camera, sigma_mm, fixed)`` checked; raises SurveyError with the fix."""
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera)
-    refuse_fisheye(camera, "the survey", SurveyError)
     sigma = _sigma_mm(map_sigma_mm)
     fixed = _fixed_ids(fixed_ids, marker_map)
     mixed = [k for k in marker_map.ids if marker_map.placements[k].size_mm not in (None, marker_map.marker_size_mm)]
@@ -197,7 +195,10 @@ def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:
             corners[d.id] = None  # type: ignore[assignment]
         else:
             corners[d.id] = np.asarray(d.corners_px, float)
-    return _Photo(label, cam, {k: v for k, v in corners.items() if v is not None})
+    kept = {k: v for k, v in corners.items() if v is not None}
+    if cam.model == "fisheye":  # a ray 90 degrees or more off the axis has no normalized point: left out
+        kept = {k: v for k, v in kept.items() if np.all(np.isfinite(cam.undistort_points(v)))}
+    return _Photo(label, cam, kept)
 
 
 def _check_corners(i: int, dets, cam: Camera) -> None:

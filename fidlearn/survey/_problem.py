@@ -8,12 +8,13 @@ Unknowns, 6 per camera pose and 6 per free marker, as increments from a referenc
 
 Residuals, each divided by its standard deviation:
 
-* every corner of every marker seen in every photo: projected (with the camera's distortion)
-  minus detected, 2 per corner, over ``sigma_px``;
+* every corner of every marker seen in every photo: projected through the camera's lens model
+  (OpenCV's pinhole with its distortion, or the Kannala-Brandt fisheye) minus detected, in the
+  picture's own pixels, 2 per corner, over ``sigma_px``;
 * every free marker with a tape placement: ``log(R @ R_tape^T)`` over ``sigma_rot_rad`` and
   ``p - p_tape`` over ``sigma_mm`` (6 per marker).
 
-The Jacobian is analytic (the distortion's 2x2 part by central differences) and sparse: a
+The Jacobian is analytic (the lens model's 2x2 part by central differences on the normalized point) and sparse: a
 corner's two rows touch only its camera's 6 columns and its marker's 6.
 """
 
@@ -56,6 +57,7 @@ class Problem:
     prior_p: np.ndarray  # (q, 3)
     sigma_mm: float
     sigma_rot_rad: float
+    model: str = "pinhole"  # the lens model: "pinhole" or "fisheye" (Camera.model)
 
     @property
     def n_cams(self) -> int:
@@ -89,7 +91,7 @@ class Problem:
     def reprojection_px(self, x: np.ndarray) -> np.ndarray:
         """Projected minus detected corners (n, 2), px."""
         _, _, _, P = self._points(x)
-        return _pixels_from_normalized(P[:, :2] / P[:, 2:3], self.K, self.dist) - self.obs_px
+        return _pixels_from_normalized(P[:, :2] / P[:, 2:3], self.K, self.dist, self.model) - self.obs_px
 
     def prior_residuals(self, x: np.ndarray) -> np.ndarray:
         """Tape prior residuals (q, 6): rotation over sigma_rot_rad, then position over sigma_mm."""
@@ -105,7 +107,7 @@ class Problem:
     def jacobian(self, x: np.ndarray):
         """The Jacobian of :meth:`residuals` at ``x``, sparse (CSR)."""
         R_cam, _, arm, P = self._points(x)
-        D = _projection_jacobian(P, self.K, self.dist) / self.sigma_px  # (n, 2, 3)
+        D = _projection_jacobian(P, self.K, self.dist, self.model) / self.sigma_px  # (n, 2, 3)
         m6 = 6 * self.n_cams
         xc = x[:m6].reshape(-1, 6)
         c, j = self.obs_cam, self.obs_marker
@@ -161,18 +163,14 @@ def _prior_entries(prob: Problem, x: np.ndarray, row0: int):
     return np.concatenate(data), np.concatenate(rows), np.concatenate(cols)
 
 
-def _projection_jacobian(P: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """d(pixel)/d(point in the camera frame), (n, 2, 3): pinhole analytic, distortion by central differences."""
+def _projection_jacobian(P: np.ndarray, K: np.ndarray, dist: np.ndarray, model: str = "pinhole") -> np.ndarray:
+    """d(pixel)/d(point in the camera frame), (n, 2, 3): depth division analytic, lens model by central differences."""
     z = P[:, 2]
     xy = P[:, :2] / z[:, None]
     h = _H_NORM
-    du_dx = (_pixels_from_normalized(xy + [h, 0.0], K, dist) - _pixels_from_normalized(xy - [h, 0.0], K, dist)) / (
-        2 * h
-    )
-    du_dy = (_pixels_from_normalized(xy + [0.0, h], K, dist) - _pixels_from_normalized(xy - [0.0, h], K, dist)) / (
-        2 * h
-    )
-    A = np.stack([du_dx, du_dy], axis=2)  # (n, 2, 2): d pixel / d normalized
+    steps = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
+    px = _pixels_from_normalized((xy[:, None, :] + steps).reshape(-1, 2), K, dist, model).reshape(-1, 4, 2)
+    A = np.stack([px[:, 0] - px[:, 1], px[:, 2] - px[:, 3]], axis=2) / (2 * h)  # (n, 2, 2): d pixel / d normalized
     B = np.zeros((len(P), 2, 3))
     B[:, 0, 0] = 1 / z
     B[:, 1, 1] = 1 / z

@@ -64,6 +64,7 @@ def build_problem(cams: list, slots: list[int], n_free: int, placed: dict, tape_
         prior_p=np.array([tape_priors[i][1] for i in prior_ids], float).reshape(-1, 3),
         sigma_mm=opts["sigma_mm"],
         sigma_rot_rad=opts["sigma_rot_rad"],
+        model=cam.model,
     )
 
 

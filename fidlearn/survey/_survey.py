@@ -39,8 +39,10 @@ def survey(
     """The marker map from photos, joined with the tape map: a bundle adjustment.
 
     Unknowns: every photo's camera pose and every marker's placement (6 each). Residuals: each
-    detected corner's reprojection (with distortion) over the corner noise, and each taped marker's
-    placement minus the tape's over ``map_sigma_mm`` (position, per coordinate) and
+    detected corner's reprojection through the camera's lens model (OpenCV's pinhole with its
+    distortion, or the Kannala-Brandt fisheye: ``Camera.model``), in the picture's own pixels, over
+    the corner noise, and each taped marker's placement minus the tape's over ``map_sigma_mm``
+    (position, per coordinate) and
     ``map_sigma_mm / marker_size_mm`` radians (rotation: as if two corners one side apart were
     each off by the tape's sigma). ``scipy.optimize.least_squares`` solves it with a sparse
     analytic Jacobian, first with a soft-L1 loss on the tape residuals (so a marker taped 100 mm
@@ -67,7 +69,9 @@ def survey(
     marker_map : MarkerMap or path
         The tape map: each marker's top-left corner and rotation, as measured.
     camera : Camera or path
-        The calibrated camera (fitted to each image's size as :func:`fidlearn.locate` does).
+        The calibrated camera, pinhole or fisheye (fitted to each image's size as :func:`fidlearn.locate`
+        does). A fisheye's corners are projected through its own model, markers near the picture's
+        edge included; a ray 90 degrees or more off the axis has no place in the adjustment.
     map_sigma_mm : float or None
         Standard deviation of the tape's top-left corners, mm per coordinate; ``math.inf`` to let
         the photos alone decide (then ``fixed_ids`` hold the map in the world). None (the default):
