@@ -66,6 +66,7 @@ from .errors import FidlearnError, NoMarkersError, PoseError
 from .markermap import MarkerMap
 from .pose import Pose, estimate_pose
 from .pose._inputs import _check_pose_options
+from .pose._locate import chess_corners_seen
 
 __all__ = ["MarkerTracker"]
 
@@ -259,10 +260,10 @@ class MarkerTracker:
         no marker was detected
         """
         gray = as_gray(image, where="frame")
-        pose, error = self._estimate(self._detect(gray))
+        pose, error = self._estimate(gray, self._detect(gray))
         if pose is None and not self.last_full:
             # the windows found too little to solve: look at the whole frame before giving up
-            pose, error = self._estimate(self._detect_full(gray))
+            pose, error = self._estimate(gray, self._detect_full(gray))
         self._prev_T = None if self.last_pose is None else self.last_pose.T_world_camera
         self.last_pose = pose
         if pose is None:
@@ -322,11 +323,15 @@ class MarkerTracker:
             out.sort(key=lambda d: (d.id, order[str(d.dictionary)]))
         return out
 
-    def _estimate(self, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
-        """The pose from the detections, or None and why not (the options were checked when the tracker was made)."""
+    def _estimate(self, gray: np.ndarray, dets: list[Detection]) -> tuple[Pose | None, FidlearnError | None]:
+        """The pose from the detections, or None and why not (the options were checked when the tracker was made).
+
+        A ChArUco board entry's chess corners join the pose as in :func:`fidlearn.locate` (a pinhole camera's).
+        """
         assert self._cam is not None  # set by _detect
+        chess = chess_corners_seen(gray, self.marker_map, dets) if self._cam.model != "fisheye" else None
         try:
-            pose = estimate_pose(dets, self.marker_map, self._cam, **self.pose_options)
+            pose = estimate_pose(dets, self.marker_map, self._cam, board_corners=chess, **self.pose_options)
         except (NoMarkersError, PoseError) as e:  # no marker of the map, or a degenerate frame
             return None, e
         problem = outside_field(self.marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirror

@@ -132,3 +132,18 @@ def test_locate_with_a_bundle_of_markers_on_one_object():
     assert pose.marker_ids == (0, 1, 2, 3)
     assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 1.5  # 1.5 m away
     assert pose.position_ellipsoid_contains(T[:3, 3], 0.99)
+
+
+def test_marker_tracker_uses_the_board_entrys_chess_corners_as_locate_does():
+    m = board_map()
+    T = look_at([650, 250, 950], [0, 100, 860])
+    image = render(m, T)
+    tracker = fidlearn.MarkerTracker(m, CAMERA)
+    first = tracker.locate(image)  # a full-frame detection
+    second = tracker.locate(image)  # windows around the predicted markers
+    assert not tracker.last_full
+    reference = locate(image, m, CAMERA)
+    for pose in (first, second):
+        assert pose.method.endswith("+chess")
+        assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 1.0
+        np.testing.assert_allclose(pose.position_mm, reference.position_mm, atol=0.05)

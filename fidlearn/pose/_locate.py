@@ -115,7 +115,7 @@ def locate(
     if straighten:
         detections = _straightened(detections, camera, marker_map.dictionary, detector_params)
     pinhole = camera.model != "fisheye"  # a ChArUco board entry's chess corners join a pinhole's pose
-    chess = _board_corners(image, marker_map, detections) if pinhole else None
+    chess = chess_corners_seen(image, marker_map, detections) if pinhole else None
     pose = estimate_pose(detections, marker_map, camera, board_corners=chess, **kw)
     found = {marker_map.key(d.id, d.dictionary) for d in detections}
     missed = missed_in_view(marker_map, camera, pose.T_world_camera, found, detector_params)
@@ -123,7 +123,7 @@ def locate(
     if more:  # markers the detector missed, found where the pose puts them
         if straighten:
             more = _straightened(more, camera, marker_map.dictionary, detector_params)
-        chess = _board_corners(image, marker_map, detections + more) if pinhole else None
+        chess = chess_corners_seen(image, marker_map, detections + more) if pinhole else None
         pose = estimate_pose(detections + more, marker_map, camera, board_corners=chess, **kw)
     problem = outside_field(marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirrored corners
     if problem is not None:
@@ -173,7 +173,7 @@ def _detect_map_markers(
     return detections
 
 
-def _board_corners(image: np.ndarray, marker_map: MarkerMap, detections: list[Detection]) -> dict | None:
+def chess_corners_seen(image: np.ndarray, marker_map: MarkerMap, detections: list[Detection]) -> dict | None:
     """The chess corners of each ChArUco board entry whose markers were detected: ``{name: (ids, px)}``, or None."""
     boards = {n: e for n, e in marker_map.entries.items() if isinstance(e, BoardEntry) and e.kind == "charuco"}
     if not boards:
