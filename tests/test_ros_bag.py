@@ -291,6 +291,68 @@ def test_locate_track_a_bag_on_its_stamps(tmp_path, capsys, drive):
     assert np.linalg.norm(np.array([last.x, last.y, last.z]) * 1000 - drive.T_world_camera[-1][:3, 3]) < 15.0
 
 
+def odometry_samples(drive):
+    """The camera's true path as a robot's odometry (the camera is the base), in an odom frame of its own."""
+    T_odom_world = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(0, 0, 35), [400.0, -250.0, 0.0])
+    return [(s, T_odom_world @ T) for s, T in zip(stamps(), drive.T_world_camera)]
+
+
+def test_locate_track_with_the_bags_odometry_topic_as_with_the_same_csv(tmp_path, capsys, drive):
+    images = [im.copy() for im in drive.images]
+    for k in (6, 7, 8):  # the markers out of sight: only the odometry carries the track
+        images[k][:] = 128
+    samples = odometry_samples(drive)
+    bag = write_image_bag(tmp_path / "in.mcap", images, CAM, stamps(), odometry=samples)
+    odometry = fidlearn.ros.read_bag_odometry(bag, "/odom")
+    assert odometry.times_s == pytest.approx([(s - stamps()[0]) / 1e9 for s in stamps()], abs=1e-12)
+    np.testing.assert_allclose(odometry.poses[5], samples[5][1], atol=1e-6)
+    csv = tmp_path / "odom.csv"
+    rows = ["t_s,x_m,y_m,z_m,qx,qy,qz,qw"]
+    for t, T in zip(odometry.times_s, odometry.poses):
+        q = ros_pose(fidlearn.TrackedPose(0.0, T, np.eye(6), "measured"))["pose"]["pose"]
+        rows.append(",".join(repr(float(v)) for v in [t, *q["position"].values(), *q["orientation"].values()]))
+    csv.write_text("\n".join(rows) + "\n")
+    m = data_path("world_map.json")
+    outs = {}
+    for name, extra in (("topic", ["--odometry-topic", "/odom"]), ("csv", ["--odometry", csv])):
+        out = tmp_path / f"{name}.jsonl"
+        code, text, err = run(capsys, "locate", bag, "--map", m, "--track", "-o", out, *extra)
+        assert code == 0, err
+        assert "odometry scale learnt from the poses" in text
+        outs[name] = [json.loads(line) for line in out.read_text().splitlines()]
+    for a, b in zip(outs["topic"], outs["csv"]):
+        assert a["position_mm"] == pytest.approx(b["position_mm"], abs=1e-6)
+    bridged = outs["topic"][8]
+    assert bridged["status"] != "measured"
+    assert np.linalg.norm(np.array(bridged["position_mm"]) - drive.T_world_camera[8][:3, 3]) < 15.0
+    # without the odometry the gap is bridged by the motion model alone, farther from the truth
+    code, _, err = run(capsys, "locate", bag, "--map", m, "--track", "-o", tmp_path / "none.jsonl")
+    alone = [json.loads(line) for line in (tmp_path / "none.jsonl").read_text().splitlines()][8]
+    assert np.linalg.norm(np.array(alone["position_mm"]) - drive.T_world_camera[8][:3, 3]) > np.linalg.norm(
+        np.array(bridged["position_mm"]) - drive.T_world_camera[8][:3, 3]
+    )
+
+
+def test_the_bags_odometry_topic_refused_clearly(tmp_path, capsys, drive):
+    m = data_path("world_map.json")
+    bag = write_image_bag(tmp_path / "in.mcap", drive.images[:2], CAM, stamps(2))
+    assert_user_error(*run(capsys, "locate", bag, "--map", m, "--track", "--odometry-topic", "/odom")[::2],
+                      "no topic '/odom' in this bag; its Odometry topics: none")  # fmt: skip
+    one = write_image_bag(tmp_path / "one.mcap", drive.images[:2], CAM, stamps(2), odometry=odometry_samples(drive)[:1])
+    assert_user_error(*run(capsys, "locate", one, "--map", m, "--track", "--odometry-topic", "/odom")[::2],
+                      "the motion needs two")  # fmt: skip
+    assert_user_error(*run(capsys, "locate", bag, "--map", m, "--odometry-topic", "/odom")[::2], "add --track")
+    (tmp_path / "o.csv").write_text("t_s,x_m,y_m,z_m,qx,qy,qz,qw\n")
+    assert_user_error(*run(capsys, "locate", bag, "--map", m, "--track", "--odometry-topic", "/odom",
+                           "--odometry", tmp_path / "o.csv")[::2], "give the odometry once")  # fmt: skip
+    pic = data_path("scenes", "scene_00.png")
+    cam = data_path("scenes", "camera.json")
+    assert_user_error(*run(capsys, "locate", pic, "--camera", cam, "--map", m, "--odometry-topic", "/odom")[::2],
+                      "chooses a topic of a ROS 2 bag")  # fmt: skip
+    with pytest.raises(RosFormatError, match="no topic '/nope'"):
+        fidlearn.ros.read_bag_odometry(one, "/nope")
+
+
 def test_locate_bag_user_errors(tmp_path, capsys, drive):
     m = data_path("world_map.json")
     bag = write_image_bag(tmp_path / "in.mcap", drive.images[:2], CAM, stamps(2))

@@ -16,7 +16,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import CameraError, UsageError
 from ..images import Frame
-from ..ros import BagWriter, is_bag, read_bag
+from ..ros import BagWriter, is_bag, read_bag, read_bag_odometry
 
 BAG_HELP = """\
 ROS 2 bags: give a bag folder (metadata.yaml) or a .mcap file as the only input. Its
@@ -27,7 +27,9 @@ or --camera, which then stands in for it. -o OUT.mcap (or -o FOLDER --format bag
 bag: /fidlearn/pose (geometry_msgs/msg/PoseWithCovarianceStamped, frame map, at each image's
 stamp), /fidlearn/odometry (nav_msgs/msg/Odometry, with --track), /tf (map -> the camera's frame,
 or map -> base_link with --mount), /tf_static (base_link -> camera: the mount) and
-/fidlearn/markers (visualization_msgs/msg/MarkerArray: the map)."""
+/fidlearn/markers (visualization_msgs/msg/MarkerArray: the map). With --track, --odometry-topic
+TOPIC reads the robot's odometry (nav_msgs/msg/Odometry, its pose in the odom frame at each
+header stamp) from the bag, as --odometry reads it from a CSV file (--odometry-drift applies)."""
 
 
 def add_bag_options(p) -> None:
@@ -42,6 +44,9 @@ def add_bag_options(p) -> None:
     g.add_argument("--image-topic", metavar="TOPIC", help="the bag's image topic (default its only one)")
     g.add_argument(
         "--camera-info-topic", metavar="TOPIC", help="the bag's CameraInfo topic (default beside the images)"
+    )
+    g.add_argument(
+        "--odometry-topic", metavar="TOPIC", help="with --track: the robot's odometry from the bag (nav_msgs/Odometry)"
     )
 
 
@@ -66,7 +71,11 @@ def bag_input(args) -> Path | None:
     """
     bags = [Path(p) for p in args.inputs if is_bag(p)]
     if not bags:
-        for option, value in (("--image-topic", args.image_topic), ("--camera-info-topic", args.camera_info_topic)):
+        for option, value in (
+            ("--image-topic", args.image_topic),
+            ("--camera-info-topic", args.camera_info_topic),
+            ("--odometry-topic", args.odometry_topic),
+        ):
             if value is not None:
                 raise UsageError(f"{option} chooses a topic of a ROS 2 bag: give the bag (a folder or a .mcap file)")
         if args.camera is None:
@@ -141,6 +150,28 @@ class BagRun:
                 )
             self.stamps.append(bf.stamp)
             yield Frame(f"{self.name}#{k}", bf.image, str(self.bag.path), "video")
+
+    def odometry(self, topic: str, drift: float):
+        """The robot's odometry on ``topic``, timed from the first image's stamp as the frames are.
+
+        Parameters
+        ----------
+        topic : str
+            The ``nav_msgs/msg/Odometry`` topic (``--odometry-topic``).
+        drift : float
+            ``--odometry-drift``.
+
+        Returns
+        -------
+        fidlearn.ros.Odometry
+            Its samples.
+
+        Raises
+        ------
+        RosFormatError
+            No such topic, fewer than two messages, a message that is no pose.
+        """
+        return read_bag_odometry(self.bag.path, topic, drift, image_topic=self.bag.image_topic)
 
     def times(self):
         """Each frame's time, seconds from the first frame's stamp (for :func:`fidlearn.track`).

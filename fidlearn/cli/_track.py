@@ -104,7 +104,8 @@ def check_track_args(args, inputs: list[Path]) -> Path | None:
         args.format = "bag"
     if not args.track:
         bag = args.format == "bag"
-        used = [o for o, v in (("--odometry", args.odometry), ("--mount", args.mount),
+        used = [o for o, v in (("--odometry", args.odometry), ("--odometry-topic", args.odometry_topic),
+                               ("--mount", args.mount),
                                ("--format", None if bag else args.format), ("-o", None if bag else args.output))
                 if v is not None]  # fmt: skip
         if used:
@@ -116,6 +117,8 @@ def check_track_args(args, inputs: list[Path]) -> Path | None:
         raise UsageError(f"--odometry-drift {args.odometry_drift:g}: give a fraction between 0 and 1 (0.02 is 2 %)")
     if args.format is not None and args.output is None:
         raise UsageError("--format says how -o is written: give -o FILE")
+    if args.odometry is not None and args.odometry_topic is not None:
+        raise UsageError("give the odometry once: --odometry ODOM.csv or --odometry-topic TOPIC (from the bag)")
     if args.camera_index is not None:
         raise UsageError("--track runs over files (videos, pictures); a live camera is not tracked yet")
     if args.json is not None or args.annotate is not None:
@@ -270,6 +273,8 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
         check_picture_sizes(items, camera, args.max_megapixels * 1e6)
     mount = read_mount_json(args.mount) if args.mount else None
     odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
+    if args.odometry_topic is not None and bag_run is not None:
+        odometry = bag_run.odometry(args.odometry_topic, args.odometry_drift)
     frames_in, times = _timed_frames(args, items, bag_run)
     steps = track(
         frames_in, marker_map, camera, fps=args.fps, refine=args.refine, T_camera_base=mount, odometry=odometry,
