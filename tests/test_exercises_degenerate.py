@@ -9,6 +9,7 @@ import pytest
 
 from fidlearn import exercises, frames
 from fidlearn.exercises import INCORRECT
+from fidlearn.exercises.lessons import l09_robot
 
 
 def incorrect(q, answer) -> bool:
@@ -16,7 +17,7 @@ def incorrect(q, answer) -> bool:
 
 
 def check_09_q4(learner: str) -> None:
-    q = exercises.lesson("09", learner=learner).q4
+    q = l09_robot._q4(learner)  # q4 alone: the lesson would render q1's drive too (see the test below)
     p = np.asarray(q.inputs.positions_mm)
     ok = ~np.isnan(p).any(axis=1)
     distance = np.sum(np.linalg.norm(np.diff(p[ok, :2], axis=0), axis=1))
@@ -47,6 +48,13 @@ def check_05_q3(learner: str) -> None:
 def test_cheap_variants_of_100_learners(check):
     for learner in range(100):
         check(str(learner))
+
+
+def test_09_q4_alone_is_the_lessons_q4():
+    for learner in ("0", "7", "123"):
+        alone, in_lesson = l09_robot._q4(learner), exercises.lesson("09", learner=learner).q4
+        np.testing.assert_array_equal(alone.inputs.positions_mm, in_lesson.inputs.positions_mm)
+        np.testing.assert_array_equal(alone.inputs.timestamps_s, in_lesson.inputs.timestamps_s)
 
 
 def test_turned_markers_of_10_learners():
