@@ -135,7 +135,11 @@ class Pose(_PoseReadouts):
         ``PRIOR_SIZE_REL`` in ``fidlearn.pose._noise``, worth ``PRIOR_DOF`` degrees of freedom). With
         ``corner_sigma_px`` given, ``a`` is its square (and with fewer than 4 markers the covariance is
         the Cramer-Rao bound ``corner_sigma_px^2 (J^T J)^-1``). The estimate's own uncertainty widens it
-        by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu`` Satterthwaite's over the parts). When
+        by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu`` Satterthwaite's over the parts). A pinhole
+        camera that carries its calibration's covariance (``Camera.intrinsics_covariance``,
+        :func:`fidlearn.calibration.camera_with_uncertainty`) adds ``A Sigma_k A^T``, ``A = (J^T J)^-1 J^T
+        J_k`` the pose's response to an error of the intrinsics (``J_k`` the corners' Jacobian on them): the
+        calibration's error, the same in every pose and shown by no residual. When
         the pose is ``ambiguous`` it is instead the second moment, about this pose, of the mixture of
         both poses (weights from their likelihood ratio), so the ellipsoid reaches the alternative. The
         alternative's own covariance is the local one, with the same noise. None if the pose is not
