@@ -151,11 +151,14 @@ class Pose(_PoseReadouts):
         estimated, 95-96.5 % on six and twelve markers (``tests/test_pose_noise.py``); with fewer than 4
         markers and the noise estimated, 99 % (the prior mix holds a marker shift these renders lack); on
         real photos (``python -m benchmarks real``, docs/benchmarks.md): the robot's photos of a slightly
-        bent ChArUco board, the truth's own covariance added, 14 of 16 camera positions inside; the course's
-        ChArUco photos against their chessboard pose, 89-99 % with 1 to 3 markers but 77 % with 4-6 and only
-        46 % with 7-17 markers: an error all markers share (there a scale along the line of sight between the
+        bent ChArUco board, the truth's own covariance added, 14 of 16 camera positions inside, 16 of 16
+        (position NEES median 2.6) with the calibration's covariance on the camera; the course's ChArUco
+        photos against their chessboard pose, with it, 93-99.5 % with 1 to 3 markers but 82.5 % with 4-6 and
+        65.5 % with 7-17 markers: an error all markers share (there a scale along the line of sight between the
         default edge fit's corners on markers 23-26 px across and the chessboard corners; 82-87 % with
-        OpenCV's corner refinements) leaves no trace in the residuals and is not in it. An error of the
+        OpenCV's corner refinements) leaves no trace in the residuals and is not in it. With intrinsics drawn
+        wrong from the camera's covariance on renders, 98 % (11 % without it; ``tests/test_pose_calibration.py``).
+        An error of the
         map larger than a marker's shift (a marker moved on the wall) is for the outlier screen, not the
         covariance.
     corner_sigma_px : float
