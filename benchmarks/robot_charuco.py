@@ -28,10 +28,12 @@ from scipy.spatial.transform import Rotation
 
 import fidlearn
 from fidlearn import Camera, MarkerMap, frames
-from fidlearn.calibration import calibrate_charuco
+from fidlearn.calibration import calibrate_charuco, camera_with_uncertainty
+from fidlearn.calibration.quality import MIN_GOOD_VIEWS
 from fidlearn.data import data_path
 from fidlearn.detection import detect_markers, load_image
 from fidlearn.markermap_entries import BOARD_TO_WORLD
+from fidlearn.planning.coach import intrinsics_information, uncertainty_map
 
 from .handeye import invert, transform
 
@@ -166,11 +168,47 @@ def opencv_calibration(photos=range(N_PHOTOS)) -> tuple[Camera, float]:
     return Camera(K, np.ravel(dist), IMAGE_SIZE, source=f"cv2.calibrateCamera, {len(obj)} photos"), float(rms)
 
 
-def fidlearn_calibration(photos=range(N_PHOTOS)) -> tuple[Camera, float]:
-    """fidlearn's calibration from the photos (:func:`fidlearn.calibration.calibrate_charuco`) and its RMS (px)."""
+def fidlearn_calibration(photos=range(N_PHOTOS), with_uncertainty: bool = False) -> tuple[Camera, float]:
+    """fidlearn's calibration from the photos (:func:`fidlearn.calibration.calibrate_charuco`) and its RMS (px);
+    ``with_uncertainty``: the camera carries its intrinsics' covariance (``camera_with_uncertainty``)."""
     board_spec = fidlearn.Board.charuco(SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY)
     result = calibrate_charuco([photo(i) for i in photos], board_spec, min_corners=MIN_CORNERS)
-    return result.camera, float(result.rms_px)
+    camera = camera_with_uncertainty(result) if with_uncertainty else result.camera
+    return camera, float(result.rms_px)
+
+
+@cache
+def _views_information() -> tuple:
+    """fidlearn's calibration of every photo: its camera, RMS, each photo's information on the intrinsics (its
+    board pose marginalised out, ``coach.intrinsics_information``) and the views' median distance (mm)."""
+    board_spec = fidlearn.Board.charuco(SQUARES, SQUARE_MM, MARKER_MM, DICTIONARY)
+    cal = calibrate_charuco([photo(i) for i in range(N_PHOTOS)], board_spec, min_corners=MIN_CORNERS)
+    info = {
+        int(name.split()[-1]): intrinsics_information(cal.camera, {name: cal.board_points_mm[name]}, {name: T})
+        for name, T in cal.T_camera_board.items()
+    }
+    distance = float(np.median([np.linalg.norm(T[:3, 3]) for T in cal.T_camera_board.values()]))
+    return cal.camera, cal.rms_px, info, distance
+
+
+def predicted_uncertainty_px(photos) -> float:
+    """The mean over the picture of fidlearn's predicted reprojection uncertainty (px per axis) of a calibration
+    from ``photos`` (those with a calibration view): ``coach.uncertainty_map`` at the views' median distance, the
+    covariance ``rms^2`` times the inverse of their summed information."""
+    camera, rms, info, distance = _views_information()
+    total = sum(info[i] for i in photos if i in info) + 1e-9 * np.eye(4 + len(camera.dist))
+    return float(np.mean(uncertainty_map(camera, rms**2 * np.linalg.pinv(total), distance)))
+
+
+def coached_photos(n: int = MIN_GOOD_VIEWS) -> list[int]:
+    """``n`` photos chosen by fidlearn's own predicted uncertainty, the robot unused: one at a time, the photo that
+    most lowers :func:`predicted_uncertainty_px` of those chosen before it."""
+    usable = list(_views_information()[2])
+    chosen: list[int] = []
+    while len(chosen) < min(n, len(usable)):
+        rest = [i for i in usable if i not in chosen]
+        chosen.append(min(rest, key=lambda i: predicted_uncertainty_px([*chosen, i])))
+    return sorted(chosen)
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ def _fmt_matrix(M: np.ndarray) -> str:
 
 #: The fields of fidlearn's camera JSON; any other is refused (a misspelt distortion field was
 #: silently ignored, leaving a camera without distortion).
-CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source", "model")
+CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source", "model", "intrinsics_covariance")
 #: Names other tools use for them, so the error can say which one was meant.
 _ALIASES = {
     "distortion": "dist_coeffs",
@@ -197,3 +197,55 @@ def _check_hfov(hfov_deg: Any) -> None:
         raise CameraError(f"hfov_deg must be a number of degrees between 0 and 180, got {hfov_deg!r}")
     if not 0 < hfov_deg < 180:
         raise CameraError(f"hfov_deg must be between 0 and 180 degrees, got {hfov_deg}")
+
+
+def _as_intrinsics_cov(cov: Any, n: int, where: str) -> np.ndarray | None:
+    """A calibration's covariance (n, n) of ``fx, fy, cx, cy`` and the ``n - 4`` distortion coefficients, or None."""
+    if cov is None:
+        return None
+    try:
+        C = np.array(cov, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise CameraError(f"{where}: intrinsics_covariance is not a matrix of numbers") from None
+    if C.shape != (n, n):
+        raise CameraError(
+            f"{where}: intrinsics_covariance has shape {C.shape}, expected ({n}, {n}): fx, fy, cx, cy and the "
+            f"{n - 4} distortion coefficients, in that order (0 for a parameter held fixed)"
+        )
+    if not np.all(np.isfinite(C)):
+        raise CameraError(f"{where}: intrinsics_covariance contains NaN or infinity")
+    scale = max(float(np.abs(C).max()), 1e-300)
+    if not np.allclose(C, C.T, rtol=1e-6, atol=1e-9 * scale) or np.linalg.eigvalsh((C + C.T) / 2)[0] < -1e-9 * scale:
+        raise CameraError(
+            f"{where}: intrinsics_covariance is not a covariance (symmetric, no negative variance); take it "
+            "from fidlearn.calibration.intrinsics_uncertainty"
+        )
+    return (C + C.T) / 2
+
+
+def _as_pixels(points_px: Any) -> np.ndarray:
+    """Pixel points (N, 2), or CameraError."""
+    from .frames._checks import as_float_array
+
+    pts = as_float_array(points_px, "points_px", CameraError)
+    if pts.size == 0:
+        return np.zeros((0, 2))
+    if pts.ndim == 0 or pts.shape[-1] != 2:
+        raise CameraError(f"points_px has shape {pts.shape}, expected (N, 2) pixels")
+    if not np.all(np.isfinite(pts)):
+        raise CameraError("points_px contains NaN or infinity")
+    return pts.reshape(-1, 2)
+
+
+def _scaled(K: np.ndarray, cov: np.ndarray | None, sx: float, sy: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """K at another resolution (pixel centres: ``c' = (c + 0.5) s - 0.5``) and its covariance scaled alike."""
+    K = K.copy()
+    K[0, 0] *= sx
+    K[0, 1] *= sx
+    K[1, 1] *= sy
+    K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
+    K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
+    if cov is None:
+        return K, None
+    s = np.r_[sx, sy, sx, sy, np.ones(len(cov) - 4)]
+    return K, cov * np.outer(s, s)

@@ -30,6 +30,8 @@ def camera_to_dict(camera: Any) -> dict:
     }
     if camera.model != "pinhole":
         d["model"] = camera.model
+    if camera.intrinsics_covariance is not None:  # written only when known: older readers stay able
+        d["intrinsics_covariance"] = camera.intrinsics_covariance.tolist()
     return d
 
 
@@ -64,6 +66,7 @@ def camera_from_dict(cls: Any, d: Any, source: str) -> Any:
         d["image_size"],
         source=str(d.get("source") or source),
         model=d.get("model", "pinhole"),
+        intrinsics_covariance=d.get("intrinsics_covariance"),
     )
 
 

@@ -23,12 +23,15 @@ from ._camera_checks import (
     MODELS,
     _as_alpha,
     _as_dist,
+    _as_intrinsics_cov,
     _as_K,
     _as_model,
+    _as_pixels,
     _as_size,
     _check_aspect,
     _check_hfov,
     _check_picture,
+    _scaled,
     _short_source,
 )
 from .errors import CameraError, FidlearnWarning
@@ -56,6 +59,9 @@ class Camera:
     model : {"pinhole", "fisheye"}
         The lens model (keyword only): ``"pinhole"``, OpenCV's ``projectPoints``, or ``"fisheye"``,
         OpenCV's Kannala-Brandt model (``cv2.fisheye.projectPoints``) for lenses of 120 degrees and more.
+    intrinsics_covariance : array_like, shape (4 + len(dist), 4 + len(dist)), optional
+        The covariance of ``fx, fy, cx, cy, *dist`` (keyword only; ``calibration.camera_with_uncertainty``): a
+        pinhole camera adds its effect to each pose's covariance. None: the intrinsics taken as exact.
 
     Examples
     --------
@@ -69,9 +75,17 @@ class Camera:
     image_size: tuple[int, int]
     source: str
     model: str
+    intrinsics_covariance: np.ndarray | None
 
     def __init__(
-        self, K: Any, dist: Any, image_size: Any, source: str | os.PathLike = "", *, model: str = "pinhole"
+        self,
+        K: Any,
+        dist: Any,
+        image_size: Any,
+        source: str | os.PathLike = "",
+        *,
+        model: str = "pinhole",
+        intrinsics_covariance: Any = None,
     ) -> None:
         if isinstance(source, os.PathLike):
             source = os.fspath(source)
@@ -83,6 +97,7 @@ class Camera:
         self.K = _as_K(K, where)
         self.dist = _as_dist(dist, where, self.model)
         self.image_size = _as_size(image_size, where)
+        self.intrinsics_covariance = _as_intrinsics_cov(intrinsics_covariance, 4 + len(self.dist), where)
 
     # -- read-only views -------------------------------------------------------------
     @property
@@ -225,9 +240,7 @@ class Camera:
         px = _lens.project_points(in_camera, self.K, self.dist, self.model)
         return px[0] if single else px
 
-    def points_in_front(
-        self, points_world: np.ndarray, T_world_camera: np.ndarray, min_depth_mm: float = 1.0
-    ) -> np.ndarray:
+    def points_in_front(self, points_world: np.ndarray, T_world_camera: np.ndarray, min_depth_mm: float = 1.0):
         """Which points are in front of the camera, deeper than ``min_depth_mm``.
 
         Parameters
@@ -269,14 +282,10 @@ class Camera:
         CameraError
             If the points are not (N, 2) or hold NaN or infinity.
         """
-        pts = as_float_array(points_px, "points_px", CameraError)
+        pts = _as_pixels(points_px)
         if pts.size == 0:
-            return np.zeros((0, 2))
-        if pts.ndim == 0 or pts.shape[-1] != 2:
-            raise CameraError(f"points_px has shape {pts.shape}, expected (N, 2) pixels")
-        if not np.all(np.isfinite(pts)):
-            raise CameraError("points_px contains NaN or infinity")
-        return _lens.undistort_pixels(pts.reshape(-1, 2), self.K, self.dist, exact, self.model)
+            return pts
+        return _lens.undistort_pixels(pts, self.K, self.dist, exact, self.model)
 
     # -- undistorted pictures -----------------------------------------------------------
     def undistorted(self, alpha: float = 0.0, image_size: tuple[int, int] | None = None) -> Camera:
@@ -347,10 +356,9 @@ class Camera:
     def scaled(self, image_size: tuple[int, int], tol: float = 0.01) -> Camera:
         """The same camera at another resolution with the same aspect ratio.
 
-        A sensor read out at a lower resolution (binning, resizing) keeps its
-        geometry, so K scales; pixel centres move with the pixel-centre
-        convention (``c' = (c + 0.5) * s - 0.5``). Another aspect ratio means
-        the sensor was cropped differently, which no scaling can undo.
+        A sensor read out at a lower resolution (binning, resizing) keeps its geometry, so K scales (and its
+        covariance); pixel centres move with the pixel-centre convention (``c' = (c + 0.5) * s - 0.5``). Another
+        aspect ratio means the sensor was cropped differently, which no scaling can undo.
 
         Parameters
         ----------
@@ -378,14 +386,9 @@ class Camera:
             return self
         sx, sy = new_w / w, new_h / h
         _check_aspect((w, h), (new_w, new_h), tol)
-        K = self.K.copy()
-        K[0, 0] *= sx
-        K[0, 1] *= sx
-        K[1, 1] *= sy
-        K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
-        K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
+        K, cov = _scaled(self.K, self.intrinsics_covariance, sx, sy)
         src = f"{self.source or 'camera'} scaled from {w}x{h} to {new_w}x{new_h}"
-        return Camera(K, self.dist.copy(), (new_w, new_h), source=src, model=self.model)
+        return Camera(K, self.dist.copy(), (new_w, new_h), src, model=self.model, intrinsics_covariance=cov)
 
     def for_image(self, image_or_size: Any, warn: bool = True) -> Camera:
         """The camera fitted to an image, rescaled (with a warning) when the image has another size.
@@ -407,10 +410,8 @@ class Camera:
         CameraError
             If the image's aspect ratio differs (:meth:`scaled`).
         """
-        if isinstance(image_or_size, np.ndarray):
-            size = (image_or_size.shape[1], image_or_size.shape[0])
-        else:
-            size = tuple(image_or_size)
+        arr = isinstance(image_or_size, np.ndarray)
+        size = (image_or_size.shape[1], image_or_size.shape[0]) if arr else tuple(image_or_size)
         if tuple(size) == self.image_size:
             return self
         cam = self.scaled(size)

@@ -100,7 +100,7 @@ from .compare import CalibrationComparison, compare_calibrations
 from .quality import DuplicateViews, ViewDiversity, coverage_grid, quality_warnings, view_diversity
 from .result import Calibration, ViewResult
 from .run import INTRINSIC_NAMES, MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_MARGIN_PX, ProgressFn
-from .uncertainty import IntrinsicsUncertainty, intrinsics_uncertainty
+from .uncertainty import IntrinsicsUncertainty, camera_with_uncertainty, intrinsics_uncertainty
 
 __all__ = [
     "Calibration",
@@ -111,6 +111,7 @@ __all__ = [
     "compare_calibrations",
     "CalibrationComparison",
     "intrinsics_uncertainty",
+    "camera_with_uncertainty",
     "IntrinsicsUncertainty",
     "coverage_grid",
     "view_diversity",

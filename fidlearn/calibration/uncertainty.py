@@ -31,7 +31,7 @@ from ..errors import CalibrationError
 from ._models import FISHEYE_NAMES
 from .run import INTRINSIC_NAMES
 
-__all__ = ["IntrinsicsUncertainty", "intrinsics_uncertainty"]
+__all__ = ["IntrinsicsUncertainty", "camera_with_uncertainty", "intrinsics_uncertainty"]
 
 
 @dataclass(frozen=True)
@@ -159,3 +159,46 @@ def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
     inflation = max(1.0, k2)
     names = tuple(k for k, f in zip(_names(cal.camera), free) if f)
     return IntrinsicsUncertainty(names, white * inflation, white, inflation, float(k2))
+
+
+def camera_with_uncertainty(cal):
+    """The calibration's camera carrying the covariance of its intrinsics (:func:`intrinsics_uncertainty`).
+
+    A pose estimated with it (:func:`fidlearn.estimate_pose`, :func:`fidlearn.locate`) adds the effect of
+    the calibration's error to its covariance: with many markers the corner noise's share of a pose's error
+    is small and the intrinsics' error, the same in every pose and shown by no residual, is most of it.
+
+    Parameters
+    ----------
+    cal : Calibration
+        As for :func:`intrinsics_uncertainty`.
+
+    Returns
+    -------
+    Camera
+        ``cal.camera`` with ``intrinsics_covariance`` over ``fx, fy, cx, cy`` and every distortion
+        coefficient (zero for one held fixed).
+
+    Raises
+    ------
+    CalibrationError
+        As :func:`intrinsics_uncertainty`.
+
+    Examples
+    --------
+    >>> from fidlearn import Board, calibrate_checkerboard
+    >>> from fidlearn.data import data_path
+    >>> cal = calibrate_checkerboard(data_path("calibration"), board=Board.checkerboard((9, 6), 25))
+    >>> cam = camera_with_uncertainty(cal)
+    >>> bool(cam.intrinsics_covariance[0, 0] ** 0.5 >= cal.std_intrinsics["fx"])
+    True
+    """
+    from ..camera import Camera
+
+    u = intrinsics_uncertainty(cal)
+    cam = cal.camera
+    names = _names(cam)
+    at = [names.index(n) for n in u.names]
+    full = np.zeros((len(names), len(names)))
+    full[np.ix_(at, at)] = u.covariance
+    return Camera(cam.K, cam.dist, cam.image_size, cam.source, model=cam.model, intrinsics_covariance=full)

@@ -184,3 +184,17 @@ def _pose_covariance(J: np.ndarray, q: np.ndarray, parts: _NoiseParts) -> np.nda
     if not np.all(np.isfinite(cov)):
         return None
     return (cov + cov.T) / 2
+
+
+def _calibration_covariance(J: np.ndarray, J_k: np.ndarray, cov_k: np.ndarray) -> np.ndarray:
+    """The pose's covariance (6, 6) from the error of the intrinsics it was fitted with.
+
+    The pose is the least-squares fit of the corners, so an error ``dk`` of the intrinsics moves it by
+    ``dp = -(J^T J)^-1 J^T J_k dk`` (``J`` and ``J_k`` the projection's Jacobians on the pose and on
+    the intrinsics): its covariance is ``A cov_k A^T`` with ``A = (J^T J)^-1 J^T J_k``. No residual
+    shows this error (it is the same in every pose made with the calibration), so it is added after the
+    widening for the noise's estimate.
+    """
+    A = np.linalg.solve(J.T @ J, J.T @ J_k)
+    cov = A @ cov_k @ A.T
+    return (cov + cov.T) / 2

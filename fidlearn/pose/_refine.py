@@ -165,6 +165,13 @@ def refine_pose_lm(
 _ZERO3 = np.zeros(3)
 
 
+def _intrinsics_jacobian(obj, K, dist, R_wc, C) -> np.ndarray:
+    """The Jacobian (2N, 4 + len(dist)) of the corners' projection on ``fx, fy, cx, cy`` and the distortion."""
+    X_c = (obj - C) @ R_wc
+    _, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
+    return jac[:, 6 : 10 + len(dist)]
+
+
 def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
     """Residuals (2N,) observed minus projected, and optionally the Jacobian (2N, 6) of the projection.
 

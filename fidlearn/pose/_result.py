@@ -135,7 +135,11 @@ class Pose(_PoseReadouts):
         ``PRIOR_SIZE_REL`` in ``fidlearn.pose._noise``, worth ``PRIOR_DOF`` degrees of freedom). With
         ``corner_sigma_px`` given, ``a`` is its square (and with fewer than 4 markers the covariance is
         the Cramer-Rao bound ``corner_sigma_px^2 (J^T J)^-1``). The estimate's own uncertainty widens it
-        by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu`` Satterthwaite's over the parts). When
+        by ``3 F(3, nu; 0.95) / chi2(3; 0.95)`` (Hotelling; ``nu`` Satterthwaite's over the parts). A pinhole
+        camera that carries its calibration's covariance (``Camera.intrinsics_covariance``,
+        :func:`fidlearn.calibration.camera_with_uncertainty`) adds ``A Sigma_k A^T``, ``A = (J^T J)^-1 J^T
+        J_k`` the pose's response to an error of the intrinsics (``J_k`` the corners' Jacobian on them): the
+        calibration's error, the same in every pose and shown by no residual. When
         the pose is ``ambiguous`` it is instead the second moment, about this pose, of the mixture of
         both poses (weights from their likelihood ratio), so the ellipsoid reaches the alternative. The
         alternative's own covariance is the local one, with the same noise. None if the pose is not
@@ -147,11 +151,14 @@ class Pose(_PoseReadouts):
         estimated, 95-96.5 % on six and twelve markers (``tests/test_pose_noise.py``); with fewer than 4
         markers and the noise estimated, 99 % (the prior mix holds a marker shift these renders lack); on
         real photos (``python -m benchmarks real``, docs/benchmarks.md): the robot's photos of a slightly
-        bent ChArUco board, the truth's own covariance added, 14 of 16 camera positions inside; the course's
-        ChArUco photos against their chessboard pose, 89-99 % with 1 to 3 markers but 77 % with 4-6 and only
-        46 % with 7-17 markers: an error all markers share (there a scale along the line of sight between the
+        bent ChArUco board, the truth's own covariance added, 14 of 16 camera positions inside, 16 of 16
+        (position NEES median 2.6) with the calibration's covariance on the camera; the course's ChArUco
+        photos against their chessboard pose, with it, 93-99.5 % with 1 to 3 markers but 82.5 % with 4-6 and
+        65.5 % with 7-17 markers: an error all markers share (there a scale along the line of sight between the
         default edge fit's corners on markers 23-26 px across and the chessboard corners; 82-87 % with
-        OpenCV's corner refinements) leaves no trace in the residuals and is not in it. An error of the
+        OpenCV's corner refinements) leaves no trace in the residuals and is not in it. With intrinsics drawn
+        wrong from the camera's covariance on renders, 98 % (11 % without it; ``tests/test_pose_calibration.py``).
+        An error of the
         map larger than a marker's shift (a marker moved on the wall) is for the outlier screen, not the
         covariance.
     corner_sigma_px : float
