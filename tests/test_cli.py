@@ -18,6 +18,7 @@ import pytest
 from helpers import assert_user_error
 from helpers import run_cli as run
 
+import fidlearn
 from fidlearn import Camera, MarkerMap, _cv, data_dir, data_path, frames
 
 SEED_BARE = {  # the seed's bare layout: no units, no size
@@ -269,6 +270,17 @@ def test_calibrate_reproduces_the_true_camera(capsys, tmp_path):
     assert np.sum(grid) == 20 * 54
     assert np.min(grid) > 0
     assert sorted(p.name for p in (tmp_path / "ann").iterdir()) == [f"view_{i:02d}.png" for i in range(20)]
+    # the file carries the calibration's covariance: its fx standard deviation is the printed one's or more
+    assert "with its calibration's covariance" in out
+    sd_fx = float(line.split("±")[1].split()[0])
+    assert cam.intrinsics_covariance[0, 0] ** 0.5 >= 0.99 * sd_fx
+    # and a pose located with it is the same, with a wider covariance than without it
+    scene = data_path("trajectory", "frame_000.png")  # 640x480, as calibrated
+    with_cov = fidlearn.locate(fidlearn.detection.load_image(scene), data_path("world_map.json"), cam)
+    bare = Camera(cam.K, cam.dist, cam.image_size)
+    without = fidlearn.locate(fidlearn.detection.load_image(scene), data_path("world_map.json"), bare)
+    np.testing.assert_allclose(with_cov.position_mm, without.position_mm, atol=1e-9)
+    assert np.trace(with_cov.covariance[3:, 3:]) > np.trace(without.covariance[3:, 3:])
 
 
 def test_calibrate_real_charuco_matches_opencv_and_warns(capsys, tmp_path):
@@ -919,7 +931,7 @@ def test_locate_detects_each_picture_once_and_draws_those_detections(capsys, tmp
     monkeypatch.setattr(detection, "_detect", counting)
     blank = np.full((720, 1280), 255, np.uint8)
     cv2.imwrite(str(tmp_path / "blank.png"), blank)
-    scene = data_path("scenes", "scene_00.png")
+    scene = data_path("trajectory", "frame_000.png")  # 640x480, as calibrated
     for picture, most in ((scene, 1), (tmp_path / "blank.png", 2)):
         calls.clear()
         ann = tmp_path / f"ann_{most}"

@@ -162,9 +162,16 @@ def run(args) -> int:
 
             fig = coach_figure(coached, cal.camera)
             atomic_write(report, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
-        cal.camera.save(out)
+        # a fidlearn camera file carries the calibration's covariance: poses located with it include its error
+        carried = out.suffix.lower() == ".json" and cal.camera.model == "pinhole"
+        (calibration.camera_with_uncertainty(cal) if carried else cal.camera).save(out)
     _commit()  # the camera, the report and the annotations take their names together
-    print(f"camera written to {out}" + (f"; the coach's picture in {report}" if report else ""))
+    said = " with its calibration's covariance (poses located with it include the calibration's error)"
+    print(
+        f"camera written to {out}"
+        + (said if carried else "")
+        + (f"; the coach's picture in {report}" if report else "")
+    )
     if args.annotate:
         print(staging.said())
     return 0
