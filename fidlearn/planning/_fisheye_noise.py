@@ -11,7 +11,7 @@ __all__ = ["FISHEYE_NOISE_SIDE_PX", "FISHEYE_NOISE_SIGMA_PX", "FISHEYE_MARKER_SH
 #: with its curved sides' bias taken out, ``fidlearn._fisheye_edges``), measured on renders through a 160-degree
 #: equidistant fisheye at 800 x 600 (walls of 1 to 12 markers of 80 mm, and of 1 to 4 of 200 mm, 0.3 to 1.5 m
 #: away, anywhere from the picture's centre to its edge; 1150 markers, 3 to 250 per bin;
-#: ``python benchmarks/bench_planning.py --noise --fisheye``). Smaller than the pinhole's from 15 to 65 px;
+#: ``python benchmarks/bench_planning.py --noise --fisheye``). Smaller than the pinhole's from 15 to 50 px;
 #: larger markers' sides curve more than the straightening takes out.
 FISHEYE_NOISE_SIDE_PX = np.array([11, 13, 15, 18, 22, 27, 33, 40, 50, 65, 85, 110], dtype=float)
 FISHEYE_NOISE_SIGMA_PX = np.array([0.110, 0.102, 0.053, 0.031, 0.025, 0.021, 0.019, 0.019, 0.029, 0.043, 0.071, 0.113])
