@@ -87,6 +87,21 @@ def test_visibility_follows_the_fisheye_and_not_the_pinhole():
     assert all(math.isfinite(v) for v in (p.position_error_mm, p.position_p90_mm, p.position_rms_mm))
 
 
+def test_a_marker_beyond_the_lenss_fold_is_not_seen():
+    # theta_d = theta (1 - 0.3 theta^2) turns back at 60 degrees: a ray at 75 degrees lands where one at 45 does
+    fold = Camera(FE.K, [-0.3, 0.0, 0.0, 0.0], FE.image_size, model="fisheye")
+    one = MarkerMap.from_dict(
+        {"units": "mm", "marker_size_mm": 80, "markers": {"0": {"translation": [0, -40, 540], "rotation": [0, 0, 0]}}}
+    )
+    eye = one.marker_corners(0).mean(axis=0) + [700.0, 0.0, 0.0]
+    a = math.radians(75)
+    T = frames.look_at(eye, eye + [-math.cos(a), math.sin(a), 0.0])  # the marker 75 degrees off the axis
+    px = fold.project(one.marker_corners(0), T)
+    assert np.all((px > 0) & (px < [FE.width, FE.height]))  # the model puts it inside the picture
+    assert predict_accuracy(one, fold, T).lost == {0: "beyond the fisheye's fold"}
+    assert predict_accuracy(one, FE, T).marker_ids == [0]  # a lens without the fold sees it
+
+
 def test_the_flip_of_a_marker_at_the_centre_is_the_pinholes():
     one = MarkerMap.from_dict(
         {"units": "mm", "marker_size_mm": 80, "markers": {"0": {"translation": [0, -40, 540], "rotation": [0, 0, 0]}}}

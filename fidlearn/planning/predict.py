@@ -197,7 +197,7 @@ def _seen(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray) -> 
             continue
         w, h = camera.image_size
         if _beyond_the_lens(pc, camera):
-            lost[mid] = "outside the picture"
+            lost[mid] = "beyond the fisheye's fold" if camera.model == "fisheye" else "outside the picture"
             continue
         px = camera.project(c, T_world_camera)
         if np.any(px < -0.5) or np.any(px[:, 0] > w - 0.5) or np.any(px[:, 1] > h - 0.5):
