@@ -3,6 +3,8 @@
     python benchmarks/bench_planning.py            # the whole benchmark (a few minutes on 2 cores)
     python benchmarks/bench_planning.py --quick    # fewer scenes
     python benchmarks/bench_planning.py --noise    # re-measure the corner-noise table of fidlearn.planning.noise
+    python benchmarks/bench_planning.py --fisheye  # the fisheye group alone (benchmarks/planning_fisheye.py)
+    python benchmarks/bench_planning.py --noise --fisheye  # re-measure the fisheye's corner-noise table
 
 Scenes are rendered by ``fidlearn.synthetic.render_scene`` with the bundled scenes' settings
 (blur 0.5 px, noise 1.2 gray levels, gradient 0.2), the settings the noise model was measured
@@ -27,10 +29,11 @@ from fidlearn.errors import FidlearnError
 from fidlearn.planning import noise
 
 try:  # run as a script (benchmarks/ on the path) or imported as benchmarks.bench_planning
+    import planning_fisheye
     import planning_real
     import planning_robot
 except ImportError:
-    from benchmarks import planning_real, planning_robot
+    from benchmarks import planning_fisheye, planning_real, planning_robot
 
 RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
 SIZES = [(640, 480), (1280, 720), (1920, 1080)]
@@ -226,9 +229,17 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--noise", action="store_true", help="re-measure the corner-noise table instead")
+    ap.add_argument("--fisheye", action="store_true", help="the fisheye group alone (with --noise: its table)")
     args = ap.parse_args(argv)
     if args.noise:
-        measure_noise_table()
+        if args.fisheye:
+            planning_fisheye.measure_noise_table()
+            planning_fisheye.measure_noise_table(80, 12, 200.0)
+        else:
+            measure_noise_table()
+        return 0
+    if args.fisheye:
+        planning_fisheye.report(*((10, 1) if args.quick else (40, 1)))
         return 0
     t0 = time.perf_counter()
     groups = group_rows(8, 2) if args.quick else group_rows(25, 4)
@@ -258,6 +269,7 @@ def main(argv=None) -> int:
         f"scenes | {sum(within)} of {len(within)} groups (ratios {min(ratios):.2f} to {max(ratios):.2f}) | "
         f"{'yes' if all(within) else 'no'} -->"
     )
+    planning_fisheye.report(*((10, 1) if args.quick else (40, 1)))  # through a 160-degree fisheye
     planning_real.report(most=15 if args.quick else 40)  # the same target on real photos with a known pose
     planning_robot.report(most=8 if args.quick else 20)  # and on the robot's photos
     dist = max_distance_rows(3 if args.quick else 6)

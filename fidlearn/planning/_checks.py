@@ -28,11 +28,13 @@ def check_number(value, name: str, low: float, high: float, error=FidlearnError,
     return float(value)
 
 
-def check_camera(camera, error=CalibrationError) -> Camera:
-    """``camera`` if it is a :class:`~fidlearn.Camera`."""
+def check_camera(camera, error=CalibrationError, fisheye: bool = False) -> Camera:
+    """``camera`` if it is a :class:`~fidlearn.Camera`; a fisheye only with ``fisheye`` (the calibration coach
+    models OpenCV's pinhole lens only)."""
     if not isinstance(camera, Camera):
         raise error(f"camera must be a fidlearn.Camera (Camera.load(path) reads one), got {type(camera).__name__}")
-    refuse_fisheye(camera, "the planner", error)
+    if not fisheye:
+        refuse_fisheye(camera, "the calibration coach", error)
     return camera
 
 
@@ -137,7 +139,7 @@ def finite_distance(distance_mm) -> float:
 
 def check_flip_inputs(points_world, points_px, camera, corner_sigma_px) -> tuple:
     """The inputs of :func:`~fidlearn.planning.flip_probability`, checked: (N, 3), (N, 2) and (N,) float arrays."""
-    check_camera(camera, PoseError)
+    check_camera(camera, PoseError, fisheye=True)
     P = float_array(points_world, "points_world", (-1, 3), PoseError)
     if not 4 <= len(P) <= 10_000:
         raise PoseError(f"points_world has {len(P)} points: give 4 to 10000 marker corners")

@@ -40,9 +40,10 @@ def flip_probability(
     points_world : ndarray, shape (N, 3)
         Marker corners (mm).
     points_px : ndarray, shape (N, 2)
-        Their exact projections (px).
+        Their exact projections (px; a fisheye's in its own picture, :meth:`~fidlearn.Camera.project`).
     camera : Camera
-        The camera that sees them.
+        The camera that sees them, a pinhole or a fisheye (whose corners are solved undistorted, as
+        :func:`fidlearn.estimate_pose` solves them, and whose residuals are weighed in its picture's pixels).
     corner_sigma_px : ndarray, shape (N,)
         Corner noise of each point (px per axis).
 
@@ -71,18 +72,21 @@ def _flip(
     s = np.linalg.svd(centred, compute_uv=False)
     if s[2] > 1e-6 * max(s[0], 1.0):
         return none
+    # a fisheye's corners are solved as the distortion-free pinhole of the same K sees them, as estimate_pose does
+    fisheye = camera.model == "fisheye"
+    solve_px, dist = (camera.undistort_points(points_px), np.zeros(5)) if fisheye else (points_px, camera.dist)
+    if not np.all(np.isfinite(solve_px)):
+        return none
     n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
-        P.reshape(-1, 1, 3), points_px.reshape(-1, 1, 2), camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE
+        P.reshape(-1, 1, 3), solve_px.reshape(-1, 1, 2), camera.K, dist, flags=cv2.SOLVEPNP_IPPE
     )
     found = []  # (weighted squared residual, rotation matrix, camera centre) of each solution
     for rvec, tvec in zip(rvecs[:n], tvecs[:n]):
         if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
             continue  # IPPE gives NaN for a marker seen at a grazing angle: no second solution there
-        rvec, tvec = cv2.solvePnPRefineLM(P, points_px, camera.K, camera.dist, rvec.copy(), tvec.copy())
+        rvec, tvec = cv2.solvePnPRefineLM(P, solve_px, camera.K, dist, rvec.copy(), tvec.copy())
         R = cv2.Rodrigues(rvec)[0]
-        proj = _lens.project_points(
-            P @ R.T + tvec.ravel(), camera.K, np.zeros(5) if camera.dist is None else camera.dist
-        )
+        proj = _lens.project_points(P @ R.T + tvec.ravel(), camera.K, camera.dist, camera.model)  # picture px
         r = (proj - points_px).reshape(-1, 8) if blocks is not None else None
         d2 = (
             float(sum(rm @ np.linalg.pinv(C) @ rm for rm, C in zip(r, blocks)))

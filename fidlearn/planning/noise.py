@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import PoseError
 from ._checks import check_number, float_array
+from ._fisheye_noise import FISHEYE_NOISE_SIDE_PX, FISHEYE_NOISE_SIGMA_PX
 
 #: Apparent marker side (px, mean of the four sides) at which the corner noise was measured ...
 NOISE_SIDE_PX = np.array([11, 13, 15, 18, 22, 27, 33, 40, 50, 65, 85, 110, 150, 200], dtype=float)
@@ -62,16 +63,19 @@ MAX_VIEW_ANGLE_DEG = 82.0
 LINE_END_COVARIANCE = np.array([[4.0, -2.0], [-2.0, 4.0]])
 
 
-def corner_sigma_px(side_px: float | np.ndarray) -> float | np.ndarray:
+def corner_sigma_px(side_px: float | np.ndarray, model: str = "pinhole") -> float | np.ndarray:
     """Predicted RMS corner error per axis (px) of a marker whose sides measure ``side_px``.
 
     Linear interpolation of the measured table (:data:`NOISE_SIDE_PX`,
-    :data:`NOISE_SIGMA_PX`), held constant outside it.
+    :data:`NOISE_SIGMA_PX`; a fisheye's :data:`FISHEYE_NOISE_SIDE_PX`, :data:`FISHEYE_NOISE_SIGMA_PX`),
+    held constant outside it.
 
     Parameters
     ----------
     side_px : float or ndarray
         Apparent marker side (px, mean of the four sides).
+    model : {"pinhole", "fisheye"}
+        The camera's lens model (:attr:`fidlearn.Camera.model`).
 
     Returns
     -------
@@ -80,21 +84,24 @@ def corner_sigma_px(side_px: float | np.ndarray) -> float | np.ndarray:
 
     Examples
     --------
-    >>> round(float(corner_sigma_px(50.0)), 3)
-    0.041
+    >>> round(float(corner_sigma_px(50.0)), 3), round(float(corner_sigma_px(50.0, "fisheye")), 3)
+    (0.041, 0.029)
 
     Raises
     ------
     PoseError
-        If ``side_px`` is not a number or an array of numbers, or holds NaN.
+        If ``side_px`` is not a number or an array of numbers, or holds NaN, or ``model`` is not a lens model.
     """
+    if model not in ("pinhole", "fisheye"):
+        raise PoseError(f"model must be 'pinhole' or 'fisheye', got {model!r:.40}")
     try:
         side = np.asarray(side_px, dtype=float)
     except (TypeError, ValueError, OverflowError):
         side = None
     if side is None or np.isnan(side).any() or side.size > 10_000_000:
         raise PoseError(f"side_px must be a number of pixels (or an array of them, no NaN), got {side_px!r:.80}")
-    out = np.interp(side, NOISE_SIDE_PX, NOISE_SIGMA_PX)
+    table = (FISHEYE_NOISE_SIDE_PX, FISHEYE_NOISE_SIGMA_PX) if model == "fisheye" else (NOISE_SIDE_PX, NOISE_SIGMA_PX)
+    out = np.interp(side, *table)
     return float(out) if out.ndim == 0 and not isinstance(side_px, np.ndarray) else out
 
 
@@ -373,7 +380,7 @@ def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     ------
     PoseError
         The pose used fewer than four markers, or the arguments are not a Pose, a MarkerMap holding its
-        markers and a Camera.
+        markers and a Camera, or the camera is a fisheye.
     """
     from ..camera import Camera
     from ..markermap import MarkerMap
@@ -382,6 +389,11 @@ def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     for value, name, kind in ((pose, "pose", Pose), (marker_map, "marker_map", MarkerMap), (camera, "camera", Camera)):
         if not isinstance(value, kind):
             raise PoseError(f"{name} must be a fidlearn {kind.__name__}, got {type(value).__name__}")
+    if camera.model == "fisheye":
+        raise PoseError(
+            "noise_from_pose reads a pinhole pose's residuals; a fisheye pose's are in the undistorted pixels: "
+            "measure the noise on a pinhole calibration of the lens, or give predict_accuracy a corner_sigma_px"
+        )
     ids = list(pose.marker_ids)
     if any(i not in marker_map for i in ids):
         raise PoseError(f"the pose used markers {ids}, not all in the map: give the map the pose was computed with")

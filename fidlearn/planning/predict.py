@@ -27,14 +27,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import frames
-from .._camera_checks import refuse_fisheye
+from .. import _lens, frames
 from ..camera import Camera
 from ..errors import FidlearnError, TransformError
 from ..markermap import MarkerMap
 from ..pose import pose_jacobian
 from . import finding, noise, sampling
 from ._checks import _check_px, _check_rel
+from ._fisheye_noise import FISHEYE_MARKER_SHIFT_PX
 from .flip import FLIP_MIN_ANGLE_DEG, _flip, flip_probability
 
 __all__ = ["Prediction", "predict_accuracy", "flip_probability", "FLIP_MIN_ANGLE_DEG"]
@@ -195,11 +195,9 @@ def _seen(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray) -> 
         if cos_view < cos_max:
             lost[mid] = f"seen {math.degrees(math.acos(cos_view)):.0f} deg off its axis"
             continue
-        xy = pc[:, :2] / pc[:, 2:3]
-        ideal = xy * [camera.fx, camera.fy] + [camera.cx, camera.cy]
         w, h = camera.image_size
-        if np.any(ideal < -0.5 * max(w, h)) or np.any(ideal > 1.5 * max(w, h)):
-            lost[mid] = "outside the picture"
+        if _beyond_the_lens(pc, camera):
+            lost[mid] = "beyond the fisheye's fold" if camera.model == "fisheye" else "outside the picture"
             continue
         px = camera.project(c, T_world_camera)
         if np.any(px < -0.5) or np.any(px[:, 0] > w - 0.5) or np.any(px[:, 1] > h - 0.5):
@@ -218,6 +216,20 @@ def _seen(marker_map: MarkerMap, camera: Camera, T_world_camera: np.ndarray) -> 
             continue
         seen[mid] = px
     return seen, lost
+
+
+def _beyond_the_lens(pc: np.ndarray, camera: Camera) -> bool:
+    """Whether points ``pc`` (N, 3) in the camera frame, in front of it, are where the lens model cannot put them in
+    the picture: a pinhole's far outside its field of view (the distortion polynomial folds back there), a fisheye's
+    beyond its fold (the ray's angle off the axis is not the one its pixel gives back)."""
+    w, h = camera.image_size
+    if camera.model == "fisheye":
+        theta = np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])
+        px = _lens.project_points(pc, camera.K, camera.dist, "fisheye")
+        back = _lens.fisheye_angles(px, camera.K, camera.dist)[0]
+        return bool(np.any(~(np.abs(back - theta) < 1e-6)))  # NaN: no ray reaches that pixel
+    ideal = pc[:, :2] / pc[:, 2:3] * [camera.fx, camera.fy] + [camera.cx, camera.cy]
+    return bool(np.any(ideal < -0.5 * max(w, h)) or np.any(ideal > 1.5 * max(w, h)))
 
 
 def _least_squares_covariance(J: np.ndarray, JtJ: np.ndarray, blocks: list) -> np.ndarray:
@@ -250,12 +262,16 @@ def predict_accuracy(
     marker_map : MarkerMap
         Where the markers are (mm, world).
     camera : Camera
-        Intrinsics, distortion and image size.
+        Intrinsics, distortion and image size: OpenCV's pinhole lens or a fisheye (``model="fisheye"``),
+        whose markers are seen, sized and weighed as its picture draws them (compressed towards the
+        edge), within 90 degrees of its axis (the rays :func:`fidlearn.estimate_pose` can use).
     T_world_camera : ndarray, shape (4, 4)
         The camera pose to ask about (mm, world; camera frame OpenCV's).
     corner_sigma_px : float, optional
         Corner noise (px per axis) for every marker. By default it depends on each marker's
-        apparent size, as measured on fidlearn's renders (:func:`noise.corner_sigma_px`);
+        apparent size, as measured on fidlearn's renders (:func:`noise.corner_sigma_px`; a fisheye's
+        own table, with a shift of each marker's corners together,
+        :data:`~fidlearn.planning._fisheye_noise.FISHEYE_MARKER_SHIFT_PX`, added to ``marker_shift_px``);
         for real photos give your own camera's, with ``marker_shift_px``, both from a pose of
         your own with many markers (:func:`noise.noise_from_pose`).
         Either way the corners of one marker move together as the ``edges`` refinement makes
@@ -316,7 +332,6 @@ def predict_accuracy(
         raise FidlearnError(f"marker_map must be a fidlearn.MarkerMap, got {type(marker_map).__name__}")
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
-    refuse_fisheye(camera, "predict_accuracy", FidlearnError)
     return _predict(
         marker_map,
         camera,
@@ -396,13 +411,13 @@ def _predict(
     seen, lost = _seen(marker_map, camera, T)
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
-    sigmas = {
-        i: float(corner_sigma_px) if corner_sigma_px is not None else float(noise.corner_sigma_px(sides[i]))
-        for i in ids
-    }
+    own = corner_sigma_px is not None
+    sigmas = {i: float(corner_sigma_px) if own else float(noise.corner_sigma_px(sides[i], camera.model)) for i in ids}
     if not ids:
         why = "; ".join(f"{i}: {r}" for i, r in sorted(lost.items())) or "the map has no markers"
         return Prediction(T, [], {}, {}, None, np.full(3, np.inf), math.inf, 0.0, f"no marker found ({why})", lost)
+    if not own and camera.model == "fisheye":  # the default model of a fisheye's corners: a shift of each marker
+        shift_px = math.hypot(shift_px, FISHEYE_MARKER_SHIFT_PX)
     model = (shift_px, size_rel_std, size_rel_std_each, size_rel_error)
     full = _pose_model(marker_map, camera, T, ids, seen, sigmas, model, with_flip)
     if full is None:

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._camera_checks import refuse_fisheye
 from ..camera import Camera
 from ..errors import FidlearnError
 from ..frames import look_at
@@ -285,7 +284,6 @@ def _check_inputs(marker_map, camera, progress) -> None:
         raise FidlearnError("plan_room needs a fidlearn.MarkerMap with at least one marker")
     if not isinstance(camera, Camera):
         raise FidlearnError(f"camera must be a fidlearn.Camera, got {type(camera).__name__}")
-    refuse_fisheye(camera, "plan_room", FidlearnError)
     if progress is not None and not callable(progress):
         raise FidlearnError(f"progress must be a function progress(done, total) or None, got {progress!r}")
 

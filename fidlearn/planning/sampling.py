@@ -46,9 +46,9 @@ def _lens_jacobians(xy: np.ndarray, camera: Camera) -> np.ndarray:
     """(N, 2, 2) d(pixel) / d(normalized point) at each normalized point ``xy`` (N, 2)."""
     h = 1e-7
     dist = np.zeros(5) if camera.dist is None else camera.dist
-    base = _lens.pixels_from_normalized(xy, camera.K, dist)
-    jx = (_lens.pixels_from_normalized(xy + [h, 0.0], camera.K, dist) - base) / h
-    jy = (_lens.pixels_from_normalized(xy + [0.0, h], camera.K, dist) - base) / h
+    base = _lens.pixels_from_normalized(xy, camera.K, dist, camera.model)
+    jx = (_lens.pixels_from_normalized(xy + [h, 0.0], camera.K, dist, camera.model) - base) / h
+    jy = (_lens.pixels_from_normalized(xy + [0.0, h], camera.K, dist, camera.model) - base) / h
     return np.stack([jx, jy], axis=2)
 
 

@@ -33,7 +33,8 @@ def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: 
     T_world_camera : ndarray, shape (4, 4)
         Camera pose at which to differentiate.
     camera : Camera
-        Intrinsics and distortion.
+        Intrinsics and distortion: OpenCV's pinhole lens, or a fisheye (the chain rule through
+        ``cv2.fisheye``'s Kannala-Brandt projection: rows in the fisheye picture's own pixels).
 
     Returns
     -------
@@ -55,16 +56,13 @@ def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: 
     >>> J.shape, bool(np.isclose(J[0, 3], -cam.fx / 1000))
     ((2, 6), True)
     """
-    refuse_fisheye(camera, "pose_jacobian", PoseError)
     P = np.asarray(points_world, dtype=float).reshape(-1, 3)
     R_wc = T_world_camera[:3, :3]
     C = T_world_camera[:3, 3]
     R_cw = R_wc.T
     d = P - C  # (N, 3) world vectors from the camera centre
     X_c = d @ R_cw.T
-    # d(pixel)/d(point in camera frame): projectPoints' Jacobian w.r.t. tvec at rvec = tvec = 0
-    _, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.K, camera.dist)
-    dpx_dXc = jac[:, 3:6].reshape(-1, 2, 3)
+    dpx_dXc = _pixels_against_point(X_c, camera)
     # X_c = R_cw0 expm(-[dtheta]x) (P - C): dX_c/dtheta = R_cw0 [d]x ; dX_c/dC = -R_cw0
     skew = np.zeros((len(P), 3, 3))
     skew[:, 0, 1], skew[:, 0, 2] = -d[:, 2], d[:, 1]
@@ -73,6 +71,18 @@ def pose_jacobian(points_world: np.ndarray, T_world_camera: np.ndarray, camera: 
     A = dpx_dXc @ R_cw  # (N, 2, 3)
     J = np.concatenate([A @ skew, -A], axis=2)
     return J.reshape(-1, 6)
+
+
+def _pixels_against_point(X_c: np.ndarray, camera: Camera) -> np.ndarray:
+    """d(pixel) / d(point in the camera frame) (N, 2, 3) of points ``X_c`` (N, 3): the Jacobian of
+    ``cv2.projectPoints`` (``cv2.fisheye.projectPoints`` for a fisheye) with respect to ``tvec`` at
+    ``rvec = tvec = 0``."""
+    pts = X_c.reshape(-1, 1, 3)
+    if camera.model == "fisheye":  # columns: f (2), c (2), k (4), rvec (3), tvec (3), skew (1)
+        _, jac = cv2.fisheye.projectPoints(pts, np.zeros((3, 1)), np.zeros((3, 1)), camera.K, camera.dist)
+        return jac[:, 11:14].reshape(-1, 2, 3)
+    _, jac = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), camera.K, camera.dist)
+    return jac[:, 3:6].reshape(-1, 2, 3)
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,137 @@
+"""The planner through a fisheye: the pose Jacobian in the fisheye picture's pixels against finite differences, the
+markers predicted to be found against those the detector finds, and the predicted median position error against
+``locate``'s on rendered 160-degree fisheye scenes (``benchmarks/planning_fisheye.py``, its looked-at seeds)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+import fidlearn
+from fidlearn import Camera, MarkerMap, frames
+from fidlearn.errors import CalibrationError, FidlearnError, PoseError
+from fidlearn.planning import flip_probability, plan_room, predict_accuracy, suggest_markers
+from fidlearn.pose import pose_jacobian, refine_pose_lm
+from fidlearn.synthetic import visible_markers
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks import planning_fisheye as pf  # noqa: E402
+
+FE = pf.FISHEYE
+
+
+def _moved(T: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """``T`` turned by ``step[:3]`` (a small rotation, world axes, on the left), its centre moved by ``step[3:]``."""
+    out = T.copy()
+    out[:3, :3] = cv2.Rodrigues(step[:3])[0] @ T[:3, :3]
+    out[:3, 3] = T[:3, 3] + step[3:]
+    return out
+
+
+def test_the_fisheye_pose_jacobian_is_the_projections_derivative():
+    lens = Camera(FE.K, [0.02, -0.01, 0.004, -0.001], FE.image_size, model="fisheye")
+    T = frames.look_at([800.0, 100.0, 400.0], [0.0, 0.0, 500.0], roll_deg=10.0)
+    # points from the axis to 80 degrees off it
+    P = np.array([[0.0, 0.0, 500.0], [0.0, 600.0, 200.0], [0.0, -900.0, 900.0], [300.0, 2500.0, 400.0]])
+    J = pose_jacobian(P, T, lens)
+    h = np.array([1e-6] * 3 + [1e-4] * 3)
+    numeric = np.empty_like(J)
+    for k in range(6):
+        step = np.zeros(6)
+        step[k] = h[k]
+        numeric[:, k] = (lens.project(P, _moved(T, step)) - lens.project(P, _moved(T, -step))).ravel() / (2 * h[k])
+    np.testing.assert_allclose(J, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
+    # and not the pinhole's of the same K: the fisheye compresses the edge of the picture
+    assert np.abs(pose_jacobian(P, T, Camera(FE.K, None, FE.image_size)) - J).max() > 0.1 * np.abs(J).max()
+
+
+@pytest.fixture(scope="module")
+def rendered():
+    """Ten scenes of 2 to 4 and of 5 to 12 markers (scene seed 7), one picture each."""
+    return pf.measure((7,), 10, 1, groups=((2, 4), (5, 12)))
+
+
+def test_the_markers_predicted_found_are_those_detected(rendered):
+    agree = sum(r["agree"] for r in rendered.values())
+    missed = sum(r["pred_only"] + r["det_only"] for r in rendered.values())
+    assert agree > 80
+    assert missed <= 0.06 * (agree + missed)  # a marker near the detector's limit now and then
+
+
+def test_the_predicted_median_error_is_the_measured_one(rendered):
+    ratios = [pf.figures(r)["ratio"] for r in rendered.values()]
+    for q in ratios:
+        assert 0.75 <= q <= 1.33  # the planner's band; a group of ten scenes is a noisy median
+    rms = [pf.figures(r)["rms"] for r in rendered.values()]
+    for q in rms:
+        assert 0.7 <= q <= 1.4
+
+
+def test_visibility_follows_the_fisheye_and_not_the_pinhole():
+    wall = MarkerMap.load(fidlearn.data_path("two_walls_map.json"))
+    T = frames.look_at([450.0, 400.0, 400.0], [0.0, 150.0, 260.0], roll_deg=10.0)
+    p = predict_accuracy(wall, FE, T)
+    seen = visible_markers(wall, FE, T)
+    assert set(p.marker_ids) <= set(seen)
+    for i in p.marker_ids:  # its sizes are the fisheye picture's
+        q = FE.project(wall.marker_corners(i), T)
+        side = np.mean(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1))
+        assert p.side_px[i] == pytest.approx(side)
+    pinhole = predict_accuracy(wall, Camera(FE.K, None, FE.image_size), T)
+    assert set(p.marker_ids) > set(pinhole.marker_ids)  # the fisheye sees further off its axis
+    assert all(math.isfinite(v) for v in (p.position_error_mm, p.position_p90_mm, p.position_rms_mm))
+
+
+def test_a_marker_beyond_the_lenss_fold_is_not_seen():
+    # theta_d = theta (1 - 0.3 theta^2) turns back at 60 degrees: a ray at 75 degrees lands where one at 45 does
+    fold = Camera(FE.K, [-0.3, 0.0, 0.0, 0.0], FE.image_size, model="fisheye")
+    one = MarkerMap.from_dict(
+        {"units": "mm", "marker_size_mm": 80, "markers": {"0": {"translation": [0, -40, 540], "rotation": [0, 0, 0]}}}
+    )
+    eye = one.marker_corners(0).mean(axis=0) + [700.0, 0.0, 0.0]
+    a = math.radians(75)
+    T = frames.look_at(eye, eye + [-math.cos(a), math.sin(a), 0.0])  # the marker 75 degrees off the axis
+    px = fold.project(one.marker_corners(0), T)
+    assert np.all((px > 0) & (px < [FE.width, FE.height]))  # the model puts it inside the picture
+    assert predict_accuracy(one, fold, T).lost == {0: "beyond the fisheye's fold"}
+    assert predict_accuracy(one, FE, T).marker_ids == [0]  # a lens without the fold sees it
+
+
+def test_the_flip_of_a_marker_at_the_centre_is_the_pinholes():
+    one = MarkerMap.from_dict(
+        {"units": "mm", "marker_size_mm": 80, "markers": {"0": {"translation": [0, -40, 540], "rotation": [0, 0, 0]}}}
+    )
+    P = one.marker_corners(0)
+    eye = P.mean(axis=0) + 1200.0 * np.array([math.cos(math.radians(20)), math.sin(math.radians(20)), 0.1])
+    T = frames.look_at(eye, P.mean(axis=0))  # 20 degrees off the marker's axis, 16 px across
+    sigma = np.full(4, 0.3)
+    p_fe = flip_probability(P, FE.project(P, T), FE, sigma)
+    pin = Camera(FE.K, None, FE.image_size)
+    p_pin = flip_probability(P, pin.project(P, T), pin, sigma)
+    assert 0.2 < p_fe < 0.3
+    assert p_fe == pytest.approx(p_pin, rel=0.02)  # near the axis the fisheye is the pinhole of its K
+
+
+def test_plan_room_and_suggest_markers_take_a_fisheye():
+    world = MarkerMap.load(fidlearn.data_path("world_map.json"))
+    plan = plan_room(world, FE, step_mm=700.0, headings=4)
+    assert np.isfinite(plan.toward_mm).mean() > 0.5
+    assert 0 < plan.seen_fraction.max() <= 1
+    out = suggest_markers(world, FE, 1.0, step_mm=900.0, max_markers=1)
+    assert out[-1].fraction_after >= out[0].fraction_before
+
+
+def test_what_still_models_the_pinhole_only_refuses_a_fisheye():
+    P = np.array([[-50.0, -50, 1000], [50, -50, 1000], [50, 50, 1000], [-50, 50, 1000]])
+    with pytest.raises(PoseError, match="pinhole lens only"):
+        refine_pose_lm(P, FE.project(P, np.eye(4)), FE, np.zeros(3), np.zeros(3))
+    from fidlearn.planning._checks import check_views
+
+    with pytest.raises(CalibrationError, match="calibration coach models OpenCV's pinhole lens only"):
+        check_views(FE, {}, {}, {})
+    assert issubclass(PoseError, FidlearnError)
