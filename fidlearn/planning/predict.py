@@ -412,7 +412,12 @@ def _predict(
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
     own = corner_sigma_px is not None
-    sigmas = {i: float(corner_sigma_px) if own else float(noise.corner_sigma_px(sides[i], camera.model)) for i in ids}
+    sigmas = {
+        i: float(corner_sigma_px)
+        if corner_sigma_px is not None
+        else float(noise.corner_sigma_px(sides[i], camera.model))
+        for i in ids
+    }
     if not ids:
         why = "; ".join(f"{i}: {r}" for i, r in sorted(lost.items())) or "the map has no markers"
         return Prediction(T, [], {}, {}, None, np.full(3, np.inf), math.inf, 0.0, f"no marker found ({why})", lost)
