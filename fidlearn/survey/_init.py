@@ -25,14 +25,14 @@ NEW_CANDIDATES = 6
 NEW_JUDGES = 24
 
 
-def _map_of(placed: dict[int, tuple[np.ndarray, np.ndarray]], tape: MarkerMap) -> MarkerMap:
-    """A MarkerMap (mm) of the placements ``{id: (R_world_place, top_left_mm)}``."""
-    pl = {i: placement_of(i, R, p) for i, (R, p) in placed.items()}
+def _map_of(placed: dict[int, tuple[np.ndarray, np.ndarray]], tape: MarkerMap, sizes: dict) -> MarkerMap:
+    """A MarkerMap (mm) of the placements ``{id: (R_world_place, top_left_mm)}``, each marker of side ``sizes[id]``."""
+    pl = {i: placement_of(i, R, p, sizes.get(i)) for i, (R, p) in placed.items()}
     return MarkerMap(pl, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
 
 
 def _locate(photo: _Photo, current: MarkerMap) -> None:
-    dets = [Detection(i, c) for i, c in photo.corners.items() if i in current]
+    dets = [Detection(int(i), c, getattr(i, "dictionary", None)) for i, c in photo.corners.items() if i in current]
     if not dets:
         seen = sorted(photo.corners)
         photo.reason = (
@@ -80,13 +80,15 @@ def _area(c: np.ndarray) -> float:
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
-def initial_values(photos: list[_Photo], tape: MarkerMap) -> tuple[dict, dict[int, str]]:
+def initial_values(photos: list[_Photo], tape: MarkerMap, sizes: dict | None = None) -> tuple[dict, dict[int, str]]:
     """Locate the photos and place new markers; ``(placed, unplaced)``.
 
     ``placed`` is ``{id: (R_world_place, top_left_mm)}`` for the map's markers and the new ones
-    placed; ``unplaced`` is ``{id: reason}`` for markers seen but not placed.
+    placed; ``unplaced`` is ``{id: reason}`` for markers seen but not placed. ``sizes`` (``{id: side
+    mm}``) gives the sides of markers the map does not hold (else the map's ``marker_size_mm``).
     """
     placed = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
+    sizes = {**(sizes or {}), **{i: tape.marker_size(i) for i in tape.ids}}
     current = tape
     while True:
         for ph in photos:
@@ -97,12 +99,12 @@ def initial_values(photos: list[_Photo], tape: MarkerMap) -> tuple[dict, dict[in
         added = False
         for i in new:
             showing = [ph for ph in located if i in ph.corners]
-            if len(showing) >= 2 and (cand := _place_new(i, showing, tape.marker_size_mm)) is not None:
+            if len(showing) >= 2 and (cand := _place_new(i, showing, sizes.get(i, tape.marker_size_mm))) is not None:
                 placed[i] = cand
                 added = True
         if not added:
             break
-        current = _map_of(placed, tape)
+        current = _map_of(placed, tape, sizes)
     return placed, _unplaced(photos, placed)
 
 
@@ -137,14 +139,14 @@ def check_units(photos: list[_Photo], tape: MarkerMap) -> None:
         ids = [i for i in ph.corners if i in tape]
         if len(ids) < 2:
             continue
-        seen = {i: placement_from_photo(ph.corners[i], ph.camera, np.eye(4), tape.marker_size_mm) for i in ids}
+        seen = {i: placement_from_photo(ph.corners[i], ph.camera, np.eye(4), tape.marker_size(i)) for i in ids}
         tl = {i: p.translation_mm for i, p in tape.placements.items()}
         for a in range(len(ids)):
             for b in range(a + 1, len(ids)):
                 i, j = ids[a], ids[b]
                 si, sj = seen[i], seen[j]
                 d_photo = np.linalg.norm(si[1] - sj[1]) if si and sj else 0.0
-                if d_photo > 2 * tape.marker_size_mm:
+                if d_photo > 2 * max(tape.marker_size(i), tape.marker_size(j)):
                     ratios.append(np.linalg.norm(np.subtract(tl[i], tl[j])) / d_photo)
     if not ratios:
         return

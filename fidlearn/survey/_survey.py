@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -10,7 +11,7 @@ import numpy as np
 from .. import frames
 from ..errors import FidlearnWarning, SurveyError
 from ..markermap import MarkerMap
-from ._geometry import placement_of
+from ._geometry import marker_sizes, placement_of
 from ._gross import GrossTest, gross_test
 from ._init import check_units, initial_values
 from ._inputs import MAX_MAP_SIGMA_MM, MIN_MAP_SIGMA_MM, MIN_PHOTOS, _check_options, _read_photos
@@ -137,6 +138,7 @@ def survey(
         raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
     opts = {
         "marker_size_mm": tape.marker_size_mm * scale,
+        "sizes": marker_sizes(tape, placed, scale),
         "sigma_px": corner_sigma_px or FIRST_SIGMA_PX,
         "sigma_mm": sigma_mm,
         "sigma_rot_rad": sigma_mm / tape.marker_size_mm,
@@ -235,10 +237,9 @@ def _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice: se
 def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest, learnt: dict) -> Survey:
     problem, x, C, tests, dropped, redundancy = fitted
     R_cam, t_cam, R_mark, p_mark = problem.poses(x)
-    placements = dict(tape.placements)
+    placements = _placements(tape, slots[: problem.n_free], R_mark, p_mark, learnt["scale"])
     cov, std = {}, {}
     for k, i in enumerate(slots[: problem.n_free]):
-        placements[i] = placement_of(i, R_mark[k], p_mark[k])
         cov[i] = marker_block(problem, C, k)
         std[i] = np.sqrt(np.maximum(np.diag(cov[i])[3:], 0.0))
     for i in slots[problem.n_free :]:  # fixed: the tape's placement, exactly
@@ -289,6 +290,22 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
         print_scale_se=gross.scale_se,
         print_scale_applied=learnt["scale"] != 1.0,
     )
+
+
+def _placements(tape: MarkerMap, free: list, R_mark: np.ndarray, p_mark: np.ndarray, scale: float) -> dict:
+    """The surveyed map's placements: the tape's, the ``free`` markers' surveyed, marker sides times ``scale``.
+
+    A marker's own side (``size_mm``) is kept, times the print scale applied, as is its dictionary.
+    """
+
+    def scaled(p):
+        return p if p.size_mm is None or scale == 1.0 else dataclasses.replace(p, size_mm=p.size_mm * scale)
+
+    placements = {i: scaled(p) for i, p in tape.placements.items()}
+    for k, i in enumerate(free):
+        own = tape.placements[i].size_mm if i in tape else None
+        placements[i] = placement_of(i, R_mark[k], p_mark[k], own and own * scale)
+    return placements
 
 
 def _rms(r: np.ndarray) -> float:
