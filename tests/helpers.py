@@ -104,3 +104,48 @@ def named(q, answer, words: str) -> None:
     r = q.grade(answer)
     assert r.status == INCORRECT, (answer, r)
     assert words in r.message, r.message
+
+
+def survey_walk_room(camera, n_photos: int = 20, seed: int = 1, truth=None):
+    """``(truth, poses)``: a room (``fidlearn.synthetic.survey_room()`` unless ``truth``) and a walk through it."""
+    from fidlearn.synthetic import survey_room, survey_walk
+
+    truth = survey_room() if truth is None else truth
+    return truth, survey_walk(truth, camera, n_photos=n_photos, seed=seed)
+
+
+def projected_photos(truth, camera, poses, noise_px: float = 0.0, seed: int = 0, drop=()) -> list:
+    """Each pose's detections: the true corners of the markers it sees whole (each in its dictionary), plus noise.
+
+    Gaussian noise of ``noise_px`` per coordinate (``numpy.random.default_rng(seed)``); the map's keys in
+    ``drop`` are left out.
+    """
+    import numpy as np
+
+    from fidlearn.detection import Detection
+    from fidlearn.synthetic import visible_markers
+
+    rng = np.random.default_rng(seed)
+    return [
+        [
+            Detection(int(k), c + rng.normal(0, noise_px, c.shape), truth.marker_dictionary(k))
+            for k, c in visible_markers(truth, camera, T).items()
+            if k not in drop
+        ]
+        for T in poses
+    ]
+
+
+def with_placements(m, placements: dict, units: str | None = None):
+    """The map ``m`` with other placements (and units)."""
+    from fidlearn.markermap import MarkerMap
+
+    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units=units or m.units, source=m.source)
+
+
+def corner_error_mm(a, b, ids=None) -> float:
+    """The largest coordinate difference (mm) of the two maps' corners, over ``ids`` (all of ``b``'s)."""
+    import numpy as np
+
+    ca, cb = a.corners(), b.corners()
+    return max(float(np.abs(ca[i] - cb[i]).max()) for i in ids or b.ids)

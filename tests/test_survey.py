@@ -12,40 +12,25 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers import corner_error_mm, projected_photos, survey_walk_room, with_placements
 
 import fidlearn
 from fidlearn.detection import Detection
 from fidlearn.errors import FidlearnWarning, ImageError, MapError, SurveyError
 from fidlearn.markermap import MarkerMap
 from fidlearn.survey._problem import Problem
-from fidlearn.synthetic import survey_room, survey_walk, tape_measured, visible_markers
+from fidlearn.synthetic import tape_measured
 
 CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001, 0.0])
 
 
 @pytest.fixture(scope="module")
 def room():
-    truth = survey_room()
-    poses = survey_walk(truth, CAM, n_photos=20, seed=1)
-    return truth, poses
+    return survey_walk_room(CAM)
 
 
 def photos(truth, poses, noise_px=0.0, seed=0, drop=()):
-    rng = np.random.default_rng(seed)
-    out = []
-    for T in poses:
-        v = visible_markers(truth, CAM, T)
-        out.append([Detection(i, c + rng.normal(0, noise_px, c.shape)) for i, c in v.items() if i not in drop])
-    return out
-
-
-def with_placements(m: MarkerMap, placements: dict, units: str | None = None) -> MarkerMap:
-    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units=units or m.units, source=m.source)
-
-
-def corner_error_mm(a: MarkerMap, b: MarkerMap, ids=None) -> float:
-    ca, cb = a.corners(), b.corners()
-    return max(float(np.abs(ca[i] - cb[i]).max()) for i in ids or b.ids)
+    return projected_photos(truth, CAM, poses, noise_px, seed, drop)
 
 
 def test_noise_free_room_is_surveyed_exactly(room):

@@ -13,6 +13,7 @@ import math
 import cv2
 import numpy as np
 import pytest
+from helpers import corner_error_mm, projected_photos, survey_walk_room, with_placements
 
 import fidlearn
 from fidlearn.cli import main
@@ -33,25 +34,11 @@ FE = fidlearn.Camera(
 
 @pytest.fixture(scope="module")
 def room():
-    truth = survey_room()
-    return truth, survey_walk(truth, FE, n_photos=20, seed=1)
+    return survey_walk_room(FE)
 
 
 def photos(truth, poses, noise_px=0.0, seed=0):
-    rng = np.random.default_rng(seed)
-    return [
-        [Detection(i, c + rng.normal(0, noise_px, c.shape)) for i, c in visible_markers(truth, FE, T).items()]
-        for T in poses
-    ]
-
-
-def with_placements(m: MarkerMap, placements: dict) -> MarkerMap:
-    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units=m.units, source=m.source)
-
-
-def corner_error_mm(a: MarkerMap, b: MarkerMap, ids=None) -> float:
-    ca, cb = a.corners(), b.corners()
-    return max(float(np.abs(ca[i] - cb[i]).max()) for i in ids or b.ids)
+    return projected_photos(truth, FE, poses, noise_px, seed)
 
 
 def off_axis_deg(truth: MarkerMap, T_world_camera: np.ndarray, marker_id: int) -> float:
