@@ -6,11 +6,16 @@ survey that took a marker for its namesake of the other dictionary, or gave it a
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from helpers import corner_error_mm, projected_photos, survey_walk_room, with_placements
+from helpers import (
+    corner_error_mm,
+    jacobian_error,
+    noise_free_survey,
+    projected_photos,
+    small_survey_problem,
+    survey_walk_room,
+)
 
 import fidlearn
 from fidlearn import MarkerKey
@@ -39,9 +44,7 @@ def test_the_room_mixes_sizes_and_dictionaries_on_shared_ids(room):
 
 def test_noise_free_mixed_room_is_surveyed_exactly_with_each_marker_its_own_size(room):
     truth, poses = room
-    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3)
-    tape = with_placements(tape, {**tape.placements, 0: truth.placements[0]})
-    s = fidlearn.survey(projected_photos(truth, CAM, poses), tape, CAM, map_sigma_mm=math.inf, fixed_ids=[0])
+    s = noise_free_survey(truth, poses, CAM)
     assert s.marker_map.ids == truth.ids
     assert corner_error_mm(s.marker_map, truth) < 1e-6
     assert [s.marker_map.marker_size(k) for k in truth.ids] == [truth.marker_size(k) for k in truth.ids]
@@ -49,6 +52,13 @@ def test_noise_free_mixed_room_is_surveyed_exactly_with_each_marker_its_own_size
     assert s.unused == []
     assert s.added_ids == ()
     assert max(s.photo_rms_px.values()) < 1e-6
+
+
+def test_jacobian_with_markers_of_three_sizes_matches_finite_differences(room):
+    prob = small_survey_problem(*room, CAM)
+    sides = np.linalg.norm(prob.local[:, 1] - prob.local[:, 0], axis=1)
+    assert set(np.round(sides)) == {80.0, 150.0, 200.0}
+    assert jacobian_error(prob) < 1e-4
 
 
 def test_a_moved_big_marker_is_named_and_not_its_small_namesake(room):
