@@ -6,6 +6,8 @@ survey that took a marker for its namesake of the other dictionary, or gave it a
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from helpers import (
@@ -94,3 +96,44 @@ def test_a_map_with_a_board_entry_is_refused_with_the_fix():
     )
     with pytest.raises(SurveyError, match="rigid entries"):
         fidlearn.survey([np.zeros((480, 640), np.uint8)] * 2, m, CAM)
+
+
+def test_markers_of_unknown_size_get_their_size_measured_from_the_photos(room):
+    truth, poses = room
+    mid = MarkerKey(0, "4X4_50")
+    assert (truth.marker_size(BIG), truth.marker_size(mid), truth.marker_size_mm) == (200.0, 150.0, 80.0)
+    # the tape lacks them: their size is unknown (the map's 80 mm would place them 2.5 and 1.9 times too near)
+    kept = {k: p for k, p in truth.placements.items() if k not in (BIG, mid)}
+    tape = fidlearn.MarkerMap(kept, 80.0, dictionary=truth.dictionary, source="tape without two markers")
+    s = fidlearn.survey(projected_photos(truth, CAM, poses, 0.05, seed=2), tape, CAM, map_sigma_mm=1.0)
+    assert set(s.added_ids) == {BIG, mid}
+    assert s.added_size_mm[BIG] == pytest.approx(200.0, abs=1.0)
+    assert s.added_size_mm[mid] == pytest.approx(150.0, abs=1.0)
+    for k in (BIG, mid):
+        assert s.marker_map.marker_size(k) == s.added_size_mm[k]
+        assert s.marker_map.marker_dictionary(k) == "4X4_50"
+        assert corner_error_mm(s.marker_map, truth, [k]) < 3.0
+    assert f"added from the photos, {s.added_size_mm[BIG]:.0f} mm" in s.table()
+
+
+def test_with_the_sigma_learnt_the_ellipsoid_is_students(room):
+    from dataclasses import replace
+
+    from scipy import stats
+
+    truth, poses = room
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=1.0, seed=7)
+    s = fidlearn.survey(projected_photos(truth, CAM, poses, 0.05, seed=3), tape, CAM)
+    r = 0.5 * (s.map_sigma_mm / s.map_sigma_se_mm) ** 2
+    assert 15 < r < 40  # 11 or 12 markers' positions, less the room's placement
+    assert s._ellipsoid_limit(0.95) == pytest.approx(3 * stats.f.ppf(0.95, 3, r), rel=1e-9)
+    assert s._ellipsoid_limit(0.95) > stats.chi2.ppf(0.95, 3)
+    told = replace(s, map_sigma_learnt=False, map_sigma_se_mm=math.nan)
+    assert told._ellipsoid_limit(0.95) == pytest.approx(stats.chi2.ppf(0.95, 3), rel=1e-12)
+    # a point just beyond the normal ellipsoid and inside Student's
+    cov = s.marker_covariance[3][3:, 3:]
+    w, v = np.linalg.eigh(cov)
+    step = v[:, 0] * np.sqrt(w[0] * 0.5 * (stats.chi2.ppf(0.95, 3) + s._ellipsoid_limit(0.95)))
+    point = np.asarray(s.marker_map.placements[3].translation_mm) + step
+    assert s.position_ellipsoid_contains(3, point)
+    assert not told.position_ellipsoid_contains(3, point)

@@ -64,7 +64,7 @@ def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndar
     if not counts:
         return {}
     ref = max(counts, key=lambda i: (counts[i], -i))
-    sizes = marker_sizes(tape, counts)
+    sizes = marker_sizes(tape, [ref, *(i for i in counts if i in tape)])  # the new markers' sides: measured
     start = MarkerMap(
         {ref: placement_of(ref, np.eye(3), np.zeros(3), sizes[ref])},
         tape.marker_size_mm,
