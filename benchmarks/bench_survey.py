@@ -98,15 +98,26 @@ def rendered(truth, poses, seed: int, errors: list) -> list[np.ndarray]:
     return images
 
 
-def locate_errors(truth, maps, seed: int) -> list[float]:
-    """Median position error (mm) of estimate_pose on 10 fresh views, for each map."""
+def locate_errors(truth, maps, seed: int, refused: list | None = None) -> list[float]:
+    """Median position error (mm) of estimate_pose on 10 fresh views, for each map.
+
+    A view whose pose estimate_pose refuses (the corners do not fit the map) counts as an infinite error;
+    ``refused`` gets how many there were for each map.
+    """
     rng = np.random.default_rng(seed + 7000)
     views = survey_walk(truth, CAMERA, n_photos=10, seed=seed + 5000)
     dets = projected(truth, views, rng)
     out = []
     for m in maps:
-        errs = [np.linalg.norm(estimate_pose(d, m, CAMERA).position_mm - T[:3, 3]) for d, T in zip(dets, views)]
+        errs = []
+        for d, T in zip(dets, views):
+            try:
+                errs.append(np.linalg.norm(estimate_pose(d, m, CAMERA).position_mm - T[:3, 3]))
+            except fidlearn.errors.FidlearnError:
+                errs.append(np.inf)
         out.append(float(np.median(errs)))
+        if refused is not None:
+            refused.append(int(np.sum(np.isinf(errs))))
     return out
 
 
@@ -122,7 +133,8 @@ def measure(truth, tape, moved_id, photos, seed: int, sigma: float | None = TAPE
     ref, ref_id = _with_reference(truth, tape, moved_id)
     s_ref = survey(photos, ref, CAMERA, map_sigma_mm=sigma, fixed_ids=[ref_id])
     inside_ref = [s_ref.position_ellipsoid_contains(i, truth.placements[i].translation_mm) for i in seen if i != ref_id]
-    loc = locate_errors(truth, [tape, s.marker_map, s_ref.marker_map], seed)
+    refused: list[int] = []
+    loc = locate_errors(truth, [tape, s.marker_map, s_ref.marker_map], seed, refused)
     return {
         "abs": rms(got_c, true_c),
         "shape": kabsch_rms(got_c, true_c),
@@ -137,6 +149,7 @@ def measure(truth, tape, moved_id, photos, seed: int, sigma: float | None = TAPE
         "inside_ref": sum(inside_ref),
         "n_inside_ref": len(inside_ref),
         "loc": loc,
+        "refused": refused,
         "wall": wall,
         "cpu": cpu,
     }
@@ -304,6 +317,12 @@ def summary(rows: list[dict]) -> None:
         f"{np.median(loc[:, 1]):.1f} mm ({ratio:.1f}x better), with a reference marker {np.median(loc[:, 2]):.1f} mm "
         f"({ratio_ref:.1f}x better)"
     )
+    refused = np.sum([r["refused"] for r in rows], axis=0)
+    if refused.any():
+        print(
+            f"- views whose pose estimate_pose refused (the corners do not fit the map; counted as an infinite error): "
+            f"tape map {refused[0]}, surveyed {refused[1]}, with a reference marker {refused[2]} of {10 * len(rows)}"
+        )
     worst = max(r["wall"] for r in rows)
     print(f"- survey time: median {med('wall'):.1f} s wall, {med('cpu'):.1f} s CPU; worst {worst:.1f} s wall")
     return {

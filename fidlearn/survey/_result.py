@@ -355,7 +355,7 @@ class Survey:
             std = float(np.linalg.norm(self.marker_position_std_mm[i]))
             resid = f"{self.tape_residual_mm[i]:7.0f}" if i in self.tape_residual_mm else f"{'-':>7}"
             lines.append(
-                f"{i:>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} {resid} "
+                f"{str(i):>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} {resid} "
                 f"{self.photos_per_marker.get(i, 0):>6}  {_table_note(self, i, suspects)}"
             )
         return "\n".join(lines)

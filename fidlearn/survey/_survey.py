@@ -66,7 +66,7 @@ def survey(
     images : sequence
         The photos: paths, image arrays (gray or BGR), or lists of :class:`fidlearn.Detection`
         (already detected; corners in px, TL, TR, BR, BL). Markers are detected with
-        :func:`fidlearn.detect_markers` (edge refinement) in the map's dictionary.
+        :func:`fidlearn.detect_markers` (edge refinement) in each of the map's dictionaries.
     marker_map : MarkerMap or path
         The tape map: each marker's top-left corner and rotation, as measured.
     camera : Camera or path
