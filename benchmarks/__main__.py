@@ -382,51 +382,10 @@ def _parse_calibration(out: str) -> list[tuple[str, str, str]]:
     return rows
 
 
-def _parse_survey(out: str) -> list[tuple[str, str, str]]:
-    def num(pattern: str) -> float:
-        return float(re.search(pattern, out).group(1))
-
-    shape, absolute, ref = (
-        num(r"shape \(after the best rigid motion\) ([\d.]+) mm"),
-        num(r"surveyed ([\d.]+) mm where"),
-        num(r"([\d.]+) mm with one reference marker held"),
-    )
-    named, false = num(r"moved marker named: ([\d.]+) %"), num(r"a good marker named: ([\d.]+) %")
-    cover, ratio = num(r"inside their 95 % ellipsoid: ([\d.]+) %"), num(r"surveyed [\d.]+ mm \(([\d.]+)x better\)")
-    worst = num(r"worst ([\d.]+) s wall")
-    learnt = re.search(
-        r"sigma learnt: exactly the moved marker named in (\d+) of (\d+) rooms, error / limit at worst ([\d.]+)", out
-    )
-    rows = []
-    if learnt:
-        exact, rooms, ratio_limit = int(learnt.group(1)), int(learnt.group(2)), float(learnt.group(3))
-        rows.append(
-            (
-                "survey: tape sigma learnt (20 mm, a marker moved 100 mm): exactly the moved marker named, "
-                "room within 1.15x of the tape's limit",
-                f"{exact} of {rooms} rooms named exactly; {ratio_limit:.2f}x the limit at worst",
-                _yes(exact == rooms and ratio_limit <= 1.15),
-            )
-        )
-    return [
-        (
-            "survey: corners within 3 mm RMS of the truth (goal 1.5)",
-            f"shape {shape:.2f} mm; placed by the tape alone {absolute:.1f} mm, with one reference marker {ref:.1f} mm",
-            f"{_yes(shape <= 3)} for the shape; the room's placement is the tape's (see section)",
-        ),
-        ("survey: the moved marker named in >= 95 % of seeds", f"{named:.0f} %", _yes(named >= 95)),
-        ("survey: a good marker named in < 5 %", f"{false:.1f} %", _yes(false < 5)),
-        ("survey: true positions inside the 95 % ellipsoids 90-98 %", f"{cover:.1f} %", _yes(90 <= cover <= 98)),
-        ("survey: locate >= 3x more accurate with the surveyed map (fresh views)", f"{ratio:.1f}x", _yes(ratio >= 3)),
-        ("survey: under 10 s (20 photos, 2 shared cores)", f"{worst:.1f} s wall at worst", _yes(worst < 10)),
-    ] + rows
-
-
 _PARSERS = {
     "pose": _parse_pose,
     "corners": _parse_corners,
     "calibration": _parse_calibration,
-    "survey": _parse_survey,
 }
 
 

@@ -25,21 +25,8 @@ import fidlearn
 from fidlearn import Camera, MarkerMap, locate
 from fidlearn.frames import look_at
 from fidlearn.survey import check_print
-from fidlearn.synthetic import render_scene
+from fidlearn.synthetic import MIXED_WALL, mixed_wall, render_scene
 
-MIXED = {
-    "units": "mm",
-    "marker_size_mm": 80,
-    "dictionary": "ARUCO_ORIGINAL",
-    "markers": {
-        "0": {"translation": [0, 0, 1400]},
-        "1": {"translation": [0, 300, 1400]},
-        "2": {"translation": [0, 0, 1100]},
-        "3": {"translation": [0, 300, 1100]},
-        "4X4_50:0": {"translation": [0, 800, 1500], "size_mm": 200},
-        "4X4_50:1": {"translation": [0, 800, 1100], "size_mm": 200},
-    },
-}
 CAM = Camera([[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.05, 0.02, 0, 0, 0], (640, 480))
 
 
@@ -76,7 +63,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="20 scenes instead of 60")
     args = parser.parse_args(argv)
-    m = MarkerMap.from_dict(MIXED, source="mixed wall")
+    m = mixed_wall()
     t0 = time.perf_counter()
     scenes = []
     for k, T in enumerate(viewpoints(20 if args.quick else 60)):
@@ -85,9 +72,8 @@ def main(argv=None) -> int:
             scenes.append(sc)
     with_big = sum(any(m.marker_size(i) > 100 for i in sc.truth) for sc in scenes)
     sized = run(m, scenes)
-    one_size = MarkerMap.from_dict(
-        {**MIXED, "markers": {k: {**v, "size_mm": 80} for k, v in MIXED["markers"].items()}}, source="one size"
-    )
+    markers = {k: {**v, "size_mm": 80} for k, v in MIXED_WALL["markers"].items()}
+    one_size = MarkerMap.from_dict({**MIXED_WALL, "markers": markers}, source="one size")
     flat = run(one_size, scenes)
     print(
         f"{len(scenes)} rendered scenes 640x480 of {m!r}, {with_big} showing a 200 mm marker "

@@ -104,3 +104,108 @@ def named(q, answer, words: str) -> None:
     r = q.grade(answer)
     assert r.status == INCORRECT, (answer, r)
     assert words in r.message, r.message
+
+
+def survey_walk_room(camera, n_photos: int = 20, seed: int = 1, truth=None):
+    """``(truth, poses)``: a room (``fidlearn.synthetic.survey_room()`` unless ``truth``) and a walk through it."""
+    from fidlearn.synthetic import survey_room, survey_walk
+
+    truth = survey_room() if truth is None else truth
+    return truth, survey_walk(truth, camera, n_photos=n_photos, seed=seed)
+
+
+def projected_photos(truth, camera, poses, noise_px: float = 0.0, seed: int = 0, drop=()) -> list:
+    """Each pose's detections: the true corners of the markers it sees whole (each in its dictionary), plus noise.
+
+    Gaussian noise of ``noise_px`` per coordinate (``numpy.random.default_rng(seed)``); the map's keys in
+    ``drop`` are left out.
+    """
+    import numpy as np
+
+    from fidlearn.detection import Detection
+    from fidlearn.synthetic import visible_markers
+
+    rng = np.random.default_rng(seed)
+    return [
+        [
+            Detection(int(k), c + rng.normal(0, noise_px, c.shape), truth.marker_dictionary(k))
+            for k, c in visible_markers(truth, camera, T).items()
+            if k not in drop
+        ]
+        for T in poses
+    ]
+
+
+def with_placements(m, placements: dict, units: str | None = None):
+    """The map ``m`` with other placements (and units)."""
+    from fidlearn.markermap import MarkerMap
+
+    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units=units or m.units, source=m.source)
+
+
+def corner_error_mm(a, b, ids=None) -> float:
+    """The largest coordinate difference (mm) of the two maps' corners, over ``ids`` (all of ``b``'s)."""
+    import numpy as np
+
+    ca, cb = a.corners(), b.corners()
+    return max(float(np.abs(ca[i] - cb[i]).max()) for i in ids or b.ids)
+
+
+def noise_free_survey(truth, poses, camera):
+    """The survey of noise-free photos with a rough tape (20 mm, 2 degrees), marker 0 exact and held."""
+    import math
+
+    import fidlearn
+    from fidlearn.synthetic import tape_measured
+
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3)
+    tape = with_placements(tape, {**tape.placements, 0: truth.placements[0]})
+    return fidlearn.survey(projected_photos(truth, camera, poses), tape, camera, map_sigma_mm=math.inf, fixed_ids=[0])
+
+
+def small_survey_problem(truth, poses, camera):
+    """The survey's problem of 6 photos (0.2 px noise), one marker held, tape priors on all but two markers."""
+    from fidlearn.survey._geometry import marker_sizes
+    from fidlearn.survey._solve import build_problem
+    from fidlearn.survey._survey import _read_photos, initial_values
+    from fidlearn.synthetic import tape_measured
+
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=4)
+    ph = _read_photos(projected_photos(truth, camera, poses[:6], 0.2), tape, camera, None)
+    placed, _ = initial_values(ph, tape)
+    ids = sorted({i for p in ph for i in p.corners})
+    opts = {"marker_size_mm": tape.marker_size_mm, "sizes": marker_sizes(tape, ids), "sigma_px": 0.3}
+    opts.update(sigma_mm=20.0, sigma_rot_rad=0.1)
+    return build_problem(ph, ids[1:] + ids[:1], len(ids) - 1, placed, {i: placed[i] for i in ids[2:]}, opts)
+
+
+def jacobian_error(prob, seed: int = 1) -> float:
+    """The analytic Jacobian's largest difference from central differences, over the largest entry (or 1)."""
+    import numpy as np
+
+    x = np.random.default_rng(seed).normal(0, 0.02, prob.n_params)
+    J = prob.jacobian(x).toarray()
+    num = np.zeros_like(J)
+    for k in range(prob.n_params):
+        e = np.zeros_like(x)
+        e[k] = 1e-6
+        num[:, k] = (prob.residuals(x + e) - prob.residuals(x - e)) / 2e-6
+    return float(np.abs(J - num).max() / max(1.0, np.abs(num).max()))
+
+
+def survey_with_marker_7_moved(truth, poses, camera):
+    """``(tape, survey)``: marker 7 taped 100 mm off (tape 20 mm, 0.1 px corners), named and put back by the photos."""
+    import numpy as np
+
+    import fidlearn
+    from fidlearn.synthetic import tape_measured
+
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=1.0, moved={7: (0.0, 100.0, 0.0)}, seed=5)
+    s = fidlearn.survey(projected_photos(truth, camera, poses, 0.1), tape, camera, map_sigma_mm=20)
+    assert s.suspect_ids[0] == 7, s.suspects
+    assert 60 < s.suspects[0].distance_mm < 160
+    assert s.suspects[0].sigmas > 3.4
+    # where the photos put it: within the map's overall placement (the tape's gauge, ~10 mm) of the truth
+    moved = np.subtract(s.marker_map.placements[7].translation_mm, truth.placements[7].translation_mm)
+    assert np.linalg.norm(moved) < 40
+    return tape, s

@@ -2,25 +2,11 @@
 
 import numpy as np
 
-from fidlearn import Camera, MarkerMap, detect_markers, locate
+from fidlearn import Camera, detect_markers, locate
 from fidlearn.frames import look_at
 from fidlearn.pose._second_look import missed_in_view, read_again
-from fidlearn.synthetic import render_scene
+from fidlearn.synthetic import mixed_wall, render_scene
 
-#: The wall of benchmarks/bench_maps.py: four 80 mm ARUCO_ORIGINAL markers, two 200 mm 4X4_50 markers.
-MIXED = {
-    "units": "mm",
-    "marker_size_mm": 80,
-    "dictionary": "ARUCO_ORIGINAL",
-    "markers": {
-        "0": {"translation": [0, 0, 1400]},
-        "1": {"translation": [0, 300, 1400]},
-        "2": {"translation": [0, 0, 1100]},
-        "3": {"translation": [0, 300, 1100]},
-        "4X4_50:0": {"translation": [0, 800, 1500], "size_mm": 200},
-        "4X4_50:1": {"translation": [0, 800, 1100], "size_mm": 200},
-    },
-}
 CAM = Camera([[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.05, 0.02, 0, 0, 0], (640, 480))
 #: The benchmark's scene 21: 4X4_50 marker 0 is whole (18 px from the right edge), about 60 px wide, and
 #: its white margin's outline pushes its own out of OpenCV's candidates.
@@ -28,7 +14,7 @@ T_SCENE = look_at([1815.7, -72.6, 1507.1], [0.0, 117.6, 1057.6], roll_deg=-11.53
 
 
 def scene():
-    m = MarkerMap.from_dict(MIXED, source="mixed wall")
+    m = mixed_wall()
     return m, render_scene(m, CAM, T_SCENE, seed=21, noise_std_gray=2.0, blur_px=0.6)
 
 
@@ -50,7 +36,7 @@ def test_a_big_marker_the_detector_misses_is_read_where_the_pose_puts_it():
 def test_a_marker_that_is_not_in_the_picture_is_not_invented():
     m, _ = scene()
     # the same wall printed without 4X4_50 marker 0: the pose predicts it whole, the second look finds nothing
-    printed = MarkerMap.from_dict({**MIXED, "markers": {k: v for k, v in MIXED["markers"].items() if k != "4X4_50:0"}})
+    printed = mixed_wall(without=["4X4_50:0"])
     sc = render_scene(printed, CAM, T_SCENE, seed=21, noise_std_gray=2.0, blur_px=0.6)
     pose = locate(sc.image, m, CAM)
     assert set(pose.marker_ids) == set(sc.truth)

@@ -10,27 +10,13 @@ import pytest
 import fidlearn
 from fidlearn import Camera, MarkerKey, MarkerMap, MarkerPlacement, MarkerTracker, detect_markers, locate
 from fidlearn.detection import Detection
-from fidlearn.errors import MapError, NoMarkersError, SurveyError
+from fidlearn.errors import MapError, NoMarkersError
 from fidlearn.frames import look_at
 from fidlearn.printables import layout_map_markers
-from fidlearn.synthetic import render_scene
+from fidlearn.synthetic import MIXED_WALL, render_scene
 
 #: Four 80 mm ARUCO_ORIGINAL markers and two 200 mm 4X4_50 markers whose ids (0, 1) the small ones use too.
-MIXED = {
-    "units": "mm",
-    "marker_size_mm": 80,
-    "dictionary": "ARUCO_ORIGINAL",
-    "markers": {
-        "0": {"translation": [0, 0, 1400]},
-        "1": {"translation": [0, 300, 1400]},
-        "2": {"translation": [0, 0, 1100]},
-        "3": {"translation": [0, 300, 1100]},
-        "4X4_50:0": {"translation": [0, 800, 1500], "size_mm": 200},
-        # named by its key and by its "dictionary" field, which agree
-        "4X4_50:1": {"translation": [0, 800, 1100], "size_mm": 200, "dictionary": "DICT_4X4_50"},
-    },
-}
-
+MIXED = MIXED_WALL
 CAM = Camera([[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.05, 0.02, 0, 0, 0], (640, 480))
 
 
@@ -223,11 +209,6 @@ def test_printables_print_each_marker_at_its_size():
     assert sheets[2].cell_mm == pytest.approx(140 / 6)
     with pytest.raises(fidlearn.errors.PrintError, match=r"markers 4X4_50:0, 4X4_50:1 are 200 mm, too large"):
         layout_map_markers(mixed())
-
-
-def test_the_survey_refuses_a_map_of_mixed_sizes():
-    with pytest.raises(SurveyError, match="share one size and one dictionary"):
-        fidlearn.survey([np.zeros((480, 640), np.uint8)] * 2, mixed(), CAM)
 
 
 def test_fidlearn_markers_prints_a_map_at_each_markers_size(tmp_path, capsys):

@@ -12,47 +12,39 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers import (
+    corner_error_mm,
+    jacobian_error,
+    noise_free_survey,
+    projected_photos,
+    small_survey_problem,
+    survey_walk_room,
+    survey_with_marker_7_moved,
+    with_placements,
+)
 
 import fidlearn
 from fidlearn.detection import Detection
 from fidlearn.errors import FidlearnWarning, ImageError, MapError, SurveyError
 from fidlearn.markermap import MarkerMap
 from fidlearn.survey._problem import Problem
-from fidlearn.synthetic import survey_room, survey_walk, tape_measured, visible_markers
+from fidlearn.synthetic import tape_measured
 
 CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001, 0.0])
 
 
 @pytest.fixture(scope="module")
 def room():
-    truth = survey_room()
-    poses = survey_walk(truth, CAM, n_photos=20, seed=1)
-    return truth, poses
+    return survey_walk_room(CAM)
 
 
 def photos(truth, poses, noise_px=0.0, seed=0, drop=()):
-    rng = np.random.default_rng(seed)
-    out = []
-    for T in poses:
-        v = visible_markers(truth, CAM, T)
-        out.append([Detection(i, c + rng.normal(0, noise_px, c.shape)) for i, c in v.items() if i not in drop])
-    return out
-
-
-def with_placements(m: MarkerMap, placements: dict, units: str | None = None) -> MarkerMap:
-    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units=units or m.units, source=m.source)
-
-
-def corner_error_mm(a: MarkerMap, b: MarkerMap, ids=None) -> float:
-    ca, cb = a.corners(), b.corners()
-    return max(float(np.abs(ca[i] - cb[i]).max()) for i in ids or b.ids)
+    return projected_photos(truth, CAM, poses, noise_px, seed, drop)
 
 
 def test_noise_free_room_is_surveyed_exactly(room):
     truth, poses = room
-    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3)
-    tape = with_placements(tape, {**tape.placements, 0: truth.placements[0]})
-    s = fidlearn.survey(photos(truth, poses), tape, CAM, map_sigma_mm=math.inf, fixed_ids=[0])
+    s = noise_free_survey(truth, poses, CAM)
     assert corner_error_mm(s.marker_map, truth) < 1e-6
     assert len(s.camera_poses) == len(poses)
     for T_true, T in zip(poses, s.camera_poses.values()):
@@ -63,36 +55,13 @@ def test_noise_free_room_is_surveyed_exactly(room):
 
 
 def test_jacobian_matches_finite_differences(room):
-    truth, poses = room
-    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=4)
-    from fidlearn.survey._solve import build_problem
-    from fidlearn.survey._survey import _read_photos, initial_values
-
-    ph = _read_photos(photos(truth, poses[:6], 0.2), tape, CAM, None)
-    placed, _ = initial_values(ph, tape)
-    ids = sorted({i for p in ph for i in p.corners})
-    opts = {"marker_size_mm": 160.0, "sigma_px": 0.3, "sigma_mm": 20.0, "sigma_rot_rad": 0.1}
-    prob: Problem = build_problem(ph, ids[1:] + ids[:1], len(ids) - 1, placed, {i: placed[i] for i in ids[2:]}, opts)
-    x = np.random.default_rng(1).normal(0, 0.02, prob.n_params)
-    J = prob.jacobian(x).toarray()
-    num = np.zeros_like(J)
-    for k in range(prob.n_params):
-        e = np.zeros_like(x)
-        e[k] = 1e-6
-        num[:, k] = (prob.residuals(x + e) - prob.residuals(x - e)) / 2e-6
-    assert np.abs(J - num).max() < 1e-4 * max(1.0, np.abs(num).max())
+    prob: Problem = small_survey_problem(*room, CAM)
+    assert jacobian_error(prob) < 1e-4
 
 
 def test_moved_marker_is_named_and_surveyed_back(room):
     truth, poses = room
-    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=1.0, moved={7: (0.0, 100.0, 0.0)}, seed=5)
-    s = fidlearn.survey(photos(truth, poses, 0.1), tape, CAM, map_sigma_mm=20)
-    assert s.suspect_ids[0] == 7, s.suspects
-    assert 60 < s.suspects[0].distance_mm < 160
-    assert s.suspects[0].sigmas > 3.4
-    # where the photos put it: within the map's overall placement (the tape's gauge, ~10 mm) of the truth
-    moved = np.subtract(s.marker_map.placements[7].translation_mm, truth.placements[7].translation_mm)
-    assert np.linalg.norm(moved) < 40
+    tape, _ = survey_with_marker_7_moved(truth, poses, CAM)
     tape_err = np.subtract(tape.placements[7].translation_mm, truth.placements[7].translation_mm)
     assert np.linalg.norm(tape_err) > 80
 

@@ -8,11 +8,19 @@ the picture's edge, are among them. The print scale from one fisheye photo of a 
 
 from __future__ import annotations
 
-import math
-
 import cv2
 import numpy as np
 import pytest
+from helpers import (
+    corner_error_mm,
+    jacobian_error,
+    noise_free_survey,
+    projected_photos,
+    small_survey_problem,
+    survey_walk_room,
+    survey_with_marker_7_moved,
+    with_placements,
+)
 
 import fidlearn
 from fidlearn.cli import main
@@ -33,25 +41,11 @@ FE = fidlearn.Camera(
 
 @pytest.fixture(scope="module")
 def room():
-    truth = survey_room()
-    return truth, survey_walk(truth, FE, n_photos=20, seed=1)
+    return survey_walk_room(FE)
 
 
 def photos(truth, poses, noise_px=0.0, seed=0):
-    rng = np.random.default_rng(seed)
-    return [
-        [Detection(i, c + rng.normal(0, noise_px, c.shape)) for i, c in visible_markers(truth, FE, T).items()]
-        for T in poses
-    ]
-
-
-def with_placements(m: MarkerMap, placements: dict) -> MarkerMap:
-    return MarkerMap(placements, m.marker_size_mm, dictionary=m.dictionary, units=m.units, source=m.source)
-
-
-def corner_error_mm(a: MarkerMap, b: MarkerMap, ids=None) -> float:
-    ca, cb = a.corners(), b.corners()
-    return max(float(np.abs(ca[i] - cb[i]).max()) for i in ids or b.ids)
+    return projected_photos(truth, FE, poses, noise_px, seed)
 
 
 def off_axis_deg(truth: MarkerMap, T_world_camera: np.ndarray, marker_id: int) -> float:
@@ -73,9 +67,7 @@ def test_the_pictures_hold_markers_near_the_edge(room):
 
 def test_noise_free_fisheye_room_is_surveyed_exactly(room):
     truth, poses = room
-    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3)
-    tape = with_placements(tape, {**tape.placements, 0: truth.placements[0]})
-    s = fidlearn.survey(photos(truth, poses), tape, FE, map_sigma_mm=math.inf, fixed_ids=[0])
+    s = noise_free_survey(truth, poses, FE)
     assert corner_error_mm(s.marker_map, truth) < 1e-6
     used = {int(label.split()[1]) for label in s.camera_poses}
     # whole-room views, whose markers are small, fit the rough tape too badly to start from it
@@ -89,29 +81,13 @@ def test_noise_free_fisheye_room_is_surveyed_exactly(room):
 
 
 def test_jacobian_through_the_fisheye_matches_finite_differences(room):
-    truth, poses = room
-    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=4)
-    from fidlearn.survey._solve import build_problem
-    from fidlearn.survey._survey import _read_photos, initial_values
-
-    ph = _read_photos(photos(truth, poses[:6], 0.2), tape, FE, None)
-    placed, _ = initial_values(ph, tape)
-    ids = sorted({i for p in ph for i in p.corners})
-    opts = {"marker_size_mm": 160.0, "sigma_px": 0.3, "sigma_mm": 20.0, "sigma_rot_rad": 0.1}
-    prob = build_problem(ph, ids[1:] + ids[:1], len(ids) - 1, placed, {i: placed[i] for i in ids[2:]}, opts)
+    prob = small_survey_problem(*room, FE)
     assert prob.model == "fisheye"
-    x = np.random.default_rng(1).normal(0, 0.02, prob.n_params)
     # the residuals are the fisheye's own pixels: at x = 0 they are the projection through cv2.fisheye
     _, _, _, P = prob._points(np.zeros(prob.n_params))
     fe, _ = cv2.fisheye.projectPoints(P.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), FE.K, FE.dist)
     assert np.abs(prob.reprojection_px(np.zeros(prob.n_params)) - (fe.reshape(-1, 2) - prob.obs_px)).max() < 1e-6
-    J = prob.jacobian(x).toarray()
-    num = np.zeros_like(J)
-    for k in range(prob.n_params):
-        e = np.zeros_like(x)
-        e[k] = 1e-6
-        num[:, k] = (prob.residuals(x + e) - prob.residuals(x - e)) / 2e-6
-    assert np.abs(J - num).max() < 1e-4 * max(1.0, np.abs(num).max())
+    assert jacobian_error(prob) < 1e-4
 
 
 def test_placement_from_a_fisheye_photo_near_the_edge(room):
@@ -124,14 +100,7 @@ def test_placement_from_a_fisheye_photo_near_the_edge(room):
 
 
 def test_moved_marker_is_named_and_surveyed_back(room):
-    truth, poses = room
-    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=1.0, moved={7: (0.0, 100.0, 0.0)}, seed=5)
-    s = fidlearn.survey(photos(truth, poses, 0.1), tape, FE, map_sigma_mm=20)
-    assert s.suspect_ids[0] == 7, s.suspects
-    assert 60 < s.suspects[0].distance_mm < 160
-    assert s.suspects[0].sigmas > 3.4
-    moved = np.subtract(s.marker_map.placements[7].translation_mm, truth.placements[7].translation_mm)
-    assert np.linalg.norm(moved) < 40
+    _, s = survey_with_marker_7_moved(*room, FE)
     # the corner noise is estimated in the picture's own pixels: 0.1 px put in
     assert 0.07 < s.corner_sigma_px < 0.13
 

@@ -19,6 +19,7 @@ __all__ = [
     "local_corners",
     "log_so3",
     "placement_of",
+    "marker_sizes",
     "placement_from_photo",
     "skew",
 ]
@@ -59,8 +60,21 @@ def placement_from_photo(
     return R_wm @ _M_TO_PLACE, top_left
 
 
-def placement_of(marker_id: int, R_world_place: np.ndarray, top_left_mm: np.ndarray) -> MarkerPlacement:
-    """The :class:`MarkerPlacement` of a rotation (3, 3) and a top-left corner (3,), mm."""
+def placement_of(
+    marker_id: int, R_world_place: np.ndarray, top_left_mm: np.ndarray, size_mm: float | None = None
+) -> MarkerPlacement:
+    """The :class:`MarkerPlacement` of a rotation (3, 3) and a top-left corner (3,), mm.
+
+    ``marker_id`` is a map's key: a :class:`~fidlearn.MarkerKey` keeps its dictionary; ``size_mm`` the
+    marker's own side (None: the map's).
+    """
     x, y, z = (float(v) for v in top_left_mm)
     roll, pitch, yaw = (float(a) for a in rpy_deg_from_rotation(R_world_place))
-    return MarkerPlacement(marker_id, (x, y, z), (roll, pitch, yaw))
+    return MarkerPlacement(
+        int(marker_id), (x, y, z), (roll, pitch, yaw), size_mm, getattr(marker_id, "dictionary", None)
+    )
+
+
+def marker_sizes(tape, keys, scale: float = 1.0) -> dict:
+    """Each key's marker side (mm) times ``scale``: the map's own size for its markers, the map's default else."""
+    return {k: scale * (tape.marker_size(k) if k in tape else tape.marker_size_mm) for k in keys}

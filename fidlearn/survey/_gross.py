@@ -11,8 +11,8 @@ from its aligned photo placement is its robust residual.
 
 Threshold: ``GROSS_SIGMAS`` times the tape's sigma, or times the residuals' own spread (from
 their median) when that is larger (a sigma given too small), and never less than one marker side
-(what the photos' own pose ambiguity could move a corner). A taped marker beyond it is gross: the
-survey places it from the photos alone. When no more than half of the taped markers agree, the
+(the map's largest: what the photos' own pose ambiguity could move a corner). A taped marker beyond
+it is gross: the survey places it from the photos alone. When no more than half of the taped markers agree, the
 map cannot be mended by leaving some out: the survey refuses it, naming the markers (or, when a
 majority agrees at a scale beyond ``UNITS_FACTOR_LIMIT``, saying the map's units look wrong).
 """
@@ -27,7 +27,8 @@ import numpy as np
 
 from .. import _stats
 from ..errors import MapError, SurveyError
-from ..markermap import MarkerMap, MarkerPlacement
+from ..markermap import MarkerMap
+from ._geometry import marker_sizes, placement_of
 from ._init import UNITS_FACTOR_LIMIT, _units_message, initial_values
 from ._inputs import _Photo
 from ._solve import FIRST_SIGMA_PX, _polish, build_problem
@@ -63,19 +64,20 @@ def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndar
     if not counts:
         return {}
     ref = max(counts, key=lambda i: (counts[i], -i))
+    sizes = marker_sizes(tape, [ref, *(i for i in counts if i in tape)])  # the new markers' sides: measured
     start = MarkerMap(
-        {ref: MarkerPlacement(ref, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))},
+        {ref: placement_of(ref, np.eye(3), np.zeros(3), sizes[ref])},
         tape.marker_size_mm,
         dictionary=tape.dictionary,
         units="mm",
         source="the photos",
     )
-    placed, _ = initial_values(copies, start)
+    placed, _ = initial_values(copies, start, sizes)
     cams = [ph for ph in copies if ph.T_world_camera is not None]
     if len(cams) < 2 or len(placed) < 2:
         return {i: np.asarray(p, float) for i, (_, p) in placed.items()}
     slots = [i for i in placed if i != ref] + [ref]
-    opts = {"marker_size_mm": tape.marker_size_mm, "sigma_px": FIRST_SIGMA_PX, "sigma_mm": math.inf}
+    opts = {"marker_size_mm": tape.marker_size_mm, "sizes": sizes, "sigma_px": FIRST_SIGMA_PX, "sigma_mm": math.inf}
     problem = build_problem(cams, slots, len(slots) - 1, placed, {}, {**opts, "sigma_rot_rad": math.inf})
     x = _polish(problem, np.zeros(problem.n_params))  # Gauss-Newton: the start is the photos' own
     _, _, _, p_mark = problem.poses(x)
@@ -100,7 +102,7 @@ def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float | None) ->
         return GrossTest()
     src = np.array([seen[i] for i in ids])
     dst = np.array([tape.placements[i].translation_mm for i in ids], float)
-    floor = max(GROSS_SIGMAS * (sigma_mm or 0.0), tape.marker_size_mm)
+    floor = max(GROSS_SIGMAS * (sigma_mm or 0.0), max(tape.marker_size(i) for i in ids))
     inliers = _consensus(src, dst, floor)
     threshold = floor
     if 2 * int(inliers.sum()) > len(ids):

@@ -1,7 +1,9 @@
 """The survey's inputs: photos (files, arrays or detections) to detected corners, and the checks.
 
 Each photo becomes a :class:`_Photo`: its label, the camera fitted to it, and the detected
-corners of every marker of the map's dictionary (``{id: (4, 2) px}``, TL, TR, BR, BL).
+corners of every marker of the map's dictionaries (``{key: (4, 2) px}``, TL, TR, BR, BL; the key is
+the map's, :meth:`fidlearn.MarkerMap.key`: the plain id in the map's own dictionary, a
+:class:`~fidlearn.MarkerKey` in another).
 """
 
 from __future__ import annotations
@@ -55,12 +57,11 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     camera = _as_camera(camera)
     sigma = _sigma_mm(map_sigma_mm)
     fixed = _fixed_ids(fixed_ids, marker_map)
-    mixed = [k for k in marker_map.ids if marker_map.placements[k].size_mm not in (None, marker_map.marker_size_mm)]
-    if mixed or len(marker_map.dictionaries) > 1:
-        what = f"markers {[str(k) for k in mixed]} have their own size_mm" if mixed else "it uses several dictionaries"
+    if marker_map.entries:
         raise SurveyError(
-            f"{marker_map.source}: the survey takes a map whose markers share one size and one dictionary, but "
-            f"{what}; survey each size and dictionary with a map of its own markers"
+            f"{marker_map.source}: the survey places single markers, but the map has rigid entries "
+            f"({', '.join(marker_map.entries)}); survey with a map of the single markers (a board's markers keep "
+            "their board's geometry: place the board by its own pose)"
         )
     if np.any(np.asarray(camera.dist, float).ravel()[12:]):
         raise SurveyError(
@@ -134,7 +135,7 @@ def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
 
 
 def _read_photos(images, marker_map: MarkerMap, camera: Camera, progress: Callable | None) -> list[_Photo]:
-    """Detect the dictionary's markers in every photo (or take the detections given)."""
+    """Detect the map's dictionaries' markers in every photo (or take the detections given)."""
     if isinstance(images, (str, os.PathLike, np.ndarray)) or not isinstance(images, Sequence):
         raise SurveyError(
             f"images must be a list of photos (paths, arrays or lists of Detection), got {type(images).__name__}"
@@ -183,7 +184,8 @@ def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:
         label = f"photo {i}"
     if isinstance(item, np.ndarray):
         cam = camera.for_image(item)
-        dets = detect_markers(item, dictionary=marker_map.dictionary)
+        names = marker_map.dictionaries
+        dets = detect_markers(item, dictionary=names[0] if len(names) == 1 else names)
     elif isinstance(item, Sequence) and all(isinstance(d, Detection) for d in item):
         cam, dets = camera, list(item)
     else:
@@ -191,10 +193,11 @@ def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:
     corners: dict[int, np.ndarray] = {}
     _check_corners(i, dets, cam)
     for d in dets:
-        if d.id in corners:  # the same id twice in one photo: which one is where is unknowable
-            corners[d.id] = None  # type: ignore[assignment]
+        key = marker_map.key(d.id, getattr(d, "dictionary", None))
+        if key in corners:  # the same marker twice in one photo: which one is where is unknowable
+            corners[key] = None  # type: ignore[assignment]
         else:
-            corners[d.id] = np.asarray(d.corners_px, float)
+            corners[key] = np.asarray(d.corners_px, float)
     kept = {k: v for k, v in corners.items() if v is not None}
     if cam.model == "fisheye":  # a ray 90 degrees or more off the axis has no normalized point: left out
         kept = {k: v for k, v in kept.items() if np.all(np.isfinite(cam.undistort_points(v)))}

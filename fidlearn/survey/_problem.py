@@ -41,7 +41,7 @@ class Problem:
 
     K: np.ndarray
     dist: np.ndarray
-    local: np.ndarray  # (4, 3) corners in the placement frame, mm
+    local: np.ndarray  # (k, 4, 3) each slot's corners in its placement frame (its own side), mm
     R0_cam: np.ndarray  # (m, 3, 3)
     t0_cam: np.ndarray  # (m, 3)
     R0_mark: np.ndarray  # (k, 3, 3), free markers first
@@ -83,7 +83,7 @@ class Problem:
     def _points(self, x: np.ndarray):
         R_cam, t_cam, R_mark, p_mark = self.poses(x)
         c, j = self.obs_cam, self.obs_marker
-        arm = np.einsum("nij,nj->ni", R_mark[j], self.local[self.obs_corner])  # R_j L_k
+        arm = np.einsum("nij,nj->ni", R_mark[j], self.local[j, self.obs_corner])  # R_j L_k
         X = p_mark[j] + arm
         P = np.einsum("nij,nj->ni", R_cam[c], X) + t_cam[c]
         return R_cam, X, arm, P

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -102,6 +103,11 @@ class Survey:
         The markers' print scale and its standard error: the scale of the similarity laying the photos'
         top-left corners on the tape's (0.987: printed at 98.7 %, or a tape that reads long); NaN when
         the gross test did not run.
+    added_size_mm : dict of int to float
+        The side (mm) of each marker added from the photos whose side, measured from them (its four
+        corners triangulated from the photos located by the markers of known size), differs from the
+        map's ``marker_size_mm`` by more than 5 %: the surveyed map gives it that ``size_mm``. The other
+        added markers (and those whose photos all stand in nearly one place) have the map's size.
     print_scale_applied : bool
         Whether the survey used the marker side ``print_scale * marker_size_mm`` (only when the sigma is
         learnt and the scale is more than 3 standard errors from 1); the surveyed map then has that
@@ -134,6 +140,7 @@ class Survey:
     print_scale: float = float("nan")
     print_scale_se: float = float("nan")
     print_scale_applied: bool = False
+    added_size_mm: dict = field(default_factory=dict)
 
     @property
     def suspect_ids(self) -> list[int]:
@@ -155,7 +162,11 @@ class Survey:
         Returns
         -------
         bool
-            True when its squared Mahalanobis distance is at most the chi-square(3) quantile.
+            True when its squared Mahalanobis distance is at most the chi-square(3) quantile; when the
+            tape's sigma was learnt (:attr:`map_sigma_learnt`), at most ``3 F(probability; 3, r)``, ``r`` the
+            tape residuals' redundancy (``(map_sigma_mm / map_sigma_se_mm)^2 / 2``): the covariance then
+            scales with an estimated sigma, and the region is Student's (as a t interval is wider than a
+            normal one).
 
         Raises
         ------
@@ -180,7 +191,14 @@ class Survey:
         d = point - np.asarray(self.marker_map.placements[marker_id].translation_mm)
         if not np.any(cov):
             return bool(np.allclose(d, 0.0))
-        return float(d @ np.linalg.solve(cov, d)) <= _stats.chi2_ppf(probability, 3)
+        return float(d @ np.linalg.solve(cov, d)) <= self._ellipsoid_limit(probability)
+
+    def _ellipsoid_limit(self, probability: float) -> float:
+        """The squared Mahalanobis distance bounding the ``probability`` ellipsoid (3 dimensions)."""
+        se = self.map_sigma_se_mm
+        if self.map_sigma_learnt and math.isfinite(se) and se > 0 and 0.0 < probability < 1.0:
+            return 3.0 * _stats.f_isf(1.0 - probability, 3, 0.5 * (self.map_sigma_mm / se) ** 2)
+        return _stats.chi2_ppf(probability, 3)
 
     def note(self) -> dict:
         """The ``"surveyed"`` note :meth:`save` writes: how the map was made.
@@ -201,6 +219,7 @@ class Survey:
             "corner_sigma_px": round(self.corner_sigma_px, 4),
             "fixed_ids": list(self.fixed_ids),
             "added_ids": list(self.added_ids),
+            "added_size_mm": {str(i): round(v, 2) for i, v in self.added_size_mm.items()},
             "unseen_ids": list(self.unseen_ids),
             "gross_ids": list(self.gross_ids),
             "suspects": [
@@ -336,7 +355,7 @@ class Survey:
             std = float(np.linalg.norm(self.marker_position_std_mm[i]))
             resid = f"{self.tape_residual_mm[i]:7.0f}" if i in self.tape_residual_mm else f"{'-':>7}"
             lines.append(
-                f"{i:>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} {resid} "
+                f"{str(i):>4} {tape_text:>24} {', '.join(f'{v:.0f}' for v in got):>24} {diff} {std:6.1f} {resid} "
                 f"{self.photos_per_marker.get(i, 0):>6}  {_table_note(self, i, suspects)}"
             )
         return "\n".join(lines)
@@ -349,7 +368,8 @@ def _table_note(s: Survey, i: int, suspects: set) -> str:
     if i in suspects:
         return "SUSPECT: measure again"
     if i in s.added_ids:
-        return "added from the photos"
+        side = f", {s.added_size_mm[i]:.0f} mm" if i in s.added_size_mm else ""
+        return f"added from the photos{side}"
     if i in s.fixed_ids:
         return "fixed"
     if i in s.unseen_ids:

@@ -31,7 +31,8 @@ def build_problem(cams: list, slots: list[int], n_free: int, placed: dict, tape_
     """The problem for the located photos ``cams`` and the marker slots ``slots`` (free first).
 
     ``tape_priors`` is ``{id: (R, p)}`` for the free markers that keep a tape prior; ``opts`` holds
-    ``marker_size_mm``, ``sigma_px``, ``sigma_mm``, ``sigma_rot_rad``.
+    ``marker_size_mm`` (the side of a marker not in ``sizes``), ``sizes`` (optional, ``{id: side mm}``),
+    ``sigma_px``, ``sigma_mm``, ``sigma_rot_rad``.
     """
     slot_of = {i: k for k, i in enumerate(slots)}
     oc, om, ok, op = [], [], [], []
@@ -45,10 +46,11 @@ def build_problem(cams: list, slots: list[int], n_free: int, placed: dict, tape_
     T_cw = [np.linalg.inv(ph.T_world_camera) for ph in cams]
     prior_ids = [i for i in slots[:n_free] if i in tape_priors]
     cam = cams[0].camera
+    sizes = opts.get("sizes", {})
     return Problem(
         K=cam.K,
         dist=np.asarray(cam.dist, float).ravel(),
-        local=local_corners(opts["marker_size_mm"]),
+        local=np.array([local_corners(sizes.get(i, opts["marker_size_mm"])) for i in slots]).reshape(-1, 4, 3),
         R0_cam=np.array([T[:3, :3] for T in T_cw]),
         t0_cam=np.array([T[:3, 3] for T in T_cw]),
         R0_mark=np.array([placed[i][0] for i in slots]),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -10,9 +11,9 @@ import numpy as np
 from .. import frames
 from ..errors import FidlearnWarning, SurveyError
 from ..markermap import MarkerMap
-from ._geometry import placement_of
+from ._geometry import marker_sizes, placement_of
 from ._gross import GrossTest, gross_test
-from ._init import check_units, initial_values
+from ._init import check_units, initial_values, remeasured_sides
 from ._inputs import MAX_MAP_SIGMA_MM, MIN_MAP_SIGMA_MM, MIN_PHOTOS, _check_options, _read_photos
 from ._result import Survey, Suspect, check_readable
 from ._solve import (
@@ -65,7 +66,7 @@ def survey(
     images : sequence
         The photos: paths, image arrays (gray or BGR), or lists of :class:`fidlearn.Detection`
         (already detected; corners in px, TL, TR, BR, BL). Markers are detected with
-        :func:`fidlearn.detect_markers` (edge refinement) in the map's dictionary.
+        :func:`fidlearn.detect_markers` (edge refinement) in each of the map's dictionaries.
     marker_map : MarkerMap or path
         The tape map: each marker's top-left corner and rotation, as measured.
     camera : Camera or path
@@ -124,7 +125,8 @@ def survey(
     clean = {i: p for i, p in tape.placements.items() if i not in gross.gross}
     clean_map = MarkerMap(clean, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
     check_units(photos, clean_map)
-    placed, unplaced = initial_values(photos, clean_map)
+    sizes = marker_sizes(tape, tape.ids)  # and the markers the map lacks: measured from the photos
+    placed, unplaced = initial_values(photos, clean_map, sizes)
     cams = _usable(photos)
     for reason in unplaced.values():
         warnings.warn(reason, FidlearnWarning, stacklevel=2)
@@ -135,17 +137,24 @@ def survey(
     sigma_mm, scale = _start(sigma_mm, gross)
     if math.isinf(sigma_mm) and len(slots) == len(free):
         raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
-    opts = {
+    opts = _options(tape, sizes, placed, scale, sigma_mm, corner_sigma_px)
+    taped = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
+    priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in tape}
+    fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, set(gross.gross), learn)
+    learnt = {"learnt": learn, "scale": scale, "size": tape.marker_size_mm, "sides": sizes}
+    return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross, learnt)
+
+
+def _options(tape: MarkerMap, sizes: dict, placed: dict, scale: float, sigma_mm: float, corner_sigma_px) -> dict:
+    """The adjustment's options: marker sides (the map's times the print ``scale``), the measured ones, sigmas."""
+    return {
         "marker_size_mm": tape.marker_size_mm * scale,
+        "sizes": {i: v * (scale if i in tape else 1.0) for i, v in sizes.items()},
+        "measured": [i for i in placed if i not in tape and i in sizes],
         "sigma_px": corner_sigma_px or FIRST_SIGMA_PX,
         "sigma_mm": sigma_mm,
         "sigma_rot_rad": sigma_mm / tape.marker_size_mm,
     }
-    taped = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
-    priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in tape}
-    fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, set(gross.gross), learn)
-    learnt = {"learnt": learn, "scale": scale, "size": tape.marker_size_mm}
-    return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross, learnt)
 
 
 def _start(sigma_mm: float | None, gross: GrossTest) -> tuple[float, float]:
@@ -194,6 +203,8 @@ def _adjust(cams, slots, n_free, placed, priors, opts, estimate_sigma: bool, gro
     x = fit(problem, np.zeros(problem.n_params), robust=True)
     if estimate_sigma:
         opts = {**opts, "sigma_px": corner_sigma(problem, x, gauge_free=False)}
+    if opts.get("measured"):  # the added markers' sides again, from the cameras the known markers now place
+        opts = {**opts, "sizes": {**opts["sizes"], **remeasured_sides(cams, problem, x, opts["measured"])}}
     fitted = _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice, gross)
     redundancy = math.nan
     for _ in range(SIGMA_STEPS if learn and priors else 0):
@@ -235,19 +246,10 @@ def _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice: se
 def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest, learnt: dict) -> Survey:
     problem, x, C, tests, dropped, redundancy = fitted
     R_cam, t_cam, R_mark, p_mark = problem.poses(x)
-    placements = dict(tape.placements)
-    cov, std = {}, {}
-    for k, i in enumerate(slots[: problem.n_free]):
-        placements[i] = placement_of(i, R_mark[k], p_mark[k])
-        cov[i] = marker_block(problem, C, k)
-        std[i] = np.sqrt(np.maximum(np.diag(cov[i])[3:], 0.0))
-    for i in slots[problem.n_free :]:  # fixed: the tape's placement, exactly
-        cov[i], std[i] = np.zeros((6, 6)), np.zeros(3)
+    placements = _placements(tape, slots[: problem.n_free], R_mark, p_mark, {**learnt, "sides": _sides(problem, slots)})
     s_mm, s_rot = problem.sigma_mm, problem.sigma_rot_rad
     unseen = tuple(i for i in tape.ids if i not in slots)
-    for i in unseen:
-        cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
-        std[i] = np.sqrt(np.diag(cov[i])[3:])
+    cov, std = _covariances(problem, C, slots, unseen)
     surveyed = MarkerMap(
         placements,
         learnt["size"] * learnt["scale"],
@@ -288,7 +290,46 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
         print_scale=gross.scale,
         print_scale_se=gross.scale_se,
         print_scale_applied=learnt["scale"] != 1.0,
+        added_size_mm={i: side for i, side in _sides(problem, slots).items() if i not in tape and i in learnt["sides"]},
     )
+
+
+def _covariances(problem, C: np.ndarray, slots: list, unseen: tuple) -> tuple[dict, dict]:
+    """Each marker's 6x6 covariance and position standard deviations: surveyed, fixed (0), unseen (the tape's)."""
+    cov, std = {}, {}
+    for k, i in enumerate(slots[: problem.n_free]):
+        cov[i] = marker_block(problem, C, k)
+        std[i] = np.sqrt(np.maximum(np.diag(cov[i])[3:], 0.0))
+    for i in slots[problem.n_free :]:  # fixed: the tape's placement, exactly
+        cov[i], std[i] = np.zeros((6, 6)), np.zeros(3)
+    s_mm, s_rot = problem.sigma_mm, problem.sigma_rot_rad
+    for i in unseen:
+        cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
+        std[i] = np.sqrt(np.diag(cov[i])[3:])
+    return cov, std
+
+
+def _sides(problem, slots: list) -> dict:
+    """Each slot's marker side (mm) in the adjustment."""
+    return {i: float(np.linalg.norm(problem.local[k, 1] - problem.local[k, 0])) for k, i in enumerate(slots)}
+
+
+def _placements(tape: MarkerMap, free: list, R_mark: np.ndarray, p_mark: np.ndarray, learnt: dict) -> dict:
+    """The surveyed map's placements: the tape's, the ``free`` markers' surveyed.
+
+    A marker's own side (``size_mm``) is kept, times the print scale applied, as is its dictionary; a
+    marker added from the photos has the side measured from them (``learnt["sides"]``).
+    """
+    scale = learnt["scale"]
+
+    def scaled(p):
+        return p if p.size_mm is None or scale == 1.0 else dataclasses.replace(p, size_mm=p.size_mm * scale)
+
+    placements = {i: scaled(p) for i, p in tape.placements.items()}
+    for k, i in enumerate(free):
+        own = (tape.placements[i].size_mm and tape.placements[i].size_mm * scale) if i in tape else None
+        placements[i] = placement_of(i, R_mark[k], p_mark[k], own if i in tape else learnt["sides"].get(i))
+    return placements
 
 
 def _rms(r: np.ndarray) -> float:

@@ -10,7 +10,7 @@ from ..markermap import MarkerMap, MarkerPlacement
 from ._checks import _check_seed
 from ._scenes import visible_markers
 
-__all__ = ["survey_room", "survey_walk", "tape_measured"]
+__all__ = ["survey_room", "mixed_survey_room", "mixed_wall", "survey_walk", "tape_measured"]
 
 #: Room size (x into the room from the north wall, y along it, z up), mm.
 ROOM_MM = (5000.0, 4000.0, 2500.0)
@@ -60,6 +60,70 @@ def survey_room(marker_size_mm: float = 160.0, dictionary: str = "ARUCO_ORIGINAL
     """
     pl = {i: _placement(i, *slot) for i, slot in enumerate(_wall_slots())}
     return MarkerMap(pl, marker_size_mm, dictionary=dictionary, units="mm", source="survey room")
+
+
+def mixed_survey_room() -> MarkerMap:
+    """The room of :func:`survey_room` printed as people print: markers of 80, 150 and 200 mm, two dictionaries.
+
+    Returns
+    -------
+    MarkerMap
+        The 12 places of :func:`survey_room`, in turn 200, 80 and 150 mm; the first 8 are ARUCO_ORIGINAL
+        markers 0-7 (the map's dictionary and size, 80 mm, for those without their own ``size_mm``), the last
+        4 (east wall and floor) 4X4_50 markers 0-3, the same ids as four of the others.
+
+    Examples
+    --------
+    >>> m = mixed_survey_room()
+    >>> sorted({m.marker_size(k) for k in m.ids}), m.dictionaries
+    ([80.0, 150.0, 200.0], ['ARUCO_ORIGINAL', '4X4_50'])
+    """
+    pl = {}
+    for k, slot in enumerate(_wall_slots()):
+        p = _placement(k % 8, *slot)
+        size = (200.0, None, 150.0)[k % 3]
+        pl[k] = MarkerPlacement(p.id, p.translation_mm, p.rotation_deg, size, "4X4_50" if k >= 8 else None)
+    return MarkerMap(pl, 80.0, dictionary="ARUCO_ORIGINAL", units="mm", source="mixed survey room")
+
+
+#: A wall of four 80 mm ARUCO_ORIGINAL markers and two 200 mm 4X4_50 markers whose ids (0, 1) two small ones use too.
+MIXED_WALL = {
+    "units": "mm",
+    "marker_size_mm": 80,
+    "dictionary": "ARUCO_ORIGINAL",
+    "markers": {
+        "0": {"translation": [0, 0, 1400]},
+        "1": {"translation": [0, 300, 1400]},
+        "2": {"translation": [0, 0, 1100]},
+        "3": {"translation": [0, 300, 1100]},
+        "4X4_50:0": {"translation": [0, 800, 1500], "size_mm": 200},
+        # named by its key and by its "dictionary" field, which agree
+        "4X4_50:1": {"translation": [0, 800, 1100], "size_mm": 200, "dictionary": "DICT_4X4_50"},
+    },
+}
+
+
+def mixed_wall(without=()) -> MarkerMap:
+    """A wall of markers of two sizes and two dictionaries (:data:`MIXED_WALL`), in the world YZ plane facing +X.
+
+    Parameters
+    ----------
+    without : sequence of str
+        Keys of :data:`MIXED_WALL` left out (e.g. ``["4X4_50:0"]``: the wall printed without that marker).
+
+    Returns
+    -------
+    MarkerMap
+        Four 80 mm ARUCO_ORIGINAL markers 0-3 and 200 mm 4X4_50 markers 0 and 1, mm.
+
+    Examples
+    --------
+    >>> m = mixed_wall()
+    >>> [m.marker_size(k) for k in m.ids]
+    [80.0, 200.0, 80.0, 200.0, 80.0, 80.0]
+    """
+    markers = {k: v for k, v in MIXED_WALL["markers"].items() if k not in without}
+    return MarkerMap.from_dict({**MIXED_WALL, "markers": markers}, source="mixed wall")
 
 
 def survey_walk(
@@ -134,7 +198,8 @@ def tape_measured(
     sigma_deg : float
         Standard deviation of each rotation error, degrees (about world X, Y, Z, on the left).
     moved : dict of int to (float, float, float), optional
-        Markers moved after taping: the tape's placement is the truth minus this displacement (mm).
+        Markers moved after taping (by the map's keys): the tape's placement is the truth minus this
+        displacement (mm).
     seed : int
         Seed of ``numpy.random.default_rng``.
     units : {"mm", "cm", "m", "in", "ft"}
@@ -143,7 +208,7 @@ def tape_measured(
     Returns
     -------
     MarkerMap
-        Same ids, size and dictionary.
+        Same markers, sizes and dictionaries.
     """
     rng = np.random.default_rng(_check_seed(seed))
     moved = moved or {}
@@ -154,7 +219,7 @@ def tape_measured(
         R = rotation_from_rpy_deg(droll, dpitch, dyaw) @ p.R_world_marker
         roll, pitch, yaw = (float(a) for a in rpy_deg_from_rotation(R))
         x, y, z = (float(v) for v in np.asarray(p.translation_mm) + dt)
-        pl[i] = MarkerPlacement(i, (x, y, z), (roll, pitch, yaw))
+        pl[i] = MarkerPlacement(p.id, (x, y, z), (roll, pitch, yaw), p.size_mm, p.dictionary)
     return MarkerMap(
         pl, true_map.marker_size_mm, dictionary=true_map.dictionary, units=units, source="tape-measured map"
     )

@@ -1,0 +1,140 @@
+"""fidlearn.survey of a map that mixes marker sizes (80, 150, 200 mm) and dictionaries, against known answers.
+
+The room is ``fidlearn.synthetic.mixed_survey_room``: four ids (0-3) are printed from both dictionaries, so a
+survey that took a marker for its namesake of the other dictionary, or gave it another's size, fails here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from helpers import (
+    corner_error_mm,
+    jacobian_error,
+    noise_free_survey,
+    projected_photos,
+    small_survey_problem,
+    survey_walk_room,
+)
+
+import fidlearn
+from fidlearn import MarkerKey
+from fidlearn.errors import SurveyError
+from fidlearn.survey._inputs import _one_photo
+from fidlearn.synthetic import mixed_survey_room, mixed_wall, render_scene, tape_measured
+
+CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001, 0.0])
+BIG = MarkerKey(1, "4X4_50")  # 200 mm; ARUCO_ORIGINAL marker 1 (80 mm) is another marker
+
+
+@pytest.fixture(scope="module")
+def room():
+    return survey_walk_room(CAM, truth=mixed_survey_room())
+
+
+def test_the_room_mixes_sizes_and_dictionaries_on_shared_ids(room):
+    truth, _ = room
+    assert {truth.marker_size(k) for k in truth.ids} == {80.0, 150.0, 200.0}
+    assert (truth.marker_size(1), truth.marker_size(BIG)) == (80.0, 200.0)
+    tape = tape_measured(truth, seed=1)
+    assert [(tape.marker_size(k), tape.marker_dictionary(k)) for k in tape.ids] == [
+        (truth.marker_size(k), truth.marker_dictionary(k)) for k in truth.ids
+    ]
+
+
+def test_noise_free_mixed_room_is_surveyed_exactly_with_each_marker_its_own_size(room):
+    truth, poses = room
+    s = noise_free_survey(truth, poses, CAM)
+    assert s.marker_map.ids == truth.ids
+    assert corner_error_mm(s.marker_map, truth) < 1e-6
+    assert [s.marker_map.marker_size(k) for k in truth.ids] == [truth.marker_size(k) for k in truth.ids]
+    assert s.suspects == []
+    assert s.unused == []
+    assert s.added_ids == ()
+    assert max(s.photo_rms_px.values()) < 1e-6
+
+
+def test_jacobian_with_markers_of_three_sizes_matches_finite_differences(room):
+    prob = small_survey_problem(*room, CAM)
+    sides = np.linalg.norm(prob.local[:, 1] - prob.local[:, 0], axis=1)
+    assert set(np.round(sides)) == {80.0, 150.0, 200.0}
+    assert jacobian_error(prob) < 1e-4
+
+
+def test_a_moved_big_marker_is_named_and_not_its_small_namesake(room):
+    truth, poses = room
+    R = truth.placements[BIG].R_world_marker
+    shift = 100.0 * (0.6 * R[:, 1] + 0.8 * R[:, 2])  # 100 mm in its own plane
+    tape = tape_measured(truth, sigma_mm=10.0, sigma_deg=1.0, moved={BIG: tuple(shift)}, seed=5)
+    s = fidlearn.survey(projected_photos(truth, CAM, poses, 0.05, seed=2), tape, CAM)  # the tape's sigma learnt
+    assert s.suspect_ids == [BIG]
+    assert s.suspects[0].distance_mm == pytest.approx(100.0, abs=15.0)
+    assert 10.0 / 2 < s.map_sigma_mm < 10.0 * 2
+    moved_back = np.asarray(s.marker_map.placements[BIG].translation_mm) - truth.placements[BIG].translation_mm
+    assert np.linalg.norm(moved_back) < 10.0  # the photos put it back where it is
+    assert s.photos_per_marker[BIG] >= 2
+    assert s.photos_per_marker[1] >= 2
+
+
+def test_photos_are_read_in_every_dictionary_of_the_map():
+    m = mixed_wall()
+    T = fidlearn.frames.look_at([1800.0, 400.0, 1300.0], [0.0, 450.0, 1250.0])
+    cam = fidlearn.Camera([[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.05, 0.02, 0, 0, 0], (640, 480))
+    sc = render_scene(m, cam, T, seed=4, noise_std_gray=1.0, blur_px=0.5)
+    photo = _one_photo(0, sc.image, m, cam)
+    assert set(photo.corners) == set(sc.truth) == set(m.ids)
+    for k, c in photo.corners.items():
+        assert np.abs(c - sc.truth[k]).max() < 0.5, k
+
+
+def test_a_map_with_a_board_entry_is_refused_with_the_fix():
+    board = {"type": "grid", "translation": [0, 0, 0], "markers": [2, 2], "marker_mm": 50, "separation_mm": 10}
+    m = fidlearn.MarkerMap.from_dict(
+        {"units": "mm", "marker_size_mm": 80, "markers": {"20": {"translation": [0, 500, 0]}}, "boards": {"b": board}}
+    )
+    with pytest.raises(SurveyError, match="rigid entries"):
+        fidlearn.survey([np.zeros((480, 640), np.uint8)] * 2, m, CAM)
+
+
+def test_markers_of_unknown_size_get_their_size_measured_from_the_photos(room):
+    truth, poses = room
+    mid = MarkerKey(0, "4X4_50")
+    assert (truth.marker_size(BIG), truth.marker_size(mid), truth.marker_size_mm) == (200.0, 150.0, 80.0)
+    # the tape lacks them: their size is unknown (the map's 80 mm would place them 2.5 and 1.9 times too near)
+    kept = {k: p for k, p in truth.placements.items() if k not in (BIG, mid)}
+    tape = fidlearn.MarkerMap(kept, 80.0, dictionary=truth.dictionary, source="tape without two markers")
+    s = fidlearn.survey(projected_photos(truth, CAM, poses, 0.05, seed=2), tape, CAM, map_sigma_mm=1.0)
+    assert set(s.added_ids) == {BIG, mid}
+    assert s.added_size_mm[BIG] == pytest.approx(200.0, abs=1.0)
+    assert s.added_size_mm[mid] == pytest.approx(150.0, abs=1.0)
+    for k in (BIG, mid):
+        assert s.marker_map.marker_size(k) == s.added_size_mm[k]
+        assert s.marker_map.marker_dictionary(k) == "4X4_50"
+        assert corner_error_mm(s.marker_map, truth, [k]) < 3.0
+    (row,) = [line for line in s.table().splitlines() if line.startswith("4X4_50:1 ")]  # named by its key
+    assert row.endswith(f"added from the photos, {s.added_size_mm[BIG]:.0f} mm")
+
+
+def test_with_the_sigma_learnt_the_ellipsoid_is_students(room):
+    from dataclasses import replace
+
+    from scipy import stats
+
+    truth, poses = room
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=1.0, seed=7)
+    s = fidlearn.survey(projected_photos(truth, CAM, poses, 0.05, seed=3), tape, CAM)
+    r = 0.5 * (s.map_sigma_mm / s.map_sigma_se_mm) ** 2
+    assert 15 < r < 40  # 11 or 12 markers' positions, less the room's placement
+    assert s._ellipsoid_limit(0.95) == pytest.approx(3 * stats.f.ppf(0.95, 3, r), rel=1e-9)
+    assert s._ellipsoid_limit(0.95) > stats.chi2.ppf(0.95, 3)
+    told = replace(s, map_sigma_learnt=False, map_sigma_se_mm=math.nan)
+    assert told._ellipsoid_limit(0.95) == pytest.approx(stats.chi2.ppf(0.95, 3), rel=1e-12)
+    # a point just beyond the normal ellipsoid and inside Student's
+    cov = s.marker_covariance[3][3:, 3:]
+    w, v = np.linalg.eigh(cov)
+    step = v[:, 0] * np.sqrt(w[0] * 0.5 * (stats.chi2.ppf(0.95, 3) + s._ellipsoid_limit(0.95)))
+    point = np.asarray(s.marker_map.placements[3].translation_mm) + step
+    assert s.position_ellipsoid_contains(3, point)
+    assert not told.position_ellipsoid_contains(3, point)
