@@ -411,17 +411,12 @@ def _predict(
     seen, lost = _seen(marker_map, camera, T)
     ids = sorted(seen)
     sides = {i: float(np.mean(np.linalg.norm(seen[i] - np.roll(seen[i], 1, axis=0), axis=1))) for i in ids}
-    own = corner_sigma_px is not None
-    sigmas = {
-        i: float(corner_sigma_px)
-        if corner_sigma_px is not None
-        else float(noise.corner_sigma_px(sides[i], camera.model))
-        for i in ids
-    }
+    fixed = None if corner_sigma_px is None else float(corner_sigma_px)
+    sigmas = {i: fixed if fixed is not None else float(noise.corner_sigma_px(sides[i], camera.model)) for i in ids}
     if not ids:
         why = "; ".join(f"{i}: {r}" for i, r in sorted(lost.items())) or "the map has no markers"
         return Prediction(T, [], {}, {}, None, np.full(3, np.inf), math.inf, 0.0, f"no marker found ({why})", lost)
-    if not own and camera.model == "fisheye":  # the default model of a fisheye's corners: a shift of each marker
+    if fixed is None and camera.model == "fisheye":  # the default model of a fisheye's corners: a shift of each marker
         shift_px = math.hypot(shift_px, FISHEYE_MARKER_SHIFT_PX)
     model = (shift_px, size_rel_std, size_rel_std_each, size_rel_error)
     full = _pose_model(marker_map, camera, T, ids, seen, sigmas, model, with_flip)

@@ -91,10 +91,11 @@ def side_from_photos(marker_id: int, photos: list[_Photo]) -> float | None:
     rays = []
     for ph in photos:
         px = ph.camera.undistort_points(ph.corners[marker_id])
-        if not np.all(np.isfinite(px)):
+        T = ph.T_world_camera
+        if T is None or not np.all(np.isfinite(px)):
             continue
-        d = np.c_[px, np.ones(4)] @ np.linalg.inv(ph.camera.K).T @ ph.T_world_camera[:3, :3].T
-        rays.append((ph.T_world_camera[:3, 3], d / np.linalg.norm(d, axis=1, keepdims=True)))
+        d = np.c_[px, np.ones(4)] @ np.linalg.inv(ph.camera.K).T @ T[:3, :3].T
+        rays.append((T[:3, 3], d / np.linalg.norm(d, axis=1, keepdims=True)))
     if len(rays) < 2:
         return None
     spread = max(float(np.degrees(np.arccos(np.clip(a[1][0] @ b[1][0], -1, 1)))) for a in rays for b in rays)

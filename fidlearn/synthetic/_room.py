@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..camera import Camera
@@ -87,7 +89,7 @@ def mixed_survey_room() -> MarkerMap:
 
 
 #: A wall of four 80 mm ARUCO_ORIGINAL markers and two 200 mm 4X4_50 markers whose ids (0, 1) two small ones use too.
-MIXED_WALL = {
+MIXED_WALL: dict[str, Any] = {
     "units": "mm",
     "marker_size_mm": 80,
     "dictionary": "ARUCO_ORIGINAL",
