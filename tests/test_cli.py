@@ -931,7 +931,7 @@ def test_locate_detects_each_picture_once_and_draws_those_detections(capsys, tmp
     monkeypatch.setattr(detection, "_detect", counting)
     blank = np.full((720, 1280), 255, np.uint8)
     cv2.imwrite(str(tmp_path / "blank.png"), blank)
-    scene = data_path("trajectory", "frame_000.png")  # 640x480, as calibrated
+    scene = data_path("scenes", "scene_00.png")
     for picture, most in ((scene, 1), (tmp_path / "blank.png", 2)):
         calls.clear()
         ann = tmp_path / f"ann_{most}"
