@@ -28,11 +28,12 @@ def check_number(value, name: str, low: float, high: float, error=FidlearnError,
     return float(value)
 
 
-def check_camera(camera, error=CalibrationError) -> Camera:
-    """``camera`` if it is a :class:`~fidlearn.Camera`."""
+def check_camera(camera, error=CalibrationError, *, allow_fisheye: bool = False) -> Camera:
+    """``camera`` if it is a :class:`~fidlearn.Camera` (a fisheye only with ``allow_fisheye``)."""
     if not isinstance(camera, Camera):
         raise error(f"camera must be a fidlearn.Camera (Camera.load(path) reads one), got {type(camera).__name__}")
-    refuse_fisheye(camera, "the planner", error)
+    if not allow_fisheye:
+        refuse_fisheye(camera, "the planner", error)
     return camera
 
 
@@ -57,7 +58,7 @@ def check_views(camera, board_points_mm, image_points_px, T_camera_board, *, pix
 
     Returns ``(board, image, poses)``; ``image`` is empty without ``pixels``.
     """
-    check_camera(camera)
+    check_camera(camera, allow_fisheye=True)  # the coach and the bent-board test model both lenses
     given = [("board_points_mm", board_points_mm), ("T_camera_board", T_camera_board)]
     if pixels:
         given.append(("image_points_px", image_points_px))
