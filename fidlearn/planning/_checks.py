@@ -28,13 +28,12 @@ def check_number(value, name: str, low: float, high: float, error=FidlearnError,
     return float(value)
 
 
-def check_camera(camera, error=CalibrationError, fisheye: bool = False) -> Camera:
-    """``camera`` if it is a :class:`~fidlearn.Camera`; a fisheye only with ``fisheye`` (the calibration coach
-    models OpenCV's pinhole lens only)."""
+def check_camera(camera, error=CalibrationError, *, allow_fisheye: bool = False) -> Camera:
+    """``camera`` if it is a :class:`~fidlearn.Camera` (a fisheye only with ``allow_fisheye``)."""
     if not isinstance(camera, Camera):
         raise error(f"camera must be a fidlearn.Camera (Camera.load(path) reads one), got {type(camera).__name__}")
-    if not fisheye:
-        refuse_fisheye(camera, "the calibration coach", error)
+    if not allow_fisheye:
+        refuse_fisheye(camera, "the planner", error)
     return camera
 
 
@@ -59,7 +58,7 @@ def check_views(camera, board_points_mm, image_points_px, T_camera_board, *, pix
 
     Returns ``(board, image, poses)``; ``image`` is empty without ``pixels``.
     """
-    check_camera(camera)
+    check_camera(camera, allow_fisheye=True)  # the coach and the bent-board test model both lenses
     given = [("board_points_mm", board_points_mm), ("T_camera_board", T_camera_board)]
     if pixels:
         given.append(("image_points_px", image_points_px))
@@ -139,7 +138,7 @@ def finite_distance(distance_mm) -> float:
 
 def check_flip_inputs(points_world, points_px, camera, corner_sigma_px) -> tuple:
     """The inputs of :func:`~fidlearn.planning.flip_probability`, checked: (N, 3), (N, 2) and (N,) float arrays."""
-    check_camera(camera, PoseError, fisheye=True)
+    check_camera(camera, PoseError, allow_fisheye=True)
     P = float_array(points_world, "points_world", (-1, 3), PoseError)
     if not 4 <= len(P) <= 10_000:
         raise PoseError(f"points_world has {len(P)} points: give 4 to 10000 marker corners")

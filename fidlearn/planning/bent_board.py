@@ -19,12 +19,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
-from .. import _stats, frames
+from .. import _stats
 from ..camera import Camera
 from . import _checks
+from ._lens_jacobians import view_jacobians
 
 __all__ = ["BENT_FALSE_ALARM", "BENT_MIN_SAG_MM", "Bend", "bend_flag", "board_bends", "bent_views"]
 
@@ -70,13 +70,12 @@ def _bend_rows(camera: Camera, points_mm: np.ndarray, image_px: np.ndarray, T: n
     smooth ways to bow a sheet that no move of the board undoes.
     """
     P = np.asarray(points_mm, dtype=float).reshape(-1, 3)
-    rvec, tvec = frames.rvec_tvec_from_transform(T)
-    proj, jac = cv2.projectPoints(P.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
-    r = (np.asarray(image_px, dtype=float).reshape(-1, 2) - proj.reshape(-1, 2)).ravel()
-    lift = (jac[:, 3:6] @ T[:3, 2]).reshape(-1, 2)  # d pixel / d (mm along the board's normal)
+    proj, J_pose, J_intrinsics = view_jacobians(camera, P, T)  # either lens model: cv2's or cv2.fisheye's Jacobian
+    r = (np.asarray(image_px, dtype=float).reshape(-1, 2) - proj).ravel()
+    lift = (J_pose[:, 3:6] @ T[:3, 2]).reshape(-1, 2)  # d pixel / d (mm along the board's normal)
     x, y = (P[:, :2] - P[:, :2].mean(axis=0)).T / max(float(np.ptp(P[:, :2], axis=0).max()), 1e-9)
     bend = np.column_stack([(lift * f[:, None]).ravel() for f in (x * x, x * y, y * y)])
-    return r, jac[:, :6], jac[:, 6 : 6 + 4 + len(camera.dist)], bend  # fx, fy, cx, cy and the distortion
+    return r, J_pose, J_intrinsics, bend  # fx, fy, cx, cy and the distortion
 
 
 def bent_views(camera: Camera, board_points_mm: dict, image_points_px: dict, T_camera_board: dict) -> list[str]:
@@ -129,7 +128,8 @@ def board_bends(camera: Camera, board_points_mm: dict, image_points_px: dict, T_
 
     The bend lifts each board point off its plane by ``c1 x^2 + c2 x y + c3 y^2`` (x, y its board
     coordinates from the centre over the board's largest extent; c in mm): no tilt or shift of
-    the board undoes it.
+    the board undoes it. A fisheye camera (``model="fisheye"``) is linearised through
+    ``cv2.fisheye.projectPoints``, its intrinsics ``fx, fy, cx, cy, k1..k4``.
 
     Parameters
     ----------
@@ -230,7 +230,7 @@ def _bend_statistics(rows: list, start: np.ndarray, fitted: set, views) -> dict:
     return out
 
 
-def bend_flag(bent: list, n_views: int) -> str:
+def bend_flag(bent: list, n_views: int, model: str = "pinhole") -> str:
     """The coach's sentence for bent views: a bent print, or (in many views at once) a lens the model cannot describe.
 
     Parameters
@@ -239,6 +239,8 @@ def bend_flag(bent: list, n_views: int) -> str:
         The bent views (:func:`board_bends`), not empty.
     n_views : int
         How many views the calibration used.
+    model : {"pinhole", "fisheye"}
+        The camera's lens model: a fisheye is not told to try the fisheye model.
 
     Returns
     -------
@@ -246,6 +248,12 @@ def bend_flag(bent: list, n_views: int) -> str:
         One sentence naming each view with its sag and what to do.
     """
     said = ", ".join(f"{b.name} ({b.sag_mm:.1f} ± {b.sag_std_mm:.1f} mm)" for b in bent)
+    if 3 * len(bent) >= n_views and len(bent) >= 3 and model == "fisheye":
+        return (
+            f"{len(bent)} of {n_views} views do not look flat, bowed by {said}: so many bent boards are "
+            "unlikely; the board itself may be bowed (then alike in every photo: mount the print on glass or "
+            "a rigid panel), or the lens beyond what the fisheye model's 4 coefficients describe"
+        )
     if 3 * len(bent) >= n_views and len(bent) >= 3:
         return (
             f"{len(bent)} of {n_views} views do not look flat, bowed by {said}: so many bent boards are "

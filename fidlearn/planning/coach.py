@@ -14,14 +14,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
-from .. import _lens, frames
 from ..calibration.quality import MIN_GOOD_VIEWS, coverage_grid, few_views_warning
 from ..camera import Camera
 from ..errors import CalibrationError
 from . import _checks
+from ._candidate_views import board_in_picture as _board_in_picture  # noqa: F401  (its old home, still importable)
+from ._candidate_views import candidates as _candidates
+from ._candidate_views import in_picture as _in_picture
+from ._candidate_views import printed_outline as _printed_outline  # noqa: F401  (its old home, still importable)
+from ._candidate_views import printed_points as _printed_points
+from ._lens_jacobians import n_intrinsics, pixel_rays, ray_jacobians, view_jacobians
 from .bent_board import BENT_FALSE_ALARM, bend_flag, bent_views, board_bends
 
 __all__ = [
@@ -45,26 +49,18 @@ FACE_ON_DEG = 15.0
 GRID = (8, 6)
 
 
-def _n_intrinsics(camera: Camera) -> int:
-    return 4 + len(camera.dist)
-
-
-def _view_jacobian(camera: Camera, points_mm: np.ndarray, T_camera_board: np.ndarray):
-    """(2N, 6) with respect to the board pose and (2N, 4 + n_dist) with respect to the intrinsics."""
-    rvec, tvec = frames.rvec_tvec_from_transform(T_camera_board)
-    _, jac = cv2.projectPoints(np.asarray(points_mm, dtype=float).reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
-    return jac[:, :6], jac[:, 6 : 6 + _n_intrinsics(camera)]
-
-
 def _marginal_information(camera: Camera, points_mm: np.ndarray, T_camera_board: np.ndarray) -> np.ndarray:
     """One view's information on the intrinsics, its own board pose marginalised out (Schur complement)."""
-    Je, Ji = _view_jacobian(camera, points_mm, T_camera_board)
+    _, Je, Ji = view_jacobians(camera, points_mm, T_camera_board)
     A, B, D = Ji.T @ Ji, Ji.T @ Je, Je.T @ Je
     return A - B @ np.linalg.solve(D + 1e-12 * np.eye(6), B.T)
 
 
 def intrinsics_information(camera: Camera, board_points_mm: dict, T_camera_board: dict) -> np.ndarray:
     """Fisher information (per px^2 of corner noise) on ``[fx, fy, cx, cy, dist...]`` from the views.
+
+    For a fisheye camera (``model="fisheye"``) the intrinsics are ``[fx, fy, cx, cy, k1, k2, k3, k4]``, through
+    ``cv2.fisheye.projectPoints``'s Jacobian.
 
     Parameters
     ----------
@@ -88,7 +84,7 @@ def intrinsics_information(camera: Camera, board_points_mm: dict, T_camera_board
     board_points_mm, _, T_camera_board = _checks.check_views(
         camera, board_points_mm, None, T_camera_board, pixels=False
     )
-    n = _n_intrinsics(camera)
+    n = n_intrinsics(camera)
     info = np.zeros((n, n))
     for name, T in T_camera_board.items():
         info += _marginal_information(camera, board_points_mm[name], T)
@@ -112,6 +108,13 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
     sees it (mrcal makes the same correction). The result is ``sqrt(trace(P J C J^T P^T) / 2)``
     per cell, ``P`` removing the best-fitting rotation over the whole grid.
 
+    A fisheye camera's rays are taken by their angle from the axis, so the corners of a lens of 180
+    degrees and more (rays at 90 degrees and beyond) have their uncertainty too; a cell whose pixel no
+    ray reaches (beyond the fold of the model's polynomial) is NaN. Its rotation is fitted over the
+    cells near the middle of the picture (:func:`turn_cells`), as mrcal's default focus region, not
+    the whole grid: a fisheye's corners see rays far beyond any view, whose uncertainty, hundreds of
+    pixels, would otherwise set the rotation for every pixel.
+
     Parameters
     ----------
     camera : Camera
@@ -127,7 +130,7 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
     Returns
     -------
     ndarray, shape (grid[1], grid[0])
-        The uncertainty (px per axis), row 0 at the top of the picture.
+        The uncertainty (px per axis), row 0 at the top of the picture; NaN where no ray reaches.
 
     Raises
     ------
@@ -135,20 +138,46 @@ def uncertainty_map(camera: Camera, covariance: np.ndarray, distance_mm: float, 
         If the camera is not a Camera, the covariance not a finite (n, n) array, the distance not a
         positive number of mm, or the grid not two whole numbers from 1 to 200.
     """
-    _checks.check_camera(camera)
-    covariance = _checks.check_covariance(covariance, _n_intrinsics(camera))
-    distance_mm = _checks.finite_distance(distance_mm)
+    _checks.check_camera(camera, allow_fisheye=True)
+    covariance = _checks.check_covariance(covariance, n_intrinsics(camera))
+    _checks.finite_distance(distance_mm)  # the camera only turns: any distance along the rays gives the same map
     grid = _checks.check_grid(grid)
     px = _pixel_grid(camera, grid)
-    rays = _lens.undistort_exact(px, camera.K, camera.dist)
-    pts = np.column_stack([rays, np.ones(len(rays))]) * distance_mm
-    _, jac = cv2.projectPoints(pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.K, camera.dist)
-    n = _n_intrinsics(camera)
-    Ji, Jr = jac[:, 6 : 6 + n], jac[:, :3]  # (2G, n) intrinsics, (2G, 3) a small rotation of the camera
-    P = np.eye(len(Jr)) - Jr @ np.linalg.solve(Jr.T @ Jr, Jr.T)
-    field = P @ Ji
-    var = np.einsum("kj,jl,kl->k", field, covariance, field).reshape(-1, 2).sum(axis=1) / 2
-    return np.sqrt(np.clip(var, 0, None)).reshape(grid[1], grid[0])
+    rays = pixel_rays(camera, px)
+    ok = np.all(np.isfinite(rays), axis=1)
+    u = np.full(len(rays), np.nan)
+    if ok.any():
+        Ji, Jr = ray_jacobians(camera, rays[ok])  # (2G, n) intrinsics, (2G, 3) a small rotation of the camera
+        fit = np.repeat(turn_cells(camera, px[ok]), 2)
+        field = Ji - Jr @ np.linalg.lstsq(Jr[fit], Ji[fit], rcond=None)[0]
+        var = np.einsum("kj,jl,kl->k", field, covariance, field).reshape(-1, 2).sum(axis=1) / 2
+        u[ok] = np.sqrt(np.clip(var, 0, None))
+    return u.reshape(grid[1], grid[0])
+
+
+def turn_cells(camera: Camera, px: np.ndarray) -> np.ndarray:
+    """Which of the cells at ``px`` (G, 2) the uncertainty map fits its small rotation of the camera over.
+
+    Every cell for a pinhole camera; for a fisheye, those within a sixth of the picture's smaller side
+    of the principal point (mrcal's default focus region), or the nearest one if none is.
+
+    Parameters
+    ----------
+    camera : Camera
+        The calibrated camera.
+    px : ndarray, shape (G, 2)
+        The cells' centres (px).
+
+    Returns
+    -------
+    ndarray of bool, shape (G,)
+    """
+    px = np.asarray(px, dtype=float).reshape(-1, 2)
+    if camera.model != "fisheye":
+        return np.ones(len(px), dtype=bool)
+    d = np.hypot(px[:, 0] - camera.K[0, 2], px[:, 1] - camera.K[1, 2])
+    near = d <= min(camera.image_size) / 6
+    return near if near.any() else d == d.min()
 
 
 @dataclass(frozen=True)
@@ -244,8 +273,8 @@ class CalibrationCoach:
             If ``omit`` is not a collection.
         """
         lines = [
-            f"reprojection uncertainty: median {np.median(self.uncertainty_px):.2f} px, worst "
-            f"{self.uncertainty_px.max():.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
+            f"reprojection uncertainty: median {_nan_stat(np.median, self.uncertainty_px):.2f} px, worst "
+            f"{_nan_stat(np.max, self.uncertainty_px):.2f} px; under {GOOD_UNCERTAINTY_PX} px over "
             f"{100 * self.good_fraction:.0f} % of the picture"
         ]
         try:
@@ -264,6 +293,12 @@ class CalibrationCoach:
         )
 
 
+def _nan_stat(stat, u: np.ndarray) -> float:
+    """``stat`` over the cells some ray reaches (a fisheye's picture corners may have none); NaN if none does."""
+    finite = u[np.isfinite(u)]
+    return float(stat(finite)) if finite.size else math.nan
+
+
 def _coverage(camera: Camera, image_points_px: dict, grid=GRID) -> np.ndarray:
     """Board points per cell of a ``grid`` (columns, rows) over the picture, row 0 at the top."""
     return coverage_grid(image_points_px.values(), camera.image_size, grid)
@@ -277,41 +312,10 @@ def _tilt_deg(T_camera_board: np.ndarray) -> float:
     return float(math.degrees(math.acos(min(1.0, abs(float(T_camera_board[2, 2]))))))
 
 
-def _candidates(camera: Camera, board_points_mm: np.ndarray, distance_mm: float):
-    """Board poses: centred on 3x3 places of the picture, face-on or tilted 35 deg four ways."""
-    centre = board_points_mm.mean(axis=0)
-    places = {
-        (0, 0): "at the top left",
-        (1, 0): "at the top",
-        (2, 0): "at the top right",
-        (0, 1): "at the left",
-        (1, 1): "in the middle",
-        (2, 1): "at the right",
-        (0, 2): "at the bottom left",
-        (1, 2): "at the bottom",
-        (2, 2): "at the bottom right",
-    }
-    tilts = {
-        "face-on": np.eye(3),
-        "its top tilted away from the camera": frames.rot_x(math.radians(-35)),
-        "its bottom tilted away from the camera": frames.rot_x(math.radians(35)),
-        "its left side tilted away from the camera": frames.rot_y(math.radians(35)),
-        "its right side tilted away from the camera": frames.rot_y(math.radians(-35)),
-    }
-    for (i, j), where in places.items():
-        u = (0.2 + 0.3 * i) * camera.width
-        v = (0.2 + 0.3 * j) * camera.height
-        ray = _lens.undistort_exact(np.array([[u, v]]), camera.K, camera.dist)[0]
-        C = np.array([ray[0], ray[1], 1.0]) * distance_mm
-        for tilt, R in tilts.items():
-            T = frames.make_transform(R, C - R @ centre)
-            yield T, where, tilt
-
-
 def _summary(camera: Camera, info: np.ndarray, sigma: float, distance_mm: float):
     cov = sigma**2 * np.linalg.pinv(info)
     u = uncertainty_map(camera, cov, distance_mm)
-    return cov, u, float(np.mean(u < GOOD_UNCERTAINTY_PX))
+    return cov, u, _nan_stat(lambda f: np.mean(f < GOOD_UNCERTAINTY_PX), u) if np.isfinite(u).any() else 0.0
 
 
 def coach(
@@ -393,7 +397,7 @@ def _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts: dict
         )
     bent = board_bends(camera, board_points_mm, image_points_px, T_camera_board)
     if bent:
-        flags.append(bend_flag(bent, len(names)))
+        flags.append(bend_flag(bent, len(names), camera.model))
     return flags
 
 
@@ -407,7 +411,7 @@ def _next_view(camera, board: np.ndarray, info, sigma: float, distance: float) -
             continue
         _, u_after, good_after = _summary(camera, info + _marginal_information(camera, board, T), sigma, distance)
         # first the part of the picture under the threshold, up to 90 %; then the mean square uncertainty
-        score = (min(good_after, 0.9), -float(np.mean(u_after**2)))
+        score = (min(good_after, 0.9), -_nan_stat(np.mean, u_after**2))
         if best is None or score > best[0]:
             best = (
                 score,
@@ -417,43 +421,10 @@ def _next_view(camera, board: np.ndarray, info, sigma: float, distance: float) -
                     tilt,
                     float(np.linalg.norm(T[:3, :3] @ board.mean(axis=0) + T[:3, 3])),
                     good_after,
-                    float(np.median(u_after)),
+                    _nan_stat(np.median, u_after),
                 ),
             )
     return best[1] if best else None
-
-
-def _printed_outline(board_mm: np.ndarray, per_side: int = 8) -> np.ndarray:
-    """Points along the edge of the printed board (board frame, mm): the rectangle of its inner corners
-    grown by one square on every side, since a detector needs the outer row of squares too."""
-    P = np.asarray(board_mm, dtype=float).reshape(-1, 3)
-    gaps = np.linalg.norm(P[:, None, :2] - P[None, :, :2], axis=-1)
-    square = float(gaps[gaps > 1e-9].min()) if len(P) > 1 else 0.0
-    x0, y0 = P[:, :2].min(axis=0) - square
-    x1, y1 = P[:, :2].max(axis=0) + square
-    t = np.linspace(0.0, 1.0, per_side, endpoint=False)
-    corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
-    edge = np.concatenate([a + t[:, None] * (b - a) for a, b in zip(corners, np.roll(corners, -1, axis=0))])
-    return np.column_stack([edge, np.full(len(edge), P[:, 2].mean())])
-
-
-def _printed_points(board_mm: np.ndarray) -> np.ndarray:
-    """The board's inner corners and the edge of its print (board frame, mm): what must be in the picture."""
-    return np.concatenate([np.asarray(board_mm, dtype=float).reshape(-1, 3), _printed_outline(board_mm)])
-
-
-def _board_in_picture(camera: Camera, board_mm: np.ndarray, T_camera_board: np.ndarray) -> bool:
-    """Whether the whole printed board (its inner corners and the outer row of squares) is in the picture."""
-    return _in_picture(camera, _printed_points(board_mm), T_camera_board)
-
-
-def _in_picture(camera: Camera, pts: np.ndarray, T_camera_board: np.ndarray) -> bool:
-    """Whether every point of ``pts`` (board frame, mm; :func:`_printed_points`) is in front and in the picture."""
-    P = pts @ T_camera_board[:3, :3].T + T_camera_board[:3, 3]
-    if np.any(P[:, 2] <= 1.0):
-        return False
-    px = _lens.project_points(P, camera.K, camera.dist)
-    return bool(np.all(px >= 0) and np.all(px[:, 0] <= camera.width - 1) and np.all(px[:, 1] <= camera.height - 1))
 
 
 def coach_calibration(calibration, other_sizes: int | None = None) -> CalibrationCoach:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -123,19 +124,20 @@ def coach_figure(coach, camera) -> Figure:
 
     fig = Figure(figsize=(7.0, 7.0 * camera.height / camera.width + 1.0), layout="constrained")
     ax = fig.subplots()
-    u = coach.uncertainty_px
+    u = np.ma.masked_invalid(coach.uncertainty_px)  # a fisheye's corners beyond its model's reach: grey
+    top = float(u.max()) if u.count() else 0.0
     im = ax.imshow(
         u,
         extent=(-0.5, camera.width - 0.5, camera.height - 0.5, -0.5),
-        cmap="magma_r",
+        cmap=colormaps["magma_r"].with_extremes(bad="0.85"),
         vmin=0.0,
-        vmax=max(float(u.max()), 2 * GOOD_UNCERTAINTY_PX),
+        vmax=max(top, 2 * GOOD_UNCERTAINTY_PX),
         interpolation="bicubic",
     )
     rows, cols = u.shape
     xs = (np.arange(cols) + 0.5) * camera.width / cols - 0.5
     ys = (np.arange(rows) + 0.5) * camera.height / rows - 0.5
-    if u.min() < GOOD_UNCERTAINTY_PX < u.max():  # the line and its legend entry only where it is drawn
+    if u.count() and u.min() < GOOD_UNCERTAINTY_PX < top:  # the line and its legend entry only where it is drawn
         ax.contour(xs, ys, u, levels=[GOOD_UNCERTAINTY_PX], colors="deepskyblue", linewidths=1.5)
         line = Line2D([], [], color="deepskyblue", linewidth=1.5, label=f"{GOOD_UNCERTAINTY_PX} px")
         ax.legend(handles=[line], loc="lower right", fontsize=8, title="uncertainty", title_fontsize=8)
