@@ -32,27 +32,12 @@ try:  # run as a script (benchmarks/ on the path) or imported as benchmarks.benc
     import planning_fisheye
     import planning_real
     import planning_robot
+    from planning_walls import RENDER, print_noise_table, wall_map
 except ImportError:
     from benchmarks import planning_fisheye, planning_real, planning_robot
+    from benchmarks.planning_walls import RENDER, print_noise_table, wall_map
 
-RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
 SIZES = [(640, 480), (1280, 720), (1920, 1080)]
-
-
-def wall_map(rng: np.random.Generator, n: int, size_mm: float = 80.0) -> MarkerMap:
-    """``n`` markers on the wall X = 0 (facing +X), spread over 1.2 m x 0.8 m, no two overlapping."""
-    placed: list[tuple[float, float]] = []
-    while len(placed) < n:
-        y, z = rng.uniform(-600, 600), rng.uniform(200, 1000)
-        if all(abs(y - a) > 1.6 * size_mm or abs(z - b) > 1.6 * size_mm for a, b in placed):
-            placed.append((y, z))
-    return MarkerMap.from_dict(
-        {
-            "units": "mm",
-            "marker_size_mm": size_mm,
-            "markers": {str(i): {"translation": [0.0, y, z], "rotation": [0, 0, 0]} for i, (y, z) in enumerate(placed)},
-        }
-    )
 
 
 def scene(rng: np.random.Generator, world: MarkerMap, distance_mm: float):
@@ -188,14 +173,7 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11) -> None:
                 t = truth[d.id]
                 sides.append(float(np.mean(np.linalg.norm(t - np.roll(t, 1, axis=0), axis=1))))
                 errs.append((d.corners_px - t).ravel())
-    sides, errs = np.array(sides), np.array(errs)
-    edges = np.concatenate([[0], (noise.NOISE_SIDE_PX[1:] + noise.NOISE_SIDE_PX[:-1]) / 2, [np.inf]])
-    print("| side (px) | markers | corner RMS per axis (px) | robust sigma (1.4826 MAD, px) |\n|---|---|---|---|")
-    for side, lo, hi in zip(noise.NOISE_SIDE_PX, edges[:-1], edges[1:]):
-        sel = (sides >= lo) & (sides < hi)
-        rms = float(np.sqrt(np.mean(errs[sel] ** 2))) if sel.any() else math.nan
-        robust = float(1.4826 * np.median(np.abs(errs[sel]))) if sel.any() else math.nan
-        print(f"| {side:.0f} | {int(sel.sum())} | {rms:.3f} | {robust:.3f} |")
+    print_noise_table(sides, errs)
 
 
 def _print_tails(groups: list[dict]) -> None:

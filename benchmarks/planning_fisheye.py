@@ -25,23 +25,16 @@ import fidlearn
 from fidlearn import Camera, MarkerMap, look_at, predict_accuracy, render_scene
 from fidlearn.errors import FidlearnError
 
-RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
+try:  # run from bench_planning.py as a script (benchmarks/ on the path) or imported as benchmarks.planning_fisheye
+    from planning_walls import RENDER, print_noise_table, wall_map
+except ImportError:
+    from benchmarks.planning_walls import RENDER, print_noise_table, wall_map
+
 W, H = 800, 600
 F_FE = (W / 2) / math.radians(80)
 FISHEYE = Camera([[F_FE, 0, W / 2 - 0.5], [0, F_FE, H / 2 - 0.5], [0, 0, 1]], [0.0] * 4, (W, H), model="fisheye")
 GROUPS = ((1, 1), (2, 4), (5, 12))
 LOOKED_AT, HELD_OUT = (7, 8), (9, 10)
-
-
-def wall_map(rng: np.random.Generator, n: int, size_mm: float = 80.0) -> MarkerMap:
-    """``n`` markers on the wall X = 0 (facing +X), spread over 1.2 m x 0.8 m, no two overlapping."""
-    placed: list[tuple[float, float]] = []
-    while len(placed) < n:
-        y, z = rng.uniform(-600, 600), rng.uniform(200, 1000)
-        if all(abs(y - a) > 1.6 * size_mm or abs(z - b) > 1.6 * size_mm for a, b in placed):
-            placed.append((y, z))
-    markers = {str(i): {"translation": [0.0, y, z], "rotation": [0, 0, 0]} for i, (y, z) in enumerate(placed)}
-    return MarkerMap.from_dict({"units": "mm", "marker_size_mm": size_mm, "markers": markers})
 
 
 def scene(rng: np.random.Generator, world: MarkerMap) -> np.ndarray:
@@ -166,7 +159,6 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11, size_mm: float = 80
     apparent marker side, on walls of 1 to 12 markers seen as the groups see them (other seeds), every detected
     marker's corners as ``locate`` refines them (the "edges" refinement, straightened) against the truth."""
     from fidlearn._fisheye_edges import straighten_edges_fisheye
-    from fidlearn.planning import noise
 
     rng = np.random.default_rng(seed)
     sides, errs = [], []
@@ -181,11 +173,4 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11, size_mm: float = 80
             t = rendered.truth[d.id]
             sides.append(float(np.mean(np.linalg.norm(t - np.roll(t, 1, axis=0), axis=1))))
             errs.append((c - t).ravel())
-    s, e = np.array(sides), np.array(errs)
-    edges = np.concatenate([[0], (noise.NOISE_SIDE_PX[1:] + noise.NOISE_SIDE_PX[:-1]) / 2, [np.inf]])
-    print("| side (px) | markers | corner RMS per axis (px) | robust sigma (1.4826 MAD, px) |\n|---|---|---|---|")
-    for side, lo, hi in zip(noise.NOISE_SIDE_PX, edges[:-1], edges[1:]):
-        sel = (s >= lo) & (s < hi)
-        rms = float(np.sqrt(np.mean(e[sel] ** 2))) if sel.any() else math.nan
-        robust = float(1.4826 * np.median(np.abs(e[sel]))) if sel.any() else math.nan
-        print(f"| {side:.0f} | {int(sel.sum())} | {rms:.3f} | {robust:.3f} |")
+    print_noise_table(sides, errs)
