@@ -116,6 +116,13 @@ def _broken(path: Path, exc: BaseException) -> RosFormatError:
     )
 
 
+def _check_topic_names(example: str, **names) -> None:
+    """Each given topic name (keyword: value) a string, else RosFormatError naming the keyword."""
+    for name, v in names.items():
+        if v is not None and not isinstance(v, str):
+            raise RosFormatError(f"{name} must be a topic name like {example!r}, got {type(v).__name__}")
+
+
 def _topic(topics: dict[str, str], types: tuple[str, ...], given: str | None, path: Path, what: str, option: str):
     found = sorted(t for t, typ in topics.items() if typ in types)
     if given is not None:
@@ -373,9 +380,7 @@ def read_bag(
     fidlearn.errors.RosFormatError: no_such.mcap: no such bag; give a ROS 2 bag folder or a .mcap file
     """
     path = _check_path(path)
-    for name, v in (("image_topic", image_topic), ("camera_info_topic", camera_info_topic)):
-        if v is not None and not isinstance(v, str):
-            raise RosFormatError(f"{name} must be a topic name like '/camera/image_raw', got {type(v).__name__}")
+    _check_topic_names("/camera/image_raw", image_topic=image_topic, camera_info_topic=camera_info_topic)
     with contextlib.closing(_open(path)) as reader:
         topics = {c.topic: c.msgtype for c in reader.connections}
         counts: dict[str, int] = {}

@@ -17,7 +17,7 @@ import numpy as np
 from .. import frames
 from ..errors import FidlearnError, RosFormatError
 from ..filtering._so3 import rotation_from_xyzw
-from ._bag import COMPRESSED, IMAGE, _broken, _check_path, _open, _stamp_ns, _topic
+from ._bag import COMPRESSED, IMAGE, _broken, _check_path, _check_topic_names, _open, _stamp_ns, _topic
 from ._inputs import MAX_ODOMETRY_MM, Odometry
 
 ODOMETRY = "nav_msgs/msg/Odometry"
@@ -95,19 +95,17 @@ def read_bag_odometry(
     fidlearn.errors.RosFormatError: no_such.mcap: no such bag; give a ROS 2 bag folder or a .mcap file
     """
     path = _check_path(path)
-    for name, v in (("topic", topic), ("image_topic", image_topic)):
-        if v is not None and not isinstance(v, str):
-            raise RosFormatError(f"{name} must be a topic name like '/odom', got {type(v).__name__}")
+    _check_topic_names("/odom", topic=topic, image_topic=image_topic)
     if start_ns is not None and (isinstance(start_ns, bool) or not isinstance(start_ns, (int, np.integer))):
         raise RosFormatError(f"start_ns must be a stamp in nanoseconds (an int), got {start_ns!r:.40}")
     with contextlib.closing(_open(path)) as reader:
         topics = {c.topic: c.msgtype for c in reader.connections}
-        odo = _topic(topics, (ODOMETRY,), topic, path, "Odometry", "--odometry-topic")
+        odo = _topic(topics, (ODOMETRY,), topic, path, "Odometry", "topic")
         if odo is None:
             raise RosFormatError(f"{path}: no nav_msgs/msg/Odometry topic in this bag")
         try:
             if start_ns is None:
-                images = _topic(topics, (IMAGE, COMPRESSED), image_topic, path, "image", "--image-topic")
+                images = _topic(topics, (IMAGE, COMPRESSED), image_topic, path, "image", "image_topic")
                 if images is None:
                     raise RosFormatError(f"{path}: no image topic to time the odometry by; give start_ns")
                 start_ns = _first_stamp(reader, path, images)
