@@ -175,30 +175,30 @@ def refine_pose_lm(
 _ZERO3 = np.zeros(3)
 
 
-def _intrinsics_jacobian(obj, K, dist, R_wc, C) -> np.ndarray:
-    """The Jacobian (2N, 4 + len(dist)) of the corners' projection on ``fx, fy, cx, cy`` and the distortion."""
-    X_c = (obj - C) @ R_wc
-    _, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
-    return jac[:, 6 : 10 + len(dist)]
-
-
 def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
     """Residuals (2N,) observed minus projected, and optionally the Jacobian (2N, 6) of the projection.
 
     The same Jacobian as :func:`pose_jacobian`, written for speed (this runs in every LM step).
     """
+    r, J, _ = _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian)
+    return r, J
+
+
+def _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian: bool = True):
+    """:func:`_residuals`, and the Jacobian (2N, 4 + len(dist)) on ``fx, fy, cx, cy`` and the distortion from
+    the same projection (None without ``with_jacobian``)."""
     X_c = (obj - C) @ R_wc  # rows: R_cw @ (P - C) = R_wc^T (P - C)
     px, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
     r = img.reshape(-1) - px.reshape(-1)
     if not with_jacobian:
-        return r, None
+        return r, None, None
     # projectPoints' Jacobian at rvec = tvec = 0 is d(px)/d[w, t] for X_c -> X_c + w x X_c + t. Turning the
     # camera by dtheta (world axes, on the left of R_wc) moves X_c by X_c x (R_cw dtheta), i.e. w = -R_cw dtheta;
     # moving its centre by dC moves X_c by -R_cw dC. So J = jac[:, :6] @ diag(-R_cw, -R_cw).
     B = np.zeros((6, 6))
     B[:3, :3] = B[3:, 3:] = -R_wc.T
     J = jac[:, :6] @ B
-    return r, J
+    return r, J, jac[:, 6 : 10 + len(dist)]
 
 
 def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
