@@ -154,3 +154,28 @@ def test_the_nis_band_is_chi_square():
     lo, hi = _adapt.nis_band(100)
     assert (round(lo, 2), round(hi, 2)) == (5.34, 6.70)  # chi-square(600) 2.5 % and 97.5 % quantiles / 100
     assert _adapt.nis_band(0) == (0.0, np.inf)
+
+
+def test_the_closed_form_whitening_is_the_cholesky_solve():
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(3, 3))
+    S, r = A @ A.T + 0.1 * np.eye(3), rng.normal(size=3)
+    expected = np.linalg.solve(np.linalg.cholesky(S), r)
+    np.testing.assert_allclose(_adapt.whiten3(S.tolist(), r.tolist()), expected, rtol=1e-12)
+    assert _adapt.whiten3([[1.0, 0, 0], [0, -1.0, 0], [0, 0, 1.0]], [1.0, 1.0, 1.0]) is None
+
+
+def test_the_fast_pose_checks_agree_with_the_full_ones():
+    from fidlearn.filtering import _track
+
+    T = frames.make_transform(FACING_WALL, [700.0, 150.0, 250.0])
+    assert _track._plain_rigid(T)
+    for bad in (np.diag([1.0, 1.0, -1.0, 1.0]), T * 1.01, np.where(np.eye(4) > 0, np.nan, T)):
+        assert not _track._plain_rigid(bad)
+    cov = np.diag([1e-4] * 3 + [25.0] * 3)
+    assert _track._symmetric_psd(cov)
+    assert _track._symmetric_psd(np.zeros((6, 6)))  # semi-definite
+    skew = cov.copy()
+    skew[0, 1] = 1e-3
+    assert not _track._symmetric_psd(skew)
+    assert not _track._symmetric_psd(np.diag([1.0] * 5 + [-0.1]))

@@ -58,23 +58,23 @@ class _Block:
     log_q2: float
     floor: float
     ceiling: float
-    prev: list[np.ndarray] = field(default_factory=list)
+    prev: list[tuple[float, float, float]] = field(default_factory=list)
 
     @property
     def q(self) -> float:
         return math.exp(0.5 * self.log_q2)
 
-    def learn(self, e: np.ndarray) -> None:
-        """Take one whitened innovation block ``e`` (3,)."""
-        norm = float(np.linalg.norm(e))
+    def learn(self, e) -> None:
+        """Take one whitened innovation block ``e`` (3 numbers)."""
+        norm = math.sqrt(sum(x * x for x in e))
         if norm == 0:
             return
-        e = e / norm
-        cosines = [float(e @ p) for p in self.prev if p is not None]
+        u = (e[0] / norm, e[1] / norm, e[2] / norm)
+        cosines = [u[0] * p[0] + u[1] * p[1] + u[2] * p[2] for p in self.prev]
         if cosines:
             step = ADAPT_RATE * sum(cosines) / len(cosines)
             self.log_q2 = min(max(self.log_q2 + step, 2 * math.log(self.floor)), 2 * math.log(self.ceiling))
-        self.prev = ([e] + self.prev)[:LAGS]
+        self.prev = ([u] + self.prev)[:LAGS]
 
 
 class NoiseLearner:
@@ -98,12 +98,11 @@ class NoiseLearner:
         """Take one frame's innovation ``r`` (6,) ``[rotation, position]`` and its covariance ``S``."""
         if self.frozen:
             return
-        for block, sl in ((self.rot, slice(0, 3)), (self.pos, slice(3, 6))):
-            try:
-                L = np.linalg.cholesky(S[sl, sl])
-            except np.linalg.LinAlgError:
-                continue
-            block.learn(np.linalg.solve(L, r[sl]))
+        S_rows, r_list = S.tolist(), r.tolist()
+        for block, i in ((self.rot, 0), (self.pos, 3)):
+            e = whiten3([row[i : i + 3] for row in S_rows[i : i + 3]], r_list[i : i + 3])
+            if e is not None:
+                block.learn(e)
 
     def manoeuvre(self, inflation: float) -> None:
         """A frame needed the process noise multiplied by ``inflation`` for one step: keep half of it (in log)."""
@@ -115,6 +114,29 @@ class NoiseLearner:
     def forget_lag(self) -> None:
         """The track (re)starts: the next innovation has no predecessor to be compared with."""
         self.rot.prev, self.pos.prev = [], []
+
+
+def whiten3(S: list[list[float]], r: list[float]) -> tuple[float, float, float] | None:
+    """``L^-1 r`` with ``L`` the lower Cholesky factor of the 3x3 ``S`` (nested lists), in closed form on plain
+    floats (``np.linalg.solve(np.linalg.cholesky(S), r)`` costs ten times more); None when ``S`` is not
+    positive definite."""
+    a = S[0][0]
+    if not a > 0:
+        return None
+    l00 = math.sqrt(a)
+    l10, l20 = S[1][0] / l00, S[2][0] / l00
+    b = S[1][1] - l10 * l10
+    if not b > 0:
+        return None
+    l11 = math.sqrt(b)
+    l21 = (S[2][1] - l20 * l10) / l11
+    c = S[2][2] - l20 * l20 - l21 * l21
+    if not c > 0:
+        return None
+    l22 = math.sqrt(c)
+    e0 = r[0] / l00
+    e1 = (r[1] - l10 * e0) / l11
+    return e0, e1, (r[2] - l20 * e0 - l21 * e1) / l22
 
 
 def manoeuvre_inflation(P_pred: np.ndarray, Q: np.ndarray, r: np.ndarray, R: np.ndarray, most: float) -> float:

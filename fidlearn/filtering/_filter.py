@@ -86,14 +86,26 @@ def start_state(T_world_camera: np.ndarray, covariance: np.ndarray, t_s: float) 
     return _State(T[:3, :3].copy(), T[:3, 3].copy(), np.zeros(3), np.zeros(3), P, float(t_s))
 
 
+def _blocks(pos: int, vel: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """0/1 masks (13, 13) of one white acceleration's position block, its cross blocks and its velocity block."""
+    out = tuple(np.zeros((_N, _N)) for _ in range(3))
+    out[0][pos : pos + 3, pos : pos + 3] = _I3
+    out[1][pos : pos + 3, vel : vel + 3] = out[1][vel : vel + 3, pos : pos + 3] = _I3
+    out[2][vel : vel + 3, vel : vel + 3] = _I3
+    return out
+
+
+_ROT_BLOCKS, _POS_BLOCKS = _blocks(0, 6), _blocks(3, 9)
+_SCALE_BLOCK = np.zeros((_N, _N))
+_SCALE_BLOCK[12, 12] = 1.0
+_I13 = np.eye(_N)
+
+
 def _white_acceleration(dt: float, q_lin: float, q_ang: float) -> np.ndarray:
     """Process noise (13, 13) of white acceleration over ``dt`` seconds (and the odometry scale's wander)."""
-    Q = np.zeros((_N, _N))
-    Q[12, 12] = ODOMETRY_SCALE_DRIFT**2 * dt
-    for pos, vel, q2 in ((0, 6, q_ang**2), (3, 9, q_lin**2)):
-        Q[pos : pos + 3, pos : pos + 3] = _I3 * (q2 * dt**3 / 3.0)
-        Q[pos : pos + 3, vel : vel + 3] = Q[vel : vel + 3, pos : pos + 3] = _I3 * (q2 * dt**2 / 2.0)
-        Q[vel : vel + 3, vel : vel + 3] = _I3 * (q2 * dt)
+    Q = (ODOMETRY_SCALE_DRIFT**2 * dt) * _SCALE_BLOCK
+    for (pp, pv, vv), q2 in ((_ROT_BLOCKS, q_ang**2), (_POS_BLOCKS, q_lin**2)):
+        Q = Q + (q2 * dt**3 / 3.0) * pp + (q2 * dt**2 / 2.0) * pv + (q2 * dt) * vv
     return Q
 
 
@@ -102,7 +114,7 @@ def predict_constant_velocity(s: _State, t_s: float, q_lin: float, q_ang: float)
     dt = float(t_s) - s.t
     phi = s.w * dt
     E = exp_so3(phi)
-    F = np.eye(_N)
+    F = _I13.copy()
     F[0:3, 0:3] = E
     F[0:3, 6:9] = left_jacobian(phi) * dt
     F[3:6, 9:12] = _I3 * dt
@@ -170,7 +182,7 @@ def update(s: _State, r: np.ndarray, S: np.ndarray, cov_meas: np.ndarray) -> _St
     """The state corrected by a pose measurement (residual ``r``, its covariance ``S``); Joseph form."""
     K = np.linalg.solve(S, s.P[:6, :]).T  # P H^T S^-1, (13, 6)
     dx = K @ r
-    IKH = np.eye(_N)
+    IKH = _I13.copy()
     IKH[:, :6] -= K
     P = IKH @ s.P @ IKH.T + K @ cov_meas @ K.T
     return boxplus(s, dx, 0.5 * (P + P.T))

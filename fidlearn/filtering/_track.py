@@ -28,6 +28,7 @@ DEFAULT_PROCESS_NOISE = None
 MAX_TIME_S = 1e12
 #: Largest variance a pose's covariance may hold (rad^2 or mm^2): beyond it the pose says nothing.
 MAX_VARIANCE = 1e30
+_I3, _I6 = np.eye(3), np.eye(6)
 
 
 @dataclass
@@ -111,7 +112,8 @@ def check_pose(pose, where: str = "pose") -> None:
     """A :class:`Pose` the filter can use: a 6x6 covariance (or None), its alternative likewise; TrackingError."""
     if not isinstance(pose, Pose):
         raise TrackingError(f"{where} must be a fidlearn.Pose or None, got {type(pose).__name__}")
-    frames.check_transform(pose.T_world_camera, f"{where}.T_world_camera")
+    if not _plain_rigid(pose.T_world_camera):
+        frames.check_transform(pose.T_world_camera, f"{where}.T_world_camera")
     cov = pose.covariance
     if cov is not None:
         arr = np.asarray(cov, dtype=float) if _numeric(cov) else None
@@ -121,15 +123,50 @@ def check_pose(pose, where: str = "pose") -> None:
                 f"{where}.covariance must be a 6x6 array of finite numbers (at most {MAX_VARIANCE:g}) "
                 f"[dtheta (rad), position (mm)], or None; got {shape}"
             )
-        if not np.allclose(arr, arr.T, rtol=1e-6, atol=1e-12) or np.linalg.eigvalsh(arr).min() < -1e-9 * max(
-            1.0, float(np.abs(arr).max())
-        ):
+        if not _symmetric_psd(arr):
             raise TrackingError(f"{where}.covariance must be symmetric positive semi-definite")
     if not isinstance(pose.marker_ids, (tuple, list)):
         raise TrackingError(f"{where}.marker_ids must be a tuple of marker ids, got {type(pose.marker_ids).__name__}")
     alt = alternative(pose)
     if pose.ambiguous and alt is not None:
         check_pose(alt, f"{where}.alternative")
+
+
+def _plain_rigid(T) -> bool:
+    """True for a (4, 4) float array that :func:`fidlearn.frames.check_transform` accepts (the same checks on
+    plain floats, a few microseconds; the messages that name what is wrong are left to it)."""
+    if not (isinstance(T, np.ndarray) and T.shape == (4, 4) and T.dtype == np.float64):
+        return False
+    rows = T.tolist()
+    if not math.isfinite(sum(map(sum, rows))):  # NaN or infinity anywhere (a finite sum of finite floats)
+        return False
+    (a, b, c, _), (d, e, f, _), (g, h, i, _), (w, x, y, z) = rows
+    if max(abs(w), abs(x), abs(y), abs(z - 1.0)) > 1e-6:
+        return False
+    gram = (
+        a * a + d * d + g * g - 1.0,
+        b * b + e * e + h * h - 1.0,
+        c * c + f * f + i * i - 1.0,
+        a * b + d * e + g * h,
+        a * c + d * f + g * i,
+        b * c + e * f + h * i,
+    )
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    return max(map(abs, gram)) <= 1e-6 and det > 0
+
+
+def _symmetric_psd(arr: np.ndarray) -> bool:
+    """``arr`` (6, 6) symmetric (as ``np.allclose(arr, arr.T, rtol=1e-6, atol=1e-12)``) with no eigenvalue below
+    ``-1e-9`` times its largest entry (at least 1): a Cholesky factor of ``arr`` plus that much, else the
+    eigenvalues."""
+    if not (np.abs(arr - arr.T) <= 1e-12 + 1e-6 * np.abs(arr.T)).all():
+        return False
+    tol = 1e-9 * max(1.0, float(np.abs(arr).max()))
+    try:
+        np.linalg.cholesky(arr + tol * _I6)
+        return True
+    except np.linalg.LinAlgError:
+        return bool(np.linalg.eigvalsh(arr).min() >= -tol)
 
 
 def alternative(pose: Pose) -> Pose | None:
