@@ -184,8 +184,8 @@ def marker_array(marker_map: MarkerMap, stamp_ns: int = 0, frame_id: str = "map"
     return build("visualization_msgs/msg/MarkerArray", {"markers": markers})
 
 
-def _twist(tracked: TrackedPose, T_body: np.ndarray) -> dict:
-    """The body's velocity in its own axes (as nav_msgs/Odometry has it), m/s and rad/s."""
+def _twist(tracked: TrackedPose, T_body: np.ndarray) -> tuple[list[float], list[float]]:
+    """The body's linear and angular velocity in its own axes (as nav_msgs/Odometry has it), m/s and rad/s."""
     w = np.zeros(3) + np.asarray(tracked.angular_velocity_rad_s, dtype=float)
     v = (
         np.zeros(3)
@@ -194,7 +194,7 @@ def _twist(tracked: TrackedPose, T_body: np.ndarray) -> dict:
     )
     R = T_body[:3, :3].T
     lin, ang = R @ v / 1000.0, R @ w
-    return {"linear": dict(zip("xyz", map(float, lin))), "angular": dict(zip("xyz", map(float, ang)))}
+    return [float(x) for x in lin], [float(x) for x in ang]
 
 
 def mount_tf(T_camera_base, stamp_ns: int, camera_frame: str):
@@ -234,7 +234,8 @@ def pose_messages(stamp_ns: int, pose: Pose | TrackedPose, camera_frame: str = "
     Returns
     -------
     list of (str, object)
-        The topics (see :data:`TOPICS` for their types) and rosbags messages.
+        The topics (see :data:`TOPICS` for their types) and rosbags messages: the fields of
+        :func:`fidlearn.ros.ros_pose`'s dict, the TF the same position and rotation.
 
     Raises
     ------
@@ -245,16 +246,40 @@ def pose_messages(stamp_ns: int, pose: Pose | TrackedPose, camera_frame: str = "
     tracked = pose if isinstance(pose, TrackedPose) else None
     body = "base_link" if tracked is not None and tracked.T_world_base is not None else "camera_optical_frame"
     msg = ros_pose(pose, stamp_ns / 1e9, body=body)
-    msg["header"]["stamp"] = stamp_dict(stamp_ns)
-    child = "base_link" if msg.pop("child_frame_id") == "base_link" else camera_frame
-    T = np.asarray(
-        tracked.T_world_base if tracked is not None and body == "base_link" else pose.T_world_camera, dtype=float
+    child = "base_link" if msg["child_frame_id"] == "base_link" else camera_frame
+    types = typestore().types
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
+                                          frame_id=msg["header"]["frame_id"])  # fmt: skip
+    p, q = msg["pose"]["pose"]["position"], msg["pose"]["pose"]["orientation"]
+    position, rotation = (p["x"], p["y"], p["z"]), (q["x"], q["y"], q["z"], q["w"])
+    with_cov = types["geometry_msgs/msg/PoseWithCovariance"](
+        pose=types["geometry_msgs/msg/Pose"](
+            position=types["geometry_msgs/msg/Point"](*position),
+            orientation=types["geometry_msgs/msg/Quaternion"](*rotation),
+        ),
+        covariance=np.asarray(msg["pose"]["covariance"], dtype=np.float64),
     )
-    out = [(POSE_TOPIC, build(TOPICS[POSE_TOPIC], msg)), ("/tf", _tf(stamp_ns, "map", child, T))]
+    transform = types["geometry_msgs/msg/Transform"](
+        translation=types["geometry_msgs/msg/Vector3"](*position),
+        rotation=types["geometry_msgs/msg/Quaternion"](*rotation),
+    )
+    tf = types["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=child, transform=transform)
+    out = [
+        (POSE_TOPIC, types[TOPICS[POSE_TOPIC]](header=header, pose=with_cov)),
+        ("/tf", types[TOPICS["/tf"]](transforms=[tf])),
+    ]
     if tracked is not None:
-        twist = {"twist": _twist(tracked, T), "covariance": [-1.0] + [0.0] * 35}
-        odo = {"header": msg["header"], "child_frame_id": child, "pose": msg["pose"], "twist": twist}
-        out.append((ODOMETRY_TOPIC, build(TOPICS[ODOMETRY_TOPIC], odo)))
+        T = np.asarray(tracked.T_world_base if body == "base_link" else pose.T_world_camera, dtype=float)
+        lin, ang = _twist(tracked, T)
+        twist = types["geometry_msgs/msg/Twist"](
+            linear=types["geometry_msgs/msg/Vector3"](*lin), angular=types["geometry_msgs/msg/Vector3"](*ang)
+        )
+        unknown = np.zeros(36)
+        unknown[0] = -1.0
+        twist = types["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=unknown)
+        odo = types[TOPICS[ODOMETRY_TOPIC]](header=header, child_frame_id=child, pose=with_cov, twist=twist)
+        out.append((ODOMETRY_TOPIC, odo))
     return out
 
 
