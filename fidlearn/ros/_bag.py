@@ -23,6 +23,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import CameraError, FidlearnError, RosFormatError
 from ._camera_info import camera_from_camera_info
+from ._messages import typestore
 
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED = "sensor_msgs/msg/CompressedImage"
@@ -70,12 +71,6 @@ class BagFrame(NamedTuple):
     def t_s(self) -> float:
         """The stamp in seconds."""
         return self.stamp / 1e9
-
-
-def _typestore():
-    from rosbags.typesys import Stores, get_typestore
-
-    return get_typestore(Stores.ROS2_HUMBLE)
 
 
 def _check_path(path) -> Path:
@@ -396,13 +391,25 @@ def read_bag(
     return frames
 
 
+#: rosbags' typestores made from bags' own message definitions, by those definitions: a bag opened
+#: again (read_bag checks it, then its frames are read) deserializes with the code compiled the first time.
+_STORES: dict[tuple, Any] = {}
+
+
 def _open(path: Path):
     """An open rosbags AnyReader (to close), or the bag's error said plainly."""
     from rosbags.highlevel import AnyReader
 
     try:
-        reader = AnyReader([path], default_typestore=_typestore())
+        reader = AnyReader([path], default_typestore=typestore())
         reader.open()
     except Exception as exc:  # not a bag, cut short, an unknown storage
         raise _broken(path, exc) from None
+    key = tuple(sorted({(c.msgtype, str(c.msgdef.format), c.msgdef.data, c.digest) for c in reader.connections}))
+    if key in _STORES:
+        reader.typestore = _STORES[key]
+    else:
+        if len(_STORES) >= 8:
+            _STORES.pop(next(iter(_STORES)))
+        _STORES[key] = reader.typestore
     return reader
