@@ -23,6 +23,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import CameraError, FidlearnError, RosFormatError
 from ._camera_info import camera_from_camera_info
+from ._mcap_index import topic_messages
 from ._messages import typestore
 
 IMAGE = "sensor_msgs/msg/Image"
@@ -318,7 +319,7 @@ class BagFrames:
         try:
             with contextlib.nullcontext(reader) if reader is not None else contextlib.closing(_open(self.path)) as bag:
                 conns = [c for c in bag.connections if c.topic == topic]
-                for conn, logtime, raw in bag.messages(connections=conns):
+                for conn, logtime, raw in _raw_messages(self.path, bag, conns):
                     yield bag.deserialize(raw, conn.msgtype), logtime
         except (FidlearnError, GeneratorExit, KeyboardInterrupt):
             raise
@@ -336,6 +337,18 @@ class BagFrames:
                 k += 1
             image = decode_image(msg, f"{self.path.name} {self.image_topic} message {n}")
             yield BagFrame(stamp, image, cameras[k][1] if cameras else None)
+
+
+def _raw_messages(path: Path, bag, conns) -> Iterator[tuple[Any, int, bytes]]:
+    """rosbags' ``(connection, log time, CDR bytes)`` of one topic; a lone indexed MCAP file read by its index."""
+    if len(conns) == 1 and path.suffix.lower() == ".mcap" and path.is_file():
+        with open(path, "rb") as f:
+            found = topic_messages(f, conns[0].topic)
+            if found is not None:
+                for logtime, raw in found:
+                    yield conns[0], logtime, raw
+                return
+    yield from bag.messages(connections=conns)
 
 
 def read_bag(
