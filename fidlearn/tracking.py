@@ -56,9 +56,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from . import _cv, frames
+from . import _cv
 from ._fisheye_edges import straighten_edges_fisheye
-from ._lens import pixels_from_normalized
+from ._lens import pixels_from_normalized, project_points
 from ._wpilib import outside_field
 from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
@@ -183,6 +183,7 @@ class MarkerTracker:
         self._ids[:] = keys
         self._world = np.stack([marker_map.marker_corners(i) for i in keys]) if keys else np.zeros((0, 4, 3))
         self._normals = np.stack([marker_map.normal(i) for i in keys]) if keys else np.zeros((0, 3))
+        self._centres = self._world.mean(axis=1)
         # Per dictionary of the map, the map's markers only: OpenCV compares every candidate that does not decode
         # with every marker of the dictionary (most of detectMarkers' time with 1024-marker ARUCO_ORIGINAL).
         self._groups = [
@@ -344,16 +345,16 @@ class MarkerTracker:
         assert self._cam is not None
         T_last = self.last_pose.T_world_camera
         if self._prev_T is not None:  # constant velocity: the last step once more
-            T_pred = T_last @ frames.invert_transform(self._prev_T) @ T_last
-            T_pred = frames.make_transform(_nearest_rotation(T_pred[:3, :3]), T_pred[:3, 3])
+            step = T_last @ _inverse(self._prev_T) @ T_last
+            T_pred = np.eye(4)  # what make_transform gives, without re-checking the rotation made here
+            T_pred[:3, :3], T_pred[:3, 3] = _nearest_rotation(step[:3, :3]), step[:3, 3]
         else:
             T_pred = T_last
         cam = self._cam
-        T_cw = frames.invert_transform(T_pred)
+        T_cw = _inverse(T_pred)
         eye = T_pred[:3, 3]
         pc = self._world @ T_cw[:3, :3].T + T_cw[:3, 3]  # (M, 4, 3) camera frame, mm
-        centre = self._world.mean(axis=1)
-        facing = np.einsum("ij,ij->i", self._normals, eye - centre) > 0
+        facing = np.einsum("ij,ij->i", self._normals, eye - self._centres) > 0
         front = (pc[..., 2] > 10.0).all(axis=1)
         keep = facing & front
         if keep.any():
@@ -361,12 +362,19 @@ class MarkerTracker:
         if not keep.any():
             return None
         sel = np.flatnonzero(keep)
-        px = cam.project(self._world[sel].reshape(-1, 3), T_pred).reshape(-1, 4, 2)
+        px = self._project(sel, T_cw)
         motion = np.zeros(len(sel))
         if T_pred is not T_last:  # how far the prediction moved each marker: the velocity is that uncertain
-            px_last = cam.project(self._world[sel].reshape(-1, 3), T_last).reshape(-1, 4, 2)
+            px_last = self._project(sel, _inverse(T_last))
             motion = np.abs(px - px_last).max(axis=(1, 2))
         return {"ids": self._ids[sel], "corners": px, "motion": motion}
+
+    def _project(self, sel: np.ndarray, T_cw: np.ndarray) -> np.ndarray:
+        """The pixels (K, 4, 2) of markers ``sel`` seen from ``T_camera_world`` (a pose found or predicted, rigid
+        already): :meth:`fidlearn.Camera.project`'s arithmetic, without its checks."""
+        assert self._cam is not None
+        pc = self._world[sel].reshape(-1, 3) @ T_cw[:3, :3].T + T_cw[:3, 3]
+        return project_points(pc, self._cam.K, self._cam.dist, self._cam.model).reshape(-1, 4, 2)
 
     def _detect_windows(self, gray: np.ndarray, predicted: dict) -> list[Detection] | None:
         """Detect in windows around the predicted markers; None when a full detection is called for."""
@@ -445,6 +453,14 @@ def _near_view(cam: Camera, pc: np.ndarray) -> np.ndarray:
     slack = 0.5 * max(cam.width, cam.height)
     inside = (px > [-slack, -slack]) & (px < [cam.width + slack, cam.height + slack])
     return np.asarray(inside.all(axis=(1, 2)))
+
+
+def _inverse(T: np.ndarray) -> np.ndarray:
+    """``T``'s inverse as :func:`fidlearn.frames.invert_transform` makes it, for a ``T`` known to be rigid."""
+    out = np.eye(4)
+    out[:3, :3] = T[:3, :3].T
+    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return out
 
 
 def _nearest_rotation(R: np.ndarray) -> np.ndarray:
