@@ -273,6 +273,8 @@ class BagFrames:
         self.path, self.image_topic, self.camera_info_topic, self.count = path, image_topic, camera_info_topic, count
         self.frame_id: str | None = None
         self._cameras: list[tuple[int, Camera]] | None = None
+        self._store: Any = None  # the typestore and message types read_bag found (an indexed MCAP file needs no reader)
+        self._types: dict[str, str] = {}
 
     def __repr__(self) -> str:
         return f"BagFrames({str(self.path)!r}, {self.image_topic!r}, {self.count} images)"
@@ -317,9 +319,16 @@ class BagFrames:
     def _messages(self, topic: str, reader=None) -> Iterator[tuple[Any, int]]:
         """The topic's messages, deserialized, with their log times (from ``reader`` if open, else a new one)."""
         try:
-            with contextlib.nullcontext(reader) if reader is not None else contextlib.closing(_open(self.path)) as bag:
+            with contextlib.ExitStack() as stack:
+                indexed = _indexed(self.path, topic, stack) if self._store is not None else None
+                if indexed is not None:
+                    deserialize, msgtype = self._store.deserialize_cdr, self._types[topic]
+                    for logtime, raw in indexed:
+                        yield deserialize(raw, msgtype), logtime
+                    return
+                bag = reader if reader is not None else stack.enter_context(contextlib.closing(_open(self.path)))
                 conns = [c for c in bag.connections if c.topic == topic]
-                for conn, logtime, raw in _raw_messages(self.path, bag, conns):
+                for conn, logtime, raw in bag.messages(connections=conns):
                     yield bag.deserialize(raw, conn.msgtype), logtime
         except (FidlearnError, GeneratorExit, KeyboardInterrupt):
             raise
@@ -339,16 +348,12 @@ class BagFrames:
             yield BagFrame(stamp, image, cameras[k][1] if cameras else None)
 
 
-def _raw_messages(path: Path, bag, conns) -> Iterator[tuple[Any, int, bytes]]:
-    """rosbags' ``(connection, log time, CDR bytes)`` of one topic; a lone indexed MCAP file read by its index."""
-    if len(conns) == 1 and path.suffix.lower() == ".mcap" and path.is_file():
-        with open(path, "rb") as f:
-            found = topic_messages(f, conns[0].topic)
-            if found is not None:
-                for logtime, raw in found:
-                    yield conns[0], logtime, raw
-                return
-    yield from bag.messages(connections=conns)
+def _indexed(path: Path, topic: str, stack: contextlib.ExitStack) -> Iterator[tuple[int, bytes]] | None:
+    """A lone MCAP file's ``(log time, CDR bytes)`` on ``topic`` read by its index (the file closed with ``stack``);
+    None for other bags and for MCAP files without an index or with compressed chunks."""
+    if path.suffix.lower() != ".mcap" or not path.is_file():
+        return None
+    return topic_messages(stack.enter_context(open(path, "rb")), topic)
 
 
 def read_bag(
@@ -400,6 +405,7 @@ def read_bag(
         if counts.get(topic, 0) == 0:
             raise RosFormatError(f"{path}: the topic {topic} holds no images")
         frames = BagFrames(path, topic, _info_topic(topics, topic, camera_info_topic, path), counts[topic])
+        frames._store, frames._types = reader.typestore, topics
         frames._cameras = frames._read_cameras(reader)  # checked now: an unknown camera before any image
     return frames
 
