@@ -127,8 +127,8 @@ def check_pose(pose, where: str = "pose") -> None:
             raise TrackingError(f"{where}.covariance must be symmetric positive semi-definite")
     if not isinstance(pose.marker_ids, (tuple, list)):
         raise TrackingError(f"{where}.marker_ids must be a tuple of marker ids, got {type(pose.marker_ids).__name__}")
-    alt = alternative(pose)
-    if pose.ambiguous and alt is not None:
+    alt = alternative(pose) if pose.ambiguous else None  # an unambiguous pose's alternative is never built
+    if alt is not None:
         check_pose(alt, f"{where}.alternative")
 
 
