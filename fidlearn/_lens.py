@@ -56,14 +56,22 @@ def distort_normalized(xy: np.ndarray, dist: np.ndarray, model: str = "pinhole")
         return _fisheye_distort(xy, dist)
     d = np.zeros(14)
     d[: dist.size] = np.ravel(dist)
-    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d[:12]
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d[:12].tolist()
     x, y = xy[:, 0], xy[:, 1]
     r2 = x * x + y * y
     r4 = r2 * r2
     r6 = r4 * r2
-    radial = (1 + k1 * r2 + k2 * r4 + k3 * r6) / (1 + k4 * r2 + k5 * r4 + k6 * r6)
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r4
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r4
+    # The terms of coefficients that are zero are left out: each would add exactly 0 (or divide by exactly 1).
+    xd, yd = x, y
+    if k1 or k2 or k3 or k4 or k5 or k6:
+        radial = 1 + k1 * r2 + k2 * r4 + k3 * r6
+        if k4 or k5 or k6:
+            radial = radial / (1 + k4 * r2 + k5 * r4 + k6 * r6)
+        xd, yd = x * radial, y * radial
+    if p1 or p2:
+        xd, yd = xd + 2 * p1 * x * y + p2 * (r2 + 2 * x * x), yd + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    if s1 or s2 or s3 or s4:
+        xd, yd = xd + s1 * r2 + s2 * r4, yd + s3 * r2 + s4 * r4
     if d[12] or d[13]:
         m = tilt_matrix(d[12], d[13])
         w = m[2, 0] * xd + m[2, 1] * yd + m[2, 2]
