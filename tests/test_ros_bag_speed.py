@@ -127,3 +127,11 @@ def test_an_index_pointing_elsewhere_is_a_clear_error_after_the_frames_before_it
     assert [next(frames).stamp for _ in range(2)] == [T0, T0 + STEP]
     with pytest.raises(RosFormatError, match="bad.mcap: cannot read this ROS 2 bag"):
         next(frames)
+
+
+def test_an_index_listing_another_number_of_messages_than_the_bag_has_is_not_used(tmp_path):
+    bag = _bag(tmp_path / "in.mcap", 3)
+    with open(bag, "rb") as f:
+        assert [t for t, _ in topic_messages(f, "/camera/image_raw", 3)] == [T0 + STEP * k for k in range(3)]
+        assert topic_messages(f, "/camera/image_raw", 4) is None  # messages the index does not list: rosbags reads
+        assert topic_messages(f, "/no/such/topic") is None

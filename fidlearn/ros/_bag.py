@@ -273,8 +273,9 @@ class BagFrames:
         self.path, self.image_topic, self.camera_info_topic, self.count = path, image_topic, camera_info_topic, count
         self.frame_id: str | None = None
         self._cameras: list[tuple[int, Camera]] | None = None
-        self._store: Any = None  # the typestore and message types read_bag found (an indexed MCAP file needs no reader)
-        self._types: dict[str, str] = {}
+        self._store: Any = None  # the typestore, message types and counts read_bag found (an indexed MCAP file
+        self._types: dict[str, str] = {}  # is read without a reader, its index checked against the counts)
+        self._counts: dict[str, int] = {}
 
     def __repr__(self) -> str:
         return f"BagFrames({str(self.path)!r}, {self.image_topic!r}, {self.count} images)"
@@ -320,7 +321,7 @@ class BagFrames:
         """The topic's messages, deserialized, with their log times (from ``reader`` if open, else a new one)."""
         try:
             with contextlib.ExitStack() as stack:
-                indexed = _indexed(self.path, topic, stack) if self._store is not None else None
+                indexed = _indexed(self.path, topic, self._counts, stack) if self._store is not None else None
                 if indexed is not None:
                     deserialize, msgtype = self._store.deserialize_cdr, self._types[topic]
                     for logtime, raw in indexed:
@@ -348,12 +349,13 @@ class BagFrames:
             yield BagFrame(stamp, image, cameras[k][1] if cameras else None)
 
 
-def _indexed(path: Path, topic: str, stack: contextlib.ExitStack) -> Iterator[tuple[int, bytes]] | None:
+def _indexed(path: Path, topic: str, counts: dict, stack: contextlib.ExitStack) -> Iterator[tuple[int, bytes]] | None:
     """A lone MCAP file's ``(log time, CDR bytes)`` on ``topic`` read by its index (the file closed with ``stack``);
-    None for other bags and for MCAP files without an index or with compressed chunks."""
-    if path.suffix.lower() != ".mcap" or not path.is_file():
+    None for other bags, for MCAP files without an index or with compressed chunks, and when the index does not
+    hold as many of the topic's messages as the bag says it has."""
+    if path.suffix.lower() != ".mcap" or not path.is_file() or topic not in counts:
         return None
-    return topic_messages(stack.enter_context(open(path, "rb")), topic)
+    return topic_messages(stack.enter_context(open(path, "rb")), topic, counts[topic])
 
 
 def read_bag(
@@ -405,7 +407,7 @@ def read_bag(
         if counts.get(topic, 0) == 0:
             raise RosFormatError(f"{path}: the topic {topic} holds no images")
         frames = BagFrames(path, topic, _info_topic(topics, topic, camera_info_topic, path), counts[topic])
-        frames._store, frames._types = reader.typestore, topics
+        frames._store, frames._types, frames._counts = reader.typestore, topics, counts
         frames._cameras = frames._read_cameras(reader)  # checked now: an unknown camera before any image
     return frames
 

@@ -61,7 +61,7 @@ def _summary(f: BinaryIO, size: int) -> tuple[dict[int, str], list[tuple]] | Non
     return topics, chunks
 
 
-def topic_messages(f: BinaryIO, topic: str) -> Iterator[tuple[int, bytes]] | None:
+def topic_messages(f: BinaryIO, topic: str, count: int | None = None) -> Iterator[tuple[int, bytes]] | None:
     """``(log time ns, CDR bytes)`` of each message on ``topic``, read as the index says; None when unindexed.
 
     Parameters
@@ -70,11 +70,15 @@ def topic_messages(f: BinaryIO, topic: str) -> Iterator[tuple[int, bytes]] | Non
         The MCAP file, open for reading (seekable).
     topic : str
         The topic (one channel; a topic on several channels is left to rosbags).
+    count : int, optional
+        The number of messages the topic holds (the bag's statistics): an index that lists another
+        number (message indexes are optional in MCAP, messages may lie outside chunks) is not used.
 
     Returns
     -------
     iterator of (int, bytes) or None
-        None: no summary, compressed chunks or several channels on the topic. The iterator raises
+        None: no summary, no chunk index, compressed chunks, several channels on the topic, or not
+        ``count`` messages in the index. The iterator raises
         ``McapIndexError`` or ``struct.error`` when a record is not what the index says.
     """
     f.seek(0, 2)
@@ -84,7 +88,7 @@ def topic_messages(f: BinaryIO, topic: str) -> Iterator[tuple[int, bytes]] | Non
         return None
     topics, chunks = found
     ids = [cid for cid, t in topics.items() if t == topic]
-    if len(ids) != 1 or any(compression for _, compression, _ in chunks):
+    if len(ids) != 1 or not chunks or any(compression for _, compression, _ in chunks):
         return None
     cid = ids[0]
     where: list[tuple[int, int, int]] = []
@@ -98,6 +102,8 @@ def topic_messages(f: BinaryIO, topic: str) -> Iterator[tuple[int, bytes]] | Non
         (n,) = struct.unpack_from("<I", head, 11)
         records = chunk_start + _CHUNK_HEAD + 4 + 8  # an empty compression name, then the records' length
         where += [(t, chunk_start, records + off) for t, off in struct.iter_unpack("<QQ", f.read(n))]
+    if count is not None and len(where) != count:
+        return None
     return _read(f, sorted(where), cid, size)
 
 
