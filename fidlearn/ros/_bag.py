@@ -431,6 +431,6 @@ def _open(path: Path):
         reader.typestore = _STORES[key]
     else:
         if len(_STORES) >= 8:
-            _STORES.pop(next(iter(_STORES)))
+            _STORES.pop(next(iter(_STORES)), None)
         _STORES[key] = reader.typestore
     return reader
