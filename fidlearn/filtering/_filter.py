@@ -88,11 +88,11 @@ def start_state(T_world_camera: np.ndarray, covariance: np.ndarray, t_s: float) 
 
 def _blocks(pos: int, vel: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """0/1 masks (13, 13) of one white acceleration's position block, its cross blocks and its velocity block."""
-    out = tuple(np.zeros((_N, _N)) for _ in range(3))
-    out[0][pos : pos + 3, pos : pos + 3] = _I3
-    out[1][pos : pos + 3, vel : vel + 3] = out[1][vel : vel + 3, pos : pos + 3] = _I3
-    out[2][vel : vel + 3, vel : vel + 3] = _I3
-    return out
+    position, cross, velocity = np.zeros((_N, _N)), np.zeros((_N, _N)), np.zeros((_N, _N))
+    position[pos : pos + 3, pos : pos + 3] = _I3
+    cross[pos : pos + 3, vel : vel + 3] = cross[vel : vel + 3, pos : pos + 3] = _I3
+    velocity[vel : vel + 3, vel : vel + 3] = _I3
+    return position, cross, velocity
 
 
 _ROT_BLOCKS, _POS_BLOCKS = _blocks(0, 6), _blocks(3, 9)
