@@ -359,8 +359,10 @@ def test_locate_bag_user_errors(tmp_path, capsys, drive):
     small = fidlearn.Camera.from_fov(60, (320, 240))
     small.save(tmp_path / "small.json")
     assert_user_error(*run(capsys, "locate", bag, "--map", m, "--camera", tmp_path / "small.json")[::2],
-                      "in.mcap#0: the image is 640x480, --camera is for 320x240")  # fmt: skip
+                      "not the bag's: the CameraInfo is for 640x480, the camera given for 320x240")  # fmt: skip
     nocam = write_image_bag(tmp_path / "nocam.mcap", drive.images[:1], None, [T0])
+    assert_user_error(*run(capsys, "locate", nocam, "--map", m, "--camera", tmp_path / "small.json")[::2],
+                      "nocam.mcap#0: the image is 640x480, --camera is for 320x240")  # fmt: skip
     assert_user_error(*run(capsys, "locate", nocam, "--map", m)[::2], "no CameraInfo beside /camera/image_raw")
     (tmp_path / "out.mcap").write_bytes(b"mine")
     assert_user_error(*run(capsys, "locate", bag, "--map", m, "-o", tmp_path / "out.mcap")[::2], "exists")

@@ -118,7 +118,7 @@ class BagRun:
     """
 
     def __init__(self, args, path: Path, camera: Camera | None):
-        self.bag = read_bag(path, args.image_topic, args.camera_info_topic)
+        self.bag = read_bag(path, args.image_topic, args.camera_info_topic, camera=camera)
         cameras = self.bag.cameras()
         if camera is None and not cameras:
             raise UsageError(f"{path}: no CameraInfo beside {self.bag.image_topic}; give --camera CAMERA")

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import CameraError, FidlearnError, RosFormatError
-from ._camera_info import camera_from_camera_info
+from ._camera_info import camera_disagreement, camera_from_camera_info
 from ._mcap_index import topic_messages
 from ._messages import typestore
 
@@ -201,7 +201,10 @@ def camera_from_message(msg, source: str = "CameraInfo") -> Camera:
     except (AttributeError, TypeError, ValueError):
         raise RosFormatError(f"{source}: not a CameraInfo message (width, height, distortion_model, d, k)") from None
     if not any(K):
-        raise CameraError(f"{source}: the camera is not calibrated (K is all zeros); give a camera file")
+        raise CameraError(
+            f"{source}: the camera is not calibrated (K is all zeros); give a camera file "
+            "(--camera CAMERA on the command line, camera= to read_bag)"
+        )
     text = (
         f"image_width: {w}\nimage_height: {h}\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: {K!r}\n"
         f"distortion_model: {model}\ndistortion_coefficients:\n  rows: 1\n  cols: {len(d)}\n  data: {d!r}\n"
@@ -272,6 +275,7 @@ class BagFrames:
     def __init__(self, path: Path, image_topic: str, camera_info_topic: str | None, count: int):
         self.path, self.image_topic, self.camera_info_topic, self.count = path, image_topic, camera_info_topic, count
         self.frame_id: str | None = None
+        self.given: Camera | None = None  # a camera file's camera, standing in for the CameraInfo
         self._cameras: list[tuple[int, Camera]] | None = None
         self._store: Any = None  # the typestore, message types and counts read_bag found (an indexed MCAP file
         self._types: dict[str, str] = {}  # is read without a reader, its index checked against the counts)
@@ -311,9 +315,17 @@ class BagFrames:
         seen: dict[tuple, Camera] = {}
         source = f"{self.path.name} {self.camera_info_topic}"
         for msg, logtime in self._messages(self.camera_info_topic, reader):
+            if self.given is not None and not np.any(np.asarray(msg.k, dtype=float)):
+                continue  # uncalibrated, as a driver publishes before calibration: the given camera stands in
             key = (msg.width, msg.height, str(msg.distortion_model), tuple(msg.k), tuple(msg.d))
             if key not in seen:
                 seen[key] = camera_from_message(msg, source)
+                differs = None if self.given is None else camera_disagreement(seen[key], self.given)
+                if differs is not None:
+                    raise CameraError(
+                        f"{source}: the camera given is not the bag's: {differs}; give the camera these images "
+                        "were taken with, or leave it out to use the bag's CameraInfo"
+                    )
             out.append((_stamp_ns(msg.header, logtime), seen[key]))
         return sorted(out, key=lambda sc: sc[0])
 
@@ -346,7 +358,7 @@ class BagFrames:
             while k + 1 < len(cameras) and cameras[k + 1][0] <= stamp:
                 k += 1
             image = decode_image(msg, f"{self.path.name} {self.image_topic} message {n}")
-            yield BagFrame(stamp, image, cameras[k][1] if cameras else None)
+            yield BagFrame(stamp, image, self.given or (cameras[k][1] if cameras else None))
 
 
 def _indexed(path: Path, topic: str, counts: dict, stack: contextlib.ExitStack) -> Iterator[tuple[int, bytes]] | None:
@@ -359,7 +371,10 @@ def _indexed(path: Path, topic: str, counts: dict, stack: contextlib.ExitStack) 
 
 
 def read_bag(
-    path: str | os.PathLike, image_topic: str | None = None, camera_info_topic: str | None = None
+    path: str | os.PathLike,
+    image_topic: str | None = None,
+    camera_info_topic: str | None = None,
+    camera: Camera | None = None,
 ) -> BagFrames:
     """The frames of a ROS 2 bag: each image with its header stamp and its camera, in the order recorded.
 
@@ -372,6 +387,9 @@ def read_bag(
     camera_info_topic : str, optional
         The ``sensor_msgs/msg/CameraInfo`` topic; default the one beside the image topic
         (``/cam/image_raw`` -> ``/cam/camera_info``), else the bag's only one, else none.
+    camera : Camera, optional
+        A camera file's camera for the images, then every frame's camera. The bag's CameraInfo must agree with
+        it (one ray within 1 px anywhere in the picture); an uncalibrated CameraInfo (K all zeros) is skipped.
 
     Returns
     -------
@@ -385,7 +403,8 @@ def read_bag(
         No such bag, a broken file, no image topic (or several and none chosen), a topic of another
         type, a bag with no image messages, an image encoding or distortion model fidlearn does not read.
     CameraError
-        A CameraInfo no camera has (uncalibrated: K all zeros).
+        A CameraInfo no camera has (uncalibrated: K all zeros, without ``camera``), or one that is not
+        ``camera``.
 
     Examples
     --------
@@ -396,6 +415,8 @@ def read_bag(
     """
     path = _check_path(path)
     _check_topic_names("/camera/image_raw", image_topic=image_topic, camera_info_topic=camera_info_topic)
+    if camera is not None and not isinstance(camera, Camera):
+        raise CameraError(f"camera={camera!r}: give a fidlearn.Camera (fidlearn.Camera.load(path) reads a file)")
     with contextlib.closing(_open(path)) as reader:
         topics = {c.topic: c.msgtype for c in reader.connections}
         counts: dict[str, int] = {}
@@ -408,6 +429,7 @@ def read_bag(
             raise RosFormatError(f"{path}: the topic {topic} holds no images")
         frames = BagFrames(path, topic, _info_topic(topics, topic, camera_info_topic, path), counts[topic])
         frames._store, frames._types, frames._counts = reader.typestore, topics, counts
+        frames.given = camera
         frames._cameras = frames._read_cameras(reader)  # checked now: an unknown camera before any image
     return frames
 

@@ -309,3 +309,44 @@ def load_camera_info(path: str | os.PathLike) -> Camera:
     except UnicodeDecodeError:
         raise RosFormatError(f"{path}: not UTF-8 text; give the camera_info YAML file") from None
     return camera_from_camera_info(text, str(path))
+
+
+#: Two cameras that put one ray this many pixels apart anywhere in the picture are two calibrations.
+AGREE_PX = 1.0
+
+
+def camera_disagreement(bag_camera: Camera, given: Camera) -> str | None:
+    """How ``given`` (a camera file) differs from a bag's CameraInfo camera, or None when they agree.
+
+    They agree when both are for one image size and every pixel of a 9x7 grid over the picture,
+    taken back to its ray by ``bag_camera`` and projected again by ``given``, lands within
+    :data:`AGREE_PX` of itself: a calibration saved twice (rounded, in another file format) agrees, another
+    calibration does not.
+
+    Parameters
+    ----------
+    bag_camera, given : Camera
+        The bag's camera and the one given for it.
+
+    Returns
+    -------
+    str or None
+        What differs, in words, or None.
+    """
+    if (bag_camera.width, bag_camera.height) != (given.width, given.height):
+        bag_size, given_size = (f"{c.width}x{c.height}" for c in (bag_camera, given))
+        return f"the CameraInfo is for {bag_size}, the camera given for {given_size}"
+    u, v = np.meshgrid(np.linspace(0, bag_camera.width - 1, 9), np.linspace(0, bag_camera.height - 1, 7))
+    px = np.column_stack([u.ravel(), v.ravel()])
+    ideal = bag_camera.undistort_points(px)  # ideal pinhole pixels through the bag camera's K
+    rays = np.column_stack([ideal, np.ones(len(ideal))]) @ np.linalg.inv(bag_camera.K).T
+    seen = np.isfinite(rays).all(axis=1)
+    back = given.project(rays[seen], np.eye(4))
+    apart = float(np.max(np.linalg.norm(back - px[seen], axis=1), initial=0.0))
+    if np.isfinite(apart) and apart <= AGREE_PX:
+        return None
+    said = ", ".join(
+        f"{name} {c.model} fx {c.fx:.1f} fy {c.fy:.1f} cx {c.cx:.1f} cy {c.cy:.1f}"
+        for name, c in (("CameraInfo", bag_camera), ("given", given))
+    )
+    return f"the two cameras put one ray up to {apart:.1f} px apart ({said})"
