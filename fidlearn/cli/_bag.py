@@ -19,7 +19,7 @@ from ..images import Frame
 from ..ros import BagWriter, is_bag, read_bag, read_bag_odometry
 
 BAG_HELP = """\
-ROS 2 bags: give a bag folder (metadata.yaml) or a .mcap file as the only input. Its
+ROS 2 bags: give a bag folder (metadata.yaml) or a .mcap file (or a ROS 1 .bag file) as the only input. Its
 sensor_msgs/msg/Image (mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*8) or CompressedImage
 topic is read (--image-topic when it has several), timed by the header stamps (--track uses
 them; t = 0 at the first image); the camera is the CameraInfo beside it (--camera-info-topic),
@@ -77,7 +77,9 @@ def bag_input(args) -> Path | None:
             ("--odometry-topic", args.odometry_topic),
         ):
             if value is not None:
-                raise UsageError(f"{option} chooses a topic of a ROS 2 bag: give the bag (a folder or a .mcap file)")
+                raise UsageError(
+                    f"{option} chooses a topic of a ROS 2 bag: give the bag (a folder, a .mcap or a .bag file)"
+                )
         if args.camera is None:
             raise UsageError("--camera CAMERA is needed (a ROS 2 bag's CameraInfo can stand in for it)")
         if _bag_output(args):

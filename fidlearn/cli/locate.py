@@ -71,7 +71,8 @@ def add(sub) -> None:
         nargs="*",
         type=Path,
         metavar="IMAGE_OR_FOLDER_OR_VIDEO_OR_BAG",
-        help="images, folders of images, videos, or one ROS 2 bag (a folder with metadata.yaml, or a .mcap file)",
+        help="images, folders of images, videos, or one bag (a ROS 2 folder with metadata.yaml, a .mcap file, "
+        "or a ROS 1 .bag file)",
     )
     p.add_argument(
         "--camera",

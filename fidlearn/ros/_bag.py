@@ -1,7 +1,7 @@
 """ROS 2 bags in: the frames of an image topic with their header stamps and the camera of their CameraInfo.
 
-A bag is a rosbag2 folder (``metadata.yaml`` beside its ``.mcap`` or ``.db3`` files) or a lone ``.mcap``
-file, read with the pure-Python ``rosbags`` library (no ROS installation). Images are
+A bag is a rosbag2 folder (``metadata.yaml`` beside its ``.mcap`` or ``.db3`` files), a lone ``.mcap``
+file or a ROS 1 ``.bag`` file, read with the pure-Python ``rosbags`` library (no ROS installation). Images are
 ``sensor_msgs/msg/Image`` (mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_rggb8, bayer_bggr8,
 bayer_gbrg8, bayer_grbg8) or ``sensor_msgs/msg/CompressedImage`` (JPEG, PNG); the camera comes from
 the ``sensor_msgs/msg/CameraInfo`` beside them, read by the same reader as a ``camera_info`` YAML file
@@ -29,6 +29,9 @@ from ._messages import typestore
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+#: A lone bag file: ROS 2's MCAP, or ROS 1's bag format (rosbags reads both; a ROS 1 message's
+#: type is named as in ROS 2, ``sensor_msgs/msg/Image``).
+BAG_SUFFIXES = (".mcap", ".bag")
 
 #: ``encoding`` -> (channels, bytes per channel, OpenCV conversion to BGR or None).
 ENCODINGS: dict[str, tuple[int, int, int | None]] = {
@@ -76,20 +79,22 @@ class BagFrame(NamedTuple):
 
 def _check_path(path) -> Path:
     if isinstance(path, bool) or not isinstance(path, (str, os.PathLike)):
-        raise RosFormatError(f"a bag is a folder or a .mcap file path, got {type(path).__name__}")
+        raise RosFormatError(f"a bag is a folder, a .mcap or a ROS 1 .bag file path, got {type(path).__name__}")
     path = Path(path)
     if path.is_dir():
         if not (path / "metadata.yaml").is_file():
             raise RosFormatError(f"{path}: a ROS 2 bag folder holds metadata.yaml; this one does not")
     elif not path.exists():
-        raise RosFormatError(f"{path}: no such bag; give a ROS 2 bag folder or a .mcap file")
-    elif path.suffix.lower() != ".mcap":
-        raise RosFormatError(f"{path}: not a ROS 2 bag by its name; give a bag folder (metadata.yaml) or a .mcap file")
+        raise RosFormatError(f"{path}: no such bag; give a ROS 2 bag folder, a .mcap or a ROS 1 .bag file")
+    elif path.suffix.lower() not in BAG_SUFFIXES:
+        raise RosFormatError(
+            f"{path}: not a bag by its name; give a ROS 2 bag folder (metadata.yaml), a .mcap file or a ROS 1 .bag file"
+        )
     return path
 
 
 def is_bag(path) -> bool:
-    """Whether a path names a ROS 2 bag: a folder with ``metadata.yaml``, or a ``.mcap`` file.
+    """Whether a path names a bag: a ROS 2 folder with ``metadata.yaml``, a ``.mcap`` file or a ROS 1 ``.bag`` file.
 
     Parameters
     ----------
@@ -99,16 +104,17 @@ def is_bag(path) -> bool:
     Returns
     -------
     bool
-        True for a bag folder or a ``.mcap`` file (its content is not read).
+        True for a bag folder, a ``.mcap`` or a ``.bag`` file (its content is not read).
     """
     p = Path(path)
-    return (p.is_dir() and (p / "metadata.yaml").is_file()) or p.suffix.lower() == ".mcap"
+    return (p.is_dir() and (p / "metadata.yaml").is_file()) or (p.suffix.lower() in BAG_SUFFIXES and not p.is_dir())
 
 
 def _broken(path: Path, exc: BaseException) -> RosFormatError:
     what = " ".join(str(exc).split())[:200] or type(exc).__name__
     return RosFormatError(
-        f"{path}: cannot read this ROS 2 bag ({what}); is it whole (was the recording stopped cleanly)?"
+        f"{path}: cannot read this {'ROS 1' if path.suffix.lower() == '.bag' else 'ROS 2'} bag ({what}); "
+        "is it whole (was the recording stopped cleanly)?"
     )
 
 
@@ -171,6 +177,11 @@ def _stamp_ns(header, logtime: int) -> int:
     return ns if ns > 0 else int(logtime)
 
 
+def _field(msg, name: str):
+    """A CameraInfo's ``k`` or ``d``: ROS 1 names them ``K`` and ``D``."""
+    return getattr(msg, name) if hasattr(msg, name) else getattr(msg, name.upper())
+
+
 def camera_from_message(msg, source: str = "CameraInfo") -> Camera:
     """A camera from a ``sensor_msgs/msg/CameraInfo`` message (any object with its fields).
 
@@ -195,8 +206,8 @@ def camera_from_message(msg, source: str = "CameraInfo") -> Camera:
         An uncalibrated camera (K all zeros) or values no camera has.
     """
     try:
-        K = [float(v) for v in np.asarray(msg.k, dtype=float).reshape(-1)]
-        d = [float(v) for v in np.asarray(msg.d, dtype=float).reshape(-1)]
+        K = [float(v) for v in np.asarray(_field(msg, "k"), dtype=float).reshape(-1)]
+        d = [float(v) for v in np.asarray(_field(msg, "d"), dtype=float).reshape(-1)]
         w, h, model = int(msg.width), int(msg.height), str(msg.distortion_model or "plumb_bob")
     except (AttributeError, TypeError, ValueError):
         raise RosFormatError(f"{source}: not a CameraInfo message (width, height, distortion_model, d, k)") from None
@@ -315,9 +326,9 @@ class BagFrames:
         seen: dict[tuple, Camera] = {}
         source = f"{self.path.name} {self.camera_info_topic}"
         for msg, logtime in self._messages(self.camera_info_topic, reader):
-            if self.given is not None and not np.any(np.asarray(msg.k, dtype=float)):
+            if self.given is not None and not np.any(np.asarray(_field(msg, "k"), dtype=float)):
                 continue  # uncalibrated, as a driver publishes before calibration: the given camera stands in
-            key = (msg.width, msg.height, str(msg.distortion_model), tuple(msg.k), tuple(msg.d))
+            key = (msg.width, msg.height, str(msg.distortion_model), tuple(_field(msg, "k")), tuple(_field(msg, "d")))
             if key not in seen:
                 seen[key] = camera_from_message(msg, source)
                 differs = None if self.given is None else camera_disagreement(seen[key], self.given)
@@ -411,7 +422,7 @@ def read_bag(
     >>> frames = read_bag("no_such.mcap")
     Traceback (most recent call last):
     ...
-    fidlearn.errors.RosFormatError: no_such.mcap: no such bag; give a ROS 2 bag folder or a .mcap file
+    fidlearn.errors.RosFormatError: no_such.mcap: no such bag; give a ROS 2 bag folder, a .mcap or a ROS 1 .bag file
     """
     path = _check_path(path)
     _check_topic_names("/camera/image_raw", image_topic=image_topic, camera_info_topic=camera_info_topic)

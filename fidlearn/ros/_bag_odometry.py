@@ -92,7 +92,7 @@ def read_bag_odometry(
     >>> read_bag_odometry("no_such.mcap")
     Traceback (most recent call last):
     ...
-    fidlearn.errors.RosFormatError: no_such.mcap: no such bag; give a ROS 2 bag folder or a .mcap file
+    fidlearn.errors.RosFormatError: no_such.mcap: no such bag; give a ROS 2 bag folder, a .mcap or a ROS 1 .bag file
     """
     path = _check_path(path)
     _check_topic_names("/odom", topic=topic, image_topic=image_topic)
