@@ -76,3 +76,38 @@ def test_a_camera_file_that_is_not_the_bags_is_refused(tmp_path, capsys, drive):
     assert not out.exists()
     with pytest.raises(CameraError, match="give a fidlearn.Camera"):
         read_bag(bag, camera=str(tmp_path / "other.json"))
+
+
+@pytest.mark.parametrize("track", [False, True])
+def test_annotated_images_go_into_the_output_bag_at_the_stamps(tmp_path, capsys, drive, track):
+    from test_ros_bag import messages
+
+    bag = write_image_bag(tmp_path / "in.mcap", drive.images, CAM, stamps(2))
+    out = tmp_path / "out.mcap"
+    code, _, err = run(capsys, "locate", bag, "--map", MAP, *(["--track"] if track else []), "-o", out,
+                       "--annotated-images")  # fmt: skip
+    assert code == 0, err
+    got = messages(out, "/fidlearn/image_annotated/compressed")
+    assert [t for t, _ in got] == stamps(2)
+    for (_, msg), T in zip(got, drive.T_world_camera):
+        assert msg.format == "jpeg"
+        assert msg.header.frame_id == "camera"
+        drawn = cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_COLOR)
+        assert drawn.shape == (480, 640, 3)
+        # the drawing is in colour where the markers are; the rendered picture itself is gray
+        colour = np.abs(drawn.astype(int) - drawn.mean(axis=2, keepdims=True)).max(axis=2) > 40
+        px = CAM.project(fidlearn.MarkerMap.load(MAP).marker_corners(0), T)
+        x0, y0 = np.clip(px.min(axis=0).astype(int) - 6, 0, None)
+        x1, y1 = px.max(axis=0).astype(int) + 6
+        assert colour[y0:y1, x0:x1].mean() > 0.02  # the marker's outline and id drawn around it
+        assert colour.mean() < 0.2
+    assert len(messages(out, "/fidlearn/pose")) == 2
+
+
+def test_annotated_images_need_a_bag_output(tmp_path, capsys, drive):
+    bag = write_image_bag(tmp_path / "in.mcap", drive.images, CAM, stamps(2))
+    assert_user_error(*run(capsys, "locate", bag, "--map", MAP, "--annotated-images")[::2], "add -o OUT.mcap")
+    pic = data_path("scenes", "scene_00.png")
+    cam = data_path("scenes", "camera.json")
+    assert_user_error(*run(capsys, "locate", pic, "--camera", cam, "--map", MAP, "--annotated-images")[::2],
+                      "give a bag and -o OUT.mcap")  # fmt: skip

@@ -48,6 +48,11 @@ def add_bag_options(p) -> None:
     g.add_argument(
         "--odometry-topic", metavar="TOPIC", help="with --track: the robot's odometry from the bag (nav_msgs/Odometry)"
     )
+    g.add_argument(
+        "--annotated-images",
+        action="store_true",
+        help="with -o OUT.mcap: each frame drawn (markers, axes, pose) on /fidlearn/image_annotated/compressed",
+    )
 
 
 def bag_input(args) -> Path | None:
@@ -84,7 +89,11 @@ def bag_input(args) -> Path | None:
             raise UsageError("--camera CAMERA is needed (a ROS 2 bag's CameraInfo can stand in for it)")
         if _bag_output(args):
             raise UsageError(f"-o {args.output} writes each pose at its image's stamp: give a ROS 2 bag as input")
+        if getattr(args, "annotated_images", False):
+            raise UsageError("--annotated-images writes the frames into an output bag: give a bag and -o OUT.mcap")
         return None
+    if getattr(args, "annotated_images", False) and not _bag_output(args):
+        raise UsageError("--annotated-images writes the frames into the output bag: add -o OUT.mcap")
     if len(args.inputs) > 1 or args.camera_index is not None:
         raise UsageError(f"{bags[0]}: a ROS 2 bag is read alone; give it as the only input")
     return bags[0]
@@ -206,6 +215,7 @@ class BagSink:
         self.path, self.run, self.marker_map, self.mount = path, run, marker_map, mount
         self.writer: BagWriter | None = None
         self.count = 0
+        self.images = 0
 
     def __enter__(self) -> BagSink:
         return self
@@ -222,14 +232,32 @@ class BagSink:
         """
         if pose is None or pose.covariance is None:
             return
+        self._writer().write(self.run.stamps[index], pose)
+        self.count += 1
+
+    def image(self, index: int, drawn) -> None:
+        """Frame ``index`` drawn (``--annotated-images``), at its image's stamp.
+
+        Parameters
+        ----------
+        index : int
+            The frame's number in the bag.
+        drawn : ndarray
+            The frame with its detections and pose drawn.
+        """
+        self._writer().write_image(self.run.stamps[index], drawn)
+        self.images += 1
+
+    def _writer(self) -> BagWriter:
         if self.writer is None:
             frame = self.run.bag.frame_id or "camera"
             self.writer = BagWriter(self.path, self.marker_map, T_camera_base=self.mount, camera_frame=frame)
-        self.writer.write(self.run.stamps[index], pose)
-        self.count += 1
+        return self.writer
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if self.writer is None:
+        if self.writer is None or self.count == 0:  # drawn frames without a single pose: no bag
+            if self.writer is not None:
+                self.writer.abort()
             if exc_type is None:
                 raise UsageError(f"-o {self.path}: no frame gave a pose with a covariance; nothing was written")
             return

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames
+from ..drawing import draw_pose
 from ..errors import UsageError
 from ..filtering import TrackedPose
 from ..images import read_frames
@@ -222,13 +223,17 @@ class _Run:
         self.frames += 1
 
 
-def _loop(run: _Run, steps, width: int, live: LiveRun | None) -> None:
+def _loop(run: _Run, steps, width: int, live: LiveRun | None, marker_map=None) -> None:
     if run.sink is not None and run.fmt == "tum":
         run.sink.write("# timestamp tx ty tz qx qy qz qw")
+    drawn = isinstance(run.sink, BagSink) and run.args.annotated_images
     for step in steps:
         name = step.located.frame.name
         if live is not None:
             live.frame(run.frames, step.located, step.tracked)
+        if drawn:  # the frame as the camera saw it: its detections and its own located pose
+            at = step.located
+            run.sink.image(run.frames, draw_pose(at.frame.image, at.detections, marker_map, at.camera, at.pose))
         run.frame(name, step.tracked)
         print(_row(name, width, step.tracked), flush=True)
 
@@ -290,7 +295,7 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
     live = LiveRun(args, marker_map, bag_run, mount) if args.live is not None else None
     try:
         with sink if sink is not None else contextlib.nullcontext():
-            _loop(run, steps, width, live)
+            _loop(run, steps, width, live, marker_map)
     except KeyboardInterrupt as exc:
         if live is not None:
             live.close()

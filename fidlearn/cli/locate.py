@@ -200,6 +200,8 @@ def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _
                 table.add(row, located.pose)
                 image = draw_pose(frame.image, located.detections, locator.marker_map, located.camera, located.pose)
                 staging.save(frame.name, image)
+                if bag_sink is not None and args.annotated_images:
+                    bag_sink.image(table.frames, image)
                 if live is not None:
                     live.frame(table.frames, located, located.pose)
                 table.frames += 1

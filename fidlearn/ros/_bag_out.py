@@ -29,12 +29,15 @@ from ._pose import ros_pose
 POSE_TOPIC = "/fidlearn/pose"
 ODOMETRY_TOPIC = "/fidlearn/odometry"
 MARKERS_TOPIC = "/fidlearn/markers"
+#: The located frames, drawn (``BagWriter.write_image``): JPEG, as image viewers subscribe to them.
+ANNOTATED_TOPIC = "/fidlearn/image_annotated/compressed"
 TOPICS = {
     POSE_TOPIC: "geometry_msgs/msg/PoseWithCovarianceStamped",
     ODOMETRY_TOPIC: "nav_msgs/msg/Odometry",
     "/tf": "tf2_msgs/msg/TFMessage",
     "/tf_static": "tf2_msgs/msg/TFMessage",
     MARKERS_TOPIC: "visualization_msgs/msg/MarkerArray",
+    ANNOTATED_TOPIC: "sensor_msgs/msg/CompressedImage",
 }
 
 
@@ -373,6 +376,38 @@ class BagWriter:
         for topic, message in found:
             self._bag.put(topic, TOPICS[topic], message, stamp_ns)
         self.poses += 1
+
+    def write_image(self, stamp_ns: int, image: np.ndarray) -> None:
+        """One frame drawn (the detections and the pose, see :func:`fidlearn.draw_pose`) on
+        ``/fidlearn/image_annotated/compressed`` (``sensor_msgs/msg/CompressedImage``, JPEG) at its image's stamp.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            The image's stamp, nanoseconds.
+        image : ndarray, (H, W, 3) BGR or (H, W) gray, uint8
+            The drawn frame.
+
+        Raises
+        ------
+        RosFormatError
+            Not a picture, a bad stamp, a full disk.
+        """
+        import cv2  # noqa: PLC0415 (only when images are written)
+
+        stamp_ns = _stamp_ns(stamp_ns)
+        image = np.asarray(image)
+        if image.dtype != np.uint8 or image.ndim not in (2, 3) or image.size == 0:
+            raise RosFormatError(
+                f"write_image takes a uint8 picture (H, W) or (H, W, 3), got {image.dtype} {image.shape}"
+            )
+        ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90])
+        if not ok:
+            raise RosFormatError(f"write_image: OpenCV could not encode a {image.shape} picture as JPEG")
+        header = {"stamp": stamp_dict(stamp_ns), "frame_id": self.camera_frame}
+        message = build(TOPICS[ANNOTATED_TOPIC], {"header": header, "format": "jpeg", "data": jpeg.reshape(-1)})
+        self._start(stamp_ns)
+        self._bag.put(ANNOTATED_TOPIC, TOPICS[ANNOTATED_TOPIC], message, stamp_ns)
 
     def close(self) -> Path:
         """Finish the bag and give it its name.
