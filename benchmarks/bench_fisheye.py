@@ -14,7 +14,8 @@ others are held out and reported on their own. Errors are the camera position's 
 * fidlearn: ``fidlearn.locate(image, map, camera)`` (its default corner refinement, ``"edges"``), and with
   ``refine="contour"``.
 * vs the pinhole: both poses from the markers both pictures show (each camera's own detections,
-  ``estimate_pose``; the fisheye's corners straightened as ``locate`` does), where both show at least one.
+  ``estimate_pose``; the fisheye's corners refined again as ``locate`` does, their sides fitted as the lens bends
+  them), where both show at least one.
 * plain OpenCV's fisheye pipeline: ``cv2.aruco.ArucoDetector`` (default parameters),
   ``cv2.fisheye.undistortPoints`` (to the pixels of K), ``cv2.solvePnP`` SQPNP on every detected map corner, then
   ``cv2.solvePnPRefineLM``.
@@ -47,11 +48,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import fidlearn  # noqa: E402
 from fidlearn import Board, Camera, MarkerMap, frames, render_scene  # noqa: E402
-from fidlearn._fisheye_edges import straighten_edges_fisheye  # noqa: E402
 from fidlearn.calibration import Calibration, calibrate_checkerboard, compare_calibrations  # noqa: E402
 from fidlearn.calibration.run import _calibrate_points  # noqa: E402
 from fidlearn.errors import FidlearnError  # noqa: E402
-from fidlearn.pose._locate import _detect_map_markers  # noqa: E402
+from fidlearn.pose._locate import _detect_map_markers, _straightened  # noqa: E402
 
 W, H = 800, 600
 F_FE = (W / 2) / math.radians(80)
@@ -115,9 +115,7 @@ def scene_row(seed: int) -> dict:
     fe = render_scene(WALL, FISHEYE, T, seed=seed, blur_px=0.5, noise_std_gray=2.0).image
     ph = render_scene(WALL, PINHOLE, T, seed=seed, blur_px=0.5, noise_std_gray=2.0).image
     det_fe = [d for d in fidlearn.detect_markers(fe, WALL.dictionary) if d.id in WALL]
-    if det_fe:  # as locate does on a fisheye: the "edges" refinement's straight-line bias taken out
-        fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in det_fe]), FISHEYE, 7)
-        det_fe = [dataclasses.replace(d, corners_px=c) for d, c in zip(det_fe, fixed)]
+    det_fe = _straightened(fe, det_fe, FISHEYE, WALL.dictionary, None)  # as locate does on a fisheye
     det_ph = [d for d in fidlearn.detect_markers(ph, WALL.dictionary) if d.id in WALL]
     both = {d.id for d in det_fe} & {d.id for d in det_ph}
     row = {

@@ -10,7 +10,7 @@ import pytest
 
 import fidlearn
 from fidlearn import Camera, MarkerMap, frames
-from fidlearn._fisheye_edges import straighten_edges_fisheye
+from fidlearn._fisheye_edges import refine_edges_fisheye, straighten_edges_fisheye
 from fidlearn.detection import Detection
 from fidlearn.pose._inputs import _lens_jacobians
 from fidlearn.synthetic import render_scene
@@ -129,3 +129,21 @@ def test_rendered_fisheye_poses_are_covered_about_95_percent():
         pose = fidlearn.estimate_pose(dets, WALL, CAM, corner_sigma_px=sigma)
         inside += pose.position_ellipsoid_contains(T_r[:3, 3])
     assert 0.85 <= inside / n <= 1.0  # 94 % of the first 16
+
+
+def test_fisheye_sides_fitted_as_the_lens_bends_them_with_the_markers_own_levels():
+    """Markers squeezed along the radius (a white margin of 2 px): their edges found at the marker's own levels."""
+    T_r = frames.look_at([450.0, -100.0, 60.0], [0.0, 200.0, -100.0], roll_deg=-8)
+    scene = render_scene(WALL, CAM, T_r, seed=4, blur_px=0.5, noise_std_gray=2.0)
+    dets = [d for d in fidlearn.detect_markers(scene.image, WALL.dictionary) if d.id in scene.truth]
+    raw = np.stack([d.corners_px for d in dets])
+    truth = np.stack([scene.truth[d.id] for d in dets])
+    straight = straighten_edges_fisheye(raw, CAM, 7)
+    fitted = refine_edges_fisheye(scene.image, raw, CAM, 7)
+    err_straight = np.linalg.norm(straight - truth, axis=2)
+    err_fitted = np.linalg.norm(fitted - truth, axis=2)
+    assert np.sqrt(np.mean(err_straight**2)) > 0.1  # 0.12 px: edges put inside the squeezed margins
+    assert np.sqrt(np.mean(err_fitted**2)) < 0.75 * np.sqrt(np.mean(err_straight**2))  # 0.08 px
+    assert np.median(err_fitted) < 0.75 * np.median(err_straight)  # 0.037 px against 0.058
+    pinhole = Camera(CAM.K, None, (W, H))
+    np.testing.assert_array_equal(refine_edges_fisheye(scene.image, raw, pinhole, 7), raw)

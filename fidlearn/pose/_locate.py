@@ -10,10 +10,10 @@ import numpy as np
 
 from .. import _cv
 from .._cv_charuco import interpolate_charuco
-from .._fisheye_edges import straighten_edges_fisheye
+from .._fisheye_edges import refine_edges_fisheye
 from .._wpilib import outside_field
 from ..camera import Camera
-from ..detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_name, detect_markers
+from ..detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_name, as_gray, detect_markers
 from ..errors import ImageError, PoseError
 from ..markermap import BoardEntry, MarkerMap
 from ._estimate import estimate_pose
@@ -113,7 +113,7 @@ def locate(
     detections = _detect_map_markers(image, marker_map, refine, detector_params, only_map_markers)
     straighten = camera.model == "fisheye" and (DEFAULT_REFINE if refine is None else _refine_name(refine)) == "edges"
     if straighten:
-        detections = _straightened(detections, camera, marker_map.dictionary, detector_params)
+        detections = _straightened(image, detections, camera, marker_map.dictionary, detector_params)
     pinhole = camera.model != "fisheye"  # a ChArUco board entry's chess corners join a pinhole's pose
     chess = chess_corners_seen(image, marker_map, detections) if pinhole else None
     pose = estimate_pose(detections, marker_map, camera, board_corners=chess, **kw)
@@ -122,7 +122,7 @@ def locate(
     more = read_again(image, missed, refine, detector_params) if missed else []
     if more:  # markers the detector missed, found where the pose puts them
         if straighten:
-            more = _straightened(more, camera, marker_map.dictionary, detector_params)
+            more = _straightened(image, more, camera, marker_map.dictionary, detector_params)
         chess = chess_corners_seen(image, marker_map, detections + more) if pinhole else None
         pose = estimate_pose(detections + more, marker_map, camera, board_corners=chess, **kw)
     problem = outside_field(marker_map, pose.position_mm, pose.marker_ids)  # a field layout's mirrored corners
@@ -131,18 +131,21 @@ def locate(
     return pose
 
 
-def _straightened(detections: list[Detection], camera: Camera, dictionary: str, detector_params) -> list[Detection]:
-    """Fisheye corners from the "edges" refinement without its straight-line bias (:mod:`fidlearn._fisheye_edges`).
+def _straightened(
+    image: np.ndarray, detections: list[Detection], camera: Camera, dictionary: str, detector_params
+) -> list[Detection]:
+    """Fisheye corners refined again with their sides fitted as the lens bends them (:mod:`fidlearn._fisheye_edges`).
 
     Each marker is corrected with its own dictionary's cells (a map may mix dictionaries); ``dictionary``
     stands in for a detection that does not say its own.
     """
     border = int(_detector_fields(detector_params)["markerBorderBits"])
     out = list(detections)
+    gray = as_gray(image) if detections else None
     for name in {d.dictionary or dictionary for d in detections}:
         mine = [k for k, d in enumerate(detections) if (d.dictionary or dictionary) == name]
         cells = _cv.dictionary_marker_bits(name) + 2 * border
-        fixed = straighten_edges_fisheye(np.stack([detections[k].corners_px for k in mine]), camera, cells)
+        fixed = refine_edges_fisheye(gray, np.stack([detections[k].corners_px for k in mine]), camera, cells)
         for k, f in zip(mine, fixed):
             out[k] = dataclasses.replace(detections[k], corners_px=f)
     return out
