@@ -11,8 +11,6 @@ subtracted from each detected corner.
 
 from __future__ import annotations
 
-import warnings
-
 import cv2
 import numpy as np
 
@@ -22,6 +20,8 @@ from .refinement import _CHECK_CONTRAST, _FIT_CONTRAST, _NEXT, _PREV, _edge_offs
 
 #: Points sampled along each side, as the refinement samples it (``refinement._refine_edges``' ``n_lines``).
 N_SAMPLES = 16
+#: Profiles across each side in :func:`refine_edges_fisheye`.
+PROFILES_PER_SIDE = 16
 
 
 def straighten_edges_fisheye(corners: np.ndarray, camera: Camera, cells: int) -> np.ndarray:
@@ -118,7 +118,7 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
     C = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2)
     if camera.model != "fisheye" or len(C) == 0:
         return C.copy()
-    u, v, _ = _profile_grid(16, 13)
+    u, v, _ = _profile_grid(PROFILES_PER_SIDE, 13)
     Z = C[..., 0] + 1j * C[..., 1]
     L = np.maximum(np.abs(Z[:, _NEXT] - Z), 1e-9)
     cell = L.sum(1) * (0.25 / cells)
@@ -138,10 +138,7 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
         off, w = _edge_offsets(prof, 0.5 * (dark + light), dark, light, h, 0.0, _CHECK_CONTRAST)
         # the profiles are centred on the input corners' bent sides: a crossing 0.75 px off the side's median is
         # another edge
-        with warnings.catch_warnings():  # a side with no crossing has no median, and no weight
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(np.where(w > 0, off, np.nan), axis=2, keepdims=True)
-        w = w * (np.abs(off - med) < 0.75)
+        w = w * (np.abs(off - _median_of(off, w > 0)) < 0.75)  # a side with no crossing has no weight
         new, fitted = _fit_planes(P + off * nz, w, camera, C)
     ok &= fitted & (np.abs(new - C).max(axis=(1, 2)) < np.maximum(3.0, 0.5 * cell))
     ok &= (light - dark > _FIT_CONTRAST).all(axis=1)
@@ -149,6 +146,16 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
     if not ok.all():
         out[~ok] = straighten_edges_fisheye(C[~ok], camera, cells)
     return out
+
+
+def _median_of(x: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The median (M, 4, 1) of each side's valid values along the last axis (NaN for a side with none), as
+    ``np.nanmedian`` gives it, by one sort."""
+    n = valid.sum(axis=-1, keepdims=True)
+    ordered = np.sort(np.where(valid, x, np.inf), axis=-1)
+    lo = np.take_along_axis(ordered, np.maximum(n - 1, 0) // 2, axis=-1)
+    hi = np.take_along_axis(ordered, np.minimum(n // 2, x.shape[-1] - 1), axis=-1)
+    return np.where(n > 0, 0.5 * (lo + hi), np.nan)
 
 
 def _rays(px: np.ndarray, camera: Camera) -> np.ndarray:

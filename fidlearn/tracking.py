@@ -57,7 +57,7 @@ import cv2
 import numpy as np
 
 from . import _cv
-from ._fisheye_edges import straighten_edges_fisheye
+from ._fisheye_edges import refine_edges_fisheye
 from ._lens import pixels_from_normalized, project_points
 from ._wpilib import outside_field
 from .camera import Camera
@@ -316,7 +316,7 @@ class MarkerTracker:
                 gray, [c for c, _ in mine], [k for _, k in mine], cells, self._inverted, self.refine == "edges"
             )[0]
             if fisheye and dets and self._cam is not None:
-                fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in dets]), self._cam, cells)
+                fixed = refine_edges_fisheye(gray, np.stack([d.corners_px for d in dets]), self._cam, cells)
                 dets = [dataclasses.replace(d, corners_px=f) for d, f in zip(dets, fixed)]
             out += [Detection(d.id, d.corners_px, name) for d in dets]
         if len(self._groups) > 1:

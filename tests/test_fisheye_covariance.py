@@ -122,9 +122,9 @@ def test_rendered_fisheye_poses_are_covered_about_95_percent():
         T_r = frames.look_at(eye, [0.0, rng.uniform(-300, 300), rng.uniform(-200, 200)], roll_deg=rng.uniform(-20, 20))
         scene = render_scene(WALL, CAM, T_r, seed=seed, blur_px=0.5, noise_std_gray=2.0)
         dets = [d for d in fidlearn.detect_markers(scene.image, WALL.dictionary) if d.id in scene.truth]
-        straight = straighten_edges_fisheye(np.stack([d.corners_px for d in dets]), CAM, 7)  # as locate does
+        straight = refine_edges_fisheye(scene.image, np.stack([d.corners_px for d in dets]), CAM, 7)  # as locate
         truth = np.stack([scene.truth[d.id] for d in dets])
-        sigma = float(np.sqrt(np.mean((straight - truth) ** 2)))  # 0.06-0.11 px
+        sigma = float(np.sqrt(np.mean((straight - truth) ** 2)))
         dets = [Detection(d.id, c) for d, c in zip(dets, straight)]
         pose = fidlearn.estimate_pose(dets, WALL, CAM, corner_sigma_px=sigma)
         inside += pose.position_ellipsoid_contains(T_r[:3, 3])

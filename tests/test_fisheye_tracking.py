@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from fidlearn import Camera, MarkerMap, MarkerTracker, PoseTracker, detect_markers, frames, locate
-from fidlearn._fisheye_edges import straighten_edges_fisheye
+from fidlearn._fisheye_edges import refine_edges_fisheye
+from fidlearn.images import as_gray
 from fidlearn.synthetic import render_trajectory
 
 W, H = 640, 480
@@ -46,8 +47,8 @@ def test_marker_tracker_follows_markers_to_the_fisheye_edge(drive):
     edge_seen = 0
     for image, T in zip(drive.images, drive.T_world_camera):
         pose = tracker.locate(image)
-        found = detect_markers(image, WALL.dictionary)  # with the fisheye's straight-line bias taken out, as locate
-        straight = straighten_edges_fisheye(np.stack([d.corners_px for d in found]), CAM, 7)
+        found = detect_markers(image, WALL.dictionary)  # the sides fitted as the lens bends them, as locate does
+        straight = refine_edges_fisheye(as_gray(image), np.stack([d.corners_px for d in found]), CAM, 7)
         full = {d.id: c for d, c in zip(found, straight)}
         got = {d.id: d.corners_px for d in tracker.last_detections}
         assert sorted(got) == sorted(full)  # the windows found every marker a full detection finds
