@@ -157,8 +157,9 @@ def report(n_scenes: int = 40, n_seeds: int = 1) -> None:
 def measure_noise_table(n_scenes: int = 150, seed: int = 11, size_mm: float = 80.0) -> None:
     """The fisheye table of ``fidlearn.planning.noise`` (``FISHEYE_NOISE_SIGMA_PX``): corner error against the
     apparent marker side, on walls of 1 to 12 markers seen as the groups see them (other seeds), every detected
-    marker's corners as ``locate`` refines them (the "edges" refinement, straightened) against the truth."""
-    from fidlearn._fisheye_edges import straighten_edges_fisheye
+    marker's corners as ``locate`` refines them (the "edges" refinement, then the sides fitted as the lens bends
+    them, ``fidlearn._fisheye_edges.refine_edges_fisheye``) against the truth."""
+    from fidlearn._fisheye_edges import refine_edges_fisheye
 
     rng = np.random.default_rng(seed)
     sides, errs = [], []
@@ -168,7 +169,7 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11, size_mm: float = 80
         dets = [d for d in fidlearn.detect_markers(rendered.image, world.dictionary) if d.id in rendered.truth]
         if not dets:
             continue
-        fixed = straighten_edges_fisheye(np.stack([d.corners_px for d in dets]), FISHEYE, 7)
+        fixed = refine_edges_fisheye(rendered.image, np.stack([d.corners_px for d in dets]), FISHEYE, 7)
         for d, c in zip(dets, fixed):
             t = rendered.truth[d.id]
             sides.append(float(np.mean(np.linalg.norm(t - np.roll(t, 1, axis=0), axis=1))))

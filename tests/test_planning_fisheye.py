@@ -52,8 +52,9 @@ def test_the_fisheye_pose_jacobian_is_the_projections_derivative():
 
 @pytest.fixture(scope="module")
 def rendered():
-    """Ten scenes of 2 to 4 and of 5 to 12 markers (scene seed 7), one picture each."""
-    return pf.measure((7,), 10, 1, groups=((2, 4), (5, 12)))
+    """Thirty scenes of 2 to 4 and of 5 to 12 markers (scene seed 7), one picture each (ten gave medians 0.70-1.66
+    times the measured as the corner noise model changed by less than its uncertainty)."""
+    return pf.measure((7,), 30, 1, groups=((2, 4), (5, 12)))
 
 
 def test_the_markers_predicted_found_are_those_detected(rendered):
@@ -66,7 +67,7 @@ def test_the_markers_predicted_found_are_those_detected(rendered):
 def test_the_predicted_median_error_is_the_measured_one(rendered):
     ratios = [pf.figures(r)["ratio"] for r in rendered.values()]
     for q in ratios:
-        assert 0.7 <= q <= 1.4  # the planner's band widened: ten scenes give a noisy median (0.73 on OpenCV 4.x)
+        assert 0.7 <= q <= 1.4  # the planner's band widened: a few scenes give a noisy median
     rms = [pf.figures(r)["rms"] for r in rendered.values()]
     for q in rms:
         assert 0.7 <= q <= 1.4
