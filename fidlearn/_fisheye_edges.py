@@ -126,7 +126,8 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
     margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)
     t = margin[..., None] + (1 - 2 * margin)[..., None] * u  # (M, 4, N) along each side
     with np.errstate(invalid="ignore", divide="ignore"):
-        P, nz = _side_curves(C, camera, t)
+        r = _rays(C, camera)
+        P, nz = _side_curves(C, r, camera, t)
         pts = P[..., None] + (h[:, None, None, None] * v) * nz[..., None]
         ok = np.isfinite(pts).all(axis=(1, 2, 3))
         maps = np.where(np.isfinite(pts), pts, -10.0).astype(np.complex64).view(np.float32)
@@ -139,7 +140,7 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
         # the profiles are centred on the input corners' bent sides: a crossing 0.75 px off the side's median is
         # another edge
         w = w * (np.abs(off - _median_of(off, w > 0)) < 0.75)  # a side with no crossing has no weight
-        new, fitted = _fit_planes(P + off * nz, w, camera, C)
+        new, fitted = _fit_planes(P + off * nz, w, camera, r)
     ok &= fitted & (np.abs(new - C).max(axis=(1, 2)) < np.maximum(3.0, 0.5 * cell))
     ok &= (light - dark > _FIT_CONTRAST).all(axis=1)
     out = np.where(ok[:, None, None], new, C)
@@ -171,9 +172,9 @@ def _to_pixels(rays: np.ndarray, camera: Camera) -> np.ndarray:
     return project_points(rays.reshape(-1, 3), camera.K, camera.dist, "fisheye").reshape(rays.shape[:-1] + (2,))
 
 
-def _side_curves(C: np.ndarray, camera: Camera, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points (M, 4, N) on each side's bent line at ``t`` and the outward unit normals there (complex x + iy)."""
-    r = _rays(C, camera)
+def _side_curves(C: np.ndarray, r: np.ndarray, camera: Camera, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (M, 4, N) on each side's bent line at ``t`` and the outward unit normals there (complex x + iy);
+    ``r`` (M, 4, 3): the corners' rays."""
     r_next = r[:, _NEXT]
 
     q = _to_pixels(r[:, :, None, :] * (1 - t)[..., None] + r_next[:, :, None, :] * t[..., None], camera)
@@ -186,14 +187,15 @@ def _side_curves(C: np.ndarray, camera: Camera, t: np.ndarray) -> tuple[np.ndarr
     return P, tangent / np.abs(tangent) * turn[:, None, None]
 
 
-def _fit_planes(E: np.ndarray, w: np.ndarray, camera: Camera, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Corners (M, 4, 2) where planes fitted to each side's edge rays meet, and whether all four sides fitted."""
+def _fit_planes(E: np.ndarray, w: np.ndarray, camera: Camera, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (M, 4, 2) where planes fitted to each side's edge rays meet, and whether all four sides fitted;
+    ``r`` (M, 4, 3): the input corners' rays (which side of the camera each corner is)."""
     rays = _rays(np.stack([E.real, E.imag], axis=-1), camera)  # (M, 4, N, 3)
     w = np.where(np.isfinite(rays).all(-1), w, 0.0)
     rays = np.where(np.isfinite(rays), rays, 0.0)
-    _, vec = np.linalg.eigh(np.einsum("mkn,mkni,mknj->mkij", w, rays, rays))
+    _, vec = np.linalg.eigh((rays * w[..., None]).swapaxes(-1, -2) @ rays)
     normal = vec[..., 0]  # (M, 4, 3): the plane through the camera that the side's rays lie in
     X = np.cross(normal[:, _PREV], normal)  # corner k: sides k - 1 and k
-    X = X * np.sign(np.einsum("mki,mki->mk", X, _rays(C, camera)))[..., None]
+    X = X * np.sign(np.einsum("mki,mki->mk", X, r))[..., None]
     new = _to_pixels(X, camera)
     return new, (w.sum(-1) >= 4).all(1) & np.isfinite(new).all(axis=(1, 2)) & (X[..., 2] > 0).all(1)
