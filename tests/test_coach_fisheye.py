@@ -120,8 +120,8 @@ def test_the_fisheye_uncertainty_map_matches_repeated_calibrations(monte_carlo):
     cov = 0.3**2 * np.linalg.pinv(intrinsics_information(TRUTH, dict.fromkeys(T_true, OBJ), T_true))
     predicted = uncertainty_map(TRUTH, cov, 250.0)
     ratio = predicted / spread
-    # 40 repeats know each cell's spread to about 8 %: measured ratios 0.88 to 1.12 (the corners, 93 degrees
-    # off the axis and far outside every view, included)
+    # 40 repeats know each cell's spread to about 11 %: measured ratios 0.96 to 1.24 (200 repeats: 1.01 to 1.10;
+    # the corners, 93 degrees off the axis and far outside every view, included)
     assert np.all((ratio > 0.75) & (ratio < 1.3)), ratio
     assert predicted[0, 0] > 3 * np.median(predicted)  # the corners, beyond every view, are the least known
 
@@ -157,7 +157,7 @@ def test_the_fisheyes_next_views_lower_the_uncertainty_more_than_random_ones():
         assert coach_module._board_in_picture(TRUTH, OBJ, view.T_camera_board)
         coached[f"next {k}"] = view.T_camera_board
     randoms = [_p90({**T, **{f"random {k}": _random_view(rng) for k in range(3)}}) for _ in range(10)]
-    # measured: 6 views 24 px at the 90th percentile; the coach's 3 more ... px; 10 random triples ... to ... px
+    # measured: 6 views 891 px at the 90th percentile; with the coach's 3 more 0.49 px; 10 random triples 60 to 808 px
     assert _p90(coached) < min(randoms)
     assert _p90(coached) < 0.5 * _p90(T)
 
@@ -200,8 +200,8 @@ def test_the_real_fisheye_boards_bow_alike_through_either_lens_model():
     poses = {n: frames.transform_from_rvec_tvec(r, t) for n, r, t in zip(central, rvecs, tvecs)}
     pin_sags = {b.name: b.sag_mm for b in board_bends(pinhole, dict.fromkeys(central, OBJ), images, poses)}
     both = sorted(set(fish_sags) & set(pin_sags))
-    assert len(both) >= 5
-    np.testing.assert_allclose([fish_sags[n] for n in both], [pin_sags[n] for n in both], rtol=0.35)
+    assert len(both) >= 5  # measured: 7 of the 17 middle views are called bent by both, sags within 15 %
+    np.testing.assert_allclose([fish_sags[n] for n in both], [pin_sags[n] for n in both], rtol=0.25)
 
 
 def test_the_coach_judges_the_real_fisheye_set_and_its_figure_draws():
