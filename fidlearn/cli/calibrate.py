@@ -146,12 +146,10 @@ def run(args) -> int:
     paths = [str(p) for _, p in items]
     cal = _calibrate(paths, board, args.model)
     _print_result(cal)
-    coached = None
-    if cal.camera.model == "pinhole":  # the coach's uncertainty model is the pinhole's
-        coached = coach_calibration(cal)
-        print("calibration coach: " + coached.report(omit=cal.warnings).replace("\n", "\n  "))  # each warning once
-    elif report is not None:
+    if report is not None and cal.camera.model == "fisheye":
         raise UsageError("--report draws the pinhole model's uncertainty; leave it out with a fisheye camera")
+    coached = coach_calibration(cal)  # pinhole or fisheye: the coach models the lens that was calibrated
+    print("calibration coach: " + coached.report(omit=cal.warnings).replace("\n", "\n  "))  # each warning once
     with staging:
         if args.annotate:
             for view, path in zip(cal.views, paths):  # views come back in input order
