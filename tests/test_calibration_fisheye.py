@@ -8,6 +8,7 @@ import json
 import subprocess
 import sys
 
+import cv2
 import numpy as np
 import pytest
 
@@ -117,17 +118,17 @@ def test_the_command_line_calibrates_a_fisheye(tmp_path):
     cam = Camera.load(out)
     assert cam.model == "fisheye"
     assert abs(cam.fx / _reference("mono").fx - 1) < 0.01
-    bad = subprocess.run(
+    drawn = subprocess.run(  # the coach's picture of a fisheye calibration (its uncertainty through cv2.fisheye)
         [*cmd, "--model", "fisheye", "--report", str(tmp_path / "r.png"), "-o", str(tmp_path / "c.json")],
         capture_output=True,
         text=True,
         timeout=120,
     )
-    assert bad.returncode == 2
-    assert bad.stderr.strip().splitlines() == [
-        "error: --report draws the pinhole model's uncertainty; leave it out with --model fisheye"
-    ]
-    assert not (tmp_path / "c.json").exists()
+    assert drawn.returncode == 0, drawn.stderr
+    assert Camera.load(tmp_path / "c.json").model == "fisheye"
+    picture = cv2.imread(str(tmp_path / "r.png"))
+    assert picture is not None
+    assert picture.std() > 10  # a drawn map, not a blank page
 
 
 def test_charuco_takes_the_model_too():

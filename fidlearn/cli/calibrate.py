@@ -13,7 +13,7 @@ from pathlib import Path
 from .. import calibration
 from ..boards import Board
 from ..drawing import draw_calibration_view
-from ..errors import CalibrationError, FidlearnWarning, UsageError
+from ..errors import CalibrationError, FidlearnWarning
 from ..images import expand_inputs
 from ..io import atomic_write
 from ..planning.coach import coach_calibration
@@ -137,8 +137,6 @@ def run(args) -> int:
     """
     out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
     report = _check_output(args.report, (".png",), "--report") if args.report else None
-    if report is not None and args.model == "fisheye":
-        raise UsageError("--report draws the pinhole model's uncertainty; leave it out with --model fisheye")
     items = expand_inputs(args.inputs, videos=False)
     _refuse_clobber([("-o", out), ("--report", report)], [p for _, p in items], args.annotate)
     staging = _Staging(args.annotate)
@@ -146,8 +144,6 @@ def run(args) -> int:
     paths = [str(p) for _, p in items]
     cal = _calibrate(paths, board, args.model)
     _print_result(cal)
-    if report is not None and cal.camera.model == "fisheye":
-        raise UsageError("--report draws the pinhole model's uncertainty; leave it out with a fisheye camera")
     coached = coach_calibration(cal)  # pinhole or fisheye: the coach models the lens that was calibrated
     print("calibration coach: " + coached.report(omit=cal.warnings).replace("\n", "\n  "))  # each warning once
     with staging:
@@ -155,7 +151,7 @@ def run(args) -> int:
             for view, path in zip(cal.views, paths):  # views come back in input order
                 pts = cal.image_points_px.get(view.name)
                 staging.save(Path(path).name, draw_calibration_view(Path(path), view, pts, board))
-        if report is not None and coached is not None:
+        if report is not None:
             from ..planning.figure import coach_figure  # matplotlib: only when a picture is drawn (faster start)
 
             fig = coach_figure(coached, cal.camera)
