@@ -178,3 +178,21 @@ def test_the_fisheyes_standard_deviations_match_the_spread_of_repeated_calibrati
     ratio = np.array([np.std(fx, ddof=1), np.std(cx, ddof=1)]) / np.mean(predicted, axis=0)
     assert np.all((ratio > 0.7) & (ratio < 1.45))  # 40 repeats: the spread itself is known to about 11 %
     assert abs(np.mean(fx) - 290.0) < 3 * np.std(fx, ddof=1) / np.sqrt(40)  # and unbiased
+
+
+@pytest.mark.parametrize("model", ["fisheye", "auto"])
+def test_the_command_line_prints_the_coach_for_a_fisheye(tmp_path, model):
+    from fidlearn.planning.coach import coach_calibration
+
+    out = tmp_path / "camera.yml"
+    cmd = [sys.executable, "-m", "fidlearn", "calibrate", str(REAL / "mono"), "--pattern", "6x8", "--square-mm", "25"]
+    done = subprocess.run([*cmd, "--model", model, "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert Camera.load(out).model == "fisheye"  # auto picks the fisheye for these photos (held-out error)
+    cal = calibrate_checkerboard(sorted((REAL / "mono").glob("*.png")), board=BOARD, model=model)
+    advice = coach_calibration(cal).report(omit=cal.warnings).splitlines()
+    said = done.stdout.split("calibration coach: ", 1)[1].splitlines()
+    assert said[0] == advice[0]
+    assert said[0].startswith("reprojection uncertainty: median")
+    assert [line.strip() for line in said[1 : len(advice)]] == [line.strip() for line in advice[1:]]
+    assert any(line.strip().startswith("next photo:") for line in said)

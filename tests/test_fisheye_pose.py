@@ -71,15 +71,10 @@ def test_estimate_pose_leaves_out_a_marker_beyond_90_degrees():
     assert 5 not in pose.marker_ids
 
 
-def test_what_models_the_pinhole_only_refuses_a_fisheye_with_the_mend(scenes):
-    from fidlearn.errors import FidlearnError
+def test_the_undistorted_picture_with_the_undistorted_camera_finds_the_pose(scenes):
     from fidlearn.planning import predict_accuracy
-    from fidlearn.pose import refine_pose_lm
 
     scene = scenes[0]
-    with pytest.raises(FidlearnError, match=r"pinhole lens only.*camera\.undistorted\(\)"):
-        refine_pose_lm(scene.marker_map.marker_corners(0), scene.truth[0], scene.camera, np.zeros(3), np.ones(3))
-    # the mend: the undistorted picture with the undistorted camera
     # (OpenCV's new camera for this 180-degree lens is a narrow 80 px focal length: twice the picture size)
     ideal = scene.camera.undistorted(0.0, (1600, 1006))
     picture = scene.camera.undistort_image(scene.image, 0.0, (1600, 1006))

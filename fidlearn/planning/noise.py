@@ -358,7 +358,8 @@ def noise_from_residuals(residuals_px, jacobian: np.ndarray, corners_px) -> Phot
 def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     """Corner noise, marker shift and marker size errors of the picture a pose came from.
 
-    :func:`noise_from_residuals` on ``pose.residuals_px`` of the markers the pose used. Take a
+    :func:`noise_from_residuals` on ``pose.residuals_px`` of the markers the pose used (a fisheye's
+    carried from the undistorted pixels back into its picture's, through its projection). Take a
     pose from many markers (ten or more for a shift known to about 20 %) in a picture like the
     ones you will take, and pass the result to :func:`~fidlearn.planning.predict_accuracy`
     (``**noise.kwargs()``).
@@ -380,7 +381,7 @@ def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     ------
     PoseError
         The pose used fewer than four markers, or the arguments are not a Pose, a MarkerMap holding its
-        markers and a Camera, or the camera is a fisheye.
+        markers and a Camera.
     """
     from ..camera import Camera
     from ..markermap import MarkerMap
@@ -389,11 +390,6 @@ def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     for value, name, kind in ((pose, "pose", Pose), (marker_map, "marker_map", MarkerMap), (camera, "camera", Camera)):
         if not isinstance(value, kind):
             raise PoseError(f"{name} must be a fidlearn {kind.__name__}, got {type(value).__name__}")
-    if camera.model == "fisheye":
-        raise PoseError(
-            "noise_from_pose reads a pinhole pose's residuals; a fisheye pose's are in the undistorted pixels: "
-            "measure the noise on a pinhole calibration of the lens, or give predict_accuracy a corner_sigma_px"
-        )
     ids = list(pose.marker_ids)
     if any(i not in marker_map for i in ids):
         raise PoseError(f"the pose used markers {ids}, not all in the map: give the map the pose was computed with")
@@ -404,6 +400,10 @@ def noise_from_pose(pose, marker_map, camera) -> PhotoNoise:
     P = np.concatenate([marker_map.marker_corners(i) for i in ids])
     residuals = np.array([pose.residuals_px[i] for i in ids])
     projected = camera.project(P, pose.T_world_camera).reshape(-1, 4, 2)
+    if camera.model == "fisheye":  # the pose's residuals are in the undistorted pixels: back to the picture's
+        ideal = Camera(camera.K, None, camera.image_size).project(P, pose.T_world_camera).reshape(-1, 4, 2)
+        seen = np.linalg.solve(camera.K, np.vstack([(ideal + residuals).reshape(-1, 2).T, np.ones(len(P))])).T
+        residuals = camera.project(seen, np.eye(4)).reshape(-1, 4, 2) - projected  # each observed corner's ray
     return noise_from_residuals(residuals, pose_jacobian(P, pose.T_world_camera, camera), projected + residuals)
 
 

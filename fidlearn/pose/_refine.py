@@ -8,9 +8,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .._camera_checks import refuse_fisheye
 from ..camera import Camera
-from ..errors import PoseError
 from ..frames import transform_from_rvec_tvec
 from ..frames._rotations import _rotvec
 
@@ -135,7 +133,8 @@ def refine_pose_lm(
     points_px : array-like, shape (N, 2)
         Their observed pixels, px (OpenCV's convention: pixel centres at integers).
     camera : Camera
-        Intrinsics and distortion.
+        Intrinsics and distortion: OpenCV's pinhole lens, or a fisheye (the residuals and their Jacobian
+        through ``cv2.fisheye``'s projection, in the fisheye picture's own pixels).
     rvec, tvec : array-like, shape (3,)
         Starting ``T_camera_world`` (OpenCV's convention): rotation vector (rad) and translation (mm).
     max_iterations : int
@@ -161,34 +160,40 @@ def refine_pose_lm(
     >>> bool(refined.reprojection_rms_px < 1e-6)
     True
     """
-    refuse_fisheye(camera, "refine_pose_lm", PoseError)
     obj = np.ascontiguousarray(points_world, dtype=np.float64).reshape(-1, 3)
     img = np.ascontiguousarray(points_px, dtype=np.float64).reshape(-1, 2)
     R_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
     R_wc = R_cw.T
     C = -R_wc @ np.asarray(tvec, dtype=np.float64).reshape(3)
-    R_wc, C, sse, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations, tol_sigma2=0.0)
+    R_wc, C, sse, _, _ = _lm(obj, img, camera.K, camera.dist, R_wc, C, max_iterations, 0.0, camera.model)
     R_cw = R_wc.T
     return PoseRefinement(_rotvec(R_cw), -R_cw @ C, math.sqrt(sse / len(obj)))
 
 
 _ZERO3 = np.zeros(3)
+_ZERO31 = np.zeros((3, 1))
 
 
-def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool):
+def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool, model: str = "pinhole"):
     """Residuals (2N,) observed minus projected, and optionally the Jacobian (2N, 6) of the projection.
 
-    The same Jacobian as :func:`pose_jacobian`, written for speed (this runs in every LM step).
+    The same Jacobian as :func:`pose_jacobian`, written for speed (this runs in every LM step); ``model``
+    ``"fisheye"`` projects through ``cv2.fisheye`` (residuals in the fisheye picture's pixels).
     """
-    r, J, _ = _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian)
+    r, J, _ = _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian, model)
     return r, J
 
 
-def _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian: bool = True):
+def _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian: bool = True, model: str = "pinhole"):
     """:func:`_residuals`, and the Jacobian (2N, 4 + len(dist)) on ``fx, fy, cx, cy`` and the distortion from
     the same projection (None without ``with_jacobian``)."""
     X_c = (obj - C) @ R_wc  # rows: R_cw @ (P - C) = R_wc^T (P - C)
-    px, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
+    if model == "fisheye":  # cv2.fisheye's columns: f (2), c (2), k (4), rvec (3), tvec (3), skew (1)
+        px, jac = cv2.fisheye.projectPoints(X_c.reshape(-1, 1, 3), _ZERO31, _ZERO31, K, dist)
+        pose_columns, lens_columns = jac[:, 8:14], jac[:, :8]
+    else:  # cv2.projectPoints' columns: rvec (3), tvec (3), f (2), c (2), dist
+        px, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
+        pose_columns, lens_columns = jac[:, :6], jac[:, 6 : 10 + len(dist)]
     r = img.reshape(-1) - px.reshape(-1)
     if not with_jacobian:
         return r, None, None
@@ -197,22 +202,21 @@ def _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian: bool = T
     # moving its centre by dC moves X_c by -R_cw dC. So J = jac[:, :6] @ diag(-R_cw, -R_cw).
     B = np.zeros((6, 6))
     B[:3, :3] = B[3:, 3:] = -R_wc.T
-    J = jac[:, :6] @ B
-    return r, J, jac[:, 6 : 10 + len(dist)]
+    return r, pose_columns @ B, lens_columns
 
 
-def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
+def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="pinhole"):
     """Levenberg-Marquardt (Marquardt's diagonal scaling) on the camera pose.
 
     Returns R_wc, C, the sum of squared residuals, the residuals (2N,) and J^T J (6, 6) there.
     """
-    R_wc, C, sse, r, _, JtJ = _lm_full(obj, img, K, dist, R_wc, C, max_iterations, tol_sigma2)
+    R_wc, C, sse, r, _, JtJ = _lm_full(obj, img, K, dist, R_wc, C, max_iterations, tol_sigma2, model)
     return R_wc, C, sse, r, JtJ
 
 
-def _lm_full(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
+def _lm_full(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="pinhole"):
     """:func:`_lm`, returning also the Jacobian (2N, 6) at the end: R_wc, C, sse, r, J, J^T J."""
-    r, J = _residuals(obj, img, K, dist, R_wc, C, True)
+    r, J = _residuals(obj, img, K, dist, R_wc, C, True, model)
     sse = float(r @ r)
     lam = 1e-4
     JtJ = J.T @ J
@@ -234,7 +238,7 @@ def _lm_full(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None):
         dR, _ = cv2.Rodrigues(step[:3].reshape(3, 1))
         R_new = dR @ R_wc
         C_new = C + step[3:]
-        r_new, J_new = _residuals(obj, img, K, dist, R_new, C_new, True)
+        r_new, J_new = _residuals(obj, img, K, dist, R_new, C_new, True, model)
         sse_new = float(r_new @ r_new)
         if sse_new < sse:
             done = sse - sse_new <= tol

@@ -39,6 +39,7 @@ from fidlearn import (
     calibrate_checkerboard,
     data_path,
     locate,
+    look_at,
     markers_pdf,
     plotting,
 )
@@ -47,6 +48,7 @@ from fidlearn.errors import FidlearnError, NoMarkersError, PoseError
 from fidlearn.planning import coach_calibration
 from fidlearn.planning.coach import GOOD_UNCERTAINTY_PX
 from fidlearn.planning.figure import coach_figure
+from fidlearn.synthetic import render_scene
 from fidlearn.widgets import Webcam, figure_png
 
 np.set_printoptions(precision=3, suppress=True)
@@ -179,7 +181,8 @@ if HAVE_CAMERA:
         captured.append((latest["frame"], latest["corners"]))
         if len(captured) >= COACH_FROM:
             try:
-                so_far = coach_calibration(calibrate_checkerboard([f for f, _ in captured], PATTERN, SQUARE_MM))
+                views_so_far = [f for f, _ in captured]
+                so_far = coach_calibration(calibrate_checkerboard(views_so_far, PATTERN, SQUARE_MM, model="auto"))
                 advice.value = "<br>".join(so_far.report().splitlines())
             except FidlearnError as e:  # a set the calibration refuses says why
                 advice.value = f"not yet: {e}"
@@ -197,6 +200,12 @@ else:
 # When you have captured your views, run the next cell: it stops the live preview and calibrates
 # (`calibrate_checkerboard`, notebook 02). It needs at least `MIN_VIEWS` views; with fewer it says so and you
 # can capture more (run the cell above again) first. Without a camera the bundled views stand in.
+#
+# Many webcams have a wide lens, some a fisheye. `model="auto"` fits both OpenCV's pinhole model (k1, k2, p1,
+# p2, k3) and the fisheye model (`cv2.fisheye`, k1..k4) and keeps the fisheye only when its RMS reprojection
+# error on views **held out** of the fit is at least 10 % below the pinhole's: on the views it was fitted to,
+# the model with more freedom would always look better. The camera it returns carries the model it picked, and
+# everything after this cell (the coach, `camera.json`, `locate`, `MarkerTracker`) uses that camera.
 
 # %%
 MIN_VIEWS = 10
@@ -210,8 +219,10 @@ else:
     source = "the bundled views (data/calibration)"
 calibration = None
 if len(views) >= MIN_VIEWS:
-    calibration = calibrate_checkerboard(views, PATTERN, SQUARE_MM)
+    calibration = calibrate_checkerboard(views, PATTERN, SQUARE_MM, model="auto")
     print(f"calibrated from {len(calibration.used)} of {len(views)} views of {source}")
+    held_out = ", ".join(f"{m} {e:.2f} px" for m, e in calibration.held_out_rms_px.items())
+    print(f"lens model: {calibration.camera.model} (RMS reprojection error on held-out views: {held_out})")
     print(calibration.table())
 else:
     print(
@@ -312,7 +323,10 @@ print(f"wrote {OUT / 'markers.pdf'}: markers {world_map.ids}, {world_map.marker_
 
 # %%
 live_log = []  # the last frames' (gray frame, pose or None), for a look afterwards
-camera = Camera.load(OUT / "camera.json" if HAVE_CAMERA else data_path("trajectory", "camera.json"))
+if HAVE_CAMERA:  # the camera section 3 calibrated (the lens model it picked), else the one saved before
+    camera = calibration.camera if calibration is not None else Camera.load(OUT / "camera.json")
+else:
+    camera = Camera.load(data_path("trajectory", "camera.json"))
 tracker = MarkerTracker(world_map, camera)
 pose_text = w.HTML()
 scene_view = w.Image(format="png", width=520)
@@ -371,6 +385,36 @@ print(
 )
 
 # %% [markdown]
+# ### A fisheye webcam, without one
+#
+# The same two steps with a fisheye lens: `model="auto"` on six photos of a 180-degree lens
+# (`data/real/fisheye_checkerboard/mono`, a 6 x 8 board), then a picture of the three markers drawn through the
+# camera it returned (`render_scene`, at a known pose) and located with that camera. The fisheye camera goes
+# into `locate` (and `MarkerTracker`) as it is: the corners are undistorted exactly through its own model.
+
+# %%
+fisheye_views = [
+    Path(os.path.relpath(p)) for p in sorted(data_path("real", "fisheye_checkerboard", "mono").glob("*.png"))
+]
+fisheye_calibration = calibrate_checkerboard(fisheye_views, (6, 8), 25.0, model="auto")
+fisheye = fisheye_calibration.camera
+held_out = ", ".join(f"{m} {e:.2f} px" for m, e in fisheye_calibration.held_out_rms_px.items())
+print(f"{len(fisheye_views)} photos of a 180-degree lens: lens model {fisheye.model} (held-out RMS: {held_out})")
+T_true = look_at([400.0, 150.0, 270.0], [0.0, 150.0, 270.0], roll_deg=10.0)
+fisheye_scene = render_scene(world_map, fisheye, T_true, seed=0, blur_px=0.5, noise_std_gray=1.0)
+fisheye_pose = locate(fisheye_scene.image, world_map, fisheye)
+print(
+    f"markers {list(fisheye_pose.marker_ids)}: the camera {fisheye_pose.position_mm.round(1)} mm, truth "
+    f"{T_true[:3, 3]} mm, {np.linalg.norm(fisheye_pose.position_mm - T_true[:3, 3]):.2f} mm off "
+    f"(predicted standard deviations {fisheye_pose.position_std_mm.round(2)} mm)"
+)
+
+# %% [markdown]
+# The held-out error picked the fisheye ({{ fisheye_calibration.held_out_rms_px["fisheye"]:.2f }} px against the
+# pinhole's {{ fisheye_calibration.held_out_rms_px["pinhole"]:.2f }} px); for the bundled views of section 3 it kept
+# the pinhole. Your webcam's calibration says which it is in section 3's output.
+
+# %% [markdown]
 # Press **Stop the camera** when you are done (the browser's camera light goes out when you close the
 # notebook). `cam.frames_received` counts the frames Python handled, and `cam.pacer.measured_fps` their rate:
 # never more than `max_fps`, and less when the pose and the drawing take longer than a frame's time.
@@ -381,6 +425,8 @@ print(
 #   faster than Python keeps up with.
 # * A calibration is as good as its views: enough of them, over the whole picture, tilted, sharp. The coach
 #   judges the set by its uncertainty over the picture, not by the RMS, and says which photo to take next.
+# * `model="auto"` picks the lens model (pinhole or fisheye) by the error on views held out of the fit; the camera
+#   it returns goes into the coach, `camera.json`, `locate` and `MarkerTracker` as it is.
 # * `MarkerTracker` runs the pipeline frame after frame, searching only where the markers were.
 # * With a calibrated camera and printed markers, the pose is a few lines (notebooks 05-09), live.
 
