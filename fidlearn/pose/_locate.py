@@ -139,9 +139,11 @@ def _straightened(
     Each marker is corrected with its own dictionary's cells (a map may mix dictionaries); ``dictionary``
     stands in for a detection that does not say its own.
     """
+    if not detections:
+        return []
     border = int(_detector_fields(detector_params)["markerBorderBits"])
     out = list(detections)
-    gray = as_gray(image) if detections else None
+    gray = as_gray(image)
     for name in {d.dictionary or dictionary for d in detections}:
         mine = [k for k, d in enumerate(detections) if (d.dictionary or dictionary) == name]
         cells = _cv.dictionary_marker_bits(name) + 2 * border
