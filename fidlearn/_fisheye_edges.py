@@ -14,7 +14,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ._lens import fisheye_angles, pixels_from_normalized, project_points
+from ._lens import fisheye_rays, pixels_from_normalized, project_points
 from .camera import Camera
 from .refinement import _CHECK_CONTRAST, _FIT_CONTRAST, _NEXT, _PREV, _edge_offsets, _levels, _profile_grid
 
@@ -161,10 +161,7 @@ def _median_of(x: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 def _rays(px: np.ndarray, camera: Camera) -> np.ndarray:
     """Unit rays (..., 3) of fisheye pixels (..., 2) (NaN where no ray reaches)."""
-    flat = px.reshape(-1, 2)
-    th, xyd, thd = fisheye_angles(flat, camera.K, camera.dist)
-    s = np.where(thd > 1e-12, np.sin(th) / np.where(thd > 1e-12, thd, 1.0), 1.0)
-    return np.column_stack([xyd * s[:, None], np.cos(th)]).reshape(px.shape[:-1] + (3,))
+    return fisheye_rays(px.reshape(-1, 2), camera.K, camera.dist).reshape(px.shape[:-1] + (3,))
 
 
 def _to_pixels(rays: np.ndarray, camera: Camera) -> np.ndarray:

@@ -151,6 +151,15 @@ def fisheye_angles(px: np.ndarray, K: np.ndarray, dist: np.ndarray) -> tuple[np.
     return theta, np.stack([xd, yd], axis=1), theta_d
 
 
+def fisheye_rays(px: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Unit rays (N, 3) in the camera frame of fisheye pixels (N, 2), through :func:`fisheye_angles` (rays up to
+    180 degrees off the axis; NaN where none reaches the pixel)."""
+    theta, xyd, theta_d = fisheye_angles(px, K, dist)
+    safe = np.where(theta_d > 1e-300, theta_d, 1.0)
+    along = np.where(theta_d[:, None] > 1e-300, xyd / safe[:, None], 0.0)  # the unit direction in the image
+    return np.column_stack([along * np.sin(theta)[:, None], np.cos(theta)])
+
+
 def _fisheye_undistort(px: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """Normalized ideal coordinates (N, 2) of pixels (N, 2) through the fisheye model (:func:`fisheye_angles`).
 

@@ -59,10 +59,7 @@ def pixel_rays(camera: Camera, px: np.ndarray) -> np.ndarray:
     """
     px = np.asarray(px, dtype=float).reshape(-1, 2)
     if camera.model == "fisheye":
-        theta, xyd, theta_d = _lens.fisheye_angles(px, camera.K, camera.dist)
-        safe = np.where(theta_d > 1e-300, theta_d, 1.0)
-        along = np.where(theta_d[:, None] > 1e-300, xyd / safe[:, None], 0.0)  # the unit direction in the image
-        rays = np.column_stack([along * np.sin(theta)[:, None], np.cos(theta)])
+        rays = _lens.fisheye_rays(px, camera.K, camera.dist)
     else:
         xy = _lens.undistort_exact(px, camera.K, camera.dist)
         rays = np.column_stack([xy, np.ones(len(xy))])
