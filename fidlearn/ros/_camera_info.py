@@ -338,8 +338,9 @@ def camera_disagreement(bag_camera: Camera, given: Camera) -> str | None:
         return f"the CameraInfo is for {bag_size}, the camera given for {given_size}"
     u, v = np.meshgrid(np.linspace(0, bag_camera.width - 1, 9), np.linspace(0, bag_camera.height - 1, 7))
     px = np.column_stack([u.ravel(), v.ravel()])
-    ideal = bag_camera.undistort_points(px)  # ideal pinhole pixels through the bag camera's K
-    rays = np.column_stack([ideal, np.ones(len(ideal))]) @ np.linalg.inv(bag_camera.K).T
+    from ..calibration.compare import _rays  # noqa: PLC0415 (the rays compare_calibrations takes its grid back to)
+
+    rays = _rays(bag_camera, px)
     seen = np.isfinite(rays).all(axis=1)
     back = given.project(rays[seen], np.eye(4))
     apart = float(np.max(np.linalg.norm(back - px[seen], axis=1), initial=0.0))
