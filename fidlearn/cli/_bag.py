@@ -215,7 +215,6 @@ class BagSink:
         self.path, self.run, self.marker_map, self.mount = path, run, marker_map, mount
         self.writer: BagWriter | None = None
         self.count = 0
-        self.images = 0
 
     def __enter__(self) -> BagSink:
         return self
@@ -246,7 +245,6 @@ class BagSink:
             The frame with its detections and pose drawn.
         """
         self._writer().write_image(self.run.stamps[index], drawn)
-        self.images += 1
 
     def _writer(self) -> BagWriter:
         if self.writer is None:
