@@ -209,3 +209,25 @@ def survey_with_marker_7_moved(truth, poses, camera):
     moved = np.subtract(s.marker_map.placements[7].translation_mm, truth.placements[7].translation_mm)
     assert np.linalg.norm(moved) < 40
     return tape, s
+
+
+def eight_marker_wall():
+    """Eight 80 mm markers on the wall X = 0, in two rows (z 300 and 800 mm) of four (y -450 to 450 mm)."""
+    from fidlearn import MarkerMap
+
+    places = [(y, z) for y in (-450, -150, 150, 450) for z in (300, 800)]
+    markers = {str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]} for k, (y, z) in enumerate(places)}
+    return MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80.0, "markers": markers})
+
+
+def corner_noise_roots(truth: dict, sigma: float, shift: float) -> dict:
+    """Per marker, a Cholesky root (8, 8) of the noise model's corner covariance at its corners ``truth[i]``:
+    corner noise ``sigma`` and a shift of the whole marker ``shift`` (px per axis)."""
+    import numpy as np
+
+    from fidlearn.planning import noise
+
+    return {
+        i: np.linalg.cholesky(noise.corner_covariance(c, sigma) + noise.marker_shift_covariance(shift))
+        for i, c in truth.items()
+    }

@@ -94,12 +94,18 @@ def test_a_rendered_pose_from_the_edge_states_more_uncertainty_than_one_from_the
     assert np.linalg.norm(every.position_std_mm) < size["edge"]
 
 
-def test_edges_refinement_on_a_fisheye_loses_its_straight_line_bias():
+@pytest.fixture(scope="module")
+def squeezed():
+    """A wall seen across the fisheye, its markers squeezed along the radius: the pose, the scene, the detected
+    ("edges") corners and their truth."""
     T_r = frames.look_at([450.0, -100.0, 60.0], [0.0, 200.0, -100.0], roll_deg=-8)
     scene = render_scene(WALL, CAM, T_r, seed=4, blur_px=0.5, noise_std_gray=2.0)
     dets = [d for d in fidlearn.detect_markers(scene.image, WALL.dictionary) if d.id in scene.truth]
-    raw = np.stack([d.corners_px for d in dets])
-    truth = np.stack([scene.truth[d.id] for d in dets])
+    return T_r, scene, np.stack([d.corners_px for d in dets]), np.stack([scene.truth[d.id] for d in dets])
+
+
+def test_edges_refinement_on_a_fisheye_loses_its_straight_line_bias(squeezed):
+    T_r, scene, raw, truth = squeezed
     fixed = straighten_edges_fisheye(raw, CAM, 7)
     rms_raw = np.sqrt(np.mean((raw - truth) ** 2))
     rms_fixed = np.sqrt(np.mean((fixed - truth) ** 2))
@@ -131,13 +137,9 @@ def test_rendered_fisheye_poses_are_covered_about_95_percent():
     assert 0.85 <= inside / n <= 1.0  # 94 % of the first 16
 
 
-def test_fisheye_sides_fitted_as_the_lens_bends_them_with_the_markers_own_levels():
+def test_fisheye_sides_fitted_as_the_lens_bends_them_with_the_markers_own_levels(squeezed):
     """Markers squeezed along the radius (a white margin of 2 px): their edges found at the marker's own levels."""
-    T_r = frames.look_at([450.0, -100.0, 60.0], [0.0, 200.0, -100.0], roll_deg=-8)
-    scene = render_scene(WALL, CAM, T_r, seed=4, blur_px=0.5, noise_std_gray=2.0)
-    dets = [d for d in fidlearn.detect_markers(scene.image, WALL.dictionary) if d.id in scene.truth]
-    raw = np.stack([d.corners_px for d in dets])
-    truth = np.stack([scene.truth[d.id] for d in dets])
+    _, scene, raw, truth = squeezed
     straight = straighten_edges_fisheye(raw, CAM, 7)
     fitted = refine_edges_fisheye(scene.image, raw, CAM, 7)
     err_straight = np.linalg.norm(straight - truth, axis=2)

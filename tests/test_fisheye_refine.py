@@ -7,6 +7,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from helpers import corner_noise_roots, eight_marker_wall
 
 import fidlearn
 from fidlearn import Camera, Detection, MarkerMap, estimate_pose, frames
@@ -85,20 +86,10 @@ def _noisy_fisheye_poses(sigma: float, shift: float, n: int, seed: int):
     """``n`` fisheye poses from eight markers whose picture corners carry corner noise ``sigma`` and a shift per
     marker ``shift`` (px per axis; :func:`noise.corner_covariance`, :func:`noise.marker_shift_covariance`)."""
     rng = np.random.default_rng(seed)
-    places = [(y, z) for y in (-450, -150, 150, 450) for z in (300, 800)]
-    world = MarkerMap.from_dict(
-        {
-            "units": "mm",
-            "marker_size_mm": 80.0,
-            "markers": {str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]} for k, (y, z) in enumerate(places)},
-        }
-    )
+    world = eight_marker_wall()
     T = frames.look_at([600, 100, 600], [0, 0, 550])
     truth = {i: FE.project(world.marker_corners(i), T) for i in world.ids}
-    root = {  # the noise model's corner covariance of each marker as the fisheye picture draws it
-        i: np.linalg.cholesky(noise.corner_covariance(truth[i], sigma) + noise.marker_shift_covariance(shift))
-        for i in world.ids
-    }
+    root = corner_noise_roots(truth, sigma, shift)  # the noise model's, as the fisheye picture draws the corners
     poses = []
     for _ in range(n):
         dets = [Detection(i, truth[i] + (root[i] @ rng.normal(size=8)).reshape(4, 2)) for i in world.ids]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import corner_noise_roots, eight_marker_wall
 
 import fidlearn
 from benchmarks import planning_real as real
@@ -71,23 +72,12 @@ def _shifted_trials(sigma, shift, n, seed, size_each=0.0, size_error=0.0):
     """``n`` poses from eight markers whose corners carry the noise model's parts: corner noise ``sigma``,
     a shift per marker, a size error of each marker and one common to all (about each marker's centre)."""
     rng = np.random.default_rng(seed)
-    # eight 80 mm markers on the wall X = 0, seen from 1.2 m
-    places = [(y, z) for y in (-450, -150, 150, 450) for z in (300, 800)]
-    world = MarkerMap.from_dict(
-        {
-            "units": "mm",
-            "marker_size_mm": 80.0,
-            "markers": {str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]} for k, (y, z) in enumerate(places)},
-        }
-    )
+    world = eight_marker_wall()  # seen from 1.2 m
     camera = Camera.load(fidlearn.data_path("scenes/camera.json"))
     T = look_at([1200, 100, 600], [0, 0, 550])
     p = predict_accuracy(world, camera, T, corner_sigma_px=sigma, marker_shift_px=shift)
     truth = {i: camera.project(world.marker_corners(i), T) for i in p.marker_ids}
-    root = {
-        i: np.linalg.cholesky(noise.corner_covariance(truth[i], sigma) + noise.marker_shift_covariance(shift))
-        for i in p.marker_ids
-    }
+    root = corner_noise_roots(truth, sigma, shift)
     grow = {i: truth[i] - truth[i].mean(axis=0) for i in p.marker_ids}
     poses = []
     for _ in range(n):
