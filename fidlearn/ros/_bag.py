@@ -326,9 +326,10 @@ class BagFrames:
         seen: dict[tuple, Camera] = {}
         source = f"{self.path.name} {self.camera_info_topic}"
         for msg, logtime in self._messages(self.camera_info_topic, reader):
-            if self.given is not None and not np.any(np.asarray(_field(msg, "k"), dtype=float)):
+            k, d = _field(msg, "k"), _field(msg, "d")
+            if self.given is not None and not np.any(np.asarray(k, dtype=float)):
                 continue  # uncalibrated, as a driver publishes before calibration: the given camera stands in
-            key = (msg.width, msg.height, str(msg.distortion_model), tuple(_field(msg, "k")), tuple(_field(msg, "d")))
+            key = (msg.width, msg.height, str(msg.distortion_model), tuple(k), tuple(d))
             if key not in seen:
                 seen[key] = camera_from_message(msg, source)
                 differs = None if self.given is None else camera_disagreement(seen[key], self.given)
