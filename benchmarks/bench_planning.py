@@ -212,7 +212,6 @@ def main(argv=None) -> int:
     if args.noise:
         if args.fisheye:
             planning_fisheye.measure_noise_table()
-            planning_fisheye.measure_noise_table(80, 12, 200.0)
         else:
             measure_noise_table()
         return 0

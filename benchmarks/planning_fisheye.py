@@ -24,11 +24,12 @@ import numpy as np
 import fidlearn
 from fidlearn import Camera, MarkerMap, look_at, predict_accuracy, render_scene
 from fidlearn.errors import FidlearnError
+from fidlearn.planning import noise
 
 try:  # run from bench_planning.py as a script (benchmarks/ on the path) or imported as benchmarks.planning_fisheye
-    from planning_walls import RENDER, print_noise_table, wall_map
+    from planning_walls import RENDER, wall_map
 except ImportError:
-    from benchmarks.planning_walls import RENDER, print_noise_table, wall_map
+    from benchmarks.planning_walls import RENDER, wall_map
 
 W, H = 800, 600
 F_FE = (W / 2) / math.radians(80)
@@ -154,15 +155,23 @@ def report(n_scenes: int = 40, n_seeds: int = 1) -> None:
     )
 
 
-def measure_noise_table(n_scenes: int = 150, seed: int = 11, size_mm: float = 80.0) -> None:
-    """The fisheye table of ``fidlearn.planning.noise`` (``FISHEYE_NOISE_SIGMA_PX``): corner error against the
-    apparent marker side, on walls of 1 to 12 markers seen as the groups see them (other seeds), every detected
-    marker's corners as ``locate`` refines them (the "edges" refinement, then the sides fitted as the lens bends
-    them, ``fidlearn._fisheye_edges.refine_edges_fisheye``) against the truth."""
+def measure_noise_table() -> None:
+    """The fisheye tables of ``fidlearn.planning._fisheye_noise``: per apparent marker side, the line noise
+    (``FISHEYE_NOISE_SIGMA_PX``) and the outline's common offset (``FISHEYE_EDGE_OFFSET_PX``, its spread, and
+    ``FISHEYE_EDGE_BIAS_PX``, its median), on walls of 1 to 12 markers of 80 mm and of 1 to 4 of 200 mm seen as the
+    groups see them (other seeds), every detected marker's corners as ``locate`` refines them (the "edges"
+    refinement, then the sides fitted as the lens bends them, ``fidlearn._fisheye_edges.refine_edges_fisheye``)
+    against the truth (:func:`print_fisheye_noise_table`)."""
+    small, large = _corner_errors(150, 11, 80.0), _corner_errors(80, 12, 200.0)
+    print_fisheye_noise_table(np.concatenate([small[0], large[0]]), np.concatenate([small[1], large[1]]))
+
+
+def _corner_errors(n_scenes: int, seed: int, size_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(true corners, their errors)`` (N, 4, 2) of every marker detected in ``n_scenes`` rendered walls."""
     from fidlearn._fisheye_edges import refine_edges_fisheye
 
     rng = np.random.default_rng(seed)
-    sides, errs = [], []
+    truths, errs = [], []
     for k in range(n_scenes):
         world = wall_map(rng, int(rng.integers(1, 13 if size_mm <= 80 else 5)), size_mm)
         rendered = render_scene(world, FISHEYE, scene(rng, world), seed=k, **RENDER)
@@ -171,7 +180,88 @@ def measure_noise_table(n_scenes: int = 150, seed: int = 11, size_mm: float = 80
             continue
         fixed = refine_edges_fisheye(rendered.image, np.stack([d.corners_px for d in dets]), FISHEYE, 7)
         for d, c in zip(dets, fixed):
-            t = rendered.truth[d.id]
-            sides.append(float(np.mean(np.linalg.norm(t - np.roll(t, 1, axis=0), axis=1))))
-            errs.append((c - t).ravel())
-    print_noise_table(sides, errs)
+            truths.append(rendered.truth[d.id])
+            errs.append(c - rendered.truth[d.id])
+    return np.array(truths), np.array(errs)
+
+
+def outline_parts(truth: np.ndarray, err: np.ndarray) -> tuple[float, np.ndarray, float]:
+    """``(offset, each side's line statistic (4,), offset's own variance per unit line variance)`` of one marker.
+
+    The corners' error ``err`` (4, 2) at the true corners ``truth`` (4, 2) split, by generalized least squares
+    under the line model of ``noise.corner_covariance`` (unit corner noise), into a common outward offset of the
+    four sides (px, ``_corner_lines.edge_offset_motion``) and the rest; each side's statistic is the rest's two
+    line-end motions along that side's normal, their squared Mahalanobis norm under the model's line-end
+    covariance (chi-square with 2 degrees of freedom times the side's variance in units of corner variance).
+    """
+    from fidlearn.planning._corner_lines import edge_offset_motion, line_end_matrix
+
+    C1 = noise.corner_covariance(truth, 1.0)
+    v = edge_offset_motion(truth)
+    Ci_v, e = np.linalg.solve(C1, v), err.ravel()
+    info = float(v @ Ci_v)
+    offset = float(Ci_v @ e) / info
+    M = line_end_matrix(truth)
+    S = M @ C1 @ M.T  # the line ends' covariance at unit corner noise: blocks of LINE_END_COVARIANCE
+    d = (M @ (e - offset * v)).reshape(4, 2)
+    stats = [float(d[k] @ np.linalg.solve(S[2 * k : 2 * k + 2, 2 * k : 2 * k + 2], d[k])) for k in range(4)]
+    return offset, np.array(stats), 1.0 / info
+
+
+def _bins(x: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """The index of the nearest of ``centres`` (sorted) for each ``x``, cut half-way between them."""
+    return np.searchsorted((centres[1:] + centres[:-1]) / 2, x)
+
+
+def line_tables(sides: np.ndarray, sweeps: np.ndarray, stats: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(line noise per side bin (px), variance per sweep bin)`` fitted to the sides' statistics (robust).
+
+    Each statistic is ``sigma(side)^2 g(sweep)`` times a chi-square(2); both are fitted by medians in turn
+    (ten rounds), ``g`` at 1 from a sweep of 6 px up, where the pixel phase averages out along the side.
+    """
+    from fidlearn.planning._fisheye_noise import FISHEYE_NOISE_SIDE_PX, FISHEYE_SWEEP_PX
+
+    chi2_2_median = 2.0 * math.log(2.0)
+    b_side, b_sweep = _bins(sides, FISHEYE_NOISE_SIDE_PX), _bins(sweeps, FISHEYE_SWEEP_PX)
+    var, g = np.ones(len(FISHEYE_NOISE_SIDE_PX)), np.ones(len(FISHEYE_SWEEP_PX))
+    for _ in range(10):
+        for k in range(len(var)):
+            sel = b_side == k
+            var[k] = np.median(stats[sel] / g[b_sweep[sel]]) / chi2_2_median if sel.any() else np.nan
+        for k in range(len(g)):
+            sel = b_sweep == k
+            g[k] = np.median(stats[sel] / var[b_side[sel]]) / chi2_2_median if sel.any() else np.nan
+        g = g / np.nanmean(g[FISHEYE_SWEEP_PX >= 6])
+    return np.sqrt(var), g
+
+
+def print_fisheye_noise_table(truths: np.ndarray, errs: np.ndarray) -> None:
+    """The line noise per side bin and the sides' variance per sweep bin (:func:`line_tables`), and the
+    outline's offset per side bin (its robust spread less what the line noise gives it; its median, a bias)."""
+    from fidlearn.planning._fisheye_noise import FISHEYE_NOISE_SIDE_PX, FISHEYE_SWEEP_PX, side_sweeps_px
+
+    sides = np.array([np.mean(np.linalg.norm(t - np.roll(t, 1, axis=0), axis=1)) for t in truths])
+    parts = [outline_parts(t, e) for t, e in zip(truths, errs)]
+    offset, own = np.array([p[0] for p in parts]), np.array([p[2] for p in parts])
+    sweeps = np.concatenate([side_sweeps_px(t) for t in truths])
+    sigma, g = line_tables(np.repeat(sides, 4), sweeps, np.concatenate([p[1] for p in parts]))
+    b_side = _bins(sides, FISHEYE_NOISE_SIDE_PX)
+    print(
+        "| side (px) | markers | corner RMS per axis (px) | line noise (px) | outline offset sd (px) | "
+        "outline offset median (px) |\n|---|---|---|---|---|---|"
+    )
+    for k, side in enumerate(FISHEYE_NOISE_SIDE_PX):
+        sel = b_side == k
+        if not sel.any():
+            print(f"| {side:.0f} | 0 | - | - | - | - |")
+            continue
+        spread = (1.4826 * float(np.median(np.abs(offset[sel] - np.median(offset[sel]))))) ** 2
+        spread -= sigma[k] ** 2 * float(np.median(own[sel]))
+        print(
+            f"| {side:.0f} | {int(sel.sum())} | {float(np.sqrt(np.mean(errs[sel] ** 2))):.3f} | {sigma[k]:.3f} | "
+            f"{math.sqrt(max(spread, 0.0)):.3f} | {float(np.median(offset[sel])):+.3f} |"
+        )
+    b_sweep = _bins(sweeps, FISHEYE_SWEEP_PX)
+    print("\n| sweep (px) | sides | line variance |\n|---|---|---|")
+    for k, sw in enumerate(FISHEYE_SWEEP_PX):
+        print(f"| {sw:g} | {int(np.sum(b_sweep == k))} | {g[k]:.2f} |")

@@ -51,9 +51,12 @@ def test_the_fisheye_pose_jacobian_is_the_projections_derivative():
 
 @pytest.fixture(scope="module")
 def rendered():
-    """Thirty scenes of 2 to 4 and of 5 to 12 markers (scene seed 7), one picture each (ten gave medians 0.70-1.66
-    times the measured as the corner noise model changed by less than its uncertainty)."""
-    return pf.measure((7,), 30, 1, groups=((2, 4), (5, 12)))
+    """Thirty scenes of one marker, of 2 to 4 and of 5 to 12 (scene seed 7), one picture each (ten gave medians
+    0.70-1.66 times the measured as the corner noise model changed by less than its uncertainty). The lone markers'
+    errors are the tail's test: with one sigma for every side (the sides along the pixel rows three times noisier
+    unforeseen) and no outline offset, their median was predicted 1.4 times too large and their RMS 4 to 6 times
+    too small (a flip predicted at 0 %)."""
+    return pf.measure((7,), 30, 1, groups=((1, 1), (2, 4), (5, 12)))
 
 
 def test_the_markers_predicted_found_are_those_detected(rendered):
@@ -70,6 +73,59 @@ def test_the_predicted_median_error_is_the_measured_one(rendered):
     rms = [pf.figures(r)["rms"] for r in rendered.values()]
     for q in rms:
         assert 0.7 <= q <= 1.4
+
+
+def test_a_side_along_the_pixel_rows_is_noisier_than_a_tilted_one():
+    from fidlearn.planning._fisheye_noise import side_sweeps_px, side_variance
+    from fidlearn.planning.noise import corner_covariance
+
+    level = np.array([[100.0, 100.0], [130.0, 100.2], [130.0, 130.0], [100.2, 130.0]])  # top, bottom along the rows
+    c, s_ = math.cos(math.radians(20)), math.sin(math.radians(20))
+    turned = (level - 115.0) @ np.array([[c, -s_], [s_, c]]).T + 115.0  # every side 20 degrees off the axes
+    np.testing.assert_allclose(side_sweeps_px(level), [0.2, 0.0, 0.0, 0.2], atol=1e-9)
+    np.testing.assert_allclose(side_sweeps_px(turned), 30 * s_, rtol=0.02)
+    assert side_variance(level).min() > 10.0  # the pixel phase does not average out along those sides
+    assert np.all(side_variance(turned) < 1.5)
+    # a side's variance moves that side's line: the top corners' y, not the left corners' x
+    flat = corner_covariance(level, 0.02)
+    np.testing.assert_allclose(corner_covariance(level, 0.02, np.ones(4)), flat, rtol=1e-12)
+    top = corner_covariance(level, 0.02, [9.0, 1.0, 1.0, 1.0])
+    assert top[1, 1] > 3 * flat[1, 1]
+    assert top[3, 3] > 3 * flat[3, 3]
+    assert top[6, 6] == pytest.approx(flat[6, 6], rel=0.05)  # the bottom-left corner's x: left and bottom sides
+
+
+def test_the_outline_offset_moves_the_corners_out_along_both_sides():
+    from fidlearn.planning._corner_lines import edge_offset_covariance, edge_offset_motion
+
+    square = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
+    np.testing.assert_allclose(edge_offset_motion(square).reshape(4, 2), [[-1, -1], [1, -1], [1, 1], [-1, 1]])
+    grown = square + 0.05 * edge_offset_motion(square).reshape(4, 2)  # 0.05 px out on every side
+    np.testing.assert_allclose(grown[2] - grown[0], [10.1, 10.1])
+    kite = np.array([[0.0, 0.0], [12.0, 1.0], [11.0, 9.0], [-1.0, 10.0]])
+    v = edge_offset_motion(kite).reshape(4, 2)
+    for k in range(4):  # each side's line moves 1 px along its outward normal at both ends
+        side = kite[(k + 1) % 4] - kite[k]
+        out = np.array([side[1], -side[0]]) / np.linalg.norm(side)
+        assert v[k] @ out == pytest.approx(1.0)
+        assert v[(k + 1) % 4] @ out == pytest.approx(1.0)
+    assert np.linalg.matrix_rank(edge_offset_covariance(kite, 0.01)) == 1
+
+
+def test_the_line_tables_recover_a_known_noise_from_each_sides_statistic():
+    """The benchmark's fit of the fisheye tables (line noise per side, variance per sweep) on statistics drawn from
+    known tables: chi-square(2) times sigma(side)^2 g(sweep)."""
+    from fidlearn.planning._fisheye_noise import FISHEYE_NOISE_SIDE_PX, FISHEYE_SWEEP_PX
+
+    rng = np.random.default_rng(4)
+    sigma = np.linspace(0.03, 0.015, len(FISHEYE_NOISE_SIDE_PX))
+    g = np.where(FISHEYE_SWEEP_PX < 1.5, 20.0, np.where(FISHEYE_SWEEP_PX < 3, 4.0, 1.0))
+    ks, kw = rng.integers(0, len(sigma), 40_000), rng.integers(0, len(g), 40_000)
+    sides, sweeps = FISHEYE_NOISE_SIDE_PX[ks], FISHEYE_SWEEP_PX[kw]
+    stats = sigma[ks] ** 2 * g[kw] * rng.chisquare(2, len(ks))
+    got_sigma, got_g = pf.line_tables(sides, sweeps, stats)
+    np.testing.assert_allclose(got_sigma, sigma, rtol=0.06)
+    np.testing.assert_allclose(got_g, g, rtol=0.12)
 
 
 def test_visibility_follows_the_fisheye_and_not_the_pinhole():

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import PoseError
 from ._checks import check_number, float_array
+from ._corner_lines import line_end_matrix
 from ._fisheye_noise import FISHEYE_NOISE_SIDE_PX, FISHEYE_NOISE_SIGMA_PX
 
 #: Apparent marker side (px, mean of the four sides) at which the corner noise was measured ...
@@ -67,8 +68,9 @@ def corner_sigma_px(side_px: float | np.ndarray, model: str = "pinhole") -> floa
     """Predicted RMS corner error per axis (px) of a marker whose sides measure ``side_px``.
 
     Linear interpolation of the measured table (:data:`NOISE_SIDE_PX`,
-    :data:`NOISE_SIGMA_PX`; a fisheye's :data:`FISHEYE_NOISE_SIDE_PX`, :data:`FISHEYE_NOISE_SIGMA_PX`),
-    held constant outside it.
+    :data:`NOISE_SIGMA_PX`; a fisheye's :data:`FISHEYE_NOISE_SIDE_PX`, :data:`FISHEYE_NOISE_SIGMA_PX`, the noise
+    of its sides' lines alone, beside which its outline moves as one, :mod:`._fisheye_noise`), held constant
+    outside it.
 
     Parameters
     ----------
@@ -85,7 +87,7 @@ def corner_sigma_px(side_px: float | np.ndarray, model: str = "pinhole") -> floa
     Examples
     --------
     >>> round(float(corner_sigma_px(50.0)), 3), round(float(corner_sigma_px(50.0, "fisheye")), 3)
-    (0.041, 0.021)
+    (0.041, 0.018)
 
     Raises
     ------
@@ -142,7 +144,7 @@ def min_perimeter_px(image_size: tuple[int, int]) -> float:
     return max(DECODE_MIN_PERIMETER_PX, PERIMETER_RATE * PERIMETER_RULE_SLACK * max(image_size))
 
 
-def corner_covariance(corners_px: np.ndarray, corner_sigma_px: float) -> np.ndarray:
+def corner_covariance(corners_px: np.ndarray, corner_sigma_px: float, side_variance=None) -> np.ndarray:
     """Joint covariance of one marker's four corners, as the ``edges`` refinement makes them.
 
     Each side's line is fitted to edge points spread along it: its mean offset has a variance
@@ -162,6 +164,9 @@ def corner_covariance(corners_px: np.ndarray, corner_sigma_px: float) -> np.ndar
         The marker's corners in the picture (px), in order around it (TL, TR, BR, BL).
     corner_sigma_px : float
         Corner noise per axis (px).
+    side_variance : array-like, shape (4,), optional
+        Each side's line variance (side ``k`` from corner ``k`` to ``k + 1``) against a side at 1, whose marker's
+        corner noise ``corner_sigma_px`` is; all alike by default (a fisheye's: :mod:`._fisheye_noise`).
 
     Returns
     -------
@@ -184,22 +189,16 @@ def corner_covariance(corners_px: np.ndarray, corner_sigma_px: float) -> np.ndar
     """
     q = float_array(corners_px, "corners_px", (4, 2), PoseError)
     corner_sigma_px = check_number(corner_sigma_px, "corner_sigma_px", 0.0, 1e6, PoseError, " px")
-    side = np.roll(q, -1, axis=0) - q  # side k from corner k to corner k + 1
-    normal = np.column_stack([-side[:, 1], side[:, 0]]) / np.linalg.norm(side, axis=1)[:, None]
-    # rows: the displacement of side k's line at its start (corner k) and at its end (corner k + 1)
-    M = np.zeros((8, 8))
-    for k in range(4):
-        j = (k + 1) % 4
-        M[2 * k, 2 * k : 2 * k + 2] = normal[k]
-        M[2 * k + 1, 2 * j : 2 * j + 2] = normal[k]
     S = np.kron(np.eye(4), LINE_END_COVARIANCE)
     try:
-        Mi = np.linalg.inv(M)
+        Mi = np.linalg.inv(line_end_matrix(q))
     except np.linalg.LinAlgError:  # a degenerate quad: no line model, independent corners
         return float(corner_sigma_px) ** 2 * np.eye(8)
     C = Mi @ S @ Mi.T
-    C = (C + C.T) / 2
-    return C * (8.0 * float(corner_sigma_px) ** 2 / np.trace(C))
+    scale = 8.0 * float(corner_sigma_px) ** 2 / np.trace(C)
+    if side_variance is not None:
+        C = Mi @ np.kron(np.diag(np.asarray(side_variance, dtype=float)), LINE_END_COVARIANCE) @ Mi.T
+    return (C + C.T) / 2 * scale
 
 
 def marker_shift_covariance(shift_px: float) -> np.ndarray:

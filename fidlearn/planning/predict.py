@@ -34,7 +34,8 @@ from ..markermap import MarkerMap
 from ..pose import pose_jacobian
 from . import finding, noise, sampling
 from ._checks import _check_px, _check_rel
-from ._fisheye_noise import FISHEYE_MARKER_SHIFT_PX
+from ._fisheye_noise import edge_offset_px, side_variance
+from ._noise_model import covariance_and_bias
 from .flip import FLIP_MIN_ANGLE_DEG, _flip, flip_probability
 
 __all__ = ["Prediction", "predict_accuracy", "flip_probability", "FLIP_MIN_ANGLE_DEG"]
@@ -232,18 +233,6 @@ def _beyond_the_lens(pc: np.ndarray, camera: Camera) -> bool:
     return bool(np.any(ideal < -0.5 * max(w, h)) or np.any(ideal > 1.5 * max(w, h)))
 
 
-def _least_squares_covariance(J: np.ndarray, JtJ: np.ndarray, blocks: list) -> np.ndarray:
-    """Covariance ``A J^T S J A`` (``A = (J^T J)^-1``) of an unweighted least-squares fit.
-
-    ``J`` is (8M, 6), the rows of M markers' corners; ``blocks`` their (8, 8) corner covariances.
-    """
-    Jm = J.reshape(len(blocks), 8, 6)
-    middle = np.einsum("mia,mij,mjb->ab", Jm, np.asarray(blocks), Jm)
-    A = np.linalg.inv(JtJ)
-    cov = A @ middle @ A
-    return (cov + cov.T) / 2
-
-
 def predict_accuracy(
     marker_map: MarkerMap,
     camera: Camera,
@@ -270,8 +259,8 @@ def predict_accuracy(
     corner_sigma_px : float, optional
         Corner noise (px per axis) for every marker. By default it depends on each marker's
         apparent size, as measured on fidlearn's renders (:func:`noise.corner_sigma_px`; a fisheye's
-        own table, with a shift of each marker's corners together,
-        :data:`~fidlearn.planning._fisheye_noise.FISHEYE_MARKER_SHIFT_PX`, added to ``marker_shift_px``);
+        own table of its sides' lines, with the outline's offset, the four sides out or in together,
+        its spread and its bias, :mod:`fidlearn.planning._fisheye_noise`);
         for real photos give your own camera's, with ``marker_shift_px``, both from a pose of
         your own with many markers (:func:`noise.noise_from_pose`).
         Either way the corners of one marker move together as the ``edges`` refinement makes
@@ -345,50 +334,6 @@ def predict_accuracy(
     )
 
 
-def _size_motion(marker_map: MarkerMap, ids: list[int], J: np.ndarray, about_centre: bool = False) -> np.ndarray:
-    """(M, 8) pixel motion of each marker's corners per unit of relative size, growing from its top-left
-    corner (or its centre).
-
-    ``J``'s camera-centre columns are minus the corners' pixels against their world position.
-    """
-    corners = [marker_map.marker_corners(i) for i in ids]
-    grow = np.concatenate([c - (c.mean(axis=0) if about_centre else c[0]) for c in corners])
-    u = -np.einsum("nij,nj->ni", J.reshape(-1, 2, 6)[:, :, 3:], grow)
-    return u.reshape(len(ids), 8)
-
-
-def _covariance_and_bias(
-    marker_map: MarkerMap,
-    ids: list[int],
-    seen: dict,
-    sigmas: dict,
-    J: np.ndarray,
-    JtJ: np.ndarray,
-    shift_px: float,
-    size_rel_std: float,
-    size_rel_std_each: float,
-    size_rel_error: float,
-) -> tuple[np.ndarray, np.ndarray, list[np.ndarray], np.ndarray]:
-    """The pose's 6x6 covariance from every part of the noise model, the camera position's bias (mm) from
-    the markers' known common size error, each marker's (8, 8) corner covariance and the camera position's
-    (3, 3) covariance from the common size spread alone."""
-    blocks = [noise.corner_covariance(seen[i], sigmas[i]) + noise.marker_shift_covariance(shift_px) for i in ids]
-    u = _size_motion(marker_map, ids, J) if size_rel_std or size_rel_std_each else np.zeros((len(ids), 8))
-    if size_rel_std_each:
-        blocks = [b + size_rel_std_each**2 * np.outer(um, um) for b, um in zip(blocks, u)]
-    cov = _least_squares_covariance(J, JtJ, blocks)
-    common = np.zeros((3, 3))
-    if size_rel_std:
-        v = np.linalg.solve(JtJ, J.T @ u.ravel())
-        cov = cov + size_rel_std**2 * np.outer(v, v)
-        common = size_rel_std**2 * np.outer(v[3:], v[3:])
-    bias = np.zeros(3)
-    if size_rel_error:
-        u_centre = _size_motion(marker_map, ids, J, about_centre=True)
-        bias = size_rel_error * np.linalg.solve(JtJ, J.T @ u_centre.ravel())[3:]
-    return cov, bias, blocks, common
-
-
 def _predict(
     marker_map: MarkerMap,
     camera: Camera,
@@ -416,9 +361,10 @@ def _predict(
     if not ids:
         why = "; ".join(f"{i}: {r}" for i, r in sorted(lost.items())) or "the map has no markers"
         return Prediction(T, [], {}, {}, None, np.full(3, np.inf), math.inf, 0.0, f"no marker found ({why})", lost)
-    if fixed is None and camera.model == "fisheye":  # the default model of a fisheye's corners: a shift of each marker
-        shift_px = math.hypot(shift_px, FISHEYE_MARKER_SHIFT_PX)
-    model = (shift_px, size_rel_std, size_rel_std_each, size_rel_error)
+    # the default model of a fisheye's corners: each side's line (as it lies on the pixel grid) and the outline's offset
+    fisheye = fixed is None and camera.model == "fisheye"
+    edges = {i: (*edge_offset_px(sides[i]), side_variance(seen[i])) for i in ids} if fisheye else {}
+    model = (shift_px, size_rel_std, size_rel_std_each, size_rel_error, edges)
     full = _pose_model(marker_map, camera, T, ids, seen, sigmas, model, with_flip)
     if full is None:
         why = "the markers found do not fix the pose"
@@ -483,7 +429,7 @@ def _pose_model(
     d = np.sqrt(np.diag(JtJ))
     if np.any(d <= 0) or np.linalg.cond(JtJ / np.outer(d, d)) > 1e12:  # columns in rad and mm: compare scaled
         return None
-    cov, bias, blocks, common = _covariance_and_bias(marker_map, ids, seen, sigmas, J, JtJ, *model)
+    cov, bias, blocks, common = covariance_and_bias(marker_map, ids, seen, sigmas, J, JtJ, *model)
     p_flip, C_other = _flip(P, px, camera, s, blocks) if with_flip else (0.0, np.full(3, np.nan))
     rotation_std_deg = math.degrees(math.sqrt(max(float(np.max(np.diag(cov)[:3])), 0.0)))
     errors = sampling._position_errors(
