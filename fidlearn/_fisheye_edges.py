@@ -128,9 +128,10 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
     with np.errstate(invalid="ignore", divide="ignore"):
         r = _rays(C, camera)
         P, nz = _side_curves(C, r, camera, t)
-        pts = P[..., None] + (h[:, None, None, None] * v) * nz[..., None]
-        ok = np.isfinite(pts).all(axis=(1, 2, 3))
-        maps = np.where(np.isfinite(pts), pts, -10.0).astype(np.complex64).view(np.float32)
+        pts = (P[..., None] + (h[:, None, None, None] * v) * nz[..., None]).astype(np.complex64)
+        finite = np.isfinite(pts)
+        ok = finite.all(axis=(1, 2, 3))
+        maps = (pts if ok.all() else np.where(finite, pts, np.complex64(-10.0))).view(np.float32)
         prof = cv2.remap(gray, maps.reshape(len(C) * 4, -1, 2), None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
         prof = prof.reshape(len(C), 4, len(u), len(v)).astype(np.float32)
         prof, dark, light, _ = _levels(prof, False, 1.0)
