@@ -189,8 +189,10 @@ def _fit_planes(E: np.ndarray, w: np.ndarray, camera: Camera, r: np.ndarray) -> 
     """Corners (M, 4, 2) where planes fitted to each side's edge rays meet, and whether all four sides fitted;
     ``r`` (M, 4, 3): the input corners' rays (which side of the camera each corner is)."""
     rays = _rays(np.stack([E.real, E.imag], axis=-1), camera)  # (M, 4, N, 3)
-    w = np.where(np.isfinite(rays).all(-1), w, 0.0)
-    rays = np.where(np.isfinite(rays), rays, 0.0)
+    finite = np.isfinite(rays)
+    if not finite.all():  # no ray reaches a crossing (or none was found): it has no weight
+        w = np.where(finite.all(-1), w, 0.0)
+        rays = np.where(finite, rays, 0.0)
     _, vec = np.linalg.eigh((rays * w[..., None]).swapaxes(-1, -2) @ rays)
     normal = vec[..., 0]  # (M, 4, 3): the plane through the camera that the side's rays lie in
     X = np.cross(normal[:, _PREV], normal)  # corner k: sides k - 1 and k
