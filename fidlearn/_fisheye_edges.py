@@ -128,9 +128,10 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
     with np.errstate(invalid="ignore", divide="ignore"):
         r = _rays(C, camera)
         P, nz = _side_curves(C, r, camera, t)
-        pts = P[..., None] + (h[:, None, None, None] * v) * nz[..., None]
-        ok = np.isfinite(pts).all(axis=(1, 2, 3))
-        maps = np.where(np.isfinite(pts), pts, -10.0).astype(np.complex64).view(np.float32)
+        pts = (P[..., None] + (h[:, None, None, None] * v) * nz[..., None]).astype(np.complex64)
+        finite = np.isfinite(pts)
+        ok = finite.all(axis=(1, 2, 3))
+        maps = (pts if ok.all() else np.where(finite, pts, np.complex64(-10.0))).view(np.float32)
         prof = cv2.remap(gray, maps.reshape(len(C) * 4, -1, 2), None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
         prof = prof.reshape(len(C), 4, len(u), len(v)).astype(np.float32)
         prof, dark, light, _ = _levels(prof, False, 1.0)
@@ -188,8 +189,10 @@ def _fit_planes(E: np.ndarray, w: np.ndarray, camera: Camera, r: np.ndarray) -> 
     """Corners (M, 4, 2) where planes fitted to each side's edge rays meet, and whether all four sides fitted;
     ``r`` (M, 4, 3): the input corners' rays (which side of the camera each corner is)."""
     rays = _rays(np.stack([E.real, E.imag], axis=-1), camera)  # (M, 4, N, 3)
-    w = np.where(np.isfinite(rays).all(-1), w, 0.0)
-    rays = np.where(np.isfinite(rays), rays, 0.0)
+    finite = np.isfinite(rays)
+    if not finite.all():  # no ray reaches a crossing (or none was found): it has no weight
+        w = np.where(finite.all(-1), w, 0.0)
+        rays = np.where(finite, rays, 0.0)
     _, vec = np.linalg.eigh((rays * w[..., None]).swapaxes(-1, -2) @ rays)
     normal = vec[..., 0]  # (M, 4, 3): the plane through the camera that the side's rays lie in
     X = np.cross(normal[:, _PREV], normal)  # corner k: sides k - 1 and k

@@ -295,7 +295,10 @@ class _Data:
 def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate], method_used: str) -> Pose:
     """The :class:`Pose` of the best candidate, with its noise, covariance and alternative."""
     obs, camera, best = data.obs, data.camera, cands[0]
-    r0, J0 = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, True)
+    if best.J is not None and best.r is not None:  # a fisheye's weighted fit computed them there
+        r0, J0 = best.r, best.J
+    else:
+        r0, J0 = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, True)
     if best.r is None:
         best.r, best.sse = r0, float(r0 @ r0)
     data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px)
@@ -323,8 +326,7 @@ def _weighted(data: _Data, c: _Candidate) -> _Candidate:
     """Candidate ``c`` refined to fit the fisheye's picture pixels (:func:`~._inputs._lens_refine`)."""
     obs, camera = data.obs, data.camera
     assert data.lens_D is not None, "set for a fisheye before the weighted fit"
-    R_wc, C, data.weighted_J = _lens_refine(obs.obj, obs.img, camera, data.lens_D, c.R_wc, c.C)
-    r, J = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, True)
+    R_wc, C, data.weighted_J, r, J = _lens_refine(obs.obj, obs.img, camera, data.lens_D, c.R_wc, c.C)
     data.weighted = _Candidate(R_wc, C, float(r @ r), r, refined=c.refined, JtJ=J.T @ J, J=J)
     return data.weighted
 

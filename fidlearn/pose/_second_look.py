@@ -62,6 +62,8 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
     """The markers of ``missed`` (from :func:`missed_in_view`) found by ``detect_markers`` (the same
     refinement and parameters) in their predicted outline half a cell wider each side, the outside painted
     white; each found with its own id and dictionary, corners in the whole picture's pixels."""
+    if not missed:
+        return []
     gray = as_gray(image)
     border = int(_detector_fields(detector_params)["markerBorderBits"])
     H, W = gray.shape
@@ -69,10 +71,11 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
     if detector_params is not None:
         kw["detector_params"] = detector_params
     found = []
-    for key, name, q in missed:
-        wide = _widened(q, _cv.dictionary_marker_bits(name) + 2 * border)
-        x0, y0 = np.maximum(np.floor(wide.min(axis=0)).astype(int) - 4, 0)
-        x1, y1 = np.minimum(np.ceil(wide.max(axis=0)).astype(int) + 5, [W, H])
+    cells = {name: _cv.dictionary_marker_bits(name) + 2 * border for _, name, _ in missed}
+    wides = _widened(np.array([q for _, _, q in missed]), np.array([cells[name] for _, name, _ in missed]))
+    lows = np.maximum(np.floor(wides.min(axis=1)).astype(int) - 4, 0).tolist()  # one bounding box per marker
+    highs = np.minimum(np.ceil(wides.max(axis=1)).astype(int) + 5, [W, H]).tolist()
+    for (key, name, _), wide, (x0, y0), (x1, y1) in zip(missed, wides, lows, highs):
         inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
         cv2.fillConvexPoly(inside, np.round(wide - (x0, y0)).astype(np.int32), 1)
         crop = np.where(inside > 0, gray[y0:y1, x0:x1], 255).astype(np.uint8)
