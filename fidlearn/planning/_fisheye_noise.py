@@ -12,8 +12,8 @@ through a 160-degree equidistant fisheye at 800 x 600 (walls of 1 to 12 markers 
 ``python benchmarks/bench_planning.py --noise --fisheye``): each marker's corner errors split, by least squares under
 the line model, into the outline's offset and each side's line (chi-square with 2 degrees of freedom times that
 side's variance). A side's variance depends on how it lies on the pixel grid (:data:`FISHEYE_SWEEP_VARIANCE`): up to
-40 times larger along the pixel rows or columns, which made a quarter of the markers three times noisier than the
-rest and the single markers' flips unexpected.
+24 times larger along the pixel rows or columns (40 times with bilinear profiles), which made a quarter of the
+markers several times noisier than the rest and the single markers' flips unexpected.
 """
 
 from __future__ import annotations
@@ -33,16 +33,14 @@ __all__ = [
 FISHEYE_NOISE_SIDE_PX = np.array([11, 13, 15, 18, 22, 27, 33, 40, 50, 65, 85, 110], dtype=float)
 #: ... the lines' noise, as the corner noise (px per axis) of the line model, for sides whose pixel phase averages
 #: out (:data:`FISHEYE_SWEEP_VARIANCE`; fitted with it by medians of each side's chi-square: robust) ...
-FISHEYE_NOISE_SIGMA_PX = np.array([0.075, 0.021, 0.015, 0.012, 0.013, 0.013, 0.013, 0.015, 0.018, 0.023, 0.026, 0.034])
+FISHEYE_NOISE_SIGMA_PX = np.array([0.094, 0.016, 0.012, 0.011, 0.013, 0.012, 0.012, 0.015, 0.021, 0.025, 0.028, 0.037])
 #: ... the spread of the outline's offset beyond what the lines' noise gives it (px, standard deviation; 1.4826
 #: times its median absolute deviation, less the line model's share) ...
-FISHEYE_EDGE_OFFSET_PX = np.array([0.033, 0.018, 0.011, 0.009, 0.006, 0.003, 0.003, 0.0, 0.0, 0.008, 0.006, 0.001])
-#: ... and its median (px, outward positive): the outlines of markers under 20 px are found a little inside the
+FISHEYE_EDGE_OFFSET_PX = np.array([0.030, 0.012, 0.008, 0.005, 0.003, 0.003, 0.002, 0.002, 0.003, 0.007, 0.005, 0.011])
+#: ... and its median (px, outward positive): the outlines of markers under 15 px are found a little inside the
 #: truth, the margin's white squeezed by the lens and blurred into the marker's black; a bias, the same in every
 #: picture of that size, which moves a pose (most of all a lone small marker's distance) rather than spreading it.
-FISHEYE_EDGE_BIAS_PX = np.array(
-    [-0.043, -0.048, -0.030, -0.016, -0.005, 0.001, 0.003, 0.004, 0.007, 0.007, 0.006, 0.013]
-)
+FISHEYE_EDGE_BIAS_PX = np.array([-0.043, -0.015, -0.006, 0.001, 0.001, 0.002, 0.002, 0.003, 0.006, 0.006, 0.001, 0.013])
 
 
 def edge_offset_px(side_px: float) -> tuple[float, float]:
@@ -60,7 +58,7 @@ FISHEYE_SWEEP_PX = np.array([0.25, 0.75, 1.25, 1.75, 2.5, 3.5, 5.0, 8.0, 15.0])
 #: edge crossing is found between pixels by interpolation, which is off by an amount that depends on where the
 #: edge falls between pixel centres; a side along the pixel rows keeps one phase, and its errors add up instead of
 #: averaging out.
-FISHEYE_SWEEP_VARIANCE = np.array([27.66, 40.90, 21.63, 3.97, 4.42, 1.75, 0.96, 0.79, 1.21])
+FISHEYE_SWEEP_VARIANCE = np.array([16.91, 24.18, 12.25, 2.56, 2.79, 1.45, 0.89, 0.84, 1.16])
 
 
 def side_sweeps_px(corners_px: np.ndarray) -> np.ndarray:
