@@ -1,9 +1,13 @@
 """The gross test: tape placements off by more than the room can explain (a typo, a marker on another wall).
 
-First pass, the photos alone: starting from the marker seen in most photos, the photos are
-located and the markers placed in turn (as :func:`initial_values` does from the tape map), then
-adjusted with that marker held, so every marker seen in two photos or more is placed up to the
-gauge (where the room is, which way it faces). A similarity (rotation, translation, scale within
+First pass, the photos alone: every marker seen in two photos or more is placed up to the gauge
+(where the room is, which way it faces) by an adjustment of the photos alone, with one marker held.
+It starts twice: from a chain (from the marker seen in most photos, photos located and markers placed
+in turn, as :func:`initial_values` does from the tape map) and from the cameras the tape map places
+(every marker then placed from the photos); the start whose adjustment fits the photos is kept (see
+:func:`photo_placements`). A chain through small markers far away can take one's mirrored pose and end
+in a false minimum (a mixed room's 80 mm markers); a tape start fails when the tape cannot place the
+photos (most of it wrong). A similarity (rotation, translation, scale within
 ``UNITS_FACTOR_LIMIT``) laying these top-left corners on the tape's is fitted robustly: from
 triples of taped markers (every triple, or ``MAX_TRIPLES`` drawn with a fixed seed), the one that
 most markers agree with (within the threshold), refitted on them. Each taped marker's distance
@@ -29,7 +33,7 @@ from .. import _stats
 from ..errors import MapError, SurveyError
 from ..markermap import MarkerMap
 from ._geometry import marker_sizes, placement_of
-from ._init import UNITS_FACTOR_LIMIT, _units_message, initial_values
+from ._init import UNITS_FACTOR_LIMIT, _place_new, _units_message, initial_values
 from ._inputs import _Photo
 from ._solve import FIRST_SIGMA_PX, _polish, build_problem
 from ._variance import print_scale
@@ -55,16 +59,42 @@ class GrossTest:
 
 
 def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndarray]:
-    """Top-left corners (mm) of the markers seen in two photos or more, from the photos alone (any gauge)."""
-    copies = [_Photo(ph.label, ph.camera, ph.corners) for ph in photos]
+    """Top-left corners (mm) of the markers seen in two photos or more, from the photos alone (any gauge).
+
+    Adjusted from two starts, the photos' own chain and the cameras the tape places (:func:`_chain_start`,
+    :func:`_tape_start`). The one that places more markers (then locates more photos) is kept, unless the
+    other's corners fit the photos better by more than half (RMS): a start that took a marker's mirrored pose
+    ends in a false minimum many times the corner noise.
+    """
     counts: dict[int, int] = {}
-    for ph in copies:
+    for ph in photos:
         for i in ph.corners:
             counts[i] = counts.get(i, 0) + 1
     if not counts:
         return {}
     ref = max(counts, key=lambda i: (counts[i], -i))
     sizes = marker_sizes(tape, [ref, *(i for i in counts if i in tape)])  # the new markers' sides: measured
+    tried = []
+    for start in (_chain_start, _tape_start):
+        placed, cams = start(photos, tape, ref, sizes)
+        if ref in placed and len(placed) >= 2 and len(cams) >= 2:
+            tried.append((*_adjusted(cams, placed, ref, sizes, tape), len(cams)))
+        elif placed:
+            tried.append((math.inf, {i: np.asarray(p, float) for i, (_, p) in placed.items()}, len(cams)))
+    if not tried:
+        return {}
+    kept = max(tried, key=lambda t: (len(t[1]), t[2]))
+    fits = min(tried, key=lambda t: t[0])
+    return fits[1] if fits[0] < 0.5 * kept[0] else kept[1]
+
+
+def _chain_start(photos: list[_Photo], tape: MarkerMap, ref: int, sizes: dict) -> tuple[dict, list[_Photo]]:
+    """``(placed, located photos)`` from the photos alone: a chain from ``ref``.
+
+    As :func:`initial_values` does from a tape map, from ``ref`` alone: photos located from the markers
+    placed, markers placed from the photos located, in turn.
+    """
+    copies = [_Photo(ph.label, ph.camera, ph.corners) for ph in photos]
     start = MarkerMap(
         {ref: placement_of(ref, np.eye(3), np.zeros(3), sizes[ref])},
         tape.marker_size_mm,
@@ -73,15 +103,38 @@ def photo_placements(photos: list[_Photo], tape: MarkerMap) -> dict[int, np.ndar
         source="the photos",
     )
     placed, _ = initial_values(copies, start, sizes)
-    cams = [ph for ph in copies if ph.T_world_camera is not None]
-    if len(cams) < 2 or len(placed) < 2:
-        return {i: np.asarray(p, float) for i, (_, p) in placed.items()}
+    return placed, [ph for ph in copies if ph.T_world_camera is not None]
+
+
+def _tape_start(photos: list[_Photo], tape: MarkerMap, _ref: int, sizes: dict) -> tuple[dict, list[_Photo]]:
+    """``(placed, located photos)``: the photos located from the tape map, every marker then placed from them.
+
+    The tape only starts the cameras (:func:`fidlearn.estimate_pose` leaves a marker far off out); each
+    marker's placement is the photos' (:func:`_place_new`), so a tape placement metres off moves nothing.
+    """
+    copies = [_Photo(ph.label, ph.camera, ph.corners) for ph in photos]
+    initial_values(copies, tape, sizes)
+    located = [ph for ph in copies if ph.T_world_camera is not None]
+    placed = {}
+    for i in dict.fromkeys(i for ph in located for i in ph.corners):  # in the order first seen
+        showing = [ph for ph in located if i in ph.corners]
+        cand = _place_new(i, showing, sizes.get(i, tape.marker_size_mm)) if len(showing) >= 2 else None
+        if cand is not None:
+            placed[i] = cand
+    return placed, located
+
+
+def _adjusted(cams: list[_Photo], placed: dict, ref: int, sizes: dict, tape: MarkerMap) -> tuple[float, dict]:
+    """``(reprojection RMS (px), top-left corners)``: the photos alone adjusted, ``ref`` held."""
     slots = [i for i in placed if i != ref] + [ref]
     opts = {"marker_size_mm": tape.marker_size_mm, "sizes": sizes, "sigma_px": FIRST_SIGMA_PX, "sigma_mm": math.inf}
     problem = build_problem(cams, slots, len(slots) - 1, placed, {}, {**opts, "sigma_rot_rad": math.inf})
     x = _polish(problem, np.zeros(problem.n_params))  # Gauss-Newton: the start is the photos' own
     _, _, _, p_mark = problem.poses(x)
-    return {i: p_mark[k] for k, i in enumerate(slots) if np.all(np.isfinite(p_mark[k]))}
+    rms = float(np.sqrt(np.mean(problem.reprojection_px(x) ** 2)))
+    return rms if math.isfinite(rms) else math.inf, {
+        i: p_mark[k] for k, i in enumerate(slots) if np.all(np.isfinite(p_mark[k]))
+    }
 
 
 def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float | None) -> GrossTest:
