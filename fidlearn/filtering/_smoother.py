@@ -110,6 +110,8 @@ def _relearnt(first: _Track, T_camera_base) -> _Track:
     log_q = np.mean(np.log(np.array(learnt, dtype=float)), axis=0)
     track = _Track(None, T_camera_base, record=True)
     track.learner = NoiseLearner((float(np.exp(log_q[0])), float(np.exp(log_q[1]))), frozen=True)
+    assert first.learner is not None
+    track.learner.share = first.learner.share  # the share learnt by the end of the run
     return track
 
 
@@ -133,4 +135,6 @@ def _backward(steps: list[_Step]) -> list[kf._State]:
 
 def _smoothed(track: _Track, state: kf._State, step: _Step) -> TrackedPose:
     o = step.out
-    return track.output(state, "smoothed", reason=o.reason, d2=o.mahalanobis2, pose=o.pose, flipped=o.flip_resolved)
+    return track.output(
+        state, "smoothed", reason=o.reason, d2=o.mahalanobis2, pose=o.pose, flipped=o.flip_resolved, shared=step.shared
+    )
