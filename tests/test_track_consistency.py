@@ -76,8 +76,8 @@ def test_persistent_errors_leave_the_default_track_consistent(seed):
 def test_the_smoother_stays_consistent_on_persistent_errors():
     truth, poses = _drive(0)
     smoothed = smooth(poses, [k / FPS for k in range(len(poses))])
-    # never overconfident; cautious here (100 %): the smoothed states keep the shared part the forward pass held
-    assert _inside(smoothed, truth) >= 0.95
+    # the smoothed states keep the shared part, weighed on both sides (96 % here; 92-99 % on seeds 0-3)
+    assert 0.90 <= _inside(smoothed, truth) <= 0.98
 
 
 def test_white_errors_are_not_called_shared():

@@ -272,8 +272,7 @@ class _Track:
         filtered, K = kf.update(predicted, r, S, cov)
         root = self._shared_root(cov)
         if root is not None:  # the shared error enters the track as the frame's does, through the gain
-            K6 = K[:6]
-            self.shared_root = self.shared_root - K6 @ self.shared_root + K6 @ root
+            self.shared_root = self.shared_root + K[:6] @ (root - self.shared_root)
         if self.learner is not None:
             self.learner.learn_share(d2)
         return self._keep(F, predicted, filtered, "measured", d2=nis, pose=chosen, flipped=flipped)
@@ -309,7 +308,7 @@ class _Track:
         assert self.state is not None
         q_lin, q_ang = self.q
         if t > self.state.t:  # the error the frames share fades as the view changes
-            self.shared_root = self.shared_root * math.exp(-(t - self.state.t) / SHARED_ERROR_TIME_S)
+            self.shared_root *= math.exp(-(t - self.state.t) / SHARED_ERROR_TIME_S)
         if self.learner is not None and not well_determined:
             q_lin, q_ang = max(q_lin, PROCESS_NOISE_START[0]), max(q_ang, PROCESS_NOISE_START[1])
         if odo is None:
@@ -377,7 +376,8 @@ class _Track:
     def output(
         self, s: kf._State, status: str, *, reason="", d2=None, pose=None, flipped=False, shared=None
     ) -> TrackedPose:
-        """The TrackedPose of state ``s`` (its covariance plus ``shared`` (6, 6), the error shared with the frames)."""
+        """The TrackedPose of state ``s``: its covariance read at the learnt share, plus ``shared`` (6, 6), the
+        error shared with the frames."""
         T = s.T()
         cov = (0.5 * self.share) * (s.P[:6, :6] + s.P[:6, :6].T)
         if shared is not None:
