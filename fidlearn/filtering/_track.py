@@ -307,7 +307,7 @@ class _Track:
         well-determined frames need not hold while the frames cannot check it."""
         assert self.state is not None
         q_lin, q_ang = self.q
-        if t > self.state.t:  # the error the frames share fades as the view changes
+        if self.learner is not None and t > self.state.t:  # the error the frames share fades as the view changes
             self.shared_root *= math.exp(-(t - self.state.t) / SHARED_ERROR_TIME_S)
         if self.learner is not None and not well_determined:
             q_lin, q_ang = max(q_lin, PROCESS_NOISE_START[0]), max(q_ang, PROCESS_NOISE_START[1])
@@ -329,7 +329,7 @@ class _Track:
 
     def _keep(self, F, predicted, filtered, status, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
         self.state = filtered
-        shared = self.shared_root @ self.shared_root.T
+        shared = None if self.learner is None else self.shared_root @ self.shared_root.T
         out = self.output(filtered, status, reason=reason, d2=d2, pose=pose, flipped=flipped, shared=shared)
         if self.steps is not None:
             self.steps.append(_Step(F, predicted, filtered, out, shared))
