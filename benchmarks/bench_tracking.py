@@ -23,6 +23,10 @@ solution than to the truth); the lag (the least-squares tau in ``error = -tau * 
 in frames); how often the truth lies in the 95 % position ellipsoid; the largest error in the
 gap; the odometry's scale the tracker learnt; and the tracker's cost per frame (``update`` alone,
 CPU and wall time, next to locate's).
+
+Then the short scenes of ``tracking_scenes.py``, with the defaults only: four smooth 150-frame drives
+(position RMS of the tracker and the smoother against locate's, coverage, NEES, NIS, flips) and sudden
+turns (frames until the track is back within its steady error or its 95 % region).
 """
 
 from __future__ import annotations
@@ -38,6 +42,11 @@ import fidlearn
 from fidlearn import Camera, MarkerMap, PoseTracker, look_at, render_scene
 from fidlearn.detection import Detection, detect_markers
 from fidlearn.errors import NoMarkersError, PoseError
+
+try:  # run as a script (python benchmarks/bench_tracking.py) or as a module
+    from tracking_scenes import report_scenes, run_scenes
+except ImportError:
+    from benchmarks.tracking_scenes import report_scenes, run_scenes
 
 FPS = 30.0
 SIDE_MM = 300.0
@@ -282,6 +291,7 @@ def report(r: dict) -> bool:
         ("tracking: 2 s without markers bridged with odometry under 50 mm", f"{odo['gap']:.1f} mm", odo["gap"] < 50),
         ("tracking: under 0.2 ms per frame beyond locate", f"{cost_ms:.3f} ms (CPU {cpu_ms:.3f} ms)", cost_ms < 0.2),
     ]  # fmt: skip
+    targets += report_scenes(run_scenes())
     print()
     for what, measured, ok in targets:
         print(f"<!-- target: {what} | {measured} | {'yes' if ok else 'no'} -->")

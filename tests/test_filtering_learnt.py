@@ -65,15 +65,18 @@ def test_the_learnt_noise_smooths_a_drive_and_stays_consistent(smooth_drive):
     one_step = (1 / FPS) ** 1.5 / np.sqrt(3)
     assert q_lin * one_step < 0.1 * sd_lin
     assert q_ang * one_step < 0.1 * sd_ang
-    # NEES against the truth (position, 3 degrees of freedom): the track is as honest as its poses, whose
-    # covariance is far too large on these rendered frames (NEES about 0.2 where 3 is honest) ...
+    # NEES against the truth (position, 3 degrees of freedom): the poses' covariance is far too large on these
+    # rendered frames (NEES about 0.2 where 3 is honest: it holds marker shifts the renders lack). The NIS cannot
+    # tell an error the frames share from none, so the track keeps what it does not see vary as shared: it is
+    # as cautious as its poses, never bolder ...
     assert _nees(poses, truth) < 1.5
-    assert 0.5 * _nees(poses, truth) < _nees(outs, truth) < 2.0 * _nees(poses, truth)
-    # ... and the NIS says so: its mean is below its 95 % band
+    assert _nees(outs, truth) < _nees(poses, truth)
+    # ... and its innovations are consistent: the share of the poses' covariance learnt from them brings the
+    # mean NIS (0.3 with the covariance taken whole) into its 95 % band
     c = tracker.consistency()
     assert c["frames"] == sum(o.status == "measured" for o in outs)
     np.testing.assert_allclose(c["mean_nis"], np.mean([o.mahalanobis2 for o in outs if o.status == "measured"]))
-    assert c["mean_nis"] < c["band"][0]
+    assert c["consistent"], c
 
 
 def test_the_nis_is_in_its_band_when_the_poses_say_their_noise():

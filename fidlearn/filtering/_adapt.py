@@ -8,9 +8,18 @@ prediction carries that noise with the opposite sign (negative correlation). Sca
 noise and the poses' covariance by one factor leaves the gain, hence the correlation, unchanged: the
 correlation fixes the process noise against the poses' covariance as given, whatever its scale (the
 track's covariance is then as honest as the poses'; the NIS, :meth:`PoseTracker.consistency`, says
-how honest). The poses' scale is not learnt here: the innovations cannot see an error the poses share
-from frame to frame, and on the tracking benchmark's drive a scale learnt from the NIS came out 0.32
-and the track's 95 % ellipsoid then held the truth in 71 % of the frames.
+how honest).
+
+The poses' covariance holds two kinds of error: one that varies from frame to frame (corner noise), which
+the track averages away, and one the frames around it share (a marker's shift, the calibration, a bias of
+the corners that changes only as the view does), which no number of frames removes and the innovations do
+not show. So the NIS (with the poses' covariance as given) tells only the first: its mean over 6 is the
+*share* of the covariance that varies (``learn_share``: the mean over the frames so far, then a moving mean
+forgetting at ``SHARE_RATE``), and the rest is taken as shared (:mod:`fidlearn.filtering._track`). The
+track's own gains never change with it (the scale of the poses' covariance and of the process noise
+together does not change a gain): the share only says how the track's covariance and its NIS are read.
+A scale learnt from the NIS alone and put on the whole covariance (the shared part dropped) came out 0.32
+on the tracking benchmark's drive, and the track's 95 % ellipsoid then held the truth in 71 % of the frames.
 
 So, frame after frame (separately for the position, which sets ``q_lin``, and the rotation, which sets
 ``q_ang``): ``log q^2 += ADAPT_RATE * c``, with ``c`` the mean cosine between the new whitened innovation
@@ -49,6 +58,12 @@ LAGS = 2
 ADAPT_RATE = 0.4
 #: A frame further than this from the prediction (6 degrees of freedom, probability 0.99) is a manoeuvre.
 MANOEUVRE_CHI2 = chi2_6_quantile(0.99)
+#: The share of the poses' covariance that varies from frame to frame is the mean of ``d2 / 6`` (``d2`` with the
+#: poses' covariance as given): the mean over the frames so far, then a moving mean that forgets at this rate
+#: (about the last 20 frames) ...
+SHARE_RATE = 0.1
+#: ... within these bounds (above 1: the frames vary more than their covariance says, which is widened).
+SHARE_RANGE = (0.01, 10.0)
 
 
 @dataclass
@@ -84,6 +99,8 @@ class NoiseLearner:
         self.rot = _Block(2 * math.log(start[1]), PROCESS_NOISE_FLOOR[1], PROCESS_NOISE_CEILING[1])
         self.pos = _Block(2 * math.log(start[0]), PROCESS_NOISE_FLOOR[0], PROCESS_NOISE_CEILING[0])
         self.frozen = frozen  # learnt already (the smoother's second pass): the manoeuvres alone remain
+        # the share of the poses' covariance that varies from frame to frame, and the frames that taught it
+        self.share, self.taught = 1.0, 0
 
     @property
     def q(self) -> tuple[float, float]:
@@ -103,6 +120,25 @@ class NoiseLearner:
             e = whiten3([row[i : i + 3] for row in S_rows[i : i + 3]], r_list[i : i + 3])
             if e is not None:
                 block.learn(e)
+
+    def nis(self, d2: float) -> float:
+        """The NIS of a frame whose squared Mahalanobis distance, with the poses' covariance as given, is ``d2``:
+        ``d2 / share``, times ``1 - 2 / k`` (``k`` the degrees of freedom the share was learnt from, 6 per
+        frame, fewer as the moving mean forgets) so that it averages 6 however few frames taught the share
+        (``E[1 / chi2(k)] = 1 / (k - 2)``)."""
+        if self.taught == 0:
+            return d2 / self.share
+        frames = min(self.taught, (2.0 - SHARE_RATE) / SHARE_RATE)
+        return d2 / self.share * (1.0 - 2.0 / (6.0 * frames))
+
+    def learn_share(self, d2: float) -> None:
+        """Take one measured frame's squared Mahalanobis distance ``d2`` from the prediction, made with the
+        poses' covariance as given (the NIS is ``d2 / share``)."""
+        if self.frozen:
+            return
+        self.taught += 1
+        rate = max(1.0 / self.taught, SHARE_RATE)
+        self.share = min(max((1.0 - rate) * self.share + rate * d2 / 6.0, SHARE_RANGE[0]), SHARE_RANGE[1])
 
     def manoeuvre(self, inflation: float) -> None:
         """A frame needed the process noise multiplied by ``inflation`` for one step: keep half of it (in log)."""

@@ -178,14 +178,15 @@ def innovation(s: _State, T_meas: np.ndarray, cov_meas: np.ndarray) -> tuple[np.
     return r, S, d2
 
 
-def update(s: _State, r: np.ndarray, S: np.ndarray, cov_meas: np.ndarray) -> _State:
-    """The state corrected by a pose measurement (residual ``r``, its covariance ``S``); Joseph form."""
+def update(s: _State, r: np.ndarray, S: np.ndarray, cov_meas: np.ndarray) -> tuple[_State, np.ndarray]:
+    """The state corrected by a pose measurement (residual ``r``, its covariance ``S``; Joseph form), and the
+    gain K (13, 6)."""
     K = np.linalg.solve(S, s.P[:6, :]).T  # P H^T S^-1, (13, 6)
     dx = K @ r
     IKH = _I13.copy()
     IKH[:, :6] -= K
     P = IKH @ s.P @ IKH.T + K @ cov_meas @ K.T
-    return boxplus(s, dx, 0.5 * (P + P.T))
+    return boxplus(s, dx, 0.5 * (P + P.T)), K
 
 
 def boxminus(a: _State, b: _State) -> np.ndarray:

@@ -40,7 +40,9 @@ class TrackedPose(_PoseReadouts):
         Why the frame's pose was not used (rejected, no marker, no pose), else ``""``.
     mahalanobis2 : float or None
         Squared Mahalanobis distance (6 degrees of freedom) of the chosen measurement from the
-        prediction, None when there was none.
+        prediction, the NIS, None when there was none. With the learnt noise it is read with the share of
+        the poses' covariance that varies from frame to frame (:class:`PoseTracker`); the gate compares
+        the distance with the covariance as given.
     pose : Pose or None
         The frame's measurement (the chosen solution), None when there was none.
     T_world_base : ndarray, shape (4, 4) or None

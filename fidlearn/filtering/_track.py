@@ -2,6 +2,19 @@
 
 Shared by :class:`~fidlearn.filtering.PoseTracker` (live) and :func:`~fidlearn.filtering.smooth`
 (offline, which keeps every step's prediction for the backward pass).
+
+With the learnt noise (the default) the poses' covariance ``R`` is read as two parts
+(:mod:`fidlearn.filtering._adapt`): ``share * R`` varies from frame to frame and ``(1 - share) * R`` is shared
+with the frames around it. The filter runs on the poses' covariance as given (its gains are those of
+``share * R`` with the process noise scaled alike); its covariance, read at that scale, is the error of the
+varying part, and its NIS is ``d2 / share`` (``d2`` the distance with ``R`` as given, on which the gate and
+the manoeuvre test still work). The shared part enters the track as a frame's error does, through the
+gain: a square root ``L`` of it follows ``L <- (I - K) L + K sqrt(1 - share) chol(R)`` (``K`` the gain's
+pose block; all shared errors taken as one, which an unchanging view makes exact), fades between frames
+with the time constant ``SHARED_ERROR_TIME_S`` as the view changes, and ``L L^T`` is added to the
+covariance the track reports. On the tracking benchmark's drive the NIS with ``R`` as given averaged 4.0
+(frames from several markers: 4.7) while the track held the truth in its 95 % ellipsoid in only 88 % of
+the frames: the frames' errors persist from one to the next, which the innovations cannot see.
 """
 
 from __future__ import annotations
@@ -28,6 +41,10 @@ DEFAULT_PROCESS_NOISE = None
 MAX_TIME_S = 1e12
 #: Largest variance a pose's covariance may hold (rad^2 or mm^2): beyond it the pose says nothing.
 MAX_VARIANCE = 1e30
+#: How long (s) the error the poses share from frame to frame lasts: the time constant of its decay as the
+#: view changes. On the tracking benchmark's drive (and five more seeds of it) 0.3 s left the truth in the
+#: 95 % ellipsoid in 86-97 % of the frames, 1 s in 93-98 % and 3 s in 95-99 %.
+SHARED_ERROR_TIME_S = 1.0
 _I3, _I6 = np.eye(3), np.eye(6)
 
 
@@ -40,6 +57,7 @@ class _Step:
     predicted: kf._State
     filtered: kf._State
     out: TrackedPose
+    shared: np.ndarray | None = None
 
 
 def check_process_noise(process_noise) -> tuple[float, float] | None:
@@ -175,6 +193,22 @@ def alternative(pose: Pose) -> Pose | None:
     return alt
 
 
+def _root(cov: np.ndarray) -> np.ndarray:
+    """A square root ``L`` (6, 6) of a covariance, ``L L^T = cov``: its Cholesky factor, else from its eigenvalues."""
+    try:
+        return np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+        return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def _step(pose: Pose, alt: Pose) -> np.ndarray:
+    """The error-state step (6,) ``[rotation (rad), position (mm)]`` from ``pose`` to ``alt``."""
+    return np.concatenate(
+        [log_so3(alt.T_world_camera[:3, :3] @ pose.T_world_camera[:3, :3].T), alt.position_mm - pose.position_mm]
+    )
+
+
 def _well_determined(pose: Pose | None) -> bool:
     """A pose from several markers that is not ambiguous: one that may teach the motion noise."""
     return pose is not None and not pose.ambiguous and len(pose.marker_ids) > 1
@@ -191,6 +225,7 @@ class _Track:
         self.rejections = 0
         self.steps: list[_Step] | None = [] if record else None
         self.nis_sum, self.nis_count = 0.0, 0
+        self.shared_root = np.zeros((6, 6))  # a square root of the error the frames share (the module's docstring)
 
     @property
     def q(self) -> tuple[float, float]:
@@ -229,12 +264,18 @@ class _Track:
         if d2 > kf.GATE_CHI2:
             return self._reject(F, predicted, pose, t, d2)
         self.rejections = 0
-        self.nis_sum, self.nis_count = self.nis_sum + d2, self.nis_count + 1
         if learner is not None:
             learner.learn(*learnt)
+        nis = d2 if self.learner is None else self.learner.nis(d2)
+        self.nis_sum, self.nis_count = self.nis_sum + nis, self.nis_count + 1
         chosen = alternative(pose) if flipped else pose
-        filtered = kf.update(predicted, r, S, cov)
-        return self._keep(F, predicted, filtered, "measured", d2=d2, pose=chosen, flipped=flipped)
+        filtered, K = kf.update(predicted, r, S, cov)
+        root = self._shared_root(cov)
+        if root is not None:  # the shared error enters the track as the frame's does, through the gain
+            self.shared_root = self.shared_root + K[:6] @ (root - self.shared_root)
+        if self.learner is not None:
+            self.learner.learn_share(d2)
+        return self._keep(F, predicted, filtered, "measured", d2=nis, pose=chosen, flipped=flipped)
 
     def _reject(self, F, predicted: kf._State, pose: Pose, t: float, d2: float) -> TrackedPose:
         """A frame beyond the gate: the prediction is the output (or, after too many, the track restarts)."""
@@ -243,9 +284,10 @@ class _Track:
             return self._start(pose, t, "restarted", None)
         reason = (
             f"disagrees with the track: squared Mahalanobis distance {d2:.1f} > {kf.GATE_CHI2:.1f} "
-            f"(chi-square, 6 degrees of freedom, {kf.GATE_PROBABILITY})"
+            f"(chi-square, 6 degrees of freedom, {kf.GATE_PROBABILITY}; the frame's covariance as given)"
         )
-        return self._keep(F, predicted, predicted, "rejected", reason=reason, d2=d2)
+        nis = d2 if self.learner is None else self.learner.nis(d2)
+        return self._keep(F, predicted, predicted, "rejected", reason=reason, d2=nis)
 
     def _manoeuvre(self, predicted: kf._State, T: np.ndarray, cov: np.ndarray, r: np.ndarray):
         """The prediction with this step's process noise raised until the frame fits (a sudden manoeuvre), and
@@ -265,6 +307,8 @@ class _Track:
         well-determined frames need not hold while the frames cannot check it."""
         assert self.state is not None
         q_lin, q_ang = self.q
+        if self.learner is not None and t > self.state.t:  # the error the frames share fades as the view changes
+            self.shared_root *= math.exp(-(t - self.state.t) / SHARED_ERROR_TIME_S)
         if self.learner is not None and not well_determined:
             q_lin, q_ang = max(q_lin, PROCESS_NOISE_START[0]), max(q_ang, PROCESS_NOISE_START[1])
         if odo is None:
@@ -277,15 +321,30 @@ class _Track:
         if self.learner is not None:
             self.learner.forget_lag()
         assert pose.covariance is not None
-        self.state = kf.start_state(pose.T_world_camera, np.asarray(pose.covariance), t)
+        cov = np.asarray(pose.covariance, dtype=float)
+        root = self._shared_root(cov)
+        self.shared_root = np.zeros((6, 6)) if root is None else root
+        self.state = kf.start_state(pose.T_world_camera, cov, t)
         return self._keep(F, self.state, self.state, status, pose=pose)
 
     def _keep(self, F, predicted, filtered, status, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
         self.state = filtered
-        out = self.output(filtered, status, reason=reason, d2=d2, pose=pose, flipped=flipped)
+        shared = None if self.learner is None else self.shared_root @ self.shared_root.T
+        out = self.output(filtered, status, reason=reason, d2=d2, pose=pose, flipped=flipped, shared=shared)
         if self.steps is not None:
-            self.steps.append(_Step(F, predicted, filtered, out))
+            self.steps.append(_Step(F, predicted, filtered, out, shared))
         return out
+
+    @property
+    def share(self) -> float:
+        """The share of the poses' covariance that varies from frame to frame: learnt, or 1 (a fixed noise)."""
+        return 1.0 if self.learner is None else self.learner.share
+
+    def _shared_root(self, cov: np.ndarray) -> np.ndarray | None:
+        """A square root of the rest of a pose's covariance ``cov``: the error it shares with the frames around
+        it (None when there is none)."""
+        share = self.share
+        return None if share >= 1.0 else math.sqrt(1.0 - share) * _root(cov)
 
     # -- the measurement ---------------------------------------------------------------------
     def _choose(self, pose: Pose, predicted: kf._State) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -309,20 +368,20 @@ class _Track:
         d_pose = kf.innovation(predicted, pose.T_world_camera, cov)[2]
         d_alt = kf.innovation(predicted, alt.T_world_camera, cov)[2]
         if d_alt < d_pose:
-            d = np.concatenate(
-                [
-                    log_so3(alt.T_world_camera[:3, :3] @ pose.T_world_camera[:3, :3].T),
-                    alt.position_mm - pose.position_mm,
-                ]
-            )
+            d = _step(pose, alt)
             return alt.T_world_camera, kf.AMBIGUOUS_INFLATION * (cov + np.outer(d, d)), True
         return pose.T_world_camera, kf.AMBIGUOUS_INFLATION * cov, False
 
     # -- the answer --------------------------------------------------------------------------
-    def output(self, s: kf._State, status: str, *, reason="", d2=None, pose=None, flipped=False) -> TrackedPose:
-        """The TrackedPose of state ``s``."""
+    def output(
+        self, s: kf._State, status: str, *, reason="", d2=None, pose=None, flipped=False, shared=None
+    ) -> TrackedPose:
+        """The TrackedPose of state ``s``: its covariance read at the learnt share, plus ``shared`` (6, 6), the
+        error shared with the frames."""
         T = s.T()
-        cov = 0.5 * (s.P[:6, :6] + s.P[:6, :6].T)
+        cov = (0.5 * self.share) * (s.P[:6, :6] + s.P[:6, :6].T)
+        if shared is not None:
+            cov = cov + shared
         T_base = cov_base = None
         if self.T_camera_base is not None:
             T_base = T @ self.T_camera_base

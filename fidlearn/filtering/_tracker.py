@@ -45,8 +45,11 @@ class PoseTracker:
     markers that are not ambiguous teach it, and before any other frame it is taken no lower than
     ``PROCESS_NOISE_START`` (what was learnt need not hold where the frames cannot check it). A frame
     that only a sudden manoeuvre explains (beyond the 0.99 quantile) raises that step's process noise
-    until it fits, so a sudden turn is followed at once. The poses' covariances are taken as given:
-    :meth:`consistency` says how the track's NIS compares with its 95 % band.
+    until it fits, so a sudden turn is followed at once. The poses' covariance is read as a part that varies
+    from frame to frame, whose share the NIS tells (learnt as the track runs), and a part shared with the
+    frames around it (a marker's shift, the calibration, a bias that changes only as the view does), which
+    the track cannot average away and keeps in its covariance: :meth:`consistency` says how the track's NIS
+    compares with its 95 % band. With a fixed ``process_noise`` the poses' covariances are taken as given.
 
     Parameters
     ----------
@@ -218,7 +221,8 @@ class PoseTracker:
             raise TrackingError("nothing to predict: no frame has given a pose yet; call update() with frames first")
         t = check_time(t_s, self._track.state.t)
         state, _ = kf.predict_constant_velocity(self._track.state, t, *self._track.q)
-        return self._track.output(state, "predicted")
+        root = self._track.shared_root
+        return self._track.output(state, "predicted", shared=root @ root.T)
 
     def _measure(self, item) -> tuple[Pose | None, str]:
         """The frame's pose (None when it has none) and why not."""
