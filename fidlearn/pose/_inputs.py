@@ -149,7 +149,7 @@ def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection],
     """
     ideal = camera.undistort_points(np.concatenate([d.corners_px for d in dets])) if dets else np.zeros((0, 2))
     ideal = ideal.reshape(-1, 4, 2)
-    whole = np.isfinite(ideal).all(axis=(1, 2))
+    whole = np.asarray(np.isfinite(ideal).all(axis=(1, 2)))
     out = [_moved(d, ideal[k]) for k, d in enumerate(dets) if whole[k]]
     pinhole = Camera(camera.K, None, camera.image_size, source=f"{camera.source or 'camera'} undistorted")
     return out, pinhole
