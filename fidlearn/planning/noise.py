@@ -87,7 +87,7 @@ def corner_sigma_px(side_px: float | np.ndarray, model: str = "pinhole") -> floa
     Examples
     --------
     >>> round(float(corner_sigma_px(50.0)), 3), round(float(corner_sigma_px(50.0, "fisheye")), 3)
-    (0.041, 0.018)
+    (0.041, 0.021)
 
     Raises
     ------
