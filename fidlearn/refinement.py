@@ -25,7 +25,6 @@ _PREV = np.array([3, 0, 1, 2])
 
 
 @lru_cache(maxsize=8)
-@lru_cache(maxsize=8)
 def _profile_grid(n_lines: int, n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions 0..1 along a side (N,), -1..1 across it (S,), and [1, u, u^2] (N, 3); read-only, made once."""
     u = np.linspace(0.0, 1.0, n_lines)
