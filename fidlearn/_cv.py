@@ -26,6 +26,7 @@ version itself.  Known differences:
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 from typing import Any
 
 import cv2
@@ -131,6 +132,7 @@ def get_dictionary(name: str):
     return _ARUCO.getPredefinedDictionary(DICTIONARIES[dictionary_name(name)])
 
 
+@lru_cache(maxsize=64)
 def dictionary_size(name: str) -> int:
     """How many markers a dictionary holds (ids run from 0 to size - 1).
 

@@ -231,11 +231,6 @@ def _dictionary_name(name: str) -> str:
     return _cv.dictionary_name(name)
 
 
-@lru_cache(maxsize=64)
-def _dictionary_size(name: str) -> int:
-    return _cv.dictionary_size(name)
-
-
 def _wanted_ids(ids: Any, dictionary: str) -> tuple[int, ...]:
     """``ids`` as a sorted tuple of distinct ids that exist in ``dictionary``."""
     try:
@@ -245,7 +240,7 @@ def _wanted_ids(ids: Any, dictionary: str) -> tuple[int, ...]:
         wanted, whole = (), False
     if not wanted or not whole:
         raise FidlearnError(f"ids must be whole marker ids such as [0, 1, 2] (a map's ids), got {ids!r}")
-    size = _dictionary_size(dictionary)
+    size = _cv.dictionary_size(dictionary)
     if wanted[0] < 0 or wanted[-1] >= size:
         raise DictionaryError(f"dictionary {dictionary} has ids 0 to {size - 1}; ids {list(wanted)} do not all fit")
     return wanted
