@@ -143,6 +143,16 @@ class Detection:
         if not hasattr(self, "dictionary"):
             object.__setattr__(self, "dictionary", None)
 
+    def _with_corners(self, corners_px: np.ndarray) -> Detection:
+        """The same marker with other corners, (4, 2) float64 that the caller made from checked ones (an
+        undistortion, a refinement): the id and dictionary were checked when ``self`` was built, so
+        nothing is checked again (``estimate_pose`` and ``locate`` move every corner of every frame)."""
+        out = object.__new__(Detection)
+        object.__setattr__(out, "id", self.id)
+        object.__setattr__(out, "corners_px", corners_px)
+        object.__setattr__(out, "dictionary", self.dictionary)
+        return out
+
     @property
     def center(self) -> np.ndarray:
         """Mean of the four corners (2,), pixels."""

@@ -573,3 +573,14 @@ def test_detection_corners_have_one_name():
         Detection(5, corners=quad)
     with pytest.raises(FidlearnError, match="corners_px missing"):
         Detection(5)
+
+
+def test_with_corners_keeps_the_marker_and_takes_the_new_corners():
+    """The trusted copy ``estimate_pose`` and ``locate`` make of a moved marker: same id and dictionary."""
+    d = Detection(7, [[10, 10], [30, 10], [30, 30], [10, 30]], "4X4_50")
+    moved = np.array([[11.0, 10.5], [31.0, 10.5], [31.0, 30.5], [11.0, 30.5]])
+    m = d._with_corners(moved)
+    assert (m.id, m.dictionary) == (7, "4X4_50")
+    assert m.corners_px is moved
+    assert m.side_px == 20.0
+    assert d.corners_px[0].tolist() == [10.0, 10.0]  # the original is untouched

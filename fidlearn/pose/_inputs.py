@@ -150,17 +150,9 @@ def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection],
     ideal = camera.undistort_points(np.concatenate([d.corners_px for d in dets])) if dets else np.zeros((0, 2))
     ideal = ideal.reshape(-1, 4, 2)
     whole = np.asarray(np.isfinite(ideal).all(axis=(1, 2)))
-    out = [_moved(d, ideal[k]) for k, d in enumerate(dets) if whole[k]]
+    out = [d._with_corners(ideal[k]) for k, d in enumerate(dets) if whole[k]]
     pinhole = Camera(camera.K, None, camera.image_size, source=f"{camera.source or 'camera'} undistorted")
     return out, pinhole
-
-
-def _moved(d: Detection, corners: np.ndarray) -> Detection:
-    """``d`` with the corners (4, 2) float64 given (checked already), without Detection's checks again."""
-    out = object.__new__(Detection)
-    for name, value in (("id", d.id), ("corners_px", corners), ("dictionary", d.dictionary)):
-        object.__setattr__(out, name, value)
-    return out
 
 
 def _lens_jacobians(lens: Camera, ideal_px: np.ndarray) -> np.ndarray:

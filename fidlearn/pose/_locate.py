@@ -16,7 +16,7 @@ from ..detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_nam
 from ..errors import ImageError, PoseError
 from ..markermap import BoardEntry, MarkerMap
 from ._estimate import estimate_pose
-from ._inputs import _as_camera, _as_map, _check_pose_options, _moved
+from ._inputs import _as_camera, _as_map, _check_pose_options
 from ._result import Pose
 from ._second_look import missed_in_view, read_again
 
@@ -148,7 +148,7 @@ def _straightened(
         cells = _cv.dictionary_marker_bits(name) + 2 * border
         fixed = refine_edges_fisheye(gray, np.stack([detections[k].corners_px for k in mine]), camera, cells)
         for k, f in zip(mine, fixed):
-            out[k] = _moved(detections[k], f)
+            out[k] = detections[k]._with_corners(f)
     return out
 
 
