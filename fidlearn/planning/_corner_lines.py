@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["line_end_matrix", "edge_offset_covariance"]
+__all__ = ["line_end_matrix", "edge_offset_covariance", "edge_offset_motion", "offset_covariance"]
 
 
 def line_end_matrix(q: np.ndarray) -> np.ndarray:
@@ -49,5 +49,9 @@ def edge_offset_covariance(corners_px: np.ndarray, offset_px: float) -> np.ndarr
     >>> np.round(C[0, :4] / 0.1**2, 2).tolist()  # the top-left corner moves up-left, the top-right up-right
     [1.0, 1.0, -1.0, 1.0]
     """
-    v = edge_offset_motion(np.asarray(corners_px, dtype=float))
-    return np.zeros((8, 8)) if v is None else float(offset_px) ** 2 * np.outer(v, v)
+    return offset_covariance(edge_offset_motion(np.asarray(corners_px, dtype=float)), offset_px)
+
+
+def offset_covariance(motion: np.ndarray | None, offset_px: float) -> np.ndarray:
+    """:func:`edge_offset_covariance` from the outline's motion (:func:`edge_offset_motion`) already found."""
+    return np.zeros((8, 8)) if motion is None else float(offset_px) ** 2 * np.outer(motion, motion)

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..markermap import MarkerMap
 from . import noise
-from ._corner_lines import edge_offset_covariance, edge_offset_motion
+from ._corner_lines import edge_offset_motion, offset_covariance
 
 __all__ = ["covariance_and_bias"]
 
@@ -58,10 +58,12 @@ def covariance_and_bias(
     the markers' known common size error and the outlines' offset (``edges``: ``{id: (spread, bias)}`` px, a
     fisheye's), each marker's (8, 8) corner covariance and the camera position's (3, 3) covariance from the
     common size spread alone."""
+    # the outline's motion when it grows by a pixel: its spread (covariance) and its bias (below)
+    motion = {i: edge_offset_motion(seen[i]) for i in ids} if edges else {}
     blocks = [
         noise.corner_covariance(seen[i], sigmas[i], edges[i][2] if edges else None)
         + noise.marker_shift_covariance(shift_px)
-        + (edge_offset_covariance(seen[i], edges[i][0]) if edges else 0.0)
+        + (offset_covariance(motion[i], edges[i][0]) if edges else 0.0)
         for i in ids
     ]
     u = _size_motion(marker_map, ids, J) if size_rel_std or size_rel_std_each else np.zeros((len(ids), 8))
@@ -78,7 +80,6 @@ def covariance_and_bias(
         u_centre = _size_motion(marker_map, ids, J, about_centre=True)
         bias = size_rel_error * np.linalg.solve(JtJ, J.T @ u_centre.ravel())[3:]
     if edges:
-        motion = [edge_offset_motion(seen[i]) for i in ids]
-        u_edge = np.concatenate([np.zeros(8) if m is None else edges[i][1] * m for i, m in zip(ids, motion)])
+        u_edge = np.concatenate([np.zeros(8) if motion[i] is None else edges[i][1] * motion[i] for i in ids])
         bias = bias + np.linalg.solve(JtJ, J.T @ u_edge)[3:]
     return cov, bias, blocks, common
