@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from .. import _cv
+from .._lens import project_points
 from ..camera import Camera
 from ..detection import Detection, _detector_fields, as_gray, detect_markers
 from ..markermap import MarkerMap
@@ -45,7 +46,8 @@ def missed_in_view(
         return []
     world = np.concatenate([corners[k] for k in keys])
     depth = (world - T[:3, 3]) @ T[:3, 2]
-    q = np.asarray(camera.project(world, T), dtype=np.float64).reshape(-1, 4, 2)
+    R = T[:3, :3]  # the camera frame's points as Camera.project finds them, without checking the pose again
+    q = project_points(world @ R + (-R.T @ T[:3, 3]), camera.K, camera.dist, camera.model).reshape(-1, 4, 2)
     ok = (depth.reshape(-1, 4) > 0).all(axis=1) & np.isfinite(q).all(axis=(1, 2))
     side = np.linalg.norm(np.roll(q, -1, axis=1) - q, axis=2).min(axis=1)
     border = int(_detector_fields(detector_params)["markerBorderBits"])
