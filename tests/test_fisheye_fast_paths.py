@@ -9,10 +9,10 @@ import numpy as np
 
 from fidlearn import Camera, MarkerMap, frames
 from fidlearn._fisheye_edges import _NEXT, _rays, _sample_map, _side_curves
-from fidlearn.detection import Detection
+from fidlearn.detection import Detection, _detector_fields
 from fidlearn.pose._inputs import _as_pinhole, _lens_jacobians, _lens_refine
 from fidlearn.pose._refine import _residuals
-from fidlearn.pose._second_look import missed_in_view, read_again
+from fidlearn.pose._second_look import _border_bits, missed_in_view, read_again
 from fidlearn.refinement import _least, _most
 
 K_FE = np.array([[290.050152, 0.0, 399.938345], [0.0, 289.392837, 273.885669], [0.0, 0.0, 1.0]])
@@ -135,3 +135,8 @@ def test_the_second_look_predicts_the_corners_camera_project_gives():
     for k, name, q in missed:
         assert name == "ARUCO_ORIGINAL"
         np.testing.assert_allclose(q, fisheye.project(wall.marker_corners(k), T), rtol=0, atol=1e-9)
+
+
+def test_the_border_bits_read_once_are_the_detectors():
+    assert _border_bits(None) == int(_detector_fields(None)["markerBorderBits"]) == 1
+    assert _border_bits({"markerBorderBits": 2}) == 2
