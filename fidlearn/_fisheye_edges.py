@@ -132,11 +132,8 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
     with np.errstate(invalid="ignore", divide="ignore"):
         r = _rays(C, camera)
         P, nz = _side_curves(C, r, camera, t)
-        pts = (P[..., None] + (h[:, None, None, None] * v) * nz[..., None]).astype(np.complex64)
-        finite = np.isfinite(pts)
-        ok = finite.all(axis=(1, 2, 3))
-        maps = (pts if ok.all() else np.where(finite, pts, np.complex64(-10.0))).view(np.float32)
-        prof = cv2.remap(gray, maps.reshape(len(C) * 4, -1, 2), None, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
+        ok = (np.isfinite(P) & np.isfinite(nz)).all(axis=(1, 2))  # every profile's samples finite
+        prof = cv2.remap(gray, _sample_map(P, nz, h, v, ok), None, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
         prof = prof.reshape(len(C), 4, len(u), len(v)).astype(np.float32)
         prof, dark, light, _ = _levels(prof, False, 1.0)
         dark = np.broadcast_to(dark.min(axis=1, keepdims=True), dark.shape)  # the marker's own levels
@@ -152,6 +149,21 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
     if not ok.all():
         out[~ok] = straighten_edges_fisheye(C[~ok], camera, cells)
     return out
+
+
+def _sample_map(P: np.ndarray, nz: np.ndarray, h: np.ndarray, v: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """``cv2.remap``'s map (M * 4, N * S, 2) float32 of the samples ``P + h v nz`` across each side (``P``, ``nz``
+    (M, 4, N) complex, ``h`` (M,), ``v`` (S,)): x and y each in one product and sum, in double precision, then
+    single (the values of the complex sum). A marker not ``ok`` (a point or normal not finite) is read far
+    outside the picture (its profiles are not used)."""
+    M, _, N = P.shape
+    hv = (h[:, None] * v)[:, None, None, :]  # (M, 1, 1, S)
+    out = np.empty((M, 4, N, len(v), 2), np.float32)
+    np.add(P.real[..., None], hv * nz.real[..., None], out=out[..., 0], casting="same_kind")
+    np.add(P.imag[..., None], hv * nz.imag[..., None], out=out[..., 1], casting="same_kind")
+    if not ok.all():
+        out[~ok] = -10.0
+    return out.reshape(M * 4, N * len(v), 2)
 
 
 def _median_of(x: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -180,8 +192,13 @@ def _side_curves(C: np.ndarray, r: np.ndarray, camera: Camera, t: np.ndarray) ->
     r_next = r[:, _NEXT]
 
     q = _to_pixels(r[:, :, None, :] * (1 - t)[..., None] + r_next[:, :, None, :] * t[..., None], camera)
-    P = q[..., 0] + 1j * q[..., 1]
-    tangent = np.gradient(P, axis=2)  # the profiles are evenly spaced along the side
+    P = np.ascontiguousarray(q).view(np.complex128)[..., 0]  # x + iy, the same values, without a copy
+    # the profiles are evenly spaced along the side: central differences, one-sided at the ends (np.gradient's,
+    # less its factor 1/2 inside, which the unit normal does not see)
+    tangent = np.empty_like(P)
+    np.subtract(P[..., 2:], P[..., :-2], out=tangent[..., 1:-1])
+    np.subtract(P[..., 1:2], P[..., :1], out=tangent[..., :1])
+    np.subtract(P[..., -1:], P[..., -2:-1], out=tangent[..., -1:])
     Z = C[..., 0] + 1j * C[..., 1]
     Dz = Z[:, _NEXT] - Z
     # outward: -i times the direction when the corners turn clockwise on screen, as OpenCV reports them
@@ -192,7 +209,7 @@ def _side_curves(C: np.ndarray, r: np.ndarray, camera: Camera, t: np.ndarray) ->
 def _fit_planes(E: np.ndarray, w: np.ndarray, camera: Camera, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Corners (M, 4, 2) where planes fitted to each side's edge rays meet, and whether all four sides fitted;
     ``r`` (M, 4, 3): the input corners' rays (which side of the camera each corner is)."""
-    rays = _rays(np.stack([E.real, E.imag], axis=-1), camera)  # (M, 4, N, 3)
+    rays = _rays(np.ascontiguousarray(E)[..., None].view(np.float64), camera)  # (M, 4, N, 3)
     finite = np.isfinite(rays)
     if not finite.all():  # no ray reaches a crossing (or none was found): it has no weight
         w = np.where(finite.all(-1), w, 0.0)

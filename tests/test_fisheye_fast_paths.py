@@ -1,16 +1,18 @@
 """The shortcuts of the fisheye path give what the longer computations they replace give: the profiles' levels by
-one reduction over their samples, the weighted fit's last residuals and Jacobian, the ideal corners' detections."""
+one reduction over their samples, the weighted fit's last residuals and Jacobian, the ideal corners' detections, the
+side fit's sampling map and side normals, the second look's projection."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
-from fidlearn import Camera, frames
-from fidlearn.detection import Detection
+from fidlearn import Camera, MarkerMap, frames
+from fidlearn._fisheye_edges import _NEXT, _rays, _sample_map, _side_curves
+from fidlearn.detection import Detection, _detector_fields
 from fidlearn.pose._inputs import _as_pinhole, _lens_jacobians, _lens_refine
 from fidlearn.pose._refine import _residuals
-from fidlearn.pose._second_look import read_again
+from fidlearn.pose._second_look import _border_bits, missed_in_view, read_again
 from fidlearn.refinement import _least, _most
 
 K_FE = np.array([[290.050152, 0.0, 399.938345], [0.0, 289.392837, 273.885669], [0.0, 0.0, 1.0]])
@@ -70,3 +72,71 @@ def test_the_ideal_corners_keep_id_and_dictionary_and_drop_markers_past_90_degre
 
 def test_no_missed_marker_means_no_second_look():
     assert read_again(np.full((60, 80), 255, np.uint8), [], None, None) == []
+
+
+def _sides(camera: Camera, n: int = 16):
+    """Points and unit normals on the bent sides of three markers seen through ``camera``, at ``n`` positions each."""
+    C = np.array(
+        [
+            [[390, 260], [420, 262], [418, 290], [388, 288]],
+            [[40, 60], [75, 50], [82, 85], [48, 95]],
+            [[700, 420], [760, 430], [752, 470], [695, 462]],
+        ],
+        dtype=np.float64,
+    )
+    t = np.broadcast_to(0.1 + 0.8 * np.linspace(0.0, 1.0, n), (3, 4, n))
+    return C, *_side_curves(C, _rays(C, camera), camera, t)
+
+
+def test_the_side_normals_are_numpys_gradient_turned_outward():
+    fisheye = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    C, P, nz = _sides(fisheye)
+    tangent = np.gradient(P, axis=2)  # what the central differences replace
+    Z = C[..., 0] + 1j * C[..., 1]
+    Dz = Z[:, _NEXT] - Z
+    turn = np.where((Dz[:, 0].conj() * Dz[:, 1]).imag >= 0, -1j, 1j)
+    np.testing.assert_allclose(nz, tangent / np.abs(tangent) * turn[:, None, None], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.abs(nz), 1.0, rtol=0, atol=1e-12)  # unit normals, across the side
+    np.testing.assert_allclose((tangent.conj() * nz).real / np.abs(tangent), 0.0, rtol=0, atol=1e-12)
+    # the middle marker's sides turn clockwise on screen: outward is -i times the direction
+    np.testing.assert_allclose(nz[0] / (tangent[0] / np.abs(tangent[0])), -1j, rtol=0, atol=1e-12)
+
+
+def test_the_sampling_map_is_the_complex_sum_in_single_precision():
+    fisheye = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    _, P, nz = _sides(fisheye)
+    h = np.array([1.5, 2.2, 5.0])
+    v = np.linspace(-1.0, 1.0, 13)
+    ok = np.ones(3, bool)
+    pts = (P[..., None] + (h[:, None, None, None] * v) * nz[..., None]).astype(np.complex64)  # what it replaces
+    got = _sample_map(P, nz, h, v, ok)
+    assert got.shape == (12, 16 * 13, 2)
+    assert got.dtype == np.float32
+    assert np.array_equal(got, pts.view(np.float32).reshape(12, -1, 2))
+    # a marker whose side has no normal: read far outside the picture, the others as they were
+    nz_bad = nz.copy()
+    nz_bad[1, 2, 5] = np.nan
+    ok = np.isfinite(nz_bad).all(axis=(1, 2))
+    bad = _sample_map(P, nz_bad, h, v, ok).reshape(3, 4, -1, 2)
+    assert (bad[1] == -10.0).all()
+    assert np.array_equal(bad[[0, 2]], got.reshape(3, 4, -1, 2)[[0, 2]])
+
+
+def test_the_second_look_predicts_the_corners_camera_project_gives():
+    wall = MarkerMap.from_dict(
+        {str(k): {"translation": [0, 200 * k - 500, 0], "rotation": [0, 0, 0]} for k in range(6)},
+        marker_size_mm=120,
+        units="mm",
+    )
+    fisheye = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    T = frames.look_at([600.0, 80.0, -60.0], [0.0, -100.0, 0.0], roll_deg=12.0)
+    missed = missed_in_view(wall, fisheye, T, {2}, None)
+    assert [k for k, _, _ in missed] == [0, 1, 3, 4, 5]
+    for k, name, q in missed:
+        assert name == "ARUCO_ORIGINAL"
+        np.testing.assert_allclose(q, fisheye.project(wall.marker_corners(k), T), rtol=0, atol=1e-9)
+
+
+def test_the_border_bits_read_once_are_the_detectors():
+    assert _border_bits(None) == int(_detector_fields(None)["markerBorderBits"]) == 1
+    assert _border_bits({"markerBorderBits": 2}) == 2

@@ -13,10 +13,13 @@ marker predicted in view was found.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 
 from .. import _cv
+from .._lens import project_points
 from ..camera import Camera
 from ..detection import Detection, _detector_fields, as_gray, detect_markers
 from ..markermap import MarkerMap
@@ -45,10 +48,11 @@ def missed_in_view(
         return []
     world = np.concatenate([corners[k] for k in keys])
     depth = (world - T[:3, 3]) @ T[:3, 2]
-    q = np.asarray(camera.project(world, T), dtype=np.float64).reshape(-1, 4, 2)
+    R = T[:3, :3]  # the camera frame's points as Camera.project finds them, without checking the pose again
+    q = project_points(world @ R + (-R.T @ T[:3, 3]), camera.K, camera.dist, camera.model).reshape(-1, 4, 2)
     ok = (depth.reshape(-1, 4) > 0).all(axis=1) & np.isfinite(q).all(axis=(1, 2))
     side = np.linalg.norm(np.roll(q, -1, axis=1) - q, axis=2).min(axis=1)
-    border = int(_detector_fields(detector_params)["markerBorderBits"])
+    border = _border_bits(detector_params)
     names = [marker_map.marker_dictionary(k) for k in keys]
     cells = {n: _cv.dictionary_marker_bits(n) + 2 * border for n in set(names)}
     wide = _widened(q, np.array([cells[n] for n in names]))
@@ -65,7 +69,7 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
     if not missed:
         return []
     gray = as_gray(image)
-    border = int(_detector_fields(detector_params)["markerBorderBits"])
+    border = _border_bits(detector_params)
     H, W = gray.shape
     kw = {} if refine is None else {"refine": refine}
     if detector_params is not None:
@@ -85,6 +89,18 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
                 found.append(Detection(plain, d.corners_px + (x0, y0), name))
                 break
     return found
+
+
+def _border_bits(detector_params) -> int:
+    """The detector's ``markerBorderBits``; fidlearn's default parameters' read once."""
+    if detector_params is None:
+        return _default_border_bits()
+    return int(_detector_fields(detector_params)["markerBorderBits"])
+
+
+@lru_cache(maxsize=1)
+def _default_border_bits() -> int:
+    return int(_detector_fields(None)["markerBorderBits"])
 
 
 def _widened(q: np.ndarray, cells) -> np.ndarray:
