@@ -63,7 +63,7 @@ def test_persistent_errors_leave_the_default_track_consistent(seed):
     c = tracker.consistency()
     assert c["frames"] == len(poses) - 1
     assert c["consistent"], c  # 5.61-6.40 over 299 frames: 6.06 and 6.09 here
-    assert 0.90 <= _inside(outs, truth) <= 0.98  # 97 % and 95 % here
+    assert 0.90 <= _inside(outs, truth) <= 0.98  # 95 % and 93 % here
     # half of the corners' variance persists: the innovations show a third of the poses' covariance
     assert 0.15 < tracker._track.share < 0.5
     # with the poses' covariance taken whole (read at share 1, nothing kept as shared) the same track, whose
@@ -74,10 +74,20 @@ def test_persistent_errors_leave_the_default_track_consistent(seed):
 
 
 def test_the_smoother_stays_consistent_on_persistent_errors():
+    """Corner offsets that persist about 0.1 s (0.72 from one frame to the next, the lifetime the track assumes):
+    the smoothed covariance counts the error the averaged frames share once (97 % here; 95-100 % on seeds 0-4)."""
+    truth, poses = _drive(0, rho=0.72)
+    smoothed = smooth(poses, [k / FPS for k in range(len(poses))])
+    assert 0.90 <= _inside(smoothed, truth) <= 0.98
+
+
+def test_errors_that_persist_longer_than_assumed_leave_the_smoother_somewhat_overconfident():
+    """Corner offsets that persist about 0.7 s, seven times the lifetime the track assumes
+    (``SHARED_ERROR_TIME_S``, learnt on drives like the tracking benchmark's): the smoother averages frames
+    whose errors are more alike than it thinks (85 % here; 78-95 % on seeds 0-3, 80 % on seed 4)."""
     truth, poses = _drive(0)
     smoothed = smooth(poses, [k / FPS for k in range(len(poses))])
-    # the smoothed states keep the shared part, weighed on both sides (96 % here; 92-99 % on seeds 0-3)
-    assert 0.90 <= _inside(smoothed, truth) <= 0.98
+    assert 0.80 <= _inside(smoothed, truth) < 0.90
 
 
 def test_white_errors_are_not_called_shared():
@@ -95,7 +105,7 @@ def test_a_fixed_noise_takes_the_poses_covariance_whole():
     truth, poses = _drive(0, n=60)
     outs, tracker = _track(poses, process_noise=(300.0, 0.6))
     assert tracker._track.share == 1.0
-    assert not tracker._track.shared_root.any()
+    assert not tracker._track.shared_cov.any()
     P = tracker._track.state.P[:6, :6]
     np.testing.assert_allclose(outs[-1].covariance, 0.5 * (P + P.T))  # the filter's own, nothing added
 
@@ -115,3 +125,66 @@ def test_the_share_is_the_mean_nis_and_its_reading_is_unbiased():
     frozen = _adapt.NoiseLearner(frozen=True)
     frozen.learn_share(100.0)
     assert frozen.share == 1.0
+
+
+def _shared_only_runs(runs: int, n: int, share: float, seed: int = 5):
+    """Smoothed and filtered errors of many runs over one set of frames whose errors are only the shared part
+    ``sqrt(1 - share) chol(R) u_k`` (``u`` first-order Gauss-Markov with the time constant the track assumes),
+    with the learnt noise frozen so that every run has the same gains; and one run's recorded steps."""
+    from fidlearn.filtering import _smoother, _track
+
+    rng = np.random.default_rng(seed)
+    R = np.diag([1e-6, 2e-6, 1.5e-6, 4.0, 1.0, 9.0])  # small: the error-state algebra is linear here
+    R[3, 5] = R[5, 3] = 2.0
+    B = np.sqrt(1.0 - share) * np.linalg.cholesky(R)
+    times = [k / FPS for k in range(n)]
+    gap = set(range(10, 15))  # frames without a pose: the shared error fades while the track predicts
+    a = np.exp(-np.diff(times, prepend=0.0) / _track.SHARED_ERROR_TIME_S)
+    truth = fidlearn.make_transform(np.eye(3), [1000.0, 0.0, 250.0])
+    smoothed, filtered, steps = [], [], None
+    for _ in range(runs):
+        u = rng.normal(size=6)
+        poses = []
+        for k in range(n):
+            u = a[k] * u + np.sqrt(1.0 - a[k] ** 2) * rng.normal(size=6) if k else u
+            e = B @ u
+            T = truth.copy()
+            T[:3, :3] = fidlearn.filtering._so3.exp_so3(e[:3])
+            T[:3, 3] += e[3:]
+            poses.append(None if k in gap else fidlearn.Pose(T, (1, 2), {}, 0.0, R, 1.0))
+        track = _track._Track(None, None, record=True)
+        track.learner = _adapt.NoiseLearner((20.0, 0.01), frozen=True)
+        track.learner.share = share
+        track = _smoother._forward(poses, times, None, track)
+        states, gains = _smoother._backward(track.steps)
+        smoothed.append([s.C - truth[:3, 3] for s in states])
+        filtered.append([s.filtered.C - truth[:3, 3] for s in track.steps])
+        steps = (track, gains)
+    return np.array(smoothed), np.array(filtered), steps
+
+
+def test_the_shared_error_is_carried_exactly_through_filter_and_smoother():
+    """The covariance the track and the smoother report for the shared error matches, frame by frame, that of
+    their errors over 200 runs of shared errors alone (a Gauss-Markov process with the assumed time constant)."""
+    from fidlearn.filtering import _smoother
+
+    share = 0.3
+    smoothed, filtered, (track, gains) = _shared_only_runs(200, 24, share)
+    computed = _smoother._shared_errors(track.steps, gains)
+    for k in (0, 5, 9, 12, 18, 23):
+        emp_s = np.cov(smoothed[:, k].T)
+        emp_f = np.cov(filtered[:, k].T)
+        want_s, want_f = computed[k][3:, 3:], track.steps[k].shared[3:, 3:]
+        # 200 runs: a variance within about 10 % (one sigma) of the truth
+        assert np.trace(emp_s) == pytest.approx(np.trace(want_s), rel=0.25), k
+        assert np.trace(emp_f) == pytest.approx(np.trace(want_f), rel=0.25), k
+    # at the end the smoothed pose is the filtered one, and so is its shared error
+    np.testing.assert_allclose(computed[-1], track.steps[-1].shared, rtol=1e-9, atol=1e-12)
+    # the same frames taken as sharing an error that lasts five times shorter (nearly white: averaged away) or
+    # five times longer (never averaged): far from what the runs show (0.50x and 1.45x here)
+    from fidlearn.filtering import _track
+
+    emp = np.trace(np.cov(smoothed[:, 12].T))
+    for tau in (0.2 * _track.SHARED_ERROR_TIME_S, 5 * _track.SHARED_ERROR_TIME_S):
+        ratio = np.trace(_smoother._shared_errors(track.steps, gains, tau)[12][3:, 3:]) / emp
+        assert not 1 / 1.3 < ratio < 1.3, (tau, ratio)

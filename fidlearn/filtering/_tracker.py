@@ -15,7 +15,7 @@ from ..tracking import MarkerTracker
 from . import _filter as kf
 from ._adapt import nis_band
 from ._result import TrackedPose
-from ._track import DEFAULT_PROCESS_NOISE, _Track, check_time
+from ._track import DEFAULT_PROCESS_NOISE, _Track, check_time, predict_shared
 
 
 class PoseTracker:
@@ -220,9 +220,11 @@ class PoseTracker:
         if self._track.state is None:
             raise TrackingError("nothing to predict: no frame has given a pose yet; call update() with frames first")
         t = check_time(t_s, self._track.state.t)
-        state, _ = kf.predict_constant_velocity(self._track.state, t, *self._track.q)
-        root = self._track.shared_root
-        return self._track.output(state, "predicted", shared=root @ root.T)
+        state, F = kf.predict_constant_velocity(self._track.state, t, *self._track.q)
+        if self._track.learner is None:
+            return self._track.output(state, "predicted")
+        shared, _ = predict_shared(self._track.shared_cov, self._track.shared_cross, F, t - self._track.state.t)
+        return self._track.output(state, "predicted", shared=shared[:6, :6])
 
     def _measure(self, item) -> tuple[Pose | None, str]:
         """The frame's pose (None when it has none) and why not."""
