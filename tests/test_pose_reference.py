@@ -119,8 +119,15 @@ def _reference_noise(r, _J, _q, corner_sigma_px):
 
 @pytest.fixture
 def the_covariance_of_the_reference(monkeypatch):
-    """The covariance as the reference computed it: corner noise alone (the rest of the method is as now)."""
+    """The covariance as the reference computed it: corner noise alone, and an ambiguous pose's mixture weighted
+    by the Gaussian likelihood ratio of the estimated sigma, not the noise integrated out (the rest of the method
+    is as now)."""
     monkeypatch.setattr(pose_estimate, "_noise_parts", _reference_noise)
+    monkeypatch.setattr(
+        pose_estimate,
+        "_alternative_weight",
+        lambda extra, sigma, _nu: pose_stats._alternative_weight(extra, sigma, None),
+    )
 
 
 @pytest.fixture

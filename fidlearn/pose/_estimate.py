@@ -34,6 +34,7 @@ from ._stats import (
     AMBIGUITY_CHI2,
     AMBIGUITY_MAX_SIGMA_PX,
     PRIOR_DOF,
+    _alternative_weight,
     _ambiguity_limit,
     _covariance_from,
     _estimated_sigma_inflation,
@@ -284,6 +285,7 @@ class _Data:
     dof: int = 0  # 2N - 6
     sigma: float = 0.0  # the corner noise of the covariance, px
     sigma_amb: float = 0.0  # the corner noise of the ambiguity test, px
+    nu_amb: float | None = None  # its degrees of freedom (None: given, or capped at AMBIGUITY_MAX_SIGMA_PX)
     alt: _Candidate | None = None  # the other planar solution, when it is distinct
     ambiguous: bool = False
     noise: _NoiseParts | None = None  # what the best pose's residuals hold: the noise of every pose's covariance
@@ -312,7 +314,7 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
     alt = data.alt = _alternative(obs, cands, unrefined, JtJ, data.sigma_amb)
     # sigma estimated (not given, nor capped): its uncertainty widens the test (F instead of chi-square)
     estimated = data.corner_sigma_px is None and data.sigma < AMBIGUITY_MAX_SIGMA_PX
-    nu = data.dof + PRIOR_DOF if estimated else None
+    nu = data.nu_amb = data.dof + PRIOR_DOF if estimated else None
     data.ambiguous = alt is not None and (alt.sse - cands[0].sse) < _ambiguity_limit(nu) * data.sigma_amb**2
     alt_how = method_used if alt is not None and alt.refined else method_used.replace("+lm", "") + " (not refined)"
     if alt is None:
@@ -431,8 +433,9 @@ def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pos
         and alternative.covariance is not None
     ):
         # Two poses explain the corners: report the second moment about this pose of the
-        # two-pose mixture, weighted by likelihood, so its ellipsoid reaches the other one.
-        w_alt = 1.0 / (1.0 + math.exp(min((alt.sse - c.sse) / (2 * data.sigma_amb**2), 700.0)))
+        # two-pose mixture, weighted by likelihood (the noise integrated out when estimated: Student's
+        # tail), so its ellipsoid reaches the other one.
+        w_alt = _alternative_weight(alt.sse - c.sse, data.sigma_amb, data.nu_amb)
         d = np.r_[_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C]
         cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
     return cov

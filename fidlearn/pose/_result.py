@@ -141,7 +141,8 @@ class Pose(_PoseReadouts):
         J_k`` the pose's response to an error of the intrinsics (``J_k`` the corners' Jacobian on them): the
         calibration's error, the same in every pose and shown by no residual. When
         the pose is ``ambiguous`` it is instead the second moment, about this pose, of the mixture of
-        both poses (weights from their likelihood ratio), so the ellipsoid reaches the alternative. The
+        both poses (weights from their likelihood ratio; with the noise estimated, the noise integrated out, whose
+        tail is Student's), so the ellipsoid reaches the alternative. The
         alternative's own covariance is the local one, with the same noise. None if the pose is not
         determined.
 

@@ -78,6 +78,31 @@ def _estimated_sigma_inflation(nu: float) -> float:
     return 3.0 * _stats.f_isf(0.05, 3, nu) / _stats.chi2_ppf(0.95, 3)
 
 
+def _alternative_weight(extra_sse: float, sigma: float, nu: float | None) -> float:
+    """The weight of the other planar pose in the two-pose mixture, from its extra sum of squares ``extra_sse``.
+
+    With the noise given (``nu`` None) the Gaussian likelihood ratio, ``1 / (1 + exp(extra_sse / 2 sigma^2))``.
+    With it estimated from ``nu`` degrees of freedom (the prior's included), ``sigma^2`` the posterior scale,
+    the noise is integrated out: the likelihood of a pose is then proportional to ``(nu sigma^2 + its extra sum
+    of squares)^(-nu / 2)`` (scaled-inverse-chi-square prior, the pose's 6 parameters integrated about each
+    mode), so the ratio is ``(1 + extra_sse / (nu sigma^2))^(-nu / 2)``: Student's heavier tail, the Gaussian
+    one as ``nu`` grows. With one marker (``nu`` 4) an extra sum of squares of 8 sigma^2 leaves the other
+    pose 10 % of the weight, not 1.8 %.
+
+    >>> round(_alternative_weight(8.0, 1.0, None), 4), round(_alternative_weight(8.0, 1.0, 4.0), 4)
+    (0.018, 0.1)
+    >>> round(_alternative_weight(8.0, 1.0, 1e6), 4)
+    0.018
+    """
+    if extra_sse < 0:  # the other pose fits better: the same ratio, the other way
+        return 1.0 - _alternative_weight(-extra_sse, sigma, nu)
+    if nu is None or not math.isfinite(nu):
+        log_ratio = -extra_sse / (2 * sigma**2)
+    else:
+        log_ratio = -0.5 * nu * math.log1p(extra_sse / (max(nu, 1.0) * sigma**2))
+    return 1.0 / (1.0 + math.exp(min(-log_ratio, 700.0)))
+
+
 def _sigma(sse: float, dof: int, corner_sigma_px: float | None) -> float:
     if corner_sigma_px is not None:
         return float(corner_sigma_px)
