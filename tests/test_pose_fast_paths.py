@@ -66,6 +66,25 @@ def test_the_closed_forms_give_the_straightforward_noise_and_covariance(n_marker
         np.testing.assert_allclose(cov, _dense_cov(J, q, want), rtol=1e-7, atol=1e-10 * np.abs(cov_ref).max())
 
 
+@pytest.mark.parametrize("sigma", [None, 0.3])
+def test_measured_shifts_and_size_errors_are_the_straightforward_ones(sigma):
+    """Residuals with a shift and a size error of each marker and a common size error (8 markers): the three parts
+    are all measured (not zero), as the straightforward moment equations measure them."""
+    q, J, _ = _scene(8, 3)
+    rng = np.random.default_rng(11)
+    grow = (q - q.mean(axis=1, keepdims=True)).reshape(8, 8)
+    r = (
+        rng.normal(0, 0.3, (8, 8))
+        + np.tile(rng.normal(0, 0.8, (8, 1, 2)), (1, 4, 1)).reshape(8, 8)
+        + grow * (rng.normal(0.004, 0.01, (8, 1)))
+    ).reshape(-1)
+    want = _noise._noise_parts(r, J, q, sigma)
+    got = _noise_fast._noise_parts_fast(r, J, q, sigma)
+    assert min(want.a, want.b, want.c, abs(want.size)) > 0
+    for name in ("a", "b", "c", "size", "nu"):
+        assert getattr(got, name) == pytest.approx(getattr(want, name), rel=1e-8), name
+
+
 def test_a_size_error_and_a_shift_enter_the_closed_form_as_written_out():
     """Parts with every term non-zero (a measured common size error too), which the estimates above need not have."""
     q, J, _ = _scene(3, 7)

@@ -16,6 +16,8 @@ ones to round-off (``tests/test_pose_fast_paths.py`` compares them).
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 
@@ -48,8 +50,10 @@ def _noise_parts_fast(
     """:func:`._noise._noise_parts`, the prior's scale for fewer than ``SPLIT_MIN_MARKERS`` markers in closed form
     (``JtJ``: ``J^T J`` when the caller has it)."""
     M = len(q)
-    if M >= SPLIT_MIN_MARKERS or corner_sigma_px is not None:
-        return _noise._noise_parts(r, J, q, corner_sigma_px)
+    if M >= SPLIT_MIN_MARKERS:
+        return _split_parts(r, J, q, corner_sigma_px)
+    if corner_sigma_px is not None:
+        return _NoiseParts(float(corner_sigma_px) ** 2, 0.0, 0.0)
     JtJ = J.T @ J if JtJ is None else JtJ
     G = _inverse(JtJ)
     if G is None or not np.all(np.isfinite(G)):
@@ -61,6 +65,80 @@ def _noise_parts_fast(
     dof = max(8 * M - 6, 0)
     scale = (PRIOR_DOF + float(r @ r) / max(expected, 1e-300) * dof) / (PRIOR_DOF + dof)
     return _NoiseParts(float(scale * a0), float(scale * b0), float(scale * c0), nu=dof + PRIOR_DOF)
+
+
+def _split_parts(r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: float | None) -> _NoiseParts:
+    """:func:`._noise._noise_parts` with ``SPLIT_MIN_MARKERS`` markers or more: the three parts measured
+    (:func:`_measure_fast`), the corner noise blended with the prior when estimated, Satterthwaite's degrees of
+    freedom."""
+    M = len(q)
+    a_given = None if corner_sigma_px is None else float(corner_sigma_px) ** 2
+    theta, size = _measure_fast(r, J, q, a_given)
+    if corner_sigma_px is None:
+        nus = np.array([5.0 * M - 1.0, 2.0 * M - 6.0, M - 1.0])
+        theta[0] = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + nus[0] * theta[0]) / (PRIOR_DOF + nus[0])
+        nus[0] += PRIOR_DOF
+    else:
+        nus = np.array([np.inf, 2.0 * M - 6.0, M - 1.0])
+    a, b, c = (float(v) for v in theta)
+    return _NoiseParts(a, b, c, size, nu=_satterthwaite_fast(J, q, theta, nus))
+
+
+def _measure_fast(r: np.ndarray, J: np.ndarray, q: np.ndarray, a_given: float | None) -> tuple[np.ndarray, float]:
+    """:func:`._noise._measure`: the moment equations of the three statistics (the markers' means, their sizes,
+    the rest: projections ``P_mean``, ``P_size``, ``P_rest`` of each marker's 8 coordinates) under the three
+    parts (``I = P_mean + P_size + P_rest``, the shift ``4 P_mean``, the size ``|g|^2 P_size``, as the growth
+    ``g`` of a marker is centred), so every product of a statistic and a part is one of the projections: the
+    nine expectations come from four 7 x 7 sums ``X^T P X``."""
+    from scipy.optimize import nnls  # scipy loads on first use: ``import fidlearn`` stays quick
+
+    M = len(q)
+    grow = (q - q.mean(axis=1, keepdims=True)).reshape(M, 8)
+    X = np.column_stack([J, grow.reshape(-1)])
+    XtX = X.T @ X
+    G = np.linalg.inv(XtX)
+    coef = G @ (X.T @ r)
+    rb = (r - X @ coef).reshape(M, 8)
+    Xb = X.reshape(M, 8, 7)
+    g2 = np.einsum("mi,mi->m", grow, grow)
+    xs = Xb.reshape(M, 4, 2, 7).sum(axis=1).reshape(2 * M, 7)  # each marker's u rows summed, then its v rows
+    h = np.einsum("mk,mkj->mj", grow, Xb)  # X_m^T g_m
+    A_mean = (xs.T @ xs) * 0.25  # sum of X_m^T P_mean X_m (P_mean = SHIFT8 / 4)
+    A_size = (h / g2[:, None]).T @ h  # ... P_size = g g^T / |g|^2
+    A_gg = h.T @ h  # ... g g^T
+    A_rest = XtX - A_mean - A_size
+    rs = rb.reshape(M, 4, 2).sum(axis=1)
+    y0 = 0.25 * float(np.einsum("mi,mi->", rs, rs))
+    y1 = float(np.sum(np.einsum("mi,mi->m", grow, rb) ** 2 / g2))
+    y = np.array([y0, y1, float(np.einsum("mi,mi->", rb, rb)) - y0 - y1])
+    B = (XtX, 4.0 * A_mean, A_gg)  # sum of X_m^T C_m X_m of each part
+    tr_g = float(g2.sum())
+    # per statistic: tr(S C), sum X^T S C X of each part (None: zero), and sum X^T S X
+    rows = (
+        ((2.0 * M, 8.0 * M, 0.0), (A_mean, 4.0 * A_mean, None), A_mean),
+        ((1.0 * M, 0.0, tr_g), (A_size, None, A_gg), A_size),
+        ((5.0 * M, 0.0, 0.0), (A_rest, None, None), A_rest),
+    )
+    A = np.empty((3, 3))
+    for i, (tr_sc, SC, XSX) in enumerate(rows):
+        GSG = G @ XSX @ G
+        for k in range(3):
+            cross = 0.0 if SC[k] is None else float(np.sum(G * SC[k]))
+            A[i, k] = tr_sc[k] - 2.0 * cross + float(np.sum(GSG * B[k]))
+    theta = nnls(A, y)[0] if a_given is None else np.r_[a_given, nnls(A[:, 1:], y - A[:, 0] * a_given)[0]]
+    return theta, float(coef[6])
+
+
+def _satterthwaite_fast(J: np.ndarray, q: np.ndarray, theta: np.ndarray, nus: np.ndarray) -> float:
+    """:func:`._noise._satterthwaite`: each part's trace ``tr(G K G)`` from the 6 x 6 sums."""
+    JtJ = J.T @ J
+    G = np.linalg.inv(JtJ)
+    K_S, K_g, _, _ = _part_matrices(J, q)
+    GG = G @ G
+    v = np.array([t * float(np.sum(GG * K)) for t, K in zip(theta, (JtJ, K_S, K_g))])
+    ok = nus > 0
+    den = float(np.sum(v[ok] ** 2 / nus[ok]))
+    return float(np.sum(v) ** 2 / den) if den > 0 else math.inf
 
 
 def _pose_covariance_fast(
