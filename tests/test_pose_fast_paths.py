@@ -130,3 +130,14 @@ def test_estimate_pose_gives_the_same_pose_with_and_without_the_fast_paths(n_mar
         np.testing.assert_allclose(a.covariance, b.covariance, rtol=1e-7, atol=1e-10 * np.abs(b.covariance).max())
         assert (a.ambiguous, a.method, a.marker_ids) == (b.ambiguous, b.method, b.marker_ids)
         assert a.corner_sigma_px == pytest.approx(b.corner_sigma_px, rel=1e-12)
+
+
+def test_the_remembered_part_sums_follow_the_jacobian_and_the_corners():
+    """The noise and the covariance of one pose share their 6 x 6 sums; another Jacobian or other corners (the
+    alternative pose, another frame) get their own."""
+    q, J, r = _scene(5, 2)
+    q2, J2, _ = _scene(5, 4)
+    parts = _noise_fast._noise_parts_fast(r, J, q, None)  # remembers J's sums
+    for Jx, qx in ((J, q), (J2, q2), (J, q2), (J2.copy(), q2)):
+        got = _noise_fast._pose_covariance_fast(Jx, qx, parts)
+        np.testing.assert_allclose(got, _dense_cov(Jx, qx, parts), rtol=1e-7)

@@ -28,14 +28,24 @@ from ._stats import PRIOR_DOF, PRIOR_SIGMA_PX
 _PRIOR = (PRIOR_SIGMA_PX**2, PRIOR_SHIFT_PX**2, PRIOR_SIZE_REL**2)
 
 
+#: The last :func:`_part_matrices` (its J, a copy of its q, the result): the noise and the covariance of one pose
+#: ask for the same ones. J is held, so its identity cannot be reused by another array; J is never changed in place.
+_LAST_PARTS: list = [None]
+
+
 def _part_matrices(J: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``K_S``, ``K_g`` (6, 6), the growths ``g`` (M, 8) and ``h`` (M, 6) of the markers' corners ``q`` (M, 4, 2)."""
+    last = _LAST_PARTS[0]
+    if last is not None and last[0] is J and last[1].shape == q.shape and np.array_equal(last[1], q):
+        return last[2]
     M = len(q)
-    grow = (q - q.mean(axis=1, keepdims=True)).reshape(M, 8)
+    grow = (q - q.sum(axis=1, keepdims=True) * 0.25).reshape(M, 8)
     Jb = J.reshape(M, 8, 6)
     s = J.reshape(M, 4, 2, 6).sum(axis=1).reshape(2 * M, 6)  # each marker's u rows summed, then its v rows
     h = np.einsum("mk,mkj->mj", grow, Jb)
-    return s.T @ s, h.T @ h, grow, h
+    out = (s.T @ s, h.T @ h, grow, h)
+    _LAST_PARTS[0] = (J, q.copy(), out)
+    return out
 
 
 def _inverse(JtJ: np.ndarray) -> np.ndarray | None:
@@ -73,7 +83,7 @@ def _split_parts(r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: f
     freedom."""
     M = len(q)
     a_given = None if corner_sigma_px is None else float(corner_sigma_px) ** 2
-    theta, size = _measure_fast(r, J, q, a_given)
+    theta, size, parts6 = _measure_fast(r, J, q, a_given)
     if corner_sigma_px is None:
         nus = np.array([5.0 * M - 1.0, 2.0 * M - 6.0, M - 1.0])
         theta[0] = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + nus[0] * theta[0]) / (PRIOR_DOF + nus[0])
@@ -81,22 +91,25 @@ def _split_parts(r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: f
     else:
         nus = np.array([np.inf, 2.0 * M - 6.0, M - 1.0])
     a, b, c = (float(v) for v in theta)
-    return _NoiseParts(a, b, c, size, nu=_satterthwaite_fast(J, q, theta, nus))
+    _LAST_PARTS[0] = (J, q.copy(), parts6)
+    return _NoiseParts(a, b, c, size, nu=_satterthwaite_fast(J, parts6, theta, nus))
 
 
-def _measure_fast(r: np.ndarray, J: np.ndarray, q: np.ndarray, a_given: float | None) -> tuple[np.ndarray, float]:
+def _measure_fast(
+    r: np.ndarray, J: np.ndarray, q: np.ndarray, a_given: float | None
+) -> tuple[np.ndarray, float, tuple]:
     """:func:`._noise._measure`: the moment equations of the three statistics (the markers' means, their sizes,
     the rest: projections ``P_mean``, ``P_size``, ``P_rest`` of each marker's 8 coordinates) under the three
     parts (``I = P_mean + P_size + P_rest``, the shift ``4 P_mean``, the size ``|g|^2 P_size``, as the growth
     ``g`` of a marker is centred), so every product of a statistic and a part is one of the projections: the
-    nine expectations come from four 7 x 7 sums ``X^T P X``."""
+    nine expectations come from four 7 x 7 sums ``X^T P X``. Also :func:`_part_matrices`, their 6 x 6 corners."""
     from scipy.optimize import nnls  # scipy loads on first use: ``import fidlearn`` stays quick
 
     M = len(q)
-    grow = (q - q.mean(axis=1, keepdims=True)).reshape(M, 8)
+    grow = (q - q.sum(axis=1, keepdims=True) * 0.25).reshape(M, 8)
     X = np.column_stack([J, grow.reshape(-1)])
     XtX = X.T @ X
-    G = np.linalg.inv(XtX)
+    G = np.linalg.inv(XtX)  # (as the straightforward one: a singular fit raises here as it does there)
     coef = G @ (X.T @ r)
     rb = (r - X @ coef).reshape(M, 8)
     Xb = X.reshape(M, 8, 7)
@@ -126,14 +139,17 @@ def _measure_fast(r: np.ndarray, J: np.ndarray, q: np.ndarray, a_given: float | 
             cross = 0.0 if SC[k] is None else float(np.sum(G * SC[k]))
             A[i, k] = tr_sc[k] - 2.0 * cross + float(np.sum(GSG * B[k]))
     theta = nnls(A, y)[0] if a_given is None else np.r_[a_given, nnls(A[:, 1:], y - A[:, 0] * a_given)[0]]
-    return theta, float(coef[6])
+    return theta, float(coef[6]), (4.0 * A_mean[:6, :6], A_gg[:6, :6], grow, h[:, :6])
 
 
-def _satterthwaite_fast(J: np.ndarray, q: np.ndarray, theta: np.ndarray, nus: np.ndarray) -> float:
-    """:func:`._noise._satterthwaite`: each part's trace ``tr(G K G)`` from the 6 x 6 sums."""
+def _satterthwaite_fast(J: np.ndarray, parts6: tuple, theta: np.ndarray, nus: np.ndarray) -> float:
+    """:func:`._noise._satterthwaite`: each part's trace ``tr(G K G)`` from the 6 x 6 sums ``parts6``
+    (:func:`_part_matrices`)."""
     JtJ = J.T @ J
-    G = np.linalg.inv(JtJ)
-    K_S, K_g, _, _ = _part_matrices(J, q)
+    G = _inverse(JtJ)
+    if G is None:
+        return _noise._satterthwaite(J, parts6[2].reshape(-1, 4, 2), theta, nus)  # (raises as it does)
+    K_S, K_g = parts6[0], parts6[1]
     GG = G @ G
     v = np.array([t * float(np.sum(GG * K)) for t, K in zip(theta, (JtJ, K_S, K_g))])
     ok = nus > 0
