@@ -107,7 +107,8 @@ def _measure_fast(
 
     M = len(q)
     grow = (q - q.sum(axis=1, keepdims=True) * 0.25).reshape(M, 8)
-    X = np.column_stack([J, grow.reshape(-1)])
+    X = np.empty((8 * M, 7))
+    X[:, :6], X[:, 6] = J, grow.reshape(-1)
     XtX = X.T @ X
     G = np.linalg.inv(XtX)  # (as the straightforward one: a singular fit raises here as it does there)
     coef = G @ (X.T @ r)
@@ -124,20 +125,15 @@ def _measure_fast(
     y0 = 0.25 * float(np.einsum("mi,mi->", rs, rs))
     y1 = float(np.sum(np.einsum("mi,mi->m", grow, rb) ** 2 / g2))
     y = np.array([y0, y1, float(np.einsum("mi,mi->", rb, rb)) - y0 - y1])
-    B = (XtX, 4.0 * A_mean, A_gg)  # sum of X_m^T C_m X_m of each part
-    tr_g = float(g2.sum())
-    # per statistic: tr(S C), sum X^T S C X of each part (None: zero), and sum X^T S X
-    rows = (
-        ((2.0 * M, 8.0 * M, 0.0), (A_mean, 4.0 * A_mean, None), A_mean),
-        ((1.0 * M, 0.0, tr_g), (A_size, None, A_gg), A_size),
-        ((5.0 * M, 0.0, 0.0), (A_rest, None, None), A_rest),
-    )
-    A = np.empty((3, 3))
-    for i, (tr_sc, SC, XSX) in enumerate(rows):
-        GSG = G @ XSX @ G
-        for k in range(3):
-            cross = 0.0 if SC[k] is None else float(np.sum(G * SC[k]))
-            A[i, k] = tr_sc[k] - 2.0 * cross + float(np.sum(GSG * B[k]))
+    # sum(G * P) of the four sums, and tr(G X^T S X G X^T C X) of each statistic S and part C at once
+    tm, ts, tr, tg = np.einsum("ab,kab->k", G, np.stack([A_mean, A_size, A_rest, A_gg]))
+    GSG = G @ np.stack([A_mean, A_size, A_rest]) @ G
+    third = np.einsum("iab,kab->ik", GSG, np.stack([XtX, 4.0 * A_mean, A_gg]))  # the parts' sums X^T C X
+    # per statistic (rows: means, sizes, the rest) and part (columns: corners, shift, size): tr(S C) and
+    # sum(G * X^T S C X), every S C one of the projections (or zero)
+    tr_sc = np.array([[2.0 * M, 8.0 * M, 0.0], [1.0 * M, 0.0, float(g2.sum())], [5.0 * M, 0.0, 0.0]])
+    cross = np.array([[tm, 4.0 * tm, 0.0], [ts, 0.0, tg], [tr, 0.0, 0.0]])
+    A = tr_sc - 2.0 * cross + third
     theta = nnls(A, y)[0] if a_given is None else np.r_[a_given, nnls(A[:, 1:], y - A[:, 0] * a_given)[0]]
     return theta, float(coef[6]), (4.0 * A_mean[:6, :6], A_gg[:6, :6], grow, h[:, :6])
 
