@@ -24,7 +24,9 @@ from ._inputs import (
     _lens_refine,
     _lens_sse,
 )
-from ._noise import _calibration_covariance, _noise_parts, _NoiseParts, _pose_covariance
+from ._noise import _calibration_covariance, _NoiseParts
+from ._noise_fast import _noise_parts_fast as _noise_parts  # the same numbers in closed forms
+from ._noise_fast import _pose_covariance_fast
 from ._observations import _Candidate, _make_obs, _Obs, _side_px, _world
 from ._outliers import _reject_outliers
 from ._refine import _residuals, _residuals_and_jacobians, pose_jacobian
@@ -412,9 +414,13 @@ def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pos
     """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
     obs, camera = data.obs, data.camera
     if data.lens_D is None:  # the noise each pose's own residuals hold (corner noise, marker shift and size)
-        _, J, J_k = _residuals_and_jacobians(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C)
-        cov = None if data.noise is None else _pose_covariance(J, obs.img.reshape(-1, 4, 2), data.noise)
-        if cov is not None and camera.intrinsics_covariance is not None:  # the calibration's own error
+        if c.J is not None and c.JtJ is not None and camera.intrinsics_covariance is None:
+            J, JtJ, J_k = c.J, c.JtJ, None  # LM's last Jacobian, at this very pose
+        else:
+            _, J, J_k = _residuals_and_jacobians(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C)
+            JtJ = J.T @ J
+        cov = None if data.noise is None else _pose_covariance_fast(J, obs.img.reshape(-1, 4, 2), data.noise, JtJ)
+        if cov is not None and camera.intrinsics_covariance is not None and J_k is not None:  # calibration's own error
             cov = cov + _calibration_covariance(J, J_k, camera.intrinsics_covariance)
     else:  # a fisheye: corner noise in the picture's pixels, carried through the lens
         if c is data.weighted and data.weighted_J is not None:  # the weighted fit: sigma^2 (J_w^T J_w)^-1

@@ -17,7 +17,9 @@ from .. import _stats
 from ..camera import Camera
 from ..errors import PoseError
 from ._checks import _cheirality
-from ._noise import _SHIFT8, SPLIT_MIN_MARKERS, _noise_parts, _pose_covariance
+from ._noise import _SHIFT8, SPLIT_MIN_MARKERS
+from ._noise_fast import _noise_parts_fast as _noise_parts  # the same numbers in closed forms
+from ._noise_fast import _pose_covariance_fast as _pose_covariance
 from ._observations import _UNCHECKED, _Candidate, _Obs
 from ._refine import _residuals
 from ._solvers import _solve

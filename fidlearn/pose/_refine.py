@@ -199,10 +199,10 @@ def _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian: bool = T
         return r, None, None
     # projectPoints' Jacobian at rvec = tvec = 0 is d(px)/d[w, t] for X_c -> X_c + w x X_c + t. Turning the
     # camera by dtheta (world axes, on the left of R_wc) moves X_c by X_c x (R_cw dtheta), i.e. w = -R_cw dtheta;
-    # moving its centre by dC moves X_c by -R_cw dC. So J = jac[:, :6] @ diag(-R_cw, -R_cw).
-    B = np.zeros((6, 6))
-    B[:3, :3] = B[3:, 3:] = -R_wc.T
-    return r, pose_columns @ B, lens_columns
+    # moving its centre by dC moves X_c by -R_cw dC. So J = jac[:, :6] @ diag(-R_cw, -R_cw): each row's two
+    # triples times -R_cw, as one product.
+    J = (pose_columns.reshape(-1, 3) @ -R_wc.T).reshape(-1, 6)
+    return r, J, lens_columns
 
 
 def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="pinhole"):
@@ -216,35 +216,37 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="p
 
 def _lm_full(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="pinhole"):
     """:func:`_lm`, returning also the Jacobian (2N, 6) at the end: R_wc, C, sse, r, J, J^T J."""
-    r, J = _residuals(obj, img, K, dist, R_wc, C, True, model)
+    r, J, _ = _residuals_and_jacobians(obj, img, K, dist, R_wc, C, True, model)
     sse = float(r @ r)
     lam = 1e-4
     JtJ = J.T @ J
     g = J.T @ r
+    floor = np.maximum(JtJ.diagonal(), 1e-12)  # Marquardt's scale of the damping, per parameter
     dof = max(len(r) - 6, 1)
+    rel = _LM_TOL_SIGMA2 if tol_sigma2 is None else tol_sigma2
     for _ in range(max_iterations):
         # Stop when the next step would move the pose by less than about 0.03 sigma (its
         # squared length in sigma units below 1e-3, sigma estimated from the residuals).
-        tol = max(_LM_TOL_PX2, (_LM_TOL_SIGMA2 if tol_sigma2 is None else tol_sigma2) * sse / dof)
+        tol = max(_LM_TOL_PX2, rel * sse / dof)
         A = JtJ.copy()
-        A.flat[::7] += lam * np.maximum(JtJ.flat[::7], 1e-12)  # Marquardt: damp the diagonal
+        A.flat[::7] += lam * floor  # Marquardt: damp the diagonal
         ok, step = cv2.solve(A, g.reshape(6, 1))  # (OpenCV's LU: a fifth of numpy's overhead on 6 x 6)
         if not ok:
             break  # singular: no step
-        step = step.reshape(6)
-        predicted = float(step @ g)  # about twice the decrease a linear model expects
+        predicted = float(step[:, 0] @ g)  # about twice the decrease a linear model expects
         if not predicted > tol:
             break  # converged: no step left worth taking
-        dR, _ = cv2.Rodrigues(step[:3].reshape(3, 1))
+        dR, _ = cv2.Rodrigues(step[:3])
         R_new = dR @ R_wc
-        C_new = C + step[3:]
-        r_new, J_new = _residuals(obj, img, K, dist, R_new, C_new, True, model)
+        C_new = C + step[3:, 0]
+        r_new, J_new, _ = _residuals_and_jacobians(obj, img, K, dist, R_new, C_new, True, model)
         sse_new = float(r_new @ r_new)
         if sse_new < sse:
             done = sse - sse_new <= tol
             R_wc, C, sse, r, J = R_new, C_new, sse_new, r_new, J_new
             JtJ = J.T @ J
             g = J.T @ r
+            floor = np.maximum(JtJ.diagonal(), 1e-12)
             lam = max(lam / 10, 1e-12)
             if done:
                 break

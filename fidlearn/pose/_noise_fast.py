@@ -1,0 +1,174 @@
+"""The noise of a pose's corners and its covariance (:mod:`fidlearn.pose._noise`) in closed forms for 6 x 6.
+
+:func:`._noise._noise_parts` and :func:`._noise._pose_covariance` write the model's algebra as it reads: a
+trace and a sandwich per part, each through the (8M, 8M) block-diagonal covariances. Every pose pays for them,
+and with one to three markers they cost more than the Levenberg-Marquardt fit itself. Here the same numbers
+come from three 6 x 6 matrices, one per part of the noise:
+
+    K_I = J^T J,    K_S = sum_m (s_m s_m^T + t_m t_m^T),    K_g = sum_m h_m h_m^T
+
+``s_m``, ``t_m`` the sums of marker m's four u rows and four v rows of ``J`` (a common shift of its corners),
+``h_m = J_m^T g_m`` (its growth). With ``G = (J^T J)^-1`` the hat matrix ``H = J G J^T`` is a projection, so the
+expected sum of squares of the residuals under a per-marker covariance ``C`` is ``tr(C) - tr(G J^T C J)``, and the
+pose's covariance is the single sandwich ``G (a K_I + b K_S + c K_g) G``. The results equal the straightforward
+ones to round-off (``tests/test_pose_fast_paths.py`` compares them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from . import _noise
+from ._noise import PRIOR_SHIFT_PX, PRIOR_SIZE_REL, SPLIT_MIN_MARKERS, _NoiseParts
+from ._stats import PRIOR_DOF, PRIOR_SIGMA_PX
+
+_PRIOR = (PRIOR_SIGMA_PX**2, PRIOR_SHIFT_PX**2, PRIOR_SIZE_REL**2)
+
+
+#: The last :func:`_part_matrices` (its J, a copy of its q, the result): the noise and the covariance of one pose
+#: ask for the same ones. J is held, so its identity cannot be reused by another array; J is never changed in place.
+_LAST_PARTS: list = [None]
+
+
+def _part_matrices(J: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``K_S``, ``K_g`` (6, 6), the growths ``g`` (M, 8) and ``h`` (M, 6) of the markers' corners ``q`` (M, 4, 2)."""
+    last = _LAST_PARTS[0]
+    if last is not None and last[0] is J and last[1].shape == q.shape and np.array_equal(last[1], q):
+        return last[2]
+    M = len(q)
+    grow = (q - q.sum(axis=1, keepdims=True) * 0.25).reshape(M, 8)
+    Jb = J.reshape(M, 8, 6)
+    s = J.reshape(M, 4, 2, 6).sum(axis=1).reshape(2 * M, 6)  # each marker's u rows summed, then its v rows
+    h = np.einsum("mk,mkj->mj", grow, Jb)
+    out = (s.T @ s, h.T @ h, grow, h)
+    _LAST_PARTS[0] = (J, q.copy(), out)
+    return out
+
+
+def _inverse(JtJ: np.ndarray) -> np.ndarray | None:
+    """``JtJ^-1`` by LU (numpy's overhead is five times the work on 6 x 6), None when singular."""
+    ok, inv = cv2.invert(JtJ)
+    return inv if ok else None
+
+
+def _noise_parts_fast(
+    r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: float | None, JtJ: np.ndarray | None = None
+) -> _NoiseParts:
+    """:func:`._noise._noise_parts`, the prior's scale for fewer than ``SPLIT_MIN_MARKERS`` markers in closed form
+    (``JtJ``: ``J^T J`` when the caller has it)."""
+    M = len(q)
+    if M >= SPLIT_MIN_MARKERS:
+        return _split_parts(r, J, q, corner_sigma_px)
+    if corner_sigma_px is not None:
+        return _NoiseParts(float(corner_sigma_px) ** 2, 0.0, 0.0)
+    JtJ = J.T @ J if JtJ is None else JtJ
+    G = _inverse(JtJ)
+    if G is None or not np.all(np.isfinite(G)):
+        return _noise._noise_parts(r, J, q, corner_sigma_px)  # the pseudo-inverse's way
+    K_S, K_g, grow, _ = _part_matrices(J, q)
+    a0, b0, c0 = _PRIOR
+    traces = (a0 + b0) * 8.0 * M + c0 * float(np.einsum("mi,mi->", grow, grow))
+    expected = traces - float(np.sum(G * (a0 * JtJ + b0 * K_S + c0 * K_g)))
+    dof = max(8 * M - 6, 0)
+    scale = (PRIOR_DOF + float(r @ r) / max(expected, 1e-300) * dof) / (PRIOR_DOF + dof)
+    return _NoiseParts(float(scale * a0), float(scale * b0), float(scale * c0), nu=dof + PRIOR_DOF)
+
+
+def _split_parts(r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: float | None) -> _NoiseParts:
+    """:func:`._noise._noise_parts` with ``SPLIT_MIN_MARKERS`` markers or more: the three parts measured
+    (:func:`_measure_fast`), the corner noise blended with the prior when estimated, Satterthwaite's degrees of
+    freedom."""
+    M = len(q)
+    a_given = None if corner_sigma_px is None else float(corner_sigma_px) ** 2
+    theta, size, parts6 = _measure_fast(r, J, q, a_given)
+    if corner_sigma_px is None:
+        nus = np.array([5.0 * M - 1.0, 2.0 * M - 6.0, M - 1.0])
+        theta[0] = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + nus[0] * theta[0]) / (PRIOR_DOF + nus[0])
+        nus[0] += PRIOR_DOF
+    else:
+        nus = np.array([np.inf, 2.0 * M - 6.0, M - 1.0])
+    a, b, c = (float(v) for v in theta)
+    _LAST_PARTS[0] = (J, q.copy(), parts6)
+    return _NoiseParts(a, b, c, size, nu=_satterthwaite_fast(J, parts6, theta, nus))
+
+
+def _measure_fast(
+    r: np.ndarray, J: np.ndarray, q: np.ndarray, a_given: float | None
+) -> tuple[np.ndarray, float, tuple]:
+    """:func:`._noise._measure`: the moment equations of the three statistics (the markers' means, their sizes,
+    the rest: projections ``P_mean``, ``P_size``, ``P_rest`` of each marker's 8 coordinates) under the three
+    parts (``I = P_mean + P_size + P_rest``, the shift ``4 P_mean``, the size ``|g|^2 P_size``, as the growth
+    ``g`` of a marker is centred), so every product of a statistic and a part is one of the projections: the
+    nine expectations come from four 7 x 7 sums ``X^T P X``. Also :func:`_part_matrices`, their 6 x 6 corners."""
+    from scipy.optimize import nnls  # scipy loads on first use: ``import fidlearn`` stays quick
+
+    M = len(q)
+    grow = (q - q.sum(axis=1, keepdims=True) * 0.25).reshape(M, 8)
+    X = np.empty((8 * M, 7))
+    X[:, :6], X[:, 6] = J, grow.reshape(-1)
+    XtX = X.T @ X
+    G = np.linalg.inv(XtX)  # (as the straightforward one: a singular fit raises here as it does there)
+    coef = G @ (X.T @ r)
+    rb = (r - X @ coef).reshape(M, 8)
+    Xb = X.reshape(M, 8, 7)
+    g2 = np.einsum("mi,mi->m", grow, grow)
+    xs = Xb.reshape(M, 4, 2, 7).sum(axis=1).reshape(2 * M, 7)  # each marker's u rows summed, then its v rows
+    h = np.einsum("mk,mkj->mj", grow, Xb)  # X_m^T g_m
+    A_mean = (xs.T @ xs) * 0.25  # sum of X_m^T P_mean X_m (P_mean = SHIFT8 / 4)
+    A_size = (h / g2[:, None]).T @ h  # ... P_size = g g^T / |g|^2
+    A_gg = h.T @ h  # ... g g^T
+    A_rest = XtX - A_mean - A_size
+    rs = rb.reshape(M, 4, 2).sum(axis=1)
+    y0 = 0.25 * float(np.einsum("mi,mi->", rs, rs))
+    y1 = float(np.sum(np.einsum("mi,mi->m", grow, rb) ** 2 / g2))
+    y = np.array([y0, y1, float(np.einsum("mi,mi->", rb, rb)) - y0 - y1])
+    # sum(G * P) of the four sums, and tr(G X^T S X G X^T C X) of each statistic S and part C at once
+    tm, ts, tr, tg = np.einsum("ab,kab->k", G, np.stack([A_mean, A_size, A_rest, A_gg]))
+    GSG = G @ np.stack([A_mean, A_size, A_rest]) @ G
+    third = np.einsum("iab,kab->ik", GSG, np.stack([XtX, 4.0 * A_mean, A_gg]))  # the parts' sums X^T C X
+    # per statistic (rows: means, sizes, the rest) and part (columns: corners, shift, size): tr(S C) and
+    # sum(G * X^T S C X), every S C one of the projections (or zero)
+    tr_sc = np.array([[2.0 * M, 8.0 * M, 0.0], [1.0 * M, 0.0, float(g2.sum())], [5.0 * M, 0.0, 0.0]])
+    cross = np.array([[tm, 4.0 * tm, 0.0], [ts, 0.0, tg], [tr, 0.0, 0.0]])
+    A = tr_sc - 2.0 * cross + third
+    theta = nnls(A, y)[0] if a_given is None else np.r_[a_given, nnls(A[:, 1:], y - A[:, 0] * a_given)[0]]
+    return theta, float(coef[6]), (4.0 * A_mean[:6, :6], A_gg[:6, :6], grow, h[:, :6])
+
+
+def _satterthwaite_fast(J: np.ndarray, parts6: tuple, theta: np.ndarray, nus: np.ndarray) -> float:
+    """:func:`._noise._satterthwaite`: each part's trace ``tr(G K G)`` from the 6 x 6 sums ``parts6``
+    (:func:`_part_matrices`)."""
+    JtJ = J.T @ J
+    G = _inverse(JtJ)
+    if G is None:
+        return _noise._satterthwaite(J, parts6[2].reshape(-1, 4, 2), theta, nus)  # (raises as it does)
+    K_S, K_g = parts6[0], parts6[1]
+    GG = G @ G
+    v = np.array([t * float(np.sum(GG * K)) for t, K in zip(theta, (JtJ, K_S, K_g))])
+    ok = nus > 0
+    den = float(np.sum(v[ok] ** 2 / nus[ok]))
+    return float(np.sum(v) ** 2 / den) if den > 0 else math.inf
+
+
+def _pose_covariance_fast(
+    J: np.ndarray, q: np.ndarray, parts: _NoiseParts, JtJ: np.ndarray | None = None
+) -> np.ndarray | None:
+    """:func:`._noise._pose_covariance` as one sandwich ``G (a K_I + b K_S + c K_g) G`` plus the common size
+    error's ``d d^T``, ``d = G J^T g`` (``JtJ``: ``J^T J`` when the caller has it)."""
+    JtJ = J.T @ J if JtJ is None else JtJ
+    G = _inverse(JtJ)
+    if G is None:
+        return None
+    K_S, K_g, _, h = _part_matrices(J, q)
+    cov = G @ (parts.a * JtJ + parts.b * K_S + parts.c * K_g) @ G
+    if parts.size:
+        d = G @ h.sum(axis=0)
+        cov = cov + np.outer(d, d) * parts.size**2
+    if parts.nu is not None:
+        cov = cov * _noise._inflation(round(parts.nu, 1))
+    if not np.all(np.isfinite(cov)):
+        return None
+    return (cov + cov.T) / 2

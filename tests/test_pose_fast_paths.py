@@ -1,0 +1,143 @@
+"""The fast paths of ``estimate_pose`` give the numbers of the straightforward computation.
+
+The noise of a pose's corners and its covariance in closed forms for 6 x 6 (``fidlearn.pose._noise_fast``)
+against ``fidlearn.pose._noise`` and against dense (8M, 8M) matrices written out by hand; the pose of rendered
+markers against its truth, computed with and without the fast paths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_pose import CAM, look_at, wall_map
+
+from fidlearn import estimate_pose
+from fidlearn.detection import Detection
+from fidlearn.pose import _estimate, _noise, _noise_fast, pose_jacobian
+
+
+def _scene(n_markers: int, seed: int):
+    """Corners (M, 4, 2) of ``n_markers`` of a wall seen from an oblique seeded viewpoint, with 0.3 px of noise,
+    their Jacobian (8M, 6) at the true pose and residual-like noise (8M,)."""
+    rng = np.random.default_rng(seed)
+    m = wall_map(n_cols=max(1, n_markers), n_rows=1, size=120.0, spacing=260.0)
+    ids = m.ids[:n_markers]
+    centre = np.mean([m.corners()[i].mean(axis=0) for i in ids], axis=0)
+    eye = centre + np.array([1500.0 + 300 * rng.random(), 400 * rng.normal(), 300 * rng.normal()])
+    T = look_at(eye, centre)
+    P = np.concatenate([m.corners()[i] for i in ids])
+    q = CAM.project(P, T).reshape(-1, 4, 2) + rng.normal(0, 0.3, (n_markers, 4, 2))
+    return q, pose_jacobian(P, T, CAM), rng.normal(0, 0.3, 8 * n_markers)
+
+
+def _dense_cov(J, q, parts):
+    """``(J^T J)^-1 J^T Sigma J (J^T J)^-1`` with Sigma the (8M, 8M) block-diagonal covariance written out, plus
+    the common size error's effect, widened by the Hotelling factor: the module's docstring, by hand."""
+    M = len(q)
+    grow = (q - q.mean(axis=1, keepdims=True)).reshape(M, 8)
+    Sigma = np.zeros((8 * M, 8 * M))
+    shift = np.kron(np.ones((4, 4)), np.eye(2))
+    for k in range(M):
+        Sigma[8 * k : 8 * k + 8, 8 * k : 8 * k + 8] = (
+            parts.a * np.eye(8) + parts.b * shift + parts.c * np.outer(grow[k], grow[k])
+        )
+    G = np.linalg.inv(J.T @ J)
+    d = G @ J.T @ grow.reshape(-1)
+    cov = G @ J.T @ Sigma @ J @ G + parts.size**2 * np.outer(d, d)
+    return cov * (1.0 if parts.nu is None else _noise._inflation(round(parts.nu, 1)))
+
+
+@pytest.mark.parametrize("n_markers", [1, 2, 3, 5])
+@pytest.mark.parametrize("sigma", [None, 0.4])
+def test_the_closed_forms_give_the_straightforward_noise_and_covariance(n_markers, sigma):
+    for seed in range(3):
+        q, J, r = _scene(n_markers, seed)
+        want = _noise._noise_parts(r, J, q, sigma)
+        got = _noise_fast._noise_parts_fast(r, J, q, sigma)
+        for name in ("a", "b", "c", "size", "nu"):
+            if getattr(want, name) is None:
+                assert getattr(got, name) is None, name
+            else:
+                assert getattr(got, name) == pytest.approx(getattr(want, name), rel=1e-9, abs=1e-15), name
+        cov_ref = _noise._pose_covariance(J, q, want)
+        cov = _noise_fast._pose_covariance_fast(J, q, want)
+        # round-off of (J^T J)^-1, cond(J^T J) up to 1e8 for one marker
+        np.testing.assert_allclose(cov, cov_ref, rtol=1e-7, atol=1e-10 * np.abs(cov_ref).max())
+        np.testing.assert_allclose(cov, _dense_cov(J, q, want), rtol=1e-7, atol=1e-10 * np.abs(cov_ref).max())
+
+
+@pytest.mark.parametrize("sigma", [None, 0.3])
+def test_measured_shifts_and_size_errors_are_the_straightforward_ones(sigma):
+    """Residuals with a shift and a size error of each marker and a common size error (8 markers): the three parts
+    are all measured (not zero), as the straightforward moment equations measure them."""
+    q, J, _ = _scene(8, 3)
+    rng = np.random.default_rng(11)
+    grow = (q - q.mean(axis=1, keepdims=True)).reshape(8, 8)
+    r = (
+        rng.normal(0, 0.3, (8, 8))
+        + np.tile(rng.normal(0, 0.8, (8, 1, 2)), (1, 4, 1)).reshape(8, 8)
+        + grow * (rng.normal(0.004, 0.01, (8, 1)))
+    ).reshape(-1)
+    want = _noise._noise_parts(r, J, q, sigma)
+    got = _noise_fast._noise_parts_fast(r, J, q, sigma)
+    assert min(want.a, want.b, want.c, abs(want.size)) > 0
+    for name in ("a", "b", "c", "size", "nu"):
+        assert getattr(got, name) == pytest.approx(getattr(want, name), rel=1e-8), name
+
+
+def test_a_size_error_and_a_shift_enter_the_closed_form_as_written_out():
+    """Parts with every term non-zero (a measured common size error too), which the estimates above need not have."""
+    q, J, _ = _scene(3, 7)
+    parts = _noise._NoiseParts(0.09, 0.2, 3e-5, size=0.004, nu=11.0)
+    want = _dense_cov(J, q, parts)
+    np.testing.assert_allclose(_noise_fast._pose_covariance_fast(J, q, parts), want, rtol=1e-8)
+    np.testing.assert_allclose(_noise._pose_covariance(J, q, parts), want, rtol=1e-8)
+    # a wrong weight would show: the shift alone is a large part of the whole
+    wrong = _noise._NoiseParts(0.09, 0.0, 3e-5, size=0.004, nu=11.0)
+    assert np.abs(_noise_fast._pose_covariance_fast(J, q, wrong) - want).max() > 0.05 * np.abs(want).max()
+
+
+def test_a_singular_jacobian_gives_no_covariance():
+    q, J, r = _scene(1, 0)
+    J = J.copy()
+    J[:, 5] = J[:, 4]  # two columns alike: the pose is not determined
+    assert _noise_fast._pose_covariance_fast(J, q, _noise._NoiseParts(0.1, 0.0, 0.0)) is None
+
+
+@pytest.mark.parametrize("n_markers", [1, 2, 3, 6])
+def test_estimate_pose_gives_the_same_pose_with_and_without_the_fast_paths(n_markers, monkeypatch):
+    """Rendered corners of a known pose (0.3 px of noise): the pose is near the truth, and the straightforward
+    computation gives the same pose, flags, covariance and alternative to round-off."""
+    rng = np.random.default_rng(40 + n_markers)
+    m = wall_map(n_cols=n_markers, n_rows=1, size=150.0, spacing=300.0)
+    centre = np.mean([c.mean(axis=0) for c in m.corners().values()], axis=0)
+    T = look_at(centre + [2000.0, 350.0, -200.0], centre)
+    dets = [Detection(i, CAM.project(c, T) + rng.normal(0, 0.3, (4, 2))) for i, c in m.corners().items()]
+    fast = estimate_pose(dets, m, CAM)
+    with monkeypatch.context() as mp:
+        mp.setattr(_estimate, "_noise_parts", _noise._noise_parts)
+        mp.setattr(
+            _estimate, "_pose_covariance_fast", lambda J, q, parts, _JtJ=None: _noise._pose_covariance(J, q, parts)
+        )
+        plain = estimate_pose(dets, m, CAM)
+    d = fast.position_mm - T[:3, 3]  # the truth, within 4 of its sigmas (one marker is 150 mm wide at 2 m)
+    assert float(d @ np.linalg.solve(fast.covariance[3:, 3:], d)) < 16.0
+    for a, b in ((fast, plain), (fast.alternative, plain.alternative)):
+        if a is None or b is None:
+            assert (a, b) == (None, None)
+            continue
+        np.testing.assert_allclose(a.T_world_camera, b.T_world_camera, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(a.covariance, b.covariance, rtol=1e-7, atol=1e-10 * np.abs(b.covariance).max())
+        assert (a.ambiguous, a.method, a.marker_ids) == (b.ambiguous, b.method, b.marker_ids)
+        assert a.corner_sigma_px == pytest.approx(b.corner_sigma_px, rel=1e-12)
+
+
+def test_the_remembered_part_sums_follow_the_jacobian_and_the_corners():
+    """The noise and the covariance of one pose share their 6 x 6 sums; another Jacobian or other corners (the
+    alternative pose, another frame) get their own."""
+    q, J, r = _scene(5, 2)
+    q2, J2, _ = _scene(5, 4)
+    parts = _noise_fast._noise_parts_fast(r, J, q, None)  # remembers J's sums
+    for Jx, qx in ((J, q), (J2, q2), (J, q2), (J2.copy(), q2)):
+        got = _noise_fast._pose_covariance_fast(Jx, qx, parts)
+        np.testing.assert_allclose(got, _dense_cov(Jx, qx, parts), rtol=1e-7)
