@@ -164,6 +164,23 @@ def test_broken_and_empty_bags_are_clear_errors(tmp_path, drive):
         read_bag(tmp_path / "poses.mcap")
 
 
+def test_a_broken_bag_leaves_no_file_open(tmp_path):
+    """A file that is not a bag is refused and closed at once, not left for the garbage collector to close with
+    a ResourceWarning (rosbags 0.11.0 itself kept the file of a reader that failed to open)."""
+    import gc
+    import warnings
+
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"\x89MCAP0\r\n" + b"\0" * 50)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always", ResourceWarning)
+        for _ in range(3):
+            with pytest.raises(RosFormatError, match="cannot read this ROS 2 bag"):
+                read_bag(junk)
+        gc.collect()
+    assert [str(w.message) for w in seen if issubclass(w.category, ResourceWarning)] == []
+
+
 def test_frames_of_a_compressed_bag_locate_at_the_true_poses(tmp_path, drive):
     bag = write_image_bag(tmp_path / "c", drive.images, CAM, stamps(), image_topic="/cam/image_raw/compressed")
     frames = read_bag(bag)

@@ -455,10 +455,15 @@ def _open(path: Path):
     """An open rosbags AnyReader (to close), or the bag's error said plainly."""
     from rosbags.highlevel import AnyReader
 
+    reader = None
     try:
         reader = AnyReader([path], default_typestore=typestore())
         reader.open()
     except Exception as exc:  # not a bag, cut short, an unknown storage
+        # rosbags 0.11.0 leaves the file of the reader that failed to open; closed here
+        for part in getattr(reader, "readers", ()):
+            with contextlib.suppress(Exception):
+                part.close()
         raise _broken(path, exc) from None
     key = tuple(sorted({(c.msgtype, str(c.msgdef.format), c.msgdef.data, c.digest) for c in reader.connections}))
     if key in _STORES:
