@@ -54,14 +54,17 @@ def assert_same_pixels(rendered: np.ndarray, committed: np.ndarray, provenance: 
 
 
 def test_data_stays_small_and_synthetic_frames_are_png():
-    # the robot's 16 lossless 1600x1200 grey photos (16 MB) and the fisheye's 18 photos as published (3.7 MB)
-    # have budgets of their own
+    # the robot's 16 lossless 1600x1200 grey photos (16 MB), the fisheye's 18 photos as published (3.7 MB)
+    # and TUM VI's six 1024x1024 grey AprilGrid frames (3.1 MB) have budgets of their own
     robot = data_path("real", "robot_charuco")
     fisheye = data_path("real", "fisheye_checkerboard")
-    files = [p for p in data_dir().rglob("*") if p.is_file() and robot not in p.parents and fisheye not in p.parents]
+    aprilgrid = data_path("real", "tumvi_aprilgrid")
+    own = (robot, fisheye, aprilgrid)
+    files = [p for p in data_dir().rglob("*") if p.is_file() and not any(f in p.parents for f in own)]
     assert sum(p.stat().st_size for p in files) < 15e6
     assert sum(p.stat().st_size for p in robot.iterdir()) < 17e6
     assert sum(p.stat().st_size for p in fisheye.rglob("*") if p.is_file()) < 4e6
+    assert sum(p.stat().st_size for p in aprilgrid.iterdir()) < 3.3e6
     for folder in ("calibration", "scenes", "trajectory"):
         assert not [p for p in data_path(folder).iterdir() if p.suffix.lower() in (".jpg", ".jpeg")]
 
