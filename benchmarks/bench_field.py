@@ -154,7 +154,8 @@ def main(argv=None) -> int:
     )
     ok = every and within == len(err) and len(placed) == len(m.ids)
     print(
-        f"<!-- target: field: real field photos with a published field layout: every photo with tags located; "
+        f"<!-- target: field: real photos of a published tag layout (a calibration AprilGrid; no FIRST field photos "
+        f"with a licence to ship yet): every photo with tags located; "
         f"known distances within the layout's own accuracy | {located} of {len(photos)} photos located; "
         f"{within} of {len(err)} distances within {100 * LAYOUT_ACCURACY:.2f} % (largest {100 * r.max():.2f} %, "
         f"{a.max():.2f} mm) | {'yes' if ok else 'no'} -->"
