@@ -63,6 +63,9 @@ data: $(STAMP)
 # The unit tests and the notebooks (nbval-lax: their own asserts, not the last printed digit)
 # once more against the newest OpenCV 4.x (the slow sweeps run once, in make test-slow), in a venv of its own
 # (.venv-cv4) so that the two OpenCV releases never meet: no shared pytest cache, hypothesis database or bytecode.
+# Checked once, by make test: the README's bare pytest commands collect as written (two whole collections, 36 s).
+# They are commands for an existing environment such as .venv; the other environments only repeat it.
+ONCE_ONLY := --deselect tests/test_packaging.py::test_the_readme_pytest_commands_collect_as_written
 CV4_VENV  ?= .venv-cv4
 CV4_STAMP := $(CV4_VENV)/.fidlearn-installed
 
@@ -75,7 +78,7 @@ $(CV4_STAMP): pyproject.toml
 test-cv4: $(CV4_STAMP)
 	@$(CV4_VENV)/bin/python -c 'import cv2; assert cv2.__version__.startswith("4."), cv2.__version__; print("OpenCV", cv2.__version__)'
 	HYPOTHESIS_STORAGE_DIRECTORY=$(CV4_VENV)/.hypothesis PYTHONPYCACHEPREFIX=$(CV4_VENV)/pycache \
-		$(CV4_VENV)/bin/python -m pytest -m "not slow" $(XDIST) tests $(NOTEBOOKS) --nbval-lax --ignore=tests/browser -p no:cacheprovider
+		$(CV4_VENV)/bin/python -m pytest -m "not slow" $(XDIST) tests $(NOTEBOOKS) --nbval-lax --ignore=tests/browser -p no:cacheprovider $(ONCE_ONLY)
 
 # The suite but its slow sweeps on the oldest versions pyproject.toml allows (every direct dependency pinned to
 # its lower bound by tools/floor_constraints.py) and the oldest Python, in .venv-floor. The
@@ -98,7 +101,7 @@ $(FLOOR_STAMP): pyproject.toml tools/floor_constraints.py
 test-floor: $(FLOOR_STAMP)
 	@$(FLOOR_VENV)/bin/python -c 'import sys, cv2, numpy, matplotlib; print("floors: Python", sys.version.split()[0], "OpenCV", cv2.__version__, "numpy", numpy.__version__, "matplotlib", matplotlib.__version__)'
 	HYPOTHESIS_STORAGE_DIRECTORY=$(FLOOR_VENV)/.hypothesis PYTHONPYCACHEPREFIX=$(FLOOR_VENV)/pycache \
-		$(FLOOR_VENV)/bin/python -m pytest -m "not slow" $(XDIST) tests $(NOTEBOOKS) --nbval-lax --ignore=tests/browser -p no:cacheprovider
+		$(FLOOR_VENV)/bin/python -m pytest -m "not slow" $(XDIST) tests $(NOTEBOOKS) --nbval-lax --ignore=tests/browser -p no:cacheprovider $(ONCE_ONLY)
 
 # JupyterLab in a real (headless) browser: runs the intrinsics notebook and moves its slider, and
 # notebook 12 with Chromium's fake camera playing a rendered drive (the webcam widget end to end).
