@@ -63,6 +63,7 @@ data: $(STAMP)
 # The unit tests and the notebooks (nbval-lax: their own asserts, not the last printed digit)
 # once more against the newest OpenCV 4.x (the slow sweeps run once, in make test-slow), in a venv of its own
 # (.venv-cv4) so that the two OpenCV releases never meet: no shared pytest cache, hypothesis database or bytecode.
+# pip does not compile the installed packages (half of its time): the tests compile what they import, into the venv.
 # Checked once, by make test: the README's bare pytest commands collect as written (two whole collections, 36 s).
 # They are commands for an existing environment such as .venv; the other environments only repeat it.
 ONCE_ONLY := --deselect tests/test_packaging.py::test_the_readme_pytest_commands_collect_as_written
@@ -72,7 +73,7 @@ CV4_STAMP := $(CV4_VENV)/.fidlearn-installed
 $(CV4_STAMP): pyproject.toml
 	@test -x $(CV4_VENV)/bin/python || $(PYTHON) -m venv $(CV4_VENV)
 	$(CV4_VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(CV4_VENV)/bin/python -m pip install --quiet -e ".[test]" "opencv-contrib-python-headless<5"
+	$(CV4_VENV)/bin/python -m pip install --quiet --no-compile -e ".[test]" "opencv-contrib-python-headless<5"
 	@touch $(CV4_STAMP)
 
 test-cv4: $(CV4_STAMP)
@@ -95,7 +96,7 @@ $(FLOOR_STAMP): pyproject.toml tools/floor_constraints.py
 	@test -x $(FLOOR_VENV)/bin/python || $(FLOOR_PYTHON) -m venv $(FLOOR_VENV)
 	$(FLOOR_VENV)/bin/python -m pip install --quiet --upgrade pip
 	$(FLOOR_VENV)/bin/python tools/floor_constraints.py > $(FLOOR_VENV)/floors.txt
-	$(FLOOR_VENV)/bin/python -m pip install --quiet -c $(FLOOR_VENV)/floors.txt -e ".[test]"
+	$(FLOOR_VENV)/bin/python -m pip install --quiet --no-compile -c $(FLOOR_VENV)/floors.txt -e ".[test]"
 	@touch $(FLOOR_STAMP)
 
 test-floor: $(FLOOR_STAMP)
