@@ -63,22 +63,47 @@ class _Step:
     predicted: kf._State
     filtered: kf._State
     out: TrackedPose
-    shared: np.ndarray | None = None
+    #: the shared error after this step (the module's docstring), as the track carried it: its covariance ``C``
+    #: (13, 13) in the state and the state's covariance with ``u`` ``X`` (13, 6) (None: a fixed noise, no shared
+    #: error), and the fade ``a`` of ``u`` into this step (:func:`shared_fade`; 0 where a segment starts)
+    shared_cov: np.ndarray | None = None
+    shared_cross: np.ndarray | None = None
+    fade: float = 0.0
     #: the gain's pose columns K (13, 6) of a measured step (None: no frame corrected it) and the square root
-    #: (6, 6) of the frame's shared error, as it entered (None: none); what the smoother needs to carry the
-    #: shared error exactly (:mod:`fidlearn.filtering._smoother`)
+    #: (6, 6) of the frame's shared error, as it entered (None: none); with ``F`` and ``fade``, how the step
+    #: moved the state's error and ``u`` (:meth:`shared_transition`), which the smoother carries backwards
+    #: (:mod:`fidlearn.filtering._smoother`)
     gain: np.ndarray | None = None
     entry: np.ndarray | None = None
 
+    @property
+    def shared(self) -> np.ndarray | None:
+        """The covariance (6, 6) of the shared error in the filtered pose (None: none is carried)."""
+        return None if self.shared_cov is None else self.shared_cov[:6, :6]
 
-def predict_shared(C: np.ndarray, X: np.ndarray, F: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def shared_transition(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(A, KB)``: the step (not a segment's start) took the shared error's part of the state's error ``e``
+        and ``u`` to ``A e + a KB u + sqrt(1 - a^2) KB n`` and ``a u + sqrt(1 - a^2) n`` (``a`` the step's
+        ``fade``, ``n`` new), as the track carried them (:func:`predict_shared`, then ``_Track._enter_shared``
+        for a frame with a shared error): ``A = (I - K H) F`` and ``KB = K B``, or ``F`` and 0."""
+        assert self.F is not None
+        if self.gain is None or self.entry is None:
+            return self.F, np.zeros((kf._N, 6))
+        return self.F - self.gain @ self.F[:6], self.gain @ self.entry
+
+
+def shared_fade(dt: float) -> float:
+    """How much of the shared error's process ``u`` lasts ``dt`` seconds: ``exp(-dt / SHARED_ERROR_TIME_S)``."""
+    return math.exp(-max(dt, 0.0) / SHARED_ERROR_TIME_S)
+
+
+def predict_shared(C: np.ndarray, X: np.ndarray, F: np.ndarray, fade: float) -> tuple[np.ndarray, np.ndarray]:
     """The shared error's covariance in the state ``C`` (13, 13) and the state's covariance with ``u`` ``X``
-    (13, 6) carried over ``dt`` seconds by the transition ``F``: the state's error becomes ``F e`` and ``u``
-    becomes ``a u + sqrt(1 - a^2) n`` with ``a = exp(-dt / SHARED_ERROR_TIME_S)`` (``n`` new, independent)."""
-    a = math.exp(-max(dt, 0.0) / SHARED_ERROR_TIME_S)
+    (13, 6) carried by the transition ``F``: the state's error becomes ``F e`` and ``u`` becomes
+    ``a u + sqrt(1 - a^2) n`` with ``a = fade`` (:func:`shared_fade` of the time step; ``n`` new, independent)."""
     FC = F @ C
     out = FC @ F.T
-    return 0.5 * (out + out.T), a * (F @ X)
+    return 0.5 * (out + out.T), fade * (F @ X)
 
 
 def check_process_noise(process_noise) -> tuple[float, float] | None:
@@ -249,6 +274,7 @@ class _Track:
         # the error the frames share (the module's docstring): its covariance in the state (13, 13) and the
         # state's covariance with the unit Gauss-Markov process u that drives it (13, 6); cov(u) = I
         self.shared_cov, self.shared_cross = np.zeros((kf._N, kf._N)), np.zeros((kf._N, 6))
+        self.fade = 0.0  # how much of u lasted into the latest step (shared_fade)
 
     @property
     def q(self) -> tuple[float, float]:
@@ -338,7 +364,8 @@ class _Track:
             T_rel, cov_rel, dt_dk = kf.odometry_to_camera(odo[0], odo[1], self.T_camera_base, self.state.k)
             predicted, F = kf.predict_odometry(self.state, t, T_rel, cov_rel, dt_dk, q_lin, q_ang)
         if self.learner is not None:
-            self.shared_cov, self.shared_cross = predict_shared(self.shared_cov, self.shared_cross, F, t - self.state.t)
+            self.fade = shared_fade(t - self.state.t)
+            self.shared_cov, self.shared_cross = predict_shared(self.shared_cov, self.shared_cross, F, self.fade)
         return predicted, F
 
     def _start(self, pose: Pose, t: float, status: str, F) -> TrackedPose:
@@ -348,7 +375,7 @@ class _Track:
         assert pose.covariance is not None
         cov = np.asarray(pose.covariance, dtype=float)
         root = self._shared_root(cov)
-        self.shared_cov, self.shared_cross = np.zeros((kf._N, kf._N)), np.zeros((kf._N, 6))
+        self.shared_cov, self.shared_cross, self.fade = np.zeros((kf._N, kf._N)), np.zeros((kf._N, 6)), 0.0
         if root is not None:  # the start's error is the frame's own
             self.shared_cross[:6] = root
             self.shared_cov[:6, :6] = root @ root.T
@@ -361,8 +388,9 @@ class _Track:
         self.state = filtered
         shared = None if self.learner is None else self.shared_cov[:6, :6].copy()
         out = self.output(filtered, status, reason=reason, d2=d2, pose=pose, flipped=flipped, shared=shared)
-        if self.steps is not None:
-            self.steps.append(_Step(F, predicted, filtered, out, shared, gain, entry))
+        if self.steps is not None:  # C and X are replaced at every step, never changed in place: kept as they are
+            C, X = (None, None) if self.learner is None else (self.shared_cov, self.shared_cross)
+            self.steps.append(_Step(F, predicted, filtered, out, C, X, self.fade, gain, entry))
         return out
 
     def _enter_shared(self, K: np.ndarray, root: np.ndarray) -> None:
