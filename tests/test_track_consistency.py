@@ -127,22 +127,27 @@ def test_the_share_is_the_mean_nis_and_its_reading_is_unbiased():
     assert frozen.share == 1.0
 
 
-def _recorded(poses, times, share):
-    """The smoother's forward pass over ``poses`` with the learnt noise frozen (share ``share``) and its gains."""
+def _recorded(poses, times, share, whole_from=None):
+    """The smoother's forward pass over ``poses`` with the learnt noise frozen (share ``share``; 1 from frame
+    ``whole_from`` on, when given: the frames' covariance then taken whole, none of it shared) and its gains."""
     from fidlearn.filtering import _smoother, _track
 
     track = _track._Track(None, None, record=True)
     track.learner = _adapt.NoiseLearner((20.0, 0.01), frozen=True)
     track.learner.share = share
-    track = _smoother._forward(poses, times, None, track)
+    for k, (pose, t) in enumerate(zip(poses, times)):
+        if k == whole_from:
+            track.learner.share = 1.0
+        track.step(pose, t, None, "no pose")
     states, gains = _smoother._backward(track.steps)
     return track, states, gains
 
 
-def _shared_only_runs(runs: int, n: int, share: float, seed: int = 5):
+def _shared_only_runs(runs: int, n: int, share: float, seed: int = 5, whole_from=None):
     """Smoothed and filtered errors of many runs over one set of frames whose errors are only the shared part
-    ``sqrt(1 - share) chol(R) u_k`` (``u`` first-order Gauss-Markov with the time constant the track assumes),
-    with the learnt noise frozen so that every run has the same gains; and one run's poses and times."""
+    ``sqrt(1 - share) chol(R) u_k`` (``u`` first-order Gauss-Markov with the time constant the track assumes;
+    none from frame ``whole_from`` on, where the share becomes 1), with the learnt noise frozen so that every run
+    has the same gains; and one run's poses and times."""
     from fidlearn.filtering import _track
 
     rng = np.random.default_rng(seed)
@@ -159,12 +164,12 @@ def _shared_only_runs(runs: int, n: int, share: float, seed: int = 5):
         poses = []
         for k in range(n):
             u = a[k] * u + np.sqrt(1.0 - a[k] ** 2) * rng.normal(size=6) if k else u
-            e = B @ u
+            e = B @ u if whole_from is None or k < whole_from else np.zeros(6)
             T = truth.copy()
             T[:3, :3] = fidlearn.filtering._so3.exp_so3(e[:3])
             T[:3, 3] += e[3:]
             poses.append(None if k in gap else fidlearn.Pose(T, (1, 2), {}, 0.0, R, 1.0))
-        track, states, _ = _recorded(poses, times, share)
+        track, states, _ = _recorded(poses, times, share, whole_from)
         smoothed.append([s.C - truth[:3, 3] for s in states])
         filtered.append([s.filtered.C - truth[:3, 3] for s in track.steps])
     return np.array(smoothed), np.array(filtered), (poses, times)
@@ -198,3 +203,20 @@ def test_the_shared_error_is_carried_exactly_through_filter_and_smoother(monkeyp
             wrong, _, wrong_gains = _recorded(poses, times, share)
         ratio = np.trace(_smoother._shared_errors(wrong.steps, wrong_gains)[12][3:, 3:]) / emp
         assert not 1 / 1.3 < ratio < 1.3, (tau, ratio)
+
+
+def test_a_frame_without_a_shared_error_still_corrects_the_one_the_track_holds():
+    """Frames whose share of the covariance is 1 (the learnt share can reach it: frames that vary as much as their
+    covariance says) bring no shared error, but the gain still corrects the one the state holds from the frames
+    before: the track's shared covariance matches 200 runs' filtered errors (it stayed at the prediction's before,
+    never corrected: 5x too large at the first such frame and 230x by the end here), and the smoother's, read from
+    the forward pass, matches the smoothed errors."""
+    from fidlearn.filtering import _smoother
+
+    smoothed, filtered, (poses, times) = _shared_only_runs(200, 24, 0.3, whole_from=16)
+    track, _, gains = _recorded(poses, times, 0.3, whole_from=16)
+    computed = _smoother._shared_errors(track.steps, gains)
+    for k in (12, 16, 17, 19, 23):
+        want_f, want_s = np.trace(track.steps[k].shared[3:, 3:]), np.trace(computed[k][3:, 3:])
+        assert np.trace(np.cov(filtered[:, k].T)) == pytest.approx(want_f, rel=0.25), k
+        assert np.trace(np.cov(smoothed[:, k].T)) == pytest.approx(want_s, rel=0.25), k

@@ -85,11 +85,13 @@ class _Step:
         """``(A, KB)``: the step (not a segment's start) took the shared error's part of the state's error ``e``
         and ``u`` to ``A e + a KB u + sqrt(1 - a^2) KB n`` and ``a u + sqrt(1 - a^2) n`` (``a`` the step's
         ``fade``, ``n`` new), as the track carried them (:func:`predict_shared`, then ``_Track._enter_shared``
-        for a frame with a shared error): ``A = (I - K H) F`` and ``KB = K B``, or ``F`` and 0."""
+        for a measured step): ``A = (I - K H) F`` and ``KB = K B`` (0 for a frame without a shared error), or
+        ``F`` and 0 for a step no frame corrected."""
         assert self.F is not None
-        if self.gain is None or self.entry is None:
+        if self.gain is None:
             return self.F, np.zeros((kf._N, 6))
-        return self.F - self.gain @ self.F[:6], self.gain @ self.entry
+        KB = np.zeros((kf._N, 6)) if self.entry is None else self.gain @ self.entry
+        return self.F - self.gain @ self.F[:6], KB
 
 
 def shared_fade(dt: float) -> float:
@@ -320,7 +322,7 @@ class _Track:
         chosen = alternative(pose) if flipped else pose
         filtered, K = kf.update(predicted, r, S, cov)
         root = self._shared_root(cov)
-        if root is not None:  # the shared error enters the track as the frame's does, through the gain
+        if self.learner is not None:  # the shared error enters the track as the frame's does, through the gain
             self._enter_shared(K, root)
         if self.learner is not None:
             self.learner.learn_share(d2)
@@ -393,17 +395,20 @@ class _Track:
             self.steps.append(_Step(F, predicted, filtered, out, C, X, self.fade, gain, entry))
         return out
 
-    def _enter_shared(self, K: np.ndarray, root: np.ndarray) -> None:
-        """A frame whose shared error is ``root @ u`` corrected the state with the gain ``K`` (13, 6): the state's
-        error ``e`` becomes ``(I - K H) e + K root u`` (see :func:`predict_shared`)."""
+    def _enter_shared(self, K: np.ndarray, root: np.ndarray | None) -> None:
+        """A frame whose shared error is ``root @ u`` (None: it has none, the share being 1 or more) corrected the
+        state with the gain ``K`` (13, 6): the state's error ``e`` becomes ``(I - K H) e + K root u`` (see
+        :func:`predict_shared`). The shared error the state already holds is corrected by the gain either way."""
         C, X = self.shared_cov, self.shared_cross
         AX = X - K @ X[:6]  # (I - K H) X
-        KB = K @ root
         AC = C - K @ C[:6]  # (I - K H) C
-        ACA = AC - AC[:, :6] @ K.T  # (I - K H) C (I - K H)^T
-        cross = AX @ KB.T
-        out = ACA + cross + cross.T + KB @ KB.T
-        self.shared_cov, self.shared_cross = 0.5 * (out + out.T), AX + KB
+        out = AC - AC[:, :6] @ K.T  # (I - K H) C (I - K H)^T
+        if root is not None:
+            KB = K @ root
+            cross = AX @ KB.T
+            out = out + cross + cross.T + KB @ KB.T
+            AX = AX + KB
+        self.shared_cov, self.shared_cross = 0.5 * (out + out.T), AX
 
     @property
     def share(self) -> float:
