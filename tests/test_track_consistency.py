@@ -127,11 +127,28 @@ def test_the_share_is_the_mean_nis_and_its_reading_is_unbiased():
     assert frozen.share == 1.0
 
 
-def _shared_only_runs(runs: int, n: int, share: float, seed: int = 5):
-    """Smoothed and filtered errors of many runs over one set of frames whose errors are only the shared part
-    ``sqrt(1 - share) chol(R) u_k`` (``u`` first-order Gauss-Markov with the time constant the track assumes),
-    with the learnt noise frozen so that every run has the same gains; and one run's recorded steps."""
+def _recorded(poses, times, share, whole_from=None):
+    """The smoother's forward pass over ``poses`` with the learnt noise frozen (share ``share``; 1 from frame
+    ``whole_from`` on, when given: the frames' covariance then taken whole, none of it shared) and its gains."""
     from fidlearn.filtering import _smoother, _track
+
+    track = _track._Track(None, None, record=True)
+    track.learner = _adapt.NoiseLearner((20.0, 0.01), frozen=True)
+    track.learner.share = share
+    for k, (pose, t) in enumerate(zip(poses, times)):
+        if k == whole_from:
+            track.learner.share = 1.0
+        track.step(pose, t, None, "no pose")
+    states, gains = _smoother._backward(track.steps)
+    return track, states, gains
+
+
+def _shared_only_runs(runs: int, n: int, share: float, seed: int = 5, whole_from=None):
+    """Smoothed and filtered errors of many runs over one set of frames whose errors are only the shared part
+    ``sqrt(1 - share) chol(R) u_k`` (``u`` first-order Gauss-Markov with the time constant the track assumes;
+    none from frame ``whole_from`` on, where the share becomes 1), with the learnt noise frozen so that every run
+    has the same gains; and one run's poses and times."""
+    from fidlearn.filtering import _track
 
     rng = np.random.default_rng(seed)
     R = np.diag([1e-6, 2e-6, 1.5e-6, 4.0, 1.0, 9.0])  # small: the error-state algebra is linear here
@@ -141,35 +158,31 @@ def _shared_only_runs(runs: int, n: int, share: float, seed: int = 5):
     gap = set(range(10, 15))  # frames without a pose: the shared error fades while the track predicts
     a = np.exp(-np.diff(times, prepend=0.0) / _track.SHARED_ERROR_TIME_S)
     truth = fidlearn.make_transform(np.eye(3), [1000.0, 0.0, 250.0])
-    smoothed, filtered, steps = [], [], None
+    smoothed, filtered, poses = [], [], []
     for _ in range(runs):
         u = rng.normal(size=6)
         poses = []
         for k in range(n):
             u = a[k] * u + np.sqrt(1.0 - a[k] ** 2) * rng.normal(size=6) if k else u
-            e = B @ u
+            e = B @ u if whole_from is None or k < whole_from else np.zeros(6)
             T = truth.copy()
             T[:3, :3] = fidlearn.filtering._so3.exp_so3(e[:3])
             T[:3, 3] += e[3:]
             poses.append(None if k in gap else fidlearn.Pose(T, (1, 2), {}, 0.0, R, 1.0))
-        track = _track._Track(None, None, record=True)
-        track.learner = _adapt.NoiseLearner((20.0, 0.01), frozen=True)
-        track.learner.share = share
-        track = _smoother._forward(poses, times, None, track)
-        states, gains = _smoother._backward(track.steps)
+        track, states, _ = _recorded(poses, times, share, whole_from)
         smoothed.append([s.C - truth[:3, 3] for s in states])
         filtered.append([s.filtered.C - truth[:3, 3] for s in track.steps])
-        steps = (track, gains)
-    return np.array(smoothed), np.array(filtered), steps
+    return np.array(smoothed), np.array(filtered), (poses, times)
 
 
-def test_the_shared_error_is_carried_exactly_through_filter_and_smoother():
+def test_the_shared_error_is_carried_exactly_through_filter_and_smoother(monkeypatch):
     """The covariance the track and the smoother report for the shared error matches, frame by frame, that of
     their errors over 200 runs of shared errors alone (a Gauss-Markov process with the assumed time constant)."""
-    from fidlearn.filtering import _smoother
+    from fidlearn.filtering import _smoother, _track
 
     share = 0.3
-    smoothed, filtered, (track, gains) = _shared_only_runs(200, 24, share)
+    smoothed, filtered, (poses, times) = _shared_only_runs(200, 24, share)
+    track, _, gains = _recorded(poses, times, share)
     computed = _smoother._shared_errors(track.steps, gains)
     for k in (0, 5, 9, 12, 18, 23):
         emp_s = np.cov(smoothed[:, k].T)
@@ -181,10 +194,29 @@ def test_the_shared_error_is_carried_exactly_through_filter_and_smoother():
     # at the end the smoothed pose is the filtered one, and so is its shared error
     np.testing.assert_allclose(computed[-1], track.steps[-1].shared, rtol=1e-9, atol=1e-12)
     # the same frames taken as sharing an error that lasts five times shorter (nearly white: averaged away) or
-    # five times longer (never averaged): far from what the runs show (0.50x and 1.45x here)
-    from fidlearn.filtering import _track
-
+    # five times longer (never averaged): far from what the runs show (0.50x and 1.45x here); the gains, fixed by
+    # the frozen share, are the same, only the shared error's lifetime that the forward pass carries differs
     emp = np.trace(np.cov(smoothed[:, 12].T))
     for tau in (0.2 * _track.SHARED_ERROR_TIME_S, 5 * _track.SHARED_ERROR_TIME_S):
-        ratio = np.trace(_smoother._shared_errors(track.steps, gains, tau)[12][3:, 3:]) / emp
+        with monkeypatch.context() as m:
+            m.setattr(_track, "SHARED_ERROR_TIME_S", tau)
+            wrong, _, wrong_gains = _recorded(poses, times, share)
+        ratio = np.trace(_smoother._shared_errors(wrong.steps, wrong_gains)[12][3:, 3:]) / emp
         assert not 1 / 1.3 < ratio < 1.3, (tau, ratio)
+
+
+def test_a_frame_without_a_shared_error_still_corrects_the_one_the_track_holds():
+    """Frames whose share of the covariance is 1 (the learnt share can reach it: frames that vary as much as their
+    covariance says) bring no shared error, but the gain still corrects the one the state holds from the frames
+    before: the track's shared covariance matches 200 runs' filtered errors (it stayed at the prediction's before,
+    never corrected: 5x too large at the first such frame and 230x by the end here), and the smoother's, read from
+    the forward pass, matches the smoothed errors."""
+    from fidlearn.filtering import _smoother
+
+    smoothed, filtered, (poses, times) = _shared_only_runs(200, 24, 0.3, whole_from=16)
+    track, _, gains = _recorded(poses, times, 0.3, whole_from=16)
+    computed = _smoother._shared_errors(track.steps, gains)
+    for k in (12, 16, 17, 19, 23):
+        want_f, want_s = np.trace(track.steps[k].shared[3:, 3:]), np.trace(computed[k][3:, 3:])
+        assert np.trace(np.cov(filtered[:, k].T)) == pytest.approx(want_f, rel=0.25), k
+        assert np.trace(np.cov(smoothed[:, k].T)) == pytest.approx(want_s, rel=0.25), k

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -11,12 +10,9 @@ import numpy as np
 from ..errors import TrackingError
 from ..pose import Pose
 from . import _filter as kf
-from . import _track
 from ._adapt import NoiseLearner
 from ._result import TrackedPose
 from ._track import DEFAULT_PROCESS_NOISE, _Step, _Track
-
-_I6 = np.eye(6)
 
 
 def smooth(
@@ -150,62 +146,42 @@ def _backward(steps: list[_Step]) -> tuple[list[kf._State], list[np.ndarray | No
     return out, gains
 
 
-def _shared_errors(steps: list[_Step], gains: list[np.ndarray | None], tau_s: float | None = None) -> list[np.ndarray]:
+def _shared_errors(steps: list[_Step], gains: list[np.ndarray | None]) -> list[np.ndarray]:
     """The covariance (6, 6) of the error the frames share, in every smoothed pose, computed exactly.
 
-    The shared error of frame ``k`` is ``B_k u_k``: ``B_k`` the square root of its share (``Step.entry``) and
-    ``u`` (6,) a first-order Gauss-Markov process of unit covariance, ``u_k = a u_{k-1} + sqrt(1 - a^2) n_k``
-    with ``a = exp(-dt / SHARED_ERROR_TIME_S)``. The forward pass's error from it follows
-    ``e_k = (I - K_k H) F_k e_{k-1} + K_k B_k u_k``, so ``y_k = [e_k, u_k]`` (19,) follows
-    ``y_k = T_k y_{k-1} + N_k n_k`` and its covariance ``M_k`` is carried forward. The smoothed error is
-    ``s_k = (I - G_k F_{k+1}) e_k + G_k s_{k+1}``; written as ``s_k = J_k y_k + h_k`` with ``h_k`` made of the
-    later ``n`` alone (independent of ``y_k``): ``J_k = (I - G_k F_{k+1}) [I, 0] + G_k J_{k+1} T_{k+1}`` and
-    ``cov(h_k) = G_k (J_{k+1} N_{k+1} N_{k+1}^T J_{k+1}^T + cov(h_{k+1})) G_k^T``, whence
+    The forward pass carried the shared error (:mod:`fidlearn.filtering._track`): ``y_k = [e_k, u_k]`` (19,), the
+    state's error from it and the unit Gauss-Markov process ``u`` that drives it, has the covariance
+    ``M_k = [[C_k, X_k], [X_k^T, I]]`` (``C``, ``X`` as each step recorded them) and follows
+    ``y_k = T_k y_{k-1} + N_k n_k`` with ``T_k = [[A_k, a_k KB_k], [0, a_k I]]``, ``N_k = b_k [KB_k; I]``
+    (``A``, ``KB`` from :meth:`_Step.shared_transition`, ``a`` the step's fade, ``b = sqrt(1 - a^2)``, ``n`` new).
+    The smoothed error is ``s_k = (I - G_k F_{k+1}) e_k + G_k s_{k+1}``; written as ``s_k = J_k y_k + h_k`` with
+    ``h_k`` made of the later ``n`` alone (independent of ``y_k``): ``J_k = (I - G_k F_{k+1}) [I, 0] + G_k J_{k+1}
+    T_{k+1}`` and ``cov(h_k) = G_k (J_{k+1} N_{k+1} N_{k+1}^T J_{k+1}^T + cov(h_{k+1})) G_k^T``, whence
     ``cov(s_k) = J_k M_k J_k^T + cov(h_k)``. An error shared by the frames the smoother averages is counted
     once, with the frames before and after each pose correlated as far as the shared error lasts.
     """
-    tau_s = _track.SHARED_ERROR_TIME_S if tau_s is None else tau_s
     n_x = kf._N
-    E = np.zeros((n_x, n_x + 6))
-    E[:, :n_x] = np.eye(n_x)
-    Ms, Ts, Ns = [], [], []
-    M = np.zeros((n_x + 6, n_x + 6))
-    zero = np.zeros((6, 6))
-    for k, step in enumerate(steps):
-        B = zero if step.entry is None else step.entry
-        if step.F is None:  # the track (re)starts at a measured pose: its error is the frame's own
-            KB = np.zeros((n_x, 6))
-            KB[:6] = B
-            M = np.block([[KB @ KB.T, KB], [KB.T, _I6]])
-            T = N = None
-        else:
-            a = math.exp(-max(step.filtered.t - steps[k - 1].filtered.t, 0.0) / tau_s)
-            b = math.sqrt(max(1.0 - a * a, 0.0))
-            A, KB = step.F.copy(), np.zeros((n_x, 6))
-            if step.gain is not None:
-                A = A - step.gain @ step.F[:6]  # (I - K H) F
-                KB = step.gain @ B
-            T = np.block([[A, a * KB], [np.zeros((6, n_x)), a * _I6]])
-            N = np.vstack([b * KB, b * _I6])
-            M = T @ M @ T.T + N @ N.T
-        Ms.append(M)
-        Ts.append(T)
-        Ns.append(N)
+    eye, none = np.eye(n_x), np.zeros((n_x, 6))
     out: list[np.ndarray] = [np.zeros((6, 6))] * len(steps)
-    J, H = E, np.zeros((n_x, n_x))
+    Je, Ju, H = eye, none, np.zeros((n_x, n_x))  # J = [Je, Ju]
     for k in range(len(steps) - 1, -1, -1):
         G = gains[k]
         if G is None:  # the end of a segment (or a step the backward pass left as filtered)
-            J, H = E, np.zeros((n_x, n_x))
+            Je, Ju, H = eye, none, np.zeros((n_x, n_x))
         else:
-            nxt_T, nxt_N, F = Ts[k + 1], Ns[k + 1], steps[k + 1].F
-            assert nxt_T is not None
-            assert nxt_N is not None
-            assert F is not None
-            JN = J @ nxt_N
-            H = G @ (JN @ JN.T + H) @ G.T
-            J = (np.eye(n_x) - G @ F) @ E + G @ (J @ nxt_T)
-        cov = (J @ Ms[k] @ J.T + H)[:6, :6]
+            nxt = steps[k + 1]
+            assert nxt.F is not None
+            A, KB = nxt.shared_transition()
+            a = nxt.fade
+            V = Je @ KB + Ju  # J [KB; I]: J N = b V
+            H = G @ ((1.0 - a * a) * (V @ V.T) + H) @ G.T
+            Je, Ju = (eye - G @ nxt.F) + G @ (Je @ A), a * (G @ V)
+        C, X = steps[k].shared_cov, steps[k].shared_cross
+        assert C is not None
+        assert X is not None
+        Je6, Ju6 = Je[:6], Ju[:6]
+        JX = Je6 @ X @ Ju6.T
+        cov = Je6 @ C @ Je6.T + JX + JX.T + Ju6 @ Ju6.T + H[:6, :6]
         out[k] = 0.5 * (cov + cov.T)
     return out
 

@@ -48,8 +48,10 @@ MAX_VARIANCE = 1e30
 #: it is taken as. Chosen on four more seeds of the tracking benchmark's drive (drive and noise seeds (5, 12),
 #: (6, 13), (7, 14), (8, 15)): 0.07 s left the truth in the track's 95 % ellipsoid in 91-95 % of the frames, 0.1 s in
 #: 93-96 % (the smoother's in 93-97 %), 0.15 s in 94-97 % (93-99 %), 0.2 s in 95-97 % (93-100 %) and 1 s in
-#: 97-98 % (93-100 %). Errors that last longer than this make the track overconfident: corner offsets that
-#: persist 0.7 s (``tests/test_track_consistency.py``) left the smoother's ellipsoid holding the truth in 78-95 %.
+#: 97-98 % (93-100 %); at 0.1 s the tracker's is 92-96 % since a frame without a shared error also corrects the one
+#: the track holds (the smoother's as before). Errors that last longer than this make the track overconfident:
+#: corner offsets that persist 0.7 s (``tests/test_track_consistency.py``) left the smoother's ellipsoid holding
+#: the truth in 78-95 %.
 SHARED_ERROR_TIME_S = 0.1
 _I3, _I6 = np.eye(3), np.eye(6)
 
@@ -63,22 +65,49 @@ class _Step:
     predicted: kf._State
     filtered: kf._State
     out: TrackedPose
-    shared: np.ndarray | None = None
+    #: the shared error after this step (the module's docstring), as the track carried it: its covariance ``C``
+    #: (13, 13) in the state and the state's covariance with ``u`` ``X`` (13, 6) (None: a fixed noise, no shared
+    #: error), and the fade ``a`` of ``u`` into this step (:func:`shared_fade`; 0 where a segment starts)
+    shared_cov: np.ndarray | None = None
+    shared_cross: np.ndarray | None = None
+    fade: float = 0.0
     #: the gain's pose columns K (13, 6) of a measured step (None: no frame corrected it) and the square root
-    #: (6, 6) of the frame's shared error, as it entered (None: none); what the smoother needs to carry the
-    #: shared error exactly (:mod:`fidlearn.filtering._smoother`)
+    #: (6, 6) of the frame's shared error, as it entered (None: none); with ``F`` and ``fade``, how the step
+    #: moved the state's error and ``u`` (:meth:`shared_transition`), which the smoother carries backwards
+    #: (:mod:`fidlearn.filtering._smoother`)
     gain: np.ndarray | None = None
     entry: np.ndarray | None = None
 
+    @property
+    def shared(self) -> np.ndarray | None:
+        """The covariance (6, 6) of the shared error in the filtered pose (None: none is carried)."""
+        return None if self.shared_cov is None else self.shared_cov[:6, :6]
 
-def predict_shared(C: np.ndarray, X: np.ndarray, F: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def shared_transition(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(A, KB)``: the step (not a segment's start) took the shared error's part of the state's error ``e``
+        and ``u`` to ``A e + a KB u + sqrt(1 - a^2) KB n`` and ``a u + sqrt(1 - a^2) n`` (``a`` the step's
+        ``fade``, ``n`` new), as the track carried them (:func:`predict_shared`, then ``_Track._enter_shared``
+        for a measured step): ``A = (I - K H) F`` and ``KB = K B`` (0 for a frame without a shared error), or
+        ``F`` and 0 for a step no frame corrected."""
+        assert self.F is not None
+        if self.gain is None:
+            return self.F, np.zeros((kf._N, 6))
+        KB = np.zeros((kf._N, 6)) if self.entry is None else self.gain @ self.entry
+        return self.F - self.gain @ self.F[:6], KB
+
+
+def shared_fade(dt: float) -> float:
+    """How much of the shared error's process ``u`` lasts ``dt`` seconds: ``exp(-dt / SHARED_ERROR_TIME_S)``."""
+    return math.exp(-max(dt, 0.0) / SHARED_ERROR_TIME_S)
+
+
+def predict_shared(C: np.ndarray, X: np.ndarray, F: np.ndarray, fade: float) -> tuple[np.ndarray, np.ndarray]:
     """The shared error's covariance in the state ``C`` (13, 13) and the state's covariance with ``u`` ``X``
-    (13, 6) carried over ``dt`` seconds by the transition ``F``: the state's error becomes ``F e`` and ``u``
-    becomes ``a u + sqrt(1 - a^2) n`` with ``a = exp(-dt / SHARED_ERROR_TIME_S)`` (``n`` new, independent)."""
-    a = math.exp(-max(dt, 0.0) / SHARED_ERROR_TIME_S)
+    (13, 6) carried by the transition ``F``: the state's error becomes ``F e`` and ``u`` becomes
+    ``a u + sqrt(1 - a^2) n`` with ``a = fade`` (:func:`shared_fade` of the time step; ``n`` new, independent)."""
     FC = F @ C
     out = FC @ F.T
-    return 0.5 * (out + out.T), a * (F @ X)
+    return 0.5 * (out + out.T), fade * (F @ X)
 
 
 def check_process_noise(process_noise) -> tuple[float, float] | None:
@@ -249,6 +278,7 @@ class _Track:
         # the error the frames share (the module's docstring): its covariance in the state (13, 13) and the
         # state's covariance with the unit Gauss-Markov process u that drives it (13, 6); cov(u) = I
         self.shared_cov, self.shared_cross = np.zeros((kf._N, kf._N)), np.zeros((kf._N, 6))
+        self.fade = 0.0  # how much of u lasted into the latest step (shared_fade)
 
     @property
     def q(self) -> tuple[float, float]:
@@ -294,7 +324,7 @@ class _Track:
         chosen = alternative(pose) if flipped else pose
         filtered, K = kf.update(predicted, r, S, cov)
         root = self._shared_root(cov)
-        if root is not None:  # the shared error enters the track as the frame's does, through the gain
+        if self.learner is not None:  # the shared error enters the track as the frame's does, through the gain
             self._enter_shared(K, root)
         if self.learner is not None:
             self.learner.learn_share(d2)
@@ -338,7 +368,8 @@ class _Track:
             T_rel, cov_rel, dt_dk = kf.odometry_to_camera(odo[0], odo[1], self.T_camera_base, self.state.k)
             predicted, F = kf.predict_odometry(self.state, t, T_rel, cov_rel, dt_dk, q_lin, q_ang)
         if self.learner is not None:
-            self.shared_cov, self.shared_cross = predict_shared(self.shared_cov, self.shared_cross, F, t - self.state.t)
+            self.fade = shared_fade(t - self.state.t)
+            self.shared_cov, self.shared_cross = predict_shared(self.shared_cov, self.shared_cross, F, self.fade)
         return predicted, F
 
     def _start(self, pose: Pose, t: float, status: str, F) -> TrackedPose:
@@ -348,7 +379,7 @@ class _Track:
         assert pose.covariance is not None
         cov = np.asarray(pose.covariance, dtype=float)
         root = self._shared_root(cov)
-        self.shared_cov, self.shared_cross = np.zeros((kf._N, kf._N)), np.zeros((kf._N, 6))
+        self.shared_cov, self.shared_cross, self.fade = np.zeros((kf._N, kf._N)), np.zeros((kf._N, 6)), 0.0
         if root is not None:  # the start's error is the frame's own
             self.shared_cross[:6] = root
             self.shared_cov[:6, :6] = root @ root.T
@@ -361,21 +392,25 @@ class _Track:
         self.state = filtered
         shared = None if self.learner is None else self.shared_cov[:6, :6].copy()
         out = self.output(filtered, status, reason=reason, d2=d2, pose=pose, flipped=flipped, shared=shared)
-        if self.steps is not None:
-            self.steps.append(_Step(F, predicted, filtered, out, shared, gain, entry))
+        if self.steps is not None:  # C and X are replaced at every step, never changed in place: kept as they are
+            C, X = (None, None) if self.learner is None else (self.shared_cov, self.shared_cross)
+            self.steps.append(_Step(F, predicted, filtered, out, C, X, self.fade, gain, entry))
         return out
 
-    def _enter_shared(self, K: np.ndarray, root: np.ndarray) -> None:
-        """A frame whose shared error is ``root @ u`` corrected the state with the gain ``K`` (13, 6): the state's
-        error ``e`` becomes ``(I - K H) e + K root u`` (see :func:`predict_shared`)."""
+    def _enter_shared(self, K: np.ndarray, root: np.ndarray | None) -> None:
+        """A frame whose shared error is ``root @ u`` (None: it has none, the share being 1 or more) corrected the
+        state with the gain ``K`` (13, 6): the state's error ``e`` becomes ``(I - K H) e + K root u`` (see
+        :func:`predict_shared`). The shared error the state already holds is corrected by the gain either way."""
         C, X = self.shared_cov, self.shared_cross
         AX = X - K @ X[:6]  # (I - K H) X
-        KB = K @ root
         AC = C - K @ C[:6]  # (I - K H) C
-        ACA = AC - AC[:, :6] @ K.T  # (I - K H) C (I - K H)^T
-        cross = AX @ KB.T
-        out = ACA + cross + cross.T + KB @ KB.T
-        self.shared_cov, self.shared_cross = 0.5 * (out + out.T), AX + KB
+        out = AC - AC[:, :6] @ K.T  # (I - K H) C (I - K H)^T
+        if root is not None:
+            KB = K @ root
+            cross = AX @ KB.T
+            out = out + cross + cross.T + KB @ KB.T
+            AX = AX + KB
+        self.shared_cov, self.shared_cross = 0.5 * (out + out.T), AX
 
     @property
     def share(self) -> float:

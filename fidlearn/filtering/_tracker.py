@@ -15,7 +15,7 @@ from ..tracking import MarkerTracker
 from . import _filter as kf
 from ._adapt import nis_band
 from ._result import TrackedPose
-from ._track import DEFAULT_PROCESS_NOISE, _Track, check_time, predict_shared
+from ._track import DEFAULT_PROCESS_NOISE, _Track, check_time, predict_shared, shared_fade
 
 
 class PoseTracker:
@@ -223,7 +223,8 @@ class PoseTracker:
         state, F = kf.predict_constant_velocity(self._track.state, t, *self._track.q)
         if self._track.learner is None:
             return self._track.output(state, "predicted")
-        shared, _ = predict_shared(self._track.shared_cov, self._track.shared_cross, F, t - self._track.state.t)
+        fade = shared_fade(t - self._track.state.t)
+        shared, _ = predict_shared(self._track.shared_cov, self._track.shared_cross, F, fade)
         return self._track.output(state, "predicted", shared=shared[:6, :6])
 
     def _measure(self, item) -> tuple[Pose | None, str]:
