@@ -162,9 +162,10 @@ def steps(name: str) -> dict[str, str]:
 @pytest.mark.parametrize("name", SWEPT)
 def test_a_signal_at_any_time_leaves_all_outputs_or_none(tmp_path, name):
     sig = signal.SIGINT if name == "calibrate" else signal.SIGTERM
-    # 0.25 .. 1.03 of the measured life, and past it (a loaded machine stretches a run's life);
-    # the exact end, when the outputs appear, is hit by the steps below
-    fractions = [0.25 + 0.065 * k for k in range(13)] + [1.5]
+    # 0.25 .. 1.03 of the measured life, and past it (a loaded machine stretches a run's life); the
+    # bisection of sweep() adds times when none lands at work, and the exact end, when the outputs
+    # appear, is hit by the steps below
+    fractions = [0.25 + 0.13 * k for k in range(7)] + [1.5]
     seen = sweep(tmp_path, name, fractions, sig, narrow=8)
     print(f"{name}, {signal.Signals(sig).name} at {sum(seen.values())} times: {dict(seen)}")  # shown by pytest -rP
     if name != "corners":  # corners works for milliseconds after a second of Python starting: timing rarely hits
