@@ -1,6 +1,8 @@
 """The shortcuts of the fisheye path give what the longer computations they replace give: the profiles' levels by
 one reduction over their samples, the weighted fit's last residuals and Jacobian, the ideal corners' detections, the
-side fit's sampling map and side normals, the second look's projection."""
+side fit's sampling map and side normals, its planes' normals without eigh and its cross products without np.cross,
+the ray angles' Newton steps, the lens Jacobians in closed form, the weighted fit's converged stop, the second
+look's projection."""
 
 from __future__ import annotations
 
@@ -8,7 +10,17 @@ import cv2
 import numpy as np
 
 from fidlearn import Camera, MarkerMap, frames
-from fidlearn._fisheye_edges import _NEXT, _rays, _sample_map, _side_curves
+from fidlearn._fisheye_edges import (
+    _NEXT,
+    _PREV,
+    _cross,
+    _fit_planes,
+    _least_eigenvector,
+    _rays,
+    _sample_map,
+    _side_curves,
+)
+from fidlearn._lens import _fisheye_theta_d, fisheye_angles, pixels_from_normalized, project_points
 from fidlearn.detection import Detection, _detector_fields
 from fidlearn.pose._inputs import _as_pinhole, _lens_jacobians, _lens_refine
 from fidlearn.pose._refine import _residuals
@@ -140,3 +152,122 @@ def test_the_second_look_predicts_the_corners_camera_project_gives():
 def test_the_border_bits_read_once_are_the_detectors():
     assert _border_bits(None) == int(_detector_fields(None)["markerBorderBits"]) == 1
     assert _border_bits({"markerBorderBits": 2}) == 2
+
+
+def test_the_cross_products_are_numpys():
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(size=(2, 7, 4, 3))
+    assert np.array_equal(_cross(a, b), np.cross(a, b))
+
+
+def test_the_planes_normals_are_eighs_smallest_eigenvector():
+    fisheye = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    C, P, nz = _sides(fisheye)
+    rng = np.random.default_rng(11)
+    E = P + rng.normal(0, 0.05, P.shape) * nz  # edge crossings with 0.05 px of noise about the bent sides
+    rays = _rays(np.ascontiguousarray(E)[..., None].view(np.float64), fisheye)
+    w = (rng.uniform(size=P.shape) > 0.2).astype(float)  # some profiles without a crossing
+    A = (rays * w[..., None]).swapaxes(-1, -2) @ rays
+    r = _rays(C, fisheye)
+    got = _least_eigenvector(A, _cross(r, r[:, _NEXT]))
+    want = np.linalg.eigh(A)[1][..., 0]  # what it replaces
+    sign = np.sign(np.sum(got * want, axis=-1, keepdims=True))
+    np.testing.assert_allclose(got * sign, want, rtol=0, atol=1e-12)
+    # the corners the planes give: eigh's to 1e-9 px
+    new, fitted = _fit_planes(E, w, fisheye, r)
+    X = np.cross(want[:, _PREV], want)
+    X = X * np.sign(np.einsum("mki,mki->mk", X, r))[..., None]
+    want_px = project_points(X.reshape(-1, 3), K_FE, D_FE, "fisheye").reshape(new.shape)
+    np.testing.assert_allclose(new, want_px, rtol=0, atol=1e-9)
+    assert np.array_equal(fitted, (X[..., 2] > 0).all(1))
+    assert fitted[0]  # the marker near the centre
+    # a side with no weight has no plane: NaN, and the marker is not fitted
+    w[0, 2] = 0.0
+    new, fitted = _fit_planes(E, w, fisheye, r)
+    assert not fitted[0]
+    assert np.isnan(new[0, 2:]).all()
+
+
+def test_the_ray_angles_are_the_plain_newton_steps():
+    rng = np.random.default_rng(2)
+    px = np.concatenate([rng.uniform(-1500, 2300, (4000, 2)), K_FE[:2, 2][None]])  # beyond the fold too
+    for dist in (D_FE, np.zeros(4), np.array([0.1, -0.2, 0.05, -0.01])):
+        # what it replaces: theta_d and its slope each on its own, np.clip
+        yd = (px[:, 1] - K_FE[1, 2]) / K_FE[1, 1]
+        xd = (px[:, 0] - K_FE[0, 2] - K_FE[0, 1] * yd) / K_FE[0, 0]
+        theta_d = np.hypot(xd, yd)
+        k1, k2, k3, k4 = dist
+
+        def slope(t, k1=k1, k2=k2, k3=k3, k4=k4):
+            t2 = t * t
+            return 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+
+        theta = np.minimum(theta_d, np.pi)
+        for _ in range(50):
+            s = slope(theta)
+            step = (_fisheye_theta_d(theta, dist) - theta_d) / np.where(s > 0, s, 1.0)
+            theta = np.clip(theta - step, 0.0, np.pi)
+            if np.all(np.abs(step) < 1e-15):
+                break
+        reached = np.abs(_fisheye_theta_d(theta, dist) - theta_d) <= 1e-12 * np.maximum(1.0, theta_d)
+        theta = np.where(reached & (slope(theta) > 0), theta, np.nan)
+        got = fisheye_angles(px, K_FE, dist)
+        assert np.array_equal(got[0], theta, equal_nan=True)
+        assert np.array_equal(got[1], np.stack([xd, yd], axis=1))
+        assert np.array_equal(got[2], theta_d)
+    assert np.isnan(fisheye_angles(px, K_FE, np.array([0.1, -0.2, 0.05, -0.01]))[0]).any()  # a fold
+
+
+def test_the_lens_jacobians_are_the_models_central_differences():
+    rng = np.random.default_rng(4)
+    ideal = np.concatenate([rng.uniform(-2500, 3300, (2000, 2)), K_FE[:2, 2] + rng.normal(0, 1e-7, (5, 2))])
+    for dist in (D_FE, np.zeros(4)):
+        fisheye = Camera(K_FE, dist, (800, 503), model="fisheye")
+        h = 1e-2  # what it replaces: Camera.project's model 0.01 ideal px either side
+        steps = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
+        pts = (ideal[:, None, :] + steps[None]).reshape(-1, 2)
+        xy = np.stack([(pts[:, 0] - K_FE[0, 2]) / K_FE[0, 0], (pts[:, 1] - K_FE[1, 2]) / K_FE[1, 1]], axis=1)
+        px = pixels_from_normalized(xy, K_FE, dist, "fisheye").reshape(-1, 4, 2)
+        want = np.stack([(px[:, 0] - px[:, 1]) / (2 * h), (px[:, 2] - px[:, 3]) / (2 * h)], axis=2)
+        got = _lens_jacobians(fisheye, ideal)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-7 * np.abs(want).max())
+        # the equidistant lens at the axis: the picture's pixels are the ideal ones
+        if not dist.any():
+            np.testing.assert_allclose(got[-5:], np.broadcast_to(np.eye(2), (5, 2, 2)), atol=1e-9)
+
+
+def test_the_weighted_fit_stops_where_the_longer_fit_does():
+    fisheye = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    pinhole = Camera(K_FE, None, (800, 503))
+    s = 60.0
+    square = np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]])
+    obj = np.concatenate([square + [x, y, 0] for x, y in ((-250, 0), (150, 40), (0, -160), (260, 150))])
+    T = frames.look_at([250.0, -80.0, -450.0], [0.0, 0.0, 0.0])
+    rng = np.random.default_rng(9)
+    ideal = pinhole.project(obj, T) + rng.normal(0, 0.3, (len(obj), 2))
+    D = _lens_jacobians(fisheye, ideal)
+    start_R, start_C = cv2.Rodrigues(np.array([0.01, -0.02, 0.015]))[0] @ T[:3, :3], T[:3, 3] + [3.0, -2.0, 4.0]
+    R, C, _, r, _ = _lens_refine(obj, ideal, pinhole, D, start_R, start_C)
+
+    def picture(R_wc, c):
+        res, J = _residuals(obj, ideal, pinhole.K, pinhole.dist, R_wc, c, True)
+        return (D @ res.reshape(-1, 2, 1)).ravel(), (D @ J.reshape(-1, 2, 6)).reshape(-1, 6)
+
+    # what it replaces: Gauss-Newton steps until a step no longer lowers the sum by 1e-10 of it
+    R0, C0 = start_R, start_C
+    res, J = picture(R0, C0)
+    for _ in range(10):
+        step = cv2.solve(J.T @ J, (J.T @ res).reshape(6, 1))[1].ravel()
+        R1, C1 = cv2.Rodrigues(step[:3])[0] @ R0, C0 + step[3:]
+        res1, J1 = picture(R1, C1)
+        if not res1 @ res1 < res @ res:
+            break
+        done = res @ res - res1 @ res1 < 1e-10 * (res @ res) + 1e-12
+        R0, C0, res, J = R1, C1, res1, J1
+        if done:
+            break
+    cov = np.linalg.inv(J.T @ J) * (res @ res) / (len(res) - 6)
+    assert np.linalg.norm(C - C0) < 1e-4 * np.sqrt(np.trace(cov[3:, 3:]))  # 1e-4 of its standard deviation
+    assert np.abs(R - R0).max() < 1e-4 * np.sqrt(np.trace(cov[:3, :3]))
+    assert np.linalg.norm(C - T[:3, 3]) < 5.0  # and the fit itself: within the noise of the truth
+    np.testing.assert_array_equal(r, _residuals(obj, ideal, pinhole.K, pinhole.dist, R, C, False)[0])
