@@ -227,9 +227,9 @@ def _edge_offsets_across(prof, level, dark, light, h, shift: float, min_contrast
     # there the profile may fall again where a narrow quiet zone meets a darker wall). For floats,
     # a - b >= 0 exactly when a >= b: no difference is formed where it is not needed.
     k = np.maximum(np.argmax(flat >= lev, axis=0), 1)
-    cols = np.arange(flat.shape[1])
-    z0 = flat[k - 1, cols] - lev
-    z1 = flat[k, cols] - lev
+    at = k * flat.shape[1] + np.arange(flat.shape[1])  # sample k of each profile, in the flat array
+    z0 = flat.ravel()[at - flat.shape[1]] - lev
+    z1 = flat.ravel()[at] - lev
     dz = z0 - z1
     found = (z0 <= 0) & (dz < 0)
     pos = k + z0 / np.where(found, dz, -1.0)  # in samples, + 1
