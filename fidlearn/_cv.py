@@ -452,6 +452,33 @@ def detect_with_raw_rejected(detector, gray: np.ndarray) -> tuple[list[np.ndarra
     return normalize_detections(corners, ids) + (rejected if rejected is not None else (),)
 
 
+def detect_stacked(detector, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """Like :func:`detect_with_raw_rejected`, with the corners as one array: the same values, converted in one
+    call rather than one a marker.
+
+    Parameters
+    ----------
+    detector : cv2.aruco.ArucoDetector
+    gray : ndarray, shape (H, W), uint8
+
+    Returns
+    -------
+    corners : ndarray, shape (N, 4, 2), float64
+    ids : ndarray, shape (N,), int64
+    rejected : tuple
+        OpenCV's rejected candidates, unconverted.
+    """
+    corners, ids, rejected = _detect_markers(detector, gray)
+    rejected = rejected if rejected is not None else ()
+    if ids is None or len(corners) == 0:
+        return np.zeros((0, 4, 2)), np.zeros((0,), dtype=np.int64), rejected
+    return (
+        np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2),
+        np.asarray(ids).reshape(-1).astype(np.int64),
+        rejected,
+    )
+
+
 def rejected_quads(rejected) -> list[np.ndarray]:
     """Rejected candidates from OpenCV as a list of (4, 2) float64 pixel corners.
 

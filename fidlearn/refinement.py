@@ -22,6 +22,9 @@ _NEXT = np.array([1, 2, 3, 0])
 #: corners stay as they came), and below which the side is taken as no marker's outline at all.
 _FIT_CONTRAST, _CHECK_CONTRAST = 20.0, 8.0
 _PREV = np.array([3, 0, 1, 2])
+#: Rows of a sampling map remap takes (fewer than 32767): the profiles' map has a row for each sample of each
+#: marker, so ``_MAP_ROWS // n_samples`` markers (2520 with 13 samples a profile) are refined at a time.
+_MAP_ROWS = 32766
 
 
 @lru_cache(maxsize=8)
@@ -118,14 +121,21 @@ def _refine_edges(
     M = C.shape[0]
     if M == 0:
         return C.copy(), np.ones(0, dtype=bool)
+    most = max(1, _MAP_ROWS // int(n_samples))
+    if most < M:  # each marker is fitted on its own: the same corners, a part at a time
+        parts = [
+            _refine_edges(gray, C[k : k + most], cells, inverted, n_lines, n_samples, iterations, expand_px, gamma)
+            for k in range(0, M, most)
+        ]
+        return np.concatenate([c for c, _ in parts]), np.concatenate([ok for _, ok in parts])
     u, v, U3 = _profile_grid(int(n_lines), int(n_samples))
     Z = C.view(np.complex128)[..., 0]  # (M, 4) corners as x + iy
     shift = float(expand_px)
     fitted = np.ones(M, dtype=bool)
     for _ in range(iterations):
-        Dz, L, nz, cell, h, margin, span, prof = _profiles(gray, Z, cells, u, v, shift)
-        prof, dark, light, level = _levels(prof, inverted, gamma)
-        off, w = _edge_offsets(prof, level, dark, light, h, shift, _CHECK_CONTRAST)
+        Dz, L, nz, cell, h, margin, span, prof = _profiles_across(gray, Z, cells, u, v, shift)
+        prof, dark, light, level = _levels_across(prof, inverted, gamma)
+        off, w = _edge_offsets_across(prof, level, dark, light, h, shift, _CHECK_CONTRAST)
         alpha, beta, sw, det = _fit_lines(w, off, u, U3)
         b = beta / span  # the same line in t (0 at corner k, 1 at corner k+1)
         a = alpha - b * margin
@@ -143,8 +153,13 @@ def _refine_edges(
     return np.stack([Z.real, Z.imag], axis=-1), fitted
 
 
-def _profiles(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.ndarray, shift: float):
-    """The quads' geometry and the gray profiles across each side: (M, 4, N, S) float32."""
+def _profiles_across(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.ndarray, shift: float):
+    """The quads' geometry and the gray profiles across each side, sample by sample: (S, M, 4, N) uint8.
+
+    Each sample's points are one operation over every profile of every marker (``centre + v h n`` in x and y
+    at once), and so is each step along the profiles afterwards, where profile by profile (M, 4, N, S) each
+    operation ran a loop of S for every profile. The sampled points are ``Z + t Dz + (shift + v h) n`` as
+    before this layout, summed in another order (float32 maps the same but for the last bit, rarely)."""
     M = Z.shape[0]
     n_lines, n_samples = u.size, v.size
     Dz = Z[:, _NEXT] - Z  # (M, 4) side vectors
@@ -157,15 +172,71 @@ def _profiles(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.
     margin = np.minimum((0.5 * cell[:, None] + 1.5) / L, 0.3)  # keep clear of the corners
     span = 1.0 - 2.0 * margin
     t = margin[..., None] + span[..., None] * u  # (M, 4, N) along the side, 0..1
-    pts = (Z[..., None] + t * Dz[..., None])[..., None] + (shift + h[:, None] * v)[:, None, None, :] * nz[
-        ..., None, None
-    ]
-    # (x, y) pairs, one row per side: remap wants fewer than 32767 rows and columns
-    maps = pts.astype(np.complex64).view(np.float32).reshape(M * 4, n_lines * n_samples, 2)
+    centre = Z[..., None] + t * Dz[..., None] + shift * nz[..., None]  # (M, 4, N) each profile's centre
+    step = np.repeat(h[:, None] * nz, n_lines)  # (M 4 N,) its half-length along the normal
+    # (x, y) pairs, each sample one operation over every profile: centre + v h n; one row per sample and
+    # marker (remap wants fewer than 32767 rows and columns: _refine_edges takes that many at a time)
+    maps = np.multiply.outer(v, step.view(np.float64))
+    maps += centre.view(np.float64).reshape(-1)
+    maps = maps.astype(np.float32).reshape(n_samples * M, 4 * n_lines, 2)
     # a two-channel map1 needs no map2, which OpenCV's type stubs do not allow for
     prof = cv2.remap(gray, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
-    prof = prof.reshape(M, 4, n_lines, n_samples).astype(np.float32)
-    return Dz, L, nz, cell, h, margin, span, prof
+    return Dz, L, nz, cell, h, margin, span, prof.reshape(n_samples, M, 4, n_lines)
+
+
+def _levels_across(prof: np.ndarray, inverted: bool | None, gamma: float):
+    """:func:`_levels` of profiles sample by sample, (S, M, 4, N) uint8: the same levels, each the least or most
+    sample over the first axis. ``prof`` comes back as it came for markers with a dark border (``inverted``
+    False: the gray levels are the polarity's), else float32 times each side's polarity."""
+    n_samples, n_lines = prof.shape[0], prof.shape[3]
+    half, mid_sample = n_lines // 2, n_samples // 2
+    pin, pout = prof[: mid_sample + 1], prof[mid_sample:]
+    f32 = np.float32
+    if inverted is None:  # which way round is the contrast larger?
+        imin, imax = pin.min(0).astype(f32), pin.max(0).astype(f32)
+        omin, omax = pout.min(0).astype(f32), pout.max(0).astype(f32)
+        normal = ((omax - imin) >= (imax - omin)).mean(-1) >= 0.5  # (M, 4): dark inside
+        dark = _kth(np.where(normal[..., None], imin, -imax), half)  # levels x polarity
+        light = _kth(np.where(normal[..., None], omax, -omin), half)
+        prof = prof.astype(f32) * np.where(normal, 1.0, -1.0).astype(f32)[..., None]
+    elif inverted:
+        dark = _kth(-pin.max(0).astype(f32), half)
+        light = _kth(-pout.min(0).astype(f32), half)
+        prof = -prof.astype(f32)
+    else:
+        dark = _kth(pin.min(0).astype(f32), half)
+        light = _kth(pout.max(0).astype(f32), half)
+    level = 0.5 * (dark + light)
+    if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
+        g = float(gamma)
+        lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
+        level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
+    return prof, dark, light, level
+
+
+def _edge_offsets_across(prof, level, dark, light, h, shift: float, min_contrast: float):
+    """:func:`_edge_offsets` of profiles sample by sample, (S, M, 4, N): the same first crossing of each
+    profile's level, found by running along the samples for all profiles at once, and the same arithmetic on
+    its two samples."""
+    n_samples = prof.shape[0]
+    M, _, n_lines = prof.shape[1:]
+    mid_sample = n_samples // 2
+    flat = prof.reshape(n_samples, -1)
+    lev = np.repeat(level.ravel(), n_lines)  # (M 4 N,) each profile's level
+    # The edge: the first sample at or above the mid level, k, and the one before it (outward from
+    # there the profile may fall again where a narrow quiet zone meets a darker wall). For floats,
+    # a - b >= 0 exactly when a >= b: no difference is formed where it is not needed.
+    k = np.maximum(np.argmax(flat >= lev, axis=0), 1)
+    at = k * flat.shape[1] + np.arange(flat.shape[1])  # sample k of each profile, in the flat array
+    z0 = flat.ravel()[at - flat.shape[1]] - lev
+    z1 = flat.ravel()[at] - lev
+    dz = z0 - z1
+    found = (z0 <= 0) & (dz < 0)
+    pos = k + z0 / np.where(found, dz, -1.0)  # in samples, + 1
+    off = (pos.reshape(M, -1) - (mid_sample + 1)) * (h * (2.0 / (n_samples - 1)))[:, None] + shift
+    off = off.reshape(M, 4, n_lines)  # edge position outside the quad's side, px
+    w = (found.reshape(M, 4, n_lines) & (light - dark > min_contrast)[..., None]).astype(np.float64)
+    return off, w
 
 
 def _levels(prof: np.ndarray, inverted: bool | None, gamma: float):
