@@ -117,7 +117,9 @@ def test_estimate_pose_gives_the_same_pose_with_and_without_the_fast_paths(n_mar
     with monkeypatch.context() as mp:
         mp.setattr(_estimate, "_noise_parts", _noise._noise_parts)
         mp.setattr(
-            _estimate, "_pose_covariance_fast", lambda J, q, parts, _JtJ=None: _noise._pose_covariance(J, q, parts)
+            _estimate,
+            "_pose_covariance_fast",
+            lambda J, q, parts, _JtJ=None, _sums=None: _noise._pose_covariance(J, q, parts),
         )
         plain = estimate_pose(dets, m, CAM)
     d = fast.position_mm - T[:3, 3]  # the truth, within 4 of its sigmas (one marker is 150 mm wide at 2 m)
@@ -132,12 +134,36 @@ def test_estimate_pose_gives_the_same_pose_with_and_without_the_fast_paths(n_mar
         assert a.corner_sigma_px == pytest.approx(b.corner_sigma_px, rel=1e-12)
 
 
-def test_the_remembered_part_sums_follow_the_jacobian_and_the_corners():
-    """The noise and the covariance of one pose share their 6 x 6 sums; another Jacobian or other corners (the
-    alternative pose, another frame) get their own."""
-    q, J, r = _scene(5, 2)
-    q2, J2, _ = _scene(5, 4)
-    parts = _noise_fast._noise_parts_fast(r, J, q, None)  # remembers J's sums
-    for Jx, qx in ((J, q), (J2, q2), (J, q2), (J2.copy(), q2)):
+@pytest.mark.parametrize("n_markers", [2, 5])
+def test_the_noise_hands_its_part_sums_to_the_covariance_at_the_same_jacobian(n_markers):
+    """The noise returns the 6 x 6 sums of its Jacobian (measured with the 7th column when split, written alone
+    with fewer markers); the covariance at that Jacobian given them is the one it computes itself, and the one
+    written out by hand. Another Jacobian or other corners (the alternative pose, another frame) get their own."""
+    q, J, r = _scene(n_markers, 2)
+    q2, J2, _ = _scene(n_markers, 4)
+    parts = _noise_fast._noise_parts_fast(r, J, q, None)
+    assert parts.sums is not None
+    own = _noise_fast._part_matrices(J, q)
+    for got, want in zip(parts.sums, own):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    shared = _noise_fast._pose_covariance_fast(J, q, parts, sums=parts.sums)
+    np.testing.assert_allclose(shared, _noise_fast._pose_covariance_fast(J, q, parts), rtol=1e-12)
+    np.testing.assert_allclose(shared, _dense_cov(J, q, parts), rtol=1e-7)
+    for Jx, qx in ((J2, q2), (J, q2), (J2.copy(), q2)):
         got = _noise_fast._pose_covariance_fast(Jx, qx, parts)
         np.testing.assert_allclose(got, _dense_cov(Jx, qx, parts), rtol=1e-7)
+        assert np.abs(got - shared).max() > 1e-3 * np.abs(shared).max()  # not the first pose's sums
+    assert not hasattr(_noise_fast, "_LAST_PARTS")  # nothing kept between calls
+
+
+def test_the_prior_blends_the_estimated_corner_noise_alone():
+    """8 markers: 39 degrees of freedom of the corner noise, 10 of the shift, 7 of the size; estimated, the corner
+    noise 0.04 px^2 meets the prior 0.25^2 worth PRIOR_DOF = 2: (2 * 0.0625 + 39 * 0.04) / 41; given, nothing moves."""
+    theta = np.array([0.04, 0.2, 1e-5])
+    nus = _noise._blend_prior(theta, 8, None)
+    np.testing.assert_array_equal(nus, [41.0, 10.0, 7.0])
+    assert theta[0] == pytest.approx((2 * 0.25**2 + 39 * 0.04) / 41, rel=1e-15)
+    assert list(theta[1:]) == [0.2, 1e-5]
+    theta = np.array([0.09, 0.2, 1e-5])
+    np.testing.assert_array_equal(_noise._blend_prior(theta, 8, 0.3), [np.inf, 10.0, 7.0])
+    assert list(theta) == [0.09, 0.2, 1e-5]

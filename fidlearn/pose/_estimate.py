@@ -291,6 +291,7 @@ class _Data:
     alt: _Candidate | None = None  # the other planar solution, when it is distinct
     ambiguous: bool = False
     noise: _NoiseParts | None = None  # what the best pose's residuals hold: the noise of every pose's covariance
+    noise_J: np.ndarray | None = None  # the Jacobian (2N, 6) it was measured at (its sums are noise.sums)
     lens_D: np.ndarray | None = None  # a fisheye's d(picture px) / d(ideal px) (N, 2, 2) at the corners
     weighted: _Candidate | None = None  # the candidate refined with those weights (:func:`_weighted`)
     weighted_J: np.ndarray | None = None  # its weighted Jacobian (2N, 6)
@@ -306,6 +307,7 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
     if best.r is None:
         best.r, best.sse = r0, float(r0 @ r0)
     data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px)
+    data.noise_J = J0
     data.dof = 2 * len(obs.obj) - 6
     data.sigma = _sigma(_picture_sse(data, cands[0]), data.dof, data.corner_sigma_px)
     # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
@@ -419,7 +421,9 @@ def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pos
         else:
             _, J, J_k = _residuals_and_jacobians(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C)
             JtJ = J.T @ J
-        cov = None if data.noise is None else _pose_covariance_fast(J, obs.img.reshape(-1, 4, 2), data.noise, JtJ)
+        noise = data.noise
+        sums = noise.sums if noise is not None and J is data.noise_J else None  # the noise's own Jacobian: its sums
+        cov = None if noise is None else _pose_covariance_fast(J, obs.img.reshape(-1, 4, 2), noise, JtJ, sums)
         if cov is not None and camera.intrinsics_covariance is not None and J_k is not None:  # calibration's own error
             cov = cov + _calibration_covariance(J, J_k, camera.intrinsics_covariance)
     else:  # a fisheye: corner noise in the picture's pixels, carried through the lens

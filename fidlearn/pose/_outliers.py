@@ -431,7 +431,7 @@ def _model_error_explains(obs: _Obs, k: int, rest_best: _Candidate, camera: Came
     r, J = _residuals(rest.obj, rest.img, camera.K, camera.dist, rest_best.R_wc, rest_best.C, True)
     q = rest.img.reshape(-1, 4, 2)
     parts = _noise_parts(r, J, q, corner_sigma_px)
-    cov = _pose_covariance(J, q, parts)
+    cov = _pose_covariance(J, q, parts, sums=parts.sums)
     if cov is None:
         return False
     g = (obs.img[sl] - obs.img[sl].mean(axis=0)).reshape(8)
