@@ -306,7 +306,8 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
         r0, J0 = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, True)
     if best.r is None:
         best.r, best.sse = r0, float(r0 @ r0)
-    data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px)
+    JtJ0 = best.JtJ if J0 is best.J else None  # LM's J^T J of that same Jacobian
+    data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px, JtJ0)
     data.noise_J = J0
     data.dof = 2 * len(obs.obj) - 6
     data.sigma = _sigma(_picture_sse(data, cands[0]), data.dof, data.corner_sigma_px)
@@ -446,6 +447,6 @@ def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pos
         # two-pose mixture, weighted by likelihood (the noise integrated out when estimated: Student's
         # tail), so its ellipsoid reaches the other one.
         w_alt = _alternative_weight(alt.sse - c.sse, data.sigma_amb, data.nu_amb)
-        d = np.r_[_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C]
+        d = np.concatenate((_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C))
         cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
     return cov

@@ -51,12 +51,14 @@ _EYE8 = np.eye(8)
 
 class _PartSums(NamedTuple):
     """The sums of one Jacobian ``J`` (8M, 6) and corners ``q`` (M, 4, 2) that the closed forms of
-    :mod:`._noise_fast` share: ``K_S``, ``K_g`` (6, 6), the growths ``grow`` (M, 8) and ``h`` (M, 6)."""
+    :mod:`._noise_fast` share: ``K_S``, ``K_g`` (6, 6), the growths ``grow`` (M, 8) and ``h`` (M, 6); and
+    ``G = (J^T J)^-1`` when computed (None: not yet)."""
 
     K_S: np.ndarray
     K_g: np.ndarray
     grow: np.ndarray
     h: np.ndarray
+    G: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
