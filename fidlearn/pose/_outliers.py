@@ -109,7 +109,7 @@ def _marker_stats_of(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.nd
     Jt = Jb.transpose(0, 2, 1)
     rb = r.reshape(n, 8)
     g = (Jt @ rb[..., None])[..., 0]  # (n, 6): J_k^T r_k
-    JtJ = J.T @ J
+    JtJ = best.JtJ if best.JtJ is not None and J is best.J else J.T @ J  # LM's own, of this very J
     B = Jt @ Jb  # (n, 6, 6): J_k^T J_k
     try:
         x = np.linalg.solve(JtJ - B, g[..., None])[..., 0]
