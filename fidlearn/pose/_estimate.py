@@ -413,20 +413,29 @@ def _build(
     )
 
 
+def _pinhole_covariance(data: _Data, c: _Candidate) -> np.ndarray | None:
+    """Candidate ``c``'s covariance from the noise the best pose's residuals hold (:attr:`_Data.noise`), and the
+    calibration's own error when the camera has one; None if not determined."""
+    obs, camera, noise = data.obs, data.camera, data.noise
+    if noise is None:
+        return None
+    if c.J is not None and c.JtJ is not None and camera.intrinsics_covariance is None:
+        J, JtJ, J_k = c.J, c.JtJ, None  # LM's last Jacobian, at this very pose
+    else:
+        _, J, J_k = _residuals_and_jacobians(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C)
+        JtJ = J.T @ J
+    sums = noise.sums if J is data.noise_J else None  # at the noise's own Jacobian: its sums and inverse
+    cov = _pose_covariance_fast(J, obs.img.reshape(-1, 4, 2), noise, JtJ, sums)
+    if cov is not None and camera.intrinsics_covariance is not None and J_k is not None:  # calibration's own error
+        cov = cov + _calibration_covariance(J, J_k, camera.intrinsics_covariance)
+    return cov
+
+
 def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None) -> np.ndarray | None:
     """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
     obs, camera = data.obs, data.camera
     if data.lens_D is None:  # the noise each pose's own residuals hold (corner noise, marker shift and size)
-        if c.J is not None and c.JtJ is not None and camera.intrinsics_covariance is None:
-            J, JtJ, J_k = c.J, c.JtJ, None  # LM's last Jacobian, at this very pose
-        else:
-            _, J, J_k = _residuals_and_jacobians(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C)
-            JtJ = J.T @ J
-        noise = data.noise
-        sums = noise.sums if noise is not None and J is data.noise_J else None  # the noise's own Jacobian: its sums
-        cov = None if noise is None else _pose_covariance_fast(J, obs.img.reshape(-1, 4, 2), noise, JtJ, sums)
-        if cov is not None and camera.intrinsics_covariance is not None and J_k is not None:  # calibration's own error
-            cov = cov + _calibration_covariance(J, J_k, camera.intrinsics_covariance)
+        cov = _pinhole_covariance(data, c)
     else:  # a fisheye: corner noise in the picture's pixels, carried through the lens
         if c is data.weighted and data.weighted_J is not None:  # the weighted fit: sigma^2 (J_w^T J_w)^-1
             cov = _covariance_from(data.weighted_J.T @ data.weighted_J, data.sigma)
