@@ -115,9 +115,11 @@ def test_estimate_pose_gives_the_same_pose_with_and_without_the_fast_paths(n_mar
     dets = [Detection(i, CAM.project(c, T) + rng.normal(0, 0.3, (4, 2))) for i, c in m.corners().items()]
     fast = estimate_pose(dets, m, CAM)
     with monkeypatch.context() as mp:
-        mp.setattr(_estimate, "_noise_parts", _noise._noise_parts)
+        mp.setattr(_estimate, "_noise_parts", lambda r, J, q, sigma, _JtJ=None: _noise._noise_parts(r, J, q, sigma))
         mp.setattr(
-            _estimate, "_pose_covariance_fast", lambda J, q, parts, _JtJ=None: _noise._pose_covariance(J, q, parts)
+            _estimate,
+            "_pose_covariance_fast",
+            lambda J, q, parts, _JtJ=None, _sums=None: _noise._pose_covariance(J, q, parts),
         )
         plain = estimate_pose(dets, m, CAM)
     d = fast.position_mm - T[:3, 3]  # the truth, within 4 of its sigmas (one marker is 150 mm wide at 2 m)
@@ -132,12 +134,89 @@ def test_estimate_pose_gives_the_same_pose_with_and_without_the_fast_paths(n_mar
         assert a.corner_sigma_px == pytest.approx(b.corner_sigma_px, rel=1e-12)
 
 
-def test_the_remembered_part_sums_follow_the_jacobian_and_the_corners():
-    """The noise and the covariance of one pose share their 6 x 6 sums; another Jacobian or other corners (the
-    alternative pose, another frame) get their own."""
-    q, J, r = _scene(5, 2)
-    q2, J2, _ = _scene(5, 4)
-    parts = _noise_fast._noise_parts_fast(r, J, q, None)  # remembers J's sums
-    for Jx, qx in ((J, q), (J2, q2), (J, q2), (J2.copy(), q2)):
+@pytest.mark.parametrize("n_markers", [2, 5])
+def test_the_noise_hands_its_part_sums_to_the_covariance_at_the_same_jacobian(n_markers):
+    """The noise returns the 6 x 6 sums of its Jacobian (measured with the 7th column when split, written alone
+    with fewer markers); the covariance at that Jacobian given them is the one it computes itself, and the one
+    written out by hand. Another Jacobian or other corners (the alternative pose, another frame) get their own."""
+    q, J, r = _scene(n_markers, 2)
+    q2, J2, _ = _scene(n_markers, 4)
+    parts = _noise_fast._noise_parts_fast(r, J, q, None)
+    assert parts.sums is not None
+    own = _noise_fast._part_matrices(J, q)._replace(G=np.linalg.inv(J.T @ J))
+    for got, want in zip(parts.sums, own):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    shared = _noise_fast._pose_covariance_fast(J, q, parts, sums=parts.sums)
+    np.testing.assert_allclose(shared, _noise_fast._pose_covariance_fast(J, q, parts), rtol=1e-12)
+    np.testing.assert_allclose(shared, _dense_cov(J, q, parts), rtol=1e-7)
+    for Jx, qx in ((J2, q2), (J, q2), (J2.copy(), q2)):
         got = _noise_fast._pose_covariance_fast(Jx, qx, parts)
         np.testing.assert_allclose(got, _dense_cov(Jx, qx, parts), rtol=1e-7)
+        assert np.abs(got - shared).max() > 1e-3 * np.abs(shared).max()  # not the first pose's sums
+    assert not hasattr(_noise_fast, "_LAST_PARTS")  # nothing kept between calls
+
+
+def test_the_prior_blends_the_estimated_corner_noise_alone():
+    """8 markers: 39 degrees of freedom of the corner noise, 10 of the shift, 7 of the size; estimated, the corner
+    noise 0.04 px^2 meets the prior 0.25^2 worth PRIOR_DOF = 2: (2 * 0.0625 + 39 * 0.04) / 41; given, nothing moves."""
+    theta = np.array([0.04, 0.2, 1e-5])
+    nus = _noise._blend_prior(theta, 8, None)
+    np.testing.assert_array_equal(nus, [41.0, 10.0, 7.0])
+    assert theta[0] == pytest.approx((2 * 0.25**2 + 39 * 0.04) / 41, rel=1e-15)
+    assert list(theta[1:]) == [0.2, 1e-5]
+    theta = np.array([0.09, 0.2, 1e-5])
+    np.testing.assert_array_equal(_noise._blend_prior(theta, 8, 0.3), [np.inf, 10.0, 7.0])
+    assert list(theta) == [0.09, 0.2, 1e-5]
+
+
+@pytest.mark.parametrize("n_markers", [3, 4, 8, 20])
+def test_the_screens_remembered_quantiles_are_scipys(n_markers):
+    """The screen's three quantiles, computed once per number of markers, are the ones ``fidlearn._stats`` gives
+    (and a wrong argument shows: the chi-square of 2N - 6 degrees of freedom is not that of 2N - 5)."""
+    from fidlearn import _stats
+    from fidlearn.pose import _outliers
+
+    dof = 8 * n_markers - 6
+    p_any = _outliers.SCREEN_P - _outliers.DISPLACEMENT_P
+    for _ in range(2):  # computed, then remembered
+        assert _outliers._chi2_isf(p_any, dof) == _stats.chi2_isf(p_any, dof)
+        assert _outliers._beta_isf(p_any / n_markers, 4, (dof - 8) // 2) == _stats.beta_isf(
+            p_any / n_markers, 4, (dof - 8) // 2
+        )
+        p = _outliers.DISPLACEMENT_P / n_markers
+        assert _outliers._f_isf(p, 2, dof - 2) == _stats.f_isf(p, 2, dof - 2)
+    assert _outliers._chi2_isf(p_any, dof) != _stats.chi2_isf(p_any, dof + 1)
+
+
+def test_the_solvers_solutions_are_read_as_before(monkeypatch):
+    """``_generic`` reads OpenCV's solutions with Python's isfinite: the same rotations, translations and sums of
+    squares as numpy's checks give, and a solution with a NaN or an infinite entry, or a NaN RMS, left out or
+    without its sum of squares as before."""
+    import cv2
+
+    from fidlearn.pose import _solvers
+
+    q, _, _ = _scene(1, 5)
+    obj = np.array([[-75.0, 75, 0], [75, 75, 0], [75, -75, 0], [-75, -75, 0]])
+    n, rvecs, tvecs, rms = cv2.solvePnPGeneric(obj, q[0], CAM.K, CAM.dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
+    assert n == 2
+    got = _solvers._generic("IPPE_SQUARE", obj, q[0], CAM)
+    for (R, t, sse), rv, tv, e in zip(got, rvecs, tvecs, rms.reshape(-1)):
+        np.testing.assert_array_equal(R, cv2.Rodrigues(rv)[0])
+        np.testing.assert_array_equal(t, tv.reshape(3))
+        assert sse == float(e) ** 2 * 2 * 4
+    bad = (
+        3,
+        (rvecs[0], np.array([[np.nan], [0.0], [0.0]]), rvecs[1]),
+        (tvecs[0], tvecs[1], np.array([[0.0], [np.inf], [900.0]])),
+        np.array([[rms[0, 0]], [rms[1, 0]], [np.nan]]),
+    )
+    monkeypatch.setattr(_solvers.cv2, "solvePnPGeneric", lambda *_args, **_kwargs: bad)
+    got = _solvers._generic("IPPE_SQUARE", obj, q[0], CAM)
+    assert len(got) == 1  # the NaN rotation and the infinite translation are left out
+    np.testing.assert_array_equal(got[0][1], tvecs[0].reshape(3))
+    monkeypatch.setattr(_solvers.cv2, "solvePnPGeneric", lambda *_args, **_kwargs: (1, bad[1][:1], bad[2][:1], None))
+    assert _solvers._generic("IPPE_SQUARE", obj, q[0], CAM)[0][2] is None  # no RMS: the sum of squares left for later
+    nan_rms = (1, bad[1][:1], bad[2][:1], np.array([[np.nan]]))
+    monkeypatch.setattr(_solvers.cv2, "solvePnPGeneric", lambda *_args, **_kwargs: nan_rms)
+    assert _solvers._generic("IPPE_SQUARE", obj, q[0], CAM)[0][2] is None

@@ -107,7 +107,7 @@ def _reference_inflation(nu):
     return 3.0 * 2.605 / 7.8147
 
 
-def _reference_noise(r, _J, _q, corner_sigma_px):
+def _reference_noise(r, _J, _q, corner_sigma_px, _JtJ=None):
     """The noise of the reference's covariance: independent corners of one sigma, ``sigma^2 (J^T J)^-1``
     (estimated as :func:`fidlearn.pose._stats._sigma` does, then widened for ``2N - 6 + PRIOR_DOF`` degrees of
     freedom); the marker shift and size errors and the common size error came later."""

@@ -291,6 +291,7 @@ class _Data:
     alt: _Candidate | None = None  # the other planar solution, when it is distinct
     ambiguous: bool = False
     noise: _NoiseParts | None = None  # what the best pose's residuals hold: the noise of every pose's covariance
+    noise_J: np.ndarray | None = None  # the Jacobian (2N, 6) it was measured at (its sums are noise.sums)
     lens_D: np.ndarray | None = None  # a fisheye's d(picture px) / d(ideal px) (N, 2, 2) at the corners
     weighted: _Candidate | None = None  # the candidate refined with those weights (:func:`_weighted`)
     weighted_J: np.ndarray | None = None  # its weighted Jacobian (2N, 6)
@@ -305,7 +306,9 @@ def _pose_from(data: _Data, cands: list[_Candidate], unrefined: list[_Candidate]
         r0, J0 = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, True)
     if best.r is None:
         best.r, best.sse = r0, float(r0 @ r0)
-    data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px)
+    JtJ0 = best.JtJ if J0 is best.J else None  # LM's J^T J of that same Jacobian
+    data.noise = _noise_parts(r0, J0, obs.img.reshape(-1, 4, 2), data.corner_sigma_px, JtJ0)
+    data.noise_J = J0
     data.dof = 2 * len(obs.obj) - 6
     data.sigma = _sigma(_picture_sse(data, cands[0]), data.dof, data.corner_sigma_px)
     # The ambiguity test's noise: residuals far above any detector's noise are a wrong map or
@@ -410,18 +413,29 @@ def _build(
     )
 
 
+def _pinhole_covariance(data: _Data, c: _Candidate) -> np.ndarray | None:
+    """Candidate ``c``'s covariance from the noise the best pose's residuals hold (:attr:`_Data.noise`), and the
+    calibration's own error when the camera has one; None if not determined."""
+    obs, camera, noise = data.obs, data.camera, data.noise
+    if noise is None:
+        return None
+    if c.J is not None and c.JtJ is not None and camera.intrinsics_covariance is None:
+        J, JtJ, J_k = c.J, c.JtJ, None  # LM's last Jacobian, at this very pose
+    else:
+        _, J, J_k = _residuals_and_jacobians(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C)
+        JtJ = J.T @ J
+    sums = noise.sums if J is data.noise_J else None  # at the noise's own Jacobian: its sums and inverse
+    cov = _pose_covariance_fast(J, obs.img.reshape(-1, 4, 2), noise, JtJ, sums)
+    if cov is not None and camera.intrinsics_covariance is not None and J_k is not None:  # calibration's own error
+        cov = cov + _calibration_covariance(J, J_k, camera.intrinsics_covariance)
+    return cov
+
+
 def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pose] | None) -> np.ndarray | None:
     """The covariance (6, 6) of candidate ``c``'s pose (see :attr:`Pose.covariance`); None if not determined."""
     obs, camera = data.obs, data.camera
     if data.lens_D is None:  # the noise each pose's own residuals hold (corner noise, marker shift and size)
-        if c.J is not None and c.JtJ is not None and camera.intrinsics_covariance is None:
-            J, JtJ, J_k = c.J, c.JtJ, None  # LM's last Jacobian, at this very pose
-        else:
-            _, J, J_k = _residuals_and_jacobians(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C)
-            JtJ = J.T @ J
-        cov = None if data.noise is None else _pose_covariance_fast(J, obs.img.reshape(-1, 4, 2), data.noise, JtJ)
-        if cov is not None and camera.intrinsics_covariance is not None and J_k is not None:  # calibration's own error
-            cov = cov + _calibration_covariance(J, J_k, camera.intrinsics_covariance)
+        cov = _pinhole_covariance(data, c)
     else:  # a fisheye: corner noise in the picture's pixels, carried through the lens
         if c is data.weighted and data.weighted_J is not None:  # the weighted fit: sigma^2 (J_w^T J_w)^-1
             cov = _covariance_from(data.weighted_J.T @ data.weighted_J, data.sigma)
@@ -442,6 +456,6 @@ def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pos
         # two-pose mixture, weighted by likelihood (the noise integrated out when estimated: Student's
         # tail), so its ellipsoid reaches the other one.
         w_alt = _alternative_weight(alt.sse - c.sse, data.sigma_amb, data.nu_amb)
-        d = np.r_[_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C]
+        d = np.concatenate((_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C))
         cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
     return cov

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,17 +49,32 @@ _SHIFT8 = np.kron(np.ones((4, 4)), np.eye(2))  # the covariance of a unit common
 _EYE8 = np.eye(8)
 
 
+class _PartSums(NamedTuple):
+    """The sums of one Jacobian ``J`` (8M, 6) and corners ``q`` (M, 4, 2) that the closed forms of
+    :mod:`._noise_fast` share: ``K_S``, ``K_g`` (6, 6), the growths ``grow`` (M, 8) and ``h`` (M, 6); and
+    ``G = (J^T J)^-1`` when computed (None: not yet)."""
+
+    K_S: np.ndarray
+    K_g: np.ndarray
+    grow: np.ndarray
+    h: np.ndarray
+    G: np.ndarray | None = None
+
+
 @dataclass(frozen=True)
 class _NoiseParts:
     """The noise of one pose's corners: ``a`` (px^2), ``b`` (px^2), ``c`` (relative^2), the common size
     error ``size`` (relative), and the degrees of freedom ``nu`` of the pose's
-    covariance (Satterthwaite; None when nothing was estimated)."""
+    covariance (Satterthwaite; None when nothing was estimated). ``sums``: the closed forms' sums of the
+    Jacobian the parts were measured at (:func:`._noise_fast._noise_parts_fast`), for the covariance at that
+    same Jacobian (None when not computed)."""
 
     a: float
     b: float
     c: float
     size: float = 0.0
     nu: float | None = None
+    sums: _PartSums | None = field(default=None, compare=False, repr=False)
 
 
 def _blocks(Xb: np.ndarray, C: np.ndarray) -> np.ndarray:
@@ -131,14 +147,22 @@ def _noise_parts(r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: f
         a, b, c = (float(v) for v in scale * prior)
         return _NoiseParts(a, b, c, nu=dof + PRIOR_DOF)
     theta, size = _measure(r, J, q, None if corner_sigma_px is None else float(corner_sigma_px) ** 2)
-    if corner_sigma_px is None:
-        nus = np.array([5.0 * M - 1.0, 2.0 * M - 6.0, M - 1.0])
-        theta[0] = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + nus[0] * theta[0]) / (PRIOR_DOF + nus[0])
-        nus[0] += PRIOR_DOF
-    else:
-        nus = np.array([np.inf, 2.0 * M - 6.0, M - 1.0])
+    nus = _blend_prior(theta, M, corner_sigma_px)
     a, b, c = (float(v) for v in theta)
     return _NoiseParts(a, b, c, size, nu=_satterthwaite(J, q, theta, nus))
+
+
+def _blend_prior(theta: np.ndarray, M: int, corner_sigma_px: float | None) -> np.ndarray:
+    """The degrees of freedom (3,) of the three parts ``theta`` measured from ``M`` markers' residuals (about
+    ``5M``, ``2M - 6`` and ``M - 1``). With the corner noise estimated (``corner_sigma_px`` None), ``theta[0]``
+    is blended in place with ``PRIOR_SIGMA_PX`` worth ``PRIOR_DOF`` degrees of freedom, which its own gain;
+    given, it has infinitely many."""
+    if corner_sigma_px is not None:
+        return np.array([np.inf, 2.0 * M - 6.0, M - 1.0])
+    nus = np.array([5.0 * M - 1.0, 2.0 * M - 6.0, M - 1.0])
+    theta[0] = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + nus[0] * theta[0]) / (PRIOR_DOF + nus[0])
+    nus[0] += PRIOR_DOF
+    return nus
 
 
 def _pose_parts(J: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:

@@ -11,7 +11,9 @@ come from three 6 x 6 matrices, one per part of the noise:
 ``h_m = J_m^T g_m`` (its growth). With ``G = (J^T J)^-1`` the hat matrix ``H = J G J^T`` is a projection, so the
 expected sum of squares of the residuals under a per-marker covariance ``C`` is ``tr(C) - tr(G J^T C J)``, and the
 pose's covariance is the single sandwich ``G (a K_I + b K_S + c K_g) G``. The results equal the straightforward
-ones to round-off (``tests/test_pose_fast_paths.py`` compares them).
+ones to round-off (``tests/test_pose_fast_paths.py`` compares them). The noise of a pose and its covariance at the
+same Jacobian share the sums: :func:`_noise_parts_fast` returns them in its result (``_NoiseParts.sums``), and the
+caller hands them to :func:`_pose_covariance_fast`.
 """
 
 from __future__ import annotations
@@ -22,30 +24,22 @@ import cv2
 import numpy as np
 
 from . import _noise
-from ._noise import PRIOR_SHIFT_PX, PRIOR_SIZE_REL, SPLIT_MIN_MARKERS, _NoiseParts
+from ._noise import PRIOR_SHIFT_PX, PRIOR_SIZE_REL, SPLIT_MIN_MARKERS, _blend_prior, _NoiseParts, _PartSums
 from ._stats import PRIOR_DOF, PRIOR_SIGMA_PX
 
 _PRIOR = (PRIOR_SIGMA_PX**2, PRIOR_SHIFT_PX**2, PRIOR_SIZE_REL**2)
+#: A marker's 8 coordinates (u0, v0, ..., u3, v3) times this: its u sum and its v sum (one product, not a reduction).
+_SUM_UV = np.kron(np.ones((4, 1)), np.eye(2))
 
 
-#: The last :func:`_part_matrices` (its J, a copy of its q, the result): the noise and the covariance of one pose
-#: ask for the same ones. J is held, so its identity cannot be reused by another array; J is never changed in place.
-_LAST_PARTS: list = [None]
-
-
-def _part_matrices(J: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _part_matrices(J: np.ndarray, q: np.ndarray) -> _PartSums:
     """``K_S``, ``K_g`` (6, 6), the growths ``g`` (M, 8) and ``h`` (M, 6) of the markers' corners ``q`` (M, 4, 2)."""
-    last = _LAST_PARTS[0]
-    if last is not None and last[0] is J and last[1].shape == q.shape and np.array_equal(last[1], q):
-        return last[2]
     M = len(q)
     grow = (q - q.sum(axis=1, keepdims=True) * 0.25).reshape(M, 8)
     Jb = J.reshape(M, 8, 6)
     s = J.reshape(M, 4, 2, 6).sum(axis=1).reshape(2 * M, 6)  # each marker's u rows summed, then its v rows
     h = np.einsum("mk,mkj->mj", grow, Jb)
-    out = (s.T @ s, h.T @ h, grow, h)
-    _LAST_PARTS[0] = (J, q.copy(), out)
-    return out
+    return _PartSums(s.T @ s, h.T @ h, grow, h)
 
 
 def _inverse(JtJ: np.ndarray) -> np.ndarray | None:
@@ -58,46 +52,45 @@ def _noise_parts_fast(
     r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: float | None, JtJ: np.ndarray | None = None
 ) -> _NoiseParts:
     """:func:`._noise._noise_parts`, the prior's scale for fewer than ``SPLIT_MIN_MARKERS`` markers in closed form
-    (``JtJ``: ``J^T J`` when the caller has it)."""
+    (``JtJ``: ``J^T J`` when the caller has it); with the sums of ``J`` it computed (``sums``, for
+    :func:`_pose_covariance_fast` at the same ``J``)."""
     M = len(q)
     if M >= SPLIT_MIN_MARKERS:
-        return _split_parts(r, J, q, corner_sigma_px)
+        return _split_parts(r, J, q, corner_sigma_px, JtJ)
     if corner_sigma_px is not None:
         return _NoiseParts(float(corner_sigma_px) ** 2, 0.0, 0.0)
     JtJ = J.T @ J if JtJ is None else JtJ
     G = _inverse(JtJ)
-    if G is None or not np.all(np.isfinite(G)):
+    if G is None or not np.isfinite(G).all():
         return _noise._noise_parts(r, J, q, corner_sigma_px)  # the pseudo-inverse's way
-    K_S, K_g, grow, _ = _part_matrices(J, q)
+    sums = _part_matrices(J, q)._replace(G=G)
+    K_S, K_g, grow, _, _ = sums
     a0, b0, c0 = _PRIOR
     traces = (a0 + b0) * 8.0 * M + c0 * float(np.einsum("mi,mi->", grow, grow))
     expected = traces - float(np.sum(G * (a0 * JtJ + b0 * K_S + c0 * K_g)))
     dof = max(8 * M - 6, 0)
     scale = (PRIOR_DOF + float(r @ r) / max(expected, 1e-300) * dof) / (PRIOR_DOF + dof)
-    return _NoiseParts(float(scale * a0), float(scale * b0), float(scale * c0), nu=dof + PRIOR_DOF)
+    return _NoiseParts(float(scale * a0), float(scale * b0), float(scale * c0), nu=dof + PRIOR_DOF, sums=sums)
 
 
-def _split_parts(r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: float | None) -> _NoiseParts:
+def _split_parts(
+    r: np.ndarray, J: np.ndarray, q: np.ndarray, corner_sigma_px: float | None, JtJ: np.ndarray | None = None
+) -> _NoiseParts:
     """:func:`._noise._noise_parts` with ``SPLIT_MIN_MARKERS`` markers or more: the three parts measured
     (:func:`_measure_fast`), the corner noise blended with the prior when estimated, Satterthwaite's degrees of
     freedom."""
     M = len(q)
     a_given = None if corner_sigma_px is None else float(corner_sigma_px) ** 2
-    theta, size, parts6 = _measure_fast(r, J, q, a_given)
-    if corner_sigma_px is None:
-        nus = np.array([5.0 * M - 1.0, 2.0 * M - 6.0, M - 1.0])
-        theta[0] = (PRIOR_DOF * PRIOR_SIGMA_PX**2 + nus[0] * theta[0]) / (PRIOR_DOF + nus[0])
-        nus[0] += PRIOR_DOF
-    else:
-        nus = np.array([np.inf, 2.0 * M - 6.0, M - 1.0])
+    theta, size, sums = _measure_fast(r, J, q, a_given)
+    nus = _blend_prior(theta, M, corner_sigma_px)
     a, b, c = (float(v) for v in theta)
-    _LAST_PARTS[0] = (J, q.copy(), parts6)
-    return _NoiseParts(a, b, c, size, nu=_satterthwaite_fast(J, parts6, theta, nus))
+    nu, G = _satterthwaite_fast(J, sums, theta, nus, JtJ)
+    return _NoiseParts(a, b, c, size, nu=nu, sums=sums._replace(G=G))
 
 
 def _measure_fast(
     r: np.ndarray, J: np.ndarray, q: np.ndarray, a_given: float | None
-) -> tuple[np.ndarray, float, tuple]:
+) -> tuple[np.ndarray, float, _PartSums]:
     """:func:`._noise._measure`: the moment equations of the three statistics (the markers' means, their sizes,
     the rest: projections ``P_mean``, ``P_size``, ``P_rest`` of each marker's 8 coordinates) under the three
     parts (``I = P_mean + P_size + P_rest``, the shift ``4 P_mean``, the size ``|g|^2 P_size``, as the growth
@@ -110,65 +103,81 @@ def _measure_fast(
     X = np.empty((8 * M, 7))
     X[:, :6], X[:, 6] = J, grow.reshape(-1)
     XtX = X.T @ X
-    G = np.linalg.inv(XtX)  # (as the straightforward one: a singular fit raises here as it does there)
+    G = _inverse(XtX)
+    if G is None:
+        G = np.linalg.inv(XtX)  # (as the straightforward one: a singular fit raises here as it does there)
     coef = G @ (X.T @ r)
     rb = (r - X @ coef).reshape(M, 8)
     Xb = X.reshape(M, 8, 7)
-    g2 = np.einsum("mi,mi->m", grow, grow)
-    xs = Xb.reshape(M, 4, 2, 7).sum(axis=1).reshape(2 * M, 7)  # each marker's u rows summed, then its v rows
-    h = np.einsum("mk,mkj->mj", grow, Xb)  # X_m^T g_m
-    A_mean = (xs.T @ xs) * 0.25  # sum of X_m^T P_mean X_m (P_mean = SHIFT8 / 4)
-    A_size = (h / g2[:, None]).T @ h  # ... P_size = g g^T / |g|^2
-    A_gg = h.T @ h  # ... g g^T
-    A_rest = XtX - A_mean - A_size
-    rs = rb.reshape(M, 4, 2).sum(axis=1)
-    y0 = 0.25 * float(np.einsum("mi,mi->", rs, rs))
-    y1 = float(np.sum(np.einsum("mi,mi->m", grow, rb) ** 2 / g2))
-    y = np.array([y0, y1, float(np.einsum("mi,mi->", rb, rb)) - y0 - y1])
+    g2 = (grow * grow).sum(axis=1)
+    xs = (_SUM_UV.T @ Xb).reshape(2 * M, 7)  # each marker's u rows summed, then its v rows
+    h = (grow[:, None, :] @ Xb)[:, 0]  # X_m^T g_m
+    S = np.empty((4, 7, 7))  # the four sums X^T P X: means, sizes, the rest, g g^T
+    S[0] = (xs.T @ xs) * 0.25  # sum of X_m^T P_mean X_m (P_mean = SHIFT8 / 4)
+    S[1] = (h / g2[:, None]).T @ h  # ... P_size = g g^T / |g|^2
+    S[3] = h.T @ h  # ... g g^T
+    S[2] = XtX - S[0] - S[1]
+    rs = (rb @ _SUM_UV).reshape(-1)
+    gr = (grow * rb).sum(axis=1)
+    rbf = rb.reshape(-1)
+    y0 = 0.25 * float(rs @ rs)
+    y1 = float(gr @ (gr / g2))
+    y = np.array([y0, y1, float(rbf @ rbf) - y0 - y1])
     # sum(G * P) of the four sums, and tr(G X^T S X G X^T C X) of each statistic S and part C at once
-    tm, ts, tr, tg = np.einsum("ab,kab->k", G, np.stack([A_mean, A_size, A_rest, A_gg]))
-    GSG = G @ np.stack([A_mean, A_size, A_rest]) @ G
-    third = np.einsum("iab,kab->ik", GSG, np.stack([XtX, 4.0 * A_mean, A_gg]))  # the parts' sums X^T C X
-    # per statistic (rows: means, sizes, the rest) and part (columns: corners, shift, size): tr(S C) and
-    # sum(G * X^T S C X), every S C one of the projections (or zero)
-    tr_sc = np.array([[2.0 * M, 8.0 * M, 0.0], [1.0 * M, 0.0, float(g2.sum())], [5.0 * M, 0.0, 0.0]])
-    cross = np.array([[tm, 4.0 * tm, 0.0], [ts, 0.0, tg], [tr, 0.0, 0.0]])
-    A = tr_sc - 2.0 * cross + third
+    tm, ts, tr, tg = (S.reshape(4, 49) @ G.reshape(49)).tolist()
+    parts = np.empty((3, 7, 7))  # the parts' sums X^T C X: corners, shift, size
+    parts[0], parts[1], parts[2] = XtX, 4.0 * S[0], S[3]
+    (t00, t01, t02), (t10, t11, t12), (t20, t21, t22) = (
+        (G @ S[:3] @ G).reshape(3, 49) @ parts.reshape(3, 49).T
+    ).tolist()
+    # per statistic (rows: means, sizes, the rest) and part (columns: corners, shift, size): tr(S C)
+    # - 2 sum(G * X^T S C X) + the third term, every S C one of the projections (or zero)
+    g2_sum = float(g2.sum())
+    A = np.array(
+        [
+            [2.0 * M - 2.0 * tm + t00, 8.0 * M - 8.0 * tm + t01, t02],
+            [1.0 * M - 2.0 * ts + t10, t11, g2_sum - 2.0 * tg + t12],
+            [5.0 * M - 2.0 * tr + t20, t21, t22],
+        ]
+    )
     theta = nnls(A, y)[0] if a_given is None else np.r_[a_given, nnls(A[:, 1:], y - A[:, 0] * a_given)[0]]
-    return theta, float(coef[6]), (4.0 * A_mean[:6, :6], A_gg[:6, :6], grow, h[:, :6])
+    return theta, float(coef[6]), _PartSums(parts[1, :6, :6], S[3, :6, :6], grow, h[:, :6])
 
 
-def _satterthwaite_fast(J: np.ndarray, parts6: tuple, theta: np.ndarray, nus: np.ndarray) -> float:
-    """:func:`._noise._satterthwaite`: each part's trace ``tr(G K G)`` from the 6 x 6 sums ``parts6``
-    (:func:`_part_matrices`)."""
-    JtJ = J.T @ J
-    G = _inverse(JtJ)
-    if G is None:
-        return _noise._satterthwaite(J, parts6[2].reshape(-1, 4, 2), theta, nus)  # (raises as it does)
-    K_S, K_g = parts6[0], parts6[1]
-    GG = G @ G
-    v = np.array([t * float(np.sum(GG * K)) for t, K in zip(theta, (JtJ, K_S, K_g))])
-    ok = nus > 0
-    den = float(np.sum(v[ok] ** 2 / nus[ok]))
-    return float(np.sum(v) ** 2 / den) if den > 0 else math.inf
-
-
-def _pose_covariance_fast(
-    J: np.ndarray, q: np.ndarray, parts: _NoiseParts, JtJ: np.ndarray | None = None
-) -> np.ndarray | None:
-    """:func:`._noise._pose_covariance` as one sandwich ``G (a K_I + b K_S + c K_g) G`` plus the common size
-    error's ``d d^T``, ``d = G J^T g`` (``JtJ``: ``J^T J`` when the caller has it)."""
+def _satterthwaite_fast(
+    J: np.ndarray, sums: _PartSums, theta: np.ndarray, nus: np.ndarray, JtJ: np.ndarray | None = None
+) -> tuple[float, np.ndarray | None]:
+    """:func:`._noise._satterthwaite`: each part's trace ``tr(G K G)`` from the 6 x 6 sums ``sums``
+    (:func:`_part_matrices`); and ``G = (J^T J)^-1`` (``JtJ``: ``J^T J`` when the caller has it)."""
     JtJ = J.T @ J if JtJ is None else JtJ
     G = _inverse(JtJ)
     if G is None:
+        return _noise._satterthwaite(J, sums.grow.reshape(-1, 4, 2), theta, nus), None  # (raises as it does)
+    GG = (G @ G).reshape(36)
+    v = [float(t) * float(GG @ K.reshape(36)) for t, K in zip(theta.tolist(), (JtJ, sums.K_S, sums.K_g))]
+    den = sum(x * x / n for x, n in zip(v, nus.tolist()) if n > 0)
+    return (sum(v) ** 2 / den if den > 0 else math.inf), G
+
+
+def _pose_covariance_fast(
+    J: np.ndarray, q: np.ndarray, parts: _NoiseParts, JtJ: np.ndarray | None = None, sums: _PartSums | None = None
+) -> np.ndarray | None:
+    """:func:`._noise._pose_covariance` as one sandwich ``G (a K_I + b K_S + c K_g) G`` plus the common size
+    error's ``d d^T``, ``d = G J^T g`` (``JtJ``: ``J^T J`` when the caller has it; ``sums``: those of this very
+    ``J`` and ``q``, ``parts.sums`` when ``parts`` were measured at it)."""
+    JtJ = J.T @ J if JtJ is None else JtJ
+    if sums is None:
+        sums = _part_matrices(J, q)
+    G = _inverse(JtJ) if sums.G is None else sums.G
+    if G is None:
         return None
-    K_S, K_g, _, h = _part_matrices(J, q)
+    K_S, K_g, _, h, _ = sums
     cov = G @ (parts.a * JtJ + parts.b * K_S + parts.c * K_g) @ G
     if parts.size:
         d = G @ h.sum(axis=0)
         cov = cov + np.outer(d, d) * parts.size**2
     if parts.nu is not None:
         cov = cov * _noise._inflation(round(parts.nu, 1))
-    if not np.all(np.isfinite(cov)):
+    if not np.isfinite(cov).all():
         return None
     return (cov + cov.T) / 2

@@ -65,6 +65,12 @@ def _outlier_f8(nu: float) -> float:
     return 8.0 * _stats.f_isf(OUTLIER_P, 8, nu)
 
 
+# The screen's quantiles depend on the number of markers alone: each is computed once (the same numbers).
+_f_isf = functools.lru_cache(maxsize=256)(_stats.f_isf)
+_chi2_isf = functools.lru_cache(maxsize=256)(_stats.chi2_isf)
+_beta_isf = functools.lru_cache(maxsize=256)(_stats.beta_isf)
+
+
 #: False-alarm probability of the screen on pure noise: the chance that corners with only
 #: Gaussian noise (of ``corner_sigma_px`` when given) start the rejection test. Measured in
 #: ``benchmarks/bench_estimate.py`` and ``tests/test_pose_outliers.py``.
@@ -103,7 +109,7 @@ def _marker_stats_of(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.nd
     Jt = Jb.transpose(0, 2, 1)
     rb = r.reshape(n, 8)
     g = (Jt @ rb[..., None])[..., 0]  # (n, 6): J_k^T r_k
-    JtJ = J.T @ J
+    JtJ = best.JtJ if best.JtJ is not None and J is best.J else J.T @ J  # LM's own, of this very J
     B = Jt @ Jb  # (n, 6, 6): J_k^T J_k
     try:
         x = np.linalg.solve(JtJ - B, g[..., None])[..., 0]
@@ -195,7 +201,7 @@ def _displacement_limit(sse: float, n: int, corner_sigma_px: float | None) -> fl
     if corner_sigma_px is not None:
         return float(corner_sigma_px) ** 2 * -2.0 * math.log(p)  # chi-square(2): sf exp(-x / 2)
     nu = 8 * n - 6 - _DISPLACEMENT_DOF
-    t = _DISPLACEMENT_DOF * _stats.f_isf(p, 2, nu)
+    t = _DISPLACEMENT_DOF * _f_isf(p, 2, nu)
     limit = t * sse / (nu + t)  # drop nu / (sse - drop) = t
     return limit if sse - limit >= nu * OUTLIER_SIGMA_FLOOR_PX**2 else t * OUTLIER_SIGMA_FLOOR_PX**2
 
@@ -242,7 +248,7 @@ def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float 
         if best.r is None:  # a solver's pose not refined (its residuals were left for later)
             r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, best.R_wc, best.C, False)
             best.r, best.sse = r, float(r @ r)
-        whole = best.sse / corner_sigma_px**2 > _stats.chi2_isf(p_any, dof)
+        whole = best.sse / corner_sigma_px**2 > _chi2_isf(p_any, dof)
         if not whole and best.sse <= _displacement_limit(best.sse, n, corner_sigma_px):
             return None  # no drop (at most sse) can pass either
     stats = _marker_stats(obs, best, camera)
@@ -255,7 +261,7 @@ def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float 
     k = int(np.argmax(q))
     if corner_sigma_px is not None:
         return k if whole else None
-    return k if q[k] > _stats.beta_isf(p_any / n, 4, (dof - 8) // 2) * best.sse else None
+    return k if q[k] > _beta_isf(p_any / n, 4, (dof - 8) // 2) * best.sse else None
 
 
 def _named_displaced(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float | None) -> int | None:
@@ -431,7 +437,7 @@ def _model_error_explains(obs: _Obs, k: int, rest_best: _Candidate, camera: Came
     r, J = _residuals(rest.obj, rest.img, camera.K, camera.dist, rest_best.R_wc, rest_best.C, True)
     q = rest.img.reshape(-1, 4, 2)
     parts = _noise_parts(r, J, q, corner_sigma_px)
-    cov = _pose_covariance(J, q, parts)
+    cov = _pose_covariance(J, q, parts, sums=parts.sums)
     if cov is None:
         return False
     g = (obs.img[sl] - obs.img[sl].mean(axis=0)).reshape(8)
