@@ -344,9 +344,9 @@ def _outlined(
 
     Every quad's four outer edges are fitted as the ``"edges"`` refinement does (profiles across each side
     only, O(markers x side)); a quad whose sides show no dark border inside a light surround, or whose edges lie
-    more than ``max(3, cell / 2)`` px from it, is not the marker's outline: a decoder that samples large cells
-    can read a quad around a marker and its white margin as that marker, a quarter turn off
-    (``data/survey/photo_14.jpg``, marker 0). ``corners``: (M, 4, 2) or a list of (4, 2); ``ids``: (M,).
+    farther from it than the profiles reach (``refinement._move_limit``), is not the marker's outline: a decoder
+    that samples large cells can read a quad around a marker and its white margin as that marker, a quarter turn
+    off (``data/survey/photo_14.jpg``, marker 0). ``corners``: (M, 4, 2) or a list of (4, 2); ``ids``: (M,).
     ``refine``: report the fitted corners, else OpenCV's. ``dictionary``: what each Detection says."""
     if len(corners) == 0:
         return [], []
@@ -442,7 +442,7 @@ def detect_markers(
         Sorted by id (then by dictionary, in the order given), each with its ``dictionary``; each
         ``corners_px`` is (4, 2) float64 pixels, TL, TR, BR, BL. Only quads that are
         their marker's outline: OpenCV's decoded quads whose four outer edges are fitted (a dark border
-        inside a light surround on every side, the fitted edges within ``max(3, cell / 2)`` px of the quad;
+        inside a light surround on every side, the fitted edges within the profiles' reach of the quad;
         profiles across the sides only, as the ``"edges"`` refinement samples them, whatever ``refine`` is).
         A quad that is not (a marker and its white margin read as the marker, a quarter turn off) is
         dropped, and the same detector reads its inside again with everything outside it painted white: the

@@ -96,7 +96,8 @@ def refine_corners_edges(
     ndarray (M, 4, 2) float64
         Refined pixel corners (pixel centres at integers). A marker whose four
         edges cannot all be fitted (too little contrast, too few crossings) or
-        whose corners would move more than ``max(3, cell / 2)`` px keeps its input corners.
+        whose corners would move farther than the edges can be found (:func:`_move_limit`) keeps its input corners;
+        one whose corners the last pass moved ``max(3, cell / 2)`` px or more is fitted once more from there.
     """
     return _refine_edges(gray, corners, cells, inverted, n_lines, n_samples, iterations, expand_px, gamma)[0]
 
@@ -111,11 +112,12 @@ def _refine_edges(
     iterations: int = 1,
     expand_px: float = 0.5,
     gamma: float = 1.0,
+    refit: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`refine_corners_edges`' corners (M, 4, 2) and whether each marker's four edges were fitted (M,) bool.
 
     False says that no dark border meets a light surround along the quad's sides, or that the edges found
-    lie more than ``max(3, cell / 2)`` px from them: the quad is not the outline of a marker's black border
+    lie farther from them than :func:`_move_limit` allows: the quad is not the outline of a marker's black border
     (a marker's white margin decoded as the marker, ``data/survey/photo_14.jpg``), or too faint to fit."""
     C = np.ascontiguousarray(corners, dtype=np.float64).reshape(-1, 4, 2)
     M = C.shape[0]
@@ -145,12 +147,18 @@ def _refine_edges(
         den = (dp.conj() * d).imag
         ok = ((sw >= 4) & (det > 1e-9) & (np.abs(den) > 1e-9 * L * L)).all(1)
         new = Ap + ((A - Ap).conj() * d).imag / np.where(ok[:, None], den, 1.0) * dp
-        ok &= np.abs(new - Z).max(1) < np.maximum(3.0, 0.5 * cell)
+        moved = np.abs(new - Z).max(1)
+        ok &= moved < _move_limit(cell, h, shift)
         fitted &= ok
         # the corners move only where every side's contrast is enough to fit a line to it
         Z = np.where((ok & (light - dark > _FIT_CONTRAST).all(1))[:, None], new, Z)
         shift = 0.0
-    return np.stack([Z.real, Z.imag], axis=-1), fitted
+    out = np.stack([Z.real, Z.imag], axis=-1)
+    if refit and iterations > 0:
+        far = fitted & (light - dark > _FIT_CONTRAST).all(1) & (moved >= np.maximum(3.0, 0.5 * cell))
+        if far.any():
+            _fit_far_again(gray, C, out, fitted, far, cells, inverted, n_lines, n_samples, gamma)
+    return out, fitted
 
 
 def _profiles_across(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray, v: np.ndarray, shift: float):
@@ -315,3 +323,29 @@ def _fit_lines(w, off, u, U3):
         if not final:
             w = w * (np.abs(off - alpha[..., None] - beta[..., None] * u) < 0.75)
     return alpha, beta, sw, det
+
+
+def _move_limit(cell: np.ndarray, h: np.ndarray, shift: float) -> np.ndarray:
+    """How far (px, (M,)) a marker's corners may move in one pass of the edge fit: ``max(3, cell / 2)``, or where
+    that is shorter, as far as the profiles find edges along both of a corner's sides, ``sqrt(2) (h + shift)``
+    (each profile reaches ``h`` px either side of its centre, ``shift`` px outside the side).
+
+    The profiles' reach is the bound: a fit that moves a corner farther has extrapolated its lines, not found the
+    edges. ``max(3, cell / 2)`` alone is shorter than that reach for markers of about 3 to 15 px a cell and dropped
+    good markers whose unrefined corners are that far off: the 36h11 tags of Kalibr's AprilGrid
+    (``data/real/tumvi_aprilgrid``; a 2-bit border, 3.1-5.5 px a cell), whose corners touch the grid's small
+    squares, come out of OpenCV up to 3.5 px off, 0.7-0.9 of the reach (``tests/test_real_aprilgrid.py``)."""
+    return np.maximum(np.maximum(3.0, 0.5 * cell), np.sqrt(2.0) * (h + shift))
+
+
+def _fit_far_again(gray, C, out, fitted, far, cells, inverted, n_lines, n_samples, gamma) -> None:
+    """The markers ``far`` whose corners the last pass moved ``max(3, cell / 2)`` px or more, fitted once more from
+    the corners it found (``out`` and ``fitted`` updated in place; ``C`` the input corners).
+
+    Edges that far out lie near the ends of the profiles, which then reach too little of the surround for its
+    level: the corners come out biased (0.3-1.1 px at 2.9-3.6 px moves on a hand-drawn 40 px marker of 10 cells),
+    and a second pass, its profiles centred on the edges found, puts them within 0.1 px
+    (``tests/test_edge_reach.py``). A marker that pass does not fit is not fitted, and keeps ``C``."""
+    again, ok = _refine_edges(gray, out[far], cells, inverted, n_lines, n_samples, 1, 0.0, gamma, refit=False)
+    out[far] = np.where(ok[:, None, None], again, C[far])
+    fitted[far] = ok
