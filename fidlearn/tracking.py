@@ -57,11 +57,12 @@ import cv2
 import numpy as np
 
 from . import _cv
+from ._detector import _detector_fields
 from ._fisheye_edges import refine_edges_fisheye
 from ._lens import pixels_from_normalized, project_points
 from ._wpilib import outside_field
 from .camera import Camera
-from .detection import DEFAULT_REFINE, Detection, _detector_fields, _outlined, _refine_name, as_gray
+from .detection import DEFAULT_REFINE, Detection, _outlined, _refine_name, as_gray
 from .errors import FidlearnError, NoMarkersError, PoseError
 from .markermap import MarkerMap
 from .pose import Pose, estimate_pose

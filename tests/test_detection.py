@@ -7,14 +7,13 @@ import numpy as np
 import pytest
 
 from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv, _cv_charuco, data_path
+from fidlearn._detector import _DETECTOR_CACHE, _detector_fields
 from fidlearn.detection import (
-    _DETECTOR_CACHE,
     DEFAULT_DETECTOR_PARAMS,
     DEFAULT_REFINE,
     REFINE_METHODS,
     Detection,
     _detector,
-    _detector_fields,
     as_gray,
     detect_markers,
     detect_markers_with_rejected,

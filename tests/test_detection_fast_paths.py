@@ -11,12 +11,11 @@ import pytest
 
 from fidlearn import Camera, MarkerMap, MarkerPlacement, _cv
 from fidlearn import refinement as R
+from fidlearn._detector import _checked_ids, _wanted_ids
 from fidlearn.detection import (
     Detection,
-    _checked_ids,
     _detector,
     _outlined,
-    _wanted_ids,
     detect_markers,
 )
 from fidlearn.errors import DictionaryError, FidlearnError

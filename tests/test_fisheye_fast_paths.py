@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 
 from fidlearn import Camera, MarkerMap, frames
+from fidlearn._detector import _detector_fields
 from fidlearn._fisheye_edges import (
     _NEXT,
     _PREV,
@@ -21,7 +22,7 @@ from fidlearn._fisheye_edges import (
     _side_curves,
 )
 from fidlearn._lens import _fisheye_theta_d, fisheye_angles, pixels_from_normalized, project_points
-from fidlearn.detection import Detection, _detector_fields
+from fidlearn.detection import Detection
 from fidlearn.pose._inputs import _as_pinhole, _lens_jacobians, _lens_refine
 from fidlearn.pose._refine import _residuals
 from fidlearn.pose._second_look import _border_bits, missed_in_view, read_again

@@ -9,10 +9,11 @@ import numpy as np
 
 from .. import _cv
 from .._cv_charuco import interpolate_charuco
+from .._detector import _detector_fields
 from .._fisheye_edges import refine_edges_fisheye
 from .._wpilib import outside_field
 from ..camera import Camera
-from ..detection import DEFAULT_REFINE, Detection, _detector_fields, _refine_name, as_gray, detect_markers
+from ..detection import DEFAULT_REFINE, Detection, _refine_name, as_gray, detect_markers
 from ..errors import ImageError, PoseError
 from ..markermap import BoardEntry, MarkerMap
 from ._estimate import estimate_pose

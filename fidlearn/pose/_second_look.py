@@ -19,9 +19,10 @@ import cv2
 import numpy as np
 
 from .. import _cv
+from .._detector import _detector_fields
 from .._lens import project_points
 from ..camera import Camera
-from ..detection import Detection, _detector_fields, as_gray, detect_markers
+from ..detection import Detection, as_gray, detect_markers
 from ..markermap import MarkerMap
 from ._observations import _world
 
