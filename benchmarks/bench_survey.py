@@ -51,6 +51,7 @@ CAMERA = Camera.from_dict(
 RENDER = {"blur_px": 0.5, "noise_std_gray": 1.2, "gradient": 0.2}
 NOISE_PX = 0.05  # about what detect_markers (edges) gives on these renders: printed under the rendered table
 TAPE_MM, MOVED_MM = 20.0, 100.0
+MIXED_TARGETS = "survey, mixed sizes (80, 150, 200 mm; two dictionaries; sigma learnt)"
 
 
 def kabsch_rms(a: np.ndarray, b: np.ndarray) -> float:
@@ -618,7 +619,7 @@ def main(argv=None) -> int:
     if args.mixed:
         new = range(412, 418) if args.quick else range(412, 448)
         held = list(range(400, 406 if args.quick else 412))
-        targets(mixed_table(list(range(8)), held, list(new), 1 if args.quick else 2), "survey, mixed sizes")
+        targets(mixed_table(list(range(8)), held, list(new), 1 if args.quick else 2), MIXED_TARGETS)
         return 0
     n_seeds, n_rendered = (6, 1) if args.quick else (20, 3)
     counts = [10, 20, 50] if args.quick else [10, 20, 50, 100, 200]
@@ -656,7 +657,7 @@ def main(argv=None) -> int:
     print()
     targets(figures)
     print(f"<!-- target: {learnt[0]} | {learnt[1]} | {learnt[2]} -->")
-    targets(mixed, "survey, mixed sizes (80, 150, 200 mm; two dictionaries; sigma learnt)")
+    targets(mixed, MIXED_TARGETS)
     return 0
 
 
