@@ -272,3 +272,30 @@ def test_the_weighted_fit_stops_where_the_longer_fit_does():
     assert np.abs(R - R0).max() < 1e-4 * np.sqrt(np.trace(cov[:3, :3]))
     assert np.linalg.norm(C - T[:3, 3]) < 5.0  # and the fit itself: within the noise of the truth
     np.testing.assert_array_equal(r, _residuals(obj, ideal, pinhole.K, pinhole.dist, R, C, False)[0])
+
+
+def test_the_rim_test_leaves_out_a_corner_where_a_pixel_bends_its_ideal_pixel_as_much_as_it_moves_it():
+    from fidlearn.pose._inputs import _rim_markers
+
+    fisheye = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    f = np.sqrt(K_FE[0, 0] * K_FE[1, 1])
+
+    def excess(theta):  # r - f theta_d'(theta): positive past the rim angle
+        k1, k2, k3, k4 = D_FE
+        slope = 1 + 3 * k1 * theta**2 + 5 * k2 * theta**4 + 7 * k3 * theta**6 + 9 * k4 * theta**8
+        return np.tan(theta) - f * slope
+
+    lo, hi = np.radians(80), np.radians(89.999)
+    for _ in range(60):  # bisection: the rim angle of this lens
+        lo, hi = (lo, (lo + hi) / 2) if excess((lo + hi) / 2) > 0 else ((lo + hi) / 2, hi)
+    assert 89.7 < np.degrees(lo) < 89.9  # close to an equidistant lens's 89.8 degrees at 290 px per radian
+    direction = np.array([0.6, -0.8])
+
+    def marker(theta):  # a small square with one corner theta off the axis, in ideal pixels
+        tip = np.tan(theta) * direction
+        pts = np.array([tip, tip * 0.99, tip * 0.99 + [0.01, 0.0], tip + [0.01, 0.0]])
+        return np.column_stack([K_FE[0, 0] * pts[:, 0] + K_FE[0, 2], K_FE[1, 1] * pts[:, 1] + K_FE[1, 2]])
+
+    corners = {1: marker(lo - 1e-4), 2: marker(hi + 1e-4), 3: marker(np.radians(45))}
+    assert _rim_markers(corners, fisheye) == [2]
+    assert _rim_markers({2: corners[2]}, fisheye) == []  # the only marker is kept

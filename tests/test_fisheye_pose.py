@@ -83,3 +83,41 @@ def test_the_undistorted_picture_with_the_undistorted_camera_finds_the_pose(scen
     assert np.all(np.abs(err) < 3 * pose.position_std_mm)
     assert np.linalg.norm(err) < 10.0
     assert predict_accuracy(scene.marker_map, ideal, scene.T_world_camera) is not None
+
+
+def test_a_marker_at_the_rim_is_left_out_of_the_pose_with_its_reason():
+    # a 160-degree equidistant fisheye (286 px per radian) before a wall of 120 mm markers; from this pose marker
+    # 14 is seen 84.5 to 89.9 degrees off the axis: past 89.8 (tan = 286) a one-pixel error in the picture bends
+    # its ideal pinhole pixel as much as it moves it (RIM_PICTURE_PX); its neighbour 24, at up to 81 degrees, is kept
+    size = (800, 600)
+    f = 400 / np.radians(80)
+    lens = Camera([[f, 0, 399.5], [0, f, 299.5], [0, 0, 1]], [0.0] * 4, size, model="fisheye")
+    wall = MarkerMap.from_dict(
+        {
+            str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]}
+            for k, (y, z) in enumerate((y, z) for y in range(-1500, 1501, 300) for z in range(-900, 901, 300))
+        },
+        marker_size_mm=120,
+        units="mm",
+    )
+    rng = np.random.default_rng(1001)
+    eye = [rng.uniform(300, 700), rng.uniform(-400, 400), rng.uniform(-300, 300)]
+    T = frames.look_at(eye, [0.0, rng.uniform(-600, 600), rng.uniform(-400, 400)], roll_deg=rng.uniform(-20, 20))
+    scene = render_scene(wall, lens, T, seed=1, blur_px=0.5, noise_std_gray=2.0)
+    dets = [d for d in fidlearn.detect_markers(scene.image, wall.dictionary) if d.id in wall]
+    rim = next(d for d in dets if d.id == 14)
+    off_axis = np.degrees(np.hypot(*((rim.corners_px - [399.5, 299.5]) / f).T))  # equidistant: angle = r / f
+    assert off_axis.min() > 84
+    assert 89 < off_axis.max() < 90
+    assert np.tan(np.radians(off_axis.max())) > f
+    for others in (True, False):  # left out before the outlier screen, which need not run
+        pose = fidlearn.locate(scene.image, wall, lens, reject_outliers=others)
+        assert pose.rejected_ids == (14,)
+        assert 14 not in pose.marker_ids
+        assert len(pose.marker_ids) == len(dets) - 1
+        assert 24 in pose.marker_ids
+        assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 0.3  # 0.06 mm (its sides fitted as the lens bends them)
+    # alone, the rim marker is not left out: a pose from it beats none
+    alone = fidlearn.estimate_pose([rim], wall, lens)
+    assert alone.marker_ids == (14,)
+    assert alone.rejected_ids == ()

@@ -23,6 +23,7 @@ from ._inputs import (
     _lens_jacobians,
     _lens_refine,
     _lens_sse,
+    _rim_markers,
 )
 from ._noise import _calibration_covariance, _NoiseParts
 from ._noise_fast import _noise_parts_fast as _noise_parts  # the same numbers in closed forms
@@ -124,6 +125,12 @@ def estimate_pose(
         size errors, measured from their residuals, make likely.
         With 2 markers nobody can tell which is wrong: nothing is rejected, but
         ``Pose.marker_rms_px`` shows the disagreement.
+        Whatever this option, a fisheye's marker with a corner so near 90
+        degrees off the axis that a one-pixel error in the picture bends its
+        ideal pinhole pixel as much as it moves it (``RIM_PICTURE_PX``; 89.8
+        degrees for an equidistant lens of 286 px per radian) is left out
+        before the solve and listed in ``Pose.rejected_ids``, unless no
+        other marker is left (:func:`~._inputs._rim_markers`).
     corner_sigma_px : float, optional
         Standard deviation (px, per coordinate) of the corner noise. If None it
         is estimated from the residuals with ``2N - 6`` degrees of freedom,
@@ -198,14 +205,16 @@ def estimate_pose(
 
     corners_px, ignored = _known_corners(dets, marker_map)
     world, faces = _world(marker_map)
-    obs = _make_obs(sorted(corners_px), corners_px, world, faces)
+    # a fisheye's marker at the rim, whose ideal pixels the pinhole stage cannot read (RIM_PICTURE_PX)
+    rejected = sorted(_rim_markers(corners_px, lens)) if lens is not None else []
+    obs = _make_obs(sorted(k for k in corners_px if k not in rejected), corners_px, world, faces)
     _check_quads(obs.ids, obs.img)
     cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
-    rejected: list[int] = []
     if reject_outliers and len(obs.ids) >= 3:
-        obs, cands, unrefined, rejected = _reject_outliers(
+        obs, cands, unrefined, screened = _reject_outliers(
             obs, marker_map, camera, method, refine_lm, corner_sigma_px, cands, unrefined
         )
+        rejected += screened
     _check_fit(obs, cands[0])
     data = _Data(obs, camera, world, corners_px, ignored, rejected, corner_sigma_px)
     if lens is not None:  # a fisheye's corners, undistorted: their noise is wider near the edge

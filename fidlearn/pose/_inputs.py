@@ -19,6 +19,17 @@ from ._solvers import METHODS
 
 _ESTIMATE_OPTIONS = frozenset({"method", "refine_lm", "reject_outliers", "corner_sigma_px"})
 
+#: The picture's move (px) by which a fisheye corner's ideal pinhole pixel must still move almost along a line for
+#: the pose's pinhole stage to take the corner. A corner ``theta`` off the axis lies at ``r = tan(theta)`` in
+#: normalized ideal coordinates; a picture move ``d`` (px) turns it by ``d / (f theta_d'(theta))`` (``f`` the
+#: lens's pixels per radian, ``theta_d`` its Kannala-Brandt angle), and ``r``'s second-order change over its first
+#: is ``r`` times that angle. Where it reaches 1 the ideal pixel of a one-pixel error is as much curve as line
+#: (89.8 degrees for an equidistant lens of 286 px per radian: ``tan(theta) = 286``): the unweighted pinhole solve
+#: and the outlier screen, linear in ideal pixels, cannot read such a corner (its noise alone stretches to
+#: hundreds of thousands of ideal px). Such a marker is left out before the solve and reported in
+#: ``Pose.rejected_ids`` (see :func:`_rim_markers`).
+RIM_PICTURE_PX = 1.0
+
 
 def _as_map(marker_map) -> MarkerMap:
     """The MarkerMap itself, or the one loaded from a path (MarkerMap.load)."""
@@ -144,7 +155,8 @@ def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection],
     Each corner is undistorted exactly (``Camera.undistort_points``, the inverse of ``Camera.project``); a
     marker with a corner 90 degrees or more off the axis has no pinhole picture and is left out. The pose's
     reprojection errors are then in those ideal pixels, which are wider than the picture's own away from
-    the centre (about 1 / cos^2 of the angle off the axis).
+    the centre (about 1 / cos^2 of the angle off the axis); :func:`estimate_pose` leaves out the markers
+    whose ideal pixels a one-pixel error in the picture bends (:func:`_rim_markers`).
     """
     ideal = camera.undistort_points(np.concatenate([d.corners_px for d in dets])) if dets else np.zeros((0, 2))
     ideal = ideal.reshape(-1, 4, 2)
@@ -152,6 +164,28 @@ def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection],
     out = [d._with_corners(ideal[k]) for k, d in enumerate(dets) if whole[k]]
     pinhole = Camera(camera.K, None, camera.image_size, source=f"{camera.source or 'camera'} undistorted")
     return out, pinhole
+
+
+def _rim_markers(corners_px: Mapping[int, np.ndarray], lens: Camera) -> list[int]:
+    """The markers with an ideal pinhole corner (4, 2), px, that a picture's ``RIM_PICTURE_PX`` move bends.
+
+    ``corners_px`` are a fisheye's corners undistorted to the pinhole with its K (:func:`_as_pinhole`), ``lens``
+    the fisheye. A corner at normalized radius ``r`` (``theta = atan(r)`` off the axis) is left out when
+    ``r * RIM_PICTURE_PX / (f theta_d'(theta)) > 1``, ``f = sqrt(fx fy)`` (see ``RIM_PICTURE_PX``). None is
+    left out when that would leave no marker: the pose then comes from them all.
+    """
+    K = lens.K
+    keys = list(corners_px)
+    px = np.stack([corners_px[k] for k in keys]).reshape(-1, 2)  # one pass over every corner
+    y = (px[:, 1] - K[1, 2]) / K[1, 1]
+    x = (px[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
+    r = np.sqrt(x * x + y * y)
+    k1, k2, k3, k4 = np.ravel(lens.dist)[:4]
+    t2 = np.arctan(r) ** 2
+    slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))  # d theta_d / d theta
+    bent = (r * RIM_PICTURE_PX > math.sqrt(K[0, 0] * K[1, 1]) * slope).reshape(-1, 4).any(axis=1)
+    rim = [k for k, b in zip(keys, bent) if b]
+    return rim if len(rim) < len(corners_px) else []
 
 
 def _lens_jacobians(lens: Camera, ideal_px: np.ndarray) -> np.ndarray:

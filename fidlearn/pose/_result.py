@@ -176,7 +176,9 @@ class Pose(_PoseReadouts):
     ignored_ids : tuple of int
         Detected ids that are not in the map.
     rejected_ids : tuple of int
-        Markers left out because they disagree with the others (misplaced?).
+        Markers left out because they disagree with the others (misplaced?), and a fisheye's markers with a
+        corner so near 90 degrees off the axis that its ideal pinhole pixels cannot be read by the pose's
+        pinhole stage (``fidlearn.pose._inputs.RIM_PICTURE_PX``).
     method : str
         The solver(s) used, e.g. ``"ippe+lm"``.
     """
