@@ -16,7 +16,16 @@ import numpy as np
 
 from ._lens import fisheye_rays, pixels_from_normalized, project_points
 from .camera import Camera
-from .refinement import _CHECK_CONTRAST, _FIT_CONTRAST, _NEXT, _PREV, _edge_offsets, _levels, _profile_grid
+from .refinement import (
+    _CHECK_CONTRAST,
+    _FIT_CONTRAST,
+    _NEXT,
+    _PREV,
+    _edge_offsets,
+    _levels,
+    _profile_grid,
+    _read_at,
+)
 
 #: Points sampled along each side, as the refinement samples it (``refinement._refine_edges``' ``n_lines``).
 N_SAMPLES = 16
@@ -133,7 +142,7 @@ def refine_edges_fisheye(gray: np.ndarray, corners: np.ndarray, camera: Camera, 
         r = _rays(C, camera)
         P, nz = _side_curves(C, r, camera, t)
         ok = (np.isfinite(P) & np.isfinite(nz)).all(axis=(1, 2))  # every profile's samples finite
-        prof = cv2.remap(gray, _sample_map(P, nz, h, v, ok), None, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
+        prof = _read_at(gray, _sample_map(P, nz, h, v, ok), cv2.INTER_CUBIC)
         prof = prof.reshape(len(C), 4, len(u), len(v)).astype(np.float32)
         prof, dark, light, _ = _levels(prof, False, 1.0)
         dark = np.broadcast_to(dark.min(axis=1, keepdims=True), dark.shape)  # the marker's own levels

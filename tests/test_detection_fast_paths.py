@@ -236,3 +236,17 @@ def test_detect_markers_on_the_wall_finds_every_marker_at_its_corners(wall):
     assert all(d.dictionary == _cv.dictionary_name("4X4_50") for d in dets)
     err = np.stack([d.corners_px - truth[d.id] for d in dets])
     assert np.sqrt((err**2).sum(-1).mean()) < 0.1
+
+
+@pytest.mark.parametrize("interpolation", [cv2.INTER_LINEAR, cv2.INTER_CUBIC])
+@pytest.mark.parametrize(("rows", "cols"), [(390, 64), (1, 5), (120, 208), (700, 64)])
+def test_points_read_in_one_row_are_remaps_values_of_the_map(interpolation, rows, cols):
+    """``_read_at`` reads the map's points as one row (serial in OpenCV), in parts of ``_ROW_POINTS`` when there
+    are more (700 x 64 = 44,800): the values ``cv2.remap`` gives the map as it is shaped."""
+    rng = np.random.default_rng(rows)
+    gray = rng.integers(0, 256, size=(480, 640), dtype=np.uint8)
+    maps = rng.uniform(-20, 660, size=(rows, cols, 2)).astype(np.float32)
+    expected = cv2.remap(gray, maps, None, interpolation, borderMode=cv2.BORDER_REPLICATE)
+    got = R._read_at(gray, maps, interpolation)
+    assert got.shape == (rows, cols)
+    assert np.array_equal(got, expected)
