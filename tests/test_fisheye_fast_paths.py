@@ -299,3 +299,18 @@ def test_the_rim_test_leaves_out_a_corner_where_a_pixel_bends_its_ideal_pixel_as
     corners = {1: marker(lo - 1e-4), 2: marker(hi + 1e-4), 3: marker(np.radians(45))}
     assert _rim_markers(corners, fisheye) == [2]
     assert _rim_markers({2: corners[2]}, fisheye) == []  # the only marker is kept
+
+
+def test_the_weighted_fit_from_a_fits_own_residuals_is_the_fit_that_computes_them():
+    fisheye = Camera(K_FE, D_FE, (800, 503), model="fisheye")
+    pinhole = Camera(K_FE, None, (800, 503))
+    s = 60.0
+    square = np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]])
+    obj = np.concatenate([square + [x, y, 0] for x, y in ((-250, 0), (150, 40), (0, -160))])
+    T = frames.look_at([150.0, -60.0, -500.0], [0.0, 0.0, 0.0])
+    ideal = pinhole.project(obj, T) + np.random.default_rng(4).normal(0, 0.3, (len(obj), 2))
+    D = _lens_jacobians(fisheye, ideal)
+    R0, C0 = cv2.Rodrigues(np.array([0.01, -0.02, 0.015]))[0] @ T[:3, :3], T[:3, 3] + [3.0, -2.0, 4.0]
+    given = _lens_refine(obj, ideal, pinhole, D, R0, C0, _residuals(obj, ideal, pinhole.K, pinhole.dist, R0, C0, True))
+    for a, b in zip(given, _lens_refine(obj, ideal, pinhole, D, R0, C0)):
+        assert np.array_equal(a, b)

@@ -342,7 +342,8 @@ def _weighted(data: _Data, c: _Candidate) -> _Candidate:
     """Candidate ``c`` refined to fit the fisheye's picture pixels (:func:`~._inputs._lens_refine`)."""
     obs, camera = data.obs, data.camera
     assert data.lens_D is not None, "set for a fisheye before the weighted fit"
-    R_wc, C, data.weighted_J, r, J = _lens_refine(obs.obj, obs.img, camera, data.lens_D, c.R_wc, c.C)
+    start = (c.r, c.J) if c.r is not None and c.J is not None else None  # a fit's own, at c's pose
+    R_wc, C, data.weighted_J, r, J = _lens_refine(obs.obj, obs.img, camera, data.lens_D, c.R_wc, c.C, start)
     data.weighted = _Candidate(R_wc, C, float(r @ r), r, refined=c.refined, JtJ=J.T @ J, J=J)
     return data.weighted
 

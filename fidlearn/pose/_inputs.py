@@ -252,7 +252,9 @@ def _lens_covariance(D: np.ndarray, J: np.ndarray, sigma: float) -> np.ndarray |
     return (cov + cov.T) / 2
 
 
-def _lens_refine(obj: np.ndarray, img: np.ndarray, camera: Camera, D: np.ndarray, R_wc: np.ndarray, C: np.ndarray):
+def _lens_refine(
+    obj: np.ndarray, img: np.ndarray, camera: Camera, D: np.ndarray, R_wc: np.ndarray, C: np.ndarray, start=None
+):
     """The pose that fits the corners as the fisheye's picture measures them (each residual ``D r``), from a start.
 
     Gauss-Newton on the ideal-pixel residuals weighted by :func:`_lens_jacobians` (``D^T D`` per corner): the
@@ -261,16 +263,17 @@ def _lens_refine(obj: np.ndarray, img: np.ndarray, camera: Camera, D: np.ndarray
     residuals (2N,) and Jacobian (2N, 6) in ideal pixels there; the start when no step lowers the weighted sum
     of squares. It stops when a step lowers the sum by less than 1e-10 of it, or when the next step is predicted
     to (``step . J^T r``, the decrease of the linearized sum: Gauss-Newton's last step is not tried, as the
-    fit would take it and stop, moving the pose by 1e-4 of its standard deviation or less).
+    fit would take it and stop, moving the pose by 1e-4 of its standard deviation or less). ``start``: the plain
+    residuals and Jacobian at the start when the caller has them (a Levenberg-Marquardt fit ends with them).
     """
 
-    def weighted(R, c):
-        r, J = _residuals(obj, img, camera.K, camera.dist, R, c, True)
+    def weighted(R, c, plain=None):
+        r, J = _residuals(obj, img, camera.K, camera.dist, R, c, True) if plain is None else plain
         Dr = np.einsum("nij,nj->ni", D, r.reshape(-1, 2)).reshape(-1)
         DJ = (D @ J.reshape(-1, 2, 6)).reshape(-1, 6)  # a batched product: 4x faster than einsum's loop
         return float(Dr @ Dr), Dr, DJ, (r, J)
 
-    sse, r, J, plain = weighted(R_wc, C)
+    sse, r, J, plain = weighted(R_wc, C, start)
     for _ in range(10):
         g = J.T @ r
         ok, step = cv2.solve(J.T @ J, g.reshape(6, 1))

@@ -9,7 +9,6 @@ import numpy as np
 
 from .. import _cv
 from .._cv_charuco import interpolate_charuco
-from .._detector import _detector_fields
 from .._fisheye_edges import refine_edges_fisheye
 from .._wpilib import outside_field
 from ..camera import Camera
@@ -19,7 +18,7 @@ from ..markermap import BoardEntry, MarkerMap
 from ._estimate import estimate_pose
 from ._inputs import _as_camera, _as_map, _check_pose_options
 from ._result import Pose
-from ._second_look import missed_in_view, read_again
+from ._second_look import _border_bits, missed_in_view, read_again
 
 __all__ = ["locate"]
 
@@ -141,7 +140,7 @@ def _straightened(
     """
     if not detections:
         return []
-    border = int(_detector_fields(detector_params)["markerBorderBits"])
+    border = _border_bits(detector_params)
     out = list(detections)
     gray = as_gray(image)
     for name in {d.dictionary or dictionary for d in detections}:
