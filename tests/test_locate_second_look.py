@@ -66,3 +66,59 @@ def test_plain_detection_and_locate_agree_on_the_markers_both_find():
     pose = locate(sc.image, m, CAM)
     plain = {m.key(d.id, d.dictionary) for d in detect_markers(sc.image, ["ARUCO_ORIGINAL", "4X4_50"])}
     assert plain <= set(pose.marker_ids)
+
+
+def _one_crop_at_a_time(image, missed):
+    """The second look as it read each crop on its own (one detect_markers call per crop), as a reference."""
+    return [d for one in missed for d in read_again(image, [one], None, None)]
+
+
+def test_the_crops_read_side_by_side_are_the_crops_read_one_at_a_time():
+    """Every map marker of two dictionaries not yet found, read again: the same markers in the same order, each at
+    the corners its own crop gives (the edge fit samples at larger coordinates in the shared picture: single
+    precision's last bits move a corner by thousandths of a pixel at most)."""
+    m = mixed_wall()
+    read = 0
+    for k, T in enumerate(
+        [
+            T_SCENE,
+            look_at([2600.0, 300.0, 1300.0], [0.0, 450.0, 1150.0], roll_deg=8.0),
+            look_at([1500, 700, 900], [0, 300, 1200]),
+        ]
+    ):
+        sc = render_scene(m, CAM, T, seed=k, noise_std_gray=2.0, blur_px=0.6)
+        missed = missed_in_view(m, CAM, T, set(), None)
+        assert len({name for _, name, _ in missed}) == 2
+        assert len(missed) >= 4
+        together, alone = read_again(sc.image, missed, None, None), _one_crop_at_a_time(sc.image, missed)
+        assert [(d.id, d.dictionary) for d in together] == [(d.id, d.dictionary) for d in alone]
+        for a, b in zip(together, alone):
+            assert np.abs(a.corners_px - b.corners_px).max() < 0.01
+        read += len(together)
+    assert read >= 12
+
+
+def test_a_marker_is_kept_only_in_its_own_crop():
+    """Two crops of one dictionary: a marker predicted where another of the map sits is not reported as found
+    (the other marker, read in that crop, has another id)."""
+    m, sc = scene()
+    small = [k for k in m if m.marker_dictionary(k) == "ARUCO_ORIGINAL"]
+    missed = [x for x in missed_in_view(m, CAM, T_SCENE, set(), None) if x[0] in small[:2]]
+    assert len(missed) == 2
+    (a, name, qa), (b, _, qb) = missed
+    swapped = [(a, name, qb), (b, name, qa)]  # each id predicted at the other's place
+    assert read_again(sc.image, swapped, None, None) == []
+    assert [d.id for d in read_again(sc.image, missed, None, None)] == [int(a), int(b)]
+
+
+def test_the_shared_picture_keeps_the_pictures_marker_size_limits():
+    from fidlearn.pose._second_look import _picture_limits
+
+    limits = _picture_limits({"minMarkerPerimeterRate": 0.05}, 640, 1280)
+    assert limits["minMarkerPerimeterRate"] * 1280 == 0.05 * 640  # 32 px either way
+    assert limits["maxMarkerPerimeterRate"] * 1280 == 4.0 * 640
+    # a limit the user set above the marker's perimeter in the picture: not found in the second look either
+    m, sc = scene()
+    missed = missed_in_view(m, CAM, T_SCENE, set(m) - {m.key(0, "4X4_50")}, None)
+    assert len(read_again(sc.image, missed, None, None)) == 1
+    assert read_again(sc.image, missed, None, {"minMarkerPerimeterRate": 300 / 640}) == []
