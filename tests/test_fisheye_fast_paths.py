@@ -73,8 +73,9 @@ def test_the_ideal_corners_keep_id_and_dictionary_and_drop_markers_past_90_degre
     near = Detection(4, [[390, 260], [420, 262], [418, 290], [388, 288]], "ARUCO_ORIGINAL")
     # a corner beyond 90 degrees off the axis: no pinhole picture of it
     far = Detection(9, [[0, 10], [30, 10], [30, 40], [-400, 40]], "ARUCO_ORIGINAL")
-    out, pinhole = _as_pinhole([near, far], fisheye)
+    out, pinhole, beyond = _as_pinhole([near, far], fisheye)
     assert [d.id for d in out] == [4]
+    assert beyond == [far]
     assert out[0].dictionary == "ARUCO_ORIGINAL"
     assert np.array_equal(out[0].corners_px, fisheye.undistort_points(near.corners_px))
     assert out[0].corners_px.shape == (4, 2)

@@ -69,6 +69,13 @@ def test_estimate_pose_leaves_out_a_marker_beyond_90_degrees():
     pose = fidlearn.estimate_pose([*dets, beyond], walls, wide)
     assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 1e-3  # exact corners: the exact pose
     assert 5 not in pose.marker_ids
+    assert pose.rejected_ids == (5,)  # reported as the rim test reports the markers just inside 90 degrees
+    # an id the map has not, past 90 degrees: ignored, as it is anywhere in the picture
+    stranger = fidlearn.detection.Detection(40, beyond.corners_px)
+    assert fidlearn.estimate_pose([*dets, stranger], walls, wide).ignored_ids == (40,)
+    # only markers past 90 degrees: no pose, and the error says why
+    with pytest.raises(fidlearn.PoseError, match=r"markers \[5\] have a corner 90 degrees or more off"):
+        fidlearn.estimate_pose([beyond], walls, wide)
 
 
 def test_the_undistorted_picture_with_the_undistorted_camera_finds_the_pose(scenes):

@@ -130,7 +130,8 @@ def estimate_pose(
         ideal pinhole pixel as much as it moves it (``RIM_PICTURE_PX``; 89.8
         degrees for an equidistant lens of 286 px per radian) is left out
         before the solve and listed in ``Pose.rejected_ids``, unless no
-        other marker is left (:func:`~._inputs._rim_markers`).
+        other marker is left (:func:`~._inputs._rim_markers`); one with a
+        corner at 90 degrees or more always is (it has no pinhole picture).
     corner_sigma_px : float, optional
         Standard deviation (px, per coordinate) of the corner noise. If None it
         is estimated from the residuals with ``2N - 6`` degrees of freedom,
@@ -196,17 +197,29 @@ def estimate_pose(
     >>> pose.position_ellipsoid_contains(T_world_camera[:3, 3])   # the truth is inside the 95 % ellipsoid
     True
     """
-    dets, marker_map, camera, lens = _check_inputs_lens(detections, marker_map, camera)
+    dets, marker_map, camera, lens, beyond = _check_inputs_lens(detections, marker_map, camera)
     method = _check_options(method, refine_lm, reject_outliers, corner_sigma_px)
     if refine_lm is None:
         refine_lm = method == "auto"
     refine_lm = bool(refine_lm)
     obj_c, img_c = _chess_pairs(board_corners, marker_map)
 
+    # a fisheye's map markers with a corner 90 degrees or more off its axis: no pinhole picture (_as_pinhole)
+    past = sorted({marker_map.key(d.id, d.dictionary) for d in beyond} & set(marker_map))
+    if past and not any(marker_map.key(d.id, d.dictionary) in marker_map for d in dets):
+        raise PoseError(
+            f"markers {past} have a corner 90 degrees or more off the fisheye's axis, where a pose cannot use them, "
+            "and no other marker of the map is in the detections; turn the camera towards the markers"
+        )
     corners_px, ignored = _known_corners(dets, marker_map)
+    ignored += [
+        k
+        for k in dict.fromkeys(marker_map.key(d.id, d.dictionary) for d in beyond)
+        if k not in marker_map and k not in ignored
+    ]
     world, faces = _world(marker_map)
-    # a fisheye's marker at the rim, whose ideal pixels the pinhole stage cannot read (RIM_PICTURE_PX)
-    rejected = sorted(_rim_markers(corners_px, lens)) if lens is not None else []
+    # and those at the rim, whose ideal pixels the pinhole stage cannot read (RIM_PICTURE_PX)
+    rejected = sorted(set(past) | set(_rim_markers(corners_px, lens))) if lens is not None else []
     obs = _make_obs(sorted(k for k in corners_px if k not in rejected), corners_px, world, faces)
     _check_quads(obs.ids, obs.img)
     cands, unrefined, method_used = _solve(obs, marker_map, camera, method, refine_lm)
@@ -406,6 +419,8 @@ def _build(
     r = c.r.reshape(-1, 4, 2)
     residuals = {i: r[k] for k, i in enumerate(obs.ids)}
     for i in data.rejected:
+        if i not in data.corners_px:  # a fisheye's marker past 90 degrees: no undistorted corners to compare
+            continue
         ri, _ = _residuals(data.world[i], data.corners_px[i], camera.K, camera.dist, c.R_wc, c.C, False)
         residuals[i] = ri.reshape(4, 2)
     return Pose._trusted(

@@ -119,12 +119,15 @@ def _check_pose_options(options: Mapping[str, Any], caller: str, takes: str) -> 
 
 def _check_inputs(detections, marker_map, camera) -> tuple[list[Detection], MarkerMap, Camera]:
     """The checked detections, map and camera (a fisheye's detections undistorted: see :func:`_as_pinhole`)."""
-    dets, marker_map, camera, _ = _check_inputs_lens(detections, marker_map, camera)
+    dets, marker_map, camera, _, _ = _check_inputs_lens(detections, marker_map, camera)
     return dets, marker_map, camera
 
 
-def _check_inputs_lens(detections, marker_map, camera) -> tuple[list[Detection], MarkerMap, Camera, Camera | None]:
-    """:func:`_check_inputs`, and the fisheye camera the detections were undistorted from (None for a pinhole)."""
+def _check_inputs_lens(
+    detections, marker_map, camera
+) -> tuple[list[Detection], MarkerMap, Camera, Camera | None, list[Detection]]:
+    """:func:`_check_inputs`, the fisheye camera the detections were undistorted from (None for a pinhole) and the
+    detections left out for a corner 90 degrees or more off its axis (:func:`_as_pinhole`)."""
     marker_map = _as_map(marker_map)
     camera = _as_camera(camera)
     if isinstance(detections, Detection):
@@ -144,16 +147,18 @@ def _check_inputs_lens(detections, marker_map, camera) -> tuple[list[Detection],
         k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners_px).all())
         raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners_px.tolist()}")
     if camera.model == "fisheye":
-        pinhole_dets, pinhole = _as_pinhole(dets, camera)
-        return pinhole_dets, marker_map, pinhole, camera
-    return dets, marker_map, camera, None
+        pinhole_dets, pinhole, beyond = _as_pinhole(dets, camera)
+        return pinhole_dets, marker_map, pinhole, camera, beyond
+    return dets, marker_map, camera, None, []
 
 
-def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection], Camera]:
-    """A fisheye's detections as the distortion-free pinhole camera with the same K sees them.
+def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection], Camera, list[Detection]]:
+    """A fisheye's detections as the distortion-free pinhole camera with the same K sees them, that camera, and the
+    detections left out.
 
     Each corner is undistorted exactly (``Camera.undistort_points``, the inverse of ``Camera.project``); a
-    marker with a corner 90 degrees or more off the axis has no pinhole picture and is left out. The pose's
+    marker with a corner 90 degrees or more off the axis has no pinhole picture and is left out (the limit of the
+    rim test, which :func:`estimate_pose` reports both alike in ``Pose.rejected_ids``). The pose's
     reprojection errors are then in those ideal pixels, which are wider than the picture's own away from
     the centre (about 1 / cos^2 of the angle off the axis); :func:`estimate_pose` leaves out the markers
     whose ideal pixels a one-pixel error in the picture bends (:func:`_rim_markers`).
@@ -163,7 +168,7 @@ def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection],
     whole = np.asarray(np.isfinite(ideal).all(axis=(1, 2)))
     out = [d._with_corners(ideal[k]) for k, d in enumerate(dets) if whole[k]]
     pinhole = Camera(camera.K, None, camera.image_size, source=f"{camera.source or 'camera'} undistorted")
-    return out, pinhole
+    return out, pinhole, [d for k, d in enumerate(dets) if not whole[k]]
 
 
 def _rim_markers(corners_px: Mapping[int, np.ndarray], lens: Camera) -> list[int]:

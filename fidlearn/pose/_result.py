@@ -112,7 +112,8 @@ class Pose(_PoseReadouts):
         The markers the pose was computed from.
     residuals_px : dict of int to ndarray (4, 2)
         Per marker: observed minus reprojected corners (px), TL, TR, BR, BL.
-        Rejected markers are listed too (their residual under this pose).
+        Rejected markers are listed too (their residual under this pose), but for a fisheye's markers past 90
+        degrees off its axis, which have no undistorted corners.
     reprojection_rms_px : float
         RMS over the used corners of the residual length (px; on a fisheye camera in the picture's
         own pixels, while ``residuals_px`` are in the undistorted ones),
@@ -177,8 +178,8 @@ class Pose(_PoseReadouts):
         Detected ids that are not in the map.
     rejected_ids : tuple of int
         Markers left out because they disagree with the others (misplaced?), and a fisheye's markers with a
-        corner so near 90 degrees off the axis that its ideal pinhole pixels cannot be read by the pose's
-        pinhole stage (``fidlearn.pose._inputs.RIM_PICTURE_PX``).
+        corner 90 degrees or more off the axis, or so near it that its ideal pinhole pixels cannot be read by the
+        pose's pinhole stage (``fidlearn.pose._inputs.RIM_PICTURE_PX``).
     method : str
         The solver(s) used, e.g. ``"ippe+lm"``.
     """
