@@ -1,6 +1,7 @@
 """locate reads again, where the pose puts them, the map's markers the detector missed."""
 
 import numpy as np
+import pytest
 
 from fidlearn import Camera, detect_markers, locate
 from fidlearn.frames import look_at
@@ -122,3 +123,19 @@ def test_the_shared_picture_keeps_the_pictures_marker_size_limits():
     missed = missed_in_view(m, CAM, T_SCENE, set(m) - {m.key(0, "4X4_50")}, None)
     assert len(read_again(sc.image, missed, None, None)) == 1
     assert read_again(sc.image, missed, None, {"minMarkerPerimeterRate": 300 / 640}) == []
+
+
+@pytest.mark.parametrize("refine", ["subpix", "contour"])
+def test_with_opencvs_refinements_each_crop_is_read_alone(refine):
+    """OpenCV's own refinements place corners up to a pixel apart in a shared picture: their crops are read one by
+    one, the corners those of the crop alone to the bit."""
+    m = mixed_wall()
+    T = look_at([2600.0, 300.0, 1300.0], [0.0, 450.0, 1150.0], roll_deg=8.0)
+    sc = render_scene(m, CAM, T, seed=1, noise_std_gray=2.0, blur_px=0.6)
+    missed = missed_in_view(m, CAM, T, set(), None)
+    together = read_again(sc.image, missed, refine, None)
+    alone = [d for one in missed for d in read_again(sc.image, [one], refine, None)]
+    assert len(together) >= 4
+    assert [(d.id, d.dictionary) for d in together] == [(d.id, d.dictionary) for d in alone]
+    for a, b in zip(together, alone):
+        assert np.array_equal(a.corners_px, b.corners_px)
