@@ -81,9 +81,48 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
     if not missed:
         return []
     gray = as_gray(image)
-    border = _border_bits(detector_params)
     H, W = gray.shape
     kw = {} if refine is None else {"refine": refine}
+    crops, lows, wides = _crops(gray, missed, _border_bits(detector_params))
+    found: dict[int, Detection] = {}
+    together = _refine_name(DEFAULT_REFINE if refine is None else refine) == "edges"
+    if together:  # one call per dictionary
+        names = dict.fromkeys(n for _, n, _ in missed)
+        groups = [[k for k, (_, n, _) in enumerate(missed) if n == name] for name in names]
+    else:
+        groups = [[k] for k in range(len(missed))]
+    for mine in groups:
+        name = missed[mine[0]][1]
+        if together:
+            sheet, at = _side_by_side([crops[k] for k in mine])
+            params = _picture_limits(detector_params, max(W, H), max(sheet.shape))
+        else:  # OpenCV's refinements: each crop alone, as it always was
+            sheet, at, params = crops[mine[0]], [(0, 0)], detector_params
+        wanted = sorted({int(missed[k][0]) for k in mine})
+        dets = detect_markers(sheet, name, ids=wanted, detector_params=params, **kw)
+        for k, xy in zip(mine, at):
+            own = _own(dets, int(missed[k][0]), name, xy, crops[k].shape, lows[k], wides[k])
+            if own is not None:
+                found[k] = own
+    return [found[k] for k in sorted(found)]
+
+
+def _own(dets: list, plain: int, name: str, xy, shape, low, wide: np.ndarray) -> Detection | None:
+    """The first of ``dets`` (as ``detect_markers`` orders them) with id ``plain`` in the crop at ``xy`` (of
+    ``shape``; the picture's ``low`` its top left) and not the paint's outline ``wide``, in the picture's pixels."""
+    h, w = shape
+    for d in dets:
+        corners = d.corners_px - xy + low
+        c = corners.mean(axis=0) - low
+        if d.id == plain and 0 <= c[0] < w and 0 <= c[1] < h and not _the_paints(corners, wide):
+            return Detection(plain, corners, name)
+    return None
+
+
+def _crops(gray: np.ndarray, missed: list, border: int) -> tuple[list[np.ndarray], list, np.ndarray]:
+    """Each missed marker's crop of ``gray`` (its predicted outline half a cell wider, 4 px more each side), the
+    outside of that outline painted white; each crop's top left (x, y) in the picture; the outlines (M, 4, 2)."""
+    H, W = gray.shape
     cells = {name: _cv.dictionary_marker_bits(name) + 2 * border for _, name, _ in missed}
     wides = _widened(np.array([q for _, _, q in missed]), np.array([cells[name] for _, name, _ in missed]))
     lows = np.maximum(np.floor(wides.min(axis=1)).astype(int) - 4, 0).tolist()  # one bounding box per marker
@@ -93,31 +132,7 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
         inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
         cv2.fillConvexPoly(inside, np.round(wide - (x0, y0)).astype(np.int32), 1)
         crops.append(np.where(inside > 0, gray[y0:y1, x0:x1], 255).astype(np.uint8))
-    found: dict[int, Detection] = {}
-    together = _refine_name(DEFAULT_REFINE if refine is None else refine) == "edges"
-    names = dict.fromkeys(n for _, n, _ in missed)
-    if together:  # one call per dictionary
-        groups = [[k for k, (_, n, _) in enumerate(missed) if n == name] for name in names]
-    else:
-        groups = [[k] for k in range(len(missed))]
-    for mine in groups:
-        name = missed[mine[0]][1]
-        wanted = sorted({int(missed[k][0]) for k in mine})
-        if together:
-            sheet, at = _side_by_side([crops[k] for k in mine])
-            params = _picture_limits(detector_params, max(W, H), max(sheet.shape))
-        else:  # OpenCV's refinements: each crop alone, as it always was
-            sheet, at, params = crops[mine[0]], [(0, 0)], detector_params
-        dets = detect_markers(sheet, name, ids=wanted, detector_params=params, **kw)
-        for k, (sx, sy) in zip(mine, at):
-            plain, (h, w) = int(missed[k][0]), crops[k].shape
-            for d in dets:  # the first of its id in its own crop, as detect_markers orders them
-                corners = d.corners_px - (sx, sy) + lows[k]
-                c = corners.mean(axis=0) - lows[k]
-                if d.id == plain and 0 <= c[0] < w and 0 <= c[1] < h and not _the_paints(corners, wides[k]):
-                    found[k] = Detection(plain, corners, name)
-                    break
-    return [found[k] for k in sorted(found)]
+    return crops, lows, wides
 
 
 #: A marker found with every corner this close (px) to its crop's painted outline's is taken as that outline.
