@@ -465,7 +465,8 @@ def main(argv=None) -> int:
         "whose corners are more than 3 px off (out of place, or turned: corners are compared in order), on every "
         'set. The rows marked + outline check run `detect_markers(refine="none")`: OpenCV\'s detection with those '
         "parameters, then fidlearn's check that each quad is its marker's outline (the four outer edges fitted, "
-        "a dark border inside a light surround, within max(3 px, half a cell) of the quad), which drops the rest; "
+        "a dark border inside a light surround, no farther from the quad than the profiles reach: "
+        "max(3 px, half a cell, sqrt(2) (their half-length + 0.5 px))), which drops the rest; "
         "their time includes the check. "
         "Time: CPU time of the whole-dictionary detection over OpenCV's defaults on the same frame (run "
         "before and after every setting), median over all frames.\n"
