@@ -60,6 +60,18 @@ def _detector_fields(params: Any) -> dict:
     return _cv.detector_parameter_fields(params)
 
 
+def _limits_scaled(fields: dict, picture_px: float, image_px: float) -> dict:
+    """``fields`` with the marker size limits (``minMarkerPerimeterRate``, ``maxMarkerPerimeterRate``: fractions of
+    the image's longer side) of an image whose longer side is ``image_px`` set to the pixels they mean on one of
+    ``picture_px``: a window of a frame, or a sheet of crops, admits the markers the whole picture would."""
+    scale = picture_px / image_px
+    return {
+        **fields,
+        "minMarkerPerimeterRate": float(fields["minMarkerPerimeterRate"]) * scale,
+        "maxMarkerPerimeterRate": float(fields["maxMarkerPerimeterRate"]) * scale,
+    }
+
+
 def _detector(dictionary: str, refine: str, params: Any, ids: tuple[int, ...] | None = None):
     """The cached ``ArucoDetector`` for (dictionary, refinement, parameters, ids), its marker's side in
     cells and whether inverted markers (light border) may come out."""

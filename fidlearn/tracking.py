@@ -57,7 +57,7 @@ import cv2
 import numpy as np
 
 from . import _cv
-from ._detector import _detector_fields
+from ._detector import _detector_fields, _limits_scaled
 from ._fisheye_edges import refine_edges_fisheye
 from ._lens import pixels_from_normalized, project_points
 from ._wpilib import outside_field
@@ -428,10 +428,7 @@ class MarkerTracker:
         key = (q, max(W, H), group)
         det = self._detectors.get(key)
         if det is None:
-            fields = dict(self._fields)
-            scale = max(W, H) / q
-            fields["minMarkerPerimeterRate"] = float(fields["minMarkerPerimeterRate"]) * scale
-            fields["maxMarkerPerimeterRate"] = float(fields["maxMarkerPerimeterRate"]) * scale
+            fields = _limits_scaled(self._fields, max(W, H), q)
             det = self._detectors[key] = cv2.aruco.ArucoDetector(
                 self._dictionaries[group], _cv.make_detector_parameters(**fields)
             )

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from .. import _cv
-from .._detector import _detector_fields
+from .._detector import _detector_fields, _limits_scaled
 from .._lens import project_points
 from ..camera import Camera
 from ..detection import DEFAULT_REFINE, Detection, _refine_name, as_gray, detect_markers
@@ -169,13 +169,7 @@ def _side_by_side(crops: list[np.ndarray]) -> tuple[np.ndarray, list[tuple[int, 
 def _picture_limits(detector_params, picture_px: int, sheet_px: int) -> dict:
     """Detector parameters whose marker size limits on a picture whose longer side is ``sheet_px`` are the pixels
     they are on one whose longer side is ``picture_px`` (a detector is made in microseconds: one per length)."""
-    fields = _limit_fields(detector_params)
-    scale = picture_px / sheet_px
-    return {
-        **fields,
-        "minMarkerPerimeterRate": fields["minMarkerPerimeterRate"] * scale,
-        "maxMarkerPerimeterRate": fields["maxMarkerPerimeterRate"] * scale,
-    }
+    return _limits_scaled(_limit_fields(detector_params), picture_px, sheet_px)
 
 
 def _limit_fields(detector_params) -> dict:
