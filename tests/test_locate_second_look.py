@@ -113,9 +113,9 @@ def test_a_marker_is_kept_only_in_its_own_crop():
 
 
 def test_the_shared_picture_keeps_the_pictures_marker_size_limits():
-    from fidlearn.pose._second_look import _picture_limits
+    from fidlearn._detector import _detector_fields, _limits_scaled
 
-    limits = _picture_limits({"minMarkerPerimeterRate": 0.05}, 640, 1280)
+    limits = _limits_scaled(_detector_fields({"minMarkerPerimeterRate": 0.05}), 640, 1280)
     assert limits["minMarkerPerimeterRate"] * 1280 == 0.05 * 640  # 32 px either way
     assert limits["maxMarkerPerimeterRate"] * 1280 == 4.0 * 640
     # a limit the user set above the marker's perimeter in the picture: not found in the second look either

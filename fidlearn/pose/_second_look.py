@@ -94,8 +94,10 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
     for mine in groups:
         name = missed[mine[0]][1]
         if together:
-            sheet, at = _side_by_side([crops[k] for k in mine])
-            params = _picture_limits(detector_params, max(W, H), max(sheet.shape))
+            fields = _limit_fields(detector_params)
+            gap = max(GAP_PX, int(fields["adaptiveThreshWinSizeMax"]) // 2 + 16)  # a user's wider windows too
+            sheet, at = _side_by_side([crops[k] for k in mine], gap)
+            params = _limits_scaled(fields, max(W, H), max(sheet.shape))
         else:  # OpenCV's refinements: each crop alone, as it always was
             sheet, at, params = crops[mine[0]], [(0, 0)], detector_params
         wanted = sorted({int(missed[k][0]) for k in mine})
@@ -148,28 +150,23 @@ def _the_paints(corners: np.ndarray, painted: np.ndarray) -> bool:
 
 
 #: White pixels between two crops read together: more than the detector's adaptive threshold windows (23 px by
-#: fidlearn's defaults) and the edge fit's profiles (the corners' reach and a second fit beyond it) see.
+#: fidlearn's defaults; half a wider window a user sets, and 16 px) and the edge fit's profiles (the corners' reach
+#: and a second fit beyond it) see.
 GAP_PX = 48
 
 
-def _side_by_side(crops: list[np.ndarray]) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """The crops in one white picture, in a row :data:`GAP_PX` apart and from its edges, and each one's top left
-    (x, y) there."""
-    width = sum(c.shape[1] for c in crops) + GAP_PX * (len(crops) + 1)
-    height = max(c.shape[0] for c in crops) + 2 * GAP_PX
+def _side_by_side(crops: list[np.ndarray], gap: int = GAP_PX) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """The crops in one white picture, in a row ``gap`` px apart and from its edges, and each one's top left (x, y)
+    there."""
+    width = sum(c.shape[1] for c in crops) + gap * (len(crops) + 1)
+    height = max(c.shape[0] for c in crops) + 2 * gap
     sheet = np.full((height, width), 255, np.uint8)
-    at, x = [], GAP_PX
+    at, x = [], gap
     for c in crops:
-        sheet[GAP_PX : GAP_PX + c.shape[0], x : x + c.shape[1]] = c
-        at.append((x, GAP_PX))
-        x += c.shape[1] + GAP_PX
+        sheet[gap : gap + c.shape[0], x : x + c.shape[1]] = c
+        at.append((x, gap))
+        x += c.shape[1] + gap
     return sheet, at
-
-
-def _picture_limits(detector_params, picture_px: int, sheet_px: int) -> dict:
-    """Detector parameters whose marker size limits on a picture whose longer side is ``sheet_px`` are the pixels
-    they are on one whose longer side is ``picture_px`` (a detector is made in microseconds: one per length)."""
-    return _limits_scaled(_limit_fields(detector_params), picture_px, sheet_px)
 
 
 def _limit_fields(detector_params) -> dict:
