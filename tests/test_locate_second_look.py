@@ -139,3 +139,25 @@ def test_with_opencvs_refinements_each_crop_is_read_alone(refine):
     assert [(d.id, d.dictionary) for d in together] == [(d.id, d.dictionary) for d in alone]
     for a, b in zip(together, alone):
         assert np.array_equal(a.corners_px, b.corners_px)
+
+
+def test_a_users_wider_threshold_windows_widen_the_gap_between_crops(monkeypatch):
+    """With adaptive threshold windows up to 101 px, the crops sit 66 px apart: each window sees its own crop and
+    white only, and the markers come out as their crops read alone do."""
+    from fidlearn.pose import _second_look as S
+
+    m = mixed_wall()
+    T = look_at([2600.0, 300.0, 1300.0], [0.0, 450.0, 1150.0], roll_deg=8.0)
+    sc = render_scene(m, CAM, T, seed=1, noise_std_gray=2.0, blur_px=0.6)
+    missed = missed_in_view(m, CAM, T, set(), None)
+    params = {"adaptiveThreshWinSizeMax": 101}
+    gaps = []
+    real = S._side_by_side
+    monkeypatch.setattr(S, "_side_by_side", lambda crops, gap=S.GAP_PX: gaps.append(gap) or real(crops, gap))
+    together = read_again(sc.image, missed, None, params)
+    assert set(gaps) == {101 // 2 + 16}
+    alone = [d for one in missed for d in read_again(sc.image, [one], None, params)]
+    assert len(together) >= 4
+    assert [(d.id, d.dictionary) for d in together] == [(d.id, d.dictionary) for d in alone]
+    for a, b in zip(together, alone):
+        assert np.abs(a.corners_px - b.corners_px).max() < 0.01
