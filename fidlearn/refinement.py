@@ -22,9 +22,6 @@ _NEXT = np.array([1, 2, 3, 0])
 #: corners stay as they came), and below which the side is taken as no marker's outline at all.
 _FIT_CONTRAST, _CHECK_CONTRAST = 20.0, 8.0
 _PREV = np.array([3, 0, 1, 2])
-#: Rows of a sampling map remap takes (fewer than 32767): the profiles' map has a row for each sample of each
-#: marker, so ``_MAP_ROWS // n_samples`` markers (2520 with 13 samples a profile) are refined at a time.
-_MAP_ROWS = 32766
 
 
 @lru_cache(maxsize=8)
@@ -123,13 +120,6 @@ def _refine_edges(
     M = C.shape[0]
     if M == 0:
         return C.copy(), np.ones(0, dtype=bool)
-    most = max(1, _MAP_ROWS // int(n_samples))
-    if most < M:  # each marker is fitted on its own: the same corners, a part at a time
-        parts = [
-            _refine_edges(gray, C[k : k + most], cells, inverted, n_lines, n_samples, iterations, expand_px, gamma)
-            for k in range(0, M, most)
-        ]
-        return np.concatenate([c for c, _ in parts]), np.concatenate([ok for _, ok in parts])
     u, v, U3 = _profile_grid(int(n_lines), int(n_samples))
     Z = C.view(np.complex128)[..., 0]  # (M, 4) corners as x + iy
     shift = float(expand_px)
@@ -183,7 +173,7 @@ def _profiles_across(gray: np.ndarray, Z: np.ndarray, cells: int, u: np.ndarray,
     centre = Z[..., None] + t * Dz[..., None] + shift * nz[..., None]  # (M, 4, N) each profile's centre
     step = np.repeat(h[:, None] * nz, n_lines)  # (M 4 N,) its half-length along the normal
     # (x, y) pairs, each sample one operation over every profile: centre + v h n; one row per sample and
-    # marker (remap wants fewer than 32767 rows and columns: _refine_edges takes that many at a time)
+    # marker (_read_at keeps within remap's 32767 rows and columns)
     maps = np.multiply.outer(v, step.view(np.float64))
     maps += centre.view(np.float64).reshape(-1)
     maps = maps.astype(np.float32).reshape(n_samples * M, 4 * n_lines, 2)
@@ -234,12 +224,7 @@ def _levels_across(prof: np.ndarray, inverted: bool | None, gamma: float):
     else:
         dark = _kth(pin.min(0).astype(f32), half)
         light = _kth(pout.max(0).astype(f32), half)
-    level = 0.5 * (dark + light)
-    if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
-        g = float(gamma)
-        lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
-        level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
-    return prof, dark, light, level
+    return prof, dark, light, _edge_level(dark, light, gamma)
 
 
 def _edge_offsets_across(prof, level, dark, light, h, shift: float, min_contrast: float):
@@ -280,12 +265,17 @@ def _levels(prof: np.ndarray, inverted: bool | None, gamma: float):
     else:
         dark = _kth(_least(pin), half)
         light = _kth(_most(pout), half)
-    level = 0.5 * (dark + light)
-    if gamma != 1.0:  # half-way in light, not in gray level: levels are polarity x gray, |.| the gray
-        g = float(gamma)
-        lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
-        level = np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
-    return prof, dark, light, level
+    return prof, dark, light, _edge_level(dark, light, gamma)
+
+
+def _edge_level(dark: np.ndarray, light: np.ndarray, gamma: float) -> np.ndarray:
+    """The edge level between each side's dark and light levels (x polarity): half-way in gray level, or with
+    ``gamma`` other than 1 half-way in light (levels are polarity x gray, ``|.|`` the gray)."""
+    if gamma == 1.0:
+        return 0.5 * (dark + light)
+    g = float(gamma)
+    lin = 0.5 * ((np.abs(dark) / 255.0) ** g + (np.abs(light) / 255.0) ** g)
+    return np.where(light < 0, -255.0, 255.0) * lin ** (1.0 / g)
 
 
 def _least(a: np.ndarray) -> np.ndarray:

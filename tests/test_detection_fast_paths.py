@@ -1,6 +1,6 @@
 """The shortcuts of the detection give what the code they replaced gave: the edges refinement's profiles sampled
-sample by sample (S, M, 4, N) instead of side by side (M, 4, N, S), their levels and edge crossings, the markers
-refined a part at a time, the outline check's order and Detections, OpenCV's corners converted in one call, and a
+sample by sample (S, M, 4, N) instead of side by side (M, 4, N, S), their levels and edge crossings, the profiles
+read a part at a time, the outline check's order and Detections, OpenCV's corners converted in one call, and a
 map's ids checked once."""
 
 from __future__ import annotations
@@ -163,10 +163,10 @@ def test_the_refinement_gives_the_corners_it_gave_profile_by_profile(wall, inver
         assert np.sqrt((err**2).sum(-1).mean()) < 0.1
 
 
-def test_many_markers_are_refined_a_part_at_a_time(wall, monkeypatch):
+def test_many_markers_profiles_are_read_a_part_at_a_time(wall, monkeypatch):
     gray, _, quads, _, _ = wall
     whole = R._refine_edges(gray, quads, CELLS)
-    monkeypatch.setattr(R, "_MAP_ROWS", 13 * 4)  # four markers at a time
+    monkeypatch.setattr(R, "_ROW_POINTS", 13 * 4 * 16 * 4 - 5)  # a little under four markers' samples a read
     parts = R._refine_edges(gray, quads, CELLS)
     assert np.array_equal(whole[0], parts[0])
     assert np.array_equal(whole[1], parts[1])
