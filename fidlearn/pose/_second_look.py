@@ -94,7 +94,7 @@ def read_again(image: np.ndarray, missed: list, refine: str | None, detector_par
     for mine in groups:
         name = missed[mine[0]][1]
         if together:
-            fields = _limit_fields(detector_params)
+            fields = _fields(detector_params)
             gap = max(GAP_PX, int(fields["adaptiveThreshWinSizeMax"]) // 2 + 16)  # a user's wider windows too
             sheet, at = _side_by_side([crops[k] for k in mine], gap)
             params = _limits_scaled(fields, max(W, H), max(sheet.shape))
@@ -169,28 +169,22 @@ def _side_by_side(crops: list[np.ndarray], gap: int = GAP_PX) -> tuple[np.ndarra
     return sheet, at
 
 
-def _limit_fields(detector_params) -> dict:
-    """The detector's fields as a dict of overrides (fidlearn's defaults' read once)."""
+def _fields(detector_params) -> dict:
+    """The detector's fields (:func:`_detector._detector_fields`; fidlearn's defaults' read once). Not to be
+    changed in place."""
     if detector_params is None:
         return _default_fields()
-    return dict(_detector_fields(detector_params))
+    return _detector_fields(detector_params)
 
 
 @lru_cache(maxsize=1)
 def _default_fields() -> dict:
-    return dict(_detector_fields(None))
+    return _detector_fields(None)
 
 
 def _border_bits(detector_params) -> int:
-    """The detector's ``markerBorderBits``; fidlearn's default parameters' read once."""
-    if detector_params is None:
-        return _default_border_bits()
-    return int(_detector_fields(detector_params)["markerBorderBits"])
-
-
-@lru_cache(maxsize=1)
-def _default_border_bits() -> int:
-    return int(_detector_fields(None)["markerBorderBits"])
+    """The detector's ``markerBorderBits``."""
+    return int(_fields(detector_params)["markerBorderBits"])
 
 
 def _widened(q: np.ndarray, cells) -> np.ndarray:
