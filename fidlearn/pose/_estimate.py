@@ -204,19 +204,16 @@ def estimate_pose(
     refine_lm = bool(refine_lm)
     obj_c, img_c = _chess_pairs(board_corners, marker_map)
 
-    # a fisheye's map markers with a corner 90 degrees or more off its axis: no pinhole picture (_as_pinhole)
-    past = sorted({marker_map.key(d.id, d.dictionary) for d in beyond} & set(marker_map))
+    # a fisheye's markers with a corner 90 degrees or more off its axis: no pinhole picture (_as_pinhole)
+    beyond_keys = list(dict.fromkeys(marker_map.key(d.id, d.dictionary) for d in beyond))
+    past = sorted(k for k in beyond_keys if k in marker_map)
     if past and not any(marker_map.key(d.id, d.dictionary) in marker_map for d in dets):
         raise PoseError(
             f"markers {past} have a corner 90 degrees or more off the fisheye's axis, where a pose cannot use them, "
             "and no other marker of the map is in the detections; turn the camera towards the markers"
         )
     corners_px, ignored = _known_corners(dets, marker_map)
-    ignored += [
-        k
-        for k in dict.fromkeys(marker_map.key(d.id, d.dictionary) for d in beyond)
-        if k not in marker_map and k not in ignored
-    ]
+    ignored += [k for k in beyond_keys if k not in marker_map and k not in ignored]
     world, faces = _world(marker_map)
     # and those at the rim, whose ideal pixels the pinhole stage cannot read (RIM_PICTURE_PX)
     rejected = sorted(set(past) | set(_rim_markers(corners_px, lens))) if lens is not None else []
