@@ -294,9 +294,7 @@ def detect(detector, gray: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, li
         OpenCV refused the detector parameters.
     """
     corners, ids, rejected = _detect_markers(detector, gray)
-    return normalize_detections(corners, ids) + (
-        [np.asarray(r, dtype=np.float64).reshape(4, 2) for r in (rejected or ())],
-    )
+    return normalize_detections(corners, ids) + (rejected_quads(rejected),)
 
 
 def _detect_markers(detector, gray: np.ndarray):
