@@ -116,6 +116,15 @@ def test_survey_saves_a_map_in_its_units_with_a_note(room, tmp_path):
     assert np.linalg.norm(pose.position_mm - poses[0][:3, 3]) < 20
 
 
+def test_a_survey_by_the_photos_alone_saves_a_map_that_loads_back(room, tmp_path):
+    """map_sigma_mm=inf has no JSON number: the note says null, and the map reader takes the file back."""
+    truth, poses = room
+    s = fidlearn.survey(photos(truth, poses[:8], 0.1), truth, CAM, map_sigma_mm=math.inf, fixed_ids=[0])
+    path = s.save(tmp_path / "surveyed.json")
+    assert json.loads(path.read_text())["surveyed"]["map_sigma_mm"] is None
+    assert corner_error_mm(MarkerMap.load(path), s.marker_map) < 1e-6
+
+
 def test_marker_seen_in_one_photo_is_named_with_what_to_take(room):
     truth, poses = room
     frames = photos(truth, poses)

@@ -213,7 +213,8 @@ class Survey:
             "method": "bundle adjustment of the photos' marker corners with the tape map as a prior (fidlearn.survey)",
             "photos_used": len(self.camera_poses),
             "photos_unused": len(self.unused),
-            "map_sigma_mm": self.map_sigma_mm,
+            # None: map_sigma_mm=inf, the photos alone (JSON has no infinity, and the map reader refuses one)
+            "map_sigma_mm": self.map_sigma_mm if math.isfinite(self.map_sigma_mm) else None,
             "map_sigma_learnt": self.map_sigma_learnt,
             "print_scale": self.print_scale if self.print_scale == self.print_scale else None,
             "corner_sigma_px": round(self.corner_sigma_px, 4),
