@@ -21,7 +21,6 @@ from helpers import (
 
 import fidlearn
 from fidlearn import MarkerKey
-from fidlearn.errors import SurveyError
 from fidlearn.survey._inputs import _one_photo
 from fidlearn.synthetic import mixed_survey_room, mixed_wall, render_scene, tape_measured
 
@@ -87,15 +86,6 @@ def test_photos_are_read_in_every_dictionary_of_the_map():
     assert set(photo.corners) == set(sc.truth) == set(m.ids)
     for k, c in photo.corners.items():
         assert np.abs(c - sc.truth[k]).max() < 0.5, k
-
-
-def test_a_map_with_a_board_entry_is_refused_with_the_fix():
-    board = {"type": "grid", "translation": [0, 0, 0], "markers": [2, 2], "marker_mm": 50, "separation_mm": 10}
-    m = fidlearn.MarkerMap.from_dict(
-        {"units": "mm", "marker_size_mm": 80, "markers": {"20": {"translation": [0, 500, 0]}}, "boards": {"b": board}}
-    )
-    with pytest.raises(SurveyError, match="rigid entries"):
-        fidlearn.survey([np.zeros((480, 640), np.uint8)] * 2, m, CAM)
 
 
 def test_markers_of_unknown_size_get_their_size_measured_from_the_photos(room):

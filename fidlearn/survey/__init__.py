@@ -9,15 +9,16 @@ problem whose residuals are the corners' reprojection errors, and keeps the tape
 markers' print scale) so the result stays where the tape put the room. A
 marker taped in the wrong place is named (:attr:`Survey.suspects`), markers absent from the map
 are added, and each placement comes with its 6x6 covariance. A marker taped metres off (a typo)
-is found first, by the photos alone (:attr:`Survey.gross_ids`), and never pulls the others.
+is found first, by the photos alone (:attr:`Survey.gross_ids`), and never pulls the others. A board
+or a bundle of the map is surveyed as one rigid object.
 
 Modules: ``_inputs`` (photos to detected corners, the checks), ``_init`` (starting values, new
 markers, the units check), ``_gross`` (the photos alone against the tape: gross errors and
 the robust residuals), ``_geometry`` (rotation vectors and their Jacobians), ``_problem``
 (unknowns, residuals, sparse Jacobian), ``_solve`` (the passes, covariance, suspect test),
-``_variance`` (the tape's sigma and the print scale learnt), ``_layout`` (each tag against the starting
-map, an official field layout: :class:`TagChange`), ``_result`` (:class:`Survey`) and
-``_survey`` (:func:`survey`).
+``_entries`` (a board or a bundle as one placement), ``_variance`` (the tape's sigma and the print
+scale learnt), ``_layout`` (each tag against the starting map, an official field layout:
+:class:`TagChange`), ``_result`` (:class:`Survey`) and ``_survey`` (:func:`survey`).
 
 Conventions: mm, ``T_a_b`` maps frame b into frame a, placements as in the map files (top-left
 corner, roll-pitch-yaw in degrees), camera frame OpenCV's.

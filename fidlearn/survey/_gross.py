@@ -150,12 +150,12 @@ def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float | None) ->
     if sigma_mm is not None and not math.isfinite(sigma_mm):
         return GrossTest()
     seen = photo_placements(photos, tape)
-    ids = sorted(i for i in seen if i in tape)
+    units = _units(seen, tape)
+    ids = list(units)
     if len(ids) < 4:  # a majority of three is two markers: too few to align
         return GrossTest()
-    src = np.array([seen[i] for i in ids])
-    dst = np.array([tape.placements[i].translation_mm for i in ids], float)
-    floor = max(GROSS_SIGMAS * (sigma_mm or 0.0), max(tape.marker_size(i) for i in ids))
+    src, dst = _points(units, seen, tape)
+    floor = max(GROSS_SIGMAS * (sigma_mm or 0.0), max(tape.marker_size(m) for unit in units.values() for m in unit))
     inliers = _consensus(src, dst, floor)
     threshold = floor
     if 2 * int(inliers.sum()) > len(ids):
@@ -171,9 +171,31 @@ def gross_test(photos: list[_Photo], tape: MarkerMap, sigma_mm: float | None) ->
     residual = {i: float(v) for i, v in zip(ids, r)}
     if 2 * int(inliers.sum()) <= len(ids):
         raise SurveyError(_no_majority(ids, inliers, residual, threshold, tape))
-    gross = tuple(i for i, ok in zip(ids, inliers) if not ok)
+    gross = tuple(m for i, ok in zip(ids, inliers) if not ok for m in units[i])
     scale, scale_se = print_scale(src, dst, r, _similarity)
-    return GrossTest(residual, threshold, gross, float(np.median(r)) / _MEDIAN_3D, scale, scale_se)
+    each = {m: residual[i] for i in ids for m in units[i]}
+    return GrossTest(each, threshold, gross, float(np.median(r)) / _MEDIAN_3D, scale, scale_se)
+
+
+def _points(units: dict, seen: dict, tape: MarkerMap) -> tuple[np.ndarray, np.ndarray]:
+    """Each unit's point (mm) from the photos and from the tape: its markers' mean top-left corner."""
+    src = np.array([np.mean([seen[m] for m in unit], axis=0) for unit in units.values()])
+    dst = np.array([np.mean([tape.placements[m].translation_mm for m in unit], axis=0) for unit in units.values()])
+    return src, dst.astype(float)
+
+
+def _units(seen: dict, tape: MarkerMap) -> dict[object, list]:
+    """What the test aligns and judges: each taped single marker the photos place, and each rigid entry as one.
+
+    ``{single marker's key: [it]}`` first (by id), then ``{entry name: [its markers the photos place]}``: an
+    entry's point is its markers' mean top-left corner (the photos' and the tape's of the same markers), so a
+    moved board counts once, as the one object that moved, however many markers it carries.
+    """
+    units: dict[object, list] = {i: [i] for i in sorted(i for i in seen if i in tape and i not in tape.owner)}
+    for i in seen:
+        if i in tape.owner:
+            units.setdefault(tape.owner[i], []).append(i)
+    return units
 
 
 def _refuse_units(src: np.ndarray, dst: np.ndarray, threshold: float, tape: MarkerMap) -> None:

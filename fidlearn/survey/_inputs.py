@@ -57,12 +57,6 @@ def _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     camera = _as_camera(camera)
     sigma = _sigma_mm(map_sigma_mm)
     fixed = _fixed_ids(fixed_ids, marker_map)
-    if marker_map.entries:
-        raise SurveyError(
-            f"{marker_map.source}: the survey places single markers, but the map has rigid entries "
-            f"({', '.join(marker_map.entries)}); survey with a map of the single markers (a board's markers keep "
-            "their board's geometry: place the board by its own pose)"
-        )
     if np.any(np.asarray(camera.dist, float).ravel()[12:]):
         raise SurveyError(
             f"{camera.source or 'the camera'}: the survey's projection has no tilted-sensor terms (tauX, tauY, "

@@ -35,13 +35,14 @@ class Problem:
     """Everything the residuals need, in arrays.
 
     ``obs_cam`` (n,), ``obs_marker`` (n,) index the cameras and the marker slots of each of the n
-    observed corners, ``obs_corner`` (n,) which corner (0-3), ``obs_px`` (n, 2) where it was
-    detected. Marker slots ``0 .. n_free - 1`` are unknowns, the rest held (``fixed``).
+    observed corners, ``obs_corner`` (n,) which corner (its row in the slot's ``local``: 0-3 for a marker, any of
+    a rigid entry's), ``obs_px`` (n, 2) where it was detected. Marker slots ``0 .. n_free - 1`` are unknowns,
+    the rest held (``fixed``).
     """
 
     K: np.ndarray
     dist: np.ndarray
-    local: np.ndarray  # (k, 4, 3) each slot's corners in its placement frame (its own side), mm
+    local: np.ndarray  # (k, c, 3) each slot's corners in its placement frame (its own side; an entry's c), mm
     R0_cam: np.ndarray  # (m, 3, 3)
     t0_cam: np.ndarray  # (m, 3)
     R0_mark: np.ndarray  # (k, 3, 3), free markers first
@@ -58,6 +59,7 @@ class Problem:
     sigma_mm: float
     sigma_rot_rad: float
     model: str = "pinhole"  # the lens model: "pinhole" or "fisheye" (Camera.model)
+    sightings: tuple = ()  # the marker key of each sighting (4 corners each, in the order of obs_*)
 
     @property
     def n_cams(self) -> int:

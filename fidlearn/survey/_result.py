@@ -54,7 +54,8 @@ class Survey:
         The map given.
     suspects : list of Suspect
         Markers whose tape placement disagrees with the photos (their tape prior was left out of the
-        final adjustment), worst first.
+        final adjustment), worst first. A rigid entry is tested as one: each of its markers is named with
+        the entry's test (its placement point's distance and sigmas).
     marker_position_std_mm : dict of int to ndarray, shape (3,)
         Standard deviation of each marker's top-left corner along world X, Y, Z, mm (0 for a fixed
         marker; the tape's for a marker no photo showed).

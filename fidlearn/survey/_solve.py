@@ -27,30 +27,39 @@ ROBUST_SCALE = 3.0
 FIRST_SIGMA_PX = 0.25
 
 
-def build_problem(cams: list, slots: list[int], n_free: int, placed: dict, tape_priors: dict, opts: dict) -> Problem:
+def build_problem(cams: list, slots: list, n_free: int, placed: dict, tape_priors: dict, opts: dict) -> Problem:
     """The problem for the located photos ``cams`` and the marker slots ``slots`` (free first).
 
     ``tape_priors`` is ``{id: (R, p)}`` for the free markers that keep a tape prior; ``opts`` holds
     ``marker_size_mm`` (the side of a marker not in ``sizes``), ``sizes`` (optional, ``{id: side mm}``),
-    ``sigma_px``, ``sigma_mm``, ``sigma_rot_rad``.
+    ``sigma_px``, ``sigma_mm``, ``sigma_rot_rad``, and ``groups`` (optional, ``{name: Group}``): a slot named
+    by a group is a rigid entry (:mod:`fidlearn.survey._entries`), its markers' corners in its one placement.
     """
-    slot_of = {i: k for k, i in enumerate(slots)}
-    oc, om, ok, op = [], [], [], []
+    groups = opts.get("groups", {})
+    block = {}  # marker key -> (slot, its first corner's row in the slot's local corners)
+    for k, i in enumerate(slots):
+        block.update({m: (k, 4 * n) for n, m in enumerate(groups[i].members)} if i in groups else {i: (k, 0)})
+    oc: list[int] = []
+    om: list[int] = []
+    ok: list[int] = []
+    op, keys = [], []
     for c, ph in enumerate(cams):
         for i, px in ph.corners.items():
-            if i in slot_of:
+            if i in block:
+                k, first = block[i]
                 oc += [c] * 4
-                om += [slot_of[i]] * 4
-                ok += [0, 1, 2, 3]
+                om += [k] * 4
+                ok += range(first, first + 4)
                 op.append(px)
+                keys.append(i)
     T_cw = [np.linalg.inv(ph.T_world_camera) for ph in cams]
+    block_slot = {i: k for k, i in enumerate(slots)}
     prior_ids = [i for i in slots[:n_free] if i in tape_priors]
     cam = cams[0].camera
-    sizes = opts.get("sizes", {})
     return Problem(
         K=cam.K,
         dist=np.asarray(cam.dist, float).ravel(),
-        local=np.array([local_corners(sizes.get(i, opts["marker_size_mm"])) for i in slots]).reshape(-1, 4, 3),
+        local=_slot_corners(slots, groups, opts),
         R0_cam=np.array([T[:3, :3] for T in T_cw]),
         t0_cam=np.array([T[:3, 3] for T in T_cw]),
         R0_mark=np.array([placed[i][0] for i in slots]),
@@ -61,13 +70,24 @@ def build_problem(cams: list, slots: list[int], n_free: int, placed: dict, tape_
         obs_corner=np.array(ok, int),
         obs_px=np.concatenate(op).reshape(-1, 2),
         sigma_px=opts["sigma_px"],
-        prior_slots=np.array([slot_of[i] for i in prior_ids], int),
+        prior_slots=np.array([block_slot[i] for i in prior_ids], int),
         prior_R=np.array([tape_priors[i][0] for i in prior_ids]).reshape(-1, 3, 3),
         prior_p=np.array([tape_priors[i][1] for i in prior_ids], float).reshape(-1, 3),
         sigma_mm=opts["sigma_mm"],
         sigma_rot_rad=opts["sigma_rot_rad"],
         model=cam.model,
+        sightings=tuple(keys),
     )
+
+
+def _slot_corners(slots: list, groups: dict, opts: dict) -> np.ndarray:
+    """Each slot's corners in its placement frame, (k, 4 * most markers in a slot, 3), mm, zeros past its own."""
+    sizes = opts.get("sizes", {})
+    own = [groups[i].local if i in groups else local_corners(sizes.get(i, opts["marker_size_mm"])) for i in slots]
+    out = np.zeros((len(slots), max((len(c) for c in own), default=4), 3))
+    for k, c in enumerate(own):
+        out[k, : len(c)] = c
+    return out
 
 
 def fit(problem: Problem, x0: np.ndarray, robust: bool) -> np.ndarray:

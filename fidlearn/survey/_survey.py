@@ -11,6 +11,17 @@ import numpy as np
 from .. import frames
 from ..errors import FidlearnWarning, SurveyError
 from ..markermap import MarkerMap
+from ._entries import (
+    entry_frame,
+    entry_groups,
+    member_covariance,
+    member_of,
+    scaled_entry,
+    slot_of,
+    slot_order,
+    start_from_photos,
+    surveyed_entry,
+)
 from ._geometry import marker_sizes, placement_of
 from ._gross import GrossTest, gross_test
 from ._init import check_units, initial_values, remeasured_sides
@@ -53,6 +64,11 @@ def survey(
     is estimated from the residuals unless given; the covariances assume it, and the tape's sigma
     (given, or learnt from the tape residuals when ``map_sigma_mm`` is None).
 
+    A rigid entry of the map (a ChArUco or grid board, a bundle: :mod:`fidlearn.markermap_entries`) is one
+    placement in the adjustment, its markers' corners fixed in it by the entry's geometry
+    (:mod:`fidlearn.survey._entries`): its tape prior, its suspect test, the gross test's vote and a fixed id
+    among its markers are the entry's, and the surveyed map writes it back as the entry, moved.
+
     Before all this, a gross test (:mod:`fidlearn.survey._gross`): the photos alone place every
     marker seen in two photos up to the gauge, a similarity laying them on the tape map is fitted
     robustly (by the markers that agree), and a taped marker farther from the photos than the room
@@ -83,7 +99,7 @@ def survey(
         applied when it is more than 3 standard errors from 1 (:attr:`Survey.print_scale`). A
         number given is used as it is, and the print scale only reported.
     fixed_ids : int or sequence of int, optional
-        Markers whose tape placement is exact: held, not adjusted.
+        Markers whose tape placement is exact: held, not adjusted (a marker of a rigid entry holds its entry).
     corner_sigma_px : float, optional
         Corner noise, px per coordinate; estimated from the residuals when None.
     progress : callable, optional
@@ -130,19 +146,35 @@ def survey(
     cams = _usable(photos)
     for reason in unplaced.values():
         warnings.warn(reason, FidlearnWarning, stacklevel=2)
-    seen = {i for ph in cams for i in ph.corners if i in placed}
-    free = sorted(seen - set(fixed))
-    slots = free + [i for i in fixed if i in seen]
     learn = sigma_mm is None
     sigma_mm, scale = _start(sigma_mm, gross)
+    groups = entry_groups(tape, scale)
+    owners = member_of(groups)
+    bad = {slot_of(i, owners) for i in gross.gross}
+    placed.update(_entry_starts(tape, groups, cams, placed, bad))
+    seen = {slot_of(i, owners) for ph in cams for i in ph.corners if slot_of(i, owners) in placed}
+    held = {slot_of(i, owners) for i in fixed}
+    free = sorted(seen - held, key=slot_order)
+    slots = free + sorted(seen & held, key=slot_order)
     if math.isinf(sigma_mm) and len(slots) == len(free):
         raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
-    opts = _options(tape, sizes, placed, scale, sigma_mm, corner_sigma_px)
+    opts = {**_options(tape, sizes, placed, scale, sigma_mm, corner_sigma_px), "groups": groups}
     taped = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
-    priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in tape}
-    fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, set(gross.gross), learn)
-    learnt = {"learnt": learn, "scale": scale, "size": tape.marker_size_mm, "sides": sizes}
+    taped.update({name: entry_frame(e) for name, e in tape.entries.items()})
+    priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in taped}
+    fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, bad, learn)
+    learnt = {"learnt": learn, "scale": scale, "size": tape.marker_size_mm, "sides": sizes, "groups": groups}
     return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross, learnt)
+
+
+def _entry_starts(tape: MarkerMap, groups: dict, cams: list, placed: dict, bad: set) -> dict:
+    """Each entry's starting placement: the tape's, or where the photos put its markers when the tape's is gross."""
+    starts = {}
+    for name, g in groups.items():
+        start = start_from_photos(g, cams, placed) if name in bad else entry_frame(tape.entries[name])
+        if start is not None:
+            starts[name] = start
+    return starts
 
 
 def _options(tape: MarkerMap, sizes: dict, placed: dict, scale: float, sigma_mm: float, corner_sigma_px) -> dict:
@@ -246,42 +278,36 @@ def _suspect_passes(cams, slots, n_free, placed, priors, opts, x, seen_twice: se
 def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest, learnt: dict) -> Survey:
     problem, x, C, tests, dropped, redundancy = fitted
     R_cam, t_cam, R_mark, p_mark = problem.poses(x)
-    placements = _placements(tape, slots[: problem.n_free], R_mark, p_mark, {**learnt, "sides": _sides(problem, slots)})
+    groups = learnt["groups"]
+    surveyed = _surveyed_map(tape, problem, R_mark, p_mark, slots, learnt)
     s_mm, s_rot = problem.sigma_mm, problem.sigma_rot_rad
-    unseen = tuple(i for i in tape.ids if i not in slots)
-    cov, std = _covariances(problem, C, slots, unseen)
-    surveyed = MarkerMap(
-        placements,
-        learnt["size"] * learnt["scale"],
-        dictionary=tape.dictionary,
-        units=tape.units,
-        source=f"survey of {tape.source}",
-    )
-    check_readable(surveyed)
+    seen = _members(slots, groups)
+    unseen = tuple(i for i in tape.ids if i not in seen)
+    cov, std = _covariances(problem, C, R_mark, slots, unseen, groups)
     r = np.linalg.norm(problem.reprojection_px(x), axis=1)
     poses = {}
     for c, ph in enumerate(cams):
         poses[ph.label] = frames.invert_transform(frames.make_transform(R_cam[c], t_cam[c]))
-    suspects = sorted((Suspect(i, *tests[i]) for i in dropped if i in tests), key=lambda s: -s.sigmas)
+    member_tests, suspects = _member_tests(seen, tests, dropped)
     return Survey(
         marker_map=surveyed,
         tape_map=tape,
         suspects=suspects,
-        marker_position_std_mm=dict(sorted(std.items())),
-        marker_covariance=dict(sorted(cov.items())),
+        marker_position_std_mm=dict(sorted(std.items(), key=lambda kv: slot_order(kv[0]))),
+        marker_covariance=dict(sorted(cov.items(), key=lambda kv: slot_order(kv[0]))),
         camera_poses=poses,
         photo_rms_px={ph.label: _rms(r[problem.obs_cam == c]) for c, ph in enumerate(cams)},
-        marker_rms_px={i: _rms(r[problem.obs_marker == k]) for k, i in enumerate(slots)},
+        marker_rms_px=_marker_rms(problem, r),
         unused=[(ph.label, ph.reason) for ph in photos if ph.T_world_camera is None],
-        added_ids=tuple(i for i in slots if i not in tape),
+        added_ids=tuple(i for i in slots if i not in tape and i not in groups),
         unseen_ids=unseen,
         fixed_ids=fixed,
         unplaced=unplaced,
         corner_sigma_px=float(problem.sigma_px),
         map_sigma_mm=float(s_mm),
         map_sigma_deg=float(np.degrees(s_rot)),
-        photos_per_marker={i: len(set(problem.obs_cam[problem.obs_marker == k])) for k, i in enumerate(slots)},
-        tests=tests,
+        photos_per_marker={i: sum(i in ph.corners for ph in cams) for i in seen},
+        tests=member_tests,
         tape_residual_mm=gross.residual_mm,
         gross_ids=gross.gross,
         gross_threshold_mm=gross.threshold_mm,
@@ -290,32 +316,87 @@ def _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross: GrossTest
         print_scale=gross.scale,
         print_scale_se=gross.scale_se,
         print_scale_applied=learnt["scale"] != 1.0,
-        added_size_mm={i: side for i, side in _sides(problem, slots).items() if i not in tape and i in learnt["sides"]},
+        added_size_mm={
+            i: side for i, side in _sides(problem, slots, groups).items() if i not in tape and i in learnt["sides"]
+        },
     )
 
 
-def _covariances(problem, C: np.ndarray, slots: list, unseen: tuple) -> tuple[dict, dict]:
-    """Each marker's 6x6 covariance and position standard deviations: surveyed, fixed (0), unseen (the tape's)."""
-    cov, std = {}, {}
-    for k, i in enumerate(slots[: problem.n_free]):
-        cov[i] = marker_block(problem, C, k)
-        std[i] = np.sqrt(np.maximum(np.diag(cov[i])[3:], 0.0))
-    for i in slots[problem.n_free :]:  # fixed: the tape's placement, exactly
-        cov[i], std[i] = np.zeros((6, 6)), np.zeros(3)
+def _surveyed_map(tape: MarkerMap, problem, R_mark, p_mark, slots: list, learnt: dict) -> MarkerMap:
+    """The surveyed map: the single markers and the entries the adjustment placed, the others the tape's."""
+    groups, scale = learnt["groups"], learnt["scale"]
+    free = {i: k for k, i in enumerate(slots[: problem.n_free])}
+    singles = [i for i in free if i not in groups]
+    ks = [free[i] for i in singles]
+    placements = _placements(tape, singles, R_mark[ks], p_mark[ks], {**learnt, "sides": _sides(problem, slots, groups)})
+    entries = [
+        surveyed_entry(e, R_mark[free[n]], p_mark[free[n]], scale) if n in free else scaled_entry(e, scale)
+        for n, e in tape.entries.items()
+    ]
+    surveyed = MarkerMap(
+        placements,
+        learnt["size"] * scale,
+        dictionary=tape.dictionary,
+        units=tape.units,
+        source=f"survey of {tape.source}",
+        entries=entries,
+    )
+    check_readable(surveyed)
+    return surveyed
+
+
+def _member_tests(seen: dict, tests: dict, dropped: set) -> tuple[dict, list]:
+    """Each marker's suspect test (an entry's markers: their entry's) and the suspects, worst first."""
+    member_tests = {i: tests[slot] for i, slot in seen.items() if slot in tests}
+    suspects = [Suspect(i, *member_tests[i]) for i, slot in seen.items() if slot in dropped and slot in tests]
+    return member_tests, sorted(suspects, key=lambda s: -s.sigmas)
+
+
+def _marker_rms(problem, r: np.ndarray) -> dict:
+    """Reprojection RMS (px) of each marker seen, from the residual distances ``r`` (one per corner)."""
+    index = {k: n for n, k in enumerate(dict.fromkeys(problem.sightings))}
+    sighted = np.repeat(np.array([index[k] for k in problem.sightings], int), 4)
+    return {i: _rms(r[sighted == index[i]]) for i in sorted(index, key=slot_order)}
+
+
+def _members(slots: list, groups: dict) -> dict:
+    """``{marker key: its slot}`` for every marker the adjustment placed (an entry's: all of its markers)."""
+    out = {}
+    for i in slots:
+        out.update({m: i for m in groups[i].members} if i in groups else {i: i})
+    return out
+
+
+def _covariances(problem, C: np.ndarray, R_mark, slots: list, unseen: tuple, groups: dict) -> tuple[dict, dict]:
+    """Each marker's 6x6 covariance and position standard deviations: surveyed, fixed (0), unseen (the tape's).
+
+    An entry's markers have their entry's covariance carried to each one's placement (:func:`member_covariance`).
+    """
+    cov = {}
+    for k, i in enumerate(slots):
+        block = marker_block(problem, C, k) if k < problem.n_free else np.zeros((6, 6))  # fixed: the tape's, exactly
+        if i in groups:
+            cov.update({m: member_covariance(block, R_mark[k], groups[i], n) for n, m in enumerate(groups[i].members)})
+        else:
+            cov[i] = block
     s_mm, s_rot = problem.sigma_mm, problem.sigma_rot_rad
     for i in unseen:
         cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
-        std[i] = np.sqrt(np.diag(cov[i])[3:])
+    std = {i: np.sqrt(np.maximum(np.diag(c)[3:], 0.0)) for i, c in cov.items()}
     return cov, std
 
 
-def _sides(problem, slots: list) -> dict:
-    """Each slot's marker side (mm) in the adjustment."""
-    return {i: float(np.linalg.norm(problem.local[k, 1] - problem.local[k, 0])) for k, i in enumerate(slots)}
+def _sides(problem, slots: list, groups: dict) -> dict:
+    """Each single marker's side (mm) in the adjustment."""
+    return {
+        i: float(np.linalg.norm(problem.local[k, 1] - problem.local[k, 0]))
+        for k, i in enumerate(slots)
+        if i not in groups
+    }
 
 
 def _placements(tape: MarkerMap, free: list, R_mark: np.ndarray, p_mark: np.ndarray, learnt: dict) -> dict:
-    """The surveyed map's placements: the tape's, the ``free`` markers' surveyed.
+    """The surveyed map's single placements: the tape's, the ``free`` markers' surveyed (entries' markers apart).
 
     A marker's own side (``size_mm``) is kept, times the print scale applied, as is its dictionary; a
     marker added from the photos has the side measured from them (``learnt["sides"]``).
@@ -325,7 +406,7 @@ def _placements(tape: MarkerMap, free: list, R_mark: np.ndarray, p_mark: np.ndar
     def scaled(p):
         return p if p.size_mm is None or scale == 1.0 else dataclasses.replace(p, size_mm=p.size_mm * scale)
 
-    placements = {i: scaled(p) for i, p in tape.placements.items()}
+    placements = {i: scaled(p) for i, p in tape.placements.items() if i not in tape.owner}
     for k, i in enumerate(free):
         own = (tape.placements[i].size_mm and tape.placements[i].size_mm * scale) if i in tape else None
         placements[i] = placement_of(i, R_mark[k], p_mark[k], own if i in tape else learnt["sides"].get(i))
