@@ -16,6 +16,7 @@ from helpers import corner_error_mm, jacobian_error, projected_photos
 
 import fidlearn
 from fidlearn import frames
+from fidlearn.cli.survey import _id_ranges, suspect_lines
 from fidlearn.markermap import MarkerMap, MarkerPlacement
 from fidlearn.markermap_entries import BoardEntry, BundleEntry
 from fidlearn.survey._entries import entry_groups, member_covariance
@@ -115,6 +116,9 @@ def test_a_moved_board_is_named_as_one_and_put_back_by_the_photos(room):
     got = np.asarray(s.marker_map.entries["wall board"].translation_mm)
     assert np.linalg.norm(got - truth.entries["wall board"].translation_mm) < 10.0
     assert 10.0 / 2 < s.map_sigma_mm < 10.0 * 2
+    (line,) = suspect_lines(s)  # the board once, not its 17 markers one by one
+    assert line.startswith("board 'wall board' (markers 20-36) is 1")
+    assert line.endswith("from where the map says (" + f"{s.suspects[0].sigmas:.0f} sigma): measure it again")
 
 
 def test_a_fixed_board_marker_holds_its_board_at_the_tapes_placement(room):
@@ -163,3 +167,8 @@ def test_a_board_taped_a_metre_off_is_one_gross_entry_placed_by_the_photos(room)
     got = np.asarray(s.marker_map.entries["wall board"].translation_mm)
     assert np.linalg.norm(got - truth.entries["wall board"].translation_mm) < 10.0
     assert not set(s.suspect_ids) - set(BOARD_IDS)
+
+
+def test_id_ranges_are_written_as_people_write_them():
+    assert _id_ranges([20, 21, 22, 25, 27, 28]) == "20-22, 25, 27-28"
+    assert _id_ranges([3]) == "3"

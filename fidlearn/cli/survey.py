@@ -14,6 +14,7 @@ from pathlib import Path
 from ..errors import UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
+from ..markermap_entries import BundleEntry
 from ..survey import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM, Survey, survey
 from ._common import (
     _add_image_size_option,
@@ -141,8 +142,8 @@ def _report(s: Survey, args) -> None:
     print(s.table())
     for line in s.learnt():
         print(line)
-    for sus in s.suspects:
-        print(sentence(sus))
+    for line in suspect_lines(s):
+        print(line)
     if not s.suspects:
         print("no marker disagrees with the photos more than the tape's sigma explains")
     if s.layout_format == "wpilib":  # an official field layout: which tags moved, in its format
@@ -168,6 +169,46 @@ def sentence(suspect) -> str:
         f"marker {suspect.id} is {suspect.distance_mm:.0f} mm from where the map says "
         f"({suspect.sigmas:.0f} sigma): measure it again"
     )
+
+
+def suspect_lines(s: Survey) -> list[str]:
+    """The suspects in words, worst first: a marker's :func:`sentence`, a rigid entry's once for all its markers.
+
+    Parameters
+    ----------
+    s : Survey
+        The survey.
+
+    Returns
+    -------
+    list of str
+        E.g. ``"board 'wall' (markers 20-36) is 102 mm from where the map says (11 sigma): measure it again"``.
+    """
+    lines, said = [], set()
+    for sus in s.suspects:
+        name = s.tape_map.owner.get(sus.id)
+        if name is None:
+            lines.append(sentence(sus))
+        elif name not in said:
+            said.add(name)
+            ids = sorted(int(x.id) for x in s.suspects if s.tape_map.owner.get(x.id) == name)
+            kind = "bundle" if isinstance(s.tape_map.entries[name], BundleEntry) else "board"
+            lines.append(
+                f"{kind} {name!r} (markers {_id_ranges(ids)}) is {sus.distance_mm:.0f} mm from where the map says "
+                f"({sus.sigmas:.0f} sigma): measure it again"
+            )
+    return lines
+
+
+def _id_ranges(ids: list[int]) -> str:
+    """``[20, 21, 22, 25]`` as ``"20-22, 25"``."""
+    parts, start = [], None
+    for k, i in enumerate(ids):
+        start = i if start is None else start
+        if k + 1 == len(ids) or ids[k + 1] != i + 1:
+            parts.append(str(i) if i == start else f"{start}-{i}")
+            start = None
+    return ", ".join(parts)
 
 
 def _figure(s: Survey, camera):
