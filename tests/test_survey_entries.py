@@ -1,13 +1,12 @@
 """fidlearn.survey of a map with rigid entries (a ChArUco board on the wall, a bundle of two markers), with the truth.
 
-The room is ``fidlearn.synthetic.survey_room`` with marker 1 replaced by a ChArUco board (5 x 7 squares of 100 mm,
-markers 20-36) and marker 8 by a bundle (markers 40 and 41 on one plate). An entry is one placement in the
-adjustment: its markers are surveyed together and cannot drift apart.
+The room is ``fidlearn.synthetic.board_survey_room``: the survey room with marker 1 replaced by a ChArUco board
+(5 x 7 squares of 100 mm, markers 20-36) and marker 8 by a bundle (markers 40 and 41 on one plate). An entry is
+one placement in the adjustment: its markers are surveyed together and cannot drift apart.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -17,52 +16,27 @@ from helpers import corner_error_mm, jacobian_error, projected_photos
 import fidlearn
 from fidlearn import frames
 from fidlearn.cli.survey import _id_ranges, suspect_lines
-from fidlearn.markermap import MarkerMap, MarkerPlacement
-from fidlearn.markermap_entries import BoardEntry, BundleEntry
+from fidlearn.markermap import MarkerMap
 from fidlearn.survey._entries import entry_groups, member_covariance
 from fidlearn.survey._geometry import exp_so3
 from fidlearn.survey._solve import build_problem
 from fidlearn.survey._survey import _read_photos, initial_values
-from fidlearn.synthetic import survey_room, survey_walk, tape_measured
+from fidlearn.synthetic import board_survey_room, survey_walk, tape_measured
 
 CAM = fidlearn.Camera.from_fov(70, (1280, 720), dist=[-0.1, 0.02, 0.001, -0.001, 0.0])
 BOARD_IDS = list(range(20, 37))
 
 
-def room_with_entries() -> MarkerMap:
-    room = survey_room()
-    singles = {i: p for i, p in room.placements.items() if i not in (1, 8)}
-    board = BoardEntry("wall board", "charuco", (0.0, 1400.0, 1700.0), (0.0, 0.0, 0.0), (5, 7), 75.0,
-                       "ARUCO_ORIGINAL", 100.0, None, 20)  # fmt: skip
-    plate = (
-        MarkerPlacement(40, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
-        MarkerPlacement(41, (0.0, 350.0, -50.0), (0.0, 0.0, 0.0)),
-    )
-    bundle = BundleEntry("dock", (2100.0, 4000.0, 1350.0), (0.0, 0.0, -90.0), plate)
-    return MarkerMap(singles, room.marker_size_mm, dictionary=room.dictionary, source="room with entries",
-                     entries=[board, bundle])  # fmt: skip
-
-
 def taped(truth: MarkerMap, sigma_mm: float, seed: int, board_moved=(0.0, 0.0, 0.0), exact=()) -> MarkerMap:
-    """The tape: single markers off by ``sigma_mm`` (``exact`` ones not), each entry's pose off as one object."""
-    singles = {i: p for i, p in truth.placements.items() if i not in truth.owner}
-    tape = tape_measured(MarkerMap(singles, truth.marker_size_mm, dictionary=truth.dictionary), sigma_mm=sigma_mm,
-                         sigma_deg=1.0, seed=seed)  # fmt: skip
-    pl = {i: (singles[i] if i in exact else p) for i, p in tape.placements.items()}
-    rng = np.random.default_rng(seed)
-    entries = []
-    for name, e in truth.entries.items():
-        move = rng.normal(0, sigma_mm, 3) - (np.asarray(board_moved) if name == "wall board" else 0.0)
-        rot = tuple(float(v) for v in np.asarray(e.rotation_deg) + rng.normal(0, 1.0, 3))
-        entries.append(
-            dataclasses.replace(e, translation_mm=tuple(np.asarray(e.translation_mm) + move), rotation_deg=rot)
-        )
-    return MarkerMap(pl, truth.marker_size_mm, dictionary=truth.dictionary, source="tape", entries=entries)
+    """The tape (single markers and each entry as one object off by ``sigma_mm``), the ``exact`` markers not."""
+    tape = tape_measured(truth, sigma_mm=sigma_mm, sigma_deg=1.0, moved={"wall board": board_moved}, seed=seed)
+    singles = {i: (truth.placements[i] if i in exact else p) for i, p in tape.placements.items() if i not in tape.owner}
+    return MarkerMap(singles, truth.marker_size_mm, source="tape", entries=list(tape.entries.values()))
 
 
 @pytest.fixture(scope="module")
 def room():
-    truth = room_with_entries()
+    truth = board_survey_room()
     return truth, survey_walk(truth, CAM, n_photos=24, seed=2)
 
 
@@ -117,8 +91,10 @@ def test_a_moved_board_is_named_as_one_and_put_back_by_the_photos(room):
     assert np.linalg.norm(got - truth.entries["wall board"].translation_mm) < 10.0
     assert 10.0 / 2 < s.map_sigma_mm < 10.0 * 2
     (line,) = suspect_lines(s)  # the board once, not its 17 markers one by one
-    assert line.startswith("board 'wall board' (markers 20-36) is 1")
-    assert line.endswith("from where the map says (" + f"{s.suspects[0].sigmas:.0f} sigma): measure it again")
+    assert line == (
+        f"board 'wall board' (markers 20-36) is {s.suspects[0].distance_mm:.0f} mm from where the map says "
+        f"({s.suspects[0].sigmas:.0f} sigma): measure it again"
+    )
 
 
 def test_a_fixed_board_marker_holds_its_board_at_the_tapes_placement(room):
@@ -138,7 +114,7 @@ def test_a_fixed_board_marker_holds_its_board_at_the_tapes_placement(room):
 
 def test_each_board_markers_covariance_is_its_boards_carried_to_its_corner():
     """The member's top-left corner ``p + R q`` under a small left rotation and shift, against ``member_covariance``."""
-    truth = room_with_entries()
+    truth = board_survey_room()
     g = entry_groups(truth)["wall board"]
     R = frames.rotation_from_rpy_deg(10.0, -20.0, 30.0)
     m = 7

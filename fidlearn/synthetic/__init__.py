@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from ._calibration_views import CalibrationViews, render_calibration_views
 from ._checks import DEFAULT_GRAYS, MAX_FRAMES, MAX_RENDER_SAMPLES
-from ._room import MIXED_WALL, mixed_survey_room, mixed_wall, survey_room, survey_walk, tape_measured
+from ._room import MIXED_WALL, board_survey_room, mixed_survey_room, mixed_wall, survey_room, survey_walk, tape_measured
 from ._scenes import Scene, render_scene, visible_markers
 from ._trajectory import Trajectory, render_trajectory, trajectory_poses
 
@@ -48,6 +48,7 @@ __all__ = [
     "Scene",
     "survey_room",
     "mixed_survey_room",
+    "board_survey_room",
     "mixed_wall",
     "MIXED_WALL",
     "survey_walk",

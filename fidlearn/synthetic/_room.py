@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -12,7 +13,7 @@ from ..markermap import MarkerMap, MarkerPlacement
 from ._checks import _check_seed
 from ._scenes import visible_markers
 
-__all__ = ["survey_room", "mixed_survey_room", "mixed_wall", "survey_walk", "tape_measured"]
+__all__ = ["survey_room", "mixed_survey_room", "board_survey_room", "mixed_wall", "survey_walk", "tape_measured"]
 
 #: Room size (x into the room from the north wall, y along it, z up), mm.
 ROOM_MM = (5000.0, 4000.0, 2500.0)
@@ -86,6 +87,39 @@ def mixed_survey_room() -> MarkerMap:
         size = (200.0, None, 150.0)[k % 3]
         pl[k] = MarkerPlacement(p.id, p.translation_mm, p.rotation_deg, size, "4X4_50" if k >= 8 else None)
     return MarkerMap(pl, 80.0, dictionary="ARUCO_ORIGINAL", units="mm", source="mixed survey room")
+
+
+def board_survey_room() -> MarkerMap:
+    """The room of :func:`survey_room` with a ChArUco board on the north wall and a robot's dock as a bundle.
+
+    Returns
+    -------
+    MarkerMap
+        The 160 mm markers of :func:`survey_room` but 1 and 8; where marker 1 was, the rigid entry ``"wall
+        board"``: a ChArUco board of 5 x 7 squares of 100 mm (75 mm markers 20-36, its top-left corner at
+        y 1400, z 1700); where marker 8 was, the bundle ``"dock"``: markers 40 and 41 (160 mm) on one plate
+        on the east wall, 350 mm apart along it and 50 mm apart in height.
+
+    Examples
+    --------
+    >>> m = board_survey_room()
+    >>> sorted(m.entries), len(m), m.owner[20], m.owner[41]
+    (['dock', 'wall board'], 29, 'wall board', 'dock')
+    """
+    from ..markermap_entries import BoardEntry, BundleEntry
+
+    room = survey_room()
+    singles = {i: p for i, p in room.placements.items() if i not in (1, 8)}
+    board = BoardEntry(
+        "wall board", "charuco", (0.0, 1400.0, 1700.0), (0.0, 0.0, 0.0), (5, 7), 75.0, "ARUCO_ORIGINAL", 100.0,
+        first_id=20,
+    )  # fmt: skip
+    plate = (
+        MarkerPlacement(40, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
+        MarkerPlacement(41, (0.0, 350.0, -50.0), (0.0, 0.0, 0.0)),
+    )
+    dock = BundleEntry("dock", (2100.0, ROOM_MM[1], 1350.0), (0.0, 0.0, -90.0), plate)
+    return MarkerMap(singles, 160.0, units="mm", source="board survey room", entries=[board, dock])
 
 
 #: A wall of four 80 mm ARUCO_ORIGINAL markers and two 200 mm 4X4_50 markers whose ids (0, 1) two small ones use too.
@@ -200,8 +234,8 @@ def tape_measured(
     sigma_deg : float
         Standard deviation of each rotation error, degrees (about world X, Y, Z, on the left).
     moved : dict of int to (float, float, float), optional
-        Markers moved after taping (by the map's keys): the tape's placement is the truth minus this
-        displacement (mm).
+        Markers moved after taping (by the map's keys; a rigid entry by its name): the tape's placement is
+        the truth minus this displacement (mm).
     seed : int
         Seed of ``numpy.random.default_rng``.
     units : {"mm", "cm", "m", "in", "ft"}
@@ -210,18 +244,34 @@ def tape_measured(
     Returns
     -------
     MarkerMap
-        Same markers, sizes and dictionaries.
+        Same markers, sizes and dictionaries; each rigid entry (a board, a bundle) taped as one object, its pose
+        off by the same errors as a marker's.
     """
     rng = np.random.default_rng(_check_seed(seed))
     moved = moved or {}
+
+    def taped(key, R_true: np.ndarray, t_true) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        dt = rng.normal(0.0, sigma_mm, 3) - np.asarray(moved.get(key, (0.0, 0.0, 0.0)), float)
+        droll, dpitch, dyaw = rng.normal(0.0, sigma_deg, 3)
+        roll, pitch, yaw = (
+            float(a) for a in rpy_deg_from_rotation(rotation_from_rpy_deg(droll, dpitch, dyaw) @ R_true)
+        )
+        x, y, z = (float(v) for v in np.asarray(t_true, float) + dt)
+        return (x, y, z), (roll, pitch, yaw)
+
     pl = {}
     for i, p in true_map.placements.items():
-        dt = rng.normal(0.0, sigma_mm, 3) - np.asarray(moved.get(i, (0.0, 0.0, 0.0)), float)
-        droll, dpitch, dyaw = rng.normal(0.0, sigma_deg, 3)
-        R = rotation_from_rpy_deg(droll, dpitch, dyaw) @ p.R_world_marker
-        roll, pitch, yaw = (float(a) for a in rpy_deg_from_rotation(R))
-        x, y, z = (float(v) for v in np.asarray(p.translation_mm) + dt)
-        pl[i] = MarkerPlacement(p.id, (x, y, z), (roll, pitch, yaw), p.size_mm, p.dictionary)
+        if i not in true_map.owner:  # an entry's markers move with it
+            pl[i] = MarkerPlacement(p.id, *taped(i, p.R_world_marker, p.translation_mm), p.size_mm, p.dictionary)
+    entries = []
+    for name, e in true_map.entries.items():
+        t, r = taped(name, rotation_from_rpy_deg(*e.rotation_deg), e.translation_mm)
+        entries.append(dataclasses.replace(e, translation_mm=t, rotation_deg=r))
     return MarkerMap(
-        pl, true_map.marker_size_mm, dictionary=true_map.dictionary, units=units, source="tape-measured map"
+        pl,
+        true_map.marker_size_mm,
+        dictionary=true_map.dictionary,
+        units=units,
+        source="tape-measured map",
+        entries=entries,
     )
