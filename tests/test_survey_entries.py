@@ -8,6 +8,7 @@ one placement in the adjustment: its markers are surveyed together and cannot dr
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -148,3 +149,37 @@ def test_a_board_taped_a_metre_off_is_one_gross_entry_placed_by_the_photos(room)
 def test_id_ranges_are_written_as_people_write_them():
     assert _id_ranges([20, 21, 22, 25, 27, 28]) == "20-22, 25, 27-28"
     assert _id_ranges([3]) == "3"
+
+
+def test_a_gross_board_is_started_from_the_photos_alone_even_its_marker_in_one_photo(room):
+    """The tape a metre off is left out whole; a marker seen once is placed with its board, without a warning."""
+    truth, poses = room
+    photos = projected_photos(truth, CAM, poses, 0.1, seed=11)
+    once = next(k for k, f in enumerate(photos) if any(d.id == 36 for d in f))
+    photos = [f if k == once else [d for d in f if d.id != 36] for k, f in enumerate(photos)]
+    tape = taped(truth, 10.0, seed=9, board_moved=(0.0, 1000.0, 300.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "marker 36 is not in the map" warning: it is placed with its board
+        s = fidlearn.survey(photos, tape, CAM)
+    assert s.photos_per_marker[36] == 1
+    got = np.asarray(s.marker_map.entries["wall board"].translation_mm)
+    assert np.linalg.norm(got - truth.entries["wall board"].translation_mm) < 10.0
+    assert "placed by the photos" in s.table().splitlines()[1 + s.marker_map.ids.index(20)]
+
+
+def test_a_gross_bundle_whose_photos_show_one_marker_is_placed_by_that_marker(room):
+    truth, poses = room
+    photos = [[d for d in f if d.id != 41] for f in projected_photos(truth, CAM, poses, 0.1, seed=12)]
+    tape = tape_measured(truth, sigma_mm=10.0, sigma_deg=1.0, moved={"dock": (800.0, 0.0, 400.0)}, seed=13)
+    s = fidlearn.survey(photos, tape, CAM)
+    assert 40 in s.gross_ids
+    assert {40, 41} <= set(s.suspect_ids)
+    assert s.photos_per_marker[41] == 0
+    assert corner_error_mm(s.marker_map, truth, ids=[40, 41]) < 10.0
+
+
+def test_a_fixed_marker_of_a_gross_board_is_refused_with_its_board_named(room):
+    truth, poses = room
+    tape = taped(truth, 10.0, seed=9, board_moved=(0.0, 1000.0, 300.0))
+    with pytest.raises(fidlearn.errors.SurveyError, match="entry 'wall board', held by fixed marker 20, is 1"):
+        fidlearn.survey(projected_photos(truth, CAM, poses, 0.1, seed=10), tape, CAM, fixed_ids=[20])

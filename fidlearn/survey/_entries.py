@@ -6,6 +6,10 @@ that placement frame (``Group.local``, 4 rows a marker, in the order of ``Group.
 the entry contributes its 4 corners to the entry's slot. So a board is surveyed as the rigid object it is: its
 markers cannot drift apart, and its tape prior, its suspect test and its fixed placement are the entry's.
 
+An entry's tape prior is a marker's: its point within ``map_sigma_mm`` per coordinate, its rotation within
+``map_sigma_mm / marker_size_mm`` radians (the map's marker size, not the board's: looser than a tape laid along a
+whole board, which the photos make up for: they fix a board's rotation far better than any tape).
+
 The print scale, when the survey applies it, scales a board as a whole (a board is one printed sheet) and a
 bundle's markers each about their own top-left corner (markers printed apart, mounted where the bundle says).
 """
@@ -98,8 +102,9 @@ def slot_order(key) -> tuple:
 def start_from_photos(group: Group, cams: list, placed: dict) -> tuple[np.ndarray, np.ndarray] | None:
     """An entry's placement from its markers as the photos place them (a rigid fit of ``local`` onto them).
 
-    ``placed`` holds the members the photos placed one by one (``{key: (R_world_place, top_left)}``); None when
-    fewer than two are placed. Used when the tape's placement of the entry is gross.
+    Used when the tape's placement of the entry is gross: its markers are then left out of the map the photos are
+    located with, so ``placed`` holds the photos' placements of them, one by one (``{key: (R_world_place,
+    top_left)}``). One marker's four corners fix the entry; None when the photos place none of them.
     """
     src, dst = [], []
     for m, k in enumerate(group.members):
@@ -108,7 +113,7 @@ def start_from_photos(group: Group, cams: list, placed: dict) -> tuple[np.ndarra
             side = np.linalg.norm(group.local[4 * m + 1] - group.local[4 * m])
             src.append(group.local[4 * m : 4 * m + 4])
             dst.append(p + (MARKER_CORNERS_LOCAL * side) @ R.T)
-    if len(src) < 2:
+    if not src:
         return None
     a, b = np.concatenate(src), np.concatenate(dst)
     ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)

@@ -89,7 +89,8 @@ class Survey:
         fitted robustly (by the markers that agree). Markers seen in fewer than two photos are absent.
     gross_ids : tuple of int
         Markers whose robust residual exceeds :attr:`gross_threshold_mm`: their tape placement was
-        never used (the photos alone place them); they are also :attr:`suspects`.
+        never used (the photos alone place them); they are also :attr:`suspects`. A rigid entry is tested as
+        one (its markers' residual is the entry's), and its tape placement is left out whole.
     gross_threshold_mm : float
         The gross test's threshold (mm): ``GROSS_SIGMAS`` tape sigmas, or residual spreads when those
         are larger, and at least one marker side; NaN when the test was not run (fewer than four
@@ -372,11 +373,14 @@ def _table_note(s: Survey, i: int, suspects: set) -> str:
     if i in s.added_ids:
         side = f", {s.added_size_mm[i]:.0f} mm" if i in s.added_size_mm else ""
         return f"added from the photos{side}"
-    if i in s.fixed_ids:
-        return "fixed"
+    entry = s.tape_map.owner.get(i)
+    if i in s.fixed_ids or (entry is not None and any(s.tape_map.owner.get(f) == entry for f in s.fixed_ids)):
+        return "fixed" if i in s.fixed_ids else f"fixed with {entry!r}"
     if i in s.unseen_ids:
         return "in no photo: the tape's"
-    if s.photos_per_marker.get(i, 0) < 2:
+    if entry is not None and s.photos_per_marker.get(i, 0) == 0:
+        return f"in no photo: placed with {entry!r}"
+    if entry is None and s.photos_per_marker.get(i, 0) < 2:
         return "in one photo only: take another"
     return ""
 
@@ -394,14 +398,17 @@ def check_readable(marker_map: MarkerMap) -> None:
 
     Each placement, in the map's units, goes through the map reader's own check of a marker's numbers.
     """
-    for i, entry in marker_map.to_dict()["markers"].items():
+    d = marker_map.to_dict()
+    placed = [(f"marker {i}", v) for i, v in d.get("markers", {}).items()]
+    placed += [(f"entry {name!r}", v) for kind in ("boards", "bundles") for name, v in d.get(kind, {}).items()]
+    for what, entry in placed:
         for key in ("translation", "rotation"):
             try:
-                _vector3(entry[key], f"marker {i}", key, "")
+                _vector3(entry[key], what, key, "")
             except MapError as exc:
                 unit = marker_map.units if key == "translation" else "degrees"
                 raise SurveyError(
-                    f"the surveyed map cannot be written: marker {i}'s {key} {entry[key]} ({unit}) is beyond what "
-                    f"a map file holds, MarkerMap.load would refuse it ({str(exc).rstrip('; ')}): check marker {i}'s "
-                    "tape placement and id, and take photos that show it with other markers"
+                    f"the surveyed map cannot be written: {what}'s {key} {entry[key]} ({unit}) is beyond what "
+                    f"a map file holds, MarkerMap.load would refuse it ({str(exc).rstrip('; ')}): check {what}'s "
+                    "tape placement and ids, and take photos that show it with other markers"
                 ) from None

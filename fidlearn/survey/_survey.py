@@ -136,22 +136,23 @@ def survey(
     tape, camera, sigma_mm, fixed = _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     photos = _read_photos(images, tape, camera, progress)
     gross = gross_test(photos, tape, sigma_mm)
-    if set(gross.gross) & set(fixed):
-        raise SurveyError(_fixed_gross(gross, fixed))
-    clean = {i: p for i, p in tape.placements.items() if i not in gross.gross}
+    bad = {slot_of(i, tape.owner) for i in gross.gross}  # a gross marker's entry is gross as a whole
+    if bad & {slot_of(i, tape.owner) for i in fixed}:
+        raise SurveyError(_fixed_gross(gross, fixed, tape))
+    clean = {i: p for i, p in tape.placements.items() if slot_of(i, tape.owner) not in bad}
     clean_map = MarkerMap(clean, tape.marker_size_mm, dictionary=tape.dictionary, units=tape.units, source=tape.source)
     check_units(photos, clean_map)
     sizes = marker_sizes(tape, tape.ids)  # and the markers the map lacks: measured from the photos
     placed, unplaced = initial_values(photos, clean_map, sizes)
     cams = _usable(photos)
-    for reason in unplaced.values():
-        warnings.warn(reason, FidlearnWarning, stacklevel=2)
     learn = sigma_mm is None
     sigma_mm, scale = _start(sigma_mm, gross)
     groups = entry_groups(tape, scale)
     owners = member_of(groups)
-    bad = {slot_of(i, owners) for i in gross.gross}
     placed.update(_entry_starts(tape, groups, cams, placed, bad))
+    for i, reason in unplaced.items():
+        if owners.get(i) not in placed:  # a gross entry's marker in one photo is placed with its entry
+            warnings.warn(reason, FidlearnWarning, stacklevel=2)
     seen = {slot_of(i, owners) for ph in cams for i in ph.corners if slot_of(i, owners) in placed}
     held = {slot_of(i, owners) for i in fixed}
     free = sorted(seen - held, key=slot_order)
@@ -202,10 +203,15 @@ def _start(sigma_mm: float | None, gross: GrossTest) -> tuple[float, float]:
     return min(max(start, MIN_MAP_SIGMA_MM), MAX_MAP_SIGMA_MM), scale
 
 
-def _fixed_gross(gross: GrossTest, fixed) -> str:
-    bad = [i for i in gross.gross if i in fixed]
+def _fixed_gross(gross: GrossTest, fixed, tape: MarkerMap) -> str:
+    held = {slot_of(i, tape.owner) for i in fixed}
+    bad = [i for i in gross.gross if slot_of(i, tape.owner) in held]
+    what = f"fixed marker {bad[0]}"
+    if bad[0] in tape.owner:
+        name = tape.owner[bad[0]]
+        what = f"entry {name!r}, held by fixed marker {next(f for f in fixed if tape.owner.get(f) == name)},"
     return (
-        f"fixed marker {bad[0]} is {gross.residual_mm[bad[0]]:.0f} mm from where the photos put it (more than the "
+        f"{what} is {gross.residual_mm[bad[0]]:.0f} mm from where the photos put it (more than the "
         f"{gross.threshold_mm:.0f} mm the room can explain): a fixed placement must be exact; measure it again or "
         "fix another marker"
     )
