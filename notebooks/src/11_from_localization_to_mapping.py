@@ -28,7 +28,14 @@ from fidlearn.detection import load_image
 from fidlearn.frames import look_at
 from fidlearn.markermap import MARKER_CORNERS_LOCAL
 from fidlearn.survey import check_print
-from fidlearn.synthetic import render_scene, survey_room, survey_walk, tape_measured, visible_markers
+from fidlearn.synthetic import (
+    board_survey_room,
+    render_scene,
+    survey_room,
+    survey_walk,
+    tape_measured,
+    visible_markers,
+)
 
 np.set_printoptions(precision=3, suppress=True)
 
@@ -450,6 +457,42 @@ assert scaled.print_scale_applied and abs(scaled.print_scale - 0.987) < 3 * scal
 # {{ scaled.marker_map.marker_size_mm:.1f }} mm. The exercises end with the other way round: a ruler's readings,
 # and the `size_mm` to write for markers of several sizes.
 #
+# ### A board on the wall is one object
+#
+# A map may place a whole ChArUco board, or a few markers screwed to one plate (a robot's dock), by one pose: a
+# **rigid entry** (`"boards"` and `"bundles"` in the map file: `docs/conventions.md`). The survey
+# keeps it rigid: one placement (6 unknowns) for all its markers, whose corners sit where the board's geometry
+# puts them; one tape prior; one suspect test. Why that matters: a board carries 17 markers but only one tape
+# measurement. Surveyed as 17 single markers, its one error counts 17 times. The room of section 1 with a board in
+# place of marker 1 and a dock in place of marker 8 (`board_survey_room`), the board taped 100 mm off:
+
+# %%
+board_room = board_survey_room()
+rng = np.random.default_rng(13)
+board_dets = [
+    [Detection(i, c + rng.normal(0, 0.1, c.shape)) for i, c in visible_markers(board_room, camera, T).items()]
+    for T in survey_walk(board_room, camera, n_photos=20, seed=3)
+]
+board_tape = tape_measured(board_room, sigma_mm=10, sigma_deg=1, moved={"wall board": (0.0, 60.0, -80.0)}, seed=5)
+as_entry = survey(board_dets, board_tape, camera)
+singles_tape = MarkerMap(board_tape.placements, board_tape.marker_size_mm, dictionary=board_tape.dictionary)
+as_singles = survey(board_dets, singles_tape, camera)  # the same tape, the board's markers one by one
+true_tl = np.asarray(board_room.placements[20].translation_mm)  # marker 20, the board's top-left marker
+board_off = {
+    name: float(np.linalg.norm(np.asarray(s.marker_map.placements[20].translation_mm) - true_tl))
+    for name, s in (("entry", as_entry), ("singles", as_singles))
+}
+print(f"the board as an entry:  suspects {as_entry.suspect_ids}; marker 20 {board_off['entry']:.0f} mm off")
+print(f"its markers one by one: suspects {as_singles.suspect_ids}; marker 20 {board_off['singles']:.0f} mm off")
+assert set(as_entry.suspect_ids) == set(range(20, 37)) and board_off["entry"] < 15 < 50 < board_off["singles"]
+
+# %% [markdown]
+# As an entry the board is named, all its markers at once (`fidlearn survey` prints it as one line: "board 'wall
+# board' (markers 20-36) is ... mm from where the map says"), and the photos put it back within
+# {{ board_off["entry"]:.0f }} mm. One by one, its 17 markers agree with each other about the wrong place: they
+# outvote the room, good markers ({{ len(as_singles.suspect_ids) }} of them, the most the survey names) are
+# blamed instead, and the board stays {{ board_off["singles"]:.0f }} mm off.
+#
 # ## 7. Accuracy against the number of photos
 #
 # How many photos does a survey need? A quick sweep on a room that is not rendered (`survey_room`, the walks of
@@ -530,6 +573,8 @@ assert max(shape_err) < tape_shape / 3 and shape_err[-1] < shape_err[0] / 3
 #   where the tape gave centimetres.
 # * A printer's scale shows in one photo of four taped markers (`check_print`) and in a survey
 #   (`print_scale`): write the printed sizes in the map (`size_mm`) or print again at 100 %.
+# * A board or a bundle in the map is one rigid entry, surveyed as one object: one placement, one tape prior, one
+#   suspect test, however many markers it carries.
 #
 # **Exercises**: [exercises/11_mapping.ipynb](exercises/11_mapping.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("11")` in a new cell): count a survey's unknowns,
