@@ -67,7 +67,11 @@ def add(sub) -> None:
         ),
     )
     p.add_argument(
-        "--fixed", type=int, action="append", metavar="ID", help="a marker whose placement is exact (repeatable)"
+        "--fixed",
+        type=int,
+        action="append",
+        metavar="ID",
+        help="a marker whose placement is exact (repeatable; a board's or bundle's marker holds its whole entry)",
     )
     p.add_argument("-o", "--output", type=Path, required=True, metavar="SURVEYED.json", help="surveyed map to write")
     p.add_argument("--plot", type=Path, metavar="SURVEY.png", help="also draw the markers and the cameras in 3D")
