@@ -183,3 +183,15 @@ def test_a_fixed_marker_of_a_gross_board_is_refused_with_its_board_named(room):
     tape = taped(truth, 10.0, seed=9, board_moved=(0.0, 1000.0, 300.0))
     with pytest.raises(fidlearn.errors.SurveyError, match="entry 'wall board', held by fixed marker 20, is 1"):
         fidlearn.survey(projected_photos(truth, CAM, poses, 0.1, seed=10), tape, CAM, fixed_ids=[20])
+
+
+def test_a_fisheye_survey_places_the_board_exactly():
+    """The entries' corners go through the lens model as any marker's: a fisheye's noise-free photos, exact."""
+    fe = fidlearn.Camera([[500.0, 0.0, 640.0], [0.0, 500.0, 360.0], [0.0, 0.0, 1.0]], [-0.03, -0.02, 0.002, 0.001],
+                         (1280, 720), model="fisheye")  # fmt: skip
+    truth = board_survey_room()
+    poses = survey_walk(truth, fe, n_photos=16, seed=4)
+    tape = taped(truth, 20.0, seed=14, exact=(0,))
+    s = fidlearn.survey(projected_photos(truth, fe, poses), tape, fe, map_sigma_mm=math.inf, fixed_ids=[0])
+    assert corner_error_mm(s.marker_map, truth) < 1e-6
+    assert set(s.marker_map.entries) == {"wall board", "dock"}
