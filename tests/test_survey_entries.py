@@ -7,6 +7,7 @@ one placement in the adjustment: its markers are surveyed together and cannot dr
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -195,3 +196,31 @@ def test_a_fisheye_survey_places_the_board_exactly():
     s = fidlearn.survey(projected_photos(truth, fe, poses), tape, fe, map_sigma_mm=math.inf, fixed_ids=[0])
     assert corner_error_mm(s.marker_map, truth) < 1e-6
     assert set(s.marker_map.entries) == {"wall board", "dock"}
+
+
+def taped_apart(truth: MarkerMap, sigma_mm: float, seed: int, board_moved) -> MarkerMap:
+    """A tape drawn otherwise than ``tape_measured``'s: the single markers first, then each entry from its own draws."""
+    singles = {i: p for i, p in truth.placements.items() if i not in truth.owner}
+    tape = tape_measured(MarkerMap(singles, truth.marker_size_mm), sigma_mm=sigma_mm, sigma_deg=1.0, seed=seed)
+    rng = np.random.default_rng(seed)
+    entries = []
+    for name, e in truth.entries.items():
+        move = rng.normal(0, sigma_mm, 3) - (np.asarray(board_moved) if name == "wall board" else 0.0)
+        rot = tuple(float(v) for v in np.asarray(e.rotation_deg) + rng.normal(0, 1.0, 3))
+        entries.append(dataclasses.replace(e, translation_mm=tuple(np.add(e.translation_mm, move)), rotation_deg=rot))
+    return MarkerMap(tape.placements, truth.marker_size_mm, source="tape", entries=entries)
+
+
+def test_a_photo_the_tape_map_cannot_locate_joins_after_the_first_adjustment():
+    """Photo 6 shows the board (taped 100 mm off) beside eight other markers: no pose from the tape, one after."""
+    truth = board_survey_room()
+    poses = survey_walk(truth, CAM, n_photos=16, seed=2)
+    tape = taped_apart(truth, 10.0, seed=5, board_moved=(0.0, 60.0, -80.0))
+    photos = projected_photos(truth, CAM, poses, 0.1, seed=1)
+    with pytest.raises(fidlearn.errors.PoseError, match="do not fit the map"):
+        fidlearn.estimate_pose(photos[6], tape, CAM)
+    s = fidlearn.survey(photos, tape, CAM)
+    assert s.unused == []
+    assert len(s.camera_poses) == 16
+    assert np.linalg.norm(s.camera_poses["photo 6"][:3, 3] - poses[6][:3, 3]) < 30.0
+    assert set(s.suspect_ids) == set(BOARD_IDS)

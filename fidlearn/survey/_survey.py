@@ -24,7 +24,7 @@ from ._entries import (
 )
 from ._geometry import marker_sizes, placement_of
 from ._gross import GrossTest, gross_test
-from ._init import check_units, initial_values, remeasured_sides
+from ._init import _locate, check_units, initial_values, remeasured_sides
 from ._inputs import MAX_MAP_SIGMA_MM, MIN_MAP_SIGMA_MM, MIN_PHOTOS, _check_options, _read_photos
 from ._result import Survey, Suspect, check_readable
 from ._solve import (
@@ -63,6 +63,9 @@ def survey(
     is named a suspect and its tape prior dropped, so the photos alone place it. The corner noise
     is estimated from the residuals unless given; the covariances assume it, and the tape's sigma
     (given, or learnt from the tape residuals when ``map_sigma_mm`` is None).
+
+    A photo the tape map cannot locate (most of what it shows taped wrong: a moved board) is located again
+    with the map the adjustment made, and when that places it the adjustment runs again with its corners.
 
     A rigid entry of the map (a ChArUco or grid board, a bundle: :mod:`fidlearn.markermap_entries`) is one
     placement in the adjustment, its markers' corners fixed in it by the entry's geometry
@@ -153,10 +156,7 @@ def survey(
     for i, reason in unplaced.items():
         if owners.get(i) not in placed:  # a gross entry's marker in one photo is placed with its entry
             warnings.warn(reason, FidlearnWarning, stacklevel=2)
-    seen = {slot_of(i, owners) for ph in cams for i in ph.corners if slot_of(i, owners) in placed}
-    held = {slot_of(i, owners) for i in fixed}
-    free = sorted(seen - held, key=slot_order)
-    slots = free + sorted(seen & held, key=slot_order)
+    free, slots = _slots(cams, placed, owners, fixed)
     if math.isinf(sigma_mm) and len(slots) == len(free):
         raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
     opts = {**_options(tape, sizes, placed, scale, sigma_mm, corner_sigma_px), "groups": groups}
@@ -165,7 +165,37 @@ def survey(
     priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in taped}
     fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, bad, learn)
     learnt = {"learnt": learn, "scale": scale, "size": tape.marker_size_mm, "sides": sizes, "groups": groups}
+    if _located_again(photos, tape, fitted, slots, learnt):  # then adjusted again, with them, from the first
+        _, _, R_mark, p_mark = fitted[0].poses(fitted[1])
+        placed.update({i: (R_mark[k], p_mark[k]) for k, i in enumerate(slots)})
+        cams = _usable(photos)
+        fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, bad, learn)
     return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross, learnt)
+
+
+def _located_again(photos: list, tape: MarkerMap, fitted: tuple, slots: list, learnt: dict) -> bool:
+    """Locate again, with the map the adjustment made, the photos the tape map could not; True if any is located.
+
+    A photo whose markers the tape puts wrong (most of what it shows is a moved board) has no pose from the tape
+    map; from the adjusted map it has one, and its corners join the adjustment.
+    """
+    lost = [ph for ph in photos if ph.T_world_camera is None and ph.reason.startswith("no camera pose from the map")]
+    if not lost:
+        return False
+    problem, x = fitted[:2]
+    _, _, R_mark, p_mark = problem.poses(x)
+    current = _surveyed_map(tape, problem, R_mark, p_mark, slots, learnt)
+    for ph in lost:
+        _locate(ph, current)
+    return any(ph.T_world_camera is not None for ph in lost)
+
+
+def _slots(cams: list, placed: dict, owners: dict, fixed) -> tuple[list, list]:
+    """``(free, slots)``: the adjustment's slots the photos show (a marker, or an entry by name), the fixed last."""
+    seen = {slot_of(i, owners) for ph in cams for i in ph.corners if slot_of(i, owners) in placed}
+    held = {slot_of(i, owners) for i in fixed}
+    free = sorted(seen - held, key=slot_order)
+    return free, free + sorted(seen & held, key=slot_order)
 
 
 def _entry_starts(tape: MarkerMap, groups: dict, cams: list, placed: dict, bad: set) -> dict:
