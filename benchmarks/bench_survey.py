@@ -62,12 +62,16 @@ TAPE_MM, MOVED_MM = 20.0, 100.0
 MIXED_TARGETS = "survey, mixed sizes (80, 150, 200 mm; two dictionaries; sigma learnt)"
 
 
+def kabsch_laid(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Points a after the rigid motion that lays them best on points b."""
+    ca = a - a.mean(axis=0)
+    u, _, vt = np.linalg.svd(ca.T @ (b - b.mean(axis=0)))
+    return ca @ (u @ np.diag([1, 1, np.sign(np.linalg.det(u @ vt))]) @ vt) + b.mean(axis=0)
+
+
 def kabsch_rms(a: np.ndarray, b: np.ndarray) -> float:
     """RMS (mm) of points a from points b after the rigid motion that lays a best on b."""
-    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
-    u, _, vt = np.linalg.svd(ca.T @ cb)
-    R = (u @ np.diag([1, 1, np.sign(np.linalg.det(u @ vt))]) @ vt).T
-    return float(np.sqrt(np.mean(np.sum((ca @ R.T - cb) ** 2, axis=1))))
+    return float(np.sqrt(np.mean(np.sum((kabsch_laid(a, b) - b) ** 2, axis=1))))
 
 
 def corners_of(m, ids) -> np.ndarray:
@@ -603,9 +607,7 @@ def entry_row(seed: int, as_entries: bool = True) -> dict:
     board = [i for i in truth.owner if truth.owner[i] == "wall board" and i not in s.unseen_ids]
     seen = [i for i in truth.ids if i not in s.unseen_ids]
     got, true = corners_of(s.marker_map, seen), corners_of(truth, seen)
-    ca, cb = got - got.mean(axis=0), true - true.mean(axis=0)
-    u, _, vt = np.linalg.svd(ca.T @ cb)
-    laid = ca @ (u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt) + true.mean(axis=0)
+    laid = kabsch_laid(got, true)
     in_board = np.repeat(np.isin(seen, board), 4)
     twice = [i for i in board if s.photos_per_marker.get(i, 0) >= 2]
     return {

@@ -82,13 +82,9 @@ def _corners(tape: MarkerMap, key, scale: float, entry, point: np.ndarray) -> np
     )
 
 
-def member_of(groups: dict[str, Group]) -> dict:
-    """``{marker key: entry name}`` for every marker of the groups."""
-    return {k: name for name, g in groups.items() for k in g.members}
-
-
 def slot_of(key, owners: dict):
-    """The adjustment's slot of a marker key: its entry's name, or the key itself for a single marker."""
+    """The adjustment's slot of a marker key: its entry's name (``owners``: ``MarkerMap.owner``), or the key itself
+    for a single marker."""
     return owners.get(key, key)
 
 

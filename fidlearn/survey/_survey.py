@@ -15,7 +15,6 @@ from ._entries import (
     entry_frame,
     entry_groups,
     member_covariance,
-    member_of,
     scaled_entry,
     slot_of,
     slot_order,
@@ -151,12 +150,11 @@ def survey(
     learn = sigma_mm is None
     sigma_mm, scale = _start(sigma_mm, gross)
     groups = entry_groups(tape, scale)
-    owners = member_of(groups)
     placed.update(_entry_starts(tape, groups, cams, placed, bad))
     for i, reason in unplaced.items():
-        if owners.get(i) not in placed:  # a gross entry's marker in one photo is placed with its entry
+        if tape.owner.get(i) not in placed:  # a gross entry's marker in one photo is placed with its entry
             warnings.warn(reason, FidlearnWarning, stacklevel=2)
-    free, slots = _slots(cams, placed, owners, fixed)
+    free, slots = _slots(cams, placed, tape.owner, fixed)
     if math.isinf(sigma_mm) and len(slots) == len(free):
         raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
     opts = {**_options(tape, sizes, placed, scale, sigma_mm, corner_sigma_px), "groups": groups}
