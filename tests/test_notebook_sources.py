@@ -117,6 +117,56 @@ def test_build_executes_and_leaves_out_what_varies(tmp_path: Path):
     assert nbbuild.check_one(src) == []
 
 
+class _MissesItsFirstWakeUp:
+    """A shell channel whose first wait sleeps its whole timeout though the reply has arrived (nbclient#312)."""
+
+    def __init__(self, reply_after_s: float | None = 0.0):
+        self.waits: list[float | None] = []
+        self.ready_at = reply_after_s
+
+    async def get_msg(self, timeout=None):
+        import asyncio
+        import time
+        from queue import Empty
+
+        self.waits.append(timeout)
+        if len(self.waits) == 1:
+            self.t0 = time.monotonic()
+            await asyncio.sleep(timeout if timeout is not None else 3600)
+            raise Empty
+        if self.ready_at is not None and time.monotonic() - self.t0 >= self.ready_at:
+            return {"msg_type": "execute_reply"}
+        await asyncio.sleep(timeout)
+        raise Empty
+
+
+def test_a_missed_wake_up_on_the_shell_channel_costs_one_step_not_the_cell_timeout():
+    import asyncio
+    import time
+
+    channel = _MissesItsFirstWakeUp()
+    nbbuild.read_in_steps(channel, step_s=0.05)
+    t0 = time.monotonic()
+    msg = asyncio.run(asyncio.wait_for(channel.get_msg(timeout=600), 5))
+    assert msg == {"msg_type": "execute_reply"}
+    assert time.monotonic() - t0 < 1.0
+    assert all(w <= 0.05 for w in channel.waits)
+
+
+def test_the_shell_channel_still_times_out_at_the_cells_timeout():
+    import asyncio
+    import time
+    from queue import Empty
+
+    channel = _MissesItsFirstWakeUp(reply_after_s=None)
+    nbbuild.read_in_steps(channel, step_s=0.05)
+    t0 = time.monotonic()
+    with pytest.raises(Empty):
+        asyncio.run(channel.get_msg(timeout=0.3))
+    assert 0.29 <= time.monotonic() - t0 < 1.0
+    assert len(channel.waits) >= 6
+
+
 @pytest.mark.parametrize(
     ("markdown", "fields"),
     [

@@ -57,6 +57,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 NOTEBOOKS = REPO / "notebooks"
 KERNEL_NAME = "python3"
+#: Longest single wait for a message on the kernel's shell channel (see :func:`read_in_steps`).
+SHELL_STEP_S = 1.0
 #: Seconds one cell may run before the build fails.
 CELL_TIMEOUT_S = 600
 
@@ -294,12 +296,39 @@ def _execute(client, nb, name: str) -> None:
     """Run the code cells in order, rendering each markdown cell's fields when the run reaches it."""
     client.reset_execution_trackers()
     with client.setup_kernel():
+        read_in_steps(client.kc.shell_channel)
         for index, cell in enumerate(nb.cells):
             if cell.cell_type == "markdown":
                 _render_cell(client, nb, cell, index, name)
             else:
                 client.execute_cell(cell, index, execution_count=client.code_cells_executed + 1)
         client.set_widgets_metadata()
+
+
+def read_in_steps(channel, step_s: float = SHELL_STEP_S) -> None:
+    """Make ``channel.get_msg`` wait in steps of at most ``step_s`` seconds, to the same overall timeout.
+
+    A single long wait for a cell's reply on the shell channel can now and then miss a reply that has
+    arrived, after a cell that shows an ipywidgets ``Output`` (jupyter/nbclient#312): the build then sat
+    idle until the cell's timeout. Each fresh wait sees what has arrived, so a missed wake-up costs at most
+    one step.
+    """
+    from queue import Empty
+
+    read = channel.get_msg
+
+    async def get_msg(timeout: float | None = None):
+        end = None if timeout is None else time.monotonic() + timeout
+        while True:
+            left = step_s if end is None else max(0.0, end - time.monotonic())
+            try:
+                msg = read(timeout=min(step_s, left))
+                return await msg if hasattr(msg, "__await__") else msg
+            except Empty:
+                if end is not None and time.monotonic() >= end:
+                    raise
+
+    channel.get_msg = get_msg
 
 
 def _render_cell(client, nb, cell, index: int, name: str) -> None:
