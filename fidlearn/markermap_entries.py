@@ -241,6 +241,17 @@ class BundleEntry:
         }
 
 
+def id_ranges(ids: list[int]) -> str:
+    """Sorted marker ids as people write them: ``[20, 21, 22, 25]`` as ``"20-22, 25"``."""
+    parts, start = [], None
+    for k, i in enumerate(ids):
+        start = i if start is None else start
+        if k + 1 == len(ids) or ids[k + 1] != i + 1:
+            parts.append(str(i) if i == start else f"{start}-{i}")
+            start = None
+    return ", ".join(parts)
+
+
 def _key_text(p: MarkerPlacement) -> str:
     return str(p.id) if p.dictionary is None else f"{p.dictionary}:{p.id}"
 

@@ -101,6 +101,21 @@ def test_draw_markers_puts_one_square_per_marker_at_its_corners(seed_map):
     assert texts == ["0", "1", "2"]
 
 
+def test_draw_markers_labels_a_board_once_above_it_with_its_ids():
+    from fidlearn.synthetic import board_survey_room
+
+    room = board_survey_room()
+    ax = plotting.new_axes_3d()
+    plotting.draw_markers(ax, room)
+    texts = {t.get_text(): t for t in ax.texts}
+    singles = [str(k) for k in room.placements if k not in room.owner]
+    assert sorted(texts) == sorted([*singles, "dock (40-41)", "wall board (20-36)"])
+    board = np.concatenate([c for k, c in room.corners().items() if room.owner.get(k) == "wall board"])
+    x, y, z = texts["wall board (20-36)"].get_position_3d()  # written above the board's top markers, over its middle
+    assert z > board[:, 2].max()
+    assert board[:, 1].min() < y < board[:, 1].max()
+
+
 def test_draw_box_draws_the_twelve_edges_of_the_room():
     ax = plotting.new_axes_3d()
     lines = plotting.draw_box(ax, [0, 0, 0], [4000, 3000, 2500])

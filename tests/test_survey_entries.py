@@ -17,8 +17,9 @@ from helpers import corner_error_mm, jacobian_error, projected_photos
 
 import fidlearn
 from fidlearn import frames
-from fidlearn.cli.survey import _id_ranges, suspect_lines
+from fidlearn.cli.survey import suspect_lines
 from fidlearn.markermap import MarkerMap
+from fidlearn.markermap_entries import id_ranges
 from fidlearn.survey._entries import entry_groups, member_covariance
 from fidlearn.survey._geometry import exp_so3
 from fidlearn.survey._solve import build_problem
@@ -148,8 +149,8 @@ def test_a_board_taped_a_metre_off_is_one_gross_entry_placed_by_the_photos(room)
 
 
 def test_id_ranges_are_written_as_people_write_them():
-    assert _id_ranges([20, 21, 22, 25, 27, 28]) == "20-22, 25, 27-28"
-    assert _id_ranges([3]) == "3"
+    assert id_ranges([20, 21, 22, 25, 27, 28]) == "20-22, 25, 27-28"
+    assert id_ranges([3]) == "3"
 
 
 def test_a_gross_board_is_started_from_the_photos_alone_even_its_marker_in_one_photo(room):

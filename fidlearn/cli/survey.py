@@ -14,7 +14,7 @@ from pathlib import Path
 from ..errors import UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
-from ..markermap_entries import BundleEntry
+from ..markermap_entries import BundleEntry, id_ranges
 from ..survey import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM, Survey, survey
 from ._common import (
     _add_image_size_option,
@@ -198,21 +198,10 @@ def suspect_lines(s: Survey) -> list[str]:
             ids = sorted(int(x.id) for x in s.suspects if s.tape_map.owner.get(x.id) == name)
             kind = "bundle" if isinstance(s.tape_map.entries[name], BundleEntry) else "board"
             lines.append(
-                f"{kind} {name!r} (markers {_id_ranges(ids)}) is {sus.distance_mm:.0f} mm from where the map says "
+                f"{kind} {name!r} (markers {id_ranges(ids)}) is {sus.distance_mm:.0f} mm from where the map says "
                 f"({sus.sigmas:.0f} sigma): measure it again"
             )
     return lines
-
-
-def _id_ranges(ids: list[int]) -> str:
-    """``[20, 21, 22, 25]`` as ``"20-22, 25"``."""
-    parts, start = [], None
-    for k, i in enumerate(ids):
-        start = i if start is None else start
-        if k + 1 == len(ids) or ids[k + 1] != i + 1:
-            parts.append(str(i) if i == start else f"{start}-{i}")
-            start = None
-    return ", ".join(parts)
 
 
 def _figure(s: Survey, camera):
