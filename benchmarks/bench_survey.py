@@ -39,6 +39,7 @@ import numpy as np
 import fidlearn
 from fidlearn import Camera, Detection, estimate_pose, frames, render_scene, survey
 from fidlearn.survey import SUSPECT_P
+from fidlearn.survey._geometry import fit_motion
 from fidlearn.synthetic import (
     board_survey_room,
     mixed_survey_room,
@@ -64,9 +65,8 @@ MIXED_TARGETS = "survey, mixed sizes (80, 150, 200 mm; two dictionaries; sigma l
 
 def kabsch_laid(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Points a after the rigid motion that lays them best on points b."""
-    ca = a - a.mean(axis=0)
-    u, _, vt = np.linalg.svd(ca.T @ (b - b.mean(axis=0)))
-    return ca @ (u @ np.diag([1, 1, np.sign(np.linalg.det(u @ vt))]) @ vt) + b.mean(axis=0)
+    _, R, t = fit_motion(a, b)
+    return a @ R.T + t
 
 
 def kabsch_rms(a: np.ndarray, b: np.ndarray) -> float:

@@ -24,7 +24,7 @@ import numpy as np
 from .. import frames
 from ..markermap import MARKER_CORNERS_LOCAL, MarkerMap
 from ..markermap_entries import BoardEntry, BundleEntry
-from ._geometry import skew
+from ._geometry import fit_motion, skew
 
 
 @dataclass(frozen=True)
@@ -111,11 +111,8 @@ def start_from_photos(group: Group, cams: list, placed: dict) -> tuple[np.ndarra
             dst.append(p + (MARKER_CORNERS_LOCAL * side) @ R.T)
     if not src:
         return None
-    a, b = np.concatenate(src), np.concatenate(dst)
-    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
-    u, _, vt = np.linalg.svd(cb.T @ ca)
-    R = u @ np.diag([1.0, 1.0, float(np.sign(np.linalg.det(u @ vt)) or 1.0)]) @ vt
-    return R, b.mean(axis=0) - R @ a.mean(axis=0)
+    fit = fit_motion(np.concatenate(src), np.concatenate(dst))
+    return None if fit is None else (fit[1], fit[2])
 
 
 def member_covariance(C: np.ndarray, R: np.ndarray, group: Group, m: int) -> np.ndarray:

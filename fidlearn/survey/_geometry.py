@@ -1,9 +1,12 @@
-"""The survey's geometry: a marker's corners in its placement frame and its placement seen in one photo.
+"""The survey's geometry: a marker's corners in its placement frame, its placement seen in one photo, and the
+motion that lays one set of points on another.
 
 Rotation unknowns step on SO(3) with :mod:`fidlearn.frames._so3` (re-exported here for the survey's modules).
 """
 
 from __future__ import annotations
+
+import math
 
 import cv2
 import numpy as np
@@ -14,6 +17,7 @@ from ..markermap import MARKER_CORNERS_LOCAL, MarkerPlacement
 
 __all__ = [
     "exp_so3",
+    "fit_motion",
     "left_jacobian",
     "left_jacobian_inv",
     "local_corners",
@@ -78,3 +82,22 @@ def placement_of(
 def marker_sizes(tape, keys, scale: float = 1.0) -> dict:
     """Each key's marker side (mm) times ``scale``: the map's own size for its markers, the map's default else."""
     return {k: scale * (tape.marker_size(k) if k in tape else tape.marker_size_mm) for k in keys}
+
+
+def fit_motion(a: np.ndarray, b: np.ndarray, scaled: bool = False, limit: float = math.inf):
+    """``(s, R, t)`` with ``s R a + t`` closest to points ``b`` in least squares (Umeyama 1991), a proper rotation.
+
+    ``s`` is 1 unless ``scaled``. None when the points ``a`` coincide or are not finite, or the fitted scale is
+    not within ``(1 / limit, limit)``.
+    """
+    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
+    var = float(np.sum(ca**2))
+    if var <= 0 or not math.isfinite(var):
+        return None
+    u, sv, vt = np.linalg.svd(cb.T @ ca)
+    d = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(u @ vt)) or 1.0)])
+    R = u @ d @ vt
+    s = float(np.sum(sv * np.diag(d))) / var if scaled else 1.0
+    if not (1 / limit < s < limit):
+        return None
+    return s, R, b.mean(axis=0) - s * R @ a.mean(axis=0)

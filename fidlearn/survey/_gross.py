@@ -32,7 +32,7 @@ import numpy as np
 from .. import _stats
 from ..errors import MapError, SurveyError
 from ..markermap import MarkerMap
-from ._geometry import marker_sizes, placement_of
+from ._geometry import fit_motion, marker_sizes, placement_of
 from ._init import UNITS_FACTOR_LIMIT, _place_new, _units_message, initial_values
 from ._inputs import _Photo
 from ._solve import FIRST_SIGMA_PX, _polish, build_problem
@@ -240,18 +240,8 @@ def _residuals(src: np.ndarray, dst: np.ndarray, inliers: np.ndarray) -> np.ndar
 
 
 def _similarity(a: np.ndarray, b: np.ndarray, limit: float = UNITS_FACTOR_LIMIT):
-    """``(s, R, t)`` with ``s R a + t`` closest to ``b`` (Umeyama); None when degenerate or the scale is off."""
-    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
-    var = float(np.sum(ca**2))
-    if var <= 0 or not math.isfinite(var):
-        return None
-    u, sv, vt = np.linalg.svd(cb.T @ ca)
-    d = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(u @ vt)) or 1.0)])
-    R = u @ d @ vt
-    s = float(np.sum(sv * np.diag(d))) / var
-    if not (1 / limit < s < limit):
-        return None
-    return s, R, b.mean(axis=0) - s * R @ a.mean(axis=0)
+    """``(s, R, t)`` with ``s R a + t`` closest to ``b``; None when degenerate or the scale is off."""
+    return fit_motion(a, b, scaled=True, limit=limit)
 
 
 def _apply(sim, p: np.ndarray) -> np.ndarray:
