@@ -10,7 +10,9 @@
 # * the gauge freedom: why photos alone cannot say where the room is, and how the tape or one fixed marker pins it;
 # * how a robust loss and a chi-square test find a marker that was moved after it was measured;
 # * how to measure your printer's scale from one photo, and what to write in the map;
-# * how the map's accuracy grows with the number of photos, and what full SLAM adds on top.
+# * how the map's accuracy grows with the number of photos;
+# * how two photos and no map start a monocular SLAM map: the essential matrix, triangulation, the scale from one
+#   marker's size; and what full SLAM adds on top.
 #
 # This is the first step from localization (a known map, notebooks 06-09) towards SLAM (the map and the
 # camera at once). Run the cells from top to bottom (Shift-Enter).
@@ -19,6 +21,7 @@
 # %matplotlib inline
 import json
 
+import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 from scipy import sparse
@@ -544,13 +547,130 @@ assert max(shape_err) < tape_shape / 3 and shape_err[-1] < shape_err[0] / 3
 # millimetre. More photos help more slowly after that (each marker seen more often, and from more different
 # angles: an angle spread matters more than a count).
 #
-# ## 8. What full SLAM adds
+# ## 8. Two photos and no map: how monocular SLAM starts
+#
+# Everything so far started from a map, even a poor one. Monocular SLAM starts from nothing: two photos of the
+# same things, taken from two places. The markers' ids tell which corner in one photo is which corner in the
+# other (a SLAM system matches natural features by their descriptors instead), and that is enough:
+#
+# 1. each matched corner gives a **ray** from each camera: its pixel, undistorted, as a direction
+#    (`cv2.undistortPoints` gives the normalized coordinates $(x/z,\ y/z)$);
+# 2. the two rays of one point and the line between the cameras lie in one plane, so every match gives one
+#    equation $\mathbf x_2^\top E\, \mathbf x_1 = 0$ on the **essential matrix** $E = [\mathbf t]_\times R$;
+#    `cv2.findEssentialMat` solves it (Nistér's five-point method inside RANSAC) and `cv2.recoverPose` splits
+#    $E$ into the rotation $R$ and the direction $\mathbf t$ of camera 1 as seen from camera 2, keeping the one of
+#    four splits that puts the points in front of both cameras;
+# 3. **triangulate**: every corner is where its two rays cross (`cv2.triangulatePoints`), in camera 1's frame;
+# 4. the **scale** is still unknown: two photos of a room, and of a model of the room ten times smaller, are the
+#    same pictures. $\mathbf t$ comes out of length 1; one known length fixes it, here a marker's side.
+#
+# Which two photos? They must see the same markers from places far enough apart (parallax), and those markers
+# must not all lie on one wall: the points of a plane are explained almost as well by a second motion (the
+# plane's homography has two decompositions), and the noise chooses between them. Here are photos 4 and 14,
+# which share markers of one wall only, and photos 20 and 23, which share markers on several surfaces; the
+# truth (`poses.json`) says how far each answer is off.
+
+
+# %%
+seen = [{d.id: d.corners_px for d in dets} for dets in detections]
+
+
+def rays(px):
+    """Normalized image coordinates (x/z, y/z) of pixels: the rays through them, the lens's distortion undone."""
+    return cv2.undistortPoints(np.asarray(px, np.float64).reshape(-1, 1, 2), camera.K, camera.dist).reshape(-1, 2)
+
+
+def two_view(i, j):
+    """Photos i and j alone: the shared markers, R and unit t of camera 2 from camera 1, the corners triangulated."""
+    shared = sorted(set(seen[i]) & set(seen[j]))
+    x1 = rays(np.concatenate([seen[i][k] for k in shared]))
+    x2 = rays(np.concatenate([seen[j][k] for k in shared]))
+    E, inliers = cv2.findEssentialMat(x1, x2, np.eye(3), method=cv2.RANSAC, prob=0.999, threshold=1e-3)
+    _, R, t, _ = cv2.recoverPose(E, x1, x2, np.eye(3), mask=inliers)
+    X = cv2.triangulatePoints(np.eye(3, 4), np.hstack([R, t]), x1.T, x2.T)
+    return shared, R, t, (X[:3] / X[3]).T.reshape(-1, 4, 3)
+
+
+def motion_errors(i, j, R, t):
+    """Rotation error (degrees) and direction error of t (degrees) against the truth of photos i and j."""
+    T_21 = np.linalg.inv(T_true[j]) @ T_true[i]  # camera 1's frame to camera 2's
+    rot = np.degrees(np.linalg.norm(cv2.Rodrigues(R @ T_21[:3, :3].T)[0]))
+    true_dir = T_21[:3, 3] / np.linalg.norm(T_21[:3, 3])
+    return rot, np.degrees(np.arccos(np.clip(float(t.ravel() @ true_dir), -1.0, 1.0)))
+
+
+for i, j in [(4, 14), (20, 23)]:
+    shared, R, t, _ = two_view(i, j)
+    walls = {tuple(np.round(true_map.normal(k), 3)) for k in shared}
+    rot_err, dir_err = motion_errors(i, j, R, t)
+    print(
+        f"photos {i:2d} and {j:2d}: {len(shared)} shared markers on {len(walls)} surface(s): rotation off by "
+        f"{rot_err:.2f} deg, direction of travel off by {dir_err:.1f} deg"
+    )
+one_wall_err = motion_errors(4, 14, *two_view(4, 14)[1:3])
+three_err = motion_errors(20, 23, *two_view(20, 23)[1:3])
+assert one_wall_err[0] > 20 * three_err[0] and three_err[0] < 0.5 and three_err[1] < 1
+
+# %% [markdown]
+# One wall: {{ one_wall_err[0]:.1f}} degrees of rotation and {{ one_wall_err[1]:.0f }} degrees of direction wrong,
+# though the two photos are far apart. Three surfaces: {{ three_err[0]:.2f }} and {{ three_err[1]:.1f }} degrees.
+#
+# Now the scale, from what we know of the markers: each triangulated marker's four sides, in units of the
+# baseline, against its printed {{ true_map.marker_size_mm:.0f }} mm.
+
+# %%
+shared, R, t, corners_1 = two_view(20, 23)
+sides = np.linalg.norm(corners_1 - np.roll(corners_1, -1, axis=1), axis=2)  # TL-TR, TR-BR, BR-BL, BL-TL
+scale = true_map.marker_size_mm / np.median(sides)
+corners_1 = corners_1 * scale  # mm, in camera 1's frame
+T_21 = np.linalg.inv(T_true[23]) @ T_true[20]
+print(f"the sides agree to {100 * sides.std() / sides.mean():.2f} % (a good start has no outlier among them)")
+print(f"baseline: {scale:.0f} mm from the markers' size, {np.linalg.norm(T_21[:3, 3]):.0f} mm true")
+
+T_1w = np.linalg.inv(T_true[20])  # the world in camera 1's frame: only to compare with the truth
+truth_1 = np.array([true_map.marker_corners(k) @ T_1w[:3, :3].T + T_1w[:3, 3] for k in shared])
+corner_err = np.linalg.norm(corners_1 - truth_1, axis=2)
+print(f"the {corner_err.size} corners: within {np.median(corner_err):.2f} mm (median), {corner_err.max():.1f} at worst")
+assert abs(scale - np.linalg.norm(T_21[:3, 3])) < 10 and np.median(corner_err) < 2
+
+# %% [markdown]
+# Two photos and one marker's size have made a map of {{ len(shared) }} markers, to about a millimetre, with no
+# tape and no map file. It lives in camera 1's frame: the gauge (section 5) is fixed by taking the first camera
+# as the origin. Every other photo that sees two of these markers can now be located against it, as `locate`
+# does against a map file (`solvePnP`; SQPnP, as the two markers may be on two walls), and that is the
+# **tracking** half of SLAM:
+
+# %%
+two_view_map = {k: c for k, c in zip(shared, corners_1)}
+located = {}
+for f, markers in enumerate(seen):
+    known = [k for k in markers if k in two_view_map]
+    if f in (20, 23) or len(known) < 2:
+        continue
+    obj = np.concatenate([two_view_map[k] for k in known])
+    img = np.concatenate([markers[k] for k in known])
+    _, rvec, tvec = cv2.solvePnP(obj, img, camera.K, camera.dist, flags=cv2.SOLVEPNP_SQPNP)
+    R_cf = cv2.Rodrigues(rvec)[0]  # this photo's camera from camera 1's frame
+    centre = -R_cf.T @ tvec.ravel()  # its centre, in camera 1's frame
+    located[f] = float(np.linalg.norm(centre - (T_1w @ T_true[f])[:3, 3]))
+print(f"{len(located)} more photos located against the two-photo map, position error (mm):")
+print({f: round(e, 1) for f, e in located.items()})
+assert len(located) >= 12 and np.median(list(located.values())) < 5
+
+# %% [markdown]
+# {{ len(located) }} of the other {{ len(seen) - 2 }} photos are located within {{ np.median(list(located.values())):.1f }} mm
+# (median) of where they were, by a map that two of them made. What is left for a full SLAM system is what the
+# rest of this notebook built: photos located this way see new markers, which are triangulated into the map in
+# turn (step 3 with the located poses), and bundle adjustment (sections 2-6) refines the growing map and every
+# pose at once.
+#
+# ## 9. What full SLAM adds
 #
 # Here the photos were a batch, the markers known by their ids, and every camera started from `locate` with the
 # tape map. Full monocular SLAM (UcoSLAM, ORB-SLAM) drops each of those crutches:
 #
-# * **no map to start from**: the first markers' placements come from the first photos, and the gauge is fixed
-#   by declaring the first camera (or first marker) the origin;
+# * **no map to start from**: the first markers' placements come from the first photos (section 8), and the gauge
+#   is fixed by declaring the first camera (or first marker) the origin;
 # * **online**: a new frame is located against the map so far (tracking, notebook 10), and the map is adjusted
 #   only now and then, over a window of *keyframes* (local bundle adjustment), to stay real-time;
 # * **loop closure**: coming back to a place seen long ago reveals the drift accumulated on the way; a pose-graph
@@ -573,6 +693,9 @@ assert max(shape_err) < tape_shape / 3 and shape_err[-1] < shape_err[0] / 3
 #   where the tape gave centimetres.
 # * A printer's scale shows in one photo of four taped markers (`check_print`) and in a survey
 #   (`print_scale`): write the printed sizes in the map (`size_mm`) or print again at 100 %.
+# * Two photos of non-coplanar points, far enough apart, give the motion between them (the essential matrix) and
+#   the points (triangulation), up to scale; one known length, a marker's side, gives the scale. Every photo
+#   that sees the result can be located against it: the start of monocular SLAM.
 # * A board or a bundle in the map is one rigid entry, surveyed as one object: one placement, one tape prior, one
 #   suspect test, however many markers it carries.
 #
