@@ -15,6 +15,7 @@ import pytest
 from fidlearn import exercises, frames
 from fidlearn.exercises._scenery import _SIZES, ROOM_MM, _rng
 from fidlearn.exercises.lessons import (
+    _l11_two_view,
     l01_pinhole,
     l02_calibration,
     l03_extrinsics,
@@ -305,6 +306,11 @@ def _s11_q4(learner):
     return Scene(marker_map=q.inputs.marker_map, cameras=list(q.inputs.candidates))
 
 
+def _s11_q6(learner):
+    *_, (m, cam, T_1, T_2) = _l11_two_view._q6_data(_rng("11", learner, "q6"))
+    return Scene(marker_map=m, cameras=[T_1, T_2], camera=cam)
+
+
 #: Where each question's scene is, or why it has none (a str). Slow questions (rendered pictures,
 #: repeated calibrations) are in :data:`SLOW`, checked for fewer learners.
 SCENES = {
@@ -356,6 +362,7 @@ SCENES = {
     ("11", "q3"): "differences and covariances for a test",
     ("11", "q4"): _s11_q4,
     ("11", "q5"): "printed and measured marker sides for a scale",
+    ("11", "q6"): _s11_q6,
     ("12", "q1"): "a marker size, a printed size and a distance for a ratio",
     ("12", "q2"): "the bundled calibration views' corners for a count of cells",
     ("12", "q3"): "an uncertainty map and warnings for a verdict",

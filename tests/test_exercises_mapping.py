@@ -180,3 +180,77 @@ def test_no_q5_variant_lets_a_named_mistake_pass_for_learners_0_to_999():
         for words, wrong in _q5_wrong_answers(q).items():
             assert q.grade(wrong).status == INCORRECT, (i, words)
         assert len(set(np.asarray(q.inputs.size_mm))) >= 2, i
+
+
+def _q6_wrong_answers(q, corners):
+    """The answers of q6's named mistakes, computed here from the corners triangulated by hand."""
+    size = q.inputs.marker_size_mm
+    sides = np.linalg.norm(corners - np.roll(corners, -1, axis=1), axis=2)
+    diagonals = np.linalg.norm(corners[:, :2] - corners[:, 2:], axis=2)
+    pairs = np.concatenate([np.linalg.norm(corners[:, a] - corners[:, b], axis=1) for a, b in _PAIRS])
+    return {
+        "length of t": float(np.linalg.norm(q.inputs.t)),
+        "diagonal": size / np.median(diagonals),
+        "every pair of corners": size / np.mean(pairs),
+        "side over the size": np.median(sides) / size,
+        "metres": size / np.median(sides) / 1000,
+    }
+
+
+_PAIRS = [(a, b) for a in range(4) for b in range(a + 1, 4)]
+
+
+def _midpoints(q) -> np.ndarray:
+    """The corners (n, 4, 3) in baselines, camera 1's frame, by the midpoint of the two rays' closest points."""
+    R, t = np.asarray(q.inputs.R), np.asarray(q.inputs.t)
+    x1 = np.column_stack([np.asarray(q.inputs.rays_1).reshape(-1, 2), np.ones(len(np.asarray(q.inputs.rays_1)) * 4)])
+    x2 = np.column_stack([np.asarray(q.inputs.rays_2).reshape(-1, 2), np.ones(len(x1))])
+    c2 = -R.T @ t  # camera 2's centre in camera 1's frame
+    d2 = x2 @ R  # camera 2's rays turned into camera 1's frame (R^T x)
+    out = []
+    for a, b in zip(x1, d2):  # camera 1: 0 + s a; camera 2: c2 + u b; least squares for s and u
+        s, u = np.linalg.lstsq(np.column_stack([a, -b]), c2, rcond=None)[0]
+        out.append((s * a + c2 + u * b) / 2)
+    return np.array(out).reshape(-1, 4, 3)
+
+
+@pytest.mark.parametrize("learner", LEARNERS)
+def test_the_scale_of_a_two_photo_map_and_its_mistakes(learner):
+    from fidlearn.exercises._scenery import _rng
+    from fidlearn.exercises.lessons import _l11_two_view
+    from fidlearn.exercises.lessons._l11_two_view import _q6_data
+
+    q, answer = key_of("q6", learner)
+    *_, (m, cam, T_1, T_2) = _q6_data(_rng("11", learner, "q6"))
+    true_baseline = float(np.linalg.norm(T_1[:3, 3] - T_2[:3, 3]))
+    assert q.grade(true_baseline).status == CORRECT  # the key is where the cameras stood
+    assert q.grade(true_baseline * 1.03).status == INCORRECT
+    assert abs(answer / true_baseline - 1) < _l11_two_view._FAIR
+    assert abs(np.linalg.norm(q.inputs.t) - 1) < 1e-8
+    # the rays are the markers' corners seen from the two poses (0.2 px of noise): within 2 px of the truth
+    corners = np.concatenate([m.marker_corners(i) for i in m.ids])
+    for rays, T in ((q.inputs.rays_1, T_1), (q.inputs.rays_2, T_2)):
+        px = np.asarray(rays).reshape(-1, 2) * [cam.fx, cam.fy] + [cam.cx, cam.cy]
+        assert np.abs(px - cam.project(corners, T)).max() < 2.0
+    assert q.grade(answer).status == CORRECT
+    # another right method, the midpoint of the rays' closest points with the mean side, is accepted too
+    mid = _midpoints(q)
+    sides = np.linalg.norm(mid - np.roll(mid, -1, axis=1), axis=2)
+    assert q.grade(q.inputs.marker_size_mm / np.mean(sides)).status == CORRECT
+    for words, wrong in _q6_wrong_answers(q, mid).items():
+        r = q.grade(wrong)
+        assert r.status == INCORRECT, words
+        assert words in r.message, (words, r.message)
+    assert _l11_two_view._RTOL > 2 * _l11_two_view._FAIR
+
+
+def test_no_q6_variant_lets_a_named_mistake_pass_for_learners_0_to_199():
+    from fidlearn.exercises.lessons import _l11_two_view
+
+    for i in range(200):
+        q = _l11_two_view._q6(str(i))
+        mid = _midpoints(q)
+        sides = np.linalg.norm(mid - np.roll(mid, -1, axis=1), axis=2)
+        assert q.grade(q.inputs.marker_size_mm / np.median(sides)).status == CORRECT, i
+        for words, wrong in _q6_wrong_answers(q, mid).items():
+            assert q.grade(wrong).status == INCORRECT, (i, words)

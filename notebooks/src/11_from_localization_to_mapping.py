@@ -701,7 +701,8 @@ assert len(located) >= 12 and np.median(list(located.values())) < 5
 #
 # **Exercises**: [exercises/11_mapping.ipynb](exercises/11_mapping.ipynb), with automatic feedback
 # (or `from fidlearn import exercises; ex = exercises.lesson("11")` in a new cell): count a survey's unknowns,
-# build one residual by hand, find the moved marker, choose the next photo, and write the sizes your printer made.
+# build one residual by hand, find the moved marker, choose the next photo, write the sizes your printer made, and
+# give a two-photo map its scale.
 #
 # ## Try it
 #

@@ -30,14 +30,15 @@ from .._scenery import (
     _wall_map,
 )
 from ._l11_print import _Q5, _q5  # noqa: F401 (q5, kept apart for the module's length)
+from ._l11_two_view import _Q6, _q6  # noqa: F401 (q6, likewise)
 
 NUMBER = "11"
 TOPIC = "mapping"
 TITLE = "From localization to mapping"
 INTRO = """
     Let photos measure the map: count a survey's unknowns, build one of its residuals by hand,
-    find the marker the tape put in the wrong place, choose the photo that helps the map most, and
-    write in the map the sizes your printer really made.
+    find the marker the tape put in the wrong place, choose the photo that helps the map most,
+    write in the map the sizes your printer really made, and give a map made from two photos its scale.
     """
 
 _CORNERS = ("top-left", "top-right", "bottom-right", "bottom-left")
@@ -433,6 +434,6 @@ def build(learner: str) -> list[Question]:
     Returns
     -------
     list of Question
-        q1, q2, q3, q4, q5, with their answer keys.
+        q1, q2, q3, q4, q5, q6, with their answer keys.
     """
-    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner)]
+    return [_q1(learner), _q2(learner), _q3(learner), _q4(learner), _q5(learner), _q6(learner)]
