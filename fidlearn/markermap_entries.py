@@ -242,7 +242,23 @@ class BundleEntry:
 
 
 def id_ranges(ids: list[int]) -> str:
-    """Sorted marker ids as people write them: ``[20, 21, 22, 25]`` as ``"20-22, 25"``."""
+    """Sorted marker ids as people write them, runs of consecutive ids joined by a dash.
+
+    Parameters
+    ----------
+    ids : list of int
+        Marker ids, sorted.
+
+    Returns
+    -------
+    str
+        The ids, comma-separated, each run of consecutive ids as ``first-last``.
+
+    Examples
+    --------
+    >>> id_ranges([20, 21, 22, 25, 27, 28])
+    '20-22, 25, 27-28'
+    """
     parts, start = [], None
     for k, i in enumerate(ids):
         start = i if start is None else start
