@@ -655,11 +655,12 @@ for f, markers in enumerate(seen):
     located[f] = float(np.linalg.norm(centre - (T_1w @ T_true[f])[:3, 3]))
 print(f"{len(located)} more photos located against the two-photo map, position error (mm):")
 print({f: round(e, 1) for f, e in located.items()})
-assert len(located) >= 12 and np.median(list(located.values())) < 5
+located_median = float(np.median(list(located.values())))
+assert len(located) >= 12 and located_median < 5
 
 # %% [markdown]
-# {{ len(located) }} of the other {{ len(seen) - 2 }} photos are located within {{ np.median(list(located.values())):.1f }} mm
-# (median) of where they were, by a map that two of them made. What is left for a full SLAM system is what the
+# {{ len(located) }} of the other {{ len(seen) - 2 }} photos are located within {{ located_median:.1f }} mm (median) of
+# where they were, by a map that two of them made. What is left for a full SLAM system is what the
 # rest of this notebook built: photos located this way see new markers, which are triangulated into the map in
 # turn (step 3 with the located poses), and bundle adjustment (sections 2-6) refines the growing map and every
 # pose at once.
