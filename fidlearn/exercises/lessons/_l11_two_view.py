@@ -45,6 +45,18 @@ _Q6: QuestionText = {
         q6.answer = q6.inputs.marker_size_mm / np.median(sides)
         """,
     "level": "medium",
+    "look": (
+        "import matplotlib.pyplot as plt\n"
+        "fig, axes = plt.subplots(1, 2, figsize=(9, 3.2), sharex=True, sharey=True)\n"
+        "for ax, rays, name in zip(axes, (q6.inputs.rays_1, q6.inputs.rays_2), ('photo 1', 'photo 2')):\n"
+        "    for k, quad in enumerate(np.asarray(rays)):\n"
+        "        ax.fill(quad[:, 0], quad[:, 1], alpha=0.5)\n"
+        "        ax.annotate(str(k), quad[0], fontsize=8)\n"
+        "    ax.set_title(f'{name}: the corners as rays (x/z, y/z)')\n"
+        "    ax.set_aspect('equal')\n"
+        "axes[0].invert_yaxis()  # y down, as in the pictures\n"
+        "plt.show()"
+    ),
 }
 
 #: The grading tolerance, relative: a right method lands within a tenth of it (the variant is drawn so).
