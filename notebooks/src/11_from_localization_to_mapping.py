@@ -642,7 +642,7 @@ assert abs(scale - np.linalg.norm(T_21[:3, 3])) < 10 and np.median(corner_err) <
 
 # %%
 two_view_map = {k: c for k, c in zip(shared, corners_1)}
-located = {}
+located, cameras_1 = {}, {20: (np.eye(3), np.zeros(3)), 23: (R, scale * t.ravel())}  # (R, t): camera from frame 1
 for f, markers in enumerate(seen):
     known = [k for k in markers if k in two_view_map]
     if f in (20, 23) or len(known) < 2:
@@ -653,6 +653,7 @@ for f, markers in enumerate(seen):
     R_cf = cv2.Rodrigues(rvec)[0]  # this photo's camera from camera 1's frame
     centre = -R_cf.T @ tvec.ravel()  # its centre, in camera 1's frame
     located[f] = float(np.linalg.norm(centre - (T_1w @ T_true[f])[:3, 3]))
+    cameras_1[f] = (R_cf, tvec.ravel())
 print(f"{len(located)} more photos located against the two-photo map, position error (mm):")
 print({f: round(e, 1) for f, e in located.items()})
 located_median = float(np.median(list(located.values())))
@@ -660,10 +661,33 @@ assert len(located) >= 12 and located_median < 5
 
 # %% [markdown]
 # {{ len(located) }} of the other {{ len(seen) - 2 }} photos are located within {{ located_median:.1f }} mm (median) of
-# where they were, by a map that two of them made. What is left for a full SLAM system is what the
-# rest of this notebook built: photos located this way see new markers, which are triangulated into the map in
-# turn (step 3 with the located poses), and bundle adjustment (sections 2-6) refines the growing map and every
-# pose at once.
+# where they were, by a map that two of them made. Those photos also see markers the first two did not: the
+# **mapping** half of SLAM triangulates them in turn, step 3 again with the located cameras' $[R \mid \mathbf t]$ in
+# place of $[I \mid 0]$ and $[R \mid \mathbf t]$ (from the two located photos that stood furthest apart):
+
+# %%
+grown = {}
+for k in sorted({k for f in cameras_1 for k in seen[f]} - set(two_view_map)):
+    photos_k = [f for f in cameras_1 if k in seen[f]]
+    if len(photos_k) < 2:
+        continue
+    centres = {f: -cameras_1[f][0].T @ cameras_1[f][1] for f in photos_k}
+    pairs = [(a, b) for a in photos_k for b in photos_k if a < b]
+    a, b = max(pairs, key=lambda p: np.linalg.norm(centres[p[0]] - centres[p[1]]))
+    P_a, P_b = (np.hstack([cameras_1[f][0], cameras_1[f][1][:, None]]) for f in (a, b))
+    X = cv2.triangulatePoints(P_a, P_b, rays(seen[a][k]).T, rays(seen[b][k]).T)
+    grown[k] = (X[:3] / X[3]).T
+    truth_k = true_map.marker_corners(k) @ T_1w[:3, :3].T + T_1w[:3, 3]
+    err = np.linalg.norm(grown[k] - truth_k, axis=1)
+    print(f"marker {k}: from photos {a} and {b}, its corners within {err.max():.1f} mm")
+print(f"the map: {len(two_view_map)} markers from the first two photos, {len(two_view_map) + len(grown)} now")
+assert len(grown) >= 1
+
+# %% [markdown]
+# The map grows, and so do its errors: each new marker inherits the errors of the poses that placed it, which
+# inherited those of the markers that located them. Left alone, a long walk drifts. That is why a SLAM system
+# keeps the residuals of every photo and refines the growing map and every pose at once, with the bundle
+# adjustment of sections 2-6, and why coming back to a marker seen at the start (a loop) is worth so much.
 #
 # ## 9. What full SLAM adds
 #
