@@ -116,6 +116,30 @@ def test_draw_markers_labels_a_board_once_above_it_with_its_ids():
     assert board[:, 1].min() < y < board[:, 1].max()
 
 
+def test_draw_markers_draws_the_marker_of_the_dictionary_asked_and_refuses_an_unknown_one():
+    from fidlearn.errors import PlotError
+
+    m = MarkerMap.from_dict(
+        {
+            "marker_size_mm": 100,
+            "dictionary": "ARUCO_ORIGINAL",
+            "markers": {
+                "3": {"translation": [0, 0, 1000], "rotation": [0, 0, 0]},
+                "4X4_50:3": {"translation": [0, 500, 1000], "rotation": [0, 0, 0]},
+            },
+        },
+        units="mm",
+    )
+    other = next(k for k in m.corners() if str(k) == "4X4_50:3")
+    ax = plotting.new_axes_3d()
+    plotting.draw_markers(ax, m, ids=[other])
+    (label,) = ax.texts
+    assert label.get_text() == "4X4_50:3"
+    assert label.get_position_3d()[1] > 300  # above the marker at y = 500 mm, not the map's own marker 3 at y = 0
+    with pytest.raises(PlotError, match=r"markers \[99\] are not in the map"):
+        plotting.draw_markers(ax, m, ids=[99])
+
+
 def test_draw_box_draws_the_twelve_edges_of_the_room():
     ax = plotting.new_axes_3d()
     lines = plotting.draw_box(ax, [0, 0, 0], [4000, 3000, 2500])

@@ -199,7 +199,8 @@ def draw_markers(
         A 3D Axes in mm (:func:`new_axes_3d`).
     marker_map : MarkerMap
     ids : iterable of int, optional
-        The markers to draw; all by default.
+        The markers to draw (the map's keys: a marker of another dictionary than the map's is its
+        ``MarkerKey``); all by default.
     color : str
     show_ids : bool
     show_corners : bool
@@ -210,9 +211,18 @@ def draw_markers(
     -------
     Poly3DCollection
         One polygon per marker, vertices TL, TR, BR, BL (mm, world).
+
+    Raises
+    ------
+    PlotError
+        If one of ``ids`` is not a marker of the map.
     """
     corners = marker_map.corners()
-    ids = list(corners) if ids is None else [int(i) for i in ids]
+    ids = list(corners) if ids is None else list(ids)
+    missing = [i for i in ids if i not in corners]
+    if missing:
+        known = ", ".join(str(k) for k in corners)
+        raise PlotError(f"draw_markers: markers {missing} are not in the map {marker_map.source} (it has {known})")
     quads = [corners[i] for i in ids]
     coll = Poly3DCollection(quads, facecolors=color, edgecolors="k", linewidths=1.0, alpha=alpha)
     ax.add_collection3d(coll)
