@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fidlearn import MarkerMap, data_path
+from fidlearn import MarkerKey, MarkerMap, data_path
 from fidlearn.cli import main
 
 FOLDER = data_path("survey")
@@ -151,3 +151,14 @@ def test_user_errors_exit_2_with_one_line_and_write_nothing(capsys, tmp_path, ca
     assert TAPE.read_bytes() == before
     assert case == "clobber" or not out_path.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_fixed_reads_a_marker_of_another_dictionary_as_the_map_file_writes_it():
+    from fidlearn.cli.survey import _fixed_key
+    from fidlearn.synthetic import mixed_survey_room
+
+    room = mixed_survey_room()  # ids 0-3 printed from both ARUCO_ORIGINAL (the map's) and 4X4_50
+    assert _fixed_key("1", room) == 1
+    assert not isinstance(_fixed_key("1", room), MarkerKey)
+    assert _fixed_key("4X4_50:1", room) == MarkerKey(1, "4X4_50")
+    assert _fixed_key(" DICT_4X4_50:1", room) == MarkerKey(1, "4X4_50")

@@ -185,3 +185,17 @@ def test_with_the_sigma_learnt_the_room_and_its_ellipsoids_are_the_tapes_rigid_l
         Ak = A[3 * k : 3 * k + 3]
         expected = Ak @ N_inv @ Ak.T * sigma**2
         assert np.abs(s.marker_covariance[key][3:, 3:] - expected).max() < 0.02 * np.abs(expected).max()
+
+
+def test_a_fixed_marker_of_the_other_dictionary_is_that_marker_not_its_namesake(room):
+    """fixed_ids=[MarkerKey(1, "4X4_50")] holds the 200 mm marker 1, not ARUCO_ORIGINAL's 80 mm marker 1."""
+    from helpers import with_placements
+
+    truth, poses = room
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3)
+    tape = with_placements(tape, {**tape.placements, BIG: truth.placements[BIG]})  # only BIG taped exactly
+    s = fidlearn.survey(projected_photos(truth, CAM, poses), tape, CAM, map_sigma_mm=math.inf, fixed_ids=[BIG])
+    assert s.marker_map.placements[BIG] == tape.placements[BIG]  # held where the tape put it
+    assert corner_error_mm(s.marker_map, truth) < 1e-6  # and the photos place the rest from it
+    with pytest.raises(fidlearn.FidlearnError, match="4X4_50:9"):
+        fidlearn.survey(projected_photos(truth, CAM, poses), tape, CAM, fixed_ids=[MarkerKey(9, "4X4_50")])

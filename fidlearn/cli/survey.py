@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from ..errors import UsageError
+from ..errors import FidlearnError, UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
 from ..markermap_entries import BundleEntry, id_ranges
@@ -68,10 +68,12 @@ def add(sub) -> None:
     )
     p.add_argument(
         "--fixed",
-        type=int,
         action="append",
         metavar="ID",
-        help="a marker whose placement is exact (repeatable; a board's or bundle's marker holds its whole entry)",
+        help=(
+            "a marker whose placement is exact (repeatable; a board's or bundle's marker holds its whole entry; "
+            "a marker of another dictionary than the map's as the map file writes it, e.g. 4X4_50:3)"
+        ),
     )
     p.add_argument("-o", "--output", type=Path, required=True, metavar="SURVEYED.json", help="surveyed map to write")
     p.add_argument("--plot", type=Path, metavar="SURVEY.png", help="also draw the markers and the cameras in 3D")
@@ -97,6 +99,18 @@ def _check(args) -> list[Path]:
     return photos
 
 
+def _fixed_key(text: str, tape) -> int:
+    """The map's key of ``--fixed`` ``text``: an id of the map's dictionary, or ``DICTIONARY:ID``."""
+    dictionary, _, number = text.strip().rpartition(":")
+    try:
+        return tape.key(int(number), dictionary or None)
+    except (ValueError, FidlearnError):
+        raise UsageError(
+            f"--fixed {text!r}: give a marker id such as 3, or a marker of another dictionary as the map file writes "
+            "it, such as 4X4_50:3"
+        ) from None
+
+
 def run(args) -> int:
     """Survey, print the table and the suspects, write the map (and the figure).
 
@@ -118,10 +132,11 @@ def run(args) -> int:
     """
     photos = _check(args)
     tape = _load_map(args)
+    fixed = None if args.fixed is None else [_fixed_key(text, tape) for text in args.fixed]
     camera = _load_camera(args)
     progress = _Progress("survey")
     try:
-        result = survey(photos, tape, camera, map_sigma_mm=args.map_sigma_mm, fixed_ids=args.fixed, progress=progress)
+        result = survey(photos, tape, camera, map_sigma_mm=args.map_sigma_mm, fixed_ids=fixed, progress=progress)
     finally:
         progress.clear()
     for label, reason in result.unused:

@@ -20,7 +20,7 @@ from ..camera import Camera
 from ..detection import Detection, detect_markers
 from ..errors import ImageError, SurveyError
 from ..images import load_image
-from ..markermap import MarkerMap
+from ..markermap import MarkerKey, MarkerMap
 from ..pose._inputs import _as_camera, _as_map
 
 #: At least this many photos must give a camera pose.
@@ -114,15 +114,22 @@ def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
     if isinstance(fixed_ids, (str, bytes)):
         raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {_short(fixed_ids)}")
     try:
-        ids = tuple(sorted({int(i) for i in fixed_ids if not isinstance(i, bool) and int(i) == i}))
+        # a MarkerKey (a marker of another dictionary than the map's) stays itself: int() would make it its namesake
+        keys = {
+            i if isinstance(i, MarkerKey) else int(i)
+            for i in fixed_ids
+            if not isinstance(i, bool) and (isinstance(i, MarkerKey) or int(i) == i)
+        }
+        ids = tuple(sorted(keys, key=lambda k: (int(k), str(k))))
         if len(ids) != len(set(fixed_ids)):
             raise ValueError
     except (TypeError, ValueError, OverflowError):
         raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {_short(fixed_ids)}") from None
     missing = [i for i in ids if i not in marker_map]
     if missing:
+        known = ", ".join(str(k) for k in marker_map.ids)
         raise SurveyError(
-            f"fixed_ids has marker {missing[0]}, which is not in the map {marker_map.source} (ids {marker_map.ids}); "
+            f"fixed_ids has marker {missing[0]}, which is not in the map {marker_map.source} (markers {known}); "
             "a fixed marker must have a placement"
         )
     return ids

@@ -101,7 +101,8 @@ def survey(
         applied when it is more than 3 standard errors from 1 (:attr:`Survey.print_scale`). A
         number given is used as it is, and the print scale only reported.
     fixed_ids : int or sequence of int, optional
-        Markers whose tape placement is exact: held, not adjusted (a marker of a rigid entry holds its entry).
+        Markers whose tape placement is exact: held, not adjusted (a marker of a rigid entry holds its entry). A
+        marker of another dictionary than the map's is given by its key, ``marker_map.key(id, dictionary)``.
     corner_sigma_px : float, optional
         Corner noise, px per coordinate; estimated from the residuals when None.
     progress : callable, optional
