@@ -241,33 +241,6 @@ class BundleEntry:
         }
 
 
-def id_ranges(ids: list[int]) -> str:
-    """Sorted marker ids as people write them, runs of consecutive ids joined by a dash.
-
-    Parameters
-    ----------
-    ids : list of int
-        Marker ids, sorted.
-
-    Returns
-    -------
-    str
-        The ids, comma-separated, each run of consecutive ids as ``first-last``.
-
-    Examples
-    --------
-    >>> id_ranges([20, 21, 22, 25, 27, 28])
-    '20-22, 25, 27-28'
-    """
-    parts, start = [], None
-    for k, i in enumerate(ids):
-        start = i if start is None else start
-        if k + 1 == len(ids) or ids[k + 1] != i + 1:
-            parts.append(str(i) if i == start else f"{start}-{i}")
-            start = None
-    return ", ".join(parts)
-
-
 def _key_text(p: MarkerPlacement) -> str:
     return str(p.id) if p.dictionary is None else f"{p.dictionary}:{p.id}"
 

@@ -17,9 +17,9 @@ from helpers import corner_error_mm, jacobian_error, projected_photos
 
 import fidlearn
 from fidlearn import frames
+from fidlearn._map_parse import id_ranges
 from fidlearn.cli.survey import suspect_lines
 from fidlearn.markermap import MarkerMap
-from fidlearn.markermap_entries import id_ranges
 from fidlearn.survey._entries import entry_groups, member_covariance
 from fidlearn.survey._geometry import exp_so3
 from fidlearn.survey._solve import build_problem

@@ -36,6 +36,7 @@ from ._images import (
     show_image,
     show_images,
 )
+from ._markers3d import draw_markers
 from ._room import (
     AXIS_COLORS,
     AxesCube,
@@ -43,7 +44,6 @@ from ._room import (
     draw_box,
     draw_camera,
     draw_frame,
-    draw_markers,
     draw_trajectory,
     draw_world_axes,
     new_axes_3d,

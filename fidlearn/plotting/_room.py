@@ -6,20 +6,19 @@ OpenCV's (x right, y down, z forward). World axes are drawn X red, Y green, Z bl
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d import Axes3D  # also registers the 3d projection
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from .. import frames
 from ..camera import Camera
 from ..errors import PlotError
-from ..markermap import CORNER_NAMES, MarkerMap
-from ..markermap_entries import id_ranges
+from ..markermap import MarkerMap
+from ._markers3d import draw_markers
 
 #: Colours of the X, Y and Z axes of every frame drawn.
 AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
@@ -174,88 +173,6 @@ def draw_world_axes(ax: Axes3D, length_mm: float = 300.0, label: str | None = "w
         X, Y, Z.
     """
     return draw_frame(ax, np.eye(4), length_mm=length_mm, label=label, linewidth=2.5, axis_names=("X", "Y", "Z"))
-
-
-def draw_markers(
-    ax: Axes3D,
-    marker_map: MarkerMap,
-    *,
-    ids: Iterable[int] | None = None,
-    color: str = "0.2",
-    show_ids: bool = True,
-    show_corners: bool = False,
-    alpha: float = 0.9,
-) -> Poly3DCollection:
-    """Draw markers as filled squares at their world corners, with their ids.
-
-    The top-left corner of each marker gets a red dot, so a wrong rotation in a
-    map shows at a glance; the id is written just above the marker's top edge. The
-    markers of a board or a bundle of the map get one label instead, above the
-    entry: its name and its markers' ids (``wall board (20-36)``).
-
-    Parameters
-    ----------
-    ax : mpl_toolkits.mplot3d.axes3d.Axes3D
-        A 3D Axes in mm (:func:`new_axes_3d`).
-    marker_map : MarkerMap
-    ids : iterable of int, optional
-        The markers to draw (the map's keys: a marker of another dictionary than the map's is its
-        ``MarkerKey``); all by default.
-    color : str
-    show_ids : bool
-    show_corners : bool
-        Label TL, TR, BR, BL too.
-    alpha : float
-
-    Returns
-    -------
-    Poly3DCollection
-        One polygon per marker, vertices TL, TR, BR, BL (mm, world).
-
-    Raises
-    ------
-    PlotError
-        If one of ``ids`` is not a marker of the map.
-    """
-    corners = marker_map.corners()
-    ids = list(corners) if ids is None else list(ids)
-    missing = [i for i in ids if i not in corners]
-    if missing:
-        known = ", ".join(str(k) for k in corners)
-        raise PlotError(f"draw_markers: markers {missing} are not in the map {marker_map.source} (it has {known})")
-    quads = [corners[i] for i in ids]
-    coll = Poly3DCollection(quads, facecolors=color, edgecolors="k", linewidths=1.0, alpha=alpha)
-    ax.add_collection3d(coll)
-    owner = marker_map.owner
-    for mid, c in zip(ids, quads):
-        ax.scatter(*c[0], color="tab:red", s=12, depthshade=False)
-        if show_ids and mid not in owner:  # just above the top edge, clear of the dark face
-            ax.text(*((c[0] + c[1]) / 2 + 0.45 * (c[0] - c[3])), str(mid), **_ID_STYLE)
-        if show_corners:
-            for name, p in zip(CORNER_NAMES, c):
-                ax.text(*p, name, fontsize=7, color="tab:red")
-    if show_ids:
-        _label_entries(ax, marker_map, {i: c for i, c in zip(ids, quads) if i in owner})
-    return coll
-
-
-_ID_STYLE = {"color": "k", "fontsize": 10, "ha": "center", "va": "center", "fontweight": "bold"}
-
-
-def _label_entries(ax: Axes3D, marker_map: MarkerMap, quads: dict) -> None:
-    """One label per board or bundle drawn: its name and its markers' ids, above its highest marker's top edge."""
-    by_entry: dict[str, list] = {}
-    for mid, c in quads.items():
-        by_entry.setdefault(marker_map.owner[mid], []).append((int(mid), c))
-    for name, members in by_entry.items():
-        pts = np.concatenate([c for _, c in members])
-        first = members[0][1]
-        up = (first[0] - first[3]) / np.linalg.norm(first[0] - first[3])  # the entry's up, as its markers'
-        side = np.linalg.norm(first[1] - first[0])
-        centre = pts.mean(axis=0)
-        at = centre + ((pts - centre) @ up).max() * up + 0.45 * side * up
-        ids = id_ranges(sorted(i for i, _ in members))
-        ax.text(*at, f"{name} ({ids})", **_ID_STYLE)
 
 
 def draw_box(
