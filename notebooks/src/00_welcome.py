@@ -151,7 +151,7 @@ plt.show()
 # | [08 Accuracy and pitfalls](08_accuracy_pitfalls.ipynb) | ambiguity of planar targets, noise, outliers, how sure the pose is | [08](exercises/08_accuracy.ipynb) |
 # | [09 Localizing a robot](09_localizing_a_robot.ipynb) | a moving camera, frame after frame | [09](exercises/09_robot.ipynb) |
 # | [10 Tracking over time](10_tracking_over_time.ipynb) | a Kalman filter on the pose, flips undone by continuity, odometry, ROS output | [10](exercises/10_tracking.ipynb) |
-# | [11 From localization to mapping](11_from_localization_to_mapping.ipynb) | the map from photos and the tape: bundle adjustment, the gauge, a moved marker found | [11](exercises/11_mapping.ipynb) |
+# | [11 From localization to mapping](11_from_localization_to_mapping.ipynb) | the map from photos and the tape: bundle adjustment, the gauge, a moved marker found; two photos and no map, the start of monocular SLAM | [11](exercises/11_mapping.ipynb) |
 # | [12 Your own camera](12_your_own_camera.ipynb) | your webcam in JupyterLab: calibrate it with the coach, then localize it live | [12](exercises/12_own_camera.ipynb) |
 # | [13 The robot's truth](13_robot_truth_hand_eye.ipynb) | real photos judged by an industrial robot: hand-eye calibration, leave-one-out | [13](exercises/13_hand_eye.ipynb) |
 # | [14 ChArUco boards](14_charuco_boards.ipynb) | chess corners named by markers: calibration, `refineDetectedMarkers`, the pose judged by the robot | [14](exercises/14_charuco.ipynb) |
