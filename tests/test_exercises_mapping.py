@@ -197,6 +197,23 @@ def _q6_wrong_answers(q, corners):
     }
 
 
+def test_q6_names_the_scale_of_one_side_when_it_misses():
+    from fidlearn.exercises.lessons import _l11_two_view
+
+    named = 0
+    for i in range(60):
+        q = _l11_two_view._q6(str(i))
+        corners = _l11_two_view._triangulated(
+            *(np.asarray(v) for v in (q.inputs.rays_1, q.inputs.rays_2, q.inputs.R)), np.asarray(q.inputs.t)
+        )
+        sides = np.linalg.norm(corners - np.roll(corners, -1, axis=1), axis=2)
+        r = q.grade(q.inputs.marker_size_mm / sides[0, 0])  # the first marker's top edge alone
+        if r.status == INCORRECT:
+            assert "one side" in r.message, (i, r.message)
+            named += 1
+    assert named >= 5  # one side misses often enough to need its own message
+
+
 _PAIRS = [(a, b) for a in range(4) for b in range(a + 1, 4)]
 
 

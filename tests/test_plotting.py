@@ -140,6 +140,33 @@ def test_draw_markers_draws_the_marker_of_the_dictionary_asked_and_refuses_an_un
         plotting.draw_markers(ax, m, ids=[99])
 
 
+def test_a_flat_bundle_of_another_dictionary_is_labelled_with_it_above_its_markers():
+    m = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 80,
+            "dictionary": "ARUCO_ORIGINAL",
+            "markers": {"3": {"translation": [0, 0, 1000]}},
+            "bundles": {
+                "dock": {
+                    "translation": [1000, 0, 0],
+                    "dictionary": "4X4_50",
+                    "markers": {
+                        "5": {"translation": [0, 0, 0], "rotation": [0, -90, 0]},
+                        "6": {"translation": [0, 200, 0], "rotation": [0, -90, 0]},
+                    },
+                }
+            },
+        }
+    )
+    ax = plotting.new_axes_3d()
+    plotting.draw_markers(ax, m)
+    texts = {t.get_text(): t.get_position_3d() for t in ax.texts}
+    assert set(texts) == {"3", "dock (4X4_50:5-6)"}
+    dock = np.concatenate([c for k, c in m.corners().items() if m.owner.get(k) == "dock"])
+    assert texts["dock (4X4_50:5-6)"][2] > dock[:, 2].max() + 10  # above the markers lying on the floor
+
+
 def test_draw_box_draws_the_twelve_edges_of_the_room():
     ax = plotting.new_axes_3d()
     lines = plotting.draw_box(ax, [0, 0, 0], [4000, 3000, 2500])

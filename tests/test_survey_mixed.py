@@ -197,5 +197,6 @@ def test_a_fixed_marker_of_the_other_dictionary_is_that_marker_not_its_namesake(
     s = fidlearn.survey(projected_photos(truth, CAM, poses), tape, CAM, map_sigma_mm=math.inf, fixed_ids=[BIG])
     assert s.marker_map.placements[BIG] == tape.placements[BIG]  # held where the tape put it
     assert corner_error_mm(s.marker_map, truth) < 1e-6  # and the photos place the rest from it
+    assert s.note()["fixed_ids"] == ["4X4_50:1"]  # the saved note names it as the map file does, not as marker 1
     with pytest.raises(fidlearn.FidlearnError, match="4X4_50:9"):
         fidlearn.survey(projected_photos(truth, CAM, poses), tape, CAM, fixed_ids=[MarkerKey(9, "4X4_50")])

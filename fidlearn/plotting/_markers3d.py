@@ -10,7 +10,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from .._map_parse import id_ranges
 from ..errors import PlotError
-from ..markermap import CORNER_NAMES, MarkerMap
+from ..markermap import CORNER_NAMES, MarkerKey, MarkerMap
 
 
 def draw_markers(
@@ -80,16 +80,15 @@ _ID_STYLE = {"color": "k", "fontsize": 10, "ha": "center", "va": "center", "font
 
 
 def _label_entries(ax: Axes3D, marker_map: MarkerMap, quads: dict) -> None:
-    """One label per board or bundle drawn: its name and its markers' ids, above its highest marker's top edge."""
+    """One label per board or bundle drawn: its name and its markers' ids, above its highest corner."""
     by_entry: dict[str, list] = {}
-    for mid, c in quads.items():
-        by_entry.setdefault(marker_map.owner[mid], []).append((int(mid), c))
+    for key, c in quads.items():
+        by_entry.setdefault(marker_map.owner[key], []).append((key, c))
     for name, members in by_entry.items():
         pts = np.concatenate([c for _, c in members])
         first = members[0][1]
-        up = (first[0] - first[3]) / np.linalg.norm(first[0] - first[3])  # the entry's up, as its markers'
-        side = np.linalg.norm(first[1] - first[0])
-        centre = pts.mean(axis=0)
-        at = centre + ((pts - centre) @ up).max() * up + 0.45 * side * up
-        ids = id_ranges(sorted(i for i, _ in members))
-        ax.text(*at, f"{name} ({ids})", **_ID_STYLE)
+        at = pts.mean(axis=0)
+        at[2] = pts[:, 2].max() + 0.45 * np.linalg.norm(first[1] - first[0])  # above it, whichever way it faces
+        keys = [k for k, _ in members]
+        dictionary = f"{keys[0].dictionary}:" if isinstance(keys[0], MarkerKey) else ""  # one dictionary an entry
+        ax.text(*at, f"{name} ({dictionary}{id_ranges(sorted(int(k) for k in keys))})", **_ID_STYLE)
