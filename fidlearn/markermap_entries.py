@@ -25,10 +25,19 @@ import numpy as np
 
 from . import _cv, frames
 from ._files import did_you_mean
-from ._map_parse import UNITS_TO_MM, MarkerKey, MarkerPlacement, _entry, _marker_size, _placements, _vector3
+from ._map_parse import (  # id_ranges: how the survey's report and the plot write an entry's ids
+    UNITS_TO_MM,
+    MarkerKey,
+    MarkerPlacement,
+    _entry,
+    _marker_size,
+    _placements,
+    _vector3,
+    id_ranges,
+)
 from .errors import FidlearnError, MapError
 
-__all__ = ["BoardEntry", "BundleEntry", "BOARD_TO_WORLD"]
+__all__ = ["BoardEntry", "BundleEntry", "BOARD_TO_WORLD", "id_ranges"]
 
 #: The board frame's axes in the world at rotation [0, 0, 0] (columns): x -> +Y, y -> -Z, z (into the board) -> -X.
 BOARD_TO_WORLD = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])

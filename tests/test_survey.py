@@ -158,6 +158,7 @@ def test_photo_sharing_no_marker_is_left_out_with_the_reason(room):
         ({"map_sigma_mm": "ten"}, SurveyError, "map_sigma_mm must be a length"),
         ({"fixed_ids": [99]}, SurveyError, "fixed_ids has marker 99, which is not in the map"),
         ({"fixed_ids": ["a"]}, SurveyError, "fixed_ids must be marker ids"),
+        ({"fixed_ids": [True, 1]}, SurveyError, "fixed_ids must be marker ids"),
         ({"map_sigma_mm": math.inf}, SurveyError, "nothing ties the photos to the world"),
         ({"corner_sigma_px": 0}, SurveyError, "corner_sigma_px must be a number of pixels above 0"),
     ],

@@ -11,11 +11,10 @@ import math
 import sys
 from pathlib import Path
 
-from .._map_parse import id_ranges
 from ..errors import FidlearnError, UsageError
 from ..images import expand_inputs
 from ..io import atomic_write
-from ..markermap_entries import BundleEntry
+from ..markermap_entries import BundleEntry, id_ranges
 from ..survey import MAX_MAP_SIGMA_MM, MAX_PHOTOS, MIN_MAP_SIGMA_MM, Survey, survey
 from ._common import (
     _add_image_size_option,

@@ -114,6 +114,8 @@ def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
     if isinstance(fixed_ids, (str, bytes)):
         raise SurveyError(f"fixed_ids must be marker ids (whole numbers), got {_short(fixed_ids)}")
     try:
+        if any(isinstance(i, bool) for i in fixed_ids):  # True is 1 to a set: [True, 1] would pass as [1]
+            raise ValueError
         # a MarkerKey (a marker of another dictionary than the map's) stays itself: int() would make it its namesake
         keys = {
             i if isinstance(i, MarkerKey) else int(i)
