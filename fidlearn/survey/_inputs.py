@@ -117,11 +117,7 @@ def _fixed_ids(fixed_ids, marker_map: MarkerMap) -> tuple[int, ...]:
         if any(isinstance(i, bool) for i in fixed_ids):  # True is 1 to a set: [True, 1] would pass as [1]
             raise ValueError
         # a MarkerKey (a marker of another dictionary than the map's) stays itself: int() would make it its namesake
-        keys = {
-            i if isinstance(i, MarkerKey) else int(i)
-            for i in fixed_ids
-            if not isinstance(i, bool) and (isinstance(i, MarkerKey) or int(i) == i)
-        }
+        keys = {i if isinstance(i, MarkerKey) else int(i) for i in fixed_ids if isinstance(i, MarkerKey) or int(i) == i}
         ids = tuple(sorted(keys, key=lambda k: (int(k), str(k))))
         if len(ids) != len(set(fixed_ids)):
             raise ValueError
