@@ -12,7 +12,7 @@
 # * how to measure your printer's scale from one photo, and what to write in the map;
 # * how the map's accuracy grows with the number of photos;
 # * how two photos and no map start a monocular SLAM map: the essential matrix, triangulation, the scale from one
-#   marker's size; and what full SLAM adds on top.
+#   marker's size, one bundle adjustment over every photo; and what full SLAM adds on top.
 #
 # This is the first step from localization (a known map, notebooks 06-09) towards SLAM (the map and the
 # camera at once). Run the cells from top to bottom (Shift-Enter).
@@ -20,6 +20,7 @@
 # %%
 # %matplotlib inline
 import json
+import warnings
 
 import cv2
 import matplotlib.pyplot as plt
@@ -28,7 +29,7 @@ from scipy import sparse
 
 from fidlearn import Camera, Detection, MarkerMap, data_path, detect_markers, estimate_pose, locate, survey
 from fidlearn.detection import load_image
-from fidlearn.frames import look_at
+from fidlearn.frames import look_at, rpy_deg_from_rotation
 from fidlearn.markermap import MARKER_CORNERS_LOCAL
 from fidlearn.survey import check_print
 from fidlearn.synthetic import (
@@ -694,6 +695,66 @@ assert len(grown) >= 1
 # keeps the residuals of every photo and refines the growing map and every pose at once, with the bundle
 # adjustment of sections 2-6, and why coming back to a marker seen at the start (a loop) is worth so much.
 #
+# This notebook already has that bundle adjustment: `survey`. Its start is the map grown so far, each marker's
+# placement fitted to its triangulated corners (the rotation by an SVD, Kabsch's fit); no tape
+# (`map_sigma_mm=inf`: the photos alone decide); one marker held (`fixed_ids`) for the gauge of section 5. The scale
+# needs nothing more: every marker's printed size is in the residuals. To compare with what came before, the
+# result is brought back into camera 1's frame, where camera 1 (photo 20) is now the adjusted one.
+
+# %%
+size_mm = true_map.marker_size_mm
+
+
+def placement(c):
+    """A map entry (mm, degrees) whose corners best fit the corners ``c`` (4, 3): the rotation by an SVD (Kabsch),
+    the translation that of the top-left corner."""
+    local = MARKER_CORNERS_LOCAL * size_mm  # the top-left corner at the origin
+    U, _, Vt = np.linalg.svd((local - local.mean(0)).T @ (c - c.mean(0)))
+    R = Vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))]) @ U.T
+    return {"translation": (c.mean(0) - R @ local.mean(0)).tolist(), "rotation": rpy_deg_from_rotation(R).tolist()}
+
+
+grown_map = {**two_view_map, **grown}
+slam_map = MarkerMap.from_dict(
+    {str(k): placement(c) for k, c in grown_map.items()},
+    units="mm",
+    marker_size_mm=size_mm,
+    dictionary=true_map.dictionary,
+)
+order = sorted(cameras_1)  # the photos located so far, 20 and 23 among them
+with warnings.catch_warnings(record=True) as caught:  # a marker seen once cannot be placed: it says so
+    warnings.simplefilter("always")
+    adjusted = survey([detections[f] for f in order], slam_map, camera, fixed_ids=[shared[0]], map_sigma_mm=np.inf)
+print(f"{len(caught)} warning(s): {[str(w.message).split(':')[0] for w in caught]}")
+
+T_1a = np.linalg.inv(adjusted.camera_poses[f"photo {order.index(20)}"])  # the survey's frame into camera 1's
+before, after = {}, {}
+for k in sorted(grown_map):
+    truth_k = true_map.marker_corners(k) @ T_1w[:3, :3].T + T_1w[:3, 3]
+    adjusted_k = adjusted.marker_map.marker_corners(k) @ T_1a[:3, :3].T + T_1a[:3, 3]
+    before[k] = np.linalg.norm(grown_map[k] - truth_k, axis=1).max()
+    after[k] = np.linalg.norm(adjusted_k - truth_k, axis=1).max()
+print("each marker's worst corner (mm), before -> after the bundle adjustment:")
+print({k: f"{before[k]:.1f} -> {after[k]:.1f}" for k in sorted(before)})
+cam_after = [
+    float(np.linalg.norm((T_1a @ adjusted.camera_poses[f"photo {n}"])[:3, 3] - (T_1w @ T_true[f])[:3, 3]))
+    for n, f in enumerate(order)
+    if f in located
+]
+map_before, map_after = np.median(list(before.values())), np.median(list(after.values()))
+worst_before, worst_after = max(before.values()), max(after.values())
+print(f"markers: median {map_before:.1f} -> {map_after:.1f} mm, worst {worst_before:.1f} -> {worst_after:.1f} mm")
+print(f"the {len(cam_after)} other cameras: median {located_median:.1f} -> {np.median(cam_after):.1f} mm")
+assert map_after < map_before / 2 and worst_after < worst_before / 2 and np.median(cam_after) < located_median / 2
+
+# %% [markdown]
+# One adjustment of {{ len(order) }} photos, every residual at once, brings the markers from
+# {{ map_before:.1f }} mm (the median of each marker's worst corner; {{ worst_before:.1f }} mm at worst, marker
+# {{ max(before, key=before.get) }}) to {{ map_after:.1f }} mm ({{ worst_after:.1f }} mm at worst), and the
+# {{ len(cam_after) }} other cameras from {{ located_median:.1f }} to {{ np.median(cam_after):.1f }} mm (median). The
+# errors that passed from poses to markers and back are shared out over every photo that saw them: each pose and
+# each marker is now held by all its sightings, not by the two that happened to place it.
+#
 # ## 9. What full SLAM adds
 #
 # Here the photos were a batch, the markers known by their ids, and every camera started from `locate` with the
@@ -725,7 +786,9 @@ assert len(grown) >= 1
 #   (`print_scale`): write the printed sizes in the map (`size_mm`) or print again at 100 %.
 # * Two photos of non-coplanar points, far enough apart, give the motion between them (the essential matrix) and
 #   the points (triangulation), up to scale; one known length, a marker's side, gives the scale. Every photo
-#   that sees the result can be located against it: the start of monocular SLAM.
+#   that sees the result can be located against it, and the markers they see triangulated in turn: the start of
+#   monocular SLAM. One bundle adjustment over all those photos (`survey` with no tape) then shares out the errors
+#   that building it step by step passed along.
 # * A board or a bundle in the map is one rigid entry, surveyed as one object: one placement, one tape prior, one
 #   suspect test, however many markers it carries.
 #
