@@ -267,6 +267,31 @@ class MarkerKey(int):
 
 
 _KEY = re.compile(r"\s*(?:(?P<dictionary>[A-Za-z0-9_]+)\s*:\s*)?(?P<id>-?[0-9]+)\s*")
+
+
+def key_json(key: int) -> int | str:
+    """A marker's key as a JSON file writes it: its id, or ``"4X4_50:3"`` for a marker of another dictionary than
+    its map's (JSON would write a :class:`MarkerKey`, an ``int``, as its bare number: the map's own marker of that
+    id)."""
+    return str(key) if isinstance(key, MarkerKey) else int(key)
+
+
+def key_from_json(value: Any) -> int | None:
+    """The key :func:`key_json` wrote: a whole number >= 0, or ``"DICT:ID"`` (a :class:`MarkerKey`); None for
+    anything else (the caller says what it expected)."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return value if value >= 0 else None
+    m = _KEY.fullmatch(value) if isinstance(value, str) else None
+    if m is None or m["dictionary"] is None or int(m["id"]) < 0:
+        return None
+    try:
+        return MarkerKey(int(m["id"]), _cv.dictionary_name(m["dictionary"]))
+    except DictionaryError:
+        return None
+
+
 _MARKER_FIELDS = ("translation", "rotation", "size_mm", "dictionary")
 
 
@@ -393,8 +418,30 @@ def _keyed(placements: Mapping[int, MarkerPlacement], dictionary: str, source: s
                 f"which has ids 0 to {count - 1}; check the id or the dictionary"
             )
         out[key] = MarkerPlacement(int(p.id), p.translation_mm, p.rotation_deg, size, name)
+    _refuse_same_patterns(out, dictionary, source)
     order = {n: k for k, n in enumerate([dictionary, *sorted({p.dictionary or "" for p in out.values()})])}
     return dict(sorted(out.items(), key=lambda kv: (int(kv[0]), order[kv[1].dictionary or dictionary])))
+
+
+def _refuse_same_patterns(out: Mapping[int, MarkerPlacement], dictionary: str, source: str) -> None:
+    """Raise :class:`MapError` for two markers of different dictionaries that print the same pattern (in any of
+    its four turns): OpenCV's 4X4_50 is the first 50 markers of 4X4_100, 4X4_250 and 4X4_1000, so ``"3"`` of one
+    and ``"4X4_250:3"`` are one printed marker, found by both detectors and matched to both placements."""
+    if len({p.dictionary or dictionary for p in out.values()}) < 2:
+        return
+    seen: dict[tuple[int, bytes], tuple[int, str]] = {}
+    for key, p in out.items():
+        name = p.dictionary or dictionary
+        d = _cv.get_dictionary(name)
+        turns = np.asarray(d.bytesList)[int(p.id)]  # (bytes, 4 turns)
+        for turn in range(turns.shape[-1]):
+            other = seen.get((d.markerSize, turns[:, turn].tobytes()))
+            if other is not None and other[1] != name:
+                raise MapError(
+                    f"{source}: markers {other[0]} and {key} are one printed pattern ({other[1]} and {name} share "
+                    "it): a detector cannot tell them apart; keep one of them, or give the other a different id"
+                )
+        seen[(d.markerSize, turns[:, 0].tobytes())] = (key, name)
 
 
 def id_ranges(ids: list[int]) -> str:

@@ -31,10 +31,20 @@ def is_wpilib(d: Any) -> bool:
     return isinstance(d, Mapping) and "tags" in d
 
 
+#: The farthest a layout's number may reach (m): beyond any field, and what a full map file allows (1e9 mm).
+_FARTHEST_M = 1e6
+
+
 def _number(value: Any, where: str, field: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
-        raise MapError(f"{where}: {field} must be a finite number, got {value!r:.40}")
-    return float(value)
+    try:
+        out = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else math.nan
+    except OverflowError:  # an int too large for a float
+        out = math.inf
+    if not abs(out) <= _FARTHEST_M:
+        raise MapError(
+            f"{where}: {field} must be a finite number of metres (at most {_FARTHEST_M:g}), got {value!r:.40}"
+        )
+    return out
 
 
 def _get(d: Any, key: str, where: str, what: str) -> Any:
@@ -92,6 +102,11 @@ def field_size_m(d: Mapping, source: str) -> tuple[float, float] | None:
         return None
     where = f"{source}: field"
     length, width = (_number(_get(field, a, where, '{"length": m, "width": m}'), where, a) for a in ("length", "width"))
+    if length <= 0 or width <= 0:
+        raise MapError(
+            f"{where}: length {length:g} and width {width:g} must both be above 0 (m): the field's size, which every "
+            "camera is on (FRC 2024: 16.541 x 8.211)"
+        )
     return length, width
 
 
@@ -99,15 +114,29 @@ def to_wpilib(marker_map: Any, field_m: tuple[float, float] | None = None) -> di
     """A map as a WPILib AprilTag field layout (metres, each tag's centre and quaternion).
 
     Raises :class:`MapError` when the map's markers are not all of one dictionary and one size (the file
-    holds neither), or a marker id would repeat.
+    holds neither), a marker id would repeat, or the field's size is not known (``field_m`` None): WPILib's
+    layouts carry it, and fidlearn refuses a pose outside it, so a size made up from the tags would refuse
+    cameras that stand where the map's own photos were taken.
     """
     sizes = {marker_map.marker_size(k) for k in marker_map.ids}
-    if len(marker_map.dictionaries) > 1 or len(sizes) > 1:
+    used = sorted({marker_map.marker_dictionary(k) for k in marker_map.ids})
+    if len(used) > 1 or len(sizes) > 1:
         raise MapError(
             f"{marker_map.source}: a WPILib field layout holds tags of one family and one size, but this map has "
-            f"{' and '.join(marker_map.dictionaries)}, {' and '.join(f'{s:g}' for s in sorted(sizes))} mm; save "
+            f"{' and '.join(used)}, {' and '.join(f'{s:g}' for s in sorted(sizes))} mm; save "
             "each family and size to a layout of its own"
         )
+    if field_m is None:
+        raise MapError(
+            f"{marker_map.source}: a WPILib field layout says the field's length and width (m), which this map does "
+            "not hold (it was not read from a field layout): give them, save(path, format='wpilib', "
+            "field_m=(16.541, 8.211)), the field that every tag and camera is on"
+        )
+    try:
+        length, width = field_m
+    except (TypeError, ValueError):
+        raise MapError(f"field_m must be the field's (length, width) in metres, got {field_m!r:.40}") from None
+    length, width = field_size_m({"field": {"length": length, "width": width}}, "field_m") or (0.0, 0.0)
     tags = []
     for key in marker_map.ids:
         T = marker_map.T_world_marker(key)  # OpenCV's marker frame: x TL->TR, y up, z out of the face
@@ -123,10 +152,7 @@ def to_wpilib(marker_map: Any, field_m: tuple[float, float] | None = None) -> di
                 },
             }
         )
-    if field_m is None:
-        centres = np.array([marker_map.T_world_marker(k)[:3, 3] for k in marker_map.ids]) / 1000.0
-        field_m = (float(max(centres[:, 0].max(), 0.0)), float(max(centres[:, 1].max(), 0.0)))
-    return {"tags": tags, "field": {"length": field_m[0], "width": field_m[1]}}
+    return {"tags": tags, "field": {"length": length, "width": width}}
 
 
 def map_from_wpilib(cls: Any, d: Mapping, units: Any, marker_size_mm: Any, dictionary: Any, source: str) -> Any:

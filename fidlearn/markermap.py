@@ -25,6 +25,7 @@ import numpy as np
 
 from . import _cv, frames
 from ._io import read_json, write_json_atomic
+from ._map_keys import _Keys
 from ._map_parse import (
     UNITS_TO_MM,
     MarkerKey,
@@ -60,7 +61,7 @@ CORNER_NAMES = ("TL", "TR", "BR", "BL")
 MARKER_CORNERS_LOCAL = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, -1.0]])
 
 
-class MarkerMap(_Entries):
+class MarkerMap(_Keys, _Entries):
     """Markers placed in the world: ids, placements, marker size and dictionary.
 
     Build one with :meth:`load` (a JSON file) or :meth:`from_dict`. Lengths are
@@ -127,6 +128,9 @@ class MarkerMap(_Entries):
         singles = _keyed(placements, self.dictionary, source)
         merged, self.owner = _merge_placements(singles, list(entries), self.dictionary, source)
         self.entries = {e.name: e for e in entries}
+        if len(self.entries) < len(entries):
+            twice = next(e.name for k, e in enumerate(entries) if e.name in [f.name for f in entries[:k]])
+            raise MapError(f"{source}: two boards or bundles are named {twice!r}; give each its own name")
         self.placements: dict[int, MarkerPlacement] = _keyed(dict(enumerate(merged)), self.dictionary, source)
         if not self.placements:
             raise MapError(f"{source}: the map has no markers; add at least one placement")
@@ -255,102 +259,6 @@ class MarkerMap(_Entries):
             f"file units {self.units}, {plane})"
         )
 
-    @property
-    def dictionaries(self) -> list[str]:
-        """The dictionaries the markers come from: the map's own first, then the others by name."""
-        others = {p.dictionary for p in self.placements.values() if p.dictionary is not None}
-        return [self.dictionary, *sorted(others - {self.dictionary})]
-
-    def marker_size(self, marker_id: int) -> float:
-        """One marker's black square side: its own ``size_mm``, else the map's ``marker_size_mm``.
-
-        Parameters
-        ----------
-        marker_id : int or MarkerKey
-            A marker of the map (a :class:`MarkerKey` for a marker of another dictionary than the map's).
-
-        Returns
-        -------
-        float
-            mm.
-
-        Raises
-        ------
-        MapError
-            If the map has no such marker.
-        """
-        return self._placement(marker_id).size_mm or self.marker_size_mm
-
-    def marker_dictionary(self, marker_id: int) -> str:
-        """One marker's dictionary: its own, else the map's.
-
-        Parameters
-        ----------
-        marker_id : int or MarkerKey
-            A marker of the map.
-
-        Returns
-        -------
-        str
-            The dictionary's name.
-
-        Raises
-        ------
-        MapError
-            If the map has no such marker.
-        """
-        return self._placement(marker_id).dictionary or self.dictionary
-
-    def key(self, marker_id: int, dictionary: str | None = None) -> int:
-        """The map's key of the marker ``marker_id`` of ``dictionary``: a marker is (dictionary, id).
-
-        Parameters
-        ----------
-        marker_id : int
-            The id printed on the marker.
-        dictionary : str, optional
-            Its dictionary; None: the map's.
-
-        Returns
-        -------
-        int or MarkerKey
-            The plain id for a marker of the map's dictionary, else ``MarkerKey(marker_id, dictionary)``; whether
-            the map holds it is ``key in marker_map``.
-
-        Examples
-        --------
-        >>> m = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": {
-        ...     "3": {"translation": [0, 0, 0]},
-        ...     "4X4_50:3": {"translation": [0, 500, 0], "size_mm": 200}}})
-        >>> m.key(3), m.key(3, "4X4_50"), m.marker_size(m.key(3, "DICT_4X4_50"))
-        (3, 4X4_50:3, 200.0)
-        """
-        if dictionary is None or dictionary == self.dictionary:
-            return int(marker_id)
-        name = _cv.dictionary_name(dictionary)
-        return int(marker_id) if name == self.dictionary else MarkerKey(int(marker_id), name)
-
-    def ids_in(self, dictionary: str) -> list[int]:
-        """The plain ids of the map's markers of one dictionary.
-
-        Parameters
-        ----------
-        dictionary : str
-            A dictionary's name.
-
-        Returns
-        -------
-        list of int
-            Sorted.
-        """
-        name = _cv.dictionary_name(dictionary)
-        return sorted(p.id for p in self.placements.values() if (p.dictionary or self.dictionary) == name)
-
-    def _placement(self, marker_id: int) -> MarkerPlacement:
-        if marker_id not in self.placements:
-            raise MapError(f"{self.source}: no marker {marker_id} in the map; it has {self.ids}")
-        return self.placements[marker_id]
-
     def marker_corners(self, marker_id: int) -> np.ndarray:
         """One marker's corners in the world.
 
@@ -448,7 +356,13 @@ class MarkerMap(_Entries):
             **self.entries_dict(scale),
         }
 
-    def save(self, path: str | os.PathLike, format: str = "fidlearn") -> Path:  # noqa: A002 - the file's format
+    def save(
+        self,
+        path: str | os.PathLike,
+        format: str = "fidlearn",  # noqa: A002 - the file's format
+        *,
+        field_m: tuple[float, float] | None = None,
+    ) -> Path:
         """Write the map as JSON (atomically): the full layout, or a WPILib AprilTag field layout.
 
         Parameters
@@ -456,17 +370,29 @@ class MarkerMap(_Entries):
         path : path-like
             The file to write.
         format : {"fidlearn", "wpilib"}
-            ``"wpilib"``: ``{"tags": [...], "field": {...}}``, metres, each tag's centre and quaternion (the
-            field's size as loaded, else the tags' extent); the map's markers must share one dictionary and size.
+            ``"wpilib"``: ``{"tags": [...], "field": {...}}``, metres, each tag's centre and quaternion; the map's
+            markers must share one dictionary and size.
+        field_m : (float, float), optional
+            ``"wpilib"`` only: the field's length and width, m. Default: the field of the layout the map was read
+            from; a map with none needs it (a layout carries it, and a pose outside it is refused).
 
         Returns
         -------
         Path
             The file written.
+
+        Raises
+        ------
+        MapError
+            An unknown format; for ``"wpilib"``, markers of several dictionaries or sizes, or no field's size.
         """
         if format not in ("fidlearn", "wpilib"):
             raise MapError(f"unknown map format {format!r}; use 'fidlearn' (the full layout) or 'wpilib'")
-        return write_json_atomic(path, self.to_dict() if format == "fidlearn" else to_wpilib(self, self.field_m))
+        if format == "fidlearn":
+            if field_m is not None:
+                raise MapError("field_m is a WPILib layout's field; the full layout holds none: drop it")
+            return write_json_atomic(path, self.to_dict())
+        return write_json_atomic(path, to_wpilib(self, self.field_m if field_m is None else field_m))
 
     def corners_dict(self) -> dict[str, list[list[float]]]:
         """The seed's corner-file layout.

@@ -266,7 +266,11 @@ def _count_pair(value: Any, where: str, field: str, least: int, example: str) ->
 
 
 def _length(value: Any, where: str, field: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
+    try:
+        ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
+    except OverflowError:  # an int beyond any float
+        ok = False
+    if not ok or value <= 0:
         raise MapError(f"{where}: {field} must be a positive length in mm, got {value!r:.40}")
     return _marker_size(value, where, field)
 
@@ -306,7 +310,7 @@ def _board(name: str, value: Any, units: str, source: str, dictionary: str) -> B
     """One ``"boards"`` entry, every field checked, with the fix."""
     where = f"{source}: board {name!r}"
     kind = value.get("type") if isinstance(value, Mapping) else None
-    if kind not in _BOARD_FIELDS:
+    if not isinstance(kind, str) or kind not in _BOARD_FIELDS:
         raise MapError(f'{where}: "type" must be "charuco" or "grid", got {kind!r}')
     _check_fields(value, where, _BOARD_FIELDS[kind])
     t, r = _pose(value, where, units)

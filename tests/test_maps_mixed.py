@@ -101,11 +101,40 @@ def test_a_marker_of_the_maps_own_dictionary_named_again_is_the_same_marker():
             "marker 4X4_50:0 appears twice",
         ),
         ({"4X4_50:60": {"translation": [0, 0, 0]}}, "marker id 60 does not exist in dictionary 4X4_50"),
+        (  # 4X4_50's markers are 4X4_250's first 50: one printed marker
+            {"4X4_50:3": {"translation": [0, 0, 0]}, "4X4_250:3": {"translation": [0, 600, 0]}},
+            "markers 4X4_50:3 and 4X4_250:3 are one printed pattern",
+        ),
     ],
 )
 def test_per_marker_mistakes_name_the_marker_and_the_fix(markers, match):
     with pytest.raises(MapError, match=match):
         MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": markers}, source="m.json")
+
+
+def test_a_key_is_asked_for_by_a_whole_id_and_a_known_dictionary():
+    m = mixed()
+    assert m.key(1, "4X4_50") == MarkerKey(1, "4X4_50")
+    assert m.key(MarkerKey(1, "4X4_50")) == MarkerKey(1, "4X4_50")  # a key keeps its dictionary
+    assert m.key(np.int64(1)) == 1
+    for bad in ("abc", None, 3.7, -1, True):
+        with pytest.raises(MapError, match="a marker id is a whole number >= 0"):
+            m.key(bad)
+    with pytest.raises(fidlearn.FidlearnError, match="unknown ArUco dictionary"):
+        m.key(1, "4X4_5")
+
+
+def test_nested_dictionaries_hold_different_markers_apart():
+    """4X4_250's marker 60 is not among 4X4_50's 50: both in one map are two markers."""
+    m = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 80,
+            "dictionary": "4X4_50",
+            "markers": {"3": {"translation": [0, 0, 0]}, "4X4_250:60": {"translation": [0, 600, 0]}},
+        }
+    )
+    assert m.ids == [3, MarkerKey(60, "4X4_250")]
 
 
 def test_placements_given_in_python_are_keyed_by_dictionary_and_id():

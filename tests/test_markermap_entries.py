@@ -8,7 +8,7 @@ import pytest
 
 from fidlearn import FidlearnError, MarkerMap
 from fidlearn.errors import MapError
-from fidlearn.markermap import BoardEntry, BundleEntry, MarkerKey
+from fidlearn.markermap import BoardEntry, BundleEntry, MarkerKey, MarkerPlacement
 
 CHARUCO = {
     "type": "charuco",
@@ -120,6 +120,8 @@ def test_a_board_alone_needs_no_single_markers():
         ({"boards": {"b": {**CHARUCO, "marker_mm": 40}}}, "must be smaller than square_mm"),
         ({"boards": {"b": {**CHARUCO, "first_id": 240}}}, "lower first_id"),
         ({"boards": {"b": {**CHARUCO, "type": "april"}}}, '"charuco" or "grid"'),
+        ({"boards": {"b": {**CHARUCO, "type": ["charuco"]}}}, '"charuco" or "grid"'),
+        ({"boards": {"b": {**CHARUCO, "marker_mm": 10**400}}}, "marker_mm must be a positive length"),
         ({"boards": {"b": {**CHARUCO, "squars": [5, 7]}}}, "did you mean"),
         ({"boards": {"b": {**GRID, "separation_mm": -1}}}, "separation_mm"),
         ({"bundles": {"d": {**DOCK, "markers": {}}}}, "its markers in its own frame"),
@@ -132,3 +134,13 @@ def test_bad_entries_say_how_to_mend_them(entries, words):
         MarkerMap.from_dict(full_map(**entries), source="room.json")
     assert isinstance(info.value, FidlearnError)
     assert "room.json" in str(info.value)
+
+
+def test_two_entries_of_one_name_are_refused_in_python_as_in_a_file():
+    """The constructor keys entries by name: a second entry of the same name would drop the first's markers."""
+    dock = BundleEntry("dock", (0, 0, 0), (0, 0, 0), (MarkerPlacement(1, (0, 0, 0), (0, 0, 0)),))
+    other = BundleEntry("dock", (500, 0, 0), (0, 0, 0), (MarkerPlacement(2, (0, 0, 0), (0, 0, 0)),))
+    single = {0: MarkerPlacement(0, (0, 0, 0), (0, 0, 0))}
+    with pytest.raises(MapError, match="two boards or bundles are named 'dock'"):
+        MarkerMap(single, 80, entries=[dock, other])
+    assert MarkerMap(single, 80, entries=[dock]).ids == [0, 1]

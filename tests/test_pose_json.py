@@ -92,6 +92,34 @@ def test_the_short_record_round_trips_what_it_holds(pose):
     assert again == {**{k: v for k, v in d.items() if k != "alternative_position_mm"}, "position_std_mm": None}
 
 
+def test_markers_of_another_dictionary_keep_it_in_the_record():
+    """A map's marker of a second dictionary is written as the map file writes its key, "4X4_50:0", not as its
+    bare id (which reads as the map's own marker 0), and read back as that marker."""
+    world = fidlearn.MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 120,
+            "markers": {
+                "0": {"translation": [0, 0, 1500]},
+                "4X4_50:0": {"translation": [0, 400, 1500], "size_mm": 180},
+                "1": {"translation": [0, -300, 1300]},
+            },
+        }
+    )
+    cam = fidlearn.Camera.from_fov(60, (1280, 720))
+    T = fidlearn.look_at([2200, 100, 1500], [0, 100, 1400])
+    dets = [Detection(int(k), cam.project(c, T), world.marker_dictionary(k)) for k, c in world.corners().items()]
+    pose = fidlearn.estimate_pose(dets, world, cam)
+    key = world.key(0, "4X4_50")
+    d = json.loads(json.dumps(pose.to_dict(full=True)))
+    assert d["marker_ids"] == [0, "4X4_50:0", 1]
+    assert set(d["residuals_px"]) == {"0", "4X4_50:0", "1"}
+    back = Pose.from_dict(d)
+    assert back.marker_ids == (0, key, 1)
+    assert set(back.residuals_px) == {0, key, 1}
+    assert back.to_dict(full=True) == d
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
@@ -101,6 +129,9 @@ def test_the_short_record_round_trips_what_it_holds(pose):
         (lambda d: {**d, "T_world_camera": np.eye(4)[:3].tolist()}, r"T_world_camera must be a 4x4 rigid"),
         (lambda d: {**d, "T_world_camera": (2 * np.eye(4)).tolist()}, r"T_world_camera must be a 4x4 rigid"),
         (lambda d: {**d, "marker_ids": [True]}, r"marker_ids must be a list of marker ids"),
+        (lambda d: {**d, "marker_ids": [-1]}, r"marker_ids must be a list of marker ids"),
+        (lambda d: {**d, "marker_ids": ["NO_SUCH_DICT:1"]}, r"marker_ids must be a list of marker ids"),
+        (lambda d: {**d, "rejected_ids": "4X4_50:1"}, r"rejected_ids must be a list of marker ids"),
         (lambda d: {**d, "reprojection_rms_px": -1}, r"reprojection_rms_px must be a non-negative number"),
         (lambda d: {**d, "ambiguous": "no"}, r"ambiguous must be true or false"),
         (lambda d: {**d, "method": 3}, r"method must be text"),

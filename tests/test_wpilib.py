@@ -61,7 +61,16 @@ def test_a_fidlearn_map_saves_as_a_layout_of_its_tags_centres(tmp_path):
     m = MarkerMap.from_dict(
         {"units": "mm", "marker_size_mm": 100, "markers": {"4": {"translation": [0, 200, 1000], "rotation": [0, 0, 0]}}}
     )
-    d = json.loads(m.save(tmp_path / "w.json", format="wpilib").read_text())
+    with pytest.raises(MapError, match="field's length and width .m., which this map does not hold"):
+        m.save(tmp_path / "w.json", format="wpilib")
+    for bad in ((0, 2), (3,), "3x2", (3, float("nan"))):
+        with pytest.raises(MapError, match="field_m"):
+            m.save(tmp_path / "w.json", format="wpilib", field_m=bad)
+    with pytest.raises(MapError, match="the full layout holds none"):
+        m.save(tmp_path / "w.json", field_m=(3, 2))
+    assert not list(tmp_path.iterdir())
+    d = json.loads(m.save(tmp_path / "w.json", format="wpilib", field_m=(3, 2)).read_text())
+    assert d["field"] == {"length": 3.0, "width": 2.0}
     assert d["tags"][0]["pose"]["translation"] == {"x": 0.0, "y": 0.25, "z": 0.95}
     assert d["tags"][0]["pose"]["rotation"]["quaternion"] == {"W": 1.0, "X": 0.0, "Y": 0.0, "Z": 0.0}
     back = MarkerMap.load(tmp_path / "w.json", dictionary="ARUCO_ORIGINAL", marker_size_mm=100)
@@ -78,6 +87,10 @@ def test_a_fidlearn_map_saves_as_a_layout_of_its_tags_centres(tmp_path):
         (lambda d: d["tags"][1].update(ID=1), FRC, "tag ID 1 appears twice"),
         (lambda d: d["tags"][0]["pose"]["rotation"]["quaternion"].update(W=2.0), FRC, "quaternion has length"),
         (lambda d: d["tags"][0]["pose"]["translation"].update(x="1"), FRC, "translation x must be a finite number"),
+        (lambda d: d["tags"][0]["pose"]["translation"].update(x=10**400), FRC, "translation x must be a finite"),
+        (lambda d: d["tags"][0]["pose"]["translation"].update(x=1e10), FRC, "at most 1e"),
+        (lambda d: d["field"].update(length=0), FRC, "field: length 0 and width 8.211 must both be above 0"),
+        (lambda d: d["field"].update(width=-1), FRC, "must both be above 0"),
         (lambda d: d["tags"][0]["pose"].pop("rotation"), FRC, 'tag 1: no "rotation"'),
         (lambda d: d.update(tags=[]), FRC, '"tags" must be a non-empty list'),
         (lambda d: d["tags"][0].update(ID=600), FRC, "marker id 600 does not exist in dictionary APRILTAG_36h11"),
@@ -185,3 +198,25 @@ def test_fidlearn_locate_takes_a_field_layout_with_its_family_and_size(tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
     assert "does not say its tags' dictionary or marker_size_mm" in err[0]
+
+
+def test_a_wall_of_tags_saved_with_its_field_locates_the_camera_in_front_of_it(tmp_path):
+    """Tags on the wall x = 0 facing +x, a camera 2 m in front: the layout saved with a field that holds the
+    camera reads back to the same pose (a field made up from the tags' extent, 0 m long, refused it)."""
+    m = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 165.1,
+            "dictionary": "apriltag_36h11",
+            "markers": {
+                str(i): {"translation": [0, y, z]} for i, y, z in ((1, 0, 1500), (2, 600, 1500), (3, 300, 1000))
+            },
+        }
+    )
+    T = look_at([2000, 300, 1400], [0, 300, 1300])
+    cam = Camera.from_fov(60, (1280, 720))
+    image = render_scene(m, cam, T, seed=1).image
+    back = MarkerMap.load(m.save(tmp_path / "w.json", format="wpilib", field_m=(4, 2)), **FRC)
+    assert back.field_m == (4.0, 2.0)
+    pose = locate(image, back, cam)
+    assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 10

@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import frames
 from .._files import did_you_mean
+from .._map_parse import key_from_json, key_json
 from ..errors import FidlearnError, PoseError
 
 #: The fields of the record, in the order written; ``alternative_position_mm`` only for a pose with one.
@@ -38,11 +39,11 @@ def pose_to_dict(pose, full: bool) -> dict:
         "rpy_deg": pose.rpy_deg.tolist(),
         # null, not NaN, when the pose is not determined: NaN is not JSON (strict readers, fidlearn's own, refuse it)
         "position_std_mm": pose.position_std_mm.tolist() if pose.covariance is not None else None,
-        "marker_ids": list(pose.marker_ids),
+        "marker_ids": [key_json(k) for k in pose.marker_ids],
         "reprojection_rms_px": pose.reprojection_rms_px,
         "ambiguous": bool(pose.ambiguous),
-        "rejected_ids": list(pose.rejected_ids),
-        "ignored_ids": list(pose.ignored_ids),
+        "rejected_ids": [key_json(k) for k in pose.rejected_ids],
+        "ignored_ids": [key_json(k) for k in pose.ignored_ids],
         "method": pose.method,
     }
     if pose.alternative is not None:
@@ -57,9 +58,13 @@ def pose_to_dict(pose, full: bool) -> dict:
 
 def _ids(d: dict, key: str, source: str) -> tuple[int, ...]:
     value = d.get(key, [])
-    if not isinstance(value, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in value):
-        raise PoseError(f"{source}: {key} must be a list of marker ids (whole numbers), got {value!r:.60}")
-    return tuple(value)
+    keys = [key_from_json(i) for i in value] if isinstance(value, list) else [None]
+    if any(k is None for k in keys):
+        raise PoseError(
+            f'{source}: {key} must be a list of marker ids (whole numbers >= 0, or "4X4_50:3" for a marker of '
+            f"another dictionary than the map's), got {value!r:.60}"
+        )
+    return tuple(k for k in keys if k is not None)
 
 
 def _number(value, key: str, source: str, allow_none: bool = False) -> float:
@@ -87,11 +92,12 @@ def _residuals(value, source: str) -> dict[int, np.ndarray]:
         raise PoseError(f"{source}: residuals_px must be an object of marker id to 4x2 pixels")
     out = {}
     for key, r in value.items():
+        i = key_from_json(int(key) if isinstance(key, str) and key.strip().isdigit() else key)
         try:
-            i, arr = int(key), np.array(r, dtype=float)
+            arr = np.array(r, dtype=float)
         except (TypeError, ValueError, OverflowError):
-            i, arr = 0, None
-        if arr is None or arr.shape != (4, 2) or not np.isfinite(arr).all():
+            arr = None
+        if i is None or arr is None or arr.shape != (4, 2) or not np.isfinite(arr).all():
             raise PoseError(f"{source}: residuals_px[{key!r}] must be 4x2 pixels (TL, TR, BR, BL) under a marker id")
         out[i] = arr
     return out

@@ -12,10 +12,10 @@ import numpy as np
 
 from .. import _stats
 from .._io import write_json_atomic
-from .._map_parse import _vector3
+from .._map_parse import _vector3, key_json
 from .._wpilib import layout_format, to_wpilib
 from ..errors import MapError, PoseError, SurveyError
-from ..markermap import MarkerKey, MarkerMap
+from ..markermap import MarkerMap
 from ._inputs import _short
 from ._layout import TagChange, tag_changes, tag_changes_text
 
@@ -220,13 +220,13 @@ class Survey:
             "map_sigma_learnt": self.map_sigma_learnt,
             "print_scale": self.print_scale if self.print_scale == self.print_scale else None,
             "corner_sigma_px": round(self.corner_sigma_px, 4),
-            "fixed_ids": [_key_json(k) for k in self.fixed_ids],
-            "added_ids": [_key_json(k) for k in self.added_ids],
+            "fixed_ids": [key_json(k) for k in self.fixed_ids],
+            "added_ids": [key_json(k) for k in self.added_ids],
             "added_size_mm": {str(i): round(v, 2) for i, v in self.added_size_mm.items()},
-            "unseen_ids": [_key_json(k) for k in self.unseen_ids],
-            "gross_ids": [_key_json(k) for k in self.gross_ids],
+            "unseen_ids": [key_json(k) for k in self.unseen_ids],
+            "gross_ids": [key_json(k) for k in self.gross_ids],
             "suspects": [
-                {"id": _key_json(s.id), "distance_mm": round(s.distance_mm, 2), "sigmas": round(s.sigmas, 2)}
+                {"id": key_json(s.id), "distance_mm": round(s.distance_mm, 2), "sigmas": round(s.sigmas, 2)}
                 for s in self.suspects
             ],
             "position_std_mm": {
@@ -412,9 +412,3 @@ def check_readable(marker_map: MarkerMap) -> None:
                     f"a map file holds, MarkerMap.load would refuse it ({str(exc).rstrip('; ')}): check {what}'s "
                     "tape placement and ids, and take photos that show it with other markers"
                 ) from None
-
-
-def _key_json(key: int) -> int | str:
-    """A marker's key as the map file writes it: its id, or ``"4X4_50:3"`` for a marker of another dictionary
-    (JSON would write a ``MarkerKey``, an ``int``, as its bare number: the map's own marker of that id)."""
-    return str(key) if isinstance(key, MarkerKey) else int(key)
