@@ -260,9 +260,9 @@ def test_camera_info_reads_as_yaml_elsewhere():
     """An independent YAML reader (PyYAML, when installed: jupyter-events brings it) reads what we write."""
     yaml = pytest.importorskip("yaml")
     cam = fidlearn.Camera(
-        [[612.3456789, 0, 320.1], [0, 611.9, 241.7], [0, 0, 1]], [0.1, -0.2, 0.001, 0.002, 0.05], (640, 480)
+        [[612.3456789, 0, 320.1], [0, 611.9, 241.7], [0, 0, 1]], [0.1, -0.2, 1e-05, -2e-4, 5e-17], (640, 480)
     )
-    d = yaml.safe_load(camera_info_yaml(cam, "front_cam"))
+    d = yaml.safe_load(camera_info_yaml(cam, "front_cam"))  # YAML 1.1 reads 1e-05 as text, 1.0e-05 as a number
     assert d["image_width"] == 640
     assert d["image_height"] == 480
     assert d["camera_name"] == "front_cam"

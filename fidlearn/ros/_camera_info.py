@@ -46,7 +46,11 @@ _NAME = re.compile(r"^[A-Za-z0-9_]+$")
 
 
 def _num(v: float) -> str:
-    return repr(float(v) + 0.0)  # the shortest text that reads back to the same float
+    """The shortest text that reads back to the same float, with a dot in its mantissa: YAML 1.1 (PyYAML, ROS's
+    Python ``camera_info_manager``) reads ``1e-05`` as a string, ``1.0e-05`` as a number."""
+    text = repr(float(v) + 0.0)
+    mantissa, e, exponent = text.partition("e")
+    return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
 
 
 def _matrix(name: str, rows: int, cols: int, data) -> list[str]:
