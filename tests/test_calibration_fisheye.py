@@ -196,3 +196,28 @@ def test_the_command_line_prints_the_coach_for_a_fisheye(tmp_path, model):
     assert said[0].startswith("reprojection uncertainty: median")
     assert [line.strip() for line in said[1 : len(advice)]] == [line.strip() for line in advice[1:]]
     assert any(line.strip().startswith("next photo:") for line in said)
+
+
+def test_flags_of_ones_own_keep_the_camera_skewless_and_held_parameters_certain():
+    """Flags given replace the defaults but never free the skew (a Camera has none: the fit used to end in a
+    refusal of its skew); a coefficient the flags hold is 0 and has no uncertainty, in the standard deviations
+    and in the camera's covariance."""
+    from fidlearn.calibration import camera_with_uncertainty  # noqa: PLC0415
+    from fidlearn.calibration._models import fisheye_flag  # noqa: PLC0415
+
+    photos = sorted((REAL / "mono").glob("*.png"))
+    held = ("CALIB_FIX_K3", "CALIB_FIX_K4", "CALIB_FIX_PRINCIPAL_POINT")
+    flags = fisheye_flag("CALIB_RECOMPUTE_EXTRINSIC")
+    for name in held:
+        flags |= fisheye_flag(name)
+    cal = calibrate_checkerboard(photos, board=BOARD, model="fisheye", flags=flags)
+    assert cal.camera.K[0, 1] == 0
+    assert cal.camera.dist[2:].tolist() == [0.0, 0.0]
+    std = cal.std_intrinsics
+    assert [std[k] for k in ("cx", "cy", "k3", "k4")] == [0.0] * 4
+    assert min(std[k] for k in ("fx", "fy", "k1", "k2")) > 0
+    cov = camera_with_uncertainty(cal).intrinsics_covariance
+    assert np.diag(cov)[[2, 3, 6, 7]].tolist() == [0.0] * 4
+    # without CALIB_RECOMPUTE_EXTRINSIC the fit is OpenCV's to make, but the camera still has no skew
+    own = calibrate_checkerboard(photos, board=BOARD, model="fisheye", flags=fisheye_flag("CALIB_FIX_K4"))
+    assert own.camera.K[0, 1] == 0

@@ -50,6 +50,21 @@ def default_fisheye_flags() -> int:
     return fisheye_flag("CALIB_RECOMPUTE_EXTRINSIC") | fisheye_flag("CALIB_FIX_SKEW")
 
 
+def fisheye_flags_used(flags: int) -> int:
+    """The flags ``cv2.fisheye.calibrate`` is called with: the caller's (else :func:`default_fisheye_flags`), from
+    fidlearn's start (``CALIB_USE_INTRINSIC_GUESS``) and always without skew, which a Camera cannot hold."""
+    base = flags or default_fisheye_flags()
+    return base | fisheye_flag("CALIB_USE_INTRINSIC_GUESS") | fisheye_flag("CALIB_FIX_SKEW")
+
+
+def fisheye_free(flags: int) -> np.ndarray:
+    """Which of ``fx, fy, cx, cy, k1..k4`` (:data:`FISHEYE_NAMES`) ``cv2.fisheye.calibrate`` fits under
+    :func:`fisheye_flags_used` of ``flags``."""
+    used = fisheye_flags_used(flags)
+    held = ["CALIB_FIX_FOCAL_LENGTH"] * 2 + ["CALIB_FIX_PRINCIPAL_POINT"] * 2 + [f"CALIB_FIX_K{k}" for k in range(1, 5)]
+    return np.array([not used & fisheye_flag(name) for name in held], dtype=bool)
+
+
 def check_model(model: Any, flags: int) -> str:
     """``model`` checked; flags belong to one model's OpenCV function, so ``"auto"`` takes none."""
     if not isinstance(model, str) or model not in MODELS:
@@ -72,7 +87,7 @@ def calibrate_fisheye(obj: list, img: list, size: tuple[int, int], flags: int, c
     f0 = size[0] / math.pi
     K0 = np.array([[f0, 0.0, (size[0] - 1) / 2], [0.0, f0, (size[1] - 1) / 2], [0.0, 0.0, 1.0]])
     crit = criteria if criteria is not None else (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-10)
-    use = (flags or default_fisheye_flags()) | fisheye_flag("CALIB_USE_INTRINSIC_GUESS")
+    use = fisheye_flags_used(flags)
     try:
         with opencv_single_thread():
             rms, K, D, rvecs, tvecs = cv2.fisheye.calibrate(

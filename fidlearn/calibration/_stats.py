@@ -109,20 +109,22 @@ def std_intrinsics(obj: list, K, dist, rvecs, tvecs, rms_px: float, flags: int) 
     return _std_from_schur(schur, free, rms_px, total, len(obj))
 
 
-def std_intrinsics_fisheye(obj: list, K, dist, rvecs, tvecs, rms_px: float) -> np.ndarray:
+def std_intrinsics_fisheye(obj: list, K, dist, rvecs, tvecs, rms_px: float, free=None) -> np.ndarray:
     """Standard deviations of ``fx, fy, cx, cy, k1..k4`` of a ``cv2.fisheye.calibrate`` result (skew fixed at 0).
 
     The same reduction as :func:`std_intrinsics`, with the Jacobian of ``cv2.fisheye.projectPoints``
-    (columns: f (2), c (2), k (4), rvec (3), tvec (3), skew).
+    (columns: f (2), c (2), k (4), rvec (3), tvec (3), skew). ``free`` (8,) bool: the parameters the flags let
+    the fit move (default all); the others are 0.
     """
     D = np.asarray(dist, dtype=np.float64).reshape(1, 4)
-    free = np.ones(8, dtype=bool)
-    schur = np.zeros((8, 8))
+    free = np.ones(8, dtype=bool) if free is None else np.asarray(free, dtype=bool)
+    n = int(free.sum())
+    schur = np.zeros((n, n))
     total = 0
     for o, r, t in zip(obj, rvecs, tvecs):
         pts = np.asarray(o, np.float64).reshape(-1, 1, 3)
         _, J = cv2.fisheye.projectPoints(pts, np.reshape(r, (3, 1)), np.reshape(t, (3, 1)), K, D)
-        J_pose, J_int = J[:, 8:14], J[:, :8]
+        J_pose, J_int = J[:, 8:14], J[:, :8][:, free]
         W = J_int.T @ J_pose
         schur += J_int.T @ J_int - W @ np.linalg.solve(J_pose.T @ J_pose, W.T)
         total += len(pts)

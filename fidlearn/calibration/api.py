@@ -195,7 +195,8 @@ def calibrate_checkerboard(
     flags, criteria :
         Passed to ``cv2.calibrateCamera`` (e.g. ``cv2.CALIB_RATIONAL_MODEL``), or to
         ``cv2.fisheye.calibrate`` with ``model="fisheye"`` (by default ``CALIB_RECOMPUTE_EXTRINSIC`` and
-        ``CALIB_FIX_SKEW``).
+        ``CALIB_FIX_SKEW``; ``CALIB_FIX_SKEW`` always, a Camera has no skew; give
+        ``CALIB_RECOMPUTE_EXTRINSIC`` with flags of your own, or the fit may stall).
     model : {"pinhole", "fisheye", "auto"}
         The lens model: OpenCV's pinhole model (``cv2.calibrateCamera``), its fisheye model
         (``cv2.fisheye.calibrate``, lenses of 120 degrees and more), or ``"auto"``: the fisheye when its

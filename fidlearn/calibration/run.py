@@ -175,12 +175,12 @@ def _calibrate_fisheye(obj: list, img: list, image_size, flags: int, criteria):
     per_view = _stats.per_view_rms(obj, img, K, dist, rotations, tvecs, "fisheye")
     counts = np.array([len(np.reshape(o, (-1, 3))) for o in obj])
     rms = float(np.sqrt(np.sum(per_view**2 * counts) / counts.sum()))
-    std_from = functools.partial(_std_dict_fisheye, obj, K, dist, rvecs, tvecs, rms)
+    std_from = functools.partial(_std_dict_fisheye, obj, K, dist, rvecs, tvecs, rms, int(flags))
     return rms, K, dist, rotations, tvecs, std_from, per_view
 
 
-def _std_dict_fisheye(obj, K, dist, rvecs, tvecs, rms_px: float) -> dict:
-    std = _stats.std_intrinsics_fisheye(obj, K, dist, rvecs, tvecs, rms_px)
+def _std_dict_fisheye(obj, K, dist, rvecs, tvecs, rms_px: float, flags: int) -> dict:
+    std = _stats.std_intrinsics_fisheye(obj, K, dist, rvecs, tvecs, rms_px, _models.fisheye_free(flags))
     return {n: float(v) for n, v in zip(_models.FISHEYE_NAMES, std)}
 
 
