@@ -71,6 +71,21 @@ def test_halves_of_one_synthetic_set_agree_and_match_the_true_camera(halves):
     assert c.expected_px.shape == (24, 32)
 
 
+def test_cameras_carrying_their_uncertainty_compare_as_their_calibrations(halves, tmp_path):
+    """A camera file written from camera_with_uncertainty keeps the covariance: compared, it brings it, as the
+    calibration it came from does (it was taken as exact, and two of them gave "cannot tell")."""
+    from fidlearn.calibration import camera_with_uncertainty  # noqa: PLC0415
+
+    files = [camera_with_uncertainty(h).save(tmp_path / f"{k}.json") for k, h in enumerate(halves)]
+    cams = [Camera.load(f) for f in files]
+    as_files, as_calibrations = compare_calibrations(*cams), compare_calibrations(*halves)
+    assert as_files.verdict == as_calibrations.verdict == "agree"
+    assert as_files.ratio == pytest.approx(as_calibrations.ratio, rel=1e-6)
+    bare = compare_calibrations(halves[0].camera, halves[1].camera)
+    assert bare.verdict == "cannot tell"
+    assert "neither camera carries its uncertainty" in bare.reason
+
+
 def test_another_camera_differs_beyond_noise(halves):
     other = Camera(TRUE.K * [[1.01], [1.01], [1]], TRUE.dist, TRUE.image_size)
     c = compare_calibrations(halves[0], other)

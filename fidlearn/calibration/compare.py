@@ -16,7 +16,7 @@ by central differences. The verdict compares the two: ``ratio``, the RMS over th
 difference measured in its own standard deviations (``sqrt(mean(d^T C^-1 d) / 2)``, about 1 when
 the calibrations agree), above :data:`DIFFER_RATIO` is "differ beyond noise"; otherwise "agree"
 when the expected differences are small (median under ``tolerance_px``), and "cannot tell" when
-they are not, or when a camera file (no uncertainty) was given.
+they are not, or when a camera file with no uncertainty was given.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ class CalibrationComparison:
         Where ``b`` puts what ``a`` sees there, minus the pixel (NaN where ``a``'s lens model has no ray).
     expected_px : ndarray, shape (rows, cols) or None
         The difference's expected size from both calibrations' noise: the square root of its
-        covariance's trace (px); None when both are camera files (no uncertainty).
+        covariance's trace (px); None when both are cameras without uncertainty.
     rotation_deg : float
         The fitted rotation between the two cameras' frames (degrees).
     ratio : float or None
@@ -121,7 +121,11 @@ class CalibrationComparison:
 
 def _camera_and_covariance(x, which: str, inflate: bool):
     if isinstance(x, Camera):
-        return x, None
+        cov = x.intrinsics_covariance  # camera_with_uncertainty's, kept in its JSON file; 0 for a held parameter
+        if cov is None:
+            return x, None
+        keep = np.flatnonzero(np.diag(cov) > 0)
+        return x, (keep, np.asarray(cov)[np.ix_(keep, keep)])
     camera = getattr(x, "camera", None)
     if not isinstance(camera, Camera):
         raise CalibrationError(f"{which}: expected a Calibration or a Camera, got {type(x).__name__}")
@@ -222,7 +226,7 @@ def _weights(cams, covs, px: np.ndarray) -> np.ndarray:
 def _verdict(d: np.ndarray, C, tolerance_px: float) -> tuple[float | None, str, str]:
     rms = float(np.sqrt(np.nanmean(np.sum(d * d, axis=1))))
     if C is None:
-        return None, "cannot tell", f"RMS difference {rms:.2f} px, but camera files carry no uncertainty"
+        return None, "cannot tell", f"RMS difference {rms:.2f} px, but neither camera carries its uncertainty"
     ok = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(C.reshape(len(C), -1)), axis=1)
     m2 = np.einsum("ni,nij,nj->n", d[ok], np.linalg.inv(C[ok] + 1e-12 * np.eye(2)), d[ok])
     ratio = float(np.sqrt(np.mean(m2) / 2))
@@ -265,8 +269,10 @@ def compare_calibrations(
     ----------
     a, b : Calibration or Camera
         Two calibrations of one camera at one resolution. A :class:`~fidlearn.camera.Camera` (a
-        camera file) carries no uncertainty: beside a Calibration it is taken as exact; two
-        Cameras are compared, but the verdict is "cannot tell". Either may be a pinhole or a
+        camera file) brings the covariance it carries (``intrinsics_covariance``, as
+        :func:`~fidlearn.calibration.camera_with_uncertainty` gives and fidlearn's camera JSON keeps);
+        one without is taken as exact beside a Calibration, and two such Cameras are compared, but
+        the verdict is "cannot tell". Either may be a pinhole or a
         fisheye camera (a pinhole fitted to a fisheye lens against a fisheye fitted to it shows
         where the pinhole model fails).
     grid : (int, int)
@@ -320,7 +326,7 @@ def compare_calibrations(
             C = np.einsum("nik,kl,njl->nij", J, cov[1], J) + (0.0 if C is None else C)
     ratio, verdict, reason = _verdict(d, C, tolerance_px)
     if (cov_a is None) != (cov_b is None):
-        reason += f"; {'a' if cov_a is None else 'b'} is a camera file, taken as exact"
+        reason += f"; {'a' if cov_a is None else 'b'} is a camera without uncertainty, taken as exact"
     angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
     expected = None if C is None else np.sqrt(np.trace(C, axis1=1, axis2=2)).reshape(rows, cols)
     grid_px = px.reshape(rows, cols, 2)
