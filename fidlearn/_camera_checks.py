@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from pathlib import Path
 from typing import Any
 
@@ -130,11 +131,15 @@ def _as_dist(dist: Any, where: str, model: str = "pinhole") -> np.ndarray:
 
 
 def _as_size(image_size: Any, where: str) -> tuple[int, int]:
-    try:
+    try:  # numbers only: a string's characters ("64" -> 6 x 4) and bools (True == 1) are not pixels
+        if isinstance(image_size, (str, bytes)) or not all(
+            isinstance(v, numbers.Real) and not isinstance(v, bool) for v in image_size
+        ):
+            raise TypeError
         w, h = (int(v) for v in image_size)
         ok = all(float(v) == int(v) for v in image_size)
     except (TypeError, ValueError, OverflowError):
-        raise CameraError(f"{where}: image_size must be [width, height] in pixels, got {image_size!r}") from None
+        raise CameraError(f"{where}: image_size must be [width, height] in pixels, got {image_size!r:.60}") from None
     if not ok or w <= 0 or h <= 0:
         raise CameraError(
             f"{where}: image_size must be two positive whole numbers [width, height], got {list(image_size)}"
@@ -145,6 +150,28 @@ def _as_size(image_size: Any, where: str) -> tuple[int, int]:
             "is it [width, height] in pixels?"
         )
     return (w, h)
+
+
+def size_of(image_or_size: Any) -> tuple[int, int]:
+    """``(width, height)`` of an image array (H, W) or (H, W, C), or a size checked as :func:`_as_size` does."""
+    if isinstance(image_or_size, np.ndarray) and image_or_size.ndim in (2, 3) and image_or_size.size:
+        return (image_or_size.shape[1], image_or_size.shape[0])
+    if isinstance(image_or_size, np.ndarray) and image_or_size.ndim != 1:
+        raise CameraError(f"expected an image (H, W) or (H, W, C), got an array of shape {image_or_size.shape}")
+    return _as_size(image_or_size, "image_size")
+
+
+def principal_point_inside(K: np.ndarray, size: tuple[int, int], where: str) -> tuple[int, int]:
+    """``size``, or CameraError when the principal point lies outside the picture: a calibration's K with another
+    resolution's image_size (a 640x480 calibration read as 320x240 puts cx at 324 on a 320-wide picture)."""
+    (w, h), cx, cy = size, float(K[0, 2]), float(K[1, 2])
+    if -0.5 <= cx <= w - 0.5 and -0.5 <= cy <= h - 0.5:
+        return size
+    raise CameraError(
+        f"{where}: the principal point ({cx:g}, {cy:g}) lies outside the {w}x{h} picture; image_size must be the "
+        f"resolution the camera was calibrated at (about {round(2 * cx + 1)}x{round(2 * cy + 1)} for this K), "
+        "and Camera.scaled() changes it"
+    )
 
 
 def _check_aspect(size: tuple[int, int], new: tuple[int, int], tol: float) -> None:
@@ -175,6 +202,11 @@ def _as_alpha(alpha: Any) -> float:
 def _check_picture(image: Any, size: tuple[int, int]) -> None:
     if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or image.size == 0:
         raise CameraError("image must be a picture array (H, W) or (H, W, C); read it with fidlearn.load_image")
+    if image.dtype not in (np.uint8, np.uint16, np.int16, np.float32, np.float64):  # what cv2.remap takes
+        raise CameraError(
+            f"image is of type {image.dtype}; a picture is uint8 or uint16 (or float32): read it with "
+            "fidlearn.load_image, or convert it (image.astype(np.uint8))"
+        )
     if (image.shape[1], image.shape[0]) != tuple(size):
         raise CameraError(
             f"image is {image.shape[1]}x{image.shape[0]}, the camera {size[0]}x{size[1]}; "

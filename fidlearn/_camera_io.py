@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from . import _files
-from ._camera_checks import _ALIASES, CAMERA_FIELDS
+from ._camera_checks import _ALIASES, CAMERA_FIELDS, _as_size
 from ._filestorage import read_filestorage, write_filestorage
 from ._io import read_json, write_json_atomic
 from .errors import CameraError
@@ -81,6 +81,8 @@ def save_camera(camera: Any, path: str | os.PathLike) -> Path:
 def load_camera(cls: Any, path: str | os.PathLike, image_size: Any) -> Any:
     """Read a ``cls`` (Camera) from fidlearn's JSON or OpenCV FileStorage (see ``Camera.load``)."""
     path = _files.as_path(path, CameraError, "camera")
+    if image_size is not None:
+        image_size = _as_size(image_size, str(path))
     if path.suffix.lower() in _FILESTORAGE_SUFFIXES:
         path, K, dist, size, model = read_filestorage(path, image_size)
         return cls(K, dist, size, source=str(path), model=model)

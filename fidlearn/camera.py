@@ -17,7 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from . import _camera_io, _lens, frames
+from . import _camera_checks, _camera_io, _lens, frames
 from ._camera_checks import (
     DIST_LENGTHS,
     MODELS,
@@ -96,7 +96,7 @@ class Camera:
         self.model = _as_model(model, where)
         self.K = _as_K(K, where)
         self.dist = _as_dist(dist, where, self.model)
-        self.image_size = _as_size(image_size, where)
+        self.image_size = _camera_checks.principal_point_inside(self.K, _as_size(image_size, where), where)
         self.intrinsics_covariance = _as_intrinsics_cov(intrinsics_covariance, 4 + len(self.dist), where)
 
     # -- read-only views -------------------------------------------------------------
@@ -410,9 +410,8 @@ class Camera:
         CameraError
             If the image's aspect ratio differs (:meth:`scaled`).
         """
-        arr = isinstance(image_or_size, np.ndarray)
-        size = (image_or_size.shape[1], image_or_size.shape[0]) if arr else tuple(image_or_size)
-        if tuple(size) == self.image_size:
+        size = _camera_checks.size_of(image_or_size)
+        if size == self.image_size:
             return self
         cam = self.scaled(size)
         if warn:

@@ -1402,7 +1402,9 @@ CHARUCO = [
     ("a checkerboard", [BLANK] * 3, {"board": Board.checkerboard((9, 6), 25)}, "a checkerboard goes to calibrate_"),
     ("a board's counts", [BLANK] * 3, {"board": (5, 7)}, "board must be a fidlearn.Board.charuco(squares, "),
     ("unknown legacy value", [BLANK] * 3, {"legacy": "maybe"}, "legacy must be True, False or 'auto'"),
-    ("too few corners asked for", [BLANK] * 3, {"min_corners": 0}, "min_corners must be at least 4"),
+    ("too few corners asked for", [BLANK] * 3, {"min_corners": 0}, "min_corners must be a whole number, at least 4"),
+    ("corners asked for in words", [BLANK] * 3, {"min_corners": "six"}, "at least 4, got 'six'"),
+    ("a fraction of a corner", [BLANK] * 3, {"min_corners": 4.7}, "at least 4, got 4.7"),
     ("no board in the pictures", [BLANK] * 3, {}, "no 6X6_250 marker in the picture; check the dictionary"),
 ]
 

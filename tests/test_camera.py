@@ -133,6 +133,10 @@ GOOD = {"camera_matrix": K.tolist(), "dist_coeffs": DIST.tolist(), "image_size":
         ({"image_size": [1280]}, r"image_size must be \[width, height\]"),
         ({"image_size": [1280, -720]}, "two positive whole numbers"),
         ({"image_size": None}, r"image_size must be \[width, height\]"),
+        ({"image_size": "64"}, r"image_size must be \[width, height\] in pixels, got '64'"),  # not 6 x 4
+        ({"image_size": ["1280", "720"]}, r"image_size must be \[width, height\]"),
+        ({"image_size": [True, True]}, r"image_size must be \[width, height\]"),
+        ({"image_size": [320, 180]}, r"principal point \(639.5, 359.5\) lies outside the 320x180 .*about 1280x720"),
     ],
 )
 def test_camera_file_errors(tmp_path, change, message):
@@ -226,3 +230,20 @@ def test_exact_undistortion_agrees_with_opencvs_iteration_run_to_tight_criteria(
     lens, px = _wide_lens_and_grid()
     by_opencv = _lens.undistort_cv_iter(px, lens.K, lens.dist, max_count=500, eps=1e-15)
     np.testing.assert_allclose(_lens.undistort_exact(px, lens.K, lens.dist), by_opencv, rtol=0, atol=1e-9)
+
+
+def test_sizes_images_and_pictures_that_are_not_are_refused_with_the_fix(cam, tmp_path):
+    path = cam.save(tmp_path / "camera.json")
+    with pytest.raises(CameraError, match=r"image_size must be \[width, height\] in pixels, got 1280"):
+        Camera.load(path, image_size=1280)
+    with pytest.raises(CameraError, match=r"got '1280x720'"):
+        Camera.load(path, image_size="1280x720")
+    for bad in (None, np.zeros(10), "640x360"):
+        with pytest.raises(CameraError, match=r"image_size must be \[width, height\]"):
+            cam.for_image(bad)
+    with pytest.raises(CameraError, match=r"an array of shape \(2, 2, 2, 2\)"):
+        cam.for_image(np.zeros((2, 2, 2, 2)))
+    for dtype in (np.int64, bool):
+        with pytest.raises(CameraError, match=f"image is of type {np.dtype(dtype)}; a picture is uint8"):
+            cam.undistort_image(np.zeros((720, 1280), dtype))
+    assert cam.undistort_image(np.zeros((720, 1280), np.uint16)).dtype == np.uint16

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import glob
 import math
+import numbers
 import os
 import warnings
 from collections import Counter
@@ -301,8 +302,8 @@ def calibrate_charuco(
         )
     model = check_model(model, flags)
     _warn_if_metres(board.square_size_mm, "square_size_mm")
-    if int(min_corners) < 4:
-        raise CalibrationError(f"min_corners must be at least 4, got {min_corners}")
+    if isinstance(min_corners, bool) or not isinstance(min_corners, numbers.Integral) or min_corners < 4:
+        raise CalibrationError(f"min_corners must be a whole number, at least 4, got {min_corners!r:.40}")
     finder = _Charuco(board, legacy, min_corners)
     entries = _entries(images)
     return _run(
