@@ -197,6 +197,16 @@ def test_majority_size_wins_even_when_first_image_differs(right_grays):
     assert "320x240 but the others are 640x480" in cal.rejected[0][1]
 
 
+def test_photos_without_the_board_do_not_decide_the_resolution(right_grays):
+    """Five blank 320x240 pictures among four 640x480 views of the board: the views calibrate, the blanks are
+    rejected for showing no board (they were the majority size, and the four views were rejected as 'other size')."""
+    blank = [np.full((240, 320), 128, np.uint8)] * 5
+    cal = calibrate_checkerboard(right_grays[:4] + blank, PATTERN, SQUARE_MM, reject_outliers=False)
+    assert cal.camera.image_size == (640, 480)
+    assert len(cal.used) == 4
+    assert len(cal.rejected) == 5
+
+
 def test_unreadable_files_are_rejected_with_the_image_error(tmp_path, right_grays):
     broken = tmp_path / "broken.jpg"
     broken.write_bytes(b"not a jpeg at all")
@@ -216,6 +226,8 @@ def test_too_few_views_says_how_many_and_why(right_grays):
         r"\(image 2; board not found \(9x6 inner corners\)",
     ):
         calibrate_checkerboard(right_grays[:2] + [blank], PATTERN, SQUARE_MM)
+    with pytest.raises(CalibrationError, match=r"got 2 of 2: the board was found in every one, 3 are needed"):
+        calibrate_checkerboard(right_grays[:2], PATTERN, SQUARE_MM)
 
 
 def test_squares_instead_of_inner_corners_gets_the_hint(right_grays):

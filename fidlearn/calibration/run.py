@@ -101,7 +101,10 @@ def _detect_all(entries, find: Callable[[np.ndarray], dict], progress: ProgressF
 
 
 def _choose_size(views: list[_View]) -> tuple[int, int] | None:
-    sizes = [v.size for v in views if v.size is not None]
+    """The most common size of the views that show the board (of every view when none does): photos where no
+    board was found do not decide the resolution calibrated at."""
+    sizes = [v.size for v in views if v.size is not None and v.status == "used"]
+    sizes = sizes or [v.size for v in views if v.size is not None]
     if not sizes:
         return None
     counts = Counter(sizes)
@@ -201,7 +204,7 @@ def _too_few(views: list[_View], hint: str, min_views: int) -> CalibrationError:
         shown = ", ".join(_short(os.path.basename(n) or n, 30) for n in names[:4]) + (", ..." if len(names) > 4 else "")
         first = next(v.reason for v in views if v.status == status)
         parts.append(f"{status}: {len(names)} ({shown}; {first})")
-    why = "; ".join(parts) if parts else "no images were given"
+    why = "; ".join(parts) if parts else f"the board was found in every one, {min_views} are needed"
     fix = hint[0].upper() + hint[1:] + ". " if hint else ""
     return CalibrationError(
         f"calibration needs at least {min_views} views with the board found, got {n_used} of {len(views)}: {why}. "
