@@ -32,15 +32,7 @@ def _filestorage_text(path: Path, data: bytes) -> str:
     if not (head.startswith("%YAML") or head.startswith("<?xml") or head.startswith("<opencv_storage")):
         raise CameraError(f"{path}: not an OpenCV FileStorage file; it should start with %YAML:1.0 or <?xml")
     if head.startswith("%YAML"):
-        depth = deepest = 0
-        for ch in text:
-            if ch in "[{":
-                depth += 1
-                deepest = max(deepest, depth)
-            elif ch in "]}":
-                depth -= 1
-        indent = max((len(line) - len(line.lstrip(" ")) for line in text.splitlines() if line.strip()), default=0)
-        deepest = max(deepest, indent // 2)
+        deepest = _yaml_depth(text)
     else:
         depth = deepest = 0
         for m in re.finditer(r"<(/?)[A-Za-z_][^>]*?(/?)>", text):
@@ -55,6 +47,31 @@ def _filestorage_text(path: Path, data: bytes) -> str:
             f"({MAX_FILESTORAGE_DEPTH} at most): is it the right file?"
         )
     return text
+
+
+def _yaml_depth(text: str) -> int:
+    """How deep YAML text nests: its brackets, and its block indentation (2 spaces a level), not counting
+    brackets in comments or quotes, or the indentation of a bracketed list's continued lines (OpenCV aligns
+    a matrix's ``data: [ ... ]`` so)."""
+    depth = deepest = 0
+    for line in text.splitlines():
+        body = line.lstrip(" ")
+        if body and not body.startswith("#") and depth == 0:
+            deepest = max(deepest, (len(line) - len(body)) // 2)
+        quote = None
+        for k, ch in enumerate(line):
+            if quote is not None:
+                quote = None if ch == quote else quote
+            elif ch in "\"'":
+                quote = ch
+            elif ch == "#" and (k == 0 or line[k - 1] in " \t"):
+                break
+            elif ch in "[{":
+                depth += 1
+                deepest = max(deepest, depth)
+            elif ch in "]}":
+                depth = max(depth - 1, 0)
+    return deepest
 
 
 def _filestorage_matrix(node, path: Path, name: str) -> np.ndarray | None:

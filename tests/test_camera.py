@@ -247,3 +247,18 @@ def test_sizes_images_and_pictures_that_are_not_are_refused_with_the_fix(cam, tm
         with pytest.raises(CameraError, match=f"image is of type {np.dtype(dtype)}; a picture is uint8"):
             cam.undistort_image(np.zeros((720, 1280), dtype))
     assert cam.undistort_image(np.zeros((720, 1280), np.uint16)).dtype == np.uint16
+
+
+def test_brackets_in_comments_and_quotes_and_aligned_matrix_rows_are_not_nesting(tmp_path):
+    """The guard against deeply nested files (OpenCV's parser recurses once per level) counts a file's structure:
+    not the brackets of a comment or a quoted string, nor the indentation of a matrix's continued data line."""
+    path = tmp_path / "camera.yml"
+    path.write_text(
+        "%YAML:1.0\nimage_width: 640\nimage_height: 480\n# notes: [[[[[[[[[[[[[[[[[[\n"
+        "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 600., 0., 319.5,\n"
+        + " "
+        * 44
+        + "0., 600., 239.5, 0., 0., 1. ]\n"
+        'note: "[[[[[[[[[[[[[[[[[[[[[[[["\n'
+    )
+    assert Camera.load(path).K.tolist() == [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]]
