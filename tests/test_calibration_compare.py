@@ -269,6 +269,23 @@ def test_a_fisheye_calibrations_white_uncertainty_is_opencvs():
     assert u.inflation > 2  # six real views of a wide lens share far more than white noise
 
 
+def test_a_fixed_aspect_ratio_ties_fx_to_fy_in_the_uncertainty_as_opencv_does():
+    """With CALIB_FIX_ASPECT_RATIO fx = a fy: OpenCV states fy's deviation (1.06 px on these photos) and none for
+    fx. The uncertainty took fx as held and fy alone as free (0.27 px, 4 times too certain); it now moves fx with
+    fy, and the camera's covariance gives fx a times fy's deviation, fully correlated."""
+    from fidlearn.calibration import camera_with_uncertainty  # noqa: PLC0415
+
+    cal = calibrate_checkerboard(RIGHT, board=BOARD, flags=cv2.CALIB_FIX_ASPECT_RATIO, reject_outliers=False)
+    u = intrinsics_uncertainty(cal)
+    assert u.names[:2] == ("fy", "cx")
+    assert u.white_std["fy"] == pytest.approx(cal.std_intrinsics["fy"], rel=1e-6)
+    cov = camera_with_uncertainty(cal).intrinsics_covariance
+    a = cal.camera.fx / cal.camera.fy
+    assert np.sqrt(cov[0, 0]) == pytest.approx(a * np.sqrt(cov[1, 1]), rel=1e-12)
+    assert cov[0, 1] / np.sqrt(cov[0, 0] * cov[1, 1]) == pytest.approx(1.0, abs=1e-9)
+    np.testing.assert_allclose(cov[0, 2:], a * cov[1, 2:], rtol=1e-12)
+
+
 def test_two_copies_of_a_fisheye_lens_differ_beyond_noise_and_two_halves_of_one_agree():
     import json
 

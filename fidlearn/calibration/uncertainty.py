@@ -71,18 +71,25 @@ class IntrinsicsUncertainty:
 
 
 def _view_terms(camera, obj: np.ndarray, img: np.ndarray, T: np.ndarray, free: np.ndarray):
-    """One view's pose-projected intrinsics Jacobian ``Jv`` (2N, p) and residuals (2N,)."""
+    """One view's pose-projected intrinsics Jacobian ``Jv`` (2N, p) and residuals (2N,). With fx held and fy free
+    (``CALIB_FIX_ASPECT_RATIO``: fx = a fy), fy's column moves fx with it, as OpenCV's ``aspectRatio`` does."""
     rvec, tvec = frames.rvec_tvec_from_transform(T)
     if camera.model == "fisheye":  # columns: f (2), c (2), k (4), rvec (3), tvec (3), skew
         D = camera.dist.reshape(1, 4)
         proj, J = cv2.fisheye.projectPoints(obj.reshape(-1, 1, 3), rvec.reshape(3, 1), tvec.reshape(3, 1), camera.K, D)
         J_pose, J_int = J[:, 8:14], J[:, :8][:, free]
     else:
-        proj, J = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist)
+        aspect = camera.fx / camera.fy if _tied_aspect(free) else 0.0
+        proj, J = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, camera.K, camera.dist, aspectRatio=aspect)
         J_pose, J_int = J[:, :6], J[:, 6 : 10 + len(camera.dist)][:, free]
     r = (img.reshape(-1, 2) - proj.reshape(-1, 2)).ravel()
     Jv = J_int - J_pose @ np.linalg.lstsq(J_pose, J_int, rcond=None)[0]
     return Jv, r - J_pose @ np.linalg.lstsq(J_pose, r, rcond=None)[0]
+
+
+def _tied_aspect(free: np.ndarray) -> bool:
+    """Whether fx follows fy (``CALIB_FIX_ASPECT_RATIO``): fx held while fy is free, which no other flag does."""
+    return bool(not free[0] and free[1])
 
 
 def _names(camera) -> tuple:
@@ -201,4 +208,7 @@ def camera_with_uncertainty(cal):
     at = [names.index(n) for n in u.names]
     full = np.zeros((len(names), len(names)))
     full[np.ix_(at, at)] = u.covariance
+    if _tied_aspect(_free(cal)):  # fx = a fy: fx's row and column are fy's times a
+        full[0], full[:, 0] = cam.fx / cam.fy * full[1], cam.fx / cam.fy * full[:, 1]
+        full[0, 0] = (cam.fx / cam.fy) ** 2 * full[1, 1]
     return Camera(cam.K, cam.dist, cam.image_size, cam.source, model=cam.model, intrinsics_covariance=full)
