@@ -136,6 +136,48 @@ CLOBBER = [
         "holds the input",
     ),
     (
+        "compare-calibrations --report a photo of an input folder",
+        [
+            "compare-calibrations",
+            "photos",
+            "photos",
+            "--pattern",
+            "9x6",
+            "--square-mm",
+            "25",
+            "--report",
+            "photos/view_01.png",
+        ],
+        "is one of the inputs (a file of the folder photos)",
+    ),
+    (
+        "locate --annotate named as its --json file",
+        ["locate", "frames", *LOC, "--json", "out/poses.jsonl", "--annotate", "out/poses.jsonl"],
+        "is the name --json gives its file",
+    ),
+    (
+        "calibrate --annotate named as its camera file",
+        [
+            "calibrate",
+            "photos",
+            "--pattern",
+            "9x6",
+            "--square-mm",
+            "25",
+            "-o",
+            "out/cam.json",
+            "--annotate",
+            "out/cam.json",
+        ],
+        "is the name -o gives its file",
+    ),
+    (
+        "locate --annotate an existing file",
+        ["locate", "frames", *LOC, "--annotate", "camera.json"],
+        "--annotate camera.json is a file",
+    ),
+    ("markers -o its own --map", ["markers", "--map", "map.pdf", "-o", "map.pdf"], "is one of the inputs"),
+    (
         "render --truth the map",
         ["render", *LOC, "--pose", "1000,190,230,-90,0,90", "-o", "r.png", "--truth", "map.json"],
         "is one of the inputs",
@@ -162,6 +204,7 @@ def test_an_output_over_an_input_is_refused_before_any_work(ws, capsys, argv, ma
     _link(ws, "hard.json", "map.json", hard=True)
     (ws / "out").mkdir()
     os.symlink(ws / "frames", ws / "framelink")
+    shutil.copy(ws / "map.json", ws / "map.pdf")  # a map named as the pages would be
     refused(ws, capsys, argv, match)
 
 
@@ -444,6 +487,23 @@ def test_fifos_and_devices_are_refused_without_blocking(ws, capsys, kind):
     assert "is a FIFO" in err[0] or "is a device" in err[0], err
     assert {p.name for p in ws.iterdir()} == before
     assert time.perf_counter() - t0 < 5
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_an_output_that_is_a_fifo_or_a_device_is_left_as_it_is(ws, capsys, kind):
+    """The output is written whole and renamed into place, which would put a file where a FIFO or a device (a
+    symlink to /dev/null here; as root, -o /dev/null itself) was."""
+    if kind == "fifo":
+        os.mkfifo(ws / "out.json")
+    else:
+        os.symlink("/dev/null", ws / "out.json")
+    refused(
+        ws,
+        capsys,
+        ["corners", "map.json", "-o", "out.json"],
+        f"out.json: is a {'FIFO' if kind == 'fifo' else 'device'}, not a file",
+    )
+    assert (ws / "out.json").is_fifo() if kind == "fifo" else (ws / "out.json").is_symlink()
 
 
 # -- writing: the user's path in every error, nothing half-written -------------------------------

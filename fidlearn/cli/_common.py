@@ -55,6 +55,11 @@ def _refuse_clobber(
                 raise UsageError(
                     f"{opt} {out} is one of the inputs ({inp}); write it under another name: nothing was written"
                 )
+            if inp.is_dir() and out.is_file() and out.resolve().parent == inp.resolve():  # a photo of a folder given
+                raise UsageError(
+                    f"{opt} {out} is one of the inputs (a file of the folder {inp}); write it under another name: "
+                    "nothing was written"
+                )
         for opt2, out2 in named[:k]:
             if out.resolve() == out2.resolve() or _same_file(out, out2):
                 raise UsageError(f"{opt} {out} and {opt2} {out2} are the same file; give each output its own name")
@@ -64,12 +69,16 @@ def _refuse_clobber(
 
 def _refuse_annotate_clobber(annotate: Path, files: list[Path], named: list[tuple[str, Path]]) -> None:
     folder = annotate.resolve()
+    if annotate.exists() and not annotate.is_dir():
+        raise UsageError(f"--annotate {annotate} is a file; give the folder the annotated pictures go to")
     for inp in files:
         if inp.resolve().parent == folder:
             raise UsageError(
                 f"--annotate {annotate} holds the input {inp}; its annotated copy would replace it: give another folder"
             )
     for opt, out in named:
+        if out.resolve() == folder:
+            raise UsageError(f"--annotate {annotate} is the name {opt} gives its file; give each its own name")
         if out.resolve().parent == folder:
             raise UsageError(
                 f"--annotate {annotate} is where {opt} {out} goes; give the annotations a folder of their own"

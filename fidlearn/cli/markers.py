@@ -7,7 +7,7 @@ from pathlib import Path
 from .. import printables
 from ..errors import UsageError
 from ..markermap import MarkerMap
-from ._common import UNITS, _board, _check_dpi, _check_output, _commit
+from ._common import UNITS, _board, _check_dpi, _check_output, _commit, _refuse_clobber
 
 
 def add_markers(sub) -> None:
@@ -66,6 +66,7 @@ def run_markers(args) -> int:
         as one ``error:`` line and exits with status 2.
     """
     out = _check_output(args.output, (".pdf", ".png"))
+    _refuse_clobber([("-o", out)], [Path(args.map)] if getattr(args, "map", None) else [])
     _check_dpi(args.dpi)
     sheets = _sheets(args)
     figures = [fig for sheet in sheets for fig in printables.marker_figures(sheet)]
