@@ -122,7 +122,9 @@ def _check_destination(path: Path, made_at_commit: bool) -> None:
     if path.is_dir():
         raise FidlearnError(f"{path}: is a folder; give the name of the file to write (a path inside it)")
     if path.exists() and not path.is_file():  # a device, a FIFO, a socket: the rename would put a file in its place
-        kind = "a FIFO" if path.is_fifo() else "a device" if path.is_char_device() or path.is_block_device() else "no file"
+        kind = (
+            "a FIFO" if path.is_fifo() else "a device" if path.is_char_device() or path.is_block_device() else "no file"
+        )
         raise FidlearnError(
             f"{path}: is {kind}, not a file; fidlearn writes a whole file and renames it into place, which would "
             "replace it: give the name of a file to write"

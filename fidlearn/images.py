@@ -163,7 +163,7 @@ def encode_image(path: str | os.PathLike, image: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool) -> list[tuple[str, Path]]:
+def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool, *, once: bool = False) -> list[tuple[str, Path]]:
     """Files and folders as ``[("image" | "video", path), ...]``, checked before any is read.
 
     Parameters
@@ -172,6 +172,9 @@ def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool) -> list[tupl
         Pictures, videos, and folders (each stands for its pictures, sorted by name).
     videos : bool
         Whether video files are accepted.
+    once : bool
+        Refuse a picture given twice (by two names, or in a folder given twice): in a calibration or a survey
+        each photo is one piece of evidence, and a copy would halve the stated uncertainty.
 
     Returns
     -------
@@ -181,8 +184,9 @@ def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool) -> list[tupl
     Raises
     ------
     UsageError
-        A path that does not exist, a folder without pictures, or a file that is not a
-        picture (or a video) by its suffix.
+        A path that does not exist, a folder without pictures, a file that is not a picture (or a
+        video) by its suffix, a FIFO or a device (which would block), or with ``once`` a picture
+        given twice.
 
     Examples
     --------
@@ -201,6 +205,9 @@ def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool) -> list[tupl
             items += [("image", p) for p in found]
         elif not path.exists():
             raise UsageError(f"{path}: no such file or folder; check the path")
+        elif not path.is_file():
+            what = "a picture or a video file" if videos else "a picture file"
+            raise UsageError(f"{path}: is {_files._kind(path.stat().st_mode)}; give {what} or a folder of pictures")
         elif videos and path.suffix.lower() in VIDEO_SUFFIXES:
             items.append(("video", path))
         elif path.suffix.lower() in IMAGE_SUFFIXES:
@@ -210,6 +217,13 @@ def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool) -> list[tupl
             raise UsageError(
                 f"{path}: not an image{' or a video' if videos else ''} by its name; expected {', '.join(kinds)}"
             )
+    if once:
+        seen: dict[Path, Path] = {}
+        for _, p in items:
+            first = seen.setdefault(p.resolve(), p)
+            if first is not p:
+                also = "" if str(first) == str(p) else f" (also as {first})"
+                raise UsageError(f"{p} is given twice{also}: each photo counts once; give it once")
     return items
 
 

@@ -489,6 +489,28 @@ def test_fifos_and_devices_are_refused_without_blocking(ws, capsys, kind):
     assert time.perf_counter() - t0 < 5
 
 
+@pytest.mark.parametrize("name", ["ff.png", "ff.mp4"])
+def test_a_fifo_given_as_a_picture_or_a_video_is_refused_without_blocking(ws, capsys, name):
+    """cv2.VideoCapture blocks on a FIFO named .mp4 and ignores SIGTERM; reading a .png one blocks too."""
+    os.mkfifo(ws / name)
+    t0 = time.perf_counter()
+    refused(ws, capsys, ["locate", name, *LOC], f"{name}: is a FIFO (named pipe); give a picture or a video file")
+    assert time.perf_counter() - t0 < 5
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["calibrate", "photos", "photos", "--pattern", "9x6", "--square-mm", "25", "-o", "cam.json"],
+        ["survey", "frames/scene_00.png", "./frames/scene_00.png", *LOC, "-o", "surveyed.json"],
+    ],
+    ids=["calibrate a folder twice", "survey a photo by two names"],
+)
+def test_a_photo_given_twice_is_refused_as_evidence_counted_twice(ws, capsys, argv):
+    """A copy of a photo halves a calibration's stated uncertainty and let a survey of one photo pass its two."""
+    refused(ws, capsys, argv, "is given twice")
+
+
 @pytest.mark.parametrize("kind", ["fifo", "device"])
 def test_an_output_that_is_a_fifo_or_a_device_is_left_as_it_is(ws, capsys, kind):
     """The output is written whole and renamed into place, which would put a file where a FIFO or a device (a

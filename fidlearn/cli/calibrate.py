@@ -137,7 +137,7 @@ def run(args) -> int:
     """
     out = _check_output(args.output, (".json", ".yml", ".yaml", ".xml"))
     report = _check_output(args.report, (".png",), "--report") if args.report else None
-    items = expand_inputs(args.inputs, videos=False)
+    items = expand_inputs(args.inputs, videos=False, once=True)
     _refuse_clobber([("-o", out), ("--report", report)], [p for _, p in items], args.annotate)
     staging = _Staging(args.annotate)
     board = _board(args)

@@ -83,7 +83,7 @@ def add(sub) -> None:
 def _check(args) -> list[Path]:
     out = _check_output(args.output, (".json",))
     plot = _check_output(args.plot, (".png",), "--plot") if args.plot is not None else None
-    photos = [path for _, path in expand_inputs(args.photos, videos=False)]
+    photos = [path for _, path in expand_inputs(args.photos, videos=False, once=True)]
     _refuse_clobber([("-o", out), ("--plot", plot)], [*photos, args.map, args.camera])
     sigma = args.map_sigma_mm
     if sigma is not None and not (MIN_MAP_SIGMA_MM <= sigma <= MAX_MAP_SIGMA_MM or sigma == math.inf):
