@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from pathlib import Path
@@ -104,6 +105,24 @@ def _filestorage_pixels(node, path: Path, name: str) -> int:
     return int(value)
 
 
+#: Other names tools give OpenCV's FileStorage fields (keys in lower case, ``_`` for ``-`` and spaces).
+_FILESTORAGE_ALIASES = {
+    **{k: "distortion_coefficients" for k in ("dist_coeffs", "dist_coefs", "distortion", "dist", "d", "distcoeffs")},
+    **{k: "camera_matrix" for k in ("k", "intrinsics", "matrix", "cameramatrix", "intrinsic_matrix")},
+}
+
+
+def _spelt(keys: list[str], field: str) -> str:
+    """``", but 'dist_coeffs': did you mean 'distortion_coefficients'?"`` when one of the file's ``keys`` is
+    another spelling of ``field``, else ``""``."""
+    for key in keys:
+        norm = key.strip().lower().replace("-", "_").replace(" ", "_")
+        named = _FILESTORAGE_ALIASES.get(norm) or _FILESTORAGE_ALIASES.get(norm.replace("_", ""))
+        if key != field and (named == field or named is None and difflib.get_close_matches(norm, [field], 1, 0.8)):
+            return f", but {key!r}: did you mean {field!r}?"
+    return ""
+
+
 def _filestorage_model(node, path: Path) -> str:
     """The lens model of OpenCV's calibration sample's ``fisheye_model`` (0 or 1; absent: pinhole)."""
     if node.empty():
@@ -157,14 +176,23 @@ def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | N
     try:
         if not fs.isOpened():
             raise CameraError(f"{path}: OpenCV cannot open it as FileStorage YAML/XML")
+        keys = list(fs.root().keys()) if fs.root().isMap() else []
         node_K = fs.getNode("camera_matrix")
         if node_K.empty():
-            raise CameraError(f"{path}: no camera_matrix field; OpenCV's calibration files name it camera_matrix")
+            raise CameraError(
+                f"{path}: no camera_matrix field"
+                + (_spelt(keys, "camera_matrix") or "; OpenCV's calibration files name it camera_matrix")
+            )
         K = _filestorage_matrix(node_K, path, "camera_matrix")
         if K is None:
             raise CameraError(f"{path}: camera_matrix is not an !!opencv-matrix")
         model = _filestorage_model(fs.getNode("fisheye_model"), path)
         node_d = fs.getNode("distortion_coefficients")
+        if node_d.empty() and _spelt(keys, "distortion_coefficients"):  # else the lens would be taken as perfect
+            raise CameraError(
+                f"{path}: no distortion_coefficients field{_spelt(keys, 'distortion_coefficients')} (without it "
+                "the lens is taken as free of distortion)"
+            )
         dist = None if node_d.empty() else _filestorage_matrix(node_d, path, "distortion_coefficients")
         w_node, h_node = fs.getNode("image_width"), fs.getNode("image_height")
         file_size = None

@@ -415,7 +415,13 @@ CAMERA_YAML = [
     ("plain text", "fx = 600\n", {}, "not an OpenCV FileStorage file; it should start with %YAML:1.0 or <?xml"),
     ("binary garbage", b"\x89PNG\r\n\x1a\n" + bytes(range(256)), {}, "not UTF-8 text"),
     ("header only", "%YAML:1.0\n", {}, "no camera_matrix field"),
-    ("K under another name", GOOD_YAML.replace("camera_matrix", "K"), {}, "no camera_matrix field"),
+    ("K under another name", GOOD_YAML.replace("camera_matrix", "K"), {}, "no camera_matrix field, but 'K': did you"),
+    (
+        "the distortion under fidlearn's JSON name",
+        GOOD_YAML.replace("distortion_coefficients", "dist_coeffs"),
+        {},
+        "no distortion_coefficients field, but 'dist_coeffs': did you mean 'distortion_coefficients'?",
+    ),
     (
         "K is a number",
         "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: 600\n",
@@ -1020,7 +1026,8 @@ def calib_setup(tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     (tmp_path / "notes").mkdir()
     (tmp_path / "notes" / "a.txt").write_text("board photos go here\n")
-    (tmp_path / "text.png").write_text("not a picture\n")
+    for name in ("text.png", "text2.png", "text3.png"):
+        (tmp_path / name).write_text("not a picture\n")
     write_png(tmp_path / "marker.png")
 
 
@@ -1121,7 +1128,7 @@ COMMANDS = [
     ),
     (
         "calibrate: unreadable pictures",
-        ["calibrate", "text.png", "text.png", "text.png", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"],
+        ["calibrate", "text.png", "text2.png", "text3.png", "--pattern", "9x6", "--square-mm", "25", "-o", "c.json"],
         "unreadable: 3",
     ),
     (
@@ -1209,7 +1216,7 @@ COMMANDS = [
     ),
     (
         "survey: negative tape sigma",
-        ["survey", "text.png", "text.png", *LOCATE_ARGS, "--map-sigma-mm", "-5", "-o", "s.json"],
+        ["survey", "text.png", "text2.png", *LOCATE_ARGS, "--map-sigma-mm", "-5", "-o", "s.json"],
         "--map-sigma-mm -5: give a positive number of mm",
     ),
     (

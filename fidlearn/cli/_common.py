@@ -70,7 +70,7 @@ def _refuse_clobber(
 def _refuse_annotate_clobber(annotate: Path, files: list[Path], named: list[tuple[str, Path]]) -> None:
     folder = annotate.resolve()
     if annotate.exists() and not annotate.is_dir():
-        raise UsageError(f"--annotate {annotate} is a file; give the folder the annotated pictures go to")
+        raise UsageError(f"--annotate {annotate} is a file; give a folder for the annotated pictures")
     for inp in files:
         if inp.resolve().parent == folder:
             raise UsageError(
