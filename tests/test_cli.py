@@ -9,6 +9,7 @@ no traceback and no output file.
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 
@@ -320,12 +321,15 @@ def test_calibrate_real_charuco_matches_opencv_and_warns(capsys, tmp_path):
 
 
 def test_calibrate_duplicate_photo_warns(capsys, tmp_path):
+    """A second photo of the board where it was (a burst; here a copy) adds weight, not geometry: warned. The
+    same file given twice is refused (tests/test_hostile_cli.py)."""
     views = sorted(data_path("calibration").glob("view_*.png"))[:10]
+    burst = shutil.copy(views[3], tmp_path / "burst.png")
     code, out, err = run(
         capsys,
         "calibrate",
         *views,
-        views[3],
+        burst,
         "--pattern",
         "9x6",
         "--square-mm",
@@ -336,7 +340,7 @@ def test_calibrate_duplicate_photo_warns(capsys, tmp_path):
         tmp_path / "ann",
     )
     assert code == 0, err
-    assert "1 pair(s) of nearly identical views (e.g. view_03.png and view_03.png (2))" in err
+    assert "1 pair(s) of nearly identical views (e.g. view_03.png and burst.png)" in err
     assert len(list((tmp_path / "ann").iterdir())) == 11
 
 
