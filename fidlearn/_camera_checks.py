@@ -27,6 +27,9 @@ def _fmt_matrix(M: np.ndarray) -> str:
 #: silently ignored, leaving a camera without distortion).
 CAMERA_FIELDS = ("camera_matrix", "dist_coeffs", "image_size", "source", "model", "intrinsics_covariance")
 #: Names other tools use for them, so the error can say which one was meant.
+#: The smallest focal length (px) a camera file may hold.
+MIN_FOCAL_PX = 1.0
+
 _ALIASES = {
     "distortion": "dist_coeffs",
     "dist": "dist_coeffs",
@@ -75,6 +78,11 @@ def _as_K(K: Any, where: str) -> np.ndarray:
         raise CameraError(
             f"{where}: camera_matrix has focal lengths fx={fx:g}, fy={fy:g}; both must be positive "
             "(in pixels); was the matrix transposed or written in another unit?"
+        )
+    if min(fx, fy) < MIN_FOCAL_PX:  # a view wider than any lens's across a handful of pixels
+        raise CameraError(
+            f"{where}: camera_matrix has focal lengths fx={fx:g}, fy={fy:g}; at least {MIN_FOCAL_PX:g} pixel is "
+            "a camera's (a phone's is about 0.8 times the image width): was it written in metres or millimetres?"
         )
     if abs(K[0, 1]) > 1e-9:
         raise CameraError(

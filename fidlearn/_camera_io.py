@@ -35,6 +35,10 @@ def camera_to_dict(camera: Any) -> dict:
     return d
 
 
+#: The longest ``source`` record kept from a camera file (characters).
+_SOURCE_CHARS = 300
+
+
 def camera_from_dict(cls: Any, d: Any, source: str) -> Any:
     """A ``cls`` (Camera) from fidlearn's JSON layout; a file without ``model`` is a pinhole camera."""
     if not isinstance(d, dict):
@@ -60,14 +64,18 @@ def camera_from_dict(cls: Any, d: Any, source: str) -> Any:
             f"{source}: missing field {', '.join(missing)}; a camera file needs camera_matrix (3x3), "
             "dist_coeffs and image_size [width, height]"
         )
-    return cls(
+    camera = cls(  # checked under the file's name: an error names the file, not what the file says made it
         d["camera_matrix"],
         d.get("dist_coeffs"),
         d["image_size"],
-        source=str(d.get("source") or source),
+        source=source,
         model=d.get("model", "pinhole"),
         intrinsics_covariance=d.get("intrinsics_covariance"),
     )
+    if d.get("source"):  # the record of what made it, one printable line of reasonable length
+        text = "".join(ch if ch.isprintable() else " " for ch in str(d["source"]))
+        camera.source = text if len(text) <= _SOURCE_CHARS else text[: _SOURCE_CHARS - 3] + "..."
+    return camera
 
 
 def save_camera(camera: Any, path: str | os.PathLike) -> Path:

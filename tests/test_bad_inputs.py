@@ -1112,6 +1112,7 @@ COMMANDS = [
         ["locate", "clip.avi", "--camera", "camera.json", "--map", "camera.json"],
         "the map does not say its units",
     ),
+    ("camera without export or import", ["camera"], "fidlearn camera: give export or import"),
     ("locate: annotate into a file", ["locate", "clip.avi", *LOCATE_ARGS, "--annotate", "map.json"], "give a folder"),
     ("locate: text file named .png", ["locate", "text.png", *LOCATE_ARGS], "not an image OpenCV can read"),
     ("locate: not a video", ["locate", "notes.avi", *LOCATE_ARGS, "--json", "p.jsonl"], "cannot open this video"),

@@ -128,6 +128,7 @@ GOOD = {"camera_matrix": K.tolist(), "dist_coeffs": DIST.tolist(), "image_size":
             {"camera_matrix": [[800, 0, 640], [0, 800, 360], [0, 0, 2]]},
             r"got \[\[800, 0, 640\], \[0, 800, 360\], \[0, 0, 2\]\]",
         ),
+        ({"camera_matrix": [[1e-300, 0, 639.5], [0, 1e-300, 359.5], [0, 0, 1]]}, "at least 1 pixel is a camera's"),
         ({"dist_coeffs": [0.1, 0.2, 0.3]}, "dist_coeffs has 3 values; OpenCV takes 4, 5, 8, 12 or 14"),
         ({"dist_coeffs": [0.1, 0.2, 0.0, 0.0, 0.0, 0.1]}, "dist_coeffs has 6 values"),
         ({"image_size": [1280]}, r"image_size must be \[width, height\]"),
@@ -146,6 +147,21 @@ def test_camera_file_errors(tmp_path, change, message):
     with pytest.raises(CameraError, match=message) as info:
         Camera.load(p)
     assert str(p) in str(info.value)
+
+
+def test_a_camera_files_errors_name_the_file_and_its_record_of_what_made_it_stays_one_line(tmp_path):
+    """The file's "source" (free text: what made the camera) is a record, not the file's name in an error; a
+    100,000-character one with a terminal escape is kept as one printable line of 300 characters at most."""
+    p = tmp_path / "camera.json"
+    p.write_text(json.dumps({**GOOD, "camera_matrix": [[0, 0, 640], [0, 800, 360], [0, 0, 1]], "source": "my rig"}))
+    with pytest.raises(CameraError, match=f"^{p}: camera_matrix has focal lengths fx=0"):
+        Camera.load(p)
+    p.write_text(json.dumps({**GOOD, "source": "x" * 100_000 + "\x1b[31m"}))
+    cam = Camera.load(p)
+    assert len(cam.source) == 300
+    assert cam.source.isprintable()
+    p.write_text(json.dumps({**GOOD, "source": "my rig"}))
+    assert Camera.load(p).source == "my rig"
 
 
 def test_camera_file_nan_and_missing_fields(tmp_path):

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 import cv2
 
 from .. import __version__
-from ..errors import FidlearnError, FidlearnWarning
+from ..errors import FidlearnError, FidlearnWarning, UsageError
 from ..io import StagedOutputs
 from . import calibrate, camera, check_print, compare, corners, doctor, grade, locate, markers, plan, render, survey
 from ._common import _error, _exit_status, _Parser, _raise_interrupted, _SafeStdout, _show_warning, _signal_name
@@ -145,6 +145,10 @@ def _main(argv: Sequence[str] | None, done: list) -> int:
         parser = build_parser()
         args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))
         if not getattr(args, "run", None):
+            if getattr(args, "command", None):  # a command whose verbs were not given: fidlearn camera
+                raise UsageError(
+                    f"fidlearn {args.command}: give export or import (see 'fidlearn {args.command} --help')"
+                )
             parser.print_help()
             return 2
         with warnings.catch_warnings(), _outputs_of(args) as outputs:
