@@ -109,6 +109,8 @@ def test_track_with_odometry(capsys, tmp_path, frames_dir):
         (["--track", "-o", "track.csv"], "name the file .jsonl or .json"),
         (["--track", "--format", "tum", "-o", "t.jsonl"], "name the file .txt or .tum"),
         (["--track", "--fps", "0"], "--fps"),
+        (["--fps", "10"], "--fps belongs to tracking: add --track"),
+        (["--odometry-drift", "0.5"], "--odometry-drift belongs to tracking: add --track"),
         (["--track", "--json", "p.jsonl"], "--json and --annotate are for untracked runs"),
         (["--track", "--mount", "missing.json"], "missing.json"),
     ],

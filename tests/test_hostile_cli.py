@@ -237,6 +237,7 @@ POSES = [
     ("--look-at -1e300", ["--from", "1000,0,0", "--look-at", "-1e300,0,0"], "beyond any room"),
     ("--roll-deg 1e9", ["--from", "1000,0,0", "--look-at", "0,0,0", "--roll-deg", "1e9"], "--roll-deg is degrees"),
     ("--roll-deg nan", ["--from", "1000,0,0", "--look-at", "0,0,0", "--roll-deg", "nan"], "--roll-deg is degrees"),
+    ("--roll-deg with --pose", ["--pose", "1000,0,0,-90,0,90", "--roll-deg", "45"], "--roll-deg goes with --look-at"),
 ]
 
 

@@ -73,9 +73,9 @@ def add_track_options(p) -> None:
     """
     g = p.add_argument_group("tracking (see below)")
     g.add_argument("--track", action="store_true", help="filter the poses over time (fidlearn.PoseTracker)")
-    g.add_argument("--fps", type=float, default=30.0, help="frames per second of the run (default 30)")
+    g.add_argument("--fps", type=float, help="frames per second of the run (default 30)")
     g.add_argument("--odometry", type=Path, metavar="ODOM.csv", help="the robot's odometry (format below)")
-    g.add_argument("--odometry-drift", type=float, default=0.02, metavar="FRACTION", help="default 0.02")
+    g.add_argument("--odometry-drift", type=float, metavar="FRACTION", help="default 0.02")
     g.add_argument("--mount", type=Path, metavar="MOUNT.json", help="the camera's place on the robot (below)")
     g.add_argument("--format", choices=list(FORMATS), help="how -o is written (default jsonl)")
     g.add_argument("-o", "--output", type=Path, metavar="TRACK", help="write the tracked poses here")
@@ -106,12 +106,15 @@ def check_track_args(args, inputs: list[Path]) -> Path | None:
     if not args.track:
         bag = args.format == "bag"
         used = [o for o, v in (("--odometry", args.odometry), ("--odometry-topic", args.odometry_topic),
-                               ("--mount", args.mount),
+                               ("--mount", args.mount), ("--odometry-drift", args.odometry_drift),
+                               ("--fps", None if getattr(args, "live", None) is not None else args.fps),  # stamps live
                                ("--format", None if bag else args.format), ("-o", None if bag else args.output))
                 if v is not None]  # fmt: skip
         if used:
             raise UsageError(f"{used[0]} belongs to tracking: add --track")
         return _output(args, inputs)
+    args.fps = 30.0 if args.fps is None else args.fps
+    args.odometry_drift = 0.02 if args.odometry_drift is None else args.odometry_drift
     if not 0.1 <= args.fps <= 10000:
         raise UsageError(f"--fps {args.fps:g}: give the frames per second, 0.1 to 10000")
     if not 0.0 < args.odometry_drift < 1.0:

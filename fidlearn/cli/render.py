@@ -61,9 +61,7 @@ def add(sub) -> None:
     )
     pose.add_argument("--look-at", metavar="X,Y,Z", help="point the camera looks at (mm); needs --from")
     p.add_argument("--from", dest="eye", metavar="X,Y,Z", help="camera position (mm) for --look-at")
-    p.add_argument(
-        "--roll-deg", type=float, default=0.0, metavar="DEG", help="with --look-at: turn about the optical axis (deg)"
-    )
+    p.add_argument("--roll-deg", type=float, metavar="DEG", help="with --look-at: turn about the optical axis (deg)")
     p.add_argument("--size", metavar="WxH", help="render at another resolution of the same aspect ratio")
     p.add_argument("--seed", type=int, default=0, help="random seed of the wall texture and noise (default 0)")
     p.add_argument("--noise", type=float, default=0.0, metavar="STD", help="sensor noise, gray levels (default 0)")
@@ -93,6 +91,8 @@ def _pose_from_args(args):
     if args.pose is not None:
         if args.eye is not None:
             raise UsageError("--from goes with --look-at; --pose already gives the position")
+        if args.roll_deg is not None:
+            raise UsageError("--roll-deg goes with --look-at; --pose already gives the roll")
         x, y, z, roll, pitch, yaw = _floats(args.pose, 6, "--pose", "x,y,z in mm, roll,pitch,yaw in degrees")
         _check_coords("--pose", (x, y, z))
         if max(abs(roll), abs(pitch), abs(yaw)) > 3600:
@@ -104,9 +104,10 @@ def _pose_from_args(args):
     target = _floats(args.look_at, 3, "--look-at", "x,y,z in mm")
     _check_coords("--from", eye)
     _check_coords("--look-at", target)
-    if not abs(args.roll_deg) <= 3600:
+    roll = 0.0 if args.roll_deg is None else args.roll_deg
+    if not abs(roll) <= 3600:
         raise UsageError("--roll-deg is degrees, -360 to 360")
-    return frames.look_at(eye, target, roll_deg=args.roll_deg)
+    return frames.look_at(eye, target, roll_deg=roll)
 
 
 def _check_args(args) -> tuple[Path, Path | None]:
