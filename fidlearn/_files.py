@@ -116,7 +116,8 @@ def read_bytes(path, error: type[FidlearnError], what: str, limit: int) -> tuple
     except OSError as exc:
         raise error(f"{path}: cannot be read ({exc.strerror or exc}); check the path of the {what}") from None
     if not stat.S_ISREG(st.st_mode):
-        raise error(f"{path}: is {_kind(st.st_mode)}, not a file; give the path of a {what} file")
+        article = "an" if what[:1].lower() in "aeiou" else "a"
+        raise error(f"{path}: is {_kind(st.st_mode)}, not a file; give the path of {article} {what} file")
     if st.st_size > limit:
         raise error(
             f"{path}: {st.st_size / 1e6:.1f} MB is more than a {what} file can be "

@@ -217,7 +217,8 @@ class StagedOutputs:
         where = folder if folder is not None else _folder_of(path)
         try:
             with signals_deferred():
-                fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=where)
+                # the hidden name within the 255 bytes a name may have, however long the user's
+                fd, name = tempfile.mkstemp(prefix=f".{path.name[:80]}.", suffix=path.suffix[:20] or ".tmp", dir=where)
                 os.close(fd)
                 entry = _Entry(Path(name), path, group)
                 self.staged.append(entry)

@@ -996,3 +996,10 @@ def test_a_librarys_deprecation_notice_is_not_a_line_for_the_user(ws, capsys, mo
     assert cli.main(["corners", "map.json", "-o", "c.json"]) == 0
     assert capsys.readouterr().err == ""
     assert (ws / "c.json").is_file()
+
+
+def test_an_output_name_of_250_characters_is_written(ws, capsys):
+    """A name may have 255 bytes; the hidden file it is staged in is kept within them too."""
+    name = "a" * 245 + ".json"
+    assert cli.main(["corners", "map.json", "-o", name]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in ws.iterdir() if p.name.startswith(("a", ".a"))) == [name]

@@ -173,7 +173,7 @@ def read_odometry_csv(path: str | os.PathLike, drift: float = 0.02) -> Odometry:
     RosFormatError
         A missing file, a wrong header, a row that is not 8 numbers, times not increasing, a zero quaternion.
     """
-    path, data = _files.read_bytes(path, RosFormatError, "odometry CSV file", _files.MAX_TEXT_BYTES)
+    path, data = _files.read_bytes(path, RosFormatError, "odometry CSV", _files.MAX_TEXT_BYTES)
     try:
         rows = list(csv.reader(io.StringIO(data.decode("utf-8"))))
     except (UnicodeDecodeError, csv.Error) as exc:
