@@ -197,7 +197,7 @@ def _map_options(
     try:
         dictionary = (
             _pick(d, full, "dictionary", dictionary, "", source)
-            if (dictionary or (full and d.get("dictionary")))
+            if (dictionary is not None or (full and d.get("dictionary") is not None))
             else "ARUCO_ORIGINAL"
         )
     except DictionaryError as exc:

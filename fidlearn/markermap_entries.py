@@ -408,6 +408,12 @@ def _merge_placements(
     owner: dict[int, str] = {}
     out = list(singles.values())
     for e in entries:
+        if isinstance(e, BoardEntry):  # one made in Python is checked as a file's is
+            try:
+                as_written = e.to_dict(1.0)
+            except (TypeError, ValueError):
+                as_written = None
+            _board(str(e.name), as_written, "mm", source, dictionary)
         for p in e.placements():
             k = key(p)
             if k in seen:

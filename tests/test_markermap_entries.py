@@ -136,6 +136,26 @@ def test_bad_entries_say_how_to_mend_them(entries, words):
     assert "room.json" in str(info.value)
 
 
+@pytest.mark.parametrize(
+    ("entry", "words"),
+    [
+        (BoardEntry("g", "grid", (0, 0, 0), (0, 0, 0), (2, 2), 40.0, "4X4_50"), "separation_mm must be a positive"),
+        (BoardEntry("c", "charuco", (0, 0, 0), (0, 0, 0), (5, 5), 40.0, "4X4_50", 30.0), "must be smaller than"),
+    ],
+)
+def test_a_board_made_in_python_is_checked_as_a_files_is(entry, words):
+    """It raised a bare AssertionError (no separation) or OpenCV's SystemError (a marker bigger than its square)."""
+    with pytest.raises(MapError, match=words):
+        MarkerMap({0: MarkerPlacement(0, (0, 0, 0), (0, 0, 0))}, 80, entries=[entry])
+
+
+def test_an_empty_dictionary_name_is_refused_not_taken_for_the_default():
+    with pytest.raises(MapError, match="dictionary name '' is not a non-empty string"):
+        MarkerMap.from_dict(
+            {"units": "mm", "marker_size_mm": 80, "dictionary": "", "markers": {"0": {"translation": [0, 0, 0]}}}
+        )
+
+
 def test_two_entries_of_one_name_are_refused_in_python_as_in_a_file():
     """The constructor keys entries by name: a second entry of the same name would drop the first's markers."""
     dock = BundleEntry("dock", (0, 0, 0), (0, 0, 0), (MarkerPlacement(1, (0, 0, 0), (0, 0, 0)),))
