@@ -133,6 +133,28 @@ def _filestorage_model(node, path: Path) -> str:
     return "fisheye" if value == 1 else "pinhole"
 
 
+def _lens_nodes(fs, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """``camera_matrix`` and ``distortion_coefficients`` (None when absent) of an open FileStorage; a misspelt name
+    of either is a CameraError naming it (a misspelt distortion would be read as a lens without distortion)."""
+    keys = list(fs.root().keys()) if fs.root().isMap() else []
+    node_K = fs.getNode("camera_matrix")
+    if node_K.empty():
+        raise CameraError(
+            f"{path}: no camera_matrix field"
+            + (_spelt(keys, "camera_matrix") or "; OpenCV's calibration files name it camera_matrix")
+        )
+    K = _filestorage_matrix(node_K, path, "camera_matrix")
+    if K is None:
+        raise CameraError(f"{path}: camera_matrix is not an !!opencv-matrix")
+    node_d = fs.getNode("distortion_coefficients")
+    if node_d.empty() and _spelt(keys, "distortion_coefficients"):
+        raise CameraError(
+            f"{path}: no distortion_coefficients field{_spelt(keys, 'distortion_coefficients')} (without it "
+            "the lens is taken as free of distortion)"
+        )
+    return K, None if node_d.empty() else _filestorage_matrix(node_d, path, "distortion_coefficients")
+
+
 def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | None, tuple[int, int], str]:
     """Read an OpenCV FileStorage camera file (YAML or XML).
 
@@ -176,24 +198,8 @@ def read_filestorage(path, image_size) -> tuple[Path, np.ndarray, np.ndarray | N
     try:
         if not fs.isOpened():
             raise CameraError(f"{path}: OpenCV cannot open it as FileStorage YAML/XML")
-        keys = list(fs.root().keys()) if fs.root().isMap() else []
-        node_K = fs.getNode("camera_matrix")
-        if node_K.empty():
-            raise CameraError(
-                f"{path}: no camera_matrix field"
-                + (_spelt(keys, "camera_matrix") or "; OpenCV's calibration files name it camera_matrix")
-            )
-        K = _filestorage_matrix(node_K, path, "camera_matrix")
-        if K is None:
-            raise CameraError(f"{path}: camera_matrix is not an !!opencv-matrix")
+        K, dist = _lens_nodes(fs, path)
         model = _filestorage_model(fs.getNode("fisheye_model"), path)
-        node_d = fs.getNode("distortion_coefficients")
-        if node_d.empty() and _spelt(keys, "distortion_coefficients"):  # else the lens would be taken as perfect
-            raise CameraError(
-                f"{path}: no distortion_coefficients field{_spelt(keys, 'distortion_coefficients')} (without it "
-                "the lens is taken as free of distortion)"
-            )
-        dist = None if node_d.empty() else _filestorage_matrix(node_d, path, "distortion_coefficients")
         w_node, h_node = fs.getNode("image_width"), fs.getNode("image_height")
         file_size = None
         if not w_node.empty() and not h_node.empty():

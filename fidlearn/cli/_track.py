@@ -81,6 +81,18 @@ def add_track_options(p) -> None:
     g.add_argument("-o", "--output", type=Path, metavar="TRACK", help="write the tracked poses here")
 
 
+def _refuse_tracking_options(args) -> None:
+    """UsageError for an option of tracking given without --track (--fps also stamps a --live view)."""
+    bag = args.format == "bag"
+    used = [o for o, v in (("--odometry", args.odometry), ("--odometry-topic", args.odometry_topic),
+                           ("--mount", args.mount), ("--odometry-drift", args.odometry_drift),
+                           ("--fps", None if getattr(args, "live", None) is not None else args.fps),
+                           ("--format", None if bag else args.format), ("-o", None if bag else args.output))
+            if v is not None]  # fmt: skip
+    if used:
+        raise UsageError(f"{used[0]} belongs to tracking: add --track")
+
+
 def check_track_args(args, inputs: list[Path]) -> Path | None:
     """The tracking options checked before any work; the output path (None without -o).
 
@@ -104,14 +116,7 @@ def check_track_args(args, inputs: list[Path]) -> Path | None:
     if args.output is not None and args.format is None and Path(args.output).suffix.lower() == ".mcap":
         args.format = "bag"
     if not args.track:
-        bag = args.format == "bag"
-        used = [o for o, v in (("--odometry", args.odometry), ("--odometry-topic", args.odometry_topic),
-                               ("--mount", args.mount), ("--odometry-drift", args.odometry_drift),
-                               ("--fps", None if getattr(args, "live", None) is not None else args.fps),  # stamps live
-                               ("--format", None if bag else args.format), ("-o", None if bag else args.output))
-                if v is not None]  # fmt: skip
-        if used:
-            raise UsageError(f"{used[0]} belongs to tracking: add --track")
+        _refuse_tracking_options(args)
         return _output(args, inputs)
     args.fps = 30.0 if args.fps is None else args.fps
     args.odometry_drift = 0.02 if args.odometry_drift is None else args.odometry_drift
