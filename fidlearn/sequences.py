@@ -367,7 +367,7 @@ def _timed(frames: Iterator, fps: float, times) -> Iterator[tuple[Any, float]]:
 
 
 def _steps(frames, locator: FrameLocator, tracker: PoseTracker, fps: float, odometry, times) -> Iterator[TrackStep]:
-    prev = 0.0
+    prev, first, used, n = 0.0, 0.0, 0, -1
     for n, (frame, t_s) in enumerate(_timed(frames, fps, times)):
         if not isinstance(frame, Frame):
             raise TrackingError(
@@ -379,8 +379,17 @@ def _steps(frames, locator: FrameLocator, tracker: PoseTracker, fps: float, odom
         if odometry is not None and n > 0:
             with contextlib.suppress(OdometryRangeError):  # a frame beyond the odometry: the motion model alone
                 odo = odometry.between(prev, t_s)
+                used += 1
+        else:
+            first = t_s if n == 0 else first
         out = None
         if located.pose is not None or tracker.started:  # before the first pose there is nothing to track
             out = tracker.update(located.pose, t_s, odometry=odo)
         prev = t_s
         yield TrackStep(located, t_s, out)
+    if odometry is not None and n > 0 and not used:  # a clock of another origin (Unix time): nothing was used
+        ts = odometry.times_s
+        raise TrackingError(
+            f"the odometry's samples run from {ts[0]:g} to {ts[-1]:g} s and the frames from {first:g} to {prev:g} s: "
+            "no frame had odometry; record it over the video, or start the video's clock at the odometry's"
+        )

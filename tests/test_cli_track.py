@@ -98,6 +98,16 @@ def test_track_with_odometry(capsys, tmp_path, frames_dir):
     # the odometry is the true path: the scale learnt is 1 within its (shrunk) uncertainty, and said
     last = recs[-1]
     assert abs(last["odometry_scale"] - 1.0) < 3 * last["odometry_scale_std"] < 3 * 0.05
+    # the same odometry on another clock (Unix seconds): no frame can use it, and nothing is written
+    odo.write_text(
+        "\n".join([lines[0]] + [f"{1.7e9 + float(r.split(',', 1)[0])},{r.split(',', 1)[1]}" for r in lines[1:]]) + "\n"
+    )
+    out.unlink()
+    code, _, err = run(
+        capsys, "locate", frames_dir, "--camera", CAMERA, "--map", MAP, "--track", "--odometry", odo, "-o", out
+    )
+    assert_user_error(code, err, "no frame had odometry; record it over the video, or start the video's clock")
+    assert not out.exists()
     assert f"odometry scale learnt from the poses: {last['odometry_scale']:.4f}" in stdout
 
 

@@ -239,6 +239,8 @@ def test_bad_options_are_fidlearn_errors():
         PoseTracker(CAM, MAP)
     with pytest.raises(TrackingError, match="one entry per frame"):
         smooth([_pose()], [0.0, 1.0])
+    with pytest.raises(TrackingError, match="odometry must be a list with one entry per frame, got int"):
+        smooth([_pose(), _pose()], [0.0, 1.0], odometry=5)
     with pytest.raises(TrackingError, match="nothing to smooth"):
         smooth([None, None], [0.0, 1.0])
 

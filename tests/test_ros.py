@@ -230,6 +230,14 @@ def test_odometry_csv(tmp_path):
     path.write_text(rows[0] + "\n0,0,0,0,0,0,0,1\n0,0,0,0,0,0,0,1\n")
     with pytest.raises(RosFormatError, match="increasing"):
         read_odometry_csv(path)
+    path.write_text(rows[0] + "\n0,0,0,0,0,0,0,1\n")  # one sample holds no motion
+    with pytest.raises(RosFormatError, match="two or more"):
+        read_odometry_csv(path)
+    path.write_text(rows[0] + "\n0,0,0,0,0,0,0,1\n1,0,0,0,0,0,0,2\n")
+    with pytest.raises(RosFormatError, match=r"odom.csv: row 3: .*norm 2"):
+        read_odometry_csv(path)
+    path.write_bytes("\ufeff".encode() + "\n".join(rows).encode() + b"\n")  # a spreadsheet's byte-order mark
+    np.testing.assert_allclose(read_odometry_csv(path).between(0.1, 0.3)[0], expected, atol=1e-9)
 
 
 def test_mount_json(tmp_path):
@@ -250,6 +258,7 @@ def test_mount_json(tmp_path):
             {"units": "mm", "camera_in_base": {"translation": [0, 0, 0], "rpy_deg": [0, 0, 0]}, "camera_axes": "up"},
             "camera_axes",
         ),
+        ({"units": "mm", "camera_in_base": {"translation": [True, 0, 0], "rpy_deg": [0, 0, 0]}}, "not true or false"),
     ]:
         path.write_text(json.dumps(bad))
         with pytest.raises(RosFormatError, match=fragment):

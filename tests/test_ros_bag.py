@@ -124,6 +124,28 @@ def test_a_driver_bag_folder_with_sqlite3_storage_and_padded_rows(tmp_path, driv
     assert frames.camera_info_topic == "/cam/camera_info"
 
 
+def test_a_fisheye_camera_written_to_a_bag_reads_back_as_itself(tmp_path):
+    """equidistant has 4 coefficients of its own: they were padded to plumb_bob's 5 and refused on reading."""
+    pinhole = fidlearn.Camera.from_fov(60, (64, 48))
+    fish = fidlearn.Camera(pinhole.K, [0.01, -0.002, 0.001, -0.0003], (64, 48), model="fisheye")
+    write_image_bag(tmp_path / "fish.mcap", [np.zeros((48, 64, 3), np.uint8)], fish, [1])
+    (frame,) = read_bag(tmp_path / "fish.mcap")
+    assert frame.camera.model == "fisheye"
+    assert frame.camera.dist.tolist() == fish.dist.tolist()
+    assert (frame.camera.K == fish.K).all()
+
+
+def test_a_stamp_past_a_ros_times_int32_seconds_is_refused_by_name(tmp_path):
+    T = fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, 90), [1000, 150, 250])
+    bag = BagWriter(tmp_path / "late.mcap")
+    with pytest.raises(RosFormatError, match=r"0 to 2\^31 s .a ROS time's seconds are an int32"):
+        bag.write(2**31 * 10**9, fidlearn.TrackedPose(0.5, T, np.eye(6), "measured"))
+    bag.abort()  # as leaving its with block by the error does
+    with pytest.raises(RosFormatError, match="int32"):
+        write_image_bag(tmp_path / "late2.mcap", [np.zeros((8, 8), np.uint8)], None, [2**31 * 10**9])
+    assert not list(tmp_path.iterdir())
+
+
 def test_rational_polynomial_is_read_and_an_unknown_model_refused(tmp_path, drive):
     images = [cv2.cvtColor(drive.images[0], cv2.COLOR_GRAY2BGR)]
     rational = _info("rational_polynomial", d=(0.1, -0.05, 0.0, 0.0, 0.01, 0.02, 0.0, 0.0))

@@ -78,7 +78,9 @@ def smooth(
     >>> [p.status for p in out], np.round(out[1].position_mm, 3).tolist()
     (['smoothed', 'smoothed', 'smoothed'], [1000.0, 150.0, 250.0])
     """
-    for name, value in (("poses", poses), ("times_s", times_s)):
+    for name, value in (("poses", poses), ("times_s", times_s), ("odometry", odometry)):
+        if name == "odometry" and value is None:
+            continue
         if not (isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim == 1)):
             raise TrackingError(f"{name} must be a list with one entry per frame, got {type(value).__name__}")
     n = len(poses)

@@ -113,7 +113,7 @@ def _camera_info(camera: Camera) -> dict:
     text = camera_info_yaml(camera)  # the distortion models ROS knows (and fidlearn's refusal of the others)
     model = text.split("distortion_model: ", 1)[1].split("\n", 1)[0]
     d = np.asarray(camera.dist, dtype=float).reshape(-1)
-    d = np.r_[d, 0.0] if d.size == 4 else d
+    d = np.r_[d, 0.0] if d.size == 4 and model == "plumb_bob" else d  # equidistant has its own 4
     P = np.hstack([camera.K, np.zeros((3, 1))])
     return {"height": camera.height, "width": camera.width, "distortion_model": model, "d": d,
             "k": camera.K.reshape(-1), "r": np.eye(3).reshape(-1), "p": P.reshape(-1)}  # fmt: skip

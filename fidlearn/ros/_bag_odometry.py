@@ -15,7 +15,7 @@ import os
 import numpy as np
 
 from .. import frames
-from ..errors import FidlearnError, RosFormatError
+from ..errors import FidlearnError, RosFormatError, TransformError
 from ..filtering._so3 import rotation_from_xyzw
 from ._bag import COMPRESSED, IMAGE, _broken, _check_path, _check_topic_names, _open, _stamp_ns, _topic
 from ._inputs import MAX_ODOMETRY_MM, Odometry
@@ -46,7 +46,11 @@ def _samples(reader, path, topic: str) -> dict[int, np.ndarray]:
                 f"{path} {topic} message {n}: {np.abs(t).max() / 1000:.3g} m from the odometry's origin; "
                 f"a robot's odometry stays within {MAX_ODOMETRY_MM / 1e6:g} km of it"
             )
-        out[_stamp_ns(msg.header, logtime)] = frames.make_transform(rotation_from_xyzw(xyzw), t)
+        try:
+            R = rotation_from_xyzw(xyzw)
+        except TransformError as exc:
+            raise RosFormatError(f"{path} {topic} message {n}: {exc}") from None
+        out[_stamp_ns(msg.header, logtime)] = frames.make_transform(R, t)
     return out
 
 

@@ -127,8 +127,11 @@ class _Bag:
 
 
 def _stamp_ns(value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < 2**63:
-        raise RosFormatError(f"a stamp is a whole number of nanoseconds >= 0, got {value!r:.40}")
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < 2**31 * 10**9:
+        raise RosFormatError(
+            f"a stamp is a whole number of nanoseconds, 0 to 2^31 s (a ROS time's seconds are an int32: until "
+            f"2038), got {value!r:.40}"
+        )
     return int(value)
 
 

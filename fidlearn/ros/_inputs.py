@@ -149,8 +149,11 @@ def _times(times_s) -> np.ndarray:
         ts = np.asarray(times_s, dtype=float).reshape(-1)
     except (TypeError, ValueError, OverflowError):
         ts = np.zeros(0)
-    if ts.size == 0 or np.any(np.diff(ts) <= 0) or not (np.abs(ts) <= 1e12).all():
-        raise RosFormatError("odometry times must be a list of finite, strictly increasing seconds (at most 1e12)")
+    if ts.size < 2 or np.any(np.diff(ts) <= 0) or not (np.abs(ts) <= 1e12).all():
+        raise RosFormatError(
+            "odometry times must be a list of two or more finite, strictly increasing seconds (at most 1e12): the "
+            "motion between two samples is what the tracker uses"
+        )
     return ts
 
 
@@ -175,7 +178,7 @@ def read_odometry_csv(path: str | os.PathLike, drift: float = 0.02) -> Odometry:
     """
     path, data = _files.read_bytes(path, RosFormatError, "odometry CSV", _files.MAX_TEXT_BYTES)
     try:
-        rows = list(csv.reader(io.StringIO(data.decode("utf-8"))))
+        rows = list(csv.reader(io.StringIO(data.decode("utf-8-sig"))))  # a spreadsheet's byte-order mark too
     except (UnicodeDecodeError, csv.Error) as exc:
         raise RosFormatError(f"{path}: cannot read it as CSV text ({exc})") from None
     rows = [r for r in rows if r and not r[0].lstrip().startswith("#")]
@@ -197,7 +200,11 @@ def read_odometry_csv(path: str | os.PathLike, drift: float = 0.02) -> Odometry:
         if np.linalg.norm(v[4:8]) < 1e-9:
             raise RosFormatError(f"{path}: row {n}: the quaternion is zero")
         times.append(v[0])
-        poses.append(frames.make_transform(rotation_from_xyzw(np.array(v[4:8])), np.array(v[1:4]) * 1000.0))
+        try:
+            R = rotation_from_xyzw(np.array(v[4:8]))
+        except TransformError as exc:
+            raise RosFormatError(f"{path}: row {n}: {exc}") from None
+        poses.append(frames.make_transform(R, np.array(v[1:4]) * 1000.0))
     try:
         return Odometry(times, poses, drift)
     except RosFormatError as exc:
@@ -241,6 +248,8 @@ def read_mount_json(path: str | os.PathLike) -> np.ndarray:
         R = frames.rotation_from_rpy_deg(*[float(v) for v in m["rpy_deg"]])
         if axes == "link":
             R = R @ R_OPTICAL_LINK.T  # R_base_optical = R_base_link @ R_link_optical
+        if any(isinstance(v, bool) for v in m["translation"]) or any(isinstance(v, bool) for v in m["rpy_deg"]):
+            raise RosFormatError(f"{path}: translation and rpy_deg are numbers, not true or false")
         t = np.array(m["translation"], dtype=float).reshape(3) * k
         _check_mount_reach(t, path)
         return frames.invert_transform(frames.make_transform(R, t))
