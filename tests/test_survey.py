@@ -213,6 +213,26 @@ def test_bundled_photos_name_the_moved_marker_and_survey_the_room():
     assert max(s.photo_rms_px.values()) < 0.5
 
 
+def test_photos_of_two_sizes_or_one_file_twice_are_named_as_such():
+    """Half the photos at 640x360: the gross test, run on one K for both sizes, blamed a correct tape. One file
+    given twice counted its corners twice and lost one of its camera poses."""
+    import cv2  # noqa: PLC0415
+
+    from fidlearn import data_path  # noqa: PLC0415
+
+    folder = data_path("survey")
+    paths = sorted(folder.glob("photo_*.jpg"))[:6]
+    images = [cv2.imread(str(p)) for p in paths]
+    images[:3] = [cv2.resize(im, (640, 360)) for im in images[:3]]
+    with (
+        pytest.warns(fidlearn.FidlearnWarning),
+        pytest.raises(SurveyError, match=r"different sizes \(640x360, 1280x720\)"),
+    ):
+        fidlearn.survey(images, folder / "tape_map.json", folder / "camera.json")
+    with pytest.raises(SurveyError, match="photos 0 and 2 are one file"):
+        fidlearn.survey([paths[0], paths[1], paths[0]], folder / "tape_map.json", folder / "camera.json")
+
+
 def rigid_rms_mm(a: np.ndarray, b: np.ndarray) -> float:
     """RMS distance (mm) of points a from points b after the rigid motion that best lays a on b (Kabsch)."""
     ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)

@@ -138,6 +138,7 @@ def survey(
     """
     tape, camera, sigma_mm, fixed = _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     photos = _read_photos(images, tape, camera, progress)
+    _one_size(photos)
     gross = gross_test(photos, tape, sigma_mm)
     bad = {slot_of(i, tape.owner) for i in gross.gross}  # a gross marker's entry is gross as a whole
     if bad & {slot_of(i, tape.owner) for i in fixed}:
@@ -244,6 +245,16 @@ def _fixed_gross(gross: GrossTest, fixed, tape: MarkerMap) -> str:
         f"{gross.threshold_mm:.0f} mm the room can explain): a fixed placement must be exact; measure it again or "
         "fix another marker"
     )
+
+
+def _one_size(photos: list) -> None:
+    """SurveyError for photos of several sizes: before the gross test, which would blame the tape for them."""
+    sizes_px = sorted({ph.camera.image_size for ph in photos if getattr(ph, "camera", None) is not None})
+    if len(sizes_px) > 1:
+        raise SurveyError(
+            f"the photos have different sizes ({', '.join(f'{w}x{h}' for w, h in sizes_px)}); survey with photos "
+            "from one camera at one resolution"
+        )
 
 
 def _usable(photos: list) -> list:
