@@ -8,7 +8,7 @@ import pytest
 
 from fidlearn import Camera, MarkerMap
 from fidlearn.cli import main
-from fidlearn.errors import SurveyError
+from fidlearn.errors import ImageError, SurveyError
 from fidlearn.frames import look_at
 from fidlearn.images import write_image
 from fidlearn.survey import check_print
@@ -64,6 +64,23 @@ def test_markers_of_their_own_sizes_share_the_print_scale():
     r = check_print(render_scene(printed, CAM, T, seed=4, noise_std_gray=2).image, taped, CAM)
     assert abs(r.scale - 0.98) <= 0.002
     assert r.sizes_mm[5] == pytest.approx(120 * r.scale)
+
+
+def test_a_marker_taped_elsewhere_is_left_out_and_said_to_be():
+    """Marker 2 taped 300 mm from where the map says: the scale comes from the other 7, and says so (it listed all
+    8 among the markers it came from). A photo's path reads as its picture; anything else is an ImageError."""
+    moved = json.loads(json.dumps(MARKERS))
+    moved["2"]["translation"][1] += 300
+    taped = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": moved})
+    image = render_scene(wall(0.98), CAM, next(views(1, seed=5)), seed=1, noise_std_gray=2, blur_px=0.6).image
+    r = check_print(image, taped, CAM)
+    assert r.left_out == (2,)
+    assert 2 not in r.marker_ids
+    assert 2 not in r.sizes_mm
+    assert len(r.marker_ids) == 7
+    assert abs(r.scale - 0.98) <= 0.002
+    with pytest.raises(ImageError, match="check_print.s image"):
+        check_print([1, 2, 3], taped, CAM)
 
 
 def test_too_few_markers_say_what_to_do():

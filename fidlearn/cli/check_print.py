@@ -58,4 +58,9 @@ def run(args) -> int:
     result = check_print(load_image(args.photo), marker_map, camera)
     print(result.advice())
     print(f"  from {len(result.marker_ids)} markers of {args.map}: {[str(k) for k in result.marker_ids]}")
+    if result.left_out:
+        print(
+            f"  left out: {[str(k) for k in result.left_out]}, not where the map puts them beside the others "
+            "(moved after they were measured, or a wrong id?)"
+        )
     return 0

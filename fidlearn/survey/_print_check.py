@@ -12,18 +12,19 @@ a tape measures, so they stay where the map puts them whatever the print.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..camera import Camera
-from ..detection import detect_markers
+from ..detection import as_gray, detect_markers, load_image
 from ..errors import SurveyError
 from ..markermap import MarkerMap
 from ..pose._inputs import _as_camera, _as_map
 from ._geometry import placement_from_photo
 from ._gross import _similarity
-from ._variance import print_scale
+from ._variance import print_scale, print_scale_kept
 
 #: A print scale needs at least this many markers of the map in the photo.
 MIN_PRINT_MARKERS = 4
@@ -43,12 +44,16 @@ class PrintCheck:
         The map's markers the scale comes from.
     sizes_mm : dict
         Each of those markers' side as printed, ``scale * marker_size(key)``, mm.
+    left_out : tuple
+        The map's markers in the photo that were not counted: placed too far from where the map says, beside the
+        others (moved after it was measured, or a wrong id), so the scale does not come from them.
     """
 
     scale: float
     scale_std: float
     marker_ids: tuple
     sizes_mm: dict
+    left_out: tuple = ()
 
     def advice(self) -> str:
         """One line: the scale in %, and what to write in the map or how to print.
@@ -72,7 +77,7 @@ def check_print(image: np.ndarray, marker_map: MarkerMap, camera: Camera) -> Pri
 
     Parameters
     ----------
-    image : ndarray, (H, W) gray or (H, W, 3) BGR
+    image : ndarray, (H, W) gray or (H, W, 3) BGR, or path
         A photo showing at least :data:`MIN_PRINT_MARKERS` markers of the map, not all in one line.
     marker_map : MarkerMap or path
         Where the markers' top-left corners are (taped) and the sizes they should have.
@@ -92,6 +97,9 @@ def check_print(image: np.ndarray, marker_map: MarkerMap, camera: Camera) -> Pri
     ImageError, MapError, CameraError
         Bad inputs.
     """
+    if isinstance(image, (str, os.PathLike)):
+        image = load_image(image)
+    as_gray(image, where="check_print's image")  # an ImageError saying what a picture is, for anything else
     marker_map, camera = _as_map(marker_map), _as_camera(camera).for_image(image)
     names = marker_map.dictionaries
     dets = detect_markers(image, names if len(names) > 1 else names[0])
@@ -119,7 +127,10 @@ def check_print(image: np.ndarray, marker_map: MarkerMap, camera: Camera) -> Pri
     scale, err = print_scale(src, dst, distance + 1e-9, _similarity)
     if not (math.isfinite(scale) and math.isfinite(err)):
         raise SurveyError(_no_fit(marker_map))
-    return PrintCheck(float(scale), float(err), tuple(keys), {k: scale * marker_map.marker_size(k) for k in keys})
+    kept = print_scale_kept(distance + 1e-9)
+    used = tuple(k for k, ok in zip(keys, kept) if ok)
+    out = tuple(k for k, ok in zip(keys, kept) if not ok)
+    return PrintCheck(float(scale), float(err), used, {k: scale * marker_map.marker_size(k) for k in used}, out)
 
 
 def _no_fit(marker_map: MarkerMap) -> str:
