@@ -262,6 +262,66 @@ def test_suggestions_reach_more_of_the_area(world, camera):
         assert again.fraction_within(5.0) == s.fraction_after
 
 
+def test_suggestions_beside_a_board_or_a_larger_marker_go_where_they_say(camera):
+    """A map of one grid board: the reference marker is a board's (it raised KeyError: '0'). A reference of its
+    own size (300 mm beside the map's 80): the new marker is where the text says (it was 155 mm off)."""
+    board = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 150,
+            "boards": {
+                "wall": {
+                    "type": "grid",
+                    "translation": [0, 600, 1500],
+                    "markers": [3, 2],
+                    "marker_mm": 150,
+                    "separation_mm": 30,
+                    "first_id": 0,
+                }  # fmt: skip
+            },
+        }
+    )
+    (step,) = suggest_markers(board, camera, 2.0, step_mm=500, height_mm=1200, max_markers=1, size_factors=())
+    new = max(step.marker_map.ids)
+    np.testing.assert_allclose(step.marker_map.normal(new), board.normal(0), atol=1e-9)
+    big = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 80,
+            "markers": {"0": {"translation": [0, 0, 1500], "size_mm": 300}, "1": {"translation": [0, 1500, 1500]}},
+        }
+    )
+    area = (300, -1000, 3000, 2500)
+    for step in suggest_markers(
+        big, camera, 3.0, step_mm=500, height_mm=1200, area=area, max_markers=1, size_factors=()
+    ):
+        new = max(step.marker_map.ids)
+        said = [float(v) for v in step.text.split(" at [")[1].split("]")[0].split(",")]
+        np.testing.assert_allclose(step.marker_map.marker_corners(new).mean(axis=0), said, atol=0.5)
+        assert step.marker_map.marker_size(new) == 80
+        # the promise is plan_room's, flip and missed markers included
+        again = plan_room(step.marker_map, camera, area=area, step_mm=500, height_mm=1200, headings=0)
+        assert again.fraction_within(3.0) == step.fraction_after
+
+
+def test_a_place_straight_above_the_point_looked_at_is_planned():
+    """Four floor markers and the default look-at point under a grid place: the view is vertical, and the
+    plan used to stop there ('the view direction is parallel to up')."""
+    cam = Camera.from_fov(70, (1280, 720))
+    floor = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 150,
+            "markers": {
+                str(k): {"translation": [x, y, 0], "rotation": [0, -90, 0]}
+                for k, (x, y) in enumerate([(800, 800), (800, 1550), (1550, 800), (1550, 1550)])
+            },
+        }
+    )
+    plan = plan_room(floor, cam, area=(0, 0, 2500, 2500), step_mm=500, height_mm=2000, headings=0)
+    assert np.isfinite(plan.toward_mm).all()
+
+
 def test_suggestions_on_an_area_smaller_than_the_room_grid(camera):
     """A desk of 400 x 300 mm in front of one 40 mm marker: the default grid is a quarter of the shorter side
     (75 mm), not the room's 500 mm, and the first added marker goes beside it on its wall."""

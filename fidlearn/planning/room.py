@@ -192,8 +192,10 @@ def _cell(marker_map, camera, eye, target, headings, kw: dict, with_flip: bool) 
     )
     if math.hypot(*(target - eye)) < 1.0:
         toward, flip, p90 = math.inf, False, math.inf
-    else:
-        p = _predict(marker_map, camera, look_at(eye, target), args[0], with_flip, *args[1:])
+    else:  # straight down or up at the point: the picture's top towards +x, as no side is up then
+        d = target - eye
+        up = (0.0, 0.0, 1.0) if math.hypot(d[0], d[1]) > 1e-6 * abs(d[2]) else (1.0, 0.0, 0.0)
+        p = _predict(marker_map, camera, look_at(eye, target, up=up), args[0], with_flip, *args[1:])
         toward, flip, p90 = p.position_error_mm, p.flip_likely, p.position_p90_mm
     errs = []
     for h in headings:

@@ -66,16 +66,17 @@ def _walls(marker_map: MarkerMap) -> list[tuple[int, np.ndarray]]:
 
 
 def _with_marker(marker_map: MarkerMap, ref_id: int, centre_mm: np.ndarray, new_id: int) -> MarkerMap:
+    """The map with a marker of its own size and dictionary centred at ``centre_mm``, turned as the marker
+    ``ref_id`` is (a single marker, or one of a board or a bundle; of its own size or the map's)."""
     d = marker_map.to_dict()
     scale = UNITS_TO_MM[d["units"]]
-    s = marker_map.marker_size_mm
+    s, s_ref = marker_map.marker_size_mm, marker_map.marker_size(ref_id)
     tl_ref, tr_ref, _, bl_ref = marker_map.marker_corners(ref_id)
-    right, down = (tr_ref - tl_ref) / s, (bl_ref - tl_ref) / s
+    right, down = (tr_ref - tl_ref) / s_ref, (bl_ref - tl_ref) / s_ref  # unit vectors along the reference's sides
     tl = centre_mm - s / 2 * (right + down)
-    ref = d["markers"][str(ref_id)]
-    d["markers"][str(new_id)] = {
+    d.setdefault("markers", {})[str(new_id)] = {
         "translation": [round(float(v) / scale, 6) for v in tl],
-        "rotation": list(ref["rotation"]),
+        "rotation": [float(v) for v in marker_map.placements[ref_id].rotation_deg],
     }
     return MarkerMap.from_dict(d)
 
@@ -91,14 +92,14 @@ def _places(marker_map: MarkerMap, area, spacing_mm: float) -> list[tuple[int, n
     away from the markers there."""
     x0, y0, x1, y1 = area
     span = max(x1 - x0, y1 - y0)
-    centres = [marker_map.marker_corners(i).mean(axis=0) for i in marker_map.ids]
+    centres = [(marker_map.marker_corners(i).mean(axis=0), marker_map.marker_size(i)) for i in marker_map.ids]
     out = []
     for ref, along in _walls(marker_map):
         centre = marker_map.marker_corners(ref).mean(axis=0)
         for k in np.arange(-span, span + 1, spacing_mm):
             c = centre + k * along
             inside = x0 - 500.0 <= c[0] <= x1 + 500.0 and y0 - 500.0 <= c[1] <= y1 + 500.0
-            if inside and all(np.linalg.norm(c - o) > 1.5 * marker_map.marker_size_mm for o in centres):
+            if inside and all(np.linalg.norm(c - o) > 0.75 * (size + marker_map.marker_size_mm) for o, size in centres):
                 out.append((ref, c))
     return out
 
@@ -253,4 +254,9 @@ def suggest_markers(
             break
         steps.append(Suggestion(best[2], now, best[0], best[1]))
         current, now = best[1], best[0]
-    return steps
+    # searched with the quick model (no planar flip, no missed marker); promised with plan_room's own
+    full = [
+        _plan(m, camera, grid, float(height_mm), look_at_mm, 0, kw).fraction_within(target_mm)
+        for m in [marker_map, *(s.marker_map for s in steps)]
+    ]
+    return [Suggestion(s.text, full[k], full[k + 1], s.marker_map) for k, s in enumerate(steps)]
