@@ -296,7 +296,7 @@ def _s10_q4(learner):
 
 
 def _s11_q2(learner):
-    cam, m, T = l11_mapping._q2_layout(_rng("11", learner, "q2"))
+    cam, m, T, _ = l11_mapping._q2_layout(_rng("11", learner, "q2"))
     q = l11_mapping._q2(learner)
     return Scene(marker_map=m, cameras=[T], camera=cam, pixels=q.inputs.detected_px)
 

@@ -185,6 +185,31 @@ def test_undistortion_mistakes(learner):
     assert "P=K" in q.grade(norm).message
 
 
+@pytest.mark.parametrize("learner", ["123", "248"])
+def test_the_exact_undistortion_and_opencvs_usual_call_are_both_right(learner):
+    """Near the edge of these strong lenses cv2.undistortPoints' 5 default iterations stop 0.08-0.11 px short:
+    the key was that short answer with a 0.05 px tolerance, and the exact one was refused."""
+    import cv2
+
+    q = exercises.lesson("06", learner=learner).q4
+    cam, px = q.inputs.camera, q.inputs.corners_px.reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    exact = cv2.undistortPoints(px, cam.K, cam.dist, None, cam.K, criteria=criteria).reshape(-1, 2)
+    usual = cv2.undistortPoints(px, cam.K, cam.dist, P=cam.K).reshape(-1, 2)
+    assert np.abs(exact - usual).max() > 0.05
+    back = cv2.projectPoints(
+        np.column_stack([(exact - cam.K[:2, 2]) / [cam.fx, cam.fy], np.ones(4)]),
+        np.zeros(3),
+        np.zeros(3),
+        cam.K,
+        cam.dist,
+    )[0]
+    np.testing.assert_allclose(back.reshape(-1, 2), q.inputs.corners_px, atol=1e-6)  # it is exact
+    assert q.grade(exact).status == CORRECT
+    assert q.grade(usual).status == CORRECT
+    assert "distortion was ignored" in q.grade(q.inputs.corners_px).message
+
+
 def test_rvec_axis_and_angle_mistakes():
     q, ans = key_of("03", "q5")
     rvec = q.inputs.rvec
