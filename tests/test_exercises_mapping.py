@@ -110,6 +110,11 @@ def test_misplaced_marker_in_sigmas_not_mm(learner):
     r = q.grade(far)
     assert r.status == INCORRECT
     assert "in sigmas" in r.message
+    # each axis by its variance alone picks a tilted marker: the mistake the question names is made and told
+    diag = [float(np.sqrt(np.sum(d[i] ** 2 / np.diag(C[i])))) for i in range(len(ids))]
+    by_diag = int(ids[int(np.argmax(diag))])
+    assert by_diag not in (key, far)
+    assert "by its variance alone" in q.grade(by_diag).message
     r = q.grade(int(np.argmax(sig)) + 100)
     assert r.status == INCORRECT
     assert "ids" in r.message

@@ -270,37 +270,72 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
     return frames.rotation_from_rpy_deg(*rng.uniform(-180, 180, 3))
 
 
-def _q3_data(rng: np.random.Generator):
-    """ids, differences (n, 3), covariances (n, 3, 3), the moved marker's row and a weakly held one's."""
-    n = int(rng.integers(6, 10))
-    ids = np.sort(rng.choice(40, size=n, replace=False)).astype(int)
-    moved, weak = (int(i) for i in rng.choice(n, size=2, replace=False))
+def _tilted_frame(rng: np.random.Generator) -> np.ndarray:
+    """A rotation whose first column is near a cube diagonal (1, +-1, +-1) / sqrt(3): an ellipsoid long along it
+    tilts across every world axis, so its diagonal variances say little of it."""
+    u = np.array([1.0, *rng.choice([-1.0, 1.0], 2)]) / np.sqrt(3) + rng.normal(0, 0.08, 3)
+    u /= np.linalg.norm(u)
+    v = np.cross(u, rng.normal(0, 1, 3))
+    v /= np.linalg.norm(v)
+    return np.column_stack([u, v, np.cross(u, v)])
+
+
+def _q3_draw(rng: np.random.Generator, n: int):
+    """One draw of q3's differences and covariances: the moved marker (row 0), pinned well across its view and
+    moved that way, a weakly held one (row 1, the farthest in mm), a tilted one (row 2, first by the diagonal
+    variances alone), the others by chance."""
     d, C = np.zeros((n, 3)), np.zeros((n, 3, 3))
     for i in range(n):
-        R = _random_rotation(rng)
-        s = rng.uniform(15, 22, 3) if i == moved else rng.uniform(18, 30, 3)
-        if i == weak:
-            s[0] = rng.uniform(60, 90)  # seen only from far along one direction: its depth is weakly held
-        C[i] = np.round(R @ np.diag(s**2) @ R.T, 1)
-        if i == moved:
-            axis = R[:, int(np.argmin(s))]  # moved along a well-held direction
-            d[i] = axis * rng.uniform(85, 110)
-        elif i == weak:
+        if i == 0:  # long along a diagonal, moved along a short axis: the diagonal variances hide the move
+            R, s = _tilted_frame(rng), np.array([rng.uniform(60, 80), *rng.uniform(15, 22, 2)])
+            d[i] = R[:, int(rng.integers(1, 3))] * rng.uniform(85, 110) * rng.choice([-1, 1])
+        elif i == 1:  # seen only from far along one world axis: its depth weakly held
+            R, s = np.eye(3)[:, rng.permutation(3)], rng.uniform(18, 30, 3)
+            s[0] = rng.uniform(60, 90)
             d[i] = R[:, 0] * s[0] * rng.uniform(2.0, 2.6) * rng.choice([-1, 1])
+        elif i == 2:  # tilted and off along its long axis, well within chance
+            R, s = _tilted_frame(rng), np.array([rng.uniform(45, 60), *rng.uniform(12, 18, 2)])
+            d[i] = R[:, 0] * s[0] * rng.uniform(1.8, 2.0) * rng.choice([-1, 1])
         else:
+            R, s = _random_rotation(rng), rng.uniform(18, 30, 3)
             z = rng.normal(0, 1, 3)
-            z *= min(1.0, 2.2 / np.linalg.norm(z))
-            d[i] = R @ (s * z)
-    return ids, np.round(d, 1), C, moved, weak
+            d[i] = R @ (s * z * min(1.0, 2.2 / np.linalg.norm(z)))
+        C[i] = np.round(R @ np.diag(s**2) @ R.T, 1)
+    return np.round(d, 1), C
+
+
+def _q3_scores(d: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each row's difference in sigmas (Mahalanobis), by the diagonal variances alone, and in mm."""
+    sig = np.array([np.sqrt(d[i] @ np.linalg.solve(C[i], d[i])) for i in range(len(d))])
+    diag = np.array([np.sqrt(np.sum(d[i] ** 2 / np.diag(C[i]))) for i in range(len(d))])
+    return sig, diag, np.linalg.norm(d, axis=1)
+
+
+def _q3_data(rng: np.random.Generator):
+    """ids, differences (n, 3), covariances (n, 3, 3), the moved marker's row and a weakly held one's: drawn until
+    each way of judging names its own marker (sigmas the moved one, the diagonal variances a tilted one, mm the
+    weakly held one), so that each mistake is told apart; the rows shuffled."""
+    n = int(rng.integers(6, 10))
+    ids = np.sort(rng.choice(40, size=n, replace=False)).astype(int)
+    for _ in range(_Q3_DRAWS):
+        d, C = _q3_draw(rng, n)
+        sig, diag, mm = _q3_scores(d, C)
+        others = np.delete(sig, 0)
+        if np.argmax(diag) == 2 and np.argmax(mm) == 1 and sig[0] > 3.37 and others.max() < 2.7:
+            break
+    order = rng.permutation(n)
+    return ids, d[order], C[order], int(np.argsort(order)[0]), int(np.argsort(order)[1])
+
+
+#: Draws of q3's data before one where each way of judging names its own marker (about 1 in 3 does).
+_Q3_DRAWS = 200
 
 
 def _q3(learner: str) -> Question:
     """q3: Which marker did the tape put in the wrong place?"""
     rng = _rng("11", learner, "q3")
     ids, d, C, moved, _ = _q3_data(rng)
-    sig = np.array([np.sqrt(d[i] @ np.linalg.solve(C[i], d[i])) for i in range(len(d))])
-    diag = np.array([np.sqrt(np.sum(d[i] ** 2 / np.diag(C[i]))) for i in range(len(d))])
-    mm = np.linalg.norm(d, axis=1)
+    sig, diag, mm = _q3_scores(d, C)
     key = int(ids[int(np.argmax(sig))])
     far, far_d, diag_pick = int(ids[int(np.argmax(mm))]), float(mm.max()), int(ids[int(np.argmax(diag))])
     wrong = [
