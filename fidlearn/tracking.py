@@ -60,6 +60,7 @@ from . import _cv
 from ._detector import _detector_fields, _limits_scaled
 from ._fisheye_edges import refine_edges_fisheye
 from ._lens import pixels_from_normalized, project_points
+from ._windows import boxes_around, merge_boxes
 from ._wpilib import outside_field
 from .camera import Camera
 from .detection import DEFAULT_REFINE, Detection, _outlined, _refine_name, as_gray
@@ -75,9 +76,6 @@ __all__ = ["MarkerTracker"]
 MAX_SEARCH_PX = 100_000.0
 #: Windows covering more than this fraction of the image: a full detection is as cheap.
 _MAX_WINDOW_FRACTION = 0.5
-#: Two windows become one when their bounding box is at most this much larger than the two together
-#: (px^2): each detectMarkers call has a fixed cost worth about this many pixels of image.
-_MERGE_SLACK_PX2 = 4096
 #: Window lengths are rounded up to this many pixels for the detector cache (the window's
 #: size limits are then at most this many pixels' worth more lenient than the full frame's).
 _LENGTH_STEP_PX = 8
@@ -388,7 +386,7 @@ class MarkerTracker:
         lo = np.maximum(lo, 0)
         hi = np.minimum(hi, [W, H])
         ok = (hi > lo + 8).all(axis=1)  # some of the window is in the image
-        boxes = _merge_boxes([(*a, *b) for a, b in zip(lo[ok], hi[ok])])
+        boxes = merge_boxes([(*a, *b) for a, b in zip(lo[ok], hi[ok])])
         if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in boxes) > _MAX_WINDOW_FRACTION * W * H:
             return None
         found: list = []
@@ -403,10 +401,23 @@ class MarkerTracker:
             big = side[missing] + 2.0 * motion[missing] + 3.0 * self.search_px
             lo2 = np.maximum(np.floor(corners[missing].min(axis=1) - big[:, None]).astype(int), 0)
             hi2 = np.minimum(np.ceil(corners[missing].max(axis=1) + big[:, None]).astype(int) + 1, [W, H])
-            self._search(gray, _merge_boxes([(*a, *b) for a, b in zip(lo2, hi2)]), found)
+            self._search(gray, merge_boxes([(*a, *b) for a, b in zip(lo2, hi2)]), found)
             if 2 * len(expected - {f[1] for f in found}) > len(expected):
                 return None
+        self._search_where_last_seen(gray, found)
         return self._finish(gray, found)
+
+    def _search_where_last_seen(self, gray: np.ndarray, found: list) -> None:
+        """Markers seen last frame and not found: once more where they were. A turn that stops at once leaves
+        them there while the motion model carries them on, out of the picture, where no window looks."""
+        H, W = gray.shape
+        have = {f[1] for f in found}
+        last = [d.corners_px for d in self.last_detections if self.marker_map.key(d.id, d.dictionary) not in have]
+        if not last:
+            return
+        c = np.asarray(last, dtype=float)
+        pad = np.linalg.norm(c - np.roll(c, -1, axis=1), axis=2).max(axis=1) + self.search_px
+        self._search(gray, boxes_around(c, pad, W, H), found)
 
     def _search(self, gray: np.ndarray, boxes: list, found: list) -> None:
         """Detect in each window ``(x0, y0, x1, y1)`` with each dictionary's detector; append ``(corners (full-frame
@@ -466,32 +477,3 @@ def _nearest_rotation(R: np.ndarray) -> np.ndarray:
     U, _, Vt = np.linalg.svd(R)
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
     return U @ D @ Vt
-
-
-def _merge_boxes(boxes: list) -> list:
-    """Boxes ``(x0, y0, x1, y1)`` with each pair whose bounding box is at most ``_MERGE_SLACK_PX2``
-    larger than the two together replaced by that bounding box, repeated until no such pair is left.
-
-    Other boxes stay apart, overlapping or not (a marker in two is found twice and kept once): one
-    big box around a chain of neighbours would cover far more of the image than the windows do.
-    """
-
-    def area(b):
-        return (b[2] - b[0]) * (b[3] - b[1])
-
-    boxes = [tuple(int(v) for v in b) for b in boxes]
-    merged = True
-    while merged and len(boxes) > 1:
-        merged = False
-        out: list = []
-        for b in boxes:
-            for k, o in enumerate(out):
-                u = (min(o[0], b[0]), min(o[1], b[1]), max(o[2], b[2]), max(o[3], b[3]))
-                if area(u) <= area(o) + area(b) + _MERGE_SLACK_PX2:
-                    out[k] = u
-                    merged = True
-                    break
-            else:
-                out.append(b)
-        boxes = out
-    return boxes

@@ -94,6 +94,25 @@ def test_a_covered_marker_costs_a_larger_window_not_a_full_detection(drive):
     assert [d.id for d in tracker.last_detections] == [3, 7, 11, 20, 21, 40]
 
 
+def test_a_turn_that_stops_at_once_keeps_every_marker():
+    """Still, a sudden 20 degree turn, still again: the motion model carries the markers on by another 20 degrees,
+    out of the picture; they are found where they were last seen (two of four were lost)."""
+    import fidlearn  # noqa: PLC0415
+
+    m = MarkerMap.load(fidlearn.data_path("two_walls_map.json"))
+    cam = Camera.from_fov(70, (640, 480))
+
+    def T(yaw):
+        return fidlearn.make_transform(fidlearn.rotation_from_rpy_deg(-90, 0, yaw), [1800, 150, 250])
+
+    run = render_trajectory(m, cam, poses=[T(90), T(90), T(110), T(110), T(110)], noise_std_gray=1.0)
+    tracker = MarkerTracker(m, cam)
+    for k, image in enumerate(run.images):
+        pose = tracker.locate(image)
+        assert sorted(pose.marker_ids) == sorted(run.truth[k]), k
+    assert not tracker.last_full
+
+
 def test_most_markers_missing_calls_for_a_full_detection(drive):
     tracker = MarkerTracker(drive.marker_map, CAM)
     tracker.locate(drive.images[0])
