@@ -117,9 +117,11 @@ class Detection:
             c = np.asarray(self.corners_px, dtype=np.float64)
         except (TypeError, ValueError):
             raise DetectionError(f"marker {int(mid)}: corners must be numbers, (4, 2) pixels TL, TR, BR, BL") from None
-        if c.size != 8:
+        if (c.size != 8 or c.shape[-1:] != (2,)) and c.shape != (8,):  # (4, 2), OpenCV's (1, 4, 2), or (8,)
+            hint = ": one row per corner, transpose it" if c.shape == (2, 4) else ""
             raise DetectionError(
-                f"marker {int(mid)}: corners have shape {c.shape}, expected (4, 2) pixels in the order TL, TR, BR, BL"
+                f"marker {int(mid)}: corners have shape {c.shape}, expected (4, 2) pixels in the order TL, TR, BR, "
+                f"BL{hint}"
             )
         object.__setattr__(self, "id", int(mid))
         object.__setattr__(self, "corners_px", c.reshape(4, 2))

@@ -530,6 +530,7 @@ def test_ids_restriction_rejects_bad_ids(ids, error, message):
         (-2, np.zeros((4, 2)), "id -2 is negative"),
         (3, np.zeros((3, 2)), r"corners have shape \(3, 2\), expected \(4, 2\)"),
         (3, [["a", 1]] * 4, "corners must be numbers"),
+        (3, [[10, 30, 30, 10], [10, 10, 30, 30]], r"shape \(2, 4\), .*: one row per corner, transpose it"),
     ],
 )
 def test_detection_refuses_what_is_not_a_detection(mid, corners, message):

@@ -10,6 +10,7 @@ import fidlearn
 from fidlearn import Camera, MarkerMap, estimate_pose, locate
 from fidlearn.detection import Detection
 from fidlearn.errors import PoseError
+from fidlearn.synthetic import render_scene
 
 BOARD = {
     "type": "charuco",
@@ -35,7 +36,9 @@ def look_at(C, target) -> np.ndarray:
     return fidlearn.make_transform(np.column_stack([x, np.cross(z, x), z]), C)
 
 
-def render(m: MarkerMap, T_world_camera: np.ndarray, seed: int = 0, printed=None) -> np.ndarray:
+def render(
+    m: MarkerMap, T_world_camera: np.ndarray, seed: int = 0, printed=None, noise_gray: float = 1.5
+) -> np.ndarray:
     """The board entry seen by CAMERA: OpenCV's board image warped by the known homography (3x supersampled).
 
     ``printed``: the board as printed (an OpenCV board of the same squares), when it differs from the entry's.
@@ -52,7 +55,7 @@ def render(m: MarkerMap, T_world_camera: np.ndarray, seed: int = 0, printed=None
     w, h = CAMERA.image_size
     big = cv2.warpPerspective(image, S @ H_cam @ A, (3 * w, 3 * h), flags=cv2.INTER_LINEAR, borderValue=200)
     out = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(float)
-    out += np.random.default_rng(seed).normal(0, 1.5, out.shape)
+    out += np.random.default_rng(seed).normal(0, noise_gray, out.shape)
     return np.clip(np.round(out), 0, 255).astype(np.uint8)
 
 
@@ -72,6 +75,69 @@ def test_locate_with_the_board_entry_uses_its_chess_corners(C):
     # the same markers as single markers: no chess corners
     singles = MarkerMap(m.placements, 28, dictionary="6X6_250", units="mm")
     assert "+chess" not in locate(image, singles, CAMERA).method
+
+
+def test_one_chess_corner_placed_wrong_is_left_out_and_any_picture_gives_them():
+    """One of 24 chess corners 5.7 px off, beside corners good to a few hundredths: it widened its own yardstick
+    and pulled the first fit, and moved the pose by 35 mm. Pictures of one channel or of floats, which detection
+    reads, raised cv2.error where the chess corners were read."""
+    from fidlearn.pose._locate import chess_corners_seen  # noqa: PLC0415
+
+    cam = Camera.from_fov(60, (640, 480))
+    board = {**BOARD, "translation": [0, 0, 500]}
+    m = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 28, "boards": {"b": board}})
+    T = fidlearn.look_at([700, 100, 360], [0, 100, 360], roll_deg=90)
+    image = render_scene(m, cam, T, seed=3, blur_px=0.5, noise_std_gray=0.0).image
+    dets = fidlearn.detect_markers(image, "6X6_250")
+    ids, px = chess_corners_seen(image, m, dets)["b"]
+    moved = px.copy()
+    moved[list(ids).index(21)] += (-4.0, -4.0)  # it moved the pose by 35 mm
+    pose = fidlearn.estimate_pose(dets, m, cam, board_corners={"b": (ids, moved)})
+    assert pose.method.endswith("+chess")
+    assert np.linalg.norm(pose.position_mm - T[:3, 3]) < 1.0
+    for picture in (image[:, :, None], np.dstack([image] * 3) / 255.0, image.astype(np.uint16) * 257):
+        assert locate(picture, m, cam).method.endswith("+chess")
+
+
+def test_a_rendered_charuco_entry_has_its_chess_squares():
+    """render_scene drew a ChArUco entry's markers alone: OpenCV then interpolated chess corners 5-7 px off."""
+    from fidlearn.pose._locate import chess_corners_seen  # noqa: PLC0415
+
+    m = board_map()
+    T = look_at([650, 250, 950], [0, 100, 860])
+    image = render_scene(m, CAMERA, T, seed=3, blur_px=0.5, noise_std_gray=1.0).image
+    dets = fidlearn.detect_markers(image, "6X6_250")
+    assert len(dets) == 17
+    ids, px = chess_corners_seen(image, m, dets)["table"]
+    assert len(ids) == 24
+    np.testing.assert_allclose(px, CAMERA.project(m.chess_corners()["table"][ids], T), atol=0.15)
+    for d in dets:
+        np.testing.assert_allclose(
+            d.corners_px, CAMERA.project(m.marker_corners(m.key(d.id, d.dictionary)), T), atol=0.2
+        )
+    assert np.linalg.norm(locate(image, m, CAMERA).position_mm - T[:3, 3]) < 1.0
+
+
+@pytest.mark.parametrize("separation_mm", [5.0, 10.0])
+def test_a_rendered_grid_board_keeps_each_markers_border(separation_mm):
+    """Each marker's white margin of a cell covered its neighbour's black border when the gap was narrower
+    (4.6 px off at 5 mm)."""
+    grid = {
+        "type": "grid",
+        "translation": [0, 0, 500],
+        "markers": [3, 2],
+        "marker_mm": 40,
+        "separation_mm": separation_mm,
+        "dictionary": "4X4_50",
+    }
+    m = MarkerMap.from_dict({"units": "mm", "marker_size_mm": 40, "boards": {"g": grid}})
+    cam = Camera.from_fov(60, (640, 480))
+    T = fidlearn.look_at([500, 60, 450], [0, 60, 450])
+    image = render_scene(m, cam, T, seed=1, blur_px=0.5, noise_std_gray=1.0).image
+    dets = fidlearn.detect_markers(image, "4X4_50")
+    assert len(dets) == 6
+    for d in dets:
+        np.testing.assert_allclose(d.corners_px, cam.project(m.marker_corners(m.key(d.id, d.dictionary)), T), atol=0.2)
 
 
 def chess_corner_pose(image: np.ndarray, m: MarkerMap) -> np.ndarray:

@@ -127,7 +127,9 @@ def _with_chess(
         return pose
     n_m = len(obj_m)
     s = np.array([pose.corner_sigma_px, max(pose.corner_sigma_px / CHESS_START_RATIO, CHESS_MIN_SIGMA_PX)])
-    keep = np.ones(len(obj_c), dtype=bool)
+    keep = _plausible(camera.project(obj_c, pose.T_world_camera) - img_c)
+    if keep.sum() < CHESS_MIN_CORNERS:
+        return pose
     v = np.array([CHESS_START_SHIFT_PX**2, CHESS_START_SIZE_REL**2])
     E_m = _nuisance(img_m)
     start = (pose.T_world_camera[:3, :3], pose.T_world_camera[:3, 3], np.zeros(E_m.shape[1]))
@@ -154,13 +156,22 @@ def _with_chess(
         if it > 0 and np.all(np.abs(v / old - 1) < 1e-3) and np.all(np.abs(s * s * weights - 1) < 1e-3):
             break
         if it == 0:  # a corner the interpolation placed wrong
-            far = np.linalg.norm(r[2 * n_m :].reshape(-1, 2), axis=1) > CHESS_OUTLIER_SIGMA * s[1]
+            far = ~_plausible(r[2 * n_m :].reshape(-1, 2))
             if far.any() and keep.sum() - far.sum() >= CHESS_MIN_CORNERS:
                 keep[np.flatnonzero(keep)[far]] = False
     infl = [_estimated_sigma_inflation(d) for d in red]
     meat = weights[0] ** 2 * s[0] ** 2 * infl[0] * A_m + weights[1] ** 2 * s[1] ** 2 * infl[1] * A_c
     cov = (Ninv @ (meat + np.diag(np.r_[np.zeros(6), P])) @ Ninv)[:6, :6]  # the markers' shifts and sizes too
     return _refitted(pose, R_wc, C, r[: 2 * n_m] + E_m @ k, (cov + cov.T) / 2)
+
+
+def _plausible(residuals: np.ndarray) -> np.ndarray:
+    """Which chess corners (residuals (N, 2), px) lie within ``CHESS_OUTLIER_SIGMA`` robust spreads: the spread
+    from the median distance (a Rayleigh's is 1.1774 sigma), at least ``CHESS_MIN_SIGMA_PX``, so that one corner
+    placed wrong widens neither its own yardstick nor the fit it is judged by."""
+    d = np.linalg.norm(residuals, axis=1)
+    spread = max(float(np.median(d)) / 1.1774, CHESS_MIN_SIGMA_PX)
+    return d <= CHESS_OUTLIER_SIGMA * spread
 
 
 def _refitted(pose: Pose, R_wc: np.ndarray, C: np.ndarray, r_m: np.ndarray, cov: np.ndarray) -> Pose:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 
-import cv2
 import numpy as np
 
 from .. import _cv
@@ -182,9 +181,7 @@ def chess_corners_seen(image: np.ndarray, marker_map: MarkerMap, detections: lis
     boards = {n: e for n, e in marker_map.entries.items() if isinstance(e, BoardEntry) and e.kind == "charuco"}
     if not boards:
         return None
-    gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-    if gray.dtype != np.uint8:
-        return None
+    gray = as_gray(image)  # as detection reads it: (H, W, 1), BGRA, uint16 and float pictures too
     out = {}
     for name, entry in boards.items():
         mine = [d for d in detections if marker_map.owner.get(marker_map.key(d.id, d.dictionary)) == name]

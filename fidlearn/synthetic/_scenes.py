@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -15,6 +16,7 @@ from .._io import write_text_atomic
 from ..camera import Camera
 from ..errors import FidlearnError
 from ..markermap import MarkerMap
+from ._calibration_views import _charuco_sheet
 from ._checks import DEFAULT_GRAYS, _check_scene
 from ._renderer import _marker_sheet, _projected_size_px, _render, _texels_per_cell
 
@@ -176,12 +178,14 @@ def render_scene(
     if margin_cells < 0:
         raise FidlearnError(f"margin_cells must be >= 0 (the white quiet zone in marker cells), got {margin_cells}")
     T_camera_world = frames.invert_transform(T_world_camera)
-    sheets = []
+    sheets, on_boards = _charuco_sheets(marker_map, camera, T_camera_world, int(supersample), grays)
     for mid in marker_map.ids:
+        if mid in on_boards:  # printed on its board's sheet, chess squares and all
+            continue
         cells = _cv.dictionary_marker_bits(marker_map.marker_dictionary(mid)) + 2
         size = _projected_size_px(marker_map.marker_corners(mid), camera, T_camera_world)
         tpc = _texels_per_cell(size, cells, int(supersample))
-        sheets.append(_marker_sheet(marker_map, mid, tpc, margin_cells, grays))
+        sheets.append(_marker_sheet(marker_map, mid, tpc, _margin(marker_map, mid, cells, margin_cells), grays))
     image = _render(
         camera,
         T_world_camera,
@@ -198,6 +202,51 @@ def render_scene(
     )
     truth = visible_markers(marker_map, camera, T_world_camera, margin_px=margin_px)
     return Scene(image, truth, T_world_camera, camera, marker_map, seed, noise_std_gray, blur_px)
+
+
+def _charuco_sheets(marker_map: MarkerMap, camera: Camera, T_camera_world: np.ndarray, k: int, grays: dict):
+    """One sheet for each ChArUco board entry of the map (OpenCV's own picture of the board, its chess squares
+    with its markers, and a white margin of half a square), and the keys of the markers it prints."""
+    from ..markermap_entries import BoardEntry  # noqa: PLC0415
+
+    sheets, keys = [], set()
+    for name, e in marker_map.entries.items():
+        if not (isinstance(e, BoardEntry) and e.kind == "charuco"):
+            continue
+        cells = _cv.dictionary_marker_bits(e.dictionary) + 2
+        first = next(k for k, owner in marker_map.owner.items() if owner == name)
+        size = _projected_size_px(marker_map.marker_corners(first), camera, T_camera_world)
+        tps = _texels_per_square(_texels_per_cell(size, cells, k), cells, e.marker_size_mm / e.square_size_mm)
+        sheet = _charuco_sheet(e.cv_board(), e.counts, e.square_size_mm, tps, 0.5, grays)
+        along_s, along_t, origin = e.to_world(sheet.A_world.T)  # texel (s, t, 1) -> board (x, y, 0) -> world
+        sheet.A_world = np.column_stack([along_s - e.translation_mm, along_t - e.translation_mm, origin])
+        sheet.label = f"board {name}"
+        sheets.append(sheet)
+        keys.update(k for k, owner in marker_map.owner.items() if owner == name)
+    return sheets, keys
+
+
+def _margin(marker_map: MarkerMap, key: int, cells: int, margin_cells: float) -> float:
+    """The white margin (cells) drawn round a marker: a grid board's markers share one sheet, so at most half the
+    gap to their neighbours (a whole cell's margin covered the next marker's border)."""
+    entry = marker_map.entries.get(marker_map.owner.get(key, ""))
+    if entry is None or getattr(entry, "kind", None) != "grid":
+        return margin_cells
+    return min(margin_cells, 0.5 * entry.separation_mm / (entry.marker_size_mm / cells))
+
+
+def _texels_per_square(texels_per_cell: int, cells: int, ratio: float) -> int:
+    """Texels per square of a ChArUco board's picture, at least those of ``texels_per_cell``, such that OpenCV
+    draws each marker (``ratio`` of a square, ``cells`` cells) with whole texels per cell, centred on a texel edge:
+    the one that comes closest, up to four times finer (OpenCV rounds a marker's side and place to whole texels)."""
+    base = max(int(math.ceil(texels_per_cell * cells / ratio)), 8)
+    best, err = base, math.inf
+    for t in range(base, 4 * base + 1):
+        j = max(round(ratio * t / cells), 1)
+        e = (abs(ratio * t - j * cells) + 0.5 * ((t - j * cells) % 2)) / t  # texels off, per texel of a square
+        if e < err - 1e-12:
+            best, err = t, e
+    return best
 
 
 @dataclass(eq=False)
