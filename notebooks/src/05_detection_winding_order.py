@@ -149,7 +149,7 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# Without refinement the corners are right to about half a pixel; fitting the edges brings them to a few
+# Without refinement the corners are right to half a pixel to a pixel; fitting the edges brings them to a few
 # hundredths. The pose inherits this error (notebook 08 measures how much).
 #
 # ## 4. A real photo
@@ -636,7 +636,7 @@ for r in ("none", "subpix", "edges"):
 #   and its `detectMarkers(gray)`; the pre-4.7 `Dictionary_get` / `DetectorParameters_create` /
 #   `aruco.detectMarkers` fail with an `AttributeError`. Flatten `ids` (its shape changed in OpenCV 5).
 #   `fidlearn.detection.detect_markers` does this for you and refines the corners.
-# * Corners are good to about half a pixel unrefined, a few hundredths of a pixel with edge refinement
+# * Corners are good to half a pixel to a pixel unrefined, a few hundredths of a pixel with edge refinement
 #   (measured on rendered pictures against their truth).
 # * The `edges` refinement samples profiles across the four outer edges, finds the half-way gray level in each,
 #   fits a line per side and intersects neighbouring lines. OpenCV's corners sit inwards (the thresholded

@@ -201,7 +201,8 @@ assert np.all(walls[:, 1:] < 20)  # the others handle two walls
 # (`cv2.projectPoints`, notebook 01) and compare with the detected pixels. The differences are the
 # **residuals**; their RMS is the **reprojection error**. A good pose from good corners leaves a fraction of
 # a pixel; a wrong map or a wrong corner order (notebook 05) leaves pixels or more. A wrong camera need not:
-# in notebook 02 a K meant for another resolution gave a pose 14 cm off with a residual under a tenth of a pixel,
+# in notebook 02 a K meant for another sensor mode (a 4:3 crop) gave a pose 14 cm off, and one for another
+# resolution 1.2 m off, each with a residual under a tenth of a pixel,
 # because the pose bends to fit the camera it is given. A small error says the pose agrees with the map and
 # the camera you gave it, not that they are right.
 #

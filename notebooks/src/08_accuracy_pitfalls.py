@@ -571,10 +571,11 @@ assert far.position_std_mm[0] < far.position_std_mm[1] / 3  # far, face-on: wors
 # * **Far along the wall**, the camera sees the wall at a grazing angle: two markers are squashed below the 9 px
 #   the detector needs for their short side, and one marker alone gives the pose (6.5 mm). Seen this obliquely a
 #   single marker is not ambiguous: the flip probability is 0.
-# * **Far, face-on**, 6 m away, the markers are 13 px wide: a third of a metre of error, and the planar flip
-#   of section 5 is likely. So small, a marker is missed one time in four (`p.found_probability`): the
+# * **Far, face-on**, 6 m away, the markers are 13 px wide: {{ far.position_error_mm:.0f }} mm of error, and the
+#   planar flip of section 5 is likely. So small, a marker is missed
+#   {{ 100 * (1 - min(far.found_probability.values())):.0f }} % of the time (`p.found_probability`): the
 #   prediction mixes the poses from the markers that may be found, each with its own flip. Notice *where* the
-#   error goes: the depth (X) is known to a few centimetres, but the
+#   error goes: the depth (X) is known to {{ far.position_std_mm[0]:.0f }} mm, but the
 #   camera's position across the line of sight (Y, Z) is uncertain by decimetres. Seen face-on from afar, the
 #   corners pin down the tilt of the wall worst of all, and a tilt of the wall is the same picture as the
 #   camera moved sideways around it.

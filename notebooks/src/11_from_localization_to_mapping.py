@@ -458,7 +458,7 @@ assert scaled.print_scale_applied and abs(scaled.print_scale - 0.987) < 3 * scal
 
 # %% [markdown]
 # With the tape's sigma learnt, a scale more than 3 standard errors from 100 % is applied: the surveyed map says
-# {{ scaled.marker_map.marker_size_mm:.1f }} mm. The exercises end with the other way round: a ruler's readings,
+# {{ scaled.marker_map.marker_size_mm:.1f }} mm. One exercise (q5) goes the other way round: a ruler's readings,
 # and the `size_mm` to write for markers of several sizes.
 #
 # ### A board on the wall is one object
@@ -803,7 +803,8 @@ assert map_after < map_before / 2 and worst_after < worst_before / 2 and np.medi
 # the origin. Run it, then:
 #
 # * Which markers are best known now (the `std` column), and why are the far ones worst?
-# * Change `photos` to the first 8: is marker 7 still named? Look at `alone.photos_per_marker`.
+# * Change `photos` to the first 8: does marker 7 still stand out from the tape (its `diff`)? Look at
+#   `alone.photos_per_marker`.
 # * In the sweep of section 7, raise the corner noise to 0.5 px: how does the curve move?
 
 # %%

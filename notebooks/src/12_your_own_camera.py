@@ -311,11 +311,11 @@ print(f"wrote {OUT / 'markers.pdf'}: markers {world_map.ids}, {world_map.marker_
 # Point the camera at the markers and move it. Each frame goes through `MarkerTracker`: the pipeline of
 # notebooks 05-07 (detection, `estimate_pose`, the inversion), frame after frame. What it adds for a live camera
 # is speed: it looks for each marker only near where the last frame saw it (a window around its predicted
-# corners), with a full-frame detection every few frames to find markers that come into view. It does not
-# smooth the pose over time; that is `PoseTracker`'s job (notebook 10). The pose is printed and the 3D view
-# shows the world, the markers
-# and the camera. **ambiguous** means two poses explain the picture almost equally well (one marker, seen
-# nearly face on, notebook 08): move so that two markers are in view, or look at the marker at an angle.
+# corners), with a full-frame detection every 30 frames (about once a second) to find markers that come into
+# view. It does not smooth the pose over time; that is `PoseTracker`'s job (notebook 10). The pose is printed
+# and the 3D view shows the world, the markers and the camera. **ambiguous** means two poses explain the
+# picture almost equally well (one marker, seen nearly face on, notebook 08): move so that two markers are in
+# view, or look at the marker at an angle.
 #
 # With a camera, the pose uses your `camera.json` from section 3 (or one you made before with
 # `fidlearn calibrate` and saved there). Without a camera, the bundled drive `data/trajectory` plays the part,

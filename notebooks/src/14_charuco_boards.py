@@ -228,7 +228,7 @@ plt.show()
 # camera that stands still; the robot's encoders, through the hand-eye chain, say where the board is without
 # looking at the pixels. Here the same photos judge two poses from one detection: `cv2.solvePnP` on the (up to)
 # 24 **chess corners**, and on the (up to 68) **marker corners** of the same `detectBoard` call. The camera is
-# calibrated from the chess corners of all 16 photos, as in notebook 13.
+# calibrated from the chess corners of the photos that show six or more of them, as in notebook 13.
 
 # %%
 ROBOT = data_path("real", "robot_charuco")

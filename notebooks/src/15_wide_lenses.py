@@ -398,7 +398,7 @@ plt.show()
 #
 # A rendered picture has a known truth. `render_scene` draws a room of markers through ROS's fisheye
 # calibration of this lens, from a camera turned away from the wall of markers, so that they sit towards the
-# picture's edge, up to 80 degrees off the axis. The pose is then estimated twice from the same detections: with the
+# picture's edge, more than 80 degrees off the axis. The pose is then estimated twice from the same detections: with the
 # fisheye camera, and with the pinhole camera fitted in section 2 to the same lens (as one would get by
 # calibrating a fisheye with `cv2.calibrateCamera`).
 
