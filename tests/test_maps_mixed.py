@@ -258,3 +258,28 @@ def test_fidlearn_markers_prints_a_map_at_each_markers_size(tmp_path, capsys):
     assert err[0].startswith("error: ")
     assert "are 200 mm, too large for one a4 page" in err[0]
     assert not (tmp_path / "big.pdf").exists()
+
+
+def test_a_maps_boards_are_printed_whole_not_as_loose_markers(tmp_path, capsys):
+    """fidlearn markers --map printed a ChArUco entry's 17 markers as cut-out markers, with no squares: the board
+    the map describes could not be rebuilt from them. A bundle's markers are loose markers on an object."""
+    from fidlearn.cli import main
+
+    board = {"type": "charuco", "translation": [0, 0, 500], "squares": [5, 7], "square_mm": 40, "marker_mm": 28,
+             "dictionary": "6X6_250"}  # fmt: skip
+    dock = {"translation": [0, 900, 0], "markers": {"40": {"translation": [0, 0, 0]}}}
+    single = {"30": {"translation": [0, 500, 500]}}
+    d = {"units": "mm", "marker_size_mm": 50, "dictionary": "6X6_250", "markers": single, "boards": {"wall": board},
+         "bundles": {"dock": dock}}  # fmt: skip
+    sheets = layout_map_markers(MarkerMap.from_dict(d))
+    assert sorted(i for s in sheets for page in s.pages for i, _, _ in page) == [30, 40]
+    (tmp_path / "m.json").write_text(json.dumps(d))
+    assert main(["markers", "--map", str(tmp_path / "m.json"), "-o", str(tmp_path / "m.pdf")]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "board 'wall' is not on these pages: fidlearn board --squares 5x7 --square-mm 40 --charuco --marker-mm 28 "
+        "--dictionary 6X6_250 -o wall.pdf" in out
+    )
+    only = {**d, "markers": {}, "bundles": {}}
+    with pytest.raises(fidlearn.errors.PrintError, match="every marker of the map is on a board"):
+        layout_map_markers(MarkerMap.from_dict(only))

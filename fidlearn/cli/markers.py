@@ -91,11 +91,25 @@ def _sheets(args) -> list:
         if args.ids is not None:
             raise UsageError("give --ids or --map, not both: --map prints every marker of the map")
         marker_map = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.size_mm, dictionary=args.dictionary)
-        return printables.layout_map_markers(marker_map, args.paper)
+        sheets = printables.layout_map_markers(marker_map, args.paper)
+        for name, e in marker_map.entries.items():
+            if getattr(e, "kind", None):
+                print(f"board {name!r} is not on these pages: {_board_command(e, name)}")
+        return sheets
     if args.ids is None or args.size_mm is None:
         raise UsageError("give --ids and --size-mm (e.g. --ids 0-9 --size-mm 80), or --map MAP.json")
     ids = printables.parse_ids(args.ids)
     return [printables.layout_markers(ids, args.size_mm, args.dictionary or "ARUCO_ORIGINAL", args.paper)]
+
+
+def _board_command(e, name: str) -> str:
+    """How to print a map's board entry whole."""
+    if e.kind == "charuco" and e.first_id == 0 and not e.legacy:
+        return (
+            f"fidlearn board --squares {e.counts[0]}x{e.counts[1]} --square-mm {e.square_size_mm:g} --charuco "
+            f"--marker-mm {e.marker_size_mm:g} --dictionary {e.dictionary} -o {name.replace(' ', '_')}.pdf"
+        )
+    return f"print it whole, with OpenCV's picture of it (MarkerMap.entries[{name!r}].cv_board().generateImage)"
 
 
 def add_board(sub) -> None:

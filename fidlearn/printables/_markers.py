@@ -288,7 +288,9 @@ def layout_map_markers(marker_map, paper: str = "a4") -> list[MarkerSheet]:
     """Lay out every marker of a world map at its own size, from its own dictionary.
 
     Markers of one dictionary and one size share a :class:`MarkerSheet` (laid out as
-    :func:`layout_markers` does); a map whose markers all have the map's size and dictionary gives one.
+    :func:`layout_markers` does); a map whose markers all have the map's size and dictionary gives one. A
+    board entry's markers are left out: a board is printed whole (:func:`board_figure`), its squares and
+    spacing with them; a bundle's markers are loose markers stuck on one object, and are laid out here.
 
     Parameters
     ----------
@@ -304,7 +306,8 @@ def layout_map_markers(marker_map, paper: str = "a4") -> list[MarkerSheet]:
     Raises
     ------
     PrintError
-        A marker too large for the paper (the largest that fits is named).
+        A marker too large for the paper (the largest that fits is named), or a map whose markers are all on
+        boards.
 
     Examples
     --------
@@ -317,7 +320,15 @@ def layout_map_markers(marker_map, paper: str = "a4") -> list[MarkerSheet]:
     """
     groups: dict[tuple[int, float, str], list[int]] = {}
     order = {name: k for k, name in enumerate(marker_map.dictionaries)}
+    on_boards = {k for k, owner in marker_map.owner.items() if getattr(marker_map.entries[owner], "kind", None)}
+    if marker_map.ids and on_boards >= set(marker_map.ids):
+        raise PrintError(
+            f"{marker_map.source}: every marker of the map is on a board, which is printed whole with its squares "
+            "and spacing: fidlearn board (a ChArUco board), or its cv_board().generateImage()"
+        )
     for key in marker_map.ids:
+        if key in on_boards:  # printed with its board, never as a loose marker
+            continue
         name = marker_map.marker_dictionary(key)
         groups.setdefault((order[name], marker_map.marker_size(key), name), []).append(int(key))
     sheets = []
