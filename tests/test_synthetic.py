@@ -252,6 +252,16 @@ def test_bad_options_say_what_to_do(wall):
         render_scene(wall, camera, T, supersample=0)
     with pytest.raises(FidlearnError, match="noise_std_gray must be a number from 0 to 255"):
         render_scene(wall, camera, T, noise_std_gray=-1)
+    for name, value in [  # a NaN gray or gradient made an all-black picture with markers in its truth
+        ("gradient", float("nan")),
+        ("wall_gray", float("nan")),
+        ("paper_gray", "white"),
+        ("margin_cells", None),
+        ("margin_cells", 1e9),
+        ("margin_px", float("nan")),
+    ]:
+        with pytest.raises(FidlearnError, match=f"{name} must be a number from"):
+            render_scene(wall, camera, T, **{name: value})
     tilted = Camera(camera.K, np.r_[np.zeros(12), 0.01, 0.0], (320, 240))
     with pytest.raises(CameraError, match="tilted sensor"):
         render_scene(wall, tilted, T)

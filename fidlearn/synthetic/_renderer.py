@@ -129,7 +129,7 @@ def _check_render_options(camera: Camera, supersample, blur_px, noise_std_gray, 
         raise FidlearnError(
             f"a {camera.width}x{camera.height} picture at supersample {k} is {samples / 1e6:.4g} "
             f"million samples, more than the limit of {MAX_RENDER_SAMPLES / 1e6:g} million (MAX_RENDER_SAMPLES, a few "
-            "seconds of work); use a smaller picture or supersample"
+            "seconds of work); render a smaller picture (fidlearn render --size, Camera.scaled) or a lower supersample"
         )
     for name, value, most in (
         ("blur_px", blur_px, 100.0),

@@ -174,9 +174,19 @@ def render_scene(
     if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
         raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
+    for name, value, lo, hi in (
+        ("gradient", gradient, 0.0, 2.0),
+        ("gradient_angle_deg", gradient_angle_deg, -3600.0, 3600.0),
+        ("wall_gray", wall_gray, 0.0, 255.0),
+        ("paper_gray", paper_gray, 0.0, 255.0),
+        ("ink_gray", ink_gray, 0.0, 255.0),
+        ("margin_cells", margin_cells, 0.0, 10.0),
+        ("margin_px", margin_px, 0.0, 1e4),
+    ):
+        ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not (ok and math.isfinite(value) and lo <= value <= hi):
+            raise FidlearnError(f"{name} must be a number from {lo:g} to {hi:g}, got {value!r:.40}")
     grays = {"wall": float(wall_gray), "paper": float(paper_gray), "ink": float(ink_gray)}
-    if margin_cells < 0:
-        raise FidlearnError(f"margin_cells must be >= 0 (the white quiet zone in marker cells), got {margin_cells}")
     T_camera_world = frames.invert_transform(T_world_camera)
     sheets, on_boards = _charuco_sheets(marker_map, camera, T_camera_world, int(supersample), grays)
     for mid in marker_map.ids:
