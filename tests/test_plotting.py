@@ -325,3 +325,30 @@ def test_importing_fidlearn_does_not_import_matplotlib():
     code = "import sys, fidlearn; print('matplotlib' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_mismatched_and_empty_inputs_are_plot_errors_and_a_folded_marker_is_not_drawn():
+    """They raised IndexError or ValueError; a marker 60 degrees off the axis of a 70 degree barrel lens was
+    drawn mirrored beside the one in view (the distortion polynomial folds back there)."""
+    image = np.zeros((10, 20), np.uint8)
+    with pytest.raises(PlotError, match="3 images and 1 titles"):
+        plotting.show_images([image] * 3, titles=["a"])
+    _, ax = plt.subplots()
+    with pytest.raises(PlotError, match="2 quads and 1 ids"):
+        plotting.draw_quads(ax, [np.zeros((4, 2))] * 2, ids=[1])
+    with pytest.raises(PlotError, match=r"an image is an array \(H, W\)"):
+        plotting.show_image(None, np.zeros(5))
+    ax3 = plt.figure().add_subplot(projection="3d")
+    with pytest.raises(PlotError, match="points must be finite"):
+        plotting.set_axes_equal(ax3, np.zeros((0, 3)))
+    cam = Camera.from_fov(70, (640, 480), dist=[-0.3, 0, 0, 0, 0])
+    m = MarkerMap.from_dict(
+        {
+            "units": "mm",
+            "marker_size_mm": 100,
+            "markers": {"0": {"translation": [0, -50, 550]}, "1": {"translation": [0, -1800, 550]}},
+        }
+    )
+    drawn = plotting.draw_projected_markers(ax, m, cam, look_at([1000, 0, 500], [0, 0, 500]))
+    assert sorted(drawn) == [0]
+    plt.close("all")

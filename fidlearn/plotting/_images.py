@@ -73,7 +73,7 @@ def show_image(
         If ``image`` is not (H, W), (H, W, 3) or (H, W, 4), or the labels do not match the points.
     """
     if ax is None:
-        h, w = np.asarray(image).shape[:2]
+        h, w = _image_size(image, "show_image")
         _, ax = plt.subplots(figsize=(6.4, 6.4 * h / max(w, 1)))
     shown, kw = _rgb(image)
     ax.imshow(shown, interpolation="nearest", **kw)
@@ -82,6 +82,15 @@ def show_image(
     if title:
         ax.set_title(title)
     return ax
+
+
+def _image_size(image, where: str) -> tuple[int, int]:
+    """``(height, width)`` of a picture array, or PlotError saying what a picture is."""
+    a = np.asarray(image) if isinstance(image, np.ndarray) else None
+    if a is None or a.ndim not in (2, 3) or a.size == 0:
+        shape = getattr(a, "shape", type(image).__name__)
+        raise PlotError(f"{where}: an image is an array (H, W), (H, W, 3) or (H, W, 4), got {shape}")
+    return int(a.shape[0]), int(a.shape[1])
 
 
 def show_images(
@@ -113,9 +122,11 @@ def show_images(
     n = len(images)
     if n == 0:
         raise PlotError("show_images: no images")
+    if titles is not None and len(titles) != n:
+        raise PlotError(f"show_images: {n} images and {len(titles)} titles; give one title per image, or none")
     ncols = max(1, min(ncols, n))
     nrows = -(-n // ncols)
-    h, w = np.asarray(images[0]).shape[:2]
+    h, w = _image_size(images[0], "show_images")
     fig, axes = plt.subplots(
         nrows, ncols, figsize=(width_in, width_in / ncols * h / w * nrows + 0.4 * nrows), squeeze=False
     )
@@ -256,6 +267,8 @@ def draw_quads(
         The outlines, one per quad, closed (5 vertices).
     """
     lines = []
+    if ids is not None and len(ids) != len(quads_px):
+        raise PlotError(f"draw_quads: {len(quads_px)} quads and {len(ids)} ids; give one id per quad, or none")
     for k, q in enumerate(quads_px):
         q = np.asarray(q, dtype=float).reshape(4, 2)
         closed = np.vstack([q, q[:1]])
@@ -384,8 +397,14 @@ def draw_projected_markers(
     _check_map_camera(marker_map, camera, "draw_projected_markers(ax, marker_map, camera, T_world_camera)")
     w, h = camera.image_size
     out: dict[int, np.ndarray] = {}
+    T_cw = np.linalg.inv(np.asarray(T_world_camera, dtype=float))
+    slack = 0.5 * max(w, h)
     for mid, c in marker_map.corners().items():
         if not np.all(camera.points_in_front(c, T_world_camera)):
+            continue
+        pc = c @ T_cw[:3, :3].T + T_cw[:3, 3]  # far outside the view a lens's polynomial folds back: the pinhole first
+        ideal = pc[:, :2] / pc[:, 2:3] * [camera.fx, camera.fy] + [camera.cx, camera.cy]
+        if camera.model == "pinhole" and (np.any(ideal < -slack) or np.any(ideal > [w + slack, h + slack])):
             continue
         out[mid] = camera.project(c, T_world_camera)
     draw_quads(ax, list(out.values()), ids=list(out), color=color, corner_labels=corner_labels)

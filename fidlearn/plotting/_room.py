@@ -97,6 +97,8 @@ def set_axes_equal(ax: Axes3D, points: np.ndarray | None = None, margin: float =
         lo, hi = lims[:, 0], lims[:, 1]
     else:
         pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        if len(pts) == 0 or not np.isfinite(pts).all():
+            raise PlotError(f"set_axes_equal: points must be finite (N, 3) with N >= 1, got {len(pts)} of them")
         lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre = (lo + hi) / 2.0
     half = float(max((hi - lo).max() / 2.0, 1e-9)) * (1.0 + margin)
