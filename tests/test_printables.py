@@ -448,3 +448,21 @@ def test_sizes_in_metres_are_refused(tmp_path, make):
     with pytest.raises(PrintError, match=r"under 1 mm; if that is metres, give millimetres \((80|25)\)"):
         make(tmp_path / "out.pdf")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sheet_printed_after_others_is_numbered_in_the_whole_document():
+    """A map of two sizes printed two sheets into one PDF, each page saying 'page 1 of 1'."""
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    sheet = P.layout_markers([0, 1], 80, "ARUCO_ORIGINAL")
+    own = P.marker_figures(sheet)
+    joined = P.marker_figures(sheet, first_page=3, pages=4)
+
+    def titles(figs):
+        return [t.get_text() for f in figs for ax in f.axes for t in ax.texts if "page" in t.get_text()] + [
+            ax.get_title() for f in figs for ax in f.axes if "page" in ax.get_title()
+        ]
+
+    assert any("page 1 of 1" in t for t in titles(own))
+    assert any("page 3 of 4" in t for t in titles(joined))
+    plt.close("all")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from .. import printables
 from ..errors import UsageError
 from ..markermap import MarkerMap
@@ -69,7 +71,8 @@ def run_markers(args) -> int:
     _refuse_clobber([("-o", out)], [Path(args.map)] if getattr(args, "map", None) else [])
     _check_dpi(args.dpi)
     sheets = _sheets(args)
-    figures = [fig for sheet in sheets for fig in printables.marker_figures(sheet)]
+    total, starts = sum(len(s.pages) for s in sheets), np.cumsum([0] + [len(s.pages) for s in sheets])
+    figures = [fig for k, sheet in enumerate(sheets) for fig in printables.marker_figures(sheet, 1 + starts[k], total)]
     files = printables.save_pages(figures, out, dpi=args.dpi)
     _commit()
     pages = len(figures)

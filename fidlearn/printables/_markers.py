@@ -170,13 +170,16 @@ def layout_markers(
     return MarkerSheet(str(paper).lower(), paper_mm, marker_size_mm, cell, name, pages)
 
 
-def marker_figures(sheet: MarkerSheet) -> list:
+def marker_figures(sheet: MarkerSheet, first_page: int = 1, pages: int | None = None) -> list:
     """The pages of a :class:`MarkerSheet` as matplotlib figures (nothing written).
 
     Parameters
     ----------
     sheet : MarkerSheet
         From :func:`layout_markers`.
+    first_page, pages : int, optional
+        The first page's number and the whole document's page count, for a sheet printed after others (a map's
+        markers of several sizes); by default the sheet's own, from 1.
 
     Returns
     -------
@@ -189,7 +192,7 @@ def marker_figures(sheet: MarkerSheet) -> list:
         fig, ax = _page(sheet.paper_mm)
         title = (
             f"fidlearn markers, {sheet.dictionary}, black square {sheet.marker_size_mm:g} mm, "
-            f"page {k + 1} of {len(sheet.pages)}"
+            f"page {first_page + k} of {len(sheet.pages) if pages is None else pages}"
         )
         rects = []
         for mid, x, y in page:
