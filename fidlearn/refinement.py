@@ -9,6 +9,7 @@ Pixel convention: OpenCV's, the centre of the top-left pixel is (0, 0).
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import cv2
@@ -96,7 +97,36 @@ def refine_corners_edges(
         whose corners would move farther than the edges can be found (:func:`_move_limit`) keeps its input corners;
         one whose corners the last pass moved ``max(3, cell / 2)`` px or more is fitted once more from there.
     """
+    _check_arguments(gray, corners, cells, n_lines, n_samples, iterations, expand_px, gamma)
     return _refine_edges(gray, corners, cells, inverted, n_lines, n_samples, iterations, expand_px, gamma)[0]
+
+
+def _check_arguments(gray, corners, cells, n_lines, n_samples, iterations, expand_px, gamma) -> None:
+    """ImageError or DetectionError, with the fix, for what :func:`refine_corners_edges` cannot use."""
+    from .errors import DetectionError, ImageError  # noqa: PLC0415
+
+    if not isinstance(gray, np.ndarray) or gray.ndim != 2 or gray.dtype != np.uint8 or min(gray.shape) < 2:
+        what = f"{gray.dtype} array of shape {gray.shape}" if isinstance(gray, np.ndarray) else type(gray).__name__
+        raise ImageError(
+            f"refine_corners_edges: gray must be a uint8 picture (H, W), got a {what}; convert it with "
+            "fidlearn.detection.as_gray"
+        )
+    c = np.asarray(corners, dtype=float) if isinstance(corners, (np.ndarray, list, tuple)) else np.zeros(1)
+    if c.size % 8 or not np.isfinite(c).all():  # none at all is fine: none to refine
+        raise DetectionError(f"refine_corners_edges: corners must be finite (M, 4, 2) pixels, got shape {c.shape}")
+    for name, value, least in (
+        ("cells", cells, 3),
+        ("n_lines", n_lines, 2),
+        ("n_samples", n_samples, 3),
+        ("iterations", iterations, 1),
+    ):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise DetectionError(f"refine_corners_edges: {name} must be a whole number >= {least}, got {value!r:.40}")
+    for name, value, positive in (("expand_px", expand_px, False), ("gamma", gamma, True)):
+        ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not (ok and math.isfinite(value) and (value > 0 if positive else abs(value) < 100)):
+            what = "a finite number above 0" if positive else "a finite number of pixels"
+            raise DetectionError(f"refine_corners_edges: {name} must be {what}, got {value!r:.40}")
 
 
 def _refine_edges(

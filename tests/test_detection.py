@@ -584,3 +584,30 @@ def test_with_corners_keeps_the_marker_and_takes_the_new_corners():
     assert m.corners_px is moved
     assert m.side_px == 20.0
     assert d.corners_px[0].tolist() == [10.0, 10.0]  # the original is untouched
+
+
+@pytest.mark.parametrize(
+    ("change", "error", "message"),
+    [
+        ({"gray": np.zeros((64, 64, 3), np.uint8)}, "ImageError", "gray must be a uint8 picture"),
+        ({"gray": np.zeros((64, 64)) + 0.5}, "ImageError", "float64 array"),
+        ({"gray": [[0] * 64] * 64}, "ImageError", "got a list"),
+        ({"cells": 0}, "DetectionError", "cells must be a whole number >= 3"),
+        ({"gamma": 0}, "DetectionError", "gamma must be a finite number above 0"),
+        ({"n_samples": 1}, "DetectionError", "n_samples must be a whole number >= 3"),
+        ({"corners": np.full((1, 4, 2), np.nan)}, "DetectionError", "corners must be finite"),
+    ],
+)
+def test_the_edge_refinement_says_what_it_cannot_use(change, error, message):
+    """A BGR picture, cells or gamma of 0 and one sample raised ValueError, ZeroDivisionError or IndexError; a
+    float picture in [0, 1] came back unrefined without a word."""
+    from fidlearn import errors
+
+    args = {
+        "gray": np.full((64, 64), 255, np.uint8),
+        "corners": np.array([[[20, 20], [40, 20], [40, 40], [20, 40]]], float),
+        "cells": 8,
+    }
+    args.update(change)
+    with pytest.raises(getattr(errors, error), match=message):
+        refine_corners_edges(**args)
