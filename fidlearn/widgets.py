@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 
 from ._webcam import Webcam
 from .camera import Camera
+from .errors import CameraError
 
 __all__ = [
     "grid_polylines_mm",
@@ -211,14 +212,25 @@ def intrinsics_explorer(camera: Camera | None = None, image_size: Sequence[int] 
         ``cx``, ``cy``, ``k1``, all with ``continuous_update=False``); its last
         child is the Output widget that shows the picture, redrawn on every
         change.
+
+    Raises
+    ------
+    CameraError
+        A fisheye camera (the picture is OpenCV's pinhole lens).
     """
     import ipywidgets as W
     from IPython.display import Image, display
 
     if camera is None:
         camera = Camera.from_fov(60.0, cast("tuple[int, int]", tuple(image_size)))
+    if camera.model != "pinhole":
+        raise CameraError(
+            f"intrinsics_explorer draws OpenCV's pinhole lens, and {camera.source or 'the camera'} is a fisheye "
+            "(its k1 is another model's): explore it with a pinhole camera, e.g. Camera.from_fov"
+        )
     w, h = camera.image_size
     k1 = float(camera.dist[0]) if camera.dist is not None and camera.dist.size else 0.0
+    f_most = max(2000.0, 1.5 * max(camera.fx, camera.fy))  # a long lens's fx must fit, or the slider clamps it
     style = {"description_width": "30px"}
     layout = W.Layout(width="330px")
 
@@ -236,11 +248,11 @@ def intrinsics_explorer(camera: Camera | None = None, image_size: Sequence[int] 
         )
 
     controls = {
-        "fx": slider("fx", camera.fx, 100.0, 2000.0, 10.0, ".0f"),
-        "fy": slider("fy", camera.fy, 100.0, 2000.0, 10.0, ".0f"),
+        "fx": slider("fx", camera.fx, 100.0, f_most, 10.0, ".0f"),
+        "fy": slider("fy", camera.fy, 100.0, f_most, 10.0, ".0f"),
         "cx": slider("cx", camera.cx, 0.0, float(w - 1), 1.0, ".0f"),
         "cy": slider("cy", camera.cy, 0.0, float(h - 1), 1.0, ".0f"),
-        "k1": slider("k1", float(np.clip(k1, -0.5, 0.5)), -0.5, 0.5, 0.01, "+.2f"),
+        "k1": slider("k1", k1, min(-0.5, k1), max(0.5, k1), 0.01, "+.2f"),
     }
 
     def draw(fx: float, fy: float, cx: float, cy: float, k1: float) -> None:

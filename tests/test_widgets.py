@@ -11,6 +11,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from fidlearn import Camera, widgets  # noqa: E402
+from fidlearn.errors import CameraError  # noqa: E402
 
 BASE = dict(fx=500.0, fy=500.0, cx=319.5, cy=239.5)
 
@@ -125,3 +126,9 @@ def test_explorer_has_the_five_sliders_starting_at_the_camera(monkeypatch):
     s["fx"].value = 1200.0  # moving a slider redraws with the new value
     assert calls[-1][0] == 1200.0
     assert len(calls) == 2
+    # a long lens starts where it is (the sliders stopped at 2000 and clamped it there); a fisheye is refused
+    tele = Camera.from_fov(30, (1920, 1080))
+    assert _sliders(widgets.intrinsics_explorer(tele))["fx"].value == pytest.approx(tele.fx, abs=10)
+    fish = Camera(cam.K, [0.4, 0, 0, 0], (640, 480), model="fisheye")
+    with pytest.raises(CameraError, match="is a fisheye"):
+        widgets.intrinsics_explorer(fish)
