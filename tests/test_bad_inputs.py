@@ -890,6 +890,13 @@ ESTIMATE_POSE = [
         PoseError,
         "(marker 1) has NaN or infinite corners",
     ),
+    (
+        "corners from a picture twice the size",  # a pose with no residual, in the wrong place
+        lambda: ([Detection(0, np.array(SQUARE_PX) * 4.5)], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "far outside the camera's 640x480 picture: were they detected in a picture of another size?",
+    ),
     ("no detections", lambda: ([], seed_map(), camera_640()), {}, NoMarkersError, "no marker was detected"),
     (
         "only ids the map lacks",

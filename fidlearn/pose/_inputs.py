@@ -146,10 +146,32 @@ def _check_inputs_lens(
     if dets and not np.isfinite(np.stack([d.corners_px for d in dets])).all():
         k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners_px).all())
         raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners_px.tolist()}")
+    _refuse_corners_off_the_picture(dets, camera)
     if camera.model == "fisheye":
         pinhole_dets, pinhole, beyond = _as_pinhole(dets, camera)
         return pinhole_dets, marker_map, pinhole, camera, beyond
     return dets, marker_map, camera, None, []
+
+
+#: How far (a fraction of the picture's larger side) a detected corner may lie outside the camera's picture.
+OFF_PICTURE_FRACTION = 0.25
+
+
+def _refuse_corners_off_the_picture(dets: list[Detection], camera: Camera) -> None:
+    """PoseError for a corner far outside the camera's picture: detections from a picture of another size (a
+    frame at full resolution with the camera of a smaller one) fit a pose with no residual, in the wrong place."""
+    if not dets:
+        return
+    w, h = camera.image_size
+    slack = OFF_PICTURE_FRACTION * max(w, h)
+    c = np.stack([d.corners_px for d in dets]).reshape(-1, 2)
+    if np.any(c < -slack) or np.any(c > [w + slack, h + slack]):
+        far = c.max(axis=0)
+        raise PoseError(
+            f"detected corners reach ({far[0]:.0f}, {far[1]:.0f}) px, far outside the camera's {w}x{h} picture: "
+            "were they detected in a picture of another size? Use camera.for_image(image), or detect in the "
+            "picture the camera was calibrated for"
+        )
 
 
 def _as_pinhole(dets: list[Detection], camera: Camera) -> tuple[list[Detection], Camera, list[Detection]]:

@@ -174,18 +174,7 @@ def render_scene(
     if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
         raise FidlearnError(f"supersample must be a whole number from 1 to 16, got {supersample!r}")
     T_world_camera = frames.check_transform(T_world_camera, name="T_world_camera")
-    for name, value, lo, hi in (
-        ("gradient", gradient, 0.0, 2.0),
-        ("gradient_angle_deg", gradient_angle_deg, -3600.0, 3600.0),
-        ("wall_gray", wall_gray, 0.0, 255.0),
-        ("paper_gray", paper_gray, 0.0, 255.0),
-        ("ink_gray", ink_gray, 0.0, 255.0),
-        ("margin_cells", margin_cells, 0.0, 10.0),
-        ("margin_px", margin_px, 0.0, 1e4),
-    ):
-        ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-        if not (ok and math.isfinite(value) and lo <= value <= hi):
-            raise FidlearnError(f"{name} must be a number from {lo:g} to {hi:g}, got {value!r:.40}")
+    _check_looks(gradient, gradient_angle_deg, wall_gray, paper_gray, ink_gray, margin_cells, margin_px)
     grays = {"wall": float(wall_gray), "paper": float(paper_gray), "ink": float(ink_gray)}
     T_camera_world = frames.invert_transform(T_world_camera)
     sheets, on_boards = _charuco_sheets(marker_map, camera, T_camera_world, int(supersample), grays)
@@ -212,6 +201,22 @@ def render_scene(
     )
     truth = visible_markers(marker_map, camera, T_world_camera, margin_px=margin_px)
     return Scene(image, truth, T_world_camera, camera, marker_map, seed, noise_std_gray, blur_px)
+
+
+def _check_looks(gradient, gradient_angle_deg, wall_gray, paper_gray, ink_gray, margin_cells, margin_px) -> None:
+    """FidlearnError naming the option of :func:`render_scene`'s picture that is not a number in its range."""
+    for name, value, lo, hi in (
+        ("gradient", gradient, 0.0, 2.0),
+        ("gradient_angle_deg", gradient_angle_deg, -3600.0, 3600.0),
+        ("wall_gray", wall_gray, 0.0, 255.0),
+        ("paper_gray", paper_gray, 0.0, 255.0),
+        ("ink_gray", ink_gray, 0.0, 255.0),
+        ("margin_cells", margin_cells, 0.0, 10.0),
+        ("margin_px", margin_px, 0.0, 1e4),
+    ):
+        ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not (ok and math.isfinite(value) and lo <= value <= hi):
+            raise FidlearnError(f"{name} must be a number from {lo:g} to {hi:g}, got {value!r:.40}")
 
 
 def _charuco_sheets(marker_map: MarkerMap, camera: Camera, T_camera_world: np.ndarray, k: int, grays: dict):
