@@ -219,35 +219,39 @@ def _check_looks(gradient, gradient_angle_deg, wall_gray, paper_gray, ink_gray, 
             raise FidlearnError(f"{name} must be a number from {lo:g} to {hi:g}, got {value!r:.40}")
 
 
-def _charuco_sheets(marker_map: MarkerMap, camera: Camera, T_camera_world: np.ndarray, k: int, grays: dict):
+def _charuco_sheets(marker_map: MarkerMap, camera: Camera, T_camera_world: np.ndarray, supersample: int, grays: dict):
     """One sheet for each ChArUco board entry of the map (OpenCV's own picture of the board, its chess squares
     with its markers, and a white margin of half a square), and the keys of the markers it prints."""
     from ..markermap_entries import BoardEntry  # noqa: PLC0415
 
-    sheets, keys = [], set()
+    sheets: list = []
+    keys: set[int] = set()
     for name, e in marker_map.entries.items():
-        if not (isinstance(e, BoardEntry) and e.kind == "charuco"):
+        if not (isinstance(e, BoardEntry) and e.kind == "charuco" and e.square_size_mm):
             continue
+        square = float(e.square_size_mm)
         cells = _cv.dictionary_marker_bits(e.dictionary) + 2
-        first = next(k for k, owner in marker_map.owner.items() if owner == name)
+        first = next(key for key, owner in marker_map.owner.items() if owner == name)
         size = _projected_size_px(marker_map.marker_corners(first), camera, T_camera_world)
-        tps = _texels_per_square(_texels_per_cell(size, cells, k), cells, e.marker_size_mm / e.square_size_mm)
-        sheet = _charuco_sheet(e.cv_board(), e.counts, e.square_size_mm, tps, 0.5, grays)
+        tps = _texels_per_square(_texels_per_cell(size, cells, supersample), cells, e.marker_size_mm / square)
+        sheet = _charuco_sheet(e.cv_board(), e.counts, square, tps, 0.5, grays)
         along_s, along_t, origin = e.to_world(sheet.A_world.T)  # texel (s, t, 1) -> board (x, y, 0) -> world
         sheet.A_world = np.column_stack([along_s - e.translation_mm, along_t - e.translation_mm, origin])
         sheet.label = f"board {name}"
         sheets.append(sheet)
-        keys.update(k for k, owner in marker_map.owner.items() if owner == name)
+        keys.update(key for key, owner in marker_map.owner.items() if owner == name)
     return sheets, keys
 
 
 def _margin(marker_map: MarkerMap, key: int, cells: int, margin_cells: float) -> float:
     """The white margin (cells) drawn round a marker: a grid board's markers share one sheet, so at most half the
     gap to their neighbours (a whole cell's margin covered the next marker's border)."""
+    from ..markermap_entries import BoardEntry  # noqa: PLC0415
+
     entry = marker_map.entries.get(marker_map.owner.get(key, ""))
-    if entry is None or getattr(entry, "kind", None) != "grid":
+    if not (isinstance(entry, BoardEntry) and entry.kind == "grid" and entry.separation_mm is not None):
         return margin_cells
-    return min(margin_cells, 0.5 * entry.separation_mm / (entry.marker_size_mm / cells))
+    return min(margin_cells, 0.5 * float(entry.separation_mm) / (entry.marker_size_mm / cells))
 
 
 def _texels_per_square(texels_per_cell: int, cells: int, ratio: float) -> int:
