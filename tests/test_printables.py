@@ -466,3 +466,23 @@ def test_a_sheet_printed_after_others_is_numbered_in_the_whole_document():
     assert any("page 1 of 1" in t for t in titles(own))
     assert any("page 3 of 4" in t for t in titles(joined))
     plt.close("all")
+
+
+@pytest.mark.parametrize(
+    ("dictionary", "size_mm"), [("ARUCO_ORIGINAL", 10), ("ARUCO_ORIGINAL", 15), ("APRILTAG_36h11", 12)]
+)
+def test_a_small_markers_label_fits_in_its_cut_rectangle(dictionary, size_mm):
+    """The label's second line ran wider than the rectangle cut around the marker (23 mm in 19 mm at 15 mm), so
+    that cutting halved it and neighbouring labels met."""
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
+
+    sheet = P.layout_markers(range(100, 106), size_mm, dictionary)
+    fig = P.marker_figures(sheet)[0]
+    FigureCanvasAgg(fig)
+    ax = fig.axes[0]
+    label = next(t for t in ax.texts if t.get_text().startswith(dictionary))
+    box = label.get_window_extent(fig.canvas.get_renderer())
+    (x0, _), (x1, _) = ax.transData.inverted().transform([[box.x0, box.y0], [box.x1, box.y1]])
+    assert x1 - x0 <= size_mm + 2 * sheet.cell_mm
+    plt.close("all")

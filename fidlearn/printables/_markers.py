@@ -202,14 +202,15 @@ def marker_figures(sheet: MarkerSheet, first_page: int = 1, pages: int | None = 
             label_y = y + sheet.marker_size_mm + cell + LABEL_MM / 2
             long = f"id {mid}   {sheet.dictionary}   {sheet.marker_size_mm:g} mm"
             if len(long) * 1.3 > cut[2]:  # about 1.3 mm per character at 7 pt
+                second = f"{sheet.dictionary} {sheet.marker_size_mm:g} mm"
                 ax.text(x + sheet.marker_size_mm / 2, label_y - 1.4, f"id {mid}", ha="center", va="center", fontsize=7)
                 ax.text(
                     x + sheet.marker_size_mm / 2,
                     label_y + 1.6,
-                    f"{sheet.dictionary} {sheet.marker_size_mm:g} mm",
+                    second,
                     ha="center",
                     va="center",
-                    fontsize=5,
+                    fontsize=_fitting_points(second, cut[2], 5.0),  # within the cut, or cutting halves it
                 )
             else:
                 ax.text(x + sheet.marker_size_mm / 2, label_y, long, ha="center", va="center", fontsize=7)
@@ -217,6 +218,12 @@ def marker_figures(sheet: MarkerSheet, first_page: int = 1, pages: int | None = 
         _draw_strip(ax, sheet.paper_mm, "bottom", title)
         figs.append(fig)
     return figs
+
+
+def _fitting_points(text: str, width_mm: float, most: float) -> float:
+    """The font size (pt, at most ``most``) at which ``text`` fits in ``width_mm``: up to 1.65 mm a character at
+    7 pt for the capitals of a dictionary's name, in proportion."""
+    return min(most, 7.0 * 0.88 * width_mm / (1.65 * max(len(text), 1)))
 
 
 def markers_pdf(
