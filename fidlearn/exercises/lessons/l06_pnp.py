@@ -376,9 +376,8 @@ _Q4: QuestionText = {
 }
 
 
-#: q4's tolerance (px), and the criteria of its exact key (the undistortion iterated to convergence).
+#: q4's tolerance (px) at least; its key is the exact undistortion (Camera.undistort_points).
 _Q4_TOL_PX = 0.05
-_Q4_EXACT = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 
 
 def _q4(learner: str) -> Question:
@@ -392,7 +391,7 @@ def _q4(learner: str) -> Question:
     rays = np.column_stack([(ideal - cam.K[:2, 2]) / [cam.fx, cam.fy], np.ones(4)])
     corners = np.round(cv2.projectPoints(rays, np.zeros(3), np.zeros(3), cam.K, cam.dist)[0].reshape(-1, 2), 3)
     px = corners.reshape(-1, 1, 2)
-    key = cv2.undistortPoints(px, cam.K, cam.dist, None, cam.K, criteria=_Q4_EXACT).reshape(-1, 2)
+    key = cam.undistort_points(corners)  # exact on every OpenCV (4's undistortPoints takes no criteria)
     # OpenCV's default 5 iterations stop short near the edge of a strong lens (0.1 px here at worst, 0.56 px
     # farther out): both the exact answer and the usual call are right
     usual = cv2.undistortPoints(px, cam.K, cam.dist, P=cam.K).reshape(-1, 2)
