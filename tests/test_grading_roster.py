@@ -63,6 +63,14 @@ def test_a_roster_with_two_lines_for_one_learner_names_both():
     assert _learners.read_roster([long_a, long_b], "r") == [long_a, long_b]
 
 
+def test_a_roster_comment_may_follow_an_id_on_its_line():
+    # the teaching guide says "# starts a comment": so it does at the end of a line too
+    lines = ["alice  # absent in week 1", "Carol Smith# joined late", "  # only a comment", "bob"]
+    assert _learners.read_roster(lines, "roster.txt") == ["alice", "carol_smith", "bob"]
+    with pytest.raises(GradingError, match=r"roster.txt: no learner ids"):
+        _learners.read_roster(["# nobody yet", "   #"], "roster.txt")
+
+
 def test_lesson_numbers_are_ascii_digits_only():
     assert exercises.lesson_number(" 1 ") == exercises.lesson_number("01") == "01"
     for bad in ("\u0661", "\uff11", "1\u0660"):  # Arabic-Indic one, fullwidth one, 1 and Arabic-Indic zero

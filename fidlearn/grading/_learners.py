@@ -77,7 +77,8 @@ def normalize_learner(learner: str) -> str:
 
 
 def read_roster(lines: list[str], where: str) -> list[str]:
-    """The learner ids of a roster (one per line, ``#`` comments and blank lines skipped), each once.
+    """The learner ids of a roster (one per line; blank lines and comments, from ``#`` to the end of the line,
+    skipped), each once.
 
     Parameters
     ----------
@@ -99,13 +100,13 @@ def read_roster(lines: list[str], where: str) -> list[str]:
 
     Examples
     --------
-    >>> read_roster(["# class A", "Alice", "", "Carol Smith"], "roster.txt")
+    >>> read_roster(["# class A", "Alice", "", "Carol Smith  # joined in week 3"], "roster.txt")
     ['alice', 'carol_smith']
     """
     seen: dict[str, tuple[int, str]] = {}
     for n, line in enumerate(lines, 1):
-        raw = line.strip()
-        if not raw or raw.startswith("#"):
+        raw = line.split("#", 1)[0].strip()  # no id holds a "#" (normalize_learner)
+        if not raw:
             continue
         try:
             learner = normalize_learner(raw)
