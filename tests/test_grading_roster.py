@@ -176,6 +176,9 @@ def test_release_cli_names_the_roster_line(tmp_path, secret):
     assert code == 2
     assert "no exercises for lesson" in err
     assert not (tmp_path / "o").exists()
+    code, out, _ = run("release", "--lesson", " 3", "--secret-file", secret, "--learners", roster, "-o", tmp_path / "o")
+    assert code == 0
+    assert "(lesson 03)" in out
 
 
 _NO_BOX = _sandbox.Plan(user="nobody", ids=None, bwrap=None)

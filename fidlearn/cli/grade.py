@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .. import grading
+from .. import exercises, grading
 from ..errors import UsageError
 from ..grading import lms_path, read_roster
 from ..io import MAX_TEXT_BYTES, read_bytes
@@ -62,7 +62,8 @@ def run_release(args) -> int:
     """
     lines = _roster_lines(args.learners, "--learners")
     folders = grading.release(args.lesson, lines, args.secret_file, args.output)
-    print(f"{len(folders)} learner folders in {args.output}/ (lesson {args.lesson}); hand each learner their own")
+    lesson = exercises.lesson_number(args.lesson)  # as the folders name it: " 3" is lesson 03
+    print(f"{len(folders)} learner folders in {args.output}/ (lesson {lesson}); hand each learner their own")
     return 0
 
 
