@@ -374,14 +374,14 @@ def _steps(frames, locator: FrameLocator, tracker: PoseTracker, fps: float, odom
                 f"frame {n} is a {type(frame).__name__}, not a fidlearn.images.Frame (read files with "
                 "fidlearn.images.read_frames, or wrap an image: Frame(name, image, source, kind))"
             )
+        if n == 0:
+            first = t_s
         located = locator.locate(frame)
         odo = None
         if odometry is not None and n > 0:
             with contextlib.suppress(OdometryRangeError):  # a frame beyond the odometry: the motion model alone
                 odo = odometry.between(prev, t_s)
                 used += 1
-        else:
-            first = t_s if n == 0 else first
         out = None
         if located.pose is not None or tracker.started:  # before the first pose there is nothing to track
             out = tracker.update(located.pose, t_s, odometry=odo)
