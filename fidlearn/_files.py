@@ -69,6 +69,49 @@ def as_path(path, error: type[FidlearnError], what: str) -> Path:
     return Path(text)
 
 
+def repeated_paths(items: Iterable[object]) -> list[tuple[int, int]]:
+    """The entries that name a file named by an earlier entry, as ``(first, again)`` index pairs.
+
+    Two entries are one file when their real paths are equal (``os.path.realpath``: relative to the
+    working folder, symbolic links followed, ``.`` and ``..`` removed), so ``a.png``, ``./a.png`` and
+    a link to ``a.png`` are one photo. In a calibration or a survey each photo is one piece of
+    evidence: a photo counted twice halves the stated uncertainty.
+
+    Parameters
+    ----------
+    items : iterable
+        Paths (str or path-like), possibly among other things (image arrays, detections), which
+        are skipped but counted in the indices. A path that cannot be resolved (one with a NUL
+        character) is compared as written.
+
+    Returns
+    -------
+    list of (int, int)
+        For each repeated entry, in order: the index of the first entry naming its file, and its
+        own index. Empty when every file is named once.
+
+    Examples
+    --------
+    >>> repeated_paths(["a.png", "b.png", "./a.png", None, "a.png"])
+    [(0, 2), (0, 4)]
+    >>> repeated_paths(["a.png", "b.png"])
+    []
+    """
+    first: dict[object, int] = {}
+    repeats = []
+    for i, item in enumerate(items):
+        if not isinstance(item, (str, os.PathLike)):
+            continue
+        try:
+            key: object = os.path.realpath(item)
+        except (ValueError, OSError):  # a NUL character: the read that follows refuses it with a message
+            key = os.fspath(item)
+        k = first.setdefault(key, i)
+        if k != i:
+            repeats.append((k, i))
+    return repeats
+
+
 def _kind(mode: int) -> str:
     if stat.S_ISDIR(mode):
         return "a folder"

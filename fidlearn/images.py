@@ -217,13 +217,12 @@ def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool, *, once: boo
             raise UsageError(
                 f"{path}: not an image{' or a video' if videos else ''} by its name; expected {', '.join(kinds)}"
             )
-    if once:
-        seen: dict[Path, Path] = {}
-        for _, p in items:
-            first = seen.setdefault(p.resolve(), p)
-            if first is not p:
-                also = "" if str(first) == str(p) else f" (also as {first})"
-                raise UsageError(f"{p} is given twice{also}: each photo counts once; give it once")
+    repeats = _files.repeated_paths(p for _, p in items) if once else []
+    if repeats:
+        k, i = repeats[0]
+        first, again = items[k][1], items[i][1]
+        also = "" if str(first) == str(again) else f" (also as {first})"
+        raise UsageError(f"{again} is given twice{also}: each photo counts once; give it once")
     return items
 
 

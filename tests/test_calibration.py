@@ -4,6 +4,7 @@ ChArUco calibration, and the true camera of synthetic views; plus every rejectio
 from __future__ import annotations
 
 import json
+import re
 
 import cv2
 import numpy as np
@@ -347,6 +348,22 @@ def test_a_glob_pattern_stands_for_the_files_it_matches(right_files):
     ]
     with pytest.raises(CalibrationError, match="no file matches this pattern"):
         calibrate_checkerboard(str(right_files[0].parent / "left*.jpg"), PATTERN, SQUARE_MM)
+
+
+def test_a_photo_given_twice_is_refused_before_any_is_read(right_files, tmp_path):
+    """A photo counted twice halves the stated uncertainty: refused as the command line refuses it, by any name."""
+    again = f"{right_files[1].parent}/./{right_files[1].name}"
+    with pytest.raises(
+        CalibrationError, match=re.escape(f"{again} is given twice (also as {right_files[1]}): each photo")
+    ):
+        calibrate_checkerboard([*right_files[:3], again], PATTERN, SQUARE_MM)
+    with pytest.raises(CalibrationError, match=r"^missing.png is given twice: each photo counts once"):
+        calibrate_charuco(["missing.png", "other.png", "missing.png"], TUTORIAL)  # refused before a file is read
+    for f in right_files[:3]:
+        (tmp_path / f.name).symlink_to(f)
+    (tmp_path / "zz_link.jpg").symlink_to(tmp_path / right_files[0].name)  # a folder's link to a file in it
+    with pytest.raises(CalibrationError, match=r"zz_link.jpg is given twice \(also as .*right01.jpg\)"):
+        calibrate_checkerboard(tmp_path, PATTERN, SQUARE_MM)
 
 
 def test_repeated_photos_of_a_still_board_are_rejected_as_duplicates(right_grays):

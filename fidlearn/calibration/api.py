@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from .._files import repeated_paths
 from ..boards import Board
 from ..errors import CalibrationError, FidlearnWarning
 from ..images import IMAGE_SUFFIXES
@@ -67,7 +68,21 @@ def _entries(images: Any) -> list[tuple[str, Any]]:
         if seen[name] > 1:
             name = f"{name} ({seen[name]})"
         out.append((name, item))
+    _refuse_repeats(items)
     return out
+
+
+def _refuse_repeats(items: list[Any]) -> None:
+    """Refuse a file given twice (by two names, a link, or a folder's link to a file already in it)."""
+    repeats = repeated_paths(items)
+    if repeats:
+        k, i = repeats[0]
+        first, again = str(items[k]), str(items[i])
+        also = "" if first == again else f" (also as {first})"
+        raise CalibrationError(
+            f"{again} is given twice{also}: each photo counts once (a copy would halve the stated "
+            "uncertainty); give it once"
+        )
 
 
 def _check_positive(value: Any, what: str, fix: str) -> float:
@@ -168,7 +183,9 @@ def calibrate_checkerboard(
         The photos, gray or BGR arrays and/or image files, mixed as you like
         (a folder stands for its image files, ``"photos/*.jpg"`` for the
         files it matches, sorted). Each is reported by
-        its path, or ``"image i"`` (i from 0) for an array.
+        its path, or ``"image i"`` (i from 0) for an array. A file given
+        twice (by two names, or through a link) is refused: each photo
+        counts once.
     pattern_size : (int, int) or str, optional
         INNER corners (columns, rows), e.g. ``(9, 6)`` or ``"9x6"``: a board
         of 10x7 squares has 9x6 inner corners. With ``square_size_mm``, the
@@ -214,9 +231,9 @@ def calibrate_checkerboard(
     Raises
     ------
     CalibrationError
-        Bad arguments, or fewer than 3 usable views (the message says why
-        the others failed, and suggests the inner-corner count when the
-        squares were counted instead).
+        Bad arguments (among them a photo file given twice), or fewer than 3
+        usable views (the message says why the others failed, and suggests
+        the inner-corner count when the squares were counted instead).
 
     Examples
     --------
@@ -292,8 +309,9 @@ def calibrate_charuco(
     Raises
     ------
     CalibrationError
-        Bad arguments, or fewer than 3 usable views (the message says why the others failed,
-        and suggests swapped squares or the other marker layout when nothing was found).
+        Bad arguments (among them a photo file given twice), or fewer than 3 usable views (the message
+        says why the others failed, and suggests swapped squares or the other marker layout when
+        nothing was found).
     """
     if not isinstance(board, Board) or not board.is_charuco:
         raise CalibrationError(

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._files import repeated_paths
 from ..camera import Camera
 from ..detection import Detection, detect_markers
 from ..errors import ImageError, SurveyError
@@ -151,12 +152,10 @@ def _read_photos(images, marker_map: MarkerMap, camera: Camera, progress: Callab
         )
     if progress is not None and not callable(progress):
         raise SurveyError(f"progress must be a function progress(i, n, label) or None, got {type(progress).__name__}")
-    given: dict[str, int] = {}
-    for i, item in enumerate(images):  # one file twice would count its corners twice
-        if isinstance(item, (str, os.PathLike)):
-            k = given.setdefault(os.path.realpath(item), i)
-            if k != i:
-                raise SurveyError(f"photos {k} and {i} are one file ({os.fspath(item)}): each photo counts once")
+    repeats = repeated_paths(images)  # one file twice would count its corners twice
+    if repeats:
+        k, i = repeats[0]
+        raise SurveyError(f"photos {k} and {i} are one file ({os.fspath(images[i])}): each photo counts once")
     photos = []
     for i, item in enumerate(images):
         photos.append(_one_photo(i, item, marker_map, camera))
