@@ -3,7 +3,9 @@
 One command's outputs (a camera file, its report, its annotated pictures) appear all together
 or not at all: :class:`StagedOutputs` writes each to a hidden temporary file in its folder and
 renames them at the end with SIGINT, SIGTERM and SIGHUP deferred (:func:`signals_deferred`),
-so an interruption at any moment finds every output written or none, and no temporary file.
+so an interruption at any moment finds every output written or none, and no temporary file. A
+rename that fails (a full disk, a folder made read-only) puts back the files renamed before it:
+each earlier file as it was, byte for byte with its mode, and no new file where there was none.
 """
 
 from __future__ import annotations
@@ -102,6 +104,11 @@ def _signal_point(kind: str) -> None:
         signal.raise_signal(getattr(signal, spec[2]))
 
 
+def _hidden_prefix(name: str) -> str:
+    """``.NAME.`` with at most 80 bytes of ``name``: a hidden name within the 255 bytes a name may have."""
+    return "." + name.encode("utf-8", "replace")[:80].decode("utf-8", "ignore") + "."
+
+
 class _Entry:
     """One output: its hidden temporary file, its name, whether it is whole, the folder it belongs to."""
 
@@ -137,8 +144,9 @@ class StagedOutputs:
     While it is active (``with StagedOutputs() as outputs:``) every :func:`atomic_write` in the
     thread stages its file here instead of renaming it at once. :meth:`commit` renames every whole
     staged file with SIGINT, SIGTERM and SIGHUP deferred, so a signal finds all of them renamed or
-    none; leaving the block with an error (or an interruption, unless ``keep_on_interrupt``)
-    removes every staged file. :attr:`committed` says exactly what was written.
+    none, and a rename that fails puts back those renamed before it; leaving the block with an
+    error (or an interruption, unless ``keep_on_interrupt``) removes every staged file.
+    :attr:`committed` says exactly what was written.
 
     Parameters
     ----------
@@ -191,7 +199,7 @@ class StagedOutputs:
             The hidden folder.
         """
         with signals_deferred():
-            tmp = Path(tempfile.mkdtemp(prefix=f".{Path(name).name}.", dir=_folder_of(Path(name))))
+            tmp = Path(tempfile.mkdtemp(prefix=_hidden_prefix(Path(name).name), dir=_folder_of(Path(name))))
             self.folders.append(tmp)
         return tmp
 
@@ -218,7 +226,9 @@ class StagedOutputs:
         try:
             with signals_deferred():
                 # the hidden name within the 255 bytes a name may have, however long the user's
-                fd, name = tempfile.mkstemp(prefix=f".{path.name[:80]}.", suffix=path.suffix[:20] or ".tmp", dir=where)
+                fd, name = tempfile.mkstemp(
+                    prefix=_hidden_prefix(path.name), suffix=path.suffix[:20] or ".tmp", dir=where
+                )
                 os.close(fd)
                 entry = _Entry(Path(name), path, group)
                 self.staged.append(entry)
@@ -270,7 +280,11 @@ class StagedOutputs:
         return entry.path
 
     def commit(self, entries: list[_Entry] | None = None) -> list[Path]:
-        """Rename the whole staged files (all, or ``entries``) to their names, signals deferred.
+        """Rename the whole staged files (all, or ``entries``) to their names, signals deferred, all or none.
+
+        Each file that a name already holds is first kept under a hidden name beside it; if a rename
+        fails, the files this call renamed before it are put back as they were (or removed where
+        there was none), and every staged file is removed.
 
         Parameters
         ----------
@@ -285,29 +299,55 @@ class StagedOutputs:
         Raises
         ------
         FidlearnError
-            A rename failed; the message says which files were written before it.
+            A rename failed; nothing of this call was written, and the message says what earlier
+            commits wrote.
         """
-        done: list[Path] = []
+        batch = [e for e in self.staged if e.whole and (entries is None or e in entries)]
+        steps: list[_Step] = []
+        made: list[Path] = []
         with signals_deferred():
             try:
-                for entry in [e for e in self.staged if e.whole and (entries is None or e in entries)]:
-                    if entry.group is not None:
-                        entry.path.parent.mkdir(exist_ok=True)
-                    os.replace(entry.tmp, entry.path)
-                    self.staged.remove(entry)
-                    self.committed.append(entry)
-                    done.append(entry.path)
+                for entry in batch:
+                    _rename_into_place(entry, steps, made)
                     _signal_point("renamed")
             except OSError as exc:
-                self.discard()
-                raise FidlearnError(
-                    f"{entry.path}: cannot write it ({exc.strerror or exc}); check the free disk space and the "
-                    f"folder's permissions; {self.written()}"
-                ) from None
+                raise self._refused(entry.path, exc, self._roll_back(steps, made)) from None
+            except BaseException:
+                self._roll_back(steps, made)
+                raise
+            for step in steps:
+                step.forget()
+            done = set(batch)
+            self.staged = [e for e in self.staged if e not in done]
+            self.committed += batch
             if entries is None:
                 self.discard()
             _signal_point("committed")
-        return done
+        return [e.path for e in batch]
+
+    def _roll_back(self, steps: list[_Step], made: list[Path]) -> list[str]:
+        """Undo ``steps`` (the last first), remove the folders made and every staged file; say what stays."""
+        problems = []
+        for step in reversed(steps):
+            problem = step.put_back()
+            if problem:
+                problems.append(problem)
+                if step.replaced:  # the new output stays: it is written
+                    self.committed.append(step.entry)
+        for folder in reversed(made):
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        self.discard()
+        return problems
+
+    def _refused(self, path: Path, exc: OSError, problems: list[str]) -> FidlearnError:
+        """A failed commit's error: the user's file, what to check, and that nothing more was written."""
+        said = [
+            f"{path}: cannot write it ({exc.strerror or exc})",
+            "check the free disk space and the folder's permissions",
+        ]
+        said += problems or (["nothing more was written"] if self.committed else [])
+        return FidlearnError("; ".join([*said, self.written()]))
 
     def discard(self) -> None:
         """Remove every staged file and staging folder (what is committed stays)."""
@@ -341,6 +381,74 @@ class StagedOutputs:
                 groups[e.group] = groups.get(e.group, 0) + 1
         parts += [f"{n} annotated picture{'s' if n != 1 else ''} in {g}/" for g, n in groups.items()]
         return "written: " + ", ".join(parts)
+
+
+class _Step:
+    """One rename of a commit: the output, its name's previous file kept aside, and what is done so far."""
+
+    __slots__ = ("entry", "backup", "moved", "replaced")
+
+    def __init__(self, entry: _Entry, backup: Path | None, moved: bool):
+        self.entry, self.backup, self.moved, self.replaced = entry, backup, moved, False
+
+    def put_back(self) -> str | None:
+        """Give the name its previous file again (or none, if it had none); say what failed, if anything."""
+        path = self.entry.path
+        try:
+            if not (self.moved or self.replaced):  # the name still holds its previous file
+                self.forget()
+            elif self.backup is not None:
+                os.replace(self.backup, path)
+            else:
+                path.unlink(missing_ok=True)
+        except OSError as exc:
+            kept = f": its previous version is kept as {self.backup}" if self.backup is not None else ""
+            return f"{path} could not be put back as it was ({exc.strerror or exc}){kept}"
+        return None
+
+    def forget(self) -> None:
+        """Remove the previous file kept aside (the commit is done, or the name still holds it)."""
+        if self.backup is not None:
+            with contextlib.suppress(OSError):
+                self.backup.unlink(missing_ok=True)
+
+
+def _set_aside(path: Path) -> tuple[Path | None, bool]:
+    """Keep the file at ``path`` (if any) under a hidden name beside it, to put back if the commit fails.
+
+    Returns
+    -------
+    tuple
+        The hidden name (None when ``path`` holds nothing), and whether ``path`` no longer holds the
+        file: a hard link leaves it in place, a rename (where the disk has no hard links) does not.
+    """
+    if not os.path.lexists(path):  # lexists: a dangling symbolic link is put back too
+        return None, False
+    fd, name = tempfile.mkstemp(prefix=_hidden_prefix(path.name), suffix=".old", dir=_folder_of(path))
+    os.close(fd)
+    backup = Path(name)
+    try:
+        try:
+            backup.unlink()
+            os.link(path, backup, follow_symlinks=False)  # a symbolic link is kept as itself
+            return backup, False
+        except (OSError, NotImplementedError):  # no hard links here (FAT, some network shares)
+            os.replace(path, backup)
+            return backup, True
+    except BaseException:
+        backup.unlink(missing_ok=True)
+        raise
+
+
+def _rename_into_place(entry: _Entry, steps: list[_Step], made: list[Path]) -> None:
+    """Rename ``entry``'s hidden file to its name, noting in ``steps`` (and ``made``) how to undo it."""
+    if entry.group is not None and not entry.path.parent.is_dir():
+        entry.path.parent.mkdir()
+        made.append(entry.path.parent)
+    step = _Step(entry, *_set_aside(entry.path))
+    steps.append(step)
+    os.replace(entry.tmp, entry.path)
+    step.replaced = True
 
 
 def _stack() -> list[StagedOutputs]:
