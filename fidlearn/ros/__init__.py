@@ -18,11 +18,17 @@ Examples
 
 from __future__ import annotations
 
-from ._bag import BagFrame, BagFrames, camera_from_message, decode_image, is_bag, read_bag
+from ._bag import BagFrame, BagFrames, decode_image, is_bag, read_bag
 from ._bag_images import write_image_bag
 from ._bag_odometry import read_bag_odometry
 from ._bag_out import BagWriter, marker_array
-from ._camera_info import camera_from_camera_info, camera_info_yaml, load_camera_info, save_camera_info
+from ._camera_info import (
+    camera_from_camera_info,
+    camera_from_message,
+    camera_info_yaml,
+    load_camera_info,
+    save_camera_info,
+)
 from ._inputs import ODOMETRY_COLUMNS, Odometry, read_mount_json, read_odometry_csv
 from ._live import LiveView
 from ._pose import BODIES, R_OPTICAL_LINK, ros_covariance, ros_pose, tum_line, write_tum

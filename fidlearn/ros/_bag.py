@@ -6,7 +6,8 @@ file or a ROS 1 ``.bag`` file, read with the pure-Python ``rosbags`` library (no
 bayer_gbrg8, bayer_grbg8) or ``sensor_msgs/msg/CompressedImage`` (JPEG, PNG); the camera comes from
 the ``sensor_msgs/msg/CameraInfo`` beside them, read by the same reader as a ``camera_info`` YAML file
 (:func:`fidlearn.ros.camera_from_camera_info`), so the distortion models it knows are the ones a bag
-may use.
+may use. Rectified images (``image_proc``'s ``image_rect`` and ``image_rect_color`` topics) have the
+CameraInfo's projection P as their camera, without distortion.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import CameraError, FidlearnError, RosFormatError
-from ._camera_info import camera_disagreement, camera_from_camera_info
+from ._camera_info import _field, camera_disagreement, camera_from_message, is_rectified_topic
 from ._mcap_index import topic_messages
 from ._messages import typestore
 
@@ -125,6 +126,15 @@ def _check_topic_names(example: str, **names) -> None:
             raise RosFormatError(f"{name} must be a topic name like {example!r}, got {type(v).__name__}")
 
 
+#: The command line's option for each topic argument of read_bag and read_bag_odometry.
+_OPTIONS = {"image_topic": "--image-topic", "camera_info_topic": "--camera-info-topic", "topic": "--odometry-topic"}
+
+
+def _choose(argument: str) -> str:
+    """How to choose a topic, on the command line and in Python."""
+    return f"choose one with {_OPTIONS[argument]} (in Python: {argument}=)"
+
+
 def _topic(topics: dict[str, str], types: tuple[str, ...], given: str | None, path: Path, what: str, option: str):
     found = sorted(t for t, typ in topics.items() if typ in types)
     if given is not None:
@@ -136,7 +146,7 @@ def _topic(topics: dict[str, str], types: tuple[str, ...], given: str | None, pa
             raise RosFormatError(f"{path}: topic {given} carries {topics[given]}, not {' or '.join(types)}")
         return given
     if len(found) > 1:
-        raise RosFormatError(f"{path}: {len(found)} {what} topics ({', '.join(found)}); choose one with {option}")
+        raise RosFormatError(f"{path}: {len(found)} {what} topics ({', '.join(found)}); {_choose(option)}")
     return found[0] if found else None
 
 
@@ -150,7 +160,7 @@ def _info_topic(topics: dict[str, str], image_topic: str, given: str | None, pat
     if len(found) > 1:
         raise RosFormatError(
             f"{path}: {len(found)} CameraInfo topics ({', '.join(found)}) and none beside {image_topic}; "
-            "choose one with camera_info_topic"
+            + _choose("camera_info_topic")
         )
     return found[0] if found else None
 
@@ -175,52 +185,6 @@ def info_topic_beside(image_topic: str) -> str:
 def _stamp_ns(header, logtime: int) -> int:
     ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
     return ns if ns > 0 else int(logtime)
-
-
-def _field(msg, name: str):
-    """A CameraInfo's ``k`` or ``d``: ROS 1 names them ``K`` and ``D``."""
-    return getattr(msg, name) if hasattr(msg, name) else getattr(msg, name.upper())
-
-
-def camera_from_message(msg, source: str = "CameraInfo") -> Camera:
-    """A camera from a ``sensor_msgs/msg/CameraInfo`` message (any object with its fields).
-
-    Parameters
-    ----------
-    msg : object
-        With ``width``, ``height``, ``distortion_model``, ``d`` (the coefficients) and ``k`` (K, 9
-        numbers row-major), as ``rosbags`` or ``rclpy`` give it.
-    source : str
-        Named in messages (e.g. the bag and topic).
-
-    Returns
-    -------
-    Camera
-        As :func:`fidlearn.ros.camera_from_camera_info` reads the same fields from YAML.
-
-    Raises
-    ------
-    RosFormatError
-        A distortion model fidlearn does not read, or missing fields.
-    CameraError
-        An uncalibrated camera (K all zeros) or values no camera has.
-    """
-    try:
-        K = [float(v) for v in np.asarray(_field(msg, "k"), dtype=float).reshape(-1)]
-        d = [float(v) for v in np.asarray(_field(msg, "d"), dtype=float).reshape(-1)]
-        w, h, model = int(msg.width), int(msg.height), str(msg.distortion_model or "plumb_bob")
-    except (AttributeError, TypeError, ValueError):
-        raise RosFormatError(f"{source}: not a CameraInfo message (width, height, distortion_model, d, k)") from None
-    if not any(K):
-        raise CameraError(
-            f"{source}: the camera is not calibrated (K is all zeros); give a camera file "
-            "(--camera CAMERA on the command line, camera= to read_bag)"
-        )
-    text = (
-        f"image_width: {w}\nimage_height: {h}\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: {K!r}\n"
-        f"distortion_model: {model}\ndistortion_coefficients:\n  rows: 1\n  cols: {len(d)}\n  data: {d!r}\n"
-    )
-    return camera_from_camera_info(text, source)
 
 
 def decode_image(msg, source: str = "image") -> np.ndarray:
@@ -325,13 +289,14 @@ class BagFrames:
         out: list[tuple[int, Camera]] = []
         seen: dict[tuple, Camera] = {}
         source = f"{self.path.name} {self.camera_info_topic}"
+        rectified = is_rectified_topic(self.image_topic)
         for msg, logtime in self._messages(self.camera_info_topic, reader):
-            k, d = _field(msg, "k"), _field(msg, "d")
+            k, d = _field(msg, "p" if rectified else "k"), _field(msg, "d")
             if self.given is not None and not np.any(np.asarray(k, dtype=float)):
                 continue  # uncalibrated, as a driver publishes before calibration: the given camera stands in
             key = (msg.width, msg.height, str(msg.distortion_model), tuple(k), tuple(d))
             if key not in seen:
-                seen[key] = camera_from_message(msg, source)
+                seen[key] = camera_from_message(msg, source, rectified=rectified)
                 differs = None if self.given is None else camera_disagreement(seen[key], self.given)
                 if differs is not None:
                     raise CameraError(
@@ -398,7 +363,9 @@ def read_bag(
         The ``sensor_msgs/msg/Image`` or ``CompressedImage`` topic; default the bag's only one.
     camera_info_topic : str, optional
         The ``sensor_msgs/msg/CameraInfo`` topic; default the one beside the image topic
-        (``/cam/image_raw`` -> ``/cam/camera_info``), else the bag's only one, else none.
+        (``/cam/image_raw`` -> ``/cam/camera_info``), else the bag's only one, else none. The images of
+        an ``image_rect`` or ``image_rect_color`` topic (``image_proc``'s) are rectified: their camera is
+        the CameraInfo's projection ``P[:3, :3]``, without distortion.
     camera : Camera, optional
         A camera file's camera for the images, then every frame's camera. The bag's CameraInfo must agree with
         it (one ray within 1 px anywhere in the picture); an uncalibrated CameraInfo (K all zeros) is skipped.

@@ -19,7 +19,8 @@ The layout is fixed (``camera_calibration_parsers`` writes it, ``camera_info_man
 
 so a small reader for exactly that (block mappings of scalars and matrices, flow or block
 lists, comments) is enough. Pixel convention: ROS's camera_info is OpenCV's (pixel centres at
-integers), so K is copied as it is.
+integers), so K is copied as it is. A ``sensor_msgs/msg/CameraInfo`` message is read through the same
+reader (:func:`camera_from_message`).
 """
 
 from __future__ import annotations
@@ -355,3 +356,77 @@ def camera_disagreement(bag_camera: Camera, given: Camera) -> str | None:
         for name, c in (("CameraInfo", bag_camera), ("given", given))
     )
     return f"the two cameras put one ray up to {apart:.1f} px apart ({said})"
+
+
+#: The names ``image_proc`` gives its rectified images: their camera is the CameraInfo's projection P.
+RECTIFIED = ("image_rect", "image_rect_color")
+
+
+def _field(msg, name: str):
+    """A CameraInfo's ``k``, ``d`` or ``p``: ROS 1 names them ``K``, ``D`` and ``P``."""
+    return getattr(msg, name) if hasattr(msg, name) else getattr(msg, name.upper())
+
+
+def is_rectified_topic(image_topic: str) -> bool:
+    """Whether an image topic carries rectified images, as ``image_proc`` names them.
+
+    Parameters
+    ----------
+    image_topic : str
+        E.g. ``/cam/image_rect``, ``/cam/image_rect_color/compressed``.
+
+    Returns
+    -------
+    bool
+        True for ``image_rect`` and ``image_rect_color`` (with or without ``/compressed``).
+    """
+    topic = image_topic[: -len("/compressed")] if image_topic.endswith("/compressed") else image_topic
+    return topic.rsplit("/", 1)[-1] in RECTIFIED
+
+
+def camera_from_message(msg, source: str = "CameraInfo", *, rectified: bool = False) -> Camera:
+    """A camera from a ``sensor_msgs/msg/CameraInfo`` message (any object with its fields).
+
+    Parameters
+    ----------
+    msg : object
+        With ``width``, ``height``, ``distortion_model``, ``d`` (the coefficients), ``k`` (K, 9
+        numbers row-major) and ``p`` (the projection, 12 numbers row-major), as ``rosbags`` or ``rclpy``
+        give it.
+    source : str
+        Named in messages (e.g. the bag and topic).
+    rectified : bool
+        The camera of rectified images (``image_rect``): the projection's intrinsics ``P[:3, :3]`` and
+        no distortion, as ROS's ``image_geometry`` models them. Default the raw image's: K and D.
+
+    Returns
+    -------
+    Camera
+        As :func:`fidlearn.ros.camera_from_camera_info` reads the same fields from YAML.
+
+    Raises
+    ------
+    RosFormatError
+        A distortion model fidlearn does not read, or missing fields.
+    CameraError
+        An uncalibrated camera (K all zeros) or values no camera has.
+    """
+    try:
+        K = [float(v) for v in np.asarray(_field(msg, "k"), dtype=float).reshape(-1)]
+        d = [float(v) for v in np.asarray(_field(msg, "d"), dtype=float).reshape(-1)]
+        w, h, model = int(msg.width), int(msg.height), str(msg.distortion_model or "plumb_bob")
+        if rectified:
+            K = [float(v) for v in np.asarray(_field(msg, "p"), dtype=float).reshape(3, 4)[:, :3].reshape(-1)]
+            d, model = [0.0] * 5, "plumb_bob"
+    except (AttributeError, TypeError, ValueError):
+        raise RosFormatError(f"{source}: not a CameraInfo message (width, height, distortion_model, d, k, p)") from None
+    if not any(K):
+        raise CameraError(
+            f"{source}: the camera is not calibrated ({'P' if rectified else 'K'} is all zeros); give a camera file "
+            "(--camera CAMERA on the command line, camera= to read_bag)"
+        )
+    text = (
+        f"image_width: {w}\nimage_height: {h}\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: {K!r}\n"
+        f"distortion_model: {model}\ndistortion_coefficients:\n  rows: 1\n  cols: {len(d)}\n  data: {d!r}\n"
+    )
+    return camera_from_camera_info(text, source)
