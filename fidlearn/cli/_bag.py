@@ -9,27 +9,30 @@ rescaled).
 from __future__ import annotations
 
 import itertools
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..camera import Camera
-from ..errors import CameraError, UsageError
+from ..errors import CameraError, FidlearnWarning, UsageError
 from ..images import Frame
 from ..ros import BagWriter, is_bag, read_bag, read_bag_odometry
 
 BAG_HELP = """\
-ROS 2 bags: give a bag folder (metadata.yaml) or a .mcap file (or a ROS 1 .bag file) as the only input. Its
-sensor_msgs/msg/Image (mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*8) or CompressedImage
-topic is read (--image-topic when it has several), timed by the header stamps (--track uses
-them; t = 0 at the first image); the camera is the CameraInfo beside it (--camera-info-topic),
-or --camera, which then stands in for it. -o OUT.mcap (or -o FOLDER --format bag) writes a ROS 2
-bag: /fidlearn/pose (geometry_msgs/msg/PoseWithCovarianceStamped, frame map, at each image's
-stamp), /fidlearn/odometry (nav_msgs/msg/Odometry, with --track), /tf (map -> the camera's frame,
-or map -> base_link with --mount), /tf_static (base_link -> camera: the mount) and
-/fidlearn/markers (visualization_msgs/msg/MarkerArray: the map). With --track, --odometry-topic
-TOPIC reads the robot's odometry (nav_msgs/msg/Odometry, its pose in the odom frame at each
-header stamp) from the bag, as --odometry reads it from a CSV file (--odometry-drift applies)."""
+ROS 2 bags: give a bag folder (metadata.yaml) or a .mcap file (or a ROS 1 .bag file) as the only input.
+Its sensor_msgs/msg/Image (mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*8) or CompressedImage topic
+is read (--image-topic when it has several), timed by the header stamps (--track uses them; t = 0 at the
+first image; an image whose stamp is not after the last one's is left out of the track, with a warning;
+-o in the tum and ros formats writes the stamps themselves); the camera is the CameraInfo beside it
+(--camera-info-topic), or --camera, which then stands in for it (image_rect topics, rectified: the
+CameraInfo's projection P, without distortion). -o OUT.mcap (or -o FOLDER --format bag) writes a ROS 2
+bag: /fidlearn/pose (geometry_msgs/msg/PoseWithCovarianceStamped, frame map, at each image's stamp),
+/fidlearn/odometry (nav_msgs/msg/Odometry, with --track), /tf (map -> the camera's frame, or map ->
+base_link with --mount), /tf_static (base_link -> camera: the mount) and /fidlearn/markers
+(visualization_msgs/msg/MarkerArray: the map). With --track, --odometry-topic TOPIC reads the robot's
+odometry (nav_msgs/msg/Odometry, its pose in the odom frame at each header stamp) from the bag, as
+--odometry reads it from a CSV file (--odometry-drift applies)."""
 
 
 def add_bag_options(p) -> None:
@@ -110,6 +113,21 @@ def _same(a: Camera | None, b: Camera) -> bool:
     return (a.width, a.height) == (b.width, b.height) and np.array_equal(a.K, b.K) and np.array_equal(da, db)
 
 
+#: How many images left out of a track (their stamps not increasing) are named one by one.
+MAX_WARNINGS = 3
+
+
+def _warn_stamp(name: str, stamp: int, last: int) -> None:
+    """The warning for an image left out of a track: its stamp is not after the last image's."""
+    said = "repeats" if stamp == last else f"is {(last - stamp) / 1e9:.9f} s before"
+    warnings.warn(
+        f"{name}: its header stamp {stamp // 10**9}.{stamp % 10**9:09d} s {said} the last image's; "
+        "left out of the track (a track needs increasing stamps)",
+        FidlearnWarning,
+        stacklevel=3,
+    )
+
+
 class BagRun:
     """A bag's frames as :class:`fidlearn.images.Frame` (one video), their stamps and their camera.
 
@@ -138,15 +156,27 @@ class BagRun:
         self.stamps: list[int] = []
         self.name = path.name
 
-    def frames(self):
+    def frames(self, increasing: bool = False):
         """The frames, each stamp kept in :attr:`stamps` as its frame is read.
+
+        Parameters
+        ----------
+        increasing : bool
+            For a track: an image whose stamp is not after the last image's (a driver that stamps twice
+            alike, a clock set back) is left out, with a warning.
 
         Yields
         ------
         Frame
             ``BAG#k``, kind ``"video"``.
         """
+        left_out = 0
         for k, bf in enumerate(self.bag):
+            if increasing and self.stamps and bf.stamp <= self.stamps[-1]:
+                left_out += 1
+                if left_out <= MAX_WARNINGS:
+                    _warn_stamp(f"{self.name}#{k}", bf.stamp, self.stamps[-1])
+                continue
             size = (bf.image.shape[1], bf.image.shape[0])
             if (self.camera.width, self.camera.height) != size:
                 said = "--camera" if self.given else f"the CameraInfo on {self.bag.camera_info_topic}"
@@ -161,6 +191,13 @@ class BagRun:
                 )
             self.stamps.append(bf.stamp)
             yield Frame(f"{self.name}#{k}", bf.image, str(self.bag.path), "video")
+        if left_out > MAX_WARNINGS:
+            warnings.warn(
+                f"{self.name}: {left_out} images in all were left out of the track, their stamps not after "
+                "the image before; check the camera driver's clock",
+                FidlearnWarning,
+                stacklevel=2,
+            )
 
     def odometry(self, topic: str, drift: float):
         """The robot's odometry on ``topic``, timed from the first image's stamp as the frames are.

@@ -21,6 +21,7 @@ from ..errors import UsageError
 from ..filtering import TrackedPose
 from ..images import read_frames
 from ..ros import read_mount_json, read_odometry_csv, ros_pose, tum_line
+from ..ros._messages import stamp_dict
 from ..sequences import check_picture_sizes, track
 from ._bag import BagRun, BagSink
 from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
@@ -50,8 +51,10 @@ the chi-square gate (0.999) is rejected and said so, frames without a marker are
                       degrees, its covariance, status, the odometry scale learnt so far), tum (t x y z
                       qx qy qz qw, metres), ros (one geometry_msgs/PoseWithCovarianceStamped per line
                       as JSON: frame map, metres, quaternion x y z w, covariance in x y z rotX rotY
-                      rotZ order, m and rad), bag (a ROS 2 bag: -o OUT.mcap, or a new folder; see
-                      ROS 2 bags below; chosen by the name .mcap)."""
+                      rotZ order, m and rad; tum and ros time a bag's frames by their images' header
+                      stamps, seconds since 1970, and other frames from t = 0 s), bag (a ROS 2
+                      bag: -o OUT.mcap, or a new folder; see ROS 2 bags below; chosen by the name
+                      .mcap)."""
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -164,12 +167,19 @@ class _LineFile(_StreamFile):
             super().write(record)
 
 
-def _record(name: str, out: TrackedPose, fmt: str) -> str | dict:
+def _record(name: str, out: TrackedPose, fmt: str, stamp_ns: int | None = None) -> str | dict:
+    """The frame's line: a bag's frames carry their images' stamps (``stamp_ns``) in the tum and ros formats."""
     if fmt == "tum":
         T = out.T_world_base if out.T_world_base is not None else out.T_world_camera
-        return tum_line(out.t_s, T)
+        if stamp_ns is None:
+            return tum_line(out.t_s, T)
+        sec, nanosec = divmod(stamp_ns, 1_000_000_000)  # exact: a float of seconds since 1970 keeps 0.2 us
+        return f"{sec}.{nanosec:09d}" + tum_line(0.0, T)[len("0.000000000") :]
     if fmt == "ros":
-        return ros_pose(out)
+        msg = ros_pose(out)
+        if stamp_ns is not None:
+            msg["header"]["stamp"] = stamp_dict(stamp_ns)
+        return msg
     base = out.T_world_base is not None
     T = out.T_world_base if out.T_world_base is not None else out.T_world_camera
     cov = out.base_covariance if base else out.covariance
@@ -211,8 +221,8 @@ def _row(name: str, width: int, out: TrackedPose | None) -> str:
 class _Run:
     """The frames done so far and what happened to them."""
 
-    def __init__(self, args, sink):
-        self.args, self.sink = args, sink
+    def __init__(self, args, sink, bag_run: BagRun | None = None):
+        self.args, self.sink, self.bag_run = args, sink, bag_run
         self.fmt = args.format or "jsonl"
         self.frames = 0
         self.counts: dict[str, int] = {}
@@ -227,7 +237,8 @@ class _Run:
             if isinstance(self.sink, BagSink):
                 self.sink.put(self.frames, out)
             elif self.sink is not None:
-                self.sink.write(_record(name, out, self.fmt))
+                stamps = self.bag_run.stamps if self.bag_run is not None else None
+                self.sink.write(_record(name, out, self.fmt, stamps[self.frames] if stamps else None))
         self.frames += 1
 
 
@@ -249,7 +260,7 @@ def _loop(run: _Run, steps, width: int, live: LiveRun | None, marker_map=None) -
 def _timed_frames(args, items, bag_run: BagRun | None):
     """The frames and their times: a bag's by their stamps, else None (1 / --fps apart)."""
     if bag_run is not None:
-        return bag_run.frames(), bag_run.times()
+        return bag_run.frames(increasing=True), bag_run.times()
     return read_frames(items, None, int(args.max_megapixels * 1_000_000)), None
 
 
@@ -299,7 +310,7 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
         f"{'std_mm':>7}  status"
     )
     sink = _sink(args, out_path, bag_run, marker_map, mount)
-    run = _Run(args, sink)
+    run = _Run(args, sink, bag_run)
     live = LiveRun(args, marker_map, bag_run, mount) if args.live is not None else None
     try:
         with sink if sink is not None else contextlib.nullcontext():
