@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -14,7 +15,8 @@ from test_ros_bag import messages
 
 import fidlearn
 from fidlearn import data_path
-from fidlearn.ros import read_bag
+from fidlearn.errors import RosFormatError
+from fidlearn.ros import decode_image, read_bag
 from fidlearn.ros._messages import build, typestore
 
 MAP = data_path("world_map.json")
@@ -125,3 +127,30 @@ def test_an_image_stamped_again_or_earlier_is_left_out_of_the_track(tmp_path, ca
     rows = [line.split()[:2] for line in stdout.splitlines() if line.startswith("cam.mcap#")]
     assert rows == [["cam.mcap#0", "0.000"], ["cam.mcap#1", "0.050"], ["cam.mcap#3", "0.100"]]
     assert [t for t, _ in messages(out, "/fidlearn/pose")] == [t0, t0 + 50_000_000, t0 + 100_000_000]
+
+
+@pytest.mark.parametrize(("encoding", "order"), [("yuv422", "UYVY"), ("yuv422_yuy2", "YUYV")])
+def test_yuv422_images_are_read_as_their_colours(encoding, order):
+    """usb_cam and v4l2_camera publish two pixels in four bytes, their colour shared: built here by hand from a
+    known picture of pairs of equal pixels (so no colour is lost), decoded to within the conversion's rounding."""
+    rng = np.random.default_rng(3)
+    bgr = np.repeat(rng.integers(40, 215, (6, 4, 3), dtype=np.uint8), 2, axis=1)  # 6 x 8, pixel pairs alike
+    b, g, r = (bgr[..., k].astype(float) / 255 for k in range(3))  # BT.601 video range, as cameras send it
+    y = np.round(16 + 65.481 * r + 128.553 * g + 24.966 * b).astype(np.uint8)
+    u = np.round(128 - 37.797 * r - 74.203 * g + 112.0 * b).astype(np.uint8)[:, ::2]
+    v = np.round(128 + 112.0 * r - 93.786 * g - 18.214 * b).astype(np.uint8)[:, ::2]
+    packed = np.empty((6, 4, 4), np.uint8)  # per pair of pixels
+    if order == "UYVY":
+        packed[..., 0], packed[..., 1], packed[..., 2], packed[..., 3] = u, y[:, ::2], v, y[:, 1::2]
+    else:
+        packed[..., 0], packed[..., 1], packed[..., 2], packed[..., 3] = y[:, ::2], u, y[:, 1::2], v
+    step = 8 * 2 + 4  # a row stride wider than the pixels
+    rows = np.zeros((6, step), np.uint8)
+    rows[:, :16] = packed.reshape(6, 16)
+    msg = SimpleNamespace(encoding=encoding, height=6, width=8, step=step, is_bigendian=0, data=rows.reshape(-1))
+    out = decode_image(msg, "cam.mcap")
+    assert out.shape == (6, 8, 3)
+    assert np.abs(out.astype(int) - bgr.astype(int)).max() <= 3
+    odd = SimpleNamespace(encoding=encoding, height=6, width=7, step=step, is_bigendian=0, data=rows.reshape(-1))
+    with pytest.raises(RosFormatError, match="in pairs; its width 7 is odd"):
+        decode_image(odd, "cam.mcap")

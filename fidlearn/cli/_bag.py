@@ -21,7 +21,7 @@ from ..ros import BagWriter, is_bag, read_bag, read_bag_odometry
 
 BAG_HELP = """\
 ROS 2 bags: give a bag folder (metadata.yaml) or a .mcap file (or a ROS 1 .bag file) as the only input.
-Its sensor_msgs/msg/Image (mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*8) or CompressedImage topic
+Its sensor_msgs/msg/Image (mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*8, yuv422) or CompressedImage topic
 is read (--image-topic when it has several), timed by the header stamps (--track uses them; t = 0 at the
 first image; an image whose stamp is not after the last one's is left out of the track, with a warning;
 -o in the tum and ros formats writes the stamps themselves); the camera is the CameraInfo beside it

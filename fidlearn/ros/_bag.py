@@ -3,10 +3,10 @@
 A bag is a rosbag2 folder (``metadata.yaml`` beside its ``.mcap`` or ``.db3`` files), a lone ``.mcap``
 file or a ROS 1 ``.bag`` file, read with the pure-Python ``rosbags`` library (no ROS installation). Images are
 ``sensor_msgs/msg/Image`` (mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_rggb8, bayer_bggr8,
-bayer_gbrg8, bayer_grbg8) or ``sensor_msgs/msg/CompressedImage`` (JPEG, PNG); the camera comes from
-the ``sensor_msgs/msg/CameraInfo`` beside them, read by the same reader as a ``camera_info`` YAML file
-(:func:`fidlearn.ros.camera_from_camera_info`), so the distortion models it knows are the ones a bag
-may use. Rectified images (``image_proc``'s ``image_rect`` and ``image_rect_color`` topics) have the
+bayer_gbrg8, bayer_grbg8, yuv422 (UYVY) and yuv422_yuy2) or ``sensor_msgs/msg/CompressedImage`` (JPEG,
+PNG); the camera comes from the ``sensor_msgs/msg/CameraInfo`` beside them, read by the same reader as a
+``camera_info`` YAML file (:func:`fidlearn.ros.camera_from_camera_info`), so the distortion models it knows
+are the ones a bag may use. Rectified images (``image_proc``'s ``image_rect`` and ``image_rect_color`` topics) have the
 CameraInfo's projection P as their camera, without distortion.
 """
 
@@ -50,6 +50,11 @@ ENCODINGS: dict[str, tuple[int, int, int | None]] = {
     "bayer_bggr8": (1, 1, cv2.COLOR_BayerRG2BGR),
     "bayer_gbrg8": (1, 1, cv2.COLOR_BayerGR2BGR),
     "bayer_grbg8": (1, 1, cv2.COLOR_BayerGB2BGR),
+    # two pixels in four bytes, their colour shared (what usb_cam and v4l2_camera publish): ROS's yuv422 is UYVY
+    "yuv422": (2, 1, cv2.COLOR_YUV2BGR_UYVY),
+    "uyvy": (2, 1, cv2.COLOR_YUV2BGR_UYVY),
+    "yuv422_yuy2": (2, 1, cv2.COLOR_YUV2BGR_YUY2),
+    "yuyv": (2, 1, cv2.COLOR_YUV2BGR_YUY2),
 }
 
 
@@ -223,6 +228,8 @@ def decode_image(msg, source: str = "image") -> np.ndarray:
         raise RosFormatError(
             f"{source}: a {w}x{h} {enc} image with step {step} needs {step * h} bytes; the message holds {data.size}"
         )
+    if ch == 2 and w % 2:
+        raise RosFormatError(f"{source}: a {enc} image holds pixels in pairs; its width {w} is odd")
     rows = data[: step * h].reshape(h, step)[:, : w * ch * nbytes]
     if nbytes == 2:
         rows = np.ascontiguousarray(rows).view(">u2" if msg.is_bigendian else "<u2").astype(np.uint16)
