@@ -204,14 +204,28 @@ def undistort_exact(
     return xy
 
 
+def _fisheye_in_front(px: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Whether a ray less than 90 degrees off the axis reaches each fisheye pixel (N, 2): bool (N,), its
+    distorted radius below the largest the lens's ``theta_d`` takes from 0 to 90 degrees."""
+    yd = (px[:, 1] - K[1, 2]) / K[1, 1]
+    xd = (px[:, 0] - K[0, 2] - K[0, 1] * yd) / K[0, 0]
+    return np.hypot(xd, yd) < _fisheye_theta_d(np.linspace(0.0, np.pi / 2, 4097), dist).max()
+
+
 def undistort_pixels(
     px: np.ndarray, K: np.ndarray, dist: np.ndarray, exact: bool = True, model: str = "pinhole"
 ) -> np.ndarray:
-    """Ideal pinhole pixels (N, 2) of observed pixels (N, 2): exact, or OpenCV's few fixed-point steps."""
+    """Ideal pinhole pixels (N, 2) of observed pixels (N, 2): exact, or OpenCV's few fixed-point steps.
+
+    A fisheye pixel that no ray less than 90 degrees off the axis reaches is NaN either way (OpenCV's own
+    answer there is the mirror image of a ray in front, on the other side of the picture).
+    """
     if not exact:
         src = px.reshape(-1, 1, 2).astype(np.float64)
         if model == "fisheye":
-            return cv2.fisheye.undistortPoints(src, K, dist.reshape(1, 4), P=K).reshape(-1, 2)
+            out = cv2.fisheye.undistortPoints(src, K, dist.reshape(1, 4), P=K).reshape(-1, 2)
+            out[~_fisheye_in_front(src.reshape(-1, 2), K, dist)] = np.nan
+            return out
         return cv2.undistortPoints(src, K, dist, P=K).reshape(-1, 2)
     xy = undistort_exact(px, K, dist, model=model)
     return np.stack([K[0, 0] * xy[:, 0] + K[0, 1] * xy[:, 1] + K[0, 2], K[1, 1] * xy[:, 1] + K[1, 2]], axis=1)
@@ -224,14 +238,52 @@ def new_camera_matrix(
 
     ``cv2.getOptimalNewCameraMatrix`` with ``alpha`` (pinhole) or
     ``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify`` with ``balance=alpha`` (fisheye): 0 keeps only
-    pixels with picture behind them, 1 keeps every pixel of the picture.
+    pixels with picture behind them, 1 keeps every pixel of the picture. A fisheye whose picture's edges
+    reach more than :data:`FISHEYE_EDGE_MAX_DEG` off the axis gets OpenCV's rule with those edges taken at
+    that angle (:func:`_fisheye_new_camera_matrix`).
     """
     if model == "fisheye":
+        return _fisheye_new_camera_matrix(K, dist, size, alpha, new_size)
+    newK, _ = cv2.getOptimalNewCameraMatrix(K, dist, tuple(size), float(alpha), tuple(new_size))
+    return newK
+
+
+#: The largest angle (degrees) off the axis at which a fisheye's edge is kept in an undistorted picture.
+FISHEYE_EDGE_MAX_DEG = 80.0
+
+
+def _fisheye_new_camera_matrix(
+    K: np.ndarray, dist: np.ndarray, size: tuple[int, int], alpha: float, new_size: tuple[int, int]
+) -> np.ndarray:
+    """``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify``'s camera matrix (3, 3), its edges held within
+    :data:`FISHEYE_EDGE_MAX_DEG` of the axis.
+
+    OpenCV centres the new camera on the mean of the picture's edge middles undistorted to ideal normalized
+    points and fits its focal length between them; an edge seen near or past 90 degrees off the axis has no
+    such point (infinite or behind the camera), and OpenCV's choice then shows a fraction of the picture with
+    its principal point far from the middle. Such an edge's middle is taken on its own ray at the largest
+    angle: ``alpha`` 0 still keeps only pixels with picture behind them, 1 keeps the picture up to that angle.
+    """
+    w, h = size
+    mids = np.array([[w // 2, 0], [w, h // 2], [w // 2, h], [0, h // 2]], dtype=np.float64)  # OpenCV's points
+    theta, xyd, theta_d = fisheye_angles(mids, K, dist)
+    limit = np.radians(FISHEYE_EDGE_MAX_DEG)
+    if np.all(theta <= limit):
         return cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(
             K, dist.reshape(1, 4), tuple(size), np.eye(3), balance=float(alpha), new_size=tuple(new_size)
         )
-    newK, _ = cv2.getOptimalNewCameraMatrix(K, dist, tuple(size), float(alpha), tuple(new_size))
-    return newK
+    theta = np.where(np.isfinite(theta), np.minimum(theta, limit), limit)  # beyond the lens's fold: its edge too
+    pts = xyd * (np.tan(theta) / np.where(theta_d > 1e-12, theta_d, 1.0))[:, None]
+    aspect = K[0, 0] / K[1, 1]
+    pts[:, 1] *= aspect
+    cn = pts.mean(axis=0)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    half = np.array([w * 0.5, w * 0.5, h * 0.5 * aspect, h * 0.5 * aspect])
+    fs = half / np.array([cn[0] - lo[0], hi[0] - cn[0], cn[1] - lo[1], hi[1] - cn[1]])
+    f = alpha * fs.min() + (1.0 - alpha) * fs.max()
+    c = -cn * f + np.array([w, h * aspect]) * 0.5
+    rx, ry = new_size[0] / w, new_size[1] / h
+    return np.array([[f * rx, 0.0, c[0] * rx], [0.0, f / aspect * ry, c[1] / aspect * ry], [0.0, 0.0, 1.0]])
 
 
 def undistort_maps(

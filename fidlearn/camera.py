@@ -296,7 +296,8 @@ class Camera:
         alpha : float
             From 0 to 1: 0 keeps only pixels with picture behind them (cropped), 1 keeps every pixel of
             the picture (black borders). ``cv2.getOptimalNewCameraMatrix``'s ``alpha`` for a pinhole camera,
-            ``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify``'s ``balance`` for a fisheye.
+            ``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify``'s ``balance`` for a fisheye (its edges
+            seen over 80 degrees off the axis are kept up to 80: a pinhole picture cannot hold 90).
         image_size : (int, int), optional
             ``(width, height)`` of the undistorted picture; the camera's own by default.
 

@@ -62,6 +62,20 @@ def test_undistortion_is_the_exact_inverse_across_the_whole_picture(fish):
     np.testing.assert_allclose(fast, by_opencv, rtol=1e-6, atol=1e-6)
 
 
+@pytest.mark.parametrize("dist", [D_FE, [0.1, -0.2, 0.05, -0.01], [0.0] * 4])
+def test_opencvs_fast_undistortion_is_nan_where_no_ray_in_front_reaches(dist):
+    # OpenCV answers a pixel past 90 degrees with the mirror image of a ray in front, across the picture
+    fish = Camera(K_FE, dist, SIZE, model="fisheye")
+    px = _picture(SIZE, (161, 101))
+    exact, fast = fish.undistort_points(px), fish.undistort_points(px, exact=False)
+    assert np.isnan(exact).any()
+    np.testing.assert_array_equal(np.isnan(fast), np.isnan(exact))
+    seen = np.isfinite(exact[:, 0])
+    assert np.abs(fast[seen] - exact[seen]).max() < 1e-5
+    if dist is D_FE:  # the real lens sees its left edge's middle 90.4 degrees off the axis
+        assert np.isnan(fish.undistort_points([[-0.5, K_FE[1, 2]]], exact=False)).all()
+
+
 def test_a_pixel_no_ray_in_front_reaches_is_nan():
     # a lens whose picture reaches beyond 90 degrees: its corner pixels have no pinhole ray
     wide = Camera([[200, 0, 399.5], [0, 200, 251.5], [0, 0, 1]], [0.0, 0.0, 0.0, 0.0], SIZE, model="fisheye")
@@ -81,18 +95,47 @@ def test_fov_of_the_real_lens(fish):
 
 
 @pytest.mark.parametrize("alpha", [0.0, 0.5, 1.0])
-def test_fisheye_maps_are_opencvs(fish, alpha):
+def test_fisheye_maps_are_opencvs(alpha):
+    # a fisheye of 120 x 70 degrees: its edges within 80 degrees of the axis, where OpenCV's choice holds
+    fish = Camera([[400, 0, 399.5], [0, 390, 251.5], [0, 0, 1]], D_FE, SIZE, model="fisheye")
     ideal = fish.undistorted(alpha)
-    newK = cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(K_FE, D_FE, SIZE, np.eye(3), balance=alpha)
+    newK = cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(fish.K, D_FE, SIZE, np.eye(3), balance=alpha)
     np.testing.assert_allclose(ideal.K[:, [0, 2]], newK[:, [0, 2]], rtol=1e-12)
     assert not ideal.has_distortion
     assert ideal.model == "pinhole"
     assert ideal.image_size == SIZE
     mx, my = fish.undistort_maps(alpha)
-    cx, cy = cv2.fisheye.initUndistortRectifyMap(K_FE, D_FE, np.eye(3), ideal.K, SIZE, cv2.CV_32FC1)
+    cx, cy = cv2.fisheye.initUndistortRectifyMap(fish.K, D_FE, np.eye(3), ideal.K, SIZE, cv2.CV_32FC1)
     assert mx.dtype == np.float32
     assert mx.shape == (503, 800)
     assert max(np.abs(mx - cx).max(), np.abs(my - cy).max()) < 2e-3  # float32 rounding of OpenCV's maps
+
+
+@pytest.mark.parametrize("new_size", [SIZE, (400, 300)])
+def test_undistorting_a_180_degree_fisheye_crops_to_the_picture_around_its_middle(fish, new_size):
+    # the real lens sees its left and right edges 90 degrees off the axis: no ideal pinhole point there
+    w, h = new_size
+    for alpha, widest_deg in ((0.0, 130.0), (0.5, 150.0), (1.0, 160.0 + 1e-9)):
+        ideal = fish.undistorted(alpha, new_size)
+        assert abs(ideal.cx - (w - 1) / 2) < 0.01 * w  # centred across the width, as the lens is
+        assert abs(ideal.cy - (h - 1) / 2) < 0.15 * h
+        assert 120.0 < ideal.fov_deg[0] < widest_deg  # at most 80 degrees each side
+        mx, my = fish.undistort_maps(alpha, new_size)
+        inside = (mx >= -0.5) & (mx <= SIZE[0] - 0.5) & (my >= -0.5) & (my <= SIZE[1] - 0.5)
+        if alpha == 0.0:
+            assert inside.all()  # only pixels with picture behind them
+        else:
+            assert 0.7 < inside.mean() < 1.0
+
+
+def test_a_fisheye_past_180_degrees_undistorts_within_80_degrees_of_its_axis():
+    # an equidistant lens of 229 degrees across a 800 x 600 picture (its corners beyond what it sees)
+    wide = Camera([[200, 0, 399.5], [0, 200, 299.5], [0, 0, 1]], [0.0] * 4, (800, 600), model="fisheye")
+    ideal = wide.undistorted(1.0)
+    assert ideal.fov_deg[1] == pytest.approx(160.0, abs=0.05)  # up to 80 degrees along both axes
+    assert 160.0 < ideal.fov_deg[0] < 170.0
+    mx, my = wide.undistort_maps(0.0)
+    assert ((mx >= -0.5) & (mx <= 799.5) & (my >= -0.5) & (my <= 599.5)).all()
 
 
 @pytest.mark.parametrize("n", [4, 5, 8, 12, 14])
