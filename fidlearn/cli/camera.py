@@ -23,7 +23,7 @@ def add(sub) -> None:
         help="camera files to and from ROS camera_info YAML",
         description="Convert camera files: fidlearn's JSON (or OpenCV's YAML) to and from the camera_info YAML "
         "that ROS's camera_calibration writes and camera_info_manager reads (plumb_bob or rational_polynomial "
-        "distortion; the pixel convention is the same, so K is copied as it is).",
+        "distortion, or equidistant for a fisheye; the pixel convention is the same, so K is copied as it is).",
     )
     verbs = p.add_subparsers(dest="camera_command", metavar="export|import", parser_class=_Parser)
     e = verbs.add_parser("export", help="a camera file to ROS camera_info YAML")
