@@ -1035,7 +1035,8 @@ def calib_setup(tmp_path: Path) -> None:
     (tmp_path / "notes" / "a.txt").write_text("board photos go here\n")
     for name in ("text.png", "text2.png", "text3.png"):
         (tmp_path / name).write_text("not a picture\n")
-    write_png(tmp_path / "marker.png")
+    for name in ("marker.png", "marker2.png", "marker3.png"):  # each photo counts once: three files
+        write_png(tmp_path / name)
 
 
 BLANK = np.full((480, 640), 255, np.uint8)
@@ -1050,10 +1051,29 @@ CALIBRATE = [
     ("pattern of squares, not corners", [BLANK] * 3, (0, 6), 25, "a board of 10x7 squares has 9x6 inner corners"),
     ("negative square", [BLANK] * 3, (9, 6), -25, "square_size_mm must be positive"),
     ("NaN square", [BLANK] * 3, (9, 6), float("nan"), "square_size_mm must be positive, got nan"),
-    ("text file named .png", ["{tmp}/text.png"] * 3, (9, 6), 25, "not an image OpenCV can read"),
+    (
+        "text file named .png",
+        ["{tmp}/text.png", "{tmp}/text2.png", "{tmp}/text3.png"],
+        (9, 6),
+        25,
+        "not an image OpenCV can read",
+    ),
     ("missing files", ["{tmp}/a.png", "{tmp}/b.png", "{tmp}/c.png"], (9, 6), 25, "no such file"),
+    (
+        "a photo given twice",
+        ["{tmp}/marker.png", "{tmp}/./marker.png", "{tmp}/marker2.png"],
+        (9, 6),
+        25,
+        "is given twice (also as",
+    ),
     ("no board in the pictures", [BLANK] * 3, (9, 6), 25, "board not found (9x6 inner corners)"),
-    ("pictures of a marker", ["{tmp}/marker.png"] * 3, (9, 6), 25, "board not found"),
+    (
+        "pictures of a marker",
+        ["{tmp}/marker.png", "{tmp}/marker2.png", "{tmp}/marker3.png"],
+        (9, 6),
+        25,
+        "board not found",
+    ),
     (
         "pictures of two sizes",
         [BLANK, BLANK[:240, :320], BLANK],

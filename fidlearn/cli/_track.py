@@ -21,7 +21,6 @@ from ..errors import UsageError
 from ..filtering import TrackedPose
 from ..images import read_frames
 from ..ros import read_mount_json, read_odometry_csv, ros_pose, tum_line
-from ..ros._messages import stamp_dict
 from ..sequences import check_picture_sizes, track
 from ._bag import BagRun, BagSink
 from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
@@ -177,8 +176,9 @@ def _record(name: str, out: TrackedPose, fmt: str, stamp_ns: int | None = None) 
         return f"{sec}.{nanosec:09d}" + tum_line(0.0, T)[len("0.000000000") :]
     if fmt == "ros":
         msg = ros_pose(out)
-        if stamp_ns is not None:
-            msg["header"]["stamp"] = stamp_dict(stamp_ns)
+        if stamp_ns is not None:  # builtin_interfaces/msg/Time, exact
+            sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+            msg["header"]["stamp"] = {"sec": sec, "nanosec": nanosec}
         return msg
     base = out.T_world_base is not None
     T = out.T_world_base if out.T_world_base is not None else out.T_world_camera
