@@ -34,6 +34,7 @@ __all__ = [
     "load_image",
     "detect_markers",
     "detect_markers_with_rejected",
+    "dictionaries_in",
     "DetectionsWithRejected",
     "refine_corners_edges",
     "REFINE_METHODS",
@@ -364,6 +365,68 @@ def detect_markers(
     [23]
     """
     return _detect(image, dictionary, refine, detector_params, ids)[0]
+
+
+#: The largest dictionary of each family: a smaller one of the family is its first markers, printed alike.
+_FAMILIES = ("ARUCO_ORIGINAL", "4X4_1000", "5X5_1000", "6X6_1000", "7X7_1000", "APRILTAG_36h11", "APRILTAG_25h9")
+
+
+def dictionaries_in(image: np.ndarray, exclude: str | Sequence[str] = ()) -> dict[str, list[int]]:
+    """Which dictionaries' markers a picture shows: for a picture in which the expected dictionary finds none.
+
+    A detector sees only the markers of its own dictionary, so a map of ``ARUCO_ORIGINAL`` markers finds
+    nothing in a photo of printed ``4X4_50`` markers. This searches the picture with the largest dictionary
+    of each family (ArUco original, 4x4, 5x5, 6x6 and 7x7, AprilTag 36h11 and 25h9) and names each family
+    found by its smallest dictionary that holds every id seen (``4X4_50`` for ids under 50).
+
+    Parameters
+    ----------
+    image : ndarray
+        The picture, as :func:`detect_markers` takes it.
+    exclude : str or sequence of str
+        Dictionaries already searched (a map's): their family is left out.
+
+    Returns
+    -------
+    dict of str to list of int
+        ``{dictionary: sorted ids}``, empty when the picture shows no marker of any family.
+
+    Raises
+    ------
+    ImageError
+        ``image`` is not an image.
+    DictionaryError
+        An unknown name in ``exclude``.
+
+    Examples
+    --------
+    >>> from fidlearn import _cv
+    >>> image = np.pad(_cv.generate_marker("4X4_50", 7, 120), 40, constant_values=255)
+    >>> dictionaries_in(image, exclude="ARUCO_ORIGINAL")
+    {'4X4_50': [7]}
+    """
+    skip = {_family(_dictionary_name(n)) for n in ([exclude] if isinstance(exclude, str) else exclude)}
+    found: dict[str, list[int]] = {}
+    for name in _FAMILIES:
+        if _family(name) in skip:
+            continue
+        ids = sorted({d.id for d in detect_markers(image, name, refine="none")})
+        if ids:
+            found[_smallest_holding(name, ids[-1])] = ids
+    return found
+
+
+def _family(name: str) -> str:
+    """``"4X4"`` for ``"4X4_250"``; a dictionary without sizes is its own family."""
+    head, _, size = name.rpartition("_")
+    return head if size.isdigit() and "X" in head else name
+
+
+def _smallest_holding(name: str, largest_id: int) -> str:
+    """The smallest dictionary of ``name``'s family with an id ``largest_id``."""
+    if _family(name) == name:
+        return name
+    return next(f"{_family(name)}_{n}" for n in (50, 100, 250, 1000) if largest_id < n)
 
 
 @dataclass(frozen=True)

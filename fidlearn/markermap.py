@@ -16,7 +16,9 @@ detection reports.
 
 from __future__ import annotations
 
+import math
 import os
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -39,7 +41,7 @@ from ._map_parse import (
     _units_name,
 )
 from ._wpilib import is_wpilib, map_from_wpilib, to_wpilib
-from .errors import DictionaryError, MapError
+from .errors import DictionaryError, FidlearnWarning, MapError
 from .markermap_entries import BoardEntry, BundleEntry, _Entries, _merge_placements, _parse_entries
 
 __all__ = [
@@ -200,6 +202,8 @@ class MarkerMap(_Keys, _Entries):
             key: MarkerPlacement(mid, t, r, s, name)  # type: ignore[arg-type]
             for key, (mid, t, r, s, name) in _placements(markers, units, source, dictionary).items()
         }
+        if not (full and "surveyed" in d):  # a survey writes each measured tilt, however small
+            _warn_radians({key: p.rotation_deg for key, p in placements.items()}, source)
         entries = _parse_entries(d, units, source, dictionary) if full else []
         return cls(
             placements, _marker_size(size, source), dictionary=dictionary, units=units, source=source, entries=entries
@@ -418,3 +422,49 @@ class MarkerMap(_Keys, _Entries):
             The file written.
         """
         return write_json_atomic(path, self.corners_dict())
+
+
+def _radian_like(value: float) -> bool:
+    """Whether an angle is a multiple of 15 degrees written in radians (1.57 for 90, 3.14 for 180)."""
+    steps = value / (math.pi / 12)
+    near = round(steps) != 0 and abs(steps - round(steps)) * math.pi / 12 < 0.005
+    return near and value != round(value) and abs(value) <= 2 * math.pi + 0.01
+
+
+def _warn_radians(rotations: Mapping[Any, tuple[float, float, float]], source: str) -> None:
+    """Warn (:class:`~fidlearn.errors.FidlearnWarning`) once when rotations look like radians.
+
+    A rotation is taken for radians when each of its angles is 0 or, not a whole number, within 0.005 of a
+    multiple of pi/12 (15 degrees) up to 2 pi: ``[0, 0, 1.57]`` is a quarter turn written in radians, where a
+    map's rotation is degrees.
+
+    Parameters
+    ----------
+    rotations : mapping of marker key to (roll, pitch, yaw)
+        Each marker's rotation as the file writes it.
+    source : str
+        The map's name, for the message.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _warn_radians({0: (0.0, 0.0, 1.57), 1: (0.0, 0.0, 90.0)}, "map.json")
+    >>> "[0, 0, 90]" in str(caught[0].message)
+    True
+    """
+    odd = [
+        (key, r) for key, r in rotations.items() if any(v != 0 for v in r) and all(v == 0 or _radian_like(v) for v in r)
+    ]
+    if not odd:
+        return
+    key, r = odd[0]
+    others = f" and {len(odd) - 1} more" if len(odd) > 1 else ""
+    degrees = ", ".join(f"{math.degrees(v):.0f}" for v in r)
+    warnings.warn(
+        f"{source}: marker {key}'s rotation [{', '.join(f'{v:g}' for v in r)}]{others} looks like radians; a map's "
+        f"rotation is [roll, pitch, yaw] in degrees: if radians were meant, write [{degrees}]",
+        FidlearnWarning,
+        stacklevel=3,
+    )

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..detection import dictionaries_in
 from ..drawing import draw_pose
 from ..errors import UsageError
 from ..images import expand_inputs, read_frames
@@ -165,6 +166,7 @@ class _Table:
         self.width = width
         self.frames = self.located = self.ambiguous = 0
         self.rms: list[float] = []
+        self.searched_other_dictionaries = False
 
     def add(self, row: str, pose: Pose | None) -> None:
         if pose is not None:
@@ -186,12 +188,34 @@ class _Table:
         return f"{n} frames, {self.located} located ({100.0 * self.located / max(n, 1):.0f} %){med}{amb}"
 
 
+def _say_other_dictionaries(frame, located: FramePose, locator: FrameLocator, table: _Table) -> None:
+    """Once a run, for the first frame where nothing of the map's dictionaries is seen: a warning naming the
+    dictionaries whose markers the frame shows instead (a detector sees only its own dictionary's markers)."""
+    if table.searched_other_dictionaries or located.reason != NO_MARKER or located.seen_ids or table.located:
+        return
+    table.searched_other_dictionaries = True
+    mine = locator.marker_map.dictionaries
+    found = dictionaries_in(frame.image, exclude=mine)
+    if not found:
+        return
+    best = max(found, key=lambda name: len(found[name]))
+    seen = "; ".join(f"{name}: ids {', '.join(map(str, ids))}" for name, ids in found.items())
+    print(
+        f"warning: {frame.name} shows no marker of the map's dictionary {', '.join(mine)} but markers of another "
+        f"dictionary ({seen}): a detector finds only its own dictionary's markers; if those are the markers you "
+        f'placed, write "dictionary": "{best}" in the map (or give --dictionary {best} for a map that does not '
+        "name one)",
+        file=sys.stderr,
+    )
+
+
 def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _Table, sink, bag_sink, live) -> None:
     """Every frame: its pose, its record (written first: a row on the screen is always in the file), its row."""
     with staging, bag_sink if bag_sink is not None else contextlib.nullcontext():
         try:
             for frame in frames_in:
                 located = locator.locate(frame)
+                _say_other_dictionaries(frame, located, locator, table)
                 row, record = _row_and_record(frame.name, table.width, located)
                 if sink is not None:
                     sink.write(record)
