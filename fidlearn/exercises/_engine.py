@@ -12,6 +12,7 @@ import numpy as np
 
 from ..detection import Detection
 from ..errors import ExerciseError
+from ._dtypes import whole_number_note
 from ._strict import strict_mode
 
 CORRECT = "Correct"
@@ -395,6 +396,9 @@ class Question(_Asked):
         except _AnswerError as exc:
             return Result(self.name, INCORRECT, str(exc))
         diff = self._compare(value, self._expected)
+        note = whole_number_note(answer, self._expected) if diff is not None else None
+        if note is not None:
+            return Result(self.name, INCORRECT, f"{note}; {self.name}.hint() gives a nudge")
         if diff is None:
             msg = "well done"
             for detect, note in self._notes:

@@ -29,13 +29,7 @@ def _array(shape: tuple, what: str, shape_hints: dict | None = None) -> Callable
                 f"your answer ({what}) should be numbers in an array of shape {_shape_text(shape)}, got a "
                 f"{type(answer).__name__}"
             )
-        try:
-            a = np.array(answer, dtype=float)
-        except (TypeError, ValueError):
-            raise _AnswerError(
-                f"your answer ({what}) should be numbers in an array of shape {_shape_text(shape)}, got "
-                f"{type(answer).__name__}"
-            ) from None
+        a = _floats(answer, what, f"numbers in an array of shape {_shape_text(shape)}")
         if not _shape_ok(a.shape, shape):
             sq = a.squeeze()
             if _shape_ok(sq.shape, tuple(s for s in shape if s != 1)) and a.size == sq.size:
@@ -57,6 +51,48 @@ def _array(shape: tuple, what: str, shape_hints: dict | None = None) -> Callable
     return parse
 
 
+def _floats(answer: Any, what: str, expected: str) -> np.ndarray:
+    """The answer as a float array, or :class:`_AnswerError` naming what stops it being one.
+
+    A complex answer passes only when its imaginary part is 0 (numpy would drop it without a word); ``None``,
+    a ragged list, a set, a generator or a whole number beyond a float's range each get their own sentence.
+    """
+    try:
+        raw = np.asarray(answer)
+    except ValueError:  # numpy 2 refuses a ragged list
+        raw = None
+    if raw is None or (raw.dtype == object and raw.ndim > 0 and _ragged(raw)):
+        raise _AnswerError(
+            f"your answer ({what}) should be {expected}; its rows have different lengths (a ragged list), "
+            "so it is no array: check that every row has as many numbers"
+        )
+    if raw.dtype == object and any(v is None for v in raw.ravel()):
+        raise _AnswerError(f"your answer ({what}) contains None where a number belongs: fill in every value")
+    if np.iscomplexobj(raw):
+        if np.any(raw.imag != 0):
+            raise _AnswerError(
+                f"your answer ({what}) is complex (an imaginary part of up to {np.abs(raw.imag).max():.3g}): the "
+                "square root or the arc cosine of a negative number, or an eigenvector, gave it; a length or an "
+                "angle is a real number: find where the value went below 0"
+            )
+        raw = raw.real
+    try:
+        return np.asarray(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise _AnswerError(f"your answer ({what}) should be {expected}, got {type(answer).__name__}") from None
+    except OverflowError:
+        raise _AnswerError(f"your answer ({what}) holds a whole number too large for a float") from None
+
+
+def _ragged(raw: np.ndarray) -> bool:
+    """Whether an object array holds sequences of different lengths (what ``np.asarray`` makes of a ragged list)."""
+    try:
+        shapes = {np.shape(v) if isinstance(v, (list, tuple, np.ndarray)) else () for v in raw.ravel()}
+    except ValueError:  # a part that is ragged itself
+        return True
+    return len(shapes) > 1
+
+
 def _shape_ok(got: tuple, want: tuple) -> bool:
     return len(got) == len(want) and all(w == -1 or g == w for g, w in zip(got, want))
 
@@ -69,15 +105,12 @@ def _scalar(what: str) -> Callable[[Any], float]:
     def parse(answer: Any) -> float:
         if isinstance(answer, (str, bytes)):
             raise _AnswerError(f"your answer ({what}) should be a number, got the text {answer!r}")
-        a = (
-            np.asarray(answer, dtype=float)
-            # numpy's stub takes array-likes only; np.size counts a dict too (one object)
-            if not isinstance(answer, (dict, list, tuple)) or np.size(answer) == 1  # type: ignore[arg-type]
-            else None
-        )
-        if a is None or a.size != 1:
+        if isinstance(answer, dict):
+            raise _AnswerError(f"your answer ({what}) should be one number, got a dict")
+        a = _floats(answer, what, "one number")
+        if a.size != 1:
             raise _AnswerError(
-                f"your answer ({what}) should be one number, got {type(answer).__name__} of {np.size(answer)} values"
+                f"your answer ({what}) should be one number, got {type(answer).__name__} of {a.size} values"
             )
         v = float(a.reshape(-1)[0])
         if math.isnan(v):

@@ -158,7 +158,7 @@ def _parse_camera(answer) -> tuple:
     """q2's parser: a fidlearn Camera, read as (K, dist (5,), image_size (w, h))."""
     if isinstance(answer, Camera):
         return answer.K, np.resize(np.asarray(answer.dist, dtype=float).ravel(), 5), tuple(answer.image_size)
-    shape = np.shape(answer) if isinstance(answer, (np.ndarray, list, tuple)) else None
+    shape = answer.shape if isinstance(answer, np.ndarray) else None  # a list may be ragged: no shape
     hints: dict[tuple[int, ...] | None, str] = {(3, 3): "that is K alone", (5,): "that is the distortion vector alone"}
     what = hints.get((5,) if shape == (1, 5) else shape, f"got {type(answer).__name__}")
     raise _AnswerError(

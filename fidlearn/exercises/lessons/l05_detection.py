@@ -91,13 +91,23 @@ def _scene(lesson_id: str, learner: str, question: str, n_markers: int, rotated:
 def _parse_ids(answer):
     if isinstance(answer, (str, bytes)) or not hasattr(answer, "__iter__"):
         raise _AnswerError("give a list of marker ids (integers)")
+    items = [getattr(v, "id", v) for v in answer]  # Detection objects are fine too
+    try:
+        a = np.asarray(items)
+    except ValueError:  # a ragged list
+        a = np.asarray(items, dtype=object)
+    if a.dtype != object and a.ndim > 1 and a.size not in a.shape:
+        raise _AnswerError(f"give one list of marker ids; your answer has shape {a.shape}")
     out = []
-    for v in answer:
-        v = getattr(v, "id", v)  # Detection objects are fine too
+    for v in a.ravel() if a.dtype != object else items:
+        v = v.item() if isinstance(v, np.generic) else v  # shown as the learner wrote it
         try:
-            out.append(int(np.asarray(v).reshape(-1)[0]))
-        except (TypeError, ValueError, IndexError):
+            f = complex(np.asarray(v).reshape(-1)[0])
+        except (TypeError, ValueError, IndexError, OverflowError):
             raise _AnswerError(f"{v!r} is not a marker id") from None
+        if f.imag != 0 or not math.isfinite(f.real) or f.real != round(f.real):
+            raise _AnswerError(f"{v!r} is not a marker id: ids are whole numbers (0, 1, 2, ...)")
+        out.append(int(f.real))
     return sorted(out)
 
 
