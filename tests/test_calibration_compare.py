@@ -298,3 +298,57 @@ def test_two_copies_of_a_fisheye_lens_differ_beyond_noise_and_two_halves_of_one_
     pair = compare_calibrations(_fisheye_set(sets["left"]), _fisheye_set(sets["right"]), tolerance_px=2.0)
     assert pair.verdict == "differ beyond noise", pair  # 2.9 times
     assert 0.5 < pair.rms_difference_px < 3.0
+
+
+def test_a_face_on_set_keeps_the_large_uncertainty_of_its_distortion_coefficients():
+    """Every view face-on: the focal length and k2, k3 are barely observed. OpenCV's deviations say so
+    (k3 about 1e6); the uncertainty with what the views share beyond noise said k3 was known to about 2,
+    its weak directions cut off by the pseudo-inverse (k3's column is 1e5 times fx's)."""
+    from fidlearn.calibration.run import _calibrate_points
+
+    rng = np.random.default_rng(4)
+    obj = np.array([[25.0 * i, 25.0 * j, 0] for j in range(6) for i in range(9)])
+    views = {}
+    for k in range(12):
+        T = frames.make_transform(
+            frames.rot_z(rng.uniform(-0.3, 0.3)),
+            [rng.uniform(-160, -40), rng.uniform(-120, -10), rng.uniform(450, 650)],
+        )
+        rvec, tvec = frames.rvec_tvec_from_transform(T)
+        px = cv2.projectPoints(obj, rvec, tvec, TRUE.K, TRUE.dist)[0].reshape(-1, 2)
+        views[f"view {k}"] = px + 0.05 * rng.standard_normal(px.shape)
+    rms, K, dist, rotations, tvecs, std_from, per_view = _calibrate_points(
+        [obj] * len(views), list(views.values()), TRUE.image_size, 0, None
+    )
+    cal = Calibration(
+        camera=Camera(K, dist, TRUE.image_size),
+        rms_px=rms,
+        per_view_rms_px=dict(zip(views, per_view)),
+        used=list(views),
+        std_intrinsics=None,
+        rejected=[],
+        T_camera_board={n: frames.make_transform(R, np.ravel(t)) for n, R, t in zip(views, rotations, tvecs)},
+        image_points_px=views,
+        board_points_mm={n: obj for n in views},
+        _std_from=std_from,
+    )
+    assert cal.std_intrinsics["fx"] > 50  # the focal length is not observed
+    u = intrinsics_uncertainty(cal)
+    for name, std in cal.std_intrinsics.items():
+        assert u.white_std[name] == pytest.approx(std, rel=1e-3), name
+        assert u.std[name] >= 0.999 * std, name
+
+
+def test_cli_says_which_camera_file_brings_its_uncertainty(halves, capsys, tmp_path):
+    """The command said "no uncertainty" of every camera file, also of one written by fidlearn calibrate, whose
+    covariance the comparison uses."""
+    from fidlearn.calibration import camera_with_uncertainty  # noqa: PLC0415
+
+    carried = camera_with_uncertainty(halves[0]).save(tmp_path / "a.json")
+    code = main(["compare-calibrations", str(carried), str(data_path("calibration", "camera_true.json"))])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "A: Camera(" in out
+    assert "(a camera file: with its calibration's uncertainty)" in out
+    assert out.count("(a camera file: no uncertainty)") == 1
+    assert "b is a camera without uncertainty, taken as exact" in out

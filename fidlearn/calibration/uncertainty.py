@@ -157,7 +157,7 @@ def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
         raise CalibrationError(f"{len(terms)} views give too few points for {p} intrinsics: add views")
     sigma2 = sum(float(r @ r) for _, r in terms) / dof
     S_v = [Jv.T @ Jv for Jv, _ in terms]
-    S_inv = np.linalg.pinv(sum(S_v))
+    S_inv = _inverse(sum(S_v))
     s = [Jv.T @ r for Jv, r in terms]
     observed = sum(float(g @ S_inv @ g) for g in s)
     expected = sigma2 * (p - sum(float(np.trace(S_inv @ Sv @ S_inv @ Sv)) for Sv in S_v))
@@ -166,6 +166,19 @@ def intrinsics_uncertainty(cal) -> IntrinsicsUncertainty:
     inflation = max(1.0, k2)
     names = tuple(k for k, f in zip(_names(cal.camera), free) if f)
     return IntrinsicsUncertainty(names, white * inflation, white, inflation, float(k2))
+
+
+def _inverse(S: np.ndarray) -> np.ndarray:
+    """``S``'s inverse, its rows and columns scaled to a unit diagonal first (the distortion coefficients' columns
+    are thousands of times the focal length's): a weakly observed coefficient keeps its large variance, as in
+    ``Calibration.std_intrinsics``, instead of losing it to the pseudo-inverse's cut-off."""
+    d = np.sqrt(np.clip(np.diag(S), 0.0, None))
+    d[~(d > 0)] = 1.0
+    scale = np.outer(1.0 / d, 1.0 / d)
+    try:
+        return np.linalg.inv(S * scale) * scale
+    except np.linalg.LinAlgError:  # singular: the pseudo-inverse, as for the standard deviations
+        return np.linalg.pinv(S * scale) * scale
 
 
 def camera_with_uncertainty(cal):

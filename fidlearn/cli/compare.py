@@ -1,9 +1,10 @@
 """``fidlearn compare-calibrations A B``: do two calibrations of one camera agree, beyond their noise?
 
-Each of ``A`` and ``B`` is a camera file (no uncertainty: taken as exact beside a calibration; two
-camera files give "cannot tell") or a folder of board photos, calibrated here with the board
-options. The command prints the verdict of :func:`fidlearn.calibration.compare_calibrations` with its numbers, and with
-``--report`` draws the difference across the picture beside its expected size.
+Each of ``A`` and ``B`` is a camera file or a folder of board photos, calibrated here with the board
+options. A camera file brings the covariance of its intrinsics when it carries one (``fidlearn calibrate``
+writes it into a ``.json`` file); one without is taken as exact beside a calibration, and two without give
+"cannot tell". The command prints the verdict of :func:`fidlearn.calibration.compare_calibrations` with its
+numbers, and with ``--report`` draws the difference across the picture beside its expected size.
 """
 
 from __future__ import annotations
@@ -34,10 +35,11 @@ def add(sub) -> None:
             "Compare two calibrations of one camera across the picture: unproject a grid of pixels with A, "
             "turn the rays by the fitted rotation between the two cameras, project them with B. The "
             "difference is judged against both calibrations' uncertainty (corner noise plus what each set's "
-            "views share): agree, differ beyond noise, or cannot tell. A and B are camera files (which carry "
-            "no uncertainty: cannot tell) or folders of board photos, calibrated here (give the board "
-            "options, as for fidlearn calibrate). A camera file beside a folder is taken as exact (a published or a "
-            "true camera). Exit status 0 whatever the verdict."
+            "views share): agree, differ beyond noise, or cannot tell. A and B are camera files or folders of "
+            "board photos, calibrated here (give the board options, as for fidlearn calibrate). A camera file "
+            "written by fidlearn calibrate (.json) carries its calibration's uncertainty; one without (an OpenCV "
+            "YAML file, a published or a true camera) is taken as exact, and two without give cannot tell. "
+            "Exit status 0 whatever the verdict."
         ),
     )
     p.add_argument("first", type=Path, metavar="A", help="camera file or folder of board photos")
@@ -93,7 +95,8 @@ def _load(path: Path, args, which: str):
         print(f"{which}: {cal!r}")
         return cal
     camera = Camera.load(path)
-    print(f"{which}: {camera!r} (a camera file: no uncertainty)")
+    carried = "with its calibration's uncertainty" if camera.intrinsics_covariance is not None else "no uncertainty"
+    print(f"{which}: {camera!r} (a camera file: {carried})")
     return camera
 
 
