@@ -198,6 +198,18 @@ def test_majority_size_wins_even_when_first_image_differs(right_grays):
     assert "320x240 but the others are 640x480" in cal.rejected[0][1]
 
 
+def test_a_photo_turned_a_quarter_is_named_so(right_grays):
+    """A portrait photo among landscape ones was only "another resolution", though it is the camera held the
+    other way (its axes and principal point swapped)."""
+    turned = np.ascontiguousarray(np.rot90(right_grays[0]))
+    cal = calibrate_checkerboard(right_grays + [turned], PATTERN, SQUARE_MM, reject_outliers=False)
+    assert cal.camera.image_size == (640, 480)
+    ((name, reason),) = cal.rejected
+    assert name == "image 4"
+    assert reason.startswith("other size: image is 480x640, turned a quarter from the others' 640x480")
+    assert "principal point" in reason
+
+
 def test_photos_without_the_board_do_not_decide_the_resolution(right_grays):
     """Five blank 320x240 pictures among four 640x480 views of the board: the views calibrate, the blanks are
     rejected for showing no board (they were the majority size, and the four views were rejected as 'other size')."""

@@ -329,3 +329,19 @@ def test_calibrate_with_few_views_gives_one_warning_with_one_advice(tmp_path, ca
     few = [ln for ln in said if "views" in ln and "warning:" in ln]
     assert len(few) == 1
     assert few[0].strip() == "warning: only 5 views were used; take at least 10 (15 to 25 is usual)"
+
+
+def test_the_next_view_places_the_whole_board_when_the_first_view_shows_part_of_it(bundled):
+    """A ChArUco view may show a few corners only: the next photo was planned for that patch of the board
+    (its centre, its outline), when the first view showed part of it, and the whole board fell off the picture."""
+    whole = coach_calibration(bundled)
+    first = bundled.used[0]
+    part = np.arange(len(BOARD)).reshape(6, 9)[:2, :3].ravel()  # six corners at one end of the board
+    points = {**bundled.board_points_mm, first: bundled.board_points_mm[first][part]}
+    pixels = {**bundled.image_points_px, first: bundled.image_points_px[first][part]}
+    verdict = coach(
+        bundled.camera, points, pixels, bundled.T_camera_board, corner_sigma_px=bundled.rms_px / math.sqrt(2)
+    )
+    view = verdict.next_view
+    assert coach_module._board_in_picture(bundled.camera, BOARD, view.T_camera_board)
+    assert (view.where, view.tilt) == (whole.next_view.where, whole.next_view.tilt)

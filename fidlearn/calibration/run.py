@@ -235,6 +235,8 @@ def _choose_layout(views: list[_View], finder) -> None:
 
 
 def _reject_other_sizes(views: list[_View], size) -> None:
+    """Leave out the views of another size than ``size``, saying why (a picture turned a quarter, or another
+    resolution)."""
     for v in views:
         if v.size is not None and v.size != size:
             v.status = "other size"
@@ -242,6 +244,12 @@ def _reject_other_sizes(views: list[_View], size) -> None:
                 f"image is {v.size[0]}x{v.size[1]} but the others are {size[0]}x{size[1]}; "
                 "calibrate at the resolution you run at, with every photo at that one resolution"
             )
+            if v.size == size[::-1]:
+                v.reason = (
+                    f"image is {v.size[0]}x{v.size[1]}, turned a quarter from the others' {size[0]}x{size[1]} "
+                    "(the camera held the other way, or the picture turned by a program); a turned picture has "
+                    "its axes and principal point swapped: leave it out, or take every photo the same way up"
+                )
             v.obj = v.img = None
 
 

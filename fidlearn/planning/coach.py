@@ -368,7 +368,9 @@ def coach(
     coverage = _coverage(camera, image_points_px)
     tilts = {n: _tilt_deg(T_camera_board[n]) for n in names}
     flags = _flags(camera, board_points_mm, image_points_px, T_camera_board, tilts, other_sizes)
-    best = _next_view(camera, np.asarray(board_points_mm[names[0]], dtype=float), info, corner_sigma_px, distance)
+    # the board as the view that shows most of it (a ChArUco view may show only part of the board)
+    board = np.asarray(board_points_mm[max(names, key=lambda n: len(board_points_mm[n]))], dtype=float)
+    best = _next_view(camera, board, info, corner_sigma_px, distance)
     return CalibrationCoach(u, good, cov, coverage, tilts, flags, best)
 
 
