@@ -69,6 +69,54 @@ def as_path(path, error: type[FidlearnError], what: str) -> Path:
     return Path(text)
 
 
+#: Phone photos OpenCV cannot decode (HEIF); named so when they are given.
+UNREADABLE_PHOTO_SUFFIXES = (".heic", ".heif")
+#: How to get pictures OpenCV reads from a phone that stores HEIF.
+HEIC_HINT = (
+    "OpenCV cannot read HEIC photos: export them as JPEG (on an iPhone: Settings > Camera > Formats > Most Compatible)"
+)
+
+
+def folder_images(folder: Path) -> list[Path]:
+    """The picture files of a folder, sorted: those named with an image suffix, hidden names left out.
+
+    A hidden name is no photo of the user's: macOS keeps ``._scene.png`` beside a file copied to a USB stick,
+    and fidlearn stages its own outputs under hidden names while it writes them.
+
+    Parameters
+    ----------
+    folder : Path
+        A folder.
+
+    Returns
+    -------
+    list of Path
+        The pictures (maybe none).
+    """
+    return sorted(
+        p for p in folder.iterdir() if not p.name.startswith(".") and p.suffix.lower() in IMAGE_SUFFIXES and p.is_file()
+    )
+
+
+def no_images_reason(folder: Path) -> str:
+    """Why a folder gives no picture: its HEIC photos named, else the suffixes read.
+
+    Parameters
+    ----------
+    folder : Path
+        A folder without pictures (:func:`folder_images` empty).
+
+    Returns
+    -------
+    str
+        The message, starting with the folder's name.
+    """
+    heic = [p for p in folder.iterdir() if p.suffix.lower() in UNREADABLE_PHOTO_SUFFIXES and not p.name.startswith(".")]
+    if heic:
+        return f"{folder}: {len(heic)} HEIC photo{'s' if len(heic) != 1 else ''} and no other pictures; {HEIC_HINT}"
+    return f"{folder}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder"
+
+
 def repeated_paths(items: Iterable[object]) -> list[tuple[int, int]]:
     """The entries that name a file named by an earlier entry, as ``(first, again)`` index pairs.
 

@@ -84,8 +84,7 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         ) from None
     except json.JSONDecodeError as exc:
         raise error(
-            f"{path}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}; "
-            "fix the syntax (a missing comma or bracket is the usual cause)"
+            f"{path}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}; {_json_hint(text, exc.pos)}"
         ) from None
     except ValueError as exc:  # NaN / Infinity literal
         raise error(f"{path}: contains {exc.args[0]}, which is not a number; write a finite measurement") from None
@@ -93,6 +92,28 @@ def read_json(path: str | os.PathLike, error: type[FidlearnError], what: str) ->
         raise error(
             f"{path}: brackets nested too deeply to be a {what}; check the file (is it the right one?)"
         ) from None
+
+
+def _json_hint(text: str, pos: int) -> str:
+    """How to mend the JSON syntax error at ``pos`` of ``text``: what people write that JSON does not take.
+
+    >>> _json_hint('{"a": 1,}', 8)
+    'a comma after the last item: JSON allows none there, remove it'
+    >>> print(_json_hint("{'a': 1}", 1))
+    JSON takes double quotes: write "a" for 'a'
+    >>> _json_hint('{"a": 1, // feet', 9)
+    'JSON has no comments: remove the comment'
+    """
+    here = text[pos:]
+    before = text[:pos].rstrip()
+    if here.startswith(("//", "/*", "#")):
+        return "JSON has no comments: remove the comment"
+    if here[:1] in "}]" and before.endswith(","):
+        return "a comma after the last item: JSON allows none there, remove it"
+    if here.startswith("'"):
+        quoted = here[1:].split("'", 1)[0][:20]
+        return f"JSON takes double quotes: write \"{quoted}\" for '{quoted}'"
+    return "fix the syntax (a missing comma or bracket is the usual cause)"
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:

@@ -199,9 +199,9 @@ def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool, *, once: boo
     for path in paths:
         path = Path(path)
         if path.is_dir():
-            found = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+            found = _files.folder_images(path)
             if not found:
-                raise UsageError(f"{path}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+                raise UsageError(_files.no_images_reason(path))
             items += [("image", p) for p in found]
         elif not path.exists():
             raise UsageError(f"{path}: no such file or folder; check the path")
@@ -212,6 +212,8 @@ def expand_inputs(paths: Sequence[str | os.PathLike], videos: bool, *, once: boo
             items.append(("video", path))
         elif path.suffix.lower() in IMAGE_SUFFIXES:
             items.append(("image", path))
+        elif path.suffix.lower() in _files.UNREADABLE_PHOTO_SUFFIXES:
+            raise UsageError(f"{path}: {_files.HEIC_HINT}")
         else:
             kinds = IMAGE_SUFFIXES + (VIDEO_SUFFIXES if videos else ())
             raise UsageError(

@@ -1041,8 +1041,8 @@ def calib_setup(tmp_path: Path) -> None:
 
 BLANK = np.full((480, 640), 255, np.uint8)
 CALIBRATE = [
-    ("empty folder", "{tmp}/empty", (9, 6), 25, "no image files (.png, .jpg, ...) in this folder"),
-    ("folder without pictures", "{tmp}/notes", (9, 6), 25, "no image files"),
+    ("empty folder", "{tmp}/empty", (9, 6), 25, "no images (.png, .jpg, .jpeg"),
+    ("folder without pictures", "{tmp}/notes", (9, 6), 25, "no images ("),
     ("a folder inside the list", ["{tmp}/notes"], (9, 6), 25, "is a folder, not a file"),
     ("glob that matches nothing", "{tmp}/*.jpeg", (9, 6), 25, "no file matches this pattern"),
     ("no images at all", [], (9, 6), 25, "calibration needs at least 3 views of the board"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 
 import cv2
 import numpy as np
@@ -346,7 +347,7 @@ def test_a_folder_stands_for_its_images(right_files, tmp_path):
     cal = calibrate_checkerboard(right_files[0].parent, PATTERN, SQUARE_MM)
     assert [v.name for v in cal.views] == sorted(str(f) for f in right_files)
     (tmp_path / "notes.txt").write_text("no pictures here")
-    with pytest.raises(CalibrationError, match=r"no image files \(.png, .jpg, ...\) in this folder"):
+    with pytest.raises(CalibrationError, match=r"no images \(.png, .jpg, .jpeg, .*\) in this folder"):
         calibrate_checkerboard(tmp_path, PATTERN, SQUARE_MM)
 
 
@@ -609,6 +610,15 @@ def test_square_size_in_metres_warns(right_grays):
         cal = calibrate_checkerboard(right_grays[:4], PATTERN, 0.025)
     T = next(iter(cal.T_camera_board.values()))
     assert T[2, 3] < 1.0  # the board "0.3 mm" from the camera: what the warning is about
+
+
+def test_square_size_in_centimetres_warns(right_grays):
+    """2.5 for a 25 mm square: every distance 10 times too small, silently; 5 mm and up pass without a word."""
+    with pytest.warns(FidlearnWarning, match=r"square_size_mm=2.5 means 2.5 mm.*give millimetres \(25;"):
+        calibrate_checkerboard(right_grays[:4], PATTERN, 2.5)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*means .* mm")
+        calibrate_checkerboard(right_grays[:4], PATTERN, 5.0)
 
 
 def test_the_quality_warnings_are_the_libraries_and_the_command_line_prints_them(tmp_path, capsys):

@@ -14,10 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from .._files import repeated_paths
+from .._files import folder_images, no_images_reason, repeated_paths
 from ..boards import Board
 from ..errors import CalibrationError, FidlearnWarning
-from ..images import IMAGE_SUFFIXES
 from ._models import check_model
 from .boards import _Charuco, _Checkerboard
 from .result import Calibration
@@ -31,9 +30,9 @@ def _entries(images: Any) -> list[tuple[str, Any]]:
     if isinstance(images, (str, os.PathLike)):
         folder = Path(images)
         if folder.is_dir():
-            files: list[Path] | list[str] = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            files: list[Path] | list[str] = folder_images(folder)
             if not files:
-                raise CalibrationError(f"{folder}: no image files (.png, .jpg, ...) in this folder")
+                raise CalibrationError(no_images_reason(folder))
             images = files
         elif any(ch in str(images) for ch in "*?[") and not folder.exists():
             files = sorted(glob.glob(str(images)))
@@ -95,8 +94,21 @@ def _check_positive(value: Any, what: str, fix: str) -> float:
     return v
 
 
+#: A printed square under this many mm, given as millimetres, is more likely a size in centimetres.
+CENTIMETRE_LIKE_MM = 5.0
+
+
 def _warn_if_metres(value_mm: float, what: str) -> None:
-    """A printed square or marker under 1 mm is almost surely a size in metres (OpenCV's tutorials use metres)."""
+    """A printed square or marker under 1 mm is almost surely a size in metres (OpenCV's tutorials use metres),
+    one under ``CENTIMETRE_LIKE_MM`` one in centimetres (2.5 for a 25 mm square)."""
+    if 1.0 <= value_mm < CENTIMETRE_LIKE_MM:
+        warnings.warn(
+            f"{what}={value_mm:g} means {value_mm:g} mm, smaller than a printed board's squares usually are; if that "
+            f"is centimetres, give millimetres ({value_mm * 10:g}; command line: --square-mm): K is right either "
+            "way, but every distance (the board poses, and the poses computed from them) comes out 10 times too small",
+            FidlearnWarning,
+            stacklevel=3,
+        )
     if value_mm < 1.0:
         warnings.warn(
             f"{what}={value_mm:g} means {value_mm:g} mm, smaller than any printed square; if that is metres, "
