@@ -151,6 +151,11 @@ CLOBBER = [
         "is one of the inputs (a file of the folder photos)",
     ),
     (
+        "compare-calibrations --tolerance-px 0, refused before any calibration",
+        ["compare-calibrations", "photos", "photos", "--pattern", "9x6", "--square-mm", "25", "--tolerance-px", "0"],
+        "--tolerance-px must be a positive number of pixels, got 0",
+    ),
+    (
         "locate --annotate named as its --json file",
         ["locate", "frames", *LOC, "--json", "out/poses.jsonl", "--annotate", "out/poses.jsonl"],
         "is the name --json gives its file",

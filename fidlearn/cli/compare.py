@@ -118,6 +118,8 @@ def run(args) -> int:
     FidlearnError
         A user error; :func:`fidlearn.cli.main` prints it as one ``error:`` line and exits with status 2.
     """
+    if not 0 < args.tolerance_px < float("inf"):  # before calibrating anything
+        raise UsageError(f"--tolerance-px must be a positive number of pixels, got {args.tolerance_px:g}")
     plot = _check_output(args.report, (".png",), "--report") if args.report else None
     if plot is not None:
         _refuse_clobber([("--report", plot)], [args.first, args.second])
