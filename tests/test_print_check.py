@@ -1,5 +1,6 @@
 """The print's scale from one photo: rendered markers printed at 98 % and 100 %, with known answers."""
 
+import importlib
 import json
 import re
 
@@ -110,3 +111,40 @@ def test_fidlearn_check_print(tmp_path, capsys):
     assert err[0].startswith("error: the photo shows 2 markers of the map")
     assert main([*argv[:2], "--map", str(tmp_path / "map.json")]) == 2
     assert "--camera" in capsys.readouterr().err
+
+
+def five_taped(moved_mm: float = 300.0, ids: str = "01245") -> MarkerMap:
+    """Markers ``ids`` of the wall as taped, marker 2 ``moved_mm`` along Y from where it is."""
+    moved = json.loads(json.dumps(MARKERS))
+    moved["2"]["translation"][1] += moved_mm
+    return MarkerMap.from_dict({"units": "mm", "marker_size_mm": 80, "markers": {k: moved[k] for k in ids}})
+
+
+def test_one_marker_of_five_taped_elsewhere_cannot_drag_the_scale():
+    """A least-squares similarity over the five would put the print at 134 % +/- 13 %, marker 2 counted."""
+    image = render_scene(wall(0.98), CAM, next(views(1, seed=5)), seed=1, noise_std_gray=2, blur_px=0.6).image
+    r = check_print(image, five_taped(), CAM)
+    assert r.left_out == (2,)
+    assert r.marker_ids == (0, 1, 4, 5)
+    assert abs(r.scale - 0.98) <= 0.002
+    with pytest.raises(SurveyError, match=r"only 3 of the 4 markers .*\['2'\] is not .*needs 4 that agree"):
+        check_print(image, five_taped(ids="0124"), CAM)
+
+
+def test_a_marker_detected_twice_is_not_counted(monkeypatch):
+    """A reflection of marker 3, detected before the marker itself, would put the print at 80 % +/- 11 %."""
+    module = importlib.import_module("fidlearn.survey._print_check")
+    detect = module.detect_markers
+
+    def with_reflection(image, dictionary):
+        found = detect(image, dictionary)
+        three = next(d for d in found if d.id == 3)
+        return [type(three)(3, three.corners_px * 0.7 + 100, three.dictionary), *found]
+
+    monkeypatch.setattr(module, "detect_markers", with_reflection)
+    image = render_scene(wall(0.98), CAM, next(views(1, seed=5)), seed=1, noise_std_gray=2, blur_px=0.6).image
+    r = check_print(image, wall(), CAM)
+    assert r.repeated == (3,)
+    assert 3 not in r.marker_ids
+    assert r.left_out == ()
+    assert abs(r.scale - 0.98) <= 0.002

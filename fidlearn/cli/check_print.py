@@ -63,4 +63,9 @@ def run(args) -> int:
             f"  left out: {[str(k) for k in result.left_out]}, not where the map puts them beside the others "
             "(moved after they were measured, or a wrong id?)"
         )
+    if result.repeated:
+        print(
+            f"  left out: {[str(k) for k in result.repeated]}, each detected twice "
+            "(a reflection, or one id printed twice)"
+        )
     return 0
