@@ -162,3 +162,15 @@ def test_fixed_reads_a_marker_of_another_dictionary_as_the_map_file_writes_it():
     assert not isinstance(_fixed_key("1", room), MarkerKey)
     assert _fixed_key("4X4_50:1", room) == MarkerKey(1, "4X4_50")
     assert _fixed_key(" DICT_4X4_50:1", room) == MarkerKey(1, "4X4_50")
+
+
+def test_the_first_line_counts_the_markers_the_photos_surveyed_not_those_in_no_photo(capsys, tmp_path):
+    """Three photos show markers 0-8: 9 surveyed, 9-11 in no photo keep the tape's (it said "12 markers surveyed").
+    Photo 1 alone shows markers 4-6, and no solver warning of a singular matrix reaches stderr."""
+    code, out, err = run(
+        capsys, "survey", *photos(3), "--camera", CAMERA, "--map", TAPE, "-o", tmp_path / "surveyed.json"
+    )
+    assert code == 0, err
+    assert f"{tmp_path / 'surveyed.json'}: 9 markers surveyed from 3 photos, 3 in no photo kept the tape's (" in out
+    assert "singular" not in err
+    assert err == ""

@@ -262,3 +262,58 @@ def test_the_rotation_residual_is_exact_for_tiny_rotations():
     w = np.array([1e-7, -2e-7, 3e-7])
     np.testing.assert_allclose(log_so3(exp_so3(w)), w, rtol=1e-6, atol=0)
     np.testing.assert_allclose(log_so3(frames.rot_z(0.3)), [0, 0, 0.3], atol=1e-12)
+
+
+def test_markers_no_chain_of_photos_links_to_the_fixed_one_are_refused_by_the_photos_alone(room):
+    """Photos of markers 4-6 and photos of markers 7-9, none of both: with map_sigma_mm=inf and marker 4 fixed,
+    nothing places 7-9 (they would keep their tape placement with a standard deviation of 0 mm or of kilometres)."""
+    truth, poses = room
+    frames = photos(truth, poses, 0.1, seed=1)
+    apart = [[d for d in f if d.id in group] for group in ((4, 5, 6), (7, 8, 9)) for f in frames]
+    apart = [f for f in apart if len(f) >= 2]
+    with pytest.raises(SurveyError, match=r"only the fixed markers \(4\) hold the map, and no chain of photos links "):
+        fidlearn.survey(apart, truth, CAM, map_sigma_mm=math.inf, fixed_ids=[4])
+    s = fidlearn.survey(apart, truth, CAM, map_sigma_mm=math.inf, fixed_ids=[4, 8])
+    assert corner_error_mm(s.marker_map, truth, [5, 6, 7, 9]) < 5.0
+
+
+def test_a_photo_whose_markers_no_other_photo_shows_leaves_the_photos_alone_adjusted(room):
+    """Photo 2 alone shows markers 4-6: the gross test's adjustment of the photos alone (where nothing holds that
+    photo's camera) is still made, and no solver warning ("Matrix is exactly singular") reaches the user."""
+    from fidlearn.survey._gross import gross_test
+    from fidlearn.survey._inputs import _read_photos
+
+    truth, poses = room
+    frames = photos(truth, poses, 0.1, seed=1)
+    frames = [f if n == 2 else [d for d in f if d.id not in (4, 5, 6)] for n, f in enumerate(frames)]
+    assert sorted(d.id for d in frames[2]) == [4, 5, 6]
+    tape = tape_measured(truth, sigma_mm=20.0, sigma_deg=2.0, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gross = gross_test(_read_photos(frames, tape, CAM, None), tape, None)
+        s = fidlearn.survey(frames, tape, CAM)
+    tape_error = {
+        i: np.linalg.norm(np.subtract(tape.placements[i].translation_mm, truth.placements[i].translation_mm))
+        for i in gross.residual_mm
+    }
+    assert max(abs(gross.residual_mm[i] - tape_error[i]) for i in tape_error) < 15.0
+    assert s.photos_per_marker[4] == 1
+
+
+def test_a_marker_in_no_photo_of_a_survey_by_the_photos_alone_is_not_called_exact(room, tmp_path):
+    """With map_sigma_mm=inf the tape's placement of a marker no photo shows is not known at all: its standard
+    deviation is inf (it was 0 mm, a fixed marker's), and the note writes null (the file loads back)."""
+    truth, poses = room
+    frames = photos(truth, poses[:8], 0.1, seed=1, drop=(9, 10))
+    s = fidlearn.survey(frames, truth, CAM, map_sigma_mm=math.inf, fixed_ids=[0])
+    assert s.unseen_ids == (9, 10)
+    assert np.all(np.isinf(s.marker_position_std_mm[9]))
+    assert np.all(s.marker_position_std_mm[0] == 0)
+    assert s.position_ellipsoid_contains(9, [0.0, 0.0, 0.0])
+    assert "   inf       -      0  in no photo: the tape's" in s.table()
+    change = next(c for c in s.tag_changes() if c.id == 9)
+    assert math.isinf(change.distance_std_mm)
+    assert math.isinf(change.angle_std_deg)
+    path = s.save(tmp_path / "surveyed.json")
+    assert json.loads(path.read_text())["surveyed"]["position_std_mm"]["10"] == [None, None, None]
+    assert corner_error_mm(MarkerMap.load(path), s.marker_map) < 1e-6

@@ -151,12 +151,11 @@ def run(args) -> int:
 
 
 def _report(s: Survey, args) -> None:
+    unseen = f", {len(s.unseen_ids)} in no photo kept the tape's" if s.unseen_ids else ""
+    tape = "" if s.map_sigma_learnt else f", tape sigma {s.map_sigma_mm:g} mm"
     print(
-        f"{args.output}: {len(s.marker_map)} markers surveyed from {len(s.camera_poses)} photos "
-        f"(corner noise {s.corner_sigma_px:.2f} px, tape sigma {s.map_sigma_mm:g} mm)"
-        if not s.map_sigma_learnt
-        else f"{args.output}: {len(s.marker_map)} markers surveyed from {len(s.camera_poses)} photos "
-        f"(corner noise {s.corner_sigma_px:.2f} px)"
+        f"{args.output}: {len(s.marker_map) - len(s.unseen_ids)} markers surveyed from {len(s.camera_poses)} photos"
+        f"{unseen} (corner noise {s.corner_sigma_px:.2f} px{tape})"
     )
     print(s.table())
     for line in s.learnt():

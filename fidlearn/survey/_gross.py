@@ -125,7 +125,12 @@ def _tape_start(photos: list[_Photo], tape: MarkerMap, _ref: int, sizes: dict) -
 
 
 def _adjusted(cams: list[_Photo], placed: dict, ref: int, sizes: dict, tape: MarkerMap) -> tuple[float, dict]:
-    """``(reprojection RMS (px), top-left corners)``: the photos alone adjusted, ``ref`` held."""
+    """``(reprojection RMS (px), top-left corners)``: the photos alone adjusted, ``ref`` held.
+
+    A photo that shows none of the markers ``placed`` (those it shows are in no other photo) holds nothing and
+    is held by nothing: it is left out, or its camera would make every step singular.
+    """
+    cams = [ph for ph in cams if any(i in placed for i in ph.corners)]
     slots = [i for i in placed if i != ref] + [ref]
     opts = {"marker_size_mm": tape.marker_size_mm, "sizes": sizes, "sigma_px": FIRST_SIGMA_PX, "sigma_mm": math.inf}
     problem = build_problem(cams, slots, len(slots) - 1, placed, {}, {**opts, "sigma_rot_rad": math.inf})

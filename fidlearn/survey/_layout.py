@@ -82,7 +82,7 @@ def tag_changes(s: Any) -> list[TagChange]:
         # the centre is the top-left corner plus R v: a small rotation w (world axes) moves it by w x (R v)
         lever = after[:3, 3] - np.asarray(s.marker_map.placements[i].translation_mm, dtype=np.float64)
         J = np.hstack([-_skew(lever), np.eye(3)])
-        centre_cov = J @ cov @ J.T
+        centre_cov = J @ cov @ J.T if np.all(np.isfinite(cov)) else np.diag([np.inf] * 3)  # unknown: inf, not NaN
         tested = s.tests.get(i)
         out.append(
             TagChange(

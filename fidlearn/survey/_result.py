@@ -58,7 +58,7 @@ class Survey:
         the entry's test (its placement point's distance and sigmas).
     marker_position_std_mm : dict of int to ndarray, shape (3,)
         Standard deviation of each marker's top-left corner along world X, Y, Z, mm (0 for a fixed
-        marker; the tape's for a marker no photo showed).
+        marker; the tape's for a marker no photo showed: inf with ``map_sigma_mm=inf``).
     marker_covariance : dict of int to ndarray, shape (6, 6)
         ``[rotation (rad, 3), top-left corner (mm, 3)]``: the rotation a small rotation vector in
         world axes applied on the left of the placement's; from the Jacobian at the solution.
@@ -229,8 +229,9 @@ class Survey:
                 {"id": key_json(s.id), "distance_mm": round(s.distance_mm, 2), "sigmas": round(s.sigmas, 2)}
                 for s in self.suspects
             ],
-            "position_std_mm": {
-                str(i): [round(float(v), 3) for v in s] for i, s in self.marker_position_std_mm.items()
+            "position_std_mm": {  # None: a marker in no photo, with map_sigma_mm=inf (not known at all)
+                str(i): [round(float(v), 3) if math.isfinite(v) else None for v in s]
+                for i, s in self.marker_position_std_mm.items()
             },
         }
 

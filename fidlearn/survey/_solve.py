@@ -12,6 +12,8 @@ above the ``SUSPECT_P`` quantile the marker is named.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .. import _stats
@@ -140,13 +142,15 @@ def _polish(problem: Problem, x: np.ndarray, steps: int = 8) -> np.ndarray:
     and creep along the weakly held directions (the whole map moving within the tape's sigma);
     a few Newton steps on the normal equations finish the job to the last digit.
     """
-    from scipy.sparse.linalg import spsolve
+    from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
     r = problem.residuals(x)
     cost = float(r @ r)
     for _ in range(steps):
         J = problem.jacobian(x)
-        dx = spsolve((J.T @ J).tocsc(), -(J.T @ r))
+        with warnings.catch_warnings():  # singular (a placement nothing holds): the step is NaN, and not taken
+            warnings.simplefilter("ignore", MatrixRankWarning)
+            dx = spsolve((J.T @ J).tocsc(), -(J.T @ r))
         if not np.all(np.isfinite(dx)):
             break
         for _ in range(4):

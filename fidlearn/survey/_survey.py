@@ -157,8 +157,8 @@ def survey(
         if tape.owner.get(i) not in placed:  # a gross entry's marker in one photo is placed with its entry
             warnings.warn(reason, FidlearnWarning, stacklevel=2)
     free, slots = _slots(cams, placed, tape.owner, fixed)
-    if math.isinf(sigma_mm) and len(slots) == len(free):
-        raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
+    if math.isinf(sigma_mm):
+        _refuse_untied(cams, slots, len(free), tape.owner, fixed)
     opts = {**_options(tape, sizes, placed, scale, sigma_mm, corner_sigma_px), "groups": groups}
     taped = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
     taped.update({name: entry_frame(e) for name, e in tape.entries.items()})
@@ -196,6 +196,37 @@ def _slots(cams: list, placed: dict, owners: dict, fixed) -> tuple[list, list]:
     held = {slot_of(i, owners) for i in fixed}
     free = sorted(seen - held, key=slot_order)
     return free, free + sorted(seen & held, key=slot_order)
+
+
+def _refuse_untied(cams: list, slots: list, n_free: int, owners: dict, fixed) -> None:
+    """SurveyError for placements no chain of photos links to a fixed marker (``map_sigma_mm=inf``).
+
+    With the tape left out only the fixed markers hold the map in the world: markers whose photos share no
+    marker, in a chain, with a fixed marker's photos could sit anywhere, and their placements would be the
+    starting values with made-up standard deviations.
+    """
+    if len(slots) == n_free:
+        raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
+    index = {slot: k for k, slot in enumerate(slots)}
+    group = list(range(len(slots)))
+
+    def root(k: int) -> int:
+        while group[k] != k:
+            k = group[k]
+        return k
+
+    for ph in cams:
+        ks = [index[slot_of(i, owners)] for i in ph.corners if slot_of(i, owners) in index]
+        for k in ks[1:]:
+            group[root(k)] = root(ks[0])
+    held = {root(k) for k in range(n_free, len(slots))}
+    loose = [str(slots[k]) for k in range(n_free) if root(k) not in held]
+    if loose:
+        raise SurveyError(
+            f"with map_sigma_mm=inf only the fixed markers ({', '.join(map(str, fixed))}) hold the map, and no chain "
+            f"of photos links {', '.join(loose)} to them (each photo linking markers it shows together): take photos "
+            "that show those with markers the fixed ones reach, fix one of them too, or give map_sigma_mm"
+        )
 
 
 def _entry_starts(tape: MarkerMap, groups: dict, cams: list, placed: dict, bad: set) -> dict:
@@ -414,7 +445,8 @@ def _members(slots: list, groups: dict) -> dict:
 
 
 def _covariances(problem, C: np.ndarray, R_mark, slots: list, unseen: tuple, groups: dict) -> tuple[dict, dict]:
-    """Each marker's 6x6 covariance and position standard deviations: surveyed, fixed (0), unseen (the tape's).
+    """Each marker's 6x6 covariance and position standard deviations: surveyed, fixed (0), unseen (the tape's, inf
+    with ``map_sigma_mm=inf``).
 
     An entry's markers have their entry's covariance carried to each one's placement (:func:`member_covariance`).
     """
@@ -426,8 +458,8 @@ def _covariances(problem, C: np.ndarray, R_mark, slots: list, unseen: tuple, gro
         else:
             cov[i] = block
     s_mm, s_rot = problem.sigma_mm, problem.sigma_rot_rad
-    for i in unseen:
-        cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3) if math.isfinite(s_mm) else np.zeros((6, 6))
+    for i in unseen:  # with map_sigma_mm=inf the tape's placement is not known at all: inf, not 0 (a fixed marker's)
+        cov[i] = np.diag([s_rot**2] * 3 + [s_mm**2] * 3)
     std = {i: np.sqrt(np.maximum(np.diag(c)[3:], 0.0)) for i, c in cov.items()}
     return cov, std
 
