@@ -117,7 +117,7 @@ def _gray_photos(tmp_path, n=2):
         ("no marker", r"only 0 of 2 photos give a camera pose.*shows no marker of the map"),
         ("units", r"look wrong; the distances fit units 'cm'"),
         ("sigma", "--map-sigma-mm 0: give a positive number of mm"),
-        ("fixed", "fixed_ids has marker 99, which is not in the map"),
+        ("fixed", "--fixed 99: no such marker in the map"),
         ("suffix", r"-o .*s\.txt: name the file \.json"),
         ("clobber", "is one of the inputs"),
     ],

@@ -682,10 +682,10 @@ SURVEY_ARGS = ["--camera", str(SURVEY / "camera.json"), "--map", str(SURVEY / "t
         (["--map-sigma-mm=-inf"], "--map-sigma-mm -inf: give a positive number of mm"),
         (["--map-sigma-mm", "2e5"], "--map-sigma-mm 200000: give a positive number of mm from 0.01 to 100000"),
         (["--map-sigma-mm", "1e400"], "with map_sigma_mm=inf nothing ties the photos to the world"),
-        (["--fixed", str(10**40)], f"fixed_ids has marker {10**40}, which is not in the map"),
+        (["--fixed", str(10**40)], f"--fixed {10**40}: no such marker in the map"),
         (["--fixed", "seven"], "--fixed 'seven': give a marker id such as 3, or a marker of another dictionary"),
         (["--fixed", "NO_SUCH_DICT:3"], "--fixed 'NO_SUCH_DICT:3': give a marker id such as 3"),
-        (["--fixed", "4X4_50:3"], "fixed_ids has marker 4X4_50:3, which is not in the map"),
+        (["--fixed", "4X4_50:3"], "--fixed 4X4_50:3: no such marker in the map"),
     ],
 )
 def test_survey_options_out_of_range(ws, capsys, extra, match):

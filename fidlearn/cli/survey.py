@@ -103,12 +103,15 @@ def _fixed_key(text: str, tape) -> int:
     """The map's key of ``--fixed`` ``text``: an id of the map's dictionary, or ``DICTIONARY:ID``."""
     dictionary, _, number = text.strip().rpartition(":")
     try:
-        return tape.key(int(number), dictionary or None)
+        key = tape.key(int(number), dictionary or None)
     except (ValueError, FidlearnError):
         raise UsageError(
             f"--fixed {text!r}: give a marker id such as 3, or a marker of another dictionary as the map file writes "
             "it, such as 4X4_50:3"
         ) from None
+    if key not in tape:
+        raise UsageError(f"--fixed {text}: no such marker in the map {tape.source} (its markers: {tape.ids})")
+    return key
 
 
 def run(args) -> int:
