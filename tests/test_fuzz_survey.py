@@ -147,10 +147,19 @@ def test_a_progress_function_that_raises_stops_the_survey_as_a_survey_error(erro
     assert isinstance(info.value.__cause__, error)  # the user's own exception, kept as the cause
 
 
-def test_progress_is_called_for_every_photo():
+def test_progress_is_called_for_every_photo_then_each_stage():
     calls = []
     run_survey(progress=lambda i, n, label: calls.append((i, n, label)))
-    assert calls == [(k + 1, 5, f"photo {k}") for k in range(5)]
+    assert calls == [(k + 1, 5, f"photo {k}") for k in range(5)] + [(5, 5, "checking the tape"), (5, 5, "adjusting")]
+
+
+def test_a_progress_function_that_raises_at_a_stage_names_the_stage():
+    def progress(_i, _n, label):
+        if label == "adjusting":
+            raise RuntimeError("stop")
+
+    with pytest.raises(SurveyError, match=r"progress function raised RuntimeError \(stop\) at 'adjusting'"):
+        run_survey(progress=progress)
 
 
 def test_too_many_photos_are_refused_up_front_with_the_limit():

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import frames
+from ..errors import SurveyError
 from ..markermap import MARKER_CORNERS_LOCAL, MarkerMap
 from ..markermap_entries import BoardEntry, BundleEntry
 from ._geometry import fit_motion, skew
@@ -132,3 +133,42 @@ def surveyed_entry(entry, R: np.ndarray, p: np.ndarray, scale: float):
     roll, pitch, yaw = (float(v) for v in frames.rpy_deg_from_rotation(R))
     x, y, z = (float(v) for v in p)
     return dataclasses.replace(scaled_entry(entry, scale), translation_mm=(x, y, z), rotation_deg=(roll, pitch, yaw))
+
+
+def adjustment_slots(cams: list, placed: dict, owners: dict, fixed) -> tuple[list, list]:
+    """``(free, slots)``: the adjustment's slots the photos show (a marker, or an entry by name), the fixed last."""
+    seen = {slot_of(i, owners) for ph in cams for i in ph.corners if slot_of(i, owners) in placed}
+    held = {slot_of(i, owners) for i in fixed}
+    free = sorted(seen - held, key=slot_order)
+    return free, free + sorted(seen & held, key=slot_order)
+
+
+def refuse_untied(cams: list, slots: list, n_free: int, owners: dict, fixed) -> None:
+    """SurveyError for placements no chain of photos links to a fixed marker (``map_sigma_mm=inf``).
+
+    With the tape left out only the fixed markers hold the map in the world: markers whose photos share no
+    marker, in a chain, with a fixed marker's photos could sit anywhere, and their placements would be the
+    starting values with made-up standard deviations.
+    """
+    if len(slots) == n_free:
+        raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
+    index = {slot: k for k, slot in enumerate(slots)}
+    group = list(range(len(slots)))
+
+    def root(k: int) -> int:
+        while group[k] != k:
+            k = group[k]
+        return k
+
+    for ph in cams:
+        ks = [index[slot_of(i, owners)] for i in ph.corners if slot_of(i, owners) in index]
+        for k in ks[1:]:
+            group[root(k)] = root(ks[0])
+    held = {root(k) for k in range(n_free, len(slots))}
+    loose = [str(slots[k]) for k in range(n_free) if root(k) not in held]
+    if loose:
+        raise SurveyError(
+            f"with map_sigma_mm=inf only the fixed markers ({', '.join(map(str, fixed))}) hold the map, and no chain "
+            f"of photos links {', '.join(loose)} to them (each photo linking markers it shows together): take photos "
+            "that show those with markers the fixed ones reach, fix one of them too, or give map_sigma_mm"
+        )

@@ -176,9 +176,18 @@ def _report(progress: Callable, i: int, n: int, label: str) -> None:
         progress(i, n, label)
     except Exception as exc:
         raise SurveyError(
-            f"the progress function raised {type(exc).__name__} ({exc}) after photo {i} of {n}; the survey "
+            f"the progress function raised {type(exc).__name__} ({exc}) {_at(i, n, label)}; the survey "
             "stopped: mend the function (it is called as progress(i, n, label))"
         ) from exc
+
+
+def _at(i: int, n: int, label: str) -> str:
+    """Where the survey was when ``progress(i, n, label)`` was called: after a photo, or at a stage."""
+    return f"at {label!r}" if label in STAGES else f"after photo {i} of {n}"
+
+
+#: The adjustment's stages, each reported as ``progress(n, n, stage)`` once the ``n`` photos are read.
+STAGES = ("checking the tape", "adjusting", "adjusting with more photos")
 
 
 def _one_photo(i: int, item, marker_map: MarkerMap, camera: Camera) -> _Photo:

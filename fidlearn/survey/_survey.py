@@ -12,9 +12,11 @@ from .. import frames
 from ..errors import FidlearnWarning, SurveyError
 from ..markermap import MarkerMap
 from ._entries import (
+    adjustment_slots,
     entry_frame,
     entry_groups,
     member_covariance,
+    refuse_untied,
     scaled_entry,
     slot_of,
     slot_order,
@@ -24,7 +26,7 @@ from ._entries import (
 from ._geometry import marker_sizes, placement_of
 from ._gross import GrossTest, gross_test
 from ._init import _locate, check_units, initial_values, remeasured_sides
-from ._inputs import MAX_MAP_SIGMA_MM, MIN_MAP_SIGMA_MM, MIN_PHOTOS, _check_options, _read_photos
+from ._inputs import MAX_MAP_SIGMA_MM, MIN_MAP_SIGMA_MM, MIN_PHOTOS, STAGES, _check_options, _read_photos, _report
 from ._result import Survey, Suspect, check_readable
 from ._solve import (
     FIRST_SIGMA_PX,
@@ -106,8 +108,10 @@ def survey(
     corner_sigma_px : float, optional
         Corner noise, px per coordinate; estimated from the residuals when None.
     progress : callable, optional
-        ``progress(i, n, label)`` after each photo is read. Whatever it raises stops the survey
-        as a :class:`~fidlearn.errors.SurveyError` naming it, with the original as ``__cause__``.
+        ``progress(i, n, label)`` after each photo is read, then ``progress(n, n, stage)`` as each stage of the
+        adjustment starts (``"checking the tape"``, ``"adjusting"``, ``"adjusting with more photos"``). Whatever
+        it raises stops the survey as a :class:`~fidlearn.errors.SurveyError` naming it, with the original as
+        ``__cause__``.
 
     Returns
     -------
@@ -139,6 +143,12 @@ def survey(
     tape, camera, sigma_mm, fixed = _check_options(marker_map, camera, map_sigma_mm, fixed_ids, corner_sigma_px)
     photos = _read_photos(images, tape, camera, progress)
     _one_size(photos)
+
+    def stage(k: int) -> None:  # the adjustment's stages (STAGES), on the photos' finished bar
+        if progress is not None:
+            _report(progress, len(photos), len(photos), STAGES[k])
+
+    stage(0)
     gross = gross_test(photos, tape, sigma_mm)
     bad = {slot_of(i, tape.owner) for i in gross.gross}  # a gross marker's entry is gross as a whole
     if bad & {slot_of(i, tape.owner) for i in fixed}:
@@ -156,19 +166,21 @@ def survey(
     for i, reason in unplaced.items():
         if tape.owner.get(i) not in placed:  # a gross entry's marker in one photo is placed with its entry
             warnings.warn(reason, FidlearnWarning, stacklevel=2)
-    free, slots = _slots(cams, placed, tape.owner, fixed)
+    free, slots = adjustment_slots(cams, placed, tape.owner, fixed)
     if math.isinf(sigma_mm):
-        _refuse_untied(cams, slots, len(free), tape.owner, fixed)
+        refuse_untied(cams, slots, len(free), tape.owner, fixed)
     opts = {**_options(tape, sizes, placed, scale, sigma_mm, corner_sigma_px), "groups": groups}
     taped = {i: (p.R_world_marker, np.asarray(p.translation_mm, float)) for i, p in tape.placements.items()}
     taped.update({name: entry_frame(e) for name, e in tape.entries.items()})
     priors = {} if math.isinf(sigma_mm) else {i: taped[i] for i in free if i in taped}
+    stage(1)
     fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, bad, learn)
     learnt = {"learnt": learn, "scale": scale, "size": tape.marker_size_mm, "sides": sizes, "groups": groups}
     if _located_again(photos, tape, fitted, slots, learnt):  # then adjusted again, with them, from the first
         _, _, R_mark, p_mark = fitted[0].poses(fitted[1])
         placed.update({i: (R_mark[k], p_mark[k]) for k, i in enumerate(slots)})
         cams = _usable(photos)
+        stage(2)
         fitted = _adjust(cams, slots, len(free), placed, priors, opts, corner_sigma_px is None, bad, learn)
     return _result(tape, photos, cams, slots, fitted, unplaced, fixed, gross, learnt)
 
@@ -188,45 +200,6 @@ def _located_again(photos: list, tape: MarkerMap, fitted: tuple, slots: list, le
     for ph in lost:
         _locate(ph, current)
     return any(ph.T_world_camera is not None for ph in lost)
-
-
-def _slots(cams: list, placed: dict, owners: dict, fixed) -> tuple[list, list]:
-    """``(free, slots)``: the adjustment's slots the photos show (a marker, or an entry by name), the fixed last."""
-    seen = {slot_of(i, owners) for ph in cams for i in ph.corners if slot_of(i, owners) in placed}
-    held = {slot_of(i, owners) for i in fixed}
-    free = sorted(seen - held, key=slot_order)
-    return free, free + sorted(seen & held, key=slot_order)
-
-
-def _refuse_untied(cams: list, slots: list, n_free: int, owners: dict, fixed) -> None:
-    """SurveyError for placements no chain of photos links to a fixed marker (``map_sigma_mm=inf``).
-
-    With the tape left out only the fixed markers hold the map in the world: markers whose photos share no
-    marker, in a chain, with a fixed marker's photos could sit anywhere, and their placements would be the
-    starting values with made-up standard deviations.
-    """
-    if len(slots) == n_free:
-        raise SurveyError(f"no photo shows a fixed marker ({list(fixed)}): take one that does, or give map_sigma_mm")
-    index = {slot: k for k, slot in enumerate(slots)}
-    group = list(range(len(slots)))
-
-    def root(k: int) -> int:
-        while group[k] != k:
-            k = group[k]
-        return k
-
-    for ph in cams:
-        ks = [index[slot_of(i, owners)] for i in ph.corners if slot_of(i, owners) in index]
-        for k in ks[1:]:
-            group[root(k)] = root(ks[0])
-    held = {root(k) for k in range(n_free, len(slots))}
-    loose = [str(slots[k]) for k in range(n_free) if root(k) not in held]
-    if loose:
-        raise SurveyError(
-            f"with map_sigma_mm=inf only the fixed markers ({', '.join(map(str, fixed))}) hold the map, and no chain "
-            f"of photos links {', '.join(loose)} to them (each photo linking markers it shows together): take photos "
-            "that show those with markers the fixed ones reach, fix one of them too, or give map_sigma_mm"
-        )
 
 
 def _entry_starts(tape: MarkerMap, groups: dict, cams: list, placed: dict, bad: set) -> dict:
