@@ -68,6 +68,10 @@ F_FE = (W / 2) / math.radians(80)
 FISHEYE = Camera([[F_FE, 0, W / 2 - 0.5], [0, F_FE, H / 2 - 0.5], [0, 0, 1]], [0.0] * 4, (W, H), model="fisheye")
 PINHOLE = Camera.from_fov(100, (W, H))
 FISHEYE_AS_PINHOLE = Camera(FISHEYE.K, None, (W, H))
+# the same camera for estimate_pose on undistorted corners: a 160-degree lens's ideal pixels reach far beyond its
+# picture (which estimate_pose takes for corners of another picture size), so its picture is made large enough
+# to hold them; K is the same, and nothing else of the pose depends on the picture's size
+FISHEYE_AS_PINHOLE_POSE = Camera(FISHEYE.K, None, (64 * W, 64 * H))
 WALL = MarkerMap.from_dict(
     {
         str(k): {"translation": [0, y, z], "rotation": [0, 0, 0]}
@@ -201,7 +205,7 @@ def speed(images: list[np.ndarray], reps: int) -> dict[tuple[str, str], float]:
         found = {WALL.key(d.id, d.dictionary) for d in dets}
         first = fidlearn.estimate_pose(_straightened(im, dets, FISHEYE, WALL.dictionary, None), WALL, FISHEYE)
         fe_missed = missed_in_view(WALL, FISHEYE, first.T_world_camera, found, None)
-        pose = fidlearn.estimate_pose(und, WALL, FISHEYE_AS_PINHOLE)
+        pose = fidlearn.estimate_pose(und, WALL, FISHEYE_AS_PINHOLE_POSE)
         ph_missed = {k for k, _, _ in missed_in_view(WALL, FISHEYE_AS_PINHOLE, pose.T_world_camera, found, None)}
         shared = [m for m in fe_missed if m[0] in ph_missed]
         more = [
@@ -216,11 +220,11 @@ def speed(images: list[np.ndarray], reps: int) -> dict[tuple[str, str], float]:
             fidlearn.locate(im, WALL, FISHEYE)
             t1 = _clocks()
             _detect_map_markers(im, WALL, None, None, True)  # locate's detection
-            pose = fidlearn.estimate_pose(und, WALL, FISHEYE_AS_PINHOLE)
+            pose = fidlearn.estimate_pose(und, WALL, FISHEYE_AS_PINHOLE_POSE)
             t2 = _clocks()
             missed_in_view(WALL, FISHEYE_AS_PINHOLE, pose.T_world_camera, found, None)
             if shared and read_again(im, shared, None, None) and more:
-                fidlearn.estimate_pose(und + more, WALL, FISHEYE_AS_PINHOLE)
+                fidlearn.estimate_pose(und + more, WALL, FISHEYE_AS_PINHOLE_POSE)
             t3 = _clocks()
             for k, clock in enumerate(("cpu", "wall")):
                 ratios[clock, "narrow"].append((t1[k] - t0[k]) / (t2[k] - t1[k]))
