@@ -11,17 +11,19 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from .. import frames
+from ..detection import dictionaries_in
 from ..drawing import draw_pose
-from ..errors import UsageError
+from ..errors import FidlearnWarning, UsageError
 from ..filtering import TrackedPose
 from ..images import read_frames
 from ..ros import read_mount_json, read_odometry_csv, ros_pose, tum_line
-from ..sequences import check_picture_sizes, track
+from ..sequences import NO_MARKER, FramePose, check_picture_sizes, track
 from ._bag import BagRun, BagSink
 from ._common import _check_output, _exit_status, _refuse_clobber, _signal_name, _StreamFile
 from ._live import LiveRun
@@ -39,7 +41,9 @@ the chi-square gate (0.999) is rejected and said so, frames without a marker are
                         t_s,x_m,y_m,z_m,qx,qy,qz,qw
                         0.000,0.0,0.0,0.0,0.0,0.0,0.0,1.0
                       only the motion between frames is used; its uncertainty is --odometry-drift
-                      (default 0.02: 2 % of the distance and of the angle of each step).
+                      (default 0.02: 2 % of the distance and of the angle of each step). Without
+                      --mount the odometry is taken as the camera's own pose (its optical frame:
+                      x right, y down, z forward); a robot's odometry (x forward) needs --mount.
 --mount MOUNT.json    where the camera sits on the robot (REP-103 base: x forward, y left, z up):
                         {"units": "mm", "camera_in_base": {"translation": [200, 0, 300],
                          "rpy_deg": [0, 0, 0]}, "camera_axes": "link"}
@@ -54,6 +58,38 @@ the chi-square gate (0.999) is rejected and said so, frames without a marker are
                       stamps, seconds since 1970, and other frames from t = 0 s), bag (a ROS 2
                       bag: -o OUT.mcap, or a new folder; see ROS 2 bags below; chosen by the name
                       .mcap)."""
+
+
+def say_other_dictionaries(frame, located: FramePose, marker_map) -> None:
+    """Warn that ``frame`` shows no marker of the map's dictionaries but markers of others, naming them.
+
+    A detector finds only its own dictionary's markers: a map written for the wrong dictionary finds
+    nothing in any frame, and this says which dictionary the pictures show instead.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (its ``name`` and ``image``).
+    located : FramePose
+        What the frame gave: nothing is said unless it saw no marker at all (:data:`NO_MARKER`, no id).
+    marker_map : MarkerMap
+        The world map (its dictionaries).
+    """
+    if located.reason != NO_MARKER or located.seen_ids:
+        return
+    mine = marker_map.dictionaries
+    found = dictionaries_in(frame.image, exclude=mine)
+    if not found:
+        return
+    best = max(found, key=lambda name: len(found[name]))
+    seen = "; ".join(f"{name}: ids {', '.join(map(str, ids))}" for name, ids in found.items())
+    print(
+        f"warning: {frame.name} shows no marker of the map's dictionary {', '.join(mine)} but markers of another "
+        f"dictionary ({seen}): a detector finds only its own dictionary's markers; if those are the markers you "
+        f'placed, write "dictionary": "{best}" in the map (or give --dictionary {best} for a map that does not '
+        "name one)",
+        file=sys.stderr,
+    )
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -246,8 +282,12 @@ def _loop(run: _Run, steps, width: int, live: LiveRun | None, marker_map=None) -
     if run.sink is not None and run.fmt == "tum":
         run.sink.write("# timestamp tx ty tz qx qy qz qw")
     drawn = isinstance(run.sink, BagSink) and run.args.annotated_images
+    searched = False  # the other dictionaries are searched once, in the first frame that shows none of the map's
     for step in steps:
         name = step.located.frame.name
+        if not searched and run.last is None and step.located.reason == NO_MARKER and not step.located.seen_ids:
+            searched = True
+            say_other_dictionaries(step.located.frame, step.located, marker_map)
         if live is not None:
             live.frame(run.frames, step.located, step.tracked)
         if drawn:  # the frame as the camera saw it: its detections and its own located pose
@@ -262,6 +302,30 @@ def _timed_frames(args, items, bag_run: BagRun | None):
     if bag_run is not None:
         return bag_run.frames(increasing=True), bag_run.times()
     return read_frames(items, None, int(args.max_megapixels * 1_000_000)), None
+
+
+def _odometry(args, bag_run: BagRun | None):
+    """The odometry of --odometry or --odometry-topic; None without."""
+    odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
+    if args.odometry_topic is not None and bag_run is not None:
+        odometry = bag_run.odometry(args.odometry_topic, args.odometry_drift)
+    return odometry
+
+
+def _say_odometry(args, last: TrackedPose | None) -> None:
+    """The closing lines of a run with odometry: the scale learnt, and a warning when no --mount said where the
+    camera sits on the base whose motion the odometry gives."""
+    if last is not None:
+        scale, std = last.odometry_scale, last.odometry_scale_std
+        print(f"odometry scale learnt from the poses: {scale:.4f} +/- {std:.4f} (what its distances are multiplied by)")
+    if args.mount is None:
+        warnings.warn(
+            "odometry without --mount: it was taken as the camera's own motion in its optical frame (x right, y down, "
+            "z forward); for a robot's odometry (x forward, y left, z up) give --mount MOUNT.json, where the camera "
+            "sits on the robot (see 'fidlearn locate --help')",
+            FidlearnWarning,
+            stacklevel=2,
+        )
 
 
 def _sink(args, out_path: Path | None, bag_run, marker_map, mount) -> _LineFile | BagSink | None:
@@ -296,9 +360,7 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
     if bag_run is None:
         check_picture_sizes(items, camera, args.max_megapixels * 1e6)
     mount = read_mount_json(args.mount) if args.mount else None
-    odometry = read_odometry_csv(args.odometry, args.odometry_drift) if args.odometry else None
-    if args.odometry_topic is not None and bag_run is not None:
-        odometry = bag_run.odometry(args.odometry_topic, args.odometry_drift)
+    odometry = _odometry(args, bag_run)
     frames_in, times = _timed_frames(args, items, bag_run)
     steps = track(
         frames_in, marker_map, camera, fps=args.fps, refine=args.refine, T_camera_base=mount, odometry=odometry,
@@ -324,9 +386,8 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
         return _exit_status(exc)
     said = ", ".join(f"{v} {k}" for k, v in run.counts.items() if v)
     print(f"{run.frames} frames tracked: {said or 'no pose'}")
-    if odometry is not None and run.last is not None:
-        scale, std = run.last.odometry_scale, run.last.odometry_scale_std
-        print(f"odometry scale learnt from the poses: {scale:.4f} +/- {std:.4f} (what its distances are multiplied by)")
+    if odometry is not None:
+        _say_odometry(args, run.last)
     if out_path is not None:
         print(f"{run.fmt} track written to {out_path}")
     if live is not None:
@@ -334,4 +395,11 @@ def run_tracked(args, items, marker_map, camera, out_path: Path | None, bag_run:
     return 0
 
 
-__all__ = ["add_track_options", "check_track_args", "run_tracked", "TRACK_HELP", "HelpFormatter"]
+__all__ = [
+    "add_track_options",
+    "check_track_args",
+    "run_tracked",
+    "say_other_dictionaries",
+    "TRACK_HELP",
+    "HelpFormatter",
+]

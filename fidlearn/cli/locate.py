@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..detection import dictionaries_in
 from ..drawing import draw_pose
 from ..errors import UsageError
 from ..images import expand_inputs, read_frames
@@ -38,7 +37,14 @@ from ._common import (
     _StreamFile,
 )
 from ._live import LiveRun, add_live_option
-from ._track import TRACK_HELP, HelpFormatter, add_track_options, check_track_args, run_tracked
+from ._track import (
+    TRACK_HELP,
+    HelpFormatter,
+    add_track_options,
+    check_track_args,
+    run_tracked,
+    say_other_dictionaries,
+)
 
 
 def add(sub) -> None:
@@ -194,19 +200,7 @@ def _say_other_dictionaries(frame, located: FramePose, locator: FrameLocator, ta
     if table.searched_other_dictionaries or located.reason != NO_MARKER or located.seen_ids or table.located:
         return
     table.searched_other_dictionaries = True
-    mine = locator.marker_map.dictionaries
-    found = dictionaries_in(frame.image, exclude=mine)
-    if not found:
-        return
-    best = max(found, key=lambda name: len(found[name]))
-    seen = "; ".join(f"{name}: ids {', '.join(map(str, ids))}" for name, ids in found.items())
-    print(
-        f"warning: {frame.name} shows no marker of the map's dictionary {', '.join(mine)} but markers of another "
-        f"dictionary ({seen}): a detector finds only its own dictionary's markers; if those are the markers you "
-        f'placed, write "dictionary": "{best}" in the map (or give --dictionary {best} for a map that does not '
-        "name one)",
-        file=sys.stderr,
-    )
+    say_other_dictionaries(frame, located, locator.marker_map)
 
 
 def _process(args, frames_in, locator: FrameLocator, staging: _Staging, table: _Table, sink, bag_sink, live) -> None:

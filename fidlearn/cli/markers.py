@@ -39,7 +39,12 @@ def add_markers(sub) -> None:
     )
     p.add_argument("--units", choices=UNITS, help="units of a map that does not declare them")
     p.add_argument(
-        "--size-mm", type=float, metavar="MM", help="side of the black square, mm (with --map: if the map does not say)"
+        "--size-mm",
+        "--marker-size-mm",
+        dest="size_mm",
+        type=float,
+        metavar="MM",
+        help="side of the black square, mm (with --map: if the map does not say)",
     )
     p.add_argument("--dictionary", help="ArUco dictionary (default ARUCO_ORIGINAL, or the map's)")
     p.add_argument("--paper", choices=["a4", "letter"], default="a4", help="paper size (default a4)")

@@ -18,7 +18,7 @@ from ..planning import MAX_NOISE_PX
 from ..planning.noise import noise_from_photo
 from ..planning.room import AREA_MET, default_area, plan_room
 from ..planning.suggest import suggest_markers
-from ._common import _check_output, _commit, _floats, _refuse_clobber
+from ._common import _add_image_size_option, _check_output, _commit, _floats, _load_camera, _refuse_clobber
 
 HELP = "predicted position error over a room seen from above, and where to add markers"
 DESCRIPTION = "Predicted position error over a room, before printing, and what to add to reach a target."
@@ -49,8 +49,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "map", type=Path, metavar="MAP.json", help="world map JSON (full layout, or give --units and --marker-size-mm)"
     )
     p.add_argument("--camera", type=Path, required=True, help="camera file (fidlearn JSON or OpenCV YAML)")
+    _add_image_size_option(p)
     p.add_argument("--units", choices=["mm", "cm", "m", "in", "ft"], help="units of a map that does not declare them")
     p.add_argument("--marker-size-mm", type=float, metavar="MM", help="black square side, if the map does not say")
+    p.add_argument(
+        "--dictionary", help="ArUco dictionary, if the map does not say (a WPILib field layout: apriltag_36h11)"
+    )
     p.add_argument(
         "--height-mm", type=float, default=300.0, metavar="MM", help="camera height above the floor (default 300)"
     )
@@ -162,8 +166,8 @@ def run(args) -> int:
         as one ``error:`` line and exits with status 2.
     """
     _check(args)
-    world = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm)
-    camera = Camera.load(args.camera)
+    world = MarkerMap.load(args.map, units=args.units, marker_size_mm=args.marker_size_mm, dictionary=args.dictionary)
+    camera = _load_camera(args)
     area = _floats(args.area, 4, "--area", "x0,y0,x1,y1 in mm") if args.area else default_area(world)
     look = _floats(args.look_at, 3, "--look-at", "x,y,z in mm") if args.look_at else None
     side = min(area[2] - area[0], area[3] - area[1])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import warnings
 from pathlib import Path
 
@@ -107,7 +108,27 @@ def _pose_from_args(args):
     roll = 0.0 if args.roll_deg is None else args.roll_deg
     if not abs(roll) <= 3600:
         raise UsageError("--roll-deg is degrees, -360 to 360")
+    _check_view(args, eye, target)
     return frames.look_at(eye, target, roll_deg=roll)
+
+
+def _check_view(args, eye: list[float], target: list[float]) -> None:
+    """UsageError for --from and --look-at at one point, or one straight above the other: --look-at keeps the
+    world's +Z up in the picture, which has no meaning for a camera looking straight down or up."""
+    d = [t - e for t, e in zip(target, eye)]
+    length = math.hypot(*d)
+    if length == 0:
+        raise UsageError(
+            f"--from {args.eye} and --look-at {args.look_at} are the same point; the camera must look away"
+        )
+    if math.hypot(d[0], d[1]) <= 1e-9 * length:
+        down = d[2] < 0
+        x, y, z = (f"{v:.10g}" for v in eye)
+        raise UsageError(
+            f"--from {args.eye} --look-at {args.look_at}: the camera looks straight {'down' if down else 'up'}, "
+            "where --look-at cannot keep the world's +Z up in the picture; give --pose "
+            f"{x},{y},{z},{180 if down else 0},0,YAW instead (YAW in degrees turns the picture)"
+        )
 
 
 def _check_args(args) -> tuple[Path, Path | None]:
