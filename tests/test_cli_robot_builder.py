@@ -56,6 +56,23 @@ def test_plan_takes_the_image_size_and_the_dictionary_its_errors_ask_for(capsys,
 
 
 @pytest.mark.parametrize(
+    ("option", "said"),
+    [
+        (["--headings", "-3"], "--headings must be a whole number from 0 to 360, got -3"),
+        (["--height-mm", "nan"], "--height-mm must be a finite number of mm"),
+        (["--step-mm", "1"], "use a larger --step-mm or a smaller area"),
+    ],
+)
+def test_plan_errors_name_the_options_not_the_librarys_arguments(capsys, tmp_path, option, said):
+    argv = ["plan", data_path("world_map.json"), "--camera", data_path("scenes", "camera.json")]
+    code, _, err = run_cli(capsys, *argv, "-o", tmp_path / "plan.png", *option)
+    assert_user_error(code, err, said)
+    assert "height_mm" not in err
+    assert "step_mm" not in err
+    assert not (tmp_path / "plan.png").exists()
+
+
+@pytest.mark.parametrize(
     ("look_at", "pose"), [("1000,150,0", "1000,150,250,180,0,YAW"), ("1000,150,900", "1000,150,250,0,0,YAW")]
 )
 def test_render_looking_straight_down_or_up_names_the_pose_to_give(capsys, tmp_path, look_at, pose):

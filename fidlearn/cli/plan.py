@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -112,6 +113,10 @@ def _check(args) -> None:
     _check_noise_options(args)
 
 
+#: plan_room's arguments that the command line sets, by the option that sets each.
+_OPTION_OF = {"height_mm": "--height-mm", "step_mm": "--step-mm", "headings": "--headings", "look_at_mm": "--look-at"}
+
+
 def _positive(value: float | None, option: str, unit: str, most: float = math.inf) -> None:
     """A given ``option`` must be a positive finite number up to ``most`` (``None``: not given, nothing to check)."""
     if value is not None and not (math.isfinite(value) and 0 < value <= most):
@@ -182,17 +187,23 @@ def run(args) -> int:
         if sys.stderr.isatty():
             print(f"\rplanning: row {done}/{total}", end="" if done < total else "\n", file=sys.stderr)
 
-    plan = plan_room(
-        world,
-        camera,
-        height_mm=args.height_mm,
-        area=area,
-        look_at_mm=look,
-        step_mm=args.step_mm,
-        headings=args.headings,
-        progress=progress,
-        **noise,
-    )
+    try:
+        plan = plan_room(
+            world,
+            camera,
+            height_mm=args.height_mm,
+            area=area,
+            look_at_mm=look,
+            step_mm=args.step_mm,
+            headings=args.headings,
+            progress=progress,
+            **noise,
+        )
+    except FidlearnError as exc:  # the library's argument names, as the options that set them
+        said = str(exc)
+        for name, option in _OPTION_OF.items():
+            said = re.sub(rf"\b{name}\b", option, said)
+        raise type(exc)(said) from None
     from ..planning.figure import plan_figure  # matplotlib only when drawing: the command starts faster
 
     fig = plan_figure(plan, world, target_mm=args.target_mm)
