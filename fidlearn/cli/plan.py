@@ -183,27 +183,7 @@ def run(args) -> int:
         )
     noise = _noise(args, world, camera)
 
-    def progress(done: int, total: int) -> None:
-        if sys.stderr.isatty():
-            print(f"\rplanning: row {done}/{total}", end="" if done < total else "\n", file=sys.stderr)
-
-    try:
-        plan = plan_room(
-            world,
-            camera,
-            height_mm=args.height_mm,
-            area=area,
-            look_at_mm=look,
-            step_mm=args.step_mm,
-            headings=args.headings,
-            progress=progress,
-            **noise,
-        )
-    except FidlearnError as exc:  # the library's argument names, as the options that set them
-        said = str(exc)
-        for name, option in _OPTION_OF.items():
-            said = re.sub(rf"\b{name}\b", option, said)
-        raise type(exc)(said) from None
+    plan = _plan(args, world, camera, area, look, noise)
     from ..planning.figure import plan_figure  # matplotlib only when drawing: the command starts faster
 
     fig = plan_figure(plan, world, target_mm=args.target_mm)
@@ -257,6 +237,32 @@ def _noise(args, world: MarkerMap, camera: Camera) -> dict:
         f"{'smaller' if err < 0 else 'larger'} than the map says"
     )
     return measured.kwargs()
+
+
+def _plan(args, world: MarkerMap, camera: Camera, area, look, noise: dict):
+    """``plan_room`` with the command's options, a row counter on a terminal, and its errors in the options' names."""
+
+    def progress(done: int, total: int) -> None:
+        if sys.stderr.isatty():
+            print(f"\rplanning: row {done}/{total}", end="" if done < total else "\n", file=sys.stderr)
+
+    try:
+        return plan_room(
+            world,
+            camera,
+            height_mm=args.height_mm,
+            area=area,
+            look_at_mm=look,
+            step_mm=args.step_mm,
+            headings=args.headings,
+            progress=progress,
+            **noise,
+        )
+    except FidlearnError as exc:  # the library's argument names, as the options that set them
+        said = str(exc)
+        for name, option in _OPTION_OF.items():
+            said = re.sub(rf"\b{name}\b", option, said)
+        raise type(exc)(said) from None
 
 
 def _suggest(args, world: MarkerMap, camera: Camera, area, look, noise: dict) -> None:
