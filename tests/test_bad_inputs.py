@@ -897,6 +897,13 @@ ESTIMATE_POSE = [
         PoseError,
         "far outside the camera's 640x480 picture: were they detected in a picture of another size?",
     ),
+    (
+        "a corner far to the left of the picture",  # the message names that corner, not the largest coordinates
+        lambda: ([Detection(0, np.array(SQUARE_PX) - [2000.0, 0.0])], seed_map(), camera_640()),
+        {},
+        PoseError,
+        "a detected corner lies at (-",
+    ),
     ("no detections", lambda: ([], seed_map(), camera_640()), {}, NoMarkersError, "no marker was detected"),
     (
         "only ids the map lacks",

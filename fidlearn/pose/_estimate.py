@@ -11,7 +11,6 @@ import numpy as np
 from ..camera import Camera
 from ..detection import Detection
 from ..errors import NoMarkersError, PoseError
-from ..frames._rotations import _rotvec
 from ..markermap import MarkerMap
 from ._checks import _check_quads, _cheirality
 from ._chess import _with_chess
@@ -42,6 +41,7 @@ from ._stats import (
     _covariance_from,
     _estimated_sigma_inflation,
     _mahalanobis2,
+    _relative_rotvec,
     _sigma,
 )
 
@@ -242,7 +242,8 @@ def _known_corners(dets: list[Detection], marker_map: MarkerMap) -> tuple[dict[i
     corners_px: dict[int, np.ndarray] = {}
     ignored: list[int] = []
     for d in dets:
-        key = marker_map.key(d.id, d.dictionary)  # a marker is (dictionary, id)
+        # a marker is (dictionary, id); a Detection's id is a checked int, its own key in the map's dictionary
+        key = d.id if d.dictionary is None else marker_map.key(d.id, d.dictionary)
         if key not in marker_map:
             if key not in ignored:
                 ignored.append(key)
@@ -413,8 +414,7 @@ def _build(
     if c.r is None:
         c.r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, c.R_wc, c.C, False)
         c.sse = float(c.r @ c.r)
-    r = c.r.reshape(-1, 4, 2)
-    residuals = {i: r[k] for k, i in enumerate(obs.ids)}
+    residuals = dict(zip(obs.ids, c.r.reshape(-1, 4, 2)))  # each marker's (4, 2) view
     for i in data.rejected:
         if i not in data.corners_px:  # a fisheye's marker past 90 degrees: no undistorted corners to compare
             continue
@@ -423,7 +423,7 @@ def _build(
     return Pose._trusted(
         T_world_camera=c.T_world_camera,
         marker_ids=tuple(obs.ids),
-        residuals_px=dict(sorted(residuals.items())),
+        residuals_px=dict(sorted(residuals.items())) if data.rejected else residuals,  # (obs.ids are sorted)
         reprojection_rms_px=math.sqrt(_picture_sse(data, c) / len(obs.obj)),  # a fisheye: in its picture
         covariance=_covariance(data, c, alternative),
         corner_sigma_px=data.sigma,
@@ -478,6 +478,6 @@ def _covariance(data: _Data, c: _Candidate, alternative: Pose | Callable[[], Pos
         # two-pose mixture, weighted by likelihood (the noise integrated out when estimated: Student's
         # tail), so its ellipsoid reaches the other one.
         w_alt = _alternative_weight(alt.sse - c.sse, data.sigma_amb, data.nu_amb)
-        d = np.concatenate((_rotvec(alt.R_wc @ c.R_wc.T), alt.C - c.C))
+        d = np.concatenate((_relative_rotvec(alt.R_wc, c.R_wc), alt.C - c.C))
         cov = (1 - w_alt) * cov + w_alt * (alternative.covariance + np.outer(d, d))
     return cov

@@ -143,10 +143,8 @@ def _check_inputs_lens(
                 f"detections[{k}] is a {type(d).__name__}, expected a Detection(id, corners (4, 2)); "
                 "build one with fidlearn.detection.Detection(marker_id, corners_px)"
             )
-    if dets and not np.isfinite(np.stack([d.corners_px for d in dets])).all():
-        k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners_px).all())
-        raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners_px.tolist()}")
-    _refuse_corners_off_the_picture(dets, camera)
+    if dets:
+        _refuse_bad_corners(dets, np.concatenate([d.corners_px for d in dets]), camera)
     if camera.model == "fisheye":
         pinhole_dets, pinhole, beyond = _as_pinhole(dets, camera)
         return pinhole_dets, marker_map, pinhole, camera, beyond
@@ -157,18 +155,23 @@ def _check_inputs_lens(
 OFF_PICTURE_FRACTION = 0.25
 
 
-def _refuse_corners_off_the_picture(dets: list[Detection], camera: Camera) -> None:
-    """PoseError for a corner far outside the camera's picture: detections from a picture of another size (a
-    frame at full resolution with the camera of a smaller one) fit a pose with no residual, in the wrong place."""
-    if not dets:
-        return
+def _refuse_bad_corners(dets: list[Detection], c: np.ndarray, camera: Camera) -> None:
+    """PoseError for a NaN or infinite corner, or one far outside the camera's picture: detections from a picture
+    of another size (a frame at full resolution with the camera of a smaller one) fit a pose with no residual, in
+    the wrong place. ``c`` (N, 2): every detection's corners, px."""
     w, h = camera.image_size
     slack = OFF_PICTURE_FRACTION * max(w, h)
-    c = np.stack([d.corners_px for d in dets]).reshape(-1, 2)
-    if np.any(c < -slack) or np.any(c > [w + slack, h + slack]):
-        far = c.max(axis=0)
+    (x0, y0), (x1, y1) = c.min(axis=0).tolist(), c.max(axis=0).tolist()
+    if x0 >= -slack and y0 >= -slack and x1 <= w + slack and y1 <= h + slack:
+        return  # the usual case, in one pass (a NaN fails these comparisons too)
+    if not np.isfinite(c).all():
+        k, d = next((k, d) for k, d in enumerate(dets) if not np.isfinite(d.corners_px).all())
+        raise PoseError(f"detections[{k}] (marker {d.id}) has NaN or infinite corners: {d.corners_px.tolist()}")
+    out = (c < -slack) | (c > [w + slack, h + slack])
+    if out.any():
+        far = c[int(np.flatnonzero(out.any(axis=1))[0])]  # a corner that is out, on whichever side
         raise PoseError(
-            f"detected corners reach ({far[0]:.0f}, {far[1]:.0f}) px, far outside the camera's {w}x{h} picture: "
+            f"a detected corner lies at ({far[0]:.0f}, {far[1]:.0f}) px, far outside the camera's {w}x{h} picture: "
             "were they detected in a picture of another size? Use camera.for_image(image), or detect in the "
             "picture the camera was calibrated for"
         )
@@ -320,6 +323,10 @@ def _lens_refine(
     return R_wc, C, J, plain[0], plain[1]
 
 
+_NO_PAIRS = (np.zeros((0, 3)), np.zeros((0, 2)))  # (empty, read-only: shared by every call without chess corners)
+_NO_PAIRS[0].flags.writeable = _NO_PAIRS[1].flags.writeable = False
+
+
 def _chess_pairs(board_corners, marker_map: MarkerMap) -> tuple[np.ndarray, np.ndarray]:
     """The 2D-3D pairs of ChArUco board entries' chess corners: world (N, 3), mm, and pixels (N, 2).
 
@@ -329,7 +336,7 @@ def _chess_pairs(board_corners, marker_map: MarkerMap) -> tuple[np.ndarray, np.n
     that are not finite pixels.
     """
     if board_corners is None:
-        return np.zeros((0, 3)), np.zeros((0, 2))
+        return _NO_PAIRS
     if not isinstance(board_corners, Mapping):
         raise PoseError("board_corners must map a ChArUco board entry's name to (ids, corners_px), or be None")
     world = marker_map.chess_corners()

@@ -18,6 +18,7 @@ caller hands them to :func:`_pose_covariance_fast`.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
@@ -30,6 +31,18 @@ from ._stats import PRIOR_DOF, PRIOR_SIGMA_PX
 _PRIOR = (PRIOR_SIGMA_PX**2, PRIOR_SHIFT_PX**2, PRIOR_SIZE_REL**2)
 #: A marker's 8 coordinates (u0, v0, ..., u3, v3) times this: its u sum and its v sum (one product, not a reduction).
 _SUM_UV = np.kron(np.ones((4, 1)), np.eye(2))
+_SUM_UV_T = _SUM_UV.T.copy()
+#: A marker's corners (4, 2) times this: the same corners about their mean (one product, not a mean and a difference).
+_CENTRE4 = np.eye(4) - 0.25
+
+
+@functools.cache
+def _scipy_nnls():
+    """``scipy.optimize.nnls``, imported on first use (``import fidlearn`` stays quick) and kept: an import
+    statement in the function that calls it costs a Python call into importlib each time."""
+    from scipy.optimize import nnls
+
+    return nnls
 
 
 def _part_matrices(J: np.ndarray, q: np.ndarray) -> _PartSums:
@@ -83,9 +96,9 @@ def _split_parts(
     a_given = None if corner_sigma_px is None else float(corner_sigma_px) ** 2
     theta, size, sums = _measure_fast(r, J, q, a_given)
     nus = _blend_prior(theta, M, corner_sigma_px)
-    a, b, c = (float(v) for v in theta)
+    a, b, c = theta.tolist()
     nu, G = _satterthwaite_fast(J, sums, theta, nus, JtJ)
-    return _NoiseParts(a, b, c, size, nu=nu, sums=sums._replace(G=G))
+    return _NoiseParts(a, b, c, size, nu=nu, sums=_PartSums(*sums[:4], G))
 
 
 def _measure_fast(
@@ -95,44 +108,41 @@ def _measure_fast(
     the rest: projections ``P_mean``, ``P_size``, ``P_rest`` of each marker's 8 coordinates) under the three
     parts (``I = P_mean + P_size + P_rest``, the shift ``4 P_mean``, the size ``|g|^2 P_size``, as the growth
     ``g`` of a marker is centred), so every product of a statistic and a part is one of the projections: the
-    nine expectations come from four 7 x 7 sums ``X^T P X``. Also :func:`_part_matrices`, their 6 x 6 corners."""
-    from scipy.optimize import nnls  # scipy loads on first use: ``import fidlearn`` stays quick
-
+    nine expectations come from four 7 x 7 sums ``X^T P X``. The residuals ride along as an 8th column,
+    ``Z = [X r]``: those left by the fit of ``X`` are ``Z w``, ``w = [-coef, 1]``, so each statistic is the
+    quadratic form ``w^T Z^T P Z w`` of the same sums (8 x 8), with no array of residuals formed (numpy's cost
+    here is its calls, not its arithmetic). Also :func:`_part_matrices`, the sums' 6 x 6 corners."""
+    nnls = _scipy_nnls()
     M = len(q)
-    grow = (q - q.sum(axis=1, keepdims=True) * 0.25).reshape(M, 8)
-    X = np.empty((8 * M, 7))
-    X[:, :6], X[:, 6] = J, grow.reshape(-1)
-    XtX = X.T @ X
+    grow = (_CENTRE4 @ q).reshape(M, 8)
+    Z = np.concatenate((J, grow.reshape(-1, 1), r.reshape(-1, 1)), axis=1)  # X = [J, the growths], the residuals
+    Zb = Z.reshape(M, 8, 8)
+    zs = (_SUM_UV_T @ Zb).reshape(2 * M, 8)  # each marker's u rows summed, then its v rows
+    hz = (grow[:, None, :] @ Zb)[:, 0]  # Z_m^T g_m
+    g2 = hz[:, 6]  # |g_m|^2
+    S = np.empty((4, 8, 8))  # the four sums Z^T P Z: means, sizes, the rest, g g^T
+    S[0] = (zs.T @ zs) * 0.25  # sum of Z_m^T P_mean Z_m (P_mean = SHIFT8 / 4)
+    S[1] = (hz / g2[:, None]).T @ hz  # ... P_size = g g^T / |g|^2
+    S[3] = hz.T @ hz  # ... g g^T
+    ZtZ = Z.T @ Z
+    S[2] = ZtZ - S[0] - S[1]
+    XtX = ZtZ[:7, :7]  # (a view: OpenCV reads its rows where they are)
     G = _inverse(XtX)
     if G is None:
         G = np.linalg.inv(XtX)  # (as the straightforward one: a singular fit raises here as it does there)
-    coef = G @ (X.T @ r)
-    rb = (r - X @ coef).reshape(M, 8)
-    Xb = X.reshape(M, 8, 7)
-    g2 = (grow * grow).sum(axis=1)
-    xs = (_SUM_UV.T @ Xb).reshape(2 * M, 7)  # each marker's u rows summed, then its v rows
-    h = (grow[:, None, :] @ Xb)[:, 0]  # X_m^T g_m
-    S = np.empty((4, 7, 7))  # the four sums X^T P X: means, sizes, the rest, g g^T
-    S[0] = (xs.T @ xs) * 0.25  # sum of X_m^T P_mean X_m (P_mean = SHIFT8 / 4)
-    S[1] = (h / g2[:, None]).T @ h  # ... P_size = g g^T / |g|^2
-    S[3] = h.T @ h  # ... g g^T
-    S[2] = XtX - S[0] - S[1]
-    rs = (rb @ _SUM_UV).reshape(-1)
-    gr = (grow * rb).sum(axis=1)
-    rbf = rb.reshape(-1)
-    y0 = 0.25 * float(rs @ rs)
-    y1 = float(gr @ (gr / g2))
-    y = np.array([y0, y1, float(rbf @ rbf) - y0 - y1])
-    # sum(G * P) of the four sums, and tr(G X^T S X G X^T C X) of each statistic S and part C at once
-    tm, ts, tr, tg = (S.reshape(4, 49) @ G.reshape(49)).tolist()
-    parts = np.empty((3, 7, 7))  # the parts' sums X^T C X: corners, shift, size
-    parts[0], parts[1], parts[2] = XtX, 4.0 * S[0], S[3]
-    (t00, t01, t02), (t10, t11, t12), (t20, t21, t22) = (
-        (G @ S[:3] @ G).reshape(3, 49) @ parts.reshape(3, 49).T
-    ).tolist()
+    coef = G @ ZtZ[:7, 7]
+    w = np.empty(8)
+    w[:7], w[7] = -coef, 1.0
+    y = (S[:3] @ w) @ w  # the residuals' means, sizes and the rest: w^T S w
+    # sum(G * P) of the four sums, and tr(G X^T S X G X^T C X) of each statistic S and part C at once: the
+    # parts' sums X^T C X are XtX (the sum of the first three), 4 S[0] and S[3]
+    S7 = S[:, :7, :7].reshape(4, 49)
+    tm, ts, tr, tg = (S7 @ G.reshape(49)).tolist()
+    T = ((G @ S[:3, :7, :7] @ G).reshape(3, 49) @ S7.T).tolist()  # (3, 4): statistic by sum
+    (t00, t01, t02), (t10, t11, t12), (t20, t21, t22) = ((s0 + s1 + s2, 4.0 * s0, s3) for s0, s1, s2, s3 in T)
     # per statistic (rows: means, sizes, the rest) and part (columns: corners, shift, size): tr(S C)
     # - 2 sum(G * X^T S C X) + the third term, every S C one of the projections (or zero)
-    g2_sum = float(g2.sum())
+    g2_sum = float(ZtZ[6, 6])  # sum of |g_m|^2
     A = np.array(
         [
             [2.0 * M - 2.0 * tm + t00, 8.0 * M - 8.0 * tm + t01, t02],
@@ -141,7 +151,7 @@ def _measure_fast(
         ]
     )
     theta = nnls(A, y)[0] if a_given is None else np.r_[a_given, nnls(A[:, 1:], y - A[:, 0] * a_given)[0]]
-    return theta, float(coef[6]), _PartSums(parts[1, :6, :6], S[3, :6, :6], grow, h[:, :6])
+    return theta, float(coef[6]), _PartSums(4.0 * S[0, :6, :6], S[3, :6, :6], grow, hz[:, :6])
 
 
 def _satterthwaite_fast(
@@ -153,8 +163,8 @@ def _satterthwaite_fast(
     G = _inverse(JtJ)
     if G is None:
         return _noise._satterthwaite(J, sums.grow.reshape(-1, 4, 2), theta, nus), None  # (raises as it does)
-    GG = (G @ G).reshape(36)
-    v = [float(t) * float(GG @ K.reshape(36)) for t, K in zip(theta.tolist(), (JtJ, sums.K_S, sums.K_g))]
+    traces = np.array((JtJ, sums.K_S, sums.K_g)).reshape(3, 36) @ (G @ G).reshape(36)  # tr(G K G), one product
+    v = (theta * traces).tolist()
     den = sum(x * x / n for x, n in zip(v, nus.tolist()) if n > 0)
     return (sum(v) ** 2 / den if den > 0 else math.inf), G
 
@@ -175,9 +185,7 @@ def _pose_covariance_fast(
     cov = G @ (parts.a * JtJ + parts.b * K_S + parts.c * K_g) @ G
     if parts.size:
         d = G @ h.sum(axis=0)
-        cov = cov + np.outer(d, d) * parts.size**2
-    if parts.nu is not None:
-        cov = cov * _noise._inflation(round(parts.nu, 1))
-    if not np.isfinite(cov).all():
-        return None
-    return (cov + cov.T) / 2
+        cov = cov + d[:, None] * d * parts.size**2  # (np.outer's product, without its Python wrapper)
+    inflation = _noise._inflation(round(parts.nu, 1)) if parts.nu is not None else 1.0
+    cov = (cov + cov.T) * (0.5 * inflation)  # symmetric, widened for the estimate, in one pass
+    return cov if np.isfinite(cov).all() else None

@@ -23,6 +23,7 @@ from ._noise_fast import _pose_covariance_fast as _pose_covariance
 from ._observations import _UNCHECKED, _Candidate, _Obs
 from ._refine import _residuals
 from ._solvers import _solve
+from ._stats import _solve_each
 
 #: False-alarm probability of the test that rejects a marker (per marker tested): its 8
 #: residuals, predicted from the pose of the others, must have a Mahalanobis chi-square
@@ -92,8 +93,8 @@ def _deletion_q(obs: _Obs, best: _Candidate, camera: Camera) -> np.ndarray | Non
 
 def _marker_stats(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.ndarray, tuple] | None:
     """:func:`_deletion_q` (n,) and what :func:`_move_drop` needs too: the per-marker blocks ``J_k^T J_k``
-    (n, 6, 6) and ``J_k^T r_k`` (n, 6), ``J^T J``, ``J`` and ``r``; and, for :func:`_suspects`, the sum of
-    squares (n,) of each marker's corners predicted by the pose of the others, ``|(I - H_kk)^-1 r_k|^2`` (px^2).
+    (n, 6, 6) and ``J_k^T r_k`` (n, 6), ``J^T J``, ``J`` and ``r``; and, for :func:`_suspects`, each marker's
+    corners' residuals (n, 8) predicted by the pose of the others, ``(I - H_kk)^-1 r_k`` (px).
     None when the pose is not determined. Computed once per candidate pose (the screen, the test of a move
     and the choice of suspects all read it)."""
     if best.marker_stats is _UNCHECKED:
@@ -108,15 +109,16 @@ def _marker_stats_of(obs: _Obs, best: _Candidate, camera: Camera) -> tuple[np.nd
     Jb = J.reshape(n, 8, 6)
     Jt = Jb.transpose(0, 2, 1)
     rb = r.reshape(n, 8)
-    g = (Jt @ rb[..., None])[..., 0]  # (n, 6): J_k^T r_k
+    Jtr = Jt @ rb[..., None]  # (n, 6, 1): J_k^T r_k
+    g = Jtr[..., 0]
     JtJ = best.JtJ if best.JtJ is not None and J is best.J else J.T @ J  # LM's own, of this very J
     B = Jt @ Jb  # (n, 6, 6): J_k^T J_k
-    try:
-        x = np.linalg.solve(JtJ - B, g[..., None])[..., 0]
-    except np.linalg.LinAlgError:
+    x = _solve_each(JtJ - B, Jtr)  # (n, 6, 1): (the others' J^T J)^-1 J_k^T r_k
+    if x is None:
         return None
-    predicted = rb + (Jb @ x[..., None])[..., 0]  # (I - H_kk)^-1 r_k: marker k's residuals from the others
-    return (rb * rb).sum(axis=1) + (g * x).sum(axis=1), (B, g, JtJ, J, r, (predicted * predicted).sum(axis=1))
+    predicted = rb + (Jb @ x)[..., 0]  # (I - H_kk)^-1 r_k: marker k's residuals from the others
+    # Q_k = r_k^T (I - H_kk)^-1 r_k = r_k . predicted_k (= |r_k|^2 + g_k . x_k)
+    return (rb * predicted).sum(axis=1), (B, g, JtJ, J, r, predicted)
 
 
 def _move_drop(obs: _Obs, blocks: tuple, M: np.ndarray, Jtr: np.ndarray, k: int) -> float | None:
@@ -258,7 +260,7 @@ def _screen(obs: _Obs, best: _Candidate, camera: Camera, corner_sigma_px: float 
     hit = _most_displaced(obs, q, blocks, _displacement_limit(best.sse, n, corner_sigma_px))
     if hit is not None:
         return hit[0]
-    k = int(np.argmax(q))
+    k = int(q.argmax())
     if corner_sigma_px is not None:
         return k if whole else None
     return k if q[k] > _beta_isf(p_any / n, 4, (dof - 8) // 2) * best.sse else None
@@ -367,8 +369,8 @@ def _suspects(obs: _Obs, best: _Candidate, camera: Camera) -> list[int]:
     stats = _marker_stats(obs, best, camera)
     if stats is None:
         return list(range(n))
-    q, predicted_sq = stats[0], stats[1][5]
-    if not np.sqrt(predicted_sq.max() / 4) > 0.5 * OUTLIER_MIN_RMS_PX:
+    q, predicted = stats[0], stats[1][5]
+    if not np.sqrt((predicted * predicted).sum(axis=1).max() / 4) > 0.5 * OUTLIER_MIN_RMS_PX:
         return []
     if n <= _LEAVE_EACH_OUT:
         return list(range(n))

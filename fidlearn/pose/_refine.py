@@ -172,6 +172,8 @@ def refine_pose_lm(
 
 _ZERO3 = np.zeros(3)
 _ZERO31 = np.zeros((3, 1))
+_EYE6 = np.eye(6)
+_FLOOR6 = 1e-12 * _EYE6
 
 
 def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool, model: str = "pinhole"):
@@ -187,14 +189,24 @@ def _residuals(obj, img, K, dist, R_wc, C, with_jacobian: bool, model: str = "pi
 def _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian: bool = True, model: str = "pinhole"):
     """:func:`_residuals`, and the Jacobian (2N, 4 + len(dist)) on ``fx, fy, cx, cy`` and the distortion from
     the same projection (None without ``with_jacobian``)."""
+    r, J, jac = _projection(obj, img.reshape(-1), K, dist, R_wc, C, with_jacobian, model)
+    if jac is None:
+        return r, None, None
+    return r, J, jac[:, :8] if model == "fisheye" else jac[:, 6 : 10 + len(dist)]
+
+
+def _projection(obj, img_flat, K, dist, R_wc, C, with_jacobian: bool, model: str):
+    """:func:`_residuals` of the observed pixels ``img_flat`` (2N,) and the projection's whole Jacobian (OpenCV's
+    columns, the lens's among them; None without ``with_jacobian``): what a Levenberg-Marquardt step needs, the
+    lens's columns not cut out."""
     X_c = (obj - C) @ R_wc  # rows: R_cw @ (P - C) = R_wc^T (P - C)
     if model == "fisheye":  # cv2.fisheye's columns: f (2), c (2), k (4), rvec (3), tvec (3), skew (1)
         px, jac = cv2.fisheye.projectPoints(X_c.reshape(-1, 1, 3), _ZERO31, _ZERO31, K, dist)
-        pose_columns, lens_columns = jac[:, 8:14], jac[:, :8]
+        pose_columns = jac[:, 8:14]
     else:  # cv2.projectPoints' columns: rvec (3), tvec (3), f (2), c (2), dist
-        px, jac = cv2.projectPoints(X_c.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
-        pose_columns, lens_columns = jac[:, :6], jac[:, 6 : 10 + len(dist)]
-    r = img.reshape(-1) - px.reshape(-1)
+        px, jac = cv2.projectPoints(X_c, _ZERO3, _ZERO3, K, dist)  # (N, 3): N points, as (N, 1, 3) would be
+        pose_columns = jac[:, :6]
+    r = img_flat - px.reshape(-1)
     if not with_jacobian:
         return r, None, None
     # projectPoints' Jacobian at rvec = tvec = 0 is d(px)/d[w, t] for X_c -> X_c + w x X_c + t. Turning the
@@ -202,7 +214,7 @@ def _residuals_and_jacobians(obj, img, K, dist, R_wc, C, with_jacobian: bool = T
     # moving its centre by dC moves X_c by -R_cw dC. So J = jac[:, :6] @ diag(-R_cw, -R_cw): each row's two
     # triples times -R_cw, as one product.
     J = (pose_columns.reshape(-1, 3) @ -R_wc.T).reshape(-1, 6)
-    return r, J, lens_columns
+    return r, J, jac
 
 
 def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="pinhole"):
@@ -216,37 +228,39 @@ def _lm(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="p
 
 def _lm_full(obj, img, K, dist, R_wc, C, max_iterations=50, tol_sigma2=None, model="pinhole"):
     """:func:`_lm`, returning also the Jacobian (2N, 6) at the end: R_wc, C, sse, r, J, J^T J."""
-    r, J, _ = _residuals_and_jacobians(obj, img, K, dist, R_wc, C, True, model)
+    img = img.reshape(-1)
+    r, J, _ = _projection(obj, img, K, dist, R_wc, C, True, model)
     sse = float(r @ r)
     lam = 1e-4
     JtJ = J.T @ J
     g = J.T @ r
-    floor = np.maximum(JtJ.diagonal(), 1e-12)  # Marquardt's scale of the damping, per parameter
+    # Marquardt's scale of the damping, per parameter, max(JtJ_ii, 1e-12) on the diagonal (zeros elsewhere): the
+    # same sums as adding lam times it to JtJ's diagonal in place, in two numpy calls per step instead of five
+    D = np.maximum(JtJ * _EYE6, _FLOOR6)
     dof = max(len(r) - 6, 1)
     rel = _LM_TOL_SIGMA2 if tol_sigma2 is None else tol_sigma2
     for _ in range(max_iterations):
         # Stop when the next step would move the pose by less than about 0.03 sigma (its
         # squared length in sigma units below 1e-3, sigma estimated from the residuals).
         tol = max(_LM_TOL_PX2, rel * sse / dof)
-        A = JtJ.copy()
-        A.flat[::7] += lam * floor  # Marquardt: damp the diagonal
+        A = JtJ + lam * D  # Marquardt: damp the diagonal
         ok, step = cv2.solve(A, g.reshape(6, 1))  # (OpenCV's LU: a fifth of numpy's overhead on 6 x 6)
         if not ok:
             break  # singular: no step
-        predicted = float(step[:, 0] @ g)  # about twice the decrease a linear model expects
+        predicted = float(np.vdot(step, g))  # about twice the decrease a linear model expects
         if not predicted > tol:
             break  # converged: no step left worth taking
         dR, _ = cv2.Rodrigues(step[:3])
         R_new = dR @ R_wc
         C_new = C + step[3:, 0]
-        r_new, J_new, _ = _residuals_and_jacobians(obj, img, K, dist, R_new, C_new, True, model)
+        r_new, J_new, _ = _projection(obj, img, K, dist, R_new, C_new, True, model)
         sse_new = float(r_new @ r_new)
         if sse_new < sse:
             done = sse - sse_new <= tol
             R_wc, C, sse, r, J = R_new, C_new, sse_new, r_new, J_new
             JtJ = J.T @ J
             g = J.T @ r
-            floor = np.maximum(JtJ.diagonal(), 1e-12)
+            D = np.maximum(JtJ * _EYE6, _FLOOR6)
             lam = max(lam / 10, 1e-12)
             if done:
                 break

@@ -3,6 +3,7 @@ poses they give, ranked (refined by Levenberg-Marquardt, those a camera can have
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
@@ -40,8 +41,9 @@ _PLANAR_TOL_REL = 0.01
 _NEAR_PLANAR_REL = 0.1
 
 
-def _plane_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
-    """Thickness (mm), extent (mm), centroid (3,) and rotation (3, 3) whose 3rd row is the plane normal."""
+def _plane_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray]:
+    """Thickness (mm), extent (mm), centroid (3,), rotation (3, 3) whose 3rd row is the plane normal, and the
+    points in the plane's frame (N, 3), flattened onto it (z = 0: what IPPE takes)."""
     c = points.mean(axis=0)
     q = points - c
     _, s, vt = np.linalg.svd(q, full_matrices=False)
@@ -51,19 +53,21 @@ def _plane_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray
         vt[2] = -vt[2]
     thickness = float(np.abs(q @ vt[2]).max())
     extent = float(np.abs(q @ vt[0]).max()) * 2
-    return thickness, extent, c, vt
+    local = q @ vt.T
+    local[:, 2] = 0.0
+    return thickness, extent, c, vt, local
 
 
 _PLANE_CACHE: dict[bytes, tuple] = {}
 
 
-def _plane_fit_cached(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+def _plane_fit_cached(points: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_plane_fit`, remembered for the last few point sets (a map seen again and again)."""
     key = points.tobytes()
     hit = _PLANE_CACHE.get(key)
     if hit is None:
         hit = _plane_fit(points)
-        hit[2].flags.writeable = hit[3].flags.writeable = False
+        hit[2].flags.writeable = hit[3].flags.writeable = hit[4].flags.writeable = False
         if len(_PLANE_CACHE) >= 64:
             _PLANE_CACHE.pop(next(iter(_PLANE_CACHE)))
         _PLANE_CACHE[key] = hit
@@ -71,12 +75,13 @@ def _plane_fit_cached(points: np.ndarray) -> tuple[float, float, np.ndarray, np.
 
 
 def _from_R_t(obs: _Obs, camera: Camera, R_cw: np.ndarray, t: np.ndarray, sse: float | None = None) -> _Candidate:
-    """A candidate from T_camera_world's rotation (3, 3) and translation (3,), not refined.
+    """A candidate from T_camera_world's rotation (3, 3) and translation (3,) (float64, as the solvers give them),
+    not refined.
 
     With ``sse`` given (the solver's own reprojection error) the residuals are left for later.
     """
     R_wc = np.ascontiguousarray(R_cw.T)
-    C = -R_wc @ np.asarray(t, dtype=np.float64).reshape(3)
+    C = -R_wc @ t
     if sse is not None:
         return _Candidate(R_wc, C, float(sse), None)
     r, _ = _residuals(obs.obj, obs.img, camera.K, camera.dist, R_wc, C, False)
@@ -88,25 +93,28 @@ def _lm_candidate(obs: _Obs, camera: Camera, start: _Candidate) -> _Candidate:
     return _Candidate(R_wc, C, sse, r, True, JtJ, J)
 
 
+_solvepnp_flag = functools.lru_cache(maxsize=None)(_cv.solvepnp_flag)  # (looked up by name on every solve)
+
+
 def _generic(flag_name: str, obj: np.ndarray, img: np.ndarray, camera: Camera):
-    """``cv2.solvePnPGeneric``: a list of (R_cw (3, 3), t (3,), sse px^2, from the solver's reported RMS); empty
-    when the solver fails."""
+    """``cv2.solvePnPGeneric`` on float64 points ``obj`` (N, 3) and ``img`` (N, 2) (OpenCV reads them as the
+    (N, 1, 3) and (N, 1, 2) it documents): a list of (R_cw (3, 3), t (3,), sse px^2, from the solver's reported
+    RMS); empty when the solver fails."""
     try:
         n, rvecs, tvecs, rms = cv2.solvePnPGeneric(
-            np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3),
-            np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2),
+            obj,
+            img,
             camera.K,
             camera.dist,
-            flags=_cv.solvepnp_flag(flag_name),
+            flags=_solvepnp_flag(flag_name),
         )
     except cv2.error:
         return []
-    rms_list = np.asarray(rms, dtype=np.float64).reshape(-1).tolist() if rms is not None else []
+    rms_list = rms.ravel().tolist() if rms is not None else []
     out = []
-    for k, (r, t) in enumerate(list(zip(rvecs, tvecs))[:n]):
-        r = np.asarray(r, dtype=np.float64).reshape(3, 1)
-        t = np.asarray(t, dtype=np.float64).reshape(3)
-        if all(map(math.isfinite, r[:, 0].tolist() + t.tolist())):  # (on 6 numbers: a fifth of numpy's cost)
+    for k, (r, t) in enumerate(list(zip(rvecs, tvecs))[:n]):  # float64 arrays (3, 1) each
+        t = t.reshape(3)
+        if all(map(math.isfinite, r.ravel().tolist() + t.tolist())):  # (on 6 numbers: a fifth of numpy's cost)
             ok = k < len(rms_list) and math.isfinite(rms_list[k])
             sse = rms_list[k] ** 2 * _RMS_COORDS * len(obj) if ok else None
             out.append((cv2.Rodrigues(r)[0], t, sse))
@@ -144,10 +152,9 @@ def _solve_ippe_square(obs: _Obs, marker_map: MarkerMap, camera: Camera):
 
 
 def _solve_ippe(obs: _Obs, camera: Camera, plane) -> list:
-    """IPPE on the points flattened onto their best plane (IPPE refuses points even 1 mm off it)."""
-    _, _, c, vt = plane
-    local = (obs.obj - c) @ vt.T
-    local[:, 2] = 0.0
+    """IPPE on the points flattened onto their best plane (IPPE refuses points even 1 mm off it), ``plane``
+    :func:`_plane_fit`'s of ``obs.obj``."""
+    _, _, c, vt, local = plane
     # T_camera_world = T_camera_plane @ T_plane_world, T_plane_world = [vt, -vt c]
     out = []
     for R_cp, t_cp, sse in _generic("IPPE", local, obs.img, camera):
@@ -170,7 +177,7 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
         The solver's name, ``"+lm"`` appended when refined.
     """
     plane = _plane_fit_cached(obs.obj)
-    thickness, extent, _, _ = plane
+    thickness, extent = plane[:2]
     planar = thickness <= max(_PLANAR_TOL_MM, _PLANAR_TOL_REL * extent)
     if method == "auto":
         method_used, raw = _solve_auto(obs, marker_map, camera, plane, planar)
@@ -186,7 +193,7 @@ def _solve(obs: _Obs, marker_map: MarkerMap, camera: Camera, method: str, refine
 
 def _solve_auto(obs: _Obs, marker_map: MarkerMap, camera: Camera, plane, planar: bool) -> tuple[str, list]:
     """The solver the data call for (see the package's docstring) and its raw solutions (R_cw, t, sse)."""
-    thickness, extent, _, _ = plane
+    thickness, extent = plane[:2]
     if len(obs.ids) == 1:
         method_used, raw = "ippe_square", _with_sqpnp_if_off(obs, camera, _solve_ippe_square(obs, marker_map, camera))
     elif planar:
