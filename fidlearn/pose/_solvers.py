@@ -212,10 +212,10 @@ def _solve_auto(obs: _Obs, marker_map: MarkerMap, camera: Camera, plane, planar:
     return method_used, raw
 
 
-#: IPPE's best solution leaving more than this RMS (px, per coordinate) asks SQPnP too: well above a detector's
-#: noise (corners 1 px off leave IPPE's best about 1 px half the time, where SQPnP only finds the same minimum
-#: again), well below a pose that fits nothing.
-_IPPE_OFF_RMS_PX = 3.0
+#: IPPE's best solution leaving more than this RMS (px, per coordinate) asks SQPnP too. Corners 1 px off leave
+#: IPPE's best about 1 px half the time; at 3 px SQPnP's start was missed in some of those frames, where LM from it
+#: reaches a better minimum (poses up to 5.4 mm apart, and one wrong planar branch unflagged in 400 frames).
+_IPPE_OFF_RMS_PX = 1.0
 
 
 def _with_sqpnp_if_off(obs: _Obs, camera: Camera, raw: list) -> list:
