@@ -722,9 +722,9 @@ PLAN = ["plan", "map.json", "--camera", "camera.json", "--step-mm", "1000", "--h
     [
         (["--corner-sigma-px", "1e300"], "--corner-sigma-px 1e+300: give a positive number of pixels up to 100"),
         (["--marker-shift-px", "1e300"], "--marker-shift-px 1e+300: give a number of pixels, 0 or more, up to 100"),
-        (["--height-mm", "1e300"], "height_mm must be a finite number of mm, at most 1e+09"),
+        (["--height-mm", "1e300"], "--height-mm must be a finite number of mm, at most 1e+09"),
         (["--area", "0,0,1e300,1e300"], "area must be a finite number of mm, at most 1e+09"),
-        (["--step-mm", "1e-300", "--area", "100,-1000,3000,1000"], "more than 40000: use a larger step_mm"),
+        (["--step-mm", "1e-300", "--area", "100,-1000,3000,1000"], "more than 40000: use a larger --step-mm"),
         (["--look-at", "1e400,0,300"], "--look-at"),
     ],
 )
